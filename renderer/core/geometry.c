@@ -1,0 +1,313 @@
+/* Tessellation and world-space transformation of scene shapes; mesh files import through assimp.
+ * Spheres stay analytic: only their centre and radius are transformed. */
+#include "geometry.h"
+
+#include <assimp/cimport.h>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define PI 3.14159265358979323846
+
+/* Row-major 3x4 affine matrix: translate * Rz * Ry * Rx * scale. */
+typedef struct xform {
+  double m[3][4];
+  double n[3][3]; /* inverse transpose of the linear part, for normals */
+} xform;
+
+static void xform_from(const obs_transform *t, xform *x) {
+  double ax = t->rotate.x * PI / 180, ay = t->rotate.y * PI / 180, az = t->rotate.z * PI / 180;
+  double cx = cos(ax), sx = sin(ax), cy = cos(ay), sy = sin(ay), cz = cos(az), sz = sin(az);
+  double rx[3][3] = {{1, 0, 0}, {0, cx, -sx}, {0, sx, cx}};
+  double ry[3][3] = {{cy, 0, sy}, {0, 1, 0}, {-sy, 0, cy}};
+  double rz[3][3] = {{cz, -sz, 0}, {sz, cz, 0}, {0, 0, 1}};
+  double t1[3][3], r[3][3];
+  for (int i = 0; i < 3; i++)
+    for (int j = 0; j < 3; j++) {
+      t1[i][j] = 0;
+      for (int k = 0; k < 3; k++) t1[i][j] += ry[i][k] * rx[k][j];
+    }
+  for (int i = 0; i < 3; i++)
+    for (int j = 0; j < 3; j++) {
+      r[i][j] = 0;
+      for (int k = 0; k < 3; k++) r[i][j] += rz[i][k] * t1[k][j];
+    }
+  double s[3] = {t->scale.x, t->scale.y, t->scale.z};
+  double tr[3] = {t->translate.x, t->translate.y, t->translate.z};
+  for (int i = 0; i < 3; i++) {
+    for (int j = 0; j < 3; j++) {
+      x->m[i][j] = r[i][j] * s[j];
+      /* (R S)^-T = R S^-1; a zero scale collapses normals, which renormalising later repairs
+       * where it can (degenerate geometry is allowed and must stay finite). */
+      x->n[i][j] = s[j] != 0 ? r[i][j] / s[j] : 0;
+    }
+    x->m[i][3] = tr[i];
+  }
+}
+
+static void xform_point(const xform *x, const double p[3], double o[3]) {
+  for (int i = 0; i < 3; i++)
+    o[i] = x->m[i][0] * p[0] + x->m[i][1] * p[1] + x->m[i][2] * p[2] + x->m[i][3];
+}
+
+static int mesh_alloc(obs_mesh *m, size_t nverts, size_t ntris, int normals) {
+  memset(m, 0, sizeof *m);
+  m->pos = malloc(nverts * 3 * sizeof(float));
+  m->idx = malloc(ntris * 3 * sizeof(uint32_t));
+  m->nrm = normals ? malloc(nverts * 3 * sizeof(float)) : NULL;
+  m->nverts = nverts;
+  m->ntris = ntris;
+  if (!m->pos || !m->idx || (normals && !m->nrm)) {
+    free(m->pos);
+    free(m->idx);
+    free(m->nrm);
+    memset(m, 0, sizeof *m);
+    return OBS_ENOMEM;
+  }
+  return 0;
+}
+
+static void mesh_free(obs_mesh *m) {
+  free(m->pos);
+  free(m->idx);
+  free(m->nrm);
+  memset(m, 0, sizeof *m);
+}
+
+/* Applies the object's transform to an object-space mesh in place (positions kept in double until
+ * the final float store). */
+static void mesh_transform(obs_mesh *m, const obs_transform *t) {
+  if (!t->present) return;
+  xform x;
+  xform_from(t, &x);
+  for (size_t i = 0; i < m->nverts; i++) {
+    double p[3] = {m->pos[3 * i], m->pos[3 * i + 1], m->pos[3 * i + 2]}, o[3];
+    xform_point(&x, p, o);
+    for (int k = 0; k < 3; k++) m->pos[3 * i + k] = (float)o[k];
+    if (m->nrm) {
+      double n[3] = {m->nrm[3 * i], m->nrm[3 * i + 1], m->nrm[3 * i + 2]}, q[3];
+      for (int k = 0; k < 3; k++) q[k] = x.n[k][0] * n[0] + x.n[k][1] * n[1] + x.n[k][2] * n[2];
+      double l = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
+      for (int k = 0; k < 3; k++) m->nrm[3 * i + k] = l > 0 ? (float)(q[k] / l) : 0.0f;
+    }
+  }
+}
+
+static int mesh_from_vertices(const obs_vec3 *v, size_t nv, const uint32_t *tri, size_t nt,
+                              obs_mesh *m) {
+  if (mesh_alloc(m, nv, nt, 0)) return OBS_ENOMEM;
+  for (size_t i = 0; i < nv; i++) {
+    m->pos[3 * i] = (float)v[i].x;
+    m->pos[3 * i + 1] = (float)v[i].y;
+    m->pos[3 * i + 2] = (float)v[i].z;
+  }
+  memcpy(m->idx, tri, nt * 3 * sizeof(uint32_t));
+  return 0;
+}
+
+int obs_geometry_displaced_sphere(int s, obs_mesh *m) {
+  size_t ni = ((size_t)1 << s) + 1, nj = ((size_t)1 << (s - 1)) + 1;
+  size_t nverts = ni * nj, ntris = (size_t)1 << (2 * s);
+  if (mesh_alloc(m, nverts, ntris, 0)) return OBS_ENOMEM;
+  double *st = malloc(nj * 4 * sizeof(double)), *sp = malloc(ni * 4 * sizeof(double));
+  if (!st || !sp) {
+    free(st);
+    free(sp);
+    mesh_free(m);
+    return OBS_ENOMEM;
+  }
+  for (size_t j = 0; j < nj; j++) {
+    double th = PI * (double)j / (double)(nj - 1);
+    st[4 * j] = sin(th);
+    st[4 * j + 1] = cos(th);
+    st[4 * j + 2] = sin(7 * th);
+    st[4 * j + 3] = sin(31 * th);
+  }
+  for (size_t i = 0; i < ni; i++) {
+    double ph = 2 * PI * (double)i / (double)(ni - 1);
+    sp[4 * i] = cos(ph);
+    sp[4 * i + 1] = sin(ph);
+    sp[4 * i + 2] = sin(9 * ph);
+    sp[4 * i + 3] = cos(27 * ph);
+  }
+  for (size_t j = 0; j < nj; j++)
+    for (size_t i = 0; i < ni; i++) {
+      double r = 1 + 0.15 * st[4 * j + 2] * sp[4 * i + 2] + 0.05 * st[4 * j + 3] * sp[4 * i + 3];
+      float *p = m->pos + 3 * (j * ni + i);
+      p[0] = (float)(r * st[4 * j] * sp[4 * i]);
+      p[1] = (float)(r * st[4 * j + 1]);
+      p[2] = (float)(r * st[4 * j] * sp[4 * i + 1]);
+    }
+  free(st);
+  free(sp);
+  uint32_t *t = m->idx;
+  for (size_t j = 0; j + 1 < nj; j++)
+    for (size_t i = 0; i + 1 < ni; i++) {
+      uint32_t a = (uint32_t)(j * ni + i), b = a + 1, c = (uint32_t)(a + ni), d = c + 1;
+      t[0] = a, t[1] = c, t[2] = b;
+      t[3] = b, t[4] = c, t[5] = d;
+      t += 6;
+    }
+  return 0;
+}
+
+static int import_mesh(const obs_scene *sc, size_t oi, obs_mesh *m, obs_err *err) {
+  const obs_object *o = &sc->objects[oi];
+  const struct aiScene *as =
+      aiImportFile(o->mesh_path, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
+                                     aiProcess_PreTransformVertices | aiProcess_SortByPType);
+  if (!as)
+    return obs_err_set(err, OBS_EINVAL, "%s: /objects/%zu/shape/file: cannot import mesh: %s",
+                       sc->name, oi, aiGetErrorString());
+  size_t nv = 0, nt = 0;
+  int all_normals = 1;
+  for (unsigned i = 0; i < as->mNumMeshes; i++) {
+    const struct aiMesh *am = as->mMeshes[i];
+    if (!(am->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
+    nv += am->mNumVertices;
+    for (unsigned f = 0; f < am->mNumFaces; f++) nt += am->mFaces[f].mNumIndices == 3;
+    all_normals &= am->mNormals != NULL;
+  }
+  if (nt == 0 || nv > UINT32_MAX) {
+    aiReleaseImport(as);
+    return obs_err_set(err, OBS_EINVAL, "%s: /objects/%zu/shape/file: mesh has no triangles",
+                       sc->name, oi);
+  }
+  if (mesh_alloc(m, nv, nt, all_normals)) {
+    aiReleaseImport(as);
+    return obs_err_set(err, OBS_ENOMEM, "%s: /objects/%zu: out of memory for mesh", sc->name, oi);
+  }
+  size_t vbase = 0, t = 0;
+  for (unsigned i = 0; i < as->mNumMeshes; i++) {
+    const struct aiMesh *am = as->mMeshes[i];
+    if (!(am->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
+    for (unsigned v = 0; v < am->mNumVertices; v++) {
+      float *p = m->pos + 3 * (vbase + v);
+      p[0] = am->mVertices[v].x;
+      p[1] = am->mVertices[v].y;
+      p[2] = am->mVertices[v].z;
+      if (m->nrm) {
+        float *n = m->nrm + 3 * (vbase + v);
+        n[0] = am->mNormals[v].x;
+        n[1] = am->mNormals[v].y;
+        n[2] = am->mNormals[v].z;
+      }
+    }
+    for (unsigned f = 0; f < am->mNumFaces; f++) {
+      const struct aiFace *fc = &am->mFaces[f];
+      if (fc->mNumIndices != 3) continue;
+      for (int k = 0; k < 3; k++) m->idx[3 * t + k] = (uint32_t)(vbase + fc->mIndices[k]);
+      t++;
+    }
+    vbase += am->mNumVertices;
+  }
+  aiReleaseImport(as);
+  /* Files may carry non-finite coordinates; drop them to the origin rather than poison the BVH. */
+  for (size_t i = 0; i < 3 * nv; i++) {
+    if (!isfinite(m->pos[i])) m->pos[i] = 0.0f;
+    if (m->nrm && !isfinite(m->nrm[i])) m->nrm[i] = 0.0f;
+  }
+  return 0;
+}
+
+static int build_object(const obs_scene *sc, size_t oi, obs_mesh *m, obs_err *err) {
+  const obs_object *o = &sc->objects[oi];
+  static const uint32_t quad[6] = {0, 1, 2, 0, 2, 3}, tri[3] = {0, 1, 2};
+  static const uint32_t box[36] = {0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4,
+                                   3, 7, 6, 3, 6, 2, 0, 4, 7, 0, 7, 3, 1, 2, 6, 1, 6, 5};
+  int rc = 0;
+  switch (o->shape) {
+    case OBS_SHAPE_QUAD: rc = mesh_from_vertices(o->v, 4, quad, 2, m); break;
+    case OBS_SHAPE_TRIANGLE: rc = mesh_from_vertices(o->v, 3, tri, 1, m); break;
+    case OBS_SHAPE_BOX: {
+      obs_vec3 a = o->v[0], b = o->v[1];
+      obs_vec3 c[8] = {{a.x, a.y, a.z}, {b.x, a.y, a.z}, {b.x, b.y, a.z}, {a.x, b.y, a.z},
+                       {a.x, a.y, b.z}, {b.x, a.y, b.z}, {b.x, b.y, b.z}, {a.x, b.y, b.z}};
+      rc = mesh_from_vertices(c, 8, box, 12, m);
+      break;
+    }
+    case OBS_SHAPE_DISPLACED_SPHERE: rc = obs_geometry_displaced_sphere(o->subdivisions, m); break;
+    case OBS_SHAPE_MESH:
+      if (import_mesh(sc, oi, m, err)) return OBS_EINVAL;
+      mesh_transform(m, &o->transform);
+      return 0;
+    default: return obs_err_set(err, OBS_EINTERNAL, "unexpected shape");
+  }
+  if (rc) return obs_err_set(err, rc, "%s: /objects/%zu: out of memory", sc->name, oi);
+  mesh_transform(m, &o->transform);
+  return 0;
+}
+
+static void grow_bounds(obs_geometry *g, const double p[3], int *first) {
+  for (int k = 0; k < 3; k++) {
+    if (*first || p[k] < g->bounds[0][k]) g->bounds[0][k] = p[k];
+    if (*first || p[k] > g->bounds[1][k]) g->bounds[1][k] = p[k];
+  }
+  *first = 0;
+}
+
+int obs_geometry_build(const obs_scene *sc, obs_geometry *g, obs_err *err) {
+  memset(g, 0, sizeof *g);
+  size_t nsph = 0, nmesh = 0;
+  for (size_t i = 0; i < sc->nobjects; i++) {
+    if (sc->objects[i].shape == OBS_SHAPE_SPHERE) nsph++;
+    else nmesh++;
+  }
+  g->meshes = calloc(nmesh ? nmesh : 1, sizeof *g->meshes);
+  g->spheres = calloc(nsph ? nsph : 1, sizeof *g->spheres);
+  if (!g->meshes || !g->spheres) {
+    obs_geometry_free(g);
+    return obs_err_set(err, OBS_ENOMEM, "%s: out of memory", sc->name);
+  }
+  int first = 1;
+  for (size_t i = 0; i < sc->nobjects; i++) {
+    const obs_object *o = &sc->objects[i];
+    if (o->shape == OBS_SHAPE_SPHERE) {
+      obs_sphere *s = &g->spheres[g->nspheres++];
+      double c[3] = {o->v[0].x, o->v[0].y, o->v[0].z};
+      s->radius = o->radius;
+      if (o->transform.present) {
+        xform x;
+        xform_from(&o->transform, &x);
+        xform_point(&x, c, s->center);
+        s->radius *= fabs(o->transform.scale.x);
+      } else {
+        memcpy(s->center, c, sizeof c);
+      }
+      s->object = i;
+      for (int k = 0; k < 2; k++) {
+        double p[3];
+        for (int a = 0; a < 3; a++) p[a] = s->center[a] + (k ? s->radius : -s->radius);
+        grow_bounds(g, p, &first);
+      }
+      continue;
+    }
+    obs_mesh *m = &g->meshes[g->nmeshes];
+    int rc = build_object(sc, i, m, err);
+    if (rc) {
+      obs_geometry_free(g);
+      return rc;
+    }
+    m->object = i;
+    g->nmeshes++;
+    g->ntris += m->ntris;
+    for (size_t v = 0; v < m->nverts; v++) {
+      double p[3] = {m->pos[3 * v], m->pos[3 * v + 1], m->pos[3 * v + 2]};
+      grow_bounds(g, p, &first);
+    }
+  }
+  for (int k = 0; k < 3; k++) {
+    double a = fmax(fabs(g->bounds[0][k]), fabs(g->bounds[1][k]));
+    if (a > g->extent) g->extent = a;
+  }
+  return 0;
+}
+
+void obs_geometry_free(obs_geometry *g) {
+  for (size_t i = 0; i < g->nmeshes; i++) mesh_free(&g->meshes[i]);
+  free(g->meshes);
+  free(g->spheres);
+  memset(g, 0, sizeof *g);
+}

@@ -1,0 +1,42 @@
+/* Scene shapes turned into what ray tracers and rasterisers consume: triangle meshes in world
+ * space (quads, boxes, triangles, displaced spheres, imported meshes) and analytic spheres. */
+#ifndef OBS_GEOMETRY_H
+#define OBS_GEOMETRY_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include "obscura/scene.h"
+
+typedef struct obs_mesh {
+  float *pos;      /* 3 floats per vertex, world space; owned */
+  float *nrm;      /* 3 floats per vertex (shading normals) or NULL; owned */
+  uint32_t *idx;   /* 3 indices per triangle; owned */
+  size_t nverts, ntris;
+  size_t object;   /* index into scene->objects */
+} obs_mesh;
+
+typedef struct obs_sphere {
+  double center[3];
+  double radius;
+  size_t object;
+} obs_sphere;
+
+/* World-space geometry of a whole scene. Owns everything inside. */
+typedef struct obs_geometry {
+  obs_mesh *meshes;
+  size_t nmeshes;
+  obs_sphere *spheres;
+  size_t nspheres;
+  size_t ntris;       /* total triangles */
+  double bounds[2][3];/* world bounds of everything (empty scene: zeros) */
+  double extent;      /* largest absolute coordinate of the bounds: the scene's scale */
+} obs_geometry;
+
+/* Builds world-space geometry for every object (importing mesh files through assimp). */
+int obs_geometry_build(const obs_scene *scene, obs_geometry *geo, obs_err *err);
+void obs_geometry_free(obs_geometry *geo);
+
+/* Fills a displaced_sphere of 2^(2s) triangles into `m` (object space, unit-ish radius). */
+int obs_geometry_displaced_sphere(int subdivisions, obs_mesh *m);
+
+#endif

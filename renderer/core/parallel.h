@@ -1,0 +1,20 @@
+/* Tile-parallel loops over an image: 32x32 tiles handed out dynamically to worker threads. */
+#ifndef OBS_PARALLEL_H
+#define OBS_PARALLEL_H
+
+#include <stdatomic.h>
+
+#define OBS_TILE 32
+
+/* Renders pixels [x0,x1) x [y0,y1); `thread` in [0, threads). Returns 0 or a negative code,
+ * which stops the loop. */
+typedef int (*obs_tile_fn)(void *user, int thread, int x0, int y0, int x1, int y1);
+
+/* Runs fn over every tile with `threads` threads (the caller's thread is one of them). Stops
+ * between tiles when *cancel becomes nonzero (returns OBS_ECANCELED) or fn fails (returns its
+ * code). progress (may be NULL) receives the completed fraction after each tile. */
+int obs_parallel_tiles(int width, int height, int threads, obs_tile_fn fn, void *user,
+                       const atomic_int *cancel, void (*progress)(void *, double),
+                       void *progress_user);
+
+#endif

@@ -1,0 +1,141 @@
+/* Running a scene's technique on a backend, and writing its images and summary. */
+#include "obscura/render.h"
+
+#include <errno.h>
+#include <jansson.h>
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+double obs_now_ms(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
+}
+
+int obs_cpu_count(void) {
+  long n = sysconf(_SC_NPROCESSORS_ONLN);
+  return n > 0 ? (int)n : 1;
+}
+
+int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *res,
+               obs_err *err) {
+  memset(res, 0, sizeof *res);
+  if (!scene || !scene->technique)
+    return obs_err_set(err, OBS_EINVAL, "render: no loaded scene");
+  obs_backend be;
+  int rc = obs_technique_pick_backend(scene->technique, scene->backend, &be, err);
+  if (rc) return rc;
+  obs_render_ctx ctx;
+  memset(&ctx, 0, sizeof ctx);
+  ctx.scene = scene;
+  ctx.params = scene->params;
+  ctx.threads = opts && opts->threads > 0 ? opts->threads : obs_cpu_count();
+  if (opts) {
+    ctx.progress = opts->progress;
+    ctx.progress_user = opts->progress_user;
+    ctx.cancel = opts->cancel;
+  }
+  double t0 = obs_now_ms();
+  rc = scene->technique->run[be](&ctx, &res->image, err);
+  if (rc) return rc;
+  res->technique = scene->technique;
+  res->backend = be;
+  res->rays = ctx.rays;
+  res->threads = ctx.threads;
+  res->timings.build_ms = ctx.build_ms;
+  res->timings.render_ms = ctx.render_ms;
+  res->timings.total_ms = obs_now_ms() - t0;
+  return 0;
+}
+
+void obs_result_free(obs_result *res) {
+  if (!res) return;
+  obs_image_free(&res->image);
+  memset(res, 0, sizeof *res);
+}
+
+json_t *obs_result_summary_json(const obs_result *r, const obs_scene *sc) {
+  json_t *o = json_object();
+  json_object_set_new(o, "scene", json_string(sc->name));
+  json_object_set_new(o, "technique", json_string(r->technique->name));
+  json_object_set_new(o, "backend", json_string(obs_backend_name(r->backend)));
+  json_object_set_new(o, "width", json_integer(r->image.width));
+  json_object_set_new(o, "height", json_integer(r->image.height));
+  json_object_set_new(o, "spp", json_integer(sc->spp));
+  json_t *samples = json_object_get(sc->params, "samples");
+  json_object_set_new(o, "samples", samples ? json_copy(samples) : json_null());
+  json_object_set_new(o, "params", json_deep_copy(sc->params));
+  json_object_set_new(o, "threads", json_integer(r->threads));
+  json_t *t = json_object();
+  json_object_set_new(t, "load", json_real(r->timings.load_ms));
+  json_object_set_new(t, "build", json_real(r->timings.build_ms));
+  json_object_set_new(t, "render", json_real(r->timings.render_ms));
+  json_object_set_new(t, "write", json_real(r->timings.write_ms));
+  json_object_set_new(t, "total", json_real(r->timings.total_ms));
+  json_object_set_new(o, "timings_ms", t);
+  json_object_set_new(o, "rays", json_integer((json_int_t)r->rays));
+  double secs = r->timings.render_ms / 1e3;
+  json_object_set_new(o, "rays_per_second", json_real(secs > 0 ? (double)r->rays / secs : 0));
+  obs_stats st;
+  int64_t nonfinite = 0;
+  for (int c = 0; c < r->image.nchannels; c++) {
+    if (obs_metrics_stats(&r->image, r->image.names[c], NULL, &st, NULL) == 0)
+      nonfinite += st.nan_count + st.inf_count;
+  }
+  if (obs_metrics_stats(&r->image, "ao", NULL, &st, NULL) == 0) {
+    json_t *a = json_object();
+    json_object_set_new(a, "mean", json_real(st.mean));
+    json_object_set_new(a, "min", json_real(st.min));
+    json_object_set_new(a, "max", json_real(st.max));
+    json_object_set_new(o, "ao", a);
+  }
+  if (obs_image_channel(&r->image, "ao_stderr") &&
+      obs_metrics_stats(&r->image, "ao_stderr", "alpha", &st, NULL) == 0)
+    json_object_set_new(o, "ao_stderr_mean", json_real(st.mean));
+  json_object_set_new(o, "nan_count", json_integer(nonfinite));
+  return o;
+}
+
+static int mkdir_p(const char *dir, obs_err *err) {
+  char buf[4096];
+  if (snprintf(buf, sizeof buf, "%s", dir) >= (int)sizeof buf)
+    return obs_err_set(err, OBS_EINVAL, "%s: output path too long", dir);
+  for (char *p = buf + 1;; p++) {
+    if (*p == '/' || *p == '\0') {
+      char c = *p;
+      *p = '\0';
+      if (mkdir(buf, 0755) && errno != EEXIST)
+        return obs_err_set(err, OBS_EIO, "%s: cannot create directory: %s", buf, strerror(errno));
+      *p = c;
+      if (!c) break;
+    }
+  }
+  return 0;
+}
+
+int obs_result_write(obs_result *r, const obs_scene *sc, const char *dir, obs_err *err) {
+  double t0 = obs_now_ms();
+  int rc = mkdir_p(dir, err);
+  if (rc) return rc;
+  char path[4200];
+  snprintf(path, sizeof path, "%s/ao.exr", dir);
+  if ((rc = obs_image_write_exr(&r->image, path, err))) return rc;
+  snprintf(path, sizeof path, "%s/ao.png", dir);
+  const char *ch[] = {"ao"};
+  if ((rc = obs_image_write_png(&r->image, ch, 1, 0, path, err))) return rc;
+  r->timings.write_ms = obs_now_ms() - t0;
+  r->timings.total_ms += r->timings.write_ms;
+  json_t *sum = obs_result_summary_json(r, sc);
+  snprintf(path, sizeof path, "%s/summary.json.tmp", dir);
+  char final[4200];
+  snprintf(final, sizeof final, "%s/summary.json", dir);
+  rc = json_dump_file(sum, path, JSON_INDENT(2) | JSON_REAL_PRECISION(9));
+  json_decref(sum);
+  if (rc || rename(path, final))
+    return obs_err_set(err, OBS_EIO, "%s: cannot write summary", final);
+  return 0;
+}

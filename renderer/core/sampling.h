@@ -1,0 +1,68 @@
+/* Deterministic sample generation: every value depends only on (pixel, sample index, seed), so
+ * images are bit-identical whatever the thread count or tile order. */
+#ifndef OBS_SAMPLING_H
+#define OBS_SAMPLING_H
+
+#include <math.h>
+#include <stdint.h>
+
+typedef enum { OBS_SAMPLER_SOBOL, OBS_SAMPLER_HALTON, OBS_SAMPLER_RANDOM } obs_sampler_kind;
+
+/* 32-bit integer hash with good avalanche (Wellons' lowbias32). */
+static inline uint32_t obs_hash32(uint32_t x) {
+  x ^= x >> 16;
+  x *= 0x7feb352dU;
+  x ^= x >> 15;
+  x *= 0x846ca68bU;
+  x ^= x >> 16;
+  return x;
+}
+
+static inline uint32_t obs_hash_combine(uint32_t a, uint32_t b) {
+  return obs_hash32(a ^ (b + 0x9e3779b9U + (a << 6) + (a >> 2)));
+}
+
+/* [0,1) from the top 24 bits: exactly representable, never 1. */
+static inline float obs_u32_to_unit(uint32_t x) { return (float)(x >> 8) * 0x1p-24f; }
+
+/* Per-pixel-sample stream of 2D points. */
+typedef struct obs_sampler2d {
+  obs_sampler_kind kind;
+  uint32_t scramble0, scramble1; /* per-stream seeds */
+} obs_sampler2d;
+
+/* Seeds the stream for pixel (x, y), pixel sample s, stream id `stream` and the user's seed. */
+void obs_sampler2d_init(obs_sampler2d *s, obs_sampler_kind kind, uint32_t x, uint32_t y,
+                        uint32_t pixel_sample, uint32_t stream, uint32_t seed);
+/* The i-th point of the stream in [0,1)^2. */
+void obs_sampler2d_get(const obs_sampler2d *s, uint32_t i, float *u, float *v);
+
+/* Directions about +z: cosine-weighted (pdf cos/pi) and uniform (pdf 1/2pi) hemisphere. */
+static inline void obs_sample_cosine(float u, float v, float d[3]) {
+  float r = sqrtf(u), phi = 6.28318530717958647692f * v;
+  d[0] = r * cosf(phi);
+  d[1] = r * sinf(phi);
+  d[2] = sqrtf(fmaxf(0.0f, 1.0f - u));
+}
+
+static inline void obs_sample_uniform(float u, float v, float d[3]) {
+  float z = u, r = sqrtf(fmaxf(0.0f, 1.0f - z * z)), phi = 6.28318530717958647692f * v;
+  d[0] = r * cosf(phi);
+  d[1] = r * sinf(phi);
+  d[2] = z;
+}
+
+/* Orthonormal basis (t, b) around unit n (Duff et al. 2017), branchless and stable. */
+static inline void obs_onb(const float n[3], float t[3], float b[3]) {
+  float sign = copysignf(1.0f, n[2]);
+  float a = -1.0f / (sign + n[2]);
+  float c = n[0] * n[1] * a;
+  t[0] = 1.0f + sign * n[0] * n[0] * a;
+  t[1] = sign * c;
+  t[2] = -sign * n[0];
+  b[0] = c;
+  b[1] = sign + n[1] * n[1] * a;
+  b[2] = -n[1];
+}
+
+#endif

@@ -1,0 +1,643 @@
+/* Strict loading of scene documents: parse, apply overrides, validate every rule, fill obs_scene. */
+#include "obscura/scene.h"
+
+#include <jansson.h>
+#include <limits.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <sys/stat.h>
+
+#include "json_util.h"
+#include "obscura/technique.h"
+
+#define COORD_MAX 1e30
+
+static char *xstrdup(const char *s) {
+  size_t n = strlen(s) + 1;
+  char *d = malloc(n);
+  if (d) memcpy(d, s, n);
+  return d;
+}
+
+static void set_vec(obs_vec3 *v, const double a[3]) {
+  v->x = a[0];
+  v->y = a[1];
+  v->z = a[2];
+}
+
+/* ---- camera ------------------------------------------------------------------------------- */
+
+static void load_camera(obs_jpath *p, const json_t *doc, obs_camera *cam) {
+  json_t *c = obs_json_get_object(p, doc, "camera", 1, NULL);
+  if (!c) return;
+  size_t m = obs_jpath_push_key(p, "camera");
+  static const char *const types[] = {"perspective", "orthographic", NULL};
+  const char *type = NULL;
+  obs_json_get_string(p, c, "type", 1, types, &type);
+  int ortho = type && !strcmp(type, "orthographic");
+  static const char *const keys_p[] = {"type", "position", "look_at", "up", "fov_y", NULL};
+  static const char *const keys_o[] = {"type", "position", "look_at", "up", "height", NULL};
+  static const char *const keys_any[] = {"type", "position", "look_at", "up", "fov_y", "height",
+                                         NULL};
+  obs_json_check_keys(p, c, !type ? keys_any : ortho ? keys_o : keys_p);
+  double pos[3] = {0, 0, 0}, at[3] = {0, 0, 1}, up[3] = {0, 1, 0};
+  int bad = 0;
+  bad |= obs_json_get_vec3(p, c, "position", 1, -COORD_MAX, COORD_MAX, pos) < 0;
+  bad |= obs_json_get_vec3(p, c, "look_at", 1, -COORD_MAX, COORD_MAX, at) < 0;
+  bad |= obs_json_get_vec3(p, c, "up", 0, -COORD_MAX, COORD_MAX, up) < 0;
+  cam->type = ortho ? OBS_CAMERA_ORTHOGRAPHIC : OBS_CAMERA_PERSPECTIVE;
+  if (type && !ortho) obs_json_get_number(p, c, "fov_y", 1, 0, 180, 1, 1, &cam->fov_y);
+  if (type && ortho) obs_json_get_number(p, c, "height", 1, 0, COORD_MAX, 1, 0, &cam->height);
+  set_vec(&cam->position, pos);
+  set_vec(&cam->look_at, at);
+  set_vec(&cam->up, up);
+  if (!bad) {
+    double d[3] = {at[0] - pos[0], at[1] - pos[1], at[2] - pos[2]};
+    double dl = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    double ul = sqrt(up[0] * up[0] + up[1] * up[1] + up[2] * up[2]);
+    double cx = d[1] * up[2] - d[2] * up[1], cy = d[2] * up[0] - d[0] * up[2],
+           cz = d[0] * up[1] - d[1] * up[0];
+    double cl = sqrt(cx * cx + cy * cy + cz * cz);
+    size_t mk;
+    if (!(dl > 0) || !isfinite(dl)) {
+      mk = obs_jpath_push_key(p, "look_at");
+      obs_jpath_fail(p, "must differ from /camera/position (got %s)",
+                     obs_json_brief(json_object_get(c, "look_at")));
+      obs_jpath_pop(p, mk);
+    } else if (!(ul > 0) || !(cl > 1e-9 * dl * ul) || !isfinite(cl)) {
+      mk = obs_jpath_push_key(p, "up");
+      obs_jpath_fail(p, "must not be zero or parallel to the view direction (got %s)",
+                     json_object_get(c, "up") ? obs_json_brief(json_object_get(c, "up"))
+                                               : "default [0,1,0]");
+      obs_jpath_pop(p, mk);
+    }
+  }
+  obs_jpath_pop(p, m);
+}
+
+/* ---- objects ------------------------------------------------------------------------------ */
+
+static int is_inside(const char *dir, const char *path) {
+  size_t n = strlen(dir);
+  if (strncmp(dir, path, n) != 0) return 0;
+  return path[n] == '/' || (n > 0 && dir[n - 1] == '/');
+}
+
+static void load_mesh_file(obs_jpath *p, const json_t *shape, const char *base_dir,
+                           obs_object *o) {
+  const char *file = NULL;
+  if (obs_json_get_string(p, shape, "file", 1, NULL, &file) || !file) return;
+  size_t m = obs_jpath_push_key(p, "file");
+  const char *ext = strrchr(file, '.');
+  static const char *const exts[] = {".obj", ".ply", ".gltf", ".glb", ".stl", NULL};
+  int ext_ok = 0;
+  for (const char *const *e = exts; ext && *e; e++) ext_ok |= !strcasecmp(ext, *e);
+  char joined[PATH_MAX + 2], real_base[PATH_MAX], real_file[PATH_MAX];
+  if (!*file || strlen(file) > 4096) {
+    obs_jpath_fail(p, "must be a relative path of 1 to 4096 characters (got %s)",
+                   obs_json_brief(json_object_get(shape, "file")));
+  } else if (file[0] == '/') {
+    obs_jpath_fail(p, "must be relative to the scene file, not absolute (got \"%s\")", file);
+  } else if (!ext_ok) {
+    obs_jpath_fail(p, "must name a .obj, .ply, .gltf, .glb or .stl file (got \"%s\")", file);
+  } else if (!base_dir) {
+    obs_jpath_fail(p, "mesh files need a scene directory to resolve against (got \"%s\")", file);
+  } else if (!realpath(base_dir, real_base)) {
+    obs_jpath_fail(p, "scene directory cannot be resolved (got \"%s\")", base_dir);
+  } else if ((size_t)snprintf(joined, sizeof joined, "%s/%s", real_base, file) >= sizeof joined) {
+    obs_jpath_fail(p, "path too long (got \"%s\")", file);
+  } else if (!realpath(joined, real_file)) {
+    obs_jpath_fail(p, "file not found (got \"%s\")", file);
+  } else if (!is_inside(real_base, real_file)) {
+    obs_jpath_fail(p, "must stay inside the scene's directory tree (got \"%s\")", file);
+  } else {
+    struct stat st;
+    if (stat(real_file, &st) || !S_ISREG(st.st_mode)) {
+      obs_jpath_fail(p, "is not a regular file (got \"%s\")", file);
+    } else {
+      o->mesh_path = xstrdup(real_file);
+    }
+  }
+  obs_jpath_pop(p, m);
+}
+
+static void load_vertices(obs_jpath *p, const json_t *shape, size_t n, obs_object *o) {
+  json_t *a = obs_json_get_array(p, shape, "vertices", 1, NULL);
+  if (!a) return;
+  size_t m = obs_jpath_push_key(p, "vertices");
+  if (json_array_size(a) != n) {
+    obs_jpath_fail(p, "must have exactly %zu vertices (got %zu)", n, json_array_size(a));
+  } else {
+    /* Wrap each vertex so the vec3 getter reports /vertices/<i>. */
+    for (size_t i = 0; i < n; i++) {
+      char key[8];
+      snprintf(key, sizeof key, "%zu", i);
+      json_t *wrap = json_object();
+      json_object_set(wrap, key, json_array_get(a, i));
+      double v[3] = {0, 0, 0};
+      obs_json_get_vec3(p, wrap, key, 1, -COORD_MAX, COORD_MAX, v);
+      set_vec(&o->v[i], v);
+      json_decref(wrap);
+    }
+  }
+  obs_jpath_pop(p, m);
+}
+
+static void load_shape(obs_jpath *p, const json_t *obj, const char *base_dir, obs_object *o) {
+  json_t *s = obs_json_get_object(p, obj, "shape", 1, NULL);
+  if (!s) return;
+  size_t m = obs_jpath_push_key(p, "shape");
+  static const char *const types[] = {"quad", "triangle", "sphere", "box", "mesh",
+                                      "displaced_sphere", NULL};
+  const char *type = NULL;
+  if (obs_json_get_string(p, s, "type", 1, types, &type) || !type) {
+    obs_jpath_pop(p, m);
+    return;
+  }
+  double a[3] = {0, 0, 0}, b[3] = {0, 0, 0};
+  if (!strcmp(type, "quad") || !strcmp(type, "triangle")) {
+    int quad = type[0] == 'q';
+    o->shape = quad ? OBS_SHAPE_QUAD : OBS_SHAPE_TRIANGLE;
+    static const char *const k[] = {"type", "vertices", NULL};
+    obs_json_check_keys(p, s, k);
+    load_vertices(p, s, quad ? 4 : 3, o);
+  } else if (!strcmp(type, "sphere")) {
+    o->shape = OBS_SHAPE_SPHERE;
+    static const char *const k[] = {"type", "center", "radius", NULL};
+    obs_json_check_keys(p, s, k);
+    obs_json_get_vec3(p, s, "center", 1, -COORD_MAX, COORD_MAX, a);
+    obs_json_get_number(p, s, "radius", 1, 0, COORD_MAX, 1, 0, &o->radius);
+    set_vec(&o->v[0], a);
+  } else if (!strcmp(type, "box")) {
+    o->shape = OBS_SHAPE_BOX;
+    static const char *const k[] = {"type", "min", "max", NULL};
+    obs_json_check_keys(p, s, k);
+    int bad = obs_json_get_vec3(p, s, "min", 1, -COORD_MAX, COORD_MAX, a) < 0;
+    bad |= obs_json_get_vec3(p, s, "max", 1, -COORD_MAX, COORD_MAX, b) < 0;
+    if (!bad && (a[0] > b[0] || a[1] > b[1] || a[2] > b[2])) {
+      size_t mk = obs_jpath_push_key(p, "max");
+      obs_jpath_fail(p, "must be >= /min in every component (got %s)",
+                     obs_json_brief(json_object_get(s, "max")));
+      obs_jpath_pop(p, mk);
+    }
+    set_vec(&o->v[0], a);
+    set_vec(&o->v[1], b);
+  } else if (!strcmp(type, "mesh")) {
+    o->shape = OBS_SHAPE_MESH;
+    static const char *const k[] = {"type", "file", NULL};
+    obs_json_check_keys(p, s, k);
+    load_mesh_file(p, s, base_dir, o);
+  } else {
+    o->shape = OBS_SHAPE_DISPLACED_SPHERE;
+    static const char *const k[] = {"type", "subdivisions", NULL};
+    obs_json_check_keys(p, s, k);
+    long long sub = 1;
+    obs_json_get_int(p, s, "subdivisions", 1, 1, 12, &sub);
+    o->subdivisions = (int)sub;
+  }
+  obs_jpath_pop(p, m);
+}
+
+static void load_transform(obs_jpath *p, const json_t *obj, obs_object *o) {
+  obs_transform *t = &o->transform;
+  double one[3] = {1, 1, 1}, zero[3] = {0, 0, 0};
+  set_vec(&t->scale, one);
+  set_vec(&t->rotate, zero);
+  set_vec(&t->translate, zero);
+  int absent = 0;
+  json_t *tr = obs_json_get_object(p, obj, "transform", 0, &absent);
+  if (!tr) return;
+  t->present = 1;
+  size_t m = obs_jpath_push_key(p, "transform");
+  static const char *const k[] = {"scale", "rotate", "translate", NULL};
+  obs_json_check_keys(p, tr, k);
+  double s[3] = {1, 1, 1}, r[3] = {0, 0, 0}, x[3] = {0, 0, 0};
+  int bad = obs_json_get_vec3(p, tr, "scale", 0, -COORD_MAX, COORD_MAX, s) < 0;
+  obs_json_get_vec3(p, tr, "rotate", 0, -1e6, 1e6, r);
+  obs_json_get_vec3(p, tr, "translate", 0, -COORD_MAX, COORD_MAX, x);
+  set_vec(&t->scale, s);
+  set_vec(&t->rotate, r);
+  set_vec(&t->translate, x);
+  /* Spheres stay analytic, so only a uniform scale keeps them spheres. */
+  if (!bad && o->shape == OBS_SHAPE_SPHERE &&
+      !(fabs(s[0]) == fabs(s[1]) && fabs(s[1]) == fabs(s[2]))) {
+    size_t mk = obs_jpath_push_key(p, "scale");
+    obs_jpath_fail(p, "must be uniform for a sphere, which stays analytic (got %s)",
+                   obs_json_brief(json_object_get(tr, "scale")));
+    obs_jpath_pop(p, mk);
+  }
+  obs_jpath_pop(p, m);
+}
+
+static void load_objects(obs_jpath *p, const json_t *doc, const char *base_dir, obs_scene *sc) {
+  json_t *arr = obs_json_get_array(p, doc, "objects", 1, NULL);
+  if (!arr) return;
+  size_t m = obs_jpath_push_key(p, "objects");
+  size_t n = json_array_size(arr);
+  if (n > 100000) {
+    obs_jpath_fail(p, "must have at most 100000 objects (got %zu)", n);
+    obs_jpath_pop(p, m);
+    return;
+  }
+  sc->objects = calloc(n ? n : 1, sizeof *sc->objects);
+  if (!sc->objects) {
+    obs_err_set(p->err, OBS_ENOMEM, "%s: out of memory", p->doc);
+    obs_jpath_pop(p, m);
+    return;
+  }
+  sc->nobjects = n;
+  for (size_t i = 0; i < n; i++) {
+    json_t *o = json_array_get(arr, i);
+    obs_object *ob = &sc->objects[i];
+    size_t mi = obs_jpath_push_index(p, i);
+    if (!json_is_object(o)) {
+      obs_jpath_fail(p, "must be an object (got %s)", obs_json_brief(o));
+      obs_jpath_pop(p, mi);
+      continue;
+    }
+    static const char *const k[] = {"name", "shape", "material", "transform", NULL};
+    obs_json_check_keys(p, o, k);
+    const char *name = NULL;
+    char defname[32];
+    if (obs_json_get_string(p, o, "name", 0, NULL, &name) == 0 && name) {
+      size_t len = 0; /* code points, as JSON Schema counts them */
+      for (const unsigned char *c = (const unsigned char *)name; *c; c++) len += (*c & 0xC0) != 0x80;
+      if (len < 1 || len > 128) {
+        size_t mk = obs_jpath_push_key(p, "name");
+        obs_jpath_fail(p, "must be 1 to 128 characters long (got %zu)", len);
+        obs_jpath_pop(p, mk);
+      }
+    } else {
+      snprintf(defname, sizeof defname, "object%zu", i);
+      name = defname;
+    }
+    ob->name = xstrdup(name);
+    load_shape(p, o, base_dir, ob);
+    load_transform(p, o, ob);
+    int absent = 0;
+    json_t *mat = obs_json_get_object(p, o, "material", 0, &absent);
+    if (mat) {
+      size_t mk = obs_jpath_push_key(p, "material");
+      static const char *const km[] = {"reflectivity", NULL};
+      obs_json_check_keys(p, mat, km);
+      double r[3] = {0, 0, 0};
+      if (obs_json_get_vec3(p, mat, "reflectivity", 1, 0, 1, r) == 0) ob->has_material = 1;
+      set_vec(&ob->reflectivity, r);
+      obs_jpath_pop(p, mk);
+    }
+    obs_jpath_pop(p, mi);
+  }
+  obs_jpath_pop(p, m);
+}
+
+static void load_lights(obs_jpath *p, const json_t *doc, obs_scene *sc) {
+  int absent = 0;
+  json_t *arr = obs_json_get_array(p, doc, "lights", 0, &absent);
+  if (!arr) return;
+  size_t m = obs_jpath_push_key(p, "lights");
+  size_t n = json_array_size(arr);
+  sc->lights = calloc(n ? n : 1, sizeof *sc->lights);
+  sc->nlights = sc->lights ? n : 0;
+  for (size_t i = 0; i < sc->nlights; i++) {
+    json_t *l = json_array_get(arr, i);
+    size_t mi = obs_jpath_push_index(p, i);
+    if (!json_is_object(l)) {
+      obs_jpath_fail(p, "must be an object (got %s)", obs_json_brief(l));
+    } else {
+      static const char *const k[] = {"type", "vertices", "emission", NULL};
+      static const char *const types[] = {"quad", NULL};
+      obs_json_check_keys(p, l, k);
+      const char *t = NULL;
+      obs_json_get_string(p, l, "type", 1, types, &t);
+      obs_object tmp;
+      memset(&tmp, 0, sizeof tmp);
+      load_vertices(p, l, 4, &tmp);
+      memcpy(sc->lights[i].v, tmp.v, sizeof tmp.v);
+      double e[3] = {0, 0, 0};
+      obs_json_get_vec3(p, l, "emission", 1, 0, COORD_MAX, e);
+      set_vec(&sc->lights[i].emission, e);
+    }
+    obs_jpath_pop(p, mi);
+  }
+  obs_jpath_pop(p, m);
+}
+
+static void load_environment(obs_jpath *p, const json_t *doc, obs_scene *sc) {
+  int absent = 0;
+  json_t *env = obs_json_get_object(p, doc, "environment", 0, &absent);
+  if (!env) return;
+  size_t m = obs_jpath_push_key(p, "environment");
+  static const char *const k[] = {"color", NULL};
+  obs_json_check_keys(p, env, k);
+  double c[3] = {0, 0, 0};
+  if (obs_json_get_vec3(p, env, "color", 1, 0, COORD_MAX, c) == 0) sc->has_environment = 1;
+  set_vec(&sc->environment, c);
+  obs_jpath_pop(p, m);
+}
+
+static void load_technique(obs_jpath *p, const json_t *doc, obs_scene *sc) {
+  json_t *t = obs_json_get_object(p, doc, "technique", 1, NULL);
+  if (!t) return;
+  size_t m = obs_jpath_push_key(p, "technique");
+  static const char *const k[] = {"name", "backend", "params", NULL};
+  obs_json_check_keys(p, t, k);
+  const char *name = NULL;
+  if (obs_json_get_string(p, t, "name", 1, NULL, &name) == 0 && name) {
+    sc->technique = obs_technique_find(name);
+    if (!sc->technique) {
+      char list[512] = "";
+      for (size_t i = 0; i < obs_technique_count(); i++) {
+        size_t l = strlen(list);
+        snprintf(list + l, sizeof list - l, "%s\"%s\"", l ? ", " : "", obs_technique_at(i)->name);
+      }
+      size_t mk = obs_jpath_push_key(p, "name");
+      obs_jpath_fail(p, "must be one of %s (got \"%s\")", list, name);
+      obs_jpath_pop(p, mk);
+    }
+  }
+  static const char *const backends[] = {"cpu", "vulkan", "auto", NULL};
+  const char *be = NULL;
+  sc->backend = OBS_BACKEND_AUTO;
+  if (obs_json_get_string(p, t, "backend", 0, backends, &be) == 0 && be) {
+    sc->backend = !strcmp(be, "cpu") ? OBS_BACKEND_CPU
+                  : !strcmp(be, "vulkan") ? OBS_BACKEND_VULKAN
+                                          : OBS_BACKEND_AUTO;
+    if (sc->technique && sc->backend != OBS_BACKEND_AUTO &&
+        !sc->technique->run[sc->backend]) {
+      char list[128] = "";
+      for (int b = 1; b < OBS_BACKEND_COUNT; b++) {
+        if (!sc->technique->run[b]) continue;
+        size_t l = strlen(list);
+        snprintf(list + l, sizeof list - l, "%s\"%s\"", l ? ", " : "", obs_backend_name(b));
+      }
+      size_t mk = obs_jpath_push_key(p, "backend");
+      obs_jpath_fail(p, "technique \"%s\" has no %s backend; available: %s, \"auto\"",
+                     sc->technique->name, be, list);
+      obs_jpath_pop(p, mk);
+    }
+  }
+  if (sc->technique) {
+    json_t *schema = json_loads(sc->technique->params_schema, 0, NULL);
+    size_t mk = obs_jpath_push_key(p, "params");
+    sc->params = obs_json_params_resolve(p, schema, json_object_get(t, "params"));
+    obs_jpath_pop(p, mk);
+    json_decref(schema);
+  }
+  obs_jpath_pop(p, m);
+}
+
+/* Feature requirements and technique-specific cross-field rules, once the basics are valid. */
+static void check_needs(obs_jpath *p, const obs_scene *sc) {
+  const obs_technique *t = sc->technique;
+  if (t->needs & OBS_NEED_LIGHTS && sc->nlights == 0)
+    obs_err_set(p->err, OBS_EINVAL, "%s: /lights: technique \"%s\" needs at least one light",
+                p->doc, t->name);
+  if (t->needs & OBS_NEED_MATERIALS) {
+    for (size_t i = 0; i < sc->nobjects; i++) {
+      if (!sc->objects[i].has_material)
+        obs_err_set(p->err, OBS_EINVAL,
+                    "%s: /objects/%zu/material: technique \"%s\" needs a material on every object",
+                    p->doc, i, t->name);
+    }
+  }
+  if (t->check) t->check(sc, sc->params, p->doc, p->err);
+}
+
+static int validate(obs_scene *sc, const json_t *doc, const char *name, const char *base_dir,
+                    obs_err *err) {
+  obs_jpath p;
+  obs_jpath_init(&p, name, err);
+  int before = err ? err->count : 0;
+  if (!json_is_object(doc)) {
+    obs_jpath_fail(&p, "the document must be a JSON object (got %s)", obs_json_brief(doc));
+    return OBS_EINVAL;
+  }
+  static const char *const k[] = {"camera", "image", "objects", "lights", "environment",
+                                  "technique", NULL};
+  obs_json_check_keys(&p, doc, k);
+  load_camera(&p, doc, &sc->camera);
+  json_t *img = obs_json_get_object(&p, doc, "image", 1, NULL);
+  sc->spp = 1;
+  if (img) {
+    size_t m = obs_jpath_push_key(&p, "image");
+    static const char *const ki[] = {"width", "height", "spp", NULL};
+    obs_json_check_keys(&p, img, ki);
+    long long w = 1, h = 1, spp = 1;
+    obs_json_get_int(&p, img, "width", 1, 1, 16384, &w);
+    obs_json_get_int(&p, img, "height", 1, 1, 16384, &h);
+    obs_json_get_int(&p, img, "spp", 0, 1, 1024, &spp);
+    sc->width = (int)w;
+    sc->height = (int)h;
+    sc->spp = (int)spp;
+    obs_jpath_pop(&p, m);
+  }
+  load_objects(&p, doc, base_dir, sc);
+  load_lights(&p, doc, sc);
+  load_environment(&p, doc, sc);
+  load_technique(&p, doc, sc);
+  int after = err ? err->count : 0;
+  if (after == before && sc->technique && sc->params) check_needs(&p, sc);
+  if (err && err->count != before) return OBS_EINVAL;
+  if (!sc->technique || !sc->params) return OBS_EINVAL;
+  return 0;
+}
+
+void obs_scene_free(obs_scene *sc) {
+  if (!sc) return;
+  for (size_t i = 0; i < sc->nobjects; i++) {
+    free(sc->objects[i].name);
+    free(sc->objects[i].mesh_path);
+  }
+  free(sc->objects);
+  free(sc->lights);
+  free(sc->name);
+  free(sc->base_dir);
+  json_decref(sc->params);
+  json_decref(sc->doc);
+  memset(sc, 0, sizeof *sc);
+}
+
+int obs_scene_validate_json(const json_t *doc, const char *name, const char *base_dir,
+                            obs_err *err) {
+  obs_scene sc;
+  memset(&sc, 0, sizeof sc);
+  obs_err local = OBS_ERR_INIT;
+  int rc = validate(&sc, doc, name, base_dir, err ? err : &local);
+  obs_scene_free(&sc);
+  obs_err_free(&local);
+  return rc;
+}
+
+static int parse_doc(const char *text, const char *name, json_t **out, obs_err *err) {
+  json_error_t je;
+  *out = json_loads(text, JSON_REJECT_DUPLICATES, &je);
+  if (!*out)
+    return obs_err_set(err, OBS_EINVAL, "%s: line %d, column %d: invalid JSON: %s", name, je.line,
+                       je.column, je.text);
+  return 0;
+}
+
+int obs_scene_load_string(obs_scene *sc, const char *text, const char *name, const char *base_dir,
+                          const obs_override *ov, size_t nov, obs_err *err) {
+  memset(sc, 0, sizeof *sc);
+  if (!name) name = "scene";
+  json_t *doc = NULL;
+  int rc = parse_doc(text, name, &doc, err);
+  if (rc) return rc;
+  int bad = 0;
+  for (size_t i = 0; i < nov; i++) {
+    obs_err tmp = OBS_ERR_INIT;
+    if (obs_json_pointer_set(doc, ov[i].pointer, ov[i].value, &tmp)) {
+      obs_err_set(err, OBS_EINVAL, "%s: --set %s: %s", name, ov[i].pointer, obs_err_message(&tmp));
+      bad = 1;
+    }
+    obs_err_free(&tmp);
+  }
+  if (bad) {
+    json_decref(doc);
+    return OBS_EINVAL;
+  }
+  rc = validate(sc, doc, name, base_dir, err);
+  if (rc) {
+    json_decref(doc);
+    obs_scene_free(sc);
+    return rc;
+  }
+  sc->doc = doc;
+  sc->name = xstrdup(name);
+  sc->base_dir = base_dir ? xstrdup(base_dir) : NULL;
+  return 0;
+}
+
+int obs_scene_load_file(obs_scene *sc, const char *path, const obs_override *ov, size_t nov,
+                        obs_err *err) {
+  memset(sc, 0, sizeof *sc);
+  FILE *f = fopen(path, "rb");
+  if (!f) return obs_err_set(err, OBS_EIO, "%s: cannot open scene file", path);
+  size_t cap = 1 << 16, len = 0;
+  char *buf = malloc(cap + 1);
+  while (buf) {
+    size_t n = fread(buf + len, 1, cap - len, f);
+    len += n;
+    if (len < cap) break;
+    if (cap >= ((size_t)256 << 20)) {
+      free(buf);
+      fclose(f);
+      return obs_err_set(err, OBS_EINVAL, "%s: scene file larger than 256 MiB", path);
+    }
+    cap *= 2;
+    char *nb = realloc(buf, cap + 1);
+    if (!nb) free(buf);
+    buf = nb;
+  }
+  int ioerr = ferror(f);
+  fclose(f);
+  if (!buf) return obs_err_set(err, OBS_ENOMEM, "%s: out of memory", path);
+  if (ioerr) {
+    free(buf);
+    return obs_err_set(err, OBS_EIO, "%s: read error", path);
+  }
+  buf[len] = '\0';
+  if (memchr(buf, '\0', len)) {
+    free(buf);
+    return obs_err_set(err, OBS_EINVAL, "%s: invalid JSON: contains a NUL byte", path);
+  }
+  const char *slash = strrchr(path, '/');
+  const char *base = slash ? slash + 1 : path;
+  char dir[PATH_MAX];
+  if (slash) {
+    size_t dl = (size_t)(slash - path);
+    if (dl == 0) dl = 1;
+    if (dl >= sizeof dir) dl = sizeof dir - 1;
+    memcpy(dir, path, dl);
+    dir[dl] = '\0';
+  } else {
+    strcpy(dir, ".");
+  }
+  int rc = obs_scene_load_string(sc, buf, base, dir, ov, nov, err);
+  free(buf);
+  return rc;
+}
+
+/* ---- JSON pointer overrides ---------------------------------------------------------------- */
+
+static int unescape_token(const char *s, size_t n, char *out, size_t cap) {
+  size_t j = 0;
+  for (size_t i = 0; i < n; i++) {
+    if (j + 1 >= cap) return -1;
+    if (s[i] == '~') {
+      if (i + 1 >= n || (s[i + 1] != '0' && s[i + 1] != '1')) return -1;
+      out[j++] = s[i + 1] == '0' ? '~' : '/';
+      i++;
+    } else {
+      out[j++] = s[i];
+    }
+  }
+  out[j] = '\0';
+  return 0;
+}
+
+static int parse_index(const char *tok, size_t *out) {
+  if (!*tok) return -1;
+  size_t v = 0;
+  for (const char *c = tok; *c; c++) {
+    if (*c < '0' || *c > '9' || v > 100000000) return -1;
+    v = v * 10 + (size_t)(*c - '0');
+  }
+  if (tok[0] == '0' && tok[1]) return -1;
+  *out = v;
+  return 0;
+}
+
+int obs_json_pointer_set(json_t *doc, const char *pointer, const char *value, obs_err *err) {
+  if (!pointer || pointer[0] != '/')
+    return obs_err_set(err, OBS_EINVAL, "pointer must start with '/' (got \"%s\")",
+                       pointer ? pointer : "");
+  json_error_t je;
+  json_t *val = json_loads(value, JSON_DECODE_ANY | JSON_REJECT_DUPLICATES, &je);
+  if (!val) return obs_err_set(err, OBS_EINVAL, "value is not valid JSON: %s", je.text);
+  json_t *cur = doc;
+  const char *s = pointer + 1;
+  char tok[512];
+  for (;;) {
+    const char *e = strchr(s, '/');
+    size_t n = e ? (size_t)(e - s) : strlen(s);
+    if (unescape_token(s, n, tok, sizeof tok)) {
+      json_decref(val);
+      return obs_err_set(err, OBS_EINVAL, "malformed pointer token in \"%s\"", pointer);
+    }
+    int last = e == NULL;
+    if (json_is_object(cur)) {
+      if (last) {
+        json_object_set_new(cur, tok, val);
+        return 0;
+      }
+      json_t *next = json_object_get(cur, tok);
+      if (!next) {
+        next = json_object();
+        json_object_set_new(cur, tok, next);
+      }
+      cur = next;
+    } else if (json_is_array(cur)) {
+      size_t idx;
+      if (parse_index(tok, &idx) || idx >= json_array_size(cur)) {
+        json_decref(val);
+        return obs_err_set(err, OBS_EINVAL, "array index \"%s\" out of range in \"%s\"", tok,
+                           pointer);
+      }
+      if (last) {
+        json_array_set_new(cur, idx, val);
+        return 0;
+      }
+      cur = json_array_get(cur, idx);
+    } else {
+      json_decref(val);
+      return obs_err_set(err, OBS_EINVAL, "\"%s\" goes through a value that is not an object "
+                                          "or array", pointer);
+    }
+    s = e + 1;
+  }
+}

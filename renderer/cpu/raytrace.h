@@ -1,0 +1,57 @@
+/* The CPU backend's ray-tracing layer over Embree 3, shared by every CPU technique: scene build,
+ * closest hits with world-space surface data, occlusion queries, and robust ray offsets. */
+#ifndef OBS_RAYTRACE_H
+#define OBS_RAYTRACE_H
+
+#include <embree3/rtcore.h>
+
+#include "geometry.h"
+#include "obscura/error.h"
+#include "obscura/scene.h"
+
+/* Built Embree scene plus the geometry it references. Owns all of it; obs_rt_free releases. */
+typedef struct obs_rt {
+  RTCDevice device;
+  RTCScene scene;
+  obs_geometry geo;
+  unsigned sphere_geom;  /* geomID of the analytic-sphere user geometry, or RTC_INVALID_GEOMETRY_ID */
+  float offset_origin;   /* Waechter-Binder constants scaled to the scene's extent */
+  float offset_scale;
+} obs_rt;
+
+/* A surface point seen along a ray, with normals faced toward the ray's origin side. */
+typedef struct obs_hit {
+  float t;
+  float p[3];    /* world position, reconstructed on the surface (not org + t*dir) */
+  float ng[3];   /* unit geometric normal, faced against the incoming ray */
+  float ns[3];   /* unit shading normal on the same side as ng (== ng without mesh normals) */
+  unsigned geom, prim;
+  int sphere_inside; /* hit a sphere from inside it */
+} obs_hit;
+
+/* Intersection context carrying which sphere a ray leaves, so the analytic sphere never reports
+ * the surface the ray starts on. Must stay first-member compatible with RTCIntersectContext. */
+typedef struct obs_rt_ctx {
+  struct RTCIntersectContext ctx;
+  unsigned skip_prim;  /* sphere primitive the ray leaves; ~0u for none */
+  int skip_mode;       /* 0: none, 1: skip that sphere (left outward), 2: far root only (inward) */
+} obs_rt_ctx;
+
+int obs_rt_build(const obs_scene *scene, obs_rt *rt, obs_err *err);
+void obs_rt_free(obs_rt *rt);
+
+/* Closest hit along (org, dir) within [0, tfar]. Returns 1 and fills `hit`, or 0 on a miss. */
+int obs_rt_intersect(const obs_rt *rt, const double org[3], const double dir[3], float tfar,
+                     obs_hit *hit);
+/* Origin for secondary rays leaving `hit` on the side of its faced normal. */
+void obs_rt_offset(const obs_rt *rt, const obs_hit *hit, float out[3]);
+/* Prepares a context for rays leaving `from`. */
+void obs_rt_ctx_init(obs_rt_ctx *c, const obs_rt *rt, const obs_hit *from);
+/* Whether anything lies along (org, dir) within [0, tfar). */
+int obs_rt_occluded(const obs_rt *rt, obs_rt_ctx *c, const float org[3], const float dir[3],
+                    float tfar);
+/* Distance to the closest surface along (org, dir) within [0, tfar], or INFINITY. */
+float obs_rt_distance(const obs_rt *rt, obs_rt_ctx *c, const float org[3], const float dir[3],
+                      float tfar);
+
+#endif

@@ -1,0 +1,206 @@
+/* rt_ao on the CPU: Monte-Carlo ambient occlusion / obscurance with Embree.
+ *
+ * For each pixel sample a primary ray finds P; `samples` directions over the hemisphere about the
+ * shading normal (cosine- or uniform-distributed, so the estimator of W(P) is the plain mean of
+ * rho) are traced up to max_distance. The same shape serves every ray-traced technique: parse
+ * params, build, run tiles, write channels. */
+#include <jansson.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "camera.h"
+#include "obscura/render.h"
+#include "parallel.h"
+#include "raytrace.h"
+#include "sampling.h"
+#include "techniques.h"
+
+typedef enum { FALLOFF_BINARY, FALLOFF_SQRT, FALLOFF_EXP } falloff_kind;
+
+typedef struct rt_ao_params {
+  uint32_t samples;
+  double max_distance; /* INFINITY when null */
+  falloff_kind falloff;
+  double tau;
+  int uniform;
+  obs_sampler_kind sampler;
+  uint32_t seed;
+} rt_ao_params;
+
+enum { CH_AO, CH_STDERR, CH_BX, CH_BY, CH_BZ, CH_DEPTH, CH_NX, CH_NY, CH_NZ, CH_ALPHA, CH_COUNT };
+static const char *const channel_names[CH_COUNT] = {
+    "ao", "ao_stderr", "bent_normal.X", "bent_normal.Y", "bent_normal.Z",
+    "depth.Z", "normal.X", "normal.Y", "normal.Z", "alpha"};
+
+typedef struct job {
+  const obs_rt *rt;
+  obs_camera_rig cam;
+  rt_ao_params p;
+  int spp;
+  obs_image *img;
+  _Atomic uint64_t rays;
+} job;
+
+static void read_params(const json_t *js, rt_ao_params *p) {
+  p->samples = (uint32_t)json_integer_value(json_object_get(js, "samples"));
+  json_t *md = json_object_get(js, "max_distance");
+  p->max_distance = json_is_number(md) ? json_number_value(md) : INFINITY;
+  const char *f = json_string_value(json_object_get(js, "falloff"));
+  p->falloff = !strcmp(f, "sqrt") ? FALLOFF_SQRT : !strcmp(f, "exp") ? FALLOFF_EXP : FALLOFF_BINARY;
+  p->tau = json_number_value(json_object_get(js, "tau"));
+  p->uniform = !strcmp(json_string_value(json_object_get(js, "weighting")), "uniform");
+  const char *s = json_string_value(json_object_get(js, "sampler"));
+  p->sampler = !strcmp(s, "halton")   ? OBS_SAMPLER_HALTON
+               : !strcmp(s, "random") ? OBS_SAMPLER_RANDOM
+                                      : OBS_SAMPLER_SOBOL;
+  p->seed = (uint32_t)json_integer_value(json_object_get(js, "seed"));
+}
+
+/* rho(d) for a hit at distance d (d = INFINITY: nothing within reach). */
+static double rho(const rt_ao_params *p, double d) {
+  if (!(d < p->max_distance)) return 1.0;
+  switch (p->falloff) {
+    case FALLOFF_BINARY: return 0.0;
+    case FALLOFF_SQRT: return sqrt(d / p->max_distance);
+    default: return isinf(d) ? 1.0 : -expm1(-p->tau * d);
+  }
+}
+
+/* Accumulates one pixel sample's occlusion estimate at `hit`. */
+typedef struct ao_accum {
+  double sum, sum_sq;  /* of rho over the rays */
+  double bent[3];      /* rho-weighted directions */
+} ao_accum;
+
+static uint64_t shade(const job *jb, const obs_hit *hit, uint32_t x, uint32_t y, uint32_t s,
+                      ao_accum *acc) {
+  const rt_ao_params *p = &jb->p;
+  float org[3], t[3], b[3];
+  obs_rt_offset(jb->rt, hit, org);
+  obs_onb(hit->ns, t, b);
+  obs_rt_ctx ctx;
+  obs_rt_ctx_init(&ctx, jb->rt, hit);
+  obs_sampler2d smp;
+  obs_sampler2d_init(&smp, p->sampler, x, y, s, 1, p->seed);
+  float tfar = isinf(p->max_distance) ? INFINITY : (float)p->max_distance;
+  uint64_t rays = 0;
+  memset(acc, 0, sizeof *acc);
+  for (uint32_t i = 0; i < p->samples; i++) {
+    float u, v, l[3], w[3];
+    obs_sampler2d_get(&smp, i, &u, &v);
+    if (p->uniform) obs_sample_uniform(u, v, l);
+    else obs_sample_cosine(u, v, l);
+    for (int k = 0; k < 3; k++) w[k] = l[0] * t[k] + l[1] * b[k] + l[2] * hit->ns[k];
+    double r;
+    /* Shading normals may tilt the hemisphere below the true surface; those directions run into
+     * the surface itself, so they count as occluded at distance 0 rather than leak light. */
+    if (w[0] * hit->ng[0] + w[1] * hit->ng[1] + w[2] * hit->ng[2] <= 0.0f) {
+      r = rho(p, 0.0);
+    } else if (p->falloff == FALLOFF_BINARY) {
+      r = obs_rt_occluded(jb->rt, &ctx, org, w, tfar) ? 0.0 : 1.0;
+      rays++;
+    } else {
+      r = rho(p, obs_rt_distance(jb->rt, &ctx, org, w, tfar));
+      rays++;
+    }
+    acc->sum += r;
+    acc->sum_sq += r * r;
+    for (int k = 0; k < 3; k++) acc->bent[k] += r * w[k];
+  }
+  return rays;
+}
+
+static int render_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+  (void)thread;
+  job *jb = user;
+  obs_image *img = jb->img;
+  size_t plane = (size_t)img->width * (size_t)img->height;
+  const double n = jb->p.samples;
+  uint64_t rays = 0;
+  for (int y = y0; y < y1; y++)
+    for (int x = x0; x < x1; x++) {
+      double ao = 0, var = 0, depth = 0, bent[3] = {0, 0, 0}, nrm[3] = {0, 0, 0};
+      int hits = 0;
+      obs_sampler2d jit;
+      obs_sampler2d_init(&jit, jb->p.sampler, (uint32_t)x, (uint32_t)y, 0, 0, jb->p.seed);
+      for (int s = 0; s < jb->spp; s++) {
+        float jx = 0.5f, jy = 0.5f;
+        /* One pixel sample looks through the centre; several are stratified over the pixel. */
+        if (jb->spp > 1) obs_sampler2d_get(&jit, (uint32_t)s, &jx, &jy);
+        double org[3], dir[3];
+        obs_camera_ray(&jb->cam, x + jx, y + jy, org, dir);
+        obs_hit hit;
+        rays++;
+        if (!obs_rt_intersect(jb->rt, org, dir, INFINITY, &hit)) {
+          ao += 1.0;
+          continue;
+        }
+        hits++;
+        ao_accum acc;
+        rays += shade(jb, &hit, (uint32_t)x, (uint32_t)y, (uint32_t)s, &acc);
+        double mean = acc.sum / n;
+        ao += mean;
+        /* Unbiased sample variance of rho; with one ray it is unknown, so report the bound
+         * for a [0,1] variable (1/4). */
+        var += n > 1 ? fmax(0.0, (acc.sum_sq - acc.sum * mean) / (n - 1)) / n : 0.25;
+        double bl = sqrt(acc.bent[0] * acc.bent[0] + acc.bent[1] * acc.bent[1] +
+                         acc.bent[2] * acc.bent[2]);
+        for (int k = 0; k < 3; k++) {
+          bent[k] += bl > 0 ? acc.bent[k] / bl : hit.ns[k];
+          nrm[k] += hit.ns[k];
+        }
+        double fwd = dir[0] * jb->cam.forward[0] + dir[1] * jb->cam.forward[1] +
+                     dir[2] * jb->cam.forward[2];
+        depth += hit.t * fwd;
+      }
+      size_t i = (size_t)y * (size_t)img->width + (size_t)x;
+      float *d = img->data;
+      d[CH_AO * plane + i] = (float)(ao / jb->spp);
+      d[CH_STDERR * plane + i] = (float)(sqrt(var) / jb->spp);
+      d[CH_ALPHA * plane + i] = (float)hits / (float)jb->spp;
+      d[CH_DEPTH * plane + i] = hits ? (float)(depth / hits) : 0.0f;
+      double bl = sqrt(bent[0] * bent[0] + bent[1] * bent[1] + bent[2] * bent[2]);
+      double nl = sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
+      for (int k = 0; k < 3; k++) {
+        d[(CH_BX + k) * plane + i] = bl > 0 ? (float)(bent[k] / bl) : 0.0f;
+        d[(CH_NX + k) * plane + i] = nl > 0 ? (float)(nrm[k] / nl) : 0.0f;
+      }
+    }
+  atomic_fetch_add(&jb->rays, rays);
+  return 0;
+}
+
+int obs_rt_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
+  const obs_scene *sc = ctx->scene;
+  job jb;
+  memset(&jb, 0, sizeof jb);
+  read_params(ctx->params, &jb.p);
+  jb.spp = sc->spp;
+  obs_camera_setup(&sc->camera, sc->width, sc->height, &jb.cam);
+  double t0 = obs_now_ms();
+  obs_rt rt;
+  int rc = obs_rt_build(sc, &rt, err);
+  if (rc) return rc;
+  jb.rt = &rt;
+  double t1 = obs_now_ms();
+  ctx->build_ms = t1 - t0;
+  rc = obs_image_init(out, sc->width, sc->height, CH_COUNT, channel_names, err);
+  if (rc) {
+    obs_rt_free(&rt);
+    return rc;
+  }
+  jb.img = out;
+  atomic_init(&jb.rays, 0);
+  rc = obs_parallel_tiles(sc->width, sc->height, ctx->threads, render_tile, &jb, ctx->cancel,
+                          ctx->progress, ctx->progress_user);
+  ctx->render_ms = obs_now_ms() - t1;
+  ctx->rays = atomic_load(&jb.rays);
+  obs_rt_free(&rt);
+  if (rc) {
+    obs_image_free(out);
+    return rc == OBS_ECANCELED ? obs_err_set(err, rc, "%s: render cancelled", sc->name)
+                               : obs_err_set(err, rc, "%s: render failed", sc->name);
+  }
+  return 0;
+}

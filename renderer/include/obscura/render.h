@@ -1,0 +1,50 @@
+/* Rendering a loaded scene with its technique, and the summary that goes with the images. */
+#ifndef OBSCURA_RENDER_H
+#define OBSCURA_RENDER_H
+
+#include <stdatomic.h>
+#include "obscura/image.h"
+#include "obscura/metrics.h"
+#include "obscura/scene.h"
+#include "obscura/technique.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct obs_render_opts {
+  int threads;                 /* 0 = all cores */
+  obs_progress_fn progress;    /* may be NULL */
+  void *progress_user;
+  const atomic_int *cancel;    /* may be NULL */
+} obs_render_opts;
+
+/* The outcome of one render. Owns `image`; release with obs_result_free. */
+typedef struct obs_result {
+  const obs_technique *technique;
+  obs_backend backend;         /* the backend that ran */
+  obs_image image;
+  obs_timings timings;         /* load_ms/write_ms are filled by the caller that did those stages */
+  uint64_t rays;
+  int threads;
+} obs_result;
+
+int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *result,
+               obs_err *err);
+void obs_result_free(obs_result *result);
+
+/* Writes DIR/ao.exr, DIR/ao.png and DIR/summary.json (creating DIR). Times the writes into
+ * result->timings.write_ms and recomputes total_ms. */
+int obs_result_write(obs_result *result, const obs_scene *scene, const char *dir, obs_err *err);
+/* The summary document (new reference). */
+json_t *obs_result_summary_json(const obs_result *result, const obs_scene *scene);
+
+/* Number of online cores. */
+int obs_cpu_count(void);
+/* Monotonic clock in milliseconds. */
+double obs_now_ms(void);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,106 @@
+/* Scene documents: strict loading and validation of the JSON scene format into plain C structs. */
+#ifndef OBSCURA_SCENE_H
+#define OBSCURA_SCENE_H
+
+#include <stddef.h>
+#include "obscura/error.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct json_t json_t; /* jansson */
+
+typedef struct obs_vec3 {
+  double x, y, z;
+} obs_vec3;
+
+typedef enum { OBS_CAMERA_PERSPECTIVE, OBS_CAMERA_ORTHOGRAPHIC } obs_camera_type;
+
+typedef struct obs_camera {
+  obs_camera_type type;
+  obs_vec3 position, look_at, up;
+  double fov_y;  /* degrees, perspective only */
+  double height; /* view height in scene units, orthographic only */
+} obs_camera;
+
+typedef enum {
+  OBS_SHAPE_QUAD,
+  OBS_SHAPE_TRIANGLE,
+  OBS_SHAPE_SPHERE,
+  OBS_SHAPE_BOX,
+  OBS_SHAPE_MESH,
+  OBS_SHAPE_DISPLACED_SPHERE
+} obs_shape_type;
+
+typedef struct obs_transform {
+  obs_vec3 scale;     /* default (1,1,1) */
+  obs_vec3 rotate;    /* degrees about X, then Y, then Z */
+  obs_vec3 translate; /* default 0 */
+  int present;        /* 0 when the object had no transform (identity) */
+} obs_transform;
+
+typedef struct obs_object {
+  char *name;           /* owned; "object<i>" when the document gave none */
+  obs_shape_type shape;
+  obs_vec3 v[4];        /* quad: 4 vertices; triangle: 3; box: v[0]=min, v[1]=max; sphere: v[0]=centre */
+  double radius;        /* sphere */
+  int subdivisions;     /* displaced_sphere */
+  char *mesh_path;      /* mesh: owned, resolved absolute path inside the scene tree */
+  int has_material;
+  obs_vec3 reflectivity;
+  obs_transform transform;
+} obs_object;
+
+typedef struct obs_light {
+  obs_vec3 v[4];
+  obs_vec3 emission;
+} obs_light;
+
+typedef enum { OBS_BACKEND_AUTO = 0, OBS_BACKEND_CPU = 1, OBS_BACKEND_VULKAN = 2 } obs_backend;
+#define OBS_BACKEND_COUNT 3
+
+/* A validated scene. Owns every pointer inside it, `doc` included; release with obs_scene_free. */
+typedef struct obs_scene {
+  char *name;           /* document name used in messages (file base name or caller's label) */
+  char *base_dir;       /* directory mesh files resolve against (absolute); NULL for inline docs
+                           without one, which may then not use meshes */
+  obs_camera camera;
+  int width, height, spp;
+  obs_object *objects;
+  size_t nobjects;
+  obs_light *lights;
+  size_t nlights;
+  int has_environment;
+  obs_vec3 environment;
+  const struct obs_technique *technique; /* from the registry; never NULL once loaded */
+  obs_backend backend;                   /* as requested: may be AUTO */
+  json_t *params;       /* technique parameters with defaults filled in (owned reference) */
+  json_t *doc;          /* the whole document after overrides (owned reference) */
+} obs_scene;
+
+/* One `--set /json/pointer=VALUE` override: VALUE is JSON text. */
+typedef struct obs_override {
+  const char *pointer;
+  const char *value;
+} obs_override;
+
+/* Parses, applies overrides, validates every rule and fills `scene`. On failure every problem found
+ * is added to `err` as "<name>: <json pointer>: <rule> (got <value>)" and OBS_EINVAL is returned;
+ * `scene` is left empty. `name` prefixes messages; `base_dir` resolves mesh files (may be NULL). */
+int obs_scene_load_string(obs_scene *scene, const char *json_text, const char *name,
+                          const char *base_dir, const obs_override *ov, size_t nov, obs_err *err);
+/* Same for a file; the file's base name and directory are used. */
+int obs_scene_load_file(obs_scene *scene, const char *path, const obs_override *ov, size_t nov,
+                        obs_err *err);
+/* Validates an already-parsed document (borrowed, not modified) without keeping the result. */
+int obs_scene_validate_json(const json_t *doc, const char *name, const char *base_dir, obs_err *err);
+void obs_scene_free(obs_scene *scene);
+
+/* Applies `value` (JSON text) at `pointer` (RFC 6901) in `doc`, creating the last member if needed. */
+int obs_json_pointer_set(json_t *doc, const char *pointer, const char *value, obs_err *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

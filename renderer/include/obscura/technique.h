@@ -1,0 +1,75 @@
+/* The technique registry: one table describing every technique and the backends that run it. */
+#ifndef OBSCURA_TECHNIQUE_H
+#define OBSCURA_TECHNIQUE_H
+
+#include <stdatomic.h>
+#include <stdint.h>
+#include "obscura/error.h"
+#include "obscura/image.h"
+#include "obscura/scene.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* What a technique needs built from the scene; the renderer builds nothing else. */
+enum {
+  OBS_NEED_BVH = 1 << 0,       /* ray-tracing acceleration structure (Embree) */
+  OBS_NEED_MATERIALS = 1 << 1, /* every object must carry a material */
+  OBS_NEED_LIGHTS = 1 << 2,    /* the scene must have at least one light */
+  OBS_NEED_GBUFFER = 1 << 3    /* rasterised or ray-cast G-buffer */
+};
+
+typedef void (*obs_progress_fn)(void *user, double fraction);
+
+/* Per-stage timings in milliseconds. */
+typedef struct obs_timings {
+  double load_ms, build_ms, render_ms, write_ms, total_ms;
+} obs_timings;
+
+/* Everything a technique implementation receives. Borrowed for the duration of the call. */
+typedef struct obs_render_ctx {
+  const obs_scene *scene;
+  const json_t *params;        /* defaults filled in */
+  int threads;                 /* >= 1 */
+  obs_progress_fn progress;    /* may be NULL; called with fractions in [0,1], from any thread */
+  void *progress_user;
+  const atomic_int *cancel;    /* may be NULL; nonzero asks the technique to stop between tiles */
+  /* Filled by the technique: */
+  double build_ms;             /* acceleration structures, tessellation */
+  double render_ms;
+  uint64_t rays;               /* rays traced (primary + secondary) */
+} obs_render_ctx;
+
+/* Runs one technique on one backend and fills `out` (initialised by the callee). */
+typedef int (*obs_technique_run_fn)(obs_render_ctx *ctx, obs_image *out, obs_err *err);
+/* Cross-field parameter checks beyond the params schema; adds "<pointer>: <rule>" problems. */
+typedef void (*obs_technique_check_fn)(const obs_scene *scene, const json_t *params,
+                                       const char *docname, obs_err *err);
+
+typedef struct obs_technique {
+  const char *name;
+  const char *description;
+  const char *params_schema;    /* JSON Schema (object with properties, types, ranges, defaults) */
+  unsigned needs;               /* OBS_NEED_* */
+  const char *const *outputs;   /* NULL-terminated: EXR channel names and extra files */
+  obs_technique_check_fn check; /* may be NULL */
+  obs_technique_run_fn run[OBS_BACKEND_COUNT]; /* indexed by obs_backend; NULL = not available */
+} obs_technique;
+
+size_t obs_technique_count(void);
+const obs_technique *obs_technique_at(size_t i);
+const obs_technique *obs_technique_find(const char *name);
+/* Whether `t` runs on `backend` in this build and on this machine. */
+int obs_technique_has_backend(const obs_technique *t, obs_backend backend);
+/* Resolves AUTO to a concrete backend. Returns OBS_EUNSUPPORTED if none is available. */
+int obs_technique_pick_backend(const obs_technique *t, obs_backend requested, obs_backend *out,
+                               obs_err *err);
+const char *obs_backend_name(obs_backend b);
+/* The registry as a JSON array (new reference, caller owns). */
+json_t *obs_technique_registry_json(void);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,51 @@
+/* Descriptor of rt_ao: Monte-Carlo ray-traced ambient occlusion / obscurance, the reference. */
+#include <jansson.h>
+#include <string.h>
+
+#include "techniques.h"
+
+static const char *const rt_ao_outputs[] = {
+    "ao",       "ao_stderr", "bent_normal.X", "bent_normal.Y", "bent_normal.Z", "depth.Z",
+    "normal.X", "normal.Y",  "normal.Z",      "alpha",         "ao.png",        NULL};
+
+/* Keep in step with $defs/rt_ao_params in schema/scene.schema.json (a test compares them). */
+static const char rt_ao_params[] =
+    "{\"type\":\"object\",\"additionalProperties\":false,\"properties\":{"
+    "\"samples\":{\"type\":\"integer\",\"minimum\":1,\"maximum\":65536,\"default\":64,"
+    "\"description\":\"occlusion rays per pixel sample\"},"
+    "\"max_distance\":{\"type\":[\"number\",\"null\"],\"exclusiveMinimum\":0,\"maximum\":1e30,"
+    "\"default\":null,\"description\":\"occlusion distance d_max in scene units; null = "
+    "unbounded (binary and exp falloff only)\"},"
+    "\"falloff\":{\"enum\":[\"binary\",\"sqrt\",\"exp\"],\"default\":\"binary\","
+    "\"description\":\"obscurance function rho(d): binary = classic AO, sqrt = sqrt(d/d_max) "
+    "(Mendez-Feliu et al.), exp = 1-exp(-tau d) (Iones et al.)\"},"
+    "\"tau\":{\"type\":\"number\",\"exclusiveMinimum\":0,\"maximum\":1e30,\"default\":1,"
+    "\"description\":\"decay rate of the exp falloff, per scene unit\"},"
+    "\"weighting\":{\"enum\":[\"cosine\",\"uniform\"],\"default\":\"cosine\","
+    "\"description\":\"cosine: W = 1/pi int rho cos; uniform: W = 1/(2 pi) int rho\"},"
+    "\"sampler\":{\"enum\":[\"sobol\",\"halton\",\"random\"],\"default\":\"sobol\","
+    "\"description\":\"sample sequence, scrambled per pixel\"},"
+    "\"seed\":{\"type\":\"integer\",\"minimum\":0,\"maximum\":4294967295,\"default\":1,"
+    "\"description\":\"random seed; images depend only on (pixel, sample, seed)\"}}}";
+
+static void rt_ao_check(const obs_scene *scene, const json_t *params, const char *doc,
+                        obs_err *err) {
+  (void)scene;
+  const char *falloff = json_string_value(json_object_get(params, "falloff"));
+  if (falloff && !strcmp(falloff, "sqrt") && json_is_null(json_object_get(params, "max_distance")))
+    obs_err_set(err, OBS_EINVAL,
+                "%s: /technique/params/max_distance: falloff \"sqrt\" needs a finite max_distance "
+                "(got null)",
+                doc);
+}
+
+const obs_technique obs_technique_rt_ao = {
+    .name = "rt_ao",
+    .description = "Monte-Carlo ray-traced ambient occlusion / obscurance (Embree); the reference "
+                   "every other technique is measured against",
+    .params_schema = rt_ao_params,
+    .needs = OBS_NEED_BVH,
+    .outputs = rt_ao_outputs,
+    .check = rt_ao_check,
+    .run = {[OBS_BACKEND_CPU] = obs_rt_ao_cpu},
+};

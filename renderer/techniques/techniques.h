@@ -1,0 +1,10 @@
+/* Declarations of every technique descriptor and backend implementation named in table.c. */
+#ifndef OBS_TECHNIQUES_H
+#define OBS_TECHNIQUES_H
+
+#include "obscura/technique.h"
+
+extern const obs_technique obs_technique_rt_ao;
+int obs_rt_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
+
+#endif

@@ -1,0 +1,23 @@
+/* Helpers shared by the cmocka unit tests: temp dirs, scene loading from inline JSON, rendering. */
+#ifndef OBS_TESTUTIL_H
+#define OBS_TESTUTIL_H
+
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include "obscura/obscura.h"
+
+/* A fresh directory under $OBS_TMP (or /tmp) for this test; returned string is static per call
+ * site until the next call. */
+const char *obs_test_tmpdir(const char *tag);
+/* Path of a file in the source tree (static buffer, overwritten by the next call). */
+const char *obs_test_src(const char *rel);
+/* Loads `json` (asserting success) and renders it with `threads` threads (asserting success). */
+void obs_test_render(const char *json, int threads, obs_result *res);
+/* Asserts every value of every channel is finite. */
+void obs_test_assert_finite(const obs_image *img);
+
+#endif
