@@ -3,6 +3,7 @@
  * exact from 1e-4 to 1e4 scene scales. */
 #include "raytrace.h"
 
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -141,11 +142,6 @@ int obs_rt_build(const obs_scene *sc, obs_rt *rt, obs_err *err) {
     return obs_err_set(err, e == RTC_ERROR_OUT_OF_MEMORY ? OBS_ENOMEM : OBS_EINTERNAL,
                        "embree: scene build failed (error %d)", (int)e);
   }
-  /* Scale-invariant offsets: Waechter & Binder's constants are for unit-sized scenes, so scale
-   * the absolute fallback near the origin with the scene's extent. */
-  double ext = rt->geo.extent > 0 ? rt->geo.extent : 1.0;
-  rt->offset_origin = (float)(ext / 32.0);
-  rt->offset_scale = (float)(ext / 65536.0);
   return 0;
 }
 
@@ -204,17 +200,27 @@ int obs_rt_intersect(const obs_rt *rt, const double org[3], const double dir[3],
                    org[2] + rh.ray.tfar * dir[2] - s->center[2]};
     double l = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
     /* Project onto the sphere so the point's error is that of the centre and radius only. */
+    double mag = s->radius;
     for (int k = 0; k < 3; k++) {
       double u = l > 0 ? q[k] / l : (k == 2);
       hit->p[k] = (float)(s->center[k] + s->radius * u);
       ng[k] = (float)u;
+      mag = fmax(mag, fabs(s->center[k]) + s->radius);
     }
+    hit->eps = (float)(8.0 * FLT_EPSILON * mag);
   } else {
     const obs_mesh *m = &rt->geo.meshes[rh.hit.geomID];
     const uint32_t *tri = m->idx + 3 * (size_t)rh.hit.primID;
     float u = rh.hit.u, v = rh.hit.v, w = 1.0f - u - v;
     const float *a = m->pos + 3 * tri[0], *b = m->pos + 3 * tri[1], *c = m->pos + 3 * tri[2];
-    for (int k = 0; k < 3; k++) hit->p[k] = w * a[k] + u * b[k] + v * c[k];
+    float mag = 0.0f;
+    for (int k = 0; k < 3; k++) {
+      hit->p[k] = w * a[k] + u * b[k] + v * c[k];
+      mag = fmaxf(mag, fmaxf(fabsf(a[k]), fmaxf(fabsf(b[k]), fabsf(c[k]))));
+    }
+    /* The interpolated point and Embree's float ray/triangle test both err in proportion to the
+     * vertices' magnitude (cf. pbrt's gamma(7) bound), not to |p| or the scene's size. */
+    hit->eps = 8.0f * FLT_EPSILON * mag;
     if (m->nrm) {
       const float *na = m->nrm + 3 * tri[0], *nb = m->nrm + 3 * tri[1], *nc = m->nrm + 3 * tri[2];
       for (int k = 0; k < 3; k++) ns[k] = w * na[k] + u * nb[k] + v * nc[k];
@@ -239,28 +245,12 @@ int obs_rt_intersect(const obs_rt *rt, const double org[3], const double dir[3],
   return 1;
 }
 
-static float as_float(int32_t i) {
-  float f;
-  memcpy(&f, &i, sizeof f);
-  return f;
-}
-
-static int32_t as_int(float f) {
-  int32_t i;
-  memcpy(&i, &f, sizeof i);
-  return i;
-}
-
 void obs_rt_offset(const obs_rt *rt, const obs_hit *hit, float out[3]) {
-  /* Waechter & Binder, "A Fast and Robust Method for Avoiding Self-Intersection" (RTG ch. 6):
-   * move by a fixed number of ULPs away from the surface, or by a distance proportional to the
-   * scene's size where coordinates are too close to zero for ULPs to mean anything. */
-  for (int k = 0; k < 3; k++) {
-    float p = hit->p[k], n = hit->ng[k];
-    int32_t of = (int32_t)(256.0f * n);
-    float pi = as_float(as_int(p) + (p < 0 ? -of : of));
-    out[k] = fabsf(p) < rt->offset_origin ? p + rt->offset_scale * n : pi;
-  }
+  (void)rt;
+  /* Move along the geometric normal by the hit's own error bound: scale-invariant (it follows
+   * the primitive's coordinates) and local (a huge ground plane does not push rays off a small
+   * object). eps >= 8 ulp of every coordinate of p, so the move survives rounding. */
+  for (int k = 0; k < 3; k++) out[k] = hit->p[k] + hit->eps * hit->ng[k];
 }
 
 void obs_rt_ctx_init(obs_rt_ctx *c, const obs_rt *rt, const obs_hit *from) {

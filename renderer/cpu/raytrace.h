@@ -15,8 +15,6 @@ typedef struct obs_rt {
   RTCScene scene;
   obs_geometry geo;
   unsigned sphere_geom;  /* geomID of the analytic-sphere user geometry, or RTC_INVALID_GEOMETRY_ID */
-  float offset_origin;   /* Waechter-Binder constants scaled to the scene's extent */
-  float offset_scale;
 } obs_rt;
 
 /* A surface point seen along a ray, with normals faced toward the ray's origin side. */
@@ -25,6 +23,7 @@ typedef struct obs_hit {
   float p[3];    /* world position, reconstructed on the surface (not org + t*dir) */
   float ng[3];   /* unit geometric normal, faced against the incoming ray */
   float ns[3];   /* unit shading normal on the same side as ng (== ng without mesh normals) */
+  float eps;     /* bound on the rounding error of p (and of Embree's own test near p) */
   unsigned geom, prim;
   int sphere_inside; /* hit a sphere from inside it */
 } obs_hit;

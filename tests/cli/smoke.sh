@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# The CLI end to end: render, outputs and summary, exit codes for bad input, validate, techniques.
+set -u
+cli=$1 root=$2 out=$3
+pass=0 fail=0
+check() { # description, command...
+  local d=$1; shift
+  if "$@"; then pass=$((pass + 1)); echo "ok: $d"; else fail=$((fail + 1)); echo "FAIL: $d"; fi
+}
+rm -rf "$out" && mkdir -p "$out"
+"$cli" render "$root/scenes/sphere_on_plane.json" -o "$out/r" --set /image/width=40 \
+  --set /image/height=30 --set /technique/params/samples=8 --threads 2 >"$out/log" 2>&1
+check "render exits 0" test $? -eq 0
+check "ao.exr written" test -s "$out/r/ao.exr"
+check "ao.png is a PNG" bash -c "head -c 8 '$out/r/ao.png' | od -An -tx1 | grep -q '89 50 4e 47'"
+check "summary has the fields" node -e "
+  const s = JSON.parse(require('fs').readFileSync('$out/r/summary.json'));
+  const ok = s.technique === 'rt_ao' && s.backend === 'cpu' && s.width === 40 && s.height === 30 &&
+    s.samples === 8 && s.rays > 0 && s.nan_count === 0 && s.ao.min >= 0 && s.ao.max <= 1 &&
+    ['load','build','render','write','total'].every(k => typeof s.timings_ms[k] === 'number');
+  process.exit(ok ? 0 : 1);"
+"$cli" render "$root/scenes/sphere_on_plane.json" -o "$out/bad" --set /technique/params/samples=0 \
+  >"$out/bad.log" 2>&1
+check "bad --set exits 2" test $? -eq 2
+check "bad --set names the pointer" grep -q "/technique/params/samples: must be >= 1" "$out/bad.log"
+check "nothing written for bad input" test ! -e "$out/bad"
+"$cli" render "$root/scenes/sphere_on_plane.json" -o "$out/v" --backend vulkan >"$out/v.log" 2>&1
+check "missing backend exits 2" test $? -eq 2
+check "missing backend lists available" grep -q 'available: "cpu"' "$out/v.log"
+"$cli" render "$root/scenes/sphere_on_plane.json" --technique nope >"$out/t.log" 2>&1
+check "unknown technique exits 2" test $? -eq 2
+"$cli" render "$out/does-not-exist.json" >"$out/m.log" 2>&1
+check "missing file exits 2" test $? -eq 2
+"$cli" validate "$root/scenes/cornell_box.json" >/dev/null 2>&1
+check "validate ok exits 0" test $? -eq 0
+"$cli" techniques >"$out/tech.json"
+check "techniques is JSON with rt_ao" node -e "
+  const t = JSON.parse(require('fs').readFileSync('$out/tech.json'));
+  process.exit(t.some(x => x.name === 'rt_ao' && x.backends.includes('cpu')) ? 0 : 1);"
+"$cli" frobnicate >/dev/null 2>&1
+check "unknown command exits 2" test $? -eq 2
+echo "$pass passed, $fail failed"
+[ "$fail" -eq 0 ]

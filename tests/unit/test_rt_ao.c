@@ -1,0 +1,451 @@
+/* rt_ao against analytic ground truth, statistical convergence, and extremes of scale and input. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "testutil.h"
+
+#define PI 3.14159265358979323846
+
+static char *fmt(const char *f, ...) {
+  static char buf[8192];
+  va_list ap;
+  va_start(ap, f);
+  vsnprintf(buf, sizeof buf, f, ap);
+  va_end(ap);
+  return buf;
+}
+
+static float px(const obs_result *r, const char *ch, int x, int y) {
+  const float *p = obs_image_channel(&r->image, ch);
+  assert_non_null(p);
+  return p[(size_t)y * (size_t)r->image.width + (size_t)x];
+}
+
+/* Every channel finite and AO-like channels in range. */
+static void assert_sane(const obs_result *r) {
+  obs_test_assert_finite(&r->image);
+  size_t n = (size_t)r->image.width * (size_t)r->image.height;
+  const float *ao = obs_image_channel(&r->image, "ao"), *se = obs_image_channel(&r->image, "ao_stderr");
+  const float *al = obs_image_channel(&r->image, "alpha");
+  for (size_t i = 0; i < n; i++) {
+    assert_true(ao[i] >= 0.0f && ao[i] <= 1.0f);
+    assert_true(se[i] >= 0.0f && se[i] <= 0.5f);
+    assert_true(al[i] >= 0.0f && al[i] <= 1.0f);
+    for (int k = 0; k < 2; k++) {
+      const char *names[2][3] = {{"normal.X", "normal.Y", "normal.Z"},
+                                 {"bent_normal.X", "bent_normal.Y", "bent_normal.Z"}};
+      double l = 0;
+      for (int c = 0; c < 3; c++) {
+        double v = obs_image_channel(&r->image, names[k][c])[i];
+        l += v * v;
+      }
+      assert_true(l < 1e-12 || fabs(l - 1.0) < 1e-3);
+    }
+  }
+}
+
+/* A ground plane seen from above at an angle; nothing can occlude it. */
+static void test_open_plane_is_one(void **state) {
+  (void)state;
+  obs_result r;
+  obs_test_render(
+      "{\"camera\":{\"type\":\"perspective\",\"position\":[0,2,-3],\"look_at\":[0,0,0],\"fov_y\":90},"
+      "\"image\":{\"width\":24,\"height\":16},"
+      "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-100,0,-100],[-100,0,100],"
+      "[100,0,100],[100,0,-100]]}}],"
+      "\"technique\":{\"name\":\"rt_ao\",\"params\":{\"samples\":64}}}",
+      2, &r);
+  assert_sane(&r);
+  for (int y = 0; y < 16; y++)
+    for (int x = 0; x < 24; x++) {
+      if (px(&r, "alpha", x, y) == 0.0f) {
+        assert_true(px(&r, "ao", x, y) == 1.0f);
+        assert_true(px(&r, "depth.Z", x, y) == 0.0f);
+        continue;
+      }
+      assert_true(px(&r, "ao", x, y) == 1.0f);
+      assert_true(px(&r, "ao_stderr", x, y) == 0.0f);
+      assert_true(fabsf(px(&r, "normal.Y", x, y) - 1.0f) < 1e-6f);
+      assert_true(fabsf(px(&r, "bent_normal.Y", x, y) - 1.0f) < 0.05f);
+      assert_true(px(&r, "depth.Z", x, y) > 0.0f);
+    }
+  /* The bottom rows look at the plane, the top rows at the sky. */
+  assert_true(px(&r, "alpha", 12, 15) == 1.0f);
+  assert_true(px(&r, "alpha", 12, 0) == 0.0f);
+  obs_result_free(&r);
+}
+
+static const char *box_inside(const char *params) {
+  return fmt(
+      "{\"camera\":{\"type\":\"perspective\",\"position\":[0.1,0.2,0.3],\"look_at\":[1,0,0.5],"
+      "\"fov_y\":90},\"image\":{\"width\":16,\"height\":16},"
+      "\"objects\":[{\"shape\":{\"type\":\"box\",\"min\":[-1,-1,-1],\"max\":[1,1,1]}}],"
+      "\"technique\":{\"name\":\"rt_ao\",\"params\":%s}}",
+      params);
+}
+
+static void test_closed_box_is_zero(void **state) {
+  (void)state;
+  obs_result r;
+  obs_test_render(box_inside("{\"samples\":32}"), 2, &r);
+  assert_sane(&r);
+  for (int y = 0; y < 16; y++)
+    for (int x = 0; x < 16; x++) {
+      assert_true(px(&r, "alpha", x, y) == 1.0f);
+      assert_true(px(&r, "ao", x, y) == 0.0f);
+    }
+  obs_result_free(&r);
+  /* Inside a sphere too (camera inside geometry, analytic surface seen from within). */
+  obs_test_render(
+      "{\"camera\":{\"type\":\"perspective\",\"position\":[0.3,0,0],\"look_at\":[1,0.2,0],"
+      "\"fov_y\":120},\"image\":{\"width\":16,\"height\":16},"
+      "\"objects\":[{\"shape\":{\"type\":\"sphere\",\"center\":[0,0,0],\"radius\":2}}],"
+      "\"technique\":{\"name\":\"rt_ao\",\"params\":{\"samples\":32}}}",
+      2, &r);
+  assert_sane(&r);
+  for (int y = 0; y < 16; y++)
+    for (int x = 0; x < 16; x++) assert_true(px(&r, "ao", x, y) == 0.0f);
+  obs_result_free(&r);
+}
+
+/* A 1x1 image whose one ray hits the origin of a y-up plane, from the side away from a sphere of
+ * radius r whose centre is at distance d, angle alpha from the normal. */
+static double sphere_ao(double r, double d, double alpha_deg, const char *weighting,
+                        const char *sampler, int samples, int seed, double *stderr_out) {
+  double a = alpha_deg * PI / 180.0;
+  double cx = d * sin(a), cy = d * cos(a);
+  obs_result res;
+  obs_test_render(
+      fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[%.17g,%.17g,0.37],"
+          "\"look_at\":[0,0,0],\"fov_y\":10},\"image\":{\"width\":1,\"height\":1},"
+          "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-1000,0,-1000],[-1000,0,1000],"
+          "[1000,0,1000],[1000,0,-1000]]}},{\"shape\":{\"type\":\"sphere\",\"center\":[%.17g,%.17g,"
+          "0],\"radius\":%.17g}}],\"technique\":{\"name\":\"rt_ao\",\"params\":{\"samples\":%d,"
+          "\"sampler\":\"%s\",\"seed\":%d,\"weighting\":\"%s\"}}}",
+          -(d + 3.0), d + 1.0, cx, cy, r, samples, sampler, seed, weighting),
+      1, &res);
+  assert_sane(&res);
+  assert_true(px(&res, "alpha", 0, 0) == 1.0f);
+  assert_true(fabsf(px(&res, "normal.Y", 0, 0) - 1.0f) < 1e-6f);
+  double ao = px(&res, "ao", 0, 0);
+  *stderr_out = px(&res, "ao_stderr", 0, 0);
+  obs_result_free(&res);
+  return ao;
+}
+
+static const double sphere_cases[][3] = {{0.5, 1.0, 0.0},  {0.5, 1.0, 30.0}, {0.3, 2.0, 60.0},
+                                         {1.0, 1.5, 45.0}, {0.05, 0.1, 10.0}, {2.0, 2.5, 20.0},
+                                         {1e-3, 1e3, 0.0}};
+
+/* Cosine weighting sees the projected solid angle: W = 1 - cos(alpha) (r/d)^2; uniform weighting
+ * the solid angle: W = sqrt(1 - (r/d)^2). Scrambled Sobol at 16384 rays, within 3 sigma. */
+static void test_sphere_analytic(void **state) {
+  (void)state;
+  for (size_t i = 0; i < sizeof sphere_cases / sizeof sphere_cases[0]; i++) {
+    double r = sphere_cases[i][0], d = sphere_cases[i][1], al = sphere_cases[i][2], se;
+    double expect = 1.0 - cos(al * PI / 180.0) * (r / d) * (r / d);
+    double ao = sphere_ao(r, d, al, "cosine", "sobol", 16384, 1, &se);
+    printf("cosine r=%g d=%g alpha=%g: ao=%.5f expect=%.5f stderr=%.5f\n", r, d, al, ao, expect, se);
+    assert_true(se < 0.01);
+    assert_true(fabs(ao - expect) <= 3.0 * se + 1e-6);
+    double expect_u = sqrt(1.0 - (r / d) * (r / d));
+    ao = sphere_ao(r, d, al, "uniform", "sobol", 16384, 1, &se);
+    printf("uniform r=%g d=%g alpha=%g: ao=%.5f expect=%.5f stderr=%.5f\n", r, d, al, ao, expect_u,
+           se);
+    assert_true(fabs(ao - expect_u) <= 3.0 * se + 1e-6);
+  }
+}
+
+/* Plain Monte Carlo is unbiased and its reported stderr is calibrated: over 48 seeds the z-scores
+ * (ao - truth) / stderr have mean ~ N(0, 1/48) and standard deviation ~ 1. */
+static void test_sphere_statistics(void **state) {
+  (void)state;
+  const int seeds = 48;
+  for (size_t c = 0; c < 2; c++) {
+    double r = sphere_cases[c + 1][0], d = sphere_cases[c + 1][1], al = sphere_cases[c + 1][2];
+    double expect = 1.0 - cos(al * PI / 180.0) * (r / d) * (r / d);
+    double sum = 0, sum_sq = 0;
+    for (int s = 0; s < seeds; s++) {
+      double se, ao = sphere_ao(r, d, al, "cosine", "random", 1024, 1000 + s, &se);
+      double z = (ao - expect) / se;
+      sum += z;
+      sum_sq += z * z;
+    }
+    double mean = sum / seeds, sd = sqrt((sum_sq - sum * mean) / (seeds - 1));
+    printf("random r=%g d=%g alpha=%g: mean z=%.3f sd z=%.3f\n", r, d, al, mean, sd);
+    assert_true(fabs(mean) <= 3.0 / sqrt((double)seeds));
+    assert_true(sd > 0.7 && sd < 1.3);
+  }
+}
+
+static const char *convergence_scene(int samples, const char *sampler, int seed) {
+  return fmt(
+      "{\"camera\":{\"type\":\"perspective\",\"position\":[0,2.5,-3],\"look_at\":[0,0.4,0],"
+      "\"fov_y\":40},\"image\":{\"width\":24,\"height\":24},"
+      "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-5,0,-5],[-5,0,5],[5,0,5],[5,0,-5]]}},"
+      "{\"shape\":{\"type\":\"sphere\",\"center\":[0,0.7,0],\"radius\":0.6}},"
+      "{\"shape\":{\"type\":\"box\",\"min\":[0.5,0,-0.5],\"max\":[1.1,0.5,0.2]}}],"
+      "\"technique\":{\"name\":\"rt_ao\",\"params\":{\"samples\":%d,\"sampler\":\"%s\","
+      "\"seed\":%d}}}",
+      samples, sampler, seed);
+}
+
+static double rmse_vs(const obs_result *a, const obs_result *ref) {
+  double rmse;
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(obs_metrics_rmse(&a->image, &ref->image, "ao", "alpha", &rmse, &err), 0);
+  obs_err_free(&err);
+  return rmse;
+}
+
+static void test_convergence(void **state) {
+  (void)state;
+  const char *samplers[] = {"random", "sobol", "halton"};
+  for (int s = 0; s < 3; s++) {
+    obs_result ref, lo, hi;
+    obs_test_render(convergence_scene(1024, samplers[s], 99), 2, &ref);
+    obs_test_render(convergence_scene(16, samplers[s], 1), 2, &lo);
+    obs_test_render(convergence_scene(64, samplers[s], 1), 2, &hi);
+    double e_lo = rmse_vs(&lo, &ref), e_hi = rmse_vs(&hi, &ref);
+    printf("%s: rmse(16)=%.5f rmse(64)=%.5f ratio=%.3f\n", samplers[s], e_lo, e_hi, e_lo / e_hi);
+    assert_true(e_hi > 0.0);
+    if (s == 0) {
+      /* Plain Monte Carlo: error ~ 1/sqrt(N), so 4x the samples halves it (+-20 %). */
+      assert_true(e_lo / e_hi >= 1.6 && e_lo / e_hi <= 2.4);
+    } else {
+      assert_true(e_lo / e_hi >= 1.6);
+    }
+    obs_result_free(&ref);
+    obs_result_free(&lo);
+    obs_result_free(&hi);
+  }
+}
+
+static const char *cornell_like(double scale, const char *max_distance, int samples) {
+  /* A box room open at the front, two blocks: scaled as a whole. */
+  double s = scale;
+  return fmt(
+      "{\"camera\":{\"type\":\"perspective\",\"position\":[%.17g,%.17g,%.17g],\"look_at\":[%.17g,"
+      "%.17g,0],\"fov_y\":40},\"image\":{\"width\":20,\"height\":20},"
+      "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[%.17g,0,0],[0,0,0],[0,0,%.17g],"
+      "[%.17g,0,%.17g]]}},{\"shape\":{\"type\":\"quad\",\"vertices\":[[0,0,%.17g],[%.17g,0,%.17g],"
+      "[%.17g,%.17g,%.17g],[0,%.17g,%.17g]]}},{\"shape\":{\"type\":\"quad\",\"vertices\":[[0,0,0],"
+      "[0,0,%.17g],[0,%.17g,%.17g],[0,%.17g,0]]}},{\"shape\":{\"type\":\"box\",\"min\":[%.17g,0,"
+      "%.17g],\"max\":[%.17g,%.17g,%.17g]}},{\"shape\":{\"type\":\"sphere\",\"center\":[%.17g,"
+      "%.17g,%.17g],\"radius\":%.17g}}],\"technique\":{\"name\":\"rt_ao\",\"params\":{\"samples\":"
+      "%d,\"max_distance\":%s}}}",
+      278 * s, 273 * s, -800 * s, 278 * s, 273 * s, 556 * s, 559 * s, 556 * s, 559 * s, 559 * s,
+      556 * s, 559 * s, 556 * s, 548 * s, 559 * s, 548 * s, 559 * s, 559 * s, 548 * s, 559 * s,
+      548 * s, 100 * s, 100 * s, 250 * s, 165 * s, 300 * s, 380 * s, 120 * s, 350 * s, 120 * s,
+      samples, max_distance);
+}
+
+static void test_max_distance_limits(void **state) {
+  (void)state;
+  obs_result tiny, big, unb;
+  obs_test_render(cornell_like(1, "1e-30", 32), 2, &tiny);
+  assert_sane(&tiny);
+  const float *ao = obs_image_channel(&tiny.image, "ao");
+  for (int i = 0; i < 400; i++) assert_true(ao[i] == 1.0f);
+  obs_test_render(cornell_like(1, "1e25", 32), 2, &big);
+  obs_test_render(cornell_like(1, "null", 32), 2, &unb);
+  assert_sane(&big);
+  assert_memory_equal(obs_image_channel(&big.image, "ao"), obs_image_channel(&unb.image, "ao"),
+                      400 * sizeof(float));
+  obs_result_free(&tiny);
+  obs_result_free(&big);
+  obs_result_free(&unb);
+}
+
+static void test_scale_invariance(void **state) {
+  (void)state;
+  obs_result base;
+  obs_test_render(cornell_like(1, "150", 64), 2, &base);
+  assert_sane(&base);
+  const double scales[] = {1e-4, 1e4};
+  const char *dists[] = {"0.015", "1.5e6"};
+  for (int i = 0; i < 2; i++) {
+    obs_result r;
+    obs_test_render(cornell_like(scales[i], dists[i], 64), 2, &r);
+    assert_sane(&r);
+    double rmse = rmse_vs(&r, &base);
+    obs_stats st;
+    obs_metrics_stats(&base.image, "ao_stderr", "alpha", &st, NULL);
+    printf("scale %g: rmse vs scale 1 = %.5f (mean stderr %.5f)\n", scales[i], rmse, st.mean);
+    /* Same samples on the same (scaled) surfaces: only rounding can differ. */
+    assert_true(rmse < 0.25 * st.mean);
+    const float *d0 = obs_image_channel(&base.image, "depth.Z"), *d1 = obs_image_channel(&r.image, "depth.Z");
+    for (int k = 0; k < 400; k++) assert_true(fabs(d1[k] / scales[i] - d0[k]) <= 1e-3 * d0[k] + 1e-9);
+    obs_result_free(&r);
+  }
+  obs_result_free(&base);
+}
+
+static void test_sample_count_extremes(void **state) {
+  (void)state;
+  obs_result r;
+  obs_test_render(fmt("{\"camera\":{\"type\":\"orthographic\",\"position\":[0.2,3,0.1],"
+                      "\"look_at\":[0.2,0,0.1],\"up\":[0,0,1],\"height\":1},\"image\":{\"width\":2,"
+                      "\"height\":2},\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-5,0,-5],"
+                      "[-5,0,5],[5,0,5],[5,0,-5]]}},{\"shape\":{\"type\":\"sphere\",\"center\":[1,0.6,0],"
+                      "\"radius\":0.5}}],\"technique\":{\"name\":\"rt_ao\",\"params\":{\"samples\":%d}}}",
+                      65536),
+                  2, &r);
+  assert_sane(&r);
+  /* Converged: the stderr of 65536 samples is tiny. */
+  for (int i = 0; i < 4; i++) assert_true(obs_image_channel(&r.image, "ao_stderr")[i] < 0.003f);
+  obs_result_free(&r);
+  obs_test_render(convergence_scene(1, "sobol", 3), 2, &r);
+  assert_sane(&r);
+  const float *ao = obs_image_channel(&r.image, "ao"), *al = obs_image_channel(&r.image, "alpha");
+  const float *se = obs_image_channel(&r.image, "ao_stderr");
+  for (int i = 0; i < 24 * 24; i++) {
+    if (al[i] > 0) {
+      assert_true(ao[i] == 0.0f || ao[i] == 1.0f); /* one binary ray */
+      assert_true(se[i] == 0.5f);                  /* unknown variance: the bound */
+    }
+  }
+  obs_result_free(&r);
+}
+
+static void test_degenerate_inputs(void **state) {
+  (void)state;
+  const char *scenes[] = {
+      /* degenerate triangles: a point, a line, plus a zero-area quad, zero-scale box */
+      "{\"camera\":{\"type\":\"perspective\",\"position\":[0,1,-3],\"look_at\":[0,0,0],\"fov_y\":60},"
+      "\"image\":{\"width\":12,\"height\":12},\"objects\":["
+      "{\"shape\":{\"type\":\"triangle\",\"vertices\":[[0,0,0],[0,0,0],[0,0,0]]}},"
+      "{\"shape\":{\"type\":\"triangle\",\"vertices\":[[0,0,0],[1,1,1],[2,2,2]]}},"
+      "{\"shape\":{\"type\":\"quad\",\"vertices\":[[0,0,0],[1,0,0],[1,0,0],[0,0,0]]}},"
+      "{\"shape\":{\"type\":\"box\",\"min\":[0,0,0],\"max\":[1,1,1]},\"transform\":{\"scale\":[0,0,0]}},"
+      "{\"shape\":{\"type\":\"box\",\"min\":[-1,-1,-1],\"max\":[1,-1,1]}},"
+      "{\"shape\":{\"type\":\"quad\",\"vertices\":[[-4,-1,-4],[-4,-1,4],[4,-1,4],[4,-1,-4]]}}],"
+      "\"technique\":{\"name\":\"rt_ao\",\"params\":{\"samples\":16}}}",
+      /* grazing view: the camera almost in the plane of a huge floor */
+      "{\"camera\":{\"type\":\"perspective\",\"position\":[0,1e-5,-10],\"look_at\":[0,0,1000],"
+      "\"fov_y\":5},\"image\":{\"width\":16,\"height\":16},\"objects\":[{\"shape\":{\"type\":\"quad\","
+      "\"vertices\":[[-1e4,0,-1e4],[-1e4,0,1e4],[1e4,0,1e4],[1e4,0,-1e4]]}},{\"shape\":{\"type\":"
+      "\"sphere\",\"center\":[0,1,500],\"radius\":1}}],\"technique\":{\"name\":\"rt_ao\",\"params\":"
+      "{\"samples\":16,\"falloff\":\"sqrt\",\"max_distance\":3}}}",
+      /* camera inside the tall box of a room, exp falloff, spp > 1 */
+      "{\"camera\":{\"type\":\"perspective\",\"position\":[0.5,0.5,0.5],\"look_at\":[0,0,3],"
+      "\"fov_y\":170},\"image\":{\"width\":8,\"height\":8,\"spp\":4},\"objects\":[{\"shape\":{\"type\":"
+      "\"box\",\"min\":[0,0,0],\"max\":[1,1,1]}},{\"shape\":{\"type\":\"sphere\",\"center\":[0.5,0.5,"
+      "0.5],\"radius\":1e-6}}],\"technique\":{\"name\":\"rt_ao\",\"params\":{\"samples\":8,"
+      "\"falloff\":\"exp\",\"tau\":1e30}}}",
+      /* imported mesh with shading normals, tiny sphere and huge sphere */
+      "{\"camera\":{\"type\":\"perspective\",\"position\":[2,2,2],\"look_at\":[0,0,0],\"fov_y\":40},"
+      "\"image\":{\"width\":12,\"height\":12},\"objects\":[{\"shape\":{\"type\":\"mesh\",\"file\":"
+      "\"tetra.obj\"},\"transform\":{\"scale\":[1,2,1],\"rotate\":[10,20,30]}},{\"shape\":{\"type\":"
+      "\"sphere\",\"center\":[0.2,0.2,0.2],\"radius\":1e-20}},{\"shape\":{\"type\":\"sphere\","
+      "\"center\":[0,-1e6,0],\"radius\":999999}}],\"technique\":{\"name\":\"rt_ao\",\"params\":"
+      "{\"samples\":16,\"weighting\":\"uniform\",\"sampler\":\"halton\"}}}",
+  };
+  for (size_t i = 0; i < sizeof scenes / sizeof scenes[0]; i++) {
+    obs_scene sc;
+    obs_err err = OBS_ERR_INIT;
+    int rc = obs_scene_load_string(&sc, scenes[i], "degenerate.json", obs_test_src("tests/data"),
+                                   NULL, 0, &err);
+    if (rc) fprintf(stderr, "%s\n", obs_err_message(&err));
+    assert_int_equal(rc, 0);
+    obs_result r;
+    obs_render_opts o = {.threads = 2};
+    rc = obs_render(&sc, &o, &r, &err);
+    if (rc) fprintf(stderr, "%s\n", obs_err_message(&err));
+    assert_int_equal(rc, 0);
+    assert_sane(&r);
+    obs_result_free(&r);
+    obs_scene_free(&sc);
+    obs_err_free(&err);
+  }
+}
+
+static void test_thread_count_independence(void **state) {
+  (void)state;
+  obs_result a, b;
+  obs_test_render(convergence_scene(16, "sobol", 5), 1, &a);
+  obs_test_render(convergence_scene(16, "sobol", 5), 7, &b);
+  size_t bytes = (size_t)a.image.width * a.image.height * a.image.nchannels * sizeof(float);
+  assert_int_equal(a.image.nchannels, b.image.nchannels);
+  assert_memory_equal(a.image.data, b.image.data, bytes);
+  assert_true(a.rays == b.rays);
+  obs_result_free(&a);
+  obs_result_free(&b);
+}
+
+static void test_exr_roundtrip(void **state) {
+  (void)state;
+  obs_result r;
+  obs_test_render(convergence_scene(8, "sobol", 5), 2, &r);
+  char path[1100];
+  snprintf(path, sizeof path, "%s/ao.exr", obs_test_tmpdir("rt_ao_exr"));
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(obs_image_write_exr(&r.image, path, &err), 0);
+  obs_image back;
+  assert_int_equal(obs_image_read_exr(&back, path, &err), 0);
+  assert_int_equal(back.nchannels, r.image.nchannels);
+  size_t n = (size_t)r.image.width * r.image.height;
+  for (int c = 0; c < r.image.nchannels; c++) {
+    const float *p = obs_image_channel(&back, r.image.names[c]);
+    assert_non_null(p);
+    assert_memory_equal(p, r.image.data + c * n, n * sizeof(float));
+  }
+  obs_image_free(&back);
+  obs_result_free(&r);
+  obs_err_free(&err);
+}
+
+static void test_exp_falloff_limits(void **state) {
+  (void)state;
+  obs_result bin, slow, fast;
+  obs_test_render(box_inside("{\"samples\":16}"), 2, &bin);
+  obs_test_render(box_inside("{\"samples\":16,\"falloff\":\"exp\",\"tau\":1e-12}"), 2, &slow);
+  obs_test_render(box_inside("{\"samples\":16,\"falloff\":\"exp\",\"tau\":1e12}"), 2, &fast);
+  const float *b = obs_image_channel(&bin.image, "ao"), *s = obs_image_channel(&slow.image, "ao");
+  const float *f = obs_image_channel(&fast.image, "ao");
+  for (int i = 0; i < 256; i++) {
+    assert_true(fabsf(s[i] - b[i]) < 1e-6f); /* rho = 1 - e^(-tau d) -> tau d -> 0 */
+    assert_true(fabsf(f[i] - 1.0f) < 1e-6f); /* -> 1: nothing at a finite distance obscures */
+  }
+  obs_result_free(&bin);
+  obs_result_free(&slow);
+  obs_result_free(&fast);
+}
+
+static void test_cancel(void **state) {
+  (void)state;
+  obs_scene sc;
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(obs_scene_load_string(&sc, convergence_scene(8, "sobol", 1), "c.json", NULL,
+                                         NULL, 0, &err),
+                   0);
+  atomic_int cancel;
+  atomic_init(&cancel, 1);
+  obs_render_opts o = {.threads = 2, .cancel = &cancel};
+  obs_result r;
+  assert_int_equal(obs_render(&sc, &o, &r, &err), OBS_ECANCELED);
+  assert_non_null(strstr(obs_err_message(&err), "cancelled"));
+  obs_scene_free(&sc);
+  obs_err_free(&err);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_open_plane_is_one),
+      cmocka_unit_test(test_closed_box_is_zero),
+      cmocka_unit_test(test_sphere_analytic),
+      cmocka_unit_test(test_sphere_statistics),
+      cmocka_unit_test(test_convergence),
+      cmocka_unit_test(test_max_distance_limits),
+      cmocka_unit_test(test_scale_invariance),
+      cmocka_unit_test(test_sample_count_extremes),
+      cmocka_unit_test(test_degenerate_inputs),
+      cmocka_unit_test(test_thread_count_independence),
+      cmocka_unit_test(test_exr_roundtrip),
+      cmocka_unit_test(test_exp_falloff_limits),
+      cmocka_unit_test(test_cancel),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}

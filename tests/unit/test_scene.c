@@ -1,0 +1,224 @@
+/* Scene loading: strict validation messages with JSON pointers, overrides, defaults, registry. */
+#include <jansson.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "testutil.h"
+
+#define BASE                                                                                      \
+  "\"camera\":{\"type\":\"perspective\",\"position\":[0,1,-3],\"look_at\":[0,0,0],\"fov_y\":40}," \
+  "\"image\":{\"width\":8,\"height\":8}"
+
+static int load(const char *json, obs_scene *sc, obs_err *err) {
+  return obs_scene_load_string(sc, json, "t.json", obs_test_src("tests/data"), NULL, 0, err);
+}
+
+static void expect_error(const char *json, const char *needle) {
+  obs_scene sc;
+  obs_err err = OBS_ERR_INIT;
+  int rc = load(json, &sc, &err);
+  if (rc == 0 || !strstr(obs_err_message(&err), needle))
+    fprintf(stderr, "expected \"%s\", got rc=%d: %s\n", needle, rc, obs_err_message(&err));
+  assert_int_equal(rc, OBS_EINVAL);
+  assert_non_null(strstr(obs_err_message(&err), needle));
+  /* A failed load leaves nothing behind. */
+  assert_null(sc.doc);
+  assert_null(sc.objects);
+  obs_err_free(&err);
+}
+
+static void test_valid_scene_defaults(void **state) {
+  (void)state;
+  obs_scene sc;
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(load("{" BASE ",\"objects\":[{\"shape\":{\"type\":\"sphere\",\"center\":[0,0,0],"
+                        "\"radius\":1}}],\"technique\":{\"name\":\"rt_ao\"}}",
+                        &sc, &err),
+                   0);
+  assert_string_equal(sc.technique->name, "rt_ao");
+  assert_int_equal(sc.backend, OBS_BACKEND_AUTO);
+  assert_int_equal(sc.spp, 1);
+  assert_int_equal(json_integer_value(json_object_get(sc.params, "samples")), 64);
+  assert_true(json_is_null(json_object_get(sc.params, "max_distance")));
+  assert_string_equal(json_string_value(json_object_get(sc.params, "falloff")), "binary");
+  assert_string_equal(sc.objects[0].name, "object0");
+  assert_true(sc.camera.up.y == 1.0);
+  obs_scene_free(&sc);
+  obs_err_free(&err);
+}
+
+static void test_error_names_pointer_and_value(void **state) {
+  (void)state;
+  expect_error("{" BASE ",\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[0,0,0],[1,0,0],"
+               "[1,1,0],[0,1,0]]}},{\"shape\":{\"type\":\"sphere\",\"center\":[0,0,0],\"radius\":"
+               "-1}}],\"technique\":{\"name\":\"rt_ao\"}}",
+               "t.json: /objects/1/shape/radius: must be > 0 (got -1)");
+  expect_error("{" BASE ",\"objects\":[],\"technique\":{\"name\":\"rt_ao\",\"params\":{\"samples\":"
+               "0}}}",
+               "t.json: /technique/params/samples: must be >= 1 (got 0)");
+  expect_error("{" BASE ",\"objects\":[],\"technique\":{\"name\":\"nope\"}}",
+               "t.json: /technique/name: must be one of \"rt_ao\" (got \"nope\")");
+  expect_error("{" BASE ",\"objects\":[],\"extra\":1,\"technique\":{\"name\":\"rt_ao\"}}",
+               "t.json: /extra: unknown field");
+  expect_error("{" BASE ",\"objects\":[],\"technique\":{\"name\":\"rt_ao\",\"backend\":\"vulkan\"}}",
+               "t.json: /technique/backend: technique \"rt_ao\" has no vulkan backend; available: "
+               "\"cpu\"");
+  expect_error("{" BASE ",\"objects\":[],\"technique\":{\"name\":\"rt_ao\",\"params\":{\"falloff\":"
+               "\"sqrt\"}}}",
+               "/technique/params/max_distance: falloff \"sqrt\" needs a finite max_distance");
+  expect_error("{\"camera\":{\"type\":\"perspective\",\"position\":[1,2,3],\"look_at\":[1,2,3],"
+               "\"fov_y\":40},\"image\":{\"width\":8,\"height\":8},\"objects\":[],\"technique\":"
+               "{\"name\":\"rt_ao\"}}",
+               "/camera/look_at: must differ from /camera/position");
+  expect_error("{\"camera\":{\"type\":\"perspective\",\"position\":[0,0,0],\"look_at\":[0,5,0],"
+               "\"fov_y\":40},\"image\":{\"width\":8,\"height\":8},\"objects\":[],\"technique\":"
+               "{\"name\":\"rt_ao\"}}",
+               "/camera/up: must not be zero or parallel to the view direction");
+  expect_error("{" BASE ",\"objects\":[{\"shape\":{\"type\":\"sphere\",\"center\":[0,0,0],\"radius\":"
+               "1},\"transform\":{\"scale\":[1,2,1]}}],\"technique\":{\"name\":\"rt_ao\"}}",
+               "/objects/0/transform/scale: must be uniform for a sphere");
+  expect_error("{" BASE ",\"objects\":[{\"shape\":{\"type\":\"box\",\"min\":[0,0,0],\"max\":[1,-1,1]}"
+               "}],\"technique\":{\"name\":\"rt_ao\"}}",
+               "/objects/0/shape/max: must be >= /min in every component");
+  expect_error("{" BASE ",\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[0,0,0],[1,0,0],"
+               "[1,1,\"NaN\"],[0,1,0]]}}],\"technique\":{\"name\":\"rt_ao\"}}",
+               "/objects/0/shape/vertices/2/2: must be a number (got \"NaN\")");
+  expect_error("{" BASE ",\"objects\":[],\"technique\":{\"name\":\"rt_ao\",\"params\":{\"samples\":"
+               "1.5}}}",
+               "/technique/params/samples: must be an integer (got 1.5)");
+  expect_error("{" BASE ",\"objects\":[], \"objects\":[],\"technique\":{\"name\":\"rt_ao\"}}",
+               "invalid JSON");
+  expect_error("{" BASE ",\"objects\":[],\"technique\":{\"name\":\"rt_ao\"}} trailing",
+               "invalid JSON");
+  expect_error("[1,2]", "t.json: /: the document must be a JSON object");
+}
+
+static void test_all_problems_reported(void **state) {
+  (void)state;
+  obs_scene sc;
+  obs_err err = OBS_ERR_INIT;
+  int rc = load("{\"camera\":{\"type\":\"fisheye\",\"position\":[0,0]},\"image\":{\"width\":0,"
+                "\"height\":99999,\"spp\":0},\"objects\":[{\"shape\":{\"type\":\"sphere\",\"radius\":0}"
+                ",\"colour\":1}],\"technique\":{\"name\":\"rt_ao\",\"params\":{\"samples\":0,"
+                "\"seed\":-1,\"wat\":true}}}",
+                &sc, &err);
+  assert_int_equal(rc, OBS_EINVAL);
+  printf("%s\n", obs_err_message(&err));
+  const char *expected[] = {"/camera/type", "/camera/position", "/camera/look_at: is required",
+                            "/image/width", "/image/height", "/image/spp",
+                            "/objects/0/colour: unknown field", "/objects/0/shape/center: is required",
+                            "/objects/0/shape/radius", "/technique/params/samples",
+                            "/technique/params/seed", "/technique/params/wat: unknown parameter"};
+  for (size_t i = 0; i < sizeof expected / sizeof expected[0]; i++)
+    assert_non_null(strstr(obs_err_message(&err), expected[i]));
+  assert_true(err.count >= 12);
+  obs_err_free(&err);
+}
+
+static void test_integral_reals_are_integers(void **state) {
+  (void)state;
+  obs_scene sc;
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(load("{\"camera\":{\"type\":\"orthographic\",\"position\":[0,1,0],\"look_at\":"
+                        "[0,0,0],\"up\":[0,0,1],\"height\":2},\"image\":{\"width\":8.0,\"height\":"
+                        "4},\"objects\":[],\"technique\":{\"name\":\"rt_ao\",\"params\":{\"samples\":"
+                        "64.0}}}",
+                        &sc, &err),
+                   0);
+  assert_int_equal(sc.width, 8);
+  obs_scene_free(&sc);
+  obs_err_free(&err);
+}
+
+static void test_mesh_paths(void **state) {
+  (void)state;
+  obs_scene sc;
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(load("{" BASE ",\"objects\":[{\"shape\":{\"type\":\"mesh\",\"file\":\"tetra.obj\"}"
+                        "}],\"technique\":{\"name\":\"rt_ao\"}}",
+                        &sc, &err),
+                   0);
+  assert_non_null(strstr(sc.objects[0].mesh_path, "tests/data/tetra.obj"));
+  obs_scene_free(&sc);
+  obs_err_free(&err);
+  expect_error("{" BASE ",\"objects\":[{\"shape\":{\"type\":\"mesh\",\"file\":\"../unit/testutil.h\"}"
+               "}],\"technique\":{\"name\":\"rt_ao\"}}",
+               "/objects/0/shape/file: must name a .obj");
+  expect_error("{" BASE ",\"objects\":[{\"shape\":{\"type\":\"mesh\",\"file\":\"missing.obj\"}"
+               "}],\"technique\":{\"name\":\"rt_ao\"}}",
+               "/objects/0/shape/file: file not found");
+  expect_error("{" BASE ",\"objects\":[{\"shape\":{\"type\":\"mesh\",\"file\":\"/etc/x.obj\"}"
+               "}],\"technique\":{\"name\":\"rt_ao\"}}",
+               "must be relative to the scene file");
+  expect_error("{" BASE ",\"objects\":[{\"shape\":{\"type\":\"mesh\",\"file\":"
+               "\"../corpus/scene_good/data/tri.obj\"}}],\"technique\":{\"name\":\"rt_ao\"}}",
+               "must stay inside the scene's directory tree");
+}
+
+static void test_overrides(void **state) {
+  (void)state;
+  const char *doc = "{" BASE ",\"objects\":[{\"shape\":{\"type\":\"sphere\",\"center\":[0,0,0],"
+                    "\"radius\":1}}],\"technique\":{\"name\":\"rt_ao\"}}";
+  obs_override ov[] = {{"/technique/params/samples", "256"},
+                       {"/objects/0/shape/radius", "2.5"},
+                       {"/technique/params/falloff", "\"exp\""}};
+  obs_scene sc;
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(obs_scene_load_string(&sc, doc, "o.json", NULL, ov, 3, &err), 0);
+  assert_int_equal(json_integer_value(json_object_get(sc.params, "samples")), 256);
+  assert_true(sc.objects[0].radius == 2.5);
+  obs_scene_free(&sc);
+  obs_override bad[] = {{"/objects/7/shape", "{}"}};
+  assert_int_equal(obs_scene_load_string(&sc, doc, "o.json", NULL, bad, 1, &err), OBS_EINVAL);
+  assert_non_null(strstr(obs_err_message(&err), "--set /objects/7/shape: array index"));
+  obs_err_clear(&err);
+  obs_override bad2[] = {{"/technique/params/samples", "not json"}};
+  assert_int_equal(obs_scene_load_string(&sc, doc, "o.json", NULL, bad2, 1, &err), OBS_EINVAL);
+  assert_non_null(strstr(obs_err_message(&err), "value is not valid JSON"));
+  obs_err_clear(&err);
+  /* Overrides are validated like the document. */
+  obs_override bad3[] = {{"/technique/params/samples", "70000"}};
+  assert_int_equal(obs_scene_load_string(&sc, doc, "o.json", NULL, bad3, 1, &err), OBS_EINVAL);
+  assert_non_null(strstr(obs_err_message(&err), "/technique/params/samples: must be <= 65536"));
+  obs_err_free(&err);
+  /* RFC 6901 escapes. */
+  json_t *j = json_loads("{\"a/b\":{\"c~d\":1}}", 0, NULL);
+  assert_int_equal(obs_json_pointer_set(j, "/a~1b/c~0d", "2", NULL), 0);
+  assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "a/b"), "c~d")), 2);
+  json_decref(j);
+}
+
+static void test_registry(void **state) {
+  (void)state;
+  assert_true(obs_technique_count() >= 1);
+  const obs_technique *t = obs_technique_find("rt_ao");
+  assert_non_null(t);
+  assert_true(obs_technique_has_backend(t, OBS_BACKEND_CPU));
+  assert_false(obs_technique_has_backend(t, OBS_BACKEND_VULKAN));
+  obs_backend b;
+  assert_int_equal(obs_technique_pick_backend(t, OBS_BACKEND_AUTO, &b, NULL), 0);
+  assert_int_equal(b, OBS_BACKEND_CPU);
+  json_t *reg = obs_technique_registry_json();
+  json_t *e = json_array_get(reg, 0);
+  assert_string_equal(json_string_value(json_object_get(e, "name")), "rt_ao");
+  json_t *props = json_object_get(json_object_get(e, "params_schema"), "properties");
+  assert_non_null(json_object_get(props, "samples"));
+  assert_int_equal(json_integer_value(json_object_get(json_object_get(props, "samples"), "maximum")),
+                   65536);
+  assert_string_equal(json_string_value(json_array_get(json_object_get(e, "backends"), 0)), "cpu");
+  json_decref(reg);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_valid_scene_defaults),
+      cmocka_unit_test(test_error_names_pointer_and_value),
+      cmocka_unit_test(test_all_problems_reported),
+      cmocka_unit_test(test_integral_reals_are_integers),
+      cmocka_unit_test(test_mesh_paths),
+      cmocka_unit_test(test_overrides),
+      cmocka_unit_test(test_registry),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
