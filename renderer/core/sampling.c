@@ -20,18 +20,14 @@ static uint32_t laine_karras(uint32_t x, uint32_t seed) {
   return x;
 }
 
-static uint32_t owen_scramble(uint32_t x, uint32_t seed) {
-  return reverse_bits(laine_karras(reverse_bits(x), seed));
-}
-
-/* First two Sobol dimensions: van der Corput, and the dimension with primitive polynomial x+1
- * whose direction numbers are v_k = v_{k-1} ^ (v_{k-1} >> 1). */
-static uint32_t sobol0(uint32_t i) { return reverse_bits(i); }
-
-static uint32_t sobol1(uint32_t i) {
-  uint32_t r = 0, v = 1U << 31;
-  for (; i; i >>= 1, v ^= v >> 1)
-    if (i & 1) r ^= v;
+/* First two Sobol dimensions, generated directly in bit-reversed order so Owen scrambling costs
+ * one reversal per dimension: dimension 0 reversed is the index itself; dimension 1 (primitive
+ * polynomial x+1, direction numbers v_k = v_{k-1} ^ (v_{k-1} >> 1)) reversed has direction
+ * numbers w_k = w_{k-1} ^ (w_{k-1} << 1). */
+static uint32_t sobol1_reversed(uint32_t i) {
+  uint32_t r = 0, w = 1;
+  for (; i; i >>= 1, w ^= w << 1)
+    if (i & 1) r ^= w;
   return r;
 }
 
@@ -57,8 +53,10 @@ void obs_sampler2d_init(obs_sampler2d *s, obs_sampler_kind kind, uint32_t x, uin
 void obs_sampler2d_get(const obs_sampler2d *s, uint32_t i, float *u, float *v) {
   switch (s->kind) {
     case OBS_SAMPLER_SOBOL:
-      *u = obs_u32_to_unit(owen_scramble(sobol0(i), s->scramble0));
-      *v = obs_u32_to_unit(owen_scramble(sobol1(i), s->scramble1));
+      /* owen(x) = reverse(laine_karras(reverse(x))), and reverse(sobol_d(i)) is generated
+       * directly. */
+      *u = obs_u32_to_unit(reverse_bits(laine_karras(i, s->scramble0)));
+      *v = obs_u32_to_unit(reverse_bits(laine_karras(sobol1_reversed(i), s->scramble1)));
       return;
     case OBS_SAMPLER_HALTON: {
       /* Cranley-Patterson rotation per stream. */

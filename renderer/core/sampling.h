@@ -42,11 +42,11 @@ static inline void obs_sample_cosine(float u, float v, float d[3]) {
   float r = sqrtf(u), phi = 6.28318530717958647692f * v;
   d[0] = r * cosf(phi);
   d[1] = r * sinf(phi);
-  d[2] = sqrtf(fmaxf(0.0f, 1.0f - u));
+  d[2] = sqrtf(u < 1.0f ? 1.0f - u : 0.0f); /* not fmaxf: a libm call without -ffast-math */
 }
 
 static inline void obs_sample_uniform(float u, float v, float d[3]) {
-  float z = u, r = sqrtf(fmaxf(0.0f, 1.0f - z * z)), phi = 6.28318530717958647692f * v;
+  float z = u, r = sqrtf(z < 1.0f ? 1.0f - z * z : 0.0f), phi = 6.28318530717958647692f * v;
   d[0] = r * cosf(phi);
   d[1] = r * sinf(phi);
   d[2] = z;

@@ -263,21 +263,6 @@ void obs_rt_ctx_init(obs_rt_ctx *c, const obs_rt *rt, const obs_hit *from) {
   }
 }
 
-int obs_rt_occluded(const obs_rt *rt, obs_rt_ctx *c, const float org[3], const float dir[3],
-                    float tfar) {
-  struct RTCRay r;
-  r.org_x = org[0], r.org_y = org[1], r.org_z = org[2];
-  r.dir_x = dir[0], r.dir_y = dir[1], r.dir_z = dir[2];
-  r.tnear = 0.0f;
-  r.tfar = tfar;
-  r.time = 0.0f;
-  r.mask = ~0u;
-  r.id = 0;
-  r.flags = 0;
-  rtcOccluded1(rt->scene, &c->ctx, &r);
-  return r.tfar < 0.0f;
-}
-
 float obs_rt_distance(const obs_rt *rt, obs_rt_ctx *c, const float org[3], const float dir[3],
                       float tfar) {
   struct RTCRayHit rh;

@@ -46,9 +46,22 @@ int obs_rt_intersect(const obs_rt *rt, const double org[3], const double dir[3],
 void obs_rt_offset(const obs_rt *rt, const obs_hit *hit, float out[3]);
 /* Prepares a context for rays leaving `from`. */
 void obs_rt_ctx_init(obs_rt_ctx *c, const obs_rt *rt, const obs_hit *from);
-/* Whether anything lies along (org, dir) within [0, tfar). */
-int obs_rt_occluded(const obs_rt *rt, obs_rt_ctx *c, const float org[3], const float dir[3],
-                    float tfar);
+/* Whether anything lies along (org, dir) within [0, tfar). Inline: it is the innermost call of
+ * every occlusion technique. */
+static inline int obs_rt_occluded(const obs_rt *rt, obs_rt_ctx *c, const float org[3],
+                                  const float dir[3], float tfar) {
+  struct RTCRay r;
+  r.org_x = org[0], r.org_y = org[1], r.org_z = org[2];
+  r.dir_x = dir[0], r.dir_y = dir[1], r.dir_z = dir[2];
+  r.tnear = 0.0f;
+  r.tfar = tfar;
+  r.time = 0.0f;
+  r.mask = ~0u;
+  r.id = 0;
+  r.flags = 0;
+  rtcOccluded1(rt->scene, &c->ctx, &r);
+  return r.tfar < 0.0f;
+}
 /* Distance to the closest surface along (org, dir) within [0, tfar], or INFINITY. */
 float obs_rt_distance(const obs_rt *rt, obs_rt_ctx *c, const float org[3], const float dir[3],
                       float tfar);
