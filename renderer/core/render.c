@@ -49,7 +49,18 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
   res->timings.build_ms = ctx.build_ms;
   res->timings.render_ms = ctx.render_ms;
   res->timings.total_ms = obs_now_ms() - t0;
+  res->nstages = ctx.nstages;
+  for (int i = 0; i < ctx.nstages; i++) {
+    res->stage_names[i] = ctx.stage_names[i];
+    res->stage_ms[i] = ctx.stage_ms[i];
+  }
   return 0;
+}
+
+void obs_render_ctx_stage(obs_render_ctx *ctx, const char *name, double ms) {
+  if (ctx->nstages >= OBS_MAX_STAGES) return;
+  ctx->stage_names[ctx->nstages] = name;
+  ctx->stage_ms[ctx->nstages++] = ms;
 }
 
 void obs_result_free(obs_result *res) {
@@ -76,6 +87,12 @@ json_t *obs_result_summary_json(const obs_result *r, const obs_scene *sc) {
   json_object_set_new(t, "render", json_real(r->timings.render_ms));
   json_object_set_new(t, "write", json_real(r->timings.write_ms));
   json_object_set_new(t, "total", json_real(r->timings.total_ms));
+  if (r->nstages) {
+    json_t *st = json_object();
+    for (int i = 0; i < r->nstages; i++)
+      json_object_set_new(st, r->stage_names[i], json_real(r->stage_ms[i]));
+    json_object_set_new(t, "stages", st);
+  }
   json_object_set_new(o, "timings_ms", t);
   json_object_set_new(o, "rays", json_integer((json_int_t)r->rays));
   double secs = r->timings.render_ms / 1e3;

@@ -25,6 +25,9 @@ typedef struct obs_result {
   obs_backend backend;         /* the backend that ran */
   obs_image image;
   obs_timings timings;         /* load_ms/write_ms are filled by the caller that did those stages */
+  int nstages;                 /* finer stages reported by the technique */
+  const char *stage_names[OBS_MAX_STAGES];
+  double stage_ms[OBS_MAX_STAGES];
   uint64_t rays;
   int threads;
 } obs_result;

@@ -22,6 +22,8 @@ enum {
 
 typedef void (*obs_progress_fn)(void *user, double fraction);
 
+#define OBS_MAX_STAGES 8
+
 /* Per-stage timings in milliseconds. */
 typedef struct obs_timings {
   double load_ms, build_ms, render_ms, write_ms, total_ms;
@@ -39,7 +41,14 @@ typedef struct obs_render_ctx {
   double build_ms;             /* acceleration structures, tessellation */
   double render_ms;
   uint64_t rays;               /* rays traced (primary + secondary) */
+  /* Finer stages (e.g. "gbuffer", "ao", "blur", "readback"), added with obs_render_ctx_stage. */
+  int nstages;
+  const char *stage_names[OBS_MAX_STAGES]; /* static strings */
+  double stage_ms[OBS_MAX_STAGES];
 } obs_render_ctx;
+
+/* Records one named stage's time (ignored past OBS_MAX_STAGES). */
+void obs_render_ctx_stage(obs_render_ctx *ctx, const char *name, double ms);
 
 /* Runs one technique on one backend and fills `out` (initialised by the callee). */
 typedef int (*obs_technique_run_fn)(obs_render_ctx *ctx, obs_image *out, obs_err *err);

@@ -1,0 +1,56 @@
+/* The G-buffer shared by screen-space techniques on every backend: the one definition of each
+ * buffer, which the Vulkan rasteriser and the CPU ray caster both produce.
+ *
+ * View space: x right, y up, z forward (into the screen), origin at the camera. For pixel centre
+ * (fx, fy) in pixels (0,0 = top-left corner) with ndc_x = 2 fx / W - 1 and ndc_y = 1 - 2 fy / H:
+ *   perspective:  P = (ndc_x * tan_half_w * z, ndc_y * tan_half_h * z, z)
+ *   orthographic: P = (ndc_x * half_w, ndc_y * half_h, z)
+ * where z = depth[pixel]. */
+#ifndef OBS_GBUFFER_H
+#define OBS_GBUFFER_H
+
+#include <stddef.h>
+
+#include "camera.h"
+#include "geometry.h"
+#include "obscura/error.h"
+#include "obscura/image.h"
+#include "obscura/scene.h"
+
+/* Owns its planes (one allocation); release with obs_gbuffer_free. */
+typedef struct obs_gbuffer {
+  int width, height;
+  int ortho;
+  float half_w, half_h; /* perspective: tan of the half field of view; orthographic: half extents */
+  float *depth;    /* linear view depth z (> 0) where covered; 0 where not */
+  float *normal;   /* 3 per pixel: unit face normal in view space, facing the camera; 0 where not */
+  float *albedo;   /* 3 per pixel: the object's reflectivity ((1,1,1) without material); 0 where not */
+  float *coverage; /* 1 where a surface covers the pixel centre, else 0 */
+} obs_gbuffer;
+
+int obs_gbuffer_alloc(obs_gbuffer *g, int width, int height, const obs_camera_rig *rig,
+                      obs_err *err);
+void obs_gbuffer_free(obs_gbuffer *g);
+
+static inline void obs_gbuffer_position(const obs_gbuffer *g, float fx, float fy, float z,
+                                        float out[3]) {
+  float nx = 2.0f * fx / (float)g->width - 1.0f, ny = 1.0f - 2.0f * fy / (float)g->height;
+  if (g->ortho) {
+    out[0] = nx * g->half_w;
+    out[1] = ny * g->half_h;
+  } else {
+    out[0] = nx * g->half_w * z;
+    out[1] = ny * g->half_h * z;
+  }
+  out[2] = z;
+}
+
+/* The CPU backend's G-buffer: one Embree ray through each pixel centre (renderer/cpu/gbuffer.c). */
+int obs_gbuffer_raycast(const obs_scene *scene, obs_gbuffer *g, int threads, double *build_ms,
+                        double *render_ms, obs_err *err);
+
+/* Output channels every screen-space technique writes besides its own: "depth.Z", "normal.X/Y/Z"
+ * (world space) and "alpha", taken from the G-buffer. `img` must already have those channels. */
+void obs_gbuffer_export(const obs_gbuffer *g, const obs_camera_rig *rig, obs_image *img);
+
+#endif

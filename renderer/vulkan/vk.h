@@ -1,0 +1,85 @@
+/* The Vulkan backend's device layer: a headless device (lavapipe in tests), the rasterised
+ * G-buffer, and generic compute passes over 2D float images. Techniques build on these only.
+ *
+ * Ownership: obs_vk owns every pipeline and pool it creates; images and G-buffers are owned by the
+ * caller and freed with their _free functions before obs_vk_close. All calls on one obs_vk must come
+ * from one thread at a time. */
+#ifndef OBS_VK_H
+#define OBS_VK_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "gbuffer.h"
+#include "geometry.h"
+#include "obscura/error.h"
+#include "obscura/scene.h"
+
+typedef struct obs_vk obs_vk;
+typedef struct obs_vk_image obs_vk_image;
+
+/* Opens a device: the first whose name contains `filter` (NULL: $OBSCURA_VK_DEVICE, else the first
+ * device). With `validation` nonzero the Khronos validation layer is enabled and every message it
+ * emits is counted (and printed to stderr). Returns OBS_EUNSUPPORTED with a clear message when no
+ * Vulkan device exists. */
+int obs_vk_open(obs_vk **out, const char *filter, int validation, obs_err *err);
+void obs_vk_close(obs_vk *vk);
+const char *obs_vk_device_name(const obs_vk *vk);
+/* Number of validation-layer messages (warnings and errors) seen so far. */
+uint32_t obs_vk_validation_messages(const obs_vk *vk);
+/* Whether a Vulkan device can be opened here (probed once per process, cached). */
+int obs_vk_available(void);
+/* Whether tests and renders should enable validation: $OBSCURA_VK_VALIDATION=1. */
+int obs_vk_validation_requested(void);
+
+/* A w x h storage image of 1 (R32_SFLOAT) or 4 (R32G32B32A32_SFLOAT) float channels, resident on
+ * the device, in GENERAL layout between calls. Host data is row-major, row 0 at the top, channels
+ * interleaved. */
+int obs_vk_image_create(obs_vk *vk, int width, int height, int channels, obs_vk_image **out,
+                        obs_err *err);
+int obs_vk_image_upload(obs_vk *vk, obs_vk_image *img, const float *data, obs_err *err);
+int obs_vk_image_download(obs_vk *vk, const obs_vk_image *img, float *data, obs_err *err);
+void obs_vk_image_free(obs_vk *vk, obs_vk_image *img);
+
+/* The G-buffer on the device: depth (1 channel: linear view depth, 0 = uncovered),
+ * normal (4 channels: view-space face normal xyz, coverage in w), albedo (4 channels: rgb, 0). */
+typedef struct obs_vk_gbuffer {
+  obs_vk_image *depth, *normal, *albedo;
+  int width, height;
+} obs_vk_gbuffer;
+
+/* Rasterises `geo` (world space, from obs_geometry_build) seen by the scene's camera into a
+ * G-buffer with the same definitions as obs_gbuffer (renderer/core/gbuffer.h): linear view depth,
+ * face normals from position derivatives, albedo, coverage at pixel centres. Analytic spheres are
+ * tessellated finely enough that their facets deviate by < 0.25 pixel at this image size.
+ * `ms` (may be NULL) receives the device time of the pass. */
+int obs_vk_gbuffer_render(obs_vk *vk, const obs_scene *scene, const obs_geometry *geo,
+                          obs_vk_gbuffer *out, double *ms, obs_err *err);
+/* Uploads a host G-buffer (so both backends can run on identical inputs), and downloads one. */
+int obs_vk_gbuffer_upload(obs_vk *vk, const obs_gbuffer *host, obs_vk_gbuffer *out, obs_err *err);
+int obs_vk_gbuffer_download(obs_vk *vk, const obs_vk_gbuffer *dev, obs_gbuffer *host,
+                            obs_err *err);
+void obs_vk_gbuffer_free(obs_vk *vk, obs_vk_gbuffer *g);
+
+/* One compute dispatch. The shader (SPIR-V, entry "main", local size chosen by the shader) sees
+ * images[i] as `layout(binding = i, r32f or rgba32f) uniform image2D` (set 0) and the push
+ * constants (at most 128 bytes). */
+#define OBS_VK_MAX_BINDINGS 8
+typedef struct obs_vk_pass {
+  const char *name;           /* for timings and messages */
+  const uint32_t *spirv;      /* embedded SPIR-V (see shaders.h); pipelines are cached per pointer */
+  size_t spirv_size;          /* bytes */
+  obs_vk_image *images[OBS_VK_MAX_BINDINGS];
+  int nimages;
+  const void *push;
+  uint32_t push_size;
+  uint32_t groups_x, groups_y;
+} obs_vk_pass;
+
+/* Records the passes in order into one command buffer with full memory barriers between them,
+ * submits, and waits. ms_per_pass (may be NULL; npasses entries) receives each pass's device time
+ * from timestamp queries. */
+int obs_vk_run(obs_vk *vk, const obs_vk_pass *passes, int npasses, double *ms_per_pass,
+               obs_err *err);
+
+#endif
