@@ -111,3 +111,55 @@ int obs_metrics_rmse(const obs_image *a, const obs_image *b, const char *channel
     *rmse = used ? sqrt(metrics_total(&acc) / (double)used) : 0.0;
   return OBS_OK;
 }
+
+int obs_metrics_ssim(const obs_image *a, const obs_image *b, const char *channel, const char *mask,
+                     double *ssim, obs_err *err) {
+  if (!a || !b || !a->data || !b->data || !channel || !ssim)
+    return obs_err_set(err, OBS_EINVAL, "metrics: ssim needs two images, a channel and an output");
+  if (a->width != b->width || a->height != b->height)
+    return obs_err_set(err, OBS_EINVAL, "metrics: image sizes differ (%dx%d vs %dx%d)", a->width,
+                       a->height, b->width, b->height);
+  int code = OBS_OK;
+  const float *pa = metrics_find(a, channel, "first", &code, err);
+  if (!pa) return code;
+  const float *pb = metrics_find(b, channel, "second", &code, err);
+  if (!pb) return code;
+  const float *m = NULL;
+  if (mask && !(m = metrics_find(b, mask, "second (mask)", &code, err))) return code;
+  int w = a->width, h = a->height;
+  int ww = w < 8 ? w : 8, wh = h < 8 ? h : 8;
+  /* Separable Gaussian weights centred in the window, normalised to sum 1. */
+  double gx[8], gy[8], sx = 0, sy = 0;
+  for (int i = 0; i < ww; i++) sx += gx[i] = exp(-pow(i - (ww - 1) / 2.0, 2) / (2 * 1.5 * 1.5));
+  for (int i = 0; i < wh; i++) sy += gy[i] = exp(-pow(i - (wh - 1) / 2.0, 2) / (2 * 1.5 * 1.5));
+  const double c1 = 0.01 * 0.01, c2 = 0.03 * 0.03;
+  metrics_acc acc = {0, 0};
+  size_t windows = 0;
+  for (int y0 = 0; y0 + wh <= h; y0++)
+    for (int x0 = 0; x0 + ww <= w; x0++) {
+      int cx = x0 + ww / 2, cy = y0 + wh / 2;
+      if (m && !(m[(size_t)cy * (size_t)w + (size_t)cx] > 0.0f)) continue;
+      double ma = 0, mb = 0, va = 0, vb = 0, cov = 0;
+      for (int j = 0; j < wh; j++)
+        for (int i = 0; i < ww; i++) {
+          double g = gx[i] / sx * gy[j] / sy;
+          size_t k = (size_t)(y0 + j) * (size_t)w + (size_t)(x0 + i);
+          ma += g * pa[k];
+          mb += g * pb[k];
+        }
+      for (int j = 0; j < wh; j++)
+        for (int i = 0; i < ww; i++) {
+          double g = gx[i] / sx * gy[j] / sy;
+          size_t k = (size_t)(y0 + j) * (size_t)w + (size_t)(x0 + i);
+          double da = pa[k] - ma, db = pb[k] - mb;
+          va += g * da * da;
+          vb += g * db * db;
+          cov += g * da * db;
+        }
+      metrics_add(&acc, ((2 * ma * mb + c1) * (2 * cov + c2)) /
+                            ((ma * ma + mb * mb + c1) * (va + vb + c2)));
+      windows++;
+    }
+  *ssim = windows ? metrics_total(&acc) / (double)windows : 1.0;
+  return OBS_OK;
+}

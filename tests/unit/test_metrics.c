@@ -239,6 +239,52 @@ static void test_rmse_errors(void **state) {
   obs_err_free(&err);
 }
 
+/* SSIM: identical images give 1; constant images reduce to the luminance term, computed by hand;
+ * noise lowers it; windows follow the mask. */
+static void test_ssim(void **state) {
+  (void)state;
+  float va[256], vb[256], vn[256], mask[256];
+  uint32_t s = 12345;
+  for (int i = 0; i < 256; i++) {
+    va[i] = 0.5f;
+    vb[i] = 0.25f;
+    s = s * 1664525u + 1013904223u;
+    vn[i] = 0.5f + 0.2f * ((float)(s >> 8) / 16777216.0f - 0.5f);
+    mask[i] = (i % 16) < 8 ? 1.0f : 0.0f;
+  }
+  obs_image a, b, n, nm;
+  make_image(&a, 16, 16, va, NULL);
+  make_image(&b, 16, 16, vb, NULL);
+  make_image(&n, 16, 16, vn, NULL);
+  make_image(&nm, 16, 16, vn, mask);
+  obs_err err = OBS_ERR_INIT;
+  double r;
+  assert_int_equal(obs_metrics_ssim(&n, &n, "v", NULL, &r, &err), 0);
+  assert_true(fabs(r - 1.0) < 1e-12);
+  assert_int_equal(obs_metrics_ssim(&a, &b, "v", NULL, &r, &err), 0);
+  double expect = (2 * 0.5 * 0.25 + 1e-4) / (0.25 + 0.0625 + 1e-4);
+  assert_true(fabs(r - expect) < 1e-9);
+  assert_int_equal(obs_metrics_ssim(&a, &n, "v", NULL, &r, &err), 0);
+  assert_true(r < 0.5 && r > -1.0); /* no shared structure: the contrast term collapses */
+  double masked;
+  assert_int_equal(obs_metrics_ssim(&a, &nm, "v", "alpha", &masked, &err), 0);
+  assert_true(masked < 0.5);
+  /* Tiny images use one window of their own size. */
+  obs_image t1, t2;
+  make_image(&t1, 1, 1, va, NULL);
+  make_image(&t2, 1, 1, vb, NULL);
+  assert_int_equal(obs_metrics_ssim(&t1, &t2, "v", NULL, &r, &err), 0);
+  assert_true(fabs(r - expect) < 1e-9);
+  assert_int_equal(obs_metrics_ssim(&t1, &a, "v", NULL, &r, &err), OBS_EINVAL);
+  obs_image_free(&a);
+  obs_image_free(&b);
+  obs_image_free(&n);
+  obs_image_free(&nm);
+  obs_image_free(&t1);
+  obs_image_free(&t2);
+  obs_err_free(&err);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_stats_unmasked),
@@ -251,6 +297,7 @@ int main(void) {
       cmocka_unit_test(test_rmse_masked_by_b),
       cmocka_unit_test(test_rmse_non_finite),
       cmocka_unit_test(test_rmse_errors),
+      cmocka_unit_test(test_ssim),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

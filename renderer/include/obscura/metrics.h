@@ -26,6 +26,13 @@ int obs_metrics_stats(const obs_image *img, const char *channel, const char *mas
 int obs_metrics_rmse(const obs_image *a, const obs_image *b, const char *channel, const char *mask,
                      double *rmse, obs_err *err);
 
+/* Mean structural similarity of channel `channel` (values in [0,1]) between a and b: 8x8 windows at
+ * every position, Gaussian-weighted (sigma 1.5), C1 = 0.01^2, C2 = 0.03^2. With `mask` (channel of
+ * b, may be NULL) only windows whose pixel (x+4, y+4) is selected count. Images smaller than 8
+ * pixels in a dimension use one window of that size. 1 means identical. */
+int obs_metrics_ssim(const obs_image *a, const obs_image *b, const char *channel, const char *mask,
+                     double *ssim, obs_err *err);
+
 #ifdef __cplusplus
 }
 #endif
