@@ -189,7 +189,7 @@ static int cmd_render(int argc, char **argv) {
   obs_scene_free(&sc);
   obs_err_free(&err);
   free_args(&c);
-  return rc ? EXIT_FAILURE : 0;
+  return rc == 0 ? 0 : rc == OBS_EINVAL ? EXIT_BAD_INPUT : EXIT_FAILURE;
 }
 
 static int cmd_validate(int argc, char **argv) {

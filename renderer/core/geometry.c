@@ -2,10 +2,13 @@
  * Spheres stay analytic: only their centre and radius are transformed. */
 #include "geometry.h"
 
+#include <assimp/cfileio.h>
 #include <assimp/cimport.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
+#include <limits.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -69,23 +72,23 @@ static int mesh_alloc(obs_mesh *m, size_t nverts, size_t ntris, int normals) {
   return 0;
 }
 
-static void mesh_free(obs_mesh *m) {
+void obs_geometry_mesh_free(obs_mesh *m) {
   free(m->pos);
   free(m->idx);
   free(m->nrm);
   memset(m, 0, sizeof *m);
 }
 
-/* Applies the object's transform to an object-space mesh in place (positions kept in double until
- * the final float store). */
-static void mesh_transform(obs_mesh *m, const obs_transform *t) {
-  if (!t->present) return;
+/* Transforms an object-space float mesh in place into the frame at `origin`: each vertex goes
+ * through the transform and the shift in double and is rounded to float once. */
+static void mesh_transform(obs_mesh *m, const obs_transform *t, const double origin[3]) {
+  if (!t->present && origin[0] == 0 && origin[1] == 0 && origin[2] == 0) return;
   xform x;
   xform_from(t, &x);
   for (size_t i = 0; i < m->nverts; i++) {
     double p[3] = {m->pos[3 * i], m->pos[3 * i + 1], m->pos[3 * i + 2]}, o[3];
     xform_point(&x, p, o);
-    for (int k = 0; k < 3; k++) m->pos[3 * i + k] = (float)o[k];
+    for (int k = 0; k < 3; k++) m->pos[3 * i + k] = (float)(o[k] - origin[k]);
     if (m->nrm) {
       double n[3] = {m->nrm[3 * i], m->nrm[3 * i + 1], m->nrm[3 * i + 2]}, q[3];
       for (int k = 0; k < 3; k++) q[k] = x.n[k][0] * n[0] + x.n[k][1] * n[1] + x.n[k][2] * n[2];
@@ -95,13 +98,17 @@ static void mesh_transform(obs_mesh *m, const obs_transform *t) {
   }
 }
 
+/* Shapes given by world-space vertices (quads, triangles, boxes) are transformed and shifted in
+ * double straight from the document's numbers. */
 static int mesh_from_vertices(const obs_vec3 *v, size_t nv, const uint32_t *tri, size_t nt,
-                              obs_mesh *m) {
+                              const obs_transform *t, const double origin[3], obs_mesh *m) {
   if (mesh_alloc(m, nv, nt, 0)) return OBS_ENOMEM;
+  xform x;
+  xform_from(t, &x);
   for (size_t i = 0; i < nv; i++) {
-    m->pos[3 * i] = (float)v[i].x;
-    m->pos[3 * i + 1] = (float)v[i].y;
-    m->pos[3 * i + 2] = (float)v[i].z;
+    double p[3] = {v[i].x, v[i].y, v[i].z}, o[3];
+    xform_point(&x, p, o);
+    for (int k = 0; k < 3; k++) m->pos[3 * i + k] = (float)(o[k] - origin[k]);
   }
   memcpy(m->idx, tri, nt * 3 * sizeof(uint32_t));
   return 0;
@@ -115,7 +122,7 @@ int obs_geometry_displaced_sphere(int s, obs_mesh *m) {
   if (!st || !sp) {
     free(st);
     free(sp);
-    mesh_free(m);
+    obs_geometry_mesh_free(m);
     return OBS_ENOMEM;
   }
   for (size_t j = 0; j < nj; j++) {
@@ -153,14 +160,88 @@ int obs_geometry_displaced_sphere(int s, obs_mesh *m) {
   return 0;
 }
 
-static int import_mesh(const obs_scene *sc, size_t oi, obs_mesh *m, obs_err *err) {
-  const obs_object *o = &sc->objects[oi];
+int obs_path_is_inside(const char *dir, const char *path) {
+  size_t n = strlen(dir);
+  if (strncmp(dir, path, n) != 0) return 0;
+  return path[n] == '/' || (n > 0 && dir[n - 1] == '/');
+}
+
+/* assimp IO confined to one directory tree: mesh files may name others (OBJ mtllib, glTF buffer
+ * URIs), and a scene must not reach outside its tree through them. Read-only. */
+typedef struct contained_io {
+  struct aiFileIO io;
+  char root[PATH_MAX];
+} contained_io;
+
+static size_t cio_read(struct aiFile *f, char *buf, size_t size, size_t count) {
+  return fread(buf, size, count, (FILE *)f->UserData);
+}
+static size_t cio_write(struct aiFile *f, const char *buf, size_t size, size_t count) {
+  (void)f, (void)buf, (void)size, (void)count;
+  return 0;
+}
+static size_t cio_tell(struct aiFile *f) {
+  long p = ftell((FILE *)f->UserData);
+  return p < 0 ? 0 : (size_t)p;
+}
+static size_t cio_size(struct aiFile *f) {
+  FILE *fp = (FILE *)f->UserData;
+  long cur = ftell(fp), end = 0;
+  if (cur >= 0 && fseek(fp, 0, SEEK_END) == 0) end = ftell(fp);
+  if (cur >= 0) fseek(fp, cur, SEEK_SET);
+  return end < 0 ? 0 : (size_t)end;
+}
+static void cio_flush(struct aiFile *f) { (void)f; }
+static enum aiReturn cio_seek(struct aiFile *f, size_t off, enum aiOrigin origin) {
+  int whence = origin == aiOrigin_SET ? SEEK_SET : origin == aiOrigin_CUR ? SEEK_CUR : SEEK_END;
+  return fseek((FILE *)f->UserData, (long)off, whence) == 0 ? aiReturn_SUCCESS : aiReturn_FAILURE;
+}
+
+static struct aiFile *cio_open(struct aiFileIO *io, const char *path, const char *mode) {
+  const contained_io *c = (const contained_io *)io;
+  char real[PATH_MAX];
+  if (!mode || mode[0] != 'r' || !realpath(path, real) || !obs_path_is_inside(c->root, real))
+    return NULL;
+  FILE *fp = fopen(real, "rb");
+  if (!fp) return NULL;
+  struct aiFile *f = calloc(1, sizeof *f);
+  if (!f) {
+    fclose(fp);
+    return NULL;
+  }
+  f->ReadProc = cio_read;
+  f->WriteProc = cio_write;
+  f->TellProc = cio_tell;
+  f->FileSizeProc = cio_size;
+  f->SeekProc = cio_seek;
+  f->FlushProc = cio_flush;
+  f->UserData = (aiUserData)fp;
+  return f;
+}
+
+static void cio_close(struct aiFileIO *io, struct aiFile *f) {
+  (void)io;
+  if (!f) return;
+  fclose((FILE *)f->UserData);
+  free(f);
+}
+
+int obs_geometry_import_mesh(const char *path, const char *root, obs_mesh *m, obs_err *err,
+                             const char *where) {
+  memset(m, 0, sizeof *m);
+  contained_io cio;
+  memset(&cio, 0, sizeof cio);
+  if (!realpath(root, cio.root))
+    return obs_err_set(err, OBS_EIO, "%s: scene directory cannot be resolved", where);
+  cio.io.OpenProc = cio_open;
+  cio.io.CloseProc = cio_close;
   const struct aiScene *as =
-      aiImportFile(o->mesh_path, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
-                                     aiProcess_PreTransformVertices | aiProcess_SortByPType);
+      aiImportFileEx(path,
+                     aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
+                         aiProcess_PreTransformVertices | aiProcess_SortByPType,
+                     &cio.io);
   if (!as)
-    return obs_err_set(err, OBS_EINVAL, "%s: /objects/%zu/shape/file: cannot import mesh: %s",
-                       sc->name, oi, aiGetErrorString());
+    return obs_err_set(err, OBS_EINVAL, "%s: cannot import mesh: %s", where, aiGetErrorString());
   size_t nv = 0, nt = 0;
   int all_normals = 1;
   for (unsigned i = 0; i < as->mNumMeshes; i++) {
@@ -172,12 +253,13 @@ static int import_mesh(const obs_scene *sc, size_t oi, obs_mesh *m, obs_err *err
   }
   if (nt == 0 || nv > UINT32_MAX) {
     aiReleaseImport(as);
-    return obs_err_set(err, OBS_EINVAL, "%s: /objects/%zu/shape/file: mesh has no triangles",
-                       sc->name, oi);
+    return nt == 0 ? obs_err_set(err, OBS_EINVAL, "%s: mesh has no triangles", where)
+                   : obs_err_set(err, OBS_EINVAL, "%s: mesh has %zu vertices, more than 2^32",
+                                 where, nv);
   }
   if (mesh_alloc(m, nv, nt, all_normals)) {
     aiReleaseImport(as);
-    return obs_err_set(err, OBS_ENOMEM, "%s: /objects/%zu: out of memory for mesh", sc->name, oi);
+    return obs_err_set(err, OBS_ENOMEM, "%s: out of memory for %zu triangles", where, nt);
   }
   size_t vbase = 0, t = 0;
   for (unsigned i = 0; i < as->mNumMeshes; i++) {
@@ -212,31 +294,44 @@ static int import_mesh(const obs_scene *sc, size_t oi, obs_mesh *m, obs_err *err
   return 0;
 }
 
-static int build_object(const obs_scene *sc, size_t oi, obs_mesh *m, obs_err *err) {
+static int fail_oom(const obs_scene *sc, size_t oi, int rc, obs_err *err) {
+  return rc ? obs_err_set(err, rc, "%s: /objects/%zu: out of memory", sc->name, oi) : 0;
+}
+
+static int build_object(const obs_scene *sc, size_t oi, const double origin[3], obs_mesh *m,
+                        obs_err *err) {
   const obs_object *o = &sc->objects[oi];
   static const uint32_t quad[6] = {0, 1, 2, 0, 2, 3}, tri[3] = {0, 1, 2};
   static const uint32_t box[36] = {0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4,
                                    3, 7, 6, 3, 6, 2, 0, 4, 7, 0, 7, 3, 1, 2, 6, 1, 6, 5};
   int rc = 0;
   switch (o->shape) {
-    case OBS_SHAPE_QUAD: rc = mesh_from_vertices(o->v, 4, quad, 2, m); break;
-    case OBS_SHAPE_TRIANGLE: rc = mesh_from_vertices(o->v, 3, tri, 1, m); break;
+    case OBS_SHAPE_QUAD:
+      return fail_oom(sc, oi, mesh_from_vertices(o->v, 4, quad, 2, &o->transform, origin, m), err);
+    case OBS_SHAPE_TRIANGLE:
+      return fail_oom(sc, oi, mesh_from_vertices(o->v, 3, tri, 1, &o->transform, origin, m), err);
     case OBS_SHAPE_BOX: {
       obs_vec3 a = o->v[0], b = o->v[1];
       obs_vec3 c[8] = {{a.x, a.y, a.z}, {b.x, a.y, a.z}, {b.x, b.y, a.z}, {a.x, b.y, a.z},
                        {a.x, a.y, b.z}, {b.x, a.y, b.z}, {b.x, b.y, b.z}, {a.x, b.y, b.z}};
-      rc = mesh_from_vertices(c, 8, box, 12, m);
-      break;
+      return fail_oom(sc, oi, mesh_from_vertices(c, 8, box, 12, &o->transform, origin, m), err);
     }
-    case OBS_SHAPE_DISPLACED_SPHERE: rc = obs_geometry_displaced_sphere(o->subdivisions, m); break;
+    case OBS_SHAPE_DISPLACED_SPHERE:
+      rc = obs_geometry_displaced_sphere(o->subdivisions, m);
+      break;
     case OBS_SHAPE_MESH:
-      if (import_mesh(sc, oi, m, err)) return OBS_EINVAL;
-      mesh_transform(m, &o->transform);
+      char where[256];
+      snprintf(where, sizeof where, "%s: /objects/%zu/shape/file", sc->name, oi);
+      int irc = obs_geometry_import_mesh(o->mesh_path, sc->base_dir ? sc->base_dir : ".", m, err,
+                                         where);
+      if (irc) return irc;
+      mesh_transform(m, &o->transform, origin);
       return 0;
-    default: return obs_err_set(err, OBS_EINTERNAL, "unexpected shape");
+    default:
+      return obs_err_set(err, OBS_EINTERNAL, "unexpected shape");
   }
-  if (rc) return obs_err_set(err, rc, "%s: /objects/%zu: out of memory", sc->name, oi);
-  mesh_transform(m, &o->transform);
+  if (rc) return fail_oom(sc, oi, rc, err);
+  mesh_transform(m, &o->transform, origin);
   return 0;
 }
 
@@ -249,11 +344,23 @@ static void grow_bounds(obs_geometry *g, const double p[3], int *first) {
 }
 
 int obs_geometry_build(const obs_scene *sc, obs_geometry *g, obs_err *err) {
+  static const double zero[3] = {0, 0, 0};
+  return obs_geometry_build_at(sc, zero, g, err);
+}
+
+/* Embree rejects coordinates beyond about 1.8e19; stay well inside float range. */
+#define GEOMETRY_MAX 1e18
+
+int obs_geometry_build_at(const obs_scene *sc, const double origin[3], obs_geometry *g,
+                          obs_err *err) {
   memset(g, 0, sizeof *g);
+  memcpy(g->origin, origin, sizeof g->origin);
   size_t nsph = 0, nmesh = 0;
   for (size_t i = 0; i < sc->nobjects; i++) {
-    if (sc->objects[i].shape == OBS_SHAPE_SPHERE) nsph++;
-    else nmesh++;
+    if (sc->objects[i].shape == OBS_SHAPE_SPHERE)
+      nsph++;
+    else
+      nmesh++;
   }
   g->meshes = calloc(nmesh ? nmesh : 1, sizeof *g->meshes);
   g->spheres = calloc(nsph ? nsph : 1, sizeof *g->spheres);
@@ -268,14 +375,11 @@ int obs_geometry_build(const obs_scene *sc, obs_geometry *g, obs_err *err) {
       obs_sphere *s = &g->spheres[g->nspheres++];
       double c[3] = {o->v[0].x, o->v[0].y, o->v[0].z};
       s->radius = o->radius;
-      if (o->transform.present) {
-        xform x;
-        xform_from(&o->transform, &x);
-        xform_point(&x, c, s->center);
-        s->radius *= fabs(o->transform.scale.x);
-      } else {
-        memcpy(s->center, c, sizeof c);
-      }
+      xform x;
+      xform_from(&o->transform, &x);
+      xform_point(&x, c, s->center);
+      for (int k = 0; k < 3; k++) s->center[k] -= origin[k];
+      s->radius *= fabs(o->transform.scale.x);
       s->object = i;
       for (int k = 0; k < 2; k++) {
         double p[3];
@@ -285,7 +389,7 @@ int obs_geometry_build(const obs_scene *sc, obs_geometry *g, obs_err *err) {
       continue;
     }
     obs_mesh *m = &g->meshes[g->nmeshes];
-    int rc = build_object(sc, i, m, err);
+    int rc = build_object(sc, i, origin, m, err);
     if (rc) {
       obs_geometry_free(g);
       return rc;
@@ -302,11 +406,18 @@ int obs_geometry_build(const obs_scene *sc, obs_geometry *g, obs_err *err) {
     double a = fmax(fabs(g->bounds[0][k]), fabs(g->bounds[1][k]));
     if (a > g->extent) g->extent = a;
   }
+  if (!(g->extent <= GEOMETRY_MAX)) {
+    obs_geometry_free(g);
+    return obs_err_set(err, OBS_EINVAL,
+                       "%s: /objects: transformed geometry reaches %g, beyond the renderer's range "
+                       "of +-%g scene units around the camera",
+                       sc->name, g->extent, GEOMETRY_MAX);
+  }
   return 0;
 }
 
 void obs_geometry_free(obs_geometry *g) {
-  for (size_t i = 0; i < g->nmeshes; i++) mesh_free(&g->meshes[i]);
+  for (size_t i = 0; i < g->nmeshes; i++) obs_geometry_mesh_free(&g->meshes[i]);
   free(g->meshes);
   free(g->spheres);
   memset(g, 0, sizeof *g);

@@ -30,11 +30,25 @@ typedef struct obs_geometry {
   size_t ntris;       /* total triangles */
   double bounds[2][3];/* world bounds of everything (empty scene: zeros) */
   double extent;      /* largest absolute coordinate of the bounds: the scene's scale */
+  double origin[3];   /* world position of this geometry's (0,0,0): coordinates are world - origin */
 } obs_geometry;
 
 /* Builds world-space geometry for every object (importing mesh files through assimp). */
 int obs_geometry_build(const obs_scene *scene, obs_geometry *geo, obs_err *err);
+/* The same in a frame shifted to `origin` (e.g. the camera): transforms and the shift are applied
+ * in double before rounding to float, so geometry far from the world origin but near the camera
+ * keeps its precision. Fails if any coordinate would exceed the ray tracer's float range. */
+int obs_geometry_build_at(const obs_scene *scene, const double origin[3], obs_geometry *geo,
+                          obs_err *err);
 void obs_geometry_free(obs_geometry *geo);
+
+/* Imports a mesh file with assimp, reading only files inside the directory tree `root` (the
+ * scene's). Messages are prefixed with `where` (e.g. "scene.json: /objects/3/shape/file"). */
+int obs_geometry_import_mesh(const char *path, const char *root, obs_mesh *m, obs_err *err,
+                             const char *where);
+void obs_geometry_mesh_free(obs_mesh *m);
+/* Whether the resolved `path` lies inside the resolved directory `dir`. */
+int obs_path_is_inside(const char *dir, const char *path);
 
 /* Fills a displaced_sphere of 2^(2s) triangles into `m` (object space, unit-ish radius). */
 int obs_geometry_displaced_sphere(int subdivisions, obs_mesh *m);

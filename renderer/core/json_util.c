@@ -329,7 +329,15 @@ json_t *obs_json_params_resolve(obs_jpath *p, const json_t *schema, const json_t
       } else if (param_check(p, sch, v)) {
         bad++;
       } else {
-        json_object_set(out, key, v);
+        /* An integral real (64.0) passed as an integer: store a true integer so readers that
+         * ask for one get it, not 0. */
+        long long iv;
+        json_t *type = json_object_get(sch, "type");
+        int want_int = json_is_string(type) && !strcmp(json_string_value(type), "integer");
+        if (want_int && json_is_real(v) && obs_json_as_int(v, &iv))
+          json_object_set_new(out, key, json_integer((json_int_t)iv));
+        else
+          json_object_set(out, key, v);
       }
       obs_jpath_pop(p, m);
     }

@@ -119,6 +119,7 @@ json_t *obs_result_summary_json(const obs_result *r, const obs_scene *sc) {
 
 static int mkdir_p(const char *dir, obs_err *err) {
   char buf[4096];
+  if (!dir || !*dir) return obs_err_set(err, OBS_EINVAL, "output directory must not be empty");
   if (snprintf(buf, sizeof buf, "%s", dir) >= (int)sizeof buf)
     return obs_err_set(err, OBS_EINVAL, "%s: output path too long", dir);
   for (char *p = buf + 1;; p++) {
@@ -138,21 +139,30 @@ int obs_result_write(obs_result *r, const obs_scene *sc, const char *dir, obs_er
   double t0 = obs_now_ms();
   int rc = mkdir_p(dir, err);
   if (rc) return rc;
-  char path[4200];
-  snprintf(path, sizeof path, "%s/ao.exr", dir);
-  if ((rc = obs_image_write_exr(&r->image, path, err))) return rc;
-  snprintf(path, sizeof path, "%s/ao.png", dir);
+  /* Every file is written under a staging name first and the set is renamed into place only
+   * when all succeeded, so a failure never mixes new and old outputs. */
+  static const char *const names[] = {"ao.exr", "ao.png", "summary.json"};
+  char stage[3][4200], final[3][4200];
+  for (int i = 0; i < 3; i++) {
+    snprintf(stage[i], sizeof stage[i], "%s/.%s.new", dir, names[i]);
+    snprintf(final[i], sizeof final[i], "%s/%s", dir, names[i]);
+  }
   const char *ch[] = {"ao"};
-  if ((rc = obs_image_write_png(&r->image, ch, 1, 0, path, err))) return rc;
-  r->timings.write_ms = obs_now_ms() - t0;
-  r->timings.total_ms += r->timings.write_ms;
-  json_t *sum = obs_result_summary_json(r, sc);
-  snprintf(path, sizeof path, "%s/summary.json.tmp", dir);
-  char final[4200];
-  snprintf(final, sizeof final, "%s/summary.json", dir);
-  rc = json_dump_file(sum, path, JSON_INDENT(2) | JSON_REAL_PRECISION(9));
-  json_decref(sum);
-  if (rc || rename(path, final))
-    return obs_err_set(err, OBS_EIO, "%s: cannot write summary", final);
-  return 0;
+  rc = obs_image_write_exr(&r->image, stage[0], err);
+  if (!rc) rc = obs_image_write_png(&r->image, ch, 1, 0, stage[1], err);
+  if (!rc) {
+    r->timings.write_ms = obs_now_ms() - t0;
+    r->timings.total_ms += r->timings.write_ms;
+    json_t *sum = obs_result_summary_json(r, sc);
+    if (json_dump_file(sum, stage[2], JSON_INDENT(2) | JSON_REAL_PRECISION(9)))
+      rc = obs_err_set(err, OBS_EIO, "%s: cannot write summary", stage[2]);
+    json_decref(sum);
+  }
+  for (int i = 0; !rc && i < 3; i++)
+    if (rename(stage[i], final[i]))
+      rc = obs_err_set(err, OBS_EIO, "%s: cannot rename into place: %s", final[i],
+                       strerror(errno));
+  if (rc)
+    for (int i = 0; i < 3; i++) unlink(stage[i]);
+  return rc;
 }

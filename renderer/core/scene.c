@@ -1,4 +1,5 @@
-/* Strict loading of scene documents: parse, apply overrides, validate every rule, fill obs_scene. */
+/* Strict loading of scene documents: parse, apply overrides, validate every rule, fill obs_scene.
+ */
 #include "obscura/scene.h"
 
 #include <jansson.h>
@@ -10,6 +11,7 @@
 #include <strings.h>
 #include <sys/stat.h>
 
+#include "geometry.h"
 #include "json_util.h"
 #include "obscura/technique.h"
 
@@ -40,8 +42,8 @@ static void load_camera(obs_jpath *p, const json_t *doc, obs_camera *cam) {
   int ortho = type && !strcmp(type, "orthographic");
   static const char *const keys_p[] = {"type", "position", "look_at", "up", "fov_y", NULL};
   static const char *const keys_o[] = {"type", "position", "look_at", "up", "height", NULL};
-  static const char *const keys_any[] = {"type", "position", "look_at", "up", "fov_y", "height",
-                                         NULL};
+  static const char *const keys_any[] = {"type",  "position", "look_at", "up",
+                                         "fov_y", "height",   NULL};
   obs_json_check_keys(p, c, !type ? keys_any : ortho ? keys_o : keys_p);
   double pos[3] = {0, 0, 0}, at[3] = {0, 0, 1}, up[3] = {0, 1, 0};
   int bad = 0;
@@ -50,16 +52,25 @@ static void load_camera(obs_jpath *p, const json_t *doc, obs_camera *cam) {
   bad |= obs_json_get_vec3(p, c, "up", 0, -COORD_MAX, COORD_MAX, up) < 0;
   cam->type = ortho ? OBS_CAMERA_ORTHOGRAPHIC : OBS_CAMERA_PERSPECTIVE;
   if (type && !ortho) obs_json_get_number(p, c, "fov_y", 1, 0, 180, 1, 1, &cam->fov_y);
-  if (type && ortho) obs_json_get_number(p, c, "height", 1, 0, COORD_MAX, 1, 0, &cam->height);
+  /* Orthographic ray origins spread over the view: keep them inside the ray tracer's range. */
+  if (type && ortho) obs_json_get_number(p, c, "height", 1, 0, 1e18, 1, 0, &cam->height);
   set_vec(&cam->position, pos);
   set_vec(&cam->look_at, at);
   set_vec(&cam->up, up);
   if (!bad) {
-    double d[3] = {at[0] - pos[0], at[1] - pos[1], at[2] - pos[2]};
-    double dl = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-    double ul = sqrt(up[0] * up[0] + up[1] * up[1] + up[2] * up[2]);
-    double cx = d[1] * up[2] - d[2] * up[1], cy = d[2] * up[0] - d[0] * up[2],
-           cz = d[0] * up[1] - d[1] * up[0];
+    /* Normalise by the largest component first so tiny (1e-300) or huge inputs neither underflow
+     * nor overflow when squared. */
+    double d[3] = {at[0] - pos[0], at[1] - pos[1], at[2] - pos[2]}, u[3] = {up[0], up[1], up[2]};
+    double dm = fmax(fabs(d[0]), fmax(fabs(d[1]), fabs(d[2])));
+    double um = fmax(fabs(u[0]), fmax(fabs(u[1]), fabs(u[2])));
+    for (int k = 0; k < 3; k++) {
+      d[k] = dm > 0 ? d[k] / dm : 0;
+      u[k] = um > 0 ? u[k] / um : 0;
+    }
+    double dl = dm > 0 ? sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) : 0;
+    double ul = um > 0 ? sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]) : 0;
+    double cx = d[1] * u[2] - d[2] * u[1], cy = d[2] * u[0] - d[0] * u[2],
+           cz = d[0] * u[1] - d[1] * u[0];
     double cl = sqrt(cx * cx + cy * cy + cz * cz);
     size_t mk;
     if (!(dl > 0) || !isfinite(dl)) {
@@ -69,9 +80,9 @@ static void load_camera(obs_jpath *p, const json_t *doc, obs_camera *cam) {
       obs_jpath_pop(p, mk);
     } else if (!(ul > 0) || !(cl > 1e-9 * dl * ul) || !isfinite(cl)) {
       mk = obs_jpath_push_key(p, "up");
-      obs_jpath_fail(p, "must not be zero or parallel to the view direction (got %s)",
-                     json_object_get(c, "up") ? obs_json_brief(json_object_get(c, "up"))
-                                               : "default [0,1,0]");
+      obs_jpath_fail(
+          p, "must not be zero or parallel to the view direction (got %s)",
+          json_object_get(c, "up") ? obs_json_brief(json_object_get(c, "up")) : "default [0,1,0]");
       obs_jpath_pop(p, mk);
     }
   }
@@ -80,14 +91,7 @@ static void load_camera(obs_jpath *p, const json_t *doc, obs_camera *cam) {
 
 /* ---- objects ------------------------------------------------------------------------------ */
 
-static int is_inside(const char *dir, const char *path) {
-  size_t n = strlen(dir);
-  if (strncmp(dir, path, n) != 0) return 0;
-  return path[n] == '/' || (n > 0 && dir[n - 1] == '/');
-}
-
-static void load_mesh_file(obs_jpath *p, const json_t *shape, const char *base_dir,
-                           obs_object *o) {
+static void load_mesh_file(obs_jpath *p, const json_t *shape, const char *base_dir, obs_object *o) {
   const char *file = NULL;
   if (obs_json_get_string(p, shape, "file", 1, NULL, &file) || !file) return;
   size_t m = obs_jpath_push_key(p, "file");
@@ -111,14 +115,22 @@ static void load_mesh_file(obs_jpath *p, const json_t *shape, const char *base_d
     obs_jpath_fail(p, "path too long (got \"%s\")", file);
   } else if (!realpath(joined, real_file)) {
     obs_jpath_fail(p, "file not found (got \"%s\")", file);
-  } else if (!is_inside(real_base, real_file)) {
+  } else if (!obs_path_is_inside(real_base, real_file)) {
     obs_jpath_fail(p, "must stay inside the scene's directory tree (got \"%s\")", file);
   } else {
     struct stat st;
     if (stat(real_file, &st) || !S_ISREG(st.st_mode)) {
       obs_jpath_fail(p, "is not a regular file (got \"%s\")", file);
     } else {
-      o->mesh_path = xstrdup(real_file);
+      /* Import now, so a broken or empty mesh is a validation error rather than a failed render;
+       * the render imports again (meshes are small next to the work they cause). */
+      obs_mesh mesh;
+      char where[1200];
+      snprintf(where, sizeof where, "%s: %s", p->doc, p->buf);
+      if (obs_geometry_import_mesh(real_file, real_base, &mesh, p->err, where) == 0) {
+        o->mesh_path = xstrdup(real_file);
+        obs_geometry_mesh_free(&mesh);
+      }
     }
   }
   obs_jpath_pop(p, m);
@@ -133,7 +145,7 @@ static void load_vertices(obs_jpath *p, const json_t *shape, size_t n, obs_objec
   } else {
     /* Wrap each vertex so the vec3 getter reports /vertices/<i>. */
     for (size_t i = 0; i < n; i++) {
-      char key[8];
+      char key[24];
       snprintf(key, sizeof key, "%zu", i);
       json_t *wrap = json_object();
       json_object_set(wrap, key, json_array_get(a, i));
@@ -150,8 +162,8 @@ static void load_shape(obs_jpath *p, const json_t *obj, const char *base_dir, ob
   json_t *s = obs_json_get_object(p, obj, "shape", 1, NULL);
   if (!s) return;
   size_t m = obs_jpath_push_key(p, "shape");
-  static const char *const types[] = {"quad", "triangle", "sphere", "box", "mesh",
-                                      "displaced_sphere", NULL};
+  static const char *const types[] = {"quad", "triangle",         "sphere", "box",
+                                      "mesh", "displaced_sphere", NULL};
   const char *type = NULL;
   if (obs_json_get_string(p, s, "type", 1, types, &type) || !type) {
     obs_jpath_pop(p, m);
@@ -264,7 +276,8 @@ static void load_objects(obs_jpath *p, const json_t *doc, const char *base_dir, 
     char defname[32];
     if (obs_json_get_string(p, o, "name", 0, NULL, &name) == 0 && name) {
       size_t len = 0; /* code points, as JSON Schema counts them */
-      for (const unsigned char *c = (const unsigned char *)name; *c; c++) len += (*c & 0xC0) != 0x80;
+      for (const unsigned char *c = (const unsigned char *)name; *c; c++)
+        len += (*c & 0xC0) != 0x80;
       if (len < 1 || len > 128) {
         size_t mk = obs_jpath_push_key(p, "name");
         obs_jpath_fail(p, "must be 1 to 128 characters long (got %zu)", len);
@@ -362,11 +375,10 @@ static void load_technique(obs_jpath *p, const json_t *doc, obs_scene *sc) {
   const char *be = NULL;
   sc->backend = OBS_BACKEND_AUTO;
   if (obs_json_get_string(p, t, "backend", 0, backends, &be) == 0 && be) {
-    sc->backend = !strcmp(be, "cpu") ? OBS_BACKEND_CPU
+    sc->backend = !strcmp(be, "cpu")      ? OBS_BACKEND_CPU
                   : !strcmp(be, "vulkan") ? OBS_BACKEND_VULKAN
                                           : OBS_BACKEND_AUTO;
-    if (sc->technique && sc->backend != OBS_BACKEND_AUTO &&
-        !sc->technique->run[sc->backend]) {
+    if (sc->technique && sc->backend != OBS_BACKEND_AUTO && !sc->technique->run[sc->backend]) {
       char list[128] = "";
       for (int b = 1; b < OBS_BACKEND_COUNT; b++) {
         if (!sc->technique->run[b]) continue;
@@ -415,8 +427,8 @@ static int validate(obs_scene *sc, const json_t *doc, const char *name, const ch
     obs_jpath_fail(&p, "the document must be a JSON object (got %s)", obs_json_brief(doc));
     return OBS_EINVAL;
   }
-  static const char *const k[] = {"camera", "image", "objects", "lights", "environment",
-                                  "technique", NULL};
+  static const char *const k[] = {"camera",      "image",     "objects", "lights",
+                                  "environment", "technique", NULL};
   obs_json_check_keys(&p, doc, k);
   load_camera(&p, doc, &sc->camera);
   json_t *img = obs_json_get_object(&p, doc, "image", 1, NULL);
@@ -438,8 +450,9 @@ static int validate(obs_scene *sc, const json_t *doc, const char *name, const ch
   load_lights(&p, doc, sc);
   load_environment(&p, doc, sc);
   load_technique(&p, doc, sc);
-  int after = err ? err->count : 0;
-  if (after == before && sc->technique && sc->params) check_needs(&p, sc);
+  /* Technique rules run even after other problems so the list is complete; they only read what
+   * loaded (objects/lights arrays may be partial). */
+  if (sc->technique && sc->params) check_needs(&p, sc);
   if (err && err->count != before) return OBS_EINVAL;
   if (!sc->technique || !sc->params) return OBS_EINVAL;
   return 0;
@@ -508,7 +521,9 @@ int obs_scene_load_string(obs_scene *sc, const char *text, const char *name, con
   }
   sc->doc = doc;
   sc->name = xstrdup(name);
-  sc->base_dir = base_dir ? xstrdup(base_dir) : NULL;
+  /* Resolved now: a later change of working directory must not move the scene's tree. */
+  char real[PATH_MAX];
+  sc->base_dir = base_dir ? xstrdup(realpath(base_dir, real) ? real : base_dir) : NULL;
   return 0;
 }
 
@@ -596,6 +611,11 @@ int obs_json_pointer_set(json_t *doc, const char *pointer, const char *value, ob
   if (!pointer || pointer[0] != '/')
     return obs_err_set(err, OBS_EINVAL, "pointer must start with '/' (got \"%s\")",
                        pointer ? pointer : "");
+  /* Keys must be UTF-8 (jansson refuses others); checking up front means the walk below changes
+   * nothing unless it can finish. */
+  json_t *probe = json_string(pointer);
+  if (!probe) return obs_err_set(err, OBS_EINVAL, "pointer is not valid UTF-8");
+  json_decref(probe);
   json_error_t je;
   json_t *val = json_loads(value, JSON_DECODE_ANY | JSON_REJECT_DUPLICATES, &je);
   if (!val) return obs_err_set(err, OBS_EINVAL, "value is not valid JSON: %s", je.text);
@@ -611,14 +631,14 @@ int obs_json_pointer_set(json_t *doc, const char *pointer, const char *value, ob
     }
     int last = e == NULL;
     if (json_is_object(cur)) {
-      if (last) {
-        json_object_set_new(cur, tok, val);
-        return 0;
-      }
+      /* The _new setters take the reference even when they fail. */
+      if (last)
+        return json_object_set_new(cur, tok, val) ? obs_err_set(err, OBS_ENOMEM, "out of memory")
+                                                  : 0;
       json_t *next = json_object_get(cur, tok);
       if (!next) {
-        next = json_object();
-        json_object_set_new(cur, tok, next);
+        if (json_object_set_new(cur, tok, json_object())) break;
+        next = json_object_get(cur, tok);
       }
       cur = next;
     } else if (json_is_array(cur)) {
@@ -628,16 +648,19 @@ int obs_json_pointer_set(json_t *doc, const char *pointer, const char *value, ob
         return obs_err_set(err, OBS_EINVAL, "array index \"%s\" out of range in \"%s\"", tok,
                            pointer);
       }
-      if (last) {
-        json_array_set_new(cur, idx, val);
-        return 0;
-      }
+      if (last)
+        return json_array_set_new(cur, idx, val) ? obs_err_set(err, OBS_ENOMEM, "out of memory")
+                                                 : 0;
       cur = json_array_get(cur, idx);
     } else {
       json_decref(val);
-      return obs_err_set(err, OBS_EINVAL, "\"%s\" goes through a value that is not an object "
-                                          "or array", pointer);
+      return obs_err_set(err, OBS_EINVAL,
+                         "\"%s\" goes through a value that is not an object "
+                         "or array",
+                         pointer);
     }
     s = e + 1;
   }
+  json_decref(val);
+  return obs_err_set(err, OBS_ENOMEM, "out of memory");
 }

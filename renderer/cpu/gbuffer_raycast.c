@@ -59,7 +59,7 @@ int obs_gbuffer_raycast(const obs_scene *sc, obs_gbuffer *g, int threads, double
   if (rc) return rc;
   double t0 = obs_now_ms();
   obs_rt rt;
-  if ((rc = obs_rt_build(sc, &rt, err))) {
+  if ((rc = obs_rt_build(sc, &rt, threads, err))) {
     obs_gbuffer_free(g);
     return rc;
   }

@@ -3,7 +3,6 @@
  * exact from 1e-4 to 1e4 scene scales. */
 #include "raytrace.h"
 
-#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -49,8 +48,22 @@ static double sphere_root(const obs_sphere *s, const float o[3], const float d[3
   return -1;
 }
 
-static int sphere_mode(const obs_rt_ctx *c, unsigned prim) {
-  return c->skip_prim == prim ? c->skip_mode : 0;
+static int sphere_mode(const obs_rt_ctx *c, unsigned geom, unsigned prim) {
+  return c->skip_geom == geom && c->skip_prim == prim ? c->skip_mode : 0;
+}
+
+/* Context filter for rays leaving a triangle: a flat primitive cannot occlude itself, so any hit on
+ * it is rounding error and is dropped. This is what lets ray origins sit within a few ulps of the
+ * surface instead of being pushed off by an epsilon that would bias contact shadows. */
+static void skip_origin_filter(const struct RTCFilterFunctionNArguments *a) {
+  const obs_rt_ctx *c = (const obs_rt_ctx *)a->context;
+  /* RTCHitN is structure-of-arrays: primID at [5N + i], geomID at [6N + i] (the C++ accessors of
+   * rtcore_ray.h, which C cannot use). */
+  const unsigned *h = (const unsigned *)a->hit;
+  for (unsigned i = 0; i < a->N; i++) {
+    if (a->valid[i] != -1) continue;
+    if (h[6 * a->N + i] == c->skip_geom && h[5 * a->N + i] == c->skip_prim) a->valid[i] = 0;
+  }
 }
 
 static void sphere_intersect(const struct RTCIntersectFunctionNArguments *a) {
@@ -61,7 +74,7 @@ static void sphere_intersect(const struct RTCIntersectFunctionNArguments *a) {
   float o[3] = {rh->ray.org_x, rh->ray.org_y, rh->ray.org_z};
   float d[3] = {rh->ray.dir_x, rh->ray.dir_y, rh->ray.dir_z};
   double t = sphere_root(s, o, d, rh->ray.tnear, rh->ray.tfar,
-                         sphere_mode((const obs_rt_ctx *)a->context, a->primID));
+                         sphere_mode((const obs_rt_ctx *)a->context, a->geomID, a->primID));
   if (t < 0) return;
   rh->ray.tfar = (float)t;
   rh->hit.Ng_x = (float)(o[0] + t * d[0] - s->center[0]);
@@ -80,7 +93,7 @@ static void sphere_occluded(const struct RTCOccludedFunctionNArguments *a) {
   float o[3] = {r->org_x, r->org_y, r->org_z}, d[3] = {r->dir_x, r->dir_y, r->dir_z};
   /* Embree's occlusion interval is (tnear, tfar]; rays here use tfar = max distance. */
   if (sphere_root(&rt->geo.spheres[a->primID], o, d, r->tnear, r->tfar,
-                  sphere_mode((const obs_rt_ctx *)a->context, a->primID)) >= 0)
+                  sphere_mode((const obs_rt_ctx *)a->context, a->geomID, a->primID)) >= 0)
     r->tfar = -INFINITY;
 }
 
@@ -89,12 +102,17 @@ static void on_embree_error(void *user, enum RTCError code, const char *str) {
   fprintf(stderr, "obscura: embree error %d: %s\n", (int)code, str ? str : "");
 }
 
-int obs_rt_build(const obs_scene *sc, obs_rt *rt, obs_err *err) {
+int obs_rt_build(const obs_scene *sc, obs_rt *rt, int threads, obs_err *err) {
   memset(rt, 0, sizeof *rt);
   rt->sphere_geom = RTC_INVALID_GEOMETRY_ID;
-  int rc = obs_geometry_build(sc, &rt->geo, err);
+  /* Camera-relative coordinates: what the camera sees stays precise in float however far from
+   * the world origin the scene sits. */
+  const double eye[3] = {sc->camera.position.x, sc->camera.position.y, sc->camera.position.z};
+  int rc = obs_geometry_build_at(sc, eye, &rt->geo, err);
   if (rc) return rc;
-  rt->device = rtcNewDevice(NULL);
+  char config[32] = "";
+  if (threads > 0) snprintf(config, sizeof config, "threads=%d", threads);
+  rt->device = rtcNewDevice(config);
   if (!rt->device) {
     obs_geometry_free(&rt->geo);
     return obs_err_set(err, OBS_EINTERNAL, "embree: cannot create device (error %d)",
@@ -102,6 +120,7 @@ int obs_rt_build(const obs_scene *sc, obs_rt *rt, obs_err *err) {
   }
   rtcSetDeviceErrorFunction(rt->device, on_embree_error, NULL);
   rt->scene = rtcNewScene(rt->device);
+  rtcSetSceneFlags(rt->scene, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
   unsigned id = 0;
   for (size_t i = 0; i < rt->geo.nmeshes; i++) {
     obs_mesh *m = &rt->geo.meshes[i];
@@ -163,8 +182,10 @@ static void normalize3(float v[3]) {
   }
 }
 
-int obs_rt_intersect(const obs_rt *rt, const double org[3], const double dir[3], float tfar,
+int obs_rt_intersect(const obs_rt *rt, const double world_org[3], const double dir[3], float tfar,
                      obs_hit *hit) {
+  const double org[3] = {world_org[0] - rt->geo.origin[0], world_org[1] - rt->geo.origin[1],
+                         world_org[2] - rt->geo.origin[2]};
   struct RTCRayHit rh;
   memset(&rh, 0, sizeof rh);
   rh.ray.org_x = (float)org[0];
@@ -181,7 +202,7 @@ int obs_rt_intersect(const obs_rt *rt, const double org[3], const double dir[3],
   obs_rt_ctx c;
   rtcInitIntersectContext(&c.ctx);
   c.ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-  c.skip_prim = ~0u;
+  c.skip_geom = c.skip_prim = ~0u;
   c.skip_mode = 0;
   rtcIntersect1(rt->scene, &c.ctx, &rh);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return 0;
@@ -200,27 +221,43 @@ int obs_rt_intersect(const obs_rt *rt, const double org[3], const double dir[3],
                    org[2] + rh.ray.tfar * dir[2] - s->center[2]};
     double l = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
     /* Project onto the sphere so the point's error is that of the centre and radius only. */
-    double mag = s->radius;
     for (int k = 0; k < 3; k++) {
       double u = l > 0 ? q[k] / l : (k == 2);
       hit->p[k] = (float)(s->center[k] + s->radius * u);
       ng[k] = (float)u;
-      mag = fmax(mag, fabs(s->center[k]) + s->radius);
+      /* The double result is exact to ~1e-16 relative; rounding it to float dominates. */
+      hit->perr[k] = fabsf(hit->p[k]) * 0x1p-23f;
     }
-    hit->eps = (float)(8.0 * FLT_EPSILON * mag);
   } else {
     const obs_mesh *m = &rt->geo.meshes[rh.hit.geomID];
     const uint32_t *tri = m->idx + 3 * (size_t)rh.hit.primID;
     float u = rh.hit.u, v = rh.hit.v, w = 1.0f - u - v;
     const float *a = m->pos + 3 * tri[0], *b = m->pos + 3 * tri[1], *c = m->pos + 3 * tri[2];
-    float mag = 0.0f;
+    /* Re-intersect the hit triangle's plane in double: Embree's float t (and barycentrics) err in
+     * proportion to the vertices' magnitude, which on a huge triangle is a visible shift of P.
+     * In double, P is on the plane and where the ray meets it to ~1e-16; rounding to float is
+     * then its only error. Degenerate planes fall back to Embree's t. */
+    double e1[3], e2[3], n[3], oa[3];
     for (int k = 0; k < 3; k++) {
-      hit->p[k] = w * a[k] + u * b[k] + v * c[k];
-      mag = fmaxf(mag, fmaxf(fabsf(a[k]), fmaxf(fabsf(b[k]), fabsf(c[k]))));
+      e1[k] = (double)b[k] - a[k];
+      e2[k] = (double)c[k] - a[k];
+      oa[k] = (double)a[k] - org[k];
     }
-    /* The interpolated point and Embree's float ray/triangle test both err in proportion to the
-     * vertices' magnitude (cf. pbrt's gamma(7) bound), not to |p| or the scene's size. */
-    hit->eps = 8.0f * FLT_EPSILON * mag;
+    n[0] = e1[1] * e2[2] - e1[2] * e2[1];
+    n[1] = e1[2] * e2[0] - e1[0] * e2[2];
+    n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+    double dn = n[0] * dir[0] + n[1] * dir[1] + n[2] * dir[2];
+    double t = (oa[0] * n[0] + oa[1] * n[1] + oa[2] * n[2]) / dn;
+    int exact = dn != 0.0 && isfinite(t) && t >= 0.0;
+    for (int k = 0; k < 3; k++) {
+      hit->p[k] = exact ? (float)(org[k] + t * dir[k]) : w * a[k] + u * b[k] + v * c[k];
+      /* Float rounding of the double point; the fallback's barycentric sum errs like pbrt's
+       * gamma(7) * sum |b_i v_i|. */
+      hit->perr[k] = exact
+                         ? fabsf(hit->p[k]) * 0x1p-24f
+                         : 7.0f * 0x1p-24f * (fabsf(w * a[k]) + fabsf(u * b[k]) + fabsf(v * c[k]));
+    }
+    if (exact) hit->t = (float)t;
     if (m->nrm) {
       const float *na = m->nrm + 3 * tri[0], *nb = m->nrm + 3 * tri[1], *nc = m->nrm + 3 * tri[2];
       for (int k = 0; k < 3; k++) ns[k] = w * na[k] + u * nb[k] + v * nc[k];
@@ -247,20 +284,34 @@ int obs_rt_intersect(const obs_rt *rt, const double org[3], const double dir[3],
 
 void obs_rt_offset(const obs_rt *rt, const obs_hit *hit, float out[3]) {
   (void)rt;
-  /* Move along the geometric normal by the hit's own error bound: scale-invariant (it follows
-   * the primitive's coordinates) and local (a huge ground plane does not push rays off a small
-   * object). eps >= 8 ulp of every coordinate of p, so the move survives rounding. */
-  for (int k = 0; k < 3; k++) out[k] = hit->p[k] + hit->eps * hit->ng[k];
+  /* pbrt's OffsetRayOrigin: move along the geometric normal by the error bound projected on it,
+   * then one more float step away, so the origin is provably on the normal's side of the true
+   * surface. Scale-invariant and local: it follows p's own error, not the scene's size. The
+   * primitive itself is skipped by the context filter, so nothing larger is needed. */
+  float d = fabsf(hit->ng[0]) * hit->perr[0] + fabsf(hit->ng[1]) * hit->perr[1] +
+            fabsf(hit->ng[2]) * hit->perr[2];
+  for (int k = 0; k < 3; k++) {
+    float off = d * hit->ng[k];
+    float po = hit->p[k] + off;
+    if (off > 0.0f || (off == 0.0f && hit->ng[k] > 0.0f))
+      po = nextafterf(po, INFINITY);
+    else if (off < 0.0f || hit->ng[k] < 0.0f)
+      po = nextafterf(po, -INFINITY);
+    out[k] = po;
+  }
 }
 
 void obs_rt_ctx_init(obs_rt_ctx *c, const obs_rt *rt, const obs_hit *from) {
   rtcInitIntersectContext(&c->ctx);
-  c->skip_prim = ~0u;
+  c->skip_geom = c->skip_prim = ~0u;
   c->skip_mode = 0;
-  if (from && from->geom == rt->sphere_geom) {
-    c->skip_prim = from->prim;
+  if (!from) return;
+  c->skip_geom = from->geom;
+  c->skip_prim = from->prim;
+  if (from->geom == rt->sphere_geom)
     c->skip_mode = from->sphere_inside ? 2 : 1;
-  }
+  else
+    c->ctx.filter = skip_origin_filter;
 }
 
 float obs_rt_distance(const obs_rt *rt, obs_rt_ctx *c, const float org[3], const float dir[3],

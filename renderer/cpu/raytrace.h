@@ -20,10 +20,10 @@ typedef struct obs_rt {
 /* A surface point seen along a ray, with normals faced toward the ray's origin side. */
 typedef struct obs_hit {
   float t;
-  float p[3];    /* world position, reconstructed on the surface (not org + t*dir) */
+  float p[3];    /* position relative to rt->geo.origin, exactly on the surface (see raytrace.c) */
   float ng[3];   /* unit geometric normal, faced against the incoming ray */
   float ns[3];   /* unit shading normal on the same side as ng (== ng without mesh normals) */
-  float eps;     /* bound on the rounding error of p (and of Embree's own test near p) */
+  float perr[3]; /* per-component bound on the rounding error of p */
   unsigned geom, prim;
   int sphere_inside; /* hit a sphere from inside it */
 } obs_hit;
@@ -32,14 +32,17 @@ typedef struct obs_hit {
  * the surface the ray starts on. Must stay first-member compatible with RTCIntersectContext. */
 typedef struct obs_rt_ctx {
   struct RTCIntersectContext ctx;
-  unsigned skip_prim;  /* sphere primitive the ray leaves; ~0u for none */
-  int skip_mode;       /* 0: none, 1: skip that sphere (left outward), 2: far root only (inward) */
+  unsigned skip_geom;  /* primitive the ray leaves (geomID, primID); ~0u for none */
+  unsigned skip_prim;
+  int skip_mode;       /* spheres: 0 none, 1 skip that sphere (left outward), 2 far root only */
 } obs_rt_ctx;
 
-int obs_rt_build(const obs_scene *scene, obs_rt *rt, obs_err *err);
+/* Builds geometry and BVH. `threads` (0 = all cores) also bounds Embree's own build threads. */
+int obs_rt_build(const obs_scene *scene, obs_rt *rt, int threads, obs_err *err);
 void obs_rt_free(obs_rt *rt);
 
-/* Closest hit along (org, dir) within [0, tfar]. Returns 1 and fills `hit`, or 0 on a miss. */
+/* Closest hit along (org, dir) within [0, tfar], org in world space. Returns 1 and fills `hit`
+ * (p in the ray tracer's camera-relative frame, world minus rt->geo.origin), or 0 on a miss. */
 int obs_rt_intersect(const obs_rt *rt, const double org[3], const double dir[3], float tfar,
                      obs_hit *hit);
 /* Origin for secondary rays leaving `hit` on the side of its faced normal. */

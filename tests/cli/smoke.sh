@@ -37,6 +37,24 @@ check "validate ok exits 0" test $? -eq 0
 check "techniques is JSON with rt_ao" node -e "
   const t = JSON.parse(require('fs').readFileSync('$out/tech.json'));
   process.exit(t.some(x => x.name === 'rt_ao' && x.backends.includes('cpu')) ? 0 : 1);"
+printf '{"camera":{"type":"perspective","position":[0,1,-3],"look_at":[0,0,0],"fov_y":40},"image":{"width":8,"height":8},"objects":[{"shape":{"type":"mesh","file":"junk.obj"}}],"technique":{"name":"rt_ao"}}' >"$out/junk.json"
+echo "not a mesh" >"$out/junk.obj"
+"$cli" render "$out/junk.json" -o "$out/junk" >"$out/junk.log" 2>&1
+check "unreadable mesh exits 2" test $? -eq 2
+check "unreadable mesh names the field" grep -q "/objects/0/shape/file: cannot import mesh" "$out/junk.log"
+"$cli" render "$root/scenes/sphere_on_plane.json" -o "$out/far" --set /objects/1/shape/radius=1e25 \
+  >"$out/far.log" 2>&1
+check "geometry out of range exits 2" test $? -eq 2
+check "out of range is explained" grep -q "beyond the renderer's range" "$out/far.log"
+"$cli" render "$root/scenes/sphere_on_plane.json" -o "" --set /technique/params/samples=1 \
+  >"$out/empty.log" 2>&1
+check "empty output directory exits 2" test $? -eq 2
+"$cli" render "$root/scenes/sphere_on_plane.json" -o "$out/r" --set /image/width=40 \
+  --set /image/height=30 --set /technique/params/samples=64.0 >/dev/null 2>&1
+check "integral real samples render finite" node -e "
+  const s = JSON.parse(require('fs').readFileSync('$out/r/summary.json'));
+  process.exit(s.samples === 64 && s.nan_count === 0 && s.ao.mean > 0.5 ? 0 : 1);"
+check "no staging files left" bash -c "! ls -A '$out/r' | grep -q '^\\.'"
 "$cli" frobnicate >/dev/null 2>&1
 check "unknown command exits 2" test $? -eq 2
 echo "$pass passed, $fail failed"

@@ -166,7 +166,10 @@ function checkFile(file, kind) {
     ptrs = cliPointers(r.out, file.base);
     if (r.status !== EXIT_INVALID) {
       problems.push(`CLI ${r.how}, expected exit ${EXIT_INVALID}: ${firstLines(r.out)}`);
-    } else if (ptrs.length === 0) {
+    } else if (ptrs.length === 0 &&
+               !(kind === 'semantic' && new RegExp(`${file.base}: line \\d+, column \\d+: invalid JSON`).test(r.out))) {
+      // Documents that JSON.parse accepts but a strict parser must not (duplicate keys, lone
+      // surrogates) have no pointer: the C loader names the line and column instead.
       problems.push(`CLI output has no "${file.base}: /<pointer>: ..." line: ${firstLines(r.out)}`);
     }
   }

@@ -4,6 +4,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "geometry.h"
 #include "testutil.h"
 
 #define BASE                                                                                      \
@@ -58,7 +59,8 @@ static void test_error_names_pointer_and_value(void **state) {
                "0}}}",
                "t.json: /technique/params/samples: must be >= 1 (got 0)");
   expect_error("{" BASE ",\"objects\":[],\"technique\":{\"name\":\"nope\"}}",
-               "t.json: /technique/name: must be one of \"rt_ao\" (got \"nope\")");
+               "t.json: /technique/name: must be one of \"rt_ao\"");
+  expect_error("{" BASE ",\"objects\":[],\"technique\":{\"name\":\"nope\"}}", "(got \"nope\")");
   expect_error("{" BASE ",\"objects\":[],\"extra\":1,\"technique\":{\"name\":\"rt_ao\"}}",
                "t.json: /extra: unknown field");
   expect_error("{" BASE ",\"objects\":[],\"technique\":{\"name\":\"rt_ao\",\"backend\":\"vulkan\"}}",
@@ -127,8 +129,69 @@ static void test_integral_reals_are_integers(void **state) {
                         &sc, &err),
                    0);
   assert_int_equal(sc.width, 8);
+  /* Stored as a true integer, so the technique reads 64 (not 0) and renders finite values. */
+  assert_true(json_is_integer(json_object_get(sc.params, "samples")));
+  assert_int_equal(json_integer_value(json_object_get(sc.params, "samples")), 64);
+  obs_result r;
+  obs_render_opts o = {.threads = 1};
+  assert_int_equal(obs_render(&sc, &o, &r, &err), 0);
+  obs_test_assert_finite(&r.image);
+  obs_result_free(&r);
   obs_scene_free(&sc);
   obs_err_free(&err);
+}
+
+static void test_ranges_and_utf8(void **state) {
+  (void)state;
+  /* Geometry beyond what the ray tracer can hold is refused before rendering. */
+  obs_scene sc;
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(load("{" BASE ",\"objects\":[{\"shape\":{\"type\":\"sphere\",\"center\":[0,0,0],"
+                        "\"radius\":1e25}}],\"technique\":{\"name\":\"rt_ao\"}}",
+                        &sc, &err),
+                   0);
+  obs_result r;
+  obs_render_opts o = {.threads = 1};
+  assert_int_equal(obs_render(&sc, &o, &r, &err), OBS_EINVAL);
+  assert_non_null(strstr(obs_err_message(&err), "beyond the renderer's range"));
+  obs_scene_free(&sc);
+  obs_err_free(&err);
+  expect_error("{\"camera\":{\"type\":\"orthographic\",\"position\":[0,1,0],\"look_at\":[0,0,0],"
+               "\"up\":[0,0,1],\"height\":1e25},\"image\":{\"width\":8,\"height\":8},\"objects\":[],"
+               "\"technique\":{\"name\":\"rt_ao\"}}",
+               "/camera/height: must be <= 1e+18");
+  /* Tiny but distinct camera points are not degenerate. */
+  assert_int_equal(load("{\"camera\":{\"type\":\"perspective\",\"position\":[0,0,1e-300],"
+                        "\"look_at\":[0,0,2e-300],\"fov_y\":40},\"image\":{\"width\":8,\"height\":8},"
+                        "\"objects\":[],\"technique\":{\"name\":\"rt_ao\"}}",
+                        &sc, &err),
+                   0);
+  obs_scene_free(&sc);
+  /* A pointer with invalid UTF-8 is refused without touching the document. */
+  json_t *j = json_loads("{\"a\":{}}", 0, NULL);
+  assert_int_equal(obs_json_pointer_set(j, "/a/\xff/x", "1", &err), OBS_EINVAL);
+  assert_int_equal(obs_json_pointer_set(j, "/a/\xff", "1", &err), OBS_EINVAL);
+  assert_int_equal(json_object_size(json_object_get(j, "a")), 0);
+  json_decref(j);
+  /* Cross-field technique rules are reported alongside other problems. */
+  assert_int_equal(load("{" BASE ",\"objects\":[{\"shape\":{\"type\":\"sphere\",\"center\":[0,0,0],"
+                        "\"radius\":-1}}],\"technique\":{\"name\":\"rt_ao\",\"params\":{\"falloff\":"
+                        "\"sqrt\"}}}",
+                        &sc, &err),
+                   OBS_EINVAL);
+  assert_non_null(strstr(obs_err_message(&err), "/objects/0/shape/radius"));
+  assert_non_null(strstr(obs_err_message(&err), "/technique/params/max_distance"));
+  obs_err_free(&err);
+}
+
+static void test_mesh_contents_validated(void **state) {
+  (void)state;
+  expect_error("{" BASE ",\"objects\":[{\"shape\":{\"type\":\"mesh\",\"file\":\"garbage.obj\"}"
+               "}],\"technique\":{\"name\":\"rt_ao\"}}",
+               "/objects/0/shape/file: ");
+  assert_true(obs_path_is_inside("/a/b", "/a/b/c.obj"));
+  assert_false(obs_path_is_inside("/a/b", "/a/bc/c.obj"));
+  assert_false(obs_path_is_inside("/a/b", "/a/c.obj"));
 }
 
 static void test_mesh_paths(void **state) {
@@ -216,6 +279,8 @@ int main(void) {
       cmocka_unit_test(test_error_names_pointer_and_value),
       cmocka_unit_test(test_all_problems_reported),
       cmocka_unit_test(test_integral_reals_are_integers),
+      cmocka_unit_test(test_ranges_and_utf8),
+      cmocka_unit_test(test_mesh_contents_validated),
       cmocka_unit_test(test_mesh_paths),
       cmocka_unit_test(test_overrides),
       cmocka_unit_test(test_registry),
