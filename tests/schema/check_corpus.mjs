@@ -9,8 +9,8 @@
 //   tests/corpus/scene_bad/*.json                   ajv invalid,  CLI exit 2, output names the file
 //                                                                 and a JSON pointer ("<file>: /...")
 //   tests/corpus/scene_semantic/*.json              ajv valid,    CLI exit 2, same output rule
-// plus one check that the schema's $defs/rt_ao_params/properties equals (descriptions aside) the
-// params_schema.properties of rt_ao in `obscura techniques`.
+// plus checks that every technique of `obscura techniques` is in the schema with the same
+// parameters (descriptions aside).
 // Prints one line per check and finally "N passed, M failed"; exits 1 when M > 0.
 // Only node built-ins and ajv (resolved from <repo-root>/node_modules) are used.
 
@@ -195,7 +195,7 @@ for (const f of listJson('tests/corpus/scene_good', true)) checkFile(f, 'good');
 for (const f of listJson('tests/corpus/scene_bad', true)) checkFile(f, 'bad');
 for (const f of listJson('tests/corpus/scene_semantic', true)) checkFile(f, 'semantic');
 
-// ---- rt_ao parameters: schema vs registry ----------------------------------------------------
+// ---- technique parameters: schema vs registry -----------------------------------------------
 
 function stripDescriptions(v) {
   if (Array.isArray(v)) return v.map(stripDescriptions);
@@ -227,35 +227,49 @@ function diff(a, b, at = '', out = []) {
   return out;
 }
 
+// Every registry technique appears in the schema: its name in the technique enum, its parameters
+// as $defs/<name>_params (equal to the registry's params_schema.properties, descriptions aside)
+// and an if/then selecting them. One check per technique, plus one for the name list.
 (function checkRegistry() {
-  const label = 'schema $defs/rt_ao_params/properties == `obscura techniques` rt_ao params_schema.properties';
   const r = runCli(['techniques']);
-  if (r.error) return report(false, label, `CLI: ${r.error}`);
-  if (r.status !== 0) return report(false, label, `CLI ${r.how}: ${firstLines(r.out)}`);
+  const fail = (label, why) => report(false, label, why);
+  if (r.error) return fail('registry', `CLI: ${r.error}`);
+  if (r.status !== 0) return fail('registry', `CLI ${r.how}: ${firstLines(r.out)}`);
   let list;
   try {
     list = JSON.parse(r.stdout);
   } catch (e) {
-    return report(false, label, `output is not JSON (${e.message})`);
+    return fail('registry', `output is not JSON (${e.message})`);
   }
-  if (!Array.isArray(list)) return report(false, label, 'output is not a JSON array');
-  const entry = list.find((t) => t && t.name === 'rt_ao');
-  if (!entry) return report(false, label, 'no technique named rt_ao');
-  let ps = entry.params_schema;
-  if (typeof ps === 'string') {
-    try {
-      ps = JSON.parse(ps);
-    } catch (e) {
-      return report(false, label, `params_schema is not JSON (${e.message})`);
+  if (!Array.isArray(list)) return fail('registry', 'output is not a JSON array');
+  const names = list.map((t) => t && t.name).filter(Boolean);
+  const enumNames = schema.$defs?.technique?.properties?.name?.enum || [];
+  const nd = diff([...enumNames].sort(), [...names].sort());
+  report(nd.length === 0, 'schema technique names == registry names',
+         nd.length ? `schema ${JSON.stringify(enumNames)} vs registry ${JSON.stringify(names)}` : '');
+  const branches = schema.$defs?.technique?.allOf || [];
+  for (const entry of list) {
+    const name = entry.name;
+    const label = `schema $defs/${name}_params/properties == registry ${name} params_schema.properties`;
+    const ps = typeof entry.params_schema === 'string' ? JSON.parse(entry.params_schema)
+                                                       : entry.params_schema;
+    if (!ps || typeof ps !== 'object' || !ps.properties) {
+      fail(label, 'params_schema has no properties object');
+      continue;
     }
+    const mine = schema.$defs?.[`${name}_params`]?.properties;
+    if (!mine) {
+      fail(label, `schema has no $defs/${name}_params/properties`);
+      continue;
+    }
+    const branch = branches.find((b) => b?.if?.properties?.name?.const === name);
+    if (branch?.then?.properties?.params?.$ref !== `#/$defs/${name}_params`) {
+      fail(label, `schema has no if/then selecting #/$defs/${name}_params for "${name}"`);
+      continue;
+    }
+    const d = diff(stripDescriptions(mine), stripDescriptions(ps.properties));
+    report(d.length === 0, label, d.length ? `schema vs registry: ${d.slice(0, 6).join('; ')}` : '');
   }
-  if (!ps || typeof ps !== 'object' || !ps.properties) {
-    return report(false, label, 'params_schema has no properties object');
-  }
-  const mine = schema.$defs?.rt_ao_params?.properties;
-  if (!mine) return report(false, label, 'schema has no $defs/rt_ao_params/properties');
-  const d = diff(stripDescriptions(mine), stripDescriptions(ps.properties));
-  report(d.length === 0, label, d.length ? `schema vs registry: ${d.slice(0, 6).join('; ')}` : '');
 })();
 
 finish();
