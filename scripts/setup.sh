@@ -6,7 +6,8 @@ ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 cd "$ROOT"
 
 DEB_PACKAGES=(build-essential cmake pkg-config libembree-dev libjansson-dev libopenexr-dev
-              libspng-dev libassimp-dev libcmocka-dev)
+              libspng-dev libassimp-dev libcmocka-dev libvulkan-dev mesa-vulkan-drivers glslc
+              vulkan-validationlayers)
 command -v node >/dev/null 2>&1 || DEB_PACKAGES+=(nodejs)
 command -v npm >/dev/null 2>&1 || DEB_PACKAGES+=(npm)
 

@@ -178,12 +178,13 @@ static int cmd_render(int argc, char **argv) {
   } else if (!c.quiet) {
     obs_stats st;
     obs_metrics_stats(&res.image, "ao", NULL, &st, NULL);
-    printf("%s: %s/%s %dx%d, %.1f ms render (%.1f build), %.3g Mrays/s, AO mean %.4f -> "
-           "%s/ao.exr\n",
+    char rays[48] = "";
+    if (res.rays && res.timings.render_ms > 0)
+      snprintf(rays, sizeof rays, ", %.3g Mrays/s", (double)res.rays / res.timings.render_ms / 1e3);
+    printf("%s: %s/%s %dx%d, %.1f ms render (%.1f build)%s, AO mean %.4f -> %s/ao.exr\n",
            sc.name, res.technique->name, obs_backend_name(res.backend), res.image.width,
-           res.image.height, res.timings.render_ms, res.timings.build_ms,
-           res.timings.render_ms > 0 ? (double)res.rays / res.timings.render_ms / 1e3 : 0.0,
-           st.mean, c.out_dir);
+           res.image.height, res.timings.render_ms, res.timings.build_ms, rays, st.mean,
+           c.out_dir);
   }
   obs_result_free(&res);
   obs_scene_free(&sc);

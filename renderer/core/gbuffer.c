@@ -4,6 +4,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+const char *const obs_screen_channel_names[OBS_SCREEN_CHANNELS] = {
+    "ao", "ao_raw", "depth.Z", "normal.X", "normal.Y", "normal.Z", "alpha"};
+
 int obs_gbuffer_alloc(obs_gbuffer *g, int width, int height, const obs_camera_rig *rig,
                       obs_err *err) {
   memset(g, 0, sizeof *g);

@@ -49,6 +49,12 @@ static inline void obs_gbuffer_position(const obs_gbuffer *g, float fx, float fy
 int obs_gbuffer_raycast(const obs_scene *scene, obs_gbuffer *g, int threads, double *build_ms,
                         double *render_ms, obs_err *err);
 
+/* The output channels of every screen-space technique, in this order: AO after and before its
+ * blur, then the G-buffer's depth, world-space normal and coverage. */
+enum { OBS_SCREEN_AO, OBS_SCREEN_AO_RAW, OBS_SCREEN_DEPTH, OBS_SCREEN_NX, OBS_SCREEN_NY,
+       OBS_SCREEN_NZ, OBS_SCREEN_ALPHA, OBS_SCREEN_CHANNELS };
+extern const char *const obs_screen_channel_names[OBS_SCREEN_CHANNELS];
+
 /* Output channels every screen-space technique writes besides its own: "depth.Z", "normal.X/Y/Z"
  * (world space) and "alpha", taken from the G-buffer. `img` must already have those channels. */
 void obs_gbuffer_export(const obs_gbuffer *g, const obs_camera_rig *rig, obs_image *img);

@@ -4,9 +4,12 @@
 
 #include "obscura/technique.h"
 #include "techniques.h"
+#include "vk.h"
 
 static const obs_technique *const table[] = {
     &obs_technique_rt_ao,
+    &obs_technique_ssao,
+    &obs_technique_hbao,
 };
 
 size_t obs_technique_count(void) { return sizeof table / sizeof table[0]; }
@@ -30,20 +33,31 @@ const char *obs_backend_name(obs_backend b) {
 }
 
 int obs_technique_has_backend(const obs_technique *t, obs_backend b) {
-  return t && b > OBS_BACKEND_AUTO && b < OBS_BACKEND_COUNT && t->run[b] != NULL;
+  if (!t || b <= OBS_BACKEND_AUTO || b >= OBS_BACKEND_COUNT || !t->run[b]) return 0;
+  return b != OBS_BACKEND_VULKAN || obs_vk_available();
 }
 
 int obs_technique_pick_backend(const obs_technique *t, obs_backend requested, obs_backend *out,
                                obs_err *err) {
   if (requested != OBS_BACKEND_AUTO) {
-    if (!obs_technique_has_backend(t, requested))
+    if (!obs_technique_has_backend(t, requested)) {
+      if (requested == OBS_BACKEND_VULKAN && t->run[requested])
+        return obs_err_set(err, OBS_EUNSUPPORTED,
+                           "technique \"%s\": no Vulkan device found on this machine (install "
+                           "mesa-vulkan-drivers for lavapipe, or use backend \"cpu\")",
+                           t->name);
       return obs_err_set(err, OBS_EUNSUPPORTED, "technique \"%s\" has no %s backend", t->name,
                          obs_backend_name(requested));
+    }
     *out = requested;
     return 0;
   }
-  /* Static rule until timings are stored: the CPU where a technique has it (ray tracing lives
-   * there), else Vulkan. */
+  /* Static rule until stored timings can decide: raster techniques (those that need a G-buffer)
+   * go to Vulkan when a device exists; everything else, and the fallback, is the CPU. */
+  if ((t->needs & OBS_NEED_GBUFFER) && obs_technique_has_backend(t, OBS_BACKEND_VULKAN)) {
+    *out = OBS_BACKEND_VULKAN;
+    return 0;
+  }
   for (int b = OBS_BACKEND_CPU; b < OBS_BACKEND_COUNT; b++) {
     if (obs_technique_has_backend(t, (obs_backend)b)) {
       *out = (obs_backend)b;

@@ -7,4 +7,12 @@
 extern const obs_technique obs_technique_rt_ao;
 int obs_rt_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 
+extern const obs_technique obs_technique_ssao;
+int obs_ssao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
+int obs_ssao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
+
+extern const obs_technique obs_technique_hbao;
+int obs_hbao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
+int obs_hbao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
+
 #endif

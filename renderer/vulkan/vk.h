@@ -55,7 +55,8 @@ typedef struct obs_vk_gbuffer {
  * `ms` (may be NULL) receives the device time of the pass. */
 int obs_vk_gbuffer_render(obs_vk *vk, const obs_scene *scene, const obs_geometry *geo,
                           obs_vk_gbuffer *out, double *ms, obs_err *err);
-/* Uploads a host G-buffer (so both backends can run on identical inputs), and downloads one. */
+/* Uploads a host G-buffer (so both backends can run on identical inputs), and downloads one
+ * into `host`, which must come from obs_gbuffer_alloc with the same size. */
 int obs_vk_gbuffer_upload(obs_vk *vk, const obs_gbuffer *host, obs_vk_gbuffer *out, obs_err *err);
 int obs_vk_gbuffer_download(obs_vk *vk, const obs_vk_gbuffer *dev, obs_gbuffer *host,
                             obs_err *err);

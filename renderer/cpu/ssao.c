@@ -1,0 +1,200 @@
+/* ssao on the CPU: the twin of renderer/vulkan/shaders/ssao*.comp.glsl, operation for operation.
+ *
+ * Both sides must give the same bits on the same G-buffer, so this file keeps to float32, performs
+ * each expression in the shader's order (the C build is ISO C, so nothing is contracted to FMA;
+ * the shaders mark the same expressions `precise`) and divides only where the shader divides. The
+ * definition itself is in docs/techniques/ssao.md. */
+#include <jansson.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "camera.h"
+#include "gbuffer.h"
+#include "obscura/render.h"
+#include "parallel.h"
+#include "ssao.h"
+#include "techniques.h"
+
+typedef struct ssao_job {
+  const obs_gbuffer *g;
+  const obs_ssao_params *p;
+  const obs_ssao_tables *t;
+  const float *raw; /* blur input */
+  float *out;
+} ssao_job;
+
+/* floor(v) clamped to [0, n-1]: the texel a sample lands on, clamp-to-edge. The clamp comes before
+ * the conversion, as in the shader, so huge offsets never overflow an int. */
+static int texel(float v, int n) {
+  float f = floorf(v);
+  if (f < 0.0f) f = 0.0f;
+  if (f > (float)(n - 1)) f = (float)(n - 1);
+  return (int)f;
+}
+
+static float ssao_pixel(const ssao_job *j, int x, int y) {
+  const obs_gbuffer *g = j->g;
+  const obs_ssao_tables *t = j->t;
+  const int w = g->width, h = g->height;
+  const size_t i = (size_t)y * (size_t)w + (size_t)x;
+  const float zp = g->depth[i];
+  if (!(zp > 0.0f)) return 1.0f;
+  const float *rot = t->rotation[(y & 3) * 4 + (x & 3)];
+  const float fx = (float)x + 0.5f, fy = (float)y + 0.5f, fw = (float)w, fh = (float)h;
+  /* A texture-coordinate offset (ox, oy, oz) is the view-space vector
+   * (2 half_w s ox, -2 half_h s oy, 2 z_p oz), s = z_p (perspective) or 1 (orthographic): the
+   * screen spans 2 half_w s across at depth z_p, and texture v grows downwards. */
+  const float s = g->ortho ? 1.0f : zp;
+  const float kx = 2.0f * g->half_w * s, ky = -2.0f * g->half_h * s, kz = 2.0f * zp;
+  const float *n = g->normal + 3 * i;
+  float sum = 0.0f;
+  for (int k = 0; k < j->p->samples; k++) {
+    const float *v = t->offsets[k];
+    /* reflect(v, rot) = v - 2 dot(rot, v) rot */
+    float d = rot[0] * v[0] + rot[1] * v[1] + rot[2] * v[2];
+    float tt = 2.0f * d;
+    float ox = v[0] - tt * rot[0], oy = v[1] - tt * rot[1], oz = v[2] - tt * rot[2];
+    if (j->p->normal_oriented) {
+      float dn = ox * kx * n[0] + oy * ky * n[1] + oz * kz * n[2];
+      if (dn < 0.0f) {
+        ox = -ox;
+        oy = -oy;
+        oz = -oz;
+      }
+    }
+    int sx = texel(fx + ox * fw, w), sy = texel(fy + oy * fh, h);
+    float zs = g->depth[(size_t)sy * (size_t)w + (size_t)sx];
+    /* Background is infinitely far: the sample is in free space and its range is valid. */
+    if (!(zs > 0.0f)) {
+      sum += 1.0f;
+      continue;
+    }
+    float sz = zp + oz * zp * 2.0f;
+    float vis = zs > sz ? 1.0f : 0.0f;
+    float f = (zp - zs) / zs;
+    f = f < 0.0f ? 0.0f : f > 1.0f ? 1.0f : f;
+    sum += vis + f * (0.5f - vis);
+  }
+  float a = sum * t->inv_samples;
+  float c = a * a + a;
+  return c < 0.0f ? 0.0f : c > 1.0f ? 1.0f : c;
+}
+
+static int ao_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+  (void)thread;
+  ssao_job *j = user;
+  for (int y = y0; y < y1; y++)
+    for (int x = x0; x < x1; x++)
+      j->out[(size_t)y * (size_t)j->g->width + (size_t)x] = ssao_pixel(j, x, y);
+  return 0;
+}
+
+static float blur_pixel(const ssao_job *j, int x, int y) {
+  const obs_gbuffer *g = j->g;
+  const int w = g->width, h = g->height;
+  const float zc = g->depth[(size_t)y * (size_t)w + (size_t)x];
+  if (!(zc > 0.0f)) return 1.0f;
+  const float lim = j->p->blur_depth_threshold * zc;
+  float sum = 0.0f;
+  int cnt = 0;
+  for (int dy = OBS_SSAO_BLUR_LO; dy <= OBS_SSAO_BLUR_HI; dy++)
+    for (int dx = OBS_SSAO_BLUR_LO; dx <= OBS_SSAO_BLUR_HI; dx++) {
+      int xx = x + dx, yy = y + dy;
+      if (xx < 0 || yy < 0 || xx >= w || yy >= h) continue;
+      size_t k = (size_t)yy * (size_t)w + (size_t)xx;
+      float zn = g->depth[k];
+      if (zn > 0.0f && fabsf(zn - zc) <= lim) {
+        sum += j->raw[k];
+        cnt++;
+      }
+    }
+  /* cnt >= 1: the centre always passes. */
+  float r = sum * j->t->inv_count[cnt];
+  return r > 1.0f ? 1.0f : r;
+}
+
+static int blur_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+  (void)thread;
+  ssao_job *j = user;
+  for (int y = y0; y < y1; y++)
+    for (int x = x0; x < x1; x++)
+      j->out[(size_t)y * (size_t)j->g->width + (size_t)x] = blur_pixel(j, x, y);
+  return 0;
+}
+
+int obs_ssao_cpu_apply_ex(const obs_gbuffer *g, const obs_ssao_params *p, int threads, float *ao,
+                          float *ao_raw, double *stage_ms, obs_err *err) {
+  if (stage_ms)
+    for (int k = 0; k < OBS_SSAO_CPU_STAGES; k++) stage_ms[k] = 0.0;
+  if (!g || !p || !ao || g->width < 1 || g->height < 1)
+    return obs_err_set(err, OBS_EINVAL, "ssao: missing G-buffer, parameters or output");
+  if (p->samples != 8 && p->samples != 16 && p->samples != 24)
+    return obs_err_set(err, OBS_EINVAL, "ssao: samples must be 8, 16 or 24 (got %d)", p->samples);
+  obs_ssao_tables t;
+  obs_ssao_tables_make(p, &t);
+  size_t n = (size_t)g->width * (size_t)g->height;
+  float *raw = ao_raw;
+  if (p->blur && !raw && !(raw = malloc(n * sizeof *raw)))
+    return obs_err_set(err, OBS_ENOMEM, "ssao: %dx%d: out of memory", g->width, g->height);
+  ssao_job j = {.g = g, .p = p, .t = &t, .raw = raw, .out = p->blur ? raw : ao};
+  double t0 = obs_now_ms();
+  int rc = obs_parallel_tiles(g->width, g->height, threads < 1 ? 1 : threads, ao_tile, &j, NULL,
+                              NULL, NULL);
+  double t1 = obs_now_ms();
+  if (!rc && p->blur) {
+    j.out = ao;
+    rc = obs_parallel_tiles(g->width, g->height, threads < 1 ? 1 : threads, blur_tile, &j, NULL,
+                            NULL, NULL);
+  } else if (!rc && ao_raw) {
+    memcpy(ao_raw, ao, n * sizeof *ao);
+  }
+  double t2 = obs_now_ms();
+  if (stage_ms) {
+    stage_ms[0] = t1 - t0;
+    stage_ms[1] = p->blur ? t2 - t1 : 0.0;
+  }
+  if (raw != ao_raw) free(raw);
+  if (rc) return obs_err_set(err, rc, "ssao: CPU passes failed");
+  return 0;
+}
+
+int obs_ssao_cpu_apply(const obs_gbuffer *g, const obs_ssao_params *p, int threads, float *ao,
+                       double *stage_ms, obs_err *err) {
+  return obs_ssao_cpu_apply_ex(g, p, threads, ao, NULL, stage_ms, err);
+}
+
+
+int obs_ssao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
+  const obs_scene *sc = ctx->scene;
+  obs_ssao_params p;
+  if (obs_ssao_params_read(ctx->params, &p))
+    return obs_err_set(err, OBS_EINVAL, "%s: /technique/params: invalid ssao parameters", sc->name);
+  obs_camera_rig rig;
+  obs_camera_setup(&sc->camera, sc->width, sc->height, &rig);
+  int rc = obs_image_init(out, sc->width, sc->height, OBS_SCREEN_CHANNELS, obs_screen_channel_names, err);
+  if (rc) return rc;
+  obs_gbuffer g;
+  double build_ms = 0, gb_ms = 0, st[OBS_SSAO_CPU_STAGES];
+  double t0 = obs_now_ms();
+  if ((rc = obs_gbuffer_raycast(sc, &g, ctx->threads, &build_ms, &gb_ms, err))) {
+    obs_image_free(out);
+    return rc;
+  }
+  rc = obs_ssao_cpu_apply_ex(&g, &p, ctx->threads, obs_image_channel(out, "ao"),
+                             obs_image_channel(out, "ao_raw"), st, err);
+  if (!rc) obs_gbuffer_export(&g, &rig, out);
+  obs_gbuffer_free(&g);
+  if (rc) {
+    obs_image_free(out);
+    return rc;
+  }
+  ctx->build_ms = build_ms;
+  ctx->render_ms = obs_now_ms() - t0 - build_ms;
+  ctx->rays = (uint64_t)sc->width * (uint64_t)sc->height;
+  obs_render_ctx_stage(ctx, "gbuffer", gb_ms);
+  obs_render_ctx_stage(ctx, "ao", st[0]);
+  if (p.blur) obs_render_ctx_stage(ctx, "blur", st[1]);
+  if (ctx->progress) ctx->progress(ctx->progress_user, 1.0);
+  return 0;
+}

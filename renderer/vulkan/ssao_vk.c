@@ -1,0 +1,158 @@
+/* ssao on Vulkan: the AO and blur compute passes (shaders/ssao*.comp.glsl) over a device G-buffer,
+ * and the technique's Vulkan run function. The CPU twin is renderer/cpu/ssao.c. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "camera.h"
+#include "gbuffer.h"
+#include "geometry.h"
+#include "obscura/render.h"
+#include "shaders.h"
+#include "ssao.h"
+#include "techniques.h"
+#include "vk.h"
+
+/* Push constants, laid out as the shaders' std430 blocks. */
+typedef struct ao_push {
+  int32_t width, height, samples, flags;
+  float half_w, half_h, inv_samples;
+} ao_push;
+
+typedef struct blur_push {
+  int32_t width, height;
+  float threshold;
+  float inv_count[17];
+} blur_push;
+
+int obs_ssao_vk_apply_ex(obs_vk *vk, obs_vk_gbuffer *g, const obs_ssao_projection *proj,
+                         const obs_ssao_params *p, float *ao_host, float *ao_raw_host,
+                         double *stage_ms, obs_err *err) {
+  if (stage_ms)
+    for (int k = 0; k < OBS_SSAO_VK_STAGES; k++) stage_ms[k] = 0.0;
+  if (!vk || !g || !g->depth || !g->normal || !p || g->width < 1 || g->height < 1)
+    return obs_err_set(err, OBS_EINVAL, "ssao: missing device, G-buffer or parameters");
+  if (p->samples != 8 && p->samples != 16 && p->samples != 24)
+    return obs_err_set(err, OBS_EINVAL, "ssao: samples must be 8, 16 or 24 (got %d)", p->samples);
+  if (p->normal_oriented && !proj)
+    return obs_err_set(err, OBS_EINVAL,
+                       "ssao: normal_oriented needs the camera projection (use "
+                       "obs_ssao_vk_apply_ex)");
+  obs_ssao_tables t;
+  obs_ssao_tables_make(p, &t);
+  obs_vk_image *rot = NULL, *off = NULL, *raw = NULL, *ao = NULL;
+  int rc;
+  if ((rc = obs_vk_image_create(vk, 4, 4, 4, &rot, err)) ||
+      (rc = obs_vk_image_create(vk, p->samples, 1, 4, &off, err)) ||
+      (rc = obs_vk_image_create(vk, g->width, g->height, 1, &raw, err)) ||
+      (p->blur && (rc = obs_vk_image_create(vk, g->width, g->height, 1, &ao, err))) ||
+      (rc = obs_vk_image_upload(vk, rot, &t.rotation[0][0], err)) ||
+      (rc = obs_vk_image_upload(vk, off, &t.offsets[0][0], err)))
+    goto done;
+  ao_push ap = {.width = g->width,
+                .height = g->height,
+                .samples = p->samples,
+                .flags = (p->normal_oriented ? 1 : 0) | (proj && proj->ortho ? 2 : 0),
+                .half_w = proj ? proj->half_w : 0.0f,
+                .half_h = proj ? proj->half_h : 0.0f,
+                .inv_samples = t.inv_samples};
+  blur_push bp = {.width = g->width, .height = g->height, .threshold = p->blur_depth_threshold};
+  memcpy(bp.inv_count, t.inv_count, sizeof bp.inv_count);
+  uint32_t gx = (uint32_t)(g->width + 7) / 8, gy = (uint32_t)(g->height + 7) / 8;
+  obs_vk_pass passes[2] = {
+      {.name = "ssao",
+       .spirv = obs_spv_ssao_comp,
+       .spirv_size = obs_spv_ssao_comp_size,
+       .images = {g->depth, g->normal, rot, off, raw},
+       .nimages = 5,
+       .push = &ap,
+       .push_size = sizeof ap,
+       .groups_x = gx,
+       .groups_y = gy},
+      {.name = "ssao_blur",
+       .spirv = obs_spv_ssao_blur_comp,
+       .spirv_size = obs_spv_ssao_blur_comp_size,
+       .images = {g->depth, raw, ao},
+       .nimages = 3,
+       .push = &bp,
+       .push_size = sizeof bp,
+       .groups_x = gx,
+       .groups_y = gy}};
+  double ms[2] = {0, 0};
+  if ((rc = obs_vk_run(vk, passes, p->blur ? 2 : 1, ms, err))) goto done;
+  double t0 = obs_now_ms();
+  if (ao_host && (rc = obs_vk_image_download(vk, p->blur ? ao : raw, ao_host, err))) goto done;
+  if (ao_raw_host && (rc = obs_vk_image_download(vk, raw, ao_raw_host, err))) goto done;
+  if (stage_ms) {
+    stage_ms[0] = ms[0];
+    stage_ms[1] = p->blur ? ms[1] : 0.0;
+    stage_ms[2] = obs_now_ms() - t0;
+  }
+done:
+  obs_vk_image_free(vk, ao);
+  obs_vk_image_free(vk, raw);
+  obs_vk_image_free(vk, off);
+  obs_vk_image_free(vk, rot);
+  return rc;
+}
+
+int obs_ssao_vk_apply(obs_vk *vk, obs_vk_gbuffer *g, const obs_ssao_params *p, float *ao_host,
+                      double *stage_ms, obs_err *err) {
+  return obs_ssao_vk_apply_ex(vk, g, NULL, p, ao_host, NULL, stage_ms, err);
+}
+
+
+int obs_ssao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
+  const obs_scene *sc = ctx->scene;
+  obs_ssao_params p;
+  if (obs_ssao_params_read(ctx->params, &p))
+    return obs_err_set(err, OBS_EINVAL, "%s: /technique/params: invalid ssao parameters", sc->name);
+  obs_camera_rig rig;
+  obs_camera_setup(&sc->camera, sc->width, sc->height, &rig);
+  int rc = obs_image_init(out, sc->width, sc->height, OBS_SCREEN_CHANNELS, obs_screen_channel_names, err);
+  if (rc) return rc;
+  obs_vk *vk = NULL;
+  obs_geometry geo;
+  obs_vk_gbuffer dev;
+  obs_gbuffer host;
+  memset(&geo, 0, sizeof geo);
+  memset(&dev, 0, sizeof dev);
+  memset(&host, 0, sizeof host);
+  const int validation = obs_vk_validation_requested();
+  double gb_ms = 0, st[OBS_SSAO_VK_STAGES] = {0, 0, 0};
+  double t0 = obs_now_ms(), t1 = t0;
+  if ((rc = obs_vk_open(&vk, NULL, validation, err))) goto done;
+  if ((rc = obs_geometry_build(sc, &geo, err))) goto done;
+  t1 = obs_now_ms();
+  ctx->build_ms = t1 - t0;
+  if ((rc = obs_vk_gbuffer_render(vk, sc, &geo, &dev, &gb_ms, err))) goto done;
+  if ((rc = obs_gbuffer_alloc(&host, sc->width, sc->height, &rig, err))) goto done;
+  obs_ssao_projection proj = obs_ssao_projection_of(&host);
+  if ((rc = obs_ssao_vk_apply_ex(vk, &dev, &proj, &p, obs_image_channel(out, "ao"),
+                                 obs_image_channel(out, "ao_raw"), st, err)))
+    goto done;
+  /* The depth and normal outputs come from the device G-buffer, so they match the AO. */
+  double t2 = obs_now_ms();
+  if ((rc = obs_vk_gbuffer_download(vk, &dev, &host, err))) goto done;
+  st[2] += obs_now_ms() - t2;
+  obs_gbuffer_export(&host, &rig, out);
+  ctx->render_ms = obs_now_ms() - t1;
+  ctx->rays = 0;
+  obs_render_ctx_stage(ctx, "gbuffer", gb_ms);
+  obs_render_ctx_stage(ctx, "ao", st[0]);
+  if (p.blur) obs_render_ctx_stage(ctx, "blur", st[1]);
+  obs_render_ctx_stage(ctx, "readback", st[2]);
+  if (ctx->progress) ctx->progress(ctx->progress_user, 1.0);
+done:
+  /* A render the validation layer complained about is not trusted, whatever it produced. */
+  if (!rc && validation && obs_vk_validation_messages(vk))
+    rc = obs_err_set(err, OBS_EINTERNAL,
+                     "%s: ssao: the Vulkan validation layer reported %u message(s) (printed "
+                     "above)",
+                     sc->name, obs_vk_validation_messages(vk));
+  obs_gbuffer_free(&host);
+  obs_vk_gbuffer_free(vk, &dev);
+  obs_geometry_free(&geo);
+  obs_vk_close(vk);
+  if (rc) obs_image_free(out);
+  return rc;
+}

@@ -1,0 +1,93 @@
+/* Private to renderer/vulkan: the obs_vk and obs_vk_image structs and the device helpers shared by
+ * device.c and gbuffer_vk.c. Techniques use vk.h only. */
+#ifndef OBS_VK_INTERNAL_H
+#define OBS_VK_INTERNAL_H
+
+#include <stdatomic.h>
+#include <vulkan/vulkan.h>
+
+#include "vk.h"
+
+typedef struct obs_vk_pipe {
+  const uint32_t *spirv; /* cache key: the embedded array's address */
+  VkPipeline pipeline;
+} obs_vk_pipe;
+
+/* A buffer with its memory; `map` is non-NULL for host-visible buffers (mapped for life). */
+typedef struct obs_vk_buffer {
+  VkBuffer buffer;
+  VkDeviceMemory memory;
+  VkDeviceSize size;
+  void *map;
+} obs_vk_buffer;
+
+struct obs_vk {
+  VkInstance instance;
+  VkDebugUtilsMessengerEXT messenger;
+  PFN_vkDestroyDebugUtilsMessengerEXT destroy_messenger;
+  VkPhysicalDevice phys;
+  VkPhysicalDeviceProperties props;
+  VkPhysicalDeviceMemoryProperties memprops;
+  VkDeviceSize max_alloc; /* maxMemoryAllocationSize */
+  VkDevice dev;
+  VkQueue queue;
+  uint32_t family;
+  uint32_t ts_bits; /* timestampValidBits of the queue family; 0: no timestamps */
+  VkCommandPool pool;
+  VkCommandBuffer cmd;
+  int recording;
+  VkFence fence;
+  VkQueryPool queries;
+  uint32_t nqueries;
+  obs_vk_buffer staging;
+  VkDescriptorSetLayout set_layout; /* OBS_VK_MAX_BINDINGS storage images */
+  VkPipelineLayout compute_layout;  /* that set + 128 bytes of push constants */
+  obs_vk_pipe *pipes;
+  int npipes, cappipes;
+  /* The G-buffer rasteriser's objects (gbuffer_vk.c), built on first use. */
+  VkRenderPass gb_pass;
+  VkPipelineLayout gb_layout;
+  VkPipeline gb_pipeline;
+  int validation;
+  atomic_uint messages;
+  int lost; /* VK_ERROR_DEVICE_LOST seen: every later call fails */
+  char name[VK_MAX_PHYSICAL_DEVICE_NAME_SIZE];
+};
+
+struct obs_vk_image {
+  VkImage image;
+  VkDeviceMemory memory;
+  VkImageView view;
+  VkFormat format;
+  int width, height, channels;
+};
+
+/* Turns a failed VkResult into an obs error naming `what` (0 on VK_SUCCESS): out-of-memory results
+ * give OBS_ENOMEM, device loss marks the device lost, anything else OBS_EINTERNAL. */
+int obs_vk_check(obs_vk *vk, VkResult r, const char *what, obs_err *err);
+const char *obs_vk_result_name(VkResult r);
+/* Fails with a message once the device was lost, so callers stop before recording anything. */
+int obs_vk_usable(obs_vk *vk, const char *what, obs_err *err);
+
+int obs_vk_buffer_create(obs_vk *vk, VkDeviceSize size, VkBufferUsageFlags usage, int host,
+                         obs_vk_buffer *out, const char *what, obs_err *err);
+void obs_vk_buffer_free(obs_vk *vk, obs_vk_buffer *b);
+/* Memory for `req` with `want` properties, preferring `prefer` too. */
+int obs_vk_memory_alloc(obs_vk *vk, const VkMemoryRequirements *req, VkMemoryPropertyFlags want,
+                        VkMemoryPropertyFlags prefer, VkDeviceMemory *out, const char *what,
+                        obs_err *err);
+
+/* One-shot command recording into vk->cmd: begin (with a full barrier against earlier
+ * submissions), then submit-and-wait. abort discards a recording after an error. */
+int obs_vk_cmd_begin(obs_vk *vk, const char *what, obs_err *err);
+int obs_vk_cmd_submit(obs_vk *vk, const char *what, obs_err *err);
+void obs_vk_cmd_abort(obs_vk *vk);
+void obs_vk_cmd_barrier(VkCommandBuffer cmd);
+/* Layout transition of a whole single-level colour image, with a full memory dependency. */
+void obs_vk_cmd_layout(VkCommandBuffer cmd, VkImage image, VkImageLayout from, VkImageLayout to);
+/* Ensures `n` timestamp queries exist (call before obs_vk_cmd_begin) and reads them afterwards as
+ * milliseconds between consecutive pairs: ms[i] = t[2i+1] - t[2i]. */
+int obs_vk_queries_reserve(obs_vk *vk, uint32_t n, obs_err *err);
+int obs_vk_queries_ms(obs_vk *vk, uint32_t npairs, double *ms, obs_err *err);
+
+#endif
