@@ -1,33 +1,34 @@
-/* The obscura command-line tool: render scenes, validate them, list techniques. */
+/* The obscura command-line tool: render, validate, list techniques, submit to obscurad. */
 #include <jansson.h>
-#include <limits.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
+#include "args.h"
+#include "client.h"
 #include "obscura/obscura.h"
-
-#define EXIT_BAD_INPUT 2
 
 static void usage(FILE *f) {
   fputs("usage:\n"
         "  obscura render SCENE.json [-o DIR] [--technique NAME] [--backend cpu|vulkan|auto]\n"
         "                 [--set /json/pointer=VALUE]... [--threads N] [--quiet]\n"
         "  obscura validate SCENE.json [--set /json/pointer=VALUE]...\n"
-        "  obscura techniques\n"
-        "  obscura --version\n"
+        "  obscura techniques\n",
+        f);
+  cli_client_usage(f);
+  fputs("  obscura --version\n"
         "VALUE is JSON, e.g. --set /technique/params/samples=256 --set "
         "'/technique/params/falloff=\"sqrt\"'.\n"
         "--technique replaces the document's technique; its params are dropped unless --set\n"
-        "gives them. Exit codes: 0 ok, 2 bad input, 1 failure.\n",
+        "gives them. submit and jobs send $OBSCURA_TOKEN as a bearer token; -o implies --wait.\n"
+        "Exit codes: 0 ok, 2 bad input, 1 failure.\n",
         f);
 }
 
 typedef struct cli {
-  const char *scene, *out_dir, *technique, *backend;
-  obs_override ov[64];
-  size_t nov;
+  cli_scene_opts s;
+  const char *out_dir;
   int threads, quiet;
 } cli;
 
@@ -35,19 +36,16 @@ static int parse_args(int argc, char **argv, int first, cli *c) {
   memset(c, 0, sizeof *c);
   c->out_dir = "out";
   for (int i = first; i < argc; i++) {
+    int taken = cli_scene_option(&c->s, argc, argv, &i);
+    if (taken < 0) return -1;
+    if (taken) continue;
     const char *a = argv[i];
-    const char *val = i + 1 < argc ? argv[i + 1] : NULL;
-    if (!strcmp(a, "-o") || !strcmp(a, "--technique") || !strcmp(a, "--backend") ||
-        !strcmp(a, "--set") || !strcmp(a, "--threads")) {
-      if (!val) {
-        fprintf(stderr, "obscura: %s needs a value\n", a);
-        return -1;
-      }
-      i++;
-      if (!strcmp(a, "-o")) c->out_dir = val;
-      else if (!strcmp(a, "--technique")) c->technique = val;
-      else if (!strcmp(a, "--backend")) c->backend = val;
-      else if (!strcmp(a, "--threads")) {
+    if (!strcmp(a, "-o") || !strcmp(a, "--threads")) {
+      const char *val = cli_option_value(argc, argv, &i);
+      if (!val) return -1;
+      if (!strcmp(a, "-o")) {
+        c->out_dir = val;
+      } else {
         char *end;
         long n = strtol(val, &end, 10);
         if (*end || n < 1 || n > 1024) {
@@ -55,90 +53,27 @@ static int parse_args(int argc, char **argv, int first, cli *c) {
           return -1;
         }
         c->threads = (int)n;
-      } else {
-        const char *eq = strchr(val, '=');
-        if (!eq || val[0] != '/' || c->nov == sizeof c->ov / sizeof c->ov[0]) {
-          fprintf(stderr, "obscura: --set takes /json/pointer=VALUE (got %s)\n", val);
-          return -1;
-        }
-        char *ptr = strndup(val, (size_t)(eq - val));
-        c->ov[c->nov].pointer = ptr;
-        c->ov[c->nov].value = eq + 1;
-        c->nov++;
       }
     } else if (!strcmp(a, "--quiet") || !strcmp(a, "-q")) {
       c->quiet = 1;
     } else if (a[0] == '-') {
       fprintf(stderr, "obscura: unknown option %s\n", a);
       return -1;
-    } else if (!c->scene) {
-      c->scene = a;
+    } else if (!c->s.scene) {
+      c->s.scene = a;
     } else {
       fprintf(stderr, "obscura: unexpected argument %s\n", a);
       return -1;
     }
   }
-  if (!c->scene) {
+  if (!c->s.scene) {
     fprintf(stderr, "obscura: missing SCENE.json\n");
     return -1;
   }
   return 0;
 }
 
-static void free_args(cli *c) {
-  for (size_t i = 0; i < c->nov; i++) free((char *)c->ov[i].pointer);
-}
-
-/* Loads the scene with --technique/--backend folded into the document before validation, so
- * their problems are reported like any other. */
-static int load(const cli *c, obs_scene *sc, obs_err *err) {
-  if (!c->technique && !c->backend) return obs_scene_load_file(sc, c->scene, c->ov, c->nov, err);
-  json_error_t je;
-  json_t *doc = json_load_file(c->scene, JSON_REJECT_DUPLICATES, &je);
-  if (!doc)
-    return obs_err_set(err, access(c->scene, R_OK) ? OBS_EIO : OBS_EINVAL,
-                       "%s: line %d, column %d: %s", c->scene, je.line, je.column, je.text);
-  json_t *t = json_object_get(doc, "technique");
-  if (!json_is_object(t)) {
-    t = json_object();
-    json_object_set_new(doc, "technique", t);
-  }
-  if (c->technique) {
-    const char *old = json_string_value(json_object_get(t, "name"));
-    if (!old || strcmp(old, c->technique)) json_object_del(t, "params");
-    json_object_set_new(t, "name", json_string(c->technique));
-  }
-  if (c->backend) json_object_set_new(t, "backend", json_string(c->backend));
-  char *text = json_dumps(doc, 0);
-  json_decref(doc);
-  char dir[PATH_MAX];
-  snprintf(dir, sizeof dir, "%s", c->scene);
-  char *slash = strrchr(dir, '/');
-  const char *base = strrchr(c->scene, '/') ? strrchr(c->scene, '/') + 1 : c->scene;
-  if (slash) *slash = '\0';
-  else strcpy(dir, ".");
-  int rc = obs_scene_load_string(sc, text, base, dir, c->ov, c->nov, err);
-  free(text);
-  return rc;
-}
-
-typedef struct progress {
-  int tty;
-  int last;
-} progress;
-
-static void on_progress(void *user, double f) {
-  progress *p = user;
-  int pct = (int)(f * 100.0);
-  if (!p->tty || pct == p->last) return;
-  p->last = pct;
-  char bar[41];
-  int n = (int)(f * 40.0);
-  for (int i = 0; i < 40; i++) bar[i] = i < n ? '#' : ' ';
-  bar[40] = '\0';
-  fprintf(stderr, "\r[%s] %3d%%", bar, pct);
-  fflush(stderr);
-}
+static void free_args(cli *c) { cli_scene_opts_free(&c->s); }
 
 static int cmd_render(int argc, char **argv) {
   cli c;
@@ -150,16 +85,16 @@ static int cmd_render(int argc, char **argv) {
   obs_err err = OBS_ERR_INIT;
   obs_scene sc;
   double t0 = obs_now_ms();
-  int rc = load(&c, &sc, &err);
+  int rc = cli_scene_load(&c.s, &sc, &err);
   if (rc) {
     fprintf(stderr, "%s\n", obs_err_message(&err));
     obs_err_free(&err);
     free_args(&c);
-    return rc == OBS_EINVAL || rc == OBS_EIO ? EXIT_BAD_INPUT : EXIT_FAILURE;
+    return cli_load_exit_code(rc);
   }
   double load_ms = obs_now_ms() - t0;
-  progress pr = {.tty = !c.quiet && isatty(2), .last = -1};
-  obs_render_opts opts = {.threads = c.threads, .progress = on_progress, .progress_user = &pr};
+  cli_progress pr = {.tty = !c.quiet && isatty(2), .last = -1};
+  obs_render_opts opts = {.threads = c.threads, .progress = cli_progress_draw, .progress_user = &pr};
   obs_result res;
   rc = obs_render(&sc, &opts, &res, &err);
   if (pr.tty) fputc('\n', stderr);
@@ -202,7 +137,7 @@ static int cmd_validate(int argc, char **argv) {
   }
   obs_err err = OBS_ERR_INIT;
   obs_scene sc;
-  int rc = load(&c, &sc, &err);
+  int rc = cli_scene_load(&c.s, &sc, &err);
   if (rc) {
     fprintf(stderr, "%s\n", obs_err_message(&err));
   } else {
@@ -231,6 +166,8 @@ int main(int argc, char **argv) {
   if (!strcmp(argv[1], "render")) return cmd_render(argc, argv);
   if (!strcmp(argv[1], "validate")) return cmd_validate(argc, argv);
   if (!strcmp(argv[1], "techniques")) return cmd_techniques();
+  if (!strcmp(argv[1], "submit")) return cli_submit(argc, argv);
+  if (!strcmp(argv[1], "jobs")) return cli_jobs(argc, argv);
   if (!strcmp(argv[1], "--version")) {
     puts("obscura " OBSCURA_VERSION);
     return 0;

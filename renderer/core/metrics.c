@@ -1,9 +1,14 @@
-/* Channel statistics and RMSE between images, used by tests and reference comparisons. */
+/* Image metrics: channel statistics, RMSE, SSIM, candidate-vs-reference comparisons and error
+ * images (signed EXR + colour-mapped PNG), used by tests, benchmarks and the comparison server. */
 #include "obscura/metrics.h"
 
+#include <errno.h>
 #include <math.h>
 #include <stddef.h>
+#include <stdio.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 /* Neumaier-compensated sum: large renders sum millions of values of similar magnitude, where a
  * plain double accumulator would drift in the last digits that reference comparisons look at. */
@@ -162,4 +167,170 @@ int obs_metrics_ssim(const obs_image *a, const obs_image *b, const char *channel
     }
   *ssim = windows ? metrics_total(&acc) / (double)windows : 1.0;
   return OBS_OK;
+}
+
+/* The planes a candidate/reference comparison reads: both images the same size, `channel` in both,
+ * `mask` (optional) in the reference. `what` names the operation in messages. */
+static int metrics_pair(const obs_image *a, const obs_image *b, const char *channel,
+                        const char *mask, const void *out, const char *what, const float **pa,
+                        const float **pb, const float **m, obs_err *err) {
+  if (!a || !b || !a->data || !b->data || !channel || !out)
+    return obs_err_set(err, OBS_EINVAL,
+                       "metrics: %s needs a candidate, a reference, a channel and an output", what);
+  if (a->width != b->width || a->height != b->height)
+    return obs_err_set(err, OBS_EINVAL, "metrics: image sizes differ (%dx%d vs %dx%d)", a->width,
+                       a->height, b->width, b->height);
+  int code = OBS_OK;
+  if (!(*pa = metrics_find(a, channel, "candidate", &code, err))) return code;
+  if (!(*pb = metrics_find(b, channel, "reference", &code, err))) return code;
+  *m = NULL;
+  if (mask && !(*m = metrics_find(b, mask, "reference (mask)", &code, err))) return code;
+  return OBS_OK;
+}
+
+/* The same pass as obs_metrics_rmse (same order, same compensated sum, so rmse is bit-identical)
+ * extended with the signed sum and the largest magnitude. */
+int obs_metrics_compare(const obs_image *candidate, const obs_image *reference, const char *channel,
+                        const char *mask, obs_compare *out, obs_err *err) {
+  const float *pa, *pb, *m;
+  int code = metrics_pair(candidate, reference, channel, mask, out, "compare", &pa, &pb, &m, err);
+  if (code) return code;
+  const obs_image *a = candidate, *b = reference;
+
+  obs_compare r;
+  memset(&r, 0, sizeof r);
+  metrics_acc sq = {0, 0}, sum = {0, 0};
+  int any_nan = 0, pos_inf = 0, neg_inf = 0;
+  double max_abs = 0.0;
+  size_t used = 0, n = (size_t)a->width * (size_t)a->height;
+  for (size_t i = 0; i < n; i++) {
+    if (m && !(m[i] > 0.0f)) continue;
+    used++;
+    if (pa[i] == pb[i]) continue;
+    double d = (double)pa[i] - (double)pb[i];
+    if (isnan(d)) {
+      any_nan = 1;
+    } else if (isinf(d)) {
+      if (d > 0)
+        pos_inf = 1;
+      else
+        neg_inf = 1;
+    } else {
+      metrics_add(&sq, d * d);
+      metrics_add(&sum, d);
+      if (fabs(d) > max_abs) max_abs = fabs(d);
+    }
+  }
+  r.pixels = (int64_t)used;
+  if (any_nan) {
+    r.rmse = r.bias = r.max_abs = r.psnr = NAN;
+  } else if (pos_inf || neg_inf) {
+    r.rmse = r.max_abs = INFINITY;
+    r.psnr = -INFINITY;
+    r.bias = pos_inf && neg_inf ? NAN : pos_inf ? INFINITY : -INFINITY;
+  } else if (used) {
+    double mse = metrics_total(&sq) / (double)used;
+    r.rmse = sqrt(mse);
+    r.bias = metrics_total(&sum) / (double)used;
+    r.max_abs = max_abs;
+    r.psnr = mse > 0 ? fmin(10.0 * log10(1.0 / mse), OBS_METRICS_PSNR_MAX) : OBS_METRICS_PSNR_MAX;
+  } else {
+    r.psnr = OBS_METRICS_PSNR_MAX; /* nothing selected: no error, like obs_metrics_rmse */
+  }
+  code = obs_metrics_ssim(a, b, channel, mask, &r.ssim, err);
+  if (code) return code;
+
+  /* The reference's own Monte-Carlo noise: "<channel>_stderr" (ao_stderr for "ao"). */
+  char se_name[OBS_CHANNEL_NAME_MAX + 8];
+  if ((size_t)snprintf(se_name, sizeof se_name, "%s_stderr", channel) < sizeof se_name &&
+      obs_image_channel(b, se_name)) {
+    obs_stats st;
+    code = obs_metrics_stats(b, se_name, mask, &st, err);
+    if (code) return code;
+    r.ref_noise = st.mean;
+  }
+  r.at_reference_accuracy = r.rmse < 2.0 * r.ref_noise; /* false for NaN and for ref_noise 0 */
+  *out = r;
+  return OBS_OK;
+}
+
+/* Ramp ends of the error image (ColorBrewer RdBu's outer colours, display-encoded). */
+static const float k_err_neg[3] = {0x21 / 255.0f, 0x66 / 255.0f, 0xAC / 255.0f};
+static const float k_err_pos[3] = {0xB2 / 255.0f, 0x18 / 255.0f, 0x2B / 255.0f};
+
+int obs_metrics_error_image(const obs_image *candidate, const obs_image *reference,
+                            const char *channel, const char *mask, obs_image *out, obs_err *err) {
+  if (out) memset(out, 0, sizeof *out);
+  const float *pa, *pb, *m;
+  int code =
+      metrics_pair(candidate, reference, channel, mask, out, "error image", &pa, &pb, &m, err);
+  if (code) return code;
+  const obs_image *a = candidate;
+
+  static const char *const names[] = {"error", "R", "G", "B"};
+  code = obs_image_init(out, a->width, a->height, 4, names, err);
+  if (code) return code;
+  float *e = obs_image_channel(out, "error");
+  float *rgb[3] = {obs_image_channel(out, "R"), obs_image_channel(out, "G"),
+                   obs_image_channel(out, "B")};
+  size_t n = (size_t)a->width * (size_t)a->height;
+  for (size_t i = 0; i < n; i++) {
+    if (m && !(m[i] > 0.0f)) {
+      for (int c = 0; c < 3; c++) rgb[c][i] = 0.5f; /* e[i] stays 0 */
+      continue;
+    }
+    double d = pa[i] == pb[i] ? 0.0 : (double)pa[i] - (double)pb[i];
+    e[i] = (float)d;
+    if (isnan(d)) {
+      rgb[0][i] = 0.0f;
+      rgb[1][i] = 1.0f;
+      rgb[2][i] = 0.0f;
+      continue;
+    }
+    double t = fabs(d) / OBS_METRICS_ERROR_SCALE;
+    if (t > 1.0) t = 1.0;
+    const float *end = d < 0 ? k_err_neg : k_err_pos;
+    for (int c = 0; c < 3; c++) rgb[c][i] = (float)(1.0 - t * (1.0 - (double)end[c]));
+  }
+  return OBS_OK;
+}
+
+int obs_metrics_write_error_files(const obs_image *err_img, const char *dir, obs_err *err) {
+  if (!err_img || !err_img->data || !dir || !dir[0])
+    return obs_err_set(err, OBS_EINVAL,
+                       "metrics: writing error files needs an image and a directory");
+  const float *e = obs_image_channel(err_img, "error");
+  if (!e) return obs_err_set(err, OBS_ENOTFOUND, "metrics: error image has no channel \"error\"");
+  static const char *const rgb[] = {"R", "G", "B"};
+  for (int c = 0; c < 3; c++)
+    if (!obs_image_channel(err_img, rgb[c]))
+      return obs_err_set(err, OBS_ENOTFOUND, "metrics: error image has no channel \"%s\"", rgb[c]);
+  int code = obs_image_make_dirs(dir, err);
+  if (code) return code;
+
+  /* A one-channel view of the "error" plane, so the EXR holds that channel only (no copy). */
+  obs_image view;
+  memset(&view, 0, sizeof view);
+  view.width = err_img->width;
+  view.height = err_img->height;
+  view.nchannels = 1;
+  memcpy(view.names[0], "error", sizeof "error");
+  view.data = (float *)e; /* only read by the writer */
+
+  static const char *const files[] = {"error.exr", "error.png"};
+  char stage[2][4200], final[2][4200];
+  for (int i = 0; i < 2; i++) {
+    if (snprintf(stage[i], sizeof stage[i], "%s/.%s.new", dir, files[i]) >= (int)sizeof stage[i] ||
+        snprintf(final[i], sizeof final[i], "%s/%s", dir, files[i]) >= (int)sizeof final[i])
+      return obs_err_set(err, OBS_EINVAL, "%s: output path too long", dir);
+  }
+  code = obs_image_write_exr(&view, stage[0], err);
+  if (!code) code = obs_image_write_png(err_img, rgb, 3, 0, stage[1], err);
+  for (int i = 0; !code && i < 2; i++)
+    if (rename(stage[i], final[i]))
+      code =
+          obs_err_set(err, OBS_EIO, "%s: cannot rename into place: %s", final[i], strerror(errno));
+  if (code)
+    for (int i = 0; i < 2; i++) unlink(stage[i]);
+  return code;
 }

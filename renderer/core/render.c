@@ -117,27 +117,9 @@ json_t *obs_result_summary_json(const obs_result *r, const obs_scene *sc) {
   return o;
 }
 
-static int mkdir_p(const char *dir, obs_err *err) {
-  char buf[4096];
-  if (!dir || !*dir) return obs_err_set(err, OBS_EINVAL, "output directory must not be empty");
-  if (snprintf(buf, sizeof buf, "%s", dir) >= (int)sizeof buf)
-    return obs_err_set(err, OBS_EINVAL, "%s: output path too long", dir);
-  for (char *p = buf + 1;; p++) {
-    if (*p == '/' || *p == '\0') {
-      char c = *p;
-      *p = '\0';
-      if (mkdir(buf, 0755) && errno != EEXIST)
-        return obs_err_set(err, OBS_EIO, "%s: cannot create directory: %s", buf, strerror(errno));
-      *p = c;
-      if (!c) break;
-    }
-  }
-  return 0;
-}
-
 int obs_result_write(obs_result *r, const obs_scene *sc, const char *dir, obs_err *err) {
   double t0 = obs_now_ms();
-  int rc = mkdir_p(dir, err);
+  int rc = obs_image_make_dirs(dir, err);
   if (rc) return rc;
   /* Every file is written under a staging name first and the set is renamed into place only
    * when all succeeded, so a failure never mixes new and old outputs. */

@@ -91,6 +91,17 @@ static void load_camera(obs_jpath *p, const json_t *doc, obs_camera *cam) {
 
 /* ---- objects ------------------------------------------------------------------------------ */
 
+/* Whether a relative path has a ".." component. */
+static int has_dotdot(const char *path) {
+  for (const char *c = path; *c;) {
+    size_t n = strcspn(c, "/");
+    if (n == 2 && c[0] == '.' && c[1] == '.') return 1;
+    c += n;
+    while (*c == '/') c++;
+  }
+  return 0;
+}
+
 static void load_mesh_file(obs_jpath *p, const json_t *shape, const char *base_dir, obs_object *o) {
   const char *file = NULL;
   if (obs_json_get_string(p, shape, "file", 1, NULL, &file) || !file) return;
@@ -105,6 +116,10 @@ static void load_mesh_file(obs_jpath *p, const json_t *shape, const char *base_d
                    obs_json_brief(json_object_get(shape, "file")));
   } else if (file[0] == '/') {
     obs_jpath_fail(p, "must be relative to the scene file, not absolute (got \"%s\")", file);
+  } else if (has_dotdot(file)) {
+    /* Refused before the file system is asked, so the answer never tells whether a file outside
+     * the tree exists; symlinks that leave the tree are caught after realpath below. */
+    obs_jpath_fail(p, "must stay inside the scene's directory tree (got \"%s\")", file);
   } else if (!ext_ok) {
     obs_jpath_fail(p, "must name a .obj, .ply, .gltf, .glb or .stl file (got \"%s\")", file);
   } else if (!base_dir) {

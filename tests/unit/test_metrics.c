@@ -1,9 +1,12 @@
-/* Unit tests for obs_metrics: channel statistics and RMSE against hand-computed small images. */
+/* Unit tests for obs_metrics: statistics, RMSE, SSIM, comparisons and error images, each against
+ * hand-computed small images. */
 #include "testutil.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 static void assert_msg_has(const obs_err *err, const char *needle) {
   const char *msg = obs_err_message(err);
@@ -285,6 +288,383 @@ static void test_ssim(void **state) {
   obs_err_free(&err);
 }
 
+/* A reference with channels "v", "alpha" and "v_stderr" (the noise channel obs_metrics_compare
+ * looks for when comparing channel "v"). */
+static void make_ref(obs_image *img, int w, int h, const float *v, const float *alpha,
+                     const float *se) {
+  const char *names[] = {"v", "alpha", "v_stderr"};
+  assert_int_equal(obs_image_init(img, w, h, 3, names, NULL), 0);
+  size_t n = (size_t)w * (size_t)h;
+  memcpy(obs_image_channel(img, "v"), v, n * sizeof(float));
+  float *a = obs_image_channel(img, "alpha");
+  for (size_t i = 0; i < n; i++) a[i] = alpha ? alpha[i] : 1.0f;
+  memcpy(obs_image_channel(img, "v_stderr"), se, n * sizeof(float));
+}
+
+static int near(double got, double want, double tol) {
+  if (fabs(got - want) <= tol) return 1;
+  fprintf(stderr, "got %.17g, want %.17g (tol %g)\n", got, want, tol);
+  return 0;
+}
+
+/* d = candidate - reference = {+0.25, 0, -0.25, +0.5}: sum 0.5, sum d^2 0.375 over 4 pixels. */
+static void test_compare_hand_computed(void **state) {
+  (void)state;
+  const float ref[] = {0.5f, 0.5f, 0.5f, 0.5f};
+  const float cand[] = {0.75f, 0.5f, 0.25f, 1.0f};
+  obs_image r, c;
+  make_image(&r, 4, 1, ref, NULL);
+  make_image(&c, 4, 1, cand, NULL);
+  obs_err err = OBS_ERR_INIT;
+  obs_compare m;
+  memset(&m, 0x7f, sizeof m);
+  assert_int_equal(obs_metrics_compare(&c, &r, "v", NULL, &m, &err), 0);
+  assert_int_equal(m.pixels, 4);
+  assert_true(near(m.rmse, sqrt(0.375 / 4), 1e-15));
+  assert_true(m.bias == 0.125); /* candidate brighter on average: positive */
+  assert_true(m.max_abs == 0.5);
+  assert_true(near(m.psnr, 10.0 * log10(4 / 0.375), 1e-12)); /* 10.2803 dB */
+  assert_true(near(m.psnr, 10.280287236002437, 1e-12));
+  assert_true(m.ref_noise == 0.0); /* no v_stderr channel */
+  assert_int_equal(m.at_reference_accuracy, 0);
+  double ssim;
+  assert_int_equal(obs_metrics_ssim(&c, &r, "v", NULL, &ssim, &err), 0);
+  assert_true(m.ssim == ssim);
+
+  /* Swapped roles: the bias changes sign, everything else is symmetric. */
+  obs_compare s;
+  assert_int_equal(obs_metrics_compare(&r, &c, "v", NULL, &s, &err), 0);
+  assert_true(s.bias == -0.125);
+  assert_true(s.rmse == m.rmse && s.max_abs == m.max_abs && s.psnr == m.psnr);
+  /* A darker-everywhere candidate: bias is minus the (uniform) error, max_abs its size. */
+  const float dark[] = {0.375f, 0.375f, 0.375f, 0.375f};
+  obs_image d;
+  make_image(&d, 4, 1, dark, NULL);
+  assert_int_equal(obs_metrics_compare(&d, &r, "v", NULL, &s, &err), 0);
+  assert_true(s.bias == -0.125 && s.max_abs == 0.125 && s.rmse == 0.125);
+  assert_true(near(s.psnr, 10.0 * log10(64.0), 1e-12)); /* MSE 2^-6: 18.0618 dB */
+  assert_int_equal(err.count, 0);
+  obs_image_free(&d);
+  obs_image_free(&r);
+  obs_image_free(&c);
+  obs_err_free(&err);
+}
+
+/* SSIM by hand on a 2x1 pair (one 2x1 window, equal weights 1/2): a = {0, 1}, b = {0, 0.5}:
+ * means 0.5 and 0.25, variances 0.25 and 0.0625, covariance 0.125. */
+static void test_compare_ssim_hand_computed(void **state) {
+  (void)state;
+  const float va[] = {0.0f, 1.0f}, vb[] = {0.0f, 0.5f};
+  obs_image a, b;
+  make_image(&a, 2, 1, va, NULL);
+  make_image(&b, 2, 1, vb, NULL);
+  obs_compare m;
+  assert_int_equal(obs_metrics_compare(&a, &b, "v", NULL, &m, NULL), 0);
+  const double c1 = 1e-4, c2 = 9e-4;
+  double want = (2 * 0.5 * 0.25 + c1) * (2 * 0.125 + c2) / ((0.25 + 0.0625 + c1) * (0.3125 + c2));
+  assert_true(near(m.ssim, want, 1e-12));
+  assert_true(near(m.rmse, sqrt(0.125), 1e-15));
+  assert_true(m.bias == 0.25 && m.max_abs == 0.5);
+  obs_image_free(&a);
+  obs_image_free(&b);
+}
+
+/* Only the reference's mask counts; the candidate's alpha is ignored. */
+static void test_compare_masked(void **state) {
+  (void)state;
+  const float ref[] = {0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f};
+  const float cand[] = {0.625f, 0.0f, 0.25f, NAN, 1.0f, 0.5f};
+  const float ref_alpha[] = {1.0f, 0.0f, 0.5f, 0.0f, -1.0f, NAN};
+  const float cand_alpha[] = {0.0f, 1.0f, 0.0f, 1.0f, 1.0f, 1.0f};
+  const float se[] = {0.5f, 9.0f, 0.25f, 9.0f, 9.0f, 9.0f};
+  obs_image r, c;
+  make_ref(&r, 6, 1, ref, ref_alpha, se);
+  make_image(&c, 6, 1, cand, cand_alpha);
+  obs_compare m;
+  assert_int_equal(obs_metrics_compare(&c, &r, "v", "alpha", &m, NULL), 0);
+  /* selected: pixels 0 and 2, d = {+0.125, -0.25} */
+  assert_int_equal(m.pixels, 2);
+  assert_true(m.bias == -0.0625);
+  assert_true(m.max_abs == 0.25);
+  assert_true(near(m.rmse, sqrt((0.015625 + 0.0625) / 2), 1e-15));
+  assert_true(m.ref_noise == 0.375);            /* mean of 0.5 and 0.25; the 9s are masked out */
+  assert_int_equal(m.at_reference_accuracy, 1); /* 0.1976 < 0.75 */
+  double rm;
+  assert_int_equal(obs_metrics_rmse(&c, &r, "v", "alpha", &rm, NULL), 0);
+  assert_true(m.rmse == rm);
+
+  /* Without the mask the NaN and the 9s count. */
+  assert_int_equal(obs_metrics_compare(&c, &r, "v", NULL, &m, NULL), 0);
+  assert_int_equal(m.pixels, 6);
+  assert_true(isnan(m.rmse) && isnan(m.bias) && isnan(m.max_abs) && isnan(m.psnr));
+  assert_true(isnan(m.ssim));                   /* the one 6x1 window holds the NaN */
+  assert_int_equal(m.at_reference_accuracy, 0); /* NaN never passes */
+
+  /* A mask selecting nothing: no error by convention, and pixels says so. */
+  const float none[] = {0, 0, 0, 0, 0, 0};
+  obs_image z;
+  make_ref(&z, 6, 1, ref, none, se);
+  assert_int_equal(obs_metrics_compare(&c, &z, "v", "alpha", &m, NULL), 0);
+  assert_int_equal(m.pixels, 0);
+  assert_true(m.rmse == 0.0 && m.bias == 0.0 && m.max_abs == 0.0);
+  assert_true(m.psnr == OBS_METRICS_PSNR_MAX && m.ssim == 1.0);
+  assert_true(m.ref_noise == 0.0); /* obs_stats' empty-set mean */
+  obs_image_free(&z);
+  obs_image_free(&r);
+  obs_image_free(&c);
+}
+
+/* PSNR = 10 log10(1/MSE), capped at OBS_METRICS_PSNR_MAX: identical images report the cap. */
+static void test_compare_psnr_cap(void **state) {
+  (void)state;
+  const float ref[] = {0.5f, 0.25f, 1.0f, 0.0f};
+  const float tiny[] = {0.5f + 0x1p-20f, 0.25f, 1.0f, 0.0f}; /* MSE 2^-42: 126.4 dB uncapped */
+  const float tenth[] = {0.5f, 0.25f, 1.0f, 0.2f};           /* MSE 0.04/4 = 0.01: 20 dB */
+  obs_image r, t, u;
+  make_image(&r, 2, 2, ref, NULL);
+  make_image(&t, 2, 2, tiny, NULL);
+  make_image(&u, 2, 2, tenth, NULL);
+  obs_compare m;
+  assert_int_equal(obs_metrics_compare(&r, &r, "v", NULL, &m, NULL), 0);
+  assert_true(m.rmse == 0.0 && m.psnr == 100.0 && m.max_abs == 0.0 && m.bias == 0.0);
+  assert_true(near(m.ssim, 1.0, 1e-12));
+  assert_int_equal(obs_metrics_compare(&t, &r, "v", NULL, &m, NULL), 0);
+  assert_true(m.rmse > 0 && m.psnr == 100.0);
+  assert_int_equal(obs_metrics_compare(&u, &r, "v", NULL, &m, NULL), 0);
+  double mse = (double)0.2f * (double)0.2f / 4;
+  assert_true(near(m.psnr, 10.0 * log10(1.0 / mse), 1e-12));
+  assert_true(near(m.psnr, 20.0, 1e-6)); /* 0.2f is not exactly 0.2 */
+  assert_true(near(m.psnr, -20.0 * log10(m.rmse), 1e-12));
+  obs_image_free(&r);
+  obs_image_free(&t);
+  obs_image_free(&u);
+}
+
+/* at_reference_accuracy = rmse < 2 * ref_noise, strictly. */
+static void test_compare_reference_accuracy(void **state) {
+  (void)state;
+  const float ref[] = {0.5f, 0.5f, 0.5f, 0.5f};
+  const float cand[] = {0.75f, 0.25f, 0.75f, 0.25f};          /* rmse exactly 0.25 */
+  const float se_edge[] = {0.125f, 0.125f, 0.0625f, 0.1875f}; /* mean 0.125: 2x = 0.25 */
+  const float se_above[] = {0.125f, 0.125f, 0.125f, 0.1875f}; /* mean 0.140625 */
+  const float se_nan[] = {NAN, 0.25f, 0.25f, INFINITY};       /* finite values: mean 0.25 */
+  obs_image r, c;
+  make_image(&c, 4, 1, cand, NULL);
+  obs_compare m;
+  make_ref(&r, 4, 1, ref, NULL, se_edge);
+  assert_int_equal(obs_metrics_compare(&c, &r, "v", NULL, &m, NULL), 0);
+  assert_true(m.rmse == 0.25 && m.ref_noise == 0.125);
+  assert_int_equal(m.at_reference_accuracy, 0); /* 0.25 is not < 0.25 */
+  obs_image_free(&r);
+  make_ref(&r, 4, 1, ref, NULL, se_above);
+  assert_int_equal(obs_metrics_compare(&c, &r, "v", NULL, &m, NULL), 0);
+  assert_true(m.ref_noise == 0.140625);
+  assert_int_equal(m.at_reference_accuracy, 1);
+  obs_image_free(&r);
+  make_ref(&r, 4, 1, ref, NULL, se_nan);
+  assert_int_equal(obs_metrics_compare(&c, &r, "v", NULL, &m, NULL), 0);
+  assert_true(m.ref_noise == 0.25);
+  assert_int_equal(m.at_reference_accuracy, 1);
+  /* Identical to a noisy reference: within its noise. */
+  assert_int_equal(obs_metrics_compare(&r, &r, "v", NULL, &m, NULL), 0);
+  assert_int_equal(m.at_reference_accuracy, 1);
+  obs_image_free(&r);
+  /* No noise channel: never flagged, even when identical. */
+  make_image(&r, 4, 1, ref, NULL);
+  assert_int_equal(obs_metrics_compare(&r, &r, "v", NULL, &m, NULL), 0);
+  assert_true(m.ref_noise == 0.0);
+  assert_int_equal(m.at_reference_accuracy, 0);
+  obs_image_free(&r);
+  obs_image_free(&c);
+}
+
+static void test_compare_non_finite(void **state) {
+  (void)state;
+  const float ref[] = {0.5f, INFINITY, 0.5f, 0.5f};
+  const float pos[] = {INFINITY, INFINITY, 0.5f, 0.25f}; /* +Inf difference; equal infinities */
+  const float both[] = {INFINITY, INFINITY, -INFINITY, 0.5f};
+  const float same[] = {0.5f, INFINITY, 0.5f, 0.75f};
+  obs_image r, c;
+  make_image(&r, 4, 1, ref, NULL);
+  obs_compare m;
+  make_image(&c, 4, 1, pos, NULL);
+  assert_int_equal(obs_metrics_compare(&c, &r, "v", NULL, &m, NULL), 0);
+  assert_true(isinf(m.rmse) && m.rmse > 0);
+  assert_true(isinf(m.max_abs) && m.max_abs > 0);
+  assert_true(isinf(m.bias) && m.bias > 0);
+  assert_true(isinf(m.psnr) && m.psnr < 0);
+  assert_int_equal(m.at_reference_accuracy, 0);
+  obs_image_free(&c);
+  make_image(&c, 4, 1, both, NULL);
+  assert_int_equal(obs_metrics_compare(&c, &r, "v", NULL, &m, NULL), 0);
+  assert_true(isinf(m.rmse) && isnan(m.bias));
+  obs_image_free(&c);
+  make_image(&c, 4, 1, same, NULL); /* the shared infinity is no error */
+  assert_int_equal(obs_metrics_compare(&c, &r, "v", NULL, &m, NULL), 0);
+  assert_true(m.rmse == 0.125 && m.bias == 0.0625 && m.max_abs == 0.25);
+  obs_image_free(&c);
+  obs_image_free(&r);
+}
+
+/* Same pass as obs_metrics_rmse and the same SSIM, to the bit, on a larger noisy masked image. */
+static void test_compare_matches_rmse_ssim(void **state) {
+  (void)state;
+  enum { W = 37, H = 29 };
+  float va[W * H], vb[W * H], mask[W * H];
+  uint32_t s = 777;
+  for (int i = 0; i < W * H; i++) {
+    s = s * 1664525u + 1013904223u;
+    va[i] = (float)(s >> 8) / 16777216.0f;
+    s = s * 1664525u + 1013904223u;
+    vb[i] = va[i] * 0.9f + 0.1f * (float)(s >> 8) / 16777216.0f;
+    mask[i] = (i % W) * (i / W) % 3 ? 1.0f : 0.0f;
+  }
+  obs_image a, b;
+  make_image(&a, W, H, va, NULL);
+  make_image(&b, W, H, vb, mask);
+  obs_compare m;
+  double rmse, ssim;
+  assert_int_equal(obs_metrics_compare(&a, &b, "v", "alpha", &m, NULL), 0);
+  assert_int_equal(obs_metrics_rmse(&a, &b, "v", "alpha", &rmse, NULL), 0);
+  assert_int_equal(obs_metrics_ssim(&a, &b, "v", "alpha", &ssim, NULL), 0);
+  assert_true(m.rmse == rmse && m.ssim == ssim);
+  assert_true(m.rmse > 0.01 && m.ssim < 1.0 && m.ssim > 0.5);
+  assert_true(m.max_abs >= m.rmse && fabs(m.bias) <= m.rmse);
+  obs_image_free(&a);
+  obs_image_free(&b);
+}
+
+static void test_compare_errors(void **state) {
+  (void)state;
+  const float v6[] = {0, 1, 2, 3, 4, 5};
+  obs_image a, b, c;
+  make_image(&a, 2, 2, v6, NULL);
+  make_image(&b, 3, 2, v6, NULL);
+  const char *other[] = {"ao"};
+  assert_int_equal(obs_image_init(&c, 2, 2, 1, other, NULL), 0);
+  obs_err err = OBS_ERR_INIT;
+  obs_compare m;
+  obs_image e;
+  assert_int_equal(obs_metrics_compare(&a, &b, "v", NULL, &m, &err), OBS_EINVAL);
+  assert_msg_has(&err, "2x2");
+  assert_msg_has(&err, "3x2");
+  obs_err_clear(&err);
+  assert_int_equal(obs_metrics_compare(&c, &a, "v", NULL, &m, &err), OBS_ENOTFOUND);
+  assert_msg_has(&err, "candidate");
+  obs_err_clear(&err);
+  assert_int_equal(obs_metrics_compare(&a, &c, "v", NULL, &m, &err), OBS_ENOTFOUND);
+  assert_msg_has(&err, "reference");
+  obs_err_clear(&err);
+  assert_int_equal(obs_metrics_compare(&a, &a, "v", "coverage", &m, &err), OBS_ENOTFOUND);
+  assert_msg_has(&err, "coverage");
+  obs_err_clear(&err);
+  assert_int_equal(obs_metrics_compare(&a, &a, "v", NULL, NULL, &err), OBS_EINVAL);
+  assert_int_equal(obs_metrics_compare(&a, NULL, "v", NULL, &m, &err), OBS_EINVAL);
+  obs_err_clear(&err);
+  memset(&e, 0x55, sizeof e);
+  assert_int_equal(obs_metrics_error_image(&a, &b, "v", NULL, &e, &err), OBS_EINVAL);
+  assert_true(e.data == NULL); /* zeroed on failure: obs_image_free is safe */
+  obs_image_free(&e);
+  assert_int_equal(obs_metrics_error_image(&a, &c, "v", NULL, &e, &err), OBS_ENOTFOUND);
+  assert_int_equal(obs_metrics_error_image(&a, &a, "v", "coverage", &e, &err), OBS_ENOTFOUND);
+  assert_int_equal(obs_metrics_error_image(&a, &a, NULL, NULL, &e, &err), OBS_EINVAL);
+  obs_err_clear(&err);
+  /* Writing needs an error image's channels. */
+  assert_int_equal(obs_metrics_write_error_files(&a, obs_test_tmpdir("metrics-bad"), &err),
+                   OBS_ENOTFOUND);
+  assert_msg_has(&err, "\"error\"");
+  assert_int_equal(obs_metrics_write_error_files(&a, "", &err), OBS_EINVAL);
+  obs_image_free(&c);
+  obs_image_free(&a);
+  obs_image_free(&b);
+  obs_err_free(&err);
+}
+
+static void assert_rgb(const obs_image *img, int i, double r, double g, double b, double tol) {
+  const float *R = obs_image_channel(img, "R"), *G = obs_image_channel(img, "G"),
+              *B = obs_image_channel(img, "B");
+  if (fabs(R[i] - r) > tol || fabs(G[i] - g) > tol || fabs(B[i] - b) > tol) {
+    fprintf(stderr, "pixel %d: (%g, %g, %g), want (%g, %g, %g)\n", i, R[i], G[i], B[i], r, g, b);
+    fail();
+  }
+}
+
+/* Error image: signed values inside the mask, 0 outside; colours at -scale, 0, +scale, halfway,
+ * clamped beyond, grey outside the mask, green for NaN; then the files on disk. */
+static void test_error_image(void **state) {
+  (void)state;
+  const float ref[] = {0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f, 0.5f};
+  const float cand[] = {0.25f, 0.5f, 0.75f, 0.375f, 0.625f, 0.0f, 0.9f, NAN};
+  const float alpha[] = {1, 1, 1, 1, 1, 1, 0, 1};
+  obs_image r, c, e;
+  make_image(&r, 4, 2, ref, alpha);
+  make_image(&c, 4, 2, cand, NULL);
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(obs_metrics_error_image(&c, &r, "v", "alpha", &e, &err), 0);
+  assert_int_equal(e.width, 4);
+  assert_int_equal(e.height, 2);
+  assert_int_equal(e.nchannels, 4);
+  const float *ev = obs_image_channel(&e, "error");
+  const float want[] = {-0.25f, 0.0f, 0.25f, -0.125f, 0.125f, -0.5f, 0.0f};
+  for (int i = 0; i < 7; i++) assert_true(ev[i] == want[i]);
+  assert_true(isnan(ev[7]));
+  const double tol = 1e-6;
+  const double br = 0x21 / 255.0, bg = 0x66 / 255.0, bb = 0xAC / 255.0; /* #2166AC */
+  const double rr = 0xB2 / 255.0, rg = 0x18 / 255.0, rb = 0x2B / 255.0; /* #B2182B */
+  assert_rgb(&e, 0, br, bg, bb, tol);                                   /* -scale: full blue */
+  assert_rgb(&e, 1, 1, 1, 1, tol);                                      /* 0: white */
+  assert_rgb(&e, 2, rr, rg, rb, tol);                                   /* +scale: full red */
+  assert_rgb(&e, 3, (1 + br) / 2, (1 + bg) / 2, (1 + bb) / 2, tol);     /* -scale/2 */
+  assert_rgb(&e, 4, (1 + rr) / 2, (1 + rg) / 2, (1 + rb) / 2, tol);     /* +scale/2 */
+  assert_rgb(&e, 5, br, bg, bb, tol);    /* -2 scale clamps to blue */
+  assert_rgb(&e, 6, 0.5, 0.5, 0.5, tol); /* outside the mask: grey */
+  assert_rgb(&e, 7, 0, 1, 0, tol);       /* NaN: green */
+
+  /* Files: a nested directory that does not exist yet. */
+  char dir[1200], path[1300];
+  snprintf(dir, sizeof dir, "%s/a/b", obs_test_tmpdir("metrics-err"));
+  assert_int_equal(obs_metrics_write_error_files(&e, dir, &err), 0);
+  obs_image x;
+  snprintf(path, sizeof path, "%s/error.exr", dir);
+  assert_int_equal(obs_image_read_exr(&x, path, &err), 0);
+  assert_int_equal(x.nchannels, 1);
+  assert_string_equal(x.names[0], "error");
+  for (int i = 0; i < 7; i++) assert_true(x.data[i] == want[i]);
+  assert_true(isnan(x.data[7]));
+  obs_image_free(&x);
+  snprintf(path, sizeof path, "%s/error.png", dir);
+  assert_int_equal(obs_image_read_png(&x, path, &err), 0);
+  assert_int_equal(x.nchannels, 3);
+  const double q = 0.5 / 255 + 1e-6;   /* 8-bit rounding */
+  assert_rgb(&x, 0, br, bg, bb, 1e-6); /* the ramp ends are exact 8-bit values */
+  assert_rgb(&x, 1, 1, 1, 1, 1e-6);
+  assert_rgb(&x, 2, rr, rg, rb, 1e-6);
+  assert_rgb(&x, 3, (1 + br) / 2, (1 + bg) / 2, (1 + bb) / 2, q);
+  assert_rgb(&x, 6, 128 / 255.0, 128 / 255.0, 128 / 255.0, 1e-6);
+  assert_rgb(&x, 7, 0, 1, 0, 1e-6);
+  obs_image_free(&x);
+  snprintf(path, sizeof path, "%s/.error.exr.new", dir);
+  assert_int_equal(access(path, F_OK), -1); /* no staging file left behind */
+  snprintf(path, sizeof path, "%s/.error.png.new", dir);
+  assert_int_equal(access(path, F_OK), -1);
+
+  /* A directory that cannot be created (a file is in the way) fails with a message. */
+  snprintf(path, sizeof path, "%s/error.png/sub", dir);
+  assert_int_equal(obs_metrics_write_error_files(&e, path, &err), OBS_EIO);
+  assert_msg_has(&err, "error.png");
+
+  /* Unmasked: the grey pixel gets its real (red, clamped) colour. */
+  obs_image u;
+  assert_int_equal(obs_metrics_error_image(&c, &r, "v", NULL, &u, &err), 0);
+  assert_true(obs_image_channel(&u, "error")[6] == 0.9f - 0.5f);
+  assert_rgb(&u, 6, rr, rg, rb, tol);
+  obs_image_free(&u);
+  obs_image_free(&e);
+  obs_image_free(&r);
+  obs_image_free(&c);
+  obs_err_free(&err);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_stats_unmasked),
@@ -298,6 +678,15 @@ int main(void) {
       cmocka_unit_test(test_rmse_non_finite),
       cmocka_unit_test(test_rmse_errors),
       cmocka_unit_test(test_ssim),
+      cmocka_unit_test(test_compare_hand_computed),
+      cmocka_unit_test(test_compare_ssim_hand_computed),
+      cmocka_unit_test(test_compare_masked),
+      cmocka_unit_test(test_compare_psnr_cap),
+      cmocka_unit_test(test_compare_reference_accuracy),
+      cmocka_unit_test(test_compare_non_finite),
+      cmocka_unit_test(test_compare_matches_rmse_ssim),
+      cmocka_unit_test(test_compare_errors),
+      cmocka_unit_test(test_error_image),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -205,9 +205,14 @@ static void test_mesh_paths(void **state) {
   assert_non_null(strstr(sc.objects[0].mesh_path, "tests/data/tetra.obj"));
   obs_scene_free(&sc);
   obs_err_free(&err);
-  expect_error("{" BASE ",\"objects\":[{\"shape\":{\"type\":\"mesh\",\"file\":\"../unit/testutil.h\"}"
+  expect_error("{" BASE ",\"objects\":[{\"shape\":{\"type\":\"mesh\",\"file\":\"tetra.mtl\"}"
                "}],\"technique\":{\"name\":\"rt_ao\"}}",
                "/objects/0/shape/file: must name a .obj");
+  /* A ".." path is refused before the file system is asked: an existing and a missing file
+   * outside the tree get the same answer, so the message reveals nothing about either. */
+  expect_error("{" BASE ",\"objects\":[{\"shape\":{\"type\":\"mesh\",\"file\":"
+               "\"../no/such/file.obj\"}}],\"technique\":{\"name\":\"rt_ao\"}}",
+               "must stay inside the scene's directory tree");
   expect_error("{" BASE ",\"objects\":[{\"shape\":{\"type\":\"mesh\",\"file\":\"missing.obj\"}"
                "}],\"technique\":{\"name\":\"rt_ao\"}}",
                "/objects/0/shape/file: file not found");

@@ -36,6 +36,10 @@ int obs_image_write_exr(const obs_image *img, const char *path, obs_err *err);
  * by the caller afterwards. */
 int obs_image_read_exr(obs_image *img, const char *path, obs_err *err);
 
+/* Creates `dir` and any missing parents (like mkdir -p), so images can be written into it; an
+ * existing directory is fine, an existing non-directory is an error naming it. */
+int obs_image_make_dirs(const char *dir, obs_err *err);
+
 /* Writes 8-bit PNG. With one channel name: greyscale; with three: RGB. Values are clamped to [0,1]
  * and mapped to 0..255 with round-to-nearest; NaN maps to 0. `gamma_encode` applies the sRGB
  * transfer curve first (use 0 for data such as AO that is shown linearly). */

@@ -10,10 +10,10 @@ extern "C" {
 #endif
 
 typedef struct obs_stats {
-  double mean, min, max;   /* over finite values only; 0 when there are none */
-  int64_t count;           /* finite values counted */
-  int64_t nan_count;       /* NaN values */
-  int64_t inf_count;       /* +-Inf values */
+  double mean, min, max; /* over finite values only; 0 when there are none */
+  int64_t count;         /* finite values counted */
+  int64_t nan_count;     /* NaN values */
+  int64_t inf_count;     /* +-Inf values */
 } obs_stats;
 
 /* Statistics of one channel. `mask` (may be NULL) names a channel whose value > 0 selects the
@@ -32,6 +32,59 @@ int obs_metrics_rmse(const obs_image *a, const obs_image *b, const char *channel
  * pixels in a dimension use one window of that size. 1 means identical. */
 int obs_metrics_ssim(const obs_image *a, const obs_image *b, const char *channel, const char *mask,
                      double *ssim, obs_err *err);
+
+/* PSNR reported for identical images (and the ceiling for all): 10 log10(1/MSE) is +Inf at MSE 0,
+ * which JSON cannot carry and a ranking cannot use. 100 dB is RMSE 1e-5, far below any AO noise. */
+#define OBS_METRICS_PSNR_MAX 100.0
+/* Error magnitude mapped to the full colour of the error image's ramp (larger errors clamp). Fixed
+ * rather than per-image so heatmaps of different candidates can be compared by eye. */
+#define OBS_METRICS_ERROR_SCALE 0.25
+
+/* A candidate render compared with a reference on one channel over the reference's covered pixels.
+ * Definitions (d = candidate - reference per selected pixel, N = pixels; docs/metrics.md):
+ *   rmse = sqrt(sum d^2 / N), exactly obs_metrics_rmse;  bias = sum d / N;  max_abs = max |d|;
+ *   psnr = min(10 log10(1 / rmse^2), OBS_METRICS_PSNR_MAX) (peak 1, so identical -> 100 dB);
+ *   ssim = obs_metrics_ssim(candidate, reference, channel, mask).
+ * Non-finite values are never hidden: a NaN difference in a selected pixel makes rmse, bias,
+ * max_abs and psnr NaN; otherwise an infinite difference makes rmse and max_abs +Inf, psnr -Inf
+ * and bias +-Inf (NaN when both signs occur). Equal infinities are no error. SSIM is NaN when a
+ * counted window holds a non-finite value. With no pixel selected every error is 0, psnr is the
+ * cap and ssim 1 (check `pixels`). */
+typedef struct obs_compare {
+  double rmse;
+  double bias; /* mean(candidate - reference): > 0 means the candidate is too bright */
+  double max_abs;
+  double psnr; /* dB, peak 1, capped at OBS_METRICS_PSNR_MAX */
+  double ssim;
+  int64_t pixels;   /* selected pixels (all when mask is NULL) */
+  double ref_noise; /* mean of the reference's "<channel>_stderr" (e.g. ao_stderr) over the selected
+                       pixels, finite values only; 0 when the reference has no such channel */
+  int at_reference_accuracy; /* rmse < 2 * ref_noise: the difference is within the reference's own
+                                noise, so ranking it against others would rank noise. Never set
+                                when ref_noise is 0 or rmse is NaN. */
+} obs_compare;
+
+/* Compares channel `channel` of `candidate` with `reference` (same size) over the pixels where the
+ * reference's `mask` channel is > 0 (NaN deselects; NULL mask: every pixel), filling `out`. Values
+ * are expected in [0,1] (AO); nothing is clamped. */
+int obs_metrics_compare(const obs_image *candidate, const obs_image *reference, const char *channel,
+                        const char *mask, obs_compare *out, obs_err *err);
+
+/* Fills `out` (initialised by the call, owned by the caller; obs_image_free) with the same size as
+ * the inputs and channels:
+ *   "error"     candidate - reference where the reference's `mask` > 0 (NULL: everywhere), 0
+ *               elsewhere; equal infinities give 0, other non-finite differences are kept;
+ *   "R","G","B" a diverging blue-white-red ramp for a PNG (display values, no gamma encoding):
+ *               0 is white (1,1,1), -OBS_METRICS_ERROR_SCALE and below is blue #2166AC, +scale and
+ *               above is red #B2182B, linear in between; unselected pixels are mid grey (0.5) and
+ *               NaN errors green (0,1,0), both off the ramp so neither reads as an error size. */
+int obs_metrics_error_image(const obs_image *candidate, const obs_image *reference,
+                            const char *channel, const char *mask, obs_image *out, obs_err *err);
+
+/* Writes `dir`/error.exr (channel "error" only, float) and `dir`/error.png (8-bit RGB from "R","G",
+ * "B") from an image made by obs_metrics_error_image, creating `dir` when missing. Both are written
+ * under staging names and renamed into place only when both succeeded. */
+int obs_metrics_write_error_files(const obs_image *err_img, const char *dir, obs_err *err);
 
 #ifdef __cplusplus
 }

@@ -1,0 +1,671 @@
+/* Benchmark: ssao and hbao stage timings, CPU twin vs Vulkan (lavapipe); --accuracy vs rt_ao. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include "obscura/obscura.h"
+#include "vk.h"
+
+#ifndef OBS_SOURCE_DIR
+#define OBS_SOURCE_DIR "."
+#endif
+
+#define MAX_REPEATS 64
+#define PI 3.14159265358979323846
+
+/* The goals of the issue, on the faster backend, 2 cores, milliseconds (sum of stages). */
+#define GOAL_SSAO16_MS 30.0
+#define GOAL_HBAO88_MS 60.0
+
+typedef struct options {
+  int repeats;     /* timed renders per configuration and backend (after one warm-up) */
+  int repeats_set; /* --repeats given (accuracy mode defaults to 3) */
+  int width, height;
+  int threads;
+  double hbao_radius; /* hbao's R in the timing runs (scene units) */
+  const char *scene;
+  const char *only; /* run only configurations whose label contains this */
+  int accuracy;
+  int cpu, vulkan; /* backends to run (--backend) */
+  int verbose;     /* print every timed render */
+} options;
+
+static void usage(FILE *f) {
+  fprintf(f,
+          "usage: bench_screen_space [--repeats R] [--size WxH] [--scene PATH] [--threads N]\n"
+          "                          [--hbao-radius R] [--backend both|cpu|vulkan] [--only TEXT]\n"
+          "                          [--verbose] [--accuracy]\n"
+          "  Timing (default): renders the scene (default scenes/cornell_box.json at 1280x720)\n"
+          "  with ssao (samples 8/16/24) and hbao (4/4, 8/8, 16/16, full and half resolution) on\n"
+          "  the CPU twin and on Vulkan, one warm-up then R renders each (default 5), and prints\n"
+          "  median stage times, their sum, obs_render's wall time, the CPU/Vulkan ratio and the\n"
+          "  goals (ssao 16 <= 30 ms, hbao 8/8 <= 60 ms on the faster backend). hbao's radius\n"
+          "  is --hbao-radius (default 100, the Cornell box's scale; the schema default 1 would\n"
+          "  make most of that frame exit early); everything else keeps its default.\n"
+          "  --accuracy: ssao and hbao against rt_ao (uniform, sobol, 1024 samples) on the\n"
+          "  Cornell box (320x240) and the displaced sphere (320x320): RMSE and SSIM of `ao` over\n"
+          "  covered pixels; R defaults to 3 there. --size and --scene apply to timing only.\n"
+          "  --only runs the configurations whose label contains TEXT (e.g. \"hbao 8/8 full\");\n"
+          "  --verbose prints every timed render too.\n");
+}
+
+static int parse_int(const char *s, int lo, int hi, int *out) {
+  char *end;
+  long v = strtol(s, &end, 10);
+  if (end == s || *end || v < lo || v > hi) return -1;
+  *out = (int)v;
+  return 0;
+}
+
+static int parse_args(int argc, char **argv, options *o) {
+  memset(o, 0, sizeof *o);
+  o->repeats = 5;
+  o->width = 1280;
+  o->height = 720;
+  o->threads = obs_cpu_count();
+  o->hbao_radius = 100.0;
+  o->scene = OBS_SOURCE_DIR "/scenes/cornell_box.json";
+  o->cpu = o->vulkan = 1;
+  for (int i = 1; i < argc; i++) {
+    const char *a = argv[i];
+    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+      usage(stdout);
+      exit(0);
+    }
+    if (!strcmp(a, "--accuracy")) {
+      o->accuracy = 1;
+      continue;
+    }
+    if (!strcmp(a, "--verbose")) {
+      o->verbose = 1;
+      continue;
+    }
+    if (i + 1 >= argc) goto bad;
+    const char *v = argv[++i];
+    if (!strcmp(a, "--repeats")) {
+      if (parse_int(v, 1, MAX_REPEATS, &o->repeats)) goto bad;
+      o->repeats_set = 1;
+    } else if (!strcmp(a, "--threads")) {
+      if (parse_int(v, 1, 256, &o->threads)) goto bad;
+    } else if (!strcmp(a, "--size")) {
+      char buf[64], *x;
+      snprintf(buf, sizeof buf, "%s", v);
+      if (!(x = strchr(buf, 'x'))) goto bad;
+      *x = '\0';
+      if (parse_int(buf, 1, 16384, &o->width) || parse_int(x + 1, 1, 16384, &o->height)) goto bad;
+    } else if (!strcmp(a, "--hbao-radius")) {
+      char *end;
+      o->hbao_radius = strtod(v, &end);
+      if (end == v || *end || !(o->hbao_radius > 0.0) || o->hbao_radius > 1e30) goto bad;
+    } else if (!strcmp(a, "--scene")) {
+      o->scene = v;
+    } else if (!strcmp(a, "--only")) {
+      o->only = v;
+    } else if (!strcmp(a, "--backend")) {
+      o->cpu = !strcmp(v, "both") || !strcmp(v, "cpu");
+      o->vulkan = !strcmp(v, "both") || !strcmp(v, "vulkan");
+      if (!o->cpu && !o->vulkan) goto bad;
+    } else {
+      goto bad;
+    }
+    continue;
+  bad:
+    fprintf(stderr, "bench_screen_space: bad argument near '%s'\n", a);
+    usage(stderr);
+    return -1;
+  }
+  if (o->accuracy && !o->repeats_set) o->repeats = 3;
+  return 0;
+}
+
+static int cmp_double(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
+/* Median of n values (sorts a copy). */
+static double median(const double *v, int n) {
+  double s[MAX_REPEATS];
+  memcpy(s, v, (size_t)n * sizeof *s);
+  qsort(s, (size_t)n, sizeof *s, cmp_double);
+  return n % 2 ? s[n / 2] : 0.5 * (s[n / 2 - 1] + s[n / 2]);
+}
+
+/* ---- loading and timing one render ------------------------------------------------------- */
+
+/* Loads `path` with the image size and the whole technique object replaced. */
+static int load_scene(const char *path, int w, int h, const char *tech, const char *backend,
+                      const char *params, obs_scene *sc) {
+  char wb[16], hb[16], tb[1024];
+  snprintf(wb, sizeof wb, "%d", w);
+  snprintf(hb, sizeof hb, "%d", h);
+  snprintf(tb, sizeof tb, "{\"name\":\"%s\",\"backend\":\"%s\",\"params\":%s}", tech, backend,
+           params);
+  obs_override ov[3] = {{"/image/width", wb}, {"/image/height", hb}, {"/technique", tb}};
+  obs_err err = OBS_ERR_INIT;
+  int rc = obs_scene_load_file(sc, path, ov, 3, &err);
+  if (rc) fprintf(stderr, "bench_screen_space: %s: %s\n", path, obs_err_message(&err));
+  obs_err_free(&err);
+  return rc;
+}
+
+/* The stages screen-space techniques report, in table order. */
+enum { ST_GBUFFER, ST_DOWN, ST_AO, ST_UP, ST_BLUR, ST_READBACK, ST_COUNT };
+static const char *const stage_keys[ST_COUNT] = {"gbuffer", "downsample", "ao",
+                                                 "upsample", "blur", "readback"};
+static const char *const stage_heads[ST_COUNT] = {"gbuffer", "down", "ao", "up", "blur", "readbk"};
+
+typedef struct timing {
+  double build, stage[ST_COUNT], total, wall;
+  double total_min, total_max; /* summaries only: range of the per-run totals */
+  int has[ST_COUNT];
+} timing;
+
+/* One obs_render, timed. With `keep` the result is handed to the caller, else freed. */
+static int timed_render(const obs_scene *sc, int threads, timing *t, obs_result *keep) {
+  obs_render_opts opts = {threads, NULL, NULL, NULL};
+  obs_result res;
+  obs_err err = OBS_ERR_INIT;
+  double t0 = obs_now_ms();
+  int rc = obs_render(sc, &opts, &res, &err);
+  double t1 = obs_now_ms();
+  if (rc) {
+    fprintf(stderr, "bench_screen_space: render (%s, %s): %s\n", sc->technique->name,
+            obs_backend_name(sc->backend), obs_err_message(&err));
+    obs_err_free(&err);
+    return rc;
+  }
+  memset(t, 0, sizeof *t);
+  t->wall = t1 - t0;
+  t->build = res.timings.build_ms;
+  for (int i = 0; i < res.nstages; i++) {
+    int k = 0;
+    while (k < ST_COUNT && strcmp(stage_keys[k], res.stage_names[i])) k++;
+    if (k == ST_COUNT) {
+      fprintf(stderr, "bench_screen_space: unknown stage \"%s\" (counted in the total only)\n",
+              res.stage_names[i]);
+    } else {
+      t->stage[k] += res.stage_ms[i];
+      t->has[k] = 1;
+    }
+    t->total += res.stage_ms[i];
+  }
+  if (keep)
+    *keep = res;
+  else
+    obs_result_free(&res);
+  return 0;
+}
+
+/* Medians over runs, field by field (the total is the median of the per-run sums). */
+static void summarise(const timing *runs, int n, timing *s) {
+  double v[MAX_REPEATS];
+  memset(s, 0, sizeof *s);
+  for (int k = 0; k < ST_COUNT; k++) {
+    for (int i = 0; i < n; i++) v[i] = runs[i].stage[k];
+    s->stage[k] = median(v, n);
+    s->has[k] = runs[0].has[k];
+  }
+  for (int i = 0; i < n; i++) v[i] = runs[i].total;
+  s->total = median(v, n);
+  s->total_min = s->total_max = v[0];
+  for (int i = 1; i < n; i++) {
+    if (v[i] < s->total_min) s->total_min = v[i];
+    if (v[i] > s->total_max) s->total_max = v[i];
+  }
+  for (int i = 0; i < n; i++) v[i] = runs[i].wall;
+  s->wall = median(v, n);
+  for (int i = 0; i < n; i++) v[i] = runs[i].build;
+  s->build = median(v, n);
+}
+
+/* ---- other load on the machine ---------------------------------------------------------- */
+
+/* CPU time used by other processes while we measure, from /proc/stat (all CPUs) minus our own
+ * (getrusage counts every thread of this process, lavapipe's included). */
+typedef struct load_mark {
+  double busy, total, self; /* seconds */
+  int ok;
+} load_mark;
+
+static load_mark load_now(void) {
+  load_mark m = {0, 0, 0, 0};
+  FILE *f = fopen("/proc/stat", "r");
+  unsigned long long v[8] = {0};
+  if (f) {
+    m.ok = fscanf(f, "cpu %llu %llu %llu %llu %llu %llu %llu %llu", &v[0], &v[1], &v[2], &v[3],
+                  &v[4], &v[5], &v[6], &v[7]) == 8;
+    fclose(f);
+  }
+  double tick = (double)sysconf(_SC_CLK_TCK);
+  if (!(tick > 0)) m.ok = 0;
+  if (m.ok) {
+    m.busy = (double)(v[0] + v[1] + v[2] + v[5] + v[6] + v[7]) / tick;
+    m.total = m.busy + (double)(v[3] + v[4]) / tick;
+  }
+  struct rusage ru;
+  if (getrusage(RUSAGE_SELF, &ru) == 0)
+    m.self = (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec +
+             (double)ru.ru_stime.tv_sec + 1e-6 * (double)ru.ru_stime.tv_usec;
+  else
+    m.ok = 0;
+  return m;
+}
+
+/* Percentage of all CPUs' time that other processes used between a and b (-1 if unknown). */
+static double load_other(load_mark a, load_mark b) {
+  if (!a.ok || !b.ok || !(b.total > a.total)) return -1;
+  double other = (b.busy - a.busy) - (b.self - a.self);
+  return other < 0 ? 0 : 100.0 * other / (b.total - a.total);
+}
+
+/* ---- timing mode ------------------------------------------------------------------------ */
+
+typedef struct config {
+  const char *tech;
+  char label[48];
+  char params[256];
+} config;
+
+/* Configuration indices the goal lines use (the order make_configs writes). */
+enum { CFG_SSAO16 = 1, CFG_HBAO88_FULL = 4, CFG_HBAO88_HALF = 7 };
+
+static int make_configs(config *c, double R) {
+  int n = 0;
+  static const int ss[3] = {8, 16, 24}, hb[3] = {4, 8, 16};
+  for (int i = 0; i < 3; i++, n++) {
+    c[n].tech = "ssao";
+    snprintf(c[n].label, sizeof c[n].label, "ssao %d", ss[i]);
+    snprintf(c[n].params, sizeof c[n].params, "{\"samples\":%d}", ss[i]);
+  }
+  for (int half = 0; half < 2; half++)
+    for (int i = 0; i < 3; i++, n++) {
+      c[n].tech = "hbao";
+      snprintf(c[n].label, sizeof c[n].label, "hbao %d/%d %s", hb[i], hb[i],
+               half ? "half" : "full");
+      snprintf(c[n].params, sizeof c[n].params,
+               "{\"radius\":%.9g,\"directions\":%d,\"steps\":%d,\"half_res\":%s}", R, hb[i],
+               hb[i], half ? "true" : "false");
+    }
+  return n;
+}
+
+static void print_ms(double v, int has) {
+  if (has)
+    printf(" %7.1f", v);
+  else
+    printf(" %7s", "-");
+}
+
+/* One table row; `other` is the other processes' CPU share in percent (< 0: not shown). */
+static void print_row(const char *label, const char *backend, const timing *s, double other) {
+  printf("%-16s %-7s", label, backend);
+  print_ms(s->build, 1);
+  for (int k = 0; k < ST_COUNT; k++) print_ms(s->stage[k], s->has[k]);
+  printf(" %7.1f %7.1f", s->total, s->wall);
+  if (other >= 0)
+    printf(" %6.0f%%", other);
+  printf("\n");
+}
+
+static int timing_mode(const options *o, int have_vk) {
+  config cfg[16];
+  int ncfg = make_configs(cfg, o->hbao_radius);
+  const int nb = 2;
+  const char *bname[2] = {"cpu", "vulkan"};
+  int run_b[2] = {o->cpu, o->vulkan && have_vk};
+  /* Results kept for the goal lines: [config][backend]. */
+  timing sum[16][2];
+  int done[16][2];
+  memset(done, 0, sizeof done);
+
+  printf("\n%-16s %-7s %7s", "config", "backend", "build");
+  for (int k = 0; k < ST_COUNT; k++) printf(" %7s", stage_heads[k]);
+  printf(" %7s %7s %7s\n", "total", "wall", "other%");
+  double worst_other = 0;
+  for (int c = 0; c < ncfg; c++) {
+    if (o->only && !strstr(cfg[c].label, o->only)) continue;
+    obs_scene sc[2];
+    int loaded[2] = {0, 0}, rc = 0;
+    for (int b = 0; b < nb && !rc; b++)
+      if (run_b[b]) {
+        rc = load_scene(o->scene, o->width, o->height, cfg[c].tech, bname[b], cfg[c].params,
+                        &sc[b]);
+        loaded[b] = !rc;
+      }
+    timing runs[2][MAX_REPEATS], warm;
+    load_mark l0 = load_now();
+    /* One warm-up each, then the repeats interleaved so drifts hit both backends alike. */
+    for (int b = 0; b < nb && !rc; b++)
+      if (run_b[b]) rc = timed_render(&sc[b], o->threads, &warm, NULL);
+    for (int r = 0; r < o->repeats && !rc; r++)
+      for (int b = 0; b < nb && !rc; b++)
+        if (run_b[b] && !(rc = timed_render(&sc[b], o->threads, &runs[b][r], NULL)) &&
+            o->verbose) {
+          char l[64];
+          snprintf(l, sizeof l, "  run %d", r + 1);
+          print_row(l, bname[b], &runs[b][r], -1);
+        }
+    double other = load_other(l0, load_now());
+    if (other > worst_other) worst_other = other;
+    for (int b = 0; b < nb; b++)
+      if (loaded[b]) obs_scene_free(&sc[b]);
+    if (rc) return 1;
+    for (int b = 0; b < nb; b++)
+      if (run_b[b]) {
+        summarise(runs[b], o->repeats, &sum[c][b]);
+        done[c][b] = 1;
+        print_row(cfg[c].label, bname[b], &sum[c][b], other);
+      }
+    if (done[c][0] && done[c][1]) {
+      double rt = sum[c][0].total / sum[c][1].total, rw = sum[c][0].wall / sum[c][1].wall;
+      printf("%-16s cpu/vulkan: total %.2f (%s faster), wall %.2f (%s faster)\n", "", rt,
+             rt <= 1.0 ? "cpu" : "vulkan", rw, rw <= 1.0 ? "cpu" : "vulkan");
+    }
+  }
+
+  /* The goals: stage totals of the faster backend (wall time reported beside them). */
+  printf("\n");
+  if (o->width != 1280 || o->height != 720)
+    printf("note: the goals are set for 1280x720; this run is %dx%d\n", o->width, o->height);
+  if (worst_other > 5.0)
+    printf("warning: other processes used up to %.0f%% of the CPUs during a configuration: "
+           "timings are not trustworthy, re-run on an idle machine\n",
+           worst_other);
+  struct {
+    int c;
+    double goal;
+    const char *what;
+  } goals[2] = {{CFG_SSAO16, GOAL_SSAO16_MS, "SSAO 16 samples"},
+                {CFG_HBAO88_FULL, GOAL_HBAO88_MS, "HBAO 8/8 (full res)"}};
+  for (int g = 0; g < 2; g++) {
+    int c = goals[g].c, best = -1;
+    for (int b = 0; b < nb; b++)
+      if (done[c][b] && (best < 0 || sum[c][b].total < sum[c][best].total)) best = b;
+    if (best < 0) {
+      printf("goal %s <= %.0f ms: not measured (filtered out)\n", goals[g].what, goals[g].goal);
+      continue;
+    }
+    const timing *s = &sum[c][best];
+    printf("goal %s <= %.0f ms on the faster backend at %dx%d, %d threads: %s "
+           "(%s: %.1f ms sum of stages, runs %.1f-%.1f, %.1f ms wall; %.2fx the goal)\n",
+           goals[g].what, goals[g].goal, o->width, o->height, o->threads,
+           s->total <= goals[g].goal ? "PASS" : "MISS", bname[best], s->total, s->total_min,
+           s->total_max, s->wall, s->total / goals[g].goal);
+  }
+  const int h = CFG_HBAO88_HALF;
+  if (done[h][0] || done[h][1]) {
+    int best = done[h][0] && (!done[h][1] || sum[h][0].total <= sum[h][1].total) ? 0 : 1;
+    printf("(for reference, HBAO 8/8 half res: %s %.1f ms sum of stages, %s the 60 ms goal)\n",
+           bname[best], sum[h][best].total,
+           sum[h][best].total <= GOAL_HBAO88_MS ? "within" : "over");
+  }
+  return 0;
+}
+
+/* ---- accuracy mode ---------------------------------------------------------------------- */
+
+/* How rt_ao's W is put through ssao's response before comparing (docs/techniques/ssao.md). */
+enum { MAP_NONE, MAP_SSAO_SPHERE, MAP_SSAO_HEMI };
+
+static float map_w(float w, int map) {
+  switch (map) {
+  case MAP_SSAO_SPHERE: return w * w / 4.0f + w / 2.0f;
+  case MAP_SSAO_HEMI: {
+    float v = w * w + w;
+    return v < 1.0f ? v : 1.0f;
+  }
+  default: return w;
+  }
+}
+
+/* An image of two channels, "ao" (from `ao`, mapped) and "alpha", for the metrics. */
+static int cmp_image(const obs_image *src, const char *ao_channel, const char *alpha_channel,
+                     int map, obs_image *out) {
+  static const char *const names[2] = {"ao", "alpha"};
+  obs_err err = OBS_ERR_INIT;
+  int rc = obs_image_init(out, src->width, src->height, 2, names, &err);
+  if (rc) {
+    fprintf(stderr, "bench_screen_space: %s\n", obs_err_message(&err));
+    obs_err_free(&err);
+    return rc;
+  }
+  const float *a = obs_image_channel(src, ao_channel), *m = obs_image_channel(src, alpha_channel);
+  if (!a || !m) {
+    fprintf(stderr, "bench_screen_space: result lacks channel %s or %s\n", ao_channel,
+            alpha_channel);
+    obs_image_free(out);
+    return OBS_ENOTFOUND;
+  }
+  size_t n = (size_t)src->width * (size_t)src->height;
+  float *oa = obs_image_channel(out, "ao"), *om = obs_image_channel(out, "alpha");
+  for (size_t i = 0; i < n; i++) {
+    oa[i] = map_w(a[i], map);
+    om[i] = m[i];
+  }
+  return 0;
+}
+
+static double masked_mean(const obs_image *img, const char *ch) {
+  obs_stats st;
+  if (obs_metrics_stats(img, ch, "alpha", &st, NULL)) return NAN;
+  return st.mean;
+}
+
+/* Median view depth (depth.Z) over covered pixels. */
+static double median_depth(const obs_image *img) {
+  const float *d = obs_image_channel(img, "depth.Z"), *a = obs_image_channel(img, "alpha");
+  size_t n = (size_t)img->width * (size_t)img->height, k = 0;
+  double *v = malloc(n * sizeof *v);
+  if (!v || !d || !a) {
+    free(v);
+    return NAN;
+  }
+  for (size_t i = 0; i < n; i++)
+    if (a[i] > 0.0f) v[k++] = d[i];
+  qsort(v, k, sizeof *v, cmp_double);
+  double m = k ? (k % 2 ? v[k / 2] : 0.5 * (v[k / 2 - 1] + v[k / 2])) : NAN;
+  free(v);
+  return m;
+}
+
+typedef struct reference {
+  char label[64];
+  obs_result res;
+  double ms, stderr_mean, max_distance;
+} reference;
+
+static int render_reference(const char *path, int w, int h, const char *falloff, double dmax,
+                            int threads, reference *ref) {
+  char params[256];
+  snprintf(params, sizeof params,
+           "{\"samples\":1024,\"weighting\":\"uniform\",\"sampler\":\"sobol\",\"falloff\":\"%s\","
+           "\"max_distance\":%.9g}",
+           falloff, dmax);
+  obs_scene sc;
+  if (load_scene(path, w, h, "rt_ao", "cpu", params, &sc)) return 1;
+  timing t;
+  int rc = timed_render(&sc, threads, &t, &ref->res);
+  obs_scene_free(&sc);
+  if (rc) return 1;
+  ref->ms = t.wall;
+  ref->max_distance = dmax;
+  ref->stderr_mean = masked_mean(&ref->res.image, "ao_stderr");
+  return 0;
+}
+
+typedef struct acc_scene {
+  const char *name, *file;
+  int w, h;
+  double R; /* hbao radius in scene units */
+} acc_scene;
+
+/* One technique row: renders 1 warm-up + R times, compares the last image with `ref`. */
+static int accuracy_row(const options *o, const acc_scene *as, const char *path, const char *tech,
+                        const char *label, const char *params, const char *backend,
+                        const reference *ref, int map, const char *ref_label) {
+  obs_scene sc;
+  if (load_scene(path, as->w, as->h, tech, backend, params, &sc)) return 1;
+  timing runs[MAX_REPEATS], warm;
+  obs_result res;
+  int rc = timed_render(&sc, o->threads, &warm, NULL);
+  for (int r = 0; r < o->repeats && !rc; r++)
+    rc = timed_render(&sc, o->threads, &runs[r], r == o->repeats - 1 ? &res : NULL);
+  obs_scene_free(&sc);
+  if (rc) return 1;
+  timing s;
+  summarise(runs, o->repeats, &s);
+  obs_image refimg, got, gotraw;
+  rc = cmp_image(&ref->res.image, "ao", "alpha", map, &refimg);
+  if (!rc) rc = cmp_image(&res.image, "ao", "alpha", MAP_NONE, &got);
+  if (!rc) rc = cmp_image(&res.image, "ao_raw", "alpha", MAP_NONE, &gotraw);
+  obs_result_free(&res);
+  if (rc) return 1;
+  double rmse = NAN, ssim = NAN, rmse_raw = NAN;
+  obs_err err = OBS_ERR_INIT;
+  if (obs_metrics_rmse(&got, &refimg, "ao", "alpha", &rmse, &err) ||
+      obs_metrics_ssim(&got, &refimg, "ao", "alpha", &ssim, &err) ||
+      obs_metrics_rmse(&gotraw, &refimg, "ao", "alpha", &rmse_raw, &err)) {
+    fprintf(stderr, "bench_screen_space: metrics: %s\n", obs_err_message(&err));
+    rc = 1;
+  }
+  obs_err_free(&err);
+  printf("%-16s %-5s %-22s %-7s %8.1f %8.1f %7.4f %7.4f %8.4f %7.4f %7.4f  %s\n", as->name, tech,
+         label, backend, s.total, s.wall, rmse, ssim, rmse_raw, masked_mean(&got, "ao"),
+         masked_mean(&refimg, "ao"), ref_label);
+  obs_image_free(&refimg);
+  obs_image_free(&got);
+  obs_image_free(&gotraw);
+  return rc;
+}
+
+static int accuracy_mode(const options *o, int have_vk) {
+  static const acc_scene scenes[2] = {
+      {"cornell_box", "cornell_box.json", 320, 240, 100.0},
+      {"displaced_sphere", "displaced_sphere.json", 320, 320, 0.3},
+  };
+  const char *backends[2] = {"cpu", "vulkan"};
+  int run_b[2] = {o->cpu, o->vulkan && have_vk};
+  static const int ss[3] = {8, 16, 24}, hb[3] = {4, 8, 16};
+  int status = 0;
+  for (int si = 0; si < 2; si++) {
+    const acc_scene *as = &scenes[si];
+    char path[1024];
+    snprintf(path, sizeof path, "%s/scenes/%s", OBS_SOURCE_DIR, as->file);
+    obs_scene probe;
+    if (load_scene(path, as->w, as->h, "rt_ao", "cpu", "{}", &probe)) return 1;
+    double half_h = probe.camera.type == OBS_CAMERA_PERSPECTIVE
+                        ? tan(0.5 * probe.camera.fov_y * PI / 180.0)
+                        : 0.5 * probe.camera.height;
+    int persp = probe.camera.type == OBS_CAMERA_PERSPECTIVE;
+    obs_scene_free(&probe);
+
+    load_mark lr = load_now();
+    /* hbao's reference: binary at 2R/3 (docs/techniques/hbao.md, "the closest single setting"). */
+    reference ref_h, ref_s[3];
+    memset(&ref_h, 0, sizeof ref_h);
+    memset(ref_s, 0, sizeof ref_s);
+    status = render_reference(path, as->w, as->h, "binary", 2.0 * as->R / 3.0, o->threads, &ref_h);
+    snprintf(ref_h.label, sizeof ref_h.label, "binary %.4g", ref_h.max_distance);
+    /* ssao's references: sqrt at half the across-screen reach of the longest offset,
+     * r step^N 2 half_h z, at the median covered depth z (docs/techniques/ssao.md). */
+    double zmed = status ? NAN : median_depth(&ref_h.res.image);
+    for (int i = 0; i < 3 && !status; i++) {
+      double step = 1.0 + 2.4 / ss[i], reach = 0.01 * pow(step, ss[i]) * 2.0 * half_h;
+      if (persp) reach *= zmed;
+      status = render_reference(path, as->w, as->h, "sqrt", 0.5 * reach, o->threads, &ref_s[i]);
+      snprintf(ref_s[i].label, sizeof ref_s[i].label, "sqrt %.4g", ref_s[i].max_distance);
+    }
+    if (status) {
+      obs_result_free(&ref_h.res);
+      for (int i = 0; i < 3; i++) obs_result_free(&ref_s[i].res);
+      return 1;
+    }
+    printf("\n%s %dx%d: median covered depth %.4g; rt_ao references (uniform, sobol, 1024 "
+           "samples, cpu):\n",
+           as->name, as->w, as->h, zmed);
+    printf("  %-22s %-12s %10s %9s %9s\n", "for", "falloff d", "ms", "mean W", "stderr");
+    printf("  %-22s %-12s %10.1f %9.4f %9.5f\n", "hbao (R)", ref_h.label, ref_h.ms,
+           masked_mean(&ref_h.res.image, "ao"), ref_h.stderr_mean);
+    for (int i = 0; i < 3; i++) {
+      char f[32];
+      snprintf(f, sizeof f, "ssao %d", ss[i]);
+      printf("  %-22s %-12s %10.1f %9.4f %9.5f\n", f, ref_s[i].label, ref_s[i].ms,
+             masked_mean(&ref_s[i].res.image, "ao"), ref_s[i].stderr_mean);
+    }
+    printf("\n%-16s %-5s %-22s %-7s %8s %8s %7s %7s %8s %7s %7s  %s\n", "scene", "tech", "params",
+           "backend", "ms", "wall", "RMSE", "SSIM", "RMSE raw", "mean", "ref", "reference");
+    load_mark l0 = load_now();
+    for (int b = 0; b < 2 && !status; b++) {
+      if (!run_b[b]) continue;
+      for (int bias = 0; bias < 2 && !status; bias++)
+        for (int i = 0; i < 3 && !status; i++) {
+          char label[48], params[256];
+          snprintf(label, sizeof label, "R %g %d/%d bias %s", as->R, hb[i], hb[i],
+                   bias ? "0" : "30");
+          snprintf(params, sizeof params,
+                   "{\"radius\":%.9g,\"directions\":%d,\"steps\":%d%s}", as->R, hb[i], hb[i],
+                   bias ? ",\"angle_bias\":0" : "");
+          if (o->only && !strstr(label, o->only)) continue;
+          status = accuracy_row(o, as, path, "hbao", label, params, backends[b], &ref_h,
+                                MAP_NONE, ref_h.label);
+        }
+      for (int no = 0; no < 2 && !status; no++)
+        for (int i = 0; i < 3 && !status; i++) {
+          char label[48], params[256];
+          snprintf(label, sizeof label, "%d%s", ss[i], no ? " normal_oriented" : "");
+          snprintf(params, sizeof params, "{\"samples\":%d,\"normal_oriented\":%s}", ss[i],
+                   no ? "true" : "false");
+          if (o->only && !strstr(label, o->only)) continue;
+          char rl[128];
+          snprintf(rl, sizeof rl, "%.63s, mapped %s", ref_s[i].label,
+                   no ? "min(1,W^2+W)" : "W^2/4+W/2");
+          status = accuracy_row(o, as, path, "ssao", label, params, backends[b], &ref_s[i],
+                                no ? MAP_SSAO_HEMI : MAP_SSAO_SPHERE, rl);
+        }
+    }
+    obs_result_free(&ref_h.res);
+    for (int i = 0; i < 3; i++) obs_result_free(&ref_s[i].res);
+    if (status) return 1;
+    double other = load_other(l0, load_now()), other_ref = load_other(lr, l0);
+    if (other >= 0)
+      printf("other processes used %.0f%% of the CPUs during the references, %.0f%% during these "
+             "rows%s\n",
+             other_ref, other,
+             other > 5.0 || other_ref > 5.0 ? ": times are not trustworthy" : "");
+  }
+  return 0;
+}
+
+int main(int argc, char **argv) {
+  options o;
+  if (parse_args(argc, argv, &o)) return 2;
+  int have_vk = obs_vk_available();
+  char dev[256] = "none";
+  if (have_vk && o.vulkan) {
+    obs_vk *vk = NULL;
+    obs_err err = OBS_ERR_INIT;
+    if (!obs_vk_open(&vk, NULL, 0, &err)) {
+      snprintf(dev, sizeof dev, "%s", obs_vk_device_name(vk));
+      obs_vk_close(vk);
+    } else {
+      have_vk = 0;
+    }
+    obs_err_free(&err);
+  }
+  if (o.accuracy)
+    printf("bench_screen_space --accuracy: %d threads, %d renders per row after a warm-up "
+           "(median), Vulkan device: %s\n",
+           o.threads, o.repeats, dev);
+  else
+    printf("bench_screen_space: %s at %dx%d, %d threads (%d cores), %d renders after a warm-up "
+           "(median), Vulkan device: %s; hbao radius %g\n"
+           "times in ms; build is not a stage; total = sum of the stages; wall = obs_render\n",
+           o.scene, o.width, o.height, o.threads, obs_cpu_count(), o.repeats, dev, o.hbao_radius);
+  if (o.vulkan && !have_vk)
+    printf("no Vulkan device: running the CPU backend only\n");
+  return o.accuracy ? accuracy_mode(&o, have_vk) : timing_mode(&o, have_vk);
+}

@@ -1,0 +1,100 @@
+/* Helpers shared by the obscura subcommands: scene options, scene loading, progress bar. */
+#include "args.h"
+
+#include <jansson.h>
+#include <limits.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+const char *cli_option_value(int argc, char **argv, int *i) {
+  if (*i + 1 >= argc) {
+    fprintf(stderr, "obscura: %s needs a value\n", argv[*i]);
+    return NULL;
+  }
+  return argv[++*i];
+}
+
+int cli_scene_option(cli_scene_opts *o, int argc, char **argv, int *i) {
+  const char *a = argv[*i];
+  if (strcmp(a, "--technique") && strcmp(a, "--backend") && strcmp(a, "--set")) return 0;
+  const char *val = cli_option_value(argc, argv, i);
+  if (!val) return -1;
+  if (!strcmp(a, "--technique")) {
+    o->technique = val;
+  } else if (!strcmp(a, "--backend")) {
+    o->backend = val;
+  } else {
+    const char *eq = strchr(val, '=');
+    if (!eq || val[0] != '/' || o->nov == CLI_MAX_OVERRIDES) {
+      fprintf(stderr, "obscura: --set takes /json/pointer=VALUE (got %s)\n", val);
+      return -1;
+    }
+    char *ptr = strndup(val, (size_t)(eq - val));
+    if (!ptr) {
+      fprintf(stderr, "obscura: out of memory\n");
+      return -1;
+    }
+    o->ov[o->nov].pointer = ptr;
+    o->ov[o->nov].value = eq + 1;
+    o->nov++;
+  }
+  return 1;
+}
+
+void cli_scene_opts_free(cli_scene_opts *o) {
+  for (size_t i = 0; i < o->nov; i++) free((char *)o->ov[i].pointer);
+  o->nov = 0;
+}
+
+int cli_scene_load(const cli_scene_opts *o, obs_scene *sc, obs_err *err) {
+  if (!o->technique && !o->backend) return obs_scene_load_file(sc, o->scene, o->ov, o->nov, err);
+  memset(sc, 0, sizeof *sc);
+  json_error_t je;
+  json_t *doc = json_load_file(o->scene, JSON_REJECT_DUPLICATES, &je);
+  if (!doc)
+    return obs_err_set(err, access(o->scene, R_OK) ? OBS_EIO : OBS_EINVAL,
+                       "%s: line %d, column %d: %s", o->scene, je.line, je.column, je.text);
+  json_t *t = json_object_get(doc, "technique");
+  if (!json_is_object(t)) {
+    t = json_object();
+    json_object_set_new(doc, "technique", t);
+  }
+  if (o->technique) {
+    const char *old = json_string_value(json_object_get(t, "name"));
+    if (!old || strcmp(old, o->technique)) json_object_del(t, "params");
+    json_object_set_new(t, "name", json_string(o->technique));
+  }
+  if (o->backend) json_object_set_new(t, "backend", json_string(o->backend));
+  char *text = json_dumps(doc, 0);
+  json_decref(doc);
+  char dir[PATH_MAX];
+  snprintf(dir, sizeof dir, "%s", o->scene);
+  char *slash = strrchr(dir, '/');
+  const char *base = strrchr(o->scene, '/') ? strrchr(o->scene, '/') + 1 : o->scene;
+  if (slash)
+    *slash = '\0';
+  else
+    strcpy(dir, ".");
+  int rc = obs_scene_load_string(sc, text, base, dir, o->ov, o->nov, err);
+  free(text);
+  return rc;
+}
+
+int cli_load_exit_code(int rc) {
+  return rc == OBS_EINVAL || rc == OBS_EIO ? EXIT_BAD_INPUT : EXIT_FAILURE;
+}
+
+void cli_progress_draw(void *user, double f) {
+  cli_progress *p = user;
+  int pct = (int)(f * 100.0);
+  if (!p->tty || pct == p->last) return;
+  p->last = pct;
+  char bar[41];
+  int n = (int)(f * 40.0);
+  for (int i = 0; i < 40; i++) bar[i] = i < n ? '#' : ' ';
+  bar[40] = '\0';
+  FILE *out = p->f ? p->f : stderr;
+  fprintf(out, "\r[%s] %3d%%", bar, pct);
+  fflush(out);
+}

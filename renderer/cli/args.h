@@ -1,0 +1,46 @@
+/* Helpers shared by the obscura subcommands: scene options, scene loading, progress bar. */
+#ifndef OBSCURA_CLI_ARGS_H
+#define OBSCURA_CLI_ARGS_H
+
+#include <stdio.h>
+
+#include "obscura/obscura.h"
+
+#define EXIT_BAD_INPUT 2
+#define CLI_MAX_OVERRIDES 64
+
+/* The scene file and what changes it before validation. `ov[i].pointer` is owned (strndup'd);
+ * `ov[i].value` and the other strings borrow argv. Zero it before use; free with
+ * cli_scene_opts_free (also valid on a zeroed struct). */
+typedef struct cli_scene_opts {
+  const char *scene, *technique, *backend;
+  obs_override ov[CLI_MAX_OVERRIDES];
+  size_t nov;
+} cli_scene_opts;
+
+/* Takes argv[*i] when it is --technique, --backend or --set together with its value (advancing
+ * *i past the value). Returns 1 when taken, 0 when argv[*i] is none of them, -1 after printing
+ * what is wrong. */
+int cli_scene_option(cli_scene_opts *o, int argc, char **argv, int *i);
+/* The value following option argv[*i] (advancing *i), or NULL after printing "needs a value". */
+const char *cli_option_value(int argc, char **argv, int *i);
+void cli_scene_opts_free(cli_scene_opts *o);
+
+/* Loads and validates the scene with --technique/--backend folded into the document before
+ * validation (so their problems are reported like any other) and the --set overrides applied.
+ * Returns 0 or an OBS_E* code with the problems in `err`. */
+int cli_scene_load(const cli_scene_opts *o, obs_scene *sc, obs_err *err);
+
+/* Exit status for a failed load: 2 for bad input or an unreadable file, 1 otherwise. */
+int cli_load_exit_code(int rc);
+
+/* A one-line progress bar on a terminal: draws "\r[####    ]  42%" on `f` when the whole percent
+ * changes. */
+typedef struct cli_progress {
+  int tty;  /* draw only when set */
+  int last; /* last percent drawn; start at -1 */
+  FILE *f;  /* NULL: stderr */
+} cli_progress;
+void cli_progress_draw(void *user, double fraction); /* an obs_progress_fn */
+
+#endif

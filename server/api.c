@@ -1,0 +1,467 @@
+/* The routes of obscurad's JSON API (/api/v1/...) and /metrics: routing, query parsing, and the
+ * job object as the API shows it. */
+#include <dirent.h>
+#include <jansson.h>
+#include <limits.h>
+#include <microhttpd.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <sys/stat.h>
+
+#include "obscurad.h"
+
+#define API "/api/v1"
+
+/* Splits /api/v1/jobs/{id}[/rest]: returns the route and fills the id text and the rest. */
+static srv_route job_route(const char *path, const char **id, size_t *idlen, const char **rest) {
+  const char *p = path + sizeof API "/jobs/" - 1;
+  const char *slash = strchr(p, '/');
+  *id = p;
+  *idlen = slash ? (size_t)(slash - p) : strlen(p);
+  *rest = slash ? slash : "";
+  if (!slash) return SRV_ROUTE_JOB;
+  if (!strcmp(slash, "/cancel")) return SRV_ROUTE_JOB_CANCEL;
+  if (!strncmp(slash, "/outputs/", 9) && slash[9] && !strchr(slash + 9, '/'))
+    return SRV_ROUTE_JOB_OUTPUT;
+  return SRV_ROUTE_UNKNOWN;
+}
+
+srv_route srv_api_route(const char *path) {
+  if (!strcmp(path, "/metrics")) return SRV_ROUTE_METRICS;
+  if (strncmp(path, "/api/", 5) && strcmp(path, "/api")) return SRV_ROUTE_STATIC;
+  if (!strcmp(path, API "/jobs")) return SRV_ROUTE_JOBS;
+  if (!strcmp(path, API "/techniques")) return SRV_ROUTE_TECHNIQUES;
+  if (!strcmp(path, API "/scenes")) return SRV_ROUTE_SCENES;
+  if (!strcmp(path, API "/health")) return SRV_ROUTE_HEALTH;
+  if (!strncmp(path, API "/jobs/", sizeof API "/jobs/" - 1)) {
+    const char *id, *rest;
+    size_t n;
+    return job_route(path, &id, &n, &rest);
+  }
+  return SRV_ROUTE_UNKNOWN;
+}
+
+static int is_get(const srv_req *r) {
+  return !strcmp(r->method, "GET") || !strcmp(r->method, "HEAD");
+}
+
+static int db_unavailable(srv_req *r, obs_err *err) {
+  srv_log("database error: %s", obs_err_message(err));
+  int rc = srv_respond_error(r, MHD_HTTP_SERVICE_UNAVAILABLE, err,
+                             "database unavailable, try again");
+  obs_err_free(err);
+  return rc;
+}
+
+/* ---- the job object -------------------------------------------------------------------------- */
+
+static json_t *time_or_null(int64_t ms) {
+  if (!ms) return json_null();
+  char buf[40];
+  srv_format_time(ms, buf, sizeof buf);
+  return json_string(buf);
+}
+
+static json_t *str_or_null(const char *s) { return s ? json_string(s) : json_null(); }
+
+static json_t *job_links(int64_t id, const srv_job *j) {
+  char self[64], cancel[80];
+  snprintf(self, sizeof self, API "/jobs/%lld", (long long)id);
+  snprintf(cancel, sizeof cancel, "%s/cancel", self);
+  json_t *outs = json_object();
+  for (int i = 0; j && i < j->noutputs; i++) {
+    char url[128];
+    snprintf(url, sizeof url, "%s/outputs/%s", self, j->outputs[i].name);
+    json_object_set_new(outs, j->outputs[i].name, json_string(url));
+  }
+  return json_pack("{s:s, s:s, s:o}", "self", self, "cancel", cancel, "outputs", outs);
+}
+
+static json_t *job_json(srv_app *app, const srv_job *j) {
+  double progress = j->progress;
+  if (j->state == SRV_RUNNING) srv_sched_progress(app, j->id, &progress);
+  json_t *o = json_object();
+  json_object_set_new(o, "id", json_integer(j->id));
+  json_object_set_new(o, "state", json_string(srv_state_name(j->state)));
+  json_object_set_new(o, "progress", json_real(progress));
+  json_object_set_new(o, "attempts", json_integer(j->attempts));
+  json_object_set_new(o, "priority", json_integer(j->priority));
+  json_object_set_new(o, "label", str_or_null(j->label));
+  json_object_set_new(o, "scene", str_or_null(j->scene));
+  json_object_set_new(o, "technique", str_or_null(j->technique));
+  json_object_set_new(o, "backend", json_pack("{s:o, s:o}", "requested",
+                                              str_or_null(j->backend_requested), "actual",
+                                              str_or_null(j->backend)));
+  json_object_set_new(o, "image", json_pack("{s:i, s:i, s:i}", "width", j->width, "height",
+                                            j->height, "spp", j->spp));
+  json_object_set_new(o, "created_at", time_or_null(j->created_ms));
+  json_object_set_new(o, "started_at", time_or_null(j->started_ms));
+  json_object_set_new(o, "finished_at", time_or_null(j->finished_ms));
+  json_object_set_new(o, "cancel_requested", json_boolean(j->cancel_requested));
+  json_t *sum = j->summary ? json_loads(j->summary, 0, NULL) : NULL;
+  json_t *timings = json_object_get(sum, "timings_ms");
+  json_object_set(o, "timings_ms", timings ? timings : json_null());
+  json_t *rays = json_object_get(sum, "rays");
+  json_object_set(o, "rays", rays ? rays : json_null());
+  if (sum) {
+    json_t *stats = json_object();
+    json_t *ao = json_object_get(sum, "ao");
+    if (ao) json_object_set(stats, "ao", ao);
+    json_t *nan = json_object_get(sum, "nan_count");
+    json_object_set(stats, "nan_count", nan ? nan : json_integer(0));
+    json_t *se = json_object_get(sum, "ao_stderr_mean");
+    if (se) json_object_set(stats, "ao_stderr_mean", se);
+    json_object_set_new(o, "stats", stats);
+  } else {
+    json_object_set_new(o, "stats", json_null());
+  }
+  json_decref(sum);
+  json_object_set_new(o, "error", str_or_null(j->error));
+  json_t *outs = json_array();
+  for (int i = 0; i < j->noutputs; i++) {
+    const srv_output *x = &j->outputs[i];
+    char url[128];
+    snprintf(url, sizeof url, API "/jobs/%lld/outputs/%s", (long long)j->id, x->name);
+    json_array_append_new(outs, json_pack("{s:s, s:I, s:s, s:s, s:s}", "name", x->name, "size",
+                                          (json_int_t)x->size, "sha256", x->sha256,
+                                          "content_type", x->content_type, "url", url));
+  }
+  json_object_set_new(o, "outputs", outs);
+  json_object_set_new(o, "links", job_links(j->id, j));
+  return o;
+}
+
+/* ---- /api/v1/jobs ---------------------------------------------------------------------------- */
+
+static int submit(srv_req *r) {
+  const char *ct =
+      MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_TYPE);
+  if (ct && strncasecmp(ct, "application/json", 16))
+    return srv_respond_error(r, MHD_HTTP_UNSUPPORTED_MEDIA_TYPE, NULL,
+                             "Content-Type must be application/json (got \"%.64s\")", ct);
+  srv_submission s;
+  obs_err problems = OBS_ERR_INIT;
+  const char *message = NULL;
+  unsigned status = srv_submit_parse(r->app, r->body, r->len, &s, &message, &problems);
+  if (status) {
+    int rc = srv_respond_error(r, status, &problems, "%s", message);
+    obs_err_free(&problems);
+    return rc;
+  }
+  srv_new_job nj = {.priority = s.priority,
+                    .label = s.label,
+                    .scene = s.scene,
+                    .doc = s.doc,
+                    .technique = s.technique,
+                    .backend_requested = s.backend_requested,
+                    .lane = s.lane,
+                    .width = s.width,
+                    .height = s.height,
+                    .spp = s.spp};
+  int64_t id = 0;
+  int rc = srv_db_insert_job(r->app->db, &nj, &id, &problems);
+  if (rc) {
+    srv_submission_free(&s);
+    return db_unavailable(r, &problems);
+  }
+  srv_log("job %lld: submitted -> queued (%s, %s/%s, %dx%d, priority %d)", (long long)id, s.scene,
+          s.technique, s.backend_requested, s.width, s.height, s.priority);
+  srv_submission_free(&s);
+  srv_sched_notify(r->app);
+  json_t *body = json_pack("{s:I, s:s, s:o}", "id", (json_int_t)id, "state", "queued", "links",
+                           job_links(id, NULL));
+  char *text = json_dumps(body, JSON_COMPACT);
+  json_decref(body);
+  struct MHD_Response *resp =
+      MHD_create_response_from_buffer(strlen(text), text, MHD_RESPMEM_MUST_FREE);
+  char loc[64];
+  snprintf(loc, sizeof loc, API "/jobs/%lld", (long long)id);
+  MHD_add_response_header(resp, "Content-Type", "application/json");
+  MHD_add_response_header(resp, "Location", loc);
+  return srv_respond(r, MHD_HTTP_CREATED, resp);
+}
+
+typedef struct query {
+  srv_job_filter f;
+  obs_err *problems;
+  int seen[6];
+} query;
+
+static const char *const query_keys[] = {"state", "technique", "backend", "limit", "after", "order"};
+
+static enum MHD_Result on_query_arg(void *cls, enum MHD_ValueKind kind, const char *key,
+                                    const char *value) {
+  (void)kind;
+  query *q = cls;
+  int k = -1;
+  for (int i = 0; i < 6; i++)
+    if (!strcmp(key, query_keys[i])) k = i;
+  char shown[80];
+  snprintf(shown, sizeof shown, "%s", value ? value : "");
+  for (char *p = shown; *p; p++)
+    if ((unsigned char)*p < 0x20 || (unsigned char)*p >= 0x7f || *p == '"') *p = '?';
+  if (k < 0) {
+    char kshown[40];
+    snprintf(kshown, sizeof kshown, "%s", key);
+    for (char *p = kshown; *p; p++)
+      if ((unsigned char)*p < 0x20 || (unsigned char)*p >= 0x7f || *p == '"') *p = '?';
+    obs_err_set(q->problems, OBS_EINVAL,
+                "query: /%s: unknown parameter (known: state, technique, backend, limit, after, "
+                "order)",
+                kshown);
+    return MHD_YES;
+  }
+  if (q->seen[k]++) {
+    obs_err_set(q->problems, OBS_EINVAL, "query: /%s: given more than once", key);
+    return MHD_YES;
+  }
+  if (!value) value = "";
+  if (k == 0) {
+    if (srv_state_parse(value, &q->f.state))
+      obs_err_set(q->problems, OBS_EINVAL,
+                  "query: /state: must be one of queued, running, succeeded, failed, cancelled "
+                  "(got \"%s\")",
+                  shown);
+    else q->f.has_state = 1;
+  } else if (k == 1) {
+    if (!obs_technique_find(value))
+      obs_err_set(q->problems, OBS_EINVAL,
+                  "query: /technique: not a technique (got \"%s\"; GET /api/v1/techniques lists "
+                  "them)",
+                  shown);
+    else q->f.technique = value;
+  } else if (k == 2) {
+    if (strcmp(value, "cpu") && strcmp(value, "vulkan") && strcmp(value, "auto"))
+      obs_err_set(q->problems, OBS_EINVAL,
+                  "query: /backend: must be one of cpu, vulkan, auto (got \"%s\")", shown);
+    else q->f.backend = value;
+  } else if (k == 3) {
+    int64_t n;
+    if (srv_parse_id(value, strlen(value), &n) || n > 500)
+      obs_err_set(q->problems, OBS_EINVAL,
+                  "query: /limit: must be an integer from 1 to 500 (got \"%s\")", shown);
+    else q->f.limit = (int)n;
+  } else if (k == 4) {
+    if (srv_parse_id(value, strlen(value), &q->f.after))
+      obs_err_set(q->problems, OBS_EINVAL,
+                  "query: /after: must be a job id from a previous page's \"next\" (got \"%s\")",
+                  shown);
+  } else {
+    if (!strcmp(value, "asc")) q->f.ascending = 1;
+    else if (strcmp(value, "desc"))
+      obs_err_set(q->problems, OBS_EINVAL, "query: /order: must be asc or desc (got \"%s\")",
+                  shown);
+  }
+  return MHD_YES;
+}
+
+static int list_jobs(srv_req *r) {
+  obs_err problems = OBS_ERR_INIT;
+  query q;
+  memset(&q, 0, sizeof q);
+  q.f.limit = 50;
+  q.problems = &problems;
+  MHD_get_connection_values(r->conn, MHD_GET_ARGUMENT_KIND, on_query_arg, &q);
+  if (problems.count) {
+    int rc = srv_respond_error(r, MHD_HTTP_BAD_REQUEST, &problems, "bad query parameters");
+    obs_err_free(&problems);
+    return rc;
+  }
+  srv_job *jobs;
+  int n;
+  if (srv_db_list_jobs(r->app->db, &q.f, &jobs, &n, &problems)) return db_unavailable(r, &problems);
+  json_t *arr = json_array();
+  int shown = n > q.f.limit ? q.f.limit : n;
+  for (int i = 0; i < shown; i++) json_array_append_new(arr, job_json(r->app, &jobs[i]));
+  json_t *next = json_null();
+  if (n > q.f.limit) {
+    char buf[24];
+    snprintf(buf, sizeof buf, "%lld", (long long)jobs[shown - 1].id);
+    json_decref(next);
+    next = json_string(buf);
+  }
+  srv_jobs_free(jobs, n);
+  return srv_respond_json(r, MHD_HTTP_OK, json_pack("{s:o, s:o}", "jobs", arr, "next", next));
+}
+
+/* ---- /api/v1/jobs/{id}... -------------------------------------------------------------------- */
+
+static int not_found_job(srv_req *r, int64_t id) {
+  return srv_respond_error(r, MHD_HTTP_NOT_FOUND, NULL, "no job %lld", (long long)id);
+}
+
+static int get_job(srv_req *r, int64_t id, unsigned status) {
+  srv_job j;
+  obs_err err = OBS_ERR_INIT;
+  int rc = srv_db_get_job(r->app->db, id, &j, &err);
+  if (rc == OBS_ENOTFOUND) {
+    obs_err_free(&err);
+    return not_found_job(r, id);
+  }
+  if (rc) return db_unavailable(r, &err);
+  json_t *o = job_json(r->app, &j);
+  srv_job_free(&j);
+  return srv_respond_json(r, status, o);
+}
+
+static int cancel_job(srv_req *r, int64_t id) {
+  srv_cancel_result res;
+  obs_err err = OBS_ERR_INIT;
+  int rc = srv_sched_cancel(r->app, id, &res, &err);
+  if (rc == OBS_ENOTFOUND) {
+    obs_err_free(&err);
+    return not_found_job(r, id);
+  }
+  if (rc) return db_unavailable(r, &err);
+  if (res == SRV_CANCEL_FINISHED) {
+    srv_state st = SRV_SUCCEEDED;
+    srv_db_job_exists(r->app->db, id, &st, &err);
+    obs_err_free(&err);
+    return srv_respond_error(r, MHD_HTTP_CONFLICT, NULL,
+                             "job %lld already finished (%s); nothing to cancel", (long long)id,
+                             srv_state_name(st));
+  }
+  return get_job(r, id, MHD_HTTP_ACCEPTED);
+}
+
+static int delete_job(srv_req *r, int64_t id) {
+  obs_err err = OBS_ERR_INIT;
+  int rc = srv_db_delete(r->app->db, id, &err);
+  if (rc == OBS_ENOTFOUND) {
+    obs_err_free(&err);
+    return not_found_job(r, id);
+  }
+  if (rc == OBS_EINVAL) {
+    obs_err_free(&err);
+    srv_state st = SRV_QUEUED;
+    srv_db_job_exists(r->app->db, id, &st, &err);
+    obs_err_free(&err);
+    return srv_respond_error(r, MHD_HTTP_CONFLICT, NULL,
+                             "job %lld is %s: only finished jobs can be deleted (cancel it first)",
+                             (long long)id, srv_state_name(st));
+  }
+  if (rc) return db_unavailable(r, &err);
+  srv_outputs_remove(r->app, id);
+  srv_log("job %lld: deleted", (long long)id);
+  struct MHD_Response *resp = MHD_create_response_from_buffer(0, "", MHD_RESPMEM_PERSISTENT);
+  return srv_respond(r, MHD_HTTP_NO_CONTENT, resp);
+}
+
+/* ---- catalogue routes ------------------------------------------------------------------------ */
+
+static int techniques(srv_req *r) {
+  return srv_respond_json(r, MHD_HTTP_OK,
+                          json_pack("{s:o, s:b}", "techniques", obs_technique_registry_json(),
+                                    "vulkan_available", r->app->vulkan_lane));
+}
+
+static int cmp_names(const void *a, const void *b) {
+  return strcmp(json_string_value(json_object_get(*(json_t *const *)a, "name")),
+                json_string_value(json_object_get(*(json_t *const *)b, "name")));
+}
+
+static int scenes(srv_req *r) {
+  srv_app *app = r->app;
+  json_t *list = json_array();
+  DIR *d = opendir(app->scenes_real);
+  struct dirent *e;
+  while (d && (e = readdir(d))) {
+    size_t n = strlen(e->d_name);
+    if (e->d_name[0] == '.' || n < 6 || strcmp(e->d_name + n - 5, ".json")) continue;
+    char path[PATH_MAX + 300], real[PATH_MAX];
+    snprintf(path, sizeof path, "%s/%s", app->scenes_real, e->d_name);
+    struct stat st;
+    if (!realpath(path, real) || !srv_path_inside(app->scenes_real, real) || stat(real, &st) ||
+        !S_ISREG(st.st_mode))
+      continue;
+    json_t *s = json_pack("{s:s, s:I}", "name", e->d_name, "size", (json_int_t)st.st_size);
+    json_error_t je;
+    json_t *doc = st.st_size <= 64 * 1024 * 1024 ? json_load_file(real, 0, &je) : NULL;
+    json_t *t = json_object_get(doc, "technique"), *img = json_object_get(doc, "image");
+    const char *tn = json_string_value(json_object_get(t, "name"));
+    const char *be = json_string_value(json_object_get(t, "backend"));
+    json_object_set_new(s, "technique", str_or_null(tn));
+    json_object_set_new(s, "backend", str_or_null(be));
+    json_t *w = json_object_get(img, "width"), *h = json_object_get(img, "height");
+    json_object_set(s, "width", json_is_integer(w) ? w : json_null());
+    json_object_set(s, "height", json_is_integer(h) ? h : json_null());
+    if (!doc) json_object_set_new(s, "error", json_string("not valid JSON"));
+    json_decref(doc);
+    json_array_append_new(list, s);
+  }
+  if (d) closedir(d);
+  size_t n = json_array_size(list);
+  json_t **items = malloc((n ? n : 1) * sizeof *items);
+  for (size_t i = 0; items && i < n; i++) items[i] = json_incref(json_array_get(list, i));
+  if (items) {
+    qsort(items, n, sizeof *items, cmp_names);
+    json_array_clear(list);
+    for (size_t i = 0; i < n; i++) json_array_append_new(list, items[i]);
+    free(items);
+  }
+  return srv_respond_json(r, MHD_HTTP_OK, json_pack("{s:o}", "scenes", list));
+}
+
+static int health(srv_req *r) {
+  srv_app *app = r->app;
+  int64_t counts[SRV_NSTATES];
+  obs_err err = OBS_ERR_INIT;
+  int rc = srv_db_counts(app->db, counts, &err);
+  json_t *o = json_pack("{s:s, s:s, s:s, s:I, s:i, s:{s:i, s:i}, s:b, s:b, s:f}", "status",
+                        rc ? "degraded" : "ok", "version", OBSCURA_VERSION, "db",
+                        rc ? obs_err_message(&err) : "ok", "queue_depth",
+                        (json_int_t)(rc ? 0 : counts[SRV_QUEUED]), "running",
+                        srv_sched_running(app), "workers", "cpu", app->cfg.workers, "vulkan",
+                        app->vulkan_lane, "vulkan_available", app->vulkan_lane, "vulkan_device", app->vk_available,
+                        "uptime_s", (obs_now_ms() - app->start_ms) / 1e3);
+  obs_err_free(&err);
+  return srv_respond_json(r, rc ? MHD_HTTP_SERVICE_UNAVAILABLE : MHD_HTTP_OK, o);
+}
+
+static int metrics(srv_req *r) {
+  size_t len = 0;
+  char *text = srv_metrics_text(r->app, &len);
+  if (!text) return srv_respond_error(r, MHD_HTTP_INTERNAL_SERVER_ERROR, NULL, "out of memory");
+  struct MHD_Response *resp = MHD_create_response_from_buffer(len, text, MHD_RESPMEM_MUST_FREE);
+  MHD_add_response_header(resp, "Content-Type", "text/plain; version=0.0.4; charset=utf-8");
+  return srv_respond(r, MHD_HTTP_OK, resp);
+}
+
+/* ---- dispatch -------------------------------------------------------------------------------- */
+
+int srv_api_dispatch(srv_req *r) {
+  switch (r->route) {
+    case SRV_ROUTE_STATIC: return srv_static_serve(r);
+    case SRV_ROUTE_METRICS: return is_get(r) ? metrics(r) : srv_respond_method(r, "GET, HEAD");
+    case SRV_ROUTE_TECHNIQUES:
+      return is_get(r) ? techniques(r) : srv_respond_method(r, "GET, HEAD");
+    case SRV_ROUTE_SCENES: return is_get(r) ? scenes(r) : srv_respond_method(r, "GET, HEAD");
+    case SRV_ROUTE_HEALTH: return is_get(r) ? health(r) : srv_respond_method(r, "GET, HEAD");
+    case SRV_ROUTE_JOBS:
+      if (!strcmp(r->method, "POST")) return submit(r);
+      return is_get(r) ? list_jobs(r) : srv_respond_method(r, "GET, HEAD, POST");
+    case SRV_ROUTE_JOB:
+    case SRV_ROUTE_JOB_CANCEL:
+    case SRV_ROUTE_JOB_OUTPUT: {
+      const char *idtext, *rest;
+      size_t n;
+      int64_t id;
+      job_route(r->path, &idtext, &n, &rest);
+      if (srv_parse_id(idtext, n, &id))
+        return srv_respond_error(r, MHD_HTTP_NOT_FOUND, NULL,
+                                 "no such job (ids are positive integers without leading zeros)");
+      if (r->route == SRV_ROUTE_JOB) {
+        if (is_get(r)) return get_job(r, id, MHD_HTTP_OK);
+        if (!strcmp(r->method, "DELETE")) return delete_job(r, id);
+        return srv_respond_method(r, "GET, HEAD, DELETE");
+      }
+      if (r->route == SRV_ROUTE_JOB_CANCEL)
+        return !strcmp(r->method, "POST") ? cancel_job(r, id) : srv_respond_method(r, "POST");
+      return is_get(r) ? srv_output_serve(r, id, rest + 9) : srv_respond_method(r, "GET, HEAD");
+    }
+    default: break;
+  }
+  return srv_respond_error(r, MHD_HTTP_NOT_FOUND, NULL, "no such route");
+}

@@ -1,0 +1,874 @@
+/* obscurad's SQLite store: a pool of connections (WAL, synchronous=NORMAL, busy timeout, foreign
+ * keys), the migrations of schema/db.sql, and every query as a prepared statement. */
+#include <pthread.h>
+#include <sqlite3.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "obscurad.h"
+
+extern const char srv_db_sql[];
+extern const size_t srv_db_sql_len;
+
+/* Every statement the daemon runs. Bound parameters only: no SQL is ever built from input. */
+enum {
+  ST_BEGIN,
+  ST_COMMIT,
+  ST_ROLLBACK,
+  ST_INSERT,
+  ST_GET,
+  ST_OUTPUTS,
+  ST_LIST_DESC,
+  ST_LIST_ASC,
+  ST_CLAIM,
+  ST_SET_BACKEND,
+  ST_SUCCESS,
+  ST_OUT_CLEAR,
+  ST_OUT_INSERT,
+  ST_FINISH,
+  ST_REQUEUE,
+  ST_STATE,
+  ST_CANCEL_QUEUED,
+  ST_CANCEL_RUNNING,
+  ST_DELETE,
+  ST_GET_OUTPUT,
+  ST_COUNTS,
+  ST_RUNNING_LIST,
+  ST_QUEUED_LIST,
+  ST_SET_LANE,
+  ST_END_ANY,
+  ST_REQUEUE_CRASH,
+  ST_CHECKPOINT,
+  ST_MIGRATION_MAX,
+  ST_MIGRATION_PUT,
+  ST_COUNT
+};
+
+#define JOB_COLS                                                                                  \
+  "id, state, priority, label, scene, technique, backend_requested, backend, lane, width, "      \
+  "height, spp, attempts, cancel_requested, created_ms, started_ms, finished_ms, error, summary, " \
+  "progress"
+#define LIST_WHERE                                                                                \
+  "(?1 IS NULL OR state = ?1) AND (?2 IS NULL OR technique = ?2) AND "                           \
+  "(?3 IS NULL OR coalesce(backend, backend_requested) = ?3) "
+
+static const char *const sql[ST_COUNT] = {
+    [ST_BEGIN] = "BEGIN IMMEDIATE",
+    [ST_COMMIT] = "COMMIT",
+    [ST_ROLLBACK] = "ROLLBACK",
+    [ST_INSERT] = "INSERT INTO jobs (priority, label, scene, doc, technique, backend_requested, "
+                  "lane, width, height, spp, created_ms) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+    [ST_GET] = "SELECT " JOB_COLS " FROM jobs WHERE id = ?",
+    [ST_OUTPUTS] = "SELECT name, size, sha256, content_type FROM outputs WHERE job_id = ? "
+                   "ORDER BY name",
+    [ST_LIST_DESC] = "SELECT " JOB_COLS " FROM jobs WHERE " LIST_WHERE
+                     "AND (?4 = 0 OR id < ?4) ORDER BY id DESC LIMIT ?5",
+    [ST_LIST_ASC] = "SELECT " JOB_COLS " FROM jobs WHERE " LIST_WHERE
+                    "AND id > ?4 ORDER BY id ASC LIMIT ?5",
+    /* One statement, so one transaction: two workers can never claim the same job. */
+    [ST_CLAIM] = "UPDATE jobs SET state = 'running', attempts = attempts + 1, started_ms = ?2, "
+                 "finished_ms = NULL, progress = 0, backend = NULL WHERE id = (SELECT id FROM jobs WHERE "
+                 "lane = ?1 AND state = 'queued' ORDER BY priority DESC, id LIMIT 1) "
+                 "RETURNING " JOB_COLS ", doc",
+    [ST_SET_BACKEND] = "UPDATE jobs SET backend = ? WHERE id = ? AND state = 'running'",
+    [ST_SUCCESS] = "UPDATE jobs SET state = 'succeeded', backend = ?, summary = ?, progress = 1, "
+                   "finished_ms = ?, error = NULL WHERE id = ? AND state = 'running'",
+    [ST_OUT_CLEAR] = "DELETE FROM outputs WHERE job_id = ?",
+    [ST_OUT_INSERT] = "INSERT INTO outputs (job_id, name, size, sha256, content_type) "
+                      "VALUES (?, ?, ?, ?, ?)",
+    [ST_FINISH] = "UPDATE jobs SET state = ?, error = ?, finished_ms = ?, progress = ? "
+                  "WHERE id = ? AND state = 'running'",
+    [ST_REQUEUE] = "UPDATE jobs SET state = 'queued', attempts = max(attempts - 1, 0), "
+                   "started_ms = NULL, backend = NULL WHERE id = ? AND state = 'running'",
+    [ST_STATE] = "SELECT state FROM jobs WHERE id = ?",
+    [ST_CANCEL_QUEUED] = "UPDATE jobs SET state = 'cancelled', cancel_requested = 1, "
+                         "error = 'cancelled by request', finished_ms = ? "
+                         "WHERE id = ? AND state = 'queued'",
+    [ST_CANCEL_RUNNING] = "UPDATE jobs SET cancel_requested = 1 WHERE id = ? AND state = 'running'",
+    [ST_DELETE] = "DELETE FROM jobs WHERE id = ? AND state IN ('succeeded', 'failed', 'cancelled')",
+    [ST_GET_OUTPUT] = "SELECT size, sha256, content_type FROM outputs WHERE job_id = ? AND name = ?",
+    [ST_COUNTS] = "SELECT state, count(*) FROM jobs GROUP BY state",
+    [ST_RUNNING_LIST] = "SELECT id, attempts, cancel_requested, error FROM jobs "
+                        "WHERE state = 'running'",
+    [ST_QUEUED_LIST] = "SELECT id, technique, backend_requested, lane FROM jobs "
+                       "WHERE state = 'queued'",
+    [ST_SET_LANE] = "UPDATE jobs SET lane = ? WHERE id = ?",
+    [ST_END_ANY] = "UPDATE jobs SET state = ?, error = ?, finished_ms = ? WHERE id = ?",
+    [ST_REQUEUE_CRASH] = "UPDATE jobs SET state = 'queued', error = ?, started_ms = NULL, "
+                         "backend = NULL WHERE id = ?",
+    [ST_CHECKPOINT] = "PRAGMA wal_checkpoint(TRUNCATE)",
+    [ST_MIGRATION_MAX] = "SELECT coalesce(max(version), 0) FROM schema_migrations",
+    [ST_MIGRATION_PUT] = "INSERT INTO schema_migrations (version, applied_ms) VALUES (?, ?)",
+};
+
+typedef struct conn {
+  sqlite3 *db;
+  sqlite3_stmt *st[ST_COUNT];
+  int in_use;
+} conn;
+
+struct srv_db {
+  conn *c;
+  int n;
+  pthread_mutex_t mu;
+  pthread_cond_t cv;
+};
+
+static int db_fail(conn *c, obs_err *err, const char *what) {
+  return obs_err_set(err, OBS_EIO, "database: %s: %s", what, sqlite3_errmsg(c->db));
+}
+
+static conn *acquire(srv_db *db) {
+  pthread_mutex_lock(&db->mu);
+  for (;;) {
+    for (int i = 0; i < db->n; i++) {
+      if (!db->c[i].in_use) {
+        db->c[i].in_use = 1;
+        pthread_mutex_unlock(&db->mu);
+        return &db->c[i];
+      }
+    }
+    pthread_cond_wait(&db->cv, &db->mu);
+  }
+}
+
+static void release(srv_db *db, conn *c) {
+  pthread_mutex_lock(&db->mu);
+  c->in_use = 0;
+  pthread_cond_signal(&db->cv);
+  pthread_mutex_unlock(&db->mu);
+}
+
+/* The statement, prepared once per connection and reset for reuse. */
+static sqlite3_stmt *stmt(conn *c, int which, obs_err *err) {
+  if (!c->st[which]) {
+    if (sqlite3_prepare_v3(c->db, sql[which], -1, SQLITE_PREPARE_PERSISTENT, &c->st[which],
+                           NULL) != SQLITE_OK) {
+      db_fail(c, err, "prepare");
+      c->st[which] = NULL;
+      return NULL;
+    }
+  }
+  return c->st[which];
+}
+
+static void done(sqlite3_stmt *s) {
+  if (!s) return;
+  sqlite3_reset(s);
+  sqlite3_clear_bindings(s);
+}
+
+static void bind_text(sqlite3_stmt *s, int i, const char *v) {
+  if (v) sqlite3_bind_text(s, i, v, -1, SQLITE_TRANSIENT);
+  else sqlite3_bind_null(s, i);
+}
+
+/* Runs a statement that returns no rows; SQLITE_DONE is success. */
+static int exec_done(conn *c, sqlite3_stmt *s, obs_err *err, const char *what) {
+  int rc = sqlite3_step(s);
+  int out = rc == SQLITE_DONE ? 0 : db_fail(c, err, what);
+  done(s);
+  return out;
+}
+
+static int simple(conn *c, int which, obs_err *err) {
+  sqlite3_stmt *s = stmt(c, which, err);
+  return s ? exec_done(c, s, err, sql[which]) : OBS_EIO;
+}
+
+static int begin(conn *c, obs_err *err) { return simple(c, ST_BEGIN, err); }
+static int commit(conn *c, obs_err *err) { return simple(c, ST_COMMIT, err); }
+static void rollback(conn *c) {
+  if (!sqlite3_get_autocommit(c->db)) simple(c, ST_ROLLBACK, NULL);
+}
+
+const char *srv_state_name(srv_state s) {
+  static const char *const n[] = {"queued", "running", "succeeded", "failed", "cancelled"};
+  return s < SRV_NSTATES ? n[s] : "?";
+}
+
+int srv_state_parse(const char *s, srv_state *out) {
+  for (int i = 0; s && i < SRV_NSTATES; i++)
+    if (!strcmp(s, srv_state_name((srv_state)i))) {
+      *out = (srv_state)i;
+      return 0;
+    }
+  return -1;
+}
+
+const char *srv_lane_name(srv_lane l) { return l == SRV_LANE_VULKAN ? "vulkan" : "cpu"; }
+
+static char *col_str(sqlite3_stmt *s, int i) {
+  const unsigned char *t = sqlite3_column_text(s, i);
+  return t ? strdup((const char *)t) : NULL;
+}
+
+static void read_job(sqlite3_stmt *s, srv_job *j) {
+  memset(j, 0, sizeof *j);
+  j->id = sqlite3_column_int64(s, 0);
+  srv_state st = SRV_FAILED;
+  srv_state_parse((const char *)sqlite3_column_text(s, 1), &st);
+  j->state = st;
+  j->priority = sqlite3_column_int(s, 2);
+  j->label = col_str(s, 3);
+  j->scene = col_str(s, 4);
+  j->technique = col_str(s, 5);
+  j->backend_requested = col_str(s, 6);
+  j->backend = col_str(s, 7);
+  const unsigned char *lane = sqlite3_column_text(s, 8);
+  j->lane = lane && !strcmp((const char *)lane, "vulkan") ? SRV_LANE_VULKAN : SRV_LANE_CPU;
+  j->width = sqlite3_column_int(s, 9);
+  j->height = sqlite3_column_int(s, 10);
+  j->spp = sqlite3_column_int(s, 11);
+  j->attempts = sqlite3_column_int(s, 12);
+  j->cancel_requested = sqlite3_column_int(s, 13);
+  j->created_ms = sqlite3_column_int64(s, 14);
+  j->started_ms = sqlite3_column_int64(s, 15);
+  j->finished_ms = sqlite3_column_int64(s, 16);
+  j->error = col_str(s, 17);
+  j->summary = col_str(s, 18);
+  j->progress = sqlite3_column_double(s, 19);
+}
+
+void srv_job_free(srv_job *j) {
+  if (!j) return;
+  free(j->label);
+  free(j->scene);
+  free(j->technique);
+  free(j->backend_requested);
+  free(j->backend);
+  free(j->error);
+  free(j->summary);
+  free(j->doc);
+  free(j->outputs);
+  memset(j, 0, sizeof *j);
+}
+
+void srv_jobs_free(srv_job *jobs, int n) {
+  for (int i = 0; i < n; i++) srv_job_free(&jobs[i]);
+  free(jobs);
+}
+
+static int read_outputs(conn *c, srv_job *j, obs_err *err) {
+  sqlite3_stmt *s = stmt(c, ST_OUTPUTS, err);
+  if (!s) return OBS_EIO;
+  sqlite3_bind_int64(s, 1, j->id);
+  int rc;
+  while ((rc = sqlite3_step(s)) == SQLITE_ROW) {
+    srv_output *o = realloc(j->outputs, (size_t)(j->noutputs + 1) * sizeof *o);
+    if (!o) {
+      done(s);
+      return obs_err_set(err, OBS_ENOMEM, "out of memory");
+    }
+    j->outputs = o;
+    o += j->noutputs++;
+    memset(o, 0, sizeof *o);
+    snprintf(o->name, sizeof o->name, "%s", (const char *)sqlite3_column_text(s, 0));
+    o->size = sqlite3_column_int64(s, 1);
+    snprintf(o->sha256, sizeof o->sha256, "%s", (const char *)sqlite3_column_text(s, 2));
+    snprintf(o->content_type, sizeof o->content_type, "%s",
+             (const char *)sqlite3_column_text(s, 3));
+  }
+  int out = rc == SQLITE_DONE ? 0 : db_fail(c, err, "outputs");
+  done(s);
+  return out;
+}
+
+/* ---- opening and migrations ------------------------------------------------------------------ */
+
+static int open_conn(conn *c, const char *path, obs_err *err) {
+  memset(c, 0, sizeof *c);
+  int rc = sqlite3_open_v2(path, &c->db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, NULL);
+  if (rc != SQLITE_OK) {
+    obs_err_set(err, OBS_EIO, "database %s: cannot open: %s", path,
+                c->db ? sqlite3_errmsg(c->db) : sqlite3_errstr(rc));
+    sqlite3_close(c->db);
+    c->db = NULL;
+    return OBS_EIO;
+  }
+  sqlite3_busy_timeout(c->db, 5000);
+  /* journal_size_limit truncates the WAL back to 4 MiB whenever a checkpoint resets it, so even
+   * the automatic PASSIVE checkpoints keep the file bounded between our TRUNCATE ones. */
+  static const char pragmas[] = "PRAGMA journal_mode = WAL; PRAGMA synchronous = NORMAL; "
+                                "PRAGMA foreign_keys = ON; PRAGMA journal_size_limit = 4194304;";
+  char *msg = NULL;
+  if (sqlite3_exec(c->db, pragmas, NULL, NULL, &msg) != SQLITE_OK) {
+    obs_err_set(err, OBS_EIO, "database %s: %s", path, msg ? msg : "cannot configure");
+    sqlite3_free(msg);
+    sqlite3_close(c->db);
+    c->db = NULL;
+    return OBS_EIO;
+  }
+  return 0;
+}
+
+static void close_conn(conn *c) {
+  for (int i = 0; i < ST_COUNT; i++) sqlite3_finalize(c->st[i]);
+  sqlite3_close(c->db);
+  memset(c, 0, sizeof *c);
+}
+
+/* Applies every "-- migration N" section of schema/db.sql newer than the database. */
+static int migrate(conn *c, const char *path, obs_err *err) {
+  char *msg = NULL;
+  if (sqlite3_exec(c->db,
+                   "CREATE TABLE IF NOT EXISTS schema_migrations (version INTEGER PRIMARY KEY, "
+                   "applied_ms INTEGER NOT NULL)",
+                   NULL, NULL, &msg) != SQLITE_OK) {
+    obs_err_set(err, OBS_EIO, "database %s: %s", path, msg ? msg : "?");
+    sqlite3_free(msg);
+    return OBS_EIO;
+  }
+  sqlite3_stmt *s = stmt(c, ST_MIGRATION_MAX, err);
+  if (!s) return OBS_EIO;
+  int64_t have = sqlite3_step(s) == SQLITE_ROW ? sqlite3_column_int64(s, 0) : -1;
+  done(s);
+  if (have < 0) return db_fail(c, err, "reading schema_migrations");
+  static const char marker[] = "\n-- migration ";
+  int64_t latest = 0;
+  const char *p = strstr(srv_db_sql, marker);
+  while (p) {
+    const char *num = p + sizeof marker - 1;
+    int64_t v = strtoll(num, NULL, 10);
+    const char *body = strchr(num, '\n');
+    const char *next = body ? strstr(body, marker) : NULL;
+    if (v != latest + 1 || !body)
+      return obs_err_set(err, OBS_EINTERNAL, "schema/db.sql: migrations must be numbered 1, 2, ...");
+    latest = v;
+    if (v > have) {
+      size_t n = next ? (size_t)(next - body) : strlen(body);
+      char *text = strndup(body, n);
+      if (!text) return obs_err_set(err, OBS_ENOMEM, "out of memory");
+      int rc = begin(c, err);
+      if (!rc && sqlite3_exec(c->db, text, NULL, NULL, &msg) != SQLITE_OK) {
+        rc = obs_err_set(err, OBS_EIO, "database %s: migration %lld: %s", path, (long long)v,
+                         msg ? msg : "?");
+        sqlite3_free(msg);
+        msg = NULL;
+      }
+      free(text);
+      if (!rc) {
+        sqlite3_stmt *put = stmt(c, ST_MIGRATION_PUT, err);
+        if (!put) rc = OBS_EIO;
+        else {
+          sqlite3_bind_int64(put, 1, v);
+          sqlite3_bind_int64(put, 2, srv_now_unix_ms());
+          rc = exec_done(c, put, err, "recording migration");
+        }
+      }
+      if (!rc) rc = commit(c, err);
+      if (rc) {
+        rollback(c);
+        return rc;
+      }
+      srv_log("database %s: applied migration %lld", path, (long long)v);
+    }
+    p = next;
+  }
+  if (have > latest)
+    return obs_err_set(err, OBS_EINVAL,
+                       "database %s is at schema version %lld, newer than this obscurad (%lld)",
+                       path, (long long)have, (long long)latest);
+  return 0;
+}
+
+int srv_db_open(srv_db **out, const char *path, int nconn, obs_err *err) {
+  *out = NULL;
+  srv_db *db = calloc(1, sizeof *db);
+  if (!db) return obs_err_set(err, OBS_ENOMEM, "out of memory");
+  db->c = calloc((size_t)nconn, sizeof *db->c);
+  if (!db->c) {
+    free(db);
+    return obs_err_set(err, OBS_ENOMEM, "out of memory");
+  }
+  pthread_mutex_init(&db->mu, NULL);
+  pthread_cond_init(&db->cv, NULL);
+  int rc = 0;
+  for (int i = 0; i < nconn && !rc; i++) {
+    rc = open_conn(&db->c[i], path, err);
+    if (!rc) db->n = i + 1;
+    if (!rc && i == 0) rc = migrate(&db->c[0], path, err);
+  }
+  if (rc) {
+    srv_db_close(db);
+    return rc;
+  }
+  *out = db;
+  return 0;
+}
+
+void srv_db_close(srv_db *db) {
+  if (!db) return;
+  for (int i = 0; i < db->n; i++) close_conn(&db->c[i]);
+  free(db->c);
+  pthread_mutex_destroy(&db->mu);
+  pthread_cond_destroy(&db->cv);
+  free(db);
+}
+
+/* ---- jobs ------------------------------------------------------------------------------------ */
+
+int srv_db_insert_job(srv_db *db, const srv_new_job *nj, int64_t *id, obs_err *err) {
+  conn *c = acquire(db);
+  sqlite3_stmt *s = stmt(c, ST_INSERT, err);
+  int rc = OBS_EIO;
+  if (s) {
+    sqlite3_bind_int(s, 1, nj->priority);
+    bind_text(s, 2, nj->label);
+    bind_text(s, 3, nj->scene);
+    bind_text(s, 4, nj->doc);
+    bind_text(s, 5, nj->technique);
+    bind_text(s, 6, nj->backend_requested);
+    bind_text(s, 7, srv_lane_name(nj->lane));
+    sqlite3_bind_int(s, 8, nj->width);
+    sqlite3_bind_int(s, 9, nj->height);
+    sqlite3_bind_int(s, 10, nj->spp);
+    sqlite3_bind_int64(s, 11, srv_now_unix_ms());
+    rc = exec_done(c, s, err, "inserting the job");
+    /* Autocommit: when the step returned DONE the row is committed to the WAL. */
+    if (!rc) *id = sqlite3_last_insert_rowid(c->db);
+  }
+  release(db, c);
+  return rc;
+}
+
+int srv_db_get_job(srv_db *db, int64_t id, srv_job *j, obs_err *err) {
+  memset(j, 0, sizeof *j);
+  conn *c = acquire(db);
+  sqlite3_stmt *s = stmt(c, ST_GET, err);
+  int rc = OBS_EIO;
+  if (s) {
+    sqlite3_bind_int64(s, 1, id);
+    int step = sqlite3_step(s);
+    if (step == SQLITE_ROW) {
+      read_job(s, j);
+      rc = 0;
+    } else {
+      rc = step == SQLITE_DONE ? OBS_ENOTFOUND : db_fail(c, err, "reading the job");
+    }
+    done(s);
+    if (!rc) rc = read_outputs(c, j, err);
+    if (rc && rc != OBS_ENOTFOUND) srv_job_free(j);
+  }
+  release(db, c);
+  return rc;
+}
+
+int srv_db_list_jobs(srv_db *db, const srv_job_filter *f, srv_job **jobs, int *n, obs_err *err) {
+  *jobs = NULL;
+  *n = 0;
+  srv_job *out = calloc((size_t)f->limit + 1, sizeof *out);
+  if (!out) return obs_err_set(err, OBS_ENOMEM, "out of memory");
+  conn *c = acquire(db);
+  sqlite3_stmt *s = stmt(c, f->ascending ? ST_LIST_ASC : ST_LIST_DESC, err);
+  int rc = OBS_EIO, count = 0;
+  if (s) {
+    bind_text(s, 1, f->has_state ? srv_state_name(f->state) : NULL);
+    bind_text(s, 2, f->technique);
+    bind_text(s, 3, f->backend);
+    sqlite3_bind_int64(s, 4, f->after);
+    sqlite3_bind_int(s, 5, f->limit + 1);
+    int step;
+    while ((step = sqlite3_step(s)) == SQLITE_ROW && count <= f->limit) read_job(s, &out[count++]);
+    rc = step == SQLITE_DONE || step == SQLITE_ROW ? 0 : db_fail(c, err, "listing jobs");
+    done(s);
+    for (int i = 0; !rc && i < count; i++) rc = read_outputs(c, &out[i], err);
+  }
+  release(db, c);
+  if (rc) {
+    srv_jobs_free(out, count);
+    return rc;
+  }
+  *jobs = out;
+  *n = count;
+  return 0;
+}
+
+int srv_db_claim(srv_db *db, srv_lane lane, srv_job *j, obs_err *err) {
+  memset(j, 0, sizeof *j);
+  conn *c = acquire(db);
+  sqlite3_stmt *s = stmt(c, ST_CLAIM, err);
+  int rc = OBS_EIO;
+  if (s) {
+    bind_text(s, 1, srv_lane_name(lane));
+    sqlite3_bind_int64(s, 2, srv_now_unix_ms());
+    int step = sqlite3_step(s);
+    if (step == SQLITE_ROW) {
+      read_job(s, j);
+      j->doc = col_str(s, 20);
+      /* Step to the end so the UPDATE's transaction commits before we let go. */
+      step = sqlite3_step(s);
+      rc = step == SQLITE_DONE ? 0 : db_fail(c, err, "claiming a job");
+      if (rc) srv_job_free(j);
+    } else {
+      rc = step == SQLITE_DONE ? 1 : db_fail(c, err, "claiming a job");
+    }
+    done(s);
+  }
+  release(db, c);
+  return rc;
+}
+
+int srv_db_set_backend(srv_db *db, int64_t id, const char *backend, obs_err *err) {
+  conn *c = acquire(db);
+  sqlite3_stmt *s = stmt(c, ST_SET_BACKEND, err);
+  int rc = OBS_EIO;
+  if (s) {
+    bind_text(s, 1, backend);
+    sqlite3_bind_int64(s, 2, id);
+    rc = exec_done(c, s, err, "recording the backend");
+  }
+  release(db, c);
+  return rc;
+}
+
+int srv_db_finish_success(srv_db *db, int64_t id, const char *backend, const char *summary,
+                          const srv_output *outs, int nouts, obs_err *err) {
+  conn *c = acquire(db);
+  int rc = begin(c, err);
+  sqlite3_stmt *s;
+  if (!rc) {
+    s = stmt(c, ST_SUCCESS, err);
+    if (!s) rc = OBS_EIO;
+    else {
+      bind_text(s, 1, backend);
+      bind_text(s, 2, summary);
+      sqlite3_bind_int64(s, 3, srv_now_unix_ms());
+      sqlite3_bind_int64(s, 4, id);
+      rc = exec_done(c, s, err, "marking the job succeeded");
+      if (!rc && sqlite3_changes(c->db) != 1)
+        rc = obs_err_set(err, OBS_EINVAL, "job %lld is no longer running", (long long)id);
+    }
+  }
+  if (!rc) {
+    s = stmt(c, ST_OUT_CLEAR, err);
+    if (!s) rc = OBS_EIO;
+    else {
+      sqlite3_bind_int64(s, 1, id);
+      rc = exec_done(c, s, err, "clearing outputs");
+    }
+  }
+  for (int i = 0; !rc && i < nouts; i++) {
+    s = stmt(c, ST_OUT_INSERT, err);
+    if (!s) {
+      rc = OBS_EIO;
+      break;
+    }
+    sqlite3_bind_int64(s, 1, id);
+    bind_text(s, 2, outs[i].name);
+    sqlite3_bind_int64(s, 3, outs[i].size);
+    bind_text(s, 4, outs[i].sha256);
+    bind_text(s, 5, outs[i].content_type);
+    rc = exec_done(c, s, err, "recording an output");
+  }
+  if (!rc) rc = commit(c, err);
+  if (rc) rollback(c);
+  release(db, c);
+  return rc;
+}
+
+int srv_db_finish(srv_db *db, int64_t id, srv_state state, const char *error, double progress,
+                  obs_err *err) {
+  conn *c = acquire(db);
+  sqlite3_stmt *s = stmt(c, ST_FINISH, err);
+  int rc = OBS_EIO;
+  if (s) {
+    bind_text(s, 1, srv_state_name(state));
+    bind_text(s, 2, error);
+    sqlite3_bind_int64(s, 3, srv_now_unix_ms());
+    sqlite3_bind_double(s, 4, progress);
+    sqlite3_bind_int64(s, 5, id);
+    rc = exec_done(c, s, err, "finishing the job");
+  }
+  release(db, c);
+  return rc;
+}
+
+int srv_db_requeue(srv_db *db, int64_t id, obs_err *err) {
+  conn *c = acquire(db);
+  sqlite3_stmt *s = stmt(c, ST_REQUEUE, err);
+  int rc = OBS_EIO;
+  if (s) {
+    sqlite3_bind_int64(s, 1, id);
+    rc = exec_done(c, s, err, "requeueing the job");
+  }
+  release(db, c);
+  return rc;
+}
+
+int srv_db_cancel(srv_db *db, int64_t id, srv_cancel_result *res, obs_err *err) {
+  conn *c = acquire(db);
+  /* One write transaction, so the state read and the update cannot be split by a claim. */
+  int rc = begin(c, err);
+  sqlite3_stmt *s = NULL;
+  srv_state st = SRV_FAILED;
+  if (!rc) {
+    s = stmt(c, ST_STATE, err);
+    if (!s) rc = OBS_EIO;
+    else {
+      sqlite3_bind_int64(s, 1, id);
+      int step = sqlite3_step(s);
+      if (step == SQLITE_ROW) srv_state_parse((const char *)sqlite3_column_text(s, 0), &st);
+      else rc = step == SQLITE_DONE ? OBS_ENOTFOUND : db_fail(c, err, "reading the job");
+      done(s);
+    }
+  }
+  if (!rc) {
+    if (st == SRV_QUEUED || st == SRV_RUNNING) {
+      s = stmt(c, st == SRV_QUEUED ? ST_CANCEL_QUEUED : ST_CANCEL_RUNNING, err);
+      if (!s) rc = OBS_EIO;
+      else if (st == SRV_QUEUED) {
+        sqlite3_bind_int64(s, 1, srv_now_unix_ms());
+        sqlite3_bind_int64(s, 2, id);
+      } else {
+        sqlite3_bind_int64(s, 1, id);
+      }
+      if (s) rc = exec_done(c, s, err, "cancelling the job");
+      *res = st == SRV_QUEUED ? SRV_CANCEL_DONE : SRV_CANCEL_RUNNING;
+    } else {
+      *res = SRV_CANCEL_FINISHED;
+    }
+  }
+  if (!rc) rc = commit(c, err);
+  if (rc) rollback(c);
+  release(db, c);
+  return rc;
+}
+
+int srv_db_delete(srv_db *db, int64_t id, obs_err *err) {
+  conn *c = acquire(db);
+  sqlite3_stmt *s = stmt(c, ST_DELETE, err);
+  int rc = OBS_EIO;
+  if (s) {
+    sqlite3_bind_int64(s, 1, id);
+    rc = exec_done(c, s, err, "deleting the job");
+    if (!rc && sqlite3_changes(c->db) == 0) {
+      /* Either no such job or not finished: tell them apart for 404 vs 409. */
+      sqlite3_stmt *q = stmt(c, ST_STATE, err);
+      if (!q) rc = OBS_EIO;
+      else {
+        sqlite3_bind_int64(q, 1, id);
+        int step = sqlite3_step(q);
+        rc = step == SQLITE_ROW    ? OBS_EINVAL
+             : step == SQLITE_DONE ? OBS_ENOTFOUND
+                                   : db_fail(c, err, "reading the job");
+        done(q);
+      }
+    }
+  }
+  release(db, c);
+  return rc;
+}
+
+int srv_db_get_output(srv_db *db, int64_t id, const char *name, srv_output *o, obs_err *err) {
+  memset(o, 0, sizeof *o);
+  conn *c = acquire(db);
+  sqlite3_stmt *s = stmt(c, ST_GET_OUTPUT, err);
+  int rc = OBS_EIO;
+  if (s) {
+    sqlite3_bind_int64(s, 1, id);
+    bind_text(s, 2, name);
+    int step = sqlite3_step(s);
+    if (step == SQLITE_ROW) {
+      snprintf(o->name, sizeof o->name, "%s", name);
+      o->size = sqlite3_column_int64(s, 0);
+      snprintf(o->sha256, sizeof o->sha256, "%s", (const char *)sqlite3_column_text(s, 1));
+      snprintf(o->content_type, sizeof o->content_type, "%s",
+               (const char *)sqlite3_column_text(s, 2));
+      rc = 0;
+    } else {
+      rc = step == SQLITE_DONE ? OBS_ENOTFOUND : db_fail(c, err, "reading the output");
+    }
+    done(s);
+  }
+  release(db, c);
+  return rc;
+}
+
+int srv_db_counts(srv_db *db, int64_t counts[SRV_NSTATES], obs_err *err) {
+  memset(counts, 0, sizeof(int64_t) * SRV_NSTATES);
+  conn *c = acquire(db);
+  sqlite3_stmt *s = stmt(c, ST_COUNTS, err);
+  int rc = OBS_EIO;
+  if (s) {
+    int step;
+    while ((step = sqlite3_step(s)) == SQLITE_ROW) {
+      srv_state st;
+      if (!srv_state_parse((const char *)sqlite3_column_text(s, 0), &st))
+        counts[st] = sqlite3_column_int64(s, 1);
+    }
+    rc = step == SQLITE_DONE ? 0 : db_fail(c, err, "counting jobs");
+    done(s);
+  }
+  release(db, c);
+  return rc;
+}
+
+int srv_db_checkpoint(srv_db *db, obs_err *err) {
+  conn *c = acquire(db);
+  sqlite3_stmt *s = stmt(c, ST_CHECKPOINT, err);
+  int rc = OBS_EIO;
+  if (s) {
+    int step = sqlite3_step(s);
+    /* Row: (busy, wal frames, frames checkpointed); busy = readers kept it from finishing. */
+    if (step == SQLITE_ROW) rc = sqlite3_column_int(s, 0) ? 1 : 0;
+    else rc = db_fail(c, err, "checkpoint");
+    done(s);
+  }
+  release(db, c);
+  return rc;
+}
+
+int srv_db_job_exists(srv_db *db, int64_t id, srv_state *state, obs_err *err) {
+  conn *c = acquire(db);
+  sqlite3_stmt *s = stmt(c, ST_STATE, err);
+  int rc = OBS_EIO;
+  if (s) {
+    sqlite3_bind_int64(s, 1, id);
+    int step = sqlite3_step(s);
+    if (step == SQLITE_ROW) {
+      srv_state st = SRV_FAILED;
+      srv_state_parse((const char *)sqlite3_column_text(s, 0), &st);
+      if (state) *state = st;
+      rc = 1;
+    } else {
+      rc = step == SQLITE_DONE ? 0 : db_fail(c, err, "reading the job");
+    }
+    done(s);
+  }
+  release(db, c);
+  return rc;
+}
+
+/* ---- recovery -------------------------------------------------------------------------------- */
+
+typedef struct pending {
+  int64_t id;
+  int attempts, cancel;
+  char *error;
+  char *technique, *backend;
+  int lane;
+} pending;
+
+static void free_pending(pending *p, int n) {
+  for (int i = 0; i < n; i++) {
+    free(p[i].error);
+    free(p[i].technique);
+    free(p[i].backend);
+  }
+  free(p);
+}
+
+/* Collects the rows of a recovery query (running or queued). */
+static int collect(conn *c, int which, pending **out, int *n, obs_err *err) {
+  *out = NULL;
+  *n = 0;
+  sqlite3_stmt *s = stmt(c, which, err);
+  if (!s) return OBS_EIO;
+  int step, cap = 0;
+  while ((step = sqlite3_step(s)) == SQLITE_ROW) {
+    if (*n == cap) {
+      cap = cap ? cap * 2 : 16;
+      pending *p = realloc(*out, (size_t)cap * sizeof *p);
+      if (!p) {
+        done(s);
+        return obs_err_set(err, OBS_ENOMEM, "out of memory");
+      }
+      *out = p;
+    }
+    pending *p = &(*out)[(*n)++];
+    memset(p, 0, sizeof *p);
+    p->id = sqlite3_column_int64(s, 0);
+    if (which == ST_RUNNING_LIST) {
+      p->attempts = sqlite3_column_int(s, 1);
+      p->cancel = sqlite3_column_int(s, 2);
+      p->error = col_str(s, 3);
+    } else {
+      p->technique = col_str(s, 1);
+      p->backend = col_str(s, 2);
+      const unsigned char *l = sqlite3_column_text(s, 3);
+      p->lane = l && !strcmp((const char *)l, "vulkan");
+    }
+  }
+  int rc = step == SQLITE_DONE ? 0 : db_fail(c, err, "recovery scan");
+  done(s);
+  return rc;
+}
+
+static int end_job(conn *c, int64_t id, srv_state st, const char *msg, obs_err *err) {
+  sqlite3_stmt *s = stmt(c, ST_END_ANY, err);
+  if (!s) return OBS_EIO;
+  bind_text(s, 1, srv_state_name(st));
+  bind_text(s, 2, msg);
+  sqlite3_bind_int64(s, 3, srv_now_unix_ms());
+  sqlite3_bind_int64(s, 4, id);
+  return exec_done(c, s, err, "recovery");
+}
+
+int srv_db_recover(srv_db *db, int vulkan_lane, void (*clean)(void *, int64_t), void *user,
+                   obs_err *err) {
+  conn *c = acquire(db);
+  pending *run = NULL, *queued = NULL;
+  int nrun = 0, nq = 0;
+  int rc = begin(c, err);
+  if (!rc) rc = collect(c, ST_RUNNING_LIST, &run, &nrun, err);
+  for (int i = 0; !rc && i < nrun; i++) {
+    pending *p = &run[i];
+    char msg[1024];
+    if (p->cancel) {
+      rc = end_job(c, p->id, SRV_CANCELLED, "cancelled by request (the daemon stopped first)", err);
+      srv_log("job %lld: running -> cancelled (cancel was pending when the daemon stopped)",
+              (long long)p->id);
+    } else if (p->attempts >= SRV_MAX_ATTEMPTS) {
+      snprintf(msg, sizeof msg, "gave up after %d attempts: attempt %d was interrupted by a "
+               "daemon crash", p->attempts, p->attempts);
+      rc = end_job(c, p->id, SRV_FAILED, msg, err);
+      srv_log("job %lld: running -> failed (%s)", (long long)p->id, msg);
+    } else {
+      snprintf(msg, sizeof msg, "attempt %d was interrupted by a daemon crash; requeued",
+               p->attempts);
+      sqlite3_stmt *s = stmt(c, ST_REQUEUE_CRASH, err);
+      if (!s) rc = OBS_EIO;
+      else {
+        bind_text(s, 1, msg);
+        sqlite3_bind_int64(s, 2, p->id);
+        rc = exec_done(c, s, err, "recovery");
+      }
+      srv_log("job %lld: running -> queued (%s)", (long long)p->id, msg);
+    }
+  }
+  if (!rc) rc = collect(c, ST_QUEUED_LIST, &queued, &nq, err);
+  for (int i = 0; !rc && i < nq; i++) {
+    pending *p = &queued[i];
+    const obs_technique *t = obs_technique_find(p->technique);
+    obs_backend want = !p->backend || !strcmp(p->backend, "auto") ? OBS_BACKEND_AUTO
+                       : !strcmp(p->backend, "vulkan")            ? OBS_BACKEND_VULKAN
+                                                                  : OBS_BACKEND_CPU;
+    obs_backend be = OBS_BACKEND_CPU;
+    obs_err e = OBS_ERR_INIT;
+    int prc = t ? srv_pick_backend(t, want, vulkan_lane, &be, &e)
+                : obs_err_set(&e, OBS_ENOTFOUND, "technique \"%s\" no longer exists",
+                              p->technique ? p->technique : "?");
+    if (prc) {
+      rc = end_job(c, p->id, SRV_FAILED, obs_err_message(&e), err);
+      srv_log("job %lld: queued -> failed (%s)", (long long)p->id, obs_err_message(&e));
+    } else if ((be == OBS_BACKEND_VULKAN) != p->lane) {
+      sqlite3_stmt *s = stmt(c, ST_SET_LANE, err);
+      if (!s) rc = OBS_EIO;
+      else {
+        bind_text(s, 1, be == OBS_BACKEND_VULKAN ? "vulkan" : "cpu");
+        sqlite3_bind_int64(s, 2, p->id);
+        rc = exec_done(c, s, err, "recovery");
+      }
+    }
+    obs_err_free(&e);
+  }
+  if (!rc) rc = commit(c, err);
+  if (rc) rollback(c);
+  release(db, c);
+  /* Half-written outputs go only after the commit: a crash here just repeats the sweep. */
+  for (int i = 0; !rc && clean && i < nrun; i++) clean(user, run[i].id);
+  free_pending(run, nrun);
+  free_pending(queued, nq);
+  return rc;
+}

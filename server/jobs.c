@@ -1,0 +1,375 @@
+/* The scheduler of obscurad: worker threads per lane (CPU, Vulkan) that claim queued jobs from the
+ * database, render them through the renderer API, publish outputs and record the outcome; live
+ * progress and cancel flags kept in memory; a maintenance thread for time limits and checkpoints. */
+#include <errno.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "obscurad.h"
+
+enum { STOP_NONE, STOP_USER, STOP_TIMEOUT, STOP_SHUTDOWN };
+
+/* One worker's current job. `id` and `progress_ppm` are read without the lock by GET handlers
+ * (a stale read only shows a progress value a moment old); `stop` is written under the lock. */
+typedef struct slot {
+  atomic_llong id;           /* 0 = idle */
+  atomic_int cancel;         /* the render's cancel flag */
+  atomic_int progress_ppm;   /* millionths */
+  int stop;                  /* why cancel was raised (STOP_*) */
+  double deadline_ms;        /* obs_now_ms() clock */
+  srv_lane lane;
+  int index;
+  srv_app *app;
+  pthread_t thread;
+} slot;
+
+struct srv_sched {
+  pthread_mutex_t mu;
+  pthread_cond_t work;       /* a job was queued, or stopping */
+  pthread_cond_t maint_cv;
+  unsigned long generation;  /* bumped by notify, so a wake-up between claim and wait is kept */
+  int stopping;
+  int nslots;
+  slot *slots;
+  pthread_t maint;
+  int maint_started;
+  atomic_int finished_since_checkpoint;
+};
+
+void srv_sched_notify(srv_app *app) {
+  srv_sched *s = app->sched;
+  if (!s) return;
+  pthread_mutex_lock(&s->mu);
+  s->generation++;
+  pthread_cond_broadcast(&s->work);
+  pthread_mutex_unlock(&s->mu);
+}
+
+int srv_sched_progress(srv_app *app, int64_t id, double *progress) {
+  srv_sched *s = app->sched;
+  for (int i = 0; s && i < s->nslots; i++) {
+    if (atomic_load(&s->slots[i].id) == id) {
+      *progress = atomic_load(&s->slots[i].progress_ppm) / 1e6;
+      return 1;
+    }
+  }
+  return 0;
+}
+
+int srv_sched_running(srv_app *app) {
+  srv_sched *s = app->sched;
+  int n = 0;
+  for (int i = 0; s && i < s->nslots; i++) n += atomic_load(&s->slots[i].id) != 0;
+  return n;
+}
+
+int srv_sched_cancel(srv_app *app, int64_t id, srv_cancel_result *res, obs_err *err) {
+  srv_sched *s = app->sched;
+  /* Under the scheduler lock: claims register their slot under it too, so a job the database
+   * calls running always has its slot here. */
+  pthread_mutex_lock(&s->mu);
+  int rc = srv_db_cancel(app->db, id, res, err);
+  if (!rc && *res == SRV_CANCEL_RUNNING) {
+    for (int i = 0; i < s->nslots; i++) {
+      slot *sl = &s->slots[i];
+      if (atomic_load(&sl->id) == id && !sl->stop) {
+        sl->stop = STOP_USER;
+        atomic_store(&sl->cancel, 1);
+      }
+    }
+  }
+  pthread_mutex_unlock(&s->mu);
+  if (!rc && *res == SRV_CANCEL_DONE) srv_log("job %lld: queued -> cancelled", (long long)id);
+  if (!rc && *res == SRV_CANCEL_RUNNING) srv_log("job %lld: cancel requested", (long long)id);
+  return rc;
+}
+
+static void on_progress(void *user, double f) {
+  slot *sl = user;
+  int ppm = (int)(f * 1e6);
+  if (ppm < 0) ppm = 0;
+  if (ppm > 1000000) ppm = 1000000;
+  atomic_store(&sl->progress_ppm, ppm);
+}
+
+static void job_done(srv_sched *s) { atomic_fetch_add(&s->finished_since_checkpoint, 1); }
+
+static void fail_job(slot *sl, srv_job *j, srv_state state, const char *msg) {
+  obs_err err = OBS_ERR_INIT;
+  if (srv_db_finish(sl->app->db, j->id, state, msg, atomic_load(&sl->progress_ppm) / 1e6, &err))
+    srv_log("job %lld: cannot record the outcome: %s", (long long)j->id, obs_err_message(&err));
+  obs_err_free(&err);
+  srv_log("job %lld: running -> %s (%s)", (long long)j->id, srv_state_name(state), msg);
+  job_done(sl->app->sched);
+}
+
+/* The render was stopped (or finished after a stop request): record why. */
+static void stopped(slot *sl, srv_job *j, int why) {
+  srv_app *app = sl->app;
+  if (why == STOP_SHUTDOWN) {
+    obs_err err = OBS_ERR_INIT;
+    if (srv_db_requeue(app->db, j->id, &err))
+      srv_log("job %lld: cannot requeue: %s", (long long)j->id, obs_err_message(&err));
+    obs_err_free(&err);
+    srv_log("job %lld: running -> queued (daemon stopping; this attempt does not count)",
+            (long long)j->id);
+  } else if (why == STOP_TIMEOUT) {
+    char msg[96];
+    snprintf(msg, sizeof msg, "render time limit of %d s exceeded", app->cfg.max_render_seconds);
+    fail_job(sl, j, SRV_FAILED, msg);
+  } else {
+    fail_job(sl, j, SRV_CANCELLED, "cancelled by request");
+  }
+}
+
+static int stop_reason(slot *sl) {
+  pthread_mutex_lock(&sl->app->sched->mu);
+  int why = sl->stop;
+  pthread_mutex_unlock(&sl->app->sched->mu);
+  return why;
+}
+
+static void run_job(slot *sl, srv_job *j) {
+  srv_app *app = sl->app;
+  srv_log("job %lld: queued -> running (%s lane, attempt %d)", (long long)j->id,
+          srv_lane_name(sl->lane), j->attempts);
+  obs_err err = OBS_ERR_INIT;
+  double t0 = obs_now_ms();
+  obs_scene sc;
+  int rc = obs_scene_load_string(&sc, j->doc, j->scene, app->scenes_real, NULL, 0, &err);
+  if (rc) {
+    fail_job(sl, j, SRV_FAILED, obs_err_message(&err));
+    obs_err_free(&err);
+    return;
+  }
+  double load_ms = obs_now_ms() - t0;
+  /* The lane decided the backend when the job was accepted (or at recovery); pin it, so an
+   * "auto" job on the CPU lane cannot drift to Vulkan. */
+  obs_backend be = sl->lane == SRV_LANE_VULKAN ? OBS_BACKEND_VULKAN : OBS_BACKEND_CPU;
+  rc = obs_technique_pick_backend(sc.technique, be, &be, &err);
+  if (!rc) {
+    sc.backend = be;
+    obs_err e2 = OBS_ERR_INIT;
+    if (srv_db_set_backend(app->db, j->id, obs_backend_name(be), &e2))
+      srv_log("job %lld: %s", (long long)j->id, obs_err_message(&e2));
+    obs_err_free(&e2);
+  }
+  obs_result res;
+  memset(&res, 0, sizeof res);
+  if (!rc) {
+    obs_render_opts opts = {.threads = app->cpu_threads,
+                            .progress = on_progress,
+                            .progress_user = sl,
+                            .cancel = &sl->cancel};
+    rc = obs_render(&sc, &opts, &res, &err);
+  }
+  int why = stop_reason(sl);
+  if (why) {
+    stopped(sl, j, why);
+  } else if (rc) {
+    fail_job(sl, j, SRV_FAILED, obs_err_message(&err));
+  } else {
+    res.timings.load_ms = load_ms;
+    res.timings.total_ms += load_ms;
+    char stage[4200], final[4200];
+    snprintf(stage, sizeof stage, "%s/.tmp-%lld-%d", app->results_dir, (long long)j->id,
+             j->attempts);
+    srv_results_path(app, j->id, final, sizeof final);
+    srv_remove_tree(stage);
+    srv_output outs[8];
+    int nouts = 0;
+    rc = obs_result_write(&res, &sc, stage, &err);
+    if (!rc) rc = srv_outputs_describe(stage, outs, 8, &nouts, &err);
+    /* Publish the directory first and commit second: a crash in between leaves a job that is
+     * still `running` in the database, which recovery requeues and whose directory it removes. */
+    if (!rc) {
+      srv_remove_tree(final);
+      if (rename(stage, final))
+        rc = obs_err_set(&err, OBS_EIO, "%s: cannot publish the outputs: %s", final,
+                         strerror(errno));
+    }
+    char *summary = NULL;
+    if (!rc) {
+      json_t *sum = obs_result_summary_json(&res, &sc);
+      summary = json_dumps(sum, JSON_COMPACT | JSON_REAL_PRECISION(9));
+      json_decref(sum);
+      rc = srv_db_finish_success(app->db, j->id, obs_backend_name(res.backend), summary, outs,
+                                 nouts, &err);
+    }
+    free(summary);
+    if (rc) {
+      srv_remove_tree(stage);
+      srv_remove_tree(final);
+      fail_job(sl, j, SRV_FAILED, obs_err_message(&err));
+    } else {
+      srv_metrics_render(res.technique->name, obs_backend_name(res.backend),
+                         res.timings.total_ms / 1e3);
+      srv_log("job %lld: running -> succeeded (%s/%s %dx%d, %.1f ms)", (long long)j->id,
+              res.technique->name, obs_backend_name(res.backend), res.image.width,
+              res.image.height, res.timings.total_ms);
+      job_done(app->sched);
+    }
+  }
+  obs_result_free(&res);
+  obs_scene_free(&sc);
+  obs_err_free(&err);
+}
+
+static void *worker(void *arg) {
+  slot *sl = arg;
+  srv_sched *s = sl->app->sched;
+  /* Renders run niced (the renderer's tile threads inherit it from this thread): with every core
+   * busy rendering, HTTP threads still get the CPU at once, which keeps API latency low. */
+  if (sl->app->cfg.worker_nice &&
+      setpriority(PRIO_PROCESS, (id_t)syscall(SYS_gettid), sl->app->cfg.worker_nice))
+    srv_log("worker %d: cannot lower its priority (continuing)", sl->index);
+  for (;;) {
+    srv_job j;
+    int have = 0;
+    pthread_mutex_lock(&s->mu);
+    while (!s->stopping) {
+      unsigned long gen = s->generation;
+      obs_err err = OBS_ERR_INIT;
+      int rc = srv_db_claim(sl->app->db, sl->lane, &j, &err);
+      if (rc < 0) srv_log("worker %d: %s", sl->index, obs_err_message(&err));
+      obs_err_free(&err);
+      if (rc == 0) {
+        atomic_store(&sl->progress_ppm, 0);
+        atomic_store(&sl->cancel, 0);
+        sl->stop = j.cancel_requested ? STOP_USER : STOP_NONE;
+        if (sl->stop) atomic_store(&sl->cancel, 1);
+        sl->deadline_ms = obs_now_ms() + 1e3 * sl->app->cfg.max_render_seconds;
+        atomic_store(&sl->id, j.id);
+        have = 1;
+        break;
+      }
+      /* Nothing queued (or the database is busy): sleep until notified; the timeout is only a
+       * safety net. */
+      struct timespec ts;
+      clock_gettime(CLOCK_REALTIME, &ts);
+      ts.tv_sec += rc < 0 ? 1 : 5;
+      while (gen == s->generation && !s->stopping)
+        if (pthread_cond_timedwait(&s->work, &s->mu, &ts) == ETIMEDOUT) break;
+    }
+    pthread_mutex_unlock(&s->mu);
+    if (!have) break;
+    run_job(sl, &j);
+    srv_job_free(&j);
+    pthread_mutex_lock(&s->mu);
+    atomic_store(&sl->id, 0);
+    sl->stop = STOP_NONE;
+    pthread_mutex_unlock(&s->mu);
+  }
+  return NULL;
+}
+
+/* Render time limits (checked 4 times a second) and WAL checkpoints. */
+static void *maintenance(void *arg) {
+  srv_app *app = arg;
+  srv_sched *s = app->sched;
+  double last_checkpoint = obs_now_ms();
+  pthread_mutex_lock(&s->mu);
+  while (!s->stopping) {
+    struct timespec ts;
+    clock_gettime(CLOCK_REALTIME, &ts);
+    ts.tv_nsec += 250 * 1000000L;
+    if (ts.tv_nsec >= 1000000000L) {
+      ts.tv_sec++;
+      ts.tv_nsec -= 1000000000L;
+    }
+    pthread_cond_timedwait(&s->maint_cv, &s->mu, &ts);
+    if (s->stopping) break;
+    double now = obs_now_ms();
+    for (int i = 0; i < s->nslots; i++) {
+      slot *sl = &s->slots[i];
+      if (atomic_load(&sl->id) && !sl->stop && now > sl->deadline_ms) {
+        sl->stop = STOP_TIMEOUT;
+        atomic_store(&sl->cancel, 1);
+        srv_log("job %lld: render time limit of %d s exceeded, stopping it",
+                (long long)atomic_load(&sl->id), app->cfg.max_render_seconds);
+      }
+    }
+    if (now - last_checkpoint >= 1e3 * app->cfg.checkpoint_seconds ||
+        atomic_load(&s->finished_since_checkpoint) >= app->cfg.checkpoint_jobs) {
+      pthread_mutex_unlock(&s->mu);
+      obs_err err = OBS_ERR_INIT;
+      int rc = srv_db_checkpoint(app->db, &err);
+      if (rc < 0) srv_log("checkpoint: %s", obs_err_message(&err));
+      obs_err_free(&err);
+      atomic_store(&s->finished_since_checkpoint, 0);
+      last_checkpoint = obs_now_ms();
+      pthread_mutex_lock(&s->mu);
+    }
+  }
+  pthread_mutex_unlock(&s->mu);
+  return NULL;
+}
+
+int srv_sched_start(srv_app *app, obs_err *err) {
+  srv_sched *s = calloc(1, sizeof *s);
+  if (!s) return obs_err_set(err, OBS_ENOMEM, "out of memory");
+  pthread_mutex_init(&s->mu, NULL);
+  pthread_cond_init(&s->work, NULL);
+  pthread_cond_init(&s->maint_cv, NULL);
+  s->nslots = app->cfg.workers + (app->vulkan_lane ? 1 : 0);
+  s->slots = calloc((size_t)s->nslots, sizeof *s->slots);
+  if (!s->slots) {
+    free(s);
+    return obs_err_set(err, OBS_ENOMEM, "out of memory");
+  }
+  app->sched = s;
+  for (int i = 0; i < s->nslots; i++) {
+    slot *sl = &s->slots[i];
+    atomic_init(&sl->id, 0);
+    atomic_init(&sl->cancel, 0);
+    atomic_init(&sl->progress_ppm, 0);
+    sl->lane = i < app->cfg.workers ? SRV_LANE_CPU : SRV_LANE_VULKAN;
+    sl->index = i;
+    sl->app = app;
+  }
+  atomic_init(&s->finished_since_checkpoint, 0);
+  for (int i = 0; i < s->nslots; i++) {
+    if (pthread_create(&s->slots[i].thread, NULL, worker, &s->slots[i])) {
+      s->nslots = i;
+      srv_sched_stop(app);
+      return obs_err_set(err, OBS_EINTERNAL, "cannot start worker threads");
+    }
+  }
+  if (pthread_create(&s->maint, NULL, maintenance, app)) {
+    srv_sched_stop(app);
+    return obs_err_set(err, OBS_EINTERNAL, "cannot start the maintenance thread");
+  }
+  s->maint_started = 1;
+  return 0;
+}
+
+void srv_sched_stop(srv_app *app) {
+  srv_sched *s = app->sched;
+  if (!s) return;
+  pthread_mutex_lock(&s->mu);
+  s->stopping = 1;
+  for (int i = 0; i < s->nslots; i++) {
+    slot *sl = &s->slots[i];
+    if (atomic_load(&sl->id) && !sl->stop) {
+      sl->stop = STOP_SHUTDOWN;
+      atomic_store(&sl->cancel, 1);
+    }
+  }
+  pthread_cond_broadcast(&s->work);
+  pthread_cond_broadcast(&s->maint_cv);
+  pthread_mutex_unlock(&s->mu);
+  for (int i = 0; i < s->nslots; i++) pthread_join(s->slots[i].thread, NULL);
+  if (s->maint_started) pthread_join(s->maint, NULL);
+  pthread_mutex_destroy(&s->mu);
+  pthread_cond_destroy(&s->work);
+  pthread_cond_destroy(&s->maint_cv);
+  free(s->slots);
+  free(s);
+  app->sched = NULL;
+}

@@ -1,0 +1,164 @@
+/* obscurad's entry point: options, security checks on the listen address and token, directories,
+ * database recovery, then the scheduler and HTTP server until SIGINT/SIGTERM. */
+#include <arpa/inet.h>
+#include <errno.h>
+#include <limits.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "obscurad.h"
+
+/* Loopback means 127.0.0.0/8, ::1 or "localhost": the only addresses allowed without a token. */
+static int is_loopback(const char *host) {
+  if (!strcmp(host, "localhost")) return 1;
+  struct in_addr a4;
+  struct in6_addr a6;
+  if (inet_pton(AF_INET, host, &a4) == 1) return (ntohl(a4.s_addr) >> 24) == 127;
+  if (inet_pton(AF_INET6, host, &a6) == 1) return IN6_IS_ADDR_LOOPBACK(&a6);
+  return 0;
+}
+
+static int read_token(srv_app *app) {
+  const char *path = app->cfg.token_file;
+  FILE *f = fopen(path, "r");
+  if (!f) {
+    fprintf(stderr, "obscurad: --token-file %s: cannot open: %s\n", path, strerror(errno));
+    return -1;
+  }
+  char buf[4097];
+  size_t n = fread(buf, 1, sizeof buf - 1, f);
+  int too_long = !feof(f);
+  fclose(f);
+  buf[n] = '\0';
+  char *s = buf;
+  while (*s == ' ' || *s == '\t' || *s == '\n' || *s == '\r') s++;
+  size_t len = strlen(s);
+  while (len && (s[len - 1] == ' ' || s[len - 1] == '\t' || s[len - 1] == '\n' ||
+                 s[len - 1] == '\r'))
+    s[--len] = '\0';
+  if (too_long || len == 0 || strpbrk(s, " \t\r\n")) {
+    fprintf(stderr, "obscurad: --token-file %s: must hold one token of 1 to 4096 characters "
+                    "without spaces\n", path);
+    return -1;
+  }
+  if (len < 16) srv_log("warning: the token in %s is short (%zu characters)", path, len);
+  struct stat st;
+  if (!stat(path, &st) && (st.st_mode & 077))
+    srv_log("warning: %s is readable by other users (chmod 600 it)", path);
+  srv_sha256(s, len, app->token_digest);
+  memset(buf, 0, sizeof buf);
+  app->has_token = 1;
+  return 0;
+}
+
+static void clean_outputs(void *user, int64_t id) { srv_outputs_remove(user, id); }
+
+static int resolve_dir(const char *opt, const char *dir, char *out, int required) {
+  struct stat st;
+  if (realpath(dir, out) && !stat(out, &st) && S_ISDIR(st.st_mode)) return 0;
+  out[0] = '\0';
+  if (!required) {
+    srv_log("warning: --%s %s is not a directory; nothing will be served at /", opt, dir);
+    return 0;
+  }
+  fprintf(stderr, "obscurad: --%s %s: not a directory\n", opt, dir);
+  return -1;
+}
+
+int main(int argc, char **argv) {
+  static srv_app app;
+  int rc = srv_config_parse(&app.cfg, argc, argv);
+  if (rc) {
+    srv_config_free(&app.cfg);
+    return rc > 0 ? 0 : 2;
+  }
+  app.start_ms = obs_now_ms();
+  int status = 1;
+  obs_err err = OBS_ERR_INIT;
+
+  /* Signals are taken by sigwait below; every thread started later inherits the mask. */
+  sigset_t sigs;
+  sigemptyset(&sigs);
+  sigaddset(&sigs, SIGINT);
+  sigaddset(&sigs, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &sigs, NULL);
+  signal(SIGPIPE, SIG_IGN);
+
+  if (!is_loopback(app.cfg.listen) && !app.cfg.token_file) {
+    fprintf(stderr, "obscurad: refusing to listen on %s without --token-file: only loopback "
+                    "addresses may run without authentication\n", app.cfg.listen);
+    srv_config_free(&app.cfg);
+    return 2;
+  }
+  if (app.cfg.token_file && read_token(&app)) {
+    srv_config_free(&app.cfg);
+    return 2;
+  }
+  snprintf(app.results_dir, sizeof app.results_dir, "%s/results", app.cfg.data_dir);
+  char dbdir[PATH_MAX];
+  snprintf(dbdir, sizeof dbdir, "%s", app.cfg.db);
+  char *slash = strrchr(dbdir, '/');
+  if (slash && slash != dbdir) *slash = '\0';
+  if (srv_mkdirs(app.results_dir) || (slash && slash != dbdir && srv_mkdirs(dbdir))) {
+    fprintf(stderr, "obscurad: cannot create %s or the database's directory: %s\n",
+            app.results_dir, strerror(errno));
+    srv_config_free(&app.cfg);
+    return 1;
+  }
+  char real[PATH_MAX];
+  if (resolve_dir("scenes-dir", app.cfg.scenes_dir, app.scenes_real, 1) ||
+      resolve_dir("web-dir", app.cfg.web_dir, app.web_real, 0) ||
+      resolve_dir("data-dir", app.results_dir, real, 1)) {
+    srv_config_free(&app.cfg);
+    return 2;
+  }
+  snprintf(app.results_dir, sizeof app.results_dir, "%s", real);
+
+  srv_metrics_init();
+  app.vk_available = obs_vk_available();
+  app.vulkan_lane = app.cfg.vulkan && app.vk_available;
+  app.cpu_threads = obs_cpu_count() / app.cfg.workers;
+  if (app.cpu_threads < 1) app.cpu_threads = 1;
+
+  /* One connection per thread that can hold one: HTTP pool, workers, maintenance, main. */
+  int nconn = app.cfg.http_threads + app.cfg.workers + 3;
+  if (srv_db_open(&app.db, app.cfg.db, nconn, &err)) goto out;
+  if (srv_db_recover(app.db, app.vulkan_lane, clean_outputs, &app, &err)) goto out;
+  srv_outputs_sweep(&app);
+  if (srv_sched_start(&app, &err)) goto out;
+  if (srv_http_start(&app, &err)) goto out;
+
+  const char *host = app.cfg.listen;
+  int v6 = strchr(host, ':') != NULL;
+  fprintf(stderr, "obscurad: listening on http://%s%s%s:%d\n", v6 ? "[" : "", host,
+          v6 ? "]" : "", app.port);
+  srv_log("obscurad %s: database %s, results %s, scenes %s, web %s; %d CPU worker(s) x %d "
+          "thread(s), Vulkan lane %s; token %s",
+          OBSCURA_VERSION, app.cfg.db, app.results_dir, app.scenes_real,
+          app.web_real[0] ? app.web_real : "(none)", app.cfg.workers, app.cpu_threads,
+          app.vulkan_lane ? "on" : app.vk_available ? "off (--no-vulkan)" : "off (no device)",
+          app.has_token ? "required" : "not required (loopback)");
+
+  int sig = 0;
+  sigwait(&sigs, &sig);
+  srv_log("signal %d: stopping (running renders are cancelled and requeued)", sig);
+  status = 0;
+
+out:
+  if (err.count) fprintf(stderr, "obscurad: %s\n", obs_err_message(&err));
+  srv_http_stop(&app);
+  srv_sched_stop(&app);
+  if (app.db) {
+    obs_err e2 = OBS_ERR_INIT;
+    srv_db_checkpoint(app.db, &e2);
+    obs_err_free(&e2);
+  }
+  srv_db_close(app.db);
+  srv_metrics_free();
+  obs_err_free(&err);
+  srv_config_free(&app.cfg);
+  return status;
+}

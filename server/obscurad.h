@@ -1,0 +1,317 @@
+/* Shared declarations of the job server obscurad: configuration, the application context every
+ * module receives, and the interfaces between the modules (one .c file per concern). */
+#ifndef OBSCURAD_H
+#define OBSCURAD_H
+
+#include <jansson.h>
+#include <stdatomic.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "obscura/obscura.h"
+
+#define SRV_MAX_ATTEMPTS 3
+
+/* ---- configuration (config.c) ---------------------------------------------------------------- */
+
+/* Every option of the daemon. Strings are owned (heap) and released by srv_config_free. */
+typedef struct srv_config {
+  char *listen;          /* IPv4 or IPv6 literal; default 127.0.0.1 */
+  int port;              /* 0 = ephemeral */
+  char *db;              /* default <data-dir>/obscura.db */
+  char *data_dir;        /* default var */
+  char *scenes_dir;      /* default scenes */
+  char *web_dir;         /* default web */
+  char *token_file;      /* NULL = no authentication (loopback only) */
+  int workers;           /* CPU lane workers, default 1 */
+  int vulkan;            /* 1 = run a Vulkan lane when a device exists (default), 0 = never */
+  int http_threads;      /* libmicrohttpd thread pool size, default: cores (at least 2) */
+  int64_t max_body;      /* bytes, default 16 MiB */
+  int64_t max_pixels;    /* width x height */
+  double max_work;       /* width x height x spp x samples */
+  int64_t max_triangles;
+  int max_render_seconds;
+  int worker_nice;        /* nice value of render threads (0..19), default 10 */
+  int checkpoint_seconds; /* WAL checkpoint period */
+  int checkpoint_jobs;    /* ... or after this many finished jobs */
+  int quiet;              /* no per-request log lines (job lines stay) */
+} srv_config;
+
+/* Fills defaults, reads --config FILE (if any) and then the command line, which wins. Returns 0,
+ * 1 when --help was printed, or -1 after printing the problem to stderr. */
+int srv_config_parse(srv_config *cfg, int argc, char **argv);
+void srv_config_free(srv_config *cfg);
+
+/* ---- logging and small helpers (util.c) ------------------------------------------------------ */
+
+/* One line to stderr, prefixed with the UTC time; written with a single write(2) so lines from
+ * different threads never interleave. */
+void srv_log(const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 1, 2)))
+#endif
+    ;
+int64_t srv_now_unix_ms(void);
+/* RFC 3339 UTC with milliseconds into buf (at least 32 bytes). */
+void srv_format_time(int64_t unix_ms, char *buf, size_t n);
+/* Strict decimal id (1..2^63-1, no sign, no leading zero). Returns 0 on success. */
+int srv_parse_id(const char *s, size_t len, int64_t *out);
+/* mkdir -p. Returns 0 or -1 with errno. */
+int srv_mkdirs(const char *path);
+/* rm -rf of a directory we created (no symlink following). Returns 0 when gone. */
+int srv_remove_tree(const char *path);
+/* Whether `path` (resolved) lies inside the resolved directory `dir`. */
+int srv_path_inside(const char *dir, const char *path);
+
+/* ---- database (db.c) ------------------------------------------------------------------------- */
+
+typedef struct srv_db srv_db;
+
+typedef enum {
+  SRV_QUEUED,
+  SRV_RUNNING,
+  SRV_SUCCEEDED,
+  SRV_FAILED,
+  SRV_CANCELLED,
+  SRV_NSTATES
+} srv_state;
+const char *srv_state_name(srv_state s);
+int srv_state_parse(const char *s, srv_state *out);
+
+typedef enum { SRV_LANE_CPU, SRV_LANE_VULKAN, SRV_NLANES } srv_lane;
+const char *srv_lane_name(srv_lane l);
+
+typedef struct srv_output {
+  char name[32];
+  int64_t size;
+  char sha256[65];
+  char content_type[40];
+} srv_output;
+
+/* A row of `jobs` with its outputs. Owns its strings; release with srv_job_free. */
+typedef struct srv_job {
+  int64_t id;
+  srv_state state;
+  int priority;
+  char *label;             /* may be NULL */
+  char *scene;
+  char *technique;
+  char *backend_requested;
+  char *backend;           /* may be NULL until claimed */
+  srv_lane lane;
+  int width, height, spp;
+  int attempts;
+  int cancel_requested;
+  int64_t created_ms, started_ms, finished_ms; /* 0 = not yet */
+  char *error;             /* may be NULL */
+  char *summary;           /* summary.json text, may be NULL */
+  double progress;         /* stored at the end of an attempt; live value comes from the scheduler */
+  char *doc;               /* only filled by srv_db_claim */
+  srv_output *outputs;
+  int noutputs;
+} srv_job;
+void srv_job_free(srv_job *j);
+
+/* What the submission path hands to srv_db_insert_job (borrowed). */
+typedef struct srv_new_job {
+  int priority;
+  const char *label, *scene, *doc, *technique, *backend_requested;
+  srv_lane lane;
+  int width, height, spp;
+} srv_new_job;
+
+typedef struct srv_job_filter {
+  int has_state;
+  srv_state state;
+  const char *technique, *backend; /* NULL = any */
+  int64_t after;                   /* 0 = from the start */
+  int ascending;
+  int limit;
+} srv_job_filter;
+
+/* Opens (creating) the database with `nconn` pooled connections, applies the migrations of
+ * schema/db.sql. Messages go to err. */
+int srv_db_open(srv_db **out, const char *path, int nconn, obs_err *err);
+void srv_db_close(srv_db *db);
+/* The backend a job runs on in this daemon: the renderer's choice, except that "auto" falls back
+ * to the CPU when the renderer would pick Vulkan but no Vulkan lane runs (--no-vulkan). An
+ * explicit "vulkan" without a lane is an error naming the flag. */
+int srv_pick_backend(const obs_technique *t, obs_backend requested, int vulkan_lane,
+                     obs_backend *out, obs_err *err);
+/* Re-resolves lanes of queued jobs (the Vulkan device may have come or gone), fails those no lane
+ * can run, and returns running jobs to queued (or fails them at SRV_MAX_ATTEMPTS). Calls
+ * `clean(user, id)` for every job whose half-written outputs must go. Run before any worker. */
+int srv_db_recover(srv_db *db, int vulkan_lane, void (*clean)(void *, int64_t), void *user,
+                   obs_err *err);
+
+int srv_db_insert_job(srv_db *db, const srv_new_job *nj, int64_t *id, obs_err *err);
+/* 0 and *j filled, OBS_ENOTFOUND, or another error. */
+int srv_db_get_job(srv_db *db, int64_t id, srv_job *j, obs_err *err);
+/* Fills up to f->limit + 1 jobs (the extra one only tells whether there is a next page). */
+int srv_db_list_jobs(srv_db *db, const srv_job_filter *f, srv_job **jobs, int *n, obs_err *err);
+void srv_jobs_free(srv_job *jobs, int n);
+/* Claims the next queued job of `lane` (state running, attempts + 1, started now, backend) in one
+ * UPDATE ... RETURNING. Returns 0 with *j filled (doc included), 1 when none is queued, or <0. */
+int srv_db_claim(srv_db *db, srv_lane lane, srv_job *j, obs_err *err);
+/* Sets the resolved backend of a running job. */
+int srv_db_set_backend(srv_db *db, int64_t id, const char *backend, obs_err *err);
+/* Marks a running job succeeded with its summary and records its outputs, in one transaction. */
+int srv_db_finish_success(srv_db *db, int64_t id, const char *backend, const char *summary,
+                          const srv_output *outs, int nouts, obs_err *err);
+/* Marks a running job failed or cancelled with `error`. */
+/* Ends a running job as failed or cancelled, keeping the last progress it reached. */
+int srv_db_finish(srv_db *db, int64_t id, srv_state state, const char *error, double progress,
+                  obs_err *err);
+/* Returns a running job to the queue (daemon shutting down): its attempt does not count. */
+int srv_db_requeue(srv_db *db, int64_t id, obs_err *err);
+
+typedef enum { SRV_CANCEL_DONE, SRV_CANCEL_RUNNING, SRV_CANCEL_FINISHED } srv_cancel_result;
+/* Queued: cancelled now. Running: cancel_requested set (the scheduler stops the render). */
+int srv_db_cancel(srv_db *db, int64_t id, srv_cancel_result *res, obs_err *err);
+/* Deletes a finished job and its output rows. OBS_ENOTFOUND, or OBS_EINVAL when not finished. */
+int srv_db_delete(srv_db *db, int64_t id, obs_err *err);
+int srv_db_get_output(srv_db *db, int64_t id, const char *name, srv_output *o, obs_err *err);
+/* Job counts by state. */
+int srv_db_counts(srv_db *db, int64_t counts[SRV_NSTATES], obs_err *err);
+/* PRAGMA wal_checkpoint(TRUNCATE). */
+int srv_db_checkpoint(srv_db *db, obs_err *err);
+/* 1 with *state when job `id` exists, 0 when not, <0 on error. */
+int srv_db_job_exists(srv_db *db, int64_t id, srv_state *state, obs_err *err);
+
+/* ---- metrics (metrics.c) --------------------------------------------------------------------- */
+
+typedef enum {
+  SRV_ROUTE_JOBS,
+  SRV_ROUTE_JOB,
+  SRV_ROUTE_JOB_CANCEL,
+  SRV_ROUTE_JOB_OUTPUT,
+  SRV_ROUTE_TECHNIQUES,
+  SRV_ROUTE_SCENES,
+  SRV_ROUTE_HEALTH,
+  SRV_ROUTE_METRICS,
+  SRV_ROUTE_STATIC,
+  SRV_ROUTE_UNKNOWN,
+  SRV_NROUTES
+} srv_route;
+
+void srv_metrics_init(void);
+void srv_metrics_free(void);
+void srv_metrics_http(srv_route route, unsigned status);
+void srv_metrics_render(const char *technique, const char *backend, double seconds);
+struct srv_app;
+/* The Prometheus text (malloc'd). */
+char *srv_metrics_text(struct srv_app *app, size_t *len);
+
+/* ---- scheduler (jobs.c) ---------------------------------------------------------------------- */
+
+typedef struct srv_sched srv_sched;
+int srv_sched_start(struct srv_app *app, obs_err *err);
+/* Wakes idle workers: a job was queued. */
+void srv_sched_notify(struct srv_app *app);
+/* Live progress of a running job; returns 0 when it is not running here. */
+int srv_sched_progress(struct srv_app *app, int64_t id, double *progress);
+/* Cancels a job: queued ones at once in the database, running ones by raising their render's
+ * cancel flag (the worker then records `cancelled`). */
+int srv_sched_cancel(struct srv_app *app, int64_t id, srv_cancel_result *res, obs_err *err);
+int srv_sched_running(struct srv_app *app);
+/* Stops workers: running renders are cancelled and their jobs go back to the queue. */
+void srv_sched_stop(struct srv_app *app);
+
+/* ---- outputs (outputs.c) --------------------------------------------------------------------- */
+
+/* The fixed set of output files: content type, or NULL when `name` is not one. */
+const char *srv_output_content_type(const char *name);
+/* <data>/results/<id> into buf. */
+void srv_results_path(const struct srv_app *app, int64_t id, char *buf, size_t n);
+/* Hashes and describes every file of the fixed set present in `dir`. */
+int srv_outputs_describe(const char *dir, srv_output *outs, int max, int *n, obs_err *err);
+/* Removes results/<id> and any staging directory of job `id`. */
+void srv_outputs_remove(const struct srv_app *app, int64_t id);
+/* Removes staging directories and result directories of jobs that are not succeeded. */
+void srv_outputs_sweep(struct srv_app *app);
+
+/* ---- HTTP (http.c, api.c, static.c) ----------------------------------------------------------- */
+
+typedef struct srv_req srv_req;
+struct MHD_Connection;
+struct MHD_Response;
+
+/* The request as the handlers see it; http.c allocates and frees it (with `path` and `body`)
+ * when libmicrohttpd reports the request complete. */
+struct srv_req {
+  struct srv_app *app;
+  struct MHD_Connection *conn;
+  const char *method;
+  char *path;          /* decoded URL path (owned copy) */
+  char *body;          /* NUL-terminated, may contain NULs; owned */
+  size_t len, cap;
+  int too_big;
+  int responded;
+  unsigned status;
+  srv_route route;
+  double t0;
+};
+
+/* Queues `resp` (adding the security headers) and records the status. Consumes resp. */
+int srv_respond(srv_req *r, unsigned status, struct MHD_Response *resp);
+/* JSON body (consumes `body`). */
+int srv_respond_json(srv_req *r, unsigned status, json_t *body);
+/* {"error": msg, "problems": [lines of problems]}; problems may be NULL. */
+int srv_respond_error(srv_req *r, unsigned status, const obs_err *problems, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 4, 5)))
+#endif
+    ;
+/* 405 with Allow. */
+int srv_respond_method(srv_req *r, const char *allow);
+
+/* Routes one complete request (api.c). */
+int srv_api_dispatch(srv_req *r);
+/* The route a path belongs to, for auth and metrics (api.c). */
+srv_route srv_api_route(const char *path);
+/* Serves a static file of --web-dir (static.c). */
+int srv_static_serve(srv_req *r);
+/* Serves one output file with ETag/Range handling (outputs.c). */
+int srv_output_serve(srv_req *r, int64_t id, const char *name);
+/* Submission: body -> validated job spec (submit.c). Owns its strings; release with
+ * srv_submission_free (a zeroed struct is fine). */
+typedef struct srv_submission {
+  int priority;
+  char *label, *scene, *doc, *technique, *backend_requested;
+  srv_lane lane;
+  int width, height, spp;
+} srv_submission;
+/* Returns 0 or the HTTP status to answer with; *message is a static summary, problems the list. */
+unsigned srv_submit_parse(struct srv_app *app, const char *body, size_t len, srv_submission *s,
+                          const char **message, obs_err *problems);
+void srv_submission_free(srv_submission *s);
+
+int srv_http_start(struct srv_app *app, obs_err *err);
+void srv_http_stop(struct srv_app *app);
+
+/* ---- the application ------------------------------------------------------------------------- */
+
+typedef struct srv_app {
+  srv_config cfg;
+  srv_db *db;
+  srv_sched *sched;
+  struct MHD_Daemon *mhd;
+  char scenes_real[4096];  /* resolved --scenes-dir */
+  char web_real[4096];     /* resolved --web-dir, "" when it does not exist */
+  char results_dir[4096];  /* <data-dir>/results */
+  int has_token;
+  unsigned char token_digest[32]; /* SHA-256 of the token: compared in constant time */
+  int vk_available;        /* the renderer found a Vulkan device */
+  int vulkan_lane;         /* a Vulkan lane runs */
+  int cpu_threads;         /* threads per render */
+  int port;                /* the bound port */
+  double start_ms;
+} srv_app;
+
+/* From the renderer's Vulkan layer (renderer/vulkan/vk.h): whether a device exists. */
+int obs_vk_available(void);
+
+/* SHA-256 of a buffer (outputs.c). */
+void srv_sha256(const void *data, size_t len, unsigned char out[32]);
+
+#endif

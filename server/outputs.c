@@ -1,0 +1,284 @@
+/* Job outputs on disk: the fixed set of names, SHA-256 and size records, the start-up sweep of
+ * half-written results, and serving files with ETag, Cache-Control and single byte ranges. */
+#include <dirent.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <inttypes.h>
+#include <microhttpd.h>
+#include <openssl/evp.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "obscurad.h"
+
+/* Only these are ever recorded or served: a name from a URL is never used as a path unless it is
+ * one of them. */
+static const struct {
+  const char *name, *type;
+} known[] = {
+    {"ao.exr", "image/x-exr"},
+    {"ao.png", "image/png"},
+    {"summary.json", "application/json"},
+};
+#define NKNOWN (sizeof known / sizeof known[0])
+
+const char *srv_output_content_type(const char *name) {
+  for (size_t i = 0; name && i < NKNOWN; i++)
+    if (!strcmp(name, known[i].name)) return known[i].type;
+  return NULL;
+}
+
+void srv_results_path(const srv_app *app, int64_t id, char *buf, size_t n) {
+  snprintf(buf, n, "%s/%lld", app->results_dir, (long long)id);
+}
+
+void srv_sha256(const void *data, size_t len, unsigned char out[32]) {
+  unsigned int n = 32;
+  EVP_Digest(data, len, out, &n, EVP_sha256(), NULL);
+}
+
+static int hash_file(const char *path, char hex[65], int64_t *size, obs_err *err) {
+  int fd = open(path, O_RDONLY | O_NOFOLLOW | O_CLOEXEC);
+  if (fd < 0) return obs_err_set(err, OBS_EIO, "%s: cannot open: %s", path, strerror(errno));
+  EVP_MD_CTX *ctx = EVP_MD_CTX_new();
+  if (!ctx || !EVP_DigestInit_ex(ctx, EVP_sha256(), NULL)) {
+    EVP_MD_CTX_free(ctx);
+    close(fd);
+    return obs_err_set(err, OBS_EINTERNAL, "SHA-256 unavailable");
+  }
+  static _Thread_local unsigned char chunk[1 << 16];
+  int64_t total = 0;
+  int rc = 0;
+  for (;;) {
+    ssize_t n = read(fd, chunk, sizeof chunk);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      rc = obs_err_set(err, OBS_EIO, "%s: read failed: %s", path, strerror(errno));
+      break;
+    }
+    if (n == 0) break;
+    EVP_DigestUpdate(ctx, chunk, (size_t)n);
+    total += n;
+  }
+  unsigned char md[32];
+  unsigned int mdlen = 32;
+  EVP_DigestFinal_ex(ctx, md, &mdlen);
+  EVP_MD_CTX_free(ctx);
+  close(fd);
+  if (rc) return rc;
+  for (int i = 0; i < 32; i++) snprintf(hex + 2 * i, 3, "%02x", md[i]);
+  *size = total;
+  return 0;
+}
+
+int srv_outputs_describe(const char *dir, srv_output *outs, int max, int *n, obs_err *err) {
+  *n = 0;
+  for (size_t i = 0; i < NKNOWN && *n < max; i++) {
+    char path[8400];
+    snprintf(path, sizeof path, "%s/%s", dir, known[i].name);
+    struct stat st;
+    if (lstat(path, &st) || !S_ISREG(st.st_mode)) continue;
+    srv_output *o = &outs[*n];
+    memset(o, 0, sizeof *o);
+    snprintf(o->name, sizeof o->name, "%s", known[i].name);
+    snprintf(o->content_type, sizeof o->content_type, "%s", known[i].type);
+    int rc = hash_file(path, o->sha256, &o->size, err);
+    if (rc) return rc;
+    (*n)++;
+  }
+  return 0;
+}
+
+void srv_outputs_remove(const srv_app *app, int64_t id) {
+  char path[8400];
+  srv_results_path(app, id, path, sizeof path);
+  if (srv_remove_tree(path)) srv_log("job %lld: cannot remove %s: %s", (long long)id, path,
+                                     strerror(errno));
+  char prefix[48];
+  int np = snprintf(prefix, sizeof prefix, ".tmp-%lld-", (long long)id);
+  DIR *d = opendir(app->results_dir);
+  if (!d) return;
+  struct dirent *e;
+  while ((e = readdir(d))) {
+    if (strncmp(e->d_name, prefix, (size_t)np)) continue;
+    snprintf(path, sizeof path, "%s/%s", app->results_dir, e->d_name);
+    srv_remove_tree(path);
+  }
+  closedir(d);
+}
+
+void srv_outputs_sweep(srv_app *app) {
+  DIR *d = opendir(app->results_dir);
+  if (!d) return;
+  struct dirent *e;
+  char path[8400];
+  while ((e = readdir(d))) {
+    int64_t id;
+    int stale = 0;
+    if (!strncmp(e->d_name, ".tmp-", 5)) {
+      stale = 1;
+    } else if (!srv_parse_id(e->d_name, strlen(e->d_name), &id)) {
+      srv_state st;
+      obs_err err = OBS_ERR_INIT;
+      int ex = srv_db_job_exists(app->db, id, &st, &err);
+      obs_err_free(&err);
+      /* Only a succeeded job owns a results directory; anything else is what a crash (or a
+       * deletion cut short) left behind. */
+      stale = ex == 0 || (ex == 1 && st != SRV_SUCCEEDED);
+    }
+    if (!stale) continue;
+    snprintf(path, sizeof path, "%s/%s", app->results_dir, e->d_name);
+    srv_log("start-up: removing stale %s", path);
+    srv_remove_tree(path);
+  }
+  closedir(d);
+}
+
+/* ---- serving --------------------------------------------------------------------------------- */
+
+/* Whether an If-None-Match list names `etag` (quoted) or is "*". Weak tags compare weakly. */
+static int etag_matches(const char *list, const char *etag) {
+  if (!list) return 0;
+  size_t n = strlen(etag);
+  const char *p = list;
+  while (*p) {
+    while (*p == ' ' || *p == '\t' || *p == ',') p++;
+    if (*p == '*') return 1;
+    if (!strncmp(p, "W/", 2)) p += 2;
+    if (!strncmp(p, etag, n) && (p[n] == '\0' || p[n] == ',' || p[n] == ' ' || p[n] == '\t'))
+      return 1;
+    while (*p && *p != ',') p++;
+  }
+  return 0;
+}
+
+static int parse_u64(const char **p, uint64_t *out) {
+  const char *s = *p;
+  if (*s < '0' || *s > '9') return -1;
+  uint64_t v = 0;
+  while (*s >= '0' && *s <= '9') {
+    if (v > (UINT64_MAX - 9) / 10) return -1;
+    v = v * 10 + (uint64_t)(*s++ - '0');
+  }
+  *p = s;
+  *out = v;
+  return 0;
+}
+
+/* Parses a single "bytes=" range against `size`. Returns 1 with [*from, *to] when satisfiable,
+ * 0 when the header should be ignored (absent, malformed, several ranges), -1 when it cannot
+ * be satisfied (416). */
+static int parse_range(const char *h, uint64_t size, uint64_t *from, uint64_t *to) {
+  if (!h) return 0;
+  while (*h == ' ') h++;
+  if (strncmp(h, "bytes=", 6)) return 0;
+  h += 6;
+  if (strchr(h, ',')) return 0;
+  while (*h == ' ') h++;
+  uint64_t a, b = 0;
+  if (*h == '-') {
+    h++;
+    if (parse_u64(&h, &b)) return 0;
+    while (*h == ' ') h++;
+    if (*h) return 0;
+    if (b == 0 || size == 0) return -1;
+    *from = b >= size ? 0 : size - b;
+    *to = size - 1;
+    return 1;
+  }
+  if (parse_u64(&h, &a) || *h++ != '-') return 0;
+  int open_end = *h == '\0' || *h == ' ';
+  if (!open_end && parse_u64(&h, &b)) return 0;
+  while (*h == ' ') h++;
+  if (*h) return 0;
+  if (!open_end && b < a) return 0;
+  if (a >= size) return -1;
+  *from = a;
+  *to = open_end || b >= size ? size - 1 : b;
+  return 1;
+}
+
+static void add_cache_headers(struct MHD_Response *resp, const char *etag) {
+  MHD_add_response_header(resp, "ETag", etag);
+  MHD_add_response_header(resp, "Cache-Control", "public, max-age=31536000, immutable");
+  MHD_add_response_header(resp, "Accept-Ranges", "bytes");
+}
+
+int srv_output_serve(srv_req *r, int64_t id, const char *name) {
+  if (!srv_output_content_type(name))
+    return srv_respond_error(r, MHD_HTTP_NOT_FOUND, NULL,
+                             "no output named \"%.64s\" (outputs are ao.exr, ao.png, summary.json)",
+                             name);
+  srv_output o;
+  obs_err err = OBS_ERR_INIT;
+  int rc = srv_db_get_output(r->app->db, id, name, &o, &err);
+  if (rc == OBS_ENOTFOUND) {
+    obs_err_free(&err);
+    return srv_respond_error(r, MHD_HTTP_NOT_FOUND, NULL, "job %lld has no output %s",
+                             (long long)id, name);
+  }
+  if (rc) {
+    int out = srv_respond_error(r, MHD_HTTP_SERVICE_UNAVAILABLE, &err, "database unavailable");
+    obs_err_free(&err);
+    return out;
+  }
+  char path[8400];
+  srv_results_path(r->app, id, path, sizeof path);
+  size_t n = strlen(path);
+  snprintf(path + n, sizeof path - n, "/%s", o.name);
+  int fd = open(path, O_RDONLY | O_NOFOLLOW | O_CLOEXEC);
+  struct stat st;
+  if (fd < 0 || fstat(fd, &st) || !S_ISREG(st.st_mode) || st.st_size != o.size) {
+    if (fd >= 0) close(fd);
+    srv_log("job %lld: output %s is missing or does not match the database", (long long)id,
+            o.name);
+    return srv_respond_error(r, MHD_HTTP_INTERNAL_SERVER_ERROR, NULL,
+                             "output %s of job %lld is missing on disk", o.name, (long long)id);
+  }
+  char etag[70];
+  snprintf(etag, sizeof etag, "\"%s\"", o.sha256);
+  const char *inm =
+      MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_IF_NONE_MATCH);
+  if (etag_matches(inm, etag)) {
+    close(fd);
+    struct MHD_Response *resp = MHD_create_response_from_buffer(0, "", MHD_RESPMEM_PERSISTENT);
+    add_cache_headers(resp, etag);
+    return srv_respond(r, MHD_HTTP_NOT_MODIFIED, resp);
+  }
+  uint64_t size = (uint64_t)st.st_size, from = 0, to = size ? size - 1 : 0;
+  const char *range = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_RANGE);
+  const char *if_range =
+      MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_IF_RANGE);
+  if (if_range && strcmp(if_range, etag)) range = NULL;
+  int pr = parse_range(range, size, &from, &to);
+  char cr[96];
+  if (pr < 0) {
+    close(fd);
+    snprintf(cr, sizeof cr, "bytes */%" PRIu64, size);
+    json_t *body = json_pack("{s:s, s:[]}", "error", "range not satisfiable", "problems");
+    char *text = json_dumps(body, JSON_COMPACT);
+    json_decref(body);
+    struct MHD_Response *resp =
+        MHD_create_response_from_buffer(strlen(text), text, MHD_RESPMEM_MUST_FREE);
+    MHD_add_response_header(resp, "Content-Type", "application/json");
+    MHD_add_response_header(resp, "Content-Range", cr);
+    add_cache_headers(resp, etag);
+    return srv_respond(r, MHD_HTTP_RANGE_NOT_SATISFIABLE, resp);
+  }
+  uint64_t len = pr ? to - from + 1 : size;
+  struct MHD_Response *resp = MHD_create_response_from_fd_at_offset64(len, fd, (int64_t)from);
+  if (!resp) {
+    close(fd);
+    return srv_respond_error(r, MHD_HTTP_INTERNAL_SERVER_ERROR, NULL, "cannot serve the file");
+  }
+  MHD_add_response_header(resp, "Content-Type", o.content_type);
+  add_cache_headers(resp, etag);
+  if (pr) {
+    snprintf(cr, sizeof cr, "bytes %" PRIu64 "-%" PRIu64 "/%" PRIu64, from, to, size);
+    MHD_add_response_header(resp, "Content-Range", cr);
+  }
+  return srv_respond(r, pr ? MHD_HTTP_PARTIAL_CONTENT : MHD_HTTP_OK, resp);
+}

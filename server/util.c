@@ -1,0 +1,109 @@
+/* Small helpers of obscurad: the log line, wall-clock times, id parsing and directory handling. */
+#include <dirent.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <limits.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "obscurad.h"
+
+int64_t srv_now_unix_ms(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_REALTIME, &ts);
+  return (int64_t)ts.tv_sec * 1000 + ts.tv_nsec / 1000000;
+}
+
+void srv_format_time(int64_t ms, char *buf, size_t n) {
+  time_t s = (time_t)(ms / 1000);
+  struct tm tm;
+  gmtime_r(&s, &tm);
+  char base[24];
+  strftime(base, sizeof base, "%Y-%m-%dT%H:%M:%S", &tm);
+  snprintf(buf, n, "%s.%03dZ", base, (int)(ms % 1000));
+}
+
+void srv_log(const char *fmt, ...) {
+  char line[2048];
+  srv_format_time(srv_now_unix_ms(), line, sizeof line);
+  size_t len = strlen(line);
+  line[len++] = ' ';
+  va_list ap;
+  va_start(ap, fmt);
+  int k = vsnprintf(line + len, sizeof line - len - 1, fmt, ap);
+  va_end(ap);
+  if (k < 0) return;
+  len += (size_t)k < sizeof line - len - 1 ? (size_t)k : sizeof line - len - 2;
+  line[len++] = '\n';
+  /* One write per line: stderr is shared by every HTTP and worker thread. */
+  ssize_t w = write(2, line, len);
+  (void)w;
+}
+
+int srv_parse_id(const char *s, size_t len, int64_t *out) {
+  if (len == 0 || len > 19 || s[0] < '1' || s[0] > '9') return -1;
+  int64_t v = 0;
+  for (size_t i = 0; i < len; i++) {
+    if (s[i] < '0' || s[i] > '9') return -1;
+    int d = s[i] - '0';
+    if (v > (INT64_MAX - d) / 10) return -1;
+    v = v * 10 + d;
+  }
+  *out = v;
+  return 0;
+}
+
+int srv_mkdirs(const char *path) {
+  char buf[PATH_MAX];
+  if (!*path || strlen(path) >= sizeof buf) {
+    errno = ENAMETOOLONG;
+    return -1;
+  }
+  strcpy(buf, path);
+  for (char *p = buf + 1;; p++) {
+    if (*p == '/' || !*p) {
+      char c = *p;
+      *p = '\0';
+      if (mkdir(buf, 0755) && errno != EEXIST) return -1;
+      *p = c;
+      if (!c) break;
+    }
+  }
+  return 0;
+}
+
+static int remove_at(int parent, const char *name) {
+  if (!unlinkat(parent, name, 0)) return 0;
+  if (errno == ENOENT) return 0;
+  if (errno != EISDIR && errno != EPERM) return -1;
+  /* A directory: O_NOFOLLOW so a symlink planted inside never leads the removal elsewhere. */
+  int fd = openat(parent, name, O_RDONLY | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
+  if (fd < 0) return -1;
+  DIR *d = fdopendir(fd);
+  if (!d) {
+    close(fd);
+    return -1;
+  }
+  struct dirent *e;
+  int rc = 0;
+  while ((e = readdir(d))) {
+    if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, "..")) continue;
+    if (remove_at(dirfd(d), e->d_name)) rc = -1;
+  }
+  closedir(d);
+  if (unlinkat(parent, name, AT_REMOVEDIR) && errno != ENOENT) rc = -1;
+  return rc;
+}
+
+int srv_remove_tree(const char *path) { return remove_at(AT_FDCWD, path); }
+
+int srv_path_inside(const char *dir, const char *path) {
+  size_t n = strlen(dir);
+  if (n == 1 && dir[0] == '/') return path[0] == '/';
+  return !strncmp(dir, path, n) && (path[n] == '/' || path[n] == '\0');
+}

@@ -1,0 +1,224 @@
+#!/usr/bin/env bash
+# The CLI's job-server client end to end: `obscura submit` and `obscura jobs` against obscurad.
+# usage: client.sh OBSCURA_CLI OBSCURAD SOURCE_ROOT WORK_DIR
+set -u
+cli=$1 daemon=$2 root=$3 out=$4
+pass=0 fail=0
+check() { # description, command...
+  local d=$1
+  shift
+  if "$@"; then pass=$((pass + 1)); echo "ok: $d"; else fail=$((fail + 1)); echo "FAIL: $d"; fi
+}
+# The sanitizer build is many times slower.
+slow=1
+case "$cli$daemon" in *asan* | *sanitize*) slow=4 ;; esac
+
+rm -rf "$out" && mkdir -p "$out"
+pids=()
+cleanup() { for p in "${pids[@]}"; do kill -9 "$p" 2>/dev/null; done; }
+trap cleanup EXIT
+
+# start_daemon NAME [obscurad options...]: starts obscurad on an ephemeral loopback port with its
+# own directory; sets $url and $pid, or fails the whole test.
+start_daemon() {
+  local name=$1
+  shift
+  mkdir -p "$out/$name"
+  "$daemon" --listen 127.0.0.1 --port 0 --db "$out/$name/obscura.db" --data-dir "$out/$name/data" \
+    --scenes-dir "$root/scenes" --web-dir "$root/web" --workers 1 --no-vulkan "$@" \
+    >"$out/$name/log" 2>&1 &
+  pid=$!
+  pids+=("$pid")
+  local port="" i
+  for ((i = 0; i < 300 * slow; i++)); do
+    port=$(sed -n 's|.*listening on http://127\.0\.0\.1:\([0-9]*\).*|\1|p' "$out/$name/log" \
+      2>/dev/null | head -1)
+    [ -n "$port" ] && break
+    kill -0 "$pid" 2>/dev/null || break
+    sleep 0.1
+  done
+  if [ -z "$port" ]; then
+    echo "FAIL: obscurad ($name) did not report its port:"
+    cat "$out/$name/log"
+    exit 1
+  fi
+  url=http://127.0.0.1:$port
+}
+
+# stop_daemon PID: SIGTERM and wait, so its log is complete (sanitizer reports come at exit).
+stop_daemon() {
+  kill "$1" 2>/dev/null
+  wait "$1" 2>/dev/null
+}
+
+# njobs URL: the number of jobs the server lists (through the client itself).
+njobs() {
+  "$cli" jobs --server "$1" --limit 100000 --json |
+    node -e 'let s = "";
+      process.stdin.on("data", d => s += d).on("end", () => console.log(JSON.parse(s).jobs.length));'
+}
+
+scene=$root/scenes/sphere_on_plane.json
+small=(--set /image/width=40 --set /image/height=30 --set /technique/params/samples=8)
+
+start_daemon plain
+plain_url=$url plain_pid=$pid
+unset OBSCURA_TOKEN
+
+# --- submit --wait -o: outputs downloaded, identical to a local render --------------------------
+"$cli" submit "$scene" --server "$url" "${small[@]}" --label "client test" --priority 70 \
+  --wait -o "$out/remote" >"$out/submit.out" 2>"$out/submit.err"
+check "submit --wait -o exits 0" test $? -eq 0
+check "submit prints the job id and URL" grep -Eq "^job [0-9]+ queued: $url/api/v1/jobs/[0-9]+$" \
+  "$out/submit.out"
+id=$(sed -n 's/^job \([0-9]*\) queued.*/\1/p' "$out/submit.out")
+check "submit reports success" grep -q "^job $id succeeded: rt_ao/cpu 40x30" "$out/submit.out"
+check "plain progress lines (no TTY)" grep -q "^job $id: succeeded$" "$out/submit.err"
+for f in ao.exr ao.png summary.json; do
+  check "$f downloaded" test -s "$out/remote/$f"
+done
+check "no temporary files left in -o DIR" bash -c "! ls -A '$out/remote' | grep -q '^\\.'"
+"$cli" render "$scene" "${small[@]}" -o "$out/local" --quiet
+check "local render exits 0" test $? -eq 0
+check "ao.exr identical to the local render" cmp "$out/remote/ao.exr" "$out/local/ao.exr"
+check "ao.png identical to the local render" cmp "$out/remote/ao.png" "$out/local/ao.png"
+check "summary.json describes the same render" node -e "
+  const fs = require('fs');
+  const a = JSON.parse(fs.readFileSync('$out/remote/summary.json'));
+  const b = JSON.parse(fs.readFileSync('$out/local/summary.json'));
+  const same = ['technique', 'backend', 'width', 'height', 'samples', 'rays', 'nan_count']
+    .every(k => JSON.stringify(a[k]) === JSON.stringify(b[k]));
+  process.exit(same && JSON.stringify(a.ao) === JSON.stringify(b.ao) ? 0 : 1);"
+
+# --- jobs ---------------------------------------------------------------------------------------
+"$cli" jobs --server "$url" >"$out/jobs.txt" 2>"$out/jobs.err"
+check "jobs exits 0" test $? -eq 0
+check "jobs table has the header" \
+  grep -Eq "^ID +STATE +PROGRESS +TECHNIQUE +BACKEND +PRIORITY +CREATED +LABEL$" "$out/jobs.txt"
+check "jobs lists the job" \
+  grep -Eq "^$id +succeeded +100% +rt_ao +cpu +70 +[0-9T:.-]+Z +client test$" "$out/jobs.txt"
+"$cli" jobs --server "$url" --state succeeded --technique rt_ao --backend cpu --json \
+  >"$out/jobs.json" 2>>"$out/jobs.err"
+check "jobs --json with filters lists the job" node -e "
+  const l = JSON.parse(require('fs').readFileSync('$out/jobs.json'));
+  process.exit(l.jobs.length === 1 && l.jobs[0].id === $id && l.jobs[0].label === 'client test'
+    && l.next === null ? 0 : 1);"
+"$cli" jobs --server "$url" --state queued --json >"$out/jobs-q.json"
+check "jobs --state queued is empty" node -e "
+  const l = JSON.parse(require('fs').readFileSync('$out/jobs-q.json'));
+  process.exit(l.jobs.length === 0 ? 0 : 1);"
+"$cli" jobs --server "$url" --state bogus >/dev/null 2>"$out/jobs-bad.err"
+check "jobs with a bad filter exits 2" test $? -eq 2
+check "jobs with a bad filter shows the server's problem" grep -q "state" "$out/jobs-bad.err"
+
+# --- bad input is refused locally, nothing is sent ----------------------------------------------
+before=$(njobs "$url")
+"$cli" submit "$scene" --server "$url" --set /technique/params/samples=0 >"$out/bad.out" \
+  2>"$out/bad.err"
+check "bad --set exits 2" test $? -eq 2
+check "bad --set names the pointer" grep -q "/technique/params/samples: must be >= 1" "$out/bad.err"
+"$cli" submit "$scene" --server "$url" --technique nope >/dev/null 2>"$out/bad-t.err"
+check "unknown technique exits 2" test $? -eq 2
+"$cli" submit "$scene" --server "$url" --priority 101 >/dev/null 2>"$out/bad-p.err"
+check "--priority out of range exits 2" test $? -eq 2
+"$cli" submit "$out/missing.json" --server "$url" >/dev/null 2>&1
+check "missing scene file exits 2" test $? -eq 2
+"$cli" submit "$scene" --server "not a url" >/dev/null 2>&1
+check "bad --server exits 2" test $? -eq 2
+touch "$out/a-file"
+"$cli" submit "$scene" --server "$url" "${small[@]}" -o "$out/a-file/sub" >/dev/null \
+  2>"$out/bad-o.err"
+check "unusable -o DIR exits 2" test $? -eq 2
+check "nothing was submitted" test "$(njobs "$url")" = "$before"
+
+# --- the server's own 4xx: exit 2 with its message and problems ---------------------------------
+# The local loader accepts 200x200; the daemon's --max-pixels (set low below) does not.
+start_daemon limited --max-pixels 10000 --max-render-seconds 1
+"$cli" submit "$scene" --server "$url" --set /image/width=200 --set /image/height=200 \
+  >/dev/null 2>"$out/limit.err"
+check "server 422 exits 2" test $? -eq 2
+check "server 422 shows the server's message" grep -q "answered 422" "$out/limit.err"
+check "server 422 names the limit" grep -q "max-pixels" "$out/limit.err"
+
+# --- --wait on a job that fails exits 1 with the server's error ---------------------------------
+"$cli" submit "$scene" --server "$url" --set /image/width=100 --set /image/height=100 \
+  --set /technique/params/samples=65536 --wait -o "$out/failed" >"$out/failed.out" \
+  2>"$out/failed.err"
+check "--wait on a failed job exits 1" test $? -eq 1
+check "--wait prints the job's error" grep -q "^obscura: job [0-9]* failed: .*time limit" \
+  "$out/failed.err"
+check "nothing downloaded for a failed job" test -z "$(ls -A "$out/failed")"
+stop_daemon "$pid"
+
+# --- pagination: jobs follows the next cursor up to --limit -------------------------------------
+start_daemon paged
+for i in $(seq 1 104); do
+  "$cli" submit "$scene" --server "$url" --set /image/width=4 --set /image/height=4 \
+    --set /technique/params/samples=1 --label "p$i" >/dev/null 2>&1 || echo "submit $i failed"
+done
+"$cli" jobs --server "$url" --limit 1000 --json >"$out/paged.json"
+check "jobs follows the cursor past one page" node -e "
+  const l = JSON.parse(require('fs').readFileSync('$out/paged.json'));
+  const ids = l.jobs.map(j => j.id);
+  process.exit(ids.length === 104 && new Set(ids).size === 104 && l.next === null ? 0 : 1);"
+"$cli" jobs --server "$url" --limit 102 --json >"$out/paged2.json"
+check "jobs stops at --limit" node -e "
+  const l = JSON.parse(require('fs').readFileSync('$out/paged2.json'));
+  process.exit(l.jobs.length === 102 && l.next !== null ? 0 : 1);"
+"$cli" jobs --server "$url" --limit 5 | tail -n +2 | wc -l >"$out/paged3.txt"
+check "jobs table has --limit rows" test "$(cat "$out/paged3.txt")" -eq 5
+stop_daemon "$pid"
+
+# --- --wait on a job that ends cancelled exits 1 with the server's error ------------------------
+"$cli" submit "$scene" --server "$plain_url" --set /technique/params/samples=65536 --wait \
+  >"$out/cancel.out" 2>"$out/cancel.err" &
+waiter=$!
+cid=""
+for ((i = 0; i < 200 * slow; i++)); do
+  cid=$(sed -n 's/^job \([0-9]*\) queued.*/\1/p' "$out/cancel.out" 2>/dev/null)
+  [ -n "$cid" ] && grep -q "^job $cid: running" "$out/cancel.err" && break
+  sleep 0.05
+done
+node -e "
+  const r = require('http').request('$plain_url/api/v1/jobs/$cid/cancel', {method: 'POST'},
+    res => process.exit(res.statusCode === 202 ? 0 : 1));
+  r.on('error', () => process.exit(1));
+  r.end();"
+check "cancel request accepted" test $? -eq 0
+wait "$waiter"
+check "--wait on a cancelled job exits 1" test $? -eq 1
+check "--wait prints the server's error" grep -q "^obscura: job $cid cancelled: " "$out/cancel.err"
+
+# --- token ----------------------------------------------------------------------------------------
+printf 's3cret-token\n' >"$out/token.txt"
+start_daemon token --token-file "$out/token.txt"
+OBSCURA_TOKEN=wrong "$cli" submit "$scene" --server "$url" "${small[@]}" >/dev/null \
+  2>"$out/token.err"
+check "wrong token exits 2" test $? -eq 2
+check "wrong token shows the 401" grep -q "answered 401" "$out/token.err"
+"$cli" jobs --server "$url" >/dev/null 2>"$out/notoken.err"
+check "missing token exits 2" test $? -eq 2
+OBSCURA_TOKEN=s3cret-token "$cli" submit "$scene" --server "$url" "${small[@]}" --wait \
+  >"$out/token.out" 2>&1
+check "right token: submit --wait exits 0" test $? -eq 0
+OBSCURA_TOKEN=s3cret-token "$cli" jobs --server "$url" >"$out/token-jobs.txt" 2>&1
+check "right token: jobs lists the job" grep -Eq "^1 +succeeded" "$out/token-jobs.txt"
+stop_daemon "$pid"
+
+# --- unreachable server -------------------------------------------------------------------------
+stop_daemon "$plain_pid"
+"$cli" submit "$scene" --server "$plain_url" "${small[@]}" >/dev/null 2>"$out/down.err"
+check "unreachable server exits 1" test $? -eq 1
+check "unreachable server message names the URL" grep -q "cannot reach the server at $plain_url/" \
+  "$out/down.err"
+"$cli" jobs --server "$plain_url" >/dev/null 2>&1
+check "jobs on an unreachable server exits 1" test $? -eq 1
+
+for d in plain limited paged token; do
+  if grep -Eq "ERROR: (Address|Leak)Sanitizer|runtime error:" "$out/$d/log"; then
+    fail=$((fail + 1))
+    echo "FAIL: sanitizer report in obscurad log ($d)"
+  fi
+done
+echo "$pass passed, $fail failed"
+[ "$fail" -eq 0 ]
