@@ -1,4 +1,5 @@
 /* Benchmark: ssao and hbao stage timings, CPU twin vs Vulkan (lavapipe); --accuracy vs rt_ao. */
+#include <jansson.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -14,7 +15,6 @@
 #endif
 
 #define MAX_REPEATS 64
-#define PI 3.14159265358979323846
 
 /* The goals of the issue, on the faster backend, 2 cores, milliseconds (sum of stages). */
 #define GOAL_SSAO16_MS 30.0
@@ -408,23 +408,9 @@ static int timing_mode(const options *o, int have_vk) {
 
 /* ---- accuracy mode ---------------------------------------------------------------------- */
 
-/* How rt_ao's W is put through ssao's response before comparing (docs/techniques/ssao.md). */
-enum { MAP_NONE, MAP_SSAO_SPHERE, MAP_SSAO_HEMI };
-
-static float map_w(float w, int map) {
-  switch (map) {
-  case MAP_SSAO_SPHERE: return w * w / 4.0f + w / 2.0f;
-  case MAP_SSAO_HEMI: {
-    float v = w * w + w;
-    return v < 1.0f ? v : 1.0f;
-  }
-  default: return w;
-  }
-}
-
 /* An image of two channels, "ao" (from `ao`, mapped) and "alpha", for the metrics. */
 static int cmp_image(const obs_image *src, const char *ao_channel, const char *alpha_channel,
-                     int map, obs_image *out) {
+                     obs_response map, obs_image *out) {
   static const char *const names[2] = {"ao", "alpha"};
   obs_err err = OBS_ERR_INIT;
   int rc = obs_image_init(out, src->width, src->height, 2, names, &err);
@@ -443,7 +429,7 @@ static int cmp_image(const obs_image *src, const char *ao_channel, const char *a
   size_t n = (size_t)src->width * (size_t)src->height;
   float *oa = obs_image_channel(out, "ao"), *om = obs_image_channel(out, "alpha");
   for (size_t i = 0; i < n; i++) {
-    oa[i] = map_w(a[i], map);
+    oa[i] = obs_response_map(map, a[i]);
     om[i] = m[i];
   }
   return 0;
@@ -455,44 +441,47 @@ static double masked_mean(const obs_image *img, const char *ch) {
   return st.mean;
 }
 
-/* Median view depth (depth.Z) over covered pixels. */
-static double median_depth(const obs_image *img) {
-  const float *d = obs_image_channel(img, "depth.Z"), *a = obs_image_channel(img, "alpha");
-  size_t n = (size_t)img->width * (size_t)img->height, k = 0;
-  double *v = malloc(n * sizeof *v);
-  if (!v || !d || !a) {
-    free(v);
-    return NAN;
-  }
-  for (size_t i = 0; i < n; i++)
-    if (a[i] > 0.0f) v[k++] = d[i];
-  qsort(v, k, sizeof *v, cmp_double);
-  double m = k ? (k % 2 ? v[k / 2] : 0.5 * (v[k / 2 - 1] + v[k / 2])) : NAN;
-  free(v);
-  return m;
-}
-
 typedef struct reference {
   char label[64];
   obs_result res;
   double ms, stderr_mean, max_distance;
+  char falloff[16];
+  obs_response response;
 } reference;
 
-static int render_reference(const char *path, int w, int h, const char *falloff, double dmax,
-                            int threads, reference *ref) {
-  char params[256];
-  snprintf(params, sizeof params,
-           "{\"samples\":1024,\"weighting\":\"uniform\",\"sampler\":\"sobol\",\"falloff\":\"%s\","
-           "\"max_distance\":%.9g}",
-           falloff, dmax);
-  obs_scene sc;
-  if (load_scene(path, w, h, "rt_ao", "cpu", params, &sc)) return 1;
+/* The reference of `tech` with `params` on the scene, from the technique's own reference hook
+ * (obs_technique_reference, the definition the job server uses too), rendered with rt_ao (sobol,
+ * 1024 samples). `facts` carries the scene's median depth between calls. */
+static int render_reference(const char *path, int w, int h, const char *tech, const char *params,
+                            obs_reference_facts *facts, int threads, reference *ref) {
+  obs_scene probe, sc;
+  if (load_scene(path, w, h, tech, "cpu", params, &probe)) return 1;
+  json_t *def = NULL;
+  obs_response resp;
+  obs_err err = OBS_ERR_INIT;
+  int rc = obs_technique_reference(probe.technique, &probe, probe.params, facts, &def, &resp, &err);
+  obs_scene_free(&probe);
+  if (rc) {
+    fprintf(stderr, "bench_screen_space: reference of %s: %s\n", tech, obs_err_message(&err));
+    obs_err_free(&err);
+    return 1;
+  }
+  json_object_set_new(def, "samples", json_integer(1024));
+  json_object_set_new(def, "sampler", json_string("sobol"));
+  char *text = json_dumps(def, JSON_COMPACT | JSON_REAL_PRECISION(17));
+  snprintf(ref->falloff, sizeof ref->falloff, "%s",
+           json_string_value(json_object_get(def, "falloff")));
+  ref->max_distance = json_number_value(json_object_get(def, "max_distance"));
+  ref->response = resp;
+  rc = text ? load_scene(path, w, h, "rt_ao", "cpu", text, &sc) : 1;
+  free(text);
+  json_decref(def);
+  if (rc) return 1;
   timing t;
-  int rc = timed_render(&sc, threads, &t, &ref->res);
+  rc = timed_render(&sc, threads, &t, &ref->res);
   obs_scene_free(&sc);
   if (rc) return 1;
   ref->ms = t.wall;
-  ref->max_distance = dmax;
   ref->stderr_mean = masked_mean(&ref->res.image, "ao_stderr");
   return 0;
 }
@@ -506,7 +495,7 @@ typedef struct acc_scene {
 /* One technique row: renders 1 warm-up + R times, compares the last image with `ref`. */
 static int accuracy_row(const options *o, const acc_scene *as, const char *path, const char *tech,
                         const char *label, const char *params, const char *backend,
-                        const reference *ref, int map, const char *ref_label) {
+                        const reference *ref, obs_response map, const char *ref_label) {
   obs_scene sc;
   if (load_scene(path, as->w, as->h, tech, backend, params, &sc)) return 1;
   timing runs[MAX_REPEATS], warm;
@@ -520,8 +509,8 @@ static int accuracy_row(const options *o, const acc_scene *as, const char *path,
   summarise(runs, o->repeats, &s);
   obs_image refimg, got, gotraw;
   rc = cmp_image(&ref->res.image, "ao", "alpha", map, &refimg);
-  if (!rc) rc = cmp_image(&res.image, "ao", "alpha", MAP_NONE, &got);
-  if (!rc) rc = cmp_image(&res.image, "ao_raw", "alpha", MAP_NONE, &gotraw);
+  if (!rc) rc = cmp_image(&res.image, "ao", "alpha", OBS_RESPONSE_IDENTITY, &got);
+  if (!rc) rc = cmp_image(&res.image, "ao_raw", "alpha", OBS_RESPONSE_IDENTITY, &gotraw);
   obs_result_free(&res);
   if (rc) return 1;
   double rmse = NAN, ssim = NAN, rmse_raw = NAN;
@@ -555,30 +544,26 @@ static int accuracy_mode(const options *o, int have_vk) {
     const acc_scene *as = &scenes[si];
     char path[1024];
     snprintf(path, sizeof path, "%s/scenes/%s", OBS_SOURCE_DIR, as->file);
-    obs_scene probe;
-    if (load_scene(path, as->w, as->h, "rt_ao", "cpu", "{}", &probe)) return 1;
-    double half_h = probe.camera.type == OBS_CAMERA_PERSPECTIVE
-                        ? tan(0.5 * probe.camera.fov_y * PI / 180.0)
-                        : 0.5 * probe.camera.height;
-    int persp = probe.camera.type == OBS_CAMERA_PERSPECTIVE;
-    obs_scene_free(&probe);
-
     load_mark lr = load_now();
-    /* hbao's reference: binary at 2R/3 (docs/techniques/hbao.md, "the closest single setting"). */
+    /* The references come from the techniques' reference hooks: hbao binary at 2R/3, ssao sqrt at
+     * half the across-screen reach of its longest offset at the median covered depth, one per
+     * sample count (docs/techniques/hbao.md, ssao.md). */
     reference ref_h, ref_s[3];
     memset(&ref_h, 0, sizeof ref_h);
     memset(ref_s, 0, sizeof ref_s);
-    status = render_reference(path, as->w, as->h, "binary", 2.0 * as->R / 3.0, o->threads, &ref_h);
-    snprintf(ref_h.label, sizeof ref_h.label, "binary %.4g", ref_h.max_distance);
-    /* ssao's references: sqrt at half the across-screen reach of the longest offset,
-     * r step^N 2 half_h z, at the median covered depth z (docs/techniques/ssao.md). */
-    double zmed = status ? NAN : median_depth(&ref_h.res.image);
+    obs_reference_facts facts;
+    memset(&facts, 0, sizeof facts);
+    char params[256];
+    snprintf(params, sizeof params, "{\"radius\":%.9g}", as->R);
+    status = render_reference(path, as->w, as->h, "hbao", params, &facts, o->threads, &ref_h);
+    snprintf(ref_h.label, sizeof ref_h.label, "%s %.4g", ref_h.falloff, ref_h.max_distance);
     for (int i = 0; i < 3 && !status; i++) {
-      double step = 1.0 + 2.4 / ss[i], reach = 0.01 * pow(step, ss[i]) * 2.0 * half_h;
-      if (persp) reach *= zmed;
-      status = render_reference(path, as->w, as->h, "sqrt", 0.5 * reach, o->threads, &ref_s[i]);
-      snprintf(ref_s[i].label, sizeof ref_s[i].label, "sqrt %.4g", ref_s[i].max_distance);
+      snprintf(params, sizeof params, "{\"samples\":%d}", ss[i]);
+      status = render_reference(path, as->w, as->h, "ssao", params, &facts, o->threads, &ref_s[i]);
+      snprintf(ref_s[i].label, sizeof ref_s[i].label, "%s %.4g", ref_s[i].falloff,
+               ref_s[i].max_distance);
     }
+    double zmed = facts.have_z_median ? facts.z_median : NAN;
     if (status) {
       obs_result_free(&ref_h.res);
       for (int i = 0; i < 3; i++) obs_result_free(&ref_s[i].res);
@@ -611,7 +596,7 @@ static int accuracy_mode(const options *o, int have_vk) {
                    bias ? ",\"angle_bias\":0" : "");
           if (o->only && !strstr(label, o->only)) continue;
           status = accuracy_row(o, as, path, "hbao", label, params, backends[b], &ref_h,
-                                MAP_NONE, ref_h.label);
+                                ref_h.response, ref_h.label);
         }
       for (int no = 0; no < 2 && !status; no++)
         for (int i = 0; i < 3 && !status; i++) {
@@ -624,7 +609,7 @@ static int accuracy_mode(const options *o, int have_vk) {
           snprintf(rl, sizeof rl, "%.63s, mapped %s", ref_s[i].label,
                    no ? "min(1,W^2+W)" : "W^2/4+W/2");
           status = accuracy_row(o, as, path, "ssao", label, params, backends[b], &ref_s[i],
-                                no ? MAP_SSAO_HEMI : MAP_SSAO_SPHERE, rl);
+                                no ? OBS_RESPONSE_SSAO_HEMI : ref_s[i].response, rl);
         }
     }
     obs_result_free(&ref_h.res);

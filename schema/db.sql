@@ -44,3 +44,67 @@ CREATE TABLE outputs (
 -- The progress a job had reached when it ended, so a cancelled or failed job still shows how far
 -- it got (running jobs report live progress from the scheduler instead).
 ALTER TABLE jobs ADD COLUMN progress REAL NOT NULL DEFAULT 0;
+
+-- migration 3
+-- Speed/accuracy comparisons (docs/comparisons.md): timed runs of every job with the machine that
+-- ran them, comparisons and their candidates, and what learned "auto" and time budgets read.
+CREATE TABLE machines (
+  id INTEGER PRIMARY KEY,
+  cpu_model TEXT NOT NULL,                   -- "model name" of /proc/cpuinfo
+  cores INTEGER NOT NULL,                    -- threads a render used
+  vulkan_device TEXT                         -- NULL: no Vulkan lane
+);
+-- coalesce: UNIQUE treats NULLs as distinct, and a machine without Vulkan must be one row.
+CREATE UNIQUE INDEX machines_facts ON machines (cpu_model, cores, coalesce(vulkan_device, ''));
+
+-- repeats: timed renders per attempt; warmup: one untimed render first (comparison jobs);
+-- work: width x height x spp x samples, what learned "auto" compares; backend_reason: why the
+-- backend was chosen (shown as backend.reason).
+ALTER TABLE jobs ADD COLUMN repeats INTEGER NOT NULL DEFAULT 1 CHECK (repeats BETWEEN 1 AND 20);
+ALTER TABLE jobs ADD COLUMN warmup INTEGER NOT NULL DEFAULT 0 CHECK (warmup IN (0, 1));
+ALTER TABLE jobs ADD COLUMN work REAL;
+ALTER TABLE jobs ADD COLUMN backend_reason TEXT;
+CREATE INDEX jobs_work ON jobs (technique, work);
+
+-- One row per timed render of a succeeded attempt (written in the transaction that marks the job
+-- succeeded). total = build + render + post = the renderer's wall time for the render.
+CREATE TABLE runs (
+  job INTEGER NOT NULL REFERENCES jobs (id) ON DELETE CASCADE,
+  run INTEGER NOT NULL,                      -- 1 .. repeats
+  build_ms REAL NOT NULL,
+  render_ms REAL NOT NULL,
+  post_ms REAL NOT NULL,
+  total_ms REAL NOT NULL,
+  machine INTEGER REFERENCES machines (id),
+  PRIMARY KEY (job, run)
+) WITHOUT ROWID;
+
+CREATE TABLE comparisons (
+  id INTEGER PRIMARY KEY AUTOINCREMENT,
+  label TEXT,
+  scene TEXT NOT NULL,                       -- bundled file name, or 'inline'
+  width INTEGER NOT NULL,
+  height INTEGER NOT NULL,
+  repeats INTEGER NOT NULL,
+  request TEXT NOT NULL,                     -- the accepted request body
+  created_ms INTEGER NOT NULL
+);
+
+-- Jobs of a comparison cannot be deleted on their own (no ON DELETE on job/reference_job): the
+-- API answers 409 before SQLite would refuse.
+CREATE TABLE comparison_candidates (
+  comparison INTEGER NOT NULL REFERENCES comparisons (id) ON DELETE CASCADE,
+  idx INTEGER NOT NULL,                      -- the candidate's index in the expansion
+  job INTEGER NOT NULL REFERENCES jobs (id),
+  reference_job INTEGER NOT NULL REFERENCES jobs (id),
+  technique TEXT NOT NULL,
+  backend TEXT NOT NULL CHECK (backend IN ('cpu', 'vulkan')),
+  params TEXT NOT NULL,                      -- JSON, defaults filled in
+  reference_params TEXT NOT NULL,            -- JSON, the reference's rt_ao parameters
+  response TEXT NOT NULL,                    -- how the reference is mapped (obs_response_name)
+  metrics TEXT,                              -- JSON; NULL until both jobs succeeded
+  metrics_error TEXT,                        -- why metrics could not be computed
+  PRIMARY KEY (comparison, idx)
+) WITHOUT ROWID;
+CREATE INDEX comparison_candidates_job ON comparison_candidates (job);
+CREATE INDEX comparison_candidates_reference ON comparison_candidates (reference_job);

@@ -30,6 +30,10 @@ static srv_route job_route(const char *path, const char **id, size_t *idlen, con
 
 srv_route srv_api_route(const char *path) {
   if (!strcmp(path, "/metrics")) return SRV_ROUTE_METRICS;
+  if (!strcmp(path, API "/comparisons")) return SRV_ROUTE_COMPARISONS;
+  if (!strncmp(path, API "/comparisons/", sizeof API "/comparisons/" - 1))
+    return strchr(path + sizeof API "/comparisons/" - 1, '/') ? SRV_ROUTE_UNKNOWN
+                                                               : SRV_ROUTE_COMPARISON;
   if (strncmp(path, "/api/", 5) && strcmp(path, "/api")) return SRV_ROUTE_STATIC;
   if (!strcmp(path, API "/jobs")) return SRV_ROUTE_JOBS;
   if (!strcmp(path, API "/techniques")) return SRV_ROUTE_TECHNIQUES;
@@ -47,22 +51,9 @@ static int is_get(const srv_req *r) {
   return !strcmp(r->method, "GET") || !strcmp(r->method, "HEAD");
 }
 
-static int db_unavailable(srv_req *r, obs_err *err) {
-  srv_log("database error: %s", obs_err_message(err));
-  int rc = srv_respond_error(r, MHD_HTTP_SERVICE_UNAVAILABLE, err,
-                             "database unavailable, try again");
-  obs_err_free(err);
-  return rc;
-}
 
 /* ---- the job object -------------------------------------------------------------------------- */
 
-static json_t *time_or_null(int64_t ms) {
-  if (!ms) return json_null();
-  char buf[40];
-  srv_format_time(ms, buf, sizeof buf);
-  return json_string(buf);
-}
 
 static json_t *str_or_null(const char *s) { return s ? json_string(s) : json_null(); }
 
@@ -91,14 +82,16 @@ static json_t *job_json(srv_app *app, const srv_job *j) {
   json_object_set_new(o, "label", str_or_null(j->label));
   json_object_set_new(o, "scene", str_or_null(j->scene));
   json_object_set_new(o, "technique", str_or_null(j->technique));
-  json_object_set_new(o, "backend", json_pack("{s:o, s:o}", "requested",
+  json_object_set_new(o, "backend", json_pack("{s:o, s:o, s:o}", "requested",
                                               str_or_null(j->backend_requested), "actual",
-                                              str_or_null(j->backend)));
+                                              str_or_null(j->backend), "reason",
+                                              str_or_null(j->backend_reason)));
+  json_object_set_new(o, "repeats", json_integer(j->repeats));
   json_object_set_new(o, "image", json_pack("{s:i, s:i, s:i}", "width", j->width, "height",
                                             j->height, "spp", j->spp));
-  json_object_set_new(o, "created_at", time_or_null(j->created_ms));
-  json_object_set_new(o, "started_at", time_or_null(j->started_ms));
-  json_object_set_new(o, "finished_at", time_or_null(j->finished_ms));
+  json_object_set_new(o, "created_at", srv_json_time(j->created_ms));
+  json_object_set_new(o, "started_at", srv_json_time(j->started_ms));
+  json_object_set_new(o, "finished_at", srv_json_time(j->finished_ms));
   json_object_set_new(o, "cancel_requested", json_boolean(j->cancel_requested));
   json_t *sum = j->summary ? json_loads(j->summary, 0, NULL) : NULL;
   json_t *timings = json_object_get(sum, "timings_ms");
@@ -136,11 +129,8 @@ static json_t *job_json(srv_app *app, const srv_job *j) {
 /* ---- /api/v1/jobs ---------------------------------------------------------------------------- */
 
 static int submit(srv_req *r) {
-  const char *ct =
-      MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_TYPE);
-  if (ct && strncasecmp(ct, "application/json", 16))
-    return srv_respond_error(r, MHD_HTTP_UNSUPPORTED_MEDIA_TYPE, NULL,
-                             "Content-Type must be application/json (got \"%.64s\")", ct);
+  int refused;
+  if (srv_refuse_non_json(r, &refused)) return refused;
   srv_submission s;
   obs_err problems = OBS_ERR_INIT;
   const char *message = NULL;
@@ -159,28 +149,26 @@ static int submit(srv_req *r) {
                     .lane = s.lane,
                     .width = s.width,
                     .height = s.height,
-                    .spp = s.spp};
+                    .spp = s.spp,
+                    .repeats = 1,
+                    .work = s.work,
+                    .backend_reason = s.backend_reason};
   int64_t id = 0;
   int rc = srv_db_insert_job(r->app->db, &nj, &id, &problems);
   if (rc) {
     srv_submission_free(&s);
-    return db_unavailable(r, &problems);
+    return srv_respond_unavailable(r, &problems);
   }
   srv_log("job %lld: submitted -> queued (%s, %s/%s, %dx%d, priority %d)", (long long)id, s.scene,
           s.technique, s.backend_requested, s.width, s.height, s.priority);
-  srv_submission_free(&s);
-  srv_sched_notify(r->app);
   json_t *body = json_pack("{s:I, s:s, s:o}", "id", (json_int_t)id, "state", "queued", "links",
                            job_links(id, NULL));
-  char *text = json_dumps(body, JSON_COMPACT);
-  json_decref(body);
-  struct MHD_Response *resp =
-      MHD_create_response_from_buffer(strlen(text), text, MHD_RESPMEM_MUST_FREE);
+  if (s.choice) json_object_set(body, "choice", s.choice);
+  srv_submission_free(&s);
+  srv_sched_notify(r->app);
   char loc[64];
   snprintf(loc, sizeof loc, API "/jobs/%lld", (long long)id);
-  MHD_add_response_header(resp, "Content-Type", "application/json");
-  MHD_add_response_header(resp, "Location", loc);
-  return srv_respond(r, MHD_HTTP_CREATED, resp);
+  return srv_respond_created(r, body, loc);
 }
 
 typedef struct query {
@@ -199,14 +187,10 @@ static enum MHD_Result on_query_arg(void *cls, enum MHD_ValueKind kind, const ch
   for (int i = 0; i < 6; i++)
     if (!strcmp(key, query_keys[i])) k = i;
   char shown[80];
-  snprintf(shown, sizeof shown, "%s", value ? value : "");
-  for (char *p = shown; *p; p++)
-    if ((unsigned char)*p < 0x20 || (unsigned char)*p >= 0x7f || *p == '"') *p = '?';
+  srv_printable(value, shown, sizeof shown);
   if (k < 0) {
     char kshown[40];
-    snprintf(kshown, sizeof kshown, "%s", key);
-    for (char *p = kshown; *p; p++)
-      if ((unsigned char)*p < 0x20 || (unsigned char)*p >= 0x7f || *p == '"') *p = '?';
+    srv_printable(key, kshown, sizeof kshown);
     obs_err_set(q->problems, OBS_EINVAL,
                 "query: /%s: unknown parameter (known: state, technique, backend, limit, after, "
                 "order)",
@@ -271,7 +255,7 @@ static int list_jobs(srv_req *r) {
   }
   srv_job *jobs;
   int n;
-  if (srv_db_list_jobs(r->app->db, &q.f, &jobs, &n, &problems)) return db_unavailable(r, &problems);
+  if (srv_db_list_jobs(r->app->db, &q.f, &jobs, &n, &problems)) return srv_respond_unavailable(r, &problems);
   json_t *arr = json_array();
   int shown = n > q.f.limit ? q.f.limit : n;
   for (int i = 0; i < shown; i++) json_array_append_new(arr, job_json(r->app, &jobs[i]));
@@ -300,7 +284,7 @@ static int get_job(srv_req *r, int64_t id, unsigned status) {
     obs_err_free(&err);
     return not_found_job(r, id);
   }
-  if (rc) return db_unavailable(r, &err);
+  if (rc) return srv_respond_unavailable(r, &err);
   json_t *o = job_json(r->app, &j);
   srv_job_free(&j);
   return srv_respond_json(r, status, o);
@@ -314,7 +298,7 @@ static int cancel_job(srv_req *r, int64_t id) {
     obs_err_free(&err);
     return not_found_job(r, id);
   }
-  if (rc) return db_unavailable(r, &err);
+  if (rc) return srv_respond_unavailable(r, &err);
   if (res == SRV_CANCEL_FINISHED) {
     srv_state st = SRV_SUCCEEDED;
     srv_db_job_exists(r->app->db, id, &st, &err);
@@ -333,6 +317,19 @@ static int delete_job(srv_req *r, int64_t id) {
     obs_err_free(&err);
     return not_found_job(r, id);
   }
+  if (rc == OBS_EUNSUPPORTED) {
+    obs_err_free(&err);
+    json_t *rows = NULL;
+    srv_arg arg = {SRV_ARG_INT, id, 0, NULL};
+    long long cmp = 0;
+    if (!srv_db_query(r->app->db, SRV_Q_JOB_COMPARISON, &arg, 1, &rows, &err))
+      cmp = (long long)json_integer_value(json_object_get(json_array_get(rows, 0), "comparison"));
+    json_decref(rows);
+    obs_err_free(&err);
+    return srv_respond_error(r, MHD_HTTP_CONFLICT, NULL,
+                             "job %lld belongs to comparison %lld, which keeps its jobs",
+                             (long long)id, cmp);
+  }
   if (rc == OBS_EINVAL) {
     obs_err_free(&err);
     srv_state st = SRV_QUEUED;
@@ -342,7 +339,7 @@ static int delete_job(srv_req *r, int64_t id) {
                              "job %lld is %s: only finished jobs can be deleted (cancel it first)",
                              (long long)id, srv_state_name(st));
   }
-  if (rc) return db_unavailable(r, &err);
+  if (rc) return srv_respond_unavailable(r, &err);
   srv_outputs_remove(r->app, id);
   srv_log("job %lld: deleted", (long long)id);
   struct MHD_Response *resp = MHD_create_response_from_buffer(0, "", MHD_RESPMEM_PERSISTENT);
@@ -439,6 +436,20 @@ int srv_api_dispatch(srv_req *r) {
       return is_get(r) ? techniques(r) : srv_respond_method(r, "GET, HEAD");
     case SRV_ROUTE_SCENES: return is_get(r) ? scenes(r) : srv_respond_method(r, "GET, HEAD");
     case SRV_ROUTE_HEALTH: return is_get(r) ? health(r) : srv_respond_method(r, "GET, HEAD");
+    case SRV_ROUTE_COMPARISONS:
+      if (!strcmp(r->method, "POST")) return srv_compare_post(r);
+      return is_get(r) ? srv_compare_list(r) : srv_respond_method(r, "GET, HEAD, POST");
+    case SRV_ROUTE_COMPARISON: {
+      const char *idtext = r->path + sizeof API "/comparisons/" - 1;
+      size_t n = strlen(idtext);
+      int csv = n > 4 && !strcmp(idtext + n - 4, ".csv");
+      int64_t id;
+      if (srv_parse_id(idtext, csv ? n - 4 : n, &id))
+        return srv_respond_error(r, MHD_HTTP_NOT_FOUND, NULL,
+                                 "no such comparison (ids are positive integers without leading "
+                                 "zeros, optionally followed by .csv)");
+      return is_get(r) ? srv_compare_get(r, id, csv) : srv_respond_method(r, "GET, HEAD");
+    }
     case SRV_ROUTE_JOBS:
       if (!strcmp(r->method, "POST")) return submit(r);
       return is_get(r) ? list_jobs(r) : srv_respond_method(r, "GET, HEAD, POST");

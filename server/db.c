@@ -41,13 +41,21 @@ enum {
   ST_CHECKPOINT,
   ST_MIGRATION_MAX,
   ST_MIGRATION_PUT,
-  ST_COUNT
+  ST_RUN_INSERT,
+  ST_MACHINE_INSERT,
+  ST_MACHINE_GET,
+  ST_CMP_INSERT,
+  ST_CAND_INSERT,
+  ST_SET_METRICS,
+  ST_OUT_UPSERT,
+  ST_QUERY, /* first of the SRV_NQUERIES read-only queries */
+  ST_COUNT = ST_QUERY + SRV_NQUERIES
 };
 
 #define JOB_COLS                                                                                  \
   "id, state, priority, label, scene, technique, backend_requested, backend, lane, width, "      \
   "height, spp, attempts, cancel_requested, created_ms, started_ms, finished_ms, error, summary, " \
-  "progress"
+  "progress, repeats, warmup, backend_reason"
 #define LIST_WHERE                                                                                \
   "(?1 IS NULL OR state = ?1) AND (?2 IS NULL OR technique = ?2) AND "                           \
   "(?3 IS NULL OR coalesce(backend, backend_requested) = ?3) "
@@ -57,7 +65,8 @@ static const char *const sql[ST_COUNT] = {
     [ST_COMMIT] = "COMMIT",
     [ST_ROLLBACK] = "ROLLBACK",
     [ST_INSERT] = "INSERT INTO jobs (priority, label, scene, doc, technique, backend_requested, "
-                  "lane, width, height, spp, created_ms) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                  "lane, width, height, spp, created_ms, repeats, warmup, work, backend_reason) "
+                  "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
     [ST_GET] = "SELECT " JOB_COLS " FROM jobs WHERE id = ?",
     [ST_OUTPUTS] = "SELECT name, size, sha256, content_type FROM outputs WHERE job_id = ? "
                    "ORDER BY name",
@@ -85,7 +94,9 @@ static const char *const sql[ST_COUNT] = {
                          "error = 'cancelled by request', finished_ms = ? "
                          "WHERE id = ? AND state = 'queued'",
     [ST_CANCEL_RUNNING] = "UPDATE jobs SET cancel_requested = 1 WHERE id = ? AND state = 'running'",
-    [ST_DELETE] = "DELETE FROM jobs WHERE id = ? AND state IN ('succeeded', 'failed', 'cancelled')",
+    [ST_DELETE] = "DELETE FROM jobs WHERE id = ?1 AND state IN ('succeeded', 'failed', 'cancelled') "
+                  "AND NOT EXISTS (SELECT 1 FROM comparison_candidates WHERE job = ?1 OR "
+                  "reference_job = ?1)",
     [ST_GET_OUTPUT] = "SELECT size, sha256, content_type FROM outputs WHERE job_id = ? AND name = ?",
     [ST_COUNTS] = "SELECT state, count(*) FROM jobs GROUP BY state",
     [ST_RUNNING_LIST] = "SELECT id, attempts, cancel_requested, error FROM jobs "
@@ -99,6 +110,74 @@ static const char *const sql[ST_COUNT] = {
     [ST_CHECKPOINT] = "PRAGMA wal_checkpoint(TRUNCATE)",
     [ST_MIGRATION_MAX] = "SELECT coalesce(max(version), 0) FROM schema_migrations",
     [ST_MIGRATION_PUT] = "INSERT INTO schema_migrations (version, applied_ms) VALUES (?, ?)",
+    [ST_RUN_INSERT] = "INSERT INTO runs (job, run, build_ms, render_ms, post_ms, total_ms, machine) "
+                      "VALUES (?, ?, ?, ?, ?, ?, ?)",
+    [ST_MACHINE_INSERT] = "INSERT INTO machines (cpu_model, cores, vulkan_device) VALUES (?, ?, ?) "
+                          "ON CONFLICT DO NOTHING",
+    [ST_MACHINE_GET] = "SELECT id FROM machines WHERE cpu_model = ?1 AND cores = ?2 AND "
+                       "vulkan_device IS ?3",
+    [ST_CMP_INSERT] = "INSERT INTO comparisons (label, scene, width, height, repeats, request, "
+                      "created_ms) VALUES (?, ?, ?, ?, ?, ?, ?)",
+    [ST_CAND_INSERT] = "INSERT INTO comparison_candidates (comparison, idx, job, reference_job, "
+                       "technique, backend, params, reference_params, response) "
+                       "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+    [ST_SET_METRICS] = "UPDATE comparison_candidates SET metrics = ?3, metrics_error = ?4 "
+                       "WHERE comparison = ?1 AND idx = ?2 AND metrics IS NULL AND "
+                       "metrics_error IS NULL",
+    [ST_OUT_UPSERT] = "INSERT OR REPLACE INTO outputs (job_id, name, size, sha256, content_type) "
+                      "VALUES (?, ?, ?, ?, ?)",
+#define CMP_JOBS                                                                                  \
+  "(SELECT job FROM comparison_candidates WHERE comparison = ?1 UNION "                           \
+  "SELECT reference_job FROM comparison_candidates WHERE comparison = ?1)"
+/* Per comparison: jobs still to run, candidates that can no longer get metrics, and with them. */
+#define CMP_COUNTS                                                                                \
+  "(SELECT count(*) FROM jobs WHERE id IN (SELECT job FROM comparison_candidates WHERE "          \
+  "comparison = c.id UNION SELECT reference_job FROM comparison_candidates WHERE comparison = "    \
+  "c.id) AND state IN ('queued', 'running')) AS active, "                                         \
+  "(SELECT count(*) FROM comparison_candidates x JOIN jobs j ON j.id = x.job JOIN jobs r ON "     \
+  "r.id = x.reference_job WHERE x.comparison = c.id AND x.metrics IS NULL AND "                   \
+  "(x.metrics_error IS NOT NULL OR j.state IN ('failed', 'cancelled') OR "                        \
+  "r.state IN ('failed', 'cancelled'))) AS broken, "                                              \
+  "(SELECT count(*) FROM comparison_candidates x WHERE x.comparison = c.id AND x.metrics IS NOT " \
+  "NULL) AS measured, "                                                                           \
+  "(SELECT count(*) FROM comparison_candidates x WHERE x.comparison = c.id) AS candidates"
+    [ST_QUERY + SRV_Q_COMPARISON] = "SELECT c.id, c.label, c.scene, c.width, c.height, c.repeats, "
+                                    "c.created_ms, " CMP_COUNTS " FROM comparisons c WHERE c.id = ?1",
+    [ST_QUERY + SRV_Q_CANDIDATES] =
+        "SELECT cc.idx, cc.job, cc.reference_job, cc.technique, cc.backend, cc.params, "
+        "cc.reference_params, cc.response, cc.metrics, cc.metrics_error, j.state, j.progress, "
+        "r.state AS ref_state, r.progress AS ref_progress, r.summary AS ref_summary "
+        "FROM comparison_candidates cc JOIN jobs j ON j.id = cc.job "
+        "JOIN jobs r ON r.id = cc.reference_job WHERE cc.comparison = ?1 ORDER BY cc.idx",
+    [ST_QUERY + SRV_Q_COMPARISON_RUNS] =
+        "SELECT ru.job, ru.run, ru.build_ms, ru.render_ms, ru.post_ms, ru.total_ms, m.cpu_model, "
+        "m.cores, m.vulkan_device FROM runs ru LEFT JOIN machines m ON m.id = ru.machine "
+        "WHERE ru.job IN " CMP_JOBS " ORDER BY ru.job, ru.run",
+    [ST_QUERY + SRV_Q_COMPARISON_OUTPUTS] =
+        "SELECT job_id AS job, name FROM outputs WHERE job_id IN " CMP_JOBS " ORDER BY job_id, name",
+    [ST_QUERY + SRV_Q_COMPARISONS] = "SELECT c.id, c.label, c.scene, c.created_ms, " CMP_COUNTS
+                                     " FROM comparisons c WHERE (?1 = 0 OR c.id < ?1) "
+                                     "ORDER BY c.id DESC LIMIT ?2",
+    [ST_QUERY + SRV_Q_JOB_COMPARISON] = "SELECT comparison FROM comparison_candidates WHERE "
+                                        "job = ?1 OR reference_job = ?1 LIMIT 1",
+    [ST_QUERY + SRV_Q_METRICS_PENDING] =
+        "SELECT cc.comparison, cc.idx, cc.job, cc.reference_job, cc.response "
+        "FROM comparison_candidates cc JOIN jobs j ON j.id = cc.job "
+        "JOIN jobs r ON r.id = cc.reference_job WHERE cc.metrics IS NULL AND "
+        "cc.metrics_error IS NULL AND j.state = 'succeeded' AND r.state = 'succeeded' AND "
+        "(?1 = 0 OR cc.job = ?1 OR cc.reference_job = ?1) ORDER BY cc.comparison, cc.idx",
+    /* The newest 5000 runs are plenty for a median and bound the work of one submission. */
+    [ST_QUERY + SRV_Q_AUTO_RUNS] =
+        "SELECT j.backend, ru.total_ms FROM runs ru JOIN jobs j ON j.id = ru.job "
+        "WHERE j.technique = ?1 AND j.work BETWEEN ?2 / 2.0 AND ?2 * 2.0 AND "
+        "j.backend IS NOT NULL AND j.state = 'succeeded' ORDER BY ru.job DESC LIMIT 5000",
+    [ST_QUERY + SRV_Q_BUDGET] =
+        "SELECT c.id AS comparison, c.scene, cc.idx, cc.job, cc.technique, cc.backend, cc.params, "
+        "cc.metrics, j.width * j.height * j.spp AS pixels FROM comparison_candidates cc "
+        "JOIN comparisons c ON c.id = cc.comparison JOIN jobs j ON j.id = cc.job "
+        "WHERE cc.metrics IS NOT NULL AND j.state = 'succeeded' "
+        "ORDER BY c.id DESC, cc.idx LIMIT 2000",
+    [ST_QUERY + SRV_Q_JOB_RUNS] = "SELECT total_ms FROM runs WHERE job = ?1 ORDER BY run",
 };
 
 typedef struct conn {
@@ -228,6 +307,9 @@ static void read_job(sqlite3_stmt *s, srv_job *j) {
   j->error = col_str(s, 17);
   j->summary = col_str(s, 18);
   j->progress = sqlite3_column_double(s, 19);
+  j->repeats = sqlite3_column_int(s, 20);
+  j->warmup = sqlite3_column_int(s, 21);
+  j->backend_reason = col_str(s, 22);
 }
 
 void srv_job_free(srv_job *j) {
@@ -239,6 +321,7 @@ void srv_job_free(srv_job *j) {
   free(j->backend);
   free(j->error);
   free(j->summary);
+  free(j->backend_reason);
   free(j->doc);
   free(j->outputs);
   memset(j, 0, sizeof *j);
@@ -408,28 +491,200 @@ void srv_db_close(srv_db *db) {
 
 /* ---- jobs ------------------------------------------------------------------------------------ */
 
+/* Inserts one job row on `c` (in autocommit or the caller's transaction). */
+static int insert_job(conn *c, const srv_new_job *nj, int64_t *id, obs_err *err) {
+  sqlite3_stmt *s = stmt(c, ST_INSERT, err);
+  if (!s) return OBS_EIO;
+  sqlite3_bind_int(s, 1, nj->priority);
+  bind_text(s, 2, nj->label);
+  bind_text(s, 3, nj->scene);
+  bind_text(s, 4, nj->doc);
+  bind_text(s, 5, nj->technique);
+  bind_text(s, 6, nj->backend_requested);
+  bind_text(s, 7, srv_lane_name(nj->lane));
+  sqlite3_bind_int(s, 8, nj->width);
+  sqlite3_bind_int(s, 9, nj->height);
+  sqlite3_bind_int(s, 10, nj->spp);
+  sqlite3_bind_int64(s, 11, srv_now_unix_ms());
+  sqlite3_bind_int(s, 12, nj->repeats > 0 ? nj->repeats : 1);
+  sqlite3_bind_int(s, 13, nj->warmup ? 1 : 0);
+  if (nj->work > 0) sqlite3_bind_double(s, 14, nj->work);
+  else sqlite3_bind_null(s, 14);
+  bind_text(s, 15, nj->backend_reason);
+  int rc = exec_done(c, s, err, "inserting the job");
+  if (!rc) *id = sqlite3_last_insert_rowid(c->db);
+  return rc;
+}
+
 int srv_db_insert_job(srv_db *db, const srv_new_job *nj, int64_t *id, obs_err *err) {
   conn *c = acquire(db);
-  sqlite3_stmt *s = stmt(c, ST_INSERT, err);
+  /* Autocommit: when the step returned DONE the row is committed to the WAL. */
+  int rc = insert_job(c, nj, id, err);
+  release(db, c);
+  return rc;
+}
+
+int srv_db_insert_comparison(srv_db *db, const srv_new_comparison *cmp, int64_t *id,
+                             obs_err *err) {
+  int64_t *ref_ids = calloc((size_t)cmp->nreferences + 1, sizeof *ref_ids);
+  if (!ref_ids) return obs_err_set(err, OBS_ENOMEM, "out of memory");
+  conn *c = acquire(db);
+  int rc = begin(c, err);
+  sqlite3_stmt *s;
+  if (!rc) {
+    s = stmt(c, ST_CMP_INSERT, err);
+    if (!s) rc = OBS_EIO;
+    else {
+      bind_text(s, 1, cmp->label);
+      bind_text(s, 2, cmp->scene);
+      sqlite3_bind_int(s, 3, cmp->width);
+      sqlite3_bind_int(s, 4, cmp->height);
+      sqlite3_bind_int(s, 5, cmp->repeats);
+      bind_text(s, 6, cmp->request);
+      sqlite3_bind_int64(s, 7, srv_now_unix_ms());
+      rc = exec_done(c, s, err, "inserting the comparison");
+      if (!rc) *id = sqlite3_last_insert_rowid(c->db);
+    }
+  }
+  /* References first, so a scheduler taking jobs in id order renders a shared reference early. */
+  for (int i = 0; !rc && i < cmp->nreferences; i++)
+    rc = insert_job(c, &cmp->references[i], &ref_ids[i], err);
+  for (int i = 0; !rc && i < cmp->ncandidates; i++) {
+    const srv_new_candidate *cd = &cmp->candidates[i];
+    int64_t job = 0;
+    rc = insert_job(c, &cd->job, &job, err);
+    if (rc) break;
+    s = stmt(c, ST_CAND_INSERT, err);
+    if (!s) {
+      rc = OBS_EIO;
+      break;
+    }
+    sqlite3_bind_int64(s, 1, *id);
+    sqlite3_bind_int(s, 2, i);
+    sqlite3_bind_int64(s, 3, job);
+    sqlite3_bind_int64(s, 4, ref_ids[cd->reference]);
+    bind_text(s, 5, cd->technique);
+    bind_text(s, 6, cd->backend);
+    bind_text(s, 7, cd->params);
+    bind_text(s, 8, cd->reference_params);
+    bind_text(s, 9, cd->response);
+    rc = exec_done(c, s, err, "inserting a candidate");
+  }
+  if (!rc) rc = commit(c, err);
+  if (rc) rollback(c);
+  release(db, c);
+  free(ref_ids);
+  return rc;
+}
+
+int srv_db_machine(srv_db *db, const char *cpu_model, int cores, const char *vulkan_device,
+                   int64_t *id, obs_err *err) {
+  conn *c = acquire(db);
+  sqlite3_stmt *s = stmt(c, ST_MACHINE_INSERT, err);
   int rc = OBS_EIO;
   if (s) {
-    sqlite3_bind_int(s, 1, nj->priority);
-    bind_text(s, 2, nj->label);
-    bind_text(s, 3, nj->scene);
-    bind_text(s, 4, nj->doc);
-    bind_text(s, 5, nj->technique);
-    bind_text(s, 6, nj->backend_requested);
-    bind_text(s, 7, srv_lane_name(nj->lane));
-    sqlite3_bind_int(s, 8, nj->width);
-    sqlite3_bind_int(s, 9, nj->height);
-    sqlite3_bind_int(s, 10, nj->spp);
-    sqlite3_bind_int64(s, 11, srv_now_unix_ms());
-    rc = exec_done(c, s, err, "inserting the job");
-    /* Autocommit: when the step returned DONE the row is committed to the WAL. */
-    if (!rc) *id = sqlite3_last_insert_rowid(c->db);
+    bind_text(s, 1, cpu_model);
+    sqlite3_bind_int(s, 2, cores);
+    bind_text(s, 3, vulkan_device);
+    rc = exec_done(c, s, err, "recording the machine");
+  }
+  if (!rc) {
+    s = stmt(c, ST_MACHINE_GET, err);
+    if (!s) rc = OBS_EIO;
+    else {
+      bind_text(s, 1, cpu_model);
+      sqlite3_bind_int(s, 2, cores);
+      bind_text(s, 3, vulkan_device);
+      int step = sqlite3_step(s);
+      if (step == SQLITE_ROW) *id = sqlite3_column_int64(s, 0);
+      else rc = db_fail(c, err, "reading the machine");
+      done(s);
+    }
   }
   release(db, c);
   return rc;
+}
+
+/* Inserts or replaces output rows of job `id` (statement `which`: ST_OUT_INSERT or UPSERT). */
+static int put_outputs(conn *c, int which, int64_t id, const srv_output *outs, int nouts,
+                       obs_err *err) {
+  int rc = 0;
+  for (int i = 0; !rc && i < nouts; i++) {
+    sqlite3_stmt *s = stmt(c, which, err);
+    if (!s) return OBS_EIO;
+    sqlite3_bind_int64(s, 1, id);
+    bind_text(s, 2, outs[i].name);
+    sqlite3_bind_int64(s, 3, outs[i].size);
+    bind_text(s, 4, outs[i].sha256);
+    bind_text(s, 5, outs[i].content_type);
+    rc = exec_done(c, s, err, "recording an output");
+  }
+  return rc;
+}
+
+int srv_db_set_metrics(srv_db *db, int64_t comparison, int idx, int64_t job, const char *metrics,
+                       const char *error, const srv_output *outs, int nouts, obs_err *err) {
+  conn *c = acquire(db);
+  int rc = begin(c, err);
+  if (!rc) {
+    sqlite3_stmt *s = stmt(c, ST_SET_METRICS, err);
+    if (!s) rc = OBS_EIO;
+    else {
+      sqlite3_bind_int64(s, 1, comparison);
+      sqlite3_bind_int(s, 2, idx);
+      bind_text(s, 3, metrics);
+      bind_text(s, 4, error);
+      rc = exec_done(c, s, err, "storing metrics");
+    }
+  }
+  if (!rc) rc = put_outputs(c, ST_OUT_UPSERT, job, outs, nouts, err);
+  if (!rc) rc = commit(c, err);
+  if (rc) rollback(c);
+  release(db, c);
+  return rc;
+}
+
+int srv_db_query(srv_db *db, srv_query q, const srv_arg *args, int nargs, json_t **rows,
+                 obs_err *err) {
+  *rows = NULL;
+  if (q < 0 || q >= SRV_NQUERIES) return obs_err_set(err, OBS_EINTERNAL, "no query %d", (int)q);
+  json_t *out = json_array();
+  if (!out) return obs_err_set(err, OBS_ENOMEM, "out of memory");
+  conn *c = acquire(db);
+  sqlite3_stmt *s = stmt(c, ST_QUERY + (int)q, err);
+  int rc = OBS_EIO;
+  if (s) {
+    for (int i = 0; i < nargs; i++) {
+      if (args[i].kind == SRV_ARG_INT) sqlite3_bind_int64(s, i + 1, args[i].i);
+      else if (args[i].kind == SRV_ARG_REAL) sqlite3_bind_double(s, i + 1, args[i].d);
+      else bind_text(s, i + 1, args[i].s);
+    }
+    int step, ncol = sqlite3_column_count(s);
+    while ((step = sqlite3_step(s)) == SQLITE_ROW) {
+      json_t *row = json_object();
+      for (int k = 0; k < ncol; k++) {
+        json_t *v;
+        switch (sqlite3_column_type(s, k)) {
+          case SQLITE_INTEGER: v = json_integer(sqlite3_column_int64(s, k)); break;
+          case SQLITE_FLOAT: v = json_real(sqlite3_column_double(s, k)); break;
+          case SQLITE_TEXT: v = json_string((const char *)sqlite3_column_text(s, k)); break;
+          default: v = json_null(); break;
+        }
+        /* A string that is not UTF-8 cannot be a JSON string: shown as null. */
+        json_object_set_new(row, sqlite3_column_name(s, k), v ? v : json_null());
+      }
+      json_array_append_new(out, row);
+    }
+    rc = step == SQLITE_DONE ? 0 : db_fail(c, err, "query");
+    done(s);
+  }
+  release(db, c);
+  if (rc) {
+    json_decref(out);
+    return rc;
+  }
+  *rows = out;
+  return 0;
 }
 
 int srv_db_get_job(srv_db *db, int64_t id, srv_job *j, obs_err *err) {
@@ -495,7 +750,7 @@ int srv_db_claim(srv_db *db, srv_lane lane, srv_job *j, obs_err *err) {
     int step = sqlite3_step(s);
     if (step == SQLITE_ROW) {
       read_job(s, j);
-      j->doc = col_str(s, 20);
+      j->doc = col_str(s, 23);
       /* Step to the end so the UPDATE's transaction commits before we let go. */
       step = sqlite3_step(s);
       rc = step == SQLITE_DONE ? 0 : db_fail(c, err, "claiming a job");
@@ -523,7 +778,8 @@ int srv_db_set_backend(srv_db *db, int64_t id, const char *backend, obs_err *err
 }
 
 int srv_db_finish_success(srv_db *db, int64_t id, const char *backend, const char *summary,
-                          const srv_output *outs, int nouts, obs_err *err) {
+                          const srv_output *outs, int nouts, const srv_run *runs, int nruns,
+                          int64_t machine, obs_err *err) {
   conn *c = acquire(db);
   int rc = begin(c, err);
   sqlite3_stmt *s;
@@ -548,18 +804,22 @@ int srv_db_finish_success(srv_db *db, int64_t id, const char *backend, const cha
       rc = exec_done(c, s, err, "clearing outputs");
     }
   }
-  for (int i = 0; !rc && i < nouts; i++) {
-    s = stmt(c, ST_OUT_INSERT, err);
+  if (!rc) rc = put_outputs(c, ST_OUT_INSERT, id, outs, nouts, err);
+  for (int i = 0; !rc && i < nruns; i++) {
+    s = stmt(c, ST_RUN_INSERT, err);
     if (!s) {
       rc = OBS_EIO;
       break;
     }
     sqlite3_bind_int64(s, 1, id);
-    bind_text(s, 2, outs[i].name);
-    sqlite3_bind_int64(s, 3, outs[i].size);
-    bind_text(s, 4, outs[i].sha256);
-    bind_text(s, 5, outs[i].content_type);
-    rc = exec_done(c, s, err, "recording an output");
+    sqlite3_bind_int(s, 2, i + 1);
+    sqlite3_bind_double(s, 3, runs[i].build_ms);
+    sqlite3_bind_double(s, 4, runs[i].render_ms);
+    sqlite3_bind_double(s, 5, runs[i].post_ms);
+    sqlite3_bind_double(s, 6, runs[i].total_ms);
+    if (machine > 0) sqlite3_bind_int64(s, 7, machine);
+    else sqlite3_bind_null(s, 7);
+    rc = exec_done(c, s, err, "recording a run");
   }
   if (!rc) rc = commit(c, err);
   if (rc) rollback(c);
@@ -643,13 +903,16 @@ int srv_db_delete(srv_db *db, int64_t id, obs_err *err) {
     sqlite3_bind_int64(s, 1, id);
     rc = exec_done(c, s, err, "deleting the job");
     if (!rc && sqlite3_changes(c->db) == 0) {
-      /* Either no such job or not finished: tell them apart for 404 vs 409. */
+      /* No such job (404), not finished (409), or finished but part of a comparison (409). */
       sqlite3_stmt *q = stmt(c, ST_STATE, err);
       if (!q) rc = OBS_EIO;
       else {
         sqlite3_bind_int64(q, 1, id);
         int step = sqlite3_step(q);
-        rc = step == SQLITE_ROW    ? OBS_EINVAL
+        srv_state st = SRV_QUEUED;
+        if (step == SQLITE_ROW) srv_state_parse((const char *)sqlite3_column_text(q, 0), &st);
+        rc = step == SQLITE_ROW    ? (st == SRV_QUEUED || st == SRV_RUNNING ? OBS_EINVAL
+                                                                            : OBS_EUNSUPPORTED)
              : step == SQLITE_DONE ? OBS_ENOTFOUND
                                    : db_fail(c, err, "reading the job");
         done(q);
@@ -852,6 +1115,11 @@ int srv_db_recover(srv_db *db, int vulkan_lane, void (*clean)(void *, int64_t), 
     if (prc) {
       rc = end_job(c, p->id, SRV_FAILED, obs_err_message(&e), err);
       srv_log("job %lld: queued -> failed (%s)", (long long)p->id, obs_err_message(&e));
+    } else if (want == OBS_BACKEND_AUTO &&
+               (p->lane ? vulkan_lane && obs_technique_has_backend(t, OBS_BACKEND_VULKAN)
+                        : obs_technique_has_backend(t, OBS_BACKEND_CPU))) {
+      /* An "auto" job keeps the lane chosen at submission (possibly from measured timings) as
+       * long as that lane still runs here. */
     } else if ((be == OBS_BACKEND_VULKAN) != p->lane) {
       sqlite3_stmt *s = stmt(c, ST_SET_LANE, err);
       if (!s) rc = OBS_EIO;

@@ -10,6 +10,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <sys/socket.h>
 
 #include "obscurad.h"
@@ -34,7 +35,8 @@ int srv_respond(srv_req *r, unsigned status, struct MHD_Response *resp) {
   return ret;
 }
 
-int srv_respond_json(srv_req *r, unsigned status, json_t *body) {
+/* A JSON answer, with a Location header when `location` is not NULL. Consumes `body`. */
+static int respond_json(srv_req *r, unsigned status, json_t *body, const char *location) {
   char *text = body ? json_dumps(body, JSON_COMPACT | JSON_REAL_PRECISION(12)) : NULL;
   json_decref(body);
   if (!text) return MHD_NO;
@@ -45,7 +47,33 @@ int srv_respond_json(srv_req *r, unsigned status, json_t *body) {
     return MHD_NO;
   }
   MHD_add_response_header(resp, "Content-Type", "application/json");
+  if (location) MHD_add_response_header(resp, "Location", location);
   return srv_respond(r, status, resp);
+}
+
+int srv_respond_json(srv_req *r, unsigned status, json_t *body) {
+  return respond_json(r, status, body, NULL);
+}
+
+int srv_refuse_non_json(srv_req *r, int *ret) {
+  const char *ct =
+      MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_TYPE);
+  if (!ct || !strncasecmp(ct, "application/json", 16)) return 0;
+  *ret = srv_respond_error(r, MHD_HTTP_UNSUPPORTED_MEDIA_TYPE, NULL,
+                           "Content-Type must be application/json (got \"%.64s\")", ct);
+  return 1;
+}
+
+int srv_respond_unavailable(srv_req *r, obs_err *err) {
+  srv_log("database error: %s", obs_err_message(err));
+  int rc = srv_respond_error(r, MHD_HTTP_SERVICE_UNAVAILABLE, err,
+                             "database unavailable, try again");
+  obs_err_free(err);
+  return rc;
+}
+
+int srv_respond_created(srv_req *r, json_t *body, const char *location) {
+  return respond_json(r, MHD_HTTP_CREATED, body, location);
 }
 
 int srv_respond_error(srv_req *r, unsigned status, const obs_err *problems, const char *fmt, ...) {

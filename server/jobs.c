@@ -21,6 +21,8 @@ typedef struct slot {
   atomic_llong id;           /* 0 = idle */
   atomic_int cancel;         /* the render's cancel flag */
   atomic_int progress_ppm;   /* millionths */
+  atomic_int render_index;   /* which of render_count renders of the attempt is running */
+  atomic_int render_count;
   int stop;                  /* why cancel was raised (STOP_*) */
   double deadline_ms;        /* obs_now_ms() clock */
   srv_lane lane;
@@ -92,6 +94,9 @@ int srv_sched_cancel(srv_app *app, int64_t id, srv_cancel_result *res, obs_err *
 
 static void on_progress(void *user, double f) {
   slot *sl = user;
+  /* Warm-up and repeated renders each take an equal share of the job's progress. */
+  int n = atomic_load(&sl->render_count), k = atomic_load(&sl->render_index);
+  if (n > 1) f = (k + f) / n;
   int ppm = (int)(f * 1e6);
   if (ppm < 0) ppm = 0;
   if (ppm > 1000000) ppm = 1000000;
@@ -135,8 +140,10 @@ static int stop_reason(slot *sl) {
   return why;
 }
 
-static void run_job(slot *sl, srv_job *j) {
+/* Runs one claimed job to its outcome; returns 1 when it succeeded. */
+static int run_job(slot *sl, srv_job *j) {
   srv_app *app = sl->app;
+  int succeeded = 0;
   srv_log("job %lld: queued -> running (%s lane, attempt %d)", (long long)j->id,
           srv_lane_name(sl->lane), j->attempts);
   obs_err err = OBS_ERR_INIT;
@@ -146,7 +153,7 @@ static void run_job(slot *sl, srv_job *j) {
   if (rc) {
     fail_job(sl, j, SRV_FAILED, obs_err_message(&err));
     obs_err_free(&err);
-    return;
+    return 0;
   }
   double load_ms = obs_now_ms() - t0;
   /* The lane decided the backend when the job was accepted (or at recovery); pin it, so an
@@ -162,12 +169,33 @@ static void run_job(slot *sl, srv_job *j) {
   }
   obs_result res;
   memset(&res, 0, sizeof res);
-  if (!rc) {
+  /* Comparison jobs render once untimed (warm caches: page cache, allocator, Vulkan pipelines),
+   * then `repeats` timed renders; every timed one is stored, the last one's image is the output
+   * (renders are deterministic, so all are the same image). */
+  int repeats = j->repeats >= 1 && j->repeats <= SRV_MAX_REPEATS ? j->repeats : 1;
+  int nrenders = repeats + (j->warmup ? 1 : 0), nruns = 0;
+  srv_run runs[SRV_MAX_REPEATS];
+  atomic_store(&sl->render_count, nrenders);
+  for (int k = 0; !rc && k < nrenders; k++) {
+    obs_result_free(&res);
+    atomic_store(&sl->render_index, k);
     obs_render_opts opts = {.threads = app->cpu_threads,
                             .progress = on_progress,
                             .progress_user = sl,
                             .cancel = &sl->cancel};
     rc = obs_render(&sc, &opts, &res, &err);
+    if (!rc && (k > 0 || !j->warmup)) {
+      srv_run *r = &runs[nruns++];
+      r->build_ms = res.timings.build_ms;
+      r->render_ms = res.timings.render_ms;
+      r->total_ms = res.timings.total_ms;
+      /* post: what obs_render spent outside the technique's build and render (output assembly,
+       * readback bookkeeping); never negative through rounding. */
+      r->post_ms = r->total_ms - r->build_ms - r->render_ms;
+      if (r->post_ms < 0) r->post_ms = 0;
+      r->total_ms = r->build_ms + r->render_ms + r->post_ms;
+    }
+    if (stop_reason(sl)) break;
   }
   int why = stop_reason(sl);
   if (why) {
@@ -182,10 +210,10 @@ static void run_job(slot *sl, srv_job *j) {
              j->attempts);
     srv_results_path(app, j->id, final, sizeof final);
     srv_remove_tree(stage);
-    srv_output outs[8];
+    srv_output outs[16];
     int nouts = 0;
     rc = obs_result_write(&res, &sc, stage, &err);
-    if (!rc) rc = srv_outputs_describe(stage, outs, 8, &nouts, &err);
+    if (!rc) rc = srv_outputs_describe(stage, outs, 16, &nouts, &err);
     /* Publish the directory first and commit second: a crash in between leaves a job that is
      * still `running` in the database, which recovery requeues and whose directory it removes. */
     if (!rc) {
@@ -200,7 +228,7 @@ static void run_job(slot *sl, srv_job *j) {
       summary = json_dumps(sum, JSON_COMPACT | JSON_REAL_PRECISION(9));
       json_decref(sum);
       rc = srv_db_finish_success(app->db, j->id, obs_backend_name(res.backend), summary, outs,
-                                 nouts, &err);
+                                 nouts, runs, nruns, app->machine_id, &err);
     }
     free(summary);
     if (rc) {
@@ -214,11 +242,13 @@ static void run_job(slot *sl, srv_job *j) {
               res.technique->name, obs_backend_name(res.backend), res.image.width,
               res.image.height, res.timings.total_ms);
       job_done(app->sched);
+      succeeded = 1;
     }
   }
   obs_result_free(&res);
   obs_scene_free(&sc);
   obs_err_free(&err);
+  return succeeded;
 }
 
 static void *worker(void *arg) {
@@ -259,12 +289,16 @@ static void *worker(void *arg) {
     }
     pthread_mutex_unlock(&s->mu);
     if (!have) break;
-    run_job(sl, &j);
+    int ok = run_job(sl, &j);
+    int64_t id = j.id;
     srv_job_free(&j);
     pthread_mutex_lock(&s->mu);
     atomic_store(&sl->id, 0);
     sl->stop = STOP_NONE;
     pthread_mutex_unlock(&s->mu);
+    /* After the commit (and with the slot free again): this job may complete a comparison
+     * candidate, as the candidate or as its reference, whose metrics are computed here. */
+    if (ok) srv_compare_metrics(sl->app, id);
   }
   return NULL;
 }
@@ -329,6 +363,8 @@ int srv_sched_start(srv_app *app, obs_err *err) {
     atomic_init(&sl->id, 0);
     atomic_init(&sl->cancel, 0);
     atomic_init(&sl->progress_ppm, 0);
+    atomic_init(&sl->render_index, 0);
+    atomic_init(&sl->render_count, 1);
     sl->lane = i < app->cfg.workers ? SRV_LANE_CPU : SRV_LANE_VULKAN;
     sl->index = i;
     sl->app = app;

@@ -56,6 +56,25 @@ static int read_token(srv_app *app) {
 
 static void clean_outputs(void *user, int64_t id) { srv_outputs_remove(user, id); }
 
+/* The CPU model as /proc/cpuinfo names it ("model name"), or "unknown". */
+static void cpu_model(char *buf, size_t n) {
+  snprintf(buf, n, "unknown");
+  FILE *f = fopen("/proc/cpuinfo", "r");
+  if (!f) return;
+  char line[512];
+  while (fgets(line, sizeof line, f)) {
+    if (strncmp(line, "model name", 10)) continue;
+    char *v = strchr(line, ':');
+    if (!v) break;
+    v++;
+    while (*v == ' ' || *v == '\t') v++;
+    size_t len = strcspn(v, "\r\n");
+    if (len) snprintf(buf, n, "%.*s", (int)len, v);
+    break;
+  }
+  fclose(f);
+}
+
 static int resolve_dir(const char *opt, const char *dir, char *out, int required) {
   struct stat st;
   if (realpath(dir, out) && !stat(out, &st) && S_ISDIR(st.st_mode)) return 0;
@@ -128,6 +147,17 @@ int main(int argc, char **argv) {
   if (srv_db_open(&app.db, app.cfg.db, nconn, &err)) goto out;
   if (srv_db_recover(app.db, app.vulkan_lane, clean_outputs, &app, &err)) goto out;
   srv_outputs_sweep(&app);
+  /* The facts every timed run is recorded with: this CPU, the threads a render uses, and the
+   * Vulkan device when a Vulkan lane runs. */
+  char model[256];
+  cpu_model(model, sizeof model);
+  if (srv_db_machine(app.db, model, app.cpu_threads,
+                     app.vulkan_lane ? obs_vk_available_device_name() : NULL, &app.machine_id,
+                     &err))
+    goto out;
+  /* Recovery of comparisons: metrics of candidates whose jobs both succeeded but which the last
+   * process did not get to (it died between a job's commit and its metrics). */
+  srv_compare_metrics(&app, 0);
   if (srv_sched_start(&app, &err)) goto out;
   if (srv_http_start(&app, &err)) goto out;
 

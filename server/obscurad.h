@@ -11,6 +11,8 @@
 #include "obscura/obscura.h"
 
 #define SRV_MAX_ATTEMPTS 3
+/* Timed renders per attempt (jobs.repeats) at most. */
+#define SRV_MAX_REPEATS 20
 
 /* ---- configuration (config.c) ---------------------------------------------------------------- */
 
@@ -54,6 +56,8 @@ void srv_log(const char *fmt, ...)
 int64_t srv_now_unix_ms(void);
 /* RFC 3339 UTC with milliseconds into buf (at least 32 bytes). */
 void srv_format_time(int64_t unix_ms, char *buf, size_t n);
+/* The same as a JSON string, or null for 0 (not yet). */
+json_t *srv_json_time(int64_t unix_ms);
 /* Strict decimal id (1..2^63-1, no sign, no leading zero). Returns 0 on success. */
 int srv_parse_id(const char *s, size_t len, int64_t *out);
 /* mkdir -p. Returns 0 or -1 with errno. */
@@ -62,6 +66,11 @@ int srv_mkdirs(const char *path);
 int srv_remove_tree(const char *path);
 /* Whether `path` (resolved) lies inside the resolved directory `dir`. */
 int srv_path_inside(const char *dir, const char *path);
+/* Median of v[0..n) (sorts v in place); NaN when n is 0. */
+double srv_median(double *v, size_t n);
+/* Client text made safe to quote in a message (and the log): control characters, non-ASCII and
+ * double quotes become '?'; truncated to n - 1 bytes. */
+void srv_printable(const char *in, char *out, size_t n);
 
 /* ---- database (db.c) ------------------------------------------------------------------------- */
 
@@ -106,6 +115,9 @@ typedef struct srv_job {
   char *error;             /* may be NULL */
   char *summary;           /* summary.json text, may be NULL */
   double progress;         /* stored at the end of an attempt; live value comes from the scheduler */
+  int repeats;             /* timed renders per attempt */
+  int warmup;              /* 1: one untimed render first (comparison jobs) */
+  char *backend_reason;    /* why this backend, may be NULL */
   char *doc;               /* only filled by srv_db_claim */
   srv_output *outputs;
   int noutputs;
@@ -118,7 +130,15 @@ typedef struct srv_new_job {
   const char *label, *scene, *doc, *technique, *backend_requested;
   srv_lane lane;
   int width, height, spp;
+  int repeats, warmup;        /* 0 repeats = 1 */
+  double work;                /* width x height x spp x samples */
+  const char *backend_reason; /* may be NULL */
 } srv_new_job;
+
+/* One timed render of a job (a row of `runs`). */
+typedef struct srv_run {
+  double build_ms, render_ms, post_ms, total_ms;
+} srv_run;
 
 typedef struct srv_job_filter {
   int has_state;
@@ -155,9 +175,60 @@ void srv_jobs_free(srv_job *jobs, int n);
 int srv_db_claim(srv_db *db, srv_lane lane, srv_job *j, obs_err *err);
 /* Sets the resolved backend of a running job. */
 int srv_db_set_backend(srv_db *db, int64_t id, const char *backend, obs_err *err);
-/* Marks a running job succeeded with its summary and records its outputs, in one transaction. */
+/* Marks a running job succeeded with its summary and records its outputs and its timed runs (with
+ * the machine that ran them, 0 = unknown), in one transaction. */
 int srv_db_finish_success(srv_db *db, int64_t id, const char *backend, const char *summary,
-                          const srv_output *outs, int nouts, obs_err *err);
+                          const srv_output *outs, int nouts, const srv_run *runs, int nruns,
+                          int64_t machine, obs_err *err);
+/* The id of the machines row with these facts, inserted when new. vulkan_device may be NULL. */
+int srv_db_machine(srv_db *db, const char *cpu_model, int cores, const char *vulkan_device,
+                   int64_t *id, obs_err *err);
+
+/* A comparison as submitted: its reference jobs and candidate jobs (borrowed). */
+typedef struct srv_new_candidate {
+  srv_new_job job;
+  int reference; /* index into srv_new_comparison.references */
+  const char *technique, *backend, *params, *reference_params, *response;
+} srv_new_candidate;
+typedef struct srv_new_comparison {
+  const char *label, *scene, *request;
+  int width, height, repeats;
+  const srv_new_job *references;
+  int nreferences;
+  const srv_new_candidate *candidates;
+  int ncandidates;
+} srv_new_comparison;
+/* Inserts the comparison, every job and every candidate row in one transaction. */
+int srv_db_insert_comparison(srv_db *db, const srv_new_comparison *c, int64_t *id, obs_err *err);
+/* Stores a candidate's metrics (JSON) or why they could not be computed, unless already stored,
+ * and records `outs` (the error images) as outputs of `job`, in one transaction. */
+int srv_db_set_metrics(srv_db *db, int64_t comparison, int idx, int64_t job, const char *metrics,
+                       const char *error, const srv_output *outs, int nouts, obs_err *err);
+
+/* Read-only queries (prepared like every statement) whose rows come back as JSON objects keyed by
+ * column name: integers, reals, strings or null. See db.c for each statement. */
+typedef enum {
+  SRV_Q_COMPARISON,         /* ?1 comparison id */
+  SRV_Q_CANDIDATES,         /* ?1 comparison id: candidates with their jobs' states */
+  SRV_Q_COMPARISON_RUNS,    /* ?1 comparison id: runs of all its jobs, with machines */
+  SRV_Q_COMPARISON_OUTPUTS, /* ?1 comparison id: output names of all its jobs */
+  SRV_Q_COMPARISONS,        /* ?1 after (0 = start), ?2 limit: newest first, with counts */
+  SRV_Q_JOB_COMPARISON,     /* ?1 job id: the comparison it belongs to, if any */
+  SRV_Q_METRICS_PENDING,    /* ?1 job id (0 = all): candidates ready for metrics */
+  SRV_Q_AUTO_RUNS,          /* ?1 technique, ?2 work: timed runs at similar work per backend */
+  SRV_Q_BUDGET,             /* candidates with metrics, newest comparisons first */
+  SRV_Q_JOB_RUNS,           /* ?1 job id: its runs' totals */
+  SRV_NQUERIES
+} srv_query;
+typedef struct srv_arg {
+  int kind; /* SRV_ARG_* */
+  int64_t i;
+  double d;
+  const char *s;
+} srv_arg;
+enum { SRV_ARG_INT, SRV_ARG_REAL, SRV_ARG_TEXT };
+int srv_db_query(srv_db *db, srv_query q, const srv_arg *args, int nargs, json_t **rows,
+                 obs_err *err);
 /* Marks a running job failed or cancelled with `error`. */
 /* Ends a running job as failed or cancelled, keeping the last progress it reached. */
 int srv_db_finish(srv_db *db, int64_t id, srv_state state, const char *error, double progress,
@@ -168,7 +239,8 @@ int srv_db_requeue(srv_db *db, int64_t id, obs_err *err);
 typedef enum { SRV_CANCEL_DONE, SRV_CANCEL_RUNNING, SRV_CANCEL_FINISHED } srv_cancel_result;
 /* Queued: cancelled now. Running: cancel_requested set (the scheduler stops the render). */
 int srv_db_cancel(srv_db *db, int64_t id, srv_cancel_result *res, obs_err *err);
-/* Deletes a finished job and its output rows. OBS_ENOTFOUND, or OBS_EINVAL when not finished. */
+/* Deletes a finished job and its output rows and runs. OBS_ENOTFOUND, OBS_EINVAL when not
+ * finished, OBS_EUNSUPPORTED when it belongs to a comparison (comparisons keep their jobs). */
 int srv_db_delete(srv_db *db, int64_t id, obs_err *err);
 int srv_db_get_output(srv_db *db, int64_t id, const char *name, srv_output *o, obs_err *err);
 /* Job counts by state. */
@@ -189,6 +261,8 @@ typedef enum {
   SRV_ROUTE_SCENES,
   SRV_ROUTE_HEALTH,
   SRV_ROUTE_METRICS,
+  SRV_ROUTE_COMPARISONS,
+  SRV_ROUTE_COMPARISON,
   SRV_ROUTE_STATIC,
   SRV_ROUTE_UNKNOWN,
   SRV_NROUTES
@@ -256,6 +330,13 @@ struct srv_req {
 int srv_respond(srv_req *r, unsigned status, struct MHD_Response *resp);
 /* JSON body (consumes `body`). */
 int srv_respond_json(srv_req *r, unsigned status, json_t *body);
+/* A request body with a Content-Type other than application/json (parameters allowed; absent is
+ * fine): answers 415 and returns 1 with the handler's result in *ret; else 0. */
+int srv_refuse_non_json(srv_req *r, int *ret);
+/* 503 for a database error (logged; consumes the messages of `err`). */
+int srv_respond_unavailable(srv_req *r, obs_err *err);
+/* 201 with a JSON body (consumed) and a Location header. */
+int srv_respond_created(srv_req *r, json_t *body, const char *location);
 /* {"error": msg, "problems": [lines of problems]}; problems may be NULL. */
 int srv_respond_error(srv_req *r, unsigned status, const obs_err *problems, const char *fmt, ...)
 #if defined(__GNUC__)
@@ -280,12 +361,45 @@ typedef struct srv_submission {
   char *label, *scene, *doc, *technique, *backend_requested;
   srv_lane lane;
   int width, height, spp;
+  double work;
+  char *backend_reason;
+  json_t *choice; /* time-budget mode: what was chosen and why (owned), else NULL */
 } srv_submission;
 /* Returns 0 or the HTTP status to answer with; *message is a static summary, problems the list. */
 unsigned srv_submit_parse(struct srv_app *app, const char *body, size_t len, srv_submission *s,
                           const char **message, obs_err *problems);
 void srv_submission_free(srv_submission *s);
+struct obs_jpath;
+/* Helpers shared with comparisons (submit.c). Loads bundled scene `v` (a name) reporting under
+ * /scene_file; applies `set` overrides; adds the per-job limit problems; samples per pixel sample
+ * (samples, or directions x steps, else 1). */
+json_t *srv_submit_load_bundled(struct srv_app *app, struct obs_jpath *p, const json_t *v);
+/* The optional "set" object of a request (at most 64 entries), NULL after reporting. */
+json_t *srv_submit_get_sets(struct obs_jpath *p, const json_t *req);
+void srv_submit_apply_sets(struct obs_jpath *p, const json_t *sets, json_t *doc);
+void srv_submit_check_limits(struct srv_app *app, const obs_scene *sc, obs_err *problems);
+double srv_submit_samples(const json_t *params);
+/* srv_pick_backend plus learned "auto": with stored timed runs of both backends for technique `t`
+ * at similar work (within 2x), the one with the lower median total; `reason` says which rule
+ * decided (at most n bytes). */
+int srv_pick_backend_learned(struct srv_app *app, const obs_technique *t, obs_backend requested,
+                             double work, obs_backend *out, char *reason, size_t n, obs_err *err);
 
+/* ---- comparisons (compare.c) ----------------------------------------------------------------- */
+
+int srv_compare_post(srv_req *r);
+int srv_compare_list(srv_req *r);
+/* GET /api/v1/comparisons/{id} (csv = 0) or {id}.csv (csv = 1). */
+int srv_compare_get(srv_req *r, int64_t id, int csv);
+/* Computes the metrics of every candidate whose job and reference have both succeeded and whose
+ * metrics are missing, involving job `job` (0 = all: recovery at start). */
+void srv_compare_metrics(struct srv_app *app, int64_t job);
+/* Time-budget mode of POST /api/v1/jobs: the most accurate measured configuration for `scene`
+ * (or any scene at similar pixel count) whose median time fits `budget_ms`. Returns 0 with
+ * *choice (new object: technique, backend, params, expected_ms, expected_rmse, comparison_id,
+ * reason), or OBS_EINVAL with the problem under `pointer`. */
+int srv_compare_budget_choice(struct srv_app *app, const char *scene, double pixels,
+                              double budget_ms, json_t **choice, obs_err *problems);
 int srv_http_start(struct srv_app *app, obs_err *err);
 void srv_http_stop(struct srv_app *app);
 
@@ -304,12 +418,14 @@ typedef struct srv_app {
   int vk_available;        /* the renderer found a Vulkan device */
   int vulkan_lane;         /* a Vulkan lane runs */
   int cpu_threads;         /* threads per render */
+  int64_t machine_id;      /* machines row of this daemon (CPU model, threads, Vulkan device) */
   int port;                /* the bound port */
   double start_ms;
 } srv_app;
 
-/* From the renderer's Vulkan layer (renderer/vulkan/vk.h): whether a device exists. */
+/* From the renderer's Vulkan layer (renderer/vulkan/vk.h): whether a device exists, its name. */
 int obs_vk_available(void);
+const char *obs_vk_available_device_name(void);
 
 /* SHA-256 of a buffer (outputs.c). */
 void srv_sha256(const void *data, size_t len, unsigned char out[32]);

@@ -21,7 +21,12 @@ static const struct {
 } known[] = {
     {"ao.exr", "image/x-exr"},
     {"ao.png", "image/png"},
+    {"bent_normal.png", "image/png"},
+    {"depth.png", "image/png"},
     {"summary.json", "application/json"},
+    /* written by the comparison metrics step into a candidate's directory (compare.c) */
+    {"error.exr", "image/x-exr"},
+    {"error.png", "image/png"},
 };
 #define NKNOWN (sizeof known / sizeof known[0])
 
@@ -210,7 +215,8 @@ static void add_cache_headers(struct MHD_Response *resp, const char *etag) {
 int srv_output_serve(srv_req *r, int64_t id, const char *name) {
   if (!srv_output_content_type(name))
     return srv_respond_error(r, MHD_HTTP_NOT_FOUND, NULL,
-                             "no output named \"%.64s\" (outputs are ao.exr, ao.png, summary.json)",
+                             "no output named \"%.64s\" (outputs are ao.exr, ao.png, bent_normal.png, "
+                             "depth.png, summary.json, error.exr, error.png)",
                              name);
   srv_output o;
   obs_err err = OBS_ERR_INIT;

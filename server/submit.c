@@ -23,6 +23,8 @@ void srv_submission_free(srv_submission *s) {
   free(s->doc);
   free(s->technique);
   free(s->backend_requested);
+  free(s->backend_reason);
+  json_decref(s->choice);
   memset(s, 0, sizeof *s);
 }
 
@@ -37,7 +39,19 @@ static int scene_name_ok(const char *n) {
 }
 
 /* Reads scenes_dir/name; every way of leaving the directory (symlinks included) is refused. */
-static json_t *load_bundled(srv_app *app, obs_jpath *p, const json_t *v) {
+json_t *srv_submit_get_sets(obs_jpath *p, const json_t *req) {
+  int absent = 0;
+  json_t *sets = obs_json_get_object(p, req, "set", 0, &absent);
+  if (sets && json_object_size(sets) > MAX_SETS) {
+    size_t m = obs_jpath_push_key(p, "set");
+    obs_jpath_fail(p, "must have at most %d entries (got %zu)", MAX_SETS, json_object_size(sets));
+    obs_jpath_pop(p, m);
+    sets = NULL;
+  }
+  return sets;
+}
+
+json_t *srv_submit_load_bundled(srv_app *app, obs_jpath *p, const json_t *v) {
   const char *name = json_string_value(v);
   size_t m = obs_jpath_push_key(p, "scene_file");
   json_t *doc = NULL;
@@ -80,7 +94,7 @@ static void escape_token(const char *in, char *out, size_t n) {
   out[k] = '\0';
 }
 
-static void apply_sets(obs_jpath *p, const json_t *sets, json_t *doc) {
+void srv_submit_apply_sets(obs_jpath *p, const json_t *sets, json_t *doc) {
   const char *key;
   json_t *v;
   json_object_foreach((json_t *)sets, key, v) {
@@ -100,7 +114,7 @@ static void apply_sets(obs_jpath *p, const json_t *sets, json_t *doc) {
 }
 
 /* Samples per pixel sample, the factor of `max-work` beyond width x height x spp. */
-static double samples_of(const json_t *params) {
+double srv_submit_samples(const json_t *params) {
   long long a, b;
   if (obs_json_as_int(json_object_get(params, "samples"), &a)) return (double)a;
   if (obs_json_as_int(json_object_get(params, "directions"), &a) &&
@@ -134,7 +148,7 @@ static double triangles_of(const obs_scene *sc, obs_err *err) {
   return n;
 }
 
-static void check_limits(srv_app *app, const obs_scene *sc, obs_err *problems) {
+void srv_submit_check_limits(srv_app *app, const obs_scene *sc, obs_err *problems) {
   const srv_config *c = &app->cfg;
   const char *d = sc->name;
   double pixels = (double)sc->width * sc->height;
@@ -143,7 +157,7 @@ static void check_limits(srv_app *app, const obs_scene *sc, obs_err *problems) {
                 "%s: /image: width x height = %.0f pixels exceeds the server's limit max-pixels "
                 "= %lld",
                 d, pixels, (long long)c->max_pixels);
-  double samples = samples_of(sc->params);
+  double samples = srv_submit_samples(sc->params);
   double work = pixels * sc->spp * samples;
   if (work > c->max_work)
     obs_err_set(problems, OBS_EINVAL,
@@ -167,6 +181,67 @@ int srv_pick_backend(const obs_technique *t, obs_backend requested, int vulkan_l
   }
   return obs_err_set(err, OBS_EUNSUPPORTED,
                      "this server runs no Vulkan lane (started with --no-vulkan); use \"cpu\"");
+}
+
+int srv_pick_backend_learned(srv_app *app, const obs_technique *t, obs_backend requested,
+                             double work, obs_backend *out, char *reason, size_t n,
+                             obs_err *err) {
+  int rc = srv_pick_backend(t, requested, app->vulkan_lane, out, err);
+  if (rc) return rc;
+  if (requested != OBS_BACKEND_AUTO) {
+    snprintf(reason, n, "requested");
+    return 0;
+  }
+  if (!t->run[OBS_BACKEND_CPU] || !t->run[OBS_BACKEND_VULKAN]) {
+    snprintf(reason, n, "static rule: %s is the only backend of %s", obs_backend_name(*out),
+             t->name);
+    return 0;
+  }
+  /* Medians of the stored timed runs of this technique at similar work, per backend. */
+  json_t *rows = NULL;
+  obs_err qerr = OBS_ERR_INIT;
+  srv_arg args[2] = {{SRV_ARG_TEXT, 0, 0, t->name}, {SRV_ARG_REAL, 0, work, NULL}};
+  size_t count[2] = {0, 0};
+  double med[2] = {NAN, NAN};
+  if (work > 0 && !srv_db_query(app->db, SRV_Q_AUTO_RUNS, args, 2, &rows, &qerr)) {
+    size_t nrows = json_array_size(rows);
+    double *v[2] = {malloc((nrows + 1) * sizeof(double)), malloc((nrows + 1) * sizeof(double))};
+    for (size_t i = 0; v[0] && v[1] && i < nrows; i++) {
+      json_t *row = json_array_get(rows, i);
+      const char *be = json_string_value(json_object_get(row, "backend"));
+      double ms = json_number_value(json_object_get(row, "total_ms"));
+      int b = be && !strcmp(be, "vulkan");
+      if (be && isfinite(ms) && ms >= 0) v[b][count[b]++] = ms;
+    }
+    for (int b = 0; b < 2; b++) {
+      if (v[b]) med[b] = srv_median(v[b], count[b]);
+      free(v[b]);
+    }
+    json_decref(rows);
+  } else if (work > 0) {
+    srv_log("learned auto: %s (using the static rule)", obs_err_message(&qerr));
+  }
+  obs_err_free(&qerr);
+  if (!count[0] || !count[1]) {
+    snprintf(reason, n, "static rule (no stored runs of %s on both backends at similar work): "
+             "%s", t->name, *out == OBS_BACKEND_VULKAN ? "G-buffer techniques run on Vulkan "
+             "when a device exists" : app->vulkan_lane ? "the CPU" : "the CPU (no Vulkan lane)");
+    return 0;
+  }
+  obs_backend faster = med[1] < med[0] ? OBS_BACKEND_VULKAN : OBS_BACKEND_CPU;
+  char measured[200];
+  snprintf(measured, sizeof measured, "median cpu %.3g ms (%zu runs) vs vulkan %.3g ms (%zu "
+           "runs) for %s at work within 2x of %.3g", med[0], count[0], med[1], count[1], t->name,
+           work);
+  if (faster == OBS_BACKEND_VULKAN && !app->vulkan_lane) {
+    *out = OBS_BACKEND_CPU;
+    snprintf(reason, n, "measured: vulkan is faster (%s), but this server runs no Vulkan lane",
+             measured);
+  } else {
+    *out = faster;
+    snprintf(reason, n, "measured: %s is faster (%s)", obs_backend_name(faster), measured);
+  }
+  return 0;
 }
 
 unsigned srv_submit_parse(srv_app *app, const char *body, size_t len, srv_submission *s,
@@ -208,26 +283,36 @@ unsigned srv_submit_parse(srv_app *app, const char *body, size_t len, srv_submis
     obs_jpath_pop(&p, m);
     label = NULL;
   }
-  int absent = 0;
-  json_t *sets = obs_json_get_object(&p, req, "set", 0, &absent);
-  if (sets && json_object_size(sets) > MAX_SETS) {
-    size_t m = obs_jpath_push_key(&p, "set");
-    obs_jpath_fail(&p, "must have at most %d entries (got %zu)", MAX_SETS, json_object_size(sets));
-    obs_jpath_pop(&p, m);
-    sets = NULL;
-  }
+  json_t *sets = srv_submit_get_sets(&p, req);
   const char *docname = "inline";
   json_t *file = json_object_get(req, "scene_file");
+  int budget_mode = 0;
+  double budget_ms = 0;
   if (file) {
     static const char *const keys[] = {"scene_file", "technique", "set", "priority", "label",
-                                       NULL};
+                                       "time_budget_ms", NULL};
     obs_json_check_keys(&p, req, keys);
-    doc = load_bundled(app, &p, file);
+    doc = srv_submit_load_bundled(app, &p, file);
     if (json_is_string(file)) docname = json_string_value(file);
     json_t *tech = json_object_get(req, "technique");
-    if (tech && !json_is_object(tech)) {
+    json_t *budget = json_object_get(req, "time_budget_ms");
+    /* Time-budget mode: {"technique": "auto", "time_budget_ms": B} picks the configuration. */
+    budget_mode = json_is_string(tech) && !strcmp(json_string_value(tech), "auto");
+    if (budget_mode) {
+      if (obs_json_get_number(&p, req, "time_budget_ms", 1, 0, 1e9, 1, 0, &budget_ms))
+        budget_mode = 0;
+    } else if (budget) {
+      size_t m = obs_jpath_push_key(&p, "time_budget_ms");
+      obs_jpath_fail(&p, "only allowed with \"technique\": \"auto\" (got technique %s)",
+                     tech ? obs_json_brief(tech) : "absent");
+      obs_jpath_pop(&p, m);
+    }
+    if (budget_mode || (json_is_string(tech) && !strcmp(json_string_value(tech), "auto"))) {
+      /* chosen below, once the overrides are applied */
+    } else if (tech && !json_is_object(tech)) {
       size_t m = obs_jpath_push_key(&p, "technique");
-      obs_jpath_fail(&p, "must be an object like {\"name\": \"rt_ao\", \"params\": {...}} (got %s)",
+      obs_jpath_fail(&p, "must be an object like {\"name\": \"rt_ao\", \"params\": {...}}, or "
+                         "\"auto\" with time_budget_ms (got %s)",
                      obs_json_brief(tech));
       obs_jpath_pop(&p, m);
     } else if (tech && doc && json_is_object(doc)) {
@@ -240,7 +325,26 @@ unsigned srv_submit_parse(srv_app *app, const char *body, size_t len, srv_submis
     json_object_del(doc, "set");
   }
   /* Wrapper problems do not stop here: the scene is validated too, so one answer lists all. */
-  if (sets && doc) apply_sets(&p, sets, doc);
+  if (sets && doc) srv_submit_apply_sets(&p, sets, doc);
+  if (budget_mode && doc && json_is_object(doc) && !problems->count) {
+    json_t *img = json_object_get(doc, "image");
+    long long w = 0, h = 0, spp = 1;
+    obs_json_as_int(json_object_get(img, "width"), &w);
+    obs_json_as_int(json_object_get(img, "height"), &h);
+    if (json_object_get(img, "spp")) obs_json_as_int(json_object_get(img, "spp"), &spp);
+    json_t *choice = NULL;
+    if (srv_compare_budget_choice(app, docname, (double)w * (double)h * (double)spp, budget_ms,
+                                  &choice, problems)) {
+      *message = "no measured configuration fits the time budget";
+      status = 422;
+      goto out;
+    }
+    json_object_set_new(doc, "technique",
+                        json_pack("{s:O, s:O, s:O}", "name", json_object_get(choice, "technique"),
+                                  "backend", json_object_get(choice, "backend"), "params",
+                                  json_object_get(choice, "params")));
+    s->choice = choice;
+  }
   int before = problems->count;
   text = doc ? json_dumps(doc, JSON_COMPACT | JSON_REAL_PRECISION(17)) : NULL;
   int loaded = text && !obs_scene_load_string(&sc, text, docname, app->scenes_real, NULL, 0,
@@ -257,7 +361,10 @@ unsigned srv_submit_parse(srv_app *app, const char *body, size_t len, srv_submis
   }
   obs_backend be;
   obs_err e = OBS_ERR_INIT;
-  if (srv_pick_backend(sc.technique, sc.backend, app->vulkan_lane, &be, &e))
+  char reason[512];
+  double work = (double)sc.width * sc.height * sc.spp * srv_submit_samples(sc.params);
+  if (srv_pick_backend_learned(app, sc.technique, sc.backend, work, &be, reason, sizeof reason,
+                               &e))
     obs_err_set(problems, OBS_EINVAL, "%s: /technique/backend: %s", docname, obs_err_message(&e));
   obs_err_free(&e);
   if (problems->count) {
@@ -265,7 +372,7 @@ unsigned srv_submit_parse(srv_app *app, const char *body, size_t len, srv_submis
     status = 422;
     goto out;
   }
-  check_limits(app, &sc, problems);
+  srv_submit_check_limits(app, &sc, problems);
   if (problems->count) {
     *message = "job exceeds a server limit";
     status = 422;
@@ -282,12 +389,18 @@ unsigned srv_submit_parse(srv_app *app, const char *body, size_t len, srv_submis
   s->width = sc.width;
   s->height = sc.height;
   s->spp = sc.spp;
-  if (!s->scene || !s->technique || !s->backend_requested || (label && !s->label)) {
+  s->work = work;
+  /* A time-budget job says why this configuration; any other job why this backend. */
+  s->backend_reason = strdup(s->choice ? json_string_value(json_object_get(s->choice, "reason"))
+                                       : reason);
+  if (!s->scene || !s->technique || !s->backend_requested || (label && !s->label) ||
+      !s->backend_reason) {
     srv_submission_free(s);
     *message = "out of memory";
     status = 503;
   }
 out:
+  if (status) srv_submission_free(s);
   obs_scene_free(&sc);
   free(text);
   json_decref(doc);

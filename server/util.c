@@ -3,6 +3,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <limits.h>
+#include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -106,4 +107,28 @@ int srv_path_inside(const char *dir, const char *path) {
   size_t n = strlen(dir);
   if (n == 1 && dir[0] == '/') return path[0] == '/';
   return !strncmp(dir, path, n) && (path[n] == '/' || path[n] == '\0');
+}
+
+static int cmp_double(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
+double srv_median(double *v, size_t n) {
+  if (!n) return NAN;
+  qsort(v, n, sizeof *v, cmp_double);
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+void srv_printable(const char *in, char *out, size_t n) {
+  snprintf(out, n, "%s", in ? in : "");
+  for (char *p = out; *p; p++)
+    if ((unsigned char)*p < 0x20 || (unsigned char)*p >= 0x7f || *p == '"') *p = '?';
+}
+
+json_t *srv_json_time(int64_t unix_ms) {
+  if (!unix_ms) return json_null();
+  char buf[40];
+  srv_format_time(unix_ms, buf, sizeof buf);
+  return json_string(buf);
 }

@@ -47,3 +47,39 @@ void obs_gbuffer_export(const obs_gbuffer *g, const obs_camera_rig *rig, obs_ima
     if (nz) nz[i] = w[2];
   }
 }
+
+static int cmp_float(const void *a, const void *b) {
+  float x = *(const float *)a, y = *(const float *)b;
+  return (x > y) - (x < y);
+}
+
+int obs_gbuffer_median_depth(const obs_scene *scene, int max_side, int threads, double *out,
+                             obs_err *err) {
+  /* A shallow copy with a smaller image: the ray caster only reads the camera, the size and the
+   * geometry, and the aspect ratio (hence the camera rig) is kept. */
+  obs_scene coarse = *scene;
+  int side = scene->width > scene->height ? scene->width : scene->height;
+  if (max_side > 0 && side > max_side) {
+    double s = (double)max_side / side;
+    coarse.width = (int)(scene->width * s + 0.5);
+    coarse.height = (int)(scene->height * s + 0.5);
+    if (coarse.width < 1) coarse.width = 1;
+    if (coarse.height < 1) coarse.height = 1;
+  }
+  obs_gbuffer g;
+  double build_ms = 0, render_ms = 0;
+  int rc = obs_gbuffer_raycast(&coarse, &g, threads > 0 ? threads : 1, &build_ms, &render_ms, err);
+  if (rc) return rc;
+  size_t n = (size_t)g.width * (size_t)g.height, k = 0;
+  for (size_t i = 0; i < n; i++)
+    if (g.coverage[i] > 0.0f) g.depth[k++] = g.depth[i]; /* compacted in place */
+  if (k == 0) {
+    obs_gbuffer_free(&g);
+    return obs_err_set(err, OBS_EINVAL, "%s: no surface covers the image, so there is no median "
+                       "view depth", scene->name ? scene->name : "scene");
+  }
+  qsort(g.depth, k, sizeof *g.depth, cmp_float);
+  *out = k % 2 ? g.depth[k / 2] : 0.5 * ((double)g.depth[k / 2 - 1] + g.depth[k / 2]);
+  obs_gbuffer_free(&g);
+  return 0;
+}

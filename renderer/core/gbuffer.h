@@ -49,6 +49,12 @@ static inline void obs_gbuffer_position(const obs_gbuffer *g, float fx, float fy
 int obs_gbuffer_raycast(const obs_scene *scene, obs_gbuffer *g, int threads, double *build_ms,
                         double *render_ms, obs_err *err);
 
+/* Median linear view depth of the covered pixels, from a ray-cast G-buffer of the scene's camera at
+ * most `max_side` pixels on its longer side (the aspect ratio kept; <= 0: full size). OBS_EINVAL
+ * when nothing covers the image. Used by reference hooks that scale screen-space radii. */
+int obs_gbuffer_median_depth(const obs_scene *scene, int max_side, int threads, double *out,
+                             obs_err *err);
+
 /* The output channels of every screen-space technique, in this order: AO after and before its
  * blur, then the G-buffer's depth, world-space normal and coverage. */
 enum { OBS_SCREEN_AO, OBS_SCREEN_AO_RAW, OBS_SCREEN_DEPTH, OBS_SCREEN_NX, OBS_SCREEN_NY,

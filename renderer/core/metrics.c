@@ -334,3 +334,38 @@ int obs_metrics_write_error_files(const obs_image *err_img, const char *dir, obs
     for (int i = 0; i < 2; i++) unlink(stage[i]);
   return code;
 }
+
+/* ---- Pareto set ------------------------------------------------------------------------------ */
+
+static int pareto_usable(const obs_pareto_point *p) {
+  return !isnan(p->time_ms) && (p->at_reference_accuracy || !isnan(p->error));
+}
+
+/* Error as ranked: every point within the reference's noise ranks as the best possible error. */
+static double pareto_error(const obs_pareto_point *p) {
+  return p->at_reference_accuracy ? -INFINITY : p->error;
+}
+
+int obs_metrics_pareto(const obs_pareto_point *pts, size_t n, unsigned char *optimal,
+                       obs_err *err) {
+  if (n && (!pts || !optimal))
+    return obs_err_set(err, OBS_EINVAL, "metrics: pareto needs points and an output array");
+  int count = 0;
+  /* O(n^2): comparisons hold at most a few hundred candidates. */
+  for (size_t i = 0; i < n; i++) {
+    optimal[i] = 0;
+    if (!pareto_usable(&pts[i])) continue;
+    double ti = pts[i].time_ms, ei = pareto_error(&pts[i]);
+    int dominated = 0;
+    for (size_t j = 0; j < n && !dominated; j++) {
+      if (j == i || !pareto_usable(&pts[j])) continue;
+      double tj = pts[j].time_ms, ej = pareto_error(&pts[j]);
+      dominated = tj <= ti && ej <= ei && (tj < ti || ej < ei);
+    }
+    if (!dominated) {
+      optimal[i] = 1;
+      count++;
+    }
+  }
+  return count;
+}

@@ -117,34 +117,106 @@ json_t *obs_result_summary_json(const obs_result *r, const obs_scene *sc) {
   return o;
 }
 
+/* depth.png: linear view depth, nearest covered pixel white and farthest 10 % grey (so the farthest
+ * surface still stands out from the black background), linear in between. */
+#define DEPTH_PNG_FAR 0.1f
+
+/* The display images derived from the AO image: "bent_normal" (RGB = n * 0.5 + 0.5 where covered)
+ * and "depth" (see DEPTH_PNG_FAR); background pixels (alpha <= 0) are black in both. Fills `out`
+ * with channels R, G, B or Y; returns 1 when the source channels are absent (nothing to write). */
+static int display_image(const obs_image *img, int depth, obs_image *out, obs_err *err) {
+  static const char *const rgb[3] = {"R", "G", "B"}, *const y[1] = {"Y"};
+  const float *a = obs_image_channel(img, "alpha");
+  const float *src[3] = {NULL, NULL, NULL};
+  if (depth) {
+    src[0] = obs_image_channel(img, "depth.Z");
+    if (!src[0]) return 1;
+  } else {
+    src[0] = obs_image_channel(img, "bent_normal.X");
+    src[1] = obs_image_channel(img, "bent_normal.Y");
+    src[2] = obs_image_channel(img, "bent_normal.Z");
+    if (!src[0] || !src[1] || !src[2]) return 1;
+  }
+  int rc = obs_image_init(out, img->width, img->height, depth ? 1 : 3, depth ? y : rgb, err);
+  if (rc) return rc;
+  size_t n = (size_t)img->width * (size_t)img->height;
+#define COVERED(i) ((a ? a[i] > 0.0f : 1) && isfinite(src[0][i]))
+  if (depth) {
+    float lo = INFINITY, hi = -INFINITY;
+    for (size_t i = 0; i < n; i++)
+      if (COVERED(i) && src[0][i] > 0.0f) {
+        if (src[0][i] < lo) lo = src[0][i];
+        if (src[0][i] > hi) hi = src[0][i];
+      }
+    float *o = out->data;
+    for (size_t i = 0; i < n; i++) {
+      if (!COVERED(i) || !(src[0][i] > 0.0f)) continue;
+      float t = hi > lo ? (src[0][i] - lo) / (hi - lo) : 0.0f;
+      o[i] = 1.0f - (1.0f - DEPTH_PNG_FAR) * t;
+    }
+  } else {
+    for (int c = 0; c < 3; c++) {
+      float *o = out->data + (size_t)c * n;
+      for (size_t i = 0; i < n; i++)
+        if (COVERED(i)) o[i] = src[c][i] * 0.5f + 0.5f;
+    }
+  }
+#undef COVERED
+  return 0;
+}
+
 int obs_result_write(obs_result *r, const obs_scene *sc, const char *dir, obs_err *err) {
   double t0 = obs_now_ms();
   int rc = obs_image_make_dirs(dir, err);
   if (rc) return rc;
   /* Every file is written under a staging name first and the set is renamed into place only
    * when all succeeded, so a failure never mixes new and old outputs. */
-  static const char *const names[] = {"ao.exr", "ao.png", "summary.json"};
-  char stage[3][4200], final[3][4200];
-  for (int i = 0; i < 3; i++) {
+  enum { F_EXR, F_PNG, F_BENT, F_DEPTH, F_SUMMARY, NFILES };
+  static const char *const names[NFILES] = {"ao.exr", "ao.png", "bent_normal.png", "depth.png",
+                                            "summary.json"};
+  char stage[NFILES][4200], final[NFILES][4200];
+  int written[NFILES] = {0};
+  for (int i = 0; i < NFILES; i++) {
     snprintf(stage[i], sizeof stage[i], "%s/.%s.new", dir, names[i]);
     snprintf(final[i], sizeof final[i], "%s/%s", dir, names[i]);
   }
   const char *ch[] = {"ao"};
-  rc = obs_image_write_exr(&r->image, stage[0], err);
-  if (!rc) rc = obs_image_write_png(&r->image, ch, 1, 0, stage[1], err);
+  rc = obs_image_write_exr(&r->image, stage[F_EXR], err);
+  written[F_EXR] = !rc;
+  if (!rc) rc = obs_image_write_png(&r->image, ch, 1, 0, stage[F_PNG], err);
+  written[F_PNG] = !rc;
+  for (int f = F_BENT; f <= F_DEPTH && !rc; f++) {
+    obs_image disp;
+    memset(&disp, 0, sizeof disp);
+    int have = display_image(&r->image, f == F_DEPTH, &disp, err);
+    if (have < 0) {
+      rc = have;
+    } else if (have == 0) {
+      static const char *const rgb[3] = {"R", "G", "B"}, *const y[1] = {"Y"};
+      rc = obs_image_write_png(&disp, f == F_DEPTH ? y : rgb, f == F_DEPTH ? 1 : 3, 0, stage[f],
+                               err);
+      written[f] = !rc;
+      obs_image_free(&disp);
+    }
+  }
   if (!rc) {
     r->timings.write_ms = obs_now_ms() - t0;
     r->timings.total_ms += r->timings.write_ms;
     json_t *sum = obs_result_summary_json(r, sc);
-    if (json_dump_file(sum, stage[2], JSON_INDENT(2) | JSON_REAL_PRECISION(9)))
-      rc = obs_err_set(err, OBS_EIO, "%s: cannot write summary", stage[2]);
+    if (json_dump_file(sum, stage[F_SUMMARY], JSON_INDENT(2) | JSON_REAL_PRECISION(9)))
+      rc = obs_err_set(err, OBS_EIO, "%s: cannot write summary", stage[F_SUMMARY]);
+    else
+      written[F_SUMMARY] = 1;
     json_decref(sum);
   }
-  for (int i = 0; !rc && i < 3; i++)
-    if (rename(stage[i], final[i]))
+  for (int i = 0; !rc && i < NFILES; i++)
+    if (written[i] && rename(stage[i], final[i]))
       rc = obs_err_set(err, OBS_EIO, "%s: cannot rename into place: %s", final[i],
                        strerror(errno));
   if (rc)
-    for (int i = 0; i < 3; i++) unlink(stage[i]);
+    for (int i = 0; i < NFILES; i++) unlink(stage[i]);
+  else /* an earlier render's display images must not outlive it (this technique has none) */
+    for (int i = 0; i < NFILES; i++)
+      if (!written[i]) unlink(final[i]);
   return rc;
 }

@@ -129,6 +129,25 @@ void obs_hbao_level_size(const obs_hbao_params *p, int width, int height, int *l
   *lh = p->half_res ? (height + 1) / 2 : height;
 }
 
+/* hbao's reference (docs/techniques/hbao.md, "the closest single setting"): hbao estimates
+ * unweighted horizon occlusion within its radius R with a linear distance attenuation; binary
+ * falloff at 2R/3 has the same mean when occluder distances spread evenly over [0, R]. */
+static int hbao_reference(const obs_scene *scene, const json_t *params, obs_reference_facts *facts,
+                          json_t *out, obs_response *response, obs_err *err) {
+  (void)scene;
+  (void)facts;
+  obs_hbao_params p;
+  if (obs_hbao_params_read(params, &p))
+    return obs_err_set(err, OBS_EINVAL, "hbao: parameters are not valid");
+  json_t *r = json_object_get(params, "radius");
+  double radius = json_is_number(r) ? json_number_value(r) : (double)p.radius;
+  json_object_set_new(out, "weighting", json_string("uniform"));
+  json_object_set_new(out, "falloff", json_string("binary"));
+  json_object_set_new(out, "max_distance", json_real(2.0 * radius / 3.0));
+  *response = OBS_RESPONSE_IDENTITY;
+  return 0;
+}
+
 const obs_technique obs_technique_hbao = {
     .name = "hbao",
     .description = "Horizon-based ambient occlusion (Bavoil & Sainz, ShaderX7 6.2): screen-space "
@@ -137,5 +156,6 @@ const obs_technique obs_technique_hbao = {
     .needs = OBS_NEED_GBUFFER,
     .outputs = hbao_outputs,
     .check = NULL,
+    .reference = hbao_reference,
     .run = {[OBS_BACKEND_CPU] = obs_hbao_cpu, [OBS_BACKEND_VULKAN] = obs_hbao_vulkan},
 };

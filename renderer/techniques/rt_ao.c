@@ -39,6 +39,22 @@ static void rt_ao_check(const obs_scene *scene, const json_t *params, const char
                 doc);
 }
 
+/* The reference of an rt_ao candidate is rt_ao with the same AO definition: only the sample count,
+ * sampler and seed differ (the caller sets them). */
+static int rt_ao_reference(const obs_scene *scene, const json_t *params, obs_reference_facts *facts,
+                           json_t *out, obs_response *response, obs_err *err) {
+  (void)scene;
+  (void)facts;
+  (void)err;
+  static const char *const keys[] = {"weighting", "falloff", "max_distance", "tau"};
+  for (size_t i = 0; i < sizeof keys / sizeof keys[0]; i++) {
+    json_t *v = json_object_get(params, keys[i]);
+    if (v) json_object_set_new(out, keys[i], json_deep_copy(v));
+  }
+  *response = OBS_RESPONSE_IDENTITY;
+  return 0;
+}
+
 const obs_technique obs_technique_rt_ao = {
     .name = "rt_ao",
     .description = "Monte-Carlo ray-traced ambient occlusion / obscurance (Embree); the reference "
@@ -47,5 +63,6 @@ const obs_technique obs_technique_rt_ao = {
     .needs = OBS_NEED_BVH,
     .outputs = rt_ao_outputs,
     .check = rt_ao_check,
+    .reference = rt_ao_reference,
     .run = {[OBS_BACKEND_CPU] = obs_rt_ao_cpu},
 };

@@ -5,6 +5,8 @@
 #include <math.h>
 #include <string.h>
 
+#include "gbuffer.h"
+#include "obscura/render.h"
 #include "sampling.h"
 #include "techniques.h"
 
@@ -89,6 +91,44 @@ void obs_ssao_tables_make(const obs_ssao_params *p, obs_ssao_tables *t) {
   for (int n = 1; n <= 16; n++) t->inv_count[n] = 1.0f / (float)n;
 }
 
+/* Longest side of the coarse primary-ray pass that measures the median view depth: enough for a
+ * stable median, cheap even for the million-triangle scenes. */
+#define SSAO_REFERENCE_DEPTH_SIDE 320
+
+/* ssao's reference (docs/techniques/ssao.md): uniform weighting, sqrt falloff, at half the
+ * across-screen reach of the longest offset, r (1 + 2.4/N)^N, converted from texture coordinates to
+ * scene units at the median view depth of the covered pixels; the reference is then mapped through
+ * ssao's response (sphere or hemisphere variant). */
+static int ssao_reference(const obs_scene *scene, const json_t *params, obs_reference_facts *facts,
+                          json_t *out, obs_response *response, obs_err *err) {
+  obs_ssao_params p;
+  if (obs_ssao_params_read(params, &p))
+    return obs_err_set(err, OBS_EINVAL, "ssao: parameters are not valid");
+  double radius = json_number_value(json_object_get(params, "radius"));
+  double reach = radius * pow(1.0 + 2.4 / p.samples, p.samples);
+  if (scene->camera.type == OBS_CAMERA_PERSPECTIVE) {
+    if (!facts->have_z_median) {
+      int rc = obs_gbuffer_median_depth(scene, SSAO_REFERENCE_DEPTH_SIDE, obs_cpu_count(),
+                                        &facts->z_median, err);
+      if (rc) return rc;
+      facts->have_z_median = 1;
+    }
+    reach *= 2.0 * tan(0.5 * scene->camera.fov_y * 3.14159265358979323846 / 180.0) *
+             facts->z_median;
+  } else {
+    reach *= scene->camera.height;
+  }
+  double dmax = 0.5 * reach;
+  if (!(dmax > 0) || !isfinite(dmax))
+    return obs_err_set(err, OBS_EINVAL, "ssao: the reference distance 0.5 r (1+2.4/N)^N x view "
+                       "height is not a positive number (got %g)", dmax);
+  json_object_set_new(out, "weighting", json_string("uniform"));
+  json_object_set_new(out, "falloff", json_string("sqrt"));
+  json_object_set_new(out, "max_distance", json_real(dmax));
+  *response = p.normal_oriented ? OBS_RESPONSE_SSAO_HEMI : OBS_RESPONSE_SSAO_SPHERE;
+  return 0;
+}
+
 const obs_technique obs_technique_ssao = {
     .name = "ssao",
     .description = "Crytek screen-space ambient occlusion (Kajalin, ShaderX7 6.1): depth-buffer "
@@ -97,5 +137,6 @@ const obs_technique obs_technique_ssao = {
     .needs = OBS_NEED_GBUFFER,
     .outputs = ssao_outputs,
     .check = NULL,
+    .reference = ssao_reference,
     .run = {[OBS_BACKEND_CPU] = obs_ssao_cpu, [OBS_BACKEND_VULKAN] = obs_ssao_vulkan},
 };

@@ -320,12 +320,14 @@ uint32_t obs_vk_validation_messages(const obs_vk *vk) {
 }
 
 static int available;
+static char available_name[256];
 static pthread_once_t available_once = PTHREAD_ONCE_INIT;
 
 static void probe(void) {
   obs_vk *vk = NULL;
   obs_err err = OBS_ERR_INIT;
   available = obs_vk_open(&vk, NULL, 0, &err) == 0;
+  if (available) snprintf(available_name, sizeof available_name, "%s", obs_vk_device_name(vk));
   obs_vk_close(vk);
   obs_err_free(&err);
 }
@@ -333,6 +335,10 @@ static void probe(void) {
 int obs_vk_available(void) {
   pthread_once(&available_once, probe);
   return available;
+}
+
+const char *obs_vk_available_device_name(void) {
+  return obs_vk_available() ? available_name : NULL;
 }
 
 int obs_vk_validation_requested(void) {

@@ -29,6 +29,8 @@ const char *obs_vk_device_name(const obs_vk *vk);
 uint32_t obs_vk_validation_messages(const obs_vk *vk);
 /* Whether a Vulkan device can be opened here (probed once per process, cached). */
 int obs_vk_available(void);
+/* The name of the device obs_vk_available found (what renders will use), or NULL when none. */
+const char *obs_vk_available_device_name(void);
 /* Whether tests and renders should enable validation: $OBSCURA_VK_VALIDATION=1. */
 int obs_vk_validation_requested(void);
 

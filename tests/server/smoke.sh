@@ -54,7 +54,8 @@ check "job has timings, rays, stats, outputs" node -e "
   const j = JSON.parse(require('fs').readFileSync('$work/body'));
   const ok = j.progress === 1 && j.attempts === 1 && j.label === 'smoke' &&
     j.backend.actual === 'cpu' && j.timings_ms.total > 0 && j.rays > 0 &&
-    j.stats.nan_count === 0 && j.outputs.length === 3 && j.links.outputs['ao.png'];
+    j.stats.nan_count === 0 && j.outputs.length >= 4 && j.links.outputs['ao.png'] &&
+    j.links.outputs['depth.png'];
   process.exit(ok ? 0 : 1);"
 code=$(req "$base/api/v1/jobs/$id/outputs/ao.png")
 check "ao.png is 200" test "$code" = 200

@@ -18,6 +18,8 @@ import {SCENES_DIR, SLOW, assertLogClean, cliRender, download, exrHeader, getJSO
 const N = 20;
 const SETS = {'/image/width': 64, '/image/height': 64, '/technique/params/samples': 256};
 const JOB = {scene_file: 'sphere_on_plane.json', set: SETS};
+// What obs_result_write gives an rt_ao render.
+const OUTPUTS = ['ao.exr', 'ao.png', 'bent_normal.png', 'depth.png', 'summary.json'];
 
 // Polls the listing until at least `running` jobs run (and `done` finished); returns the listing.
 async function waitRunning(d, running, done = 0) {
@@ -77,7 +79,7 @@ test('crash recovery', async () => {
       assert.equal(j.state, 'succeeded', `job ${j.id}: ${j.state} ${j.error}`);
       const crashed = runningAt.filter((r) => r.includes(j.id)).length;
       assert.ok(j.attempts >= 1 + crashed && j.attempts <= 3, `job ${j.id}: ${j.attempts} attempts, running at ${crashed} crashes`);
-      assert.deepEqual(j.outputs.map((o) => o.name).sort(), ['ao.exr', 'ao.png', 'summary.json']);
+      assert.deepEqual(j.outputs.map((o) => o.name).sort(), OUTPUTS);
       for (const o of j.outputs) {
         const r = await download(d, j, o.name);
         const onDisk = fs.readFileSync(path.join(d.resultsDir, String(j.id), o.name));
@@ -94,11 +96,11 @@ test('crash recovery', async () => {
         if (o.name === 'summary.json') assert.equal(JSON.parse(r.text).width, 64);
       }
     }
-    assert.equal(rows.size, 3 * N);
+    assert.equal(rows.size, OUTPUTS.length * N);
     // Exactly the outputs: no staging files, no directories of half-written attempts.
     const files = fs.readdirSync(d.dataDir).filter((f) => f !== 'results');
     assert.deepEqual(files, [], 'data directory holds more than results/');
-    const expected = ids.flatMap((id) => [`${id}/`, ...['ao.exr', 'ao.png', 'summary.json'].map((n) =>
+    const expected = ids.flatMap((id) => [`${id}/`, ...OUTPUTS.map((n) =>
       `${id}/${n} ${jobs.find((j) => j.id === id).outputs.find((o) => o.name === n).size}`)]).sort();
     const listing = fs.readdirSync(d.resultsDir, {recursive: true}).map((f) => {
       const st = fs.statSync(path.join(d.resultsDir, f));

@@ -74,8 +74,17 @@ test('bundled scenes match the CLI bit for bit', async () => {
       assert.equal(j.priority, c.body.priority ?? 50);
       for (const t of ['created_at', 'started_at', 'finished_at']) assert.ok(Date.parse(j[t]) > 0, `${c.name}: ${t}`);
       assert.ok(Date.parse(j.created_at) <= Date.parse(j.started_at) && Date.parse(j.started_at) <= Date.parse(j.finished_at));
-      assert.deepEqual(j.outputs.map((o) => o.name).sort(), ['ao.exr', 'ao.png', 'summary.json'], c.name);
-      assert.deepEqual(Object.keys(j.links.outputs).sort(), ['ao.exr', 'ao.png', 'summary.json']);
+      // Every output the CLI wrote (bent normals only where the technique has them), no other.
+      const names = fs.readdirSync(c.dir).sort();
+      const want = ['ao.exr', 'ao.png', ...(j.technique === 'rt_ao' ? ['bent_normal.png'] : []), 'depth.png', 'summary.json'];
+      assert.deepEqual(names, want, `${c.name}: CLI outputs`);
+      assert.deepEqual(j.outputs.map((o) => o.name).sort(), want, c.name);
+      assert.deepEqual(Object.keys(j.links.outputs).sort(), want);
+      for (const n of want.filter((x) => x !== 'summary.json' && x !== 'ao.exr' && x !== 'ao.png')) {
+        const b = (await download(d, j, n)).body;
+        assert.deepEqual(pngSize(b), {width: W, height: H}, `${c.name}: ${n} size`);
+        assert.ok(b.equals(fs.readFileSync(path.join(c.dir, n))), `${c.name}: ${n} differs from the CLI's`);
+      }
 
       const exr = (await download(d, j, 'ao.exr')).body;
       const png = (await download(d, j, 'ao.png')).body;

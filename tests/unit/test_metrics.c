@@ -1,5 +1,5 @@
 /* Unit tests for obs_metrics: statistics, RMSE, SSIM, comparisons and error images, each against
- * hand-computed small images. */
+ * hand-computed small images, and the Pareto set on a synthetic table. */
 #include "testutil.h"
 
 #include <math.h>
@@ -665,6 +665,44 @@ static void test_error_image(void **state) {
   obs_err_free(&err);
 }
 
+/* Pareto set on a synthetic table: dominated points, exact ties, NaN time or error (no part),
+ * +Inf error, and the at-reference-accuracy group (equal accuracy: only its fastest counts). */
+static void test_pareto(void **state) {
+  (void)state;
+  const obs_pareto_point p[] = {
+      {10.0, 0.50, 0}, /* 0: fastest: optimal */
+      {20.0, 0.30, 0}, /* 1: optimal */
+      {20.0, 0.30, 0}, /* 2: exact tie with 1: optimal too */
+      {25.0, 0.40, 0}, /* 3: dominated by 1 */
+      {30.0, 0.30, 0}, /* 4: same error as 1, slower: dominated */
+      {40.0, 0.10, 1}, /* 5: at reference accuracy, fastest of them: optimal */
+      {50.0, 0.01, 1}, /* 6: at reference accuracy too: its lower RMSE is noise, dominated */
+      {NAN, 0.001, 0}, /* 7: no time: takes no part */
+      {5.0, NAN, 0},   /* 8: no error: takes no part (does not dominate 0) */
+      {35.0, 0.2, 0},  /* 9: optimal (between 1 and 5) */
+      {9.0, INFINITY, 0}, /* 10: fastest but worst: optimal */
+      {45.0, 0.05, 0}, /* 11: more accurate than 5 by RMSE but not at reference accuracy: dominated */
+  };
+  const size_t n = sizeof p / sizeof p[0];
+  unsigned char opt[sizeof p / sizeof p[0]];
+  const unsigned char want[] = {1, 1, 1, 0, 0, 1, 0, 0, 0, 1, 1, 0};
+  assert_int_equal(obs_metrics_pareto(p, n, opt, NULL), 6);
+  for (size_t i = 0; i < n; i++) {
+    if (opt[i] != want[i]) fprintf(stderr, "point %zu: optimal %d, want %d\n", i, opt[i], want[i]);
+    assert_int_equal(opt[i], want[i]);
+  }
+  /* Two at-reference points with the same time are both optimal (an exact tie). */
+  const obs_pareto_point q[] = {{3.0, 0.2, 1}, {3.0, 0.1, 1}, {1.0, 0.9, 0}};
+  unsigned char o2[3];
+  assert_int_equal(obs_metrics_pareto(q, 3, o2, NULL), 3);
+  /* Empty input, and bad arguments. */
+  assert_int_equal(obs_metrics_pareto(NULL, 0, NULL, NULL), 0);
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(obs_metrics_pareto(NULL, 2, o2, &err), OBS_EINVAL);
+  assert_msg_has(&err, "pareto");
+  obs_err_free(&err);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_stats_unmasked),
@@ -687,6 +725,7 @@ int main(void) {
       cmocka_unit_test(test_compare_matches_rmse_ssim),
       cmocka_unit_test(test_compare_errors),
       cmocka_unit_test(test_error_image),
+      cmocka_unit_test(test_pareto),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

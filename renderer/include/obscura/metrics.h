@@ -86,6 +86,23 @@ int obs_metrics_error_image(const obs_image *candidate, const obs_image *referen
  * under staging names and renamed into place only when both succeeded. */
 int obs_metrics_write_error_files(const obs_image *err_img, const char *dir, obs_err *err);
 
+/* One candidate of a speed/accuracy comparison for obs_metrics_pareto. */
+typedef struct obs_pareto_point {
+  double time_ms; /* lower is better */
+  double error;   /* lower is better (RMSE) */
+  int at_reference_accuracy; /* error within the reference's noise: see below */
+} obs_pareto_point;
+
+/* Marks the Pareto-optimal points: optimal[i] = 1 when no other point is at least as fast and at
+ * least as accurate and strictly better in one of the two. Points whose error is within the
+ * reference's noise (at_reference_accuracy) count as equally accurate among themselves and more
+ * accurate than every other point, so only the fastest of them is optimal. Exact ties (same time,
+ * same error) are all optimal. A point with a NaN time or (unless at_reference_accuracy) a NaN
+ * error takes no part: it is never optimal and dominates nothing. Returns the number of optimal
+ * points, or OBS_EINVAL on NULL arguments with n > 0. */
+int obs_metrics_pareto(const obs_pareto_point *points, size_t n, unsigned char *optimal,
+                       obs_err *err);
+
 #ifdef __cplusplus
 }
 #endif

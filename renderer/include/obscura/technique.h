@@ -56,6 +56,29 @@ typedef int (*obs_technique_run_fn)(obs_render_ctx *ctx, obs_image *out, obs_err
 typedef void (*obs_technique_check_fn)(const obs_scene *scene, const json_t *params,
                                        const char *docname, obs_err *err);
 
+/* How a reference rt_ao image is put through a candidate technique's response curve before the
+ * two are compared: screen-space techniques estimate a function of the obscurance W, not W. */
+typedef enum {
+  OBS_RESPONSE_IDENTITY = 0,  /* compare with W itself */
+  OBS_RESPONSE_SSAO_SPHERE,   /* ssao, whole sphere: W^2/4 + W/2 */
+  OBS_RESPONSE_SSAO_HEMI,     /* ssao, normal_oriented: min(1, W^2 + W) */
+  OBS_RESPONSE_COUNT
+} obs_response;
+
+/* Scene facts the reference hooks may need, computed at most once per scene and shared across
+ * calls (so a sweep of many candidates traces the scene once). Zero it before the first call. */
+typedef struct obs_reference_facts {
+  int have_z_median;
+  double z_median; /* median linear view depth of the covered pixels (coarse primary-ray pass) */
+} obs_reference_facts;
+
+/* A technique's reference hook: fills `rt_ao_params` (an empty object) with the rt_ao parameters
+ * that define the same AO as the technique with `params` (defaults filled) on `scene`: weighting,
+ * falloff, max_distance and tau only (the caller adds samples and seed), and sets `*response`. */
+typedef int (*obs_technique_reference_fn)(const obs_scene *scene, const json_t *params,
+                                          obs_reference_facts *facts, json_t *rt_ao_params,
+                                          obs_response *response, obs_err *err);
+
 typedef struct obs_technique {
   const char *name;
   const char *description;
@@ -63,6 +86,7 @@ typedef struct obs_technique {
   unsigned needs;               /* OBS_NEED_* */
   const char *const *outputs;   /* NULL-terminated: EXR channel names and extra files */
   obs_technique_check_fn check; /* may be NULL */
+  obs_technique_reference_fn reference; /* may be NULL: the technique cannot be compared */
   obs_technique_run_fn run[OBS_BACKEND_COUNT]; /* indexed by obs_backend; NULL = not available */
 } obs_technique;
 
@@ -75,6 +99,21 @@ int obs_technique_has_backend(const obs_technique *t, obs_backend backend);
 int obs_technique_pick_backend(const obs_technique *t, obs_backend requested, obs_backend *out,
                                obs_err *err);
 const char *obs_backend_name(obs_backend b);
+/* The reference definition of `t` with `params` on `scene` (see obs_technique_reference_fn):
+ * *rt_ao_params is a new object owned by the caller. `facts` may be NULL (nothing is cached).
+ * OBS_EUNSUPPORTED when the technique has no reference hook. */
+int obs_technique_reference(const obs_technique *t, const obs_scene *scene, const json_t *params,
+                            obs_reference_facts *facts, json_t **rt_ao_params,
+                            obs_response *response, obs_err *err);
+/* "identity", "ssao_sphere", "ssao_hemi" (stored by the server), and back (-1 when unknown). */
+const char *obs_response_name(obs_response r);
+int obs_response_parse(const char *name, obs_response *out);
+/* The response curve f(W). */
+float obs_response_map(obs_response r, float w);
+/* Maps channel "ao" of `img` in place through f, and scales "ao_stderr" (when present) by
+ * |f'(W)| so the reference's noise is stated in the mapped units (first-order propagation). */
+int obs_response_apply(obs_response r, obs_image *img, obs_err *err);
+
 /* The registry as a JSON array (new reference, caller owns). */
 json_t *obs_technique_registry_json(void);
 
