@@ -313,6 +313,46 @@ void obs_vk_close(obs_vk *vk) {
   free(vk);
 }
 
+static pthread_mutex_t shared_mu = PTHREAD_MUTEX_INITIALIZER;
+static obs_vk *shared[2]; /* [validation] */
+static pthread_once_t shared_once = PTHREAD_ONCE_INIT;
+
+/* Runs before the drivers' own destructors (those are registered earlier, at load). */
+static void shared_close(void) {
+  for (int i = 0; i < 2; i++) {
+    obs_vk_close(shared[i]);
+    shared[i] = NULL;
+  }
+}
+static void shared_init(void) { atexit(shared_close); }
+
+int obs_vk_acquire(obs_vk **out, int validation, obs_err *err) {
+  *out = NULL;
+  pthread_once(&shared_once, shared_init);
+  pthread_mutex_lock(&shared_mu);
+  obs_vk **slot = &shared[validation ? 1 : 0];
+  if (!*slot) {
+    int rc = obs_vk_open(slot, NULL, validation, err);
+    if (rc) {
+      pthread_mutex_unlock(&shared_mu);
+      return rc;
+    }
+  }
+  atomic_store(&(*slot)->messages, 0u);
+  *out = *slot;
+  return 0;
+}
+
+void obs_vk_release(obs_vk *vk) {
+  if (!vk) return;
+  if (vk->lost) {
+    for (int i = 0; i < 2; i++)
+      if (shared[i] == vk) shared[i] = NULL;
+    obs_vk_close(vk);
+  }
+  pthread_mutex_unlock(&shared_mu);
+}
+
 const char *obs_vk_device_name(const obs_vk *vk) { return vk ? vk->name : ""; }
 
 uint32_t obs_vk_validation_messages(const obs_vk *vk) {

@@ -604,7 +604,7 @@ done:
   return rc;
 }
 
-int obs_vk_gbuffer_download(obs_vk *vk, const obs_vk_gbuffer *dev, obs_gbuffer *host,
+int obs_vk_gbuffer_download(obs_vk *vk, const obs_vk_gbuffer *dev, obs_gbuffer *host, int albedo,
                             obs_err *err) {
   int rc = obs_vk_usable(vk, "G-buffer download", err);
   if (rc) return rc;
@@ -623,6 +623,8 @@ int obs_vk_gbuffer_download(obs_vk *vk, const obs_vk_gbuffer *dev, obs_gbuffer *
     memcpy(host->normal + 3 * i, rgba + 4 * i, 3 * sizeof(float));
     host->coverage[i] = rgba[4 * i + 3];
   }
+  /* Albedo is a third of the readback and only colour bleeding needs it. */
+  if (!albedo) goto done;
   if ((rc = obs_vk_image_download(vk, dev->albedo, rgba, err))) goto done;
   for (size_t i = 0; i < n; i++) memcpy(host->albedo + 3 * i, rgba + 4 * i, 3 * sizeof(float));
 done:

@@ -178,7 +178,7 @@ int obs_hbao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   obs_camera_rig rig;
   obs_camera_setup(&sc->camera, sc->width, sc->height, &rig);
   double st[OBS_HBAO_PASS_COUNT + 1], gb_ms = 0;
-  if ((rc = obs_vk_open(&vk, NULL, validation, err))) goto done;
+  if ((rc = obs_vk_acquire(&vk, validation, err))) goto done;
   double t0 = obs_now_ms();
   if ((rc = obs_geometry_build(sc, &geo, err))) goto done;
   double t1 = obs_now_ms();
@@ -192,7 +192,7 @@ int obs_hbao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   rc = obs_hbao_vk_apply_ex(vk, &dg, &proj, &p, out->data + OBS_SCREEN_AO * plane,
                             out->data + OBS_SCREEN_AO_RAW * plane, st, err);
   double t2 = obs_now_ms();
-  if (!rc) rc = obs_vk_gbuffer_download(vk, &dg, &hg, err);
+  if (!rc) rc = obs_vk_gbuffer_download(vk, &dg, &hg, 0, err);
   /* The G-buffer download is part of the readback the image needs. */
   st[OBS_HBAO_PASS_COUNT] += obs_now_ms() - t2;
   ctx->render_ms = obs_now_ms() - t1;
@@ -212,7 +212,7 @@ done:
   obs_gbuffer_free(&hg);
   if (vk) obs_vk_gbuffer_free(vk, &dg);
   obs_geometry_free(&geo);
-  obs_vk_close(vk);
+  obs_vk_release(vk);
   if (rc) obs_image_free(out);
   return rc;
 }

@@ -119,8 +119,9 @@ int obs_ssao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   memset(&host, 0, sizeof host);
   const int validation = obs_vk_validation_requested();
   double gb_ms = 0, st[OBS_SSAO_VK_STAGES] = {0, 0, 0};
+  /* Acquiring the device is not a stage (as in hbao): only its first use in a process opens it. */
+  if ((rc = obs_vk_acquire(&vk, validation, err))) goto done;
   double t0 = obs_now_ms(), t1 = t0;
-  if ((rc = obs_vk_open(&vk, NULL, validation, err))) goto done;
   if ((rc = obs_geometry_build(sc, &geo, err))) goto done;
   t1 = obs_now_ms();
   ctx->build_ms = t1 - t0;
@@ -132,7 +133,7 @@ int obs_ssao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
     goto done;
   /* The depth and normal outputs come from the device G-buffer, so they match the AO. */
   double t2 = obs_now_ms();
-  if ((rc = obs_vk_gbuffer_download(vk, &dev, &host, err))) goto done;
+  if ((rc = obs_vk_gbuffer_download(vk, &dev, &host, 0, err))) goto done;
   st[2] += obs_now_ms() - t2;
   obs_gbuffer_export(&host, &rig, out);
   ctx->render_ms = obs_now_ms() - t1;
@@ -152,7 +153,7 @@ done:
   obs_gbuffer_free(&host);
   obs_vk_gbuffer_free(vk, &dev);
   obs_geometry_free(&geo);
-  obs_vk_close(vk);
+  obs_vk_release(vk);
   if (rc) obs_image_free(out);
   return rc;
 }

@@ -24,6 +24,14 @@ typedef struct obs_vk_image obs_vk_image;
  * Vulkan device exists. */
 int obs_vk_open(obs_vk **out, const char *filter, int validation, obs_err *err);
 void obs_vk_close(obs_vk *vk);
+/* The process's shared render device (the default device, with or without validation): opened on
+ * first use and kept, because opening an instance and device and compiling the pipelines costs
+ * lavapipe tens of milliseconds, more than a small render. The caller has it exclusively until
+ * obs_vk_release (renders on Vulkan are serialised per process); the validation message count
+ * restarts at 0 for each acquisition. A lost device is closed at release and reopened next time.
+ * Shared devices are closed at exit. */
+int obs_vk_acquire(obs_vk **out, int validation, obs_err *err);
+void obs_vk_release(obs_vk *vk);
 const char *obs_vk_device_name(const obs_vk *vk);
 /* Number of validation-layer messages (warnings and errors) seen so far. */
 uint32_t obs_vk_validation_messages(const obs_vk *vk);
@@ -58,9 +66,10 @@ typedef struct obs_vk_gbuffer {
 int obs_vk_gbuffer_render(obs_vk *vk, const obs_scene *scene, const obs_geometry *geo,
                           obs_vk_gbuffer *out, double *ms, obs_err *err);
 /* Uploads a host G-buffer (so both backends can run on identical inputs), and downloads one
- * into `host`, which must come from obs_gbuffer_alloc with the same size. */
+ * into `host`, which must come from obs_gbuffer_alloc with the same size; `albedo` zero leaves
+ * host->albedo untouched (saves a third of the readback for techniques that do not use it). */
 int obs_vk_gbuffer_upload(obs_vk *vk, const obs_gbuffer *host, obs_vk_gbuffer *out, obs_err *err);
-int obs_vk_gbuffer_download(obs_vk *vk, const obs_vk_gbuffer *dev, obs_gbuffer *host,
+int obs_vk_gbuffer_download(obs_vk *vk, const obs_vk_gbuffer *dev, obs_gbuffer *host, int albedo,
                             obs_err *err);
 void obs_vk_gbuffer_free(obs_vk *vk, obs_vk_gbuffer *g);
 

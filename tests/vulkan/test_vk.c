@@ -320,7 +320,7 @@ static gb_report compare_gbuffers(const char *label, const char *json) {
   assert_int_equal(dev.width, sc.width);
   assert_int_equal(dev.height, sc.height);
   vktest_check_rc(obs_gbuffer_alloc(&gpu, sc.width, sc.height, &rig, &err), &err);
-  vktest_check_rc(obs_vk_gbuffer_download(vk, &dev, &gpu, &err), &err);
+  vktest_check_rc(obs_vk_gbuffer_download(vk, &dev, &gpu, 1, &err), &err);
 
   int w = sc.width, h = sc.height;
   size_t n = (size_t)w * h;
@@ -595,12 +595,12 @@ static void test_gb_upload_download(void **state) {
   obs_camera_rig rig;
   obs_camera_setup(&sc.camera, sc.width, sc.height, &rig);
   vktest_check_rc(obs_gbuffer_alloc(&b, sc.width, sc.height, &rig, &err), &err);
-  vktest_check_rc(obs_vk_gbuffer_download(vk, &dev, &b, &err), &err);
+  vktest_check_rc(obs_vk_gbuffer_download(vk, &dev, &b, 1, &err), &err);
   assert_memory_equal(a.depth, b.depth, (size_t)41 * 23 * 8 * sizeof(float));
   obs_gbuffer c;
   obs_camera_setup(&sc.camera, 40, 23, &rig);
   vktest_check_rc(obs_gbuffer_alloc(&c, 40, 23, &rig, &err), &err);
-  assert_int_equal(obs_vk_gbuffer_download(vk, &dev, &c, &err), OBS_EINVAL);
+  assert_int_equal(obs_vk_gbuffer_download(vk, &dev, &c, 1, &err), OBS_EINVAL);
   obs_gbuffer_free(&c);
   obs_vk_gbuffer_free(vk, &dev);
   obs_gbuffer_free(&a);
