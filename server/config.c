@@ -28,6 +28,8 @@ static const opt opts[] = {
     {"scenes-dir", OPT_STR, OFF(scenes_dir), 0, 0,
      "bundled scenes; scene and mesh paths resolve only inside it (default scenes)"},
     {"web-dir", OPT_STR, OFF(web_dir), 0, 0, "static files served at / (default web)"},
+    {"vendor-dir", OPT_STR, OFF(vendor_dir), 0, 0,
+     "npm modules directory the dashboard's /vendor/ files come from (default node_modules)"},
     {"token-file", OPT_STR, OFF(token_file), 0, 0,
      "file holding the bearer token every /api request and /metrics must carry"},
     {"workers", OPT_INT, OFF(workers), 1, 256,
@@ -192,6 +194,7 @@ int srv_config_parse(srv_config *cfg, int argc, char **argv) {
   cfg->data_dir = xstrdup("var");
   cfg->scenes_dir = xstrdup("scenes");
   cfg->web_dir = xstrdup("web");
+  cfg->vendor_dir = xstrdup("node_modules");
   cfg->workers = 1;
   cfg->vulkan = 1;
   cfg->max_body = 16 * 1024 * 1024;
@@ -275,6 +278,7 @@ void srv_config_free(srv_config *cfg) {
   free(cfg->data_dir);
   free(cfg->scenes_dir);
   free(cfg->web_dir);
+  free(cfg->vendor_dir);
   free(cfg->token_file);
   memset(cfg, 0, sizeof *cfg);
 }

@@ -80,7 +80,7 @@ static int resolve_dir(const char *opt, const char *dir, char *out, int required
   if (realpath(dir, out) && !stat(out, &st) && S_ISDIR(st.st_mode)) return 0;
   out[0] = '\0';
   if (!required) {
-    srv_log("warning: --%s %s is not a directory; nothing will be served at /", opt, dir);
+    srv_log("warning: --%s %s is not a directory; nothing will be served from it", opt, dir);
     return 0;
   }
   fprintf(stderr, "obscurad: --%s %s: not a directory\n", opt, dir);
@@ -130,6 +130,7 @@ int main(int argc, char **argv) {
   char real[PATH_MAX];
   if (resolve_dir("scenes-dir", app.cfg.scenes_dir, app.scenes_real, 1) ||
       resolve_dir("web-dir", app.cfg.web_dir, app.web_real, 0) ||
+      resolve_dir("vendor-dir", app.cfg.vendor_dir, app.vendor_real, 0) ||
       resolve_dir("data-dir", app.results_dir, real, 1)) {
     srv_config_free(&app.cfg);
     return 2;

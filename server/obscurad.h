@@ -24,6 +24,7 @@ typedef struct srv_config {
   char *data_dir;        /* default var */
   char *scenes_dir;      /* default scenes */
   char *web_dir;         /* default web */
+  char *vendor_dir;      /* default node_modules: only an allowlist of files is served from it */
   char *token_file;      /* NULL = no authentication (loopback only) */
   int workers;           /* CPU lane workers, default 1 */
   int vulkan;            /* 1 = run a Vulkan lane when a device exists (default), 0 = never */
@@ -412,6 +413,7 @@ typedef struct srv_app {
   struct MHD_Daemon *mhd;
   char scenes_real[4096];  /* resolved --scenes-dir */
   char web_real[4096];     /* resolved --web-dir, "" when it does not exist */
+  char vendor_real[4096];  /* resolved --vendor-dir, "" when it does not exist */
   char results_dir[4096];  /* <data-dir>/results */
   int has_token;
   unsigned char token_digest[32]; /* SHA-256 of the token: compared in constant time */

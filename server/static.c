@@ -1,5 +1,6 @@
 /* Static files of --web-dir (the dashboard): index.html for directories, no listings, and no way
- * out of the directory (no "..", no hidden segments, no symlinks leading outside). */
+ * out of the directory (no "..", no hidden segments, no symlinks leading outside); plus a fixed
+ * allowlist of third-party files under /vendor/ taken from --vendor-dir (npm's node_modules). */
 #include <fcntl.h>
 #include <limits.h>
 #include <microhttpd.h>
@@ -60,17 +61,21 @@ static int not_found(srv_req *r) {
   return srv_respond_error(r, MHD_HTTP_NOT_FOUND, NULL, "not found");
 }
 
-int srv_static_serve(srv_req *r) {
-  if (strcmp(r->method, "GET") && strcmp(r->method, "HEAD"))
-    return srv_respond_method(r, "GET, HEAD");
-  srv_app *app = r->app;
-  if (!app->web_real[0] || !path_ok(r->path)) return not_found(r);
+/* The only files served from --vendor-dir: URL path -> path inside it. node_modules holds far
+ * more than the dashboard needs (and test tooling), so nothing else of it is reachable. */
+static const struct {
+  const char *url, *file;
+} vendor_files[] = {
+    {"/vendor/uplot/uPlot.iife.min.js", "uplot/dist/uPlot.iife.min.js"},
+    {"/vendor/uplot/uPlot.min.css", "uplot/dist/uPlot.min.css"},
+};
+
+/* Serves root/rel when it resolves (symlinks included) to a regular file inside root. */
+static int serve_inside(srv_req *r, const char *root, const char *rel) {
   char joined[PATH_MAX + 1100], real[PATH_MAX];
-  size_t n = strlen(r->path);
-  snprintf(joined, sizeof joined, "%s%s%s", app->web_real, r->path,
-           r->path[n - 1] == '/' ? "index.html" : "");
+  snprintf(joined, sizeof joined, "%s/%s", root, rel);
   struct stat st;
-  if (!realpath(joined, real) || !srv_path_inside(app->web_real, real) || stat(real, &st) ||
+  if (!root[0] || !realpath(joined, real) || !srv_path_inside(root, real) || stat(real, &st) ||
       !S_ISREG(st.st_mode))
     return not_found(r);
   int fd = open(real, O_RDONLY | O_CLOEXEC);
@@ -84,4 +89,22 @@ int srv_static_serve(srv_req *r) {
   /* The dashboard changes with the daemon; revalidating keeps a stale app.js from lingering. */
   MHD_add_response_header(resp, "Cache-Control", "no-cache");
   return srv_respond(r, MHD_HTTP_OK, resp);
+}
+
+int srv_static_serve(srv_req *r) {
+  if (strcmp(r->method, "GET") && strcmp(r->method, "HEAD"))
+    return srv_respond_method(r, "GET, HEAD");
+  srv_app *app = r->app;
+  /* /vendor/ belongs to the allowlist alone, whatever --web-dir holds. */
+  if (!strncmp(r->path, "/vendor/", 8)) {
+    for (size_t i = 0; i < sizeof vendor_files / sizeof vendor_files[0]; i++)
+      if (!strcmp(r->path, vendor_files[i].url))
+        return serve_inside(r, app->vendor_real, vendor_files[i].file);
+    return not_found(r);
+  }
+  if (!path_ok(r->path)) return not_found(r);
+  char rel[1100];
+  size_t n = strlen(r->path);
+  snprintf(rel, sizeof rel, "%s%s", r->path + 1, r->path[n - 1] == '/' ? "index.html" : "");
+  return serve_inside(r, app->web_real, rel);
 }

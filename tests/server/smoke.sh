@@ -11,7 +11,7 @@ check() { # description, command...
 }
 rm -rf "$work" && mkdir -p "$work"
 "$bin" --port 0 --data-dir "$work/var" --scenes-dir "$root/scenes" --web-dir "$root/web" \
-  --workers 1 2>"$work/log" &
+  --vendor-dir "$root/node_modules" --workers 1 2>"$work/log" &
 pid=$!
 trap 'kill -9 $pid 2>/dev/null' EXIT
 port=
@@ -82,6 +82,11 @@ check "malformed JSON is 400" test "$(req -X POST -H 'Content-Type: application/
 check "dashboard is served with a CSP" bash -c "
   test \"\$(curl -s -o /dev/null -D '$work/h2' -w '%{http_code}' '$base/')\" = 200 &&
   grep -qi \"^content-security-policy: default-src 'self'\" '$work/h2'"
+check "the chart library is served from --vendor-dir" \
+  test "$(req "$base/vendor/uplot/uPlot.iife.min.js")" = 200
+check "nothing else of --vendor-dir is" bash -c "
+  test \"\$(curl -s -o /dev/null -w '%{http_code}' '$base/vendor/uplot/package.json')\" = 404 &&
+  test \"\$(curl -s -o /dev/null -w '%{http_code}' --path-as-is '$base/vendor/../package.json')\" = 404"
 check "metrics count jobs by state" bash -c "curl -s '$base/metrics' |
   grep -q '^obscura_jobs{state=\"succeeded\"} 1$'"
 kill -TERM $pid

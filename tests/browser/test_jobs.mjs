@@ -1,0 +1,169 @@
+// Browser test of the jobs pages and the single-job submit form against a real obscurad: the
+// vendor allowlist, client-side validation and a server-side refusal on the submit page, a job
+// submitted from the page followed to success with its outputs, live progress and a cancel on the
+// job list without reloads, filters, keyboard navigation to a job, and named controls everywhere.
+import assert from 'node:assert/strict';
+import test from 'node:test';
+import {assertAllNamed, assertNoReload, getJSON, imageWidths, markPage, openBrowser, request, screenshot,
+        startDashboard, submit, waitJob} from './lib.mjs';
+
+test('vendor files: only the allowlist is served from --vendor-dir', async () => {
+  const d = await startDashboard();
+  try {
+    const js = await request(d, 'GET', '/vendor/uplot/uPlot.iife.min.js');
+    assert.equal(js.status, 200);
+    assert.match(js.headers['content-type'], /^text\/javascript/);
+    assert.match(js.text, /uPlot/);
+    const css = await request(d, 'GET', '/vendor/uplot/uPlot.min.css');
+    assert.equal(css.status, 200);
+    assert.match(css.headers['content-type'], /^text\/css/);
+    for (const p of ['/vendor/uplot/package.json', '/vendor/uplot/dist/uPlot.esm.js', '/vendor/', '/vendor/../package.json',
+                     '/vendor/uplot/../uplot/uPlot.min.css', '/vendor/playwright-core/package.json']) {
+      assert.equal((await request(d, 'GET', p)).status, 404, p);
+    }
+    const index = await request(d, 'GET', '/');
+    assert.equal(index.headers['content-security-policy'], "default-src 'self'; frame-ancestors 'none'");
+    assert.match(index.text, /js\/main\.js/);
+  } finally {
+    await d.stopClean();
+  }
+});
+
+test('jobs, job detail and submit pages', async () => {
+  const d = await startDashboard({workers: 1});
+  const {browser, page, errors} = await openBrowser();
+  try {
+    // ---- submit page: labelled controls, client-side validation, a server refusal -----------
+    await page.goto(`${d.url}/#/submit`);
+    await page.getByLabel('Scene file').selectOption('cornell_box.json');
+    await assertAllNamed(page, 'submit (one job)');
+    await page.getByLabel('Image width (pixels)').fill('32');
+    await page.getByLabel('Image height (pixels)').fill('24');
+    await page.getByLabel('Label').fill('from the browser');
+    const block = page.getByRole('group', {name: 'Technique'});
+    await block.getByLabel('Technique', {exact: true}).selectOption('rt_ao');
+    await block.getByLabel('Backend').selectOption('cpu');
+    const samples = block.getByLabel('samples', {exact: true});
+    await samples.fill('0');
+    await page.getByLabel('Priority').fill('101');
+    await page.getByRole('button', {name: 'Submit job'}).click();
+    // Nothing was sent: both problems are shown at their fields and the first has the focus.
+    await page.getByText('Not sent: 2 problems to fix.').waitFor();
+    assert.equal(await samples.getAttribute('aria-invalid'), 'true');
+    assert.match(await page.locator(`#${await samples.getAttribute('id')}-err`).textContent(), /must be >= 1 \(got 0\)/);
+    assert.match(await page.locator(`#${await page.getByLabel('Priority').getAttribute('id')}-err`).textContent(), /must be <= 100/);
+    assert.equal(await page.evaluate(() => document.activeElement.getAttribute('aria-invalid')), 'true');
+    await screenshot(page, 'submit-invalid');
+    assert.equal((await getJSON(d, '/api/v1/jobs')).jobs.length, 0, 'an invalid form sends nothing');
+
+    // Valid for the form, refused by the server: the problem lands next to max_distance.
+    await page.getByLabel('Priority').fill('60');
+    await samples.fill('4');
+    await block.getByLabel('falloff').selectOption('"sqrt"');
+    await block.getByLabel('max_distance').fill('null');
+    await page.getByRole('button', {name: 'Submit job'}).click();
+    await page.getByText('The server refused it (422)').waitFor();
+    const md = block.getByLabel('max_distance');
+    assert.equal(await md.getAttribute('aria-invalid'), 'true');
+    assert.match(await page.locator(`#${await md.getAttribute('id')}-err`).textContent(), /needs a finite max_distance/);
+    await screenshot(page, 'submit-server-problem');
+
+    // ---- a job from the form, followed to success without a reload ---------------------------
+    await md.fill('');
+    await block.getByLabel('falloff').selectOption('');
+    await markPage(page);
+    await page.getByRole('button', {name: 'Submit job'}).click();
+    await page.waitForURL(/#\/jobs\/\d+$/);
+    const id = Number(page.url().match(/#\/jobs\/(\d+)$/)[1]);
+    assert.equal(await page.getByRole('heading', {level: 1}).textContent(), `Job ${id}`);
+    await page.locator('.job-state', {hasText: 'succeeded'}).waitFor();
+    await assertNoReload(page);
+    const job = await getJSON(d, `/api/v1/jobs/${id}`);
+    assert.equal(job.state, 'succeeded');
+    assert.equal(job.label, 'from the browser');
+    assert.equal(job.priority, 60);
+    assert.deepEqual([job.image.width, job.image.height, job.backend.requested], [32, 24, 'cpu']);
+    assert.deepEqual(await imageWidths(page, 'img.output'), [32], 'ao.png loads at its size');
+    await page.getByRole('heading', {name: 'Timings'}).waitFor();
+    for (const stage of ['load', 'build', 'render', 'write', 'total']) {
+      assert.equal(await page.locator('table.timings th', {hasText: new RegExp(`^${stage}$`)}).count(), 1, stage);
+    }
+    await page.getByRole('heading', {name: 'Parameters'}).waitFor();
+    assert.match(await page.locator('.params-slot code').textContent(), /samples=4 /);
+    assert.deepEqual(await page.$$eval('ul.downloads a', (as) => as.map((a) => a.textContent).sort()), ['ao.exr', 'ao.png', 'summary.json']);
+    await assertAllNamed(page, 'job detail');
+    await screenshot(page, 'job-detail');
+
+    // ---- the job list: live progress, a queued job behind it, cancel ------------------------
+    const long = await submit(d, {scene_file: 'cornell_box.json', label: 'long',
+      technique: {name: 'rt_ao', backend: 'cpu', params: {samples: 8192}}, set: {'/image/width': 256, '/image/height': 256}});
+    const behind = await submit(d, {scene_file: 'sphere_on_plane.json', label: 'behind',
+      technique: {name: 'ssao', backend: 'cpu'}, set: {'/image/width': 32, '/image/height': 24}});
+    await page.getByRole('link', {name: 'Jobs', exact: true}).click();
+    await page.waitForURL(/#\/jobs$/);
+    await markPage(page);
+    const progressOf = (jid) => page.evaluate((j) => {
+      const p = document.querySelector(`tr[data-id="${j}"] progress`);
+      return p ? p.value : -1;
+    }, jid);
+    await page.waitForFunction((j) => { const p = document.querySelector(`tr[data-id="${j}"] progress`); return p && p.value > 0; }, long);
+    const p1 = await progressOf(long);
+    assert.ok(p1 > 0 && p1 < 1, `running job's progress ${p1}`);
+    // The bar moves on its own while the page stays as it is.
+    await page.waitForFunction(([j, v]) => document.querySelector(`tr[data-id="${j}"] progress`).value > v, [long, p1]);
+    assert.match(await page.locator(`tr[data-id="${long}"]`).textContent(), /running/);
+    assert.match(await page.locator(`tr[data-id="${behind}"]`).textContent(), /queued/);
+    await screenshot(page, 'jobs-running');
+    await page.getByRole('button', {name: `Cancel job ${long}`}).click();
+    await page.locator(`tr[data-id="${long}"]`, {hasText: 'cancelled'}).waitFor();
+    await page.locator(`tr[data-id="${behind}"]`, {hasText: 'succeeded'}).waitFor();
+    await assertNoReload(page);
+    assert.equal((await waitJob(d, long)).state, 'cancelled');
+
+    // ---- filters ---------------------------------------------------------------------------
+    const shown = () => page.$$eval('table.jobs tbody tr', (trs) => trs.map((t) => Number(t.dataset.id)));
+    const expectRows = async (ids) => {
+      await page.waitForFunction((want) => JSON.stringify([...document.querySelectorAll('table.jobs tbody tr')].map((t) => Number(t.dataset.id))) === want,
+                                 JSON.stringify(ids));
+      assert.deepEqual(await shown(), ids);
+    };
+    await expectRows([behind, long, id]);
+    await page.getByLabel('State').selectOption('cancelled');
+    await expectRows([long]);
+    await page.getByLabel('State').selectOption('succeeded');
+    await expectRows([behind, id]);
+    await page.getByLabel('Technique').selectOption('ssao');
+    await expectRows([behind]);
+    await page.getByLabel('Technique').selectOption('hbao');
+    await expectRows([]);
+    await page.getByLabel('Technique').selectOption('');
+    await page.getByLabel('State').selectOption('');
+    await page.getByLabel('Backend').selectOption('cpu');
+    await expectRows([behind, long, id]);
+    await page.getByLabel('Backend').selectOption('');
+    await assertAllNamed(page, 'jobs');
+    await screenshot(page, 'jobs');
+
+    // ---- keyboard: from the filters to a job, arrow keys between jobs, Enter opens it -------
+    await page.getByLabel('Backend').focus();
+    let onLink = false;
+    for (let i = 0; i < 10 && !onLink; i++) {
+      await page.keyboard.press('Tab');
+      onLink = await page.evaluate(() => document.activeElement.classList.contains('job-link'));
+    }
+    assert.ok(onLink, 'Tab reaches the first job link');
+    assert.equal(await page.evaluate(() => document.activeElement.getAttribute('href')), `#/jobs/${behind}`);
+    await page.keyboard.press('ArrowDown');
+    assert.equal(await page.evaluate(() => document.activeElement.getAttribute('href')), `#/jobs/${long}`);
+    await page.keyboard.press('Enter');
+    await page.waitForURL(new RegExp(`#/jobs/${long}$`));
+    await page.locator('.job-state', {hasText: 'cancelled'}).waitFor();
+    assert.equal(await page.evaluate(() => document.activeElement.tagName), 'H1', 'focus moves to the new page heading');
+    assert.match(await page.locator('dl.facts').textContent(), /cancelled by request/);
+
+    assert.deepEqual(errors, [], 'no script errors');
+  } finally {
+    await browser.close();
+    await d.stopClean();
+  }
+});

@@ -1,0 +1,337 @@
+// The comparison pages: the list of comparisons, and one comparison: a table sortable by any
+// column, the Pareto chart (chart.js), the selected candidate against its reference (a slider
+// over two stacked images) with its error heatmap, an image grid of every candidate, and the CSV.
+import {ACTIVE, ApiError, api, debug, el, fmtMs, fmtNum, fmtTime, paramText, poll, stateBadge, techniques, token} from './api.js';
+import {PALETTE, SHAPE_GLYPH, SHAPES, paretoChart, shapeOf} from './chart.js';
+
+// ---- the list -----------------------------------------------------------------------------------
+
+export function mountComparisons(view) {
+  const tbody = el('tbody');
+  const status = el('p', {role: 'status', className: 'muted'}, 'loading…');
+  view.append(el('h1', {}, 'Comparisons'),
+    el('p', {}, 'Each comparison renders one scene with a grid of techniques, backends and parameters and measures ' +
+      'every candidate against a converged rt_ao reference. ', el('a', {href: '#/submit?mode=comparison'}, 'Start one.')),
+    status,
+    el('table', {},
+      el('caption', {className: 'sr-only'}, 'Comparisons, newest first'),
+      el('thead', {}, el('tr', {}, ...['Comparison', 'Label', 'Scene', 'State', 'Candidates done', 'Created']
+        .map((h) => el('th', {scope: 'col'}, h)))),
+      tbody));
+  const handle = poll(async () => {
+    let list;
+    try {
+      list = await api('/api/v1/comparisons?limit=100');
+    } catch (e) {
+      status.textContent = e.status === 404 ? 'This server has no comparisons API.' : e.message;
+      return false;
+    }
+    status.textContent = `${list.comparisons.length} comparison${list.comparisons.length === 1 ? '' : 's'}`;
+    tbody.replaceChildren(...list.comparisons.map((c) => el('tr', {},
+      el('td', {}, el('a', {href: `#/comparisons/${c.id}`}, `Comparison ${c.id}`)),
+      el('td', {}, c.label || '–'), el('td', {}, c.scene), el('td', {}, stateBadge(c.state)),
+      el('td', {}, el('progress', {max: c.candidates || 1, value: c.done, 'aria-label': `Candidates done in comparison ${c.id}`}),
+        ` ${c.done} / ${c.candidates}`),
+      el('td', {}, fmtTime(c.created_at)))));
+    return list.comparisons.some((c) => c.state === 'running');
+  }, {fast: 1000, slow: 5000});
+  return () => handle.stop();
+}
+
+// ---- shared pieces ------------------------------------------------------------------------------
+
+/** Metrics and timings of one candidate as a two-column table (also used by the job page). */
+export function metricsTable(c) {
+  const m = c.metrics || {};
+  const med = (c.timings_ms && c.timings_ms.median) || {};
+  const runs = (c.timings_ms && c.timings_ms.runs) || [];
+  const rows = [
+    ['RMSE', fmtNum(m.rmse)], ['bias (mean signed error)', fmtNum(m.bias)], ['max |error|', fmtNum(m.max_abs)],
+    ['PSNR (dB)', fmtNum(m.psnr)], ['SSIM', fmtNum(m.ssim)], ['reference noise (mean standard error)', fmtNum(m.ref_noise)],
+    ['at reference accuracy', m.at_reference_accuracy ? 'yes (RMSE below 2 × reference noise)' : 'no'],
+    ['Pareto-optimal', c.pareto ? 'yes' : 'no'],
+    ['median total ms', fmtMs(med.total)], ['median build ms', fmtMs(med.build)], ['median render ms', fmtMs(med.render)],
+    ['median post ms', fmtMs(med.post)], ['timed runs', String(runs.length)],
+  ];
+  if (c.machine) rows.push(['machine', [c.machine.cpu_model, c.machine.cores && `${c.machine.cores} cores`, c.machine.vulkan_device].filter(Boolean).join(', ')]);
+  return el('table', {className: 'kv metrics'}, el('tbody', {}, ...rows.map(([k, v]) => el('tr', {},
+    el('th', {scope: 'row'}, k), el('td', {className: 'num'}, v)))));
+}
+
+/** Parameters that differ between candidates of the same technique (the rest is noise here). */
+function varyingParams(cands) {
+  const byTech = new Map();
+  for (const c of cands) {
+    if (!byTech.has(c.technique)) byTech.set(c.technique, new Map());
+    const m = byTech.get(c.technique);
+    for (const [k, v] of Object.entries(c.params || {})) {
+      if (!m.has(k)) m.set(k, new Set());
+      m.get(k).add(JSON.stringify(v));
+    }
+  }
+  return (c) => {
+    const m = byTech.get(c.technique);
+    const out = {};
+    for (const [k, v] of Object.entries(c.params || {})) if (m.get(k).size > 1) out[k] = v;
+    return paramText(out) || '(defaults)';
+  };
+}
+
+const COLUMNS = [
+  {key: 'index', label: '#', get: (c) => c.index, num: true},
+  {key: 'technique', label: 'Technique', get: (c) => c.technique},
+  {key: 'backend', label: 'Backend', get: (c) => c.backend},
+  {key: 'params', label: 'Parameters', get: (c, ctx) => ctx.params(c)},
+  {key: 'state', label: 'State', get: (c) => c.state},
+  {key: 'total', label: 'Median ms', get: (c) => c.timings_ms && c.timings_ms.median ? c.timings_ms.median.total : null, num: true, fmt: fmtMs},
+  {key: 'render', label: 'Render ms', get: (c) => c.timings_ms && c.timings_ms.median ? c.timings_ms.median.render : null, num: true, fmt: fmtMs},
+  {key: 'rmse', label: 'RMSE', get: (c) => c.metrics && c.metrics.rmse, num: true, fmt: fmtNum},
+  {key: 'bias', label: 'Bias', get: (c) => c.metrics && c.metrics.bias, num: true, fmt: fmtNum},
+  {key: 'max_abs', label: 'Max |err|', get: (c) => c.metrics && c.metrics.max_abs, num: true, fmt: fmtNum},
+  {key: 'psnr', label: 'PSNR dB', get: (c) => c.metrics && c.metrics.psnr, num: true, fmt: (v) => fmtNum(v, 3)},
+  {key: 'ssim', label: 'SSIM', get: (c) => c.metrics && c.metrics.ssim, num: true, fmt: fmtNum},
+  {key: 'pareto', label: 'Pareto', get: (c) => (c.pareto ? 1 : 0), num: true, fmt: (v) => (v ? '★ yes' : 'no')},
+  {key: 'at_ref', label: 'At ref. accuracy', get: (c) => (c.metrics ? (c.metrics.at_reference_accuracy ? 1 : 0) : null), num: true,
+   fmt: (v) => (v === null ? '–' : v ? '≈ yes' : 'no')},
+];
+
+/** Downloads url through fetch when a token is needed (a plain link cannot send the header). */
+function csvLink(url, name) {
+  const a = el('a', {href: url, download: name, className: 'button'}, 'Download CSV');
+  a.addEventListener('click', async (ev) => {
+    if (!token) return;
+    ev.preventDefault();
+    const res = await fetch(url, {headers: {Authorization: `Bearer ${token}`}});
+    const blob = await res.blob();
+    const tmp = el('a', {href: URL.createObjectURL(blob), download: name});
+    tmp.click();
+    setTimeout(() => URL.revokeObjectURL(tmp.href), 10000);
+  });
+  return a;
+}
+
+// ---- one comparison -----------------------------------------------------------------------------
+
+export function mountComparison(view, [id], query) {
+  const s = {
+    c: null, fingerprint: '', sort: {key: 'index', dir: 1},
+    selected: query.has('candidate') ? Number(query.get('candidate')) : null, chart: null, colours: new Map(),
+  };
+  const facts = el('div');
+  const chartBox = el('div', {className: 'chart', role: 'img', tabindex: '0'});
+  const chartNote = el('p', {className: 'muted'});
+  const thead = el('thead');
+  const tbody = el('tbody');
+  const detail = el('div', {className: 'selected-slot'});
+  const grid = el('div', {className: 'grid'});
+  view.append(
+    el('p', {className: 'crumbs'}, el('a', {href: '#/comparisons'}, '← all comparisons')),
+    el('h1', {}, `Comparison ${id}`), facts,
+    el('section', {'aria-labelledby': 'h-chart'},
+      el('h2', {id: 'h-chart'}, 'Time against error'),
+      el('p', {className: 'hint'}, 'Each point is a candidate: colour and legend name the technique, the shape the backend. ' +
+        'Click a point (or focus the chart and use ← →) to show that candidate below. The table holds the same data.'),
+      chartBox, el('ul', {className: 'shape-legend', 'aria-label': 'Marker shapes'},
+        ...Object.entries(SHAPES).map(([b, sh]) => el('li', {}, el('span', {'aria-hidden': 'true'}, SHAPE_GLYPH[sh]), ` ${sh}: ${b}`)),
+        el('li', {}, el('span', {'aria-hidden': 'true'}, SHAPE_GLYPH.triangle), ' triangle: any other backend'),
+        el('li', {}, el('span', {'aria-hidden': 'true'}, '╌'), ' dashed step line: the Pareto front (nothing is both faster and more accurate)'),
+        el('li', {}, el('span', {'aria-hidden': 'true'}, '◯'), ' ring: the selected candidate; larger markers: Pareto-optimal')),
+      chartNote),
+    el('section', {'aria-labelledby': 'h-table'},
+      el('h2', {id: 'h-table'}, 'Candidates'),
+      el('div', {className: 'scroll'}, el('table', {className: 'candidates'},
+        el('caption', {className: 'sr-only'}, 'Candidates; column headers sort the table'), thead, tbody))),
+    detail,
+    el('section', {'aria-labelledby': 'h-grid'}, el('h2', {id: 'h-grid'}, 'All images'), grid));
+
+  chartBox.addEventListener('keydown', (ev) => {
+    if (!s.chart || !['ArrowLeft', 'ArrowRight'].includes(ev.key)) return;
+    ev.preventDefault();
+    select(s.chart.step(ev.key === 'ArrowRight' ? 1 : -1), false);
+  });
+
+  const colourOf = (t) => {
+    if (!s.colours.has(t)) s.colours.set(t, PALETTE[s.colours.size % PALETTE.length]);
+    return s.colours.get(t);
+  };
+  // Colours follow the registry's order, so a technique keeps its colour across comparisons.
+  const ready = techniques().then(({techniques: ts}) => ts.forEach((t) => colourOf(t.name))).catch(() => {});
+
+  function select(index, scroll = true) {
+    s.selected = index;
+    history.replaceState(null, '', `#/comparisons/${id}?candidate=${index}`);
+    if (s.chart) s.chart.select(index);
+    for (const tr of tbody.rows) tr.setAttribute('aria-selected', String(Number(tr.dataset.index) === index));
+    renderSelected();
+    debug.comparison.selected = index;
+    if (scroll) detail.scrollIntoView({block: 'nearest'});
+  }
+
+  function renderFacts() {
+    const c = s.c;
+    const done = c.candidates.filter((x) => !ACTIVE.has(x.state)).length;
+    facts.replaceChildren(
+      el('dl', {className: 'facts'},
+        el('dt', {}, 'State'), el('dd', {className: 'cmp-state', 'aria-live': 'polite'}, stateBadge(c.state)),
+        el('dt', {}, 'Label'), el('dd', {}, c.label || '–'),
+        el('dt', {}, 'Scene'), el('dd', {}, c.scene),
+        el('dt', {}, 'Image'), el('dd', {}, c.image ? `${c.image.width}×${c.image.height}` : '–'),
+        el('dt', {}, 'Timed runs per candidate'), el('dd', {}, String(c.repeats)),
+        el('dt', {}, 'Candidates finished'), el('dd', {},
+          el('progress', {max: c.candidates.length || 1, value: done, 'aria-label': 'Candidates finished'}), ` ${done} / ${c.candidates.length}`),
+        el('dt', {}, 'References'), el('dd', {}, ...c.references.flatMap((r, i) => [i ? ', ' : '',
+          el('a', {href: `#/jobs/${r.job_id}?comparison=${id}`}, `job ${r.job_id}`), ` (${r.state}, ${paramText({samples: r.params && r.params.samples})})`])),
+        el('dt', {}, 'Created'), el('dd', {}, fmtTime(c.created_at))),
+      el('p', {}, csvLink(c.links.csv, `comparison-${id}.csv`)));
+  }
+
+  function renderTable() {
+    const ctx = {params: varyingParams(s.c.candidates)};
+    const {key, dir} = s.sort;
+    const col = COLUMNS.find((c) => c.key === key);
+    const rows = [...s.c.candidates].sort((a, b) => {
+      const va = col.get(a, ctx), vb = col.get(b, ctx);
+      if (va === null || va === undefined) return vb === null || vb === undefined ? a.index - b.index : 1;
+      if (vb === null || vb === undefined) return -1;
+      const d = col.num ? va - vb : String(va).localeCompare(String(vb));
+      return d ? d * dir : a.index - b.index;
+    });
+    thead.replaceChildren(el('tr', {}, ...COLUMNS.map((c) => el('th', {scope: 'col', 'aria-sort': c.key === key ? (dir > 0 ? 'ascending' : 'descending') : 'none'},
+      el('button', {type: 'button', className: 'sort', onclick: () => {
+        s.sort = {key: c.key, dir: s.sort.key === c.key ? -s.sort.dir : 1};
+        renderTable();
+        thead.querySelector(`button[data-key="${c.key}"]`).focus();
+      }, 'data-key': c.key}, c.label, el('span', {'aria-hidden': 'true', className: 'arrow'}, c.key === key ? (dir > 0 ? ' ▲' : ' ▼') : ''))))));
+    const focusedIndex = tbody.contains(document.activeElement) ? document.activeElement.closest('tr').dataset.index : null;
+    tbody.replaceChildren(...rows.map((c) => {
+      const tr = el('tr', {'data-index': c.index, 'aria-selected': String(c.index === s.selected), className: c.pareto ? 'pareto' : ''},
+        ...COLUMNS.map((col, k) => {
+          const v = col.get(c, ctx);
+          if (k === 0) {
+            return el('td', {className: 'num'}, el('button', {type: 'button', className: 'small pick', 'aria-label': `Show candidate ${c.index}`,
+              onclick: () => select(c.index)}, String(c.index)));
+          }
+          if (col.key === 'state') return el('td', {}, stateBadge(v));
+          return el('td', {className: col.num ? 'num' : ''}, col.fmt ? col.fmt(v) : String(v ?? '–'));
+        }));
+      tr.addEventListener('click', (ev) => {
+        if (!ev.target.closest('button, a')) select(c.index);
+      });
+      return tr;
+    }));
+    if (focusedIndex !== null) {
+      const b = tbody.querySelector(`tr[data-index="${focusedIndex}"] button`);
+      if (b) b.focus();
+    }
+  }
+
+  function renderChart() {
+    if (s.chart) s.chart.destroy();
+    chartBox.replaceChildren();
+    s.chart = paretoChart(chartBox, s.c.candidates, {colourOf, onSelect: (i) => select(i), selected: s.selected});
+    const info = s.chart ? s.chart.info : {points: 0, series: [], pareto: 0};
+    debug.comparison.chart = info;
+    debug.comparison.uplot = s.chart ? s.chart.uplot : null;
+    const withMetrics = s.c.candidates.filter((c) => c.metrics);
+    const times = withMetrics.map((c) => c.timings_ms.median.total), errs = withMetrics.map((c) => c.metrics.rmse);
+    chartBox.setAttribute('aria-label', info.points
+      ? `Scatter chart, log scales: ${info.points} candidates, median time ${fmtMs(Math.min(...times))} to ${fmtMs(Math.max(...times))} ms, ` +
+        `RMSE ${fmtNum(Math.min(...errs), 3)} to ${fmtNum(Math.max(...errs), 3)}; ` +
+        `series: ${info.series.map((x) => `${x.label} (${x.points})`).join(', ')}; Pareto-optimal candidates: ${s.c.pareto.join(', ') || 'none yet'}.`
+      : 'Chart: no candidate has metrics yet.');
+    chartNote.textContent = info.points < s.c.candidates.length
+      ? `${info.points} of ${s.c.candidates.length} candidates plotted; the others have no metrics yet${s.c.state === 'running' ? '' : ' (failed or cancelled)'}.` : '';
+  }
+
+  function renderGrid() {
+    const ctx = {params: varyingParams(s.c.candidates)};
+    grid.replaceChildren(
+      ...s.c.references.filter((r) => r.links && r.links['ao.png']).map((r) => el('figure', {className: 'tile ref'},
+        el('img', {src: r.links['ao.png'], alt: `Reference job ${r.job_id}`}),
+        el('figcaption', {}, `Reference (job ${r.job_id}, rt_ao ${paramText({samples: r.params && r.params.samples})})`))),
+      ...s.c.candidates.map((c) => el('figure', {className: 'tile'},
+        c.links && c.links['ao.png']
+          ? el('img', {src: c.links['ao.png'], alt: `Candidate ${c.index}: ${c.technique} on ${c.backend}`, onclick: () => select(c.index)})
+          : el('div', {className: 'placeholder'}, c.state),
+        el('figcaption', {}, el('button', {type: 'button', className: 'link', onclick: () => select(c.index)},
+          `#${c.index} ${c.technique}/${c.backend}`), ` ${ctx.params(c)}`, c.metrics ? ` · RMSE ${fmtNum(c.metrics.rmse, 3)}` : ''))));
+  }
+
+  function renderSelected() {
+    const c = s.c && s.c.candidates.find((x) => x.index === s.selected);
+    if (!c) {
+      detail.replaceChildren();
+      return;
+    }
+    const links = c.links || {};
+    const parts = [el('h2', {id: 'h-selected'}, `Candidate ${c.index}: ${c.technique} on ${c.backend}`),
+      el('p', {}, el('code', {}, paramText(c.params)), ' · ', stateBadge(c.state), ' · ',
+        el('a', {href: `#/jobs/${c.job_id}?comparison=${id}`, className: 'open-job'}, `Open job ${c.job_id}`))];
+    const media = el('div', {className: 'media'});
+    if (links['ao.png'] && links['reference.png']) {
+      const ref = el('img', {className: 'ref', src: links['reference.png'], alt: `Reference job ${c.reference_job_id}`});
+      const cand = el('img', {className: 'cand', src: links['ao.png'], alt: `Candidate ${c.index}`});
+      const line = el('div', {className: 'divider', 'aria-hidden': 'true'});
+      const range = el('input', {type: 'range', id: 'split', min: '0', max: '100', step: '1', value: '50'});
+      const apply = () => {
+        const v = Number(range.value);
+        // CSSOM properties, which the CSP (no inline styles) allows.
+        cand.style.clipPath = `inset(0 ${100 - v}% 0 0)`;
+        line.style.left = `${v}%`;
+        range.setAttribute('aria-valuetext', `${v}% candidate on the left, ${100 - v}% reference on the right`);
+      };
+      range.addEventListener('input', apply);
+      apply();
+      media.append(el('figure', {className: 'compare'},
+        el('div', {className: 'stack'}, ref, cand, line),
+        el('label', {for: 'split'}, 'Split between candidate (left) and reference (right)'), range,
+        el('figcaption', {}, 'Left of the line: the candidate; right: the reference. Arrow keys move the split.')));
+    }
+    if (links['error.png']) {
+      media.append(el('figure', {className: 'heatmap'},
+        el('img', {className: 'error', src: links['error.png'], alt: `Error heatmap of candidate ${c.index} against its reference`}),
+        el('div', {className: 'ramp', 'aria-hidden': 'true'}),
+        el('div', {className: 'ramp-labels'}, el('span', {}, '−0.25 blue: too dark'), el('span', {}, '0 white'), el('span', {}, '+0.25 red: too bright')),
+        el('figcaption', {}, 'Signed error candidate − reference, saturating at ±0.25; grey: no geometry in the reference; green: NaN. ',
+          links['error.exr'] ? el('a', {href: links['error.exr'], download: `candidate${c.index}-error.exr`}, 'error.exr') : '')));
+    }
+    parts.push(media, c.metrics ? metricsTable(c) : el('p', {className: 'muted'}, 'No metrics yet.'));
+    detail.replaceChildren(el('section', {'aria-labelledby': 'h-selected', className: 'selected'}, ...parts));
+  }
+
+  debug.comparison = {id: Number(id), selected: s.selected, chart: null, state: null};
+  const refresh = async () => {
+    let c;
+    try {
+      c = await api(`/api/v1/comparisons/${id}`);
+    } catch (e) {
+      facts.replaceChildren(el('p', {className: 'error'}, e instanceof ApiError && e.status === 404
+        ? `No comparison ${id} (or this server has no comparisons API).` : e.message));
+      return false;
+    }
+    await ready;
+    s.c = c;
+    debug.comparison.state = c.state;
+    const fp = JSON.stringify([c.state, c.candidates.map((x) => [x.state, x.metrics, x.pareto, x.timings_ms && x.timings_ms.median, x.links]),
+                               c.references.map((r) => [r.state, r.links])]);
+    if (fp !== s.fingerprint) {
+      s.fingerprint = fp;
+      renderFacts();
+      renderTable();
+      renderChart();
+      renderGrid();
+      renderSelected();
+      debug.comparison.rendered = c.candidates.length;
+    }
+    if (c.state !== 'running') handle.stop();
+    return c.state === 'running';
+  };
+  const observer = new ResizeObserver(() => s.chart && s.chart.resize(chartBox.clientWidth));
+  observer.observe(chartBox);
+  const handle = poll(refresh, {fast: 1000, slow: 4000});
+  return () => {
+    handle.stop();
+    observer.disconnect();
+    if (s.chart) s.chart.destroy();
+  };
+}

@@ -1,0 +1,281 @@
+// The jobs pages: the live job list (filters, progress, actions, arrow-key navigation between
+// jobs) and one job's detail (every PNG output, downloads, timings per stage, statistics, the
+// parameters it ran with, and its metrics when it is a comparison candidate).
+import {ACTIVE, api, debug, el, fmtBytes, fmtMs, fmtNum, fmtTime, paramText, poll, stateBadge, techniques} from './api.js';
+import {metricsTable} from './comparisons.js';
+
+const backendOf = (j) => j.backend.actual || j.backend.requested;
+
+function progressCell(j) {
+  const pct = Math.round(j.progress * 100);
+  return [el('progress', {max: 1, value: j.progress, 'aria-label': `Progress of job ${j.id}`}),
+          el('span', {className: 'pct'}, ` ${pct}%`)];
+}
+
+async function act(url, method, after) {
+  try {
+    await api(url, {method});
+  } catch (e) {
+    alertLine(e.message);
+  }
+  after();
+}
+
+let alertEl = null;
+function alertLine(text) {
+  if (alertEl) alertEl.textContent = text;
+}
+
+function actions(j, after) {
+  if (ACTIVE.has(j.state)) {
+    return el('button', {type: 'button', className: 'small', 'aria-label': `Cancel job ${j.id}`,
+                         disabled: j.cancel_requested, onclick: () => act(j.links.cancel, 'POST', after)}, 'Cancel');
+  }
+  return el('button', {type: 'button', className: 'small', 'aria-label': `Delete job ${j.id}`,
+                       onclick: () => act(j.links.self, 'DELETE', after)}, 'Delete');
+}
+
+// ---- the list -----------------------------------------------------------------------------------
+
+const filters = {state: '', technique: '', backend: ''};
+
+export function mountJobs(view) {
+  const state = el('select', {id: 'filter-state', onchange: () => { filters.state = state.value; handle.wake(); }},
+    el('option', {value: ''}, 'any'),
+    ...['queued', 'running', 'succeeded', 'failed', 'cancelled'].map((s) => el('option', {value: s}, s)));
+  const technique = el('select', {id: 'filter-technique', onchange: () => { filters.technique = technique.value; handle.wake(); }},
+    el('option', {value: ''}, 'any'));
+  const backend = el('select', {id: 'filter-backend', onchange: () => { filters.backend = backend.value; handle.wake(); }},
+    el('option', {value: ''}, 'any'), ...['cpu', 'vulkan', 'auto'].map((s) => el('option', {value: s}, s)));
+  state.value = filters.state;
+  backend.value = filters.backend;
+  techniques().then(({techniques: ts}) => {
+    technique.append(...ts.map((t) => el('option', {value: t.name}, t.name)));
+    technique.value = filters.technique;
+  }).catch(() => {});
+
+  const tbody = el('tbody');
+  const status = el('p', {role: 'status', className: 'muted'}, 'loading…');
+  alertEl = el('p', {role: 'alert', className: 'error'});
+  view.append(
+    el('h1', {}, 'Jobs'),
+    el('form', {className: 'filters', 'aria-label': 'Filter jobs', onsubmit: (e) => e.preventDefault()},
+      el('label', {for: 'filter-state'}, 'State'), state,
+      el('label', {for: 'filter-technique'}, 'Technique'), technique,
+      el('label', {for: 'filter-backend'}, 'Backend'), backend),
+    status, alertEl,
+    el('p', {className: 'hint'}, 'Tab to a job and press Enter to open it; ↑/↓ move between jobs.'),
+    el('table', {className: 'jobs'},
+      el('caption', {className: 'sr-only'}, 'Jobs, newest first'),
+      el('thead', {}, el('tr', {}, ...['Job', 'Scene / label', 'Technique', 'Backend', 'State', 'Progress',
+                                        'Created', 'Total ms', 'Image', 'Actions'].map((h) => el('th', {scope: 'col'}, h)))),
+      tbody));
+
+  // Arrow keys move between the jobs' links, so a long list need not be tabbed through.
+  tbody.addEventListener('keydown', (ev) => {
+    if (!['ArrowDown', 'ArrowUp', 'Home', 'End'].includes(ev.key)) return;
+    const links = [...tbody.querySelectorAll('a.job-link')];
+    const i = links.indexOf(document.activeElement);
+    if (i < 0) return;
+    ev.preventDefault();
+    const j = ev.key === 'ArrowDown' ? Math.min(i + 1, links.length - 1) : ev.key === 'ArrowUp' ? Math.max(i - 1, 0)
+      : ev.key === 'Home' ? 0 : links.length - 1;
+    links[j].focus();
+  });
+
+  const rows = new Map();
+  const refresh = async () => {
+    const q = new URLSearchParams({limit: '50'});
+    for (const [k, v] of Object.entries(filters)) if (v) q.set(k, v);
+    let list;
+    try {
+      list = await api(`/api/v1/jobs?${q}`);
+    } catch (e) {
+      status.textContent = e.message;
+      return false;
+    }
+    render(list.jobs);
+    const active = list.jobs.filter((j) => ACTIVE.has(j.state)).length;
+    status.textContent = `${list.jobs.length} job${list.jobs.length === 1 ? '' : 's'}${list.next ? ' (newest 50)' : ''}` +
+      (active ? `, ${active} queued or running` : '');
+    debug.jobs = list.jobs.map((j) => ({id: j.id, state: j.state, progress: j.progress}));
+    return active > 0;
+  };
+
+  // Rows are kept by job id and rebuilt only when their job changed, so focus and the keyboard
+  // position survive the once-a-second refresh.
+  function render(jobs) {
+    const keep = new Set(jobs.map((j) => j.id));
+    for (const [id, tr] of rows) if (!keep.has(id)) { tr.remove(); rows.delete(id); }
+    let prev = null;
+    for (const j of jobs) {
+      let tr = rows.get(j.id);
+      const key = JSON.stringify([j.state, j.progress, j.cancel_requested, j.backend, j.timings_ms && j.timings_ms.total,
+                                  j.links.outputs['ao.png']]);
+      if (!tr) {
+        tr = el('tr', {'data-id': j.id});
+        rows.set(j.id, tr);
+      }
+      if (tr.dataset.key !== key) {
+        const focused = tr.contains(document.activeElement) ? document.activeElement.className : null;
+        tr.dataset.key = key;
+        tr.replaceChildren(
+          el('td', {}, el('a', {className: 'job-link', href: `#/jobs/${j.id}`}, `Job ${j.id}`)),
+          el('td', {}, j.scene + (j.label ? ` — ${j.label}` : '')),
+          el('td', {}, j.technique),
+          el('td', {}, backendOf(j)),
+          el('td', {title: j.error || ''}, stateBadge(j.state)),
+          el('td', {className: 'progress'}, progressCell(j)),
+          el('td', {}, new Date(j.created_at).toLocaleTimeString()),
+          el('td', {className: 'num'}, j.timings_ms ? fmtMs(j.timings_ms.total) : '–'),
+          el('td', {}, j.links.outputs['ao.png']
+            ? el('img', {className: 'thumb', src: j.links.outputs['ao.png'], alt: `AO of job ${j.id}`}) : ''),
+          el('td', {}, actions(j, () => handle.wake())));
+        if (focused) {
+          const again = tr.querySelector(focused.split(' ').map((c) => `.${c}`).join('')) || tr.querySelector('a');
+          if (again) again.focus();
+        }
+      }
+      // Newest first: keep DOM order equal to the listing's.
+      if (prev ? prev.nextSibling !== tr : tbody.firstChild !== tr) {
+        if (prev) prev.after(tr);
+        else tbody.prepend(tr);
+      }
+      prev = tr;
+    }
+  }
+
+  const handle = poll(refresh, {fast: 1000, slow: 4000});
+  return () => handle.stop();
+}
+
+// ---- one job ------------------------------------------------------------------------------------
+
+const CAPTIONS = {
+  'ao.png': 'Ambient occlusion (white = open, black = fully occluded)',
+  'bent_normal.png': 'Bent normals as colours (X, Y, Z → red, green, blue)',
+  'depth.png': 'Depth (view distance, grey levels)',
+  'error.png': 'Error against the reference: blue = too dark, white = equal, red = too bright (scale ±0.25)',
+};
+
+function outputsSection(j) {
+  const outs = j.outputs || [];
+  const pngs = outs.filter((o) => o.name.endsWith('.png'));
+  return el('section', {'aria-labelledby': 'h-outputs'},
+    el('h2', {id: 'h-outputs'}, 'Outputs'),
+    pngs.length ? el('div', {className: 'gallery'}, ...pngs.map((o) => el('figure', {},
+      el('img', {className: 'output', src: o.url, alt: CAPTIONS[o.name] || o.name, 'data-name': o.name}),
+      el('figcaption', {}, el('strong', {}, o.name), ' ', CAPTIONS[o.name] || ''))))
+      : el('p', {className: 'muted'}, ACTIVE.has(j.state) ? 'Outputs appear when the job has succeeded.' : 'No outputs.'),
+    outs.length ? el('ul', {className: 'downloads', 'aria-label': 'Downloads'}, ...outs.map((o) => el('li', {},
+      el('a', {href: o.url, download: `job${j.id}-${o.name}`}, o.name), ` ${o.content_type}, ${fmtBytes(o.size)}`))) : null);
+}
+
+function timingsSection(t) {
+  const rows = [];
+  for (const k of ['load', 'build', 'render', 'write', 'total']) if (t[k] !== undefined) rows.push([k, t[k], false]);
+  for (const [k, v] of Object.entries(t.stages || {})) rows.push([k, v, true]);
+  return el('section', {'aria-labelledby': 'h-timings'},
+    el('h2', {id: 'h-timings'}, 'Timings'),
+    el('table', {className: 'kv timings'},
+      el('thead', {}, el('tr', {}, el('th', {scope: 'col'}, 'Stage'), el('th', {scope: 'col'}, 'ms'))),
+      el('tbody', {}, ...rows.map(([k, v, sub]) => el('tr', {className: sub ? 'sub' : ''},
+        el('th', {scope: 'row'}, sub ? `render › ${k}` : k), el('td', {className: 'num'}, fmtMs(v)))))));
+}
+
+function statsSection(j) {
+  const s = j.stats || {};
+  const rows = [['rays traced', j.rays], ['AO mean', s.ao && fmtNum(s.ao.mean)], ['AO min', s.ao && fmtNum(s.ao.min)],
+                ['AO max', s.ao && fmtNum(s.ao.max)], ['AO standard error (mean)', s.ao_stderr_mean !== undefined ? fmtNum(s.ao_stderr_mean) : null],
+                ['non-finite values', s.nan_count]].filter(([, v]) => v !== null && v !== undefined);
+  return el('section', {'aria-labelledby': 'h-stats'},
+    el('h2', {id: 'h-stats'}, 'Statistics'),
+    el('table', {className: 'kv'}, el('tbody', {}, ...rows.map(([k, v]) => el('tr', {},
+      el('th', {scope: 'row'}, k), el('td', {className: 'num'}, String(v)))))));
+}
+
+export function mountJob(view, [id], query) {
+  const head = el('div');
+  const body = el('div');
+  alertEl = el('p', {role: 'alert', className: 'error'});
+  view.append(el('p', {className: 'crumbs'}, el('a', {href: '#/jobs'}, '← all jobs')),
+              el('h1', {}, `Job ${id}`), alertEl, head, body);
+  let lastState = null, summaryDone = false, metricsDone = false;
+  const comparisonId = query.get('comparison');
+
+  const refresh = async () => {
+    let j;
+    try {
+      j = await api(`/api/v1/jobs/${id}`);
+    } catch (e) {
+      head.replaceChildren(el('p', {className: 'error'}, e.message));
+      return false;
+    }
+    debug.job = {id: j.id, state: j.state, progress: j.progress};
+    head.replaceChildren(
+      el('dl', {className: 'facts'},
+        el('dt', {}, 'State'), el('dd', {className: 'job-state', 'aria-live': 'polite'}, stateBadge(j.state),
+          j.cancel_requested && ACTIVE.has(j.state) ? ' (cancel requested)' : ''),
+        el('dt', {}, 'Progress'), el('dd', {}, progressCell(j)),
+        el('dt', {}, 'Scene'), el('dd', {}, j.scene),
+        el('dt', {}, 'Label'), el('dd', {}, j.label || '–'),
+        el('dt', {}, 'Technique'), el('dd', {}, j.technique),
+        el('dt', {}, 'Backend'), el('dd', {}, `${j.backend.requested}${j.backend.actual ? ` → ran on ${j.backend.actual}` : ''}`),
+        el('dt', {}, 'Image'), el('dd', {}, `${j.image.width}×${j.image.height}, ${j.image.spp} spp`),
+        el('dt', {}, 'Priority'), el('dd', {}, String(j.priority)),
+        el('dt', {}, 'Attempts'), el('dd', {}, String(j.attempts)),
+        el('dt', {}, 'Created'), el('dd', {}, fmtTime(j.created_at)),
+        el('dt', {}, 'Started'), el('dd', {}, fmtTime(j.started_at)),
+        el('dt', {}, 'Finished'), el('dd', {}, fmtTime(j.finished_at)),
+        j.error ? el('dt', {}, 'Error') : null, j.error ? el('dd', {className: 'error'}, j.error) : null),
+      el('p', {}, actions(j, () => handle.wake())));
+    if (j.state !== lastState) {
+      lastState = j.state;
+      body.replaceChildren(outputsSection(j),
+        j.timings_ms ? timingsSection(j.timings_ms) : null,
+        j.stats ? statsSection(j) : null,
+        el('div', {className: 'params-slot'}), el('div', {className: 'metrics-slot'}));
+      summaryDone = metricsDone = false;
+    }
+    const summary = j.links.outputs['summary.json'];
+    if (summary && !summaryDone) {
+      summaryDone = true;
+      api(summary).then((s) => {
+        body.querySelector('.params-slot').replaceChildren(el('section', {'aria-labelledby': 'h-params'},
+          el('h2', {id: 'h-params'}, 'Parameters'),
+          el('p', {}, `${s.technique} on ${s.backend}, ${s.threads} thread(s): `, el('code', {}, paramText(s.params)))));
+      }).catch(() => {});
+    }
+    const cid = comparisonId || j.comparison_id || (j.comparison && j.comparison.id);
+    if (cid && !metricsDone && !ACTIVE.has(j.state)) {
+      metricsDone = true;
+      showMetrics(body.querySelector('.metrics-slot'), cid, j.id);
+    }
+    if (!ACTIVE.has(j.state)) handle.stop();
+    return ACTIVE.has(j.state);
+  };
+  const handle = poll(refresh, {fast: 1000, slow: 4000});
+  return () => handle.stop();
+}
+
+async function showMetrics(slot, cid, jobId) {
+  let c;
+  try {
+    c = await api(`/api/v1/comparisons/${cid}`);
+  } catch {
+    return;
+  }
+  const cand = c.candidates.find((x) => x.job_id === jobId);
+  const ref = c.references.find((x) => x.job_id === jobId);
+  const back = el('a', {href: `#/comparisons/${cid}`}, `comparison ${cid}${c.label ? ` (${c.label})` : ''}`);
+  if (cand) {
+    slot.replaceChildren(el('section', {'aria-labelledby': 'h-metrics'},
+      el('h2', {id: 'h-metrics'}, 'Metrics against the reference'),
+      el('p', {}, `Candidate ${cand.index} of `, back, `; reference job `,
+        el('a', {href: `#/jobs/${cand.reference_job_id}?comparison=${cid}`}, String(cand.reference_job_id)), '.'),
+      cand.metrics ? metricsTable(cand) : el('p', {className: 'muted'}, 'No metrics yet.')));
+  } else if (ref) {
+    slot.replaceChildren(el('section', {'aria-labelledby': 'h-metrics'},
+      el('h2', {id: 'h-metrics'}, 'Comparison'), el('p', {}, 'Reference job of ', back, '.')));
+  }
+}

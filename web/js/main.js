@@ -1,0 +1,73 @@
+// Entry point of the dashboard: hash routing to the page modules, the header's health line and
+// token box. Each page's mount(container, params) returns a cleanup that stops its polling.
+import {api, onApiStatus, poll, setToken, token, debug} from './api.js';
+import {mountJobs, mountJob} from './jobs.js';
+import {mountComparisons, mountComparison} from './comparisons.js';
+import {mountSubmit} from './submit.js';
+
+const routes = [
+  [/^#\/jobs\/(\d+)$/, mountJob, 'jobs'],
+  [/^#\/jobs$/, mountJobs, 'jobs'],
+  [/^#\/comparisons\/(\d+)$/, mountComparison, 'comparisons'],
+  [/^#\/comparisons$/, mountComparisons, 'comparisons'],
+  [/^#\/submit$/, mountSubmit, 'submit'],
+];
+
+const view = document.getElementById('view');
+let cleanup = null;
+
+function route() {
+  const [path, query] = (location.hash || '#/jobs').split('?');
+  const match = routes.find(([re]) => re.test(path));
+  if (!match) {
+    location.replace('#/jobs');
+    return;
+  }
+  const [re, mount, section] = match;
+  if (cleanup) cleanup();
+  cleanup = null;
+  view.replaceChildren();
+  for (const a of document.querySelectorAll('nav a')) {
+    if (a.dataset.page === section) a.setAttribute('aria-current', 'page');
+    else a.removeAttribute('aria-current');
+  }
+  debug.page = path;
+  const params = new URLSearchParams(query || '');
+  cleanup = mount(view, path.match(re).slice(1), params) || null;
+  // Screen readers and keyboard users land on the new page's heading, not on the old link.
+  const h1 = view.querySelector('h1');
+  if (h1) {
+    h1.tabIndex = -1;
+    h1.focus({preventScroll: true});
+  }
+}
+
+window.addEventListener('hashchange', route);
+
+// ---- header -------------------------------------------------------------------------------------
+
+const health = document.getElementById('health');
+const tokenBox = document.getElementById('token-box');
+document.getElementById('token').value = token;
+onApiStatus((status) => {
+  if (status === 401) tokenBox.hidden = false;
+});
+tokenBox.addEventListener('submit', (ev) => {
+  ev.preventDefault();
+  setToken(document.getElementById('token').value.trim());
+  route();
+});
+
+poll(async () => {
+  try {
+    const h = await api('/api/v1/health');
+    health.textContent = `server ${h.status} · ${h.queue_depth} queued · ${h.running} running` +
+      (h.vulkan_available ? ' · Vulkan' : '');
+    return h.queue_depth + h.running > 0;
+  } catch (e) {
+    health.textContent = `server: ${e.message}`;
+    return false;
+  }
+}, {fast: 2000, slow: 10000});
+
+route();

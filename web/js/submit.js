@@ -1,0 +1,388 @@
+// The submit page: one job (POST /api/v1/jobs) or a comparison (POST /api/v1/comparisons) of a
+// bundled or pasted scene. Techniques, backends and every parameter field come from
+// GET /api/v1/techniques (params_schema), so a new technique needs no change here. Everything is
+// checked before sending; a 4xx's problems are shown next to the fields their JSON pointers name.
+import {ApiError, api, el, techniques} from './api.js';
+import {checkValue, describeRule, parseField, parseToken} from './params.js';
+
+const MAX_CANDIDATES = 256;
+let uid = 0;
+
+/** A labelled control with its description and error line, both tied to it by aria-describedby. */
+function field(labelText, control, {description, pointer} = {}) {
+  const id = control.id || (control.id = `f${++uid}`);
+  const desc = description ? el('small', {id: `${id}-desc`, className: 'desc'}, description) : null;
+  const err = el('span', {id: `${id}-err`, className: 'field-error'});
+  control.setAttribute('aria-describedby', [desc && desc.id, err.id].filter(Boolean).join(' '));
+  if (pointer) control.dataset.pointer = pointer;
+  control._err = err;
+  return el('div', {className: 'field'}, el('label', {for: id}, labelText), control, desc, err);
+}
+
+/** A group of checkboxes with a legend; the group's fieldset carries the error line. */
+function checkGroup(legend, options, {description, pointer, checked = []} = {}) {
+  const id = `g${++uid}`;
+  const err = el('span', {id: `${id}-err`, className: 'field-error'});
+  const boxes = options.map(({value, label, disabled, note}) => {
+    const box = el('input', {type: 'checkbox', id: `${id}-${value}`, value: JSON.stringify(value), disabled,
+                             checked: checked.includes(value)});
+    return el('span', {className: 'check'}, box, el('label', {for: box.id}, label), note ? el('small', {}, ` ${note}`) : null);
+  });
+  const fs = el('fieldset', {className: 'checks', id, 'aria-describedby': `${description ? `${id}-desc ` : ''}${err.id}`},
+    el('legend', {}, legend), ...boxes, description ? el('small', {id: `${id}-desc`, className: 'desc'}, description) : null, err);
+  if (pointer) fs.dataset.pointer = pointer;
+  fs._err = err;
+  fs.values = () => [...fs.querySelectorAll('input:checked')].map((b) => JSON.parse(b.value));
+  return fs;
+}
+
+function setError(control, message) {
+  if (!control._err) return;
+  control._err.textContent = message || '';
+  if (message) control.setAttribute('aria-invalid', 'true');
+  else control.removeAttribute('aria-invalid');
+}
+
+/**
+ * The technique part of the form: technique, backend(s) and one field per parameter. In
+ * comparison mode backends are checkboxes, enum and boolean parameters checkbox groups, and the
+ * other parameters take comma-separated lists. `base` is the JSON pointer of the entry in the
+ * request ("/technique" or "/candidates/K").
+ */
+function techniqueBlock(registry, {comparison, legend, base, onRemove, onChange}) {
+  const ts = registry.techniques;
+  const technique = el('select', {}, ...ts.map((t) => el('option', {value: t.name}, t.name)));
+  const fs = el('fieldset', {className: 'technique-block'}, el('legend', {}, legend));
+  const desc = el('p', {className: 'desc'});
+  const backendSlot = el('div');
+  const paramsSlot = el('div', {className: 'params'});
+  const state = {technique, backend: null, params: [], base};
+  fs.append(field('Technique', technique, {pointer: `${base}/${comparison ? 'technique' : 'name'}`}), desc, backendSlot, paramsSlot);
+  if (onRemove) fs.append(el('button', {type: 'button', className: 'small', onclick: onRemove}, `Remove ${legend.toLowerCase()}`));
+
+  const build = () => {
+    const t = ts.find((x) => x.name === technique.value);
+    desc.textContent = t.description;
+    const vkNote = registry.vulkan_available ? null : 'not available on this server';
+    if (comparison) {
+      state.backend = checkGroup('Backends', t.backends.map((b) => ({value: b, label: b, disabled: b === 'vulkan' && !registry.vulkan_available,
+                                                                   note: b === 'vulkan' ? vkNote : null})),
+                                 {pointer: `${state.base}/backend`, checked: ['cpu'].filter((b) => t.backends.includes(b)).concat(t.backends.length === 1 ? t.backends : [])});
+    } else {
+      state.backend = el('select', {}, el('option', {value: 'auto'}, 'auto (the server picks)'),
+        ...t.backends.map((b) => el('option', {value: b, disabled: b === 'vulkan' && !registry.vulkan_available}, b + (b === 'vulkan' && vkNote ? ` (${vkNote})` : ''))));
+      state.backend = field('Backend', state.backend, {pointer: `${state.base}/backend`}).querySelector('select');
+    }
+    backendSlot.replaceChildren(state.backend.closest('.field') || state.backend);
+    state.params = Object.entries(t.params_schema.properties || {}).map(([name, schema]) => {
+      const pointer = `${state.base}/params/${name}`;
+      const rule = describeRule(schema);
+      const description = `${schema.description || ''}${schema.description ? '. ' : ''}${rule}.`;
+      const choices = schema.enum || (JSON.stringify(schema.type) === '"boolean"' ? [true, false] : null);
+      let control, node;
+      if (choices && comparison) {
+        control = checkGroup(name, choices.map((v) => ({value: v, label: String(v)})),
+                             {description: `${description} None ticked: the default.`, pointer});
+        node = control;
+      } else if (choices) {
+        control = el('select', {}, el('option', {value: ''}, `default (${JSON.stringify(schema.default)})`),
+          ...choices.map((v) => el('option', {value: JSON.stringify(v)}, String(v))));
+        node = field(name, control, {description, pointer});
+      } else {
+        control = el('input', {type: 'text', inputMode: 'decimal', autocomplete: 'off', spellcheck: false,
+          placeholder: comparison ? `default ${JSON.stringify(schema.default)}; e.g. 4, 16, 64` : `default ${JSON.stringify(schema.default)}`});
+        node = field(name, control, {description: comparison ? `${description} A comma-separated list sweeps the values.` : description, pointer});
+      }
+      control.addEventListener('change', onChange);
+      control.addEventListener('input', onChange);
+      return {name, schema, control, node, choices};
+    });
+    paramsSlot.replaceChildren(el('p', {className: 'hint'}, comparison ? 'Parameters: leave empty for the default.' : 'Parameters: leave empty for the default.'),
+                               ...state.params.map((p) => p.node));
+    state.backend.addEventListener('change', onChange);
+    onChange();
+  };
+  technique.addEventListener('change', build);
+  build();
+
+  /** {value, errors: [[control, message]], count}: the entry for the request. */
+  state.read = () => {
+    const errors = [];
+    const params = {};
+    let count = 1;
+    for (const p of state.params) {
+      setError(p.control, '');
+      let values;
+      if (p.choices && comparison) values = p.control.values();
+      else if (p.choices) values = p.control.value === '' ? [] : [JSON.parse(p.control.value)];
+      else {
+        const r = parseField(p.schema, p.control.value, {list: comparison});
+        if (r.errors.length) errors.push([p.control, r.errors.join('; ')]);
+        values = r.values;
+      }
+      if (values.length) {
+        params[p.name] = comparison && values.length > 1 ? values : values[0];
+        count *= values.length;
+      }
+    }
+    setError(state.backend, '');
+    const value = {};
+    if (comparison) {
+      const bs = state.backend.values();
+      if (!bs.length) errors.push([state.backend, 'tick at least one backend']);
+      count *= Math.max(bs.length, 1);
+      Object.assign(value, {technique: technique.value, backend: bs.length === 1 ? bs[0] : bs, params});
+    } else {
+      Object.assign(value, {name: technique.value, backend: state.backend.value, params});
+    }
+    return {value, errors, count};
+  };
+  state.node = fs;
+  return state;
+}
+
+function intField(control, {min, max, required = false}) {
+  setError(control, '');
+  const t = control.value.trim();
+  if (t === '') return required ? (setError(control, 'required'), {bad: true}) : {value: undefined};
+  const v = parseToken(t);
+  const e = checkValue({type: 'integer', minimum: min, maximum: max}, v);
+  if (e) {
+    setError(control, e);
+    return {bad: true};
+  }
+  return {value: v};
+}
+
+export function mountSubmit(view, _args, query) {
+  const form = el('form', {id: 'submit-form', noValidate: true, 'aria-labelledby': 'h-submit'});
+  view.append(el('h1', {id: 'h-submit'}, 'Submit'), form);
+  form.append(el('p', {className: 'muted'}, 'loading the technique registry…'));
+  let alive = true;
+  Promise.all([techniques(), api('/api/v1/scenes')]).then(([registry, {scenes}]) => {
+    if (alive) build(form, registry, scenes, query);
+  }).catch((e) => form.replaceChildren(el('p', {className: 'error', role: 'alert'}, e.message)));
+  return () => { alive = false; };
+}
+
+function build(form, registry, scenes, query) {
+  const radio = (name, value, label, checked) => {
+    const r = el('input', {type: 'radio', name, value, id: `${name}-${value}`, checked});
+    return el('span', {className: 'check'}, r, el('label', {for: r.id}, label));
+  };
+  const mode = el('fieldset', {className: 'inline'}, el('legend', {}, 'What to submit'),
+    radio('mode', 'single', 'One job', query.get('mode') !== 'comparison'),
+    radio('mode', 'comparison', 'A comparison (techniques × backends × parameter values against a reference)', query.get('mode') === 'comparison'));
+  const isComparison = () => form.querySelector('input[name=mode]:checked').value === 'comparison';
+
+  // ---- scene ----
+  const sceneSel = el('select', {}, ...scenes.map((s) => el('option', {value: s.name},
+    `${s.name} (${s.technique || 'unreadable'}${s.width ? `, ${s.width}×${s.height}` : ''})`)));
+  const sceneJson = el('textarea', {rows: 8, spellcheck: false, placeholder: '{"camera": {...}, "image": {...}, "objects": [...], "technique": {...}}'});
+  const width = el('input', {type: 'text', inputMode: 'numeric', autocomplete: 'off', placeholder: "the scene's"});
+  const height = el('input', {type: 'text', inputMode: 'numeric', autocomplete: 'off', placeholder: "the scene's"});
+  const sceneFields = {bundled: field('Scene file', sceneSel, {pointer: '/scene_file'}),
+                       paste: field('Scene JSON', sceneJson, {description: 'A scene document (docs/scene-format.md); meshes must be bundled ones (models/…). Its technique is replaced by the one chosen below.'})};
+  const source = el('fieldset', {className: 'inline'}, el('legend', {}, 'Scene'),
+    radio('source', 'bundled', 'A bundled scene', true), radio('source', 'paste', 'Paste a scene document', false));
+  const sceneBox = el('div');
+  const showSource = () => {
+    const paste = form.querySelector('input[name=source]:checked').value === 'paste';
+    sceneBox.replaceChildren(paste ? sceneFields.paste : sceneFields.bundled);
+  };
+  source.addEventListener('change', showSource);
+
+  const priority = el('input', {type: 'text', inputMode: 'numeric', value: '50', autocomplete: 'off'});
+  const label = el('input', {type: 'text', maxLength: 256, autocomplete: 'off'});
+  const common = el('fieldset', {}, el('legend', {}, 'Scene and image'), source, sceneBox,
+    el('div', {className: 'row'},
+      field('Image width (pixels)', width, {pointer: '/image/width', description: "Empty: the scene's own."}),
+      field('Image height (pixels)', height, {pointer: '/image/height', description: "Empty: the scene's own."}),
+      field('Priority', priority, {pointer: '/priority', description: 'integer 0 to 100; higher runs first'}),
+      field('Label', label, {pointer: '/label', description: 'free text, up to 256 characters'})));
+
+  // ---- technique(s) ----
+  const count = el('p', {className: 'count', 'aria-live': 'polite'});
+  const techBox = el('div');
+  let blocks = [];
+  const repeats = el('input', {type: 'text', inputMode: 'numeric', value: '3', autocomplete: 'off'});
+  const rtSamples = registry.techniques.find((t) => t.name === 'rt_ao');
+  const refSchema = (rtSamples && rtSamples.params_schema.properties.samples) || {type: 'integer', minimum: 1};
+  const refSamples = el('input', {type: 'text', inputMode: 'numeric', value: '1024', autocomplete: 'off'});
+  const cmpOptions = el('fieldset', {}, el('legend', {}, 'Measurement'), el('div', {className: 'row'},
+    field('Timed runs per candidate', repeats, {pointer: '/repeats', description: 'integer 1 to 20; the reported time is the median (after one warm-up run)'}),
+    field('Reference samples', refSamples, {pointer: '/reference/samples', description: `rays per pixel of the rt_ao reference: ${describeRule(refSchema)}`})));
+  const addBtn = el('button', {type: 'button', className: 'small'}, 'Add candidate');
+
+  const recount = () => {
+    if (!isComparison()) {
+      count.textContent = '';
+      return;
+    }
+    const n = blocks.reduce((a, b) => a + b.read().count, 0);
+    count.textContent = `${n} candidate${n === 1 ? '' : 's'} (at most ${MAX_CANDIDATES})`;
+  };
+  // After a removal the later candidates move up: their legends and the JSON pointers that map
+  // the server's problems to fields move with them.
+  const renumber = () => blocks.forEach((b, k) => {
+    b.node.querySelector('legend').textContent = `Candidate ${k + 1}`;
+    b.base = `/candidates/${k}`;
+    for (const f of b.node.querySelectorAll('[data-pointer]')) {
+      f.dataset.pointer = f.dataset.pointer.replace(/^\/candidates\/\d+/, `/candidates/${k}`);
+    }
+  });
+  const addCandidate = () => {
+    const k = blocks.length;
+    const b = techniqueBlock(registry, {comparison: true, legend: `Candidate ${k + 1}`, base: `/candidates/${k}`, onChange: recount,
+      onRemove: () => {
+        blocks = blocks.filter((x) => x !== b);
+        b.node.remove();
+        renumber();
+        recount();
+      }});
+    blocks.push(b);
+    techBox.append(b.node);
+    recount();
+    return b;
+  };
+  addBtn.addEventListener('click', () => addCandidate().technique.focus());
+  const showMode = () => {
+    techBox.replaceChildren();
+    blocks = [];
+    if (isComparison()) {
+      addCandidate();
+      cmpOptions.hidden = false;
+      addBtn.hidden = false;
+    } else {
+      const b = techniqueBlock(registry, {comparison: false, legend: 'Technique', base: '/technique', onChange: () => {}});
+      blocks.push(b);
+      techBox.append(b.node);
+      cmpOptions.hidden = true;
+      addBtn.hidden = true;
+    }
+    submitBtn.textContent = isComparison() ? 'Start comparison' : 'Submit job';
+    recount();
+  };
+  mode.addEventListener('change', showMode);
+
+  const clientErrors = el('div', {className: 'problems', role: 'alert'});
+  const serverErrors = el('div', {className: 'problems', role: 'alert'});
+  const submitBtn = el('button', {type: 'submit', className: 'primary'}, 'Submit job');
+  form.replaceChildren(mode, common, cmpOptions, techBox, addBtn, count, clientErrors, serverErrors, el('p', {}, submitBtn));
+  showSource();
+  showMode();
+
+  /** Everything the form says, checked; {body, errors: [[control, message]]}. */
+  const read = () => {
+    const errors = [];
+    const body = {};
+    const paste = form.querySelector('input[name=source]:checked').value === 'paste';
+    setError(sceneJson, '');
+    let doc = null;
+    if (paste) {
+      try {
+        doc = JSON.parse(sceneJson.value);
+        if (!doc || typeof doc !== 'object' || Array.isArray(doc)) throw new Error('must be a JSON object');
+      } catch (e) {
+        errors.push([sceneJson, `not a scene document: ${e.message}`]);
+        setError(sceneJson, `not a scene document: ${e.message}`);
+      }
+    }
+    const set = {};
+    for (const [ctl, ptr] of [[width, '/image/width'], [height, '/image/height']]) {
+      const r = intField(ctl, {min: 1, max: 16384});
+      if (r.bad) errors.push([ctl, ctl._err.textContent]);
+      else if (r.value !== undefined) set[ptr] = r.value;
+    }
+    const pr = intField(priority, {min: 0, max: 100});
+    if (pr.bad) errors.push([priority, priority._err.textContent]);
+    else if (pr.value !== undefined) body.priority = pr.value;
+    if (label.value) body.label = label.value;
+    if (Object.keys(set).length) body.set = set;
+    const entries = blocks.map((b) => b.read());
+    for (const e of entries) {
+      for (const [ctl, msg] of e.errors) setError(ctl, msg);
+      errors.push(...e.errors);
+    }
+    if (isComparison()) {
+      const rp = intField(repeats, {min: 1, max: 20, required: true});
+      if (rp.bad) errors.push([repeats, repeats._err.textContent]);
+      setError(refSamples, '');
+      const rs = parseField(refSchema, refSamples.value);
+      if (rs.errors.length) {
+        setError(refSamples, rs.errors.join('; '));
+        errors.push([refSamples, rs.errors.join('; ')]);
+      }
+      const n = entries.reduce((a, e) => a + e.count, 0);
+      if (!entries.length) errors.push([addBtn, 'add at least one candidate']);
+      if (n > MAX_CANDIDATES) errors.push([blocks[0].technique, `${n} candidates: at most ${MAX_CANDIDATES}`]);
+      if (doc) body.scene = doc;
+      else if (!paste) body.scene_file = sceneSel.value;
+      body.repeats = rp.value;
+      if (rs.given) body.reference = {samples: rs.values[0], backend: 'cpu'};
+      body.candidates = entries.map((e) => e.value);
+    } else {
+      const technique = entries[0].value;
+      if (doc) Object.assign(body, doc, {technique});
+      else if (!paste) Object.assign(body, {scene_file: sceneSel.value, technique});
+    }
+    return {body, errors};
+  };
+
+  form.addEventListener('submit', async (ev) => {
+    ev.preventDefault();
+    serverErrors.replaceChildren();
+    const {body, errors} = read();
+    if (errors.length) {
+      clientErrors.replaceChildren(el('p', {}, `Not sent: ${errors.length} problem${errors.length === 1 ? '' : 's'} to fix.`),
+        el('ul', {}, ...errors.map(([ctl, msg]) => el('li', {}, el('button', {type: 'button', className: 'link', onclick: () => focusControl(ctl)},
+          `${nameOf(ctl)}: ${msg}`)))));
+      focusControl(errors[0][0]);
+      return;
+    }
+    clientErrors.replaceChildren();
+    submitBtn.disabled = true;
+    const comparison = isComparison();
+    try {
+      const r = await api(comparison ? '/api/v1/comparisons' : '/api/v1/jobs', {method: 'POST', json: body});
+      location.hash = comparison ? `#/comparisons/${r.id}` : `#/jobs/${r.id}`;
+    } catch (e) {
+      showServerProblems(form, serverErrors, e, comparison);
+    } finally {
+      submitBtn.disabled = false;
+    }
+  });
+}
+
+function focusControl(ctl) {
+  const target = ctl.matches('fieldset') ? ctl.querySelector('input:not([disabled])') || ctl : ctl;
+  target.focus();
+}
+
+function nameOf(ctl) {
+  if (ctl.matches('fieldset')) return ctl.querySelector('legend').textContent;
+  const l = ctl.labels && ctl.labels[0];
+  const block = ctl.closest('.technique-block');
+  return `${block ? `${block.querySelector('legend').textContent} › ` : ''}${l ? l.textContent : ctl.textContent}`;
+}
+
+/** Shows a refusal; each problem whose JSON pointer falls inside a field is also shown there. */
+function showServerProblems(form, box, e, comparison) {
+  const problems = e instanceof ApiError ? e.problems : [];
+  box.replaceChildren(el('p', {}, e.status === 404 && comparison
+    ? 'This server has no comparisons API (POST /api/v1/comparisons answered 404).'
+    : `The server refused it (${e.status || 'no answer'}): ${e.message}`),
+  problems.length ? el('ul', {}, ...problems.map((p) => el('li', {}, el('code', {}, p)))) : null);
+  const fields = [...form.querySelectorAll('[data-pointer]')];
+  for (const p of problems) {
+    const m = /^[^:]*: (\/[^:]*): (.*)$/.exec(p);
+    if (!m) continue;
+    // Longest field pointer that is the problem's pointer or a prefix of it at a segment boundary.
+    let best = null;
+    for (const f of fields) {
+      const fp = f.dataset.pointer;
+      if ((m[1] === fp || m[1].startsWith(`${fp}/`)) && (!best || fp.length > best.dataset.pointer.length)) best = f;
+    }
+    if (best) setError(best, m[2]);
+  }
+}
