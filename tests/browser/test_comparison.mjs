@@ -1,21 +1,14 @@
 // Browser test of a comparison end to end against the real comparisons API (docs/comparisons.md):
 // submitted from the submit page, followed to the end without a reload, then the page checks of
-// lib.mjs (table, chart points, point click, images, slider, sorting, CSV). It skips, saying so,
-// only while the server answers POST /api/v1/comparisons with 404 (the API not built yet); ctest
-// then reports it as skipped (SKIP_REGULAR_EXPRESSION in tests/CMakeLists.txt).
+// lib.mjs (table, chart points, point click, images, slider, sorting, CSV).
 import assert from 'node:assert/strict';
 import test from 'node:test';
-import {assertAllNamed, assertNoReload, checkComparisonPage, getJSON, markPage, openBrowser, request, screenshot, SLOW,
+import {assertAllNamed, assertNoReload, checkComparisonPage, getJSON, markPage, openBrowser, screenshot, SLOW,
         startDashboard} from './lib.mjs';
 
-test('comparison submitted from the submit page, followed to the end', async (t) => {
+test('comparison submitted from the submit page, followed to the end', async () => {
   const d = await startDashboard({workers: 1});
   try {
-    const probe = await request(d, 'POST', '/api/v1/comparisons', {body: {}});
-    if (probe.status === 404) {
-      t.skip('POST /api/v1/comparisons answers 404: this server has no comparisons API yet (docs/comparisons.md)');
-      return;
-    }
     const {browser, page, errors} = await openBrowser();
     try {
       await page.goto(`${d.url}/#/submit`);

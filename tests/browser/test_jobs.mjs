@@ -83,14 +83,18 @@ test('jobs, job detail and submit pages', async () => {
     assert.equal(job.label, 'from the browser');
     assert.equal(job.priority, 60);
     assert.deepEqual([job.image.width, job.image.height, job.backend.requested], [32, 24, 'cpu']);
-    assert.deepEqual(await imageWidths(page, 'img.output'), [32], 'ao.png loads at its size');
+    // rt_ao writes the AO, bent normals as colours and depth as PNGs: all load at the image size.
+    assert.deepEqual(await imageWidths(page, 'img.output'), [32, 32, 32], 'ao, bent_normal and depth PNGs load');
+    for (const name of ['ao.png', 'bent_normal.png', 'depth.png']) {
+      assert.equal(await page.locator(`img.output[src$="/${name}"]`).count(), 1, name);
+    }
     await page.getByRole('heading', {name: 'Timings'}).waitFor();
     for (const stage of ['load', 'build', 'render', 'write', 'total']) {
       assert.equal(await page.locator('table.timings th', {hasText: new RegExp(`^${stage}$`)}).count(), 1, stage);
     }
     await page.getByRole('heading', {name: 'Parameters'}).waitFor();
     assert.match(await page.locator('.params-slot code').textContent(), /samples=4 /);
-    assert.deepEqual(await page.$$eval('ul.downloads a', (as) => as.map((a) => a.textContent).sort()), ['ao.exr', 'ao.png', 'summary.json']);
+    assert.deepEqual(await page.$$eval('ul.downloads a', (as) => as.map((a) => a.textContent).sort()), ['ao.exr', 'ao.png', 'bent_normal.png', 'depth.png', 'summary.json']);
     await assertAllNamed(page, 'job detail');
     await screenshot(page, 'job-detail');
 

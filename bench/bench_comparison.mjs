@@ -1,0 +1,207 @@
+// Produces docs/comparison-cornell.md: one measured comparison of every technique on the Cornell
+// box (a real obscurad with its CPU and Vulkan lanes, POST /api/v1/comparisons, the stored table)
+// plus a screenshot of the dashboard's Pareto chart taken in Debian's chromium. Anyone can rerun it:
+//
+//   cmake -S . -B build -DCMAKE_BUILD_TYPE=Release && make -C build -j2 && npm ci
+//   node bench/bench_comparison.mjs [--size 320x240] [--repeats 3] [--reference-samples 1024]
+//                                   [--no-vulkan] [--no-screenshot] [--out docs]
+//
+// The techniques come from GET /api/v1/techniques, so a new technique joins the comparison when
+// it is given a parameter grid in GRIDS below (one without a grid runs with its defaults).
+import {spawn, spawnSync} from 'node:child_process';
+import fs from 'node:fs';
+import {createRequire} from 'node:module';
+import os from 'node:os';
+import path from 'node:path';
+import {fileURLToPath} from 'node:url';
+
+const ROOT = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '..');
+const require = createRequire(path.join(ROOT, 'package.json'));
+
+// Parameter grids per technique: the trade each one offers. hbao's radius is set to the Cornell
+// box's scale (a 550-unit room) as in docs/accuracy.md; rt_ao's distance is the scene file's.
+const GRIDS = {
+  rt_ao: {samples: [4, 16, 64, 256], max_distance: 200},
+  ssao: {samples: [8, 16, 24], normal_oriented: [false, true]},
+  hbao: {directions: [4, 8, 16], steps: [4, 8], radius: 100},
+};
+
+function parseArgs(argv) {
+  const o = {size: '320x240', repeats: 3, refSamples: 1024, vulkan: true, screenshot: true,
+             out: path.join(ROOT, 'docs'), obscurad: path.join(ROOT, 'build/obscurad'),
+             chromium: '/usr/bin/chromium'};
+  for (let i = 0; i < argv.length; i++) {
+    const a = argv[i], v = () => argv[++i];
+    if (a === '--size') o.size = v();
+    else if (a === '--repeats') o.repeats = Number(v());
+    else if (a === '--reference-samples') o.refSamples = Number(v());
+    else if (a === '--no-vulkan') o.vulkan = false;
+    else if (a === '--no-screenshot') o.screenshot = false;
+    else if (a === '--out') o.out = path.resolve(v());
+    else if (a === '--obscurad') o.obscurad = path.resolve(v());
+    else if (a === '--chromium') o.chromium = v();
+    else {
+      console.error(`bench_comparison: unknown option ${a} (see the comment at the top of the file)`);
+      process.exit(64);
+    }
+  }
+  const m = /^(\d+)x(\d+)$/.exec(o.size);
+  if (!m) throw new Error(`--size must be WxH (got ${o.size})`);
+  o.width = Number(m[1]);
+  o.height = Number(m[2]);
+  return o;
+}
+
+const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+
+async function startDaemon(o, dir) {
+  const argv = ['--listen', '127.0.0.1', '--port', '0', '--db', path.join(dir, 'obscura.db'),
+                '--data-dir', path.join(dir, 'data'), '--scenes-dir', path.join(ROOT, 'scenes'),
+                '--web-dir', path.join(ROOT, 'web'), '--workers', '1', '--quiet'];
+  // The dashboard's chart library comes from npm (node_modules/uplot), served by --vendor-dir.
+  const help = spawnSync(o.obscurad, ['--help'], {encoding: 'utf8'});
+  if (`${help.stdout}${help.stderr}`.includes('--vendor-dir')) argv.push('--vendor-dir', path.join(ROOT, 'node_modules'));
+  if (!o.vulkan) argv.push('--no-vulkan');
+  const proc = spawn(o.obscurad, argv, {stdio: ['ignore', 'pipe', 'pipe']});
+  let log = '';
+  proc.stdout.on('data', (b) => (log += b));
+  proc.stderr.on('data', (b) => (log += b));
+  for (let t = 0; t < 3000; t++) {
+    const m = log.match(/listening on http:\/\/127\.0\.0\.1:(\d+)/);
+    if (m) return {proc, url: `http://127.0.0.1:${m[1]}`, log: () => log};
+    if (proc.exitCode !== null) throw new Error(`obscurad exited:\n${log}`);
+    await sleep(10);
+  }
+  proc.kill('SIGKILL');
+  throw new Error(`obscurad did not start:\n${log}`);
+}
+
+async function api(d, method, p, body) {
+  const r = await fetch(d.url + p, {method, headers: {'content-type': 'application/json'},
+                                    body: body === undefined ? undefined : JSON.stringify(body)});
+  const text = await r.text();
+  if (!r.ok) throw new Error(`${method} ${p}: ${r.status} ${text}`);
+  return p.endsWith('.csv') ? text : JSON.parse(text);
+}
+
+function machineFacts() {
+  const cpu = (fs.readFileSync('/proc/cpuinfo', 'utf8').match(/^model name\s*:\s*(.*)$/m) || [])[1];
+  return {cpu: cpu || os.arch(), cores: os.cpus().length, kernel: os.release()};
+}
+
+const fmt = (x, d = 3) => (x === null || x === undefined || !Number.isFinite(x) ? '-' : x.toFixed(d));
+const paramText = (t, p) => Object.entries(p).filter(([k]) => k in (GRIDS[t] || {}) && Array.isArray(GRIDS[t][k]))
+  .map(([k, v]) => `${k} ${v}`).join(', ');
+
+async function screenshot(o, d, id, file) {
+  let chromium;
+  try {
+    ({chromium} = require('playwright-core'));
+  } catch {
+    console.error('bench_comparison: playwright-core is not installed (npm ci): no screenshot');
+    return false;
+  }
+  const browser = await chromium.launch({
+    executablePath: o.chromium, headless: true,
+    args: ['--no-sandbox', '--disable-background-networking', '--disable-component-update',
+           '--no-first-run', '--disable-sync', '--proxy-server=direct://',
+           '--host-resolver-rules=MAP * ~NOTFOUND, EXCLUDE 127.0.0.1']});
+  try {
+    const page = await browser.newPage({viewport: {width: 1280, height: 900}});
+    await page.goto(`${d.url}/#/comparisons/${id}`);
+    const chart = page.locator('.uplot').first();
+    await chart.waitFor({state: 'visible', timeout: 30000});
+    await sleep(500);
+    // The chart with its legend: the nearest section around the uPlot element.
+    const box = page.locator('section:has(.uplot)').first();
+    await ((await box.count()) ? box : chart).screenshot({path: file});
+    return true;
+  } finally {
+    await browser.close();
+  }
+}
+
+async function main() {
+  const o = parseArgs(process.argv.slice(2));
+  if (!fs.existsSync(o.obscurad)) throw new Error(`no obscurad at ${o.obscurad} (build first)`);
+  const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'obscura-bench-cmp-'));
+  const d = await startDaemon(o, dir);
+  try {
+    const health = await api(d, 'GET', '/api/v1/health');
+    const {techniques} = await api(d, 'GET', '/api/v1/techniques');
+    const backends = (t) => t.backends.filter((b) => b !== 'vulkan' || health.vulkan_available);
+    const candidates = techniques.map((t) => ({technique: t.name, backend: backends(t),
+                                               params: GRIDS[t.name] || {}}));
+    const t0 = Date.now();
+    const made = await api(d, 'POST', '/api/v1/comparisons', {
+      scene_file: 'cornell_box.json', label: 'every technique on the Cornell box',
+      set: {'/image/width': o.width, '/image/height': o.height}, repeats: o.repeats,
+      reference: {samples: o.refSamples}, candidates});
+    console.error(`comparison ${made.id}: ${made.candidates} candidates, ${made.references} references`);
+    let c;
+    for (;;) {
+      c = await api(d, 'GET', `/api/v1/comparisons/${made.id}`);
+      const done = c.candidates.filter((x) => x.metrics || ['failed', 'cancelled'].includes(x.state)).length;
+      process.stderr.write(`\r${done}/${c.candidates.length} candidates measured`);
+      if (c.state !== 'running') break;
+      await sleep(1000);
+    }
+    process.stderr.write('\n');
+    const wallS = (Date.now() - t0) / 1e3;
+    const csv = await api(d, 'GET', `/api/v1/comparisons/${made.id}.csv`);
+    fs.mkdirSync(path.join(o.out, 'img'), {recursive: true});
+    const shot = path.join(o.out, 'img', 'comparison-cornell-pareto.png');
+    const haveShot = o.screenshot && (await screenshot(o, d, made.id, shot));
+    fs.writeFileSync(path.join(o.out, 'comparison-cornell.csv'), csv);
+    const md = page(o, c, health, wallS, haveShot);
+    fs.writeFileSync(path.join(o.out, 'comparison-cornell.md'), md);
+    console.log(md);
+  } finally {
+    d.proc.kill('SIGTERM');
+    await sleep(300);
+    fs.rmSync(dir, {recursive: true, force: true});
+  }
+}
+
+function page(o, c, health, wallS, haveShot) {
+  const m = machineFacts();
+  const vk = c.candidates.find((x) => x.machine && x.machine.vulkan_device);
+  const rows = [...c.candidates].sort((a, b) => a.technique.localeCompare(b.technique) ||
+    a.backend.localeCompare(b.backend) || (a.timings_ms?.median?.total ?? 0) - (b.timings_ms?.median?.total ?? 0));
+  const lines = [];
+  lines.push('# Measured comparison: every technique on the Cornell box', '');
+  lines.push('Produced by `node bench/bench_comparison.mjs` (see the top of that file); do not edit by hand.',
+             'What the columns mean: [`comparisons.md`](comparisons.md) and [`metrics.md`](metrics.md).', '');
+  lines.push(`**Machine**: ${m.cpu}, ${m.cores} cores, Linux ${m.kernel}; Vulkan device: ` +
+             `${vk ? vk.machine.vulkan_device : health.vulkan_available ? 'available' : 'none (CPU only)'}. ` +
+             `One CPU worker (renders use every core), the Vulkan lane beside it; Release build.`, '');
+  lines.push(`**Setup**: \`scenes/cornell_box.json\` at ${o.width}x${o.height}, spp 1; each candidate ` +
+             `renders once to warm up, then ${o.repeats} timed times (median shown); references are ` +
+             `rt_ao with ${o.refSamples} samples and each candidate's AO definition. The whole ` +
+             `comparison took ${wallS.toFixed(0)} s of wall time.`, '');
+  lines.push('| technique | backend | parameters | ms (median) | RMSE | bias | SSIM | PSNR dB | Pareto |',
+             '| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | :---: |');
+  for (const x of rows) {
+    const mm = x.metrics || {};
+    const acc = mm.at_reference_accuracy ? ' (at reference accuracy)' : '';
+    lines.push(`| ${x.technique} | ${x.backend} | ${paramText(x.technique, x.params) || 'defaults'} | ` +
+               `${fmt(x.timings_ms?.median?.total, 1)} | ${fmt(mm.rmse, 4)}${acc} | ${fmt(mm.bias, 4)} | ` +
+               `${fmt(mm.ssim, 3)} | ${fmt(mm.psnr, 1)} | ${x.pareto ? 'yes' : ''} |`);
+  }
+  lines.push('');
+  const refs = c.references.map((r) => `${r.params.falloff ?? ''} ${r.params.weighting ?? ''} ` +
+    `d=${r.params.max_distance ?? 'inf'}: mean ao_stderr ${fmt(r.ao_stderr_mean, 4)}`).join('; ');
+  lines.push(`References (${c.references.length}): ${refs}.`, '');
+  if (haveShot) {
+    lines.push('The dashboard\'s Pareto chart of this comparison (time against RMSE, log axes; one ' +
+               'series per technique, CPU and Vulkan told apart by marker shape):', '',
+               '![Pareto chart of time against RMSE](img/comparison-cornell-pareto.png)', '');
+  }
+  lines.push('The same table as CSV: [`comparison-cornell.csv`](comparison-cornell.csv).', '');
+  return lines.join('\n');
+}
+
+main().catch((e) => {
+  console.error(e.stack || String(e));
+  process.exit(1);
+});
