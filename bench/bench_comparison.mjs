@@ -3,7 +3,7 @@
 // plus a screenshot of the dashboard's Pareto chart taken in Debian's chromium. Anyone can rerun it:
 //
 //   cmake -S . -B build -DCMAKE_BUILD_TYPE=Release && make -C build -j2 && npm ci
-//   node bench/bench_comparison.mjs [--size 320x240] [--repeats 3] [--reference-samples 1024]
+//   node bench/bench_comparison.mjs [--size 320x240] [--repeats 5] [--reference-samples 1024]
 //                                   [--no-vulkan] [--no-screenshot] [--out docs]
 //
 // The techniques come from GET /api/v1/techniques, so a new technique joins the comparison when
@@ -27,7 +27,7 @@ const GRIDS = {
 };
 
 function parseArgs(argv) {
-  const o = {size: '320x240', repeats: 3, refSamples: 1024, vulkan: true, screenshot: true,
+  const o = {size: '320x240', repeats: 5, refSamples: 1024, vulkan: true, screenshot: true,
              out: path.join(ROOT, 'docs'), obscurad: path.join(ROOT, 'build/obscurad'),
              chromium: '/usr/bin/chromium'};
   for (let i = 0; i < argv.length; i++) {

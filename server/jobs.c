@@ -35,6 +35,11 @@ struct srv_sched {
   pthread_mutex_t mu;
   pthread_cond_t work;       /* a job was queued, or stopping */
   pthread_cond_t maint_cv;
+  /* Renders of different lanes share the cores, so a comparison job's timed renders run alone:
+   * they take the render gate exclusively, every other render shares it. Waiting exclusive
+   * renders hold back new shared ones, so a busy lane cannot starve a comparison. */
+  pthread_cond_t gate_cv;
+  int gate_shared, gate_exclusive, gate_waiting;
   unsigned long generation;  /* bumped by notify, so a wake-up between claim and wait is kept */
   int stopping;
   int nslots;
@@ -101,6 +106,28 @@ static void on_progress(void *user, double f) {
   if (ppm < 0) ppm = 0;
   if (ppm > 1000000) ppm = 1000000;
   atomic_store(&sl->progress_ppm, ppm);
+}
+
+static void gate_enter(srv_sched *s, int exclusive) {
+  pthread_mutex_lock(&s->mu);
+  if (exclusive) {
+    s->gate_waiting++;
+    while (s->gate_shared || s->gate_exclusive) pthread_cond_wait(&s->gate_cv, &s->mu);
+    s->gate_waiting--;
+    s->gate_exclusive = 1;
+  } else {
+    while (s->gate_exclusive || s->gate_waiting) pthread_cond_wait(&s->gate_cv, &s->mu);
+    s->gate_shared++;
+  }
+  pthread_mutex_unlock(&s->mu);
+}
+
+static void gate_leave(srv_sched *s, int exclusive) {
+  pthread_mutex_lock(&s->mu);
+  if (exclusive) s->gate_exclusive = 0;
+  else s->gate_shared--;
+  pthread_cond_broadcast(&s->gate_cv);
+  pthread_mutex_unlock(&s->mu);
 }
 
 static void job_done(srv_sched *s) { atomic_fetch_add(&s->finished_since_checkpoint, 1); }
@@ -176,6 +203,17 @@ static int run_job(slot *sl, srv_job *j) {
   int nrenders = repeats + (j->warmup ? 1 : 0), nruns = 0;
   srv_run runs[SRV_MAX_REPEATS];
   atomic_store(&sl->render_count, nrenders);
+  /* A stop (cancel, shutdown) raised while waiting at the gate ends the first render at once. */
+  const int exclusive = j->warmup, gated = !rc;
+  if (gated) {
+    if (exclusive)
+      srv_log("job %lld: timed renders wait until no other render runs", (long long)j->id);
+    gate_enter(app->sched, exclusive);
+    /* The render time limit counts from here, not from the claim: waiting is not rendering. */
+    pthread_mutex_lock(&app->sched->mu);
+    sl->deadline_ms = obs_now_ms() + 1e3 * app->cfg.max_render_seconds;
+    pthread_mutex_unlock(&app->sched->mu);
+  }
   for (int k = 0; !rc && k < nrenders; k++) {
     obs_result_free(&res);
     atomic_store(&sl->render_index, k);
@@ -197,6 +235,7 @@ static int run_job(slot *sl, srv_job *j) {
     }
     if (stop_reason(sl)) break;
   }
+  if (gated) gate_leave(app->sched, exclusive);
   int why = stop_reason(sl);
   if (why) {
     stopped(sl, j, why);
@@ -349,6 +388,7 @@ int srv_sched_start(srv_app *app, obs_err *err) {
   srv_sched *s = calloc(1, sizeof *s);
   if (!s) return obs_err_set(err, OBS_ENOMEM, "out of memory");
   pthread_mutex_init(&s->mu, NULL);
+  pthread_cond_init(&s->gate_cv, NULL);
   pthread_cond_init(&s->work, NULL);
   pthread_cond_init(&s->maint_cv, NULL);
   s->nslots = app->cfg.workers + (app->vulkan_lane ? 1 : 0);
@@ -403,6 +443,7 @@ void srv_sched_stop(srv_app *app) {
   for (int i = 0; i < s->nslots; i++) pthread_join(s->slots[i].thread, NULL);
   if (s->maint_started) pthread_join(s->maint, NULL);
   pthread_mutex_destroy(&s->mu);
+  pthread_cond_destroy(&s->gate_cv);
   pthread_cond_destroy(&s->work);
   pthread_cond_destroy(&s->maint_cv);
   free(s->slots);
