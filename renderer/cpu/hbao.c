@@ -37,7 +37,7 @@ typedef struct hbao_job {
  * The tangent line is the tangent plane cut by the plane through the eye that contains the pixel's
  * ray and D: L = (n.D) r - (n.r) D, oriented to move along +D in the image. A planar surface's
  * samples therefore lie exactly on L whatever the perspective. */
-static void tangent(const float n[3], const float r[3], float nr, float dx, float dy, float *sin_t,
+OBS_HOT_INLINE void tangent(const float n[3], const float r[3], float nr, float dx, float dy, float *sin_t,
                     float *cos_t) {
   float nd = n[0] * dx + n[1] * dy;
   float lx = nd * r[0] - nr * dx;
@@ -59,7 +59,7 @@ static void tangent(const float n[3], const float r[3], float nr, float dx, floa
   *cos_t = sqrtf(h2) / l;
 }
 
-static float ao_texel(const hbao_job *jb, int ax, int ay) {
+OBS_HOT_INLINE float ao_texel(const hbao_job *jb, int ax, int ay) {
   const hbao_level *lv = &jb->lv;
   const obs_hbao_params *p = jb->p;
   const obs_gbuffer *g = jb->g;
@@ -131,7 +131,7 @@ static float ao_texel(const hbao_job *jb, int ax, int ay) {
   return ao > 1.0f ? 1.0f : ao > 0.0f ? ao : 0.0f;
 }
 
-static int ao_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+OBS_HOT_KERNEL static int ao_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)thread;
   hbao_job *jb = user;
   for (int y = y0; y < y1; y++)
@@ -140,7 +140,7 @@ static int ao_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
 }
 
 /* Relative depth difference, clamped so that its square times any allowed sharpness is finite. */
-static float rel_dz(float z, float zc) {
+OBS_HOT_INLINE float rel_dz(float z, float zc) {
   float q = fabsf(z - zc) / zc;
   return q < OBS_HBAO_MAX_REL_DZ ? q : OBS_HBAO_MAX_REL_DZ;
 }
@@ -185,7 +185,7 @@ static int up_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
 }
 
 /* One direction of the separable cross-bilateral blur. */
-static int blur_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+OBS_HOT_KERNEL static int blur_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)thread;
   hbao_job *jb = user;
   const obs_gbuffer *g = jb->g;

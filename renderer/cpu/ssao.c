@@ -26,14 +26,14 @@ typedef struct ssao_job {
 
 /* floor(v) clamped to [0, n-1]: the texel a sample lands on, clamp-to-edge. The clamp comes before
  * the conversion, as in the shader, so huge offsets never overflow an int. */
-static int texel(float v, int n) {
+OBS_HOT_INLINE int texel(float v, int n) {
   float f = floorf(v);
   if (f < 0.0f) f = 0.0f;
   if (f > (float)(n - 1)) f = (float)(n - 1);
   return (int)f;
 }
 
-static float ssao_pixel(const ssao_job *j, int x, int y) {
+OBS_HOT_INLINE float ssao_pixel(const ssao_job *j, int x, int y) {
   const obs_gbuffer *g = j->g;
   const obs_ssao_tables *t = j->t;
   const int w = g->width, h = g->height;
@@ -81,7 +81,7 @@ static float ssao_pixel(const ssao_job *j, int x, int y) {
   return c < 0.0f ? 0.0f : c > 1.0f ? 1.0f : c;
 }
 
-static int ao_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+OBS_HOT_KERNEL static int ao_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)thread;
   ssao_job *j = user;
   for (int y = y0; y < y1; y++)
@@ -90,7 +90,7 @@ static int ao_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   return 0;
 }
 
-static float blur_pixel(const ssao_job *j, int x, int y) {
+OBS_HOT_INLINE float blur_pixel(const ssao_job *j, int x, int y) {
   const obs_gbuffer *g = j->g;
   const int w = g->width, h = g->height;
   const float zc = g->depth[(size_t)y * (size_t)w + (size_t)x];
@@ -114,7 +114,7 @@ static float blur_pixel(const ssao_job *j, int x, int y) {
   return r > 1.0f ? 1.0f : r;
 }
 
-static int blur_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+OBS_HOT_KERNEL static int blur_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)thread;
   ssao_job *j = user;
   for (int y = y0; y < y1; y++)
