@@ -275,7 +275,11 @@ static void expand_entries(srv_app *app, obs_jpath *p, const json_t *cands, expa
         if (x->n == x->cap) {
           x->cap = x->cap ? 2 * x->cap : 16;
           cand *nc = realloc(x->c, (size_t)x->cap * sizeof *nc);
-          if (!nc) return;
+          if (!nc) {
+            /* Never accept a truncated grid. */
+            obs_jpath_fail(p, "out of memory expanding the grid");
+            return;
+          }
           x->c = nc;
         }
         cand *c = &x->c[x->n++];
@@ -1100,7 +1104,8 @@ static void metrics_one(srv_app *app, const json_t *row) {
   if (!rc) rc = obs_metrics_write_error_files(&eimg, dir, &e);
   if (!rc) rc = srv_outputs_describe(dir, outs, 16, &nouts, &e);
   for (int i = 0; !rc && i < nouts; i++)
-    if (!strncmp(outs[i].name, "error.", 6)) err_outs[nerr++] = outs[i];
+    if (!strncmp(outs[i].name, "error.", 6) && nerr < (int)(sizeof err_outs / sizeof *err_outs))
+      err_outs[nerr++] = outs[i];
   char *metrics = NULL;
   if (!rc) {
     json_t *mj = json_object();
@@ -1116,8 +1121,13 @@ static void metrics_one(srv_app *app, const json_t *row) {
     json_decref(mj);
   }
   obs_err dberr = OBS_ERR_INIT;
-  if (srv_db_set_metrics(app->db, cmp, idx, job, metrics, rc ? obs_err_message(&e) : NULL,
-                         err_outs, nerr, &dberr))
+  /* I/O trouble and memory shortage may pass (a full disk is freed): leave the candidate pending,
+   * so the next trigger or the next start retries, instead of failing the comparison for good. */
+  if (rc == OBS_EIO || rc == OBS_ENOMEM)
+    srv_log("comparison %lld candidate %d: metrics postponed: %s", (long long)cmp, idx,
+            obs_err_message(&e));
+  else if (srv_db_set_metrics(app->db, cmp, idx, job, metrics, rc ? obs_err_message(&e) : NULL,
+                              err_outs, nerr, &dberr))
     srv_log("comparison %lld candidate %d: cannot store metrics: %s", (long long)cmp, idx,
             obs_err_message(&dberr));
   else if (rc)
@@ -1147,6 +1157,20 @@ void srv_compare_metrics(srv_app *app, int64_t job) {
   pthread_mutex_unlock(&metrics_mu);
 }
 
+/* Whether a stored candidate can inform a time budget here: a known technique, a backend this
+ * daemon runs, and a finite RMSE (filled in). */
+static int budget_row(const srv_app *app, const json_t *row, double *rmse, int *at_ref) {
+  const char *be = json_string_value(json_object_get(row, "backend"));
+  const obs_technique *t = obs_technique_find(json_string_value(json_object_get(row, "technique")));
+  if (!t || !be || (!strcmp(be, "vulkan") && !app->vulkan_lane)) return 0;
+  json_t *m = json_loads(json_string_value(json_object_get(row, "metrics")), 0, NULL);
+  json_t *rm = json_object_get(m, "rmse");
+  *rmse = json_is_number(rm) ? json_number_value(rm) : NAN;
+  *at_ref = json_is_true(json_object_get(m, "at_reference_accuracy"));
+  json_decref(m);
+  return !isnan(*rmse);
+}
+
 /* ---- time budgets ---------------------------------------------------------------------------- */
 
 int srv_compare_budget_choice(srv_app *app, const char *scene, double pixels, double budget_ms,
@@ -1167,7 +1191,11 @@ int srv_compare_budget_choice(srv_app *app, const char *scene, double pixels, do
     json_t *row = json_array_get(rows, i);
     double px = json_number_value(json_object_get(row, "pixels"));
     const char *sc = json_string_value(json_object_get(row, "scene"));
-    if (px >= pixels / 2 && px <= pixels * 2 && sc && !strcmp(sc, scene)) same_scene = 1;
+    double rmse;
+    int at_ref;
+    if (px >= pixels / 2 && px <= pixels * 2 && sc && !strcmp(sc, scene) &&
+        budget_row(app, row, &rmse, &at_ref))
+      same_scene = 1;
   }
   int best = -1, measured = 0;
   double best_ms = 0, best_rmse = 0, fastest_ms = INFINITY;
@@ -1178,16 +1206,9 @@ int srv_compare_budget_choice(srv_app *app, const char *scene, double pixels, do
     const char *sc = json_string_value(json_object_get(row, "scene"));
     if (!(px >= pixels / 2 && px <= pixels * 2)) continue;
     if (same_scene && (!sc || strcmp(sc, scene))) continue;
-    const char *be = json_string_value(json_object_get(row, "backend"));
-    const obs_technique *t =
-        obs_technique_find(json_string_value(json_object_get(row, "technique")));
-    if (!t || !be || (!strcmp(be, "vulkan") && !app->vulkan_lane)) continue;
-    json_t *m = json_loads(json_string_value(json_object_get(row, "metrics")), 0, NULL);
-    json_t *rm = json_object_get(m, "rmse");
-    double rmse = json_is_number(rm) ? json_number_value(rm) : NAN;
-    int at_ref = json_is_true(json_object_get(m, "at_reference_accuracy"));
-    json_decref(m);
-    if (isnan(rmse)) continue;
+    double rmse;
+    int at_ref;
+    if (!budget_row(app, row, &rmse, &at_ref)) continue;
     json_t *runs = NULL;
     srv_arg arg = {SRV_ARG_INT, json_integer_value(json_object_get(row, "job")), 0, NULL};
     double v[SRV_MAX_REPEATS];

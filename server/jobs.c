@@ -2,6 +2,7 @@
  * database, render them through the renderer API, publish outputs and record the outcome; live
  * progress and cancel flags kept in memory; a maintenance thread for time limits and checkpoints. */
 #include <errno.h>
+#include <math.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -90,6 +91,7 @@ int srv_sched_cancel(srv_app *app, int64_t id, srv_cancel_result *res, obs_err *
         atomic_store(&sl->cancel, 1);
       }
     }
+    pthread_cond_broadcast(&s->gate_cv); /* the job may be waiting at the render gate */
   }
   pthread_mutex_unlock(&s->mu);
   if (!rc && *res == SRV_CANCEL_DONE) srv_log("job %lld: queued -> cancelled", (long long)id);
@@ -108,18 +110,33 @@ static void on_progress(void *user, double f) {
   atomic_store(&sl->progress_ppm, ppm);
 }
 
-static void gate_enter(srv_sched *s, int exclusive) {
+/* Enters the render gate; with a slot, gives up (returns 0) as soon as the slot is asked to stop,
+ * so a cancelled or shut-down waiter neither waits out another job's renders nor keeps holding
+ * back shared renders. Returns 1 once entered. */
+static int gate_enter(srv_sched *s, const slot *sl, int exclusive) {
+  int entered = 0;
   pthread_mutex_lock(&s->mu);
   if (exclusive) {
     s->gate_waiting++;
-    while (s->gate_shared || s->gate_exclusive) pthread_cond_wait(&s->gate_cv, &s->mu);
+    while ((s->gate_shared || s->gate_exclusive) && !(sl && sl->stop))
+      pthread_cond_wait(&s->gate_cv, &s->mu);
     s->gate_waiting--;
-    s->gate_exclusive = 1;
+    if (!(sl && sl->stop)) {
+      s->gate_exclusive = 1;
+      entered = 1;
+    } else {
+      pthread_cond_broadcast(&s->gate_cv); /* shared renders held back by this waiter may go */
+    }
   } else {
-    while (s->gate_exclusive || s->gate_waiting) pthread_cond_wait(&s->gate_cv, &s->mu);
-    s->gate_shared++;
+    while ((s->gate_exclusive || s->gate_waiting) && !(sl && sl->stop))
+      pthread_cond_wait(&s->gate_cv, &s->mu);
+    if (!(sl && sl->stop)) {
+      s->gate_shared++;
+      entered = 1;
+    }
   }
   pthread_mutex_unlock(&s->mu);
+  return entered;
 }
 
 static void gate_leave(srv_sched *s, int exclusive) {
@@ -203,20 +220,27 @@ static int run_job(slot *sl, srv_job *j) {
   int nrenders = repeats + (j->warmup ? 1 : 0), nruns = 0;
   srv_run runs[SRV_MAX_REPEATS];
   atomic_store(&sl->render_count, nrenders);
-  /* A stop (cancel, shutdown) raised while waiting at the gate ends the first render at once. */
-  const int exclusive = j->warmup, gated = !rc;
-  if (gated) {
+  /* No time limit while waiting at the gate (waiting is not rendering); a stop raised meanwhile
+   * (cancel, shutdown) ends the wait and is recorded below like any other stop. */
+  const int exclusive = j->warmup;
+  int gated = 0;
+  if (!rc) {
+    pthread_mutex_lock(&app->sched->mu);
+    sl->deadline_ms = INFINITY;
+    pthread_mutex_unlock(&app->sched->mu);
     if (exclusive)
       srv_log("job %lld: timed renders wait until no other render runs", (long long)j->id);
-    gate_enter(app->sched, exclusive);
-    /* The render time limit counts from here, not from the claim: waiting is not rendering. */
-    pthread_mutex_lock(&app->sched->mu);
-    sl->deadline_ms = obs_now_ms() + 1e3 * app->cfg.max_render_seconds;
-    pthread_mutex_unlock(&app->sched->mu);
+    gated = gate_enter(app->sched, sl, exclusive);
+    if (!gated) rc = OBS_ECANCELED;
   }
   for (int k = 0; !rc && k < nrenders; k++) {
     obs_result_free(&res);
     atomic_store(&sl->render_index, k);
+    /* The limit is per render: a comparison job's warm-up and repeats each get the whole of it
+     * (the submission-time work cap is per render too). */
+    pthread_mutex_lock(&app->sched->mu);
+    sl->deadline_ms = obs_now_ms() + 1e3 * app->cfg.max_render_seconds;
+    pthread_mutex_unlock(&app->sched->mu);
     obs_render_opts opts = {.threads = app->cpu_threads,
                             .progress = on_progress,
                             .progress_user = sl,
@@ -337,7 +361,11 @@ static void *worker(void *arg) {
     pthread_mutex_unlock(&s->mu);
     /* After the commit (and with the slot free again): this job may complete a comparison
      * candidate, as the candidate or as its reference, whose metrics are computed here. */
-    if (ok) srv_compare_metrics(sl->app, id);
+    if (ok && gate_enter(s, NULL, 0)) {
+      /* Reading EXRs and computing SSIM is work too: keep it out of another job's timed renders. */
+      srv_compare_metrics(sl->app, id);
+      gate_leave(s, 0);
+    }
   }
   return NULL;
 }
@@ -439,6 +467,7 @@ void srv_sched_stop(srv_app *app) {
   }
   pthread_cond_broadcast(&s->work);
   pthread_cond_broadcast(&s->maint_cv);
+  pthread_cond_broadcast(&s->gate_cv);
   pthread_mutex_unlock(&s->mu);
   for (int i = 0; i < s->nslots; i++) pthread_join(s->slots[i].thread, NULL);
   if (s->maint_started) pthread_join(s->maint, NULL);

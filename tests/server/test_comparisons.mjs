@@ -462,32 +462,44 @@ test('time budget: the lowest-RMSE measured configuration within the budget, 422
   }
 });
 
-test('timed renders run alone: a candidate waits while another render runs, then completes', async () => {
-  // Two CPU workers, so without the render gate the candidate would render beside the blocker.
+test('timed renders run alone: a candidate waits while another render runs; cancel ends the wait', async () => {
+  // Two CPU workers, so without the render gate a candidate would render beside the blocker.
   await withDaemon({workers: 2}, async (d) => {
     const blocker = await submit(d, {
       scene_file: 'sphere_on_plane.json', label: 'blocker',
       technique: {name: 'rt_ao', backend: 'cpu', params: {samples: 256}},
       set: {'/image/width': 1024, '/image/height': 1024}});
     await waitJob(d, blocker, (j) => j.state === 'running');
-    const c = await postComparison(d, {scene_file: 'cornell_box.json', set: SMALL, repeats: 1,
-                                       reference: {samples: 16},
-                                       candidates: [{technique: 'ssao', backend: 'cpu', params: {samples: 8}}]});
-    const {candidates} = await getComparison(d, c.id);
-    const cand = candidates[0].job_id;
-    // The candidate is claimed by the second worker and then waits at the gate.
-    const deadline = Date.now() + 60000 * SLOW;
-    while (!d.log().includes(`job ${cand}: timed renders wait until no other render runs`)) {
-      assert.ok(Date.now() < deadline, `the candidate never reached the gate:\n${d.log().slice(-3000)}`);
-      await sleep(20);
-    }
-    const waiting = await getJob(d, cand);
-    assert.equal(waiting.state, 'running');
-    assert.equal((await getJob(d, blocker)).state, 'running', 'the blocker still renders');
-    assert.equal(waiting.progress, 0, 'no render progress while another render runs');
-    const r = await request(d, 'POST', `/api/v1/jobs/${blocker}/cancel`);
+    const one = {scene_file: 'cornell_box.json', set: SMALL, repeats: 1, reference: {samples: 16},
+                 candidates: [{technique: 'ssao', backend: 'cpu', params: {samples: 8}}]};
+    // Claimed by the second worker, the candidate then waits at the gate (the reference, a
+    // shared render, may run first).
+    const atGate = async (cmp) => {
+      const cand = (await getComparison(d, cmp)).candidates[0].job_id;
+      const deadline = Date.now() + 60000 * SLOW;
+      while (!d.log().includes(`job ${cand}: timed renders wait until no other render runs`)) {
+        assert.ok(Date.now() < deadline, `the candidate never reached the gate:\n${d.log().slice(-3000)}`);
+        await sleep(20);
+      }
+      return cand;
+    };
+    // A candidate cancelled while it waits ends at once, although the blocker still renders.
+    const first = await postComparison(d, one);
+    const c1 = await atGate(first.id);
+    const w = await getJob(d, c1);
+    assert.equal(w.state, 'running');
+    assert.equal(w.progress, 0, 'no render progress while another render runs');
+    let r = await request(d, 'POST', `/api/v1/jobs/${c1}/cancel`);
     assert.equal(r.status, 202, r.text);
-    const done = await waitComparison(d, c.id);
+    assert.equal((await waitJob(d, c1)).state, 'cancelled');
+    assert.equal((await getJob(d, blocker)).state, 'running', 'the blocker still renders');
+    // A second comparison's candidate waits too and completes once the blocker is gone.
+    const second = await postComparison(d, one);
+    await atGate(second.id);
+    assert.equal((await getJob(d, blocker)).state, 'running', 'the blocker still renders');
+    r = await request(d, 'POST', `/api/v1/jobs/${blocker}/cancel`);
+    assert.equal(r.status, 202, r.text);
+    const done = await waitComparison(d, second.id);
     assert.equal(done.state, 'succeeded', JSON.stringify(done));
     assert.ok(done.candidates[0].metrics, 'the candidate got its metrics after the gate opened');
   });
