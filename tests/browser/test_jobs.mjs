@@ -100,7 +100,7 @@ test('jobs, job detail and submit pages', async () => {
 
     // ---- the job list: live progress, a queued job behind it, cancel ------------------------
     const long = await submit(d, {scene_file: 'cornell_box.json', label: 'long',
-      technique: {name: 'rt_ao', backend: 'cpu', params: {samples: 8192}}, set: {'/image/width': 256, '/image/height': 256}});
+      technique: {name: 'rt_ao', backend: 'cpu', params: {samples: 65536}}, set: {'/image/width': 256, '/image/height': 256}});
     const behind = await submit(d, {scene_file: 'sphere_on_plane.json', label: 'behind',
       technique: {name: 'ssao', backend: 'cpu'}, set: {'/image/width': 32, '/image/height': 24}});
     await page.getByRole('link', {name: 'Jobs', exact: true}).click();
@@ -164,6 +164,22 @@ test('jobs, job detail and submit pages', async () => {
     await page.locator('.job-state', {hasText: 'cancelled'}).waitFor();
     assert.equal(await page.evaluate(() => document.activeElement.tagName), 'H1', 'focus moves to the new page heading');
     assert.match(await page.locator('dl.facts').textContent(), /cancelled by request/);
+
+    // ---- API text is shown as text; the skip link stays on the page; Delete leaves the page --------
+    const xss = '<img src=x onerror="window.__pwned=1">';
+    const tiny = await submit(d, {scene_file: 'sphere_on_plane.json', label: xss,
+      technique: {name: 'ssao', backend: 'cpu'}, set: {'/image/width': 32, '/image/height': 24}});
+    await page.goto(`${d.url}/#/jobs/${tiny}`);
+    await page.locator('.job-state', {hasText: 'succeeded'}).waitFor();
+    assert.ok((await page.locator('dl.facts').textContent()).includes(xss), 'the label is shown literally');
+    assert.equal(await page.evaluate(() => window.__pwned), undefined, 'no markup from the API ran');
+    await page.locator('a.skip').focus();
+    await page.keyboard.press('Enter');
+    assert.match(page.url(), new RegExp(`#/jobs/${tiny}$`), 'the skip link does not change the page');
+    assert.equal(await page.evaluate(() => document.activeElement.id), 'view');
+    await page.getByRole('button', {name: `Delete job ${tiny}`}).click();
+    await page.waitForURL(/#\/jobs$/);
+    assert.equal((await request(d, 'GET', `/api/v1/jobs/${tiny}`)).status, 404, 'the job is gone');
 
     assert.deepEqual(errors, [], 'no script errors');
   } finally {

@@ -31,12 +31,15 @@ export async function api(path, options = {}) {
   }
   let res;
   try {
-    res = await fetch(path, Object.assign({}, options, {headers}));
+    const {raw, json, ...init} = options; // obscura's own options are not fetch's
+    res = await fetch(path, Object.assign({}, init, {headers}));
   } catch (e) {
     for (const fn of listeners) fn(0);
     throw new ApiError(0, `cannot reach the server (${e.message})`);
   }
   for (const fn of listeners) fn(res.status);
+  // options.raw: a successful body is returned as text (CSV); errors are JSON either way.
+  if (options.raw && res.ok) return res.text();
   const body = res.status === 204 ? null : await res.json().catch(() => null);
   if (!res.ok) throw new ApiError(res.status, (body && body.error) || res.statusText, body && body.problems);
   return body;

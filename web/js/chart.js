@@ -32,6 +32,10 @@ function logPad(u, min, max) {
   return min === max ? [min / 4, max * 4] : [min / 1.5, max * 1.5];
 }
 
+/** Whether a candidate has a finite median time and a finite RMSE (the API sends null otherwise). */
+export const plottable = (c) => Boolean(c.metrics && Number.isFinite(c.metrics.rmse) && c.timings_ms &&
+  c.timings_ms.median && Number.isFinite(c.timings_ms.median.total));
+
 /**
  * Draws the chart into `box`. cands: candidates of the comparison JSON; colourOf(technique);
  * onSelect(candidateIndex). Returns {select(index), destroy(), info} or null when there is nothing
@@ -43,8 +47,9 @@ export function paretoChart(box, cands, {colourOf, onSelect, selected = null}) {
     box.append('The chart library is missing (run npm ci; the daemon serves it from --vendor-dir).');
     return null;
   }
-  // Log axes: a zero time or RMSE (a candidate identical to its reference) is drawn at a floor.
-  const pts = cands.filter((c) => c.metrics && c.timings_ms && c.timings_ms.median)
+  // Log axes: a zero time or RMSE (a candidate identical to its reference) is drawn at a floor;
+  // a missing (null: not finite) one is not drawn at all, never at the floor.
+  const pts = cands.filter(plottable)
     .map((c) => ({c, x: Math.max(c.timings_ms.median.total, 1e-3), y: Math.max(c.metrics.rmse, 1e-6)}))
     .sort((a, b) => a.x - b.x || a.c.index - b.c.index);
   if (!pts.length) return null;

@@ -2,7 +2,7 @@
 // column, the Pareto chart (chart.js), the selected candidate against its reference (a slider
 // over two stacked images) with its error heatmap, an image grid of every candidate, and the CSV.
 import {ACTIVE, ApiError, api, debug, el, fmtMs, fmtNum, fmtTime, paramText, poll, stateBadge, techniques, token} from './api.js';
-import {PALETTE, SHAPE_GLYPH, SHAPES, paretoChart, shapeOf} from './chart.js';
+import {PALETTE, SHAPE_GLYPH, SHAPES, paretoChart, plottable, shapeOf} from './chart.js';
 
 // ---- the list -----------------------------------------------------------------------------------
 
@@ -98,23 +98,29 @@ const COLUMNS = [
 /** Downloads url through fetch when a token is needed (a plain link cannot send the header). */
 function csvLink(url, name) {
   const a = el('a', {href: url, download: name, className: 'button'}, 'Download CSV');
+  const problem = el('span', {role: 'alert', className: 'error'});
   a.addEventListener('click', async (ev) => {
     if (!token) return;
     ev.preventDefault();
-    const res = await fetch(url, {headers: {Authorization: `Bearer ${token}`}});
-    const blob = await res.blob();
-    const tmp = el('a', {href: URL.createObjectURL(blob), download: name});
-    tmp.click();
-    setTimeout(() => URL.revokeObjectURL(tmp.href), 10000);
+    problem.textContent = '';
+    try {
+      // Through api() for its error handling (a 401 shows the token box); the body is CSV text.
+      const text = await api(url, {raw: true});
+      const tmp = el('a', {href: URL.createObjectURL(new Blob([text], {type: 'text/csv'})), download: name});
+      tmp.click();
+      setTimeout(() => URL.revokeObjectURL(tmp.href), 10000);
+    } catch (e) {
+      problem.textContent = ` CSV download failed: ${e.message}`;
+    }
   });
-  return a;
+  return el('span', {}, a, problem);
 }
 
 // ---- one comparison -----------------------------------------------------------------------------
 
 export function mountComparison(view, [id], query) {
   const s = {
-    c: null, fingerprint: '', sort: {key: 'index', dir: 1},
+    c: null, fingerprint: '', sort: {key: 'index', dir: 1}, split: 50,
     selected: query.has('candidate') ? Number(query.get('candidate')) : null, chart: null, colours: new Map(),
   };
   const facts = el('div');
@@ -232,7 +238,7 @@ export function mountComparison(view, [id], query) {
     const info = s.chart ? s.chart.info : {points: 0, series: [], pareto: 0};
     debug.comparison.chart = info;
     debug.comparison.uplot = s.chart ? s.chart.uplot : null;
-    const withMetrics = s.c.candidates.filter((c) => c.metrics);
+    const withMetrics = s.c.candidates.filter(plottable);
     const times = withMetrics.map((c) => c.timings_ms.median.total), errs = withMetrics.map((c) => c.metrics.rmse);
     chartBox.setAttribute('aria-label', info.points
       ? `Scatter chart, log scales: ${info.points} candidates, median time ${fmtMs(Math.min(...times))} to ${fmtMs(Math.max(...times))} ms, ` +
@@ -240,7 +246,8 @@ export function mountComparison(view, [id], query) {
         `series: ${info.series.map((x) => `${x.label} (${x.points})`).join(', ')}; Pareto-optimal candidates: ${s.c.pareto.join(', ') || 'none yet'}.`
       : 'Chart: no candidate has metrics yet.');
     chartNote.textContent = info.points < s.c.candidates.length
-      ? `${info.points} of ${s.c.candidates.length} candidates plotted; the others have no metrics yet${s.c.state === 'running' ? '' : ' (failed or cancelled)'}.` : '';
+      ? `${info.points} of ${s.c.candidates.length} candidates plotted; the others have no metrics or no finite time and RMSE` +
+        `${s.c.state === 'running' ? ' yet' : ''}.` : '';
   }
 
   function renderGrid() {
@@ -272,9 +279,10 @@ export function mountComparison(view, [id], query) {
       const ref = el('img', {className: 'ref', src: links['reference.png'], alt: `Reference job ${c.reference_job_id}`});
       const cand = el('img', {className: 'cand', src: links['ao.png'], alt: `Candidate ${c.index}`});
       const line = el('div', {className: 'divider', 'aria-hidden': 'true'});
-      const range = el('input', {type: 'range', id: 'split', min: '0', max: '100', step: '1', value: '50'});
+      const range = el('input', {type: 'range', id: 'split', min: '0', max: '100', step: '1', value: String(s.split)});
       const apply = () => {
         const v = Number(range.value);
+        s.split = v;
         // CSSOM properties, which the CSP (no inline styles) allows.
         cand.style.clipPath = `inset(0 ${100 - v}% 0 0)`;
         line.style.left = `${v}%`;
@@ -295,32 +303,39 @@ export function mountComparison(view, [id], query) {
         el('figcaption', {}, 'Signed error candidate − reference, saturating at ±0.25; grey: no geometry in the reference; green: NaN. ',
           links['error.exr'] ? el('a', {href: links['error.exr'], download: `candidate${c.index}-error.exr`}, 'error.exr') : '')));
     }
-    parts.push(media, c.metrics ? metricsTable(c) : el('p', {className: 'muted'}, 'No metrics yet.'));
+    parts.push(media, c.metrics ? metricsTable(c)
+      : el('p', {className: c.error ? 'error' : 'muted'}, c.error ? `No metrics: ${c.error}` : 'No metrics yet.'));
+    // Live updates rebuild the panel: keep the keyboard on the slider if it was there.
+    const hadFocus = document.activeElement && document.activeElement.id === 'split';
     detail.replaceChildren(el('section', {'aria-labelledby': 'h-selected', className: 'selected'}, ...parts));
+    if (hadFocus && document.getElementById('split')) document.getElementById('split').focus();
   }
 
   debug.comparison = {id: Number(id), selected: s.selected, chart: null, state: null};
+  let dead = false; // set when the page goes: a late answer must not draw (or make a chart)
   const refresh = async () => {
     let c;
     try {
       c = await api(`/api/v1/comparisons/${id}`);
     } catch (e) {
+      if (dead) return false;
       facts.replaceChildren(el('p', {className: 'error'}, e instanceof ApiError && e.status === 404
         ? `No comparison ${id} (or this server has no comparisons API).` : e.message));
       return false;
     }
     await ready;
+    if (dead) return false;
     s.c = c;
     debug.comparison.state = c.state;
     const fp = JSON.stringify([c.state, c.candidates.map((x) => [x.state, x.metrics, x.pareto, x.timings_ms && x.timings_ms.median, x.links]),
                                c.references.map((r) => [r.state, r.links])]);
     if (fp !== s.fingerprint) {
-      s.fingerprint = fp;
       renderFacts();
       renderTable();
       renderChart();
       renderGrid();
       renderSelected();
+      s.fingerprint = fp; // only once drawn: a render that threw is retried at the next poll
       debug.comparison.rendered = c.candidates.length;
     }
     if (c.state !== 'running') handle.stop();
@@ -330,6 +345,7 @@ export function mountComparison(view, [id], query) {
   observer.observe(chartBox);
   const handle = poll(refresh, {fast: 1000, slow: 4000});
   return () => {
+    dead = true;
     handle.stop();
     observer.disconnect();
     if (s.chart) s.chart.destroy();

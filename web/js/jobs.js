@@ -13,12 +13,14 @@ function progressCell(j) {
 }
 
 async function act(url, method, after) {
+  let ok = true;
   try {
     await api(url, {method});
   } catch (e) {
+    ok = false;
     alertLine(e.message);
   }
-  after();
+  after(ok);
 }
 
 let alertEl = null;
@@ -84,16 +86,22 @@ export function mountJobs(view) {
   });
 
   const rows = new Map();
+  // Only the newest request may draw: a filter change starts a new one while an old one may still
+  // be in flight, and nothing draws once the page is gone.
+  let seq = 0, dead = false;
   const refresh = async () => {
     const q = new URLSearchParams({limit: '50'});
     for (const [k, v] of Object.entries(filters)) if (v) q.set(k, v);
+    const mine = ++seq;
     let list;
     try {
       list = await api(`/api/v1/jobs?${q}`);
     } catch (e) {
+      if (dead || mine !== seq) return false;
       status.textContent = e.message;
       return false;
     }
+    if (dead || mine !== seq) return false;
     render(list.jobs);
     const active = list.jobs.filter((j) => ACTIVE.has(j.state)).length;
     status.textContent = `${list.jobs.length} job${list.jobs.length === 1 ? '' : 's'}${list.next ? ' (newest 50)' : ''}` +
@@ -146,7 +154,10 @@ export function mountJobs(view) {
   }
 
   const handle = poll(refresh, {fast: 1000, slow: 4000});
-  return () => handle.stop();
+  return () => {
+    dead = true;
+    handle.stop();
+  };
 }
 
 // ---- one job ------------------------------------------------------------------------------------
@@ -200,17 +211,22 @@ export function mountJob(view, [id], query) {
   alertEl = el('p', {role: 'alert', className: 'error'});
   view.append(el('p', {className: 'crumbs'}, el('a', {href: '#/jobs'}, '← all jobs')),
               el('h1', {}, `Job ${id}`), alertEl, head, body);
-  let lastState = null, summaryDone = false, metricsDone = false;
-  const comparisonId = query.get('comparison');
+  let lastState = null, summaryDone = false, metricsDone = false, dead = false;
+  // Only a comparison id, never a path: it is put into an API URL.
+  const comparisonId = /^\d+$/.test(query.get('comparison') || '') ? query.get('comparison') : null;
 
   const refresh = async () => {
     let j;
     try {
       j = await api(`/api/v1/jobs/${id}`);
     } catch (e) {
+      if (dead) return false;
       head.replaceChildren(el('p', {className: 'error'}, e.message));
       return false;
     }
+    if (dead) return false;
+    // The facts are rebuilt every poll: put the keyboard focus back on the same control.
+    const focused = head.contains(document.activeElement) ? document.activeElement.getAttribute('aria-label') : null;
     debug.job = {id: j.id, state: j.state, progress: j.progress};
     head.replaceChildren(
       el('dl', {className: 'facts'},
@@ -228,7 +244,15 @@ export function mountJob(view, [id], query) {
         el('dt', {}, 'Started'), el('dd', {}, fmtTime(j.started_at)),
         el('dt', {}, 'Finished'), el('dd', {}, fmtTime(j.finished_at)),
         j.error ? el('dt', {}, 'Error') : null, j.error ? el('dd', {className: 'error'}, j.error) : null),
-      el('p', {}, actions(j, () => handle.wake())));
+      el('p', {}, actions(j, (ok) => {
+        // A deleted job has no page any more: back to the list.
+        if (ok && !ACTIVE.has(j.state)) location.hash = '#/jobs';
+        else handle.wake();
+      })));
+    if (focused) {
+      const again = [...head.querySelectorAll('[aria-label]')].find((e) => e.getAttribute('aria-label') === focused);
+      if (again) again.focus();
+    }
     if (j.state !== lastState) {
       lastState = j.state;
       body.replaceChildren(outputsSection(j),
@@ -255,7 +279,10 @@ export function mountJob(view, [id], query) {
     return ACTIVE.has(j.state);
   };
   const handle = poll(refresh, {fast: 1000, slow: 4000});
-  return () => handle.stop();
+  return () => {
+    dead = true;
+    handle.stop();
+  };
 }
 
 async function showMetrics(slot, cid, jobId) {
@@ -273,7 +300,8 @@ async function showMetrics(slot, cid, jobId) {
       el('h2', {id: 'h-metrics'}, 'Metrics against the reference'),
       el('p', {}, `Candidate ${cand.index} of `, back, `; reference job `,
         el('a', {href: `#/jobs/${cand.reference_job_id}?comparison=${cid}`}, String(cand.reference_job_id)), '.'),
-      cand.metrics ? metricsTable(cand) : el('p', {className: 'muted'}, 'No metrics yet.')));
+      cand.metrics ? metricsTable(cand)
+        : el('p', {className: cand.error ? 'error' : 'muted'}, cand.error ? `No metrics: ${cand.error}` : 'No metrics yet.')));
   } else if (ref) {
     slot.replaceChildren(el('section', {'aria-labelledby': 'h-metrics'},
       el('h2', {id: 'h-metrics'}, 'Comparison'), el('p', {}, 'Reference job of ', back, '.')));

@@ -16,6 +16,13 @@ const routes = [
 const view = document.getElementById('view');
 let cleanup = null;
 
+// The skip link moves the focus to the page, not to another route ("#view" is no route).
+document.querySelector('a.skip').addEventListener('click', (ev) => {
+  ev.preventDefault();
+  view.tabIndex = -1;
+  view.focus();
+});
+
 function route() {
   const [path, query] = (location.hash || '#/jobs').split('?');
   const match = routes.find(([re]) => re.test(path));
