@@ -35,18 +35,24 @@ int srv_respond(srv_req *r, unsigned status, struct MHD_Response *resp) {
   return ret;
 }
 
-/* A JSON answer, with a Location header when `location` is not NULL. Consumes `body`. */
-static int respond_json(srv_req *r, unsigned status, json_t *body, const char *location) {
+struct MHD_Response *srv_json_response(json_t *body) {
   char *text = body ? json_dumps(body, JSON_COMPACT | JSON_REAL_PRECISION(12)) : NULL;
   json_decref(body);
-  if (!text) return MHD_NO;
+  if (!text) return NULL;
   struct MHD_Response *resp =
       MHD_create_response_from_buffer(strlen(text), text, MHD_RESPMEM_MUST_FREE);
   if (!resp) {
     free(text);
-    return MHD_NO;
+    return NULL;
   }
   MHD_add_response_header(resp, "Content-Type", "application/json");
+  return resp;
+}
+
+/* A JSON answer, with a Location header when `location` is not NULL. Consumes `body`. */
+static int respond_json(srv_req *r, unsigned status, json_t *body, const char *location) {
+  struct MHD_Response *resp = srv_json_response(body);
+  if (!resp) return MHD_NO;
   if (location) MHD_add_response_header(resp, "Location", location);
   return srv_respond(r, status, resp);
 }
@@ -108,11 +114,8 @@ int srv_respond_method(srv_req *r, const char *allow) {
   char msg[160];
   snprintf(msg, sizeof msg, "method %.16s not allowed here (allowed: %s)", r->method, allow);
   json_object_set_new(body, "error", json_string(msg));
-  char *text = json_dumps(body, JSON_COMPACT);
-  json_decref(body);
-  struct MHD_Response *resp =
-      MHD_create_response_from_buffer(strlen(text), text, MHD_RESPMEM_MUST_FREE);
-  MHD_add_response_header(resp, "Content-Type", "application/json");
+  struct MHD_Response *resp = srv_json_response(body);
+  if (!resp) return MHD_NO;
   MHD_add_response_header(resp, "Allow", allow);
   return srv_respond(r, MHD_HTTP_METHOD_NOT_ALLOWED, resp);
 }

@@ -330,6 +330,9 @@ struct srv_req {
 /* Queues `resp` (adding the security headers) and records the status. Consumes resp. */
 int srv_respond(srv_req *r, unsigned status, struct MHD_Response *resp);
 /* JSON body (consumes `body`). */
+/* A response holding `body` as compact JSON with its Content-Type, for callers that add headers
+ * of their own; consumes `body`; NULL when out of memory. */
+struct MHD_Response *srv_json_response(json_t *body);
 int srv_respond_json(srv_req *r, unsigned status, json_t *body);
 /* A request body with a Content-Type other than application/json (parameters allowed; absent is
  * fine): answers 415 and returns 1 with the handler's result in *ret; else 0. */

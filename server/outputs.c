@@ -264,12 +264,9 @@ int srv_output_serve(srv_req *r, int64_t id, const char *name) {
   if (pr < 0) {
     close(fd);
     snprintf(cr, sizeof cr, "bytes */%" PRIu64, size);
-    json_t *body = json_pack("{s:s, s:[]}", "error", "range not satisfiable", "problems");
-    char *text = json_dumps(body, JSON_COMPACT);
-    json_decref(body);
-    struct MHD_Response *resp =
-        MHD_create_response_from_buffer(strlen(text), text, MHD_RESPMEM_MUST_FREE);
-    MHD_add_response_header(resp, "Content-Type", "application/json");
+    struct MHD_Response *resp = srv_json_response(
+        json_pack("{s:s, s:[]}", "error", "range not satisfiable", "problems"));
+    if (!resp) return MHD_NO;
     MHD_add_response_header(resp, "Content-Range", cr);
     add_cache_headers(resp, etag);
     return srv_respond(r, MHD_HTTP_RANGE_NOT_SATISFIABLE, resp);

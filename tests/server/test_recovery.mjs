@@ -51,6 +51,17 @@ function integrityOfCopy(d) {
   return out;
 }
 
+// After a test that restarts its daemon in one directory: the directory goes when the test
+// passed; otherwise the daemon is killed and its log printed, and the directory is kept.
+async function cleanUp(d, ok) {
+  if (!ok) {
+    await d.kill9();
+    console.error(`# obscurad log (kept in ${d.dir}):\n${tail(d.log())}`);
+  } else {
+    fs.rmSync(d.dir, {recursive: true, force: true});
+  }
+}
+
 test('crash recovery', async () => {
   let d = await startDaemon({workers: 2});
   const dir = d.dir;
@@ -128,12 +139,7 @@ test('crash recovery', async () => {
     assert.equal(integrity(d.db), 'ok');
     ok = true;
   } finally {
-    if (!ok) {
-      await d.kill9();
-      console.error(`# obscurad log (kept in ${dir}):\n${tail(d.log())}`);
-    } else {
-      fs.rmSync(dir, {recursive: true, force: true});
-    }
+    await cleanUp(d, ok);
   }
 });
 
@@ -165,11 +171,6 @@ test('a job whose render crashed the daemon 3 times fails', async () => {
     assert.equal(integrity(d.db), 'ok');
     ok = true;
   } finally {
-    if (!ok) {
-      await d.kill9();
-      console.error(`# obscurad log (kept in ${dir}):\n${tail(d.log())}`);
-    } else {
-      fs.rmSync(dir, {recursive: true, force: true});
-    }
+    await cleanUp(d, ok);
   }
 });
