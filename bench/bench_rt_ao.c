@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "bench_args.h"
 #include "camera.h"
 #include "geometry.h"
 #include "obscura/obscura.h"
@@ -40,14 +41,6 @@ static void usage(FILE *f) {
           "  Renders a displaced_sphere with obscura's rt_ao (CPU) and with a raw Embree loop\n"
           "  doing the same work, R times each, and compares median rays per second.\n"
           "  --side runs one side only (for profiling); no ratio is printed then.\n");
-}
-
-static int parse_int(const char *s, int lo, int hi, int *out) {
-  char *end;
-  long v = strtol(s, &end, 10);
-  if (end == s || *end || v < lo || v > hi) return -1;
-  *out = (int)v;
-  return 0;
 }
 
 static int parse_args(int argc, char **argv, options *o) {

@@ -7,6 +7,7 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include "bench_args.h"
 #include "obscura/obscura.h"
 #include "vk.h"
 
@@ -50,14 +51,6 @@ static void usage(FILE *f) {
           "  covered pixels; R defaults to 3 there. --size and --scene apply to timing only.\n"
           "  --only runs the configurations whose label contains TEXT (e.g. \"hbao 8/8 full\");\n"
           "  --verbose prints every timed render too.\n");
-}
-
-static int parse_int(const char *s, int lo, int hi, int *out) {
-  char *end;
-  long v = strtol(s, &end, 10);
-  if (end == s || *end || v < lo || v > hi) return -1;
-  *out = (int)v;
-  return 0;
 }
 
 static int parse_args(int argc, char **argv, options *o) {
