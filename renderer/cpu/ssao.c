@@ -13,6 +13,7 @@
 #include "gbuffer.h"
 #include "obscura/render.h"
 #include "parallel.h"
+#include "simd.h"
 #include "ssao.h"
 #include "techniques.h"
 
@@ -22,6 +23,7 @@ typedef struct ssao_job {
   const obs_ssao_tables *t;
   const float *raw; /* blur input */
   float *out;
+  int simd; /* run the AVX2 spans (simd.h) */
 } ssao_job;
 
 /* floor(v) clamped to [0, n-1]: the texel a sample lands on, clamp-to-edge. The clamp comes before
@@ -81,12 +83,133 @@ OBS_HOT_INLINE float ssao_pixel(const ssao_job *j, int x, int y) {
   return c < 0.0f ? 0.0f : c > 1.0f ? 1.0f : c;
 }
 
+#if OBS_SIMD_AVX2
+/* ssao_pixel for pixels x..x+7 of row y (all inside the image), same operations per lane. */
+OBS_AVX2_FN static void ssao_span8(const ssao_job *j, int x, int y, float *dst) {
+  const obs_gbuffer *g = j->g;
+  const obs_ssao_tables *t = j->t;
+  const int w = g->width, h = g->height;
+  const size_t i = (size_t)y * (size_t)w + (size_t)x;
+  const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f);
+  const __m256 two = _mm256_set1_ps(2.0f), half = _mm256_set1_ps(0.5f);
+  const __m256 zp = _mm256_loadu_ps(g->depth + i);
+  const __m256 covered = _mm256_cmp_ps(zp, zero, _CMP_GT_OQ);
+  if (!_mm256_movemask_ps(covered)) {
+    _mm256_storeu_ps(dst, one);
+    return;
+  }
+  float ra[3][8];
+  for (int l = 0; l < 8; l++)
+    for (int c = 0; c < 3; c++) ra[c][l] = t->rotation[(y & 3) * 4 + ((x + l) & 3)][c];
+  const __m256 rx = _mm256_loadu_ps(ra[0]), ry = _mm256_loadu_ps(ra[1]), rz = _mm256_loadu_ps(ra[2]);
+  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256 fx = _mm256_add_ps(_mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_set1_epi32(x), lane)),
+                                  half);
+  const __m256 fy = _mm256_set1_ps((float)y + 0.5f);
+  const __m256 fw = _mm256_set1_ps((float)w), fh = _mm256_set1_ps((float)h);
+  const __m256 xmax = _mm256_set1_ps((float)(w - 1)), ymax = _mm256_set1_ps((float)(h - 1));
+  const __m256 s = g->ortho ? one : zp;
+  const __m256 kx = _mm256_mul_ps(_mm256_set1_ps(2.0f * g->half_w), s);
+  const __m256 ky = _mm256_mul_ps(_mm256_set1_ps(-2.0f * g->half_h), s);
+  const __m256 kz = _mm256_mul_ps(two, zp);
+  const __m256 sign = _mm256_set1_ps(-0.0f);
+  __m256 n0 = zero, n1 = zero, n2 = zero;
+  if (j->p->normal_oriented) {
+    const __m256i i3 = _mm256_mullo_epi32(lane, _mm256_set1_epi32(3));
+    const float *nb = g->normal + 3 * i;
+    n0 = _mm256_i32gather_ps(nb, i3, 4);
+    n1 = _mm256_i32gather_ps(nb + 1, i3, 4);
+    n2 = _mm256_i32gather_ps(nb + 2, i3, 4);
+  }
+  const __m256i wv = _mm256_set1_epi32(w);
+  __m256 sum = zero;
+  for (int k = 0; k < j->p->samples; k++) {
+    const float *v = t->offsets[k];
+    const __m256 v0 = _mm256_set1_ps(v[0]), v1 = _mm256_set1_ps(v[1]), v2 = _mm256_set1_ps(v[2]);
+    __m256 d = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(rx, v0), _mm256_mul_ps(ry, v1)),
+                             _mm256_mul_ps(rz, v2));
+    __m256 tt = _mm256_mul_ps(two, d);
+    __m256 ox = _mm256_sub_ps(v0, _mm256_mul_ps(tt, rx));
+    __m256 oy = _mm256_sub_ps(v1, _mm256_mul_ps(tt, ry));
+    __m256 oz = _mm256_sub_ps(v2, _mm256_mul_ps(tt, rz));
+    if (j->p->normal_oriented) {
+      __m256 dn = _mm256_add_ps(
+          _mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(ox, kx), n0),
+                        _mm256_mul_ps(_mm256_mul_ps(oy, ky), n1)),
+          _mm256_mul_ps(_mm256_mul_ps(oz, kz), n2));
+      __m256 flip = _mm256_and_ps(_mm256_cmp_ps(dn, zero, _CMP_LT_OQ), sign);
+      ox = _mm256_xor_ps(ox, flip);
+      oy = _mm256_xor_ps(oy, flip);
+      oz = _mm256_xor_ps(oz, flip);
+    }
+    __m256 sxf = _mm256_floor_ps(_mm256_add_ps(fx, _mm256_mul_ps(ox, fw)));
+    __m256 syf = _mm256_floor_ps(_mm256_add_ps(fy, _mm256_mul_ps(oy, fh)));
+    sxf = _mm256_min_ps(_mm256_max_ps(sxf, zero), xmax);
+    syf = _mm256_min_ps(_mm256_max_ps(syf, zero), ymax);
+    __m256i idx = _mm256_add_epi32(_mm256_mullo_epi32(_mm256_cvttps_epi32(syf), wv),
+                                   _mm256_cvttps_epi32(sxf));
+    __m256 zs = _mm256_i32gather_ps(g->depth, idx, 4);
+    __m256 bg = _mm256_cmp_ps(zs, zero, _CMP_NGT_UQ);
+    __m256 sz = _mm256_add_ps(zp, _mm256_mul_ps(_mm256_mul_ps(oz, zp), two));
+    __m256 vis = _mm256_and_ps(_mm256_cmp_ps(zs, sz, _CMP_GT_OQ), one);
+    __m256 f = _mm256_div_ps(_mm256_sub_ps(zp, zs), zs);
+    f = _mm256_min_ps(_mm256_max_ps(f, zero), one);
+    __m256 c = _mm256_add_ps(vis, _mm256_mul_ps(f, _mm256_sub_ps(half, vis)));
+    sum = _mm256_add_ps(sum, _mm256_blendv_ps(c, one, bg));
+  }
+  __m256 a = _mm256_mul_ps(sum, _mm256_set1_ps(t->inv_samples));
+  __m256 c = _mm256_add_ps(_mm256_mul_ps(a, a), a);
+  c = _mm256_min_ps(_mm256_max_ps(c, zero), one);
+  _mm256_storeu_ps(dst, _mm256_blendv_ps(one, c, covered));
+}
+
+/* blur_pixel for pixels x..x+7 of row y, whose 4x4 windows lie inside the image horizontally. */
+OBS_AVX2_FN static void blur_span8(const ssao_job *j, int x, int y, float *dst) {
+  const obs_gbuffer *g = j->g;
+  const int w = g->width, h = g->height;
+  const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f);
+  const __m256 absmask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
+  const __m256 zc = _mm256_loadu_ps(g->depth + (size_t)y * (size_t)w + (size_t)x);
+  const __m256 covered = _mm256_cmp_ps(zc, zero, _CMP_GT_OQ);
+  if (!_mm256_movemask_ps(covered)) {
+    _mm256_storeu_ps(dst, one);
+    return;
+  }
+  const __m256 lim = _mm256_mul_ps(_mm256_set1_ps(j->p->blur_depth_threshold), zc);
+  __m256 sum = zero;
+  __m256i cnt = _mm256_setzero_si256();
+  for (int dy = OBS_SSAO_BLUR_LO; dy <= OBS_SSAO_BLUR_HI; dy++) {
+    int yy = y + dy;
+    if (yy < 0 || yy >= h) continue;
+    for (int dx = OBS_SSAO_BLUR_LO; dx <= OBS_SSAO_BLUR_HI; dx++) {
+      size_t k = (size_t)yy * (size_t)w + (size_t)(x + dx);
+      __m256 zn = _mm256_loadu_ps(g->depth + k);
+      __m256 ok = _mm256_and_ps(
+          _mm256_cmp_ps(zn, zero, _CMP_GT_OQ),
+          _mm256_cmp_ps(_mm256_and_ps(_mm256_sub_ps(zn, zc), absmask), lim, _CMP_LE_OQ));
+      /* sum + 0 is sum: it starts at +0 and only grows. */
+      sum = _mm256_add_ps(sum, _mm256_and_ps(_mm256_loadu_ps(j->raw + k), ok));
+      cnt = _mm256_sub_epi32(cnt, _mm256_castps_si256(ok));
+    }
+  }
+  __m256 r = _mm256_mul_ps(sum, _mm256_i32gather_ps(j->t->inv_count, cnt, 4));
+  r = _mm256_min_ps(r, one);
+  _mm256_storeu_ps(dst, _mm256_blendv_ps(one, r, covered));
+}
+#endif
+
 OBS_HOT_KERNEL static int ao_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)thread;
   ssao_job *j = user;
-  for (int y = y0; y < y1; y++)
-    for (int x = x0; x < x1; x++)
-      j->out[(size_t)y * (size_t)j->g->width + (size_t)x] = ssao_pixel(j, x, y);
+  const size_t w = (size_t)j->g->width;
+  for (int y = y0; y < y1; y++) {
+    int x = x0;
+#if OBS_SIMD_AVX2
+    if (j->simd)
+      for (; x + 8 <= x1; x += 8) ssao_span8(j, x, y, j->out + (size_t)y * w + (size_t)x);
+#endif
+    for (; x < x1; x++) j->out[(size_t)y * w + (size_t)x] = ssao_pixel(j, x, y);
+  }
   return 0;
 }
 
@@ -117,9 +240,19 @@ OBS_HOT_INLINE float blur_pixel(const ssao_job *j, int x, int y) {
 OBS_HOT_KERNEL static int blur_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)thread;
   ssao_job *j = user;
-  for (int y = y0; y < y1; y++)
-    for (int x = x0; x < x1; x++)
-      j->out[(size_t)y * (size_t)j->g->width + (size_t)x] = blur_pixel(j, x, y);
+  const int w = j->g->width;
+  for (int y = y0; y < y1; y++) {
+    float *row = j->out + (size_t)y * (size_t)w;
+    int x = x0;
+#if OBS_SIMD_AVX2
+    if (j->simd) {
+      /* Left of x = 2 and right of w - 9 the window leaves the image: scalar there. */
+      for (; x < x1 && x < -OBS_SSAO_BLUR_LO; x++) row[x] = blur_pixel(j, x, y);
+      for (; x + 8 <= x1 && x + 7 + OBS_SSAO_BLUR_HI < w; x += 8) blur_span8(j, x, y, row + x);
+    }
+#endif
+    for (; x < x1; x++) row[x] = blur_pixel(j, x, y);
+  }
   return 0;
 }
 
@@ -137,7 +270,9 @@ int obs_ssao_cpu_apply_ex(const obs_gbuffer *g, const obs_ssao_params *p, int th
   float *raw = ao_raw;
   if (p->blur && !raw && !(raw = malloc(n * sizeof *raw)))
     return obs_err_set(err, OBS_ENOMEM, "ssao: %dx%d: out of memory", g->width, g->height);
-  ssao_job j = {.g = g, .p = p, .t = &t, .raw = raw, .out = p->blur ? raw : ao};
+  /* The vector kernels index with 32-bit lanes. */
+  int simd = obs_simd_avx2() && n <= (size_t)INT32_MAX;
+  ssao_job j = {.g = g, .p = p, .t = &t, .raw = raw, .out = p->blur ? raw : ao, .simd = simd};
   double t0 = obs_now_ms();
   int rc = obs_parallel_tiles(g->width, g->height, threads < 1 ? 1 : threads, ao_tile, &j, NULL,
                               NULL, NULL);

@@ -8,6 +8,7 @@
 #include "testutil.h"
 
 #include "gbuffer.h"
+#include "simd.h"
 #include "../../renderer/techniques/ssao.h"
 
 static char *fmt(const char *f, ...) {
@@ -357,6 +358,40 @@ static void test_thread_independence(void **state) {
   obs_err_free(&err);
 }
 
+/* The AVX2 spans (renderer/core/simd.h) promise the scalar code's bits: compare both paths on a
+ * width that leaves scalar tails and on the parameters that change the kernel's branches. */
+static void test_simd_matches_scalar(void **state) {
+  (void)state;
+  const char *params[] = {"{\"samples\":8}", "{\"samples\":16,\"blur\":false}",
+                          "{\"samples\":24,\"normal_oriented\":true}",
+                          "{\"samples\":16,\"radius\":0.2,\"normal_oriented\":true}"};
+  if (!obs_simd_avx2()) printf("(no AVX2 here: both runs take the scalar path)\n");
+  for (size_t c = 0; c < sizeof params / sizeof params[0]; c++) {
+    obs_scene sc;
+    load(room_scene(77, 45, params[c]), &sc);
+    obs_gbuffer g;
+    obs_err err = OBS_ERR_INIT;
+    assert_int_equal(obs_gbuffer_raycast(&sc, &g, 2, NULL, NULL, &err), 0);
+    obs_ssao_params p;
+    assert_int_equal(obs_ssao_params_read(sc.params, &p), 0);
+    size_t n = 77 * 45;
+    float *v = malloc(4 * n * sizeof(float));
+    assert_non_null(v);
+    assert_int_equal(obs_ssao_cpu_apply_ex(&g, &p, 2, v, v + n, NULL, &err), 0);
+    setenv("OBSCURA_NO_SIMD", "1", 1);
+    assert_int_equal(obs_ssao_cpu_apply_ex(&g, &p, 2, v + 2 * n, v + 3 * n, NULL, &err), 0);
+    unsetenv("OBSCURA_NO_SIMD");
+    assert_memory_equal(v, v + 2 * n, 2 * n * sizeof(float));
+    size_t shaded = 0; /* the comparison is not of two blank images */
+    for (size_t i = 0; i < n; i++) shaded += v[n + i] > 0.0f && v[n + i] < 1.0f;
+    assert_true(shaded > n / 20);
+    free(v);
+    obs_gbuffer_free(&g);
+    obs_scene_free(&sc);
+    obs_err_free(&err);
+  }
+}
+
 /* Scales, sizes and parameter limits: every output finite, in [0,1], uncovered pixels 1. */
 static void test_extremes(void **state) {
   (void)state;
@@ -407,6 +442,7 @@ int main(void) {
       cmocka_unit_test(test_concave_corner),
       cmocka_unit_test(test_blur_keeps_edges),
       cmocka_unit_test(test_thread_independence),
+      cmocka_unit_test(test_simd_matches_scalar),
       cmocka_unit_test(test_extremes),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
