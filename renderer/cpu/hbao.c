@@ -11,6 +11,7 @@
 #include "hbao.h"
 #include "obscura/render.h"
 #include "parallel.h"
+#include "simd.h"
 #include "techniques.h"
 
 /* The texels the AO pass runs on: the full G-buffer or its half-resolution subsample. */
@@ -30,6 +31,11 @@ typedef struct hbao_job {
   const float *in;
   float *out;
   int axis;      /* blur: 0 = horizontal, 1 = vertical */
+  int simd;      /* run the AVX2 spans (simd.h) */
+  /* For the AVX2 spans: obs_gbuffer_position's x and y factors per level column and row, i.e.
+   * (2 fx / W - 1) half_w and (1 - 2 fy / H) half_h at the texel's pixel centre, computed with the
+   * scalar code's operations so a table lookup gives the same bits as the expression. */
+  const float *colf, *rowf;
 } hbao_job;
 
 /* Elevation (sin, cos) over the view plane z = const of the tangent plane (normal n) along the image
@@ -131,12 +137,186 @@ OBS_HOT_INLINE float ao_texel(const hbao_job *jb, int ax, int ay) {
   return ao > 1.0f ? 1.0f : ao > 0.0f ? ao : 0.0f;
 }
 
+#if OBS_SIMD_AVX2
+/* tangent() for eight directions at once; sin only when cos_t is NULL. */
+OBS_AVX2_INLINE void tangent8(__m256 n0, __m256 n1, __m256 nr, __m256 r0, __m256 r1, __m256 dx,
+                              __m256 dy, __m256 *sin_t, __m256 *cos_t) {
+  const __m256 zero = _mm256_setzero_ps(), sign = _mm256_set1_ps(-0.0f);
+  __m256 nd = _mm256_add_ps(_mm256_mul_ps(n0, dx), _mm256_mul_ps(n1, dy));
+  __m256 lx = _mm256_sub_ps(_mm256_mul_ps(nd, r0), _mm256_mul_ps(nr, dx));
+  __m256 ly = _mm256_sub_ps(_mm256_mul_ps(nd, r1), _mm256_mul_ps(nr, dy));
+  __m256 lz = nd;
+  __m256 flip = _mm256_and_ps(_mm256_cmp_ps(nr, zero, _CMP_NLT_UQ), sign);
+  lx = _mm256_xor_ps(lx, flip);
+  ly = _mm256_xor_ps(ly, flip);
+  lz = _mm256_xor_ps(lz, flip);
+  __m256 h2 = _mm256_add_ps(_mm256_mul_ps(lx, lx), _mm256_mul_ps(ly, ly));
+  __m256 l = _mm256_sqrt_ps(_mm256_add_ps(h2, _mm256_mul_ps(lz, lz)));
+  __m256 degenerate = _mm256_cmp_ps(l, zero, _CMP_NGT_UQ);
+  *sin_t = _mm256_andnot_ps(degenerate, _mm256_div_ps(_mm256_xor_ps(lz, sign), l));
+  if (cos_t)
+    *cos_t = _mm256_blendv_ps(_mm256_div_ps(_mm256_sqrt_ps(h2), l), _mm256_set1_ps(1.0f),
+                              degenerate);
+}
+
+/* ao_texel for texels x..x+7 of level row y (all inside the level), same operations per lane. */
+OBS_AVX2_FN static void ao_span8(const hbao_job *jb, int x, int y, float *dst) {
+  const hbao_level *lv = &jb->lv;
+  const obs_hbao_params *p = jb->p;
+  const obs_gbuffer *g = jb->g;
+  const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f);
+  const __m256 half = _mm256_set1_ps(0.5f), sign = _mm256_set1_ps(-0.0f);
+  const size_t ci = (size_t)y * (size_t)lv->w + (size_t)x;
+  const float R = p->radius;
+  const __m256 z = _mm256_loadu_ps(lv->depth + ci);
+  __m256 live = _mm256_cmp_ps(z, zero, _CMP_GT_OQ);
+  if (!(R > 0.0f) || !_mm256_movemask_ps(live)) {
+    _mm256_storeu_ps(dst, one);
+    return;
+  }
+  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256i ax = _mm256_add_epi32(_mm256_set1_epi32(x), lane), ay = _mm256_set1_epi32(y);
+  /* The tables hold nx half_w and ny half_h, which are r's x and y (perspective) and P's factors. */
+  const __m256 cfx = _mm256_loadu_ps(jb->colf + x), cfy = _mm256_set1_ps(jb->rowf[y]);
+  __m256 P0, P1, r0 = zero, r1 = zero, r2 = one;
+  if (g->ortho) {
+    P0 = cfx;
+    P1 = cfy;
+  } else {
+    P0 = _mm256_mul_ps(cfx, z);
+    P1 = _mm256_mul_ps(cfy, z);
+    r0 = cfx;
+    r1 = cfy;
+  }
+  const __m256 P2 = z, Rv = _mm256_set1_ps(R);
+  const float num = R * (0.5f * (float)g->width);
+  __m256 rpx = g->ortho ? _mm256_set1_ps(num / g->half_w)
+                        : _mm256_div_ps(_mm256_set1_ps(num), _mm256_mul_ps(_mm256_set1_ps(g->half_w), z));
+  __m256 rl = _mm256_div_ps(rpx, _mm256_set1_ps((float)lv->s));
+  live = _mm256_and_ps(live, _mm256_cmp_ps(rl, one, _CMP_GE_OQ));
+  if (!_mm256_movemask_ps(live)) {
+    _mm256_storeu_ps(dst, one);
+    return;
+  }
+  const float cap = (float)(lv->w > lv->h ? lv->w : lv->h);
+  rl = _mm256_blendv_ps(rl, _mm256_set1_ps(cap), _mm256_cmp_ps(rl, _mm256_set1_ps(cap), _CMP_GT_OQ));
+  const __m256 st = _mm256_div_ps(rl, _mm256_set1_ps((float)(p->steps + 1)));
+  const __m256i i3 = _mm256_mullo_epi32(lane, _mm256_set1_epi32(3));
+  const float *nb = lv->normal + 3 * ci;
+  const __m256 n0 = _mm256_i32gather_ps(nb, i3, 4), n1 = _mm256_i32gather_ps(nb + 1, i3, 4),
+               n2 = _mm256_i32gather_ps(nb + 2, i3, 4);
+  const __m256 nr = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(n0, r0), _mm256_mul_ps(n1, r1)),
+                                  _mm256_mul_ps(n2, r2));
+  /* Each lane's row of the direction table: cell ((y & 3) * 4 + (x & 3)), 4 floats per direction. */
+  const __m256i cell = _mm256_add_epi32(_mm256_set1_epi32((y & 3) * 4),
+                                        _mm256_and_si256(ax, _mm256_set1_epi32(3)));
+  const __m256i trow = _mm256_mullo_epi32(cell, _mm256_set1_epi32(p->directions * 4));
+  const __m256 cx = _mm256_add_ps(_mm256_cvtepi32_ps(ax), half);
+  const __m256 cy = _mm256_set1_ps((float)y + 0.5f);
+  const __m256 cos_b = _mm256_set1_ps(jb->cos_b), sin_b = _mm256_set1_ps(jb->sin_b);
+  const __m256i wmax = _mm256_set1_epi32(lv->w - 1), hmax = _mm256_set1_epi32(lv->h - 1);
+  const __m256i izero = _mm256_setzero_si256(), lw = _mm256_set1_epi32(lv->w);
+  __m256 sum = zero;
+  for (int i = 0; i < p->directions; i++) {
+    __m256i ti = _mm256_add_epi32(trow, _mm256_set1_epi32(4 * i));
+    __m256 dx = _mm256_i32gather_ps(jb->table, ti, 4);
+    __m256 dy = _mm256_i32gather_ps(jb->table + 1, ti, 4);
+    __m256 jit = _mm256_i32gather_ps(jb->table + 2, ti, 4);
+    __m256 sin_t, cos_t;
+    tangent8(n0, n1, nr, r0, r1, dx, _mm256_xor_ps(dy, sign), &sin_t, &cos_t);
+    __m256 act = _mm256_and_ps(
+        live, _mm256_cmp_ps(_mm256_sub_ps(_mm256_mul_ps(cos_t, cos_b), _mm256_mul_ps(sin_t, sin_b)),
+                            zero, _CMP_GT_OQ));
+    if (!_mm256_movemask_ps(act)) continue;
+    __m256 sin_h = _mm256_add_ps(_mm256_mul_ps(sin_t, cos_b), _mm256_mul_ps(cos_t, sin_b));
+    for (int k = 1; k <= p->steps; k++) {
+      __m256 o = _mm256_mul_ps(_mm256_add_ps(_mm256_set1_ps((float)k), jit), st);
+      __m256 sx = _mm256_add_ps(cx, _mm256_mul_ps(o, dx));
+      __m256 sy = _mm256_add_ps(cy, _mm256_mul_ps(o, dy));
+      __m256i ix = _mm256_cvttps_epi32(_mm256_floor_ps(sx));
+      __m256i iy = _mm256_cvttps_epi32(_mm256_floor_ps(sy));
+      ix = _mm256_min_epi32(_mm256_max_epi32(ix, izero), wmax);
+      iy = _mm256_min_epi32(_mm256_max_epi32(iy, izero), hmax);
+      __m256i ox = _mm256_sub_epi32(ix, ax), oy = _mm256_sub_epi32(iy, ay);
+      __m256 ok = _mm256_andnot_ps(
+          _mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_or_si256(ox, oy), izero)), act);
+      __m256 zs = _mm256_i32gather_ps(lv->depth, _mm256_add_epi32(_mm256_mullo_epi32(iy, lw), ix), 4);
+      ok = _mm256_and_ps(ok, _mm256_cmp_ps(zs, zero, _CMP_GT_OQ));
+      if (!_mm256_movemask_ps(ok)) continue;
+      __m256 S0 = _mm256_i32gather_ps(jb->colf, ix, 4), S1 = _mm256_i32gather_ps(jb->rowf, iy, 4);
+      if (!g->ortho) {
+        S0 = _mm256_mul_ps(S0, zs);
+        S1 = _mm256_mul_ps(S1, zs);
+      }
+      __m256 ux = _mm256_div_ps(_mm256_sub_ps(S0, P0), Rv);
+      __m256 uy = _mm256_div_ps(_mm256_sub_ps(S1, P1), Rv);
+      __m256 uz = _mm256_div_ps(_mm256_sub_ps(zs, P2), Rv);
+      __m256 d2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(ux, ux), _mm256_mul_ps(uy, uy)),
+                                _mm256_mul_ps(uz, uz));
+      ok = _mm256_and_ps(ok, _mm256_and_ps(_mm256_cmp_ps(d2, one, _CMP_LT_OQ),
+                                           _mm256_cmp_ps(d2, zero, _CMP_GT_OQ)));
+      if (!_mm256_movemask_ps(ok)) continue;
+      __m256 sin_s = _mm256_div_ps(_mm256_xor_ps(uz, sign), _mm256_sqrt_ps(d2));
+      __m256 sin_ts;
+      tangent8(n0, n1, nr, r0, r1, _mm256_cvtepi32_ps(ox),
+               _mm256_xor_ps(_mm256_cvtepi32_ps(oy), sign), &sin_ts, NULL);
+      __m256 e = _mm256_add_ps(_mm256_sub_ps(sin_s, sin_ts), sin_t);
+      e = _mm256_blendv_ps(e, one, _mm256_cmp_ps(e, one, _CMP_GT_OQ));
+      __m256 up = _mm256_and_ps(ok, _mm256_cmp_ps(e, sin_h, _CMP_GT_OQ));
+      __m256 c = _mm256_mul_ps(_mm256_sub_ps(one, d2), _mm256_sub_ps(e, sin_h));
+      sum = _mm256_blendv_ps(sum, _mm256_add_ps(sum, c), up);
+      sin_h = _mm256_blendv_ps(sin_h, e, up);
+    }
+  }
+  __m256 ao = _mm256_sub_ps(one, _mm256_div_ps(_mm256_mul_ps(_mm256_set1_ps(p->scale), sum),
+                                               _mm256_set1_ps((float)p->directions)));
+  ao = _mm256_min_ps(_mm256_max_ps(ao, zero), one);
+  _mm256_storeu_ps(dst, _mm256_blendv_ps(one, ao, live));
+}
+#endif
+
 OBS_HOT_KERNEL static int ao_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)thread;
   hbao_job *jb = user;
-  for (int y = y0; y < y1; y++)
-    for (int x = x0; x < x1; x++) jb->out[(size_t)y * (size_t)jb->lv.w + (size_t)x] = ao_texel(jb, x, y);
+  for (int y = y0; y < y1; y++) {
+    float *row = jb->out + (size_t)y * (size_t)jb->lv.w;
+    int x = x0;
+#if OBS_SIMD_AVX2
+    if (jb->simd)
+      for (; x + 8 <= x1; x += 8) ao_span8(jb, x, y, row + x);
+#endif
+    for (; x < x1; x++) row[x] = ao_texel(jb, x, y);
+  }
   return 0;
+}
+
+/* exp(x) for the blur's weights, x <= 0, written once for the scalar and once for the AVX2 path
+ * with the same operations, so both CPU paths give the same bits (libm's expf has no vector twin
+ * here). Cephes' expf: x = n ln2 + r with |r| <= ln2 / 2, a degree-7 polynomial for e^r, 2^n from
+ * the exponent bits; within 2 ulp of expf. Below -87 (where e^x leaves the normal floats) the weight
+ * is 0; exp(0) is exactly 1, which the blur's centre tap relies on. The GLSL twin keeps the
+ * device's exp: the two backends differ by ~1e-7 in the blurred AO, as before. */
+#define EXP_MIN (-87.0f)
+#define EXP_LOG2E 1.44269504088896341f
+#define EXP_C1 0.693359375f
+#define EXP_C2 (-2.12194440e-4f)
+#define EXP_P0 1.9875691500e-4f
+#define EXP_P1 1.3981999507e-3f
+#define EXP_P2 8.3334519073e-3f
+#define EXP_P3 4.1665795894e-2f
+#define EXP_P4 1.6666665459e-1f
+#define EXP_P5 5.0000001201e-1f
+
+OBS_HOT_INLINE float blur_exp(float x) {
+  if (!(x >= EXP_MIN)) return 0.0f;
+  float n = floorf(x * EXP_LOG2E + 0.5f);
+  float r = (x - n * EXP_C1) - n * EXP_C2;
+  float y = ((((EXP_P0 * r + EXP_P1) * r + EXP_P2) * r + EXP_P3) * r + EXP_P4) * r + EXP_P5;
+  y = (y * (r * r) + r) + 1.0f;
+  uint32_t bits = (uint32_t)((int32_t)n + 127) << 23;
+  float two_n;
+  memcpy(&two_n, &bits, sizeof two_n);
+  return y * two_n;
 }
 
 /* Relative depth difference, clamped so that its square times any allowed sharpness is finite. */
@@ -184,37 +364,105 @@ static int up_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   return 0;
 }
 
-/* One direction of the separable cross-bilateral blur. */
+#if OBS_SIMD_AVX2
+OBS_AVX2_INLINE __m256 blur_exp8(__m256 x) {
+  const __m256 n = _mm256_floor_ps(
+      _mm256_add_ps(_mm256_mul_ps(x, _mm256_set1_ps(EXP_LOG2E)), _mm256_set1_ps(0.5f)));
+  const __m256 r = _mm256_sub_ps(_mm256_sub_ps(x, _mm256_mul_ps(n, _mm256_set1_ps(EXP_C1))),
+                                 _mm256_mul_ps(n, _mm256_set1_ps(EXP_C2)));
+  __m256 y = _mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(EXP_P0), r), _mm256_set1_ps(EXP_P1));
+  y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(EXP_P2));
+  y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(EXP_P3));
+  y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(EXP_P4));
+  y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(EXP_P5));
+  y = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(y, _mm256_mul_ps(r, r)), r), _mm256_set1_ps(1.0f));
+  /* Lanes below EXP_MIN get a garbage n: their exponent bits are masked to 0 below. */
+  const __m256 ok = _mm256_cmp_ps(x, _mm256_set1_ps(EXP_MIN), _CMP_GE_OQ);
+  const __m256i e = _mm256_slli_epi32(
+      _mm256_add_epi32(_mm256_cvttps_epi32(_mm256_and_ps(n, ok)), _mm256_set1_epi32(127)), 23);
+  return _mm256_and_ps(_mm256_mul_ps(y, _mm256_castsi256_ps(e)), ok);
+}
+
+/* blur_tile's pixel for x..x+7 of row y, whose taps along the axis all lie inside the image
+ * horizontally (rows outside it are skipped as in the scalar code). */
+OBS_AVX2_FN static void blur_span8(const hbao_job *jb, int x, int y, float *dst) {
+  const obs_gbuffer *g = jb->g;
+  const int rad = jb->p->blur_radius, W = g->width, H = g->height;
+  const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f);
+  const __m256 absmask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
+  const __m256 maxq = _mm256_set1_ps(OBS_HBAO_MAX_REL_DZ), sign = _mm256_set1_ps(-0.0f);
+  const __m256 falloff = _mm256_set1_ps(jb->falloff);
+  const __m256 sharp = _mm256_set1_ps(jb->p->blur_sharpness);
+  const size_t i = (size_t)y * (size_t)W + (size_t)x;
+  const __m256 zc = _mm256_loadu_ps(g->depth + i);
+  const __m256 covered = _mm256_cmp_ps(zc, zero, _CMP_GT_OQ);
+  __m256 sw = zero, sa = zero;
+  if (_mm256_movemask_ps(covered))
+    for (int k = -rad; k <= rad; k++) {
+      int qy = jb->axis ? y + k : y;
+      if (qy < 0 || qy >= H) continue;
+      size_t j = (size_t)qy * (size_t)W + (size_t)(jb->axis ? x : x + k);
+      __m256 z = _mm256_loadu_ps(g->depth + j);
+      __m256 ok = _mm256_cmp_ps(z, zero, _CMP_GT_OQ);
+      __m256 q = _mm256_div_ps(_mm256_and_ps(_mm256_sub_ps(z, zc), absmask), zc);
+      q = _mm256_blendv_ps(maxq, q, _mm256_cmp_ps(q, maxq, _CMP_LT_OQ));
+      __m256 a = _mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps((float)(k * k)), falloff),
+                               _mm256_mul_ps(sharp, _mm256_mul_ps(q, q)));
+      __m256 w = _mm256_and_ps(blur_exp8(_mm256_xor_ps(a, sign)), ok);
+      /* Adding +0 for a skipped tap leaves the sums' bits alone: they start at +0 and grow. */
+      sw = _mm256_add_ps(sw, w);
+      sa = _mm256_add_ps(sa, _mm256_mul_ps(w, _mm256_loadu_ps(jb->in + j)));
+    }
+  __m256 v = _mm256_div_ps(sa, sw);
+  v = _mm256_min_ps(_mm256_max_ps(v, zero), one);
+  _mm256_storeu_ps(dst, _mm256_blendv_ps(_mm256_loadu_ps(jb->in + i), v, covered));
+}
+#endif
+
+/* One pixel of one direction of the separable cross-bilateral blur. */
+OBS_HOT_INLINE void blur_pixel(const hbao_job *jb, int x, int y) {
+  const obs_gbuffer *g = jb->g;
+  const int rad = jb->p->blur_radius, W = g->width, H = g->height;
+  size_t i = (size_t)y * (size_t)W + (size_t)x;
+  float zc = g->depth[i];
+  if (!(zc > 0.0f)) {
+    jb->out[i] = jb->in[i];
+    return;
+  }
+  float sw = 0.0f, sa = 0.0f;
+  for (int k = -rad; k <= rad; k++) {
+    int qx = jb->axis ? x : x + k, qy = jb->axis ? y + k : y;
+    if (qx < 0 || qx >= W || qy < 0 || qy >= H) continue;
+    size_t j = (size_t)qy * (size_t)W + (size_t)qx;
+    float z = g->depth[j];
+    if (!(z > 0.0f)) continue;
+    float q = rel_dz(z, zc);
+    /* The one transcendental that the backends evaluate differently (see blur_exp). */
+    float w = blur_exp(-((float)(k * k) * jb->falloff + jb->p->blur_sharpness * (q * q)));
+    sw += w;
+    sa += w * jb->in[j];
+  }
+  float v = sa / sw; /* the centre tap has weight exp(0) = 1 */
+  jb->out[i] = v > 1.0f ? 1.0f : v > 0.0f ? v : 0.0f;
+}
+
 OBS_HOT_KERNEL static int blur_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)thread;
   hbao_job *jb = user;
-  const obs_gbuffer *g = jb->g;
-  int rad = jb->p->blur_radius, W = g->width, H = g->height;
-  for (int y = y0; y < y1; y++)
-    for (int x = x0; x < x1; x++) {
-      size_t i = (size_t)y * (size_t)W + (size_t)x;
-      float zc = g->depth[i];
-      if (!(zc > 0.0f)) {
-        jb->out[i] = jb->in[i];
-        continue;
-      }
-      float sw = 0.0f, sa = 0.0f;
-      for (int k = -rad; k <= rad; k++) {
-        int qx = jb->axis ? x : x + k, qy = jb->axis ? y + k : y;
-        if (qx < 0 || qx >= W || qy < 0 || qy >= H) continue;
-        size_t j = (size_t)qy * (size_t)W + (size_t)qx;
-        float z = g->depth[j];
-        if (!(z > 0.0f)) continue;
-        float q = rel_dz(z, zc);
-        /* The one transcendental that both backends evaluate themselves: GLSL's exp may differ
-         * from libm's in the last bits, which changes the blurred AO by ~1e-7. */
-        float w = expf(-((float)(k * k) * jb->falloff + jb->p->blur_sharpness * (q * q)));
-        sw += w;
-        sa += w * jb->in[j];
-      }
-      float v = sa / sw; /* the centre tap has weight exp(0) = 1 */
-      jb->out[i] = v > 1.0f ? 1.0f : v > 0.0f ? v : 0.0f;
+  const int W = jb->g->width;
+  for (int y = y0; y < y1; y++) {
+    int x = x0;
+#if OBS_SIMD_AVX2
+    if (jb->simd) {
+      const int rad = jb->p->blur_radius;
+      const int lo = jb->axis ? 0 : rad, hi = jb->axis ? W : W - rad; /* taps stay in [0, W) */
+      for (; x < x1 && x < lo; x++) blur_pixel(jb, x, y);
+      for (; x + 8 <= x1 && x + 8 <= hi; x += 8)
+        blur_span8(jb, x, y, jb->out + (size_t)y * (size_t)W + (size_t)x);
     }
+#endif
+    for (; x < x1; x++) blur_pixel(jb, x, y);
+  }
   return 0;
 }
 
@@ -242,16 +490,30 @@ int obs_hbao_cpu_apply_ex(const obs_gbuffer *g, const obs_hbao_params *p, int th
   /* One allocation: table, half-resolution depth+normal+AO (if any), raw AO, blur temporary. */
   size_t ntab = (size_t)OBS_HBAO_NOISE_CELLS * (size_t)p->directions * 4;
   size_t nhalf = p->half_res ? 5 * ln : 0;
-  float *mem = malloc((ntab + nhalf + 2 * n) * sizeof(float));
+  float *mem = malloc((ntab + nhalf + 2 * n + (size_t)lw + (size_t)lh) * sizeof(float));
   if (!mem) return obs_err_set(err, OBS_ENOMEM, "hbao: %dx%d: out of memory", g->width, g->height);
   float *table = mem, *half = mem + ntab, *raw = half + nhalf, *tmp = raw + n;
+  float *colf = tmp + n, *rowf = colf + lw;
   obs_hbao_directions(p, table);
+  int s = p->half_res ? 2 : 1;
+  for (int x = 0; x < lw; x++) {
+    float fx = (float)(s * x) + 0.5f;
+    colf[x] = (2.0f * fx / (float)g->width - 1.0f) * g->half_w;
+  }
+  for (int y = 0; y < lh; y++) {
+    float fy = (float)(s * y) + 0.5f;
+    rowf[y] = (1.0f - 2.0f * fy / (float)g->height) * g->half_h;
+  }
 
   hbao_job jb;
   memset(&jb, 0, sizeof jb);
   jb.g = g;
   jb.p = p;
   jb.table = table;
+  jb.colf = colf;
+  jb.rowf = rowf;
+  /* The vector kernels index with 32-bit lanes. */
+  jb.simd = obs_simd_avx2() && n <= (size_t)INT32_MAX;
   jb.cos_b = (float)cos((double)p->angle_bias);
   jb.sin_b = (float)sin((double)p->angle_bias);
   float sigma = ((float)p->blur_radius + 1.0f) * 0.5f;
