@@ -27,6 +27,7 @@ typedef struct hbao_job {
   const obs_hbao_params *p;
   const float *table;
   float cos_b, sin_b;
+  float inv_r; /* 1 / radius, rounded once for both backends (obs_hbao_inv_radius) */
   float falloff; /* 1 / (2 sigma^2) of the blur's Gaussian */
   const float *in;
   float *out;
@@ -114,8 +115,11 @@ OBS_HOT_INLINE float ao_texel(const hbao_job *jb, int ax, int ay) {
       if (!(zs > 0.0f)) continue; /* background */
       float S[3];
       obs_gbuffer_position(g, (float)(lv->s * ix) + 0.5f, (float)(lv->s * iy) + 0.5f, zs, S);
-      /* In units of R, so huge and tiny scenes neither overflow nor underflow the square. */
-      float ux = (S[0] - P[0]) / R, uy = (S[1] - P[1]) / R, uz = (S[2] - P[2]) / R;
+      /* In units of R, so huge and tiny scenes neither overflow nor underflow the square; one
+       * reciprocal (rounded once, on the host, for both backends) instead of three divisions per
+       * sample, the costliest operations of the march. */
+      float ux = (S[0] - P[0]) * jb->inv_r, uy = (S[1] - P[1]) * jb->inv_r,
+            uz = (S[2] - P[2]) * jb->inv_r;
       float d2 = ux * ux + uy * uy + uz * uz;
       if (!(d2 < 1.0f) || !(d2 > 0.0f)) continue;
       float len = sqrtf(d2);
@@ -188,7 +192,7 @@ OBS_AVX2_FN static void ao_span8(const hbao_job *jb, int x, int y, float *dst) {
     r0 = cfx;
     r1 = cfy;
   }
-  const __m256 P2 = z, Rv = _mm256_set1_ps(R);
+  const __m256 P2 = z, inv_r = _mm256_set1_ps(jb->inv_r);
   const float num = R * (0.5f * (float)g->width);
   __m256 rpx = g->ortho ? _mm256_set1_ps(num / g->half_w)
                         : _mm256_div_ps(_mm256_set1_ps(num), _mm256_mul_ps(_mm256_set1_ps(g->half_w), z));
@@ -248,9 +252,9 @@ OBS_AVX2_FN static void ao_span8(const hbao_job *jb, int x, int y, float *dst) {
         S0 = _mm256_mul_ps(S0, zs);
         S1 = _mm256_mul_ps(S1, zs);
       }
-      __m256 ux = _mm256_div_ps(_mm256_sub_ps(S0, P0), Rv);
-      __m256 uy = _mm256_div_ps(_mm256_sub_ps(S1, P1), Rv);
-      __m256 uz = _mm256_div_ps(_mm256_sub_ps(zs, P2), Rv);
+      __m256 ux = _mm256_mul_ps(_mm256_sub_ps(S0, P0), inv_r);
+      __m256 uy = _mm256_mul_ps(_mm256_sub_ps(S1, P1), inv_r);
+      __m256 uz = _mm256_mul_ps(_mm256_sub_ps(zs, P2), inv_r);
       __m256 d2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(ux, ux), _mm256_mul_ps(uy, uy)),
                                 _mm256_mul_ps(uz, uz));
       ok = _mm256_and_ps(ok, _mm256_and_ps(_mm256_cmp_ps(d2, one, _CMP_LT_OQ),
@@ -514,6 +518,7 @@ int obs_hbao_cpu_apply_ex(const obs_gbuffer *g, const obs_hbao_params *p, int th
   jb.rowf = rowf;
   /* The vector kernels index with 32-bit lanes. */
   jb.simd = obs_simd_avx2() && n <= (size_t)INT32_MAX;
+  jb.inv_r = obs_hbao_inv_radius(p);
   jb.cos_b = (float)cos((double)p->angle_bias);
   jb.sin_b = (float)sin((double)p->angle_bias);
   float sigma = ((float)p->blur_radius + 1.0f) * 0.5f;

@@ -64,6 +64,9 @@ void obs_hbao_directions(const obs_hbao_params *p, float *table);
 /* Sizes of the AO pass: full resolution, or ceil(w/2) x ceil(h/2) with half_res (texel (x, y)
  * reads the full-resolution texel (2x, 2y)). */
 void obs_hbao_level_size(const obs_hbao_params *p, int width, int height, int *lw, int *lh);
+/* 1 / radius in float, computed once on the host and handed to both backends, so their horizon
+ * distances (S - P) / R, taken as (S - P) * (1 / R), round alike. */
+static inline float obs_hbao_inv_radius(const obs_hbao_params *p) { return 1.0f / p->radius; }
 
 /* CPU twin: AO of G-buffer `g` into `ao` (width*height floats, finite, in [0,1], 1 where
  * uncovered). stage_ms (may be NULL) gets OBS_HBAO_PASS_COUNT entries. */

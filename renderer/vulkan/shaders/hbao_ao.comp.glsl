@@ -9,7 +9,7 @@ layout(binding = 2, rgba32f) uniform readonly image2D dirs; // directions x 16: 
 layout(binding = 3, r32f) uniform writeonly image2D ao_out;
 layout(push_constant) uniform Push {
   int lw, lh, s, width, height, ortho, directions, steps;
-  float half_w, half_h, radius, cos_b, sin_b, scale;
+  float half_w, half_h, radius, cos_b, sin_b, scale, inv_r; // inv_r = 1 / radius, host float
 } pc;
 
 // obs_gbuffer_position (renderer/core/gbuffer.h).
@@ -92,9 +92,9 @@ float ao_texel(ivec2 a) {
       precise float zs = imageLoad(depth_l, ivec2(ix, iy)).x;
       if (!(zs > 0.0)) continue;
       precise vec3 S = position(float(pc.s * ix) + 0.5, float(pc.s * iy) + 0.5, zs);
-      precise float ux = (S.x - P.x) / R;
-      precise float uy = (S.y - P.y) / R;
-      precise float uz = (S.z - P.z) / R;
+      precise float ux = (S.x - P.x) * pc.inv_r;
+      precise float uy = (S.y - P.y) * pc.inv_r;
+      precise float uz = (S.z - P.z) * pc.inv_r;
       precise float d2 = ux * ux + uy * uy + uz * uz;
       if (!(d2 < 1.0) || !(d2 > 0.0)) continue;
       precise float len = sqrt(d2);
