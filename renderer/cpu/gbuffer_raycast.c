@@ -1,5 +1,6 @@
-/* The CPU backend's G-buffer: one Embree ray through each pixel centre, producing exactly the
- * buffers the Vulkan rasteriser produces (see renderer/core/gbuffer.h for the definitions). */
+/* The CPU backend's G-buffer: one Embree ray through each pixel centre, traced in small packets,
+ * producing exactly the buffers the Vulkan rasteriser produces (see renderer/core/gbuffer.h for
+ * the definitions). */
 #include "gbuffer.h"
 
 #include <math.h>
@@ -9,14 +10,19 @@
 #include "parallel.h"
 #include "raytrace.h"
 
+/* Pixel block traced as one packet: 4 wide and as tall as the packet allows, so neighbouring
+ * rays share BVH traversal. Tiles are multiples of it except at the image's right and bottom. */
+enum { GB_BLOCK_W = 4, GB_BLOCK_H = OBS_RT_PACKET / GB_BLOCK_W };
+
 typedef struct gb_job {
   const obs_scene *scene;
   const obs_rt *rt;
   obs_camera_rig cam;
+  obs_rt_view view;
   obs_gbuffer *g;
 } gb_job;
 
-static const obs_object *hit_object(const gb_job *j, const obs_hit *h) {
+static const obs_object *hit_object(const gb_job *j, const obs_rt_primary *h) {
   if (h->geom == j->rt->sphere_geom) return &j->scene->objects[j->rt->geo.spheres[h->prim].object];
   return &j->scene->objects[j->rt->geo.meshes[h->geom].object];
 }
@@ -24,27 +30,54 @@ static const obs_object *hit_object(const gb_job *j, const obs_hit *h) {
 static int gb_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)thread;
   gb_job *j = user;
+  const obs_camera_rig *cam = &j->cam;
   obs_gbuffer *g = j->g;
-  for (int y = y0; y < y1; y++)
-    for (int x = x0; x < x1; x++) {
-      size_t i = (size_t)y * (size_t)g->width + (size_t)x;
-      double org[3], dir[3];
-      obs_camera_ray(&j->cam, x + 0.5, y + 0.5, org, dir);
-      obs_hit h;
-      if (!obs_rt_intersect(j->rt, org, dir, INFINITY, &h)) continue;
-      double fwd = dir[0] * j->cam.forward[0] + dir[1] * j->cam.forward[1] +
-                   dir[2] * j->cam.forward[2];
-      g->depth[i] = (float)(h.t * fwd);
-      g->coverage[i] = 1.0f;
-      /* Face normal (not the shading normal), as the rasteriser derives it from positions. */
-      const double *axes[3] = {j->cam.right, j->cam.up, j->cam.forward};
-      for (int k = 0; k < 3; k++)
-        g->normal[3 * i + k] =
-            (float)(h.ng[0] * axes[k][0] + h.ng[1] * axes[k][1] + h.ng[2] * axes[k][2]);
-      const obs_object *o = hit_object(j, &h);
-      g->albedo[3 * i] = o->has_material ? (float)o->reflectivity.x : 1.0f;
-      g->albedo[3 * i + 1] = o->has_material ? (float)o->reflectivity.y : 1.0f;
-      g->albedo[3 * i + 2] = o->has_material ? (float)o->reflectivity.z : 1.0f;
+  /* obs_camera_ray's image-plane offsets, per column and per row of the tile. */
+  double sxs[OBS_TILE], sys[OBS_TILE];
+  for (int x = x0; x < x1; x++) sxs[x - x0] = (2.0 * (x + 0.5) / cam->width - 1.0) * cam->half_w;
+  for (int y = y0; y < y1; y++) sys[y - y0] = (1.0 - 2.0 * (y + 0.5) / cam->height) * cam->half_h;
+  /* Runs of pixels see the same face: its view-space normal and albedo are reused while the hit's
+   * primitive and world normal stay the same. */
+  unsigned last_geom = RTC_INVALID_GEOMETRY_ID, last_prim = 0;
+  double last_ng[3] = {0, 0, 0};
+  float view_n[3] = {0, 0, 0}, albedo[3] = {0, 0, 0};
+  for (int by = y0; by < y1; by += GB_BLOCK_H)
+    for (int bx = x0; bx < x1; bx += GB_BLOCK_W) {
+      double sx[OBS_RT_PACKET], sy[OBS_RT_PACKET];
+      size_t pix[OBS_RT_PACKET];
+      int n = 0;
+      for (int y = by; y < by + GB_BLOCK_H && y < y1; y++)
+        for (int x = bx; x < bx + GB_BLOCK_W && x < x1; x++, n++) {
+          sx[n] = sxs[x - x0];
+          sy[n] = sys[y - y0];
+          pix[n] = (size_t)y * (size_t)g->width + (size_t)x;
+        }
+      obs_rt_primary hits[OBS_RT_PACKET];
+      obs_rt_intersect_primary(j->rt, &j->view, n, sx, sy, hits);
+      for (int l = 0; l < n; l++) {
+        const obs_rt_primary *h = &hits[l];
+        if (h->geom == RTC_INVALID_GEOMETRY_ID) continue;
+        if (h->geom != last_geom || h->prim != last_prim || h->ng[0] != last_ng[0] ||
+            h->ng[1] != last_ng[1] || h->ng[2] != last_ng[2]) {
+          /* Face normal (not the shading normal), as the rasteriser derives it from positions. */
+          const double *axes[3] = {cam->right, cam->up, cam->forward};
+          for (int k = 0; k < 3; k++)
+            view_n[k] =
+                (float)(h->ng[0] * axes[k][0] + h->ng[1] * axes[k][1] + h->ng[2] * axes[k][2]);
+          const obs_object *o = hit_object(j, h);
+          albedo[0] = o->has_material ? (float)o->reflectivity.x : 1.0f;
+          albedo[1] = o->has_material ? (float)o->reflectivity.y : 1.0f;
+          albedo[2] = o->has_material ? (float)o->reflectivity.z : 1.0f;
+          last_geom = h->geom;
+          last_prim = h->prim;
+          last_ng[0] = h->ng[0], last_ng[1] = h->ng[1], last_ng[2] = h->ng[2];
+        }
+        size_t i = pix[l];
+        g->depth[i] = (float)h->t;
+        g->coverage[i] = 1.0f;
+        memcpy(g->normal + 3 * i, view_n, sizeof view_n);
+        memcpy(g->albedo + 3 * i, albedo, sizeof albedo);
+      }
     }
   return 0;
 }
@@ -65,6 +98,15 @@ int obs_gbuffer_raycast(const obs_scene *sc, obs_gbuffer *g, int threads, double
   }
   double t1 = obs_now_ms();
   j.rt = &rt;
+  /* obs_camera_ray's rays, but with the perspective direction left unnormalised: its projection
+   * on forward is 1, so a hit's ray parameter is its view depth. */
+  j.view.ortho = j.cam.ortho;
+  for (int k = 0; k < 3; k++) {
+    j.view.eye[k] = j.cam.origin[k] - rt.geo.origin[k];
+    j.view.forward[k] = j.cam.forward[k];
+    j.view.right[k] = j.cam.right[k];
+    j.view.up[k] = j.cam.up[k];
+  }
   j.g = g;
   rc = obs_parallel_tiles(sc->width, sc->height, threads, gb_tile, &j, NULL, NULL, NULL);
   if (build_ms) *build_ms = t1 - t0;

@@ -4,6 +4,7 @@
 #include "raytrace.h"
 
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -29,14 +30,13 @@ static void sphere_bounds(const struct RTCBoundsFunctionArguments *a) {
 /* Ray/sphere roots in double with the numerically careful discriminant of Haines et al.
  * ("Precision Improvements for Ray/Sphere Intersection", Ray Tracing Gems ch. 7). Returns the
  * nearest acceptable root in (tnear, tfar] or -1. */
-static double sphere_root(const obs_sphere *s, const float o[3], const float d[3], float tnear,
-                          float tfar, int mode) {
+static double sphere_root(const obs_sphere *s, const double o[3], const double d[3], double tnear,
+                          double tfar, int mode) {
   double oc[3] = {o[0] - s->center[0], o[1] - s->center[1], o[2] - s->center[2]};
-  double dd[3] = {d[0], d[1], d[2]};
-  double a = dd[0] * dd[0] + dd[1] * dd[1] + dd[2] * dd[2];
+  double a = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
   if (!(a > 0)) return -1;
-  double b = -(oc[0] * dd[0] + oc[1] * dd[1] + oc[2] * dd[2]) / a; /* closest approach */
-  double f[3] = {oc[0] + b * dd[0], oc[1] + b * dd[1], oc[2] + b * dd[2]};
+  double b = -(oc[0] * d[0] + oc[1] * d[1] + oc[2] * d[2]) / a; /* closest approach */
+  double f[3] = {oc[0] + b * d[0], oc[1] + b * d[1], oc[2] + b * d[2]};
   double r2 = s->radius * s->radius;
   double disc = r2 - (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
   if (disc < 0) return -1;
@@ -66,35 +66,66 @@ static void skip_origin_filter(const struct RTCFilterFunctionNArguments *a) {
   }
 }
 
+/* RTCRayN and RTCRayHitN are structure-of-arrays, so field k of lane i sits at [k * N + i]: the
+ * ray's twelve fields, then the hit's (the C++ accessors of rtcore_ray.h, which C cannot use).
+ * N == 1 is the plain RTCRay / RTCRayHit layout. */
+enum {
+  SOA_ORG = 0,
+  SOA_TNEAR = 3,
+  SOA_DIR = 4,
+  SOA_TFAR = 8,
+  SOA_NG = 12,
+  SOA_U = 15,
+  SOA_V = 16,
+  SOA_PRIM = 17,
+  SOA_GEOM = 18,
+  SOA_INST = 19
+};
+_Static_assert(offsetof(struct RTCRayHit8, hit.instID) == SOA_INST * 8 * sizeof(float),
+               "RTCRayHitN layout");
+
 static void sphere_intersect(const struct RTCIntersectFunctionNArguments *a) {
-  if (a->N != 1 || !a->valid[0]) return;
   const obs_rt *rt = a->geometryUserPtr;
   const obs_sphere *s = &rt->geo.spheres[a->primID];
-  struct RTCRayHit *rh = (struct RTCRayHit *)a->rayhit;
-  float o[3] = {rh->ray.org_x, rh->ray.org_y, rh->ray.org_z};
-  float d[3] = {rh->ray.dir_x, rh->ray.dir_y, rh->ray.dir_z};
-  double t = sphere_root(s, o, d, rh->ray.tnear, rh->ray.tfar,
-                         sphere_mode((const obs_rt_ctx *)a->context, a->geomID, a->primID));
-  if (t < 0) return;
-  rh->ray.tfar = (float)t;
-  rh->hit.Ng_x = (float)(o[0] + t * d[0] - s->center[0]);
-  rh->hit.Ng_y = (float)(o[1] + t * d[1] - s->center[1]);
-  rh->hit.Ng_z = (float)(o[2] + t * d[2] - s->center[2]);
-  rh->hit.u = rh->hit.v = 0;
-  rh->hit.primID = a->primID;
-  rh->hit.geomID = a->geomID;
-  rh->hit.instID[0] = a->context->instID[0];
+  const int mode = sphere_mode((const obs_rt_ctx *)a->context, a->geomID, a->primID);
+  const unsigned N = a->N;
+  float *r = (float *)a->rayhit;
+  unsigned *u = (unsigned *)a->rayhit;
+  for (unsigned i = 0; i < N; i++) {
+    if (a->valid[i] != -1) continue;
+    double o[3], d[3];
+    for (int k = 0; k < 3; k++) {
+      o[k] = r[(SOA_ORG + k) * N + i];
+      d[k] = r[(SOA_DIR + k) * N + i];
+    }
+    double t = sphere_root(s, o, d, r[SOA_TNEAR * N + i], r[SOA_TFAR * N + i], mode);
+    if (t < 0) continue;
+    r[SOA_TFAR * N + i] = (float)t;
+    for (int k = 0; k < 3; k++) r[(SOA_NG + k) * N + i] = (float)(o[k] + t * d[k] - s->center[k]);
+    r[SOA_U * N + i] = r[SOA_V * N + i] = 0;
+    u[SOA_PRIM * N + i] = a->primID;
+    u[SOA_GEOM * N + i] = a->geomID;
+    u[SOA_INST * N + i] = a->context->instID[0];
+  }
 }
 
 static void sphere_occluded(const struct RTCOccludedFunctionNArguments *a) {
-  if (a->N != 1 || !a->valid[0]) return;
   const obs_rt *rt = a->geometryUserPtr;
-  struct RTCRay *r = (struct RTCRay *)a->ray;
-  float o[3] = {r->org_x, r->org_y, r->org_z}, d[3] = {r->dir_x, r->dir_y, r->dir_z};
-  /* Embree's occlusion interval is (tnear, tfar]; rays here use tfar = max distance. */
-  if (sphere_root(&rt->geo.spheres[a->primID], o, d, r->tnear, r->tfar,
-                  sphere_mode((const obs_rt_ctx *)a->context, a->geomID, a->primID)) >= 0)
-    r->tfar = -INFINITY;
+  const obs_sphere *s = &rt->geo.spheres[a->primID];
+  const int mode = sphere_mode((const obs_rt_ctx *)a->context, a->geomID, a->primID);
+  const unsigned N = a->N;
+  float *r = (float *)a->ray;
+  for (unsigned i = 0; i < N; i++) {
+    if (a->valid[i] != -1) continue;
+    double o[3], d[3];
+    for (int k = 0; k < 3; k++) {
+      o[k] = r[(SOA_ORG + k) * N + i];
+      d[k] = r[(SOA_DIR + k) * N + i];
+    }
+    /* Embree's occlusion interval is (tnear, tfar]; rays here use tfar = max distance. */
+    if (sphere_root(s, o, d, r[SOA_TNEAR * N + i], r[SOA_TFAR * N + i], mode) >= 0)
+      r[SOA_TFAR * N + i] = -INFINITY;
+  }
 }
 
 static void on_embree_error(void *user, enum RTCError code, const char *str) {
@@ -280,6 +311,142 @@ int obs_rt_intersect(const obs_rt *rt, const double world_org[3], const double d
     memcpy(hit->ns, ng, sizeof ng);
   }
   return 1;
+}
+
+#if OBS_RT_PACKET == 16
+typedef struct RTCRayHit16 rt_packet;
+#define rt_intersect_packet rtcIntersect16
+#elif OBS_RT_PACKET == 8
+typedef struct RTCRayHit8 rt_packet;
+#define rt_intersect_packet rtcIntersect8
+#else
+#error "OBS_RT_PACKET must be 8 or 16"
+#endif
+
+static inline void view_ray(const obs_rt_view *v, double sx, double sy, double o[3], double d[3]) {
+  for (int k = 0; k < 3; k++) {
+    double off = sx * v->right[k] + sy * v->up[k];
+    o[k] = v->ortho ? v->eye[k] + off : v->eye[k];
+    d[k] = v->ortho ? v->forward[k] : v->forward[k] + off;
+  }
+}
+
+void obs_rt_intersect_primary(const obs_rt *rt, const obs_rt_view *view, int n, const double sx[],
+                              const double sy[], obs_rt_primary *out) {
+  /* Embree loads the mask and the packet as whole vectors: both need the packet's alignment,
+   * which rt_packet's type carries and the mask is given here. */
+  rt_packet rh;
+  _Alignas(rt_packet) int valid[OBS_RT_PACKET];
+  /* Idle lanes repeat lane 0 so every lane holds a well-formed ray. The packet is filled field
+   * by field in branch-free loops the compiler vectorises: per-lane setup is a large share of a
+   * primary ray's cost once Embree traces 16 at a time. */
+  double lx[OBS_RT_PACKET], ly[OBS_RT_PACKET];
+  for (int i = 0; i < OBS_RT_PACKET; i++) {
+    lx[i] = sx[i < n ? i : 0];
+    ly[i] = sy[i < n ? i : 0];
+    valid[i] = i < n ? -1 : 0;
+  }
+  float *o[3] = {rh.ray.org_x, rh.ray.org_y, rh.ray.org_z};
+  float *d[3] = {rh.ray.dir_x, rh.ray.dir_y, rh.ray.dir_z};
+  for (int k = 0; k < 3; k++) {
+    const double e = view->eye[k], f = view->forward[k], r = view->right[k], u = view->up[k];
+    /* The same expressions as view_ray, so Embree sees the rounding of the refined ray. */
+    if (view->ortho) {
+      for (int i = 0; i < OBS_RT_PACKET; i++) o[k][i] = (float)(e + (lx[i] * r + ly[i] * u));
+      for (int i = 0; i < OBS_RT_PACKET; i++) d[k][i] = (float)f;
+    } else {
+      for (int i = 0; i < OBS_RT_PACKET; i++) o[k][i] = (float)e;
+      for (int i = 0; i < OBS_RT_PACKET; i++) d[k][i] = (float)(f + (lx[i] * r + ly[i] * u));
+    }
+  }
+  for (int i = 0; i < OBS_RT_PACKET; i++) {
+    rh.ray.tnear[i] = 0.0f;
+    rh.ray.tfar[i] = INFINITY;
+    rh.ray.time[i] = 0.0f;
+    rh.ray.mask[i] = ~0u;
+    rh.ray.id[i] = (unsigned)i;
+    rh.ray.flags[i] = 0;
+    rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+  }
+  obs_rt_ctx c;
+  rtcInitIntersectContext(&c.ctx);
+  c.ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+  c.skip_geom = c.skip_prim = ~0u;
+  c.skip_mode = 0;
+  rt_intersect_packet(valid, rt->scene, &c.ctx, &rh);
+  /* Neighbouring lanes mostly hit the same triangle: its plane is set up once per run of them. */
+  unsigned plane_geom = RTC_INVALID_GEOMETRY_ID, plane_prim = 0;
+  const float *plane_a = NULL;
+  double plane_n[3] = {0, 0, 0}, plane_unit[3] = {0, 0, 0};
+  for (int i = 0; i < n; i++) {
+    obs_rt_primary *h = &out[i];
+    h->geom = rh.hit.geomID[i];
+    h->prim = rh.hit.primID[i];
+    if (h->geom == RTC_INVALID_GEOMETRY_ID) {
+      h->t = INFINITY;
+      h->ng[0] = h->ng[1] = h->ng[2] = 0;
+      continue;
+    }
+    double ro[3], rd[3];
+    view_ray(view, sx[i], sy[i], ro, rd);
+    double t = rh.ray.tfar[i];
+    double ng[3] = {rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]};
+    int unit = 0;
+    if (h->geom == rt->sphere_geom) {
+      /* The root again from the double ray, which Embree only saw rounded to float. Grazing rays
+       * the double ray misses keep Embree's root. */
+      const obs_sphere *s = &rt->geo.spheres[h->prim];
+      double td = sphere_root(s, ro, rd, 0.0, INFINITY, 0);
+      if (td >= 0 && isfinite(td)) t = td;
+      for (int k = 0; k < 3; k++) ng[k] = ro[k] + t * rd[k] - s->center[k];
+    } else {
+      /* The hit triangle's plane in double, as obs_rt_intersect does: Embree's float t errs in
+       * proportion to the vertices' magnitude. The plane's double normal is the face normal. */
+      if (h->geom != plane_geom || h->prim != plane_prim) {
+        const obs_mesh *m = &rt->geo.meshes[h->geom];
+        const uint32_t *tri = m->idx + 3 * (size_t)h->prim;
+        const float *a = m->pos + 3 * tri[0], *b = m->pos + 3 * tri[1], *c = m->pos + 3 * tri[2];
+        double e1[3], e2[3];
+        for (int k = 0; k < 3; k++) {
+          e1[k] = (double)b[k] - a[k];
+          e2[k] = (double)c[k] - a[k];
+        }
+        plane_n[0] = e1[1] * e2[2] - e1[2] * e2[1];
+        plane_n[1] = e1[2] * e2[0] - e1[0] * e2[2];
+        plane_n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+        double l =
+            sqrt(plane_n[0] * plane_n[0] + plane_n[1] * plane_n[1] + plane_n[2] * plane_n[2]);
+        for (int k = 0; k < 3; k++) plane_unit[k] = l > 0 ? plane_n[k] / l : 0;
+        plane_a = a;
+        plane_geom = h->geom;
+        plane_prim = h->prim;
+      }
+      double oa[3] = {plane_a[0] - ro[0], plane_a[1] - ro[1], plane_a[2] - ro[2]};
+      double dn = plane_n[0] * rd[0] + plane_n[1] * rd[1] + plane_n[2] * rd[2];
+      double tp = (oa[0] * plane_n[0] + oa[1] * plane_n[1] + oa[2] * plane_n[2]) / dn;
+      if (dn != 0.0 && isfinite(tp) && tp >= 0.0) {
+        t = tp;
+        ng[0] = plane_unit[0], ng[1] = plane_unit[1], ng[2] = plane_unit[2];
+        unit = 1;
+      }
+    }
+    if (!unit) {
+      double l = sqrt(ng[0] * ng[0] + ng[1] * ng[1] + ng[2] * ng[2]);
+      if (l > 0 && isfinite(l)) {
+        for (int k = 0; k < 3; k++) ng[k] /= l;
+      } else {
+        ng[0] = 0, ng[1] = 0, ng[2] = 1;
+      }
+    }
+    /* Element-wise stores: a memcpy of the array here compiled to a vector load of scalar stores,
+     * a store-forwarding stall on every lane. */
+    double face = ng[0] * rd[0] + ng[1] * rd[1] + ng[2] * rd[2] > 0 ? -1.0 : 1.0;
+    h->t = t;
+    h->ng[0] = face * ng[0];
+    h->ng[1] = face * ng[1];
+    h->ng[2] = face * ng[2];
+  }
 }
 
 void obs_rt_offset(const obs_rt *rt, const obs_hit *hit, float out[3]) {
