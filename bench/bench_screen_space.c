@@ -621,6 +621,7 @@ static int accuracy_mode(const options *o, int have_vk) {
 int main(int argc, char **argv) {
   options o;
   if (parse_args(argc, argv, &o)) return 2;
+  obs_render_keep_memory(); /* as obscurad does */
   int have_vk = obs_vk_available();
   char dev[256] = "none";
   if (have_vk && o.vulkan) {

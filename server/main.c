@@ -89,6 +89,7 @@ static int resolve_dir(const char *opt, const char *dir, char *out, int required
 
 int main(int argc, char **argv) {
   static srv_app app;
+  obs_render_keep_memory();
   int rc = srv_config_parse(&app.cfg, argc, argv);
   if (rc) {
     srv_config_free(&app.cfg);

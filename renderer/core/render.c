@@ -2,6 +2,9 @@
 #include "obscura/render.h"
 
 #include <errno.h>
+#if defined(__GLIBC__) || defined(__linux__)
+#include <malloc.h>
+#endif
 #include <jansson.h>
 #include <math.h>
 #include <stdio.h>
@@ -9,6 +12,14 @@
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
+
+void obs_render_keep_memory(void) {
+#if defined(M_MMAP_THRESHOLD) && defined(M_TRIM_THRESHOLD)
+  /* 32 MiB is glibc's ceiling for the mmap threshold: larger blocks are always mapped afresh. */
+  mallopt(M_MMAP_THRESHOLD, 32 << 20);
+  mallopt(M_TRIM_THRESHOLD, 256 << 20);
+#endif
+}
 
 double obs_now_ms(void) {
   struct timespec ts;
