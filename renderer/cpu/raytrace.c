@@ -4,6 +4,7 @@
 #include "raytrace.h"
 
 #include <math.h>
+#include <stdlib.h>
 #include <stddef.h>
 #include <stdio.h>
 #include <string.h>
@@ -313,15 +314,32 @@ int obs_rt_intersect(const obs_rt *rt, const double world_org[3], const double d
   return 1;
 }
 
+/* Storage for one packet's rays and hits, structure-of-arrays. */
 #if OBS_RT_PACKET == 16
 typedef struct RTCRayHit16 rt_packet;
-#define rt_intersect_packet rtcIntersect16
 #elif OBS_RT_PACKET == 8
 typedef struct RTCRayHit8 rt_packet;
-#define rt_intersect_packet rtcIntersect8
 #else
 #error "OBS_RT_PACKET must be 8 or 16"
 #endif
+
+/* The packet's rays go to Embree as a structure-of-arrays stream (rtcIntersectNp), not through
+ * rtcIntersect16/8: Embree has 16-wide packet kernels only in its AVX-512 build and 8-wide ones only
+ * from AVX on, and on a CPU without them those calls fail and leave every ray a miss, while a
+ * stream is split into whatever packets the CPU has. On the AVX-512 machine of
+ * docs/performance.md the stream is as fast as rtcIntersect16 (G-buffer 8.4 against 8.3 ms). */
+static void trace_packet(RTCScene scene, struct RTCIntersectContext *ctx, rt_packet *rh, int n) {
+  struct RTCRayHitNp np;
+  np.ray.org_x = rh->ray.org_x, np.ray.org_y = rh->ray.org_y, np.ray.org_z = rh->ray.org_z;
+  np.ray.dir_x = rh->ray.dir_x, np.ray.dir_y = rh->ray.dir_y, np.ray.dir_z = rh->ray.dir_z;
+  np.ray.tnear = rh->ray.tnear, np.ray.tfar = rh->ray.tfar, np.ray.time = rh->ray.time;
+  np.ray.mask = rh->ray.mask, np.ray.id = rh->ray.id, np.ray.flags = rh->ray.flags;
+  np.hit.Ng_x = rh->hit.Ng_x, np.hit.Ng_y = rh->hit.Ng_y, np.hit.Ng_z = rh->hit.Ng_z;
+  np.hit.u = rh->hit.u, np.hit.v = rh->hit.v;
+  np.hit.primID = rh->hit.primID, np.hit.geomID = rh->hit.geomID;
+  np.hit.instID[0] = rh->hit.instID[0];
+  rtcIntersectNp(scene, ctx, &np, (unsigned)n);
+}
 
 static inline void view_ray(const obs_rt_view *v, double sx, double sy, double o[3], double d[3]) {
   for (int k = 0; k < 3; k++) {
@@ -333,18 +351,14 @@ static inline void view_ray(const obs_rt_view *v, double sx, double sy, double o
 
 void obs_rt_intersect_primary(const obs_rt *rt, const obs_rt_view *view, int n, const double sx[],
                               const double sy[], obs_rt_primary *out) {
-  /* Embree loads the mask and the packet as whole vectors: both need the packet's alignment,
-   * which rt_packet's type carries and the mask is given here. */
   rt_packet rh;
-  _Alignas(rt_packet) int valid[OBS_RT_PACKET];
-  /* Idle lanes repeat lane 0 so every lane holds a well-formed ray. The packet is filled field
+  /* Idle lanes (not traced) repeat lane 0 so every lane holds a well-formed ray. The packet is filled field
    * by field in branch-free loops the compiler vectorises: per-lane setup is a large share of a
    * primary ray's cost once Embree traces 16 at a time. */
   double lx[OBS_RT_PACKET], ly[OBS_RT_PACKET];
   for (int i = 0; i < OBS_RT_PACKET; i++) {
     lx[i] = sx[i < n ? i : 0];
     ly[i] = sy[i < n ? i : 0];
-    valid[i] = i < n ? -1 : 0;
   }
   float *o[3] = {rh.ray.org_x, rh.ray.org_y, rh.ray.org_z};
   float *d[3] = {rh.ray.dir_x, rh.ray.dir_y, rh.ray.dir_z};
@@ -374,7 +388,7 @@ void obs_rt_intersect_primary(const obs_rt *rt, const obs_rt_view *view, int n, 
   c.ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
   c.skip_geom = c.skip_prim = ~0u;
   c.skip_mode = 0;
-  rt_intersect_packet(valid, rt->scene, &c.ctx, &rh);
+  trace_packet(rt->scene, &c.ctx, &rh, n);
   /* Neighbouring lanes mostly hit the same triangle: its plane is set up once per run of them. */
   unsigned plane_geom = RTC_INVALID_GEOMETRY_ID, plane_prim = 0;
   const float *plane_a = NULL;

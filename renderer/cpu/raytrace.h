@@ -45,9 +45,9 @@ void obs_rt_free(obs_rt *rt);
  * (p in the ray tracer's camera-relative frame, world minus rt->geo.origin), or 0 on a miss. */
 int obs_rt_intersect(const obs_rt *rt, const double org[3], const double dir[3], float tfar,
                      obs_hit *hit);
-/* Lanes per obs_rt_intersect_primary call: one Embree packet. 16 measured ~15% faster than 8 on
- * an AVX-512 machine (G-buffer of the Cornell box); Embree emulates 16-wide packets on AVX2, so
- * the same binary still runs there. 8 is the other supported value. */
+/* Rays per obs_rt_intersect_primary call (a 4x4 pixel block), handed to Embree as one stream
+ * that it splits into the packets the CPU has. 16 measured ~15% faster than 8 (4x2 blocks) on an
+ * AVX-512 machine (G-buffer of the Cornell box). 8 is the other supported value. */
 #define OBS_RT_PACKET 16
 
 /* A camera in the ray tracer's frame. The ray through image-plane offset (sx, sy) is
