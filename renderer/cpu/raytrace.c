@@ -85,6 +85,14 @@ enum {
 _Static_assert(offsetof(struct RTCRayHit8, hit.instID) == SOA_INST * 8 * sizeof(float),
                "RTCRayHitN layout");
 
+/* Origin and direction of lane i of an N-wide structure-of-arrays ray packet. */
+static void lane_ray(const float *r, unsigned N, unsigned i, double o[3], double d[3]) {
+  for (int k = 0; k < 3; k++) {
+    o[k] = r[(SOA_ORG + k) * N + i];
+    d[k] = r[(SOA_DIR + k) * N + i];
+  }
+}
+
 static void sphere_intersect(const struct RTCIntersectFunctionNArguments *a) {
   const obs_rt *rt = a->geometryUserPtr;
   const obs_sphere *s = &rt->geo.spheres[a->primID];
@@ -95,10 +103,7 @@ static void sphere_intersect(const struct RTCIntersectFunctionNArguments *a) {
   for (unsigned i = 0; i < N; i++) {
     if (a->valid[i] != -1) continue;
     double o[3], d[3];
-    for (int k = 0; k < 3; k++) {
-      o[k] = r[(SOA_ORG + k) * N + i];
-      d[k] = r[(SOA_DIR + k) * N + i];
-    }
+    lane_ray(r, N, i, o, d);
     double t = sphere_root(s, o, d, r[SOA_TNEAR * N + i], r[SOA_TFAR * N + i], mode);
     if (t < 0) continue;
     r[SOA_TFAR * N + i] = (float)t;
@@ -119,10 +124,7 @@ static void sphere_occluded(const struct RTCOccludedFunctionNArguments *a) {
   for (unsigned i = 0; i < N; i++) {
     if (a->valid[i] != -1) continue;
     double o[3], d[3];
-    for (int k = 0; k < 3; k++) {
-      o[k] = r[(SOA_ORG + k) * N + i];
-      d[k] = r[(SOA_DIR + k) * N + i];
-    }
+    lane_ray(r, N, i, o, d);
     /* Embree's occlusion interval is (tnear, tfar]; rays here use tfar = max distance. */
     if (sphere_root(s, o, d, r[SOA_TNEAR * N + i], r[SOA_TFAR * N + i], mode) >= 0)
       r[SOA_TFAR * N + i] = -INFINITY;
