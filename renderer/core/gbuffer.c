@@ -1,6 +1,5 @@
 /* G-buffer storage and its export into a technique's output channels. */
 #include "gbuffer.h"
-#include "parallel.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -31,33 +30,11 @@ void obs_gbuffer_free(obs_gbuffer *g) {
   memset(g, 0, sizeof *g);
 }
 
-/* All five planes present (every screen-space technique's image): a loop without branches that
- * the AVX2 clone vectorizes; same double arithmetic, so the same bits as the general loop. */
-OBS_HOT_KERNEL static void export_all(const obs_gbuffer *g, const double m[3][3], float *d,
-                                      float *a, float *nx, float *ny, float *nz) {
-  size_t n = (size_t)g->width * (size_t)g->height;
-  for (size_t i = 0; i < n; i++) {
-    const float *v = g->normal + 3 * i;
-    nx[i] = (float)(v[0] * m[0][0] + v[1] * m[1][0] + v[2] * m[2][0]);
-    ny[i] = (float)(v[0] * m[0][1] + v[1] * m[1][1] + v[2] * m[2][1]);
-    nz[i] = (float)(v[0] * m[0][2] + v[1] * m[1][2] + v[2] * m[2][2]);
-  }
-  memcpy(d, g->depth, n * sizeof *d);
-  memcpy(a, g->coverage, n * sizeof *a);
-}
-
 void obs_gbuffer_export(const obs_gbuffer *g, const obs_camera_rig *rig, obs_image *img) {
   size_t n = (size_t)g->width * (size_t)g->height;
   float *d = obs_image_channel(img, "depth.Z"), *a = obs_image_channel(img, "alpha");
   float *nx = obs_image_channel(img, "normal.X"), *ny = obs_image_channel(img, "normal.Y");
   float *nz = obs_image_channel(img, "normal.Z");
-  if (d && a && nx && ny && nz) {
-    const double m[3][3] = {{rig->right[0], rig->right[1], rig->right[2]},
-                            {rig->up[0], rig->up[1], rig->up[2]},
-                            {rig->forward[0], rig->forward[1], rig->forward[2]}};
-    export_all(g, m, d, a, nx, ny, nz);
-    return;
-  }
   for (size_t i = 0; i < n; i++) {
     const float *v = g->normal + 3 * i;
     float w[3];

@@ -4,7 +4,6 @@
 #include "raytrace.h"
 
 #include <math.h>
-#include <stdlib.h>
 #include <stddef.h>
 #include <stdio.h>
 #include <string.h>
@@ -53,20 +52,6 @@ static int sphere_mode(const obs_rt_ctx *c, unsigned geom, unsigned prim) {
   return c->skip_geom == geom && c->skip_prim == prim ? c->skip_mode : 0;
 }
 
-/* Context filter for rays leaving a triangle: a flat primitive cannot occlude itself, so any hit on
- * it is rounding error and is dropped. This is what lets ray origins sit within a few ulps of the
- * surface instead of being pushed off by an epsilon that would bias contact shadows. */
-static void skip_origin_filter(const struct RTCFilterFunctionNArguments *a) {
-  const obs_rt_ctx *c = (const obs_rt_ctx *)a->context;
-  /* RTCHitN is structure-of-arrays: primID at [5N + i], geomID at [6N + i] (the C++ accessors of
-   * rtcore_ray.h, which C cannot use). */
-  const unsigned *h = (const unsigned *)a->hit;
-  for (unsigned i = 0; i < a->N; i++) {
-    if (a->valid[i] != -1) continue;
-    if (h[6 * a->N + i] == c->skip_geom && h[5 * a->N + i] == c->skip_prim) a->valid[i] = 0;
-  }
-}
-
 /* RTCRayN and RTCRayHitN are structure-of-arrays, so field k of lane i sits at [k * N + i]: the
  * ray's twelve fields, then the hit's (the C++ accessors of rtcore_ray.h, which C cannot use).
  * N == 1 is the plain RTCRay / RTCRayHit layout. */
@@ -84,6 +69,22 @@ enum {
 };
 _Static_assert(offsetof(struct RTCRayHit8, hit.instID) == SOA_INST * 8 * sizeof(float),
                "RTCRayHitN layout");
+
+/* Context filter for rays leaving a triangle: a flat primitive cannot occlude itself, so any hit on
+ * it is rounding error and is dropped. This is what lets ray origins sit within a few ulps of the
+ * surface instead of being pushed off by an epsilon that would bias contact shadows. */
+static void skip_origin_filter(const struct RTCFilterFunctionNArguments *a) {
+  const obs_rt_ctx *c = (const obs_rt_ctx *)a->context;
+  /* a->hit is the RTCHitN part alone: the hit fields' indices less the ray's SOA_NG. */
+  const unsigned *h = (const unsigned *)a->hit;
+  const unsigned N = a->N;
+  for (unsigned i = 0; i < N; i++) {
+    if (a->valid[i] != -1) continue;
+    if (h[(SOA_GEOM - SOA_NG) * N + i] == c->skip_geom &&
+        h[(SOA_PRIM - SOA_NG) * N + i] == c->skip_prim)
+      a->valid[i] = 0;
+  }
+}
 
 /* Origin and direction of lane i of an N-wide structure-of-arrays ray packet. */
 static void lane_ray(const float *r, unsigned N, unsigned i, double o[3], double d[3]) {
