@@ -1,9 +1,15 @@
 /* obscurad's SQLite store: a pool of connections (WAL, synchronous=NORMAL, busy timeout, foreign
  * keys), the migrations of schema/db.sql, and every query as a prepared statement. */
+#include <errno.h>
+#include <limits.h>
 #include <pthread.h>
 #include <sqlite3.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <sys/statvfs.h>
+#include <unistd.h>
 
 #include "obscurad.h"
 
@@ -359,12 +365,72 @@ static int read_outputs(conn *c, srv_job *j, obs_err *err) {
 
 /* ---- opening and migrations ------------------------------------------------------------------ */
 
+static const char *errno_name(int e) {
+  switch (e) {
+    case EACCES: return "EACCES";
+    case EPERM: return "EPERM";
+    case EROFS: return "EROFS";
+    case ENOENT: return "ENOENT";
+    case ENOTDIR: return "ENOTDIR";
+    case ENOSPC: return "ENOSPC";
+    case EDQUOT: return "EDQUOT";
+    case EIO: return "EIO";
+    case ELOOP: return "ELOOP";
+    case ENAMETOOLONG: return "ENAMETOOLONG";
+    default: return "errno";
+  }
+}
+
+/* Why the file system refuses `path` for a read-write database (SQLite says only "unable to open
+ * database file"), naming the path at fault; 0 when no cause is found. */
+static int explain_open(const char *path, char *out, size_t n) {
+  char dir[PATH_MAX];
+  snprintf(dir, sizeof dir, "%s", path);
+  char *slash = strrchr(dir, '/');
+  if (!slash) snprintf(dir, sizeof dir, ".");
+  else if (slash == dir) dir[1] = '\0';
+  else *slash = '\0';
+  struct stat st;
+  struct statvfs vfs;
+  int e;
+  if (stat(dir, &st)) {
+    e = errno;
+    snprintf(out, n, "the directory %s cannot be reached: %s (%s)", dir, strerror(e),
+             errno_name(e));
+  } else if (!S_ISDIR(st.st_mode)) {
+    snprintf(out, n, "%s is not a directory", dir);
+  } else if (!statvfs(dir, &vfs) && (vfs.f_flag & ST_RDONLY)) {
+    snprintf(out, n, "the directory %s is on a read-only file system (EROFS)", dir);
+  } else if (!stat(path, &st) && S_ISDIR(st.st_mode)) {
+    snprintf(out, n, "%s is a directory", path);
+  } else if (!stat(path, &st) && access(path, R_OK | W_OK)) {
+    e = errno;
+    snprintf(out, n, "the file %s is not writable: %s (%s)", path, strerror(e), errno_name(e));
+  } else if (access(dir, W_OK | X_OK)) {
+    /* Even an existing database needs its directory: the -wal and -shm files live there. */
+    e = errno;
+    snprintf(out, n, "the directory %s is not writable: %s (%s)", dir, strerror(e),
+             errno_name(e));
+  } else {
+    return 0;
+  }
+  return 1;
+}
+
+/* Reports a failure to open or set up the database, with the file system's reason when found. */
+static int open_failed(const char *path, const char *sqlite_msg, obs_err *err) {
+  char why[PATH_MAX + 200];
+  if (explain_open(path, why, sizeof why))
+    return obs_err_set(err, OBS_EIO, "cannot open database %s: %s (SQLite: %s)", path, why,
+                       sqlite_msg);
+  return obs_err_set(err, OBS_EIO, "database %s: cannot open: %s", path, sqlite_msg);
+}
+
 static int open_conn(conn *c, const char *path, obs_err *err) {
   memset(c, 0, sizeof *c);
   int rc = sqlite3_open_v2(path, &c->db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, NULL);
   if (rc != SQLITE_OK) {
-    obs_err_set(err, OBS_EIO, "database %s: cannot open: %s", path,
-                c->db ? sqlite3_errmsg(c->db) : sqlite3_errstr(rc));
+    open_failed(path, c->db ? sqlite3_errmsg(c->db) : sqlite3_errstr(rc), err);
     sqlite3_close(c->db);
     c->db = NULL;
     return OBS_EIO;
@@ -376,7 +442,8 @@ static int open_conn(conn *c, const char *path, obs_err *err) {
                                 "PRAGMA foreign_keys = ON; PRAGMA journal_size_limit = 4194304;";
   char *msg = NULL;
   if (sqlite3_exec(c->db, pragmas, NULL, NULL, &msg) != SQLITE_OK) {
-    obs_err_set(err, OBS_EIO, "database %s: %s", path, msg ? msg : "cannot configure");
+    /* A file SQLite could only open read-only fails here, at the first write (the WAL switch). */
+    open_failed(path, msg ? msg : "cannot configure", err);
     sqlite3_free(msg);
     sqlite3_close(c->db);
     c->db = NULL;
@@ -398,7 +465,7 @@ static int migrate(conn *c, const char *path, obs_err *err) {
                    "CREATE TABLE IF NOT EXISTS schema_migrations (version INTEGER PRIMARY KEY, "
                    "applied_ms INTEGER NOT NULL)",
                    NULL, NULL, &msg) != SQLITE_OK) {
-    obs_err_set(err, OBS_EIO, "database %s: %s", path, msg ? msg : "?");
+    open_failed(path, msg ? msg : "?", err);
     sqlite3_free(msg);
     return OBS_EIO;
   }

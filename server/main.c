@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "obscurad.h"
 
@@ -122,9 +123,19 @@ int main(int argc, char **argv) {
   snprintf(dbdir, sizeof dbdir, "%s", app.cfg.db);
   char *slash = strrchr(dbdir, '/');
   if (slash && slash != dbdir) *slash = '\0';
-  if (srv_mkdirs(app.results_dir) || (slash && slash != dbdir && srv_mkdirs(dbdir))) {
-    fprintf(stderr, "obscurad: cannot create %s or the database's directory: %s\n",
-            app.results_dir, strerror(errno));
+  if (srv_mkdirs(app.results_dir) || access(app.results_dir, W_OK | X_OK)) {
+    int e = errno;
+    fprintf(stderr, "obscurad: --data-dir %s: cannot %s %s: %s%s\n", app.cfg.data_dir,
+            access(app.results_dir, F_OK) ? "create" : "write to", app.results_dir, strerror(e),
+            e == EROFS ? " (the data directory is on a read-only file system)"
+            : e == EACCES || e == EPERM ? " (the data directory is not writable by this user)"
+                                        : "");
+    srv_config_free(&app.cfg);
+    return 1;
+  }
+  if (slash && slash != dbdir && srv_mkdirs(dbdir)) {
+    fprintf(stderr, "obscurad: --db %s: cannot create the database's directory %s: %s\n",
+            app.cfg.db, dbdir, strerror(errno));
     srv_config_free(&app.cfg);
     return 1;
   }

@@ -373,6 +373,15 @@ typedef struct srv_submission {
 unsigned srv_submit_parse(struct srv_app *app, const char *body, size_t len, srv_submission *s,
                           const char **message, obs_err *problems);
 void srv_submission_free(srv_submission *s);
+/* Bounds on a request body, checked by a pre-scan of the text before it is parsed: nesting
+ * (OBS_JSON_MAX_DEPTH), JSON values and the bytes of one string. A job or comparison needs a few
+ * hundred values (the largest bundled scene has 445) and short strings. */
+#define SRV_MAX_REQUEST_VALUES 100000
+#define SRV_MAX_REQUEST_STRING 65536
+/* Pre-scans and parses a request body into *out (a JSON object). Returns 0, or 400 (empty, not
+ * JSON) / 422 (a bound broken, not an object) with *message and the problems. */
+unsigned srv_submit_read_body(const char *body, size_t len, const char *shape, json_t **out,
+                              const char **message, obs_err *problems);
 struct obs_jpath;
 /* Helpers shared with comparisons (submit.c). Loads bundled scene `v` (a name) reporting under
  * /scene_file; applies `set` overrides; adds the per-job limit problems; samples per pixel sample

@@ -70,11 +70,20 @@ json_t *srv_submit_load_bundled(srv_app *app, obs_jpath *p, const json_t *v) {
   } else if (!srv_path_inside(app->scenes_real, real)) {
     obs_jpath_fail(p, "must stay inside the scenes directory (got %s)", obs_json_brief(v));
   } else {
-    json_error_t je;
-    doc = json_load_file(real, JSON_REJECT_DUPLICATES, &je);
-    if (!doc)
-      obs_err_set(p->err, OBS_EINVAL, "%s: line %d, column %d: invalid JSON: %s", name, je.line,
-                  je.column, je.text);
+    /* The scenes directory is the operator's, but its files are held to the same depth bound as
+     * requests: a document deeper than that could not be submitted anyway. */
+    static const obs_json_limits lim = {OBS_JSON_MAX_DEPTH, 0, 0};
+    char *text = NULL;
+    size_t len = 0;
+    if (!obs_json_read_file(real, (size_t)64 << 20, &text, &len, p->err) &&
+        !obs_json_prescan(text, len, &lim, name, p->err, NULL)) {
+      json_error_t je;
+      doc = json_loadb(text, len, JSON_REJECT_DUPLICATES, &je);
+      if (!doc)
+        obs_err_set(p->err, OBS_EINVAL, "%s: line %d, column %d: invalid JSON: %s", name, je.line,
+                    je.column, je.text);
+    }
+    free(text);
   }
   obs_jpath_pop(p, m);
   return doc;
@@ -98,19 +107,51 @@ void srv_submit_apply_sets(obs_jpath *p, const json_t *sets, json_t *doc) {
   const char *key;
   json_t *v;
   json_object_foreach((json_t *)sets, key, v) {
-    char tok[600];
+    char tok[600], clip[164];
     escape_token(key, tok, sizeof tok);
-    char *text = json_dumps(v, JSON_ENCODE_ANY | JSON_COMPACT | JSON_REAL_PRECISION(17));
+    obs_json_clip(tok, clip, sizeof clip);
     obs_err e = OBS_ERR_INIT;
+    /* A copy: a later pointer may go through this value, which must not change the request. The
+     * request passed the depth pre-scan, so the copy's recursion is bounded. */
+    json_t *val = json_deep_copy(v);
     if (key[0] != '/')
       obs_err_set(p->err, OBS_EINVAL, "%s: /set/%s: must be a JSON pointer starting with \"/\"",
-                  p->doc, tok);
-    else if (!text || obs_json_pointer_set(doc, key, text, &e))
-      obs_err_set(p->err, OBS_EINVAL, "%s: /set/%s: %s", p->doc, tok,
-                  text ? obs_err_message(&e) : "cannot encode the value");
+                  p->doc, clip);
+    else if (!val || obs_json_pointer_put(doc, key, json_incref(val), &e))
+      obs_err_set(p->err, OBS_EINVAL, "%s: /set/%s: %s", p->doc, clip,
+                  val ? obs_err_message(&e) : "out of memory");
+    json_decref(val);
     obs_err_free(&e);
-    free(text);
   }
+}
+
+unsigned srv_submit_read_body(const char *body, size_t len, const char *shape, json_t **out,
+                              const char **message, obs_err *problems) {
+  static const obs_json_limits lim = {OBS_JSON_MAX_DEPTH, SRV_MAX_REQUEST_VALUES,
+                                      SRV_MAX_REQUEST_STRING};
+  *out = NULL;
+  /* Before jansson: a parsed value costs ~20x its text, and deep documents recurse when dumped,
+   * copied or freed. */
+  if (obs_json_prescan(body, len, &lim, "request", problems, NULL)) {
+    *message = "request exceeds the server's input limits";
+    return 422;
+  }
+  json_error_t je;
+  json_t *req = json_loadb(body, len, JSON_REJECT_DUPLICATES | JSON_DECODE_ANY, &je);
+  if (!req) {
+    *message = "request body is not valid JSON";
+    obs_err_set(problems, OBS_EINVAL, "request: line %d, column %d: %s", je.line, je.column,
+                je.text);
+    return 400;
+  }
+  if (!json_is_object(req)) {
+    obs_err_set(problems, OBS_EINVAL, "request: /: must be a JSON object: %s (got %s)", shape,
+                obs_json_brief(req));
+    json_decref(req);
+    return 422;
+  }
+  *out = req;
+  return 0;
 }
 
 /* Samples per pixel sample, the factor of `max-work` beyond width x height x spp. */
@@ -251,28 +292,17 @@ unsigned srv_submit_parse(srv_app *app, const char *body, size_t len, srv_submis
     *message = "request body is empty (send a scene document or {\"scene_file\": ...})";
     return 400;
   }
-  json_error_t je;
-  json_t *req = json_loadb(body, len, JSON_REJECT_DUPLICATES | JSON_DECODE_ANY, &je);
-  if (!req) {
-    *message = "request body is not valid JSON";
-    obs_err_set(problems, OBS_EINVAL, "request: line %d, column %d: %s", je.line, je.column,
-                je.text);
-    return 400;
-  }
+  *message = "request is not a valid job";
+  json_t *req = NULL;
+  unsigned status = srv_submit_read_body(body, len, "a scene document or {\"scene_file\": ...}",
+                                         &req, message, problems);
+  if (status) return status;
   obs_jpath p;
   obs_jpath_init(&p, "request", problems);
-  unsigned status = 0;
   json_t *doc = NULL;
   char *text = NULL;
   obs_scene sc;
   memset(&sc, 0, sizeof sc);
-  *message = "request is not a valid job";
-  if (!json_is_object(req)) {
-    obs_jpath_fail(&p, "must be a JSON object: a scene document or {\"scene_file\": ...} (got %s)",
-                   obs_json_brief(req));
-    status = 422;
-    goto out;
-  }
   long long priority = 50;
   obs_json_get_int(&p, req, "priority", 0, 0, 100, &priority);
   const char *label = NULL;
@@ -319,7 +349,9 @@ unsigned srv_submit_parse(srv_app *app, const char *body, size_t len, srv_submis
       json_object_set_new(doc, "technique", json_deep_copy(tech));
     }
   } else {
-    doc = json_deep_copy(req);
+    /* The wrapper keys removed from a shallow copy: the scene's values are shared, not copied
+     * (overrides may change them in place; the request is not read again). */
+    doc = json_copy(req);
     json_object_del(doc, "priority");
     json_object_del(doc, "label");
     json_object_del(doc, "set");
@@ -346,15 +378,16 @@ unsigned srv_submit_parse(srv_app *app, const char *body, size_t len, srv_submis
     s->choice = choice;
   }
   int before = problems->count;
-  text = doc ? json_dumps(doc, JSON_COMPACT | JSON_REAL_PRECISION(17)) : NULL;
-  int loaded = text && !obs_scene_load_string(&sc, text, docname, app->scenes_real, NULL, 0,
-                                             problems);
+  int loaded = doc && !obs_scene_load_json(&sc, doc, docname, app->scenes_real, NULL, 0,
+                                           problems);
   if (problems->count) {
     if (problems->count > before && before == 0) *message = "scene is not valid";
     status = 422;
     goto out;
   }
-  if (!loaded) {
+  /* Stored as the renderer will read it back (obs_scene_load_string at render time). */
+  text = loaded ? json_dumps(sc.doc, JSON_COMPACT | JSON_REAL_PRECISION(17)) : NULL;
+  if (!text) {
     *message = "out of memory";
     status = 503;
     goto out;

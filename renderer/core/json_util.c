@@ -1,10 +1,17 @@
-/* Strict JSON reading for scene documents: every problem is reported with its JSON pointer. */
+/* Strict JSON reading for scene documents: every problem is reported with its JSON pointer; JSON
+ * pointers; and the bounds (depth, value count, string length) untrusted JSON is held to before
+ * jansson builds it. */
 #include "json_util.h"
 
+#include <ctype.h>
+#include <errno.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
+
+#include "obscura/scene.h"
 
 void obs_jpath_init(obs_jpath *p, const char *doc, obs_err *err) {
   p->buf[0] = '\0';
@@ -54,19 +61,45 @@ int obs_jpath_fail(obs_jpath *p, const char *fmt, ...) {
   return obs_err_set(p->err, OBS_EINVAL, "%s: %s: %s", p->doc, p->len ? p->buf : "/", msg);
 }
 
+/* Collects the start of a dump and stops it there: a brief of a huge value costs no more than a
+ * brief of a small one. */
+typedef struct brief_buf {
+  char *buf;
+  size_t len, cap;
+  int cut;
+} brief_buf;
+
+static int brief_put(const char *s, size_t n, void *user) {
+  brief_buf *b = user;
+  size_t room = b->cap - b->len;
+  if (n > room) {
+    memcpy(b->buf + b->len, s, room);
+    b->len += room;
+    b->cut = 1;
+    return -1;
+  }
+  memcpy(b->buf + b->len, s, n);
+  b->len += n;
+  return 0;
+}
+
 const char *obs_json_brief(const json_t *v) {
   static _Thread_local char buf[72];
   if (!v) return "nothing";
-  char *s = json_dumps(v, JSON_ENCODE_ANY | JSON_COMPACT | JSON_REAL_PRECISION(10));
-  if (!s) return "?";
-  size_t n = strlen(s);
-  if (n > 60) {
-    memcpy(buf, s, 57);
-    memcpy(buf + 57, "...", 4);
+  char head[61];
+  brief_buf b = {head, 0, sizeof head - 1, 0};
+  if (json_dump_callback(v, brief_put, &b, JSON_ENCODE_ANY | JSON_COMPACT |
+                                               JSON_REAL_PRECISION(10)) && !b.cut)
+    return "?";
+  if (b.cut) {
+    size_t keep = 57;
+    while (keep && ((unsigned char)head[keep] & 0xC0) == 0x80) keep--;
+    memcpy(buf, head, keep);
+    memcpy(buf + keep, "...", 4);
   } else {
-    memcpy(buf, s, n + 1);
+    memcpy(buf, head, b.len);
+    buf[b.len] = '\0';
   }
-  free(s);
   return buf;
 }
 
@@ -353,4 +386,366 @@ json_t *obs_json_params_resolve(obs_jpath *p, const json_t *schema, const json_t
     return NULL;
   }
   return out;
+}
+
+/* ---- limits on untrusted JSON ---------------------------------------------------------------- */
+
+/* One open array or object of the pre-scan: enough to name where a limit broke. */
+typedef struct scan_level {
+  unsigned char object;   /* 1: object, 0: array */
+  unsigned char want_key; /* object: the next string is a member name */
+  size_t index;           /* array: position of the current element */
+  size_t key, key_len;    /* object: the current member name, as written in the text */
+} scan_level;
+
+/* Writes the location of the value being scanned ("/objects/3/shape") into `out`, shortened with
+ * "..." when long; member names appear as written (escapes kept), '~' and '/' escaped. */
+static void scan_location(const char *text, const scan_level *lv, int depth, char *out,
+                          size_t n) {
+  size_t k = 0;
+  int cut = 0;
+  for (int d = 0; d < depth && !cut; d++) {
+    char tok[32];
+    const char *s = tok;
+    size_t sl;
+    if (lv[d].object) {
+      s = text + lv[d].key;
+      sl = lv[d].key_len;
+    } else {
+      snprintf(tok, sizeof tok, "%zu", lv[d].index);
+      sl = strlen(tok);
+    }
+    if (k + 1 >= n - 4) cut = 1;
+    else out[k++] = '/';
+    for (size_t i = 0; i < sl && !cut; i++) {
+      int esc = s[i] == '~' || s[i] == '/';
+      if (k + (esc ? 2 : 1) >= n - 4) {
+        cut = 1;
+      } else if (esc) {
+        out[k++] = '~';
+        out[k++] = s[i] == '~' ? '0' : '1';
+      } else {
+        out[k++] = (unsigned char)s[i] < 0x20 ? '?' : s[i];
+      }
+    }
+  }
+  if (cut) {
+    memcpy(out + k, "...", 3);
+    k += 3;
+  }
+  if (k == 0) out[k++] = '/';
+  out[k] = '\0';
+}
+
+/* Counts one value at the current position; fails once the count passes the limit. */
+static int scan_value(const char *text, const scan_level *lv, int depth, size_t *values,
+                      const obs_json_limits *lim, const char *doc, obs_err *err) {
+  if (++*values <= lim->max_values || !lim->max_values) return 0;
+  char where[200];
+  scan_location(text, lv, depth, where, sizeof where);
+  return obs_err_set(err, OBS_EINVAL, "%s: %s: more than %zu JSON values; at most %zu are "
+                     "accepted in one document", doc, where, lim->max_values, lim->max_values);
+}
+
+int obs_json_prescan(const char *text, size_t len, const obs_json_limits *lim, const char *doc,
+                     obs_err *err, size_t *values_out) {
+  scan_level lv[OBS_JSON_SCAN_DEPTH_CAP];
+  int max_depth = lim->max_depth < 1 ? 1
+                  : lim->max_depth > OBS_JSON_SCAN_DEPTH_CAP ? OBS_JSON_SCAN_DEPTH_CAP
+                                                              : lim->max_depth;
+  int depth = 0, rc = 0;
+  size_t values = 0, i = 0;
+  char where[200];
+  if (!doc) doc = "document";
+  while (i < len && !rc) {
+    unsigned char c = (unsigned char)text[i];
+    scan_level *top = depth ? &lv[depth - 1] : NULL;
+    if (c == '"') {
+      size_t start = ++i;
+      while (i < len && text[i] != '"') i += text[i] == '\\' && i + 1 < len ? 2 : 1;
+      size_t end = i < len ? i : len;
+      i = end + 1;
+      if (top && top->object && top->want_key) {
+        top->key = start;
+        top->key_len = end - start;
+        top->want_key = 0;
+        if (lim->max_string && end - start > lim->max_string) {
+          scan_location(text, lv, depth, where, sizeof where);
+          rc = obs_err_set(err, OBS_EINVAL, "%s: %s: member name of %zu bytes; at most %zu are "
+                           "accepted", doc, where, end - start, lim->max_string);
+        }
+        continue;
+      }
+      rc = scan_value(text, lv, depth, &values, lim, doc, err);
+      if (!rc && lim->max_string && end - start > lim->max_string) {
+        scan_location(text, lv, depth, where, sizeof where);
+        rc = obs_err_set(err, OBS_EINVAL, "%s: %s: string of %zu bytes; at most %zu are accepted",
+                         doc, where, end - start, lim->max_string);
+      }
+      continue;
+    }
+    switch (c) {
+      case '{':
+      case '[':
+        rc = scan_value(text, lv, depth, &values, lim, doc, err);
+        if (rc) break;
+        if (depth == max_depth) {
+          scan_location(text, lv, depth, where, sizeof where);
+          rc = obs_err_set(err, OBS_EINVAL, "%s: %s: nested deeper than %d arrays/objects (the "
+                           "limit)", doc, where, max_depth);
+          break;
+        }
+        lv[depth] = (scan_level){.object = c == '{', .want_key = c == '{'};
+        depth++;
+        break;
+      case '}':
+      case ']':
+        if (depth) depth--;
+        break;
+      case ',':
+        if (top && top->object) top->want_key = 1;
+        else if (top) top->index++;
+        break;
+      case ':':
+        if (top && top->object) top->want_key = 0;
+        break;
+      case ' ':
+      case '\t':
+      case '\n':
+      case '\r':
+        break;
+      default:
+        /* A number or literal (or junk the parser will refuse): one value, however long. */
+        rc = scan_value(text, lv, depth, &values, lim, doc, err);
+        while (i + 1 < len && (isalnum((unsigned char)text[i + 1]) || text[i + 1] == '.' ||
+                               text[i + 1] == '+' || text[i + 1] == '-'))
+          i++;
+        break;
+    }
+    i++;
+  }
+  if (values_out) *values_out = values;
+  return rc;
+}
+
+static int depth_walk(obs_jpath *p, const json_t *v, int level, int max_depth) {
+  if (!json_is_object(v) && !json_is_array(v)) return 0;
+  if (level >= max_depth)
+    return obs_jpath_fail(p, "nested deeper than %d arrays/objects (the limit)", max_depth);
+  int rc = 0;
+  if (json_is_object(v)) {
+    const char *key;
+    json_t *c;
+    json_object_foreach((json_t *)v, key, c) {
+      size_t m = obs_jpath_push_key(p, key);
+      rc = depth_walk(p, c, level + 1, max_depth);
+      obs_jpath_pop(p, m);
+      if (rc) break;
+    }
+  } else {
+    size_t idx;
+    json_t *c;
+    json_array_foreach(v, idx, c) {
+      size_t m = obs_jpath_push_index(p, idx);
+      rc = depth_walk(p, c, level + 1, max_depth);
+      obs_jpath_pop(p, m);
+      if (rc) break;
+    }
+  }
+  return rc;
+}
+
+int obs_json_check_depth(obs_jpath *p, const json_t *v, int max_depth) {
+  return depth_walk(p, v, 0, max_depth);
+}
+
+size_t obs_json_count_values(const json_t *v, int max_depth) {
+  if (!v) return 0;
+  size_t n = 1;
+  if (max_depth <= 0) return n;
+  const char *key;
+  json_t *c;
+  size_t idx;
+  if (json_is_object(v)) {
+    json_object_foreach((json_t *)v, key, c) n += obs_json_count_values(c, max_depth - 1);
+  } else if (json_is_array(v)) {
+    json_array_foreach(v, idx, c) n += obs_json_count_values(c, max_depth - 1);
+  }
+  return n;
+}
+
+const char *obs_json_clip(const char *s, char *buf, size_t n) {
+  size_t l = strlen(s);
+  if (l < n) return s;
+  size_t keep = n > 4 ? n - 4 : 0;
+  /* Never cut a UTF-8 sequence in two. */
+  while (keep && ((unsigned char)s[keep] & 0xC0) == 0x80) keep--;
+  memcpy(buf, s, keep);
+  memcpy(buf + keep, "...", 4);
+  return buf;
+}
+
+int obs_json_read_file(const char *path, size_t max, char **out, size_t *len_out, obs_err *err) {
+  *out = NULL;
+  *len_out = 0;
+  FILE *f = fopen(path, "rb");
+  if (!f) return obs_err_set(err, OBS_EIO, "%s: cannot open: %s", path, strerror(errno));
+  size_t cap = 1 << 16, len = 0;
+  char *buf = malloc(cap + 1);
+  while (buf) {
+    size_t n = fread(buf + len, 1, cap - len, f);
+    len += n;
+    if (len < cap) break;
+    if (cap >= max) {
+      free(buf);
+      fclose(f);
+      return obs_err_set(err, OBS_EINVAL, "%s: larger than %zu MiB", path, max >> 20);
+    }
+    cap = cap * 2 > max ? max : cap * 2;
+    char *nb = realloc(buf, cap + 1);
+    if (!nb) free(buf);
+    buf = nb;
+  }
+  int ioerr = ferror(f);
+  fclose(f);
+  if (!buf) return obs_err_set(err, OBS_ENOMEM, "%s: out of memory", path);
+  if (ioerr) {
+    free(buf);
+    return obs_err_set(err, OBS_EIO, "%s: read error", path);
+  }
+  buf[len] = '\0';
+  if (memchr(buf, '\0', len)) {
+    free(buf);
+    return obs_err_set(err, OBS_EINVAL, "%s: invalid JSON: contains a NUL byte", path);
+  }
+  *out = buf;
+  *len_out = len;
+  return 0;
+}
+
+/* ---- JSON pointers (RFC 6901) ---------------------------------------------------------------- */
+
+static int unescape_token(const char *s, size_t n, char *out, size_t cap) {
+  size_t j = 0;
+  for (size_t i = 0; i < n; i++) {
+    if (j + 1 >= cap) return -1;
+    if (s[i] == '~') {
+      if (i + 1 >= n || (s[i + 1] != '0' && s[i + 1] != '1')) return -1;
+      out[j++] = s[i + 1] == '0' ? '~' : '/';
+      i++;
+    } else {
+      out[j++] = s[i];
+    }
+  }
+  out[j] = '\0';
+  return 0;
+}
+
+static int parse_index(const char *tok, size_t *out) {
+  if (!*tok) return -1;
+  size_t v = 0;
+  for (const char *c = tok; *c; c++) {
+    if (*c < '0' || *c > '9' || v > 100000000) return -1;
+    v = v * 10 + (size_t)(*c - '0');
+  }
+  if (tok[0] == '0' && tok[1]) return -1;
+  *out = v;
+  return 0;
+}
+
+#define TOKEN_MAX 512
+
+/* The whole pointer is checked before the walk: shape, token count, escapes, token length. */
+static int pointer_check(const char *pointer, obs_err *err) {
+  char clip[160];
+  if (!pointer || pointer[0] != '/')
+    return obs_err_set(err, OBS_EINVAL, "pointer must start with '/' (got \"%s\")",
+                       obs_json_clip(pointer ? pointer : "", clip, sizeof clip));
+  size_t tokens = 0;
+  for (const char *c = pointer; *c; c++) tokens += *c == '/';
+  if (tokens > OBS_POINTER_MAX_TOKENS)
+    return obs_err_set(err, OBS_EINVAL, "pointer \"%s\" (%zu bytes) has %zu reference tokens; at "
+                       "most %d are accepted (scene documents nest fewer than 10 levels)",
+                       obs_json_clip(pointer, clip, sizeof clip), strlen(pointer), tokens,
+                       OBS_POINTER_MAX_TOKENS);
+  char tok[TOKEN_MAX];
+  for (const char *s = pointer + 1;;) {
+    const char *e = strchr(s, '/');
+    size_t n = e ? (size_t)(e - s) : strlen(s);
+    if (unescape_token(s, n, tok, sizeof tok))
+      return obs_err_set(err, OBS_EINVAL, "malformed pointer token (a '~' not followed by 0 or "
+                         "1, or longer than %d bytes) in \"%s\"", TOKEN_MAX - 1,
+                         obs_json_clip(pointer, clip, sizeof clip));
+    if (!e) break;
+    s = e + 1;
+  }
+  /* Member names must be UTF-8 (jansson refuses others). */
+  json_t *probe = json_string(pointer);
+  if (!probe) return obs_err_set(err, OBS_EINVAL, "pointer is not valid UTF-8");
+  json_decref(probe);
+  return 0;
+}
+
+int obs_json_pointer_put(json_t *doc, const char *pointer, json_t *val, obs_err *err) {
+  int rc = pointer_check(pointer, err);
+  if (rc) {
+    json_decref(val);
+    return rc;
+  }
+  char clip[160];
+  json_t *cur = doc;
+  const char *s = pointer + 1;
+  char tok[TOKEN_MAX];
+  /* Nothing fails after the first member is created (everything below it is new objects), so a
+   * refused pointer leaves the document unchanged. */
+  for (;;) {
+    const char *e = strchr(s, '/');
+    size_t n = e ? (size_t)(e - s) : strlen(s);
+    unescape_token(s, n, tok, sizeof tok);
+    int last = e == NULL;
+    if (json_is_object(cur)) {
+      /* The _new setters take the reference even when they fail. */
+      if (last)
+        return json_object_set_new(cur, tok, val) ? obs_err_set(err, OBS_ENOMEM, "out of memory")
+                                                  : 0;
+      json_t *next = json_object_get(cur, tok);
+      if (!next) {
+        if (json_object_set_new(cur, tok, json_object())) break;
+        next = json_object_get(cur, tok);
+      }
+      cur = next;
+    } else if (json_is_array(cur)) {
+      size_t idx;
+      if (parse_index(tok, &idx) || idx >= json_array_size(cur)) {
+        json_decref(val);
+        return obs_err_set(err, OBS_EINVAL, "array index \"%s\" out of range in \"%s\"", tok,
+                           obs_json_clip(pointer, clip, sizeof clip));
+      }
+      if (last)
+        return json_array_set_new(cur, idx, val) ? obs_err_set(err, OBS_ENOMEM, "out of memory")
+                                                 : 0;
+      cur = json_array_get(cur, idx);
+    } else {
+      json_decref(val);
+      return obs_err_set(err, OBS_EINVAL,
+                         "\"%s\" goes through a value that is not an object or array",
+                         obs_json_clip(pointer, clip, sizeof clip));
+    }
+    s = e + 1;
+  }
+  json_decref(val);
+  return obs_err_set(err, OBS_ENOMEM, "out of memory");
+}
+
+int obs_json_pointer_set(json_t *doc, const char *pointer, const char *value, obs_err *err) {
+  int rc = pointer_check(pointer, err);
+  if (rc) return rc;
+  /* The value is untrusted text too: bounded before it is parsed. */
+  static const obs_json_limits lim = {OBS_JSON_MAX_DEPTH, 0, 0};
+  if (!value) value = "";
+  if (obs_json_prescan(value, strlen(value), &lim, "value", err, NULL)) return OBS_EINVAL;
+  json_error_t je;
+  json_t *val = json_loads(value, JSON_DECODE_ANY | JSON_REJECT_DUPLICATES, &je);
+  if (!val) return obs_err_set(err, OBS_EINVAL, "value is not valid JSON: %s", je.text);
+  return obs_json_pointer_put(doc, pointer, val, err);
 }

@@ -60,4 +60,41 @@ json_t *obs_json_get_array(obs_jpath *p, const json_t *obj, const char *key, int
  * reporting problems. */
 json_t *obs_json_params_resolve(obs_jpath *p, const json_t *schema, const json_t *value);
 
+/* ---- limits on untrusted JSON ----------------------------------------------------------------
+ * jansson parses with its own depth limit (2048) but dumps, copies, compares and frees documents
+ * recursively without one, and a parsed value costs ~20x its text in memory. Untrusted text is
+ * therefore pre-scanned, without allocating, before jansson builds anything. */
+
+/* Deepest nesting the pre-scan can follow (fixed stack of open containers). */
+#define OBS_JSON_SCAN_DEPTH_CAP 256
+
+typedef struct obs_json_limits {
+  int max_depth;     /* nested arrays/objects allowed (1..OBS_JSON_SCAN_DEPTH_CAP) */
+  size_t max_values; /* JSON values (containers and scalars; object keys not counted); 0: any */
+  size_t max_string; /* bytes of one string as written, escapes included; 0: any */
+} obs_json_limits;
+
+/* Checks `len` bytes of JSON text against `lim` without allocating. Syntax is not checked beyond
+ * what the walk needs (the parser does that); strings, escapes included, are skipped exactly. On a
+ * broken limit adds "<doc>: <pointer-like location>: <which limit>" to `err` and returns
+ * OBS_EINVAL; otherwise 0. `values`, when not NULL, receives the count seen. */
+int obs_json_prescan(const char *text, size_t len, const obs_json_limits *lim, const char *doc,
+                     obs_err *err, size_t *values);
+/* Whether a parsed value nests deeper than `max_depth` arrays/objects: reports the first place
+ * under the pointer `p` and returns OBS_EINVAL, else 0. Recursion stops at max_depth + 1. */
+int obs_json_check_depth(obs_jpath *p, const json_t *v, int max_depth);
+/* Values in `v` (itself included), not descending below `max_depth` levels. */
+size_t obs_json_count_values(const json_t *v, int max_depth);
+/* Puts `val` (stolen, also on failure) at `pointer` (RFC 6901) in `doc`, creating missing object
+ * members on the way. The pointer is checked whole (token count, escapes) before anything changes,
+ * so a failure leaves `doc` as it was. */
+int obs_json_pointer_put(json_t *doc, const char *pointer, json_t *val, obs_err *err);
+/* `s` shortened for a message: at most `n` - 1 bytes, the cut marked with "..." (`buf` holds it
+ * when shortened; otherwise `s` itself is returned). */
+const char *obs_json_clip(const char *s, char *buf, size_t n);
+/* Reads a whole file into a NUL-terminated buffer (owned by the caller) of at most `max` bytes;
+ * refuses files with NUL bytes (not JSON text). Returns 0, OBS_EIO, OBS_EINVAL or OBS_ENOMEM with
+ * a message naming `path`. */
+int obs_json_read_file(const char *path, size_t max, char **out, size_t *len, obs_err *err);
+
 #endif

@@ -499,7 +499,12 @@ int obs_scene_validate_json(const json_t *doc, const char *name, const char *bas
   return rc;
 }
 
+/* Files are the user's own but may come from anywhere: the same depth bound as requests, and no
+ * bound on the number of values (the file size is bounded). */
 static int parse_doc(const char *text, const char *name, json_t **out, obs_err *err) {
+  static const obs_json_limits lim = {OBS_JSON_MAX_DEPTH, 0, 0};
+  *out = NULL;
+  if (obs_json_prescan(text, strlen(text), &lim, name, err, NULL)) return OBS_EINVAL;
   json_error_t je;
   *out = json_loads(text, JSON_REJECT_DUPLICATES, &je);
   if (!*out)
@@ -508,33 +513,40 @@ static int parse_doc(const char *text, const char *name, json_t **out, obs_err *
   return 0;
 }
 
-int obs_scene_load_string(obs_scene *sc, const char *text, const char *name, const char *base_dir,
-                          const obs_override *ov, size_t nov, obs_err *err) {
-  memset(sc, 0, sizeof *sc);
-  if (!name) name = "scene";
-  json_t *doc = NULL;
-  int rc = parse_doc(text, name, &doc, err);
-  if (rc) return rc;
+/* The overrides, each refused whole (the document keeps the ones that applied). */
+static int apply_overrides(json_t *doc, const char *name, const obs_override *ov, size_t nov,
+                           obs_err *err) {
   int bad = 0;
   for (size_t i = 0; i < nov; i++) {
     obs_err tmp = OBS_ERR_INIT;
     if (obs_json_pointer_set(doc, ov[i].pointer, ov[i].value, &tmp)) {
-      obs_err_set(err, OBS_EINVAL, "%s: --set %s: %s", name, ov[i].pointer, obs_err_message(&tmp));
+      char clip[160];
+      obs_err_set(err, OBS_EINVAL, "%s: --set %s: %s", name,
+                  obs_json_clip(ov[i].pointer ? ov[i].pointer : "", clip, sizeof clip),
+                  obs_err_message(&tmp));
       bad = 1;
     }
     obs_err_free(&tmp);
   }
-  if (bad) {
-    json_decref(doc);
-    return OBS_EINVAL;
-  }
-  rc = validate(sc, doc, name, base_dir, err);
+  return bad ? OBS_EINVAL : 0;
+}
+
+int obs_scene_load_json(obs_scene *sc, json_t *doc, const char *name, const char *base_dir,
+                        const obs_override *ov, size_t nov, obs_err *err) {
+  memset(sc, 0, sizeof *sc);
+  if (!name) name = "scene";
+  if (!doc) return obs_err_set(err, OBS_EINVAL, "%s: no document", name);
+  if (apply_overrides(doc, name, ov, nov, err)) return OBS_EINVAL;
+  obs_jpath p;
+  obs_jpath_init(&p, name, err);
+  /* Validation briefs values by dumping them, which recurses: bounded first. */
+  if (obs_json_check_depth(&p, doc, OBS_JSON_MAX_DEPTH)) return OBS_EINVAL;
+  int rc = validate(sc, doc, name, base_dir, err);
   if (rc) {
-    json_decref(doc);
     obs_scene_free(sc);
     return rc;
   }
-  sc->doc = doc;
+  sc->doc = json_incref(doc);
   sc->name = xstrdup(name);
   /* Resolved now: a later change of working directory must not move the scene's tree. */
   char real[PATH_MAX];
@@ -542,39 +554,25 @@ int obs_scene_load_string(obs_scene *sc, const char *text, const char *name, con
   return 0;
 }
 
+int obs_scene_load_string(obs_scene *sc, const char *text, const char *name, const char *base_dir,
+                          const obs_override *ov, size_t nov, obs_err *err) {
+  memset(sc, 0, sizeof *sc);
+  if (!name) name = "scene";
+  json_t *doc = NULL;
+  int rc = parse_doc(text ? text : "", name, &doc, err);
+  if (rc) return rc;
+  rc = obs_scene_load_json(sc, doc, name, base_dir, ov, nov, err);
+  json_decref(doc);
+  return rc;
+}
+
 int obs_scene_load_file(obs_scene *sc, const char *path, const obs_override *ov, size_t nov,
                         obs_err *err) {
   memset(sc, 0, sizeof *sc);
-  FILE *f = fopen(path, "rb");
-  if (!f) return obs_err_set(err, OBS_EIO, "%s: cannot open scene file", path);
-  size_t cap = 1 << 16, len = 0;
-  char *buf = malloc(cap + 1);
-  while (buf) {
-    size_t n = fread(buf + len, 1, cap - len, f);
-    len += n;
-    if (len < cap) break;
-    if (cap >= ((size_t)256 << 20)) {
-      free(buf);
-      fclose(f);
-      return obs_err_set(err, OBS_EINVAL, "%s: scene file larger than 256 MiB", path);
-    }
-    cap *= 2;
-    char *nb = realloc(buf, cap + 1);
-    if (!nb) free(buf);
-    buf = nb;
-  }
-  int ioerr = ferror(f);
-  fclose(f);
-  if (!buf) return obs_err_set(err, OBS_ENOMEM, "%s: out of memory", path);
-  if (ioerr) {
-    free(buf);
-    return obs_err_set(err, OBS_EIO, "%s: read error", path);
-  }
-  buf[len] = '\0';
-  if (memchr(buf, '\0', len)) {
-    free(buf);
-    return obs_err_set(err, OBS_EINVAL, "%s: invalid JSON: contains a NUL byte", path);
-  }
+  char *buf = NULL;
+  size_t len = 0;
+  int rc = obs_json_read_file(path, (size_t)256 << 20, &buf, &len, err);
+  if (rc) return rc;
   const char *slash = strrchr(path, '/');
   const char *base = slash ? slash + 1 : path;
   char dir[PATH_MAX];
@@ -587,95 +585,7 @@ int obs_scene_load_file(obs_scene *sc, const char *path, const obs_override *ov,
   } else {
     strcpy(dir, ".");
   }
-  int rc = obs_scene_load_string(sc, buf, base, dir, ov, nov, err);
+  rc = obs_scene_load_string(sc, buf, base, dir, ov, nov, err);
   free(buf);
   return rc;
-}
-
-/* ---- JSON pointer overrides ---------------------------------------------------------------- */
-
-static int unescape_token(const char *s, size_t n, char *out, size_t cap) {
-  size_t j = 0;
-  for (size_t i = 0; i < n; i++) {
-    if (j + 1 >= cap) return -1;
-    if (s[i] == '~') {
-      if (i + 1 >= n || (s[i + 1] != '0' && s[i + 1] != '1')) return -1;
-      out[j++] = s[i + 1] == '0' ? '~' : '/';
-      i++;
-    } else {
-      out[j++] = s[i];
-    }
-  }
-  out[j] = '\0';
-  return 0;
-}
-
-static int parse_index(const char *tok, size_t *out) {
-  if (!*tok) return -1;
-  size_t v = 0;
-  for (const char *c = tok; *c; c++) {
-    if (*c < '0' || *c > '9' || v > 100000000) return -1;
-    v = v * 10 + (size_t)(*c - '0');
-  }
-  if (tok[0] == '0' && tok[1]) return -1;
-  *out = v;
-  return 0;
-}
-
-int obs_json_pointer_set(json_t *doc, const char *pointer, const char *value, obs_err *err) {
-  if (!pointer || pointer[0] != '/')
-    return obs_err_set(err, OBS_EINVAL, "pointer must start with '/' (got \"%s\")",
-                       pointer ? pointer : "");
-  /* Keys must be UTF-8 (jansson refuses others); checking up front means the walk below changes
-   * nothing unless it can finish. */
-  json_t *probe = json_string(pointer);
-  if (!probe) return obs_err_set(err, OBS_EINVAL, "pointer is not valid UTF-8");
-  json_decref(probe);
-  json_error_t je;
-  json_t *val = json_loads(value, JSON_DECODE_ANY | JSON_REJECT_DUPLICATES, &je);
-  if (!val) return obs_err_set(err, OBS_EINVAL, "value is not valid JSON: %s", je.text);
-  json_t *cur = doc;
-  const char *s = pointer + 1;
-  char tok[512];
-  for (;;) {
-    const char *e = strchr(s, '/');
-    size_t n = e ? (size_t)(e - s) : strlen(s);
-    if (unescape_token(s, n, tok, sizeof tok)) {
-      json_decref(val);
-      return obs_err_set(err, OBS_EINVAL, "malformed pointer token in \"%s\"", pointer);
-    }
-    int last = e == NULL;
-    if (json_is_object(cur)) {
-      /* The _new setters take the reference even when they fail. */
-      if (last)
-        return json_object_set_new(cur, tok, val) ? obs_err_set(err, OBS_ENOMEM, "out of memory")
-                                                  : 0;
-      json_t *next = json_object_get(cur, tok);
-      if (!next) {
-        if (json_object_set_new(cur, tok, json_object())) break;
-        next = json_object_get(cur, tok);
-      }
-      cur = next;
-    } else if (json_is_array(cur)) {
-      size_t idx;
-      if (parse_index(tok, &idx) || idx >= json_array_size(cur)) {
-        json_decref(val);
-        return obs_err_set(err, OBS_EINVAL, "array index \"%s\" out of range in \"%s\"", tok,
-                           pointer);
-      }
-      if (last)
-        return json_array_set_new(cur, idx, val) ? obs_err_set(err, OBS_ENOMEM, "out of memory")
-                                                 : 0;
-      cur = json_array_get(cur, idx);
-    } else {
-      json_decref(val);
-      return obs_err_set(err, OBS_EINVAL,
-                         "\"%s\" goes through a value that is not an object "
-                         "or array",
-                         pointer);
-    }
-    s = e + 1;
-  }
-  json_decref(val);
-  return obs_err_set(err, OBS_ENOMEM, "out of memory");
 }

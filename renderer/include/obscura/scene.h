@@ -79,6 +79,14 @@ typedef struct obs_scene {
   json_t *doc;          /* the whole document after overrides (owned reference) */
 } obs_scene;
 
+/* Bounds on untrusted input (the bundled scene documents nest 6 levels, the job server's requests 7):
+ * documents may nest at most OBS_JSON_MAX_DEPTH arrays/objects, counted from the top (`[1]` is 1,
+ * `1` is 0), after overrides too; an override pointer may have at most OBS_POINTER_MAX_TOKENS
+ * reference tokens. Deeper input is refused with OBS_EINVAL before it is parsed, so nothing ever
+ * recurses through an unbounded document. */
+#define OBS_JSON_MAX_DEPTH 32
+#define OBS_POINTER_MAX_TOKENS 32
+
 /* One `--set /json/pointer=VALUE` override: VALUE is JSON text. */
 typedef struct obs_override {
   const char *pointer;
@@ -90,14 +98,22 @@ typedef struct obs_override {
  * `scene` is left empty. `name` prefixes messages; `base_dir` resolves mesh files (may be NULL). */
 int obs_scene_load_string(obs_scene *scene, const char *json_text, const char *name,
                           const char *base_dir, const obs_override *ov, size_t nov, obs_err *err);
-/* Same for a file; the file's base name and directory are used. */
+/* Same for a parsed document. `doc` is borrowed: the overrides (if any) are applied to it in
+ * place, and on success scene->doc holds its own new reference to it (the caller still releases
+ * its own). On failure `doc` may hold the overrides that applied. The document's depth is checked
+ * (OBS_JSON_MAX_DEPTH) before anything else reads it. */
+int obs_scene_load_json(obs_scene *scene, json_t *doc, const char *name, const char *base_dir,
+                        const obs_override *ov, size_t nov, obs_err *err);
+/* Same for a file (at most 256 MiB); the file's base name and directory are used. */
 int obs_scene_load_file(obs_scene *scene, const char *path, const obs_override *ov, size_t nov,
                         obs_err *err);
 /* Validates an already-parsed document (borrowed, not modified) without keeping the result. */
 int obs_scene_validate_json(const json_t *doc, const char *name, const char *base_dir, obs_err *err);
 void obs_scene_free(obs_scene *scene);
 
-/* Applies `value` (JSON text) at `pointer` (RFC 6901) in `doc`, creating the last member if needed. */
+/* Applies `value` (JSON text) at `pointer` (RFC 6901) in `doc`, creating missing object members on
+ * the way. Refuses (OBS_EINVAL, doc unchanged) a pointer of more than OBS_POINTER_MAX_TOKENS tokens
+ * and a value nested deeper than OBS_JSON_MAX_DEPTH, naming the pointer. */
 int obs_json_pointer_set(json_t *doc, const char *pointer, const char *value, obs_err *err);
 
 #ifdef __cplusplus
