@@ -107,9 +107,9 @@ void srv_submit_apply_sets(obs_jpath *p, const json_t *sets, json_t *doc) {
   const char *key;
   json_t *v;
   json_object_foreach((json_t *)sets, key, v) {
-    char tok[600], clip[164];
+    char tok[600], buf[164];
     escape_token(key, tok, sizeof tok);
-    obs_json_clip(tok, clip, sizeof clip);
+    const char *clip = obs_json_clip(tok, buf, sizeof buf);
     obs_err e = OBS_ERR_INIT;
     /* A copy: a later pointer may go through this value, which must not change the request. The
      * request passed the depth pre-scan, so the copy's recursion is bounded. */

@@ -492,7 +492,7 @@ int obs_json_prescan(const char *text, size_t len, const obs_json_limits *lim, c
         if (depth == max_depth) {
           scan_location(text, lv, depth, where, sizeof where);
           rc = obs_err_set(err, OBS_EINVAL, "%s: %s: nested deeper than %d arrays/objects (the "
-                           "limit)", doc, where, max_depth);
+                           "depth limit)", doc, where, max_depth);
           break;
         }
         lv[depth] = (scan_level){.object = c == '{', .want_key = c == '{'};
@@ -531,7 +531,7 @@ int obs_json_prescan(const char *text, size_t len, const obs_json_limits *lim, c
 static int depth_walk(obs_jpath *p, const json_t *v, int level, int max_depth) {
   if (!json_is_object(v) && !json_is_array(v)) return 0;
   if (level >= max_depth)
-    return obs_jpath_fail(p, "nested deeper than %d arrays/objects (the limit)", max_depth);
+    return obs_jpath_fail(p, "nested deeper than %d arrays/objects (the depth limit)", max_depth);
   int rc = 0;
   if (json_is_object(v)) {
     const char *key;
