@@ -1,0 +1,175 @@
+// Input limits: deep `set` pointers, deep bodies and bodies of millions of values are refused with
+// a 422 naming where and which limit, before the JSON parser builds them, so the daemon neither
+// crashes (stack overflow in recursive dump/free) nor swells (a parsed value costs ~20x its text);
+// and a read-only data or database directory at start is named with the reason.
+//
+//   node tests/server/test_input_limits.mjs <obscurad> <obscura>
+import assert from 'node:assert/strict';
+import {spawnSync} from 'node:child_process';
+import fs from 'node:fs';
+import os from 'node:os';
+import path from 'node:path';
+import {test} from 'node:test';
+
+import {getJSON, request, sql, startDaemon, validate, withDaemon} from './lib.mjs';
+
+const MiB = 1024 * 1024;
+
+// Nothing was stored: no job, no comparison, no output.
+function assertNothingStored(d) {
+  assert.deepEqual(sql(d.db, 'SELECT count(*) FROM jobs'), [['0']]);
+  assert.deepEqual(sql(d.db, 'SELECT count(*) FROM comparisons'), [['0']]);
+}
+
+async function assertAlive(d) {
+  assert.equal(d.exit, null, `obscurad exited: ${JSON.stringify(d.exit)}`);
+  const h = await getJSON(d, '/api/v1/health');
+  assert.equal(h.status, 'ok');
+}
+
+function assertProblem(r, re) {
+  assert.equal(r.status, 422, `${r.status} ${r.text.slice(0, 500)}`);
+  validate('Error', r.json);
+  assert.ok(r.json.problems.some((p) => re.test(p)), `no problem matches ${re}: ${JSON.stringify(r.json.problems).slice(0, 800)}`);
+  // Never blamed on the bundled file's syntax (the deep document the pointer would have built).
+  assert.ok(!r.json.problems.some((p) => /invalid JSON|maximum parsing depth/.test(p)), JSON.stringify(r.json.problems).slice(0, 800));
+  // Problems stay readable: a 60 KB pointer is shortened.
+  assert.ok(r.text.length < 4000, `answer of ${r.text.length} bytes`);
+}
+
+test('a 30,000-level set pointer is a 422 naming /set/..., for jobs and comparisons', async () => {
+  await withDaemon({}, async (d) => {
+    const deep = '/a'.repeat(30000);
+    const job = await request(d, 'POST', '/api/v1/jobs', {body: {scene_file: 'sphere_on_plane.json', set: {[deep]: 1}}});
+    assertProblem(job, /^request: \/set\/~1a~1a~1a.*\.\.\.: pointer "\/a\/a.*has 30000 reference tokens; at most 32/);
+    // An inline scene goes the same way.
+    const inline = await request(d, 'POST', '/api/v1/jobs', {body: {camera: {}, set: {[deep]: 1}}});
+    assertProblem(inline, /^request: \/set\/~1a~1a.*has 30000 reference tokens/);
+    const cmp = await request(d, 'POST', '/api/v1/comparisons', {
+      body: {scene_file: 'sphere_on_plane.json', set: {[deep]: 1}, candidates: [{technique: 'rt_ao', backend: 'cpu'}]},
+    });
+    assertProblem(cmp, /^request: \/set\/~1a~1a.*has 30000 reference tokens/);
+    // 31 tokens pass the pointer bound, but a deep value under them makes the document too deep.
+    const p31 = '/a'.repeat(31);
+    const over = await request(d, 'POST', '/api/v1/jobs', {body: {scene_file: 'sphere_on_plane.json', set: {[p31]: [[1]]}}});
+    assertProblem(over, /^sphere_on_plane\.json: \/a\/a\/a.*nested deeper than 32/);
+    await assertAlive(d);
+    assertNothingStored(d);
+  });
+});
+
+test('a 100,000-deep body is a 422 with the depth limit and a location', async () => {
+  await withDaemon({}, async (d) => {
+    for (const [open, close, where] of [['[', ']', /^request: \/0\/0\/0/], ['{"a":', '}', /^request: \/a\/a\/a/]]) {
+      const body = open.repeat(100000) + '1' + close.repeat(100000);
+      const r = await request(d, 'POST', '/api/v1/jobs', {body, headers: {'content-type': 'application/json'}});
+      assertProblem(r, where);
+      assertProblem(r, /nested deeper than 32 arrays\/objects \(the depth limit\)/);
+      const c = await request(d, 'POST', '/api/v1/comparisons', {body, headers: {'content-type': 'application/json'}});
+      assertProblem(c, /nested deeper than 32/);
+    }
+    await assertAlive(d);
+    assertNothingStored(d);
+  });
+});
+
+function memory(pid) {
+  const s = fs.readFileSync(`/proc/${pid}/status`, 'utf8');
+  const kib = (k) => Number(s.match(new RegExp(`${k}:\\s+(\\d+) kB`))[1]) * 1024;
+  return {hwm: kib('VmHWM'), rss: kib('VmRSS')};
+}
+
+// Peak RSS is read from the kernel's high-water mark; the bound (2x idle RSS + 2x the bytes in
+// flight) is generous against allocator noise but far below what parsing the bodies costs (an
+// 8M-integer body took the peak from 68 MB to over 1 GB).
+test('16 MiB bodies of 8M integers, one string or small objects: refused, peak RSS bounded', async () => {
+  const size = 16 * MiB;
+  await withDaemon({args: ['--max-body', String(size)]}, async (d) => {
+    await getJSON(d, '/api/v1/health');
+    const idle = memory(d.proc.pid).rss;
+    const ints = '[' + '1,'.repeat(size / 2 - 2) + '1]';
+    const inObject = '{"objects":[' + '1,'.repeat(size / 2 - 8) + '1]}';
+    const str = '"' + 'a'.repeat(size - 3) + '"';
+    const objects = '[' + '{},'.repeat(Math.floor(size / 3) - 1) + '{}]';
+    for (const [name, body, re] of [['integers', ints, /more than 100000 JSON values/],
+                                    ['integers in an object', inObject, /^request: \/objects\/99998: more than 100000 JSON values/],
+                                    ['one string', str, /string of \d+ bytes; at most 65536/],
+                                    ['small objects', objects, /more than 100000 JSON values/]]) {
+      assert.ok(Buffer.byteLength(body) <= size, `${name}: ${Buffer.byteLength(body)} bytes`);
+      const r = await request(d, 'POST', '/api/v1/jobs', {body, headers: {'content-type': 'application/json'}});
+      assert.ok(r.status === 413 || r.status === 422, `${name}: ${r.status} ${r.text.slice(0, 300)}`);
+      if (r.status === 422) assertProblem(r, re);
+      const m = memory(d.proc.pid);
+      console.log(`# ${name}: idle RSS ${(idle / MiB).toFixed(1)} MiB, peak ${(m.hwm / MiB).toFixed(1)} MiB, after ${(m.rss / MiB).toFixed(1)} MiB`);
+      assert.ok(m.hwm <= 2 * idle + 2 * size, `${name}: peak RSS ${m.hwm} > 2 x ${idle} + 2 x ${size}`);
+    }
+    // Two at once: the bound grows by the second body only.
+    const both = await Promise.all([0, 1].map(() => request(d, 'POST', '/api/v1/comparisons',
+                                                            {body: inObject, headers: {'content-type': 'application/json'}})));
+    for (const r of both) assert.ok(r.status === 413 || r.status === 422, `${r.status} ${r.text.slice(0, 300)}`);
+    const m = memory(d.proc.pid);
+    console.log(`# two at once: peak ${(m.hwm / MiB).toFixed(1)} MiB, after ${(m.rss / MiB).toFixed(1)} MiB`);
+    assert.ok(m.hwm <= 2 * idle + 4 * size, `two bodies: peak RSS ${m.hwm} > 2 x ${idle} + 4 x ${size}`);
+    await assertAlive(d);
+    assertNothingStored(d);
+    // A legitimate job still goes through.
+    const ok = await request(d, 'POST', '/api/v1/jobs', {body: {scene_file: 'sphere_on_plane.json', set: {'/image/width': 16, '/image/height': 16}}});
+    assert.equal(ok.status, 201, ok.text);
+  });
+});
+
+// Tests run as root, for whom chmod restricts nothing: a read-only tmpfs is the read-only
+// directory. Skipped (with the reason) where mounting is not allowed.
+function mountReadOnly(dir, prepare) {
+  fs.mkdirSync(dir, {recursive: true});
+  let r = spawnSync('mount', ['-t', 'tmpfs', '-o', 'size=1m', 'tmpfs', dir], {encoding: 'utf8'});
+  if (r.status !== 0) return `mount -t tmpfs failed: ${(r.stderr || r.error || '').toString().trim()}`;
+  if (prepare) prepare(dir);
+  r = spawnSync('mount', ['-o', 'remount,ro', dir], {encoding: 'utf8'});
+  if (r.status !== 0) {
+    spawnSync('umount', [dir]);
+    return `remount,ro failed: ${(r.stderr || '').trim()}`;
+  }
+  return null;
+}
+
+async function startFails(args, re) {
+  let log = '';
+  await assert.rejects(startDaemon({args}), (e) => {
+    log = e.message;
+    return /exited .* before listening/.test(e.message);
+  });
+  assert.match(log, re);
+  assert.doesNotMatch(log, /^obscurad: [^\n]*unable to open database file\s*$/m);
+  return log;
+}
+
+test('a read-only data or database directory at start is named, with the reason', async (t) => {
+  const base = fs.mkdtempSync(path.join(os.tmpdir(), 'obsd-ro-'));
+  const ro = path.join(base, 'ro');
+  const why = mountReadOnly(ro, (dir) => {
+    // An existing database: SQLite opens it read-only and fails at the first write.
+    fs.mkdirSync(path.join(dir, 'old'));
+    const r = spawnSync('sqlite3', [path.join(dir, 'old', 'obscura.db'), 'CREATE TABLE t (x INTEGER);']);
+    assert.equal(r.status, 0, String(r.stderr));
+  });
+  if (why) {
+    t.skip(why);
+    fs.rmSync(base, {recursive: true, force: true});
+    return;
+  }
+  try {
+    const data = await startFails(['--data-dir', ro], new RegExp(`--data-dir ${ro}: cannot create ${ro}/results: Read-only file system \\(the data directory is on a read-only file system\\)`));
+    console.log(`# ${data.split('\n').find((l) => l.includes('--data-dir'))}`);
+    const db = path.join(ro, 'obscura.db');
+    const fresh = await startFails(['--db', db], new RegExp(`cannot open database ${db}: the directory ${ro} is on a read-only file system \\(EROFS\\)`));
+    console.log(`# ${fresh.split('\n').find((l) => l.includes('cannot open database'))}`);
+    const olddb = path.join(ro, 'old', 'obscura.db');
+    const old = await startFails(['--db', olddb], new RegExp(`cannot open database ${olddb}: the directory ${ro}/old is on a read-only file system \\(EROFS\\)`));
+    console.log(`# ${old.split('\n').find((l) => l.includes('cannot open database'))}`);
+  } finally {
+    const r = spawnSync('umount', [ro], {encoding: 'utf8'});
+    assert.equal(r.status, 0, `umount ${ro}: ${r.stderr}`);
+    fs.rmSync(base, {recursive: true, force: true});
+  }
+});
