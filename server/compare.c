@@ -445,8 +445,8 @@ static unsigned parse_request(srv_app *app, const char *body, size_t len, cmp_re
     *message = "request body is empty (send {\"scene_file\": ..., \"candidates\": [...]})";
     return 400;
   }
-  unsigned status = srv_submit_read_body(body, len, "like {\"scene_file\": ..., \"candidates\": "
-                                         "[...]}", &q->req, message, problems);
+  unsigned status = srv_submit_read_body(body, len, "a comparison like {\"scene_file\": ..., "
+                                         "\"candidates\": [...]}", &q->req, message, problems);
   if (status) return status;
   obs_jpath p;
   obs_jpath_init(&p, "request", problems);

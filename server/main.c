@@ -8,7 +8,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-#include <unistd.h>
 
 #include "obscurad.h"
 
@@ -123,10 +122,12 @@ int main(int argc, char **argv) {
   snprintf(dbdir, sizeof dbdir, "%s", app.cfg.db);
   char *slash = strrchr(dbdir, '/');
   if (slash && slash != dbdir) *slash = '\0';
-  if (srv_mkdirs(app.results_dir) || access(app.results_dir, W_OK | X_OK)) {
+  /* A results directory that exists but cannot be written is not refused here: that is a fault
+   * the render lanes report and wait out, like one that appears while running. */
+  if (srv_mkdirs(app.results_dir)) {
     int e = errno;
-    fprintf(stderr, "obscurad: --data-dir %s: cannot %s %s: %s%s\n", app.cfg.data_dir,
-            access(app.results_dir, F_OK) ? "create" : "write to", app.results_dir, strerror(e),
+    fprintf(stderr, "obscurad: --data-dir %s: cannot create %s: %s%s\n", app.cfg.data_dir,
+            app.results_dir, strerror(e),
             e == EROFS ? " (the data directory is on a read-only file system)"
             : e == EACCES || e == EPERM ? " (the data directory is not writable by this user)"
                                         : "");

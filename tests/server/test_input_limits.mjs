@@ -141,10 +141,12 @@ function mountReadOnly(dir, prepare) {
 
 async function startFails(args, re) {
   let log = '';
-  await assert.rejects(startDaemon({args}), (e) => {
+  const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'obsd-test-'));
+  await assert.rejects(startDaemon({args, dir}), (e) => {
     log = e.message;
     return /exited .* before listening/.test(e.message);
   });
+  fs.rmSync(dir, {recursive: true, force: true});
   assert.match(log, re);
   assert.doesNotMatch(log, /^obscurad: [^\n]*unable to open database file\s*$/m);
   return log;
