@@ -23,7 +23,7 @@
 #define MAX_LABEL 256
 /* Every candidate and reference is a whole scene document, kept as text until the comparison is
  * stored: the values of the scene times the documents made from it are bounded (the largest
- * bundled scene, 445 values, fits 256 candidates 35 times over). */
+ * bundled scene, 445 values, fits 256 candidates 17 times over). */
 #define MAX_EXPANDED_VALUES 4000000
 
 /* ---- small helpers --------------------------------------------------------------------------- */

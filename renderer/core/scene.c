@@ -493,7 +493,10 @@ int obs_scene_validate_json(const json_t *doc, const char *name, const char *bas
   obs_scene sc;
   memset(&sc, 0, sizeof sc);
   obs_err local = OBS_ERR_INIT;
-  int rc = validate(&sc, doc, name, base_dir, err ? err : &local);
+  obs_jpath p;
+  obs_jpath_init(&p, name, err ? err : &local);
+  int rc = obs_json_check_depth(&p, doc, OBS_JSON_MAX_DEPTH);
+  if (!rc) rc = validate(&sc, doc, name, base_dir, err ? err : &local);
   obs_scene_free(&sc);
   obs_err_free(&local);
   return rc;

@@ -107,7 +107,8 @@ int obs_scene_load_json(obs_scene *scene, json_t *doc, const char *name, const c
 /* Same for a file (at most 256 MiB); the file's base name and directory are used. */
 int obs_scene_load_file(obs_scene *scene, const char *path, const obs_override *ov, size_t nov,
                         obs_err *err);
-/* Validates an already-parsed document (borrowed, not modified) without keeping the result. */
+/* Validates an already-parsed document (borrowed, not modified) without keeping the result; its
+ * depth is checked first, as for obs_scene_load_json. */
 int obs_scene_validate_json(const json_t *doc, const char *name, const char *base_dir, obs_err *err);
 void obs_scene_free(obs_scene *scene);
 
