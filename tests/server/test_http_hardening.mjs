@@ -256,6 +256,8 @@ test('unfinished uploads are bounded by max-inflight-bytes; later ones get 503, 
       console.log(`# idle RSS ${(idle / 2 ** 20).toFixed(1)} MiB, RSS with ${accepted.length} stalled uploads ` +
                   `${(peak / 2 ** 20).toFixed(1)} MiB (bound ${(limit / 2 ** 20).toFixed(1)} MiB)`);
       assert.ok(peak <= limit, `RSS ${peak} over 2 x idle + max-inflight-bytes = ${limit}`);
+      // Tighter: the buffers themselves are all the uploads add (16 MiB of slack for the rest).
+      assert.ok(peak <= idle + BOUND + (16 << 20), `RSS ${peak} over idle ${idle} + max-inflight-bytes + 16 MiB`);
       // While they stall, another large upload is refused, a small one still fits the rest.
       const big = await rawExchange(d.port, head, {timeout: 1000});
       assert.equal(big.status, 503, `a 15 MiB upload with the budget spent: ${big.status} ${big.text}`);
