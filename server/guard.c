@@ -33,7 +33,8 @@ typedef struct gconn {
   struct gconn *pprev, *pnext; /* those of the same address, oldest first */
   peer *peer;
   int fd;
-  int waiting; /* its request headers are not complete */
+  int waiting;   /* its request headers are not complete */
+  int uploading; /* its headers are, its body is still arriving */
   int closing; /* shut down here; libmicrohttpd closes it and then reports it closed */
   double since; /* when it began waiting: accept, or the end of its previous request */
 } gconn;
@@ -121,24 +122,29 @@ static void evict(srv_guard *g, gconn *c, unsigned long long *reason) {
 }
 
 /* Oldest first: the waiting connection of `p` (any address when NULL) that has waited at least
- * `min_age` ms, other than `self`. */
-static gconn *oldest_waiting(srv_guard *g, peer *p, const gconn *self, double now, double min_age) {
+ * `min_age` ms, other than `self`; with `uploading`, the oldest one receiving a body instead. */
+static gconn *oldest_waiting(srv_guard *g, peer *p, const gconn *self, double now, double min_age,
+                             int uploading) {
   for (gconn *c = p ? p->head : g->head; c; c = p ? c->pnext : c->next)
-    if (c != self && c->waiting && !c->closing && now - c->since >= min_age) return c;
+    if (c != self && !c->closing && (uploading ? c->uploading : c->waiting) &&
+        now - c->since >= min_age)
+      return c;
   return NULL;
 }
 
 /* Keeps the address of `c` within its quota and the pool under its soft limit, closing the
- * oldest connections still sending headers. Returns 1 when the pool stays over the soft limit
- * (every other connection is busy with a request). */
+ * oldest connections still sending headers, and then the oldest still sending a body (an upload
+ * trickled byte by byte would hold its slot as long as it likes). Returns 1 when the pool stays
+ * over the soft limit (every other connection is busy with a request). */
 static int make_room(srv_guard *g, gconn *self, peer *p, double now) {
   while (p && p->waiting > g->per_address) {
-    gconn *v = oldest_waiting(g, p, self, now, GRACE_MS);
+    gconn *v = oldest_waiting(g, p, self, now, GRACE_MS, 0);
     if (!v) break;
     evict(g, v, &g->over_quota);
   }
   while (g->live > g->soft_limit) {
-    gconn *v = oldest_waiting(g, NULL, self, now, 0);
+    gconn *v = oldest_waiting(g, NULL, self, now, 0, 0);
+    if (!v) v = oldest_waiting(g, NULL, self, now, 0, 1);
     if (!v) return 1;
     evict(g, v, &g->for_room);
   }
@@ -177,21 +183,32 @@ void *srv_guard_started(srv_guard *g, int fd, const struct sockaddr *addr) {
   return c;
 }
 
-int srv_guard_headers_done(srv_guard *g, void *ctx) {
+int srv_guard_headers_done(srv_guard *g, void *ctx, int has_body) {
   gconn *c = ctx;
   if (!g || !c) return 0;
   pthread_mutex_lock(&g->mu);
   if (c->waiting && !c->closing) c->peer->waiting--;
   c->waiting = 0;
+  c->uploading = has_body;
+  c->since = obs_now_ms();
   int busy = !c->closing && make_room(g, c, NULL, obs_now_ms());
   pthread_mutex_unlock(&g->mu);
   return busy;
+}
+
+void srv_guard_body_done(srv_guard *g, void *ctx) {
+  gconn *c = ctx;
+  if (!g || !c) return;
+  pthread_mutex_lock(&g->mu);
+  c->uploading = 0;
+  pthread_mutex_unlock(&g->mu);
 }
 
 void srv_guard_request_done(srv_guard *g, void *ctx) {
   gconn *c = ctx;
   if (!g || !c) return;
   pthread_mutex_lock(&g->mu);
+  c->uploading = 0;
   if (!c->waiting && !c->closing) {
     c->waiting = 1;
     c->since = obs_now_ms();

@@ -22,6 +22,7 @@ typedef struct http_req {
   srv_req r;
   int64_t reserved; /* bytes of the in-flight budget held for the body buffer */
   int overloaded;   /* a chunked body outgrew the in-flight budget: dropped, answered 503 */
+  void *guard_ctx;  /* the connection as the guard knows it */
 } http_req;
 
 static void add_security_headers(struct MHD_Response *resp) {
@@ -437,9 +438,10 @@ static int first_call(http_req *h, const char *version) {
   srv_app *app = r->app;
   const union MHD_ConnectionInfo *ci =
       MHD_get_connection_info(r->conn, MHD_CONNECTION_INFO_SOCKET_CONTEXT);
-  int busy = srv_guard_headers_done(app->guard, ci ? ci->socket_context : NULL);
+  h->guard_ctx = ci ? ci->socket_context : NULL;
   int has_body = 0;
   int ret = check_framing(r, version, &has_body);
+  int busy = srv_guard_headers_done(app->guard, h->guard_ctx, has_body && !r->responded);
   if (r->responded) return ret;
   /* The reserve of connections is for the health check: a monitor must see a busy server as up. */
   if (busy && r->route != SRV_ROUTE_HEALTH)
@@ -488,6 +490,7 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *c, const cha
     *size = 0;
     return append_body(h, data, n);
   }
+  srv_guard_body_done(app->guard, h->guard_ctx);
   if (h->overloaded)
     return respond_busy(r, "request bodies in flight exceed max-inflight-bytes = %lld bytes: "
                         "try again shortly",

@@ -427,9 +427,12 @@ void srv_guard_free(srv_guard *g);
 /* Slots kept beyond the soft limit for answering while every other connection is busy. */
 int srv_guard_reserve_slots(int max_connections);
 void *srv_guard_started(srv_guard *g, int fd, const struct sockaddr *addr);
-/* The request headers are complete. Returns 1 when the pool is over its soft limit with no
- * waiting connection left to close: serve only what the reserve is for. */
-int srv_guard_headers_done(srv_guard *g, void *ctx);
+/* The request headers are complete (a body follows when has_body). Returns 1 when the pool is
+ * over its soft limit with no waiting connection left to close: serve only what the reserve is
+ * for. */
+int srv_guard_headers_done(srv_guard *g, void *ctx, int has_body);
+/* The whole body has arrived. */
+void srv_guard_body_done(srv_guard *g, void *ctx);
 /* A request ended: the connection waits for the next one's headers from now. */
 void srv_guard_request_done(srv_guard *g, void *ctx);
 /* Must come before the descriptor is closed. */

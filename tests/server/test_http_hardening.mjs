@@ -413,3 +413,28 @@ test('a keep-alive connection idle past the header timeout is closed; an active 
     assert.ok(idle >= 900 && idle < 3000, `closed after ${idle} ms idle (header timeout 1 s)`);
   });
 });
+
+test('slow uploads do not hold the pool: the oldest make room for new requests', async () => {
+  await withDaemon({args: ['--max-connections', '64']}, async (d) => {
+    const head = `POST /api/v1/jobs HTTP/1.1\r\nHost: 127.0.0.1:${d.port}\r\nContent-Type: application/json\r\nContent-Length: 1000\r\n\r\n{"la`;
+    const socks = [];
+    try {
+      let closed = 0;
+      for (let i = 0; i < 100; i++) {
+        const s = net.connect({host: '127.0.0.1', port: d.port});
+        s.on('error', () => {});
+        s.on('close', () => closed++);
+        s.write(head);
+        socks.push(s);
+      }
+      await sleep(500 * SLOW);
+      // 64 connections, 4 of them the reserve: about 60 uploads stay, the rest were closed.
+      assert.ok(closed >= 100 - 64, `only ${closed} of 100 stalled uploads closed with max-connections 64`);
+      for (let i = 0; i < 10; i++) assert.ok(await healthOnce(d.port) < HEALTH_MS, 'health under stalled uploads');
+      const r = await request(d, 'POST', '/api/v1/jobs', {body: small});
+      assert.equal(r.status, 201, `a complete request among stalled uploads: ${r.status} ${r.text}`);
+    } finally {
+      for (const s of socks) s.destroy();
+    }
+  });
+});
