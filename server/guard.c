@@ -35,8 +35,9 @@ typedef struct gconn {
   int fd;
   int waiting;   /* its request headers are not complete */
   int uploading; /* its headers are, its body is still arriving */
-  int closing; /* shut down here; libmicrohttpd closes it and then reports it closed */
-  double since; /* when it began waiting: accept, or the end of its previous request */
+  int closing;   /* shut down here; libmicrohttpd closes it and then reports it closed */
+  double since;  /* when it began waiting (accept, or the end of its previous request) or
+                    uploading */
 } gconn;
 
 struct peer {

@@ -517,7 +517,8 @@ static void log_safe(const char *in, char *out, size_t n) {
 static void on_completed(void *cls, struct MHD_Connection *c, void **con_cls,
                          enum MHD_RequestTerminationCode toe) {
   srv_app *app = cls;
-  const union MHD_ConnectionInfo *ci = MHD_get_connection_info(c, MHD_CONNECTION_INFO_SOCKET_CONTEXT);
+  const union MHD_ConnectionInfo *ci =
+      MHD_get_connection_info(c, MHD_CONNECTION_INFO_SOCKET_CONTEXT);
   srv_guard_request_done(app->guard, ci ? ci->socket_context : NULL);
   http_req *h = *con_cls;
   if (!h) return;
