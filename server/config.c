@@ -55,6 +55,14 @@ static const opt opts[] = {
     {"checkpoint-jobs", OPT_INT, OFF(checkpoint_jobs), 1, 1000000,
      "... or after this many finished jobs (default 64)"},
     {"quiet", OPT_BOOL, OFF(quiet), 0, 1, "no per-request log lines (default false)"},
+    {"header-timeout", OPT_INT, OFF(header_timeout), 1, 3600,
+     "seconds a connection has, in all, to send a request's headers (default 10)"},
+    {"max-connections", OPT_INT, OFF(max_connections), 16, 100000,
+     "connections held at once, a reserve for health included (default 1000)"},
+    {"max-pending-per-address", OPT_INT, OFF(max_pending_per_address), 1, 100000,
+     "connections of one client address still sending headers; its oldest close (default 32)"},
+    {"max-inflight-bytes", OPT_SIZE, OFF(max_inflight), 1024, 1024.0 * 1024 * 1024 * 1024,
+     "request-body bytes buffered across all connections; more get 503 (default 64M)"},
 };
 #define NOPTS (sizeof opts / sizeof opts[0])
 
@@ -205,6 +213,10 @@ int srv_config_parse(srv_config *cfg, int argc, char **argv) {
   cfg->worker_nice = 10;
   cfg->checkpoint_seconds = 30;
   cfg->checkpoint_jobs = 64;
+  cfg->header_timeout = 10;
+  cfg->max_connections = 1000;
+  cfg->max_pending_per_address = 32;
+  cfg->max_inflight = 64 * 1024 * 1024;
   /* The config file first, wherever --config stands, so the command line always wins. */
   for (int i = 1; i < argc; i++) {
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
@@ -264,6 +276,13 @@ int srv_config_parse(srv_config *cfg, int argc, char **argv) {
     cfg->db = malloc(n);
     if (!cfg->db) return -1;
     snprintf(cfg->db, n, "%s/obscura.db", cfg->data_dir);
+  }
+  if (cfg->max_inflight < cfg->max_body) {
+    fprintf(stderr,
+            "obscurad: --max-inflight-bytes (%lld) must be at least --max-body (%lld), or no "
+            "body of the largest allowed size could ever be accepted\n",
+            (long long)cfg->max_inflight, (long long)cfg->max_body);
+    return -1;
   }
   if (!cfg->http_threads) {
     int c = obs_cpu_count();

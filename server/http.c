@@ -1,6 +1,7 @@
-/* obscurad's HTTP layer on libmicrohttpd (internal epoll thread pool): request bodies under the
- * size limit, bearer-token checks, security headers on every response, JSON answers, and one log
- * line plus one metrics count per request. */
+/* obscurad's HTTP layer on libmicrohttpd (internal epoll thread pool): strict message framing,
+ * same-origin and JSON-only mutating requests, bearer-token checks, request bodies under the size
+ * and in-flight limits, security headers on every response, JSON answers, and one log line plus
+ * one metrics count per request. Connection-level limits live in guard.c. */
 #include <arpa/inet.h>
 #include <ctype.h>
 #include <microhttpd.h>
@@ -14,6 +15,15 @@
 #include <sys/socket.h>
 
 #include "obscurad.h"
+
+/* What http.c keeps about a request beyond what the handlers see. `r` comes first: handlers get
+ * &h->r and on_completed turns it back. */
+typedef struct http_req {
+  srv_req r;
+  int64_t reserved; /* bytes of the in-flight budget held for the body buffer */
+  int overloaded;   /* a chunked body outgrew the in-flight budget: dropped, answered 503 */
+  void *guard_ctx;  /* the connection as the guard knows it */
+} http_req;
 
 static void add_security_headers(struct MHD_Response *resp) {
   MHD_add_response_header(resp, "Content-Security-Policy", "default-src 'self'; frame-ancestors 'none'");
@@ -61,13 +71,35 @@ int srv_respond_json(srv_req *r, unsigned status, json_t *body) {
   return respond_json(r, status, body, NULL);
 }
 
-int srv_refuse_non_json(srv_req *r, int *ret) {
+/* Whether a Content-Type value names the media type application/json: compared without case,
+ * parameters (`; charset=utf-8`) allowed, nothing else (application/jsonp, application/json-seq
+ * and +json suffixes are other types). */
+static int is_json_type(const char *ct) {
+  while (*ct == ' ' || *ct == '\t') ct++;
+  size_t n = strcspn(ct, "; \t");
+  if (n != 16 || strncasecmp(ct, "application/json", 16)) return 0;
+  ct += n;
+  while (*ct == ' ' || *ct == '\t') ct++;
+  return *ct == '\0' || *ct == ';';
+}
+
+/* The 415 for a body that is not declared JSON; 0 when it is, or when there is no body. */
+static int refuse_content_type(srv_req *r, int has_body) {
   const char *ct =
       MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_TYPE);
-  if (!ct || !strncasecmp(ct, "application/json", 16)) return 0;
-  *ret = srv_respond_error(r, MHD_HTTP_UNSUPPORTED_MEDIA_TYPE, NULL,
-                           "Content-Type must be application/json (got \"%.64s\")", ct);
-  return 1;
+  if (ct ? is_json_type(ct) : !has_body) return 0;
+  if (!ct)
+    return srv_respond_error(r, MHD_HTTP_UNSUPPORTED_MEDIA_TYPE, NULL,
+                             "a request body needs Content-Type: application/json (none given)");
+  char shown[80];
+  srv_printable(ct, shown, sizeof shown);
+  return srv_respond_error(r, MHD_HTTP_UNSUPPORTED_MEDIA_TYPE, NULL,
+                           "Content-Type must be application/json (got \"%s\")", shown);
+}
+
+int srv_refuse_non_json(srv_req *r, int *ret) {
+  *ret = refuse_content_type(r, r->len > 0);
+  return r->responded;
 }
 
 int srv_respond_unavailable(srv_req *r, obs_err *err) {
@@ -82,12 +114,8 @@ int srv_respond_created(srv_req *r, json_t *body, const char *location) {
   return respond_json(r, MHD_HTTP_CREATED, body, location);
 }
 
-int srv_respond_error(srv_req *r, unsigned status, const obs_err *problems, const char *fmt, ...) {
-  char msg[1024];
-  va_list ap;
-  va_start(ap, fmt);
-  vsnprintf(msg, sizeof msg, fmt, ap);
-  va_end(ap);
+/* {"error": msg, "problems": [one string per line of `problems`]}. */
+static json_t *error_json(const obs_err *problems, const char *msg) {
   json_t *list = json_array();
   const char *t = problems ? obs_err_message(problems) : "";
   while (*t) {
@@ -106,7 +134,34 @@ int srv_respond_error(srv_req *r, unsigned status, const obs_err *problems, cons
     t += n;
     if (*t == '\n') t++;
   }
-  return srv_respond_json(r, status, json_pack("{s:s, s:o}", "error", msg, "problems", list));
+  return json_pack("{s:s, s:o}", "error", msg, "problems", list);
+}
+
+int srv_respond_error(srv_req *r, unsigned status, const obs_err *problems, const char *fmt, ...) {
+  char msg[1024];
+  va_list ap;
+  va_start(ap, fmt);
+  vsnprintf(msg, sizeof msg, fmt, ap);
+  va_end(ap);
+  return srv_respond_json(r, status, error_json(problems, msg));
+}
+
+/* 503 with Retry-After: the request was fine, the server has no room for it right now. */
+static int respond_busy(srv_req *r, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+static int respond_busy(srv_req *r, const char *fmt, ...) {
+  char msg[512];
+  va_list ap;
+  va_start(ap, fmt);
+  vsnprintf(msg, sizeof msg, fmt, ap);
+  va_end(ap);
+  struct MHD_Response *resp = srv_json_response(error_json(NULL, msg));
+  if (!resp) return MHD_NO;
+  MHD_add_response_header(resp, "Retry-After", "1");
+  return srv_respond(r, MHD_HTTP_SERVICE_UNAVAILABLE, resp);
 }
 
 int srv_respond_method(srv_req *r, const char *allow) {
@@ -148,16 +203,274 @@ static size_t unescape(void *cls, struct MHD_Connection *c, char *uri) {
   return MHD_http_unescape(uri);
 }
 
+/* ---- checks of a request's headers, before any body is read ---------------------------------- */
+
+typedef struct header_counts {
+  int host, content_length, transfer_encoding;
+} header_counts;
+
+static enum MHD_Result count_header(void *cls, enum MHD_ValueKind kind, const char *key,
+                                    const char *value) {
+  (void)kind;
+  (void)value;
+  header_counts *n = cls;
+  if (!strcasecmp(key, MHD_HTTP_HEADER_HOST)) n->host++;
+  else if (!strcasecmp(key, MHD_HTTP_HEADER_CONTENT_LENGTH)) n->content_length++;
+  else if (!strcasecmp(key, MHD_HTTP_HEADER_TRANSFER_ENCODING)) n->transfer_encoding++;
+  return MHD_YES;
+}
+
+/* Framing that a proxy in front could read differently from libmicrohttpd (the root of request
+ * smuggling) and requests HTTP/1.1 forbids. libmicrohttpd itself takes the first of repeated
+ * headers, reads a body of unknown coding until the connection closes, and does not require
+ * Host. Sets *has_body. Like every check below, it answers when the request fails it; the caller
+ * then returns what it returned. */
+static int check_framing(srv_req *r, const char *version, int *has_body) {
+  header_counts n = {0, 0, 0};
+  MHD_get_connection_values(r->conn, MHD_HEADER_KIND, count_header, &n);
+  *has_body = 0;
+  if (n.content_length > 1)
+    return srv_respond_error(r, MHD_HTTP_BAD_REQUEST, NULL,
+                             "Content-Length given %d times (send it once)", n.content_length);
+  if (n.transfer_encoding > 1)
+    return srv_respond_error(r, MHD_HTTP_BAD_REQUEST, NULL,
+                             "Transfer-Encoding given %d times (send it once)",
+                             n.transfer_encoding);
+  if (n.transfer_encoding && n.content_length)
+    return srv_respond_error(r, MHD_HTTP_BAD_REQUEST, NULL,
+                             "both Content-Length and Transfer-Encoding given (send one)");
+  if (n.transfer_encoding) {
+    const char *te =
+        MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_TRANSFER_ENCODING);
+    if (!te || strcasecmp(te, "chunked")) {
+      char shown[80];
+      srv_printable(te, shown, sizeof shown);
+      return srv_respond_error(r, MHD_HTTP_NOT_IMPLEMENTED, NULL,
+                               "Transfer-Encoding \"%s\" is not supported (only chunked)", shown);
+    }
+    *has_body = 1;
+  }
+  if (n.content_length) {
+    const char *cl =
+        MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_LENGTH);
+    *has_body = cl && strtoull(cl, NULL, 10) > 0;
+  }
+  if (n.host > 1)
+    return srv_respond_error(r, MHD_HTTP_BAD_REQUEST, NULL, "Host given %d times (send it once)",
+                             n.host);
+  int v11 = version && !strncmp(version, "HTTP/1.", 7) && strcmp(version, MHD_HTTP_VERSION_1_0);
+  if (!n.host && v11)
+    return srv_respond_error(r, MHD_HTTP_BAD_REQUEST, NULL,
+                             "an %s request needs a Host header", MHD_HTTP_VERSION_1_1);
+  return MHD_YES;
+}
+
+/* The host of "host[:port]" or "[v6][:port]", brackets dropped; -1 when malformed or too long. */
+static int host_part(const char *hostport, char *out, size_t n) {
+  const char *end;
+  if (*hostport == '[') {
+    hostport++;
+    end = strchr(hostport, ']');
+    if (!end || (end[1] && end[1] != ':')) return -1;
+  } else {
+    end = strchr(hostport, ':');
+    if (!end) end = hostport + strlen(hostport);
+  }
+  size_t len = (size_t)(end - hostport);
+  if (!len || len >= n) return -1;
+  memcpy(out, hostport, len);
+  out[len] = '\0';
+  return 0;
+}
+
+/* Whether the IP literal `ip` (family af) is the configured listen address or the address this
+ * connection arrived at (which covers --listen 0.0.0.0 or ::). */
+static int is_own_address(srv_req *r, int af, const unsigned char *ip) {
+  unsigned char b[16];
+  size_t len = af == AF_INET ? 4 : 16;
+  if (inet_pton(af, r->app->cfg.listen, b) == 1 && !memcmp(b, ip, len)) return 1;
+  const union MHD_ConnectionInfo *ci =
+      MHD_get_connection_info(r->conn, MHD_CONNECTION_INFO_CONNECTION_FD);
+  struct sockaddr_storage ss;
+  socklen_t sl = sizeof ss;
+  if (!ci || getsockname(ci->connect_fd, (struct sockaddr *)&ss, &sl)) return 0;
+  if (ss.ss_family == AF_INET && af == AF_INET)
+    return !memcmp(&((struct sockaddr_in *)&ss)->sin_addr, ip, 4);
+  if (ss.ss_family != AF_INET6) return 0;
+  const unsigned char *a = ((struct sockaddr_in6 *)&ss)->sin6_addr.s6_addr;
+  if (af == AF_INET6) return !memcmp(a, ip, 16);
+  static const unsigned char mapped[12] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0xff, 0xff};
+  return !memcmp(a, mapped, 12) && !memcmp(a + 12, ip, 4);
+}
+
+/* A Host a page of this daemon's own origin can carry: a loopback name or address, or this
+ * daemon's own address. A page on a foreign name that was made to resolve here (DNS rebinding)
+ * carries that name. */
+static int host_trusted(srv_req *r, const char *hostport) {
+  char h[256];
+  if (host_part(hostport, h, sizeof h)) return 0;
+  if (!strcasecmp(h, "localhost") || !strcasecmp(h, "localhost.")) return 1;
+  unsigned char ip[16];
+  if (inet_pton(AF_INET, h, ip) == 1) return ip[0] == 127 || is_own_address(r, AF_INET, ip);
+  if (inet_pton(AF_INET6, h, ip) == 1)
+    return IN6_IS_ADDR_LOOPBACK((struct in6_addr *)ip) || is_own_address(r, AF_INET6, ip);
+  return 0;
+}
+
+/* "host:port" and "host" name the same origin when the port is HTTP's default. */
+static int same_hostport(const char *a, const char *b) {
+  size_t na = strlen(a), nb = strlen(b);
+  if (na > 3 && !strcmp(a + na - 3, ":80")) na -= 3;
+  if (nb > 3 && !strcmp(b + nb - 3, ":80")) nb -= 3;
+  return na == nb && !strncasecmp(a, b, na);
+}
+
+static int is_safe_method(const char *m) {
+  return !strcmp(m, "GET") || !strcmp(m, "HEAD") || !strcmp(m, "OPTIONS");
+}
+
+/* A request that changes something must come from this daemon's own pages or from a client that
+ * is not a browser (no Origin, no Sec-Fetch-Site): a page elsewhere can make a browser send a
+ * POST (a "simple" request needs no CORS preflight) but cannot forge these two headers. */
+static int check_origin(srv_req *r) {
+  if (is_safe_method(r->method)) return MHD_YES;
+  const char *site = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, "Sec-Fetch-Site");
+  char shown[120], host_shown[120];
+  if (site && strcasecmp(site, "same-origin") && strcasecmp(site, "none")) {
+    srv_printable(site, shown, sizeof shown);
+    return srv_respond_error(r, MHD_HTTP_FORBIDDEN, NULL,
+                             "cross-site request refused: Sec-Fetch-Site is \"%s\" (requests "
+                             "that change anything must be same-origin)",
+                             shown);
+  }
+  const char *origin = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, "Origin");
+  if (!origin) return MHD_YES;
+  const char *host = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_HOST);
+  srv_printable(origin, shown, sizeof shown);
+  srv_printable(host ? host : "", host_shown, sizeof host_shown);
+  if (!strcmp(origin, "null"))
+    return srv_respond_error(r, MHD_HTTP_FORBIDDEN, NULL,
+                             "cross-origin request refused: Origin is \"null\" (a sandboxed "
+                             "page, a file or a redirect), not this server's origin");
+  if (!host || strncasecmp(origin, "http://", 7) || !same_hostport(origin + 7, host))
+    return srv_respond_error(r, MHD_HTTP_FORBIDDEN, NULL,
+                             "cross-origin request refused: Origin \"%s\" is not this server's "
+                             "origin \"http://%s\"",
+                             shown, host_shown);
+  if (!host_trusted(r, host))
+    return srv_respond_error(r, MHD_HTTP_FORBIDDEN, NULL,
+                             "request refused: Host \"%s\" is neither a loopback name or address "
+                             "nor this server's address (a foreign name resolving here is how "
+                             "DNS rebinding reaches a local server)",
+                             host_shown);
+  return MHD_YES;
+}
+
+/* The body's share of the in-flight budget, taken before any byte is read: an announced length
+ * whole (its buffer is allocated once), a chunked body as it grows (append_body). */
+static int take_body_budget(http_req *h) {
+  srv_req *r = &h->r;
+  srv_app *app = r->app;
+  const char *cl =
+      MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_LENGTH);
+  unsigned long long n = cl ? strtoull(cl, NULL, 10) : 0;
+  if (n > (unsigned long long)app->cfg.max_body)
+    return srv_respond_error(r, 413, NULL,
+                             "request body of %llu bytes exceeds the limit max-body = %lld bytes",
+                             n, (long long)app->cfg.max_body);
+  if (!n) return MHD_YES;
+  if (srv_guard_reserve(app->guard, (int64_t)n + 1))
+    return respond_busy(r,
+                        "request bodies in flight would exceed max-inflight-bytes = %lld bytes "
+                        "with this one of %llu bytes: try again shortly",
+                        (long long)app->cfg.max_inflight, n);
+  h->reserved = (int64_t)n + 1;
+  r->body = malloc((size_t)n + 1);
+  if (!r->body) return respond_busy(r, "out of memory for a body of %llu bytes", n);
+  r->cap = (size_t)n + 1;
+  return MHD_YES;
+}
+
+/* Drops what a refused body holds, so its budget serves others while the rest is read. */
+static void drop_body(http_req *h) {
+  free(h->r.body);
+  h->r.body = NULL;
+  h->r.len = h->r.cap = 0;
+  srv_guard_release(h->r.app->guard, h->reserved);
+  h->reserved = 0;
+}
+
+static enum MHD_Result append_body(http_req *h, const char *data, size_t n) {
+  srv_req *r = &h->r;
+  srv_app *app = r->app;
+  /* A refused body is read and dropped so the client gets the answer rather than a reset. */
+  if (r->too_big || h->overloaded) return MHD_YES;
+  if (r->len + n > (size_t)app->cfg.max_body) {
+    r->too_big = 1;
+    drop_body(h);
+    return MHD_YES;
+  }
+  if (r->len + n + 1 > r->cap) {
+    size_t cap = r->cap ? r->cap : 4096;
+    while (cap < r->len + n + 1) cap *= 2;
+    if (cap > (size_t)app->cfg.max_body + 1) cap = (size_t)app->cfg.max_body + 1;
+    if (srv_guard_reserve(app->guard, (int64_t)cap - h->reserved)) {
+      h->overloaded = 1;
+      drop_body(h);
+      return MHD_YES;
+    }
+    h->reserved = (int64_t)cap;
+    char *b = realloc(r->body, cap);
+    if (!b) return MHD_NO;
+    r->body = b;
+    r->cap = cap;
+  }
+  memcpy(r->body + r->len, data, n);
+  r->len += n;
+  r->body[r->len] = '\0';
+  return MHD_YES;
+}
+
+/* Everything that can be decided from the request line and headers, cheapest and most
+ * fundamental first: framing, room, origin, token, media type, size. */
+static int first_call(http_req *h, const char *version) {
+  srv_req *r = &h->r;
+  srv_app *app = r->app;
+  const union MHD_ConnectionInfo *ci =
+      MHD_get_connection_info(r->conn, MHD_CONNECTION_INFO_SOCKET_CONTEXT);
+  h->guard_ctx = ci ? ci->socket_context : NULL;
+  int has_body = 0;
+  int ret = check_framing(r, version, &has_body);
+  int busy = srv_guard_headers_done(app->guard, h->guard_ctx, has_body && !r->responded);
+  if (r->responded) return ret;
+  /* The reserve of connections is for the health check: a monitor must see a busy server as up. */
+  if (busy && r->route != SRV_ROUTE_HEALTH)
+    return respond_busy(r,
+                        "every connection up to max-connections = %d is busy: try again shortly",
+                        app->cfg.max_connections);
+  ret = check_origin(r);
+  if (r->responded) return ret;
+  /* Answered before any body is read: a wrong token or an announced oversized body never
+   * costs the upload. */
+  if (needs_auth(app, r->route) && !auth_ok(app, r->conn))
+    return srv_respond_error(r, MHD_HTTP_UNAUTHORIZED, NULL,
+                             "missing or wrong bearer token (send Authorization: Bearer "
+                             "<token>)");
+  ret = refuse_content_type(r, has_body);
+  if (r->responded) return ret;
+  return take_body_budget(h);
+}
+
 static enum MHD_Result on_request(void *cls, struct MHD_Connection *c, const char *url,
                                   const char *method, const char *version, const char *data,
                                   size_t *size, void **con_cls) {
-  (void)version;
   srv_app *app = cls;
-  srv_req *r = *con_cls;
-  if (!r) {
-    r = calloc(1, sizeof *r);
-    if (!r) return MHD_NO;
-    *con_cls = r;
+  http_req *h = *con_cls;
+  if (!h) {
+    h = calloc(1, sizeof *h);
+    if (!h) return MHD_NO;
+    *con_cls = h;
+    srv_req *r = &h->r;
     r->app = app;
     r->conn = c;
     r->method = method;
@@ -165,20 +478,9 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *c, const cha
     r->t0 = obs_now_ms();
     if (!r->path) return MHD_NO;
     r->route = srv_api_route(r->path);
-    /* Answered before any body is read: a wrong token or an announced oversized body never
-     * costs the upload. */
-    if (needs_auth(app, r->route) && !auth_ok(app, c))
-      return srv_respond_error(r, MHD_HTTP_UNAUTHORIZED, NULL,
-                               "missing or wrong bearer token (send Authorization: Bearer "
-                               "<token>)");
-    const char *cl = MHD_lookup_connection_value(c, MHD_HEADER_KIND,
-                                                 MHD_HTTP_HEADER_CONTENT_LENGTH);
-    if (cl && strtoull(cl, NULL, 10) > (unsigned long long)app->cfg.max_body)
-      return srv_respond_error(r, 413, NULL,
-                               "request body of %s bytes exceeds the limit max-body = %lld bytes",
-                               cl, (long long)app->cfg.max_body);
-    return MHD_YES;
+    return first_call(h, version) == MHD_YES ? MHD_YES : MHD_NO;
   }
+  srv_req *r = &h->r;
   if (r->responded) {
     *size = 0;
     return MHD_YES;
@@ -186,24 +488,13 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *c, const cha
   if (*size) {
     size_t n = *size;
     *size = 0;
-    if (r->too_big || r->len + n > (size_t)app->cfg.max_body) {
-      /* Keep reading (and dropping) so the client gets the 413 rather than a reset. */
-      r->too_big = 1;
-      return MHD_YES;
-    }
-    if (r->len + n + 1 > r->cap) {
-      size_t cap = r->cap ? r->cap : 4096;
-      while (cap < r->len + n + 1) cap *= 2;
-      char *b = realloc(r->body, cap);
-      if (!b) return MHD_NO;
-      r->body = b;
-      r->cap = cap;
-    }
-    memcpy(r->body + r->len, data, n);
-    r->len += n;
-    r->body[r->len] = '\0';
-    return MHD_YES;
+    return append_body(h, data, n);
   }
+  srv_guard_body_done(app->guard, h->guard_ctx);
+  if (h->overloaded)
+    return respond_busy(r, "request bodies in flight exceed max-inflight-bytes = %lld bytes: "
+                        "try again shortly",
+                        (long long)app->cfg.max_inflight);
   if (r->too_big)
     return srv_respond_error(r, 413, NULL,
                              "request body exceeds the limit max-body = %lld bytes",
@@ -225,11 +516,15 @@ static void log_safe(const char *in, char *out, size_t n) {
 
 static void on_completed(void *cls, struct MHD_Connection *c, void **con_cls,
                          enum MHD_RequestTerminationCode toe) {
-  (void)c;
   srv_app *app = cls;
-  srv_req *r = *con_cls;
-  if (!r) return;
+  const union MHD_ConnectionInfo *ci =
+      MHD_get_connection_info(c, MHD_CONNECTION_INFO_SOCKET_CONTEXT);
+  srv_guard_request_done(app->guard, ci ? ci->socket_context : NULL);
+  http_req *h = *con_cls;
+  if (!h) return;
   *con_cls = NULL;
+  srv_guard_release(app->guard, h->reserved);
+  srv_req *r = &h->r;
   srv_metrics_http(r->route, r->status);
   if (!app->cfg.quiet) {
     char path[256];
@@ -245,7 +540,26 @@ static void on_completed(void *cls, struct MHD_Connection *c, void **con_cls,
   }
   free(r->path);
   free(r->body);
-  free(r);
+  free(h);
+}
+
+/* Connections as the guard sees them: it must hear of each close before libmicrohttpd closes
+ * the descriptor, which it does (daemon.c reports MHD_CONNECTION_NOTIFY_CLOSED first). */
+static void on_connection(void *cls, struct MHD_Connection *c, void **socket_context,
+                          enum MHD_ConnectionNotificationCode toe) {
+  srv_app *app = cls;
+  if (toe == MHD_CONNECTION_NOTIFY_STARTED) {
+    const union MHD_ConnectionInfo *fd =
+        MHD_get_connection_info(c, MHD_CONNECTION_INFO_CONNECTION_FD);
+    const union MHD_ConnectionInfo *addr =
+        MHD_get_connection_info(c, MHD_CONNECTION_INFO_CLIENT_ADDRESS);
+    *socket_context =
+        fd ? srv_guard_started(app->guard, fd->connect_fd, addr ? addr->client_addr : NULL)
+           : NULL;
+  } else if (toe == MHD_CONNECTION_NOTIFY_CLOSED) {
+    srv_guard_closed(app->guard, *socket_context);
+    *socket_context = NULL;
+  }
 }
 
 static void on_mhd_log(void *cls, const char *fmt, va_list ap) {
@@ -277,16 +591,21 @@ int srv_http_start(srv_app *app, obs_err *err) {
     return obs_err_set(err, OBS_EINVAL, "--listen: not an IPv4 or IPv6 address (got \"%s\")",
                        app->cfg.listen);
   }
+  if (srv_guard_create(&app->cfg, &app->guard, err)) return OBS_EIO;
   app->mhd = MHD_start_daemon(
       flags, (uint16_t)app->cfg.port, NULL, NULL, on_request, app, MHD_OPTION_EXTERNAL_LOGGER,
       on_mhd_log, NULL, MHD_OPTION_SOCK_ADDR, (struct sockaddr *)&ss, MHD_OPTION_THREAD_POOL_SIZE,
       (unsigned)app->cfg.http_threads, MHD_OPTION_NOTIFY_COMPLETED, on_completed, app,
-      MHD_OPTION_CONNECTION_TIMEOUT, 30u, MHD_OPTION_CONNECTION_LIMIT, 1000u,
+      MHD_OPTION_NOTIFY_CONNECTION, on_connection, app, MHD_OPTION_CONNECTION_TIMEOUT, 30u,
+      MHD_OPTION_CONNECTION_LIMIT, (unsigned)app->cfg.max_connections,
       MHD_OPTION_LISTENING_ADDRESS_REUSE, 1u, MHD_OPTION_UNESCAPE_CALLBACK, unescape, NULL,
       MHD_OPTION_END);
-  if (!app->mhd)
+  if (!app->mhd) {
+    srv_guard_free(app->guard);
+    app->guard = NULL;
     return obs_err_set(err, OBS_EIO, "cannot listen on %s port %d (in use, or not permitted)",
                        app->cfg.listen, app->cfg.port);
+  }
   const union MHD_DaemonInfo *info = MHD_get_daemon_info(app->mhd, MHD_DAEMON_INFO_BIND_PORT);
   app->port = info && info->port ? info->port : app->cfg.port;
   return 0;
@@ -295,4 +614,6 @@ int srv_http_start(srv_app *app, obs_err *err) {
 void srv_http_stop(srv_app *app) {
   if (app->mhd) MHD_stop_daemon(app->mhd);
   app->mhd = NULL;
+  srv_guard_free(app->guard);
+  app->guard = NULL;
 }

@@ -38,6 +38,11 @@ typedef struct srv_config {
   int checkpoint_seconds; /* WAL checkpoint period */
   int checkpoint_jobs;    /* ... or after this many finished jobs */
   int quiet;              /* no per-request log lines (job lines stay) */
+  /* Connection hardening (guard.c). */
+  int header_timeout;          /* seconds to send a request's headers, in all; default 10 */
+  int max_connections;         /* connections held at once; default 1000 */
+  int max_pending_per_address; /* connections of one address still sending headers; 32 */
+  int64_t max_inflight;        /* request-body bytes buffered across connections; 64 MiB */
 } srv_config;
 
 /* Fills defaults, reads --config FILE (if any) and then the command line, which wins. Returns 0,
@@ -334,8 +339,9 @@ int srv_respond(srv_req *r, unsigned status, struct MHD_Response *resp);
  * of their own; consumes `body`; NULL when out of memory. */
 struct MHD_Response *srv_json_response(json_t *body);
 int srv_respond_json(srv_req *r, unsigned status, json_t *body);
-/* A request body with a Content-Type other than application/json (parameters allowed; absent is
- * fine): answers 415 and returns 1 with the handler's result in *ret; else 0. */
+/* A request body whose Content-Type is not the media type application/json (parameters allowed;
+ * absent is refused when there is a body): answers 415 and returns 1 with the handler's result in
+ * *ret; else 0. */
 int srv_refuse_non_json(srv_req *r, int *ret);
 /* 503 for a database error (logged; consumes the messages of `err`). */
 int srv_respond_unavailable(srv_req *r, obs_err *err);
@@ -416,6 +422,34 @@ int srv_compare_budget_choice(struct srv_app *app, const char *scene, double pix
 int srv_http_start(struct srv_app *app, obs_err *err);
 void srv_http_stop(struct srv_app *app);
 
+/* ---- connection guard (guard.c) -------------------------------------------------------------- */
+
+/* Closes connections that take longer than cfg->header_timeout to send their request headers,
+ * keeps at most cfg->max_pending_per_address of them per client address and room in the pool,
+ * and counts request-body bytes in flight. The connection calls come from libmicrohttpd's
+ * threads; `ctx` is what srv_guard_started returned (NULL when it could not track one). */
+typedef struct srv_guard srv_guard;
+struct sockaddr;
+int srv_guard_create(const srv_config *cfg, srv_guard **out, obs_err *err);
+/* After libmicrohttpd has stopped. */
+void srv_guard_free(srv_guard *g);
+/* Slots kept beyond the soft limit for answering while every other connection is busy. */
+int srv_guard_reserve_slots(int max_connections);
+void *srv_guard_started(srv_guard *g, int fd, const struct sockaddr *addr);
+/* The request headers are complete (a body follows when has_body). Returns 1 when the pool is
+ * over its soft limit with no waiting connection left to close: serve only what the reserve is
+ * for. */
+int srv_guard_headers_done(srv_guard *g, void *ctx, int has_body);
+/* The whole body has arrived. */
+void srv_guard_body_done(srv_guard *g, void *ctx);
+/* A request ended: the connection waits for the next one's headers from now. */
+void srv_guard_request_done(srv_guard *g, void *ctx);
+/* Must come before the descriptor is closed. */
+void srv_guard_closed(srv_guard *g, void *ctx);
+/* Takes `bytes` of the in-flight budget (0), or refuses (-1) when it would exceed it. */
+int srv_guard_reserve(srv_guard *g, int64_t bytes);
+void srv_guard_release(srv_guard *g, int64_t bytes);
+
 /* ---- the application ------------------------------------------------------------------------- */
 
 typedef struct srv_app {
@@ -423,6 +457,7 @@ typedef struct srv_app {
   srv_db *db;
   srv_sched *sched;
   struct MHD_Daemon *mhd;
+  srv_guard *guard;
   char scenes_real[4096];  /* resolved --scenes-dir */
   char web_real[4096];     /* resolved --web-dir, "" when it does not exist */
   char vendor_real[4096];  /* resolved --vendor-dir, "" when it does not exist */

@@ -169,16 +169,17 @@ export async function withDaemon(opts, fn) {
 
 /**
  * One request through node:http, so that the path goes out exactly as given (fetch would resolve
- * `..` and re-encode). body: string | Buffer | object (sent as JSON). Returns {status, headers,
- * body (Buffer), text, json (parsed or undefined)}.
+ * `..` and re-encode). body: string | Buffer | object (sent as JSON); any body goes with
+ * Content-Type: application/json unless headers name one or contentType is false. Returns
+ * {status, headers, body (Buffer), text, json (parsed or undefined)}.
  */
-export function request(d, method, p, {body, headers = {}, auth = true, chunked = false, timeout = 60000 * SLOW} = {}) {
+export function request(d, method, p, {body, headers = {}, auth = true, chunked = false, contentType = true, timeout = 60000 * SLOW} = {}) {
   return new Promise((resolve, reject) => {
     let data = body;
     const h = {...(auth ? d.auth : {}), ...headers};
-    if (data !== undefined && typeof data !== 'string' && !Buffer.isBuffer(data)) {
-      data = JSON.stringify(data);
-      if (!Object.keys(h).some((k) => k.toLowerCase() === 'content-type')) h['content-type'] = 'application/json';
+    if (data !== undefined && typeof data !== 'string' && !Buffer.isBuffer(data)) data = JSON.stringify(data);
+    if (data !== undefined && contentType && !Object.keys(h).some((k) => k.toLowerCase() === 'content-type')) {
+      h['content-type'] = 'application/json';
     }
     if (data !== undefined && !chunked) h['content-length'] = Buffer.byteLength(data);
     const req = http.request({host: '127.0.0.1', port: d.port, method, path: p, headers: h, agent: false,
