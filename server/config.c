@@ -54,6 +54,8 @@ static const opt opts[] = {
      "WAL checkpoint (TRUNCATE) period (default 30)"},
     {"checkpoint-jobs", OPT_INT, OFF(checkpoint_jobs), 1, 1000000,
      "... or after this many finished jobs (default 64)"},
+    {"db-check-seconds", OPT_INT, OFF(db_check_seconds), 1, 86400,
+     "PRAGMA quick_check period of the database (default 60)"},
     {"quiet", OPT_BOOL, OFF(quiet), 0, 1, "no per-request log lines (default false)"},
 };
 #define NOPTS (sizeof opts / sizeof opts[0])
@@ -205,6 +207,7 @@ int srv_config_parse(srv_config *cfg, int argc, char **argv) {
   cfg->worker_nice = 10;
   cfg->checkpoint_seconds = 30;
   cfg->checkpoint_jobs = 64;
+  cfg->db_check_seconds = 60;
   /* The config file first, wherever --config stands, so the command line always wins. */
   for (int i = 1; i < argc; i++) {
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
