@@ -482,9 +482,11 @@ static int migrate(conn *c, const char *path, obs_err *err) {
 static int record_identity(srv_db *db, const char *path, obs_err *err) {
   for (int i = 0; i < db->n; i++) db->c[i].owner = db;
   atomic_init(&db->corrupt_seen, 0);
-  free(db->path);
-  db->path = strdup(path);
-  if (!db->path) return obs_err_set(err, OBS_ENOMEM, "out of memory");
+  if (db->path != path) {
+    free(db->path);
+    db->path = strdup(path);
+    if (!db->path) return obs_err_set(err, OBS_ENOMEM, "out of memory");
+  }
   struct stat st;
   if (stat(path, &st))
     return obs_err_set(err, OBS_EIO, "database %s: cannot stat: %s", path, strerror(errno));
