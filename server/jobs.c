@@ -50,6 +50,7 @@ struct srv_sched {
   pthread_t maint;
   int maint_started;
   atomic_int finished_since_checkpoint;
+  atomic_int metrics_due;    /* a database fault cleared: metrics it kept from storing are due */
 };
 
 void srv_sched_notify(srv_app *app) {
@@ -455,6 +456,17 @@ static void *worker(void *arg) {
     int have = 0;
     pthread_mutex_lock(&s->mu);
     while (!s->stopping) {
+      if (atomic_exchange(&s->metrics_due, 0)) {
+        /* Metrics a database fault kept from being stored are computed again (they are only
+         * computed after a job's commit or at start otherwise). */
+        pthread_mutex_unlock(&s->mu);
+        if (gate_enter(s, NULL, 0)) {
+          srv_compare_metrics(sl->app, 0);
+          gate_leave(s, 0);
+        }
+        pthread_mutex_lock(&s->mu);
+        continue;
+      }
       unsigned long gen = s->generation;
       obs_err err = OBS_ERR_INIT;
       /* Every lane writes to the same results directory and database: while either has a
@@ -568,7 +580,7 @@ static int check_faults(srv_app *app, maint_clock *mc) {
     if (srv_db_probe(app->db, code, sizeof code, &e))
       srv_fault_probe_failed(SRV_FAULT_DB, code, obs_err_message(&e));
     else
-      srv_fault_clear(SRV_FAULT_DB), cleared = 1;
+      srv_fault_clear(SRV_FAULT_DB), cleared = 1, atomic_store(&app->sched->metrics_due, 1);
     obs_err_clear(&e);
   }
   double now = obs_now_ms();
@@ -688,6 +700,7 @@ int srv_sched_start(srv_app *app, obs_err *err) {
     sl->app = app;
   }
   atomic_init(&s->finished_since_checkpoint, 0);
+  atomic_init(&s->metrics_due, 0);
   /* A results directory that cannot take files shows in health from the start, and no job is
    * claimed until it can. */
   char code[40] = "";
