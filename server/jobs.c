@@ -277,7 +277,7 @@ static int publish(slot *sl, srv_job *j, obs_result *res, const obs_scene *sc, s
   snprintf(stage, sizeof stage, "%s/.tmp-%lld-%d", app->results_dir, (long long)j->id,
            j->attempts);
   srv_results_path(app, j->id, final, sizeof final);
-  for (;;) {
+  for (int tries = 0;; tries++) {
     obs_err_clear(err);
     srv_remove_tree(stage);
     *nouts = 0;
@@ -295,6 +295,8 @@ static int publish(slot *sl, srv_job *j, obs_result *res, const obs_scene *sc, s
     obs_err probe = OBS_ERR_INIT;
     int env = srv_outputs_fault(app->results_dir, obs_err_message(err), code, sizeof code, &probe);
     obs_err_free(&probe);
+    /* Once more before blaming the job: the probe may have just recreated a removed directory. */
+    if (!env && tries == 0) continue;
     if (!env) return rc;
     srv_fault_raise(SRV_FAULT_RESULTS, app->results_dir, code, obs_err_message(err), NULL);
     srv_log("job %lld: cannot write its outputs yet (%s); the render is kept and the lanes wait",
