@@ -161,6 +161,8 @@ static int submit(srv_req *r) {
                     .backend_reason = s.backend_reason};
   int64_t id = 0;
   int rc = srv_db_insert_job(r->app->db, &nj, &id, &problems);
+  if (rc == OBS_ETRANSIENT && !srv_fault_refusing(fault, sizeof fault))
+    srv_fault_raise(SRV_FAULT_DB, srv_db_path(r->app->db), NULL, obs_err_message(&problems), NULL);
   if (rc) {
     srv_submission_free(&s);
     return srv_respond_unavailable(r, &problems);

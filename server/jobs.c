@@ -574,15 +574,20 @@ static int check_faults(srv_app *app, maint_clock *mc) {
   if (srv_fault_due(SRV_FAULT_RESULTS)) {
     if (srv_outputs_probe(app->results_dir, code, sizeof code, &e))
       srv_fault_probe_failed(SRV_FAULT_RESULTS, code, obs_err_message(&e));
-    else
-      srv_fault_clear(SRV_FAULT_RESULTS), cleared = 1;
+    else {
+      srv_fault_clear(SRV_FAULT_RESULTS);
+      cleared = 1;
+    }
     obs_err_clear(&e);
   }
   if (srv_fault_due(SRV_FAULT_DB)) {
     if (srv_db_probe(app->db, code, sizeof code, &e))
       srv_fault_probe_failed(SRV_FAULT_DB, code, obs_err_message(&e));
-    else
-      srv_fault_clear(SRV_FAULT_DB), cleared = 1, atomic_store(&app->sched->metrics_due, 1);
+    else {
+      srv_fault_clear(SRV_FAULT_DB);
+      atomic_store(&app->sched->metrics_due, 1);
+      cleared = 1;
+    }
     obs_err_clear(&e);
   }
   double now = obs_now_ms();

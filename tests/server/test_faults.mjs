@@ -327,3 +327,35 @@ test('database pages overwritten: quick_check notices, work refused', async () =
     await d.kill9();
   });
 });
+
+test('start on read-only disks: a results fault from the start, a database that cannot open is named', async (t) => {
+  await inDir(async (dir, mounts, daemons) => {
+    const data = path.join(dir, 'data');
+    const why = mountTmpfs(data, '8m');
+    if (why) return t.skip(why);
+    mounts.push(data);
+    fs.mkdirSync(path.join(data, 'results'));
+    remount(data, 'ro');
+    const d = await startDaemon({dir});
+    daemons.push(d);
+    const h = await health(d);
+    assert.equal(h.status, 'degraded', JSON.stringify(h));
+    assert.equal(faultOf(h, 'results').code, 'EROFS');
+    const id = await submit(d, JOB);
+    await sleep(1500 * SLOW);
+    assert.equal((await getJSON(d, `/api/v1/jobs/${id}`)).state, 'queued', 'claimed while the results directory is read-only');
+    remount(data, 'rw');
+    const [j] = await waitAll(d, [id]);
+    assert.equal(j.state, 'succeeded', JSON.stringify(j));
+    await d.stopClean();
+    // The database on a read-only file system: the daemon does not start, and says which file.
+    remount(data, 'ro');
+    const db = path.join(data, 'obscura.db');
+    await assert.rejects(startDaemon({dir, args: ['--db', db]}), (e) => {
+      assert.match(e.message, /exited/);
+      assert.ok(e.message.includes(db), e.message);
+      return true;
+    });
+    remount(data, 'rw');
+  });
+});
