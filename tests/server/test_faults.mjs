@@ -162,7 +162,12 @@ async function resultsFault(t, makeFault, clearFault, code) {
     assert.ok(running.length <= 1, `running: ${await states(d)}`);
     const h2 = await health(d);
     assert.equal(h2.paused, running.length, JSON.stringify(h2));
-    assert.ok(faultOf(h2, 'results').probes >= 1, 'the fault is probed');
+    const f2 = faultOf(h2, 'results');
+    assert.ok(f2.probes >= 1, 'the fault is probed');
+    // Back-off doubling from 1 s: after p failed probes the next one is at least
+    // 1 + 2 + ... + 2^p s after the fault was raised.
+    const waited = Date.parse(f2.next_retry) - Date.parse(f2.since);
+    assert.ok(waited >= (2 ** (f2.probes + 1) - 1) * 1000 - 5, `next retry ${waited} ms after ${f2.probes} probes`);
     clearFault(data);
     const done = await waitAll(d, ids);
     for (const j of done) {
