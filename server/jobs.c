@@ -445,6 +445,9 @@ static int run_job(slot *sl, srv_job *j) {
   return succeeded;
 }
 
+/* srv_db_claim returns 0 (claimed) or 1 (none queued); this is "not claiming: a fault". */
+enum { CLAIM_PAUSED = 2 };
+
 static void *worker(void *arg) {
   slot *sl = arg;
   srv_sched *s = sl->app->sched;
@@ -473,7 +476,7 @@ static void *worker(void *arg) {
       obs_err err = OBS_ERR_INIT;
       /* Every lane writes to the same results directory and database: while either has a
        * fault no lane claims, so no job renders only to wait (or, worse, fail). */
-      int rc = srv_fault_any() ? 2 : srv_db_claim(sl->app->db, sl->lane, &j, &err);
+      int rc = srv_fault_any() ? CLAIM_PAUSED : srv_db_claim(sl->app->db, sl->lane, &j, &err);
       if (rc == OBS_ETRANSIENT)
         srv_fault_raise(SRV_FAULT_DB, srv_db_path(sl->app->db), NULL, obs_err_message(&err),
                         NULL);
@@ -494,7 +497,7 @@ static void *worker(void *arg) {
        * safety net. */
       struct timespec ts;
       clock_gettime(CLOCK_REALTIME, &ts);
-      ts.tv_sec += rc < 0 || rc == 2 ? 1 : 5;
+      ts.tv_sec += rc < 0 || rc == CLAIM_PAUSED ? 1 : 5;
       while (gen == s->generation && !s->stopping)
         if (pthread_cond_timedwait(&s->work, &s->mu, &ts) == ETIMEDOUT) break;
     }
@@ -576,6 +579,7 @@ static int check_faults(srv_app *app, maint_clock *mc) {
       srv_fault_probe_failed(SRV_FAULT_RESULTS, code, obs_err_message(&e));
     else {
       srv_fault_clear(SRV_FAULT_RESULTS);
+      atomic_store(&app->sched->metrics_due, 1); /* error images may have been postponed */
       cleared = 1;
     }
     obs_err_clear(&e);
