@@ -131,6 +131,12 @@ static json_t *job_json(srv_app *app, const srv_job *j) {
 static int submit(srv_req *r) {
   int refused;
   if (srv_refuse_non_json(r, &refused)) return refused;
+  char fault[1400];
+  /* Before any parsing: while the database file is lost or corrupt nothing accepted would
+   * survive a restart. */
+  if (srv_fault_refusing(fault, sizeof fault))
+    return srv_respond_error(r, MHD_HTTP_SERVICE_UNAVAILABLE, NULL,
+                             "not accepting work: %s (see GET /api/v1/health)", fault);
   srv_submission s;
   obs_err problems = OBS_ERR_INIT;
   const char *message = NULL;
@@ -155,6 +161,8 @@ static int submit(srv_req *r) {
                     .backend_reason = s.backend_reason};
   int64_t id = 0;
   int rc = srv_db_insert_job(r->app->db, &nj, &id, &problems);
+  if (rc == OBS_ETRANSIENT && !srv_fault_refusing(fault, sizeof fault))
+    srv_fault_raise(SRV_FAULT_DB, srv_db_path(r->app->db), NULL, obs_err_message(&problems), NULL);
   if (rc) {
     srv_submission_free(&s);
     return srv_respond_unavailable(r, &problems);
@@ -406,15 +414,30 @@ static int health(srv_req *r) {
   int64_t counts[SRV_NSTATES];
   obs_err err = OBS_ERR_INIT;
   int rc = srv_db_counts(app->db, counts, &err);
+  int level = 0;
+  json_t *faults = srv_fault_json(&level);
+  if (rc && level < 1) level = 1;
+  static const char *const names[] = {"ok", "degraded", "error"};
   json_t *o = json_pack("{s:s, s:s, s:s, s:I, s:i, s:{s:i, s:i}, s:b, s:b, s:f}", "status",
-                        rc ? "degraded" : "ok", "version", OBSCURA_VERSION, "db",
+                        names[level], "version", OBSCURA_VERSION, "db",
                         rc ? obs_err_message(&err) : "ok", "queue_depth",
                         (json_int_t)(rc ? 0 : counts[SRV_QUEUED]), "running",
                         srv_sched_running(app), "workers", "cpu", app->cfg.workers, "vulkan",
                         app->vulkan_lane, "vulkan_available", app->vulkan_lane, "vulkan_device", app->vk_available,
                         "uptime_s", (obs_now_ms() - app->start_ms) / 1e3);
   obs_err_free(&err);
-  return srv_respond_json(r, rc ? MHD_HTTP_SERVICE_UNAVAILABLE : MHD_HTTP_OK, o);
+  if (!o) {
+    json_decref(faults);
+    return srv_respond_error(r, MHD_HTTP_INTERNAL_SERVER_ERROR, NULL, "out of memory");
+  }
+  /* Lanes do not claim while any fault is active; `paused` counts the workers holding a
+   * finished job until theirs clears. */
+  json_object_set_new(o, "faults", faults ? faults : json_array());
+  json_t *recent = srv_fault_recent_json();
+  json_object_set_new(o, "recent_faults", recent ? recent : json_array());
+  json_object_set_new(o, "lanes_paused", json_boolean(level > 0 && srv_fault_any()));
+  json_object_set_new(o, "paused", json_integer(srv_sched_paused(app)));
+  return srv_respond_json(r, rc || level == 2 ? MHD_HTTP_SERVICE_UNAVAILABLE : MHD_HTTP_OK, o);
 }
 
 static int metrics(srv_req *r) {

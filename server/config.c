@@ -54,6 +54,8 @@ static const opt opts[] = {
      "WAL checkpoint (TRUNCATE) period (default 30)"},
     {"checkpoint-jobs", OPT_INT, OFF(checkpoint_jobs), 1, 1000000,
      "... or after this many finished jobs (default 64)"},
+    {"db-check-seconds", OPT_INT, OFF(db_check_seconds), 1, 86400,
+     "PRAGMA quick_check period of the database (default 60)"},
     {"quiet", OPT_BOOL, OFF(quiet), 0, 1, "no per-request log lines (default false)"},
     {"header-timeout", OPT_INT, OFF(header_timeout), 1, 3600,
      "seconds a connection has, in all, to send a request's headers (default 10)"},
@@ -217,6 +219,7 @@ int srv_config_parse(srv_config *cfg, int argc, char **argv) {
   cfg->max_connections = 1000;
   cfg->max_pending_per_address = 32;
   cfg->max_inflight = 64 * 1024 * 1024;
+  cfg->db_check_seconds = 60;
   /* The config file first, wherever --config stands, so the command line always wins. */
   for (int i = 1; i < argc; i++) {
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {

@@ -2,6 +2,7 @@
  * keys), the migrations of schema/db.sql, and every query as a prepared statement. */
 #include <errno.h>
 #include <limits.h>
+#include <fcntl.h>
 #include <pthread.h>
 #include <sqlite3.h>
 #include <stdio.h>
@@ -190,6 +191,7 @@ typedef struct conn {
   sqlite3 *db;
   sqlite3_stmt *st[ST_COUNT];
   int in_use;
+  struct srv_db *owner;
 } conn;
 
 struct srv_db {
@@ -197,16 +199,33 @@ struct srv_db {
   int n;
   pthread_mutex_t mu;
   pthread_cond_t cv;
+  int exclusive;               /* the pool is being reopened: acquire waits */
+  char *path;
+  dev_t dev, wal_dev;          /* identity of the files opened */
+  ino_t ino, wal_ino;
+  int wal_known;
+  atomic_int corrupt_seen;     /* a statement met SQLITE_CORRUPT / SQLITE_NOTADB */
+  char refuse[1024];           /* under mu: why inserts are refused, "" = accepted */
+  char recovered[4200];        /* the copy written aside when the file was replaced */
 };
 
+/* Faults of the environment (a full or read-only disk, a busy database) come back as
+ * OBS_ETRANSIENT, so callers can wait for them instead of failing a job for good. */
 static int db_fail(conn *c, obs_err *err, const char *what) {
-  return obs_err_set(err, OBS_EIO, "database: %s: %s", what, sqlite3_errmsg(c->db));
+  int code = sqlite3_extended_errcode(c->db) & 0xff;
+  if ((code == SQLITE_CORRUPT || code == SQLITE_NOTADB) && c->owner)
+    atomic_store(&c->owner->corrupt_seen, 1);
+  int transient = code == SQLITE_FULL || code == SQLITE_BUSY || code == SQLITE_LOCKED ||
+                  code == SQLITE_IOERR || code == SQLITE_READONLY || code == SQLITE_CANTOPEN ||
+                  code == SQLITE_PERM;
+  return obs_err_set(err, transient ? OBS_ETRANSIENT : OBS_EIO, "database: %s: %s", what,
+                     sqlite3_errmsg(c->db));
 }
 
 static conn *acquire(srv_db *db) {
   pthread_mutex_lock(&db->mu);
   for (;;) {
-    for (int i = 0; i < db->n; i++) {
+    for (int i = 0; !db->exclusive && i < db->n; i++) {
       if (!db->c[i].in_use) {
         db->c[i].in_use = 1;
         pthread_mutex_unlock(&db->mu);
@@ -522,6 +541,28 @@ static int migrate(conn *c, const char *path, obs_err *err) {
   return 0;
 }
 
+/* Remembers which files were opened, so that a deleted or replaced database is noticed. */
+static int record_identity(srv_db *db, const char *path, obs_err *err) {
+  for (int i = 0; i < db->n; i++) db->c[i].owner = db;
+  atomic_init(&db->corrupt_seen, 0);
+  if (db->path != path) {
+    free(db->path);
+    db->path = strdup(path);
+    if (!db->path) return obs_err_set(err, OBS_ENOMEM, "out of memory");
+  }
+  struct stat st;
+  if (stat(path, &st))
+    return obs_err_set(err, OBS_EIO, "database %s: cannot stat: %s", path, strerror(errno));
+  db->dev = st.st_dev;
+  db->ino = st.st_ino;
+  char wal[4200];
+  snprintf(wal, sizeof wal, "%s-wal", path);
+  db->wal_known = !stat(wal, &st);
+  db->wal_dev = st.st_dev;
+  db->wal_ino = st.st_ino;
+  return 0;
+}
+
 int srv_db_open(srv_db **out, const char *path, int nconn, obs_err *err) {
   *out = NULL;
   srv_db *db = calloc(1, sizeof *db);
@@ -539,6 +580,7 @@ int srv_db_open(srv_db **out, const char *path, int nconn, obs_err *err) {
     if (!rc) db->n = i + 1;
     if (!rc && i == 0) rc = migrate(&db->c[0], path, err);
   }
+  if (!rc) rc = record_identity(db, path, err);
   if (rc) {
     srv_db_close(db);
     return rc;
@@ -547,10 +589,26 @@ int srv_db_open(srv_db **out, const char *path, int nconn, obs_err *err) {
   return 0;
 }
 
+static int vacuum_into(conn *c, const char *target, obs_err *err);
+
 void srv_db_close(srv_db *db) {
   if (!db) return;
+  if (db->recovered[0] && db->n) {
+    /* Jobs may have finished into the unlinked file since the copy was written: refresh it. */
+    char tmp[4300];
+    snprintf(tmp, sizeof tmp, "%s.tmp", db->recovered);
+    unlink(tmp);
+    obs_err e = OBS_ERR_INIT;
+    if (vacuum_into(&db->c[0], tmp, &e) || rename(tmp, db->recovered))
+      srv_log("database: cannot refresh %s: %s", db->recovered, obs_err_message(&e));
+    else
+      srv_log("database: %s holds this daemon's jobs; move it to %s to keep them",
+              db->recovered, db->path);
+    obs_err_free(&e);
+  }
   for (int i = 0; i < db->n; i++) close_conn(&db->c[i]);
   free(db->c);
+  free(db->path);
   pthread_mutex_destroy(&db->mu);
   pthread_cond_destroy(&db->cv);
   free(db);
@@ -583,7 +641,28 @@ static int insert_job(conn *c, const srv_new_job *nj, int64_t *id, obs_err *err)
   return rc;
 }
 
+/* Fills err and returns OBS_ETRANSIENT while work is refused (the database file was lost or is
+ * corrupt): accepting a job that a restart would not find is losing it. */
+static int refused(srv_db *db, obs_err *err) {
+  pthread_mutex_lock(&db->mu);
+  int r = db->refuse[0] != 0;
+  if (r) obs_err_set(err, OBS_ETRANSIENT, "not accepting work: %s", db->refuse);
+  pthread_mutex_unlock(&db->mu);
+  return r ? OBS_ETRANSIENT : 0;
+}
+
+void srv_db_refuse(srv_db *db, const char *msg) {
+  pthread_mutex_lock(&db->mu);
+  snprintf(db->refuse, sizeof db->refuse, "%s", msg ? msg : "");
+  pthread_mutex_unlock(&db->mu);
+}
+
+const char *srv_db_path(const srv_db *db) { return db->path; }
+
+int srv_db_take_corrupt_flag(srv_db *db) { return atomic_exchange(&db->corrupt_seen, 0); }
+
 int srv_db_insert_job(srv_db *db, const srv_new_job *nj, int64_t *id, obs_err *err) {
+  if (refused(db, err)) return OBS_ETRANSIENT;
   conn *c = acquire(db);
   /* Autocommit: when the step returned DONE the row is committed to the WAL. */
   int rc = insert_job(c, nj, id, err);
@@ -593,6 +672,7 @@ int srv_db_insert_job(srv_db *db, const srv_new_job *nj, int64_t *id, obs_err *e
 
 int srv_db_insert_comparison(srv_db *db, const srv_new_comparison *cmp, int64_t *id,
                              obs_err *err) {
+  if (refused(db, err)) return OBS_ETRANSIENT;
   int64_t *ref_ids = calloc((size_t)cmp->nreferences + 1, sizeof *ref_ids);
   if (!ref_ids) return obs_err_set(err, OBS_ENOMEM, "out of memory");
   conn *c = acquire(db);
@@ -1206,4 +1286,216 @@ int srv_db_recover(srv_db *db, int vulkan_lane, void (*clean)(void *, int64_t), 
   free_pending(run, nrun);
   free_pending(queued, nq);
   return rc;
+}
+
+/* ---- identity, integrity and write-back of a lost file ---------------------------------------- */
+
+srv_db_identity srv_db_check_identity(srv_db *db, char *detail, size_t n) {
+  struct stat st;
+  if (stat(db->path, &st)) {
+    /* Only a missing file is a loss; EACCES on the directory and the like change nothing the
+     * open connections use. */
+    if (errno != ENOENT) return SRV_DB_SAME;
+    snprintf(detail, n, "%s no longer exists", db->path);
+    return SRV_DB_DELETED;
+  }
+  if (st.st_dev != db->dev || st.st_ino != db->ino) {
+    snprintf(detail, n, "%s is another file than the one opened (inode %llu, was %llu)", db->path,
+             (unsigned long long)st.st_ino, (unsigned long long)db->ino);
+    return SRV_DB_REPLACED;
+  }
+  char wal[4200];
+  snprintf(wal, sizeof wal, "%s-wal", db->path);
+  int have = !stat(wal, &st);
+  if (!db->wal_known) {
+    /* The log appears with the first write after open; from then on it stays while we run. */
+    if (have) {
+      db->wal_known = 1;
+      db->wal_dev = st.st_dev;
+      db->wal_ino = st.st_ino;
+    }
+    return SRV_DB_SAME;
+  }
+  if (!have || st.st_dev != db->wal_dev || st.st_ino != db->wal_ino) {
+    snprintf(detail, n, "%s was %s while the daemon had it open", wal,
+             have ? "replaced" : "deleted");
+    return SRV_DB_WAL_LOST;
+  }
+  return SRV_DB_SAME;
+}
+
+/* Takes every connection (waiting for those in use): nothing else touches the pool meanwhile. */
+static void acquire_all(srv_db *db) {
+  pthread_mutex_lock(&db->mu);
+  while (db->exclusive) pthread_cond_wait(&db->cv, &db->mu);
+  db->exclusive = 1;
+  for (;;) {
+    int busy = 0;
+    for (int i = 0; i < db->n; i++) busy |= db->c[i].in_use;
+    if (!busy) break;
+    pthread_cond_wait(&db->cv, &db->mu);
+  }
+  pthread_mutex_unlock(&db->mu);
+}
+
+static void release_all(srv_db *db) {
+  pthread_mutex_lock(&db->mu);
+  db->exclusive = 0;
+  pthread_cond_broadcast(&db->cv);
+  pthread_mutex_unlock(&db->mu);
+}
+
+static int fsync_path(const char *path) {
+  int fd = open(path, O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return -1;
+  int rc = fsync(fd);
+  close(fd);
+  return rc;
+}
+
+/* VACUUM INTO `target` on c: a consistent copy of everything committed, WAL included. */
+static int vacuum_into(conn *c, const char *target, obs_err *err) {
+  sqlite3_stmt *s = NULL;
+  if (sqlite3_prepare_v2(c->db, "VACUUM INTO ?1", -1, &s, NULL) != SQLITE_OK)
+    return db_fail(c, err, "VACUUM INTO");
+  sqlite3_bind_text(s, 1, target, -1, SQLITE_TRANSIENT);
+  int rc = sqlite3_step(s) == SQLITE_DONE ? 0 : db_fail(c, err, "VACUUM INTO");
+  sqlite3_finalize(s);
+  if (!rc && fsync_path(target))
+    rc = obs_err_set(err, OBS_ETRANSIENT, "%s: cannot flush: %s", target, strerror(errno));
+  char dir[4200];
+  snprintf(dir, sizeof dir, "%s", target);
+  char *slash = strrchr(dir, '/');
+  if (slash) *slash = 0;
+  if (!rc) fsync_path(slash ? (slash == dir ? "/" : dir) : ".");
+  return rc;
+}
+
+/* Opens a fresh pool on db->path and closes the old one. With `keep_wal` the old connections do
+ * not delete the -wal and -shm by name when the last one closes: those names now belong to the
+ * new file. */
+static int reopen_pool(srv_db *db, int keep_wal, obs_err *err) {
+  conn *fresh = calloc((size_t)db->n, sizeof *fresh);
+  if (!fresh) return obs_err_set(err, OBS_ENOMEM, "out of memory");
+  int rc = 0, opened = 0;
+  if (keep_wal) {
+    for (int i = 0; i < db->n; i++) {
+      int one = 1;
+      sqlite3_file_control(db->c[i].db, "main", SQLITE_FCNTL_PERSIST_WAL, &one);
+    }
+  } else {
+    for (int i = 0; i < db->n; i++) close_conn(&db->c[i]);
+  }
+  for (int i = 0; !rc && i < db->n; i++) {
+    rc = open_conn(&fresh[i], db->path, err);
+    if (!rc) opened++;
+  }
+  if (rc && keep_wal) {
+    for (int i = 0; i < opened; i++) close_conn(&fresh[i]);
+    free(fresh);
+    return rc;
+  }
+  if (rc) {
+    /* The old pool is gone and the data is on disk: a restart is the safe way on. */
+    srv_log("database %s: cannot reopen after writing it back (%s); exiting so that a restart "
+            "recovers from the file", db->path, obs_err_message(err));
+    _exit(70);
+  }
+  if (keep_wal)
+    for (int i = 0; i < db->n; i++) close_conn(&db->c[i]);
+  free(db->c);
+  db->c = fresh;
+  return record_identity(db, db->path, err);
+}
+
+int srv_db_restore(srv_db *db, srv_db_identity what, char *where, size_t n, obs_err *err) {
+  acquire_all(db);
+  conn *c = &db->c[0];
+  int rc, elsewhere = 0;
+  if (what == SRV_DB_WAL_LOST) {
+    /* The open connections still read the unlinked log: move its frames into the database file
+     * (still the one at the path), then start again with a new log. */
+    snprintf(where, n, "%s", db->path);
+    int log = 0, done = 0;
+    rc = sqlite3_wal_checkpoint_v2(c->db, "main", SQLITE_CHECKPOINT_TRUNCATE, &log, &done);
+    rc = rc == SQLITE_OK ? 0 : db_fail(c, err, "checkpoint of the lost WAL");
+    if (!rc && fsync_path(db->path))
+      rc = obs_err_set(err, OBS_ETRANSIENT, "%s: cannot flush: %s", db->path, strerror(errno));
+    if (!rc) rc = reopen_pool(db, 0, err);
+  } else {
+    struct stat st;
+    if (what == SRV_DB_DELETED && lstat(db->path, &st) && errno == ENOENT) {
+      snprintf(where, n, "%s", db->path);
+    } else {
+      char t[32];
+      srv_format_time(srv_now_unix_ms(), t, sizeof t);
+      snprintf(where, n, "%s.recovered-%s", db->path, t);
+      elsewhere = 1;
+    }
+    rc = vacuum_into(c, where, err);
+    if (!rc && !elsewhere) rc = reopen_pool(db, 1, err);
+    if (!rc && elsewhere) snprintf(db->recovered, sizeof db->recovered, "%s", where);
+  }
+  release_all(db);
+  return rc ? rc : elsewhere;
+}
+
+int srv_db_quick_check(srv_db *db, obs_err *err) {
+  sqlite3 *q = NULL;
+  /* Its own connection: the pool's page caches could hold a good copy of a page that is bad on
+   * disk. Read-only and without CREATE, so a missing file is never made anew here. */
+  int rc = sqlite3_open_v2(db->path, &q, SQLITE_OPEN_READONLY, NULL);
+  if (rc != SQLITE_OK) {
+    obs_err_set(err, OBS_ETRANSIENT, "database %s: quick_check: %s", db->path,
+                q ? sqlite3_errmsg(q) : sqlite3_errstr(rc));
+    sqlite3_close(q);
+    return OBS_ETRANSIENT;
+  }
+  sqlite3_busy_timeout(q, 5000);
+  sqlite3_stmt *s = NULL;
+  int out = 0;
+  if (sqlite3_prepare_v2(q, "PRAGMA quick_check(20)", -1, &s, NULL) != SQLITE_OK) {
+    int code = sqlite3_extended_errcode(q) & 0xff;
+    out = code == SQLITE_CORRUPT || code == SQLITE_NOTADB ? 1 : OBS_ETRANSIENT;
+    obs_err_set(err, out > 0 ? OBS_EIO : OBS_ETRANSIENT, "database %s: %s", db->path,
+                sqlite3_errmsg(q));
+  } else {
+    int step;
+    while ((step = sqlite3_step(s)) == SQLITE_ROW) {
+      const char *t = (const char *)sqlite3_column_text(s, 0);
+      if (t && strcmp(t, "ok")) {
+        if (!out) obs_err_set(err, OBS_EIO, "database %s: quick_check:", db->path);
+        obs_err_set(err, OBS_EIO, "%s", t);
+        out = 1;
+      }
+    }
+    if (step != SQLITE_DONE && !out) {
+      int code = sqlite3_extended_errcode(q) & 0xff;
+      out = code == SQLITE_CORRUPT || code == SQLITE_NOTADB ? 1 : OBS_ETRANSIENT;
+      obs_err_set(err, OBS_EIO, "database %s: quick_check: %s", db->path, sqlite3_errmsg(q));
+    }
+  }
+  sqlite3_finalize(s);
+  sqlite3_close(q);
+  return out;
+}
+
+int srv_db_probe(srv_db *db, char *code, size_t n, obs_err *err) {
+  conn *c = acquire(db);
+  /* A write that changes nothing still dirties the page and appends it to the WAL: it needs the
+   * same disk and permissions as a real commit. */
+  char *msg = NULL;
+  int rc = sqlite3_exec(c->db,
+                        "BEGIN IMMEDIATE; UPDATE schema_migrations SET applied_ms = applied_ms "
+                        "WHERE version = (SELECT max(version) FROM schema_migrations); COMMIT;",
+                        NULL, NULL, &msg);
+  if (rc != SQLITE_OK) {
+    snprintf(code, n, "%s", srv_sqlite_code_name(sqlite3_extended_errcode(c->db)));
+    obs_err_set(err, OBS_ETRANSIENT, "database %s: %s", db->path,
+                msg ? msg : sqlite3_errmsg(c->db));
+    rollback(c);
+  }
+  sqlite3_free(msg);
+  release(db, c);
+  return rc == SQLITE_OK ? 0 : OBS_ETRANSIENT;
 }

@@ -25,6 +25,7 @@ typedef struct slot {
   atomic_int render_index;   /* which of render_count renders of the attempt is running */
   atomic_int render_count;
   int stop;                  /* why cancel was raised (STOP_*) */
+  int paused;                /* holds a finished job while a fault is cleared (under mu) */
   double deadline_ms;        /* obs_now_ms() clock */
   srv_lane lane;
   int index;
@@ -36,6 +37,7 @@ struct srv_sched {
   pthread_mutex_t mu;
   pthread_cond_t work;       /* a job was queued, or stopping */
   pthread_cond_t maint_cv;
+  pthread_cond_t fault_cv;   /* a fault was cleared, or stopping */
   /* Renders of different lanes share the cores, so a comparison job's timed renders run alone:
    * they take the render gate exclusively, every other render shares it. Waiting exclusive
    * renders hold back new shared ones, so a busy lane cannot starve a comparison. */
@@ -48,6 +50,7 @@ struct srv_sched {
   pthread_t maint;
   int maint_started;
   atomic_int finished_since_checkpoint;
+  atomic_int metrics_due;    /* a database fault cleared: metrics it kept from storing are due */
 };
 
 void srv_sched_notify(srv_app *app) {
@@ -74,6 +77,16 @@ int srv_sched_running(srv_app *app) {
   srv_sched *s = app->sched;
   int n = 0;
   for (int i = 0; s && i < s->nslots; i++) n += atomic_load(&s->slots[i].id) != 0;
+  return n;
+}
+
+int srv_sched_paused(srv_app *app) {
+  srv_sched *s = app->sched;
+  int n = 0;
+  if (!s) return 0;
+  pthread_mutex_lock(&s->mu);
+  for (int i = 0; i < s->nslots; i++) n += s->slots[i].paused;
+  pthread_mutex_unlock(&s->mu);
   return n;
 }
 
@@ -149,12 +162,80 @@ static void gate_leave(srv_sched *s, int exclusive) {
 
 static void job_done(srv_sched *s) { atomic_fetch_add(&s->finished_since_checkpoint, 1); }
 
+/* Waits, holding the finished job in its slot, until fault `k` is cleared (the maintenance
+ * thread probes with back-off) or the slot is asked to stop. Returns 0 to retry, else the
+ * stop reason. */
+static int wait_fault(slot *sl, srv_fault_kind k, int only_shutdown) {
+  srv_sched *s = sl->app->sched;
+  pthread_mutex_lock(&s->mu);
+  /* Waiting for a disk is not rendering: no time limit meanwhile. */
+  sl->deadline_ms = INFINITY;
+  sl->paused = 1;
+  while (srv_fault_active(k) && !(sl->stop && !only_shutdown) && !s->stopping) {
+    struct timespec ts;
+    clock_gettime(CLOCK_REALTIME, &ts);
+    ts.tv_sec += 1;
+    pthread_cond_timedwait(&s->fault_cv, &s->mu, &ts);
+  }
+  int why = s->stopping ? STOP_SHUTDOWN : only_shutdown ? 0 : sl->stop;
+  sl->paused = 0;
+  pthread_mutex_unlock(&s->mu);
+  return why;
+}
+
+/* What a worker writes to the database at the end of an attempt. */
+enum { OUT_SUCCESS, OUT_FINISH, OUT_REQUEUE };
+typedef struct outcome {
+  int kind;
+  srv_state state;
+  const char *msg;
+  double progress;
+  const char *backend, *summary;
+  const srv_output *outs;
+  int nouts;
+  const srv_run *runs;
+  int nruns;
+} outcome;
+
+/* Records `o`, retrying while the database has a transient fault: the job stays `running` in
+ * this slot (never without a worker) until the write lands. A shutdown meanwhile leaves it to
+ * the recovery at the next start. Returns 0 or the last error. */
+static int record(slot *sl, int64_t id, const outcome *o, obs_err *err) {
+  srv_app *app = sl->app;
+  for (;;) {
+    obs_err_clear(err);
+    int rc = o->kind == OUT_SUCCESS
+                 ? srv_db_finish_success(app->db, id, o->backend, o->summary, o->outs, o->nouts,
+                                         o->runs, o->nruns, app->machine_id, err)
+             : o->kind == OUT_FINISH
+                 ? srv_db_finish(app->db, id, o->state, o->msg, o->progress, err)
+                 : srv_db_requeue(app->db, id, err);
+    if (rc != OBS_ETRANSIENT) return rc;
+    srv_fault_raise(SRV_FAULT_DB, srv_db_path(app->db), NULL, obs_err_message(err), NULL);
+    if (o->kind == OUT_REQUEUE) return rc; /* stopping: recovery requeues it at the next start */
+    srv_log("job %lld: cannot record the outcome yet (%s); the lanes wait for the database",
+            (long long)id, obs_err_message(err));
+    /* Only a shutdown ends this wait: a cancel or time limit changes nothing the database
+     * could take now. */
+    if (wait_fault(sl, SRV_FAULT_DB, 1) == STOP_SHUTDOWN) {
+      srv_log("job %lld: stopping before the outcome was recorded; the next start requeues it",
+              (long long)id);
+      return rc;
+    }
+  }
+}
+
 static void fail_job(slot *sl, srv_job *j, srv_state state, const char *msg) {
   obs_err err = OBS_ERR_INIT;
-  if (srv_db_finish(sl->app->db, j->id, state, msg, atomic_load(&sl->progress_ppm) / 1e6, &err))
+  outcome o = {.kind = OUT_FINISH,
+               .state = state,
+               .msg = msg,
+               .progress = atomic_load(&sl->progress_ppm) / 1e6};
+  if (record(sl, j->id, &o, &err))
     srv_log("job %lld: cannot record the outcome: %s", (long long)j->id, obs_err_message(&err));
+  else
+    srv_log("job %lld: running -> %s (%s)", (long long)j->id, srv_state_name(state), msg);
   obs_err_free(&err);
-  srv_log("job %lld: running -> %s (%s)", (long long)j->id, srv_state_name(state), msg);
   job_done(sl->app->sched);
 }
 
@@ -163,11 +244,13 @@ static void stopped(slot *sl, srv_job *j, int why) {
   srv_app *app = sl->app;
   if (why == STOP_SHUTDOWN) {
     obs_err err = OBS_ERR_INIT;
-    if (srv_db_requeue(app->db, j->id, &err))
+    outcome o = {.kind = OUT_REQUEUE};
+    if (record(sl, j->id, &o, &err))
       srv_log("job %lld: cannot requeue: %s", (long long)j->id, obs_err_message(&err));
+    else
+      srv_log("job %lld: running -> queued (daemon stopping; this attempt does not count)",
+              (long long)j->id);
     obs_err_free(&err);
-    srv_log("job %lld: running -> queued (daemon stopping; this attempt does not count)",
-            (long long)j->id);
   } else if (why == STOP_TIMEOUT) {
     char msg[96];
     snprintf(msg, sizeof msg, "render time limit of %d s exceeded", app->cfg.max_render_seconds);
@@ -182,6 +265,92 @@ static int stop_reason(slot *sl) {
   int why = sl->stop;
   pthread_mutex_unlock(&sl->app->sched->mu);
   return why;
+}
+
+/* Writes the outputs into a staging directory and renames it into place. A failure the
+ * environment caused (disk full, read-only, I/O) pauses the lanes and retries with the render
+ * kept in memory. Returns 0, <0 for a job fault (err filled), or a stop reason (>0). */
+static int publish(slot *sl, srv_job *j, obs_result *res, const obs_scene *sc, srv_output *outs,
+                   int *nouts, obs_err *err) {
+  srv_app *app = sl->app;
+  char stage[4200], final[4200];
+  snprintf(stage, sizeof stage, "%s/.tmp-%lld-%d", app->results_dir, (long long)j->id,
+           j->attempts);
+  srv_results_path(app, j->id, final, sizeof final);
+  for (int tries = 0;; tries++) {
+    obs_err_clear(err);
+    srv_remove_tree(stage);
+    *nouts = 0;
+    int rc = obs_result_write(res, sc, stage, err);
+    if (!rc) rc = srv_outputs_describe(stage, outs, 16, nouts, err);
+    if (!rc) {
+      srv_remove_tree(final);
+      if (rename(stage, final))
+        rc = obs_err_set(err, OBS_EIO, "%s: cannot publish the outputs: %s", final,
+                         strerror(errno));
+    }
+    if (!rc) return 0;
+    srv_remove_tree(stage);
+    char code[40] = "";
+    obs_err probe = OBS_ERR_INIT;
+    int env = srv_outputs_fault(app->results_dir, obs_err_message(err), code, sizeof code, &probe);
+    obs_err_free(&probe);
+    /* Once more before blaming the job: the probe may have just recreated a removed directory. */
+    if (!env && tries == 0) continue;
+    if (!env) return rc;
+    srv_fault_raise(SRV_FAULT_RESULTS, app->results_dir, code, obs_err_message(err), NULL);
+    srv_log("job %lld: cannot write its outputs yet (%s); the render is kept and the lanes wait",
+            (long long)j->id, obs_err_message(err));
+    int why = wait_fault(sl, SRV_FAULT_RESULTS, 0);
+    if (why) return why;
+  }
+}
+
+/* Publishes a finished render and records it; returns 1 when the job succeeded. */
+static int finish_render(slot *sl, srv_job *j, obs_result *res, const obs_scene *sc,
+                         const srv_run *runs, int nruns, obs_err *err) {
+  srv_app *app = sl->app;
+  srv_output outs[16];
+  int nouts = 0;
+  int rc = publish(sl, j, res, sc, outs, &nouts, err);
+  if (rc > 0) {
+    /* Stopped while waiting for the results directory: nothing was published, so the attempt
+     * ends as any stopped render does (a shutdown requeues it without counting it). */
+    stopped(sl, j, rc);
+    return 0;
+  }
+  char *summary = NULL;
+  if (!rc) {
+    json_t *sum = obs_result_summary_json(res, sc);
+    summary = json_dumps(sum, JSON_COMPACT | JSON_REAL_PRECISION(9));
+    json_decref(sum);
+    outcome o = {.kind = OUT_SUCCESS,
+                 .backend = obs_backend_name(res->backend),
+                 .summary = summary,
+                 .outs = outs,
+                 .nouts = nouts,
+                 .runs = runs,
+                 .nruns = nruns};
+    /* Published first, committed second: a crash in between leaves a job still `running` in
+     * the database, which recovery requeues and whose directory it removes. */
+    rc = record(sl, j->id, &o, err);
+  }
+  free(summary);
+  if (rc == OBS_ETRANSIENT) return 0; /* stopping with the database down: left to recovery */
+  if (rc) {
+    char final[4200];
+    srv_results_path(app, j->id, final, sizeof final);
+    srv_remove_tree(final);
+    fail_job(sl, j, SRV_FAILED, obs_err_message(err));
+    return 0;
+  }
+  srv_metrics_render(res->technique->name, obs_backend_name(res->backend),
+                     res->timings.total_ms / 1e3);
+  srv_log("job %lld: running -> succeeded (%s/%s %dx%d, %.1f ms)", (long long)j->id,
+          res->technique->name, obs_backend_name(res->backend), res->image.width,
+          res->image.height, res->timings.total_ms);
+  job_done(app->sched);
+  return 1;
 }
 
 /* Runs one claimed job to its outcome; returns 1 when it succeeded. */
@@ -268,51 +437,16 @@ static int run_job(slot *sl, srv_job *j) {
   } else {
     res.timings.load_ms = load_ms;
     res.timings.total_ms += load_ms;
-    char stage[4200], final[4200];
-    snprintf(stage, sizeof stage, "%s/.tmp-%lld-%d", app->results_dir, (long long)j->id,
-             j->attempts);
-    srv_results_path(app, j->id, final, sizeof final);
-    srv_remove_tree(stage);
-    srv_output outs[16];
-    int nouts = 0;
-    rc = obs_result_write(&res, &sc, stage, &err);
-    if (!rc) rc = srv_outputs_describe(stage, outs, 16, &nouts, &err);
-    /* Publish the directory first and commit second: a crash in between leaves a job that is
-     * still `running` in the database, which recovery requeues and whose directory it removes. */
-    if (!rc) {
-      srv_remove_tree(final);
-      if (rename(stage, final))
-        rc = obs_err_set(&err, OBS_EIO, "%s: cannot publish the outputs: %s", final,
-                         strerror(errno));
-    }
-    char *summary = NULL;
-    if (!rc) {
-      json_t *sum = obs_result_summary_json(&res, &sc);
-      summary = json_dumps(sum, JSON_COMPACT | JSON_REAL_PRECISION(9));
-      json_decref(sum);
-      rc = srv_db_finish_success(app->db, j->id, obs_backend_name(res.backend), summary, outs,
-                                 nouts, runs, nruns, app->machine_id, &err);
-    }
-    free(summary);
-    if (rc) {
-      srv_remove_tree(stage);
-      srv_remove_tree(final);
-      fail_job(sl, j, SRV_FAILED, obs_err_message(&err));
-    } else {
-      srv_metrics_render(res.technique->name, obs_backend_name(res.backend),
-                         res.timings.total_ms / 1e3);
-      srv_log("job %lld: running -> succeeded (%s/%s %dx%d, %.1f ms)", (long long)j->id,
-              res.technique->name, obs_backend_name(res.backend), res.image.width,
-              res.image.height, res.timings.total_ms);
-      job_done(app->sched);
-      succeeded = 1;
-    }
+    succeeded = finish_render(sl, j, &res, &sc, runs, nruns, &err);
   }
   obs_result_free(&res);
   obs_scene_free(&sc);
   obs_err_free(&err);
   return succeeded;
 }
+
+/* srv_db_claim returns 0 (claimed) or 1 (none queued); this is "not claiming: a fault". */
+enum { CLAIM_PAUSED = 2 };
 
 static void *worker(void *arg) {
   slot *sl = arg;
@@ -327,10 +461,27 @@ static void *worker(void *arg) {
     int have = 0;
     pthread_mutex_lock(&s->mu);
     while (!s->stopping) {
+      if (atomic_exchange(&s->metrics_due, 0)) {
+        /* Metrics a database fault kept from being stored are computed again (they are only
+         * computed after a job's commit or at start otherwise). */
+        pthread_mutex_unlock(&s->mu);
+        if (gate_enter(s, NULL, 0)) {
+          srv_compare_metrics(sl->app, 0);
+          gate_leave(s, 0);
+        }
+        pthread_mutex_lock(&s->mu);
+        continue;
+      }
       unsigned long gen = s->generation;
       obs_err err = OBS_ERR_INIT;
-      int rc = srv_db_claim(sl->app->db, sl->lane, &j, &err);
-      if (rc < 0) srv_log("worker %d: %s", sl->index, obs_err_message(&err));
+      /* Every lane writes to the same results directory and database: while either has a
+       * fault no lane claims, so no job renders only to wait (or, worse, fail). */
+      int rc = srv_fault_any() ? CLAIM_PAUSED : srv_db_claim(sl->app->db, sl->lane, &j, &err);
+      if (rc == OBS_ETRANSIENT)
+        srv_fault_raise(SRV_FAULT_DB, srv_db_path(sl->app->db), NULL, obs_err_message(&err),
+                        NULL);
+      else if (rc < 0)
+        srv_log("worker %d: %s", sl->index, obs_err_message(&err));
       obs_err_free(&err);
       if (rc == 0) {
         atomic_store(&sl->progress_ppm, 0);
@@ -346,7 +497,7 @@ static void *worker(void *arg) {
        * safety net. */
       struct timespec ts;
       clock_gettime(CLOCK_REALTIME, &ts);
-      ts.tv_sec += rc < 0 ? 1 : 5;
+      ts.tv_sec += rc < 0 || rc == CLAIM_PAUSED ? 1 : 5;
       while (gen == s->generation && !s->stopping)
         if (pthread_cond_timedwait(&s->work, &s->mu, &ts) == ETIMEDOUT) break;
     }
@@ -370,11 +521,121 @@ static void *worker(void *arg) {
   return NULL;
 }
 
-/* Render time limits (checked 4 times a second) and WAL checkpoints. */
+/* A deleted or replaced database file: refuse work, then write the open (unlinked) database
+ * back. Returns 1 when it is settled (restored, or copied aside for an operator), 0 to retry. */
+static int handle_lost(srv_app *app, srv_db_identity id, const char *detail) {
+  const char *path = srv_db_path(app->db);
+  const char *code = id == SRV_DB_DELETED ? "ENOENT" : id == SRV_DB_REPLACED ? "replaced" : "ENOENT";
+  srv_fault_raise(SRV_FAULT_DB_LOST, path, code, detail, NULL);
+  srv_db_refuse(app->db, detail);
+  char where[4400], action[8192];
+  obs_err e = OBS_ERR_INIT;
+  int rc = srv_db_restore(app->db, id, where, sizeof where, &e);
+  int settled = 1;
+  if (rc == 0) {
+    srv_log("database: %s; wrote the open database back to %s and reopened it (every accepted "
+            "job kept)", detail, where);
+    srv_db_refuse(app->db, NULL);
+    srv_fault_clear(SRV_FAULT_DB_LOST);
+  } else if (rc == 1) {
+    snprintf(action, sizeof action,
+             "the daemon's own database was copied to %.1000s (refreshed again at shutdown): stop "
+             "obscurad, move the file now at %.1000s aside, move %.1000s to %.1000s and start "
+             "obscurad again; "
+             "until then no work is accepted",
+             where, path, where, path);
+    srv_fault_raise(SRV_FAULT_DB_LOST, path, code, detail, action);
+    srv_log("database: %s; %s", detail, action);
+  } else {
+    snprintf(action, sizeof action,
+             "could not write the database back (%.1000s); make %.1000s's directory writable and "
+             "give it "
+             "space: the daemon retries, and a restart before that loses the jobs since the last "
+             "write-back",
+             obs_err_message(&e), path);
+    srv_fault_raise(SRV_FAULT_DB_LOST, path, code, detail, action);
+    srv_fault_probe_failed(SRV_FAULT_DB_LOST, NULL, NULL);
+    srv_log("database: %s; %s", detail, action);
+    settled = 0;
+  }
+  obs_err_free(&e);
+  return settled;
+}
+
+typedef struct maint_clock {
+  double identity_ms, check_ms;
+  int lost_settled; /* the file was replaced and copied aside: nothing more to do until restart */
+} maint_clock;
+
+/* Probes due faults, checks the database file's identity every 2 s and its integrity every
+ * --db-check-seconds (at once after a statement met SQLITE_CORRUPT). Without the scheduler
+ * lock: probes may wait for the disk. Returns 1 when a fault was cleared. */
+static int check_faults(srv_app *app, maint_clock *mc) {
+  int cleared = 0;
+  char code[40] = "";
+  obs_err e = OBS_ERR_INIT;
+  if (srv_fault_due(SRV_FAULT_RESULTS)) {
+    if (srv_outputs_probe(app->results_dir, code, sizeof code, &e))
+      srv_fault_probe_failed(SRV_FAULT_RESULTS, code, obs_err_message(&e));
+    else {
+      srv_fault_clear(SRV_FAULT_RESULTS);
+      atomic_store(&app->sched->metrics_due, 1); /* error images may have been postponed */
+      cleared = 1;
+    }
+    obs_err_clear(&e);
+  }
+  if (srv_fault_due(SRV_FAULT_DB)) {
+    if (srv_db_probe(app->db, code, sizeof code, &e))
+      srv_fault_probe_failed(SRV_FAULT_DB, code, obs_err_message(&e));
+    else {
+      srv_fault_clear(SRV_FAULT_DB);
+      atomic_store(&app->sched->metrics_due, 1);
+      cleared = 1;
+    }
+    obs_err_clear(&e);
+  }
+  double now = obs_now_ms();
+  int lost = srv_fault_active(SRV_FAULT_DB_LOST);
+  if ((!lost && now - mc->identity_ms >= 2000) ||
+      (lost && !mc->lost_settled && srv_fault_due(SRV_FAULT_DB_LOST))) {
+    mc->identity_ms = now;
+    char detail[4400];
+    srv_db_identity id = srv_db_check_identity(app->db, detail, sizeof detail);
+    if (id != SRV_DB_SAME) {
+      mc->lost_settled = handle_lost(app, id, detail);
+      if (!srv_fault_active(SRV_FAULT_DB_LOST)) cleared = 1;
+    } else if (lost) {
+      srv_fault_clear(SRV_FAULT_DB_LOST);
+      srv_db_refuse(app->db, NULL);
+      cleared = 1;
+    }
+  }
+  int corrupt_seen = srv_db_take_corrupt_flag(app->db);
+  if (!srv_fault_active(SRV_FAULT_DB_CORRUPT) && !srv_fault_active(SRV_FAULT_DB_LOST) &&
+      (corrupt_seen || now - mc->check_ms >= 1e3 * app->cfg.db_check_seconds)) {
+    mc->check_ms = now;
+    int rc = srv_db_quick_check(app->db, &e);
+    if (rc == 1) {
+      /* A corrupt file is not repaired by waiting: work stays refused until an operator acts. */
+      srv_fault_raise(SRV_FAULT_DB_CORRUPT, srv_db_path(app->db), "SQLITE_CORRUPT",
+                      obs_err_message(&e), NULL);
+      srv_db_refuse(app->db, obs_err_message(&e));
+    } else if (rc < 0) {
+      srv_log("database check: %s", obs_err_message(&e));
+    }
+    obs_err_clear(&e);
+  }
+  obs_err_free(&e);
+  return cleared;
+}
+
+/* Render time limits (checked 4 times a second), WAL checkpoints, fault probes and database
+ * checks. */
 static void *maintenance(void *arg) {
   srv_app *app = arg;
   srv_sched *s = app->sched;
   double last_checkpoint = obs_now_ms();
+  maint_clock mc = {.identity_ms = obs_now_ms(), .check_ms = obs_now_ms()};
   pthread_mutex_lock(&s->mu);
   while (!s->stopping) {
     struct timespec ts;
@@ -396,17 +657,28 @@ static void *maintenance(void *arg) {
                 (long long)atomic_load(&sl->id), app->cfg.max_render_seconds);
       }
     }
-    if (now - last_checkpoint >= 1e3 * app->cfg.checkpoint_seconds ||
-        atomic_load(&s->finished_since_checkpoint) >= app->cfg.checkpoint_jobs) {
+    pthread_mutex_unlock(&s->mu);
+    if (check_faults(app, &mc)) {
+      pthread_mutex_lock(&s->mu);
+      s->generation++;
+      pthread_cond_broadcast(&s->work);
+      pthread_cond_broadcast(&s->fault_cv);
       pthread_mutex_unlock(&s->mu);
+    }
+    if (!srv_fault_active(SRV_FAULT_DB_LOST) &&
+        (now - last_checkpoint >= 1e3 * app->cfg.checkpoint_seconds ||
+         atomic_load(&s->finished_since_checkpoint) >= app->cfg.checkpoint_jobs)) {
       obs_err err = OBS_ERR_INIT;
       int rc = srv_db_checkpoint(app->db, &err);
-      if (rc < 0) srv_log("checkpoint: %s", obs_err_message(&err));
+      if (rc == OBS_ETRANSIENT)
+        srv_fault_raise(SRV_FAULT_DB, srv_db_path(app->db), NULL, obs_err_message(&err), NULL);
+      else if (rc < 0)
+        srv_log("checkpoint: %s", obs_err_message(&err));
       obs_err_free(&err);
       atomic_store(&s->finished_since_checkpoint, 0);
       last_checkpoint = obs_now_ms();
-      pthread_mutex_lock(&s->mu);
     }
+    pthread_mutex_lock(&s->mu);
   }
   pthread_mutex_unlock(&s->mu);
   return NULL;
@@ -419,6 +691,7 @@ int srv_sched_start(srv_app *app, obs_err *err) {
   pthread_cond_init(&s->gate_cv, NULL);
   pthread_cond_init(&s->work, NULL);
   pthread_cond_init(&s->maint_cv, NULL);
+  pthread_cond_init(&s->fault_cv, NULL);
   s->nslots = app->cfg.workers + (app->vulkan_lane ? 1 : 0);
   s->slots = calloc((size_t)s->nslots, sizeof *s->slots);
   if (!s->slots) {
@@ -438,6 +711,14 @@ int srv_sched_start(srv_app *app, obs_err *err) {
     sl->app = app;
   }
   atomic_init(&s->finished_since_checkpoint, 0);
+  atomic_init(&s->metrics_due, 0);
+  /* A results directory that cannot take files shows in health from the start, and no job is
+   * claimed until it can. */
+  char code[40] = "";
+  obs_err probe = OBS_ERR_INIT;
+  if (srv_outputs_probe(app->results_dir, code, sizeof code, &probe))
+    srv_fault_raise(SRV_FAULT_RESULTS, app->results_dir, code, obs_err_message(&probe), NULL);
+  obs_err_free(&probe);
   for (int i = 0; i < s->nslots; i++) {
     if (pthread_create(&s->slots[i].thread, NULL, worker, &s->slots[i])) {
       s->nslots = i;
@@ -467,6 +748,7 @@ void srv_sched_stop(srv_app *app) {
   }
   pthread_cond_broadcast(&s->work);
   pthread_cond_broadcast(&s->maint_cv);
+  pthread_cond_broadcast(&s->fault_cv);
   pthread_cond_broadcast(&s->gate_cv);
   pthread_mutex_unlock(&s->mu);
   for (int i = 0; i < s->nslots; i++) pthread_join(s->slots[i].thread, NULL);
@@ -475,6 +757,7 @@ void srv_sched_stop(srv_app *app) {
   pthread_cond_destroy(&s->gate_cv);
   pthread_cond_destroy(&s->work);
   pthread_cond_destroy(&s->maint_cv);
+  pthread_cond_destroy(&s->fault_cv);
   free(s->slots);
   free(s);
   app->sched = NULL;

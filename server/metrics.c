@@ -146,6 +146,21 @@ char *srv_metrics_text(srv_app *app, size_t *len) {
         put(&b, "obscura_http_requests_total{route=\"%s\",status=\"%d\"} %llu\n", route_names[r],
             s + 100, n);
     }
+  int active[SRV_NFAULTS];
+  unsigned long long total[SRV_NFAULTS];
+  srv_fault_counts(active, total);
+  put(&b, "# HELP obscura_fault Environment faults now active (1) by kind.\n"
+          "# TYPE obscura_fault gauge\n");
+  for (int k = 0; k < SRV_NFAULTS; k++)
+    put(&b, "obscura_fault{kind=\"%s\"} %d\n", srv_fault_kind_name((srv_fault_kind)k), active[k]);
+  put(&b, "# HELP obscura_faults_total Environment faults raised since start by kind.\n"
+          "# TYPE obscura_faults_total counter\n");
+  for (int k = 0; k < SRV_NFAULTS; k++)
+    put(&b, "obscura_faults_total{kind=\"%s\"} %llu\n", srv_fault_kind_name((srv_fault_kind)k),
+        total[k]);
+  put(&b, "# HELP obscura_workers_paused Workers holding a finished job until a fault clears.\n"
+          "# TYPE obscura_workers_paused gauge\nobscura_workers_paused %d\n",
+      srv_sched_paused(app));
   put(&b, "# HELP obscura_uptime_seconds Seconds since the daemon started.\n"
           "# TYPE obscura_uptime_seconds gauge\nobscura_uptime_seconds %.3f\n",
       (obs_now_ms() - app->start_ms) / 1e3);

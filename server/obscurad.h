@@ -37,6 +37,7 @@ typedef struct srv_config {
   int worker_nice;        /* nice value of render threads (0..19), default 10 */
   int checkpoint_seconds; /* WAL checkpoint period */
   int checkpoint_jobs;    /* ... or after this many finished jobs */
+  int db_check_seconds;   /* PRAGMA quick_check period */
   int quiet;              /* no per-request log lines (job lines stay) */
   /* Connection hardening (guard.c). */
   int header_timeout;          /* seconds to send a request's headers, in all; default 10 */
@@ -256,6 +257,61 @@ int srv_db_checkpoint(srv_db *db, obs_err *err);
 /* 1 with *state when job `id` exists, 0 when not, <0 on error. */
 int srv_db_job_exists(srv_db *db, int64_t id, srv_state *state, obs_err *err);
 
+/* Integrity and identity of the open database file (the maintenance thread's checks). */
+typedef enum { SRV_DB_SAME, SRV_DB_DELETED, SRV_DB_REPLACED, SRV_DB_WAL_LOST } srv_db_identity;
+/* Compares the file at the database's path (and its -wal) with the ones opened. */
+srv_db_identity srv_db_check_identity(srv_db *db, char *detail, size_t n);
+/* Writes the open (unlinked) database back: VACUUM INTO its path when nothing is there, else
+ * into PATH.recovered-TIME; after writing its own path (or checkpointing a lost WAL), reopens
+ * every connection on it. Returns 0 when the pool runs on the path again, 1 when the copy went
+ * elsewhere (written to `where`), <0 on error. */
+int srv_db_restore(srv_db *db, srv_db_identity what, char *where, size_t n, obs_err *err);
+/* PRAGMA quick_check on a fresh read-only connection (no cached pages): 0 ok, 1 corrupt (the
+ * report in err), <0 when it could not run. */
+int srv_db_quick_check(srv_db *db, obs_err *err);
+/* A trivial write transaction: 0 when the database takes writes again. */
+int srv_db_probe(srv_db *db, char *code, size_t n, obs_err *err);
+/* Set when a statement met SQLITE_CORRUPT or SQLITE_NOTADB; read and reset by the caller. */
+int srv_db_take_corrupt_flag(srv_db *db);
+/* While `msg` is set, inserting jobs or comparisons fails with it (NULL accepts work again). */
+void srv_db_refuse(srv_db *db, const char *msg);
+const char *srv_db_path(const srv_db *db);
+
+/* ---- faults (faults.c) ----------------------------------------------------------------------- */
+
+/* Environment faults. The first two pause the lanes until a probe succeeds (health "degraded");
+ * the last two refuse new work (health "error"). */
+typedef enum {
+  SRV_FAULT_RESULTS,
+  SRV_FAULT_DB,
+  SRV_FAULT_DB_LOST,
+  SRV_FAULT_DB_CORRUPT,
+  SRV_NFAULTS
+} srv_fault_kind;
+const char *srv_fault_kind_name(srv_fault_kind k);
+/* Records (or updates) an active fault; the first raise logs it and sets the next probe time.
+ * `action` (may be NULL) replaces the kind's default advice. */
+void srv_fault_raise(srv_fault_kind k, const char *path, const char *code, const char *message,
+                     const char *action);
+/* Whether an active fault's next probe is due. */
+int srv_fault_due(srv_fault_kind k);
+/* The probe failed again: doubles the back-off (at most 60 s). */
+void srv_fault_probe_failed(srv_fault_kind k, const char *code, const char *message);
+void srv_fault_clear(srv_fault_kind k);
+int srv_fault_active(srv_fault_kind k);
+int srv_fault_any(void);
+/* 1 with a message when work must be refused (database lost or corrupt). */
+int srv_fault_refusing(char *msg, size_t n);
+/* The active faults as the health route's `faults` list; *level 0 ok, 1 degraded, 2 error. */
+json_t *srv_fault_json(int *level);
+/* Faults cleared in the last 10 minutes (kind, what, path, message, since, cleared). */
+json_t *srv_fault_recent_json(void);
+void srv_fault_counts(int active[SRV_NFAULTS], unsigned long long total[SRV_NFAULTS]);
+const char *srv_errno_name(int e);
+/* Errors of the environment rather than of a job: disk full, read-only, permissions, I/O. */
+int srv_errno_transient(int e);
+const char *srv_sqlite_code_name(int code);
+
 /* ---- metrics (metrics.c) --------------------------------------------------------------------- */
 
 typedef enum {
@@ -294,6 +350,8 @@ int srv_sched_progress(struct srv_app *app, int64_t id, double *progress);
  * cancel flag (the worker then records `cancelled`). */
 int srv_sched_cancel(struct srv_app *app, int64_t id, srv_cancel_result *res, obs_err *err);
 int srv_sched_running(struct srv_app *app);
+/* Workers holding a finished job while they wait for a fault to clear. */
+int srv_sched_paused(struct srv_app *app);
 /* Stops workers: running renders are cancelled and their jobs go back to the queue. */
 void srv_sched_stop(struct srv_app *app);
 
@@ -309,6 +367,12 @@ int srv_outputs_describe(const char *dir, srv_output *outs, int max, int *n, obs
 void srv_outputs_remove(const struct srv_app *app, int64_t id);
 /* Removes staging directories and result directories of jobs that are not succeeded. */
 void srv_outputs_sweep(struct srv_app *app);
+/* Writes, fsyncs and removes a small file in `dir`: 0 when the directory takes files, else
+ * OBS_ETRANSIENT with the errno name in `code`. */
+int srv_outputs_probe(const char *dir, char *code, size_t n, obs_err *err);
+/* Whether a failure to write outputs (its message) is the environment's: a failing probe of
+ * `dir` or an errno such as ENOSPC/EROFS/EACCES/EIO/EDQUOT named in the message. */
+int srv_outputs_fault(const char *dir, const char *message, char *code, size_t n, obs_err *probe);
 
 /* ---- HTTP (http.c, api.c, static.c) ----------------------------------------------------------- */
 

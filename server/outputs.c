@@ -285,3 +285,51 @@ int srv_output_serve(srv_req *r, int64_t id, const char *name) {
   }
   return srv_respond(r, pr ? MHD_HTTP_PARTIAL_CONTENT : MHD_HTTP_OK, resp);
 }
+
+/* ---- fault probes ---------------------------------------------------------------------------- */
+
+int srv_outputs_probe(const char *dir, char *code, size_t n, obs_err *err) {
+  char path[4200];
+  snprintf(path, sizeof path, "%s/.probe-%ld", dir, (long)getpid());
+  /* A page, as a small output would need; fsync so that a disk that only fails on write-back
+   * (quota, I/O errors) fails here too. */
+  static const char block[4096];
+  int fd = open(path, O_WRONLY | O_CREAT | O_TRUNC | O_NOFOLLOW | O_CLOEXEC, 0644);
+  if (fd < 0 && errno == ENOENT && !srv_mkdirs(dir)) /* the directory itself was removed */
+    fd = open(path, O_WRONLY | O_CREAT | O_TRUNC | O_NOFOLLOW | O_CLOEXEC, 0644);
+  int e = fd < 0 ? errno : 0;
+  const char *what = "cannot create a file";
+  if (!e) {
+    ssize_t w = write(fd, block, sizeof block);
+    if (w != (ssize_t)sizeof block) {
+      e = w < 0 ? errno : ENOSPC;
+      what = "cannot write a file";
+    } else if (fsync(fd)) {
+      e = errno;
+      what = "cannot flush a file";
+    }
+    if (close(fd) && !e) {
+      e = errno;
+      what = "cannot close a file";
+    }
+    unlink(path);
+  }
+  if (!e) return 0;
+  snprintf(code, n, "%s", srv_errno_name(e));
+  return obs_err_set(err, OBS_ETRANSIENT, "%s: %s: %s", dir, what, strerror(e));
+}
+
+int srv_outputs_fault(const char *dir, const char *message, char *code, size_t n, obs_err *probe) {
+  if (srv_outputs_probe(dir, code, n, probe)) return 1;
+  /* The probe passed (a page fits, a big EXR may not): the renderer's messages end with
+   * strerror(errno), so the environment's errors are recognised by their text. */
+  static const int transient[] = {ENOSPC, EROFS, EACCES, EPERM, EIO, EDQUOT, EMFILE, ENFILE};
+  for (size_t i = 0; message && i < sizeof transient / sizeof transient[0]; i++) {
+    if (strstr(message, strerror(transient[i]))) {
+      snprintf(code, n, "%s", srv_errno_name(transient[i]));
+      obs_err_set(probe, OBS_ETRANSIENT, "%s", message);
+      return 1;
+    }
+  }
+  return 0;
+}

@@ -58,6 +58,7 @@ const char *obs_strerror(int code) {
     case OBS_EUNSUPPORTED: return "not supported";
     case OBS_ENOTFOUND: return "not found";
     case OBS_EINTERNAL: return "internal error";
+    case OBS_ETRANSIENT: return "transient fault";
     default: return "unknown error";
   }
 }

@@ -31,7 +31,7 @@ export async function api(path, options = {}) {
   }
   let res;
   try {
-    const {raw, json, ...init} = options; // obscura's own options are not fetch's
+    const {raw, json, allow, ...init} = options; // obscura's own options are not fetch's
     res = await fetch(path, Object.assign({}, init, {headers}));
   } catch (e) {
     for (const fn of listeners) fn(0);
@@ -41,7 +41,8 @@ export async function api(path, options = {}) {
   // options.raw: a successful body is returned as text (CSV); errors are JSON either way.
   if (options.raw && res.ok) return res.text();
   const body = res.status === 204 ? null : await res.json().catch(() => null);
-  if (!res.ok) throw new ApiError(res.status, (body && body.error) || res.statusText, body && body.problems);
+  // options.allow: statuses whose body is an answer, not an error (health's 503).
+  if (!res.ok && !(options.allow && options.allow.includes(res.status) && body)) throw new ApiError(res.status, (body && body.error) || res.statusText, body && body.problems);
   return body;
 }
 

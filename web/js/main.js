@@ -1,6 +1,6 @@
 // Entry point of the dashboard: hash routing to the page modules, the header's health line and
 // token box. Each page's mount(container, params) returns a cleanup that stops its polling.
-import {api, onApiStatus, poll, setToken, token, debug} from './api.js';
+import {api, debug, el, onApiStatus, poll, setToken, token} from './api.js';
 import {mountJobs, mountJob} from './jobs.js';
 import {mountComparisons, mountComparison} from './comparisons.js';
 import {mountSubmit} from './submit.js';
@@ -65,12 +65,28 @@ tokenBox.addEventListener('submit', (ev) => {
   route();
 });
 
+// Every page shows the server's active faults (a full or read-only disk, a lost or corrupt
+// database) above its content: what failed, where, since when, the next retry and what to do.
+const banner = document.getElementById('fault-banner');
+function showFaults(faults) {
+  banner.replaceChildren(...faults.map((f) => {
+    const when = f.next_retry ? ` · next retry ${new Date(f.next_retry).toLocaleTimeString()}` : '';
+    return el('p', {className: f.severity === 'error' ? 'fault error' : 'fault'},
+      el('strong', {}, f.severity === 'error' ? 'Not accepting work: ' : 'Paused: '),
+      `${f.what} (${f.code ? f.code + ', ' : ''}${f.path}) since ${new Date(f.since).toLocaleTimeString()}${when}. `,
+      el('span', {className: 'fault-message'}, f.message), ' ',
+      el('span', {className: 'fault-action'}, f.action));
+  }));
+  banner.hidden = faults.length === 0;
+}
+
 poll(async () => {
   try {
-    const h = await api('/api/v1/health');
+    const h = await api('/api/v1/health', {allow: [503]});
     health.textContent = `server ${h.status} · ${h.queue_depth} queued · ${h.running} running` +
       (h.vulkan_available ? ' · Vulkan' : '');
-    return h.queue_depth + h.running > 0;
+    showFaults(h.faults || []);
+    return h.queue_depth + h.running > 0 || (h.faults || []).length > 0;
   } catch (e) {
     health.textContent = `server: ${e.message}`;
     return false;

@@ -17,7 +17,9 @@ enum {
   OBS_ECANCELED = -4,   /* the caller's cancel flag was raised */
   OBS_EUNSUPPORTED = -5,/* backend or feature not available here */
   OBS_ENOTFOUND = -6,   /* named thing (technique, channel, file) does not exist */
-  OBS_EINTERNAL = -7    /* a library we call failed unexpectedly */
+  OBS_EINTERNAL = -7,   /* a library we call failed unexpectedly */
+  OBS_ETRANSIENT = -8   /* the environment failed (disk full, read-only, I/O error, database
+                           busy): the same call may succeed once the fault is cleared */
 };
 
 /* Accumulates one or more human-readable problems, one per line. A zeroed struct is a valid empty
