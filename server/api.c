@@ -154,10 +154,14 @@ static int submit(srv_req *r) {
                     .work = s.work,
                     .backend_reason = s.backend_reason};
   int64_t id = 0;
-  int rc = srv_db_insert_job(r->app->db, &nj, &id, &problems);
-  if (rc) {
+  int retry = 0;
+  unsigned admit = srv_admit_job(r->app, r->client, &nj, &id, &retry, &problems);
+  if (admit) {
     srv_submission_free(&s);
-    return srv_respond_unavailable(r, &problems);
+    if (admit != 429) return srv_respond_unavailable(r, &problems);
+    int rc = srv_respond_too_busy(r, retry, &problems);
+    obs_err_free(&problems);
+    return rc;
   }
   srv_log("job %lld: submitted -> queued (%s, %s/%s, %dx%d, priority %d)", (long long)id, s.scene,
           s.technique, s.backend_requested, s.width, s.height, s.priority);

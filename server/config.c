@@ -55,6 +55,18 @@ static const opt opts[] = {
     {"checkpoint-jobs", OPT_INT, OFF(checkpoint_jobs), 1, 1000000,
      "... or after this many finished jobs (default 64)"},
     {"quiet", OPT_BOOL, OFF(quiet), 0, 1, "no per-request log lines (default false)"},
+    {"mesh-importer", OPT_STR, OFF(mesh_importer), 0, 0,
+     "the mesh-import worker program (default: obscura-import next to obscurad)"},
+    {"mesh-import-seconds", OPT_INT, OFF(mesh_import_seconds), 1, 3600,
+     "time limit of one mesh import; the worker is killed after it (default 10)"},
+    {"mesh-import-memory", OPT_SIZE, OFF(mesh_import_memory), 64.0 * 1024 * 1024,
+     1024.0 * 1024 * 1024 * 1024, "address-space limit of the mesh-import worker (default 2G)"},
+    {"mesh-cache-bytes", OPT_SIZE, OFF(mesh_cache_bytes), 0, 1024.0 * 1024 * 1024 * 1024,
+     "imported meshes kept in memory, K/M/G suffixes allowed (default 256M; 0 = none)"},
+    {"max-queued-work", OPT_REAL, OFF(max_queued_work), 1, 1e21,
+     "per client: limit on the work of its queued and running jobs (default 5e10)"},
+    {"max-queued-work-total", OPT_REAL, OFF(max_queued_work_total), 1, 1e21,
+     "limit on the work of all queued and running jobs (default 2e11)"},
 };
 #define NOPTS (sizeof opts / sizeof opts[0])
 
@@ -205,6 +217,11 @@ int srv_config_parse(srv_config *cfg, int argc, char **argv) {
   cfg->worker_nice = 10;
   cfg->checkpoint_seconds = 30;
   cfg->checkpoint_jobs = 64;
+  cfg->mesh_import_seconds = 10;
+  cfg->mesh_import_memory = 2LL * 1024 * 1024 * 1024;
+  cfg->mesh_cache_bytes = 256LL * 1024 * 1024;
+  cfg->max_queued_work = 5e10;
+  cfg->max_queued_work_total = 2e11;
   /* The config file first, wherever --config stands, so the command line always wins. */
   for (int i = 1; i < argc; i++) {
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
@@ -280,5 +297,6 @@ void srv_config_free(srv_config *cfg) {
   free(cfg->web_dir);
   free(cfg->vendor_dir);
   free(cfg->token_file);
+  free(cfg->mesh_importer);
   memset(cfg, 0, sizeof *cfg);
 }

@@ -165,6 +165,7 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *c, const cha
     r->t0 = obs_now_ms();
     if (!r->path) return MHD_NO;
     r->route = srv_api_route(r->path);
+    srv_req_client(app, c, r->client, sizeof r->client);
     /* Answered before any body is read: a wrong token or an announced oversized body never
      * costs the upload. */
     if (needs_auth(app, r->route) && !auth_ok(app, c))

@@ -146,6 +146,9 @@ char *srv_metrics_text(srv_app *app, size_t *len) {
         put(&b, "obscura_http_requests_total{route=\"%s\",status=\"%d\"} %llu\n", route_names[r],
             s + 100, n);
     }
+  char mesh[2048];
+  srv_meshimport_metrics(app, mesh, sizeof mesh);
+  put(&b, "%s", mesh);
   put(&b, "# HELP obscura_uptime_seconds Seconds since the daemon started.\n"
           "# TYPE obscura_uptime_seconds gauge\nobscura_uptime_seconds %.3f\n",
       (obs_now_ms() - app->start_ms) / 1e3);
