@@ -23,8 +23,8 @@ static const struct {
   double ms_per_work;
 } fallback_rates[] = {
     {"rt_ao", 9e-5},
-    {"ssao", 3e-5},
-    {"hbao", 3e-5},
+    {"ssao", 3.5e-5},
+    {"hbao", 1e-5},
 };
 /* A technique missing from the table: the slowest rate above. */
 #define FALLBACK_UNKNOWN 9e-5
