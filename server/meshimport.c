@@ -8,6 +8,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <limits.h>
+#include <math.h>
 #include <pthread.h>
 #include <signal.h>
 #include <spawn.h>
@@ -101,7 +102,7 @@ static int spawn_worker(srv_meshimport *mi, char *msg, size_t n) {
   }
   char mem[32], cpu[32];
   snprintf(mem, sizeof mem, "%lld", (long long)mi->o.memory);
-  snprintf(cpu, sizeof cpu, "%d", mi->o.seconds + 1);
+  snprintf(cpu, sizeof cpu, "%d", (int)ceil(mi->o.seconds) + 1);
   char *argv[] = {mi->exe, "--memory", mem, "--cpu-seconds", cpu, NULL};
   posix_spawn_file_actions_t fa;
   posix_spawnattr_t at;
@@ -178,8 +179,8 @@ static int run_request(srv_meshimport *mi, const char *path, const char *root, c
   srv_mesh_limits lim = {(uint64_t)mi->o.max_triangles, 3 * (uint64_t)mi->o.max_triangles};
   char why[512];
   int code = OBS_EINVAL;
-  double deadline = obs_now_ms() + 1e3 * mi->o.seconds;
-  int r = srv_meshproto_read_reply(mi->from_fd, deadline, &lim, m, &code, why, sizeof why);
+  int r = srv_meshproto_read_reply(mi->from_fd, 1e3 * mi->o.seconds, &lim, m, &code, why,
+                                   sizeof why);
   *cacheable = 1;
   switch (r) {
     case SRV_MESH_REPLY_MESH: return 0;
@@ -189,7 +190,7 @@ static int run_request(srv_meshimport *mi, const char *path, const char *root, c
     case SRV_MESH_REPLY_TIMEOUT:
       stop_worker(mi, 1);
       atomic_fetch_add(&mi->timeouts, 1);
-      snprintf(msg, n, "%s: the mesh importer timed out after %d s", rel, mi->o.seconds);
+      snprintf(msg, n, "%s: the mesh importer timed out after %g s", rel, mi->o.seconds);
       return OBS_EINVAL;
     case SRV_MESH_REPLY_EOF: {
       char how[64];

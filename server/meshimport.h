@@ -37,10 +37,10 @@ enum {
   SRV_MESH_REPLY_BAD = 4      /* malformed reply: msg says what */
 };
 
-/* Reads one reply from `fd` until `deadline_ms` (obs_now_ms clock), checking the header against
- * `lim` before allocating and every index and coordinate after. Returns SRV_MESH_REPLY_*; on
- * MESH, *m is owned by the caller; *code gets the worker's OBS_E* code for ERROR. */
-int srv_meshproto_read_reply(int fd, double deadline_ms, const srv_mesh_limits *lim, obs_mesh *m,
+/* Reads one reply from `fd` within `timeout_ms`, checking the header against `lim` before
+ * allocating and every index and coordinate after. Returns SRV_MESH_REPLY_*; on MESH, *m is owned
+ * by the caller; *code gets the worker's OBS_E* code for ERROR. */
+int srv_meshproto_read_reply(int fd, double timeout_ms, const srv_mesh_limits *lim, obs_mesh *m,
                              int *code, char *msg, size_t n);
 /* Writes a request / reply (blocking). 0, or -1 with errno. */
 int srv_meshproto_write_request(int fd, const char *path, const char *root,
@@ -85,7 +85,7 @@ void srv_meshcache_stats_get(srv_meshcache *c, srv_meshcache_stats *s);
 typedef struct srv_meshimport srv_meshimport;
 typedef struct srv_meshimport_opts {
   const char *exe;          /* the worker program */
-  int seconds;              /* per request, enforced here */
+  double seconds;           /* per request, enforced here */
   int64_t memory;           /* the worker's RLIMIT_AS in bytes (0 = none) */
   int64_t max_triangles;    /* per mesh */
   size_t cache_bytes;       /* 0 = no cache */

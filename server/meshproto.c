@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "meshimport.h"
@@ -23,12 +24,19 @@ static int write_all(int fd, const void *buf, size_t n) {
   return 0;
 }
 
+/* The worker links this file too and needs nothing else of the renderer's clock. */
+static double now_ms(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
+}
+
 /* Reads exactly n bytes: 0; SRV_MESH_REPLY_EOF; SRV_MESH_REPLY_TIMEOUT (deadline_ms > 0 only). */
 static int read_full(int fd, void *buf, size_t n, double deadline_ms) {
   char *p = buf;
   while (n) {
     if (deadline_ms > 0) {
-      double left = deadline_ms - obs_now_ms();
+      double left = deadline_ms - now_ms();
       if (left <= 0) return SRV_MESH_REPLY_TIMEOUT;
       struct pollfd pf = {.fd = fd, .events = POLLIN};
       int pr = poll(&pf, 1, left > 1 ? (int)left : 1);
@@ -115,8 +123,9 @@ static int all_finite(const float *v, size_t n) {
   return 1;
 }
 
-int srv_meshproto_read_reply(int fd, double deadline_ms, const srv_mesh_limits *lim, obs_mesh *m,
+int srv_meshproto_read_reply(int fd, double timeout_ms, const srv_mesh_limits *lim, obs_mesh *m,
                              int *code, char *msg, size_t n) {
+  double deadline_ms = now_ms() + (timeout_ms > 0 ? timeout_ms : 1);
   memset(m, 0, sizeof *m);
   msg[0] = '\0';
   uint32_t h[2];
