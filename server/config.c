@@ -67,6 +67,8 @@ static const opt opts[] = {
      "per client: limit on the work of its queued and running jobs (default 5e10)"},
     {"max-queued-work-total", OPT_REAL, OFF(max_queued_work_total), 1, 1e21,
      "limit on the work of all queued and running jobs (default 2e11)"},
+    {"estimate-render-time", OPT_BOOL, OFF(estimate_render_time), 0, 1,
+     "refuse at submission a job estimated to outlast --max-render-seconds (default true)"},
 };
 #define NOPTS (sizeof opts / sizeof opts[0])
 
@@ -222,6 +224,7 @@ int srv_config_parse(srv_config *cfg, int argc, char **argv) {
   cfg->mesh_cache_bytes = 256LL * 1024 * 1024;
   cfg->max_queued_work = 5e10;
   cfg->max_queued_work_total = 2e11;
+  cfg->estimate_render_time = 1;
   /* The config file first, wherever --config stands, so the command line always wins. */
   for (int i = 1; i < argc; i++) {
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {

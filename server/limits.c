@@ -40,6 +40,7 @@ static double fallback_rate(const char *technique) {
 }
 
 void srv_submit_check_estimate(srv_app *app, const obs_scene *sc, obs_err *problems) {
+  if (!app->cfg.estimate_render_time) return;
   obs_backend be;
   obs_err e = OBS_ERR_INIT;
   int rc = srv_pick_backend(sc->technique, sc->backend, app->vulkan_lane, &be, &e);

@@ -45,6 +45,7 @@ typedef struct srv_config {
   int64_t mesh_cache_bytes;   /* imported meshes kept in memory, default 256 MiB */
   double max_queued_work;       /* per client: work of its queued and running jobs */
   double max_queued_work_total; /* the same over all clients */
+  int estimate_render_time;     /* refuse jobs estimated to outlast max_render_seconds */
 } srv_config;
 
 /* Fills defaults, reads --config FILE (if any) and then the command line, which wins. Returns 0,

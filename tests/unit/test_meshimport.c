@@ -361,7 +361,7 @@ static void test_client_fake_workers(void **state) {
   srv_meshimport_free(mi);
 
   mi = client(script(dir, "garbage.sh", "head -c 12 >/dev/null; printf 'garbage garbage'; "
-                                        "sleep 60"), 5);
+                                        "exec sleep 60"), 5);
   assert_int_equal(import(mi, dir, "models/tetra.obj", &m, &err), OBS_EINVAL);
   assert_non_null(strstr(obs_err_message(&err), "answered malformed data (wrong magic number)"));
   obs_err_clear(&err);
