@@ -143,7 +143,9 @@ static int spawn_worker(srv_meshimport *mi, char *msg, size_t n) {
 
 /* Why the worker ended, for a message: "crashed (signal 6)" or "exited with status 2". */
 static void describe_exit(int status, char *buf, size_t n) {
-  if (status >= 0 && WIFSIGNALED(status))
+  if (status >= 0 && WIFSIGNALED(status) && WTERMSIG(status) == SIGXCPU)
+    snprintf(buf, n, "the mesh importer ran out of CPU time (signal %d)", SIGXCPU);
+  else if (status >= 0 && WIFSIGNALED(status))
     snprintf(buf, n, "the mesh importer crashed (signal %d)", WTERMSIG(status));
   else if (status >= 0 && WIFEXITED(status))
     snprintf(buf, n, "the mesh importer exited with status %d", WEXITSTATUS(status));
