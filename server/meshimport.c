@@ -231,6 +231,8 @@ int srv_meshimport_import(void *user, const char *path, const char *root, obs_me
   if (!realpath(path, real) || stat(real, &st) || !S_ISREG(st.st_mode))
     return obs_err_set(err, OBS_EINVAL, "%s: %s: not a readable regular file", where,
                        relative(path, real_root));
+  if (!obs_path_is_inside(real_root, real))
+    return obs_err_set(err, OBS_EINVAL, "%s: must stay inside the scene's directory tree", where);
   srv_meshkey k = {real, real_root, st.st_dev, st.st_ino, st.st_size, st.st_mtim};
   int code = 0;
   char *cached = NULL;

@@ -368,10 +368,12 @@ static void test_client_fake_workers(void **state) {
   srv_meshimport_free(mi);
 
   mi = client(script(dir, "exits.sh", "exit 3"), 5);
-  assert_int_equal(import(mi, dir, "models/tetra.obj", &m, &err), OBS_EINVAL);
+  int rc = import(mi, dir, "models/tetra.obj", &m, &err);
   const char *msg = obs_err_message(&err);
-  /* Gone before or after reading the request: either way an exit, not a hang. */
-  assert_true(strstr(msg, "exited with status 3") || strstr(msg, "cannot send"));
+  /* Gone before or after reading the request: either way an exit, not a hang (and a failure to
+   * reach any worker, EIO, is not the file's fault). */
+  assert_true((rc == OBS_EINVAL && strstr(msg, "exited with status 3")) ||
+              (rc == OBS_EIO && strstr(msg, "cannot send")));
   obs_err_free(&err);
   srv_meshimport_free(mi);
 
