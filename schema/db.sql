@@ -108,3 +108,9 @@ CREATE TABLE comparison_candidates (
 ) WITHOUT ROWID;
 CREATE INDEX comparison_candidates_job ON comparison_candidates (job);
 CREATE INDEX comparison_candidates_reference ON comparison_candidates (reference_job);
+
+-- migration 4
+-- Who queued each job: the remote address, or "token" when a bearer token is configured. Queued
+-- work is bounded per client (--max-queued-work); the partial index keeps that sum to the queue.
+ALTER TABLE jobs ADD COLUMN client TEXT;
+CREATE INDEX jobs_active_client ON jobs (client, state) WHERE state IN ('queued', 'running');

@@ -128,15 +128,20 @@ static json_t *job_json(srv_app *app, const srv_job *j) {
 
 /* ---- /api/v1/jobs ---------------------------------------------------------------------------- */
 
-static int submit(srv_req *r) {
-  int refused;
-  if (srv_refuse_non_json(r, &refused)) return refused;
+int srv_refuse_when_faulted(srv_req *r, int *ret) {
   char fault[1400];
   /* Before any parsing: while the database file is lost or corrupt nothing accepted would
    * survive a restart. */
-  if (srv_fault_refusing(fault, sizeof fault))
-    return srv_respond_error(r, MHD_HTTP_SERVICE_UNAVAILABLE, NULL,
-                             "not accepting work: %s (see GET /api/v1/health)", fault);
+  if (!srv_fault_refusing(fault, sizeof fault)) return 0;
+  *ret = srv_respond_error(r, MHD_HTTP_SERVICE_UNAVAILABLE, NULL,
+                           "not accepting work: %s (see GET /api/v1/health)", fault);
+  return 1;
+}
+
+static int submit(srv_req *r) {
+  int refused;
+  if (srv_refuse_non_json(r, &refused)) return refused;
+  if (srv_refuse_when_faulted(r, &refused)) return refused;
   srv_submission s;
   obs_err problems = OBS_ERR_INIT;
   const char *message = NULL;
@@ -160,12 +165,14 @@ static int submit(srv_req *r) {
                     .work = s.work,
                     .backend_reason = s.backend_reason};
   int64_t id = 0;
-  int rc = srv_db_insert_job(r->app->db, &nj, &id, &problems);
-  if (rc == OBS_ETRANSIENT && !srv_fault_refusing(fault, sizeof fault))
-    srv_fault_raise(SRV_FAULT_DB, srv_db_path(r->app->db), NULL, obs_err_message(&problems), NULL);
-  if (rc) {
+  int retry = 0;
+  unsigned admit = srv_admit_job(r->app, r->client, &nj, &id, &retry, &problems);
+  if (admit) {
     srv_submission_free(&s);
-    return srv_respond_unavailable(r, &problems);
+    if (admit != 429) return srv_respond_unavailable(r, &problems);
+    int rc = srv_respond_too_busy(r, retry, &problems);
+    obs_err_free(&problems);
+    return rc;
   }
   srv_log("job %lld: submitted -> queued (%s, %s/%s, %dx%d, priority %d)", (long long)id, s.scene,
           s.technique, s.backend_requested, s.width, s.height, s.priority);

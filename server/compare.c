@@ -550,6 +550,7 @@ static unsigned parse_request(srv_app *app, const char *body, size_t len, cmp_re
 int srv_compare_post(srv_req *r) {
   int refused;
   if (srv_refuse_non_json(r, &refused)) return refused;
+  if (srv_refuse_when_faulted(r, &refused)) return refused;
   cmp_req q;
   expansion x;
   memset(&x, 0, sizeof x);
@@ -568,6 +569,8 @@ int srv_compare_post(srv_req *r) {
   srv_new_candidate *cs = calloc((size_t)x.n + 1, sizeof *cs);
   char *request = json_dumps(q.req, JSON_COMPACT | JSON_REAL_PRECISION(17));
   int64_t id = 0;
+  unsigned admit = 0;
+  int retry = 0;
   int rc = !refs || !cs || !request ? obs_err_set(&problems, OBS_ENOMEM, "out of memory") : 0;
   int width = x.n ? x.c[0].width : 0, height = x.n ? x.c[0].height : 0;
   for (int i = 0; !rc && i < x.nrefs; i++) {
@@ -624,7 +627,8 @@ int srv_compare_post(srv_req *r) {
                              .nreferences = x.nrefs,
                              .candidates = cs,
                              .ncandidates = x.n};
-    rc = srv_db_insert_comparison(r->app->db, &nc, &id, &problems);
+    admit = srv_admit_comparison(r->app, r->client, &nc, &id, &retry, &problems);
+    rc = admit ? OBS_EIO : 0;
   }
   int nrefs = x.nrefs, ncand = x.n;
   free(refs);
@@ -633,6 +637,11 @@ int srv_compare_post(srv_req *r) {
   expansion_free(&x);
   json_decref(q.base);
   json_decref(q.req);
+  if (admit == 429) {
+    rc = srv_respond_too_busy(r, retry, &problems);
+    obs_err_free(&problems);
+    return rc;
+  }
   if (rc) return srv_respond_unavailable(r, &problems);
   srv_log("comparison %lld: submitted (%d candidates, %d references)", (long long)id, ncand,
           nrefs);

@@ -65,6 +65,20 @@ static const opt opts[] = {
      "connections of one client address still sending headers; its oldest close (default 32)"},
     {"max-inflight-bytes", OPT_SIZE, OFF(max_inflight), 1024, 1024.0 * 1024 * 1024 * 1024,
      "request-body bytes buffered across all connections; more get 503 (default 64M)"},
+    {"mesh-importer", OPT_STR, OFF(mesh_importer), 0, 0,
+     "the mesh-import worker program (default: obscura-import next to obscurad)"},
+    {"mesh-import-seconds", OPT_INT, OFF(mesh_import_seconds), 1, 3600,
+     "time limit of one mesh import; the worker is killed after it (default 10)"},
+    {"mesh-import-memory", OPT_SIZE, OFF(mesh_import_memory), 64.0 * 1024 * 1024,
+     1024.0 * 1024 * 1024 * 1024, "address-space limit of the mesh-import worker (default 2G)"},
+    {"mesh-cache-bytes", OPT_SIZE, OFF(mesh_cache_bytes), 0, 1024.0 * 1024 * 1024 * 1024,
+     "imported meshes kept in memory, K/M/G suffixes allowed (default 256M; 0 = none)"},
+    {"max-queued-work", OPT_REAL, OFF(max_queued_work), 1, 1e21,
+     "per client: limit on the work of its queued and running jobs (default 5e10)"},
+    {"max-queued-work-total", OPT_REAL, OFF(max_queued_work_total), 1, 1e21,
+     "limit on the work of all queued and running jobs (default 2e11)"},
+    {"estimate-render-time", OPT_BOOL, OFF(estimate_render_time), 0, 1,
+     "refuse at submission a job estimated to outlast --max-render-seconds (default true)"},
 };
 #define NOPTS (sizeof opts / sizeof opts[0])
 
@@ -220,6 +234,12 @@ int srv_config_parse(srv_config *cfg, int argc, char **argv) {
   cfg->max_pending_per_address = 32;
   cfg->max_inflight = 64 * 1024 * 1024;
   cfg->db_check_seconds = 60;
+  cfg->mesh_import_seconds = 10;
+  cfg->mesh_import_memory = 2LL * 1024 * 1024 * 1024;
+  cfg->mesh_cache_bytes = 256LL * 1024 * 1024;
+  cfg->max_queued_work = 5e10;
+  cfg->max_queued_work_total = 2e11;
+  cfg->estimate_render_time = 1;
   /* The config file first, wherever --config stands, so the command line always wins. */
   for (int i = 1; i < argc; i++) {
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
@@ -302,5 +322,6 @@ void srv_config_free(srv_config *cfg) {
   free(cfg->web_dir);
   free(cfg->vendor_dir);
   free(cfg->token_file);
+  free(cfg->mesh_importer);
   memset(cfg, 0, sizeof *cfg);
 }

@@ -478,6 +478,7 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *c, const cha
     r->t0 = obs_now_ms();
     if (!r->path) return MHD_NO;
     r->route = srv_api_route(r->path);
+    srv_req_client(app, c, r->client, sizeof r->client);
     return first_call(h, version) == MHD_YES ? MHD_YES : MHD_NO;
   }
   srv_req *r = &h->r;

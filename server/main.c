@@ -151,6 +151,7 @@ int main(int argc, char **argv) {
   snprintf(app.results_dir, sizeof app.results_dir, "%s", real);
 
   srv_metrics_init();
+  if (srv_meshimport_start(&app, &err)) goto out;
   app.vk_available = obs_vk_available();
   app.vulkan_lane = app.cfg.vulkan && app.vk_available;
   app.cpu_threads = obs_cpu_count() / app.cfg.workers;
@@ -195,6 +196,7 @@ out:
   if (err.count) fprintf(stderr, "obscurad: %s\n", obs_err_message(&err));
   srv_http_stop(&app);
   srv_sched_stop(&app);
+  srv_meshimport_stop(&app);
   if (app.db) {
     obs_err e2 = OBS_ERR_INIT;
     srv_db_checkpoint(app.db, &e2);

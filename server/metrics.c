@@ -161,6 +161,9 @@ char *srv_metrics_text(srv_app *app, size_t *len) {
   put(&b, "# HELP obscura_workers_paused Workers holding a finished job until a fault clears.\n"
           "# TYPE obscura_workers_paused gauge\nobscura_workers_paused %d\n",
       srv_sched_paused(app));
+  char mesh[2048];
+  srv_meshimport_metrics(app, mesh, sizeof mesh);
+  put(&b, "%s", mesh);
   put(&b, "# HELP obscura_uptime_seconds Seconds since the daemon started.\n"
           "# TYPE obscura_uptime_seconds gauge\nobscura_uptime_seconds %.3f\n",
       (obs_now_ms() - app->start_ms) / 1e3);

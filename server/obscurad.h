@@ -44,6 +44,14 @@ typedef struct srv_config {
   int max_connections;         /* connections held at once; default 1000 */
   int max_pending_per_address; /* connections of one address still sending headers; 32 */
   int64_t max_inflight;        /* request-body bytes buffered across connections; 64 MiB */
+  /* Mesh import (meshimport.c) and queued-work limits (limits.c). */
+  char *mesh_importer;        /* the worker program; NULL = obscura-import next to obscurad */
+  int mesh_import_seconds;    /* per import, default 10 */
+  int64_t mesh_import_memory; /* the worker's address-space limit in bytes, default 2 GiB */
+  int64_t mesh_cache_bytes;   /* imported meshes kept in memory, default 256 MiB */
+  double max_queued_work;       /* per client: work of its queued and running jobs */
+  double max_queued_work_total; /* the same over all clients */
+  int estimate_render_time;     /* refuse jobs estimated to outlast max_render_seconds */
 } srv_config;
 
 /* Fills defaults, reads --config FILE (if any) and then the command line, which wins. Returns 0,
@@ -394,6 +402,7 @@ struct srv_req {
   unsigned status;
   srv_route route;
   double t0;
+  char client[80]; /* who queued work is counted against: "token:<hash>" or the remote address */
 };
 
 /* Queues `resp` (adding the security headers) and records the status. Consumes resp. */
@@ -407,6 +416,9 @@ int srv_respond_json(srv_req *r, unsigned status, json_t *body);
  * absent is refused when there is a body): answers 415 and returns 1 with the handler's result in
  * *ret; else 0. */
 int srv_refuse_non_json(srv_req *r, int *ret);
+/* While the database is lost or corrupt (see faults.c): answers 503 naming the fault and
+ * returns 1 with the handler's result in *ret; else 0. */
+int srv_refuse_when_faulted(srv_req *r, int *ret);
 /* 503 for a database error (logged; consumes the messages of `err`). */
 int srv_respond_unavailable(srv_req *r, obs_err *err);
 /* 201 with a JSON body (consumed) and a Location header. */
@@ -534,7 +546,42 @@ typedef struct srv_app {
   int64_t machine_id;      /* machines row of this daemon (CPU model, threads, Vulkan device) */
   int port;                /* the bound port */
   double start_ms;
+  struct srv_meshimport *meshimport; /* the contained mesh importer (meshimport.c) */
 } srv_app;
+
+/* ---- mesh import and work limits (meshimport.c, limits.c) ------------------------------------ */
+
+/* Starts the contained mesh importer (the worker process starts at the first import) and routes
+ * every mesh import of the renderer through it; stop undoes both. */
+int srv_meshimport_start(srv_app *app, obs_err *err);
+void srv_meshimport_stop(srv_app *app);
+/* Its counters as Prometheus text into buf (NUL-terminated, truncated at n). */
+void srv_meshimport_metrics(srv_app *app, char *buf, size_t n);
+/* Admission of new work under --max-queued-work (per client) and --max-queued-work-total: inserts
+ * the job / comparison tagged with `client` when the queued work it adds fits both caps. Returns 0
+ * with *id; 429 with the cap in `problems` and *retry_after (seconds); 503 on a database error
+ * (in `problems`). The check and the insert are atomic with respect to other submissions. */
+unsigned srv_admit_job(srv_app *app, const char *client, const srv_new_job *nj, int64_t *id,
+                       int *retry_after, obs_err *problems);
+unsigned srv_admit_comparison(srv_app *app, const char *client, const srv_new_comparison *c,
+                              int64_t *id, int *retry_after, obs_err *problems);
+/* 429 with Retry-After and {"error", "problems"}. */
+int srv_respond_too_busy(srv_req *r, int retry_after, const obs_err *problems);
+/* Refuses (adds a problem naming /image or /technique/params) a job whose estimated render time
+ * exceeds --max-render-seconds: work x the median ms per unit of work of this machine's stored
+ * runs of the technique and backend, or the technique's built-in rate. */
+void srv_submit_check_estimate(srv_app *app, const obs_scene *sc, obs_err *problems);
+/* The client a request's queued work counts against, into buf (filled when a request starts). */
+void srv_req_client(srv_app *app, struct MHD_Connection *c, char *buf, size_t n);
+/* Work x renders of the queued and running jobs: of `client`, and of all (db.c). */
+int srv_db_queued_work(srv_db *db, const char *client, double *mine, double *total, obs_err *err);
+/* Records the client of job `job`, or of every job of comparison `comparison` (db.c). */
+int srv_db_set_job_client(srv_db *db, int64_t job, int64_t comparison, const char *client,
+                          obs_err *err);
+/* total_ms / work of this machine's newest timed runs (at most 1000) of `technique` on `backend`
+ * whose job's work is at least min_work; *rates malloc'd (db.c). */
+int srv_db_run_rates(srv_db *db, const char *technique, const char *backend, int64_t machine,
+                     double min_work, double **rates, size_t *n, obs_err *err);
 
 /* From the renderer's Vulkan layer (renderer/vulkan/vk.h): whether a device exists, its name. */
 int obs_vk_available(void);

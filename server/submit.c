@@ -175,7 +175,7 @@ static double triangles_of(const obs_scene *sc, obs_err *err) {
       case OBS_SHAPE_DISPLACED_SPHERE: n += ldexp(1.0, 2 * o->subdivisions); break;
       case OBS_SHAPE_MESH: {
         obs_mesh m;
-        char where[96];
+        char where[256];
         snprintf(where, sizeof where, "%s: /objects/%zu/shape/file", sc->name, i);
         if (obs_geometry_import_mesh(o->mesh_path, sc->base_dir, &m, err, where) == 0) {
           n += (double)m.ntris;
@@ -210,6 +210,7 @@ void srv_submit_check_limits(srv_app *app, const obs_scene *sc, obs_err *problem
     obs_err_set(problems, OBS_EINVAL,
                 "%s: /objects: %.0f triangles exceed the server's limit max-triangles = %lld", d,
                 tris, (long long)c->max_triangles);
+  if (work <= c->max_work) srv_submit_check_estimate(app, sc, problems);
 }
 
 int srv_pick_backend(const obs_technique *t, obs_backend requested, int vulkan_lane,

@@ -1,5 +1,6 @@
-/* Tessellation and world-space transformation of scene shapes; mesh files import through assimp.
- * Spheres stay analytic: only their centre and radius are transformed. */
+/* Tessellation and world-space transformation of scene shapes; mesh files import through assimp
+ * (in this process, or through an importer the embedding program installs). Spheres stay
+ * analytic: only their centre and radius are transformed. */
 #include "geometry.h"
 
 #include <assimp/cfileio.h>
@@ -226,8 +227,25 @@ static void cio_close(struct aiFileIO *io, struct aiFile *f) {
   free(f);
 }
 
+static obs_mesh_importer importer_fn;
+static void *importer_user;
+
+void obs_geometry_set_importer(obs_mesh_importer fn, void *user) {
+  importer_fn = fn;
+  importer_user = user;
+}
+
 int obs_geometry_import_mesh(const char *path, const char *root, obs_mesh *m, obs_err *err,
                              const char *where) {
+  if (importer_fn) {
+    memset(m, 0, sizeof *m);
+    return importer_fn(importer_user, path, root, m, err, where);
+  }
+  return obs_geometry_import_mesh_assimp(path, root, m, err, where);
+}
+
+int obs_geometry_import_mesh_assimp(const char *path, const char *root, obs_mesh *m, obs_err *err,
+                                    const char *where) {
   memset(m, 0, sizeof *m);
   contained_io cio;
   memset(&cio, 0, sizeof cio);
@@ -319,7 +337,7 @@ static int build_object(const obs_scene *sc, size_t oi, const double origin[3], 
     case OBS_SHAPE_DISPLACED_SPHERE:
       rc = obs_geometry_displaced_sphere(o->subdivisions, m);
       break;
-    case OBS_SHAPE_MESH:
+    case OBS_SHAPE_MESH: {
       char where[256];
       snprintf(where, sizeof where, "%s: /objects/%zu/shape/file", sc->name, oi);
       int irc = obs_geometry_import_mesh(o->mesh_path, sc->base_dir ? sc->base_dir : ".", m, err,
@@ -327,6 +345,7 @@ static int build_object(const obs_scene *sc, size_t oi, const double origin[3], 
       if (irc) return irc;
       mesh_transform(m, &o->transform, origin);
       return 0;
+    }
     default:
       return obs_err_set(err, OBS_EINTERNAL, "unexpected shape");
   }

@@ -42,10 +42,23 @@ int obs_geometry_build_at(const obs_scene *scene, const double origin[3], obs_ge
                           obs_err *err);
 void obs_geometry_free(obs_geometry *geo);
 
-/* Imports a mesh file with assimp, reading only files inside the directory tree `root` (the
- * scene's). Messages are prefixed with `where` (e.g. "scene.json: /objects/3/shape/file"). */
+/* Imports a mesh file (object space), reading only files inside the directory tree `root` (the
+ * scene's). Messages are prefixed with `where` (e.g. "scene.json: /objects/3/shape/file"). Every
+ * mesh import of the library (scene validation, geometry builds) goes through here, and so
+ * through the importer installed with obs_geometry_set_importer, if any. */
 int obs_geometry_import_mesh(const char *path, const char *root, obs_mesh *m, obs_err *err,
                              const char *where);
+/* The same with assimp in this process: the default importer, and what an importer that runs
+ * assimp elsewhere (a worker process) calls there. */
+int obs_geometry_import_mesh_assimp(const char *path, const char *root, obs_mesh *m, obs_err *err,
+                                    const char *where);
+/* A mesh importer: the contract of obs_geometry_import_mesh, with the `user` it was installed
+ * with. It must return a valid mesh (indices below nverts, finite coordinates) or an error. */
+typedef int (*obs_mesh_importer)(void *user, const char *path, const char *root, obs_mesh *m,
+                                 obs_err *err, const char *where);
+/* Installs `fn` for every later mesh import of the process (NULL: assimp in-process again). Not
+ * synchronised: call it before any thread imports (a server, at start) and after they stop. */
+void obs_geometry_set_importer(obs_mesh_importer fn, void *user);
 void obs_geometry_mesh_free(obs_mesh *m);
 /* Whether the resolved `path` lies inside the resolved directory `dir`. */
 int obs_path_is_inside(const char *dir, const char *path);

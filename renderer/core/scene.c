@@ -138,7 +138,8 @@ static void load_mesh_file(obs_jpath *p, const json_t *shape, const char *base_d
       obs_jpath_fail(p, "is not a regular file (got \"%s\")", file);
     } else {
       /* Import now, so a broken or empty mesh is a validation error rather than a failed render;
-       * the render imports again (meshes are small next to the work they cause). */
+       * the render imports again (meshes are small next to the work they cause), which a server's
+       * importer answers from its cache. */
       obs_mesh mesh;
       char where[1200];
       snprintf(where, sizeof where, "%s: %s", p->doc, p->buf);

@@ -133,7 +133,8 @@ check "nothing was submitted" test "$(njobs "$url")" = "$before"
 
 # --- the server's own 4xx: exit 2 with its message and problems ---------------------------------
 # The local loader accepts 200x200; the daemon's --max-pixels (set low below) does not.
-start_daemon limited --max-pixels 10000 --max-render-seconds 1
+# (--no-estimate-render-time: the job below must fail by the limit during the render, not be refused.)
+start_daemon limited --max-pixels 10000 --max-render-seconds 1 --no-estimate-render-time
 "$cli" submit "$scene" --server "$url" --set /image/width=200 --set /image/height=200 \
   >/dev/null 2>"$out/limit.err"
 check "server 422 exits 2" test $? -eq 2
