@@ -1498,6 +1498,8 @@ int srv_db_probe(srv_db *db, char *code, size_t n, obs_err *err) {
   sqlite3_free(msg);
   release(db, c);
   return rc == SQLITE_OK ? 0 : OBS_ETRANSIENT;
+}
+
 /* ---- queued work and run rates (limits.c) ------------------------------------------------------
  * Prepared per call rather than kept with the statements above: they run once per submission. */
 
