@@ -12,60 +12,11 @@
 #include <sys/statvfs.h>
 #include <unistd.h>
 
-#include "obscurad.h"
+#include "db_internal.h"
 
 extern const char srv_db_sql[];
 extern const size_t srv_db_sql_len;
 
-/* Every statement the daemon runs. Bound parameters only: no SQL is ever built from input. */
-enum {
-  ST_BEGIN,
-  ST_COMMIT,
-  ST_ROLLBACK,
-  ST_INSERT,
-  ST_GET,
-  ST_OUTPUTS,
-  ST_LIST_DESC,
-  ST_LIST_ASC,
-  ST_CLAIM,
-  ST_SET_BACKEND,
-  ST_SUCCESS,
-  ST_OUT_CLEAR,
-  ST_OUT_INSERT,
-  ST_FINISH,
-  ST_REQUEUE,
-  ST_STATE,
-  ST_CANCEL_QUEUED,
-  ST_CANCEL_RUNNING,
-  ST_DELETE,
-  ST_GET_OUTPUT,
-  ST_COUNTS,
-  ST_RUNNING_LIST,
-  ST_QUEUED_LIST,
-  ST_SET_LANE,
-  ST_END_ANY,
-  ST_REQUEUE_CRASH,
-  ST_CHECKPOINT,
-  ST_MIGRATION_MAX,
-  ST_MIGRATION_PUT,
-  ST_RUN_INSERT,
-  ST_MACHINE_INSERT,
-  ST_MACHINE_GET,
-  ST_CMP_INSERT,
-  ST_CAND_INSERT,
-  ST_SET_METRICS,
-  ST_OUT_UPSERT,
-  ST_QUERY, /* first of the SRV_NQUERIES read-only queries */
-  ST_COUNT = ST_QUERY + SRV_NQUERIES
-};
-
-#define JOB_COLS                                                                                  \
-  "id, state, priority, label, scene, technique, backend_requested, backend, lane, width, "      \
-  "height, spp, attempts, cancel_requested, created_ms, started_ms, finished_ms, error, summary, " \
-  "progress, repeats, warmup, backend_reason"
-#define LIST_WHERE                                                                                \
-  "(?1 IS NULL OR state = ?1) AND (?2 IS NULL OR technique = ?2) AND "                           \
-  "(?3 IS NULL OR coalesce(backend, backend_requested) = ?3) "
 
 static const char *const sql[ST_COUNT] = {
     [ST_BEGIN] = "BEGIN IMMEDIATE",
@@ -187,31 +138,9 @@ static const char *const sql[ST_COUNT] = {
     [ST_QUERY + SRV_Q_JOB_RUNS] = "SELECT total_ms FROM runs WHERE job = ?1 ORDER BY run",
 };
 
-typedef struct conn {
-  sqlite3 *db;
-  sqlite3_stmt *st[ST_COUNT];
-  int in_use;
-  struct srv_db *owner;
-} conn;
-
-struct srv_db {
-  conn *c;
-  int n;
-  pthread_mutex_t mu;
-  pthread_cond_t cv;
-  int exclusive;               /* the pool is being reopened: acquire waits */
-  char *path;
-  dev_t dev, wal_dev;          /* identity of the files opened */
-  ino_t ino, wal_ino;
-  int wal_known;
-  atomic_int corrupt_seen;     /* a statement met SQLITE_CORRUPT / SQLITE_NOTADB */
-  char refuse[1024];           /* under mu: why inserts are refused, "" = accepted */
-  char recovered[4200];        /* the copy written aside when the file was replaced */
-};
-
 /* Faults of the environment (a full or read-only disk, a busy database) come back as
  * OBS_ETRANSIENT, so callers can wait for them instead of failing a job for good. */
-static int db_fail(conn *c, obs_err *err, const char *what) {
+int srv_dbi_fail(conn *c, obs_err *err, const char *what) {
   int code = sqlite3_extended_errcode(c->db) & 0xff;
   if ((code == SQLITE_CORRUPT || code == SQLITE_NOTADB) && c->owner)
     atomic_store(&c->owner->corrupt_seen, 1);
@@ -222,7 +151,7 @@ static int db_fail(conn *c, obs_err *err, const char *what) {
                      sqlite3_errmsg(c->db));
 }
 
-static conn *acquire(srv_db *db) {
+conn *srv_dbi_acquire(srv_db *db) {
   pthread_mutex_lock(&db->mu);
   for (;;) {
     for (int i = 0; !db->exclusive && i < db->n; i++) {
@@ -236,7 +165,7 @@ static conn *acquire(srv_db *db) {
   }
 }
 
-static void release(srv_db *db, conn *c) {
+void srv_dbi_release(srv_db *db, conn *c) {
   pthread_mutex_lock(&db->mu);
   c->in_use = 0;
   pthread_cond_signal(&db->cv);
@@ -244,11 +173,11 @@ static void release(srv_db *db, conn *c) {
 }
 
 /* The statement, prepared once per connection and reset for reuse. */
-static sqlite3_stmt *stmt(conn *c, int which, obs_err *err) {
+sqlite3_stmt *srv_dbi_stmt(conn *c, int which, obs_err *err) {
   if (!c->st[which]) {
     if (sqlite3_prepare_v3(c->db, sql[which], -1, SQLITE_PREPARE_PERSISTENT, &c->st[which],
                            NULL) != SQLITE_OK) {
-      db_fail(c, err, "prepare");
+      srv_dbi_fail(c, err, "prepare");
       c->st[which] = NULL;
       return NULL;
     }
@@ -256,33 +185,33 @@ static sqlite3_stmt *stmt(conn *c, int which, obs_err *err) {
   return c->st[which];
 }
 
-static void done(sqlite3_stmt *s) {
+void srv_dbi_done(sqlite3_stmt *s) {
   if (!s) return;
   sqlite3_reset(s);
   sqlite3_clear_bindings(s);
 }
 
-static void bind_text(sqlite3_stmt *s, int i, const char *v) {
+void srv_dbi_bind_text(sqlite3_stmt *s, int i, const char *v) {
   if (v) sqlite3_bind_text(s, i, v, -1, SQLITE_TRANSIENT);
   else sqlite3_bind_null(s, i);
 }
 
 /* Runs a statement that returns no rows; SQLITE_DONE is success. */
-static int exec_done(conn *c, sqlite3_stmt *s, obs_err *err, const char *what) {
+int srv_dbi_exec_done(conn *c, sqlite3_stmt *s, obs_err *err, const char *what) {
   int rc = sqlite3_step(s);
-  int out = rc == SQLITE_DONE ? 0 : db_fail(c, err, what);
-  done(s);
+  int out = rc == SQLITE_DONE ? 0 : srv_dbi_fail(c, err, what);
+  srv_dbi_done(s);
   return out;
 }
 
 static int simple(conn *c, int which, obs_err *err) {
-  sqlite3_stmt *s = stmt(c, which, err);
-  return s ? exec_done(c, s, err, sql[which]) : OBS_EIO;
+  sqlite3_stmt *s = srv_dbi_stmt(c, which, err);
+  return s ? srv_dbi_exec_done(c, s, err, sql[which]) : OBS_EIO;
 }
 
-static int begin(conn *c, obs_err *err) { return simple(c, ST_BEGIN, err); }
-static int commit(conn *c, obs_err *err) { return simple(c, ST_COMMIT, err); }
-static void rollback(conn *c) {
+int srv_dbi_begin(conn *c, obs_err *err) { return simple(c, ST_BEGIN, err); }
+int srv_dbi_commit(conn *c, obs_err *err) { return simple(c, ST_COMMIT, err); }
+void srv_dbi_rollback(conn *c) {
   if (!sqlite3_get_autocommit(c->db)) simple(c, ST_ROLLBACK, NULL);
 }
 
@@ -302,7 +231,7 @@ int srv_state_parse(const char *s, srv_state *out) {
 
 const char *srv_lane_name(srv_lane l) { return l == SRV_LANE_VULKAN ? "vulkan" : "cpu"; }
 
-static char *col_str(sqlite3_stmt *s, int i) {
+char *srv_dbi_col_str(sqlite3_stmt *s, int i) {
   const unsigned char *t = sqlite3_column_text(s, i);
   return t ? strdup((const char *)t) : NULL;
 }
@@ -314,11 +243,11 @@ static void read_job(sqlite3_stmt *s, srv_job *j) {
   srv_state_parse((const char *)sqlite3_column_text(s, 1), &st);
   j->state = st;
   j->priority = sqlite3_column_int(s, 2);
-  j->label = col_str(s, 3);
-  j->scene = col_str(s, 4);
-  j->technique = col_str(s, 5);
-  j->backend_requested = col_str(s, 6);
-  j->backend = col_str(s, 7);
+  j->label = srv_dbi_col_str(s, 3);
+  j->scene = srv_dbi_col_str(s, 4);
+  j->technique = srv_dbi_col_str(s, 5);
+  j->backend_requested = srv_dbi_col_str(s, 6);
+  j->backend = srv_dbi_col_str(s, 7);
   const unsigned char *lane = sqlite3_column_text(s, 8);
   j->lane = lane && !strcmp((const char *)lane, "vulkan") ? SRV_LANE_VULKAN : SRV_LANE_CPU;
   j->width = sqlite3_column_int(s, 9);
@@ -329,12 +258,12 @@ static void read_job(sqlite3_stmt *s, srv_job *j) {
   j->created_ms = sqlite3_column_int64(s, 14);
   j->started_ms = sqlite3_column_int64(s, 15);
   j->finished_ms = sqlite3_column_int64(s, 16);
-  j->error = col_str(s, 17);
-  j->summary = col_str(s, 18);
+  j->error = srv_dbi_col_str(s, 17);
+  j->summary = srv_dbi_col_str(s, 18);
   j->progress = sqlite3_column_double(s, 19);
   j->repeats = sqlite3_column_int(s, 20);
   j->warmup = sqlite3_column_int(s, 21);
-  j->backend_reason = col_str(s, 22);
+  j->backend_reason = srv_dbi_col_str(s, 22);
 }
 
 void srv_job_free(srv_job *j) {
@@ -358,14 +287,14 @@ void srv_jobs_free(srv_job *jobs, int n) {
 }
 
 static int read_outputs(conn *c, srv_job *j, obs_err *err) {
-  sqlite3_stmt *s = stmt(c, ST_OUTPUTS, err);
+  sqlite3_stmt *s = srv_dbi_stmt(c, ST_OUTPUTS, err);
   if (!s) return OBS_EIO;
   sqlite3_bind_int64(s, 1, j->id);
   int rc;
   while ((rc = sqlite3_step(s)) == SQLITE_ROW) {
     srv_output *o = realloc(j->outputs, (size_t)(j->noutputs + 1) * sizeof *o);
     if (!o) {
-      done(s);
+      srv_dbi_done(s);
       return obs_err_set(err, OBS_ENOMEM, "out of memory");
     }
     j->outputs = o;
@@ -377,8 +306,8 @@ static int read_outputs(conn *c, srv_job *j, obs_err *err) {
     snprintf(o->content_type, sizeof o->content_type, "%s",
              (const char *)sqlite3_column_text(s, 3));
   }
-  int out = rc == SQLITE_DONE ? 0 : db_fail(c, err, "outputs");
-  done(s);
+  int out = rc == SQLITE_DONE ? 0 : srv_dbi_fail(c, err, "outputs");
+  srv_dbi_done(s);
   return out;
 }
 
@@ -445,7 +374,7 @@ static int open_failed(const char *path, const char *sqlite_msg, obs_err *err) {
   return obs_err_set(err, OBS_EIO, "database %s: cannot open: %s", path, sqlite_msg);
 }
 
-static int open_conn(conn *c, const char *path, obs_err *err) {
+int srv_dbi_open_conn(conn *c, const char *path, obs_err *err) {
   memset(c, 0, sizeof *c);
   int rc = sqlite3_open_v2(path, &c->db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, NULL);
   if (rc != SQLITE_OK) {
@@ -471,7 +400,7 @@ static int open_conn(conn *c, const char *path, obs_err *err) {
   return 0;
 }
 
-static void close_conn(conn *c) {
+void srv_dbi_close_conn(conn *c) {
   for (int i = 0; i < ST_COUNT; i++) sqlite3_finalize(c->st[i]);
   sqlite3_close(c->db);
   memset(c, 0, sizeof *c);
@@ -488,11 +417,11 @@ static int migrate(conn *c, const char *path, obs_err *err) {
     sqlite3_free(msg);
     return OBS_EIO;
   }
-  sqlite3_stmt *s = stmt(c, ST_MIGRATION_MAX, err);
+  sqlite3_stmt *s = srv_dbi_stmt(c, ST_MIGRATION_MAX, err);
   if (!s) return OBS_EIO;
   int64_t have = sqlite3_step(s) == SQLITE_ROW ? sqlite3_column_int64(s, 0) : -1;
-  done(s);
-  if (have < 0) return db_fail(c, err, "reading schema_migrations");
+  srv_dbi_done(s);
+  if (have < 0) return srv_dbi_fail(c, err, "reading schema_migrations");
   static const char marker[] = "\n-- migration ";
   int64_t latest = 0;
   const char *p = strstr(srv_db_sql, marker);
@@ -508,7 +437,7 @@ static int migrate(conn *c, const char *path, obs_err *err) {
       size_t n = next ? (size_t)(next - body) : strlen(body);
       char *text = strndup(body, n);
       if (!text) return obs_err_set(err, OBS_ENOMEM, "out of memory");
-      int rc = begin(c, err);
+      int rc = srv_dbi_begin(c, err);
       if (!rc && sqlite3_exec(c->db, text, NULL, NULL, &msg) != SQLITE_OK) {
         rc = obs_err_set(err, OBS_EIO, "database %s: migration %lld: %s", path, (long long)v,
                          msg ? msg : "?");
@@ -517,17 +446,17 @@ static int migrate(conn *c, const char *path, obs_err *err) {
       }
       free(text);
       if (!rc) {
-        sqlite3_stmt *put = stmt(c, ST_MIGRATION_PUT, err);
+        sqlite3_stmt *put = srv_dbi_stmt(c, ST_MIGRATION_PUT, err);
         if (!put) rc = OBS_EIO;
         else {
           sqlite3_bind_int64(put, 1, v);
           sqlite3_bind_int64(put, 2, srv_now_unix_ms());
-          rc = exec_done(c, put, err, "recording migration");
+          rc = srv_dbi_exec_done(c, put, err, "recording migration");
         }
       }
-      if (!rc) rc = commit(c, err);
+      if (!rc) rc = srv_dbi_commit(c, err);
       if (rc) {
-        rollback(c);
+        srv_dbi_rollback(c);
         return rc;
       }
       srv_log("database %s: applied migration %lld", path, (long long)v);
@@ -542,7 +471,7 @@ static int migrate(conn *c, const char *path, obs_err *err) {
 }
 
 /* Remembers which files were opened, so that a deleted or replaced database is noticed. */
-static int record_identity(srv_db *db, const char *path, obs_err *err) {
+int srv_dbi_record_identity(srv_db *db, const char *path, obs_err *err) {
   for (int i = 0; i < db->n; i++) db->c[i].owner = db;
   atomic_init(&db->corrupt_seen, 0);
   if (db->path != path) {
@@ -576,11 +505,11 @@ int srv_db_open(srv_db **out, const char *path, int nconn, obs_err *err) {
   pthread_cond_init(&db->cv, NULL);
   int rc = 0;
   for (int i = 0; i < nconn && !rc; i++) {
-    rc = open_conn(&db->c[i], path, err);
+    rc = srv_dbi_open_conn(&db->c[i], path, err);
     if (!rc) db->n = i + 1;
     if (!rc && i == 0) rc = migrate(&db->c[0], path, err);
   }
-  if (!rc) rc = record_identity(db, path, err);
+  if (!rc) rc = srv_dbi_record_identity(db, path, err);
   if (rc) {
     srv_db_close(db);
     return rc;
@@ -589,7 +518,6 @@ int srv_db_open(srv_db **out, const char *path, int nconn, obs_err *err) {
   return 0;
 }
 
-static int vacuum_into(conn *c, const char *target, obs_err *err);
 
 void srv_db_close(srv_db *db) {
   if (!db) return;
@@ -599,14 +527,14 @@ void srv_db_close(srv_db *db) {
     snprintf(tmp, sizeof tmp, "%s.tmp", db->recovered);
     unlink(tmp);
     obs_err e = OBS_ERR_INIT;
-    if (vacuum_into(&db->c[0], tmp, &e) || rename(tmp, db->recovered))
+    if (srv_dbi_vacuum_into(&db->c[0], tmp, &e) || rename(tmp, db->recovered))
       srv_log("database: cannot refresh %s: %s", db->recovered, obs_err_message(&e));
     else
       srv_log("database: %s holds this daemon's jobs; move it to %s to keep them",
               db->recovered, db->path);
     obs_err_free(&e);
   }
-  for (int i = 0; i < db->n; i++) close_conn(&db->c[i]);
+  for (int i = 0; i < db->n; i++) srv_dbi_close_conn(&db->c[i]);
   free(db->c);
   free(db->path);
   pthread_mutex_destroy(&db->mu);
@@ -618,15 +546,15 @@ void srv_db_close(srv_db *db) {
 
 /* Inserts one job row on `c` (in autocommit or the caller's transaction). */
 static int insert_job(conn *c, const srv_new_job *nj, int64_t *id, obs_err *err) {
-  sqlite3_stmt *s = stmt(c, ST_INSERT, err);
+  sqlite3_stmt *s = srv_dbi_stmt(c, ST_INSERT, err);
   if (!s) return OBS_EIO;
   sqlite3_bind_int(s, 1, nj->priority);
-  bind_text(s, 2, nj->label);
-  bind_text(s, 3, nj->scene);
-  bind_text(s, 4, nj->doc);
-  bind_text(s, 5, nj->technique);
-  bind_text(s, 6, nj->backend_requested);
-  bind_text(s, 7, srv_lane_name(nj->lane));
+  srv_dbi_bind_text(s, 2, nj->label);
+  srv_dbi_bind_text(s, 3, nj->scene);
+  srv_dbi_bind_text(s, 4, nj->doc);
+  srv_dbi_bind_text(s, 5, nj->technique);
+  srv_dbi_bind_text(s, 6, nj->backend_requested);
+  srv_dbi_bind_text(s, 7, srv_lane_name(nj->lane));
   sqlite3_bind_int(s, 8, nj->width);
   sqlite3_bind_int(s, 9, nj->height);
   sqlite3_bind_int(s, 10, nj->spp);
@@ -635,8 +563,8 @@ static int insert_job(conn *c, const srv_new_job *nj, int64_t *id, obs_err *err)
   sqlite3_bind_int(s, 13, nj->warmup ? 1 : 0);
   if (nj->work > 0) sqlite3_bind_double(s, 14, nj->work);
   else sqlite3_bind_null(s, 14);
-  bind_text(s, 15, nj->backend_reason);
-  int rc = exec_done(c, s, err, "inserting the job");
+  srv_dbi_bind_text(s, 15, nj->backend_reason);
+  int rc = srv_dbi_exec_done(c, s, err, "inserting the job");
   if (!rc) *id = sqlite3_last_insert_rowid(c->db);
   return rc;
 }
@@ -663,10 +591,10 @@ int srv_db_take_corrupt_flag(srv_db *db) { return atomic_exchange(&db->corrupt_s
 
 int srv_db_insert_job(srv_db *db, const srv_new_job *nj, int64_t *id, obs_err *err) {
   if (refused(db, err)) return OBS_ETRANSIENT;
-  conn *c = acquire(db);
+  conn *c = srv_dbi_acquire(db);
   /* Autocommit: when the step returned DONE the row is committed to the WAL. */
   int rc = insert_job(c, nj, id, err);
-  release(db, c);
+  srv_dbi_release(db, c);
   return rc;
 }
 
@@ -675,21 +603,21 @@ int srv_db_insert_comparison(srv_db *db, const srv_new_comparison *cmp, int64_t 
   if (refused(db, err)) return OBS_ETRANSIENT;
   int64_t *ref_ids = calloc((size_t)cmp->nreferences + 1, sizeof *ref_ids);
   if (!ref_ids) return obs_err_set(err, OBS_ENOMEM, "out of memory");
-  conn *c = acquire(db);
-  int rc = begin(c, err);
+  conn *c = srv_dbi_acquire(db);
+  int rc = srv_dbi_begin(c, err);
   sqlite3_stmt *s;
   if (!rc) {
-    s = stmt(c, ST_CMP_INSERT, err);
+    s = srv_dbi_stmt(c, ST_CMP_INSERT, err);
     if (!s) rc = OBS_EIO;
     else {
-      bind_text(s, 1, cmp->label);
-      bind_text(s, 2, cmp->scene);
+      srv_dbi_bind_text(s, 1, cmp->label);
+      srv_dbi_bind_text(s, 2, cmp->scene);
       sqlite3_bind_int(s, 3, cmp->width);
       sqlite3_bind_int(s, 4, cmp->height);
       sqlite3_bind_int(s, 5, cmp->repeats);
-      bind_text(s, 6, cmp->request);
+      srv_dbi_bind_text(s, 6, cmp->request);
       sqlite3_bind_int64(s, 7, srv_now_unix_ms());
-      rc = exec_done(c, s, err, "inserting the comparison");
+      rc = srv_dbi_exec_done(c, s, err, "inserting the comparison");
       if (!rc) *id = sqlite3_last_insert_rowid(c->db);
     }
   }
@@ -701,7 +629,7 @@ int srv_db_insert_comparison(srv_db *db, const srv_new_comparison *cmp, int64_t 
     int64_t job = 0;
     rc = insert_job(c, &cd->job, &job, err);
     if (rc) break;
-    s = stmt(c, ST_CAND_INSERT, err);
+    s = srv_dbi_stmt(c, ST_CAND_INSERT, err);
     if (!s) {
       rc = OBS_EIO;
       break;
@@ -710,45 +638,45 @@ int srv_db_insert_comparison(srv_db *db, const srv_new_comparison *cmp, int64_t 
     sqlite3_bind_int(s, 2, i);
     sqlite3_bind_int64(s, 3, job);
     sqlite3_bind_int64(s, 4, ref_ids[cd->reference]);
-    bind_text(s, 5, cd->technique);
-    bind_text(s, 6, cd->backend);
-    bind_text(s, 7, cd->params);
-    bind_text(s, 8, cd->reference_params);
-    bind_text(s, 9, cd->response);
-    rc = exec_done(c, s, err, "inserting a candidate");
+    srv_dbi_bind_text(s, 5, cd->technique);
+    srv_dbi_bind_text(s, 6, cd->backend);
+    srv_dbi_bind_text(s, 7, cd->params);
+    srv_dbi_bind_text(s, 8, cd->reference_params);
+    srv_dbi_bind_text(s, 9, cd->response);
+    rc = srv_dbi_exec_done(c, s, err, "inserting a candidate");
   }
-  if (!rc) rc = commit(c, err);
-  if (rc) rollback(c);
-  release(db, c);
+  if (!rc) rc = srv_dbi_commit(c, err);
+  if (rc) srv_dbi_rollback(c);
+  srv_dbi_release(db, c);
   free(ref_ids);
   return rc;
 }
 
 int srv_db_machine(srv_db *db, const char *cpu_model, int cores, const char *vulkan_device,
                    int64_t *id, obs_err *err) {
-  conn *c = acquire(db);
-  sqlite3_stmt *s = stmt(c, ST_MACHINE_INSERT, err);
+  conn *c = srv_dbi_acquire(db);
+  sqlite3_stmt *s = srv_dbi_stmt(c, ST_MACHINE_INSERT, err);
   int rc = OBS_EIO;
   if (s) {
-    bind_text(s, 1, cpu_model);
+    srv_dbi_bind_text(s, 1, cpu_model);
     sqlite3_bind_int(s, 2, cores);
-    bind_text(s, 3, vulkan_device);
-    rc = exec_done(c, s, err, "recording the machine");
+    srv_dbi_bind_text(s, 3, vulkan_device);
+    rc = srv_dbi_exec_done(c, s, err, "recording the machine");
   }
   if (!rc) {
-    s = stmt(c, ST_MACHINE_GET, err);
+    s = srv_dbi_stmt(c, ST_MACHINE_GET, err);
     if (!s) rc = OBS_EIO;
     else {
-      bind_text(s, 1, cpu_model);
+      srv_dbi_bind_text(s, 1, cpu_model);
       sqlite3_bind_int(s, 2, cores);
-      bind_text(s, 3, vulkan_device);
+      srv_dbi_bind_text(s, 3, vulkan_device);
       int step = sqlite3_step(s);
       if (step == SQLITE_ROW) *id = sqlite3_column_int64(s, 0);
-      else rc = db_fail(c, err, "reading the machine");
-      done(s);
+      else rc = srv_dbi_fail(c, err, "reading the machine");
+      srv_dbi_done(s);
     }
   }
-  release(db, c);
+  srv_dbi_release(db, c);
   return rc;
 }
 
@@ -757,37 +685,37 @@ static int put_outputs(conn *c, int which, int64_t id, const srv_output *outs, i
                        obs_err *err) {
   int rc = 0;
   for (int i = 0; !rc && i < nouts; i++) {
-    sqlite3_stmt *s = stmt(c, which, err);
+    sqlite3_stmt *s = srv_dbi_stmt(c, which, err);
     if (!s) return OBS_EIO;
     sqlite3_bind_int64(s, 1, id);
-    bind_text(s, 2, outs[i].name);
+    srv_dbi_bind_text(s, 2, outs[i].name);
     sqlite3_bind_int64(s, 3, outs[i].size);
-    bind_text(s, 4, outs[i].sha256);
-    bind_text(s, 5, outs[i].content_type);
-    rc = exec_done(c, s, err, "recording an output");
+    srv_dbi_bind_text(s, 4, outs[i].sha256);
+    srv_dbi_bind_text(s, 5, outs[i].content_type);
+    rc = srv_dbi_exec_done(c, s, err, "recording an output");
   }
   return rc;
 }
 
 int srv_db_set_metrics(srv_db *db, int64_t comparison, int idx, int64_t job, const char *metrics,
                        const char *error, const srv_output *outs, int nouts, obs_err *err) {
-  conn *c = acquire(db);
-  int rc = begin(c, err);
+  conn *c = srv_dbi_acquire(db);
+  int rc = srv_dbi_begin(c, err);
   if (!rc) {
-    sqlite3_stmt *s = stmt(c, ST_SET_METRICS, err);
+    sqlite3_stmt *s = srv_dbi_stmt(c, ST_SET_METRICS, err);
     if (!s) rc = OBS_EIO;
     else {
       sqlite3_bind_int64(s, 1, comparison);
       sqlite3_bind_int(s, 2, idx);
-      bind_text(s, 3, metrics);
-      bind_text(s, 4, error);
-      rc = exec_done(c, s, err, "storing metrics");
+      srv_dbi_bind_text(s, 3, metrics);
+      srv_dbi_bind_text(s, 4, error);
+      rc = srv_dbi_exec_done(c, s, err, "storing metrics");
     }
   }
   if (!rc) rc = put_outputs(c, ST_OUT_UPSERT, job, outs, nouts, err);
-  if (!rc) rc = commit(c, err);
-  if (rc) rollback(c);
-  release(db, c);
+  if (!rc) rc = srv_dbi_commit(c, err);
+  if (rc) srv_dbi_rollback(c);
+  srv_dbi_release(db, c);
   return rc;
 }
 
@@ -797,14 +725,14 @@ int srv_db_query(srv_db *db, srv_query q, const srv_arg *args, int nargs, json_t
   if (q < 0 || q >= SRV_NQUERIES) return obs_err_set(err, OBS_EINTERNAL, "no query %d", (int)q);
   json_t *out = json_array();
   if (!out) return obs_err_set(err, OBS_ENOMEM, "out of memory");
-  conn *c = acquire(db);
-  sqlite3_stmt *s = stmt(c, ST_QUERY + (int)q, err);
+  conn *c = srv_dbi_acquire(db);
+  sqlite3_stmt *s = srv_dbi_stmt(c, ST_QUERY + (int)q, err);
   int rc = OBS_EIO;
   if (s) {
     for (int i = 0; i < nargs; i++) {
       if (args[i].kind == SRV_ARG_INT) sqlite3_bind_int64(s, i + 1, args[i].i);
       else if (args[i].kind == SRV_ARG_REAL) sqlite3_bind_double(s, i + 1, args[i].d);
-      else bind_text(s, i + 1, args[i].s);
+      else srv_dbi_bind_text(s, i + 1, args[i].s);
     }
     int step, ncol = sqlite3_column_count(s);
     while ((step = sqlite3_step(s)) == SQLITE_ROW) {
@@ -822,10 +750,10 @@ int srv_db_query(srv_db *db, srv_query q, const srv_arg *args, int nargs, json_t
       }
       json_array_append_new(out, row);
     }
-    rc = step == SQLITE_DONE ? 0 : db_fail(c, err, "query");
-    done(s);
+    rc = step == SQLITE_DONE ? 0 : srv_dbi_fail(c, err, "query");
+    srv_dbi_done(s);
   }
-  release(db, c);
+  srv_dbi_release(db, c);
   if (rc) {
     json_decref(out);
     return rc;
@@ -836,8 +764,8 @@ int srv_db_query(srv_db *db, srv_query q, const srv_arg *args, int nargs, json_t
 
 int srv_db_get_job(srv_db *db, int64_t id, srv_job *j, obs_err *err) {
   memset(j, 0, sizeof *j);
-  conn *c = acquire(db);
-  sqlite3_stmt *s = stmt(c, ST_GET, err);
+  conn *c = srv_dbi_acquire(db);
+  sqlite3_stmt *s = srv_dbi_stmt(c, ST_GET, err);
   int rc = OBS_EIO;
   if (s) {
     sqlite3_bind_int64(s, 1, id);
@@ -846,13 +774,13 @@ int srv_db_get_job(srv_db *db, int64_t id, srv_job *j, obs_err *err) {
       read_job(s, j);
       rc = 0;
     } else {
-      rc = step == SQLITE_DONE ? OBS_ENOTFOUND : db_fail(c, err, "reading the job");
+      rc = step == SQLITE_DONE ? OBS_ENOTFOUND : srv_dbi_fail(c, err, "reading the job");
     }
-    done(s);
+    srv_dbi_done(s);
     if (!rc) rc = read_outputs(c, j, err);
     if (rc && rc != OBS_ENOTFOUND) srv_job_free(j);
   }
-  release(db, c);
+  srv_dbi_release(db, c);
   return rc;
 }
 
@@ -861,22 +789,22 @@ int srv_db_list_jobs(srv_db *db, const srv_job_filter *f, srv_job **jobs, int *n
   *n = 0;
   srv_job *out = calloc((size_t)f->limit + 1, sizeof *out);
   if (!out) return obs_err_set(err, OBS_ENOMEM, "out of memory");
-  conn *c = acquire(db);
-  sqlite3_stmt *s = stmt(c, f->ascending ? ST_LIST_ASC : ST_LIST_DESC, err);
+  conn *c = srv_dbi_acquire(db);
+  sqlite3_stmt *s = srv_dbi_stmt(c, f->ascending ? ST_LIST_ASC : ST_LIST_DESC, err);
   int rc = OBS_EIO, count = 0;
   if (s) {
-    bind_text(s, 1, f->has_state ? srv_state_name(f->state) : NULL);
-    bind_text(s, 2, f->technique);
-    bind_text(s, 3, f->backend);
+    srv_dbi_bind_text(s, 1, f->has_state ? srv_state_name(f->state) : NULL);
+    srv_dbi_bind_text(s, 2, f->technique);
+    srv_dbi_bind_text(s, 3, f->backend);
     sqlite3_bind_int64(s, 4, f->after);
     sqlite3_bind_int(s, 5, f->limit + 1);
     int step;
     while ((step = sqlite3_step(s)) == SQLITE_ROW && count <= f->limit) read_job(s, &out[count++]);
-    rc = step == SQLITE_DONE || step == SQLITE_ROW ? 0 : db_fail(c, err, "listing jobs");
-    done(s);
+    rc = step == SQLITE_DONE || step == SQLITE_ROW ? 0 : srv_dbi_fail(c, err, "listing jobs");
+    srv_dbi_done(s);
     for (int i = 0; !rc && i < count; i++) rc = read_outputs(c, &out[i], err);
   }
-  release(db, c);
+  srv_dbi_release(db, c);
   if (rc) {
     srv_jobs_free(out, count);
     return rc;
@@ -888,72 +816,72 @@ int srv_db_list_jobs(srv_db *db, const srv_job_filter *f, srv_job **jobs, int *n
 
 int srv_db_claim(srv_db *db, srv_lane lane, srv_job *j, obs_err *err) {
   memset(j, 0, sizeof *j);
-  conn *c = acquire(db);
-  sqlite3_stmt *s = stmt(c, ST_CLAIM, err);
+  conn *c = srv_dbi_acquire(db);
+  sqlite3_stmt *s = srv_dbi_stmt(c, ST_CLAIM, err);
   int rc = OBS_EIO;
   if (s) {
-    bind_text(s, 1, srv_lane_name(lane));
+    srv_dbi_bind_text(s, 1, srv_lane_name(lane));
     sqlite3_bind_int64(s, 2, srv_now_unix_ms());
     int step = sqlite3_step(s);
     if (step == SQLITE_ROW) {
       read_job(s, j);
-      j->doc = col_str(s, 23);
+      j->doc = srv_dbi_col_str(s, 23);
       /* Step to the end so the UPDATE's transaction commits before we let go. */
       step = sqlite3_step(s);
-      rc = step == SQLITE_DONE ? 0 : db_fail(c, err, "claiming a job");
+      rc = step == SQLITE_DONE ? 0 : srv_dbi_fail(c, err, "claiming a job");
       if (rc) srv_job_free(j);
     } else {
-      rc = step == SQLITE_DONE ? 1 : db_fail(c, err, "claiming a job");
+      rc = step == SQLITE_DONE ? 1 : srv_dbi_fail(c, err, "claiming a job");
     }
-    done(s);
+    srv_dbi_done(s);
   }
-  release(db, c);
+  srv_dbi_release(db, c);
   return rc;
 }
 
 int srv_db_set_backend(srv_db *db, int64_t id, const char *backend, obs_err *err) {
-  conn *c = acquire(db);
-  sqlite3_stmt *s = stmt(c, ST_SET_BACKEND, err);
+  conn *c = srv_dbi_acquire(db);
+  sqlite3_stmt *s = srv_dbi_stmt(c, ST_SET_BACKEND, err);
   int rc = OBS_EIO;
   if (s) {
-    bind_text(s, 1, backend);
+    srv_dbi_bind_text(s, 1, backend);
     sqlite3_bind_int64(s, 2, id);
-    rc = exec_done(c, s, err, "recording the backend");
+    rc = srv_dbi_exec_done(c, s, err, "recording the backend");
   }
-  release(db, c);
+  srv_dbi_release(db, c);
   return rc;
 }
 
 int srv_db_finish_success(srv_db *db, int64_t id, const char *backend, const char *summary,
                           const srv_output *outs, int nouts, const srv_run *runs, int nruns,
                           int64_t machine, obs_err *err) {
-  conn *c = acquire(db);
-  int rc = begin(c, err);
+  conn *c = srv_dbi_acquire(db);
+  int rc = srv_dbi_begin(c, err);
   sqlite3_stmt *s;
   if (!rc) {
-    s = stmt(c, ST_SUCCESS, err);
+    s = srv_dbi_stmt(c, ST_SUCCESS, err);
     if (!s) rc = OBS_EIO;
     else {
-      bind_text(s, 1, backend);
-      bind_text(s, 2, summary);
+      srv_dbi_bind_text(s, 1, backend);
+      srv_dbi_bind_text(s, 2, summary);
       sqlite3_bind_int64(s, 3, srv_now_unix_ms());
       sqlite3_bind_int64(s, 4, id);
-      rc = exec_done(c, s, err, "marking the job succeeded");
+      rc = srv_dbi_exec_done(c, s, err, "marking the job succeeded");
       if (!rc && sqlite3_changes(c->db) != 1)
         rc = obs_err_set(err, OBS_EINVAL, "job %lld is no longer running", (long long)id);
     }
   }
   if (!rc) {
-    s = stmt(c, ST_OUT_CLEAR, err);
+    s = srv_dbi_stmt(c, ST_OUT_CLEAR, err);
     if (!s) rc = OBS_EIO;
     else {
       sqlite3_bind_int64(s, 1, id);
-      rc = exec_done(c, s, err, "clearing outputs");
+      rc = srv_dbi_exec_done(c, s, err, "clearing outputs");
     }
   }
   if (!rc) rc = put_outputs(c, ST_OUT_INSERT, id, outs, nouts, err);
   for (int i = 0; !rc && i < nruns; i++) {
-    s = stmt(c, ST_RUN_INSERT, err);
+    s = srv_dbi_stmt(c, ST_RUN_INSERT, err);
     if (!s) {
       rc = OBS_EIO;
       break;
@@ -966,63 +894,63 @@ int srv_db_finish_success(srv_db *db, int64_t id, const char *backend, const cha
     sqlite3_bind_double(s, 6, runs[i].total_ms);
     if (machine > 0) sqlite3_bind_int64(s, 7, machine);
     else sqlite3_bind_null(s, 7);
-    rc = exec_done(c, s, err, "recording a run");
+    rc = srv_dbi_exec_done(c, s, err, "recording a run");
   }
-  if (!rc) rc = commit(c, err);
-  if (rc) rollback(c);
-  release(db, c);
+  if (!rc) rc = srv_dbi_commit(c, err);
+  if (rc) srv_dbi_rollback(c);
+  srv_dbi_release(db, c);
   return rc;
 }
 
 int srv_db_finish(srv_db *db, int64_t id, srv_state state, const char *error, double progress,
                   obs_err *err) {
-  conn *c = acquire(db);
-  sqlite3_stmt *s = stmt(c, ST_FINISH, err);
+  conn *c = srv_dbi_acquire(db);
+  sqlite3_stmt *s = srv_dbi_stmt(c, ST_FINISH, err);
   int rc = OBS_EIO;
   if (s) {
-    bind_text(s, 1, srv_state_name(state));
-    bind_text(s, 2, error);
+    srv_dbi_bind_text(s, 1, srv_state_name(state));
+    srv_dbi_bind_text(s, 2, error);
     sqlite3_bind_int64(s, 3, srv_now_unix_ms());
     sqlite3_bind_double(s, 4, progress);
     sqlite3_bind_int64(s, 5, id);
-    rc = exec_done(c, s, err, "finishing the job");
+    rc = srv_dbi_exec_done(c, s, err, "finishing the job");
   }
-  release(db, c);
+  srv_dbi_release(db, c);
   return rc;
 }
 
 int srv_db_requeue(srv_db *db, int64_t id, obs_err *err) {
-  conn *c = acquire(db);
-  sqlite3_stmt *s = stmt(c, ST_REQUEUE, err);
+  conn *c = srv_dbi_acquire(db);
+  sqlite3_stmt *s = srv_dbi_stmt(c, ST_REQUEUE, err);
   int rc = OBS_EIO;
   if (s) {
     sqlite3_bind_int64(s, 1, id);
-    rc = exec_done(c, s, err, "requeueing the job");
+    rc = srv_dbi_exec_done(c, s, err, "requeueing the job");
   }
-  release(db, c);
+  srv_dbi_release(db, c);
   return rc;
 }
 
 int srv_db_cancel(srv_db *db, int64_t id, srv_cancel_result *res, obs_err *err) {
-  conn *c = acquire(db);
+  conn *c = srv_dbi_acquire(db);
   /* One write transaction, so the state read and the update cannot be split by a claim. */
-  int rc = begin(c, err);
+  int rc = srv_dbi_begin(c, err);
   sqlite3_stmt *s = NULL;
   srv_state st = SRV_FAILED;
   if (!rc) {
-    s = stmt(c, ST_STATE, err);
+    s = srv_dbi_stmt(c, ST_STATE, err);
     if (!s) rc = OBS_EIO;
     else {
       sqlite3_bind_int64(s, 1, id);
       int step = sqlite3_step(s);
       if (step == SQLITE_ROW) srv_state_parse((const char *)sqlite3_column_text(s, 0), &st);
-      else rc = step == SQLITE_DONE ? OBS_ENOTFOUND : db_fail(c, err, "reading the job");
-      done(s);
+      else rc = step == SQLITE_DONE ? OBS_ENOTFOUND : srv_dbi_fail(c, err, "reading the job");
+      srv_dbi_done(s);
     }
   }
   if (!rc) {
     if (st == SRV_QUEUED || st == SRV_RUNNING) {
-      s = stmt(c, st == SRV_QUEUED ? ST_CANCEL_QUEUED : ST_CANCEL_RUNNING, err);
+      s = srv_dbi_stmt(c, st == SRV_QUEUED ? ST_CANCEL_QUEUED : ST_CANCEL_RUNNING, err);
       if (!s) rc = OBS_EIO;
       else if (st == SRV_QUEUED) {
         sqlite3_bind_int64(s, 1, srv_now_unix_ms());
@@ -1030,28 +958,28 @@ int srv_db_cancel(srv_db *db, int64_t id, srv_cancel_result *res, obs_err *err) 
       } else {
         sqlite3_bind_int64(s, 1, id);
       }
-      if (s) rc = exec_done(c, s, err, "cancelling the job");
+      if (s) rc = srv_dbi_exec_done(c, s, err, "cancelling the job");
       *res = st == SRV_QUEUED ? SRV_CANCEL_DONE : SRV_CANCEL_RUNNING;
     } else {
       *res = SRV_CANCEL_FINISHED;
     }
   }
-  if (!rc) rc = commit(c, err);
-  if (rc) rollback(c);
-  release(db, c);
+  if (!rc) rc = srv_dbi_commit(c, err);
+  if (rc) srv_dbi_rollback(c);
+  srv_dbi_release(db, c);
   return rc;
 }
 
 int srv_db_delete(srv_db *db, int64_t id, obs_err *err) {
-  conn *c = acquire(db);
-  sqlite3_stmt *s = stmt(c, ST_DELETE, err);
+  conn *c = srv_dbi_acquire(db);
+  sqlite3_stmt *s = srv_dbi_stmt(c, ST_DELETE, err);
   int rc = OBS_EIO;
   if (s) {
     sqlite3_bind_int64(s, 1, id);
-    rc = exec_done(c, s, err, "deleting the job");
+    rc = srv_dbi_exec_done(c, s, err, "deleting the job");
     if (!rc && sqlite3_changes(c->db) == 0) {
       /* No such job (404), not finished (409), or finished but part of a comparison (409). */
-      sqlite3_stmt *q = stmt(c, ST_STATE, err);
+      sqlite3_stmt *q = srv_dbi_stmt(c, ST_STATE, err);
       if (!q) rc = OBS_EIO;
       else {
         sqlite3_bind_int64(q, 1, id);
@@ -1061,23 +989,23 @@ int srv_db_delete(srv_db *db, int64_t id, obs_err *err) {
         rc = step == SQLITE_ROW    ? (st == SRV_QUEUED || st == SRV_RUNNING ? OBS_EINVAL
                                                                             : OBS_EUNSUPPORTED)
              : step == SQLITE_DONE ? OBS_ENOTFOUND
-                                   : db_fail(c, err, "reading the job");
-        done(q);
+                                   : srv_dbi_fail(c, err, "reading the job");
+        srv_dbi_done(q);
       }
     }
   }
-  release(db, c);
+  srv_dbi_release(db, c);
   return rc;
 }
 
 int srv_db_get_output(srv_db *db, int64_t id, const char *name, srv_output *o, obs_err *err) {
   memset(o, 0, sizeof *o);
-  conn *c = acquire(db);
-  sqlite3_stmt *s = stmt(c, ST_GET_OUTPUT, err);
+  conn *c = srv_dbi_acquire(db);
+  sqlite3_stmt *s = srv_dbi_stmt(c, ST_GET_OUTPUT, err);
   int rc = OBS_EIO;
   if (s) {
     sqlite3_bind_int64(s, 1, id);
-    bind_text(s, 2, name);
+    srv_dbi_bind_text(s, 2, name);
     int step = sqlite3_step(s);
     if (step == SQLITE_ROW) {
       snprintf(o->name, sizeof o->name, "%s", name);
@@ -1087,18 +1015,18 @@ int srv_db_get_output(srv_db *db, int64_t id, const char *name, srv_output *o, o
                (const char *)sqlite3_column_text(s, 2));
       rc = 0;
     } else {
-      rc = step == SQLITE_DONE ? OBS_ENOTFOUND : db_fail(c, err, "reading the output");
+      rc = step == SQLITE_DONE ? OBS_ENOTFOUND : srv_dbi_fail(c, err, "reading the output");
     }
-    done(s);
+    srv_dbi_done(s);
   }
-  release(db, c);
+  srv_dbi_release(db, c);
   return rc;
 }
 
 int srv_db_counts(srv_db *db, int64_t counts[SRV_NSTATES], obs_err *err) {
   memset(counts, 0, sizeof(int64_t) * SRV_NSTATES);
-  conn *c = acquire(db);
-  sqlite3_stmt *s = stmt(c, ST_COUNTS, err);
+  conn *c = srv_dbi_acquire(db);
+  sqlite3_stmt *s = srv_dbi_stmt(c, ST_COUNTS, err);
   int rc = OBS_EIO;
   if (s) {
     int step;
@@ -1107,31 +1035,31 @@ int srv_db_counts(srv_db *db, int64_t counts[SRV_NSTATES], obs_err *err) {
       if (!srv_state_parse((const char *)sqlite3_column_text(s, 0), &st))
         counts[st] = sqlite3_column_int64(s, 1);
     }
-    rc = step == SQLITE_DONE ? 0 : db_fail(c, err, "counting jobs");
-    done(s);
+    rc = step == SQLITE_DONE ? 0 : srv_dbi_fail(c, err, "counting jobs");
+    srv_dbi_done(s);
   }
-  release(db, c);
+  srv_dbi_release(db, c);
   return rc;
 }
 
 int srv_db_checkpoint(srv_db *db, obs_err *err) {
-  conn *c = acquire(db);
-  sqlite3_stmt *s = stmt(c, ST_CHECKPOINT, err);
+  conn *c = srv_dbi_acquire(db);
+  sqlite3_stmt *s = srv_dbi_stmt(c, ST_CHECKPOINT, err);
   int rc = OBS_EIO;
   if (s) {
     int step = sqlite3_step(s);
     /* Row: (busy, wal frames, frames checkpointed); busy = readers kept it from finishing. */
     if (step == SQLITE_ROW) rc = sqlite3_column_int(s, 0) ? 1 : 0;
-    else rc = db_fail(c, err, "checkpoint");
-    done(s);
+    else rc = srv_dbi_fail(c, err, "checkpoint");
+    srv_dbi_done(s);
   }
-  release(db, c);
+  srv_dbi_release(db, c);
   return rc;
 }
 
 int srv_db_job_exists(srv_db *db, int64_t id, srv_state *state, obs_err *err) {
-  conn *c = acquire(db);
-  sqlite3_stmt *s = stmt(c, ST_STATE, err);
+  conn *c = srv_dbi_acquire(db);
+  sqlite3_stmt *s = srv_dbi_stmt(c, ST_STATE, err);
   int rc = OBS_EIO;
   if (s) {
     sqlite3_bind_int64(s, 1, id);
@@ -1142,453 +1070,11 @@ int srv_db_job_exists(srv_db *db, int64_t id, srv_state *state, obs_err *err) {
       if (state) *state = st;
       rc = 1;
     } else {
-      rc = step == SQLITE_DONE ? 0 : db_fail(c, err, "reading the job");
+      rc = step == SQLITE_DONE ? 0 : srv_dbi_fail(c, err, "reading the job");
     }
-    done(s);
+    srv_dbi_done(s);
   }
-  release(db, c);
+  srv_dbi_release(db, c);
   return rc;
 }
 
-/* ---- recovery -------------------------------------------------------------------------------- */
-
-typedef struct pending {
-  int64_t id;
-  int attempts, cancel;
-  char *error;
-  char *technique, *backend;
-  int lane;
-} pending;
-
-static void free_pending(pending *p, int n) {
-  for (int i = 0; i < n; i++) {
-    free(p[i].error);
-    free(p[i].technique);
-    free(p[i].backend);
-  }
-  free(p);
-}
-
-/* Collects the rows of a recovery query (running or queued). */
-static int collect(conn *c, int which, pending **out, int *n, obs_err *err) {
-  *out = NULL;
-  *n = 0;
-  sqlite3_stmt *s = stmt(c, which, err);
-  if (!s) return OBS_EIO;
-  int step, cap = 0;
-  while ((step = sqlite3_step(s)) == SQLITE_ROW) {
-    if (*n == cap) {
-      cap = cap ? cap * 2 : 16;
-      pending *p = realloc(*out, (size_t)cap * sizeof *p);
-      if (!p) {
-        done(s);
-        return obs_err_set(err, OBS_ENOMEM, "out of memory");
-      }
-      *out = p;
-    }
-    pending *p = &(*out)[(*n)++];
-    memset(p, 0, sizeof *p);
-    p->id = sqlite3_column_int64(s, 0);
-    if (which == ST_RUNNING_LIST) {
-      p->attempts = sqlite3_column_int(s, 1);
-      p->cancel = sqlite3_column_int(s, 2);
-      p->error = col_str(s, 3);
-    } else {
-      p->technique = col_str(s, 1);
-      p->backend = col_str(s, 2);
-      const unsigned char *l = sqlite3_column_text(s, 3);
-      p->lane = l && !strcmp((const char *)l, "vulkan");
-    }
-  }
-  int rc = step == SQLITE_DONE ? 0 : db_fail(c, err, "recovery scan");
-  done(s);
-  return rc;
-}
-
-static int end_job(conn *c, int64_t id, srv_state st, const char *msg, obs_err *err) {
-  sqlite3_stmt *s = stmt(c, ST_END_ANY, err);
-  if (!s) return OBS_EIO;
-  bind_text(s, 1, srv_state_name(st));
-  bind_text(s, 2, msg);
-  sqlite3_bind_int64(s, 3, srv_now_unix_ms());
-  sqlite3_bind_int64(s, 4, id);
-  return exec_done(c, s, err, "recovery");
-}
-
-int srv_db_recover(srv_db *db, int vulkan_lane, void (*clean)(void *, int64_t), void *user,
-                   obs_err *err) {
-  conn *c = acquire(db);
-  pending *run = NULL, *queued = NULL;
-  int nrun = 0, nq = 0;
-  int rc = begin(c, err);
-  if (!rc) rc = collect(c, ST_RUNNING_LIST, &run, &nrun, err);
-  for (int i = 0; !rc && i < nrun; i++) {
-    pending *p = &run[i];
-    char msg[1024];
-    if (p->cancel) {
-      rc = end_job(c, p->id, SRV_CANCELLED, "cancelled by request (the daemon stopped first)", err);
-      srv_log("job %lld: running -> cancelled (cancel was pending when the daemon stopped)",
-              (long long)p->id);
-    } else if (p->attempts >= SRV_MAX_ATTEMPTS) {
-      snprintf(msg, sizeof msg, "gave up after %d attempts: attempt %d was interrupted by a "
-               "daemon crash", p->attempts, p->attempts);
-      rc = end_job(c, p->id, SRV_FAILED, msg, err);
-      srv_log("job %lld: running -> failed (%s)", (long long)p->id, msg);
-    } else {
-      snprintf(msg, sizeof msg, "attempt %d was interrupted by a daemon crash; requeued",
-               p->attempts);
-      sqlite3_stmt *s = stmt(c, ST_REQUEUE_CRASH, err);
-      if (!s) rc = OBS_EIO;
-      else {
-        bind_text(s, 1, msg);
-        sqlite3_bind_int64(s, 2, p->id);
-        rc = exec_done(c, s, err, "recovery");
-      }
-      srv_log("job %lld: running -> queued (%s)", (long long)p->id, msg);
-    }
-  }
-  if (!rc) rc = collect(c, ST_QUEUED_LIST, &queued, &nq, err);
-  for (int i = 0; !rc && i < nq; i++) {
-    pending *p = &queued[i];
-    const obs_technique *t = obs_technique_find(p->technique);
-    obs_backend want = !p->backend || !strcmp(p->backend, "auto") ? OBS_BACKEND_AUTO
-                       : !strcmp(p->backend, "vulkan")            ? OBS_BACKEND_VULKAN
-                                                                  : OBS_BACKEND_CPU;
-    obs_backend be = OBS_BACKEND_CPU;
-    obs_err e = OBS_ERR_INIT;
-    int prc = t ? srv_pick_backend(t, want, vulkan_lane, &be, &e)
-                : obs_err_set(&e, OBS_ENOTFOUND, "technique \"%s\" no longer exists",
-                              p->technique ? p->technique : "?");
-    if (prc) {
-      rc = end_job(c, p->id, SRV_FAILED, obs_err_message(&e), err);
-      srv_log("job %lld: queued -> failed (%s)", (long long)p->id, obs_err_message(&e));
-    } else if (want == OBS_BACKEND_AUTO &&
-               (p->lane ? vulkan_lane && obs_technique_has_backend(t, OBS_BACKEND_VULKAN)
-                        : obs_technique_has_backend(t, OBS_BACKEND_CPU))) {
-      /* An "auto" job keeps the lane chosen at submission (possibly from measured timings) as
-       * long as that lane still runs here. */
-    } else if ((be == OBS_BACKEND_VULKAN) != p->lane) {
-      sqlite3_stmt *s = stmt(c, ST_SET_LANE, err);
-      if (!s) rc = OBS_EIO;
-      else {
-        bind_text(s, 1, be == OBS_BACKEND_VULKAN ? "vulkan" : "cpu");
-        sqlite3_bind_int64(s, 2, p->id);
-        rc = exec_done(c, s, err, "recovery");
-      }
-    }
-    obs_err_free(&e);
-  }
-  if (!rc) rc = commit(c, err);
-  if (rc) rollback(c);
-  release(db, c);
-  /* Half-written outputs go only after the commit: a crash here just repeats the sweep. */
-  for (int i = 0; !rc && clean && i < nrun; i++) clean(user, run[i].id);
-  free_pending(run, nrun);
-  free_pending(queued, nq);
-  return rc;
-}
-
-/* ---- identity, integrity and write-back of a lost file ---------------------------------------- */
-
-srv_db_identity srv_db_check_identity(srv_db *db, char *detail, size_t n) {
-  struct stat st;
-  if (stat(db->path, &st)) {
-    /* Only a missing file is a loss; EACCES on the directory and the like change nothing the
-     * open connections use. */
-    if (errno != ENOENT) return SRV_DB_SAME;
-    snprintf(detail, n, "%s no longer exists", db->path);
-    return SRV_DB_DELETED;
-  }
-  if (st.st_dev != db->dev || st.st_ino != db->ino) {
-    snprintf(detail, n, "%s is another file than the one opened (inode %llu, was %llu)", db->path,
-             (unsigned long long)st.st_ino, (unsigned long long)db->ino);
-    return SRV_DB_REPLACED;
-  }
-  char wal[4200];
-  snprintf(wal, sizeof wal, "%s-wal", db->path);
-  int have = !stat(wal, &st);
-  if (!db->wal_known) {
-    /* The log appears with the first write after open; from then on it stays while we run. */
-    if (have) {
-      db->wal_known = 1;
-      db->wal_dev = st.st_dev;
-      db->wal_ino = st.st_ino;
-    }
-    return SRV_DB_SAME;
-  }
-  if (!have || st.st_dev != db->wal_dev || st.st_ino != db->wal_ino) {
-    snprintf(detail, n, "%s was %s while the daemon had it open", wal,
-             have ? "replaced" : "deleted");
-    return SRV_DB_WAL_LOST;
-  }
-  return SRV_DB_SAME;
-}
-
-/* Takes every connection (waiting for those in use): nothing else touches the pool meanwhile. */
-static void acquire_all(srv_db *db) {
-  pthread_mutex_lock(&db->mu);
-  while (db->exclusive) pthread_cond_wait(&db->cv, &db->mu);
-  db->exclusive = 1;
-  for (;;) {
-    int busy = 0;
-    for (int i = 0; i < db->n; i++) busy |= db->c[i].in_use;
-    if (!busy) break;
-    pthread_cond_wait(&db->cv, &db->mu);
-  }
-  pthread_mutex_unlock(&db->mu);
-}
-
-static void release_all(srv_db *db) {
-  pthread_mutex_lock(&db->mu);
-  db->exclusive = 0;
-  pthread_cond_broadcast(&db->cv);
-  pthread_mutex_unlock(&db->mu);
-}
-
-static int fsync_path(const char *path) {
-  int fd = open(path, O_RDONLY | O_CLOEXEC);
-  if (fd < 0) return -1;
-  int rc = fsync(fd);
-  close(fd);
-  return rc;
-}
-
-/* VACUUM INTO `target` on c: a consistent copy of everything committed, WAL included. */
-static int vacuum_into(conn *c, const char *target, obs_err *err) {
-  sqlite3_stmt *s = NULL;
-  if (sqlite3_prepare_v2(c->db, "VACUUM INTO ?1", -1, &s, NULL) != SQLITE_OK)
-    return db_fail(c, err, "VACUUM INTO");
-  sqlite3_bind_text(s, 1, target, -1, SQLITE_TRANSIENT);
-  int rc = sqlite3_step(s) == SQLITE_DONE ? 0 : db_fail(c, err, "VACUUM INTO");
-  sqlite3_finalize(s);
-  if (!rc && fsync_path(target))
-    rc = obs_err_set(err, OBS_ETRANSIENT, "%s: cannot flush: %s", target, strerror(errno));
-  char dir[4200];
-  snprintf(dir, sizeof dir, "%s", target);
-  char *slash = strrchr(dir, '/');
-  if (slash) *slash = 0;
-  if (!rc) fsync_path(slash ? (slash == dir ? "/" : dir) : ".");
-  return rc;
-}
-
-/* Opens a fresh pool on db->path and closes the old one. With `keep_wal` the old connections do
- * not delete the -wal and -shm by name when the last one closes: those names now belong to the
- * new file. */
-static int reopen_pool(srv_db *db, int keep_wal, obs_err *err) {
-  conn *fresh = calloc((size_t)db->n, sizeof *fresh);
-  if (!fresh) return obs_err_set(err, OBS_ENOMEM, "out of memory");
-  int rc = 0, opened = 0;
-  if (keep_wal) {
-    for (int i = 0; i < db->n; i++) {
-      int one = 1;
-      sqlite3_file_control(db->c[i].db, "main", SQLITE_FCNTL_PERSIST_WAL, &one);
-    }
-  } else {
-    for (int i = 0; i < db->n; i++) close_conn(&db->c[i]);
-  }
-  for (int i = 0; !rc && i < db->n; i++) {
-    rc = open_conn(&fresh[i], db->path, err);
-    if (!rc) opened++;
-  }
-  if (rc && keep_wal) {
-    for (int i = 0; i < opened; i++) close_conn(&fresh[i]);
-    free(fresh);
-    return rc;
-  }
-  if (rc) {
-    /* The old pool is gone and the data is on disk: a restart is the safe way on. */
-    srv_log("database %s: cannot reopen after writing it back (%s); exiting so that a restart "
-            "recovers from the file", db->path, obs_err_message(err));
-    _exit(70);
-  }
-  if (keep_wal)
-    for (int i = 0; i < db->n; i++) close_conn(&db->c[i]);
-  free(db->c);
-  db->c = fresh;
-  return record_identity(db, db->path, err);
-}
-
-int srv_db_restore(srv_db *db, srv_db_identity what, char *where, size_t n, obs_err *err) {
-  acquire_all(db);
-  conn *c = &db->c[0];
-  int rc, elsewhere = 0;
-  if (what == SRV_DB_WAL_LOST) {
-    /* The open connections still read the unlinked log: move its frames into the database file
-     * (still the one at the path), then start again with a new log. */
-    snprintf(where, n, "%s", db->path);
-    int log = 0, done = 0;
-    rc = sqlite3_wal_checkpoint_v2(c->db, "main", SQLITE_CHECKPOINT_TRUNCATE, &log, &done);
-    rc = rc == SQLITE_OK ? 0 : db_fail(c, err, "checkpoint of the lost WAL");
-    if (!rc && fsync_path(db->path))
-      rc = obs_err_set(err, OBS_ETRANSIENT, "%s: cannot flush: %s", db->path, strerror(errno));
-    if (!rc) rc = reopen_pool(db, 0, err);
-  } else {
-    struct stat st;
-    if (what == SRV_DB_DELETED && lstat(db->path, &st) && errno == ENOENT) {
-      snprintf(where, n, "%s", db->path);
-    } else {
-      char t[32];
-      srv_format_time(srv_now_unix_ms(), t, sizeof t);
-      snprintf(where, n, "%s.recovered-%s", db->path, t);
-      elsewhere = 1;
-    }
-    rc = vacuum_into(c, where, err);
-    if (!rc && !elsewhere) rc = reopen_pool(db, 1, err);
-    if (!rc && elsewhere) snprintf(db->recovered, sizeof db->recovered, "%s", where);
-  }
-  release_all(db);
-  return rc ? rc : elsewhere;
-}
-
-int srv_db_quick_check(srv_db *db, obs_err *err) {
-  sqlite3 *q = NULL;
-  /* Its own connection: the pool's page caches could hold a good copy of a page that is bad on
-   * disk. Read-only and without CREATE, so a missing file is never made anew here. */
-  int rc = sqlite3_open_v2(db->path, &q, SQLITE_OPEN_READONLY, NULL);
-  if (rc != SQLITE_OK) {
-    obs_err_set(err, OBS_ETRANSIENT, "database %s: quick_check: %s", db->path,
-                q ? sqlite3_errmsg(q) : sqlite3_errstr(rc));
-    sqlite3_close(q);
-    return OBS_ETRANSIENT;
-  }
-  sqlite3_busy_timeout(q, 5000);
-  sqlite3_stmt *s = NULL;
-  int out = 0;
-  if (sqlite3_prepare_v2(q, "PRAGMA quick_check(20)", -1, &s, NULL) != SQLITE_OK) {
-    int code = sqlite3_extended_errcode(q) & 0xff;
-    out = code == SQLITE_CORRUPT || code == SQLITE_NOTADB ? 1 : OBS_ETRANSIENT;
-    obs_err_set(err, out > 0 ? OBS_EIO : OBS_ETRANSIENT, "database %s: %s", db->path,
-                sqlite3_errmsg(q));
-  } else {
-    int step;
-    while ((step = sqlite3_step(s)) == SQLITE_ROW) {
-      const char *t = (const char *)sqlite3_column_text(s, 0);
-      if (t && strcmp(t, "ok")) {
-        if (!out) obs_err_set(err, OBS_EIO, "database %s: quick_check:", db->path);
-        obs_err_set(err, OBS_EIO, "%s", t);
-        out = 1;
-      }
-    }
-    if (step != SQLITE_DONE && !out) {
-      int code = sqlite3_extended_errcode(q) & 0xff;
-      out = code == SQLITE_CORRUPT || code == SQLITE_NOTADB ? 1 : OBS_ETRANSIENT;
-      obs_err_set(err, OBS_EIO, "database %s: quick_check: %s", db->path, sqlite3_errmsg(q));
-    }
-  }
-  sqlite3_finalize(s);
-  sqlite3_close(q);
-  return out;
-}
-
-int srv_db_probe(srv_db *db, char *code, size_t n, obs_err *err) {
-  conn *c = acquire(db);
-  /* A write that changes nothing still dirties the page and appends it to the WAL: it needs the
-   * same disk and permissions as a real commit. */
-  char *msg = NULL;
-  int rc = sqlite3_exec(c->db,
-                        "BEGIN IMMEDIATE; UPDATE schema_migrations SET applied_ms = applied_ms "
-                        "WHERE version = (SELECT max(version) FROM schema_migrations); COMMIT;",
-                        NULL, NULL, &msg);
-  if (rc != SQLITE_OK) {
-    snprintf(code, n, "%s", srv_sqlite_code_name(sqlite3_extended_errcode(c->db)));
-    obs_err_set(err, OBS_ETRANSIENT, "database %s: %s", db->path,
-                msg ? msg : sqlite3_errmsg(c->db));
-    rollback(c);
-  }
-  sqlite3_free(msg);
-  release(db, c);
-  return rc == SQLITE_OK ? 0 : OBS_ETRANSIENT;
-}
-
-/* ---- queued work and run rates (limits.c) ------------------------------------------------------
- * Prepared per call rather than kept with the statements above: they run once per submission. */
-
-static int prepare(conn *c, const char *q, sqlite3_stmt **s, obs_err *err) {
-  if (sqlite3_prepare_v2(c->db, q, -1, s, NULL) != SQLITE_OK) {
-    *s = NULL;
-    return db_fail(c, err, "preparing a query");
-  }
-  return 0;
-}
-
-int srv_db_queued_work(srv_db *db, const char *client, double *mine, double *total,
-                       obs_err *err) {
-  *mine = *total = 0;
-  conn *c = acquire(db);
-  sqlite3_stmt *s;
-  int rc = prepare(c,
-                   "SELECT coalesce(sum(coalesce(work, 0) * (repeats + warmup)), 0), "
-                   "coalesce(sum(CASE WHEN client = ?1 THEN coalesce(work, 0) * (repeats + warmup) "
-                   "END), 0) FROM jobs WHERE state IN ('queued', 'running')",
-                   &s, err);
-  if (!rc) {
-    bind_text(s, 1, client);
-    if (sqlite3_step(s) == SQLITE_ROW) {
-      *total = sqlite3_column_double(s, 0);
-      *mine = sqlite3_column_double(s, 1);
-    } else {
-      rc = db_fail(c, err, "summing queued work");
-    }
-    sqlite3_finalize(s);
-  }
-  release(db, c);
-  return rc;
-}
-
-int srv_db_set_job_client(srv_db *db, int64_t job, int64_t comparison, const char *client,
-                          obs_err *err) {
-  conn *c = acquire(db);
-  sqlite3_stmt *s;
-  int rc = prepare(c,
-                   "UPDATE jobs SET client = ?3 WHERE id = ?1 OR id IN (SELECT job FROM "
-                   "comparison_candidates WHERE comparison = ?2 UNION SELECT reference_job FROM "
-                   "comparison_candidates WHERE comparison = ?2)",
-                   &s, err);
-  if (!rc) {
-    sqlite3_bind_int64(s, 1, job);
-    sqlite3_bind_int64(s, 2, comparison);
-    bind_text(s, 3, client);
-    rc = sqlite3_step(s) == SQLITE_DONE ? 0 : db_fail(c, err, "recording the client");
-    sqlite3_finalize(s);
-  }
-  release(db, c);
-  return rc;
-}
-
-int srv_db_run_rates(srv_db *db, const char *technique, const char *backend, int64_t machine,
-                     double min_work, double **rates, size_t *n, obs_err *err) {
-  enum { MAX_RATES = 1000 };
-  *rates = NULL;
-  *n = 0;
-  double *v = malloc(MAX_RATES * sizeof *v);
-  if (!v) return obs_err_set(err, OBS_ENOMEM, "out of memory");
-  conn *c = acquire(db);
-  sqlite3_stmt *s;
-  int rc = prepare(c,
-                   "SELECT ru.total_ms / j.work FROM runs ru JOIN jobs j ON j.id = ru.job "
-                   "WHERE j.technique = ?1 AND j.backend = ?2 AND ru.machine = ?3 AND "
-                   "j.work >= ?4 AND j.work > 0 AND j.state = 'succeeded' "
-                   "ORDER BY ru.job DESC, ru.run LIMIT 1000",
-                   &s, err);
-  if (!rc) {
-    bind_text(s, 1, technique);
-    bind_text(s, 2, backend);
-    sqlite3_bind_int64(s, 3, machine);
-    sqlite3_bind_double(s, 4, min_work);
-    int step;
-    while ((step = sqlite3_step(s)) == SQLITE_ROW && *n < MAX_RATES) {
-      double r = sqlite3_column_double(s, 0);
-      if (r >= 0 && r < 1e30) v[(*n)++] = r;
-    }
-    if (step != SQLITE_ROW && step != SQLITE_DONE) rc = db_fail(c, err, "reading run rates");
-    sqlite3_finalize(s);
-  }
-  release(db, c);
-  if (rc) {
-    free(v);
-    *n = 0;
-    return rc;
-  }
-  *rates = v;
-  return 0;
-}
