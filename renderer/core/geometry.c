@@ -319,7 +319,7 @@ static int build_object(const obs_scene *sc, size_t oi, const double origin[3], 
     case OBS_SHAPE_DISPLACED_SPHERE:
       rc = obs_geometry_displaced_sphere(o->subdivisions, m);
       break;
-    case OBS_SHAPE_MESH:
+    case OBS_SHAPE_MESH: {
       char where[256];
       snprintf(where, sizeof where, "%s: /objects/%zu/shape/file", sc->name, oi);
       int irc = obs_geometry_import_mesh(o->mesh_path, sc->base_dir ? sc->base_dir : ".", m, err,
@@ -327,6 +327,7 @@ static int build_object(const obs_scene *sc, size_t oi, const double origin[3], 
       if (irc) return irc;
       mesh_transform(m, &o->transform, origin);
       return 0;
+    }
     default:
       return obs_err_set(err, OBS_EINTERNAL, "unexpected shape");
   }
