@@ -111,7 +111,24 @@ static int connect_daemon(void) {
   /* Closed with a reset once the answer is in: no TIME_WAIT socket per input. */
   struct linger lg = {1, 0};
   setsockopt(fd, SOL_SOCKET, SO_LINGER, &lg, sizeof lg);
-  if (connect(fd, (struct sockaddr *)&a, sizeof a)) fail("cannot connect to the daemon", NULL, 0);
+  /* A refused or timed-out connect is retried for ANSWER_MS: running out of local ports for a
+   * moment is the client's problem, a daemon that stops accepting is a finding. */
+  double deadline = obs_now_ms() + ANSWER_MS;
+  while (connect(fd, (struct sockaddr *)&a, sizeof a)) {
+    int e = errno;
+    close(fd);
+    if (obs_now_ms() > deadline) {
+      char msg[160];
+      snprintf(msg, sizeof msg, "cannot connect to the daemon for %d ms: %s", ANSWER_MS, strerror(e));
+      fail(msg, NULL, 0);
+    }
+    fprintf(stderr, "fuzz_http: connect: %s; retrying\n", strerror(e));
+    usleep(10000);
+    fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    if (fd < 0) fail("socket", NULL, 0);
+    setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
+    setsockopt(fd, SOL_SOCKET, SO_LINGER, &lg, sizeof lg);
+  }
   return fd;
 }
 
