@@ -213,11 +213,15 @@ static void add_cache_headers(struct MHD_Response *resp, const char *etag) {
 }
 
 int srv_output_serve(srv_req *r, int64_t id, const char *name) {
-  if (!srv_output_content_type(name))
+  if (!srv_output_content_type(name)) {
+    /* The name comes from the URL and need not be UTF-8, which the JSON answer must be. */
+    char shown[65];
+    srv_printable(name, shown, sizeof shown);
     return srv_respond_error(r, MHD_HTTP_NOT_FOUND, NULL,
-                             "no output named \"%.64s\" (outputs are ao.exr, ao.png, bent_normal.png, "
+                             "no output named \"%s\" (outputs are ao.exr, ao.png, bent_normal.png, "
                              "depth.png, summary.json, error.exr, error.png)",
-                             name);
+                             shown);
+  }
   srv_output o;
   obs_err err = OBS_ERR_INIT;
   int rc = srv_db_get_output(r->app->db, id, name, &o, &err);

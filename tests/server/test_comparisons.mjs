@@ -369,7 +369,8 @@ test('learned auto: the backend with the lower median at similar work, else the 
   }
 
   // With a Vulkan lane (lavapipe) the measured faster backend is the one that runs.
-  const probe = await startDaemon({});
+  // (--no-vulkan, lib.mjs's default, does not probe for a device: --vulkan does.)
+  const probe = await startDaemon({args: ['--vulkan']});
   const health = await getJSON(probe, '/api/v1/health');
   await probe.stopClean();
   if (!health.vulkan_device) {
