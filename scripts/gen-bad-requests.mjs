@@ -361,14 +361,14 @@ function depthAndSize() {
   for (const [label, open, close] of [['arrays', '[', ']'], ['objects', '{"a":', '}']]) {
     add('deep-nesting', {name: `label nested 100000 ${label} deep`, method: 'POST', path: '/api/v1/jobs',
                          raw_gen: {prefix: `${F}"label": `, repeat: open, count: 100000, middle: '1', repeat2: close, count2: 100000, suffix: '}'},
-                         headers: {'content-type': 'application/json'}, status: 400, expect: ['not valid JSON']});
+                         headers: {'content-type': 'application/json'}, status: 422, expect: ['depth limit']});
     add('deep-nesting', {name: `set value nested 100000 ${label} deep`, method: 'POST', path: '/api/v1/jobs',
                          raw_gen: {prefix: `${F}"set": {"/label": `, repeat: open, count: 100000, middle: '1', repeat2: close, count2: 100000, suffix: '}}'},
-                         headers: {'content-type': 'application/json'}, status: 400, expect: ['not valid JSON']});
+                         headers: {'content-type': 'application/json'}, status: 422, expect: ['depth limit']});
     add('deep-nesting', {name: `comparison nested 100000 ${label} deep`, method: 'POST', path: '/api/v1/comparisons',
                          raw_gen: {prefix: '{"scene_file": "sphere_on_plane.json", "label": ', repeat: open, count: 100000,
                                    middle: '1', repeat2: close, count2: 100000, suffix: ', "candidates": [{"technique": "ssao"}]}'},
-                         headers: {'content-type': 'application/json'}, status: 400, expect: ['not valid JSON']});
+                         headers: {'content-type': 'application/json'}, status: 422, expect: ['depth limit']});
   }
   // A pointer 30,000 (and 10,000) levels deep builds a document that deep: refused, naming /set.
   for (const depth of [30000, 10000]) {
