@@ -111,8 +111,8 @@ static int connect_daemon(void) {
   /* Closed with a reset once the answer is in: no TIME_WAIT socket per input. */
   struct linger lg = {1, 0};
   setsockopt(fd, SOL_SOCKET, SO_LINGER, &lg, sizeof lg);
-  /* A refused or timed-out connect is retried for ANSWER_MS: running out of local ports for a
-   * moment is the client's problem, a daemon that stops accepting is a finding. */
+  /* A failed connect is retried for ANSWER_MS: libFuzzer's timer signal can interrupt it (EINTR)
+   * and local ports can run out for a moment; a daemon that stops accepting is a finding. */
   double deadline = obs_now_ms() + ANSWER_MS;
   while (connect(fd, (struct sockaddr *)&a, sizeof a)) {
     int e = errno;
