@@ -292,7 +292,9 @@ static void expand_entries(srv_app *app, obs_jpath *p, const json_t *cands, expa
         c->t = t;
         c->backend = bes[bi];
         c->backend_pos = listed ? bi : -1;
-        c->params = params ? json_deep_copy(params) : json_object();
+        /* Shallow: only top-level keys are replaced below, so candidates share the rest of
+         * the entry's parameters instead of each holding a copy of them. */
+        c->params = params ? json_copy(params) : json_object();
         c->pos = json_object();
         for (int q = 0; q < nk; q++) {
           json_object_set(c->params, keyv[q], json_array_get(json_object_get(params, keyv[q]),
@@ -527,7 +529,10 @@ static unsigned parse_request(srv_app *app, const char *body, size_t len, cmp_re
   }
   if (cands) expand_entries(app, &p, cands, x);
   if (problems->count) return 422;
+  /* Each candidate's document (and its reference's) is the scene plus its parameters. */
   double copies = 2.0 * x->n * (double)obs_json_count_values(q->base, OBS_JSON_MAX_DEPTH);
+  for (int i = 0; i < x->n && copies <= MAX_EXPANDED_VALUES; i++)
+    copies += 2.0 * (double)obs_json_count_values(x->c[i].params, OBS_JSON_MAX_DEPTH);
   if (copies > MAX_EXPANDED_VALUES) {
     size_t m = obs_jpath_push_key(&p, "candidates");
     obs_jpath_fail(&p, "%d candidates (and their references) over a scene of %zu JSON values "

@@ -300,9 +300,9 @@ int srv_config_parse(srv_config *cfg, int argc, char **argv) {
     if (!cfg->db) return -1;
     snprintf(cfg->db, n, "%s/obscura.db", cfg->data_dir);
   }
-  if (cfg->max_inflight < cfg->max_body) {
+  if (cfg->max_inflight < cfg->max_body + 1) {
     fprintf(stderr,
-            "obscurad: --max-inflight-bytes (%lld) must be at least --max-body (%lld), or no "
+            "obscurad: --max-inflight-bytes (%lld) must exceed --max-body (%lld), or no "
             "body of the largest allowed size could ever be accepted\n",
             (long long)cfg->max_inflight, (long long)cfg->max_body);
     return -1;

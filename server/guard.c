@@ -85,6 +85,21 @@ static int address_key(const struct sockaddr *sa, unsigned char key[16]) {
   return 0;
 }
 
+void srv_guard_client_name(const struct sockaddr *sa, char *buf, size_t n) {
+  unsigned char key[16] = {0};
+  int len = address_key(sa, key);
+  char addr[INET6_ADDRSTRLEN] = "unknown";
+  if (len == 4) {
+    inet_ntop(AF_INET, key, addr, sizeof addr);
+    snprintf(buf, n, "%s", addr);
+  } else if (len == 8) {
+    inet_ntop(AF_INET6, key, addr, sizeof addr); /* the rest of key is zero: prefix::/64 */
+    snprintf(buf, n, "%s/64", addr);
+  } else {
+    snprintf(buf, n, "unknown");
+  }
+}
+
 static unsigned hash_key(const unsigned char *k, int n) {
   unsigned h = 2166136261u;
   for (int i = 0; i < n; i++) h = (h ^ k[i]) * 16777619u;
@@ -303,12 +318,14 @@ static void *reaper_main(void *arg) {
  * accept fail before the guard can make room. */
 static void raise_fd_limit(int need) {
   struct rlimit rl;
-  if (getrlimit(RLIMIT_NOFILE, &rl) || rl.rlim_cur == RLIM_INFINITY || rl.rlim_cur >= rl.rlim_max)
-    return;
-  rl.rlim_cur = rl.rlim_max;
-  if (setrlimit(RLIMIT_NOFILE, &rl))
-    srv_log("cannot raise the open-file limit to %llu: %s", (unsigned long long)rl.rlim_max,
-            strerror(errno));
+  if (getrlimit(RLIMIT_NOFILE, &rl) || rl.rlim_cur == RLIM_INFINITY) return;
+  if (rl.rlim_cur < rl.rlim_max) {
+    rl.rlim_cur = rl.rlim_max;
+    if (setrlimit(RLIMIT_NOFILE, &rl))
+      srv_log("cannot raise the open-file limit to %llu: %s", (unsigned long long)rl.rlim_max,
+              strerror(errno));
+  }
+  /* Said whether or not there was room to raise it. */
   if (getrlimit(RLIMIT_NOFILE, &rl) == 0 && rl.rlim_cur != RLIM_INFINITY &&
       rl.rlim_cur < (rlim_t)need)
     srv_log("open-file limit %llu is below max-connections plus the daemon's own files (%d): "

@@ -87,7 +87,7 @@ static int is_json_type(const char *ct) {
 static int refuse_content_type(srv_req *r, int has_body) {
   const char *ct =
       MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_TYPE);
-  if (ct ? is_json_type(ct) : !has_body) return 0;
+  if (!has_body || (ct && is_json_type(ct))) return 0;
   if (!ct)
     return srv_respond_error(r, MHD_HTTP_UNSUPPORTED_MEDIA_TYPE, NULL,
                              "a request body needs Content-Type: application/json (none given)");
@@ -433,7 +433,7 @@ static enum MHD_Result append_body(http_req *h, const char *data, size_t n) {
 
 /* Everything that can be decided from the request line and headers, cheapest and most
  * fundamental first: framing, room, origin, token, media type, size. */
-static int first_call(http_req *h, const char *version) {
+static int header_checks(http_req *h, const char *version) {
   srv_req *r = &h->r;
   srv_app *app = r->app;
   const union MHD_ConnectionInfo *ci =
@@ -459,6 +459,14 @@ static int first_call(http_req *h, const char *version) {
   ret = refuse_content_type(r, has_body);
   if (r->responded) return ret;
   return take_body_budget(h);
+}
+
+/* A request answered from its headers no longer counts as uploading: its body is discarded, and
+ * the guard must not pick the connection as the oldest upload and cut the answer off. */
+static int first_call(http_req *h, const char *version) {
+  int ret = header_checks(h, version);
+  if (h->r.responded) srv_guard_body_done(h->r.app->guard, h->guard_ctx);
+  return ret;
 }
 
 static enum MHD_Result on_request(void *cls, struct MHD_Connection *c, const char *url,

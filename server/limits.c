@@ -192,11 +192,6 @@ void srv_req_client(srv_app *app, struct MHD_Connection *c, char *buf, size_t n)
     return;
   }
   const union MHD_ConnectionInfo *ci = MHD_get_connection_info(c, MHD_CONNECTION_INFO_CLIENT_ADDRESS);
-  const struct sockaddr *sa = ci ? ci->client_addr : NULL;
-  char addr[INET6_ADDRSTRLEN] = "unknown";
-  if (sa && sa->sa_family == AF_INET)
-    inet_ntop(AF_INET, &((const struct sockaddr_in *)sa)->sin_addr, addr, sizeof addr);
-  else if (sa && sa->sa_family == AF_INET6)
-    inet_ntop(AF_INET6, &((const struct sockaddr_in6 *)sa)->sin6_addr, addr, sizeof addr);
-  snprintf(buf, n, "%s", addr);
+  /* The connection guard's notion of one client: an IPv4 address or an IPv6 /64. */
+  srv_guard_client_name(ci ? ci->client_addr : NULL, buf, n);
 }

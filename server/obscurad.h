@@ -518,6 +518,10 @@ void *srv_guard_started(srv_guard *g, int fd, const struct sockaddr *addr);
 int srv_guard_headers_done(srv_guard *g, void *ctx, int has_body);
 /* The whole body has arrived. */
 void srv_guard_body_done(srv_guard *g, void *ctx);
+struct sockaddr;
+/* One client as the guard and the queued-work caps count them: an IPv4 address (IPv4-mapped
+ * IPv6 folded), or an IPv6 /64 ("2001:db8::/64"); "unknown" without an address. */
+void srv_guard_client_name(const struct sockaddr *sa, char *buf, size_t n);
 /* A request ended: the connection waits for the next one's headers from now. */
 void srv_guard_request_done(srv_guard *g, void *ctx);
 /* Must come before the descriptor is closed. */

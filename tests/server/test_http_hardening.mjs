@@ -169,6 +169,11 @@ test('request bodies must be declared application/json', async () => {
     await waitJob(d, id);
     const r = await request(d, 'POST', `/api/v1/jobs/${id}/cancel`, {contentType: false});
     assertError(r, 409, /already finished/, 'cancel without a body');
+    // No body, whatever Content-Type a client sends by habit: nothing to refuse.
+    const h = await request(d, 'GET', '/api/v1/health', {headers: {'content-type': 'text/plain'}});
+    assert.equal(h.status, 200, `health with Content-Type text/plain: ${h.status} ${h.text}`);
+    const c = await request(d, 'POST', `/api/v1/jobs/${id}/cancel`, {headers: {'content-type': 'text/plain'}, contentType: false});
+    assertError(c, 409, /already finished/, 'cancel without a body, Content-Type text/plain');
   });
 });
 

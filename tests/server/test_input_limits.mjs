@@ -124,6 +124,28 @@ test('16 MiB bodies of 8M integers, one string or small objects: refused, peak R
   });
 });
 
+// A grid of 256 candidates whose entry also carries a large parameter object (not a list, so not
+// a grid key): candidates share the entry's parameters, and their documents' values count
+// towards the comparison's bound before anything is copied per candidate.
+test('a comparison grid over a large parameter object is refused without a copy per candidate', async () => {
+  const junk = {};
+  for (let i = 0; i < 90000; i++) junk[`k${i}`] = i;
+  const body = {scene_file: 'cornell_box.json', candidates: [{technique: 'ssao', params: {
+    radius: Array.from({length: 64}, (_, i) => 0.1 + i / 100), samples: [4, 8, 12, 16], junk}}]};
+  await withDaemon({args: ['--max-body', String(4 * MiB)]}, async (d) => {
+    await getJSON(d, '/api/v1/health');
+    const idle = memory(d.proc.pid).rss;
+    const r = await request(d, 'POST', '/api/v1/comparisons', {body});
+    assert.equal(r.status, 422, r.text.slice(0, 300));
+    const m = memory(d.proc.pid);
+    const bound = 2 * idle + 2 * 4 * MiB;
+    console.log(`# grid over a large object: idle ${(idle / MiB).toFixed(1)} MiB, peak ${(m.hwm / MiB).toFixed(1)} MiB (bound ${(bound / MiB).toFixed(1)} MiB)`);
+    if (SLOW === 1) assert.ok(m.hwm <= bound, `peak RSS ${m.hwm} > ${bound}`);
+    await assertAlive(d);
+    assertNothingStored(d);
+  });
+});
+
 // Tests run as root, for whom chmod restricts nothing: a read-only tmpfs is the read-only
 // directory. Skipped (with the reason) where mounting is not allowed.
 function mountReadOnly(dir, prepare) {
