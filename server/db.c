@@ -168,7 +168,8 @@ conn *srv_dbi_acquire(srv_db *db) {
 void srv_dbi_release(srv_db *db, conn *c) {
   pthread_mutex_lock(&db->mu);
   c->in_use = 0;
-  pthread_cond_signal(&db->cv);
+  /* Broadcast: an exclusive reopen waits on the same condition for all to be free. */
+  pthread_cond_broadcast(&db->cv);
   pthread_mutex_unlock(&db->mu);
 }
 

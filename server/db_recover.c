@@ -231,41 +231,62 @@ int srv_dbi_vacuum_into(conn *c, const char *target, obs_err *err) {
   return rc;
 }
 
-/* Opens a fresh pool on db->path and closes the old one. With `keep_wal` the old connections do
- * not delete the -wal and -shm by name when the last one closes: those names now belong to the
- * new file. */
-static int reopen_pool(srv_db *db, int keep_wal, obs_err *err) {
+/* Closes the old pool and opens a fresh one on db->path. Closing first matters: the last old
+ * connection removes the -wal and -shm names, which must not be a new file's by then. */
+static int reopen_pool(srv_db *db, obs_err *err) {
   conn *fresh = calloc((size_t)db->n, sizeof *fresh);
   if (!fresh) return obs_err_set(err, OBS_ENOMEM, "out of memory");
-  int rc = 0, opened = 0;
-  if (keep_wal) {
-    for (int i = 0; i < db->n; i++) {
-      int one = 1;
-      sqlite3_file_control(db->c[i].db, "main", SQLITE_FCNTL_PERSIST_WAL, &one);
-    }
-  } else {
-    for (int i = 0; i < db->n; i++) srv_dbi_close_conn(&db->c[i]);
-  }
-  for (int i = 0; !rc && i < db->n; i++) {
-    rc = srv_dbi_open_conn(&fresh[i], db->path, err);
-    if (!rc) opened++;
-  }
-  if (rc && keep_wal) {
-    for (int i = 0; i < opened; i++) srv_dbi_close_conn(&fresh[i]);
-    free(fresh);
-    return rc;
-  }
+  for (int i = 0; i < db->n; i++) srv_dbi_close_conn(&db->c[i]);
+  int rc = 0;
+  for (int i = 0; !rc && i < db->n; i++) rc = srv_dbi_open_conn(&fresh[i], db->path, err);
   if (rc) {
     /* The old pool is gone and the data is on disk: a restart is the safe way on. */
     srv_log("database %s: cannot reopen after writing it back (%s); exiting so that a restart "
             "recovers from the file", db->path, obs_err_message(err));
     _exit(70);
   }
-  if (keep_wal)
-    for (int i = 0; i < db->n; i++) srv_dbi_close_conn(&db->c[i]);
   free(db->c);
   db->c = fresh;
   return srv_dbi_record_identity(db, db->path, err);
+}
+
+/* Writes the open database to a temporary name beside db->path and links it into place only
+ * when nothing is there: a failed copy never leaves a partial file at the path, and a file that
+ * appeared meanwhile is never overwritten (the copy then stays as <path>.recovered-<time>).
+ * Returns 0 with the copy at the path, 1 with it elsewhere (named in `where`), or <0. */
+static int write_back(srv_db *db, conn *c, char *where, size_t n, obs_err *err) {
+  /* Everything the log holds goes into the (unlinked) file first, so no stale log frames
+   * outlive the old pool under the path's -wal name. */
+  int log = 0, done = 0;
+  sqlite3_wal_checkpoint_v2(c->db, "main", SQLITE_CHECKPOINT_TRUNCATE, &log, &done);
+  char tmp[4200];
+  snprintf(tmp, sizeof tmp, "%s.restoring-%ld", db->path, (long)getpid());
+  unlink(tmp);
+  int rc = srv_dbi_vacuum_into(c, tmp, err);
+  if (rc) {
+    unlink(tmp);
+    return rc;
+  }
+  if (!link(tmp, db->path)) {
+    unlink(tmp);
+    snprintf(where, n, "%s", db->path);
+    return 0;
+  }
+  if (errno != EEXIST) {
+    rc = obs_err_set(err, OBS_ETRANSIENT, "%s: cannot link the written-back copy %s: %s",
+                     db->path, tmp, strerror(errno));
+    unlink(tmp);
+    return rc;
+  }
+  char t[32];
+  srv_format_time(srv_now_unix_ms(), t, sizeof t);
+  snprintf(where, n, "%s.recovered-%s", db->path, t);
+  if (rename(tmp, where)) {
+    rc = obs_err_set(err, OBS_ETRANSIENT, "%s: cannot keep the copy: %s", where, strerror(errno));
+    unlink(tmp);
+    return rc;
+  }
+  return 1;
 }
 
 int srv_db_restore(srv_db *db, srv_db_identity what, char *where, size_t n, obs_err *err) {
@@ -281,20 +302,29 @@ int srv_db_restore(srv_db *db, srv_db_identity what, char *where, size_t n, obs_
     rc = rc == SQLITE_OK ? 0 : srv_dbi_fail(c, err, "checkpoint of the lost WAL");
     if (!rc && fsync_path(db->path))
       rc = obs_err_set(err, OBS_ETRANSIENT, "%s: cannot flush: %s", db->path, strerror(errno));
-    if (!rc) rc = reopen_pool(db, 0, err);
-  } else {
-    struct stat st;
-    if (what == SRV_DB_DELETED && lstat(db->path, &st) && errno == ENOENT) {
-      snprintf(where, n, "%s", db->path);
-    } else {
-      char t[32];
-      srv_format_time(srv_now_unix_ms(), t, sizeof t);
-      snprintf(where, n, "%s.recovered-%s", db->path, t);
+    if (!rc) rc = reopen_pool(db, err);
+  } else if (what == SRV_DB_DELETED) {
+    rc = write_back(db, c, where, n, err);
+    if (rc == 1) {
       elsewhere = 1;
+      rc = 0;
+    } else if (rc == 0) {
+      rc = reopen_pool(db, err);
     }
-    rc = srv_dbi_vacuum_into(c, where, err);
-    if (!rc && !elsewhere) rc = reopen_pool(db, 1, err);
-    if (!rc && elsewhere) snprintf(db->recovered, sizeof db->recovered, "%s", where);
+    if (elsewhere) snprintf(db->recovered, sizeof db->recovered, "%s", where);
+  } else {
+    char t[32];
+    srv_format_time(srv_now_unix_ms(), t, sizeof t);
+    snprintf(where, n, "%s.recovered-%s", db->path, t);
+    elsewhere = 1;
+    char tmp[4200];
+    snprintf(tmp, sizeof tmp, "%s.partial", where);
+    rc = srv_dbi_vacuum_into(c, tmp, err);
+    if (!rc && rename(tmp, where))
+      rc = obs_err_set(err, OBS_ETRANSIENT, "%s: cannot keep the copy: %s", where,
+                       strerror(errno));
+    if (rc) unlink(tmp);
+    if (!rc) snprintf(db->recovered, sizeof db->recovered, "%s", where);
   }
   release_all(db);
   return rc ? rc : elsewhere;

@@ -104,6 +104,12 @@ int main(int argc, char **argv) {
                         "limit max-triangles = %llu", relative(path, root), m.ntris,
                         (unsigned long long)max_tris);
       obs_geometry_mesh_free(&m);
+    } else if (!irc && m.nverts > 3 * (size_t)max_tris) {
+      /* The daemon refuses a reply with more vertices than three per allowed triangle. */
+      irc = obs_err_set(&err, OBS_EINVAL, "%s: mesh has %zu vertices, more than three per "
+                        "triangle of the server's limit max-triangles = %llu",
+                        relative(path, root), m.nverts, (unsigned long long)max_tris);
+      obs_geometry_mesh_free(&m);
     }
     int wrc = irc ? srv_meshproto_write_error(1, irc, obs_err_message(&err))
                   : srv_meshproto_write_mesh(1, &m);

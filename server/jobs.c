@@ -429,6 +429,11 @@ static int run_job(slot *sl, srv_job *j) {
     if (stop_reason(sl)) break;
   }
   if (gated) gate_leave(app->sched, exclusive);
+  /* The time limit is the renders': publishing and committing an outcome is not held to it (a
+   * slow or faulty disk must not turn a finished render into a timed-out job). */
+  pthread_mutex_lock(&app->sched->mu);
+  sl->deadline_ms = INFINITY;
+  pthread_mutex_unlock(&app->sched->mu);
   int why = stop_reason(sl);
   if (why) {
     stopped(sl, j, why);

@@ -63,8 +63,17 @@ static int stop_worker(srv_meshimport *mi, int kill_it) {
   if (mi->to_fd >= 0) close(mi->to_fd);
   if (mi->from_fd >= 0) close(mi->from_fd);
   mi->to_fd = mi->from_fd = -1;
-  if (kill_it) kill(mi->pid, SIGKILL);
   int status = -1;
+  if (!kill_it) {
+    /* A worker that closed its pipe is normally dying already; one that closed it and lives on
+     * must not hold the importer's lock: it gets 100 ms, then the kill. */
+    for (int i = 0; i < 20 && waitpid(mi->pid, &status, WNOHANG) == 0; i++) usleep(5000);
+    if (waitpid(mi->pid, &status, WNOHANG) != 0) {
+      mi->pid = 0;
+      return status;
+    }
+  }
+  kill(mi->pid, SIGKILL);
   while (waitpid(mi->pid, &status, 0) < 0 && errno == EINTR) {
   }
   mi->pid = 0;
@@ -188,7 +197,8 @@ static int run_request(srv_meshimport *mi, const char *path, const char *root, c
     case SRV_MESH_REPLY_MESH: return 0;
     case SRV_MESH_REPLY_ERROR:
       snprintf(msg, n, "%s", why);
-      return code;
+      /* The worker's word is trusted for nothing but the ordinary import failures. */
+      return code == OBS_ENOMEM || code == OBS_EIO ? code : OBS_EINVAL;
     case SRV_MESH_REPLY_TIMEOUT:
       stop_worker(mi, 1);
       atomic_fetch_add(&mi->timeouts, 1);
