@@ -274,9 +274,20 @@ static int exchange(const uint8_t *data, size_t size, int finished, char *buf, s
   /* libmicrohttpd does not always notice the end of a half-closed connection (it may keep it to
    * its idle timeout): the answer's framing, not the end of the stream, says when it is done. */
   shutdown(c.fd, SHUT_WR);
-  /* HEAD answers carry no body; the method is the first token after any leading empty lines. */
+  /* HEAD answers carry no body; the method is the first token after any leading empty lines.
+   * libmicrohttpd reads a line as a C string, so a line that starts with a NUL is empty to it. */
   size_t m = 0;
-  while (m < size && (data[m] == '\r' || data[m] == '\n')) m++;
+  while (m < size) {
+    if (data[m] == '\r' || data[m] == '\n') {
+      m++;
+    } else if (data[m] == '\0') {
+      const uint8_t *nl = memchr(data + m, '\n', size - m);
+      if (!nl) break;
+      m = (size_t)(nl - data) + 1;
+    } else {
+      break;
+    }
+  }
   int head_req = size - m >= 5 && !memcmp(data + m, "HEAD ", 5);
   size_t start = 0;
   int status = 0;
