@@ -126,16 +126,22 @@ export async function checkComparisonPage(page, doc, prefix) {
   assert.equal(chart.counts[chart.labels.indexOf('Pareto front')], doc.pareto.length, 'Pareto front points');
   assert.match(chart.aria, new RegExp(`${withMetrics.length} candidates`), 'the chart has a text summary');
 
-  // Clicking a point selects its candidate: the one plotted last in time order. Measured after
-  // two frames, once layout (and uPlot's resize) has settled.
+  // Clicking a point selects its candidate. Measured timings vary from run to run, so two points
+  // may land on the same pixels: the point clicked is the last one (in time order) that lies at
+  // least 10 px from every other. Measured after two frames, once layout (and uPlot's resize) has
+  // settled.
   const target = await page.evaluate(async () => {
     for (let k = 0; k < 2; k++) await new Promise((r) => requestAnimationFrame(r));
     const u = window.__obscura.comparison.uplot;
     const order = window.__obscura.comparison.chart.order;
-    const i = order.length - 1;
-    const series = u.data.findIndex((a, si) => si > 0 && a[i] !== null);
     const box = u.over.getBoundingClientRect();
-    return {index: order[i], x: box.left + u.valToPos(u.data[0][i], 'x'), y: box.top + u.valToPos(u.data[series][i], 'y')};
+    const pts = order.map((index, i) => {
+      const series = u.data.findIndex((a, si) => si > 0 && si < u.data.length && a[i] !== null && a[i] !== undefined);
+      return {index, x: box.left + u.valToPos(u.data[0][i], 'x'), y: box.top + u.valToPos(u.data[series][i], 'y')};
+    });
+    const apart = (p) => pts.every((q) => q === p || Math.hypot(q.x - p.x, q.y - p.y) >= 10);
+    for (let i = pts.length - 1; i >= 0; i--) if (apart(pts[i])) return pts[i];
+    return pts[pts.length - 1];
   });
   await page.mouse.move(target.x, target.y);
   await page.mouse.click(target.x, target.y);
