@@ -17,7 +17,7 @@
 
 #define MAX_REPEATS 64
 
-/* The goals of the issue, on the faster backend, 2 cores, milliseconds (sum of stages). */
+/* The timing goals at 1280x720 on the faster backend, 2 cores, milliseconds (sum of stages). */
 #define GOAL_SSAO16_MS 30.0
 #define GOAL_HBAO88_MS 60.0
 

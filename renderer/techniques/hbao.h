@@ -80,7 +80,7 @@ int obs_hbao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 
 /* The camera projection of a G-buffer (obs_gbuffer's ortho, half_w, half_h). The horizon search
  * reconstructs view-space positions, and obs_vk_gbuffer does not carry the projection, so the
- * device apply takes it separately (an argument the issue's signature lacks). */
+ * device apply takes it separately (an argument beyond the common apply signature). */
 typedef struct obs_hbao_projection {
   int ortho;
   float half_w, half_h;

@@ -115,7 +115,7 @@ static void run_sets(const char *name, const char *json) {
   obs_gbuffer g;
   obs_err err = OBS_ERR_INIT;
   vktest_check_rc(obs_gbuffer_raycast(&sc, &g, 2, NULL, NULL, &err), &err);
-  /* The settings (directions/steps 4/4, 8/8, 16/16) and the options around them. */
+  /* The documented settings (directions/steps 4/4, 8/8, 16/16) and the options around them. */
   struct {
     int dirs, steps, blur, half;
     float bias, sharp, radius_scale;
