@@ -110,6 +110,9 @@ static json_t *job_json(srv_app *app, const srv_job *j) {
   } else {
     json_object_set_new(o, "stats", json_null());
   }
+  /* Summaries stored before warnings existed have none. */
+  json_t *warn = json_object_get(sum, "warnings");
+  json_object_set_new(o, "warnings", json_is_array(warn) ? json_incref(warn) : json_array());
   json_decref(sum);
   json_object_set_new(o, "error", str_or_null(j->error));
   json_t *outs = json_array();

@@ -107,6 +107,7 @@ static int cmd_render(int argc, char **argv) {
   }
   res.timings.load_ms = load_ms;
   res.timings.total_ms += load_ms;
+  for (int i = 0; i < res.nwarnings; i++) fprintf(stderr, "obscura: warning: %s\n", res.warnings[i]);
   rc = obs_result_write(&res, &sc, c.out_dir, &err);
   if (rc) {
     fprintf(stderr, "%s\n", obs_err_message(&err));

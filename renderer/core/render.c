@@ -7,6 +7,7 @@
 #endif
 #include <jansson.h>
 #include <math.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -65,6 +66,8 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
     res->stage_names[i] = ctx.stage_names[i];
     res->stage_ms[i] = ctx.stage_ms[i];
   }
+  res->nwarnings = ctx.nwarnings;
+  memcpy(res->warnings, ctx.warnings, sizeof res->warnings);
   return 0;
 }
 
@@ -72,6 +75,18 @@ void obs_render_ctx_stage(obs_render_ctx *ctx, const char *name, double ms) {
   if (ctx->nstages >= OBS_MAX_STAGES) return;
   ctx->stage_names[ctx->nstages] = name;
   ctx->stage_ms[ctx->nstages++] = ms;
+}
+
+void obs_render_ctx_warn(obs_render_ctx *ctx, const char *fmt, ...) {
+  if (ctx->nwarnings >= OBS_MAX_WARNINGS) return;
+  char *w = ctx->warnings[ctx->nwarnings];
+  va_list ap;
+  va_start(ap, fmt);
+  vsnprintf(w, OBS_WARNING_LEN, fmt, ap);
+  va_end(ap);
+  for (int i = 0; i < ctx->nwarnings; i++)
+    if (!strcmp(ctx->warnings[i], w)) return;
+  ctx->nwarnings++;
 }
 
 void obs_result_free(obs_result *res) {
@@ -125,6 +140,9 @@ json_t *obs_result_summary_json(const obs_result *r, const obs_scene *sc) {
       obs_metrics_stats(&r->image, "ao_stderr", "alpha", &st, NULL) == 0)
     json_object_set_new(o, "ao_stderr_mean", json_real(st.mean));
   json_object_set_new(o, "nan_count", json_integer(nonfinite));
+  json_t *w = json_array();
+  for (int i = 0; i < r->nwarnings; i++) json_array_append_new(w, json_string(r->warnings[i]));
+  json_object_set_new(o, "warnings", w);
   return o;
 }
 

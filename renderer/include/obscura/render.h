@@ -30,6 +30,8 @@ typedef struct obs_result {
   double stage_ms[OBS_MAX_STAGES];
   uint64_t rays;
   int threads;
+  int nwarnings;               /* copied from the render context; see obs_render_ctx_warn */
+  char warnings[OBS_MAX_WARNINGS][OBS_WARNING_LEN];
 } obs_result;
 
 int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *result,

@@ -23,6 +23,10 @@ enum {
 typedef void (*obs_progress_fn)(void *user, double fraction);
 
 #define OBS_MAX_STAGES 8
+/* Warnings a render may attach to its result: the scene lies outside the range over which the
+ * technique's output is guaranteed (docs/accuracy.md), or a parameter is suspicious. */
+#define OBS_MAX_WARNINGS 8
+#define OBS_WARNING_LEN 320
 
 /* Per-stage timings in milliseconds. */
 typedef struct obs_timings {
@@ -45,10 +49,17 @@ typedef struct obs_render_ctx {
   int nstages;
   const char *stage_names[OBS_MAX_STAGES]; /* static strings */
   double stage_ms[OBS_MAX_STAGES];
+  /* Added with obs_render_ctx_warn, from the thread that called the run function only. */
+  int nwarnings;
+  char warnings[OBS_MAX_WARNINGS][OBS_WARNING_LEN];
 } obs_render_ctx;
 
 /* Records one named stage's time (ignored past OBS_MAX_STAGES). */
 void obs_render_ctx_stage(obs_render_ctx *ctx, const char *name, double ms);
+/* Adds one warning (printf-style; truncated to OBS_WARNING_LEN; the same text twice is kept once;
+ * ignored past OBS_MAX_WARNINGS). Not thread-safe: call it outside the tile loop. */
+void obs_render_ctx_warn(obs_render_ctx *ctx, const char *fmt, ...)
+    __attribute__((format(printf, 2, 3)));
 
 /* Runs one technique on one backend and fills `out` (initialised by the callee). */
 typedef int (*obs_technique_run_fn)(obs_render_ctx *ctx, obs_image *out, obs_err *err);
