@@ -13,6 +13,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "normalize.h"
+
 #define PI 3.14159265358979323846
 
 /* Row-major 3x4 affine matrix: translate * Rz * Ry * Rx * scale. */
@@ -40,12 +42,19 @@ static void xform_from(const obs_transform *t, xform *x) {
     }
   double s[3] = {t->scale.x, t->scale.y, t->scale.z};
   double tr[3] = {t->translate.x, t->translate.y, t->translate.z};
+  /* Normals are renormalised, so the inverse transpose matters only up to a positive factor: where
+   * 1 / s times a file's normal could overflow (|s| below ~1e-240) it is taken times the smallest
+   * nonzero |s|, which keeps every entry within [-1, 1]. */
+  double smin = INFINITY;
+  for (int j = 0; j < 3; j++)
+    if (s[j] != 0 && fabs(s[j]) < smin) smin = fabs(s[j]);
+  double k = smin < 0x1p-800 ? smin : 1.0;
   for (int i = 0; i < 3; i++) {
     for (int j = 0; j < 3; j++) {
       x->m[i][j] = r[i][j] * s[j];
       /* (R S)^-T = R S^-1; a zero scale collapses normals, which renormalising later repairs
        * where it can (degenerate geometry is allowed and must stay finite). */
-      x->n[i][j] = s[j] != 0 ? r[i][j] / s[j] : 0;
+      x->n[i][j] = s[j] == 0 ? 0 : k == 1.0 ? r[i][j] / s[j] : r[i][j] * (k / s[j]);
     }
     x->m[i][3] = tr[i];
   }
@@ -93,8 +102,8 @@ static void mesh_transform(obs_mesh *m, const obs_transform *t, const double ori
     if (m->nrm) {
       double n[3] = {m->nrm[3 * i], m->nrm[3 * i + 1], m->nrm[3 * i + 2]}, q[3];
       for (int k = 0; k < 3; k++) q[k] = x.n[k][0] * n[0] + x.n[k][1] * n[1] + x.n[k][2] * n[2];
-      double l = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
-      for (int k = 0; k < 3; k++) m->nrm[3 * i + k] = l > 0 ? (float)(q[k] / l) : 0.0f;
+      if (obs_normalize3d(q)) q[0] = q[1] = q[2] = 0;
+      for (int k = 0; k < 3; k++) m->nrm[3 * i + k] = (float)q[k];
     }
   }
 }
