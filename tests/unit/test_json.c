@@ -258,12 +258,53 @@ static void test_brief_is_bounded(void **state) {
   free(s);
 }
 
+/* Numbers beyond what the parser stores (json_int_t integers, doubles) are refused by the
+ * pre-scan with their pointer; everything jansson accepts passes it. */
+static void test_prescan_number_range(void **state) {
+  (void)state;
+  const struct {
+    const char *text, *needle;
+  } bad[] = {
+      {"{\"a\":[1,2,1e400]}", "doc: /a/2: number too large for a double"},
+      {"{\"a\":{\"b\":-1E+309}}", "doc: /a/b: number too large"},
+      {"[1.7976931348623159e308]", "doc: /0: number too large"},
+      {"[0.0000001e316]", "doc: /0: number too large"},
+      {"[1e99999999999999999999]", "doc: /0: number too large"},
+      {"{\"x~/y\":18446744073709551616}", "doc: /x~0~1y: integer outside the 64-bit range"},
+      {"[9223372036854775808]", "doc: /0: integer outside the 64-bit range"},
+      {"[-9223372036854775809]", "doc: /0: integer outside the 64-bit range"},
+      {"[123456789012345678901234567890]", "(got 123456789012345678901234567890)"},
+  };
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+    obs_err err = OBS_ERR_INIT;
+    assert_int_equal(scan(bad[i].text, 8, 0, 0, NULL, &err), OBS_EINVAL);
+    if (!strstr(obs_err_message(&err), bad[i].needle))
+      fprintf(stderr, "%s: %s\n", bad[i].text, obs_err_message(&err));
+    assert_non_null(strstr(obs_err_message(&err), bad[i].needle));
+    assert_null(json_loads(bad[i].text, 0, NULL)); /* jansson refuses them too */
+    obs_err_free(&err);
+  }
+  const char *ok[] = {"[1.7976931348623157e308]", "[-1.7976931348623157e308]",
+                      "[9223372036854775807]",    "[-9223372036854775808]",
+                      "[0.0000001e314]",          "[1e-400]",
+                      "[00000000000000000000001]", "[123456789012345678901234567890.5]",
+                      "[\"1e400\"]",              "[true,false,null]"};
+  for (size_t i = 0; i < sizeof ok / sizeof ok[0]; i++) {
+    obs_err err = OBS_ERR_INIT;
+    int rc = scan(ok[i], 8, 0, 0, NULL, &err);
+    if (rc) fprintf(stderr, "%s: %s\n", ok[i], obs_err_message(&err));
+    assert_int_equal(rc, 0);
+    obs_err_free(&err);
+  }
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_prescan_depth_bound),   cmocka_unit_test(test_prescan_strings_skipped),
       cmocka_unit_test(test_prescan_counts),        cmocka_unit_test(test_check_depth_of_parsed),
       cmocka_unit_test(test_pointer_depth),         cmocka_unit_test(test_scene_deep_override),
       cmocka_unit_test(test_scene_deep_document),   cmocka_unit_test(test_brief_is_bounded),
+      cmocka_unit_test(test_prescan_number_range),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
