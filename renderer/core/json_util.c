@@ -507,8 +507,8 @@ static int number_out_of_range(const char *t, size_t n) {
   return isinf(strtod(buf, NULL)) ? 2 : 0;
 }
 
-int obs_json_prescan(const char *text, size_t len, const obs_json_limits *lim, const char *doc,
-                     obs_err *err, size_t *values_out) {
+static int prescan(const char *text, size_t len, const obs_json_limits *lim, int numbers,
+                   const char *doc, obs_err *err, size_t *values_out) {
   scan_level lv[OBS_JSON_SCAN_DEPTH_CAP];
   int max_depth = lim->max_depth < 1 ? 1
                   : lim->max_depth > OBS_JSON_SCAN_DEPTH_CAP ? OBS_JSON_SCAN_DEPTH_CAP
@@ -581,7 +581,7 @@ int obs_json_prescan(const char *text, size_t len, const obs_json_limits *lim, c
         while (i + 1 < len && (isalnum((unsigned char)text[i + 1]) || text[i + 1] == '.' ||
                                text[i + 1] == '+' || text[i + 1] == '-'))
           i++;
-        int range = rc ? 0 : number_out_of_range(text + start, i + 1 - start);
+        int range = rc || !numbers ? 0 : number_out_of_range(text + start, i + 1 - start);
         if (range) {
           scan_location(text, lv, depth, where, sizeof where);
           size_t tl = i + 1 - start;
@@ -596,6 +596,16 @@ int obs_json_prescan(const char *text, size_t len, const obs_json_limits *lim, c
   }
   if (values_out) *values_out = values;
   return rc;
+}
+
+int obs_json_prescan(const char *text, size_t len, const obs_json_limits *lim, const char *doc,
+                     obs_err *err, size_t *values) {
+  return prescan(text, len, lim, 0, doc, err, values);
+}
+
+int obs_json_prescan_strict(const char *text, size_t len, const obs_json_limits *lim,
+                            const char *doc, obs_err *err, size_t *values) {
+  return prescan(text, len, lim, 1, doc, err, values);
 }
 
 static int depth_walk(obs_jpath *p, const json_t *v, int level, int max_depth) {
@@ -813,7 +823,7 @@ int obs_json_pointer_set(json_t *doc, const char *pointer, const char *value, ob
   /* The value is untrusted text too: bounded before it is parsed. */
   static const obs_json_limits lim = {OBS_JSON_MAX_DEPTH, 0, 0};
   if (!value) value = "";
-  if (obs_json_prescan(value, strlen(value), &lim, "value", err, NULL)) return OBS_EINVAL;
+  if (obs_json_prescan_strict(value, strlen(value), &lim, "value", err, NULL)) return OBS_EINVAL;
   json_error_t je;
   json_t *val = json_loads(value, JSON_DECODE_ANY | JSON_REJECT_DUPLICATES, &je);
   if (!val) return obs_err_set(err, OBS_EINVAL, "value is not valid JSON: %s", je.text);

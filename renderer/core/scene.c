@@ -523,7 +523,7 @@ int obs_scene_validate_json(const json_t *doc, const char *name, const char *bas
 static int parse_doc(const char *text, const char *name, json_t **out, obs_err *err) {
   static const obs_json_limits lim = {OBS_JSON_MAX_DEPTH, 0, 0};
   *out = NULL;
-  if (obs_json_prescan(text, strlen(text), &lim, name, err, NULL)) return OBS_EINVAL;
+  if (obs_json_prescan_strict(text, strlen(text), &lim, name, err, NULL)) return OBS_EINVAL;
   json_error_t je;
   *out = json_loads(text, JSON_REJECT_DUPLICATES, &je);
   if (!*out)

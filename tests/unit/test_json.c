@@ -25,6 +25,11 @@ static int scan(const char *text, int depth, size_t values, size_t string, size_
   return obs_json_prescan(text, strlen(text), &lim, "doc", err, count);
 }
 
+static int scan_numbers(const char *text, obs_err *err) {
+  obs_json_limits lim = {8, 0, 0};
+  return obs_json_prescan_strict(text, strlen(text), &lim, "doc", err, NULL);
+}
+
 static void test_prescan_depth_bound(void **state) {
   (void)state;
   obs_err err = OBS_ERR_INIT;
@@ -277,7 +282,9 @@ static void test_prescan_number_range(void **state) {
   };
   for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
     obs_err err = OBS_ERR_INIT;
-    assert_int_equal(scan(bad[i].text, 8, 0, 0, NULL, &err), OBS_EINVAL);
+    assert_int_equal(scan_numbers(bad[i].text, &err), OBS_EINVAL);
+    /* The plain pre-scan leaves them to the parser. */
+    assert_int_equal(scan(bad[i].text, 8, 0, 0, NULL, &err), 0);
     if (!strstr(obs_err_message(&err), bad[i].needle))
       fprintf(stderr, "%s: %s\n", bad[i].text, obs_err_message(&err));
     assert_non_null(strstr(obs_err_message(&err), bad[i].needle));
@@ -291,7 +298,7 @@ static void test_prescan_number_range(void **state) {
                       "[\"1e400\"]",              "[true,false,null]"};
   for (size_t i = 0; i < sizeof ok / sizeof ok[0]; i++) {
     obs_err err = OBS_ERR_INIT;
-    int rc = scan(ok[i], 8, 0, 0, NULL, &err);
+    int rc = scan_numbers(ok[i], &err);
     if (rc) fprintf(stderr, "%s: %s\n", ok[i], obs_err_message(&err));
     assert_int_equal(rc, 0);
     obs_err_free(&err);
