@@ -382,7 +382,10 @@ double obs_geometry_object_reach(const obs_object *o, const double mesh_bounds[2
     default: {
       double lo[3] = {o->v[0].x, o->v[0].y, o->v[0].z}, hi[3] = {o->v[1].x, o->v[1].y, o->v[1].z};
       for (int k = 0; k < 3; k++) {
-        if (o->shape == OBS_SHAPE_DISPLACED_SPHERE) lo[k] = -DISPLACED_MAX_R, hi[k] = DISPLACED_MAX_R;
+        if (o->shape == OBS_SHAPE_DISPLACED_SPHERE) {
+          lo[k] = -DISPLACED_MAX_R;
+          hi[k] = DISPLACED_MAX_R;
+        }
         if (o->shape == OBS_SHAPE_MESH) lo[k] = mesh_bounds[0][k], hi[k] = mesh_bounds[1][k];
       }
       n = 8;

@@ -447,66 +447,6 @@ static int scan_value(const char *text, const scan_level *lv, int depth, size_t 
                      "accepted in one document", doc, where, lim->max_values, lim->max_values);
 }
 
-/* Whether the number token t[0..n) is beyond what the parser stores: an integer (no '.', 'e' or
- * 'E') outside json_int_t (64-bit: [-2^63, 2^63 - 1]), or a real whose magnitude rounds to
- * infinity. jansson refuses both with only a line and column; here the caller can name the
- * value. Returns 0, 1 (integer) or 2 (real). Tokens that are not numbers are left to the parser. */
-static int number_out_of_range(const char *t, size_t n) {
-  size_t i = 0;
-  int neg = t[0] == '-';
-  i += neg;
-  if (i >= n || !isdigit((unsigned char)t[i])) return 0;
-  int real = 0;
-  for (size_t k = i; k < n; k++) real |= t[k] == '.' || t[k] == 'e' || t[k] == 'E';
-  if (!real) {
-    static const char lim[] = "9223372036854775807"; /* 2^63 - 1; -2^63 is one more */
-    while (i + 1 < n && t[i] == '0') i++;
-    size_t nd = n - i, ld = sizeof lim - 1;
-    for (size_t k = i; k < n; k++)
-      if (!isdigit((unsigned char)t[k])) return 0;
-    if (nd != ld) return nd > ld;
-    int cmp = memcmp(t + i, lim, ld);
-    return cmp > 0 && !(neg && !memcmp(t + i, "9223372036854775808", ld));
-  }
-  /* Reals: the decimal exponent of the first significant digit decides, strtod only near the
-   * boundary (on a copy of at most 40 significant digits, enough to decide the rounding there). */
-  long long lead = 0; /* digits before the point, leading zeros dropped */
-  long long zeros = 0; /* zeros after the point before the first significant digit */
-  int seen = 0, point = 0;
-  char digits[48];
-  size_t nd = 0;
-  for (; i < n && (isdigit((unsigned char)t[i]) || t[i] == '.'); i++) {
-    if (t[i] == '.') {
-      point = 1;
-      continue;
-    }
-    if (!seen && t[i] == '0') {
-      if (point) zeros++;
-      continue;
-    }
-    seen = 1;
-    if (!point) lead++;
-    if (nd < 40) digits[nd++] = t[i];
-  }
-  if (!seen) return 0;
-  long long ex = 0;
-  if (i < n && (t[i] == 'e' || t[i] == 'E')) {
-    i++;
-    int eneg = i < n && t[i] == '-';
-    if (i < n && (t[i] == '-' || t[i] == '+')) i++;
-    for (; i < n && isdigit((unsigned char)t[i]); i++)
-      if (ex < 100000) ex = ex * 10 + (t[i] - '0');
-    if (eneg) ex = -ex;
-  }
-  /* The value is 0.d1d2... x 10^e10 with e10 = ex + lead (or ex - zeros after the point). */
-  long long e10 = ex + (lead ? lead : -zeros);
-  if (e10 <= 308) return 0;
-  if (e10 > 309) return 2;
-  char buf[64];
-  snprintf(buf, sizeof buf, "0.%.*se%lld", (int)nd, digits, e10);
-  return isinf(strtod(buf, NULL)) ? 2 : 0;
-}
-
 static int prescan(const char *text, size_t len, const obs_json_limits *lim, int numbers,
                    const char *doc, obs_err *err, size_t *values_out) {
   scan_level lv[OBS_JSON_SCAN_DEPTH_CAP];
@@ -581,7 +521,7 @@ static int prescan(const char *text, size_t len, const obs_json_limits *lim, int
         while (i + 1 < len && (isalnum((unsigned char)text[i + 1]) || text[i + 1] == '.' ||
                                text[i + 1] == '+' || text[i + 1] == '-'))
           i++;
-        int range = rc || !numbers ? 0 : number_out_of_range(text + start, i + 1 - start);
+        int range = rc || !numbers ? 0 : obs_json_number_out_of_range(text + start, i + 1 - start);
         if (range) {
           scan_location(text, lv, depth, where, sizeof where);
           size_t tl = i + 1 - start;

@@ -610,7 +610,8 @@ static void test_camera_extreme_basis(void **state) {
     obs_result r;
     obs_test_render(fmt(scene, variants[v][0], variants[v][1]), 1, &r);
     assert_sane(&r);
-    const float *a = obs_image_channel(&r.image, "alpha"), *dz = obs_image_channel(&r.image, "depth.Z");
+    const float *a = obs_image_channel(&r.image, "alpha");
+    const float *dz = obs_image_channel(&r.image, "depth.Z");
     size_t differ = 0;
     for (size_t i = 0; i < n; i++) {
       differ += a[i] != a0[i];
