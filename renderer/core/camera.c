@@ -23,9 +23,9 @@ void obs_camera_setup(const obs_camera *cam, int width, int height, obs_camera_r
   rig->forward[1] = cam->look_at.y - cam->position.y;
   rig->forward[2] = cam->look_at.z - cam->position.z;
   normalize(rig->forward);
-  /* right = forward x up: with +y up and +z forward, image right is -x (right-handed world). */
-  /* up may be as small as 1e-300 or as large as 1e30: scaled (exactly) to unit size first so the
-   * cross product neither underflows nor overflows. */
+  /* right = forward x up: with +y up and +z forward, image right is -x (right-handed world). up
+   * may be as small as 1e-300 or as large as 1e30: it is scaled (exactly, by a power of two) to
+   * unit size first, so the cross product neither underflows nor overflows. */
   obs_prescale3d(up);
   cross(rig->forward, up, rig->right);
   normalize(rig->right);

@@ -208,7 +208,6 @@ void obs_rt_free(obs_rt *rt) {
   memset(rt, 0, sizeof *rt);
 }
 
-
 int obs_rt_intersect(const obs_rt *rt, const double world_org[3], const double dir[3], float tfar,
                      obs_hit *hit) {
   const double org[3] = {world_org[0] - rt->geo.origin[0], world_org[1] - rt->geo.origin[1],
@@ -285,8 +284,9 @@ int obs_rt_intersect(const obs_rt *rt, const double world_org[3], const double d
                          : 7.0f * 0x1p-24f * (fabsf(w * a[k]) + fabsf(u * b[k]) + fabsf(v * c[k]));
     }
     if (exact) hit->t = (float)t;
-    /* Embree's float normal loses its precision to subnormals for edges below ~1e-19; the double
-     * cross product of the same float vertices does not (its squares stay above 1e-600). */
+    /* Embree's float normal, a product of two edges, runs into the subnormals (and loses its
+     * precision) for edges below ~1e-19. Where it is below 2^-100 the double cross product of the
+     * same float vertices stands in: its products stay far inside double's range. */
     if (!(fabsf(ng[0]) >= 0x1p-100f || fabsf(ng[1]) >= 0x1p-100f || fabsf(ng[2]) >= 0x1p-100f) &&
         !obs_normalize3d(n))
       for (int k = 0; k < 3; k++) ng[k] = (float)n[k];
