@@ -3,14 +3,10 @@
 
 #include <math.h>
 
-static void normalize(double v[3]) {
-  double l = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-  if (l > 0) {
-    v[0] /= l;
-    v[1] /= l;
-    v[2] /= l;
-  }
-}
+#include "normalize.h"
+
+/* A zero vector stays zero: the validator refuses the cameras that would give one. */
+static void normalize(double v[3]) { (void)obs_normalize3d(v); }
 
 static void cross(const double a[3], const double b[3], double o[3]) {
   o[0] = a[1] * b[2] - a[2] * b[1];
@@ -27,7 +23,10 @@ void obs_camera_setup(const obs_camera *cam, int width, int height, obs_camera_r
   rig->forward[1] = cam->look_at.y - cam->position.y;
   rig->forward[2] = cam->look_at.z - cam->position.z;
   normalize(rig->forward);
-  /* right = forward x up: with +y up and +z forward, image right is -x (right-handed world). */
+  /* right = forward x up: with +y up and +z forward, image right is -x (right-handed world). up
+   * may be as small as 1e-300 or as large as 1e30: it is scaled (exactly, by a power of two) to
+   * unit size first, so the cross product neither underflows nor overflows. */
+  obs_prescale3d(up);
   cross(rig->forward, up, rig->right);
   normalize(rig->right);
   cross(rig->right, rig->forward, rig->up);

@@ -13,6 +13,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "normalize.h"
+
 #define PI 3.14159265358979323846
 
 /* Row-major 3x4 affine matrix: translate * Rz * Ry * Rx * scale. */
@@ -40,12 +42,19 @@ static void xform_from(const obs_transform *t, xform *x) {
     }
   double s[3] = {t->scale.x, t->scale.y, t->scale.z};
   double tr[3] = {t->translate.x, t->translate.y, t->translate.z};
+  /* Normals are renormalised, so the inverse transpose matters only up to a positive factor: where
+   * 1 / s times a file's normal could overflow (|s| below ~1e-240) it is taken times the smallest
+   * nonzero |s|, which keeps every entry within [-1, 1]. */
+  double smin = INFINITY;
+  for (int j = 0; j < 3; j++)
+    if (s[j] != 0 && fabs(s[j]) < smin) smin = fabs(s[j]);
+  double k = smin < 0x1p-800 ? smin : 1.0;
   for (int i = 0; i < 3; i++) {
     for (int j = 0; j < 3; j++) {
       x->m[i][j] = r[i][j] * s[j];
       /* (R S)^-T = R S^-1; a zero scale collapses normals, which renormalising later repairs
        * where it can (degenerate geometry is allowed and must stay finite). */
-      x->n[i][j] = s[j] != 0 ? r[i][j] / s[j] : 0;
+      x->n[i][j] = s[j] == 0 ? 0 : k == 1.0 ? r[i][j] / s[j] : r[i][j] * (k / s[j]);
     }
     x->m[i][3] = tr[i];
   }
@@ -73,6 +82,16 @@ static int mesh_alloc(obs_mesh *m, size_t nverts, size_t ntris, int normals) {
   return 0;
 }
 
+void obs_geometry_mesh_bounds(const obs_mesh *m, double b[2][3]) {
+  for (int k = 0; k < 3; k++) b[0][k] = b[1][k] = 0;
+  for (size_t i = 0; i < m->nverts; i++)
+    for (int k = 0; k < 3; k++) {
+      double v = m->pos[3 * i + k];
+      if (i == 0 || v < b[0][k]) b[0][k] = v;
+      if (i == 0 || v > b[1][k]) b[1][k] = v;
+    }
+}
+
 void obs_geometry_mesh_free(obs_mesh *m) {
   free(m->pos);
   free(m->idx);
@@ -93,8 +112,8 @@ static void mesh_transform(obs_mesh *m, const obs_transform *t, const double ori
     if (m->nrm) {
       double n[3] = {m->nrm[3 * i], m->nrm[3 * i + 1], m->nrm[3 * i + 2]}, q[3];
       for (int k = 0; k < 3; k++) q[k] = x.n[k][0] * n[0] + x.n[k][1] * n[1] + x.n[k][2] * n[2];
-      double l = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
-      for (int k = 0; k < 3; k++) m->nrm[3 * i + k] = l > 0 ? (float)(q[k] / l) : 0.0f;
+      if (obs_normalize3d(q)) q[0] = q[1] = q[2] = 0;
+      for (int k = 0; k < 3; k++) m->nrm[3 * i + k] = (float)q[k];
     }
   }
 }
@@ -115,7 +134,32 @@ static int mesh_from_vertices(const obs_vec3 *v, size_t nv, const uint32_t *tri,
   return 0;
 }
 
+/* The displacement, as a factor on the unit radius, at polar angle th and azimuth ph. */
+static double displaced_radius(double th, double ph) {
+  return 1 + 0.15 * sin(7 * th) * sin(9 * ph) + 0.05 * sin(31 * th) * cos(27 * ph);
+}
+
+/* Level 1: a latitude-longitude grid of 2 x 1 cells has only the poles for vertices and encloses
+ * nothing, so the 4 triangles make a tetrahedron instead (a pole and three points at the polar
+ * angle acos(-1/3)), displaced like the grid. Wound as the grid is. */
+static int displaced_tetrahedron(obs_mesh *m) {
+  if (mesh_alloc(m, 4, 4, 0)) return OBS_ENOMEM;
+  const double th1 = acos(-1.0 / 3.0);
+  for (int v = 0; v < 4; v++) {
+    double th = v ? th1 : 0, ph = v ? 2 * PI * (v - 1) / 3.0 : 0;
+    double r = displaced_radius(th, ph);
+    float *p = m->pos + 3 * v;
+    p[0] = (float)(r * sin(th) * cos(ph));
+    p[1] = (float)(r * cos(th));
+    p[2] = (float)(r * sin(th) * sin(ph));
+  }
+  static const uint32_t tri[12] = {0, 1, 2, 0, 2, 3, 0, 3, 1, 1, 3, 2};
+  memcpy(m->idx, tri, sizeof tri);
+  return 0;
+}
+
 int obs_geometry_displaced_sphere(int s, obs_mesh *m) {
+  if (s <= 1) return displaced_tetrahedron(m);
   size_t ni = ((size_t)1 << s) + 1, nj = ((size_t)1 << (s - 1)) + 1;
   size_t nverts = ni * nj, ntris = (size_t)1 << (2 * s);
   if (mesh_alloc(m, nverts, ntris, 0)) return OBS_ENOMEM;
@@ -312,6 +356,69 @@ int obs_geometry_import_mesh_assimp(const char *path, const char *root, obs_mesh
   return 0;
 }
 
+/* Object-space radius bound of the displaced sphere: 1 + 0.15 + 0.05. */
+#define DISPLACED_MAX_R 1.2
+
+double obs_geometry_object_reach(const obs_object *o, const double mesh_bounds[2][3],
+                                 const double origin[3]) {
+  xform x;
+  xform_from(&o->transform, &x);
+  double pts[8][3];
+  int n = 0;
+  double grow = 0;
+  switch (o->shape) {
+    case OBS_SHAPE_QUAD:
+    case OBS_SHAPE_TRIANGLE:
+      n = o->shape == OBS_SHAPE_QUAD ? 4 : 3;
+      for (int i = 0; i < n; i++) {
+        pts[i][0] = o->v[i].x, pts[i][1] = o->v[i].y, pts[i][2] = o->v[i].z;
+      }
+      break;
+    case OBS_SHAPE_SPHERE:
+      n = 1;
+      pts[0][0] = o->v[0].x, pts[0][1] = o->v[0].y, pts[0][2] = o->v[0].z;
+      grow = o->radius * fabs(o->transform.scale.x);
+      break;
+    default: {
+      double lo[3] = {o->v[0].x, o->v[0].y, o->v[0].z}, hi[3] = {o->v[1].x, o->v[1].y, o->v[1].z};
+      for (int k = 0; k < 3; k++) {
+        if (o->shape == OBS_SHAPE_DISPLACED_SPHERE) {
+          lo[k] = -DISPLACED_MAX_R;
+          hi[k] = DISPLACED_MAX_R;
+        }
+        if (o->shape == OBS_SHAPE_MESH) lo[k] = mesh_bounds[0][k], hi[k] = mesh_bounds[1][k];
+      }
+      n = 8;
+      for (int i = 0; i < 8; i++) {
+        pts[i][0] = i & 1 ? hi[0] : lo[0];
+        pts[i][1] = i & 2 ? hi[1] : lo[1];
+        pts[i][2] = i & 4 ? hi[2] : lo[2];
+      }
+    }
+  }
+  double reach = 0;
+  for (int i = 0; i < n; i++) {
+    double w[3];
+    xform_point(&x, pts[i], w);
+    for (int k = 0; k < 3; k++) {
+      double a = fabs(w[k] - origin[k]) + grow;
+      if (!(a <= reach)) reach = a; /* NaN propagates */
+    }
+  }
+  return reach;
+}
+
+int obs_geometry_check_reach(const obs_scene *sc, size_t oi, const double mesh_bounds[2][3],
+                             const double origin[3], const char *doc, obs_err *err) {
+  double reach = obs_geometry_object_reach(&sc->objects[oi], mesh_bounds, origin);
+  if (reach <= OBS_GEOMETRY_MAX) return 0;
+  return obs_err_set(err, OBS_EINVAL,
+                     "%s: /objects/%zu: once transformed, object \"%s\" reaches %.3g scene units "
+                     "from the camera, beyond the renderer's range of +-%g",
+                     doc, oi, sc->objects[oi].name ? sc->objects[oi].name : "", reach,
+                     OBS_GEOMETRY_MAX);
+}
+
 static int fail_oom(const obs_scene *sc, size_t oi, int rc, obs_err *err) {
   return rc ? obs_err_set(err, rc, "%s: /objects/%zu: out of memory", sc->name, oi) : 0;
 }
@@ -323,6 +430,9 @@ static int build_object(const obs_scene *sc, size_t oi, const double origin[3], 
   static const uint32_t box[36] = {0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4,
                                    3, 7, 6, 3, 6, 2, 0, 4, 7, 0, 7, 3, 1, 2, 6, 1, 6, 5};
   int rc = 0;
+  if (o->shape != OBS_SHAPE_MESH && (rc = obs_geometry_check_reach(sc, oi, NULL, origin, sc->name,
+                                                                   err)))
+    return rc;
   switch (o->shape) {
     case OBS_SHAPE_QUAD:
       return fail_oom(sc, oi, mesh_from_vertices(o->v, 4, quad, 2, &o->transform, origin, m), err);
@@ -343,6 +453,12 @@ static int build_object(const obs_scene *sc, size_t oi, const double origin[3], 
       int irc = obs_geometry_import_mesh(o->mesh_path, sc->base_dir ? sc->base_dir : ".", m, err,
                                          where);
       if (irc) return irc;
+      double b[2][3];
+      obs_geometry_mesh_bounds(m, b);
+      if ((irc = obs_geometry_check_reach(sc, oi, b, origin, sc->name, err))) {
+        obs_geometry_mesh_free(m);
+        return irc;
+      }
       mesh_transform(m, &o->transform, origin);
       return 0;
     }
@@ -367,9 +483,6 @@ int obs_geometry_build(const obs_scene *sc, obs_geometry *g, obs_err *err) {
   return obs_geometry_build_at(sc, zero, g, err);
 }
 
-/* Embree rejects coordinates beyond about 1.8e19; stay well inside float range. */
-#define GEOMETRY_MAX 1e18
-
 int obs_geometry_build_at(const obs_scene *sc, const double origin[3], obs_geometry *g,
                           obs_err *err) {
   memset(g, 0, sizeof *g);
@@ -391,6 +504,11 @@ int obs_geometry_build_at(const obs_scene *sc, const double origin[3], obs_geome
   for (size_t i = 0; i < sc->nobjects; i++) {
     const obs_object *o = &sc->objects[i];
     if (o->shape == OBS_SHAPE_SPHERE) {
+      int rc = obs_geometry_check_reach(sc, i, NULL, origin, sc->name, err);
+      if (rc) {
+        obs_geometry_free(g);
+        return rc;
+      }
       obs_sphere *s = &g->spheres[g->nspheres++];
       double c[3] = {o->v[0].x, o->v[0].y, o->v[0].z};
       s->radius = o->radius;
@@ -424,13 +542,6 @@ int obs_geometry_build_at(const obs_scene *sc, const double origin[3], obs_geome
   for (int k = 0; k < 3; k++) {
     double a = fmax(fabs(g->bounds[0][k]), fabs(g->bounds[1][k]));
     if (a > g->extent) g->extent = a;
-  }
-  if (!(g->extent <= GEOMETRY_MAX)) {
-    obs_geometry_free(g);
-    return obs_err_set(err, OBS_EINVAL,
-                       "%s: /objects: transformed geometry reaches %g, beyond the renderer's range "
-                       "of +-%g scene units around the camera",
-                       sc->name, g->extent, GEOMETRY_MAX);
   }
   return 0;
 }

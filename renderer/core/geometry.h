@@ -60,8 +60,25 @@ typedef int (*obs_mesh_importer)(void *user, const char *path, const char *root,
  * synchronised: call it before any thread imports (a server, at start) and after they stop. */
 void obs_geometry_set_importer(obs_mesh_importer fn, void *user);
 void obs_geometry_mesh_free(obs_mesh *m);
+/* The box of m's vertices (zeros when it has none). */
+void obs_geometry_mesh_bounds(const obs_mesh *m, double bounds[2][3]);
 /* Whether the resolved `path` lies inside the resolved directory `dir`. */
 int obs_path_is_inside(const char *dir, const char *path);
+
+/* The ray tracer's range: Embree rejects coordinates beyond about 1.8e19, and float products of
+ * coordinates must stay finite. */
+#define OBS_GEOMETRY_MAX 1e18
+/* The largest |coordinate| relative to `origin` that object `o` reaches once transformed: exact for
+ * spheres and the shapes given by vertices; for displaced spheres and meshes the transformed
+ * corners of the object-space box (`mesh_bounds` for meshes: their vertices' box). Non-finite when
+ * the transform overflows. */
+double obs_geometry_object_reach(const obs_object *o, const double mesh_bounds[2][3],
+                                 const double origin[3]);
+/* Refuses object `oi` of `sc` when its reach from `origin` (the camera) exceeds OBS_GEOMETRY_MAX,
+ * with a message "<doc>: /objects/<oi>: ..."; the check scene validation and every geometry build
+ * run alike. Returns 0 or OBS_EINVAL. */
+int obs_geometry_check_reach(const obs_scene *sc, size_t oi, const double mesh_bounds[2][3],
+                             const double origin[3], const char *doc, obs_err *err);
 
 /* Fills a displaced_sphere of 2^(2s) triangles into `m` (object space, unit-ish radius). */
 int obs_geometry_displaced_sphere(int subdivisions, obs_mesh *m);

@@ -447,8 +447,8 @@ static int scan_value(const char *text, const scan_level *lv, int depth, size_t 
                      "accepted in one document", doc, where, lim->max_values, lim->max_values);
 }
 
-int obs_json_prescan(const char *text, size_t len, const obs_json_limits *lim, const char *doc,
-                     obs_err *err, size_t *values_out) {
+static int prescan(const char *text, size_t len, const obs_json_limits *lim, int numbers,
+                   const char *doc, obs_err *err, size_t *values_out) {
   scan_level lv[OBS_JSON_SCAN_DEPTH_CAP];
   int max_depth = lim->max_depth < 1 ? 1
                   : lim->max_depth > OBS_JSON_SCAN_DEPTH_CAP ? OBS_JSON_SCAN_DEPTH_CAP
@@ -517,15 +517,35 @@ int obs_json_prescan(const char *text, size_t len, const obs_json_limits *lim, c
       default:
         /* A number or literal (or junk the parser will refuse): one value, however long. */
         rc = scan_value(text, lv, depth, &values, lim, doc, err);
+        size_t start = i;
         while (i + 1 < len && (isalnum((unsigned char)text[i + 1]) || text[i + 1] == '.' ||
                                text[i + 1] == '+' || text[i + 1] == '-'))
           i++;
+        int range = rc || !numbers ? 0 : obs_json_number_out_of_range(text + start, i + 1 - start);
+        if (range) {
+          scan_location(text, lv, depth, where, sizeof where);
+          size_t tl = i + 1 - start;
+          rc = obs_err_set(err, OBS_EINVAL, "%s: %s: %s (got %.*s%s)", doc, where,
+                           range == 1 ? "integer outside the 64-bit range [-2^63, 2^63 - 1]"
+                                      : "number too large for a double (beyond +-1.8e308)",
+                           (int)(tl > 40 ? 40 : tl), text + start, tl > 40 ? "..." : "");
+        }
         break;
     }
     i++;
   }
   if (values_out) *values_out = values;
   return rc;
+}
+
+int obs_json_prescan(const char *text, size_t len, const obs_json_limits *lim, const char *doc,
+                     obs_err *err, size_t *values) {
+  return prescan(text, len, lim, 0, doc, err, values);
+}
+
+int obs_json_prescan_strict(const char *text, size_t len, const obs_json_limits *lim,
+                            const char *doc, obs_err *err, size_t *values) {
+  return prescan(text, len, lim, 1, doc, err, values);
 }
 
 static int depth_walk(obs_jpath *p, const json_t *v, int level, int max_depth) {
@@ -743,7 +763,7 @@ int obs_json_pointer_set(json_t *doc, const char *pointer, const char *value, ob
   /* The value is untrusted text too: bounded before it is parsed. */
   static const obs_json_limits lim = {OBS_JSON_MAX_DEPTH, 0, 0};
   if (!value) value = "";
-  if (obs_json_prescan(value, strlen(value), &lim, "value", err, NULL)) return OBS_EINVAL;
+  if (obs_json_prescan_strict(value, strlen(value), &lim, "value", err, NULL)) return OBS_EINVAL;
   json_error_t je;
   json_t *val = json_loads(value, JSON_DECODE_ANY | JSON_REJECT_DUPLICATES, &je);
   if (!val) return obs_err_set(err, OBS_EINVAL, "value is not valid JSON: %s", je.text);

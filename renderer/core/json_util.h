@@ -80,6 +80,17 @@ typedef struct obs_json_limits {
  * OBS_EINVAL; otherwise 0. `values`, when not NULL, receives the count seen. */
 int obs_json_prescan(const char *text, size_t len, const obs_json_limits *lim, const char *doc,
                      obs_err *err, size_t *values);
+/* The same, also refusing numbers the parser cannot hold, with their pointer: an integer literal
+ * (no '.', 'e', 'E') outside json_int_t's 64 bits and a real whose magnitude rounds to infinity
+ * ("<doc>: /objects/1/shape/center/2: number too large for a double ..."). obs_json_prescan leaves
+ * those to the parser, which names only a line and column. */
+int obs_json_prescan_strict(const char *text, size_t len, const obs_json_limits *lim,
+                            const char *doc, obs_err *err, size_t *values);
+/* Whether the number token t[0..n) is beyond what the parser stores: an integer (no '.', 'e' or
+ * 'E') outside json_int_t (64-bit: [-2^63, 2^63 - 1]), or a real whose magnitude rounds to
+ * infinity. Returns 0, 1 (integer) or 2 (real); tokens that are not numbers give 0 (the parser
+ * refuses those). */
+int obs_json_number_out_of_range(const char *t, size_t n);
 /* Whether a parsed value nests deeper than `max_depth` arrays/objects: reports the first place
  * under the pointer `p` and returns OBS_EINVAL, else 0. Recursion stops at max_depth + 1. */
 int obs_json_check_depth(obs_jpath *p, const json_t *v, int max_depth);

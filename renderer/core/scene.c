@@ -145,6 +145,7 @@ static void load_mesh_file(obs_jpath *p, const json_t *shape, const char *base_d
       snprintf(where, sizeof where, "%s: %s", p->doc, p->buf);
       if (obs_geometry_import_mesh(real_file, real_base, &mesh, p->err, where) == 0) {
         o->mesh_path = xstrdup(real_file);
+        obs_geometry_mesh_bounds(&mesh, o->mesh_bounds);
         obs_geometry_mesh_free(&mesh);
       }
     }
@@ -260,7 +261,17 @@ static void load_transform(obs_jpath *p, const json_t *obj, obs_object *o) {
   obs_jpath_pop(p, m);
 }
 
-static void load_objects(obs_jpath *p, const json_t *doc, const char *base_dir, obs_scene *sc) {
+/* Geometry beyond the renderer's range around the camera: the check every geometry build runs,
+ * made here so `validate` refuses what `render` would. Needs a valid camera. */
+static void check_reach(obs_jpath *p, const obs_scene *sc, size_t i) {
+  const obs_object *o = &sc->objects[i];
+  if (o->shape == OBS_SHAPE_MESH && !o->mesh_path) return; /* not imported: already refused */
+  const double eye[3] = {sc->camera.position.x, sc->camera.position.y, sc->camera.position.z};
+  obs_geometry_check_reach(sc, i, o->mesh_bounds, eye, p->doc, p->err);
+}
+
+static void load_objects(obs_jpath *p, const json_t *doc, const char *base_dir, obs_scene *sc,
+                         int camera_ok) {
   json_t *arr = obs_json_get_array(p, doc, "objects", 1, NULL);
   if (!arr) return;
   size_t m = obs_jpath_push_key(p, "objects");
@@ -304,8 +315,10 @@ static void load_objects(obs_jpath *p, const json_t *doc, const char *base_dir, 
       name = defname;
     }
     ob->name = xstrdup(name);
+    int before = p->err ? p->err->count : 0;
     load_shape(p, o, base_dir, ob);
     load_transform(p, o, ob);
+    if (camera_ok && (p->err ? p->err->count : 0) == before) check_reach(p, sc, i);
     int absent = 0;
     json_t *mat = obs_json_get_object(p, o, "material", 0, &absent);
     if (mat) {
@@ -446,7 +459,9 @@ static int validate(obs_scene *sc, const json_t *doc, const char *name, const ch
   static const char *const k[] = {"camera",      "image",     "objects", "lights",
                                   "environment", "technique", NULL};
   obs_json_check_keys(&p, doc, k);
+  int camera_before = err ? err->count : 0;
   load_camera(&p, doc, &sc->camera);
+  int camera_ok = (err ? err->count : 0) == camera_before;
   json_t *img = obs_json_get_object(&p, doc, "image", 1, NULL);
   sc->spp = 1;
   if (img) {
@@ -462,7 +477,7 @@ static int validate(obs_scene *sc, const json_t *doc, const char *name, const ch
     sc->spp = (int)spp;
     obs_jpath_pop(&p, m);
   }
-  load_objects(&p, doc, base_dir, sc);
+  load_objects(&p, doc, base_dir, sc, camera_ok);
   load_lights(&p, doc, sc);
   load_environment(&p, doc, sc);
   load_technique(&p, doc, sc);
@@ -508,7 +523,7 @@ int obs_scene_validate_json(const json_t *doc, const char *name, const char *bas
 static int parse_doc(const char *text, const char *name, json_t **out, obs_err *err) {
   static const obs_json_limits lim = {OBS_JSON_MAX_DEPTH, 0, 0};
   *out = NULL;
-  if (obs_json_prescan(text, strlen(text), &lim, name, err, NULL)) return OBS_EINVAL;
+  if (obs_json_prescan_strict(text, strlen(text), &lim, name, err, NULL)) return OBS_EINVAL;
   json_error_t je;
   *out = json_loads(text, JSON_REJECT_DUPLICATES, &je);
   if (!*out)

@@ -8,6 +8,8 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "normalize.h"
+
 static void sphere_bounds(const struct RTCBoundsFunctionArguments *a) {
   const obs_rt *rt = a->geometryUserPtr;
   const obs_sphere *s = &rt->geo.spheres[a->primID];
@@ -206,17 +208,6 @@ void obs_rt_free(obs_rt *rt) {
   memset(rt, 0, sizeof *rt);
 }
 
-static void normalize3(float v[3]) {
-  float l = sqrtf(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-  if (l > 0 && isfinite(l)) {
-    v[0] /= l;
-    v[1] /= l;
-    v[2] /= l;
-  } else {
-    v[0] = 0, v[1] = 0, v[2] = 1;
-  }
-}
-
 int obs_rt_intersect(const obs_rt *rt, const double world_org[3], const double dir[3], float tfar,
                      obs_hit *hit) {
   const double org[3] = {world_org[0] - rt->geo.origin[0], world_org[1] - rt->geo.origin[1],
@@ -254,10 +245,10 @@ int obs_rt_intersect(const obs_rt *rt, const double world_org[3], const double d
     double q[3] = {org[0] + rh.ray.tfar * dir[0] - s->center[0],
                    org[1] + rh.ray.tfar * dir[1] - s->center[1],
                    org[2] + rh.ray.tfar * dir[2] - s->center[2]};
-    double l = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
     /* Project onto the sphere so the point's error is that of the centre and radius only. */
+    if (obs_normalize3d(q)) q[0] = 0, q[1] = 0, q[2] = 1;
     for (int k = 0; k < 3; k++) {
-      double u = l > 0 ? q[k] / l : (k == 2);
+      double u = q[k];
       hit->p[k] = (float)(s->center[k] + s->radius * u);
       ng[k] = (float)u;
       /* The double result is exact to ~1e-16 relative; rounding it to float dominates. */
@@ -293,13 +284,19 @@ int obs_rt_intersect(const obs_rt *rt, const double world_org[3], const double d
                          : 7.0f * 0x1p-24f * (fabsf(w * a[k]) + fabsf(u * b[k]) + fabsf(v * c[k]));
     }
     if (exact) hit->t = (float)t;
+    /* Embree's float normal, a product of two edges, runs into the subnormals (and loses its
+     * precision) for edges below ~1e-19. Where it is below 2^-100 the double cross product of the
+     * same float vertices stands in: its products stay far inside double's range. */
+    if (!(fabsf(ng[0]) >= 0x1p-100f || fabsf(ng[1]) >= 0x1p-100f || fabsf(ng[2]) >= 0x1p-100f) &&
+        !obs_normalize3d(n))
+      for (int k = 0; k < 3; k++) ng[k] = (float)n[k];
     if (m->nrm) {
       const float *na = m->nrm + 3 * tri[0], *nb = m->nrm + 3 * tri[1], *nc = m->nrm + 3 * tri[2];
       for (int k = 0; k < 3; k++) ns[k] = w * na[k] + u * nb[k] + v * nc[k];
       have_ns = ns[0] != 0 || ns[1] != 0 || ns[2] != 0;
     }
   }
-  normalize3(ng);
+  if (obs_normalize3f(ng)) ng[0] = 0, ng[1] = 0, ng[2] = 1;
   int back = ng[0] * d[0] + ng[1] * d[1] + ng[2] * d[2] > 0;
   if (back) {
     for (int k = 0; k < 3; k++) ng[k] = -ng[k];
@@ -307,7 +304,7 @@ int obs_rt_intersect(const obs_rt *rt, const double world_org[3], const double d
   }
   memcpy(hit->ng, ng, sizeof ng);
   if (have_ns) {
-    normalize3(ns);
+    if (obs_normalize3f(ns)) memcpy(ns, ng, sizeof ns);
     if (ns[0] * ng[0] + ns[1] * ng[1] + ns[2] * ng[2] < 0)
       for (int k = 0; k < 3; k++) ns[k] = -ns[k];
     memcpy(hit->ns, ns, sizeof ns);
@@ -432,9 +429,8 @@ void obs_rt_intersect_primary(const obs_rt *rt, const obs_rt_view *view, int n, 
         plane_n[0] = e1[1] * e2[2] - e1[2] * e2[1];
         plane_n[1] = e1[2] * e2[0] - e1[0] * e2[2];
         plane_n[2] = e1[0] * e2[1] - e1[1] * e2[0];
-        double l =
-            sqrt(plane_n[0] * plane_n[0] + plane_n[1] * plane_n[1] + plane_n[2] * plane_n[2]);
-        for (int k = 0; k < 3; k++) plane_unit[k] = l > 0 ? plane_n[k] / l : 0;
+        for (int k = 0; k < 3; k++) plane_unit[k] = plane_n[k];
+        if (obs_normalize3d(plane_unit)) plane_unit[0] = plane_unit[1] = plane_unit[2] = 0;
         plane_a = a;
         plane_geom = h->geom;
         plane_prim = h->prim;
@@ -448,14 +444,7 @@ void obs_rt_intersect_primary(const obs_rt *rt, const obs_rt_view *view, int n, 
         unit = 1;
       }
     }
-    if (!unit) {
-      double l = sqrt(ng[0] * ng[0] + ng[1] * ng[1] + ng[2] * ng[2]);
-      if (l > 0 && isfinite(l)) {
-        for (int k = 0; k < 3; k++) ng[k] /= l;
-      } else {
-        ng[0] = 0, ng[1] = 0, ng[2] = 1;
-      }
-    }
+    if (!unit && obs_normalize3d(ng)) ng[0] = 0, ng[1] = 0, ng[2] = 1;
     /* Element-wise stores: a memcpy of the array here compiled to a vector load of scalar stores,
      * a store-forwarding stall on every lane. */
     double face = ng[0] * rd[0] + ng[1] * rd[1] + ng[2] * rd[2] > 0 ? -1.0 : 1.0;

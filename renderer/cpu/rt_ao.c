@@ -67,9 +67,29 @@ static double rho(const rt_ao_params *p, double d) {
   }
 }
 
+/* The standard error reported for the mean `mean` of n values of rho in [0, 1]. The sample
+ * variance says 0 whenever every ray agrees (all escape, or all hit near contact) although the
+ * truth then differs from the mean by up to ~z^2 / n. Instead: the Wilson score interval at z = 3,
+ * the set of m with |mean - m| <= z sqrt(m (1 - m) / n). m (1 - m) is the binomial variance for
+ * binary rho and, by the Bhatia-Davis inequality, an upper bound on the variance of any rho in
+ * [0, 1] of mean m, so the interval is honest for every falloff. It is not centred on the mean, so
+ * the reported value is its larger reach from the mean over z: mean +- 3 stderr contains the whole
+ * interval. Closed form (c: centre, h: half-width):
+ *   c = (mean + z^2 / 2n) / (1 + z^2 / n),
+ *   h = z / (1 + z^2 / n) sqrt(mean (1 - mean) / n + z^2 / 4n^2),
+ *   stderr = (|c - mean| + h) / z,
+ * which is > 0 for every finite n (at mean 0 or 1 it is 3 / (n + 9)). */
+static double wilson_stderr(double mean, double n) {
+  const double z = 3.0, z2 = z * z;
+  double den = 1.0 + z2 / n;
+  double c = (mean + z2 / (2.0 * n)) / den;
+  double h = z / den * sqrt(fmax(0.0, mean * (1.0 - mean)) / n + z2 / (4.0 * n * n));
+  return (fabs(c - mean) + h) / z;
+}
+
 /* Accumulates one pixel sample's occlusion estimate at `hit`. */
 typedef struct ao_accum {
-  double sum, sum_sq;  /* of rho over the rays */
+  double sum;          /* of rho over the rays */
   double bent[3];      /* rho-weighted directions */
 } ao_accum;
 
@@ -114,7 +134,6 @@ static uint64_t shade(const job *jb, const obs_hit *hit, uint32_t x, uint32_t y,
         rays++;
       }
       acc->sum += r;
-      acc->sum_sq += r * r;
       for (int k = 0; k < 3; k++) acc->bent[k] += r * w[k];
     }
   }
@@ -151,9 +170,8 @@ static int render_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
         rays += shade(jb, &hit, (uint32_t)x, (uint32_t)y, (uint32_t)s, &acc);
         double mean = acc.sum / n;
         ao += mean;
-        /* Unbiased sample variance of rho; with one ray it is unknown, so report the bound
-         * for a [0,1] variable (1/4). */
-        var += n > 1 ? fmax(0.0, (acc.sum_sq - acc.sum * mean) / (n - 1)) / n : 0.25;
+        double se = wilson_stderr(mean, n);
+        var += se * se;
         double bl = sqrt(acc.bent[0] * acc.bent[0] + acc.bent[1] * acc.bent[1] +
                          acc.bent[2] * acc.bent[2]);
         for (int k = 0; k < 3; k++) {

@@ -1,6 +1,7 @@
 /* Bounds on untrusted JSON: the pre-scan (depth, value count, string length, strings skipped
  * exactly), JSON pointer depth, and the scene loader and its overrides refusing deep input. */
 #include <jansson.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -23,6 +24,11 @@ static int scan(const char *text, int depth, size_t values, size_t string, size_
                 obs_err *err) {
   obs_json_limits lim = {depth, values, string};
   return obs_json_prescan(text, strlen(text), &lim, "doc", err, count);
+}
+
+static int scan_numbers(const char *text, obs_err *err) {
+  obs_json_limits lim = {8, 0, 0};
+  return obs_json_prescan_strict(text, strlen(text), &lim, "doc", err, NULL);
 }
 
 static void test_prescan_depth_bound(void **state) {
@@ -258,12 +264,99 @@ static void test_brief_is_bounded(void **state) {
   free(s);
 }
 
+/* Numbers beyond what the parser stores (json_int_t integers, doubles) are refused by the
+ * pre-scan with their pointer; everything jansson accepts passes it. */
+static void test_prescan_number_range(void **state) {
+  (void)state;
+  const struct {
+    const char *text, *needle;
+  } bad[] = {
+      {"{\"a\":[1,2,1e400]}", "doc: /a/2: number too large for a double"},
+      {"{\"a\":{\"b\":-1E+309}}", "doc: /a/b: number too large"},
+      {"[1.7976931348623159e308]", "doc: /0: number too large"},
+      {"[0.0000001e316]", "doc: /0: number too large"},
+      {"[1e99999999999999999999]", "doc: /0: number too large"},
+      {"{\"x~/y\":18446744073709551616}", "doc: /x~0~1y: integer outside the 64-bit range"},
+      {"[9223372036854775808]", "doc: /0: integer outside the 64-bit range"},
+      {"[-9223372036854775809]", "doc: /0: integer outside the 64-bit range"},
+      {"[123456789012345678901234567890]", "(got 123456789012345678901234567890)"},
+  };
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+    obs_err err = OBS_ERR_INIT;
+    assert_int_equal(scan_numbers(bad[i].text, &err), OBS_EINVAL);
+    /* The plain pre-scan leaves them to the parser. */
+    assert_int_equal(scan(bad[i].text, 8, 0, 0, NULL, &err), 0);
+    if (!strstr(obs_err_message(&err), bad[i].needle))
+      fprintf(stderr, "%s: %s\n", bad[i].text, obs_err_message(&err));
+    assert_non_null(strstr(obs_err_message(&err), bad[i].needle));
+    assert_null(json_loads(bad[i].text, 0, NULL)); /* jansson refuses them too */
+    obs_err_free(&err);
+  }
+  const char *ok[] = {"[1.7976931348623157e308]", "[-1.7976931348623157e308]",
+                      "[9223372036854775807]",    "[-9223372036854775808]",
+                      "[0.0000001e314]",          "[1e-400]",
+                      "[00000000000000000000001]", "[123456789012345678901234567890.5]",
+                      "[\"1e400\"]",              "[true,false,null]"};
+  for (size_t i = 0; i < sizeof ok / sizeof ok[0]; i++) {
+    obs_err err = OBS_ERR_INIT;
+    int rc = scan_numbers(ok[i], &err);
+    if (rc) fprintf(stderr, "%s: %s\n", ok[i], obs_err_message(&err));
+    assert_int_equal(rc, 0);
+    obs_err_free(&err);
+  }
+}
+
+/* The strict pre-scan refuses a number exactly when jansson does: 20000 generated tokens (integers
+ * of 1 to 25 digits around the 64-bit edge, reals with exponents near +-308 and beyond). */
+static void test_prescan_numbers_match_parser(void **state) {
+  (void)state;
+  uint64_t x = 0x9e3779b97f4a7c15ULL;
+  int refused = 0;
+  for (int n = 0; n < 20000; n++) {
+    char tok[96], doc[100];
+    size_t k = 0;
+    x = x * 6364136223846793005ULL + 1442695040888963407ULL;
+    uint64_t r = x >> 11;
+    if (r & 1) tok[k++] = '-';
+    int digits = 1 + (int)((r >> 1) % 25);
+    if (r >> 6 & 1) { /* around 2^63: 9223372036854775807 with the tail varied */
+      memcpy(tok + k, "92233720368547758", 17);
+      k += 17;
+      digits = 2 + (int)((r >> 7) % 2);
+    }
+    for (int d = 0; d < digits; d++) {
+      x = x * 6364136223846793005ULL + 1442695040888963407ULL;
+      tok[k++] = (char)('0' + (x >> 33) % 10);
+    }
+    if (tok[r & 1] == '0' && k > (size_t)(r & 1) + 1) tok[r & 1] = '1'; /* no leading zeros */
+    int kind = (int)((r >> 9) % 3); /* 0: integer, 1: fraction, 2: exponent */
+    if (kind == 1) k += (size_t)snprintf(tok + k, sizeof tok - k, ".%d", (int)((r >> 12) % 1000));
+    if (kind == 2)
+      k += (size_t)snprintf(tok + k, sizeof tok - k, "e%s%d", (r >> 12) & 1 ? "-" : "+",
+                            280 + (int)((r >> 13) % 60));
+    tok[k] = '\0';
+    snprintf(doc, sizeof doc, "[%s]", tok);
+    obs_err err = OBS_ERR_INIT;
+    int ours = scan_numbers(doc, &err) != 0;
+    json_t *j = json_loads(doc, 0, NULL);
+    if (ours != !j) fprintf(stderr, "%s: pre-scan %d, jansson %d\n", tok, ours, !j);
+    assert_int_equal(ours, !j);
+    refused += ours;
+    json_decref(j);
+    obs_err_free(&err);
+  }
+  printf("%d of 20000 generated numbers refused by both\n", refused);
+  assert_true(refused > 2000 && refused < 18000);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_prescan_depth_bound),   cmocka_unit_test(test_prescan_strings_skipped),
       cmocka_unit_test(test_prescan_counts),        cmocka_unit_test(test_check_depth_of_parsed),
       cmocka_unit_test(test_pointer_depth),         cmocka_unit_test(test_scene_deep_override),
       cmocka_unit_test(test_scene_deep_document),   cmocka_unit_test(test_brief_is_bounded),
+      cmocka_unit_test(test_prescan_number_range),
+      cmocka_unit_test(test_prescan_numbers_match_parser),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -1,7 +1,9 @@
 /* Sample streams: ranges, determinism, and the net property of scrambled Sobol. */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "normalize.h"
 #include "sampling.h"
 #include "testutil.h"
 
@@ -86,11 +88,62 @@ static void test_hemisphere_maps(void **state) {
   }
 }
 
+/* Scale-safe normalisation: vectors from 1e-45 to 1e38 in float (1e-320 to 1e308 in double) come
+ * out unit length and in the right direction; zero and non-finite vectors are refused; in the
+ * ordinary range the result is that of plain v / |v|. */
+static void test_normalize_extremes(void **state) {
+  (void)state;
+  const float fs[] = {1e-45f, 1e-40f, 1e-30f, 1e-20f, 1.0f, 1e20f, 1e30f, 3e38f};
+  for (int i = 0; i < 8; i++) {
+    float v[3] = {fs[i], -fs[i], fs[i] / 2};
+    assert_int_equal(obs_normalize3f(v), 0);
+    float l = sqrtf(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    assert_true(fabsf(l - 1.0f) < 1e-6f);
+    assert_true(v[0] > 0 && v[1] < 0);
+    /* The frame about a normal that came from a huge or tiny vector is orthonormal. */
+    float w[3] = {fs[i], 0.0f, -fs[i]}, t[3], b[3];
+    assert_int_equal(obs_normalize3f(w), 0);
+    obs_onb(w, t, b);
+    float tb = t[0] * b[0] + t[1] * b[1] + t[2] * b[2];
+    float tn = t[0] * w[0] + t[1] * w[1] + t[2] * w[2];
+    float bn = b[0] * w[0] + b[1] * w[1] + b[2] * w[2];
+    float tt = t[0] * t[0] + t[1] * t[1] + t[2] * t[2];
+    float bb = b[0] * b[0] + b[1] * b[1] + b[2] * b[2];
+    assert_true(fabsf(tb) < 1e-6f && fabsf(tn) < 1e-6f && fabsf(bn) < 1e-6f);
+    assert_true(fabsf(tt - 1.0f) < 1e-6f && fabsf(bb - 1.0f) < 1e-6f);
+  }
+  const double ds[] = {4.9e-324, 1e-310, 1e-200, 1e-150, 1.0, 1e150, 1e200, 1.7e308};
+  for (int i = 0; i < 8; i++) {
+    double v[3] = {ds[i], ds[i], 0};
+    assert_int_equal(obs_normalize3d(v), 0);
+    assert_true(fabs(v[0] - sqrt(0.5)) < 1e-15 && v[1] == v[0] && v[2] == 0);
+  }
+  float z[3] = {0, 0, 0}, inf[3] = {INFINITY, 0, 0}, nan[3] = {NAN, 1, 0};
+  assert_int_equal(obs_normalize3f(z), -1);
+  assert_int_equal(obs_normalize3f(inf), -1);
+  assert_int_equal(obs_normalize3f(nan), -1);
+  double dz[3] = {0, 0, 0};
+  assert_int_equal(obs_normalize3d(dz), -1);
+  /* Ordinary vectors: bit-identical to the plain formula. */
+  float o[3] = {0.3f, -1.7f, 2.9f}, p[3];
+  float l = sqrtf(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]);
+  for (int k = 0; k < 3; k++) p[k] = o[k] / l;
+  assert_int_equal(obs_normalize3f(o), 0);
+  assert_memory_equal(o, p, sizeof o);
+  /* Power-of-two pre-scaling is exact: a tiny or huge copy gives the same bits. */
+  double a[3] = {0.3, -1.7, 2.9}, b[3];
+  for (int k = 0; k < 3; k++) b[k] = ldexp(a[k], -1000);
+  assert_int_equal(obs_normalize3d(a), 0);
+  assert_int_equal(obs_normalize3d(b), 0);
+  assert_memory_equal(a, b, sizeof a);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_sobol_is_a_net),
       cmocka_unit_test(test_streams_deterministic_and_distinct),
       cmocka_unit_test(test_hemisphere_maps),
+      cmocka_unit_test(test_normalize_extremes),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

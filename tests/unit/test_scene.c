@@ -1,5 +1,6 @@
 /* Scene loading: strict validation messages with JSON pointers, overrides, defaults, registry. */
 #include <jansson.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -143,19 +144,13 @@ static void test_integral_reals_are_integers(void **state) {
 
 static void test_ranges_and_utf8(void **state) {
   (void)state;
-  /* Geometry beyond what the ray tracer can hold is refused before rendering. */
+  /* Geometry beyond what the ray tracer can hold is refused by validation, naming the object. */
   obs_scene sc;
   obs_err err = OBS_ERR_INIT;
-  assert_int_equal(load("{" BASE ",\"objects\":[{\"shape\":{\"type\":\"sphere\",\"center\":[0,0,0],"
-                        "\"radius\":1e25}}],\"technique\":{\"name\":\"rt_ao\"}}",
-                        &sc, &err),
-                   0);
-  obs_result r;
-  obs_render_opts o = {.threads = 1};
-  assert_int_equal(obs_render(&sc, &o, &r, &err), OBS_EINVAL);
-  assert_non_null(strstr(obs_err_message(&err), "beyond the renderer's range"));
-  obs_scene_free(&sc);
-  obs_err_free(&err);
+  expect_error("{" BASE ",\"objects\":[{\"shape\":{\"type\":\"sphere\",\"center\":[0,0,0],"
+               "\"radius\":1e25}}],\"technique\":{\"name\":\"rt_ao\"}}",
+               "t.json: /objects/0: once transformed, object \"object0\" reaches 1e+25 scene units "
+               "from the camera, beyond the renderer's range of +-1e+18");
   expect_error("{\"camera\":{\"type\":\"orthographic\",\"position\":[0,1,0],\"look_at\":[0,0,0],"
                "\"up\":[0,0,1],\"height\":1e25},\"image\":{\"width\":8,\"height\":8},\"objects\":[],"
                "\"technique\":{\"name\":\"rt_ao\"}}",
@@ -182,6 +177,154 @@ static void test_ranges_and_utf8(void **state) {
   assert_non_null(strstr(obs_err_message(&err), "/objects/0/shape/radius"));
   assert_non_null(strstr(obs_err_message(&err), "/technique/params/max_distance"));
   obs_err_free(&err);
+}
+
+/* What lies beyond +-1e18 of the camera once transformed: validation and every geometry build run
+ * the same per-object check and name the object; its reach is measured from the camera. */
+static void test_geometry_reach(void **state) {
+  (void)state;
+  const char *shapes[] = {
+      "{\"name\":\"far\",\"shape\":{\"type\":\"box\",\"min\":[0,0,0],\"max\":[1,1,1]},"
+      "\"transform\":{\"translate\":[2e18,0,0]}}",
+      "{\"shape\":{\"type\":\"quad\",\"vertices\":[[0,0,0],[1,0,0],[1,1,0],[0,1,-1.5e18]]}}",
+      "{\"shape\":{\"type\":\"sphere\",\"center\":[0,0,9e17],\"radius\":2e17}}",
+      "{\"shape\":{\"type\":\"displaced_sphere\",\"subdivisions\":2},\"transform\":{\"scale\":"
+      "[1e18,1,1]}}",
+      "{\"shape\":{\"type\":\"mesh\",\"file\":\"tetra.obj\"},\"transform\":{\"scale\":[1,1,1e20],"
+      "\"rotate\":[0,30,0]}}",
+      "{\"shape\":{\"type\":\"triangle\",\"vertices\":[[0,0,0],[1,0,0],[0,1,0]]},\"transform\":{"
+      "\"scale\":[1e30,1e30,1e30]}}",
+  };
+  char doc[2048], needle[64];
+  for (size_t i = 0; i < sizeof shapes / sizeof shapes[0]; i++) {
+    snprintf(doc, sizeof doc,
+             "{" BASE ",\"objects\":[{\"shape\":{\"type\":\"sphere\",\"center\":[0,0,0],\"radius\":"
+             "1}},%s],\"technique\":{\"name\":\"rt_ao\"}}",
+             shapes[i]);
+    expect_error(doc, "t.json: /objects/1: once transformed, object ");
+    snprintf(needle, sizeof needle, "beyond the renderer's range of +-1e+18");
+    expect_error(doc, needle);
+  }
+  /* Exactly at the limit, and far from the world origin but near the camera: accepted. */
+  obs_scene sc;
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(load("{" BASE ",\"objects\":[{\"shape\":{\"type\":\"sphere\",\"center\":[0,0,0],"
+                        "\"radius\":1e18}}],\"technique\":{\"name\":\"rt_ao\"}}",
+                        &sc, &err),
+                   0);
+  obs_scene_free(&sc);
+  assert_int_equal(load("{\"camera\":{\"type\":\"perspective\",\"position\":[1e20,1,-3],\"look_at\":"
+                        "[1e20,0,0],\"fov_y\":40},\"image\":{\"width\":8,\"height\":8},\"objects\":"
+                        "[{\"shape\":{\"type\":\"box\",\"min\":[1e20,0,0],\"max\":[1.0000000001e20,"
+                        "1,1]}}],\"technique\":{\"name\":\"rt_ao\"}}",
+                        &sc, &err),
+                   0);
+  obs_scene_free(&sc);
+  /* The build runs the same check: a scene changed after validation fails there alike, with the
+   * reach it measured (not a value read after the geometry was freed). */
+  assert_int_equal(load("{" BASE ",\"objects\":[{\"shape\":{\"type\":\"sphere\",\"center\":[0,0,0],"
+                        "\"radius\":1}},{\"name\":\"ball\",\"shape\":{\"type\":\"sphere\",\"center\":"
+                        "[0,0,0],\"radius\":1}}],\"technique\":{\"name\":\"rt_ao\"}}",
+                        &sc, &err),
+                   0);
+  sc.objects[1].radius = 3e18;
+  obs_result r;
+  obs_render_opts o = {.threads = 1};
+  assert_int_equal(obs_render(&sc, &o, &r, &err), OBS_EINVAL);
+  assert_non_null(strstr(obs_err_message(&err), "/objects/1: once transformed, object \"ball\" "
+                                                "reaches 3e+18 scene units"));
+  obs_scene_free(&sc);
+  obs_err_free(&err);
+}
+
+/* Camera bases: any direction and up that are distinct and not parallel in double are accepted,
+ * however small or large; the others are refused at their pointer. */
+static void test_camera_basis_validation(void **state) {
+  (void)state;
+  const char *ok[][3] = {{"0,0,0", "0,-1e-200,3e-200", "0,1,0"},
+                         {"0,1,-3", "0,0,0", "0,1e-300,0"},
+                         {"0,1,-3", "0,0,0", "0,4.9e-324,0"},
+                         {"0,1,-3", "0,0,0", "0,1e30,0"},
+                         {"-1e30,0,0", "1e30,1,0", "0,1,0"},
+                         {"1e30,0,0", "1e30,1e-200,0", "0,0,1"}};
+  char doc[1024];
+  for (int i = 0; i < 6; i++) {
+    snprintf(doc, sizeof doc,
+             "{\"camera\":{\"type\":\"perspective\",\"position\":[%s],\"look_at\":[%s],\"up\":[%s],"
+             "\"fov_y\":40},\"image\":{\"width\":8,\"height\":8},\"objects\":[],\"technique\":{"
+             "\"name\":\"rt_ao\"}}",
+             ok[i][0], ok[i][1], ok[i][2]);
+    obs_scene sc;
+    obs_err err = OBS_ERR_INIT;
+    int rc = load(doc, &sc, &err);
+    if (rc) fprintf(stderr, "%s\n", obs_err_message(&err));
+    assert_int_equal(rc, 0);
+    obs_scene_free(&sc);
+    obs_err_free(&err);
+  }
+  const char *bad[][4] = {
+      /* equal once in double, though written differently */
+      {"1,2,3", "1.0000000000000000001,2,3", "0,1,0", "/camera/look_at: must differ"},
+      {"1e30,0,0", "1.00000000000000001e30,0,0", "0,1,0", "/camera/look_at: must differ"},
+      {"0,0,0", "0,1e-200,0", "0,1,0", "/camera/up: must not be zero or parallel"},
+      {"0,0,0", "0,0,1", "0,0,-1e-300", "/camera/up: must not be zero or parallel"},
+      {"0,0,0", "0,0,1", "0,0,0", "/camera/up: must not be zero or parallel"},
+  };
+  for (int i = 0; i < 5; i++) {
+    snprintf(doc, sizeof doc,
+             "{\"camera\":{\"type\":\"perspective\",\"position\":[%s],\"look_at\":[%s],\"up\":[%s],"
+             "\"fov_y\":40},\"image\":{\"width\":8,\"height\":8},\"objects\":[],\"technique\":{"
+             "\"name\":\"rt_ao\"}}",
+             bad[i][0], bad[i][1], bad[i][2]);
+    expect_error(doc, bad[i][3]);
+  }
+}
+
+/* Numbers the parser cannot hold are refused with the pointer of the value, like every other
+ * problem, before jansson parses the document. */
+static void test_number_range_pointers(void **state) {
+  (void)state;
+  expect_error("{" BASE ",\"objects\":[{\"shape\":{\"type\":\"sphere\",\"center\":[0,1e400,0],"
+               "\"radius\":1}}],\"technique\":{\"name\":\"rt_ao\"}}",
+               "t.json: /objects/0/shape/center/1: number too large for a double");
+  expect_error("{" BASE ",\"objects\":[],\"technique\":{\"name\":\"rt_ao\",\"params\":{\"samples\":"
+               "18446744073709551616}}}",
+               "t.json: /technique/params/samples: integer outside the 64-bit range");
+  expect_error("{" BASE ",\"objects\":[],\"technique\":{\"name\":\"rt_ao\",\"params\":{\"seed\":"
+               "9223372036854775808}}}",
+               "t.json: /technique/params/seed: integer outside the 64-bit range");
+  /* In range for the parser: the ordinary range rules answer. */
+  expect_error("{" BASE ",\"objects\":[],\"technique\":{\"name\":\"rt_ao\",\"params\":{\"samples\":"
+               "9223372036854775807}}}",
+               "t.json: /technique/params/samples: must be <=");
+}
+
+/* displaced_sphere at level 1 is a closed, displaced tetrahedron of 4 triangles (2^(2s)), wound
+ * like every level: its signed volume has the grid's sign. */
+static void test_displaced_sphere_levels(void **state) {
+  (void)state;
+  double vol[3];
+  for (int s = 1; s <= 3; s++) {
+    obs_mesh m;
+    assert_int_equal(obs_geometry_displaced_sphere(s, &m), 0);
+    assert_int_equal(m.ntris, (size_t)1 << (2 * s));
+    double v = 0;
+    for (size_t t = 0; t < m.ntris; t++) {
+      const float *a = m.pos + 3 * m.idx[3 * t], *b = m.pos + 3 * m.idx[3 * t + 1],
+                  *c = m.pos + 3 * m.idx[3 * t + 2];
+      assert_true(m.idx[3 * t] < m.nverts && m.idx[3 * t + 1] < m.nverts &&
+                  m.idx[3 * t + 2] < m.nverts);
+      v += (a[0] * ((double)b[1] * c[2] - (double)b[2] * c[1]) -
+            a[1] * ((double)b[0] * c[2] - (double)b[2] * c[0]) +
+            a[2] * ((double)b[0] * c[1] - (double)b[1] * c[0])) /
+           6.0;
+    }
+    vol[s - 1] = v;
+    obs_geometry_mesh_free(&m);
+  }
+  printf("signed volumes: level 1 %.4f, 2 %.4f, 3 %.4f\n", vol[0], vol[1], vol[2]);
+  assert_true(fabs(vol[0]) > 0.2);
+  assert_true(vol[0] * vol[1] > 0 && vol[1] * vol[2] > 0);
 }
 
 static void test_mesh_contents_validated(void **state) {
@@ -289,6 +432,10 @@ int main(void) {
       cmocka_unit_test(test_mesh_paths),
       cmocka_unit_test(test_overrides),
       cmocka_unit_test(test_registry),
+      cmocka_unit_test(test_geometry_reach),
+      cmocka_unit_test(test_camera_basis_validation),
+      cmocka_unit_test(test_number_range_pointers),
+      cmocka_unit_test(test_displaced_sphere_levels),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

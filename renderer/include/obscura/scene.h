@@ -47,6 +47,7 @@ typedef struct obs_object {
   double radius;        /* sphere */
   int subdivisions;     /* displaced_sphere */
   char *mesh_path;      /* mesh: owned, resolved absolute path inside the scene tree */
+  double mesh_bounds[2][3]; /* mesh: object-space box of the vertices imported at validation */
   int has_material;
   obs_vec3 reflectivity;
   obs_transform transform;
