@@ -79,7 +79,7 @@ json_t *srv_submit_load_bundled(srv_app *app, obs_jpath *p, const json_t *v) {
         !obs_json_prescan(text, len, &lim, name, p->err, NULL)) {
       json_error_t je;
       doc = json_loadb(text, len, JSON_REJECT_DUPLICATES, &je);
-      if (!doc)
+      if (!doc && !obs_json_prescan_strict(text, len, &lim, name, p->err, NULL))
         obs_err_set(p->err, OBS_EINVAL, "%s: line %d, column %d: invalid JSON: %s", name, je.line,
                     je.column, je.text);
     }
@@ -138,6 +138,12 @@ unsigned srv_submit_read_body(const char *body, size_t len, const char *shape, j
   }
   json_error_t je;
   json_t *req = json_loadb(body, len, JSON_REJECT_DUPLICATES | JSON_DECODE_ANY, &je);
+  /* jansson names an out-of-range number by line and column only; the strict walk, run only on
+   * failure so accepted bodies pay nothing for it, names it by its pointer. */
+  if (!req && obs_json_prescan_strict(body, len, &lim, "request", problems, NULL)) {
+    *message = "request has a number outside what a double or a 64-bit integer holds";
+    return 422;
+  }
   if (!req) {
     *message = "request body is not valid JSON";
     obs_err_set(problems, OBS_EINVAL, "request: line %d, column %d: %s", je.line, je.column,
