@@ -55,6 +55,11 @@ static int rt_ao_reference(const obs_scene *scene, const json_t *params, obs_ref
   return 0;
 }
 
+/* The guaranteed range below (docs/accuracy.md, "Guaranteed ranges"; tests/unit/test_extremes.c checks
+ * both ends). Geometry is built around the camera in double and rays carry no epsilon, so the
+ * limits are float's range for the squared lengths of hit normals and the double shift. Monte-Carlo
+ * noise does not enter: the same seed traces the same directions at every scale, and only rays
+ * that graze an edge may turn, hence a per-pixel bound on all but a small share of pixels. */
 const obs_technique obs_technique_rt_ao = {
     .name = "rt_ao",
     .description = "Monte-Carlo ray-traced ambient occlusion / obscurance (Embree); the reference "
@@ -65,4 +70,18 @@ const obs_technique obs_technique_rt_ao = {
     .check = rt_ao_check,
     .reference = rt_ao_reference,
     .run = {[OBS_BACKEND_CPU] = obs_rt_ao_cpu},
+    .range = {[OBS_BACKEND_CPU] = {.size_min = 1e-9,
+                                   .size_max = 1e9,
+                                   .translation_max = 1e9,
+                                   .fov_min = 1e-4,
+                                   .fov_max = 170,
+                                   .orthographic = 1,
+                                   .params = {{"max_distance", 1e-3, 1e3, 1},
+                                              {"tau", 1e-3, 1e3, -1},
+                                              {NULL, 0, 0, 0}},
+                                   .tol = {.ao_mean = 2e-3,
+                                           .ao_pixel = 1e-4,
+                                           .share = 0.02,
+                                           .normal = 1e-4,
+                                           .depth_rel = 1e-5}}},
 };
