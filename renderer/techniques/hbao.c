@@ -152,12 +152,13 @@ static int hbao_reference(const obs_scene *scene, const json_t *params, obs_refe
  * tests/unit/test_extremes.c and tests/vulkan/test_extremes_vk.c check both ends). The twins
  * share the AO pass, so they share the range. The radius is stated in scene sizes: R is squared
  * in the falloff, so far beyond the scene it only costs precision. */
-#define HBAO_RANGE                                                                        \
-  {                                                                                        \
-    .size_min = 1e-9, .size_max = 1e9, .translation_max = 1e9, .fov_min = 1e-4,             \
-    .fov_max = 170, .orthographic = 1, .params = {{"radius", 1e-3, 1e3, 1}, {NULL, 0, 0, 0}},                                        \
-    .tol = {.ao_mean = 1e-3, .ao_pixel = 1e-2, .share = 0.02, .normal = 1e-4,               \
-            .depth_rel = 3e-5}                                                              \
+#define HBAO_RANGE                                                              \
+  {                                                                             \
+    .size_min = 1e-9, .size_max = 1e9, .translation_max = 1e9, .fov_min = 1e-4, \
+    .fov_max = 170, .orthographic = 1,                                          \
+    .params = {{"radius", 1e-3, 1e3, 1}, {NULL, 0, 0, 0}},                      \
+    .tol = {.ao_mean = 1e-3, .ao_pixel = 1e-2, .share = 0.02, .normal = 1e-4,   \
+            .depth_rel = 3e-5}                                                  \
   }
 
 const obs_technique obs_technique_hbao = {

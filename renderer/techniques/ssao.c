@@ -135,12 +135,13 @@ static int ssao_reference(const obs_scene *scene, const json_t *params, obs_refe
  * parameter depends on the scene's size. Depths are compared relative to the pixel's own depth,
  * so the result is scale-free once the G-buffer is: the per-pixel bound allows depth-quantised
  * samples that land on the other side of a surface. */
-#define SSAO_RANGE                                                                        \
-  {                                                                                        \
-    .size_min = 1e-9, .size_max = 1e9, .translation_max = 1e9, .fov_min = 1e-4,             \
-    .fov_max = 170, .orthographic = 1, .params = {{NULL, 0, 0, 0}},                                        \
-    .tol = {.ao_mean = 1e-3, .ao_pixel = 1e-2, .share = 0.02, .normal = 1e-4,               \
-            .depth_rel = 3e-5}                                                              \
+#define SSAO_RANGE                                                              \
+  {                                                                             \
+    .size_min = 1e-9, .size_max = 1e9, .translation_max = 1e9, .fov_min = 1e-4, \
+    .fov_max = 170, .orthographic = 1,                                          \
+    .params = {{NULL, 0, 0, 0}},                                                \
+    .tol = {.ao_mean = 1e-3, .ao_pixel = 1e-2, .share = 0.02, .normal = 1e-4,   \
+            .depth_rel = 3e-5}                                                  \
   }
 
 const obs_technique obs_technique_ssao = {

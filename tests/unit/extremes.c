@@ -326,7 +326,7 @@ int obs_extremes_check_backend(obs_backend be, int *ran) {
   return bad;
 }
 
-/* Renders case `c` at scale s (translation `trans` sizes) and checks for a warning naming `word`. */
+/* Renders case `c` at scale s, `trans` sizes from the origin; checks for a warning naming `word`. */
 static int expect_warning(ext_case *c, double s, double trans, const char *word) {
   double size = base_size(c), off[3];
   offset_for(c, s, size, trans, off);
