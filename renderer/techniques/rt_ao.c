@@ -63,7 +63,8 @@ static int rt_ao_reference(const obs_scene *scene, const json_t *params, obs_ref
  * pixels. The narrowest field of view is bounded by the camera distance it implies: a scene
  * filling a view of fov_y degrees lies about 1 / tan(fov_y / 2) sizes from the camera, and float
  * hit points that far from the frame's origin (the camera) lose the precision the tolerance
- * allows. */
+ * allows. tau has no subrange: exp(-tau d) is evaluated in double at any rate, and a default tau
+ * left beside another falloff must not warn. */
 const obs_technique obs_technique_rt_ao = {
     .name = "rt_ao",
     .description = "Monte-Carlo ray-traced ambient occlusion / obscurance (Embree); the reference "
@@ -80,9 +81,7 @@ const obs_technique obs_technique_rt_ao = {
                                    .fov_min = 0.1,
                                    .fov_max = 170,
                                    .orthographic = 1,
-                                   .params = {{"max_distance", 1e-3, 1e3, 1},
-                                              {"tau", 1e-3, 1e3, -1},
-                                              {NULL, 0, 0, 0}},
+                                   .params = {{"max_distance", 1e-3, 1e3, 1}, {NULL, 0, 0, 0}},
                                    .tol = {.ao_mean = 1e-3,
                                            .ao_pixel = 1e-4,
                                            .share = 0.02,
