@@ -127,8 +127,6 @@ int obs_scene_extent(const obs_scene *sc, obs_extent *ex, obs_err *err) {
   return 0;
 }
 
-static const char *const unit_names[3] = {"per scene size", "", "scene sizes"};
-
 /* One warning per parameter of `range` that lies outside its subrange. */
 static int check_params(const obs_range *range, const char *who, const obs_scene *sc,
                         const obs_extent *ex, obs_render_ctx *ctx) {
@@ -138,7 +136,7 @@ static int check_params(const obs_range *range, const char *who, const obs_scene
     if (!json_is_number(v)) continue; /* absent or null: no bound to check */
     double x = json_number_value(v), rel = x * pow(ex->size, -p->size_power);
     if (rel >= p->min && rel <= p->max) continue;
-    const char *unit = unit_names[p->size_power + 1];
+    const char *unit = obs_param_range_unit(p);
     obs_render_ctx_warn(ctx,
                         "%s = %g is %.3g %s, outside [%g, %g] %s where %s is guaranteed "
                         "(docs/accuracy.md, Guaranteed ranges)",

@@ -8,8 +8,8 @@
 
 #include "techniques.h"
 
-static const char *param_unit(int size_power) {
-  return size_power > 0 ? "scene sizes" : size_power < 0 ? "per scene size" : "";
+const char *obs_param_range_unit(const obs_param_range *p) {
+  return p->size_power > 0 ? "scene sizes" : p->size_power < 0 ? "per scene size" : "";
 }
 
 static json_t *pair(double a, double b) { return json_pack("[ff]", a, b); }
@@ -24,7 +24,7 @@ json_t *obs_range_json(const obs_range *r) {
   for (const obs_param_range *p = r->params; p->name; p++)
     json_object_set_new(ps, p->name,
                         json_pack("{sfsfss}", "min", p->min, "max", p->max, "unit",
-                                  param_unit(p->size_power)));
+                                  obs_param_range_unit(p)));
   json_object_set_new(o, "params", ps);
   json_object_set_new(o, "tolerance",
                       json_pack("{sfsfsfsfsf}", "ao_mean", r->tol.ao_mean, "ao_pixel",
@@ -86,7 +86,7 @@ char *obs_technique_ranges_markdown(void) {
       if (!r->params[0].name) put(&b, "as the schema");
       for (const obs_param_range *p = r->params; p->name; p++)
         put(&b, "%s`%s` %g to %g %s", p == r->params ? "" : "; ", p->name, p->min, p->max,
-            param_unit(p->size_power));
+            obs_param_range_unit(p));
       put(&b, " | %g, %g (%g) | %g | %g |\n", r->tol.ao_mean, r->tol.ao_pixel, r->tol.share,
           r->tol.normal, r->tol.depth_rel);
     }

@@ -100,6 +100,8 @@ typedef struct obs_param_range {
 } obs_param_range;
 
 #define OBS_MAX_PARAM_RANGES 4
+/* The unit a parameter's bounds are stated in: "scene sizes", "per scene size" or "". */
+const char *obs_param_range_unit(const obs_param_range *p);
 
 /* How far a render inside the range may differ from the same view rendered at scale 1 at the
  * origin (the scene and every length parameter scaled, everything translated): over the covered
