@@ -157,7 +157,7 @@ static int hbao_reference(const obs_scene *scene, const json_t *params, obs_refe
     .size_min = 1e-9, .size_max = 1e9, .translation_max = 1e9, .fov_min = 1e-4, \
     .fov_max = 170, .orthographic = 1,                                          \
     .params = {{"radius", 1e-3, 1e3, 1}, {NULL, 0, 0, 0}},                      \
-    .tol = {.ao_mean = 1e-3, .ao_pixel = 1e-2, .share = 0.02, .normal = 1e-4,   \
+    .tol = {.ao_mean = 2e-3, .ao_pixel = 1e-2, .share = 0.02, .normal = 1e-4,   \
             .depth_rel = 3e-5}                                                  \
   }
 
