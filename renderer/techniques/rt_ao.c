@@ -81,7 +81,7 @@ const obs_technique obs_technique_rt_ao = {
                                    .fov_min = 0.1,
                                    .fov_max = 170,
                                    .orthographic = 1,
-                                   .params = {{"max_distance", 1e-3, 1e3, 1}, {NULL, 0, 0, 0}},
+                                   .params = {{"max_distance", 1e-6, 1e6, 1}, {NULL, 0, 0, 0}},
                                    .tol = {.ao_mean = 1e-3,
                                            .ao_pixel = 1e-4,
                                            .share = 0.02,
