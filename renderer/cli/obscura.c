@@ -14,7 +14,7 @@ static void usage(FILE *f) {
         "  obscura render SCENE.json [-o DIR] [--technique NAME] [--backend cpu|vulkan|auto]\n"
         "                 [--set /json/pointer=VALUE]... [--threads N] [--quiet]\n"
         "  obscura validate SCENE.json [--set /json/pointer=VALUE]...\n"
-        "  obscura techniques\n",
+        "  obscura techniques [--markdown]   (--markdown: the guaranteed-range table)\n",
         f);
   cli_client_usage(f);
   fputs("  obscura --version\n"
@@ -150,7 +150,18 @@ static int cmd_validate(int argc, char **argv) {
   return rc == 0 ? 0 : rc == OBS_EINVAL || rc == OBS_EIO ? EXIT_BAD_INPUT : EXIT_FAILURE;
 }
 
-static int cmd_techniques(void) {
+static int cmd_techniques(int argc, char **argv) {
+  if (argc == 3 && !strcmp(argv[2], "--markdown")) {
+    char *md = obs_technique_ranges_markdown();
+    if (!md) return EXIT_FAILURE;
+    fputs(md, stdout);
+    free(md);
+    return 0;
+  }
+  if (argc > 2) {
+    usage(stderr);
+    return EXIT_BAD_INPUT;
+  }
   json_t *reg = obs_technique_registry_json();
   char *s = json_dumps(reg, JSON_INDENT(2));
   puts(s ? s : "[]");
@@ -166,7 +177,7 @@ int main(int argc, char **argv) {
   }
   if (!strcmp(argv[1], "render")) return cmd_render(argc, argv);
   if (!strcmp(argv[1], "validate")) return cmd_validate(argc, argv);
-  if (!strcmp(argv[1], "techniques")) return cmd_techniques();
+  if (!strcmp(argv[1], "techniques")) return cmd_techniques(argc, argv);
   if (!strcmp(argv[1], "submit")) return cli_submit(argc, argv);
   if (!strcmp(argv[1], "jobs")) return cli_jobs(argc, argv);
   if (!strcmp(argv[1], "--version")) {

@@ -14,6 +14,8 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "extent.h"
+
 void obs_render_keep_memory(void) {
 #if defined(M_MMAP_THRESHOLD) && defined(M_TRIM_THRESHOLD)
   /* 32 MiB is glibc's ceiling for the mmap threshold: larger blocks are always mapped afresh. */
@@ -51,6 +53,11 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
     ctx.progress_user = opts->progress_user;
     ctx.cancel = opts->cancel;
   }
+  /* Outside its backend's guaranteed range a render still runs, but says so (docs/accuracy.md). */
+  obs_extent ex;
+  rc = obs_scene_extent(scene, &ex, err);
+  if (rc) return rc;
+  obs_range_check(&scene->technique->range[be], scene->technique->name, be, scene, &ex, &ctx);
   double t0 = obs_now_ms();
   rc = scene->technique->run[be](&ctx, &res->image, err);
   if (rc) return rc;

@@ -148,6 +148,20 @@ static int hbao_reference(const obs_scene *scene, const json_t *params, obs_refe
   return 0;
 }
 
+/* The guaranteed range of both backends (docs/accuracy.md, "Guaranteed ranges";
+ * tests/unit/test_extremes.c and tests/vulkan/test_extremes_vk.c check both ends). The twins
+ * share the AO pass, so they share the range. The radius is stated in scene sizes: far below a
+ * pixel's footprint every pixel reads 1, far beyond the scene the falloff saturates, and both
+ * ends hold at every scale; the bounds keep the sample distances within float's range. */
+#define HBAO_RANGE                                                              \
+  {                                                                             \
+    .size_min = 1e-9, .size_max = 1e9, .translation_max = 1e9, .fov_min = 1e-4, \
+    .fov_max = 170, .orthographic = 1,                                          \
+    .params = {{"radius", 1e-6, 1e6, 1}, {NULL, 0, 0, 0}},                      \
+    .tol = {.ao_mean = 2e-3, .ao_pixel = 1e-2, .share = 0.02, .normal = 1e-4,   \
+            .depth_rel = 3e-5}                                                  \
+  }
+
 const obs_technique obs_technique_hbao = {
     .name = "hbao",
     .description = "Horizon-based ambient occlusion (Bavoil & Sainz, ShaderX7 6.2): screen-space "
@@ -158,4 +172,5 @@ const obs_technique obs_technique_hbao = {
     .check = NULL,
     .reference = hbao_reference,
     .run = {[OBS_BACKEND_CPU] = obs_hbao_cpu, [OBS_BACKEND_VULKAN] = obs_hbao_vulkan},
+    .range = {[OBS_BACKEND_CPU] = HBAO_RANGE, [OBS_BACKEND_VULKAN] = HBAO_RANGE},
 };

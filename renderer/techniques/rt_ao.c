@@ -55,6 +55,16 @@ static int rt_ao_reference(const obs_scene *scene, const json_t *params, obs_ref
   return 0;
 }
 
+/* The guaranteed range below (docs/accuracy.md, "Guaranteed ranges"; tests/unit/test_extremes.c
+ * checks both ends). Geometry is built around the camera in double and rays carry no epsilon, so
+ * the limits are float's range for the squared lengths of hit normals and the double shift.
+ * Monte-Carlo noise does not enter: the same seed traces the same directions at every scale, and
+ * only rays that graze an edge may turn, hence a per-pixel bound on all but a small share of
+ * pixels. The narrowest field of view is bounded by the camera distance it implies: a scene
+ * filling a view of fov_y degrees lies about 1 / tan(fov_y / 2) sizes from the camera, and float
+ * hit points that far from the frame's origin (the camera) lose the precision the tolerance
+ * allows. tau has no subrange: exp(-tau d) is evaluated in double at any rate, and a default tau
+ * left beside another falloff must not warn. */
 const obs_technique obs_technique_rt_ao = {
     .name = "rt_ao",
     .description = "Monte-Carlo ray-traced ambient occlusion / obscurance (Embree); the reference "
@@ -65,4 +75,16 @@ const obs_technique obs_technique_rt_ao = {
     .check = rt_ao_check,
     .reference = rt_ao_reference,
     .run = {[OBS_BACKEND_CPU] = obs_rt_ao_cpu},
+    .range = {[OBS_BACKEND_CPU] = {.size_min = 1e-9,
+                                   .size_max = 1e9,
+                                   .translation_max = 1e9,
+                                   .fov_min = 0.1,
+                                   .fov_max = 170,
+                                   .orthographic = 1,
+                                   .params = {{"max_distance", 1e-6, 1e6, 1}, {NULL, 0, 0, 0}},
+                                   .tol = {.ao_mean = 1e-3,
+                                           .ao_pixel = 1e-4,
+                                           .share = 0.02,
+                                           .normal = 1e-4,
+                                           .depth_rel = 3e-5}}},
 };

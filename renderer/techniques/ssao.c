@@ -129,6 +129,21 @@ static int ssao_reference(const obs_scene *scene, const json_t *params, obs_refe
   return 0;
 }
 
+/* The guaranteed range of both backends (docs/accuracy.md, "Guaranteed ranges";
+ * tests/unit/test_extremes.c and tests/vulkan/test_extremes_vk.c check both ends). The twins
+ * share the AO pass, so they share the range; the radius is a fraction of the image, so no
+ * parameter depends on the scene's size. Depths are compared relative to the pixel's own depth,
+ * so the result is scale-free once the G-buffer is: the per-pixel bound allows depth-quantised
+ * samples that land on the other side of a surface. */
+#define SSAO_RANGE                                                              \
+  {                                                                             \
+    .size_min = 1e-9, .size_max = 1e9, .translation_max = 1e9, .fov_min = 1e-4, \
+    .fov_max = 170, .orthographic = 1,                                          \
+    .params = {{NULL, 0, 0, 0}},                                                \
+    .tol = {.ao_mean = 2e-3, .ao_pixel = 1e-2, .share = 0.02, .normal = 1e-4,   \
+            .depth_rel = 3e-5}                                                  \
+  }
+
 const obs_technique obs_technique_ssao = {
     .name = "ssao",
     .description = "Crytek screen-space ambient occlusion (Kajalin, ShaderX7 6.1): depth-buffer "
@@ -139,4 +154,5 @@ const obs_technique obs_technique_ssao = {
     .check = NULL,
     .reference = ssao_reference,
     .run = {[OBS_BACKEND_CPU] = obs_ssao_cpu, [OBS_BACKEND_VULKAN] = obs_ssao_vulkan},
+    .range = {[OBS_BACKEND_CPU] = SSAO_RANGE, [OBS_BACKEND_VULKAN] = SSAO_RANGE},
 };

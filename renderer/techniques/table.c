@@ -89,6 +89,11 @@ json_t *obs_technique_registry_json(void) {
     json_t *outs = json_array();
     for (const char *const *s = t->outputs; s && *s; s++) json_array_append_new(outs, json_string(*s));
     json_object_set_new(o, "outputs", outs);
+    json_t *ranges = json_object();
+    for (int b = OBS_BACKEND_CPU; b < OBS_BACKEND_COUNT; b++)
+      if (t->run[b] && t->range[b].size_max > 0)
+        json_object_set_new(ranges, obs_backend_name((obs_backend)b), obs_range_json(&t->range[b]));
+    json_object_set_new(o, "ranges", ranges);
     json_array_append_new(arr, o);
   }
   return arr;

@@ -1,7 +1,9 @@
 // Browser test of the jobs pages and the single-job submit form against a real obscurad: the
 // vendor allowlist, client-side validation and a server-side refusal on the submit page, a job
 // submitted from the page followed to success with its outputs, live progress and a cancel on the
-// job list without reloads, filters, keyboard navigation to a job, and named controls everywhere.
+// job list without reloads, filters, keyboard navigation to a job, a job rendered outside its
+// technique's guaranteed range marked in the list and its warning shown on its page, and named
+// controls everywhere.
 import assert from 'node:assert/strict';
 import test from 'node:test';
 import {assertAllNamed, assertNoReload, getJSON, imageWidths, markPage, openBrowser, request, screenshot,
@@ -95,6 +97,9 @@ test('jobs, job detail and submit pages', async () => {
     await page.getByRole('heading', {name: 'Parameters'}).waitFor();
     assert.match(await page.locator('.params-slot code').textContent(), /samples=4 /);
     assert.deepEqual(await page.$$eval('ul.downloads a', (as) => as.map((a) => a.textContent).sort()), ['ao.exr', 'ao.png', 'bent_normal.png', 'depth.png', 'summary.json']);
+    // Inside every guaranteed range: no warnings, so no warnings section.
+    assert.deepEqual(job.warnings, []);
+    assert.equal(await page.locator('section.warnings').count(), 0);
     await assertAllNamed(page, 'job detail');
     await screenshot(page, 'job-detail');
 
@@ -164,6 +169,26 @@ test('jobs, job detail and submit pages', async () => {
     await page.locator('.job-state', {hasText: 'cancelled'}).waitFor();
     assert.equal(await page.evaluate(() => document.activeElement.tagName), 'H1', 'focus moves to the new page heading');
     assert.match(await page.locator('dl.facts').textContent(), /cancelled by request/);
+
+    // ---- a job outside its technique's guaranteed range: marked in the list, warned on its page ---
+    const wide = await submit(d, {scene_file: 'sphere_on_plane.json', label: 'too wide',
+      technique: {name: 'ssao', backend: 'cpu'}, set: {'/image/width': 32, '/image/height': 24, '/camera/fov_y': 175}});
+    const wj = await waitJob(d, wide);
+    assert.equal(wj.state, 'succeeded');
+    assert.equal(wj.warnings.length, 1, JSON.stringify(wj.warnings));
+    assert.match(wj.warnings[0], /^camera fov_y 175 degrees is outside \[[^\]]+\] degrees where ssao on cpu/);
+    await page.goto(`${d.url}/#/jobs`);
+    const marker = page.locator(`tr[data-id="${wide}"] .warn-marker`);
+    await marker.waitFor();
+    assert.equal(await marker.getAttribute('aria-label'), '1 warning');
+    assert.equal(await marker.getAttribute('title'), wj.warnings[0]);
+    assert.equal(await page.locator(`tr[data-id="${behind}"] .warn-marker`).count(), 0, 'no marker without warnings');
+    await page.locator(`tr[data-id="${wide}"] a.job-link`).click();
+    await page.waitForURL(new RegExp(`#/jobs/${wide}$`));
+    await page.getByRole('heading', {name: 'Warnings'}).waitFor();
+    assert.deepEqual(await page.$$eval('section.warnings li', (lis) => lis.map((l) => l.textContent)), wj.warnings);
+    await assertAllNamed(page, 'job with warnings');
+    await screenshot(page, 'job-warnings');
 
     // ---- API text is shown as text; the skip link stays on the page; Delete leaves the page --------
     const xss = '<img src=x onerror="window.__pwned=1">';

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# The CLI end to end: render, outputs and summary, exit codes for bad input, validate, techniques.
+# The CLI end to end: render, outputs and summary, exit codes for bad input, validate, techniques,
+# warnings outside a technique's guaranteed range.
 set -u
 cli=$1 root=$2 out=$3
 pass=0 fail=0
@@ -37,6 +38,25 @@ check "validate ok exits 0" test $? -eq 0
 check "techniques is JSON with rt_ao" node -e "
   const t = JSON.parse(require('fs').readFileSync('$out/tech.json'));
   process.exit(t.some(x => x.name === 'rt_ao' && x.backends.includes('cpu')) ? 0 : 1);"
+check "techniques carry each backend's range" node -e "
+  const t = JSON.parse(require('fs').readFileSync('$out/tech.json'));
+  process.exit(t.every(x => x.backends.every(b => x.ranges[b] && x.ranges[b].size.length === 2)) ? 0 : 1);"
+"$cli" techniques --bogus >/dev/null 2>&1
+check "techniques with an unknown option exits 2" test $? -eq 2
+# Outside the guaranteed range the render succeeds and warns, on stderr and in summary.json.
+"$cli" render "$root/scenes/sphere_on_plane.json" -o "$out/wide" --set /camera/fov_y=175 \
+  --set /image/width=16 --set /image/height=16 --set /technique/params/samples=4 --quiet \
+  >"$out/wide.log" 2>&1
+check "render outside the range exits 0" test $? -eq 0
+check "render outside the range warns on stderr" \
+  grep -q "warning: camera fov_y 175 degrees is outside \[.*\] degrees where rt_ao on cpu" \
+  "$out/wide.log"
+check "summary.json carries the warning" node -e "
+  const s = JSON.parse(require('fs').readFileSync('$out/wide/summary.json'));
+  process.exit(s.warnings.length === 1 && /fov_y 175/.test(s.warnings[0]) ? 0 : 1);"
+check "a render inside the range has no warnings" node -e "
+  const s = JSON.parse(require('fs').readFileSync('$out/r/summary.json'));
+  process.exit(Array.isArray(s.warnings) && s.warnings.length === 0 ? 0 : 1);"
 printf '{"camera":{"type":"perspective","position":[0,1,-3],"look_at":[0,0,0],"fov_y":40},"image":{"width":8,"height":8},"objects":[{"shape":{"type":"mesh","file":"junk.obj"}}],"technique":{"name":"rt_ao"}}' >"$out/junk.json"
 echo "not a mesh" >"$out/junk.obj"
 "$cli" render "$out/junk.json" -o "$out/junk" >"$out/junk.log" 2>&1

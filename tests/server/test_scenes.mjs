@@ -157,6 +157,12 @@ test('bundled scenes match the CLI bit for bit', async () => {
     const tech = await getJSON(d, '/api/v1/techniques');
     const cliTech = JSON.parse(spawnSync(OBSCURA, ['techniques'], {encoding: 'utf8'}).stdout);
     assert.deepEqual(tech.techniques.map((t) => t.name), cliTech.map((t) => t.name));
+    // Every backend's guaranteed range, as the CLI prints it and the OpenAPI document describes it.
+    assert.deepEqual(tech.techniques.map((t) => t.ranges), cliTech.map((t) => t.ranges));
+    for (const t of tech.techniques) {
+      assert.deepEqual(Object.keys(t.ranges).sort(), [...t.backends].sort());
+      for (const r of Object.values(t.ranges)) validate('GuaranteedRange', r);
+    }
     const health = await getJSON(d, '/api/v1/health');
     validate('Health', health);
     assert.equal(health.status, 'ok');

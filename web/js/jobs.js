@@ -1,10 +1,30 @@
-// The jobs pages: the live job list (filters, progress, actions, arrow-key navigation between
-// jobs) and one job's detail (every PNG output, downloads, timings per stage, statistics, the
-// parameters it ran with, and its metrics when it is a comparison candidate).
+// The jobs pages: the live job list (filters, progress, actions, a marker on jobs that carry
+// warnings, arrow-key navigation between jobs) and one job's detail (its warnings, every PNG
+// output, downloads, timings per stage, statistics, the parameters it ran with, and its metrics
+// when it is a comparison candidate).
 import {ACTIVE, api, debug, el, fmtBytes, fmtMs, fmtNum, fmtTime, paramText, poll, stateBadge, techniques} from './api.js';
 import {metricsTable} from './comparisons.js';
 
 const backendOf = (j) => j.backend.actual || j.backend.requested;
+
+// A render outside the range its technique guarantees still succeeds, with warnings
+// (docs/accuracy.md, "Guaranteed ranges"): the list marks such jobs, the job page lists them.
+function warningMarker(j) {
+  const w = j.warnings || [];
+  if (!w.length) return null;
+  const what = `${w.length} warning${w.length === 1 ? '' : 's'}`;
+  return el('span', {className: 'warn-marker', role: 'img', title: w.join('\n'), 'aria-label': what}, ' ⚠');
+}
+
+function warningsSection(j) {
+  const w = j.warnings || [];
+  if (!w.length) return null;
+  return el('section', {className: 'warnings', 'aria-labelledby': 'h-warnings'},
+    el('h2', {id: 'h-warnings'}, 'Warnings'),
+    el('p', {}, 'The renderer warned about this job: its output is not guaranteed where a quantity ' +
+      'lies outside the technique\'s range (see docs/accuracy.md, Guaranteed ranges).'),
+    el('ul', {}, ...w.map((t) => el('li', {className: 'warning'}, t))));
+}
 
 function progressCell(j) {
   const pct = Math.round(j.progress * 100);
@@ -119,7 +139,7 @@ export function mountJobs(view) {
     for (const j of jobs) {
       let tr = rows.get(j.id);
       const key = JSON.stringify([j.state, j.progress, j.cancel_requested, j.backend, j.timings_ms && j.timings_ms.total,
-                                  j.links.outputs['ao.png']]);
+                                  j.links.outputs['ao.png'], j.warnings]);
       if (!tr) {
         tr = el('tr', {'data-id': j.id});
         rows.set(j.id, tr);
@@ -132,7 +152,7 @@ export function mountJobs(view) {
           el('td', {}, j.scene + (j.label ? ` — ${j.label}` : '')),
           el('td', {}, j.technique),
           el('td', {}, backendOf(j)),
-          el('td', {title: j.error || ''}, stateBadge(j.state)),
+          el('td', {title: j.error || ''}, stateBadge(j.state), warningMarker(j)),
           el('td', {className: 'progress'}, progressCell(j)),
           el('td', {}, new Date(j.created_at).toLocaleTimeString()),
           el('td', {className: 'num'}, j.timings_ms ? fmtMs(j.timings_ms.total) : '–'),
@@ -255,7 +275,7 @@ export function mountJob(view, [id], query) {
     }
     if (j.state !== lastState) {
       lastState = j.state;
-      body.replaceChildren(outputsSection(j),
+      body.replaceChildren(warningsSection(j), outputsSection(j),
         j.timings_ms ? timingsSection(j.timings_ms) : null,
         j.stats ? statsSection(j) : null,
         el('div', {className: 'params-slot'}), el('div', {className: 'metrics-slot'}));

@@ -90,6 +90,49 @@ typedef int (*obs_technique_reference_fn)(const obs_scene *scene, const json_t *
                                           obs_reference_facts *facts, json_t *rt_ao_params,
                                           obs_response *response, obs_err *err);
 
+/* A parameter whose guaranteed range is narrower than its schema's. The bound applies to
+ * value / size^size_power, size being the scene size of obs_range: 1 for lengths (a radius in
+ * scene units is stated in scene sizes), -1 for rates per scene unit, 0 for pure numbers. */
+typedef struct obs_param_range {
+  const char *name; /* key in the technique's params; NULL ends the list */
+  double min, max;
+  int size_power;
+} obs_param_range;
+
+#define OBS_MAX_PARAM_RANGES 4
+/* The unit a parameter's bounds are stated in: "scene sizes", "per scene size" or "". */
+const char *obs_param_range_unit(const obs_param_range *p);
+
+/* How far a render inside the range may differ from the same view rendered at scale 1 at the
+ * origin (the scene and every length parameter scaled, everything translated): over the covered
+ * pixels, mean |d ao| <= ao_mean, and all but `share` of them have |d ao| <= ao_pixel, every
+ * normal component within `normal` and linear depth (divided by the scale) within depth_rel of
+ * the scale-1 depth, relative. Coverage (alpha) is equal. */
+typedef struct obs_tolerance {
+  double ao_mean, ao_pixel, share, normal, depth_rel;
+} obs_tolerance;
+
+/* The range over which one backend of a technique guarantees its output: finite, in range, and
+ * equal to the scale-1 result within `tol` (docs/accuracy.md, "Guaranteed ranges").
+ *  - size: the diagonal of the axis-aligned bounding box of the transformed geometry, in scene
+ *    units. Float arithmetic fails at absolute magnitudes (squared lengths over- or underflow),
+ *    so the guarantee is stated on the size itself.
+ *  - translation: max(|camera position|, |bounds centre|) / size, the distance from the world
+ *    origin in scene sizes. What a far-off scene loses is the relative precision of its
+ *    coordinates (an absolute error |p| eps spread over a scene of that size), so the ratio,
+ *    not the distance, is what bounds the error.
+ *  - fov_min, fov_max: the perspective camera's fov_y in degrees; `orthographic` is 1 when
+ *    orthographic cameras are held to the same guarantee.
+ * A zero size_max marks a backend without a declared range. */
+typedef struct obs_range {
+  double size_min, size_max;
+  double translation_max;
+  double fov_min, fov_max;
+  int orthographic;
+  obs_param_range params[OBS_MAX_PARAM_RANGES + 1];
+  obs_tolerance tol;
+} obs_range;
+
 typedef struct obs_technique {
   const char *name;
   const char *description;
@@ -99,6 +142,7 @@ typedef struct obs_technique {
   obs_technique_check_fn check; /* may be NULL */
   obs_technique_reference_fn reference; /* may be NULL: the technique cannot be compared */
   obs_technique_run_fn run[OBS_BACKEND_COUNT]; /* indexed by obs_backend; NULL = not available */
+  obs_range range[OBS_BACKEND_COUNT]; /* guaranteed range of each backend that has a run */
 } obs_technique;
 
 size_t obs_technique_count(void);
@@ -125,8 +169,12 @@ float obs_response_map(obs_response r, float w);
  * |f'(W)| so the reference's noise is stated in the mapped units (first-order propagation). */
 int obs_response_apply(obs_response r, obs_image *img, obs_err *err);
 
-/* The registry as a JSON array (new reference, caller owns). */
+/* The registry as a JSON array (new reference, caller owns); each entry's "ranges" holds the
+ * guaranteed range of each backend (obs_range). */
 json_t *obs_technique_registry_json(void);
+/* The guaranteed ranges of every technique and backend as a Markdown table (docs/accuracy.md
+ * holds a copy that a test compares); new string, free() it. */
+char *obs_technique_ranges_markdown(void);
 
 #ifdef __cplusplus
 }
