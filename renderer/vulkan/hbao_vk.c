@@ -180,7 +180,7 @@ int obs_hbao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   double st[OBS_HBAO_PASS_COUNT + 1], gb_ms = 0;
   if ((rc = obs_vk_acquire(&vk, validation, err))) goto done;
   double t0 = obs_now_ms();
-  if ((rc = obs_geometry_build(sc, &geo, err))) goto done;
+  if ((rc = obs_geometry_build_at(sc, rig.origin, &geo, err))) goto done;
   double t1 = obs_now_ms();
   ctx->build_ms = t1 - t0;
   if ((rc = obs_vk_gbuffer_render(vk, sc, &geo, &dg, &gb_ms, err))) goto done;

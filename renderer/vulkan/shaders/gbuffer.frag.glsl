@@ -15,9 +15,13 @@ layout(location = 2) out vec4 o_albedo;
 void main() {
   // Differences of positions on the triangle's plane lie in that plane, so their cross product is
   // the face normal even though perspective makes v_view non-linear in screen space.
-  vec3 c = cross(dFdxFine(v_view), dFdyFine(v_view));
-  float len = length(c);
-  vec3 n = len > 0.0 ? c / len : vec3(0.0, 0.0, -1.0);
+  // Each factor and the product are divided by their largest component first, so neither the
+  // cross product nor the length's squares over- or underflow at any scene scale.
+  vec3 a = dFdxFine(v_view), b = dFdyFine(v_view);
+  float ma = max(max(abs(a.x), abs(a.y)), abs(a.z)), mb = max(max(abs(b.x), abs(b.y)), abs(b.z));
+  vec3 c = ma > 0.0 && mb > 0.0 ? cross(a / ma, b / mb) : vec3(0.0);
+  float mc = max(max(abs(c.x), abs(c.y)), abs(c.z));
+  vec3 n = mc > 0.0 ? normalize(c / mc) : vec3(0.0, 0.0, -1.0);
   // Face the camera: against the ray through this pixel (the view axis when orthographic).
   vec3 ray = pc.proj.w > 0.5 ? vec3(0.0, 0.0, 1.0) : v_view;
   if (dot(n, ray) > 0.0) n = -n;
