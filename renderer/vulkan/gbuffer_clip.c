@@ -1,19 +1,29 @@
-/* Host-side clipping of camera-relative triangles for the G-buffer rasteriser. A rasteriser snaps
+/* Host-side preparation of the G-buffer rasteriser's triangles, in double. A rasteriser snaps
  * vertices to a fixed-point grid of limited range (lavapipe: 8 sub-pixel bits in a guard band of a
  * few viewports) and clips what lies beyond in float clip space, so a triangle reaching far past
- * the view or behind the camera loses precision or vanishes there. Clipped here in double to a
- * guard band twice the view, every vertex the device sees lies within a few viewports of it. */
+ * the view or behind the camera loses precision or vanishes there; it also interpolates 1/w
+ * linearly in screen space in float, whose absolute error is relative to the triangle's nearest
+ * point, so depth at its far end errs by float epsilon times its depth ratio. Here every triangle
+ * is rotated into view space, clipped to a guard band twice the view and to the near plane, and,
+ * in perspective, cut into slabs whose far depth is at most DEPTH_RATIO times their near depth.
+ * The rotation is done here rather than on the device because in float it errs by ~1e-7 of the
+ * distance from the camera, a whole pixel at a field of view of ~1e-5 radians; the face normal is
+ * computed here too, from the double vertices, because screen-space derivatives of float
+ * positions lose it at tiny fields of view. */
 #include "gbuffer_clip.h"
 
 #include <math.h>
 #include <string.h>
 
-/* Triangles within 4x the view's half-extents pass unchanged (ordinary scenes keep their bits);
- * others are cut at 2x, well inside any guard band a Vulkan device must have (the viewport
- * bounds range is at least twice the largest viewport). */
+/* Triangles within 4x the view's half-extents (and within the depth ratio) pass uncut; others are
+ * cut at 2x, well inside any guard band a Vulkan device must have (its viewport bounds range is
+ * at least twice the largest viewport). */
 #define KEEP_BAND 4.0
 #define CUT_BAND 2.0
+#define DEPTH_RATIO 4.0
 #define NPLANES 5
+/* A triangle cut by five planes has at most 8 corners; a slab of it adds 2. */
+#define MAX_POLY 12
 
 void obs_vk_clip_init(obs_vk_clip *c, const obs_camera_rig *rig, double znear) {
   memset(c, 0, sizeof *c);
@@ -30,8 +40,12 @@ void obs_vk_clip_init(obs_vk_clip *c, const obs_camera_rig *rig, double znear) {
   c->zmax = -INFINITY;
 }
 
+/* New vertices are interpolated in camera-relative world coordinates, not view coordinates: a
+ * triangle far larger than the view then keeps its plane to the rounding of its own coordinates
+ * (exactly when it is axis-aligned, as the ray caster's double re-intersection does), where a
+ * rotation first would mix ~1e-16 of its far vertices' size into the plane near the camera. */
 typedef struct cvert {
-  double p[3]; /* camera-relative position */
+  double p[3]; /* camera-relative world position */
   double v[3]; /* view coordinates (right, up, forward) */
 } cvert;
 
@@ -42,7 +56,12 @@ static void view_of(const obs_vk_clip *c, cvert *q) {
   q->v[2] = p[0] * c->forward[0] + p[1] * c->forward[1] + p[2] * c->forward[2];
 }
 
-/* Signed distance-like value of plane k (>= 0 inside) for half-extents (hx, hy). */
+static void between(const obs_vk_clip *c, const cvert *s, const cvert *o, double t, cvert *q) {
+  for (int j = 0; j < 3; j++) q->p[j] = s->p[j] + t * (o->p[j] - s->p[j]);
+  view_of(c, q);
+}
+
+/* >= 0 inside plane k of the band with half-extents (hx, hy) (slopes when perspective). */
 static double plane(const obs_vk_clip *c, int k, double hx, double hy, const double v[3]) {
   double sx = c->ortho ? hx : hx * v[2], sy = c->ortho ? hy : hy * v[2];
   switch (k) {
@@ -60,13 +79,9 @@ static int inside_all(const obs_vk_clip *c, double hx, double hy, const double v
   return 1;
 }
 
-static void track(obs_vk_clip *c, double z) {
-  if (z < c->zmin) c->zmin = z;
-  if (z > c->zmax) c->zmax = z;
-}
-
-/* One Sutherland-Hodgman stage. The crossing point is always computed from the inside end toward
- * the outside end, so the two triangles sharing an edge get the same point (no cracks). */
+/* One Sutherland-Hodgman stage against plane k of the cut band. The crossing point is computed
+ * from the inside end toward the outside end, so the two triangles sharing an edge get the same
+ * point (no cracks). */
 static int clip_plane(const obs_vk_clip *c, int k, const cvert *in, int n, cvert *out) {
   int m = 0;
   for (int i = 0; i < n; i++) {
@@ -77,42 +92,120 @@ static int clip_plane(const obs_vk_clip *c, int k, const cvert *in, int n, cvert
     if (ia != ib) {
       const cvert *s = ia ? a : b, *o = ia ? b : a;
       double ds = ia ? da : db, dout = ia ? db : da;
-      double t = ds / (ds - dout);
-      cvert *q = &out[m++];
-      for (int j = 0; j < 3; j++) q->p[j] = s->p[j] + t * (o->p[j] - s->p[j]);
-      view_of(c, q);
+      between(c, s, o, ds / (ds - dout), &out[m++]);
     }
   }
   return m;
 }
 
-size_t obs_vk_clip_triangle(obs_vk_clip *c, const float tri[9], float *out) {
-  cvert poly[2][NPLANES + 3];
-  int keep = 1;
-  for (int i = 0; i < 3; i++) {
-    for (int j = 0; j < 3; j++) poly[0][i].p[j] = tri[3 * i + j];
-    view_of(c, &poly[0][i]);
-    keep = keep && inside_all(c, c->keep_x, c->keep_y, poly[0][i].v);
+/* Keeps the part of the polygon with z >= zc (upper) or z <= zc. The crossing is computed from the
+ * nearer end whichever side is kept, so both slabs, and the neighbouring triangle, share it. */
+static int clip_depth(const obs_vk_clip *c, const cvert *in, int n, double zc, int upper,
+                      cvert *out) {
+  int m = 0;
+  for (int i = 0; i < n; i++) {
+    const cvert *a = &in[i], *b = &in[(i + 1) % n];
+    int ia = upper ? a->v[2] >= zc : a->v[2] <= zc, ib = upper ? b->v[2] >= zc : b->v[2] <= zc;
+    if (ia) out[m++] = *a;
+    if (ia != ib) {
+      const cvert *s = a->v[2] < b->v[2] ? a : b, *o = s == a ? b : a;
+      between(c, s, o, (zc - s->v[2]) / (o->v[2] - s->v[2]), &out[m++]);
+    }
   }
-  if (keep) {
-    for (int i = 0; i < 3; i++) track(c, poly[0][i].v[2]);
-    if (out) memcpy(out, tri, 9 * sizeof(float));
-    return 3;
+  return m;
+}
+
+typedef struct emitter {
+  obs_vk_clip *c;
+  float *out;
+  float nrm[3];
+  size_t n;
+} emitter;
+
+static void emit_vertex(emitter *e, const double v[3]) {
+  if (v[2] < e->c->zmin) e->c->zmin = v[2];
+  if (v[2] > e->c->zmax) e->c->zmax = v[2];
+  if (e->out) {
+    float *o = e->out + OBS_VK_CLIP_FLOATS * e->n;
+    for (int j = 0; j < 3; j++) o[j] = (float)v[j];
+    memcpy(o + 3, e->nrm, sizeof e->nrm);
+  }
+  e->n++;
+}
+
+/* A fan: the polygon is convex. */
+static void emit_polygon(emitter *e, const cvert *p, int n) {
+  for (int i = 1; i + 1 < n; i++) {
+    emit_vertex(e, p[0].v);
+    emit_vertex(e, p[i].v);
+    emit_vertex(e, p[i + 1].v);
+  }
+}
+
+/* Cuts the polygon into slabs between depths znear * DEPTH_RATIO^k, so slabs of neighbouring
+ * triangles meet at the same depths. */
+static void emit_slabs(emitter *e, const cvert *p, int n) {
+  double lo = INFINITY, hi = -INFINITY;
+  for (int i = 0; i < n; i++) {
+    lo = fmin(lo, p[i].v[2]);
+    hi = fmax(hi, p[i].v[2]);
+  }
+  const obs_vk_clip *c = e->c;
+  if (c->ortho || !(c->znear > 0.0) || !(hi > DEPTH_RATIO * lo)) {
+    emit_polygon(e, p, n);
+    return;
+  }
+  double z = c->znear * pow(DEPTH_RATIO, floor(log(lo / c->znear) / log(DEPTH_RATIO)));
+  while (z > lo) z /= DEPTH_RATIO; /* log's rounding, either way */
+  while (!(z * DEPTH_RATIO > lo)) z *= DEPTH_RATIO;
+  cvert a[MAX_POLY], b[MAX_POLY];
+  for (; z < hi; z *= DEPTH_RATIO) {
+    int m = clip_depth(c, p, n, z, 1, a);
+    m = m >= 3 ? clip_depth(c, a, m, z * DEPTH_RATIO, 0, b) : 0;
+    if (m >= 3) emit_polygon(e, b, m);
+  }
+}
+
+/* The unit face normal of the triangle in view space, from double vertices, each edge and the
+ * product scaled by its largest component first so nothing over- or underflows. */
+static void face_normal(const cvert *p, float out[3]) {
+  double e[2][3], m[2] = {0, 0};
+  for (int k = 0; k < 2; k++) {
+    for (int j = 0; j < 3; j++) {
+      e[k][j] = p[k + 1].v[j] - p[0].v[j];
+      m[k] = fmax(m[k], fabs(e[k][j]));
+    }
+    for (int j = 0; j < 3; j++) e[k][j] = m[k] > 0 ? e[k][j] / m[k] : 0.0;
+  }
+  double n[3] = {e[0][1] * e[1][2] - e[0][2] * e[1][1], e[0][2] * e[1][0] - e[0][0] * e[1][2],
+                 e[0][0] * e[1][1] - e[0][1] * e[1][0]};
+  double l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+  for (int j = 0; j < 3; j++) out[j] = l > 0 ? (float)(n[j] / l) : 0.0f;
+}
+
+size_t obs_vk_clip_triangle(obs_vk_clip *c, const double tri[9], float *out) {
+  cvert poly[2][MAX_POLY];
+  emitter e = {c, out, {0, 0, 0}, 0};
+  int keep = 1;
+  double lo = INFINITY, hi = -INFINITY;
+  for (int i = 0; i < 3; i++) {
+    memcpy(poly[0][i].p, tri + 3 * i, sizeof poly[0][i].p);
+    view_of(c, &poly[0][i]);
+    const double *v = poly[0][i].v;
+    keep = keep && inside_all(c, c->keep_x, c->keep_y, v);
+    lo = fmin(lo, v[2]);
+    hi = fmax(hi, v[2]);
+  }
+  if (out) face_normal(poly[0], e.nrm);
+  if (keep && (c->ortho || !(c->znear > 0.0) || hi <= DEPTH_RATIO * lo)) {
+    emit_polygon(&e, poly[0], 3);
+    return e.n;
   }
   int n = 3, cur = 0;
   for (int k = 0; k < NPLANES && n > 0; k++) {
     n = clip_plane(c, k, poly[cur], n, poly[cur ^ 1]);
     cur ^= 1;
   }
-  if (n < 3) return 0;
-  for (int i = 0; i < n; i++) track(c, poly[cur][i].v[2]);
-  if (out) {
-    /* A fan: the polygon is convex. */
-    for (int i = 1; i + 1 < n; i++) {
-      const cvert *f[3] = {&poly[cur][0], &poly[cur][i], &poly[cur][i + 1]};
-      for (int a = 0; a < 3; a++)
-        for (int j = 0; j < 3; j++) *out++ = (float)f[a]->p[j];
-    }
-  }
-  return 3 * (size_t)(n - 2);
+  if (n >= 3) emit_slabs(&e, poly[cur], n);
+  return e.n;
 }

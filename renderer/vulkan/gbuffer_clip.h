@@ -1,5 +1,5 @@
-/* Host-side clipping of camera-relative triangles to a guard band around the view frustum, in
- * double, before the G-buffer rasteriser sees them (see docs/vulkan.md, "Huge triangles"). */
+/* Host-side preparation of the G-buffer rasteriser's triangles in double: view-space rotation,
+ * clipping to a guard band, depth slabs, face normals (see gbuffer_clip.c and docs/vulkan.md). */
 #ifndef OBS_VK_GBUFFER_CLIP_H
 #define OBS_VK_GBUFFER_CLIP_H
 
@@ -7,8 +7,8 @@
 
 #include "camera.h"
 
-/* A triangle clipped by five planes has at most 8 corners: a fan of 6 triangles. */
-#define OBS_VK_CLIP_MAX_VERTS 18
+/* Floats per vertex: view-space position, then the triangle's unit face normal in view space. */
+#define OBS_VK_CLIP_FLOATS 6
 
 typedef struct obs_vk_clip {
   double right[3], up[3], forward[3];
@@ -21,9 +21,9 @@ typedef struct obs_vk_clip {
 
 void obs_vk_clip_init(obs_vk_clip *c, const obs_camera_rig *rig, double znear);
 
-/* Clips one triangle (3 camera-relative float vertices). Writes the result, a multiple of 3
- * vertices (at most OBS_VK_CLIP_MAX_VERTS), to `out` unless it is NULL, and returns how many.
- * A triangle inside the keep band comes back bit-identical. */
-size_t obs_vk_clip_triangle(obs_vk_clip *c, const float tri[9], float *out);
+/* Prepares one triangle (3 camera-relative vertices): writes the vertices the device draws for
+ * it (a multiple of 3, OBS_VK_CLIP_FLOATS floats each, rounded once from double) to `out` unless it
+ * is NULL, and returns how many. The same call gives the same count with or without `out`. */
+size_t obs_vk_clip_triangle(obs_vk_clip *c, const double tri[9], float *out);
 
 #endif

@@ -17,13 +17,13 @@
 #define SPHERE_NORMAL_STEP (1.5 * PI / 180.0)
 /* Perspective near plane as a fraction of the farthest depth of the geometry in view. With
  * reversed float depth (near / z) precision does not depend on it, so it only decides what is
- * clipped: 2^-40 loses nothing nearer than ~1e-12 of that depth. Clipped triangles' varyings
- * stay bounded (x / z and y / z by the guard band; 1 / z by 2^40 / depth), so no float overflows
- * for any depth the scene format allows. */
-#define NEAR_FRACTION (1.0 / 1099511627776.0)
+ * clipped: 2^-80 loses nothing nearer than ~1e-24 of that depth (a ground plane to a horizon 1e18
+ * away keeps everything beyond 1e-6). The clipper bounds what the device computes from it: x / z
+ * and y / z by the guard band, each triangle's depth ratio by its slabs, and near / z stays a
+ * normal float for any depth the scene format allows. */
+#define NEAR_FRACTION 0x1p-80
 
 typedef struct gb_push {
-  float right[4], up[4], forward[4];
   float proj[4]; /* half_w, half_h, k (near, or 1/far when orthographic), orthographic */
   float albedo[4];
 } gb_push;
@@ -153,14 +153,16 @@ static int ensure_pipeline(obs_vk *vk, obs_err *err) {
        .stage = VK_SHADER_STAGE_FRAGMENT_BIT,
        .module = fs,
        .pName = "main"}};
-  VkVertexInputBindingDescription vb = {0, 3 * sizeof(float), VK_VERTEX_INPUT_RATE_VERTEX};
-  VkVertexInputAttributeDescription va = {0, 0, VK_FORMAT_R32G32B32_SFLOAT, 0};
+  VkVertexInputBindingDescription vb = {0, OBS_VK_CLIP_FLOATS * sizeof(float),
+                                        VK_VERTEX_INPUT_RATE_VERTEX};
+  VkVertexInputAttributeDescription va[2] = {{0, 0, VK_FORMAT_R32G32B32_SFLOAT, 0},
+                                             {1, 0, VK_FORMAT_R32G32B32_SFLOAT, 3 * sizeof(float)}};
   VkPipelineVertexInputStateCreateInfo vi = {
       .sType = VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO,
       .vertexBindingDescriptionCount = 1,
       .pVertexBindingDescriptions = &vb,
-      .vertexAttributeDescriptionCount = 1,
-      .pVertexAttributeDescriptions = &va};
+      .vertexAttributeDescriptionCount = 2,
+      .pVertexAttributeDescriptions = va};
   VkPipelineInputAssemblyStateCreateInfo ia = {
       .sType = VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO,
       .topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST};
@@ -305,7 +307,7 @@ static size_t sphere_vertices(int n) {
 }
 
 /* `shift` takes the geometry's frame to the camera's (geometry origin - camera origin). */
-static int sphere_fill(const obs_sphere *s, int n, const double shift[3], float *out) {
+static int sphere_fill(const obs_sphere *s, int n, const double shift[3], double *out) {
   int lat = n / 2;
   double *tab = malloc(((size_t)n + (size_t)lat + 1) * 2 * sizeof *tab);
   if (!tab) return OBS_ENOMEM;
@@ -320,12 +322,12 @@ static int sphere_fill(const obs_sphere *s, int n, const double shift[3], float 
   }
   /* Exact poles, so both caps close on one point. */
   ct[0] = 1, st[0] = 0, ct[lat] = -1, st[lat] = 0;
-  float *o = out;
+  double *o = out;
 #define PUT(j, i)                                                        \
   do {                                                                   \
-    o[0] = (float)(s->center[0] + shift[0] + s->radius * st[j] * cp[i]); \
-    o[1] = (float)(s->center[1] + shift[1] + s->radius * ct[j]);         \
-    o[2] = (float)(s->center[2] + shift[2] + s->radius * st[j] * sp[i]); \
+    o[0] = s->center[0] + shift[0] + s->radius * st[j] * cp[i]; \
+    o[1] = s->center[1] + shift[1] + s->radius * ct[j];         \
+    o[2] = s->center[2] + shift[2] + s->radius * st[j] * sp[i]; \
     o += 3;                                                              \
   } while (0)
   for (int j = 0; j < lat; j++)
@@ -362,14 +364,15 @@ static void object_albedo(const obs_scene *sc, size_t obj, float out[3]) {
   out[2] = o->has_material ? (float)o->reflectivity.z : 1.0f;
 }
 
-/* Every triangle of the draw list, camera-relative (shifted in double before the float store;
- * exact when the geometry was built at the camera's origin), through the clipper. With `out`,
+/* Every triangle of the draw list, camera-relative in double (the mesh's float vertices shifted,
+ * exact when the geometry was built at the camera's origin; spheres tessellated in double),
+ * through the clipper. With `out`,
  * writes the clipped vertices; with `d`, records each draw's first vertex and count. Returns the
  * number of vertices; *rc is OBS_ENOMEM when a sphere could not be tessellated. */
 static size_t clip_all(const obs_geometry *geo, const int *seg, const double shift[3],
                        obs_vk_clip *c, gb_draw *d, float *out, int *rc) {
   size_t total = 0, k = 0;
-  float tri[9];
+  double tri[9];
   *rc = 0;
   for (size_t m = 0; m < geo->nmeshes; m++, k++) {
     const obs_mesh *me = &geo->meshes[m];
@@ -377,23 +380,24 @@ static size_t clip_all(const obs_geometry *geo, const int *seg, const double shi
     for (size_t t = 0; t < me->ntris; t++) {
       for (size_t v = 0; v < 3; v++) {
         const float *p = me->pos + 3 * (size_t)me->idx[3 * t + v];
-        for (int j = 0; j < 3; j++) tri[3 * v + (size_t)j] = (float)((double)p[j] + shift[j]);
+        for (int j = 0; j < 3; j++) tri[3 * v + (size_t)j] = (double)p[j] + shift[j];
       }
-      total += obs_vk_clip_triangle(c, tri, out ? out + 3 * total : NULL);
+      total += obs_vk_clip_triangle(c, tri, out ? out + OBS_VK_CLIP_FLOATS * total : NULL);
     }
     if (d) d[k].count = (uint32_t)(total - d[k].first);
   }
   for (size_t s = 0; s < geo->nspheres; s++, k++) {
     if (d) d[k].first = (uint32_t)total;
     size_t nv = seg[s] ? sphere_vertices(seg[s]) : 0;
-    float *tess = nv ? malloc(nv * 3 * sizeof *tess) : NULL;
+    double *tess = nv ? malloc(nv * 3 * sizeof *tess) : NULL;
     if (nv && (!tess || sphere_fill(&geo->spheres[s], seg[s], shift, tess))) {
       free(tess);
       *rc = OBS_ENOMEM;
       return 0;
     }
     for (size_t t = 0; t < nv; t += 3)
-      total += obs_vk_clip_triangle(c, tess + 3 * t, out ? out + 3 * total : NULL);
+      total +=
+          obs_vk_clip_triangle(c, tess + 3 * t, out ? out + OBS_VK_CLIP_FLOATS * total : NULL);
     free(tess);
     if (d) d[k].count = (uint32_t)(total - d[k].first);
   }
@@ -440,7 +444,7 @@ static int build_vertices(obs_vk *vk, const obs_scene *sc, const obs_geometry *g
   }
   char what[96];
   snprintf(what, sizeof what, "the G-buffer vertex buffer of %s", sc->name);
-  if ((rc = obs_vk_buffer_create(vk, (VkDeviceSize)total * 3 * sizeof(float),
+  if ((rc = obs_vk_buffer_create(vk, (VkDeviceSize)total * OBS_VK_CLIP_FLOATS * sizeof(float),
                                  VK_BUFFER_USAGE_VERTEX_BUFFER_BIT, 1, vb, what, err)))
     goto fail;
   obs_vk_clip_init(&clip, rig, *znear);
@@ -525,11 +529,6 @@ int obs_vk_gbuffer_render(obs_vk *vk, const obs_scene *sc, const obs_geometry *g
 
   gb_push pc;
   memset(&pc, 0, sizeof pc);
-  for (int k = 0; k < 3; k++) {
-    pc.right[k] = (float)rig.right[k];
-    pc.up[k] = (float)rig.up[k];
-    pc.forward[k] = (float)rig.forward[k];
-  }
   pc.proj[0] = (float)rig.half_w;
   pc.proj[1] = (float)rig.half_h;
   /* Orthographic: far just beyond the farthest point emitted. Perspective: half the clipper's
