@@ -362,9 +362,11 @@ static void test_simd_matches_scalar(void **state) {
       assert_int_equal(obs_hbao_cpu_apply_ex(&g, &p, 2, v + 2 * n, v + 3 * n, NULL, &err), 0);
       unsetenv("OBSCURA_NO_SIMD");
       assert_memory_equal(v, v + 2 * n, 2 * n * sizeof(float));
-      size_t shaded = 0; /* the comparison is not of two blank images */
+      /* The comparison is not of two blank images (the orthographic view of the room has little
+       * occlusion within the radius: its walls are edge-on or face-on). */
+      size_t shaded = 0;
       for (size_t i = 0; i < n; i++) shaded += v[n + i] > 0.0f && v[n + i] < 1.0f;
-      if (k < 4) assert_true(shaded > n / 50); /* the last set's bias leaves almost nothing */
+      if (k < 4) assert_true(shaded > n / 100); /* the last set's bias leaves almost nothing */
     }
     free(v);
     obs_gbuffer_free(&g);

@@ -10,6 +10,7 @@ layout(binding = 3, r32f) uniform writeonly image2D ao_out;
 layout(push_constant) uniform Push {
   int lw, lh, s, width, height, ortho, directions, steps;
   float half_w, half_h, radius, cos_b, sin_b, scale, inv_r; // inv_r = 1 / radius, host float
+  float depth_eps;                                          // OBS_HBAO_DEPTH_EPS
 } pc;
 
 // obs_gbuffer_position (renderer/core/gbuffer.h).
@@ -92,13 +93,27 @@ float ao_texel(ivec2 a) {
       precise float zs = imageLoad(depth_l, ivec2(ix, iy)).x;
       if (!(zs > 0.0)) continue;
       precise vec3 S = position(float(pc.s * ix) + 0.5, float(pc.s * iy) + 0.5, zs);
-      precise float ux = (S.x - P.x) * pc.inv_r;
-      precise float uy = (S.y - P.y) * pc.inv_r;
-      precise float uz = (S.z - P.z) * pc.inv_r;
-      precise float d2 = ux * ux + uy * uy + uz * uz;
-      if (!(d2 < 1.0) || !(d2 > 0.0)) continue;
-      precise float len = sqrt(d2);
-      precise float sin_s = -uz / len;
+      // Moved away by the depths' uncertainty and scaled by a power of two (see ao_texel).
+      precise float dx = S.x - P.x;
+      precise float dy = S.y - P.y;
+      precise float dz = (S.z - P.z) + pc.depth_eps * (zs + z);
+      precise float ex = abs(dx);
+      precise float ey = abs(dy);
+      precise float ez = abs(dz);
+      precise float m = ex > ey ? ex : ey;
+      m = m > ez ? m : ez;
+      if (!(m > 0.0)) continue;
+      uint be = clamp((floatBitsToUint(m) >> 23) & 0xffu, 1u, 253u);
+      precise float down = uintBitsToFloat((254u - be) << 23);
+      precise float up = uintBitsToFloat(be << 23);
+      precise float qx = dx * down;
+      precise float qy = dy * down;
+      precise float qz = dz * down;
+      precise float len = sqrt(qx * qx + qy * qy + qz * qz);
+      precise float dist = len * (up * pc.inv_r);
+      if (!(dist < 1.0)) continue;
+      precise float d2 = dist * dist;
+      precise float sin_s = -qz / len;
       precise vec2 ts = tangent(n, r, nr, float(ix - a.x), -float(iy - a.y));
       precise float e = sin_s - ts.x + sin_t;
       if (e > 1.0) e = 1.0;
