@@ -44,10 +44,7 @@ void obs_vk_clip_init(obs_vk_clip *c, const obs_camera_rig *rig, double znear) {
  * triangle far larger than the view then keeps its plane to the rounding of its own coordinates
  * (exactly when it is axis-aligned, as the ray caster's double re-intersection does), where a
  * rotation first would mix ~1e-16 of its far vertices' size into the plane near the camera. */
-typedef struct cvert {
-  double p[3]; /* camera-relative world position */
-  double v[3]; /* view coordinates (right, up, forward) */
-} cvert;
+typedef obs_vk_clip_vertex cvert;
 
 static void view_of(const obs_vk_clip *c, cvert *q) {
   const double *p = q->p;
@@ -73,10 +70,12 @@ static double plane(const obs_vk_clip *c, int k, double hx, double hy, const dou
   }
 }
 
-static int inside_all(const obs_vk_clip *c, double hx, double hy, const double v[3]) {
-  for (int k = 0; k < NPLANES; k++)
-    if (!(plane(c, k, hx, hy, v) >= 0.0)) return 0;
-  return 1;
+void obs_vk_clip_vertex_init(const obs_vk_clip *c, const double p[3], obs_vk_clip_vertex *out) {
+  memcpy(out->p, p, sizeof out->p);
+  view_of(c, out);
+  out->band = 1;
+  for (int k = 1; k < NPLANES; k++)
+    out->band = out->band && plane(c, k, c->keep_x, c->keep_y, out->v) >= 0.0;
 }
 
 /* One Sutherland-Hodgman stage against plane k of the cut band. The crossing point is computed
@@ -168,39 +167,41 @@ static void emit_slabs(emitter *e, const cvert *p, int n) {
 
 /* The unit face normal of the triangle in view space, from double vertices, each edge and the
  * product scaled by its largest component first so nothing over- or underflows. */
-static void face_normal(const cvert *p, float out[3]) {
-  double e[2][3], m[2] = {0, 0};
+static void face_normal(const cvert *a, const cvert *b, const cvert *d, float out[3]) {
+  double e[2][3];
+  const cvert *to[2] = {b, d};
   for (int k = 0; k < 2; k++) {
+    double m = 0;
     for (int j = 0; j < 3; j++) {
-      e[k][j] = p[k + 1].v[j] - p[0].v[j];
-      m[k] = fmax(m[k], fabs(e[k][j]));
+      e[k][j] = to[k]->v[j] - a->v[j];
+      m = fmax(m, fabs(e[k][j]));
     }
-    for (int j = 0; j < 3; j++) e[k][j] = m[k] > 0 ? e[k][j] / m[k] : 0.0;
+    double s = m > 0 ? 1.0 / m : 0.0;
+    for (int j = 0; j < 3; j++) e[k][j] *= s;
   }
   double n[3] = {e[0][1] * e[1][2] - e[0][2] * e[1][1], e[0][2] * e[1][0] - e[0][0] * e[1][2],
                  e[0][0] * e[1][1] - e[0][1] * e[1][0]};
   double l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-  for (int j = 0; j < 3; j++) out[j] = l > 0 ? (float)(n[j] / l) : 0.0f;
+  double s = l > 0 ? 1.0 / l : 0.0;
+  for (int j = 0; j < 3; j++) out[j] = (float)(n[j] * s);
 }
 
-size_t obs_vk_clip_triangle(obs_vk_clip *c, const double tri[9], float *out) {
-  cvert poly[2][MAX_POLY];
+size_t obs_vk_clip_triangle(obs_vk_clip *c, const obs_vk_clip_vertex *a,
+                            const obs_vk_clip_vertex *b, const obs_vk_clip_vertex *d, float *out) {
   emitter e = {c, out, {0, 0, 0}, 0};
-  int keep = 1;
-  double lo = INFINITY, hi = -INFINITY;
-  for (int i = 0; i < 3; i++) {
-    memcpy(poly[0][i].p, tri + 3 * i, sizeof poly[0][i].p);
-    view_of(c, &poly[0][i]);
-    const double *v = poly[0][i].v;
-    keep = keep && inside_all(c, c->keep_x, c->keep_y, v);
-    lo = fmin(lo, v[2]);
-    hi = fmax(hi, v[2]);
-  }
-  if (out) face_normal(poly[0], e.nrm);
-  if (keep && (c->ortho || !(c->znear > 0.0) || hi <= DEPTH_RATIO * lo)) {
-    emit_polygon(&e, poly[0], 3);
+  double lo = fmin(fmin(a->v[2], b->v[2]), d->v[2]), hi = fmax(fmax(a->v[2], b->v[2]), d->v[2]);
+  if (out) face_normal(a, b, d, e.nrm);
+  if (a->band && b->band && d->band && lo >= c->znear &&
+      (c->ortho || !(c->znear > 0.0) || hi <= DEPTH_RATIO * lo)) {
+    emit_vertex(&e, a->v);
+    emit_vertex(&e, b->v);
+    emit_vertex(&e, d->v);
     return e.n;
   }
+  cvert poly[2][MAX_POLY];
+  poly[0][0] = *a;
+  poly[0][1] = *b;
+  poly[0][2] = *d;
   int n = 3, cur = 0;
   for (int k = 0; k < NPLANES && n > 0; k++) {
     n = clip_plane(c, k, poly[cur], n, poly[cur ^ 1]);

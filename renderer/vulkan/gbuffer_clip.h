@@ -21,9 +21,19 @@ typedef struct obs_vk_clip {
 
 void obs_vk_clip_init(obs_vk_clip *c, const obs_camera_rig *rig, double znear);
 
-/* Prepares one triangle (3 camera-relative vertices): writes the vertices the device draws for
- * it (a multiple of 3, OBS_VK_CLIP_FLOATS floats each, rounded once from double) to `out` unless it
- * is NULL, and returns how many. The same call gives the same count with or without `out`. */
-size_t obs_vk_clip_triangle(obs_vk_clip *c, const double tri[9], float *out);
+/* A vertex prepared once and shared by the triangles that use it. */
+typedef struct obs_vk_clip_vertex {
+  double p[3]; /* camera-relative world position */
+  double v[3]; /* view coordinates (right, up, forward) */
+  int band;    /* inside the keep band's side planes */
+} obs_vk_clip_vertex;
+
+void obs_vk_clip_vertex_init(const obs_vk_clip *c, const double p[3], obs_vk_clip_vertex *out);
+
+/* Prepares one triangle: writes the vertices the device draws for it (a multiple of 3,
+ * OBS_VK_CLIP_FLOATS floats each, rounded once from double) to `out` unless it is NULL, and
+ * returns how many. The same call gives the same count with or without `out`. */
+size_t obs_vk_clip_triangle(obs_vk_clip *c, const obs_vk_clip_vertex *a,
+                            const obs_vk_clip_vertex *b, const obs_vk_clip_vertex *d, float *out);
 
 #endif

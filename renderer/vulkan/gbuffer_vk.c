@@ -372,18 +372,27 @@ static void object_albedo(const obs_scene *sc, size_t obj, float out[3]) {
 static size_t clip_all(const obs_geometry *geo, const int *seg, const double shift[3],
                        obs_vk_clip *c, gb_draw *d, float *out, int *rc) {
   size_t total = 0, k = 0;
-  double tri[9];
   *rc = 0;
   for (size_t m = 0; m < geo->nmeshes; m++, k++) {
     const obs_mesh *me = &geo->meshes[m];
     if (d) d[k].first = (uint32_t)total;
-    for (size_t t = 0; t < me->ntris; t++) {
-      for (size_t v = 0; v < 3; v++) {
-        const float *p = me->pos + 3 * (size_t)me->idx[3 * t + v];
-        for (int j = 0; j < 3; j++) tri[3 * v + (size_t)j] = (double)p[j] + shift[j];
-      }
-      total += obs_vk_clip_triangle(c, tri, out ? out + OBS_VK_CLIP_FLOATS * total : NULL);
+    /* Each vertex is rotated and classified once, not once per triangle using it. */
+    obs_vk_clip_vertex *cv = malloc((me->nverts ? me->nverts : 1) * sizeof *cv);
+    if (!cv) {
+      *rc = OBS_ENOMEM;
+      return 0;
     }
+    for (size_t i = 0; i < me->nverts; i++) {
+      const float *p = me->pos + 3 * i;
+      double q[3] = {(double)p[0] + shift[0], (double)p[1] + shift[1], (double)p[2] + shift[2]};
+      obs_vk_clip_vertex_init(c, q, &cv[i]);
+    }
+    for (size_t t = 0; t < me->ntris; t++) {
+      const uint32_t *ix = me->idx + 3 * t;
+      total += obs_vk_clip_triangle(c, &cv[ix[0]], &cv[ix[1]], &cv[ix[2]],
+                                    out ? out + OBS_VK_CLIP_FLOATS * total : NULL);
+    }
+    free(cv);
     if (d) d[k].count = (uint32_t)(total - d[k].first);
   }
   for (size_t s = 0; s < geo->nspheres; s++, k++) {
@@ -395,9 +404,12 @@ static size_t clip_all(const obs_geometry *geo, const int *seg, const double shi
       *rc = OBS_ENOMEM;
       return 0;
     }
-    for (size_t t = 0; t < nv; t += 3)
-      total +=
-          obs_vk_clip_triangle(c, tess + 3 * t, out ? out + OBS_VK_CLIP_FLOATS * total : NULL);
+    for (size_t t = 0; t < nv; t += 3) {
+      obs_vk_clip_vertex v[3];
+      for (int j = 0; j < 3; j++) obs_vk_clip_vertex_init(c, tess + 3 * (t + (size_t)j), &v[j]);
+      total += obs_vk_clip_triangle(c, &v[0], &v[1], &v[2],
+                                    out ? out + OBS_VK_CLIP_FLOATS * total : NULL);
+    }
     free(tess);
     if (d) d[k].count = (uint32_t)(total - d[k].first);
   }
