@@ -1,15 +1,15 @@
-/* Host-side preparation of the G-buffer rasteriser's triangles, in double. A rasteriser snaps
- * vertices to a fixed-point grid of limited range (lavapipe: 8 sub-pixel bits in a guard band of a
- * few viewports) and clips what lies beyond in float clip space, so a triangle reaching far past
- * the view or behind the camera loses precision or vanishes there; it also interpolates 1/w
- * linearly in screen space in float, whose absolute error is relative to the triangle's nearest
- * point, so depth at its far end errs by float epsilon times its depth ratio. Here every triangle
- * is rotated into view space, clipped to a guard band twice the view and to the near plane, and,
- * in perspective, cut into slabs whose far depth is at most DEPTH_RATIO times their near depth.
- * The rotation is done here rather than on the device because in float it errs by ~1e-7 of the
- * distance from the camera, a whole pixel at a field of view of ~1e-5 radians; the face normal is
- * computed here too, from the double vertices, because screen-space derivatives of float
- * positions lose it at tiny fields of view. */
+/* Host-side preparation of the G-buffer rasteriser's triangles, in double (long double where a
+ * huge triangle is cut). A rasteriser snaps vertices to a fixed-point grid of limited range
+ * (lavapipe: 8 sub-pixel bits in a guard band of a few viewports) and clips what lies beyond in
+ * float clip space, so a triangle reaching far past the view or behind the camera loses precision
+ * or vanishes there; it also interpolates 1/w linearly in screen space in float, whose absolute
+ * error is relative to the triangle's nearest point, so depth at its far end errs by float epsilon
+ * times its depth ratio. Here every triangle is rotated into view space, clipped to a guard band
+ * twice the view and to the near plane, and, in perspective, cut into slabs whose far depth is at
+ * most DEPTH_RATIO times their near depth. The rotation is done here rather than on the device
+ * because in float it errs by ~1e-7 of the distance from the camera, a whole pixel at a field of
+ * view of ~1e-5 radians; the face normal is computed here too, from the double vertices, because
+ * screen-space derivatives of float positions lose it at tiny fields of view. */
 #include "gbuffer_clip.h"
 
 #include <math.h>
@@ -46,6 +46,15 @@ void obs_vk_clip_init(obs_vk_clip *c, const obs_camera_rig *rig, double znear) {
  * rotation first would mix ~1e-16 of its far vertices' size into the plane near the camera. */
 typedef obs_vk_clip_vertex cvert;
 
+/* The cutting path works in long double (a 64-bit significand on x86-64): a crossing point near
+ * the camera is interpolated between vertices that may be ~1e18 away, and double would place it
+ * only to ~1e-16 of that (~200 units), more than the guard band's margin. */
+typedef long double wide;
+typedef struct wvert {
+  wide p[3]; /* camera-relative world position */
+  wide v[3]; /* view coordinates */
+} wvert;
+
 static void view_of(const obs_vk_clip *c, cvert *q) {
   const double *p = q->p;
   q->v[0] = p[0] * c->right[0] + p[1] * c->right[1] + p[2] * c->right[2];
@@ -53,14 +62,21 @@ static void view_of(const obs_vk_clip *c, cvert *q) {
   q->v[2] = p[0] * c->forward[0] + p[1] * c->forward[1] + p[2] * c->forward[2];
 }
 
-static void between(const obs_vk_clip *c, const cvert *s, const cvert *o, double t, cvert *q) {
+static void wview_of(const obs_vk_clip *c, wvert *q) {
+  const wide *p = q->p;
+  q->v[0] = p[0] * c->right[0] + p[1] * c->right[1] + p[2] * c->right[2];
+  q->v[1] = p[0] * c->up[0] + p[1] * c->up[1] + p[2] * c->up[2];
+  q->v[2] = p[0] * c->forward[0] + p[1] * c->forward[1] + p[2] * c->forward[2];
+}
+
+static void between(const obs_vk_clip *c, const wvert *s, const wvert *o, wide t, wvert *q) {
   for (int j = 0; j < 3; j++) q->p[j] = s->p[j] + t * (o->p[j] - s->p[j]);
-  view_of(c, q);
+  wview_of(c, q);
 }
 
 /* >= 0 inside plane k of the band with half-extents (hx, hy) (slopes when perspective). */
-static double plane(const obs_vk_clip *c, int k, double hx, double hy, const double v[3]) {
-  double sx = c->ortho ? hx : hx * v[2], sy = c->ortho ? hy : hy * v[2];
+static wide plane(const obs_vk_clip *c, int k, double hx, double hy, const wide v[3]) {
+  wide sx = c->ortho ? hx : hx * v[2], sy = c->ortho ? hy : hy * v[2];
   switch (k) {
   case 0: return v[2] - c->znear;
   case 1: return sx - v[0];
@@ -73,24 +89,25 @@ static double plane(const obs_vk_clip *c, int k, double hx, double hy, const dou
 void obs_vk_clip_vertex_init(const obs_vk_clip *c, const double p[3], obs_vk_clip_vertex *out) {
   memcpy(out->p, p, sizeof out->p);
   view_of(c, out);
-  out->band = 1;
-  for (int k = 1; k < NPLANES; k++)
-    out->band = out->band && plane(c, k, c->keep_x, c->keep_y, out->v) >= 0.0;
+  double sx = c->ortho ? c->keep_x : c->keep_x * out->v[2];
+  double sy = c->ortho ? c->keep_y : c->keep_y * out->v[2];
+  out->band = sx - out->v[0] >= 0.0 && sx + out->v[0] >= 0.0 && sy - out->v[1] >= 0.0 &&
+              sy + out->v[1] >= 0.0;
 }
 
 /* One Sutherland-Hodgman stage against plane k of the cut band. The crossing point is computed
  * from the inside end toward the outside end, so the two triangles sharing an edge get the same
  * point (no cracks). */
-static int clip_plane(const obs_vk_clip *c, int k, const cvert *in, int n, cvert *out) {
+static int clip_plane(const obs_vk_clip *c, int k, const wvert *in, int n, wvert *out) {
   int m = 0;
   for (int i = 0; i < n; i++) {
-    const cvert *a = &in[i], *b = &in[(i + 1) % n];
-    double da = plane(c, k, c->cut_x, c->cut_y, a->v), db = plane(c, k, c->cut_x, c->cut_y, b->v);
-    int ia = da >= 0.0, ib = db >= 0.0;
+    const wvert *a = &in[i], *b = &in[(i + 1) % n];
+    wide da = plane(c, k, c->cut_x, c->cut_y, a->v), db = plane(c, k, c->cut_x, c->cut_y, b->v);
+    int ia = da >= 0, ib = db >= 0;
     if (ia) out[m++] = *a;
     if (ia != ib) {
-      const cvert *s = ia ? a : b, *o = ia ? b : a;
-      double ds = ia ? da : db, dout = ia ? db : da;
+      const wvert *s = ia ? a : b, *o = ia ? b : a;
+      wide ds = ia ? da : db, dout = ia ? db : da;
       between(c, s, o, ds / (ds - dout), &out[m++]);
     }
   }
@@ -99,15 +116,15 @@ static int clip_plane(const obs_vk_clip *c, int k, const cvert *in, int n, cvert
 
 /* Keeps the part of the polygon with z >= zc (upper) or z <= zc. The crossing is computed from the
  * nearer end whichever side is kept, so both slabs, and the neighbouring triangle, share it. */
-static int clip_depth(const obs_vk_clip *c, const cvert *in, int n, double zc, int upper,
-                      cvert *out) {
+static int clip_depth(const obs_vk_clip *c, const wvert *in, int n, wide zc, int upper,
+                      wvert *out) {
   int m = 0;
   for (int i = 0; i < n; i++) {
-    const cvert *a = &in[i], *b = &in[(i + 1) % n];
+    const wvert *a = &in[i], *b = &in[(i + 1) % n];
     int ia = upper ? a->v[2] >= zc : a->v[2] <= zc, ib = upper ? b->v[2] >= zc : b->v[2] <= zc;
     if (ia) out[m++] = *a;
     if (ia != ib) {
-      const cvert *s = a->v[2] < b->v[2] ? a : b, *o = s == a ? b : a;
+      const wvert *s = a->v[2] < b->v[2] ? a : b, *o = s == a ? b : a;
       between(c, s, o, (zc - s->v[2]) / (o->v[2] - s->v[2]), &out[m++]);
     }
   }
@@ -132,32 +149,37 @@ static void emit_vertex(emitter *e, const double v[3]) {
   e->n++;
 }
 
+static void emit_wvertex(emitter *e, const wvert *q) {
+  double v[3] = {(double)q->v[0], (double)q->v[1], (double)q->v[2]};
+  emit_vertex(e, v);
+}
+
 /* A fan: the polygon is convex. */
-static void emit_polygon(emitter *e, const cvert *p, int n) {
+static void emit_polygon(emitter *e, const wvert *p, int n) {
   for (int i = 1; i + 1 < n; i++) {
-    emit_vertex(e, p[0].v);
-    emit_vertex(e, p[i].v);
-    emit_vertex(e, p[i + 1].v);
+    emit_wvertex(e, &p[0]);
+    emit_wvertex(e, &p[i]);
+    emit_wvertex(e, &p[i + 1]);
   }
 }
 
 /* Cuts the polygon into slabs between depths znear * DEPTH_RATIO^k, so slabs of neighbouring
  * triangles meet at the same depths. */
-static void emit_slabs(emitter *e, const cvert *p, int n) {
-  double lo = INFINITY, hi = -INFINITY;
+static void emit_slabs(emitter *e, const wvert *p, int n) {
+  wide lo = INFINITY, hi = -INFINITY;
   for (int i = 0; i < n; i++) {
-    lo = fmin(lo, p[i].v[2]);
-    hi = fmax(hi, p[i].v[2]);
+    lo = p[i].v[2] < lo ? p[i].v[2] : lo;
+    hi = p[i].v[2] > hi ? p[i].v[2] : hi;
   }
   const obs_vk_clip *c = e->c;
   if (c->ortho || !(c->znear > 0.0) || !(hi > DEPTH_RATIO * lo)) {
     emit_polygon(e, p, n);
     return;
   }
-  double z = c->znear * pow(DEPTH_RATIO, floor(log(lo / c->znear) / log(DEPTH_RATIO)));
+  wide z = c->znear * pow(DEPTH_RATIO, floor(log((double)lo / c->znear) / log(DEPTH_RATIO)));
   while (z > lo) z /= DEPTH_RATIO; /* log's rounding, either way */
   while (!(z * DEPTH_RATIO > lo)) z *= DEPTH_RATIO;
-  cvert a[MAX_POLY], b[MAX_POLY];
+  wvert a[MAX_POLY], b[MAX_POLY];
   for (; z < hi; z *= DEPTH_RATIO) {
     int m = clip_depth(c, p, n, z, 1, a);
     m = m >= 3 ? clip_depth(c, a, m, z * DEPTH_RATIO, 0, b) : 0;
@@ -198,13 +220,19 @@ size_t obs_vk_clip_triangle(obs_vk_clip *c, const obs_vk_clip_vertex *a,
     emit_vertex(&e, d->v);
     return e.n;
   }
-  cvert poly[2][MAX_POLY];
-  poly[0][0] = *a;
-  poly[0][1] = *b;
-  poly[0][2] = *d;
+  wvert poly[2][MAX_POLY];
+  const cvert *in[3] = {a, b, d};
+  for (int i = 0; i < 3; i++) {
+    for (int j = 0; j < 3; j++) poly[0][i].p[j] = in[i]->p[j];
+    wview_of(c, &poly[0][i]); /* the double rotation errs by ~1e-16 of the vertex's size */
+  }
+  /* The side planes first: they pass through the eye, so the corners they make on a huge
+   * triangle lie where the view's edges meet it, well away from the eye; the near plane, last,
+   * then rarely cuts anything. Cut first, it would make a line a hair's breadth from the eye out
+   * of vertices ~1e18 away, and the side planes' corners on it would carry that rounding. */
   int n = 3, cur = 0;
-  for (int k = 0; k < NPLANES && n > 0; k++) {
-    n = clip_plane(c, k, poly[cur], n, poly[cur ^ 1]);
+  for (int i = 0; i < NPLANES && n > 0; i++) {
+    n = clip_plane(c, (i + 1) % NPLANES, poly[cur], n, poly[cur ^ 1]);
     cur ^= 1;
   }
   if (n >= 3) emit_slabs(&e, poly[cur], n);
