@@ -67,8 +67,10 @@ OBS_HOT_INLINE void tangent(const float n[3], const float r[3], float nr, float 
   *cos_t = sqrtf(h2) / l;
 }
 
-/* 2^-e and 2^e for the binary exponent e of m > 0 (clamped so both are normal floats): scaling
- * by them is exact, so |S - P| is measured without over- or underflow at any scale or radius. */
+/* 2^-e and 2^e for the binary exponent e of m > 0 (clamped so both are normal floats). Scaling by
+ * them is exact: offsets S - P scaled by the pixel's depth's 2^-e are squared without over- or
+ * underflow at any scene scale or radius (while |S - P| < ~1e19 z; the depth-uncertainty shift
+ * keeps it above ~1e-7 z). */
 OBS_HOT_INLINE void pow2_scale(float m, float *down, float *up) {
   uint32_t b;
   memcpy(&b, &m, sizeof b);
@@ -109,6 +111,9 @@ OBS_HOT_INLINE float ao_texel(const hbao_job *jb, int ax, int ay) {
   float nr = n[0] * r[0] + n[1] * r[1] + n[2] * r[2];
   const float *row = jb->table + (size_t)((ay & 3) * 4 + (ax & 3)) * (size_t)p->directions * 4;
   float cx = (float)ax + 0.5f, cy = (float)ay + 0.5f;
+  float down, up;
+  pow2_scale(z, &down, &up);
+  float rscale = up * jb->inv_r; /* exact: a power of two times 1/R */
   float sum = 0.0f;
   for (int i = 0; i < p->directions; i++) {
     float dx = row[4 * i], dy = row[4 * i + 1], jit = row[4 * i + 2];
@@ -128,19 +133,13 @@ OBS_HOT_INLINE float ao_texel(const hbao_job *jb, int ax, int ay) {
       if (!(zs > 0.0f)) continue; /* background */
       float S[3];
       obs_gbuffer_position(g, (float)(lv->s * ix) + 0.5f, (float)(lv->s * iy) + 0.5f, zs, S);
-      /* The sample moved away by its depth's uncertainty (OBS_HBAO_DEPTH_EPS), scaled by a power
-       * of two so the squares neither overflow nor underflow whatever the scene's scale and the
-       * radius; the distance in units of R then uses the host's reciprocal of R. */
+      /* The sample moved away by its depth's uncertainty (OBS_HBAO_DEPTH_EPS), scaled by the
+       * pixel's power of two; the distance in units of R uses the host's reciprocal of R. */
       float dx = S[0] - P[0], dy = S[1] - P[1], dz = (S[2] - P[2]) + jb->depth_eps * (zs + z);
-      float ex = fabsf(dx), ey = fabsf(dy), ez = fabsf(dz);
-      float m = ex > ey ? ex : ey;
-      m = m > ez ? m : ez;
-      if (!(m > 0.0f)) continue;
-      float down, up;
-      pow2_scale(m, &down, &up);
       float qx = dx * down, qy = dy * down, qz = dz * down;
       float len = sqrtf(qx * qx + qy * qy + qz * qz);
-      float dist = len * (up * jb->inv_r);
+      if (!(len > 0.0f)) continue;
+      float dist = len * rscale;
       if (!(dist < 1.0f)) continue;
       float d2 = dist * dist;
       float sin_s = -qz / len;
@@ -213,8 +212,13 @@ OBS_AVX2_FN static void ao_span8(const hbao_job *jb, int x, int y, float *dst) {
     r1 = cfy;
   }
   const __m256 P2 = z, inv_r = _mm256_set1_ps(jb->inv_r), eps = _mm256_set1_ps(jb->depth_eps);
-  const __m256i e_mask = _mm256_set1_epi32(0xff), e_lo = _mm256_set1_epi32(1);
-  const __m256i e_hi = _mm256_set1_epi32(253), e_sum = _mm256_set1_epi32(254);
+  /* pow2_scale of each lane's depth. */
+  __m256i ex = _mm256_and_si256(_mm256_srli_epi32(_mm256_castps_si256(z), 23),
+                                _mm256_set1_epi32(0xff));
+  ex = _mm256_min_epi32(_mm256_max_epi32(ex, _mm256_set1_epi32(1)), _mm256_set1_epi32(253));
+  const __m256 down =
+      _mm256_castsi256_ps(_mm256_slli_epi32(_mm256_sub_epi32(_mm256_set1_epi32(254), ex), 23));
+  const __m256 rscale = _mm256_mul_ps(_mm256_castsi256_ps(_mm256_slli_epi32(ex, 23)), inv_r);
   const float num = R * (0.5f * (float)g->width);
   __m256 rpx = g->ortho ? _mm256_set1_ps(num / g->half_w)
                         : _mm256_div_ps(_mm256_set1_ps(num), _mm256_mul_ps(_mm256_set1_ps(g->half_w), z));
@@ -274,21 +278,15 @@ OBS_AVX2_FN static void ao_span8(const hbao_job *jb, int x, int y, float *dst) {
         S0 = _mm256_mul_ps(S0, zs);
         S1 = _mm256_mul_ps(S1, zs);
       }
-      /* ao_texel's power-of-two scaled distance, lane by lane. */
+      /* ao_texel's scaled offset, lane by lane. */
       __m256 dx = _mm256_sub_ps(S0, P0), dy = _mm256_sub_ps(S1, P1);
       __m256 dz = _mm256_add_ps(_mm256_sub_ps(zs, P2), _mm256_mul_ps(eps, _mm256_add_ps(zs, P2)));
-      __m256 m = _mm256_max_ps(_mm256_max_ps(_mm256_andnot_ps(sign, dx), _mm256_andnot_ps(sign, dy)),
-                               _mm256_andnot_ps(sign, dz));
-      ok = _mm256_and_ps(ok, _mm256_cmp_ps(m, zero, _CMP_GT_OQ));
-      __m256i ex = _mm256_and_si256(_mm256_srli_epi32(_mm256_castps_si256(m), 23), e_mask);
-      ex = _mm256_min_epi32(_mm256_max_epi32(ex, e_lo), e_hi);
-      __m256 down = _mm256_castsi256_ps(_mm256_slli_epi32(_mm256_sub_epi32(e_sum, ex), 23));
-      __m256 upw = _mm256_castsi256_ps(_mm256_slli_epi32(ex, 23));
       __m256 qx = _mm256_mul_ps(dx, down), qy = _mm256_mul_ps(dy, down), qz = _mm256_mul_ps(dz, down);
       __m256 len = _mm256_sqrt_ps(_mm256_add_ps(
           _mm256_add_ps(_mm256_mul_ps(qx, qx), _mm256_mul_ps(qy, qy)), _mm256_mul_ps(qz, qz)));
-      __m256 dist = _mm256_mul_ps(len, _mm256_mul_ps(upw, inv_r));
-      ok = _mm256_and_ps(ok, _mm256_cmp_ps(dist, one, _CMP_LT_OQ));
+      __m256 dist = _mm256_mul_ps(len, rscale);
+      ok = _mm256_and_ps(ok, _mm256_and_ps(_mm256_cmp_ps(len, zero, _CMP_GT_OQ),
+                                           _mm256_cmp_ps(dist, one, _CMP_LT_OQ)));
       if (!_mm256_movemask_ps(ok)) continue;
       __m256 d2 = _mm256_mul_ps(dist, dist);
       __m256 sin_s = _mm256_div_ps(_mm256_xor_ps(qz, sign), len);

@@ -74,6 +74,10 @@ float ao_texel(ivec2 a) {
   int cell = (a.y & 3) * 4 + (a.x & 3);
   precise float cx = float(a.x) + 0.5;
   precise float cy = float(a.y) + 0.5;
+  // pow2_scale in renderer/cpu/hbao.c: 2^-e and 2^e for the binary exponent e of z.
+  uint be = clamp((floatBitsToUint(z) >> 23) & 0xffu, 1u, 253u);
+  precise float down = uintBitsToFloat((254u - be) << 23);
+  precise float rscale = uintBitsToFloat(be << 23) * pc.inv_r;
   precise float sum = 0.0;
   for (int i = 0; i < pc.directions; i++) {
     precise vec4 d = imageLoad(dirs, ivec2(i, cell));
@@ -93,24 +97,16 @@ float ao_texel(ivec2 a) {
       precise float zs = imageLoad(depth_l, ivec2(ix, iy)).x;
       if (!(zs > 0.0)) continue;
       precise vec3 S = position(float(pc.s * ix) + 0.5, float(pc.s * iy) + 0.5, zs);
-      // Moved away by the depths' uncertainty and scaled by a power of two (see ao_texel).
+      // Moved away by the depths' uncertainty, scaled by the pixel's power of two (see ao_texel).
       precise float dx = S.x - P.x;
       precise float dy = S.y - P.y;
       precise float dz = (S.z - P.z) + pc.depth_eps * (zs + z);
-      precise float ex = abs(dx);
-      precise float ey = abs(dy);
-      precise float ez = abs(dz);
-      precise float m = ex > ey ? ex : ey;
-      m = m > ez ? m : ez;
-      if (!(m > 0.0)) continue;
-      uint be = clamp((floatBitsToUint(m) >> 23) & 0xffu, 1u, 253u);
-      precise float down = uintBitsToFloat((254u - be) << 23);
-      precise float up = uintBitsToFloat(be << 23);
       precise float qx = dx * down;
       precise float qy = dy * down;
       precise float qz = dz * down;
       precise float len = sqrt(qx * qx + qy * qy + qz * qz);
-      precise float dist = len * (up * pc.inv_r);
+      if (!(len > 0.0)) continue;
+      precise float dist = len * rscale;
       if (!(dist < 1.0)) continue;
       precise float d2 = dist * dist;
       precise float sin_s = -qz / len;
