@@ -28,6 +28,7 @@ typedef struct hbao_job {
   const float *table;
   float cos_b, sin_b;
   float inv_r; /* 1 / radius, rounded once for both backends (obs_hbao_inv_radius) */
+  float depth_eps; /* OBS_HBAO_DEPTH_EPS */
   float falloff; /* 1 / (2 sigma^2) of the blur's Gaussian */
   const float *in;
   float *out;
@@ -66,6 +67,20 @@ OBS_HOT_INLINE void tangent(const float n[3], const float r[3], float nr, float 
   *cos_t = sqrtf(h2) / l;
 }
 
+/* 2^-e and 2^e for the binary exponent e of m > 0 (clamped so both are normal floats). Scaling by
+ * them is exact: offsets S - P scaled by the pixel's depth's 2^-e are squared without over- or
+ * underflow at any scene scale or radius (while |S - P| < ~1e19 z; the depth-uncertainty shift
+ * keeps it above ~1e-7 z). */
+OBS_HOT_INLINE void pow2_scale(float m, float *down, float *up) {
+  uint32_t b;
+  memcpy(&b, &m, sizeof b);
+  uint32_t e = (b >> 23) & 0xffu;
+  e = e < 1u ? 1u : e > 253u ? 253u : e;
+  uint32_t d = (254u - e) << 23, u = e << 23;
+  memcpy(down, &d, sizeof d);
+  memcpy(up, &u, sizeof u);
+}
+
 OBS_HOT_INLINE float ao_texel(const hbao_job *jb, int ax, int ay) {
   const hbao_level *lv = &jb->lv;
   const obs_hbao_params *p = jb->p;
@@ -96,6 +111,9 @@ OBS_HOT_INLINE float ao_texel(const hbao_job *jb, int ax, int ay) {
   float nr = n[0] * r[0] + n[1] * r[1] + n[2] * r[2];
   const float *row = jb->table + (size_t)((ay & 3) * 4 + (ax & 3)) * (size_t)p->directions * 4;
   float cx = (float)ax + 0.5f, cy = (float)ay + 0.5f;
+  float down, up;
+  pow2_scale(z, &down, &up);
+  float rscale = up * jb->inv_r; /* exact: a power of two times 1/R */
   float sum = 0.0f;
   for (int i = 0; i < p->directions; i++) {
     float dx = row[4 * i], dy = row[4 * i + 1], jit = row[4 * i + 2];
@@ -115,15 +133,16 @@ OBS_HOT_INLINE float ao_texel(const hbao_job *jb, int ax, int ay) {
       if (!(zs > 0.0f)) continue; /* background */
       float S[3];
       obs_gbuffer_position(g, (float)(lv->s * ix) + 0.5f, (float)(lv->s * iy) + 0.5f, zs, S);
-      /* In units of R, so huge and tiny scenes neither overflow nor underflow the square; one
-       * reciprocal (rounded once, on the host, for both backends) instead of three divisions per
-       * sample, the costliest operations of the march. */
-      float ux = (S[0] - P[0]) * jb->inv_r, uy = (S[1] - P[1]) * jb->inv_r,
-            uz = (S[2] - P[2]) * jb->inv_r;
-      float d2 = ux * ux + uy * uy + uz * uz;
-      if (!(d2 < 1.0f) || !(d2 > 0.0f)) continue;
-      float len = sqrtf(d2);
-      float sin_s = -uz / len;
+      /* The sample moved away by its depth's uncertainty (OBS_HBAO_DEPTH_EPS), scaled by the
+       * pixel's power of two; the distance in units of R uses the host's reciprocal of R. */
+      float dx = S[0] - P[0], dy = S[1] - P[1], dz = (S[2] - P[2]) + jb->depth_eps * (zs + z);
+      float qx = dx * down, qy = dy * down, qz = dz * down;
+      float len = sqrtf(qx * qx + qy * qy + qz * qz);
+      if (!(len > 0.0f)) continue;
+      float dist = len * rscale;
+      if (!(dist < 1.0f)) continue;
+      float d2 = dist * dist;
+      float sin_s = -qz / len;
       /* Texel snapping moves the sample off the direction's slice; measure its elevation against
        * the tangent in its own slice and re-base it on this direction's tangent, so points of the
        * tangent plane never count as horizon (the article hides this with the bias alone). */
@@ -192,7 +211,14 @@ OBS_AVX2_FN static void ao_span8(const hbao_job *jb, int x, int y, float *dst) {
     r0 = cfx;
     r1 = cfy;
   }
-  const __m256 P2 = z, inv_r = _mm256_set1_ps(jb->inv_r);
+  const __m256 P2 = z, inv_r = _mm256_set1_ps(jb->inv_r), eps = _mm256_set1_ps(jb->depth_eps);
+  /* pow2_scale of each lane's depth. */
+  __m256i ex = _mm256_and_si256(_mm256_srli_epi32(_mm256_castps_si256(z), 23),
+                                _mm256_set1_epi32(0xff));
+  ex = _mm256_min_epi32(_mm256_max_epi32(ex, _mm256_set1_epi32(1)), _mm256_set1_epi32(253));
+  const __m256 down =
+      _mm256_castsi256_ps(_mm256_slli_epi32(_mm256_sub_epi32(_mm256_set1_epi32(254), ex), 23));
+  const __m256 rscale = _mm256_mul_ps(_mm256_castsi256_ps(_mm256_slli_epi32(ex, 23)), inv_r);
   const float num = R * (0.5f * (float)g->width);
   __m256 rpx = g->ortho ? _mm256_set1_ps(num / g->half_w)
                         : _mm256_div_ps(_mm256_set1_ps(num), _mm256_mul_ps(_mm256_set1_ps(g->half_w), z));
@@ -252,15 +278,18 @@ OBS_AVX2_FN static void ao_span8(const hbao_job *jb, int x, int y, float *dst) {
         S0 = _mm256_mul_ps(S0, zs);
         S1 = _mm256_mul_ps(S1, zs);
       }
-      __m256 ux = _mm256_mul_ps(_mm256_sub_ps(S0, P0), inv_r);
-      __m256 uy = _mm256_mul_ps(_mm256_sub_ps(S1, P1), inv_r);
-      __m256 uz = _mm256_mul_ps(_mm256_sub_ps(zs, P2), inv_r);
-      __m256 d2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(ux, ux), _mm256_mul_ps(uy, uy)),
-                                _mm256_mul_ps(uz, uz));
-      ok = _mm256_and_ps(ok, _mm256_and_ps(_mm256_cmp_ps(d2, one, _CMP_LT_OQ),
-                                           _mm256_cmp_ps(d2, zero, _CMP_GT_OQ)));
+      /* ao_texel's scaled offset, lane by lane. */
+      __m256 dx = _mm256_sub_ps(S0, P0), dy = _mm256_sub_ps(S1, P1);
+      __m256 dz = _mm256_add_ps(_mm256_sub_ps(zs, P2), _mm256_mul_ps(eps, _mm256_add_ps(zs, P2)));
+      __m256 qx = _mm256_mul_ps(dx, down), qy = _mm256_mul_ps(dy, down), qz = _mm256_mul_ps(dz, down);
+      __m256 len = _mm256_sqrt_ps(_mm256_add_ps(
+          _mm256_add_ps(_mm256_mul_ps(qx, qx), _mm256_mul_ps(qy, qy)), _mm256_mul_ps(qz, qz)));
+      __m256 dist = _mm256_mul_ps(len, rscale);
+      ok = _mm256_and_ps(ok, _mm256_and_ps(_mm256_cmp_ps(len, zero, _CMP_GT_OQ),
+                                           _mm256_cmp_ps(dist, one, _CMP_LT_OQ)));
       if (!_mm256_movemask_ps(ok)) continue;
-      __m256 sin_s = _mm256_div_ps(_mm256_xor_ps(uz, sign), _mm256_sqrt_ps(d2));
+      __m256 d2 = _mm256_mul_ps(dist, dist);
+      __m256 sin_s = _mm256_div_ps(_mm256_xor_ps(qz, sign), len);
       __m256 sin_ts;
       tangent8(n0, n1, nr, r0, r1, _mm256_cvtepi32_ps(ox),
                _mm256_xor_ps(_mm256_cvtepi32_ps(oy), sign), &sin_ts, NULL);
@@ -519,6 +548,7 @@ int obs_hbao_cpu_apply_ex(const obs_gbuffer *g, const obs_hbao_params *p, int th
   /* The vector kernels index with 32-bit lanes. */
   jb.simd = obs_simd_avx2() && n <= (size_t)INT32_MAX;
   jb.inv_r = obs_hbao_inv_radius(p);
+  jb.depth_eps = OBS_HBAO_DEPTH_EPS;
   jb.cos_b = (float)cos((double)p->angle_bias);
   jb.sin_b = (float)sin((double)p->angle_bias);
   float sigma = ((float)p->blur_radius + 1.0f) * 0.5f;

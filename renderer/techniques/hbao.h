@@ -65,8 +65,14 @@ void obs_hbao_directions(const obs_hbao_params *p, float *table);
  * reads the full-resolution texel (2x, 2y)). */
 void obs_hbao_level_size(const obs_hbao_params *p, int width, int height, int *lw, int *lh);
 /* 1 / radius in float, computed once on the host and handed to both backends, so their horizon
- * distances (S - P) / R, taken as (S - P) * (1 / R), round alike. */
+ * distances |S - P| / R, taken as |S - P| * (1 / R), round alike. */
 static inline float obs_hbao_inv_radius(const obs_hbao_params *p) { return 1.0f / p->radius; }
+/* Relative uncertainty assumed of each G-buffer depth (float rounding, ~2^-24, and the
+ * rasteriser's interpolation, measured below 2^-21 in docs/vulkan.md): the horizon search moves
+ * each sample away from the camera by OBS_HBAO_DEPTH_EPS * (z + zs), so a sample rises above the
+ * tangent plane only by more than the two depths' rounding can explain. At tiny fields of view a
+ * pixel's footprint shrinks to a few ulps of depth and that rounding alone looked like occlusion. */
+#define OBS_HBAO_DEPTH_EPS 0x1p-22f
 
 /* CPU twin: AO of G-buffer `g` into `ao` (width*height floats, finite, in [0,1], 1 where
  * uncovered). stage_ms (may be NULL) gets OBS_HBAO_PASS_COUNT entries. */

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "camera.h"
+#include "gbuffer_clip.h"
 #include "shaders.h"
 #include "vk_internal.h"
 
@@ -14,13 +15,15 @@
  * normals stay within ~1.5 degrees of the sphere's (the tests allow 2). */
 #define SPHERE_MAX_LON 1024
 #define SPHERE_NORMAL_STEP (1.5 * PI / 180.0)
-/* Perspective near plane as a fraction of the farthest geometry depth. With reversed float depth
- * (near / z) precision does not depend on it, so it only decides what is clipped: 2^-30 loses
- * nothing nearer than a billionth of the scene depth. */
-#define NEAR_FRACTION (1.0 / 1073741824.0)
+/* Perspective near plane as a fraction of the farthest depth of the geometry in view. With
+ * reversed float depth (near / z) precision does not depend on it, so it only decides what is
+ * clipped: 2^-80 loses nothing nearer than ~1e-24 of that depth (a ground plane to a horizon 1e18
+ * away keeps everything beyond 1e-6). The clipper bounds what the device computes from it: x / z
+ * and y / z by the guard band, each triangle's depth ratio by its slabs, and near / z stays a
+ * normal float for any depth the scene format allows. */
+#define NEAR_FRACTION 0x1p-80
 
 typedef struct gb_push {
-  float right[4], up[4], forward[4];
   float proj[4]; /* half_w, half_h, k (near, or 1/far when orthographic), orthographic */
   float albedo[4];
 } gb_push;
@@ -150,14 +153,16 @@ static int ensure_pipeline(obs_vk *vk, obs_err *err) {
        .stage = VK_SHADER_STAGE_FRAGMENT_BIT,
        .module = fs,
        .pName = "main"}};
-  VkVertexInputBindingDescription vb = {0, 3 * sizeof(float), VK_VERTEX_INPUT_RATE_VERTEX};
-  VkVertexInputAttributeDescription va = {0, 0, VK_FORMAT_R32G32B32_SFLOAT, 0};
+  VkVertexInputBindingDescription vb = {0, OBS_VK_CLIP_FLOATS * sizeof(float),
+                                        VK_VERTEX_INPUT_RATE_VERTEX};
+  VkVertexInputAttributeDescription va[2] = {{0, 0, VK_FORMAT_R32G32B32_SFLOAT, 0},
+                                             {1, 0, VK_FORMAT_R32G32B32_SFLOAT, 3 * sizeof(float)}};
   VkPipelineVertexInputStateCreateInfo vi = {
       .sType = VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO,
       .vertexBindingDescriptionCount = 1,
       .pVertexBindingDescriptions = &vb,
-      .vertexAttributeDescriptionCount = 1,
-      .pVertexAttributeDescriptions = &va};
+      .vertexAttributeDescriptionCount = 2,
+      .pVertexAttributeDescriptions = va};
   VkPipelineInputAssemblyStateCreateInfo ia = {
       .sType = VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO,
       .topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST};
@@ -302,7 +307,7 @@ static size_t sphere_vertices(int n) {
 }
 
 /* `shift` takes the geometry's frame to the camera's (geometry origin - camera origin). */
-static int sphere_fill(const obs_sphere *s, int n, const double shift[3], float *out) {
+static int sphere_fill(const obs_sphere *s, int n, const double shift[3], double *out) {
   int lat = n / 2;
   double *tab = malloc(((size_t)n + (size_t)lat + 1) * 2 * sizeof *tab);
   if (!tab) return OBS_ENOMEM;
@@ -317,12 +322,12 @@ static int sphere_fill(const obs_sphere *s, int n, const double shift[3], float 
   }
   /* Exact poles, so both caps close on one point. */
   ct[0] = 1, st[0] = 0, ct[lat] = -1, st[lat] = 0;
-  float *o = out;
+  double *o = out;
 #define PUT(j, i)                                                        \
   do {                                                                   \
-    o[0] = (float)(s->center[0] + shift[0] + s->radius * st[j] * cp[i]); \
-    o[1] = (float)(s->center[1] + shift[1] + s->radius * ct[j]);         \
-    o[2] = (float)(s->center[2] + shift[2] + s->radius * st[j] * sp[i]); \
+    o[0] = s->center[0] + shift[0] + s->radius * st[j] * cp[i]; \
+    o[1] = s->center[1] + shift[1] + s->radius * ct[j];         \
+    o[2] = s->center[2] + shift[2] + s->radius * st[j] * sp[i]; \
     o += 3;                                                              \
   } while (0)
   for (int j = 0; j < lat; j++)
@@ -359,83 +364,119 @@ static void object_albedo(const obs_scene *sc, size_t obj, float out[3]) {
   out[2] = o->has_material ? (float)o->reflectivity.z : 1.0f;
 }
 
-/* Fills the vertex buffer (camera-relative, shifted in double before the float store; exact when
- * the geometry was built at the camera's origin) and the draw list. */
+/* Every triangle of the draw list, camera-relative in double (the mesh's float vertices shifted,
+ * exact when the geometry was built at the camera's origin; spheres tessellated in double),
+ * through the clipper. With `out`,
+ * writes the clipped vertices; with `d`, records each draw's first vertex and count. Returns the
+ * number of vertices; *rc is OBS_ENOMEM when a sphere could not be tessellated. */
+static size_t clip_all(const obs_geometry *geo, const int *seg, const double shift[3],
+                       obs_vk_clip *c, gb_draw *d, float *out, int *rc) {
+  size_t total = 0, k = 0;
+  *rc = 0;
+  for (size_t m = 0; m < geo->nmeshes; m++, k++) {
+    const obs_mesh *me = &geo->meshes[m];
+    if (d) d[k].first = (uint32_t)total;
+    /* Each vertex is rotated and classified once, not once per triangle using it. */
+    obs_vk_clip_vertex *cv = malloc((me->nverts ? me->nverts : 1) * sizeof *cv);
+    if (!cv) {
+      *rc = OBS_ENOMEM;
+      return 0;
+    }
+    for (size_t i = 0; i < me->nverts; i++) {
+      const float *p = me->pos + 3 * i;
+      double q[3] = {(double)p[0] + shift[0], (double)p[1] + shift[1], (double)p[2] + shift[2]};
+      obs_vk_clip_vertex_init(c, q, &cv[i]);
+    }
+    for (size_t t = 0; t < me->ntris; t++) {
+      const uint32_t *ix = me->idx + 3 * t;
+      total += obs_vk_clip_triangle(c, &cv[ix[0]], &cv[ix[1]], &cv[ix[2]],
+                                    out ? out + OBS_VK_CLIP_FLOATS * total : NULL);
+    }
+    free(cv);
+    if (d) d[k].count = (uint32_t)(total - d[k].first);
+  }
+  for (size_t s = 0; s < geo->nspheres; s++, k++) {
+    if (d) d[k].first = (uint32_t)total;
+    size_t nv = seg[s] ? sphere_vertices(seg[s]) : 0;
+    double *tess = nv ? malloc(nv * 3 * sizeof *tess) : NULL;
+    if (nv && (!tess || sphere_fill(&geo->spheres[s], seg[s], shift, tess))) {
+      free(tess);
+      *rc = OBS_ENOMEM;
+      return 0;
+    }
+    for (size_t t = 0; t < nv; t += 3) {
+      obs_vk_clip_vertex v[3];
+      for (int j = 0; j < 3; j++) obs_vk_clip_vertex_init(c, tess + 3 * (t + (size_t)j), &v[j]);
+      total += obs_vk_clip_triangle(c, &v[0], &v[1], &v[2],
+                                    out ? out + OBS_VK_CLIP_FLOATS * total : NULL);
+    }
+    free(tess);
+    if (d) d[k].count = (uint32_t)(total - d[k].first);
+  }
+  return total;
+}
+
+/* Fills the vertex buffer with the clipped triangles, and the draw list. The perspective near
+ * plane comes from the geometry in view: NEAR_FRACTION of the largest depth there. zrange gets
+ * the depths of what was emitted (min, max); *ndraws is 0 when nothing is in view. */
 static int build_vertices(obs_vk *vk, const obs_scene *sc, const obs_geometry *geo,
                           const obs_camera_rig *rig, const double shift[3], obs_vk_buffer *vb,
-                          gb_draw **draws, size_t *ndraws, obs_err *err) {
+                          gb_draw **draws, size_t *ndraws, double *znear, double zrange[2],
+                          obs_err *err) {
   size_t nd = geo->nmeshes + geo->nspheres, total = 0;
   int *seg = calloc(geo->nspheres ? geo->nspheres : 1, sizeof *seg);
   gb_draw *d = calloc(nd ? nd : 1, sizeof *d);
   int rc = 0;
+  *ndraws = 0;
   if (!seg || !d) {
     rc = obs_err_set(err, OBS_ENOMEM, "%s: out of memory for the G-buffer draw list", sc->name);
     goto fail;
   }
-  size_t k = 0;
-  for (size_t m = 0; m < geo->nmeshes; m++, k++) {
-    d[k].first = (uint32_t)total;
-    d[k].count = (uint32_t)(3 * geo->meshes[m].ntris);
-    object_albedo(sc, geo->meshes[m].object, d[k].albedo);
-    total += 3 * geo->meshes[m].ntris;
-  }
+  for (size_t m = 0; m < geo->nmeshes; m++) object_albedo(sc, geo->meshes[m].object, d[m].albedo);
   for (size_t s = 0; s < geo->nspheres; s++) {
     seg[s] = geo->spheres[s].radius > 0 ? sphere_segments(rig, &geo->spheres[s], shift) : 0;
-    size_t nv = seg[s] ? sphere_vertices(seg[s]) : 0;
-    d[k + s].first = (uint32_t)total;
-    d[k + s].count = (uint32_t)nv;
-    object_albedo(sc, geo->spheres[s].object, d[k + s].albedo);
-    total += nv;
+    object_albedo(sc, geo->spheres[s].object, d[geo->nmeshes + s].albedo);
   }
+  /* Three passes: the depth extent in view (near plane at the eye), the counts with the chosen
+   * near plane, then the vertices. */
+  obs_vk_clip clip;
+  obs_vk_clip_init(&clip, rig, 0.0);
+  clip_all(geo, seg, shift, &clip, NULL, NULL, &rc);
+  if (rc) goto oom;
+  if (!(clip.zmax > 0.0)) goto empty;
+  *znear = rig->ortho ? 0.0 : clip.zmax * NEAR_FRACTION;
+  obs_vk_clip_init(&clip, rig, *znear);
+  total = clip_all(geo, seg, shift, &clip, d, NULL, &rc);
+  if (rc) goto oom;
+  if (!total) goto empty;
   if (total > UINT32_MAX) {
     rc = obs_err_set(err, OBS_ENOMEM, "%s: %zu G-buffer vertices (at most %u)", sc->name, total,
                      UINT32_MAX);
     goto fail;
   }
-  if (total) {
-    char what[96];
-    snprintf(what, sizeof what, "the G-buffer vertex buffer of %s", sc->name);
-    if ((rc = obs_vk_buffer_create(vk, (VkDeviceSize)total * 3 * sizeof(float),
-                                   VK_BUFFER_USAGE_VERTEX_BUFFER_BIT, 1, vb, what, err)))
-      goto fail;
-    float *out = vb->map;
-    for (size_t m = 0; m < geo->nmeshes; m++) {
-      const obs_mesh *me = &geo->meshes[m];
-      for (size_t t = 0; t < 3 * me->ntris; t++) {
-        const float *p = me->pos + 3 * (size_t)me->idx[t];
-        for (int c = 0; c < 3; c++) *out++ = (float)((double)p[c] + shift[c]);
-      }
-    }
-    for (size_t s = 0; s < geo->nspheres; s++) {
-      if (!seg[s]) continue;
-      if (sphere_fill(&geo->spheres[s], seg[s], shift, out)) {
-        rc = obs_err_set(err, OBS_ENOMEM, "%s: out of memory tessellating a sphere", sc->name);
-        goto fail;
-      }
-      out += 3 * sphere_vertices(seg[s]);
-    }
-  }
+  char what[96];
+  snprintf(what, sizeof what, "the G-buffer vertex buffer of %s", sc->name);
+  if ((rc = obs_vk_buffer_create(vk, (VkDeviceSize)total * OBS_VK_CLIP_FLOATS * sizeof(float),
+                                 VK_BUFFER_USAGE_VERTEX_BUFFER_BIT, 1, vb, what, err)))
+    goto fail;
+  obs_vk_clip_init(&clip, rig, *znear);
+  clip_all(geo, seg, shift, &clip, NULL, vb->map, &rc);
+  if (rc) goto oom;
+  zrange[0] = clip.zmin;
+  zrange[1] = clip.zmax;
+  *ndraws = nd;
+empty:
   free(seg);
   *draws = d;
-  *ndraws = nd;
   return 0;
+oom:
+  rc = obs_err_set(err, OBS_ENOMEM, "%s: out of memory tessellating a sphere", sc->name);
 fail:
   obs_vk_buffer_free(vk, vb);
   free(seg);
   free(d);
+  *draws = NULL;
   return rc;
-}
-
-/* Largest view depth of the geometry's bounding box: decides the near plane (perspective) or the
- * far plane (orthographic). <= 0 when everything lies behind the camera. */
-static double max_depth(const obs_geometry *geo, const obs_camera_rig *rig, const double shift[3]) {
-  double best = -INFINITY;
-  for (int c = 0; c < 8; c++) {
-    double z = 0;
-    for (int k = 0; k < 3; k++) z += (geo->bounds[(c >> k) & 1][k] + shift[k]) * rig->forward[k];
-    if (z > best) best = z;
-  }
-  return best;
 }
 
 void obs_vk_gbuffer_free(obs_vk *vk, obs_vk_gbuffer *g) {
@@ -493,22 +534,20 @@ int obs_vk_gbuffer_render(obs_vk *vk, const obs_scene *sc, const obs_geometry *g
   }
   double shift[3];
   for (int k = 0; k < 3; k++) shift[k] = geo->origin[k] - rig.origin[k];
-  double zmax = max_depth(geo, &rig, shift);
-  int visible = (geo->nmeshes || geo->nspheres) && zmax > 0;
-  if (visible && (rc = build_vertices(vk, sc, geo, &rig, shift, &vb, &draws, &ndraws, err)))
+  double znear = 0, zrange[2] = {0, 0};
+  if ((rc = build_vertices(vk, sc, geo, &rig, shift, &vb, &draws, &ndraws, &znear, zrange, err)))
     goto done;
+  int visible = ndraws > 0;
 
   gb_push pc;
   memset(&pc, 0, sizeof pc);
-  for (int k = 0; k < 3; k++) {
-    pc.right[k] = (float)rig.right[k];
-    pc.up[k] = (float)rig.up[k];
-    pc.forward[k] = (float)rig.forward[k];
-  }
   pc.proj[0] = (float)rig.half_w;
   pc.proj[1] = (float)rig.half_h;
-  pc.proj[2] =
-      rig.ortho ? (float)(1.0 / (zmax * (1.0 + 1.0 / 1024))) : (float)(zmax * NEAR_FRACTION);
+  /* Orthographic: far just beyond the farthest point emitted. Perspective: half the clipper's
+   * near plane, so the device (whose float depth may round a vertex on that plane inwards) clips
+   * nothing more. */
+  if (visible)
+    pc.proj[2] = rig.ortho ? (float)(1.0 / (zrange[1] * (1.0 + 1.0 / 1024))) : (float)(0.5 * znear);
   pc.proj[3] = rig.ortho ? 1.0f : 0.0f;
 
   if ((rc = obs_vk_queries_reserve(vk, 2, err))) goto done;

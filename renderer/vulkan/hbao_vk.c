@@ -19,7 +19,7 @@ typedef struct down_push {
 
 typedef struct ao_push {
   int32_t lw, lh, s, width, height, ortho, directions, steps;
-  float half_w, half_h, radius, cos_b, sin_b, scale, inv_r;
+  float half_w, half_h, radius, cos_b, sin_b, scale, inv_r, depth_eps;
 } ao_push;
 
 typedef struct up_push {
@@ -94,7 +94,8 @@ int obs_hbao_vk_apply_ex(obs_vk *vk, obs_vk_gbuffer *g, const obs_hbao_projectio
   float sigma = ((float)p->blur_radius + 1.0f) * 0.5f;
   ao_push ap = {lw, lh, p->half_res ? 2 : 1, W, H, proj->ortho, p->directions, p->steps,
                 proj->half_w, proj->half_h, p->radius, (float)cos((double)p->angle_bias),
-                (float)sin((double)p->angle_bias), p->scale, obs_hbao_inv_radius(p)};
+                (float)sin((double)p->angle_bias), p->scale, obs_hbao_inv_radius(p),
+                OBS_HBAO_DEPTH_EPS};
   up_push upp = {W, H, lw, lh, OBS_HBAO_MAX_REL_DZ, OBS_HBAO_UPSAMPLE_K};
   blur_push bx = {W, H, 0, p->blur_radius, 1.0f / (2.0f * sigma * sigma), p->blur_sharpness,
                   OBS_HBAO_MAX_REL_DZ};
@@ -180,7 +181,7 @@ int obs_hbao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   double st[OBS_HBAO_PASS_COUNT + 1], gb_ms = 0;
   if ((rc = obs_vk_acquire(&vk, validation, err))) goto done;
   double t0 = obs_now_ms();
-  if ((rc = obs_geometry_build(sc, &geo, err))) goto done;
+  if ((rc = obs_geometry_build_at(sc, rig.origin, &geo, err))) goto done;
   double t1 = obs_now_ms();
   ctx->build_ms = t1 - t0;
   if ((rc = obs_vk_gbuffer_render(vk, sc, &geo, &dg, &gb_ms, err))) goto done;

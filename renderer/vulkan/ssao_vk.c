@@ -122,7 +122,7 @@ int obs_ssao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   /* Acquiring the device is not a stage (as in hbao): only its first use in a process opens it. */
   if ((rc = obs_vk_acquire(&vk, validation, err))) goto done;
   double t0 = obs_now_ms(), t1 = t0;
-  if ((rc = obs_geometry_build(sc, &geo, err))) goto done;
+  if ((rc = obs_geometry_build_at(sc, rig.origin, &geo, err))) goto done;
   t1 = obs_now_ms();
   ctx->build_ms = t1 - t0;
   if ((rc = obs_vk_gbuffer_render(vk, sc, &geo, &dev, &gb_ms, err))) goto done;

@@ -1,6 +1,7 @@
 /* The Vulkan tests' shared fixture (see vktest.h). */
 #include "vktest.h"
 
+#include <math.h>
 #include <stdio.h>
 
 obs_vk *g_vk;
@@ -46,4 +47,36 @@ obs_vk *vktest_need_vk(void) {
 void vktest_check_rc(int rc, obs_err *err) {
   if (rc) fprintf(stderr, "error %d: %s\n", rc, obs_err_message(err));
   assert_int_equal(rc, 0);
+}
+
+void vktest_moved_scene(double s, double t, double g, double fov, char *buf, size_t size) {
+  double tx = t * 1.2345678901, ty = t * 0.3141592653, tz = -t * 0.7654321098;
+  snprintf(buf, size,
+           "\"camera\":{\"type\":\"perspective\",\"position\":[%.17g,%.17g,%.17g],"
+           "\"look_at\":[%.17g,%.17g,%.17g],\"fov_y\":%.17g},\"objects\":["
+           "{\"shape\":{\"type\":\"quad\",\"vertices\":[[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g],"
+           "[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g]]}},"
+           "{\"shape\":{\"type\":\"sphere\",\"center\":[%.17g,%.17g,%.17g],\"radius\":%.17g}}]",
+           tx, ty + 3 * s, tz - 4 * s, tx, ty + 0.3 * s, tz, fov, tx - g * s, ty, tz - g * s,
+           tx - g * s, ty, tz + g * s, tx + g * s, ty, tz + g * s, tx + g * s, ty, tz - g * s, tx,
+           ty + 0.5 * s, tz, 0.5 * s);
+}
+
+void vktest_ao_diff(const obs_result *a, const obs_result *b, const char *channel, double tol,
+                    double *max, size_t *over) {
+  assert_int_equal(a->image.width, b->image.width);
+  assert_int_equal(a->image.height, b->image.height);
+  size_t n = (size_t)a->image.width * (size_t)a->image.height;
+  const float *x = obs_image_channel(&a->image, channel), *y = obs_image_channel(&b->image, channel);
+  const float *ca = obs_image_channel(&a->image, "alpha"), *cb = obs_image_channel(&b->image, "alpha");
+  assert_non_null(x);
+  assert_non_null(y);
+  *max = 0;
+  *over = 0;
+  for (size_t i = 0; i < n; i++) {
+    assert_true(ca[i] == cb[i]);
+    double d = fabs((double)x[i] - (double)y[i]);
+    if (d > *max) *max = d;
+    *over += d > tol;
+  }
 }

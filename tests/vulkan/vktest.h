@@ -1,5 +1,6 @@
 /* Fixture shared by the Vulkan tests: one validated device per test program, skipped cleanly where
- * no Vulkan device exists, and a check after every test that the validation layer stayed silent. */
+ * no Vulkan device exists, a check after every test that the validation layer stayed silent, and
+ * a scene and a comparison used by the range tests. */
 #ifndef OBS_VKTEST_H
 #define OBS_VKTEST_H
 
@@ -17,5 +18,15 @@ int vktest_quiet_teardown(void **state);
 obs_vk *vktest_need_vk(void);
 /* Asserts rc == 0, printing the error first. */
 void vktest_check_rc(int rc, obs_err *err);
+
+/* A ball of radius 0.5 on a ground quad of half-size g, seen from (0,3,-4) towards (0,0.3,0) at
+ * fov_y degrees, all scaled by s about the origin and then moved by t (times different
+ * irrational-looking factors per axis, so nothing rounds exactly). Writes
+ * "\"camera\":{...},\"objects\":[...]" into buf. */
+void vktest_moved_scene(double s, double t, double g, double fov, char *buf, size_t size);
+/* Compares the AO channels of two renders of the same view: largest difference, and how many
+ * pixels differ by more than `tol`. Coverage must be identical. */
+void vktest_ao_diff(const obs_result *a, const obs_result *b, const char *channel, double tol,
+                    double *max, size_t *over);
 
 #endif

@@ -10,6 +10,7 @@ layout(binding = 3, r32f) uniform writeonly image2D ao_out;
 layout(push_constant) uniform Push {
   int lw, lh, s, width, height, ortho, directions, steps;
   float half_w, half_h, radius, cos_b, sin_b, scale, inv_r; // inv_r = 1 / radius, host float
+  float depth_eps;                                          // OBS_HBAO_DEPTH_EPS
 } pc;
 
 // obs_gbuffer_position (renderer/core/gbuffer.h).
@@ -73,6 +74,10 @@ float ao_texel(ivec2 a) {
   int cell = (a.y & 3) * 4 + (a.x & 3);
   precise float cx = float(a.x) + 0.5;
   precise float cy = float(a.y) + 0.5;
+  // pow2_scale in renderer/cpu/hbao.c: 2^-e and 2^e for the binary exponent e of z.
+  uint be = clamp((floatBitsToUint(z) >> 23) & 0xffu, 1u, 253u);
+  precise float down = uintBitsToFloat((254u - be) << 23);
+  precise float rscale = uintBitsToFloat(be << 23) * pc.inv_r;
   precise float sum = 0.0;
   for (int i = 0; i < pc.directions; i++) {
     precise vec4 d = imageLoad(dirs, ivec2(i, cell));
@@ -92,13 +97,19 @@ float ao_texel(ivec2 a) {
       precise float zs = imageLoad(depth_l, ivec2(ix, iy)).x;
       if (!(zs > 0.0)) continue;
       precise vec3 S = position(float(pc.s * ix) + 0.5, float(pc.s * iy) + 0.5, zs);
-      precise float ux = (S.x - P.x) * pc.inv_r;
-      precise float uy = (S.y - P.y) * pc.inv_r;
-      precise float uz = (S.z - P.z) * pc.inv_r;
-      precise float d2 = ux * ux + uy * uy + uz * uz;
-      if (!(d2 < 1.0) || !(d2 > 0.0)) continue;
-      precise float len = sqrt(d2);
-      precise float sin_s = -uz / len;
+      // Moved away by the depths' uncertainty, scaled by the pixel's power of two (see ao_texel).
+      precise float dx = S.x - P.x;
+      precise float dy = S.y - P.y;
+      precise float dz = (S.z - P.z) + pc.depth_eps * (zs + z);
+      precise float qx = dx * down;
+      precise float qy = dy * down;
+      precise float qz = dz * down;
+      precise float len = sqrt(qx * qx + qy * qy + qz * qz);
+      if (!(len > 0.0)) continue;
+      precise float dist = len * rscale;
+      if (!(dist < 1.0)) continue;
+      precise float d2 = dist * dist;
+      precise float sin_s = -qz / len;
       precise vec2 ts = tangent(n, r, nr, float(ix - a.x), -float(iy - a.y));
       precise float e = sin_s - ts.x + sin_t;
       if (e > 1.0) e = 1.0;
