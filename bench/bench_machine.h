@@ -27,10 +27,11 @@ static inline void bench_cpu_model(char *buf, size_t size) {
   fclose(f);
 }
 
-/* The path label used in goal lines, e.g. "avx2/loads, Embree AVX2". */
+/* The path label used in goal lines, e.g. "level avx2: spans avx2/loads, Embree AVX2". */
 static inline void bench_isa_label(char *buf, size_t size) {
   const int isa = obs_simd_isa();
-  snprintf(buf, size, "%s%s, Embree %s", isa >= OBS_ISA_AVX2 ? "avx2" : "scalar",
+  snprintf(buf, size, "level %s: spans %s%s, Embree %s", obs_simd_isa_name(isa),
+           isa >= OBS_ISA_AVX2 ? "avx2" : "scalar",
            isa >= OBS_ISA_AVX2 ? (obs_simd_gather_loads() ? "/loads" : "/gathers") : "",
            obs_rt_embree_isa());
 }
