@@ -15,6 +15,7 @@ typedef struct obs_rt {
   RTCScene scene;
   obs_geometry geo;
   unsigned sphere_geom;  /* geomID of the analytic-sphere user geometry, or RTC_INVALID_GEOMETRY_ID */
+  int isa;               /* obs_simd_isa() when built: the level of obs_rt_intersect_primary */
 } obs_rt;
 
 /* A surface point seen along a ray, with normals faced toward the ray's origin side. */
