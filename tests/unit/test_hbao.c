@@ -338,7 +338,7 @@ static void test_simd_matches_scalar(void **state) {
   const int sets[][5] = {/* directions, steps, half_res, blur_radius, bias (degrees) */
                          {4, 4, 0, 4, 0},  {8, 8, 0, 8, 10}, {16, 16, 1, 16, 30},
                          {8, 8, 1, 0, 0},  {1, 2, 0, 1, 40}};
-  if (!obs_simd_avx2()) printf("(no AVX2 here: both runs take the scalar path)\n");
+  if (!obs_simd_avx2()) printf("(no AVX2 here: every path runs the scalar code)\n");
   for (int c = 0; c < 2; c++) {
     obs_scene sc;
     load(scene(cams[c], 77, 50, ROOM, "{}"), &sc);

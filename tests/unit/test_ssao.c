@@ -366,7 +366,7 @@ static void test_simd_matches_scalar(void **state) {
   const char *params[] = {"{\"samples\":8}", "{\"samples\":16,\"blur\":false}",
                           "{\"samples\":24,\"normal_oriented\":true}",
                           "{\"samples\":16,\"radius\":0.2,\"normal_oriented\":true}"};
-  if (!obs_simd_avx2()) printf("(no AVX2 here: both runs take the scalar path)\n");
+  if (!obs_simd_avx2()) printf("(no AVX2 here: every path runs the scalar code)\n");
   for (size_t c = 0; c < sizeof params / sizeof params[0]; c++) {
     obs_scene sc;
     load(room_scene(77, 45, params[c]), &sc);
