@@ -6,19 +6,9 @@
 
 #define OBS_TILE 32
 
-/* For the hot per-pixel kernels of the CPU twins: an AVX2/FMA clone beside the portable one,
- * picked at load time, so Debian's generic x86-64 build still gets roundss for floorf and wider
- * registers. ISO C mode keeps -ffp-contract=off, so both clones give the same bits (the CPU/Vulkan
- * bit-identity tests run whichever clone the machine picks). Not under the sanitizers, whose
- * runtime and ifunc resolvers do not mix reliably. */
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && \
-    !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_UNDEFINED__)
-#define OBS_HOT_KERNEL __attribute__((target_clones("default", "arch=x86-64-v3")))
-#else
-#define OBS_HOT_KERNEL
-#endif
-/* What a hot kernel calls per pixel or sample: inlined into each clone (a call would run the
- * portable code whatever clone called it). */
+/* What a hot kernel calls per pixel or sample: inlined into each instruction-set variant of the
+ * kernel (simd.h's OBS_TILE_KERNELS; a call would run the portable code whatever variant called
+ * it). */
 #if defined(__GNUC__)
 #define OBS_HOT_INLINE static inline __attribute__((always_inline))
 #else

@@ -34,6 +34,7 @@ typedef struct hbao_job {
   float *out;
   int axis;      /* blur: 0 = horizontal, 1 = vertical */
   int simd;      /* run the AVX2 spans (simd.h) */
+  int loads;     /* their gathers as scalar loads (obs_simd_gather_loads) */
   /* For the AVX2 spans: obs_gbuffer_position's x and y factors per level column and row, i.e.
    * (2 fx / W - 1) half_w and (1 - 2 fy / H) half_h at the texel's pixel centre, computed with the
    * scalar code's operations so a table lookup gives the same bits as the expression. */
@@ -233,8 +234,9 @@ OBS_AVX2_FN static void ao_span8(const hbao_job *jb, int x, int y, float *dst) {
   const __m256 st = _mm256_div_ps(rl, _mm256_set1_ps((float)(p->steps + 1)));
   const __m256i i3 = _mm256_mullo_epi32(lane, _mm256_set1_epi32(3));
   const float *nb = lv->normal + 3 * ci;
-  const __m256 n0 = _mm256_i32gather_ps(nb, i3, 4), n1 = _mm256_i32gather_ps(nb + 1, i3, 4),
-               n2 = _mm256_i32gather_ps(nb + 2, i3, 4);
+  const __m256 n0 = obs_avx2_gather(jb->loads, nb, i3);
+  const __m256 n1 = obs_avx2_gather(jb->loads, nb + 1, i3);
+  const __m256 n2 = obs_avx2_gather(jb->loads, nb + 2, i3);
   const __m256 nr = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(n0, r0), _mm256_mul_ps(n1, r1)),
                                   _mm256_mul_ps(n2, r2));
   /* Each lane's row of the direction table: cell ((y & 3) * 4 + (x & 3)), 4 floats per direction. */
@@ -249,9 +251,9 @@ OBS_AVX2_FN static void ao_span8(const hbao_job *jb, int x, int y, float *dst) {
   __m256 sum = zero;
   for (int i = 0; i < p->directions; i++) {
     __m256i ti = _mm256_add_epi32(trow, _mm256_set1_epi32(4 * i));
-    __m256 dx = _mm256_i32gather_ps(jb->table, ti, 4);
-    __m256 dy = _mm256_i32gather_ps(jb->table + 1, ti, 4);
-    __m256 jit = _mm256_i32gather_ps(jb->table + 2, ti, 4);
+    __m256 dx = obs_avx2_gather(jb->loads, jb->table, ti);
+    __m256 dy = obs_avx2_gather(jb->loads, jb->table + 1, ti);
+    __m256 jit = obs_avx2_gather(jb->loads, jb->table + 2, ti);
     __m256 sin_t, cos_t;
     tangent8(n0, n1, nr, r0, r1, dx, _mm256_xor_ps(dy, sign), &sin_t, &cos_t);
     __m256 act = _mm256_and_ps(
@@ -270,10 +272,12 @@ OBS_AVX2_FN static void ao_span8(const hbao_job *jb, int x, int y, float *dst) {
       __m256i ox = _mm256_sub_epi32(ix, ax), oy = _mm256_sub_epi32(iy, ay);
       __m256 ok = _mm256_andnot_ps(
           _mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_or_si256(ox, oy), izero)), act);
-      __m256 zs = _mm256_i32gather_ps(lv->depth, _mm256_add_epi32(_mm256_mullo_epi32(iy, lw), ix), 4);
+      __m256 zs =
+          obs_avx2_gather(jb->loads, lv->depth, _mm256_add_epi32(_mm256_mullo_epi32(iy, lw), ix));
       ok = _mm256_and_ps(ok, _mm256_cmp_ps(zs, zero, _CMP_GT_OQ));
       if (!_mm256_movemask_ps(ok)) continue;
-      __m256 S0 = _mm256_i32gather_ps(jb->colf, ix, 4), S1 = _mm256_i32gather_ps(jb->rowf, iy, 4);
+      __m256 S0 = obs_avx2_gather(jb->loads, jb->colf, ix);
+      __m256 S1 = obs_avx2_gather(jb->loads, jb->rowf, iy);
       if (!g->ortho) {
         S0 = _mm256_mul_ps(S0, zs);
         S1 = _mm256_mul_ps(S1, zs);
@@ -308,7 +312,7 @@ OBS_AVX2_FN static void ao_span8(const hbao_job *jb, int x, int y, float *dst) {
 }
 #endif
 
-OBS_HOT_KERNEL static int ao_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+OBS_HOT_INLINE int ao_tile_body(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)thread;
   hbao_job *jb = user;
   for (int y = y0; y < y1; y++) {
@@ -322,6 +326,7 @@ OBS_HOT_KERNEL static int ao_tile(void *user, int thread, int x0, int y0, int x1
   }
   return 0;
 }
+OBS_TILE_KERNELS(ao_tile)
 
 /* exp(x) for the blur's weights, x <= 0, written once for the scalar and once for the AVX2 path
  * with the same operations, so both CPU paths give the same bits (libm's expf has no vector twin
@@ -479,7 +484,7 @@ OBS_HOT_INLINE void blur_pixel(const hbao_job *jb, int x, int y) {
   jb->out[i] = v > 1.0f ? 1.0f : v > 0.0f ? v : 0.0f;
 }
 
-OBS_HOT_KERNEL static int blur_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+OBS_HOT_INLINE int blur_tile_body(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)thread;
   hbao_job *jb = user;
   const int W = jb->g->width;
@@ -498,6 +503,7 @@ OBS_HOT_KERNEL static int blur_tile(void *user, int thread, int x0, int y0, int 
   }
   return 0;
 }
+OBS_TILE_KERNELS(blur_tile)
 
 int obs_hbao_cpu_apply(const obs_gbuffer *g, const obs_hbao_params *p, int threads, float *ao,
                        double *stage_ms, obs_err *err) {
@@ -547,6 +553,9 @@ int obs_hbao_cpu_apply_ex(const obs_gbuffer *g, const obs_hbao_params *p, int th
   jb.rowf = rowf;
   /* The vector kernels index with 32-bit lanes. */
   jb.simd = obs_simd_avx2() && n <= (size_t)INT32_MAX;
+  jb.loads = obs_simd_gather_loads();
+  const obs_tile_fn ao_fn = obs_simd_tile_pick(ao_tile, obs_simd_isa());
+  const obs_tile_fn blur_fn = obs_simd_tile_pick(blur_tile, obs_simd_isa());
   jb.inv_r = obs_hbao_inv_radius(p);
   jb.depth_eps = OBS_HBAO_DEPTH_EPS;
   jb.cos_b = (float)cos((double)p->angle_bias);
@@ -573,7 +582,7 @@ int obs_hbao_cpu_apply_ex(const obs_gbuffer *g, const obs_hbao_params *p, int th
   }
   float *level_ao = p->half_res ? half + 4 * ln : raw;
   jb.out = level_ao;
-  int rc = obs_parallel_tiles(lw, lh, threads, ao_tile, &jb, NULL, NULL, NULL);
+  int rc = obs_parallel_tiles(lw, lh, threads, ao_fn, &jb, NULL, NULL, NULL);
   if (stage_ms) stage_ms[OBS_HBAO_PASS_AO] = obs_now_ms() - t;
   if (!rc && p->half_res) {
     t = obs_now_ms();
@@ -588,12 +597,12 @@ int obs_hbao_cpu_apply_ex(const obs_gbuffer *g, const obs_hbao_params *p, int th
     jb.in = raw;
     jb.out = tmp;
     jb.axis = 0;
-    rc = obs_parallel_tiles(g->width, g->height, threads, blur_tile, &jb, NULL, NULL, NULL);
+    rc = obs_parallel_tiles(g->width, g->height, threads, blur_fn, &jb, NULL, NULL, NULL);
     if (!rc) {
       jb.in = tmp;
       jb.out = ao;
       jb.axis = 1;
-      rc = obs_parallel_tiles(g->width, g->height, threads, blur_tile, &jb, NULL, NULL, NULL);
+      rc = obs_parallel_tiles(g->width, g->height, threads, blur_fn, &jb, NULL, NULL, NULL);
     }
     if (stage_ms) stage_ms[OBS_HBAO_PASS_BLUR] = obs_now_ms() - t;
   } else if (!rc) {

@@ -15,6 +15,7 @@ typedef struct obs_rt {
   RTCScene scene;
   obs_geometry geo;
   unsigned sphere_geom;  /* geomID of the analytic-sphere user geometry, or RTC_INVALID_GEOMETRY_ID */
+  int isa;               /* obs_simd_isa() when built: the level of obs_rt_intersect_primary */
 } obs_rt;
 
 /* A surface point seen along a ray, with normals faced toward the ray's origin side. */
@@ -36,6 +37,13 @@ typedef struct obs_rt_ctx {
   unsigned skip_prim;
   int skip_mode;       /* spheres: 0 none, 1 skip that sphere (left outward), 2 far root only */
 } obs_rt_ctx;
+
+/* Embree's device configuration string (rtcNewDevice): `threads` (0 = Embree's default) and the
+ * instruction-set cap of simd.h (OBSCURA_ISA), so Embree's kernels obey the same switch as ours. */
+void obs_rt_device_config(int threads, char *buf, size_t size);
+/* The name of the kernels Embree picks under obs_rt_device_config(0, ...) ("AVX512", "AVX2", "AVX",
+ * "SSE4.2", "SSE2"), read from its verbose banner; "unknown" if it cannot be read. For reports. */
+const char *obs_rt_embree_isa(void);
 
 /* Builds geometry and BVH. `threads` (0 = all cores) also bounds Embree's own build threads. */
 int obs_rt_build(const obs_scene *scene, obs_rt *rt, int threads, obs_err *err);

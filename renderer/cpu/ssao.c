@@ -23,7 +23,8 @@ typedef struct ssao_job {
   const obs_ssao_tables *t;
   const float *raw; /* blur input */
   float *out;
-  int simd; /* run the AVX2 spans (simd.h) */
+  int simd;  /* run the AVX2 spans (simd.h) */
+  int loads; /* their gathers as scalar loads (obs_simd_gather_loads) */
 } ssao_job;
 
 /* floor(v) clamped to [0, n-1]: the texel a sample lands on, clamp-to-edge. The clamp comes before
@@ -117,9 +118,9 @@ OBS_AVX2_FN static void ssao_span8(const ssao_job *j, int x, int y, float *dst) 
   if (j->p->normal_oriented) {
     const __m256i i3 = _mm256_mullo_epi32(lane, _mm256_set1_epi32(3));
     const float *nb = g->normal + 3 * i;
-    n0 = _mm256_i32gather_ps(nb, i3, 4);
-    n1 = _mm256_i32gather_ps(nb + 1, i3, 4);
-    n2 = _mm256_i32gather_ps(nb + 2, i3, 4);
+    n0 = obs_avx2_gather(j->loads, nb, i3);
+    n1 = obs_avx2_gather(j->loads, nb + 1, i3);
+    n2 = obs_avx2_gather(j->loads, nb + 2, i3);
   }
   const __m256i wv = _mm256_set1_epi32(w);
   __m256 sum = zero;
@@ -148,7 +149,7 @@ OBS_AVX2_FN static void ssao_span8(const ssao_job *j, int x, int y, float *dst) 
     syf = _mm256_min_ps(_mm256_max_ps(syf, zero), ymax);
     __m256i idx = _mm256_add_epi32(_mm256_mullo_epi32(_mm256_cvttps_epi32(syf), wv),
                                    _mm256_cvttps_epi32(sxf));
-    __m256 zs = _mm256_i32gather_ps(g->depth, idx, 4);
+    __m256 zs = obs_avx2_gather(j->loads, g->depth, idx);
     __m256 bg = _mm256_cmp_ps(zs, zero, _CMP_NGT_UQ);
     __m256 sz = _mm256_add_ps(zp, _mm256_mul_ps(_mm256_mul_ps(oz, zp), two));
     __m256 vis = _mm256_and_ps(_mm256_cmp_ps(zs, sz, _CMP_GT_OQ), one);
@@ -192,13 +193,13 @@ OBS_AVX2_FN static void blur_span8(const ssao_job *j, int x, int y, float *dst) 
       cnt = _mm256_sub_epi32(cnt, _mm256_castps_si256(ok));
     }
   }
-  __m256 r = _mm256_mul_ps(sum, _mm256_i32gather_ps(j->t->inv_count, cnt, 4));
+  __m256 r = _mm256_mul_ps(sum, obs_avx2_gather(j->loads, j->t->inv_count, cnt));
   r = _mm256_min_ps(r, one);
   _mm256_storeu_ps(dst, _mm256_blendv_ps(one, r, covered));
 }
 #endif
 
-OBS_HOT_KERNEL static int ao_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+OBS_HOT_INLINE int ao_tile_body(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)thread;
   ssao_job *j = user;
   const size_t w = (size_t)j->g->width;
@@ -212,6 +213,7 @@ OBS_HOT_KERNEL static int ao_tile(void *user, int thread, int x0, int y0, int x1
   }
   return 0;
 }
+OBS_TILE_KERNELS(ao_tile)
 
 OBS_HOT_INLINE float blur_pixel(const ssao_job *j, int x, int y) {
   const obs_gbuffer *g = j->g;
@@ -237,7 +239,7 @@ OBS_HOT_INLINE float blur_pixel(const ssao_job *j, int x, int y) {
   return r > 1.0f ? 1.0f : r;
 }
 
-OBS_HOT_KERNEL static int blur_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+OBS_HOT_INLINE int blur_tile_body(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)thread;
   ssao_job *j = user;
   const int w = j->g->width;
@@ -255,6 +257,7 @@ OBS_HOT_KERNEL static int blur_tile(void *user, int thread, int x0, int y0, int 
   }
   return 0;
 }
+OBS_TILE_KERNELS(blur_tile)
 
 int obs_ssao_cpu_apply_ex(const obs_gbuffer *g, const obs_ssao_params *p, int threads, float *ao,
                           float *ao_raw, double *stage_ms, obs_err *err) {
@@ -271,16 +274,23 @@ int obs_ssao_cpu_apply_ex(const obs_gbuffer *g, const obs_ssao_params *p, int th
   if (p->blur && !raw && !(raw = malloc(n * sizeof *raw)))
     return obs_err_set(err, OBS_ENOMEM, "ssao: %dx%d: out of memory", g->width, g->height);
   /* The vector kernels index with 32-bit lanes. */
+  const int isa = obs_simd_isa();
   int simd = obs_simd_avx2() && n <= (size_t)INT32_MAX;
-  ssao_job j = {.g = g, .p = p, .t = &t, .raw = raw, .out = p->blur ? raw : ao, .simd = simd};
+  ssao_job j = {.g = g,
+                .p = p,
+                .t = &t,
+                .raw = raw,
+                .out = p->blur ? raw : ao,
+                .simd = simd,
+                .loads = obs_simd_gather_loads()};
   double t0 = obs_now_ms();
-  int rc = obs_parallel_tiles(g->width, g->height, threads < 1 ? 1 : threads, ao_tile, &j, NULL,
-                              NULL, NULL);
+  int rc = obs_parallel_tiles(g->width, g->height, threads < 1 ? 1 : threads,
+                              obs_simd_tile_pick(ao_tile, isa), &j, NULL, NULL, NULL);
   double t1 = obs_now_ms();
   if (!rc && p->blur) {
     j.out = ao;
-    rc = obs_parallel_tiles(g->width, g->height, threads < 1 ? 1 : threads, blur_tile, &j, NULL,
-                            NULL, NULL);
+    rc = obs_parallel_tiles(g->width, g->height, threads < 1 ? 1 : threads,
+                            obs_simd_tile_pick(blur_tile, isa), &j, NULL, NULL, NULL);
   } else if (!rc && ao_raw) {
     memcpy(ao_raw, ao, n * sizeof *ao);
   }

@@ -328,9 +328,9 @@ static void test_thread_independence(void **state) {
   obs_err_free(&err);
 }
 
-/* The AVX2 spans (renderer/core/simd.h) promise the scalar code's bits: compare both paths, raw
- * and blurred, on a width that leaves scalar tails, for both projections, both resolutions and
- * the branches the parameters select. */
+/* The AVX2 spans (renderer/core/simd.h) promise the scalar code's bits: compare every dispatch
+ * path (OBS_SIMD_PATHS) with the scalar one, raw and blurred, on a width that leaves scalar tails,
+ * for both projections, both resolutions and the branches the parameters select. */
 static void test_simd_matches_scalar(void **state) {
   (void)state;
   const char *cams[] = {ROOM_CAM, "{\"type\":\"orthographic\",\"position\":[278,273,-800],"
@@ -338,7 +338,7 @@ static void test_simd_matches_scalar(void **state) {
   const int sets[][5] = {/* directions, steps, half_res, blur_radius, bias (degrees) */
                          {4, 4, 0, 4, 0},  {8, 8, 0, 8, 10}, {16, 16, 1, 16, 30},
                          {8, 8, 1, 0, 0},  {1, 2, 0, 1, 40}};
-  if (!obs_simd_avx2()) printf("(no AVX2 here: both runs take the scalar path)\n");
+  if (!obs_simd_avx2()) printf("(no AVX2 here: every path runs the scalar code)\n");
   for (int c = 0; c < 2; c++) {
     obs_scene sc;
     load(scene(cams[c], 77, 50, ROOM, "{}"), &sc);
@@ -357,11 +357,16 @@ static void test_simd_matches_scalar(void **state) {
       p.half_res = sets[k][2];
       p.blur_radius = sets[k][3];
       p.angle_bias = (float)(sets[k][4] * 3.14159265358979 / 180);
-      assert_int_equal(obs_hbao_cpu_apply_ex(&g, &p, 2, v, v + n, NULL, &err), 0);
-      setenv("OBSCURA_NO_SIMD", "1", 1);
-      assert_int_equal(obs_hbao_cpu_apply_ex(&g, &p, 2, v + 2 * n, v + 3 * n, NULL, &err), 0);
-      unsetenv("OBSCURA_NO_SIMD");
-      assert_memory_equal(v, v + 2 * n, 2 * n * sizeof(float));
+      static const char *const paths[][2] = OBS_SIMD_PATHS;
+      for (size_t q = 0; q < sizeof paths / sizeof paths[0]; q++) {
+        setenv("OBSCURA_ISA", paths[q][0], 1);
+        setenv("OBSCURA_GATHER", paths[q][1], 1);
+        float *o = q ? v + 2 * n : v;
+        assert_int_equal(obs_hbao_cpu_apply_ex(&g, &p, 2, o, o + n, NULL, &err), 0);
+        if (q) assert_memory_equal(v, v + 2 * n, 2 * n * sizeof(float));
+      }
+      unsetenv("OBSCURA_ISA");
+      unsetenv("OBSCURA_GATHER");
       /* The comparison is not of two blank images (the orthographic view of the room has little
        * occlusion within the radius: its walls are edge-on or face-on). */
       size_t shaded = 0;

@@ -358,14 +358,15 @@ static void test_thread_independence(void **state) {
   obs_err_free(&err);
 }
 
-/* The AVX2 spans (renderer/core/simd.h) promise the scalar code's bits: compare both paths on a
- * width that leaves scalar tails and on the parameters that change the kernel's branches. */
+/* The AVX2 spans (renderer/core/simd.h) promise the scalar code's bits: compare every dispatch path
+ * with the scalar one on a width that leaves scalar tails and on the parameters that change the
+ * kernel's branches. */
 static void test_simd_matches_scalar(void **state) {
   (void)state;
   const char *params[] = {"{\"samples\":8}", "{\"samples\":16,\"blur\":false}",
                           "{\"samples\":24,\"normal_oriented\":true}",
                           "{\"samples\":16,\"radius\":0.2,\"normal_oriented\":true}"};
-  if (!obs_simd_avx2()) printf("(no AVX2 here: both runs take the scalar path)\n");
+  if (!obs_simd_avx2()) printf("(no AVX2 here: every path runs the scalar code)\n");
   for (size_t c = 0; c < sizeof params / sizeof params[0]; c++) {
     obs_scene sc;
     load(room_scene(77, 45, params[c]), &sc);
@@ -377,11 +378,16 @@ static void test_simd_matches_scalar(void **state) {
     size_t n = 77 * 45;
     float *v = malloc(4 * n * sizeof(float));
     assert_non_null(v);
-    assert_int_equal(obs_ssao_cpu_apply_ex(&g, &p, 2, v, v + n, NULL, &err), 0);
-    setenv("OBSCURA_NO_SIMD", "1", 1);
-    assert_int_equal(obs_ssao_cpu_apply_ex(&g, &p, 2, v + 2 * n, v + 3 * n, NULL, &err), 0);
-    unsetenv("OBSCURA_NO_SIMD");
-    assert_memory_equal(v, v + 2 * n, 2 * n * sizeof(float));
+    static const char *const paths[][2] = OBS_SIMD_PATHS;
+    for (size_t q = 0; q < sizeof paths / sizeof paths[0]; q++) {
+      setenv("OBSCURA_ISA", paths[q][0], 1);
+      setenv("OBSCURA_GATHER", paths[q][1], 1);
+      float *o = q ? v + 2 * n : v;
+      assert_int_equal(obs_ssao_cpu_apply_ex(&g, &p, 2, o, o + n, NULL, &err), 0);
+      if (q) assert_memory_equal(v, v + 2 * n, 2 * n * sizeof(float));
+    }
+    unsetenv("OBSCURA_ISA");
+    unsetenv("OBSCURA_GATHER");
     size_t shaded = 0; /* the comparison is not of two blank images */
     for (size_t i = 0; i < n; i++) shaded += v[n + i] > 0.0f && v[n + i] < 1.0f;
     assert_true(shaded > n / 20);
