@@ -200,13 +200,46 @@ const char *obs_rt_embree_isa(void) {
   return "unknown";
 }
 
+/* Rebuilds rt->geo at the point of its bounds nearest to the eye (the frame's origin when it was
+ * built) when the eye is more than OBS_RT_FAR_CAMERA diagonals from them. Scenes the camera is
+ * near or inside keep the camera's frame, and so their exact bits. */
+static int frame_at_geometry(const obs_scene *sc, obs_rt *rt, obs_err *err) {
+  const double(*b)[3] = rt->geo.bounds;
+  double near[3], gap2 = 0, diag2 = 0;
+  for (int k = 0; k < 3; k++) {
+    near[k] = fmin(fmax(0.0, b[0][k]), b[1][k]);
+    gap2 += near[k] * near[k];
+    diag2 += (b[1][k] - b[0][k]) * (b[1][k] - b[0][k]);
+  }
+  if (!(gap2 > OBS_RT_FAR_CAMERA * OBS_RT_FAR_CAMERA * diag2) || !(diag2 > 0)) return 0;
+  double at[3];
+  for (int k = 0; k < 3; k++) at[k] = rt->geo.origin[k] + near[k];
+  obs_geometry_free(&rt->geo);
+  int rc = obs_geometry_build_at(sc, at, &rt->geo, err);
+  if (rc) return rc;
+  /* The box must contain every vertex however the slab test rounds: grow it by far more than
+   * double's error on coordinates of its own size. */
+  double grow = sqrt(diag2) * 0x1p-20;
+  for (int k = 0; k < 3; k++) {
+    rt->box[0][k] = rt->geo.bounds[0][k] - grow;
+    rt->box[1][k] = rt->geo.bounds[1][k] + grow;
+  }
+  rt->advance = 1;
+  return 0;
+}
+
 int obs_rt_build(const obs_scene *sc, obs_rt *rt, int threads, obs_err *err) {
+  return obs_rt_build_ex(sc, rt, threads, OBS_RT_FRAME_CAMERA, err);
+}
+
+int obs_rt_build_ex(const obs_scene *sc, obs_rt *rt, int threads, int frame, obs_err *err) {
   memset(rt, 0, sizeof *rt);
   rt->sphere_geom = RTC_INVALID_GEOMETRY_ID;
   /* Camera-relative coordinates: what the camera sees stays precise in float however far from
    * the world origin the scene sits. */
   const double eye[3] = {sc->camera.position.x, sc->camera.position.y, sc->camera.position.z};
   int rc = obs_geometry_build_at(sc, eye, &rt->geo, err);
+  if (!rc && frame == OBS_RT_FRAME_GEOMETRY) rc = frame_at_geometry(sc, rt, err);
   if (rc) return rc;
   char config[64];
   obs_rt_device_config(threads, config, sizeof config);
@@ -270,10 +303,34 @@ void obs_rt_free(obs_rt *rt) {
   memset(rt, 0, sizeof *rt);
 }
 
+/* Where the ray (o, d) enters rt->box: 0 when o is inside, -1 when it misses the box within
+ * [0, tfar]. In double, so the float ray Embree then sees starts near the geometry. */
+static double box_entry(const obs_rt *rt, const double o[3], const double d[3], double tfar) {
+  double t0 = 0, t1 = tfar;
+  for (int k = 0; k < 3; k++) {
+    double lo = rt->box[0][k], hi = rt->box[1][k];
+    if (d[k] == 0) {
+      if (o[k] < lo || o[k] > hi) return -1;
+      continue;
+    }
+    double a = (lo - o[k]) / d[k], b = (hi - o[k]) / d[k];
+    t0 = fmax(t0, fmin(a, b));
+    t1 = fmin(t1, fmax(a, b));
+  }
+  return t0 <= t1 ? t0 : -1;
+}
+
 int obs_rt_intersect(const obs_rt *rt, const double world_org[3], const double dir[3], float tfar,
                      obs_hit *hit) {
-  const double org[3] = {world_org[0] - rt->geo.origin[0], world_org[1] - rt->geo.origin[1],
-                         world_org[2] - rt->geo.origin[2]};
+  double org[3] = {world_org[0] - rt->geo.origin[0], world_org[1] - rt->geo.origin[1],
+                   world_org[2] - rt->geo.origin[2]};
+  double tbase = 0;
+  if (rt->advance) {
+    tbase = box_entry(rt, org, dir, tfar);
+    if (tbase < 0) return 0;
+    for (int k = 0; k < 3; k++) org[k] += tbase * dir[k];
+    tfar = (float)(tfar - tbase);
+  }
   struct RTCRayHit rh;
   memset(&rh, 0, sizeof rh);
   rh.ray.org_x = (float)org[0];
@@ -373,6 +430,7 @@ int obs_rt_intersect(const obs_rt *rt, const double world_org[3], const double d
   } else {
     memcpy(hit->ns, ng, sizeof ng);
   }
+  if (tbase > 0) hit->t = (float)(tbase + hit->t);
   return 1;
 }
 

@@ -16,6 +16,11 @@ typedef struct obs_rt {
   obs_geometry geo;
   unsigned sphere_geom;  /* geomID of the analytic-sphere user geometry, or RTC_INVALID_GEOMETRY_ID */
   int isa;               /* obs_simd_isa() when built: the level of obs_rt_intersect_primary */
+  /* Set when the frame sits at the geometry rather than at a far camera (OBS_RT_FRAME_GEOMETRY):
+   * obs_rt_intersect then moves each ray's origin up to `box` (the geometry's bounds in the frame,
+   * slightly grown) in double before Embree sees it in float. */
+  int advance;
+  double box[2][3];
 } obs_rt;
 
 /* A surface point seen along a ray, with normals faced toward the ray's origin side. */
@@ -45,12 +50,24 @@ void obs_rt_device_config(int threads, char *buf, size_t size);
  * "SSE4.2", "SSE2"), read from its verbose banner; "unknown" if it cannot be read. For reports. */
 const char *obs_rt_embree_isa(void);
 
-/* Builds geometry and BVH. `threads` (0 = all cores) also bounds Embree's own build threads. */
+/* Where the float frame of the geometry sits. At the camera, what the camera sees near it is
+ * precise however far from the world origin the scene lies. When the camera is far from all the
+ * geometry (a narrow field of view), float coordinates around the camera cannot resolve the
+ * geometry and the frame must sit at the geometry instead: OBS_RT_FRAME_GEOMETRY puts it at the
+ * point of the geometry's bounds nearest to the camera whenever the camera is more than
+ * OBS_RT_FAR_CAMERA box diagonals away, and camera rays then start at the box. */
+enum { OBS_RT_FRAME_CAMERA = 0, OBS_RT_FRAME_GEOMETRY = 1 };
+#define OBS_RT_FAR_CAMERA 64.0
+
+/* Builds geometry and BVH. `threads` (0 = all cores) also bounds Embree's own build threads.
+ * obs_rt_build is obs_rt_build_ex with OBS_RT_FRAME_CAMERA (the G-buffer's primary-ray packets
+ * assume their eye at the frame's origin). */
 int obs_rt_build(const obs_scene *scene, obs_rt *rt, int threads, obs_err *err);
+int obs_rt_build_ex(const obs_scene *scene, obs_rt *rt, int threads, int frame, obs_err *err);
 void obs_rt_free(obs_rt *rt);
 
 /* Closest hit along (org, dir) within [0, tfar], org in world space. Returns 1 and fills `hit`
- * (p in the ray tracer's camera-relative frame, world minus rt->geo.origin), or 0 on a miss. */
+ * (p in the ray tracer's frame, world minus rt->geo.origin; t from org), or 0 on a miss. */
 int obs_rt_intersect(const obs_rt *rt, const double org[3], const double dir[3], float tfar,
                      obs_hit *hit);
 /* Rays per obs_rt_intersect_primary call (a 4x4 pixel block), handed to Embree as one stream

@@ -211,7 +211,7 @@ int obs_rt_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   if (rc) return rc;
   double t0 = obs_now_ms();
   obs_rt rt;
-  rc = obs_rt_build(sc, &rt, ctx->threads, err);
+  rc = obs_rt_build_ex(sc, &rt, ctx->threads, OBS_RT_FRAME_GEOMETRY, err);
   if (rc) {
     obs_image_free(out);
     return rc;

@@ -60,10 +60,10 @@ static int rt_ao_reference(const obs_scene *scene, const json_t *params, obs_ref
  * the limits are float's range for the squared lengths of hit normals and the double shift.
  * Monte-Carlo noise does not enter: the same seed traces the same directions at every scale, and
  * only rays that graze an edge may turn, hence a per-pixel bound on all but a small share of
- * pixels. The narrowest field of view is bounded by the camera distance it implies: a scene
- * filling a view of fov_y degrees lies about 1 / tan(fov_y / 2) sizes from the camera, and float
- * hit points that far from the frame's origin (the camera) lose the precision the tolerance
- * allows. tau has no subrange: exp(-tau d) is evaluated in double at any rate, and a default tau
+ * pixels. A narrow field of view puts the camera far from the scene (about 1 / tan(fov_y / 2)
+ * sizes); the ray tracer then moves its float frame from the camera to the geometry and starts
+ * camera rays at the geometry's box in double (OBS_RT_FRAME_GEOMETRY), so the narrowest field of
+ * view is the screen-space techniques' one. tau has no subrange: exp(-tau d) is evaluated in double at any rate, and a default tau
  * left beside another falloff must not warn. */
 const obs_technique obs_technique_rt_ao = {
     .name = "rt_ao",
@@ -78,7 +78,7 @@ const obs_technique obs_technique_rt_ao = {
     .range = {[OBS_BACKEND_CPU] = {.size_min = 1e-9,
                                    .size_max = 1e9,
                                    .translation_max = 1e9,
-                                   .fov_min = 0.1,
+                                   .fov_min = 1e-4,
                                    .fov_max = 170,
                                    .orthographic = 1,
                                    .params = {{"max_distance", 1e-6, 1e6, 1}, {NULL, 0, 0, 0}},
