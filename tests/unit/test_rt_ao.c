@@ -691,6 +691,43 @@ static void test_stderr_is_honest(void **state) {
 }
 
 /* displaced_sphere at its coarsest level (4 triangles) encloses a volume and is drawn. */
+/* A telephoto camera: the 1x1 view of sphere_ao_on from 1e4 to 1e9 units away at fov_y 1e-4.
+ * In a float frame at the camera the plane's vertices there round by up to 60 units, which made
+ * the hit point and its AO rays meaningless; the frame at the geometry keeps the analytic value. */
+static void test_telephoto_analytic(void **state) {
+  (void)state;
+  static const double cases[][3] = {{0.5, 1.0, 30.0}, {0.05, 0.1, 10.0}};
+  static const double dist[] = {1e4, 1e7, 1e9};
+  for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++)
+    for (size_t j = 0; j < sizeof dist / sizeof dist[0]; j++) {
+      double r = cases[i][0], d = cases[i][1], a = cases[i][2] * PI / 180.0;
+      double dir[3] = {-(d + 3.0), d + 1.0, 0.37};
+      double len = sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
+      for (int k = 0; k < 3; k++) dir[k] *= dist[j] / len;
+      obs_result res;
+      obs_test_render(
+          fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[%.17g,%.17g,%.17g],"
+              "\"look_at\":[0,0,0],\"fov_y\":1e-4},\"image\":{\"width\":1,\"height\":1},"
+              "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-10,0,-10],[-10,0,10],"
+              "[10,0,10],[10,0,-10]]}},{\"shape\":{\"type\":\"sphere\",\"center\":[%.17g,%.17g,0],"
+              "\"radius\":%.17g}}],\"technique\":{\"name\":\"rt_ao\",\"params\":{"
+              "\"samples\":4096}}}",
+              dir[0], dir[1], dir[2], d * sin(a), d * cos(a), r),
+          1, &res);
+      assert_sane(&res);
+      double expect = 1.0 - cos(a) * (r / d) * (r / d);
+      double ao = px(&res, "ao", 0, 0), se = px(&res, "ao_stderr", 0, 0);
+      printf("telephoto at %g: r=%g d=%g ao=%.5f expect=%.5f stderr=%.5f depth=%.9g\n", dist[j],
+             r, d, ao, expect, se, px(&res, "depth.Z", 0, 0));
+      assert_true(px(&res, "alpha", 0, 0) == 1.0f);
+      assert_true(fabsf(px(&res, "normal.Y", 0, 0) - 1.0f) < 1e-6f);
+      assert_true(fabs(px(&res, "depth.Z", 0, 0) / dist[j] - 1.0) < 1e-6);
+      assert_true(fabs(ao - expect) <= 3.0 * se + 1e-6);
+      assert_true(fabs(ao - expect) <= 3e-3);
+      obs_result_free(&res);
+    }
+}
+
 static void test_displaced_sphere_level_1(void **state) {
   (void)state;
   obs_result r;
@@ -728,6 +765,7 @@ int main(void) {
       cmocka_unit_test(test_sphere_over_plane_extremes),
       cmocka_unit_test(test_camera_extreme_basis),
       cmocka_unit_test(test_stderr_is_honest),
+      cmocka_unit_test(test_telephoto_analytic),
       cmocka_unit_test(test_displaced_sphere_level_1),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
