@@ -38,12 +38,18 @@ static int parse(int argc, char **argv, opts *o) {
     const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
     int bad = 0;
     if (!v) return usage();
-    if (!strcmp(a, "--threads")) bad = parse_int(v, 1, 1024, &o->threads);
-    else if (!strcmp(a, "--size")) bad = parse_int(v, 1, 8192, &o->size);
-    else if (!strcmp(a, "--subdiv")) bad = parse_int(v, 2, 11, &o->subdiv);
-    else if (!strcmp(a, "--repeats")) bad = parse_int(v, 1, 1000, &o->repeats);
-    else if (!strcmp(a, "--scene")) o->scene = v;
-    else return usage();
+    if (!strcmp(a, "--threads"))
+      bad = parse_int(v, 1, 1024, &o->threads);
+    else if (!strcmp(a, "--size"))
+      bad = parse_int(v, 1, 8192, &o->size);
+    else if (!strcmp(a, "--subdiv"))
+      bad = parse_int(v, 2, 11, &o->subdiv);
+    else if (!strcmp(a, "--repeats"))
+      bad = parse_int(v, 1, 1000, &o->repeats);
+    else if (!strcmp(a, "--scene"))
+      o->scene = v;
+    else
+      return usage();
     if (bad) return usage();
     i++;
   }
@@ -115,16 +121,16 @@ static int exr_candidate(const obs_image *img, const char *dir, obs_exr_opts eo,
     snprintf(name, sizeof name, "%s-%d", exr_names[eo.compression], eo.zip_level);
   else
     snprintf(name, sizeof name, "%s", exr_names[eo.compression]);
-  printf("  exr %-8s threads %2d  %7.1f ms (cpu %7.1f)  %9ld bytes (%5.1f %% of raw)  read-back %s\n",
-         name, eo.threads, median(t, repeats), median(c, repeats), sz,
-         100.0 * (double)sz / raw_bytes, ok ? "bit-exact" : "DIFFERS");
+  printf(
+      "  exr %-8s threads %2d  %7.1f ms (cpu %7.1f)  %9ld bytes (%5.1f %% of raw)  read-back %s\n",
+      name, eo.threads, median(t, repeats), median(c, repeats), sz, 100.0 * (double)sz / raw_bytes,
+      ok ? "bit-exact" : "DIFFERS");
   free(t);
   unlink(path);
   return !ok;
 }
 
-static const char *const png_filters[OBS_PNG_NFILTERS] = {"adaptive", "none", "sub", "up",
-                                                          "paeth"};
+static const char *const png_filters[OBS_PNG_NFILTERS] = {"adaptive", "none", "sub", "up", "paeth"};
 
 static void png_candidate(const obs_image *img, int nch, const char *dir, obs_png_opts po,
                           int repeats, const char *label) {
@@ -183,25 +189,27 @@ static int whole(const obs_scene *sc, obs_result *res, const char *dir, const op
     printf(" %s %ld", files[i], s);
   }
   printf(" bytes (%ld in all)\n", total);
-  printf("load %.1f ms, render %.1f ms (build included), write %.1f ms (medians of %d)\n",
-         load_ms, render_ms, w, o->repeats);
+  printf("load %.1f ms, render %.1f ms (build included), write %.1f ms (medians of %d)\n", load_ms,
+         render_ms, w, o->repeats);
   printf("ratio write/whole: %.3f  (goal <= 0.10)\n", w / (load_ms + render_ms + w));
   return 0;
 }
 
-static void candidates(const obs_result *res, const char *dir, const opts *o) {
+static int candidates(const obs_result *res, const char *dir, const opts *o) {
   const obs_image *img = &res->image;
   double raw = (double)img->width * img->height * img->nchannels * 4.0;
   printf("EXR candidates (%dx%d, %d float channels, %.0f raw bytes; median of %d):\n", img->width,
          img->height, img->nchannels, raw, o->repeats);
-  static const struct { int c, level; } list[] = {
-      {OBS_EXR_NONE, 0}, {OBS_EXR_RLE, 0}, {OBS_EXR_ZIPS, 0}, {OBS_EXR_ZIP, 1}, {OBS_EXR_ZIP, 2},
-      {OBS_EXR_ZIP, 3},  {OBS_EXR_ZIP, 4}, {OBS_EXR_ZIP, 0},  {OBS_EXR_PIZ, 0}};
-  int nthreads[2] = {1, o->threads};
+  static const struct {
+    int c, level;
+  } list[] = {{OBS_EXR_NONE, 0}, {OBS_EXR_RLE, 0}, {OBS_EXR_ZIPS, 0},
+              {OBS_EXR_ZIP, 1},  {OBS_EXR_ZIP, 2}, {OBS_EXR_ZIP, 3},
+              {OBS_EXR_ZIP, 4},  {OBS_EXR_ZIP, 0}, {OBS_EXR_PIZ, 0}};
+  int nthreads[2] = {1, o->threads}, bad = 0;
   for (size_t i = 0; i < sizeof list / sizeof list[0]; i++)
     for (int k = 0; k < (o->threads > 1 ? 2 : 1); k++) {
       obs_exr_opts eo = {list[i].c, list[i].level, nthreads[k]};
-      exr_candidate(img, dir, eo, o->repeats, raw);
+      bad |= exr_candidate(img, dir, eo, o->repeats, raw);
     }
 
   printf("PNG candidates (median of %d):\n", o->repeats);
@@ -229,6 +237,7 @@ static void candidates(const obs_result *res, const char *dir, const opts *o) {
       }
     if (f) obs_image_free(&src);
   }
+  return bad;
 }
 
 int main(int argc, char **argv) {
@@ -237,9 +246,8 @@ int main(int argc, char **argv) {
   char sub[16], size[16];
   snprintf(sub, sizeof sub, "%d", o.subdiv);
   snprintf(size, sizeof size, "%d", o.size);
-  obs_override ov[3] = {{"/objects/0/shape/subdivisions", sub},
-                        {"/image/width", size},
-                        {"/image/height", size}};
+  obs_override ov[3] = {
+      {"/objects/0/shape/subdivisions", sub}, {"/image/width", size}, {"/image/height", size}};
   obs_scene sc;
   obs_err err = OBS_ERR_INIT;
   double t0 = obs_now_ms();
@@ -274,7 +282,7 @@ int main(int argc, char **argv) {
   printf("scene %s, subdivisions %d, %dx%d, %d threads\n", o.scene, o.subdiv, o.size, o.size,
          o.threads);
   int bad = whole(&sc, &res, dir, &o, load_ms, render_ms);
-  if (!bad) candidates(&res, dir, &o);
+  if (!bad) bad = candidates(&res, dir, &o);
   static const char *const files[] = {"ao.exr", "ao.png", "bent_normal.png", "depth.png",
                                       "summary.json"};
   for (int i = 0; i < 5; i++) {

@@ -46,8 +46,8 @@ static void assert_same_bits(const obs_image *a, const obs_image *b, const char 
     assert_non_null(pb);
     for (size_t i = 0; i < n; i++) {
       if (pa[i] != pb[i]) {
-        fprintf(stderr, "%s: channel %s pixel %zu: wrote 0x%08x, read 0x%08x\n", what,
-                a->names[c], i, pa[i], pb[i]);
+        fprintf(stderr, "%s: channel %s pixel %zu: wrote 0x%08x, read 0x%08x\n", what, a->names[c],
+                i, pa[i], pb[i]);
         fail();
       }
     }
@@ -55,9 +55,9 @@ static void assert_same_bits(const obs_image *a, const obs_image *b, const char 
 }
 
 /* Channel names whose sorted (file) order is their index order. */
-static const char *const chan10[10] = {"alpha",         "ao",      "ao_stderr", "bent_normal.X",
-                                       "bent_normal.Y", "bent_normal.Z", "depth.Z", "normal.X",
-                                       "normal.Y",      "normal.Z"};
+static const char *const chan10[10] = {
+    "alpha",         "ao",      "ao_stderr", "bent_normal.X", "bent_normal.Y",
+    "bent_normal.Z", "depth.Z", "normal.X",  "normal.Y",      "normal.Z"};
 
 enum { K_CONST, K_RANDOM, K_SMOOTH, K_AO, K_SPECIAL, NKINDS };
 static const char *const kind_names[NKINDS] = {"constant", "random bits", "smooth", "ao-like",
@@ -74,11 +74,21 @@ static void fill(obs_image *img, int kind, uint32_t seed) {
   for (size_t i = 0; i < n; i++) {
     size_t x = i % (size_t)img->width, y = (i / (size_t)img->width) % (size_t)img->height;
     switch (kind) {
-      case K_CONST: img->data[i] = 0.25f; break;
-      case K_RANDOM: img->data[i] = from_bits(next_rand(&s)); break;
-      case K_SMOOTH: img->data[i] = (float)(0.001 * (double)x + 0.01 * (double)y + 1.0); break;
-      case K_AO: img->data[i] = (float)(next_rand(&s) % 17u) / 16.0f; break;
-      default: img->data[i] = from_bits(specials[next_rand(&s) % 10u]); break;
+      case K_CONST:
+        img->data[i] = 0.25f;
+        break;
+      case K_RANDOM:
+        img->data[i] = from_bits(next_rand(&s));
+        break;
+      case K_SMOOTH:
+        img->data[i] = (float)(0.001 * (double)x + 0.01 * (double)y + 1.0);
+        break;
+      case K_AO:
+        img->data[i] = (float)(next_rand(&s) % 17u) / 16.0f;
+        break;
+      default:
+        img->data[i] = from_bits(specials[next_rand(&s) % 10u]);
+        break;
     }
   }
 }
@@ -112,10 +122,10 @@ static const obs_exr_opts every_compression[] = {
 static void test_exr_roundtrip_sizes_contents_compressions(void **state) {
   (void)state;
   const char *dir = obs_test_tmpdir("exr_sweep");
-  static const int sizes[][2] = {{1, 1},   {1, 2},   {1, 15},   {1, 16},   {1, 17},  {1, 33},
-                                 {1, 100}, {1, 4096}, {2, 1},   {15, 1},   {16, 1},  {17, 1},
-                                 {100, 1}, {4096, 1}, {3, 5},   {7, 31},   {33, 17}, {64, 64},
-                                 {129, 47}};
+  static const int sizes[][2] = {{1, 1},  {1, 2},   {1, 15},   {1, 16},   {1, 17},
+                                 {1, 33}, {1, 100}, {1, 4096}, {2, 1},    {15, 1},
+                                 {16, 1}, {17, 1},  {100, 1},  {4096, 1}, {3, 5},
+                                 {7, 31}, {33, 17}, {64, 64},  {129, 47}};
   int nsizes = (int)(sizeof sizes / sizeof sizes[0]), cases = 0;
   for (int si = 0; si < nsizes; si++) {
     for (int kind = 0; kind < NKINDS; kind++) {
@@ -140,7 +150,8 @@ static void test_exr_roundtrip_sizes_contents_compressions(void **state) {
   unlink(path_in(dir, "sweep.exr"));
 }
 
-/* ---- chunks whose deflate output is exactly as large as the raw pixels ------------------------ */
+/* ---- chunks whose deflate output is exactly as large as the raw pixels ------------------------
+ */
 
 /* OpenEXR's ZIP pre-pass: bytes split into even and odd halves, then delta-coded. */
 static void zip_forward(const uint8_t *raw, uint8_t *out, size_t n) {
@@ -230,7 +241,8 @@ static void test_exr_zip_equal_size_chunks(void **state) {
   unlink(path_in(dir, "equal.exr"));
 }
 
-/* ---- determinism and the independent reader --------------------------------------------------- */
+/* ---- determinism and the independent reader ---------------------------------------------------
+ */
 
 static uint8_t *slurp(const char *path, size_t *len) {
   FILE *f = fopen(path, "rb");
@@ -264,7 +276,8 @@ static void test_exr_bytes_independent_of_threads(void **state) {
   make(&img, 77, 301, 10);
   fill(&img, K_AO, 7u);
   uint32_t s = 9u; /* half the planes random bits: chunks of very different sizes */
-  for (size_t i = 5u * 77u * 301u; i < 10u * 77u * 301u; i++) img.data[i] = from_bits(next_rand(&s));
+  for (size_t i = 5u * 77u * 301u; i < 10u * 77u * 301u; i++)
+    img.data[i] = from_bits(next_rand(&s));
   for (int c = 0; c < NCOMP; c++) {
     char ref[2200];
     for (int t = 1; t <= 5; t += 2) {
@@ -302,8 +315,7 @@ static void test_exr_independent_reader(void **state) {
     snprintf(dst, sizeof dst, "%s/out%d.exr", dir, c);
     obs_err err = OBS_ERR_INIT;
     assert_int_equal(obs_image_write_exr_opts(&img, src, &eo, &err), 0);
-    snprintf(cmd, sizeof cmd, "oiiotool '%s' --compression none -o '%s' >/dev/null 2>&1", src,
-             dst);
+    snprintf(cmd, sizeof cmd, "oiiotool '%s' --compression none -o '%s' >/dev/null 2>&1", src, dst);
     assert_int_equal(system(cmd), 0);
     obs_image back;
     assert_int_equal(obs_image_read_exr(&back, dst, &err), 0);
@@ -313,7 +325,8 @@ static void test_exr_independent_reader(void **state) {
   obs_image_free(&img);
 }
 
-/* ---- obs_result_write --------------------------------------------------------------------------- */
+/* ---- obs_result_write ---------------------------------------------------------------------------
+ */
 
 static const char *scene_json =
     "{\"camera\":{\"type\":\"perspective\",\"position\":[0,3,-4],\"look_at\":[0,0.3,0],"
@@ -359,6 +372,51 @@ static void test_result_write_threads_and_readback(void **state) {
   }
 }
 
+/* The render that exposed the equal-size chunks: ssao at 1x4096 on sphere_on_plane (7 channels,
+ * 448 packed bytes per 16-line chunk). Its ao.exr must hold exactly the image rendered, at every
+ * compression, and the written file must also pass through the independent reader. */
+static void test_result_write_ssao_1x4096(void **state) {
+  (void)state;
+  obs_override ov[] = {{"/technique/name", "\"ssao\""},
+                       {"/technique/params", "{}"},
+                       {"/image/width", "1"},
+                       {"/image/height", "4096"}};
+  obs_scene sc;
+  obs_err err = OBS_ERR_INIT;
+  int rc = obs_scene_load_file(&sc, obs_test_src("scenes/sphere_on_plane.json"), ov, 4, &err);
+  if (rc) fprintf(stderr, "%s\n", obs_err_message(&err));
+  assert_int_equal(rc, 0);
+  obs_result res;
+  obs_render_opts ro = {.threads = 2};
+  assert_int_equal(obs_render(&sc, &ro, &res, &err), 0);
+  char dir[1024];
+  snprintf(dir, sizeof dir, "%s", obs_test_tmpdir("ssao_1x4096"));
+  assert_int_equal(obs_result_write(&res, &sc, dir, &err), 0);
+  obs_image back;
+  assert_int_equal(obs_image_read_exr(&back, path_in(dir, "ao.exr"), &err), 0);
+  assert_same_bits(&res.image, &back, "ssao 1x4096 ao.exr");
+  const float *ao = obs_image_channel(&back, "ao");
+  for (int i = 0; i < 4096; i++) assert_true(ao[i] >= 0.0f && ao[i] <= 1.0f);
+  obs_image_free(&back);
+  for (int c = 0; c < NCOMP; c++) {
+    char what[64];
+    snprintf(what, sizeof what, "ssao 1x4096, compression %d level %d",
+             every_compression[c].compression, every_compression[c].zip_level);
+    write_read_check(&res.image, path_in(dir, "again.exr"), &every_compression[c], what);
+  }
+  if (system("command -v oiiotool >/dev/null 2>&1") == 0) {
+    char cmd[3000];
+    snprintf(cmd, sizeof cmd, "oiiotool '%s/ao.exr' --compression none -o '%s/copy.exr'", dir, dir);
+    assert_int_equal(system(cmd), 0);
+    assert_int_equal(obs_image_read_exr(&back, path_in(dir, "copy.exr"), &err), 0);
+    assert_same_bits(&res.image, &back, "oiiotool copy of ssao 1x4096");
+    obs_image_free(&back);
+  }
+  obs_result_free(&res);
+  obs_scene_free(&sc);
+  obs_err_free(&err);
+}
+
 static int file_exists(const char *path) {
   struct stat st;
   return stat(path, &st) == 0;
@@ -387,9 +445,9 @@ static void test_result_write_failure_leaves_nothing(void **state) {
   res.image.data[0] = 0.123f; /* a different ao.exr, were it published */
   assert_int_not_equal(obs_result_write(&res, &sc, dir, &err), 0);
   assert_non_null(strstr(obs_err_message(&err), "depth.png"));
-  static const char *const staged[] = {".ao.exr.new",    ".ao.png.new",    ".bent_normal.png.new",
-                                       ".depth.png.new", ".summary.json.new", ".ao.exr.new.tmp",
-                                       ".ao.png.new.tmp", ".bent_normal.png.new.tmp"};
+  static const char *const staged[] = {
+      ".ao.exr.new",       ".ao.png.new",     ".bent_normal.png.new", ".depth.png.new",
+      ".summary.json.new", ".ao.exr.new.tmp", ".ao.png.new.tmp",      ".bent_normal.png.new.tmp"};
   for (size_t i = 0; i < sizeof staged / sizeof staged[0]; i++)
     assert_false(file_exists(path_in(dir, staged[i])));
   size_t after_len;
@@ -434,6 +492,7 @@ int main(void) {
       cmocka_unit_test(test_exr_bytes_independent_of_threads),
       cmocka_unit_test(test_exr_independent_reader),
       cmocka_unit_test(test_result_write_threads_and_readback),
+      cmocka_unit_test(test_result_write_ssao_1x4096),
       cmocka_unit_test(test_result_write_failure_leaves_nothing),
       cmocka_unit_test(test_writer_rejects_unknown_options),
   };
