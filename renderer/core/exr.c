@@ -104,6 +104,7 @@ typedef struct exr_writer {
   exr_result_t fail_rc;   /* first failure, with the library's message */
   char fail_msg[512];
   int fail_layout;        /* the encoder named a channel the image lacks */
+  int base;               /* first chunk of the window being compressed */
 } exr_writer;
 
 /* The format's rule is that a chunk whose compressed form is not smaller than its packed pixels is
@@ -174,7 +175,7 @@ static int exr_encode_tile(void *user, int thread, int x0, int y0, int x1, int y
   (void)y0, (void)y1, (void)x1;
   exr_writer *w = user;
   if (atomic_load(&w->failed)) return OBS_EINTERNAL;
-  return exr_encode_one(w, &w->slots[thread], x0 / OBS_TILE) ? OBS_EINTERNAL : 0;
+  return exr_encode_one(w, &w->slots[thread], w->base + x0 / OBS_TILE) ? OBS_EINTERNAL : 0;
 }
 
 static exr_compression_t exr_compression_of(int c) {
@@ -187,10 +188,30 @@ static exr_compression_t exr_compression_of(int c) {
   }
 }
 
-/* Encodes every chunk on `threads` threads, then writes them in file order. */
+/* Chunks are compressed a window at a time and each window is written before the next starts, so
+ * the compressed copies held at once stay near this many raw bytes whatever the image's size. */
+#define EXR_WINDOW_BYTES ((size_t)8 << 20)
+
+/* Compresses chunks [k0, k1) on `threads` threads into w->data. */
+static int exr_encode_window(exr_writer *w, int k0, int k1, int threads) {
+  if (threads == 1 || k1 - k0 == 1) {
+    for (int k = k0; k < k1; k++)
+      if (exr_encode_one(w, &w->slots[0], k)) return OBS_EINTERNAL;
+    return OBS_OK;
+  }
+  w->base = k0;
+  return obs_parallel_tiles((k1 - k0) * OBS_TILE, 1, threads, exr_encode_tile, w, NULL, NULL,
+                            NULL);
+}
+
+/* Encodes every chunk on `threads` threads and writes them in file order. */
 static int exr_write_chunks(exr_writer *w, int lines, int threads, const char *path, obs_err *err,
                             exr_result_t *rcp, const char **stage) {
   int nchunks = (w->img->height + lines - 1) / lines;
+  size_t chunk_raw = (size_t)w->img->width * (size_t)lines * (size_t)w->img->nchannels * 4;
+  size_t win = EXR_WINDOW_BYTES / chunk_raw;
+  if (win < (size_t)threads) win = (size_t)threads;
+  if (win > (size_t)(INT_MAX / OBS_TILE)) win = (size_t)(INT_MAX / OBS_TILE);
   if (threads > nchunks) threads = nchunks;
   if (threads < 1) threads = 1;
   w->info = calloc((size_t)nchunks, sizeof *w->info);
@@ -204,37 +225,36 @@ static int exr_write_chunks(exr_writer *w, int lines, int threads, const char *p
   exr_result_t rc = EXR_ERR_SUCCESS;
   for (int k = 0; k < nchunks && rc == EXR_ERR_SUCCESS; k++)
     rc = exr_write_scanline_chunk_info(w->ctx, 0, k * lines, &w->info[k]);
+  for (int t = 0; t < threads; t++)
+    w->slots[t].enc = (exr_encode_pipeline_t)EXR_ENCODE_PIPELINE_INITIALIZER;
   int code = OBS_OK;
-  if (rc == EXR_ERR_SUCCESS) {
-    for (int t = 0; t < threads; t++)
-      w->slots[t].enc = (exr_encode_pipeline_t)EXR_ENCODE_PIPELINE_INITIALIZER;
-    if (threads == 1) {
-      for (int k = 0; k < nchunks && !code; k++)
-        code = exr_encode_one(w, &w->slots[0], k) ? OBS_EINTERNAL : 0;
-    } else if (nchunks > INT_MAX / OBS_TILE) {
-      code = obs_err_set(err, OBS_EUNSUPPORTED, "%s: cannot write EXR: %d chunks are too many",
-                         path, nchunks);
-    } else {
-      code = obs_parallel_tiles(nchunks * OBS_TILE, 1, threads, exr_encode_tile, w, NULL, NULL,
-                                NULL);
-    }
-    for (int t = 0; t < threads; t++)
-      if (w->slots[t].alive) exr_encoding_destroy(w->ctx, &w->slots[t].enc);
-    if (w->fail_layout)
-      return obs_err_set(err, OBS_EINTERNAL,
+  for (int k0 = 0; k0 < nchunks && rc == EXR_ERR_SUCCESS && !code; k0 += (int)win) {
+    int k1 = nchunks - k0 < (int)win ? nchunks : k0 + (int)win;
+    *stage = "encode pixels";
+    code = exr_encode_window(w, k0, k1, threads);
+    if (w->fail_layout) {
+      code = obs_err_set(err, OBS_EINTERNAL,
                          "%s: cannot write EXR: encoder lists a channel the image lacks", path);
-    if (atomic_load(&w->failed)) {
+    } else if (atomic_load(&w->failed)) {
       snprintf(exr_last_msg, sizeof exr_last_msg, "%s", w->fail_msg);
-      *rcp = w->fail_rc;
-      return exr_code(w->fail_rc, OBS_EINTERNAL);
+      rc = w->fail_rc;
+    } else if (code) { /* the threads could not be started */
+      code = obs_err_set(err, code, "%s: cannot write EXR: %s", path, obs_strerror(code));
     }
-    if (code) return code;
+    if (code || rc != EXR_ERR_SUCCESS) break;
     *stage = "write chunks";
-    for (int k = 0; k < nchunks && rc == EXR_ERR_SUCCESS; k++)
+    for (int k = k0; k < k1 && rc == EXR_ERR_SUCCESS; k++) {
       rc = exr_write_scanline_chunk(w->ctx, 0, w->info[k].start_y, w->data[k], w->size[k]);
+      free(w->data[k]);
+      w->data[k] = NULL;
+    }
   }
+  for (int t = 0; t < threads; t++)
+    if (w->slots[t].alive) exr_encoding_destroy(w->ctx, &w->slots[t].enc);
   *rcp = rc;
-  return rc == EXR_ERR_SUCCESS ? OBS_OK : exr_code(rc, OBS_EIO);
+  if (rc != EXR_ERR_SUCCESS) return exr_code(rc, !strcmp(*stage, "write chunks") ? OBS_EIO
+                                                                                : OBS_EINTERNAL);
+  return code;
 }
 
 /* RLE, chosen by measurement on a 512x512 render's 10 float channels (docs/performance.md,
@@ -308,7 +328,6 @@ int obs_image_write_exr_opts(const obs_image *img, const char *path, const obs_e
   }
   nchunks = (img->height + lines - 1) / lines;
 
-  stage = "encode pixels";
   code = exr_write_chunks(&w, lines, o.threads, path, err, &rc, &stage);
   if (code) {
     if (rc != EXR_ERR_SUCCESS) goto fail;

@@ -296,6 +296,29 @@ static void test_exr_bytes_independent_of_threads(void **state) {
   obs_image_free(&img);
 }
 
+/* An image larger than the writer's window of chunks held at once (8 MB of raw pixels): chunks are
+ * compressed and written window by window, and the bytes still do not depend on the threads. */
+static void test_exr_large_image_windows(void **state) {
+  (void)state;
+  const char *dir = obs_test_tmpdir("exr_large");
+  obs_image img;
+  make(&img, 1024, 300, 10);
+  fill(&img, K_AO, 11u);
+  uint32_t s = 5u;
+  for (size_t i = 0; i < 3u * 1024u * 300u; i++) img.data[i] = from_bits(next_rand(&s));
+  static const obs_exr_opts which[] = {{OBS_EXR_RLE, 0, 1}, {OBS_EXR_ZIP, 1, 1}};
+  for (int c = 0; c < 2; c++) {
+    obs_exr_opts eo = which[c];
+    write_read_check(&img, path_in(dir, "t1.exr"), &eo, "1024x300 one thread");
+    eo.threads = 3;
+    write_read_check(&img, path_in(dir, "t3.exr"), &eo, "1024x300 three threads");
+    char a[2200];
+    snprintf(a, sizeof a, "%s", path_in(dir, "t1.exr"));
+    assert_same_file(a, path_in(dir, "t3.exr"));
+  }
+  obs_image_free(&img);
+}
+
 /* OpenImageIO reads EXR through the C++ OpenEXR library, whose decompressors are separate code
  * from OpenEXRCore's: it rewrites each file uncompressed and the result must hold the same bits. */
 static void test_exr_independent_reader(void **state) {
@@ -485,11 +508,14 @@ static void test_writer_rejects_unknown_options(void **state) {
   obs_err_free(&err);
 }
 
-int main(void) {
+/* An argument runs only the tests whose names match it (cmocka's pattern, e.g. "*windows*"). */
+int main(int argc, char **argv) {
+  if (argc > 1) cmocka_set_test_filter(argv[1]);
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_exr_roundtrip_sizes_contents_compressions),
       cmocka_unit_test(test_exr_zip_equal_size_chunks),
       cmocka_unit_test(test_exr_bytes_independent_of_threads),
+      cmocka_unit_test(test_exr_large_image_windows),
       cmocka_unit_test(test_exr_independent_reader),
       cmocka_unit_test(test_result_write_threads_and_readback),
       cmocka_unit_test(test_result_write_ssao_1x4096),
