@@ -110,9 +110,9 @@ typedef struct exr_writer {
 /* The format's rule is that a chunk whose compressed form is not smaller than its packed pixels is
  * stored as the packed pixels: readers take "size == raw size" to mean "not compressed". OpenEXR
  * 3.1.5's ZIP and ZIPS encoders keep the compressed bytes when they come out exactly as large
- * (they only fall back when larger), so a reader decodes deflate bytes as pixels. That happens for
- * small chunks of incompressible data (a 1-pixel-wide image with 7 float channels packs 448 bytes
- * per 16-line chunk), and produced values like 7.6e33 in files whose image held 0..1. Enforcing
+ * (they only fall back when larger), so a reader decodes deflate bytes as pixels (values like 1e33
+ * in an image of 0..1). Small chunks of nearly incompressible data hit it: a 1-pixel-wide image
+ * with 7 float channels packs 448 bytes per 16-line chunk. Enforcing
  * the rule here after every compressor (RLE and PIZ already honour it; the check costs nothing)
  * makes every chunk readable whatever the library version. */
 static exr_result_t exr_compress_checked(exr_encode_pipeline_t *enc) {

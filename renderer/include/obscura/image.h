@@ -38,7 +38,8 @@ typedef struct obs_exr_opts {
   int threads;     /* chunks are compressed on this many threads (<= 1: the calling thread) */
 } obs_exr_opts;
 
-/* The writer's choice for obscura's outputs (see docs/performance.md, "Writing outputs"). */
+/* The writer's choice for every EXR obscura writes (RLE, one thread; see docs/performance.md,
+ * "Writing outputs"). */
 obs_exr_opts obs_exr_opts_default(void);
 
 /* Writes every channel as 32-bit float in one scanline EXR, to `path` via `path`.tmp (removed on
@@ -65,7 +66,8 @@ typedef struct obs_png_opts {
   int filter; /* OBS_PNG_FILTER_* */
 } obs_png_opts;
 
-/* The writer's choice for obscura's outputs (see docs/performance.md, "Writing outputs"). */
+/* The writer's general choice (level 1, "up"); obs_result_write picks per output (render.c). See
+ * docs/performance.md, "Writing outputs". */
 obs_png_opts obs_png_opts_default(void);
 
 /* Writes 8-bit PNG. With one channel name: greyscale; with three: RGB. Values are clamped to [0,1]
