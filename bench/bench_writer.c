@@ -152,11 +152,15 @@ static void png_candidate(const obs_image *img, int nch, const char *dir, obs_pn
     t[r] = obs_now_ms() - t0;
     c[r] = cpu_ms() - c0;
   }
-  char lv[8];
-  snprintf(lv, sizeof lv, "%d", po.level);
-  printf("  png %-16s level %-2s filter %-8s  %6.1f ms (cpu %6.1f)  %8ld bytes\n", label,
-         po.level < 0 ? "6" : lv, png_filters[po.filter], median(t, repeats), median(c, repeats),
-         file_size(path));
+  char mode[24];
+  if (po.strategy == OBS_PNG_STRATEGY_RLE)
+    snprintf(mode, sizeof mode, "rle");
+  else if (po.strategy == OBS_PNG_STRATEGY_HUFFMAN)
+    snprintf(mode, sizeof mode, "huffman");
+  else
+    snprintf(mode, sizeof mode, "level %d", po.level < 0 ? 6 : po.level);
+  printf("  png %-16s %-8s filter %-8s  %6.1f ms (cpu %6.1f)  %8ld bytes\n", label, mode,
+         png_filters[po.filter], median(t, repeats), median(c, repeats), file_size(path));
   free(t);
   unlink(path);
 }
@@ -213,7 +217,10 @@ static int candidates(const obs_result *res, const char *dir, const opts *o) {
     }
 
   printf("PNG candidates (median of %d):\n", o->repeats);
-  static const int levels[] = {-1, 3, 2, 1, 0};
+  /* Levels with libspng's own strategy; run-length deflate ignores the level (zlib's Z_RLE). */
+  static const struct { int level, strategy; } modes[] = {
+      {-1, OBS_PNG_STRATEGY_DEFAULT}, {3, OBS_PNG_STRATEGY_DEFAULT}, {1, OBS_PNG_STRATEGY_DEFAULT},
+      {0, OBS_PNG_STRATEGY_DEFAULT},  {6, OBS_PNG_STRATEGY_RLE},     {6, OBS_PNG_STRATEGY_HUFFMAN}};
   static const int filters[] = {OBS_PNG_FILTER_ADAPTIVE, OBS_PNG_FILTER_NONE, OBS_PNG_FILTER_SUB,
                                 OBS_PNG_FILTER_UP, OBS_PNG_FILTER_PAETH};
   static const char *const pngs[] = {"ao.png", "bent_normal.png", "depth.png"};
@@ -230,9 +237,9 @@ static int candidates(const obs_result *res, const char *dir, const opts *o) {
       obs_err_free(&err);
       continue;
     }
-    for (size_t l = 0; l < sizeof levels / sizeof levels[0]; l++)
+    for (size_t m = 0; m < sizeof modes / sizeof modes[0]; m++)
       for (size_t k = 0; k < sizeof filters / sizeof filters[0]; k++) {
-        obs_png_opts po = {levels[l], filters[k]};
+        obs_png_opts po = {modes[m].level, filters[k], modes[m].strategy};
         png_candidate(&src, f == 1 ? 3 : 1, dir, po, o->repeats, pngs[f]);
       }
     if (f) obs_image_free(&src);

@@ -195,17 +195,9 @@ static int display_image(const obs_image *img, int depth, obs_image *out, obs_er
   return 0;
 }
 
-/* What each output is written with, chosen by measurement on the displaced sphere (512x512, 10
- * float channels; figures and the candidates not taken in docs/performance.md, "Writing outputs").
- * Deflate at its default level costs 5 to 15 times more than at level 1 on this data for a few per
- * cent of bytes; the adaptive row filter (every row tries all five) costs more than it saves on
- * noisy AO and bent normals. The EXR is RLE: deflate, even at level 1, cannot fit the 10 % budget
- * with its 10 MB of mostly incompressible float mantissas, while RLE still removes a quarter of the
- * bytes for little time. */
-static const obs_png_opts png_ao = {1, OBS_PNG_FILTER_NONE};
-static const obs_png_opts png_bent = {1, OBS_PNG_FILTER_UP};
-static const obs_png_opts png_depth = {1, OBS_PNG_FILTER_UP};
-
+/* Every image file takes the writer's defaults (obs_exr_opts_default, obs_png_opts_default): the
+ * candidates were measured per output on the displaced sphere (docs/performance.md, "Writing
+ * outputs") and the same setting won for ao.png, bent_normal.png and depth.png. */
 enum { F_EXR, F_PNG, F_BENT, F_DEPTH, F_SUMMARY, NFILES };
 
 /* One output file being written on some thread; its own obs_err so threads never share one. */
@@ -213,7 +205,7 @@ typedef struct out_job {
   const obs_image *img;
   const char *const *ch;
   int nch;
-  const obs_png_opts *png; /* NULL: the EXR */
+  int png;                 /* 0: the EXR */
   int threads;             /* EXR chunk threads */
   const char *path;
   int rc;
@@ -222,7 +214,7 @@ typedef struct out_job {
 
 static void out_job_run(out_job *j) {
   if (j->png) {
-    j->rc = obs_image_write_png_opts(j->img, j->ch, j->nch, 0, j->path, j->png, &j->err);
+    j->rc = obs_image_write_png(j->img, j->ch, j->nch, 0, j->path, &j->err);
   } else {
     obs_exr_opts eo = obs_exr_opts_default();
     eo.threads = j->threads;
@@ -283,17 +275,17 @@ int obs_result_write(obs_result *r, const obs_scene *sc, const char *dir, obs_er
   out_job jobs[NFILES];
   int file_of[NFILES], njobs = 0;
   memset(jobs, 0, sizeof jobs);
-  jobs[njobs] = (out_job){&r->image, NULL, 0, NULL, 1, stage[F_EXR], 0, OBS_ERR_INIT};
+  jobs[njobs] = (out_job){&r->image, NULL, 0, 0, 1, stage[F_EXR], 0, OBS_ERR_INIT};
   file_of[njobs++] = F_EXR;
-  jobs[njobs] = (out_job){&r->image, ao, 1, &png_ao, 1, stage[F_PNG], 0, OBS_ERR_INIT};
+  jobs[njobs] = (out_job){&r->image, ao, 1, 1, 1, stage[F_PNG], 0, OBS_ERR_INIT};
   file_of[njobs++] = F_PNG;
   for (int f = F_BENT; f <= F_DEPTH && !rc; f++) {
     obs_image *d = &disp[f - F_BENT];
     int have = display_image(&r->image, f == F_DEPTH, d, err);
     if (have < 0) rc = have;
     if (have != 0) continue;
-    jobs[njobs] = (out_job){d, f == F_DEPTH ? y : rgb, f == F_DEPTH ? 1 : 3,
-                            f == F_DEPTH ? &png_depth : &png_bent, 1, stage[f], 0, OBS_ERR_INIT};
+    jobs[njobs] = (out_job){d, f == F_DEPTH ? y : rgb, f == F_DEPTH ? 1 : 3, 1, 1, stage[f], 0,
+                            OBS_ERR_INIT};
     file_of[njobs++] = f;
   }
   if (!rc) {

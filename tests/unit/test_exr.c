@@ -484,6 +484,45 @@ static void test_result_write_failure_leaves_nothing(void **state) {
   obs_err_free(&err);
 }
 
+/* Every PNG setting the writer offers stores the same 8-bit pixels (grey and RGB, odd sizes). */
+static void test_png_every_option_reads_back(void **state) {
+  (void)state;
+  const char *dir = obs_test_tmpdir("png_opts");
+  static const char *const names[3] = {"R", "G", "B"};
+  static const int sizes[][2] = {{1, 1}, {1, 300}, {300, 1}, {37, 29}};
+  for (int si = 0; si < 4; si++) {
+    obs_image img;
+    obs_err err = OBS_ERR_INIT;
+    assert_int_equal(obs_image_init(&img, sizes[si][0], sizes[si][1], 3, names, &err), 0);
+    uint32_t s = 77u + (uint32_t)si;
+    size_t n = (size_t)img.width * (size_t)img.height;
+    for (size_t i = 0; i < 3 * n; i++) /* steps of 1/255 with runs, noise and out-of-range */
+      img.data[i] = i % 7 < 3 ? 0.5f : (float)(next_rand(&s) % 300u) / 255.0f - 0.1f;
+    for (int level = -1; level <= 9; level += 5)
+      for (int f = 0; f < OBS_PNG_NFILTERS; f++)
+        for (int st = 0; st < OBS_PNG_NSTRATEGIES; st++)
+          for (int nch = 1; nch <= 3; nch += 2) {
+            obs_png_opts po = {level, f, st};
+            assert_int_equal(obs_image_write_png_opts(&img, names, nch, 0,
+                                                      path_in(dir, "p.png"), &po, &err),
+                             0);
+            obs_image back;
+            assert_int_equal(obs_image_read_png(&back, path_in(dir, "p.png"), &err), 0);
+            for (int c = 0; c < nch; c++) {
+              const float *src = obs_image_channel(&img, names[c]);
+              const float *got = nch == 1 ? back.data : obs_image_channel(&back, names[c]);
+              for (size_t i = 0; i < n; i++) {
+                float v = src[i] < 0.0f ? 0.0f : (src[i] > 1.0f ? 1.0f : src[i]);
+                assert_true(fabs(got[i] * 255.0 - floor((double)v * 255.0 + 0.5)) < 1e-3);
+              }
+            }
+            obs_image_free(&back);
+          }
+    obs_image_free(&img);
+    obs_err_free(&err);
+  }
+}
+
 /* The rejected options name themselves. */
 static void test_writer_rejects_unknown_options(void **state) {
   (void)state;
@@ -497,10 +536,13 @@ static void test_writer_rejects_unknown_options(void **state) {
   bad = (obs_exr_opts){OBS_EXR_ZIP, 10, 1};
   assert_int_equal(obs_image_write_exr_opts(&img, path_in(dir, "x.exr"), &bad, &err), OBS_EINVAL);
   const char *ch[] = {"alpha"};
-  obs_png_opts pbad = {10, OBS_PNG_FILTER_NONE};
+  obs_png_opts pbad = {10, OBS_PNG_FILTER_NONE, OBS_PNG_STRATEGY_DEFAULT};
   assert_int_equal(obs_image_write_png_opts(&img, ch, 1, 0, path_in(dir, "x.png"), &pbad, &err),
                    OBS_EINVAL);
-  pbad = (obs_png_opts){1, OBS_PNG_NFILTERS};
+  pbad = (obs_png_opts){1, OBS_PNG_NFILTERS, OBS_PNG_STRATEGY_DEFAULT};
+  assert_int_equal(obs_image_write_png_opts(&img, ch, 1, 0, path_in(dir, "x.png"), &pbad, &err),
+                   OBS_EINVAL);
+  pbad = (obs_png_opts){1, OBS_PNG_FILTER_UP, OBS_PNG_NSTRATEGIES};
   assert_int_equal(obs_image_write_png_opts(&img, ch, 1, 0, path_in(dir, "x.png"), &pbad, &err),
                    OBS_EINVAL);
   assert_false(file_exists(path_in(dir, "x.png")));
@@ -520,6 +562,7 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_result_write_threads_and_readback),
       cmocka_unit_test(test_result_write_ssao_1x4096),
       cmocka_unit_test(test_result_write_failure_leaves_nothing),
+      cmocka_unit_test(test_png_every_option_reads_back),
       cmocka_unit_test(test_writer_rejects_unknown_options),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

@@ -61,13 +61,20 @@ int obs_image_make_dirs(const char *dir, obs_err *err);
 enum { OBS_PNG_FILTER_ADAPTIVE, OBS_PNG_FILTER_NONE, OBS_PNG_FILTER_SUB, OBS_PNG_FILTER_UP,
        OBS_PNG_FILTER_PAETH, OBS_PNG_NFILTERS };
 
+/* How deflate looks for repeats: DEFAULT is libspng's choice (zlib's Z_FILTERED for filtered rows,
+ * Z_DEFAULT_STRATEGY for unfiltered); RLE only matches runs of one byte value (zlib's Z_RLE);
+ * HUFFMAN matches nothing (Z_HUFFMAN_ONLY). */
+enum { OBS_PNG_STRATEGY_DEFAULT, OBS_PNG_STRATEGY_RLE, OBS_PNG_STRATEGY_HUFFMAN,
+       OBS_PNG_NSTRATEGIES };
+
 typedef struct obs_png_opts {
-  int level;  /* deflate level 0..9; -1 = libspng's default (6) */
-  int filter; /* OBS_PNG_FILTER_* */
+  int level;    /* deflate level 0..9 (0 = stored); -1 = libspng's default (6) */
+  int filter;   /* OBS_PNG_FILTER_* */
+  int strategy; /* OBS_PNG_STRATEGY_* */
 } obs_png_opts;
 
-/* The writer's general choice (level 1, "up"); obs_result_write picks per output (render.c). See
- * docs/performance.md, "Writing outputs". */
+/* The writer's choice for every PNG obscura writes (the up filter, run-length deflate; see
+ * docs/performance.md, "Writing outputs"). */
 obs_png_opts obs_png_opts_default(void);
 
 /* Writes 8-bit PNG. With one channel name: greyscale; with three: RGB. Values are clamped to [0,1]
