@@ -34,7 +34,7 @@ static int parse(int argc, char **argv, opts *o) {
   o->subdiv = 9;
   o->repeats = 5;
   o->scene = OBS_SOURCE_DIR "/scenes/displaced_sphere.json";
-  for (int i = 1; i < argc; i++) {
+  for (int i = 1; i < argc; i += 2) { /* every option takes a value */
     const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
     int bad = 0;
     if (!v) return usage();
@@ -51,7 +51,6 @@ static int parse(int argc, char **argv, opts *o) {
     else
       return usage();
     if (bad) return usage();
-    i++;
   }
   return 0;
 }
