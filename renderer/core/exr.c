@@ -209,11 +209,11 @@ static int exr_write_chunks(exr_writer *w, int lines, int threads, const char *p
                             exr_result_t *rcp, const char **stage) {
   int nchunks = (w->img->height + lines - 1) / lines;
   size_t chunk_raw = (size_t)w->img->width * (size_t)lines * (size_t)w->img->nchannels * 4;
+  if (threads > nchunks) threads = nchunks;
+  if (threads < 1) threads = 1;
   size_t win = EXR_WINDOW_BYTES / chunk_raw;
   if (win < (size_t)threads) win = (size_t)threads;
   if (win > (size_t)(INT_MAX / OBS_TILE)) win = (size_t)(INT_MAX / OBS_TILE);
-  if (threads > nchunks) threads = nchunks;
-  if (threads < 1) threads = 1;
   w->info = calloc((size_t)nchunks, sizeof *w->info);
   w->data = calloc((size_t)nchunks, sizeof *w->data);
   w->size = calloc((size_t)nchunks, sizeof *w->size);
