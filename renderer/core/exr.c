@@ -4,6 +4,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <limits.h>
+#include <stdatomic.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -11,6 +12,8 @@
 #include <unistd.h>
 
 #include <openexr.h>
+
+#include "parallel.h"
 
 /* OpenEXRCore reports details only through a callback (stderr by default, which would spam test
  * logs and lose the text). Contexts are used by one thread at a time here, so a thread-local slot
@@ -82,7 +85,191 @@ static int exr_sync_file(const char *path) {
   return rc;
 }
 
-int obs_image_write_exr(const obs_image *img, const char *path, obs_err *err) {
+/* One encoder per worker thread; chunks are compressed in any order on any thread, kept, and
+ * written in file order afterwards, so the file's bytes never depend on the thread count. */
+typedef struct exr_slot {
+  exr_encode_pipeline_t enc;
+  int alive, chosen;
+  exr_result_t (*lib_compress)(exr_encode_pipeline_t *);
+} exr_slot;
+
+typedef struct exr_writer {
+  exr_context_t ctx;
+  const obs_image *img;
+  exr_chunk_info_t *info; /* per chunk, gathered up front on the calling thread */
+  uint8_t **data;         /* per chunk: the bytes to store */
+  size_t *size;
+  exr_slot *slots;
+  atomic_int failed;
+  exr_result_t fail_rc;   /* first failure, with the library's message */
+  char fail_msg[512];
+  int fail_layout;        /* the encoder named a channel the image lacks */
+  int base;               /* first chunk of the window being compressed */
+} exr_writer;
+
+/* The format's rule is that a chunk whose compressed form is not smaller than its packed pixels is
+ * stored as the packed pixels: readers take "size == raw size" to mean "not compressed". OpenEXR
+ * 3.1.5's ZIP and ZIPS encoders keep the compressed bytes when they come out exactly as large
+ * (they only fall back when larger), so a reader decodes deflate bytes as pixels (values like 1e33
+ * in an image of 0..1). Small chunks of nearly incompressible data hit it: a 1-pixel-wide image
+ * with 7 float channels packs 448 bytes per 16-line chunk. Enforcing
+ * the rule here after every compressor (RLE and PIZ already honour it; the check costs nothing)
+ * makes every chunk readable whatever the library version. */
+static exr_result_t exr_compress_checked(exr_encode_pipeline_t *enc) {
+  const exr_slot *slot = enc->encoding_user_data;
+  exr_result_t rc = slot->lib_compress(enc);
+  if (rc == EXR_ERR_SUCCESS && enc->compressed_bytes >= enc->packed_bytes) {
+    /* The compressed buffer is at least packed_bytes long: the library sizes it above that. */
+    memcpy(enc->compressed_buffer, enc->packed_buffer, enc->packed_bytes);
+    enc->compressed_bytes = enc->packed_bytes;
+  }
+  return rc;
+}
+
+static int exr_encode_one(exr_writer *w, exr_slot *s, int idx) {
+  const exr_chunk_info_t *ci = &w->info[idx];
+  exr_result_t rc = s->alive ? exr_encoding_update(w->ctx, 0, ci, &s->enc)
+                             : exr_encoding_initialize(w->ctx, 0, ci, &s->enc);
+  if (rc == EXR_ERR_SUCCESS) s->alive = 1;
+  if (rc == EXR_ERR_SUCCESS && exr_bind_encode(&s->enc, w->img, ci->start_y) != 0) {
+    w->fail_layout = 1;
+    return -1;
+  }
+  if (rc == EXR_ERR_SUCCESS && !s->chosen) {
+    rc = exr_encoding_choose_default_routines(w->ctx, 0, &s->enc);
+    if (rc == EXR_ERR_SUCCESS) {
+      s->chosen = 1;
+      s->lib_compress = s->enc.compress_fn; /* NULL for uncompressed files */
+      if (s->lib_compress) s->enc.compress_fn = exr_compress_checked;
+      s->enc.encoding_user_data = s;
+      /* The calling thread writes the chunks in order afterwards; the default yield would refuse
+       * any chunk but the next one in file order. */
+      s->enc.yield_until_ready_fn = NULL;
+      s->enc.write_fn = NULL;
+    }
+  }
+  if (rc == EXR_ERR_SUCCESS) rc = exr_encoding_run(w->ctx, 0, &s->enc);
+  if (rc == EXR_ERR_SUCCESS) {
+    size_t n = s->enc.compressed_bytes;
+    w->data[idx] = malloc(n ? n : 1);
+    if (!w->data[idx]) {
+      rc = EXR_ERR_OUT_OF_MEMORY;
+    } else {
+      memcpy(w->data[idx], s->enc.compressed_buffer, n);
+      w->size[idx] = n;
+    }
+  }
+  if (rc != EXR_ERR_SUCCESS) {
+    int expected = 0;
+    if (atomic_compare_exchange_strong(&w->failed, &expected, 1)) {
+      w->fail_rc = rc;
+      snprintf(w->fail_msg, sizeof w->fail_msg, "%s", exr_why(rc));
+    }
+    return -1;
+  }
+  return 0;
+}
+
+/* obs_parallel_tiles hands out OBS_TILE-wide column tiles of a one-row strip: tile k is chunk k. */
+static int exr_encode_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+  (void)y0, (void)y1, (void)x1;
+  exr_writer *w = user;
+  if (atomic_load(&w->failed)) return OBS_EINTERNAL;
+  return exr_encode_one(w, &w->slots[thread], w->base + x0 / OBS_TILE) ? OBS_EINTERNAL : 0;
+}
+
+static exr_compression_t exr_compression_of(int c) {
+  switch (c) {
+    case OBS_EXR_NONE: return EXR_COMPRESSION_NONE;
+    case OBS_EXR_RLE: return EXR_COMPRESSION_RLE;
+    case OBS_EXR_ZIPS: return EXR_COMPRESSION_ZIPS;
+    case OBS_EXR_PIZ: return EXR_COMPRESSION_PIZ;
+    default: return EXR_COMPRESSION_ZIP;
+  }
+}
+
+/* Chunks are compressed a window at a time and each window is written before the next starts, so
+ * the compressed copies held at once stay near this many raw bytes whatever the image's size. */
+#define EXR_WINDOW_BYTES ((size_t)8 << 20)
+
+/* Compresses chunks [k0, k1) on `threads` threads into w->data. */
+static int exr_encode_window(exr_writer *w, int k0, int k1, int threads) {
+  if (threads == 1 || k1 - k0 == 1) {
+    for (int k = k0; k < k1; k++)
+      if (exr_encode_one(w, &w->slots[0], k)) return OBS_EINTERNAL;
+    return OBS_OK;
+  }
+  w->base = k0;
+  return obs_parallel_tiles((k1 - k0) * OBS_TILE, 1, threads, exr_encode_tile, w, NULL, NULL,
+                            NULL);
+}
+
+/* Encodes every chunk on `threads` threads and writes them in file order. */
+static int exr_write_chunks(exr_writer *w, int lines, int threads, const char *path, obs_err *err,
+                            exr_result_t *rcp, const char **stage) {
+  int nchunks = (w->img->height + lines - 1) / lines;
+  size_t chunk_raw = (size_t)w->img->width * (size_t)lines * (size_t)w->img->nchannels * 4;
+  if (threads > nchunks) threads = nchunks;
+  if (threads < 1) threads = 1;
+  size_t win = EXR_WINDOW_BYTES / chunk_raw;
+  if (win < (size_t)threads) win = (size_t)threads;
+  if (win > (size_t)(INT_MAX / OBS_TILE)) win = (size_t)(INT_MAX / OBS_TILE);
+  w->info = calloc((size_t)nchunks, sizeof *w->info);
+  w->data = calloc((size_t)nchunks, sizeof *w->data);
+  w->size = calloc((size_t)nchunks, sizeof *w->size);
+  w->slots = calloc((size_t)threads, sizeof *w->slots);
+  if (!w->info || !w->data || !w->size || !w->slots) {
+    *rcp = EXR_ERR_OUT_OF_MEMORY;
+    return OBS_ENOMEM;
+  }
+  exr_result_t rc = EXR_ERR_SUCCESS;
+  for (int k = 0; k < nchunks && rc == EXR_ERR_SUCCESS; k++)
+    rc = exr_write_scanline_chunk_info(w->ctx, 0, k * lines, &w->info[k]);
+  for (int t = 0; t < threads; t++)
+    w->slots[t].enc = (exr_encode_pipeline_t)EXR_ENCODE_PIPELINE_INITIALIZER;
+  int code = OBS_OK;
+  for (int k0 = 0; k0 < nchunks && rc == EXR_ERR_SUCCESS && !code; k0 += (int)win) {
+    int k1 = nchunks - k0 < (int)win ? nchunks : k0 + (int)win;
+    *stage = "encode pixels";
+    code = exr_encode_window(w, k0, k1, threads);
+    if (w->fail_layout) {
+      code = obs_err_set(err, OBS_EINTERNAL,
+                         "%s: cannot write EXR: encoder lists a channel the image lacks", path);
+    } else if (atomic_load(&w->failed)) {
+      snprintf(exr_last_msg, sizeof exr_last_msg, "%s", w->fail_msg);
+      rc = w->fail_rc;
+    } else if (code) { /* the threads could not be started */
+      code = obs_err_set(err, code, "%s: cannot write EXR: %s", path, obs_strerror(code));
+    }
+    if (code || rc != EXR_ERR_SUCCESS) break;
+    *stage = "write chunks";
+    for (int k = k0; k < k1 && rc == EXR_ERR_SUCCESS; k++) {
+      rc = exr_write_scanline_chunk(w->ctx, 0, w->info[k].start_y, w->data[k], w->size[k]);
+      free(w->data[k]);
+      w->data[k] = NULL;
+    }
+  }
+  for (int t = 0; t < threads; t++)
+    if (w->slots[t].alive) exr_encoding_destroy(w->ctx, &w->slots[t].enc);
+  *rcp = rc;
+  if (rc != EXR_ERR_SUCCESS) return exr_code(rc, !strcmp(*stage, "write chunks") ? OBS_EIO
+                                                                                : OBS_EINTERNAL);
+  return code;
+}
+
+/* RLE, chosen by measurement on a 512x512 render's 10 float channels (docs/performance.md,
+ * "Writing outputs"): deflate (ZIP), even at level 1, costs several times the whole render budget
+ * for writing on its 10 MB of mostly incompressible low mantissa bytes, and saves about half;
+ * RLE still removes a quarter of the bytes (constant alpha, AO in steps of 1/samples, background)
+ * at a small fraction of the cost. PIZ and ZIPS are both slower and larger than ZIP here. */
+obs_exr_opts obs_exr_opts_default(void) {
+  obs_exr_opts o = {OBS_EXR_RLE, 0, 1};
+  return o;
+}
+
+int obs_image_write_exr_opts(const obs_image *img, const char *path, const obs_exr_opts *opts,
+                             obs_err *err) {
+  obs_exr_opts o = opts ? *opts : obs_exr_opts_default();
   if (!path || !path[0]) return obs_err_set(err, OBS_EINVAL, "EXR write: empty output path");
   if (!img || !img->data || img->width <= 0 || img->height <= 0 || img->nchannels <= 0 ||
       img->nchannels > OBS_IMAGE_MAX_CHANNELS)
@@ -91,6 +278,11 @@ int obs_image_write_exr(const obs_image *img, const char *path, obs_err *err) {
   if (img->width > INT32_MAX / 4)
     return obs_err_set(err, OBS_EUNSUPPORTED, "%s: cannot write EXR: width %d is too large", path,
                        img->width);
+  if (o.compression < 0 || o.compression >= OBS_EXR_NCOMPRESSIONS || o.zip_level < 0 ||
+      o.zip_level > 9)
+    return obs_err_set(err, OBS_EINVAL,
+                       "%s: cannot write EXR: compression %d / zip level %d is not offered", path,
+                       o.compression, o.zip_level);
 
   size_t plen = strlen(path);
   char *tmp = malloc(plen + 5);
@@ -99,68 +291,53 @@ int obs_image_write_exr(const obs_image *img, const char *path, obs_err *err) {
   memcpy(tmp + plen, ".tmp", 5);
 
   exr_context_initializer_t init = exr_init_opts(0);
-  exr_context_t ctx = NULL;
-  exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
-  int enc_alive = 0, routines_chosen = 0, part = 0;
+  exr_writer w;
+  memset(&w, 0, sizeof w);
+  w.img = img;
+  int part = 0, nchunks = 0;
   const char *stage = "create file";
   int code = OBS_OK;
 
-  exr_result_t rc = exr_start_write(&ctx, tmp, EXR_WRITE_FILE_DIRECTLY, &init);
+  exr_result_t rc = exr_start_write(&w.ctx, tmp, EXR_WRITE_FILE_DIRECTLY, &init);
   if (rc != EXR_ERR_SUCCESS) {
-    ctx = NULL; /* the library already released it */
+    w.ctx = NULL; /* the library already released it */
     code = exr_code(rc, OBS_EIO);
     goto fail;
   }
   stage = "define header";
-  rc = exr_add_part(ctx, NULL, EXR_STORAGE_SCANLINE, &part);
+  rc = exr_add_part(w.ctx, NULL, EXR_STORAGE_SCANLINE, &part);
   if (rc == EXR_ERR_SUCCESS)
-    rc = exr_initialize_required_attr_simple(ctx, part, img->width, img->height,
-                                             EXR_COMPRESSION_ZIP);
+    rc = exr_initialize_required_attr_simple(w.ctx, part, img->width, img->height,
+                                             exr_compression_of(o.compression));
+  if (rc == EXR_ERR_SUCCESS && o.zip_level > 0 &&
+      (o.compression == OBS_EXR_ZIP || o.compression == OBS_EXR_ZIPS))
+    rc = exr_set_zip_compression_level(w.ctx, part, o.zip_level);
   for (int c = 0; rc == EXR_ERR_SUCCESS && c < img->nchannels; c++)
-    rc = exr_add_channel(ctx, part, img->names[c], EXR_PIXEL_FLOAT, EXR_PERCEPTUALLY_LINEAR, 1, 1);
+    rc = exr_add_channel(w.ctx, part, img->names[c], EXR_PIXEL_FLOAT, EXR_PERCEPTUALLY_LINEAR, 1,
+                         1);
   if (rc == EXR_ERR_SUCCESS) {
     stage = "write header";
-    rc = exr_write_header(ctx);
+    rc = exr_write_header(w.ctx);
   }
   int32_t lines = 0;
-  if (rc == EXR_ERR_SUCCESS) rc = exr_get_scanlines_per_chunk(ctx, part, &lines);
+  if (rc == EXR_ERR_SUCCESS) rc = exr_get_scanlines_per_chunk(w.ctx, part, &lines);
   if (rc == EXR_ERR_SUCCESS && lines <= 0) rc = EXR_ERR_UNKNOWN;
   if (rc != EXR_ERR_SUCCESS) {
     code = exr_code(rc, OBS_EINTERNAL);
     goto fail;
   }
+  nchunks = (img->height + lines - 1) / lines;
 
-  stage = "encode pixels";
-  for (int y = 0; y < img->height; y += lines) {
-    exr_chunk_info_t ci;
-    rc = exr_write_scanline_chunk_info(ctx, part, y, &ci);
-    if (rc == EXR_ERR_SUCCESS) {
-      rc = enc_alive ? exr_encoding_update(ctx, part, &ci, &enc)
-                     : exr_encoding_initialize(ctx, part, &ci, &enc);
-      if (rc == EXR_ERR_SUCCESS) enc_alive = 1;
-    }
-    if (rc == EXR_ERR_SUCCESS && exr_bind_encode(&enc, img, ci.start_y) != 0) {
-      code = obs_err_set(err, OBS_EINTERNAL,
-                         "%s: cannot write EXR: encoder lists a channel the image lacks", path);
-      goto cleanup;
-    }
-    if (rc == EXR_ERR_SUCCESS && !routines_chosen) {
-      rc = exr_encoding_choose_default_routines(ctx, part, &enc);
-      routines_chosen = rc == EXR_ERR_SUCCESS;
-    }
-    if (rc == EXR_ERR_SUCCESS) rc = exr_encoding_run(ctx, part, &enc);
-    if (rc != EXR_ERR_SUCCESS) {
-      code = exr_code(rc, OBS_EINTERNAL);
-      goto fail;
-    }
+  code = exr_write_chunks(&w, lines, o.threads, path, err, &rc, &stage);
+  if (code) {
+    if (rc != EXR_ERR_SUCCESS) goto fail;
+    goto cleanup;
   }
-  if (enc_alive) exr_encoding_destroy(ctx, &enc);
-  enc_alive = 0;
 
   /* exr_finish writes the chunk offset table, so its failure means a broken file. */
   stage = "finish file";
-  rc = exr_finish(&ctx);
-  ctx = NULL; /* released even when finishing failed */
+  rc = exr_finish(&w.ctx);
+  w.ctx = NULL; /* released even when finishing failed */
   if (rc != EXR_ERR_SUCCESS) {
     code = exr_code(rc, OBS_EIO);
     goto fail;
@@ -170,17 +347,24 @@ int obs_image_write_exr(const obs_image *img, const char *path, obs_err *err) {
                        strerror(errno));
     goto cleanup;
   }
-  free(tmp);
-  return OBS_OK;
+  goto cleanup;
 
 fail:
   obs_err_set(err, code, "%s: cannot write EXR (%s): %s", path, stage, exr_why(rc));
 cleanup:
-  if (enc_alive) exr_encoding_destroy(ctx, &enc);
-  if (ctx) exr_finish(&ctx);
-  unlink(tmp); /* never leave a partial file behind; ENOENT is fine */
+  if (w.ctx) exr_finish(&w.ctx);
+  if (code) unlink(tmp); /* never leave a partial file behind; ENOENT is fine */
   free(tmp);
+  for (int k = 0; w.data && k < nchunks; k++) free(w.data[k]);
+  free(w.data);
+  free(w.size);
+  free(w.info);
+  free(w.slots);
   return code;
+}
+
+int obs_image_write_exr(const obs_image *img, const char *path, obs_err *err) {
+  return obs_image_write_exr_opts(img, path, NULL, err);
 }
 
 /* ---------------------------------------------------------------------------------------------- */

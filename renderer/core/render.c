@@ -7,6 +7,7 @@
 #endif
 #include <jansson.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
@@ -201,41 +202,109 @@ static int display_image(const obs_image *img, int depth, obs_image *out, obs_er
   return 0;
 }
 
+/* Every image file takes the writer's defaults (obs_exr_opts_default, obs_png_opts_default): the
+ * candidates were measured per output on the displaced sphere (docs/performance.md, "Writing
+ * outputs") and the same setting won for ao.png, bent_normal.png and depth.png. */
+enum { F_EXR, F_PNG, F_BENT, F_DEPTH, F_SUMMARY, NFILES };
+
+/* One output file being written on some thread; its own obs_err so threads never share one. */
+typedef struct out_job {
+  const obs_image *img;
+  const char *const *ch;
+  int nch;
+  int png;                 /* 0: the EXR */
+  int threads;             /* EXR chunk threads */
+  const char *path;
+  int rc;
+  obs_err err;
+} out_job;
+
+static void out_job_run(out_job *j) {
+  if (j->png) {
+    j->rc = obs_image_write_png(j->img, j->ch, j->nch, 0, j->path, &j->err);
+  } else {
+    obs_exr_opts eo = obs_exr_opts_default();
+    eo.threads = j->threads;
+    j->rc = obs_image_write_exr_opts(j->img, j->path, &eo, &j->err);
+  }
+}
+
+static void *out_job_thread(void *arg) {
+  out_job_run(arg);
+  return NULL;
+}
+
+/* Writes the image files: with one thread in file order; with more, the EXR on the calling
+ * thread (its chunks compressed on threads - 1 threads) while each PNG has a thread of its own.
+ * Each file's bytes are the same either way. Returns the first failure in file order. */
+static int write_images(out_job *jobs, int njobs, int threads, obs_err *err) {
+  pthread_t tid[NFILES];
+  int started[NFILES] = {0};
+  if (threads > 1)
+    for (int i = 1; i < njobs; i++)
+      started[i] = pthread_create(&tid[i], NULL, out_job_thread, &jobs[i]) == 0;
+  jobs[0].threads = threads > 1 ? threads - 1 : 1;
+  out_job_run(&jobs[0]);
+  for (int i = 1; i < njobs; i++) {
+    if (started[i])
+      pthread_join(tid[i], NULL);
+    else
+      out_job_run(&jobs[i]);
+  }
+  int rc = 0;
+  for (int i = 0; i < njobs; i++) {
+    if (jobs[i].rc && !rc) {
+      rc = jobs[i].rc;
+      obs_err_set(err, rc, "%s", obs_err_message(&jobs[i].err));
+    }
+    obs_err_free(&jobs[i].err);
+  }
+  return rc;
+}
+
 int obs_result_write(obs_result *r, const obs_scene *sc, const char *dir, obs_err *err) {
   double t0 = obs_now_ms();
   int rc = obs_image_make_dirs(dir, err);
   if (rc) return rc;
   /* Every file is written under a staging name first and the set is renamed into place only
    * when all succeeded, so a failure never mixes new and old outputs. */
-  enum { F_EXR, F_PNG, F_BENT, F_DEPTH, F_SUMMARY, NFILES };
   static const char *const names[NFILES] = {"ao.exr", "ao.png", "bent_normal.png", "depth.png",
                                             "summary.json"};
+  static const char *const ao[1] = {"ao"}, *const rgb[3] = {"R", "G", "B"}, *const y[1] = {"Y"};
   char stage[NFILES][4200], final[NFILES][4200];
   int written[NFILES] = {0};
   for (int i = 0; i < NFILES; i++) {
     snprintf(stage[i], sizeof stage[i], "%s/.%s.new", dir, names[i]);
     snprintf(final[i], sizeof final[i], "%s/%s", dir, names[i]);
   }
-  const char *ch[] = {"ao"};
-  rc = obs_image_write_exr(&r->image, stage[F_EXR], err);
-  written[F_EXR] = !rc;
-  if (!rc) rc = obs_image_write_png(&r->image, ch, 1, 0, stage[F_PNG], err);
-  written[F_PNG] = !rc;
+  obs_image disp[2];
+  memset(disp, 0, sizeof disp);
+  out_job jobs[NFILES];
+  int file_of[NFILES], njobs = 0;
+  memset(jobs, 0, sizeof jobs);
+  jobs[njobs] = (out_job){&r->image, NULL, 0, 0, 1, stage[F_EXR], 0, OBS_ERR_INIT};
+  file_of[njobs++] = F_EXR;
+  jobs[njobs] = (out_job){&r->image, ao, 1, 1, 1, stage[F_PNG], 0, OBS_ERR_INIT};
+  file_of[njobs++] = F_PNG;
   for (int f = F_BENT; f <= F_DEPTH && !rc; f++) {
-    obs_image disp;
-    memset(&disp, 0, sizeof disp);
-    int have = display_image(&r->image, f == F_DEPTH, &disp, err);
-    if (have < 0) {
-      rc = have;
-    } else if (have == 0) {
-      static const char *const rgb[3] = {"R", "G", "B"}, *const y[1] = {"Y"};
-      rc = obs_image_write_png(&disp, f == F_DEPTH ? y : rgb, f == F_DEPTH ? 1 : 3, 0, stage[f],
-                               err);
-      written[f] = !rc;
-      obs_image_free(&disp);
-    }
+    obs_image *d = &disp[f - F_BENT];
+    int have = display_image(&r->image, f == F_DEPTH, d, err);
+    if (have < 0) rc = have;
+    if (have != 0) continue;
+    jobs[njobs] = (out_job){d, f == F_DEPTH ? y : rgb, f == F_DEPTH ? 1 : 3, 1, 1, stage[f], 0,
+                            OBS_ERR_INIT};
+    file_of[njobs++] = f;
   }
   if (!rc) {
+    rc = write_images(jobs, njobs, r->threads > 0 ? r->threads : 1, err);
+    for (int i = 0; i < njobs; i++) written[file_of[i]] = jobs[i].rc == 0;
+  }
+  obs_image_free(&disp[0]);
+  obs_image_free(&disp[1]);
+  if (!rc) {
+    /* A second write of the same result (the server retries after a disk fault) replaces the
+     * first one's time in the total instead of adding to it. */
+    r->timings.total_ms -= r->timings.write_ms;
     r->timings.write_ms = obs_now_ms() - t0;
     r->timings.total_ms += r->timings.write_ms;
     json_t *sum = obs_result_summary_json(r, sc);
