@@ -1,4 +1,4 @@
-/* Command-line helpers shared by the benchmark programs in bench/. */
+/* Command-line and statistics helpers shared by the benchmark programs in bench/. */
 #ifndef OBS_BENCH_ARGS_H
 #define OBS_BENCH_ARGS_H
 
@@ -11,6 +11,17 @@ static inline int parse_int(const char *s, int lo, int hi, int *out) {
   if (end == s || *end || v < lo || v > hi) return -1;
   *out = (int)v;
   return 0;
+}
+
+static inline int bench_cmp_double(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
+/* Median of v[0..n) (n >= 1); sorts v in place. */
+static inline double bench_median(double *v, int n) {
+  qsort(v, (size_t)n, sizeof *v, bench_cmp_double);
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 #endif

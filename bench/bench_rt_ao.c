@@ -97,15 +97,6 @@ static int parse_args(int argc, char **argv, options *o) {
   return 0;
 }
 
-static int cmp_double(const void *a, const void *b) {
-  double x = *(const double *)a, y = *(const double *)b;
-  return (x > y) - (x < y);
-}
-
-static double median(double *v, int n) {
-  qsort(v, (size_t)n, sizeof *v, cmp_double);
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 /* ---- obscura side ------------------------------------------------------------------------- */
 
@@ -320,9 +311,9 @@ static void summarise(run_stats *runs, int n, summary *s) {
     r[i] = runs[i].render_ms;
     a[i] = runs[i].ao_mean;
   }
-  s->build_ms = median(b, n);
-  s->render_ms = median(r, n);
-  s->ao_mean = median(a, n);
+  s->build_ms = bench_median(b, n);
+  s->render_ms = bench_median(r, n);
+  s->ao_mean = bench_median(a, n);
   s->rays = runs[0].rays;
   s->mrays = s->render_ms > 0 ? (double)s->rays / (s->render_ms * 1e3) : 0;
 }
@@ -371,7 +362,7 @@ int main(int argc, char **argv) {
       double pr[MAX_REPEATS];
       for (int r = 0; r < o.repeats; r++)
         pr[r] = obs_runs[r].render_ms > 0 ? raw_runs[r].render_ms / obs_runs[r].render_ms : 0;
-      median(pr, o.repeats);
+      bench_median(pr, o.repeats);
       paired[si] = pr[o.repeats / 2];
       paired_lo[si] = pr[0];
       paired_hi[si] = pr[o.repeats - 1];

@@ -115,17 +115,11 @@ static int parse_args(int argc, char **argv, options *o) {
   return 0;
 }
 
-static int cmp_double(const void *a, const void *b) {
-  double x = *(const double *)a, y = *(const double *)b;
-  return (x > y) - (x < y);
-}
-
-/* Median of n values (sorts a copy). */
+/* Median of n values (of a copy: the runs keep their order). */
 static double median(const double *v, int n) {
   double s[MAX_REPEATS];
   memcpy(s, v, (size_t)n * sizeof *s);
-  qsort(s, (size_t)n, sizeof *s, cmp_double);
-  return n % 2 ? s[n / 2] : 0.5 * (s[n / 2 - 1] + s[n / 2]);
+  return bench_median(s, n);
 }
 
 /* ---- loading and timing one render ------------------------------------------------------- */

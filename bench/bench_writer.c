@@ -55,15 +55,6 @@ static int parse(int argc, char **argv, opts *o) {
   return 0;
 }
 
-static int cmp_double(const void *a, const void *b) {
-  double x = *(const double *)a, y = *(const double *)b;
-  return (x > y) - (x < y);
-}
-
-static double median(double *v, int n) {
-  qsort(v, (size_t)n, sizeof *v, cmp_double);
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 /* CPU seconds of the whole process (every thread), in ms: on a shared machine this moves far less
  * than the wall clock, and for one thread it is what the wall time would be on an idle core. */
@@ -122,7 +113,7 @@ static int exr_candidate(const obs_image *img, const char *dir, obs_exr_opts eo,
     snprintf(name, sizeof name, "%s", exr_names[eo.compression]);
   printf(
       "  exr %-8s threads %2d  %7.1f ms (cpu %7.1f)  %9ld bytes (%5.1f %% of raw)  read-back %s\n",
-      name, eo.threads, median(t, repeats), median(c, repeats), sz, 100.0 * (double)sz / raw_bytes,
+      name, eo.threads, bench_median(t, repeats), bench_median(c, repeats), sz, 100.0 * (double)sz / raw_bytes,
       ok ? "bit-exact" : "DIFFERS");
   free(t);
   unlink(path);
@@ -159,7 +150,7 @@ static void png_candidate(const obs_image *img, int nch, const char *dir, obs_pn
   else
     snprintf(mode, sizeof mode, "level %d", po.level < 0 ? 6 : po.level);
   printf("  png %-16s %-8s filter %-8s  %6.1f ms (cpu %6.1f)  %8ld bytes\n", label, mode,
-         png_filters[po.filter], median(t, repeats), median(c, repeats), file_size(path));
+         png_filters[po.filter], bench_median(t, repeats), bench_median(c, repeats), file_size(path));
   free(t);
   unlink(path);
 }
@@ -179,7 +170,7 @@ static int whole(const obs_scene *sc, obs_result *res, const char *dir, const op
     }
     t[r] = res->timings.write_ms;
   }
-  double w = median(t, o->repeats);
+  double w = bench_median(t, o->repeats);
   free(t);
   static const char *const files[] = {"ao.exr", "ao.png", "bent_normal.png", "depth.png"};
   long total = 0;
@@ -278,7 +269,7 @@ int main(int argc, char **argv) {
     }
     rt[r] = obs_now_ms() - t0;
   }
-  double render_ms = median(rt, o.repeats);
+  double render_ms = bench_median(rt, o.repeats);
   free(rt);
   char dir[] = "/tmp/bench_writer.XXXXXX";
   if (!mkdtemp(dir)) {
