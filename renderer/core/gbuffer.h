@@ -65,7 +65,7 @@ int obs_gbuffer_raster(const obs_scene *scene, obs_gbuffer *g, int threads, doub
 int obs_gbuffer_raycast_geo(const obs_scene *scene, obs_geometry *geo, obs_gbuffer *g, int threads,
                             double *bvh_ms, double *render_ms, obs_err *err);
 int obs_gbuffer_raster_geo(const obs_scene *scene, const obs_geometry *geo, obs_gbuffer *g,
-                           int threads, obs_err *err);
+                           int threads, double *render_ms, obs_err *err);
 
 /* Median linear view depth of the covered pixels, from a CPU G-buffer of the scene's camera at
  * most `max_side` pixels on its longer side (the aspect ratio kept; <= 0: full size). OBS_EINVAL

@@ -211,30 +211,40 @@ static int bin_primitives(rs_job *j) {
   return 0;
 }
 
-/* Per tile: the rays of its pixels and the nearest hit so far of each. */
+/* Per tile: the rays of its pixels (perspective: one origin, a direction per pixel;
+ * orthographic: an origin per pixel, one direction) and the nearest hit so far of each. */
 typedef struct rs_tile {
   int x0, y0, w, h;
   double sx[OBS_TILE], sy[OBS_TILE];
-  double ro[OBS_TILE * OBS_TILE][3], rd[OBS_TILE * OBS_TILE][3];
+  double ray[OBS_TILE * OBS_TILE][3];
   double t[OBS_TILE * OBS_TILE];
   uint32_t win[OBS_TILE * OBS_TILE];
 } rs_tile;
 
-/* Edge functions of the triangle (view-frame vertices relative to the eye, in double):
- * E_i(sx, sy) = a[i] + sx b[i] + sy c[i] has one sign over the triangle's side of edge i for the
- * ray through (sx, sy). Perspective: d . (p_j x p_k) with d = forward + sx right + sy up;
- * orthographic: the same triple product with the ray's origin moved by sx right + sy up. A shared
- * edge gives exactly negated functions to its two triangles, so no centre falls between them. */
-static void edge_functions(const rs_job *j, const float *v[3], double a[3], double b[3],
-                           double c[3]) {
+static const double *ray_org(const rs_job *j, const rs_tile *t, int p) {
+  return j->cam.ortho ? t->ray[p] : j->view.eye;
+}
+static const double *ray_dir(const rs_job *j, const rs_tile *t, int p) {
+  return j->cam.ortho ? j->view.forward : t->ray[p];
+}
+
+/* Edge functions of the triangle (vertices relative to the eye, in double):
+ * E_i(sx, sy) = a[i] + sx b[i] + sy c[i] for the ray through (sx, sy). Perspective: d . (p_j x p_k)
+ * with d = forward + sx right + sy up; orthographic: the same triple product with the ray's origin
+ * moved by sx right + sy up. Signed so that all three are >= 0 where the ray meets the triangle
+ * (perspective: in front of the eye); returns 0 for a triangle seen edge on. A shared edge gives
+ * exactly negated functions to its two triangles, so no pixel centre falls between them. */
+static int edge_functions(const rs_job *j, const float *v[3], double a[3], double b[3],
+                          double c[3]) {
   const obs_rt_view *w = &j->view;
-  double p[3][3];
+  double p[3][3], det = 0;
   for (int i = 0; i < 3; i++)
     for (int k = 0; k < 3; k++) p[i][k] = (double)v[i][k] - w->eye[k];
   for (int i = 0; i < 3; i++) {
     const double *pj = p[(i + 1) % 3], *pk = p[(i + 2) % 3];
     double x[3] = {pj[1] * pk[2] - pj[2] * pk[1], pj[2] * pk[0] - pj[0] * pk[2],
                    pj[0] * pk[1] - pj[1] * pk[0]};
+    if (i == 0) det = p[0][0] * x[0] + p[0][1] * x[1] + p[0][2] * x[2];
     a[i] = w->forward[0] * x[0] + w->forward[1] * x[1] + w->forward[2] * x[2];
     if (j->cam.ortho) {
       double e[3] = {pj[0] - pk[0], pj[1] - pk[1], pj[2] - pk[2]};
@@ -246,6 +256,37 @@ static void edge_functions(const rs_job *j, const float *v[3], double a[3], doub
     b[i] = w->right[0] * x[0] + w->right[1] * x[1] + w->right[2] * x[2];
     c[i] = w->up[0] * x[0] + w->up[1] * x[1] + w->up[2] * x[2];
   }
+  /* The functions sum to det over p's cone (perspective) and to forward . normal (orthographic). */
+  const double side = j->cam.ortho ? a[0] + a[1] + a[2] : det;
+  if (!(side > 0 || side < 0)) return 0;
+  if (side < 0)
+    for (int i = 0; i < 3; i++) a[i] = -a[i], b[i] = -b[i], c[i] = -c[i];
+  return 1;
+}
+
+/* Tile-relative columns [*lo, *hi) of row `r` (the functions' values at sx = 0) that may pass all
+ * three edge tests: the crossings in double, widened by a pixel. The exact test still decides. */
+static void row_span(const rs_job *j, const rs_tile *t, const double r[3], const double b[3],
+                     int *lo, int *hi) {
+  double xl = 0, xh = t->w - 1;
+  const double scale = 0.5 * j->cam.width / j->cam.half_w, shift = 0.5 * j->cam.width - 0.5 - t->x0;
+  for (int i = 0; i < 3; i++) {
+    if (b[i] == 0) {
+      if (r[i] < 0) xh = -1;
+      continue;
+    }
+    const double x = -r[i] / b[i] * scale + shift; /* the column whose centre is on the edge */
+    if (b[i] > 0)
+      xl = fmax(xl, floor(x) - 1); /* NaN leaves the bound */
+    else
+      xh = fmin(xh, ceil(x) + 1);
+  }
+  if (!(xl <= xh)) { /* also infinities: xl <= xh keeps both inside [0, w - 1] */
+    *lo = *hi = 0;
+    return;
+  }
+  *lo = (int)xl;
+  *hi = (int)xh + 1;
 }
 
 static void draw_triangle(const rs_job *j, rs_tile *t, uint32_t id, const rs_box *bx) {
@@ -253,20 +294,27 @@ static void draw_triangle(const rs_job *j, rs_tile *t, uint32_t id, const rs_box
   const float *v[3];
   tri_verts(j, id, &mesh, v);
   double a[3], b[3], c[3], n[3];
-  edge_functions(j, v, a, b, c);
+  if (!edge_functions(j, v, a, b, c)) return;
   obs_rt_plane_normal(v[0], v[1], v[2], n);
+  /* Perspective rays share their origin, and so the plane parameter's numerator. */
+  const double num = obs_rt_plane_num(n, v[0], j->view.eye);
   int xa = bx->x0 > t->x0 ? bx->x0 - t->x0 : 0, xb = bx->x1 - t->x0 < t->w ? bx->x1 - t->x0 : t->w;
   int ya = bx->y0 > t->y0 ? bx->y0 - t->y0 : 0, yb = bx->y1 - t->y0 < t->h ? bx->y1 - t->y0 : t->h;
   for (int y = ya; y < yb; y++) {
     const double sy = t->sy[y];
-    const double r0 = a[0] + sy * c[0], r1 = a[1] + sy * c[1], r2 = a[2] + sy * c[2];
-    for (int x = xa; x < xb; x++) {
+    const double r[3] = {a[0] + sy * c[0], a[1] + sy * c[1], a[2] + sy * c[2]};
+    int lo, hi;
+    row_span(j, t, r, b, &lo, &hi);
+    if (lo < xa) lo = xa;
+    if (hi > xb) hi = xb;
+    for (int x = lo; x < hi; x++) {
       const double sx = t->sx[x];
-      const double e0 = r0 + sx * b[0], e1 = r1 + sx * b[1], e2 = r2 + sx * b[2];
-      if (!((e0 >= 0 && e1 >= 0 && e2 >= 0) || (e0 <= 0 && e1 <= 0 && e2 <= 0))) continue;
+      if (!(r[0] + sx * b[0] >= 0 && r[1] + sx * b[1] >= 0 && r[2] + sx * b[2] >= 0)) continue;
       const int p = y * OBS_TILE + x;
       double tp;
-      if (obs_rt_plane_hit(n, v[0], t->ro[p], t->rd[p], &tp) && tp < t->t[p]) {
+      const int hit = j->cam.ortho ? obs_rt_plane_hit(n, v[0], t->ray[p], j->view.forward, &tp)
+                                   : obs_rt_plane_t(num, n, t->ray[p], &tp);
+      if (hit && tp < t->t[p]) {
         t->t[p] = tp;
         t->win[p] = id;
       }
@@ -281,7 +329,7 @@ static void draw_sphere(const rs_job *j, rs_tile *t, uint32_t id, const rs_box *
   for (int y = ya; y < yb; y++)
     for (int x = xa; x < xb; x++) {
       const int p = y * OBS_TILE + x;
-      double td = obs_rt_sphere_root(s, t->ro[p], t->rd[p], 0.0, INFINITY, 0);
+      double td = obs_rt_sphere_root(s, ray_org(j, t, p), ray_dir(j, t, p), 0.0, INFINITY, 0);
       if (td >= 0 && isfinite(td) && td < t->t[p]) {
         t->t[p] = td;
         t->win[p] = id;
@@ -311,22 +359,31 @@ static const obs_object *winner_object(const rs_job *j, uint32_t id) {
   return &j->scene->objects[j->geo->meshes[mesh_of(j, id)].object];
 }
 
-/* Writes the tile's nearest hits into the G-buffer, as gb_tile of the ray cast does. */
+/* The G-buffer's view-space normal of a faced world normal, as gb_tile of the ray cast derives it. */
+static void view_normal(const rs_job *j, const double hn[3], float out[3]) {
+  const double *axes[3] = {j->cam.right, j->cam.up, j->cam.forward};
+  for (int k = 0; k < 3; k++)
+    out[k] = (float)(hn[0] * axes[k][0] + hn[1] * axes[k][1] + hn[2] * axes[k][2]);
+}
+
+/* Writes the tile's nearest hits into the G-buffer. A triangle's normal is set up once per run of
+ * its pixels, faced either way (not negated afterwards: the signs of zero sums would differ). */
 static void resolve_tile(const rs_job *j, const rs_tile *t) {
   obs_gbuffer *g = j->g;
-  const double *axes[3] = {j->cam.right, j->cam.up, j->cam.forward};
   uint32_t last = UINT32_MAX;
   double unit[3] = {0, 0, 0};
-  float albedo[3] = {0, 0, 0};
+  float vn[2][3] = {{0, 0, 0}, {0, 0, 0}}, albedo[3] = {0, 0, 0};
   for (int y = 0; y < t->h; y++)
     for (int x = 0; x < t->w; x++) {
       const int p = y * OBS_TILE + x;
       const uint32_t id = t->win[p];
       if (id == UINT32_MAX) continue;
-      double ng[3];
+      const double *rd = ray_dir(j, t, p);
       if (id >= j->ntris || id != last) {
-        winner_normal(j, id, t->ro[p], t->rd[p], t->t[p], ng);
-        memcpy(unit, ng, sizeof unit);
+        winner_normal(j, id, ray_org(j, t, p), rd, t->t[p], unit);
+        const double back[3] = {-unit[0], -unit[1], -unit[2]};
+        view_normal(j, unit, vn[0]);
+        view_normal(j, back, vn[1]);
         if (id != last) {
           const obs_object *o = winner_object(j, id);
           albedo[0] = o->has_material ? (float)o->reflectivity.x : 1.0f;
@@ -335,14 +392,11 @@ static void resolve_tile(const rs_job *j, const rs_tile *t) {
         }
         last = id;
       }
-      const double *rd = t->rd[p];
-      double face = unit[0] * rd[0] + unit[1] * rd[1] + unit[2] * rd[2] > 0 ? -1.0 : 1.0;
-      double hn[3] = {face * unit[0], face * unit[1], face * unit[2]};
+      const int face = unit[0] * rd[0] + unit[1] * rd[1] + unit[2] * rd[2] > 0;
       const size_t i = (size_t)(t->y0 + y) * (size_t)g->width + (size_t)(t->x0 + x);
       g->depth[i] = (float)t->t[p];
       g->coverage[i] = 1.0f;
-      for (int k = 0; k < 3; k++)
-        g->normal[3 * i + k] = (float)(hn[0] * axes[k][0] + hn[1] * axes[k][1] + hn[2] * axes[k][2]);
+      memcpy(g->normal + 3 * i, vn[face], sizeof vn[face]);
       memcpy(g->albedo + 3 * i, albedo, sizeof albedo);
     }
 }
@@ -357,13 +411,17 @@ static int raster_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   /* The ray cast's image-plane offsets and rays (gb_tile, obs_rt_view_ray). */
   for (int x = 0; x < t->w; x++) t->sx[x] = (2.0 * (x0 + x + 0.5) / cam->width - 1.0) * cam->half_w;
   for (int y = 0; y < t->h; y++) t->sy[y] = (1.0 - 2.0 * (y0 + y + 0.5) / cam->height) * cam->half_h;
-  for (int y = 0; y < t->h; y++)
-    for (int x = 0; x < t->w; x++) {
-      const int p = y * OBS_TILE + x;
-      obs_rt_view_ray(&j->view, t->sx[x], t->sy[y], t->ro[p], t->rd[p]);
-      t->t[p] = INFINITY;
-      t->win[p] = UINT32_MAX;
-    }
+  for (int p = 0; p < OBS_TILE * OBS_TILE; p++) t->t[p] = INFINITY;
+  for (int p = 0; p < OBS_TILE * OBS_TILE; p++) t->win[p] = UINT32_MAX;
+  /* obs_rt_view_ray's expressions, a row at a time. */
+  const obs_rt_view *v = &j->view;
+  const double *base = j->cam.ortho ? v->eye : v->forward;
+  for (int y = 0; y < t->h; y++) {
+    const double sy = t->sy[y];
+    double(*row)[3] = t->ray + y * OBS_TILE;
+    for (int x = 0; x < t->w; x++)
+      for (int k = 0; k < 3; k++) row[x][k] = base[k] + (t->sx[x] * v->right[k] + sy * v->up[k]);
+  }
   const size_t tile = (size_t)(y0 / OBS_TILE) * j->tiles_x + (size_t)(x0 / OBS_TILE);
   for (size_t e = j->bin_start[tile]; e < j->bin_start[tile + 1]; e++) {
     const uint32_t id = j->bin[e];
@@ -378,7 +436,7 @@ static int raster_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
 }
 
 int obs_gbuffer_raster_geo(const obs_scene *sc, const obs_geometry *geo, obs_gbuffer *g,
-                           int threads, obs_err *err) {
+                           int threads, double *render_ms, obs_err *err) {
   rs_job j;
   memset(&j, 0, sizeof j);
   j.scene = sc;
@@ -387,6 +445,7 @@ int obs_gbuffer_raster_geo(const obs_scene *sc, const obs_geometry *geo, obs_gbu
   obs_camera_setup(&sc->camera, sc->width, sc->height, &j.cam);
   int rc = obs_gbuffer_alloc(g, sc->width, sc->height, &j.cam, err);
   if (rc) return rc;
+  const double t0 = obs_now_ms();
   j.view.ortho = j.cam.ortho;
   for (int k = 0; k < 3; k++) {
     j.view.eye[k] = j.cam.origin[k] - geo->origin[k];
@@ -423,6 +482,7 @@ int obs_gbuffer_raster_geo(const obs_scene *sc, const obs_geometry *geo, obs_gbu
   free(j.box);
   free(j.bin_start);
   free(j.bin);
+  if (render_ms) *render_ms = obs_now_ms() - t0;
   if (rc) {
     obs_gbuffer_free(g);
     return obs_err_set(err, rc, "%s: G-buffer rasterisation failed", sc->name);
@@ -460,10 +520,9 @@ static int gbuffer_cpu(const obs_scene *sc, int method, obs_gbuffer *g, int thre
     if (build_ms) *build_ms = t1 - t0 + bvh_ms;
     return rc;
   }
-  rc = obs_gbuffer_raster_geo(sc, &geo, g, threads, err);
+  rc = obs_gbuffer_raster_geo(sc, &geo, g, threads, render_ms, err);
   obs_geometry_free(&geo);
   if (build_ms) *build_ms = t1 - t0;
-  if (render_ms) *render_ms = obs_now_ms() - t1;
   return rc;
 }
 

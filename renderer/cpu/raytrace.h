@@ -114,14 +114,21 @@ static inline void obs_rt_plane_normal(const float a[3], const float b[3], const
 }
 
 /* ...where the ray (ro, rd) meets that plane (n through a): 1 and *t when the parameter is finite
- * and >= 0, else 0 (the ray parallel to the plane or leaving it behind). */
-static inline int obs_rt_plane_hit(const double n[3], const float a[3], const double ro[3],
-                                   const double rd[3], double *t) {
+ * and >= 0, else 0 (the ray parallel to the plane or leaving it behind). Split in two for callers
+ * with many rays from one origin: the numerator, then the parameter. */
+static inline double obs_rt_plane_num(const double n[3], const float a[3], const double ro[3]) {
   double oa[3] = {a[0] - ro[0], a[1] - ro[1], a[2] - ro[2]};
+  return oa[0] * n[0] + oa[1] * n[1] + oa[2] * n[2];
+}
+static inline int obs_rt_plane_t(double num, const double n[3], const double rd[3], double *t) {
   double dn = n[0] * rd[0] + n[1] * rd[1] + n[2] * rd[2];
-  double tp = (oa[0] * n[0] + oa[1] * n[1] + oa[2] * n[2]) / dn;
+  double tp = num / dn;
   *t = tp;
   return dn != 0.0 && isfinite(tp) && tp >= 0.0;
+}
+static inline int obs_rt_plane_hit(const double n[3], const float a[3], const double ro[3],
+                                   const double rd[3], double *t) {
+  return obs_rt_plane_t(obs_rt_plane_num(n, a, ro), n, rd, t);
 }
 
 /* Ray/sphere roots in double with the numerically careful discriminant of Haines et al.
