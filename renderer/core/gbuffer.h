@@ -46,13 +46,16 @@ static inline void obs_gbuffer_position(const obs_gbuffer *g, float fx, float fy
 }
 
 /* The CPU backend's G-buffer, made one of two ways that give the same buffers
- * (renderer/cpu/gbuffer_raster.c): rasterised (no BVH; cost grows with the triangles) or one Embree
- * ray through each pixel centre (a BVH build first; then cost grows with the pixels).
- * obs_gbuffer_method picks one for a scene of `ntris` triangles and `pixels` pixels: the cost rule,
- * unless OBSCURA_GBUFFER=raster|raycast forces one ("auto" or unset: the rule). build_ms receives
- * the geometry build plus any BVH build, render_ms the pass over the pixels. */
+ * (renderer/cpu/gbuffer_raster.c): rasterised (no BVH; cost grows with the triangles and the
+ * pixels of their boxes) or one Embree ray through each pixel centre (a BVH build first).
+ * obs_gbuffer_method picks one from the raster's pixel tests (the area of every primitive's box on
+ * the image) and the image's pixels: the cost rule, unless OBSCURA_GBUFFER=raster|raycast forces
+ * one ("auto" or unset: the rule). build_ms receives the geometry build plus any BVH build,
+ * render_ms the rest (the raster's set-up included). */
 enum { OBS_GBUFFER_RASTER = 0, OBS_GBUFFER_RAYCAST = 1 };
-int obs_gbuffer_method(size_t ntris, size_t pixels);
+int obs_gbuffer_method(double tests, size_t pixels);
+/* The raster's pixel tests on `scene` (for benchmarks and tests of the rule). */
+int obs_gbuffer_raster_tests(const obs_scene *scene, int threads, double *tests, obs_err *err);
 int obs_gbuffer_cpu(const obs_scene *scene, obs_gbuffer *g, int threads, double *build_ms,
                     double *render_ms, obs_err *err);
 /* Each way by itself, whatever the rule says. */

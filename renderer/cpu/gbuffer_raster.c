@@ -31,6 +31,7 @@ typedef struct rs_job {
   rs_box *box;
   size_t chunk;         /* primitives per column of the set-up loop */
   int tiles_x, tiles_y;
+  double tests;         /* pixels of all primitives' boxes: the raster's work */
   size_t *bin_start;    /* per tile, then the total */
   uint32_t *bin;
 } rs_job;
@@ -48,8 +49,8 @@ typedef struct rs_bounds {
 } rs_bounds;
 
 static void bound_offset(rs_bounds *b, double sx, double sy) {
-  b->lo[0] = fmin(b->lo[0], sx), b->hi[0] = fmax(b->hi[0], sx);
-  b->lo[1] = fmin(b->lo[1], sy), b->hi[1] = fmax(b->hi[1], sy);
+  b->lo[0] = sx < b->lo[0] ? sx : b->lo[0], b->hi[0] = sx > b->hi[0] ? sx : b->hi[0];
+  b->lo[1] = sy < b->lo[1] ? sy : b->lo[1], b->hi[1] = sy > b->hi[1] ? sy : b->hi[1];
 }
 
 /* A perspective point at or near the camera plane: its projection lies far out in the direction
@@ -72,7 +73,10 @@ static void bound_point(const rs_job *j, rs_bounds *b, const double v[3]) {
     bound_direction(b, v[0], v[1]);
 }
 
-/* The pixels whose centres lie within the bounds, grown by a pixel against rounding. */
+/* The pixels whose centres lie within the bounds, grown by RS_MARGIN pixels: the bounds err by
+ * double's rounding of on-screen offsets (~1e-12 pixels), far less. */
+#define RS_MARGIN 0.01
+
 static rs_box box_of(const rs_job *j, const rs_bounds *b) {
   const double w = j->cam.width, h = j->cam.height;
   /* Centre of pixel x: sx = (2 (x + 0.5) / W - 1) half_w; of row y: sy = (1 - 2 (y + 0.5) / H) half_h. */
@@ -85,8 +89,8 @@ static rs_box box_of(const rs_job *j, const rs_bounds *b) {
     r.x1 = j->cam.width, r.y1 = j->cam.height;
     return r;
   }
-  x0 = fmax(floor(x0) - 1.0, 0.0), y0 = fmax(floor(y0) - 1.0, 0.0);
-  x1 = fmin(ceil(x1) + 2.0, w), y1 = fmin(ceil(y1) + 2.0, h);
+  x0 = fmax(ceil(x0 - RS_MARGIN), 0.0), y0 = fmax(ceil(y0 - RS_MARGIN), 0.0);
+  x1 = fmin(floor(x1 + RS_MARGIN) + 1.0, w), y1 = fmin(floor(y1 + RS_MARGIN) + 1.0, h);
   if (!(x0 < x1 && y0 < y1)) return r;
   r.x0 = (int)x0, r.y0 = (int)y0, r.x1 = (int)x1, r.y1 = (int)y1;
   return r;
@@ -180,19 +184,28 @@ static int setup_chunk(void *user, int thread, int x0, int y0, int x1, int y1) {
   return 0;
 }
 
-/* Counting sort of the primitives into per-tile lists. */
-static int bin_primitives(rs_job *j) {
+/* Counting sort of the primitives into per-tile lists: the counts (and the boxes' area)... */
+static int count_bins(rs_job *j) {
   const size_t ntiles = (size_t)j->tiles_x * (size_t)j->tiles_y;
   j->bin_start = calloc(ntiles + 1, sizeof *j->bin_start);
   if (!j->bin_start) return OBS_ENOMEM;
+  double tests = 0;
   for (size_t i = 0; i < j->nprims; i++) {
     const rs_box *b = &j->box[i];
     if (b->x0 >= b->x1 || b->y0 >= b->y1) continue;
+    tests += (double)(b->x1 - b->x0) * (double)(b->y1 - b->y0);
     for (int ty = b->y0 / OBS_TILE; ty <= (b->y1 - 1) / OBS_TILE; ty++)
       for (int tx = b->x0 / OBS_TILE; tx <= (b->x1 - 1) / OBS_TILE; tx++)
         j->bin_start[(size_t)ty * j->tiles_x + tx + 1]++;
   }
+  j->tests = tests;
   for (size_t t = 0; t < ntiles; t++) j->bin_start[t + 1] += j->bin_start[t];
+  return 0;
+}
+
+/* ...then the lists. */
+static int fill_bins(rs_job *j) {
+  const size_t ntiles = (size_t)j->tiles_x * (size_t)j->tiles_y;
   j->bin = malloc((j->bin_start[ntiles] ? j->bin_start[ntiles] : 1) * sizeof *j->bin);
   size_t *fill = malloc(ntiles * sizeof *fill);
   if (!j->bin || !fill) {
@@ -233,13 +246,20 @@ static const double *ray_dir(const rs_job *j, const rs_tile *t, int p) {
  * with d = forward + sx right + sy up; orthographic: the same triple product with the ray's origin
  * moved by sx right + sy up. Signed so that all three are >= 0 where the ray meets the triangle
  * (perspective: in front of the eye); returns 0 for a triangle seen edge on. A shared edge gives
- * exactly negated functions to its two triangles, so no pixel centre falls between them. */
+ * exactly negated functions to its two triangles, so no pixel centre falls between them. *zmin:
+ * the least view depth of the vertices, below every ray parameter of a hit on the triangle (rays
+ * have unit depth per unit parameter). */
 static int edge_functions(const rs_job *j, const float *v[3], double a[3], double b[3],
-                          double c[3]) {
+                          double c[3], double *zmin) {
   const obs_rt_view *w = &j->view;
   double p[3][3], det = 0;
   for (int i = 0; i < 3; i++)
     for (int k = 0; k < 3; k++) p[i][k] = (double)v[i][k] - w->eye[k];
+  *zmin = INFINITY;
+  for (int i = 0; i < 3; i++) {
+    double z = p[i][0] * w->forward[0] + p[i][1] * w->forward[1] + p[i][2] * w->forward[2];
+    *zmin = z < *zmin ? z : *zmin;
+  }
   for (int i = 0; i < 3; i++) {
     const double *pj = p[(i + 1) % 3], *pk = p[(i + 2) % 3];
     double x[3] = {pj[1] * pk[2] - pj[2] * pk[1], pj[2] * pk[0] - pj[0] * pk[2],
@@ -265,9 +285,10 @@ static int edge_functions(const rs_job *j, const float *v[3], double a[3], doubl
 }
 
 /* Tile-relative columns [*lo, *hi) of row `r` (the functions' values at sx = 0) that may pass all
- * three edge tests: the crossings in double, widened by a pixel. The exact test still decides. */
+ * three edge tests: the crossings in double (inv_b: 1 / b), widened by a pixel. The exact test
+ * still decides each pixel. */
 static void row_span(const rs_job *j, const rs_tile *t, const double r[3], const double b[3],
-                     int *lo, int *hi) {
+                     const double inv_b[3], int *lo, int *hi) {
   double xl = 0, xh = t->w - 1;
   const double scale = 0.5 * j->cam.width / j->cam.half_w, shift = 0.5 * j->cam.width - 0.5 - t->x0;
   for (int i = 0; i < 3; i++) {
@@ -275,42 +296,50 @@ static void row_span(const rs_job *j, const rs_tile *t, const double r[3], const
       if (r[i] < 0) xh = -1;
       continue;
     }
-    const double x = -r[i] / b[i] * scale + shift; /* the column whose centre is on the edge */
-    if (b[i] > 0)
-      xl = fmax(xl, floor(x) - 1); /* NaN leaves the bound */
-    else
-      xh = fmin(xh, ceil(x) + 1);
+    const double x = -r[i] * inv_b[i] * scale + shift; /* the column whose centre is on the edge */
+    if (b[i] > 0 && x - 1 > xl) xl = x - 1; /* NaN leaves the bound */
+    if (b[i] < 0 && x + 1 < xh) xh = x + 1;
   }
   if (!(xl <= xh)) { /* also infinities: xl <= xh keeps both inside [0, w - 1] */
     *lo = *hi = 0;
     return;
   }
-  *lo = (int)xl;
+  *lo = (int)xl; /* floor: xl >= 0 */
   *hi = (int)xh + 1;
+  if (*hi < t->w && *hi <= xh) (*hi)++; /* ceil */
 }
 
 static void draw_triangle(const rs_job *j, rs_tile *t, uint32_t id, const rs_box *bx) {
   size_t mesh;
   const float *v[3];
   tri_verts(j, id, &mesh, v);
-  double a[3], b[3], c[3], n[3];
-  if (!edge_functions(j, v, a, b, c)) return;
+  double a[3], b[3], c[3], n[3], zmin;
+  if (!edge_functions(j, v, a, b, c, &zmin)) return;
+  /* Pixels already nearer than the whole triangle skip the division; shrunk far beyond the
+   * rounding of either depth, so that no pixel the triangle would win is skipped. */
+  zmin = zmin > 0 ? zmin * (1 - 0x1p-30) : -INFINITY;
   obs_rt_plane_normal(v[0], v[1], v[2], n);
   /* Perspective rays share their origin, and so the plane parameter's numerator. */
   const double num = obs_rt_plane_num(n, v[0], j->view.eye);
   int xa = bx->x0 > t->x0 ? bx->x0 - t->x0 : 0, xb = bx->x1 - t->x0 < t->w ? bx->x1 - t->x0 : t->w;
   int ya = bx->y0 > t->y0 ? bx->y0 - t->y0 : 0, yb = bx->y1 - t->y0 < t->h ? bx->y1 - t->y0 : t->h;
+  /* Spans pay off on rows wider than a few pixels. */
+  const int spans = xb - xa > 6;
+  const double inv_b[3] = {1 / b[0], 1 / b[1], 1 / b[2]};
   for (int y = ya; y < yb; y++) {
     const double sy = t->sy[y];
     const double r[3] = {a[0] + sy * c[0], a[1] + sy * c[1], a[2] + sy * c[2]};
-    int lo, hi;
-    row_span(j, t, r, b, &lo, &hi);
-    if (lo < xa) lo = xa;
-    if (hi > xb) hi = xb;
+    int lo = xa, hi = xb;
+    if (spans) {
+      row_span(j, t, r, b, inv_b, &lo, &hi);
+      if (lo < xa) lo = xa;
+      if (hi > xb) hi = xb;
+    }
     for (int x = lo; x < hi; x++) {
       const double sx = t->sx[x];
-      if (!(r[0] + sx * b[0] >= 0 && r[1] + sx * b[1] >= 0 && r[2] + sx * b[2] >= 0)) continue;
       const int p = y * OBS_TILE + x;
+      if (!(zmin < t->t[p])) continue;
+      if (!(r[0] + sx * b[0] >= 0 && r[1] + sx * b[1] >= 0 && r[2] + sx * b[2] >= 0)) continue;
       double tp;
       const int hit = j->cam.ortho ? obs_rt_plane_hit(n, v[0], t->ray[p], j->view.forward, &tp)
                                    : obs_rt_plane_t(num, n, t->ray[p], &tp);
@@ -435,54 +464,63 @@ static int raster_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   return 0;
 }
 
-int obs_gbuffer_raster_geo(const obs_scene *sc, const obs_geometry *geo, obs_gbuffer *g,
-                           int threads, double *render_ms, obs_err *err) {
-  rs_job j;
-  memset(&j, 0, sizeof j);
-  j.scene = sc;
-  j.geo = geo;
-  j.g = g;
-  obs_camera_setup(&sc->camera, sc->width, sc->height, &j.cam);
-  int rc = obs_gbuffer_alloc(g, sc->width, sc->height, &j.cam, err);
-  if (rc) return rc;
-  const double t0 = obs_now_ms();
-  j.view.ortho = j.cam.ortho;
+static void rs_free(rs_job *j) {
+  free(j->mesh_base);
+  free(j->box);
+  free(j->bin_start);
+  free(j->bin);
+}
+
+/* The raster's set-up: every primitive's box on the image, the tiles' counts and j->tests. */
+static int rs_prepare(rs_job *j, const obs_scene *sc, const obs_geometry *geo, int threads,
+                      obs_err *err) {
+  memset(j, 0, sizeof *j);
+  j->scene = sc;
+  j->geo = geo;
+  obs_camera_setup(&sc->camera, sc->width, sc->height, &j->cam);
+  j->view.ortho = j->cam.ortho;
   for (int k = 0; k < 3; k++) {
-    j.view.eye[k] = j.cam.origin[k] - geo->origin[k];
-    j.view.forward[k] = j.cam.forward[k];
-    j.view.right[k] = j.cam.right[k];
-    j.view.up[k] = j.cam.up[k];
+    j->view.eye[k] = j->cam.origin[k] - geo->origin[k];
+    j->view.forward[k] = j->cam.forward[k];
+    j->view.right[k] = j->cam.right[k];
+    j->view.up[k] = j->cam.up[k];
   }
-  j.ntris = geo->ntris;
-  j.nprims = geo->ntris + geo->nspheres;
-  if (j.nprims >= UINT32_MAX) {
-    obs_gbuffer_free(g);
+  j->ntris = geo->ntris;
+  j->nprims = geo->ntris + geo->nspheres;
+  if (j->nprims >= UINT32_MAX)
     return obs_err_set(err, OBS_EINVAL, "%s: %zu primitives are too many to rasterise", sc->name,
-                       j.nprims);
-  }
-  j.tiles_x = (sc->width + OBS_TILE - 1) / OBS_TILE;
-  j.tiles_y = (sc->height + OBS_TILE - 1) / OBS_TILE;
-  j.mesh_base = malloc((geo->nmeshes + 1) * sizeof *j.mesh_base);
-  j.box = malloc((j.nprims ? j.nprims : 1) * sizeof *j.box);
-  rc = j.mesh_base && j.box ? 0 : OBS_ENOMEM;
+                       j->nprims);
+  j->tiles_x = (sc->width + OBS_TILE - 1) / OBS_TILE;
+  j->tiles_y = (sc->height + OBS_TILE - 1) / OBS_TILE;
+  j->mesh_base = malloc((geo->nmeshes + 1) * sizeof *j->mesh_base);
+  j->box = malloc((j->nprims ? j->nprims : 1) * sizeof *j->box);
+  int rc = j->mesh_base && j->box ? 0 : OBS_ENOMEM;
   if (!rc) {
-    j.mesh_base[0] = 0;
+    j->mesh_base[0] = 0;
     for (size_t m = 0; m < geo->nmeshes; m++)
-      j.mesh_base[m + 1] = j.mesh_base[m] + geo->meshes[m].ntris;
+      j->mesh_base[m + 1] = j->mesh_base[m] + geo->meshes[m].ntris;
     /* Enough columns for every thread to take several tiles of them. */
     const int nt = threads < 1 ? 1 : threads;
-    j.chunk = j.nprims / ((size_t)OBS_TILE * (size_t)nt * 4) + 1;
-    if (j.chunk < 256) j.chunk = 256;
-    const size_t cols = (j.nprims + j.chunk - 1) / j.chunk;
-    if (cols) rc = obs_parallel_tiles((int)cols, 1, threads, setup_chunk, &j, NULL, NULL, NULL);
+    j->chunk = j->nprims / ((size_t)OBS_TILE * (size_t)nt * 4) + 1;
+    if (j->chunk < 256) j->chunk = 256;
+    const size_t cols = (j->nprims + j->chunk - 1) / j->chunk;
+    if (cols) rc = obs_parallel_tiles((int)cols, 1, threads, setup_chunk, j, NULL, NULL, NULL);
   }
-  if (!rc) rc = bin_primitives(&j);
-  if (!rc) rc = obs_parallel_tiles(sc->width, sc->height, threads, raster_tile, &j, NULL, NULL, NULL);
-  free(j.mesh_base);
-  free(j.box);
-  free(j.bin_start);
-  free(j.bin);
-  if (render_ms) *render_ms = obs_now_ms() - t0;
+  if (!rc) rc = count_bins(j);
+  if (rc) return obs_err_set(err, rc, "%s: G-buffer rasterisation failed", sc->name);
+  return 0;
+}
+
+/* The pass over the tiles, into a new G-buffer `g`. */
+static int rs_draw(rs_job *j, obs_gbuffer *g, int threads, double *render_ms, obs_err *err) {
+  const obs_scene *sc = j->scene;
+  int rc = obs_gbuffer_alloc(g, sc->width, sc->height, &j->cam, err);
+  if (rc) return rc;
+  const double t0 = obs_now_ms();
+  j->g = g;
+  rc = fill_bins(j);
+  if (!rc) rc = obs_parallel_tiles(sc->width, sc->height, threads, raster_tile, j, NULL, NULL, NULL);
+  if (render_ms) *render_ms += obs_now_ms() - t0;
   if (rc) {
     obs_gbuffer_free(g);
     return obs_err_set(err, rc, "%s: G-buffer rasterisation failed", sc->name);
@@ -490,21 +528,34 @@ int obs_gbuffer_raster_geo(const obs_scene *sc, const obs_geometry *geo, obs_gbu
   return 0;
 }
 
-/* Rasterising costs a set-up per triangle plus a test per pixel a triangle's box overlaps; the ray
- * cast a BVH build per triangle plus a traversal per pixel. Measured (docs/architecture.md,
- * "CPU G-buffer"), the raster is the faster below OBS_GBUFFER_RASTER_TRIS_PER_PIXEL triangles per
- * pixel. */
-#define OBS_GBUFFER_RASTER_TRIS_PER_PIXEL 4.0
+int obs_gbuffer_raster_geo(const obs_scene *sc, const obs_geometry *geo, obs_gbuffer *g,
+                           int threads, double *render_ms, obs_err *err) {
+  rs_job j;
+  const double t0 = obs_now_ms();
+  int rc = rs_prepare(&j, sc, geo, threads, err);
+  if (render_ms) *render_ms = obs_now_ms() - t0;
+  if (!rc) rc = rs_draw(&j, g, threads, render_ms, err);
+  rs_free(&j);
+  return rc;
+}
 
-int obs_gbuffer_method(size_t ntris, size_t pixels) {
+/* Rasterising costs a set-up per triangle plus a test per pixel of every triangle's box; the ray
+ * cast a BVH build per triangle (several times the set-up) plus a traversal per pixel that grows
+ * slowly with depth complexity. Measured with bench_gbuffer (docs/architecture.md, "CPU
+ * G-buffer"), the raster wins on every bundled scene up to 14 triangles per pixel, and the ray
+ * cast only where the boxes overlap each pixel more than OBS_GBUFFER_RAYCAST_TESTS times. */
+#define OBS_GBUFFER_RAYCAST_TESTS 12.0
+
+int obs_gbuffer_method(double tests, size_t pixels) {
   const char *force = getenv("OBSCURA_GBUFFER");
   if (force && !strcmp(force, "raster")) return OBS_GBUFFER_RASTER;
   if (force && !strcmp(force, "raycast")) return OBS_GBUFFER_RAYCAST;
-  return (double)ntris <= OBS_GBUFFER_RASTER_TRIS_PER_PIXEL * (double)pixels ? OBS_GBUFFER_RASTER
-                                                                            : OBS_GBUFFER_RAYCAST;
+  return tests <= OBS_GBUFFER_RAYCAST_TESTS * (double)pixels ? OBS_GBUFFER_RASTER
+                                                              : OBS_GBUFFER_RAYCAST;
 }
 
-/* method < 0: obs_gbuffer_method's choice. */
+/* method < 0: obs_gbuffer_method's choice, after the raster's set-up (which the ray cast then
+ * wastes: a small share of its BVH build). */
 static int gbuffer_cpu(const obs_scene *sc, int method, obs_gbuffer *g, int threads,
                        double *build_ms, double *render_ms, obs_err *err) {
   const double t0 = obs_now_ms();
@@ -513,16 +564,39 @@ static int gbuffer_cpu(const obs_scene *sc, int method, obs_gbuffer *g, int thre
   int rc = obs_geometry_build_at(sc, eye, &geo, err);
   if (rc) return rc;
   const double t1 = obs_now_ms();
-  if (method < 0) method = obs_gbuffer_method(geo.ntris, (size_t)sc->width * (size_t)sc->height);
-  if (method == OBS_GBUFFER_RAYCAST) {
+  if (build_ms) *build_ms = t1 - t0;
+  rs_job j;
+  memset(&j, 0, sizeof j);
+  if (method != OBS_GBUFFER_RAYCAST) {
+    rc = rs_prepare(&j, sc, &geo, threads, err);
+    if (!rc && method < 0)
+      method = obs_gbuffer_method(j.tests, (size_t)sc->width * (size_t)sc->height);
+  }
+  const double t2 = obs_now_ms();
+  if (!rc && method == OBS_GBUFFER_RAYCAST) {
+    rs_free(&j);
     double bvh_ms = 0;
     rc = obs_gbuffer_raycast_geo(sc, &geo, g, threads, &bvh_ms, render_ms, err);
-    if (build_ms) *build_ms = t1 - t0 + bvh_ms;
+    if (build_ms) *build_ms += t2 - t1 + bvh_ms;
     return rc;
   }
-  rc = obs_gbuffer_raster_geo(sc, &geo, g, threads, render_ms, err);
+  if (render_ms) *render_ms = t2 - t1;
+  if (!rc) rc = rs_draw(&j, g, threads, render_ms, err);
+  rs_free(&j);
   obs_geometry_free(&geo);
-  if (build_ms) *build_ms = t1 - t0;
+  return rc;
+}
+
+int obs_gbuffer_raster_tests(const obs_scene *sc, int threads, double *tests, obs_err *err) {
+  const double eye[3] = {sc->camera.position.x, sc->camera.position.y, sc->camera.position.z};
+  obs_geometry geo;
+  int rc = obs_geometry_build_at(sc, eye, &geo, err);
+  if (rc) return rc;
+  rs_job j;
+  rc = rs_prepare(&j, sc, &geo, threads, err);
+  *tests = j.tests;
+  rs_free(&j);
+  obs_geometry_free(&geo);
   return rc;
 }
 

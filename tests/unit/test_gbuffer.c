@@ -167,14 +167,14 @@ static void test_synthetic(void **state) {
 static void test_method_rule(void **state) {
   (void)state;
   unsetenv("OBSCURA_GBUFFER");
-  assert_int_equal(obs_gbuffer_method(12, 1280 * 720), OBS_GBUFFER_RASTER);
-  assert_int_equal(obs_gbuffer_method(100u << 20, 320 * 240), OBS_GBUFFER_RAYCAST);
+  assert_int_equal(obs_gbuffer_method(3e6, 1280 * 720), OBS_GBUFFER_RASTER);
+  assert_int_equal(obs_gbuffer_method(1e9, 320 * 240), OBS_GBUFFER_RAYCAST);
   setenv("OBSCURA_GBUFFER", "raycast", 1);
-  assert_int_equal(obs_gbuffer_method(12, 1280 * 720), OBS_GBUFFER_RAYCAST);
+  assert_int_equal(obs_gbuffer_method(3e6, 1280 * 720), OBS_GBUFFER_RAYCAST);
   setenv("OBSCURA_GBUFFER", "raster", 1);
-  assert_int_equal(obs_gbuffer_method(100u << 20, 320 * 240), OBS_GBUFFER_RASTER);
+  assert_int_equal(obs_gbuffer_method(1e9, 320 * 240), OBS_GBUFFER_RASTER);
   setenv("OBSCURA_GBUFFER", "auto", 1);
-  assert_int_equal(obs_gbuffer_method(12, 1280 * 720), OBS_GBUFFER_RASTER);
+  assert_int_equal(obs_gbuffer_method(3e6, 1280 * 720), OBS_GBUFFER_RASTER);
   unsetenv("OBSCURA_GBUFFER");
 }
 
