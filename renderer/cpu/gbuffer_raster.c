@@ -433,6 +433,8 @@ static void resolve_tile(const rs_job *j, const rs_tile *t) {
 static int raster_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)thread;
   const rs_job *j = user;
+  const size_t tile = (size_t)(y0 / OBS_TILE) * j->tiles_x + (size_t)(x0 / OBS_TILE);
+  if (j->bin_start[tile] == j->bin_start[tile + 1]) return 0; /* nothing: the buffers' zeros */
   rs_tile *t = malloc(sizeof *t);
   if (!t) return OBS_ENOMEM;
   t->x0 = x0, t->y0 = y0, t->w = x1 - x0, t->h = y1 - y0;
@@ -451,7 +453,6 @@ static int raster_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
     for (int x = 0; x < t->w; x++)
       for (int k = 0; k < 3; k++) row[x][k] = base[k] + (t->sx[x] * v->right[k] + sy * v->up[k]);
   }
-  const size_t tile = (size_t)(y0 / OBS_TILE) * j->tiles_x + (size_t)(x0 / OBS_TILE);
   for (size_t e = j->bin_start[tile]; e < j->bin_start[tile + 1]; e++) {
     const uint32_t id = j->bin[e];
     if (id < j->ntris)
