@@ -64,7 +64,8 @@ static int load(size_t s, const char *ws, const char *hs, obs_scene *sc, char *l
     snprintf(path, sizeof path, "%s/%s", dir, scenes[s].file);
     obs_override ov[3] = {{"/image/width", ws}, {"/image/height", hs}, {NULL, NULL}};
     size_t nov = 2;
-    if (scenes[s].subdiv) ov[nov++] = (obs_override){"/objects/0/shape/subdivisions", scenes[s].subdiv};
+    if (scenes[s].subdiv)
+      ov[nov++] = (obs_override){"/objects/0/shape/subdivisions", scenes[s].subdiv};
     snprintf(label, label_size, "%s%s%s", scenes[s].file, scenes[s].subdiv ? " s" : "",
              scenes[s].subdiv ? scenes[s].subdiv : "");
     return obs_scene_load_file(sc, path, ov, nov, err);
@@ -74,7 +75,8 @@ static int load(size_t s, const char *ws, const char *hs, obs_scene *sc, char *l
   char *doc = malloc(cap);
   if (!doc) return obs_err_set(err, OBS_ENOMEM, "out of memory");
   len += (size_t)snprintf(doc + len, cap - len,
-                          "{\"camera\":{\"type\":\"perspective\",\"position\":[0,0,0],\"look_at\":[0,0,1],\"up\":[0,1,0],"
+                          "{\"camera\":{\"type\":\"perspective\",\"position\":[0,0,0],\"look_at\":["
+                          "0,0,1],\"up\":[0,1,0],"
                           "\"fov_y\":60},\"image\":{\"width\":%s,\"height\":%s},\"objects\":[",
                           ws, hs);
   for (int q = 0; q < layers; q++)
@@ -99,12 +101,13 @@ int main(int argc, char **argv) {
                !parse_int(argv[i + 1], 1, 256, &threads)) {
       i++;
     } else {
-      fprintf(stderr, "usage: bench_gbuffer [--repeats R] [--threads N]\n"
-                      "  Times the CPU G-buffer rasterised and ray cast (geometry and BVH build\n"
-                      "  plus the pass; median and fastest of R runs, default 5, after a warm-up)\n"
-                      "  on the bundled scenes at 1280x720 and 320x240, the displaced sphere at\n"
-                      "  subdivisions 7 to 10 and 4 to 256 stacked screen-filling quads; prints the\n"
-                      "  raster's pixel tests per pixel and the way obs_gbuffer_method picks.\n");
+      fprintf(stderr,
+              "usage: bench_gbuffer [--repeats R] [--threads N]\n"
+              "  Times the CPU G-buffer rasterised and ray cast (geometry and BVH build\n"
+              "  plus the pass; median and fastest of R runs, default 5, after a warm-up)\n"
+              "  on the bundled scenes at 1280x720 and 320x240, the displaced sphere at\n"
+              "  subdivisions 7 to 10 and 4 to 256 stacked screen-filling quads; prints the\n"
+              "  raster's pixel tests per pixel and the way obs_gbuffer_method picks.\n");
       return 2;
     }
   }
@@ -135,7 +138,8 @@ int main(int argc, char **argv) {
       const size_t ntris = geo.ntris, px = (size_t)sc.width * (size_t)sc.height;
       obs_geometry_free(&geo);
       double rm, rmin, cm, cmin;
-      if (time_way(&sc, 1, threads, runs, &rm, &rmin) || time_way(&sc, 0, threads, runs, &cm, &cmin))
+      if (time_way(&sc, 1, threads, runs, &rm, &rmin) ||
+          time_way(&sc, 0, threads, runs, &cm, &cmin))
         return 1;
       snprintf(size, sizeof size, "%dx%d", sc.width, sc.height);
       printf("%-26s %-9s %9zu %9.3f %9.2f %6.1f (%5.1f) %6.1f (%5.1f) %7.2f  %s\n", label, size,

@@ -29,10 +29,10 @@ typedef struct rs_job {
   size_t ntris, nprims; /* primitive i < ntris: a triangle; else sphere i - ntris */
   size_t *mesh_base;    /* first primitive of each mesh, nmeshes + 1 entries */
   rs_box *box;
-  size_t chunk;         /* primitives per column of the set-up loop */
+  size_t chunk; /* primitives per column of the set-up loop */
   int tiles_x, tiles_y;
-  double tests;         /* pixels of all primitives' boxes: the raster's work */
-  size_t *bin_start;    /* per tile, then the total */
+  double tests;      /* pixels of all primitives' boxes: the raster's work */
+  size_t *bin_start; /* per tile, then the total */
   uint32_t *bin;
 } rs_job;
 
@@ -79,7 +79,8 @@ static void bound_point(const rs_job *j, rs_bounds *b, const double v[3]) {
 
 static rs_box box_of(const rs_job *j, const rs_bounds *b) {
   const double w = j->cam.width, h = j->cam.height;
-  /* Centre of pixel x: sx = (2 (x + 0.5) / W - 1) half_w; of row y: sy = (1 - 2 (y + 0.5) / H) half_h. */
+  /* Centre of pixel x: sx = (2 (x + 0.5) / W - 1) half_w; of row y: sy = (1 - 2 (y + 0.5) / H)
+   * half_h. */
   double x0 = (b->lo[0] / j->cam.half_w + 1.0) * 0.5 * w - 0.5;
   double x1 = (b->hi[0] / j->cam.half_w + 1.0) * 0.5 * w - 0.5;
   double y0 = (1.0 - b->hi[1] / j->cam.half_h) * 0.5 * h - 0.5;
@@ -249,8 +250,8 @@ static const double *ray_dir(const rs_job *j, const rs_tile *t, int p) {
  * exactly negated functions to its two triangles, so no pixel centre falls between them. *zmin:
  * the least view depth of the vertices, below every ray parameter of a hit on the triangle (rays
  * have unit depth per unit parameter). */
-static int edge_functions(const rs_job *j, const float *v[3], double a[3], double b[3],
-                          double c[3], double *zmin) {
+static int edge_functions(const rs_job *j, const float *v[3], double a[3], double b[3], double c[3],
+                          double *zmin) {
   const obs_rt_view *w = &j->view;
   double p[3][3], det = 0;
   for (int i = 0; i < 3; i++)
@@ -297,7 +298,7 @@ static void row_span(const rs_job *j, const rs_tile *t, const double r[3], const
       continue;
     }
     const double x = -r[i] * inv_b[i] * scale + shift; /* the column whose centre is on the edge */
-    if (b[i] > 0 && x - 1 > xl) xl = x - 1; /* NaN leaves the bound */
+    if (b[i] > 0 && x - 1 > xl) xl = x - 1;            /* NaN leaves the bound */
     if (b[i] < 0 && x + 1 < xh) xh = x + 1;
   }
   if (!(xl <= xh)) { /* also infinities: xl <= xh keeps both inside [0, w - 1] */
@@ -388,7 +389,8 @@ static const obs_object *winner_object(const rs_job *j, uint32_t id) {
   return &j->scene->objects[j->geo->meshes[mesh_of(j, id)].object];
 }
 
-/* The G-buffer's view-space normal of a faced world normal, as gb_tile of the ray cast derives it. */
+/* The G-buffer's view-space normal of a faced world normal, as gb_tile of the ray cast derives it.
+ */
 static void view_normal(const rs_job *j, const double hn[3], float out[3]) {
   const double *axes[3] = {j->cam.right, j->cam.up, j->cam.forward};
   for (int k = 0; k < 3; k++)
@@ -441,7 +443,8 @@ static int raster_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   const obs_camera_rig *cam = &j->cam;
   /* The ray cast's image-plane offsets and rays (gb_tile, obs_rt_view_ray). */
   for (int x = 0; x < t->w; x++) t->sx[x] = (2.0 * (x0 + x + 0.5) / cam->width - 1.0) * cam->half_w;
-  for (int y = 0; y < t->h; y++) t->sy[y] = (1.0 - 2.0 * (y0 + y + 0.5) / cam->height) * cam->half_h;
+  for (int y = 0; y < t->h; y++)
+    t->sy[y] = (1.0 - 2.0 * (y0 + y + 0.5) / cam->height) * cam->half_h;
   for (int p = 0; p < OBS_TILE * OBS_TILE; p++) t->t[p] = INFINITY;
   for (int p = 0; p < OBS_TILE * OBS_TILE; p++) t->win[p] = UINT32_MAX;
   /* obs_rt_view_ray's expressions, a row at a time. */
@@ -520,7 +523,8 @@ static int rs_draw(rs_job *j, obs_gbuffer *g, int threads, double *render_ms, ob
   const double t0 = obs_now_ms();
   j->g = g;
   rc = fill_bins(j);
-  if (!rc) rc = obs_parallel_tiles(sc->width, sc->height, threads, raster_tile, j, NULL, NULL, NULL);
+  if (!rc)
+    rc = obs_parallel_tiles(sc->width, sc->height, threads, raster_tile, j, NULL, NULL, NULL);
   if (render_ms) *render_ms += obs_now_ms() - t0;
   if (rc) {
     obs_gbuffer_free(g);
@@ -552,7 +556,7 @@ int obs_gbuffer_method(double tests, size_t pixels) {
   if (force && !strcmp(force, "raster")) return OBS_GBUFFER_RASTER;
   if (force && !strcmp(force, "raycast")) return OBS_GBUFFER_RAYCAST;
   return tests <= OBS_GBUFFER_RAYCAST_TESTS * (double)pixels ? OBS_GBUFFER_RASTER
-                                                              : OBS_GBUFFER_RAYCAST;
+                                                             : OBS_GBUFFER_RAYCAST;
 }
 
 /* method < 0: obs_gbuffer_method's choice, after the raster's set-up (which the ray cast then

@@ -109,8 +109,8 @@ static void scaled(double s, double d, int ortho) {
   snprintf(cam, sizeof cam,
            "\"type\":\"%s\",\"position\":[%.17g,%.17g,%.17g],\"look_at\":[%.17g,%.17g,%.17g],"
            "\"up\":[0,1,0],%s",
-           ortho ? "orthographic" : "perspective", d + 0.3 * s, d + 2.0 * s, d - 5.0 * s, d, d,
-           d, ortho ? "\"height\":4" : "\"fov_y\":45");
+           ortho ? "orthographic" : "perspective", d + 0.3 * s, d + 2.0 * s, d - 5.0 * s, d, d, d,
+           ortho ? "\"height\":4" : "\"fov_y\":45");
   if (ortho) {
     /* The orthographic height is in world units. */
     char *h = strstr(cam, "\"height\":4");
@@ -131,14 +131,16 @@ static void scaled(double s, double d, int ortho) {
 
 static void test_synthetic(void **state) {
   (void)state;
-  const char *persp = "\"type\":\"perspective\",\"position\":[0,1,-3],\"look_at\":[0,0.5,0],"
-                      "\"up\":[0,1,0],\"fov_y\":50";
+  const char *persp =
+      "\"type\":\"perspective\",\"position\":[0,1,-3],\"look_at\":[0,0.5,0],"
+      "\"up\":[0,1,0],\"fov_y\":50";
   /* A ground quad far larger than the view, under a camera just above it. */
-  synthetic("\"type\":\"perspective\",\"position\":[0,0.01,0],\"look_at\":[0,0,10],"
-            "\"up\":[0,1,0],\"fov_y\":60",
-            "[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-1e7,0,-1e7],[-1e7,0,1e7],"
-            "[1e7,0,1e7],[1e7,0,-1e7]]}}]",
-            "huge ground quad");
+  synthetic(
+      "\"type\":\"perspective\",\"position\":[0,0.01,0],\"look_at\":[0,0,10],"
+      "\"up\":[0,1,0],\"fov_y\":60",
+      "[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-1e7,0,-1e7],[-1e7,0,1e7],"
+      "[1e7,0,1e7],[1e7,0,-1e7]]}}]",
+      "huge ground quad");
   /* Triangles crossing the camera plane: their parts behind the eye must not show. */
   synthetic(persp,
             "[{\"shape\":{\"type\":\"triangle\",\"vertices\":[[-2,0,-6],[2,0.2,-6],[0,1.5,4]]}},"
@@ -157,21 +159,23 @@ static void test_synthetic(void **state) {
             "\"transform\":{\"scale\":[0.5,0.5,0.5]}}]",
             "camera inside a box");
   /* Orthographic rays start on the camera plane: the parts behind it must not show either. */
-  const char *ortho = "\"type\":\"orthographic\",\"position\":[0,1,-3],\"look_at\":[0,0.5,0],"
-                      "\"up\":[0,1,0],\"height\":3";
+  const char *ortho =
+      "\"type\":\"orthographic\",\"position\":[0,1,-3],\"look_at\":[0,0.5,0],"
+      "\"up\":[0,1,0],\"height\":3";
   synthetic(ortho,
             "[{\"shape\":{\"type\":\"triangle\",\"vertices\":[[-2,0,-6],[2,0.2,-6],[0,1.5,4]]}},"
             "{\"shape\":{\"type\":\"sphere\",\"center\":[0.5,1,-3],\"radius\":0.8}},"
             "{\"shape\":{\"type\":\"box\",\"min\":[-1,-1,-4],\"max\":[0,2,1]}}]",
             "ortho through the camera plane");
   /* The eye a hair above a plane that runs off to the horizon, looking along it. */
-  synthetic("\"type\":\"perspective\",\"position\":[0,1e-6,0],\"look_at\":[0,1e-6,1],"
-            "\"up\":[0,1,0],\"fov_y\":90",
-            "[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-1e6,0,-1e6],[-1e6,0,1e6],"
-            "[1e6,0,1e6],[1e6,0,-1e6]]}},"
-            "{\"shape\":{\"type\":\"displaced_sphere\",\"subdivisions\":4},"
-            "\"transform\":{\"translate\":[0,0.5,3]}}]",
-            "grazing plane to the horizon");
+  synthetic(
+      "\"type\":\"perspective\",\"position\":[0,1e-6,0],\"look_at\":[0,1e-6,1],"
+      "\"up\":[0,1,0],\"fov_y\":90",
+      "[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-1e6,0,-1e6],[-1e6,0,1e6],"
+      "[1e6,0,1e6],[1e6,0,-1e6]]}},"
+      "{\"shape\":{\"type\":\"displaced_sphere\",\"subdivisions\":4},"
+      "\"transform\":{\"translate\":[0,0.5,3]}}]",
+      "grazing plane to the horizon");
   const double scales[] = {1e-9, 1, 1e9};
   for (int o = 0; o < 2; o++) {
     for (size_t k = 0; k < 3; k++) scaled(scales[k], 0, o);
