@@ -94,20 +94,25 @@ static int load(size_t s, const char *ws, const char *hs, obs_scene *sc, char *l
 
 int main(int argc, char **argv) {
   int runs = 5, threads = 2;
+  const char *only = NULL;
   for (int i = 1; i < argc; i++) {
     if (!strcmp(argv[i], "--repeats") && i + 1 < argc && !parse_int(argv[i + 1], 1, 64, &runs)) {
       i++;
     } else if (!strcmp(argv[i], "--threads") && i + 1 < argc &&
                !parse_int(argv[i + 1], 1, 256, &threads)) {
       i++;
+    } else if (!strcmp(argv[i], "--only") && i + 1 < argc) {
+      only = argv[++i];
     } else {
       fprintf(stderr,
-              "usage: bench_gbuffer [--repeats R] [--threads N]\n"
+              "usage: bench_gbuffer [--repeats R] [--threads N] [--only TEXT]\n"
               "  Times the CPU G-buffer rasterised and ray cast (geometry and BVH build\n"
               "  plus the pass; median and fastest of R runs, default 5, after a warm-up)\n"
               "  on the bundled scenes at 1280x720 and 320x240, the displaced sphere at\n"
               "  subdivisions 7 to 10 and 4 to 256 stacked screen-filling quads; prints the\n"
-              "  raster's pixel tests per pixel and the way obs_gbuffer_method picks.\n");
+              "  raster's pixel tests per pixel and the way obs_gbuffer_method picks.\n"
+              "  --only: the rows whose scene and size (\"cornell_box.json 1280x720\")\n"
+              "  contain TEXT.\n");
       return 2;
     }
   }
@@ -128,6 +133,12 @@ int main(int argc, char **argv) {
       if (load(s, ws, hs, &sc, label, sizeof label, &err)) {
         fprintf(stderr, "bench_gbuffer: %s\n", obs_err_message(&err));
         return 1;
+      }
+      char row[96];
+      snprintf(row, sizeof row, "%s %dx%d", label, sc.width, sc.height);
+      if (only && !strstr(row, only)) {
+        obs_scene_free(&sc);
+        continue;
       }
       const double eye[3] = {sc.camera.position.x, sc.camera.position.y, sc.camera.position.z};
       if (obs_geometry_build_at(&sc, eye, &geo, &err) ||
