@@ -14,7 +14,6 @@
 #include "obscura/render.h"
 #include "parallel.h"
 #include "raytrace.h"
-#include "simd.h"
 
 /* Pixels [x0, x1) x [y0, y1) that a primitive may cover; empty when x0 >= x1. */
 typedef struct rs_box {
@@ -231,16 +230,16 @@ static int fill_bins(rs_job *j) {
 typedef struct rs_tile {
   int x0, y0, w, h;
   double sx[OBS_TILE], sy[OBS_TILE];
-  double ray[3][OBS_TILE * OBS_TILE]; /* by component, for whole rows in vector registers */
+  double ray[OBS_TILE * OBS_TILE][3];
   double t[OBS_TILE * OBS_TILE];
   uint32_t win[OBS_TILE * OBS_TILE];
 } rs_tile;
 
-/* The ray of tile pixel p. */
-static void pixel_ray(const rs_job *j, const rs_tile *t, int p, double o[3], double d[3]) {
-  const double *fixed = j->cam.ortho ? j->view.forward : j->view.eye;
-  double *per = j->cam.ortho ? o : d, *other = j->cam.ortho ? d : o;
-  for (int k = 0; k < 3; k++) per[k] = t->ray[k][p], other[k] = fixed[k];
+static const double *ray_org(const rs_job *j, const rs_tile *t, int p) {
+  return j->cam.ortho ? t->ray[p] : j->view.eye;
+}
+static const double *ray_dir(const rs_job *j, const rs_tile *t, int p) {
+  return j->cam.ortho ? j->view.forward : t->ray[p];
 }
 
 /* Edge functions of the triangle (vertices relative to the eye, in double):
@@ -311,31 +310,7 @@ static void row_span(const rs_job *j, const rs_tile *t, const double r[3], const
   if (*hi < t->w && *hi <= xh) (*hi)++; /* ceil */
 }
 
-/* The pixels [lo, hi) of row `p0` (tile index of column 0) where the triangle is nearer than the
- * nearest so far. Branch-free, so the x86-64-v3 variant takes four pixels at a time: every lane
- * is the scalar arithmetic (obs_rt_plane_t), the same bits. */
-OBS_HOT_INLINE void triangle_row(const rs_job *j, rs_tile *t, uint32_t id, int p0, int lo, int hi,
-                                 const double r[3], const double b[3], const double n[3],
-                                 const float *a, double num, double zmin) {
-  double *restrict tt = t->t + p0;
-  uint32_t *restrict win = t->win + p0;
-  const double *rx = t->ray[0] + p0, *ry = t->ray[1] + p0, *rz = t->ray[2] + p0;
-  const double *sxs = t->sx;
-  for (int x = lo; x < hi; x++) {
-    const double sx = sxs[x];
-    const int in = (r[0] + sx * b[0] >= 0) & (r[1] + sx * b[1] >= 0) & (r[2] + sx * b[2] >= 0) &
-                   (zmin < tt[x]);
-    const double ray[3] = {rx[x], ry[x], rz[x]};
-    double tp;
-    const int hit = j->cam.ortho ? obs_rt_plane_hit(n, a, ray, j->view.forward, &tp)
-                                 : obs_rt_plane_t(num, n, ray, &tp);
-    const int win_here = in & hit & (tp < tt[x]);
-    tt[x] = win_here ? tp : tt[x];
-    win[x] = win_here ? id : win[x];
-  }
-}
-
-OBS_HOT_INLINE void draw_triangle(const rs_job *j, rs_tile *t, uint32_t id, const rs_box *bx) {
+static void draw_triangle(const rs_job *j, rs_tile *t, uint32_t id, const rs_box *bx) {
   size_t mesh;
   const float *v[3];
   tri_verts(j, id, &mesh, v);
@@ -361,7 +336,19 @@ OBS_HOT_INLINE void draw_triangle(const rs_job *j, rs_tile *t, uint32_t id, cons
       if (lo < xa) lo = xa;
       if (hi > xb) hi = xb;
     }
-    triangle_row(j, t, id, y * OBS_TILE, lo, hi, r, b, n, v[0], num, zmin);
+    for (int x = lo; x < hi; x++) {
+      const double sx = t->sx[x];
+      const int p = y * OBS_TILE + x;
+      if (!(zmin < t->t[p])) continue;
+      if (!(r[0] + sx * b[0] >= 0 && r[1] + sx * b[1] >= 0 && r[2] + sx * b[2] >= 0)) continue;
+      double tp;
+      const int hit = j->cam.ortho ? obs_rt_plane_hit(n, v[0], t->ray[p], j->view.forward, &tp)
+                                   : obs_rt_plane_t(num, n, t->ray[p], &tp);
+      if (hit && tp < t->t[p]) {
+        t->t[p] = tp;
+        t->win[p] = id;
+      }
+    }
   }
 }
 
@@ -372,9 +359,7 @@ static void draw_sphere(const rs_job *j, rs_tile *t, uint32_t id, const rs_box *
   for (int y = ya; y < yb; y++)
     for (int x = xa; x < xb; x++) {
       const int p = y * OBS_TILE + x;
-      double o[3], d[3];
-      pixel_ray(j, t, p, o, d);
-      double td = obs_rt_sphere_root(s, o, d, 0.0, INFINITY, 0);
+      double td = obs_rt_sphere_root(s, ray_org(j, t, p), ray_dir(j, t, p), 0.0, INFINITY, 0);
       if (td >= 0 && isfinite(td) && td < t->t[p]) {
         t->t[p] = td;
         t->win[p] = id;
@@ -424,10 +409,9 @@ static void resolve_tile(const rs_job *j, const rs_tile *t) {
       const int p = y * OBS_TILE + x;
       const uint32_t id = t->win[p];
       if (id == UINT32_MAX) continue;
-      double ro[3], rd[3];
-      pixel_ray(j, t, p, ro, rd);
+      const double *rd = ray_dir(j, t, p);
       if (id >= j->ntris || id != last) {
-        winner_normal(j, id, ro, rd, t->t[p], unit);
+        winner_normal(j, id, ray_org(j, t, p), rd, t->t[p], unit);
         const double back[3] = {-unit[0], -unit[1], -unit[2]};
         view_normal(j, unit, vn[0]);
         view_normal(j, back, vn[1]);
@@ -448,7 +432,7 @@ static void resolve_tile(const rs_job *j, const rs_tile *t) {
     }
 }
 
-OBS_HOT_INLINE int raster_tile_body(void *user, int thread, int x0, int y0, int x1, int y1) {
+static int raster_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)thread;
   const rs_job *j = user;
   const size_t tile = (size_t)(y0 / OBS_TILE) * j->tiles_x + (size_t)(x0 / OBS_TILE);
@@ -466,12 +450,12 @@ OBS_HOT_INLINE int raster_tile_body(void *user, int thread, int x0, int y0, int 
   /* obs_rt_view_ray's expressions, a row at a time. */
   const obs_rt_view *v = &j->view;
   const double *base = j->cam.ortho ? v->eye : v->forward;
-  for (int k = 0; k < 3; k++)
-    for (int y = 0; y < t->h; y++) {
-      const double sy = t->sy[y];
-      double *row = t->ray[k] + y * OBS_TILE;
-      for (int x = 0; x < t->w; x++) row[x] = base[k] + (t->sx[x] * v->right[k] + sy * v->up[k]);
-    }
+  for (int y = 0; y < t->h; y++) {
+    const double sy = t->sy[y];
+    double(*row)[3] = t->ray + y * OBS_TILE;
+    for (int x = 0; x < t->w; x++)
+      for (int k = 0; k < 3; k++) row[x][k] = base[k] + (t->sx[x] * v->right[k] + sy * v->up[k]);
+  }
   for (size_t e = j->bin_start[tile]; e < j->bin_start[tile + 1]; e++) {
     const uint32_t id = j->bin[e];
     if (id < j->ntris)
@@ -483,7 +467,6 @@ OBS_HOT_INLINE int raster_tile_body(void *user, int thread, int x0, int y0, int 
   free(t);
   return 0;
 }
-OBS_TILE_KERNELS(raster_tile)
 
 static void rs_free(rs_job *j) {
   free(j->mesh_base);
@@ -541,8 +524,7 @@ static int rs_draw(rs_job *j, obs_gbuffer *g, int threads, double *render_ms, ob
   j->g = g;
   rc = fill_bins(j);
   if (!rc)
-    rc = obs_parallel_tiles(sc->width, sc->height, threads,
-                            obs_simd_tile_pick(raster_tile, obs_simd_isa()), j, NULL, NULL, NULL);
+    rc = obs_parallel_tiles(sc->width, sc->height, threads, raster_tile, j, NULL, NULL, NULL);
   if (render_ms) *render_ms += obs_now_ms() - t0;
   if (rc) {
     obs_gbuffer_free(g);
