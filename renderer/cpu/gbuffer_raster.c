@@ -549,7 +549,7 @@ int obs_gbuffer_raster_geo(const obs_scene *sc, const obs_geometry *geo, obs_gbu
  * slowly with depth complexity. Measured with bench_gbuffer (docs/architecture.md, "CPU
  * G-buffer"), the raster wins on every bundled scene up to 14 triangles per pixel, and the ray
  * cast only where the boxes overlap each pixel more than OBS_GBUFFER_RAYCAST_TESTS times. */
-#define OBS_GBUFFER_RAYCAST_TESTS 12.0
+#define OBS_GBUFFER_RAYCAST_TESTS 10.0
 
 int obs_gbuffer_method(double tests, size_t pixels) {
   const char *force = getenv("OBSCURA_GBUFFER");
