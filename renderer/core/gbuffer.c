@@ -55,7 +55,7 @@ static int cmp_float(const void *a, const void *b) {
 
 int obs_gbuffer_median_depth(const obs_scene *scene, int max_side, int threads, double *out,
                              obs_err *err) {
-  /* A shallow copy with a smaller image: the ray caster only reads the camera, the size and the
+  /* A shallow copy with a smaller image: the G-buffer only reads the camera, the size and the
    * geometry, and the aspect ratio (hence the camera rig) is kept. */
   obs_scene coarse = *scene;
   int side = scene->width > scene->height ? scene->width : scene->height;
@@ -68,7 +68,7 @@ int obs_gbuffer_median_depth(const obs_scene *scene, int max_side, int threads, 
   }
   obs_gbuffer g;
   double build_ms = 0, render_ms = 0;
-  int rc = obs_gbuffer_raycast(&coarse, &g, threads > 0 ? threads : 1, &build_ms, &render_ms, err);
+  int rc = obs_gbuffer_cpu(&coarse, &g, threads > 0 ? threads : 1, &build_ms, &render_ms, err);
   if (rc) return rc;
   size_t n = (size_t)g.width * (size_t)g.height, k = 0;
   for (size_t i = 0; i < n; i++)

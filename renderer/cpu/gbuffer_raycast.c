@@ -82,17 +82,20 @@ static int gb_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   return 0;
 }
 
-int obs_gbuffer_raycast(const obs_scene *sc, obs_gbuffer *g, int threads, double *build_ms,
-                        double *render_ms, obs_err *err) {
+int obs_gbuffer_raycast_geo(const obs_scene *sc, obs_geometry *geo, obs_gbuffer *g, int threads,
+                            double *bvh_ms, double *render_ms, obs_err *err) {
   gb_job j;
   memset(&j, 0, sizeof j);
   j.scene = sc;
   obs_camera_setup(&sc->camera, sc->width, sc->height, &j.cam);
   int rc = obs_gbuffer_alloc(g, sc->width, sc->height, &j.cam, err);
-  if (rc) return rc;
+  if (rc) {
+    obs_geometry_free(geo);
+    return rc;
+  }
   double t0 = obs_now_ms();
   obs_rt rt;
-  if ((rc = obs_rt_build(sc, &rt, threads, err))) {
+  if ((rc = obs_rt_build_geo(geo, &rt, threads, err))) {
     obs_gbuffer_free(g);
     return rc;
   }
@@ -109,7 +112,7 @@ int obs_gbuffer_raycast(const obs_scene *sc, obs_gbuffer *g, int threads, double
   }
   j.g = g;
   rc = obs_parallel_tiles(sc->width, sc->height, threads, gb_tile, &j, NULL, NULL, NULL);
-  if (build_ms) *build_ms = t1 - t0;
+  if (bvh_ms) *bvh_ms = t1 - t0;
   if (render_ms) *render_ms = obs_now_ms() - t1;
   obs_rt_free(&rt);
   if (rc) {

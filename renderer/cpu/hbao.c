@@ -623,7 +623,7 @@ int obs_hbao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   if (rc) return rc;
   obs_gbuffer g;
   double build_ms = 0, gb_ms = 0, st[OBS_HBAO_PASS_COUNT];
-  if ((rc = obs_gbuffer_raycast(sc, &g, ctx->threads, &build_ms, &gb_ms, err))) {
+  if ((rc = obs_gbuffer_cpu(sc, &g, ctx->threads, &build_ms, &gb_ms, err))) {
     obs_image_free(out);
     return rc;
   }

@@ -32,27 +32,6 @@ static void sphere_bounds(const struct RTCBoundsFunctionArguments *a) {
   a->bounds_o->upper_z = nextafterf(a->bounds_o->upper_z, INFINITY);
 }
 
-/* Ray/sphere roots in double with the numerically careful discriminant of Haines et al.
- * ("Precision Improvements for Ray/Sphere Intersection", Ray Tracing Gems ch. 7). Returns the
- * nearest acceptable root in (tnear, tfar] or -1. */
-static double sphere_root(const obs_sphere *s, const double o[3], const double d[3], double tnear,
-                          double tfar, int mode) {
-  double oc[3] = {o[0] - s->center[0], o[1] - s->center[1], o[2] - s->center[2]};
-  double a = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-  if (!(a > 0)) return -1;
-  double b = -(oc[0] * d[0] + oc[1] * d[1] + oc[2] * d[2]) / a; /* closest approach */
-  double f[3] = {oc[0] + b * d[0], oc[1] + b * d[1], oc[2] + b * d[2]};
-  double r2 = s->radius * s->radius;
-  double disc = r2 - (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
-  if (disc < 0) return -1;
-  double h = sqrt(disc / a);
-  double t0 = b - h, t1 = b + h;
-  if (mode == 1) return -1;
-  if (mode != 2 && t0 > tnear && t0 <= tfar) return t0;
-  if (t1 > tnear && t1 <= tfar) return t1;
-  return -1;
-}
-
 static int sphere_mode(const obs_rt_ctx *c, unsigned geom, unsigned prim) {
   return c->skip_geom == geom && c->skip_prim == prim ? c->skip_mode : 0;
 }
@@ -110,7 +89,7 @@ static void sphere_intersect(const struct RTCIntersectFunctionNArguments *a) {
     if (a->valid[i] != -1) continue;
     double o[3], d[3];
     lane_ray(r, N, i, o, d);
-    double t = sphere_root(s, o, d, r[SOA_TNEAR * N + i], r[SOA_TFAR * N + i], mode);
+    double t = obs_rt_sphere_root(s, o, d, r[SOA_TNEAR * N + i], r[SOA_TFAR * N + i], mode);
     if (t < 0) continue;
     r[SOA_TFAR * N + i] = (float)t;
     for (int k = 0; k < 3; k++) r[(SOA_NG + k) * N + i] = (float)(o[k] + t * d[k] - s->center[k]);
@@ -132,7 +111,7 @@ static void sphere_occluded(const struct RTCOccludedFunctionNArguments *a) {
     double o[3], d[3];
     lane_ray(r, N, i, o, d);
     /* Embree's occlusion interval is (tnear, tfar]; rays here use tfar = max distance. */
-    if (sphere_root(s, o, d, r[SOA_TNEAR * N + i], r[SOA_TFAR * N + i], mode) >= 0)
+    if (obs_rt_sphere_root(s, o, d, r[SOA_TNEAR * N + i], r[SOA_TFAR * N + i], mode) >= 0)
       r[SOA_TFAR * N + i] = -INFINITY;
   }
 }
@@ -228,6 +207,8 @@ static int frame_at_geometry(const obs_scene *sc, obs_rt *rt, obs_err *err) {
   return 0;
 }
 
+static int build_bvh(obs_rt *rt, int threads, obs_err *err);
+
 int obs_rt_build(const obs_scene *sc, obs_rt *rt, int threads, obs_err *err) {
   return obs_rt_build_ex(sc, rt, threads, OBS_RT_FRAME_CAMERA, err);
 }
@@ -241,6 +222,19 @@ int obs_rt_build_ex(const obs_scene *sc, obs_rt *rt, int threads, int frame, obs
   int rc = obs_geometry_build_at(sc, eye, &rt->geo, err);
   if (!rc && frame == OBS_RT_FRAME_GEOMETRY) rc = frame_at_geometry(sc, rt, err);
   if (rc) return rc;
+  return build_bvh(rt, threads, err);
+}
+
+int obs_rt_build_geo(obs_geometry *geo, obs_rt *rt, int threads, obs_err *err) {
+  memset(rt, 0, sizeof *rt);
+  rt->sphere_geom = RTC_INVALID_GEOMETRY_ID;
+  rt->geo = *geo;
+  memset(geo, 0, sizeof *geo);
+  return build_bvh(rt, threads, err);
+}
+
+/* The Embree device and scene over rt->geo. */
+static int build_bvh(obs_rt *rt, int threads, obs_err *err) {
   char config[64];
   obs_rt_device_config(threads, config, sizeof config);
   rt->isa = obs_simd_isa();
@@ -463,14 +457,6 @@ static void trace_packet(RTCScene scene, struct RTCIntersectContext *ctx, rt_pac
   rtcIntersectNp(scene, ctx, &np, (unsigned)n);
 }
 
-static inline void view_ray(const obs_rt_view *v, double sx, double sy, double o[3], double d[3]) {
-  for (int k = 0; k < 3; k++) {
-    double off = sx * v->right[k] + sy * v->up[k];
-    o[k] = v->ortho ? v->eye[k] + off : v->eye[k];
-    d[k] = v->ortho ? v->forward[k] : v->forward[k] + off;
-  }
-}
-
 static inline __attribute__((always_inline)) void intersect_primary(const obs_rt *rt,
                                                                     const obs_rt_view *view, int n,
                                                                     const double sx[],
@@ -489,7 +475,7 @@ static inline __attribute__((always_inline)) void intersect_primary(const obs_rt
   float *d[3] = {rh.ray.dir_x, rh.ray.dir_y, rh.ray.dir_z};
   for (int k = 0; k < 3; k++) {
     const double e = view->eye[k], f = view->forward[k], r = view->right[k], u = view->up[k];
-    /* The same expressions as view_ray, so Embree sees the rounding of the refined ray. */
+    /* The same expressions as obs_rt_view_ray, so Embree sees the rounding of the refined ray. */
     if (view->ortho) {
       for (int i = 0; i < OBS_RT_PACKET; i++) o[k][i] = (float)(e + (lx[i] * r + ly[i] * u));
       for (int i = 0; i < OBS_RT_PACKET; i++) d[k][i] = (float)f;
@@ -528,7 +514,7 @@ static inline __attribute__((always_inline)) void intersect_primary(const obs_rt
       continue;
     }
     double ro[3], rd[3];
-    view_ray(view, sx[i], sy[i], ro, rd);
+    obs_rt_view_ray(view, sx[i], sy[i], ro, rd);
     double t = rh.ray.tfar[i];
     double ng[3] = {rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]};
     int unit = 0;
@@ -536,7 +522,7 @@ static inline __attribute__((always_inline)) void intersect_primary(const obs_rt
       /* The root again from the double ray, which Embree only saw rounded to float. Grazing rays
        * the double ray misses keep Embree's root. */
       const obs_sphere *s = &rt->geo.spheres[h->prim];
-      double td = sphere_root(s, ro, rd, 0.0, INFINITY, 0);
+      double td = obs_rt_sphere_root(s, ro, rd, 0.0, INFINITY, 0);
       if (td >= 0 && isfinite(td)) t = td;
       for (int k = 0; k < 3; k++) ng[k] = ro[k] + t * rd[k] - s->center[k];
     } else {
@@ -546,24 +532,15 @@ static inline __attribute__((always_inline)) void intersect_primary(const obs_rt
         const obs_mesh *m = &rt->geo.meshes[h->geom];
         const uint32_t *tri = m->idx + 3 * (size_t)h->prim;
         const float *a = m->pos + 3 * tri[0], *b = m->pos + 3 * tri[1], *c = m->pos + 3 * tri[2];
-        double e1[3], e2[3];
-        for (int k = 0; k < 3; k++) {
-          e1[k] = (double)b[k] - a[k];
-          e2[k] = (double)c[k] - a[k];
-        }
-        plane_n[0] = e1[1] * e2[2] - e1[2] * e2[1];
-        plane_n[1] = e1[2] * e2[0] - e1[0] * e2[2];
-        plane_n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+        obs_rt_plane_normal(a, b, c, plane_n);
         for (int k = 0; k < 3; k++) plane_unit[k] = plane_n[k];
         if (obs_normalize3d(plane_unit)) plane_unit[0] = plane_unit[1] = plane_unit[2] = 0;
         plane_a = a;
         plane_geom = h->geom;
         plane_prim = h->prim;
       }
-      double oa[3] = {plane_a[0] - ro[0], plane_a[1] - ro[1], plane_a[2] - ro[2]};
-      double dn = plane_n[0] * rd[0] + plane_n[1] * rd[1] + plane_n[2] * rd[2];
-      double tp = (oa[0] * plane_n[0] + oa[1] * plane_n[1] + oa[2] * plane_n[2]) / dn;
-      if (dn != 0.0 && isfinite(tp) && tp >= 0.0) {
+      double tp;
+      if (obs_rt_plane_hit(plane_n, plane_a, ro, rd, &tp)) {
         t = tp;
         ng[0] = plane_unit[0], ng[1] = plane_unit[1], ng[2] = plane_unit[2];
         unit = 1;

@@ -4,6 +4,7 @@
 #define OBS_RAYTRACE_H
 
 #include <embree3/rtcore.h>
+#include <math.h>
 
 #include "geometry.h"
 #include "obscura/error.h"
@@ -64,6 +65,9 @@ enum { OBS_RT_FRAME_CAMERA = 0, OBS_RT_FRAME_GEOMETRY = 1 };
  * assume their eye at the frame's origin). */
 int obs_rt_build(const obs_scene *scene, obs_rt *rt, int threads, obs_err *err);
 int obs_rt_build_ex(const obs_scene *scene, obs_rt *rt, int threads, int frame, obs_err *err);
+/* obs_rt_build over geometry already built at the camera (obs_geometry_build_at), which `rt` takes
+ * over: released by obs_rt_free, and on failure here. */
+int obs_rt_build_geo(obs_geometry *geo, obs_rt *rt, int threads, obs_err *err);
 void obs_rt_free(obs_rt *rt);
 
 /* Closest hit along (org, dir) within [0, tfar], org in world space. Returns 1 and fills `hit`
@@ -84,6 +88,70 @@ typedef struct obs_rt_view {
   double eye[3]; /* world minus rt->geo.origin */
   double forward[3], right[3], up[3];
 } obs_rt_view;
+
+/* The ray of `view` through image-plane offset (sx, sy), in double. */
+static inline void obs_rt_view_ray(const obs_rt_view *v, double sx, double sy, double o[3],
+                                   double d[3]) {
+  for (int k = 0; k < 3; k++) {
+    double off = sx * v->right[k] + sy * v->up[k];
+    o[k] = v->ortho ? v->eye[k] + off : v->eye[k];
+    d[k] = v->ortho ? v->forward[k] : v->forward[k] + off;
+  }
+}
+
+/* The primary hit's refinement, shared by the ray caster and the rasteriser of the CPU G-buffer
+ * so both give the same bits: the plane normal of float triangle (a, b, c) in double... */
+static inline void obs_rt_plane_normal(const float a[3], const float b[3], const float c[3],
+                                       double n[3]) {
+  double e1[3], e2[3];
+  for (int k = 0; k < 3; k++) {
+    e1[k] = (double)b[k] - a[k];
+    e2[k] = (double)c[k] - a[k];
+  }
+  n[0] = e1[1] * e2[2] - e1[2] * e2[1];
+  n[1] = e1[2] * e2[0] - e1[0] * e2[2];
+  n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+}
+
+/* ...where the ray (ro, rd) meets that plane (n through a): 1 and *t when the parameter is finite
+ * and >= 0, else 0 (the ray parallel to the plane or leaving it behind). Split in two for callers
+ * with many rays from one origin: the numerator, then the parameter. */
+static inline double obs_rt_plane_num(const double n[3], const float a[3], const double ro[3]) {
+  double oa[3] = {a[0] - ro[0], a[1] - ro[1], a[2] - ro[2]};
+  return oa[0] * n[0] + oa[1] * n[1] + oa[2] * n[2];
+}
+static inline int obs_rt_plane_t(double num, const double n[3], const double rd[3], double *t) {
+  double dn = n[0] * rd[0] + n[1] * rd[1] + n[2] * rd[2];
+  double tp = num / dn;
+  *t = tp;
+  return dn != 0.0 && isfinite(tp) && tp >= 0.0;
+}
+static inline int obs_rt_plane_hit(const double n[3], const float a[3], const double ro[3],
+                                   const double rd[3], double *t) {
+  return obs_rt_plane_t(obs_rt_plane_num(n, a, ro), n, rd, t);
+}
+
+/* Ray/sphere roots in double with the numerically careful discriminant of Haines et al.
+ * ("Precision Improvements for Ray/Sphere Intersection", Ray Tracing Gems ch. 7). Returns the
+ * nearest acceptable root in (tnear, tfar] or -1. `mode`: 0 either root, 1 none (the sphere the
+ * ray leaves outward), 2 the far root only (leaving it from inside). */
+static inline double obs_rt_sphere_root(const obs_sphere *s, const double o[3], const double d[3],
+                                        double tnear, double tfar, int mode) {
+  double oc[3] = {o[0] - s->center[0], o[1] - s->center[1], o[2] - s->center[2]};
+  double a = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+  if (!(a > 0)) return -1;
+  double b = -(oc[0] * d[0] + oc[1] * d[1] + oc[2] * d[2]) / a; /* closest approach */
+  double f[3] = {oc[0] + b * d[0], oc[1] + b * d[1], oc[2] + b * d[2]};
+  double r2 = s->radius * s->radius;
+  double disc = r2 - (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
+  if (disc < 0) return -1;
+  double h = sqrt(disc / a);
+  double t0 = b - h, t1 = b + h;
+  if (mode == 1) return -1;
+  if (mode != 2 && t0 > tnear && t0 <= tfar) return t0;
+  if (t1 > tnear && t1 <= tfar) return t1;
+  return -1;
+}
 
 /* A primary hit reduced to what a G-buffer needs. */
 typedef struct obs_rt_primary {

@@ -322,7 +322,7 @@ int obs_ssao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   obs_gbuffer g;
   double build_ms = 0, gb_ms = 0, st[OBS_SSAO_CPU_STAGES];
   double t0 = obs_now_ms();
-  if ((rc = obs_gbuffer_raycast(sc, &g, ctx->threads, &build_ms, &gb_ms, err))) {
+  if ((rc = obs_gbuffer_cpu(sc, &g, ctx->threads, &build_ms, &gb_ms, err))) {
     obs_image_free(out);
     return rc;
   }
