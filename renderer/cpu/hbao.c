@@ -39,6 +39,7 @@ typedef struct hbao_job {
    * (2 fx / W - 1) half_w and (1 - 2 fy / H) half_h at the texel's pixel centre, computed with the
    * scalar code's operations so a table lookup gives the same bits as the expression. */
   const float *colf, *rowf;
+  obs_tile_fn ao_fn; /* the AO pass's tile kernel, run in ao_strip_tile's order */
 } hbao_job;
 
 /* Elevation (sin, cos) over the view plane z = const of the tangent plane (normal n) along the image
@@ -162,25 +163,103 @@ OBS_HOT_INLINE float ao_texel(const hbao_job *jb, int ax, int ay) {
 }
 
 #if OBS_SIMD_AVX2
-/* tangent() for eight directions at once; sin only when cos_t is NULL. */
-OBS_AVX2_INLINE void tangent8(__m256 n0, __m256 n1, __m256 nr, __m256 r0, __m256 r1, __m256 dx,
-                              __m256 dy, __m256 *sin_t, __m256 *cos_t) {
+/* tangent()'s oriented z and squared length (lz, h2 + lz^2, and h2) for eight directions. */
+OBS_AVX2_INLINE __m256 tangent8_line(__m256 n0, __m256 n1, __m256 nr, __m256 r0, __m256 r1,
+                                     __m256 dx, __m256 dy, __m256 *lz, __m256 *h2) {
   const __m256 zero = _mm256_setzero_ps(), sign = _mm256_set1_ps(-0.0f);
   __m256 nd = _mm256_add_ps(_mm256_mul_ps(n0, dx), _mm256_mul_ps(n1, dy));
   __m256 lx = _mm256_sub_ps(_mm256_mul_ps(nd, r0), _mm256_mul_ps(nr, dx));
   __m256 ly = _mm256_sub_ps(_mm256_mul_ps(nd, r1), _mm256_mul_ps(nr, dy));
-  __m256 lz = nd;
   __m256 flip = _mm256_and_ps(_mm256_cmp_ps(nr, zero, _CMP_NLT_UQ), sign);
   lx = _mm256_xor_ps(lx, flip);
   ly = _mm256_xor_ps(ly, flip);
-  lz = _mm256_xor_ps(lz, flip);
-  __m256 h2 = _mm256_add_ps(_mm256_mul_ps(lx, lx), _mm256_mul_ps(ly, ly));
-  __m256 l = _mm256_sqrt_ps(_mm256_add_ps(h2, _mm256_mul_ps(lz, lz)));
+  *lz = _mm256_xor_ps(nd, flip);
+  *h2 = _mm256_add_ps(_mm256_mul_ps(lx, lx), _mm256_mul_ps(ly, ly));
+  return _mm256_add_ps(*h2, _mm256_mul_ps(*lz, *lz));
+}
+
+/* tangent() for eight directions at once, from tangent8_line's values; sin only when cos_t is
+ * NULL. */
+OBS_AVX2_INLINE void tangent8_finish(__m256 lz, __m256 l2, __m256 h2, __m256 *sin_t,
+                                     __m256 *cos_t) {
+  const __m256 zero = _mm256_setzero_ps(), sign = _mm256_set1_ps(-0.0f);
+  __m256 l = _mm256_sqrt_ps(l2);
   __m256 degenerate = _mm256_cmp_ps(l, zero, _CMP_NGT_UQ);
   *sin_t = _mm256_andnot_ps(degenerate, _mm256_div_ps(_mm256_xor_ps(lz, sign), l));
   if (cos_t)
     *cos_t = _mm256_blendv_ps(_mm256_div_ps(_mm256_sqrt_ps(h2), l), _mm256_set1_ps(1.0f),
                               degenerate);
+}
+
+OBS_AVX2_INLINE void tangent8(__m256 n0, __m256 n1, __m256 nr, __m256 r0, __m256 r1, __m256 dx,
+                              __m256 dy, __m256 *sin_t, __m256 *cos_t) {
+  __m256 lz, h2;
+  __m256 l2 = tangent8_line(n0, n1, nr, r0, r1, dx, dy, &lz, &h2);
+  tangent8_finish(lz, l2, h2, sin_t, cos_t);
+}
+
+/* Whether a lane's sample can count, judged without division or square root: false only where
+ * the exact test (dist < 1 and e > sin_h) is sure to fail. rsqrtps is within 1.5 2^-12 of 1/sqrt
+ * for normal inputs, so the estimates of sin_s and sin_ts (both at most 1 in size) are within
+ * 4e-4 each; squared lengths outside [1e-30, 1e30] are not judged. Skipping the exact work where
+ * no lane can count leaves every bit as it was and spares the divider, which bounds this loop:
+ * on the Cornell box 9 in 10 exact evaluations raise no horizon. */
+#define HBAO_PRETEST_MARGIN 4e-3f
+OBS_AVX2_INLINE __m256 may_count8(__m256 q2, __m256 qz, __m256 l2, __m256 lz, __m256 rs2,
+                                  __m256 sin_t, __m256 sin_h) {
+  const __m256 lo = _mm256_set1_ps(1e-30f), hi = _mm256_set1_ps(1e30f);
+  __m256 valid = _mm256_and_ps(
+      _mm256_and_ps(_mm256_cmp_ps(q2, lo, _CMP_GE_OQ), _mm256_cmp_ps(q2, hi, _CMP_LE_OQ)),
+      _mm256_and_ps(_mm256_cmp_ps(l2, lo, _CMP_GE_OQ), _mm256_cmp_ps(l2, hi, _CMP_LE_OQ)));
+  __m256 far = _mm256_cmp_ps(_mm256_mul_ps(q2, rs2), _mm256_set1_ps(1.01f), _CMP_GE_OQ);
+  __m256 sa = _mm256_mul_ps(qz, _mm256_rsqrt_ps(q2));    /* -sin_s */
+  __m256 sta = _mm256_mul_ps(lz, _mm256_rsqrt_ps(l2));   /* -sin_ts */
+  __m256 ea = _mm256_add_ps(_mm256_sub_ps(sta, sa), sin_t);
+  __m256 low = _mm256_cmp_ps(_mm256_add_ps(ea, _mm256_set1_ps(HBAO_PRETEST_MARGIN)), sin_h,
+                             _CMP_LT_OQ);
+  return _mm256_andnot_ps(_mm256_and_ps(valid, _mm256_or_ps(far, low)), _mm256_castsi256_ps(
+                                                                            _mm256_set1_epi32(-1)));
+}
+
+/* One step of eight lanes along their directions: the sample's texel offset, depth and position
+ * factors, and whether it is a sample at all (another texel, covered). */
+typedef struct hbao_step8 {
+  __m256i ox, oy;
+  __m256 zs, S0, S1, ok;
+} hbao_step8;
+
+/* ao_span8's sample texels for every step of one direction, before any of them is used: the
+ * gathers carry no branch between them, so their cache misses overlap instead of each one
+ * stalling the branches on the previous sample. */
+OBS_AVX2_INLINE void march8(const hbao_job *jb, __m256i ax, __m256i ay, __m256 cx, __m256 cy,
+                            __m256 dx, __m256 dy, __m256 jit, __m256 st, __m256 act,
+                            hbao_step8 *sp) {
+  const hbao_level *lv = &jb->lv;
+  const __m256 zero = _mm256_setzero_ps();
+  const __m256i wmax = _mm256_set1_epi32(lv->w - 1), hmax = _mm256_set1_epi32(lv->h - 1);
+  const __m256i izero = _mm256_setzero_si256(), lw = _mm256_set1_epi32(lv->w);
+  for (int k = 1; k <= jb->p->steps; k++) {
+    hbao_step8 *q = sp + (k - 1);
+    __m256 o = _mm256_mul_ps(_mm256_add_ps(_mm256_set1_ps((float)k), jit), st);
+    __m256 sx = _mm256_add_ps(cx, _mm256_mul_ps(o, dx));
+    __m256 sy = _mm256_add_ps(cy, _mm256_mul_ps(o, dy));
+    __m256i ix = _mm256_cvttps_epi32(_mm256_floor_ps(sx));
+    __m256i iy = _mm256_cvttps_epi32(_mm256_floor_ps(sy));
+    ix = _mm256_min_epi32(_mm256_max_epi32(ix, izero), wmax);
+    iy = _mm256_min_epi32(_mm256_max_epi32(iy, izero), hmax);
+    q->ox = _mm256_sub_epi32(ix, ax);
+    q->oy = _mm256_sub_epi32(iy, ay);
+    __m256 ok = _mm256_andnot_ps(
+        _mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_or_si256(q->ox, q->oy), izero)), act);
+    q->zs = obs_avx2_gather(jb->loads, lv->depth, _mm256_add_epi32(_mm256_mullo_epi32(iy, lw), ix));
+    q->ok = _mm256_and_ps(ok, _mm256_cmp_ps(q->zs, zero, _CMP_GT_OQ));
+    q->S0 = obs_avx2_gather(jb->loads, jb->colf, ix);
+    q->S1 = obs_avx2_gather(jb->loads, jb->rowf, iy);
+    if (!jb->g->ortho) {
+      q->S0 = _mm256_mul_ps(q->S0, q->zs);
+      q->S1 = _mm256_mul_ps(q->S1, q->zs);
+    }
+  }
 }
 
 /* ao_texel for texels x..x+7 of level row y (all inside the level), same operations per lane. */
@@ -220,6 +299,7 @@ OBS_AVX2_FN static void ao_span8(const hbao_job *jb, int x, int y, float *dst) {
   const __m256 down =
       _mm256_castsi256_ps(_mm256_slli_epi32(_mm256_sub_epi32(_mm256_set1_epi32(254), ex), 23));
   const __m256 rscale = _mm256_mul_ps(_mm256_castsi256_ps(_mm256_slli_epi32(ex, 23)), inv_r);
+  const __m256 rs2 = _mm256_mul_ps(rscale, rscale); /* may_count8's bound only */
   const float num = R * (0.5f * (float)g->width);
   __m256 rpx = g->ortho ? _mm256_set1_ps(num / g->half_w)
                         : _mm256_div_ps(_mm256_set1_ps(num), _mm256_mul_ps(_mm256_set1_ps(g->half_w), z));
@@ -246,8 +326,6 @@ OBS_AVX2_FN static void ao_span8(const hbao_job *jb, int x, int y, float *dst) {
   const __m256 cx = _mm256_add_ps(_mm256_cvtepi32_ps(ax), half);
   const __m256 cy = _mm256_set1_ps((float)y + 0.5f);
   const __m256 cos_b = _mm256_set1_ps(jb->cos_b), sin_b = _mm256_set1_ps(jb->sin_b);
-  const __m256i wmax = _mm256_set1_epi32(lv->w - 1), hmax = _mm256_set1_epi32(lv->h - 1);
-  const __m256i izero = _mm256_setzero_si256(), lw = _mm256_set1_epi32(lv->w);
   __m256 sum = zero;
   for (int i = 0; i < p->directions; i++) {
     __m256i ti = _mm256_add_epi32(trow, _mm256_set1_epi32(4 * i));
@@ -261,33 +339,26 @@ OBS_AVX2_FN static void ao_span8(const hbao_job *jb, int x, int y, float *dst) {
                             zero, _CMP_GT_OQ));
     if (!_mm256_movemask_ps(act)) continue;
     __m256 sin_h = _mm256_add_ps(_mm256_mul_ps(sin_t, cos_b), _mm256_mul_ps(cos_t, sin_b));
-    for (int k = 1; k <= p->steps; k++) {
-      __m256 o = _mm256_mul_ps(_mm256_add_ps(_mm256_set1_ps((float)k), jit), st);
-      __m256 sx = _mm256_add_ps(cx, _mm256_mul_ps(o, dx));
-      __m256 sy = _mm256_add_ps(cy, _mm256_mul_ps(o, dy));
-      __m256i ix = _mm256_cvttps_epi32(_mm256_floor_ps(sx));
-      __m256i iy = _mm256_cvttps_epi32(_mm256_floor_ps(sy));
-      ix = _mm256_min_epi32(_mm256_max_epi32(ix, izero), wmax);
-      iy = _mm256_min_epi32(_mm256_max_epi32(iy, izero), hmax);
-      __m256i ox = _mm256_sub_epi32(ix, ax), oy = _mm256_sub_epi32(iy, ay);
-      __m256 ok = _mm256_andnot_ps(
-          _mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_or_si256(ox, oy), izero)), act);
-      __m256 zs =
-          obs_avx2_gather(jb->loads, lv->depth, _mm256_add_epi32(_mm256_mullo_epi32(iy, lw), ix));
-      ok = _mm256_and_ps(ok, _mm256_cmp_ps(zs, zero, _CMP_GT_OQ));
+    hbao_step8 sp[OBS_HBAO_MAX_STEPS];
+    march8(jb, ax, ay, cx, cy, dx, dy, jit, st, act, sp);
+    for (int k = 0; k < p->steps; k++) {
+      __m256 ok = sp[k].ok;
       if (!_mm256_movemask_ps(ok)) continue;
-      __m256 S0 = obs_avx2_gather(jb->loads, jb->colf, ix);
-      __m256 S1 = obs_avx2_gather(jb->loads, jb->rowf, iy);
-      if (!g->ortho) {
-        S0 = _mm256_mul_ps(S0, zs);
-        S1 = _mm256_mul_ps(S1, zs);
-      }
+      const __m256i ox = sp[k].ox, oy = sp[k].oy;
+      const __m256 zs = sp[k].zs, S0 = sp[k].S0, S1 = sp[k].S1;
       /* ao_texel's scaled offset, lane by lane. */
       __m256 dx = _mm256_sub_ps(S0, P0), dy = _mm256_sub_ps(S1, P1);
       __m256 dz = _mm256_add_ps(_mm256_sub_ps(zs, P2), _mm256_mul_ps(eps, _mm256_add_ps(zs, P2)));
       __m256 qx = _mm256_mul_ps(dx, down), qy = _mm256_mul_ps(dy, down), qz = _mm256_mul_ps(dz, down);
-      __m256 len = _mm256_sqrt_ps(_mm256_add_ps(
-          _mm256_add_ps(_mm256_mul_ps(qx, qx), _mm256_mul_ps(qy, qy)), _mm256_mul_ps(qz, qz)));
+      __m256 q2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(qx, qx), _mm256_mul_ps(qy, qy)),
+                                _mm256_mul_ps(qz, qz));
+      __m256 lz_s, h2_s;
+      __m256 l2_s = tangent8_line(n0, n1, nr, r0, r1, _mm256_cvtepi32_ps(ox),
+                                  _mm256_xor_ps(_mm256_cvtepi32_ps(oy), sign), &lz_s, &h2_s);
+      if (!_mm256_movemask_ps(
+              _mm256_and_ps(ok, may_count8(q2, qz, l2_s, lz_s, rs2, sin_t, sin_h))))
+        continue;
+      __m256 len = _mm256_sqrt_ps(q2);
       __m256 dist = _mm256_mul_ps(len, rscale);
       ok = _mm256_and_ps(ok, _mm256_and_ps(_mm256_cmp_ps(len, zero, _CMP_GT_OQ),
                                            _mm256_cmp_ps(dist, one, _CMP_LT_OQ)));
@@ -295,8 +366,7 @@ OBS_AVX2_FN static void ao_span8(const hbao_job *jb, int x, int y, float *dst) {
       __m256 d2 = _mm256_mul_ps(dist, dist);
       __m256 sin_s = _mm256_div_ps(_mm256_xor_ps(qz, sign), len);
       __m256 sin_ts;
-      tangent8(n0, n1, nr, r0, r1, _mm256_cvtepi32_ps(ox),
-               _mm256_xor_ps(_mm256_cvtepi32_ps(oy), sign), &sin_ts, NULL);
+      tangent8_finish(lz_s, l2_s, h2_s, &sin_ts, NULL);
       __m256 e = _mm256_add_ps(_mm256_sub_ps(sin_s, sin_ts), sin_t);
       e = _mm256_blendv_ps(e, one, _mm256_cmp_ps(e, one, _CMP_GT_OQ));
       __m256 up = _mm256_and_ps(ok, _mm256_cmp_ps(e, sin_h, _CMP_GT_OQ));
@@ -327,6 +397,33 @@ OBS_HOT_INLINE int ao_tile_body(void *user, int thread, int x0, int y0, int x1, 
   return 0;
 }
 OBS_TILE_KERNELS(ao_tile)
+
+/* The AO pass's tiles, taken column strips first: HBAO_STRIP tiles wide, top to bottom, then the
+ * next strip. Samples reach up to the projected radius around a tile; row after row of tiles
+ * across the whole image, that band of depth rows outgrows the L2 cache, and the depth gathers,
+ * which bound the pass, go to memory. A strip's band is a few hundred texels wide. */
+#define HBAO_STRIP 4
+static int ao_strip_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+  (void)y0;
+  (void)x1;
+  (void)y1;
+  hbao_job *jb = user;
+  const int T = OBS_TILE, ntx = (jb->lv.w + T - 1) / T, nty = (jb->lv.h + T - 1) / T;
+  const int full = ntx / HBAO_STRIP, t = x0 / T;
+  int tx, ty;
+  if (t < full * HBAO_STRIP * nty) {
+    int r = t % (HBAO_STRIP * nty);
+    tx = t / (HBAO_STRIP * nty) * HBAO_STRIP + r % HBAO_STRIP;
+    ty = r / HBAO_STRIP;
+  } else {
+    int rest = ntx - full * HBAO_STRIP, r = t - full * HBAO_STRIP * nty;
+    tx = full * HBAO_STRIP + r % rest;
+    ty = r / rest;
+  }
+  int ex = (tx + 1) * T, ey = (ty + 1) * T;
+  return jb->ao_fn(user, thread, tx * T, ty * T, ex < jb->lv.w ? ex : jb->lv.w,
+                   ey < jb->lv.h ? ey : jb->lv.h);
+}
 
 /* exp(x) for the blur's weights, x <= 0, written once for the scalar and once for the AVX2 path
  * with the same operations, so both CPU paths give the same bits (libm's expf has no vector twin
@@ -582,7 +679,9 @@ int obs_hbao_cpu_apply_ex(const obs_gbuffer *g, const obs_hbao_params *p, int th
   }
   float *level_ao = p->half_res ? half + 4 * ln : raw;
   jb.out = level_ao;
-  int rc = obs_parallel_tiles(lw, lh, threads, ao_fn, &jb, NULL, NULL, NULL);
+  jb.ao_fn = ao_fn;
+  int ntiles = ((lw + OBS_TILE - 1) / OBS_TILE) * ((lh + OBS_TILE - 1) / OBS_TILE);
+  int rc = obs_parallel_tiles(ntiles * OBS_TILE, 1, threads, ao_strip_tile, &jb, NULL, NULL, NULL);
   if (stage_ms) stage_ms[OBS_HBAO_PASS_AO] = obs_now_ms() - t;
   if (!rc && p->half_res) {
     t = obs_now_ms();
