@@ -40,6 +40,9 @@ typedef struct hbao_job {
    * scalar code's operations so a table lookup gives the same bits as the expression. */
   const float *colf, *rowf;
   obs_tile_fn ao_fn; /* the AO pass's tile kernel, run in ao_strip_tile's order */
+  /* For the AVX2 spans: the direction table per lane, 16 cells ((y & 3) * 4 + (x & 3) of the
+   * span's first texel) x directions x (dx[8], dy[8], jitter[8]), copied bit for bit. */
+  const float *dirs8;
 } hbao_job;
 
 /* Elevation (sin, cos) over the view plane z = const of the tangent plane (normal n) along the image
@@ -262,123 +265,164 @@ OBS_AVX2_INLINE void march8(const hbao_job *jb, __m256i ax, __m256i ay, __m256 c
   }
 }
 
-/* ao_texel for texels x..x+7 of level row y (all inside the level), same operations per lane. */
-OBS_AVX2_FN static void ao_span8(const hbao_job *jb, int x, int y, float *dst) {
+/* ao_span8's per-lane constants of its eight texels. */
+typedef struct hbao_px8 {
+  __m256i ax, ay;
+  __m256 cx, cy, P0, P1, P2, r0, r1, n0, n1, nr, down, rscale, rs2, st, live;
+} hbao_px8;
+
+/* One direction of eight lanes: its image step, jitter, tangent elevation and starting horizon,
+ * and which lanes search it. */
+typedef struct hbao_dir8 {
+  __m256 dx, dy, jit, sin_t, sin_h, act;
+} hbao_dir8;
+
+/* The constants of texels x..x+7 of level row y; 0 when no lane needs a search. */
+OBS_AVX2_INLINE int px_setup8(const hbao_job *jb, int x, int y, hbao_px8 *px) {
   const hbao_level *lv = &jb->lv;
   const obs_hbao_params *p = jb->p;
   const obs_gbuffer *g = jb->g;
   const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f);
-  const __m256 half = _mm256_set1_ps(0.5f), sign = _mm256_set1_ps(-0.0f);
   const size_t ci = (size_t)y * (size_t)lv->w + (size_t)x;
   const float R = p->radius;
   const __m256 z = _mm256_loadu_ps(lv->depth + ci);
   __m256 live = _mm256_cmp_ps(z, zero, _CMP_GT_OQ);
-  if (!(R > 0.0f) || !_mm256_movemask_ps(live)) {
-    _mm256_storeu_ps(dst, one);
-    return;
-  }
+  if (!(R > 0.0f) || !_mm256_movemask_ps(live)) return 0;
   const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-  const __m256i ax = _mm256_add_epi32(_mm256_set1_epi32(x), lane), ay = _mm256_set1_epi32(y);
+  px->ax = _mm256_add_epi32(_mm256_set1_epi32(x), lane);
+  px->ay = _mm256_set1_epi32(y);
   /* The tables hold nx half_w and ny half_h, which are r's x and y (perspective) and P's factors. */
   const __m256 cfx = _mm256_loadu_ps(jb->colf + x), cfy = _mm256_set1_ps(jb->rowf[y]);
-  __m256 P0, P1, r0 = zero, r1 = zero, r2 = one;
+  px->r0 = px->r1 = zero;
   if (g->ortho) {
-    P0 = cfx;
-    P1 = cfy;
+    px->P0 = cfx;
+    px->P1 = cfy;
   } else {
-    P0 = _mm256_mul_ps(cfx, z);
-    P1 = _mm256_mul_ps(cfy, z);
-    r0 = cfx;
-    r1 = cfy;
+    px->P0 = _mm256_mul_ps(cfx, z);
+    px->P1 = _mm256_mul_ps(cfy, z);
+    px->r0 = cfx;
+    px->r1 = cfy;
   }
-  const __m256 P2 = z, inv_r = _mm256_set1_ps(jb->inv_r), eps = _mm256_set1_ps(jb->depth_eps);
+  px->P2 = z;
   /* pow2_scale of each lane's depth. */
   __m256i ex = _mm256_and_si256(_mm256_srli_epi32(_mm256_castps_si256(z), 23),
                                 _mm256_set1_epi32(0xff));
   ex = _mm256_min_epi32(_mm256_max_epi32(ex, _mm256_set1_epi32(1)), _mm256_set1_epi32(253));
-  const __m256 down =
+  px->down =
       _mm256_castsi256_ps(_mm256_slli_epi32(_mm256_sub_epi32(_mm256_set1_epi32(254), ex), 23));
-  const __m256 rscale = _mm256_mul_ps(_mm256_castsi256_ps(_mm256_slli_epi32(ex, 23)), inv_r);
-  const __m256 rs2 = _mm256_mul_ps(rscale, rscale); /* may_count8's bound only */
+  px->rscale = _mm256_mul_ps(_mm256_castsi256_ps(_mm256_slli_epi32(ex, 23)),
+                             _mm256_set1_ps(jb->inv_r));
+  px->rs2 = _mm256_mul_ps(px->rscale, px->rscale); /* may_count8's bound only */
   const float num = R * (0.5f * (float)g->width);
   __m256 rpx = g->ortho ? _mm256_set1_ps(num / g->half_w)
                         : _mm256_div_ps(_mm256_set1_ps(num), _mm256_mul_ps(_mm256_set1_ps(g->half_w), z));
   __m256 rl = _mm256_div_ps(rpx, _mm256_set1_ps((float)lv->s));
-  live = _mm256_and_ps(live, _mm256_cmp_ps(rl, one, _CMP_GE_OQ));
-  if (!_mm256_movemask_ps(live)) {
+  px->live = _mm256_and_ps(live, _mm256_cmp_ps(rl, one, _CMP_GE_OQ));
+  if (!_mm256_movemask_ps(px->live)) return 0;
+  const float cap = (float)(lv->w > lv->h ? lv->w : lv->h);
+  rl = _mm256_blendv_ps(rl, _mm256_set1_ps(cap), _mm256_cmp_ps(rl, _mm256_set1_ps(cap), _CMP_GT_OQ));
+  px->st = _mm256_div_ps(rl, _mm256_set1_ps((float)(p->steps + 1)));
+  const __m256i i3 = _mm256_mullo_epi32(lane, _mm256_set1_epi32(3));
+  const float *nb = lv->normal + 3 * ci;
+  px->n0 = obs_avx2_gather(jb->loads, nb, i3);
+  px->n1 = obs_avx2_gather(jb->loads, nb + 1, i3);
+  const __m256 n2 = obs_avx2_gather(jb->loads, nb + 2, i3);
+  px->nr = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(px->n0, px->r0), _mm256_mul_ps(px->n1, px->r1)),
+                         _mm256_mul_ps(n2, one));
+  px->cx = _mm256_add_ps(_mm256_cvtepi32_ps(px->ax), _mm256_set1_ps(0.5f));
+  px->cy = _mm256_set1_ps((float)y + 0.5f);
+  return 1;
+}
+
+/* Direction i of the lanes' rows of the direction table (jb->dirs8, see obs_hbao_cpu_apply_ex);
+ * 0 when no lane searches it. */
+OBS_AVX2_INLINE int dir_setup8(const hbao_job *jb, const hbao_px8 *px, const float *d8, int i,
+                               hbao_dir8 *d) {
+  const __m256 zero = _mm256_setzero_ps(), sign = _mm256_set1_ps(-0.0f);
+  const __m256 cos_b = _mm256_set1_ps(jb->cos_b), sin_b = _mm256_set1_ps(jb->sin_b);
+  d->dx = _mm256_loadu_ps(d8 + 24 * i);
+  d->dy = _mm256_loadu_ps(d8 + 24 * i + 8);
+  d->jit = _mm256_loadu_ps(d8 + 24 * i + 16);
+  __m256 cos_t;
+  tangent8(px->n0, px->n1, px->nr, px->r0, px->r1, d->dx, _mm256_xor_ps(d->dy, sign), &d->sin_t,
+           &cos_t);
+  d->act = _mm256_and_ps(
+      px->live, _mm256_cmp_ps(_mm256_sub_ps(_mm256_mul_ps(cos_t, cos_b), _mm256_mul_ps(d->sin_t, sin_b)),
+                              zero, _CMP_GT_OQ));
+  d->sin_h = _mm256_add_ps(_mm256_mul_ps(d->sin_t, cos_b), _mm256_mul_ps(cos_t, sin_b));
+  return _mm256_movemask_ps(d->act) != 0;
+}
+
+/* The horizon search of one direction over march8's samples: ao_texel's step loop, per lane. */
+OBS_AVX2_INLINE __m256 horizon8(const hbao_job *jb, const hbao_px8 *px, const hbao_dir8 *d,
+                                const hbao_step8 *sp, __m256 sum) {
+  const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f);
+  const __m256 sign = _mm256_set1_ps(-0.0f), eps = _mm256_set1_ps(jb->depth_eps);
+  __m256 sin_h = d->sin_h;
+  for (int k = 0; k < jb->p->steps; k++) {
+    __m256 ok = sp[k].ok;
+    if (!_mm256_movemask_ps(ok)) continue;
+    const __m256 zs = sp[k].zs;
+    /* ao_texel's scaled offset. */
+    __m256 dx = _mm256_sub_ps(sp[k].S0, px->P0), dy = _mm256_sub_ps(sp[k].S1, px->P1);
+    __m256 dz = _mm256_add_ps(_mm256_sub_ps(zs, px->P2), _mm256_mul_ps(eps, _mm256_add_ps(zs, px->P2)));
+    __m256 qx = _mm256_mul_ps(dx, px->down), qy = _mm256_mul_ps(dy, px->down);
+    __m256 qz = _mm256_mul_ps(dz, px->down);
+    __m256 q2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(qx, qx), _mm256_mul_ps(qy, qy)),
+                              _mm256_mul_ps(qz, qz));
+    __m256 lz_s, h2_s;
+    __m256 l2_s = tangent8_line(px->n0, px->n1, px->nr, px->r0, px->r1, _mm256_cvtepi32_ps(sp[k].ox),
+                                _mm256_xor_ps(_mm256_cvtepi32_ps(sp[k].oy), sign), &lz_s, &h2_s);
+    if (!_mm256_movemask_ps(
+            _mm256_and_ps(ok, may_count8(q2, qz, l2_s, lz_s, px->rs2, d->sin_t, sin_h))))
+      continue;
+    __m256 len = _mm256_sqrt_ps(q2);
+    __m256 dist = _mm256_mul_ps(len, px->rscale);
+    ok = _mm256_and_ps(ok, _mm256_and_ps(_mm256_cmp_ps(len, zero, _CMP_GT_OQ),
+                                         _mm256_cmp_ps(dist, one, _CMP_LT_OQ)));
+    if (!_mm256_movemask_ps(ok)) continue;
+    __m256 d2 = _mm256_mul_ps(dist, dist);
+    __m256 sin_s = _mm256_div_ps(_mm256_xor_ps(qz, sign), len);
+    __m256 sin_ts;
+    tangent8_finish(lz_s, l2_s, h2_s, &sin_ts, NULL);
+    __m256 e = _mm256_add_ps(_mm256_sub_ps(sin_s, sin_ts), d->sin_t);
+    e = _mm256_blendv_ps(e, one, _mm256_cmp_ps(e, one, _CMP_GT_OQ));
+    __m256 up = _mm256_and_ps(ok, _mm256_cmp_ps(e, sin_h, _CMP_GT_OQ));
+    __m256 c = _mm256_mul_ps(_mm256_sub_ps(one, d2), _mm256_sub_ps(e, sin_h));
+    sum = _mm256_blendv_ps(sum, _mm256_add_ps(sum, c), up);
+    sin_h = _mm256_blendv_ps(sin_h, e, up);
+  }
+  return sum;
+}
+
+/* ao_texel for texels x..x+7 of level row y (all inside the level), same operations per lane.
+ * The next direction's samples are gathered before this one's search: a mispredicted branch of
+ * the search then does not discard them, and their cache misses overlap it. */
+OBS_AVX2_FN static void ao_span8(const hbao_job *jb, int x, int y, float *dst) {
+  const obs_hbao_params *p = jb->p;
+  const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f);
+  hbao_px8 px;
+  if (!px_setup8(jb, x, y, &px)) {
     _mm256_storeu_ps(dst, one);
     return;
   }
-  const float cap = (float)(lv->w > lv->h ? lv->w : lv->h);
-  rl = _mm256_blendv_ps(rl, _mm256_set1_ps(cap), _mm256_cmp_ps(rl, _mm256_set1_ps(cap), _CMP_GT_OQ));
-  const __m256 st = _mm256_div_ps(rl, _mm256_set1_ps((float)(p->steps + 1)));
-  const __m256i i3 = _mm256_mullo_epi32(lane, _mm256_set1_epi32(3));
-  const float *nb = lv->normal + 3 * ci;
-  const __m256 n0 = obs_avx2_gather(jb->loads, nb, i3);
-  const __m256 n1 = obs_avx2_gather(jb->loads, nb + 1, i3);
-  const __m256 n2 = obs_avx2_gather(jb->loads, nb + 2, i3);
-  const __m256 nr = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(n0, r0), _mm256_mul_ps(n1, r1)),
-                                  _mm256_mul_ps(n2, r2));
-  /* Each lane's row of the direction table: cell ((y & 3) * 4 + (x & 3)), 4 floats per direction. */
-  const __m256i cell = _mm256_add_epi32(_mm256_set1_epi32((y & 3) * 4),
-                                        _mm256_and_si256(ax, _mm256_set1_epi32(3)));
-  const __m256i trow = _mm256_mullo_epi32(cell, _mm256_set1_epi32(p->directions * 4));
-  const __m256 cx = _mm256_add_ps(_mm256_cvtepi32_ps(ax), half);
-  const __m256 cy = _mm256_set1_ps((float)y + 0.5f);
-  const __m256 cos_b = _mm256_set1_ps(jb->cos_b), sin_b = _mm256_set1_ps(jb->sin_b);
+  const float *d8 = jb->dirs8 + (size_t)(((y & 3) << 2) | (x & 3)) * (size_t)p->directions * 24;
+  hbao_step8 sp[2][OBS_HBAO_MAX_STEPS];
+  hbao_dir8 d[2];
+  int use[2];
+  use[0] = dir_setup8(jb, &px, d8, 0, &d[0]);
+  if (use[0]) march8(jb, px.ax, px.ay, px.cx, px.cy, d[0].dx, d[0].dy, d[0].jit, px.st, d[0].act, sp[0]);
   __m256 sum = zero;
   for (int i = 0; i < p->directions; i++) {
-    __m256i ti = _mm256_add_epi32(trow, _mm256_set1_epi32(4 * i));
-    __m256 dx = obs_avx2_gather(jb->loads, jb->table, ti);
-    __m256 dy = obs_avx2_gather(jb->loads, jb->table + 1, ti);
-    __m256 jit = obs_avx2_gather(jb->loads, jb->table + 2, ti);
-    __m256 sin_t, cos_t;
-    tangent8(n0, n1, nr, r0, r1, dx, _mm256_xor_ps(dy, sign), &sin_t, &cos_t);
-    __m256 act = _mm256_and_ps(
-        live, _mm256_cmp_ps(_mm256_sub_ps(_mm256_mul_ps(cos_t, cos_b), _mm256_mul_ps(sin_t, sin_b)),
-                            zero, _CMP_GT_OQ));
-    if (!_mm256_movemask_ps(act)) continue;
-    __m256 sin_h = _mm256_add_ps(_mm256_mul_ps(sin_t, cos_b), _mm256_mul_ps(cos_t, sin_b));
-    hbao_step8 sp[OBS_HBAO_MAX_STEPS];
-    march8(jb, ax, ay, cx, cy, dx, dy, jit, st, act, sp);
-    for (int k = 0; k < p->steps; k++) {
-      __m256 ok = sp[k].ok;
-      if (!_mm256_movemask_ps(ok)) continue;
-      const __m256i ox = sp[k].ox, oy = sp[k].oy;
-      const __m256 zs = sp[k].zs, S0 = sp[k].S0, S1 = sp[k].S1;
-      /* ao_texel's scaled offset, lane by lane. */
-      __m256 dx = _mm256_sub_ps(S0, P0), dy = _mm256_sub_ps(S1, P1);
-      __m256 dz = _mm256_add_ps(_mm256_sub_ps(zs, P2), _mm256_mul_ps(eps, _mm256_add_ps(zs, P2)));
-      __m256 qx = _mm256_mul_ps(dx, down), qy = _mm256_mul_ps(dy, down), qz = _mm256_mul_ps(dz, down);
-      __m256 q2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(qx, qx), _mm256_mul_ps(qy, qy)),
-                                _mm256_mul_ps(qz, qz));
-      __m256 lz_s, h2_s;
-      __m256 l2_s = tangent8_line(n0, n1, nr, r0, r1, _mm256_cvtepi32_ps(ox),
-                                  _mm256_xor_ps(_mm256_cvtepi32_ps(oy), sign), &lz_s, &h2_s);
-      if (!_mm256_movemask_ps(
-              _mm256_and_ps(ok, may_count8(q2, qz, l2_s, lz_s, rs2, sin_t, sin_h))))
-        continue;
-      __m256 len = _mm256_sqrt_ps(q2);
-      __m256 dist = _mm256_mul_ps(len, rscale);
-      ok = _mm256_and_ps(ok, _mm256_and_ps(_mm256_cmp_ps(len, zero, _CMP_GT_OQ),
-                                           _mm256_cmp_ps(dist, one, _CMP_LT_OQ)));
-      if (!_mm256_movemask_ps(ok)) continue;
-      __m256 d2 = _mm256_mul_ps(dist, dist);
-      __m256 sin_s = _mm256_div_ps(_mm256_xor_ps(qz, sign), len);
-      __m256 sin_ts;
-      tangent8_finish(lz_s, l2_s, h2_s, &sin_ts, NULL);
-      __m256 e = _mm256_add_ps(_mm256_sub_ps(sin_s, sin_ts), sin_t);
-      e = _mm256_blendv_ps(e, one, _mm256_cmp_ps(e, one, _CMP_GT_OQ));
-      __m256 up = _mm256_and_ps(ok, _mm256_cmp_ps(e, sin_h, _CMP_GT_OQ));
-      __m256 c = _mm256_mul_ps(_mm256_sub_ps(one, d2), _mm256_sub_ps(e, sin_h));
-      sum = _mm256_blendv_ps(sum, _mm256_add_ps(sum, c), up);
-      sin_h = _mm256_blendv_ps(sin_h, e, up);
-    }
+    const int c = i & 1, n = c ^ 1;
+    if (i + 1 < p->directions && (use[n] = dir_setup8(jb, &px, d8, i + 1, &d[n])))
+      march8(jb, px.ax, px.ay, px.cx, px.cy, d[n].dx, d[n].dy, d[n].jit, px.st, d[n].act, sp[n]);
+    if (use[c]) sum = horizon8(jb, &px, &d[c], sp[c], sum);
   }
   __m256 ao = _mm256_sub_ps(one, _mm256_div_ps(_mm256_mul_ps(_mm256_set1_ps(p->scale), sum),
                                                _mm256_set1_ps((float)p->directions)));
   ao = _mm256_min_ps(_mm256_max_ps(ao, zero), one);
-  _mm256_storeu_ps(dst, _mm256_blendv_ps(one, ao, live));
+  _mm256_storeu_ps(dst, _mm256_blendv_ps(one, ao, px.live));
 }
 #endif
 
@@ -625,12 +669,21 @@ int obs_hbao_cpu_apply_ex(const obs_gbuffer *g, const obs_hbao_params *p, int th
   size_t ln = (size_t)lw * (size_t)lh;
   /* One allocation: table, half-resolution depth+normal+AO (if any), raw AO, blur temporary. */
   size_t ntab = (size_t)OBS_HBAO_NOISE_CELLS * (size_t)p->directions * 4;
+  size_t ntab8 = (size_t)OBS_HBAO_NOISE_CELLS * (size_t)p->directions * 24;
   size_t nhalf = p->half_res ? 5 * ln : 0;
-  float *mem = malloc((ntab + nhalf + 2 * n + (size_t)lw + (size_t)lh) * sizeof(float));
+  float *mem = malloc((ntab + ntab8 + nhalf + 2 * n + (size_t)lw + (size_t)lh) * sizeof(float));
   if (!mem) return obs_err_set(err, OBS_ENOMEM, "hbao: %dx%d: out of memory", g->width, g->height);
-  float *table = mem, *half = mem + ntab, *raw = half + nhalf, *tmp = raw + n;
+  float *table = mem, *dirs8 = mem + ntab, *half = dirs8 + ntab8, *raw = half + nhalf, *tmp = raw + n;
   float *colf = tmp + n, *rowf = colf + lw;
   obs_hbao_directions(p, table);
+  for (int ph = 0; ph < OBS_HBAO_NOISE_CELLS; ph++)
+    for (int i = 0; i < p->directions; i++)
+      for (int c = 0; c < 3; c++)
+        for (int l = 0; l < 8; l++) {
+          int cell = (ph & ~3) | ((ph + l) & 3);
+          dirs8[((size_t)ph * (size_t)p->directions + (size_t)i) * 24 + (size_t)(8 * c + l)] =
+              table[((size_t)cell * (size_t)p->directions + (size_t)i) * 4 + (size_t)c];
+        }
   int s = p->half_res ? 2 : 1;
   for (int x = 0; x < lw; x++) {
     float fx = (float)(s * x) + 0.5f;
@@ -646,6 +699,7 @@ int obs_hbao_cpu_apply_ex(const obs_gbuffer *g, const obs_hbao_params *p, int th
   jb.g = g;
   jb.p = p;
   jb.table = table;
+  jb.dirs8 = dirs8;
   jb.colf = colf;
   jb.rowf = rowf;
   /* The vector kernels index with 32-bit lanes. */
