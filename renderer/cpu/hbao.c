@@ -278,21 +278,25 @@ typedef struct hbao_dir8 {
 } hbao_dir8;
 
 /* The constants of texels x..x+7 of level row y; 0 when no lane needs a search. */
-OBS_AVX2_INLINE int px_setup8(const hbao_job *jb, int x, int y, hbao_px8 *px) {
+OBS_AVX2_INLINE int px_setup8(const hbao_job *jb, int x, int stride, int y, hbao_px8 *px) {
   const hbao_level *lv = &jb->lv;
   const obs_hbao_params *p = jb->p;
   const obs_gbuffer *g = jb->g;
   const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f);
   const size_t ci = (size_t)y * (size_t)lv->w + (size_t)x;
   const float R = p->radius;
-  const __m256 z = _mm256_loadu_ps(lv->depth + ci);
+  const __m256i lane = _mm256_mullo_epi32(_mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7),
+                                          _mm256_set1_epi32(stride));
+  const __m256 z = stride == 1 ? _mm256_loadu_ps(lv->depth + ci)
+                               : obs_avx2_gather(jb->loads, lv->depth + ci, lane);
   __m256 live = _mm256_cmp_ps(z, zero, _CMP_GT_OQ);
   if (!(R > 0.0f) || !_mm256_movemask_ps(live)) return 0;
-  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
   px->ax = _mm256_add_epi32(_mm256_set1_epi32(x), lane);
   px->ay = _mm256_set1_epi32(y);
   /* The tables hold nx half_w and ny half_h, which are r's x and y (perspective) and P's factors. */
-  const __m256 cfx = _mm256_loadu_ps(jb->colf + x), cfy = _mm256_set1_ps(jb->rowf[y]);
+  const __m256 cfx = stride == 1 ? _mm256_loadu_ps(jb->colf + x)
+                                 : obs_avx2_gather(jb->loads, jb->colf + x, lane);
+  const __m256 cfy = _mm256_set1_ps(jb->rowf[y]);
   px->r0 = px->r1 = zero;
   if (g->ortho) {
     px->P0 = cfx;
@@ -334,15 +338,21 @@ OBS_AVX2_INLINE int px_setup8(const hbao_job *jb, int x, int y, hbao_px8 *px) {
   return 1;
 }
 
-/* Direction i of the lanes' rows of the direction table (jb->dirs8, see obs_hbao_cpu_apply_ex);
- * 0 when no lane searches it. */
-OBS_AVX2_INLINE int dir_setup8(const hbao_job *jb, const hbao_px8 *px, const float *d8, int i,
-                               hbao_dir8 *d) {
+/* Direction i of the lanes' rows of the direction table (jb->dirs8, see obs_hbao_cpu_apply_ex,
+ * or with bcast one row of jb->table); 0 when no lane searches it. */
+OBS_AVX2_INLINE int dir_setup8(const hbao_job *jb, const hbao_px8 *px, const float *d8, int bcast,
+                               int i, hbao_dir8 *d) {
   const __m256 zero = _mm256_setzero_ps(), sign = _mm256_set1_ps(-0.0f);
   const __m256 cos_b = _mm256_set1_ps(jb->cos_b), sin_b = _mm256_set1_ps(jb->sin_b);
-  d->dx = _mm256_loadu_ps(d8 + 24 * i);
-  d->dy = _mm256_loadu_ps(d8 + 24 * i + 8);
-  d->jit = _mm256_loadu_ps(d8 + 24 * i + 16);
+  if (bcast) { /* every lane in the same cell: d8 is that cell's row of jb->table */
+    d->dx = _mm256_set1_ps(d8[4 * i]);
+    d->dy = _mm256_set1_ps(d8[4 * i + 1]);
+    d->jit = _mm256_set1_ps(d8[4 * i + 2]);
+  } else {
+    d->dx = _mm256_loadu_ps(d8 + 24 * i);
+    d->dy = _mm256_loadu_ps(d8 + 24 * i + 8);
+    d->jit = _mm256_loadu_ps(d8 + 24 * i + 16);
+  }
   __m256 cos_t;
   tangent8(px->n0, px->n1, px->nr, px->r0, px->r1, d->dx, _mm256_xor_ps(d->dy, sign), &d->sin_t,
            &cos_t);
@@ -395,34 +405,46 @@ OBS_AVX2_INLINE __m256 horizon8(const hbao_job *jb, const hbao_px8 *px, const hb
   return sum;
 }
 
-/* ao_texel for texels x..x+7 of level row y (all inside the level), same operations per lane.
- * The next direction's samples are gathered before this one's search: a mispredicted branch of
- * the search then does not discard them, and their cache misses overlap it. */
-OBS_AVX2_FN static void ao_span8(const hbao_job *jb, int x, int y, float *dst) {
+/* ao_texel for texels x + stride l (l = 0..7) of level row y (all inside the level), same
+ * operations per lane. Stride 4 puts eight texels of one noise cell in the lanes: they search the
+ * same directions, so each step's eight samples lie along one band of a few cache lines instead
+ * of four directions' worth, and the depth gathers, which bound the pass, miss far less. The
+ * next direction's samples are gathered before this one's search: a mispredicted branch of the
+ * search then does not discard them, and their cache misses overlap it. */
+OBS_AVX2_FN static void ao_span8(const hbao_job *jb, int x, int stride, int y, float *dst) {
   const obs_hbao_params *p = jb->p;
   const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f);
   hbao_px8 px;
-  if (!px_setup8(jb, x, y, &px)) {
-    _mm256_storeu_ps(dst, one);
-    return;
+  __m256 ao = one;
+  if (px_setup8(jb, x, stride, y, &px)) {
+    const int cell = ((y & 3) << 2) | (x & 3), bcast = stride == 4;
+    const float *d8 = bcast ? jb->table + (size_t)cell * (size_t)p->directions * 4
+                            : jb->dirs8 + (size_t)cell * (size_t)p->directions * 24;
+    hbao_step8 sp[2][OBS_HBAO_MAX_STEPS];
+    hbao_dir8 d[2];
+    int use[2];
+    use[0] = dir_setup8(jb, &px, d8, bcast, 0, &d[0]);
+    if (use[0])
+      march8(jb, px.ax, px.ay, px.cx, px.cy, d[0].dx, d[0].dy, d[0].jit, px.st, d[0].act, sp[0]);
+    __m256 sum = zero;
+    for (int i = 0; i < p->directions; i++) {
+      const int c = i & 1, n = c ^ 1;
+      if (i + 1 < p->directions && (use[n] = dir_setup8(jb, &px, d8, bcast, i + 1, &d[n])))
+        march8(jb, px.ax, px.ay, px.cx, px.cy, d[n].dx, d[n].dy, d[n].jit, px.st, d[n].act, sp[n]);
+      if (use[c]) sum = horizon8(jb, &px, &d[c], sp[c], sum);
+    }
+    ao = _mm256_sub_ps(one, _mm256_div_ps(_mm256_mul_ps(_mm256_set1_ps(p->scale), sum),
+                                          _mm256_set1_ps((float)p->directions)));
+    ao = _mm256_min_ps(_mm256_max_ps(ao, zero), one);
+    ao = _mm256_blendv_ps(one, ao, px.live);
   }
-  const float *d8 = jb->dirs8 + (size_t)(((y & 3) << 2) | (x & 3)) * (size_t)p->directions * 24;
-  hbao_step8 sp[2][OBS_HBAO_MAX_STEPS];
-  hbao_dir8 d[2];
-  int use[2];
-  use[0] = dir_setup8(jb, &px, d8, 0, &d[0]);
-  if (use[0]) march8(jb, px.ax, px.ay, px.cx, px.cy, d[0].dx, d[0].dy, d[0].jit, px.st, d[0].act, sp[0]);
-  __m256 sum = zero;
-  for (int i = 0; i < p->directions; i++) {
-    const int c = i & 1, n = c ^ 1;
-    if (i + 1 < p->directions && (use[n] = dir_setup8(jb, &px, d8, i + 1, &d[n])))
-      march8(jb, px.ax, px.ay, px.cx, px.cy, d[n].dx, d[n].dy, d[n].jit, px.st, d[n].act, sp[n]);
-    if (use[c]) sum = horizon8(jb, &px, &d[c], sp[c], sum);
+  if (stride == 1) {
+    _mm256_storeu_ps(dst, ao);
+  } else {
+    float v[8];
+    _mm256_storeu_ps(v, ao);
+    for (int l = 0; l < 8; l++) dst[stride * l] = v[l];
   }
-  __m256 ao = _mm256_sub_ps(one, _mm256_div_ps(_mm256_mul_ps(_mm256_set1_ps(p->scale), sum),
-                                               _mm256_set1_ps((float)p->directions)));
-  ao = _mm256_min_ps(_mm256_max_ps(ao, zero), one);
-  _mm256_storeu_ps(dst, _mm256_blendv_ps(one, ao, px.live));
 }
 #endif
 
@@ -433,8 +455,12 @@ OBS_HOT_INLINE int ao_tile_body(void *user, int thread, int x0, int y0, int x1, 
     float *row = jb->out + (size_t)y * (size_t)jb->lv.w;
     int x = x0;
 #if OBS_SIMD_AVX2
+    if (jb->simd && x1 - x0 == 32) {
+      for (int q = 0; q < 4; q++) ao_span8(jb, x0 + q, 4, y, row + x0 + q);
+      x = x1;
+    }
     if (jb->simd)
-      for (; x + 8 <= x1; x += 8) ao_span8(jb, x, y, row + x);
+      for (; x + 8 <= x1; x += 8) ao_span8(jb, x, 1, y, row + x);
 #endif
     for (; x < x1; x++) row[x] = ao_texel(jb, x, y);
   }
