@@ -607,6 +607,11 @@ OBS_AVX2_FN static void blur_span8(const hbao_job *jb, int x, int y, float *dst)
       int qy = jb->axis ? y + k : y;
       if (qy < 0 || qy >= H) continue;
       size_t j = (size_t)qy * (size_t)W + (size_t)(jb->axis ? x : x + k);
+      if (k == 0) { /* exp(-0) = 1: the centre tap's weight, as blur_pixel */
+        sw = _mm256_add_ps(sw, one);
+        sa = _mm256_add_ps(sa, _mm256_loadu_ps(jb->in + j));
+        continue;
+      }
       __m256 z = _mm256_loadu_ps(g->depth + j);
       __m256 ok = _mm256_cmp_ps(z, zero, _CMP_GT_OQ);
       __m256 q = _mm256_div_ps(_mm256_and_ps(_mm256_sub_ps(z, zc), absmask), zc);
@@ -639,6 +644,11 @@ OBS_HOT_INLINE void blur_pixel(const hbao_job *jb, int x, int y) {
     int qx = jb->axis ? x : x + k, qy = jb->axis ? y + k : y;
     if (qx < 0 || qx >= W || qy < 0 || qy >= H) continue;
     size_t j = (size_t)qy * (size_t)W + (size_t)qx;
+    if (k == 0) { /* blur_exp(-0) is exactly 1 and 1 * a = a: the same sums, without the exp */
+      sw += 1.0f;
+      sa += jb->in[j];
+      continue;
+    }
     float z = g->depth[j];
     if (!(z > 0.0f)) continue;
     float q = rel_dz(z, zc);
