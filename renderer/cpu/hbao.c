@@ -39,7 +39,6 @@ typedef struct hbao_job {
    * (2 fx / W - 1) half_w and (1 - 2 fy / H) half_h at the texel's pixel centre, computed with the
    * scalar code's operations so a table lookup gives the same bits as the expression. */
   const float *colf, *rowf;
-  obs_tile_fn ao_fn; /* the AO pass's tile kernel, run in ao_strip_tile's order */
   /* For the AVX2 spans: the direction table per lane, 16 cells ((y & 3) * 4 + (x & 3) of the
    * span's first texel) x directions x (dx[8], dy[8], jitter[8]), copied bit for bit. */
   const float *dirs8;
@@ -455,45 +454,17 @@ OBS_HOT_INLINE int ao_tile_body(void *user, int thread, int x0, int y0, int x1, 
     float *row = jb->out + (size_t)y * (size_t)jb->lv.w;
     int x = x0;
 #if OBS_SIMD_AVX2
-    if (jb->simd && x1 - x0 == 32) {
-      for (int q = 0; q < 4; q++) ao_span8(jb, x0 + q, 4, y, row + x0 + q);
-      x = x1;
-    }
-    if (jb->simd)
+    if (jb->simd) {
+      for (; x + 32 <= x1; x += 32) /* four interleaved spans of stride 4 */
+        for (int q = 0; q < 4; q++) ao_span8(jb, x + q, 4, y, row + x + q);
       for (; x + 8 <= x1; x += 8) ao_span8(jb, x, 1, y, row + x);
+    }
 #endif
     for (; x < x1; x++) row[x] = ao_texel(jb, x, y);
   }
   return 0;
 }
 OBS_TILE_KERNELS(ao_tile)
-
-/* The AO pass's tiles, taken column strips first: HBAO_STRIP tiles wide, top to bottom, then the
- * next strip. Samples reach up to the projected radius around a tile; row after row of tiles
- * across the whole image, that band of depth rows outgrows the L2 cache, and the depth gathers,
- * which bound the pass, go to memory. A strip's band is a few hundred texels wide. */
-#define HBAO_STRIP 4
-static int ao_strip_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
-  (void)y0;
-  (void)x1;
-  (void)y1;
-  hbao_job *jb = user;
-  const int T = OBS_TILE, ntx = (jb->lv.w + T - 1) / T, nty = (jb->lv.h + T - 1) / T;
-  const int full = ntx / HBAO_STRIP, t = x0 / T;
-  int tx, ty;
-  if (t < full * HBAO_STRIP * nty) {
-    int r = t % (HBAO_STRIP * nty);
-    tx = t / (HBAO_STRIP * nty) * HBAO_STRIP + r % HBAO_STRIP;
-    ty = r / HBAO_STRIP;
-  } else {
-    int rest = ntx - full * HBAO_STRIP, r = t - full * HBAO_STRIP * nty;
-    tx = full * HBAO_STRIP + r % rest;
-    ty = r / rest;
-  }
-  int ex = (tx + 1) * T, ey = (ty + 1) * T;
-  return jb->ao_fn(user, thread, tx * T, ty * T, ex < jb->lv.w ? ex : jb->lv.w,
-                   ey < jb->lv.h ? ey : jb->lv.h);
-}
 
 /* exp(x) for the blur's weights, x <= 0, written once for the scalar and once for the AVX2 path
  * with the same operations, so both CPU paths give the same bits (libm's expf has no vector twin
@@ -769,9 +740,7 @@ int obs_hbao_cpu_apply_ex(const obs_gbuffer *g, const obs_hbao_params *p, int th
   }
   float *level_ao = p->half_res ? half + 4 * ln : raw;
   jb.out = level_ao;
-  jb.ao_fn = ao_fn;
-  int ntiles = ((lw + OBS_TILE - 1) / OBS_TILE) * ((lh + OBS_TILE - 1) / OBS_TILE);
-  int rc = obs_parallel_tiles(ntiles * OBS_TILE, 1, threads, ao_strip_tile, &jb, NULL, NULL, NULL);
+  int rc = obs_parallel_tiles(lw, lh, threads, ao_fn, &jb, NULL, NULL, NULL);
   if (stage_ms) stage_ms[OBS_HBAO_PASS_AO] = obs_now_ms() - t;
   if (!rc && p->half_res) {
     t = obs_now_ms();
