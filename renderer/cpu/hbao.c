@@ -240,6 +240,10 @@ OBS_AVX2_INLINE void march8(const hbao_job *jb, __m256i ax, __m256i ay, __m256 c
   const __m256 zero = _mm256_setzero_ps();
   const __m256i wmax = _mm256_set1_epi32(lv->w - 1), hmax = _mm256_set1_epi32(lv->h - 1);
   const __m256i izero = _mm256_setzero_si256(), lw = _mm256_set1_epi32(lv->w);
+  const __m256i s2 = _mm256_set1_epi32(2 * lv->s), ione = _mm256_set1_epi32(1);
+  const __m256 fw = _mm256_set1_ps((float)jb->g->width), fh = _mm256_set1_ps((float)jb->g->height);
+  const __m256 hw = _mm256_set1_ps(jb->g->half_w), hh = _mm256_set1_ps(jb->g->half_h);
+  const __m256 fone = _mm256_set1_ps(1.0f);
   for (int k = 1; k <= jb->p->steps; k++) {
     hbao_step8 *q = sp + (k - 1);
     __m256 o = _mm256_mul_ps(_mm256_add_ps(_mm256_set1_ps((float)k), jit), st);
@@ -255,8 +259,12 @@ OBS_AVX2_INLINE void march8(const hbao_job *jb, __m256i ax, __m256i ay, __m256 c
         _mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_or_si256(q->ox, q->oy), izero)), act);
     q->zs = obs_avx2_gather(jb->loads, lv->depth, _mm256_add_epi32(_mm256_mullo_epi32(iy, lw), ix));
     q->ok = _mm256_and_ps(ok, _mm256_cmp_ps(q->zs, zero, _CMP_GT_OQ));
-    q->S0 = obs_avx2_gather(jb->loads, jb->colf, ix);
-    q->S1 = obs_avx2_gather(jb->loads, jb->rowf, iy);
+    /* colf[ix] and rowf[iy] recomputed with their own operations (2 fx = 2 s i + 1 is exact):
+     * the divider is idle here, while gathers compete with the depth gather for the loads. */
+    __m256 tx = _mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_mullo_epi32(ix, s2), ione));
+    __m256 ty = _mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_mullo_epi32(iy, s2), ione));
+    q->S0 = _mm256_mul_ps(_mm256_sub_ps(_mm256_div_ps(tx, fw), fone), hw);
+    q->S1 = _mm256_mul_ps(_mm256_sub_ps(fone, _mm256_div_ps(ty, fh)), hh);
     if (!jb->g->ortho) {
       q->S0 = _mm256_mul_ps(q->S0, q->zs);
       q->S1 = _mm256_mul_ps(q->S1, q->zs);
