@@ -14,32 +14,7 @@
 #include "simd.h"
 #include "techniques.h"
 
-/* The texels the AO pass runs on: the full G-buffer or its half-resolution subsample. */
-typedef struct hbao_level {
-  int w, h, s;         /* size, and full-resolution pixels per texel (1 or 2) */
-  const float *depth;  /* w*h */
-  const float *normal; /* 3 per texel */
-} hbao_level;
-
-typedef struct hbao_job {
-  const obs_gbuffer *g; /* full resolution: camera and, for the blur, depth */
-  hbao_level lv;
-  const obs_hbao_params *p;
-  const float *table;
-  float cos_b, sin_b;
-  float inv_r; /* 1 / radius, rounded once for both backends (obs_hbao_inv_radius) */
-  float depth_eps; /* OBS_HBAO_DEPTH_EPS */
-  float falloff; /* 1 / (2 sigma^2) of the blur's Gaussian */
-  const float *in;
-  float *out;
-  int axis;      /* blur: 0 = horizontal, 1 = vertical */
-  int simd;      /* run the AVX2 spans (simd.h) */
-  int loads;     /* their gathers as scalar loads (obs_simd_gather_loads) */
-  /* For the AVX2 spans: obs_gbuffer_position's x and y factors per level column and row, i.e.
-   * (2 fx / W - 1) half_w and (1 - 2 fy / H) half_h at the texel's pixel centre, computed with the
-   * scalar code's operations so a table lookup gives the same bits as the expression. */
-  const float *colf, *rowf;
-} hbao_job;
+#include "hbao_cpu.h"
 
 /* Elevation (sin, cos) over the view plane z = const of the tangent plane (normal n) along the image
  * direction D = (dx, dy) (view-space, y up) seen from the pixel whose ray is r (r.z = 1; nr = n.r).
@@ -161,156 +136,6 @@ OBS_HOT_INLINE float ao_texel(const hbao_job *jb, int ax, int ay) {
   return ao > 1.0f ? 1.0f : ao > 0.0f ? ao : 0.0f;
 }
 
-#if OBS_SIMD_AVX2
-/* tangent() for eight directions at once; sin only when cos_t is NULL. */
-OBS_AVX2_INLINE void tangent8(__m256 n0, __m256 n1, __m256 nr, __m256 r0, __m256 r1, __m256 dx,
-                              __m256 dy, __m256 *sin_t, __m256 *cos_t) {
-  const __m256 zero = _mm256_setzero_ps(), sign = _mm256_set1_ps(-0.0f);
-  __m256 nd = _mm256_add_ps(_mm256_mul_ps(n0, dx), _mm256_mul_ps(n1, dy));
-  __m256 lx = _mm256_sub_ps(_mm256_mul_ps(nd, r0), _mm256_mul_ps(nr, dx));
-  __m256 ly = _mm256_sub_ps(_mm256_mul_ps(nd, r1), _mm256_mul_ps(nr, dy));
-  __m256 lz = nd;
-  __m256 flip = _mm256_and_ps(_mm256_cmp_ps(nr, zero, _CMP_NLT_UQ), sign);
-  lx = _mm256_xor_ps(lx, flip);
-  ly = _mm256_xor_ps(ly, flip);
-  lz = _mm256_xor_ps(lz, flip);
-  __m256 h2 = _mm256_add_ps(_mm256_mul_ps(lx, lx), _mm256_mul_ps(ly, ly));
-  __m256 l = _mm256_sqrt_ps(_mm256_add_ps(h2, _mm256_mul_ps(lz, lz)));
-  __m256 degenerate = _mm256_cmp_ps(l, zero, _CMP_NGT_UQ);
-  *sin_t = _mm256_andnot_ps(degenerate, _mm256_div_ps(_mm256_xor_ps(lz, sign), l));
-  if (cos_t)
-    *cos_t = _mm256_blendv_ps(_mm256_div_ps(_mm256_sqrt_ps(h2), l), _mm256_set1_ps(1.0f),
-                              degenerate);
-}
-
-/* ao_texel for texels x..x+7 of level row y (all inside the level), same operations per lane. */
-OBS_AVX2_FN static void ao_span8(const hbao_job *jb, int x, int y, float *dst) {
-  const hbao_level *lv = &jb->lv;
-  const obs_hbao_params *p = jb->p;
-  const obs_gbuffer *g = jb->g;
-  const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f);
-  const __m256 half = _mm256_set1_ps(0.5f), sign = _mm256_set1_ps(-0.0f);
-  const size_t ci = (size_t)y * (size_t)lv->w + (size_t)x;
-  const float R = p->radius;
-  const __m256 z = _mm256_loadu_ps(lv->depth + ci);
-  __m256 live = _mm256_cmp_ps(z, zero, _CMP_GT_OQ);
-  if (!(R > 0.0f) || !_mm256_movemask_ps(live)) {
-    _mm256_storeu_ps(dst, one);
-    return;
-  }
-  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-  const __m256i ax = _mm256_add_epi32(_mm256_set1_epi32(x), lane), ay = _mm256_set1_epi32(y);
-  /* The tables hold nx half_w and ny half_h, which are r's x and y (perspective) and P's factors. */
-  const __m256 cfx = _mm256_loadu_ps(jb->colf + x), cfy = _mm256_set1_ps(jb->rowf[y]);
-  __m256 P0, P1, r0 = zero, r1 = zero, r2 = one;
-  if (g->ortho) {
-    P0 = cfx;
-    P1 = cfy;
-  } else {
-    P0 = _mm256_mul_ps(cfx, z);
-    P1 = _mm256_mul_ps(cfy, z);
-    r0 = cfx;
-    r1 = cfy;
-  }
-  const __m256 P2 = z, inv_r = _mm256_set1_ps(jb->inv_r), eps = _mm256_set1_ps(jb->depth_eps);
-  /* pow2_scale of each lane's depth. */
-  __m256i ex = _mm256_and_si256(_mm256_srli_epi32(_mm256_castps_si256(z), 23),
-                                _mm256_set1_epi32(0xff));
-  ex = _mm256_min_epi32(_mm256_max_epi32(ex, _mm256_set1_epi32(1)), _mm256_set1_epi32(253));
-  const __m256 down =
-      _mm256_castsi256_ps(_mm256_slli_epi32(_mm256_sub_epi32(_mm256_set1_epi32(254), ex), 23));
-  const __m256 rscale = _mm256_mul_ps(_mm256_castsi256_ps(_mm256_slli_epi32(ex, 23)), inv_r);
-  const float num = R * (0.5f * (float)g->width);
-  __m256 rpx = g->ortho ? _mm256_set1_ps(num / g->half_w)
-                        : _mm256_div_ps(_mm256_set1_ps(num), _mm256_mul_ps(_mm256_set1_ps(g->half_w), z));
-  __m256 rl = _mm256_div_ps(rpx, _mm256_set1_ps((float)lv->s));
-  live = _mm256_and_ps(live, _mm256_cmp_ps(rl, one, _CMP_GE_OQ));
-  if (!_mm256_movemask_ps(live)) {
-    _mm256_storeu_ps(dst, one);
-    return;
-  }
-  const float cap = (float)(lv->w > lv->h ? lv->w : lv->h);
-  rl = _mm256_blendv_ps(rl, _mm256_set1_ps(cap), _mm256_cmp_ps(rl, _mm256_set1_ps(cap), _CMP_GT_OQ));
-  const __m256 st = _mm256_div_ps(rl, _mm256_set1_ps((float)(p->steps + 1)));
-  const __m256i i3 = _mm256_mullo_epi32(lane, _mm256_set1_epi32(3));
-  const float *nb = lv->normal + 3 * ci;
-  const __m256 n0 = obs_avx2_gather(jb->loads, nb, i3);
-  const __m256 n1 = obs_avx2_gather(jb->loads, nb + 1, i3);
-  const __m256 n2 = obs_avx2_gather(jb->loads, nb + 2, i3);
-  const __m256 nr = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(n0, r0), _mm256_mul_ps(n1, r1)),
-                                  _mm256_mul_ps(n2, r2));
-  /* Each lane's row of the direction table: cell ((y & 3) * 4 + (x & 3)), 4 floats per direction. */
-  const __m256i cell = _mm256_add_epi32(_mm256_set1_epi32((y & 3) * 4),
-                                        _mm256_and_si256(ax, _mm256_set1_epi32(3)));
-  const __m256i trow = _mm256_mullo_epi32(cell, _mm256_set1_epi32(p->directions * 4));
-  const __m256 cx = _mm256_add_ps(_mm256_cvtepi32_ps(ax), half);
-  const __m256 cy = _mm256_set1_ps((float)y + 0.5f);
-  const __m256 cos_b = _mm256_set1_ps(jb->cos_b), sin_b = _mm256_set1_ps(jb->sin_b);
-  const __m256i wmax = _mm256_set1_epi32(lv->w - 1), hmax = _mm256_set1_epi32(lv->h - 1);
-  const __m256i izero = _mm256_setzero_si256(), lw = _mm256_set1_epi32(lv->w);
-  __m256 sum = zero;
-  for (int i = 0; i < p->directions; i++) {
-    __m256i ti = _mm256_add_epi32(trow, _mm256_set1_epi32(4 * i));
-    __m256 dx = obs_avx2_gather(jb->loads, jb->table, ti);
-    __m256 dy = obs_avx2_gather(jb->loads, jb->table + 1, ti);
-    __m256 jit = obs_avx2_gather(jb->loads, jb->table + 2, ti);
-    __m256 sin_t, cos_t;
-    tangent8(n0, n1, nr, r0, r1, dx, _mm256_xor_ps(dy, sign), &sin_t, &cos_t);
-    __m256 act = _mm256_and_ps(
-        live, _mm256_cmp_ps(_mm256_sub_ps(_mm256_mul_ps(cos_t, cos_b), _mm256_mul_ps(sin_t, sin_b)),
-                            zero, _CMP_GT_OQ));
-    if (!_mm256_movemask_ps(act)) continue;
-    __m256 sin_h = _mm256_add_ps(_mm256_mul_ps(sin_t, cos_b), _mm256_mul_ps(cos_t, sin_b));
-    for (int k = 1; k <= p->steps; k++) {
-      __m256 o = _mm256_mul_ps(_mm256_add_ps(_mm256_set1_ps((float)k), jit), st);
-      __m256 sx = _mm256_add_ps(cx, _mm256_mul_ps(o, dx));
-      __m256 sy = _mm256_add_ps(cy, _mm256_mul_ps(o, dy));
-      __m256i ix = _mm256_cvttps_epi32(_mm256_floor_ps(sx));
-      __m256i iy = _mm256_cvttps_epi32(_mm256_floor_ps(sy));
-      ix = _mm256_min_epi32(_mm256_max_epi32(ix, izero), wmax);
-      iy = _mm256_min_epi32(_mm256_max_epi32(iy, izero), hmax);
-      __m256i ox = _mm256_sub_epi32(ix, ax), oy = _mm256_sub_epi32(iy, ay);
-      __m256 ok = _mm256_andnot_ps(
-          _mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_or_si256(ox, oy), izero)), act);
-      __m256 zs =
-          obs_avx2_gather(jb->loads, lv->depth, _mm256_add_epi32(_mm256_mullo_epi32(iy, lw), ix));
-      ok = _mm256_and_ps(ok, _mm256_cmp_ps(zs, zero, _CMP_GT_OQ));
-      if (!_mm256_movemask_ps(ok)) continue;
-      __m256 S0 = obs_avx2_gather(jb->loads, jb->colf, ix);
-      __m256 S1 = obs_avx2_gather(jb->loads, jb->rowf, iy);
-      if (!g->ortho) {
-        S0 = _mm256_mul_ps(S0, zs);
-        S1 = _mm256_mul_ps(S1, zs);
-      }
-      /* ao_texel's scaled offset, lane by lane. */
-      __m256 dx = _mm256_sub_ps(S0, P0), dy = _mm256_sub_ps(S1, P1);
-      __m256 dz = _mm256_add_ps(_mm256_sub_ps(zs, P2), _mm256_mul_ps(eps, _mm256_add_ps(zs, P2)));
-      __m256 qx = _mm256_mul_ps(dx, down), qy = _mm256_mul_ps(dy, down), qz = _mm256_mul_ps(dz, down);
-      __m256 len = _mm256_sqrt_ps(_mm256_add_ps(
-          _mm256_add_ps(_mm256_mul_ps(qx, qx), _mm256_mul_ps(qy, qy)), _mm256_mul_ps(qz, qz)));
-      __m256 dist = _mm256_mul_ps(len, rscale);
-      ok = _mm256_and_ps(ok, _mm256_and_ps(_mm256_cmp_ps(len, zero, _CMP_GT_OQ),
-                                           _mm256_cmp_ps(dist, one, _CMP_LT_OQ)));
-      if (!_mm256_movemask_ps(ok)) continue;
-      __m256 d2 = _mm256_mul_ps(dist, dist);
-      __m256 sin_s = _mm256_div_ps(_mm256_xor_ps(qz, sign), len);
-      __m256 sin_ts;
-      tangent8(n0, n1, nr, r0, r1, _mm256_cvtepi32_ps(ox),
-               _mm256_xor_ps(_mm256_cvtepi32_ps(oy), sign), &sin_ts, NULL);
-      __m256 e = _mm256_add_ps(_mm256_sub_ps(sin_s, sin_ts), sin_t);
-      e = _mm256_blendv_ps(e, one, _mm256_cmp_ps(e, one, _CMP_GT_OQ));
-      __m256 up = _mm256_and_ps(ok, _mm256_cmp_ps(e, sin_h, _CMP_GT_OQ));
-      __m256 c = _mm256_mul_ps(_mm256_sub_ps(one, d2), _mm256_sub_ps(e, sin_h));
-      sum = _mm256_blendv_ps(sum, _mm256_add_ps(sum, c), up);
-      sin_h = _mm256_blendv_ps(sin_h, e, up);
-    }
-  }
-  __m256 ao = _mm256_sub_ps(one, _mm256_div_ps(_mm256_mul_ps(_mm256_set1_ps(p->scale), sum),
-                                               _mm256_set1_ps((float)p->directions)));
-  ao = _mm256_min_ps(_mm256_max_ps(ao, zero), one);
-  _mm256_storeu_ps(dst, _mm256_blendv_ps(one, ao, live));
-}
-#endif
 
 OBS_HOT_INLINE int ao_tile_body(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)thread;
@@ -319,8 +144,11 @@ OBS_HOT_INLINE int ao_tile_body(void *user, int thread, int x0, int y0, int x1, 
     float *row = jb->out + (size_t)y * (size_t)jb->lv.w;
     int x = x0;
 #if OBS_SIMD_AVX2
-    if (jb->simd)
-      for (; x + 8 <= x1; x += 8) ao_span8(jb, x, y, row + x);
+    if (jb->simd) {
+      for (; x + 32 <= x1; x += 32) /* four interleaved spans of stride 4 */
+        for (int q = 0; q < 4; q++) obs_hbao_ao_span8(jb, x + q, 4, y, row + x + q);
+      for (; x + 8 <= x1; x += 8) obs_hbao_ao_span8(jb, x, 1, y, row + x);
+    }
 #endif
     for (; x < x1; x++) row[x] = ao_texel(jb, x, y);
   }
@@ -440,6 +268,11 @@ OBS_AVX2_FN static void blur_span8(const hbao_job *jb, int x, int y, float *dst)
       int qy = jb->axis ? y + k : y;
       if (qy < 0 || qy >= H) continue;
       size_t j = (size_t)qy * (size_t)W + (size_t)(jb->axis ? x : x + k);
+      if (k == 0) { /* exp(-0) = 1: the centre tap's weight, as blur_pixel */
+        sw = _mm256_add_ps(sw, one);
+        sa = _mm256_add_ps(sa, _mm256_loadu_ps(jb->in + j));
+        continue;
+      }
       __m256 z = _mm256_loadu_ps(g->depth + j);
       __m256 ok = _mm256_cmp_ps(z, zero, _CMP_GT_OQ);
       __m256 q = _mm256_div_ps(_mm256_and_ps(_mm256_sub_ps(z, zc), absmask), zc);
@@ -472,6 +305,11 @@ OBS_HOT_INLINE void blur_pixel(const hbao_job *jb, int x, int y) {
     int qx = jb->axis ? x : x + k, qy = jb->axis ? y + k : y;
     if (qx < 0 || qx >= W || qy < 0 || qy >= H) continue;
     size_t j = (size_t)qy * (size_t)W + (size_t)qx;
+    if (k == 0) { /* blur_exp(-0) is exactly 1 and 1 * a = a: the same sums, without the exp */
+      sw += 1.0f;
+      sa += jb->in[j];
+      continue;
+    }
     float z = g->depth[j];
     if (!(z > 0.0f)) continue;
     float q = rel_dz(z, zc);
@@ -510,6 +348,31 @@ int obs_hbao_cpu_apply(const obs_gbuffer *g, const obs_hbao_params *p, int threa
   return obs_hbao_cpu_apply_ex(g, p, threads, ao, NULL, stage_ms, err);
 }
 
+/* The host-made tables of the AO pass: the direction table (obs_hbao_directions), its per-lane
+ * copy for the AVX2 kernel's contiguous spans (hbao_job.dirs8), and the position factors per
+ * level column and row (hbao_job.colf, rowf). */
+static void job_tables(const obs_gbuffer *g, const obs_hbao_params *p, int lw, int lh,
+                       float *table, float *dirs8, float *colf, float *rowf) {
+  obs_hbao_directions(p, table);
+  for (int ph = 0; ph < OBS_HBAO_NOISE_CELLS; ph++)
+    for (int i = 0; i < p->directions; i++)
+      for (int c = 0; c < 3; c++)
+        for (int l = 0; l < 8; l++) {
+          int cell = (ph & ~3) | ((ph + l) & 3);
+          dirs8[((size_t)ph * (size_t)p->directions + (size_t)i) * 24 + (size_t)(8 * c + l)] =
+              table[((size_t)cell * (size_t)p->directions + (size_t)i) * 4 + (size_t)c];
+        }
+  int s = p->half_res ? 2 : 1;
+  for (int x = 0; x < lw; x++) {
+    float fx = (float)(s * x) + 0.5f;
+    colf[x] = (2.0f * fx / (float)g->width - 1.0f) * g->half_w;
+  }
+  for (int y = 0; y < lh; y++) {
+    float fy = (float)(s * y) + 0.5f;
+    rowf[y] = (1.0f - 2.0f * fy / (float)g->height) * g->half_h;
+  }
+}
+
 int obs_hbao_cpu_apply_ex(const obs_gbuffer *g, const obs_hbao_params *p, int threads, float *ao,
                           float *ao_raw, double *stage_ms, obs_err *err) {
   if (stage_ms)
@@ -528,27 +391,19 @@ int obs_hbao_cpu_apply_ex(const obs_gbuffer *g, const obs_hbao_params *p, int th
   size_t ln = (size_t)lw * (size_t)lh;
   /* One allocation: table, half-resolution depth+normal+AO (if any), raw AO, blur temporary. */
   size_t ntab = (size_t)OBS_HBAO_NOISE_CELLS * (size_t)p->directions * 4;
+  size_t ntab8 = (size_t)OBS_HBAO_NOISE_CELLS * (size_t)p->directions * 24;
   size_t nhalf = p->half_res ? 5 * ln : 0;
-  float *mem = malloc((ntab + nhalf + 2 * n + (size_t)lw + (size_t)lh) * sizeof(float));
+  float *mem = malloc((ntab + ntab8 + nhalf + 2 * n + (size_t)lw + (size_t)lh) * sizeof(float));
   if (!mem) return obs_err_set(err, OBS_ENOMEM, "hbao: %dx%d: out of memory", g->width, g->height);
-  float *table = mem, *half = mem + ntab, *raw = half + nhalf, *tmp = raw + n;
+  float *table = mem, *dirs8 = mem + ntab, *half = dirs8 + ntab8, *raw = half + nhalf, *tmp = raw + n;
   float *colf = tmp + n, *rowf = colf + lw;
-  obs_hbao_directions(p, table);
-  int s = p->half_res ? 2 : 1;
-  for (int x = 0; x < lw; x++) {
-    float fx = (float)(s * x) + 0.5f;
-    colf[x] = (2.0f * fx / (float)g->width - 1.0f) * g->half_w;
-  }
-  for (int y = 0; y < lh; y++) {
-    float fy = (float)(s * y) + 0.5f;
-    rowf[y] = (1.0f - 2.0f * fy / (float)g->height) * g->half_h;
-  }
-
+  job_tables(g, p, lw, lh, table, dirs8, colf, rowf);
   hbao_job jb;
   memset(&jb, 0, sizeof jb);
   jb.g = g;
   jb.p = p;
   jb.table = table;
+  jb.dirs8 = dirs8;
   jb.colf = colf;
   jb.rowf = rowf;
   /* The vector kernels index with 32-bit lanes. */

@@ -25,7 +25,31 @@ typedef struct ssao_job {
   float *out;
   int simd;  /* run the AVX2 spans (simd.h) */
   int loads; /* their gathers as scalar loads (obs_simd_gather_loads) */
+  /* For the AVX2 spans: each lane's reflected offset per sample, computed once with ssao_pixel's
+   * operations, so a load gives the same bits as the expression. 16 cells ((y & 3) * 4 + (x & 3)
+   * of the span's first pixel) x samples x (ox, oy, oz, ox w, oy h) x 8 lanes. */
+  const float *lanes;
 } ssao_job;
+
+#define SSAO_LANE_VALUES 5
+
+/* ssao_job.lanes for width w and height h (see there). */
+static void ssao_lanes_make(const obs_ssao_tables *t, int samples, int w, int h, float *out) {
+  const float fw = (float)w, fh = (float)h;
+  for (int ph = 0; ph < 16; ph++)
+    for (int k = 0; k < samples; k++)
+      for (int l = 0; l < 8; l++) {
+        const float *rot = t->rotation[(ph & ~3) | ((ph + l) & 3)];
+        const float *v = t->offsets[k];
+        float d = rot[0] * v[0] + rot[1] * v[1] + rot[2] * v[2];
+        float tt = 2.0f * d;
+        float o[SSAO_LANE_VALUES] = {v[0] - tt * rot[0], v[1] - tt * rot[1], v[2] - tt * rot[2], 0, 0};
+        o[3] = o[0] * fw;
+        o[4] = o[1] * fh;
+        for (int c = 0; c < SSAO_LANE_VALUES; c++)
+          out[(((size_t)ph * (size_t)samples + (size_t)k) * SSAO_LANE_VALUES + (size_t)c) * 8 + (size_t)l] = o[c];
+      }
+}
 
 /* floor(v) clamped to [0, n-1]: the texel a sample lands on, clamp-to-edge. The clamp comes before
  * the conversion, as in the shader, so huge offsets never overflow an int. */
@@ -99,15 +123,12 @@ OBS_AVX2_FN static void ssao_span8(const ssao_job *j, int x, int y, float *dst) 
     _mm256_storeu_ps(dst, one);
     return;
   }
-  float ra[3][8];
-  for (int l = 0; l < 8; l++)
-    for (int c = 0; c < 3; c++) ra[c][l] = t->rotation[(y & 3) * 4 + ((x + l) & 3)][c];
-  const __m256 rx = _mm256_loadu_ps(ra[0]), ry = _mm256_loadu_ps(ra[1]), rz = _mm256_loadu_ps(ra[2]);
   const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const float *lt = j->lanes + (size_t)(((y & 3) << 2) | (x & 3)) * (size_t)j->p->samples *
+                                   (SSAO_LANE_VALUES * 8);
   const __m256 fx = _mm256_add_ps(_mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_set1_epi32(x), lane)),
                                   half);
   const __m256 fy = _mm256_set1_ps((float)y + 0.5f);
-  const __m256 fw = _mm256_set1_ps((float)w), fh = _mm256_set1_ps((float)h);
   const __m256 xmax = _mm256_set1_ps((float)(w - 1)), ymax = _mm256_set1_ps((float)(h - 1));
   const __m256 s = g->ortho ? one : zp;
   const __m256 kx = _mm256_mul_ps(_mm256_set1_ps(2.0f * g->half_w), s);
@@ -125,26 +146,22 @@ OBS_AVX2_FN static void ssao_span8(const ssao_job *j, int x, int y, float *dst) 
   const __m256i wv = _mm256_set1_epi32(w);
   __m256 sum = zero;
   for (int k = 0; k < j->p->samples; k++) {
-    const float *v = t->offsets[k];
-    const __m256 v0 = _mm256_set1_ps(v[0]), v1 = _mm256_set1_ps(v[1]), v2 = _mm256_set1_ps(v[2]);
-    __m256 d = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(rx, v0), _mm256_mul_ps(ry, v1)),
-                             _mm256_mul_ps(rz, v2));
-    __m256 tt = _mm256_mul_ps(two, d);
-    __m256 ox = _mm256_sub_ps(v0, _mm256_mul_ps(tt, rx));
-    __m256 oy = _mm256_sub_ps(v1, _mm256_mul_ps(tt, ry));
-    __m256 oz = _mm256_sub_ps(v2, _mm256_mul_ps(tt, rz));
+    const float *o = lt + (size_t)k * (SSAO_LANE_VALUES * 8);
+    __m256 ox = _mm256_loadu_ps(o), oy = _mm256_loadu_ps(o + 8), oz = _mm256_loadu_ps(o + 16);
+    __m256 oxw = _mm256_loadu_ps(o + 24), oyh = _mm256_loadu_ps(o + 32);
     if (j->p->normal_oriented) {
       __m256 dn = _mm256_add_ps(
           _mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(ox, kx), n0),
                         _mm256_mul_ps(_mm256_mul_ps(oy, ky), n1)),
           _mm256_mul_ps(_mm256_mul_ps(oz, kz), n2));
+      /* Rounding is symmetric: (-ox) w is -(ox w). */
       __m256 flip = _mm256_and_ps(_mm256_cmp_ps(dn, zero, _CMP_LT_OQ), sign);
-      ox = _mm256_xor_ps(ox, flip);
-      oy = _mm256_xor_ps(oy, flip);
       oz = _mm256_xor_ps(oz, flip);
+      oxw = _mm256_xor_ps(oxw, flip);
+      oyh = _mm256_xor_ps(oyh, flip);
     }
-    __m256 sxf = _mm256_floor_ps(_mm256_add_ps(fx, _mm256_mul_ps(ox, fw)));
-    __m256 syf = _mm256_floor_ps(_mm256_add_ps(fy, _mm256_mul_ps(oy, fh)));
+    __m256 sxf = _mm256_floor_ps(_mm256_add_ps(fx, oxw));
+    __m256 syf = _mm256_floor_ps(_mm256_add_ps(fy, oyh));
     sxf = _mm256_min_ps(_mm256_max_ps(sxf, zero), xmax);
     syf = _mm256_min_ps(_mm256_max_ps(syf, zero), ymax);
     __m256i idx = _mm256_add_epi32(_mm256_mullo_epi32(_mm256_cvttps_epi32(syf), wv),
@@ -276,13 +293,23 @@ int obs_ssao_cpu_apply_ex(const obs_gbuffer *g, const obs_ssao_params *p, int th
   /* The vector kernels index with 32-bit lanes. */
   const int isa = obs_simd_isa();
   int simd = obs_simd_avx2() && n <= (size_t)INT32_MAX;
+  float *lanes = NULL;
+  if (simd) {
+    lanes = malloc((size_t)16 * (size_t)p->samples * SSAO_LANE_VALUES * 8 * sizeof *lanes);
+    if (!lanes) {
+      if (raw != ao_raw) free(raw);
+      return obs_err_set(err, OBS_ENOMEM, "ssao: %dx%d: out of memory", g->width, g->height);
+    }
+    ssao_lanes_make(&t, p->samples, g->width, g->height, lanes);
+  }
   ssao_job j = {.g = g,
                 .p = p,
                 .t = &t,
                 .raw = raw,
                 .out = p->blur ? raw : ao,
                 .simd = simd,
-                .loads = obs_simd_gather_loads()};
+                .loads = obs_simd_gather_loads(),
+                .lanes = lanes};
   double t0 = obs_now_ms();
   int rc = obs_parallel_tiles(g->width, g->height, threads < 1 ? 1 : threads,
                               obs_simd_tile_pick(ao_tile, isa), &j, NULL, NULL, NULL);
@@ -300,6 +327,7 @@ int obs_ssao_cpu_apply_ex(const obs_gbuffer *g, const obs_ssao_params *p, int th
     stage_ms[1] = p->blur ? t2 - t1 : 0.0;
   }
   if (raw != ao_raw) free(raw);
+  free(lanes);
   if (rc) return obs_err_set(err, rc, "ssao: CPU passes failed");
   return 0;
 }
