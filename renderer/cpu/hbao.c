@@ -352,8 +352,15 @@ OBS_HOT_INLINE int blur_tile_body(void *user, int thread, int x0, int y0, int x1
       const int rad = jb->p->blur_radius;
       const int lo = jb->axis ? 0 : rad, hi = jb->axis ? W : W - rad; /* taps stay in [0, W) */
       for (; x < x1 && x < lo; x++) blur_pixel(jb, x, y);
-      for (; x + 8 <= x1 && x + 8 <= hi; x += 8)
-        blur_span8(jb, x, y, jb->out + (size_t)y * (size_t)W + (size_t)x);
+      float *row = jb->out + (size_t)y * (size_t)W;
+      for (; x + 8 <= x1 && x + 8 <= hi; x += 8) blur_span8(jb, x, y, row + x);
+      /* The rest of the run, up to the last pixel whose taps stay inside, as one span that
+       * overlaps the previous one: a pixel's bits do not depend on which span computes them. */
+      const int e = x1 < hi ? x1 : hi;
+      if (x < e && e - 8 >= lo && e - 8 >= x0) {
+        blur_span8(jb, e - 8, y, row + e - 8);
+        x = e;
+      }
     }
 #endif
     for (; x < x1; x++) blur_pixel(jb, x, y);

@@ -275,9 +275,17 @@ OBS_HOT_INLINE int blur_tile_body(void *user, int thread, int x0, int y0, int x1
     int x = x0;
 #if OBS_SIMD_AVX2
     if (j->simd) {
-      /* Left of x = 2 and right of w - 9 the window leaves the image: scalar there. */
+      /* Left of x = 2 and at x = w - 1 the window leaves the image: scalar there. */
       for (; x < x1 && x < -OBS_SSAO_BLUR_LO; x++) row[x] = blur_pixel(j, x, y);
-      for (; x + 8 <= x1 && x + 7 + OBS_SSAO_BLUR_HI < w; x += 8) blur_span8(j, x, y, row + x);
+      const int lo = -OBS_SSAO_BLUR_LO, hi = w - OBS_SSAO_BLUR_HI; /* spans inside [lo, hi) */
+      for (; x + 8 <= x1 && x + 8 <= hi; x += 8) blur_span8(j, x, y, row + x);
+      /* The rest of the run as one span overlapping the previous one (the same bits per pixel
+       * whichever span computes it), where it stays inside the tile and the image. */
+      const int e = x1 < hi ? x1 : hi;
+      if (x < e && e - 8 >= lo && e - 8 >= x0) {
+        blur_span8(j, e - 8, y, row + e - 8);
+        x = e;
+      }
     }
 #endif
     for (; x < x1; x++) row[x] = blur_pixel(j, x, y);
