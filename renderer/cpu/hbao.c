@@ -159,13 +159,17 @@ OBS_TILE_KERNELS(ao_tile)
 /* exp(x) for the blur's weights, x <= 0, written once for the scalar and once for the AVX2 path
  * with the same operations, each a fused multiply-add where the formula has one (fmaf: an FMA
  * instruction in the x86-64-v3 loops, libm's correctly rounded fmaf in the baseline ones), so both
- * CPU paths give the same bits. Cephes' expf: x = n ln2 + r with |r| <= ln2 / 2, a degree-7
- * polynomial for e^r, 2^n from the exponent bits; within 2 ulp of expf. x is first raised to -88,
- * where n = -127 gives 2^n's bits 0: the weight is +0 below about -87.7, a normal float above.
+ * CPU paths give the same bits. Cephes' expf: x = n ln2 + r with n the integer nearest x log2(e)
+ * (|r| <= ln2 / 2 and a little), a degree-7 polynomial for e^r, 2^n from the exponent bits; within
+ * 2 ulp of expf. x is first raised to -88, where n = -127 gives 2^n's bits 0: the weight is +0
+ * below about -87.7, a normal float above.
  * exp(0) is exactly 1, which the blur's centre tap relies on. The GLSL twin keeps the device's exp:
  * the two backends differ by ~1e-7 in the blurred AO. */
 #define EXP_LO (-88.0f)
 #define EXP_LOG2E 1.44269504088896341f
+/* 1.5 * 2^23: x log2(e) + EXP_ROUND is rounded once to the integer n nearest x log2(e), which
+ * then sits in the low mantissa bits (two's complement), so (bits + 127) << 23 is 2^n's bits. */
+#define EXP_ROUND 12582912.0f
 #define EXP_C1 0.693359375f
 #define EXP_C2 (-2.12194440e-4f)
 #define EXP_P0 1.9875691500e-4f
@@ -179,7 +183,8 @@ OBS_TILE_KERNELS(ao_tile)
 
 OBS_HOT_INLINE float blur_exp(float x) {
   x = x > EXP_LO ? x : EXP_LO;
-  float n = floorf(fmaf(x, EXP_LOG2E, 0.5f));
+  const float m = fmaf(x, EXP_LOG2E, EXP_ROUND);
+  const float n = m - EXP_ROUND;
   float r = fmaf(n, -EXP_C1, x);
   r = fmaf(n, -EXP_C2, r);
   float y = fmaf(EXP_P0, r, EXP_P1);
@@ -188,7 +193,9 @@ OBS_HOT_INLINE float blur_exp(float x) {
   y = fmaf(y, r, EXP_P4);
   y = fmaf(y, r, EXP_P5);
   y = fmaf(y, r * r, r) + 1.0f;
-  uint32_t bits = (uint32_t)((int32_t)n + 127) << 23;
+  uint32_t bits;
+  memcpy(&bits, &m, sizeof bits);
+  bits = (bits + 127u) << 23;
   float two_n;
   memcpy(&two_n, &bits, sizeof two_n);
   return y * two_n;
@@ -246,8 +253,8 @@ static int up_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
 
 BLUR_AVX2_INLINE __m256 blur_exp8(__m256 x) {
   x = _mm256_max_ps(x, _mm256_set1_ps(EXP_LO));
-  const __m256 n = _mm256_floor_ps(
-      _mm256_fmadd_ps(x, _mm256_set1_ps(EXP_LOG2E), _mm256_set1_ps(0.5f)));
+  const __m256 m = _mm256_fmadd_ps(x, _mm256_set1_ps(EXP_LOG2E), _mm256_set1_ps(EXP_ROUND));
+  const __m256 n = _mm256_sub_ps(m, _mm256_set1_ps(EXP_ROUND));
   __m256 r = _mm256_fnmadd_ps(n, _mm256_set1_ps(EXP_C1), x);
   r = _mm256_fnmadd_ps(n, _mm256_set1_ps(EXP_C2), r);
   __m256 y = _mm256_fmadd_ps(_mm256_set1_ps(EXP_P0), r, _mm256_set1_ps(EXP_P1));
@@ -257,7 +264,7 @@ BLUR_AVX2_INLINE __m256 blur_exp8(__m256 x) {
   y = _mm256_fmadd_ps(y, r, _mm256_set1_ps(EXP_P5));
   y = _mm256_add_ps(_mm256_fmadd_ps(y, _mm256_mul_ps(r, r), r), _mm256_set1_ps(1.0f));
   const __m256i e = _mm256_slli_epi32(
-      _mm256_add_epi32(_mm256_cvttps_epi32(n), _mm256_set1_epi32(127)), 23);
+      _mm256_add_epi32(_mm256_castps_si256(m), _mm256_set1_epi32(127)), 23);
   return _mm256_mul_ps(y, _mm256_castsi256_ps(e));
 }
 
