@@ -157,13 +157,19 @@ OBS_HOT_INLINE int ao_tile_body(void *user, int thread, int x0, int y0, int x1, 
 OBS_TILE_KERNELS(ao_tile)
 
 /* exp(x) for the blur's weights, x <= 0, written once for the scalar and once for the AVX2 path
- * with the same operations, so both CPU paths give the same bits (libm's expf has no vector twin
- * here). Cephes' expf: x = n ln2 + r with |r| <= ln2 / 2, a degree-7 polynomial for e^r, 2^n from
- * the exponent bits; within 2 ulp of expf. Below -87 (where e^x leaves the normal floats) the weight
- * is 0; exp(0) is exactly 1, which the blur's centre tap relies on. The GLSL twin keeps the
- * device's exp: the two backends differ by ~1e-7 in the blurred AO, as before. */
-#define EXP_MIN (-87.0f)
+ * with the same operations, each a fused multiply-add where the formula has one (fmaf: an FMA
+ * instruction in the x86-64-v3 loops, libm's correctly rounded fmaf in the baseline ones), so both
+ * CPU paths give the same bits. Cephes' expf: x = n ln2 + r with n the integer nearest x log2(e)
+ * (|r| <= ln2 / 2 and a little), a degree-7 polynomial for e^r, 2^n from the exponent bits; within
+ * 2 ulp of expf. x is first raised to -88, where n = -127 gives 2^n's bits 0: the weight is +0
+ * below about -87.7, a normal float above.
+ * exp(0) is exactly 1, which the blur's centre tap relies on. The GLSL twin keeps the device's exp:
+ * the two backends differ by ~1e-7 in the blurred AO. */
+#define EXP_LO (-88.0f)
 #define EXP_LOG2E 1.44269504088896341f
+/* 1.5 * 2^23: x log2(e) + EXP_ROUND is rounded once to the integer n nearest x log2(e), which
+ * then sits in the low mantissa bits (two's complement), so (bits + 127) << 23 is 2^n's bits. */
+#define EXP_ROUND 12582912.0f
 #define EXP_C1 0.693359375f
 #define EXP_C2 (-2.12194440e-4f)
 #define EXP_P0 1.9875691500e-4f
@@ -172,14 +178,24 @@ OBS_TILE_KERNELS(ao_tile)
 #define EXP_P3 4.1665795894e-2f
 #define EXP_P4 1.6666665459e-1f
 #define EXP_P5 5.0000001201e-1f
+/* The blur's clamp of the squared relative depth difference: OBS_HBAO_MAX_REL_DZ^2 (1e8, exact). */
+#define BLUR_MAX_Q2 (OBS_HBAO_MAX_REL_DZ * OBS_HBAO_MAX_REL_DZ)
 
 OBS_HOT_INLINE float blur_exp(float x) {
-  if (!(x >= EXP_MIN)) return 0.0f;
-  float n = floorf(x * EXP_LOG2E + 0.5f);
-  float r = (x - n * EXP_C1) - n * EXP_C2;
-  float y = ((((EXP_P0 * r + EXP_P1) * r + EXP_P2) * r + EXP_P3) * r + EXP_P4) * r + EXP_P5;
-  y = (y * (r * r) + r) + 1.0f;
-  uint32_t bits = (uint32_t)((int32_t)n + 127) << 23;
+  x = x > EXP_LO ? x : EXP_LO;
+  const float m = fmaf(x, EXP_LOG2E, EXP_ROUND);
+  const float n = m - EXP_ROUND;
+  float r = fmaf(n, -EXP_C1, x);
+  r = fmaf(n, -EXP_C2, r);
+  float y = fmaf(EXP_P0, r, EXP_P1);
+  y = fmaf(y, r, EXP_P2);
+  y = fmaf(y, r, EXP_P3);
+  y = fmaf(y, r, EXP_P4);
+  y = fmaf(y, r, EXP_P5);
+  y = fmaf(y, r * r, r) + 1.0f;
+  uint32_t bits;
+  memcpy(&bits, &m, sizeof bits);
+  bits = (bits + 127u) << 23;
   float two_n;
   memcpy(&two_n, &bits, sizeof two_n);
   return y * two_n;
@@ -231,66 +247,73 @@ static int up_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
 }
 
 #if OBS_SIMD_AVX2
-OBS_AVX2_INLINE __m256 blur_exp8(__m256 x) {
-  const __m256 n = _mm256_floor_ps(
-      _mm256_add_ps(_mm256_mul_ps(x, _mm256_set1_ps(EXP_LOG2E)), _mm256_set1_ps(0.5f)));
-  const __m256 r = _mm256_sub_ps(_mm256_sub_ps(x, _mm256_mul_ps(n, _mm256_set1_ps(EXP_C1))),
-                                 _mm256_mul_ps(n, _mm256_set1_ps(EXP_C2)));
-  __m256 y = _mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(EXP_P0), r), _mm256_set1_ps(EXP_P1));
-  y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(EXP_P2));
-  y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(EXP_P3));
-  y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(EXP_P4));
-  y = _mm256_add_ps(_mm256_mul_ps(y, r), _mm256_set1_ps(EXP_P5));
-  y = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(y, _mm256_mul_ps(r, r)), r), _mm256_set1_ps(1.0f));
-  /* Lanes below EXP_MIN get a garbage n: their exponent bits are masked to 0 below. */
-  const __m256 ok = _mm256_cmp_ps(x, _mm256_set1_ps(EXP_MIN), _CMP_GE_OQ);
+/* The blur's AVX2 code uses FMA, which every CPU with the AVX2 level has (simd.h). */
+#define BLUR_AVX2_INLINE static inline __attribute__((target("avx2,fma"), always_inline))
+#define BLUR_AVX2_FN __attribute__((target("avx2,fma")))
+
+BLUR_AVX2_INLINE __m256 blur_exp8(__m256 x) {
+  x = _mm256_max_ps(x, _mm256_set1_ps(EXP_LO));
+  const __m256 m = _mm256_fmadd_ps(x, _mm256_set1_ps(EXP_LOG2E), _mm256_set1_ps(EXP_ROUND));
+  const __m256 n = _mm256_sub_ps(m, _mm256_set1_ps(EXP_ROUND));
+  __m256 r = _mm256_fnmadd_ps(n, _mm256_set1_ps(EXP_C1), x);
+  r = _mm256_fnmadd_ps(n, _mm256_set1_ps(EXP_C2), r);
+  __m256 y = _mm256_fmadd_ps(_mm256_set1_ps(EXP_P0), r, _mm256_set1_ps(EXP_P1));
+  y = _mm256_fmadd_ps(y, r, _mm256_set1_ps(EXP_P2));
+  y = _mm256_fmadd_ps(y, r, _mm256_set1_ps(EXP_P3));
+  y = _mm256_fmadd_ps(y, r, _mm256_set1_ps(EXP_P4));
+  y = _mm256_fmadd_ps(y, r, _mm256_set1_ps(EXP_P5));
+  y = _mm256_add_ps(_mm256_fmadd_ps(y, _mm256_mul_ps(r, r), r), _mm256_set1_ps(1.0f));
   const __m256i e = _mm256_slli_epi32(
-      _mm256_add_epi32(_mm256_cvttps_epi32(_mm256_and_ps(n, ok)), _mm256_set1_epi32(127)), 23);
-  return _mm256_and_ps(_mm256_mul_ps(y, _mm256_castsi256_ps(e)), ok);
+      _mm256_add_epi32(_mm256_castps_si256(m), _mm256_set1_epi32(127)), 23);
+  return _mm256_mul_ps(y, _mm256_castsi256_ps(e));
 }
 
 /* blur_tile's pixel for x..x+7 of row y, whose taps along the axis all lie inside the image
  * horizontally (rows outside it are skipped as in the scalar code). */
-OBS_AVX2_FN static void blur_span8(const hbao_job *jb, int x, int y, float *dst) {
+BLUR_AVX2_FN static void blur_span8(const hbao_job *jb, int x, int y, float *dst) {
   const obs_gbuffer *g = jb->g;
   const int rad = jb->p->blur_radius, W = g->width, H = g->height;
   const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f);
-  const __m256 absmask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
-  const __m256 maxq = _mm256_set1_ps(OBS_HBAO_MAX_REL_DZ), sign = _mm256_set1_ps(-0.0f);
-  const __m256 falloff = _mm256_set1_ps(jb->falloff);
+  const __m256 maxq2 = _mm256_set1_ps(BLUR_MAX_Q2);
   const __m256 sharp = _mm256_set1_ps(jb->p->blur_sharpness);
   const size_t i = (size_t)y * (size_t)W + (size_t)x;
   const __m256 zc = _mm256_loadu_ps(g->depth + i);
   const __m256 covered = _mm256_cmp_ps(zc, zero, _CMP_GT_OQ);
+  if (!_mm256_movemask_ps(covered)) {
+    _mm256_storeu_ps(dst, _mm256_loadu_ps(jb->in + i));
+    return;
+  }
+  const __m256 rz = _mm256_div_ps(one, zc);
+  const size_t step = jb->axis ? (size_t)W : 1;
   __m256 sw = zero, sa = zero;
-  if (_mm256_movemask_ps(covered))
-    for (int k = -rad; k <= rad; k++) {
-      int qy = jb->axis ? y + k : y;
-      if (qy < 0 || qy >= H) continue;
-      size_t j = (size_t)qy * (size_t)W + (size_t)(jb->axis ? x : x + k);
-      if (k == 0) { /* exp(-0) = 1: the centre tap's weight, as blur_pixel */
-        sw = _mm256_add_ps(sw, one);
-        sa = _mm256_add_ps(sa, _mm256_loadu_ps(jb->in + j));
-        continue;
-      }
-      __m256 z = _mm256_loadu_ps(g->depth + j);
-      __m256 ok = _mm256_cmp_ps(z, zero, _CMP_GT_OQ);
-      __m256 q = _mm256_div_ps(_mm256_and_ps(_mm256_sub_ps(z, zc), absmask), zc);
-      q = _mm256_blendv_ps(maxq, q, _mm256_cmp_ps(q, maxq, _CMP_LT_OQ));
-      __m256 a = _mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps((float)(k * k)), falloff),
-                               _mm256_mul_ps(sharp, _mm256_mul_ps(q, q)));
-      __m256 w = _mm256_and_ps(blur_exp8(_mm256_xor_ps(a, sign)), ok);
-      /* Adding +0 for a skipped tap leaves the sums' bits alone: they start at +0 and grow. */
-      sw = _mm256_add_ps(sw, w);
-      sa = _mm256_add_ps(sa, _mm256_mul_ps(w, _mm256_loadu_ps(jb->in + j)));
+  for (int k = -rad; k <= rad; k++) {
+    int qy = jb->axis ? y + k : y;
+    if (qy < 0 || qy >= H) continue;
+    const size_t j = i + (size_t)(ptrdiff_t)k * step;
+    if (k == 0) { /* exp(-0) = 1: the centre tap's weight, as blur_pixel */
+      sw = _mm256_add_ps(sw, one);
+      sa = _mm256_add_ps(sa, _mm256_loadu_ps(jb->in + j));
+      continue;
     }
+    const __m256 z = _mm256_loadu_ps(g->depth + j);
+    const __m256 ok = _mm256_cmp_ps(z, zero, _CMP_GT_OQ);
+    const __m256 q = _mm256_mul_ps(_mm256_sub_ps(z, zc), rz);
+    const __m256 q2 = _mm256_min_ps(_mm256_mul_ps(q, q), maxq2);
+    const __m256 a = _mm256_fnmadd_ps(sharp, q2, _mm256_set1_ps(jb->blur_nkf[k + rad]));
+    const __m256 w = _mm256_and_ps(blur_exp8(a), ok);
+    /* A skipped tap adds +0 and +0 * a: the sums' bits stay, as they start at +0 and grow. */
+    sw = _mm256_add_ps(sw, w);
+    sa = _mm256_fmadd_ps(w, _mm256_loadu_ps(jb->in + j), sa);
+  }
   __m256 v = _mm256_div_ps(sa, sw);
   v = _mm256_min_ps(_mm256_max_ps(v, zero), one);
   _mm256_storeu_ps(dst, _mm256_blendv_ps(_mm256_loadu_ps(jb->in + i), v, covered));
 }
 #endif
 
-/* One pixel of one direction of the separable cross-bilateral blur. */
+/* One pixel of one direction of the separable cross-bilateral blur. The relative depth difference
+ * is (z - zc) times the pixel's 1 / zc, squared and clamped (BLUR_MAX_Q2); the weight is
+ * exp(fma(-sharpness, q^2, -k^2 falloff)), the spatial term from the job's table. */
 OBS_HOT_INLINE void blur_pixel(const hbao_job *jb, int x, int y) {
   const obs_gbuffer *g = jb->g;
   const int rad = jb->p->blur_radius, W = g->width, H = g->height;
@@ -300,6 +323,7 @@ OBS_HOT_INLINE void blur_pixel(const hbao_job *jb, int x, int y) {
     jb->out[i] = jb->in[i];
     return;
   }
+  const float rz = 1.0f / zc, sharp = jb->p->blur_sharpness;
   float sw = 0.0f, sa = 0.0f;
   for (int k = -rad; k <= rad; k++) {
     int qx = jb->axis ? x : x + k, qy = jb->axis ? y + k : y;
@@ -312,11 +336,13 @@ OBS_HOT_INLINE void blur_pixel(const hbao_job *jb, int x, int y) {
     }
     float z = g->depth[j];
     if (!(z > 0.0f)) continue;
-    float q = rel_dz(z, zc);
+    float q = (z - zc) * rz;
+    float q2 = q * q;
+    q2 = q2 < BLUR_MAX_Q2 ? q2 : BLUR_MAX_Q2;
     /* The one transcendental that the backends evaluate differently (see blur_exp). */
-    float w = blur_exp(-((float)(k * k) * jb->falloff + jb->p->blur_sharpness * (q * q)));
+    float w = blur_exp(fmaf(-sharp, q2, jb->blur_nkf[k + rad]));
     sw += w;
-    sa += w * jb->in[j];
+    sa = fmaf(w, jb->in[j], sa);
   }
   float v = sa / sw; /* the centre tap has weight exp(0) = 1 */
   jb->out[i] = v > 1.0f ? 1.0f : v > 0.0f ? v : 0.0f;
@@ -333,8 +359,15 @@ OBS_HOT_INLINE int blur_tile_body(void *user, int thread, int x0, int y0, int x1
       const int rad = jb->p->blur_radius;
       const int lo = jb->axis ? 0 : rad, hi = jb->axis ? W : W - rad; /* taps stay in [0, W) */
       for (; x < x1 && x < lo; x++) blur_pixel(jb, x, y);
-      for (; x + 8 <= x1 && x + 8 <= hi; x += 8)
-        blur_span8(jb, x, y, jb->out + (size_t)y * (size_t)W + (size_t)x);
+      float *row = jb->out + (size_t)y * (size_t)W;
+      for (; x + 8 <= x1 && x + 8 <= hi; x += 8) blur_span8(jb, x, y, row + x);
+      /* The rest of the run, up to the last pixel whose taps stay inside, as one span that
+       * overlaps the previous one: a pixel's bits do not depend on which span computes them. */
+      const int e = x1 < hi ? x1 : hi;
+      if (x < e && e - 8 >= lo && e - 8 >= x0) {
+        blur_span8(jb, e - 8, y, row + e - 8);
+        x = e;
+      }
     }
 #endif
     for (; x < x1; x++) blur_pixel(jb, x, y);
@@ -417,6 +450,8 @@ int obs_hbao_cpu_apply_ex(const obs_gbuffer *g, const obs_hbao_params *p, int th
   jb.sin_b = (float)sin((double)p->angle_bias);
   float sigma = ((float)p->blur_radius + 1.0f) * 0.5f;
   jb.falloff = 1.0f / (2.0f * sigma * sigma);
+  for (int k = -p->blur_radius; k <= p->blur_radius; k++)
+    jb.blur_nkf[k + p->blur_radius] = -((float)(k * k) * jb.falloff);
   jb.lv = (hbao_level){g->width, g->height, 1, g->depth, g->normal};
 
   double t = obs_now_ms();

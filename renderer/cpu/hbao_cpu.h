@@ -23,6 +23,7 @@ typedef struct hbao_job {
   float inv_r; /* 1 / radius, rounded once for both backends (obs_hbao_inv_radius) */
   float depth_eps; /* OBS_HBAO_DEPTH_EPS */
   float falloff; /* 1 / (2 sigma^2) of the blur's Gaussian */
+  float blur_nkf[2 * OBS_HBAO_MAX_BLUR_RADIUS + 1]; /* -(k^2 falloff) for tap k + radius */
   const float *in;
   float *out;
   int axis;      /* blur: 0 = horizontal, 1 = vertical */

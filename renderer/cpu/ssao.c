@@ -181,8 +181,11 @@ OBS_AVX2_FN static void ssao_span8(const ssao_job *j, int x, int y, float *dst) 
   _mm256_storeu_ps(dst, _mm256_blendv_ps(one, c, covered));
 }
 
-/* blur_pixel for pixels x..x+7 of row y, whose 4x4 windows lie inside the image horizontally. */
-OBS_AVX2_FN static void blur_span8(const ssao_job *j, int x, int y, float *dst) {
+/* blur_pixel for pixels x..x+7 of row y, whose 4x4 windows lie inside the image horizontally.
+ * test_zero 0 drops blur_pixel's test zn > 0, which cannot decide where the threshold is at most
+ * 1/2: lim = thr zc rounds to at most zc / 2, while zn <= 0 gives |zn - zc| >= zc (rounding is
+ * monotonic and zc is a float), so such a tap fails the depth test anyway. */
+OBS_AVX2_INLINE void blur_span8_body(const ssao_job *j, int x, int y, float *dst, int test_zero) {
   const obs_gbuffer *g = j->g;
   const int w = g->width, h = g->height;
   const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f);
@@ -199,20 +202,27 @@ OBS_AVX2_FN static void blur_span8(const ssao_job *j, int x, int y, float *dst) 
   for (int dy = OBS_SSAO_BLUR_LO; dy <= OBS_SSAO_BLUR_HI; dy++) {
     int yy = y + dy;
     if (yy < 0 || yy >= h) continue;
+    const float *zr = g->depth + (size_t)yy * (size_t)w + (size_t)x;
+    const float *ar = j->raw + (size_t)yy * (size_t)w + (size_t)x;
     for (int dx = OBS_SSAO_BLUR_LO; dx <= OBS_SSAO_BLUR_HI; dx++) {
-      size_t k = (size_t)yy * (size_t)w + (size_t)(x + dx);
-      __m256 zn = _mm256_loadu_ps(g->depth + k);
-      __m256 ok = _mm256_and_ps(
-          _mm256_cmp_ps(zn, zero, _CMP_GT_OQ),
-          _mm256_cmp_ps(_mm256_and_ps(_mm256_sub_ps(zn, zc), absmask), lim, _CMP_LE_OQ));
+      __m256 zn = _mm256_loadu_ps(zr + dx);
+      __m256 ok = _mm256_cmp_ps(_mm256_and_ps(_mm256_sub_ps(zn, zc), absmask), lim, _CMP_LE_OQ);
+      if (test_zero) ok = _mm256_and_ps(ok, _mm256_cmp_ps(zn, zero, _CMP_GT_OQ));
       /* sum + 0 is sum: it starts at +0 and only grows. */
-      sum = _mm256_add_ps(sum, _mm256_and_ps(_mm256_loadu_ps(j->raw + k), ok));
+      sum = _mm256_add_ps(sum, _mm256_and_ps(_mm256_loadu_ps(ar + dx), ok));
       cnt = _mm256_sub_epi32(cnt, _mm256_castps_si256(ok));
     }
   }
   __m256 r = _mm256_mul_ps(sum, obs_avx2_gather(j->loads, j->t->inv_count, cnt));
   r = _mm256_min_ps(r, one);
   _mm256_storeu_ps(dst, _mm256_blendv_ps(one, r, covered));
+}
+
+OBS_AVX2_FN static void blur_span8(const ssao_job *j, int x, int y, float *dst) {
+  if (j->p->blur_depth_threshold <= 0.5f)
+    blur_span8_body(j, x, y, dst, 0);
+  else
+    blur_span8_body(j, x, y, dst, 1);
 }
 #endif
 
@@ -265,9 +275,17 @@ OBS_HOT_INLINE int blur_tile_body(void *user, int thread, int x0, int y0, int x1
     int x = x0;
 #if OBS_SIMD_AVX2
     if (j->simd) {
-      /* Left of x = 2 and right of w - 9 the window leaves the image: scalar there. */
+      /* Left of x = 2 and at x = w - 1 the window leaves the image: scalar there. */
       for (; x < x1 && x < -OBS_SSAO_BLUR_LO; x++) row[x] = blur_pixel(j, x, y);
-      for (; x + 8 <= x1 && x + 7 + OBS_SSAO_BLUR_HI < w; x += 8) blur_span8(j, x, y, row + x);
+      const int lo = -OBS_SSAO_BLUR_LO, hi = w - OBS_SSAO_BLUR_HI; /* spans inside [lo, hi) */
+      for (; x + 8 <= x1 && x + 8 <= hi; x += 8) blur_span8(j, x, y, row + x);
+      /* The rest of the run as one span overlapping the previous one (the same bits per pixel
+       * whichever span computes it), where it stays inside the tile and the image. */
+      const int e = x1 < hi ? x1 : hi;
+      if (x < e && e - 8 >= lo && e - 8 >= x0) {
+        blur_span8(j, e - 8, y, row + e - 8);
+        x = e;
+      }
     }
 #endif
     for (; x < x1; x++) row[x] = blur_pixel(j, x, y);

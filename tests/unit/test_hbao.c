@@ -342,6 +342,8 @@ static void test_simd_matches_scalar(void **state) {
   /* Per set: a radius a few texels wide, and huge ones (squared distances at the ends of float
    * range, where the spans' cheap pre-test must leave the decision to the exact code). */
   const float radii[] = {90, 90, 90, 90, 90, 3, 1e7f, 1e30f};
+  /* The blur's depth weight: default, weights that underflow to 0 (exp's clamp), plain Gaussian. */
+  const float sharps[] = {16, 1e6f, 0, 16, 16, 16, 1e3f, 16};
   if (!obs_simd_avx2()) printf("(no AVX2 here: every path runs the scalar code)\n");
   for (int c = 0; c < 2; c++) {
     obs_scene sc;
@@ -361,6 +363,7 @@ static void test_simd_matches_scalar(void **state) {
       p.half_res = sets[k][2];
       p.blur_radius = sets[k][3];
       p.angle_bias = (float)(sets[k][4] * 3.14159265358979 / 180);
+      p.blur_sharpness = sharps[k];
       static const char *const paths[][2] = OBS_SIMD_PATHS;
       for (size_t q = 0; q < sizeof paths / sizeof paths[0]; q++) {
         setenv("OBSCURA_ISA", paths[q][0], 1);

@@ -365,7 +365,10 @@ static void test_simd_matches_scalar(void **state) {
   (void)state;
   const char *params[] = {"{\"samples\":8}", "{\"samples\":16,\"blur\":false}",
                           "{\"samples\":24,\"normal_oriented\":true}",
-                          "{\"samples\":16,\"radius\":0.2,\"normal_oriented\":true}"};
+                          "{\"samples\":16,\"radius\":0.2,\"normal_oriented\":true}",
+                          /* the blur's two branches: threshold at most 1/2, and above */
+                          "{\"samples\":8,\"blur_depth_threshold\":0.5}",
+                          "{\"samples\":8,\"blur_depth_threshold\":3}"};
   if (!obs_simd_avx2()) printf("(no AVX2 here: every path runs the scalar code)\n");
   for (size_t c = 0; c < sizeof params / sizeof params[0]; c++) {
     obs_scene sc;
