@@ -63,6 +63,10 @@ int obs_gbuffer_raycast(const obs_scene *scene, obs_gbuffer *g, int threads, dou
                         double *render_ms, obs_err *err);
 int obs_gbuffer_raster(const obs_scene *scene, obs_gbuffer *g, int threads, double *build_ms,
                        double *render_ms, obs_err *err);
+/* The raster through its plain per-pixel loops, one pixel and one test after another: slow, the
+ * reference that the fast loops must match bit for bit (tests). */
+int obs_gbuffer_raster_reference(const obs_scene *scene, obs_gbuffer *g, int threads,
+                                 obs_err *err);
 /* The same over geometry built at the camera (obs_geometry_build_at with the camera's position).
  * The ray cast takes `geo` over (and frees it); `bvh_ms` is its BVH build alone. */
 int obs_gbuffer_raycast_geo(const obs_scene *scene, obs_geometry *geo, obs_gbuffer *g, int threads,

@@ -4,6 +4,7 @@
  * pixel's depth is the primary ray's refined hit parameter (raytrace.h's shared expressions), so
  * where the ray cast and the rasteriser see the same surface they write the same bits. Also the
  * choice between the two (obs_gbuffer_cpu). */
+#include <float.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -14,11 +15,14 @@
 #include "obscura/render.h"
 #include "parallel.h"
 #include "raytrace.h"
+#include "simd.h"
 
 /* Pixels [x0, x1) x [y0, y1) that a primitive may cover; empty when x0 >= x1. */
 typedef struct rs_box {
   int x0, y0, x1, y1;
 } rs_box;
+
+struct rs_tile;
 
 typedef struct rs_job {
   const obs_scene *scene;
@@ -34,6 +38,9 @@ typedef struct rs_job {
   double tests;      /* pixels of all primitives' boxes: the raster's work */
   size_t *bin_start; /* per tile, then the total */
   uint32_t *bin;
+  int reference; /* the plain per-pixel loops (obs_gbuffer_raster_reference) */
+  void (*row)(struct rs_tile *t, int y, int lo, int hi, const double r[3], const double b[3],
+              const double n[3], double num, double zmin, uint32_t id);
 } rs_job;
 
 /* View coordinates (right, up, forward) of p relative to the eye. */
@@ -226,20 +233,23 @@ static int fill_bins(rs_job *j) {
 }
 
 /* Per tile: the rays of its pixels (perspective: one origin, a direction per pixel;
- * orthographic: an origin per pixel, one direction) and the nearest hit so far of each. */
+ * orthographic: an origin per pixel, one direction), a component per array so that a row's pixels
+ * load side by side, and the nearest hit so far of each. */
 typedef struct rs_tile {
   int x0, y0, w, h;
   double sx[OBS_TILE], sy[OBS_TILE];
-  double ray[OBS_TILE * OBS_TILE][3];
+  double ray[3][OBS_TILE * OBS_TILE];
   double t[OBS_TILE * OBS_TILE];
   uint32_t win[OBS_TILE * OBS_TILE];
 } rs_tile;
 
-static const double *ray_org(const rs_job *j, const rs_tile *t, int p) {
-  return j->cam.ortho ? t->ray[p] : j->view.eye;
-}
-static const double *ray_dir(const rs_job *j, const rs_tile *t, int p) {
-  return j->cam.ortho ? j->view.forward : t->ray[p];
+/* Pixel p's ray: its origin and direction. */
+static void ray_at(const rs_job *j, const rs_tile *t, int p, double o[3], double d[3]) {
+  const double *eye = j->view.eye, *f = j->view.forward;
+  for (int k = 0; k < 3; k++) {
+    o[k] = j->cam.ortho ? t->ray[k][p] : eye[k];
+    d[k] = j->cam.ortho ? f[k] : t->ray[k][p];
+  }
 }
 
 /* Edge functions of the triangle (vertices relative to the eye, in double):
@@ -310,7 +320,8 @@ static void row_span(const rs_job *j, const rs_tile *t, const double r[3], const
   if (*hi < t->w && *hi <= xh) (*hi)++; /* ceil */
 }
 
-static void draw_triangle(const rs_job *j, rs_tile *t, uint32_t id, const rs_box *bx) {
+/* The plain loop over a triangle's pixels, pixel by pixel: the reference of draw_triangle. */
+static void draw_triangle_ref(const rs_job *j, rs_tile *t, uint32_t id, const rs_box *bx) {
   size_t mesh;
   const float *v[3];
   tri_verts(j, id, &mesh, v);
@@ -341,14 +352,80 @@ static void draw_triangle(const rs_job *j, rs_tile *t, uint32_t id, const rs_box
       const int p = y * OBS_TILE + x;
       if (!(zmin < t->t[p])) continue;
       if (!(r[0] + sx * b[0] >= 0 && r[1] + sx * b[1] >= 0 && r[2] + sx * b[2] >= 0)) continue;
-      double tp;
-      const int hit = j->cam.ortho ? obs_rt_plane_hit(n, v[0], t->ray[p], j->view.forward, &tp)
-                                   : obs_rt_plane_t(num, n, t->ray[p], &tp);
+      double tp, o[3], d[3];
+      ray_at(j, t, p, o, d);
+      const int hit = j->cam.ortho ? obs_rt_plane_hit(n, v[0], o, d, &tp)
+                                   : obs_rt_plane_t(num, n, d, &tp);
       if (hit && tp < t->t[p]) {
         t->t[p] = tp;
         t->win[p] = id;
       }
     }
+  }
+}
+
+/* One row's pixels [lo, hi) of a perspective triangle: draw_triangle_ref's tests and plane
+ * parameter in the same operations, without branches, so that the compiler runs several pixels
+ * per instruction (each lane's add, multiply, divide and compare round as the scalar ones do).
+ * A pixel whose tests fail keeps its hit; the division on it is wasted but harmless. */
+static inline __attribute__((always_inline)) void persp_row_body(
+    rs_tile *t, int y, int lo, int hi, const double r[3], const double b[3], const double n[3],
+    double num, double zmin, uint32_t id) {
+  const double *restrict rx = t->ray[0] + y * OBS_TILE, *restrict ry = t->ray[1] + y * OBS_TILE;
+  const double *restrict rz = t->ray[2] + y * OBS_TILE, *restrict sx = t->sx;
+  double *restrict tt = t->t + y * OBS_TILE;
+  uint32_t *restrict win = t->win + y * OBS_TILE;
+  const double r0 = r[0], r1 = r[1], r2 = r[2], b0 = b[0], b1 = b[1], b2 = b[2];
+  const double n0 = n[0], n1 = n[1], n2 = n[2];
+  for (int x = lo; x < hi; x++) {
+    const double e0 = r0 + sx[x] * b0, e1 = r1 + sx[x] * b1, e2 = r2 + sx[x] * b2;
+    const double dn = n0 * rx[x] + n1 * ry[x] + n2 * rz[x]; /* obs_rt_plane_t */
+    const double tp = num / dn, cur = tt[x];
+    const int take = (zmin < cur) & (e0 >= 0) & (e1 >= 0) & (e2 >= 0) & (dn != 0) & (tp >= 0) &
+                     (tp <= DBL_MAX) & (tp < cur);
+    tt[x] = take ? tp : cur;
+    win[x] = take ? id : win[x];
+  }
+}
+static void persp_row_base(rs_tile *t, int y, int lo, int hi, const double r[3],
+                           const double b[3], const double n[3], double num, double zmin,
+                           uint32_t id) {
+  persp_row_body(t, y, lo, hi, r, b, n, num, zmin, id);
+}
+OBS_V3_FN static void persp_row_v3(rs_tile *t, int y, int lo, int hi, const double r[3],
+                                   const double b[3], const double n[3], double num, double zmin,
+                                   uint32_t id) {
+  persp_row_body(t, y, lo, hi, r, b, n, num, zmin, id);
+}
+
+/* A triangle's pixels in the tile: the rows' spans, then the pixels of each span. */
+static void draw_triangle(const rs_job *j, rs_tile *t, uint32_t id, const rs_box *bx) {
+  if (j->reference || j->cam.ortho) {
+    draw_triangle_ref(j, t, id, bx);
+    return;
+  }
+  size_t mesh;
+  const float *v[3];
+  tri_verts(j, id, &mesh, v);
+  double a[3], b[3], c[3], n[3], zmin;
+  if (!edge_functions(j, v, a, b, c, &zmin)) return;
+  zmin = zmin > 0 ? zmin * (1 - 0x1p-30) : -INFINITY; /* as draw_triangle_ref */
+  obs_rt_plane_normal(v[0], v[1], v[2], n);
+  const double num = obs_rt_plane_num(n, v[0], j->view.eye);
+  int xa = bx->x0 > t->x0 ? bx->x0 - t->x0 : 0, xb = bx->x1 - t->x0 < t->w ? bx->x1 - t->x0 : t->w;
+  int ya = bx->y0 > t->y0 ? bx->y0 - t->y0 : 0, yb = bx->y1 - t->y0 < t->h ? bx->y1 - t->y0 : t->h;
+  const int spans = xb - xa > 6;
+  const double inv_b[3] = {1 / b[0], 1 / b[1], 1 / b[2]};
+  for (int y = ya; y < yb; y++) {
+    const double sy = t->sy[y];
+    const double r[3] = {a[0] + sy * c[0], a[1] + sy * c[1], a[2] + sy * c[2]};
+    int lo = xa, hi = xb;
+    if (spans) {
+      row_span(j, t, r, b, inv_b, &lo, &hi);
+      if (lo < xa) lo = xa;
+      if (hi > xb) hi = xb;
+    }
+    if (lo < hi) j->row(t, y, lo, hi, r, b, n, num, zmin, id);
   }
 }
 
@@ -359,7 +436,9 @@ static void draw_sphere(const rs_job *j, rs_tile *t, uint32_t id, const rs_box *
   for (int y = ya; y < yb; y++)
     for (int x = xa; x < xb; x++) {
       const int p = y * OBS_TILE + x;
-      double td = obs_rt_sphere_root(s, ray_org(j, t, p), ray_dir(j, t, p), 0.0, INFINITY, 0);
+      double o[3], d[3];
+      ray_at(j, t, p, o, d);
+      const double td = obs_rt_sphere_root(s, o, d, 0.0, INFINITY, 0);
       if (td >= 0 && isfinite(td) && td < t->t[p]) {
         t->t[p] = td;
         t->win[p] = id;
@@ -397,9 +476,9 @@ static void view_normal(const rs_job *j, const double hn[3], float out[3]) {
     out[k] = (float)(hn[0] * axes[k][0] + hn[1] * axes[k][1] + hn[2] * axes[k][2]);
 }
 
-/* Writes the tile's nearest hits into the G-buffer. A triangle's normal is set up once per run of
- * its pixels, faced either way (not negated afterwards: the signs of zero sums would differ). */
-static void resolve_tile(const rs_job *j, const rs_tile *t) {
+/* Writes the tile's nearest hits into the G-buffer (the reference of resolve_tile). A triangle's
+ * normal is set up once per run of its pixels, faced either way (not negated afterwards: the signs of zero sums would differ). */
+static void resolve_tile_ref(const rs_job *j, const rs_tile *t) {
   obs_gbuffer *g = j->g;
   uint32_t last = UINT32_MAX;
   double unit[3] = {0, 0, 0};
@@ -409,9 +488,10 @@ static void resolve_tile(const rs_job *j, const rs_tile *t) {
       const int p = y * OBS_TILE + x;
       const uint32_t id = t->win[p];
       if (id == UINT32_MAX) continue;
-      const double *rd = ray_dir(j, t, p);
+      double ro[3], rd[3];
+      ray_at(j, t, p, ro, rd);
       if (id >= j->ntris || id != last) {
-        winner_normal(j, id, ray_org(j, t, p), rd, t->t[p], unit);
+        winner_normal(j, id, ro, rd, t->t[p], unit);
         const double back[3] = {-unit[0], -unit[1], -unit[2]};
         view_normal(j, unit, vn[0]);
         view_normal(j, back, vn[1]);
@@ -432,6 +512,54 @@ static void resolve_tile(const rs_job *j, const rs_tile *t) {
     }
 }
 
+/* resolve_tile_ref's writes with what the loop reads held in locals: the compiler cannot keep
+ * them in registers across stores to the image otherwise. */
+static void resolve_tile(const rs_job *j, const rs_tile *t) {
+  if (j->reference) {
+    resolve_tile_ref(j, t);
+    return;
+  }
+  const obs_gbuffer *g = j->g;
+  float *restrict depth = g->depth, *restrict cover = g->coverage;
+  float *restrict normal = g->normal, *restrict color = g->albedo;
+  const size_t width = (size_t)g->width, ntris = j->ntris;
+  const int ortho = j->cam.ortho;
+  const double *f = j->view.forward;
+  uint32_t last = UINT32_MAX;
+  double unit[3] = {0, 0, 0};
+  float vn[2][3] = {{0, 0, 0}, {0, 0, 0}}, albedo[3] = {0, 0, 0};
+  for (int y = 0; y < t->h; y++) {
+    const size_t row = (size_t)(t->y0 + y) * width + (size_t)t->x0;
+    for (int x = 0; x < t->w; x++) {
+      const int p = y * OBS_TILE + x;
+      const uint32_t id = t->win[p];
+      if (id == UINT32_MAX) continue;
+      const double rd[3] = {ortho ? f[0] : t->ray[0][p], ortho ? f[1] : t->ray[1][p],
+                            ortho ? f[2] : t->ray[2][p]};
+      if (id >= ntris || id != last) {
+        double ro[3], dir[3];
+        ray_at(j, t, p, ro, dir);
+        winner_normal(j, id, ro, rd, t->t[p], unit);
+        const double back[3] = {-unit[0], -unit[1], -unit[2]};
+        view_normal(j, unit, vn[0]);
+        view_normal(j, back, vn[1]);
+        if (id != last) {
+          const obs_object *o = winner_object(j, id);
+          albedo[0] = o->has_material ? (float)o->reflectivity.x : 1.0f;
+          albedo[1] = o->has_material ? (float)o->reflectivity.y : 1.0f;
+          albedo[2] = o->has_material ? (float)o->reflectivity.z : 1.0f;
+        }
+        last = id;
+      }
+      const int face = unit[0] * rd[0] + unit[1] * rd[1] + unit[2] * rd[2] > 0;
+      const size_t i = row + (size_t)x;
+      depth[i] = (float)t->t[p];
+      cover[i] = 1.0f;
+      for (int k = 0; k < 3; k++) normal[3 * i + k] = vn[face][k], color[3 * i + k] = albedo[k];
+    }
+  }
+}
+
 static int raster_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)thread;
   const rs_job *j = user;
@@ -450,12 +578,12 @@ static int raster_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   /* obs_rt_view_ray's expressions, a row at a time. */
   const obs_rt_view *v = &j->view;
   const double *base = j->cam.ortho ? v->eye : v->forward;
-  for (int y = 0; y < t->h; y++) {
-    const double sy = t->sy[y];
-    double(*row)[3] = t->ray + y * OBS_TILE;
-    for (int x = 0; x < t->w; x++)
-      for (int k = 0; k < 3; k++) row[x][k] = base[k] + (t->sx[x] * v->right[k] + sy * v->up[k]);
-  }
+  for (int k = 0; k < 3; k++)
+    for (int y = 0; y < t->h; y++) {
+      const double sy = t->sy[y], b = base[k], r = v->right[k], u = v->up[k];
+      double *row = t->ray[k] + y * OBS_TILE;
+      for (int x = 0; x < t->w; x++) row[x] = b + (t->sx[x] * r + sy * u);
+    }
   for (size_t e = j->bin_start[tile]; e < j->bin_start[tile + 1]; e++) {
     const uint32_t id = j->bin[e];
     if (id < j->ntris)
@@ -522,6 +650,7 @@ static int rs_draw(rs_job *j, obs_gbuffer *g, int threads, double *render_ms, ob
   if (rc) return rc;
   const double t0 = obs_now_ms();
   j->g = g;
+  j->row = obs_simd_isa() >= OBS_ISA_AVX2 ? persp_row_v3 : persp_row_base;
   rc = fill_bins(j);
   if (!rc)
     rc = obs_parallel_tiles(sc->width, sc->height, threads, raster_tile, j, NULL, NULL, NULL);
@@ -561,8 +690,8 @@ int obs_gbuffer_method(double tests, size_t pixels) {
 
 /* method < 0: obs_gbuffer_method's choice, after the raster's set-up (which the ray cast then
  * wastes: a small share of its BVH build). */
-static int gbuffer_cpu(const obs_scene *sc, int method, obs_gbuffer *g, int threads,
-                       double *build_ms, double *render_ms, obs_err *err) {
+static int gbuffer_cpu(const obs_scene *sc, int method, int reference, obs_gbuffer *g,
+                       int threads, double *build_ms, double *render_ms, obs_err *err) {
   const double t0 = obs_now_ms();
   const double eye[3] = {sc->camera.position.x, sc->camera.position.y, sc->camera.position.z};
   obs_geometry geo;
@@ -586,6 +715,7 @@ static int gbuffer_cpu(const obs_scene *sc, int method, obs_gbuffer *g, int thre
     return rc;
   }
   if (render_ms) *render_ms = t2 - t1;
+  j.reference = reference;
   if (!rc) rc = rs_draw(&j, g, threads, render_ms, err);
   rs_free(&j);
   obs_geometry_free(&geo);
@@ -607,15 +737,19 @@ int obs_gbuffer_raster_tests(const obs_scene *sc, int threads, double *tests, ob
 
 int obs_gbuffer_cpu(const obs_scene *sc, obs_gbuffer *g, int threads, double *build_ms,
                     double *render_ms, obs_err *err) {
-  return gbuffer_cpu(sc, -1, g, threads, build_ms, render_ms, err);
+  return gbuffer_cpu(sc, -1, 0, g, threads, build_ms, render_ms, err);
 }
 
 int obs_gbuffer_raycast(const obs_scene *sc, obs_gbuffer *g, int threads, double *build_ms,
                         double *render_ms, obs_err *err) {
-  return gbuffer_cpu(sc, OBS_GBUFFER_RAYCAST, g, threads, build_ms, render_ms, err);
+  return gbuffer_cpu(sc, OBS_GBUFFER_RAYCAST, 0, g, threads, build_ms, render_ms, err);
 }
 
 int obs_gbuffer_raster(const obs_scene *sc, obs_gbuffer *g, int threads, double *build_ms,
                        double *render_ms, obs_err *err) {
-  return gbuffer_cpu(sc, OBS_GBUFFER_RASTER, g, threads, build_ms, render_ms, err);
+  return gbuffer_cpu(sc, OBS_GBUFFER_RASTER, 0, g, threads, build_ms, render_ms, err);
+}
+
+int obs_gbuffer_raster_reference(const obs_scene *sc, obs_gbuffer *g, int threads, obs_err *err) {
+  return gbuffer_cpu(sc, OBS_GBUFFER_RASTER, 1, g, threads, NULL, NULL, err);
 }
