@@ -17,6 +17,10 @@
 #include "raytrace.h"
 #include "simd.h"
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 /* Pixels [x0, x1) x [y0, y1) that a primitive may cover; empty when x0 >= x1. */
 typedef struct rs_box {
   int x0, y0, x1, y1;
@@ -512,19 +516,31 @@ static void resolve_tile_ref(const rs_job *j, const rs_tile *t) {
     }
 }
 
-/* resolve_tile_ref's writes with what the loop reads held in locals: the compiler cannot keep
- * them in registers across stores to the image otherwise. */
+/* A store to the image that bypasses the caches: the G-buffer (32 bytes a pixel) is far larger
+ * than them, and an ordinary store first reads each line it writes. A tile's rows are written
+ * whole, so the write-combining buffers fill complete lines. */
+static inline void put(float *dst, float v) {
+#if defined(__SSE2__)
+  int bits;
+  memcpy(&bits, &v, sizeof bits);
+  _mm_stream_si32((int *)dst, bits);
+#else
+  *dst = v;
+#endif
+}
+
+/* resolve_tile_ref's values, written with streaming stores, every pixel of the tile (uncovered
+ * ones get the buffers' zeros again), what the loop reads held in locals. */
 static void resolve_tile(const rs_job *j, const rs_tile *t) {
   if (j->reference) {
     resolve_tile_ref(j, t);
     return;
   }
   const obs_gbuffer *g = j->g;
-  float *restrict depth = g->depth, *restrict cover = g->coverage;
-  float *restrict normal = g->normal, *restrict color = g->albedo;
+  float *depth = g->depth, *cover = g->coverage, *normal = g->normal, *color = g->albedo;
   const size_t width = (size_t)g->width, ntris = j->ntris;
   const int ortho = j->cam.ortho;
-  const double *f = j->view.forward;
+  const double f0 = j->view.forward[0], f1 = j->view.forward[1], f2 = j->view.forward[2];
   uint32_t last = UINT32_MAX;
   double unit[3] = {0, 0, 0};
   float vn[2][3] = {{0, 0, 0}, {0, 0, 0}}, albedo[3] = {0, 0, 0};
@@ -533,12 +549,17 @@ static void resolve_tile(const rs_job *j, const rs_tile *t) {
     for (int x = 0; x < t->w; x++) {
       const int p = y * OBS_TILE + x;
       const uint32_t id = t->win[p];
-      if (id == UINT32_MAX) continue;
-      const double rd[3] = {ortho ? f[0] : t->ray[0][p], ortho ? f[1] : t->ray[1][p],
-                            ortho ? f[2] : t->ray[2][p]};
+      const size_t i = row + (size_t)x;
+      if (id == UINT32_MAX) {
+        put(depth + i, 0), put(cover + i, 0);
+        for (int k = 0; k < 3; k++) put(normal + 3 * i + k, 0), put(color + 3 * i + k, 0);
+        continue;
+      }
+      const double dx = ortho ? f0 : t->ray[0][p], dy = ortho ? f1 : t->ray[1][p];
+      const double dz = ortho ? f2 : t->ray[2][p];
       if (id >= ntris || id != last) {
-        double ro[3], dir[3];
-        ray_at(j, t, p, ro, dir);
+        double ro[3], rd[3];
+        ray_at(j, t, p, ro, rd);
         winner_normal(j, id, ro, rd, t->t[p], unit);
         const double back[3] = {-unit[0], -unit[1], -unit[2]};
         view_normal(j, unit, vn[0]);
@@ -551,13 +572,15 @@ static void resolve_tile(const rs_job *j, const rs_tile *t) {
         }
         last = id;
       }
-      const int face = unit[0] * rd[0] + unit[1] * rd[1] + unit[2] * rd[2] > 0;
-      const size_t i = row + (size_t)x;
-      depth[i] = (float)t->t[p];
-      cover[i] = 1.0f;
-      for (int k = 0; k < 3; k++) normal[3 * i + k] = vn[face][k], color[3 * i + k] = albedo[k];
+      const float *nv = vn[unit[0] * dx + unit[1] * dy + unit[2] * dz > 0];
+      put(depth + i, (float)t->t[p]);
+      put(cover + i, 1.0f);
+      for (int k = 0; k < 3; k++) put(normal + 3 * i + k, nv[k]), put(color + 3 * i + k, albedo[k]);
     }
   }
+#if defined(__SSE2__)
+  _mm_sfence(); /* the streaming stores reach memory before the pass reports the tile done */
+#endif
 }
 
 static int raster_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
