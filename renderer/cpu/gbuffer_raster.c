@@ -516,43 +516,49 @@ static void resolve_tile_ref(const rs_job *j, const rs_tile *t) {
     }
 }
 
-/* A store to the image that bypasses the caches: the G-buffer (32 bytes a pixel) is far larger
- * than them, and an ordinary store first reads each line it writes. A tile's rows are written
- * whole, so the write-combining buffers fill complete lines. */
-static inline void put(float *dst, float v) {
+/* Copies n floats to the image with stores that bypass the caches: the G-buffer (32 bytes a
+ * pixel) is far larger than them, and an ordinary store first reads each line it writes. Whole
+ * rows of a tile at a time, so the write-combining buffers fill complete lines. */
+static void stream_out(float *dst, const float *src, size_t n) {
+  size_t i = 0;
 #if defined(__SSE2__)
-  int bits;
-  memcpy(&bits, &v, sizeof bits);
-  _mm_stream_si32((int *)dst, bits);
-#else
-  *dst = v;
+  for (; i < n && ((uintptr_t)(dst + i) & 15); i++) {
+    int bits;
+    memcpy(&bits, src + i, sizeof bits);
+    _mm_stream_si32((int *)(dst + i), bits);
+  }
+  for (; i + 4 <= n; i += 4) _mm_stream_ps(dst + i, _mm_loadu_ps(src + i));
+  for (; i < n; i++) {
+    int bits;
+    memcpy(&bits, src + i, sizeof bits);
+    _mm_stream_si32((int *)(dst + i), bits);
+  }
 #endif
+  if (i < n) memcpy(dst + i, src + i, (n - i) * sizeof *dst);
 }
 
-/* resolve_tile_ref's values, written with streaming stores, every pixel of the tile (uncovered
- * ones get the buffers' zeros again), what the loop reads held in locals. */
+/* resolve_tile_ref's values, a row of the tile at a time into small buffers (uncovered pixels
+ * get the image's zeros again), then streamed out; what the loop reads held in locals. */
 static void resolve_tile(const rs_job *j, const rs_tile *t) {
   if (j->reference) {
     resolve_tile_ref(j, t);
     return;
   }
   const obs_gbuffer *g = j->g;
-  float *depth = g->depth, *cover = g->coverage, *normal = g->normal, *color = g->albedo;
   const size_t width = (size_t)g->width, ntris = j->ntris;
   const int ortho = j->cam.ortho;
   const double f0 = j->view.forward[0], f1 = j->view.forward[1], f2 = j->view.forward[2];
   uint32_t last = UINT32_MAX;
   double unit[3] = {0, 0, 0};
   float vn[2][3] = {{0, 0, 0}, {0, 0, 0}}, albedo[3] = {0, 0, 0};
+  float depth[OBS_TILE], cover[OBS_TILE], normal[3 * OBS_TILE], color[3 * OBS_TILE];
   for (int y = 0; y < t->h; y++) {
-    const size_t row = (size_t)(t->y0 + y) * width + (size_t)t->x0;
     for (int x = 0; x < t->w; x++) {
       const int p = y * OBS_TILE + x;
       const uint32_t id = t->win[p];
-      const size_t i = row + (size_t)x;
       if (id == UINT32_MAX) {
-        put(depth + i, 0), put(cover + i, 0);
-        for (int k = 0; k < 3; k++) put(normal + 3 * i + k, 0), put(color + 3 * i + k, 0);
+        depth[x] = cover[x] = 0;
+        for (int k = 0; k < 3; k++) normal[3 * x + k] = color[3 * x + k] = 0;
         continue;
       }
       const double dx = ortho ? f0 : t->ray[0][p], dy = ortho ? f1 : t->ray[1][p];
@@ -573,10 +579,15 @@ static void resolve_tile(const rs_job *j, const rs_tile *t) {
         last = id;
       }
       const float *nv = vn[unit[0] * dx + unit[1] * dy + unit[2] * dz > 0];
-      put(depth + i, (float)t->t[p]);
-      put(cover + i, 1.0f);
-      for (int k = 0; k < 3; k++) put(normal + 3 * i + k, nv[k]), put(color + 3 * i + k, albedo[k]);
+      depth[x] = (float)t->t[p];
+      cover[x] = 1.0f;
+      for (int k = 0; k < 3; k++) normal[3 * x + k] = nv[k], color[3 * x + k] = albedo[k];
     }
+    const size_t i = (size_t)(t->y0 + y) * width + (size_t)t->x0, n = (size_t)t->w;
+    stream_out(g->depth + i, depth, n);
+    stream_out(g->coverage + i, cover, n);
+    stream_out(g->normal + 3 * i, normal, 3 * n);
+    stream_out(g->albedo + 3 * i, color, 3 * n);
   }
 #if defined(__SSE2__)
   _mm_sfence(); /* the streaming stores reach memory before the pass reports the tile done */
