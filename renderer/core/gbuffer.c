@@ -7,11 +7,11 @@
 const char *const obs_screen_channel_names[OBS_SCREEN_CHANNELS] = {
     "ao", "ao_raw", "depth.Z", "normal.X", "normal.Y", "normal.Z", "alpha"};
 
-int obs_gbuffer_alloc(obs_gbuffer *g, int width, int height, const obs_camera_rig *rig,
-                      obs_err *err) {
+static int gbuffer_alloc(obs_gbuffer *g, int width, int height, const obs_camera_rig *rig, int zero,
+                         obs_err *err) {
   memset(g, 0, sizeof *g);
   size_t n = (size_t)width * (size_t)height;
-  float *mem = calloc(n * 8, sizeof(float));
+  float *mem = zero ? calloc(n * 8, sizeof(float)) : malloc((n ? n : 1) * 8 * sizeof(float));
   if (!mem) return obs_err_set(err, OBS_ENOMEM, "G-buffer %dx%d: out of memory", width, height);
   g->width = width;
   g->height = height;
@@ -23,6 +23,16 @@ int obs_gbuffer_alloc(obs_gbuffer *g, int width, int height, const obs_camera_ri
   g->albedo = mem + 4 * n;
   g->coverage = mem + 7 * n;
   return 0;
+}
+
+int obs_gbuffer_alloc(obs_gbuffer *g, int width, int height, const obs_camera_rig *rig,
+                      obs_err *err) {
+  return gbuffer_alloc(g, width, height, rig, 1, err);
+}
+
+int obs_gbuffer_alloc_unset(obs_gbuffer *g, int width, int height, const obs_camera_rig *rig,
+                            obs_err *err) {
+  return gbuffer_alloc(g, width, height, rig, 0, err);
 }
 
 void obs_gbuffer_free(obs_gbuffer *g) {

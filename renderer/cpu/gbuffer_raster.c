@@ -537,6 +537,13 @@ static void stream_out(float *dst, const float *src, size_t n) {
   if (i < n) memcpy(dst + i, src + i, (n - i) * sizeof *dst);
 }
 
+/* The streaming stores reach memory before the pass reports the tile done. */
+static void stream_fence(void) {
+#if defined(__SSE2__)
+  _mm_sfence();
+#endif
+}
+
 /* resolve_tile_ref's values, a row of the tile at a time into small buffers (uncovered pixels
  * get the image's zeros again), then streamed out; what the loop reads held in locals. */
 static void resolve_tile(const rs_job *j, const rs_tile *t) {
@@ -589,16 +596,26 @@ static void resolve_tile(const rs_job *j, const rs_tile *t) {
     stream_out(g->normal + 3 * i, normal, 3 * n);
     stream_out(g->albedo + 3 * i, color, 3 * n);
   }
-#if defined(__SSE2__)
-  _mm_sfence(); /* the streaming stores reach memory before the pass reports the tile done */
-#endif
+  stream_fence();
 }
 
 static int raster_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)thread;
   const rs_job *j = user;
   const size_t tile = (size_t)(y0 / OBS_TILE) * j->tiles_x + (size_t)(x0 / OBS_TILE);
-  if (j->bin_start[tile] == j->bin_start[tile + 1]) return 0; /* nothing: the buffers' zeros */
+  if (j->bin_start[tile] == j->bin_start[tile + 1]) { /* nothing here: zeros */
+    static const float zero[3 * OBS_TILE];
+    const size_t w = (size_t)j->g->width, n = (size_t)(x1 - x0);
+    for (int y = y0; y < y1; y++) {
+      const size_t i = (size_t)y * w + (size_t)x0;
+      stream_out(j->g->depth + i, zero, n);
+      stream_out(j->g->coverage + i, zero, n);
+      stream_out(j->g->normal + 3 * i, zero, 3 * n);
+      stream_out(j->g->albedo + 3 * i, zero, 3 * n);
+    }
+    stream_fence();
+    return 0;
+  }
   rs_tile *t = malloc(sizeof *t);
   if (!t) return OBS_ENOMEM;
   t->x0 = x0, t->y0 = y0, t->w = x1 - x0, t->h = y1 - y0;
@@ -680,7 +697,9 @@ static int rs_prepare(rs_job *j, const obs_scene *sc, const obs_geometry *geo, i
 /* The pass over the tiles, into a new G-buffer `g`. */
 static int rs_draw(rs_job *j, obs_gbuffer *g, int threads, double *render_ms, obs_err *err) {
   const obs_scene *sc = j->scene;
-  int rc = obs_gbuffer_alloc(g, sc->width, sc->height, &j->cam, err);
+  /* resolve_tile writes every pixel; the reference only the covered ones. */
+  int rc = j->reference ? obs_gbuffer_alloc(g, sc->width, sc->height, &j->cam, err)
+                        : obs_gbuffer_alloc_unset(g, sc->width, sc->height, &j->cam, err);
   if (rc) return rc;
   const double t0 = obs_now_ms();
   j->g = g;
