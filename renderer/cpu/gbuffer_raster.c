@@ -324,51 +324,28 @@ static void row_span(const rs_job *j, const rs_tile *t, const double r[3], const
   if (*hi < t->w && *hi <= xh) (*hi)++; /* ceil */
 }
 
-/* The plain loop over a triangle's pixels, pixel by pixel: the reference of draw_triangle. */
-static void draw_triangle_ref(const rs_job *j, rs_tile *t, uint32_t id, const rs_box *bx) {
-  size_t mesh;
-  const float *v[3];
-  tri_verts(j, id, &mesh, v);
-  double a[3], b[3], c[3], n[3], zmin;
-  if (!edge_functions(j, v, a, b, c, &zmin)) return;
-  /* Pixels already nearer than the whole triangle skip the division; shrunk far beyond the
-   * rounding of either depth, so that no pixel the triangle would win is skipped. */
-  zmin = zmin > 0 ? zmin * (1 - 0x1p-30) : -INFINITY;
-  obs_rt_plane_normal(v[0], v[1], v[2], n);
-  /* Perspective rays share their origin, and so the plane parameter's numerator. */
-  const double num = obs_rt_plane_num(n, v[0], j->view.eye);
-  int xa = bx->x0 > t->x0 ? bx->x0 - t->x0 : 0, xb = bx->x1 - t->x0 < t->w ? bx->x1 - t->x0 : t->w;
-  int ya = bx->y0 > t->y0 ? bx->y0 - t->y0 : 0, yb = bx->y1 - t->y0 < t->h ? bx->y1 - t->y0 : t->h;
-  /* Spans pay off on rows wider than a few pixels. */
-  const int spans = xb - xa > 6;
-  const double inv_b[3] = {1 / b[0], 1 / b[1], 1 / b[2]};
-  for (int y = ya; y < yb; y++) {
-    const double sy = t->sy[y];
-    const double r[3] = {a[0] + sy * c[0], a[1] + sy * c[1], a[2] + sy * c[2]};
-    int lo = xa, hi = xb;
-    if (spans) {
-      row_span(j, t, r, b, inv_b, &lo, &hi);
-      if (lo < xa) lo = xa;
-      if (hi > xb) hi = xb;
-    }
-    for (int x = lo; x < hi; x++) {
-      const double sx = t->sx[x];
-      const int p = y * OBS_TILE + x;
-      if (!(zmin < t->t[p])) continue;
-      if (!(r[0] + sx * b[0] >= 0 && r[1] + sx * b[1] >= 0 && r[2] + sx * b[2] >= 0)) continue;
-      double tp, o[3], d[3];
-      ray_at(j, t, p, o, d);
-      const int hit = j->cam.ortho ? obs_rt_plane_hit(n, v[0], o, d, &tp)
-                                   : obs_rt_plane_t(num, n, d, &tp);
-      if (hit && tp < t->t[p]) {
-        t->t[p] = tp;
-        t->win[p] = id;
-      }
+/* One row's pixels [lo, hi) of a triangle, one pixel and one test after another: the reference
+ * of persp_row, and the orthographic camera's loop (a numerator per ray origin). */
+static void plain_row(const rs_job *j, rs_tile *t, int y, int lo, int hi, const double r[3],
+                      const double b[3], const double n[3], const float *v0, double num,
+                      double zmin, uint32_t id) {
+  for (int x = lo; x < hi; x++) {
+    const double sx = t->sx[x];
+    const int p = y * OBS_TILE + x;
+    if (!(zmin < t->t[p])) continue;
+    if (!(r[0] + sx * b[0] >= 0 && r[1] + sx * b[1] >= 0 && r[2] + sx * b[2] >= 0)) continue;
+    double tp, o[3], d[3];
+    ray_at(j, t, p, o, d);
+    const int hit = j->cam.ortho ? obs_rt_plane_hit(n, v0, o, d, &tp)
+                                 : obs_rt_plane_t(num, n, d, &tp);
+    if (hit && tp < t->t[p]) {
+      t->t[p] = tp;
+      t->win[p] = id;
     }
   }
 }
 
-/* One row's pixels [lo, hi) of a perspective triangle: draw_triangle_ref's tests and plane
+/* One row's pixels [lo, hi) of a perspective triangle: plain_row's tests and plane
  * parameter in the same operations, without branches, so that the compiler runs several pixels
  * per instruction (each lane's add, multiply, divide and compare round as the scalar ones do).
  * A pixel whose tests fail keeps its hit; the division on it is wasted but harmless. */
@@ -404,21 +381,21 @@ OBS_V3_FN static void persp_row_v3(rs_tile *t, int y, int lo, int hi, const doub
 
 /* A triangle's pixels in the tile: the rows' spans, then the pixels of each span. */
 static void draw_triangle(const rs_job *j, rs_tile *t, uint32_t id, const rs_box *bx) {
-  if (j->reference || j->cam.ortho) {
-    draw_triangle_ref(j, t, id, bx);
-    return;
-  }
   size_t mesh;
   const float *v[3];
   tri_verts(j, id, &mesh, v);
   double a[3], b[3], c[3], n[3], zmin;
   if (!edge_functions(j, v, a, b, c, &zmin)) return;
-  zmin = zmin > 0 ? zmin * (1 - 0x1p-30) : -INFINITY; /* as draw_triangle_ref */
+  /* Pixels already nearer than the whole triangle skip the division; shrunk far beyond the
+   * rounding of either depth, so that no pixel the triangle would win is skipped. */
+  zmin = zmin > 0 ? zmin * (1 - 0x1p-30) : -INFINITY;
   obs_rt_plane_normal(v[0], v[1], v[2], n);
+  /* Perspective rays share their origin, and so the plane parameter's numerator. */
   const double num = obs_rt_plane_num(n, v[0], j->view.eye);
   int xa = bx->x0 > t->x0 ? bx->x0 - t->x0 : 0, xb = bx->x1 - t->x0 < t->w ? bx->x1 - t->x0 : t->w;
   int ya = bx->y0 > t->y0 ? bx->y0 - t->y0 : 0, yb = bx->y1 - t->y0 < t->h ? bx->y1 - t->y0 : t->h;
-  const int spans = xb - xa > 6;
+  /* Spans pay off on rows wider than a few pixels. */
+  const int spans = xb - xa > 6, plain = j->reference || j->cam.ortho;
   const double inv_b[3] = {1 / b[0], 1 / b[1], 1 / b[2]};
   for (int y = ya; y < yb; y++) {
     const double sy = t->sy[y];
@@ -429,7 +406,10 @@ static void draw_triangle(const rs_job *j, rs_tile *t, uint32_t id, const rs_box
       if (lo < xa) lo = xa;
       if (hi > xb) hi = xb;
     }
-    if (lo < hi) j->row(t, y, lo, hi, r, b, n, num, zmin, id);
+    if (plain)
+      plain_row(j, t, y, lo, hi, r, b, n, v[0], num, zmin, id);
+    else if (lo < hi)
+      j->row(t, y, lo, hi, r, b, n, num, zmin, id);
   }
 }
 
@@ -537,6 +517,15 @@ static void stream_out(float *dst, const float *src, size_t n) {
   if (i < n) memcpy(dst + i, src + i, (n - i) * sizeof *dst);
 }
 
+/* Row n pixels from image pixel i: the four buffers' values. */
+static void stream_row(const obs_gbuffer *g, size_t i, size_t n, const float *depth,
+                       const float *cover, const float *normal, const float *color) {
+  stream_out(g->depth + i, depth, n);
+  stream_out(g->coverage + i, cover, n);
+  stream_out(g->normal + 3 * i, normal, 3 * n);
+  stream_out(g->albedo + 3 * i, color, 3 * n);
+}
+
 /* The streaming stores reach memory before the pass reports the tile done. */
 static void stream_fence(void) {
 #if defined(__SSE2__)
@@ -590,11 +579,8 @@ static void resolve_tile(const rs_job *j, const rs_tile *t) {
       cover[x] = 1.0f;
       for (int k = 0; k < 3; k++) normal[3 * x + k] = nv[k], color[3 * x + k] = albedo[k];
     }
-    const size_t i = (size_t)(t->y0 + y) * width + (size_t)t->x0, n = (size_t)t->w;
-    stream_out(g->depth + i, depth, n);
-    stream_out(g->coverage + i, cover, n);
-    stream_out(g->normal + 3 * i, normal, 3 * n);
-    stream_out(g->albedo + 3 * i, color, 3 * n);
+    stream_row(g, (size_t)(t->y0 + y) * width + (size_t)t->x0, (size_t)t->w, depth, cover, normal,
+               color);
   }
   stream_fence();
 }
@@ -605,14 +591,9 @@ static int raster_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   const size_t tile = (size_t)(y0 / OBS_TILE) * j->tiles_x + (size_t)(x0 / OBS_TILE);
   if (j->bin_start[tile] == j->bin_start[tile + 1]) { /* nothing here: zeros */
     static const float zero[3 * OBS_TILE];
-    const size_t w = (size_t)j->g->width, n = (size_t)(x1 - x0);
-    for (int y = y0; y < y1; y++) {
-      const size_t i = (size_t)y * w + (size_t)x0;
-      stream_out(j->g->depth + i, zero, n);
-      stream_out(j->g->coverage + i, zero, n);
-      stream_out(j->g->normal + 3 * i, zero, 3 * n);
-      stream_out(j->g->albedo + 3 * i, zero, 3 * n);
-    }
+    for (int y = y0; y < y1; y++)
+      stream_row(j->g, (size_t)y * (size_t)j->g->width + (size_t)x0, (size_t)(x1 - x0), zero, zero,
+                 zero, zero);
     stream_fence();
     return 0;
   }
