@@ -4,6 +4,7 @@
  * pixel's depth is the primary ray's refined hit parameter (raytrace.h's shared expressions), so
  * where the ray cast and the rasteriser see the same surface they write the same bits. Also the
  * choice between the two (obs_gbuffer_cpu). */
+#include <float.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -14,11 +15,18 @@
 #include "obscura/render.h"
 #include "parallel.h"
 #include "raytrace.h"
+#include "simd.h"
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 /* Pixels [x0, x1) x [y0, y1) that a primitive may cover; empty when x0 >= x1. */
 typedef struct rs_box {
   int x0, y0, x1, y1;
 } rs_box;
+
+struct rs_tile;
 
 typedef struct rs_job {
   const obs_scene *scene;
@@ -34,6 +42,9 @@ typedef struct rs_job {
   double tests;      /* pixels of all primitives' boxes: the raster's work */
   size_t *bin_start; /* per tile, then the total */
   uint32_t *bin;
+  int reference; /* the plain per-pixel loops (obs_gbuffer_raster_reference) */
+  void (*row)(struct rs_tile *t, int y, int lo, int hi, const double r[3], const double b[3],
+              const double n[3], double num, double zmin, uint32_t id);
 } rs_job;
 
 /* View coordinates (right, up, forward) of p relative to the eye. */
@@ -226,20 +237,23 @@ static int fill_bins(rs_job *j) {
 }
 
 /* Per tile: the rays of its pixels (perspective: one origin, a direction per pixel;
- * orthographic: an origin per pixel, one direction) and the nearest hit so far of each. */
+ * orthographic: an origin per pixel, one direction), a component per array so that a row's pixels
+ * load side by side, and the nearest hit so far of each. */
 typedef struct rs_tile {
   int x0, y0, w, h;
   double sx[OBS_TILE], sy[OBS_TILE];
-  double ray[OBS_TILE * OBS_TILE][3];
+  double ray[3][OBS_TILE * OBS_TILE];
   double t[OBS_TILE * OBS_TILE];
   uint32_t win[OBS_TILE * OBS_TILE];
 } rs_tile;
 
-static const double *ray_org(const rs_job *j, const rs_tile *t, int p) {
-  return j->cam.ortho ? t->ray[p] : j->view.eye;
-}
-static const double *ray_dir(const rs_job *j, const rs_tile *t, int p) {
-  return j->cam.ortho ? j->view.forward : t->ray[p];
+/* Pixel p's ray: its origin and direction. */
+static void ray_at(const rs_job *j, const rs_tile *t, int p, double o[3], double d[3]) {
+  const double *eye = j->view.eye, *f = j->view.forward;
+  for (int k = 0; k < 3; k++) {
+    o[k] = j->cam.ortho ? t->ray[k][p] : eye[k];
+    d[k] = j->cam.ortho ? f[k] : t->ray[k][p];
+  }
 }
 
 /* Edge functions of the triangle (vertices relative to the eye, in double):
@@ -310,6 +324,62 @@ static void row_span(const rs_job *j, const rs_tile *t, const double r[3], const
   if (*hi < t->w && *hi <= xh) (*hi)++; /* ceil */
 }
 
+/* One row's pixels [lo, hi) of a triangle, one pixel and one test after another: the reference
+ * of persp_row, and the orthographic camera's loop (a numerator per ray origin). */
+static void plain_row(const rs_job *j, rs_tile *t, int y, int lo, int hi, const double r[3],
+                      const double b[3], const double n[3], const float *v0, double num,
+                      double zmin, uint32_t id) {
+  for (int x = lo; x < hi; x++) {
+    const double sx = t->sx[x];
+    const int p = y * OBS_TILE + x;
+    if (!(zmin < t->t[p])) continue;
+    if (!(r[0] + sx * b[0] >= 0 && r[1] + sx * b[1] >= 0 && r[2] + sx * b[2] >= 0)) continue;
+    double tp, o[3], d[3];
+    ray_at(j, t, p, o, d);
+    const int hit = j->cam.ortho ? obs_rt_plane_hit(n, v0, o, d, &tp)
+                                 : obs_rt_plane_t(num, n, d, &tp);
+    if (hit && tp < t->t[p]) {
+      t->t[p] = tp;
+      t->win[p] = id;
+    }
+  }
+}
+
+/* One row's pixels [lo, hi) of a perspective triangle: plain_row's tests and plane
+ * parameter in the same operations, without branches, so that the compiler runs several pixels
+ * per instruction (each lane's add, multiply, divide and compare round as the scalar ones do).
+ * A pixel whose tests fail keeps its hit; the division on it is wasted but harmless. */
+static inline __attribute__((always_inline)) void persp_row_body(
+    rs_tile *t, int y, int lo, int hi, const double r[3], const double b[3], const double n[3],
+    double num, double zmin, uint32_t id) {
+  const double *restrict rx = t->ray[0] + y * OBS_TILE, *restrict ry = t->ray[1] + y * OBS_TILE;
+  const double *restrict rz = t->ray[2] + y * OBS_TILE, *restrict sx = t->sx;
+  double *restrict tt = t->t + y * OBS_TILE;
+  uint32_t *restrict win = t->win + y * OBS_TILE;
+  const double r0 = r[0], r1 = r[1], r2 = r[2], b0 = b[0], b1 = b[1], b2 = b[2];
+  const double n0 = n[0], n1 = n[1], n2 = n[2];
+  for (int x = lo; x < hi; x++) {
+    const double e0 = r0 + sx[x] * b0, e1 = r1 + sx[x] * b1, e2 = r2 + sx[x] * b2;
+    const double dn = n0 * rx[x] + n1 * ry[x] + n2 * rz[x]; /* obs_rt_plane_t */
+    const double tp = num / dn, cur = tt[x];
+    const int take = (zmin < cur) & (e0 >= 0) & (e1 >= 0) & (e2 >= 0) & (dn != 0) & (tp >= 0) &
+                     (tp <= DBL_MAX) & (tp < cur);
+    tt[x] = take ? tp : cur;
+    win[x] = take ? id : win[x];
+  }
+}
+static void persp_row_base(rs_tile *t, int y, int lo, int hi, const double r[3],
+                           const double b[3], const double n[3], double num, double zmin,
+                           uint32_t id) {
+  persp_row_body(t, y, lo, hi, r, b, n, num, zmin, id);
+}
+OBS_V3_FN static void persp_row_v3(rs_tile *t, int y, int lo, int hi, const double r[3],
+                                   const double b[3], const double n[3], double num, double zmin,
+                                   uint32_t id) {
+  persp_row_body(t, y, lo, hi, r, b, n, num, zmin, id);
+}
+
+/* A triangle's pixels in the tile: the rows' spans, then the pixels of each span. */
 static void draw_triangle(const rs_job *j, rs_tile *t, uint32_t id, const rs_box *bx) {
   size_t mesh;
   const float *v[3];
@@ -325,7 +395,7 @@ static void draw_triangle(const rs_job *j, rs_tile *t, uint32_t id, const rs_box
   int xa = bx->x0 > t->x0 ? bx->x0 - t->x0 : 0, xb = bx->x1 - t->x0 < t->w ? bx->x1 - t->x0 : t->w;
   int ya = bx->y0 > t->y0 ? bx->y0 - t->y0 : 0, yb = bx->y1 - t->y0 < t->h ? bx->y1 - t->y0 : t->h;
   /* Spans pay off on rows wider than a few pixels. */
-  const int spans = xb - xa > 6;
+  const int spans = xb - xa > 6, plain = j->reference || j->cam.ortho;
   const double inv_b[3] = {1 / b[0], 1 / b[1], 1 / b[2]};
   for (int y = ya; y < yb; y++) {
     const double sy = t->sy[y];
@@ -336,19 +406,10 @@ static void draw_triangle(const rs_job *j, rs_tile *t, uint32_t id, const rs_box
       if (lo < xa) lo = xa;
       if (hi > xb) hi = xb;
     }
-    for (int x = lo; x < hi; x++) {
-      const double sx = t->sx[x];
-      const int p = y * OBS_TILE + x;
-      if (!(zmin < t->t[p])) continue;
-      if (!(r[0] + sx * b[0] >= 0 && r[1] + sx * b[1] >= 0 && r[2] + sx * b[2] >= 0)) continue;
-      double tp;
-      const int hit = j->cam.ortho ? obs_rt_plane_hit(n, v[0], t->ray[p], j->view.forward, &tp)
-                                   : obs_rt_plane_t(num, n, t->ray[p], &tp);
-      if (hit && tp < t->t[p]) {
-        t->t[p] = tp;
-        t->win[p] = id;
-      }
-    }
+    if (plain)
+      plain_row(j, t, y, lo, hi, r, b, n, v[0], num, zmin, id);
+    else if (lo < hi)
+      j->row(t, y, lo, hi, r, b, n, num, zmin, id);
   }
 }
 
@@ -359,7 +420,9 @@ static void draw_sphere(const rs_job *j, rs_tile *t, uint32_t id, const rs_box *
   for (int y = ya; y < yb; y++)
     for (int x = xa; x < xb; x++) {
       const int p = y * OBS_TILE + x;
-      double td = obs_rt_sphere_root(s, ray_org(j, t, p), ray_dir(j, t, p), 0.0, INFINITY, 0);
+      double o[3], d[3];
+      ray_at(j, t, p, o, d);
+      const double td = obs_rt_sphere_root(s, o, d, 0.0, INFINITY, 0);
       if (td >= 0 && isfinite(td) && td < t->t[p]) {
         t->t[p] = td;
         t->win[p] = id;
@@ -397,9 +460,9 @@ static void view_normal(const rs_job *j, const double hn[3], float out[3]) {
     out[k] = (float)(hn[0] * axes[k][0] + hn[1] * axes[k][1] + hn[2] * axes[k][2]);
 }
 
-/* Writes the tile's nearest hits into the G-buffer. A triangle's normal is set up once per run of
- * its pixels, faced either way (not negated afterwards: the signs of zero sums would differ). */
-static void resolve_tile(const rs_job *j, const rs_tile *t) {
+/* Writes the tile's nearest hits into the G-buffer (the reference of resolve_tile). A triangle's
+ * normal is set up once per run of its pixels, faced either way (not negated afterwards: the signs of zero sums would differ). */
+static void resolve_tile_ref(const rs_job *j, const rs_tile *t) {
   obs_gbuffer *g = j->g;
   uint32_t last = UINT32_MAX;
   double unit[3] = {0, 0, 0};
@@ -409,9 +472,10 @@ static void resolve_tile(const rs_job *j, const rs_tile *t) {
       const int p = y * OBS_TILE + x;
       const uint32_t id = t->win[p];
       if (id == UINT32_MAX) continue;
-      const double *rd = ray_dir(j, t, p);
+      double ro[3], rd[3];
+      ray_at(j, t, p, ro, rd);
       if (id >= j->ntris || id != last) {
-        winner_normal(j, id, ray_org(j, t, p), rd, t->t[p], unit);
+        winner_normal(j, id, ro, rd, t->t[p], unit);
         const double back[3] = {-unit[0], -unit[1], -unit[2]};
         view_normal(j, unit, vn[0]);
         view_normal(j, back, vn[1]);
@@ -432,11 +496,107 @@ static void resolve_tile(const rs_job *j, const rs_tile *t) {
     }
 }
 
+/* Copies n floats to the image with stores that bypass the caches: the G-buffer (32 bytes a
+ * pixel) is far larger than them, and an ordinary store first reads each line it writes. Whole
+ * rows of a tile at a time, so the write-combining buffers fill complete lines. */
+static void stream_out(float *dst, const float *src, size_t n) {
+  size_t i = 0;
+#if defined(__SSE2__)
+  for (; i < n && ((uintptr_t)(dst + i) & 15); i++) {
+    int bits;
+    memcpy(&bits, src + i, sizeof bits);
+    _mm_stream_si32((int *)(dst + i), bits);
+  }
+  for (; i + 4 <= n; i += 4) _mm_stream_ps(dst + i, _mm_loadu_ps(src + i));
+  for (; i < n; i++) {
+    int bits;
+    memcpy(&bits, src + i, sizeof bits);
+    _mm_stream_si32((int *)(dst + i), bits);
+  }
+#endif
+  if (i < n) memcpy(dst + i, src + i, (n - i) * sizeof *dst);
+}
+
+/* Row n pixels from image pixel i: the four buffers' values. */
+static void stream_row(const obs_gbuffer *g, size_t i, size_t n, const float *depth,
+                       const float *cover, const float *normal, const float *color) {
+  stream_out(g->depth + i, depth, n);
+  stream_out(g->coverage + i, cover, n);
+  stream_out(g->normal + 3 * i, normal, 3 * n);
+  stream_out(g->albedo + 3 * i, color, 3 * n);
+}
+
+/* The streaming stores reach memory before the pass reports the tile done. */
+static void stream_fence(void) {
+#if defined(__SSE2__)
+  _mm_sfence();
+#endif
+}
+
+/* resolve_tile_ref's values, a row of the tile at a time into small buffers (uncovered pixels
+ * get the image's zeros again), then streamed out; what the loop reads held in locals. */
+static void resolve_tile(const rs_job *j, const rs_tile *t) {
+  if (j->reference) {
+    resolve_tile_ref(j, t);
+    return;
+  }
+  const obs_gbuffer *g = j->g;
+  const size_t width = (size_t)g->width, ntris = j->ntris;
+  const int ortho = j->cam.ortho;
+  const double f0 = j->view.forward[0], f1 = j->view.forward[1], f2 = j->view.forward[2];
+  uint32_t last = UINT32_MAX;
+  double unit[3] = {0, 0, 0};
+  float vn[2][3] = {{0, 0, 0}, {0, 0, 0}}, albedo[3] = {0, 0, 0};
+  float depth[OBS_TILE], cover[OBS_TILE], normal[3 * OBS_TILE], color[3 * OBS_TILE];
+  for (int y = 0; y < t->h; y++) {
+    for (int x = 0; x < t->w; x++) {
+      const int p = y * OBS_TILE + x;
+      const uint32_t id = t->win[p];
+      if (id == UINT32_MAX) {
+        depth[x] = cover[x] = 0;
+        for (int k = 0; k < 3; k++) normal[3 * x + k] = color[3 * x + k] = 0;
+        continue;
+      }
+      const double dx = ortho ? f0 : t->ray[0][p], dy = ortho ? f1 : t->ray[1][p];
+      const double dz = ortho ? f2 : t->ray[2][p];
+      if (id >= ntris || id != last) {
+        double ro[3], rd[3];
+        ray_at(j, t, p, ro, rd);
+        winner_normal(j, id, ro, rd, t->t[p], unit);
+        const double back[3] = {-unit[0], -unit[1], -unit[2]};
+        view_normal(j, unit, vn[0]);
+        view_normal(j, back, vn[1]);
+        if (id != last) {
+          const obs_object *o = winner_object(j, id);
+          albedo[0] = o->has_material ? (float)o->reflectivity.x : 1.0f;
+          albedo[1] = o->has_material ? (float)o->reflectivity.y : 1.0f;
+          albedo[2] = o->has_material ? (float)o->reflectivity.z : 1.0f;
+        }
+        last = id;
+      }
+      const float *nv = vn[unit[0] * dx + unit[1] * dy + unit[2] * dz > 0];
+      depth[x] = (float)t->t[p];
+      cover[x] = 1.0f;
+      for (int k = 0; k < 3; k++) normal[3 * x + k] = nv[k], color[3 * x + k] = albedo[k];
+    }
+    stream_row(g, (size_t)(t->y0 + y) * width + (size_t)t->x0, (size_t)t->w, depth, cover, normal,
+               color);
+  }
+  stream_fence();
+}
+
 static int raster_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)thread;
   const rs_job *j = user;
   const size_t tile = (size_t)(y0 / OBS_TILE) * j->tiles_x + (size_t)(x0 / OBS_TILE);
-  if (j->bin_start[tile] == j->bin_start[tile + 1]) return 0; /* nothing: the buffers' zeros */
+  if (j->bin_start[tile] == j->bin_start[tile + 1]) { /* nothing here: zeros */
+    static const float zero[3 * OBS_TILE];
+    for (int y = y0; y < y1; y++)
+      stream_row(j->g, (size_t)y * (size_t)j->g->width + (size_t)x0, (size_t)(x1 - x0), zero, zero,
+                 zero, zero);
+    stream_fence();
+    return 0;
+  }
   rs_tile *t = malloc(sizeof *t);
   if (!t) return OBS_ENOMEM;
   t->x0 = x0, t->y0 = y0, t->w = x1 - x0, t->h = y1 - y0;
@@ -450,12 +610,12 @@ static int raster_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   /* obs_rt_view_ray's expressions, a row at a time. */
   const obs_rt_view *v = &j->view;
   const double *base = j->cam.ortho ? v->eye : v->forward;
-  for (int y = 0; y < t->h; y++) {
-    const double sy = t->sy[y];
-    double(*row)[3] = t->ray + y * OBS_TILE;
-    for (int x = 0; x < t->w; x++)
-      for (int k = 0; k < 3; k++) row[x][k] = base[k] + (t->sx[x] * v->right[k] + sy * v->up[k]);
-  }
+  for (int k = 0; k < 3; k++)
+    for (int y = 0; y < t->h; y++) {
+      const double sy = t->sy[y], b = base[k], r = v->right[k], u = v->up[k];
+      double *row = t->ray[k] + y * OBS_TILE;
+      for (int x = 0; x < t->w; x++) row[x] = b + (t->sx[x] * r + sy * u);
+    }
   for (size_t e = j->bin_start[tile]; e < j->bin_start[tile + 1]; e++) {
     const uint32_t id = j->bin[e];
     if (id < j->ntris)
@@ -518,10 +678,13 @@ static int rs_prepare(rs_job *j, const obs_scene *sc, const obs_geometry *geo, i
 /* The pass over the tiles, into a new G-buffer `g`. */
 static int rs_draw(rs_job *j, obs_gbuffer *g, int threads, double *render_ms, obs_err *err) {
   const obs_scene *sc = j->scene;
-  int rc = obs_gbuffer_alloc(g, sc->width, sc->height, &j->cam, err);
+  /* resolve_tile writes every pixel; the reference only the covered ones. */
+  int rc = j->reference ? obs_gbuffer_alloc(g, sc->width, sc->height, &j->cam, err)
+                        : obs_gbuffer_alloc_unset(g, sc->width, sc->height, &j->cam, err);
   if (rc) return rc;
   const double t0 = obs_now_ms();
   j->g = g;
+  j->row = obs_simd_isa() >= OBS_ISA_AVX2 ? persp_row_v3 : persp_row_base;
   rc = fill_bins(j);
   if (!rc)
     rc = obs_parallel_tiles(sc->width, sc->height, threads, raster_tile, j, NULL, NULL, NULL);
@@ -561,8 +724,8 @@ int obs_gbuffer_method(double tests, size_t pixels) {
 
 /* method < 0: obs_gbuffer_method's choice, after the raster's set-up (which the ray cast then
  * wastes: a small share of its BVH build). */
-static int gbuffer_cpu(const obs_scene *sc, int method, obs_gbuffer *g, int threads,
-                       double *build_ms, double *render_ms, obs_err *err) {
+static int gbuffer_cpu(const obs_scene *sc, int method, int reference, obs_gbuffer *g,
+                       int threads, double *build_ms, double *render_ms, obs_err *err) {
   const double t0 = obs_now_ms();
   const double eye[3] = {sc->camera.position.x, sc->camera.position.y, sc->camera.position.z};
   obs_geometry geo;
@@ -586,6 +749,7 @@ static int gbuffer_cpu(const obs_scene *sc, int method, obs_gbuffer *g, int thre
     return rc;
   }
   if (render_ms) *render_ms = t2 - t1;
+  j.reference = reference;
   if (!rc) rc = rs_draw(&j, g, threads, render_ms, err);
   rs_free(&j);
   obs_geometry_free(&geo);
@@ -607,15 +771,19 @@ int obs_gbuffer_raster_tests(const obs_scene *sc, int threads, double *tests, ob
 
 int obs_gbuffer_cpu(const obs_scene *sc, obs_gbuffer *g, int threads, double *build_ms,
                     double *render_ms, obs_err *err) {
-  return gbuffer_cpu(sc, -1, g, threads, build_ms, render_ms, err);
+  return gbuffer_cpu(sc, -1, 0, g, threads, build_ms, render_ms, err);
 }
 
 int obs_gbuffer_raycast(const obs_scene *sc, obs_gbuffer *g, int threads, double *build_ms,
                         double *render_ms, obs_err *err) {
-  return gbuffer_cpu(sc, OBS_GBUFFER_RAYCAST, g, threads, build_ms, render_ms, err);
+  return gbuffer_cpu(sc, OBS_GBUFFER_RAYCAST, 0, g, threads, build_ms, render_ms, err);
 }
 
 int obs_gbuffer_raster(const obs_scene *sc, obs_gbuffer *g, int threads, double *build_ms,
                        double *render_ms, obs_err *err) {
-  return gbuffer_cpu(sc, OBS_GBUFFER_RASTER, g, threads, build_ms, render_ms, err);
+  return gbuffer_cpu(sc, OBS_GBUFFER_RASTER, 0, g, threads, build_ms, render_ms, err);
+}
+
+int obs_gbuffer_raster_reference(const obs_scene *sc, obs_gbuffer *g, int threads, obs_err *err) {
+  return gbuffer_cpu(sc, OBS_GBUFFER_RASTER, 1, g, threads, NULL, NULL, err);
 }

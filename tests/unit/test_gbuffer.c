@@ -1,8 +1,9 @@
 /* The CPU G-buffer's two ways (renderer/cpu/gbuffer_raster.c): the rasteriser gives the ray cast's
  * buffers on bundled and synthetic scenes, perspective and orthographic, near the camera plane and
  * at extreme scales and translations: the same coverage but on a small share of pixels whose
- * centre lies on an edge, and there alone other depth or normal bits; and the method rule and its
- * override. */
+ * centre lies on an edge, and there alone other depth or normal bits; the raster's fast loops
+ * the same bits as its plain per-pixel reference at every instruction-set level; and the method
+ * rule and its override. */
 #include "testutil.h"
 
 #include <limits.h>
@@ -43,6 +44,38 @@ static void load_file(const char *name, int w, int h, obs_scene *sc) {
   obs_err_free(&err);
 }
 
+/* The raster at each instruction-set level against its plain per-pixel reference: every bit of
+ * every buffer. */
+static void same_as_reference(const obs_scene *sc, const obs_gbuffer *r, const char *what) {
+  obs_gbuffer ref;
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(obs_gbuffer_raster_reference(sc, &ref, 2, &err), 0);
+  const size_t n = (size_t)sc->width * (size_t)sc->height;
+  static const char *const isa[] = {"sse2", "native"};
+  for (size_t k = 0; k <= sizeof isa / sizeof *isa; k++) {
+    obs_gbuffer f;
+    if (k < sizeof isa / sizeof *isa) {
+      setenv("OBSCURA_ISA", isa[k], 1);
+      assert_int_equal(obs_gbuffer_raster(sc, &f, 2, NULL, NULL, &err), 0);
+      unsetenv("OBSCURA_ISA");
+    }
+    const obs_gbuffer *g = k < sizeof isa / sizeof *isa ? &f : r;
+    size_t diff = 0;
+    for (size_t i = 0; i < n; i++)
+      diff += memcmp(&g->depth[i], &ref.depth[i], sizeof(float)) ||
+              memcmp(&g->coverage[i], &ref.coverage[i], sizeof(float)) ||
+              memcmp(g->normal + 3 * i, ref.normal + 3 * i, 3 * sizeof(float)) ||
+              memcmp(g->albedo + 3 * i, ref.albedo + 3 * i, 3 * sizeof(float));
+    if (diff)
+      printf("%s: %zu pixels differ from the reference (%s)\n", what, diff,
+             k < sizeof isa / sizeof *isa ? isa[k] : "default level");
+    assert_int_equal(diff, 0);
+    if (k < sizeof isa / sizeof *isa) obs_gbuffer_free(&f);
+  }
+  obs_gbuffer_free(&ref);
+  obs_err_free(&err);
+}
+
 /* Both ways on `sc`; returns the pixels that differ in any bit of any buffer, after asserting
  * that they are few and that the rest agree. */
 static size_t compare(const obs_scene *sc, const char *what) {
@@ -50,6 +83,7 @@ static size_t compare(const obs_scene *sc, const char *what) {
   obs_err err = OBS_ERR_INIT;
   assert_int_equal(obs_gbuffer_raster(sc, &r, 2, NULL, NULL, &err), 0);
   assert_int_equal(obs_gbuffer_raycast(sc, &c, 2, NULL, NULL, &err), 0);
+  same_as_reference(sc, &r, what);
   const size_t n = (size_t)sc->width * (size_t)sc->height;
   size_t covered = 0, cov_diff = 0, val_diff = 0;
   for (size_t i = 0; i < n; i++) {
