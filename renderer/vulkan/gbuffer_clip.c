@@ -96,8 +96,10 @@ void obs_vk_clip_vertex_init(const obs_vk_clip *c, const double p[3], obs_vk_cli
 }
 
 /* One Sutherland-Hodgman stage against plane k of the cut band. The crossing point is computed
- * from the inside end toward the outside end, so the two triangles sharing an edge get the same
- * point (no cracks). */
+ * from the end nearer to the plane, a choice made from the edge's two ends alone, so the two
+ * triangles sharing an edge get the same point (no cracks). From the far end the fraction would
+ * round to 1 when one end lies far inside and the other just outside (geometry through the eye,
+ * against the near plane), and the crossing would fall onto the outside end. */
 static int clip_plane(const obs_vk_clip *c, int k, const wvert *in, int n, wvert *out) {
   int m = 0;
   for (int i = 0; i < n; i++) {
@@ -108,7 +110,10 @@ static int clip_plane(const obs_vk_clip *c, int k, const wvert *in, int n, wvert
     if (ia != ib) {
       const wvert *s = ia ? a : b, *o = ia ? b : a;
       wide ds = ia ? da : db, dout = ia ? db : da;
-      between(c, s, o, ds / (ds - dout), &out[m++]);
+      if (ds <= -dout)
+        between(c, s, o, ds / (ds - dout), &out[m++]);
+      else
+        between(c, o, s, dout / (dout - ds), &out[m++]);
     }
   }
   return m;
@@ -172,7 +177,10 @@ static void emit_slabs(emitter *e, const wvert *p, int n) {
     hi = p[i].v[2] > hi ? p[i].v[2] : hi;
   }
   const obs_vk_clip *c = e->c;
-  if (c->ortho || !(c->znear > 0.0) || !(hi > DEPTH_RATIO * lo)) {
+  /* The near-plane cut leaves lo within rounding of znear; below it (or a non-finite depth) the
+   * slab walk below would have no start or no end. */
+  if (!(lo >= c->znear)) lo = c->znear;
+  if (c->ortho || !(c->znear > 0.0) || !isfinite((double)hi) || !(hi > DEPTH_RATIO * lo)) {
     emit_polygon(e, p, n);
     return;
   }

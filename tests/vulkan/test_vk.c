@@ -671,6 +671,28 @@ static void test_gb_behind(void **state) {
   assert_int_equal(r.covered, 0);
 }
 
+/* Geometry through the eye: a ground in the camera's own plane and one 1e-20 below it, seen
+ * level and pitched down. The near-plane cut of their triangles must not collapse onto the
+ * vertex behind the eye (that left a depth of 0 and an endless slab walk). */
+static void test_gb_eye_in_plane(void **state) {
+  (void)state;
+  static const double below[] = {0, 1e-20};
+  static const double pitch[] = {0, -0.1};
+  for (size_t i = 0; i < 2; i++)
+    for (size_t k = 0; k < 2; k++) {
+      char label[64];
+      snprintf(label, sizeof label, "eye in plane, floor -%g, pitch %g", below[i], pitch[k]);
+      gb_report r = compare_gbuffers(
+          label,
+          fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[0,0,0],\"look_at\":[0,%g,1],"
+              "\"fov_y\":45},\"image\":{\"width\":32,\"height\":24},\"objects\":[{\"shape\":{"
+              "\"type\":\"quad\",\"vertices\":[[-10,%g,-10],[10,%g,-10],[10,%g,10],[-10,%g,10]]},"
+              MAT(0.5, 0.5, 0.5) "}]," TECH "}",
+              pitch[k], -below[i], -below[i], -below[i], -below[i]));
+      assert_int_equal(r.cpu_only, 0);
+    }
+}
+
 /* A host G-buffer survives upload and download unchanged. */
 static void test_gb_upload_download(void **state) {
   (void)state;
@@ -724,6 +746,7 @@ int main(void) {
       cmocka_unit_test_teardown(test_gb_far_and_scaled, vktest_quiet_teardown),
       cmocka_unit_test_teardown(test_gb_huge_ground, vktest_quiet_teardown),
       cmocka_unit_test_teardown(test_gb_tiny_fov, vktest_quiet_teardown),
+      cmocka_unit_test_teardown(test_gb_eye_in_plane, vktest_quiet_teardown),
       cmocka_unit_test_teardown(test_gb_empty, vktest_quiet_teardown),
       cmocka_unit_test_teardown(test_gb_behind, vktest_quiet_teardown),
       cmocka_unit_test_teardown(test_gb_upload_download, vktest_quiet_teardown),
