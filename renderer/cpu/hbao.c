@@ -180,6 +180,10 @@ OBS_TILE_KERNELS(ao_tile)
 #define EXP_P5 5.0000001201e-1f
 /* The blur's clamp of the squared relative depth difference: OBS_HBAO_MAX_REL_DZ^2 (1e8, exact). */
 #define BLUR_MAX_Q2 (OBS_HBAO_MAX_REL_DZ * OBS_HBAO_MAX_REL_DZ)
+/* Centre depths below BLUR_TINY_Z would overflow 1 / zc (from 2^-128 on): the depth difference and
+ * zc are both scaled by BLUR_TINY_SCALE first, which is exact and leaves their ratio as it was. */
+#define BLUR_TINY_Z 0x1p-100f
+#define BLUR_TINY_SCALE 0x1p64f
 
 OBS_HOT_INLINE float blur_exp(float x) {
   x = x > EXP_LO ? x : EXP_LO;
@@ -283,7 +287,10 @@ BLUR_AVX2_FN static void blur_span8(const hbao_job *jb, int x, int y, float *dst
     _mm256_storeu_ps(dst, _mm256_loadu_ps(jb->in + i));
     return;
   }
-  const __m256 rz = _mm256_div_ps(one, zc);
+  /* Below 2^-100 the depths are scaled up by 2^64 (exactly) so 1 / zc stays finite. */
+  const __m256 zs = _mm256_blendv_ps(one, _mm256_set1_ps(BLUR_TINY_SCALE),
+                                     _mm256_cmp_ps(zc, _mm256_set1_ps(BLUR_TINY_Z), _CMP_LT_OQ));
+  const __m256 rz = _mm256_div_ps(one, _mm256_mul_ps(zc, zs));
   const size_t step = jb->axis ? (size_t)W : 1;
   __m256 sw = zero, sa = zero;
   for (int k = -rad; k <= rad; k++) {
@@ -297,7 +304,7 @@ BLUR_AVX2_FN static void blur_span8(const hbao_job *jb, int x, int y, float *dst
     }
     const __m256 z = _mm256_loadu_ps(g->depth + j);
     const __m256 ok = _mm256_cmp_ps(z, zero, _CMP_GT_OQ);
-    const __m256 q = _mm256_mul_ps(_mm256_sub_ps(z, zc), rz);
+    const __m256 q = _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(z, zc), zs), rz);
     const __m256 q2 = _mm256_min_ps(_mm256_mul_ps(q, q), maxq2);
     const __m256 a = _mm256_fnmadd_ps(sharp, q2, _mm256_set1_ps(jb->blur_nkf[k + rad]));
     const __m256 w = _mm256_and_ps(blur_exp8(a), ok);
@@ -323,7 +330,8 @@ OBS_HOT_INLINE void blur_pixel(const hbao_job *jb, int x, int y) {
     jb->out[i] = jb->in[i];
     return;
   }
-  const float rz = 1.0f / zc, sharp = jb->p->blur_sharpness;
+  const float zs = zc < BLUR_TINY_Z ? BLUR_TINY_SCALE : 1.0f;
+  const float rz = 1.0f / (zc * zs), sharp = jb->p->blur_sharpness;
   float sw = 0.0f, sa = 0.0f;
   for (int k = -rad; k <= rad; k++) {
     int qx = jb->axis ? x : x + k, qy = jb->axis ? y + k : y;
@@ -336,7 +344,7 @@ OBS_HOT_INLINE void blur_pixel(const hbao_job *jb, int x, int y) {
     }
     float z = g->depth[j];
     if (!(z > 0.0f)) continue;
-    float q = (z - zc) * rz;
+    float q = ((z - zc) * zs) * rz;
     float q2 = q * q;
     q2 = q2 < BLUR_MAX_Q2 ? q2 : BLUR_MAX_Q2;
     /* The one transcendental that the backends evaluate differently (see blur_exp). */
