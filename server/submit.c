@@ -14,6 +14,11 @@
 #include "json_util.h"
 #include "obscurad.h"
 
+/* Whether jansson refused a document for a number it cannot hold (its texts in jansson 2.x). */
+static int number_range_error(const json_error_t *je) {
+  return strstr(je->text, "overflow") || strstr(je->text, "too big");
+}
+
 #define MAX_LABEL 256
 #define MAX_SETS 64
 
@@ -79,7 +84,8 @@ json_t *srv_submit_load_bundled(srv_app *app, obs_jpath *p, const json_t *v) {
         !obs_json_prescan(text, len, &lim, name, p->err, NULL)) {
       json_error_t je;
       doc = json_loadb(text, len, JSON_REJECT_DUPLICATES, &je);
-      if (!doc && !obs_json_prescan_strict(text, len, &lim, name, p->err, NULL))
+      if (!doc && !(number_range_error(&je) &&
+                    obs_json_prescan_strict(text, len, &lim, name, p->err, NULL)))
         obs_err_set(p->err, OBS_EINVAL, "%s: line %d, column %d: invalid JSON: %s", name, je.line,
                     je.column, je.text);
     }
@@ -138,9 +144,11 @@ unsigned srv_submit_read_body(const char *body, size_t len, const char *shape, j
   }
   json_error_t je;
   json_t *req = json_loadb(body, len, JSON_REJECT_DUPLICATES | JSON_DECODE_ANY, &je);
-  /* jansson names an out-of-range number by line and column only; the strict walk, run only on
-   * failure so accepted bodies pay nothing for it, names it by its pointer. */
-  if (!req && obs_json_prescan_strict(body, len, &lim, "request", problems, NULL)) {
+  /* jansson names an out-of-range number by line and column only; the strict walk, run only when
+   * that is jansson's reason (a syntax error elsewhere must be reported as one), names it by its
+   * pointer. */
+  if (!req && number_range_error(&je) &&
+      obs_json_prescan_strict(body, len, &lim, "request", problems, NULL)) {
     *message = "request has a number outside what a double or a 64-bit integer holds";
     return 422;
   }

@@ -103,7 +103,7 @@ typedef struct exr_writer {
   atomic_int failed;
   exr_result_t fail_rc;   /* first failure, with the library's message */
   char fail_msg[512];
-  int fail_layout;        /* the encoder named a channel the image lacks */
+  atomic_int fail_layout; /* the encoder named a channel the image lacks (any thread sets it) */
   int base;               /* first chunk of the window being compressed */
 } exr_writer;
 
@@ -132,7 +132,7 @@ static int exr_encode_one(exr_writer *w, exr_slot *s, int idx) {
                              : exr_encoding_initialize(w->ctx, 0, ci, &s->enc);
   if (rc == EXR_ERR_SUCCESS) s->alive = 1;
   if (rc == EXR_ERR_SUCCESS && exr_bind_encode(&s->enc, w->img, ci->start_y) != 0) {
-    w->fail_layout = 1;
+    atomic_store(&w->fail_layout, 1);
     return -1;
   }
   if (rc == EXR_ERR_SUCCESS && !s->chosen) {
@@ -232,7 +232,7 @@ static int exr_write_chunks(exr_writer *w, int lines, int threads, const char *p
     int k1 = nchunks - k0 < (int)win ? nchunks : k0 + (int)win;
     *stage = "encode pixels";
     code = exr_encode_window(w, k0, k1, threads);
-    if (w->fail_layout) {
+    if (atomic_load(&w->fail_layout)) {
       code = obs_err_set(err, OBS_EINTERNAL,
                          "%s: cannot write EXR: encoder lists a channel the image lacks", path);
     } else if (atomic_load(&w->failed)) {

@@ -48,7 +48,7 @@ static void grow_box(obs_extent *ex, const obs_transform *t, const double lo[3],
   }
 }
 
-static int grow_object(obs_extent *ex, const obs_scene *sc, size_t oi, obs_err *err) {
+static int grow_object(obs_extent *ex, const obs_scene *sc, size_t oi) {
   const obs_object *o = &sc->objects[oi];
   double p[3], w[3];
   switch (o->shape) {
@@ -83,21 +83,9 @@ static int grow_object(obs_extent *ex, const obs_scene *sc, size_t oi, obs_err *
       return 0;
     }
     case OBS_SHAPE_MESH: {
-      char where[256];
-      snprintf(where, sizeof where, "%s: /objects/%zu/shape/file", sc->name, oi);
-      obs_mesh m;
-      memset(&m, 0, sizeof m);
-      int rc = obs_geometry_import_mesh(o->mesh_path, sc->base_dir ? sc->base_dir : ".", &m, err,
-                                        where);
-      if (rc) return rc;
-      double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-      for (size_t v = 0; v < m.nverts; v++)
-        for (int k = 0; k < 3; k++) {
-          lo[k] = fmin(lo[k], m.pos[3 * v + k]);
-          hi[k] = fmax(hi[k], m.pos[3 * v + k]);
-        }
-      if (m.nverts) grow_box(ex, &o->transform, lo, hi);
-      obs_geometry_mesh_free(&m);
+      /* The object-space box the loader measured when it imported the file: importing it again
+       * here would cost a second import per render. */
+      grow_box(ex, &o->transform, o->mesh_bounds[0], o->mesh_bounds[1]);
       return 0;
     }
   }
@@ -105,10 +93,11 @@ static int grow_object(obs_extent *ex, const obs_scene *sc, size_t oi, obs_err *
 }
 
 int obs_scene_extent(const obs_scene *sc, obs_extent *ex, obs_err *err) {
+  (void)err; /* no shape can fail today; a shape read from a file later may */
   memset(ex, 0, sizeof *ex);
   ex->empty = 1;
   for (size_t i = 0; i < sc->nobjects; i++) {
-    int rc = grow_object(ex, sc, i, err);
+    int rc = grow_object(ex, sc, i);
     if (rc) return rc;
   }
   if (ex->empty) return 0;

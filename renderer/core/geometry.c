@@ -402,7 +402,8 @@ double obs_geometry_object_reach(const obs_object *o, const double mesh_bounds[2
     xform_point(&x, pts[i], w);
     for (int k = 0; k < 3; k++) {
       double a = fabs(w[k] - origin[k]) + grow;
-      if (!(a <= reach)) reach = a; /* NaN propagates */
+      if (isnan(a)) return NAN; /* refused as beyond the range, whatever comes after */
+      if (a > reach) reach = a;
     }
   }
   return reach;

@@ -26,12 +26,16 @@ int obs_json_number_out_of_range(const char *t, size_t n) {
     return cmp > 0 && !(neg && !memcmp(t + i, "9223372036854775808", ld));
   }
   /* Reals: the decimal exponent of the first significant digit decides, strtod only near the
-   * boundary (on a copy of at most 40 significant digits, enough to decide the rounding there). */
+   * boundary, on a copy of at most SIG_MAX significant digits. The halfway point between DBL_MAX
+   * and the next power of two has 768, so a tail beyond SIG_MAX digits can only matter through
+   * whether it is zero: a sticky 1 stands in for a nonzero one. */
   long long lead = 0; /* digits before the point, leading zeros dropped */
   long long zeros = 0; /* zeros after the point before the first significant digit */
   int seen = 0, point = 0;
-  char digits[48];
+  enum { SIG_MAX = 800 };
+  char digits[SIG_MAX + 2];
   size_t nd = 0;
+  int sticky = 0;
   for (; i < n && (isdigit((unsigned char)t[i]) || t[i] == '.'); i++) {
     if (t[i] == '.') {
       point = 1;
@@ -43,8 +47,10 @@ int obs_json_number_out_of_range(const char *t, size_t n) {
     }
     seen = 1;
     if (!point) lead++;
-    if (nd < 40) digits[nd++] = t[i];
+    if (nd < SIG_MAX) digits[nd++] = t[i];
+    else sticky |= t[i] != '0';
   }
+  if (sticky) digits[nd++] = '1';
   if (!seen) return 0;
   long long ex = 0;
   if (i < n && (t[i] == 'e' || t[i] == 'E')) {
@@ -59,7 +65,7 @@ int obs_json_number_out_of_range(const char *t, size_t n) {
   long long e10 = ex + (lead ? lead : -zeros);
   if (e10 <= 308) return 0;
   if (e10 > 309) return 2;
-  char buf[64];
+  char buf[SIG_MAX + 48];
   snprintf(buf, sizeof buf, "0.%.*se%lld", (int)nd, digits, e10);
   return isinf(strtod(buf, NULL)) ? 2 : 0;
 }

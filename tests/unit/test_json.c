@@ -306,6 +306,35 @@ static void test_prescan_number_range(void **state) {
   }
 }
 
+/* Next to DBL_MAX the 41st and later significant digits decide the rounding (the halfway point to
+ * 2^1024, 2^1024 - 2^970, is 1.797693134862315807937289714053034150799341327100378269...e308): above it jansson refuses
+ * (infinity) and so must the pre-scan; just below it both accept. */
+static void test_prescan_numbers_long_tails(void **state) {
+  (void)state;
+  static const char *const over[] = {
+      "[1.7976931348623158079372897140530341507994e308]",
+      "[179769313486231580793728971405303415079940000e264]",
+      "[1.7976931348623158079372897140530341507993413271004e308]"};
+  static const char *const under[] = {"[1.797693134862315807937289714053034150799e308]",
+                                      "[1.7976931348623158079372897140530341507993e308]",
+                                      "[1.7976931348623158079372897140530341507993413271003e308]"};
+  for (size_t i = 0; i < sizeof over / sizeof over[0]; i++) {
+    json_t *j = json_loads(over[i], 0, NULL);
+    assert_null(j);
+    obs_err err = OBS_ERR_INIT;
+    assert_int_not_equal(scan_numbers(over[i], &err), 0);
+    obs_err_free(&err);
+  }
+  for (size_t i = 0; i < sizeof under / sizeof under[0]; i++) {
+    json_t *j = json_loads(under[i], 0, NULL);
+    assert_non_null(j);
+    json_decref(j);
+    obs_err err = OBS_ERR_INIT;
+    assert_int_equal(scan_numbers(under[i], &err), 0);
+    obs_err_free(&err);
+  }
+}
+
 /* The strict pre-scan refuses a number exactly when jansson does: 20000 generated tokens (integers
  * of 1 to 25 digits around the 64-bit edge, reals with exponents near +-308 and beyond). */
 static void test_prescan_numbers_match_parser(void **state) {
@@ -356,6 +385,7 @@ int main(void) {
       cmocka_unit_test(test_pointer_depth),         cmocka_unit_test(test_scene_deep_override),
       cmocka_unit_test(test_scene_deep_document),   cmocka_unit_test(test_brief_is_bounded),
       cmocka_unit_test(test_prescan_number_range),
+      cmocka_unit_test(test_prescan_numbers_long_tails),
       cmocka_unit_test(test_prescan_numbers_match_parser),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

@@ -40,8 +40,10 @@ void obs_result_free(obs_result *result);
 
 /* Writes DIR/ao.exr, DIR/ao.png, DIR/bent_normal.png (RGB = n * 0.5 + 0.5, when the image has
  * bent_normal.X/Y/Z), DIR/depth.png (grey, nearest covered pixel white, farthest 0.1, background
- * black, when it has depth.Z) and DIR/summary.json (creating DIR). The image files are written in
- * parallel on up to result->threads threads (same bytes for any count). Times the writes into
+ * black, when it has depth.Z) and DIR/summary.json (creating DIR). With result->threads > 1 the
+ * image files are written in parallel: the EXR's chunks on result->threads - 1 threads beside the
+ * caller and each PNG on a thread of its own, so up to result->threads + 3 threads for the few
+ * milliseconds the PNGs take (same bytes for any count). Times the writes into
  * result->timings.write_ms and recomputes total_ms. */
 int obs_result_write(obs_result *result, const obs_scene *scene, const char *dir, obs_err *err);
 /* The summary document (new reference). */
