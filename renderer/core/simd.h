@@ -47,8 +47,10 @@ OBS_AVX2_INLINE __m256 obs_avx2_gather(int loads, const float *base, __m256i idx
                         base[(unsigned)c], base[c >> 32], base[(unsigned)d], base[d >> 32]);
 }
 
-/* The x86-64-v3 variant of a tile kernel (OBS_TILE_KERNELS). */
-#define OBS_V3_FN __attribute__((target("avx2,fma,bmi,bmi2,lzcnt,movbe,f16c,popcnt")))
+/* The x86-64-v3 variant of a tile kernel (OBS_TILE_KERNELS), limited to the features
+ * obs_simd_cpu_isa checks (AVX2 and FMA): BMI2, LZCNT or MOVBE instructions in it would fault on a
+ * CPU model (a VM's, an emulator's) that offers AVX2 and FMA but masks those. */
+#define OBS_V3_FN __attribute__((target("avx2,fma")))
 
 /* The CPU's best level. */
 static inline int obs_simd_cpu_isa(void) {
