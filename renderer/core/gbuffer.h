@@ -36,6 +36,22 @@ int obs_gbuffer_alloc_unset(obs_gbuffer *g, int width, int height, const obs_cam
                             obs_err *err);
 void obs_gbuffer_free(obs_gbuffer *g);
 
+/* The albedo the G-buffer stores for an object: its reflectivity, (1, 1, 1) without a material. */
+static inline void obs_gbuffer_albedo(const obs_object *o, float out[3]) {
+  out[0] = o->has_material ? (float)o->reflectivity.x : 1.0f;
+  out[1] = o->has_material ? (float)o->reflectivity.y : 1.0f;
+  out[2] = o->has_material ? (float)o->reflectivity.z : 1.0f;
+}
+
+/* A world-space unit normal in the camera's view frame (right, up, forward), rounded to float:
+ * what the CPU G-buffers store, whichever way they find the surface. */
+static inline void obs_gbuffer_view_normal(const obs_camera_rig *rig, const double n[3],
+                                           float out[3]) {
+  const double *axes[3] = {rig->right, rig->up, rig->forward};
+  for (int k = 0; k < 3; k++)
+    out[k] = (float)(n[0] * axes[k][0] + n[1] * axes[k][1] + n[2] * axes[k][2]);
+}
+
 static inline void obs_gbuffer_position(const obs_gbuffer *g, float fx, float fy, float z,
                                         float out[3]) {
   float nx = 2.0f * fx / (float)g->width - 1.0f, ny = 1.0f - 2.0f * fy / (float)g->height;

@@ -452,12 +452,20 @@ static const obs_object *winner_object(const rs_job *j, uint32_t id) {
   return &j->scene->objects[j->geo->meshes[mesh_of(j, id)].object];
 }
 
-/* The G-buffer's view-space normal of a faced world normal, as gb_tile of the ray cast derives it.
- */
-static void view_normal(const rs_job *j, const double hn[3], float out[3]) {
-  const double *axes[3] = {j->cam.right, j->cam.up, j->cam.forward};
-  for (int k = 0; k < 3; k++)
-    out[k] = (float)(hn[0] * axes[k][0] + hn[1] * axes[k][1] + hn[2] * axes[k][2]);
+/* The winner's faced normals (both ways, vn[0] along `unit`) and albedo, set up again only when
+ * the winner changes from `*last`; a sphere's normal changes with every pixel. Both ways are
+ * stored rather than negated afterwards, since the signs of zero sums would differ. */
+static void winner_face(const rs_job *j, const rs_tile *t, int p, uint32_t id, uint32_t *last,
+                        double unit[3], float vn[2][3], float albedo[3]) {
+  if (id < j->ntris && id == *last) return;
+  double ro[3], rd[3];
+  ray_at(j, t, p, ro, rd);
+  winner_normal(j, id, ro, rd, t->t[p], unit);
+  const double back[3] = {-unit[0], -unit[1], -unit[2]};
+  obs_gbuffer_view_normal(&j->cam, unit, vn[0]);
+  obs_gbuffer_view_normal(&j->cam, back, vn[1]);
+  if (id != *last) obs_gbuffer_albedo(winner_object(j, id), albedo);
+  *last = id;
 }
 
 /* Writes the tile's nearest hits into the G-buffer (the reference of resolve_tile). A triangle's
@@ -474,19 +482,7 @@ static void resolve_tile_ref(const rs_job *j, const rs_tile *t) {
       if (id == UINT32_MAX) continue;
       double ro[3], rd[3];
       ray_at(j, t, p, ro, rd);
-      if (id >= j->ntris || id != last) {
-        winner_normal(j, id, ro, rd, t->t[p], unit);
-        const double back[3] = {-unit[0], -unit[1], -unit[2]};
-        view_normal(j, unit, vn[0]);
-        view_normal(j, back, vn[1]);
-        if (id != last) {
-          const obs_object *o = winner_object(j, id);
-          albedo[0] = o->has_material ? (float)o->reflectivity.x : 1.0f;
-          albedo[1] = o->has_material ? (float)o->reflectivity.y : 1.0f;
-          albedo[2] = o->has_material ? (float)o->reflectivity.z : 1.0f;
-        }
-        last = id;
-      }
+      winner_face(j, t, p, id, &last, unit, vn, albedo);
       const int face = unit[0] * rd[0] + unit[1] * rd[1] + unit[2] * rd[2] > 0;
       const size_t i = (size_t)(t->y0 + y) * (size_t)g->width + (size_t)(t->x0 + x);
       g->depth[i] = (float)t->t[p];
@@ -541,7 +537,7 @@ static void resolve_tile(const rs_job *j, const rs_tile *t) {
     return;
   }
   const obs_gbuffer *g = j->g;
-  const size_t width = (size_t)g->width, ntris = j->ntris;
+  const size_t width = (size_t)g->width;
   const int ortho = j->cam.ortho;
   const double f0 = j->view.forward[0], f1 = j->view.forward[1], f2 = j->view.forward[2];
   uint32_t last = UINT32_MAX;
@@ -559,21 +555,7 @@ static void resolve_tile(const rs_job *j, const rs_tile *t) {
       }
       const double dx = ortho ? f0 : t->ray[0][p], dy = ortho ? f1 : t->ray[1][p];
       const double dz = ortho ? f2 : t->ray[2][p];
-      if (id >= ntris || id != last) {
-        double ro[3], rd[3];
-        ray_at(j, t, p, ro, rd);
-        winner_normal(j, id, ro, rd, t->t[p], unit);
-        const double back[3] = {-unit[0], -unit[1], -unit[2]};
-        view_normal(j, unit, vn[0]);
-        view_normal(j, back, vn[1]);
-        if (id != last) {
-          const obs_object *o = winner_object(j, id);
-          albedo[0] = o->has_material ? (float)o->reflectivity.x : 1.0f;
-          albedo[1] = o->has_material ? (float)o->reflectivity.y : 1.0f;
-          albedo[2] = o->has_material ? (float)o->reflectivity.z : 1.0f;
-        }
-        last = id;
-      }
+      winner_face(j, t, p, id, &last, unit, vn, albedo);
       const float *nv = vn[unit[0] * dx + unit[1] * dy + unit[2] * dz > 0];
       depth[x] = (float)t->t[p];
       cover[x] = 1.0f;

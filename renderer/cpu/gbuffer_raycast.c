@@ -60,14 +60,8 @@ static int gb_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
         if (h->geom != last_geom || h->prim != last_prim || h->ng[0] != last_ng[0] ||
             h->ng[1] != last_ng[1] || h->ng[2] != last_ng[2]) {
           /* Face normal (not the shading normal), as the rasteriser derives it from positions. */
-          const double *axes[3] = {cam->right, cam->up, cam->forward};
-          for (int k = 0; k < 3; k++)
-            view_n[k] =
-                (float)(h->ng[0] * axes[k][0] + h->ng[1] * axes[k][1] + h->ng[2] * axes[k][2]);
-          const obs_object *o = hit_object(j, h);
-          albedo[0] = o->has_material ? (float)o->reflectivity.x : 1.0f;
-          albedo[1] = o->has_material ? (float)o->reflectivity.y : 1.0f;
-          albedo[2] = o->has_material ? (float)o->reflectivity.z : 1.0f;
+          obs_gbuffer_view_normal(cam, h->ng, view_n);
+          obs_gbuffer_albedo(hit_object(j, h), albedo);
           last_geom = h->geom;
           last_prim = h->prim;
           last_ng[0] = h->ng[0], last_ng[1] = h->ng[1], last_ng[2] = h->ng[2];

@@ -357,13 +357,6 @@ static int sphere_fill(const obs_sphere *s, int n, const double shift[3], double
 
 /* ---- the pass ---- */
 
-static void object_albedo(const obs_scene *sc, size_t obj, float out[3]) {
-  const obs_object *o = &sc->objects[obj];
-  out[0] = o->has_material ? (float)o->reflectivity.x : 1.0f;
-  out[1] = o->has_material ? (float)o->reflectivity.y : 1.0f;
-  out[2] = o->has_material ? (float)o->reflectivity.z : 1.0f;
-}
-
 /* Every triangle of the draw list, camera-relative in double (the mesh's float vertices shifted,
  * exact when the geometry was built at the camera's origin; spheres tessellated in double),
  * through the clipper. With `out`,
@@ -432,10 +425,10 @@ static int build_vertices(obs_vk *vk, const obs_scene *sc, const obs_geometry *g
     rc = obs_err_set(err, OBS_ENOMEM, "%s: out of memory for the G-buffer draw list", sc->name);
     goto fail;
   }
-  for (size_t m = 0; m < geo->nmeshes; m++) object_albedo(sc, geo->meshes[m].object, d[m].albedo);
+  for (size_t m = 0; m < geo->nmeshes; m++) obs_gbuffer_albedo(&sc->objects[geo->meshes[m].object], d[m].albedo);
   for (size_t s = 0; s < geo->nspheres; s++) {
     seg[s] = geo->spheres[s].radius > 0 ? sphere_segments(rig, &geo->spheres[s], shift) : 0;
-    object_albedo(sc, geo->spheres[s].object, d[geo->nmeshes + s].albedo);
+    obs_gbuffer_albedo(&sc->objects[geo->spheres[s].object], d[geo->nmeshes + s].albedo);
   }
   /* Three passes: the depth extent in view (near plane at the eye), the counts with the chosen
    * near plane, then the vertices. */
