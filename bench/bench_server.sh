@@ -2,7 +2,7 @@
 # obscurad under load on loopback: `wrk` on GET /api/v1/jobs/{id} while a CPU render keeps the
 # worker busy -- as fast as it goes, then at a fixed offered rate -- (requests/s, p50, p99), then the
 # latency of sequential job submissions (median, p99).
-# Goal (issue 4): >= 5000 requests/s with p99 <= 5 ms on 2 cores. See bench/README.md.
+# Goal: >= 5000 requests/s with p99 <= 5 ms on 2 cores. See bench/README.md.
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 
