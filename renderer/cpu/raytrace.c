@@ -9,6 +9,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "extent.h"
 #include "simd.h"
 
 #include "normalize.h"
@@ -179,32 +180,22 @@ const char *obs_rt_embree_isa(void) {
   return "unknown";
 }
 
-/* Rebuilds rt->geo at the point of its bounds nearest to the eye (the frame's origin when it was
- * built) when the eye is more than OBS_RT_FAR_CAMERA diagonals from them. Scenes the camera is
- * near or inside keep the camera's frame, and so their exact bits. */
-static int frame_at_geometry(const obs_scene *sc, obs_rt *rt, obs_err *err) {
-  const double(*b)[3] = rt->geo.bounds;
-  double near[3], gap2 = 0, diag2 = 0;
+/* Where the float frame sits for OBS_RT_FRAME_GEOMETRY: the point of the geometry's bounds
+ * (obs_scene_extent, in double, nothing imported) nearest to the eye when the eye is more than
+ * OBS_RT_FAR_CAMERA diagonals from them, else the eye itself. Scenes the camera is near or inside
+ * keep the camera's frame, and so their exact bits. Returns 1 when the frame moved. */
+static int frame_origin(const obs_scene *sc, const double eye[3], double at[3], obs_err *err) {
+  memcpy(at, eye, 3 * sizeof *at);
+  obs_extent ex;
+  if (obs_scene_extent(sc, &ex, err) || ex.empty) return 0;
+  double near[3], gap2 = 0, diag2 = ex.size * ex.size;
   for (int k = 0; k < 3; k++) {
-    near[k] = fmin(fmax(0.0, b[0][k]), b[1][k]);
-    gap2 += near[k] * near[k];
-    diag2 += (b[1][k] - b[0][k]) * (b[1][k] - b[0][k]);
+    near[k] = fmin(fmax(eye[k], ex.bounds[0][k]), ex.bounds[1][k]);
+    gap2 += (near[k] - eye[k]) * (near[k] - eye[k]);
   }
   if (!(gap2 > OBS_RT_FAR_CAMERA * OBS_RT_FAR_CAMERA * diag2) || !(diag2 > 0)) return 0;
-  double at[3];
-  for (int k = 0; k < 3; k++) at[k] = rt->geo.origin[k] + near[k];
-  obs_geometry_free(&rt->geo);
-  int rc = obs_geometry_build_at(sc, at, &rt->geo, err);
-  if (rc) return rc;
-  /* The box must contain every vertex however the slab test rounds: grow it by far more than
-   * double's error on coordinates of its own size. */
-  double grow = sqrt(diag2) * 0x1p-20;
-  for (int k = 0; k < 3; k++) {
-    rt->box[0][k] = rt->geo.bounds[0][k] - grow;
-    rt->box[1][k] = rt->geo.bounds[1][k] + grow;
-  }
-  rt->advance = 1;
-  return 0;
+  memcpy(at, near, sizeof near);
+  return 1;
 }
 
 static int build_bvh(obs_rt *rt, int threads, obs_err *err);
@@ -219,9 +210,23 @@ int obs_rt_build_ex(const obs_scene *sc, obs_rt *rt, int threads, int frame, obs
   /* Camera-relative coordinates: what the camera sees stays precise in float however far from
    * the world origin the scene sits. */
   const double eye[3] = {sc->camera.position.x, sc->camera.position.y, sc->camera.position.z};
-  int rc = obs_geometry_build_at(sc, eye, &rt->geo, err);
-  if (!rc && frame == OBS_RT_FRAME_GEOMETRY) rc = frame_at_geometry(sc, rt, err);
+  double at[3];
+  int moved = frame == OBS_RT_FRAME_GEOMETRY && frame_origin(sc, eye, at, err);
+  int rc = obs_geometry_build_at(sc, moved ? at : eye, &rt->geo, err);
   if (rc) return rc;
+  if (moved) {
+    /* The box must contain every vertex however the slab test rounds: grow it by far more than
+     * double's error on coordinates of its own size. */
+    const double(*b)[3] = rt->geo.bounds;
+    double diag2 = 0;
+    for (int k = 0; k < 3; k++) diag2 += (b[1][k] - b[0][k]) * (b[1][k] - b[0][k]);
+    double grow = sqrt(diag2) * 0x1p-20;
+    for (int k = 0; k < 3; k++) {
+      rt->box[0][k] = b[0][k] - grow;
+      rt->box[1][k] = b[1][k] + grow;
+    }
+    rt->advance = 1;
+  }
   return build_bvh(rt, threads, err);
 }
 
