@@ -48,7 +48,7 @@ static void grow_box(obs_extent *ex, const obs_transform *t, const double lo[3],
   }
 }
 
-static int grow_object(obs_extent *ex, const obs_scene *sc, size_t oi) {
+static void grow_object(obs_extent *ex, const obs_scene *sc, size_t oi) {
   const obs_object *o = &sc->objects[oi];
   double p[3], w[3];
   switch (o->shape) {
@@ -59,11 +59,11 @@ static int grow_object(obs_extent *ex, const obs_scene *sc, size_t oi) {
         transform_point(&o->transform, p, w);
         grow(ex, w);
       }
-      return 0;
+      return;
     case OBS_SHAPE_BOX: {
       double lo[3] = {o->v[0].x, o->v[0].y, o->v[0].z}, hi[3] = {o->v[1].x, o->v[1].y, o->v[1].z};
       grow_box(ex, &o->transform, lo, hi);
-      return 0;
+      return;
     }
     case OBS_SHAPE_SPHERE: {
       /* Uniform scale only (the loader insists), so the transformed sphere stays a sphere. */
@@ -74,32 +74,28 @@ static int grow_object(obs_extent *ex, const obs_scene *sc, size_t oi) {
         double q[3] = {w[0] + (k ? r : -r), w[1] + (k ? r : -r), w[2] + (k ? r : -r)};
         grow(ex, q);
       }
-      return 0;
+      return;
     }
     case OBS_SHAPE_DISPLACED_SPHERE: {
       /* Radius 1 + 0.15 + 0.05 at most (obs_geometry_displaced_sphere's displacement). */
       static const double lo[3] = {-1.2, -1.2, -1.2}, hi[3] = {1.2, 1.2, 1.2};
       grow_box(ex, &o->transform, lo, hi);
-      return 0;
+      return;
     }
     case OBS_SHAPE_MESH: {
       /* The object-space box the loader measured when it imported the file: importing it again
        * here would cost a second import per render. */
       grow_box(ex, &o->transform, o->mesh_bounds[0], o->mesh_bounds[1]);
-      return 0;
+      return;
     }
   }
-  return 0;
 }
 
 int obs_scene_extent(const obs_scene *sc, obs_extent *ex, obs_err *err) {
   (void)err; /* no shape can fail today; a shape read from a file later may */
   memset(ex, 0, sizeof *ex);
   ex->empty = 1;
-  for (size_t i = 0; i < sc->nobjects; i++) {
-    int rc = grow_object(ex, sc, i);
-    if (rc) return rc;
-  }
+  for (size_t i = 0; i < sc->nobjects; i++) grow_object(ex, sc, i);
   if (ex->empty) return 0;
   double d2 = 0, c2 = 0;
   for (int k = 0; k < 3; k++) {
