@@ -9,27 +9,6 @@
 
 #include "geometry.h"
 
-#define PI 3.14159265358979323846
-
-/* The object transform as geometry.c applies it: translate * Rz * Ry * Rx * scale, in double. */
-static void transform_point(const obs_transform *t, const double p[3], double o[3]) {
-  double q[3] = {p[0] * t->scale.x, p[1] * t->scale.y, p[2] * t->scale.z};
-  double a[3] = {t->rotate.x * PI / 180, t->rotate.y * PI / 180, t->rotate.z * PI / 180};
-  double c, s, u, v;
-  c = cos(a[0]), s = sin(a[0]); /* about X */
-  u = c * q[1] - s * q[2], v = s * q[1] + c * q[2];
-  q[1] = u, q[2] = v;
-  c = cos(a[1]), s = sin(a[1]); /* about Y */
-  u = c * q[0] + s * q[2], v = -s * q[0] + c * q[2];
-  q[0] = u, q[2] = v;
-  c = cos(a[2]), s = sin(a[2]); /* about Z */
-  u = c * q[0] - s * q[1], v = s * q[0] + c * q[1];
-  q[0] = u, q[1] = v;
-  o[0] = q[0] + t->translate.x;
-  o[1] = q[1] + t->translate.y;
-  o[2] = q[2] + t->translate.z;
-}
-
 static void grow(obs_extent *ex, const double p[3]) {
   for (int k = 0; k < 3; k++) {
     if (ex->empty || p[k] < ex->bounds[0][k]) ex->bounds[0][k] = p[k];
@@ -38,57 +17,17 @@ static void grow(obs_extent *ex, const double p[3]) {
   ex->empty = 0;
 }
 
-/* Grows the extent by the 8 transformed corners of the object-space box lo..hi. */
-static void grow_box(obs_extent *ex, const obs_transform *t, const double lo[3],
-                     const double hi[3]) {
-  for (int c = 0; c < 8; c++) {
-    double p[3] = {c & 1 ? hi[0] : lo[0], c & 2 ? hi[1] : lo[1], c & 4 ? hi[2] : lo[2]}, o[3];
-    transform_point(t, p, o);
-    grow(ex, o);
-  }
-}
-
+/* Grows the extent by object oi's bounding points (obs_geometry_object_points; a mesh by the box
+ * the loader measured when it imported the file, so nothing is imported again). */
 static void grow_object(obs_extent *ex, const obs_scene *sc, size_t oi) {
   const obs_object *o = &sc->objects[oi];
-  double p[3], w[3];
-  switch (o->shape) {
-    case OBS_SHAPE_QUAD:
-    case OBS_SHAPE_TRIANGLE:
-      for (int i = 0; i < (o->shape == OBS_SHAPE_QUAD ? 4 : 3); i++) {
-        p[0] = o->v[i].x, p[1] = o->v[i].y, p[2] = o->v[i].z;
-        transform_point(&o->transform, p, w);
-        grow(ex, w);
-      }
-      return;
-    case OBS_SHAPE_BOX: {
-      double lo[3] = {o->v[0].x, o->v[0].y, o->v[0].z}, hi[3] = {o->v[1].x, o->v[1].y, o->v[1].z};
-      grow_box(ex, &o->transform, lo, hi);
-      return;
+  double pts[8][3], r;
+  int n = obs_geometry_object_points(o, o->mesh_bounds, pts, &r);
+  for (int i = 0; i < n; i++)
+    for (int s = -1; s <= 1; s += 2) {
+      double q[3] = {pts[i][0] + s * r, pts[i][1] + s * r, pts[i][2] + s * r};
+      grow(ex, q);
     }
-    case OBS_SHAPE_SPHERE: {
-      /* Uniform scale only (the loader insists), so the transformed sphere stays a sphere. */
-      p[0] = o->v[0].x, p[1] = o->v[0].y, p[2] = o->v[0].z;
-      transform_point(&o->transform, p, w);
-      double r = o->radius * fabs(o->transform.scale.x);
-      for (int k = 0; k < 2; k++) {
-        double q[3] = {w[0] + (k ? r : -r), w[1] + (k ? r : -r), w[2] + (k ? r : -r)};
-        grow(ex, q);
-      }
-      return;
-    }
-    case OBS_SHAPE_DISPLACED_SPHERE: {
-      /* Radius 1 + 0.15 + 0.05 at most (obs_geometry_displaced_sphere's displacement). */
-      static const double lo[3] = {-1.2, -1.2, -1.2}, hi[3] = {1.2, 1.2, 1.2};
-      grow_box(ex, &o->transform, lo, hi);
-      return;
-    }
-    case OBS_SHAPE_MESH: {
-      /* The object-space box the loader measured when it imported the file: importing it again
-       * here would cost a second import per render. */
-      grow_box(ex, &o->transform, o->mesh_bounds[0], o->mesh_bounds[1]);
-      return;
-    }
-  }
 }
 
 int obs_scene_extent(const obs_scene *sc, obs_extent *ex, obs_err *err) {

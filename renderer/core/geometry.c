@@ -359,25 +359,23 @@ int obs_geometry_import_mesh_assimp(const char *path, const char *root, obs_mesh
 /* Object-space radius bound of the displaced sphere: 1 + 0.15 + 0.05. */
 #define DISPLACED_MAX_R 1.2
 
-double obs_geometry_object_reach(const obs_object *o, const double mesh_bounds[2][3],
-                                 const double origin[3]) {
-  xform x;
-  xform_from(&o->transform, &x);
-  double pts[8][3];
+int obs_geometry_object_points(const obs_object *o, const double mesh_bounds[2][3],
+                               double pts[8][3], double *radius) {
+  double local[8][3];
   int n = 0;
-  double grow = 0;
+  *radius = 0;
   switch (o->shape) {
     case OBS_SHAPE_QUAD:
     case OBS_SHAPE_TRIANGLE:
       n = o->shape == OBS_SHAPE_QUAD ? 4 : 3;
       for (int i = 0; i < n; i++) {
-        pts[i][0] = o->v[i].x, pts[i][1] = o->v[i].y, pts[i][2] = o->v[i].z;
+        local[i][0] = o->v[i].x, local[i][1] = o->v[i].y, local[i][2] = o->v[i].z;
       }
       break;
     case OBS_SHAPE_SPHERE:
       n = 1;
-      pts[0][0] = o->v[0].x, pts[0][1] = o->v[0].y, pts[0][2] = o->v[0].z;
-      grow = o->radius * fabs(o->transform.scale.x);
+      local[0][0] = o->v[0].x, local[0][1] = o->v[0].y, local[0][2] = o->v[0].z;
+      *radius = o->radius * fabs(o->transform.scale.x);
       break;
     default: {
       double lo[3] = {o->v[0].x, o->v[0].y, o->v[0].z}, hi[3] = {o->v[1].x, o->v[1].y, o->v[1].z};
@@ -390,18 +388,26 @@ double obs_geometry_object_reach(const obs_object *o, const double mesh_bounds[2
       }
       n = 8;
       for (int i = 0; i < 8; i++) {
-        pts[i][0] = i & 1 ? hi[0] : lo[0];
-        pts[i][1] = i & 2 ? hi[1] : lo[1];
-        pts[i][2] = i & 4 ? hi[2] : lo[2];
+        local[i][0] = i & 1 ? hi[0] : lo[0];
+        local[i][1] = i & 2 ? hi[1] : lo[1];
+        local[i][2] = i & 4 ? hi[2] : lo[2];
       }
     }
   }
+  xform x;
+  xform_from(&o->transform, &x);
+  for (int i = 0; i < n; i++) xform_point(&x, local[i], pts[i]);
+  return n;
+}
+
+double obs_geometry_object_reach(const obs_object *o, const double mesh_bounds[2][3],
+                                 const double origin[3]) {
+  double pts[8][3], grow;
+  int n = obs_geometry_object_points(o, mesh_bounds, pts, &grow);
   double reach = 0;
   for (int i = 0; i < n; i++) {
-    double w[3];
-    xform_point(&x, pts[i], w);
     for (int k = 0; k < 3; k++) {
-      double a = fabs(w[k] - origin[k]) + grow;
+      double a = fabs(pts[i][k] - origin[k]) + grow;
       if (isnan(a)) return NAN; /* refused as beyond the range, whatever comes after */
       if (a > reach) reach = a;
     }

@@ -74,6 +74,12 @@ int obs_path_is_inside(const char *dir, const char *path);
  * the transform overflows. */
 double obs_geometry_object_reach(const obs_object *o, const double mesh_bounds[2][3],
                                  const double origin[3]);
+/* The world-space points (in double, through the object's transform) that bound object `o`, as
+ * obs_geometry_object_reach measures it: the vertices of quads and triangles, the 8 corners of
+ * the object-space box of boxes, displaced spheres and meshes (`mesh_bounds`), or a sphere's
+ * centre with *radius its radius (0 for the others). Returns how many points (at most 8). */
+int obs_geometry_object_points(const obs_object *o, const double mesh_bounds[2][3],
+                               double pts[8][3], double *radius);
 /* Refuses object `oi` of `sc` when its reach from `origin` (the camera) exceeds OBS_GEOMETRY_MAX,
  * with a message "<doc>: /objects/<oi>: ..."; the check scene validation and every geometry build
  * run alike. Returns 0 or OBS_EINVAL. */
