@@ -19,11 +19,7 @@
 #define EDGE_SHARE 0.002
 
 static void load_string(const char *json, obs_scene *sc) {
-  obs_err err = OBS_ERR_INIT;
-  int rc = obs_scene_load_string(sc, json, "gbuffer.json", NULL, NULL, 0, &err);
-  if (rc) fprintf(stderr, "load failed: %s\n", obs_err_message(&err));
-  assert_int_equal(rc, 0);
-  obs_err_free(&err);
+  obs_test_load(json, "gbuffer.json", sc);
 }
 
 /* A bundled scene, from the directory its models really lie in (scenes/models may be a link to

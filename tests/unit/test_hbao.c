@@ -225,13 +225,7 @@ static void test_parameter_sets(void **state) {
   }
 }
 
-static void load(const char *json, obs_scene *sc) {
-  obs_err err = OBS_ERR_INIT;
-  int rc = obs_scene_load_string(sc, json, "hbao.json", NULL, NULL, 0, &err);
-  if (rc) fprintf(stderr, "load failed: %s\n", obs_err_message(&err));
-  assert_int_equal(rc, 0);
-  obs_err_free(&err);
-}
+static void load(const char *json, obs_scene *sc) { obs_test_load(json, "hbao.json", sc); }
 
 static double rmse(const float *a, const float *b, const float *mask, size_t n, double *maxd) {
   double s = 0, m = 0;

@@ -20,13 +20,7 @@ static char *fmt(const char *f, ...) {
   return buf;
 }
 
-static void load(const char *json, obs_scene *sc) {
-  obs_err err = OBS_ERR_INIT;
-  int rc = obs_scene_load_string(sc, json, "ssao.json", NULL, NULL, 0, &err);
-  if (rc) fprintf(stderr, "load failed: %s\n", obs_err_message(&err));
-  assert_int_equal(rc, 0);
-  obs_err_free(&err);
-}
+static void load(const char *json, obs_scene *sc) { obs_test_load(json, "ssao.json", sc); }
 
 static int load_fails(const char *json) {
   obs_scene sc;

@@ -37,14 +37,20 @@ const char *obs_test_src(const char *rel) {
   return buf;
 }
 
-void obs_test_render(const char *json, int threads, obs_result *res) {
-  obs_scene sc;
+void obs_test_load(const char *json, const char *name, obs_scene *sc) {
   obs_err err = OBS_ERR_INIT;
-  int rc = obs_scene_load_string(&sc, json, "test.json", NULL, NULL, 0, &err);
+  int rc = obs_scene_load_string(sc, json, name, NULL, NULL, 0, &err);
   if (rc) fprintf(stderr, "load failed: %s\n", obs_err_message(&err));
   assert_int_equal(rc, 0);
+  obs_err_free(&err);
+}
+
+void obs_test_render(const char *json, int threads, obs_result *res) {
+  obs_scene sc;
+  obs_test_load(json, "test.json", &sc);
+  obs_err err = OBS_ERR_INIT;
   obs_render_opts opts = {.threads = threads};
-  rc = obs_render(&sc, &opts, res, &err);
+  int rc = obs_render(&sc, &opts, res, &err);
   if (rc) fprintf(stderr, "render failed: %s\n", obs_err_message(&err));
   assert_int_equal(rc, 0);
   obs_scene_free(&sc);

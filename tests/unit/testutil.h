@@ -15,6 +15,9 @@
 const char *obs_test_tmpdir(const char *tag);
 /* Path of a file in the source tree (static buffer, overwritten by the next call). */
 const char *obs_test_src(const char *rel);
+/* Loads `json` as the document `name` into `sc` (asserting success; the loader's message is
+ * printed when it fails). The caller frees `sc`. */
+void obs_test_load(const char *json, const char *name, obs_scene *sc);
 /* Loads `json` (asserting success) and renders it with `threads` threads (asserting success). */
 void obs_test_render(const char *json, int threads, obs_result *res);
 /* Asserts every value of every channel is finite. */

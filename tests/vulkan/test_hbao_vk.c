@@ -42,13 +42,7 @@ static const char *DSPHERE = "{\"shape\":{\"type\":\"displaced_sphere\",\"subdiv
 static const char *DSPHERE_CAM = "{\"type\":\"perspective\",\"position\":[0.4,1.5,-3.2],"
                                  "\"look_at\":[0,-0.2,0],\"fov_y\":45}";
 
-static void load(const char *json, obs_scene *sc) {
-  obs_err err = OBS_ERR_INIT;
-  int rc = obs_scene_load_string(sc, json, "hbao_vk.json", NULL, NULL, 0, &err);
-  if (rc) fprintf(stderr, "load failed: %s\n", obs_err_message(&err));
-  assert_int_equal(rc, 0);
-  obs_err_free(&err);
-}
+static void load(const char *json, obs_scene *sc) { obs_test_load(json, "hbao_vk.json", sc); }
 
 static void assert_unit(const float *a, size_t n) {
   for (size_t i = 0; i < n; i++) assert_true(isfinite(a[i]) && a[i] >= 0.0f && a[i] <= 1.0f);

@@ -51,13 +51,7 @@ static const char *ROOM_ORTHO =
     "{\"shape\":{\"type\":\"box\",\"min\":[-0.3,0,-0.3],\"max\":[0.3,1.2,0.3]},"
     "\"transform\":{\"rotate\":[0,20,0],\"translate\":[-0.35,0,-0.3]}}]";
 
-static void load(const char *json, obs_scene *sc) {
-  obs_err err = OBS_ERR_INIT;
-  int rc = obs_scene_load_string(sc, json, "ssao_vk.json", NULL, NULL, 0, &err);
-  if (rc) fprintf(stderr, "load failed: %s\n", obs_err_message(&err));
-  assert_int_equal(rc, 0);
-  obs_err_free(&err);
-}
+static void load(const char *json, obs_scene *sc) { obs_test_load(json, "ssao_vk.json", sc); }
 
 /* ---- (1) the same G-buffer through both implementations ---- */
 
