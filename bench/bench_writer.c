@@ -113,8 +113,8 @@ static int exr_candidate(const obs_image *img, const char *dir, obs_exr_opts eo,
     snprintf(name, sizeof name, "%s", exr_names[eo.compression]);
   printf(
       "  exr %-8s threads %2d  %7.1f ms (cpu %7.1f)  %9ld bytes (%5.1f %% of raw)  read-back %s\n",
-      name, eo.threads, bench_median(t, repeats), bench_median(c, repeats), sz, 100.0 * (double)sz / raw_bytes,
-      ok ? "bit-exact" : "DIFFERS");
+      name, eo.threads, bench_median(t, repeats), bench_median(c, repeats), sz,
+      100.0 * (double)sz / raw_bytes, ok ? "bit-exact" : "DIFFERS");
   free(t);
   unlink(path);
   return !ok;
@@ -150,7 +150,8 @@ static void png_candidate(const obs_image *img, int nch, const char *dir, obs_pn
   else
     snprintf(mode, sizeof mode, "level %d", po.level < 0 ? 6 : po.level);
   printf("  png %-16s %-8s filter %-8s  %6.1f ms (cpu %6.1f)  %8ld bytes\n", label, mode,
-         png_filters[po.filter], bench_median(t, repeats), bench_median(c, repeats), file_size(path));
+         png_filters[po.filter], bench_median(t, repeats), bench_median(c, repeats),
+         file_size(path));
   free(t);
   unlink(path);
 }

@@ -24,7 +24,7 @@ typedef struct obs_gbuffer {
   float half_w, half_h; /* perspective: tan of the half field of view; orthographic: half extents */
   float *depth;    /* linear view depth z (> 0) where covered; 0 where not */
   float *normal;   /* 3 per pixel: unit face normal in view space, facing the camera; 0 where not */
-  float *albedo;   /* 3 per pixel: the object's reflectivity ((1,1,1) without material); 0 where not */
+  float *albedo;   /* 3 per pixel: the object's reflectivity ((1,1,1) without material); 0 if not */
   float *coverage; /* 1 where a surface covers the pixel centre, else 0 */
 } obs_gbuffer;
 

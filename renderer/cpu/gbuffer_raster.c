@@ -468,8 +468,8 @@ static void winner_face(const rs_job *j, const rs_tile *t, int p, uint32_t id, u
   *last = id;
 }
 
-/* Writes the tile's nearest hits into the G-buffer (the reference of resolve_tile). A triangle's
- * normal is set up once per run of its pixels, faced either way (not negated afterwards: the signs of zero sums would differ). */
+/* Writes the tile's nearest hits into the G-buffer (the reference of resolve_tile); a triangle's
+ * normals are set up once per run of its pixels (winner_face). */
 static void resolve_tile_ref(const rs_job *j, const rs_tile *t) {
   obs_gbuffer *g = j->g;
   uint32_t last = UINT32_MAX;

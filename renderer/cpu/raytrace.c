@@ -468,9 +468,9 @@ static inline __attribute__((always_inline)) void intersect_primary(const obs_rt
                                                                     const double sy[],
                                                                     obs_rt_primary *out) {
   rt_packet rh;
-  /* Idle lanes (not traced) repeat lane 0 so every lane holds a well-formed ray. The packet is filled field
-   * by field in branch-free loops the compiler vectorises: per-lane setup is a large share of a
-   * primary ray's cost once Embree traces 16 at a time. */
+  /* Idle lanes (not traced) repeat lane 0 so every lane holds a well-formed ray. The packet is
+   * filled field by field in branch-free loops the compiler vectorises: per-lane setup is a large
+   * share of a primary ray's cost once Embree traces 16 at a time. */
   double lx[OBS_RT_PACKET], ly[OBS_RT_PACKET];
   for (int i = 0; i < OBS_RT_PACKET; i++) {
     lx[i] = sx[i < n ? i : 0];

@@ -14,20 +14,6 @@
 
 #include <zlib.h>
 
-static const char *path_in(const char *dir, const char *name) {
-  static char buf[2200];
-  snprintf(buf, sizeof buf, "%s/%s", dir, name);
-  return buf;
-}
-
-static uint32_t next_rand(uint32_t *s) {
-  uint32_t x = *s;
-  x ^= x << 13;
-  x ^= x >> 17;
-  x ^= x << 5;
-  return *s = x;
-}
-
 static float from_bits(uint32_t u) {
   float f;
   memcpy(&f, &u, sizeof f);
@@ -78,16 +64,16 @@ static void fill(obs_image *img, int kind, uint32_t seed) {
         img->data[i] = 0.25f;
         break;
       case K_RANDOM:
-        img->data[i] = from_bits(next_rand(&s));
+        img->data[i] = from_bits(obs_test_rand(&s));
         break;
       case K_SMOOTH:
         img->data[i] = (float)(0.001 * (double)x + 0.01 * (double)y + 1.0);
         break;
       case K_AO:
-        img->data[i] = (float)(next_rand(&s) % 17u) / 16.0f;
+        img->data[i] = (float)(obs_test_rand(&s) % 17u) / 16.0f;
         break;
       default:
-        img->data[i] = from_bits(specials[next_rand(&s) % 10u]);
+        img->data[i] = from_bits(specials[obs_test_rand(&s) % 10u]);
         break;
     }
   }
@@ -140,14 +126,14 @@ static void test_exr_roundtrip_sizes_contents_compressions(void **state) {
         snprintf(what, sizeof what, "%dx%d %d channels %s, compression %d level %d, %d threads",
                  img.width, img.height, nch, kind_names[kind], eo.compression, eo.zip_level,
                  eo.threads);
-        write_read_check(&img, path_in(dir, "sweep.exr"), &eo, what);
+        write_read_check(&img, obs_test_path(dir, "sweep.exr"), &eo, what);
         cases++;
       }
       obs_image_free(&img);
     }
   }
   assert_int_equal(cases, nsizes * NKINDS * NCOMP);
-  unlink(path_in(dir, "sweep.exr"));
+  unlink(obs_test_path(dir, "sweep.exr"));
 }
 
 /* ---- chunks whose deflate output is exactly as large as the raw pixels ------------------------
@@ -204,7 +190,7 @@ static void test_exr_zip_equal_size_chunks(void **state) {
   for (int c = 0; c < h / lines; c++) {
     uint32_t share = 240u + (uint32_t)(c * 80 / (h / lines)); /* per mille of 128s */
     for (size_t i = 0; i < n; i++) {
-      uint32_t v = next_rand(&s);
+      uint32_t v = obs_test_rand(&s);
       pre[i] = (v >> 8) % 1000u < share ? 128 : (uint8_t)v;
     }
     zip_inverse(pre, raw, n);
@@ -232,13 +218,13 @@ static void test_exr_zip_equal_size_chunks(void **state) {
       char what[96];
       snprintf(what, sizeof what, "1x4096 ZIP level %d (%d equal-size chunks), %d threads", level,
                equal, t);
-      write_read_check(&img, path_in(dir, "equal.exr"), &eo, what);
+      write_read_check(&img, obs_test_path(dir, "equal.exr"), &eo, what);
     }
   }
   free(pre);
   free(raw);
   obs_image_free(&img);
-  unlink(path_in(dir, "equal.exr"));
+  unlink(obs_test_path(dir, "equal.exr"));
 }
 
 /* ---- determinism and the independent reader ---------------------------------------------------
@@ -277,7 +263,7 @@ static void test_exr_bytes_independent_of_threads(void **state) {
   fill(&img, K_AO, 7u);
   uint32_t s = 9u; /* half the planes random bits: chunks of very different sizes */
   for (size_t i = 5u * 77u * 301u; i < 10u * 77u * 301u; i++)
-    img.data[i] = from_bits(next_rand(&s));
+    img.data[i] = from_bits(obs_test_rand(&s));
   for (int c = 0; c < NCOMP; c++) {
     char ref[2200];
     static const int counts[] = {1, 3, 5, 0, -2}; /* 0 and below mean the calling thread */
@@ -288,11 +274,11 @@ static void test_exr_bytes_independent_of_threads(void **state) {
       char name[32];
       snprintf(name, sizeof name, "t%d.exr", ti);
       obs_err err = OBS_ERR_INIT;
-      assert_int_equal(obs_image_write_exr_opts(&img, path_in(dir, name), &eo, &err), 0);
+      assert_int_equal(obs_image_write_exr_opts(&img, obs_test_path(dir, name), &eo, &err), 0);
       if (ti == 0)
-        snprintf(ref, sizeof ref, "%s", path_in(dir, name));
+        snprintf(ref, sizeof ref, "%s", obs_test_path(dir, name));
       else
-        assert_same_file(ref, path_in(dir, name));
+        assert_same_file(ref, obs_test_path(dir, name));
     }
   }
   obs_image_free(&img);
@@ -307,16 +293,16 @@ static void test_exr_large_image_windows(void **state) {
   make(&img, 1024, 300, 10);
   fill(&img, K_AO, 11u);
   uint32_t s = 5u;
-  for (size_t i = 0; i < 3u * 1024u * 300u; i++) img.data[i] = from_bits(next_rand(&s));
+  for (size_t i = 0; i < 3u * 1024u * 300u; i++) img.data[i] = from_bits(obs_test_rand(&s));
   static const obs_exr_opts which[] = {{OBS_EXR_RLE, 0, 1}, {OBS_EXR_ZIP, 1, 1}};
   for (int c = 0; c < 2; c++) {
     obs_exr_opts eo = which[c];
-    write_read_check(&img, path_in(dir, "t1.exr"), &eo, "1024x300 one thread");
+    write_read_check(&img, obs_test_path(dir, "t1.exr"), &eo, "1024x300 one thread");
     eo.threads = 3;
-    write_read_check(&img, path_in(dir, "t3.exr"), &eo, "1024x300 three threads");
+    write_read_check(&img, obs_test_path(dir, "t3.exr"), &eo, "1024x300 three threads");
     char a[2200];
-    snprintf(a, sizeof a, "%s", path_in(dir, "t1.exr"));
-    assert_same_file(a, path_in(dir, "t3.exr"));
+    snprintf(a, sizeof a, "%s", obs_test_path(dir, "t1.exr"));
+    assert_same_file(a, obs_test_path(dir, "t3.exr"));
   }
   obs_image_free(&img);
 }
@@ -373,7 +359,7 @@ static void write_result(const char *json, int threads, const char *dir) {
   if (rc) fprintf(stderr, "%s\n", obs_err_message(&err));
   assert_int_equal(rc, 0);
   obs_image back;
-  assert_int_equal(obs_image_read_exr(&back, path_in(dir, "ao.exr"), &err), 0);
+  assert_int_equal(obs_image_read_exr(&back, obs_test_path(dir, "ao.exr"), &err), 0);
   assert_same_bits(&res.image, &back, "ao.exr");
   obs_image_free(&back);
   obs_result_free(&res);
@@ -418,7 +404,7 @@ static void test_result_write_ssao_1x4096(void **state) {
   snprintf(dir, sizeof dir, "%s", obs_test_tmpdir("ssao_1x4096"));
   assert_int_equal(obs_result_write(&res, &sc, dir, &err), 0);
   obs_image back;
-  assert_int_equal(obs_image_read_exr(&back, path_in(dir, "ao.exr"), &err), 0);
+  assert_int_equal(obs_image_read_exr(&back, obs_test_path(dir, "ao.exr"), &err), 0);
   assert_same_bits(&res.image, &back, "ssao 1x4096 ao.exr");
   const float *ao = obs_image_channel(&back, "ao");
   for (int i = 0; i < 4096; i++) assert_true(ao[i] >= 0.0f && ao[i] <= 1.0f);
@@ -427,24 +413,19 @@ static void test_result_write_ssao_1x4096(void **state) {
     char what[64];
     snprintf(what, sizeof what, "ssao 1x4096, compression %d level %d",
              every_compression[c].compression, every_compression[c].zip_level);
-    write_read_check(&res.image, path_in(dir, "again.exr"), &every_compression[c], what);
+    write_read_check(&res.image, obs_test_path(dir, "again.exr"), &every_compression[c], what);
   }
   if (system("command -v oiiotool >/dev/null 2>&1") == 0) {
     char cmd[3000];
     snprintf(cmd, sizeof cmd, "oiiotool '%s/ao.exr' --compression none -o '%s/copy.exr'", dir, dir);
     assert_int_equal(system(cmd), 0);
-    assert_int_equal(obs_image_read_exr(&back, path_in(dir, "copy.exr"), &err), 0);
+    assert_int_equal(obs_image_read_exr(&back, obs_test_path(dir, "copy.exr"), &err), 0);
     assert_same_bits(&res.image, &back, "oiiotool copy of ssao 1x4096");
     obs_image_free(&back);
   }
   obs_result_free(&res);
   obs_scene_free(&sc);
   obs_err_free(&err);
-}
-
-static int file_exists(const char *path) {
-  struct stat st;
-  return stat(path, &st) == 0;
 }
 
 /* A PNG that cannot be created (its temporary name is taken by a directory) fails the whole write
@@ -456,7 +437,7 @@ static void test_result_write_failure_leaves_nothing(void **state) {
   snprintf(dir, sizeof dir, "%s", obs_test_tmpdir("result_fail"));
   write_result(scene_json, 3, dir);
   size_t before_len;
-  uint8_t *before = slurp(path_in(dir, "ao.exr"), &before_len);
+  uint8_t *before = slurp(obs_test_path(dir, "ao.exr"), &before_len);
   char blocker[2200];
   snprintf(blocker, sizeof blocker, "%s/.depth.png.new.tmp", dir);
   assert_int_equal(mkdir(blocker, 0755), 0);
@@ -474,9 +455,9 @@ static void test_result_write_failure_leaves_nothing(void **state) {
       ".ao.exr.new",       ".ao.png.new",     ".bent_normal.png.new", ".depth.png.new",
       ".summary.json.new", ".ao.exr.new.tmp", ".ao.png.new.tmp",      ".bent_normal.png.new.tmp"};
   for (size_t i = 0; i < sizeof staged / sizeof staged[0]; i++)
-    assert_false(file_exists(path_in(dir, staged[i])));
+    assert_false(obs_test_file_exists(obs_test_path(dir, staged[i])));
   size_t after_len;
-  uint8_t *after = slurp(path_in(dir, "ao.exr"), &after_len);
+  uint8_t *after = slurp(obs_test_path(dir, "ao.exr"), &after_len);
   assert_true(before_len == after_len && !memcmp(before, after, before_len));
   free(before);
   free(after);
@@ -499,17 +480,17 @@ static void test_png_every_option_reads_back(void **state) {
     uint32_t s = 77u + (uint32_t)si;
     size_t n = (size_t)img.width * (size_t)img.height;
     for (size_t i = 0; i < 3 * n; i++) /* steps of 1/255 with runs, noise and out-of-range */
-      img.data[i] = i % 7 < 3 ? 0.5f : (float)(next_rand(&s) % 300u) / 255.0f - 0.1f;
+      img.data[i] = i % 7 < 3 ? 0.5f : (float)(obs_test_rand(&s) % 300u) / 255.0f - 0.1f;
     for (int level = -1; level <= 9; level += 5)
       for (int f = 0; f < OBS_PNG_NFILTERS; f++)
         for (int st = 0; st < OBS_PNG_NSTRATEGIES; st++)
           for (int nch = 1; nch <= 3; nch += 2) {
             obs_png_opts po = {level, f, st};
             assert_int_equal(obs_image_write_png_opts(&img, names, nch, 0,
-                                                      path_in(dir, "p.png"), &po, &err),
+                                                      obs_test_path(dir, "p.png"), &po, &err),
                              0);
             obs_image back;
-            assert_int_equal(obs_image_read_png(&back, path_in(dir, "p.png"), &err), 0);
+            assert_int_equal(obs_image_read_png(&back, obs_test_path(dir, "p.png"), &err), 0);
             for (int c = 0; c < nch; c++) {
               const float *src = obs_image_channel(&img, names[c]);
               const float *got = nch == 1 ? back.data : obs_image_channel(&back, names[c]);
@@ -533,21 +514,26 @@ static void test_writer_rejects_unknown_options(void **state) {
   make(&img, 2, 2, 1);
   obs_err err = OBS_ERR_INIT;
   obs_exr_opts bad = {OBS_EXR_NCOMPRESSIONS, 0, 1};
-  assert_int_equal(obs_image_write_exr_opts(&img, path_in(dir, "x.exr"), &bad, &err), OBS_EINVAL);
-  assert_false(file_exists(path_in(dir, "x.exr")));
+  assert_int_equal(obs_image_write_exr_opts(&img, obs_test_path(dir, "x.exr"), &bad, &err),
+                   OBS_EINVAL);
+  assert_false(obs_test_file_exists(obs_test_path(dir, "x.exr")));
   bad = (obs_exr_opts){OBS_EXR_ZIP, 10, 1};
-  assert_int_equal(obs_image_write_exr_opts(&img, path_in(dir, "x.exr"), &bad, &err), OBS_EINVAL);
+  assert_int_equal(obs_image_write_exr_opts(&img, obs_test_path(dir, "x.exr"), &bad, &err),
+                   OBS_EINVAL);
   const char *ch[] = {"alpha"};
   obs_png_opts pbad = {10, OBS_PNG_FILTER_NONE, OBS_PNG_STRATEGY_DEFAULT};
-  assert_int_equal(obs_image_write_png_opts(&img, ch, 1, 0, path_in(dir, "x.png"), &pbad, &err),
-                   OBS_EINVAL);
+  assert_int_equal(
+      obs_image_write_png_opts(&img, ch, 1, 0, obs_test_path(dir, "x.png"), &pbad, &err),
+      OBS_EINVAL);
   pbad = (obs_png_opts){1, OBS_PNG_NFILTERS, OBS_PNG_STRATEGY_DEFAULT};
-  assert_int_equal(obs_image_write_png_opts(&img, ch, 1, 0, path_in(dir, "x.png"), &pbad, &err),
-                   OBS_EINVAL);
+  assert_int_equal(
+      obs_image_write_png_opts(&img, ch, 1, 0, obs_test_path(dir, "x.png"), &pbad, &err),
+      OBS_EINVAL);
   pbad = (obs_png_opts){1, OBS_PNG_FILTER_UP, OBS_PNG_NSTRATEGIES};
-  assert_int_equal(obs_image_write_png_opts(&img, ch, 1, 0, path_in(dir, "x.png"), &pbad, &err),
-                   OBS_EINVAL);
-  assert_false(file_exists(path_in(dir, "x.png")));
+  assert_int_equal(
+      obs_image_write_png_opts(&img, ch, 1, 0, obs_test_path(dir, "x.png"), &pbad, &err),
+      OBS_EINVAL);
+  assert_false(obs_test_file_exists(obs_test_path(dir, "x.png")));
   obs_image_free(&img);
   obs_err_free(&err);
 }

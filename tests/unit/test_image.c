@@ -15,17 +15,6 @@
 #include <OpenEXR/openexr.h>
 #include <spng.h>
 
-static const char *path_in(const char *dir, const char *name) {
-  static char buf[1024];
-  snprintf(buf, sizeof buf, "%s/%s", dir, name);
-  return buf;
-}
-
-static int file_exists(const char *path) {
-  struct stat st;
-  return stat(path, &st) == 0;
-}
-
 static void assert_msg_has(const obs_err *err, const char *needle) {
   const char *msg = obs_err_message(err);
   if (!strstr(msg, needle)) {
@@ -48,14 +37,6 @@ static uint32_t float_bits(float f) {
 }
 
 /* xorshift32: deterministic "random" bit patterns cover NaN payloads, denormals and both zeros. */
-static uint32_t next_rand(uint32_t *s) {
-  uint32_t x = *s;
-  x ^= x << 13;
-  x ^= x >> 17;
-  x ^= x << 5;
-  return *s = x;
-}
-
 /* ---------------------------------------------------------------------------------------------- */
 
 static void test_image_init_and_lookup(void **state) {
@@ -152,7 +133,7 @@ static void fill_distinctive(obs_image *img, int mode) {
     int random = mode == FILL_RANDOM || (mode == FILL_MIXED && (c & 1));
     for (size_t i = 0; i < n; i++) {
       if (random) {
-        uint32_t bits = next_rand(&seed);
+        uint32_t bits = obs_test_rand(&seed);
         memcpy(&p[i], &bits, sizeof bits);
       } else {
         p[i] = (float)c * 1000.0f + (float)(i % 4099) * 0.25f - 7.0f;
@@ -199,13 +180,13 @@ static void roundtrip_case(const char *dir, int w, int h, int mode) {
   char name[64];
   snprintf(name, sizeof name, "rt_%dx%d_%d.exr", w, h, mode);
   char path[1024];
-  snprintf(path, sizeof path, "%s", path_in(dir, name));
+  snprintf(path, sizeof path, "%s", obs_test_path(dir, name));
   int rc = obs_image_write_exr(&img, path, &err);
   if (rc) fprintf(stderr, "%s\n", obs_err_message(&err));
   assert_int_equal(rc, 0);
   char tmp[1100];
   snprintf(tmp, sizeof tmp, "%s.tmp", path);
-  assert_false(file_exists(tmp));
+  assert_false(obs_test_file_exists(tmp));
   rc = obs_image_read_exr(&back, path, &err);
   if (rc) fprintf(stderr, "%s\n", obs_err_message(&err));
   assert_int_equal(rc, 0);
@@ -233,7 +214,7 @@ static void test_exr_single_channel_and_overwrite(void **state) {
   (void)state;
   const char *dir = obs_test_tmpdir("image_exr_ow");
   char path[1024];
-  snprintf(path, sizeof path, "%s", path_in(dir, "ao.exr"));
+  snprintf(path, sizeof path, "%s", obs_test_path(dir, "ao.exr"));
   obs_err err = OBS_ERR_INIT;
   obs_image a, b, back;
   const char *n1[] = {"ao"};
@@ -264,12 +245,12 @@ static void test_exr_write_errors(void **state) {
   snprintf(path, sizeof path, "%s/no/such/dir/out.exr", dir);
   assert_int_equal(obs_image_write_exr(&img, path, &err), OBS_EIO);
   assert_msg_has(&err, path);
-  assert_false(file_exists(path));
+  assert_false(obs_test_file_exists(path));
   obs_err_clear(&err);
 
   obs_image empty;
   memset(&empty, 0, sizeof empty);
-  assert_int_equal(obs_image_write_exr(&empty, path_in(dir, "e.exr"), &err), OBS_EINVAL);
+  assert_int_equal(obs_image_write_exr(&empty, obs_test_path(dir, "e.exr"), &err), OBS_EINVAL);
   assert_int_equal(obs_image_write_exr(&img, "", &err), OBS_EINVAL);
   obs_image_free(&img);
   obs_err_free(&err);
@@ -282,21 +263,21 @@ static void test_exr_read_errors(void **state) {
   obs_image img;
   char path[1024];
 
-  snprintf(path, sizeof path, "%s", path_in(dir, "missing.exr"));
+  snprintf(path, sizeof path, "%s", obs_test_path(dir, "missing.exr"));
   assert_int_equal(obs_image_read_exr(&img, path, &err), OBS_EIO);
   assert_msg_has(&err, path);
   assert_null(img.data);
   obs_image_free(&img);
   obs_err_clear(&err);
 
-  snprintf(path, sizeof path, "%s", path_in(dir, "text.exr"));
+  snprintf(path, sizeof path, "%s", obs_test_path(dir, "text.exr"));
   write_text(path, "this is plainly not an OpenEXR file, just some text that is long enough\n");
   assert_int_equal(obs_image_read_exr(&img, path, &err), OBS_EINVAL);
   assert_msg_has(&err, path);
   assert_null(img.data);
   obs_err_clear(&err);
 
-  snprintf(path, sizeof path, "%s", path_in(dir, "empty.exr"));
+  snprintf(path, sizeof path, "%s", obs_test_path(dir, "empty.exr"));
   write_text(path, "");
   assert_int_equal(obs_image_read_exr(&img, path, &err), OBS_EINVAL);
   assert_msg_has(&err, path);
@@ -307,7 +288,7 @@ static void test_exr_read_errors(void **state) {
   const char *n1[] = {"ao"};
   assert_int_equal(obs_image_init(&src, 64, 64, 1, n1, &err), 0);
   fill_distinctive(&src, FILL_RANDOM);
-  snprintf(path, sizeof path, "%s", path_in(dir, "trunc.exr"));
+  snprintf(path, sizeof path, "%s", obs_test_path(dir, "trunc.exr"));
   assert_int_equal(obs_image_write_exr(&src, path, &err), 0);
   struct stat st;
   assert_int_equal(stat(path, &st), 0);
@@ -443,7 +424,7 @@ static void mixed_make(mixed_data *m, int w, int h) {
   for (size_t i = 0; i < n; i++) {
     m->half[i] = k_half_bits[i % K_HALFS];
     m->uint[i] = i % 3 == 0 ? (uint32_t)i : (i % 3 == 1 ? 0xFFFFFFFFu : 16777217u);
-    uint32_t bits = next_rand(&seed);
+    uint32_t bits = obs_test_rand(&seed);
     memcpy(&m->flt[i], &bits, sizeof bits);
   }
 }
@@ -490,7 +471,7 @@ static void test_exr_read_half_uint_scanlines(void **state) {
     char name[64];
     snprintf(name, sizeof name, "mixed_%d.exr", (int)comps[k]);
     char path[1024];
-    snprintf(path, sizeof path, "%s", path_in(dir, name));
+    snprintf(path, sizeof path, "%s", obs_test_path(dir, name));
     write_raw_exr(path, 0, 0, comps[k], -3, 11, m.w, m.h, ch, 3);
     obs_err err = OBS_ERR_INIT;
     obs_image img;
@@ -516,7 +497,7 @@ static void test_exr_read_tiled(void **state) {
     char name[64];
     snprintf(name, sizeof name, "tiled_%d.exr", (int)comps[k]);
     char path[1024];
-    snprintf(path, sizeof path, "%s", path_in(dir, name));
+    snprintf(path, sizeof path, "%s", obs_test_path(dir, name));
     write_raw_exr(path, 16, 8, comps[k], 5, -2, m.w, m.h, ch, 3);
     obs_err err = OBS_ERR_INIT;
     obs_image img;
@@ -560,7 +541,7 @@ static void test_png_grey_roundtrip(void **state) {
   (void)state;
   const char *dir = obs_test_tmpdir("image_png_grey");
   char path[1024];
-  snprintf(path, sizeof path, "%s", path_in(dir, "ao.png"));
+  snprintf(path, sizeof path, "%s", obs_test_path(dir, "ao.png"));
   obs_err err = OBS_ERR_INIT;
   obs_image img, back;
   const char *names[] = {"alpha", "ao"};
@@ -571,7 +552,7 @@ static void test_png_grey_roundtrip(void **state) {
   assert_int_equal(obs_image_write_png(&img, sel, 1, 0, path, &err), 0);
   char tmp[1100];
   snprintf(tmp, sizeof tmp, "%s.tmp", path);
-  assert_false(file_exists(tmp));
+  assert_false(obs_test_file_exists(tmp));
 
   struct spng_ihdr ihdr;
   size_t len;
@@ -598,7 +579,7 @@ static void test_png_rgb_roundtrip(void **state) {
   (void)state;
   const char *dir = obs_test_tmpdir("image_png_rgb");
   char path[1024];
-  snprintf(path, sizeof path, "%s", path_in(dir, "normal.png"));
+  snprintf(path, sizeof path, "%s", obs_test_path(dir, "normal.png"));
   obs_err err = OBS_ERR_INIT;
   obs_image img, back;
   const char *names[] = {"normal.X", "normal.Y", "normal.Z"};
@@ -647,7 +628,7 @@ static void test_png_gamma_encode(void **state) {
   (void)state;
   const char *dir = obs_test_tmpdir("image_png_gamma");
   char path[1024];
-  snprintf(path, sizeof path, "%s", path_in(dir, "srgb.png"));
+  snprintf(path, sizeof path, "%s", obs_test_path(dir, "srgb.png"));
   obs_err err = OBS_ERR_INIT;
   obs_image img;
   const char *names[] = {"v"};
@@ -692,7 +673,7 @@ static void test_png_read_alpha_and_16bit(void **state) {
   char path[1024];
 
   const uint8_t rgba[] = {10, 20, 30, 0, 255, 128, 0, 255};
-  snprintf(path, sizeof path, "%s", path_in(dir, "rgba.png"));
+  snprintf(path, sizeof path, "%s", obs_test_path(dir, "rgba.png"));
   write_spng(path, SPNG_COLOR_TYPE_TRUECOLOR_ALPHA, 8, rgba, sizeof rgba, 2, 1);
   assert_int_equal(obs_image_read_png(&img, path, &err), 0);
   assert_int_equal(img.nchannels, 3);
@@ -704,7 +685,7 @@ static void test_png_read_alpha_and_16bit(void **state) {
 
   /* 16-bit PNG samples are big-endian in the file format. */
   const uint8_t ga16[] = {0xFF, 0xFF, 0x12, 0x34, 0x00, 0x00, 0xFF, 0xFF};
-  snprintf(path, sizeof path, "%s", path_in(dir, "ga16.png"));
+  snprintf(path, sizeof path, "%s", obs_test_path(dir, "ga16.png"));
   write_spng(path, SPNG_COLOR_TYPE_GRAYSCALE_ALPHA, 16, ga16, sizeof ga16, 2, 1);
   assert_int_equal(obs_image_read_png(&img, path, &err), 0);
   assert_int_equal(img.nchannels, 1);
@@ -723,15 +704,15 @@ static void test_png_errors(void **state) {
   const char *names[] = {"ao", "alpha"};
   assert_int_equal(obs_image_init(&img, 2, 2, 2, names, &err), 0);
   char path[1024];
-  snprintf(path, sizeof path, "%s", path_in(dir, "x.png"));
+  snprintf(path, sizeof path, "%s", obs_test_path(dir, "x.png"));
 
   const char *missing[] = {"bent_normal.X"};
   assert_int_equal(obs_image_write_png(&img, missing, 1, 0, path, &err), OBS_ENOTFOUND);
   assert_msg_has(&err, "bent_normal.X");
-  assert_false(file_exists(path));
+  assert_false(obs_test_file_exists(path));
   obs_err_clear(&err);
   assert_int_equal(obs_image_write_png(&img, names, 2, 0, path, &err), OBS_EINVAL);
-  assert_false(file_exists(path));
+  assert_false(obs_test_file_exists(path));
 
   char bad[1024];
   snprintf(bad, sizeof bad, "%s/missing_dir/x.png", dir);
@@ -739,13 +720,13 @@ static void test_png_errors(void **state) {
   assert_msg_has(&err, bad);
   obs_err_clear(&err);
 
-  snprintf(path, sizeof path, "%s", path_in(dir, "missing.png"));
+  snprintf(path, sizeof path, "%s", obs_test_path(dir, "missing.png"));
   assert_int_equal(obs_image_read_png(&back, path, &err), OBS_EIO);
   assert_msg_has(&err, path);
   assert_null(back.data);
   obs_err_clear(&err);
 
-  snprintf(path, sizeof path, "%s", path_in(dir, "text.png"));
+  snprintf(path, sizeof path, "%s", obs_test_path(dir, "text.png"));
   write_text(path, "definitely not a PNG file, only text in here\n");
   assert_int_equal(obs_image_read_png(&back, path, &err), OBS_EINVAL);
   assert_msg_has(&err, path);

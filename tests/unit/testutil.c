@@ -37,6 +37,25 @@ const char *obs_test_src(const char *rel) {
   return buf;
 }
 
+const char *obs_test_path(const char *dir, const char *name) {
+  static char buf[4200];
+  snprintf(buf, sizeof buf, "%s/%s", dir, name);
+  return buf;
+}
+
+int obs_test_file_exists(const char *path) {
+  struct stat st;
+  return stat(path, &st) == 0;
+}
+
+uint32_t obs_test_rand(uint32_t *s) {
+  uint32_t x = *s;
+  x ^= x << 13;
+  x ^= x >> 17;
+  x ^= x << 5;
+  return *s = x;
+}
+
 void obs_test_load(const char *json, const char *name, obs_scene *sc) {
   obs_err err = OBS_ERR_INIT;
   int rc = obs_scene_load_string(sc, json, name, NULL, NULL, 0, &err);

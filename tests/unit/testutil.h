@@ -13,6 +13,12 @@
 /* A fresh directory under $OBS_TMP (or /tmp) for this test; returned string is static per call
  * site until the next call. */
 const char *obs_test_tmpdir(const char *tag);
+/* DIR/NAME (static buffer, overwritten by the next call). */
+const char *obs_test_path(const char *dir, const char *name);
+/* Whether anything exists at `path`. */
+int obs_test_file_exists(const char *path);
+/* The next value of a xorshift32 sequence whose state is *s (nonzero). */
+uint32_t obs_test_rand(uint32_t *s);
 /* Path of a file in the source tree (static buffer, overwritten by the next call). */
 const char *obs_test_src(const char *rel);
 /* Loads `json` as the document `name` into `sc` (asserting success; the loader's message is
