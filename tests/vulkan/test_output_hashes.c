@@ -1,4 +1,5 @@
-/* Output bits pinned: every bundled scene rendered small by every registered technique x backend,
+/* Output bits pinned (a Vulkan test: it renders on lavapipe too, with the driver set-up the
+ * Vulkan tests get): every bundled scene rendered small by every registered technique x backend,
  * each EXR channel hashed and compared with tests/data/output_hashes.txt, so a refactor of the
  * framework cannot change a technique's output without this test saying which channel moved.
  * OBSCURA_WRITE_HASHES=<file> writes the current hashes there instead of comparing.
