@@ -74,9 +74,22 @@ typedef struct hbao_step8 {
 /* ao_span8's sample texels for every step of one direction, before any of them is used: the
  * gathers carry no branch between them, so their cache misses overlap instead of each one
  * stalling the branches on the previous sample. */
+/* Eight floats at p[0], p[4], ..., p[28] (p[0..31] readable): four loads and four shuffles
+ * where vgatherdps, or eight scalar loads, would take many more micro-ops. */
+OBS_AVX2_INLINE __m256 load_stride4(const float *p) {
+  __m256 a = _mm256_shuffle_ps(_mm256_loadu_ps(p), _mm256_loadu_ps(p + 8), 0x00);
+  __m256 b = _mm256_shuffle_ps(_mm256_loadu_ps(p + 16), _mm256_loadu_ps(p + 24), 0x00);
+  __m256 c = _mm256_shuffle_ps(a, b, _MM_SHUFFLE(2, 0, 2, 0));
+  return _mm256_permutevar8x32_ps(c, _mm256_setr_epi32(0, 4, 1, 5, 2, 6, 3, 7));
+}
+
+/* With `strided` the lanes are texels 4 apart in one row (one noise cell): their samples then
+ * usually sit 4 apart in one row too, and that case reads depth and position factors with
+ * load_stride4 and one broadcast instead of gathers and two divisions; the values are the same
+ * bits (colf and rowf hold what the divisions give). */
 OBS_AVX2_INLINE void march8(const hbao_job *jb, __m256i ax, __m256i ay, __m256 cx, __m256 cy,
                             __m256 dx, __m256 dy, __m256 jit, __m256 st, __m256 act,
-                            hbao_step8 *sp) {
+                            int strided, hbao_step8 *sp) {
   const hbao_level *lv = &jb->lv;
   const __m256 zero = _mm256_setzero_ps();
   const __m256i wmax = _mm256_set1_epi32(lv->w - 1), hmax = _mm256_set1_epi32(lv->h - 1);
@@ -85,27 +98,47 @@ OBS_AVX2_INLINE void march8(const hbao_job *jb, __m256i ax, __m256i ay, __m256 c
   const __m256 fw = _mm256_set1_ps((float)jb->g->width), fh = _mm256_set1_ps((float)jb->g->height);
   const __m256 hw = _mm256_set1_ps(jb->g->half_w), hh = _mm256_set1_ps(jb->g->half_h);
   const __m256 fone = _mm256_set1_ps(1.0f);
+  const __m256i lane4 = _mm256_setr_epi32(0, 4, 8, 12, 16, 20, 24, 28);
   for (int k = 1; k <= jb->p->steps; k++) {
     hbao_step8 *q = sp + (k - 1);
     __m256 o = _mm256_mul_ps(_mm256_add_ps(_mm256_set1_ps((float)k), jit), st);
     __m256 sx = _mm256_add_ps(cx, _mm256_mul_ps(o, dx));
     __m256 sy = _mm256_add_ps(cy, _mm256_mul_ps(o, dy));
-    __m256i ix = _mm256_cvttps_epi32(_mm256_floor_ps(sx));
-    __m256i iy = _mm256_cvttps_epi32(_mm256_floor_ps(sy));
-    ix = _mm256_min_epi32(_mm256_max_epi32(ix, izero), wmax);
-    iy = _mm256_min_epi32(_mm256_max_epi32(iy, izero), hmax);
+    const __m256i rx = _mm256_cvttps_epi32(_mm256_floor_ps(sx));
+    const __m256i ry = _mm256_cvttps_epi32(_mm256_floor_ps(sy));
+    const __m256i ix = _mm256_min_epi32(_mm256_max_epi32(rx, izero), wmax);
+    const __m256i iy = _mm256_min_epi32(_mm256_max_epi32(ry, izero), hmax);
     q->ox = _mm256_sub_epi32(ix, ax);
     q->oy = _mm256_sub_epi32(iy, ay);
     __m256 ok = _mm256_andnot_ps(
         _mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_or_si256(q->ox, q->oy), izero)), act);
-    q->zs = obs_avx2_gather(jb->loads, lv->depth, _mm256_add_epi32(_mm256_mullo_epi32(iy, lw), ix));
+    const int ix0 = _mm256_cvtsi256_si32(ix), iy0 = _mm256_cvtsi256_si32(iy);
+    const size_t base = (size_t)iy0 * (size_t)lv->w + (size_t)ix0;
+    int row4 = 0;
+    if (strided && ix0 + 32 <= lv->w && base + 32 <= (size_t)lv->w * (size_t)lv->h) {
+      /* Unclamped, one row, 4 apart. */
+      __m256i same = _mm256_and_si256(
+          _mm256_and_si256(_mm256_cmpeq_epi32(rx, ix), _mm256_cmpeq_epi32(ry, iy)),
+          _mm256_and_si256(_mm256_cmpeq_epi32(iy, _mm256_set1_epi32(iy0)),
+                           _mm256_cmpeq_epi32(ix, _mm256_add_epi32(_mm256_set1_epi32(ix0), lane4))));
+      row4 = _mm256_movemask_epi8(same) == -1;
+    }
+    if (row4) {
+      q->zs = load_stride4(lv->depth + base);
+      q->S0 = load_stride4(jb->colf + ix0);
+      q->S1 = _mm256_set1_ps(jb->rowf[iy0]);
+    } else {
+      q->zs = obs_avx2_gather(jb->loads, lv->depth,
+                              _mm256_add_epi32(_mm256_mullo_epi32(iy, lw), ix));
+      /* colf[ix] and rowf[iy] recomputed with their own operations (2 fx = 2 s i + 1 is
+       * exact): the divider is idle here, while gathers compete with the depth gather for the
+       * loads. */
+      __m256 tx = _mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_mullo_epi32(ix, s2), ione));
+      __m256 ty = _mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_mullo_epi32(iy, s2), ione));
+      q->S0 = _mm256_mul_ps(_mm256_sub_ps(_mm256_div_ps(tx, fw), fone), hw);
+      q->S1 = _mm256_mul_ps(_mm256_sub_ps(fone, _mm256_div_ps(ty, fh)), hh);
+    }
     q->ok = _mm256_and_ps(ok, _mm256_cmp_ps(q->zs, zero, _CMP_GT_OQ));
-    /* colf[ix] and rowf[iy] recomputed with their own operations (2 fx = 2 s i + 1 is exact):
-     * the divider is idle here, while gathers compete with the depth gather for the loads. */
-    __m256 tx = _mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_mullo_epi32(ix, s2), ione));
-    __m256 ty = _mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_mullo_epi32(iy, s2), ione));
-    q->S0 = _mm256_mul_ps(_mm256_sub_ps(_mm256_div_ps(tx, fw), fone), hw);
-    q->S1 = _mm256_mul_ps(_mm256_sub_ps(fone, _mm256_div_ps(ty, fh)), hh);
     if (!jb->g->ortho) {
       q->S0 = _mm256_mul_ps(q->S0, q->zs);
       q->S1 = _mm256_mul_ps(q->S1, q->zs);
@@ -273,12 +306,14 @@ OBS_AVX2_FN void obs_hbao_ao_span8(const hbao_job *jb, int x, int stride, int y,
     int use[2];
     use[0] = dir_setup8(jb, &px, d8, bcast, 0, &d[0]);
     if (use[0])
-      march8(jb, px.ax, px.ay, px.cx, px.cy, d[0].dx, d[0].dy, d[0].jit, px.st, d[0].act, sp[0]);
+      march8(jb, px.ax, px.ay, px.cx, px.cy, d[0].dx, d[0].dy, d[0].jit, px.st, d[0].act, bcast,
+             sp[0]);
     __m256 sum = zero;
     for (int i = 0; i < p->directions; i++) {
       const int c = i & 1, n = c ^ 1;
       if (i + 1 < p->directions && (use[n] = dir_setup8(jb, &px, d8, bcast, i + 1, &d[n])))
-        march8(jb, px.ax, px.ay, px.cx, px.cy, d[n].dx, d[n].dy, d[n].jit, px.st, d[n].act, sp[n]);
+        march8(jb, px.ax, px.ay, px.cx, px.cy, d[n].dx, d[n].dy, d[n].jit, px.st, d[n].act, bcast,
+               sp[n]);
       if (use[c]) sum = horizon8(jb, &px, &d[c], sp[c], sum);
     }
     ao = _mm256_sub_ps(one, _mm256_div_ps(_mm256_mul_ps(_mm256_set1_ps(p->scale), sum),
