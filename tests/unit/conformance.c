@@ -1,0 +1,357 @@
+/* The conformance suite over the registry (see conformance.h). Everything it knows about a
+ * technique comes from the registry: its backends, its needs, its parameter schema (ranges, enums,
+ * defaults) and its outputs, so it runs unchanged over any technique that registers. */
+#include "conformance.h"
+
+#include <jansson.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* A ball on a ground quad under a quad light, every object with a material, a constant sky: enough
+ * for any technique's needs; every length scaled by `s`. */
+static char *scene_doc_scaled(const obs_technique *t, obs_backend be, const char *params,
+                              int materials, int lights, double s) {
+  const char *mat = materials ? ",\"material\":{\"reflectivity\":[0.5,0.5,0.5]}" : "";
+  char light[512] = "";
+  if (lights)
+    snprintf(light, sizeof light,
+             "\"lights\":[{\"type\":\"quad\",\"vertices\":[[%.17g,%.17g,%.17g],[%.17g,%.17g,"
+             "%.17g],[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g]],\"emission\":[4,4,4]}],"
+             "\"environment\":{\"color\":[0.2,0.2,0.2]},",
+             -s, 4 * s, -s, s, 4 * s, -s, s, 4 * s, s, -s, 4 * s, s);
+  char *doc = malloc(4096);
+  snprintf(doc, 4096,
+           "{\"camera\":{\"type\":\"perspective\",\"position\":[0,%.17g,%.17g],"
+           "\"look_at\":[0,%.17g,0],\"up\":[0,1,0],\"fov_y\":45},"
+           "\"image\":{\"width\":24,\"height\":16,\"spp\":1},"
+           "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[%.17g,0,%.17g],"
+           "[%.17g,0,%.17g],[%.17g,0,%.17g],[%.17g,0,%.17g]]}%s},{\"shape\":{\"type\":\"sphere\","
+           "\"center\":[0,%.17g,0],\"radius\":%.17g}%s}],"
+           "%s\"technique\":{\"name\":\"%s\",\"backend\":\"%s\",\"params\":%s}}",
+           3 * s, -4 * s, 0.3 * s, -5 * s, -5 * s, -5 * s, 5 * s, 5 * s, 5 * s, 5 * s, -5 * s,
+           mat, s, 0.5 * s, mat, light, t->name, obs_backend_name(be), params ? params : "{}");
+  return doc;
+}
+
+static char *scene_doc(const obs_technique *t, obs_backend be, const char *params, int materials,
+                       int lights) {
+  return scene_doc_scaled(t, be, params, materials, lights, 1.0);
+}
+
+/* Loads and renders `doc` with `threads` threads; returns the first failing rc (err says why). */
+static int render(const char *doc, int threads, obs_result *res, obs_err *err) {
+  obs_scene sc;
+  memset(res, 0, sizeof *res);
+  int rc = obs_scene_load_string(&sc, doc, "conformance.json", NULL, NULL, 0, err);
+  if (rc) return rc;
+  obs_render_opts o = {.threads = threads};
+  rc = obs_render(&sc, &o, res, err);
+  obs_scene_free(&sc);
+  return rc;
+}
+
+/* Every channel finite; the primary output in its kind's range: AO in [0, 1], radiance >= 0. */
+static int check_sane(const char *what, const obs_image *img) {
+  size_t n = (size_t)img->width * (size_t)img->height;
+  int bad = 0;
+  for (int c = 0; c < img->nchannels; c++) {
+    size_t nonfinite = 0;
+    for (size_t i = 0; i < n; i++) nonfinite += !isfinite(img->data[(size_t)c * n + i]);
+    if (nonfinite) printf("FAIL %s: %zu non-finite values in %s\n", what, nonfinite, img->names[c]);
+    bad += nonfinite > 0;
+  }
+  const float *ao = obs_image_channel(img, "ao");
+  size_t out = 0;
+  for (size_t i = 0; ao && i < n; i++) out += !(ao[i] >= 0.0f && ao[i] <= 1.0f);
+  if (out) printf("FAIL %s: %zu ao values outside [0, 1]\n", what, out), bad++;
+  static const char *const rgb[3] = {"radiance.R", "radiance.G", "radiance.B"};
+  for (int k = 0; k < 3; k++) {
+    const float *r = obs_image_channel(img, rgb[k]);
+    size_t neg = 0;
+    for (size_t i = 0; r && i < n; i++) neg += !(r[i] >= 0.0f);
+    if (neg) printf("FAIL %s: %zu negative values in %s\n", what, neg, rgb[k]), bad++;
+  }
+  return bad;
+}
+
+typedef int (*pair_fn)(const obs_technique *t, obs_backend be);
+
+static int each_pair(obs_backend be, int *ran, pair_fn fn) {
+  int bad = 0, n = 0;
+  for (size_t i = 0; i < obs_technique_count(); i++) {
+    const obs_technique *t = obs_technique_at(i);
+    if (!obs_technique_has_backend(t, be)) continue;
+    n++;
+    int b = fn(t, be);
+    printf("%s/%s: %s\n", t->name, obs_backend_name(be), b ? "FAILED" : "conforms");
+    bad += b;
+  }
+  if (ran) *ran = n;
+  return bad;
+}
+
+/* Renders `params` and checks the result is sane; `what` labels the failure lines. With `key`
+ * (the one parameter set), a refusal by validation that points at another parameter is a
+ * cross-field rule (the check hook) and passes: that value needs a partner to be valid. */
+static int render_sane(const obs_technique *t, obs_backend be, const char *params,
+                       const char *key, const char *what) {
+  char *doc = scene_doc(t, be, params, 1, 1);
+  obs_result res;
+  obs_err err = OBS_ERR_INIT;
+  obs_scene sc;
+  int bad = 0, rc = obs_scene_load_string(&sc, doc, "conformance.json", NULL, NULL, 0, &err);
+  memset(&res, 0, sizeof res);
+  if (rc) {
+    char own[160];
+    snprintf(own, sizeof own, "/technique/params/%s:", key ? key : "");
+    const char *m = obs_err_message(&err);
+    if (!key || strstr(m, own) || !strstr(m, "/technique/params/"))
+      printf("FAIL %s: refused: %s\n", what, m), bad++;
+    else
+      printf("     %s: refused by a cross-field rule: %s\n", what, m);
+    rc = 0;
+    goto done;
+  }
+  obs_render_opts o = {.threads = 2};
+  rc = obs_render(&sc, &o, &res, &err);
+  obs_scene_free(&sc);
+  if (rc)
+    printf("FAIL %s: %s\n", what, obs_err_message(&err)), bad++;
+  else
+    bad += check_sane(what, &res.image);
+done:
+  obs_result_free(&res);
+  obs_err_free(&err);
+  free(doc);
+  return bad;
+}
+
+static int defaults_pair(const obs_technique *t, obs_backend be) {
+  char what[128];
+  snprintf(what, sizeof what, "%s/%s defaults", t->name, obs_backend_name(be));
+  return render_sane(t, be, "{}", NULL, what);
+}
+
+int obs_conformance_defaults(obs_backend be, int *ran) { return each_pair(be, ran, defaults_pair); }
+
+/* The registry's parameter schema of `t` (new reference). */
+static json_t *params_schema(const obs_technique *t) {
+  json_t *reg = obs_technique_registry_json(), *out = NULL;
+  for (size_t i = 0; i < json_array_size(reg); i++) {
+    json_t *e = json_array_get(reg, i);
+    if (!strcmp(json_string_value(json_object_get(e, "name")), t->name))
+      out = json_incref(json_object_get(json_object_get(e, "params_schema"), "properties"));
+  }
+  json_decref(reg);
+  return out;
+}
+
+/* The values at the ends of one property's declared range: an inclusive end itself, an exclusive
+ * one approached from inside (a zero lower bound by 1e-30: the smallest length a document may
+ * ask for is what the technique must survive). Returns how many were written (0..2). */
+static int numeric_ends(const json_t *prop, double ends[2]) {
+  int n = 0;
+  json_t *lo = json_object_get(prop, "minimum"), *xlo = json_object_get(prop, "exclusiveMinimum");
+  json_t *hi = json_object_get(prop, "maximum"), *xhi = json_object_get(prop, "exclusiveMaximum");
+  if (json_is_number(lo)) ends[n++] = json_number_value(lo);
+  else if (json_is_number(xlo)) {
+    double v = json_number_value(xlo);
+    ends[n++] = v == 0 ? 1e-30 : v + fabs(v) * 1e-6;
+  }
+  if (json_is_number(hi)) ends[n++] = json_number_value(hi);
+  else if (json_is_number(xhi)) ends[n++] = json_number_value(xhi) * (1 - 1e-7);
+  return n;
+}
+
+static int param_ends_pair(const obs_technique *t, obs_backend be) {
+  json_t *props = params_schema(t);
+  const char *key;
+  json_t *prop;
+  int bad = 0;
+  json_object_foreach(props, key, prop) {
+    char vals[8][64];
+    int nv = 0;
+    json_t *type = json_object_get(prop, "type"), *en = json_object_get(prop, "enum");
+    const char *ty = json_is_string(type) ? json_string_value(type)
+                                          : json_string_value(json_array_get(type, 0));
+    if (json_is_array(en)) {
+      for (size_t i = 0; i < json_array_size(en) && nv < 8; i++) {
+        char *s = json_dumps(json_array_get(en, i), JSON_ENCODE_ANY);
+        snprintf(vals[nv++], sizeof vals[0], "%s", s);
+        free(s);
+      }
+    } else if (ty && !strcmp(ty, "boolean")) {
+      snprintf(vals[nv++], sizeof vals[0], "true");
+      snprintf(vals[nv++], sizeof vals[0], "false");
+    } else if (ty && (!strcmp(ty, "number") || !strcmp(ty, "integer"))) {
+      double ends[2];
+      int ne = numeric_ends(prop, ends);
+      for (int k = 0; k < ne; k++)
+        snprintf(vals[nv++], sizeof vals[0], !strcmp(ty, "integer") ? "%.0f" : "%.17g", ends[k]);
+    }
+    for (int k = 0; k < nv; k++) {
+      char params[128], what[256];
+      snprintf(params, sizeof params, "{\"%s\":%s}", key, vals[k]);
+      snprintf(what, sizeof what, "%s/%s %s", t->name, obs_backend_name(be), params);
+      bad += render_sane(t, be, params, key, what);
+    }
+  }
+  json_decref(props);
+  return bad;
+}
+
+int obs_conformance_param_ends(obs_backend be, int *ran) {
+  return each_pair(be, ran, param_ends_pair);
+}
+
+static int threads_pair(const obs_technique *t, obs_backend be) {
+  char *doc = scene_doc(t, be, "{}", 1, 1);
+  obs_result res[3];
+  obs_err err = OBS_ERR_INIT;
+  int bad = 0;
+  for (int k = 0; k < 3; k++) {
+    if (render(doc, k + 1, &res[k], &err)) {
+      printf("FAIL %s/%s with %d threads: %s\n", t->name, obs_backend_name(be), k + 1,
+             obs_err_message(&err));
+      bad++;
+      continue;
+    }
+    if (k && !bad) {
+      const obs_image *a = &res[0].image, *b = &res[k].image;
+      size_t bytes = (size_t)a->width * (size_t)a->height * (size_t)a->nchannels * sizeof(float);
+      if (a->nchannels != b->nchannels || memcmp(a->data, b->data, bytes))
+        printf("FAIL %s/%s: %d threads differ from 1\n", t->name, obs_backend_name(be), k + 1),
+            bad++;
+    }
+  }
+  for (int k = 0; k < 3; k++) obs_result_free(&res[k]);
+  obs_err_free(&err);
+  free(doc);
+  return bad;
+}
+
+int obs_conformance_threads(obs_backend be, int *ran) { return each_pair(be, ran, threads_pair); }
+
+/* Loads and renders `doc`, expecting a failure whose message contains `word`. */
+static int expect_refusal(const char *what, const char *doc, const char *word) {
+  obs_result res;
+  obs_err err = OBS_ERR_INIT;
+  int rc = render(doc, 2, &res, &err), bad = 0;
+  if (!rc) {
+    printf("FAIL %s: accepted\n", what);
+    bad++;
+  } else if (!strstr(obs_err_message(&err), word)) {
+    printf("FAIL %s: message does not name \"%s\": %s\n", what, word, obs_err_message(&err));
+    bad++;
+  }
+  obs_result_free(&res);
+  obs_err_free(&err);
+  return bad;
+}
+
+static int refusals_pair(const obs_technique *t, obs_backend be) {
+  int bad = 0;
+  char what[128];
+  for (int b = OBS_BACKEND_CPU; b < OBS_BACKEND_COUNT; b++) {
+    if (t->run[b]) continue;
+    char *doc = scene_doc(t, (obs_backend)b, "{}", 1, 1);
+    snprintf(what, sizeof what, "%s on %s", t->name, obs_backend_name((obs_backend)b));
+    bad += expect_refusal(what, doc, obs_backend_name((obs_backend)b));
+    free(doc);
+  }
+  if (t->needs & OBS_NEED_MATERIALS) {
+    char *doc = scene_doc(t, be, "{}", 0, 1);
+    snprintf(what, sizeof what, "%s/%s without materials", t->name, obs_backend_name(be));
+    bad += expect_refusal(what, doc, "material");
+    free(doc);
+  }
+  if (t->needs & OBS_NEED_LIGHTS) {
+    char *doc = scene_doc(t, be, "{}", 1, 0);
+    snprintf(what, sizeof what, "%s/%s without lights", t->name, obs_backend_name(be));
+    bad += expect_refusal(what, doc, "light");
+    free(doc);
+  }
+  return bad;
+}
+
+int obs_conformance_refusals(obs_backend be, int *ran) { return each_pair(be, ran, refusals_pair); }
+
+/* The schema default of parameter `key` of `t`, NaN when it has none or it is not a number. */
+static double param_default(const obs_technique *t, const char *key) {
+  json_t *props = params_schema(t);
+  json_t *d = json_object_get(json_object_get(props, key), "default");
+  double v = json_is_number(d) ? json_number_value(d) : NAN;
+  json_decref(props);
+  return v;
+}
+
+/* `b` (scale 1) against `r` (scale s) on the primary output's channels: coverage equal, the mean
+ * and the share of large differences within the declared tolerance. */
+static int compare_scaled(const char *what, const obs_image *b, const obs_image *r,
+                          const obs_tolerance *tol) {
+  static const char *const chans[] = {"ao", "radiance.R", "radiance.G", "radiance.B"};
+  size_t n = (size_t)b->width * (size_t)b->height;
+  const float *ba = obs_image_channel(b, "alpha"), *ra = obs_image_channel(r, "alpha");
+  int bad = 0;
+  for (size_t i = 0; ba && ra && i < n; i++)
+    if ((ba[i] > 0) != (ra[i] > 0)) {
+      printf("FAIL %s: coverage differs at pixel %zu\n", what, i);
+      bad++;
+      break;
+    }
+  for (size_t c = 0; c < sizeof chans / sizeof chans[0]; c++) {
+    const float *x = obs_image_channel(b, chans[c]), *y = obs_image_channel(r, chans[c]);
+    if (!x || !y) continue;
+    double sum = 0, worst = 0;
+    size_t over = 0;
+    for (size_t i = 0; i < n; i++) {
+      double d = fabs((double)x[i] - (double)y[i]);
+      sum += d;
+      worst = fmax(worst, d);
+      over += d > tol->ao_pixel;
+    }
+    if (sum / (double)n > tol->ao_mean || (double)over > tol->share * (double)n)
+      printf("FAIL %s: %s mean |d| %.3g (allowed %g), %zu pixels over %g (max %.3g)\n", what,
+             chans[c], sum / (double)n, tol->ao_mean, over, tol->ao_pixel, worst),
+          bad++;
+  }
+  return bad;
+}
+
+static int scales_pair(const obs_technique *t, obs_backend be) {
+  const obs_range *rg = &t->range[be];
+  static const double scales[3] = {1, 1e-4, 1e4};
+  obs_result res[3];
+  obs_err err = OBS_ERR_INIT;
+  int bad = 0;
+  memset(res, 0, sizeof res);
+  for (int k = 0; k < 3; k++) {
+    char params[512] = "{";
+    size_t m = 1;
+    for (int i = 0; rg->params[i].name; i++) {
+      double d = param_default(t, rg->params[i].name);
+      if (!rg->params[i].size_power || isnan(d)) continue;
+      m += (size_t)snprintf(params + m, sizeof params - m, "%s\"%s\":%.17g", m > 1 ? "," : "",
+                            rg->params[i].name, d * pow(scales[k], rg->params[i].size_power));
+    }
+    snprintf(params + m, sizeof params - m, "}");
+    char *doc = scene_doc_scaled(t, be, params, 1, 1, scales[k]);
+    char what[160];
+    snprintf(what, sizeof what, "%s/%s scaled by %g", t->name, obs_backend_name(be), scales[k]);
+    if (render(doc, 2, &res[k], &err)) {
+      printf("FAIL %s: %s\n", what, obs_err_message(&err));
+      bad++;
+    } else {
+      bad += check_sane(what, &res[k].image);
+      if (k && res[0].image.data) bad += compare_scaled(what, &res[0].image, &res[k].image, &rg->tol);
+    }
+    free(doc);
+  }
+  for (int k = 0; k < 3; k++) obs_result_free(&res[k]);
+  obs_err_free(&err);
+  return bad;
+}
+
+int obs_conformance_scales(obs_backend be, int *ran) { return each_pair(be, ran, scales_pair); }

@@ -1,0 +1,28 @@
+/* The conformance suite over the registry, shared by tests/unit/test_conformance.c (CPU) and
+ * tests/vulkan/test_conformance_vk.c: every registered technique x backend goes through the same
+ * checks, so a technique is covered by registering it. */
+#ifndef OBS_TEST_CONFORMANCE_H
+#define OBS_TEST_CONFORMANCE_H
+
+#include "obscura/obscura.h"
+
+/* The checks, each run over every technique that has `backend` (others are skipped). Each prints
+ * one line per failure and returns the number of failures; `ran` (may be NULL) receives how many
+ * technique x backend pairs were checked. */
+
+/* Defaults on a small scene: every channel finite and the primary output in the range its kind
+ * allows. */
+int obs_conformance_defaults(obs_backend backend, int *ran);
+/* Every parameter at both ends of its declared range (and every choice of an enum, both values of
+ * a flag), the others at their defaults: the render succeeds, finite and in range. */
+int obs_conformance_param_ends(obs_backend backend, int *ran);
+/* The same bits for 1, 2 and 3 threads. */
+int obs_conformance_threads(obs_backend backend, int *ran);
+/* The scene and every length parameter scaled by 1e-4 and by 1e4: the primary output equals the
+ * scale-1 render within the tolerance the backend declares (obs_range.tol). */
+int obs_conformance_scales(obs_backend backend, int *ran);
+/* Scenes the technique cannot handle (a backend it lacks, a need of its descriptor unmet) give a
+ * clean error that names the problem, and nothing is left allocated. */
+int obs_conformance_refusals(obs_backend backend, int *ran);
+
+#endif
