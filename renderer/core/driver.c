@@ -94,6 +94,7 @@ int obs_driver_pixels(obs_render_ctx *ctx, const obs_pixel_ops *ops, const void 
     return rc == OBS_ECANCELED ? obs_err_set(err, rc, "%s: render cancelled", name)
                                : obs_err_set(err, rc, "%s: render failed", name);
   }
+  obs_driver_stage_add(ctx, "shade", ctx->render_ms);
   return 0;
 }
 

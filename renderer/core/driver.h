@@ -22,7 +22,8 @@ typedef struct obs_pixel_ops {
 } obs_pixel_ops;
 
 /* Allocates `out`, runs shade over ctx's region in tiles on ctx->threads threads with progress
- * and cancellation, adds ctx->rays and sets ctx->render_ms. Bit-identical for any thread count.
+ * and cancellation, adds ctx->rays and sets ctx->render_ms (stage "shade"). Bit-identical for any
+ * thread count.
  * Pixels outside the region stay 0. On failure (OBS_ECANCELED when ctx->cancel was raised)
  * `out` is released and nothing stays allocated. */
 int obs_driver_pixels(obs_render_ctx *ctx, const obs_pixel_ops *ops, const void *job,
