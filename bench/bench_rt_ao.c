@@ -120,7 +120,7 @@ static int obscura_load(const options *o, int subdiv, obs_scene *sc) {
 }
 
 static int obscura_run(const obs_scene *sc, int threads, run_stats *st) {
-  obs_render_opts opts = {threads, NULL, NULL, NULL};
+  obs_render_opts opts = {.threads = threads};
   obs_result res;
   obs_err err = OBS_ERR_INIT;
   int rc = obs_render(sc, &opts, &res, &err);

@@ -154,7 +154,7 @@ typedef struct timing {
 
 /* One obs_render, timed. With `keep` the result is handed to the caller, else freed. */
 static int timed_render(const obs_scene *sc, int threads, timing *t, obs_result *keep) {
-  obs_render_opts opts = {threads, NULL, NULL, NULL};
+  obs_render_opts opts = {.threads = threads};
   obs_result res;
   obs_err err = OBS_ERR_INIT;
   double t0 = obs_now_ms();

@@ -254,7 +254,7 @@ int main(int argc, char **argv) {
     return 1;
   }
   double load_ms = obs_now_ms() - t0;
-  obs_render_opts ro = {o.threads, NULL, NULL, NULL};
+  obs_render_opts ro = {.threads = o.threads};
   obs_result res;
   double *rt = calloc((size_t)o.repeats, sizeof *rt);
   if (!rt) return 1;

@@ -43,12 +43,15 @@ static void *run_worker(void *arg) {
       atomic_compare_exchange_strong(&p->status, &expected, rc);
       break;
     }
-    int d = atomic_fetch_add(&p->done, 1) + 1;
     if (p->progress) {
-      /* Serialised so callers need no locking of their own. */
+      /* Serialised so callers need no locking of their own, and counted under the lock so the
+       * fractions they receive never go back. */
       pthread_mutex_lock(&p->progress_lock);
+      int d = atomic_fetch_add(&p->done, 1) + 1;
       p->progress(p->progress_user, (double)d / p->ntiles);
       pthread_mutex_unlock(&p->progress_lock);
+    } else {
+      atomic_fetch_add(&p->done, 1);
     }
   }
   return NULL;

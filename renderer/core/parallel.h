@@ -21,7 +21,8 @@ typedef int (*obs_tile_fn)(void *user, int thread, int x0, int y0, int x1, int y
 
 /* Runs fn over every tile with `threads` threads (the caller's thread is one of them). Stops
  * between tiles when *cancel becomes nonzero (returns OBS_ECANCELED) or fn fails (returns its
- * code). progress (may be NULL) receives the completed fraction after each tile. */
+ * code). progress (may be NULL) receives the completed fraction after each tile, never
+ * decreasing. */
 int obs_parallel_tiles(int width, int height, int threads, obs_tile_fn fn, void *user,
                        const atomic_int *cancel, void (*progress)(void *, double),
                        void *progress_user);

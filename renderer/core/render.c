@@ -15,6 +15,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "driver.h"
 #include "extent.h"
 
 void obs_render_keep_memory(void) {
@@ -41,8 +42,9 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
   memset(res, 0, sizeof *res);
   if (!scene || !scene->technique)
     return obs_err_set(err, OBS_EINVAL, "render: no loaded scene");
+  const obs_technique *t = scene->technique;
   obs_backend be;
-  int rc = obs_technique_pick_backend(scene->technique, scene->backend, &be, err);
+  int rc = obs_technique_pick_backend(t, scene->backend, &be, err);
   if (rc) return rc;
   obs_render_ctx ctx;
   memset(&ctx, 0, sizeof ctx);
@@ -53,16 +55,25 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
     ctx.progress = opts->progress;
     ctx.progress_user = opts->progress_user;
     ctx.cancel = opts->cancel;
+    ctx.region = opts->region;
   }
+  obs_region region;
+  if ((rc = obs_driver_region(&ctx, scene->width, scene->height, &region, err))) return rc;
   /* Outside its backend's guaranteed range a render still runs, but says so (docs/accuracy.md). */
   obs_extent ex;
   rc = obs_scene_extent(scene, &ex, err);
   if (rc) return rc;
-  obs_range_check(&scene->technique->range[be], scene->technique->name, be, scene, &ex, &ctx);
+  obs_range_check(&t->range[be], t->name, be, scene, &ex, &ctx);
   double t0 = obs_now_ms();
-  rc = scene->technique->run[be](&ctx, &res->image, err);
+  /* What the technique's needs ask is built once here, before its run, which is handed it. */
+  const obs_needs_builder *nb = obs_backend_needs_builder(be);
+  void *built = NULL;
+  if (nb && (rc = nb->build(&ctx, t->needs, &built, err))) return rc;
+  ctx.build_ms = obs_now_ms() - t0;
+  if ((rc = obs_driver_cancelled(&ctx, err)) == 0) rc = t->run[be](&ctx, &res->image, err);
+  if (nb) nb->release(built);
   if (rc) return rc;
-  res->technique = scene->technique;
+  res->technique = t;
   res->backend = be;
   res->rays = ctx.rays;
   res->threads = ctx.threads;

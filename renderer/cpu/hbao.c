@@ -11,6 +11,7 @@
 #include "hbao.h"
 #include "obscura/render.h"
 #include "parallel.h"
+#include "screen.h"
 #include "simd.h"
 #include "techniques.h"
 
@@ -414,8 +415,9 @@ static void job_tables(const obs_gbuffer *g, const obs_hbao_params *p, int lw, i
   }
 }
 
-int obs_hbao_cpu_apply_ex(const obs_gbuffer *g, const obs_hbao_params *p, int threads, float *ao,
-                          float *ao_raw, double *stage_ms, obs_err *err) {
+/* The passes: obs_hbao_cpu_apply_ex within a render (r) or outside one. */
+static int hbao_passes(obs_screen_cpu *r, const obs_gbuffer *g, const obs_hbao_params *p,
+                       float *ao, float *ao_raw, double *stage_ms, obs_err *err) {
   if (stage_ms)
     for (int i = 0; i < OBS_HBAO_PASS_COUNT; i++) stage_ms[i] = 0.0;
   if (g->width < 1 || g->height < 1)
@@ -462,6 +464,7 @@ int obs_hbao_cpu_apply_ex(const obs_gbuffer *g, const obs_hbao_params *p, int th
     jb.blur_nkf[k + p->blur_radius] = -((float)(k * k) * jb.falloff);
   jb.lv = (hbao_level){g->width, g->height, 1, g->depth, g->normal};
 
+  r->passes = 1 + (p->half_res ? 1 : 0) + (p->blur_radius > 0 ? 2 : 0);
   double t = obs_now_ms();
   if (p->half_res) {
     /* The top-left texel of each 2x2 (not the minimum depth): its depth and normal stay those of
@@ -480,13 +483,13 @@ int obs_hbao_cpu_apply_ex(const obs_gbuffer *g, const obs_hbao_params *p, int th
   }
   float *level_ao = p->half_res ? half + 4 * ln : raw;
   jb.out = level_ao;
-  int rc = obs_parallel_tiles(lw, lh, threads, ao_fn, &jb, NULL, NULL, NULL);
+  int rc = obs_screen_cpu_tiles(r, lw, lh, ao_fn, &jb);
   if (stage_ms) stage_ms[OBS_HBAO_PASS_AO] = obs_now_ms() - t;
   if (!rc && p->half_res) {
     t = obs_now_ms();
     jb.in = level_ao;
     jb.out = raw;
-    rc = obs_parallel_tiles(g->width, g->height, threads, up_tile, &jb, NULL, NULL, NULL);
+    rc = obs_screen_cpu_tiles(r, g->width, g->height, up_tile, &jb);
     if (stage_ms) stage_ms[OBS_HBAO_PASS_UPSAMPLE] = obs_now_ms() - t;
   }
   if (!rc && ao_raw) memcpy(ao_raw, raw, n * sizeof(float));
@@ -495,56 +498,44 @@ int obs_hbao_cpu_apply_ex(const obs_gbuffer *g, const obs_hbao_params *p, int th
     jb.in = raw;
     jb.out = tmp;
     jb.axis = 0;
-    rc = obs_parallel_tiles(g->width, g->height, threads, blur_fn, &jb, NULL, NULL, NULL);
+    rc = obs_screen_cpu_tiles(r, g->width, g->height, blur_fn, &jb);
     if (!rc) {
       jb.in = tmp;
       jb.out = ao;
       jb.axis = 1;
-      rc = obs_parallel_tiles(g->width, g->height, threads, blur_fn, &jb, NULL, NULL, NULL);
+      rc = obs_screen_cpu_tiles(r, g->width, g->height, blur_fn, &jb);
     }
     if (stage_ms) stage_ms[OBS_HBAO_PASS_BLUR] = obs_now_ms() - t;
   } else if (!rc) {
     memcpy(ao, raw, n * sizeof(float));
   }
   free(mem);
-  if (rc) return obs_err_set(err, rc, "hbao: %dx%d: CPU passes failed", g->width, g->height);
+  if (rc && rc != OBS_ECANCELED)
+    return obs_err_set(err, rc, "hbao: %dx%d: CPU passes failed", g->width, g->height);
+  return rc;
+}
+
+int obs_hbao_cpu_apply_ex(const obs_gbuffer *g, const obs_hbao_params *p, int threads, float *ao,
+                          float *ao_raw, double *stage_ms, obs_err *err) {
+  obs_screen_cpu r = {.threads = threads};
+  return hbao_passes(&r, g, p, ao, ao_raw, stage_ms, err);
+}
+
+static int passes(obs_screen_cpu *r, const obs_gbuffer *g, const void *params, float *ao,
+                  float *ao_raw, obs_err *err) {
+  const obs_hbao_params *p = params;
+  double st[OBS_HBAO_PASS_COUNT];
+  int rc = hbao_passes(r, g, p, ao, ao_raw, st, err);
+  if (rc) return rc;
+  for (int i = 0; i < OBS_HBAO_PASS_COUNT; i++)
+    if (obs_hbao_pass_runs(p, i)) obs_screen_cpu_stage(r, obs_hbao_pass_names[i], st[i]);
   return 0;
 }
 
-
 int obs_hbao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
-  const obs_scene *sc = ctx->scene;
   obs_hbao_params p;
   if (obs_hbao_params_read(ctx->params, &p))
-    return obs_err_set(err, OBS_EINVAL, "%s: /technique/params: invalid hbao parameters", sc->name);
-  int rc = obs_image_init(out, sc->width, sc->height, OBS_SCREEN_CHANNELS, obs_screen_channel_names, err);
-  if (rc) return rc;
-  obs_gbuffer g;
-  double build_ms = 0, gb_ms = 0, st[OBS_HBAO_PASS_COUNT];
-  if ((rc = obs_gbuffer_cpu(sc, &g, ctx->threads, &build_ms, &gb_ms, err))) {
-    obs_image_free(out);
-    return rc;
-  }
-  ctx->build_ms = build_ms;
-  double t0 = obs_now_ms();
-  size_t plane = (size_t)sc->width * (size_t)sc->height;
-  rc = obs_hbao_cpu_apply_ex(&g, &p, ctx->threads, out->data + OBS_SCREEN_AO * plane,
-                             out->data + OBS_SCREEN_AO_RAW * plane, st, err);
-  ctx->render_ms = gb_ms + (obs_now_ms() - t0);
-  if (rc) {
-    obs_gbuffer_free(&g);
-    obs_image_free(out);
-    return rc;
-  }
-  ctx->rays = plane; /* the G-buffer's primary rays */
-  obs_render_ctx_stage(ctx, "gbuffer", gb_ms);
-  for (int i = 0; i < OBS_HBAO_PASS_COUNT; i++)
-    if (i == OBS_HBAO_PASS_AO || (i == OBS_HBAO_PASS_BLUR && p.blur_radius > 0) ||
-        ((i == OBS_HBAO_PASS_DOWNSAMPLE || i == OBS_HBAO_PASS_UPSAMPLE) && p.half_res))
-      obs_render_ctx_stage(ctx, obs_hbao_pass_names[i], st[i]);
-  obs_camera_rig rig;
-  obs_camera_setup(&sc->camera, sc->width, sc->height, &rig);
-  obs_gbuffer_export(&g, &rig, out);
-  obs_gbuffer_free(&g);
-  return 0;
+    return obs_err_set(err, OBS_EINVAL, "%s: /technique/params: invalid hbao parameters",
+                       ctx->scene->name);
+  return obs_screen_cpu_run(ctx, passes, &p, out, err);
 }

@@ -2,16 +2,16 @@
  *
  * For each pixel sample a primary ray finds P; `samples` directions over the hemisphere about the
  * shading normal (cosine- or uniform-distributed, so the estimator of W(P) is the plain mean of
- * rho) are traced up to max_distance. The same shape serves every ray-traced technique: parse
- * params, build, run tiles, write channels. */
+ * rho) are traced up to max_distance. The framework builds the BVH (needs) and the per-pixel driver
+ * owns the image, tiles, progress and cancellation: this file is the pixel's shading. */
 #include <jansson.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "camera.h"
+#include "driver.h"
 #include "obscura/render.h"
-#include "parallel.h"
 #include "raytrace.h"
 #include "sampling.h"
 #include "techniques.h"
@@ -38,8 +38,6 @@ typedef struct job {
   obs_camera_rig cam;
   rt_ao_params p;
   int spp;
-  obs_image *img;
-  _Atomic uint64_t rays;
 } job;
 
 static void read_params(const json_t *js, rt_ao_params *p) {
@@ -140,96 +138,68 @@ static uint64_t shade(const job *jb, const obs_hit *hit, uint32_t x, uint32_t y,
   return rays;
 }
 
-static int render_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+/* One pixel: its spp camera rays, each hit's occlusion estimate, averaged. */
+static uint64_t shade_pixel(const void *user, int thread, int x, int y, float *d) {
   (void)thread;
-  job *jb = user;
-  obs_image *img = jb->img;
-  size_t plane = (size_t)img->width * (size_t)img->height;
+  const job *jb = user;
   const double n = jb->p.samples;
   uint64_t rays = 0;
-  for (int y = y0; y < y1; y++)
-    for (int x = x0; x < x1; x++) {
-      double ao = 0, var = 0, depth = 0, bent[3] = {0, 0, 0}, nrm[3] = {0, 0, 0};
-      int hits = 0;
-      obs_sampler2d jit;
-      obs_sampler2d_init(&jit, jb->p.sampler, (uint32_t)x, (uint32_t)y, 0, 0, jb->p.seed);
-      for (int s = 0; s < jb->spp; s++) {
-        float jx = 0.5f, jy = 0.5f;
-        /* One pixel sample looks through the centre; several are stratified over the pixel. */
-        if (jb->spp > 1) obs_sampler2d_get(&jit, (uint32_t)s, &jx, &jy);
-        double org[3], dir[3];
-        obs_camera_ray(&jb->cam, x + jx, y + jy, org, dir);
-        obs_hit hit;
-        rays++;
-        if (!obs_rt_intersect(jb->rt, org, dir, INFINITY, &hit)) {
-          ao += 1.0;
-          continue;
-        }
-        hits++;
-        ao_accum acc;
-        rays += shade(jb, &hit, (uint32_t)x, (uint32_t)y, (uint32_t)s, &acc);
-        double mean = acc.sum / n;
-        ao += mean;
-        double se = wilson_stderr(mean, n);
-        var += se * se;
-        double bl = sqrt(acc.bent[0] * acc.bent[0] + acc.bent[1] * acc.bent[1] +
-                         acc.bent[2] * acc.bent[2]);
-        for (int k = 0; k < 3; k++) {
-          bent[k] += bl > 0 ? acc.bent[k] / bl : hit.ns[k];
-          nrm[k] += hit.ns[k];
-        }
-        double fwd = dir[0] * jb->cam.forward[0] + dir[1] * jb->cam.forward[1] +
-                     dir[2] * jb->cam.forward[2];
-        depth += hit.t * fwd;
-      }
-      size_t i = (size_t)y * (size_t)img->width + (size_t)x;
-      float *d = img->data;
-      d[CH_AO * plane + i] = (float)(ao / jb->spp);
-      d[CH_STDERR * plane + i] = (float)(sqrt(var) / jb->spp);
-      d[CH_ALPHA * plane + i] = (float)hits / (float)jb->spp;
-      d[CH_DEPTH * plane + i] = hits ? (float)(depth / hits) : 0.0f;
-      double bl = sqrt(bent[0] * bent[0] + bent[1] * bent[1] + bent[2] * bent[2]);
-      double nl = sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
-      for (int k = 0; k < 3; k++) {
-        d[(CH_BX + k) * plane + i] = bl > 0 ? (float)(bent[k] / bl) : 0.0f;
-        d[(CH_NX + k) * plane + i] = nl > 0 ? (float)(nrm[k] / nl) : 0.0f;
-      }
+  double ao = 0, var = 0, depth = 0, bent[3] = {0, 0, 0}, nrm[3] = {0, 0, 0};
+  int hits = 0;
+  obs_sampler2d jit;
+  obs_sampler2d_init(&jit, jb->p.sampler, (uint32_t)x, (uint32_t)y, 0, 0, jb->p.seed);
+  for (int s = 0; s < jb->spp; s++) {
+    float jx = 0.5f, jy = 0.5f;
+    /* One pixel sample looks through the centre; several are stratified over the pixel. */
+    if (jb->spp > 1) obs_sampler2d_get(&jit, (uint32_t)s, &jx, &jy);
+    double org[3], dir[3];
+    obs_camera_ray(&jb->cam, x + jx, y + jy, org, dir);
+    obs_hit hit;
+    rays++;
+    if (!obs_rt_intersect(jb->rt, org, dir, INFINITY, &hit)) {
+      ao += 1.0;
+      continue;
     }
-  atomic_fetch_add(&jb->rays, rays);
-  return 0;
+    hits++;
+    ao_accum acc;
+    rays += shade(jb, &hit, (uint32_t)x, (uint32_t)y, (uint32_t)s, &acc);
+    double mean = acc.sum / n;
+    ao += mean;
+    double se = wilson_stderr(mean, n);
+    var += se * se;
+    double bl = sqrt(acc.bent[0] * acc.bent[0] + acc.bent[1] * acc.bent[1] +
+                     acc.bent[2] * acc.bent[2]);
+    for (int k = 0; k < 3; k++) {
+      bent[k] += bl > 0 ? acc.bent[k] / bl : hit.ns[k];
+      nrm[k] += hit.ns[k];
+    }
+    double fwd =
+        dir[0] * jb->cam.forward[0] + dir[1] * jb->cam.forward[1] + dir[2] * jb->cam.forward[2];
+    depth += hit.t * fwd;
+  }
+  d[CH_AO] = (float)(ao / jb->spp);
+  d[CH_STDERR] = (float)(sqrt(var) / jb->spp);
+  d[CH_ALPHA] = (float)hits / (float)jb->spp;
+  d[CH_DEPTH] = hits ? (float)(depth / hits) : 0.0f;
+  double bl = sqrt(bent[0] * bent[0] + bent[1] * bent[1] + bent[2] * bent[2]);
+  double nl = sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
+  for (int k = 0; k < 3; k++) {
+    d[CH_BX + k] = bl > 0 ? (float)(bent[k] / bl) : 0.0f;
+    d[CH_NX + k] = nl > 0 ? (float)(nrm[k] / nl) : 0.0f;
+  }
+  return rays;
 }
 
 int obs_rt_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   const obs_scene *sc = ctx->scene;
+  if (!ctx->rt)
+    return obs_err_set(err, OBS_EINTERNAL, "%s: rt_ao: no BVH was built for it", sc->name);
   job jb;
   memset(&jb, 0, sizeof jb);
   read_params(ctx->params, &jb.p);
+  jb.rt = ctx->rt;
   jb.spp = sc->spp;
   obs_camera_setup(&sc->camera, sc->width, sc->height, &jb.cam);
-  /* The image is allocated before timing starts: neither build nor render is charged for it. */
-  int rc = obs_image_init(out, sc->width, sc->height, CH_COUNT, channel_names, err);
-  if (rc) return rc;
-  double t0 = obs_now_ms();
-  obs_rt rt;
-  rc = obs_rt_build_ex(sc, &rt, ctx->threads, OBS_RT_FRAME_GEOMETRY, err);
-  if (rc) {
-    obs_image_free(out);
-    return rc;
-  }
-  jb.rt = &rt;
-  double t1 = obs_now_ms();
-  ctx->build_ms = t1 - t0;
-  jb.img = out;
-  atomic_init(&jb.rays, 0);
-  rc = obs_parallel_tiles(sc->width, sc->height, ctx->threads, render_tile, &jb, ctx->cancel,
-                          ctx->progress, ctx->progress_user);
-  ctx->render_ms = obs_now_ms() - t1;
-  ctx->rays = atomic_load(&jb.rays);
-  obs_rt_free(&rt);
-  if (rc) {
-    obs_image_free(out);
-    return rc == OBS_ECANCELED ? obs_err_set(err, rc, "%s: render cancelled", sc->name)
-                               : obs_err_set(err, rc, "%s: render failed", sc->name);
-  }
-  return 0;
+  static const obs_pixel_ops ops = {CH_COUNT, channel_names, shade_pixel};
+  return obs_driver_pixels(ctx, &ops, &jb, out, err);
 }

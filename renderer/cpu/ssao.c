@@ -13,6 +13,7 @@
 #include "gbuffer.h"
 #include "obscura/render.h"
 #include "parallel.h"
+#include "screen.h"
 #include "simd.h"
 #include "ssao.h"
 #include "techniques.h"
@@ -294,8 +295,9 @@ OBS_HOT_INLINE int blur_tile_body(void *user, int thread, int x0, int y0, int x1
 }
 OBS_TILE_KERNELS(blur_tile)
 
-int obs_ssao_cpu_apply_ex(const obs_gbuffer *g, const obs_ssao_params *p, int threads, float *ao,
-                          float *ao_raw, double *stage_ms, obs_err *err) {
+/* The AO pass and the blur: obs_ssao_cpu_apply_ex within a render (r) or outside one. */
+static int ssao_passes(obs_screen_cpu *r, const obs_gbuffer *g, const obs_ssao_params *p,
+                       float *ao, float *ao_raw, double *stage_ms, obs_err *err) {
   if (stage_ms)
     for (int k = 0; k < OBS_SSAO_CPU_STAGES; k++) stage_ms[k] = 0.0;
   if (!g || !p || !ao || g->width < 1 || g->height < 1)
@@ -328,14 +330,13 @@ int obs_ssao_cpu_apply_ex(const obs_gbuffer *g, const obs_ssao_params *p, int th
                 .simd = simd,
                 .loads = obs_simd_gather_loads(),
                 .lanes = lanes};
+  r->passes = p->blur ? 2 : 1;
   double t0 = obs_now_ms();
-  int rc = obs_parallel_tiles(g->width, g->height, threads < 1 ? 1 : threads,
-                              obs_simd_tile_pick(ao_tile, isa), &j, NULL, NULL, NULL);
+  int rc = obs_screen_cpu_tiles(r, g->width, g->height, obs_simd_tile_pick(ao_tile, isa), &j);
   double t1 = obs_now_ms();
   if (!rc && p->blur) {
     j.out = ao;
-    rc = obs_parallel_tiles(g->width, g->height, threads < 1 ? 1 : threads,
-                            obs_simd_tile_pick(blur_tile, isa), &j, NULL, NULL, NULL);
+    rc = obs_screen_cpu_tiles(r, g->width, g->height, obs_simd_tile_pick(blur_tile, isa), &j);
   } else if (!rc && ao_raw) {
     memcpy(ao_raw, ao, n * sizeof *ao);
   }
@@ -346,8 +347,14 @@ int obs_ssao_cpu_apply_ex(const obs_gbuffer *g, const obs_ssao_params *p, int th
   }
   if (raw != ao_raw) free(raw);
   free(lanes);
-  if (rc) return obs_err_set(err, rc, "ssao: CPU passes failed");
-  return 0;
+  if (rc && rc != OBS_ECANCELED) return obs_err_set(err, rc, "ssao: CPU passes failed");
+  return rc;
+}
+
+int obs_ssao_cpu_apply_ex(const obs_gbuffer *g, const obs_ssao_params *p, int threads, float *ao,
+                          float *ao_raw, double *stage_ms, obs_err *err) {
+  obs_screen_cpu r = {.threads = threads};
+  return ssao_passes(&r, g, p, ao, ao_raw, stage_ms, err);
 }
 
 int obs_ssao_cpu_apply(const obs_gbuffer *g, const obs_ssao_params *p, int threads, float *ao,
@@ -355,37 +362,21 @@ int obs_ssao_cpu_apply(const obs_gbuffer *g, const obs_ssao_params *p, int threa
   return obs_ssao_cpu_apply_ex(g, p, threads, ao, NULL, stage_ms, err);
 }
 
+static int passes(obs_screen_cpu *r, const obs_gbuffer *g, const void *params, float *ao,
+                  float *ao_raw, obs_err *err) {
+  const obs_ssao_params *p = params;
+  double st[OBS_SSAO_CPU_STAGES];
+  int rc = ssao_passes(r, g, p, ao, ao_raw, st, err);
+  if (rc) return rc;
+  obs_screen_cpu_stage(r, "ao", st[0]);
+  if (p->blur) obs_screen_cpu_stage(r, "blur", st[1]);
+  return 0;
+}
 
 int obs_ssao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
-  const obs_scene *sc = ctx->scene;
   obs_ssao_params p;
   if (obs_ssao_params_read(ctx->params, &p))
-    return obs_err_set(err, OBS_EINVAL, "%s: /technique/params: invalid ssao parameters", sc->name);
-  obs_camera_rig rig;
-  obs_camera_setup(&sc->camera, sc->width, sc->height, &rig);
-  int rc = obs_image_init(out, sc->width, sc->height, OBS_SCREEN_CHANNELS, obs_screen_channel_names, err);
-  if (rc) return rc;
-  obs_gbuffer g;
-  double build_ms = 0, gb_ms = 0, st[OBS_SSAO_CPU_STAGES];
-  double t0 = obs_now_ms();
-  if ((rc = obs_gbuffer_cpu(sc, &g, ctx->threads, &build_ms, &gb_ms, err))) {
-    obs_image_free(out);
-    return rc;
-  }
-  rc = obs_ssao_cpu_apply_ex(&g, &p, ctx->threads, obs_image_channel(out, "ao"),
-                             obs_image_channel(out, "ao_raw"), st, err);
-  if (!rc) obs_gbuffer_export(&g, &rig, out);
-  obs_gbuffer_free(&g);
-  if (rc) {
-    obs_image_free(out);
-    return rc;
-  }
-  ctx->build_ms = build_ms;
-  ctx->render_ms = obs_now_ms() - t0 - build_ms;
-  ctx->rays = (uint64_t)sc->width * (uint64_t)sc->height;
-  obs_render_ctx_stage(ctx, "gbuffer", gb_ms);
-  obs_render_ctx_stage(ctx, "ao", st[0]);
-  if (p.blur) obs_render_ctx_stage(ctx, "blur", st[1]);
-  if (ctx->progress) ctx->progress(ctx->progress_user, 1.0);
-  return 0;
+    return obs_err_set(err, OBS_EINVAL, "%s: /technique/params: invalid ssao parameters",
+                       ctx->scene->name);
+  return obs_screen_cpu_run(ctx, passes, &p, out, err);
 }

@@ -46,6 +46,11 @@ enum {
 };
 /* Stage names for obs_render_ctx_stage (static strings). */
 extern const char *const obs_hbao_pass_names[OBS_HBAO_PASS_COUNT];
+/* Whether pass `i` runs with `p` (the AO pass always; the others when their option is on). */
+static inline int obs_hbao_pass_runs(const obs_hbao_params *p, int i) {
+  return i == OBS_HBAO_PASS_AO || (i == OBS_HBAO_PASS_BLUR && p->blur_radius > 0) ||
+         ((i == OBS_HBAO_PASS_DOWNSAMPLE || i == OBS_HBAO_PASS_UPSAMPLE) && p->half_res);
+}
 
 extern const char obs_hbao_params_schema[];
 

@@ -70,7 +70,7 @@ const obs_technique obs_technique_rt_ao = {
     .description = "Monte-Carlo ray-traced ambient occlusion / obscurance (Embree); the reference "
                    "every other technique is measured against",
     .params_schema = rt_ao_params,
-    .needs = OBS_NEED_BVH,
+    .needs = OBS_NEED_BVH | OBS_NEED_BVH_FRAME_GEOMETRY,
     .outputs = rt_ao_outputs,
     .check = rt_ao_check,
     .reference = rt_ao_reference,

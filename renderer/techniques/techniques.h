@@ -2,7 +2,11 @@
 #ifndef OBS_TECHNIQUES_H
 #define OBS_TECHNIQUES_H
 
+#include "driver.h"
 #include "obscura/technique.h"
+
+/* What each backend builds for a technique's needs (renderer/cpu/needs.c; see backends.c). */
+extern const obs_needs_builder obs_cpu_needs_builder;
 
 extern const obs_technique obs_technique_rt_ao;
 int obs_rt_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);

@@ -1,13 +1,14 @@
 /* hbao on Vulkan: the passes of renderer/cpu/hbao.c as compute shaders (shaders/hbao_*.comp.glsl)
- * over a device G-buffer, and the full render: rasterised G-buffer, passes, readback, export. */
+ * over a device G-buffer, run by the Vulkan screen-space driver (screen_vk.h). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "driver.h"
 #include "gbuffer.h"
-#include "geometry.h"
 #include "hbao.h"
 #include "obscura/render.h"
+#include "screen_vk.h"
 #include "shaders.h"
 #include "techniques.h"
 #include "vk.h"
@@ -160,60 +161,23 @@ done:
   return rc;
 }
 
+static int passes(obs_render_ctx *ctx, obs_vk *vk, obs_vk_gbuffer *dev, const obs_gbuffer *host,
+                  const void *params, float *ao, float *ao_raw, obs_err *err) {
+  const obs_hbao_params *p = params;
+  obs_hbao_projection proj = obs_hbao_projection_of(host);
+  double st[OBS_HBAO_PASS_COUNT + 1];
+  int rc = obs_hbao_vk_apply_ex(vk, dev, &proj, p, ao, ao_raw, st, err);
+  if (rc) return rc;
+  for (int i = 0; i < OBS_HBAO_PASS_COUNT; i++)
+    if (obs_hbao_pass_runs(p, i)) obs_driver_stage_add(ctx, obs_hbao_pass_names[i], st[i]);
+  obs_driver_stage_add(ctx, "readback", st[OBS_HBAO_PASS_COUNT]);
+  return 0;
+}
 
 int obs_hbao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
-  const obs_scene *sc = ctx->scene;
   obs_hbao_params p;
   if (obs_hbao_params_read(ctx->params, &p))
-    return obs_err_set(err, OBS_EINVAL, "%s: /technique/params: invalid hbao parameters", sc->name);
-  int rc = obs_image_init(out, sc->width, sc->height, OBS_SCREEN_CHANNELS, obs_screen_channel_names, err);
-  if (rc) return rc;
-  int validation = obs_vk_validation_requested();
-  obs_vk *vk = NULL;
-  obs_geometry geo;
-  memset(&geo, 0, sizeof geo);
-  obs_vk_gbuffer dg;
-  memset(&dg, 0, sizeof dg);
-  obs_gbuffer hg;
-  memset(&hg, 0, sizeof hg);
-  obs_camera_rig rig;
-  obs_camera_setup(&sc->camera, sc->width, sc->height, &rig);
-  double st[OBS_HBAO_PASS_COUNT + 1], gb_ms = 0;
-  if ((rc = obs_vk_acquire(&vk, validation, err))) goto done;
-  double t0 = obs_now_ms();
-  if ((rc = obs_geometry_build_at(sc, rig.origin, &geo, err))) goto done;
-  double t1 = obs_now_ms();
-  ctx->build_ms = t1 - t0;
-  if ((rc = obs_vk_gbuffer_render(vk, sc, &geo, &dg, &gb_ms, err))) goto done;
-  size_t plane = (size_t)sc->width * (size_t)sc->height;
-  /* The host copy is made now so its projection (floats from the rig) is the one the passes use,
-   * exactly as on the CPU. */
-  if ((rc = obs_gbuffer_alloc(&hg, sc->width, sc->height, &rig, err))) goto done;
-  obs_hbao_projection proj = obs_hbao_projection_of(&hg);
-  rc = obs_hbao_vk_apply_ex(vk, &dg, &proj, &p, out->data + OBS_SCREEN_AO * plane,
-                            out->data + OBS_SCREEN_AO_RAW * plane, st, err);
-  double t2 = obs_now_ms();
-  if (!rc) rc = obs_vk_gbuffer_download(vk, &dg, &hg, 0, err);
-  /* The G-buffer download is part of the readback the image needs. */
-  st[OBS_HBAO_PASS_COUNT] += obs_now_ms() - t2;
-  ctx->render_ms = obs_now_ms() - t1;
-  if (rc) goto done;
-  obs_render_ctx_stage(ctx, "gbuffer", gb_ms);
-  for (int i = 0; i < OBS_HBAO_PASS_COUNT; i++)
-    if (i == OBS_HBAO_PASS_AO || (i == OBS_HBAO_PASS_BLUR && p.blur_radius > 0) ||
-        ((i == OBS_HBAO_PASS_DOWNSAMPLE || i == OBS_HBAO_PASS_UPSAMPLE) && p.half_res))
-      obs_render_ctx_stage(ctx, obs_hbao_pass_names[i], st[i]);
-  obs_render_ctx_stage(ctx, "readback", st[OBS_HBAO_PASS_COUNT]);
-  obs_gbuffer_export(&hg, &rig, out);
-  if (validation && obs_vk_validation_messages(vk) != 0)
-    rc = obs_err_set(err, OBS_EINTERNAL,
-                     "%s: hbao on \"%s\": %u Vulkan validation message(s) (printed above)",
-                     sc->name, obs_vk_device_name(vk), obs_vk_validation_messages(vk));
-done:
-  obs_gbuffer_free(&hg);
-  if (vk) obs_vk_gbuffer_free(vk, &dg);
-  obs_geometry_free(&geo);
-  obs_vk_release(vk);
-  if (rc) obs_image_free(out);
-  return rc;
+    return obs_err_set(err, OBS_EINVAL, "%s: /technique/params: invalid hbao parameters",
+                       ctx->scene->name);
+  return obs_screen_vk_run(ctx, "hbao", passes, &p, out, err);
 }

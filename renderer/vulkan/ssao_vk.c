@@ -1,12 +1,12 @@
 /* ssao on Vulkan: the AO and blur compute passes (shaders/ssao*.comp.glsl) over a device G-buffer,
- * and the technique's Vulkan run function. The CPU twin is renderer/cpu/ssao.c. */
+ * run by the Vulkan screen-space driver (screen_vk.h). The CPU twin is renderer/cpu/ssao.c. */
 #include <stdlib.h>
 #include <string.h>
 
-#include "camera.h"
+#include "driver.h"
 #include "gbuffer.h"
-#include "geometry.h"
 #include "obscura/render.h"
+#include "screen_vk.h"
 #include "shaders.h"
 #include "ssao.h"
 #include "techniques.h"
@@ -100,60 +100,23 @@ int obs_ssao_vk_apply(obs_vk *vk, obs_vk_gbuffer *g, const obs_ssao_params *p, f
   return obs_ssao_vk_apply_ex(vk, g, NULL, p, ao_host, NULL, stage_ms, err);
 }
 
+static int passes(obs_render_ctx *ctx, obs_vk *vk, obs_vk_gbuffer *dev, const obs_gbuffer *host,
+                  const void *params, float *ao, float *ao_raw, obs_err *err) {
+  const obs_ssao_params *p = params;
+  obs_ssao_projection proj = obs_ssao_projection_of(host);
+  double st[OBS_SSAO_VK_STAGES];
+  int rc = obs_ssao_vk_apply_ex(vk, dev, &proj, p, ao, ao_raw, st, err);
+  if (rc) return rc;
+  obs_driver_stage_add(ctx, "ao", st[0]);
+  if (p->blur) obs_driver_stage_add(ctx, "blur", st[1]);
+  obs_driver_stage_add(ctx, "readback", st[2]);
+  return 0;
+}
 
 int obs_ssao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
-  const obs_scene *sc = ctx->scene;
   obs_ssao_params p;
   if (obs_ssao_params_read(ctx->params, &p))
-    return obs_err_set(err, OBS_EINVAL, "%s: /technique/params: invalid ssao parameters", sc->name);
-  obs_camera_rig rig;
-  obs_camera_setup(&sc->camera, sc->width, sc->height, &rig);
-  int rc = obs_image_init(out, sc->width, sc->height, OBS_SCREEN_CHANNELS, obs_screen_channel_names, err);
-  if (rc) return rc;
-  obs_vk *vk = NULL;
-  obs_geometry geo;
-  obs_vk_gbuffer dev;
-  obs_gbuffer host;
-  memset(&geo, 0, sizeof geo);
-  memset(&dev, 0, sizeof dev);
-  memset(&host, 0, sizeof host);
-  const int validation = obs_vk_validation_requested();
-  double gb_ms = 0, st[OBS_SSAO_VK_STAGES] = {0, 0, 0};
-  /* Acquiring the device is not a stage (as in hbao): only its first use in a process opens it. */
-  if ((rc = obs_vk_acquire(&vk, validation, err))) goto done;
-  double t0 = obs_now_ms(), t1 = t0;
-  if ((rc = obs_geometry_build_at(sc, rig.origin, &geo, err))) goto done;
-  t1 = obs_now_ms();
-  ctx->build_ms = t1 - t0;
-  if ((rc = obs_vk_gbuffer_render(vk, sc, &geo, &dev, &gb_ms, err))) goto done;
-  if ((rc = obs_gbuffer_alloc(&host, sc->width, sc->height, &rig, err))) goto done;
-  obs_ssao_projection proj = obs_ssao_projection_of(&host);
-  if ((rc = obs_ssao_vk_apply_ex(vk, &dev, &proj, &p, obs_image_channel(out, "ao"),
-                                 obs_image_channel(out, "ao_raw"), st, err)))
-    goto done;
-  /* The depth and normal outputs come from the device G-buffer, so they match the AO. */
-  double t2 = obs_now_ms();
-  if ((rc = obs_vk_gbuffer_download(vk, &dev, &host, 0, err))) goto done;
-  st[2] += obs_now_ms() - t2;
-  obs_gbuffer_export(&host, &rig, out);
-  ctx->render_ms = obs_now_ms() - t1;
-  ctx->rays = 0;
-  obs_render_ctx_stage(ctx, "gbuffer", gb_ms);
-  obs_render_ctx_stage(ctx, "ao", st[0]);
-  if (p.blur) obs_render_ctx_stage(ctx, "blur", st[1]);
-  obs_render_ctx_stage(ctx, "readback", st[2]);
-  if (ctx->progress) ctx->progress(ctx->progress_user, 1.0);
-done:
-  /* A render the validation layer complained about is not trusted, whatever it produced. */
-  if (!rc && validation && obs_vk_validation_messages(vk))
-    rc = obs_err_set(err, OBS_EINTERNAL,
-                     "%s: ssao: the Vulkan validation layer reported %u message(s) (printed "
-                     "above)",
-                     sc->name, obs_vk_validation_messages(vk));
-  obs_gbuffer_free(&host);
-  obs_vk_gbuffer_free(vk, &dev);
-  obs_geometry_free(&geo);
-  obs_vk_release(vk);
-  if (rc) obs_image_free(out);
-  return rc;
+    return obs_err_set(err, OBS_EINVAL, "%s: /technique/params: invalid ssao parameters",
+                       ctx->scene->name);
+  return obs_screen_vk_run(ctx, "ssao", passes, &p, out, err);
 }

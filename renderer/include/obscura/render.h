@@ -17,6 +17,7 @@ typedef struct obs_render_opts {
   obs_progress_fn progress;    /* may be NULL */
   void *progress_user;
   const atomic_int *cancel;    /* may be NULL */
+  obs_region region;           /* all zero: the whole image (see obs_render_ctx.region) */
 } obs_render_opts;
 
 /* The outcome of one render. Owns `image`; release with obs_result_free. */

@@ -17,7 +17,11 @@ enum {
   OBS_NEED_BVH = 1 << 0,       /* ray-tracing acceleration structure (Embree) */
   OBS_NEED_MATERIALS = 1 << 1, /* every object must carry a material */
   OBS_NEED_LIGHTS = 1 << 2,    /* the scene must have at least one light */
-  OBS_NEED_GBUFFER = 1 << 3    /* rasterised or ray-cast G-buffer */
+  OBS_NEED_GBUFFER = 1 << 3,   /* rasterised or ray-cast G-buffer */
+  /* With OBS_NEED_BVH: the BVH's float frame sits at the geometry, not at the camera, when the
+   * camera is far from it (renderer/cpu/raytrace.h, OBS_RT_FRAME_GEOMETRY): for techniques whose
+   * camera rays start at the geometry's box rather than at an eye inside the frame. */
+  OBS_NEED_BVH_FRAME_GEOMETRY = 1 << 4
 };
 
 typedef void (*obs_progress_fn)(void *user, double fraction);
@@ -29,6 +33,14 @@ typedef void (*obs_progress_fn)(void *user, double fraction);
 #define OBS_WARNING_LEN 320
 
 /* Per-stage timings in milliseconds. */
+/* A rectangle of pixels [x0, x1) x [y0, y1) of the image. All zero: the whole image. */
+typedef struct obs_region {
+  int x0, y0, x1, y1;
+} obs_region;
+
+/* Timings mean the same on every technique and backend (docs/architecture.md, "Timings"):
+ * build_ms is what the framework builds for the technique's `needs` (geometry, BVH, G-buffer),
+ * render_ms the technique's own work on it (its per-pixel loop or passes, with their readback). */
 typedef struct obs_timings {
   double load_ms, build_ms, render_ms, write_ms, total_ms;
 } obs_timings;
@@ -41,9 +53,15 @@ typedef struct obs_render_ctx {
   obs_progress_fn progress;    /* may be NULL; called with fractions in [0,1], from any thread */
   void *progress_user;
   const atomic_int *cancel;    /* may be NULL; nonzero asks the technique to stop between tiles */
-  /* Filled by the technique: */
-  double build_ms;             /* acceleration structures, tessellation */
-  double render_ms;
+  /* The pixels to render; all zero: the whole image. The image is always full size: pixels
+   * outside the region are 0 in every channel (the seam for renders split across processes). */
+  obs_region region;
+  /* Built by the framework before the run for the technique's `needs`, owned by it: on the CPU
+   * backend, for OBS_NEED_BVH, the BVH (renderer/cpu/raytrace.h's obs_rt); else NULL. */
+  const void *rt;
+  /* Filled by the framework and the drivers (see obs_timings): */
+  double build_ms;             /* what the framework builds for `needs` */
+  double render_ms;            /* the technique's pixels or passes */
   uint64_t rays;               /* rays traced (primary + secondary) */
   /* Finer stages (e.g. "gbuffer", "ao", "blur", "readback"), added with obs_render_ctx_stage. */
   int nstages;

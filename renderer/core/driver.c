@@ -1,0 +1,125 @@
+/* The per-pixel driver and the helpers every driver shares (regions, stages, cancellation). A
+ * pixel's values depend only on the shade function and (x, y), never on the tile or thread that
+ * computed it, so any thread count and any region give the same bits per pixel. */
+#include "driver.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#include "obscura/render.h"
+#include "parallel.h"
+
+/* Per-thread slots sit a cache line apart so the counters of two threads never share one. */
+#define SLOT 8
+
+typedef struct pixel_run {
+  const obs_pixel_ops *ops;
+  const void *job;
+  obs_image *img;
+  obs_region r;
+  float *values;   /* threads x SLOT-rounded nchannels */
+  size_t stride;   /* floats per thread in values */
+  uint64_t *rays;  /* threads x SLOT */
+} pixel_run;
+
+static int pixel_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+  pixel_run *pr = user;
+  obs_image *img = pr->img;
+  const size_t plane = (size_t)img->width * (size_t)img->height;
+  const int nch = pr->ops->nchannels;
+  float *v = pr->values + (size_t)thread * pr->stride;
+  uint64_t rays = 0;
+  for (int y = y0 + pr->r.y0; y < y1 + pr->r.y0; y++)
+    for (int x = x0 + pr->r.x0; x < x1 + pr->r.x0; x++) {
+      rays += pr->ops->shade(pr->job, thread, x, y, v);
+      size_t i = (size_t)y * (size_t)img->width + (size_t)x;
+      for (int c = 0; c < nch; c++) img->data[(size_t)c * plane + i] = v[c];
+    }
+  pr->rays[(size_t)thread * SLOT] += rays;
+  return 0;
+}
+
+int obs_driver_region(const obs_render_ctx *ctx, int width, int height, obs_region *out,
+                      obs_err *err) {
+  obs_region r = ctx->region;
+  if (!r.x0 && !r.y0 && !r.x1 && !r.y1) r = (obs_region){0, 0, width, height};
+  if (r.x0 < 0 || r.y0 < 0 || r.x1 > width || r.y1 > height || r.x0 >= r.x1 || r.y0 >= r.y1)
+    return obs_err_set(err, OBS_EINVAL,
+                       "region [%d,%d)x[%d,%d) is empty or outside the %dx%d image", r.x0, r.x1,
+                       r.y0, r.y1, width, height);
+  *out = r;
+  return 0;
+}
+
+int obs_driver_cancelled(const obs_render_ctx *ctx, obs_err *err) {
+  if (!ctx->cancel || !atomic_load(ctx->cancel)) return 0;
+  return obs_err_set(err, OBS_ECANCELED, "%s: render cancelled",
+                     ctx->scene ? ctx->scene->name : "render");
+}
+
+int obs_driver_pixels(obs_render_ctx *ctx, const obs_pixel_ops *ops, const void *job,
+                      obs_image *out, obs_err *err) {
+  const obs_scene *sc = ctx->scene;
+  const char *name = sc ? sc->name : "render";
+  memset(out, 0, sizeof *out);
+  if (!sc || !ops || !ops->shade || ops->nchannels < 1)
+    return obs_err_set(err, OBS_EINVAL, "%s: per-pixel driver: no scene or shade function", name);
+  obs_region r;
+  int rc = obs_driver_region(ctx, sc->width, sc->height, &r, err);
+  if (rc) return rc;
+  int threads = ctx->threads < 1 ? 1 : ctx->threads;
+  size_t stride = ((size_t)ops->nchannels + SLOT - 1) / SLOT * SLOT;
+  float *values = calloc((size_t)threads * stride, sizeof *values);
+  uint64_t *rays = calloc((size_t)threads * SLOT, sizeof *rays);
+  /* The image is allocated before timing starts: the render is not charged for it. */
+  if (!values || !rays)
+    rc = obs_err_set(err, OBS_ENOMEM, "%s: per-pixel driver: out of memory", name);
+  else
+    rc = obs_image_init(out, sc->width, sc->height, ops->nchannels, ops->channels, err);
+  if (rc) {
+    free(values);
+    free(rays);
+    return rc;
+  }
+  pixel_run pr = {ops, job, out, r, values, stride, rays};
+  double t0 = obs_now_ms();
+  rc = obs_parallel_tiles(r.x1 - r.x0, r.y1 - r.y0, threads, pixel_tile, &pr, ctx->cancel,
+                          ctx->progress, ctx->progress_user);
+  ctx->render_ms = obs_now_ms() - t0;
+  for (int t = 0; t < threads; t++) ctx->rays += rays[(size_t)t * SLOT];
+  free(values);
+  free(rays);
+  if (rc) {
+    obs_image_free(out);
+    return rc == OBS_ECANCELED ? obs_err_set(err, rc, "%s: render cancelled", name)
+                               : obs_err_set(err, rc, "%s: render failed", name);
+  }
+  obs_driver_stage_add(ctx, "shade", ctx->render_ms);
+  return 0;
+}
+
+void obs_driver_clear_outside(obs_image *img, const obs_region *r) {
+  const size_t w = (size_t)img->width, plane = w * (size_t)img->height;
+  if (r->x0 == 0 && r->y0 == 0 && r->x1 == img->width && r->y1 == img->height) return;
+  for (int c = 0; c < img->nchannels; c++) {
+    float *p = img->data + (size_t)c * plane;
+    for (int y = 0; y < img->height; y++) {
+      float *row = p + (size_t)y * w;
+      if (y < r->y0 || y >= r->y1) {
+        memset(row, 0, w * sizeof *row);
+        continue;
+      }
+      memset(row, 0, (size_t)r->x0 * sizeof *row);
+      memset(row + r->x1, 0, (w - (size_t)r->x1) * sizeof *row);
+    }
+  }
+}
+
+void obs_driver_stage_add(obs_render_ctx *ctx, const char *name, double ms) {
+  for (int i = 0; i < ctx->nstages; i++)
+    if (!strcmp(ctx->stage_names[i], name)) {
+      ctx->stage_ms[i] += ms;
+      return;
+    }
+  obs_render_ctx_stage(ctx, name, ms);
+}

@@ -1,0 +1,56 @@
+/* The shared drivers of techniques: the per-pixel driver, which owns the image, the tiles over
+ * the context's region, progress, cancellation, rays and render time of every per-pixel CPU
+ * technique (a technique supplies one shade function), and the hook through which a backend
+ * builds what a technique's `needs` asks before its run. Owned by core; backends plug in. */
+#ifndef OBS_DRIVER_H
+#define OBS_DRIVER_H
+
+#include <stdint.h>
+
+#include "obscura/error.h"
+#include "obscura/image.h"
+#include "obscura/technique.h"
+
+/* One pixel of a per-pixel technique: writes ops->nchannels values (channel order of
+ * ops->channels) for pixel (x, y) and returns the rays it traced. `thread` < ctx->threads. */
+typedef uint64_t (*obs_shade_fn)(const void *job, int thread, int x, int y, float *values);
+
+typedef struct obs_pixel_ops {
+  int nchannels;
+  const char *const *channels; /* EXR channel names of `out` */
+  obs_shade_fn shade;
+} obs_pixel_ops;
+
+/* Allocates `out`, runs shade over ctx's region in tiles on ctx->threads threads with progress
+ * and cancellation, adds ctx->rays and sets ctx->render_ms (stage "shade"). Bit-identical for any
+ * thread count.
+ * Pixels outside the region stay 0. On failure (OBS_ECANCELED when ctx->cancel was raised)
+ * `out` is released and nothing stays allocated. */
+int obs_driver_pixels(obs_render_ctx *ctx, const obs_pixel_ops *ops, const void *job,
+                      obs_image *out, obs_err *err);
+
+/* ctx's region clamped to a width x height image (all zero: the whole image). OBS_EINVAL when
+ * the region is empty or not inside the image. */
+int obs_driver_region(const obs_render_ctx *ctx, int width, int height, obs_region *out,
+                      obs_err *err);
+/* Sets every channel of the pixels of `img` outside `r` to 0 (drivers whose passes run on the
+ * whole image, the screen-space ones, honour a region this way). */
+void obs_driver_clear_outside(obs_image *img, const obs_region *r);
+/* Adds `ms` to stage `name` of ctx, appending it when new (obs_render_ctx_stage appends). */
+void obs_driver_stage_add(obs_render_ctx *ctx, const char *name, double ms);
+/* OBS_ECANCELED with "<scene>: render cancelled" when ctx->cancel is raised, else 0. */
+int obs_driver_cancelled(const obs_render_ctx *ctx, obs_err *err);
+
+/* What a backend builds for a technique's `needs` before its run function is called (timed as
+ * the render's build): `build` fills ctx (e.g. ctx->rt) and *state, which `release` frees after
+ * the run, whatever the run returned. */
+typedef struct obs_needs_builder {
+  int (*build)(obs_render_ctx *ctx, unsigned needs, void **state, obs_err *err);
+  void (*release)(void *state);
+} obs_needs_builder;
+
+/* The builder of `backend`, or NULL when the backend builds nothing ahead of its runs (its
+ * drivers build what they need). Defined by the registry, which knows the backends. */
+const obs_needs_builder *obs_backend_needs_builder(obs_backend backend);
+
+#endif

@@ -1,0 +1,68 @@
+/* The CPU screen-space driver (screen.h): the skeleton every screen-space technique shares. */
+#include "screen.h"
+
+#include <string.h>
+
+#include "camera.h"
+#include "driver.h"
+#include "obscura/render.h"
+
+static void pass_progress(void *user, double fraction) {
+  obs_screen_cpu *r = user;
+  int passes = r->passes > r->done ? r->passes : r->done + 1;
+  r->ctx->progress(r->ctx->progress_user, (r->done + fraction) / passes);
+}
+
+int obs_screen_cpu_tiles(obs_screen_cpu *r, int w, int h, obs_tile_fn fn, void *user) {
+  int report = r->ctx && r->ctx->progress;
+  int rc = obs_parallel_tiles(w, h, r->threads < 1 ? 1 : r->threads, fn, user, r->cancel,
+                              report ? pass_progress : NULL, r);
+  r->done++;
+  return rc;
+}
+
+void obs_screen_cpu_stage(obs_screen_cpu *r, const char *name, double ms) {
+  if (r->ctx) obs_driver_stage_add(r->ctx, name, ms);
+}
+
+int obs_screen_cpu_run(obs_render_ctx *ctx, obs_screen_cpu_passes_fn passes, const void *params,
+                       obs_image *out, obs_err *err) {
+  const obs_scene *sc = ctx->scene;
+  memset(out, 0, sizeof *out);
+  obs_region region;
+  int rc = obs_driver_region(ctx, sc->width, sc->height, &region, err);
+  if (rc) return rc;
+  obs_camera_rig rig;
+  obs_camera_setup(&sc->camera, sc->width, sc->height, &rig);
+  rc = obs_image_init(out, sc->width, sc->height, OBS_SCREEN_CHANNELS, obs_screen_channel_names,
+                      err);
+  if (rc) return rc;
+  obs_gbuffer g;
+  memset(&g, 0, sizeof g);
+  double geo_ms = 0, gb_ms = 0, t0 = obs_now_ms();
+  rc = obs_gbuffer_cpu(sc, &g, ctx->threads, &geo_ms, &gb_ms, err);
+  double t1 = obs_now_ms();
+  if (!rc) {
+    ctx->build_ms += t1 - t0;
+    obs_driver_stage_add(ctx, "gbuffer", gb_ms);
+    rc = obs_driver_cancelled(ctx, err);
+  }
+  if (!rc) {
+    obs_screen_cpu r = {.threads = ctx->threads, .cancel = ctx->cancel, .ctx = ctx};
+    size_t plane = (size_t)sc->width * (size_t)sc->height;
+    rc = passes(&r, &g, params, out->data + OBS_SCREEN_AO * plane,
+                out->data + OBS_SCREEN_AO_RAW * plane, err);
+    if (rc == OBS_ECANCELED) obs_err_set(err, rc, "%s: render cancelled", sc->name);
+  }
+  if (!rc) {
+    obs_gbuffer_export(&g, &rig, out);
+    obs_driver_clear_outside(out, &region);
+    ctx->render_ms = obs_now_ms() - t1;
+    /* One primary ray per pixel, however the G-buffer was made. */
+    ctx->rays = (uint64_t)sc->width * (uint64_t)sc->height;
+    if (ctx->progress) ctx->progress(ctx->progress_user, 1.0);
+  }
+  obs_gbuffer_free(&g);
+  if (rc) obs_image_free(out);
+  return rc;
+}

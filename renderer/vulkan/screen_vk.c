@@ -1,0 +1,78 @@
+/* The Vulkan screen-space driver (screen_vk.h): the skeleton every screen-space technique shares
+ * on Vulkan. */
+#include "screen_vk.h"
+
+#include <string.h>
+
+#include "camera.h"
+#include "driver.h"
+#include "geometry.h"
+#include "obscura/render.h"
+
+static void progress(obs_render_ctx *ctx, double fraction) {
+  if (ctx->progress) ctx->progress(ctx->progress_user, fraction);
+}
+
+int obs_screen_vk_run(obs_render_ctx *ctx, const char *technique, obs_screen_vk_passes_fn passes,
+                      const void *params, obs_image *out, obs_err *err) {
+  const obs_scene *sc = ctx->scene;
+  memset(out, 0, sizeof *out);
+  obs_region region;
+  int rc = obs_driver_region(ctx, sc->width, sc->height, &region, err);
+  if (rc) return rc;
+  obs_camera_rig rig;
+  obs_camera_setup(&sc->camera, sc->width, sc->height, &rig);
+  rc = obs_image_init(out, sc->width, sc->height, OBS_SCREEN_CHANNELS, obs_screen_channel_names,
+                      err);
+  if (rc) return rc;
+  obs_vk *vk = NULL;
+  obs_geometry geo;
+  obs_vk_gbuffer dev;
+  obs_gbuffer host;
+  memset(&geo, 0, sizeof geo);
+  memset(&dev, 0, sizeof dev);
+  memset(&host, 0, sizeof host);
+  const int validation = obs_vk_validation_requested();
+  double gb_ms = 0;
+  /* Acquiring the device is not timed: only its first use in a process opens it. */
+  if ((rc = obs_vk_acquire(&vk, validation, err))) goto done;
+  double t0 = obs_now_ms();
+  if ((rc = obs_geometry_build_at(sc, rig.origin, &geo, err))) goto done;
+  if ((rc = obs_vk_gbuffer_render(vk, sc, &geo, &dev, &gb_ms, err))) goto done;
+  double t1 = obs_now_ms();
+  ctx->build_ms += t1 - t0;
+  obs_driver_stage_add(ctx, "gbuffer", gb_ms);
+  progress(ctx, 1.0 / 3.0);
+  /* The host copy is made now so its projection (floats from the rig) is the one the passes use,
+   * exactly as on the CPU. */
+  if ((rc = obs_gbuffer_alloc(&host, sc->width, sc->height, &rig, err))) goto done;
+  if ((rc = obs_driver_cancelled(ctx, err))) goto done;
+  size_t plane = (size_t)sc->width * (size_t)sc->height;
+  if ((rc = passes(ctx, vk, &dev, &host, params, out->data + OBS_SCREEN_AO * plane,
+                   out->data + OBS_SCREEN_AO_RAW * plane, err)))
+    goto done;
+  progress(ctx, 2.0 / 3.0);
+  if ((rc = obs_driver_cancelled(ctx, err))) goto done;
+  /* The depth and normal outputs come from the device G-buffer, so they match the AO. */
+  double t2 = obs_now_ms();
+  if ((rc = obs_vk_gbuffer_download(vk, &dev, &host, 0, err))) goto done;
+  obs_driver_stage_add(ctx, "readback", obs_now_ms() - t2);
+  obs_gbuffer_export(&host, &rig, out);
+  obs_driver_clear_outside(out, &region);
+  ctx->render_ms = obs_now_ms() - t1;
+  ctx->rays = 0;
+  /* A render the validation layer complained about is not trusted, whatever it produced. */
+  if (validation && obs_vk_validation_messages(vk))
+    rc = obs_err_set(err, OBS_EINTERNAL,
+                     "%s: %s on \"%s\": %u Vulkan validation message(s) (printed above)",
+                     sc->name, technique, obs_vk_device_name(vk),
+                     obs_vk_validation_messages(vk));
+  if (!rc) progress(ctx, 1.0);
+done:
+  obs_gbuffer_free(&host);
+  if (vk) obs_vk_gbuffer_free(vk, &dev);
+  obs_geometry_free(&geo);
+  obs_vk_release(vk);
+  if (rc) obs_image_free(out);
+  return rc;
+}

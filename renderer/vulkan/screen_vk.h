@@ -1,0 +1,28 @@
+/* The Vulkan screen-space driver: everything a screen-space technique shares on Vulkan (the
+ * image, the device, the G-buffer built once, cancellation, progress, stage timings, readback of
+ * the G-buffer and the channel export), so that a technique supplies its passes and nothing
+ * else. Internal to the Vulkan backend; the CPU twin is renderer/cpu/screen.h. */
+#ifndef OBS_SCREEN_VK_H
+#define OBS_SCREEN_VK_H
+
+#include "gbuffer.h"
+#include "obscura/technique.h"
+#include "vk.h"
+
+/* A screen-space technique on Vulkan: its passes over the device G-buffer `dev` (`host` is the
+ * host G-buffer of the same camera, not yet downloaded: its projection is the passes'), with the
+ * params the run read, downloading the AO after and before its blur into `ao` and `ao_raw` (w x h
+ * each). Records its stages on ctx (obs_driver_stage_add), the download as "readback". */
+typedef int (*obs_screen_vk_passes_fn)(obs_render_ctx *ctx, obs_vk *vk, obs_vk_gbuffer *dev,
+                                       const obs_gbuffer *host, const void *params, float *ao,
+                                       float *ao_raw, obs_err *err);
+
+/* Allocates `out` (obs_screen_channel_names), acquires the device (not timed), builds the
+ * geometry and rasterises the device G-buffer (timed as build, stage "gbuffer"), runs the passes,
+ * downloads the G-buffer (added to "readback") and exports its channels (passes to export timed
+ * as render), clears the pixels outside ctx's region. A render the validation layer complained
+ * about fails. On failure `out` is released. */
+int obs_screen_vk_run(obs_render_ctx *ctx, const char *technique, obs_screen_vk_passes_fn passes,
+                      const void *params, obs_image *out, obs_err *err);
+
+#endif

@@ -1,0 +1,280 @@
+/* The shared drivers: the per-pixel driver's region, rays, progress, cancellation and thread
+ * independence on a synthetic shade function, then the same properties through obs_render for
+ * rt_ao (per-pixel driver, BVH built by the framework) and ssao/hbao (CPU screen-space driver). */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "driver.h"
+#include "testutil.h"
+
+#define W 70
+#define H 45
+
+static const char *scene_json(const char *technique, const char *params) {
+  static char buf[1024];
+  snprintf(buf, sizeof buf,
+           "{\"camera\":{\"type\":\"perspective\",\"position\":[0,3,-4],\"look_at\":[0,0.3,0],"
+           "\"up\":[0,1,0],\"fov_y\":45},\"image\":{\"width\":%d,\"height\":%d,\"spp\":1},"
+           "\"objects\":[{\"name\":\"ground\",\"shape\":{\"type\":\"quad\",\"vertices\":"
+           "[[-20,0,-20],[-20,0,20],[20,0,20],[20,0,-20]]}},{\"name\":\"ball\",\"shape\":"
+           "{\"type\":\"sphere\",\"center\":[0,1,0],\"radius\":0.5}}],"
+           "\"technique\":{\"name\":\"%s\",\"backend\":\"cpu\",\"params\":%s}}",
+           W, H, technique, params);
+  return buf;
+}
+
+/* A pixel's values depend on (x, y) only; each pixel "traces" x % 3 + 1 rays. */
+typedef struct synth {
+  atomic_int *cancel_at_first; /* raised by the first pixel shaded, when set */
+} synth;
+
+static uint64_t synth_shade(const void *job, int thread, int x, int y, float *v) {
+  const synth *s = job;
+  (void)thread;
+  if (s->cancel_at_first) atomic_store(s->cancel_at_first, 1);
+  v[0] = sinf((float)x * 0.37f) + (float)y;
+  v[1] = (float)(x * 1000 + y);
+  v[2] = 1.0f;
+  return (uint64_t)(x % 3 + 1);
+}
+
+static const char *const synth_names[3] = {"a", "b", "alpha"};
+static const obs_pixel_ops synth_ops = {3, synth_names, synth_shade};
+
+typedef struct progress_log {
+  int calls;
+  double last, min_step;
+} progress_log;
+
+static void log_progress(void *user, double f) {
+  progress_log *p = user;
+  if (p->calls && f - p->last < p->min_step) p->min_step = f - p->last;
+  p->last = f;
+  p->calls++;
+}
+
+static void ctx_init(obs_render_ctx *ctx, const obs_scene *sc, int threads) {
+  memset(ctx, 0, sizeof *ctx);
+  ctx->scene = sc;
+  ctx->params = sc->params;
+  ctx->threads = threads;
+}
+
+static void test_pixels_region(void **state) {
+  (void)state;
+  obs_scene sc;
+  obs_test_load(scene_json("rt_ao", "{}"), "d.json", &sc);
+  obs_render_ctx ctx;
+  ctx_init(&ctx, &sc, 2);
+  progress_log pl = {0, 0, 1};
+  ctx.progress = log_progress;
+  ctx.progress_user = &pl;
+  ctx.region = (obs_region){5, 3, 67, 41};
+  synth s = {NULL};
+  obs_image img;
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(obs_driver_pixels(&ctx, &synth_ops, &s, &img, &err), 0);
+  assert_int_equal(img.width, W);
+  assert_int_equal(img.height, H);
+  assert_int_equal(img.nchannels, 3);
+  assert_string_equal(img.names[1], "b");
+  uint64_t rays = 0;
+  size_t plane = (size_t)W * H;
+  for (int y = 0; y < H; y++)
+    for (int x = 0; x < W; x++) {
+      size_t i = (size_t)y * W + (size_t)x;
+      int in = x >= 5 && x < 67 && y >= 3 && y < 41;
+      float v[3];
+      if (in) rays += synth_shade(&s, 0, x, y, v);
+      for (int c = 0; c < 3; c++)
+        if (in)
+          assert_true(img.data[c * plane + i] == v[c]);
+        else
+          assert_true(img.data[c * plane + i] == 0.0f);
+    }
+  assert_int_equal(ctx.rays, rays);
+  /* 62x38 pixels are 2x2 tiles: four reports, the last one 1, never going back. */
+  assert_int_equal(pl.calls, 4);
+  assert_true(pl.last == 1.0);
+  assert_true(pl.min_step > 0);
+  obs_image_free(&img);
+  /* A region outside the image, or empty, is refused. */
+  ctx.region = (obs_region){0, 0, W + 1, H};
+  assert_int_equal(obs_driver_pixels(&ctx, &synth_ops, &s, &img, &err), OBS_EINVAL);
+  assert_null(img.data);
+  ctx.region = (obs_region){10, 10, 10, 20};
+  assert_int_equal(obs_driver_pixels(&ctx, &synth_ops, &s, &img, &err), OBS_EINVAL);
+  obs_err_free(&err);
+  obs_scene_free(&sc);
+}
+
+static void test_pixels_threads(void **state) {
+  (void)state;
+  obs_scene sc;
+  obs_test_load(scene_json("rt_ao", "{}"), "d.json", &sc);
+  obs_image img[3];
+  uint64_t rays[3];
+  const int threads[3] = {1, 2, 5};
+  synth s = {NULL};
+  obs_err err = OBS_ERR_INIT;
+  for (int k = 0; k < 3; k++) {
+    obs_render_ctx ctx;
+    ctx_init(&ctx, &sc, threads[k]);
+    assert_int_equal(obs_driver_pixels(&ctx, &synth_ops, &s, &img[k], &err), 0);
+    rays[k] = ctx.rays;
+  }
+  for (int k = 1; k < 3; k++) {
+    assert_memory_equal(img[0].data, img[k].data, sizeof(float) * 3 * W * H);
+    assert_int_equal(rays[0], rays[k]);
+  }
+  for (int k = 0; k < 3; k++) obs_image_free(&img[k]);
+  obs_err_free(&err);
+  obs_scene_free(&sc);
+}
+
+static void test_pixels_cancel(void **state) {
+  (void)state;
+  obs_scene sc;
+  obs_test_load(scene_json("rt_ao", "{}"), "d.json", &sc);
+  atomic_int cancel;
+  atomic_init(&cancel, 0);
+  obs_render_ctx ctx;
+  ctx_init(&ctx, &sc, 1);
+  ctx.cancel = &cancel;
+  progress_log pl = {0, 0, 1};
+  ctx.progress = log_progress;
+  ctx.progress_user = &pl;
+  synth s = {&cancel};
+  obs_image img;
+  obs_err err = OBS_ERR_INIT;
+  /* Raised while the first tile runs: it finishes, the next never starts, nothing is returned
+   * (and nothing stays allocated: the ASan build checks). */
+  assert_int_equal(obs_driver_pixels(&ctx, &synth_ops, &s, &img, &err), OBS_ECANCELED);
+  assert_null(img.data);
+  assert_int_equal(pl.calls, 1);
+  assert_non_null(strstr(obs_err_message(&err), "cancelled"));
+  obs_err_free(&err);
+  obs_scene_free(&sc);
+}
+
+/* Channel `c` of a and b agree inside r (bit for bit) and b is 0 outside it. */
+static void assert_region_of(const obs_image *a, const obs_image *b, obs_region r) {
+  assert_int_equal(a->nchannels, b->nchannels);
+  size_t plane = (size_t)a->width * (size_t)a->height;
+  for (int c = 0; c < a->nchannels; c++)
+    for (int y = 0; y < a->height; y++)
+      for (int x = 0; x < a->width; x++) {
+        size_t i = c * plane + (size_t)y * (size_t)a->width + (size_t)x;
+        if (x >= r.x0 && x < r.x1 && y >= r.y0 && y < r.y1)
+          assert_memory_equal(&a->data[i], &b->data[i], sizeof(float));
+        else
+          assert_true(b->data[i] == 0.0f);
+      }
+}
+
+static int has_stage(const obs_result *r, const char *name) {
+  for (int i = 0; i < r->nstages; i++)
+    if (!strcmp(r->stage_names[i], name)) return 1;
+  return 0;
+}
+
+/* A technique rendered whole and on a region: the region's pixels are the whole render's. */
+static void check_region(const char *technique, const char *params, const char *stage) {
+  obs_scene sc;
+  obs_test_load(scene_json(technique, params), "d.json", &sc);
+  obs_err err = OBS_ERR_INIT;
+  obs_render_opts o = {.threads = 2};
+  obs_result full, part, one;
+  assert_int_equal(obs_render(&sc, &o, &full, &err), 0);
+  assert_true(has_stage(&full, stage));
+  assert_true(full.timings.build_ms >= 0 && full.timings.render_ms >= 0);
+  assert_true(full.timings.build_ms + full.timings.render_ms <= full.timings.total_ms);
+  obs_region r = {17, 9, 53, 40};
+  o.region = r;
+  assert_int_equal(obs_render(&sc, &o, &part, &err), 0);
+  assert_region_of(&full.image, &part.image, r);
+  obs_render_opts o1 = {.threads = 1};
+  assert_int_equal(obs_render(&sc, &o1, &one, &err), 0);
+  assert_memory_equal(full.image.data, one.image.data,
+                      sizeof(float) * (size_t)full.image.nchannels * W * H);
+  obs_result_free(&full);
+  obs_result_free(&part);
+  obs_result_free(&one);
+  obs_err_free(&err);
+  obs_scene_free(&sc);
+}
+
+static void test_rt_ao_region(void **state) {
+  (void)state;
+  check_region("rt_ao", "{\"samples\":16}", "bvh");
+}
+
+static void test_ssao_region(void **state) {
+  (void)state;
+  check_region("ssao", "{\"samples\":8}", "gbuffer");
+}
+
+static void test_hbao_region(void **state) {
+  (void)state;
+  check_region("hbao", "{\"directions\":4,\"steps\":4,\"radius\":1,\"half_res\":true}",
+               "upsample");
+}
+
+typedef struct cancel_on {
+  atomic_int *flag;
+  int at, calls;
+  double last;
+} cancel_on;
+
+static void cancel_progress(void *user, double f) {
+  cancel_on *c = user;
+  assert_true(f >= c->last && f <= 1.0);
+  c->last = f;
+  if (++c->calls == c->at) atomic_store(c->flag, 1);
+}
+
+/* A screen-space render reports progress up to 1 and stops mid-passes when cancelled. */
+static void check_progress_cancel(const char *technique, const char *params) {
+  obs_scene sc;
+  obs_test_load(scene_json(technique, params), "d.json", &sc);
+  obs_err err = OBS_ERR_INIT;
+  atomic_int cancel;
+  atomic_init(&cancel, 0);
+  cancel_on c = {&cancel, -1, 0, 0};
+  obs_render_opts o = {.threads = 2, .cancel = &cancel, .progress = cancel_progress,
+                       .progress_user = &c};
+  obs_result r;
+  assert_int_equal(obs_render(&sc, &o, &r, &err), 0);
+  assert_true(c.last == 1.0);
+  assert_true(c.calls > 2);
+  obs_result_free(&r);
+  c = (cancel_on){&cancel, 1, 0, 0};
+  assert_int_equal(obs_render(&sc, &o, &r, &err), OBS_ECANCELED);
+  assert_null(r.image.data);
+  assert_true(c.last < 1.0);
+  assert_non_null(strstr(obs_err_message(&err), "cancelled"));
+  obs_err_free(&err);
+  obs_scene_free(&sc);
+}
+
+static void test_hbao_progress_cancel(void **state) {
+  (void)state;
+  check_progress_cancel("hbao", "{\"directions\":4,\"steps\":4,\"radius\":1,\"blur_radius\":2}");
+}
+
+static void test_ssao_progress_cancel(void **state) {
+  (void)state;
+  check_progress_cancel("ssao", "{\"samples\":8,\"blur\":true}");
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_pixels_region),       cmocka_unit_test(test_pixels_threads),
+      cmocka_unit_test(test_pixels_cancel),       cmocka_unit_test(test_rt_ao_region),
+      cmocka_unit_test(test_ssao_region),         cmocka_unit_test(test_hbao_region),
+      cmocka_unit_test(test_hbao_progress_cancel), cmocka_unit_test(test_ssao_progress_cancel),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
