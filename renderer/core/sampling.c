@@ -41,6 +41,10 @@ static float radical_inverse3(uint32_t i) {
   return (float)r;
 }
 
+uint32_t obs_sample_shuffle(uint32_t index, uint32_t seed) {
+  return reverse_bits(laine_karras(reverse_bits(index), seed));
+}
+
 void obs_sampler2d_init(obs_sampler2d *s, obs_sampler_kind kind, uint32_t x, uint32_t y,
                         uint32_t pixel_sample, uint32_t stream, uint32_t seed) {
   uint32_t h = obs_hash_combine(obs_hash_combine(obs_hash32(x), y), pixel_sample);
