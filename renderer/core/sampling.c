@@ -27,7 +27,7 @@ static uint32_t laine_karras(uint32_t x, uint32_t seed) {
 static uint32_t sobol1_reversed(uint32_t i) {
   uint32_t r = 0, w = 1;
   for (; i; i >>= 1, w ^= w << 1)
-    if (i & 1) r ^= w;
+    r ^= w & (0u - (i & 1u)); /* branchless: the bits of a shuffled index are random */
   return r;
 }
 
