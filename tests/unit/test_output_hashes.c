@@ -2,9 +2,11 @@
  * each EXR channel hashed and compared with tests/data/output_hashes.txt, so a refactor of the
  * framework cannot change a technique's output without this test saying which channel moved.
  * OBSCURA_WRITE_HASHES=<file> writes the current hashes there instead of comparing.
- * Embree's hits differ in the last bits between its instruction sets, so rt_ao's lines are keyed
- * by the level this process runs ("cpu/avx2"; regenerate under each OBSCURA_ISA); the
- * screen-space techniques give the same bits on every path and have one line per channel. */
+ * Embree's hits differ in the last bits between its instruction sets, so the lines of techniques
+ * that need a BVH (rt_ao, path_trace) are keyed by the level this process runs ("cpu/avx2";
+ * regenerate under each OBSCURA_ISA); the screen-space techniques give the same bits on every
+ * path and have one line per channel. Techniques that need materials render only the scenes whose
+ * objects all have one (the Cornell box). */
 #include <inttypes.h>
 #include <stdio.h>
 #include <stdlib.h>
