@@ -84,8 +84,8 @@ static void print_figures(const obs_image *img) {
   static const struct {
     const char *name;
     double x, y;
-  } at[] = {{"whole image", -1, -1},     {"back wall, centre", 0.5, 0.35},
-            {"floor, front", 0.5, 0.93}, {"red wall (left)", 0.07, 0.5},
+  } at[] = {{"whole image", -1, -1},           {"back wall, centre", 0.5, 0.35},
+            {"floor, front", 0.5, 0.93},       {"red wall (left)", 0.07, 0.5},
             {"green wall (right)", 0.93, 0.5}, {"ceiling, near the light", 0.5, 0.08}};
   for (size_t i = 0; i < sizeof at / sizeof at[0]; i++) {
     double m[3] = {0, 0, 0};
@@ -127,8 +127,10 @@ int main(int argc, char **argv) {
   char size[16], spp[16];
   snprintf(size, sizeof size, "%d", o.size);
   snprintf(spp, sizeof spp, "%d", o.spp);
-  const obs_override ov[] = {{"/image/width", size},         {"/image/height", size},
-                             {"/image/spp", spp},            {"/technique/name", "\"path_trace\""},
+  const obs_override ov[] = {{"/image/width", size},
+                             {"/image/height", size},
+                             {"/image/spp", spp},
+                             {"/technique/name", "\"path_trace\""},
                              {"/technique/params", "{}"}};
   obs_scene sc;
   obs_err err = OBS_ERR_INIT;
@@ -150,13 +152,15 @@ int main(int argc, char **argv) {
     rays_s[r] = (double)res.rays / (res.timings.render_ms * 1e-3);
   }
   double paths = (double)o.size * o.size * o.spp, med = bench_median(ms, o.repeats);
-  printf("path_trace cornell_box %dx%d, %d spp, %d threads: build %.1f ms, render %.1f ms "
-         "(median of %d)\n",
-         o.size, o.size, o.spp, o.threads, res.timings.build_ms, med, o.repeats);
-  printf("  %.3f us per sample path (wall), %.3f us per path per thread, %.1f rays per path, "
-         "%.2f Mrays/s\n",
-         med * 1e3 / paths, med * 1e3 * o.threads / paths, (double)res.rays / paths,
-         bench_median(rays_s, o.repeats) * 1e-6);
+  printf(
+      "path_trace cornell_box %dx%d, %d spp, %d threads: build %.1f ms, render %.1f ms "
+      "(median of %d)\n",
+      o.size, o.size, o.spp, o.threads, res.timings.build_ms, med, o.repeats);
+  printf(
+      "  %.3f us per sample path (wall), %.3f us per path per thread, %.1f rays per path, "
+      "%.2f Mrays/s\n",
+      med * 1e3 / paths, med * 1e3 * o.threads / paths, (double)res.rays / paths,
+      bench_median(rays_s, o.repeats) * 1e-6);
   print_figures(&res.image);
   int rc = o.png ? write_png(&res.image, o.exposure, o.png) : 0;
   obs_result_free(&res);

@@ -23,12 +23,12 @@
 
 /* The technique's parameters, filled from the validated document by pt_read_params only. */
 typedef struct pt_params {
-  int max_bounces;  /* reflections a path may take; 0 = emitters seen directly only */
-  int rr_depth;     /* bounces before Russian roulette starts */
-  int bsdf_only;    /* light_sampling "bsdf": no next-event estimation (a check of MIS) */
+  int max_bounces; /* reflections a path may take; 0 = emitters seen directly only */
+  int rr_depth;    /* bounces before Russian roulette starts */
+  int bsdf_only;   /* light_sampling "bsdf": no next-event estimation (a check of MIS) */
   obs_sampler_kind sampler;
   uint32_t seed;
-  double exposure;  /* EV; display only (final.png), not applied to radiance */
+  double exposure; /* EV; display only (final.png), not applied to radiance */
 } pt_params;
 
 static void pt_read_params(const json_t *js, pt_params *p) {
@@ -42,6 +42,7 @@ static void pt_read_params(const json_t *js, pt_params *p) {
   p->exposure = json_number_value(json_object_get(js, "exposure"));
 }
 
+/* clang-format off */
 enum {
   CH_R, CH_G, CH_B, CH_SR, CH_SG, CH_SB, CH_AR, CH_AG, CH_AB, CH_NX, CH_NY, CH_NZ, CH_DEPTH,
   CH_ALPHA, CH_COUNT
@@ -50,6 +51,7 @@ static const char *const channel_names[CH_COUNT] = {
     "radiance.R", "radiance.G", "radiance.B", "radiance_stderr.R", "radiance_stderr.G",
     "radiance_stderr.B", "albedo.R", "albedo.G", "albedo.B", "normal.X", "normal.Y", "normal.Z",
     "depth.Z", "alpha"};
+/* clang-format on */
 
 /* One emitting primitive in the ray tracer's frame: a triangle (a, a + e1, a + e2) or, with
  * `sphere`, the whole sphere of centre a and radius r. */
@@ -66,11 +68,11 @@ typedef struct pt_job {
   obs_camera_rig cam;
   pt_params p;
   int spp;
-  pt_emitter *em;  /* quad-light triangles first (nquad of them), then emissive objects */
+  pt_emitter *em; /* quad-light triangles first (nquad of them), then emissive objects */
   size_t nem, nquad;
-  double *cdf;     /* emitter choice, by area times mean emission */
-  double total;    /* sum of area times mean emission: an emitter point's area density is
-                      mean(le) / total whichever primitive it lies on */
+  double *cdf;  /* emitter choice, by area times mean emission */
+  double total; /* sum of area times mean emission: an emitter point's area density is
+                   mean(le) / total whichever primitive it lies on */
   double env[3];
 } pt_job;
 
@@ -163,8 +165,8 @@ static int build_emitters(pt_job *jb, obs_err *err) {
   }
   jb->total = sum;
   if (n && !(sum > 0 && isfinite(sum)))
-    return obs_err_set(err, OBS_EINVAL, "%s: emitted power %g is not finite and positive",
-                       sc->name, sum);
+    return obs_err_set(err, OBS_EINVAL, "%s: emitted power %g is not finite and positive", sc->name,
+                       sum);
   for (size_t i = 0; i < n; i++) jb->cdf[i] /= sum;
   return 0;
 }
@@ -216,9 +218,7 @@ static double tri_hit(const pt_emitter *e, const double o[3], const double d[3])
 }
 
 /* The power heuristic's weight of a strategy of density a against one of density b. */
-static double power_weight(double a, double b) {
-  return a * a / (a * a + b * b);
-}
+static double power_weight(double a, double b) { return a * a / (a * a + b * b); }
 
 /* Adds what the quad lights crossed by (o, d) before distance tmax emit toward o. Quad lights
  * are emitters only, not surfaces: they neither stop paths nor shadow. `pdf_bsdf` is the
@@ -244,8 +244,10 @@ static uint64_t sample_light(const pt_job *jb, const obs_hit *hit, obs_rt_ctx *c
   size_t lo = 0, hi = jb->nem - 1;
   while (lo < hi) {
     size_t mid = (lo + hi) / 2;
-    if (jb->cdf[mid] > u[0]) hi = mid;
-    else lo = mid + 1;
+    if (jb->cdf[mid] > u[0])
+      hi = mid;
+    else
+      lo = mid + 1;
   }
   const pt_emitter *e = &jb->em[lo];
   double q[3], nl[3];
@@ -301,9 +303,9 @@ static uint64_t trace_path(const pt_job *jb, pt_dims *dc, int s, const double or
       for (int k = 0; k < 3; k++) L[k] += beta[k] * jb->env[k];
       break;
     }
-    const obs_object *ob = &jb->sc->objects[hit.geom == rt->sphere_geom
-                                                ? rt->geo.spheres[hit.prim].object
-                                                : rt->geo.meshes[hit.geom].object];
+    const obs_object *ob =
+        &jb->sc->objects[hit.geom == rt->sphere_geom ? rt->geo.spheres[hit.prim].object
+                                                     : rt->geo.meshes[hit.geom].object];
     double le[3], rho[3];
     vec3(&ob->emission, le);
     vec3(&ob->reflectivity, rho);

@@ -34,8 +34,8 @@ int obs_driver_pixels(obs_render_ctx *ctx, const obs_pixel_ops *ops, const void 
                       obs_image *out, obs_err *err) {
   const obs_scene *sc = ctx->scene;
   if (ops->nchannels > OBS_IMAGE_MAX_CHANNELS)
-    return obs_err_set(err, OBS_EINTERNAL, "%s: %d channels, at most %d", sc->name,
-                       ops->nchannels, OBS_IMAGE_MAX_CHANNELS);
+    return obs_err_set(err, OBS_EINTERNAL, "%s: %d channels, at most %d", sc->name, ops->nchannels,
+                       OBS_IMAGE_MAX_CHANNELS);
   int rc = obs_image_init(out, sc->width, sc->height, ops->nchannels, ops->channels, err);
   if (rc) return rc;
   tile_job tj = {.ops = ops, .job = job, .out = out};

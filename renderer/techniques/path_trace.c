@@ -1,13 +1,15 @@
-/* Descriptor of path_trace: a diffuse global-illumination path tracer (Embree), the RGB reference. */
+/* Descriptor of path_trace: diffuse global illumination by path tracing, the RGB reference. */
 #include <jansson.h>
 #include <string.h>
 
 #include "techniques.h"
 
+/* clang-format off */
 static const char *const path_trace_outputs[] = {
     "radiance.R", "radiance.G", "radiance.B", "radiance_stderr.R", "radiance_stderr.G",
     "radiance_stderr.B", "albedo.R", "albedo.G", "albedo.B", "normal.X", "normal.Y", "normal.Z",
     "depth.Z", "alpha", "final.png", NULL};
+/* clang-format on */
 
 /* Keep in step with $defs/path_trace_params in schema/scene.schema.json (a test compares them). */
 static const char path_trace_params[] =
@@ -29,7 +31,7 @@ static const char path_trace_params[] =
 
 static int positive(const obs_vec3 *v) { return v->x + v->y + v->z > 0; }
 
-/* A scene without any emitter renders black whatever the parameters: refused, naming what counts. */
+/* A scene without any emitter could only render black: refused, naming what counts. */
 static void path_trace_check(const obs_scene *scene, const json_t *params, const char *doc,
                              obs_err *err) {
   (void)params;

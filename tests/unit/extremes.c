@@ -178,14 +178,14 @@ static int compare(const char *what, const obs_image *b, const obs_image *r, dou
   }
   double allowed = tol->share * (double)cov;
   if (getenv("OBS_EXTREMES_VERBOSE"))
-    printf("     %s: primary mean %.3g max %.3g (%zu over), normal max %.3g, depth max %.3g\n", what,
-           cov ? sum / (double)cov : 0.0, worst, ao_out, worst_n, worst_z);
+    printf("     %s: primary mean %.3g max %.3g (%zu over), normal max %.3g, depth max %.3g\n",
+           what, cov ? sum / (double)cov : 0.0, worst, ao_out, worst_n, worst_z);
   if (alpha_diff) printf("FAIL %s: coverage differs on %zu pixels\n", what, alpha_diff), bad++;
   if (cov && sum / (double)cov > tol->ao_mean)
     printf("FAIL %s: primary mean |d| %.3g > %g\n", what, sum / (double)cov, tol->ao_mean), bad++;
   if ((double)ao_out > allowed)
-    printf("FAIL %s: primary |d| > %g on %zu of %zu pixels (max %.3g)\n", what, tol->ao_pixel, ao_out,
-           cov, worst),
+    printf("FAIL %s: primary |d| > %g on %zu of %zu pixels (max %.3g)\n", what, tol->ao_pixel,
+           ao_out, cov, worst),
         bad++;
   if ((double)n_out > allowed)
     printf("FAIL %s: normal |d| > %g on %zu of %zu pixels (max %.3g)\n", what, tol->normal, n_out,

@@ -1,6 +1,6 @@
 /* path_trace against closed forms (white furnace, open plane under a sky, emission only), its
- * statistics (reported standard error, its 1/sqrt(spp) law, MIS against BSDF sampling), thread-count
- * invariance and the scenes it refuses. */
+ * statistics (reported standard error, its 1/sqrt(spp) law, MIS against BSDF sampling),
+ * thread-count invariance and the scenes it refuses. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -18,12 +18,9 @@ static char *fmt(const char *f, ...) {
 }
 
 static const char *const rad[3] = {"radiance.R", "radiance.G", "radiance.B"};
-static const char *const err3[3] = {"radiance_stderr.R", "radiance_stderr.G",
-                                    "radiance_stderr.B"};
+static const char *const err3[3] = {"radiance_stderr.R", "radiance_stderr.G", "radiance_stderr.B"};
 
-static size_t npix(const obs_result *r) {
-  return (size_t)r->image.width * (size_t)r->image.height;
-}
+static size_t npix(const obs_result *r) { return (size_t)r->image.width * (size_t)r->image.height; }
 
 /* The image mean of channel k's radiance and the standard error of that mean (pixels are
  * independent, so their variances add). */
@@ -46,7 +43,8 @@ static void assert_sane(const obs_result *r) {
   obs_test_assert_finite(&r->image);
   size_t n = npix(r);
   for (int k = 0; k < 3; k++) {
-    const float *v = obs_image_channel(&r->image, rad[k]), *s = obs_image_channel(&r->image, err3[k]);
+    const float *v = obs_image_channel(&r->image, rad[k]),
+                *s = obs_image_channel(&r->image, err3[k]);
     for (size_t i = 0; i < n; i++) assert_true(v[i] >= 0.0f && s[i] >= 0.0f);
   }
   const float *a = obs_image_channel(&r->image, "alpha");
@@ -55,12 +53,13 @@ static void assert_sane(const obs_result *r) {
 
 /* Inside a closed sphere of reflectivity rho emitting E: camera at its centre. */
 static const char *furnace(const double rho[3], const double e[3], int spp, const char *params) {
-  return fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[0,0,0],\"look_at\":[0,0,1],"
-             "\"fov_y\":120},\"image\":{\"width\":8,\"height\":8,\"spp\":%d},"
-             "\"objects\":[{\"shape\":{\"type\":\"sphere\",\"center\":[0,0,0],\"radius\":1},"
-             "\"material\":{\"reflectivity\":[%.17g,%.17g,%.17g],\"emission\":[%.17g,%.17g,%.17g]}}],"
-             "\"technique\":{\"name\":\"path_trace\",\"params\":{%s}}}",
-             spp, rho[0], rho[1], rho[2], e[0], e[1], e[2], params);
+  return fmt(
+      "{\"camera\":{\"type\":\"perspective\",\"position\":[0,0,0],\"look_at\":[0,0,1],"
+      "\"fov_y\":120},\"image\":{\"width\":8,\"height\":8,\"spp\":%d},"
+      "\"objects\":[{\"shape\":{\"type\":\"sphere\",\"center\":[0,0,0],\"radius\":1},"
+      "\"material\":{\"reflectivity\":[%.17g,%.17g,%.17g],\"emission\":[%.17g,%.17g,%.17g]}}],"
+      "\"technique\":{\"name\":\"path_trace\",\"params\":{%s}}}",
+      spp, rho[0], rho[1], rho[2], e[0], e[1], e[2], params);
 }
 
 /* L = E + rho L everywhere: E / (1 - rho), summed over bounces 0..max_bounces. */
@@ -117,8 +116,9 @@ static void test_open_plane_under_sky(void **state) {
   const float *a = obs_image_channel(&r.image, "alpha");
   for (int k = 0; k < 3; k++) {
     const float *v = obs_image_channel(&r.image, rad[k]), *s = obs_image_channel(&r.image, err3[k]);
-    const float *al = obs_image_channel(&r.image, k == 0 ? "albedo.R" : k == 1 ? "albedo.G"
-                                                                                : "albedo.B");
+    const float *al = obs_image_channel(&r.image, k == 0   ? "albedo.R"
+                                                  : k == 1 ? "albedo.G"
+                                                           : "albedo.B");
     for (size_t i = 0; i < npix(&r); i++) {
       assert_true(a[i] == 1.0f);
       double want = rho[k] * sky[k];
@@ -159,15 +159,16 @@ static void test_black_surfaces_emission_only(void **state) {
 
 /* A plane lit by a quad light above it, with a sphere casting a shadow. */
 static const char *lit_scene(int w, int h, int spp, const char *params) {
-  return fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[0,1.5,-2.5],"
-             "\"look_at\":[0,0,0],\"fov_y\":60},\"image\":{\"width\":%d,\"height\":%d,\"spp\":%d},"
-             "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-3,0,-3],[-3,0,3],[3,0,3],"
-             "[3,0,-3]]},\"material\":{\"reflectivity\":[0.7,0.6,0.5]}},"
-             "{\"shape\":{\"type\":\"sphere\",\"center\":[0.3,0.5,0.2],\"radius\":0.5},"
-             "\"material\":{\"reflectivity\":[0.2,0.5,0.8]}}],"
-             "\"lights\":[{\"type\":\"quad\",\"vertices\":[[-1,2,-1],[1,2,-1],[1,2,1],[-1,2,1]],"
-             "\"emission\":[4,4,4]}],\"technique\":{\"name\":\"path_trace\",\"params\":{%s}}}",
-             w, h, spp, params);
+  return fmt(
+      "{\"camera\":{\"type\":\"perspective\",\"position\":[0,1.5,-2.5],"
+      "\"look_at\":[0,0,0],\"fov_y\":60},\"image\":{\"width\":%d,\"height\":%d,\"spp\":%d},"
+      "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-3,0,-3],[-3,0,3],[3,0,3],"
+      "[3,0,-3]]},\"material\":{\"reflectivity\":[0.7,0.6,0.5]}},"
+      "{\"shape\":{\"type\":\"sphere\",\"center\":[0.3,0.5,0.2],\"radius\":0.5},"
+      "\"material\":{\"reflectivity\":[0.2,0.5,0.8]}}],"
+      "\"lights\":[{\"type\":\"quad\",\"vertices\":[[-1,2,-1],[1,2,-1],[1,2,1],[-1,2,1]],"
+      "\"emission\":[4,4,4]}],\"technique\":{\"name\":\"path_trace\",\"params\":{%s}}}",
+      w, h, spp, params);
 }
 
 /* Quadrupling the samples halves the standard error (i.i.d. samples: random sampler). */
@@ -179,7 +180,8 @@ static void test_stderr_halves(void **state) {
   assert_sane(&a);
   assert_sane(&b);
   for (int k = 0; k < 3; k++) {
-    const float *sa = obs_image_channel(&a.image, err3[k]), *sb = obs_image_channel(&b.image, err3[k]);
+    const float *sa = obs_image_channel(&a.image, err3[k]),
+                *sb = obs_image_channel(&b.image, err3[k]);
     double ta = 0, tb = 0;
     for (size_t i = 0; i < npix(&a); i++) ta += sa[i], tb += sb[i];
     printf("%s: mean stderr %.4g at 16 spp, %.4g at 64 spp, ratio %.3f\n", err3[k],
@@ -240,8 +242,9 @@ static void expect_refused(const char *doc, const char *w1, const char *w2) {
 /* No emitter at all, an object without a material, and a negative emission are refused. */
 static void test_refusals(void **state) {
   (void)state;
-  const char *head = "{\"camera\":{\"type\":\"perspective\",\"position\":[0,2,-3],"
-                     "\"look_at\":[0,0,0],\"fov_y\":60},\"image\":{\"width\":4,\"height\":4},";
+  const char *head =
+      "{\"camera\":{\"type\":\"perspective\",\"position\":[0,2,-3],"
+      "\"look_at\":[0,0,0],\"fov_y\":60},\"image\":{\"width\":4,\"height\":4},";
   char doc[1024];
   snprintf(doc, sizeof doc,
            "%s\"objects\":[{\"shape\":{\"type\":\"sphere\",\"center\":[0,0,0],\"radius\":1},"
@@ -264,10 +267,14 @@ static void test_refusals(void **state) {
 
 int main(void) {
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_white_furnace),       cmocka_unit_test(test_furnace_near_one),
-      cmocka_unit_test(test_open_plane_under_sky), cmocka_unit_test(test_black_surfaces_emission_only),
-      cmocka_unit_test(test_stderr_halves),       cmocka_unit_test(test_thread_invariant),
-      cmocka_unit_test(test_mis_agrees_with_bsdf), cmocka_unit_test(test_refusals),
+      cmocka_unit_test(test_white_furnace),
+      cmocka_unit_test(test_furnace_near_one),
+      cmocka_unit_test(test_open_plane_under_sky),
+      cmocka_unit_test(test_black_surfaces_emission_only),
+      cmocka_unit_test(test_stderr_halves),
+      cmocka_unit_test(test_thread_invariant),
+      cmocka_unit_test(test_mis_agrees_with_bsdf),
+      cmocka_unit_test(test_refusals),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
