@@ -157,18 +157,44 @@ static void test_black_surfaces_emission_only(void **state) {
   obs_result_free(&r);
 }
 
-/* A plane lit by a quad light above it, with a sphere casting a shadow. */
-static const char *lit_scene(int w, int h, int spp, const char *params) {
+/* A plane and a sphere casting a shadow, lit from 2 units above by a quad light facing down
+ * (EMIT_LIGHT) or up (EMIT_LIGHT_UP), or by an emissive quad object (EMIT_OBJECT, two-sided). */
+enum { EMIT_LIGHT, EMIT_LIGHT_UP, EMIT_OBJECT };
+static const char *lit_scene_by(int w, int h, int spp, const char *params, int emitter) {
+  static const char *const emitters[] = {
+      "],\"lights\":[{\"type\":\"quad\",\"vertices\":[[-1,2,-1],[1,2,-1],[1,2,1],[-1,2,1]],"
+      "\"emission\":[4,4,4]}]",
+      "],\"lights\":[{\"type\":\"quad\",\"vertices\":[[-1,2,1],[1,2,1],[1,2,-1],[-1,2,-1]],"
+      "\"emission\":[4,4,4]}]",
+      ",{\"shape\":{\"type\":\"quad\",\"vertices\":[[-1,2,-1],[1,2,-1],[1,2,1],[-1,2,1]]},"
+      "\"material\":{\"reflectivity\":[0.3,0.3,0.3],\"emission\":[4,3,2]}}]"};
   return fmt(
       "{\"camera\":{\"type\":\"perspective\",\"position\":[0,1.5,-2.5],"
       "\"look_at\":[0,0,0],\"fov_y\":60},\"image\":{\"width\":%d,\"height\":%d,\"spp\":%d},"
       "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-3,0,-3],[-3,0,3],[3,0,3],"
       "[3,0,-3]]},\"material\":{\"reflectivity\":[0.7,0.6,0.5]}},"
       "{\"shape\":{\"type\":\"sphere\",\"center\":[0.3,0.5,0.2],\"radius\":0.5},"
-      "\"material\":{\"reflectivity\":[0.2,0.5,0.8]}}],"
-      "\"lights\":[{\"type\":\"quad\",\"vertices\":[[-1,2,-1],[1,2,-1],[1,2,1],[-1,2,1]],"
-      "\"emission\":[4,4,4]}],\"technique\":{\"name\":\"path_trace\",\"params\":{%s}}}",
-      w, h, spp, params);
+      "\"material\":{\"reflectivity\":[0.2,0.5,0.8]}}%s,"
+      "\"technique\":{\"name\":\"path_trace\",\"params\":{%s}}}",
+      w, h, spp, emitters[emitter], params);
+}
+
+static const char *lit_scene(int w, int h, int spp, const char *params) {
+  return lit_scene_by(w, h, spp, params, EMIT_LIGHT);
+}
+
+/* A quad light emits from the side its vertices turn counter-clockwise on only: facing up, it
+ * lights nothing the camera sees. */
+static void test_quad_light_one_sided(void **state) {
+  (void)state;
+  obs_result r;
+  obs_test_render(lit_scene_by(8, 8, 4, "", EMIT_LIGHT_UP), 2, &r);
+  assert_sane(&r);
+  for (int k = 0; k < 3; k++) {
+    const float *v = obs_image_channel(&r.image, rad[k]);
+    for (size_t i = 0; i < npix(&r); i++) assert_true(v[i] == 0.0f);
+  }
+  obs_result_free(&r);
 }
 
 /* Quadrupling the samples halves the standard error (i.i.d. samples: random sampler). */
@@ -206,24 +232,30 @@ static void test_thread_invariant(void **state) {
   obs_result_free(&b);
 }
 
-/* Next-event estimation with MIS and BSDF sampling alone estimate the same image. */
+/* Next-event estimation with MIS and BSDF sampling alone estimate the same image, with a quad
+ * light and with an emissive object (whose triangles are light-sampled and occlude). */
 static void test_mis_agrees_with_bsdf(void **state) {
   (void)state;
-  obs_result m, b;
-  obs_test_render(lit_scene(12, 12, 64, "\"light_sampling\":\"mis\""), 2, &m);
-  obs_test_render(lit_scene(12, 12, 64, "\"light_sampling\":\"bsdf\",\"seed\":7"), 2, &b);
-  assert_sane(&m);
-  assert_sane(&b);
-  for (int k = 0; k < 3; k++) {
-    double mm, sm, mb, sb;
-    image_mean(&m, k, &mm, &sm);
-    image_mean(&b, k, &mb, &sb);
-    printf("%s: mis %.5f (stderr %.2g), bsdf %.5f (stderr %.2g)\n", rad[k], mm, sm, mb, sb);
-    assert_true(sm < sb); /* the point of light sampling */
-    assert_true(fabs(mm - mb) <= 3 * sqrt(sm * sm + sb * sb));
+  for (int e = 0; e < 2; e++) {
+    int emitter = e ? EMIT_OBJECT : EMIT_LIGHT;
+    obs_result m, b;
+    obs_test_render(lit_scene_by(12, 12, 64, "\"light_sampling\":\"mis\"", emitter), 2, &m);
+    obs_test_render(lit_scene_by(12, 12, 64, "\"light_sampling\":\"bsdf\",\"seed\":7", emitter), 2,
+                    &b);
+    assert_sane(&m);
+    assert_sane(&b);
+    for (int k = 0; k < 3; k++) {
+      double mm, sm, mb, sb;
+      image_mean(&m, k, &mm, &sm);
+      image_mean(&b, k, &mb, &sb);
+      printf("%s, %s: mis %.5f (stderr %.2g), bsdf %.5f (stderr %.2g)\n",
+             e ? "emissive object" : "quad light", rad[k], mm, sm, mb, sb);
+      assert_true(sm < sb); /* the point of light sampling */
+      assert_true(fabs(mm - mb) <= 3 * sqrt(sm * sm + sb * sb));
+    }
+    obs_result_free(&m);
+    obs_result_free(&b);
   }
-  obs_result_free(&m);
-  obs_result_free(&b);
 }
 
 /* Loads `doc` expecting a refusal whose message holds every one of `words`. */
@@ -274,6 +306,7 @@ int main(void) {
       cmocka_unit_test(test_stderr_halves),
       cmocka_unit_test(test_thread_invariant),
       cmocka_unit_test(test_mis_agrees_with_bsdf),
+      cmocka_unit_test(test_quad_light_one_sided),
       cmocka_unit_test(test_refusals),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
