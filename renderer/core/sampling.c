@@ -27,7 +27,7 @@ static uint32_t laine_karras(uint32_t x, uint32_t seed) {
 static uint32_t sobol1_reversed(uint32_t i) {
   uint32_t r = 0, w = 1;
   for (; i; i >>= 1, w ^= w << 1)
-    if (i & 1) r ^= w;
+    r ^= w & (0u - (i & 1u)); /* branchless: the bits of a shuffled index are random */
   return r;
 }
 
@@ -39,6 +39,10 @@ static float radical_inverse3(uint32_t i) {
     f *= inv;
   }
   return (float)r;
+}
+
+uint32_t obs_sample_shuffle(uint32_t index, uint32_t seed) {
+  return reverse_bits(laine_karras(reverse_bits(index), seed));
 }
 
 void obs_sampler2d_init(obs_sampler2d *s, obs_sampler_kind kind, uint32_t x, uint32_t y,

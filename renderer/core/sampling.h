@@ -37,6 +37,13 @@ void obs_sampler2d_init(obs_sampler2d *s, obs_sampler_kind kind, uint32_t x, uin
 /* The i-th point of the stream in [0,1)^2. */
 void obs_sampler2d_get(const obs_sampler2d *s, uint32_t i, float *u, float *v);
 
+/* The sample index shuffled by a nested uniform scramble of its bits (Burley 2020, section 4):
+ * the first 2^k indices map onto one aligned block of 2^k, so a Sobol stream read at the
+ * shuffled index keeps its stratification, while two streams read at one index under different
+ * seeds are decorrelated. Techniques that use several streams for one sample (one per path
+ * dimension) need this: without it, their points at equal indices are correlated. */
+uint32_t obs_sample_shuffle(uint32_t index, uint32_t seed);
+
 /* Directions about +z: cosine-weighted (pdf cos/pi) and uniform (pdf 1/2pi) hemisphere. */
 static inline void obs_sample_cosine(float u, float v, float d[3]) {
   float r = sqrtf(u), phi = 6.28318530717958647692f * v;

@@ -323,11 +323,13 @@ static void load_objects(obs_jpath *p, const json_t *doc, const char *base_dir, 
     json_t *mat = obs_json_get_object(p, o, "material", 0, &absent);
     if (mat) {
       size_t mk = obs_jpath_push_key(p, "material");
-      static const char *const km[] = {"reflectivity", NULL};
+      static const char *const km[] = {"reflectivity", "emission", NULL};
       obs_json_check_keys(p, mat, km);
-      double r[3] = {0, 0, 0};
+      double r[3] = {0, 0, 0}, e[3] = {0, 0, 0};
       if (obs_json_get_vec3(p, mat, "reflectivity", 1, 0, 1, r) == 0) ob->has_material = 1;
       set_vec(&ob->reflectivity, r);
+      obs_json_get_vec3(p, mat, "emission", 0, 0, COORD_MAX, e);
+      set_vec(&ob->emission, e);
       obs_jpath_pop(p, mk);
     }
     obs_jpath_pop(p, mi);

@@ -319,6 +319,9 @@ static double box_entry(const obs_rt *rt, const double o[3], const double d[3], 
   return t0 <= t1 ? t0 : -1;
 }
 
+static void fill_hit(const obs_rt *rt, const double org[3], const double dir[3],
+                     const struct RTCRayHit *rh, obs_hit *hit);
+
 int obs_rt_intersect(const obs_rt *rt, const double world_org[3], const double dir[3], float tfar,
                      obs_hit *hit) {
   double org[3] = {world_org[0] - rt->geo.origin[0], world_org[1] - rt->geo.origin[1],
@@ -350,6 +353,33 @@ int obs_rt_intersect(const obs_rt *rt, const double world_org[3], const double d
   c.skip_mode = 0;
   rtcIntersect1(rt->scene, &c.ctx, &rh);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return 0;
+  fill_hit(rt, org, dir, &rh, hit);
+  if (tbase > 0) hit->t = (float)(tbase + hit->t);
+  return 1;
+}
+
+int obs_rt_intersect_from(const obs_rt *rt, obs_rt_ctx *c, const float org[3], const float dir[3],
+                          float tfar, obs_hit *hit) {
+  struct RTCRayHit rh;
+  memset(&rh, 0, sizeof rh);
+  rh.ray.org_x = org[0], rh.ray.org_y = org[1], rh.ray.org_z = org[2];
+  rh.ray.dir_x = dir[0], rh.ray.dir_y = dir[1], rh.ray.dir_z = dir[2];
+  rh.ray.tnear = 0.0f;
+  rh.ray.tfar = tfar;
+  rh.ray.mask = ~0u;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(rt->scene, &c->ctx, &rh);
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return 0;
+  const double o[3] = {org[0], org[1], org[2]}, d[3] = {dir[0], dir[1], dir[2]};
+  fill_hit(rt, o, d, &rh, hit);
+  return 1;
+}
+
+/* The surface data of Embree's hit `rh` of the ray (org, dir) in the ray tracer's frame. */
+static void fill_hit(const obs_rt *rt, const double org[3], const double dir[3],
+                     const struct RTCRayHit *rhp, obs_hit *hit) {
+  const struct RTCRayHit rh = *rhp;
   hit->t = rh.ray.tfar;
   hit->geom = rh.hit.geomID;
   hit->prim = rh.hit.primID;
@@ -429,8 +459,6 @@ int obs_rt_intersect(const obs_rt *rt, const double world_org[3], const double d
   } else {
     memcpy(hit->ns, ng, sizeof ng);
   }
-  if (tbase > 0) hit->t = (float)(tbase + hit->t);
-  return 1;
 }
 
 /* Storage for one packet's rays and hits, structure-of-arrays. */

@@ -74,6 +74,11 @@ void obs_rt_free(obs_rt *rt);
  * (p in the ray tracer's frame, world minus rt->geo.origin; t from org), or 0 on a miss. */
 int obs_rt_intersect(const obs_rt *rt, const double org[3], const double dir[3], float tfar,
                      obs_hit *hit);
+/* Closest hit along (org, dir) within [0, tfar], org in the ray tracer's frame (an obs_rt_offset
+ * origin), skipping what `c` says the ray leaves (obs_rt_ctx_init): the secondary-ray twin of
+ * obs_rt_intersect for techniques that follow paths. Returns 1 and fills `hit`, or 0. */
+int obs_rt_intersect_from(const obs_rt *rt, obs_rt_ctx *c, const float org[3], const float dir[3],
+                          float tfar, obs_hit *hit);
 /* Rays per obs_rt_intersect_primary call (a 4x4 pixel block), handed to Embree as one stream
  * that it splits into the packets the CPU has. 16 measured ~15% faster than 8 (4x2 blocks) on an
  * AVX-512 machine (G-buffer of the Cornell box). 8 is the other supported value. */

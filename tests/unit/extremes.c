@@ -41,6 +41,7 @@ static const char *fast_params(const char *name) {
   if (!strcmp(name, "rt_ao")) return "\"samples\":16";
   if (!strcmp(name, "ssao")) return "\"samples\":8";
   if (!strcmp(name, "hbao")) return "\"directions\":4,\"steps\":4";
+  if (!strcmp(name, "path_trace")) return "\"max_bounces\":4";
   return "";
 }
 
@@ -70,17 +71,21 @@ static char *scene_json(const ext_case *c, double s, const double off[3], double
 #define X(x) ((x) * s + off[0])
 #define Y(y) ((y) * s + off[1])
 #define Z(z) ((z) * s + off[2])
+  /* Techniques that shade with materials see grey surfaces under a white sky. */
+  int lit = (c->t->needs & OBS_NEED_MATERIALS) != 0;
+  const char *mat = lit ? ",\"material\":{\"reflectivity\":[0.5,0.5,0.5]}" : "";
   char *doc = malloc(4096);
   snprintf(doc, 4096,
            "{\"camera\":{%s,\"position\":[%.17g,%.17g,%.17g],\"look_at\":[%.17g,%.17g,%.17g],"
            "\"up\":[0,0,-1]},\"image\":{\"width\":%d,\"height\":%d,\"spp\":1},"
            "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[%.17g,%.17g,%.17g],"
-           "[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g]]}},"
-           "{\"shape\":{\"type\":\"sphere\",\"center\":[%.17g,%.17g,%.17g],\"radius\":%.17g}}],"
-           "\"technique\":{\"name\":\"%s\",\"backend\":\"%s\",\"params\":{%s}}}",
+           "[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g]]}%s},"
+           "{\"shape\":{\"type\":\"sphere\",\"center\":[%.17g,%.17g,%.17g],\"radius\":%.17g}%s}],"
+           "%s\"technique\":{\"name\":\"%s\",\"backend\":\"%s\",\"params\":{%s}}}",
            cam, X(0), Y(h), Z(0), X(0), Y(0), Z(0), EXT_W, EXT_H, X(-P), Y(0), Z(-P), X(-P), Y(0),
-           Z(P), X(P), Y(0), Z(P), X(P), Y(0), Z(-P), X(0.5), Y(1.25), Z(0.3), 1.0 * s,
-           c->t->name, obs_backend_name(c->be), params);
+           Z(P), X(P), Y(0), Z(P), X(P), Y(0), Z(-P), mat, X(0.5), Y(1.25), Z(0.3), 1.0 * s, mat,
+           lit ? "\"environment\":{\"color\":[1,1,1]}," : "", c->t->name,
+           obs_backend_name(c->be), params);
 #undef X
 #undef Y
 #undef Z
@@ -99,7 +104,19 @@ static int render_doc(const char *doc, obs_result *res, obs_extent *ex, obs_err 
   return rc;
 }
 
-/* Every channel finite, ao in [0, 1]; one line per problem. */
+/* The primary output's channels: "ao" (in [0, 1]) or, for an RGB technique, the three radiance
+ * channels (>= 0). Returns how many `img` has (0: neither). */
+static int primary_channels(const obs_image *img, const float *ch[3], int *unit) {
+  static const char *const rgb[3] = {"radiance.R", "radiance.G", "radiance.B"};
+  *unit = 1;
+  if ((ch[0] = obs_image_channel(img, "ao"))) return 1;
+  *unit = 0;
+  for (int k = 0; k < 3; k++)
+    if (!(ch[k] = obs_image_channel(img, rgb[k]))) return 0;
+  return 3;
+}
+
+/* Every channel finite, the primary output in its range; one line per problem. */
 static int check_sane(const char *what, const obs_image *img) {
   size_t n = (size_t)img->width * (size_t)img->height;
   int bad = 0;
@@ -111,11 +128,13 @@ static int check_sane(const char *what, const obs_image *img) {
       bad++;
     }
   }
-  const float *ao = obs_image_channel(img, "ao");
+  const float *ch[3];
+  int unit, nch = primary_channels(img, ch, &unit);
   size_t out = 0;
-  for (size_t i = 0; ao && i < n; i++) out += !(ao[i] >= 0.0f && ao[i] <= 1.0f);
-  if (!ao || out) {
-    printf("FAIL %s: %zu ao values outside [0, 1]\n", what, out);
+  for (int k = 0; k < nch; k++)
+    for (size_t i = 0; i < n; i++) out += !(ch[k][i] >= 0.0f && (!unit || ch[k][i] <= 1.0f));
+  if (!nch || out) {
+    printf("FAIL %s: %zu primary values outside %s\n", what, out, unit ? "[0, 1]" : "[0, inf)");
     bad++;
   }
   return bad;
@@ -126,7 +145,10 @@ static int compare(const char *what, const obs_image *b, const obs_image *r, dou
                    const obs_tolerance *tol) {
   size_t n = (size_t)b->width * (size_t)b->height, cov = 0, ao_out = 0, n_out = 0, z_out = 0;
   const float *ba = obs_image_channel(b, "alpha"), *ra = obs_image_channel(r, "alpha");
-  const float *bo = obs_image_channel(b, "ao"), *ro = obs_image_channel(r, "ao");
+  const float *bo[3], *ro[3];
+  int unit, nch = primary_channels(b, bo, &unit);
+  if (primary_channels(r, ro, &unit) != nch || !nch)
+    return printf("FAIL %s: no primary output to compare\n", what), 1;
   const float *bz = obs_image_channel(b, "depth.Z"), *rz = obs_image_channel(r, "depth.Z");
   const char *nn[3] = {"normal.X", "normal.Y", "normal.Z"};
   int bad = 0;
@@ -136,7 +158,8 @@ static int compare(const char *what, const obs_image *b, const obs_image *r, dou
     if (ba && ra && (ba[i] > 0) != (ra[i] > 0)) alpha_diff++;
     if (ba && !(ba[i] > 0)) continue;
     cov++;
-    double d = fabs((double)bo[i] - (double)ro[i]);
+    double d = 0; /* the largest difference over the primary output's channels */
+    for (int k = 0; k < nch; k++) d = fmax(d, fabs((double)bo[k][i] - (double)ro[k][i]));
     sum += d;
     worst = fmax(worst, d);
     ao_out += d > tol->ao_pixel;
@@ -155,14 +178,14 @@ static int compare(const char *what, const obs_image *b, const obs_image *r, dou
   }
   double allowed = tol->share * (double)cov;
   if (getenv("OBS_EXTREMES_VERBOSE"))
-    printf("     %s: ao mean %.3g max %.3g (%zu over), normal max %.3g, depth max %.3g\n", what,
-           cov ? sum / (double)cov : 0.0, worst, ao_out, worst_n, worst_z);
+    printf("     %s: primary mean %.3g max %.3g (%zu over), normal max %.3g, depth max %.3g\n",
+           what, cov ? sum / (double)cov : 0.0, worst, ao_out, worst_n, worst_z);
   if (alpha_diff) printf("FAIL %s: coverage differs on %zu pixels\n", what, alpha_diff), bad++;
   if (cov && sum / (double)cov > tol->ao_mean)
-    printf("FAIL %s: ao mean |d| %.3g > %g\n", what, sum / (double)cov, tol->ao_mean), bad++;
+    printf("FAIL %s: primary mean |d| %.3g > %g\n", what, sum / (double)cov, tol->ao_mean), bad++;
   if ((double)ao_out > allowed)
-    printf("FAIL %s: ao |d| > %g on %zu of %zu pixels (max %.3g)\n", what, tol->ao_pixel, ao_out,
-           cov, worst),
+    printf("FAIL %s: primary |d| > %g on %zu of %zu pixels (max %.3g)\n", what, tol->ao_pixel,
+           ao_out, cov, worst),
         bad++;
   if ((double)n_out > allowed)
     printf("FAIL %s: normal |d| > %g on %zu of %zu pixels (max %.3g)\n", what, tol->normal, n_out,

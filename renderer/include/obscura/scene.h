@@ -50,6 +50,7 @@ typedef struct obs_object {
   double mesh_bounds[2][3]; /* mesh: object-space box of the vertices imported at validation */
   int has_material;
   obs_vec3 reflectivity;
+  obs_vec3 emission;    /* radiance emitted from both sides of the surface; zero when absent */
   obs_transform transform;
 } obs_object;
 

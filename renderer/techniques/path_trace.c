@@ -1,0 +1,76 @@
+/* Descriptor of path_trace: diffuse global illumination by path tracing, the RGB reference. */
+#include <jansson.h>
+#include <string.h>
+
+#include "techniques.h"
+
+/* clang-format off */
+static const char *const path_trace_outputs[] = {
+    "radiance.R", "radiance.G", "radiance.B", "radiance_stderr.R", "radiance_stderr.G",
+    "radiance_stderr.B", "albedo.R", "albedo.G", "albedo.B", "normal.X", "normal.Y", "normal.Z",
+    "depth.Z", "alpha", "final.png", NULL};
+/* clang-format on */
+
+/* Keep in step with $defs/path_trace_params in schema/scene.schema.json (a test compares them). */
+static const char path_trace_params[] =
+    "{\"type\":\"object\",\"additionalProperties\":false,\"properties\":{"
+    "\"max_bounces\":{\"type\":\"integer\",\"minimum\":0,\"maximum\":1024,\"default\":64,"
+    "\"description\":\"diffuse reflections a path may take; 0 = emitters seen directly only\"},"
+    "\"rr_depth\":{\"type\":\"integer\",\"minimum\":0,\"maximum\":1024,\"default\":3,"
+    "\"description\":\"bounces before Russian roulette may end a path (survival probability: "
+    "the largest channel of the path's throughput)\"},"
+    "\"light_sampling\":{\"enum\":[\"mis\",\"bsdf\"],\"default\":\"mis\","
+    "\"description\":\"mis: next-event estimation and BSDF sampling combined by the power "
+    "heuristic; bsdf: BSDF sampling only (slower to converge; a check of mis)\"},"
+    "\"sampler\":{\"enum\":[\"sobol\",\"random\"],\"default\":\"sobol\","
+    "\"description\":\"sample sequence: one scrambled 2D sequence per pixel and dimension pair\"},"
+    "\"seed\":{\"type\":\"integer\",\"minimum\":0,\"maximum\":4294967295,\"default\":1,"
+    "\"description\":\"random seed; images depend only on (pixel, sample, seed)\"},"
+    "\"exposure\":{\"type\":\"number\",\"minimum\":-30,\"maximum\":30,\"default\":0,"
+    "\"description\":\"exposure in EV applied to final.png only (radiance is unscaled)\"}}}";
+
+static int positive(const obs_vec3 *v) { return v->x + v->y + v->z > 0; }
+
+/* A scene without any emitter could only render black: refused, naming what counts. */
+static void path_trace_check(const obs_scene *scene, const json_t *params, const char *doc,
+                             obs_err *err) {
+  (void)params;
+  int lit = scene->has_environment && positive(&scene->environment);
+  for (size_t i = 0; !lit && i < scene->nlights; i++) lit = positive(&scene->lights[i].emission);
+  for (size_t i = 0; !lit && i < scene->nobjects; i++) lit = positive(&scene->objects[i].emission);
+  if (!lit)
+    obs_err_set(err, OBS_EINVAL,
+                "%s: /lights: technique \"path_trace\" needs an emitter: a light, an object with "
+                "material.emission or an environment.color, with emission above zero",
+                doc);
+}
+
+/* The guaranteed range below (docs/accuracy.md, "Guaranteed ranges"; tests/unit/test_extremes.c
+ * checks both ends on the same sphere over a plane under a constant sky). The ray tracing is
+ * rt_ao's, so are its limits; paths keep no length constant (shadow rays stop a relative 1e-4
+ * short of the emitter), and a path changes with the scale only where a ray grazes an edge, hence
+ * a per-pixel bound on all but a small share of pixels. Tolerances are on the radiance channels,
+ * in units of the sky's radiance (1 in the check). */
+const obs_technique obs_technique_path_trace = {
+    .name = "path_trace",
+    .description = "Diffuse global illumination by path tracing (Embree) with next-event "
+                   "estimation and MIS; the RGB reference",
+    .params_schema = path_trace_params,
+    .needs = OBS_NEED_BVH | OBS_NEED_MATERIALS,
+    .outputs = path_trace_outputs,
+    .check = path_trace_check,
+    .reference = NULL,
+    .run = {[OBS_BACKEND_CPU] = obs_path_trace_cpu},
+    .range = {[OBS_BACKEND_CPU] = {.size_min = 1e-9,
+                                   .size_max = 1e9,
+                                   .translation_max = 1e9,
+                                   .fov_min = 1e-4,
+                                   .fov_max = 170,
+                                   .orthographic = 1,
+                                   .params = {{NULL, 0, 0, 0}},
+                                   .tol = {.ao_mean = 1e-3,
+                                           .ao_pixel = 1e-4,
+                                           .share = 0.02,
+                                           .normal = 1e-4,
+                                           .depth_rel = 3e-5}}},
+};
