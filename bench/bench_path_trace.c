@@ -23,7 +23,8 @@ static void usage(FILE *f) {
           "usage: bench_path_trace [--threads N] [--size W] [--spp S] [--repeats R]\n"
           "                        [--png PATH] [--exposure EV]\n"
           "  Renders scenes/cornell_box.json with path_trace (defaults: max_bounces 64,\n"
-          "  rr_depth 3, mis, sobol) at W x W and S samples per pixel, R times, and prints the\n"
+          "  rr_depth 3, mis, sobol) at W x W with S paths per pixel (the samples parameter, one\n"
+          "  pixel sample through the centre), R times, and prints the\n"
           "  median time per sample path and rays per second. --png writes the last render\n"
           "  as an sRGB PNG after scaling radiance by 2^EV.\n");
 }
@@ -124,14 +125,15 @@ int main(int argc, char **argv) {
   options o;
   if (parse_args(argc, argv, &o)) return 2;
   bench_print_machine();
-  char size[16], spp[16];
+  char size[16], params[48];
   snprintf(size, sizeof size, "%d", o.size);
-  snprintf(spp, sizeof spp, "%d", o.spp);
+  /* Paths per pixel through the pixel's centre: one pixel sample, `samples` paths. */
+  snprintf(params, sizeof params, "{\"samples\":%d}", o.spp);
   const obs_override ov[] = {{"/image/width", size},
                              {"/image/height", size},
-                             {"/image/spp", spp},
+                             {"/image/spp", "1"},
                              {"/technique/name", "\"path_trace\""},
-                             {"/technique/params", "{}"}};
+                             {"/technique/params", params}};
   obs_scene sc;
   obs_err err = OBS_ERR_INIT;
   if (obs_scene_load_file(&sc, OBS_SOURCE_DIR "/scenes/cornell_box.json", ov, 5, &err)) {
@@ -143,7 +145,7 @@ int main(int argc, char **argv) {
   memset(&res, 0, sizeof res);
   for (int r = 0; r < o.repeats; r++) {
     obs_result_free(&res);
-    obs_render_opts opts = {o.threads, NULL, NULL, NULL};
+    obs_render_opts opts = {.threads = o.threads};
     if (obs_render(&sc, &opts, &res, &err)) {
       fprintf(stderr, "bench_path_trace: %s\n", obs_err_message(&err));
       return 1;

@@ -14,7 +14,7 @@
 
 #include "camera.h"
 #include "obscura/render.h"
-#include "path_trace_driver_tmp.h"
+#include "driver.h"
 #include "raytrace.h"
 #include "sampling.h"
 #include "techniques.h"
@@ -23,6 +23,7 @@
 
 /* The technique's parameters, filled from the validated document by pt_read_params only. */
 typedef struct pt_params {
+  int samples;     /* paths per pixel sample */
   int max_bounces; /* reflections a path may take; 0 = emitters seen directly only */
   int rr_depth;    /* bounces before Russian roulette starts */
   int bsdf_only;   /* light_sampling "bsdf": no next-event estimation (a check of MIS) */
@@ -32,6 +33,7 @@ typedef struct pt_params {
 } pt_params;
 
 static void pt_read_params(const json_t *js, pt_params *p) {
+  p->samples = (int)json_integer_value(json_object_get(js, "samples"));
   p->max_bounces = (int)json_integer_value(json_object_get(js, "max_bounces"));
   p->rr_depth = (int)json_integer_value(json_object_get(js, "rr_depth"));
   const char *ls = json_string_value(json_object_get(js, "light_sampling"));
@@ -67,7 +69,7 @@ typedef struct pt_job {
   const obs_scene *sc;
   obs_camera_rig cam;
   pt_params p;
-  int spp;
+  int spp, paths; /* pixel samples; paths = spp * samples */
   pt_emitter *em; /* quad-light triangles first (nquad of them), then emissive objects */
   size_t nem, nquad;
   double *cdf;  /* emitter choice, by area times mean emission */
@@ -354,7 +356,8 @@ static uint64_t trace_path(const pt_job *jb, pt_dims *dc, int s, const double or
   return rays;
 }
 
-/* One pixel: the mean of spp paths, its standard error, and the first hits' facts. */
+/* One pixel: the mean of its paths (p.samples per pixel sample), their standard error, and the
+ * first hits' facts. */
 static uint64_t pt_shade(const void *job, int thread, int x, int y, float *v) {
   (void)thread;
   const pt_job *jb = job;
@@ -364,10 +367,11 @@ static uint64_t pt_shade(const void *job, int thread, int x, int y, float *v) {
   uint64_t rays = 0;
   pt_dims dc;
   dc.jb = jb, dc.x = x, dc.y = y, dc.have = 0;
-  for (int s = 0; s < jb->spp; s++) {
+  for (int s = 0; s < jb->paths; s++) {
     double jx = 0.5, jy = 0.5;
-    /* One sample looks through the pixel's centre; several are stratified over the pixel. */
-    if (jb->spp > 1) pt_sample(&dc, s, 0, &jx, &jy);
+    /* One pixel sample looks through the pixel's centre; several are stratified over the pixel
+     * (dimension pair 0, indexed by pixel sample, is used for nothing else). */
+    if (jb->spp > 1) pt_sample(&dc, s / jb->p.samples, 0, &jx, &jy);
     double org[3], dir[3], L[3];
     obs_camera_ray(&jb->cam, x + jx, y + jy, org, dir);
     pt_first f;
@@ -381,7 +385,7 @@ static uint64_t pt_shade(const void *job, int thread, int x, int y, float *v) {
     depth += f.depth;
     for (int k = 0; k < 3; k++) alb[k] += f.albedo[k], nrm[k] += f.normal[k];
   }
-  double n = jb->spp, nl = sqrt(dot3(nrm, nrm));
+  double n = jb->paths, nl = sqrt(dot3(nrm, nrm));
   for (int k = 0; k < 3; k++) {
     double mean = sum[k] / n;
     /* Unbiased sample variance of one path's radiance, over n for the mean's; 0 for n = 1. */
@@ -392,32 +396,32 @@ static uint64_t pt_shade(const void *job, int thread, int x, int y, float *v) {
     v[CH_NX + k] = nl > 0 ? (float)(nrm[k] / nl) : 0.0f;
   }
   v[CH_DEPTH] = hits ? (float)(depth / hits) : 0.0f;
-  v[CH_ALPHA] = (float)hits / (float)jb->spp;
+  v[CH_ALPHA] = (float)hits / (float)jb->paths;
   return rays;
 }
 
 int obs_path_trace_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   const obs_scene *sc = ctx->scene;
+  if (!ctx->rt)
+    return obs_err_set(err, OBS_EINTERNAL, "%s: path_trace: no BVH was built for it", sc->name);
   pt_job jb;
   memset(&jb, 0, sizeof jb);
   pt_read_params(ctx->params, &jb.p);
   jb.sc = sc;
+  jb.rt = ctx->rt;
   jb.spp = sc->spp;
+  jb.paths = sc->spp * jb.p.samples;
   if (sc->has_environment) vec3(&sc->environment, jb.env);
   obs_camera_setup(&sc->camera, sc->width, sc->height, &jb.cam);
+  /* The emitter table is part of what is built for the render. */
   double t0 = obs_now_ms();
-  obs_rt rt;
-  int rc = obs_rt_build_ex(sc, &rt, ctx->threads, OBS_RT_FRAME_GEOMETRY, err);
-  if (rc) return rc;
-  jb.rt = &rt;
-  rc = build_emitters(&jb, err);
-  ctx->build_ms = obs_now_ms() - t0;
+  int rc = build_emitters(&jb, err);
+  ctx->build_ms += obs_now_ms() - t0;
   if (!rc) {
-    const obs_pixel_ops ops = {CH_COUNT, channel_names, pt_shade};
+    static const obs_pixel_ops ops = {CH_COUNT, channel_names, pt_shade};
     rc = obs_driver_pixels(ctx, &ops, &jb, out, err);
   }
   free(jb.em);
   free(jb.cdf);
-  obs_rt_free(&rt);
   return rc;
 }

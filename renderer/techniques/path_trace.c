@@ -14,6 +14,9 @@ static const char *const path_trace_outputs[] = {
 /* Keep in step with $defs/path_trace_params in schema/scene.schema.json (a test compares them). */
 static const char path_trace_params[] =
     "{\"type\":\"object\",\"additionalProperties\":false,\"properties\":{"
+    "\"samples\":{\"type\":\"integer\",\"minimum\":1,\"maximum\":65536,\"default\":16,"
+    "\"description\":\"paths per pixel sample (image.spp pixel samples, each through its "
+    "point of the pixel); at most 65536 paths per pixel in all\"},"
     "\"max_bounces\":{\"type\":\"integer\",\"minimum\":0,\"maximum\":1024,\"default\":64,"
     "\"description\":\"diffuse reflections a path may take; 0 = emitters seen directly only\"},"
     "\"rr_depth\":{\"type\":\"integer\",\"minimum\":0,\"maximum\":1024,\"default\":3,"
@@ -34,7 +37,13 @@ static int positive(const obs_vec3 *v) { return v->x + v->y + v->z > 0; }
 /* A scene without any emitter could only render black: refused, naming what counts. */
 static void path_trace_check(const obs_scene *scene, const json_t *params, const char *doc,
                              obs_err *err) {
-  (void)params;
+  /* The sample streams index paths with 16 bits (renderer/cpu/path_trace.c, pt_sample). */
+  json_int_t samples = json_integer_value(json_object_get(params, "samples"));
+  if ((json_int_t)scene->spp * samples > 65536)
+    obs_err_set(err, OBS_EINVAL,
+                "%s: /technique/params/samples: image.spp x samples must be at most 65536 paths "
+                "per pixel (got %d x %lld)",
+                doc, scene->spp, (long long)samples);
   int lit = scene->has_environment && positive(&scene->environment);
   for (size_t i = 0; !lit && i < scene->nlights; i++) lit = positive(&scene->lights[i].emission);
   for (size_t i = 0; !lit && i < scene->nobjects; i++) lit = positive(&scene->objects[i].emission);
@@ -56,7 +65,7 @@ const obs_technique obs_technique_path_trace = {
     .description = "Diffuse global illumination by path tracing (Embree) with next-event "
                    "estimation and MIS; the RGB reference",
     .params_schema = path_trace_params,
-    .needs = OBS_NEED_BVH | OBS_NEED_MATERIALS,
+    .needs = OBS_NEED_BVH | OBS_NEED_BVH_FRAME_GEOMETRY | OBS_NEED_MATERIALS,
     .outputs = path_trace_outputs,
     .check = path_trace_check,
     .reference = NULL,

@@ -51,15 +51,16 @@ static void assert_sane(const obs_result *r) {
   for (size_t i = 0; i < n; i++) assert_true(a[i] >= 0.0f && a[i] <= 1.0f);
 }
 
-/* Inside a closed sphere of reflectivity rho emitting E: camera at its centre. */
-static const char *furnace(const double rho[3], const double e[3], int spp, const char *params) {
+/* Inside a closed sphere of reflectivity rho emitting E: camera at its centre; n paths per pixel
+ * through its centre. */
+static const char *furnace(const double rho[3], const double e[3], int n, const char *params) {
   return fmt(
       "{\"camera\":{\"type\":\"perspective\",\"position\":[0,0,0],\"look_at\":[0,0,1],"
-      "\"fov_y\":120},\"image\":{\"width\":8,\"height\":8,\"spp\":%d},"
+      "\"fov_y\":120},\"image\":{\"width\":8,\"height\":8},"
       "\"objects\":[{\"shape\":{\"type\":\"sphere\",\"center\":[0,0,0],\"radius\":1},"
       "\"material\":{\"reflectivity\":[%.17g,%.17g,%.17g],\"emission\":[%.17g,%.17g,%.17g]}}],"
-      "\"technique\":{\"name\":\"path_trace\",\"params\":{%s}}}",
-      spp, rho[0], rho[1], rho[2], e[0], e[1], e[2], params);
+      "\"technique\":{\"name\":\"path_trace\",\"params\":{\"samples\":%d%s%s}}}",
+      rho[0], rho[1], rho[2], e[0], e[1], e[2], n, *params ? "," : "", params);
 }
 
 /* L = E + rho L everywhere: E / (1 - rho), summed over bounces 0..max_bounces. */
@@ -160,7 +161,7 @@ static void test_black_surfaces_emission_only(void **state) {
 /* A plane and a sphere casting a shadow, lit from 2 units above by a quad light facing down
  * (EMIT_LIGHT) or up (EMIT_LIGHT_UP), or by an emissive quad object (EMIT_OBJECT, two-sided). */
 enum { EMIT_LIGHT, EMIT_LIGHT_UP, EMIT_OBJECT };
-static const char *lit_scene_by(int w, int h, int spp, const char *params, int emitter) {
+static const char *lit_scene_by(int w, int h, int n, const char *params, int emitter) {
   static const char *const emitters[] = {
       "],\"lights\":[{\"type\":\"quad\",\"vertices\":[[-1,2,-1],[1,2,-1],[1,2,1],[-1,2,1]],"
       "\"emission\":[4,4,4]}]",
@@ -170,17 +171,17 @@ static const char *lit_scene_by(int w, int h, int spp, const char *params, int e
       "\"material\":{\"reflectivity\":[0.3,0.3,0.3],\"emission\":[4,3,2]}}]"};
   return fmt(
       "{\"camera\":{\"type\":\"perspective\",\"position\":[0,1.5,-2.5],"
-      "\"look_at\":[0,0,0],\"fov_y\":60},\"image\":{\"width\":%d,\"height\":%d,\"spp\":%d},"
+      "\"look_at\":[0,0,0],\"fov_y\":60},\"image\":{\"width\":%d,\"height\":%d},"
       "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-3,0,-3],[-3,0,3],[3,0,3],"
       "[3,0,-3]]},\"material\":{\"reflectivity\":[0.7,0.6,0.5]}},"
       "{\"shape\":{\"type\":\"sphere\",\"center\":[0.3,0.5,0.2],\"radius\":0.5},"
       "\"material\":{\"reflectivity\":[0.2,0.5,0.8]}}%s,"
-      "\"technique\":{\"name\":\"path_trace\",\"params\":{%s}}}",
-      w, h, spp, emitters[emitter], params);
+      "\"technique\":{\"name\":\"path_trace\",\"params\":{\"samples\":%d%s%s}}}",
+      w, h, emitters[emitter], n, *params ? "," : "", params);
 }
 
-static const char *lit_scene(int w, int h, int spp, const char *params) {
-  return lit_scene_by(w, h, spp, params, EMIT_LIGHT);
+static const char *lit_scene(int w, int h, int n, const char *params) {
+  return lit_scene_by(w, h, n, params, EMIT_LIGHT);
 }
 
 /* A quad light emits from the side its vertices turn counter-clockwise on only: facing up, it
