@@ -10,6 +10,7 @@
 #include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <time.h>
@@ -59,8 +60,13 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
   rc = obs_scene_extent(scene, &ex, err);
   if (rc) return rc;
   obs_range_check(&scene->technique->range[be], scene->technique->name, be, scene, &ex, &ctx);
+  void *bound = NULL;
+  rc = obs_params_bind_new(scene->technique, scene->params, &bound, err);
+  if (rc) return rc;
+  ctx.bound = bound;
   double t0 = obs_now_ms();
   rc = scene->technique->run[be](&ctx, &res->image, err);
+  free(bound);
   if (rc) return rc;
   res->technique = scene->technique;
   res->backend = be;

@@ -358,9 +358,7 @@ int obs_ssao_cpu_apply(const obs_gbuffer *g, const obs_ssao_params *p, int threa
 
 int obs_ssao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   const obs_scene *sc = ctx->scene;
-  obs_ssao_params p;
-  if (obs_ssao_params_read(ctx->params, &p))
-    return obs_err_set(err, OBS_EINVAL, "%s: /technique/params: invalid ssao parameters", sc->name);
+  const obs_ssao_params p = *(const obs_ssao_params *)ctx->bound;
   obs_camera_rig rig;
   obs_camera_setup(&sc->camera, sc->width, sc->height, &rig);
   int rc = obs_image_init(out, sc->width, sc->height, OBS_SCREEN_CHANNELS, obs_screen_channel_names, err);

@@ -60,12 +60,6 @@ int obs_hbao_vk_apply_ex(obs_vk *vk, obs_vk_gbuffer *g, const obs_hbao_projectio
     for (int i = 0; i <= OBS_HBAO_PASS_COUNT; i++) stage_ms[i] = 0.0;
   if (!proj || !g || !g->depth || !g->normal || !ao_host)
     return obs_err_set(err, OBS_EINVAL, "hbao: vulkan apply: no projection, G-buffer or output");
-  if (p->directions < 1 || p->directions > OBS_HBAO_MAX_DIRECTIONS || p->steps < 1 ||
-      p->steps > OBS_HBAO_MAX_STEPS || p->blur_radius < 0 ||
-      p->blur_radius > OBS_HBAO_MAX_BLUR_RADIUS)
-    return obs_err_set(err, OBS_EINVAL,
-                       "hbao: params directions=%d steps=%d blur_radius=%d out of range",
-                       p->directions, p->steps, p->blur_radius);
   int W = g->width, H = g->height, lw, lh;
   obs_hbao_level_size(p, W, H, &lw, &lh);
   size_t ntab = (size_t)OBS_HBAO_NOISE_CELLS * (size_t)p->directions * 4;
@@ -163,9 +157,7 @@ done:
 
 int obs_hbao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   const obs_scene *sc = ctx->scene;
-  obs_hbao_params p;
-  if (obs_hbao_params_read(ctx->params, &p))
-    return obs_err_set(err, OBS_EINVAL, "%s: /technique/params: invalid hbao parameters", sc->name);
+  const obs_hbao_params p = *(const obs_hbao_params *)ctx->bound;
   int rc = obs_image_init(out, sc->width, sc->height, OBS_SCREEN_CHANNELS, obs_screen_channel_names, err);
   if (rc) return rc;
   int validation = obs_vk_validation_requested();
