@@ -18,15 +18,15 @@ static json_t *number_json(double v) {
 }
 
 static int is_number_type(obs_param_type t) {
-  return t == OBS_PARAM_INT || t == OBS_PARAM_UINT || t == OBS_PARAM_FLOAT ||
-         t == OBS_PARAM_DOUBLE;
+  return t == OBS_PARAM_INT || t == OBS_PARAM_UINT || t == OBS_PARAM_FLOAT || t == OBS_PARAM_DOUBLE;
 }
 
 static int is_int_type(obs_param_type t) { return t == OBS_PARAM_INT || t == OBS_PARAM_UINT; }
 
 json_t *obs_param_default_json(const obs_param *d) {
   switch (d->type) {
-    case OBS_PARAM_BOOL: return json_boolean(d->def != 0);
+    case OBS_PARAM_BOOL:
+      return json_boolean(d->def != 0);
     case OBS_PARAM_ENUM: {
       long n = 0;
       while (d->choices && d->choices[n]) n++;
@@ -34,7 +34,8 @@ json_t *obs_param_default_json(const obs_param *d) {
       return i >= 0 && i < n ? json_string(d->choices[i]) : json_null();
     }
     default:
-      if ((d->flags & OBS_PARAM_NULLABLE) && (d->flags & OBS_PARAM_DEFAULT_NULL)) return json_null();
+      if ((d->flags & OBS_PARAM_NULLABLE) && (d->flags & OBS_PARAM_DEFAULT_NULL))
+        return json_null();
       return is_int_type(d->type) ? json_integer((json_int_t)d->def) : number_json(d->def);
   }
 }
@@ -58,7 +59,8 @@ int obs_param_check(obs_jpath *p, const obs_param *d, const json_t *v) {
   long long iv = 0;
   switch (d->type) {
     case OBS_PARAM_BOOL:
-      if (!json_is_boolean(v)) return obs_jpath_fail(p, "must be boolean (got %s)", obs_json_brief(v));
+      if (!json_is_boolean(v))
+        return obs_jpath_fail(p, "must be boolean (got %s)", obs_json_brief(v));
       return 0;
     case OBS_PARAM_ENUM:
       for (int i = 0; json_is_string(v) && d->choices[i]; i++)
@@ -84,7 +86,8 @@ int obs_param_check(obs_jpath *p, const obs_param *d, const json_t *v) {
       break;
   }
   double x = obs_json_number(v);
-  int lo_ex = (d->flags & OBS_PARAM_MIN_EXCLUSIVE) != 0, hi_ex = (d->flags & OBS_PARAM_MAX_EXCLUSIVE) != 0;
+  int lo_ex = (d->flags & OBS_PARAM_MIN_EXCLUSIVE) != 0,
+      hi_ex = (d->flags & OBS_PARAM_MAX_EXCLUSIVE) != 0;
   if (!isinf(d->min) && (lo_ex ? !(x > d->min) : !(x >= d->min)))
     return obs_jpath_fail(p, "must be %s %.10g (got %s)", lo_ex ? ">" : ">=", d->min,
                           obs_json_brief(v));
@@ -182,7 +185,9 @@ static void store(const obs_param *d, const json_t *v, unsigned char *dst) {
       memcpy(at, &f, sizeof f);
       break;
     }
-    case OBS_PARAM_DOUBLE: memcpy(at, &x, sizeof x); break;
+    case OBS_PARAM_DOUBLE:
+      memcpy(at, &x, sizeof x);
+      break;
   }
 }
 
@@ -200,8 +205,10 @@ int obs_params_bind(const obs_technique *t, const json_t *params, void *dst, obs
   json_object_foreach((json_t *)params, key, v) {
     size_t m = obs_jpath_push_key(&p, key);
     const obs_param *d = find_param(t, key);
-    if (!d) bad |= obs_jpath_fail(&p, "unknown parameter") != 0;
-    else bad |= obs_param_check(&p, d, v) != 0;
+    if (!d)
+      bad |= obs_jpath_fail(&p, "unknown parameter") != 0;
+    else
+      bad |= obs_param_check(&p, d, v) != 0;
     obs_jpath_pop(&p, m);
   }
   if (bad) return OBS_EINVAL;
@@ -226,9 +233,11 @@ int obs_params_bind_new(const obs_technique *t, const json_t *params, void **out
 
 static json_t *param_schema(const obs_param *d) {
   json_t *o = json_object();
-  static const char *const type_names[] = {
-      [OBS_PARAM_BOOL] = "boolean", [OBS_PARAM_INT] = "integer", [OBS_PARAM_UINT] = "integer",
-      [OBS_PARAM_FLOAT] = "number", [OBS_PARAM_DOUBLE] = "number"};
+  static const char *const type_names[] = {[OBS_PARAM_BOOL] = "boolean",
+                                           [OBS_PARAM_INT] = "integer",
+                                           [OBS_PARAM_UINT] = "integer",
+                                           [OBS_PARAM_FLOAT] = "number",
+                                           [OBS_PARAM_DOUBLE] = "number"};
   if (d->type == OBS_PARAM_ENUM) {
     json_t *e = json_array();
     for (int i = 0; d->choices[i]; i++) json_array_append_new(e, json_string(d->choices[i]));
@@ -273,11 +282,16 @@ double obs_technique_cost(const obs_technique *t, const json_t *params) {
 
 static size_t type_size(obs_param_type t) {
   switch (t) {
-    case OBS_PARAM_DOUBLE: return sizeof(double);
-    case OBS_PARAM_FLOAT: return sizeof(float);
-    case OBS_PARAM_INT: return sizeof(int32_t);
-    case OBS_PARAM_UINT: return sizeof(uint32_t);
-    default: return sizeof(int);
+    case OBS_PARAM_DOUBLE:
+      return sizeof(double);
+    case OBS_PARAM_FLOAT:
+      return sizeof(float);
+    case OBS_PARAM_INT:
+      return sizeof(int32_t);
+    case OBS_PARAM_UINT:
+      return sizeof(uint32_t);
+    default:
+      return sizeof(int);
   }
 }
 
@@ -300,8 +314,9 @@ static int entry_fault(const obs_technique *t, const obs_param *d, char *why, si
     return snprintf(why, n, "a list of values needs an integer type and at least one value");
   if (is_number_type(d->type) && !d->values) {
     double lo = is_int_type(d->type) ? (d->type == OBS_PARAM_UINT ? 0 : INT32_MIN) : -INFINITY;
-    double hi = d->type == OBS_PARAM_UINT ? UINT32_MAX : d->type == OBS_PARAM_INT ? INT32_MAX
-                                                                                 : INFINITY;
+    double hi = d->type == OBS_PARAM_UINT  ? UINT32_MAX
+                : d->type == OBS_PARAM_INT ? INT32_MAX
+                                           : INFINITY;
     if (d->type == OBS_PARAM_FLOAT) lo = -FLT_MAX, hi = FLT_MAX;
     if (!(d->min >= lo && d->max <= hi && d->min <= d->max))
       return snprintf(why, n, "range [%g, %g] is empty or beyond what its type stores", d->min,
@@ -352,8 +367,10 @@ int obs_technique_params_check(const obs_technique *t, obs_err *err) {
     double c = t->cost(b);
     free(b);
     if (!(c > 0) || !isfinite(c))
-      bad = obs_err_set(err, OBS_EINVAL, "%s: the cost of the defaults is %g, not a positive "
-                        "number", doc, c);
+      bad = obs_err_set(err, OBS_EINVAL,
+                        "%s: the cost of the defaults is %g, not a positive "
+                        "number",
+                        doc, c);
   }
   return bad || (err && err->count != before) ? OBS_EINVAL : 0;
 }

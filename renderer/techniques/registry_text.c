@@ -169,8 +169,7 @@ static json_t *technique_def(void) {
       "Which technique renders the scene, on which backend, with which parameters. This member "
       "and the <name>_params members after it are generated from the technique registry "
       "(scripts/gen-registry.sh); the test cli.registry_schema compares them.",
-      "type",
-      "object", "additionalProperties", 0, "required", "name", "properties", "name",
+      "type", "object", "additionalProperties", 0, "required", "name", "properties", "name",
       "description", "A technique from the registry (`obscura techniques`).", "enum", names,
       "backend", "description", "Backend; auto picks the best available one.", "enum", backends,
       "default", "auto", "params", "description",
@@ -239,9 +238,9 @@ static void put_range(text *b, const obs_param *p) {
 char *obs_registry_params_markdown(const char *technique) {
   const obs_technique *t = obs_technique_find(technique);
   if (!t) return NULL;
-  static const char *const types[] = {[OBS_PARAM_BOOL] = "boolean", [OBS_PARAM_INT] = "integer",
-                                      [OBS_PARAM_UINT] = "integer", [OBS_PARAM_FLOAT] = "number",
-                                      [OBS_PARAM_DOUBLE] = "number", [OBS_PARAM_ENUM] = "string"};
+  static const char *const types[] = {
+      [OBS_PARAM_BOOL] = "boolean", [OBS_PARAM_INT] = "integer",   [OBS_PARAM_UINT] = "integer",
+      [OBS_PARAM_FLOAT] = "number", [OBS_PARAM_DOUBLE] = "number", [OBS_PARAM_ENUM] = "string"};
   text b = {NULL, 0, 0, 0};
   put(&b, "| name | type | default | range | description |\n|---|---|---|---|---|\n");
   for (size_t i = 0; i < t->params_size; i++) {
@@ -254,8 +253,10 @@ char *obs_registry_params_markdown(const char *technique) {
     }
     json_t *def = obs_param_default_json(p);
     text d = {NULL, 0, 0, 0};
-    if (json_is_string(def)) put(&d, "`%s`", json_string_value(def));
-    else put_inline(&d, def);
+    if (json_is_string(def))
+      put(&d, "`%s`", json_string_value(def));
+    else
+      put_inline(&d, def);
     json_decref(def);
     put(&b, " | %s | ", d.s ? d.s : "");
     free(d.s);
@@ -269,12 +270,14 @@ char *obs_registry_params_markdown(const char *technique) {
   return finish(&b);
 }
 
-/* ---- schema/openapi.yaml ---------------------------------------------------------------------- */
+/* ---- schema/openapi.yaml ----------------------------------------------------------------------
+ */
 
 char *obs_registry_openapi(void) {
   text b = {NULL, 0, 0, 0};
-  put(&b, "    TechniqueName:\n      description: A technique of the registry (GET "
-          "/api/v1/techniques).\n      type: string\n      enum: [");
+  put(&b,
+      "    TechniqueName:\n      description: A technique of the registry (GET "
+      "/api/v1/techniques).\n      type: string\n      enum: [");
   for (size_t i = 0; i < obs_technique_count(); i++)
     put(&b, "%s%s", i ? ", " : "", obs_technique_at(i)->name);
   put(&b, "]\n");
