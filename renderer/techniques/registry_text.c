@@ -238,9 +238,12 @@ static void put_range(text *b, const obs_param *p) {
 char *obs_registry_params_markdown(const char *technique) {
   const obs_technique *t = obs_technique_find(technique);
   if (!t) return NULL;
-  static const char *const types[] = {
-      [OBS_PARAM_BOOL] = "boolean", [OBS_PARAM_INT] = "integer",   [OBS_PARAM_UINT] = "integer",
-      [OBS_PARAM_FLOAT] = "number", [OBS_PARAM_DOUBLE] = "number", [OBS_PARAM_ENUM] = "string"};
+  static const char *const types[] = {[OBS_PARAM_BOOL] = "boolean",
+                                      [OBS_PARAM_INT] = "integer (int32)",
+                                      [OBS_PARAM_UINT] = "integer (uint32)",
+                                      [OBS_PARAM_FLOAT] = "number (float32)",
+                                      [OBS_PARAM_DOUBLE] = "number (float64)",
+                                      [OBS_PARAM_ENUM] = "string"};
   text b = {NULL, 0, 0, 0};
   put(&b, "| name | type | default | range | description |\n|---|---|---|---|---|\n");
   for (size_t i = 0; i < t->params_size; i++) {
