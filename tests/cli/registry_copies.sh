@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The repository's copies of technique facts are the registry's: each must equal what
 # `obscura techniques --schema | --openapi | --docs NAME` prints (regenerate them all with
-# scripts/gen-registry.sh). Usage: registry_copies.sh schema|openapi|docs OBSCURA ROOT
+# scripts/gen-registry.sh); `drift` checks that a changed copy fails. Usage:
+#   registry_copies.sh schema|openapi|docs|drift OBSCURA ROOT
 set -u
 what=$1 cli=$2 root=$3
 fail=0
@@ -41,6 +42,26 @@ case $what in
         sed '1d;$d')
       compare "docs/techniques/$name.md (parameter table)" "$want" "$have"
     done ;;
-  *) echo "usage: registry_copies.sh schema|openapi|docs OBSCURA ROOT"; exit 2 ;;
+  drift)
+    # The comparisons themselves: one changed character in each copy must fail its check.
+    tmp=$(mktemp -d)
+    trap 'rm -rf "$tmp"' EXIT
+    mkdir -p "$tmp/schema" "$tmp/docs"
+    cp "$root/schema/scene.schema.json" "$root/schema/openapi.yaml" "$tmp/schema/"
+    cp -r "$root/docs/techniques" "$tmp/docs/"
+    sed -i 's/"maximum": 65536/"maximum": 65537/' "$tmp/schema/scene.schema.json"
+    sed -i '/^    # registry:begin/,/^    # registry:end/s/enum: \[rt_ao/enum: [rt_ao2/' \
+      "$tmp/schema/openapi.yaml"
+    sed -i 's/^| `samples` | integer (uint32) | 64 |/| `samples` | integer (uint32) | 65 |/' \
+      "$tmp/docs/techniques/rt_ao.md"
+    for copy in schema openapi docs; do
+      if bash "$0" "$copy" "$cli" "$tmp" >/dev/null; then
+        echo "FAIL: a changed $copy copy passed its check"
+        fail=1
+      else
+        echo "ok: a changed $copy copy fails its check"
+      fi
+    done ;;
+  *) echo "usage: registry_copies.sh schema|openapi|docs|drift OBSCURA ROOT"; exit 2 ;;
 esac
 exit $fail
