@@ -122,6 +122,7 @@ const obs_technique obs_technique_hbao = {
     .bound_size = sizeof(obs_hbao_params),
     .cost = hbao_cost,
     .cost_rule = "directions x steps",
+    .ms_per_work = 1e-5,
     .needs = OBS_NEED_GBUFFER,
     .outputs = hbao_outputs,
     .check = NULL,

@@ -101,6 +101,7 @@ const obs_technique obs_technique_rt_ao = {
                     "\"properties\": {\"max_distance\": {\"type\": \"number\"}}}}]",
     .cost = rt_ao_cost,
     .cost_rule = "samples",
+    .ms_per_work = 9e-5,
     .needs = OBS_NEED_BVH,
     .outputs = rt_ao_outputs,
     .check = rt_ao_check,

@@ -145,6 +145,7 @@ const obs_technique obs_technique_ssao = {
     .bound_size = sizeof(obs_ssao_params),
     .cost = ssao_cost,
     .cost_rule = "samples",
+    .ms_per_work = 3.5e-5,
     .needs = OBS_NEED_GBUFFER,
     .outputs = ssao_outputs,
     .check = NULL,

@@ -186,6 +186,10 @@ typedef struct obs_technique {
   const char *params_rules;
   obs_technique_cost_fn cost;   /* NULL: 1 per pixel sample */
   const char *cost_rule;        /* the cost hook in words ("samples"), for the API and docs */
+  /* Milliseconds per unit of work (width x height x spp x cost) on the reference machine of
+   * docs/server.md, rounded up: the server's render-time estimate before it has stored runs of
+   * the technique. 0: unknown (the server assumes the slowest technique's rate). */
+  double ms_per_work;
   unsigned needs;               /* OBS_NEED_* */
   const char *const *outputs;   /* NULL-terminated: EXR channel names and extra files */
   obs_technique_check_fn check; /* may be NULL */
