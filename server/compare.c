@@ -97,7 +97,7 @@ static void expansion_free(expansion *x) {
 
 /* Whether parameter `key` of technique `t` is itself an array (never expanded). */
 static int param_is_array(const obs_technique *t, const char *key) {
-  json_t *schema = json_loads(t->params_schema, 0, NULL);
+  json_t *schema = obs_technique_params_schema(t);
   json_t *type = json_object_get(json_object_get(json_object_get(schema, "properties"), key),
                                  "type");
   int arr = json_is_string(type) && !strcmp(json_string_value(type), "array");
@@ -411,7 +411,7 @@ static void validate_candidate(srv_app *app, const cmp_req *q, cand *c, expansio
       r->width = rs.width;
       r->height = rs.height;
       r->spp = rs.spp;
-      r->work = (double)rs.width * rs.height * rs.spp * srv_submit_samples(rs.params);
+      r->work = (double)rs.width * rs.height * rs.spp * obs_technique_cost(rs.technique, rs.params);
       r->backend = q->ref_backend;
       found = x->nrefs++;
     }
@@ -427,7 +427,7 @@ static void validate_candidate(srv_app *app, const cmp_req *q, cand *c, expansio
   c->width = sc.width;
   c->height = sc.height;
   c->spp = sc.spp;
-  c->work = (double)sc.width * sc.height * sc.spp * srv_submit_samples(sc.params);
+  c->work = (double)sc.width * sc.height * sc.spp * obs_technique_cost(sc.technique, sc.params);
   if (found < 0 || !c->params_full || !c->ref_key)
     obs_err_set(problems, OBS_ENOMEM, "request: out of memory");
 out:

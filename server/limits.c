@@ -13,30 +13,19 @@
 
 #include "obscurad.h"
 
-/* Built-in cost of one unit of work (width x height x spp x samples) in milliseconds, used when
- * this machine has no stored runs of a technique and backend to estimate from. Measured with the
- * CLI on this project's reference machine (docs/server.md, "Mesh import and work limits") and
- * rounded up by about a quarter, so that the fallback errs towards refusing. A Vulkan render is
- * estimated at the CPU rate: a device is faster, and its stored runs take over after one job. */
-static const struct {
-  const char *technique;
-  double ms_per_work;
-} fallback_rates[] = {
-    {"rt_ao", 9e-5},
-    {"ssao", 3.5e-5},
-    {"hbao", 1e-5},
-};
-/* A technique missing from the table: the slowest rate above. */
+/* The built-in rate of a technique without stored runs here is its descriptor's ms_per_work
+ * (measured with the CLI on this project's reference machine, docs/server.md, "Mesh import and
+ * work limits", and rounded up by about a quarter, so that it errs towards refusing). A Vulkan
+ * render is estimated at the CPU rate: a device is faster, and its stored runs take over after one
+ * job. A technique that declares no rate gets this one, the slowest of those measured: */
 #define FALLBACK_UNKNOWN 9e-5
 /* Runs much smaller than the job are dominated by fixed costs (scene build, BVH, output) and
  * would overstate its rate: only runs of at least this fraction of the job's work count. */
 #define RATE_MIN_FRACTION 0.01
 #define RATE_MIN_RUNS 3
 
-static double fallback_rate(const char *technique) {
-  for (size_t i = 0; i < sizeof fallback_rates / sizeof fallback_rates[0]; i++)
-    if (!strcmp(fallback_rates[i].technique, technique)) return fallback_rates[i].ms_per_work;
-  return FALLBACK_UNKNOWN;
+static double fallback_rate(const obs_technique *t) {
+  return t->ms_per_work > 0 ? t->ms_per_work : FALLBACK_UNKNOWN;
 }
 
 void srv_submit_check_estimate(srv_app *app, const obs_scene *sc, obs_err *problems) {
@@ -46,7 +35,8 @@ void srv_submit_check_estimate(srv_app *app, const obs_scene *sc, obs_err *probl
   int rc = srv_pick_backend(sc->technique, sc->backend, app->vulkan_lane, &be, &e);
   obs_err_free(&e);
   if (rc) return; /* reported by the backend check */
-  double work = (double)sc->width * sc->height * sc->spp * srv_submit_samples(sc->params);
+  double work =
+      (double)sc->width * sc->height * sc->spp * obs_technique_cost(sc->technique, sc->params);
   if (!(work > 0)) return;
   double *rates = NULL, rate = NAN;
   size_t n = 0;
@@ -62,7 +52,7 @@ void srv_submit_check_estimate(srv_app *app, const obs_scene *sc, obs_err *probl
   if (e.count) srv_log("render-time estimate: %s (using the built-in rate)", obs_err_message(&e));
   obs_err_free(&e);
   if (!isfinite(rate)) {
-    rate = fallback_rate(sc->technique->name);
+    rate = fallback_rate(sc->technique);
     snprintf(from, sizeof from, "the built-in rate of %s (no stored runs to go by)",
              sc->technique->name);
   }

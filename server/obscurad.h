@@ -473,7 +473,6 @@ json_t *srv_submit_load_bundled(struct srv_app *app, struct obs_jpath *p, const 
 json_t *srv_submit_get_sets(struct obs_jpath *p, const json_t *req);
 void srv_submit_apply_sets(struct obs_jpath *p, const json_t *sets, json_t *doc);
 void srv_submit_check_limits(struct srv_app *app, const obs_scene *sc, obs_err *problems);
-double srv_submit_samples(const json_t *params);
 /* srv_pick_backend plus learned "auto": with stored timed runs of both backends for technique `t`
  * at similar work (within 2x), the one with the lower median total; `reason` says which rule
  * decided (at most n bytes). */

@@ -168,16 +168,6 @@ unsigned srv_submit_read_body(const char *body, size_t len, const char *shape, j
   return 0;
 }
 
-/* Samples per pixel sample, the factor of `max-work` beyond width x height x spp. */
-double srv_submit_samples(const json_t *params) {
-  long long a, b;
-  if (obs_json_as_int(json_object_get(params, "samples"), &a)) return (double)a;
-  if (obs_json_as_int(json_object_get(params, "directions"), &a) &&
-      obs_json_as_int(json_object_get(params, "steps"), &b))
-    return (double)a * (double)b;
-  return 1;
-}
-
 static double triangles_of(const obs_scene *sc, obs_err *err) {
   double n = 0;
   for (size_t i = 0; i < sc->nobjects; i++) {
@@ -212,7 +202,7 @@ void srv_submit_check_limits(srv_app *app, const obs_scene *sc, obs_err *problem
                 "%s: /image: width x height = %.0f pixels exceeds the server's limit max-pixels "
                 "= %lld",
                 d, pixels, (long long)c->max_pixels);
-  double samples = srv_submit_samples(sc->params);
+  double samples = obs_technique_cost(sc->technique, sc->params);
   double work = pixels * sc->spp * samples;
   if (work > c->max_work)
     obs_err_set(problems, OBS_EINVAL,
@@ -410,7 +400,7 @@ unsigned srv_submit_parse(srv_app *app, const char *body, size_t len, srv_submis
   obs_backend be;
   obs_err e = OBS_ERR_INIT;
   char reason[512];
-  double work = (double)sc.width * sc.height * sc.spp * srv_submit_samples(sc.params);
+  double work = (double)sc.width * sc.height * sc.spp * obs_technique_cost(sc.technique, sc.params);
   if (srv_pick_backend_learned(app, sc.technique, sc.backend, work, &be, reason, sizeof reason,
                                &e))
     obs_err_set(problems, OBS_EINVAL, "%s: /technique/backend: %s", docname, obs_err_message(&e));

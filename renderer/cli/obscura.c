@@ -14,7 +14,10 @@ static void usage(FILE *f) {
         "  obscura render SCENE.json [-o DIR] [--technique NAME] [--backend cpu|vulkan|auto]\n"
         "                 [--set /json/pointer=VALUE]... [--threads N] [--quiet]\n"
         "  obscura validate SCENE.json [--set /json/pointer=VALUE]...\n"
-        "  obscura techniques [--markdown]   (--markdown: the guaranteed-range table)\n",
+        "  obscura techniques [--markdown | --schema | --openapi | --docs NAME]\n"
+        "                 (texts generated from the registry: the guaranteed-range table, the\n"
+        "                 technique part of scene.schema.json, the OpenAPI block, the parameter\n"
+        "                 table of docs/techniques/NAME.md)\n",
         f);
   cli_client_usage(f);
   fputs("  obscura --version\n"
@@ -156,6 +159,24 @@ static int cmd_techniques(int argc, char **argv) {
     if (!md) return EXIT_FAILURE;
     fputs(md, stdout);
     free(md);
+    return 0;
+  }
+  if (argc >= 3 && (!strcmp(argv[2], "--schema") || !strcmp(argv[2], "--openapi") ||
+                    !strcmp(argv[2], "--docs"))) {
+    int docs = !strcmp(argv[2], "--docs");
+    if (argc != (docs ? 4 : 3)) {
+      usage(stderr);
+      return EXIT_BAD_INPUT;
+    }
+    char *txt = docs ? obs_registry_params_markdown(argv[3])
+                : argv[2][2] == 's' ? obs_registry_scene_schema()
+                                    : obs_registry_openapi();
+    if (!txt) {
+      fprintf(stderr, "obscura: %s\n", docs ? "no such technique" : "out of memory");
+      return docs ? EXIT_BAD_INPUT : EXIT_FAILURE;
+    }
+    fputs(txt, stdout);
+    free(txt);
     return 0;
   }
   if (argc > 2) {

@@ -1,5 +1,5 @@
 /* Internal helpers for strict JSON reading: JSON-pointer paths, typed getters that report problems
- * with the pointer and the offending value, and a validator for technique parameter schemas. */
+ * with the pointer and the offending value. */
 #ifndef OBS_JSON_UTIL_H
 #define OBS_JSON_UTIL_H
 
@@ -53,12 +53,6 @@ json_t *obs_json_get_object(obs_jpath *p, const json_t *obj, const char *key, in
                             int *absent);
 json_t *obs_json_get_array(obs_jpath *p, const json_t *obj, const char *key, int required,
                            int *absent);
-
-/* Validates `value` (a params object, may be NULL) against a parameter schema (the subset used by
- * the registry: type, enum, minimum, maximum, exclusiveMinimum, exclusiveMaximum, default,
- * additionalProperties false) and returns a new object with defaults filled in, or NULL after
- * reporting problems. */
-json_t *obs_json_params_resolve(obs_jpath *p, const json_t *schema, const json_t *value);
 
 /* ---- limits on untrusted JSON ----------------------------------------------------------------
  * jansson parses with its own depth limit (2048) but dumps, copies, compares and frees documents

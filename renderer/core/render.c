@@ -10,6 +10,7 @@
 #include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <time.h>
@@ -64,14 +65,22 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
   rc = obs_scene_extent(scene, &ex, err);
   if (rc) return rc;
   obs_range_check(&t->range[be], t->name, be, scene, &ex, &ctx);
+  void *bound = NULL;
+  rc = obs_params_bind_new(t, scene->params, &bound, err);
+  if (rc) return rc;
+  ctx.bound = bound;
   double t0 = obs_now_ms();
   /* What the technique's needs ask is built once here, before its run, which is handed it. */
   const obs_needs_builder *nb = obs_backend_needs_builder(be);
   void *built = NULL;
-  if (nb && (rc = nb->build(&ctx, t->needs, &built, err))) return rc;
+  if (nb && (rc = nb->build(&ctx, t->needs, &built, err))) {
+    free(bound);
+    return rc;
+  }
   ctx.build_ms = obs_now_ms() - t0;
   if ((rc = obs_driver_cancelled(&ctx, err)) == 0) rc = t->run[be](&ctx, &res->image, err);
   if (nb) nb->release(built);
+  free(bound);
   if (rc) return rc;
   res->technique = t;
   res->backend = be;

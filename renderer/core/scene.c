@@ -14,6 +14,7 @@
 #include "geometry.h"
 #include "json_util.h"
 #include "obscura/technique.h"
+#include "params.h"
 
 #define COORD_MAX 1e30
 
@@ -423,11 +424,9 @@ static void load_technique(obs_jpath *p, const json_t *doc, obs_scene *sc) {
     }
   }
   if (sc->technique) {
-    json_t *schema = json_loads(sc->technique->params_schema, 0, NULL);
     size_t mk = obs_jpath_push_key(p, "params");
-    sc->params = obs_json_params_resolve(p, schema, json_object_get(t, "params"));
+    sc->params = obs_params_resolve(p, sc->technique, json_object_get(t, "params"));
     obs_jpath_pop(p, mk);
-    json_decref(schema);
   }
   obs_jpath_pop(p, m);
 }

@@ -422,12 +422,6 @@ static int hbao_passes(obs_screen_cpu *r, const obs_gbuffer *g, const obs_hbao_p
     for (int i = 0; i < OBS_HBAO_PASS_COUNT; i++) stage_ms[i] = 0.0;
   if (g->width < 1 || g->height < 1)
     return obs_err_set(err, OBS_EINVAL, "hbao: G-buffer %dx%d is empty", g->width, g->height);
-  if (p->directions < 1 || p->directions > OBS_HBAO_MAX_DIRECTIONS || p->steps < 1 ||
-      p->steps > OBS_HBAO_MAX_STEPS || p->blur_radius < 0 ||
-      p->blur_radius > OBS_HBAO_MAX_BLUR_RADIUS)
-    return obs_err_set(err, OBS_EINVAL,
-                       "hbao: params directions=%d steps=%d blur_radius=%d out of range",
-                       p->directions, p->steps, p->blur_radius);
   size_t n = (size_t)g->width * (size_t)g->height;
   int lw, lh;
   obs_hbao_level_size(p, g->width, g->height, &lw, &lh);
@@ -533,9 +527,5 @@ static int passes(obs_screen_cpu *r, const obs_gbuffer *g, const void *params, f
 }
 
 int obs_hbao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
-  obs_hbao_params p;
-  if (obs_hbao_params_read(ctx->params, &p))
-    return obs_err_set(err, OBS_EINVAL, "%s: /technique/params: invalid hbao parameters",
-                       ctx->scene->name);
-  return obs_screen_cpu_run(ctx, passes, &p, out, err);
+  return obs_screen_cpu_run(ctx, passes, ctx->bound, out, err);
 }

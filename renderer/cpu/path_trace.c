@@ -15,34 +15,12 @@
 #include "camera.h"
 #include "obscura/render.h"
 #include "driver.h"
+#include "path_trace.h"
 #include "raytrace.h"
 #include "sampling.h"
 #include "techniques.h"
 
 #define INV_PI 0.31830988618379067154
-
-/* The technique's parameters, filled from the validated document by pt_read_params only. */
-typedef struct pt_params {
-  int samples;     /* paths per pixel sample */
-  int max_bounces; /* reflections a path may take; 0 = emitters seen directly only */
-  int rr_depth;    /* bounces before Russian roulette starts */
-  int bsdf_only;   /* light_sampling "bsdf": no next-event estimation (a check of MIS) */
-  obs_sampler_kind sampler;
-  uint32_t seed;
-  double exposure; /* EV; display only (final.png), not applied to radiance */
-} pt_params;
-
-static void pt_read_params(const json_t *js, pt_params *p) {
-  p->samples = (int)json_integer_value(json_object_get(js, "samples"));
-  p->max_bounces = (int)json_integer_value(json_object_get(js, "max_bounces"));
-  p->rr_depth = (int)json_integer_value(json_object_get(js, "rr_depth"));
-  const char *ls = json_string_value(json_object_get(js, "light_sampling"));
-  p->bsdf_only = ls && !strcmp(ls, "bsdf");
-  const char *s = json_string_value(json_object_get(js, "sampler"));
-  p->sampler = s && !strcmp(s, "random") ? OBS_SAMPLER_RANDOM : OBS_SAMPLER_SOBOL;
-  p->seed = (uint32_t)json_integer_value(json_object_get(js, "seed"));
-  p->exposure = json_number_value(json_object_get(js, "exposure"));
-}
 
 /* clang-format off */
 enum {
@@ -68,7 +46,8 @@ typedef struct pt_job {
   const obs_rt *rt;
   const obs_scene *sc;
   obs_camera_rig cam;
-  pt_params p;
+  obs_path_trace_params p;
+  obs_sampler_kind sampler;
   int spp, paths; /* pixel samples; paths = spp * samples */
   pt_emitter *em; /* quad-light triangles first (nquad of them), then emissive objects */
   size_t nem, nquad;
@@ -192,7 +171,7 @@ typedef struct pt_dims {
 static void pt_sample(pt_dims *dc, int s, uint32_t dim, double *u, double *v) {
   obs_sampler2d local, *smp = dim < PT_CACHED_DIMS ? &dc->s[dim] : &local;
   if (dim >= PT_CACHED_DIMS || !(dc->have >> dim & 1)) {
-    obs_sampler2d_init(smp, dc->jb->p.sampler, (uint32_t)dc->x, (uint32_t)dc->y, 0, dim,
+    obs_sampler2d_init(smp, dc->jb->sampler, (uint32_t)dc->x, (uint32_t)dc->y, 0, dim,
                        dc->jb->p.seed);
     if (dim < PT_CACHED_DIMS) dc->have |= (uint64_t)1 << dim;
   }
@@ -292,7 +271,7 @@ typedef struct pt_first {
 static uint64_t trace_path(const pt_job *jb, pt_dims *dc, int s, const double org[3],
                            const double dir[3], double L[3], pt_first *first) {
   const obs_rt *rt = jb->rt;
-  const pt_params *p = &jb->p;
+  const obs_path_trace_params *p = &jb->p;
   double beta[3] = {1, 1, 1}, o[3], d[3] = {dir[0], dir[1], dir[2]}, pdf_bsdf = 0;
   for (int k = 0; k < 3; k++) o[k] = org[k] - rt->geo.origin[k], L[k] = 0;
   obs_hit hit;
@@ -406,7 +385,8 @@ int obs_path_trace_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
     return obs_err_set(err, OBS_EINTERNAL, "%s: path_trace: no BVH was built for it", sc->name);
   pt_job jb;
   memset(&jb, 0, sizeof jb);
-  pt_read_params(ctx->params, &jb.p);
+  jb.p = *(const obs_path_trace_params *)ctx->bound;
+  jb.sampler = jb.p.random ? OBS_SAMPLER_RANDOM : OBS_SAMPLER_SOBOL;
   jb.sc = sc;
   jb.rt = ctx->rt;
   jb.spp = sc->spp;

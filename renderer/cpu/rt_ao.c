@@ -13,20 +13,11 @@
 #include "driver.h"
 #include "obscura/render.h"
 #include "raytrace.h"
+#include "rt_ao.h"
 #include "sampling.h"
 #include "techniques.h"
 
-typedef enum { FALLOFF_BINARY, FALLOFF_SQRT, FALLOFF_EXP } falloff_kind;
-
-typedef struct rt_ao_params {
-  uint32_t samples;
-  double max_distance; /* INFINITY when null */
-  falloff_kind falloff;
-  double tau;
-  int uniform;
-  obs_sampler_kind sampler;
-  uint32_t seed;
-} rt_ao_params;
+typedef obs_rt_ao_params rt_ao_params;
 
 enum { CH_AO, CH_STDERR, CH_BX, CH_BY, CH_BZ, CH_DEPTH, CH_NX, CH_NY, CH_NZ, CH_ALPHA, CH_COUNT };
 static const char *const channel_names[CH_COUNT] = {
@@ -40,27 +31,12 @@ typedef struct job {
   int spp;
 } job;
 
-static void read_params(const json_t *js, rt_ao_params *p) {
-  p->samples = (uint32_t)json_integer_value(json_object_get(js, "samples"));
-  json_t *md = json_object_get(js, "max_distance");
-  p->max_distance = json_is_number(md) ? json_number_value(md) : INFINITY;
-  const char *f = json_string_value(json_object_get(js, "falloff"));
-  p->falloff = !strcmp(f, "sqrt") ? FALLOFF_SQRT : !strcmp(f, "exp") ? FALLOFF_EXP : FALLOFF_BINARY;
-  p->tau = json_number_value(json_object_get(js, "tau"));
-  p->uniform = !strcmp(json_string_value(json_object_get(js, "weighting")), "uniform");
-  const char *s = json_string_value(json_object_get(js, "sampler"));
-  p->sampler = !strcmp(s, "halton")   ? OBS_SAMPLER_HALTON
-               : !strcmp(s, "random") ? OBS_SAMPLER_RANDOM
-                                      : OBS_SAMPLER_SOBOL;
-  p->seed = (uint32_t)json_integer_value(json_object_get(js, "seed"));
-}
-
 /* rho(d) for a hit at distance d (d = INFINITY: nothing within reach). */
 static double rho(const rt_ao_params *p, double d) {
   if (!(d < p->max_distance)) return 1.0;
   switch (p->falloff) {
-    case FALLOFF_BINARY: return 0.0;
-    case FALLOFF_SQRT: return sqrt(d / p->max_distance);
+    case OBS_RT_AO_FALLOFF_BINARY: return 0.0;
+    case OBS_RT_AO_FALLOFF_SQRT: return sqrt(d / p->max_distance);
     default: return isinf(d) ? 1.0 : -expm1(-p->tau * d);
   }
 }
@@ -124,7 +100,7 @@ static uint64_t shade(const job *jb, const obs_hit *hit, uint32_t x, uint32_t y,
        * into the surface itself, so they count as occluded at distance 0 rather than leak. */
       if (w[0] * hit->ng[0] + w[1] * hit->ng[1] + w[2] * hit->ng[2] <= 0.0f) {
         r = rho(p, 0.0);
-      } else if (p->falloff == FALLOFF_BINARY) {
+      } else if (p->falloff == OBS_RT_AO_FALLOFF_BINARY) {
         r = obs_rt_occluded(jb->rt, &ctx, org, w, tfar) ? 0.0 : 1.0;
         rays++;
       } else {
@@ -196,7 +172,7 @@ int obs_rt_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
     return obs_err_set(err, OBS_EINTERNAL, "%s: rt_ao: no BVH was built for it", sc->name);
   job jb;
   memset(&jb, 0, sizeof jb);
-  read_params(ctx->params, &jb.p);
+  jb.p = *(const rt_ao_params *)ctx->bound;
   jb.rt = ctx->rt;
   jb.spp = sc->spp;
   obs_camera_setup(&sc->camera, sc->width, sc->height, &jb.cam);

@@ -374,9 +374,5 @@ static int passes(obs_screen_cpu *r, const obs_gbuffer *g, const void *params, f
 }
 
 int obs_ssao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
-  obs_ssao_params p;
-  if (obs_ssao_params_read(ctx->params, &p))
-    return obs_err_set(err, OBS_EINVAL, "%s: /technique/params: invalid ssao parameters",
-                       ctx->scene->name);
-  return obs_screen_cpu_run(ctx, passes, &p, out, err);
+  return obs_screen_cpu_run(ctx, passes, ctx->bound, out, err);
 }

@@ -1,9 +1,10 @@
-/* Descriptor of hbao (Bavoil & Sainz, horizon-based ambient occlusion) and the parameter reading
- * and direction table shared by its CPU and Vulkan backends. */
+/* Descriptor of hbao (Bavoil & Sainz, horizon-based ambient occlusion) with its parameter table,
+ * and the direction table shared by its CPU and Vulkan backends. */
 #include "hbao.h"
 
 #include <jansson.h>
 #include <math.h>
+#include <stddef.h>
 #include <string.h>
 
 #include "sampling.h"
@@ -16,94 +17,43 @@ static const char *const hbao_outputs[] = {"ao",       "ao_raw",   "depth.Z", "n
 const char *const obs_hbao_pass_names[OBS_HBAO_PASS_COUNT] = {"downsample", "ao", "upsample",
                                                               "blur"};
 
-/* Keep in step with $defs/hbao_params in schema/scene.schema.json. */
-const char obs_hbao_params_schema[] =
-    "{\"type\":\"object\",\"additionalProperties\":false,\"properties\":{"
-    "\"radius\":{\"type\":\"number\",\"exclusiveMinimum\":0,\"maximum\":1e30,\"default\":1,"
-    "\"description\":\"occlusion radius R in scene units (view space)\"},"
-    "\"directions\":{\"type\":\"integer\",\"minimum\":1,\"maximum\":32,\"default\":8,"
-    "\"description\":\"horizon directions per pixel, evenly spaced, randomly rotated per pixel\"},"
-    "\"steps\":{\"type\":\"integer\",\"minimum\":1,\"maximum\":32,\"default\":8,"
-    "\"description\":\"texel-snapped samples marched per direction\"},"
-    "\"angle_bias\":{\"type\":\"number\",\"minimum\":0,\"exclusiveMaximum\":1.5707963267948966,"
-    "\"default\":0.5235987755982988,\"description\":\"radians added to the tangent angle; hides "
-    "tessellation and depth-quantisation artefacts\"},"
-    "\"scale\":{\"type\":\"number\",\"minimum\":0,\"maximum\":1e6,\"default\":1,"
-    "\"description\":\"AO = 1 - scale * (sum over directions) / directions\"},"
-    "\"blur_radius\":{\"type\":\"integer\",\"minimum\":0,\"maximum\":16,\"default\":4,"
-    "\"description\":\"separable cross-bilateral blur radius in pixels; 0 = no blur\"},"
-    "\"blur_sharpness\":{\"type\":\"number\",\"minimum\":0,\"maximum\":1e6,\"default\":16,"
-    "\"description\":\"blur depth weight exp(-sharpness (dz/z)^2); 0 = plain Gaussian\"},"
-    "\"half_res\":{\"type\":\"boolean\",\"default\":false,"
-    "\"description\":\"AO at half resolution, bilateral upsampling before the blur\"},"
-    "\"seed\":{\"type\":\"integer\",\"minimum\":0,\"maximum\":4294967295,\"default\":1,"
-    "\"description\":\"seed of the 4x4 per-pixel rotation and jitter table\"}}}";
+#define P(member) offsetof(obs_hbao_params, member)
+static const obs_param hbao_params[] = {
+    {.name = "radius", .type = OBS_PARAM_FLOAT, .flags = OBS_PARAM_MIN_EXCLUSIVE, .min = 0,
+     .max = 1e30, .def = 1, .description = "occlusion radius R in scene units (view space)",
+     .offset = P(radius)},
+    {.name = "directions", .type = OBS_PARAM_INT, .min = 1, .max = OBS_HBAO_MAX_DIRECTIONS,
+     .def = 8,
+     .description = "horizon directions per pixel, evenly spaced, randomly rotated per pixel",
+     .offset = P(directions)},
+    {.name = "steps", .type = OBS_PARAM_INT, .min = 1, .max = OBS_HBAO_MAX_STEPS, .def = 8,
+     .description = "texel-snapped samples marched per direction", .offset = P(steps)},
+    {.name = "angle_bias", .type = OBS_PARAM_FLOAT, .flags = OBS_PARAM_MAX_EXCLUSIVE, .min = 0,
+     .max = 1.5707963267948966, .def = 0.5235987755982988,
+     .description = "radians added to the tangent angle; hides tessellation and "
+                    "depth-quantisation artefacts",
+     .offset = P(angle_bias)},
+    {.name = "scale", .type = OBS_PARAM_FLOAT, .min = 0, .max = 1e6, .def = 1,
+     .description = "AO = 1 - scale * (sum over directions) / directions", .offset = P(scale)},
+    {.name = "blur_radius", .type = OBS_PARAM_INT, .min = 0, .max = OBS_HBAO_MAX_BLUR_RADIUS,
+     .def = 4, .description = "separable cross-bilateral blur radius in pixels; 0 = no blur",
+     .offset = P(blur_radius)},
+    {.name = "blur_sharpness", .type = OBS_PARAM_FLOAT, .min = 0, .max = 1e6, .def = 16,
+     .description = "blur depth weight exp(-sharpness (dz/z)^2); 0 = plain Gaussian",
+     .offset = P(blur_sharpness)},
+    {.name = "half_res", .type = OBS_PARAM_BOOL, .def = 0,
+     .description = "AO at half resolution, bilateral upsampling before the blur",
+     .offset = P(half_res)},
+    {.name = "seed", .type = OBS_PARAM_UINT, .min = 0, .max = 4294967295.0, .def = 1,
+     .description = "seed of the 4x4 per-pixel rotation and jitter table", .offset = P(seed)},
+};
+#undef P
 
-void obs_hbao_params_default(obs_hbao_params *p) {
-  p->radius = 1.0f;
-  p->directions = 8;
-  p->steps = 8;
-  p->angle_bias = 0.5235987755982988f;
-  p->scale = 1.0f;
-  p->blur_radius = 4;
-  p->blur_sharpness = 16.0f;
-  p->half_res = 0;
-  p->seed = 1;
-}
-
-static int read_num(const json_t *o, const char *key, double lo, int lo_excl, double hi,
-                    int hi_excl, double *out) {
-  json_t *v = json_object_get(o, key);
-  if (!v) return 0;
-  if (!json_is_number(v)) return OBS_EINVAL;
-  double d = json_number_value(v);
-  if (!(lo_excl ? d > lo : d >= lo) || !(hi_excl ? d < hi : d <= hi)) return OBS_EINVAL;
-  *out = d;
-  return 0;
-}
-
-static int read_int(const json_t *o, const char *key, double lo, double hi, double *out) {
-  json_t *v = json_object_get(o, key);
-  if (!v) return 0;
-  double d;
-  if (json_is_integer(v)) d = (double)json_integer_value(v);
-  else if (json_is_real(v) && floor(json_real_value(v)) == json_real_value(v)) d = json_real_value(v);
-  else return OBS_EINVAL;
-  if (!(d >= lo && d <= hi)) return OBS_EINVAL;
-  *out = d;
-  return 0;
-}
-
-int obs_hbao_params_read(const json_t *js, obs_hbao_params *out) {
-  obs_hbao_params p;
-  obs_hbao_params_default(&p);
-  if (js && !json_is_object(js)) return OBS_EINVAL;
-  double radius = p.radius, dirs = p.directions, steps = p.steps, bias = p.angle_bias;
-  double scale = p.scale, blur = p.blur_radius, sharp = p.blur_sharpness, seed = p.seed;
-  if (read_num(js, "radius", 0, 1, 1e30, 0, &radius) ||
-      read_int(js, "directions", 1, OBS_HBAO_MAX_DIRECTIONS, &dirs) ||
-      read_int(js, "steps", 1, OBS_HBAO_MAX_STEPS, &steps) ||
-      read_num(js, "angle_bias", 0, 0, 1.5707963267948966, 1, &bias) ||
-      read_num(js, "scale", 0, 0, 1e6, 0, &scale) ||
-      read_int(js, "blur_radius", 0, OBS_HBAO_MAX_BLUR_RADIUS, &blur) ||
-      read_num(js, "blur_sharpness", 0, 0, 1e6, 0, &sharp) ||
-      read_int(js, "seed", 0, 4294967295.0, &seed))
-    return OBS_EINVAL;
-  json_t *hr = json_object_get(js, "half_res");
-  if (hr && !json_is_boolean(hr)) return OBS_EINVAL;
-  p.radius = (float)radius; /* a radius below FLT_TRUE_MIN becomes 0: AO 1 everywhere */
-  p.directions = (int)dirs;
-  p.steps = (int)steps;
-  p.angle_bias = (float)bias;
-  /* pi/2 rounds up in float; keep the bias strictly below it as the schema promises. */
-  if (p.angle_bias >= 1.5707963267948966f) p.angle_bias = nextafterf(1.5707963267948966f, 0.0f);
-  p.scale = (float)scale;
-  p.blur_radius = (int)blur;
-  p.blur_sharpness = (float)sharp;
-  if (hr) p.half_res = json_is_true(hr);
-  p.seed = (uint32_t)seed;
-  *out = p;
-  return 0;
+/* Depth-buffer taps per pixel: every step of every direction (half_res not discounted, so the
+ * figure stays comparable with stored runs). */
+static double hbao_cost(const void *bound) {
+  const obs_hbao_params *p = bound;
+  return (double)p->directions * (double)p->steps;
 }
 
 void obs_hbao_directions(const obs_hbao_params *p, float *table) {
@@ -137,8 +87,9 @@ static int hbao_reference(const obs_scene *scene, const json_t *params, obs_refe
   (void)scene;
   (void)facts;
   obs_hbao_params p;
-  if (obs_hbao_params_read(params, &p))
-    return obs_err_set(err, OBS_EINVAL, "hbao: parameters are not valid");
+  int rc = obs_params_bind(&obs_technique_hbao, params, &p, err);
+  if (rc) return rc;
+  /* The radius as given, before its rounding to float. */
   json_t *r = json_object_get(params, "radius");
   double radius = json_is_number(r) ? json_number_value(r) : (double)p.radius;
   json_object_set_new(out, "weighting", json_string("uniform"));
@@ -166,7 +117,12 @@ const obs_technique obs_technique_hbao = {
     .name = "hbao",
     .description = "Horizon-based ambient occlusion (Bavoil & Sainz, ShaderX7 6.2): screen-space "
                    "horizon search over a G-buffer, cross-bilateral blur",
-    .params_schema = obs_hbao_params_schema,
+    .params = hbao_params,
+    .params_size = sizeof hbao_params / sizeof hbao_params[0],
+    .bound_size = sizeof(obs_hbao_params),
+    .cost = hbao_cost,
+    .cost_rule = "directions x steps",
+    .ms_per_work = 1e-5,
     .needs = OBS_NEED_GBUFFER,
     .outputs = hbao_outputs,
     .check = NULL,

@@ -1,4 +1,4 @@
-/* hbao: parameters and the definitions both backends must share bit for bit (direction table,
+/* hbao: the parameter struct and the definitions both backends must share bit for bit (direction table,
  * pass layout, constants), plus the CPU and Vulkan entry points (see docs/techniques/hbao.md). */
 #ifndef OBS_HBAO_H
 #define OBS_HBAO_H
@@ -9,6 +9,8 @@
 #include "obscura/error.h"
 #include "obscura/technique.h"
 
+/* Bound from the descriptor's parameter table (obs_params_bind with obs_technique_hbao), which
+ * holds the ranges below. */
 typedef struct obs_hbao_params {
   float radius;         /* R in scene (view-space) units; 0 when the JSON value underflows float */
   int directions;       /* N_d, 1..32 */
@@ -51,13 +53,6 @@ static inline int obs_hbao_pass_runs(const obs_hbao_params *p, int i) {
   return i == OBS_HBAO_PASS_AO || (i == OBS_HBAO_PASS_BLUR && p->blur_radius > 0) ||
          ((i == OBS_HBAO_PASS_DOWNSAMPLE || i == OBS_HBAO_PASS_UPSAMPLE) && p->half_res);
 }
-
-extern const char obs_hbao_params_schema[];
-
-void obs_hbao_params_default(obs_hbao_params *out);
-/* Reads a params object (missing keys keep their defaults). Returns OBS_EINVAL on a wrong type or
- * a value out of range. */
-int obs_hbao_params_read(const json_t *params, obs_hbao_params *out);
 
 /* The direction table, an image `directions` wide and OBS_HBAO_NOISE_CELLS high with 4 floats per
  * texel: row c = (y % 4) * 4 + x % 4 of the AO texel, column i = direction, texel = (dx, dy,

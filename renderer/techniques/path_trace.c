@@ -1,7 +1,9 @@
 /* Descriptor of path_trace: diffuse global illumination by path tracing, the RGB reference. */
 #include <jansson.h>
+#include <stddef.h>
 #include <string.h>
 
+#include "path_trace.h"
 #include "techniques.h"
 
 /* clang-format off */
@@ -11,26 +13,41 @@ static const char *const path_trace_outputs[] = {
     "depth.Z", "alpha", "final.png", NULL};
 /* clang-format on */
 
-/* Keep in step with $defs/path_trace_params in schema/scene.schema.json (a test compares them). */
-static const char path_trace_params[] =
-    "{\"type\":\"object\",\"additionalProperties\":false,\"properties\":{"
-    "\"samples\":{\"type\":\"integer\",\"minimum\":1,\"maximum\":65536,\"default\":16,"
-    "\"description\":\"paths per pixel sample (image.spp pixel samples, each through its "
-    "point of the pixel); at most 65536 paths per pixel in all\"},"
-    "\"max_bounces\":{\"type\":\"integer\",\"minimum\":0,\"maximum\":1024,\"default\":64,"
-    "\"description\":\"diffuse reflections a path may take; 0 = emitters seen directly only\"},"
-    "\"rr_depth\":{\"type\":\"integer\",\"minimum\":0,\"maximum\":1024,\"default\":3,"
-    "\"description\":\"bounces before Russian roulette may end a path (survival probability: "
-    "the largest channel of the path's throughput)\"},"
-    "\"light_sampling\":{\"enum\":[\"mis\",\"bsdf\"],\"default\":\"mis\","
-    "\"description\":\"mis: next-event estimation and BSDF sampling combined by the power "
-    "heuristic; bsdf: BSDF sampling only (slower to converge; a check of mis)\"},"
-    "\"sampler\":{\"enum\":[\"sobol\",\"random\"],\"default\":\"sobol\","
-    "\"description\":\"sample sequence: one scrambled 2D sequence per pixel and dimension pair\"},"
-    "\"seed\":{\"type\":\"integer\",\"minimum\":0,\"maximum\":4294967295,\"default\":1,"
-    "\"description\":\"random seed; images depend only on (pixel, sample, seed)\"},"
-    "\"exposure\":{\"type\":\"number\",\"minimum\":-30,\"maximum\":30,\"default\":0,"
-    "\"description\":\"exposure in EV applied to final.png only (radiance is unscaled)\"}}}";
+static const char *const light_samplings[] = {"mis", "bsdf", NULL};
+static const char *const samplers[] = {"sobol", "random", NULL};
+
+#define P(member) offsetof(obs_path_trace_params, member)
+static const obs_param path_trace_params[] = {
+    {.name = "samples", .type = OBS_PARAM_INT, .min = 1, .max = 65536, .def = 16,
+     .description = "paths per pixel sample (image.spp pixel samples, each through its point of "
+                    "the pixel); at most 65536 paths per pixel in all",
+     .offset = P(samples)},
+    {.name = "max_bounces", .type = OBS_PARAM_INT, .min = 0, .max = 1024, .def = 64,
+     .description = "diffuse reflections a path may take; 0 = emitters seen directly only",
+     .offset = P(max_bounces)},
+    {.name = "rr_depth", .type = OBS_PARAM_INT, .min = 0, .max = 1024, .def = 3,
+     .description = "bounces before Russian roulette may end a path (survival probability: the "
+                    "largest channel of the path's throughput)",
+     .offset = P(rr_depth)},
+    {.name = "light_sampling", .type = OBS_PARAM_ENUM, .choices = light_samplings, .def = 0,
+     .description = "mis: next-event estimation and BSDF sampling combined by the power "
+                    "heuristic; bsdf: BSDF sampling only (slower to converge; a check of mis)",
+     .offset = P(bsdf_only)},
+    {.name = "sampler", .type = OBS_PARAM_ENUM, .choices = samplers, .def = 0,
+     .description = "sample sequence: one scrambled 2D sequence per pixel and dimension pair",
+     .offset = P(random)},
+    {.name = "seed", .type = OBS_PARAM_UINT, .min = 0, .max = 4294967295.0, .def = 1,
+     .description = "random seed; images depend only on (pixel, sample, seed)", .offset = P(seed)},
+    {.name = "exposure", .type = OBS_PARAM_DOUBLE, .min = -30, .max = 30, .def = 0,
+     .description = "exposure in EV applied to final.png only (radiance is unscaled)",
+     .offset = P(exposure)},
+};
+#undef P
+
+/* The paths of one pixel sample (each a few rays; docs/server.md's rate is per path). */
+static double path_trace_cost(const void *bound) {
+  return (double)((const obs_path_trace_params *)bound)->samples;
+}
 
 static int positive(const obs_vec3 *v) { return v->x + v->y + v->z > 0; }
 
@@ -64,7 +81,13 @@ const obs_technique obs_technique_path_trace = {
     .name = "path_trace",
     .description = "Diffuse global illumination by path tracing (Embree) with next-event "
                    "estimation and MIS; the RGB reference",
-    .params_schema = path_trace_params,
+    .params = path_trace_params,
+    .params_size = sizeof path_trace_params / sizeof path_trace_params[0],
+    .bound_size = sizeof(obs_path_trace_params),
+    .cost = path_trace_cost,
+    .cost_rule = "samples",
+    /* Measured on the Cornell box (docs/performance.md, bench_path_trace): 2.5 us per path. */
+    .ms_per_work = 2.5e-3,
     .needs = OBS_NEED_BVH | OBS_NEED_BVH_FRAME_GEOMETRY | OBS_NEED_MATERIALS,
     .outputs = path_trace_outputs,
     .check = path_trace_check,

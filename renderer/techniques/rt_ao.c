@@ -1,33 +1,57 @@
 /* Descriptor of rt_ao: Monte-Carlo ray-traced ambient occlusion / obscurance, the reference. */
 #include <jansson.h>
+#include <math.h>
+#include <stddef.h>
 #include <string.h>
 
+#include "rt_ao.h"
+#include "sampling.h"
 #include "techniques.h"
 
 static const char *const rt_ao_outputs[] = {
     "ao",       "ao_stderr", "bent_normal.X", "bent_normal.Y", "bent_normal.Z", "depth.Z",
     "normal.X", "normal.Y",  "normal.Z",      "alpha",         "ao.png",        NULL};
 
-/* Keep in step with $defs/rt_ao_params in schema/scene.schema.json (a test compares them). */
-static const char rt_ao_params[] =
-    "{\"type\":\"object\",\"additionalProperties\":false,\"properties\":{"
-    "\"samples\":{\"type\":\"integer\",\"minimum\":1,\"maximum\":65536,\"default\":64,"
-    "\"description\":\"occlusion rays per pixel sample\"},"
-    "\"max_distance\":{\"type\":[\"number\",\"null\"],\"exclusiveMinimum\":0,\"maximum\":1e30,"
-    "\"default\":null,\"description\":\"occlusion distance d_max in scene units; null = "
-    "unbounded (binary and exp falloff only)\"},"
-    "\"falloff\":{\"enum\":[\"binary\",\"sqrt\",\"exp\"],\"default\":\"binary\","
-    "\"description\":\"obscurance function rho(d): binary = classic AO, sqrt = sqrt(d/d_max) "
-    "(Mendez-Feliu et al.), exp = 1-exp(-tau d) (Iones et al.)\"},"
-    "\"tau\":{\"type\":\"number\",\"exclusiveMinimum\":0,\"maximum\":1e30,\"default\":1,"
-    "\"description\":\"decay rate of the exp falloff, per scene unit\"},"
-    "\"weighting\":{\"enum\":[\"cosine\",\"uniform\"],\"default\":\"cosine\","
-    "\"description\":\"cosine: W = 1/pi int rho cos; uniform: W = 1/(2 pi) int rho\"},"
-    "\"sampler\":{\"enum\":[\"sobol\",\"halton\",\"random\"],\"default\":\"sobol\","
-    "\"description\":\"sample sequence, scrambled per pixel\"},"
-    "\"seed\":{\"type\":\"integer\",\"minimum\":0,\"maximum\":4294967295,\"default\":1,"
-    "\"description\":\"random seed; images depend only on (pixel, sample, seed)\"}}}";
+static const char *const falloffs[] = {"binary", "sqrt", "exp", NULL};
+static const char *const weightings[] = {"cosine", "uniform", NULL};
+/* In the order of obs_sampler_kind. */
+static const char *const samplers[] = {"sobol", "halton", "random", NULL};
 
+#define P(member) offsetof(obs_rt_ao_params, member)
+static const obs_param rt_ao_params[] = {
+    {.name = "samples", .type = OBS_PARAM_UINT, .min = 1, .max = 65536, .def = 64,
+     .description = "occlusion rays per pixel sample", .offset = P(samples)},
+    {.name = "max_distance", .type = OBS_PARAM_DOUBLE,
+     .flags = OBS_PARAM_MIN_EXCLUSIVE | OBS_PARAM_NULLABLE | OBS_PARAM_DEFAULT_NULL, .min = 0,
+     .max = 1e30, .null_value = INFINITY,
+     .description = "occlusion distance d_max in scene units; null = unbounded (binary and exp "
+                    "falloff only)",
+     .offset = P(max_distance)},
+    {.name = "falloff", .type = OBS_PARAM_ENUM, .choices = falloffs,
+     .def = OBS_RT_AO_FALLOFF_BINARY,
+     .description = "obscurance function rho(d): binary = classic AO, sqrt = sqrt(d/d_max) "
+                    "(Mendez-Feliu et al.), exp = 1-exp(-tau d) (Iones et al.)",
+     .offset = P(falloff)},
+    {.name = "tau", .type = OBS_PARAM_DOUBLE, .flags = OBS_PARAM_MIN_EXCLUSIVE, .min = 0,
+     .max = 1e30, .def = 1, .description = "decay rate of the exp falloff, per scene unit",
+     .offset = P(tau)},
+    {.name = "weighting", .type = OBS_PARAM_ENUM, .choices = weightings, .def = 0,
+     .description = "cosine: W = 1/pi int rho cos; uniform: W = 1/(2 pi) int rho",
+     .offset = P(uniform)},
+    {.name = "sampler", .type = OBS_PARAM_ENUM, .choices = samplers, .def = OBS_SAMPLER_SOBOL,
+     .description = "sample sequence, scrambled per pixel", .offset = P(sampler)},
+    {.name = "seed", .type = OBS_PARAM_UINT, .min = 0, .max = 4294967295.0, .def = 1,
+     .description = "random seed; images depend only on (pixel, sample, seed)", .offset = P(seed)},
+};
+#undef P
+
+/* The occlusion rays of one pixel sample; the primary ray is left out, as the server's built-in
+ * rates were measured that way (docs/server.md). */
+static double rt_ao_cost(const void *bound) {
+  return (double)((const obs_rt_ao_params *)bound)->samples;
+}
+
+/* The sqrt falloff needs a finite max_distance; params_rules states the same for the schema. */
 static void rt_ao_check(const obs_scene *scene, const json_t *params, const char *doc,
                         obs_err *err) {
   (void)scene;
@@ -69,7 +93,15 @@ const obs_technique obs_technique_rt_ao = {
     .name = "rt_ao",
     .description = "Monte-Carlo ray-traced ambient occlusion / obscurance (Embree); the reference "
                    "every other technique is measured against",
-    .params_schema = rt_ao_params,
+    .params = rt_ao_params,
+    .params_size = sizeof rt_ao_params / sizeof rt_ao_params[0],
+    .bound_size = sizeof(obs_rt_ao_params),
+    .params_rules = "\"allOf\": [{\"if\": {\"properties\": {\"falloff\": {\"const\": \"sqrt\"}}, "
+                    "\"required\": [\"falloff\"]}, \"then\": {\"required\": [\"max_distance\"], "
+                    "\"properties\": {\"max_distance\": {\"type\": \"number\"}}}}]",
+    .cost = rt_ao_cost,
+    .cost_rule = "samples",
+    .ms_per_work = 9e-5,
     .needs = OBS_NEED_BVH | OBS_NEED_BVH_FRAME_GEOMETRY,
     .outputs = rt_ao_outputs,
     .check = rt_ao_check,

@@ -3,6 +3,7 @@
 
 #include <jansson.h>
 #include <math.h>
+#include <stddef.h>
 #include <string.h>
 
 #include "gbuffer.h"
@@ -14,45 +15,36 @@ static const char *const ssao_outputs[] = {"ao",       "ao_raw",   "depth.Z", "n
                                            "normal.Y", "normal.Z", "alpha",   "ao.png",
                                            NULL};
 
-/* Keep in step with $defs/ssao_params in schema/scene.schema.json. */
-static const char ssao_params[] =
-    "{\"type\":\"object\",\"additionalProperties\":false,\"properties\":{"
-    "\"samples\":{\"type\":\"integer\",\"enum\":[8,16,24],\"default\":16,"
-    "\"description\":\"offset points per pixel: samples/8 rounds of the 8 cube corners\"},"
-    "\"radius\":{\"type\":\"number\",\"exclusiveMinimum\":0,\"maximum\":1000000,\"default\":0.01,"
-    "\"description\":\"base offset length in texture coordinates (fraction of the image width "
-    "and height); sample k (from 1) reaches radius*(1+2.4/samples)^k\"},"
-    "\"normal_oriented\":{\"type\":\"boolean\",\"default\":false,"
-    "\"description\":\"flip offsets into the hemisphere about the G-buffer normal instead of "
-    "using the whole sphere\"},"
-    "\"blur\":{\"type\":\"boolean\",\"default\":true,"
-    "\"description\":\"4x4 depth-aware box blur after the AO pass\"},"
-    "\"blur_depth_threshold\":{\"type\":\"number\",\"minimum\":0,\"maximum\":1000000,"
-    "\"default\":0.05,\"description\":\"the blur mixes pixels whose depth differs from the "
-    "centre's by at most this fraction of the centre's depth\"},"
-    "\"seed\":{\"type\":\"integer\",\"minimum\":0,\"maximum\":4294967295,\"default\":1,"
-    "\"description\":\"seed of the 4x4 random rotation texture\"}}}";
+static const int ssao_sample_counts[] = {8, 16, 24};
 
-int obs_ssao_params_read(const json_t *js, obs_ssao_params *p) {
-  memset(p, 0, sizeof *p);
-  json_t *s = json_object_get(js, "samples"), *r = json_object_get(js, "radius");
-  json_t *no = json_object_get(js, "normal_oriented"), *b = json_object_get(js, "blur");
-  json_t *t = json_object_get(js, "blur_depth_threshold"), *sd = json_object_get(js, "seed");
-  if (!json_is_integer(s) || !json_is_number(r) || !json_is_boolean(no) || !json_is_boolean(b) ||
-      !json_is_number(t) || !json_is_integer(sd))
-    return OBS_EINVAL;
-  json_int_t n = json_integer_value(s), seed = json_integer_value(sd);
-  double rad = json_number_value(r), thr = json_number_value(t);
-  if ((n != 8 && n != 16 && n != 24) || !(rad > 0 && rad <= 1e6) || !(thr >= 0 && thr <= 1e6) ||
-      seed < 0 || seed > 4294967295LL)
-    return OBS_EINVAL;
-  p->samples = (int)n;
-  p->radius = (float)rad;
-  p->normal_oriented = json_is_true(no);
-  p->blur = json_is_true(b);
-  p->blur_depth_threshold = (float)thr;
-  p->seed = (uint32_t)seed;
-  return 0;
+#define P(member) offsetof(obs_ssao_params, member)
+static const obs_param ssao_params[] = {
+    {.name = "samples", .type = OBS_PARAM_INT, .values = ssao_sample_counts, .nvalues = 3,
+     .def = 16, .description = "offset points per pixel: samples/8 rounds of the 8 cube corners",
+     .offset = P(samples)},
+    {.name = "radius", .type = OBS_PARAM_FLOAT, .flags = OBS_PARAM_MIN_EXCLUSIVE, .min = 0,
+     .max = 1e6, .def = 0.01,
+     .description = "base offset length in texture coordinates (fraction of the image width and "
+                    "height); sample k (from 1) reaches radius*(1+2.4/samples)^k",
+     .offset = P(radius)},
+    {.name = "normal_oriented", .type = OBS_PARAM_BOOL, .def = 0,
+     .description = "flip offsets into the hemisphere about the G-buffer normal instead of using "
+                    "the whole sphere",
+     .offset = P(normal_oriented)},
+    {.name = "blur", .type = OBS_PARAM_BOOL, .def = 1,
+     .description = "4x4 depth-aware box blur after the AO pass", .offset = P(blur)},
+    {.name = "blur_depth_threshold", .type = OBS_PARAM_FLOAT, .min = 0, .max = 1e6, .def = 0.05,
+     .description = "the blur mixes pixels whose depth differs from the centre's by at most this "
+                    "fraction of the centre's depth",
+     .offset = P(blur_depth_threshold)},
+    {.name = "seed", .type = OBS_PARAM_UINT, .min = 0, .max = 4294967295.0, .def = 1,
+     .description = "seed of the 4x4 random rotation texture", .offset = P(seed)},
+};
+#undef P
+
+/* Depth-buffer taps per pixel. */
+static double ssao_cost(const void *bound) {
+  return (double)((const obs_ssao_params *)bound)->samples;
 }
 
 void obs_ssao_tables_make(const obs_ssao_params *p, obs_ssao_tables *t) {
@@ -102,13 +94,13 @@ void obs_ssao_tables_make(const obs_ssao_params *p, obs_ssao_tables *t) {
 static int ssao_reference(const obs_scene *scene, const json_t *params, obs_reference_facts *facts,
                           json_t *out, obs_response *response, obs_err *err) {
   obs_ssao_params p;
-  if (obs_ssao_params_read(params, &p))
-    return obs_err_set(err, OBS_EINVAL, "ssao: parameters are not valid");
+  int rc = obs_params_bind(&obs_technique_ssao, params, &p, err);
+  if (rc) return rc;
   double radius = json_number_value(json_object_get(params, "radius"));
   double reach = radius * pow(1.0 + 2.4 / p.samples, p.samples);
   if (scene->camera.type == OBS_CAMERA_PERSPECTIVE) {
     if (!facts->have_z_median) {
-      int rc = obs_gbuffer_median_depth(scene, SSAO_REFERENCE_DEPTH_SIDE, obs_cpu_count(),
+      rc = obs_gbuffer_median_depth(scene, SSAO_REFERENCE_DEPTH_SIDE, obs_cpu_count(),
                                         &facts->z_median, err);
       if (rc) return rc;
       facts->have_z_median = 1;
@@ -148,7 +140,12 @@ const obs_technique obs_technique_ssao = {
     .name = "ssao",
     .description = "Crytek screen-space ambient occlusion (Kajalin, ShaderX7 6.1): depth-buffer "
                    "tests of rotated offsets around each pixel, a^2+a curve, depth-aware 4x4 blur",
-    .params_schema = ssao_params,
+    .params = ssao_params,
+    .params_size = sizeof ssao_params / sizeof ssao_params[0],
+    .bound_size = sizeof(obs_ssao_params),
+    .cost = ssao_cost,
+    .cost_rule = "samples",
+    .ms_per_work = 3.5e-5,
     .needs = OBS_NEED_GBUFFER,
     .outputs = ssao_outputs,
     .check = NULL,

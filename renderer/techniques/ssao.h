@@ -20,6 +20,7 @@ typedef struct obs_vk_gbuffer obs_vk_gbuffer;
 #define OBS_SSAO_BLUR_LO (-2)
 #define OBS_SSAO_BLUR_HI 1
 
+/* Bound from the descriptor's parameter table (obs_params_bind with obs_technique_ssao). */
 typedef struct obs_ssao_params {
   int samples;                /* 8, 16 or 24 */
   float radius;               /* base offset length in texture coordinates (0.01 in the article) */
@@ -28,10 +29,6 @@ typedef struct obs_ssao_params {
   float blur_depth_threshold; /* relative: |z_n - z_c| <= t z_c mixes */
   uint32_t seed;              /* of the 4x4 rotation texture */
 } obs_ssao_params;
-
-/* Reads params (validated, defaults filled by the loader). Returns OBS_EINVAL, leaving `out`
- * unusable, when a member is missing or out of range (callers that bypass the loader). */
-int obs_ssao_params_read(const json_t *params, obs_ssao_params *out);
 
 /* Constant inputs of the AO pass, computed once on the host and uploaded to the GPU as they are,
  * so no backend recomputes them with its own rounding. */

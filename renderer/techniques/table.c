@@ -80,7 +80,8 @@ json_t *obs_technique_registry_json(void) {
     for (int b = OBS_BACKEND_CPU; b < OBS_BACKEND_COUNT; b++)
       if (t->run[b]) json_array_append_new(be, json_string(obs_backend_name((obs_backend)b)));
     json_object_set_new(o, "backends", be);
-    json_object_set_new(o, "params_schema", json_loads(t->params_schema, 0, NULL));
+    json_object_set_new(o, "params_schema", obs_technique_params_schema(t));
+    json_object_set_new(o, "cost", json_string(t->cost_rule ? t->cost_rule : "1"));
     json_t *needs = json_array();
     if (t->needs & OBS_NEED_BVH) json_array_append_new(needs, json_string("bvh"));
     if (t->needs & OBS_NEED_MATERIALS) json_array_append_new(needs, json_string("materials"));

@@ -61,12 +61,6 @@ int obs_hbao_vk_apply_ex(obs_vk *vk, obs_vk_gbuffer *g, const obs_hbao_projectio
     for (int i = 0; i <= OBS_HBAO_PASS_COUNT; i++) stage_ms[i] = 0.0;
   if (!proj || !g || !g->depth || !g->normal || !ao_host)
     return obs_err_set(err, OBS_EINVAL, "hbao: vulkan apply: no projection, G-buffer or output");
-  if (p->directions < 1 || p->directions > OBS_HBAO_MAX_DIRECTIONS || p->steps < 1 ||
-      p->steps > OBS_HBAO_MAX_STEPS || p->blur_radius < 0 ||
-      p->blur_radius > OBS_HBAO_MAX_BLUR_RADIUS)
-    return obs_err_set(err, OBS_EINVAL,
-                       "hbao: params directions=%d steps=%d blur_radius=%d out of range",
-                       p->directions, p->steps, p->blur_radius);
   int W = g->width, H = g->height, lw, lh;
   obs_hbao_level_size(p, W, H, &lw, &lh);
   size_t ntab = (size_t)OBS_HBAO_NOISE_CELLS * (size_t)p->directions * 4;
@@ -175,9 +169,5 @@ static int passes(obs_render_ctx *ctx, obs_vk *vk, obs_vk_gbuffer *dev, const ob
 }
 
 int obs_hbao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
-  obs_hbao_params p;
-  if (obs_hbao_params_read(ctx->params, &p))
-    return obs_err_set(err, OBS_EINVAL, "%s: /technique/params: invalid hbao parameters",
-                       ctx->scene->name);
-  return obs_screen_vk_run(ctx, "hbao", passes, &p, out, err);
+  return obs_screen_vk_run(ctx, "hbao", passes, ctx->bound, out, err);
 }

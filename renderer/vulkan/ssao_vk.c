@@ -114,9 +114,5 @@ static int passes(obs_render_ctx *ctx, obs_vk *vk, obs_vk_gbuffer *dev, const ob
 }
 
 int obs_ssao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
-  obs_ssao_params p;
-  if (obs_ssao_params_read(ctx->params, &p))
-    return obs_err_set(err, OBS_EINVAL, "%s: /technique/params: invalid ssao parameters",
-                       ctx->scene->name);
-  return obs_screen_vk_run(ctx, "ssao", passes, &p, out, err);
+  return obs_screen_vk_run(ctx, "ssao", passes, ctx->bound, out, err);
 }

@@ -283,7 +283,7 @@ static int run_case(ext_case *c) {
 
 /* The schema default of a parameter, NaN when it has none or it is not a number. */
 static double schema_default(const obs_technique *t, const char *name) {
-  json_t *s = json_loads(t->params_schema, 0, NULL);
+  json_t *s = obs_technique_params_schema(t);
   json_t *d = json_object_get(json_object_get(json_object_get(s, "properties"), name), "default");
   double v = json_is_number(d) ? json_number_value(d) : NAN;
   json_decref(s);

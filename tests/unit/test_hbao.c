@@ -255,7 +255,7 @@ static void test_half_res(void **state) {
   assert_non_null(full);
   float *half = full + n, *full_raw = full + 2 * n, *half_raw = full + 3 * n;
   obs_hbao_params p;
-  obs_hbao_params_default(&p);
+  assert_int_equal(obs_params_bind(obs_technique_find("hbao"), NULL, &p, NULL), 0);
   p.radius = 60;
   double ms[OBS_HBAO_PASS_COUNT];
   assert_int_equal(obs_hbao_cpu_apply_ex(&g, &p, 2, full, full_raw, ms, &err), 0);
@@ -308,7 +308,7 @@ static void test_thread_independence(void **state) {
   float *a = malloc(2 * n * sizeof(float));
   assert_non_null(a);
   obs_hbao_params p;
-  obs_hbao_params_default(&p);
+  assert_int_equal(obs_params_bind(obs_technique_find("hbao"), NULL, &p, NULL), 0);
   p.radius = 70;
   for (int h = 0; h < 2; h++) {
     p.half_res = h;
@@ -350,7 +350,7 @@ static void test_simd_matches_scalar(void **state) {
     assert_non_null(v);
     for (size_t k = 0; k < sizeof sets / sizeof sets[0]; k++) {
       obs_hbao_params p;
-      obs_hbao_params_default(&p);
+      assert_int_equal(obs_params_bind(obs_technique_find("hbao"), NULL, &p, NULL), 0);
       p.radius = radii[k];
       p.directions = sets[k][0];
       p.steps = sets[k][1];
@@ -486,17 +486,17 @@ static void test_tiny_fov(void **state) {
 static void test_params(void **state) {
   (void)state;
   obs_hbao_params p, d;
-  obs_hbao_params_default(&d);
-  assert_int_equal(obs_hbao_params_read(NULL, &p), 0);
+  assert_int_equal(obs_params_bind(obs_technique_find("hbao"), NULL, &d, NULL), 0);
+  assert_int_equal(obs_params_bind(obs_technique_find("hbao"), NULL, &p, NULL), 0);
   assert_memory_equal(&p, &d, sizeof p);
-  /* The schema's defaults are the C defaults. */
-  json_t *sch = json_loads(obs_hbao_params_schema, 0, NULL);
+  /* The schema's defaults bind as the defaults. */
+  json_t *sch = obs_technique_params_schema(obs_technique_find("hbao"));
   assert_non_null(sch);
   json_t *props = json_object_get(sch, "properties"), *defs = json_object();
   const char *key;
   json_t *v;
   json_object_foreach(props, key, v) json_object_set(defs, key, json_object_get(v, "default"));
-  assert_int_equal(obs_hbao_params_read(defs, &p), 0);
+  assert_int_equal(obs_params_bind(obs_technique_find("hbao"), defs, &p, NULL), 0);
   assert_memory_equal(&p, &d, sizeof p);
   json_decref(defs);
   json_decref(sch);
@@ -507,7 +507,7 @@ static void test_params(void **state) {
   for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
     json_t *j = json_loads(bad[i], 0, NULL);
     assert_non_null(j);
-    assert_int_equal(obs_hbao_params_read(j, &p), OBS_EINVAL);
+    assert_int_equal(obs_params_bind(obs_technique_find("hbao"), j, &p, NULL), OBS_EINVAL);
     json_decref(j);
     /* The loader rejects them too, naming the parameter. */
     obs_scene sc;

@@ -94,7 +94,7 @@ static void test_params(void **state) {
   obs_scene sc;
   load(wall_scene(PERSP, 4, 4, "{}"), &sc);
   obs_ssao_params p;
-  assert_int_equal(obs_ssao_params_read(sc.params, &p), 0);
+  assert_int_equal(obs_params_bind(obs_technique_find("ssao"), sc.params, &p, NULL), 0);
   assert_int_equal(p.samples, 16);
   assert_true(p.radius == 0.01f);
   assert_int_equal(p.normal_oriented, 0);
@@ -106,7 +106,7 @@ static void test_params(void **state) {
                   "{\"samples\":24,\"radius\":1e6,\"normal_oriented\":true,\"blur\":false,"
                   "\"blur_depth_threshold\":0,\"seed\":4294967295}"),
        &sc);
-  assert_int_equal(obs_ssao_params_read(sc.params, &p), 0);
+  assert_int_equal(obs_params_bind(obs_technique_find("ssao"), sc.params, &p, NULL), 0);
   assert_int_equal(p.samples, 24);
   assert_int_equal(p.normal_oriented, 1);
   assert_int_equal(p.blur, 0);
@@ -124,7 +124,7 @@ static void test_params(void **state) {
   json_t *js = json_loads("{\"samples\":12,\"radius\":0.01,\"normal_oriented\":false,"
                           "\"blur\":true,\"blur_depth_threshold\":0.05,\"seed\":1}",
                           0, NULL);
-  assert_int_equal(obs_ssao_params_read(js, &p), OBS_EINVAL);
+  assert_int_equal(obs_params_bind(obs_technique_find("ssao"), js, &p, NULL), OBS_EINVAL);
   json_decref(js);
 }
 
@@ -339,7 +339,7 @@ static void test_thread_independence(void **state) {
   obs_err err = OBS_ERR_INIT;
   assert_int_equal(obs_gbuffer_raycast(&sc, &g, 2, NULL, NULL, &err), 0);
   obs_ssao_params p;
-  assert_int_equal(obs_ssao_params_read(sc.params, &p), 0);
+  assert_int_equal(obs_params_bind(obs_technique_find("ssao"), sc.params, &p, NULL), 0);
   size_t n = 70 * 45;
   float *a = malloc(n * sizeof(float)), *b = malloc(n * sizeof(float));
   assert_int_equal(obs_ssao_cpu_apply(&g, &p, 1, a, NULL, &err), 0);
@@ -371,7 +371,7 @@ static void test_simd_matches_scalar(void **state) {
     obs_err err = OBS_ERR_INIT;
     assert_int_equal(obs_gbuffer_raycast(&sc, &g, 2, NULL, NULL, &err), 0);
     obs_ssao_params p;
-    assert_int_equal(obs_ssao_params_read(sc.params, &p), 0);
+    assert_int_equal(obs_params_bind(obs_technique_find("ssao"), sc.params, &p, NULL), 0);
     size_t n = 77 * 45;
     float *v = malloc(4 * n * sizeof(float));
     assert_non_null(v);

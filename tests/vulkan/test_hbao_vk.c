@@ -120,7 +120,7 @@ static void run_sets(const char *name, const char *json) {
       {32, 32, 2, 0, 0.1f, 1e6f, 0.5f},
   };
   obs_hbao_params p;
-  obs_hbao_params_default(&p);
+  assert_int_equal(obs_params_bind(obs_technique_find("hbao"), NULL, &p, NULL), 0);
   float base_radius = json_number_value(json_object_get(sc.params, "radius"));
   for (size_t k = 0; k < sizeof sets / sizeof sets[0]; k++) {
     p.directions = sets[k].dirs;
@@ -296,7 +296,7 @@ static void test_extremes(void **state) {
       load(scene(scenes[s].cam, scenes[s].w, scenes[s].h, scenes[s].objects, "cpu", params[k]),
            &sc);
       obs_hbao_params p;
-      assert_int_equal(obs_hbao_params_read(sc.params, &p), 0);
+      assert_int_equal(obs_params_bind(obs_technique_find("hbao"), sc.params, &p, NULL), 0);
       obs_gbuffer g;
       obs_err err = OBS_ERR_INIT;
       vktest_check_rc(obs_gbuffer_raycast(&sc, &g, 2, NULL, NULL, &err), &err);
@@ -441,7 +441,7 @@ static void test_errors(void **state) {
   obs_vk *vk = vktest_need_vk();
   obs_err err = OBS_ERR_INIT;
   obs_hbao_params p;
-  obs_hbao_params_default(&p);
+  assert_int_equal(obs_params_bind(obs_technique_find("hbao"), NULL, &p, NULL), 0);
   obs_vk_gbuffer dg;
   memset(&dg, 0, sizeof dg);
   float out[4];

@@ -118,7 +118,7 @@ static void cross_backend(const char *scene, const char *label, int w, int h) {
     obs_scene ps;
     load(scene_doc(scene, w, h, "cpu", param_sets[k]), &ps);
     obs_ssao_params p;
-    assert_int_equal(obs_ssao_params_read(ps.params, &p), 0);
+    assert_int_equal(obs_params_bind(obs_technique_find("ssao"), ps.params, &p, NULL), 0);
     obs_scene_free(&ps);
     double cms[OBS_SSAO_CPU_STAGES], vms[OBS_SSAO_VK_STAGES];
     vktest_check_rc(obs_ssao_cpu_apply_ex(&g, &p, 2, ca, cr, cms, &err), &err);

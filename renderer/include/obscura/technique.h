@@ -3,6 +3,7 @@
 #define OBSCURA_TECHNIQUE_H
 
 #include <stdatomic.h>
+#include <stddef.h>
 #include <stdint.h>
 #include "obscura/error.h"
 #include "obscura/image.h"
@@ -49,6 +50,7 @@ typedef struct obs_timings {
 typedef struct obs_render_ctx {
   const obs_scene *scene;
   const json_t *params;        /* defaults filled in */
+  const void *bound;           /* params bound to the technique's C struct (obs_params_bind) */
   int threads;                 /* >= 1 */
   obs_progress_fn progress;    /* may be NULL; called with fractions in [0,1], from any thread */
   void *progress_user;
@@ -151,10 +153,61 @@ typedef struct obs_range {
   obs_tolerance tol;
 } obs_range;
 
+/* ---- parameters ------------------------------------------------------------------------------
+ * A technique declares its parameters once, as a table of obs_param. From it come the validation
+ * of scene documents (messages with JSON pointers), the binding of a validated params object into
+ * the technique's C struct (obs_params_bind, before `run`), the registry's "params_schema", the
+ * technique part of schema/scene.schema.json, the tables of docs/techniques/ and the OpenAPI
+ * block of schema/openapi.yaml. */
+typedef enum obs_param_type {
+  OBS_PARAM_BOOL,   /* JSON boolean; stored as int (0 or 1) */
+  OBS_PARAM_INT,    /* JSON integer (an integral real such as 8.0 counts); stored as int32_t */
+  OBS_PARAM_UINT,   /* JSON integer; stored as uint32_t */
+  OBS_PARAM_FLOAT,  /* JSON number; stored as float, rounded once */
+  OBS_PARAM_DOUBLE, /* JSON number; stored as double */
+  OBS_PARAM_ENUM    /* JSON string, one of `choices`; stored as int, the index of the choice */
+} obs_param_type;
+
+enum {
+  OBS_PARAM_MIN_EXCLUSIVE = 1 << 0, /* value > min rather than >= min */
+  OBS_PARAM_MAX_EXCLUSIVE = 1 << 1, /* value < max rather than <= max */
+  OBS_PARAM_NULLABLE = 1 << 2,      /* numbers: null is a value, bound as null_value */
+  OBS_PARAM_DEFAULT_NULL = 1 << 3   /* with NULLABLE: the default is null, not `def` */
+};
+
+typedef struct obs_param {
+  const char *name;
+  obs_param_type type;
+  unsigned flags;              /* OBS_PARAM_* */
+  double min, max;             /* numbers: the accepted range (ignored when `values` is set) */
+  double def;                  /* default: the number; 0/1 for a boolean; the choice's index */
+  double null_value;           /* NULLABLE: what null is bound as (e.g. INFINITY = unbounded) */
+  const char *const *choices;  /* ENUM: the names, NULL-terminated */
+  const int *values;           /* INT: the only values accepted (a JSON Schema enum), or NULL */
+  int nvalues;
+  const char *description;
+  size_t offset;               /* offsetof the member in the technique's params struct */
+} obs_param;
+
+/* The work of one pixel sample of a technique with bound params, in units the server's limits
+ * count (docs/server.md, "Mesh import and work limits"): e.g. rays or depth-buffer taps. */
+typedef double (*obs_technique_cost_fn)(const void *bound);
+
 typedef struct obs_technique {
   const char *name;
   const char *description;
-  const char *params_schema;    /* JSON Schema (object with properties, types, ranges, defaults) */
+  const obs_param *params;      /* the parameter table, in the order documents list them */
+  size_t params_size;           /* entries of `params` */
+  size_t bound_size;            /* sizeof the C struct `params` lands in (ctx->bound) */
+  /* JSON Schema keywords (an object's members, JSON text) that state `check`'s cross-field rules
+   * for schema/scene.schema.json; NULL when there are none. */
+  const char *params_rules;
+  obs_technique_cost_fn cost;   /* NULL: 1 per pixel sample */
+  const char *cost_rule;        /* the cost hook in words ("samples"), for the API and docs */
+  /* Milliseconds per unit of work (width x height x spp x cost) on the reference machine of
+   * docs/server.md, rounded up: the server's render-time estimate before it has stored runs of
+   * the technique. 0: unknown (the server assumes the slowest technique's rate). */
+  double ms_per_work;
   unsigned needs;               /* OBS_NEED_* */
   const char *const *outputs;   /* NULL-terminated: EXR channel names and extra files */
   obs_technique_check_fn check; /* may be NULL */
@@ -186,6 +239,33 @@ float obs_response_map(obs_response r, float w);
 /* Maps channel "ao" of `img` in place through f, and scales "ao_stderr" (when present) by
  * |f'(W)| so the reference's noise is stated in the mapped units (first-order propagation). */
 int obs_response_apply(obs_response r, obs_image *img, obs_err *err);
+
+/* Validates `params` (an object with defaults filled, or raw: absent members take their
+ * defaults; NULL = {}) against t's table and fills `dst`, t->bound_size bytes: every member from
+ * the table, nothing else (padding is zeroed). OBS_EINVAL with "<name> params: /<key>: <rule>
+ * (got <value>)" problems when a value is unknown, of the wrong type or out of range. */
+int obs_params_bind(const obs_technique *t, const json_t *params, void *dst, obs_err *err);
+/* The same into a new block of t->bound_size bytes (free() it); *out is NULL on failure. */
+int obs_params_bind_new(const obs_technique *t, const json_t *params, void **out, obs_err *err);
+/* t's parameters as the JSON Schema of a params object (new reference): the registry's
+ * "params_schema". */
+json_t *obs_technique_params_schema(const obs_technique *t);
+/* The work per pixel sample of t with `params` (see obs_technique_cost_fn); 1 when t has no cost
+ * hook, and when `params` do not bind (the loader reports those). */
+double obs_technique_cost(const obs_technique *t, const json_t *params);
+/* Checks t's parameter table against itself: names unique and non-empty, enums with choices,
+ * offsets inside bound_size and aligned, and every default accepted by its own range. Adds one
+ * problem per fault and returns OBS_EINVAL, or 0. */
+int obs_technique_params_check(const obs_technique *t, obs_err *err);
+
+/* Texts generated from the registry, each a new string (free() it), NULL when out of memory; the
+ * repository keeps copies that tests compare (scripts/gen-registry.sh writes them):
+ *  - the technique members of $defs in schema/scene.schema.json;
+ *  - the parameter table of docs/techniques/<name>.md (NULL for an unknown name);
+ *  - the registry block of components/schemas in schema/openapi.yaml. */
+char *obs_registry_scene_schema(void);
+char *obs_registry_params_markdown(const char *technique);
+char *obs_registry_openapi(void);
 
 /* The registry as a JSON array (new reference, caller owns); each entry's "ranges" holds the
  * guaranteed range of each backend (obs_range). */

@@ -1,0 +1,376 @@
+/* Technique parameters from their descriptor's table (obs_param): validation of a document's
+ * params with JSON-pointer messages, defaults, binding into the technique's C struct, the JSON
+ * Schema the registry publishes, the cost hook's caller and the table's self-check. */
+#include "params.h"
+
+#include <float.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* An integral value small enough to be exact in a double becomes a JSON integer, anything else a
+ * real: a default written 1 stays 1 in documents and the schema, 0.01 stays a real. */
+static json_t *number_json(double v) {
+  if (v == floor(v) && fabs(v) < 9007199254740992.0) return json_integer((json_int_t)v);
+  return json_real(v);
+}
+
+static int is_number_type(obs_param_type t) {
+  return t == OBS_PARAM_INT || t == OBS_PARAM_UINT || t == OBS_PARAM_FLOAT || t == OBS_PARAM_DOUBLE;
+}
+
+static int is_int_type(obs_param_type t) { return t == OBS_PARAM_INT || t == OBS_PARAM_UINT; }
+
+json_t *obs_param_default_json(const obs_param *d) {
+  switch (d->type) {
+    case OBS_PARAM_BOOL:
+      return json_boolean(d->def != 0);
+    case OBS_PARAM_ENUM: {
+      long n = 0;
+      while (d->choices && d->choices[n]) n++;
+      long i = (long)d->def;
+      return i >= 0 && i < n ? json_string(d->choices[i]) : json_null();
+    }
+    default:
+      if ((d->flags & OBS_PARAM_NULLABLE) && (d->flags & OBS_PARAM_DEFAULT_NULL))
+        return json_null();
+      return is_int_type(d->type) ? json_integer((json_int_t)d->def) : number_json(d->def);
+  }
+}
+
+/* "must be one of ..." for the choices of an enum or the values of an integer. */
+static int fail_one_of(obs_jpath *p, const obs_param *d, const json_t *v) {
+  char list[256] = "";
+  size_t l = 0;
+  for (int i = 0; d->type == OBS_PARAM_ENUM ? d->choices[i] != NULL : i < d->nvalues; i++) {
+    if (d->type == OBS_PARAM_ENUM)
+      snprintf(list + l, sizeof list - l, "%s\"%s\"", l ? ", " : "", d->choices[i]);
+    else
+      snprintf(list + l, sizeof list - l, "%s%d", l ? ", " : "", d->values[i]);
+    l = strlen(list);
+  }
+  return obs_jpath_fail(p, "must be one of %s (got %s)", list, obs_json_brief(v));
+}
+
+int obs_param_check(obs_jpath *p, const obs_param *d, const json_t *v) {
+  int nullable = (d->flags & OBS_PARAM_NULLABLE) != 0;
+  long long iv = 0;
+  switch (d->type) {
+    case OBS_PARAM_BOOL:
+      if (!json_is_boolean(v))
+        return obs_jpath_fail(p, "must be boolean (got %s)", obs_json_brief(v));
+      return 0;
+    case OBS_PARAM_ENUM:
+      for (int i = 0; json_is_string(v) && d->choices[i]; i++)
+        if (!strcmp(d->choices[i], json_string_value(v))) return 0;
+      return fail_one_of(p, d, v);
+    case OBS_PARAM_INT:
+    case OBS_PARAM_UINT:
+      if (nullable && json_is_null(v)) return 0;
+      if (!obs_json_as_int(v, &iv))
+        return obs_jpath_fail(p, "must be an integer%s (got %s)", nullable ? " or null" : "",
+                              obs_json_brief(v));
+      if (d->values) {
+        for (int i = 0; i < d->nvalues; i++)
+          if (iv == d->values[i]) return 0;
+        return fail_one_of(p, d, v);
+      }
+      break;
+    default:
+      if (nullable && json_is_null(v)) return 0;
+      if (!obs_json_is_number(v))
+        return obs_jpath_fail(p, "must be a number%s (got %s)", nullable ? " or null" : "",
+                              obs_json_brief(v));
+      break;
+  }
+  double x = obs_json_number(v);
+  int lo_ex = (d->flags & OBS_PARAM_MIN_EXCLUSIVE) != 0,
+      hi_ex = (d->flags & OBS_PARAM_MAX_EXCLUSIVE) != 0;
+  if (!isinf(d->min) && (lo_ex ? !(x > d->min) : !(x >= d->min)))
+    return obs_jpath_fail(p, "must be %s %.10g (got %s)", lo_ex ? ">" : ">=", d->min,
+                          obs_json_brief(v));
+  if (!isinf(d->max) && (hi_ex ? !(x < d->max) : !(x <= d->max)))
+    return obs_jpath_fail(p, "must be %s %.10g (got %s)", hi_ex ? "<" : "<=", d->max,
+                          obs_json_brief(v));
+  return 0;
+}
+
+static const obs_param *find_param(const obs_technique *t, const char *name) {
+  for (size_t i = 0; i < t->params_size; i++)
+    if (!strcmp(t->params[i].name, name)) return &t->params[i];
+  return NULL;
+}
+
+json_t *obs_params_resolve(obs_jpath *p, const obs_technique *t, const json_t *value) {
+  if (value && !json_is_object(value)) {
+    obs_jpath_fail(p, "must be an object (got %s)", obs_json_brief(value));
+    return NULL;
+  }
+  json_t *out = json_object();
+  if (!out) {
+    obs_err_set(p->err, OBS_ENOMEM, "%s: out of memory", p->doc);
+    return NULL;
+  }
+  int bad = 0;
+  const char *key;
+  json_t *v;
+  json_object_foreach((json_t *)value, key, v) {
+    size_t m = obs_jpath_push_key(p, key);
+    const obs_param *d = find_param(t, key);
+    long long iv;
+    if (!d) {
+      obs_jpath_fail(p, "unknown parameter");
+      bad++;
+    } else if (obs_param_check(p, d, v)) {
+      bad++;
+    } else if (is_int_type(d->type) && json_is_real(v) && obs_json_as_int(v, &iv)) {
+      /* An integral real (64.0) given for an integer is stored as one. */
+      json_object_set_new(out, key, json_integer((json_int_t)iv));
+    } else {
+      json_object_set(out, key, v);
+    }
+    obs_jpath_pop(p, m);
+  }
+  for (size_t i = 0; i < t->params_size; i++)
+    if (!json_object_get(out, t->params[i].name))
+      json_object_set_new(out, t->params[i].name, obs_param_default_json(&t->params[i]));
+  if (bad) {
+    json_decref(out);
+    return NULL;
+  }
+  return out;
+}
+
+/* Stores one checked value (NULL: the default) at its offset. */
+static void store(const obs_param *d, const json_t *v, unsigned char *dst) {
+  unsigned char *at = dst + d->offset;
+  long long iv = 0;
+  double x = d->def;
+  int is_null = v ? json_is_null(v) : (d->flags & OBS_PARAM_DEFAULT_NULL) != 0;
+  if (v && obs_json_is_number(v)) x = obs_json_number(v);
+  if (v && is_int_type(d->type) && obs_json_as_int(v, &iv)) x = (double)iv;
+  if (is_null && (d->flags & OBS_PARAM_NULLABLE)) x = d->null_value;
+  switch (d->type) {
+    case OBS_PARAM_BOOL: {
+      int b = v ? json_is_true(v) : d->def != 0;
+      memcpy(at, &b, sizeof b);
+      break;
+    }
+    case OBS_PARAM_ENUM: {
+      int idx = (int)d->def;
+      for (int i = 0; v && d->choices[i]; i++)
+        if (!strcmp(d->choices[i], json_string_value(v))) idx = i;
+      memcpy(at, &idx, sizeof idx);
+      break;
+    }
+    case OBS_PARAM_INT: {
+      int32_t i = (int32_t)x;
+      memcpy(at, &i, sizeof i);
+      break;
+    }
+    case OBS_PARAM_UINT: {
+      uint32_t u = (uint32_t)x;
+      memcpy(at, &u, sizeof u);
+      break;
+    }
+    case OBS_PARAM_FLOAT: {
+      float f = (float)x;
+      /* Rounding to float can carry a value onto an exclusive maximum (pi/2 rounds up): step back
+       * one ulp so the bound the technique relies on still holds. A positive value below float's
+       * range becomes 0, which the techniques document. */
+      if ((d->flags & OBS_PARAM_MAX_EXCLUSIVE) && !is_null && (double)f >= d->max)
+        f = nextafterf(f, -INFINITY);
+      memcpy(at, &f, sizeof f);
+      break;
+    }
+    case OBS_PARAM_DOUBLE:
+      memcpy(at, &x, sizeof x);
+      break;
+  }
+}
+
+int obs_params_bind(const obs_technique *t, const json_t *params, void *dst, obs_err *err) {
+  if (!t || !dst) return obs_err_set(err, OBS_EINVAL, "params: no technique or destination");
+  char doc[96];
+  snprintf(doc, sizeof doc, "%s params", t->name);
+  obs_jpath p;
+  obs_jpath_init(&p, doc, err);
+  if (params && !json_is_object(params))
+    return obs_jpath_fail(&p, "must be an object (got %s)", obs_json_brief(params));
+  int bad = 0;
+  const char *key;
+  json_t *v;
+  json_object_foreach((json_t *)params, key, v) {
+    size_t m = obs_jpath_push_key(&p, key);
+    const obs_param *d = find_param(t, key);
+    if (!d)
+      bad |= obs_jpath_fail(&p, "unknown parameter") != 0;
+    else
+      bad |= obs_param_check(&p, d, v) != 0;
+    obs_jpath_pop(&p, m);
+  }
+  if (bad) return OBS_EINVAL;
+  memset(dst, 0, t->bound_size);
+  for (size_t i = 0; i < t->params_size; i++)
+    store(&t->params[i], json_object_get(params, t->params[i].name), dst);
+  return 0;
+}
+
+int obs_params_bind_new(const obs_technique *t, const json_t *params, void **out, obs_err *err) {
+  *out = NULL;
+  void *b = calloc(1, t && t->bound_size ? t->bound_size : 1);
+  if (!b) return obs_err_set(err, OBS_ENOMEM, "params: out of memory");
+  int rc = obs_params_bind(t, params, b, err);
+  if (rc) {
+    free(b);
+    return rc;
+  }
+  *out = b;
+  return 0;
+}
+
+static json_t *param_schema(const obs_param *d) {
+  json_t *o = json_object();
+  static const char *const type_names[] = {[OBS_PARAM_BOOL] = "boolean",
+                                           [OBS_PARAM_INT] = "integer",
+                                           [OBS_PARAM_UINT] = "integer",
+                                           [OBS_PARAM_FLOAT] = "number",
+                                           [OBS_PARAM_DOUBLE] = "number"};
+  if (d->type == OBS_PARAM_ENUM) {
+    json_t *e = json_array();
+    for (int i = 0; d->choices[i]; i++) json_array_append_new(e, json_string(d->choices[i]));
+    json_object_set_new(o, "enum", e);
+  } else if (d->flags & OBS_PARAM_NULLABLE) {
+    json_object_set_new(o, "type", json_pack("[ss]", type_names[d->type], "null"));
+  } else {
+    json_object_set_new(o, "type", json_string(type_names[d->type]));
+  }
+  if (is_int_type(d->type) && d->values) {
+    json_t *e = json_array();
+    for (int i = 0; i < d->nvalues; i++) json_array_append_new(e, json_integer(d->values[i]));
+    json_object_set_new(o, "enum", e);
+  } else if (is_number_type(d->type)) {
+    if (!isinf(d->min))
+      json_object_set_new(o, d->flags & OBS_PARAM_MIN_EXCLUSIVE ? "exclusiveMinimum" : "minimum",
+                          number_json(d->min));
+    if (!isinf(d->max))
+      json_object_set_new(o, d->flags & OBS_PARAM_MAX_EXCLUSIVE ? "exclusiveMaximum" : "maximum",
+                          number_json(d->max));
+  }
+  json_object_set_new(o, "default", obs_param_default_json(d));
+  json_object_set_new(o, "description", json_string(d->description ? d->description : ""));
+  return o;
+}
+
+json_t *obs_technique_params_schema(const obs_technique *t) {
+  json_t *props = json_object();
+  for (size_t i = 0; t && i < t->params_size; i++)
+    json_object_set_new(props, t->params[i].name, param_schema(&t->params[i]));
+  return json_pack("{sssbso}", "type", "object", "additionalProperties", 0, "properties", props);
+}
+
+double obs_technique_cost(const obs_technique *t, const json_t *params) {
+  if (!t || !t->cost) return 1.0;
+  void *b = NULL;
+  if (obs_params_bind_new(t, params, &b, NULL)) return 1.0;
+  double c = t->cost(b);
+  free(b);
+  return c;
+}
+
+static size_t type_size(obs_param_type t) {
+  switch (t) {
+    case OBS_PARAM_DOUBLE:
+      return sizeof(double);
+    case OBS_PARAM_FLOAT:
+      return sizeof(float);
+    case OBS_PARAM_INT:
+      return sizeof(int32_t);
+    case OBS_PARAM_UINT:
+      return sizeof(uint32_t);
+    default:
+      return sizeof(int);
+  }
+}
+
+/* The faults of one entry that do not need its default (see obs_technique_params_check). */
+static int entry_fault(const obs_technique *t, const obs_param *d, char *why, size_t n) {
+  int nullable = (d->flags & OBS_PARAM_NULLABLE) != 0;
+  size_t sz = type_size(d->type);
+  if ((unsigned)d->type > OBS_PARAM_ENUM) return snprintf(why, n, "unknown type %d", d->type);
+  if (!d->description || !*d->description) return snprintf(why, n, "has no description");
+  if (d->offset + sz > t->bound_size || d->offset % sz)
+    return snprintf(why, n, "offset %zu does not hold a %zu-byte member inside %zu bytes",
+                    d->offset, sz, t->bound_size);
+  if ((nullable || (d->flags & OBS_PARAM_DEFAULT_NULL)) && !is_number_type(d->type))
+    return snprintf(why, n, "only numbers can be null");
+  if ((d->flags & OBS_PARAM_DEFAULT_NULL) && !nullable)
+    return snprintf(why, n, "a null default needs OBS_PARAM_NULLABLE");
+  if (d->type == OBS_PARAM_ENUM && (!d->choices || !d->choices[0]))
+    return snprintf(why, n, "an enum needs choices");
+  if (d->values && (!is_int_type(d->type) || d->nvalues < 1))
+    return snprintf(why, n, "a list of values needs an integer type and at least one value");
+  if (is_number_type(d->type) && !d->values) {
+    double lo = is_int_type(d->type) ? (d->type == OBS_PARAM_UINT ? 0 : INT32_MIN) : -INFINITY;
+    double hi = d->type == OBS_PARAM_UINT  ? UINT32_MAX
+                : d->type == OBS_PARAM_INT ? INT32_MAX
+                                           : INFINITY;
+    if (d->type == OBS_PARAM_FLOAT) lo = -FLT_MAX, hi = FLT_MAX;
+    if (!(d->min >= lo && d->max <= hi && d->min <= d->max))
+      return snprintf(why, n, "range [%g, %g] is empty or beyond what its type stores", d->min,
+                      d->max);
+    if (is_int_type(d->type) && (d->min != floor(d->min) || d->max != floor(d->max)))
+      return snprintf(why, n, "integer bounds must be integers");
+  }
+  return 0;
+}
+
+int obs_technique_params_check(const obs_technique *t, obs_err *err) {
+  int before = err ? err->count : 0, bad = 0;
+  char doc[96];
+  snprintf(doc, sizeof doc, "%s params", t->name);
+  if (t->params_size && (!t->params || !t->bound_size))
+    return obs_err_set(err, OBS_EINVAL, "%s: a table without a struct size", doc);
+  for (size_t i = 0; i < t->params_size; i++) {
+    const obs_param *d = &t->params[i];
+    char why[200];
+    if (!d->name || !*d->name) {
+      bad = obs_err_set(err, OBS_EINVAL, "%s: entry %zu has no name", doc, i);
+      continue;
+    }
+    for (size_t j = 0; j < i; j++)
+      if (t->params[j].name && !strcmp(t->params[j].name, d->name))
+        bad = obs_err_set(err, OBS_EINVAL, "%s: /%s: declared twice", doc, d->name);
+    if (entry_fault(t, d, why, sizeof why)) {
+      bad = obs_err_set(err, OBS_EINVAL, "%s: /%s: %s", doc, d->name, why);
+      continue;
+    }
+    /* The default must pass the same check as a document's value. */
+    char where[160];
+    snprintf(where, sizeof where, "%s default", doc);
+    obs_jpath p;
+    obs_jpath_init(&p, where, err);
+    json_t *def = obs_param_default_json(d);
+    size_t m = obs_jpath_push_key(&p, d->name);
+    if (d->type == OBS_PARAM_ENUM && json_is_null(def))
+      bad = obs_jpath_fail(&p, "default index %g is not a choice", d->def);
+    else if (obs_param_check(&p, d, def))
+      bad = OBS_EINVAL;
+    obs_jpath_pop(&p, m);
+    json_decref(def);
+  }
+  if (!bad && t->cost) {
+    void *b = NULL;
+    if (obs_params_bind_new(t, NULL, &b, err)) return OBS_EINVAL;
+    double c = t->cost(b);
+    free(b);
+    if (!(c > 0) || !isfinite(c))
+      bad = obs_err_set(err, OBS_EINVAL,
+                        "%s: the cost of the defaults is %g, not a positive "
+                        "number",
+                        doc, c);
+  }
+  return bad || (err && err->count != before) ? OBS_EINVAL : 0;
+}

@@ -1,0 +1,21 @@
+/* Internal side of technique parameters (params.c): the document validation the scene loader
+ * runs and the pieces the registry's generated texts share. The public API is in
+ * obscura/technique.h. */
+#ifndef OBS_PARAMS_H
+#define OBS_PARAMS_H
+
+#include <jansson.h>
+
+#include "json_util.h"
+#include "obscura/technique.h"
+
+/* Validates `value` (a params object, may be NULL) against t's table, reporting every problem
+ * under p's pointer, and returns a new object with defaults filled in (table order after the
+ * given members), or NULL after reporting. */
+json_t *obs_params_resolve(obs_jpath *p, const obs_technique *t, const json_t *value);
+/* One value against its entry; reports under p's pointer. Returns 0 or OBS_EINVAL. */
+int obs_param_check(obs_jpath *p, const obs_param *d, const json_t *v);
+/* The entry's default as JSON (new reference). */
+json_t *obs_param_default_json(const obs_param *d);
+
+#endif

@@ -1,0 +1,20 @@
+/* rt_ao's parameters as its CPU backend reads them (bound from the descriptor's table). */
+#ifndef OBS_RT_AO_H
+#define OBS_RT_AO_H
+
+#include <stdint.h>
+
+/* Values of `falloff` and `weighting`: the indices of their choices in the table. */
+enum { OBS_RT_AO_FALLOFF_BINARY, OBS_RT_AO_FALLOFF_SQRT, OBS_RT_AO_FALLOFF_EXP };
+
+typedef struct obs_rt_ao_params {
+  uint32_t samples;    /* occlusion rays per pixel sample */
+  double max_distance; /* d_max; INFINITY when null */
+  int falloff;         /* OBS_RT_AO_FALLOFF_* */
+  double tau;          /* exp falloff's rate per scene unit */
+  int uniform;         /* weighting: 0 cosine, 1 uniform */
+  int sampler;         /* obs_sampler_kind: 0 sobol, 1 halton, 2 random */
+  uint32_t seed;
+} obs_rt_ao_params;
+
+#endif

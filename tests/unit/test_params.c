@@ -1,0 +1,376 @@
+/* Technique parameter tables: the binder (each type, bounds, enums, null, defaults, offsets), the
+ * generated JSON Schema, the cost hook, and the self-check of every registered technique. */
+#include <float.h>
+#include <jansson.h>
+#include <math.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "testutil.h"
+
+typedef struct demo {
+  int flag;
+  int32_t count;
+  char pad; /* a member the table does not name: zeroed by the binder */
+  uint32_t seed;
+  float radius;
+  double dist;
+  int mode;
+  float angle;
+  int32_t taps;
+} demo;
+
+static const char *const modes[] = {"near", "far", NULL};
+static const int tap_counts[] = {8, 16, 24};
+
+#define P(m) offsetof(demo, m)
+static const obs_param demo_params[] = {
+    {.name = "flag",
+     .type = OBS_PARAM_BOOL,
+     .def = 1,
+     .description = "a switch",
+     .offset = P(flag)},
+    {.name = "count",
+     .type = OBS_PARAM_INT,
+     .min = -3,
+     .max = 7,
+     .def = 2,
+     .description = "an integer",
+     .offset = P(count)},
+    {.name = "seed",
+     .type = OBS_PARAM_UINT,
+     .min = 0,
+     .max = 4294967295.0,
+     .def = 5,
+     .description = "all 32 bits",
+     .offset = P(seed)},
+    {.name = "radius",
+     .type = OBS_PARAM_FLOAT,
+     .flags = OBS_PARAM_MIN_EXCLUSIVE,
+     .min = 0,
+     .max = 10,
+     .def = 0.25,
+     .description = "a float",
+     .offset = P(radius)},
+    {.name = "dist",
+     .type = OBS_PARAM_DOUBLE,
+     .flags = OBS_PARAM_NULLABLE | OBS_PARAM_DEFAULT_NULL | OBS_PARAM_MIN_EXCLUSIVE,
+     .min = 0,
+     .max = 1e30,
+     .null_value = INFINITY,
+     .description = "null = unbounded",
+     .offset = P(dist)},
+    {.name = "mode",
+     .type = OBS_PARAM_ENUM,
+     .choices = modes,
+     .def = 1,
+     .description = "an enum",
+     .offset = P(mode)},
+    {.name = "angle",
+     .type = OBS_PARAM_FLOAT,
+     .flags = OBS_PARAM_MAX_EXCLUSIVE,
+     .min = 0,
+     .max = 1.5707963267948966,
+     .def = 0.5,
+     .description = "below pi/2",
+     .offset = P(angle)},
+    {.name = "taps",
+     .type = OBS_PARAM_INT,
+     .values = tap_counts,
+     .nvalues = 3,
+     .def = 16,
+     .description = "one of three",
+     .offset = P(taps)},
+};
+#undef P
+
+static double demo_cost(const void *bound) {
+  const demo *d = bound;
+  return (double)d->taps * (d->flag ? 2 : 1);
+}
+
+static obs_technique demo_technique(void) {
+  obs_technique t;
+  memset(&t, 0, sizeof t);
+  t.name = "demo";
+  t.params = demo_params;
+  t.params_size = sizeof demo_params / sizeof demo_params[0];
+  t.bound_size = sizeof(demo);
+  t.cost = demo_cost;
+  return t;
+}
+
+/* Binds `text` (NULL: no params); returns the rc and leaves the message in `msg`. */
+static int bind_text(const obs_technique *t, const char *text, demo *out, char *msg, size_t n) {
+  json_t *j = text ? json_loads(text, 0, NULL) : NULL;
+  if (text) assert_non_null(j);
+  obs_err err = OBS_ERR_INIT;
+  memset(out, 0x5a, sizeof *out);
+  int rc = obs_params_bind(t, j, out, &err);
+  snprintf(msg, n, "%s", obs_err_message(&err));
+  obs_err_free(&err);
+  json_decref(j);
+  return rc;
+}
+
+static void expect_bad(const obs_technique *t, const char *text, const char *message) {
+  demo d;
+  char msg[512];
+  assert_int_equal(bind_text(t, text, &d, msg, sizeof msg), OBS_EINVAL);
+  if (!strstr(msg, message))
+    fprintf(stderr, "%s: expected \"%s\", got \"%s\"\n", text, message, msg);
+  assert_non_null(strstr(msg, message));
+}
+
+static void test_defaults_and_offsets(void **state) {
+  (void)state;
+  obs_technique t = demo_technique();
+  demo d;
+  char msg[256];
+  assert_int_equal(bind_text(&t, NULL, &d, msg, sizeof msg), 0);
+  assert_int_equal(d.flag, 1);
+  assert_int_equal(d.count, 2);
+  assert_int_equal(d.pad, 0);
+  assert_true(d.seed == 5u);
+  assert_true(d.radius == 0.25f);
+  assert_true(isinf(d.dist) && d.dist > 0);
+  assert_int_equal(d.mode, 1);
+  assert_true(d.angle == 0.5f);
+  assert_int_equal(d.taps, 16);
+  demo e;
+  assert_int_equal(bind_text(&t, "{}", &e, msg, sizeof msg), 0);
+  assert_memory_equal(&d, &e, sizeof d);
+  /* Every member lands at its own offset. */
+  assert_int_equal(bind_text(&t,
+                             "{\"flag\":false,\"count\":-3,\"seed\":4294967295,\"radius\":10,"
+                             "\"dist\":2.5,\"mode\":\"near\",\"angle\":0,\"taps\":24}",
+                             &d, msg, sizeof msg),
+                   0);
+  assert_int_equal(d.flag, 0);
+  assert_int_equal(d.count, -3);
+  assert_true(d.seed == 4294967295u);
+  assert_true(d.radius == 10.0f);
+  assert_true(d.dist == 2.5);
+  assert_int_equal(d.mode, 0);
+  assert_true(d.angle == 0.0f);
+  assert_int_equal(d.taps, 24);
+  /* Integral reals count as integers; null binds as null_value. */
+  assert_int_equal(bind_text(&t, "{\"count\":7.0,\"taps\":8.0,\"dist\":null}", &d, msg, sizeof msg),
+                   0);
+  assert_int_equal(d.count, 7);
+  assert_int_equal(d.taps, 8);
+  assert_true(isinf(d.dist));
+  /* bind_new gives the same bytes. */
+  void *b = NULL;
+  assert_int_equal(obs_params_bind_new(&t, NULL, &b, NULL), 0);
+  assert_int_equal(bind_text(&t, NULL, &d, msg, sizeof msg), 0);
+  assert_memory_equal(b, &d, sizeof d);
+  free(b);
+}
+
+static void test_bounds_types_messages(void **state) {
+  (void)state;
+  obs_technique t = demo_technique();
+  demo d;
+  char msg[256];
+  /* Inclusive bounds accept their ends; exclusive ones refuse them. */
+  assert_int_equal(bind_text(&t, "{\"count\":7,\"radius\":10,\"angle\":0}", &d, msg, sizeof msg),
+                   0);
+  expect_bad(&t, "{\"count\":8}", "demo params: /count: must be <= 7 (got 8)");
+  expect_bad(&t, "{\"count\":-4}", "demo params: /count: must be >= -3 (got -4)");
+  expect_bad(&t, "{\"radius\":0}", "demo params: /radius: must be > 0 (got 0)");
+  expect_bad(&t, "{\"radius\":10.5}", "/radius: must be <= 10 (got 10.5)");
+  expect_bad(&t, "{\"angle\":1.5707963267948966}",
+             "/angle: must be < 1.570796327 (got 1.570796327)");
+  expect_bad(&t, "{\"seed\":-1}", "/seed: must be >= 0 (got -1)");
+  expect_bad(&t, "{\"seed\":4294967296}", "/seed: must be <= 4294967295 (got 4294967296)");
+  /* Types. */
+  expect_bad(&t, "{\"flag\":1}", "/flag: must be boolean (got 1)");
+  expect_bad(&t, "{\"count\":1.5}", "/count: must be an integer (got 1.5)");
+  expect_bad(&t, "{\"radius\":\"big\"}", "/radius: must be a number (got \"big\")");
+  expect_bad(&t, "{\"radius\":null}", "/radius: must be a number (got null)");
+  expect_bad(&t, "{\"dist\":\"far\"}", "/dist: must be a number or null (got \"far\")");
+  expect_bad(&t, "{\"mode\":\"mid\"}", "/mode: must be one of \"near\", \"far\" (got \"mid\")");
+  expect_bad(&t, "{\"mode\":1}", "/mode: must be one of \"near\", \"far\" (got 1)");
+  expect_bad(&t, "{\"taps\":12}", "/taps: must be one of 8, 16, 24 (got 12)");
+  expect_bad(&t, "{\"size\":1}", "demo params: /size: unknown parameter");
+  expect_bad(&t, "[1]", "demo params: /: must be an object (got [1])");
+  /* Every problem is listed, not only the first. */
+  expect_bad(&t, "{\"count\":99,\"mode\":\"x\"}", "/mode: must be one of");
+  expect_bad(&t, "{\"count\":99,\"mode\":\"x\"}", "/count: must be <= 7");
+  /* A value that rounds onto an exclusive float bound stays below it. */
+  assert_int_equal(bind_text(&t, "{\"angle\":1.5707963267}", &d, msg, sizeof msg), 0);
+  assert_true((double)d.angle < 1.5707963267948966);
+  assert_true(d.angle == nextafterf(1.5707963267948966f, 0.0f));
+}
+
+static void test_schema(void **state) {
+  (void)state;
+  obs_technique t = demo_technique();
+  json_t *s = obs_technique_params_schema(&t);
+  char *text = json_dumps(s, JSON_COMPACT);
+  assert_string_equal(
+      text,
+      "{\"type\":\"object\",\"additionalProperties\":false,\"properties\":{"
+      "\"flag\":{\"type\":\"boolean\",\"default\":true,\"description\":\"a switch\"},"
+      "\"count\":{\"type\":\"integer\",\"minimum\":-3,\"maximum\":7,\"default\":2,"
+      "\"description\":\"an integer\"},"
+      "\"seed\":{\"type\":\"integer\",\"minimum\":0,\"maximum\":4294967295,\"default\":5,"
+      "\"description\":\"all 32 bits\"},"
+      "\"radius\":{\"type\":\"number\",\"exclusiveMinimum\":0,\"maximum\":10,\"default\":0.25,"
+      "\"description\":\"a float\"},"
+      "\"dist\":{\"type\":[\"number\",\"null\"],\"exclusiveMinimum\":0,\"maximum\":1e30,"
+      "\"default\":null,\"description\":\"null = unbounded\"},"
+      "\"mode\":{\"enum\":[\"near\",\"far\"],\"default\":\"far\",\"description\":\"an enum\"},"
+      "\"angle\":{\"type\":\"number\",\"minimum\":0,\"exclusiveMaximum\":1.5707963267948966,"
+      "\"default\":0.5,\"description\":\"below pi/2\"},"
+      "\"taps\":{\"type\":\"integer\",\"enum\":[8,16,24],\"default\":16,"
+      "\"description\":\"one of three\"}}}");
+  free(text);
+  json_decref(s);
+}
+
+static void test_cost(void **state) {
+  (void)state;
+  obs_technique t = demo_technique();
+  json_t *j = json_loads("{\"taps\":24,\"flag\":false}", 0, NULL);
+  assert_true(obs_technique_cost(&t, j) == 24.0);
+  assert_true(obs_technique_cost(&t, NULL) == 32.0);
+  json_decref(j);
+  /* The registered rules, as the server's limits count them. */
+  const struct {
+    const char *technique, *params;
+    double cost;
+  } cases[] = {
+      {"rt_ao", "{}", 64},
+      {"rt_ao", "{\"samples\":16}", 16},
+      {"ssao", "{\"samples\":24}", 24},
+      {"hbao", "{}", 64},
+      {"hbao", "{\"directions\":4,\"steps\":3,\"half_res\":true}", 12},
+  };
+  for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+    json_t *p = json_loads(cases[i].params, 0, NULL);
+    assert_true(obs_technique_cost(obs_technique_find(cases[i].technique), p) == cases[i].cost);
+    json_decref(p);
+  }
+}
+
+/* A table that contradicts itself is caught before any document reaches it. */
+static void test_self_check(void **state) {
+  (void)state;
+  obs_err err = OBS_ERR_INIT;
+  for (size_t i = 0; i < obs_technique_count(); i++) {
+    const obs_technique *t = obs_technique_at(i);
+    int rc = obs_technique_params_check(t, &err);
+    if (rc) fprintf(stderr, "%s\n", obs_err_message(&err));
+    assert_int_equal(rc, 0);
+    /* The published defaults bind to what binding nothing gives. */
+    void *a = NULL, *b = NULL;
+    json_t *schema = obs_technique_params_schema(t);
+    json_t *props = json_object_get(schema, "properties");
+    json_t *defs = json_object();
+    const char *key;
+    json_t *v;
+    json_object_foreach(props, key, v) json_object_set(defs, key, json_object_get(v, "default"));
+    assert_int_equal(obs_params_bind_new(t, defs, &a, NULL), 0);
+    assert_int_equal(obs_params_bind_new(t, NULL, &b, NULL), 0);
+    assert_memory_equal(a, b, t->bound_size);
+    free(a);
+    free(b);
+    json_decref(defs);
+    json_decref(schema);
+  }
+  assert_int_equal(obs_technique_params_check(&(obs_technique){.name = "empty"}, NULL), 0);
+
+  const struct {
+    obs_param p;
+    const char *message;
+  } bad[] = {
+      {{.name = "a", .type = OBS_PARAM_INT, .min = 1, .max = 4, .def = 5, .description = "d"},
+       "demo params default: /a: must be <= 4 (got 5)"},
+      {{.name = "a",
+        .type = OBS_PARAM_FLOAT,
+        .flags = OBS_PARAM_MIN_EXCLUSIVE,
+        .min = 0,
+        .max = 1,
+        .def = 0,
+        .description = "d"},
+       "demo params default: /a: must be > 0 (got 0)"},
+      {{.name = "a", .type = OBS_PARAM_ENUM, .choices = modes, .def = 2, .description = "d"},
+       "/a: default index 2 is not a choice"},
+      {{.name = "a",
+        .type = OBS_PARAM_INT,
+        .values = tap_counts,
+        .nvalues = 3,
+        .def = 12,
+        .description = "d"},
+       "/a: must be one of 8, 16, 24 (got 12)"},
+      {{.name = "a", .type = OBS_PARAM_BOOL, .offset = sizeof(demo), .description = "d"},
+       "/a: offset"},
+      {{.name = "a", .type = OBS_PARAM_DOUBLE, .offset = 4, .description = "d"}, "/a: offset 4"},
+      {{.name = "a", .type = OBS_PARAM_FLOAT, .min = 0, .max = 1e39, .description = "d"},
+       "beyond what its type stores"},
+      {{.name = "a", .type = OBS_PARAM_UINT, .min = -1, .max = 3, .description = "d"},
+       "beyond what its type stores"},
+      {{.name = "a", .type = OBS_PARAM_INT, .min = 0.5, .max = 3, .def = 1, .description = "d"},
+       "integer bounds must be integers"},
+      {{.name = "a",
+        .type = OBS_PARAM_DOUBLE,
+        .flags = OBS_PARAM_DEFAULT_NULL,
+        .max = 1,
+        .description = "d"},
+       "a null default needs OBS_PARAM_NULLABLE"},
+      {{.name = "a", .type = OBS_PARAM_ENUM, .description = "d"}, "an enum needs choices"},
+      {{.name = "a", .type = OBS_PARAM_BOOL}, "/a: has no description"},
+      {{.name = "", .type = OBS_PARAM_BOOL, .description = "d"}, "entry 0 has no name"},
+  };
+  obs_technique t = demo_technique();
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+    t.params = &bad[i].p;
+    t.params_size = 1;
+    t.cost = NULL;
+    obs_err_free(&err);
+    assert_int_equal(obs_technique_params_check(&t, &err), OBS_EINVAL);
+    if (!strstr(obs_err_message(&err), bad[i].message))
+      fprintf(stderr, "case %zu: expected \"%s\", got \"%s\"\n", i, bad[i].message,
+              obs_err_message(&err));
+    assert_non_null(strstr(obs_err_message(&err), bad[i].message));
+  }
+  /* Twice the same name. */
+  obs_param twice[2] = {demo_params[0], demo_params[0]};
+  t.params = twice;
+  t.params_size = 2;
+  obs_err_free(&err);
+  assert_int_equal(obs_technique_params_check(&t, &err), OBS_EINVAL);
+  assert_non_null(strstr(obs_err_message(&err), "demo params: /flag: declared twice"));
+  /* A cost hook that gives nonsense for the defaults. */
+  t = demo_technique();
+  obs_param zero_taps = demo_params[7];
+  obs_param table[8];
+  memcpy(table, demo_params, sizeof table);
+  zero_taps.type = OBS_PARAM_INT;
+  zero_taps.values = NULL;
+  zero_taps.min = 0;
+  zero_taps.max = 4;
+  zero_taps.def = 0;
+  table[7] = zero_taps;
+  t.params = table;
+  obs_err_free(&err);
+  assert_int_equal(obs_technique_params_check(&t, &err), OBS_EINVAL);
+  assert_non_null(strstr(obs_err_message(&err), "the cost of the defaults is 0"));
+  obs_err_free(&err);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_defaults_and_offsets),
+      cmocka_unit_test(test_bounds_types_messages),
+      cmocka_unit_test(test_schema),
+      cmocka_unit_test(test_cost),
+      cmocka_unit_test(test_self_check),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
