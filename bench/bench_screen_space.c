@@ -447,26 +447,26 @@ static int render_reference(const char *path, int w, int h, const char *tech, co
                             obs_reference_facts *facts, int threads, reference *ref) {
   obs_scene probe, sc;
   if (load_scene(path, w, h, tech, "cpu", params, &probe)) return 1;
-  json_t *def = NULL;
-  obs_response resp;
+  obs_reference_def rd;
   obs_err err = OBS_ERR_INIT;
-  int rc = obs_technique_reference(probe.technique, &probe, probe.params, facts, &def, &resp, &err);
+  int rc = obs_technique_reference(probe.technique, &probe, probe.params, facts, &rd, &err);
   obs_scene_free(&probe);
   if (rc) {
     fprintf(stderr, "bench_screen_space: reference of %s: %s\n", tech, obs_err_message(&err));
     obs_err_free(&err);
     return 1;
   }
-  json_object_set_new(def, "samples", json_integer(1024));
+  json_t *def = rd.params;
+  json_object_set_new(def, rd.technique->reference_quality, json_integer(1024));
   json_object_set_new(def, "sampler", json_string("sobol"));
   char *text = json_dumps(def, JSON_COMPACT | JSON_REAL_PRECISION(17));
   snprintf(ref->falloff, sizeof ref->falloff, "%s",
            json_string_value(json_object_get(def, "falloff")));
   ref->max_distance = json_number_value(json_object_get(def, "max_distance"));
-  ref->response = resp;
-  rc = text ? load_scene(path, w, h, "rt_ao", "cpu", text, &sc) : 1;
+  ref->response = rd.response;
+  rc = text ? load_scene(path, w, h, rd.technique->name, "cpu", text, &sc) : 1;
   free(text);
-  json_decref(def);
+  obs_reference_def_free(&rd);
   if (rc) return 1;
   timing t;
   rc = timed_render(&sc, threads, &t, &ref->res);

@@ -65,7 +65,8 @@ typedef struct cand {
 } cand;
 
 typedef struct ref_job {
-  char *doc, *key; /* key: the reference's rt_ao params, canonical JSON */
+  const char *technique; /* the reference technique (a registry name) */
+  char *doc, *key; /* key: the reference's params, canonical JSON */
   int width, height, spp;
   double work;
   obs_backend backend;
@@ -357,20 +358,23 @@ static void validate_candidate(srv_app *app, const cmp_req *q, cand *c, expansio
     remap_problems(&e, q->docname, c, "", problems, dropped);
     goto out;
   }
-  /* The reference: rt_ao with the candidate's AO definition, the reference's samples and seed. */
-  json_t *refp = NULL;
-  if (obs_technique_reference(sc.technique, &sc, sc.params, facts, &refp, &c->response, &e)) {
+  /* The reference: the technique the candidate's hook names, with the candidate's definition,
+   * the reference's quality (samples) and seed. */
+  obs_reference_def rd;
+  if (obs_technique_reference(sc.technique, &sc, sc.params, facts, &rd, &e)) {
     char line[1200];
     snprintf(line, sizeof line, "request: /candidates/%d: cannot define its reference: %s",
              c->entry, obs_err_message(&e));
     add_problem(problems, dropped, line);
     goto out;
   }
-  json_object_set_new(refp, "samples", json_integer(q->ref_samples));
-  json_object_set_new(refp, "seed", json_integer(q->ref_seed));
+  c->response = rd.response;
+  const char *ref_name = rd.technique->name;
+  json_object_set_new(rd.params, rd.technique->reference_quality, json_integer(q->ref_samples));
+  json_object_set_new(rd.params, "seed", json_integer(q->ref_seed));
   json_t *rdoc = json_deep_copy(q->base);
-  json_object_set_new(rdoc, "technique", technique_obj("rt_ao", q->ref_backend, refp));
-  json_decref(refp);
+  json_object_set_new(rdoc, "technique", technique_obj(ref_name, q->ref_backend, rd.params));
+  obs_reference_def_free(&rd);
   obs_scene rs;
   memset(&rs, 0, sizeof rs);
   char *rtext = NULL;
@@ -385,7 +389,7 @@ static void validate_candidate(srv_app *app, const cmp_req *q, cand *c, expansio
       size_t len = nl ? (size_t)(nl - p) : strlen(p);
       char line[2600];
       snprintf(line, sizeof line, "request: /reference: the reference of /candidates/%d "
-               "(rt_ao): %.*s", c->entry, (int)len, p);
+               "(%s): %.*s", c->entry, ref_name, (int)len, p);
       add_problem(problems, dropped, line);
       p = nl ? nl + 1 : p + len;
     }
@@ -398,12 +402,13 @@ static void validate_candidate(srv_app *app, const cmp_req *q, cand *c, expansio
   char *key = json_dumps(rs.params, JSON_COMPACT | JSON_SORT_KEYS | JSON_REAL_PRECISION(17));
   int found = -1;
   for (int i = 0; key && i < x->nrefs; i++)
-    if (!strcmp(x->refs[i].key, key)) found = i;
+    if (!strcmp(x->refs[i].key, key) && !strcmp(x->refs[i].technique, ref_name)) found = i;
   if (key && found < 0) {
     ref_job *nr = realloc(x->refs, (size_t)(x->nrefs + 1) * sizeof *nr);
     if (nr) {
       x->refs = nr;
       ref_job *r = &x->refs[x->nrefs];
+      r->technique = ref_name;
       r->doc = rtext;
       rtext = NULL;
       r->key = key;
@@ -584,7 +589,7 @@ int srv_compare_post(srv_req *r) {
                             .label = q.label,
                             .scene = q.docname,
                             .doc = rj->doc,
-                            .technique = "rt_ao",
+                            .technique = rj->technique,
                             .backend_requested = obs_backend_name(rj->backend),
                             .lane = rj->backend == OBS_BACKEND_VULKAN ? SRV_LANE_VULKAN
                                                                       : SRV_LANE_CPU,

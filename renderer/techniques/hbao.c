@@ -83,7 +83,9 @@ void obs_hbao_level_size(const obs_hbao_params *p, int width, int height, int *l
  * unweighted horizon occlusion within its radius R with a linear distance attenuation; binary
  * falloff at 2R/3 has the same mean when occluder distances spread evenly over [0, R]. */
 static int hbao_reference(const obs_scene *scene, const json_t *params, obs_reference_facts *facts,
-                          json_t *out, obs_response *response, obs_err *err) {
+                          obs_reference_def *def, obs_err *err) {
+  json_t *out = def->params;
+  def->technique = &obs_technique_rt_ao;
   (void)scene;
   (void)facts;
   obs_hbao_params p;
@@ -95,7 +97,7 @@ static int hbao_reference(const obs_scene *scene, const json_t *params, obs_refe
   json_object_set_new(out, "weighting", json_string("uniform"));
   json_object_set_new(out, "falloff", json_string("binary"));
   json_object_set_new(out, "max_distance", json_real(2.0 * radius / 3.0));
-  *response = OBS_RESPONSE_IDENTITY;
+  def->response = OBS_RESPONSE_IDENTITY;
   return 0;
 }
 

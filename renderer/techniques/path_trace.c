@@ -71,6 +71,26 @@ static void path_trace_check(const obs_scene *scene, const json_t *params, const
                 doc);
 }
 
+/* path_trace is its own reference: the same light transport (bounces, roulette, light sampling)
+ * with more paths and another seed (the caller sets samples and seed). The sampler is kept too:
+ * a converged reference differs from another only by its noise. */
+static int path_trace_reference(const obs_scene *scene, const json_t *params,
+                                obs_reference_facts *facts, obs_reference_def *def,
+                                obs_err *err) {
+  (void)scene;
+  (void)facts;
+  (void)err;
+  static const char *const keys[] = {"max_bounces", "rr_depth", "light_sampling", "sampler",
+                                     "exposure"};
+  def->technique = &obs_technique_path_trace;
+  for (size_t i = 0; i < sizeof keys / sizeof keys[0]; i++) {
+    json_t *v = json_object_get(params, keys[i]);
+    if (v) json_object_set_new(def->params, keys[i], json_deep_copy(v));
+  }
+  def->response = OBS_RESPONSE_IDENTITY;
+  return 0;
+}
+
 /* The guaranteed range below (docs/accuracy.md, "Guaranteed ranges"; tests/unit/test_extremes.c
  * checks both ends on the same sphere over a plane under a constant sky). The ray tracing is
  * rt_ao's, so are its limits; paths keep no length constant (shadow rays stop a relative 1e-4
@@ -91,7 +111,8 @@ const obs_technique obs_technique_path_trace = {
     .needs = OBS_NEED_BVH | OBS_NEED_BVH_FRAME_GEOMETRY | OBS_NEED_MATERIALS,
     .outputs = path_trace_outputs,
     .check = path_trace_check,
-    .reference = NULL,
+    .reference = path_trace_reference,
+    .reference_quality = "samples",
     .run = {[OBS_BACKEND_CPU] = obs_path_trace_cpu},
     .range = {[OBS_BACKEND_CPU] = {.size_min = 1e-9,
                                    .size_max = 1e9,

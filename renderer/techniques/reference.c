@@ -1,5 +1,6 @@
-/* Reference definitions: the dispatcher of the techniques' reference hooks (which rt_ao settings
- * define the same AO as a candidate) and the response curves a reference is mapped through. */
+/* Reference definitions: the dispatcher of the techniques' reference hooks (which reference
+ * technique, with which settings, defines the same quantity as a candidate) and the response
+ * curves a reference is mapped through. */
 #include <jansson.h>
 #include <math.h>
 #include <string.h>
@@ -7,24 +8,28 @@
 #include "obscura/technique.h"
 
 int obs_technique_reference(const obs_technique *t, const obs_scene *scene, const json_t *params,
-                            obs_reference_facts *facts, json_t **rt_ao_params,
-                            obs_response *response, obs_err *err) {
-  *rt_ao_params = NULL;
-  *response = OBS_RESPONSE_IDENTITY;
+                            obs_reference_facts *facts, obs_reference_def *def, obs_err *err) {
+  memset(def, 0, sizeof *def);
   if (!t || !t->reference)
     return obs_err_set(err, OBS_EUNSUPPORTED, "technique \"%s\" has no reference definition, so "
-                       "it cannot be compared with rt_ao", t ? t->name : "?");
+                       "it cannot be compared", t ? t->name : "?");
   obs_reference_facts local;
   memset(&local, 0, sizeof local);
-  json_t *out = json_object();
-  if (!out) return obs_err_set(err, OBS_ENOMEM, "out of memory");
-  int rc = t->reference(scene, params, facts ? facts : &local, out, response, err);
-  if (rc) {
-    json_decref(out);
-    return rc;
-  }
-  *rt_ao_params = out;
-  return 0;
+  def->params = json_object();
+  if (!def->params) return obs_err_set(err, OBS_ENOMEM, "out of memory");
+  int rc = t->reference(scene, params, facts ? facts : &local, def, err);
+  if (!rc && (!def->technique || !def->technique->reference_quality))
+    rc = obs_err_set(err, OBS_EUNSUPPORTED, "technique \"%s\": its reference technique \"%s\" "
+                     "cannot serve as a reference (no quality parameter)", t->name,
+                     def->technique ? def->technique->name : "?");
+  if (rc) obs_reference_def_free(def);
+  return rc;
+}
+
+void obs_reference_def_free(obs_reference_def *def) {
+  if (!def) return;
+  json_decref(def->params);
+  memset(def, 0, sizeof *def);
 }
 
 static const char *const response_names[OBS_RESPONSE_COUNT] = {"identity", "ssao_sphere",
@@ -65,9 +70,9 @@ static float response_slope(obs_response r, float w) {
 }
 
 int obs_response_apply(obs_response r, obs_image *img, obs_err *err) {
+  if (r == OBS_RESPONSE_IDENTITY) return 0;
   float *ao = obs_image_channel(img, "ao"), *se = obs_image_channel(img, "ao_stderr");
   if (!ao) return obs_err_set(err, OBS_ENOTFOUND, "reference image has no channel \"ao\"");
-  if (r == OBS_RESPONSE_IDENTITY) return 0;
   size_t n = (size_t)img->width * (size_t)img->height;
   for (size_t i = 0; i < n; i++) {
     if (se) se[i] *= fabsf(response_slope(r, ao[i]));

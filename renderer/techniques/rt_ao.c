@@ -66,7 +66,9 @@ static void rt_ao_check(const obs_scene *scene, const json_t *params, const char
 /* The reference of an rt_ao candidate is rt_ao with the same AO definition: only the sample count,
  * sampler and seed differ (the caller sets them). */
 static int rt_ao_reference(const obs_scene *scene, const json_t *params, obs_reference_facts *facts,
-                           json_t *out, obs_response *response, obs_err *err) {
+                           obs_reference_def *def, obs_err *err) {
+  json_t *out = def->params;
+  def->technique = &obs_technique_rt_ao;
   (void)scene;
   (void)facts;
   (void)err;
@@ -75,7 +77,7 @@ static int rt_ao_reference(const obs_scene *scene, const json_t *params, obs_ref
     json_t *v = json_object_get(params, keys[i]);
     if (v) json_object_set_new(out, keys[i], json_deep_copy(v));
   }
-  *response = OBS_RESPONSE_IDENTITY;
+  def->response = OBS_RESPONSE_IDENTITY;
   return 0;
 }
 
@@ -106,6 +108,7 @@ const obs_technique obs_technique_rt_ao = {
     .outputs = rt_ao_outputs,
     .check = rt_ao_check,
     .reference = rt_ao_reference,
+    .reference_quality = "samples",
     .run = {[OBS_BACKEND_CPU] = obs_rt_ao_cpu},
     .range = {[OBS_BACKEND_CPU] = {.size_min = 1e-9,
                                    .size_max = 1e9,

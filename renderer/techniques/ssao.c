@@ -92,7 +92,9 @@ void obs_ssao_tables_make(const obs_ssao_params *p, obs_ssao_tables *t) {
  * scene units at the median view depth of the covered pixels; the reference is then mapped through
  * ssao's response (sphere or hemisphere variant). */
 static int ssao_reference(const obs_scene *scene, const json_t *params, obs_reference_facts *facts,
-                          json_t *out, obs_response *response, obs_err *err) {
+                          obs_reference_def *def, obs_err *err) {
+  json_t *out = def->params;
+  def->technique = &obs_technique_rt_ao;
   obs_ssao_params p;
   int rc = obs_params_bind(&obs_technique_ssao, params, &p, err);
   if (rc) return rc;
@@ -117,7 +119,7 @@ static int ssao_reference(const obs_scene *scene, const json_t *params, obs_refe
   json_object_set_new(out, "weighting", json_string("uniform"));
   json_object_set_new(out, "falloff", json_string("sqrt"));
   json_object_set_new(out, "max_distance", json_real(dmax));
-  *response = p.normal_oriented ? OBS_RESPONSE_SSAO_HEMI : OBS_RESPONSE_SSAO_SPHERE;
+  def->response = p.normal_oriented ? OBS_RESPONSE_SSAO_HEMI : OBS_RESPONSE_SSAO_SPHERE;
   return 0;
 }
 

@@ -87,10 +87,11 @@ typedef int (*obs_technique_run_fn)(obs_render_ctx *ctx, obs_image *out, obs_err
 typedef void (*obs_technique_check_fn)(const obs_scene *scene, const json_t *params,
                                        const char *docname, obs_err *err);
 
-/* How a reference rt_ao image is put through a candidate technique's response curve before the
- * two are compared: screen-space techniques estimate a function of the obscurance W, not W. */
+/* How a reference image's primary output is put through a candidate technique's response curve
+ * before the two are compared: screen-space techniques estimate a function of the obscurance W,
+ * not W. Curves apply to scalar primary outputs; other kinds take IDENTITY. */
 typedef enum {
-  OBS_RESPONSE_IDENTITY = 0,  /* compare with W itself */
+  OBS_RESPONSE_IDENTITY = 0,  /* compare with the reference's output itself */
   OBS_RESPONSE_SSAO_SPHERE,   /* ssao, whole sphere: W^2/4 + W/2 */
   OBS_RESPONSE_SSAO_HEMI,     /* ssao, normal_oriented: min(1, W^2 + W) */
   OBS_RESPONSE_COUNT
@@ -103,12 +104,22 @@ typedef struct obs_reference_facts {
   double z_median; /* median linear view depth of the covered pixels (coarse primary-ray pass) */
 } obs_reference_facts;
 
-/* A technique's reference hook: fills `rt_ao_params` (an empty object) with the rt_ao parameters
- * that define the same AO as the technique with `params` (defaults filled) on `scene`: weighting,
- * falloff, max_distance and tau only (the caller adds samples and seed), and sets `*response`. */
+/* What a candidate is judged against: a registered technique (rt_ao for the AO techniques,
+ * path_trace for RGB ones, later a volume reference), its parameters and the response mapping.
+ * The reference technique's `reference_quality` parameter and "seed" are left to the caller (a
+ * comparison's reference.samples and reference.seed). */
+typedef struct obs_reference_def {
+  const struct obs_technique *technique;
+  json_t *params;        /* owned */
+  obs_response response;
+} obs_reference_def;
+
+/* A technique's reference hook: sets def->technique and def->response and fills def->params (an
+ * empty object) with the reference technique's parameters that define the same quantity as the
+ * technique with `params` (defaults filled) on `scene`. */
 typedef int (*obs_technique_reference_fn)(const obs_scene *scene, const json_t *params,
-                                          obs_reference_facts *facts, json_t *rt_ao_params,
-                                          obs_response *response, obs_err *err);
+                                          obs_reference_facts *facts, obs_reference_def *def,
+                                          obs_err *err);
 
 /* A parameter whose guaranteed range is narrower than its schema's. The bound applies to
  * value / size^size_power, size being the scene size of obs_range: 1 for lengths (a radius in
@@ -212,6 +223,9 @@ typedef struct obs_technique {
   const char *const *outputs;   /* NULL-terminated: EXR channel names and extra files */
   obs_technique_check_fn check; /* may be NULL */
   obs_technique_reference_fn reference; /* may be NULL: the technique cannot be compared */
+  /* As a reference: the integer parameter a comparison's reference.samples sets (its converged
+   * quality, e.g. "samples"); NULL: the technique cannot serve as a reference. */
+  const char *reference_quality;
   obs_technique_run_fn run[OBS_BACKEND_COUNT]; /* indexed by obs_backend; NULL = not available */
   obs_range range[OBS_BACKEND_COUNT]; /* guaranteed range of each backend that has a run */
 } obs_technique;
@@ -226,18 +240,20 @@ int obs_technique_pick_backend(const obs_technique *t, obs_backend requested, ob
                                obs_err *err);
 const char *obs_backend_name(obs_backend b);
 /* The reference definition of `t` with `params` on `scene` (see obs_technique_reference_fn):
- * *rt_ao_params is a new object owned by the caller. `facts` may be NULL (nothing is cached).
- * OBS_EUNSUPPORTED when the technique has no reference hook. */
+ * def->params is a new object owned by the caller (obs_reference_def_free). `facts` may be NULL
+ * (nothing is cached). OBS_EUNSUPPORTED when the technique has no reference hook, or names a
+ * reference technique that has no reference_quality. */
 int obs_technique_reference(const obs_technique *t, const obs_scene *scene, const json_t *params,
-                            obs_reference_facts *facts, json_t **rt_ao_params,
-                            obs_response *response, obs_err *err);
+                            obs_reference_facts *facts, obs_reference_def *def, obs_err *err);
+void obs_reference_def_free(obs_reference_def *def);
 /* "identity", "ssao_sphere", "ssao_hemi" (stored by the server), and back (-1 when unknown). */
 const char *obs_response_name(obs_response r);
 int obs_response_parse(const char *name, obs_response *out);
 /* The response curve f(W). */
 float obs_response_map(obs_response r, float w);
 /* Maps channel "ao" of `img` in place through f, and scales "ao_stderr" (when present) by
- * |f'(W)| so the reference's noise is stated in the mapped units (first-order propagation). */
+ * |f'(W)| so the reference's noise is stated in the mapped units (first-order propagation).
+ * IDENTITY leaves any image as it is. */
 int obs_response_apply(obs_response r, obs_image *img, obs_err *err);
 
 /* Validates `params` (an object with defaults filled, or raw: absent members take their
