@@ -220,12 +220,11 @@ static void expand_entries(srv_app *app, obs_jpath *p, const json_t *cands, expa
       for (size_t j = 0; !bad && j < n; j++) {
         json_t *v = listed ? json_array_get(bv, j) : bv;
         size_t q = listed ? obs_jpath_push_index(p, j) : p->len;
-        const char *s = json_string_value(v);
-        if (!s || (strcmp(s, "cpu") && strcmp(s, "vulkan"))) {
+        obs_backend b = OBS_BACKEND_AUTO;
+        if (obs_backend_parse(json_string_value(v), &b) || b == OBS_BACKEND_AUTO) {
           obs_jpath_fail(p, "must be \"cpu\" or \"vulkan\" (got %s)", obs_json_brief(v));
           bad = 1;
         } else {
-          obs_backend b = strcmp(s, "cpu") ? OBS_BACKEND_VULKAN : OBS_BACKEND_CPU;
           for (int q2 = 0; q2 < nb; q2++)
             if (bes[q2] == b) {
               obs_jpath_fail(p, "is listed twice (got %s)", obs_json_brief(v));
@@ -474,14 +473,15 @@ static unsigned parse_request(srv_app *app, const char *body, size_t len, cmp_re
   if (ref) {
     size_t m = obs_jpath_push_key(&p, "reference");
     static const char *const rkeys[] = {"samples", "backend", "seed", NULL};
-    static const char *const rbe[] = {"cpu", "vulkan", "auto", NULL};
     obs_json_check_keys(&p, ref, rkeys);
     obs_json_get_int(&p, ref, "samples", 0, 1, 65536, &q->ref_samples);
     obs_json_get_int(&p, ref, "seed", 0, 0, 4294967295LL, &q->ref_seed);
     const char *b = NULL;
+    const char *rbe[] = {obs_backend_name(OBS_BACKEND_CPU), obs_backend_name(OBS_BACKEND_VULKAN),
+                         obs_backend_name(OBS_BACKEND_AUTO), NULL};
     if (!obs_json_get_string(&p, ref, "backend", 0, rbe, &b) && b) {
-      obs_backend want = !strcmp(b, "cpu") ? OBS_BACKEND_CPU
-                         : !strcmp(b, "vulkan") ? OBS_BACKEND_VULKAN : OBS_BACKEND_AUTO;
+      obs_backend want = OBS_BACKEND_AUTO;
+      obs_backend_parse(b, &want);
       obs_err e = OBS_ERR_INIT;
       if (srv_pick_backend(obs_technique_find("rt_ao"), want, app->vulkan_lane, &q->ref_backend,
                            &e)) {
@@ -1181,9 +1181,11 @@ void srv_compare_metrics(srv_app *app, int64_t job) {
 /* Whether a stored candidate can inform a time budget here: a known technique, a backend this
  * daemon runs, and a finite RMSE (filled in). */
 static int budget_row(const srv_app *app, const json_t *row, double *rmse, int *at_ref) {
-  const char *be = json_string_value(json_object_get(row, "backend"));
+  obs_backend be = OBS_BACKEND_AUTO;
   const obs_technique *t = obs_technique_find(json_string_value(json_object_get(row, "technique")));
-  if (!t || !be || (!strcmp(be, "vulkan") && !app->vulkan_lane)) return 0;
+  if (!t || obs_backend_parse(json_string_value(json_object_get(row, "backend")), &be) ||
+      (be == OBS_BACKEND_VULKAN && !app->vulkan_lane))
+    return 0;
   json_t *m = json_loads(json_string_value(json_object_get(row, "metrics")), 0, NULL);
   json_t *rm = json_object_get(m, "rmse");
   *rmse = json_is_number(rm) ? json_number_value(rm) : NAN;

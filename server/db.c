@@ -230,7 +230,15 @@ int srv_state_parse(const char *s, srv_state *out) {
   return -1;
 }
 
-const char *srv_lane_name(srv_lane l) { return l == SRV_LANE_VULKAN ? "vulkan" : "cpu"; }
+const char *srv_lane_name(srv_lane l) {
+  return obs_backend_name(l == SRV_LANE_VULKAN ? OBS_BACKEND_VULKAN : OBS_BACKEND_CPU);
+}
+
+srv_lane srv_lane_parse(const char *name) {
+  obs_backend b = OBS_BACKEND_CPU;
+  obs_backend_parse(name, &b);
+  return b == OBS_BACKEND_VULKAN ? SRV_LANE_VULKAN : SRV_LANE_CPU;
+}
 
 char *srv_dbi_col_str(sqlite3_stmt *s, int i) {
   const unsigned char *t = sqlite3_column_text(s, i);
@@ -249,8 +257,7 @@ static void read_job(sqlite3_stmt *s, srv_job *j) {
   j->technique = srv_dbi_col_str(s, 5);
   j->backend_requested = srv_dbi_col_str(s, 6);
   j->backend = srv_dbi_col_str(s, 7);
-  const unsigned char *lane = sqlite3_column_text(s, 8);
-  j->lane = lane && !strcmp((const char *)lane, "vulkan") ? SRV_LANE_VULKAN : SRV_LANE_CPU;
+  j->lane = srv_lane_parse((const char *)sqlite3_column_text(s, 8));
   j->width = sqlite3_column_int(s, 9);
   j->height = sqlite3_column_int(s, 10);
   j->spp = sqlite3_column_int(s, 11);

@@ -578,7 +578,7 @@ static int download_outputs(client *c, json_t *job, const char *dir) {
     return EXIT_FAILURE;
   }
   obs_err derr = OBS_ERR_INIT;
-  if (obs_image_make_dirs(dir, &derr)) {
+  if (obs_path_make_dirs(dir, &derr)) {
     fprintf(stderr, "obscura: %s\n", obs_err_message(&derr));
     obs_err_free(&derr);
     return EXIT_FAILURE;
@@ -657,7 +657,7 @@ int cli_submit(int argc, char **argv) {
   }
   obs_err_free(&err);
   /* An unusable -o DIR is found now, not after the render. */
-  if (o.out_dir && obs_image_make_dirs(o.out_dir, &err)) {
+  if (o.out_dir && obs_path_make_dirs(o.out_dir, &err)) {
     fprintf(stderr, "obscura: %s\n", obs_err_message(&err));
     obs_err_free(&err);
     obs_scene_free(&sc);

@@ -2,7 +2,12 @@
 #ifndef OBS_TECHNIQUES_H
 #define OBS_TECHNIQUES_H
 
+#include "obscura/backend.h"
 #include "obscura/technique.h"
+
+/* Each backend layer's operations table (renderer/cpu/backend.c, renderer/vulkan/device.c). */
+extern const obs_backend_ops obs_backend_cpu_ops;
+extern const obs_backend_ops obs_backend_vulkan_ops;
 
 extern const obs_technique obs_technique_rt_ao;
 int obs_rt_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);

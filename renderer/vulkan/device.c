@@ -7,6 +7,7 @@
 
 #include "obscura/render.h"
 #include "vk_internal.h"
+#include "techniques.h"
 
 #define NO_DEVICE_HINT "install mesa-vulkan-drivers for lavapipe"
 #define VALIDATION_LAYER "VK_LAYER_KHRONOS_validation"
@@ -380,6 +381,14 @@ int obs_vk_available(void) {
 const char *obs_vk_available_device_name(void) {
   return obs_vk_available() ? available_name : NULL;
 }
+
+const obs_backend_ops obs_backend_vulkan_ops = {
+    .id = OBS_BACKEND_VULKAN,
+    .name = "vulkan",
+    .available = obs_vk_available,
+    .device_name = obs_vk_available_device_name,
+    .gbuffer = NULL,
+};
 
 int obs_vk_validation_requested(void) {
   const char *v = getenv("OBSCURA_VK_VALIDATION");
