@@ -1,6 +1,7 @@
 /* The database's recovery paths: jobs a dead process left running, and queued jobs moved to the
- * lane the scheduler picks (at start); and a database file lost, replaced or corrupted under the running daemon (identity checks,
- * quick_check, write-back with VACUUM INTO, reopening the pool, the write probe). */
+ * lane the scheduler picks (at start); and a database file lost, replaced or corrupted under the
+ * running daemon (identity checks, quick_check, write-back with VACUUM INTO, reopening the pool,
+ * the write probe). */
 #include <errno.h>
 #include <fcntl.h>
 #include <pthread.h>

@@ -54,7 +54,7 @@ static void test_inside_empty(void **state) {
   assert_false(obs_path_is_inside("/a", NULL));
 }
 
-/* Lexical only: the caller resolves symlinks, and with realpath a link out of the tree is caught. */
+/* Lexical only: the caller resolves symlinks; with realpath a link out of the tree is caught. */
 static void test_inside_symlink_resolved_by_caller(void **state) {
   (void)state;
   const char *dir = obs_test_tmpdir("path_symlink");
