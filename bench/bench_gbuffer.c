@@ -10,7 +10,7 @@
 
 #include "bench_args.h"
 #include "bench_machine.h"
-#include "gbuffer.h"
+#include "gbuffer_cpu.h"
 #include "obscura/obscura.h"
 
 static int cmp_double(const void *a, const void *b) {

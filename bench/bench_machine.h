@@ -8,23 +8,13 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "obscura/backend.h"
 #include "raytrace.h"
 #include "simd.h"
 
-/* The "model name" of /proc/cpuinfo, or "unknown CPU". */
+/* The CPU as its backend names it (the "model name" of /proc/cpuinfo, or "unknown"). */
 static inline void bench_cpu_model(char *buf, size_t size) {
-  snprintf(buf, size, "unknown CPU");
-  FILE *f = fopen("/proc/cpuinfo", "r");
-  if (!f) return;
-  char line[512];
-  while (fgets(line, sizeof line, f)) {
-    const char *colon = strchr(line, ':');
-    if (strncmp(line, "model name", 10) || !colon) continue;
-    snprintf(buf, size, "%s", colon + 1 + (colon[1] == ' '));
-    buf[strcspn(buf, "\n")] = 0;
-    break;
-  }
-  fclose(f);
+  snprintf(buf, size, "%s", obs_backend_ops_get(OBS_BACKEND_CPU)->device_name());
 }
 
 /* The path label used in goal lines, e.g. "level avx2: spans avx2/loads, Embree AVX2". */

@@ -81,7 +81,7 @@ int LLVMFuzzerInitialize(int *argc, char ***argv) {
   obs_render_keep_memory();
   app.start_ms = obs_now_ms();
   snprintf(app.results_dir, sizeof app.results_dir, "%s/results", data);
-  if (srv_mkdirs(app.results_dir)) die(app.results_dir, NULL);
+  if (obs_path_make_dirs(app.results_dir, NULL)) die(app.results_dir, NULL);
   if (!realpath(app.cfg.scenes_dir, app.scenes_real)) die(app.cfg.scenes_dir, NULL);
   if (!realpath(app.cfg.web_dir, app.web_real)) app.web_real[0] = '\0';
   if (!realpath(app.cfg.vendor_dir, app.vendor_real)) app.vendor_real[0] = '\0';
@@ -93,7 +93,7 @@ int LLVMFuzzerInitialize(int *argc, char ***argv) {
   obs_err err = OBS_ERR_INIT;
   int nconn = app.cfg.http_threads + app.cfg.workers + 3;
   if (srv_db_open(&app.db, app.cfg.db, nconn, &err)) die("database", &err);
-  if (srv_db_recover(app.db, 0, clean_outputs, &app, &err)) die("recovery", &err);
+  if (srv_db_recover(app.db, srv_pick_lane_recovered, clean_outputs, &app, &err)) die("recovery", &err);
   if (srv_db_machine(app.db, "fuzz", 1, NULL, &app.machine_id, &err)) die("machine", &err);
   if (srv_sched_start(&app, &err)) die("scheduler", &err);
   if (srv_http_start(&app, &err)) die("HTTP", &err);

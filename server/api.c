@@ -235,7 +235,8 @@ static enum MHD_Result on_query_arg(void *cls, enum MHD_ValueKind kind, const ch
                   shown);
     else q->f.technique = value;
   } else if (k == 2) {
-    if (strcmp(value, "cpu") && strcmp(value, "vulkan") && strcmp(value, "auto"))
+    obs_backend be;
+    if (obs_backend_parse(value, &be))
       obs_err_set(q->problems, OBS_EINVAL,
                   "query: /backend: must be one of cpu, vulkan, auto (got \"%s\")", shown);
     else q->f.backend = value;
@@ -388,8 +389,8 @@ static int scenes(srv_req *r) {
     char path[PATH_MAX + 300], real[PATH_MAX];
     snprintf(path, sizeof path, "%s/%s", app->scenes_real, e->d_name);
     struct stat st;
-    if (!realpath(path, real) || !srv_path_inside(app->scenes_real, real) || stat(real, &st) ||
-        !S_ISREG(st.st_mode))
+    if (!realpath(path, real) || !obs_path_is_inside(app->scenes_real, real) ||
+        stat(real, &st) || !S_ISREG(st.st_mode))
       continue;
     json_t *s = json_pack("{s:s, s:I}", "name", e->d_name, "size", (json_int_t)st.st_size);
     json_error_t je;

@@ -108,5 +108,13 @@ void srv_dbi_close_conn(conn *c);
 int srv_dbi_record_identity(srv_db *db, const char *path, obs_err *err);
 /* VACUUM INTO `target` on c, flushed: a consistent copy of everything committed. */
 int srv_dbi_vacuum_into(conn *c, const char *target, obs_err *err);
+/* Fills err and returns OBS_ETRANSIENT while work is refused (the database file was lost or is
+ * corrupt): accepting a job that a restart would not find is losing it. */
+int srv_dbi_refused(srv_db *db, obs_err *err);
+/* Inserts one job row on `c` (in autocommit or the caller's transaction). */
+int srv_dbi_insert_job(conn *c, const srv_new_job *nj, int64_t *id, obs_err *err);
+/* Inserts or replaces output rows of job `id` (statement `which`: ST_OUT_INSERT or UPSERT). */
+int srv_dbi_put_outputs(conn *c, int which, int64_t id, const srv_output *outs, int nouts,
+                        obs_err *err);
 
 #endif

@@ -1,6 +1,7 @@
-/* The database's recovery paths: jobs a dead process left running or unrunnable (at start), and
- * a database file lost, replaced or corrupted under the running daemon (identity checks,
- * quick_check, write-back with VACUUM INTO, reopening the pool, the write probe). */
+/* The database's recovery paths: jobs a dead process left running, and queued jobs moved to the
+ * lane the scheduler picks (at start); and a database file lost, replaced or corrupted under the
+ * running daemon (identity checks, quick_check, write-back with VACUUM INTO, reopening the pool,
+ * the write probe). */
 #include <errno.h>
 #include <fcntl.h>
 #include <pthread.h>
@@ -17,7 +18,7 @@ typedef struct pending {
   int attempts, cancel;
   char *error;
   char *technique, *backend;
-  int lane;
+  srv_lane lane;
 } pending;
 
 static void free_pending(pending *p, int n) {
@@ -56,8 +57,7 @@ static int collect(conn *c, int which, pending **out, int *n, obs_err *err) {
     } else {
       p->technique = srv_dbi_col_str(s, 1);
       p->backend = srv_dbi_col_str(s, 2);
-      const unsigned char *l = sqlite3_column_text(s, 3);
-      p->lane = l && !strcmp((const char *)l, "vulkan");
+      p->lane = srv_lane_parse((const char *)sqlite3_column_text(s, 3));
     }
   }
   int rc = step == SQLITE_DONE ? 0 : srv_dbi_fail(c, err, "recovery scan");
@@ -75,8 +75,10 @@ static int end_job(conn *c, int64_t id, srv_state st, const char *msg, obs_err *
   return srv_dbi_exec_done(c, s, err, "recovery");
 }
 
-int srv_db_recover(srv_db *db, int vulkan_lane, void (*clean)(void *, int64_t), void *user,
-                   obs_err *err) {
+int srv_db_recover(srv_db *db,
+                   int (*pick)(void *user, const char *technique, const char *backend_requested,
+                               srv_lane stored, srv_lane *lane, obs_err *err),
+                   void (*clean)(void *, int64_t), void *user, obs_err *err) {
   conn *c = srv_dbi_acquire(db);
   pending *run = NULL, *queued = NULL;
   int nrun = 0, nq = 0;
@@ -110,28 +112,16 @@ int srv_db_recover(srv_db *db, int vulkan_lane, void (*clean)(void *, int64_t), 
   if (!rc) rc = collect(c, ST_QUEUED_LIST, &queued, &nq, err);
   for (int i = 0; !rc && i < nq; i++) {
     pending *p = &queued[i];
-    const obs_technique *t = obs_technique_find(p->technique);
-    obs_backend want = !p->backend || !strcmp(p->backend, "auto") ? OBS_BACKEND_AUTO
-                       : !strcmp(p->backend, "vulkan")            ? OBS_BACKEND_VULKAN
-                                                                  : OBS_BACKEND_CPU;
-    obs_backend be = OBS_BACKEND_CPU;
+    srv_lane lane = p->lane;
     obs_err e = OBS_ERR_INIT;
-    int prc = t ? srv_pick_backend(t, want, vulkan_lane, &be, &e)
-                : obs_err_set(&e, OBS_ENOTFOUND, "technique \"%s\" no longer exists",
-                              p->technique ? p->technique : "?");
-    if (prc) {
+    if (pick(user, p->technique, p->backend, p->lane, &lane, &e)) {
       rc = end_job(c, p->id, SRV_FAILED, obs_err_message(&e), err);
       srv_log("job %lld: queued -> failed (%s)", (long long)p->id, obs_err_message(&e));
-    } else if (want == OBS_BACKEND_AUTO &&
-               (p->lane ? vulkan_lane && obs_technique_has_backend(t, OBS_BACKEND_VULKAN)
-                        : obs_technique_has_backend(t, OBS_BACKEND_CPU))) {
-      /* An "auto" job keeps the lane chosen at submission (possibly from measured timings) as
-       * long as that lane still runs here. */
-    } else if ((be == OBS_BACKEND_VULKAN) != p->lane) {
+    } else if (lane != p->lane) {
       sqlite3_stmt *s = srv_dbi_stmt(c, ST_SET_LANE, err);
       if (!s) rc = OBS_EIO;
       else {
-        srv_dbi_bind_text(s, 1, be == OBS_BACKEND_VULKAN ? "vulkan" : "cpu");
+        srv_dbi_bind_text(s, 1, srv_lane_name(lane));
         sqlite3_bind_int64(s, 2, p->id);
         rc = srv_dbi_exec_done(c, s, err, "recovery");
       }

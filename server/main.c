@@ -56,25 +56,6 @@ static int read_token(srv_app *app) {
 
 static void clean_outputs(void *user, int64_t id) { srv_outputs_remove(user, id); }
 
-/* The CPU model as /proc/cpuinfo names it ("model name"), or "unknown". */
-static void cpu_model(char *buf, size_t n) {
-  snprintf(buf, n, "unknown");
-  FILE *f = fopen("/proc/cpuinfo", "r");
-  if (!f) return;
-  char line[512];
-  while (fgets(line, sizeof line, f)) {
-    if (strncmp(line, "model name", 10)) continue;
-    char *v = strchr(line, ':');
-    if (!v) break;
-    v++;
-    while (*v == ' ' || *v == '\t') v++;
-    size_t len = strcspn(v, "\r\n");
-    if (len) snprintf(buf, n, "%.*s", (int)len, v);
-    break;
-  }
-  fclose(f);
-}
-
 static int resolve_dir(const char *opt, const char *dir, char *out, int required) {
   struct stat st;
   if (realpath(dir, out) && !stat(out, &st) && S_ISDIR(st.st_mode)) return 0;
@@ -124,7 +105,7 @@ int main(int argc, char **argv) {
   if (slash && slash != dbdir) *slash = '\0';
   /* A results directory that exists but cannot be written is not refused here: that is a fault
    * the render lanes report and wait out, like one that appears while running. */
-  if (srv_mkdirs(app.results_dir)) {
+  if (obs_path_make_dirs(app.results_dir, NULL)) {
     int e = errno;
     fprintf(stderr, "obscurad: --data-dir %s: cannot create %s: %s%s\n", app.cfg.data_dir,
             app.results_dir, strerror(e),
@@ -134,7 +115,7 @@ int main(int argc, char **argv) {
     srv_config_free(&app.cfg);
     return 1;
   }
-  if (slash && slash != dbdir && srv_mkdirs(dbdir)) {
+  if (slash && slash != dbdir && obs_path_make_dirs(dbdir, NULL)) {
     fprintf(stderr, "obscurad: --db %s: cannot create the database's directory %s: %s\n",
             app.cfg.db, dbdir, strerror(errno));
     srv_config_free(&app.cfg);
@@ -154,7 +135,8 @@ int main(int argc, char **argv) {
   if (srv_meshimport_start(&app, &err)) goto out;
   /* No probe with --no-vulkan: loading the driver only to leave it unused costs start-up time
    * and leaves its process-lifetime allocations for LeakSanitizer to report at exit. */
-  app.vk_available = app.cfg.vulkan && obs_vk_available();
+  const obs_backend_ops *vk = obs_backend_ops_get(OBS_BACKEND_VULKAN);
+  app.vk_available = app.cfg.vulkan && vk->available();
   app.vulkan_lane = app.vk_available;
   app.cpu_threads = obs_cpu_count() / app.cfg.workers;
   if (app.cpu_threads < 1) app.cpu_threads = 1;
@@ -162,15 +144,12 @@ int main(int argc, char **argv) {
   /* One connection per thread that can hold one: HTTP pool, workers, maintenance, main. */
   int nconn = app.cfg.http_threads + app.cfg.workers + 3;
   if (srv_db_open(&app.db, app.cfg.db, nconn, &err)) goto out;
-  if (srv_db_recover(app.db, app.vulkan_lane, clean_outputs, &app, &err)) goto out;
+  if (srv_db_recover(app.db, srv_pick_lane_recovered, clean_outputs, &app, &err)) goto out;
   srv_outputs_sweep(&app);
   /* The facts every timed run is recorded with: this CPU, the threads a render uses, and the
    * Vulkan device when a Vulkan lane runs. */
-  char model[256];
-  cpu_model(model, sizeof model);
-  if (srv_db_machine(app.db, model, app.cpu_threads,
-                     app.vulkan_lane ? obs_vk_available_device_name() : NULL, &app.machine_id,
-                     &err))
+  if (srv_db_machine(app.db, obs_backend_ops_get(OBS_BACKEND_CPU)->device_name(), app.cpu_threads,
+                     app.vulkan_lane ? vk->device_name() : NULL, &app.machine_id, &err))
     goto out;
   /* Recovery of comparisons: metrics of candidates whose jobs both succeeded but which the last
    * process did not get to (it died between a job's commit and its metrics). */

@@ -75,12 +75,8 @@ void srv_format_time(int64_t unix_ms, char *buf, size_t n);
 json_t *srv_json_time(int64_t unix_ms);
 /* Strict decimal id (1..2^63-1, no sign, no leading zero). Returns 0 on success. */
 int srv_parse_id(const char *s, size_t len, int64_t *out);
-/* mkdir -p. Returns 0 or -1 with errno. */
-int srv_mkdirs(const char *path);
 /* rm -rf of a directory we created (no symlink following). Returns 0 when gone. */
 int srv_remove_tree(const char *path);
-/* Whether `path` (resolved) lies inside the resolved directory `dir`. */
-int srv_path_inside(const char *dir, const char *path);
 /* Median of v[0..n) (sorts v in place); NaN when n is 0. */
 double srv_median(double *v, size_t n);
 /* Client text made safe to quote in a message (and the log): control characters, non-ASCII and
@@ -104,6 +100,8 @@ int srv_state_parse(const char *s, srv_state *out);
 
 typedef enum { SRV_LANE_CPU, SRV_LANE_VULKAN, SRV_NLANES } srv_lane;
 const char *srv_lane_name(srv_lane l);
+/* The lane of a stored lane name ("cpu" or "vulkan"; anything else reads as the CPU lane). */
+srv_lane srv_lane_parse(const char *name);
 
 typedef struct srv_output {
   char name[32];
@@ -173,11 +171,19 @@ void srv_db_close(srv_db *db);
  * explicit "vulkan" without a lane is an error naming the flag. */
 int srv_pick_backend(const obs_technique *t, obs_backend requested, int vulkan_lane,
                      obs_backend *out, obs_err *err);
-/* Re-resolves lanes of queued jobs (the Vulkan device may have come or gone), fails those no lane
- * can run, and returns running jobs to queued (or fails them at SRV_MAX_ATTEMPTS). Calls
- * `clean(user, id)` for every job whose half-written outputs must go. Run before any worker. */
-int srv_db_recover(srv_db *db, int vulkan_lane, void (*clean)(void *, int64_t), void *user,
-                   obs_err *err);
+/* The scheduler's lane for a job left queued by the last process: 0 and *lane (which may differ
+ * from the stored one when the Vulkan device came or went), or an error whose message the job
+ * fails with. `user` is the srv_app. */
+int srv_pick_lane_recovered(void *user, const char *technique, const char *backend_requested,
+                            srv_lane stored, srv_lane *lane, obs_err *err);
+/* Returns running jobs to queued (or fails them at SRV_MAX_ATTEMPTS), and gives every queued job
+ * the lane `pick` decides (storage records, the scheduler decides), failing those it refuses.
+ * Calls `clean(user, id)` for every job whose half-written outputs must go. Run before any
+ * worker. */
+int srv_db_recover(srv_db *db,
+                   int (*pick)(void *user, const char *technique, const char *backend_requested,
+                               srv_lane stored, srv_lane *lane, obs_err *err),
+                   void (*clean)(void *, int64_t), void *user, obs_err *err);
 
 int srv_db_insert_job(srv_db *db, const srv_new_job *nj, int64_t *id, obs_err *err);
 /* 0 and *j filled, OBS_ENOTFOUND, or another error. */
@@ -585,10 +591,6 @@ int srv_db_set_job_client(srv_db *db, int64_t job, int64_t comparison, const cha
  * whose job's work is at least min_work; *rates malloc'd (db.c). */
 int srv_db_run_rates(srv_db *db, const char *technique, const char *backend, int64_t machine,
                      double min_work, double **rates, size_t *n, obs_err *err);
-
-/* From the renderer's Vulkan layer (renderer/vulkan/vk.h): whether a device exists, its name. */
-int obs_vk_available(void);
-const char *obs_vk_available_device_name(void);
 
 /* SHA-256 of a buffer (outputs.c). */
 void srv_sha256(const void *data, size_t len, unsigned char out[32]);

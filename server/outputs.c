@@ -299,7 +299,8 @@ int srv_outputs_probe(const char *dir, char *code, size_t n, obs_err *err) {
    * (quota, I/O errors) fails here too. */
   static const char block[4096];
   int fd = open(path, O_WRONLY | O_CREAT | O_TRUNC | O_NOFOLLOW | O_CLOEXEC, 0644);
-  if (fd < 0 && errno == ENOENT && !srv_mkdirs(dir)) /* the directory itself was removed */
+  /* ENOENT: the directory itself was removed. */
+  if (fd < 0 && errno == ENOENT && !obs_path_make_dirs(dir, NULL))
     fd = open(path, O_WRONLY | O_CREAT | O_TRUNC | O_NOFOLLOW | O_CLOEXEC, 0644);
   int e = fd < 0 ? errno : 0;
   const char *what = "cannot create a file";

@@ -75,8 +75,8 @@ static int serve_inside(srv_req *r, const char *root, const char *rel) {
   char joined[PATH_MAX + 1100], real[PATH_MAX];
   snprintf(joined, sizeof joined, "%s/%s", root, rel);
   struct stat st;
-  if (!root[0] || !realpath(joined, real) || !srv_path_inside(root, real) || stat(real, &st) ||
-      !S_ISREG(st.st_mode))
+  if (!root[0] || !realpath(joined, real) || !obs_path_is_inside(root, real) ||
+      stat(real, &st) || !S_ISREG(st.st_mode))
     return not_found(r);
   int fd = open(real, O_RDONLY | O_CLOEXEC);
   if (fd < 0) return not_found(r);

@@ -72,7 +72,7 @@ json_t *srv_submit_load_bundled(srv_app *app, obs_jpath *p, const json_t *v) {
              !realpath(joined, real) || stat(real, &st) || !S_ISREG(st.st_mode)) {
     obs_jpath_fail(p, "no such bundled scene (got %s; GET /api/v1/scenes lists them)",
                    obs_json_brief(v));
-  } else if (!srv_path_inside(app->scenes_real, real)) {
+  } else if (!obs_path_is_inside(app->scenes_real, real)) {
     obs_jpath_fail(p, "must stay inside the scenes directory (got %s)", obs_json_brief(v));
   } else {
     /* The scenes directory is the operator's, but its files are held to the same depth bound as
@@ -229,6 +229,30 @@ int srv_pick_backend(const obs_technique *t, obs_backend requested, int vulkan_l
                      "this server runs no Vulkan lane (started with --no-vulkan); use \"cpu\"");
 }
 
+int srv_pick_lane_recovered(void *user, const char *technique, const char *backend_requested,
+                            srv_lane stored, srv_lane *lane, obs_err *err) {
+  const srv_app *app = user;
+  const obs_technique *t = obs_technique_find(technique);
+  if (!t)
+    return obs_err_set(err, OBS_ENOTFOUND, "technique \"%s\" no longer exists",
+                       technique ? technique : "?");
+  obs_backend want = OBS_BACKEND_AUTO, be = OBS_BACKEND_CPU;
+  if (backend_requested && obs_backend_parse(backend_requested, &want)) want = OBS_BACKEND_CPU;
+  int rc = srv_pick_backend(t, want, app->vulkan_lane, &be, err);
+  if (rc) return rc;
+  /* An "auto" job keeps the lane chosen at submission (possibly from measured timings) as long
+   * as that lane still runs here. */
+  if (want == OBS_BACKEND_AUTO &&
+      (stored == SRV_LANE_VULKAN
+           ? app->vulkan_lane && obs_technique_has_backend(t, OBS_BACKEND_VULKAN)
+           : obs_technique_has_backend(t, OBS_BACKEND_CPU))) {
+    *lane = stored;
+    return 0;
+  }
+  *lane = be == OBS_BACKEND_VULKAN ? SRV_LANE_VULKAN : SRV_LANE_CPU;
+  return 0;
+}
+
 int srv_pick_backend_learned(srv_app *app, const obs_technique *t, obs_backend requested,
                              double work, obs_backend *out, char *reason, size_t n,
                              obs_err *err) {
@@ -254,10 +278,11 @@ int srv_pick_backend_learned(srv_app *app, const obs_technique *t, obs_backend r
     double *v[2] = {malloc((nrows + 1) * sizeof(double)), malloc((nrows + 1) * sizeof(double))};
     for (size_t i = 0; v[0] && v[1] && i < nrows; i++) {
       json_t *row = json_array_get(rows, i);
-      const char *be = json_string_value(json_object_get(row, "backend"));
+      obs_backend be = OBS_BACKEND_AUTO;
       double ms = json_number_value(json_object_get(row, "total_ms"));
-      int b = be && !strcmp(be, "vulkan");
-      if (be && isfinite(ms) && ms >= 0) v[b][count[b]++] = ms;
+      int known = !obs_backend_parse(json_string_value(json_object_get(row, "backend")), &be);
+      int b = be == OBS_BACKEND_VULKAN;
+      if (known && isfinite(ms) && ms >= 0) v[b][count[b]++] = ms;
     }
     for (int b = 0; b < 2; b++) {
       if (v[b]) med[b] = srv_median(v[b], count[b]);

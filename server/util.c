@@ -59,25 +59,6 @@ int srv_parse_id(const char *s, size_t len, int64_t *out) {
   return 0;
 }
 
-int srv_mkdirs(const char *path) {
-  char buf[PATH_MAX];
-  if (!*path || strlen(path) >= sizeof buf) {
-    errno = ENAMETOOLONG;
-    return -1;
-  }
-  strcpy(buf, path);
-  for (char *p = buf + 1;; p++) {
-    if (*p == '/' || !*p) {
-      char c = *p;
-      *p = '\0';
-      if (mkdir(buf, 0755) && errno != EEXIST) return -1;
-      *p = c;
-      if (!c) break;
-    }
-  }
-  return 0;
-}
-
 static int remove_at(int parent, const char *name) {
   if (!unlinkat(parent, name, 0)) return 0;
   if (errno == ENOENT) return 0;
@@ -102,12 +83,6 @@ static int remove_at(int parent, const char *name) {
 }
 
 int srv_remove_tree(const char *path) { return remove_at(AT_FDCWD, path); }
-
-int srv_path_inside(const char *dir, const char *path) {
-  size_t n = strlen(dir);
-  if (n == 1 && dir[0] == '/') return path[0] == '/';
-  return !strncmp(dir, path, n) && (path[n] == '/' || path[n] == '\0');
-}
 
 static int cmp_double(const void *a, const void *b) {
   double x = *(const double *)a, y = *(const double *)b;

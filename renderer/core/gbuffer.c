@@ -7,6 +7,8 @@
 #include <sys/mman.h>
 #endif
 
+#include "obscura/backend.h"
+
 const char *const obs_screen_channel_names[OBS_SCREEN_CHANNELS] = {
     "ao", "ao_raw", "depth.Z", "normal.X", "normal.Y", "normal.Z", "alpha"};
 
@@ -95,9 +97,14 @@ int obs_gbuffer_median_depth(const obs_scene *scene, int max_side, int threads, 
     if (coarse.width < 1) coarse.width = 1;
     if (coarse.height < 1) coarse.height = 1;
   }
+  /* The CPU backend's G-buffer: it is always there, and is what the CPU twins render from. */
+  const obs_backend_ops *cpu = obs_backend_ops_get(OBS_BACKEND_CPU);
+  if (!cpu || !cpu->gbuffer)
+    return obs_err_set(err, OBS_EUNSUPPORTED, "%s: no backend makes a host G-buffer",
+                       scene->name ? scene->name : "scene");
   obs_gbuffer g;
   double build_ms = 0, render_ms = 0;
-  int rc = obs_gbuffer_cpu(&coarse, &g, threads > 0 ? threads : 1, &build_ms, &render_ms, err);
+  int rc = cpu->gbuffer(&coarse, &g, threads > 0 ? threads : 1, &build_ms, &render_ms, err);
   if (rc) return rc;
   size_t n = (size_t)g.width * (size_t)g.height, k = 0;
   for (size_t i = 0; i < n; i++)

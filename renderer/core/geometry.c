@@ -14,6 +14,7 @@
 #include <string.h>
 
 #include "normalize.h"
+#include "obscura/path.h"
 
 #define PI 3.14159265358979323846
 
@@ -203,12 +204,6 @@ int obs_geometry_displaced_sphere(int s, obs_mesh *m) {
       t += 6;
     }
   return 0;
-}
-
-int obs_path_is_inside(const char *dir, const char *path) {
-  size_t n = strlen(dir);
-  if (strncmp(dir, path, n) != 0) return 0;
-  return path[n] == '/' || (n > 0 && dir[n - 1] == '/');
 }
 
 /* assimp IO confined to one directory tree: mesh files may name others (OBJ mtllib, glTF buffer

@@ -62,8 +62,6 @@ void obs_geometry_set_importer(obs_mesh_importer fn, void *user);
 void obs_geometry_mesh_free(obs_mesh *m);
 /* The box of m's vertices (zeros when it has none). */
 void obs_geometry_mesh_bounds(const obs_mesh *m, double bounds[2][3]);
-/* Whether the resolved `path` lies inside the resolved directory `dir`. */
-int obs_path_is_inside(const char *dir, const char *path);
 
 /* The ray tracer's range: Embree rejects coordinates beyond about 1.8e19, and float products of
  * coordinates must stay finite. */

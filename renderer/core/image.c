@@ -63,23 +63,3 @@ float *obs_image_channel(const obs_image *img, const char *name) {
   return NULL;
 }
 
-int obs_image_make_dirs(const char *dir, obs_err *err) {
-  char buf[4096];
-  if (!dir || !*dir) return obs_err_set(err, OBS_EINVAL, "output directory must not be empty");
-  if (snprintf(buf, sizeof buf, "%s", dir) >= (int)sizeof buf)
-    return obs_err_set(err, OBS_EINVAL, "%s: output path too long", dir);
-  for (char *p = buf + 1;; p++) {
-    if (*p == '/' || *p == '\0') {
-      char c = *p;
-      *p = '\0';
-      if (mkdir(buf, 0755) && errno != EEXIST)
-        return obs_err_set(err, OBS_EIO, "%s: cannot create directory: %s", buf, strerror(errno));
-      *p = c;
-      if (!c) break;
-    }
-  }
-  struct stat st;
-  if (stat(buf, &st) || !S_ISDIR(st.st_mode))
-    return obs_err_set(err, OBS_EIO, "%s: exists and is not a directory", buf);
-  return OBS_OK;
-}

@@ -10,6 +10,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "obscura/path.h"
+
 /* Neumaier-compensated sum: large renders sum millions of values of similar magnitude, where a
  * plain double accumulator would drift in the last digits that reference comparisons look at. */
 typedef struct {
@@ -305,7 +307,7 @@ int obs_metrics_write_error_files(const obs_image *err_img, const char *dir, obs
   for (int c = 0; c < 3; c++)
     if (!obs_image_channel(err_img, rgb[c]))
       return obs_err_set(err, OBS_ENOTFOUND, "metrics: error image has no channel \"%s\"", rgb[c]);
-  int code = obs_image_make_dirs(dir, err);
+  int code = obs_path_make_dirs(dir, err);
   if (code) return code;
 
   /* A one-channel view of the "error" plane, so the EXR holds that channel only (no copy). */

@@ -18,6 +18,7 @@
 
 #include "driver.h"
 #include "extent.h"
+#include "obscura/path.h"
 
 void obs_render_keep_memory(void) {
 #if defined(M_MMAP_THRESHOLD) && defined(M_TRIM_THRESHOLD)
@@ -284,7 +285,7 @@ static int write_images(out_job *jobs, int njobs, int threads, obs_err *err) {
 
 int obs_result_write(obs_result *r, const obs_scene *sc, const char *dir, obs_err *err) {
   double t0 = obs_now_ms();
-  int rc = obs_image_make_dirs(dir, err);
+  int rc = obs_path_make_dirs(dir, err);
   if (rc) return rc;
   /* Every file is written under a staging name first and the set is renamed into place only
    * when all succeeded, so a failure never mixes new and old outputs. */

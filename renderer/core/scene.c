@@ -14,6 +14,7 @@
 #include "geometry.h"
 #include "json_util.h"
 #include "obscura/technique.h"
+#include "obscura/path.h"
 #include "params.h"
 
 #define COORD_MAX 1e30
@@ -403,13 +404,13 @@ static void load_technique(obs_jpath *p, const json_t *doc, obs_scene *sc) {
       obs_jpath_pop(p, mk);
     }
   }
-  static const char *const backends[] = {"cpu", "vulkan", "auto", NULL};
+  const char *backends[OBS_BACKEND_COUNT + 1] = {NULL};
+  for (int b = 0; b < OBS_BACKEND_COUNT; b++)
+    backends[b] = obs_backend_name((obs_backend)((b + 1) % OBS_BACKEND_COUNT)); /* "auto" last */
   const char *be = NULL;
   sc->backend = OBS_BACKEND_AUTO;
   if (obs_json_get_string(p, t, "backend", 0, backends, &be) == 0 && be) {
-    sc->backend = !strcmp(be, "cpu")      ? OBS_BACKEND_CPU
-                  : !strcmp(be, "vulkan") ? OBS_BACKEND_VULKAN
-                                          : OBS_BACKEND_AUTO;
+    obs_backend_parse(be, &sc->backend);
     if (sc->technique && sc->backend != OBS_BACKEND_AUTO && !sc->technique->run[sc->backend]) {
       char list[128] = "";
       for (int b = 1; b < OBS_BACKEND_COUNT; b++) {

@@ -10,7 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "gbuffer.h"
+#include "gbuffer_cpu.h"
 #include "normalize.h"
 #include "obscura/render.h"
 #include "parallel.h"

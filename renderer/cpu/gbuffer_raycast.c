@@ -1,7 +1,7 @@
 /* The CPU backend's G-buffer: one Embree ray through each pixel centre, traced in small packets,
  * producing exactly the buffers the Vulkan rasteriser produces (see renderer/core/gbuffer.h for
  * the definitions). */
-#include "gbuffer.h"
+#include "gbuffer_cpu.h"
 
 #include <math.h>
 #include <string.h>

@@ -7,7 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "gbuffer.h"
+#include "gbuffer_cpu.h"
 #include "hbao.h"
 #include "obscura/render.h"
 #include "parallel.h"

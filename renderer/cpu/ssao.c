@@ -10,7 +10,7 @@
 #include <string.h>
 
 #include "camera.h"
-#include "gbuffer.h"
+#include "gbuffer_cpu.h"
 #include "obscura/render.h"
 #include "parallel.h"
 #include "screen.h"

@@ -4,7 +4,6 @@
 
 #include "obscura/technique.h"
 #include "techniques.h"
-#include "vk.h"
 
 static const obs_technique *const table[] = {
     &obs_technique_rt_ao,
@@ -25,17 +24,8 @@ const obs_technique *obs_technique_find(const char *name) {
   return NULL;
 }
 
-const char *obs_backend_name(obs_backend b) {
-  switch (b) {
-    case OBS_BACKEND_CPU: return "cpu";
-    case OBS_BACKEND_VULKAN: return "vulkan";
-    default: return "auto";
-  }
-}
-
 int obs_technique_has_backend(const obs_technique *t, obs_backend b) {
-  if (!t || b <= OBS_BACKEND_AUTO || b >= OBS_BACKEND_COUNT || !t->run[b]) return 0;
-  return b != OBS_BACKEND_VULKAN || obs_vk_available();
+  return obs_backend_runs(b, t);
 }
 
 int obs_technique_pick_backend(const obs_technique *t, obs_backend requested, obs_backend *out,

@@ -3,9 +3,13 @@
 #define OBS_TECHNIQUES_H
 
 #include "driver.h"
+#include "obscura/backend.h"
 #include "obscura/technique.h"
 
-/* What each backend builds for a technique's needs (renderer/cpu/needs.c; see backends.c). */
+/* Each backend layer's operations table (renderer/cpu/backend.c, renderer/vulkan/device.c). */
+extern const obs_backend_ops obs_backend_cpu_ops;
+extern const obs_backend_ops obs_backend_vulkan_ops;
+/* What the CPU builds for a technique's needs (renderer/cpu/needs.c; its ops table's `needs`). */
 extern const obs_needs_builder obs_cpu_needs_builder;
 
 extern const obs_technique obs_technique_rt_ao;

@@ -77,6 +77,7 @@ void obs_vk_gbuffer_free(obs_vk *vk, obs_vk_gbuffer *g);
  * images[i] as `layout(binding = i, r32f or rgba32f) uniform image2D` (set 0) and the push
  * constants (at most 128 bytes). */
 #define OBS_VK_MAX_BINDINGS 8
+#define OBS_VK_PUSH_MAX 128u /* bytes of push constants a pass may use */
 typedef struct obs_vk_pass {
   const char *name;           /* for timings and messages */
   const uint32_t *spirv;      /* embedded SPIR-V (see shaders.h); pipelines are cached per pointer */

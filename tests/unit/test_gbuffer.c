@@ -12,7 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "gbuffer.h"
+#include "gbuffer_cpu.h"
 
 /* Pixels where the two ways may disagree: at most this share of the image (plus two pixels),
  * all of them on triangle edges or sphere silhouettes. */

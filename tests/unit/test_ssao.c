@@ -7,7 +7,7 @@
 
 #include "testutil.h"
 
-#include "gbuffer.h"
+#include "gbuffer_cpu.h"
 #include "simd.h"
 #include "../../renderer/techniques/ssao.h"
 

@@ -6,7 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "gbuffer.h"
+#include "gbuffer_cpu.h"
 #include "vktest.h"
 #include "vk.h"
 

@@ -5,7 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "gbuffer.h"
+#include "gbuffer_cpu.h"
 #include "geometry.h"
 #include "raytrace.h"
 #include "shaders.h"

@@ -53,9 +53,6 @@ int obs_image_write_exr(const obs_image *img, const char *path, obs_err *err);
  * by the caller afterwards. */
 int obs_image_read_exr(obs_image *img, const char *path, obs_err *err);
 
-/* Creates `dir` and any missing parents (like mkdir -p), so images can be written into it; an
- * existing directory is fine, an existing non-directory is an error naming it. */
-int obs_image_make_dirs(const char *dir, obs_err *err);
 
 /* PNG row filters the writer offers: ADAPTIVE lets every row try all five (libspng's default). */
 enum { OBS_PNG_FILTER_ADAPTIVE, OBS_PNG_FILTER_NONE, OBS_PNG_FILTER_SUB, OBS_PNG_FILTER_UP,

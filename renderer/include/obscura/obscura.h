@@ -2,9 +2,11 @@
 #ifndef OBSCURA_H
 #define OBSCURA_H
 
+#include "obscura/backend.h"
 #include "obscura/error.h"
 #include "obscura/image.h"
 #include "obscura/metrics.h"
+#include "obscura/path.h"
 #include "obscura/render.h"
 #include "obscura/scene.h"
 #include "obscura/technique.h"

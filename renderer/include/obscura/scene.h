@@ -3,6 +3,7 @@
 #define OBSCURA_SCENE_H
 
 #include <stddef.h>
+#include "obscura/backend.h"
 #include "obscura/error.h"
 
 #ifdef __cplusplus
@@ -58,9 +59,6 @@ typedef struct obs_light {
   obs_vec3 v[4];
   obs_vec3 emission;
 } obs_light;
-
-typedef enum { OBS_BACKEND_AUTO = 0, OBS_BACKEND_CPU = 1, OBS_BACKEND_VULKAN = 2 } obs_backend;
-#define OBS_BACKEND_COUNT 3
 
 /* A validated scene. Owns every pointer inside it, `doc` included; release with obs_scene_free. */
 typedef struct obs_scene {

@@ -233,12 +233,11 @@ typedef struct obs_technique {
 size_t obs_technique_count(void);
 const obs_technique *obs_technique_at(size_t i);
 const obs_technique *obs_technique_find(const char *name);
-/* Whether `t` runs on `backend` in this build and on this machine. */
+/* Whether `t` runs on `backend` in this build and on this machine (obs_backend_runs). */
 int obs_technique_has_backend(const obs_technique *t, obs_backend backend);
 /* Resolves AUTO to a concrete backend. Returns OBS_EUNSUPPORTED if none is available. */
 int obs_technique_pick_backend(const obs_technique *t, obs_backend requested, obs_backend *out,
                                obs_err *err);
-const char *obs_backend_name(obs_backend b);
 /* The reference definition of `t` with `params` on `scene` (see obs_technique_reference_fn):
  * def->params is a new object owned by the caller (obs_reference_def_free). `facts` may be NULL
  * (nothing is cached). OBS_EUNSUPPORTED when the technique has no reference hook, or names a

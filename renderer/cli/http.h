@@ -1,0 +1,62 @@
+/* The CLI's HTTP client for obscurad (libcurl), shared by `obscura submit` (submit.c) and
+ * `obscura jobs` (client.c): one handle per command, JSON answers kept in memory, and the
+ * messages of transport and HTTP errors. */
+#ifndef OBSCURA_CLI_HTTP_H
+#define OBSCURA_CLI_HTTP_H
+
+#include <curl/curl.h>
+#include <jansson.h>
+#include <stdio.h>
+
+#define MAX_JSON_BODY (64u << 20) /* larger JSON answers are refused */
+
+typedef struct cli_buf {
+  char *p;
+  size_t len, cap;
+  int overflow;
+} cli_buf;
+
+typedef struct cli_client {
+  const char *server; /* --server as given, for messages */
+  CURLU *base;        /* --server parsed: API paths resolve against it */
+  CURL *curl;
+  struct curl_slist *headers;      /* Accept, Authorization */
+  struct curl_slist *post_headers; /* the same plus Content-Type */
+  char errbuf[CURL_ERROR_SIZE];
+  int global;    /* curl_global_init done */
+  int has_token; /* an Authorization header is sent */
+} cli_client;
+
+typedef struct cli_response {
+  long status;
+  cli_buf body;
+} cli_response;
+
+/* Prints server-supplied text with control characters replaced, so a hostile or broken server
+ * cannot drive the terminal. */
+void cli_put_clean(FILE *f, const char *s);
+/* A libcurl write callback appending to the cli_buf `user` (at most MAX_JSON_BODY bytes). */
+size_t cli_buf_write(char *data, size_t size, size_t n, void *user);
+void cli_response_free(cli_response *r);
+/* Parses --server and OBSCURA_TOKEN. Returns 0, or an exit status after printing why. */
+int cli_client_open(cli_client *c, const char *server);
+void cli_client_close(cli_client *c);
+/* The absolute URL of `ref` (an absolute path such as "/api/v1/jobs?limit=5") on the server;
+ * malloc'd, NULL after printing why. */
+char *cli_client_url(cli_client *c, const char *ref);
+/* Resets the handle to the options every request shares and sets the URL. */
+void cli_client_prepare(cli_client *c, const char *url, int post);
+/* One request whose answer (any status) is kept in memory. CURLE_OK when an answer arrived. */
+CURLcode cli_client_json(cli_client *c, const char *method, const char *url, const char *body,
+                         cli_response *r);
+/* Prints why no answer came (or it was too large). Returns the exit status 1. */
+int cli_transport_error(cli_client *c, const char *url, CURLcode cc, int overflow);
+/* Prints a non-success answer: the server's `error` and every `problems` entry. Returns 2 for a
+ * 4xx, 1 otherwise. */
+int cli_http_error(const cli_client *c, const char *method, const char *url, const cli_response *r);
+/* GET `url` expecting 200 with a JSON object. Returns 0 with *out set (new reference), or an exit
+ * status after printing why. */
+int cli_client_get_object(cli_client *c, const char *url, json_t **out);
+void cli_sleep_ms(long ms);
+
+#endif

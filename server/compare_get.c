@@ -1,0 +1,446 @@
+/* GET /api/v1/comparisons/{id}[.csv] and GET /api/v1/comparisons: a comparison's candidates
+ * with their timings, metrics and output links, as JSON or CSV, and the list of comparisons. */
+#include <jansson.h>
+#include <math.h>
+#include <microhttpd.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+#include "compare_internal.h"
+#include "json_util.h"
+#include "obscurad.h"
+
+/* The comparison's state from its counts (docs/comparisons.md): running while a job is queued or
+ * running, or while finished candidates still wait for their metrics; failed when a candidate can
+ * no longer get metrics; succeeded when all have them. */
+static const char *state_of(const json_t *row) {
+  json_int_t active = json_integer_value(json_object_get(row, "active"));
+  json_int_t broken = json_integer_value(json_object_get(row, "broken"));
+  json_int_t measured = json_integer_value(json_object_get(row, "measured"));
+  json_int_t total = json_integer_value(json_object_get(row, "candidates"));
+  if (active) return "running";
+  if (broken) return "failed";
+  return measured == total ? "succeeded" : "running";
+}
+
+/* ---- GET /api/v1/comparisons/{id}[.csv] ------------------------------------------------------ */
+
+static const char *const stages[4] = {"build", "render", "post", "total"};
+
+/* {"median": {...} | null, "runs": [...]} from the runs rows of one job. */
+static json_t *timings_of(const json_t *runs, json_int_t job, json_t **machine) {
+  json_t *list = json_array();
+  double v[4][SRV_MAX_REPEATS];
+  size_t n = 0;
+  if (machine) *machine = NULL;
+  for (size_t i = 0; i < json_array_size(runs); i++) {
+    json_t *row = json_array_get(runs, i);
+    if (json_integer_value(json_object_get(row, "job")) != job) continue;
+    json_t *o = json_object();
+    for (int k = 0; k < 4; k++) {
+      char col[16];
+      snprintf(col, sizeof col, "%s_ms", stages[k]);
+      double d = json_number_value(json_object_get(row, col));
+      json_object_set_new(o, stages[k], num_or_null(d));
+      if (n < SRV_MAX_REPEATS) v[k][n] = d;
+    }
+    json_array_append_new(list, o);
+    if (n < SRV_MAX_REPEATS) n++;
+    if (machine && !*machine && json_is_string(json_object_get(row, "cpu_model")))
+      *machine = json_pack("{s:O, s:O, s:O}", "cpu_model", json_object_get(row, "cpu_model"),
+                           "cores", json_object_get(row, "cores"), "vulkan_device",
+                           json_object_get(row, "vulkan_device"));
+  }
+  json_t *med = json_null();
+  if (n) {
+    json_decref(med);
+    med = json_object();
+    for (int k = 0; k < 4; k++) json_object_set_new(med, stages[k], num_or_null(srv_median(v[k], n)));
+  }
+  if (machine && !*machine) *machine = json_null();
+  return json_pack("{s:o, s:o}", "median", med, "runs", list);
+}
+
+static int has_output(const json_t *outs, json_int_t job, const char *name) {
+  for (size_t i = 0; i < json_array_size(outs); i++) {
+    json_t *row = json_array_get(outs, i);
+    if (json_integer_value(json_object_get(row, "job")) == job &&
+        !strcmp(json_string_value(json_object_get(row, "name")), name))
+      return 1;
+  }
+  return 0;
+}
+
+static void output_link(json_t *links, const json_t *outs, json_int_t job, const char *name,
+                        const char *as) {
+  if (!has_output(outs, job, name)) return;
+  char url[128];
+  snprintf(url, sizeof url, API "/jobs/%lld/outputs/%s", (long long)job, name);
+  json_object_set_new(links, as, json_string(url));
+}
+
+/* The comparison document of docs/comparisons.md. 0, OBS_ENOTFOUND, or a database error. */
+static int comparison_json(srv_app *app, int64_t id, json_t **out, obs_err *err) {
+  *out = NULL;
+  srv_arg arg = {SRV_ARG_INT, id, 0, NULL};
+  json_t *head = NULL, *cands = NULL, *runs = NULL, *outs = NULL;
+  int rc = srv_db_query(app->db, SRV_Q_COMPARISON, &arg, 1, &head, err);
+  if (!rc && json_array_size(head) == 0) rc = OBS_ENOTFOUND;
+  if (!rc) rc = srv_db_query(app->db, SRV_Q_CANDIDATES, &arg, 1, &cands, err);
+  if (!rc) rc = srv_db_query(app->db, SRV_Q_COMPARISON_RUNS, &arg, 1, &runs, err);
+  if (!rc) rc = srv_db_query(app->db, SRV_Q_COMPARISON_OUTPUTS, &arg, 1, &outs, err);
+  if (rc) {
+    json_decref(head);
+    json_decref(cands);
+    json_decref(runs);
+    json_decref(outs);
+    return rc;
+  }
+  json_t *h = json_array_get(head, 0);
+  json_t *o = json_object();
+  json_object_set_new(o, "id", json_integer(id));
+  json_object_set(o, "label", json_object_get(h, "label"));
+  json_object_set(o, "scene", json_object_get(h, "scene"));
+  json_object_set_new(o, "state", json_string(state_of(h)));
+  json_object_set_new(o, "created_at",
+                      srv_json_time(json_integer_value(json_object_get(h, "created_ms"))));
+  json_object_set(o, "repeats", json_object_get(h, "repeats"));
+  json_object_set_new(o, "image", json_pack("{s:O, s:O}", "width", json_object_get(h, "width"),
+                                            "height", json_object_get(h, "height")));
+  json_t *refs = json_array(), *list = json_array();
+  size_t n = json_array_size(cands);
+  obs_pareto_point *pts = calloc(n + 1, sizeof *pts);
+  unsigned char *opt = calloc(n + 1, 1);
+  for (size_t i = 0; i < n; i++) {
+    json_t *row = json_array_get(cands, i);
+    json_int_t job = json_integer_value(json_object_get(row, "job"));
+    json_int_t rjob = json_integer_value(json_object_get(row, "reference_job"));
+    /* References: each once, in the order candidates name them. */
+    int seen = 0;
+    for (size_t k = 0; k < json_array_size(refs); k++)
+      if (json_integer_value(json_object_get(json_array_get(refs, k), "job_id")) == rjob) seen = 1;
+    if (!seen) {
+      json_t *ro = json_object();
+      json_object_set_new(ro, "job_id", json_integer(rjob));
+      const char *rst = json_string_value(json_object_get(row, "ref_state"));
+      json_object_set(ro, "state", json_object_get(row, "ref_state"));
+      double prog = json_number_value(json_object_get(row, "ref_progress"));
+      if (rst && !strcmp(rst, "running")) srv_sched_progress(app, rjob, &prog);
+      json_object_set_new(ro, "progress", json_real(prog));
+      json_t *rp = json_loads(json_string_value(json_object_get(row, "reference_params")), 0,
+                              NULL);
+      json_object_set_new(ro, "params", rp ? rp : json_null());
+      json_t *sum = json_loads(json_string_value(json_object_get(row, "ref_summary"))
+                                   ? json_string_value(json_object_get(row, "ref_summary"))
+                                   : "null",
+                               JSON_DECODE_ANY, NULL);
+      json_t *se = json_object_get(sum, "ao_stderr_mean");
+      json_object_set_new(ro, "ao_stderr_mean",
+                          json_is_number(se) ? num_or_null(json_number_value(se)) : json_null());
+      json_decref(sum);
+      json_object_set_new(ro, "timings_ms", timings_of(runs, rjob, NULL));
+      json_t *links = json_object();
+      char url[96];
+      snprintf(url, sizeof url, API "/jobs/%lld", (long long)rjob);
+      json_object_set_new(links, "job", json_string(url));
+      output_link(links, outs, rjob, "ao.png", "ao.png");
+      json_object_set_new(ro, "links", links);
+      json_array_append_new(refs, ro);
+    }
+    json_t *co = json_object();
+    json_object_set(co, "index", json_object_get(row, "idx"));
+    json_object_set_new(co, "job_id", json_integer(job));
+    json_object_set_new(co, "reference_job_id", json_integer(rjob));
+    json_object_set(co, "technique", json_object_get(row, "technique"));
+    json_object_set(co, "backend", json_object_get(row, "backend"));
+    json_t *params = json_loads(json_string_value(json_object_get(row, "params")), 0, NULL);
+    json_object_set_new(co, "params", params ? params : json_object());
+    json_object_set(co, "response", json_object_get(row, "response"));
+    const char *st = json_string_value(json_object_get(row, "state"));
+    json_object_set(co, "state", json_object_get(row, "state"));
+    double prog = json_number_value(json_object_get(row, "progress"));
+    if (st && !strcmp(st, "running")) srv_sched_progress(app, job, &prog);
+    json_object_set_new(co, "progress", json_real(prog));
+    json_t *machine = NULL;
+    json_t *tm = timings_of(runs, job, &machine);
+    json_object_set_new(co, "timings_ms", tm);
+    const char *mt = json_string_value(json_object_get(row, "metrics"));
+    json_t *metrics = mt ? json_loads(mt, 0, NULL) : NULL;
+    json_object_set_new(co, "metrics", metrics ? metrics : json_null());
+    json_object_set(co, "error", json_object_get(row, "metrics_error"));
+    json_object_set_new(co, "machine", machine);
+    json_t *links = json_object();
+    char url[96];
+    snprintf(url, sizeof url, API "/jobs/%lld", (long long)job);
+    json_object_set_new(links, "job", json_string(url));
+    output_link(links, outs, job, "ao.png", "ao.png");
+    output_link(links, outs, job, "error.png", "error.png");
+    output_link(links, outs, job, "error.exr", "error.exr");
+    output_link(links, outs, rjob, "ao.png", "reference.png");
+    json_object_set_new(co, "links", links);
+    /* Ranking: median total time against RMSE; anything missing takes no part (NaN). */
+    json_t *med = json_object_get(tm, "median");
+    json_t *total = json_object_get(med, "total"), *rmse = json_object_get(metrics, "rmse");
+    if (pts) {
+      pts[i].time_ms = metrics && json_is_number(total) ? json_number_value(total) : NAN;
+      pts[i].error = json_is_number(rmse) ? json_number_value(rmse) : NAN;
+      pts[i].at_reference_accuracy =
+          json_is_true(json_object_get(metrics, "at_reference_accuracy"));
+    }
+    json_array_append_new(list, co);
+  }
+  if (pts && opt) obs_metrics_pareto(pts, n, opt, NULL);
+  /* The Pareto indices by ascending time (then index): the frontier from fast to accurate. */
+  json_t *pareto = json_array();
+  for (size_t i = 0; i < n; i++) {
+    int on = opt && opt[i];
+    json_object_set_new(json_array_get(list, i), "pareto", json_boolean(on));
+    if (!on) continue;
+    size_t at = json_array_size(pareto);
+    while (at > 0) {
+      size_t prev = (size_t)json_integer_value(json_array_get(pareto, at - 1));
+      if (!(pts[prev].time_ms > pts[i].time_ms)) break;
+      at--;
+    }
+    json_array_insert_new(pareto, at, json_integer((json_int_t)i));
+  }
+  free(pts);
+  free(opt);
+  json_object_set_new(o, "references", refs);
+  json_object_set_new(o, "candidates", list);
+  json_object_set_new(o, "pareto", pareto);
+  char self[64], csv[72];
+  snprintf(self, sizeof self, API "/comparisons/%lld", (long long)id);
+  snprintf(csv, sizeof csv, "%s.csv", self);
+  json_object_set_new(o, "links", json_pack("{s:s, s:s}", "self", self, "csv", csv));
+  json_decref(head);
+  json_decref(cands);
+  json_decref(runs);
+  json_decref(outs);
+  *out = o;
+  return 0;
+}
+
+/* ---- CSV ------------------------------------------------------------------------------------- */
+
+typedef struct sbuf {
+  char *p;
+  size_t len, cap;
+  int oom;
+} sbuf;
+
+static void sb_put(sbuf *b, const char *s, size_t n) {
+  if (b->oom) return;
+  if (b->len + n + 1 > b->cap) {
+    size_t cap = b->cap ? b->cap : 4096;
+    while (cap < b->len + n + 1) cap *= 2;
+    char *np = realloc(b->p, cap);
+    if (!np) {
+      b->oom = 1;
+      return;
+    }
+    b->p = np;
+    b->cap = cap;
+  }
+  memcpy(b->p + b->len, s, n);
+  b->len += n;
+  b->p[b->len] = '\0';
+}
+
+/* One field, quoted per RFC 4180 when it holds a comma, quote or line break. */
+static void csv_field(sbuf *b, const char *s, int first) {
+  if (!first) sb_put(b, ",", 1);
+  if (!s) return;
+  if (!strpbrk(s, ",\"\r\n")) {
+    sb_put(b, s, strlen(s));
+    return;
+  }
+  sb_put(b, "\"", 1);
+  for (const char *c = s; *c; c++) {
+    if (*c == '"') sb_put(b, "\"", 1);
+    sb_put(b, c, 1);
+  }
+  sb_put(b, "\"", 1);
+}
+
+/* A JSON value as a CSV field: numbers exactly as the JSON answer writes them (12 significant
+ * digits, srv_respond_json), so both parse to the same double; strings raw, booleans true/false,
+ * null empty. */
+static void csv_value(sbuf *b, const json_t *v) {
+  char buf[64];
+  if (json_is_integer(v)) {
+    snprintf(buf, sizeof buf, "%lld", (long long)json_integer_value(v));
+    csv_field(b, buf, 0);
+  } else if (json_is_real(v)) {
+    char *t = json_dumps(v, JSON_ENCODE_ANY | JSON_COMPACT | JSON_REAL_PRECISION(12));
+    csv_field(b, t ? t : "", 0);
+    free(t);
+  } else if (json_is_string(v)) {
+    csv_field(b, json_string_value(v), 0);
+  } else if (json_is_boolean(v)) {
+    csv_field(b, json_is_true(v) ? "true" : "false", 0);
+  } else {
+    csv_field(b, NULL, 0);
+  }
+}
+
+static char *comparison_csv(const json_t *o, size_t *len) {
+  sbuf b = {0};
+  static const char header[] =
+      "index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs,rmse,"
+      "bias,max_abs,psnr,ssim,ref_noise,at_reference_accuracy,pareto,cpu_model,cores,"
+      "vulkan_device\r\n";
+  sb_put(&b, header, sizeof header - 1);
+  json_t *cands = json_object_get(o, "candidates");
+  for (size_t i = 0; i < json_array_size(cands); i++) {
+    json_t *c = json_array_get(cands, i);
+    char buf[32];
+    snprintf(buf, sizeof buf, "%lld", (long long)json_integer_value(json_object_get(c, "index")));
+    csv_field(&b, buf, 1);
+    csv_value(&b, json_object_get(c, "job_id"));
+    csv_value(&b, json_object_get(c, "technique"));
+    csv_value(&b, json_object_get(c, "backend"));
+    sbuf pb = {0};
+    const char *key;
+    json_t *v;
+    int first = 1;
+    json_object_foreach(json_object_get(c, "params"), key, v) {
+      if (!first) sb_put(&pb, ";", 1);
+      first = 0;
+      sb_put(&pb, key, strlen(key));
+      sb_put(&pb, "=", 1);
+      char *t = json_is_string(v) ? strdup(json_string_value(v))
+                                  : json_dumps(v, JSON_ENCODE_ANY | JSON_COMPACT |
+                                                      JSON_REAL_PRECISION(12));
+      if (t) sb_put(&pb, t, strlen(t));
+      free(t);
+    }
+    csv_field(&b, pb.p ? pb.p : "", 0);
+    free(pb.p);
+    csv_value(&b, json_object_get(c, "state"));
+    json_t *tm = json_object_get(c, "timings_ms"), *med = json_object_get(tm, "median");
+    static const char *const order[4] = {"total", "build", "render", "post"};
+    for (int k = 0; k < 4; k++) csv_value(&b, json_object_get(med, order[k]));
+    snprintf(buf, sizeof buf, "%zu", json_array_size(json_object_get(tm, "runs")));
+    csv_field(&b, buf, 0);
+    json_t *m = json_object_get(c, "metrics");
+    static const char *const mk[7] = {"rmse", "bias", "max_abs", "psnr", "ssim", "ref_noise",
+                                      "at_reference_accuracy"};
+    for (int k = 0; k < 7; k++) csv_value(&b, json_object_get(m, mk[k]));
+    csv_value(&b, json_object_get(c, "pareto"));
+    json_t *mach = json_object_get(c, "machine");
+    csv_value(&b, json_object_get(mach, "cpu_model"));
+    csv_value(&b, json_object_get(mach, "cores"));
+    csv_value(&b, json_object_get(mach, "vulkan_device"));
+    sb_put(&b, "\r\n", 2);
+  }
+  if (b.oom) {
+    free(b.p);
+    return NULL;
+  }
+  *len = b.len;
+  return b.p;
+}
+
+int srv_compare_get(srv_req *r, int64_t id, int csv) {
+  json_t *o = NULL;
+  obs_err err = OBS_ERR_INIT;
+  int rc = comparison_json(r->app, id, &o, &err);
+  if (rc == OBS_ENOTFOUND) {
+    obs_err_free(&err);
+    return srv_respond_error(r, MHD_HTTP_NOT_FOUND, NULL, "no comparison %lld", (long long)id);
+  }
+  if (rc) return srv_respond_unavailable(r, &err);
+  if (!csv) return srv_respond_json(r, MHD_HTTP_OK, o);
+  size_t len = 0;
+  char *text = comparison_csv(o, &len);
+  json_decref(o);
+  if (!text) return srv_respond_error(r, MHD_HTTP_INTERNAL_SERVER_ERROR, NULL, "out of memory");
+  struct MHD_Response *resp = MHD_create_response_from_buffer(len, text, MHD_RESPMEM_MUST_FREE);
+  char disp[96];
+  snprintf(disp, sizeof disp, "inline; filename=\"comparison-%lld.csv\"", (long long)id);
+  MHD_add_response_header(resp, "Content-Type", "text/csv; charset=utf-8; header=present");
+  MHD_add_response_header(resp, "Content-Disposition", disp);
+  return srv_respond(r, MHD_HTTP_OK, resp);
+}
+
+/* ---- GET /api/v1/comparisons ----------------------------------------------------------------- */
+
+typedef struct list_query {
+  int64_t after;
+  int limit;
+  int seen[2];
+  obs_err *problems;
+} list_query;
+
+static enum MHD_Result on_list_arg(void *cls, enum MHD_ValueKind kind, const char *key,
+                                   const char *value) {
+  (void)kind;
+  list_query *q = cls;
+  int k = !strcmp(key, "limit") ? 0 : !strcmp(key, "after") ? 1 : -1;
+  char shown[80];
+  srv_printable(value, shown, sizeof shown);
+  if (k < 0) {
+    char ks[40];
+    srv_printable(key, ks, sizeof ks);
+    obs_err_set(q->problems, OBS_EINVAL, "query: /%s: unknown parameter (known: limit, after)", ks);
+    return MHD_YES;
+  }
+  if (q->seen[k]++) {
+    obs_err_set(q->problems, OBS_EINVAL, "query: /%s: given more than once", key);
+    return MHD_YES;
+  }
+  int64_t n;
+  if (!value) value = "";
+  if (srv_parse_id(value, strlen(value), &n) || (k == 0 && n > 500))
+    obs_err_set(q->problems, OBS_EINVAL,
+                k ? "query: /after: must be a comparison id from a previous page's \"next\" "
+                    "(got \"%s\")"
+                  : "query: /limit: must be an integer from 1 to 500 (got \"%s\")",
+                shown);
+  else if (k == 0) q->limit = (int)n;
+  else q->after = n;
+  return MHD_YES;
+}
+
+int srv_compare_list(srv_req *r) {
+  obs_err problems = OBS_ERR_INIT;
+  list_query q = {0, 50, {0, 0}, &problems};
+  MHD_get_connection_values(r->conn, MHD_GET_ARGUMENT_KIND, on_list_arg, &q);
+  if (problems.count) {
+    int rc = srv_respond_error(r, MHD_HTTP_BAD_REQUEST, &problems, "bad query parameters");
+    obs_err_free(&problems);
+    return rc;
+  }
+  json_t *rows = NULL;
+  srv_arg args[2] = {{SRV_ARG_INT, q.after, 0, NULL}, {SRV_ARG_INT, q.limit + 1, 0, NULL}};
+  if (srv_db_query(r->app->db, SRV_Q_COMPARISONS, args, 2, &rows, &problems))
+    return srv_respond_unavailable(r, &problems);
+  json_t *list = json_array();
+  size_t n = json_array_size(rows), shown = n > (size_t)q.limit ? (size_t)q.limit : n;
+  for (size_t i = 0; i < shown; i++) {
+    json_t *row = json_array_get(rows, i);
+    json_int_t total = json_integer_value(json_object_get(row, "candidates"));
+    json_int_t done = json_integer_value(json_object_get(row, "measured")) +
+                      json_integer_value(json_object_get(row, "broken"));
+    json_array_append_new(
+        list, json_pack("{s:O, s:O, s:O, s:s, s:o, s:I, s:I}", "id", json_object_get(row, "id"),
+                        "label", json_object_get(row, "label"), "scene",
+                        json_object_get(row, "scene"), "state", state_of(row), "created_at",
+                        srv_json_time(json_integer_value(json_object_get(row, "created_ms"))),
+                        "candidates", total, "done", done));
+  }
+  json_t *next = json_null();
+  if (n > shown && shown) {
+    char buf[24];
+    snprintf(buf, sizeof buf, "%lld",
+             (long long)json_integer_value(json_object_get(json_array_get(rows, shown - 1), "id")));
+    json_decref(next);
+    next = json_string(buf);
+  }
+  json_decref(rows);
+  return srv_respond_json(r, MHD_HTTP_OK, json_pack("{s:o, s:o}", "comparisons", list, "next",
+                                                    next));
+}
