@@ -5,6 +5,7 @@
 
 #include "camera.h"
 #include "driver.h"
+#include "gbuffer_cpu.h"
 #include "obscura/render.h"
 
 static void pass_progress(void *user, double fraction) {
