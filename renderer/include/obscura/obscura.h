@@ -5,6 +5,7 @@
 #include "obscura/error.h"
 #include "obscura/image.h"
 #include "obscura/metrics.h"
+#include "obscura/patches.h"
 #include "obscura/render.h"
 #include "obscura/scene.h"
 #include "obscura/technique.h"

@@ -1,0 +1,28 @@
+/* The patch seen by each pixel's primary ray, from the ray tracer's geometry and primitive ids. */
+#include "patch_ids.h"
+
+#include <math.h>
+#include <stdlib.h>
+
+#include "camera.h"
+
+void obs_patch_ids(const obs_rt *rt, const obs_scene *scene, int32_t *ids) {
+  /* Meshes are attached with geomID = mesh index, so a mesh's first patch is the count of the
+   * triangles before it. */
+  size_t nm = rt->geo.nmeshes;
+  int64_t *first = calloc(nm ? nm : 1, sizeof *first);
+  for (size_t m = 1; first && m < nm; m++) first[m] = first[m - 1] + (int64_t)rt->geo.meshes[m - 1].ntris;
+  obs_camera_rig rig;
+  obs_camera_setup(&scene->camera, scene->width, scene->height, &rig);
+  for (int y = 0; y < scene->height; y++)
+    for (int x = 0; x < scene->width; x++) {
+      double org[3], dir[3];
+      obs_hit hit;
+      int32_t id = -1;
+      obs_camera_ray(&rig, x + 0.5, y + 0.5, org, dir);
+      if (first && obs_rt_intersect(rt, org, dir, INFINITY, &hit) && hit.geom < nm)
+        id = (int32_t)(first[hit.geom] + hit.prim);
+      ids[(size_t)y * (size_t)scene->width + (size_t)x] = id;
+    }
+  free(first);
+}
