@@ -26,3 +26,16 @@ void obs_patch_ids(const obs_rt *rt, const obs_scene *scene, int32_t *ids) {
     }
   free(first);
 }
+
+int obs_patch_show(const obs_rt *rt, const obs_scene *scene, const obs_patches *p,
+                   obs_image *out, const char *const *channels, obs_err *err) {
+  if (out->width != scene->width || out->height != scene->height)
+    return obs_err_set(err, OBS_EINVAL, "patches: image is %dx%d, the scene's %dx%d", out->width,
+                       out->height, scene->width, scene->height);
+  int32_t *ids = malloc((size_t)scene->width * (size_t)scene->height * sizeof *ids);
+  if (!ids) return obs_err_set(err, OBS_ENOMEM, "patches: out of memory for pixel ids");
+  obs_patch_ids(rt, scene, ids);
+  int rc = obs_patches_render(p, ids, out, channels, err);
+  free(ids);
+  return rc;
+}

@@ -360,6 +360,18 @@ static void test_patch_scene_and_ids(void **state) {
       }
     }
   assert_true(seen[0] > 0 && seen[1] > 0);
+  /* The shown image: each pixel the value of its patch, 0 off the quad. */
+  obs_patches p;
+  assert_int_equal(obs_patches_init(&p, "w", 14, 1, 0, &err), 0);
+  for (int i = 0; i < 14; i++) p.values[i] = 0.5f + (float)i;
+  obs_image img;
+  const char *ch[] = {"w"};
+  assert_int_equal(obs_image_init(&img, 16, 16, 1, ch, &err), 0);
+  assert_int_equal(obs_patch_show(&rt, &sc, &p, &img, ch, &err), 0);
+  for (int i = 0; i < 256; i++)
+    assert_true(img.data[i] == (ids[i] < 0 ? 0.0f : 0.5f + (float)ids[i]));
+  obs_image_free(&img);
+  obs_patches_free(&p);
   obs_rt_free(&rt);
   obs_scene_free(&sc);
   obs_err_free(&err);
