@@ -216,12 +216,13 @@ static void add_cache_headers(struct MHD_Response *resp, const char *etag) {
 int srv_output_serve(srv_req *r, int64_t id, const char *name) {
   if (!srv_output_content_type(name)) {
     /* The name comes from the URL and need not be UTF-8, which the JSON answer must be. */
-    char shown[65];
+    char shown[65], list[MAX_KNOWN * OBS_OUTPUT_FILE_MAX];
     srv_printable(name, shown, sizeof shown);
-    return srv_respond_error(r, MHD_HTTP_NOT_FOUND, NULL,
-                             "no output named \"%s\" (outputs are ao.exr, ao.png, bent_normal.png, "
-                             "depth.png, summary.json, error.exr, error.png)",
-                             shown);
+    size_t len = 0;
+    for (size_t i = 0; i < nknown && len < sizeof list; i++)
+      len += (size_t)snprintf(list + len, sizeof list - len, "%s%s", i ? ", " : "", known[i]);
+    return srv_respond_error(r, MHD_HTTP_NOT_FOUND, NULL, "no output named \"%s\" (outputs are %s)",
+                             shown, list);
   }
   srv_output o;
   obs_err err = OBS_ERR_INIT;
