@@ -377,11 +377,45 @@ static void test_patch_scene_and_ids(void **state) {
   obs_err_free(&err);
 }
 
+/* An AO render's summary keeps its older fields beside the per-output block. */
+static void test_summary_ao(void **state) {
+  (void)state;
+  obs_result r;
+  obs_test_render(quad_scene, 2, &r);
+  obs_scene sc;
+  obs_test_load(quad_scene, "quad.json", &sc);
+  json_t *sum = obs_result_summary_json(&r, &sc);
+  obs_stats all, covered, se;
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(obs_metrics_stats(&r.image, "ao", NULL, &all, &err), 0);
+  assert_int_equal(obs_metrics_stats(&r.image, "ao", "alpha", &covered, &err), 0);
+  assert_int_equal(obs_metrics_stats(&r.image, "ao_stderr", "alpha", &se, &err), 0);
+  assert_true(covered.count > 0 && covered.count < all.count);
+  assert_true(json_real_value(json_object_get(json_object_get(sum, "ao"), "mean")) == all.mean);
+  assert_true(json_real_value(json_object_get(sum, "ao_stderr_mean")) == se.mean);
+  assert_string_equal(json_string_value(json_object_get(sum, "primary_output")), "ao");
+  json_t *outs = json_object_get(sum, "outputs");
+  json_t *ao = json_object_get(json_object_get(json_object_get(outs, "ao"), "channels"), "ao");
+  assert_true(json_real_value(json_object_get(ao, "mean")) == covered.mean);
+  assert_int_equal(json_integer_value(json_object_get(ao, "count")), covered.count);
+  /* alpha's own statistics are over every pixel. */
+  json_t *al = json_object_get(json_object_get(json_object_get(outs, "alpha"), "channels"),
+                               "alpha");
+  assert_int_equal(json_integer_value(json_object_get(al, "count")), all.count);
+  assert_non_null(json_object_get(json_object_get(json_object_get(outs, "normal"), "channels"),
+                                  "normal.X"));
+  json_decref(sum);
+  obs_scene_free(&sc);
+  obs_result_free(&r);
+  obs_err_free(&err);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_registry_declarations), cmocka_unit_test(test_openapi_enum),
       cmocka_unit_test(test_writer_without_ao),     cmocka_unit_test(test_voxel_refused),
       cmocka_unit_test(test_patch_file),            cmocka_unit_test(test_patch_scene_and_ids),
+      cmocka_unit_test(test_summary_ao),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
