@@ -1,5 +1,5 @@
-/* Job outputs on disk: the set of names the registry declares, SHA-256 and size records, the start-up sweep of
- * half-written results, and serving files with ETag, Cache-Control and single byte ranges. */
+/* Job outputs on disk: the names the registry declares, SHA-256 and size records, the start-up
+ * sweep of half-written results, and serving files with ETag, Cache-Control and byte ranges. */
 #include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>

@@ -165,7 +165,10 @@ int obs_patches_scene(const obs_scene *scene, int64_t *count, float **area, obs_
         const float *v[3];
         for (int j = 0; j < 3; j++) v[j] = me->pos + 3 * (size_t)me->idx[3 * t + (size_t)j];
         double e1[3], e2[3];
-        for (int j = 0; j < 3; j++) e1[j] = (double)v[1][j] - v[0][j], e2[j] = (double)v[2][j] - v[0][j];
+        for (int j = 0; j < 3; j++) {
+          e1[j] = (double)v[1][j] - v[0][j];
+          e2[j] = (double)v[2][j] - v[0][j];
+        }
         double cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2],
                cz = e1[0] * e2[1] - e1[1] * e2[0];
         (*area)[k++] = (float)(0.5 * sqrt(cx * cx + cy * cy + cz * cz));
@@ -185,8 +188,9 @@ int obs_patches_render(const obs_patches *p, const int32_t *ids, obs_image *out,
   size_t n = (size_t)out->width * (size_t)out->height;
   for (size_t i = 0; i < n; i++) {
     int32_t id = ids[i];
-    for (int c = 0; c < p->components; c++)
-      plane[c][i] = id >= 0 && id < p->count ? p->values[(size_t)id * (size_t)p->components + (size_t)c] : 0.0f;
+    const float *v = id >= 0 && id < p->count ? p->values + (size_t)id * (size_t)p->components
+                                              : NULL;
+    for (int c = 0; c < p->components; c++) plane[c][i] = v ? v[c] : 0.0f;
   }
   return 0;
 }

@@ -11,7 +11,8 @@ void obs_patch_ids(const obs_rt *rt, const obs_scene *scene, int32_t *ids) {
    * triangles before it. */
   size_t nm = rt->geo.nmeshes;
   int64_t *first = calloc(nm ? nm : 1, sizeof *first);
-  for (size_t m = 1; first && m < nm; m++) first[m] = first[m - 1] + (int64_t)rt->geo.meshes[m - 1].ntris;
+  for (size_t m = 1; first && m < nm; m++)
+    first[m] = first[m - 1] + (int64_t)rt->geo.meshes[m - 1].ntris;
   obs_camera_rig rig;
   obs_camera_setup(&scene->camera, scene->width, scene->height, &rig);
   for (int y = 0; y < scene->height; y++)

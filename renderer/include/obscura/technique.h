@@ -163,7 +163,7 @@ typedef enum {
 typedef enum {
   OBS_SHOW_NONE = 0,  /* no PNG */
   OBS_SHOW_GREY,      /* the value clamped to [0, 1], linear */
-  OBS_SHOW_FALSE,     /* false colour: [min, max] of the covered pixels over a blue-to-yellow ramp */
+  OBS_SHOW_FALSE,     /* false colour: the covered pixels' [min, max] over a blue-to-yellow ramp */
   OBS_SHOW_NORMAL,    /* RGB = n * 0.5 + 0.5 */
   OBS_SHOW_DEPTH,     /* nearest covered pixel white, farthest 0.1 grey, linear between */
   OBS_SHOW_TONEMAP,   /* value * 2^exposure, clamped, sRGB transfer curve */
@@ -171,7 +171,7 @@ typedef enum {
 } obs_output_show;
 
 enum {
-  OBS_OUTPUT_PRIMARY = 1 << 0 /* the output metrics and comparisons use; exactly one per technique */
+  OBS_OUTPUT_PRIMARY = 1 << 0 /* the output metrics and comparisons use; one per technique */
 };
 
 #define OBS_OUTPUT_NAME_MAX 24
