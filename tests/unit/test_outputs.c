@@ -26,8 +26,11 @@ static void test_registry_declarations(void **state) {
     }
     assert_int_equal(primaries, 1);
   }
+  /* Every file name fits the server's output records (32 bytes with the NUL). */
+  char files[64][OBS_OUTPUT_FILE_MAX];
+  size_t nf = obs_output_file_names(files, 64);
+  for (size_t k = 0; k < nf; k++) assert_true(strlen(files[k]) < 32);
   /* Today's three keep their files and EXR channels. */
-  char files[16][OBS_OUTPUT_FILE_MAX];
   const obs_technique *rt = obs_technique_find("rt_ao");
   assert_int_equal(obs_technique_files(rt, files, 16), 5);
   const char *want[] = {"ao.exr", "ao.png", "bent_normal.png", "depth.png", "summary.json"};

@@ -174,7 +174,9 @@ enum {
   OBS_OUTPUT_PRIMARY = 1 << 0 /* the output metrics and comparisons use; one per technique */
 };
 
-#define OBS_OUTPUT_NAME_MAX 24
+/* Longest output name: "<name>.patches" and "<name>_stderr.X" stay within the 32 bytes the
+ * server's output records and the EXR channel names hold. */
+#define OBS_OUTPUT_NAME_MAX 20
 
 /* One declared output. The writer, the EXR layers, the PNGs, summary.json's statistics, the
  * server's file allow-list, the API enums and the dashboard captions all follow from the table. */
