@@ -380,6 +380,33 @@ static void test_patch_scene_and_ids(void **state) {
   obs_err_free(&err);
 }
 
+/* Every registered technique's CPU render has exactly the EXR channels its outputs declare. */
+static void test_channels_match_declarations(void **state) {
+  (void)state;
+  for (size_t i = 0; i < obs_technique_count(); i++) {
+    const obs_technique *t = obs_technique_at(i);
+    if (!obs_technique_has_backend(t, OBS_BACKEND_CPU)) continue;
+    char doc[2048];
+    const char *tail = strstr(quad_scene, "\"technique\"");
+    snprintf(doc, sizeof doc, "%.*s\"technique\":{\"name\":\"%s\",\"backend\":\"cpu\"}}",
+             (int)(tail - quad_scene), quad_scene, t->name);
+    obs_result r;
+    obs_test_render(doc, 1, &r);
+    char ch[OBS_OUTPUT_MAX_CHANNELS][OBS_CHANNEL_NAME_MAX];
+    int declared = 0;
+    for (const obs_output *o = t->outputs; o->name; o++) {
+      int n = obs_output_channels(o, ch);
+      for (int c = 0; c < n; c++) {
+        if (!obs_image_channel(&r.image, ch[c])) fprintf(stderr, "%s: no %s\n", t->name, ch[c]);
+        assert_non_null(obs_image_channel(&r.image, ch[c]));
+      }
+      declared += n;
+    }
+    assert_int_equal(r.image.nchannels, declared);
+    obs_result_free(&r);
+  }
+}
+
 /* An AO render's summary keeps its older fields beside the per-output block. */
 static void test_summary_ao(void **state) {
   (void)state;
@@ -418,7 +445,7 @@ int main(void) {
       cmocka_unit_test(test_registry_declarations), cmocka_unit_test(test_openapi_enum),
       cmocka_unit_test(test_writer_without_ao),     cmocka_unit_test(test_voxel_refused),
       cmocka_unit_test(test_patch_file),            cmocka_unit_test(test_patch_scene_and_ids),
-      cmocka_unit_test(test_summary_ao),
+      cmocka_unit_test(test_summary_ao),            cmocka_unit_test(test_channels_match_declarations),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
