@@ -442,10 +442,14 @@ static void test_summary_ao(void **state) {
 
 int main(void) {
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_registry_declarations), cmocka_unit_test(test_openapi_enum),
-      cmocka_unit_test(test_writer_without_ao),     cmocka_unit_test(test_voxel_refused),
-      cmocka_unit_test(test_patch_file),            cmocka_unit_test(test_patch_scene_and_ids),
-      cmocka_unit_test(test_summary_ao),            cmocka_unit_test(test_channels_match_declarations),
+      cmocka_unit_test(test_registry_declarations),
+      cmocka_unit_test(test_openapi_enum),
+      cmocka_unit_test(test_writer_without_ao),
+      cmocka_unit_test(test_voxel_refused),
+      cmocka_unit_test(test_patch_file),
+      cmocka_unit_test(test_patch_scene_and_ids),
+      cmocka_unit_test(test_summary_ao),
+      cmocka_unit_test(test_channels_match_declarations),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
