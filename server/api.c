@@ -106,6 +106,10 @@ static json_t *job_json(srv_app *app, const srv_job *j) {
     json_object_set(stats, "nan_count", nan ? nan : json_integer(0));
     json_t *se = json_object_get(sum, "ao_stderr_mean");
     if (se) json_object_set(stats, "ao_stderr_mean", se);
+    /* Per declared output (obs_result_summary_json), for techniques without ao too. */
+    json_t *prim = json_object_get(sum, "primary_output"), *outs = json_object_get(sum, "outputs");
+    if (json_is_string(prim)) json_object_set(stats, "primary_output", prim);
+    if (json_is_object(outs)) json_object_set(stats, "outputs", outs);
     json_object_set_new(o, "stats", stats);
   } else {
     json_object_set_new(o, "stats", json_null());

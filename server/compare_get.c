@@ -81,6 +81,12 @@ static void output_link(json_t *links, const json_t *outs, json_int_t job, const
   json_object_set_new(links, as, json_string(url));
 }
 
+/* The PNG of the primary output of `technique` ("ao.png" for today's AO techniques). */
+static const char *primary_png(const char *technique) {
+  const obs_output *o = obs_technique_primary(obs_technique_find(technique));
+  return o && o->png ? o->png : "ao.png";
+}
+
 /* The comparison document of docs/comparisons.md. 0, OBS_ENOTFOUND, or a database error. */
 static int comparison_json(srv_app *app, int64_t id, json_t **out, obs_err *err) {
   *out = NULL;
@@ -146,6 +152,8 @@ static int comparison_json(srv_app *app, int64_t id, json_t **out, obs_err *err)
       snprintf(url, sizeof url, API "/jobs/%lld", (long long)rjob);
       json_object_set_new(links, "job", json_string(url));
       output_link(links, outs, rjob, "ao.png", "ao.png");
+      output_link(links, outs, rjob,
+                  primary_png(json_string_value(json_object_get(row, "technique"))), "image");
       json_object_set_new(ro, "links", links);
       json_array_append_new(refs, ro);
     }
@@ -175,10 +183,13 @@ static int comparison_json(srv_app *app, int64_t id, json_t **out, obs_err *err)
     char url[96];
     snprintf(url, sizeof url, API "/jobs/%lld", (long long)job);
     json_object_set_new(links, "job", json_string(url));
+    /* "image" is the primary output's PNG of any technique; "ao.png" stays for AO ones. */
+    const char *png = primary_png(json_string_value(json_object_get(row, "technique")));
     output_link(links, outs, job, "ao.png", "ao.png");
+    output_link(links, outs, job, png, "image");
     output_link(links, outs, job, "error.png", "error.png");
     output_link(links, outs, job, "error.exr", "error.exr");
-    output_link(links, outs, rjob, "ao.png", "reference.png");
+    output_link(links, outs, rjob, png, "reference.png");
     json_object_set_new(co, "links", links);
     /* Ranking: median total time against RMSE; anything missing takes no part (NaN). */
     json_t *med = json_object_get(tm, "median");

@@ -26,11 +26,9 @@ static void metrics_one(srv_app *app, const json_t *row) {
   json_int_t rjob = json_integer_value(json_object_get(row, "reference_job"));
   obs_response resp = OBS_RESPONSE_IDENTITY;
   obs_err e = OBS_ERR_INIT;
-  obs_image cand, ref, eimg;
-  memset(&cand, 0, sizeof cand);
-  memset(&ref, 0, sizeof ref);
+  obs_image eimg;
   memset(&eimg, 0, sizeof eimg);
-  char dir[4200], rdir[4200], path[4300];
+  char dir[4200], rdir[4200];
   srv_results_path(app, job, dir, sizeof dir);
   srv_results_path(app, rjob, rdir, sizeof rdir);
   srv_output outs[16], err_outs[2];
@@ -39,17 +37,8 @@ static void metrics_one(srv_app *app, const json_t *row) {
   int rc = obs_response_parse(json_string_value(json_object_get(row, "response")), &resp)
                ? obs_err_set(&e, OBS_EINVAL, "unknown response mapping")
                : 0;
-  if (!rc) {
-    snprintf(path, sizeof path, "%s/ao.exr", dir);
-    rc = obs_image_read_exr(&cand, path, &e);
-  }
-  if (!rc) {
-    snprintf(path, sizeof path, "%s/ao.exr", rdir);
-    rc = obs_image_read_exr(&ref, path, &e);
-  }
-  if (!rc) rc = obs_response_apply(resp, &ref, &e);
-  if (!rc) rc = obs_metrics_compare(&cand, &ref, "ao", "alpha", &m, &e);
-  if (!rc) rc = obs_metrics_error_image(&cand, &ref, "ao", "alpha", &eimg, &e);
+  json_t *extra = json_object();
+  if (!rc) rc = srv_compare_primary(dir, rdir, resp, &m, extra, &eimg, &e);
   /* Written into the candidate's published directory under staging names and renamed, so a crash
    * leaves either no error image or a whole one (recorded below, or again after a restart). */
   if (!rc) rc = obs_metrics_write_error_files(&eimg, dir, &e);
@@ -68,6 +57,7 @@ static void metrics_one(srv_app *app, const json_t *row) {
     json_object_set_new(mj, "ref_noise", num_or_null(m.ref_noise));
     json_object_set_new(mj, "at_reference_accuracy", json_boolean(m.at_reference_accuracy));
     json_object_set_new(mj, "pixels", json_integer(m.pixels));
+    json_object_update(mj, extra);
     metrics = json_dumps(mj, JSON_COMPACT | JSON_REAL_PRECISION(17));
     json_decref(mj);
   }
@@ -88,10 +78,9 @@ static void metrics_one(srv_app *app, const json_t *row) {
     srv_log("comparison %lld candidate %d: rmse %.4g, ssim %.4g (job %lld vs reference %lld)",
             (long long)cmp, idx, m.rmse, m.ssim, (long long)job, (long long)rjob);
   free(metrics);
+  json_decref(extra);
   obs_err_free(&dberr);
   obs_err_free(&e);
-  obs_image_free(&cand);
-  obs_image_free(&ref);
   obs_image_free(&eimg);
 }
 

@@ -494,6 +494,12 @@ int srv_compare_get(srv_req *r, int64_t id, int csv);
 /* Computes the metrics of every candidate whose job and reference have both succeeded and whose
  * metrics are missing, involving job `job` (0 = all: recovery at start). */
 void srv_compare_metrics(struct srv_app *app, int64_t job);
+/* Compares the result in `dir` with the reference result in `rdir` on the primary output of the
+ * candidate's technique (compare_output.c): fills `m`, the error image `eimg` and, in `extra`
+ * (an object), "output" (when not "ao"), "rgb" {rmse [R,G,B], rmse_luminance, ssim_luminance,
+ * rel_mse} for RGB outputs and "patch_rmse" for per-patch ones. `resp` maps the reference. */
+int srv_compare_primary(const char *dir, const char *rdir, obs_response resp, obs_compare *m,
+                        json_t *extra, obs_image *eimg, obs_err *err);
 /* Time-budget mode of POST /api/v1/jobs: the most accurate measured configuration for `scene`
  * (or any scene at similar pixel count) whose median time fits `budget_ms`. Returns 0 with
  * *choice (new object: technique, backend, params, expected_ms, expected_rmse, comparison_id,

@@ -1,11 +1,12 @@
-/* Job outputs on disk: the fixed set of names, SHA-256 and size records, the start-up sweep of
- * half-written results, and serving files with ETag, Cache-Control and single byte ranges. */
+/* Job outputs on disk: the names the registry declares, SHA-256 and size records, the start-up
+ * sweep of half-written results, and serving files with ETag, Cache-Control and byte ranges. */
 #include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <inttypes.h>
 #include <microhttpd.h>
 #include <openssl/evp.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -15,24 +16,23 @@
 #include "obscurad.h"
 
 /* Only these are ever recorded or served: a name from a URL is never used as a path unless it is
- * one of them. */
-static const struct {
-  const char *name, *type;
-} known[] = {
-    {"ao.exr", "image/x-exr"},
-    {"ao.png", "image/png"},
-    {"bent_normal.png", "image/png"},
-    {"depth.png", "image/png"},
-    {"summary.json", "application/json"},
-    /* written by the comparison metrics step into a candidate's directory (compare.c) */
-    {"error.exr", "image/x-exr"},
-    {"error.png", "image/png"},
-};
-#define NKNOWN (sizeof known / sizeof known[0])
+ * one of them. They are the files the registered techniques declare (obs_output_file_names),
+ * then the error images the comparison metrics step writes into a candidate's directory. */
+#define MAX_KNOWN 64
+static char known[MAX_KNOWN][OBS_OUTPUT_FILE_MAX];
+static size_t nknown;
+static pthread_once_t known_once = PTHREAD_ONCE_INIT;
+
+static void known_init(void) {
+  nknown = obs_output_file_names(known, MAX_KNOWN - 2);
+  snprintf(known[nknown++], OBS_OUTPUT_FILE_MAX, "error.exr");
+  snprintf(known[nknown++], OBS_OUTPUT_FILE_MAX, "error.png");
+}
 
 const char *srv_output_content_type(const char *name) {
-  for (size_t i = 0; name && i < NKNOWN; i++)
-    if (!strcmp(name, known[i].name)) return known[i].type;
+  pthread_once(&known_once, known_init);
+  for (size_t i = 0; name && i < nknown; i++)
+    if (!strcmp(name, known[i])) return obs_output_content_type(known[i]);
   return NULL;
 }
 
@@ -81,15 +81,16 @@ static int hash_file(const char *path, char hex[65], int64_t *size, obs_err *err
 
 int srv_outputs_describe(const char *dir, srv_output *outs, int max, int *n, obs_err *err) {
   *n = 0;
-  for (size_t i = 0; i < NKNOWN && *n < max; i++) {
+  pthread_once(&known_once, known_init);
+  for (size_t i = 0; i < nknown && *n < max; i++) {
     char path[8400];
-    snprintf(path, sizeof path, "%s/%s", dir, known[i].name);
+    snprintf(path, sizeof path, "%s/%s", dir, known[i]);
     struct stat st;
     if (lstat(path, &st) || !S_ISREG(st.st_mode)) continue;
     srv_output *o = &outs[*n];
     memset(o, 0, sizeof *o);
-    snprintf(o->name, sizeof o->name, "%s", known[i].name);
-    snprintf(o->content_type, sizeof o->content_type, "%s", known[i].type);
+    snprintf(o->name, sizeof o->name, "%s", known[i]);
+    snprintf(o->content_type, sizeof o->content_type, "%s", obs_output_content_type(known[i]));
     int rc = hash_file(path, o->sha256, &o->size, err);
     if (rc) return rc;
     (*n)++;
@@ -215,12 +216,13 @@ static void add_cache_headers(struct MHD_Response *resp, const char *etag) {
 int srv_output_serve(srv_req *r, int64_t id, const char *name) {
   if (!srv_output_content_type(name)) {
     /* The name comes from the URL and need not be UTF-8, which the JSON answer must be. */
-    char shown[65];
+    char shown[65], list[MAX_KNOWN * OBS_OUTPUT_FILE_MAX];
     srv_printable(name, shown, sizeof shown);
-    return srv_respond_error(r, MHD_HTTP_NOT_FOUND, NULL,
-                             "no output named \"%s\" (outputs are ao.exr, ao.png, bent_normal.png, "
-                             "depth.png, summary.json, error.exr, error.png)",
-                             shown);
+    size_t len = 0;
+    for (size_t i = 0; i < nknown && len < sizeof list; i++)
+      len += (size_t)snprintf(list + len, sizeof list - len, "%s%s", i ? ", " : "", known[i]);
+    return srv_respond_error(r, MHD_HTTP_NOT_FOUND, NULL, "no output named \"%s\" (outputs are %s)",
+                             shown, list);
   }
   srv_output o;
   obs_err err = OBS_ERR_INIT;

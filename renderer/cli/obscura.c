@@ -115,15 +115,27 @@ static int cmd_render(int argc, char **argv) {
   if (rc) {
     fprintf(stderr, "%s\n", obs_err_message(&err));
   } else if (!c.quiet) {
+    /* The mean of the primary output: its channel, or the luminance of an RGB one. */
+    const obs_output *prim = obs_technique_primary(res.technique);
+    char exr[OBS_OUTPUT_FILE_MAX], what[OBS_OUTPUT_NAME_MAX + 16];
+    obs_technique_exr_name(res.technique, exr, sizeof exr);
+    double mean = 0;
     obs_stats st;
-    obs_metrics_stats(&res.image, "ao", NULL, &st, NULL);
+    if (prim->kind == OBS_OUTPUT_RGB) {
+      obs_metrics_luminance_mean(&res.image, prim->name, NULL, &mean, NULL);
+      snprintf(what, sizeof what, "%s luminance", prim->name);
+    } else if (obs_metrics_stats(&res.image, prim->name, NULL, &st, NULL) == 0) {
+      mean = st.mean;
+      snprintf(what, sizeof what, "%s", strcmp(prim->name, "ao") ? prim->name : "AO");
+    } else {
+      snprintf(what, sizeof what, "%s", prim->name);
+    }
     char rays[48] = "";
     if (res.rays && res.timings.render_ms > 0)
       snprintf(rays, sizeof rays, ", %.3g Mrays/s", (double)res.rays / res.timings.render_ms / 1e3);
-    printf("%s: %s/%s %dx%d, %.1f ms render (%.1f build)%s, AO mean %.4f -> %s/ao.exr\n",
-           sc.name, res.technique->name, obs_backend_name(res.backend), res.image.width,
-           res.image.height, res.timings.render_ms, res.timings.build_ms, rays, st.mean,
-           c.out_dir);
+    printf("%s: %s/%s %dx%d, %.1f ms render (%.1f build)%s, %s mean %.4f -> %s/%s\n", sc.name,
+           res.technique->name, obs_backend_name(res.backend), res.image.width, res.image.height,
+           res.timings.render_ms, res.timings.build_ms, rays, what, mean, c.out_dir, exr);
   }
   obs_result_free(&res);
   obs_scene_free(&sc);

@@ -337,17 +337,27 @@ static void print_finished(long long id, json_t *job) {
   const char *actual = json_string_value(json_object_get(be, "actual"));
   json_t *img = json_object_get(job, "image");
   json_t *t = json_object_get(job, "timings_ms");
-  json_t *ao = json_object_get(json_object_get(job, "stats"), "ao");
+  json_t *stats = json_object_get(job, "stats"), *ao = json_object_get(stats, "ao");
+  /* A technique without ao: the first channel of its primary output. */
+  const char *prim = json_string_value(json_object_get(stats, "primary_output"));
+  const char *what = "AO";
+  if (!ao && prim) {
+    json_t *chs = json_object_get(json_object_get(json_object_get(stats, "outputs"), prim),
+                                  "channels");
+    ao = json_object_iter_value(json_object_iter(chs));
+    what = prim;
+  }
   printf("job %lld succeeded: ", id);
   cli_put_clean(stdout, json_string_value(json_object_get(job, "technique")));
   putchar('/');
   cli_put_clean(stdout, actual ? actual : "?");
-  printf(" %lldx%lld, %.1f ms render (%.1f total), AO mean %.4f\n",
+  printf(" %lldx%lld, %.1f ms render (%.1f total), ",
          (long long)json_integer_value(json_object_get(img, "width")),
          (long long)json_integer_value(json_object_get(img, "height")),
          json_number_value(json_object_get(t, "render")),
-         json_number_value(json_object_get(t, "total")),
-         json_number_value(json_object_get(ao, "mean")));
+         json_number_value(json_object_get(t, "total")));
+  cli_put_clean(stdout, what);
+  printf(" mean %.4f\n", json_number_value(json_object_get(ao, "mean")));
 }
 
 int cli_submit(int argc, char **argv) {

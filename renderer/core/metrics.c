@@ -371,3 +371,201 @@ int obs_metrics_pareto(const obs_pareto_point *pts, size_t n, unsigned char *opt
   }
   return count;
 }
+
+/* ---- RGB outputs and per-patch values ------------------------------------------------------- */
+
+/* The three planes "<rgb>.R/G/B" of `img`, or an error naming the missing one. */
+static int metrics_rgb(const obs_image *img, const char *rgb, const char *what, const float *p[3],
+                       obs_err *err) {
+  static const char *const suffix[3] = {"R", "G", "B"};
+  int code = OBS_OK;
+  for (int c = 0; c < 3; c++) {
+    char name[OBS_CHANNEL_NAME_MAX + 4];
+    snprintf(name, sizeof name, "%s.%s", rgb, suffix[c]);
+    if (!(p[c] = metrics_find(img, name, what, &code, err))) return code;
+  }
+  return OBS_OK;
+}
+
+int obs_metrics_luminance_mean(const obs_image *img, const char *rgb, const char *mask,
+                               double *mean, obs_err *err) {
+  if (!img || !img->data || !rgb || !mean)
+    return obs_err_set(err, OBS_EINVAL, "metrics: luminance needs an image, an output and a mean");
+  const float *p[3], *m = NULL;
+  int code = metrics_rgb(img, rgb, "the", p, err);
+  if (code) return code;
+  if (mask && !(m = metrics_find(img, mask, "the mask", &code, err))) return code;
+  metrics_acc acc = {0, 0};
+  size_t used = 0, n = (size_t)img->width * (size_t)img->height;
+  for (size_t i = 0; i < n; i++) {
+    if (m && !(m[i] > 0.0f)) continue;
+    double y = OBS_LUMINANCE(p[0][i], p[1][i], p[2][i]);
+    if (!isfinite(y)) continue;
+    metrics_add(&acc, y);
+    used++;
+  }
+  *mean = used ? metrics_total(&acc) / (double)used : 0.0;
+  return OBS_OK;
+}
+
+int obs_metrics_luminance_image(const obs_image *img, const char *rgb, const char *stderr_rgb,
+                                obs_image *out, obs_err *err) {
+  memset(out, 0, sizeof *out);
+  if (!img || !img->data || !rgb || strlen(rgb) + 8 > OBS_CHANNEL_NAME_MAX)
+    return obs_err_set(err, OBS_EINVAL, "metrics: luminance image needs an image and an output");
+  const float *p[3], *s[3] = {NULL, NULL, NULL};
+  int code = metrics_rgb(img, rgb, "the", p, err);
+  if (code) return code;
+  obs_err ignore = OBS_ERR_INIT;
+  int have_se = stderr_rgb && metrics_rgb(img, stderr_rgb, "the", s, &ignore) == OBS_OK;
+  obs_err_free(&ignore);
+  const float *alpha = obs_image_channel(img, "alpha");
+  char names[3][OBS_CHANNEL_NAME_MAX];
+  const char *np[3];
+  int nch = 0;
+  snprintf(names[nch], sizeof names[0], "%s", rgb);
+  np[nch] = names[nch], nch++;
+  if (have_se) {
+    snprintf(names[nch], sizeof names[0], "%s_stderr", rgb);
+    np[nch] = names[nch], nch++;
+  }
+  if (alpha) {
+    snprintf(names[nch], sizeof names[0], "alpha");
+    np[nch] = names[nch], nch++;
+  }
+  code = obs_image_init(out, img->width, img->height, nch, np, err);
+  if (code) return code;
+  size_t n = (size_t)img->width * (size_t)img->height;
+  float *y = obs_image_channel(out, names[0]);
+  float *ys = have_se ? obs_image_channel(out, names[1]) : NULL;
+  for (size_t i = 0; i < n; i++) {
+    y[i] = (float)OBS_LUMINANCE(p[0][i], p[1][i], p[2][i]);
+    if (ys) ys[i] = (float)OBS_LUMINANCE(s[0][i], s[1][i], s[2][i]);
+  }
+  if (alpha) memcpy(obs_image_channel(out, "alpha"), alpha, n * sizeof(float));
+  return OBS_OK;
+}
+
+/* Sum of squared differences into `acc`, with obs_metrics_rmse's rules for non-finite ones. */
+static void metrics_sq(metrics_acc *acc, double a, double b, double weight, int *nan, int *inf) {
+  if (a == b) return;
+  double d = a - b;
+  if (isnan(d))
+    *nan = 1;
+  else if (isinf(d))
+    *inf = 1;
+  else
+    metrics_add(acc, weight * d * d);
+}
+
+static double metrics_root(const metrics_acc *acc, double count, int nan, int inf) {
+  if (nan) return NAN;
+  if (inf) return INFINITY;
+  return count > 0 ? sqrt(metrics_total(acc) / count) : 0.0;
+}
+
+int obs_metrics_compare_rgb(const obs_image *candidate, const obs_image *reference,
+                            const char *rgb, const char *mask, obs_compare_rgb *out,
+                            obs_err *err) {
+  if (!candidate || !reference || !candidate->data || !reference->data || !rgb || !out)
+    return obs_err_set(err, OBS_EINVAL, "metrics: rgb compare needs two images and an output");
+  if (candidate->width != reference->width || candidate->height != reference->height)
+    return obs_err_set(err, OBS_EINVAL, "metrics: image sizes differ (%dx%d vs %dx%d)",
+                       candidate->width, candidate->height, reference->width, reference->height);
+  const float *pa[3], *pb[3], *m = NULL;
+  int code = metrics_rgb(candidate, rgb, "candidate", pa, err);
+  if (!code) code = metrics_rgb(reference, rgb, "reference", pb, err);
+  if (!code && mask && !(m = metrics_find(reference, mask, "reference (mask)", &code, err)))
+    return code;
+  if (code) return code;
+  obs_compare_rgb r;
+  memset(&r, 0, sizeof r);
+  metrics_acc ch[3] = {{0, 0}, {0, 0}, {0, 0}}, lum = {0, 0}, rel = {0, 0};
+  int nan = 0, inf = 0, rel_nan = 0, rel_inf = 0;
+  size_t used = 0, n = (size_t)candidate->width * (size_t)candidate->height;
+  for (size_t i = 0; i < n; i++) {
+    if (m && !(m[i] > 0.0f)) continue;
+    used++;
+    for (int c = 0; c < 3; c++) {
+      metrics_sq(&ch[c], pa[c][i], pb[c][i], 1.0, &nan, &inf);
+      double rr = pb[c][i];
+      metrics_sq(&rel, pa[c][i], pb[c][i], 1.0 / (rr * rr + OBS_METRICS_RELMSE_EPS), &rel_nan,
+                 &rel_inf);
+    }
+    double ya = OBS_LUMINANCE(pa[0][i], pa[1][i], pa[2][i]);
+    double yb = OBS_LUMINANCE(pb[0][i], pb[1][i], pb[2][i]);
+    metrics_sq(&lum, ya, yb, 1.0, &nan, &inf);
+  }
+  r.pixels = (int64_t)used;
+  for (int c = 0; c < 3; c++) r.rmse[c] = metrics_root(&ch[c], (double)used, nan, inf);
+  r.rmse_luminance = metrics_root(&lum, (double)used, nan, inf);
+  r.rel_mse = rel_nan ? NAN : rel_inf ? INFINITY
+                                      : used ? metrics_total(&rel) / (3.0 * (double)used) : 0.0;
+  /* SSIM on the luminance images, with the reference's mask copied beside it. */
+  obs_image la, lb;
+  code = obs_metrics_luminance_image(candidate, rgb, NULL, &la, err);
+  if (!code) code = obs_metrics_luminance_image(reference, rgb, NULL, &lb, err);
+  else memset(&lb, 0, sizeof lb);
+  if (!code) {
+    if (mask && !obs_image_channel(&lb, mask)) /* a mask other than alpha: use its plane */
+      code = obs_err_set(err, OBS_EINVAL, "metrics: rgb compare supports only \"alpha\" masks");
+    else
+      code = obs_metrics_ssim(&la, &lb, rgb, mask, &r.ssim_luminance, err);
+  }
+  obs_image_free(&la);
+  obs_image_free(&lb);
+  if (!code) *out = r;
+  return code;
+}
+
+void obs_metrics_patch_stats(const obs_patches *p, obs_stats *out) {
+  obs_stats s;
+  memset(&s, 0, sizeof s);
+  metrics_acc acc = {0, 0};
+  double lo = INFINITY, hi = -INFINITY;
+  size_t n = p && p->values ? (size_t)p->count * (size_t)p->components : 0;
+  for (size_t i = 0; i < n; i++) {
+    float x = p->values[i];
+    if (isnan(x)) {
+      s.nan_count++;
+    } else if (isinf(x)) {
+      s.inf_count++;
+    } else {
+      s.count++;
+      metrics_add(&acc, x);
+      if (x < lo) lo = x;
+      if (x > hi) hi = x;
+    }
+  }
+  if (s.count > 0) {
+    s.mean = metrics_total(&acc) / (double)s.count;
+    s.min = lo;
+    s.max = hi;
+  }
+  *out = s;
+}
+
+int obs_metrics_patch_rmse(const obs_patches *candidate, const obs_patches *reference,
+                           double *rmse, obs_err *err) {
+  if (!candidate || !reference || !candidate->values || !reference->values || !rmse)
+    return obs_err_set(err, OBS_EINVAL, "metrics: patch rmse needs two patch sets and an output");
+  if (candidate->count != reference->count || candidate->components != reference->components)
+    return obs_err_set(err, OBS_EINVAL,
+                       "metrics: patch sets differ (%lld x %d vs %lld x %d values)",
+                       (long long)candidate->count, candidate->components,
+                       (long long)reference->count, reference->components);
+  const float *area = reference->area ? reference->area : candidate->area;
+  metrics_acc acc = {0, 0}, total = {0, 0};
+  int nan = 0, inf = 0, k = reference->components;
+  for (int64_t i = 0; i < reference->count; i++) {
+    double a = area ? area[i] : 1.0;
+    if (!(a > 0.0)) continue;
+    metrics_add(&total, a);
+    for (int c = 0; c < k; c++) {
+      size_t j = (size_t)i * (size_t)k + (size_t)c;
+      metrics_sq(&acc, candidate->values[j], reference->values[j], a, &nan, &inf);
+    }
+  }
+  *rmse = metrics_root(&acc, metrics_total(&total) * k, nan, inf);
+  return OBS_OK;
+}

@@ -53,6 +53,7 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
   ctx.scene = scene;
   ctx.params = scene->params;
   ctx.threads = opts && opts->threads > 0 ? opts->threads : obs_cpu_count();
+  ctx.patches = res->patches;
   if (opts) {
     ctx.progress = opts->progress;
     ctx.progress_user = opts->progress_user;
@@ -82,7 +83,13 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
   if ((rc = obs_driver_cancelled(&ctx, err)) == 0) rc = t->run[be](&ctx, &res->image, err);
   if (nb) nb->release(built);
   free(bound);
-  if (rc) return rc;
+  res->npatches = ctx.npatches;
+  if (rc) {
+    for (int i = 0; i < res->npatches && i < OBS_MAX_PATCH_OUTPUTS; i++)
+      obs_patches_free(&res->patches[i]);
+    res->npatches = 0;
+    return rc;
+  }
   res->technique = t;
   res->backend = be;
   res->rays = ctx.rays;
@@ -121,7 +128,55 @@ void obs_render_ctx_warn(obs_render_ctx *ctx, const char *fmt, ...) {
 void obs_result_free(obs_result *res) {
   if (!res) return;
   obs_image_free(&res->image);
+  for (int i = 0; i < res->npatches && i < OBS_MAX_PATCH_OUTPUTS; i++)
+    obs_patches_free(&res->patches[i]);
   memset(res, 0, sizeof *res);
+}
+
+static json_t *stats_json(const obs_stats *st) {
+  return json_pack("{s:f, s:f, s:f, s:I, s:I}", "mean", st->mean, "min", st->min, "max", st->max,
+                   "count", (json_int_t)st->count,
+                   "nonfinite", (json_int_t)(st->nan_count + st->inf_count));
+}
+
+/* Statistics of every declared output present in the result, over the covered pixels (alpha > 0
+ * when the image has alpha; every pixel for alpha itself) or over the patches: per channel, and
+ * for RGB outputs also of the luminance (Rec. 709 weights). */
+static json_t *outputs_summary_json(const obs_result *r) {
+  json_t *all = json_object();
+  const char *mask = obs_image_channel(&r->image, "alpha") ? "alpha" : NULL;
+  char ch[OBS_OUTPUT_MAX_CHANNELS][OBS_CHANNEL_NAME_MAX];
+  for (const obs_output *x = r->technique->outputs; x && x->name; x++) {
+    json_t *o = json_object(), *chs = json_object();
+    json_object_set_new(o, "kind", json_string(obs_output_kind_name(x->kind)));
+    int n = obs_output_channels(x, ch), present = 0;
+    for (int c = 0; c < n; c++) {
+      obs_stats st;
+      const char *m = strcmp(ch[c], "alpha") ? mask : NULL;
+      if (obs_metrics_stats(&r->image, ch[c], m, &st, NULL) == 0) {
+        json_object_set_new(chs, ch[c], stats_json(&st));
+        present++;
+      }
+    }
+    if (present) json_object_set_new(o, "channels", chs);
+    else json_decref(chs);
+    double lum;
+    if (x->kind == OBS_OUTPUT_RGB && present == 3 &&
+        obs_metrics_luminance_mean(&r->image, x->name, mask, &lum, NULL) == 0)
+      json_object_set_new(o, "luminance_mean", json_real(lum));
+    for (int i = 0; i < r->npatches; i++) {
+      const obs_patches *p = &r->patches[i];
+      if (strcmp(p->name, x->name)) continue;
+      obs_stats st;
+      obs_metrics_patch_stats(p, &st);
+      json_object_set_new(o, "patches", json_integer((json_int_t)p->count));
+      json_object_set_new(o, "patch_values", stats_json(&st));
+      present = 1;
+    }
+    if (present) json_object_set_new(all, x->name, o);
+    else json_decref(o);
+  }
+  return all;
 }
 
 json_t *obs_result_summary_json(const obs_result *r, const obs_scene *sc) {
@@ -169,6 +224,9 @@ json_t *obs_result_summary_json(const obs_result *r, const obs_scene *sc) {
       obs_metrics_stats(&r->image, "ao_stderr", "alpha", &st, NULL) == 0)
     json_object_set_new(o, "ao_stderr_mean", json_real(st.mean));
   json_object_set_new(o, "nan_count", json_integer(nonfinite));
+  const obs_output *prim = obs_technique_primary(r->technique);
+  json_object_set_new(o, "primary_output", prim ? json_string(prim->name) : json_null());
+  json_object_set_new(o, "outputs", outputs_summary_json(r));
   json_t *w = json_array();
   for (int i = 0; i < r->nwarnings; i++) json_array_append_new(w, json_string(r->warnings[i]));
   json_object_set_new(o, "warnings", w);
@@ -179,44 +237,77 @@ json_t *obs_result_summary_json(const obs_result *r, const obs_scene *sc) {
  * surface still stands out from the black background), linear in between. */
 #define DEPTH_PNG_FAR 0.1f
 
-/* The display images derived from the AO image: "bent_normal" (RGB = n * 0.5 + 0.5 where covered)
- * and "depth" (see DEPTH_PNG_FAR); background pixels (alpha <= 0) are black in both. Fills `out`
- * with channels R, G, B or Y; returns 1 when the source channels are absent (nothing to write). */
-static int display_image(const obs_image *img, int depth, obs_image *out, obs_err *err) {
+/* Most files one result may have: the EXR, a PNG and a patch file per output, the summary. */
+#define MAX_FILES 24
+
+/* The exposure in EV of a tone-mapped output: the number in the parameter it names, else 0. */
+static double output_exposure(const obs_output *o, const obs_scene *sc) {
+  json_t *v = o->exposure && sc ? json_object_get(sc->params, o->exposure) : NULL;
+  return json_is_number(v) ? json_number_value(v) : 0.0;
+}
+
+/* Blue-to-yellow false-colour ramp (viridis' end points and midpoint), t in [0, 1]. */
+static void false_colour(float t, float rgb[3]) {
+  static const float stops[3][3] = {{0.267f, 0.005f, 0.329f}, {0.128f, 0.567f, 0.551f},
+                                    {0.993f, 0.906f, 0.144f}};
+  float u = t * 2.0f;
+  int k = u >= 1.0f ? 1 : 0;
+  float f = u - (float)k;
+  for (int c = 0; c < 3; c++) rgb[c] = stops[k][c] + (stops[k + 1][c] - stops[k][c]) * f;
+}
+
+/* The display image of one output for its PNG, in channels "R","G","B" or "Y": normal-as-colour
+ * (n * 0.5 + 0.5), depth (see DEPTH_PNG_FAR), false colour over the covered range, or tone-mapped
+ * (scaled by 2^exposure; the sRGB curve is applied by the PNG writer). Background pixels
+ * (alpha <= 0, or a non-finite first channel) are black, except for tone-mapped ones, which show
+ * what the technique computed there (a sky). Returns 1 when the channels are absent. */
+static int display_image(const obs_image *img, const obs_output *o, double exposure,
+                         obs_image *out, obs_err *err) {
   static const char *const rgb[3] = {"R", "G", "B"}, *const y[1] = {"Y"};
+  char names[OBS_OUTPUT_MAX_CHANNELS][OBS_CHANNEL_NAME_MAX];
+  int nch = obs_output_channels(o, names);
   const float *a = obs_image_channel(img, "alpha");
   const float *src[3] = {NULL, NULL, NULL};
-  if (depth) {
-    src[0] = obs_image_channel(img, "depth.Z");
-    if (!src[0]) return 1;
-  } else {
-    src[0] = obs_image_channel(img, "bent_normal.X");
-    src[1] = obs_image_channel(img, "bent_normal.Y");
-    src[2] = obs_image_channel(img, "bent_normal.Z");
-    if (!src[0] || !src[1] || !src[2]) return 1;
-  }
-  int rc = obs_image_init(out, img->width, img->height, depth ? 1 : 3, depth ? y : rgb, err);
+  for (int c = 0; c < nch; c++)
+    if (!(src[c] = obs_image_channel(img, names[c]))) return 1;
+  if (nch == 0) return 1;
+  int nout = o->show == OBS_SHOW_NORMAL || o->show == OBS_SHOW_FALSE ? 3 : nch;
+  int rc = obs_image_init(out, img->width, img->height, nout, nout == 3 ? rgb : y, err);
   if (rc) return rc;
   size_t n = (size_t)img->width * (size_t)img->height;
 #define COVERED(i) ((a ? a[i] > 0.0f : 1) && isfinite(src[0][i]))
-  if (depth) {
+  float *o0 = out->data, *o1 = out->data + (nout == 3 ? n : 0), *o2 = o1 + (nout == 3 ? n : 0);
+  if (o->show == OBS_SHOW_DEPTH || o->show == OBS_SHOW_FALSE) {
+    int depth = o->show == OBS_SHOW_DEPTH;
     float lo = INFINITY, hi = -INFINITY;
     for (size_t i = 0; i < n; i++)
-      if (COVERED(i) && src[0][i] > 0.0f) {
+      if (COVERED(i) && (!depth || src[0][i] > 0.0f)) {
         if (src[0][i] < lo) lo = src[0][i];
         if (src[0][i] > hi) hi = src[0][i];
       }
-    float *o = out->data;
     for (size_t i = 0; i < n; i++) {
-      if (!COVERED(i) || !(src[0][i] > 0.0f)) continue;
+      if (!COVERED(i) || (depth && !(src[0][i] > 0.0f))) continue;
       float t = hi > lo ? (src[0][i] - lo) / (hi - lo) : 0.0f;
-      o[i] = 1.0f - (1.0f - DEPTH_PNG_FAR) * t;
+      if (depth) {
+        o0[i] = 1.0f - (1.0f - DEPTH_PNG_FAR) * t;
+      } else {
+        float c[3];
+        false_colour(t, c);
+        o0[i] = c[0], o1[i] = c[1], o2[i] = c[2];
+      }
     }
-  } else {
+  } else if (o->show == OBS_SHOW_NORMAL) {
     for (int c = 0; c < 3; c++) {
-      float *o = out->data + (size_t)c * n;
+      float *d = out->data + (size_t)c * n;
+      const float *s = src[nch == 3 ? c : 0];
       for (size_t i = 0; i < n; i++)
-        if (COVERED(i)) o[i] = src[c][i] * 0.5f + 0.5f;
+        if (COVERED(i)) d[i] = s[i] * 0.5f + 0.5f;
+    }
+  } else { /* tone-mapped */
+    float scale = (float)exp2(exposure);
+    for (int c = 0; c < nch; c++) {
+      float *d = out->data + (size_t)c * n;
+      for (size_t i = 0; i < n; i++) d[i] = src[c][i] * scale;
     }
   }
 #undef COVERED
@@ -226,7 +317,6 @@ static int display_image(const obs_image *img, int depth, obs_image *out, obs_er
 /* Every image file takes the writer's defaults (obs_exr_opts_default, obs_png_opts_default): the
  * candidates were measured per output on the displaced sphere (docs/performance.md, "Writing
  * outputs") and the same setting won for ao.png, bent_normal.png and depth.png. */
-enum { F_EXR, F_PNG, F_BENT, F_DEPTH, F_SUMMARY, NFILES };
 
 /* One output file being written on some thread; its own obs_err so threads never share one. */
 typedef struct out_job {
@@ -234,6 +324,7 @@ typedef struct out_job {
   const char *const *ch;
   int nch;
   int png;                 /* 0: the EXR */
+  int gamma;               /* PNG: apply the sRGB curve */
   int threads;             /* EXR chunk threads */
   const char *path;
   int rc;
@@ -242,7 +333,7 @@ typedef struct out_job {
 
 static void out_job_run(out_job *j) {
   if (j->png) {
-    j->rc = obs_image_write_png(j->img, j->ch, j->nch, 0, j->path, &j->err);
+    j->rc = obs_image_write_png(j->img, j->ch, j->nch, j->gamma, j->path, &j->err);
   } else {
     obs_exr_opts eo = obs_exr_opts_default();
     eo.threads = j->threads;
@@ -259,8 +350,8 @@ static void *out_job_thread(void *arg) {
  * thread (its chunks compressed on threads - 1 threads) while each PNG has a thread of its own.
  * Each file's bytes are the same either way. Returns the first failure in file order. */
 static int write_images(out_job *jobs, int njobs, int threads, obs_err *err) {
-  pthread_t tid[NFILES];
-  int started[NFILES] = {0};
+  pthread_t tid[MAX_FILES];
+  int started[MAX_FILES] = {0};
   if (threads > 1)
     for (int i = 1; i < njobs; i++)
       started[i] = pthread_create(&tid[i], NULL, out_job_thread, &jobs[i]) == 0;
@@ -283,45 +374,130 @@ static int write_images(out_job *jobs, int njobs, int threads, obs_err *err) {
   return rc;
 }
 
+/* The files of one write: names, staging and final paths, display images, what was written. */
+typedef struct out_files {
+  int n;
+  char name[MAX_FILES][OBS_OUTPUT_FILE_MAX];
+  char stage[MAX_FILES][4200], final[MAX_FILES][4200];
+  int written[MAX_FILES];
+  obs_image disp[MAX_FILES];
+  char ch[MAX_FILES][OBS_OUTPUT_MAX_CHANNELS][OBS_CHANNEL_NAME_MAX];
+  const char *chp[MAX_FILES][OBS_OUTPUT_MAX_CHANNELS];
+} out_files;
+
+static int out_files_add(out_files *f, const char *dir, const char *name) {
+  if (f->n >= MAX_FILES) return -1;
+  int i = f->n++;
+  snprintf(f->name[i], sizeof f->name[i], "%s", name);
+  snprintf(f->stage[i], sizeof f->stage[i], "%s/.%s.new", dir, name);
+  snprintf(f->final[i], sizeof f->final[i], "%s/%s", dir, name);
+  return i;
+}
+
+/* Queues the PNG of output `o` as file `fi` (nothing when its channels are absent). */
+static int queue_png(out_files *f, int fi, const obs_result *r, const obs_scene *sc,
+                     const obs_output *o, out_job *job, obs_err *err) {
+  static const char *const rgb[3] = {"R", "G", "B"}, *const y[1] = {"Y"};
+  int nch = obs_output_channels(o, f->ch[fi]);
+  for (int c = 0; c < nch; c++) {
+    if (!obs_image_channel(&r->image, f->ch[fi][c])) return 1;
+    f->chp[fi][c] = f->ch[fi][c];
+  }
+  if (nch == 0) return 1;
+  if (o->show == OBS_SHOW_GREY) { /* the channels as they are, linear */
+    *job = (out_job){&r->image, f->chp[fi], nch, 1, 0, 1, f->stage[fi], 0, OBS_ERR_INIT};
+    return 0;
+  }
+  int have = display_image(&r->image, o, output_exposure(o, sc), &f->disp[fi], err);
+  if (have) return have;
+  int n = f->disp[fi].nchannels;
+  *job = (out_job){&f->disp[fi], n == 3 ? rgb : y, n, 1, o->show == OBS_SHOW_TONEMAP, 1,
+                   f->stage[fi], 0, OBS_ERR_INIT};
+  return 0;
+}
+
+/* Writes the per-patch files (after the images, on the calling thread: they are small). */
+static int write_patches(out_files *f, const obs_result *r, const char *dir, obs_err *err) {
+  char name[OBS_OUTPUT_FILE_MAX];
+  for (int i = 0; i < r->npatches; i++) {
+    const obs_output *o = obs_technique_output(r->technique, r->patches[i].name);
+    if (!o || o->kind != OBS_OUTPUT_PATCH)
+      return obs_err_set(err, OBS_EINVAL, "write: \"%s\" is no per-patch output of %s",
+                         r->patches[i].name, r->technique->name);
+    obs_output_patch_file(o, name, sizeof name);
+    int fi = out_files_add(f, dir, name);
+    if (fi < 0) return obs_err_set(err, OBS_EINVAL, "write: too many output files");
+    int rc = obs_patches_write(&r->patches[i], f->stage[fi], err);
+    if (rc) return rc;
+    f->written[fi] = 1;
+  }
+  return 0;
+}
+
+/* Renames the written files into place, or removes them all; then removes an earlier render's
+ * files of any technique that this one did not write. */
+static int publish(out_files *f, const char *dir, int rc, obs_err *err) {
+  for (int i = 0; !rc && i < f->n; i++)
+    if (f->written[i] && rename(f->stage[i], f->final[i]))
+      rc = obs_err_set(err, OBS_EIO, "%s: cannot rename into place: %s", f->final[i],
+                       strerror(errno));
+  if (rc) {
+    for (int i = 0; i < f->n; i++) unlink(f->stage[i]);
+    return rc;
+  }
+  char known[64][OBS_OUTPUT_FILE_MAX], path[4200];
+  size_t nk = obs_output_file_names(known, 64);
+  for (size_t k = 0; k < nk; k++) {
+    int mine = 0;
+    for (int i = 0; i < f->n; i++) mine |= f->written[i] && !strcmp(f->name[i], known[k]);
+    if (mine) continue;
+    snprintf(path, sizeof path, "%s/%s", dir, known[k]);
+    unlink(path);
+  }
+  return 0;
+}
+
 int obs_result_write(obs_result *r, const obs_scene *sc, const char *dir, obs_err *err) {
   double t0 = obs_now_ms();
+  if (!r || !r->technique || !obs_technique_primary(r->technique))
+    return obs_err_set(err, OBS_EINVAL, "write: the result names no technique with outputs");
+  for (const obs_output *o = r->technique->outputs; o->name; o++)
+    if (o->kind == OBS_OUTPUT_VOXEL)
+      return obs_err_set(err, OBS_EUNSUPPORTED, "write: voxel output \"%s\" has no file format",
+                         o->name);
   int rc = obs_path_make_dirs(dir, err);
   if (rc) return rc;
   /* Every file is written under a staging name first and the set is renamed into place only
    * when all succeeded, so a failure never mixes new and old outputs. */
-  static const char *const names[NFILES] = {"ao.exr", "ao.png", "bent_normal.png", "depth.png",
-                                            "summary.json"};
-  static const char *const ao[1] = {"ao"}, *const rgb[3] = {"R", "G", "B"}, *const y[1] = {"Y"};
-  char stage[NFILES][4200], final[NFILES][4200];
-  int written[NFILES] = {0};
-  for (int i = 0; i < NFILES; i++) {
-    snprintf(stage[i], sizeof stage[i], "%s/.%s.new", dir, names[i]);
-    snprintf(final[i], sizeof final[i], "%s/%s", dir, names[i]);
-  }
-  obs_image disp[2];
-  memset(disp, 0, sizeof disp);
-  out_job jobs[NFILES];
-  int file_of[NFILES], njobs = 0;
-  memset(jobs, 0, sizeof jobs);
-  jobs[njobs] = (out_job){&r->image, NULL, 0, 0, 1, stage[F_EXR], 0, OBS_ERR_INIT};
-  file_of[njobs++] = F_EXR;
-  jobs[njobs] = (out_job){&r->image, ao, 1, 1, 1, stage[F_PNG], 0, OBS_ERR_INIT};
-  file_of[njobs++] = F_PNG;
-  for (int f = F_BENT; f <= F_DEPTH && !rc; f++) {
-    obs_image *d = &disp[f - F_BENT];
-    int have = display_image(&r->image, f == F_DEPTH, d, err);
+  out_files *f = calloc(1, sizeof *f);
+  if (!f) return obs_err_set(err, OBS_ENOMEM, "write: out of memory");
+  out_job jobs[MAX_FILES];
+  int file_of[MAX_FILES], njobs = 0;
+  char exr[OBS_OUTPUT_FILE_MAX];
+  obs_technique_exr_name(r->technique, exr, sizeof exr);
+  int fi = out_files_add(f, dir, exr);
+  jobs[njobs] = (out_job){&r->image, NULL, 0, 0, 0, 1, f->stage[fi], 0, OBS_ERR_INIT};
+  file_of[njobs++] = fi;
+  for (const obs_output *o = r->technique->outputs; o->name && !rc; o++) {
+    if (!o->png || o->show == OBS_SHOW_NONE) continue;
+    if ((fi = out_files_add(f, dir, o->png)) < 0) {
+      rc = obs_err_set(err, OBS_EINVAL, "write: too many output files");
+      break;
+    }
+    int have = queue_png(f, fi, r, sc, o, &jobs[njobs], err);
     if (have < 0) rc = have;
-    if (have != 0) continue;
-    jobs[njobs] = (out_job){d, f == F_DEPTH ? y : rgb, f == F_DEPTH ? 1 : 3, 1, 1, stage[f], 0,
-                            OBS_ERR_INIT};
-    file_of[njobs++] = f;
+    if (have == 0) file_of[njobs++] = fi;
   }
   if (!rc) {
     rc = write_images(jobs, njobs, r->threads > 0 ? r->threads : 1, err);
-    for (int i = 0; i < njobs; i++) written[file_of[i]] = jobs[i].rc == 0;
+    for (int i = 0; i < njobs; i++) f->written[file_of[i]] = jobs[i].rc == 0;
+  } else {
+    for (int i = 0; i < njobs; i++) obs_err_free(&jobs[i].err);
   }
-  obs_image_free(&disp[0]);
-  obs_image_free(&disp[1]);
+  for (int i = 0; i < MAX_FILES; i++) obs_image_free(&f->disp[i]);
+  if (!rc) rc = write_patches(f, r, dir, err);
+  if (!rc && (fi = out_files_add(f, dir, "summary.json")) < 0)
+    rc = obs_err_set(err, OBS_EINVAL, "write: too many output files");
   if (!rc) {
     /* A second write of the same result (the server retries after a disk fault) replaces the
      * first one's time in the total instead of adding to it. */
@@ -329,20 +505,13 @@ int obs_result_write(obs_result *r, const obs_scene *sc, const char *dir, obs_er
     r->timings.write_ms = obs_now_ms() - t0;
     r->timings.total_ms += r->timings.write_ms;
     json_t *sum = obs_result_summary_json(r, sc);
-    if (json_dump_file(sum, stage[F_SUMMARY], JSON_INDENT(2) | JSON_REAL_PRECISION(9)))
-      rc = obs_err_set(err, OBS_EIO, "%s: cannot write summary", stage[F_SUMMARY]);
+    if (json_dump_file(sum, f->stage[fi], JSON_INDENT(2) | JSON_REAL_PRECISION(9)))
+      rc = obs_err_set(err, OBS_EIO, "%s: cannot write summary", f->stage[fi]);
     else
-      written[F_SUMMARY] = 1;
+      f->written[fi] = 1;
     json_decref(sum);
   }
-  for (int i = 0; !rc && i < NFILES; i++)
-    if (written[i] && rename(stage[i], final[i]))
-      rc = obs_err_set(err, OBS_EIO, "%s: cannot rename into place: %s", final[i],
-                       strerror(errno));
-  if (rc)
-    for (int i = 0; i < NFILES; i++) unlink(stage[i]);
-  else /* an earlier render's display images must not outlive it (this technique has none) */
-    for (int i = 0; i < NFILES; i++)
-      if (!written[i]) unlink(final[i]);
+  rc = publish(f, dir, rc, err);
+  free(f);
   return rc;
 }

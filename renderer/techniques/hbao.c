@@ -10,9 +10,18 @@
 #include "sampling.h"
 #include "techniques.h"
 
-static const char *const hbao_outputs[] = {"ao",       "ao_raw",   "depth.Z", "normal.X",
-                                           "normal.Y", "normal.Z", "alpha",   "ao.png",
-                                           NULL};
+static const obs_output hbao_outputs[] = {
+    {.name = "ao", .kind = OBS_OUTPUT_SCALAR, .show = OBS_SHOW_GREY, .png = "ao.png",
+     .description = "Ambient occlusion (white = open, black = fully occluded)",
+     .flags = OBS_OUTPUT_PRIMARY},
+    {.name = "ao_raw", .kind = OBS_OUTPUT_SCALAR,
+     .description = "Ambient occlusion before the blur"},
+    {.name = "depth", .kind = OBS_OUTPUT_DEPTH, .show = OBS_SHOW_DEPTH, .png = "depth.png",
+     .description = "Depth (view distance, grey levels)"},
+    {.name = "normal", .kind = OBS_OUTPUT_VECTOR, .description = "World-space surface normal"},
+    {.name = "alpha", .kind = OBS_OUTPUT_SCALAR,
+     .description = "Coverage (1 where a surface is hit, 0 on the background)"},
+    {.name = NULL}};
 
 const char *const obs_hbao_pass_names[OBS_HBAO_PASS_COUNT] = {"downsample", "ao", "upsample",
                                                               "blur"};

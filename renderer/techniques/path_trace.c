@@ -6,12 +6,22 @@
 #include "path_trace.h"
 #include "techniques.h"
 
-/* clang-format off */
-static const char *const path_trace_outputs[] = {
-    "radiance.R", "radiance.G", "radiance.B", "radiance_stderr.R", "radiance_stderr.G",
-    "radiance_stderr.B", "albedo.R", "albedo.G", "albedo.B", "normal.X", "normal.Y", "normal.Z",
-    "depth.Z", "alpha", "final.png", NULL};
-/* clang-format on */
+static const obs_output path_trace_outputs[] = {
+    {.name = "radiance", .kind = OBS_OUTPUT_RGB, .show = OBS_SHOW_TONEMAP, .png = "final.png",
+     .description = "Radiance (exposure and sRGB applied in the PNG)",
+     .flags = OBS_OUTPUT_PRIMARY, .exposure = "exposure"},
+    {.name = "radiance_stderr", .kind = OBS_OUTPUT_RGB,
+     .description = "Standard error of the per-pixel radiance estimate",
+     .stderr_of = "radiance"},
+    {.name = "albedo", .kind = OBS_OUTPUT_RGB,
+     .description = "Reflectivity at the first hit"},
+    {.name = "normal", .kind = OBS_OUTPUT_VECTOR,
+     .description = "World-space shading normal at the first hit"},
+    {.name = "depth", .kind = OBS_OUTPUT_DEPTH, .show = OBS_SHOW_DEPTH, .png = "depth.png",
+     .description = "Depth (view distance, grey levels)"},
+    {.name = "alpha", .kind = OBS_OUTPUT_SCALAR,
+     .description = "Coverage (1 where a surface is hit, 0 on the background)"},
+    {.name = NULL}};
 
 static const char *const light_samplings[] = {"mis", "bsdf", NULL};
 static const char *const samplers[] = {"sobol", "random", NULL};

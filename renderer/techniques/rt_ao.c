@@ -8,9 +8,21 @@
 #include "sampling.h"
 #include "techniques.h"
 
-static const char *const rt_ao_outputs[] = {
-    "ao",       "ao_stderr", "bent_normal.X", "bent_normal.Y", "bent_normal.Z", "depth.Z",
-    "normal.X", "normal.Y",  "normal.Z",      "alpha",         "ao.png",        NULL};
+static const obs_output rt_ao_outputs[] = {
+    {.name = "ao", .kind = OBS_OUTPUT_SCALAR, .show = OBS_SHOW_GREY, .png = "ao.png",
+     .description = "Ambient occlusion (white = open, black = fully occluded)",
+     .flags = OBS_OUTPUT_PRIMARY},
+    {.name = "ao_stderr", .kind = OBS_OUTPUT_SCALAR,
+     .description = "Standard error of the per-pixel AO estimate", .stderr_of = "ao"},
+    {.name = "bent_normal", .kind = OBS_OUTPUT_VECTOR, .show = OBS_SHOW_NORMAL,
+     .png = "bent_normal.png",
+     .description = "Bent normals as colours (X, Y, Z \u2192 red, green, blue)"},
+    {.name = "depth", .kind = OBS_OUTPUT_DEPTH, .show = OBS_SHOW_DEPTH, .png = "depth.png",
+     .description = "Depth (view distance, grey levels)"},
+    {.name = "normal", .kind = OBS_OUTPUT_VECTOR, .description = "World-space surface normal"},
+    {.name = "alpha", .kind = OBS_OUTPUT_SCALAR,
+     .description = "Coverage (1 where a surface is hit, 0 on the background)"},
+    {.name = NULL}};
 
 static const char *const falloffs[] = {"binary", "sqrt", "exp", NULL};
 static const char *const weightings[] = {"cosine", "uniform", NULL};

@@ -11,9 +11,18 @@
 #include "sampling.h"
 #include "techniques.h"
 
-static const char *const ssao_outputs[] = {"ao",       "ao_raw",   "depth.Z", "normal.X",
-                                           "normal.Y", "normal.Z", "alpha",   "ao.png",
-                                           NULL};
+static const obs_output ssao_outputs[] = {
+    {.name = "ao", .kind = OBS_OUTPUT_SCALAR, .show = OBS_SHOW_GREY, .png = "ao.png",
+     .description = "Ambient occlusion (white = open, black = fully occluded)",
+     .flags = OBS_OUTPUT_PRIMARY},
+    {.name = "ao_raw", .kind = OBS_OUTPUT_SCALAR,
+     .description = "Ambient occlusion before the blur"},
+    {.name = "depth", .kind = OBS_OUTPUT_DEPTH, .show = OBS_SHOW_DEPTH, .png = "depth.png",
+     .description = "Depth (view distance, grey levels)"},
+    {.name = "normal", .kind = OBS_OUTPUT_VECTOR, .description = "World-space surface normal"},
+    {.name = "alpha", .kind = OBS_OUTPUT_SCALAR,
+     .description = "Coverage (1 where a surface is hit, 0 on the background)"},
+    {.name = NULL}};
 
 static const int ssao_sample_counts[] = {8, 16, 24};
 

@@ -59,6 +59,47 @@ int obs_technique_pick_backend(const obs_technique *t, obs_backend requested, ob
                      t->name);
 }
 
+/* The registry's plain "outputs" list: every EXR channel name, then every image and patch file. */
+static json_t *outputs_flat_json(const obs_technique *t) {
+  json_t *outs = json_array();
+  char ch[OBS_OUTPUT_MAX_CHANNELS][OBS_CHANNEL_NAME_MAX], files[16][OBS_OUTPUT_FILE_MAX];
+  for (const obs_output *x = t->outputs; x && x->name; x++)
+    for (int c = 0, n = obs_output_channels(x, ch); c < n; c++)
+      json_array_append_new(outs, json_string(ch[c]));
+  size_t nf = obs_technique_files(t, files, 16);
+  for (size_t i = 0; i < nf; i++)
+    if (strcmp(files[i], "summary.json") && !strstr(files[i], ".exr"))
+      json_array_append_new(outs, json_string(files[i]));
+  return outs;
+}
+
+/* The declared outputs with their kinds, display, files and EXR channels (the dashboard's
+ * captions and the metrics' channel come from here). */
+static json_t *outputs_typed_json(const obs_technique *t) {
+  json_t *arr = json_array();
+  char ch[OBS_OUTPUT_MAX_CHANNELS][OBS_CHANNEL_NAME_MAX], file[OBS_OUTPUT_FILE_MAX];
+  for (const obs_output *x = t->outputs; x && x->name; x++) {
+    json_t *o = json_object(), *chs = json_array();
+    json_object_set_new(o, "name", json_string(x->name));
+    json_object_set_new(o, "kind", json_string(obs_output_kind_name(x->kind)));
+    json_object_set_new(o, "show", json_string(obs_output_show_name(x->show)));
+    json_object_set_new(o, "png", x->png ? json_string(x->png) : json_null());
+    if (x->kind == OBS_OUTPUT_PATCH) {
+      obs_output_patch_file(x, file, sizeof file);
+      json_object_set_new(o, "file", json_string(file));
+    }
+    json_object_set_new(o, "description", json_string(x->description ? x->description : ""));
+    json_object_set_new(o, "primary", json_boolean(x->flags & OBS_OUTPUT_PRIMARY));
+    if (x->stderr_of) json_object_set_new(o, "stderr_of", json_string(x->stderr_of));
+    if (x->exposure) json_object_set_new(o, "exposure_param", json_string(x->exposure));
+    for (int c = 0, n = obs_output_channels(x, ch); c < n; c++)
+      json_array_append_new(chs, json_string(ch[c]));
+    json_object_set_new(o, "channels", chs);
+    json_array_append_new(arr, o);
+  }
+  return arr;
+}
+
 json_t *obs_technique_registry_json(void) {
   json_t *arr = json_array();
   for (size_t i = 0; i < obs_technique_count(); i++) {
@@ -78,9 +119,11 @@ json_t *obs_technique_registry_json(void) {
     if (t->needs & OBS_NEED_LIGHTS) json_array_append_new(needs, json_string("lights"));
     if (t->needs & OBS_NEED_GBUFFER) json_array_append_new(needs, json_string("gbuffer"));
     json_object_set_new(o, "needs", needs);
-    json_t *outs = json_array();
-    for (const char *const *s = t->outputs; s && *s; s++) json_array_append_new(outs, json_string(*s));
-    json_object_set_new(o, "outputs", outs);
+    json_object_set_new(o, "outputs", outputs_flat_json(t));
+    json_object_set_new(o, "typed_outputs", outputs_typed_json(t));
+    char exr[OBS_OUTPUT_FILE_MAX];
+    obs_technique_exr_name(t, exr, sizeof exr);
+    json_object_set_new(o, "exr", json_string(exr));
     json_t *ranges = json_object();
     for (int b = OBS_BACKEND_CPU; b < OBS_BACKEND_COUNT; b++)
       if (t->run[b] && t->range[b].size_max > 0)

@@ -90,6 +90,9 @@ test('jobs, job detail and submit pages', async () => {
     for (const name of ['ao.png', 'bent_normal.png', 'depth.png']) {
       assert.equal(await page.locator(`img.output[src$="/${name}"]`).count(), 1, name);
     }
+    // Captions come from the registry's declared outputs (typed_outputs[].description).
+    assert.match(await page.locator('figure:has(img[src$="/bent_normal.png"]) figcaption').textContent(),
+                 /Bent normals as colours/);
     await page.getByRole('heading', {name: 'Timings'}).waitFor();
     for (const stage of ['load', 'build', 'render', 'write', 'total']) {
       assert.equal(await page.locator('table.timings th', {hasText: new RegExp(`^${stage}$`)}).count(), 1, stage);

@@ -4,6 +4,10 @@
 import {ACTIVE, ApiError, api, debug, el, fmtMs, fmtNum, fmtTime, paramText, poll, stateBadge, techniques, token} from './api.js';
 import {PALETTE, SHAPE_GLYPH, SHAPES, paretoChart, plottable, shapeOf} from './chart.js';
 
+// The image of a candidate's or reference's primary output ("image"), or "ao.png" from a daemon
+// that predates typed outputs.
+const primaryImage = (links) => links.image || links['ao.png'];
+
 // ---- the list -----------------------------------------------------------------------------------
 
 export function mountComparisons(view) {
@@ -53,6 +57,14 @@ export function metricsTable(c) {
     ['median total ms', fmtMs(med.total)], ['median build ms', fmtMs(med.build)], ['median render ms', fmtMs(med.render)],
     ['median post ms', fmtMs(med.post)], ['timed runs', String(runs.length)],
   ];
+  // Metrics of a primary output that is not AO: which one, and the RGB or per-patch figures.
+  if (m.output) rows.unshift(['output compared', m.output + (m.rgb ? ' (luminance)' : '')]);
+  if (m.rgb) {
+    rows.splice(rows.length - 6, 0, ['RMSE R, G, B', m.rgb.rmse.map(fmtNum).join(', ')],
+                ['RMSE of luminance', fmtNum(m.rgb.rmse_luminance)], ['SSIM of luminance', fmtNum(m.rgb.ssim_luminance)],
+                ['relative MSE', fmtNum(m.rgb.rel_mse)]);
+  }
+  if (m.patch_rmse !== undefined) rows.splice(rows.length - 6, 0, ['RMSE over patches (area-weighted)', fmtNum(m.patch_rmse)]);
   if (c.machine) rows.push(['machine', [c.machine.cpu_model, c.machine.cores && `${c.machine.cores} cores`, c.machine.vulkan_device].filter(Boolean).join(', ')]);
   return el('table', {className: 'kv metrics'}, el('tbody', {}, ...rows.map(([k, v]) => el('tr', {},
     el('th', {scope: 'row'}, k), el('td', {className: 'num'}, v)))));
@@ -253,12 +265,12 @@ export function mountComparison(view, [id], query) {
   function renderGrid() {
     const ctx = {params: varyingParams(s.c.candidates)};
     grid.replaceChildren(
-      ...s.c.references.filter((r) => r.links && r.links['ao.png']).map((r) => el('figure', {className: 'tile ref'},
-        el('img', {src: r.links['ao.png'], alt: `Reference job ${r.job_id}`}),
+      ...s.c.references.filter((r) => r.links && primaryImage(r.links)).map((r) => el('figure', {className: 'tile ref'},
+        el('img', {src: primaryImage(r.links), alt: `Reference job ${r.job_id}`}),
         el('figcaption', {}, `Reference (job ${r.job_id}, rt_ao ${paramText({samples: r.params && r.params.samples})})`))),
       ...s.c.candidates.map((c) => el('figure', {className: 'tile'},
-        c.links && c.links['ao.png']
-          ? el('img', {src: c.links['ao.png'], alt: `Candidate ${c.index}: ${c.technique} on ${c.backend}`, onclick: () => select(c.index)})
+        c.links && primaryImage(c.links)
+          ? el('img', {src: primaryImage(c.links), alt: `Candidate ${c.index}: ${c.technique} on ${c.backend}`, onclick: () => select(c.index)})
           : el('div', {className: 'placeholder'}, c.state),
         el('figcaption', {}, el('button', {type: 'button', className: 'link', onclick: () => select(c.index)},
           `#${c.index} ${c.technique}/${c.backend}`), ` ${ctx.params(c)}`, c.metrics ? ` · RMSE ${fmtNum(c.metrics.rmse, 3)}` : ''))));
@@ -275,9 +287,9 @@ export function mountComparison(view, [id], query) {
       el('p', {}, el('code', {}, paramText(c.params)), ' · ', stateBadge(c.state), ' · ',
         el('a', {href: `#/jobs/${c.job_id}?comparison=${id}`, className: 'open-job'}, `Open job ${c.job_id}`))];
     const media = el('div', {className: 'media'});
-    if (links['ao.png'] && links['reference.png']) {
+    if (primaryImage(links) && links['reference.png']) {
       const ref = el('img', {className: 'ref', src: links['reference.png'], alt: `Reference job ${c.reference_job_id}`});
-      const cand = el('img', {className: 'cand', src: links['ao.png'], alt: `Candidate ${c.index}`});
+      const cand = el('img', {className: 'cand', src: primaryImage(links), alt: `Candidate ${c.index}`});
       const line = el('div', {className: 'divider', 'aria-hidden': 'true'});
       const range = el('input', {type: 'range', id: 'split', min: '0', max: '100', step: '1', value: String(s.split)});
       const apply = () => {

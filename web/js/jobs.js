@@ -7,6 +7,36 @@ import {metricsTable} from './comparisons.js';
 
 const backendOf = (j) => j.backend.actual || j.backend.requested;
 
+// What the registry declares about output files (GET /api/v1/techniques, typed_outputs): each
+// PNG's caption, and each technique's primary output and its PNG (the list's thumbnail). An
+// unreachable registry leaves the pages working with file names only.
+let outputFilesP = null;
+const primaryLabel = (files, technique) => {
+  const name = files.primaryName[technique];
+  return !name || name === 'ao' ? 'AO' : name;
+};
+function outputFiles() {
+  if (!outputFilesP) {
+    outputFilesP = techniques().then((reg) => {
+      const f = {captions: {}, primaryPng: {}, primaryName: {}};
+      for (const t of reg.techniques || []) {
+        for (const o of t.typed_outputs || []) {
+          if (o.png && !f.captions[o.png]) f.captions[o.png] = o.description;
+          if (o.primary) {
+            f.primaryName[t.name] = o.name;
+            if (o.png) f.primaryPng[t.name] = o.png;
+          }
+        }
+      }
+      return f;
+    }).catch(() => {
+      outputFilesP = null;
+      return {captions: {}, primaryPng: {}, primaryName: {}};
+    });
+  }
+  return outputFilesP;
+}
+
 // A render outside the range its technique guarantees still succeeds, with warnings
 // (docs/accuracy.md, "Guaranteed ranges"): the list marks such jobs, the job page lists them.
 function warningMarker(j) {
@@ -121,8 +151,9 @@ export function mountJobs(view) {
       status.textContent = e.message;
       return false;
     }
+    const files = await outputFiles();
     if (dead || mine !== seq) return false;
-    render(list.jobs);
+    render(list.jobs, files);
     const active = list.jobs.filter((j) => ACTIVE.has(j.state)).length;
     status.textContent = `${list.jobs.length} job${list.jobs.length === 1 ? '' : 's'}${list.next ? ' (newest 50)' : ''}` +
       (active ? `, ${active} queued or running` : '');
@@ -132,14 +163,15 @@ export function mountJobs(view) {
 
   // Rows are kept by job id and rebuilt only when their job changed, so focus and the keyboard
   // position survive the once-a-second refresh.
-  function render(jobs) {
+  function render(jobs, files) {
     const keep = new Set(jobs.map((j) => j.id));
     for (const [id, tr] of rows) if (!keep.has(id)) { tr.remove(); rows.delete(id); }
     let prev = null;
     for (const j of jobs) {
       let tr = rows.get(j.id);
+      const thumb = j.links.outputs[files.primaryPng[j.technique] || 'ao.png'];
       const key = JSON.stringify([j.state, j.progress, j.cancel_requested, j.backend, j.timings_ms && j.timings_ms.total,
-                                  j.links.outputs['ao.png'], j.warnings]);
+                                  thumb, j.warnings]);
       if (!tr) {
         tr = el('tr', {'data-id': j.id});
         rows.set(j.id, tr);
@@ -156,8 +188,8 @@ export function mountJobs(view) {
           el('td', {className: 'progress'}, progressCell(j)),
           el('td', {}, new Date(j.created_at).toLocaleTimeString()),
           el('td', {className: 'num'}, j.timings_ms ? fmtMs(j.timings_ms.total) : '–'),
-          el('td', {}, j.links.outputs['ao.png']
-            ? el('img', {className: 'thumb', src: j.links.outputs['ao.png'], alt: `AO of job ${j.id}`}) : ''),
+          el('td', {}, thumb
+            ? el('img', {className: 'thumb', src: thumb, alt: `${primaryLabel(files, j.technique)} of job ${j.id}`}) : ''),
           el('td', {}, actions(j, () => handle.wake())));
         if (focused) {
           const again = tr.querySelector(focused.split(' ').map((c) => `.${c}`).join('')) || tr.querySelector('a');
@@ -182,15 +214,14 @@ export function mountJobs(view) {
 
 // ---- one job ------------------------------------------------------------------------------------
 
-const CAPTIONS = {
-  'ao.png': 'Ambient occlusion (white = open, black = fully occluded)',
-  'bent_normal.png': 'Bent normals as colours (X, Y, Z → red, green, blue)',
-  'depth.png': 'Depth (view distance, grey levels)',
+// Captions of the comparison's own images; every technique's come from its declared outputs.
+const COMPARISON_CAPTIONS = {
   'error.png': 'Error against the reference: blue = too dark, white = equal, red = too bright (scale ±0.25)',
 };
 
-function outputsSection(j) {
+function outputsSection(j, files) {
   const outs = j.outputs || [];
+  const CAPTIONS = {...files.captions, ...COMPARISON_CAPTIONS};
   const pngs = outs.filter((o) => o.name.endsWith('.png'));
   return el('section', {'aria-labelledby': 'h-outputs'},
     el('h2', {id: 'h-outputs'}, 'Outputs'),
@@ -275,7 +306,7 @@ export function mountJob(view, [id], query) {
     }
     if (j.state !== lastState) {
       lastState = j.state;
-      body.replaceChildren(warningsSection(j), outputsSection(j),
+      body.replaceChildren(warningsSection(j), outputsSection(j, await outputFiles()),
         j.timings_ms ? timingsSection(j.timings_ms) : null,
         j.stats ? statsSection(j) : null,
         el('div', {className: 'params-slot'}), el('div', {className: 'metrics-slot'}));

@@ -4,6 +4,7 @@
 
 #include <stdint.h>
 #include "obscura/image.h"
+#include "obscura/patches.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -85,6 +86,53 @@ int obs_metrics_error_image(const obs_image *candidate, const obs_image *referen
  * "B") from an image made by obs_metrics_error_image, creating `dir` when missing. Both are written
  * under staging names and renamed into place only when both succeeded. */
 int obs_metrics_write_error_files(const obs_image *err_img, const char *dir, obs_err *err);
+
+/* Luminance of linear RGB (Rec. 709 / sRGB primaries): 0.2126 R + 0.7152 G + 0.0722 B. */
+#define OBS_LUMINANCE(r, g, b) (0.2126 * (double)(r) + 0.7152 * (double)(g) + 0.0722 * (double)(b))
+/* Floor of the denominator of the relative MSE, so black reference pixels do not dominate. */
+#define OBS_METRICS_RELMSE_EPS 1e-2
+
+/* Mean luminance of RGB output `rgb` (channels "<rgb>.R/G/B") over the pixels `mask` selects. */
+int obs_metrics_luminance_mean(const obs_image *img, const char *rgb, const char *mask,
+                               double *mean, obs_err *err);
+
+/* A new image (owned by the caller) holding the luminance of RGB output `rgb` of `img` in
+ * channel "<rgb>", the luminance of `stderr_rgb`'s channels (when non-NULL and present) in
+ * "<rgb>_stderr" (a bound of the luminance's standard error: the channels' errors taken as fully
+ * correlated), and "alpha" copied when present: the scalar image the scalar comparison
+ * (obs_metrics_compare, error images) runs on for an RGB output. */
+int obs_metrics_luminance_image(const obs_image *img, const char *rgb, const char *stderr_rgb,
+                                obs_image *out, obs_err *err);
+
+/* RGB output `rgb` of a candidate against a reference over the reference's `mask` pixels.
+ * With c, r the candidate's and reference's values, N the selected pixels (docs/metrics.md):
+ *   rmse[k] = sqrt(sum (c_k - r_k)^2 / N) for k = R, G, B (exactly obs_metrics_rmse per channel);
+ *   rmse_luminance = the same on the luminance Y = OBS_LUMINANCE;
+ *   ssim_luminance = obs_metrics_ssim on Y (its constants assume values near [0, 1]);
+ *   rel_mse = sum over pixels and the three channels of (c_k - r_k)^2 / (r_k^2 + eps)
+ *             divided by 3N, eps = OBS_METRICS_RELMSE_EPS.
+ * A NaN in a selected pixel makes every figure NaN except SSIM (NaN for windows holding it). */
+typedef struct obs_compare_rgb {
+  double rmse[3];
+  double rmse_luminance;
+  double ssim_luminance;
+  double rel_mse;
+  int64_t pixels;
+} obs_compare_rgb;
+
+int obs_metrics_compare_rgb(const obs_image *candidate, const obs_image *reference,
+                            const char *rgb, const char *mask, obs_compare_rgb *out,
+                            obs_err *err);
+
+/* Statistics of every value of `p` (all components), like obs_metrics_stats. */
+void obs_metrics_patch_stats(const obs_patches *p, obs_stats *out);
+
+/* Root-mean-square error over the patches of a candidate against a reference with the same count
+ * and components, weighted by the patches' areas (the reference's, else the candidate's, else
+ * all equal): sqrt(sum_i a_i sum_k (c_ik - r_ik)^2 / (components * sum_i a_i)). Patches of zero
+ * area do not count. Non-finite differences as in obs_metrics_rmse. */
+int obs_metrics_patch_rmse(const obs_patches *candidate, const obs_patches *reference,
+                           double *rmse, obs_err *err);
 
 /* One candidate of a speed/accuracy comparison for obs_metrics_pareto. */
 typedef struct obs_pareto_point {

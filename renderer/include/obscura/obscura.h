@@ -7,6 +7,7 @@
 #include "obscura/image.h"
 #include "obscura/metrics.h"
 #include "obscura/path.h"
+#include "obscura/patches.h"
 #include "obscura/render.h"
 #include "obscura/scene.h"
 #include "obscura/technique.h"

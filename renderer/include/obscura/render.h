@@ -20,7 +20,7 @@ typedef struct obs_render_opts {
   obs_region region;           /* all zero: the whole image (see obs_render_ctx.region) */
 } obs_render_opts;
 
-/* The outcome of one render. Owns `image`; release with obs_result_free. */
+/* The outcome of one render. Owns `image` and `patches`; release with obs_result_free. */
 typedef struct obs_result {
   const obs_technique *technique;
   obs_backend backend;         /* the backend that ran */
@@ -31,6 +31,8 @@ typedef struct obs_result {
   double stage_ms[OBS_MAX_STAGES];
   uint64_t rays;
   int threads;
+  obs_patches patches[OBS_MAX_PATCH_OUTPUTS]; /* per-patch outputs (obs_render_ctx.patches) */
+  int npatches;
   int nwarnings;               /* copied from the render context; see obs_render_ctx_warn */
   char warnings[OBS_MAX_WARNINGS][OBS_WARNING_LEN];
 } obs_result;
@@ -39,12 +41,13 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
                obs_err *err);
 void obs_result_free(obs_result *result);
 
-/* Writes DIR/ao.exr, DIR/ao.png, DIR/bent_normal.png (RGB = n * 0.5 + 0.5, when the image has
- * bent_normal.X/Y/Z), DIR/depth.png (grey, nearest covered pixel white, farthest 0.1, background
- * black, when it has depth.Z) and DIR/summary.json (creating DIR). With result->threads > 1 the
+/* Writes the result's files into DIR (creating it), all from the technique's declared outputs:
+ * "<primary>.exr" with every channel of the image; the PNG of each output that names one, shown
+ * as the output says (obs_output_show; an output whose channels the image lacks has none); the
+ * "<name>.patches" file of each per-patch output (obscura/patches.h); summary.json. Files of an
+ * earlier result in DIR that this one does not have are removed. With result->threads > 1 the
  * image files are written in parallel: the EXR's chunks on result->threads - 1 threads beside the
- * caller and each PNG on a thread of its own, so up to result->threads + 3 threads for the few
- * milliseconds the PNGs take (same bytes for any count). Times the writes into
+ * caller and each PNG on a thread of its own (same bytes for any count). Times the writes into
  * result->timings.write_ms and recomputes total_ms. */
 int obs_result_write(obs_result *result, const obs_scene *scene, const char *dir, obs_err *err);
 /* The summary document (new reference). */

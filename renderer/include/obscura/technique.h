@@ -7,6 +7,7 @@
 #include <stdint.h>
 #include "obscura/error.h"
 #include "obscura/image.h"
+#include "obscura/patches.h"
 #include "obscura/scene.h"
 
 #ifdef __cplusplus
@@ -32,6 +33,8 @@ typedef void (*obs_progress_fn)(void *user, double fraction);
  * technique's output is guaranteed (docs/accuracy.md), or a parameter is suspicious. */
 #define OBS_MAX_WARNINGS 8
 #define OBS_WARNING_LEN 320
+/* Per-patch outputs one render may carry. */
+#define OBS_MAX_PATCH_OUTPUTS 4
 
 /* Per-stage timings in milliseconds. */
 /* A rectangle of pixels [x0, x1) x [y0, y1) of the image. All zero: the whole image. */
@@ -69,6 +72,11 @@ typedef struct obs_render_ctx {
   int nstages;
   const char *stage_names[OBS_MAX_STAGES]; /* static strings */
   double stage_ms[OBS_MAX_STAGES];
+  /* Per-patch outputs (OBS_OUTPUT_PATCH): the technique initialises patches[0..npatches) with
+   * obs_patches_init (name = the output's) and renders them into its image's "<name>" channel
+   * with obs_patches_render; the result takes them over. Points into the result; never NULL. */
+  obs_patches *patches;
+  int npatches;
   /* Added with obs_render_ctx_warn, from the thread that called the run function only. */
   int nwarnings;
   char warnings[OBS_MAX_WARNINGS][OBS_WARNING_LEN];
@@ -204,6 +212,65 @@ typedef struct obs_param {
  * count (docs/server.md, "Mesh import and work limits"): e.g. rays or depth-buffer taps. */
 typedef double (*obs_technique_cost_fn)(const void *bound);
 
+/* What one output holds; its EXR channels follow from the name and the kind. */
+typedef enum {
+  OBS_OUTPUT_SCALAR = 0, /* one value per pixel: channel "<name>" */
+  OBS_OUTPUT_VECTOR,     /* a direction per pixel: channels "<name>.X", ".Y", ".Z" */
+  OBS_OUTPUT_RGB,        /* linear radiance per pixel: channels "<name>.R", ".G", ".B" */
+  OBS_OUTPUT_DEPTH,      /* linear view depth per pixel: channel "<name>.Z" */
+  /* One value per patch of the scene (a triangle, numbered in the order geometry.c emits them),
+   * stored in "<name>.patches" (obscura/patches.h) and rendered per pixel into channel "<name>"
+   * by casting a primary ray per pixel. */
+  OBS_OUTPUT_PATCH,
+  /* A voxel grid: reserved so the registry, the API and the docs can name it; the writer has no
+   * file for it yet and refuses a technique that declares one. */
+  OBS_OUTPUT_VOXEL,
+  OBS_OUTPUT_KIND_COUNT
+} obs_output_kind;
+
+/* How an output is shown in its PNG (background pixels, alpha <= 0 when the image has an alpha
+ * channel, are black except for GREY, which writes the channel as it is). */
+typedef enum {
+  OBS_SHOW_NONE = 0,  /* no PNG */
+  OBS_SHOW_GREY,      /* the value clamped to [0, 1], linear */
+  OBS_SHOW_FALSE,     /* false colour: the covered pixels' [min, max] over a blue-to-yellow ramp */
+  OBS_SHOW_NORMAL,    /* RGB = n * 0.5 + 0.5 */
+  OBS_SHOW_DEPTH,     /* nearest covered pixel white, farthest 0.1 grey, linear between */
+  OBS_SHOW_TONEMAP,   /* value * 2^exposure, clamped, sRGB transfer curve */
+  OBS_SHOW_COUNT
+} obs_output_show;
+
+enum {
+  OBS_OUTPUT_PRIMARY = 1 << 0 /* the output metrics and comparisons use; one per technique */
+};
+
+/* Longest output name: "<name>.patches" and "<name>_stderr.X" stay within the 32 bytes the
+ * server's output records and the EXR channel names hold. */
+#define OBS_OUTPUT_NAME_MAX 20
+
+/* One declared output. The writer, the EXR layers, the PNGs, summary.json's statistics, the
+ * server's file allow-list, the API enums and the dashboard captions all follow from the table. */
+typedef struct obs_output {
+  const char *name;        /* NULL ends a technique's table; at most OBS_OUTPUT_NAME_MAX chars */
+  obs_output_kind kind;
+  obs_output_show show;
+  const char *png;         /* PNG file name ("ao.png"), or NULL for none */
+  const char *description; /* the dashboard's caption */
+  unsigned flags;          /* OBS_OUTPUT_* */
+  const char *stderr_of;   /* names the output this one is the per-pixel standard error of */
+  const char *exposure;    /* OBS_SHOW_TONEMAP: the parameter holding the exposure in EV (a number
+                              in the technique's params); NULL or absent = 0 EV */
+} obs_output;
+
+#define OBS_OUTPUT_MAX_CHANNELS 3
+/* The EXR channel names of `o` (at most OBS_OUTPUT_MAX_CHANNELS, written into `names`, each up to
+ * OBS_CHANNEL_NAME_MAX bytes); returns their count, 0 for a voxel output (no channels). */
+int obs_output_channels(const obs_output *o, char names[][OBS_CHANNEL_NAME_MAX]);
+/* "scalar", "vector", "rgb", "depth", "patch", "voxel"; and the show names "none", "grey",
+ * "false_colour", "normal", "depth", "tonemap". */
+const char *obs_output_kind_name(obs_output_kind k);
+const char *obs_output_show_name(obs_output_show s);
+
 typedef struct obs_technique {
   const char *name;
   const char *description;
@@ -220,7 +287,7 @@ typedef struct obs_technique {
    * the technique. 0: unknown (the server assumes the slowest technique's rate). */
   double ms_per_work;
   unsigned needs;               /* OBS_NEED_* */
-  const char *const *outputs;   /* NULL-terminated: EXR channel names and extra files */
+  const obs_output *outputs;    /* ended by an entry with a NULL name; exactly one primary */
   obs_technique_check_fn check; /* may be NULL */
   obs_technique_reference_fn reference; /* may be NULL: the technique cannot be compared */
   /* As a reference: the integer parameter a comparison's reference.samples sets (its converged
@@ -229,6 +296,25 @@ typedef struct obs_technique {
   obs_technique_run_fn run[OBS_BACKEND_COUNT]; /* indexed by obs_backend; NULL = not available */
   obs_range range[OBS_BACKEND_COUNT]; /* guaranteed range of each backend that has a run */
 } obs_technique;
+
+/* The technique's primary output (never NULL for a registered technique). */
+const obs_output *obs_technique_primary(const obs_technique *t);
+/* The output named `name`, or NULL. */
+const obs_output *obs_technique_output(const obs_technique *t, const char *name);
+/* The EXR file of `t`'s results: "<primary>.exr" into buf. */
+void obs_technique_exr_name(const obs_technique *t, char *buf, size_t n);
+/* The per-patch file of `o`: "<name>.patches" into buf. */
+void obs_output_patch_file(const obs_output *o, char *buf, size_t n);
+
+#define OBS_OUTPUT_FILE_MAX 64
+/* The files a result of `t` holds, in the order the writer lists them: "<primary>.exr", each PNG,
+ * each per-patch file, "summary.json". Returns the count (at most `max` are filled). */
+size_t obs_technique_files(const obs_technique *t, char names[][OBS_OUTPUT_FILE_MAX], size_t max);
+/* The union of obs_technique_files over every registered technique, first occurrence first:
+ * the names a server may record and serve for a job. */
+size_t obs_output_file_names(char names[][OBS_OUTPUT_FILE_MAX], size_t max);
+/* Content type of an output file by its extension (.exr, .png, .json, .patches), or NULL. */
+const char *obs_output_content_type(const char *file);
 
 size_t obs_technique_count(void);
 const obs_technique *obs_technique_at(size_t i);

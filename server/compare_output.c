@@ -1,0 +1,97 @@
+/* The metrics of one comparison candidate on the primary output its technique declares, of any
+ * kind: scalar outputs as they are, RGB outputs on their luminance (plus RMSE per channel, SSIM on
+ * luminance and relative MSE), depth on its ".Z" channel, per-patch outputs on their rendered
+ * channel plus the area-weighted RMSE over the patches. */
+#include <jansson.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "obscurad.h"
+
+/* The technique whose result lies in `dir`, from its summary.json; rt_ao for a result written
+ * before summaries named anything else (every such result is an AO one). */
+static const obs_technique *result_technique(const char *dir) {
+  char path[4300];
+  snprintf(path, sizeof path, "%s/summary.json", dir);
+  json_t *sum = json_load_file(path, 0, NULL);
+  const obs_technique *t = obs_technique_find(json_string_value(json_object_get(sum, "technique")));
+  json_decref(sum);
+  return t ? t : obs_technique_find("rt_ao");
+}
+
+static int read_exr(const char *dir, const obs_technique *t, obs_image *img, obs_err *err) {
+  char name[OBS_OUTPUT_FILE_MAX], path[4300];
+  obs_technique_exr_name(t, name, sizeof name);
+  snprintf(path, sizeof path, "%s/%s", dir, name);
+  return obs_image_read_exr(img, path, err);
+}
+
+/* Replaces `img` by its luminance image for RGB output `o` of `t`. */
+static int to_luminance(const obs_technique *t, const obs_output *o, obs_image *img,
+                        obs_err *err) {
+  const char *se = NULL;
+  for (const obs_output *x = t->outputs; x->name; x++)
+    if (x->stderr_of && !strcmp(x->stderr_of, o->name)) se = x->name;
+  obs_image y;
+  int rc = obs_metrics_luminance_image(img, o->name, se, &y, err);
+  if (rc) return rc;
+  obs_image_free(img);
+  *img = y;
+  return 0;
+}
+
+static int patch_rmse(const char *dir, const char *rdir, const obs_output *o, double *rmse,
+                      obs_err *err) {
+  char name[OBS_OUTPUT_FILE_MAX], path[4300];
+  obs_output_patch_file(o, name, sizeof name);
+  obs_patches c, r;
+  snprintf(path, sizeof path, "%s/%s", dir, name);
+  int rc = obs_patches_read(&c, path, err);
+  if (rc) return rc;
+  snprintf(path, sizeof path, "%s/%s", rdir, name);
+  rc = obs_patches_read(&r, path, err);
+  if (!rc) rc = obs_metrics_patch_rmse(&c, &r, rmse, err);
+  obs_patches_free(&c);
+  obs_patches_free(&r);
+  return rc;
+}
+
+int srv_compare_primary(const char *dir, const char *rdir, obs_response resp, obs_compare *m,
+                        json_t *extra, obs_image *eimg, obs_err *err) {
+  const obs_technique *t = result_technique(dir), *rt = result_technique(rdir);
+  const obs_output *o = obs_technique_primary(t);
+  if (!o) return obs_err_set(err, OBS_EINVAL, "technique %s declares no primary output", t->name);
+  obs_image cand, ref;
+  memset(&cand, 0, sizeof cand);
+  memset(&ref, 0, sizeof ref);
+  char channel[OBS_CHANNEL_NAME_MAX + 4];
+  snprintf(channel, sizeof channel, o->kind == OBS_OUTPUT_DEPTH ? "%s.Z" : "%s", o->name);
+  int rc = read_exr(dir, t, &cand, err);
+  if (!rc) rc = read_exr(rdir, rt, &ref, err);
+  /* Response curves map AO; an identity mapping leaves any output as it is. */
+  if (!rc && resp != OBS_RESPONSE_IDENTITY) rc = obs_response_apply(resp, &ref, err);
+  if (!rc && o->kind == OBS_OUTPUT_VECTOR)
+    rc = obs_err_set(err, OBS_EUNSUPPORTED, "no metrics for the vector output \"%s\"", o->name);
+  const char *mask = obs_image_channel(&ref, "alpha") ? "alpha" : NULL;
+  if (!rc && o->kind == OBS_OUTPUT_RGB) {
+    obs_compare_rgb c;
+    rc = obs_metrics_compare_rgb(&cand, &ref, o->name, mask, &c, err);
+    if (!rc) {
+      json_object_set_new(extra, "rgb",
+                          json_pack("{s:[f,f,f], s:f, s:f, s:f}", "rmse", c.rmse[0], c.rmse[1],
+                                    c.rmse[2], "rmse_luminance", c.rmse_luminance,
+                                    "ssim_luminance", c.ssim_luminance, "rel_mse", c.rel_mse));
+      rc = to_luminance(t, o, &cand, err);
+    }
+    if (!rc) rc = to_luminance(rt, o, &ref, err);
+  }
+  if (!rc) rc = obs_metrics_compare(&cand, &ref, channel, mask, m, err);
+  if (!rc) rc = obs_metrics_error_image(&cand, &ref, channel, mask, eimg, err);
+  double prmse;
+  if (!rc && o->kind == OBS_OUTPUT_PATCH && !(rc = patch_rmse(dir, rdir, o, &prmse, err)))
+    json_object_set_new(extra, "patch_rmse", json_real(prmse));
+  if (!rc && strcmp(o->name, "ao")) json_object_set_new(extra, "output", json_string(o->name));
+  obs_image_free(&cand);
+  obs_image_free(&ref);
+  return rc;
+}
