@@ -12,6 +12,7 @@
 
 #include "geometry.h"
 #include "json_util.h"
+#include "shapes.h"
 #include "obscurad.h"
 
 /* Whether jansson refused a document for a number it cannot hold (its texts in jansson 2.x). */
@@ -171,24 +172,10 @@ unsigned srv_submit_read_body(const char *body, size_t len, const char *shape, j
 static double triangles_of(const obs_scene *sc, obs_err *err) {
   double n = 0;
   for (size_t i = 0; i < sc->nobjects; i++) {
-    const obs_object *o = &sc->objects[i];
-    switch (o->shape) {
-      case OBS_SHAPE_QUAD: n += 2; break;
-      case OBS_SHAPE_TRIANGLE: n += 1; break;
-      case OBS_SHAPE_BOX: n += 12; break;
-      case OBS_SHAPE_DISPLACED_SPHERE: n += ldexp(1.0, 2 * o->subdivisions); break;
-      case OBS_SHAPE_MESH: {
-        obs_mesh m;
-        char where[256];
-        snprintf(where, sizeof where, "%s: /objects/%zu/shape/file", sc->name, i);
-        if (obs_geometry_import_mesh(o->mesh_path, sc->base_dir, &m, err, where) == 0) {
-          n += (double)m.ntris;
-          obs_geometry_mesh_free(&m);
-        }
-        break;
-      }
-      default: break;
-    }
+    const obs_shape *s = &sc->objects[i].shape;
+    char where[256];
+    snprintf(where, sizeof where, "%s: /objects/%zu/shape/file", sc->name, i);
+    n += obs_shape_kind_of(s->type)->triangles(s, sc->base_dir, err, where);
   }
   return n;
 }

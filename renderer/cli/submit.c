@@ -85,7 +85,7 @@ static int parse_submit(int argc, char **argv, submit_opts *o) {
 static char *submit_body(const obs_scene *sc, const submit_opts *o) {
   json_t *objs = json_object_get(sc->doc, "objects");
   for (size_t i = 0; i < sc->nobjects; i++) {
-    if (sc->objects[i].shape != OBS_SHAPE_MESH) continue;
+    if (sc->objects[i].shape.type != OBS_SHAPE_MESH) continue;
     const char *file = json_string_value(
         json_object_get(json_object_get(json_array_get(objs, i), "shape"), "file"));
     fprintf(stderr, "obscura: note: mesh file \"%s\" is read by the server from its --scenes-dir\n",

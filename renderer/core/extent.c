@@ -22,7 +22,7 @@ static void grow(obs_extent *ex, const double p[3]) {
 static void grow_object(obs_extent *ex, const obs_scene *sc, size_t oi) {
   const obs_object *o = &sc->objects[oi];
   double pts[8][3], r;
-  int n = obs_geometry_object_points(o, o->mesh_bounds, pts, &r);
+  int n = obs_geometry_object_points(o, NULL, pts, &r);
   for (int i = 0; i < n; i++)
     for (int s = -1; s <= 1; s += 2) {
       double q[3] = {pts[i][0] + s * r, pts[i][1] + s * r, pts[i][2] + s * r};

@@ -17,7 +17,7 @@ typedef struct obs_extent {
 /* Computes the extent of a loaded scene: shapes given by vertices and spheres exactly, displaced
  * spheres and imported meshes by their object-space bounding box put through the transform (a
  * rotated box can only grow, by at most sqrt(3)); a mesh by the box the loader measured when it
- * imported it (obs_object.mesh_bounds), so nothing is imported again. Returns 0 today. */
+ * imported it (obs_shape.mesh.bounds), so nothing is imported again. Returns 0 today. */
 int obs_scene_extent(const obs_scene *scene, obs_extent *out, obs_err *err);
 
 /* The quantities of `scene` (extent `ex`) outside `range`, each as one warning added to `ctx`

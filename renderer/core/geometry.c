@@ -14,6 +14,7 @@
 #include <string.h>
 
 #include "normalize.h"
+#include "shapes.h"
 #include "obscura/path.h"
 
 #define PI 3.14159265358979323846
@@ -351,44 +352,19 @@ int obs_geometry_import_mesh_assimp(const char *path, const char *root, obs_mesh
   return 0;
 }
 
-/* Object-space radius bound of the displaced sphere: 1 + 0.15 + 0.05. */
-#define DISPLACED_MAX_R 1.2
-
 int obs_geometry_object_points(const obs_object *o, const double mesh_bounds[2][3],
                                double pts[8][3], double *radius) {
   double local[8][3];
-  int n = 0;
-  *radius = 0;
-  switch (o->shape) {
-    case OBS_SHAPE_QUAD:
-    case OBS_SHAPE_TRIANGLE:
-      n = o->shape == OBS_SHAPE_QUAD ? 4 : 3;
-      for (int i = 0; i < n; i++) {
-        local[i][0] = o->v[i].x, local[i][1] = o->v[i].y, local[i][2] = o->v[i].z;
-      }
-      break;
-    case OBS_SHAPE_SPHERE:
-      n = 1;
-      local[0][0] = o->v[0].x, local[0][1] = o->v[0].y, local[0][2] = o->v[0].z;
-      *radius = o->radius * fabs(o->transform.scale.x);
-      break;
-    default: {
-      double lo[3] = {o->v[0].x, o->v[0].y, o->v[0].z}, hi[3] = {o->v[1].x, o->v[1].y, o->v[1].z};
-      for (int k = 0; k < 3; k++) {
-        if (o->shape == OBS_SHAPE_DISPLACED_SPHERE) {
-          lo[k] = -DISPLACED_MAX_R;
-          hi[k] = DISPLACED_MAX_R;
-        }
-        if (o->shape == OBS_SHAPE_MESH) lo[k] = mesh_bounds[0][k], hi[k] = mesh_bounds[1][k];
-      }
-      n = 8;
-      for (int i = 0; i < 8; i++) {
-        local[i][0] = i & 1 ? hi[0] : lo[0];
-        local[i][1] = i & 2 ? hi[1] : lo[1];
-        local[i][2] = i & 4 ? hi[2] : lo[2];
-      }
-    }
+  int n;
+  if (mesh_bounds) { /* a built mesh's own box, in place of what the document promised */
+    for (int i = 0; i < 8; i++)
+      for (int k = 0; k < 3; k++) local[i][k] = mesh_bounds[(i >> k) & 1][k];
+    n = 8;
+    *radius = 0;
+  } else {
+    n = obs_shape_kind_of(o->shape.type)->points(&o->shape, local, radius);
   }
+  *radius *= fabs(o->transform.scale.x);
   xform x;
   xform_from(&o->transform, &x);
   for (int i = 0; i < n; i++) xform_point(&x, local[i], pts[i]);
@@ -428,46 +404,26 @@ static int fail_oom(const obs_scene *sc, size_t oi, int rc, obs_err *err) {
 static int build_object(const obs_scene *sc, size_t oi, const double origin[3], obs_mesh *m,
                         obs_err *err) {
   const obs_object *o = &sc->objects[oi];
-  static const uint32_t quad[6] = {0, 1, 2, 0, 2, 3}, tri[3] = {0, 1, 2};
-  static const uint32_t box[36] = {0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4,
-                                   3, 7, 6, 3, 6, 2, 0, 4, 7, 0, 7, 3, 1, 2, 6, 1, 6, 5};
-  int rc = 0;
-  if (o->shape != OBS_SHAPE_MESH && (rc = obs_geometry_check_reach(sc, oi, NULL, origin, sc->name,
-                                                                   err)))
-    return rc;
-  switch (o->shape) {
-    case OBS_SHAPE_QUAD:
-      return fail_oom(sc, oi, mesh_from_vertices(o->v, 4, quad, 2, &o->transform, origin, m), err);
-    case OBS_SHAPE_TRIANGLE:
-      return fail_oom(sc, oi, mesh_from_vertices(o->v, 3, tri, 1, &o->transform, origin, m), err);
-    case OBS_SHAPE_BOX: {
-      obs_vec3 a = o->v[0], b = o->v[1];
-      obs_vec3 c[8] = {{a.x, a.y, a.z}, {b.x, a.y, a.z}, {b.x, b.y, a.z}, {a.x, b.y, a.z},
-                       {a.x, a.y, b.z}, {b.x, a.y, b.z}, {b.x, b.y, b.z}, {a.x, b.y, b.z}};
-      return fail_oom(sc, oi, mesh_from_vertices(c, 8, box, 12, &o->transform, origin, m), err);
-    }
-    case OBS_SHAPE_DISPLACED_SPHERE:
-      rc = obs_geometry_displaced_sphere(o->subdivisions, m);
-      break;
-    case OBS_SHAPE_MESH: {
-      char where[256];
-      snprintf(where, sizeof where, "%s: /objects/%zu/shape/file", sc->name, oi);
-      int irc = obs_geometry_import_mesh(o->mesh_path, sc->base_dir ? sc->base_dir : ".", m, err,
-                                         where);
-      if (irc) return irc;
-      double b[2][3];
-      obs_geometry_mesh_bounds(m, b);
-      if ((irc = obs_geometry_check_reach(sc, oi, b, origin, sc->name, err))) {
-        obs_geometry_mesh_free(m);
-        return irc;
-      }
-      mesh_transform(m, &o->transform, origin);
-      return 0;
-    }
-    default:
-      return obs_err_set(err, OBS_EINTERNAL, "unexpected shape");
+  const obs_shape_kind *k = obs_shape_kind_of(o->shape.type);
+  int rc = obs_geometry_check_reach(sc, oi, NULL, origin, sc->name, err);
+  if (rc) return rc;
+  if (k->vertices) {
+    obs_vec3 v[8];
+    const uint32_t *tri;
+    size_t nt, nv = k->vertices(&o->shape, v, &tri, &nt);
+    return fail_oom(sc, oi, mesh_from_vertices(v, nv, tri, nt, &o->transform, origin, m), err);
   }
-  if (rc) return fail_oom(sc, oi, rc, err);
+  char where[256];
+  snprintf(where, sizeof where, "%s: /objects/%zu/shape%s", sc->name, oi,
+           o->shape.type == OBS_SHAPE_MESH ? "/file" : "");
+  if ((rc = k->mesh(&o->shape, sc->base_dir, m, err, where))) return rc;
+  /* What was built may reach farther than the document said (a mesh file changed since). */
+  double b[2][3];
+  obs_geometry_mesh_bounds(m, b);
+  if ((rc = obs_geometry_check_reach(sc, oi, b, origin, sc->name, err))) {
+    obs_geometry_mesh_free(m);
+    return rc;
+  }
   mesh_transform(m, &o->transform, origin);
   return 0;
 }
@@ -491,7 +447,7 @@ int obs_geometry_build_at(const obs_scene *sc, const double origin[3], obs_geome
   memcpy(g->origin, origin, sizeof g->origin);
   size_t nsph = 0, nmesh = 0;
   for (size_t i = 0; i < sc->nobjects; i++) {
-    if (sc->objects[i].shape == OBS_SHAPE_SPHERE)
+    if (obs_shape_is_analytic(&sc->objects[i].shape))
       nsph++;
     else
       nmesh++;
@@ -505,15 +461,16 @@ int obs_geometry_build_at(const obs_scene *sc, const double origin[3], obs_geome
   int first = 1;
   for (size_t i = 0; i < sc->nobjects; i++) {
     const obs_object *o = &sc->objects[i];
-    if (o->shape == OBS_SHAPE_SPHERE) {
+    if (obs_shape_is_analytic(&o->shape)) {
       int rc = obs_geometry_check_reach(sc, i, NULL, origin, sc->name, err);
       if (rc) {
         obs_geometry_free(g);
         return rc;
       }
       obs_sphere *s = &g->spheres[g->nspheres++];
-      double c[3] = {o->v[0].x, o->v[0].y, o->v[0].z};
-      s->radius = o->radius;
+      double c[3] = {o->shape.sphere.center.x, o->shape.sphere.center.y,
+                     o->shape.sphere.center.z};
+      s->radius = o->shape.sphere.radius;
       xform x;
       xform_from(&o->transform, &x);
       xform_point(&x, c, s->center);

@@ -8,14 +8,13 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <strings.h>
-#include <sys/stat.h>
 
 #include "geometry.h"
 #include "json_util.h"
 #include "obscura/technique.h"
 #include "obscura/path.h"
 #include "params.h"
+#include "shapes.h"
 
 #define COORD_MAX 1e30
 
@@ -93,141 +92,19 @@ static void load_camera(obs_jpath *p, const json_t *doc, obs_camera *cam) {
 
 /* ---- objects ------------------------------------------------------------------------------ */
 
-/* Whether a relative path has a ".." component. */
-static int has_dotdot(const char *path) {
-  for (const char *c = path; *c;) {
-    size_t n = strcspn(c, "/");
-    if (n == 2 && c[0] == '.' && c[1] == '.') return 1;
-    c += n;
-    while (*c == '/') c++;
-  }
-  return 0;
-}
-
-static void load_mesh_file(obs_jpath *p, const json_t *shape, const char *base_dir, obs_object *o) {
-  const char *file = NULL;
-  if (obs_json_get_string(p, shape, "file", 1, NULL, &file) || !file) return;
-  size_t m = obs_jpath_push_key(p, "file");
-  const char *ext = strrchr(file, '.');
-  static const char *const exts[] = {".obj", ".ply", ".gltf", ".glb", ".stl", NULL};
-  int ext_ok = 0;
-  for (const char *const *e = exts; ext && *e; e++) ext_ok |= !strcasecmp(ext, *e);
-  char joined[PATH_MAX + 2], real_base[PATH_MAX], real_file[PATH_MAX];
-  if (!*file || strlen(file) > 4096) {
-    obs_jpath_fail(p, "must be a relative path of 1 to 4096 characters (got %s)",
-                   obs_json_brief(json_object_get(shape, "file")));
-  } else if (file[0] == '/') {
-    obs_jpath_fail(p, "must be relative to the scene file, not absolute (got \"%s\")", file);
-  } else if (has_dotdot(file)) {
-    /* Refused before the file system is asked, so the answer never tells whether a file outside
-     * the tree exists; symlinks that leave the tree are caught after realpath below. */
-    obs_jpath_fail(p, "must stay inside the scene's directory tree (got \"%s\")", file);
-  } else if (!ext_ok) {
-    obs_jpath_fail(p, "must name a .obj, .ply, .gltf, .glb or .stl file (got \"%s\")", file);
-  } else if (!base_dir) {
-    obs_jpath_fail(p, "mesh files need a scene directory to resolve against (got \"%s\")", file);
-  } else if (!realpath(base_dir, real_base)) {
-    obs_jpath_fail(p, "scene directory cannot be resolved (got \"%s\")", base_dir);
-  } else if ((size_t)snprintf(joined, sizeof joined, "%s/%s", real_base, file) >= sizeof joined) {
-    obs_jpath_fail(p, "path too long (got \"%s\")", file);
-  } else if (!realpath(joined, real_file)) {
-    obs_jpath_fail(p, "file not found (got \"%s\")", file);
-  } else if (!obs_path_is_inside(real_base, real_file)) {
-    obs_jpath_fail(p, "must stay inside the scene's directory tree (got \"%s\")", file);
-  } else {
-    struct stat st;
-    if (stat(real_file, &st) || !S_ISREG(st.st_mode)) {
-      obs_jpath_fail(p, "is not a regular file (got \"%s\")", file);
-    } else {
-      /* Import now, so a broken or empty mesh is a validation error rather than a failed render;
-       * the render imports again (meshes are small next to the work they cause), which a server's
-       * importer answers from its cache. */
-      obs_mesh mesh;
-      char where[1200];
-      snprintf(where, sizeof where, "%s: %s", p->doc, p->buf);
-      if (obs_geometry_import_mesh(real_file, real_base, &mesh, p->err, where) == 0) {
-        o->mesh_path = xstrdup(real_file);
-        obs_geometry_mesh_bounds(&mesh, o->mesh_bounds);
-        obs_geometry_mesh_free(&mesh);
-      }
-    }
-  }
-  obs_jpath_pop(p, m);
-}
-
-static void load_vertices(obs_jpath *p, const json_t *shape, size_t n, obs_object *o) {
-  json_t *a = obs_json_get_array(p, shape, "vertices", 1, NULL);
-  if (!a) return;
-  size_t m = obs_jpath_push_key(p, "vertices");
-  if (json_array_size(a) != n) {
-    obs_jpath_fail(p, "must have exactly %zu vertices (got %zu)", n, json_array_size(a));
-  } else {
-    /* Wrap each vertex so the vec3 getter reports /vertices/<i>. */
-    for (size_t i = 0; i < n; i++) {
-      char key[24];
-      snprintf(key, sizeof key, "%zu", i);
-      json_t *wrap = json_object();
-      json_object_set(wrap, key, json_array_get(a, i));
-      double v[3] = {0, 0, 0};
-      obs_json_get_vec3(p, wrap, key, 1, -COORD_MAX, COORD_MAX, v);
-      set_vec(&o->v[i], v);
-      json_decref(wrap);
-    }
-  }
-  obs_jpath_pop(p, m);
-}
-
 static void load_shape(obs_jpath *p, const json_t *obj, const char *base_dir, obs_object *o) {
   json_t *s = obs_json_get_object(p, obj, "shape", 1, NULL);
   if (!s) return;
   size_t m = obs_jpath_push_key(p, "shape");
-  static const char *const types[] = {"quad", "triangle",         "sphere", "box",
-                                      "mesh", "displaced_sphere", NULL};
+  const char *types[OBS_SHAPE_COUNT + 1];
+  obs_shape_kind_names(types);
   const char *type = NULL;
-  if (obs_json_get_string(p, s, "type", 1, types, &type) || !type) {
-    obs_jpath_pop(p, m);
-    return;
-  }
-  double a[3] = {0, 0, 0}, b[3] = {0, 0, 0};
-  if (!strcmp(type, "quad") || !strcmp(type, "triangle")) {
-    int quad = type[0] == 'q';
-    o->shape = quad ? OBS_SHAPE_QUAD : OBS_SHAPE_TRIANGLE;
-    static const char *const k[] = {"type", "vertices", NULL};
-    obs_json_check_keys(p, s, k);
-    load_vertices(p, s, quad ? 4 : 3, o);
-  } else if (!strcmp(type, "sphere")) {
-    o->shape = OBS_SHAPE_SPHERE;
-    static const char *const k[] = {"type", "center", "radius", NULL};
-    obs_json_check_keys(p, s, k);
-    obs_json_get_vec3(p, s, "center", 1, -COORD_MAX, COORD_MAX, a);
-    obs_json_get_number(p, s, "radius", 1, 0, COORD_MAX, 1, 0, &o->radius);
-    set_vec(&o->v[0], a);
-  } else if (!strcmp(type, "box")) {
-    o->shape = OBS_SHAPE_BOX;
-    static const char *const k[] = {"type", "min", "max", NULL};
-    obs_json_check_keys(p, s, k);
-    int bad = obs_json_get_vec3(p, s, "min", 1, -COORD_MAX, COORD_MAX, a) < 0;
-    bad |= obs_json_get_vec3(p, s, "max", 1, -COORD_MAX, COORD_MAX, b) < 0;
-    if (!bad && (a[0] > b[0] || a[1] > b[1] || a[2] > b[2])) {
-      size_t mk = obs_jpath_push_key(p, "max");
-      obs_jpath_fail(p, "must be >= /min in every component (got %s)",
-                     obs_json_brief(json_object_get(s, "max")));
-      obs_jpath_pop(p, mk);
-    }
-    set_vec(&o->v[0], a);
-    set_vec(&o->v[1], b);
-  } else if (!strcmp(type, "mesh")) {
-    o->shape = OBS_SHAPE_MESH;
-    static const char *const k[] = {"type", "file", NULL};
-    obs_json_check_keys(p, s, k);
-    load_mesh_file(p, s, base_dir, o);
-  } else {
-    o->shape = OBS_SHAPE_DISPLACED_SPHERE;
-    static const char *const k[] = {"type", "subdivisions", NULL};
-    obs_json_check_keys(p, s, k);
-    long long sub = 1;
-    obs_json_get_int(p, s, "subdivisions", 1, 1, 12, &sub);
-    o->subdivisions = (int)sub;
+  if (obs_json_get_string(p, s, "type", 1, types, &type) == 0 && type) {
+    for (int t = 0; t < OBS_SHAPE_COUNT; t++)
+      if (!strcmp(type, types[t])) o->shape.type = (obs_shape_type)t;
+    const obs_shape_kind *k = obs_shape_kind_of(o->shape.type);
+    obs_json_check_keys(p, s, k->keys);
+    k->parse(p, s, base_dir, &o->shape);
   }
   obs_jpath_pop(p, m);
 }
@@ -253,7 +130,7 @@ static void load_transform(obs_jpath *p, const json_t *obj, obs_object *o) {
   set_vec(&t->rotate, r);
   set_vec(&t->translate, x);
   /* Spheres stay analytic, so only a uniform scale keeps them spheres. */
-  if (!bad && o->shape == OBS_SHAPE_SPHERE &&
+  if (!bad && obs_shape_is_analytic(&o->shape) &&
       !(fabs(s[0]) == fabs(s[1]) && fabs(s[1]) == fabs(s[2]))) {
     size_t mk = obs_jpath_push_key(p, "scale");
     obs_jpath_fail(p, "must be uniform for a sphere, which stays analytic (got %s)",
@@ -267,9 +144,10 @@ static void load_transform(obs_jpath *p, const json_t *obj, obs_object *o) {
  * made here so `validate` refuses what `render` would. Needs a valid camera. */
 static void check_reach(obs_jpath *p, const obs_scene *sc, size_t i) {
   const obs_object *o = &sc->objects[i];
-  if (o->shape == OBS_SHAPE_MESH && !o->mesh_path) return; /* not imported: already refused */
+  if (o->shape.type == OBS_SHAPE_MESH && !o->shape.mesh.path)
+    return; /* not imported: already refused */
   const double eye[3] = {sc->camera.position.x, sc->camera.position.y, sc->camera.position.z};
-  obs_geometry_check_reach(sc, i, o->mesh_bounds, eye, p->doc, p->err);
+  obs_geometry_check_reach(sc, i, NULL, eye, p->doc, p->err);
 }
 
 static void load_objects(obs_jpath *p, const json_t *doc, const char *base_dir, obs_scene *sc,
@@ -358,9 +236,11 @@ static void load_lights(obs_jpath *p, const json_t *doc, obs_scene *sc) {
       obs_json_check_keys(p, l, k);
       const char *t = NULL;
       obs_json_get_string(p, l, "type", 1, types, &t);
-      obs_object tmp;
+      /* A quad light's vertices read as a quad shape's. */
+      obs_shape tmp;
       memset(&tmp, 0, sizeof tmp);
-      load_vertices(p, l, 4, &tmp);
+      tmp.type = OBS_SHAPE_QUAD;
+      obs_shape_kind_of(OBS_SHAPE_QUAD)->parse(p, l, NULL, &tmp);
       memcpy(sc->lights[i].v, tmp.v, sizeof tmp.v);
       double e[3] = {0, 0, 0};
       obs_json_get_vec3(p, l, "emission", 1, 0, COORD_MAX, e);
@@ -495,7 +375,7 @@ void obs_scene_free(obs_scene *sc) {
   if (!sc) return;
   for (size_t i = 0; i < sc->nobjects; i++) {
     free(sc->objects[i].name);
-    free(sc->objects[i].mesh_path);
+    obs_shape_free(&sc->objects[i].shape);
   }
   free(sc->objects);
   free(sc->lights);

@@ -227,7 +227,7 @@ static void test_geometry_reach(void **state) {
                         "[0,0,0],\"radius\":1}}],\"technique\":{\"name\":\"rt_ao\"}}",
                         &sc, &err),
                    0);
-  sc.objects[1].radius = 3e18;
+  sc.objects[1].shape.sphere.radius = 3e18;
   obs_result r;
   obs_render_opts o = {.threads = 1};
   assert_int_equal(obs_render(&sc, &o, &r, &err), OBS_EINVAL);
@@ -342,7 +342,7 @@ static void test_mesh_paths(void **state) {
                         "}],\"technique\":{\"name\":\"rt_ao\"}}",
                         &sc, &err),
                    0);
-  assert_non_null(strstr(sc.objects[0].mesh_path, "tests/data/tetra.obj"));
+  assert_non_null(strstr(sc.objects[0].shape.mesh.path, "tests/data/tetra.obj"));
   obs_scene_free(&sc);
   obs_err_free(&err);
   expect_error("{" BASE ",\"objects\":[{\"shape\":{\"type\":\"mesh\",\"file\":\"tetra.mtl\"}"
@@ -375,7 +375,7 @@ static void test_overrides(void **state) {
   obs_err err = OBS_ERR_INIT;
   assert_int_equal(obs_scene_load_string(&sc, doc, "o.json", NULL, ov, 3, &err), 0);
   assert_int_equal(json_integer_value(json_object_get(sc.params, "samples")), 256);
-  assert_true(sc.objects[0].radius == 2.5);
+  assert_true(sc.objects[0].shape.sphere.radius == 2.5);
   obs_scene_free(&sc);
   obs_override bad[] = {{"/objects/7/shape", "{}"}};
   assert_int_equal(obs_scene_load_string(&sc, doc, "o.json", NULL, bad, 1, &err), OBS_EINVAL);

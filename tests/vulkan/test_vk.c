@@ -287,7 +287,7 @@ static int snap_explains(const obs_rt *rt, const obs_camera_rig *rig, int x, int
 static int is_sphere_albedo(const obs_scene *sc, const float *alb) {
   for (size_t k = 0; k < sc->nobjects; k++) {
     const obs_object *o = &sc->objects[k];
-    if (o->shape == OBS_SHAPE_SPHERE && (float)o->reflectivity.x == alb[0] &&
+    if (o->shape.type == OBS_SHAPE_SPHERE && (float)o->reflectivity.x == alb[0] &&
         (float)o->reflectivity.y == alb[1] && (float)o->reflectivity.z == alb[2])
       return 1;
   }

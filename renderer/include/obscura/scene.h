@@ -25,14 +25,40 @@ typedef struct obs_camera {
   double height; /* view height in scene units, orthographic only */
 } obs_camera;
 
+/* Shape kinds. Each kind is one entry of the shape table (renderer/core/shapes.c), which says how
+ * it is read from a document, bounded, tessellated and counted: adding a kind is an enum value,
+ * its payload below and its table entry. */
 typedef enum {
   OBS_SHAPE_QUAD,
   OBS_SHAPE_TRIANGLE,
   OBS_SHAPE_SPHERE,
   OBS_SHAPE_BOX,
   OBS_SHAPE_MESH,
-  OBS_SHAPE_DISPLACED_SPHERE
+  OBS_SHAPE_DISPLACED_SPHERE,
+  OBS_SHAPE_COUNT
 } obs_shape_type;
+
+/* One object's shape: the kind and its payload (object space). */
+typedef struct obs_shape {
+  obs_shape_type type;
+  union {
+    obs_vec3 v[4]; /* quad: 4 vertices; triangle: 3 */
+    struct {
+      obs_vec3 center;
+      double radius;
+    } sphere; /* analytic: the renderers keep it exact */
+    struct {
+      obs_vec3 min, max;
+    } box;
+    struct {
+      char *path;            /* owned: the resolved absolute path inside the scene tree */
+      double bounds[2][3];   /* object-space box of the vertices imported at validation */
+    } mesh;
+    struct {
+      int subdivisions;
+    } displaced;
+  };
+} obs_shape;
 
 typedef struct obs_transform {
   obs_vec3 scale;     /* default (1,1,1) */
@@ -43,12 +69,7 @@ typedef struct obs_transform {
 
 typedef struct obs_object {
   char *name;           /* owned; "object<i>" when the document gave none */
-  obs_shape_type shape;
-  obs_vec3 v[4];        /* quad: 4 vertices; triangle: 3; box: v[0]=min, v[1]=max; sphere: v[0]=centre */
-  double radius;        /* sphere */
-  int subdivisions;     /* displaced_sphere */
-  char *mesh_path;      /* mesh: owned, resolved absolute path inside the scene tree */
-  double mesh_bounds[2][3]; /* mesh: object-space box of the vertices imported at validation */
+  obs_shape shape;
   int has_material;
   obs_vec3 reflectivity;
   obs_vec3 emission;    /* radiance emitted from both sides of the surface; zero when absent */
