@@ -66,16 +66,15 @@ void obs_geometry_mesh_bounds(const obs_mesh *m, double bounds[2][3]);
 /* The ray tracer's range: Embree rejects coordinates beyond about 1.8e19, and float products of
  * coordinates must stay finite. */
 #define OBS_GEOMETRY_MAX 1e18
-/* The largest |coordinate| relative to `origin` that object `o` reaches once transformed: exact for
- * spheres and the shapes given by vertices; for displaced spheres and meshes the transformed
- * corners of the object-space box (`mesh_bounds` for meshes: their vertices' box). Non-finite when
- * the transform overflows. */
+/* The largest |coordinate| relative to `origin` that object `o` reaches once transformed, from
+ * obs_geometry_object_points. Non-finite when the transform overflows. */
 double obs_geometry_object_reach(const obs_object *o, const double mesh_bounds[2][3],
                                  const double origin[3]);
-/* The world-space points (in double, through the object's transform) that bound object `o`, as
- * obs_geometry_object_reach measures it: the vertices of quads and triangles, the 8 corners of
- * the object-space box of boxes, displaced spheres and meshes (`mesh_bounds`), or a sphere's
- * centre with *radius its radius (0 for the others). Returns how many points (at most 8). */
+/* The world-space points (in double, through the object's transform) that bound object `o`: its
+ * shape kind's object-space points (core/shapes.c: the vertices of quads and triangles, the
+ * corners of a box, of a displaced sphere's bound or of a mesh's imported box, a sphere's centre)
+ * with *radius to grow them by (a sphere's radius, 0 for the others); with `mesh_bounds`, the
+ * corners of that object-space box instead (a mesh just built). Returns how many (at most 8). */
 int obs_geometry_object_points(const obs_object *o, const double mesh_bounds[2][3],
                                double pts[8][3], double *radius);
 /* Refuses object `oi` of `sc` when its reach from `origin` (the camera) exceeds OBS_GEOMETRY_MAX,
