@@ -468,9 +468,8 @@ int obs_geometry_build_at(const obs_scene *sc, const double origin[3], obs_geome
         return rc;
       }
       obs_sphere *s = &g->spheres[g->nspheres++];
-      double c[3] = {o->shape.sphere.center.x, o->shape.sphere.center.y,
-                     o->shape.sphere.center.z};
-      s->radius = o->shape.sphere.radius;
+      double c[3];
+      obs_shape_kind_of(o->shape.type)->sphere(&o->shape, c, &s->radius);
       xform x;
       xform_from(&o->transform, &x);
       xform_point(&x, c, s->center);
@@ -484,6 +483,8 @@ int obs_geometry_build_at(const obs_scene *sc, const double origin[3], obs_geome
       }
       continue;
     }
+    const obs_shape_kind *k = obs_shape_kind_of(o->shape.type);
+    if (!k->vertices && !k->mesh) continue; /* no surface (shapes.h) */
     obs_mesh *m = &g->meshes[g->nmeshes];
     int rc = build_object(sc, i, origin, m, err);
     if (rc) {

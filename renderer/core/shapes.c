@@ -112,6 +112,11 @@ static int points_sphere(const obs_shape *s, double pts[8][3], double *radius) {
   return 1;
 }
 
+static void sphere_sphere(const obs_shape *s, double center[3], double *radius) {
+  get_vec(&s->sphere.center, center);
+  *radius = s->sphere.radius;
+}
+
 static double triangles_none(const obs_shape *s, const char *base_dir, obs_err *err,
                              const char *where) {
   (void)s, (void)base_dir, (void)err, (void)where;
@@ -286,19 +291,27 @@ static const char *const keys_box[] = {"type", "min", "max", NULL};
 static const char *const keys_mesh[] = {"type", "file", NULL};
 static const char *const keys_displaced[] = {"type", "subdivisions", NULL};
 
+#define KIND(n, k, parse_, points_, vertices_, mesh_, sphere_, triangles_)           \
+  {                                                                                  \
+    .name = n, .keys = k, .parse = parse_, .points = points_, .vertices = vertices_, \
+    .mesh = mesh_, .sphere = sphere_, .triangles = triangles_                        \
+  }
 static const obs_shape_kind kinds[OBS_SHAPE_COUNT] = {
-    [OBS_SHAPE_QUAD] = {"quad", keys_vertices, parse_quad, points_vertices, vertices_polygon, NULL,
-                        triangles_polygon},
-    [OBS_SHAPE_TRIANGLE] = {"triangle", keys_vertices, parse_triangle, points_vertices,
-                            vertices_polygon, NULL, triangles_polygon},
-    [OBS_SHAPE_SPHERE] = {"sphere", keys_sphere, parse_sphere, points_sphere, NULL, NULL,
-                          triangles_none},
-    [OBS_SHAPE_BOX] = {"box", keys_box, parse_box, points_box, vertices_box, NULL, triangles_box},
-    [OBS_SHAPE_MESH] = {"mesh", keys_mesh, parse_mesh, points_mesh, NULL, mesh_import,
-                        triangles_mesh},
-    [OBS_SHAPE_DISPLACED_SPHERE] = {"displaced_sphere", keys_displaced, parse_displaced,
-                                    points_displaced, NULL, mesh_displaced, triangles_displaced},
+    [OBS_SHAPE_QUAD] = KIND("quad", keys_vertices, parse_quad, points_vertices, vertices_polygon,
+                            NULL, NULL, triangles_polygon),
+    [OBS_SHAPE_TRIANGLE] = KIND("triangle", keys_vertices, parse_triangle, points_vertices,
+                                vertices_polygon, NULL, NULL, triangles_polygon),
+    [OBS_SHAPE_SPHERE] = KIND("sphere", keys_sphere, parse_sphere, points_sphere, NULL, NULL,
+                              sphere_sphere, triangles_none),
+    [OBS_SHAPE_BOX] =
+        KIND("box", keys_box, parse_box, points_box, vertices_box, NULL, NULL, triangles_box),
+    [OBS_SHAPE_MESH] =
+        KIND("mesh", keys_mesh, parse_mesh, points_mesh, NULL, mesh_import, NULL, triangles_mesh),
+    [OBS_SHAPE_DISPLACED_SPHERE] =
+        KIND("displaced_sphere", keys_displaced, parse_displaced, points_displaced, NULL,
+             mesh_displaced, NULL, triangles_displaced),
 };
+#undef KIND
 
 const obs_shape_kind *obs_shape_kind_of(obs_shape_type type) {
   return (unsigned)type < OBS_SHAPE_COUNT ? &kinds[type] : NULL;
@@ -318,5 +331,5 @@ void obs_shape_free(obs_shape *s) {
 
 int obs_shape_is_analytic(const obs_shape *s) {
   const obs_shape_kind *k = obs_shape_kind_of(s->type);
-  return k && !k->vertices && !k->mesh;
+  return k && k->sphere;
 }

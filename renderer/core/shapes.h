@@ -29,6 +29,10 @@ typedef struct obs_shape_kind {
    * the other kinds. `where` prefixes messages ("scene.json: /objects/3/shape/file"). */
   int (*mesh)(const obs_shape *s, const char *base_dir, obs_mesh *m, obs_err *err,
               const char *where);
+  /* Kinds the renderers keep exact as spheres: the object-space centre and radius. NULL for the
+   * other kinds. A kind with none of vertices, mesh and sphere adds no surface to the geometry
+   * (a volume, which reaches the techniques that need it through their own needs). */
+  void (*sphere)(const obs_shape *s, double center[3], double *radius);
   /* How many triangles the kind becomes (0: analytic, kept exact by the renderers), counted
    * without building them where the document says (an imported mesh is read). */
   double (*triangles)(const obs_shape *s, const char *base_dir, obs_err *err, const char *where);
@@ -40,7 +44,7 @@ const obs_shape_kind *obs_shape_kind_of(obs_shape_type type);
 void obs_shape_kind_names(const char *names[OBS_SHAPE_COUNT + 1]);
 /* Releases what a shape owns (a mesh's path). */
 void obs_shape_free(obs_shape *s);
-/* Whether the shape stays analytic (a sphere): neither vertices nor a mesh. */
+/* Whether the shape stays analytic: a sphere the renderers keep exact (its kind's `sphere`). */
 int obs_shape_is_analytic(const obs_shape *s);
 
 #endif

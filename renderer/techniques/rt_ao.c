@@ -11,7 +11,7 @@
 static const obs_output rt_ao_outputs[] = {
     {.name = "ao", .kind = OBS_OUTPUT_SCALAR, .show = OBS_SHOW_GREY, .png = "ao.png",
      .description = "Ambient occlusion (white = open, black = fully occluded)",
-     .flags = OBS_OUTPUT_PRIMARY},
+     .flags = OBS_OUTPUT_PRIMARY | OBS_OUTPUT_UNIT},
     {.name = "ao_stderr", .kind = OBS_OUTPUT_SCALAR,
      .description = "Standard error of the per-pixel AO estimate", .stderr_of = "ao"},
     {.name = "bent_normal", .kind = OBS_OUTPUT_VECTOR, .show = OBS_SHOW_NORMAL,

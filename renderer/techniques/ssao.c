@@ -14,7 +14,7 @@
 static const obs_output ssao_outputs[] = {
     {.name = "ao", .kind = OBS_OUTPUT_SCALAR, .show = OBS_SHOW_GREY, .png = "ao.png",
      .description = "Ambient occlusion (white = open, black = fully occluded)",
-     .flags = OBS_OUTPUT_PRIMARY},
+     .flags = OBS_OUTPUT_PRIMARY | OBS_OUTPUT_UNIT},
     {.name = "ao_raw", .kind = OBS_OUTPUT_SCALAR,
      .description = "Ambient occlusion before the blur"},
     {.name = "depth", .kind = OBS_OUTPUT_DEPTH, .show = OBS_SHOW_DEPTH, .png = "depth.png",

@@ -100,6 +100,16 @@ static json_t *outputs_typed_json(const obs_technique *t) {
   return arr;
 }
 
+/* Every OBS_NEED_* flag as the registry names it. */
+static const struct {
+  unsigned flag;
+  const char *name;
+} need_names[] = {{OBS_NEED_BVH, "bvh"},
+                  {OBS_NEED_MATERIALS, "materials"},
+                  {OBS_NEED_LIGHTS, "lights"},
+                  {OBS_NEED_GBUFFER, "gbuffer"},
+                  {OBS_NEED_BVH_FRAME_GEOMETRY, "bvh_frame_geometry"}};
+
 json_t *obs_technique_registry_json(void) {
   json_t *arr = json_array();
   for (size_t i = 0; i < obs_technique_count(); i++) {
@@ -114,10 +124,9 @@ json_t *obs_technique_registry_json(void) {
     json_object_set_new(o, "params_schema", obs_technique_params_schema(t));
     json_object_set_new(o, "cost", json_string(t->cost_rule ? t->cost_rule : "1"));
     json_t *needs = json_array();
-    if (t->needs & OBS_NEED_BVH) json_array_append_new(needs, json_string("bvh"));
-    if (t->needs & OBS_NEED_MATERIALS) json_array_append_new(needs, json_string("materials"));
-    if (t->needs & OBS_NEED_LIGHTS) json_array_append_new(needs, json_string("lights"));
-    if (t->needs & OBS_NEED_GBUFFER) json_array_append_new(needs, json_string("gbuffer"));
+    for (size_t k = 0; k < sizeof need_names / sizeof need_names[0]; k++)
+      if (t->needs & need_names[k].flag)
+        json_array_append_new(needs, json_string(need_names[k].name));
     json_object_set_new(o, "needs", needs);
     json_object_set_new(o, "outputs", outputs_flat_json(t));
     json_object_set_new(o, "typed_outputs", outputs_typed_json(t));

@@ -2,6 +2,7 @@
  * technique comes from the registry: its backends, its needs, its parameter schema (ranges, enums,
  * defaults) and its outputs, so it runs unchanged over any technique that registers. */
 #include "conformance.h"
+#include "testutil.h"
 
 #include <jansson.h>
 #include <math.h>
@@ -11,8 +12,8 @@
 
 /* A ball on a ground quad under a quad light, every object with a material, a constant sky: enough
  * for any technique's needs; every length scaled by `s`. */
-static char *scene_doc_scaled(const obs_technique *t, obs_backend be, const char *params,
-                              int materials, int lights, double s) {
+static char *scene_doc_sized(const obs_technique *t, obs_backend be, const char *params,
+                             int materials, int lights, double s, int w, int h) {
   const char *mat = materials ? ",\"material\":{\"reflectivity\":[0.5,0.5,0.5]}" : "";
   char light[512] = "";
   if (lights)
@@ -25,14 +26,19 @@ static char *scene_doc_scaled(const obs_technique *t, obs_backend be, const char
   snprintf(doc, 4096,
            "{\"camera\":{\"type\":\"perspective\",\"position\":[0,%.17g,%.17g],"
            "\"look_at\":[0,%.17g,0],\"up\":[0,1,0],\"fov_y\":45},"
-           "\"image\":{\"width\":24,\"height\":16,\"spp\":1},"
+           "\"image\":{\"width\":%d,\"height\":%d,\"spp\":1},"
            "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[%.17g,0,%.17g],"
            "[%.17g,0,%.17g],[%.17g,0,%.17g],[%.17g,0,%.17g]]}%s},{\"shape\":{\"type\":\"sphere\","
            "\"center\":[0,%.17g,0],\"radius\":%.17g}%s}],"
            "%s\"technique\":{\"name\":\"%s\",\"backend\":\"%s\",\"params\":%s}}",
-           3 * s, -4 * s, 0.3 * s, -5 * s, -5 * s, -5 * s, 5 * s, 5 * s, 5 * s, 5 * s, -5 * s,
+           3 * s, -4 * s, 0.3 * s, w, h, -5 * s, -5 * s, -5 * s, 5 * s, 5 * s, 5 * s, 5 * s, -5 * s,
            mat, s, 0.5 * s, mat, light, t->name, obs_backend_name(be), params ? params : "{}");
   return doc;
+}
+
+static char *scene_doc_scaled(const obs_technique *t, obs_backend be, const char *params,
+                              int materials, int lights, double s) {
+  return scene_doc_sized(t, be, params, materials, lights, s, 24, 16);
 }
 
 static char *scene_doc(const obs_technique *t, obs_backend be, const char *params, int materials,
@@ -52,8 +58,8 @@ static int render(const char *doc, int threads, obs_result *res, obs_err *err) {
   return rc;
 }
 
-/* Every channel finite; the primary output in its kind's range: AO in [0, 1], radiance >= 0. */
-static int check_sane(const char *what, const obs_image *img) {
+/* Every channel finite; the primary output in the range its declaration allows. */
+static int check_sane(const char *what, const obs_technique *t, const obs_image *img) {
   size_t n = (size_t)img->width * (size_t)img->height;
   int bad = 0;
   for (int c = 0; c < img->nchannels; c++) {
@@ -62,17 +68,14 @@ static int check_sane(const char *what, const obs_image *img) {
     if (nonfinite) printf("FAIL %s: %zu non-finite values in %s\n", what, nonfinite, img->names[c]);
     bad += nonfinite > 0;
   }
-  const float *ao = obs_image_channel(img, "ao");
+  const float *ch[3];
+  double lo, hi;
+  int nch = obs_test_primary_channels(t, img, ch, &lo, &hi);
   size_t out = 0;
-  for (size_t i = 0; ao && i < n; i++) out += !(ao[i] >= 0.0f && ao[i] <= 1.0f);
-  if (out) printf("FAIL %s: %zu ao values outside [0, 1]\n", what, out), bad++;
-  static const char *const rgb[3] = {"radiance.R", "radiance.G", "radiance.B"};
-  for (int k = 0; k < 3; k++) {
-    const float *r = obs_image_channel(img, rgb[k]);
-    size_t neg = 0;
-    for (size_t i = 0; r && i < n; i++) neg += !(r[i] >= 0.0f);
-    if (neg) printf("FAIL %s: %zu negative values in %s\n", what, neg, rgb[k]), bad++;
-  }
+  for (int k = 0; k < nch; k++)
+    for (size_t i = 0; i < n; i++) out += !(ch[k][i] >= lo && ch[k][i] <= hi);
+  if (!nch) printf("FAIL %s: the primary output is missing\n", what), bad++;
+  if (out) printf("FAIL %s: %zu primary values outside [%g, %g]\n", what, out, lo, hi), bad++;
   return bad;
 }
 
@@ -95,9 +98,11 @@ static int each_pair(obs_backend be, int *ran, pair_fn fn) {
 /* Renders `params` and checks the result is sane; `what` labels the failure lines. With `key`
  * (the one parameter set), a refusal by validation that points at another parameter is a
  * cross-field rule (the check hook) and passes: that value needs a partner to be valid. */
-static int render_sane(const obs_technique *t, obs_backend be, const char *params,
-                       const char *key, const char *what) {
-  char *doc = scene_doc(t, be, params, 1, 1);
+static int render_sane(const obs_technique *t, obs_backend be, const char *params, const char *key,
+                       const char *what) {
+  /* Parameter ends can be the costliest settings (65536 rays or paths per pixel): a small image. */
+  char *doc =
+      key ? scene_doc_sized(t, be, params, 1, 1, 1.0, 12, 8) : scene_doc(t, be, params, 1, 1);
   obs_result res;
   obs_err err = OBS_ERR_INIT;
   obs_scene sc;
@@ -120,7 +125,7 @@ static int render_sane(const obs_technique *t, obs_backend be, const char *param
   if (rc)
     printf("FAIL %s: %s\n", what, obs_err_message(&err)), bad++;
   else
-    bad += check_sane(what, &res.image);
+    bad += check_sane(what, t, &res.image);
 done:
   obs_result_free(&res);
   obs_err_free(&err);
@@ -155,13 +160,16 @@ static int numeric_ends(const json_t *prop, double ends[2]) {
   int n = 0;
   json_t *lo = json_object_get(prop, "minimum"), *xlo = json_object_get(prop, "exclusiveMinimum");
   json_t *hi = json_object_get(prop, "maximum"), *xhi = json_object_get(prop, "exclusiveMaximum");
-  if (json_is_number(lo)) ends[n++] = json_number_value(lo);
+  if (json_is_number(lo))
+    ends[n++] = json_number_value(lo);
   else if (json_is_number(xlo)) {
     double v = json_number_value(xlo);
     ends[n++] = v == 0 ? 1e-30 : v + fabs(v) * 1e-6;
   }
-  if (json_is_number(hi)) ends[n++] = json_number_value(hi);
-  else if (json_is_number(xhi)) ends[n++] = json_number_value(xhi) * (1 - 1e-7);
+  if (json_is_number(hi))
+    ends[n++] = json_number_value(hi);
+  else if (json_is_number(xhi))
+    ends[n++] = json_number_value(xhi) * (1 - 1e-7);
   return n;
 }
 
@@ -174,8 +182,8 @@ static int param_ends_pair(const obs_technique *t, obs_backend be) {
     char vals[8][64];
     int nv = 0;
     json_t *type = json_object_get(prop, "type"), *en = json_object_get(prop, "enum");
-    const char *ty = json_is_string(type) ? json_string_value(type)
-                                          : json_string_value(json_array_get(type, 0));
+    const char *ty =
+        json_is_string(type) ? json_string_value(type) : json_string_value(json_array_get(type, 0));
     if (json_is_array(en)) {
       for (size_t i = 0; i < json_array_size(en) && nv < 8; i++) {
         char *s = json_dumps(json_array_get(en, i), JSON_ENCODE_ANY);
@@ -289,9 +297,8 @@ static double param_default(const obs_technique *t, const char *key) {
 
 /* `b` (scale 1) against `r` (scale s) on the primary output's channels: coverage equal, the mean
  * and the share of large differences within the declared tolerance. */
-static int compare_scaled(const char *what, const obs_image *b, const obs_image *r,
-                          const obs_tolerance *tol) {
-  static const char *const chans[] = {"ao", "radiance.R", "radiance.G", "radiance.B"};
+static int compare_scaled(const char *what, const obs_technique *t, const obs_image *b,
+                          const obs_image *r, const obs_tolerance *tol) {
   size_t n = (size_t)b->width * (size_t)b->height;
   const float *ba = obs_image_channel(b, "alpha"), *ra = obs_image_channel(r, "alpha");
   int bad = 0;
@@ -301,20 +308,25 @@ static int compare_scaled(const char *what, const obs_image *b, const obs_image 
       bad++;
       break;
     }
-  for (size_t c = 0; c < sizeof chans / sizeof chans[0]; c++) {
-    const float *x = obs_image_channel(b, chans[c]), *y = obs_image_channel(r, chans[c]);
-    if (!x || !y) continue;
+  const float *x[3], *y[3];
+  double lo, hi;
+  int nch = obs_test_primary_channels(t, b, x, &lo, &hi);
+  if (!nch || obs_test_primary_channels(t, r, y, &lo, &hi) != nch)
+    return printf("FAIL %s: no primary output to compare\n", what), bad + 1;
+  for (int c = 0; c < nch; c++) {
     double sum = 0, worst = 0;
     size_t over = 0;
     for (size_t i = 0; i < n; i++) {
-      double d = fabs((double)x[i] - (double)y[i]);
+      double d = fabs((double)x[c][i] - (double)y[c][i]);
       sum += d;
       worst = fmax(worst, d);
       over += d > tol->ao_pixel;
     }
     if (sum / (double)n > tol->ao_mean || (double)over > tol->share * (double)n)
-      printf("FAIL %s: %s mean |d| %.3g (allowed %g), %zu pixels over %g (max %.3g)\n", what,
-             chans[c], sum / (double)n, tol->ao_mean, over, tol->ao_pixel, worst),
+      printf(
+          "FAIL %s: primary channel %d mean |d| %.3g (allowed %g), %zu pixels over %g (max "
+          "%.3g)\n",
+          what, c, sum / (double)n, tol->ao_mean, over, tol->ao_pixel, worst),
           bad++;
   }
   return bad;
@@ -344,8 +356,9 @@ static int scales_pair(const obs_technique *t, obs_backend be) {
       printf("FAIL %s: %s\n", what, obs_err_message(&err));
       bad++;
     } else {
-      bad += check_sane(what, &res[k].image);
-      if (k && res[0].image.data) bad += compare_scaled(what, &res[0].image, &res[k].image, &rg->tol);
+      bad += check_sane(what, t, &res[k].image);
+      if (k && res[0].image.data)
+        bad += compare_scaled(what, t, &res[0].image, &res[k].image, &rg->tol);
     }
     free(doc);
   }

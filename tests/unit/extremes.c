@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "extent.h"
+#include "testutil.h"
 
 #define EXT_W 32
 #define EXT_H 32
@@ -104,20 +105,8 @@ static int render_doc(const char *doc, obs_result *res, obs_extent *ex, obs_err 
   return rc;
 }
 
-/* The primary output's channels: "ao" (in [0, 1]) or, for an RGB technique, the three radiance
- * channels (>= 0). Returns how many `img` has (0: neither). */
-static int primary_channels(const obs_image *img, const float *ch[3], int *unit) {
-  static const char *const rgb[3] = {"radiance.R", "radiance.G", "radiance.B"};
-  *unit = 1;
-  if ((ch[0] = obs_image_channel(img, "ao"))) return 1;
-  *unit = 0;
-  for (int k = 0; k < 3; k++)
-    if (!(ch[k] = obs_image_channel(img, rgb[k]))) return 0;
-  return 3;
-}
-
 /* Every channel finite, the primary output in its range; one line per problem. */
-static int check_sane(const char *what, const obs_image *img) {
+static int check_sane(const char *what, const obs_technique *t, const obs_image *img) {
   size_t n = (size_t)img->width * (size_t)img->height;
   int bad = 0;
   for (int c = 0; c < img->nchannels; c++) {
@@ -129,25 +118,27 @@ static int check_sane(const char *what, const obs_image *img) {
     }
   }
   const float *ch[3];
-  int unit, nch = primary_channels(img, ch, &unit);
+  double lo, hi;
+  int nch = obs_test_primary_channels(t, img, ch, &lo, &hi);
   size_t out = 0;
   for (int k = 0; k < nch; k++)
-    for (size_t i = 0; i < n; i++) out += !(ch[k][i] >= 0.0f && (!unit || ch[k][i] <= 1.0f));
+    for (size_t i = 0; i < n; i++) out += !(ch[k][i] >= lo && ch[k][i] <= hi);
   if (!nch || out) {
-    printf("FAIL %s: %zu primary values outside %s\n", what, out, unit ? "[0, 1]" : "[0, inf)");
+    printf("FAIL %s: %zu primary values outside [%g, %g]\n", what, out, lo, hi);
     bad++;
   }
   return bad;
 }
 
 /* `b` (scale 1) against `r` (scale s) within `tol`; one line per check that fails. */
-static int compare(const char *what, const obs_image *b, const obs_image *r, double s,
-                   const obs_tolerance *tol) {
+static int compare(const char *what, const obs_technique *t, const obs_image *b,
+                   const obs_image *r, double s, const obs_tolerance *tol) {
   size_t n = (size_t)b->width * (size_t)b->height, cov = 0, ao_out = 0, n_out = 0, z_out = 0;
   const float *ba = obs_image_channel(b, "alpha"), *ra = obs_image_channel(r, "alpha");
   const float *bo[3], *ro[3];
-  int unit, nch = primary_channels(b, bo, &unit);
-  if (primary_channels(r, ro, &unit) != nch || !nch)
+  double lo, hi;
+  int nch = obs_test_primary_channels(t, b, bo, &lo, &hi);
+  if (obs_test_primary_channels(t, r, ro, &lo, &hi) != nch || !nch)
     return printf("FAIL %s: no primary output to compare\n", what), 1;
   const float *bz = obs_image_channel(b, "depth.Z"), *rz = obs_image_channel(r, "depth.Z");
   const char *nn[3] = {"normal.X", "normal.Y", "normal.Z"};
@@ -245,7 +236,7 @@ static int run_case(ext_case *c) {
     obs_err_free(&err);
     return 1;
   }
-  bad += check_sane(c->label, &base.image) + no_warnings(c->label, &base);
+  bad += check_sane(c->label, c->t, &base.image) + no_warnings(c->label, &base);
   double smin = r->size_min / size * (1 + EXT_MARGIN), smax = r->size_max / size * (1 - EXT_MARGIN);
   double tmax = r->translation_max * (1 - EXT_MARGIN);
   const struct {
@@ -272,8 +263,8 @@ static int run_case(ext_case *c) {
       printf("FAIL %s: the case lies outside the range (size %.17g, translation %.17g)\n", what,
              ex.size, ex.translation),
           bad++;
-    bad += check_sane(what, &res.image) + no_warnings(what, &res);
-    bad += compare(what, &base.image, &res.image, at[k].s, &r->tol);
+    bad += check_sane(what, c->t, &res.image) + no_warnings(what, &res);
+    bad += compare(what, c->t, &base.image, &res.image, at[k].s, &r->tol);
     obs_result_free(&res);
   }
   obs_result_free(&base);

@@ -86,3 +86,17 @@ void obs_test_assert_finite(const obs_image *img) {
     }
   }
 }
+
+int obs_test_primary_channels(const obs_technique *t, const obs_image *img, const float *ch[3],
+                              double *lo, double *hi) {
+  const obs_output *o = obs_technique_primary(t);
+  char names[OBS_OUTPUT_MAX_CHANNELS][OBS_CHANNEL_NAME_MAX];
+  int n = o ? obs_output_channels(o, names) : 0;
+  *lo = -INFINITY;
+  *hi = INFINITY;
+  if (o && (o->flags & OBS_OUTPUT_UNIT)) *lo = 0, *hi = 1;
+  else if (o && o->kind == OBS_OUTPUT_RGB) *lo = 0;
+  for (int k = 0; k < n; k++)
+    if (!(ch[k] = obs_image_channel(img, names[k]))) return 0;
+  return n;
+}

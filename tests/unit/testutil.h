@@ -26,6 +26,11 @@ const char *obs_test_src(const char *rel);
 void obs_test_load(const char *json, const char *name, obs_scene *sc);
 /* Loads `json` (asserting success) and renders it with `threads` threads (asserting success). */
 void obs_test_render(const char *json, int threads, obs_result *res);
+/* The channels of technique t's primary output in `img` (at most 3) and the range its values must
+ * lie in: [0, 1] for an OBS_OUTPUT_UNIT output, [0, inf) for RGB radiance, otherwise any finite
+ * value. Returns how many channels `img` has of it (0: none). */
+int obs_test_primary_channels(const obs_technique *t, const obs_image *img, const float *ch[3],
+                              double *lo, double *hi);
 /* Asserts every value of every channel is finite. */
 void obs_test_assert_finite(const obs_image *img);
 

@@ -74,7 +74,8 @@ typedef struct obs_render_ctx {
   double stage_ms[OBS_MAX_STAGES];
   /* Per-patch outputs (OBS_OUTPUT_PATCH): the technique initialises patches[0..npatches) with
    * obs_patches_init (name = the output's) and renders them into its image's "<name>" channel
-   * with obs_patches_render; the result takes them over. Points into the result; never NULL. */
+   * with obs_patch_show (renderer/cpu/patch_ids.h); the result takes them over. Points into the
+   * result; never NULL. */
   obs_patches *patches;
   int npatches;
   /* Added with obs_render_ctx_warn, from the thread that called the run function only. */
@@ -241,7 +242,8 @@ typedef enum {
 } obs_output_show;
 
 enum {
-  OBS_OUTPUT_PRIMARY = 1 << 0 /* the output metrics and comparisons use; one per technique */
+  OBS_OUTPUT_PRIMARY = 1 << 0, /* the output metrics and comparisons use; one per technique */
+  OBS_OUTPUT_UNIT = 1 << 1      /* every value lies in [0, 1] (AO, coverage); RGB is >= 0 */
 };
 
 /* Longest output name: "<name>.patches" and "<name>_stderr.X" stay within the 32 bytes the
