@@ -64,6 +64,59 @@ async function assertPng(d, url) {
   assert.deepEqual(pngSize(r.body), {width: 32, height: 24}, url);
 }
 
+/** One candidate of the path_trace comparison: its reference, RGB metrics, timings and images. */
+async function assertCandidate(d, x, ref) {
+  assert.equal(x.reference_job_id, ref.job_id);
+  assert.equal(x.response, 'identity');
+  assert.equal(x.params.seed, 1);
+  for (const k of ['max_bounces', 'rr_depth', 'light_sampling', 'sampler', 'exposure']) {
+    assert.equal(ref.params[k], x.params[k], `the reference keeps the candidate's ${k}`);
+  }
+  const m = x.metrics;
+  assert.ok(m, `candidate ${x.index} has metrics`);
+  assert.equal(m.output, 'radiance');
+  assert.equal(m.rgb.rmse.length, 3);
+  for (const v of m.rgb.rmse) assert.ok(Number.isFinite(v) && v > 0, `per-channel RMSE ${m.rgb.rmse}`);
+  assert.ok(m.rgb.rmse_luminance > 0);
+  assert.ok(m.rgb.ssim_luminance > 0 && m.rgb.ssim_luminance <= 1, `SSIM ${m.rgb.ssim_luminance}`);
+  assert.ok(m.rgb.rel_mse > 0);
+  // The scalar fields are those of the luminance image (stored in float, hence the margin).
+  assert.ok(Math.abs(m.rmse - m.rgb.rmse_luminance) <= 1e-4 * m.rgb.rmse_luminance, JSON.stringify(m));
+  assert.ok(Math.abs(m.ssim - m.rgb.ssim_luminance) <= 1e-6, JSON.stringify(m));
+  assert.ok(m.ref_noise > 0, 'the reference noise comes from radiance_stderr');
+  assert.ok(m.pixels > 0 && m.pixels <= 32 * 24);
+  assert.equal(x.timings_ms.runs.length, 2, 'repeats timed runs');
+  for (const k of ['build', 'render', 'post', 'total']) assert.equal(typeof x.timings_ms.median[k], 'number');
+  assert.equal(x.links.image, `/api/v1/jobs/${x.job_id}/outputs/final.png`);
+  assert.equal(x.links['reference.png'], `/api/v1/jobs/${ref.job_id}/outputs/final.png`);
+  assert.equal(x.links['ao.png'], undefined);
+  await assertPng(d, x.links.image);
+  await assertPng(d, x.links['reference.png']);
+  await assertPng(d, x.links['error.png']);
+  const job = await getJob(d, x.job_id);
+  assert.deepEqual(exrHeader((await download(d, job, 'error.exr')).body).channels, ['error']);
+}
+
+/** The CSV of comparison `c`: the compared output and the RGB figures, equal to the JSON. */
+async function assertCsv(d, c) {
+  const csv = await request(d, 'GET', c.links.csv);
+  assert.equal(csv.status, 200);
+  assert.match(csv.headers['content-type'], /^text\/csv/);
+  const {head, rows} = csvRows(csv.text);
+  assert.deepEqual(head.slice(-7), ['output', 'rmse_r', 'rmse_g', 'rmse_b', 'rmse_luminance', 'ssim_luminance', 'rel_mse']);
+  assert.equal(rows.length, 4);
+  for (const [k, x] of c.candidates.entries()) {
+    const f = rows[k];
+    assert.equal(Number(f.index), x.index);
+    assert.equal(f.output, 'radiance');
+    assert.deepEqual([f.rmse_r, f.rmse_g, f.rmse_b].map(csvNum), x.metrics.rgb.rmse);
+    for (const key of ['rmse_luminance', 'ssim_luminance', 'rel_mse']) assert.equal(csvNum(f[key]), x.metrics.rgb[key], key);
+    assert.equal(csvNum(f.rmse), x.metrics.rmse);
+    assert.equal(f.pareto, String(x.pareto));
+    assert.equal(csvNum(f.total_ms), x.timings_ms.median.total);
+  }
+}
+
 test('path_trace at 4..256 paths against path_trace at 4096: RGB metrics, Pareto set, CSV, images', async () => {
   await withDaemon({}, async (d) => {
     const r = await request(d, 'POST', '/api/v1/comparisons', {body: BODY});
@@ -92,37 +145,8 @@ test('path_trace at 4..256 paths against path_trace at 4096: RGB metrics, Pareto
 
     assert.deepEqual(c.candidates.map((x) => [x.technique, x.backend, x.params.samples]),
                      SAMPLES.map((s) => ['path_trace', 'cpu', s]));
-    for (const x of c.candidates) {
-      assert.equal(x.reference_job_id, ref.job_id);
-      assert.equal(x.response, 'identity');
-      assert.equal(x.params.seed, 1);
-      for (const k of ['max_bounces', 'rr_depth', 'light_sampling', 'sampler', 'exposure']) {
-        assert.equal(ref.params[k], x.params[k], `the reference keeps the candidate's ${k}`);
-      }
-      const m = x.metrics;
-      assert.ok(m, `candidate ${x.index} has metrics`);
-      assert.equal(m.output, 'radiance');
-      assert.equal(m.rgb.rmse.length, 3);
-      for (const v of m.rgb.rmse) assert.ok(Number.isFinite(v) && v > 0, `per-channel RMSE ${m.rgb.rmse}`);
-      assert.ok(m.rgb.rmse_luminance > 0);
-      assert.ok(m.rgb.ssim_luminance > 0 && m.rgb.ssim_luminance <= 1, `SSIM ${m.rgb.ssim_luminance}`);
-      assert.ok(m.rgb.rel_mse > 0);
-      // The scalar fields are those of the luminance image (stored in float, hence the margin).
-      assert.ok(Math.abs(m.rmse - m.rgb.rmse_luminance) <= 1e-4 * m.rgb.rmse_luminance, JSON.stringify(m));
-      assert.ok(Math.abs(m.ssim - m.rgb.ssim_luminance) <= 1e-6, JSON.stringify(m));
-      assert.ok(m.ref_noise > 0, 'the reference noise comes from radiance_stderr');
-      assert.ok(m.pixels > 0 && m.pixels <= 32 * 24);
-      assert.equal(x.timings_ms.runs.length, 2, 'repeats timed runs');
-      for (const k of ['build', 'render', 'post', 'total']) assert.equal(typeof x.timings_ms.median[k], 'number');
-      assert.equal(x.links.image, `/api/v1/jobs/${x.job_id}/outputs/final.png`);
-      assert.equal(x.links['reference.png'], `/api/v1/jobs/${ref.job_id}/outputs/final.png`);
-      assert.equal(x.links['ao.png'], undefined);
-      await assertPng(d, x.links.image);
-      await assertPng(d, x.links['reference.png']);
-      await assertPng(d, x.links['error.png']);
-      const job = await getJob(d, x.job_id);
-      assert.deepEqual(exrHeader((await download(d, job, 'error.exr')).body).channels, ['error']);
-    }
+    for (const x of c.candidates) await assertCandidate(d, x, ref);
+
     // Convergence: each 4x more paths lowers the error (about halves it); the renders are
     // deterministic, and the bound at 64x leaves a wide margin (about 0.1 is measured).
     const lum = c.candidates.map((x) => x.metrics.rgb.rmse_luminance);
@@ -139,23 +163,7 @@ test('path_trace at 4..256 paths against path_trace at 4096: RGB metrics, Pareto
     const times = c.pareto.map((i) => c.candidates[i].timings_ms.median.total);
     assert.deepEqual(times, [...times].sort((a, b) => a - b));
 
-    // The CSV carries the compared output and the RGB figures, equal to the JSON.
-    const csv = await request(d, 'GET', c.links.csv);
-    assert.equal(csv.status, 200);
-    assert.match(csv.headers['content-type'], /^text\/csv/);
-    const {head, rows} = csvRows(csv.text);
-    assert.deepEqual(head.slice(-7), ['output', 'rmse_r', 'rmse_g', 'rmse_b', 'rmse_luminance', 'ssim_luminance', 'rel_mse']);
-    assert.equal(rows.length, 4);
-    for (const [k, x] of c.candidates.entries()) {
-      const f = rows[k];
-      assert.equal(Number(f.index), x.index);
-      assert.equal(f.output, 'radiance');
-      assert.deepEqual([f.rmse_r, f.rmse_g, f.rmse_b].map(csvNum), x.metrics.rgb.rmse);
-      for (const key of ['rmse_luminance', 'ssim_luminance', 'rel_mse']) assert.equal(csvNum(f[key]), x.metrics.rgb[key], key);
-      assert.equal(csvNum(f.rmse), x.metrics.rmse);
-      assert.equal(f.pareto, String(x.pareto));
-      assert.equal(csvNum(f.total_ms), x.timings_ms.median.total);
-    }
+    await assertCsv(d, c);
 
     const list = await getJSON(d, '/api/v1/comparisons');
     assert.deepEqual(list.comparisons.map((x) => [x.label, x.state, x.candidates, x.done]),
