@@ -130,6 +130,8 @@ static int comparison_json(srv_app *app, int64_t id, json_t **out, obs_err *err)
     if (!seen) {
       json_t *ro = json_object();
       json_object_set_new(ro, "job_id", json_integer(rjob));
+      const char *rtech = json_string_value(json_object_get(row, "ref_technique"));
+      json_object_set_new(ro, "technique", json_string(rtech ? rtech : "rt_ao"));
       const char *rst = json_string_value(json_object_get(row, "ref_state"));
       json_object_set(ro, "state", json_object_get(row, "ref_state"));
       double prog = json_number_value(json_object_get(row, "ref_progress"));
@@ -152,8 +154,7 @@ static int comparison_json(srv_app *app, int64_t id, json_t **out, obs_err *err)
       snprintf(url, sizeof url, API "/jobs/%lld", (long long)rjob);
       json_object_set_new(links, "job", json_string(url));
       output_link(links, outs, rjob, "ao.png", "ao.png");
-      output_link(links, outs, rjob,
-                  primary_png(json_string_value(json_object_get(row, "technique"))), "image");
+      output_link(links, outs, rjob, primary_png(rtech), "image");
       json_object_set_new(ro, "links", links);
       json_array_append_new(refs, ro);
     }
@@ -189,7 +190,9 @@ static int comparison_json(srv_app *app, int64_t id, json_t **out, obs_err *err)
     output_link(links, outs, job, png, "image");
     output_link(links, outs, job, "error.png", "error.png");
     output_link(links, outs, job, "error.exr", "error.exr");
-    output_link(links, outs, rjob, png, "reference.png");
+    output_link(links, outs, rjob,
+                primary_png(json_string_value(json_object_get(row, "ref_technique"))),
+                "reference.png");
     json_object_set_new(co, "links", links);
     /* Ranking: median total time against RMSE; anything missing takes no part (NaN). */
     json_t *med = json_object_get(tm, "median");
@@ -302,7 +305,7 @@ static char *comparison_csv(const json_t *o, size_t *len) {
   static const char header[] =
       "index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs,rmse,"
       "bias,max_abs,psnr,ssim,ref_noise,at_reference_accuracy,pareto,cpu_model,cores,"
-      "vulkan_device\r\n";
+      "vulkan_device,output,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse\r\n";
   sb_put(&b, header, sizeof header - 1);
   json_t *cands = json_object_get(o, "candidates");
   for (size_t i = 0; i < json_array_size(cands); i++) {
@@ -345,6 +348,13 @@ static char *comparison_csv(const json_t *o, size_t *len) {
     csv_value(&b, json_object_get(mach, "cpu_model"));
     csv_value(&b, json_object_get(mach, "cores"));
     csv_value(&b, json_object_get(mach, "vulkan_device"));
+    /* The compared output and, for an RGB one, its own figures; empty for AO candidates. */
+    json_t *rgb = json_object_get(m, "rgb"), *out = json_object_get(m, "output");
+    if (json_is_object(m) && !out) csv_field(&b, "ao", 0);
+    else csv_value(&b, out);
+    for (size_t k = 0; k < 3; k++) csv_value(&b, json_array_get(json_object_get(rgb, "rmse"), k));
+    static const char *const rk[3] = {"rmse_luminance", "ssim_luminance", "rel_mse"};
+    for (int k = 0; k < 3; k++) csv_value(&b, json_object_get(rgb, rk[k]));
     sb_put(&b, "\r\n", 2);
   }
   if (b.oom) {

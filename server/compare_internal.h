@@ -1,5 +1,5 @@
 /* What the comparison files share (compare_expand.c, compare_post.c, compare_get.c,
- * compare_metrics.c): the expanded candidates and references of a request. Private to them. */
+ * compare_metrics.c, compare_output.c): the expanded candidates and references of a request. Private to them. */
 #ifndef SRV_COMPARE_INTERNAL_H
 #define SRV_COMPARE_INTERNAL_H
 

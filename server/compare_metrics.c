@@ -98,7 +98,9 @@ void srv_compare_metrics(srv_app *app, int64_t job) {
 }
 
 /* Whether a stored candidate can inform a time budget here: a known technique, a backend this
- * daemon runs, and a finite RMSE (filled in). */
+ * daemon runs, and a finite RMSE (filled in) of AO. RMSEs of other outputs (the luminance of
+ * path_trace's radiance) measure another quantity on another scale, so they are not ranked
+ * against AO ones. */
 static int budget_row(const srv_app *app, const json_t *row, double *rmse, int *at_ref) {
   obs_backend be = OBS_BACKEND_AUTO;
   const obs_technique *t = obs_technique_find(json_string_value(json_object_get(row, "technique")));
@@ -109,8 +111,9 @@ static int budget_row(const srv_app *app, const json_t *row, double *rmse, int *
   json_t *rm = json_object_get(m, "rmse");
   *rmse = json_is_number(rm) ? json_number_value(rm) : NAN;
   *at_ref = json_is_true(json_object_get(m, "at_reference_accuracy"));
+  int ao = !json_object_get(m, "output");
   json_decref(m);
-  return !isnan(*rmse);
+  return ao && !isnan(*rmse);
 }
 
 /* ---- time budgets ---------------------------------------------------------------------------- */

@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "compare_internal.h"
 #include "obscurad.h"
 
 /* The technique whose result lies in `dir`, from its summary.json; rt_ao for a result written
@@ -77,10 +78,13 @@ int srv_compare_primary(const char *dir, const char *rdir, obs_response resp, ob
     obs_compare_rgb c;
     rc = obs_metrics_compare_rgb(&cand, &ref, o->name, mask, &c, err);
     if (!rc) {
+      /* Non-finite figures are null, as the scalar ones (json_pack would refuse a NaN). */
       json_object_set_new(extra, "rgb",
-                          json_pack("{s:[f,f,f], s:f, s:f, s:f}", "rmse", c.rmse[0], c.rmse[1],
-                                    c.rmse[2], "rmse_luminance", c.rmse_luminance,
-                                    "ssim_luminance", c.ssim_luminance, "rel_mse", c.rel_mse));
+                          json_pack("{s:[o,o,o], s:o, s:o, s:o}", "rmse", num_or_null(c.rmse[0]),
+                                    num_or_null(c.rmse[1]), num_or_null(c.rmse[2]),
+                                    "rmse_luminance", num_or_null(c.rmse_luminance),
+                                    "ssim_luminance", num_or_null(c.ssim_luminance), "rel_mse",
+                                    num_or_null(c.rel_mse)));
       rc = to_luminance(t, o, &cand, err);
     }
     if (!rc) rc = to_luminance(rt, o, &ref, err);

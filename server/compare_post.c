@@ -87,7 +87,7 @@ typedef struct cmp_req {
   json_t *req, *base;  /* the request; the scene document with overrides, without technique */
   const char *docname; /* bundled file name or "inline" */
   long long priority, repeats, ref_samples, ref_seed;
-  obs_backend ref_backend;
+  obs_backend ref_want; /* reference.backend as requested; picked per reference technique */
   const char *label;
 } cmp_req;
 
@@ -147,10 +147,20 @@ static void validate_candidate(srv_app *app, const cmp_req *q, cand *c, expansio
   }
   c->response = rd.response;
   const char *ref_name = rd.technique->name;
+  /* The reference technique may run on fewer backends than rt_ao (path_trace: cpu only). */
+  obs_backend ref_be;
+  if (srv_pick_backend(rd.technique, q->ref_want, app->vulkan_lane, &ref_be, &e)) {
+    char line[1200];
+    snprintf(line, sizeof line, "request: /reference/backend: the reference of /candidates/%d "
+             "(%s): %s", c->entry, ref_name, obs_err_message(&e));
+    add_problem(problems, dropped, line);
+    obs_reference_def_free(&rd);
+    goto out;
+  }
   json_object_set_new(rd.params, rd.technique->reference_quality, json_integer(q->ref_samples));
   json_object_set_new(rd.params, "seed", json_integer(q->ref_seed));
   json_t *rdoc = json_deep_copy(q->base);
-  json_object_set_new(rdoc, "technique", technique_obj(ref_name, q->ref_backend, rd.params));
+  json_object_set_new(rdoc, "technique", technique_obj(ref_name, ref_be, rd.params));
   obs_reference_def_free(&rd);
   obs_scene rs;
   memset(&rs, 0, sizeof rs);
@@ -194,7 +204,7 @@ static void validate_candidate(srv_app *app, const cmp_req *q, cand *c, expansio
       r->height = rs.height;
       r->spp = rs.spp;
       r->work = (double)rs.width * rs.height * rs.spp * obs_technique_cost(rs.technique, rs.params);
-      r->backend = q->ref_backend;
+      r->backend = ref_be;
       found = x->nrefs++;
     }
   }
@@ -242,7 +252,7 @@ static unsigned parse_request(srv_app *app, const char *body, size_t len, cmp_re
   q->repeats = DEFAULT_REPEATS;
   q->ref_samples = REF_SAMPLES;
   q->ref_seed = REF_SEED;
-  q->ref_backend = OBS_BACKEND_CPU;
+  q->ref_want = OBS_BACKEND_CPU;
   obs_json_get_int(&p, req, "priority", 0, 0, 100, &q->priority);
   obs_json_get_int(&p, req, "repeats", 0, 1, SRV_MAX_REPEATS, &q->repeats);
   if (obs_json_get_string(&p, req, "label", 0, NULL, &q->label) == 0 && q->label &&
@@ -262,18 +272,9 @@ static unsigned parse_request(srv_app *app, const char *body, size_t len, cmp_re
     const char *b = NULL;
     const char *rbe[] = {obs_backend_name(OBS_BACKEND_CPU), obs_backend_name(OBS_BACKEND_VULKAN),
                          obs_backend_name(OBS_BACKEND_AUTO), NULL};
-    if (!obs_json_get_string(&p, ref, "backend", 0, rbe, &b) && b) {
-      obs_backend want = OBS_BACKEND_AUTO;
-      obs_backend_parse(b, &want);
-      obs_err e = OBS_ERR_INIT;
-      if (srv_pick_backend(obs_technique_find("rt_ao"), want, app->vulkan_lane, &q->ref_backend,
-                           &e)) {
-        size_t k = obs_jpath_push_key(&p, "backend");
-        obs_jpath_fail(&p, "%s", obs_err_message(&e));
-        obs_jpath_pop(&p, k);
-      }
-      obs_err_free(&e);
-    }
+    /* Checked against each reference technique once the candidates name them. */
+    if (!obs_json_get_string(&p, ref, "backend", 0, rbe, &b) && b)
+      obs_backend_parse(b, &q->ref_want);
     obs_jpath_pop(&p, m);
   }
   json_t *sets = srv_submit_get_sets(&p, req);

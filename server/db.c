@@ -106,7 +106,8 @@ static const char *const sql[ST_COUNT] = {
     [ST_QUERY + SRV_Q_CANDIDATES] =
         "SELECT cc.idx, cc.job, cc.reference_job, cc.technique, cc.backend, cc.params, "
         "cc.reference_params, cc.response, cc.metrics, cc.metrics_error, j.state, j.progress, "
-        "r.state AS ref_state, r.progress AS ref_progress, r.summary AS ref_summary "
+        "r.state AS ref_state, r.progress AS ref_progress, r.summary AS ref_summary, "
+        "r.technique AS ref_technique "
         "FROM comparison_candidates cc JOIN jobs j ON j.id = cc.job "
         "JOIN jobs r ON r.id = cc.reference_job WHERE cc.comparison = ?1 ORDER BY cc.idx",
     [ST_QUERY + SRV_Q_COMPARISON_RUNS] =

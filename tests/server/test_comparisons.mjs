@@ -126,6 +126,7 @@ test('a sweep expands to the product of its lists, runs to completion with metri
                      [...Array(6).fill('identity'), 'ssao_sphere', 'ssao_hemi', 'ssao_sphere', 'ssao_hemi', 'identity', 'identity']);
     assert.equal(c.references.length, 4);
     for (const r of c.references) {
+      assert.equal(r.technique, 'rt_ao');
       assert.equal(r.params.samples, 64);
       assert.equal(r.params.seed, 7919);
       assert.equal(r.params.weighting, c.candidates.find((x) => x.reference_job_id === r.job_id).technique === 'rt_ao' ? 'cosine' : 'uniform');
@@ -186,7 +187,7 @@ test('a sweep expands to the product of its lists, runs to completion with metri
     assert.equal(r.status, 200);
     assert.match(r.headers['content-type'], /^text\/csv/);
     const rows = parseCsv(r.text);
-    assert.equal(rows[0].join(','), 'index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs,rmse,bias,max_abs,psnr,ssim,ref_noise,at_reference_accuracy,pareto,cpu_model,cores,vulkan_device');
+    assert.equal(rows[0].join(','), 'index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs,rmse,bias,max_abs,psnr,ssim,ref_noise,at_reference_accuracy,pareto,cpu_model,cores,vulkan_device,output,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse');
     assert.equal(rows.length, 1 + c.candidates.length);
     for (const [k, x] of c.candidates.entries()) {
       const f = Object.fromEntries(rows[0].map((h, i) => [h, rows[k + 1][i]]));
@@ -208,6 +209,8 @@ test('a sweep expands to the product of its lists, runs to completion with metri
       assert.equal(f.cpu_model, x.machine.cpu_model);
       assert.equal(Number(f.cores), x.machine.cores);
       assert.equal(f.vulkan_device, '');
+      // AO candidates: the compared output is named, the RGB columns stay empty.
+      assert.deepEqual([f.output, f.rmse_r, f.rmse_luminance, f.rel_mse], ['ao', '', '', '']);
     }
 
     // The list.

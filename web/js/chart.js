@@ -1,5 +1,5 @@
 // The comparison's Pareto chart on uPlot (npm `uplot`, served at /vendor/uplot/): median time
-// against RMSE, both log scales, one series per technique (colour), the backend as the point's
+// against RMSE (of AO, or of an RGB output's luminance), both log scales, one series per technique (colour), the backend as the point's
 // shape, the Pareto front as a step line and the selected candidate as a ring. uPlot draws axes,
 // grid, legend and cursor; the only drawing here is each point's marker path, which uPlot fills and
 // strokes with the series' colours (its `paths` hook).
@@ -30,6 +30,17 @@ function addShape(path, shape, x, y, r) {
 // Log-scale range: the data's extent widened by a factor of 1.5 each way (4 for a single value).
 function logPad(u, min, max) {
   return min === max ? [min / 4, max * 4] : [min / 1.5, max * 1.5];
+}
+
+/**
+ * What the error axis measures for these candidates: RMSE of AO, or of the luminance of an RGB
+ * output (path_trace's radiance) when the metrics name one; both when a comparison mixes them.
+ */
+export function errorName(cands) {
+  const names = new Set(cands.filter((c) => c.metrics).map((c) => (c.metrics.output
+    ? `${c.metrics.output}${c.metrics.rgb ? ' luminance' : ''}` : 'AO')));
+  if (names.size === 1) return `RMSE of ${[...names][0]}`;
+  return names.size ? `RMSE (${[...names].sort().join('; ')})` : 'RMSE';
 }
 
 /** Whether a candidate has a finite median time and a finite RMSE (the API sends null otherwise). */
@@ -90,12 +101,14 @@ export function paretoChart(box, cands, {colourOf, onSelect, selected = null}) {
                value: (u, v) => (v === null ? '–' : v.toPrecision(3))});
   data.push(selData());
 
+  // Short enough for the axis' height: "RMSE of radiance luminance (log scale)".
+  const yLabel = `${errorName(pts.map((p) => p.c))} (log scale)`;
   const width = Math.max(320, Math.min(box.clientWidth || 720, 960));
   const u = new uPlot({
     width, height: 340,
     // Padded by a factor on both sides so no marker sits on (and is clipped by) the plot's edge.
     scales: {x: {time: false, distr: 3, log: 10, range: logPad}, y: {distr: 3, log: 10, range: logPad}},
-    axes: [{label: 'median total time per run (ms, log scale)'}, {label: 'RMSE against the reference (log scale)', size: 70}],
+    axes: [{label: 'median total time per run (ms, log scale)'}, {label: yLabel, size: 70}],
     series,
     cursor: {drag: {x: false, y: false}},
     legend: {live: true},
@@ -114,7 +127,7 @@ export function paretoChart(box, cands, {colourOf, onSelect, selected = null}) {
   });
 
   const info = {points: pts.length, series: techs.map((t, k) => ({label: t, points: data[k + 1].filter((v) => v !== null).length})),
-                pareto: data[techs.length + 1].filter((v) => v !== null).length, order: pts.map((p) => p.c.index)};
+                pareto: data[techs.length + 1].filter((v) => v !== null).length, order: pts.map((p) => p.c.index), yLabel};
   return {
     info,
     uplot: u,

@@ -2,11 +2,14 @@
 // column, the Pareto chart (chart.js), the selected candidate against its reference (a slider
 // over two stacked images) with its error heatmap, an image grid of every candidate, and the CSV.
 import {ACTIVE, ApiError, api, debug, el, fmtMs, fmtNum, fmtTime, paramText, poll, stateBadge, techniques, token} from './api.js';
-import {PALETTE, SHAPE_GLYPH, SHAPES, paretoChart, plottable, shapeOf} from './chart.js';
+import {PALETTE, SHAPE_GLYPH, SHAPES, errorName, paretoChart, plottable, shapeOf} from './chart.js';
 
 // The image of a candidate's or reference's primary output ("image"), or "ao.png" from a daemon
 // that predates typed outputs.
 const primaryImage = (links) => links.image || links['ao.png'];
+
+// The technique of a reference; a daemon that predates reference techniques only had rt_ao.
+const refTechnique = (r) => r.technique || 'rt_ao';
 
 // ---- the list -----------------------------------------------------------------------------------
 
@@ -15,7 +18,8 @@ export function mountComparisons(view) {
   const status = el('p', {role: 'status', className: 'muted'}, 'loading…');
   view.append(el('h1', {}, 'Comparisons'),
     el('p', {}, 'Each comparison renders one scene with a grid of techniques, backends and parameters and measures ' +
-      'every candidate against a converged rt_ao reference. ', el('a', {href: '#/submit?mode=comparison'}, 'Start one.')),
+      'every candidate against a converged reference: rt_ao for the AO techniques, path_trace (many paths per pixel) ' +
+      'for path_trace, whose radiance is compared on its luminance and per channel. ', el('a', {href: '#/submit?mode=comparison'}, 'Start one.')),
     status,
     el('table', {},
       el('caption', {className: 'sr-only'}, 'Comparisons, newest first'),
@@ -60,7 +64,7 @@ export function metricsTable(c) {
   // Metrics of a primary output that is not AO: which one, and the RGB or per-patch figures.
   if (m.output) rows.unshift(['output compared', m.output + (m.rgb ? ' (luminance)' : '')]);
   if (m.rgb) {
-    rows.splice(rows.length - 6, 0, ['RMSE R, G, B', m.rgb.rmse.map(fmtNum).join(', ')],
+    rows.splice(rows.length - 6, 0, ['RMSE R, G, B', m.rgb.rmse.map((v) => fmtNum(v)).join(', ')],
                 ['RMSE of luminance', fmtNum(m.rgb.rmse_luminance)], ['SSIM of luminance', fmtNum(m.rgb.ssim_luminance)],
                 ['relative MSE', fmtNum(m.rgb.rel_mse)]);
   }
@@ -102,10 +106,17 @@ const COLUMNS = [
   {key: 'max_abs', label: 'Max |err|', get: (c) => c.metrics && c.metrics.max_abs, num: true, fmt: fmtNum},
   {key: 'psnr', label: 'PSNR dB', get: (c) => c.metrics && c.metrics.psnr, num: true, fmt: (v) => fmtNum(v, 3)},
   {key: 'ssim', label: 'SSIM', get: (c) => c.metrics && c.metrics.ssim, num: true, fmt: fmtNum},
+  // RGB outputs only (added when a candidate has them): the per-channel RMSE and relative MSE.
+  {key: 'rmse_rgb', label: 'RMSE R / G / B', rgb: true, get: (c) => (c.metrics && c.metrics.rgb ? c.metrics.rgb.rmse : null), num: true, nowrap: true,
+   sortValue: (v) => v.reduce((a, x) => a + (x ?? Infinity), 0), fmt: (v) => (v ? v.map((x) => fmtNum(x, 3)).join(' / ') : '–')},
+  {key: 'rel_mse', label: 'Rel. MSE', rgb: true, get: (c) => c.metrics && c.metrics.rgb && c.metrics.rgb.rel_mse, num: true, fmt: fmtNum},
   {key: 'pareto', label: 'Pareto', get: (c) => (c.pareto ? 1 : 0), num: true, fmt: (v) => (v ? '★ yes' : 'no')},
   {key: 'at_ref', label: 'At ref. accuracy', get: (c) => (c.metrics ? (c.metrics.at_reference_accuracy ? 1 : 0) : null), num: true,
    fmt: (v) => (v === null ? '–' : v ? '≈ yes' : 'no')},
 ];
+
+/** The table's columns: the RGB ones only when some candidate has RGB metrics. */
+const columnsFor = (cands) => (cands.some((c) => c.metrics && c.metrics.rgb) ? COLUMNS : COLUMNS.filter((c) => !c.rgb));
 
 /** Downloads url through fetch when a token is needed (a plain link cannot send the header). */
 function csvLink(url, name) {
@@ -198,23 +209,26 @@ export function mountComparison(view, [id], query) {
         el('dt', {}, 'Candidates finished'), el('dd', {},
           el('progress', {max: c.candidates.length || 1, value: done, 'aria-label': 'Candidates finished'}), ` ${done} / ${c.candidates.length}`),
         el('dt', {}, 'References'), el('dd', {}, ...c.references.flatMap((r, i) => [i ? ', ' : '',
-          el('a', {href: `#/jobs/${r.job_id}?comparison=${id}`}, `job ${r.job_id}`), ` (${r.state}, ${paramText({samples: r.params && r.params.samples})})`])),
+          el('a', {href: `#/jobs/${r.job_id}?comparison=${id}`}, `job ${r.job_id}`), ` (${refTechnique(r)}, ${r.state}, ${paramText({samples: r.params && r.params.samples})})`])),
+        el('dt', {}, 'Error measure'), el('dd', {className: 'error-measure'}, errorName(c.candidates)),
         el('dt', {}, 'Created'), el('dd', {}, fmtTime(c.created_at))),
       el('p', {}, csvLink(c.links.csv, `comparison-${id}.csv`)));
   }
 
   function renderTable() {
     const ctx = {params: varyingParams(s.c.candidates)};
+    const cols = columnsFor(s.c.candidates);
+    if (!cols.some((c) => c.key === s.sort.key)) s.sort = {key: 'index', dir: 1};
     const {key, dir} = s.sort;
-    const col = COLUMNS.find((c) => c.key === key);
+    const col = cols.find((c) => c.key === key);
     const rows = [...s.c.candidates].sort((a, b) => {
       const va = col.get(a, ctx), vb = col.get(b, ctx);
       if (va === null || va === undefined) return vb === null || vb === undefined ? a.index - b.index : 1;
       if (vb === null || vb === undefined) return -1;
-      const d = col.num ? va - vb : String(va).localeCompare(String(vb));
+      const d = col.sortValue ? col.sortValue(va) - col.sortValue(vb) : col.num ? va - vb : String(va).localeCompare(String(vb));
       return d ? d * dir : a.index - b.index;
     });
-    thead.replaceChildren(el('tr', {}, ...COLUMNS.map((c) => el('th', {scope: 'col', 'aria-sort': c.key === key ? (dir > 0 ? 'ascending' : 'descending') : 'none'},
+    thead.replaceChildren(el('tr', {}, ...cols.map((c) => el('th', {scope: 'col', 'aria-sort': c.key === key ? (dir > 0 ? 'ascending' : 'descending') : 'none'},
       el('button', {type: 'button', className: 'sort', onclick: () => {
         s.sort = {key: c.key, dir: s.sort.key === c.key ? -s.sort.dir : 1};
         renderTable();
@@ -223,14 +237,14 @@ export function mountComparison(view, [id], query) {
     const focusedIndex = tbody.contains(document.activeElement) ? document.activeElement.closest('tr').dataset.index : null;
     tbody.replaceChildren(...rows.map((c) => {
       const tr = el('tr', {'data-index': c.index, 'aria-selected': String(c.index === s.selected), className: c.pareto ? 'pareto' : ''},
-        ...COLUMNS.map((col, k) => {
+        ...cols.map((col, k) => {
           const v = col.get(c, ctx);
           if (k === 0) {
             return el('td', {className: 'num'}, el('button', {type: 'button', className: 'small pick', 'aria-label': `Show candidate ${c.index}`,
               onclick: () => select(c.index)}, String(c.index)));
           }
           if (col.key === 'state') return el('td', {}, stateBadge(v));
-          return el('td', {className: col.num ? 'num' : ''}, col.fmt ? col.fmt(v) : String(v ?? '–'));
+          return el('td', {className: [col.num && 'num', col.nowrap && 'nowrap'].filter(Boolean).join(' ')}, col.fmt ? col.fmt(v) : String(v ?? '–'));
         }));
       tr.addEventListener('click', (ev) => {
         if (!ev.target.closest('button, a')) select(c.index);
@@ -254,7 +268,7 @@ export function mountComparison(view, [id], query) {
     const times = withMetrics.map((c) => c.timings_ms.median.total), errs = withMetrics.map((c) => c.metrics.rmse);
     chartBox.setAttribute('aria-label', info.points
       ? `Scatter chart, log scales: ${info.points} candidates, median time ${fmtMs(Math.min(...times))} to ${fmtMs(Math.max(...times))} ms, ` +
-        `RMSE ${fmtNum(Math.min(...errs), 3)} to ${fmtNum(Math.max(...errs), 3)}; ` +
+        `${errorName(withMetrics)} ${fmtNum(Math.min(...errs), 3)} to ${fmtNum(Math.max(...errs), 3)}; ` +
         `series: ${info.series.map((x) => `${x.label} (${x.points})`).join(', ')}; Pareto-optimal candidates: ${s.c.pareto.join(', ') || 'none yet'}.`
       : 'Chart: no candidate has metrics yet.');
     chartNote.textContent = info.points < s.c.candidates.length
@@ -267,7 +281,7 @@ export function mountComparison(view, [id], query) {
     grid.replaceChildren(
       ...s.c.references.filter((r) => r.links && primaryImage(r.links)).map((r) => el('figure', {className: 'tile ref'},
         el('img', {src: primaryImage(r.links), alt: `Reference job ${r.job_id}`}),
-        el('figcaption', {}, `Reference (job ${r.job_id}, rt_ao ${paramText({samples: r.params && r.params.samples})})`))),
+        el('figcaption', {}, `Reference (job ${r.job_id}, ${refTechnique(r)} ${paramText({samples: r.params && r.params.samples})})`))),
       ...s.c.candidates.map((c) => el('figure', {className: 'tile'},
         c.links && primaryImage(c.links)
           ? el('img', {src: primaryImage(c.links), alt: `Candidate ${c.index}: ${c.technique} on ${c.backend}`, onclick: () => select(c.index)})
@@ -312,7 +326,8 @@ export function mountComparison(view, [id], query) {
         el('img', {className: 'error', src: links['error.png'], alt: `Error heatmap of candidate ${c.index} against its reference`}),
         el('div', {className: 'ramp', 'aria-hidden': 'true'}),
         el('div', {className: 'ramp-labels'}, el('span', {}, '−0.25 blue: too dark'), el('span', {}, '0 white'), el('span', {}, '+0.25 red: too bright')),
-        el('figcaption', {}, 'Signed error candidate − reference, saturating at ±0.25; grey: no geometry in the reference; green: NaN. ',
+        el('figcaption', {}, `Signed error candidate − reference${c.metrics && c.metrics.rgb ? ` (of ${c.metrics.output} luminance)` : ''}, ` +
+          'saturating at ±0.25; grey: no geometry in the reference; green: NaN. ',
           links['error.exr'] ? el('a', {href: links['error.exr'], download: `candidate${c.index}-error.exr`}, 'error.exr') : '')));
     }
     parts.push(media, c.metrics ? metricsTable(c)

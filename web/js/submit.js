@@ -211,7 +211,8 @@ function build(form, registry, scenes, query) {
   const refSamples = el('input', {type: 'text', inputMode: 'numeric', value: '1024', autocomplete: 'off'});
   const cmpOptions = el('fieldset', {}, el('legend', {}, 'Measurement'), el('div', {className: 'row'},
     field('Timed runs per candidate', repeats, {pointer: '/repeats', description: 'integer 1 to 20; the reported time is the median (after one warm-up run)'}),
-    field('Reference samples', refSamples, {pointer: '/reference/samples', description: `rays per pixel of the rt_ao reference: ${describeRule(refSchema)}`})));
+    field('Reference samples', refSamples, {pointer: '/reference/samples', description: "the reference technique's samples " +
+      `(rays per pixel sample of rt_ao for the AO techniques, paths per pixel sample of path_trace for path_trace): ${describeRule(refSchema)}`})));
   const addBtn = el('button', {type: 'button', className: 'small'}, 'Add candidate');
 
   const recount = () => {
