@@ -155,7 +155,7 @@ int main(int argc, char **argv) {
   }
   double paths = (double)o.size * o.size * o.spp, med = bench_median(ms, o.repeats);
   printf(
-      "path_trace cornell_box %dx%d, %d spp, %d threads: build %.1f ms, render %.1f ms "
+      "path_trace cornell_box %dx%d, %d paths per pixel, %d threads: build %.1f ms, render %.1f ms "
       "(median of %d)\n",
       o.size, o.size, o.spp, o.threads, res.timings.build_ms, med, o.repeats);
   printf(

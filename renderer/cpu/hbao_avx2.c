@@ -84,9 +84,11 @@ OBS_AVX2_INLINE __m256 load_stride4(const float *p) {
 }
 
 /* With `strided` the lanes are texels 4 apart in one row (one noise cell): their samples then
- * usually sit 4 apart in one row too, and that case reads depth and position factors with
- * load_stride4 and one broadcast instead of gathers and two divisions; the values are the same
- * bits (colf and rowf hold what the divisions give). */
+ * usually sit 4 apart in one row too, and where gathers are emulated with scalar loads
+ * (jb->loads: AMD, or the gather mitigation) that case reads depth and position factors with
+ * load_stride4 and one broadcast instead of sixteen loads and two divisions; the values are the
+ * same bits (colf and rowf hold what the divisions give). With hardware gathers the test for the
+ * case costs more than it saves (measured: docs/performance.md), so it is not made. */
 OBS_AVX2_INLINE void march8(const hbao_job *jb, __m256i ax, __m256i ay, __m256 cx, __m256 cy,
                             __m256 dx, __m256 dy, __m256 jit, __m256 st, __m256 act,
                             int strided, hbao_step8 *sp) {
@@ -115,7 +117,8 @@ OBS_AVX2_INLINE void march8(const hbao_job *jb, __m256i ax, __m256i ay, __m256 c
     const int ix0 = _mm256_cvtsi256_si32(ix), iy0 = _mm256_cvtsi256_si32(iy);
     const size_t base = (size_t)iy0 * (size_t)lv->w + (size_t)ix0;
     int row4 = 0;
-    if (strided && ix0 + 32 <= lv->w && base + 32 <= (size_t)lv->w * (size_t)lv->h) {
+    if (strided && jb->loads && ix0 + 32 <= lv->w &&
+        base + 32 <= (size_t)lv->w * (size_t)lv->h) {
       /* Unclamped, one row, 4 apart. */
       __m256i same = _mm256_and_si256(
           _mm256_and_si256(_mm256_cmpeq_epi32(rx, ix), _mm256_cmpeq_epi32(ry, iy)),
