@@ -1,11 +1,11 @@
 /* The guaranteed ranges of the technique descriptors, as JSON (the registry, the server's
  * techniques endpoint) and as the Markdown table of docs/accuracy.md. */
 #include <jansson.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "strbuf.h"
 #include "techniques.h"
 
 const char *obs_param_range_unit(const obs_param_range *p) {
@@ -35,65 +35,31 @@ json_t *obs_range_json(const obs_range *r) {
 
 /* Appends printf-style text to a growing string; keeps going (and drops text) when out of
  * memory, returning NULL at the end instead. */
-typedef struct strbuf {
-  char *s;
-  size_t len, cap;
-  int failed;
-} strbuf;
-
-__attribute__((format(printf, 2, 3))) static void put(strbuf *b, const char *fmt, ...) {
-  if (b->failed) return;
-  va_list ap;
-  va_start(ap, fmt);
-  int n = vsnprintf(NULL, 0, fmt, ap);
-  va_end(ap);
-  if (n < 0) {
-    b->failed = 1;
-    return;
-  }
-  if (b->len + (size_t)n + 1 > b->cap) {
-    size_t cap = (b->cap ? b->cap * 2 : 1024) + (size_t)n;
-    char *s = realloc(b->s, cap);
-    if (!s) {
-      b->failed = 1;
-      return;
-    }
-    b->s = s, b->cap = cap;
-  }
-  va_start(ap, fmt);
-  vsnprintf(b->s + b->len, b->cap - b->len, fmt, ap);
-  va_end(ap);
-  b->len += (size_t)n;
-}
 
 char *obs_technique_ranges_markdown(void) {
-  strbuf b = {NULL, 0, 0, 0};
-  put(&b, "| Technique | Backend | Size | Translation | fov_y (degrees) | Orthographic | "
+  obs_strbuf b = {0};
+  obs_strbuf_put(&b, "| Technique | Backend | Size | Translation | fov_y (degrees) | Orthographic | "
           "Parameters | ao: mean, per pixel (all but share) | normal | depth (relative) |\n");
-  put(&b, "|---|---|---|---|---|---|---|---|---|---|\n");
+  obs_strbuf_put(&b, "|---|---|---|---|---|---|---|---|---|---|\n");
   for (size_t i = 0; i < obs_technique_count(); i++) {
     const obs_technique *t = obs_technique_at(i);
     for (int be = OBS_BACKEND_CPU; be < OBS_BACKEND_COUNT; be++) {
       if (!t->run[be]) continue;
       const obs_range *r = &t->range[be];
-      put(&b, "| `%s` | %s | ", t->name, obs_backend_name((obs_backend)be));
+      obs_strbuf_put(&b, "| `%s` | %s | ", t->name, obs_backend_name((obs_backend)be));
       if (!(r->size_max > 0)) {
-        put(&b, "none declared | | | | | | | |\n");
+        obs_strbuf_put(&b, "none declared | | | | | | | |\n");
         continue;
       }
-      put(&b, "%g to %g | up to %g sizes | %g to %g | %s | ", r->size_min, r->size_max,
+      obs_strbuf_put(&b, "%g to %g | up to %g sizes | %g to %g | %s | ", r->size_min, r->size_max,
           r->translation_max, r->fov_min, r->fov_max, r->orthographic ? "yes" : "no");
-      if (!r->params[0].name) put(&b, "as the schema");
+      if (!r->params[0].name) obs_strbuf_put(&b, "as the schema");
       for (const obs_param_range *p = r->params; p->name; p++)
-        put(&b, "%s`%s` %g to %g %s", p == r->params ? "" : "; ", p->name, p->min, p->max,
+        obs_strbuf_put(&b, "%s`%s` %g to %g %s", p == r->params ? "" : "; ", p->name, p->min, p->max,
             obs_param_range_unit(p));
-      put(&b, " | %g, %g (%g) | %g | %g |\n", r->tol.ao_mean, r->tol.ao_pixel, r->tol.share,
+      obs_strbuf_put(&b, " | %g, %g (%g) | %g | %g |\n", r->tol.ao_mean, r->tol.ao_pixel, r->tol.share,
           r->tol.normal, r->tol.depth_rel);
     }
   }
-  if (b.failed) {
-    free(b.s);
-    return NULL;
-  }
-  return b.s;
+  return obs_strbuf_finish(&b);
 }

@@ -4,53 +4,13 @@
  * (scripts/gen-registry.sh writes them). */
 #include <jansson.h>
 #include <math.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "obscura/technique.h"
 #include "params.h"
-
-/* A growing string; on a failed allocation it keeps going and returns NULL at the end. */
-typedef struct text {
-  char *s;
-  size_t len, cap;
-  int failed;
-} text;
-
-__attribute__((format(printf, 2, 3))) static void put(text *b, const char *fmt, ...) {
-  if (b->failed) return;
-  va_list ap;
-  va_start(ap, fmt);
-  int n = vsnprintf(NULL, 0, fmt, ap);
-  va_end(ap);
-  if (n < 0) {
-    b->failed = 1;
-    return;
-  }
-  if (b->len + (size_t)n + 1 > b->cap) {
-    size_t cap = (b->cap ? b->cap * 2 : 1024) + (size_t)n;
-    char *s = realloc(b->s, cap);
-    if (!s) {
-      b->failed = 1;
-      return;
-    }
-    b->s = s, b->cap = cap;
-  }
-  va_start(ap, fmt);
-  vsnprintf(b->s + b->len, b->cap - b->len, fmt, ap);
-  va_end(ap);
-  b->len += (size_t)n;
-}
-
-static char *finish(text *b) {
-  if (b->failed || !b->s) {
-    free(b->s);
-    return NULL;
-  }
-  return b->s;
-}
+#include "strbuf.h"
 
 /* The shortest text that reads back as the same double (1e+30, 0.01, 1.5707963267948966). */
 static void shortest(double v, char *buf, size_t n) {
@@ -78,44 +38,44 @@ static int is_leaf(const json_t *v) {
   return 1;
 }
 
-static void put_inline(text *b, const json_t *v) {
+static void put_inline(obs_strbuf *b, const json_t *v) {
   char num[40];
   if (json_is_object(v)) {
     const char *k;
     json_t *x;
     int first = 1;
-    put(b, "{");
+    obs_strbuf_put(b, "{");
     json_object_foreach((json_t *)v, k, x) {
       json_t *key = json_string(k);
       char *ks = json_dumps(key, JSON_ENCODE_ANY);
-      put(b, "%s%s: ", first ? "" : ", ", ks ? ks : "\"?\"");
+      obs_strbuf_put(b, "%s%s: ", first ? "" : ", ", ks ? ks : "\"?\"");
       free(ks);
       json_decref(key);
       put_inline(b, x);
       first = 0;
     }
-    put(b, "}");
+    obs_strbuf_put(b, "}");
   } else if (json_is_array(v)) {
-    put(b, "[");
+    obs_strbuf_put(b, "[");
     for (size_t i = 0; i < json_array_size(v); i++) {
-      put(b, "%s", i ? ", " : "");
+      obs_strbuf_put(b, "%s", i ? ", " : "");
       put_inline(b, json_array_get(v, i));
     }
-    put(b, "]");
+    obs_strbuf_put(b, "]");
   } else if (json_is_real(v)) {
     shortest(json_real_value(v), num, sizeof num);
-    put(b, "%s", num);
+    obs_strbuf_put(b, "%s", num);
   } else {
     char *s = json_dumps(v, JSON_ENCODE_ANY);
-    put(b, "%s", s ? s : "null");
+    obs_strbuf_put(b, "%s", s ? s : "null");
     free(s);
   }
 }
 
 /* Writes v at `indent`; members of an object or array that fit within 100 columns, and every
  * leaf (an object of scalars, such as one parameter), stay on one line. */
-static void put_json(text *b, const json_t *v, int indent, int column) {
-  text probe = {NULL, 0, 0, 0};
+static void put_json(obs_strbuf *b, const json_t *v, int indent, int column) {
+  obs_strbuf probe = {0};
   put_inline(&probe, v);
   int fits = !probe.failed && (size_t)column + probe.len <= 100;
   free(probe.s);
@@ -124,7 +84,7 @@ static void put_json(text *b, const json_t *v, int indent, int column) {
     return;
   }
   int obj = json_is_object(v);
-  put(b, "%s\n", obj ? "{" : "[");
+  obs_strbuf_put(b, "%s\n", obj ? "{" : "[");
   size_t n = obj ? json_object_size(v) : json_array_size(v), i = 0;
   if (obj) {
     const char *k;
@@ -132,20 +92,20 @@ static void put_json(text *b, const json_t *v, int indent, int column) {
     json_object_foreach((json_t *)v, k, x) {
       json_t *key = json_string(k);
       char *ks = json_dumps(key, JSON_ENCODE_ANY);
-      put(b, "%*s%s: ", indent + 2, "", ks ? ks : "\"?\"");
+      obs_strbuf_put(b, "%*s%s: ", indent + 2, "", ks ? ks : "\"?\"");
       put_json(b, x, indent + 2, indent + 4 + (int)(ks ? strlen(ks) : 3));
-      put(b, "%s\n", ++i < n ? "," : "");
+      obs_strbuf_put(b, "%s\n", ++i < n ? "," : "");
       free(ks);
       json_decref(key);
     }
   } else {
     for (; i < n;) {
-      put(b, "%*s", indent + 2, "");
+      obs_strbuf_put(b, "%*s", indent + 2, "");
       put_json(b, json_array_get(v, i), indent + 2, indent + 2);
-      put(b, "%s\n", ++i < n ? "," : "");
+      obs_strbuf_put(b, "%s\n", ++i < n ? "," : "");
     }
   }
-  put(b, "%*s%s", indent, "", obj ? "}" : "]");
+  obs_strbuf_put(b, "%*s%s", indent, "", obj ? "}" : "]");
 }
 
 /* ---- schema/scene.schema.json ------------------------------------------------------------- */
@@ -199,39 +159,39 @@ static json_t *params_def(const obs_technique *t) {
 }
 
 char *obs_registry_scene_schema(void) {
-  text b = {NULL, 0, 0, 0};
+  obs_strbuf b = {0};
   json_t *tech = technique_def();
-  put(&b, "    \"technique\": ");
+  obs_strbuf_put(&b, "    \"technique\": ");
   put_json(&b, tech, 4, 17);
   json_decref(tech);
   for (size_t i = 0; i < obs_technique_count(); i++) {
     const obs_technique *t = obs_technique_at(i);
     json_t *d = params_def(t);
-    put(&b, ",\n    \"%s_params\": ", t->name);
+    obs_strbuf_put(&b, ",\n    \"%s_params\": ", t->name);
     put_json(&b, d, 4, 15 + (int)strlen(t->name));
     json_decref(d);
   }
-  put(&b, "\n");
-  return finish(&b);
+  obs_strbuf_put(&b, "\n");
+  return obs_strbuf_finish(&b);
 }
 
 /* ---- docs/techniques/<name>.md --------------------------------------------------------------- */
 
-static void put_cell(text *b, const char *s) {
-  for (; *s; s++) put(b, *s == '|' ? "\\|" : "%c", *s);
+static void put_cell(obs_strbuf *b, const char *s) {
+  for (; *s; s++) obs_strbuf_put(b, *s == '|' ? "\\|" : "%c", *s);
 }
 
-static void put_range(text *b, const obs_param *p) {
+static void put_range(obs_strbuf *b, const obs_param *p) {
   char lo[40], hi[40];
   if (p->type == OBS_PARAM_BOOL || p->type == OBS_PARAM_ENUM) return;
   if (p->values) {
-    put(b, "one of ");
-    for (int i = 0; i < p->nvalues; i++) put(b, "%s%d", i ? ", " : "", p->values[i]);
+    obs_strbuf_put(b, "one of ");
+    for (int i = 0; i < p->nvalues; i++) obs_strbuf_put(b, "%s%d", i ? ", " : "", p->values[i]);
     return;
   }
   shortest(p->min, lo, sizeof lo);
   shortest(p->max, hi, sizeof hi);
-  put(b, "%s%s, %s%s", p->flags & OBS_PARAM_MIN_EXCLUSIVE ? "(" : "[", lo, hi,
+  obs_strbuf_put(b, "%s%s, %s%s", p->flags & OBS_PARAM_MIN_EXCLUSIVE ? "(" : "[", lo, hi,
       p->flags & OBS_PARAM_MAX_EXCLUSIVE ? ")" : "]");
 }
 
@@ -244,53 +204,53 @@ char *obs_registry_params_markdown(const char *technique) {
                                       [OBS_PARAM_FLOAT] = "number (float32)",
                                       [OBS_PARAM_DOUBLE] = "number (float64)",
                                       [OBS_PARAM_ENUM] = "string"};
-  text b = {NULL, 0, 0, 0};
-  put(&b, "| name | type | default | range | description |\n|---|---|---|---|---|\n");
+  obs_strbuf b = {0};
+  obs_strbuf_put(&b, "| name | type | default | range | description |\n|---|---|---|---|---|\n");
   for (size_t i = 0; i < t->params_size; i++) {
     const obs_param *p = &t->params[i];
-    put(&b, "| `%s` | ", p->name);
+    obs_strbuf_put(&b, "| `%s` | ", p->name);
     if (p->type == OBS_PARAM_ENUM) {
-      for (int c = 0; p->choices[c]; c++) put(&b, "%s`%s`", c ? " \\| " : "", p->choices[c]);
+      for (int c = 0; p->choices[c]; c++) obs_strbuf_put(&b, "%s`%s`", c ? " \\| " : "", p->choices[c]);
     } else {
-      put(&b, "%s%s", types[p->type], p->flags & OBS_PARAM_NULLABLE ? " or null" : "");
+      obs_strbuf_put(&b, "%s%s", types[p->type], p->flags & OBS_PARAM_NULLABLE ? " or null" : "");
     }
     json_t *def = obs_param_default_json(p);
-    text d = {NULL, 0, 0, 0};
+    obs_strbuf d = {0};
     if (json_is_string(def))
-      put(&d, "`%s`", json_string_value(def));
+      obs_strbuf_put(&d, "`%s`", json_string_value(def));
     else
       put_inline(&d, def);
     json_decref(def);
-    put(&b, " | %s | ", d.s ? d.s : "");
+    obs_strbuf_put(&b, " | %s | ", d.s ? d.s : "");
     free(d.s);
     put_range(&b, p);
-    put(&b, " | ");
+    obs_strbuf_put(&b, " | ");
     put_cell(&b, p->description);
-    put(&b, " |\n");
+    obs_strbuf_put(&b, " |\n");
   }
-  put(&b, "\nWork per pixel sample in the server's limits (the descriptor's cost hook): %s.\n",
+  obs_strbuf_put(&b, "\nWork per pixel sample in the server's limits (the descriptor's cost hook): %s.\n",
       t->cost_rule ? t->cost_rule : "1");
-  return finish(&b);
+  return obs_strbuf_finish(&b);
 }
 
 /* ---- schema/openapi.yaml ----------------------------------------------------------------------
  */
 
 char *obs_registry_openapi(void) {
-  text b = {NULL, 0, 0, 0};
-  put(&b,
+  obs_strbuf b = {0};
+  obs_strbuf_put(&b,
       "    TechniqueName:\n      description: A technique of the registry (GET "
       "/api/v1/techniques).\n      type: string\n      enum: [");
   for (size_t i = 0; i < obs_technique_count(); i++)
-    put(&b, "%s%s", i ? ", " : "", obs_technique_at(i)->name);
-  put(&b, "]\n");
+    obs_strbuf_put(&b, "%s%s", i ? ", " : "", obs_technique_at(i)->name);
+  obs_strbuf_put(&b, "]\n");
   for (size_t i = 0; i < obs_technique_count(); i++) {
     const obs_technique *t = obs_technique_at(i);
     json_t *s = obs_technique_params_schema(t);
-    put(&b, "    %s_params: ", t->name);
+    obs_strbuf_put(&b, "    %s_params: ", t->name);
     put_json(&b, s, 6, 12 + (int)strlen(t->name));
-    put(&b, "\n");
+    obs_strbuf_put(&b, "\n");
     json_decref(s);
   }
-  return finish(&b);
+  return obs_strbuf_finish(&b);
 }

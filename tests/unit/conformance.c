@@ -58,27 +58,6 @@ static int render(const char *doc, int threads, obs_result *res, obs_err *err) {
   return rc;
 }
 
-/* Every channel finite; the primary output in the range its declaration allows. */
-static int check_sane(const char *what, const obs_technique *t, const obs_image *img) {
-  size_t n = (size_t)img->width * (size_t)img->height;
-  int bad = 0;
-  for (int c = 0; c < img->nchannels; c++) {
-    size_t nonfinite = 0;
-    for (size_t i = 0; i < n; i++) nonfinite += !isfinite(img->data[(size_t)c * n + i]);
-    if (nonfinite) printf("FAIL %s: %zu non-finite values in %s\n", what, nonfinite, img->names[c]);
-    bad += nonfinite > 0;
-  }
-  const float *ch[3];
-  double lo, hi;
-  int nch = obs_test_primary_channels(t, img, ch, &lo, &hi);
-  size_t out = 0;
-  for (int k = 0; k < nch; k++)
-    for (size_t i = 0; i < n; i++) out += !(ch[k][i] >= lo && ch[k][i] <= hi);
-  if (!nch) printf("FAIL %s: the primary output is missing\n", what), bad++;
-  if (out) printf("FAIL %s: %zu primary values outside [%g, %g]\n", what, out, lo, hi), bad++;
-  return bad;
-}
-
 typedef int (*pair_fn)(const obs_technique *t, obs_backend be);
 
 static int each_pair(obs_backend be, int *ran, pair_fn fn) {
@@ -125,7 +104,7 @@ static int render_sane(const obs_technique *t, obs_backend be, const char *param
   if (rc)
     printf("FAIL %s: %s\n", what, obs_err_message(&err)), bad++;
   else
-    bad += check_sane(what, t, &res.image);
+    bad += obs_test_check_sane(what, t, &res.image);
 done:
   obs_result_free(&res);
   obs_err_free(&err);
@@ -356,7 +335,7 @@ static int scales_pair(const obs_technique *t, obs_backend be) {
       printf("FAIL %s: %s\n", what, obs_err_message(&err));
       bad++;
     } else {
-      bad += check_sane(what, t, &res[k].image);
+      bad += obs_test_check_sane(what, t, &res[k].image);
       if (k && res[0].image.data)
         bad += compare_scaled(what, t, &res[0].image, &res[k].image, &rg->tol);
     }

@@ -105,31 +105,6 @@ static int render_doc(const char *doc, obs_result *res, obs_extent *ex, obs_err 
   return rc;
 }
 
-/* Every channel finite, the primary output in its range; one line per problem. */
-static int check_sane(const char *what, const obs_technique *t, const obs_image *img) {
-  size_t n = (size_t)img->width * (size_t)img->height;
-  int bad = 0;
-  for (int c = 0; c < img->nchannels; c++) {
-    size_t nonfinite = 0;
-    for (size_t i = 0; i < n; i++) nonfinite += !isfinite(img->data[(size_t)c * n + i]);
-    if (nonfinite) {
-      printf("FAIL %s: %zu non-finite values in %s\n", what, nonfinite, img->names[c]);
-      bad++;
-    }
-  }
-  const float *ch[3];
-  double lo, hi;
-  int nch = obs_test_primary_channels(t, img, ch, &lo, &hi);
-  size_t out = 0;
-  for (int k = 0; k < nch; k++)
-    for (size_t i = 0; i < n; i++) out += !(ch[k][i] >= lo && ch[k][i] <= hi);
-  if (!nch || out) {
-    printf("FAIL %s: %zu primary values outside [%g, %g]\n", what, out, lo, hi);
-    bad++;
-  }
-  return bad;
-}
-
 /* `b` (scale 1) against `r` (scale s) within `tol`; one line per check that fails. */
 static int compare(const char *what, const obs_technique *t, const obs_image *b,
                    const obs_image *r, double s, const obs_tolerance *tol) {
@@ -236,7 +211,7 @@ static int run_case(ext_case *c) {
     obs_err_free(&err);
     return 1;
   }
-  bad += check_sane(c->label, c->t, &base.image) + no_warnings(c->label, &base);
+  bad += obs_test_check_sane(c->label, c->t, &base.image) + no_warnings(c->label, &base);
   double smin = r->size_min / size * (1 + EXT_MARGIN), smax = r->size_max / size * (1 - EXT_MARGIN);
   double tmax = r->translation_max * (1 - EXT_MARGIN);
   const struct {
@@ -263,7 +238,7 @@ static int run_case(ext_case *c) {
       printf("FAIL %s: the case lies outside the range (size %.17g, translation %.17g)\n", what,
              ex.size, ex.translation),
           bad++;
-    bad += check_sane(what, c->t, &res.image) + no_warnings(what, &res);
+    bad += obs_test_check_sane(what, c->t, &res.image) + no_warnings(what, &res);
     bad += compare(what, c->t, &base.image, &res.image, at[k].s, &r->tol);
     obs_result_free(&res);
   }

@@ -12,14 +12,6 @@
 #include "simd.h"
 #include "../../renderer/techniques/hbao.h"
 
-static char *fmt(const char *f, ...) {
-  static char buf[8192];
-  va_list ap;
-  va_start(ap, f);
-  vsnprintf(buf, sizeof buf, f, ap);
-  va_end(ap);
-  return buf;
-}
 
 /* A whole scene document: camera JSON, image size, objects JSON (array body), params JSON. */
 static const char *scene(const char *camera, int w, int h, const char *objects, const char *params) {
@@ -209,7 +201,7 @@ static void test_parameter_sets(void **state) {
   for (int k = 0; k < 5; k++) {
     obs_result r;
     render(scene(ROOM_CAM, 48, 48, ROOM,
-                 fmt("{\"radius\":80,\"directions\":%d,\"steps\":%d}", sets[k][0], sets[k][1])),
+                 obs_test_fmt("{\"radius\":80,\"directions\":%d,\"steps\":%d}", sets[k][0], sets[k][1])),
            &r);
     obs_stats st;
     assert_int_equal(obs_metrics_stats(&r.image, "ao", "alpha", &st, NULL), 0);
@@ -286,7 +278,7 @@ static void test_scale_invariance(void **state) {
     double s = scales[i];
     obs_result r;
     cam = strdup(room_cam(s));
-    render(scene(cam, 40, 40, room(s), fmt("{\"radius\":%.17g}", 80 * s)), &r);
+    render(scene(cam, 40, 40, room(s), obs_test_fmt("{\"radius\":%.17g}", 80 * s)), &r);
     free(cam);
     double md, e = rmse(obs_image_channel(&r.image, "ao"), obs_image_channel(&base.image, "ao"),
                         NULL, 1600, &md);
@@ -417,7 +409,7 @@ static void test_extremes(void **state) {
     for (size_t k = 0; k < sizeof params / sizeof params[0]; k++) {
       if (s == 4 && k != 0 && k != 3) continue; /* keep the wide image cheap */
       obs_result r;
-      render(fmt(copies[s], params[k]), &r);
+      render(obs_test_fmt(copies[s], params[k]), &r);
       obs_result_free(&r);
     }
   for (int s = 0; s < 6; s++) free(copies[s]);

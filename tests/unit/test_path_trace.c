@@ -8,14 +8,6 @@
 
 #include "testutil.h"
 
-static char *fmt(const char *f, ...) {
-  static char buf[8192];
-  va_list ap;
-  va_start(ap, f);
-  vsnprintf(buf, sizeof buf, f, ap);
-  va_end(ap);
-  return buf;
-}
 
 static const char *const rad[3] = {"radiance.R", "radiance.G", "radiance.B"};
 static const char *const err3[3] = {"radiance_stderr.R", "radiance_stderr.G", "radiance_stderr.B"};
@@ -54,7 +46,7 @@ static void assert_sane(const obs_result *r) {
 /* Inside a closed sphere of reflectivity rho emitting E: camera at its centre; n paths per pixel
  * through its centre. */
 static const char *furnace(const double rho[3], const double e[3], int n, const char *params) {
-  return fmt(
+  return obs_test_fmt(
       "{\"camera\":{\"type\":\"perspective\",\"position\":[0,0,0],\"look_at\":[0,0,1],"
       "\"fov_y\":120},\"image\":{\"width\":8,\"height\":8},"
       "\"objects\":[{\"shape\":{\"type\":\"sphere\",\"center\":[0,0,0],\"radius\":1},"
@@ -106,7 +98,7 @@ static void test_open_plane_under_sky(void **state) {
   const double rho[3] = {0.2, 0.5, 0.8}, sky[3] = {1, 2, 3};
   obs_result r;
   obs_test_render(
-      fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[0,2,-3],\"look_at\":[0,0,0],"
+      obs_test_fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[0,2,-3],\"look_at\":[0,0,0],"
           "\"fov_y\":60},\"image\":{\"width\":16,\"height\":12,\"spp\":8},"
           "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-100,0,-100],[-100,0,100],"
           "[100,0,100],[100,0,-100]]},\"material\":{\"reflectivity\":[%g,%g,%g]}}],"
@@ -169,7 +161,7 @@ static const char *lit_scene_by(int w, int h, int n, const char *params, int emi
       "\"emission\":[4,4,4]}]",
       ",{\"shape\":{\"type\":\"quad\",\"vertices\":[[-1,2,-1],[1,2,-1],[1,2,1],[-1,2,1]]},"
       "\"material\":{\"reflectivity\":[0.3,0.3,0.3],\"emission\":[4,3,2]}}]"};
-  return fmt(
+  return obs_test_fmt(
       "{\"camera\":{\"type\":\"perspective\",\"position\":[0,1.5,-2.5],"
       "\"look_at\":[0,0,0],\"fov_y\":60},\"image\":{\"width\":%d,\"height\":%d},"
       "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-3,0,-3],[-3,0,3],[3,0,3],"

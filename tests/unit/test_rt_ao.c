@@ -8,14 +8,6 @@
 
 #define PI 3.14159265358979323846
 
-static char *fmt(const char *f, ...) {
-  static char buf[8192];
-  va_list ap;
-  va_start(ap, f);
-  vsnprintf(buf, sizeof buf, f, ap);
-  va_end(ap);
-  return buf;
-}
 
 static float px(const obs_result *r, const char *ch, int x, int y) {
   const float *p = obs_image_channel(&r->image, ch);
@@ -80,7 +72,7 @@ static void test_open_plane_is_one(void **state) {
 }
 
 static const char *box_inside(const char *params) {
-  return fmt(
+  return obs_test_fmt(
       "{\"camera\":{\"type\":\"perspective\",\"position\":[0.1,0.2,0.3],\"look_at\":[1,0,0.5],"
       "\"fov_y\":90},\"image\":{\"width\":16,\"height\":16},"
       "\"objects\":[{\"shape\":{\"type\":\"box\",\"min\":[-1,-1,-1],\"max\":[1,1,1]}}],"
@@ -121,7 +113,7 @@ static double sphere_ao_on(double plane, double r, double d, double alpha_deg,
   double cx = d * sin(a), cy = d * cos(a);
   obs_result res;
   obs_test_render(
-      fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[%.17g,%.17g,0.37],"
+      obs_test_fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[%.17g,%.17g,0.37],"
           "\"look_at\":[0,0,0],\"fov_y\":10},\"image\":{\"width\":1,\"height\":1},"
           "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-%.17g,0,-%.17g],[-%.17g,0,"
           "%.17g],[%.17g,0,%.17g],[%.17g,0,-%.17g]]}},{\"shape\":{\"type\":\"sphere\",\"center\":"
@@ -195,7 +187,7 @@ static void test_far_from_origin(void **state) {
     double o = offsets[i];
     obs_result r;
     obs_test_render(
-        fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[%.17g,%.17g,%.17g],"
+        obs_test_fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[%.17g,%.17g,%.17g],"
             "\"look_at\":[%.17g,%.17g,%.17g],\"fov_y\":120},\"image\":{\"width\":48,\"height\":48},"
             "\"objects\":[{\"shape\":{\"type\":\"box\",\"min\":[%.17g,%.17g,%.17g],\"max\":[%.17g,"
             "%.17g,%.17g]}}],\"technique\":{\"name\":\"rt_ao\",\"params\":{\"samples\":64,"
@@ -211,7 +203,7 @@ static void test_far_from_origin(void **state) {
   double a0 = sphere_ao_on(10.0, 0.5, 1.0, 30.0, "cosine", "sobol", 4096, 1, &se);
   obs_result r;
   obs_test_render(
-      fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[%.17g,2,1e5],\"look_at\":[1e5,0,"
+      obs_test_fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[%.17g,2,1e5],\"look_at\":[1e5,0,"
           "1e5],\"up\":[0,1,0],\"fov_y\":10},\"image\":{\"width\":1,\"height\":1},\"objects\":[{"
           "\"shape\":{\"type\":\"quad\",\"vertices\":[[99990,0,99990],[99990,0,100010],[100010,0,"
           "100010],[100010,0,99990]]}},{\"shape\":{\"type\":\"sphere\",\"center\":[100000.5,"
@@ -249,7 +241,7 @@ static void test_sphere_statistics(void **state) {
 }
 
 static const char *convergence_scene(int samples, const char *sampler, int seed) {
-  return fmt(
+  return obs_test_fmt(
       "{\"camera\":{\"type\":\"perspective\",\"position\":[0,2.5,-3],\"look_at\":[0,0.4,0],"
       "\"fov_y\":40},\"image\":{\"width\":24,\"height\":24},"
       "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-5,0,-5],[-5,0,5],[5,0,5],[5,0,-5]]}},"
@@ -294,7 +286,7 @@ static void test_convergence(void **state) {
 static const char *cornell_like(double scale, const char *max_distance, int samples) {
   /* A box room open at the front, two blocks: scaled as a whole. */
   double s = scale;
-  return fmt(
+  return obs_test_fmt(
       "{\"camera\":{\"type\":\"perspective\",\"position\":[%.17g,%.17g,%.17g],\"look_at\":[%.17g,"
       "%.17g,0],\"fov_y\":40},\"image\":{\"width\":20,\"height\":20},"
       "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[%.17g,0,0],[0,0,0],[0,0,%.17g],"
@@ -354,7 +346,7 @@ static void test_scale_invariance(void **state) {
 static void test_sample_count_extremes(void **state) {
   (void)state;
   obs_result r;
-  obs_test_render(fmt("{\"camera\":{\"type\":\"orthographic\",\"position\":[0.2,3,0.1],"
+  obs_test_render(obs_test_fmt("{\"camera\":{\"type\":\"orthographic\",\"position\":[0.2,3,0.1],"
                       "\"look_at\":[0.2,0,0.1],\"up\":[0,0,1],\"height\":1},\"image\":{\"width\":2,"
                       "\"height\":2},\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-5,0,-5],"
                       "[-5,0,5],[5,0,5],[5,0,-5]]}},{\"shape\":{\"type\":\"sphere\",\"center\":[1,0.6,0],"
@@ -537,7 +529,7 @@ static double sphere_ao_at(double scale, double t, double plane, double r, doubl
   double cx = d * sin(a), cy = d * cos(a), ox = t, oy = t / 2, oz = -t;
   obs_result res;
   obs_test_render(
-      fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[%.17g,%.17g,%.17g],"
+      obs_test_fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[%.17g,%.17g,%.17g],"
           "\"look_at\":[%.17g,%.17g,%.17g],\"fov_y\":10},\"image\":{\"width\":1,\"height\":1},"
           "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[%.17g,%.17g,%.17g],[%.17g,"
           "%.17g,%.17g],[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g]]}},{\"shape\":{\"type\":\"sphere\","
@@ -598,7 +590,7 @@ static void test_camera_extreme_basis(void **state) {
       "\"sphere\",\"center\":[0.4,-0.5,2],\"radius\":0.5}}],\"technique\":{\"name\":\"rt_ao\","
       "\"params\":{\"samples\":16}}}";
   obs_result ref;
-  obs_test_render(fmt(scene, "0,-1,3", "0,1,0"), 1, &ref);
+  obs_test_render(obs_test_fmt(scene, "0,-1,3", "0,1,0"), 1, &ref);
   const char *variants[][2] = {{"0,-1,3", "0,1e-300,0"},
                                {"0,-1e-200,3e-200", "0,1,0"},
                                {"0,-1e-200,3e-200", "0,1e30,0"},
@@ -608,7 +600,7 @@ static void test_camera_extreme_basis(void **state) {
               *d0 = obs_image_channel(&ref.image, "depth.Z");
   for (int v = 0; v < 4; v++) {
     obs_result r;
-    obs_test_render(fmt(scene, variants[v][0], variants[v][1]), 1, &r);
+    obs_test_render(obs_test_fmt(scene, variants[v][0], variants[v][1]), 1, &r);
     assert_sane(&r);
     const float *a = obs_image_channel(&r.image, "alpha");
     const float *dz = obs_image_channel(&r.image, "depth.Z");
@@ -637,7 +629,7 @@ static int outside_3sigma(double cy, double cx, double r, double elev_deg, doubl
   for (int s = 0; s < seeds; s++) {
     obs_result res;
     obs_test_render(
-        fmt("{\"camera\":{\"type\":\"orthographic\",\"position\":[%.17g,%.17g,0],\"look_at\":[0,0,"
+        obs_test_fmt("{\"camera\":{\"type\":\"orthographic\",\"position\":[%.17g,%.17g,0],\"look_at\":[0,0,"
             "0],\"height\":1e-7},\"image\":{\"width\":8,\"height\":8},\"objects\":[{\"shape\":{"
             "\"type\":\"quad\",\"vertices\":[[-100,0,-100],[-100,0,100],[100,0,100],[100,0,-100]]}},"
             "{\"shape\":{\"type\":\"sphere\",\"center\":[%.17g,%.17g,0],\"radius\":%.17g}}],"
@@ -706,7 +698,7 @@ static void test_telephoto_analytic(void **state) {
       for (int k = 0; k < 3; k++) dir[k] *= dist[j] / len;
       obs_result res;
       obs_test_render(
-          fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[%.17g,%.17g,%.17g],"
+          obs_test_fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[%.17g,%.17g,%.17g],"
               "\"look_at\":[0,0,0],\"fov_y\":1e-4},\"image\":{\"width\":1,\"height\":1},"
               "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-10,0,-10],[-10,0,10],"
               "[10,0,10],[10,0,-10]]}},{\"shape\":{\"type\":\"sphere\",\"center\":[%.17g,%.17g,0],"

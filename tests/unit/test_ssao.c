@@ -11,14 +11,6 @@
 #include "simd.h"
 #include "../../renderer/techniques/ssao.h"
 
-static char *fmt(const char *f, ...) {
-  static char buf[8192];
-  va_list ap;
-  va_start(ap, f);
-  vsnprintf(buf, sizeof buf, f, ap);
-  va_end(ap);
-  return buf;
-}
 
 static void load(const char *json, obs_scene *sc) { obs_test_load(json, "ssao.json", sc); }
 
@@ -163,7 +155,7 @@ static void test_flat_wall(void **state) {
   for (int c = 0; c < 2; c++)
     for (int s = 8; s <= 24; s += 8) {
       obs_result r;
-      render(wall_scene(cams[c], 40, 30, fmt("{\"samples\":%d}", s)), &r);
+      render(wall_scene(cams[c], 40, 30, obs_test_fmt("{\"samples\":%d}", s)), &r);
       const float *raw = obs_image_channel(&r.image, "ao_raw");
       const float *ao = obs_image_channel(&r.image, "ao");
       int off = 0;
@@ -200,7 +192,7 @@ static void test_flat_wall_normal_oriented(void **state) {
 static void test_empty_frame(void **state) {
   (void)state;
   obs_result r;
-  render(fmt("{\"camera\":%s,\"image\":{\"width\":9,\"height\":7},\"objects\":[],%s}", PERSP,
+  render(obs_test_fmt("{\"camera\":%s,\"image\":{\"width\":9,\"height\":7},\"objects\":[],%s}", PERSP,
              tech("{}")),
          &r);
   const float *ao = obs_image_channel(&r.image, "ao"), *raw = obs_image_channel(&r.image, "ao_raw");
@@ -221,7 +213,7 @@ static void test_concave_corner(void **state) {
                            "{\"radius\":0.02,\"blur\":false,\"normal_oriented\":true}"};
   for (int k = 0; k < 2; k++) {
     obs_result r;
-    render(fmt("{\"camera\":%s,\"image\":{\"width\":64,\"height\":32},\"objects\":["
+    render(obs_test_fmt("{\"camera\":%s,\"image\":{\"width\":64,\"height\":32},\"objects\":["
                "{\"shape\":{\"type\":\"quad\",\"vertices\":[[-50,-50,-45],[0,-50,5],[0,50,5],"
                "[-50,50,-45]]}},{\"shape\":{\"type\":\"quad\",\"vertices\":[[0,-50,5],[50,-50,"
                "-45],[50,50,-45],[0,50,5]]}}],%s}",
@@ -412,7 +404,7 @@ static void test_extremes(void **state) {
   }
   /* near/far ratio 1e6: a tiny quad 1e-3 in front of the camera over a wall at 1e3 */
   obs_result r;
-  render(fmt("{\"camera\":%s,\"image\":{\"width\":16,\"height\":12},\"objects\":[{\"shape\":{"
+  render(obs_test_fmt("{\"camera\":%s,\"image\":{\"width\":16,\"height\":12},\"objects\":[{\"shape\":{"
              "\"type\":\"quad\",\"vertices\":[[-1e-4,-1e-4,1e-3],[1e-4,-1e-4,1e-3],"
              "[1e-4,1e-4,1e-3],[-1e-4,1e-4,1e-3]]}},{\"shape\":{\"type\":\"quad\",\"vertices\":["
              "[-1e4,-1e4,1e3],[1e4,-1e4,1e3],[1e4,1e4,1e3],[-1e4,1e4,1e3]]}}],%s}",
@@ -420,7 +412,7 @@ static void test_extremes(void **state) {
          &r);
   obs_result_free(&r);
   /* camera inside a box */
-  render(fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[0.1,0.2,0.3],\"look_at\":[1,0,"
+  render(obs_test_fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[0.1,0.2,0.3],\"look_at\":[1,0,"
              "0.5],\"fov_y\":120},\"image\":{\"width\":16,\"height\":16},\"objects\":[{\"shape\":{"
              "\"type\":\"box\",\"min\":[-1,-1,-1],\"max\":[1,1,1]}}],%s}",
              tech("{\"samples\":24}")),

@@ -2,6 +2,7 @@
 #include "testutil.h"
 
 #include <errno.h>
+#include <stdarg.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -99,4 +100,33 @@ int obs_test_primary_channels(const obs_technique *t, const obs_image *img, cons
   for (int k = 0; k < n; k++)
     if (!(ch[k] = obs_image_channel(img, names[k]))) return 0;
   return n;
+}
+
+const char *obs_test_fmt(const char *f, ...) {
+  static char buf[16384];
+  va_list ap;
+  va_start(ap, f);
+  vsnprintf(buf, sizeof buf, f, ap);
+  va_end(ap);
+  return buf;
+}
+
+int obs_test_check_sane(const char *what, const obs_technique *t, const obs_image *img) {
+  size_t n = (size_t)img->width * (size_t)img->height;
+  int bad = 0;
+  for (int c = 0; c < img->nchannels; c++) {
+    size_t nonfinite = 0;
+    for (size_t i = 0; i < n; i++) nonfinite += !isfinite(img->data[(size_t)c * n + i]);
+    if (nonfinite) printf("FAIL %s: %zu non-finite values in %s\n", what, nonfinite, img->names[c]);
+    bad += nonfinite > 0;
+  }
+  const float *ch[3];
+  double lo, hi;
+  int nch = obs_test_primary_channels(t, img, ch, &lo, &hi);
+  size_t out = 0;
+  for (int k = 0; k < nch; k++)
+    for (size_t i = 0; i < n; i++) out += !(ch[k][i] >= lo && ch[k][i] <= hi);
+  if (!nch) printf("FAIL %s: the primary output is missing\n", what), bad++;
+  if (out) printf("FAIL %s: %zu primary values outside [%g, %g]\n", what, out, lo, hi), bad++;
+  return bad;
 }

@@ -31,6 +31,11 @@ void obs_test_render(const char *json, int threads, obs_result *res);
  * value. Returns how many channels `img` has of it (0: none). */
 int obs_test_primary_channels(const obs_technique *t, const obs_image *img, const float *ch[3],
                               double *lo, double *hi);
+/* printf into a static buffer (overwritten by the next call): scene documents in tests. */
+const char *obs_test_fmt(const char *f, ...) __attribute__((format(printf, 1, 2)));
+/* Every channel of `img` finite and technique t's primary output in its declared range; prints
+ * one "FAIL <what>: ..." line per problem and returns their number. */
+int obs_test_check_sane(const char *what, const obs_technique *t, const obs_image *img);
 /* Asserts every value of every channel is finite. */
 void obs_test_assert_finite(const obs_image *img);
 

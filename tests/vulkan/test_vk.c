@@ -435,14 +435,6 @@ static gb_report compare_gbuffers(const char *label, const char *json) {
   return r;
 }
 
-static char *fmt(const char *f, ...) {
-  static char buf[16384];
-  va_list ap;
-  va_start(ap, f);
-  vsnprintf(buf, sizeof buf, f, ap);
-  va_end(ap);
-  return buf;
-}
 
 #define TECH "\"technique\":{\"name\":\"rt_ao\",\"backend\":\"cpu\"}"
 #define MAT(r, g, b) "\"material\":{\"reflectivity\":[" #r "," #g "," #b "]}"
@@ -468,13 +460,13 @@ static void test_gb_room(void **state) {
   (void)state;
   g_world_frame = 1;
   compare_gbuffers("room-world-frame",
-                   fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[278,273,-800],"
+                   obs_test_fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[278,273,-800],"
                        "\"look_at\":[278,273,0],\"fov_y\":39.3},"
                        "\"image\":{\"width\":256,\"height\":256},\"objects\":[%s]," TECH "}",
                        room_objects));
   g_world_frame = 0;
   compare_gbuffers("room",
-                   fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[278,273,-800],"
+                   obs_test_fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[278,273,-800],"
                        "\"look_at\":[278,273,0],\"fov_y\":39.3},"
                        "\"image\":{\"width\":256,\"height\":256},\"objects\":[%s]," TECH "}",
                        room_objects));
@@ -483,7 +475,7 @@ static void test_gb_room(void **state) {
 static void test_gb_room_orthographic(void **state) {
   (void)state;
   compare_gbuffers("room-ortho",
-                   fmt("{\"camera\":{\"type\":\"orthographic\",\"position\":[600,500,-300],"
+                   obs_test_fmt("{\"camera\":{\"type\":\"orthographic\",\"position\":[600,500,-300],"
                        "\"look_at\":[278,150,280],\"height\":700},"
                        "\"image\":{\"width\":200,\"height\":160},\"objects\":[%s]," TECH "}",
                        room_objects));
@@ -497,7 +489,7 @@ static const char *sphere_on_plane =
 static void test_gb_sphere_on_plane(void **state) {
   (void)state;
   compare_gbuffers("sphere-on-plane",
-                   fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[0,3,-4],"
+                   obs_test_fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[0,3,-4],"
                        "\"look_at\":[0,0.3,0],\"fov_y\":45},"
                        "\"image\":{\"width\":256,\"height\":192},%s," TECH "}",
                        sphere_on_plane));
@@ -516,7 +508,7 @@ static void test_gb_displaced_sphere(void **state) {
 static void test_gb_orthographic_sphere(void **state) {
   (void)state;
   compare_gbuffers("ortho-sphere-on-plane",
-                   fmt("{\"camera\":{\"type\":\"orthographic\",\"position\":[0,3,-4],"
+                   obs_test_fmt("{\"camera\":{\"type\":\"orthographic\",\"position\":[0,3,-4],"
                        "\"look_at\":[0,0.3,0],\"height\":3},"
                        "\"image\":{\"width\":160,\"height\":128},%s," TECH "}",
                        sphere_on_plane));
@@ -556,13 +548,13 @@ static void test_gb_near_far(void **state) {
 static void test_gb_tiny_and_wide(void **state) {
   (void)state;
   gb_report r =
-      compare_gbuffers("1x1", fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[0,3,-4],"
+      compare_gbuffers("1x1", obs_test_fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[0,3,-4],"
                                   "\"look_at\":[0,0.3,0],\"fov_y\":45},"
                                   "\"image\":{\"width\":1,\"height\":1},%s," TECH "}",
                                   sphere_on_plane));
   assert_int_equal(r.covered, 1);
   /* A 1.5 degree high strip 130 degrees wide through the ball and the ground. */
-  r = compare_gbuffers("4096x16", fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[0,3,-4],"
+  r = compare_gbuffers("4096x16", obs_test_fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[0,3,-4],"
                                       "\"look_at\":[0,1,0],\"fov_y\":1.5},"
                                       "\"image\":{\"width\":4096,\"height\":16},%s," TECH "}",
                                       sphere_on_plane));
@@ -575,7 +567,7 @@ static void test_gb_tiny_and_wide(void **state) {
 static const char *moved_scene_at(double s, double t, double g, double fov, double look_y,
                                   double look_z, int w, int h) {
   double tx = t * 1.2345678901, ty = t * 0.3141592653, tz = -t * 0.7654321098;
-  return fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[%.17g,%.17g,%.17g],"
+  return obs_test_fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[%.17g,%.17g,%.17g],"
              "\"look_at\":[%.17g,%.17g,%.17g],\"fov_y\":%.17g},"
              "\"image\":{\"width\":%d,\"height\":%d},\"objects\":["
              "{\"shape\":{\"type\":\"quad\",\"vertices\":[[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g],"
@@ -684,7 +676,7 @@ static void test_gb_eye_in_plane(void **state) {
       snprintf(label, sizeof label, "eye in plane, floor -%g, pitch %g", below[i], pitch[k]);
       gb_report r = compare_gbuffers(
           label,
-          fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[0,0,0],\"look_at\":[0,%g,1],"
+          obs_test_fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[0,0,0],\"look_at\":[0,%g,1],"
               "\"fov_y\":45},\"image\":{\"width\":32,\"height\":24},\"objects\":[{\"shape\":{"
               "\"type\":\"quad\",\"vertices\":[[-10,%g,-10],[10,%g,-10],[10,%g,10],[-10,%g,10]]},"
               MAT(0.5, 0.5, 0.5) "}]," TECH "}",
@@ -700,7 +692,7 @@ static void test_gb_upload_download(void **state) {
   obs_err err = OBS_ERR_INIT;
   obs_scene sc;
   load_scene(
-      fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[0,3,-4],"
+      obs_test_fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[0,3,-4],"
           "\"look_at\":[0,0.3,0],\"fov_y\":45},\"image\":{\"width\":41,\"height\":23},%s," TECH "}",
           sphere_on_plane),
       &sc);
