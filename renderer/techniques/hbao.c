@@ -10,19 +10,6 @@
 #include "sampling.h"
 #include "techniques.h"
 
-static const obs_output hbao_outputs[] = {
-    {.name = "ao", .kind = OBS_OUTPUT_SCALAR, .show = OBS_SHOW_GREY, .png = "ao.png",
-     .description = "Ambient occlusion (white = open, black = fully occluded)",
-     .flags = OBS_OUTPUT_PRIMARY | OBS_OUTPUT_UNIT},
-    {.name = "ao_raw", .kind = OBS_OUTPUT_SCALAR,
-     .description = "Ambient occlusion before the blur"},
-    {.name = "depth", .kind = OBS_OUTPUT_DEPTH, .show = OBS_SHOW_DEPTH, .png = "depth.png",
-     .description = "Depth (view distance, grey levels)"},
-    {.name = "normal", .kind = OBS_OUTPUT_VECTOR, .description = "World-space surface normal"},
-    {.name = "alpha", .kind = OBS_OUTPUT_SCALAR,
-     .description = "Coverage (1 where a surface is hit, 0 on the background)"},
-    {.name = NULL}};
-
 const char *const obs_hbao_pass_names[OBS_HBAO_PASS_COUNT] = {"downsample", "ao", "upsample",
                                                               "blur"};
 
@@ -135,7 +122,7 @@ const obs_technique obs_technique_hbao = {
     .cost_rule = "directions x steps",
     .ms_per_work = 1e-5,
     .needs = OBS_NEED_GBUFFER,
-    .outputs = hbao_outputs,
+    .outputs = obs_screen_outputs,
     .check = NULL,
     .reference = hbao_reference,
     .run = {[OBS_BACKEND_CPU] = obs_hbao_cpu, [OBS_BACKEND_VULKAN] = obs_hbao_vulkan},

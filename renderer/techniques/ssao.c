@@ -11,7 +11,9 @@
 #include "sampling.h"
 #include "techniques.h"
 
-static const obs_output ssao_outputs[] = {
+/* The outputs of every screen-space technique: the channels the screen-space drivers write
+ * (core/gbuffer.h's obs_screen_channel_names), so ssao and hbao declare the same table. */
+const obs_output obs_screen_outputs[] = {
     {.name = "ao", .kind = OBS_OUTPUT_SCALAR, .show = OBS_SHOW_GREY, .png = "ao.png",
      .description = "Ambient occlusion (white = open, black = fully occluded)",
      .flags = OBS_OUTPUT_PRIMARY | OBS_OUTPUT_UNIT},
@@ -158,7 +160,7 @@ const obs_technique obs_technique_ssao = {
     .cost_rule = "samples",
     .ms_per_work = 3.5e-5,
     .needs = OBS_NEED_GBUFFER,
-    .outputs = ssao_outputs,
+    .outputs = obs_screen_outputs,
     .check = NULL,
     .reference = ssao_reference,
     .run = {[OBS_BACKEND_CPU] = obs_ssao_cpu, [OBS_BACKEND_VULKAN] = obs_ssao_vulkan},
