@@ -31,7 +31,7 @@ static void metrics_one(srv_app *app, const json_t *row) {
   char dir[4200], rdir[4200];
   srv_results_path(app, job, dir, sizeof dir);
   srv_results_path(app, rjob, rdir, sizeof rdir);
-  srv_output outs[16], err_outs[2];
+  srv_output outs[16], err_outs[3];
   int nouts = 0, nerr = 0;
   obs_compare m;
   int rc = obs_response_parse(json_string_value(json_object_get(row, "response")), &resp)
@@ -44,7 +44,8 @@ static void metrics_one(srv_app *app, const json_t *row) {
   if (!rc) rc = obs_metrics_write_error_files(&eimg, dir, &e);
   if (!rc) rc = srv_outputs_describe(dir, outs, 16, &nouts, &e);
   for (int i = 0; !rc && i < nouts; i++)
-    if (!strncmp(outs[i].name, "error.", 6) && nerr < (int)(sizeof err_outs / sizeof *err_outs))
+    if ((!strncmp(outs[i].name, "error.", 6) || !strcmp(outs[i].name, SRV_MAPPED_REFERENCE_PNG)) &&
+        nerr < (int)(sizeof err_outs / sizeof *err_outs))
       err_outs[nerr++] = outs[i];
   char *metrics = NULL;
   if (!rc) {

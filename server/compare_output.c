@@ -2,9 +2,11 @@
  * kind: scalar outputs as they are, RGB outputs on their luminance (plus RMSE per channel, SSIM on
  * luminance and relative MSE), depth on its ".Z" channel, per-patch outputs on their rendered
  * channel plus the area-weighted RMSE over the patches. */
+#include <errno.h>
 #include <jansson.h>
 #include <stdio.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "compare_internal.h"
 #include "obscurad.h"
@@ -57,6 +59,22 @@ static int patch_rmse(const char *dir, const char *rdir, const obs_output *o, do
   return rc;
 }
 
+/* Writes `dir`/reference_mapped.png: the reference's output `o` after the candidate's response
+ * mapping, as the candidate's own PNG shows it (linear grey), so the dashboard's slider shows what
+ * the metrics compared. Staged and renamed like the error images. */
+static int write_mapped_reference(const obs_image *ref, const obs_output *o, const char *dir,
+                                  obs_err *err) {
+  char stage[4300], final[4300];
+  snprintf(stage, sizeof stage, "%s/.%s.new", dir, SRV_MAPPED_REFERENCE_PNG);
+  snprintf(final, sizeof final, "%s/%s", dir, SRV_MAPPED_REFERENCE_PNG);
+  const char *ch[1] = {o->name};
+  int rc = obs_image_write_png(ref, ch, 1, 0, stage, err);
+  if (!rc && rename(stage, final))
+    rc = obs_err_set(err, OBS_EIO, "%s: cannot rename into place: %s", final, strerror(errno));
+  if (rc) unlink(stage);
+  return rc;
+}
+
 int srv_compare_primary(const char *dir, const char *rdir, obs_response resp, obs_compare *m,
                         json_t *extra, obs_image *eimg, obs_err *err) {
   const obs_technique *t = result_technique(dir), *rt = result_technique(rdir);
@@ -71,6 +89,9 @@ int srv_compare_primary(const char *dir, const char *rdir, obs_response resp, ob
   if (!rc) rc = read_exr(rdir, rt, &ref, err);
   /* Response curves map AO; an identity mapping leaves any output as it is. */
   if (!rc && resp != OBS_RESPONSE_IDENTITY) rc = obs_response_apply(resp, &ref, err);
+  if (!rc && resp != OBS_RESPONSE_IDENTITY && o->kind == OBS_OUTPUT_SCALAR &&
+      o->show == OBS_SHOW_GREY)
+    rc = write_mapped_reference(&ref, o, dir, err);
   if (!rc && o->kind == OBS_OUTPUT_VECTOR)
     rc = obs_err_set(err, OBS_EUNSUPPORTED, "no metrics for the vector output \"%s\"", o->name);
   const char *mask = obs_image_channel(&ref, "alpha") ? "alpha" : NULL;

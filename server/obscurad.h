@@ -371,6 +371,10 @@ void srv_sched_stop(struct srv_app *app);
 
 /* ---- outputs (outputs.c) --------------------------------------------------------------------- */
 
+/* The reference as a comparison candidate was measured against it (mapped through the candidate's
+ * response), written beside the candidate's error images when the mapping changes it. */
+#define SRV_MAPPED_REFERENCE_PNG "reference_mapped.png"
+
 /* The fixed set of output files: content type, or NULL when `name` is not one. */
 const char *srv_output_content_type(const char *name);
 /* <data>/results/<id> into buf. */

@@ -348,6 +348,30 @@ static double pareto_error(const obs_pareto_point *p) {
   return p->at_reference_accuracy ? -INFINITY : p->error;
 }
 
+/* The time spread of a point: [lo, hi] around time_ms, time_ms itself where none was measured. */
+static void pareto_spread(const obs_pareto_point *p, double *lo, double *hi) {
+  *lo = p->time_min_ms > 0 && p->time_min_ms <= p->time_ms ? p->time_min_ms : p->time_ms;
+  *hi = p->time_max_ms >= p->time_ms ? p->time_max_ms : p->time_ms;
+}
+
+static double pareto_tolerance(const obs_pareto_point *a, const obs_pareto_point *b) {
+  double ta = a->error_tolerance > 0 ? a->error_tolerance : 0;
+  double tb = b->error_tolerance > 0 ? b->error_tolerance : 0;
+  return ta > tb ? ta : tb;
+}
+
+/* Whether j dominates i, with the margins of obs_metrics_pareto. */
+static int pareto_dominates(const obs_pareto_point *j, const obs_pareto_point *i) {
+  double ilo, ihi, jlo, jhi;
+  pareto_spread(i, &ilo, &ihi);
+  pareto_spread(j, &jlo, &jhi);
+  double ei = pareto_error(i), ej = pareto_error(j), tol = pareto_tolerance(i, j);
+  int faster = jhi < ilo, slower = jlo > ihi;
+  /* -INFINITY (at reference accuracy) minus a tolerance stays -INFINITY: such points tie. */
+  int more_accurate = ej < ei - tol, less_accurate = ej > ei + tol;
+  return !slower && !less_accurate && (faster || more_accurate);
+}
+
 int obs_metrics_pareto(const obs_pareto_point *pts, size_t n, unsigned char *optimal,
                        obs_err *err) {
   if (n && (!pts || !optimal))
@@ -357,13 +381,9 @@ int obs_metrics_pareto(const obs_pareto_point *pts, size_t n, unsigned char *opt
   for (size_t i = 0; i < n; i++) {
     optimal[i] = 0;
     if (!pareto_usable(&pts[i])) continue;
-    double ti = pts[i].time_ms, ei = pareto_error(&pts[i]);
     int dominated = 0;
-    for (size_t j = 0; j < n && !dominated; j++) {
-      if (j == i || !pareto_usable(&pts[j])) continue;
-      double tj = pts[j].time_ms, ej = pareto_error(&pts[j]);
-      dominated = tj <= ti && ej <= ei && (tj < ti || ej < ei);
-    }
+    for (size_t j = 0; j < n && !dominated; j++)
+      dominated = j != i && pareto_usable(&pts[j]) && pareto_dominates(&pts[j], &pts[i]);
     if (!dominated) {
       optimal[i] = 1;
       count++;

@@ -670,18 +670,18 @@ static void test_error_image(void **state) {
 static void test_pareto(void **state) {
   (void)state;
   const obs_pareto_point p[] = {
-      {10.0, 0.50, 0}, /* 0: fastest: optimal */
-      {20.0, 0.30, 0}, /* 1: optimal */
-      {20.0, 0.30, 0}, /* 2: exact tie with 1: optimal too */
-      {25.0, 0.40, 0}, /* 3: dominated by 1 */
-      {30.0, 0.30, 0}, /* 4: same error as 1, slower: dominated */
-      {40.0, 0.10, 1}, /* 5: at reference accuracy, fastest of them: optimal */
-      {50.0, 0.01, 1}, /* 6: at reference accuracy too: its lower RMSE is noise, dominated */
-      {NAN, 0.001, 0}, /* 7: no time: takes no part */
-      {5.0, NAN, 0},   /* 8: no error: takes no part (does not dominate 0) */
-      {35.0, 0.2, 0},  /* 9: optimal (between 1 and 5) */
-      {9.0, INFINITY, 0}, /* 10: fastest but worst: optimal */
-      {45.0, 0.05, 0}, /* 11: more accurate than 5 by RMSE but not at reference accuracy: dominated */
+      {10.0, 0.50, 0, 0, 0, 0}, /* 0: fastest: optimal */
+      {20.0, 0.30, 0, 0, 0, 0}, /* 1: optimal */
+      {20.0, 0.30, 0, 0, 0, 0}, /* 2: exact tie with 1: optimal too */
+      {25.0, 0.40, 0, 0, 0, 0}, /* 3: dominated by 1 */
+      {30.0, 0.30, 0, 0, 0, 0}, /* 4: same error as 1, slower: dominated */
+      {40.0, 0.10, 1, 0, 0, 0}, /* 5: at reference accuracy, fastest of them: optimal */
+      {50.0, 0.01, 1, 0, 0, 0}, /* 6: at reference accuracy too: its lower RMSE is noise, dominated */
+      {NAN, 0.001, 0, 0, 0, 0}, /* 7: no time: takes no part */
+      {5.0, NAN, 0, 0, 0, 0},   /* 8: no error: takes no part (does not dominate 0) */
+      {35.0, 0.2, 0, 0, 0, 0},  /* 9: optimal (between 1 and 5) */
+      {9.0, INFINITY, 0, 0, 0, 0}, /* 10: fastest but worst: optimal */
+      {45.0, 0.05, 0, 0, 0, 0}, /* 11: more accurate than 5 by RMSE but not at reference accuracy: dominated */
   };
   const size_t n = sizeof p / sizeof p[0];
   unsigned char opt[sizeof p / sizeof p[0]];
@@ -692,9 +692,42 @@ static void test_pareto(void **state) {
     assert_int_equal(opt[i], want[i]);
   }
   /* Two at-reference points with the same time are both optimal (an exact tie). */
-  const obs_pareto_point q[] = {{3.0, 0.2, 1}, {3.0, 0.1, 1}, {1.0, 0.9, 0}};
+  const obs_pareto_point q[] = {{3.0, 0.2, 1, 0, 0, 0}, {3.0, 0.1, 1, 0, 0, 0}, {1.0, 0.9, 0, 0, 0, 0}};
   unsigned char o2[3];
   assert_int_equal(obs_metrics_pareto(q, 3, o2, NULL), 3);
+  /* Margins. hbao on the CPU 2.7x faster than on Vulkan, RMSEs 2e-9 apart against a reference
+   * noise of 0.004: Vulkan's lower RMSE is noise, the CPU is faster beyond both spreads, so only
+   * the CPU is optimal (exactly, Vulkan's lower RMSE would have kept it). */
+  const obs_pareto_point h[] = {
+      {27.0, 0.080000000, 0, 25.0, 30.0, 0.004}, /* 0: hbao/vulkan */
+      {10.0, 0.080000002, 0, 9.0, 11.0, 0.004},  /* 1: hbao/cpu */
+  };
+  unsigned char oh[2];
+  assert_int_equal(obs_metrics_pareto(h, 2, oh, NULL), 1);
+  assert_int_equal(oh[0], 0);
+  assert_int_equal(oh[1], 1);
+  const obs_pareto_point hx[] = {{27.0, 0.080000000, 0, 0, 0, 0}, {10.0, 0.080000002, 0, 0, 0, 0}};
+  assert_int_equal(obs_metrics_pareto(hx, 2, oh, NULL), 2);
+  /* Overlapping spreads: neither is faster, and equal within the noise: both optimal. A clearly
+   * lower error (beyond the noise) still dominates within overlapping spreads. */
+  const obs_pareto_point ov[] = {
+      {10.0, 0.050, 0, 8.0, 12.0, 0.004},  /* 0: optimal */
+      {11.0, 0.052, 0, 9.0, 13.0, 0.004},  /* 1: slower by median, within spread: optimal */
+      {10.5, 0.090, 0, 9.5, 11.5, 0.004},  /* 2: less accurate beyond the noise: dominated */
+      {30.0, 0.010, 0, 29.0, 31.0, 0.004}, /* 3: slower but more accurate: optimal */
+      {31.0, 0.012, 0, 30.5, 40.0, 0.0},   /* 4: ties 3 on time, within 3's noise: optimal */
+  };
+  unsigned char oo[5];
+  const unsigned char want_ov[] = {1, 1, 0, 1, 1};
+  assert_int_equal(obs_metrics_pareto(ov, 5, oo, NULL), 4);
+  for (size_t i = 0; i < 5; i++) assert_int_equal(oo[i], want_ov[i]);
+  /* At reference accuracy: the faster one wins only beyond the spreads. */
+  const obs_pareto_point ar[] = {{40.0, 0.01, 1, 35.0, 45.0, 0.01}, {42.0, 0.005, 1, 41.0, 43.0, 0.01},
+                                 {60.0, 0.004, 1, 58.0, 62.0, 0.01}};
+  unsigned char oa[3];
+  const unsigned char want_ar[] = {1, 1, 0};
+  assert_int_equal(obs_metrics_pareto(ar, 3, oa, NULL), 2);
+  for (size_t i = 0; i < 3; i++) assert_int_equal(oa[i], want_ar[i]);
   /* Empty input, and bad arguments. */
   assert_int_equal(obs_metrics_pareto(NULL, 0, NULL, NULL), 0);
   obs_err err = OBS_ERR_INIT;

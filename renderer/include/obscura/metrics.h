@@ -136,16 +136,27 @@ int obs_metrics_patch_rmse(const obs_patches *candidate, const obs_patches *refe
 
 /* One candidate of a speed/accuracy comparison for obs_metrics_pareto. */
 typedef struct obs_pareto_point {
-  double time_ms; /* lower is better */
+  double time_ms; /* lower is better (the median of the timed runs) */
   double error;   /* lower is better (RMSE) */
   int at_reference_accuracy; /* error within the reference's noise: see below */
+  /* The run-to-run spread of the time: the fastest and slowest timed run. 0 (or a value on the
+   * wrong side of time_ms) stands for time_ms itself: no measured spread. */
+  double time_min_ms, time_max_ms;
+  /* How far two errors may differ and still count as equal: the reference's noise. 0 or NaN:
+   * errors compare exactly. */
+  double error_tolerance;
 } obs_pareto_point;
 
-/* Marks the Pareto-optimal points: optimal[i] = 1 when no other point is at least as fast and at
- * least as accurate and strictly better in one of the two. Points whose error is within the
- * reference's noise (at_reference_accuracy) count as equally accurate among themselves and more
- * accurate than every other point, so only the fastest of them is optimal. Exact ties (same time,
- * same error) are all optimal. A point with a NaN time or (unless at_reference_accuracy) a NaN
+/* Marks the Pareto-optimal points: optimal[i] = 1 when no other point dominates it. Point j
+ * dominates i when j is no slower and no less accurate than i and better in one of the two, where
+ * "better" needs a margin: j is faster only when its slowest run beats i's fastest one (their
+ * spreads [time_min_ms, time_max_ms] do not overlap), and more accurate only when its error is
+ * lower by more than the larger of the two error_tolerance values; "no slower" and "no less
+ * accurate" are the negations of "slower" and "less accurate" with those margins. Without spreads
+ * and tolerances this is the exact definition: exact ties (same time, same error) are all optimal.
+ * Points whose error is within the reference's noise (at_reference_accuracy) count as equally
+ * accurate among themselves and more accurate than every other point, so only the fastest of them
+ * (beyond the spreads) is optimal. A point with a NaN time or (unless at_reference_accuracy) a NaN
  * error takes no part: it is never optimal and dominates nothing. Returns the number of optimal
  * points, or OBS_EINVAL on NULL arguments with n > 0. */
 int obs_metrics_pareto(const obs_pareto_point *points, size_t n, unsigned char *optimal,
