@@ -29,7 +29,8 @@ static const char *state_of(const json_t *row) {
 
 static const char *const stages[4] = {"build", "render", "post", "total"};
 
-/* {"median": {...} | null, "runs": [...]} from the runs rows of one job. */
+/* {"median": {...} | null, "min": {...} | null, "max": {...} | null, "runs": [...]} from the runs
+ * rows of one job: min and max are the run-to-run spread of each stage. */
 static json_t *timings_of(const json_t *runs, json_int_t job, json_t **machine) {
   json_t *list = json_array();
   double v[4][SRV_MAX_REPEATS];
@@ -53,14 +54,24 @@ static json_t *timings_of(const json_t *runs, json_int_t job, json_t **machine) 
                            "cores", json_object_get(row, "cores"), "vulkan_device",
                            json_object_get(row, "vulkan_device"));
   }
-  json_t *med = json_null();
+  json_t *med = json_null(), *lo = json_null(), *hi = json_null();
   if (n) {
-    json_decref(med);
     med = json_object();
-    for (int k = 0; k < 4; k++) json_object_set_new(med, stages[k], num_or_null(srv_median(v[k], n)));
+    lo = json_object();
+    hi = json_object();
+    for (int k = 0; k < 4; k++) {
+      double mn = v[k][0], mx = v[k][0];
+      for (size_t i = 1; i < n; i++) {
+        mn = fmin(mn, v[k][i]);
+        mx = fmax(mx, v[k][i]);
+      }
+      json_object_set_new(med, stages[k], num_or_null(srv_median(v[k], n)));
+      json_object_set_new(lo, stages[k], num_or_null(mn));
+      json_object_set_new(hi, stages[k], num_or_null(mx));
+    }
   }
   if (machine && !*machine) *machine = json_null();
-  return json_pack("{s:o, s:o}", "median", med, "runs", list);
+  return json_pack("{s:o, s:o, s:o, s:o}", "median", med, "min", lo, "max", hi, "runs", list);
 }
 
 static int has_output(const json_t *outs, json_int_t job, const char *name) {
@@ -85,6 +96,53 @@ static void output_link(json_t *links, const json_t *outs, json_int_t job, const
 static const char *primary_png(const char *technique) {
   const obs_output *o = obs_technique_primary(obs_technique_find(technique));
   return o && o->png ? o->png : "ao.png";
+}
+
+static int cmp_double(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
+/* How far the reference lets the candidates be ranked (docs/comparisons.md, "Ranking"): the
+ * largest reference noise among the candidates with metrics, how many are at reference accuracy,
+ * how many neighbours in RMSE order lie within that noise of each other, and a warning when the
+ * reference is too noisy to rank them: some candidate is at reference accuracy, or the noise is
+ * at least half the spread of the candidates' RMSEs (max - min). */
+static json_t *ranking_of(const json_t *cands) {
+  size_t n = json_array_size(cands), m = 0, at_ref = 0, ties = 0;
+  double noise = NAN, *e = calloc(n + 1, sizeof *e);
+  for (size_t i = 0; i < n; i++) {
+    json_t *mt = json_object_get(json_array_get(cands, i), "metrics");
+    json_t *rm = json_object_get(mt, "rmse"), *rn = json_object_get(mt, "ref_noise");
+    if (!json_is_number(rm)) continue;
+    if (json_is_number(rn) && !(json_number_value(rn) <= noise)) noise = json_number_value(rn);
+    if (json_is_true(json_object_get(mt, "at_reference_accuracy"))) at_ref++;
+    if (e) e[m++] = json_number_value(rm);
+  }
+  const char *why = NULL;
+  char msg[400];
+  if (e && m) qsort(e, m, sizeof *e, cmp_double);
+  if (e && m > 1 && noise > 0)
+    for (size_t i = 1; i < m; i++) ties += e[i] - e[i - 1] <= noise;
+  if (at_ref) why = "at reference accuracy";
+  else if (e && m > 1 && noise > 0 && noise >= 0.5 * (e[m - 1] - e[0])) why = "noise";
+  if (why && at_ref)
+    snprintf(msg, sizeof msg,
+             "the reference is too noisy to rank the candidates: %zu of %zu are at reference "
+             "accuracy (RMSE below twice its noise %.3g), so their RMSEs measure the reference's "
+             "noise, not their error; render the reference with more samples",
+             at_ref, m, noise);
+  else if (why)
+    snprintf(msg, sizeof msg,
+             "the reference is too noisy to rank the candidates: its noise %.3g is at least half "
+             "the spread of their RMSEs (%.3g to %.3g); render the reference with more samples",
+             noise, e[0], e[m - 1]);
+  json_t *r = json_pack("{s:o, s:I, s:I, s:b, s:o}", "ref_noise", num_or_null(noise),
+                        "at_reference_accuracy", (json_int_t)at_ref, "ties_within_noise",
+                        (json_int_t)ties, "noisy_reference", why != NULL, "warning",
+                        why ? json_string(msg) : json_null());
+  free(e);
+  return r;
 }
 
 /* The comparison document of docs/comparisons.md. 0, OBS_ENOTFOUND, or a database error. */
@@ -193,13 +251,18 @@ static int comparison_json(srv_app *app, int64_t id, json_t **out, obs_err *err)
     output_link(links, outs, rjob,
                 primary_png(json_string_value(json_object_get(row, "ref_technique"))),
                 "reference.png");
+    output_link(links, outs, job, SRV_MAPPED_REFERENCE_PNG, SRV_MAPPED_REFERENCE_PNG);
     json_object_set_new(co, "links", links);
     /* Ranking: median total time against RMSE; anything missing takes no part (NaN). */
     json_t *med = json_object_get(tm, "median");
     json_t *total = json_object_get(med, "total"), *rmse = json_object_get(metrics, "rmse");
+    json_t *noise = json_object_get(metrics, "ref_noise");
     if (pts) {
       pts[i].time_ms = metrics && json_is_number(total) ? json_number_value(total) : NAN;
+      pts[i].time_min_ms = json_number_value(json_object_get(json_object_get(tm, "min"), "total"));
+      pts[i].time_max_ms = json_number_value(json_object_get(json_object_get(tm, "max"), "total"));
       pts[i].error = json_is_number(rmse) ? json_number_value(rmse) : NAN;
+      pts[i].error_tolerance = json_is_number(noise) ? json_number_value(noise) : 0;
       pts[i].at_reference_accuracy =
           json_is_true(json_object_get(metrics, "at_reference_accuracy"));
     }
@@ -225,6 +288,7 @@ static int comparison_json(srv_app *app, int64_t id, json_t **out, obs_err *err)
   json_object_set_new(o, "references", refs);
   json_object_set_new(o, "candidates", list);
   json_object_set_new(o, "pareto", pareto);
+  json_object_set_new(o, "ranking", ranking_of(list));
   char self[64], csv[72];
   snprintf(self, sizeof self, API "/comparisons/%lld", (long long)id);
   snprintf(csv, sizeof csv, "%s.csv", self);

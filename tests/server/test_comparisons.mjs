@@ -61,14 +61,25 @@ async function waitComparison(d, id, timeoutMs = 120000 * SLOW) {
   }
 }
 
-/** The Pareto set by its definition, from the returned table (docs/comparisons.md). */
+/**
+ * The Pareto set by its definition, from the returned table (docs/comparisons.md, "Ranking"):
+ * faster only beyond both timing spreads, more accurate only beyond the larger reference noise.
+ */
 function paretoOf(cands) {
   const pts = cands.map((c) => ({
     i: c.index,
     t: c.metrics && c.timings_ms.median ? c.timings_ms.median.total : null,
+    lo: c.timings_ms.min ? c.timings_ms.min.total : null,
+    hi: c.timings_ms.max ? c.timings_ms.max.total : null,
+    tol: c.metrics && c.metrics.ref_noise > 0 ? c.metrics.ref_noise : 0,
     e: c.metrics ? (c.metrics.at_reference_accuracy ? -Infinity : c.metrics.rmse) : null,
   })).filter((p) => typeof p.t === 'number' && (p.e === -Infinity || typeof p.e === 'number'));
-  const opt = pts.filter((p) => !pts.some((q) => q !== p && q.t <= p.t && q.e <= p.e && (q.t < p.t || q.e < p.e)));
+  const dominates = (q, p) => {
+    const tol = Math.max(p.tol, q.tol);
+    const faster = q.hi < p.lo, slower = q.lo > p.hi;
+    return !slower && !(q.e > p.e + tol) && (faster || q.e < p.e - tol);
+  };
+  const opt = pts.filter((p) => !pts.some((q) => q !== p && dominates(q, p)));
   return opt.sort((a, b) => a.t - b.t || a.i - b.i).map((p) => p.i);
 }
 
