@@ -55,7 +55,9 @@ export function el(tag, props = {}, ...children) {
   const e = document.createElement(tag);
   for (const [k, v] of Object.entries(props || {})) {
     if (v === undefined || v === null || v === false) continue;
-    if (k.includes('-') || k === 'for' || k === 'role') e.setAttribute(k, v === true ? '' : v);
+    // Attributes whose DOM property is spelled otherwise ("tabindex" is tabIndex) are set as
+    // attributes: assigned as properties they would be silently ignored.
+    if (k.includes('-') || k === 'for' || k === 'role' || k === 'tabindex') e.setAttribute(k, v === true ? '' : v);
     else e[k] = v;
   }
   for (const c of children.flat()) if (c !== null && c !== undefined && c !== false) e.append(c);

@@ -1,8 +1,12 @@
 // The comparison's Pareto chart on uPlot (npm `uplot`, served at /vendor/uplot/): median time
-// against RMSE (of AO, or of an RGB output's luminance), both log scales, one series per technique (colour), the backend as the point's
-// shape, the Pareto front as a step line and the selected candidate as a ring. uPlot draws axes,
-// grid, legend and cursor; the only drawing here is each point's marker path, which uPlot fills and
-// strokes with the series' colours (its `paths` hook).
+// against RMSE (of AO, or of an RGB output's luminance), both log scales, one series per technique
+// (colour), the backend as the point's shape, the Pareto front as a step line and the selected
+// candidate as a ring. uPlot draws axes, grid, legend and cursor; drawn here: each point's marker
+// path (uPlot fills and strokes it with the series' colours, its `paths` hook), and in its `draw`
+// hook the run-to-run spread of each point's time (a horizontal bar from the fastest to the
+// slowest timed run) and the reference's noise floor. Each point also gets a button over the
+// plot, so the keyboard reaches the points and a screen reader hears which candidate it is; the
+// pointer gets the candidate's name in a tooltip.
 
 // Okabe-Ito: distinguishable with the common colour-vision deficiencies.
 export const PALETTE = ['#0072B2', '#D55E00', '#009E73', '#CC79A7', '#E69F00', '#56B4E9', '#000000', '#F0E442'];
@@ -47,12 +51,25 @@ export function errorName(cands) {
 export const plottable = (c) => Boolean(c.metrics && Number.isFinite(c.metrics.rmse) && c.timings_ms &&
   c.timings_ms.median && Number.isFinite(c.timings_ms.median.total));
 
+/** The run-to-run spread of a candidate's total time: [fastest, slowest] run, or null. */
+export function spreadOf(c) {
+  const t = c.timings_ms || {};
+  const lo = t.min && t.min.total, hi = t.max && t.max.total;
+  return Number.isFinite(lo) && Number.isFinite(hi) ? [lo, hi] : null;
+}
+
+// The default name of a candidate (the page passes one with its varying parameters).
+const defaultName = (c) => `Candidate ${c.index}: ${c.technique} on ${c.backend}`;
+
 /**
  * Draws the chart into `box`. cands: candidates of the comparison JSON; colourOf(technique);
- * onSelect(candidateIndex). Returns {select(index), destroy(), info} or null when there is nothing
- * to plot. info: {points, series: [{label, points}], pareto} (also what the tests read).
+ * onSelect(candidateIndex); nameOf(candidate): how the tooltip and the point's button name it;
+ * noise: the reference's noise (RMSE units) drawn as the noise floor, or null. Returns
+ * {select(index), focus(index), destroy(), info} or null when there is nothing to plot. info:
+ * {points, series: [{label, points}], pareto, order, noiseFloor, spreads} (also what the tests
+ * read).
  */
-export function paretoChart(box, cands, {colourOf, onSelect, selected = null}) {
+export function paretoChart(box, cands, {colourOf, onSelect, selected = null, nameOf = defaultName, noise = null}) {
   const uPlot = window.uPlot;
   if (!uPlot) {
     box.append('The chart library is missing (run npm ci; the daemon serves it from --vendor-dir).');
@@ -61,9 +78,15 @@ export function paretoChart(box, cands, {colourOf, onSelect, selected = null}) {
   // Log axes: a zero time or RMSE (a candidate identical to its reference) is drawn at a floor;
   // a missing (null: not finite) one is not drawn at all, never at the floor.
   const pts = cands.filter(plottable)
-    .map((c) => ({c, x: Math.max(c.timings_ms.median.total, 1e-3), y: Math.max(c.metrics.rmse, 1e-6)}))
+    .map((c) => ({c, x: Math.max(c.timings_ms.median.total, 1e-3), y: Math.max(c.metrics.rmse, 1e-6),
+                  spread: spreadOf(c) && spreadOf(c).map((v) => Math.max(v, 1e-3))}))
     .sort((a, b) => a.x - b.x || a.c.index - b.c.index);
   if (!pts.length) return null;
+  const floor = Number.isFinite(noise) && noise > 0 ? noise : null;
+  // The scales take in the spreads' ends and the noise floor, so neither is cut off.
+  const xExt = pts.flatMap((p) => (p.spread ? p.spread : [p.x]));
+  const xRange = (u, min, max) => logPad(u, Math.min(min, ...xExt), Math.max(max, ...xExt));
+  const yRange = (u, min, max) => (floor ? logPad(u, Math.min(min, floor), Math.max(max, floor)) : logPad(u, min, max));
   const xs = pts.map((p) => p.x);
   const techs = [...new Set(pts.map((p) => p.c.technique))];
   const ratio = window.devicePixelRatio || 1;
@@ -97,9 +120,115 @@ export function paretoChart(box, cands, {colourOf, onSelect, selected = null}) {
                paths: uPlot.paths.stepped({align: 1}), points: {show: false}, value: (u, v) => (v === null ? '–' : v.toPrecision(3))});
   data.push(pts.map((p) => (p.c.pareto ? p.y : null)));
   const selData = () => pts.map((p) => (p.c.index === sel ? p.y : null));
+  // The ring takes no legend row: it is no data series of its own (the page's list explains it).
   series.push({label: 'selected', stroke: '#000', width: 2.5, paths: ring, points: {show: false},
                value: (u, v) => (v === null ? '–' : v.toPrecision(3))});
   data.push(selData());
+
+  const drawn = {spreads: 0, noiseY: null};
+  // Spreads and the noise floor, on the canvas under uPlot's series (its `drawClear` hook runs
+  // before the series are drawn, after the axes and grid).
+  const decorate = (u) => {
+    const ctx = u.ctx, {left, top, width: w, height: h} = u.bbox;
+    ctx.save();
+    ctx.beginPath();
+    ctx.rect(left, top, w, h);
+    ctx.clip();
+    drawn.noiseY = null;
+    if (floor) {
+      const y = u.valToPos(floor, 'y', true), y2 = u.valToPos(2 * floor, 'y', true);
+      // Below twice the noise a candidate is "at reference accuracy": shaded.
+      ctx.fillStyle = 'rgba(120, 120, 120, 0.12)';
+      ctx.fillRect(left, Math.max(top, y2), w, top + h - Math.max(top, y2));
+      ctx.strokeStyle = '#777';
+      ctx.lineWidth = 1.5 * ratio;
+      ctx.setLineDash([2 * ratio, 3 * ratio]);
+      ctx.beginPath();
+      ctx.moveTo(left, y);
+      ctx.lineTo(left + w, y);
+      ctx.stroke();
+      ctx.setLineDash([]);
+      ctx.fillStyle = '#555';
+      ctx.font = `${11 * ratio}px sans-serif`;
+      ctx.fillText('reference noise', left + 4 * ratio, y - 4 * ratio);
+      drawn.noiseY = y / ratio;
+    }
+    drawn.spreads = 0;
+    ctx.lineWidth = 1.5 * ratio;
+    for (const p of pts) {
+      if (!p.spread) continue;
+      const y = u.valToPos(p.y, 'y', true), x0 = u.valToPos(p.spread[0], 'x', true), x1 = u.valToPos(p.spread[1], 'x', true);
+      const cap = 4 * ratio;
+      ctx.strokeStyle = colourOf(p.c.technique);
+      ctx.beginPath();
+      ctx.moveTo(x0, y);
+      ctx.lineTo(x1, y);
+      ctx.moveTo(x0, y - cap);
+      ctx.lineTo(x0, y + cap);
+      ctx.moveTo(x1, y - cap);
+      ctx.lineTo(x1, y + cap);
+      ctx.stroke();
+      drawn.spreads++;
+    }
+    ctx.restore();
+  };
+
+  // One button per point over the plot: a roving tab stop (the selected point, else the
+  // fastest), arrow keys move between points in time order, Enter or a click selects.
+  const buttons = pts.map((p) => {
+    const b = document.createElement('button');
+    b.type = 'button';
+    b.className = 'pt';
+    b.tabIndex = -1;
+    b.dataset.index = String(p.c.index);
+    const sp = p.spread ? `, runs ${p.spread[0].toPrecision(3)} to ${p.spread[1].toPrecision(3)} ms` : '';
+    b.setAttribute('aria-label', `${nameOf(p.c)}: median ${p.c.timings_ms.median.total.toPrecision(3)} ms${sp}, ` +
+      `RMSE ${p.c.metrics.rmse.toPrecision(3)}${p.c.pareto ? ', Pareto-optimal' : ''}`);
+    b.addEventListener('click', (ev) => {
+      ev.stopPropagation();
+      onSelect(p.c.index);
+    });
+    b.addEventListener('focus', () => showTip(p));
+    b.addEventListener('mouseenter', () => showTip(p));
+    b.addEventListener('blur', () => showTip(null));
+    return b;
+  });
+  const tip = document.createElement('div');
+  tip.className = 'chart-tip';
+  tip.setAttribute('aria-hidden', 'true'); // the buttons' names say the same to a screen reader
+  tip.hidden = true;
+  let tipOf = null;
+  function showTip(p) {
+    tipOf = p;
+    tip.hidden = !p;
+    if (!p) return;
+    tip.textContent = nameOf(p.c);
+    const x = u.valToPos(p.x, 'x'), y = u.valToPos(p.y, 'y');
+    tip.style.left = `${x}px`;
+    tip.style.top = `${y}px`;
+    // Near the right edge the tooltip opens to the left of the point.
+    tip.classList.toggle('left', x > u.over.clientWidth / 2);
+  }
+  const placeButtons = (u) => {
+    pts.forEach((p, i) => {
+      buttons[i].style.left = `${u.valToPos(p.x, 'x')}px`;
+      buttons[i].style.top = `${u.valToPos(p.y, 'y')}px`;
+    });
+    if (tipOf) showTip(tipOf);
+  };
+  const roving = () => {
+    const k = Math.max(0, pts.findIndex((p) => p.c.index === sel));
+    buttons.forEach((b, i) => { b.tabIndex = i === k ? 0 : -1; });
+  };
+  // The nearest point to the cursor within 20 px names itself in the tooltip.
+  const nearest = (u, left, top) => {
+    let best = null, bestD = 20 * 20;
+    for (const p of pts) {
+      const dx = u.valToPos(p.x, 'x') - left, dy = u.valToPos(p.y, 'y') - top;
+      if (dx * dx + dy * dy < bestD) { bestD = dx * dx + dy * dy; best = p; }
+    }
+    return best;
+  };
 
   // Short enough for the axis' height: "RMSE of radiance luminance (log scale)".
   const yLabel = `${errorName(pts.map((p) => p.c))} (log scale)`;
@@ -107,33 +236,51 @@ export function paretoChart(box, cands, {colourOf, onSelect, selected = null}) {
   const u = new uPlot({
     width, height: 340,
     // Padded by a factor on both sides so no marker sits on (and is clipped by) the plot's edge.
-    scales: {x: {time: false, distr: 3, log: 10, range: logPad}, y: {distr: 3, log: 10, range: logPad}},
-    axes: [{label: 'median total time per run (ms, log scale)'}, {label: yLabel, size: 70}],
+    scales: {x: {time: false, distr: 3, log: 10, range: xRange}, y: {distr: 3, log: 10, range: yRange}},
+    axes: [{label: 'median total time per run (ms, log scale; bars: fastest to slowest run)'}, {label: yLabel, size: 70}],
     series,
     cursor: {drag: {x: false, y: false}},
-    legend: {live: true},
+    // Not live: a live legend is a row of "–" values until the cursor sits exactly on a point's
+    // time (one series at a time has a value there); the tooltip names the point instead.
+    legend: {live: false},
+    hooks: {
+      drawClear: [decorate],
+      draw: [placeButtons],
+      setCursor: [(uu) => {
+        const {left, top} = uu.cursor;
+        if (document.activeElement && buttons.includes(document.activeElement)) return;
+        showTip(left === undefined || left < 0 ? null : nearest(uu, left, top));
+      }],
+    },
   }, data, box);
+  // The ring series gets no legend entry (uPlot has no per-series switch; its CSS would override
+  // a `hidden` attribute, so the style hides it). The page's list explains the ring.
+  for (const row of u.root.querySelectorAll('.u-legend .u-series')) {
+    if (row.querySelector('.u-label') && row.querySelector('.u-label').textContent === 'selected') row.style.display = 'none';
+  }
+  u.over.append(...buttons, tip);
+  roving();
+  placeButtons(u);
 
   // A click picks the nearest point on screen (both axes), not just the nearest time.
   u.over.addEventListener('click', () => {
     const {left, top} = u.cursor;
     if (left === undefined || left < 0) return;
-    let best = -1, bestD = 20 * 20;
-    pts.forEach((p, i) => {
-      const dx = u.valToPos(p.x, 'x') - left, dy = u.valToPos(p.y, 'y') - top;
-      if (dx * dx + dy * dy < bestD) { bestD = dx * dx + dy * dy; best = i; }
-    });
-    if (best >= 0) onSelect(pts[best].c.index);
+    const p = nearest(u, left, top);
+    if (p) onSelect(p.c.index);
   });
+  u.over.addEventListener('mouseleave', () => showTip(null));
 
   const info = {points: pts.length, series: techs.map((t, k) => ({label: t, points: data[k + 1].filter((v) => v !== null).length})),
-                pareto: data[techs.length + 1].filter((v) => v !== null).length, order: pts.map((p) => p.c.index), yLabel};
+                pareto: data[techs.length + 1].filter((v) => v !== null).length, order: pts.map((p) => p.c.index), yLabel,
+                noiseFloor: floor, drawn, spreads: pts.filter((p) => p.spread).map((p) => ({index: p.c.index, min: p.spread[0], max: p.spread[1]}))};
   return {
     info,
     uplot: u,
     /** Marks candidate `index` (or none) with the ring. */
     select(index) {
       sel = index;
+      roving();
       data[data.length - 1] = selData();
       // Same scales (the ring adds no new extent): keep them, and repaint.
       u.setData(data, false);
@@ -145,6 +292,13 @@ export function paretoChart(box, cands, {colourOf, onSelect, selected = null}) {
       const j = i < 0 ? 0 : Math.max(0, Math.min(info.order.length - 1, i + dir));
       return info.order[j];
     },
+    /** Moves the keyboard to candidate `index`'s point. */
+    focus(index) {
+      const b = buttons.find((x) => Number(x.dataset.index) === index);
+      if (b) b.focus();
+    },
+    /** Whether the keyboard is on one of the points. */
+    hasFocus: () => buttons.includes(document.activeElement),
     resize(w) {
       const width = Math.max(320, Math.min(w, 960));
       if (width !== u.width) u.setSize({width, height: 340});

@@ -2,7 +2,7 @@
 // column, the Pareto chart (chart.js), the selected candidate against its reference (a slider
 // over two stacked images) with its error heatmap, an image grid of every candidate, and the CSV.
 import {ACTIVE, ApiError, api, debug, el, fmtMs, fmtNum, fmtTime, paramText, poll, stateBadge, techniques, token} from './api.js';
-import {PALETTE, SHAPE_GLYPH, SHAPES, errorName, paretoChart, plottable, shapeOf} from './chart.js';
+import {PALETTE, SHAPE_GLYPH, SHAPES, errorName, paretoChart, plottable, shapeOf, spreadOf} from './chart.js';
 
 // The image of a candidate's or reference's primary output ("image"), or "ao.png" from a daemon
 // that predates typed outputs.
@@ -58,20 +58,26 @@ export function metricsTable(c) {
     ['PSNR (dB)', fmtNum(m.psnr)], ['SSIM', fmtNum(m.ssim)], ['reference noise (mean standard error)', fmtNum(m.ref_noise)],
     ['at reference accuracy', m.at_reference_accuracy ? 'yes (RMSE below 2 × reference noise)' : 'no'],
     ['Pareto-optimal', c.pareto ? 'yes' : 'no'],
-    ['median total ms', fmtMs(med.total)], ['median build ms', fmtMs(med.build)], ['median render ms', fmtMs(med.render)],
+    ['median total ms', fmtMs(med.total)], ['total ms, fastest to slowest run', spreadText(c)], ['median build ms', fmtMs(med.build)], ['median render ms', fmtMs(med.render)],
     ['median post ms', fmtMs(med.post)], ['timed runs', String(runs.length)],
   ];
   // Metrics of a primary output that is not AO: which one, and the RGB or per-patch figures.
   if (m.output) rows.unshift(['output compared', m.output + (m.rgb ? ' (luminance)' : '')]);
   if (m.rgb) {
-    rows.splice(rows.length - 6, 0, ['RMSE R, G, B', m.rgb.rmse.map((v) => fmtNum(v)).join(', ')],
+    rows.splice(rows.length - 7, 0, ['RMSE R, G, B', m.rgb.rmse.map((v) => fmtNum(v)).join(', ')],
                 ['RMSE of luminance', fmtNum(m.rgb.rmse_luminance)], ['SSIM of luminance', fmtNum(m.rgb.ssim_luminance)],
                 ['relative MSE', fmtNum(m.rgb.rel_mse)]);
   }
-  if (m.patch_rmse !== undefined) rows.splice(rows.length - 6, 0, ['RMSE over patches (area-weighted)', fmtNum(m.patch_rmse)]);
+  if (m.patch_rmse !== undefined) rows.splice(rows.length - 7, 0, ['RMSE over patches (area-weighted)', fmtNum(m.patch_rmse)]);
   if (c.machine) rows.push(['machine', [c.machine.cpu_model, c.machine.cores && `${c.machine.cores} cores`, c.machine.vulkan_device].filter(Boolean).join(', ')]);
   return el('table', {className: 'kv metrics'}, el('tbody', {}, ...rows.map(([k, v]) => el('tr', {},
     el('th', {scope: 'row'}, k), el('td', {className: 'num'}, v)))));
+}
+
+/** "min–max" of a candidate's total time over its timed runs (the run-to-run spread). */
+export function spreadText(c) {
+  const sp = spreadOf(c);
+  return sp ? `${fmtMs(sp[0])}–${fmtMs(sp[1])}` : '–';
 }
 
 /** Parameters that differ between candidates of the same technique (the rest is noise here). */
@@ -100,6 +106,8 @@ const COLUMNS = [
   {key: 'params', label: 'Parameters', get: (c, ctx) => ctx.params(c)},
   {key: 'state', label: 'State', get: (c) => c.state},
   {key: 'total', label: 'Median ms', get: (c) => c.timings_ms && c.timings_ms.median ? c.timings_ms.median.total : null, num: true, fmt: fmtMs},
+  {key: 'spread', label: 'Spread ms (min–max)', get: (c) => spreadOf(c), num: true, nowrap: true,
+   sortValue: (v) => v[1] - v[0], fmt: (v) => (v ? `${fmtMs(v[0])}–${fmtMs(v[1])}` : '–')},
   {key: 'render', label: 'Render ms', get: (c) => c.timings_ms && c.timings_ms.median ? c.timings_ms.median.render : null, num: true, fmt: fmtMs},
   {key: 'rmse', label: 'RMSE', get: (c) => c.metrics && c.metrics.rmse, num: true, fmt: fmtNum},
   {key: 'bias', label: 'Bias', get: (c) => c.metrics && c.metrics.bias, num: true, fmt: fmtNum},
@@ -147,7 +155,9 @@ export function mountComparison(view, [id], query) {
     selected: query.has('candidate') ? Number(query.get('candidate')) : null, chart: null, colours: new Map(),
   };
   const facts = el('div');
-  const chartBox = el('div', {className: 'chart', role: 'img', tabindex: '0'});
+  // A group of focusable points (chart.js), named by its text summary.
+  const chartBox = el('div', {className: 'chart', role: 'group'});
+  const rankNote = el('div', {className: 'rank-note'});
   const chartNote = el('p', {className: 'muted'});
   const thead = el('thead');
   const tbody = el('tbody');
@@ -159,12 +169,17 @@ export function mountComparison(view, [id], query) {
     el('section', {'aria-labelledby': 'h-chart'},
       el('h2', {id: 'h-chart'}, 'Time against error'),
       el('p', {className: 'hint'}, 'Each point is a candidate: colour and legend name the technique, the shape the backend. ' +
-        'Click a point (or focus the chart and use ← →) to show that candidate below. The table holds the same data.'),
-      chartBox, el('ul', {className: 'shape-legend', 'aria-label': 'Marker shapes'},
+        'Hover a point for its name; click it (or Tab to the chart\'s points, move with ← → and press Enter) to show that ' +
+        'candidate below. A bar through a point spans its fastest to slowest timed run; the dotted line is the reference\'s noise. ' +
+        'The table holds the same data.'),
+      rankNote, chartBox, el('ul', {className: 'shape-legend', 'aria-label': 'Marker shapes'},
         ...Object.entries(SHAPES).map(([b, sh]) => el('li', {}, el('span', {'aria-hidden': 'true'}, SHAPE_GLYPH[sh]), ` ${sh}: ${b}`)),
         el('li', {}, el('span', {'aria-hidden': 'true'}, SHAPE_GLYPH.triangle), ' triangle: any other backend'),
         el('li', {}, el('span', {'aria-hidden': 'true'}, '╌'), ' dashed step line: the Pareto front (nothing is both faster and more accurate)'),
-        el('li', {}, el('span', {'aria-hidden': 'true'}, '◯'), ' ring: the selected candidate; larger markers: Pareto-optimal')),
+        el('li', {}, el('span', {'aria-hidden': 'true'}, '◯'), ' ring: the selected candidate; larger markers: Pareto-optimal'),
+        el('li', {}, el('span', {'aria-hidden': 'true'}, '├─┤'), ' bar: fastest to slowest timed run'),
+        el('li', {className: 'noise-key'}, el('span', {'aria-hidden': 'true'}, '┈'),
+          ' dotted line: the reference\'s noise (shaded below twice it: at reference accuracy)')),
       chartNote),
     el('section', {'aria-labelledby': 'h-table'},
       el('h2', {id: 'h-table'}, 'Candidates'),
@@ -173,10 +188,13 @@ export function mountComparison(view, [id], query) {
     detail,
     el('section', {'aria-labelledby': 'h-grid'}, el('h2', {id: 'h-grid'}, 'All images'), grid));
 
+  // Arrow keys on a point select the next or previous one in time order and move the focus there.
   chartBox.addEventListener('keydown', (ev) => {
     if (!s.chart || !['ArrowLeft', 'ArrowRight'].includes(ev.key)) return;
     ev.preventDefault();
-    select(s.chart.step(ev.key === 'ArrowRight' ? 1 : -1), false);
+    const next = s.chart.step(ev.key === 'ArrowRight' ? 1 : -1);
+    select(next, false);
+    s.chart.focus(next);
   });
 
   const colourOf = (t) => {
@@ -257,10 +275,27 @@ export function mountComparison(view, [id], query) {
     }
   }
 
+  function renderRanking() {
+    const r = s.c.ranking;
+    rankNote.replaceChildren(...(r && r.warning
+      ? [el('p', {className: 'warnings noisy-reference', role: 'note'}, el('strong', {}, 'Reference too noisy to rank: '),
+        r.warning.replace(/^the reference is too noisy to rank the candidates: /, ''), '.')]
+      : []));
+  }
+
   function renderChart() {
+    // A live update redraws the chart: keep the keyboard on the point it was on.
+    const focused = s.chart && s.chart.hasFocus() ? Number(document.activeElement.dataset.index) : null;
     if (s.chart) s.chart.destroy();
     chartBox.replaceChildren();
-    s.chart = paretoChart(chartBox, s.c.candidates, {colourOf, onSelect: (i) => select(i), selected: s.selected});
+    const ctx = {params: varyingParams(s.c.candidates)};
+    const noise = s.c.ranking ? s.c.ranking.ref_noise : null;
+    s.chart = paretoChart(chartBox, s.c.candidates, {colourOf, onSelect: (i) => select(i), selected: s.selected, noise,
+      nameOf: (c) => {
+        const varying = ctx.params(c);
+        return `Candidate ${c.index}: ${c.technique} on ${c.backend}${varying === '(defaults)' ? '' : `, ${varying}`}`;
+      }});
+    if (s.chart && focused !== null) s.chart.focus(focused);
     const info = s.chart ? s.chart.info : {points: 0, series: [], pareto: 0};
     debug.comparison.chart = info;
     debug.comparison.uplot = s.chart ? s.chart.uplot : null;
@@ -302,7 +337,13 @@ export function mountComparison(view, [id], query) {
         el('a', {href: `#/jobs/${c.job_id}?comparison=${id}`, className: 'open-job'}, `Open job ${c.job_id}`))];
     const media = el('div', {className: 'media'});
     if (primaryImage(links) && links['reference.png']) {
-      const ref = el('img', {className: 'ref', src: links['reference.png'], alt: `Reference job ${c.reference_job_id}`});
+      // The reference as the metrics saw it: mapped through the candidate's response when that
+      // changes it (the server writes that image), else as rendered.
+      const mapped = links['reference_mapped.png'];
+      const refWhat = mapped ? `the reference mapped through the ${c.response} response, as the metrics compared it`
+        : 'the reference as rendered';
+      const ref = el('img', {className: 'ref', src: mapped || links['reference.png'],
+                             alt: `Reference job ${c.reference_job_id}${mapped ? ` mapped through ${c.response}` : ''}`});
       const cand = el('img', {className: 'cand', src: primaryImage(links), alt: `Candidate ${c.index}`});
       const line = el('div', {className: 'divider', 'aria-hidden': 'true'});
       const range = el('input', {type: 'range', id: 'split', min: '0', max: '100', step: '1', value: String(s.split)});
@@ -319,7 +360,7 @@ export function mountComparison(view, [id], query) {
       media.append(el('figure', {className: 'compare'},
         el('div', {className: 'stack'}, ref, cand, line),
         el('label', {for: 'split'}, 'Split between candidate (left) and reference (right)'), range,
-        el('figcaption', {}, 'Left of the line: the candidate; right: the reference. Arrow keys move the split.')));
+        el('figcaption', {className: 'compared'}, `Left of the line: the candidate; right: ${refWhat}. Arrow keys move the split.`)));
     }
     if (links['error.png']) {
       media.append(el('figure', {className: 'heatmap'},
@@ -354,10 +395,11 @@ export function mountComparison(view, [id], query) {
     if (dead) return false;
     s.c = c;
     debug.comparison.state = c.state;
-    const fp = JSON.stringify([c.state, c.candidates.map((x) => [x.state, x.metrics, x.pareto, x.timings_ms && x.timings_ms.median, x.links]),
+    const fp = JSON.stringify([c.state, c.ranking, c.candidates.map((x) => [x.state, x.metrics, x.pareto, x.timings_ms, x.links]),
                                c.references.map((r) => [r.state, r.links])]);
     if (fp !== s.fingerprint) {
       renderFacts();
+      renderRanking();
       renderTable();
       renderChart();
       renderGrid();
