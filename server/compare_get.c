@@ -369,7 +369,8 @@ static char *comparison_csv(const json_t *o, size_t *len) {
   static const char header[] =
       "index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs,rmse,"
       "bias,max_abs,psnr,ssim,ref_noise,at_reference_accuracy,pareto,cpu_model,cores,"
-      "vulkan_device,output,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse\r\n";
+      "vulkan_device,output,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse,"
+      "total_ms_min,total_ms_max\r\n";
   sb_put(&b, header, sizeof header - 1);
   json_t *cands = json_object_get(o, "candidates");
   for (size_t i = 0; i < json_array_size(cands); i++) {
@@ -419,6 +420,9 @@ static char *comparison_csv(const json_t *o, size_t *len) {
     for (size_t k = 0; k < 3; k++) csv_value(&b, json_array_get(json_object_get(rgb, "rmse"), k));
     static const char *const rk[3] = {"rmse_luminance", "ssim_luminance", "rel_mse"};
     for (int k = 0; k < 3; k++) csv_value(&b, json_object_get(rgb, rk[k]));
+    /* The run-to-run spread of the total time, last so older readers' columns stay put. */
+    csv_value(&b, json_object_get(json_object_get(tm, "min"), "total"));
+    csv_value(&b, json_object_get(json_object_get(tm, "max"), "total"));
     sb_put(&b, "\r\n", 2);
   }
   if (b.oom) {

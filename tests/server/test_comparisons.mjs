@@ -198,12 +198,13 @@ test('a sweep expands to the product of its lists, runs to completion with metri
     assert.equal(r.status, 200);
     assert.match(r.headers['content-type'], /^text\/csv/);
     const rows = parseCsv(r.text);
-    assert.equal(rows[0].join(','), 'index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs,rmse,bias,max_abs,psnr,ssim,ref_noise,at_reference_accuracy,pareto,cpu_model,cores,vulkan_device,output,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse');
+    assert.equal(rows[0].join(','), 'index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs,rmse,bias,max_abs,psnr,ssim,ref_noise,at_reference_accuracy,pareto,cpu_model,cores,vulkan_device,output,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse,total_ms_min,total_ms_max');
     assert.equal(rows.length, 1 + c.candidates.length);
     for (const [k, x] of c.candidates.entries()) {
       const f = Object.fromEntries(rows[0].map((h, i) => [h, rows[k + 1][i]]));
       assert.equal(Number(f.index), x.index);
       assert.equal(Number(f.job_id), x.job_id);
+      assert.deepEqual([csvNum(f.total_ms_min), csvNum(f.total_ms_max)], [x.timings_ms.min.total, x.timings_ms.max.total]);
       assert.equal(f.technique, x.technique);
       assert.equal(f.backend, x.backend);
       const params = Object.fromEntries(f.params.split(';').map((kv) => {
