@@ -145,6 +145,40 @@ static json_t *ranking_of(const json_t *cands) {
   return r;
 }
 
+/* A candidate's figures for the Pareto set: median total time and its spread over the timed runs,
+ * RMSE and the reference's noise; anything missing takes no part (NaN). */
+static void pareto_point(const json_t *tm, const json_t *metrics, obs_pareto_point *p) {
+  json_t *total = json_object_get(json_object_get(tm, "median"), "total");
+  json_t *rmse = json_object_get(metrics, "rmse"), *noise = json_object_get(metrics, "ref_noise");
+  p->time_ms = metrics && json_is_number(total) ? json_number_value(total) : NAN;
+  p->time_min_ms = json_number_value(json_object_get(json_object_get(tm, "min"), "total"));
+  p->time_max_ms = json_number_value(json_object_get(json_object_get(tm, "max"), "total"));
+  p->error = json_is_number(rmse) ? json_number_value(rmse) : NAN;
+  p->error_tolerance = json_is_number(noise) ? json_number_value(noise) : 0;
+  p->at_reference_accuracy = json_is_true(json_object_get(metrics, "at_reference_accuracy"));
+}
+
+/* Marks each candidate of `list` "pareto" and returns the Pareto indices by ascending time (then
+ * index): the frontier from fast to accurate. `pts`/`opt` NULL (out of memory): none optimal. */
+static json_t *pareto_set(json_t *list, const obs_pareto_point *pts, unsigned char *opt,
+                          size_t n) {
+  if (pts && opt) obs_metrics_pareto(pts, n, opt, NULL);
+  json_t *pareto = json_array();
+  for (size_t i = 0; i < n; i++) {
+    int on = pts && opt && opt[i];
+    json_object_set_new(json_array_get(list, i), "pareto", json_boolean(on));
+    if (!on) continue;
+    size_t at = json_array_size(pareto);
+    while (at > 0) {
+      size_t prev = (size_t)json_integer_value(json_array_get(pareto, at - 1));
+      if (!(pts[prev].time_ms > pts[i].time_ms)) break;
+      at--;
+    }
+    json_array_insert_new(pareto, at, json_integer((json_int_t)i));
+  }
+  return pareto;
+}
+
 /* The comparison document of docs/comparisons.md. 0, OBS_ENOTFOUND, or a database error. */
 static int comparison_json(srv_app *app, int64_t id, json_t **out, obs_err *err) {
   *out = NULL;
@@ -254,35 +288,10 @@ static int comparison_json(srv_app *app, int64_t id, json_t **out, obs_err *err)
     output_link(links, outs, job, SRV_MAPPED_REFERENCE_PNG, SRV_MAPPED_REFERENCE_PNG);
     json_object_set_new(co, "links", links);
     /* Ranking: median total time against RMSE; anything missing takes no part (NaN). */
-    json_t *med = json_object_get(tm, "median");
-    json_t *total = json_object_get(med, "total"), *rmse = json_object_get(metrics, "rmse");
-    json_t *noise = json_object_get(metrics, "ref_noise");
-    if (pts) {
-      pts[i].time_ms = metrics && json_is_number(total) ? json_number_value(total) : NAN;
-      pts[i].time_min_ms = json_number_value(json_object_get(json_object_get(tm, "min"), "total"));
-      pts[i].time_max_ms = json_number_value(json_object_get(json_object_get(tm, "max"), "total"));
-      pts[i].error = json_is_number(rmse) ? json_number_value(rmse) : NAN;
-      pts[i].error_tolerance = json_is_number(noise) ? json_number_value(noise) : 0;
-      pts[i].at_reference_accuracy =
-          json_is_true(json_object_get(metrics, "at_reference_accuracy"));
-    }
+    if (pts) pareto_point(tm, metrics, &pts[i]);
     json_array_append_new(list, co);
   }
-  if (pts && opt) obs_metrics_pareto(pts, n, opt, NULL);
-  /* The Pareto indices by ascending time (then index): the frontier from fast to accurate. */
-  json_t *pareto = json_array();
-  for (size_t i = 0; i < n; i++) {
-    int on = opt && opt[i];
-    json_object_set_new(json_array_get(list, i), "pareto", json_boolean(on));
-    if (!on) continue;
-    size_t at = json_array_size(pareto);
-    while (at > 0) {
-      size_t prev = (size_t)json_integer_value(json_array_get(pareto, at - 1));
-      if (!(pts[prev].time_ms > pts[i].time_ms)) break;
-      at--;
-    }
-    json_array_insert_new(pareto, at, json_integer((json_int_t)i));
-  }
+  json_t *pareto = pareto_set(list, pts, opt, n);
   free(pts);
   free(opt);
   json_object_set_new(o, "references", refs);
