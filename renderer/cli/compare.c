@@ -174,22 +174,25 @@ static int follow(cli_client *c, long long id, const char *url, json_t **out) {
   }
 }
 
-/* The parameters that differ between candidates, as "name=value ..." (the rest is noise). */
-static void varying_params(json_t *cands, json_t *params, char *out, size_t n) {
+/* The parameters in which `cand` differs from another candidate of its technique, as
+ * "name=value ..." (the defaults they share are noise). */
+static void varying_params(json_t *cands, json_t *cand, char *out, size_t n) {
   out[0] = '\0';
   size_t len = 0;
-  const char *key;
+  const char *key, *tech = json_string_value(json_object_get(cand, "technique"));
   json_t *v;
-  json_object_foreach(params, key, v) {
+  json_object_foreach(json_object_get(cand, "params"), key, v) {
     int varies = 0;
     size_t i;
     json_t *other;
     json_array_foreach(cands, i, other) {
+      const char *ot = json_string_value(json_object_get(other, "technique"));
+      if (!tech || !ot || strcmp(tech, ot)) continue;
       json_t *ov = json_object_get(json_object_get(other, "params"), key);
       if (!ov || !json_equal(ov, v)) varies = 1;
     }
     if (!varies) continue;
-    char *val = json_dumps(v, JSON_ENCODE_ANY | JSON_COMPACT);
+    char *val = json_dumps(v, JSON_ENCODE_ANY | JSON_COMPACT | JSON_REAL_PRECISION(6));
     int k = snprintf(out + len, n - len, "%s%s=%s", len ? " " : "", key, val ? val : "?");
     free(val);
     if (k < 0 || (size_t)k >= n - len) break;
@@ -203,6 +206,34 @@ static void put_number(json_t *v, const char *fmt, int width) {
   printf("%*s", width, s);
 }
 
+/* Why a candidate has no metrics: its error, else its job's or its reference's end. */
+static void print_why(json_t *cmp, json_t *cand) {
+  if (!json_is_null(json_object_get(cand, "metrics"))) return;
+  const char *err = json_string_value(json_object_get(cand, "error"));
+  const char *st = json_string_value(json_object_get(cand, "state"));
+  if (err) {
+    fputs("  error: ", stdout);
+    cli_put_clean(stdout, err);
+    return;
+  }
+  if (st && (!strcmp(st, "failed") || !strcmp(st, "cancelled"))) {
+    printf("  error: job %lld ", (long long)json_integer_value(json_object_get(cand, "job_id")));
+    cli_put_clean(stdout, st);
+    return;
+  }
+  json_int_t ref = json_integer_value(json_object_get(cand, "reference_job_id"));
+  size_t i;
+  json_t *r;
+  json_array_foreach(json_object_get(cmp, "references"), i, r) {
+    const char *rs = json_string_value(json_object_get(r, "state"));
+    if (json_integer_value(json_object_get(r, "job_id")) != ref || !rs) continue;
+    if (!strcmp(rs, "failed") || !strcmp(rs, "cancelled")) {
+      printf("  error: reference job %lld ", (long long)ref);
+      cli_put_clean(stdout, rs);
+    }
+  }
+}
+
 /* The table of candidates, then the Pareto set. */
 static void print_summary(long long id, json_t *cmp) {
   json_t *cands = json_object_get(cmp, "candidates");
@@ -214,25 +245,21 @@ static void print_summary(long long id, json_t *cmp) {
     json_t *m = json_object_get(cand, "metrics");
     json_t *median = json_object_get(json_object_get(cand, "timings_ms"), "median");
     char params[256];
-    varying_params(cands, json_object_get(cand, "params"), params, sizeof params);
+    varying_params(cands, cand, params, sizeof params);
     printf("%3lld%s ", (long long)json_integer_value(json_object_get(cand, "index")),
            json_is_true(json_object_get(cand, "pareto")) ? "*" : " ");
     printf(" %-10s  %-7s  ", json_string_value(json_object_get(cand, "technique")),
            json_string_value(json_object_get(cand, "backend")));
-    put_number(json_object_get(median, "total"), "%.1f", 10);
+    put_number(json_object_get(median, "total"), "%.2f", 10);
     fputs("  ", stdout);
     put_number(json_object_get(m, "rmse"), "%.3g", 10);
     fputs("  ", stdout);
     put_number(json_object_get(m, "psnr"), "%.1f", 8);
     fputs("  ", stdout);
     put_number(json_object_get(m, "ssim"), "%.4f", 7);
-    fputs("  ", stdout);
+    if (params[0]) fputs("  ", stdout);
     cli_put_clean(stdout, params);
-    const char *err = json_string_value(json_object_get(cand, "error"));
-    if (err) {
-      fputs(params[0] ? "  error: " : "error: ", stdout);
-      cli_put_clean(stdout, err);
-    }
+    print_why(cmp, cand);
     putchar('\n');
   }
   printf("pareto (* above, fastest first):");
@@ -267,7 +294,8 @@ int cli_compare(int argc, char **argv) {
     rc = EXIT_FAILURE;
     goto done;
   }
-  printf("comparison %lld queued: %s\n", id, page);
+  /* With --json, stdout carries the document alone. */
+  fprintf(o.json ? stderr : stdout, "comparison %lld queued: %s\n", id, page);
   fflush(stdout);
   if (o.no_wait) goto done;
   rc = follow(&c, id, self, &cmp);
