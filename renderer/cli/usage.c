@@ -14,10 +14,12 @@ static const usage usages[] = {
     {"render",
      "  obscura render SCENE.json [-o DIR] [--technique NAME] [--backend cpu|vulkan|auto]\n"
      "                 [--set /json/pointer=VALUE]... [--threads N] [--quiet]\n",
-     "Renders the scene here and writes its outputs, summary.json and PNGs into DIR (default out).\n"
+     "Renders the scene here and writes its outputs, summary.json and PNGs into DIR (default "
+     "out).\n"
      "--technique replaces the document's technique; its params are dropped unless --set\n"
      "gives them.\n"},
-    {"validate", "  obscura validate SCENE.json [--technique NAME] [--set /json/pointer=VALUE]...\n",
+    {"validate",
+     "  obscura validate SCENE.json [--technique NAME] [--set /json/pointer=VALUE]...\n",
      "Checks the scene as render would, without rendering.\n"},
     {"techniques", "  obscura techniques [--markdown | --schema | --openapi | --docs NAME]\n",
      "The registry as JSON, or texts generated from it: the guaranteed-range table, the technique\n"
@@ -41,12 +43,13 @@ static const usage usages[] = {
 };
 
 static void common(FILE *f) {
-  fputs("VALUE is JSON, e.g. --set /technique/params/samples=256 --set "
-        "'/technique/params/falloff=\"sqrt\"'.\n"
-        "submit, jobs and compare talk to --server, else $OBSCURA_SERVER, else " CLI_DEFAULT_SERVER
-        "\n(scripts/run), sending $OBSCURA_TOKEN as a bearer token when set.\n"
-        "Exit codes: 0 ok, 2 bad input, 1 failure.\n",
-        f);
+  fputs(
+      "VALUE is JSON, e.g. --set /technique/params/samples=256 --set "
+      "'/technique/params/falloff=\"sqrt\"'.\n"
+      "submit, jobs and compare talk to --server, else $OBSCURA_SERVER, else " CLI_DEFAULT_SERVER
+      "\n(scripts/run), sending $OBSCURA_TOKEN as a bearer token when set.\n"
+      "Exit codes: 0 ok, 2 bad input, 1 failure.\n",
+      f);
 }
 
 int cli_usage(FILE *f, const char *cmd) {

@@ -376,8 +376,10 @@ static void test_nearest_name(void **state) {
   assert_string_equal(obs_params_nearest(&t, "conut"), "count");
   assert_null(obs_params_nearest(&t, "samples"));
   assert_null(obs_params_nearest(&t, "xy"));
-  assert_null(obs_params_nearest(&t, "a_name_far_longer_than_any_declared_parameter_name_at_all_x"));
-  expect_bad(&t, "{\"raduis\":1}", "demo params: /raduis: unknown parameter (did you mean \"radius\"?)");
+  assert_null(
+      obs_params_nearest(&t, "a_name_far_longer_than_any_declared_parameter_name_at_all_x"));
+  expect_bad(&t, "{\"raduis\":1}",
+             "demo params: /raduis: unknown parameter (did you mean \"radius\"?)");
   expect_bad(&t, "{\"size\":1}", "demo params: /size: unknown parameter");
 }
 
