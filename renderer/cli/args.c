@@ -1,6 +1,7 @@
 /* Helpers shared by the obscura subcommands: scene options, scene loading, progress bar. */
 #include "args.h"
 
+#include <errno.h>
 #include <jansson.h>
 #include <limits.h>
 #include <stdlib.h>
@@ -13,6 +14,31 @@ const char *cli_option_value(int argc, char **argv, int *i) {
     return NULL;
   }
   return argv[++*i];
+}
+
+/* A --set VALUE must be JSON. A bare word is most often a string whose quotes the shell ate or
+ * that were never typed: show the quoted form. */
+static int check_value(const char *arg, const char *eq) {
+  json_error_t je;
+  json_t *v = json_loads(eq + 1, JSON_DECODE_ANY, &je);
+  if (v) {
+    json_decref(v);
+    return 0;
+  }
+  const char *value = eq + 1;
+  int bare = *value && !strchr("{[\"-0123456789", *value);
+  json_t *s = bare ? json_string(value) : NULL;
+  char *quoted = s ? json_dumps(s, JSON_ENCODE_ANY) : NULL;
+  json_decref(s);
+  if (quoted && !strchr(quoted, '\''))
+    fprintf(stderr,
+            "obscura: --set %s: the value is not JSON (did you mean '%s'? a string needs its "
+            "quotes: --set '%.*s=%s')\n",
+            arg, quoted, (int)(eq - arg), arg, quoted);
+  else
+    fprintf(stderr, "obscura: --set %s: the value is not JSON: %s\n", arg, je.text);
+  free(quoted);
+  return -1;
 }
 
 int cli_scene_option(cli_scene_opts *o, int argc, char **argv, int *i) {
@@ -30,6 +56,7 @@ int cli_scene_option(cli_scene_opts *o, int argc, char **argv, int *i) {
       fprintf(stderr, "obscura: --set takes /json/pointer=VALUE (got %s)\n", val);
       return -1;
     }
+    if (check_value(val, eq)) return -1;
     char *ptr = strndup(val, (size_t)(eq - val));
     if (!ptr) {
       fprintf(stderr, "obscura: out of memory\n");
@@ -48,6 +75,13 @@ void cli_scene_opts_free(cli_scene_opts *o) {
 }
 
 int cli_scene_load(const cli_scene_opts *o, obs_scene *sc, obs_err *err) {
+  /* Why the file cannot be read (missing, permission, ...), before any parsing. */
+  FILE *f = fopen(o->scene, "rb");
+  if (!f) {
+    memset(sc, 0, sizeof *sc);
+    return obs_err_set(err, OBS_EIO, "%s: cannot open scene file: %s", o->scene, strerror(errno));
+  }
+  fclose(f);
   if (!o->technique && !o->backend) return obs_scene_load_file(sc, o->scene, o->ov, o->nov, err);
   memset(sc, 0, sizeof *sc);
   json_error_t je;

@@ -31,6 +31,12 @@ void cli_scene_opts_free(cli_scene_opts *o);
  * Returns 0 or an OBS_E* code with the problems in `err`. */
 int cli_scene_load(const cli_scene_opts *o, obs_scene *sc, obs_err *err);
 
+/* Prints the usage of subcommand `cmd`, or of all of them when `cmd` is NULL. Returns 0, or -1
+ * (printing nothing) for an unknown subcommand. */
+int cli_usage(FILE *f, const char *cmd);
+/* Whether the subcommand's arguments (argv[2..]) ask for help (--help or -h). */
+int cli_wants_help(int argc, char **argv);
+
 /* Exit status for a failed load: 2 for bad input or an unreadable file, 1 otherwise. */
 int cli_load_exit_code(int rc);
 

@@ -1,5 +1,5 @@
-/* The obscura job-server client commands: their usage, and `obscura jobs` (a filtered list of
- * jobs as a table or JSON). `obscura submit` is in submit.c, the HTTP client in http.c. */
+/* `obscura jobs`: a filtered list of jobs as a table or JSON. `obscura submit` is in submit.c,
+ * `obscura compare` in compare.c, the HTTP client in http.c. */
 #include "client.h"
 
 #include <jansson.h>
@@ -11,16 +11,6 @@
 #include "obscura/obscura.h"
 
 #define JOBS_PAGE 100 /* jobs per request while following the `next` cursor */
-
-void cli_client_usage(FILE *f) {
-  fputs(
-      "  obscura submit SCENE.json --server URL [--technique NAME] [--backend cpu|vulkan|auto]\n"
-      "                 [--set /json/pointer=VALUE]... [--priority N] [--label TEXT] [--wait]\n"
-      "                 [-o DIR]\n"
-      "  obscura jobs --server URL [--state S] [--technique T] [--backend B] [--limit N]\n"
-      "                 [--json]\n",
-      f);
-}
 
 typedef struct jobs_opts {
   const char *server, *state, *technique, *backend;
@@ -64,10 +54,7 @@ static int parse_jobs(int argc, char **argv, jobs_opts *o) {
       return -1;
     }
   }
-  if (!o->server) {
-    fprintf(stderr, "obscura: missing --server URL\n");
-    return -1;
-  }
+  o->server = cli_server(o->server);
   return 0;
 }
 
@@ -87,46 +74,66 @@ static const char *str_or(json_t *v, const char *dflt) {
   return s ? s : dflt;
 }
 
+#define NCOL 9 /* table columns before the label */
+
 typedef struct row {
-  char cell[7][64]; /* every column but the label */
+  char cell[NCOL][64]; /* every column but the label */
   const char *label;
 } row;
 
+/* A duration for people: milliseconds below a second, else seconds. */
+static void fmt_ms(char *out, size_t n, json_t *ms) {
+  if (!json_is_number(ms)) {
+    snprintf(out, n, "-");
+    return;
+  }
+  double v = json_number_value(ms);
+  if (v < 1000.0)
+    snprintf(out, n, "%.1f ms", v);
+  else
+    snprintf(out, n, "%.2f s", v / 1000.0);
+}
+
+static void fill_row(row *r, json_t *j) {
+  json_t *be = json_object_get(j, "backend");
+  snprintf(r->cell[0], 64, "%lld", (long long)json_integer_value(json_object_get(j, "id")));
+  snprintf(r->cell[1], 64, "%s", str_or(json_object_get(j, "state"), "?"));
+  snprintf(r->cell[2], 64, "%d%%",
+           (int)(json_number_value(json_object_get(j, "progress")) * 100.0 + 1e-9));
+  snprintf(r->cell[3], 64, "%s", str_or(json_object_get(j, "technique"), "?"));
+  snprintf(r->cell[4], 64, "%s",
+           str_or(json_object_get(be, "actual"), str_or(json_object_get(be, "requested"), "?")));
+  snprintf(r->cell[5], 64, "%s", str_or(json_object_get(j, "scene"), "?"));
+  fmt_ms(r->cell[6], 64, json_object_get(json_object_get(j, "timings_ms"), "total"));
+  snprintf(r->cell[7], 64, "%lld", (long long)json_integer_value(json_object_get(j, "priority")));
+  snprintf(r->cell[8], 64, "%s", str_or(json_object_get(j, "created_at"), "?"));
+  r->label = str_or(json_object_get(j, "label"), "");
+}
+
 static void print_table(json_t *jobs) {
-  static const char *const head[8] = {"ID",      "STATE",    "PROGRESS", "TECHNIQUE",
-                                      "BACKEND", "PRIORITY", "CREATED",  "LABEL"};
+  static const char *const head[NCOL + 1] = {"ID",    "STATE", "PROGRESS", "TECHNIQUE", "BACKEND",
+                                             "SCENE", "TIME",  "PRIORITY", "CREATED",   "LABEL"};
   size_t n = json_array_size(jobs);
   row *rows = calloc(n ? n : 1, sizeof *rows);
   if (!rows) {
     fprintf(stderr, "obscura: out of memory\n");
     return;
   }
-  int w[7];
-  for (int k = 0; k < 7; k++) w[k] = (int)strlen(head[k]);
+  int w[NCOL];
+  for (int k = 0; k < NCOL; k++) w[k] = (int)strlen(head[k]);
   for (size_t i = 0; i < n; i++) {
-    json_t *j = json_array_get(jobs, i);
-    json_t *be = json_object_get(j, "backend");
-    row *r = &rows[i];
-    snprintf(r->cell[0], 64, "%lld", (long long)json_integer_value(json_object_get(j, "id")));
-    snprintf(r->cell[1], 64, "%s", str_or(json_object_get(j, "state"), "?"));
-    snprintf(r->cell[2], 64, "%d%%",
-             (int)(json_number_value(json_object_get(j, "progress")) * 100.0 + 1e-9));
-    snprintf(r->cell[3], 64, "%s", str_or(json_object_get(j, "technique"), "?"));
-    snprintf(r->cell[4], 64, "%s",
-             str_or(json_object_get(be, "actual"), str_or(json_object_get(be, "requested"), "?")));
-    snprintf(r->cell[5], 64, "%lld", (long long)json_integer_value(json_object_get(j, "priority")));
-    snprintf(r->cell[6], 64, "%s", str_or(json_object_get(j, "created_at"), "?"));
-    r->label = str_or(json_object_get(j, "label"), "");
-    for (int k = 0; k < 7; k++)
-      if ((int)strlen(r->cell[k]) > w[k]) w[k] = (int)strlen(r->cell[k]);
+    fill_row(&rows[i], json_array_get(jobs, i));
+    for (int k = 0; k < NCOL; k++)
+      if ((int)strlen(rows[i].cell[k]) > w[k]) w[k] = (int)strlen(rows[i].cell[k]);
   }
-  for (int k = 0; k < 7; k++) printf("%-*s  ", w[k], head[k]);
-  printf("%s\n", head[7]);
+  for (int k = 0; k < NCOL; k++) printf("%-*s  ", w[k], head[k]);
+  printf("%s\n", head[NCOL]);
   for (size_t i = 0; i < n; i++) {
-    for (int k = 0; k < 7; k++) {
+    for (int k = 0; k < NCOL; k++) {
       cli_put_clean(stdout, rows[i].cell[k]);
       /* No trailing blanks when the label is empty. */
-      if (k < 6 || *rows[i].label) printf("%*s", w[k] - (int)strlen(rows[i].cell[k]) + 2, "");
+      if (k < NCOL - 1 || *rows[i].label)
+        printf("%*s", w[k] - (int)strlen(rows[i].cell[k]) + 2, "");
     }
     cli_put_clean(stdout, rows[i].label);
     putchar('\n');
@@ -137,8 +144,7 @@ static void print_table(json_t *jobs) {
 int cli_jobs(int argc, char **argv) {
   jobs_opts o;
   if (parse_jobs(argc, argv, &o)) {
-    fputs("usage:\n", stderr);
-    cli_client_usage(stderr);
+    cli_usage(stderr, "jobs");
     return EXIT_BAD_INPUT;
   }
   cli_client c;

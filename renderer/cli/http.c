@@ -143,6 +143,18 @@ char *cli_client_url(cli_client *c, const char *ref) {
   return out;
 }
 
+const char *cli_server(const char *given) {
+  if (given) return given;
+  const char *env = getenv("OBSCURA_SERVER");
+  return env && *env ? env : CLI_DEFAULT_SERVER;
+}
+
+char *cli_dashboard_url(cli_client *c, const char *route) {
+  char ref[256];
+  snprintf(ref, sizeof ref, "/#/%s", route);
+  return cli_client_url(c, ref);
+}
+
 /* Resets the handle to the options every request shares and sets the URL. */
 void cli_client_prepare(cli_client *c, const char *url, int post) {
   curl_easy_reset(c->curl);

@@ -9,6 +9,9 @@
 #include <stdio.h>
 
 #define MAX_JSON_BODY (64u << 20) /* larger JSON answers are refused */
+/* The server when neither --server nor $OBSCURA_SERVER names one: where scripts/run (and
+ * obscurad's default --port) listens. */
+#define CLI_DEFAULT_SERVER "http://127.0.0.1:8080"
 
 typedef struct cli_buf {
   char *p;
@@ -38,6 +41,12 @@ void cli_put_clean(FILE *f, const char *s);
 /* A libcurl write callback appending to the cli_buf `user` (at most MAX_JSON_BODY bytes). */
 size_t cli_buf_write(char *data, size_t size, size_t n, void *user);
 void cli_response_free(cli_response *r);
+/* The server to talk to: --server when given, else a non-empty $OBSCURA_SERVER, else
+ * CLI_DEFAULT_SERVER. */
+const char *cli_server(const char *given);
+/* The dashboard page of `route` ("jobs/12", "comparisons/3") on the server; malloc'd, NULL after
+ * printing why. */
+char *cli_dashboard_url(cli_client *c, const char *route);
 /* Parses --server and OBSCURA_TOKEN. Returns 0, or an exit status after printing why. */
 int cli_client_open(cli_client *c, const char *server);
 void cli_client_close(cli_client *c);

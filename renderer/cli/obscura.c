@@ -9,26 +9,6 @@
 #include "client.h"
 #include "obscura/obscura.h"
 
-static void usage(FILE *f) {
-  fputs("usage:\n"
-        "  obscura render SCENE.json [-o DIR] [--technique NAME] [--backend cpu|vulkan|auto]\n"
-        "                 [--set /json/pointer=VALUE]... [--threads N] [--quiet]\n"
-        "  obscura validate SCENE.json [--set /json/pointer=VALUE]...\n"
-        "  obscura techniques [--markdown | --schema | --openapi | --docs NAME]\n"
-        "                 (texts generated from the registry: the guaranteed-range table, the\n"
-        "                 technique part of scene.schema.json, the OpenAPI block, the parameter\n"
-        "                 table of docs/techniques/NAME.md)\n",
-        f);
-  cli_client_usage(f);
-  fputs("  obscura --version\n"
-        "VALUE is JSON, e.g. --set /technique/params/samples=256 --set "
-        "'/technique/params/falloff=\"sqrt\"'.\n"
-        "--technique replaces the document's technique; its params are dropped unless --set\n"
-        "gives them. submit and jobs send $OBSCURA_TOKEN as a bearer token; -o implies --wait.\n"
-        "Exit codes: 0 ok, 2 bad input, 1 failure.\n",
-        f);
-}
-
 typedef struct cli {
   cli_scene_opts s;
   const char *out_dir;
@@ -81,7 +61,7 @@ static void free_args(cli *c) { cli_scene_opts_free(&c->s); }
 static int cmd_render(int argc, char **argv) {
   cli c;
   if (parse_args(argc, argv, 2, &c)) {
-    usage(stderr);
+    cli_usage(stderr, "render");
     free_args(&c);
     return EXIT_BAD_INPUT;
   }
@@ -147,7 +127,7 @@ static int cmd_render(int argc, char **argv) {
 static int cmd_validate(int argc, char **argv) {
   cli c;
   if (parse_args(argc, argv, 2, &c)) {
-    usage(stderr);
+    cli_usage(stderr, "validate");
     free_args(&c);
     return EXIT_BAD_INPUT;
   }
@@ -177,7 +157,7 @@ static int cmd_techniques(int argc, char **argv) {
                     !strcmp(argv[2], "--docs"))) {
     int docs = !strcmp(argv[2], "--docs");
     if (argc != (docs ? 4 : 3)) {
-      usage(stderr);
+      cli_usage(stderr, "techniques");
       return EXIT_BAD_INPUT;
     }
     char *txt = docs ? obs_registry_params_markdown(argv[3])
@@ -192,7 +172,7 @@ static int cmd_techniques(int argc, char **argv) {
     return 0;
   }
   if (argc > 2) {
-    usage(stderr);
+    cli_usage(stderr, "techniques");
     return EXIT_BAD_INPUT;
   }
   json_t *reg = obs_technique_registry_json();
@@ -205,23 +185,25 @@ static int cmd_techniques(int argc, char **argv) {
 
 int main(int argc, char **argv) {
   if (argc < 2) {
-    usage(stderr);
+    cli_usage(stderr, NULL);
     return EXIT_BAD_INPUT;
   }
+  if (argv[1][0] != '-' && cli_wants_help(argc, argv) && !cli_usage(stdout, argv[1])) return 0;
   if (!strcmp(argv[1], "render")) return cmd_render(argc, argv);
   if (!strcmp(argv[1], "validate")) return cmd_validate(argc, argv);
   if (!strcmp(argv[1], "techniques")) return cmd_techniques(argc, argv);
   if (!strcmp(argv[1], "submit")) return cli_submit(argc, argv);
   if (!strcmp(argv[1], "jobs")) return cli_jobs(argc, argv);
+  if (!strcmp(argv[1], "compare")) return cli_compare(argc, argv);
   if (!strcmp(argv[1], "--version")) {
     puts("obscura " OBSCURA_VERSION);
     return 0;
   }
   if (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h")) {
-    usage(stdout);
+    cli_usage(stdout, NULL);
     return 0;
   }
   fprintf(stderr, "obscura: unknown command %s\n", argv[1]);
-  usage(stderr);
+  cli_usage(stderr, NULL);
   return EXIT_BAD_INPUT;
 }

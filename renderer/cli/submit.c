@@ -72,10 +72,7 @@ static int parse_submit(int argc, char **argv, submit_opts *o) {
     fprintf(stderr, "obscura: missing SCENE.json\n");
     return -1;
   }
-  if (!o->server) {
-    fprintf(stderr, "obscura: missing --server URL\n");
-    return -1;
-  }
+  o->server = cli_server(o->server);
   return 0;
 }
 
@@ -363,8 +360,7 @@ static void print_finished(long long id, json_t *job) {
 int cli_submit(int argc, char **argv) {
   submit_opts o;
   if (parse_submit(argc, argv, &o)) {
-    fputs("usage:\n", stderr);
-    cli_client_usage(stderr);
+    cli_usage(stderr, "submit");
     cli_scene_opts_free(&o.s);
     return EXIT_BAD_INPUT;
   }
@@ -433,7 +429,15 @@ int cli_submit(int argc, char **argv) {
     rc = EXIT_FAILURE;
     goto done;
   }
-  printf("job %lld queued: %s\n", id, self);
+  char route[64];
+  snprintf(route, sizeof route, "jobs/%lld", id);
+  char *page = cli_dashboard_url(&c, route);
+  if (!page) {
+    rc = EXIT_FAILURE;
+    goto done;
+  }
+  printf("job %lld queued: %s\n", id, page);
+  free(page);
   fflush(stdout);
   if (!o.wait) goto done;
   rc = wait_job(&c, id, self, &job);

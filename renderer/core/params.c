@@ -103,6 +103,50 @@ static const obs_param *find_param(const obs_technique *t, const char *name) {
   return NULL;
 }
 
+/* Edit distance (insert, delete, substitute, swap of neighbours) between two short names; names
+ * longer than the table are treated as far away. */
+static size_t name_distance(const char *a, const char *b) {
+  enum { N = 64 };
+  size_t la = strlen(a), lb = strlen(b);
+  if (la >= N || lb >= N) return (size_t)-1;
+  size_t d[N][N];
+  for (size_t i = 0; i <= la; i++) d[i][0] = i;
+  for (size_t j = 0; j <= lb; j++) d[0][j] = j;
+  for (size_t i = 1; i <= la; i++)
+    for (size_t j = 1; j <= lb; j++) {
+      size_t best = d[i - 1][j - 1] + (a[i - 1] != b[j - 1]);
+      if (d[i - 1][j] + 1 < best) best = d[i - 1][j] + 1;
+      if (d[i][j - 1] + 1 < best) best = d[i][j - 1] + 1;
+      if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1] &&
+          d[i - 2][j - 2] + 1 < best)
+        best = d[i - 2][j - 2] + 1;
+      d[i][j] = best;
+    }
+  return d[la][lb];
+}
+
+const char *obs_params_nearest(const obs_technique *t, const char *name) {
+  const char *best = NULL;
+  size_t best_d = (size_t)-1, len = strlen(name);
+  /* A third of the name may be wrong (at least one letter, at most three). */
+  size_t limit = len / 3 < 1 ? 1 : len / 3 > 3 ? 3 : len / 3;
+  for (size_t i = 0; i < t->params_size; i++) {
+    size_t dist = name_distance(name, t->params[i].name);
+    if (dist <= limit && dist < best_d) {
+      best_d = dist;
+      best = t->params[i].name;
+    }
+  }
+  return best;
+}
+
+/* "unknown parameter", with the nearest declared name when one is close. */
+static int fail_unknown(obs_jpath *p, const obs_technique *t, const char *key) {
+  const char *near = obs_params_nearest(t, key);
+  if (near) return obs_jpath_fail(p, "unknown parameter (did you mean \"%s\"?)", near);
+  return obs_jpath_fail(p, "unknown parameter");
+}
+
 json_t *obs_params_resolve(obs_jpath *p, const obs_technique *t, const json_t *value) {
   if (value && !json_is_object(value)) {
     obs_jpath_fail(p, "must be an object (got %s)", obs_json_brief(value));
@@ -121,7 +165,7 @@ json_t *obs_params_resolve(obs_jpath *p, const obs_technique *t, const json_t *v
     const obs_param *d = find_param(t, key);
     long long iv;
     if (!d) {
-      obs_jpath_fail(p, "unknown parameter");
+      fail_unknown(p, t, key);
       bad++;
     } else if (obs_param_check(p, d, v)) {
       bad++;
@@ -206,7 +250,7 @@ int obs_params_bind(const obs_technique *t, const json_t *params, void *dst, obs
     size_t m = obs_jpath_push_key(&p, key);
     const obs_param *d = find_param(t, key);
     if (!d)
-      bad |= obs_jpath_fail(&p, "unknown parameter") != 0;
+      bad |= fail_unknown(&p, t, key) != 0;
     else
       bad |= obs_param_check(&p, d, v) != 0;
     obs_jpath_pop(&p, m);

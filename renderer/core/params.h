@@ -15,6 +15,9 @@
 json_t *obs_params_resolve(obs_jpath *p, const obs_technique *t, const json_t *value);
 /* One value against its entry; reports under p's pointer. Returns 0 or OBS_EINVAL. */
 int obs_param_check(obs_jpath *p, const obs_param *d, const json_t *v);
+/* The declared parameter name nearest to `name` by edit distance when it is close enough to be a
+ * likely typo (at most a third of its letters, between 1 and 3), else NULL. */
+const char *obs_params_nearest(const obs_technique *t, const char *name);
 /* The entry's default as JSON (new reference). */
 json_t *obs_param_default_json(const obs_param *d);
 

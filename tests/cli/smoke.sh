@@ -75,6 +75,43 @@ check "integral real samples render finite" node -e "
   const s = JSON.parse(require('fs').readFileSync('$out/r/summary.json'));
   process.exit(s.samples === 64 && s.nan_count === 0 && s.ao.mean > 0.5 ? 0 : 1);"
 check "no staging files left" bash -c "! ls -A '$out/r' | grep -q '^\\.'"
+# Messages that say what to do: why a scene file cannot be opened, the quotes a bare string needs,
+# the nearest parameter name.
+"$cli" render "$out/does-not-exist.json" --technique ssao >"$out/m2.log" 2>&1
+check "missing file says why" \
+  grep -q "does-not-exist.json: cannot open scene file: No such file or directory" "$out/m.log"
+check "missing file says why with --technique too" \
+  grep -q "does-not-exist.json: cannot open scene file: No such file or directory" "$out/m2.log"
+if [ "$(id -u)" -ne 0 ]; then
+  printf '{}' >"$out/secret.json" && chmod 000 "$out/secret.json"
+  "$cli" validate "$out/secret.json" >"$out/perm.log" 2>&1
+  check "unreadable file exits 2" test $? -eq 2
+  check "unreadable file says why" grep -q "cannot open scene file: Permission denied" "$out/perm.log"
+fi
+"$cli" validate "$root/scenes/cornell_box.json" --set /technique/name=ssao >"$out/q.log" 2>&1
+check "bare string --set exits 2" test $? -eq 2
+check "bare string --set suggests the quotes" grep -qF "did you mean '\"ssao\"'?" "$out/q.log"
+check "bare string --set shows the quoted option" grep -qF -e "--set '/technique/name=\"ssao\"'" "$out/q.log"
+"$cli" validate "$root/scenes/cornell_box.json" --set '/image/width={' >"$out/q2.log" 2>&1
+check "broken JSON --set exits 2 without a quote hint" \
+  bash -c "grep -q 'the value is not JSON: ' '$out/q2.log' && ! grep -q 'did you mean' '$out/q2.log'"
+"$cli" validate "$root/scenes/cornell_box.json" --set /technique/params/samplez=8 >"$out/n.log" 2>&1
+check "misspelt parameter exits 2" test $? -eq 2
+check "misspelt parameter keeps the pointer and suggests the name" \
+  grep -qF 'cornell_box.json: /technique/params/samplez: unknown parameter (did you mean "samples"?)' "$out/n.log"
+"$cli" validate "$root/scenes/cornell_box.json" --technique hbao --set /technique/params/raduis=8 \
+  >"$out/n2.log" 2>&1
+check "misspelt parameter of another technique suggests its name" \
+  grep -qF '/technique/params/raduis: unknown parameter (did you mean "radius"?)' "$out/n2.log"
+# --help on every subcommand: its own usage on stdout, exit 0.
+for cmd in render validate techniques submit jobs compare; do
+  "$cli" "$cmd" --help >"$out/help-$cmd.txt" 2>&1
+  check "$cmd --help exits 0" test $? -eq 0
+  check "$cmd --help shows its usage" grep -q "^  obscura $cmd " "$out/help-$cmd.txt"
+  check "$cmd --help shows only its usage" test "$(grep -c '^  obscura ' "$out/help-$cmd.txt")" -eq 1
+done
+"$cli" jobs -h | grep -q "OBSCURA_SERVER, else http://127.0.0.1:8080"
+check "help names the default server and OBSCURA_SERVER" test $? -eq 0
 "$cli" frobnicate >/dev/null 2>&1
 check "unknown command exits 2" test $? -eq 2
 echo "$pass passed, $fail failed"

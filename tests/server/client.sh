@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# The CLI's job-server client end to end: `obscura submit` and `obscura jobs` against obscurad.
+# The CLI's job-server client end to end: `obscura submit`, `obscura jobs` and `obscura compare`
+# against obscurad.
 # usage: client.sh OBSCURA_CLI OBSCURAD SOURCE_ROOT WORK_DIR
 set -u
 cli=$1 daemon=$2 root=$3 out=$4
@@ -69,8 +70,8 @@ unset OBSCURA_TOKEN
 "$cli" submit "$scene" --server "$url" "${small[@]}" --label "client test" --priority 70 \
   --wait -o "$out/remote" >"$out/submit.out" 2>"$out/submit.err"
 check "submit --wait -o exits 0" test $? -eq 0
-check "submit prints the job id and URL" grep -Eq "^job [0-9]+ queued: $url/api/v1/jobs/[0-9]+$" \
-  "$out/submit.out"
+check "submit prints the job id and its dashboard page" \
+  grep -Eq "^job [0-9]+ queued: $url/#/jobs/[0-9]+$" "$out/submit.out"
 id=$(sed -n 's/^job \([0-9]*\) queued.*/\1/p' "$out/submit.out")
 check "submit reports success" grep -q "^job $id succeeded: rt_ao/cpu 40x30" "$out/submit.out"
 check "plain progress lines (no TTY)" grep -q "^job $id: succeeded$" "$out/submit.err"
@@ -94,9 +95,19 @@ check "summary.json describes the same render" node -e "
 "$cli" jobs --server "$url" >"$out/jobs.txt" 2>"$out/jobs.err"
 check "jobs exits 0" test $? -eq 0
 check "jobs table has the header" \
-  grep -Eq "^ID +STATE +PROGRESS +TECHNIQUE +BACKEND +PRIORITY +CREATED +LABEL$" "$out/jobs.txt"
-check "jobs lists the job" \
-  grep -Eq "^$id +succeeded +100% +rt_ao +cpu +70 +[0-9T:.-]+Z +client test$" "$out/jobs.txt"
+  grep -Eq "^ID +STATE +PROGRESS +TECHNIQUE +BACKEND +SCENE +TIME +PRIORITY +CREATED +LABEL$" \
+  "$out/jobs.txt"
+check "jobs lists the job with its scene and render time" \
+  grep -Eq "^$id +succeeded +100% +rt_ao +cpu +(inline|sphere_on_plane[^ ]*) +[0-9.]+ m?s +70 +[0-9T:.-]+Z +client test$" \
+  "$out/jobs.txt"
+# The server from $OBSCURA_SERVER when --server is not given.
+OBSCURA_SERVER=$url "$cli" jobs >"$out/jobs-env.txt" 2>&1
+check "jobs uses OBSCURA_SERVER" grep -Eq "^$id +succeeded" "$out/jobs-env.txt"
+# Neither: the default (scripts/run's address); whatever answers there, the client goes there.
+(unset OBSCURA_SERVER; "$cli" jobs --limit 1 >/dev/null 2>"$out/jobs-default.err")
+check "jobs defaults to http://127.0.0.1:8080" \
+  bash -c "[ ! -s '$out/jobs-default.err' ] || grep -q 'http://127.0.0.1:8080/' '$out/jobs-default.err'"
+
 "$cli" jobs --server "$url" --state succeeded --technique rt_ao --backend cpu --json \
   >"$out/jobs.json" 2>>"$out/jobs.err"
 check "jobs --json with filters lists the job" node -e "
@@ -110,6 +121,46 @@ check "jobs --state queued is empty" node -e "
 "$cli" jobs --server "$url" --state bogus >/dev/null 2>"$out/jobs-bad.err"
 check "jobs with a bad filter exits 2" test $? -eq 2
 check "jobs with a bad filter shows the server's problem" grep -q "state" "$out/jobs-bad.err"
+
+# --- compare: a request file followed to its end ------------------------------------------------
+cat >"$out/cmp.json" <<JSON
+{"scene_file": "sphere_on_plane.json", "label": "cli compare", "repeats": 1,
+ "set": {"/image/width": 16, "/image/height": 12},
+ "reference": {"samples": 16},
+ "candidates": [{"technique": "rt_ao", "backend": "cpu", "params": {"samples": [2, 8]}},
+                {"technique": "ssao", "backend": "cpu"}]}
+JSON
+"$cli" compare "$out/cmp.json" --server "$url" >"$out/cmp.out" 2>"$out/cmp.err"
+check "compare exits 0 when the comparison succeeds" test $? -eq 0
+check "compare prints the comparison's dashboard page" \
+  grep -Eq "^comparison [0-9]+ queued: $url/#/comparisons/[0-9]+$" "$out/cmp.out"
+cmpid=$(sed -n 's/^comparison \([0-9]*\) queued.*/\1/p' "$out/cmp.out")
+check "compare reports progress" grep -q "^comparison $cmpid: 3/3 candidate(s) done$" "$out/cmp.err"
+check "compare prints a row per candidate with time and error" \
+  test "$(grep -Ec '^ +[0-9]+[* ] +(rt_ao|ssao) +cpu +[0-9.]+ +[0-9.e-]+ +[0-9.]+ +[0-9.]+' "$out/cmp.out")" -eq 3
+check "compare names the parameter that varies" grep -Eq "rt_ao .* samples=2$" "$out/cmp.out"
+check "compare leaves out the parameters that do not vary" bash -c "! grep -q falloff '$out/cmp.out'"
+check "compare prints the Pareto set" grep -Eq "^pareto \(\* above, fastest first\):( [0-9]+)+$" "$out/cmp.out"
+check "compare prints the outcome" grep -q "^comparison $cmpid succeeded$" "$out/cmp.out"
+check "the starred rows are the Pareto set" node -e "
+  const t = require('fs').readFileSync('$out/cmp.out', 'utf8');
+  const starred = [...t.matchAll(/^ +([0-9]+)\* /gm)].map(m => +m[1]);
+  const listed = t.match(/^pareto[^:]*:(.*)$/m)[1].trim().split(' ').map(Number);
+  process.exit(starred.length > 0 && JSON.stringify([...starred].sort()) === JSON.stringify([...listed].sort()) ? 0 : 1);"
+"$cli" compare - --server "$url" --no-wait <"$out/cmp.json" >"$out/cmp2.out" 2>&1
+check "compare - --no-wait reads stdin and returns at once" \
+  bash -c "[ \$? -eq 0 ] && grep -Eq '^comparison [0-9]+ queued: ' '$out/cmp2.out' && ! grep -q '^pareto' '$out/cmp2.out'"
+"$cli" compare "$out/cmp.json" --server "$url" --json >"$out/cmp3.json" 2>/dev/null
+check "compare --json prints the finished comparison" node -e "
+  const c = JSON.parse(require('fs').readFileSync('$out/cmp3.json'));
+  process.exit(c.state === 'succeeded' && c.candidates.length === 3 && Array.isArray(c.pareto) ? 0 : 1);"
+printf '{"scene_file": "sphere_on_plane.json", "candidates": [{"technique": "nope"}]}' >"$out/cmp-bad.json"
+"$cli" compare "$out/cmp-bad.json" --server "$url" >/dev/null 2>"$out/cmp-bad.err"
+check "compare of a bad request exits 2" test $? -eq 2
+check "compare of a bad request shows the server's problem" grep -q "/candidates/0/technique" "$out/cmp-bad.err"
+"$cli" compare "$out/no-such.json" --server "$url" >/dev/null 2>"$out/cmp-missing.err"
+check "compare of a missing file exits 2" test $? -eq 2
+check "compare of a missing file says why" grep -q "No such file or directory" "$out/cmp-missing.err"
 
 # --- bad input is refused locally, nothing is sent ----------------------------------------------
 before=$(njobs "$url")
@@ -149,6 +200,14 @@ check "--wait on a failed job exits 1" test $? -eq 1
 check "--wait prints the job's error" grep -q "^obscura: job [0-9]* failed: .*time limit" \
   "$out/failed.err"
 check "nothing downloaded for a failed job" test -z "$(ls -A "$out/failed")"
+# A comparison whose reference fails (the time limit) ends failed: exit 1, the reason shown.
+printf '{"scene_file": "sphere_on_plane.json", "repeats": 1, "set": {"/image/width": 100, "/image/height": 100}, "reference": {"samples": 65536}, "candidates": [{"technique": "ssao", "backend": "cpu"}]}' \
+  >"$out/cmp-fail.json"
+OBSCURA_SERVER=$url "$cli" compare "$out/cmp-fail.json" >"$out/cmp-fail.out" 2>"$out/cmp-fail.err"
+check "compare of a comparison that fails exits 1" test $? -eq 1
+check "compare of a comparison that fails says so" grep -q "^comparison [0-9]* failed$" "$out/cmp-fail.out"
+check "compare shows why a candidate got no metrics" \
+  grep -Eq "^ +0  +ssao .* error: reference job [0-9]+ failed$" "$out/cmp-fail.out"
 stop_daemon "$pid"
 
 # --- pagination: jobs follows the next cursor up to --limit -------------------------------------

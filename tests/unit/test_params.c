@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "params.h"
 #include "testutil.h"
 
 typedef struct demo {
@@ -364,6 +365,24 @@ static void test_self_check(void **state) {
   obs_err_free(&err);
 }
 
+/* An unknown name is answered with the nearest declared one when it is a likely typo. */
+static void test_nearest_name(void **state) {
+  (void)state;
+  obs_technique t = demo_technique();
+  assert_string_equal(obs_params_nearest(&t, "raduis"), "radius");
+  assert_string_equal(obs_params_nearest(&t, "radiu"), "radius");
+  assert_string_equal(obs_params_nearest(&t, "Radius"), "radius");
+  assert_string_equal(obs_params_nearest(&t, "tap"), "taps");
+  assert_string_equal(obs_params_nearest(&t, "conut"), "count");
+  assert_null(obs_params_nearest(&t, "samples"));
+  assert_null(obs_params_nearest(&t, "xy"));
+  assert_null(
+      obs_params_nearest(&t, "a_name_far_longer_than_any_declared_parameter_name_at_all_x"));
+  expect_bad(&t, "{\"raduis\":1}",
+             "demo params: /raduis: unknown parameter (did you mean \"radius\"?)");
+  expect_bad(&t, "{\"size\":1}", "demo params: /size: unknown parameter");
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_defaults_and_offsets),
@@ -371,6 +390,7 @@ int main(void) {
       cmocka_unit_test(test_schema),
       cmocka_unit_test(test_cost),
       cmocka_unit_test(test_self_check),
+      cmocka_unit_test(test_nearest_name),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -1,0 +1,75 @@
+/* The usage texts of the obscura subcommands: `obscura --help` prints them all, `obscura CMD
+ * --help` (and a mistake in CMD's arguments) prints CMD's own. */
+#include <stdio.h>
+#include <string.h>
+
+#include "args.h"
+#include "http.h"
+
+typedef struct usage {
+  const char *cmd, *synopsis, *help;
+} usage;
+
+static const usage usages[] = {
+    {"render",
+     "  obscura render SCENE.json [-o DIR] [--technique NAME] [--backend cpu|vulkan|auto]\n"
+     "                 [--set /json/pointer=VALUE]... [--threads N] [--quiet]\n",
+     "Renders the scene here and writes its outputs, summary.json and PNGs into DIR (default "
+     "out).\n"
+     "--technique replaces the document's technique; its params are dropped unless --set\n"
+     "gives them.\n"},
+    {"validate",
+     "  obscura validate SCENE.json [--technique NAME] [--set /json/pointer=VALUE]...\n",
+     "Checks the scene as render would, without rendering.\n"},
+    {"techniques", "  obscura techniques [--markdown | --schema | --openapi | --docs NAME]\n",
+     "The registry as JSON, or texts generated from it: the guaranteed-range table, the technique\n"
+     "part of scene.schema.json, the OpenAPI block, the parameter table of\n"
+     "docs/techniques/NAME.md.\n"},
+    {"submit",
+     "  obscura submit SCENE.json [--server URL] [--technique NAME] [--backend cpu|vulkan|auto]\n"
+     "                 [--set /json/pointer=VALUE]... [--priority N] [--label TEXT] [--wait]\n"
+     "                 [-o DIR]\n",
+     "Validates the scene here, sends it to obscurad and prints the job's dashboard page.\n"
+     "--wait follows the job to its end; -o DIR (implies --wait) downloads its outputs.\n"},
+    {"jobs",
+     "  obscura jobs [--server URL] [--state S] [--technique T] [--backend B] [--limit N]\n"
+     "                 [--json]\n",
+     "Lists the newest jobs (default 50) with their scene and render time.\n"},
+    {"compare", "  obscura compare FILE|- [--server URL] [--no-wait] [--json]\n",
+     "Sends the comparison request in FILE (JSON, schema/openapi.yaml ComparisonRequest; - reads\n"
+     "standard input), prints its dashboard page and follows it to its end: per candidate the\n"
+     "median time and the error against the reference, then the Pareto set. --json prints the\n"
+     "finished comparison as the API gives it. Exit 0 when it succeeded, 1 when it failed.\n"},
+};
+
+static void common(FILE *f) {
+  fputs(
+      "VALUE is JSON, e.g. --set /technique/params/samples=256 --set "
+      "'/technique/params/falloff=\"sqrt\"'.\n"
+      "submit, jobs and compare talk to --server, else $OBSCURA_SERVER, else " CLI_DEFAULT_SERVER
+      "\n(scripts/run), sending $OBSCURA_TOKEN as a bearer token when set.\n"
+      "Exit codes: 0 ok, 2 bad input, 1 failure.\n",
+      f);
+}
+
+int cli_usage(FILE *f, const char *cmd) {
+  size_t n = sizeof usages / sizeof usages[0];
+  for (size_t i = 0; cmd && i < n; i++) {
+    if (strcmp(usages[i].cmd, cmd)) continue;
+    fprintf(f, "usage:\n%s\n%s", usages[i].synopsis, usages[i].help);
+    common(f);
+    return 0;
+  }
+  if (cmd) return -1;
+  fputs("usage:\n", f);
+  for (size_t i = 0; i < n; i++) fputs(usages[i].synopsis, f);
+  fputs("  obscura CMD --help\n  obscura --version\n", f);
+  common(f);
+  return 0;
+}
+
+int cli_wants_help(int argc, char **argv) {
+  for (int i = 2; i < argc; i++)
+    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) return 1;
+  return 0;
+}
