@@ -23,6 +23,7 @@ static srv_route job_route(const char *path, const char **id, size_t *idlen, con
   *rest = slash ? slash : "";
   if (!slash) return SRV_ROUTE_JOB;
   if (!strcmp(slash, "/cancel")) return SRV_ROUTE_JOB_CANCEL;
+  if (!strcmp(slash, "/retry")) return SRV_ROUTE_JOB_RETRY;
   if (!strncmp(slash, "/outputs/", 9) && slash[9] && !strchr(slash + 9, '/'))
     return SRV_ROUTE_JOB_OUTPUT;
   return SRV_ROUTE_UNKNOWN;
@@ -58,16 +59,24 @@ static int is_get(const srv_req *r) {
 static json_t *str_or_null(const char *s) { return s ? json_string(s) : json_null(); }
 
 static json_t *job_links(int64_t id, const srv_job *j) {
-  char self[64], cancel[80];
+  char self[64], cancel[80], retry[80];
   snprintf(self, sizeof self, API "/jobs/%lld", (long long)id);
   snprintf(cancel, sizeof cancel, "%s/cancel", self);
+  snprintf(retry, sizeof retry, "%s/retry", self);
   json_t *outs = json_object();
   for (int i = 0; j && i < j->noutputs; i++) {
     char url[128];
     snprintf(url, sizeof url, "%s/outputs/%s", self, j->outputs[i].name);
     json_object_set_new(outs, j->outputs[i].name, json_string(url));
   }
-  return json_pack("{s:s, s:s, s:o}", "self", self, "cancel", cancel, "outputs", outs);
+  json_t *l = json_pack("{s:s, s:s, s:s, s:o}", "self", self, "cancel", cancel, "retry", retry,
+                        "outputs", outs);
+  if (j && j->comparison) {
+    char cmp[64];
+    snprintf(cmp, sizeof cmp, API "/comparisons/%lld", (long long)j->comparison);
+    json_object_set_new(l, "comparison", json_string(cmp));
+  }
+  return l;
 }
 
 static json_t *job_json(srv_app *app, const srv_job *j) {
@@ -80,6 +89,8 @@ static json_t *job_json(srv_app *app, const srv_job *j) {
   json_object_set_new(o, "attempts", json_integer(j->attempts));
   json_object_set_new(o, "priority", json_integer(j->priority));
   json_object_set_new(o, "label", str_or_null(j->label));
+  json_object_set_new(o, "comparison_id",
+                      j->comparison ? json_integer(j->comparison) : json_null());
   json_object_set_new(o, "scene", str_or_null(j->scene));
   json_object_set_new(o, "technique", str_or_null(j->technique));
   json_object_set_new(o, "backend", json_pack("{s:o, s:o, s:o}", "requested",
@@ -369,6 +380,48 @@ static int delete_job(srv_req *r, int64_t id) {
   return srv_respond(r, MHD_HTTP_NO_CONTENT, resp);
 }
 
+static int retry_job(srv_req *r, int64_t id) {
+  obs_err err = OBS_ERR_INIT;
+  srv_state st = SRV_QUEUED;
+  int rc = srv_db_retry(r->app->db, id, &st, &err);
+  if (rc == OBS_ENOTFOUND) {
+    obs_err_free(&err);
+    return not_found_job(r, id);
+  }
+  if (rc == OBS_EINVAL) {
+    obs_err_free(&err);
+    return srv_respond_error(r, MHD_HTTP_CONFLICT, NULL,
+                             "job %lld is %s: only failed or cancelled jobs can be retried",
+                             (long long)id, srv_state_name(st));
+  }
+  if (rc) return srv_respond_unavailable(r, &err);
+  srv_log("job %lld: requeued by request", (long long)id);
+  srv_sched_notify(r->app);
+  return get_job(r, id, MHD_HTTP_ACCEPTED);
+}
+
+static int delete_comparison(srv_req *r, int64_t id) {
+  obs_err err = OBS_ERR_INIT;
+  int64_t *ids = NULL;
+  int n = 0;
+  int rc = srv_db_delete_comparison(r->app->db, id, &ids, &n, &err);
+  if (rc == OBS_ENOTFOUND || rc == OBS_EINVAL) {
+    obs_err_free(&err);
+    return rc == OBS_ENOTFOUND
+               ? srv_respond_error(r, MHD_HTTP_NOT_FOUND, NULL, "no comparison %lld", (long long)id)
+               : srv_respond_error(r, MHD_HTTP_CONFLICT, NULL,
+                                   "comparison %lld still has queued or running jobs (cancel "
+                                   "them first)",
+                                   (long long)id);
+  }
+  if (rc) return srv_respond_unavailable(r, &err);
+  for (int i = 0; i < n; i++) srv_outputs_remove(r->app, ids[i]);
+  free(ids);
+  srv_log("comparison %lld: deleted with its %d jobs", (long long)id, n);
+  struct MHD_Response *resp = MHD_create_response_from_buffer(0, "", MHD_RESPMEM_PERSISTENT);
+  return srv_respond(r, MHD_HTTP_NO_CONTENT, resp);
+}
+
 /* ---- catalogue routes ------------------------------------------------------------------------ */
 
 static int techniques(srv_req *r) {
@@ -486,13 +539,16 @@ int srv_api_dispatch(srv_req *r) {
         return srv_respond_error(r, MHD_HTTP_NOT_FOUND, NULL,
                                  "no such comparison (ids are positive integers without leading "
                                  "zeros, optionally followed by .csv)");
-      return is_get(r) ? srv_compare_get(r, id, csv) : srv_respond_method(r, "GET, HEAD");
+      if (!csv && !strcmp(r->method, "DELETE")) return delete_comparison(r, id);
+      return is_get(r) ? srv_compare_get(r, id, csv)
+                       : srv_respond_method(r, csv ? "GET, HEAD" : "GET, HEAD, DELETE");
     }
     case SRV_ROUTE_JOBS:
       if (!strcmp(r->method, "POST")) return submit(r);
       return is_get(r) ? list_jobs(r) : srv_respond_method(r, "GET, HEAD, POST");
     case SRV_ROUTE_JOB:
     case SRV_ROUTE_JOB_CANCEL:
+    case SRV_ROUTE_JOB_RETRY:
     case SRV_ROUTE_JOB_OUTPUT: {
       const char *idtext, *rest;
       size_t n;
@@ -508,6 +564,8 @@ int srv_api_dispatch(srv_req *r) {
       }
       if (r->route == SRV_ROUTE_JOB_CANCEL)
         return !strcmp(r->method, "POST") ? cancel_job(r, id) : srv_respond_method(r, "POST");
+      if (r->route == SRV_ROUTE_JOB_RETRY)
+        return !strcmp(r->method, "POST") ? retry_job(r, id) : srv_respond_method(r, "POST");
       return is_get(r) ? srv_output_serve(r, id, rest + 9) : srv_respond_method(r, "GET, HEAD");
     }
     default: break;

@@ -20,6 +20,10 @@ extern const char srv_db_sql[];
 extern const size_t srv_db_sql_len;
 
 
+#define CMP_JOBS                                                                                  \
+  "(SELECT job FROM comparison_candidates WHERE comparison = ?1 UNION "                           \
+  "SELECT reference_job FROM comparison_candidates WHERE comparison = ?1)"
+
 static const char *const sql[ST_COUNT] = {
     [ST_BEGIN] = "BEGIN IMMEDIATE",
     [ST_COMMIT] = "COMMIT",
@@ -86,9 +90,16 @@ static const char *const sql[ST_COUNT] = {
                        "metrics_error IS NULL",
     [ST_OUT_UPSERT] = "INSERT OR REPLACE INTO outputs (job_id, name, size, sha256, content_type) "
                       "VALUES (?, ?, ?, ?, ?)",
-#define CMP_JOBS                                                                                  \
-  "(SELECT job FROM comparison_candidates WHERE comparison = ?1 UNION "                           \
-  "SELECT reference_job FROM comparison_candidates WHERE comparison = ?1)"
+    /* The same row goes back to the queue: its id, document and comparison stay. */
+    [ST_RETRY] = "UPDATE jobs SET state = 'queued', error = NULL, cancel_requested = 0, "
+                 "started_ms = NULL, finished_ms = NULL, progress = 0, backend = NULL "
+                 "WHERE id = ? AND state IN ('failed', 'cancelled')",
+    [ST_CMP_ACTIVE] = "SELECT (SELECT count(*) FROM comparisons WHERE id = ?1), (SELECT count(*) "
+                      "FROM jobs WHERE id IN " CMP_JOBS " AND state IN ('queued', 'running'))",
+    [ST_CMP_JOBS] = "SELECT job FROM comparison_candidates WHERE comparison = ?1 UNION "
+                    "SELECT reference_job FROM comparison_candidates WHERE comparison = ?1",
+    [ST_CMP_DELETE] = "DELETE FROM comparisons WHERE id = ?",
+    [ST_JOB_DELETE_ANY] = "DELETE FROM jobs WHERE id = ?",
 /* Per comparison: jobs still to run, candidates that can no longer get metrics, and with them. */
 #define CMP_COUNTS                                                                                \
   "(SELECT count(*) FROM jobs WHERE id IN (SELECT job FROM comparison_candidates WHERE "          \

@@ -131,6 +131,7 @@ typedef struct srv_job {
   int repeats;             /* timed renders per attempt */
   int warmup;              /* 1: one untimed render first (comparison jobs) */
   char *backend_reason;    /* why this backend, may be NULL */
+  int64_t comparison;      /* the comparison it belongs to, 0 = none */
   char *doc;               /* only filled by srv_db_claim */
   srv_output *outputs;
   int noutputs;
@@ -263,6 +264,12 @@ int srv_db_cancel(srv_db *db, int64_t id, srv_cancel_result *res, obs_err *err);
 /* Deletes a finished job and its output rows and runs. OBS_ENOTFOUND, OBS_EINVAL when not
  * finished, OBS_EUNSUPPORTED when it belongs to a comparison (comparisons keep their jobs). */
 int srv_db_delete(srv_db *db, int64_t id, obs_err *err);
+/* A failed or cancelled job back to the queue (same id): OBS_ENOTFOUND, or OBS_EINVAL with
+ * *state filled when it is not failed or cancelled. */
+int srv_db_retry(srv_db *db, int64_t id, srv_state *state, obs_err *err);
+/* Deletes a comparison and all its jobs in one transaction; fills ids (malloc'ed, the caller
+ * frees) with the deleted jobs. OBS_ENOTFOUND, or OBS_EINVAL while any of its jobs is active. */
+int srv_db_delete_comparison(srv_db *db, int64_t id, int64_t **ids, int *nids, obs_err *err);
 int srv_db_get_output(srv_db *db, int64_t id, const char *name, srv_output *o, obs_err *err);
 /* Job counts by state. */
 int srv_db_counts(srv_db *db, int64_t counts[SRV_NSTATES], obs_err *err);
@@ -333,6 +340,7 @@ typedef enum {
   SRV_ROUTE_JOB,
   SRV_ROUTE_JOB_CANCEL,
   SRV_ROUTE_JOB_OUTPUT,
+  SRV_ROUTE_JOB_RETRY,
   SRV_ROUTE_TECHNIQUES,
   SRV_ROUTE_SCENES,
   SRV_ROUTE_HEALTH,
