@@ -24,6 +24,7 @@ static srv_route job_route(const char *path, const char **id, size_t *idlen, con
   if (!slash) return SRV_ROUTE_JOB;
   if (!strcmp(slash, "/cancel")) return SRV_ROUTE_JOB_CANCEL;
   if (!strcmp(slash, "/retry")) return SRV_ROUTE_JOB_RETRY;
+  if (!strcmp(slash, "/document")) return SRV_ROUTE_JOB_DOCUMENT;
   if (!strncmp(slash, "/outputs/", 9) && slash[9] && !strchr(slash + 9, '/'))
     return SRV_ROUTE_JOB_OUTPUT;
   return SRV_ROUTE_UNKNOWN;
@@ -400,6 +401,28 @@ static int retry_job(srv_req *r, int64_t id) {
   return get_job(r, id, MHD_HTTP_ACCEPTED);
 }
 
+/* The scene document the job renders (what a clone starts from), with its scene, label and
+ * priority. */
+static int job_document(srv_req *r, int64_t id) {
+  obs_err err = OBS_ERR_INIT;
+  json_t *rows = NULL;
+  srv_arg arg = {SRV_ARG_INT, id, 0, NULL};
+  if (srv_db_query(r->app->db, SRV_Q_JOB_DOC, &arg, 1, &rows, &err))
+    return srv_respond_unavailable(r, &err);
+  json_t *row = json_array_get(rows, 0);
+  if (!row) {
+    json_decref(rows);
+    return not_found_job(r, id);
+  }
+  const char *text = json_string_value(json_object_get(row, "doc"));
+  json_t *doc = text ? json_loads(text, 0, NULL) : NULL;
+  json_t *o = json_pack("{s:o, s:O, s:O, s:O}", "document", doc ? doc : json_null(), "scene",
+                        json_object_get(row, "scene"), "label", json_object_get(row, "label"),
+                        "priority", json_object_get(row, "priority"));
+  json_decref(rows);
+  return srv_respond_json(r, MHD_HTTP_OK, o);
+}
+
 static int delete_comparison(srv_req *r, int64_t id) {
   obs_err err = OBS_ERR_INIT;
   int64_t *ids = NULL;
@@ -549,6 +572,7 @@ int srv_api_dispatch(srv_req *r) {
     case SRV_ROUTE_JOB:
     case SRV_ROUTE_JOB_CANCEL:
     case SRV_ROUTE_JOB_RETRY:
+    case SRV_ROUTE_JOB_DOCUMENT:
     case SRV_ROUTE_JOB_OUTPUT: {
       const char *idtext, *rest;
       size_t n;
@@ -566,6 +590,8 @@ int srv_api_dispatch(srv_req *r) {
         return !strcmp(r->method, "POST") ? cancel_job(r, id) : srv_respond_method(r, "POST");
       if (r->route == SRV_ROUTE_JOB_RETRY)
         return !strcmp(r->method, "POST") ? retry_job(r, id) : srv_respond_method(r, "POST");
+      if (r->route == SRV_ROUTE_JOB_DOCUMENT)
+        return is_get(r) ? job_document(r, id) : srv_respond_method(r, "GET, HEAD");
       return is_get(r) ? srv_output_serve(r, id, rest + 9) : srv_respond_method(r, "GET, HEAD");
     }
     default: break;

@@ -130,6 +130,7 @@ static const char *const sql[ST_COUNT] = {
     [ST_QUERY + SRV_Q_COMPARISONS] = "SELECT c.id, c.label, c.scene, c.created_ms, " CMP_COUNTS
                                      " FROM comparisons c WHERE (?1 = 0 OR c.id < ?1) "
                                      "ORDER BY c.id DESC LIMIT ?2",
+    [ST_QUERY + SRV_Q_JOB_DOC] = "SELECT doc, scene, label, priority FROM jobs WHERE id = ?1",
     [ST_QUERY + SRV_Q_JOB_COMPARISON] = "SELECT comparison FROM comparison_candidates WHERE "
                                         "job = ?1 OR reference_job = ?1 LIMIT 1",
     [ST_QUERY + SRV_Q_METRICS_PENDING] =

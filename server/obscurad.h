@@ -240,6 +240,7 @@ typedef enum {
   SRV_Q_AUTO_RUNS,          /* ?1 technique, ?2 work: timed runs at similar work per backend */
   SRV_Q_BUDGET,             /* candidates with metrics, newest comparisons first */
   SRV_Q_JOB_RUNS,           /* ?1 job id: its runs' totals */
+  SRV_Q_JOB_DOC,            /* ?1 job id: its stored document, scene, label and priority */
   SRV_NQUERIES
 } srv_query;
 typedef struct srv_arg {
@@ -341,6 +342,7 @@ typedef enum {
   SRV_ROUTE_JOB_CANCEL,
   SRV_ROUTE_JOB_OUTPUT,
   SRV_ROUTE_JOB_RETRY,
+  SRV_ROUTE_JOB_DOCUMENT,
   SRV_ROUTE_TECHNIQUES,
   SRV_ROUTE_SCENES,
   SRV_ROUTE_HEALTH,

@@ -1,6 +1,7 @@
 // Job management through the API: comparison_id on the jobs of a comparison, a comparison deleted
 // as a whole (its jobs and their output directories; 409 while one runs), and retrying a failed or
-// cancelled job (the same job back in the queue, 409 for other states).
+// cancelled job (the same job back in the queue, 409 for other states), and the document a clone
+// starts from.
 //
 //   node tests/server/test_job_management.mjs <obscurad> <obscura>
 import assert from 'node:assert/strict';
@@ -116,6 +117,15 @@ test('retry puts a cancelled or failed job back in the queue', async () => {
     assert.ok(done.outputs.length > 0);
     const bj = await waitJob(d, blocker);
     assert.equal(bj.state, 'cancelled');
+    // The document a clone starts from: the bundled scene with the set and technique applied.
+    const doc = await getJSON(d, `/api/v1/jobs/${id}/document`);
+    assert.equal(doc.scene, 'sphere_on_plane.json');
+    assert.equal(doc.label, 'again');
+    assert.equal(doc.priority, 50);
+    assert.equal(doc.document.image.width, 24);
+    assert.equal(doc.document.technique.params.samples, 8);
+    assert.ok(Array.isArray(doc.document.objects));
+    assert.equal((await request(d, 'GET', '/api/v1/jobs/999999/document')).status, 404);
     // Succeeded: 409; unknown: 404; GET: 405.
     assert.equal((await request(d, 'POST', `/api/v1/jobs/${id}/retry`)).status, 409);
     assert.equal((await request(d, 'POST', '/api/v1/jobs/999999/retry')).status, 404);
