@@ -3,6 +3,7 @@
 // GET /api/v1/techniques (params_schema), so a new technique needs no change here. Everything is
 // checked before sending; a 4xx's problems are shown next to the fields their JSON pointers name.
 import {ApiError, api, el, techniques} from './api.js';
+import {prefillClone} from './clone.js';
 import {checkValue, describeRule, parseField, parseToken} from './params.js';
 
 const MAX_CANDIDATES = 256;
@@ -272,6 +273,9 @@ function build(form, registry, scenes, query) {
   form.replaceChildren(mode, common, cmpOptions, techBox, addBtn, count, clientErrors, serverErrors, el('p', {}, submitBtn));
   showSource();
   showMode();
+  if (/^\d+$/.test(query.get('clone') || '') && !isComparison()) {
+    prefillClone(query.get('clone'), {form, sceneSel, sceneJson, width, height, priority, label, block: blocks[0], showSource});
+  }
 
   /** Everything the form says, checked; {body, errors: [[control, message]]}. */
   const read = () => {
