@@ -322,6 +322,15 @@ static int get_job(srv_req *r, int64_t id, unsigned status) {
   if (rc) return srv_respond_unavailable(r, &err);
   json_t *o = job_json(r->app, &j);
   srv_job_free(&j);
+  /* Where it ran (one job's page says "on <device>" or "N threads"); not in the list. */
+  json_t *rows = NULL;
+  srv_arg arg = {SRV_ARG_INT, id, 0, NULL};
+  json_t *m = NULL;
+  if (!srv_db_query(r->app->db, SRV_Q_JOB_MACHINE, &arg, 1, &rows, &err))
+    m = json_incref(json_array_get(rows, 0));
+  obs_err_free(&err);
+  json_decref(rows);
+  json_object_set_new(o, "machine", m ? m : json_null());
   return srv_respond_json(r, status, o);
 }
 

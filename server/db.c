@@ -131,6 +131,9 @@ static const char *const sql[ST_COUNT] = {
                                      " FROM comparisons c WHERE (?1 = 0 OR c.id < ?1) "
                                      "ORDER BY c.id DESC LIMIT ?2",
     [ST_QUERY + SRV_Q_JOB_DOC] = "SELECT doc, scene, label, priority FROM jobs WHERE id = ?1",
+    [ST_QUERY + SRV_Q_JOB_MACHINE] = "SELECT m.cpu_model, m.cores, m.vulkan_device FROM runs ru "
+                                     "JOIN machines m ON m.id = ru.machine WHERE ru.job = ?1 "
+                                     "ORDER BY ru.run DESC LIMIT 1",
     [ST_QUERY + SRV_Q_JOB_COMPARISON] = "SELECT comparison FROM comparison_candidates WHERE "
                                         "job = ?1 OR reference_job = ?1 LIMIT 1",
     [ST_QUERY + SRV_Q_METRICS_PENDING] =

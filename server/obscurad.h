@@ -241,6 +241,7 @@ typedef enum {
   SRV_Q_BUDGET,             /* candidates with metrics, newest comparisons first */
   SRV_Q_JOB_RUNS,           /* ?1 job id: its runs' totals */
   SRV_Q_JOB_DOC,            /* ?1 job id: its stored document, scene, label and priority */
+  SRV_Q_JOB_MACHINE,        /* ?1 job id: the machine of its last timed run */
   SRV_NQUERIES
 } srv_query;
 typedef struct srv_arg {

@@ -54,6 +54,13 @@ test('grouping, confirm, retry, clone, bulk actions, paging, URL filters, narrow
     await assertAllNamed(page, 'jobs with a comparison');
     await screenshot(page, 'jobs-grouped');
 
+    // A candidate's page shows its metrics without ?comparison= in its URL.
+    await page.goto(`${d.url}/#/jobs/${c.candidates[0].job_id}`);
+    await page.getByRole('heading', {name: 'Metrics against the reference'}).waitFor();
+    assert.equal(await page.getByRole('link', {name: new RegExp(`^comparison ${cid}`)}).getAttribute('href'), `#/comparisons/${cid}`);
+    await page.goto(`${d.url}/#/jobs`);
+    await group.waitFor();
+
     // ---- delete asks first; Keep keeps --------------------------------------------------------
     await page.getByRole('button', {name: `Delete job ${plain}`}).click();
     const dialog = page.getByRole('dialog');
@@ -170,6 +177,80 @@ test('grouping, confirm, retry, clone, bulk actions, paging, URL filters, narrow
     assert.ok(await noOverflow(page), 'a job page fits 800 px');
 
     assert.deepEqual(errors, [], 'no script errors');
+  } finally {
+    await browser.close();
+    await d.stopClean();
+  }
+});
+
+test('job pages: no "null" text, where it ran, what a screen-space technique did, readable numbers', async () => {
+  const d = await startDashboard({workers: 1, args: ['--max-render-seconds', '1', '--no-estimate-render-time']});
+  const {browser, page, errors} = await openBrowser();
+  const text = () => page.locator('main').innerText();
+  try {
+    // Failed (time limit), cancelled while queued, running: none prints a null.
+    const failed = await submit(d, BLOCKER);
+    await page.goto(`${d.url}/#/jobs/${failed}`);
+    await page.locator('.job-state', {hasText: 'running'}).waitFor();
+    assert.doesNotMatch(await text(), /null/, 'running job page');
+    await page.locator('.job-state', {hasText: 'failed'}).waitFor();
+    assert.doesNotMatch(await text(), /null/, 'failed job page');
+    assert.match(await text(), /time limit/);
+    await page.getByRole('button', {name: `Retry job ${failed}`}).waitFor();
+    const blocker = await submit(d, {...BLOCKER, priority: 100});
+    await waitJob(d, blocker, (j) => j.state === 'running');
+    const cancelled = await submit(d, tiny('to cancel'));
+    assert.equal((await request(d, 'POST', `/api/v1/jobs/${cancelled}/cancel`)).status, 202);
+    await page.goto(`${d.url}/#/jobs/${cancelled}`);
+    await page.locator('.job-state', {hasText: 'cancelled'}).waitFor();
+    assert.doesNotMatch(await text(), /null/, 'cancelled job page');
+    await waitJob(d, blocker);
+
+    // ssao: its depth-buffer samples per pixel, not "rays traced"; hbao: directions × steps.
+    // A radius with binary noise prints as people write it.
+    const ssao = await submit(d, {scene_file: 'sphere_on_plane.json', technique: {name: 'ssao', backend: 'cpu',
+      params: {samples: 24, radius: 0.1 + 0.2}}, set: SMALL});
+    const hbao = await submit(d, {scene_file: 'sphere_on_plane.json', technique: {name: 'hbao', backend: 'cpu',
+      params: {directions: 4, steps: 3}}, set: SMALL});
+    await waitAll(d, [ssao, hbao]);
+    await page.goto(`${d.url}/#/jobs/${ssao}`);
+    await page.locator('.work-per-pixel', {hasText: '24'}).waitFor();
+    let t = await text();
+    assert.match(t, /depth-buffer samples per pixel \(samples\)\s+24/);
+    assert.doesNotMatch(t, /rays traced/);
+    assert.match(t, /radius=0\.3 /);
+    assert.doesNotMatch(t, /0\.30000000000000004/);
+    assert.match(t, /ssao on cpu, \d+ threads?:/);
+    assert.doesNotMatch(t, /thread\(s\)|null/);
+    await page.goto(`${d.url}/#/jobs/${hbao}`);
+    await page.locator('.work-per-pixel', {hasText: '4 × 3 = 12'}).waitFor();
+    assert.match(await text(), /depth-buffer samples per pixel \(directions × steps\)\s+4 × 3 = 12/);
+
+    // A Vulkan job names its device instead of a thread count (the answers are rewritten as a
+    // Vulkan lane would give them: the test daemon has none).
+    await page.route(`**/api/v1/jobs/${hbao}`, async (route) => {
+      const j = await (await route.fetch()).json();
+      j.backend.actual = 'vulkan';
+      j.machine = {cpu_model: 'test cpu', cores: 2, vulkan_device: 'llvmpipe (LLVM 15.0.6, 256 bits)'};
+      await route.fulfill({json: j});
+    });
+    await page.route(`**/api/v1/jobs/${hbao}/outputs/summary.json`, async (route) => {
+      const sum = await (await route.fetch()).json();
+      sum.backend = 'vulkan';
+      await route.fulfill({json: sum});
+    });
+    await page.goto(`${d.url}/#/jobs`);
+    await page.goto(`${d.url}/#/jobs/${hbao}`);
+    await page.getByText('hbao on vulkan (device llvmpipe (LLVM 15.0.6, 256 bits)):').waitFor();
+    assert.doesNotMatch(await text(), /thread/);
+
+    // The list and a job page at 800 px.
+    await page.setViewportSize({width: 800, height: 900});
+    await page.goto(`${d.url}/#/jobs/${ssao}`);
+    await page.locator('.work-per-pixel', {hasText: '24'}).waitFor();
+    assert.ok(await noOverflow(page), 'a job page fits 800 px');
+    await screenshot(page, 'job-800');
+    assert.deepEqual(errors.filter((e) => !/status of 4\d\d/.test(e)), [], 'no script errors');
   } finally {
     await browser.close();
     await d.stopClean();

@@ -115,6 +115,12 @@ test('retry puts a cancelled or failed job back in the queue', async () => {
     const done = await waitJob(d, id);
     assert.equal(done.state, 'succeeded');
     assert.ok(done.outputs.length > 0);
+    // One job says where it ran (the machine of its timed render); the list does not.
+    const one = await getJSON(d, `/api/v1/jobs/${id}`);
+    validate('Job', one);
+    assert.ok(one.machine && one.machine.cores >= 1, JSON.stringify(one.machine));
+    assert.equal(one.machine.vulkan_device, null);
+    assert.equal((await getJSON(d, '/api/v1/jobs')).jobs[0].machine, undefined);
     const bj = await waitJob(d, blocker);
     assert.equal(bj.state, 'cancelled');
     // The document a clone starts from: the bundled scene with the set and technique applied.

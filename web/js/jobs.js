@@ -172,15 +172,45 @@ function timingsSection(t) {
         el('th', {scope: 'row'}, sub ? `render › ${k}` : k), el('td', {className: 'num'}, fmtMs(v)))))));
 }
 
-function statsSection(j) {
+// The registry's entry of a technique (its needs and cost rule), null when unknown.
+async function techniqueOf(name) {
+  try {
+    return (await techniques()).techniques.find((t) => t.name === name) || null;
+  } catch {
+    return null;
+  }
+}
+
+/** Where a render ran: the Vulkan device by name, or the CPU threads one render used. */
+function ranOn(summary, machine) {
+  if (summary.backend === 'vulkan') return `vulkan (device ${(machine && machine.vulkan_device) || 'unknown'})`;
+  return `${summary.backend}, ${summary.threads} thread${summary.threads === 1 ? '' : 's'}`;
+}
+
+/** The technique's cost rule ("directions x steps") evaluated on the parameters it ran with. */
+function workPerPixel(cost, params) {
+  const names = cost.split(/\s*x\s*/);
+  const vals = names.map((n) => (params || {})[n]);
+  if (vals.some((v) => typeof v !== 'number')) return cost;
+  const total = vals.reduce((a, b) => a * b, 1);
+  return names.length > 1 ? `${vals.join(' × ')} = ${total}` : String(total);
+}
+
+function statsSection(j, technique) {
   const s = j.stats || {};
-  const rows = [['rays traced', j.rays], ['AO mean', s.ao && fmtNum(s.ao.mean)], ['AO min', s.ao && fmtNum(s.ao.min)],
+  // Techniques that trace rays count them; the screen-space ones sample the depth buffer, their
+  // work per pixel is the registry's cost rule (its value fills in when the parameters arrive).
+  const traces = !technique || (technique.needs || []).includes('bvh');
+  const work = traces ? ['rays traced', j.rays]
+    : [`depth-buffer samples per pixel (${technique.cost.replace(/ x /g, ' × ')})`,
+       el('span', {className: 'work-per-pixel', 'data-cost': technique.cost}, '…')];
+  const rows = [work, ['AO mean', s.ao && fmtNum(s.ao.mean)], ['AO min', s.ao && fmtNum(s.ao.min)],
                 ['AO max', s.ao && fmtNum(s.ao.max)], ['AO standard error (mean)', s.ao_stderr_mean !== undefined ? fmtNum(s.ao_stderr_mean) : null],
                 ['non-finite values', s.nan_count]].filter(([, v]) => v !== null && v !== undefined);
   return el('section', {'aria-labelledby': 'h-stats'},
     el('h2', {id: 'h-stats'}, 'Statistics'),
     el('table', {className: 'kv'}, el('tbody', {}, ...rows.map(([k, v]) => el('tr', {},
-      el('th', {scope: 'row'}, k), el('td', {className: 'num'}, String(v)))))));
+      el('th', {scope: 'row'}, k), el('td', {className: 'num'}, typeof v === 'object' ? v : String(v)))))));
 }
 
 export function mountJob(view, [id], query) {
@@ -232,10 +262,11 @@ export function mountJob(view, [id], query) {
     }
     if (j.state !== lastState) {
       lastState = j.state;
-      body.replaceChildren(warningsSection(j), outputsSection(j, await outputFiles()),
+      // Sections a job does not have yet are left out (replaceChildren would print a null).
+      body.replaceChildren(...[warningsSection(j), outputsSection(j, await outputFiles()),
         j.timings_ms ? timingsSection(j.timings_ms) : null,
-        j.stats ? statsSection(j) : null,
-        el('div', {className: 'params-slot'}), el('div', {className: 'metrics-slot'}));
+        j.stats ? statsSection(j, await techniqueOf(j.technique)) : null,
+        el('div', {className: 'params-slot'}), el('div', {className: 'metrics-slot'})].filter(Boolean));
       summaryDone = metricsDone = false;
     }
     const summary = j.links.outputs['summary.json'];
@@ -244,7 +275,9 @@ export function mountJob(view, [id], query) {
       api(summary).then((s) => {
         body.querySelector('.params-slot').replaceChildren(el('section', {'aria-labelledby': 'h-params'},
           el('h2', {id: 'h-params'}, 'Parameters'),
-          el('p', {}, `${s.technique} on ${s.backend}, ${s.threads} thread(s): `, el('code', {}, paramText(s.params)))));
+          el('p', {}, `${s.technique} on ${ranOn(s, j.machine)}: `, el('code', {}, paramText(s.params)))));
+        const work = body.querySelector('.work-per-pixel');
+        if (work) work.textContent = workPerPixel(work.dataset.cost, s.params);
       }).catch(() => {});
     }
     const cid = comparisonId || j.comparison_id || (j.comparison && j.comparison.id);
