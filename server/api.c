@@ -25,6 +25,7 @@ static srv_route job_route(const char *path, const char **id, size_t *idlen, con
   if (!strcmp(slash, "/cancel")) return SRV_ROUTE_JOB_CANCEL;
   if (!strcmp(slash, "/retry")) return SRV_ROUTE_JOB_RETRY;
   if (!strcmp(slash, "/document")) return SRV_ROUTE_JOB_DOCUMENT;
+  if (!strcmp(slash, "/log")) return SRV_ROUTE_JOB_LOG;
   if (!strncmp(slash, "/outputs/", 9) && slash[9] && !strchr(slash + 9, '/'))
     return SRV_ROUTE_JOB_OUTPUT;
   return SRV_ROUTE_UNKNOWN;
@@ -64,14 +65,16 @@ static json_t *job_links(int64_t id, const srv_job *j) {
   snprintf(self, sizeof self, API "/jobs/%lld", (long long)id);
   snprintf(cancel, sizeof cancel, "%s/cancel", self);
   snprintf(retry, sizeof retry, "%s/retry", self);
+  char logl[80];
+  snprintf(logl, sizeof logl, "%s/log", self);
   json_t *outs = json_object();
   for (int i = 0; j && i < j->noutputs; i++) {
     char url[128];
     snprintf(url, sizeof url, "%s/outputs/%s", self, j->outputs[i].name);
     json_object_set_new(outs, j->outputs[i].name, json_string(url));
   }
-  json_t *l = json_pack("{s:s, s:s, s:s, s:o}", "self", self, "cancel", cancel, "retry", retry,
-                        "outputs", outs);
+  json_t *l = json_pack("{s:s, s:s, s:s, s:s, s:o}", "self", self, "cancel", cancel, "retry",
+                        retry, "log", logl, "outputs", outs);
   if (j && j->comparison) {
     char cmp[64];
     snprintf(cmp, sizeof cmp, API "/comparisons/%lld", (long long)j->comparison);
@@ -193,8 +196,9 @@ static int submit(srv_req *r) {
     obs_err_free(&problems);
     return rc;
   }
-  srv_log("job %lld: submitted -> queued (%s, %s/%s, %dx%d, priority %d)", (long long)id, s.scene,
-          s.technique, s.backend_requested, s.width, s.height, s.priority);
+  srv_job_log(r->app, id, "submitted -> queued (%s, %s/%s, %dx%d, priority %d; backend: %s)",
+              s.scene, s.technique, s.backend_requested, s.width, s.height, s.priority,
+              s.backend_reason ? s.backend_reason : "requested");
   json_t *body = json_pack("{s:I, s:s, s:o}", "id", (json_int_t)id, "state", "queued", "links",
                            job_links(id, NULL));
   if (s.choice) json_object_set(body, "choice", s.choice);
@@ -405,7 +409,7 @@ static int retry_job(srv_req *r, int64_t id) {
                              (long long)id, srv_state_name(st));
   }
   if (rc) return srv_respond_unavailable(r, &err);
-  srv_log("job %lld: requeued by request", (long long)id);
+  srv_job_log(r->app, id, "retried by request -> queued");
   srv_sched_notify(r->app);
   return get_job(r, id, MHD_HTTP_ACCEPTED);
 }
@@ -430,6 +434,34 @@ static int job_document(srv_req *r, int64_t id) {
                         "priority", json_object_get(row, "priority"));
   json_decref(rows);
   return srv_respond_json(r, MHD_HTTP_OK, o);
+}
+
+/* The job's own log: one timestamped line per entry (joblog.c). */
+static int job_log(srv_req *r, int64_t id) {
+  obs_err err = OBS_ERR_INIT;
+  int rc = srv_db_job_exists(r->app->db, id, NULL, &err);
+  if (rc < 0) return srv_respond_unavailable(r, &err);
+  if (rc == 0) return not_found_job(r, id);
+  size_t len;
+  char *text = srv_job_log_read(r->app, id, &len);
+  if (!text) return srv_respond_error(r, MHD_HTTP_INTERNAL_SERVER_ERROR, NULL,
+                                      "cannot read the log of job %lld", (long long)id);
+  json_t *lines = json_array();
+  for (char *p = text, *nl; *p; p = nl + 1) {
+    nl = strchr(p, '\n');
+    if (!nl) nl = p + strlen(p) - 1;
+    else *nl = '\0';
+    json_t *l = json_string(p);
+    /* A line that is not UTF-8 (a path's bytes) is shown with its bytes replaced. */
+    if (!l) {
+      for (char *q = p; *q; q++)
+        if ((unsigned char)*q >= 0x80) *q = '?';
+      l = json_string(p);
+    }
+    if (l) json_array_append_new(lines, l);
+  }
+  free(text);
+  return srv_respond_json(r, MHD_HTTP_OK, json_pack("{s:I, s:o}", "job", (json_int_t)id, "lines", lines));
 }
 
 static int delete_comparison(srv_req *r, int64_t id) {
@@ -582,6 +614,7 @@ int srv_api_dispatch(srv_req *r) {
     case SRV_ROUTE_JOB_CANCEL:
     case SRV_ROUTE_JOB_RETRY:
     case SRV_ROUTE_JOB_DOCUMENT:
+    case SRV_ROUTE_JOB_LOG:
     case SRV_ROUTE_JOB_OUTPUT: {
       const char *idtext, *rest;
       size_t n;
@@ -601,6 +634,8 @@ int srv_api_dispatch(srv_req *r) {
         return !strcmp(r->method, "POST") ? retry_job(r, id) : srv_respond_method(r, "POST");
       if (r->route == SRV_ROUTE_JOB_DOCUMENT)
         return is_get(r) ? job_document(r, id) : srv_respond_method(r, "GET, HEAD");
+      if (r->route == SRV_ROUTE_JOB_LOG)
+        return is_get(r) ? job_log(r, id) : srv_respond_method(r, "GET, HEAD");
       return is_get(r) ? srv_output_serve(r, id, rest + 9) : srv_respond_method(r, "GET, HEAD");
     }
     default: break;

@@ -16,6 +16,7 @@ static const char *const route_names[SRV_NROUTES] = {
     [SRV_ROUTE_JOB_OUTPUT] = "/api/v1/jobs/{id}/outputs/{name}",
     [SRV_ROUTE_JOB_RETRY] = "/api/v1/jobs/{id}/retry",
     [SRV_ROUTE_JOB_DOCUMENT] = "/api/v1/jobs/{id}/document",
+    [SRV_ROUTE_JOB_LOG] = "/api/v1/jobs/{id}/log",
     [SRV_ROUTE_TECHNIQUES] = "/api/v1/techniques",
     [SRV_ROUTE_SCENES] = "/api/v1/scenes",
     [SRV_ROUTE_HEALTH] = "/api/v1/health",

@@ -344,6 +344,7 @@ typedef enum {
   SRV_ROUTE_JOB_OUTPUT,
   SRV_ROUTE_JOB_RETRY,
   SRV_ROUTE_JOB_DOCUMENT,
+  SRV_ROUTE_JOB_LOG,
   SRV_ROUTE_TECHNIQUES,
   SRV_ROUTE_SCENES,
   SRV_ROUTE_HEALTH,
@@ -390,6 +391,12 @@ void srv_results_path(const struct srv_app *app, int64_t id, char *buf, size_t n
 int srv_outputs_describe(const char *dir, srv_output *outs, int max, int *n, obs_err *err);
 /* Removes results/<id> and any staging directory of job `id`. */
 void srv_outputs_remove(const struct srv_app *app, int64_t id);
+/* A line about job `id`: to the daemon's log and appended to the job's own log (joblog.c). */
+void srv_job_log(const struct srv_app *app, int64_t id, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
+/* The job's log as text (malloc'ed, "" when it has none; NULL when it cannot be read). */
+char *srv_job_log_read(const struct srv_app *app, int64_t id, size_t *len);
+void srv_job_log_remove(const struct srv_app *app, int64_t id);
 /* Removes staging directories and result directories of jobs that are not succeeded. */
 void srv_outputs_sweep(struct srv_app *app);
 /* Writes, fsyncs and removes a small file in `dir`: 0 when the directory takes files, else

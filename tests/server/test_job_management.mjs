@@ -1,7 +1,7 @@
 // Job management through the API: comparison_id on the jobs of a comparison, a comparison deleted
 // as a whole (its jobs and their output directories; 409 while one runs), and retrying a failed or
 // cancelled job (the same job back in the queue, 409 for other states), and the document a clone
-// starts from.
+// starts from, and each job's log.
 //
 //   node tests/server/test_job_management.mjs <obscurad> <obscura>
 import assert from 'node:assert/strict';
@@ -151,5 +151,28 @@ test('a failed job is retried with the same document', async () => {
     const again = await waitJob(d, id, (j) => j.state !== 'queued');
     assert.ok(again.attempts >= 2, `attempts ${again.attempts}`);
     await waitJob(d, id);
+    // The job's log tells the whole story, oldest first.
+    const log = await getJSON(d, `/api/v1/jobs/${id}/log`);
+    assert.equal(log.job, id);
+    const text = log.lines.join('\n');
+    for (const re of [/submitted -> queued \(cornell_box\.json, rt_ao/, /queued -> running \(cpu lane, attempt 1\)/,
+                      /render time limit of 1 s exceeded/, /running -> failed \(render time limit of 1 s exceeded\)/,
+                      /retried by request -> queued/, /queued -> running \(cpu lane, attempt 2\)/]) {
+      assert.match(text, re);
+    }
+    assert.ok(text.indexOf('attempt 1') < text.indexOf('retried') && text.indexOf('retried') < text.indexOf('attempt 2'));
+    for (const l of log.lines) assert.match(l, /^\d{4}-\d\d-\d\dT/);
+    // A warning of the renderer and the success line of another job.
+    const wide = await submit(d, small({set: {...SMALL, '/camera/fov_y': 175}, technique: {name: 'ssao', backend: 'cpu'}}));
+    const wj = await waitJob(d, wide);
+    assert.equal(wj.state, 'succeeded');
+    const wl = (await getJSON(d, `/api/v1/jobs/${wide}/log`)).lines.join('\n');
+    assert.match(wl, /warning: camera fov_y 175 degrees/);
+    assert.match(wl, /running -> succeeded \(ssao\/cpu 24x16 on \d+ CPU threads?, /);
+    // Deleted with the job.
+    assert.equal((await request(d, 'DELETE', `/api/v1/jobs/${wide}`)).status, 204);
+    assert.equal((await request(d, 'GET', `/api/v1/jobs/${wide}/log`)).status, 404);
+    assert.ok(!fs.existsSync(path.join(d.dataDir, 'logs', `${wide}.log`)));
+    assert.ok(fs.existsSync(path.join(d.dataDir, 'logs', `${id}.log`)));
   });
 });
