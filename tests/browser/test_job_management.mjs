@@ -2,7 +2,8 @@
 // of a comparison grouped under one row with each job's role and parameters, a comparison deleted
 // as a whole, delete behind a confirmation dialog, retry of a cancelled job, clone into the submit
 // form, bulk cancel and delete, paging beyond the newest 50, filters kept in the URL, full dates,
-// and the list's narrow layout at 800 px.
+// the list's narrow layout at 800 px, and on job pages: no "null", the device or threads it ran
+// on, what a screen-space technique did, readable numbers and the job's log.
 import assert from 'node:assert/strict';
 import test from 'node:test';
 import {assertAllNamed, getJSON, openBrowser, request, screenshot, startDashboard, submit, waitAll, waitJob} from './lib.mjs';
@@ -196,6 +197,10 @@ test('job pages: no "null" text, where it ran, what a screen-space technique did
     await page.locator('.job-state', {hasText: 'failed'}).waitFor();
     assert.doesNotMatch(await text(), /null/, 'failed job page');
     assert.match(await text(), /time limit/);
+    // Its log on the page: claimed, stopped at the limit, failed.
+    const log = page.locator('pre.job-log');
+    await log.filter({hasText: 'running -> failed (render time limit of 1 s exceeded)'}).waitFor();
+    assert.match(await log.textContent(), /submitted -> queued[\s\S]*queued -> running \(cpu lane, attempt 1\)[\s\S]*time limit/);
     await page.getByRole('button', {name: `Retry job ${failed}`}).waitFor();
     const blocker = await submit(d, {...BLOCKER, priority: 100});
     await waitJob(d, blocker, (j) => j.state === 'running');
@@ -221,6 +226,7 @@ test('job pages: no "null" text, where it ran, what a screen-space technique did
     assert.match(t, /radius=0\.3 /);
     assert.doesNotMatch(t, /0\.30000000000000004/);
     assert.match(t, /ssao on cpu, \d+ threads?:/);
+    await page.locator('pre.job-log', {hasText: 'running -> succeeded (ssao/cpu 24x16'}).waitFor();
     assert.doesNotMatch(t, /thread\(s\)|null/);
     await page.goto(`${d.url}/#/jobs/${hbao}`);
     await page.locator('.work-per-pixel', {hasText: '4 × 3 = 12'}).waitFor();
@@ -242,7 +248,7 @@ test('job pages: no "null" text, where it ran, what a screen-space technique did
     await page.goto(`${d.url}/#/jobs`);
     await page.goto(`${d.url}/#/jobs/${hbao}`);
     await page.getByText('hbao on vulkan (device llvmpipe (LLVM 15.0.6, 256 bits)):').waitFor();
-    assert.doesNotMatch(await text(), /thread/);
+    assert.doesNotMatch(await page.locator('.params-slot').innerText(), /thread/);
 
     // The list and a job page at 800 px.
     await page.setViewportSize({width: 800, height: 900});

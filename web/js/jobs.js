@@ -1,5 +1,5 @@
 // One job's page (its warnings, every PNG output, downloads, timings per stage, statistics, the
-// parameters it ran with, and its metrics when it belongs to a comparison), and what the job list
+// parameters it ran with, its metrics when it belongs to a comparison, and its log), and what the job list
 // (joblist.js) shares with it: the actions on a job, the confirmation dialog, warning markers.
 import {ACTIVE, api, debug, el, fmtBytes, fmtMs, fmtNum, fmtTime, paramText, poll, stateBadge, techniques} from './api.js';
 import {metricsTable} from './comparisons.js';
@@ -266,9 +266,18 @@ export function mountJob(view, [id], query) {
       body.replaceChildren(...[warningsSection(j), outputsSection(j, await outputFiles()),
         j.timings_ms ? timingsSection(j.timings_ms) : null,
         j.stats ? statsSection(j, await techniqueOf(j.technique)) : null,
-        el('div', {className: 'params-slot'}), el('div', {className: 'metrics-slot'})].filter(Boolean));
+        el('div', {className: 'params-slot'}), el('div', {className: 'metrics-slot'}),
+        el('section', {className: 'log-slot', 'aria-labelledby': 'h-log'}, el('h2', {id: 'h-log'}, 'Log'),
+          el('pre', {className: 'job-log', tabIndex: 0, 'aria-label': `Log of job ${j.id}`}, '…'))].filter(Boolean));
       summaryDone = metricsDone = false;
     }
+    // The log grows while the job is queued or running: read it on every poll until it ends.
+    const logPre = body.querySelector('pre.job-log');
+    api(j.links.log || `${j.links.self}/log`).then((l) => {
+      if (dead || !logPre.isConnected) return;
+      const text = l.lines.length ? l.lines.join('\n') : 'No log lines (a job submitted before logs were kept).';
+      if (logPre.textContent !== text) logPre.textContent = text;
+    }).catch((e) => { logPre.textContent = `Cannot read the log: ${e.message}`; });
     const summary = j.links.outputs['summary.json'];
     if (summary && !summaryDone) {
       summaryDone = true;
