@@ -96,6 +96,10 @@ static json_t *job_json(srv_app *app, const srv_job *j) {
   json_object_set_new(o, "comparison_id",
                       j->comparison ? json_integer(j->comparison) : json_null());
   json_object_set_new(o, "scene", str_or_null(j->scene));
+  json_object_set_new(o, "scene_name", str_or_null(j->scene_name ? j->scene_name
+                                                   : j->scene && strcmp(j->scene, "inline")
+                                                       ? j->scene
+                                                       : NULL));
   json_object_set_new(o, "technique", str_or_null(j->technique));
   json_object_set_new(o, "backend", json_pack("{s:o, s:o, s:o}", "requested",
                                               str_or_null(j->backend_requested), "actual",
@@ -185,7 +189,8 @@ static int submit(srv_req *r) {
                     .spp = s.spp,
                     .repeats = 1,
                     .work = s.work,
-                    .backend_reason = s.backend_reason};
+                    .backend_reason = s.backend_reason,
+                    .scene_name = s.scene_name};
   int64_t id = 0;
   int retry = 0;
   unsigned admit = srv_admit_job(r->app, r->client, &nj, &id, &retry, &problems);
@@ -429,9 +434,10 @@ static int job_document(srv_req *r, int64_t id) {
   }
   const char *text = json_string_value(json_object_get(row, "doc"));
   json_t *doc = text ? json_loads(text, 0, NULL) : NULL;
-  json_t *o = json_pack("{s:o, s:O, s:O, s:O}", "document", doc ? doc : json_null(), "scene",
-                        json_object_get(row, "scene"), "label", json_object_get(row, "label"),
-                        "priority", json_object_get(row, "priority"));
+  json_t *o = json_pack("{s:o, s:O, s:O, s:O, s:O}", "document", doc ? doc : json_null(),
+                        "scene", json_object_get(row, "scene"), "scene_name",
+                        json_object_get(row, "scene_name"), "label",
+                        json_object_get(row, "label"), "priority", json_object_get(row, "priority"));
   json_decref(rows);
   return srv_respond_json(r, MHD_HTTP_OK, o);
 }

@@ -29,8 +29,8 @@ static const char *const sql[ST_COUNT] = {
     [ST_COMMIT] = "COMMIT",
     [ST_ROLLBACK] = "ROLLBACK",
     [ST_INSERT] = "INSERT INTO jobs (priority, label, scene, doc, technique, backend_requested, "
-                  "lane, width, height, spp, created_ms, repeats, warmup, work, backend_reason) "
-                  "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                  "lane, width, height, spp, created_ms, repeats, warmup, work, backend_reason, "
+                  "scene_name) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
     [ST_GET] = "SELECT " JOB_COLS " FROM jobs WHERE id = ?",
     [ST_OUTPUTS] = "SELECT name, size, sha256, content_type FROM outputs WHERE job_id = ? "
                    "ORDER BY name",
@@ -130,7 +130,8 @@ static const char *const sql[ST_COUNT] = {
     [ST_QUERY + SRV_Q_COMPARISONS] = "SELECT c.id, c.label, c.scene, c.created_ms, " CMP_COUNTS
                                      " FROM comparisons c WHERE (?1 = 0 OR c.id < ?1) "
                                      "ORDER BY c.id DESC LIMIT ?2",
-    [ST_QUERY + SRV_Q_JOB_DOC] = "SELECT doc, scene, label, priority FROM jobs WHERE id = ?1",
+    [ST_QUERY + SRV_Q_JOB_DOC] = "SELECT doc, scene, scene_name, label, priority FROM jobs "
+                                 "WHERE id = ?1",
     [ST_QUERY + SRV_Q_JOB_MACHINE] = "SELECT m.cpu_model, m.cores, m.vulkan_device FROM runs ru "
                                      "JOIN machines m ON m.id = ru.machine WHERE ru.job = ?1 "
                                      "ORDER BY ru.run DESC LIMIT 1",

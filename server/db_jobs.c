@@ -36,6 +36,7 @@ static void read_job(sqlite3_stmt *s, srv_job *j) {
   j->warmup = sqlite3_column_int(s, 21);
   j->backend_reason = srv_dbi_col_str(s, 22);
   j->comparison = sqlite3_column_int64(s, 23);
+  j->scene_name = srv_dbi_col_str(s, 24);
 }
 
 void srv_job_free(srv_job *j) {
@@ -48,6 +49,7 @@ void srv_job_free(srv_job *j) {
   free(j->error);
   free(j->summary);
   free(j->backend_reason);
+  free(j->scene_name);
   free(j->doc);
   free(j->outputs);
   memset(j, 0, sizeof *j);
@@ -104,6 +106,7 @@ int srv_dbi_insert_job(conn *c, const srv_new_job *nj, int64_t *id, obs_err *err
   if (nj->work > 0) sqlite3_bind_double(s, 14, nj->work);
   else sqlite3_bind_null(s, 14);
   srv_dbi_bind_text(s, 15, nj->backend_reason);
+  srv_dbi_bind_text(s, 16, nj->scene_name);
   int rc = srv_dbi_exec_done(c, s, err, "inserting the job");
   if (!rc) *id = sqlite3_last_insert_rowid(c->db);
   return rc;
@@ -197,7 +200,7 @@ int srv_db_claim(srv_db *db, srv_lane lane, srv_job *j, obs_err *err) {
     int step = sqlite3_step(s);
     if (step == SQLITE_ROW) {
       read_job(s, j);
-      j->doc = srv_dbi_col_str(s, 24);
+      j->doc = srv_dbi_col_str(s, 25);
       /* Step to the end so the UPDATE's transaction commits before we let go. */
       step = sqlite3_step(s);
       rc = step == SQLITE_DONE ? 0 : srv_dbi_fail(c, err, "claiming a job");

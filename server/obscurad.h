@@ -132,6 +132,7 @@ typedef struct srv_job {
   int warmup;              /* 1: one untimed render first (comparison jobs) */
   char *backend_reason;    /* why this backend, may be NULL */
   int64_t comparison;      /* the comparison it belongs to, 0 = none */
+  char *scene_name;        /* an inline scene's name, may be NULL */
   char *doc;               /* only filled by srv_db_claim */
   srv_output *outputs;
   int noutputs;
@@ -147,6 +148,7 @@ typedef struct srv_new_job {
   int repeats, warmup;        /* 0 repeats = 1 */
   double work;                /* width x height x spp x samples */
   const char *backend_reason; /* may be NULL */
+  const char *scene_name;     /* an inline scene's name, may be NULL */
 } srv_new_job;
 
 /* One timed render of a job (a row of `runs`). */
@@ -469,6 +471,7 @@ int srv_output_serve(srv_req *r, int64_t id, const char *name);
 typedef struct srv_submission {
   int priority;
   char *label, *scene, *doc, *technique, *backend_requested;
+  char *scene_name; /* an inline scene's name (the request's scene_name), may be NULL */
   srv_lane lane;
   int width, height, spp;
   double work;

@@ -250,6 +250,14 @@ test('job pages: no "null" text, where it ran, what a screen-space technique did
     await page.getByText('hbao on vulkan (device llvmpipe (LLVM 15.0.6, 256 bits)):').waitFor();
     assert.doesNotMatch(await page.locator('.params-slot').innerText(), /thread/);
 
+    // An inline scene shows the name it was submitted with.
+    const doc = (await getJSON(d, `/api/v1/jobs/${ssao}/document`)).document;
+    const inline = await submit(d, {...doc, scene_name: 'my_scene.json'});
+    await page.goto(`${d.url}/#/jobs`);
+    await page.locator(`tr[data-id="${inline}"] td.scene`, {hasText: 'my_scene.json (inline)'}).waitFor();
+    await page.goto(`${d.url}/#/jobs/${inline}`);
+    await page.locator('dl.facts dd', {hasText: 'my_scene.json (inline)'}).waitFor();
+
     // The list and a job page at 800 px.
     await page.setViewportSize({width: 800, height: 900});
     await page.goto(`${d.url}/#/jobs/${ssao}`);

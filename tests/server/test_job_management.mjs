@@ -5,11 +5,12 @@
 //
 //   node tests/server/test_job_management.mjs <obscurad> <obscura>
 import assert from 'node:assert/strict';
+import {spawnSync} from 'node:child_process';
 import fs from 'node:fs';
 import path from 'node:path';
 import {test} from 'node:test';
 
-import {getJSON, getJob, request, submit, validate, waitJob, withDaemon} from './lib.mjs';
+import {OBSCURA, SCENES_DIR, getJSON, getJob, request, submit, validate, waitJob, withDaemon} from './lib.mjs';
 
 const SMALL = {'/image/width': 24, '/image/height': 16};
 const small = (extra = {}) => ({scene_file: 'sphere_on_plane.json', set: {...SMALL, '/technique/params/samples': 8}, ...extra});
@@ -174,5 +175,38 @@ test('a failed job is retried with the same document', async () => {
     assert.equal((await request(d, 'GET', `/api/v1/jobs/${wide}/log`)).status, 404);
     assert.ok(!fs.existsSync(path.join(d.dataDir, 'logs', `${wide}.log`)));
     assert.ok(fs.existsSync(path.join(d.dataDir, 'logs', `${id}.log`)));
+  });
+});
+
+test('the name of an inline scene: scene_name from the request or the CLI', async () => {
+  await withDaemon({}, async (d) => {
+    const doc = JSON.parse(fs.readFileSync(path.join(SCENES_DIR, 'sphere_on_plane.json'), 'utf8'));
+    doc.image.width = 24;
+    doc.image.height = 16;
+    const named = await submit(d, {...doc, scene_name: 'my_scene.json', label: 'named'});
+    const unnamed = await submit(d, doc);
+    const bundled = await submit(d, small());
+    let j = await getJob(d, named);
+    validate('Job', j);
+    assert.deepEqual([j.scene, j.scene_name], ['inline', 'my_scene.json']);
+    j = await getJob(d, unnamed);
+    assert.deepEqual([j.scene, j.scene_name], ['inline', null]);
+    j = await getJob(d, bundled);
+    assert.deepEqual([j.scene, j.scene_name], ['sphere_on_plane.json', 'sphere_on_plane.json']);
+    assert.equal((await waitJob(d, named)).state, 'succeeded', 'scene_name is not part of the rendered document');
+    assert.equal((await getJSON(d, `/api/v1/jobs/${named}/document`)).scene_name, 'my_scene.json');
+    // Only for inline documents, 1 to 256 bytes.
+    for (const [body, re] of [[small({scene_name: 'x.json'}), /\/scene_name/], [{...doc, scene_name: ''}, /\/scene_name: must be 1 to 256/],
+                              [{...doc, scene_name: 'x'.repeat(257)}, /\/scene_name: must be 1 to 256/]]) {
+      const r = await request(d, 'POST', '/api/v1/jobs', {body});
+      assert.equal(r.status, 422, r.text);
+      assert.match(r.json.problems.join('\n'), re);
+    }
+    // The CLI names the job after its scene file.
+    const cli = spawnSync(OBSCURA, ['submit', path.join(SCENES_DIR, 'sphere_on_plane.json'), '--server', d.url,
+                                    '--set', '/image/width=24', '--set', '/image/height=16'], {encoding: 'utf8'});
+    assert.equal(cli.status, 0, cli.stderr);
+    const list = await getJSON(d, '/api/v1/jobs?limit=1');
+    assert.deepEqual([list.jobs[0].scene, list.jobs[0].scene_name], ['inline', 'sphere_on_plane.json']);
   });
 });

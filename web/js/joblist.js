@@ -3,7 +3,7 @@
 // per-row and bulk actions (cancel, retry, clone, delete after a confirmation), live progress, and
 // arrow-key navigation between jobs.
 import {ACTIVE, api, debug, el, fmtMs, fmtTime, paramText, poll, stateBadge, techniques} from './api.js';
-import {alertLine, backendOf, confirmDialog, jobActions, outputFiles, primaryLabel, progressCell, setAlertEl,
+import {alertLine, backendOf, confirmDialog, sceneText, jobActions, outputFiles, primaryLabel, progressCell, setAlertEl,
         warningMarker} from './jobs.js';
 
 const PAGE = 50;
@@ -247,7 +247,7 @@ export function mountJobs(view, _args, query) {
       cell('Job', {}, el('a', {className: 'job-link', href: `#/jobs/${j.id}`}, `Job ${j.id}`)),
       cell('Scene / label', {className: 'scene'}, j.comparison_id
         ? el('span', {className: 'role'}, role || `comparison ${j.comparison_id}`)
-        : j.scene + (j.label ? ` — ${j.label}` : '')),
+        : sceneText(j) + (j.label ? ` — ${j.label}` : '')),
       cell('Technique', {}, j.technique),
       cell('Backend', {}, backendOf(j)),
       cell('State', {title: j.error || ''}, stateBadge(j.state), warningMarker(j)),

@@ -7,6 +7,8 @@ import {metricsTable} from './comparisons.js';
 export {mountJobs} from './joblist.js';
 
 export const backendOf = (j) => j.backend.actual || j.backend.requested;
+/** The scene as people know it: the bundled file, or an inline scene's name (its file's). */
+export const sceneText = (j) => (j.scene === 'inline' && j.scene_name ? `${j.scene_name} (inline)` : j.scene);
 
 // What the registry declares about output files (GET /api/v1/techniques, typed_outputs): each
 // PNG's caption, and each technique's primary output and its PNG (the list's thumbnail). An
@@ -240,7 +242,7 @@ export function mountJob(view, [id], query) {
         el('dt', {}, 'State'), el('dd', {className: 'job-state', 'aria-live': 'polite'}, stateBadge(j.state),
           j.cancel_requested && ACTIVE.has(j.state) ? ' (cancel requested)' : ''),
         el('dt', {}, 'Progress'), el('dd', {}, progressCell(j)),
-        el('dt', {}, 'Scene'), el('dd', {}, j.scene),
+        el('dt', {}, 'Scene'), el('dd', {}, sceneText(j)),
         el('dt', {}, 'Label'), el('dd', {}, j.label || '–'),
         el('dt', {}, 'Technique'), el('dd', {}, j.technique),
         el('dt', {}, 'Backend'), el('dd', {}, `${j.backend.requested}${j.backend.actual ? ` → ran on ${j.backend.actual}` : ''}`),
