@@ -257,6 +257,14 @@ test('job pages: no "null" text, where it ran, what a screen-space technique did
     await page.locator(`tr[data-id="${inline}"] td.scene`, {hasText: 'my_scene.json (inline)'}).waitFor();
     await page.goto(`${d.url}/#/jobs/${inline}`);
     await page.locator('dl.facts dd', {hasText: 'my_scene.json (inline)'}).waitFor();
+    // Its clone pastes the document and keeps the name.
+    await page.getByRole('link', {name: `Clone job ${inline} into the submit form`}).click();
+    await page.getByText(`Filled from job ${inline} (my_scene.json, its document pasted)`).waitFor();
+    assert.equal(await page.locator('#source-paste').isChecked(), true);
+    await page.getByRole('button', {name: 'Submit job'}).click();
+    await page.waitForURL(/#\/jobs\/\d+$/);
+    const inlineClone = await getJSON(d, `/api/v1/jobs/${page.url().match(/#\/jobs\/(\d+)$/)[1]}`);
+    assert.deepEqual([inlineClone.scene, inlineClone.scene_name], ['inline', 'my_scene.json']);
 
     // The list and a job page at 800 px.
     await page.setViewportSize({width: 800, height: 900});

@@ -35,6 +35,8 @@ export async function prefillClone(id, c) {
   } else {
     const {technique, ...rest} = doc;
     c.sceneJson.value = JSON.stringify(rest, null, 2);
+    // The clone keeps the inline scene's name (sent as scene_name with the pasted document).
+    if (r.scene_name) c.form.dataset.sceneName = r.scene_name;
   }
   c.priority.value = String(r.priority);
   c.label.value = r.label || '';
@@ -48,5 +50,6 @@ export async function prefillClone(id, c) {
       if (v !== undefined) p.control.value = shown(p, v);
     }
   }
-  note.textContent = `Filled from job ${id} (${r.scene}${bundled ? '' : ', its document pasted'}): change what you need and submit a new job.`;
+  const what = bundled ? r.scene : `${r.scene_name || 'an inline scene'}, its document pasted`;
+  note.textContent = `Filled from job ${id} (${what}): change what you need and submit a new job.`;
 }

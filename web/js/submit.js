@@ -328,7 +328,7 @@ function build(form, registry, scenes, query) {
       body.candidates = entries.map((e) => e.value);
     } else {
       const technique = entries[0].value;
-      if (doc) Object.assign(body, doc, {technique});
+      if (doc) Object.assign(body, doc, {technique}, form.dataset.sceneName ? {scene_name: form.dataset.sceneName} : {});
       else if (!paste) Object.assign(body, {scene_file: sceneSel.value, technique});
     }
     return {body, errors};
