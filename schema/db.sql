@@ -114,3 +114,8 @@ CREATE INDEX comparison_candidates_reference ON comparison_candidates (reference
 -- work is bounded per client (--max-queued-work); the partial index keeps that sum to the queue.
 ALTER TABLE jobs ADD COLUMN client TEXT;
 CREATE INDEX jobs_active_client ON jobs (client, state) WHERE state IN ('queued', 'running');
+
+-- migration 5
+-- The name of an inline scene (the request's scene_name: the submitting file's name); NULL for
+-- bundled scenes (their name is the scene column) and for inline ones submitted without one.
+ALTER TABLE jobs ADD COLUMN scene_name TEXT;

@@ -502,7 +502,8 @@ function routes() {
   const table = [['/api/v1/jobs', ['GET', 'POST']], ['/api/v1/jobs/{id}', ['GET', 'DELETE']], ['/api/v1/jobs/{id}/cancel', ['POST']],
                  ['/api/v1/jobs/{id}/outputs/ao.png', ['GET']], ['/api/v1/techniques', ['GET']], ['/api/v1/scenes', ['GET']],
                  ['/api/v1/health', ['GET']], ['/metrics', ['GET']], ['/api/v1/comparisons', ['GET', 'POST']],
-                 ['/api/v1/comparisons/1', ['GET']], ['/', ['GET']], ['/index.html', ['GET']]];
+                 ['/api/v1/comparisons/1', ['GET', 'DELETE']], ['/api/v1/jobs/{id}/retry', ['POST']],
+                 ['/api/v1/jobs/{id}/document', ['GET']], ['/api/v1/jobs/{id}/log', ['GET']], ['/', ['GET']], ['/index.html', ['GET']]];
   const have = new Set(corpus.requests.filter((e) => !e.generated && e.status === 405).map((e) => `${e.method} ${e.path}`));
   for (const [p, allow] of table) {
     for (const m of ['GET', 'POST', 'PUT', 'PATCH', 'DELETE', 'OPTIONS']) {

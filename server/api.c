@@ -23,6 +23,9 @@ static srv_route job_route(const char *path, const char **id, size_t *idlen, con
   *rest = slash ? slash : "";
   if (!slash) return SRV_ROUTE_JOB;
   if (!strcmp(slash, "/cancel")) return SRV_ROUTE_JOB_CANCEL;
+  if (!strcmp(slash, "/retry")) return SRV_ROUTE_JOB_RETRY;
+  if (!strcmp(slash, "/document")) return SRV_ROUTE_JOB_DOCUMENT;
+  if (!strcmp(slash, "/log")) return SRV_ROUTE_JOB_LOG;
   if (!strncmp(slash, "/outputs/", 9) && slash[9] && !strchr(slash + 9, '/'))
     return SRV_ROUTE_JOB_OUTPUT;
   return SRV_ROUTE_UNKNOWN;
@@ -58,16 +61,26 @@ static int is_get(const srv_req *r) {
 static json_t *str_or_null(const char *s) { return s ? json_string(s) : json_null(); }
 
 static json_t *job_links(int64_t id, const srv_job *j) {
-  char self[64], cancel[80];
+  char self[64], cancel[80], retry[80];
   snprintf(self, sizeof self, API "/jobs/%lld", (long long)id);
   snprintf(cancel, sizeof cancel, "%s/cancel", self);
+  snprintf(retry, sizeof retry, "%s/retry", self);
+  char logl[80];
+  snprintf(logl, sizeof logl, "%s/log", self);
   json_t *outs = json_object();
   for (int i = 0; j && i < j->noutputs; i++) {
     char url[128];
     snprintf(url, sizeof url, "%s/outputs/%s", self, j->outputs[i].name);
     json_object_set_new(outs, j->outputs[i].name, json_string(url));
   }
-  return json_pack("{s:s, s:s, s:o}", "self", self, "cancel", cancel, "outputs", outs);
+  json_t *l = json_pack("{s:s, s:s, s:s, s:s, s:o}", "self", self, "cancel", cancel, "retry",
+                        retry, "log", logl, "outputs", outs);
+  if (j && j->comparison) {
+    char cmp[64];
+    snprintf(cmp, sizeof cmp, API "/comparisons/%lld", (long long)j->comparison);
+    json_object_set_new(l, "comparison", json_string(cmp));
+  }
+  return l;
 }
 
 static json_t *job_json(srv_app *app, const srv_job *j) {
@@ -80,7 +93,13 @@ static json_t *job_json(srv_app *app, const srv_job *j) {
   json_object_set_new(o, "attempts", json_integer(j->attempts));
   json_object_set_new(o, "priority", json_integer(j->priority));
   json_object_set_new(o, "label", str_or_null(j->label));
+  json_object_set_new(o, "comparison_id",
+                      j->comparison ? json_integer(j->comparison) : json_null());
   json_object_set_new(o, "scene", str_or_null(j->scene));
+  json_object_set_new(o, "scene_name", str_or_null(j->scene_name ? j->scene_name
+                                                   : j->scene && strcmp(j->scene, "inline")
+                                                       ? j->scene
+                                                       : NULL));
   json_object_set_new(o, "technique", str_or_null(j->technique));
   json_object_set_new(o, "backend", json_pack("{s:o, s:o, s:o}", "requested",
                                               str_or_null(j->backend_requested), "actual",
@@ -170,7 +189,8 @@ static int submit(srv_req *r) {
                     .spp = s.spp,
                     .repeats = 1,
                     .work = s.work,
-                    .backend_reason = s.backend_reason};
+                    .backend_reason = s.backend_reason,
+                    .scene_name = s.scene_name};
   int64_t id = 0;
   int retry = 0;
   unsigned admit = srv_admit_job(r->app, r->client, &nj, &id, &retry, &problems);
@@ -181,8 +201,9 @@ static int submit(srv_req *r) {
     obs_err_free(&problems);
     return rc;
   }
-  srv_log("job %lld: submitted -> queued (%s, %s/%s, %dx%d, priority %d)", (long long)id, s.scene,
-          s.technique, s.backend_requested, s.width, s.height, s.priority);
+  srv_job_log(r->app, id, "submitted -> queued (%s, %s/%s, %dx%d, priority %d; backend: %s)",
+              s.scene, s.technique, s.backend_requested, s.width, s.height, s.priority,
+              s.backend_reason ? s.backend_reason : "requested");
   json_t *body = json_pack("{s:I, s:s, s:o}", "id", (json_int_t)id, "state", "queued", "links",
                            job_links(id, NULL));
   if (s.choice) json_object_set(body, "choice", s.choice);
@@ -310,6 +331,15 @@ static int get_job(srv_req *r, int64_t id, unsigned status) {
   if (rc) return srv_respond_unavailable(r, &err);
   json_t *o = job_json(r->app, &j);
   srv_job_free(&j);
+  /* Where it ran (one job's page says "on <device>" or "N threads"); not in the list. */
+  json_t *rows = NULL;
+  srv_arg arg = {SRV_ARG_INT, id, 0, NULL};
+  json_t *m = NULL;
+  if (!srv_db_query(r->app->db, SRV_Q_JOB_MACHINE, &arg, 1, &rows, &err))
+    m = json_incref(json_array_get(rows, 0));
+  obs_err_free(&err);
+  json_decref(rows);
+  json_object_set_new(o, "machine", m ? m : json_null());
   return srv_respond_json(r, status, o);
 }
 
@@ -365,6 +395,99 @@ static int delete_job(srv_req *r, int64_t id) {
   if (rc) return srv_respond_unavailable(r, &err);
   srv_outputs_remove(r->app, id);
   srv_log("job %lld: deleted", (long long)id);
+  struct MHD_Response *resp = MHD_create_response_from_buffer(0, "", MHD_RESPMEM_PERSISTENT);
+  return srv_respond(r, MHD_HTTP_NO_CONTENT, resp);
+}
+
+static int retry_job(srv_req *r, int64_t id) {
+  obs_err err = OBS_ERR_INIT;
+  srv_state st = SRV_QUEUED;
+  int rc = srv_db_retry(r->app->db, id, &st, &err);
+  if (rc == OBS_ENOTFOUND) {
+    obs_err_free(&err);
+    return not_found_job(r, id);
+  }
+  if (rc == OBS_EINVAL) {
+    obs_err_free(&err);
+    return srv_respond_error(r, MHD_HTTP_CONFLICT, NULL,
+                             "job %lld is %s: only failed or cancelled jobs can be retried",
+                             (long long)id, srv_state_name(st));
+  }
+  if (rc) return srv_respond_unavailable(r, &err);
+  srv_job_log(r->app, id, "retried by request -> queued");
+  srv_sched_notify(r->app);
+  return get_job(r, id, MHD_HTTP_ACCEPTED);
+}
+
+/* The scene document the job renders (what a clone starts from), with its scene, label and
+ * priority. */
+static int job_document(srv_req *r, int64_t id) {
+  obs_err err = OBS_ERR_INIT;
+  json_t *rows = NULL;
+  srv_arg arg = {SRV_ARG_INT, id, 0, NULL};
+  if (srv_db_query(r->app->db, SRV_Q_JOB_DOC, &arg, 1, &rows, &err))
+    return srv_respond_unavailable(r, &err);
+  json_t *row = json_array_get(rows, 0);
+  if (!row) {
+    json_decref(rows);
+    return not_found_job(r, id);
+  }
+  const char *text = json_string_value(json_object_get(row, "doc"));
+  json_t *doc = text ? json_loads(text, 0, NULL) : NULL;
+  json_t *o = json_pack("{s:o, s:O, s:O, s:O, s:O}", "document", doc ? doc : json_null(),
+                        "scene", json_object_get(row, "scene"), "scene_name",
+                        json_object_get(row, "scene_name"), "label",
+                        json_object_get(row, "label"), "priority", json_object_get(row, "priority"));
+  json_decref(rows);
+  return srv_respond_json(r, MHD_HTTP_OK, o);
+}
+
+/* The job's own log: one timestamped line per entry (joblog.c). */
+static int job_log(srv_req *r, int64_t id) {
+  obs_err err = OBS_ERR_INIT;
+  int rc = srv_db_job_exists(r->app->db, id, NULL, &err);
+  if (rc < 0) return srv_respond_unavailable(r, &err);
+  if (rc == 0) return not_found_job(r, id);
+  size_t len;
+  char *text = srv_job_log_read(r->app, id, &len);
+  if (!text) return srv_respond_error(r, MHD_HTTP_INTERNAL_SERVER_ERROR, NULL,
+                                      "cannot read the log of job %lld", (long long)id);
+  json_t *lines = json_array();
+  for (char *p = text, *nl; *p; p = nl + 1) {
+    nl = strchr(p, '\n');
+    if (!nl) nl = p + strlen(p) - 1;
+    else *nl = '\0';
+    json_t *l = json_string(p);
+    /* A line that is not UTF-8 (a path's bytes) is shown with its bytes replaced. */
+    if (!l) {
+      for (char *q = p; *q; q++)
+        if ((unsigned char)*q >= 0x80) *q = '?';
+      l = json_string(p);
+    }
+    if (l) json_array_append_new(lines, l);
+  }
+  free(text);
+  return srv_respond_json(r, MHD_HTTP_OK, json_pack("{s:I, s:o}", "job", (json_int_t)id, "lines", lines));
+}
+
+static int delete_comparison(srv_req *r, int64_t id) {
+  obs_err err = OBS_ERR_INIT;
+  int64_t *ids = NULL;
+  int n = 0;
+  int rc = srv_db_delete_comparison(r->app->db, id, &ids, &n, &err);
+  if (rc == OBS_ENOTFOUND || rc == OBS_EINVAL) {
+    obs_err_free(&err);
+    return rc == OBS_ENOTFOUND
+               ? srv_respond_error(r, MHD_HTTP_NOT_FOUND, NULL, "no comparison %lld", (long long)id)
+               : srv_respond_error(r, MHD_HTTP_CONFLICT, NULL,
+                                   "comparison %lld still has queued or running jobs (cancel "
+                                   "them first)",
+                                   (long long)id);
+  }
+  if (rc) return srv_respond_unavailable(r, &err);
+  for (int i = 0; i < n; i++) srv_outputs_remove(r->app, ids[i]);
+  free(ids);
+  srv_log("comparison %lld: deleted with its %d jobs", (long long)id, n);
   struct MHD_Response *resp = MHD_create_response_from_buffer(0, "", MHD_RESPMEM_PERSISTENT);
   return srv_respond(r, MHD_HTTP_NO_CONTENT, resp);
 }
@@ -486,13 +609,18 @@ int srv_api_dispatch(srv_req *r) {
         return srv_respond_error(r, MHD_HTTP_NOT_FOUND, NULL,
                                  "no such comparison (ids are positive integers without leading "
                                  "zeros, optionally followed by .csv)");
-      return is_get(r) ? srv_compare_get(r, id, csv) : srv_respond_method(r, "GET, HEAD");
+      if (!csv && !strcmp(r->method, "DELETE")) return delete_comparison(r, id);
+      return is_get(r) ? srv_compare_get(r, id, csv)
+                       : srv_respond_method(r, csv ? "GET, HEAD" : "GET, HEAD, DELETE");
     }
     case SRV_ROUTE_JOBS:
       if (!strcmp(r->method, "POST")) return submit(r);
       return is_get(r) ? list_jobs(r) : srv_respond_method(r, "GET, HEAD, POST");
     case SRV_ROUTE_JOB:
     case SRV_ROUTE_JOB_CANCEL:
+    case SRV_ROUTE_JOB_RETRY:
+    case SRV_ROUTE_JOB_DOCUMENT:
+    case SRV_ROUTE_JOB_LOG:
     case SRV_ROUTE_JOB_OUTPUT: {
       const char *idtext, *rest;
       size_t n;
@@ -508,6 +636,12 @@ int srv_api_dispatch(srv_req *r) {
       }
       if (r->route == SRV_ROUTE_JOB_CANCEL)
         return !strcmp(r->method, "POST") ? cancel_job(r, id) : srv_respond_method(r, "POST");
+      if (r->route == SRV_ROUTE_JOB_RETRY)
+        return !strcmp(r->method, "POST") ? retry_job(r, id) : srv_respond_method(r, "POST");
+      if (r->route == SRV_ROUTE_JOB_DOCUMENT)
+        return is_get(r) ? job_document(r, id) : srv_respond_method(r, "GET, HEAD");
+      if (r->route == SRV_ROUTE_JOB_LOG)
+        return is_get(r) ? job_log(r, id) : srv_respond_method(r, "GET, HEAD");
       return is_get(r) ? srv_output_serve(r, id, rest + 9) : srv_respond_method(r, "GET, HEAD");
     }
     default: break;

@@ -20,13 +20,17 @@ extern const char srv_db_sql[];
 extern const size_t srv_db_sql_len;
 
 
+#define CMP_JOBS                                                                                  \
+  "(SELECT job FROM comparison_candidates WHERE comparison = ?1 UNION "                           \
+  "SELECT reference_job FROM comparison_candidates WHERE comparison = ?1)"
+
 static const char *const sql[ST_COUNT] = {
     [ST_BEGIN] = "BEGIN IMMEDIATE",
     [ST_COMMIT] = "COMMIT",
     [ST_ROLLBACK] = "ROLLBACK",
     [ST_INSERT] = "INSERT INTO jobs (priority, label, scene, doc, technique, backend_requested, "
-                  "lane, width, height, spp, created_ms, repeats, warmup, work, backend_reason) "
-                  "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                  "lane, width, height, spp, created_ms, repeats, warmup, work, backend_reason, "
+                  "scene_name) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
     [ST_GET] = "SELECT " JOB_COLS " FROM jobs WHERE id = ?",
     [ST_OUTPUTS] = "SELECT name, size, sha256, content_type FROM outputs WHERE job_id = ? "
                    "ORDER BY name",
@@ -86,9 +90,16 @@ static const char *const sql[ST_COUNT] = {
                        "metrics_error IS NULL",
     [ST_OUT_UPSERT] = "INSERT OR REPLACE INTO outputs (job_id, name, size, sha256, content_type) "
                       "VALUES (?, ?, ?, ?, ?)",
-#define CMP_JOBS                                                                                  \
-  "(SELECT job FROM comparison_candidates WHERE comparison = ?1 UNION "                           \
-  "SELECT reference_job FROM comparison_candidates WHERE comparison = ?1)"
+    /* The same row goes back to the queue: its id, document and comparison stay. */
+    [ST_RETRY] = "UPDATE jobs SET state = 'queued', error = NULL, cancel_requested = 0, "
+                 "started_ms = NULL, finished_ms = NULL, progress = 0, backend = NULL "
+                 "WHERE id = ? AND state IN ('failed', 'cancelled')",
+    [ST_CMP_ACTIVE] = "SELECT (SELECT count(*) FROM comparisons WHERE id = ?1), (SELECT count(*) "
+                      "FROM jobs WHERE id IN " CMP_JOBS " AND state IN ('queued', 'running'))",
+    [ST_CMP_JOBS] = "SELECT job FROM comparison_candidates WHERE comparison = ?1 UNION "
+                    "SELECT reference_job FROM comparison_candidates WHERE comparison = ?1",
+    [ST_CMP_DELETE] = "DELETE FROM comparisons WHERE id = ?",
+    [ST_JOB_DELETE_ANY] = "DELETE FROM jobs WHERE id = ?",
 /* Per comparison: jobs still to run, candidates that can no longer get metrics, and with them. */
 #define CMP_COUNTS                                                                                \
   "(SELECT count(*) FROM jobs WHERE id IN (SELECT job FROM comparison_candidates WHERE "          \
@@ -119,6 +130,11 @@ static const char *const sql[ST_COUNT] = {
     [ST_QUERY + SRV_Q_COMPARISONS] = "SELECT c.id, c.label, c.scene, c.created_ms, " CMP_COUNTS
                                      " FROM comparisons c WHERE (?1 = 0 OR c.id < ?1) "
                                      "ORDER BY c.id DESC LIMIT ?2",
+    [ST_QUERY + SRV_Q_JOB_DOC] = "SELECT doc, scene, scene_name, label, priority FROM jobs "
+                                 "WHERE id = ?1",
+    [ST_QUERY + SRV_Q_JOB_MACHINE] = "SELECT m.cpu_model, m.cores, m.vulkan_device FROM runs ru "
+                                     "JOIN machines m ON m.id = ru.machine WHERE ru.job = ?1 "
+                                     "ORDER BY ru.run DESC LIMIT 1",
     [ST_QUERY + SRV_Q_JOB_COMPARISON] = "SELECT comparison FROM comparison_candidates WHERE "
                                         "job = ?1 OR reference_job = ?1 LIMIT 1",
     [ST_QUERY + SRV_Q_METRICS_PENDING] =

@@ -49,6 +49,11 @@ enum {
   ST_CAND_INSERT,
   ST_SET_METRICS,
   ST_OUT_UPSERT,
+  ST_RETRY,
+  ST_CMP_ACTIVE,
+  ST_CMP_JOBS,
+  ST_CMP_DELETE,
+  ST_JOB_DELETE_ANY,
   ST_QUERY, /* first of the SRV_NQUERIES read-only queries */
   ST_COUNT = ST_QUERY + SRV_NQUERIES
 };
@@ -56,7 +61,8 @@ enum {
 #define JOB_COLS                                                                                  \
   "id, state, priority, label, scene, technique, backend_requested, backend, lane, width, "      \
   "height, spp, attempts, cancel_requested, created_ms, started_ms, finished_ms, error, summary, " \
-  "progress, repeats, warmup, backend_reason"
+  "progress, repeats, warmup, backend_reason, (SELECT comparison FROM comparison_candidates "      \
+  "WHERE job = jobs.id OR reference_job = jobs.id LIMIT 1), scene_name"
 #define LIST_WHERE                                                                                \
   "(?1 IS NULL OR state = ?1) AND (?2 IS NULL OR technique = ?2) AND "                           \
   "(?3 IS NULL OR coalesce(backend, backend_requested) = ?3) "

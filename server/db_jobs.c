@@ -35,6 +35,8 @@ static void read_job(sqlite3_stmt *s, srv_job *j) {
   j->repeats = sqlite3_column_int(s, 20);
   j->warmup = sqlite3_column_int(s, 21);
   j->backend_reason = srv_dbi_col_str(s, 22);
+  j->comparison = sqlite3_column_int64(s, 23);
+  j->scene_name = srv_dbi_col_str(s, 24);
 }
 
 void srv_job_free(srv_job *j) {
@@ -47,6 +49,7 @@ void srv_job_free(srv_job *j) {
   free(j->error);
   free(j->summary);
   free(j->backend_reason);
+  free(j->scene_name);
   free(j->doc);
   free(j->outputs);
   memset(j, 0, sizeof *j);
@@ -103,6 +106,7 @@ int srv_dbi_insert_job(conn *c, const srv_new_job *nj, int64_t *id, obs_err *err
   if (nj->work > 0) sqlite3_bind_double(s, 14, nj->work);
   else sqlite3_bind_null(s, 14);
   srv_dbi_bind_text(s, 15, nj->backend_reason);
+  srv_dbi_bind_text(s, 16, nj->scene_name);
   int rc = srv_dbi_exec_done(c, s, err, "inserting the job");
   if (!rc) *id = sqlite3_last_insert_rowid(c->db);
   return rc;
@@ -196,7 +200,7 @@ int srv_db_claim(srv_db *db, srv_lane lane, srv_job *j, obs_err *err) {
     int step = sqlite3_step(s);
     if (step == SQLITE_ROW) {
       read_job(s, j);
-      j->doc = srv_dbi_col_str(s, 23);
+      j->doc = srv_dbi_col_str(s, 25);
       /* Step to the end so the UPDATE's transaction commits before we let go. */
       step = sqlite3_step(s);
       rc = step == SQLITE_DONE ? 0 : srv_dbi_fail(c, err, "claiming a job");
@@ -429,6 +433,98 @@ int srv_db_job_exists(srv_db *db, int64_t id, srv_state *state, obs_err *err) {
       rc = step == SQLITE_DONE ? 0 : srv_dbi_fail(c, err, "reading the job");
     }
     srv_dbi_done(s);
+  }
+  srv_dbi_release(db, c);
+  return rc;
+}
+
+int srv_db_retry(srv_db *db, int64_t id, srv_state *state, obs_err *err) {
+  if (srv_dbi_refused(db, err)) return OBS_ETRANSIENT;
+  conn *c = srv_dbi_acquire(db);
+  sqlite3_stmt *s = srv_dbi_stmt(c, ST_RETRY, err);
+  int rc = OBS_EIO;
+  if (s) {
+    sqlite3_bind_int64(s, 1, id);
+    rc = srv_dbi_exec_done(c, s, err, "requeueing the job");
+    if (!rc && sqlite3_changes(c->db) == 0) {
+      sqlite3_stmt *q = srv_dbi_stmt(c, ST_STATE, err);
+      if (!q) rc = OBS_EIO;
+      else {
+        sqlite3_bind_int64(q, 1, id);
+        int step = sqlite3_step(q);
+        if (step == SQLITE_ROW) srv_state_parse((const char *)sqlite3_column_text(q, 0), state);
+        rc = step == SQLITE_ROW    ? OBS_EINVAL
+             : step == SQLITE_DONE ? OBS_ENOTFOUND
+                                   : srv_dbi_fail(c, err, "reading the job");
+        srv_dbi_done(q);
+      }
+    }
+  }
+  srv_dbi_release(db, c);
+  return rc;
+}
+
+/* The comparison's job ids into *ids; 0 or an error. */
+static int comparison_job_ids(conn *c, int64_t id, int64_t **ids, int *nids, obs_err *err) {
+  sqlite3_stmt *s = srv_dbi_stmt(c, ST_CMP_JOBS, err);
+  if (!s) return OBS_EIO;
+  sqlite3_bind_int64(s, 1, id);
+  int step;
+  while ((step = sqlite3_step(s)) == SQLITE_ROW) {
+    int64_t *grown = realloc(*ids, (size_t)(*nids + 1) * sizeof **ids);
+    if (!grown) {
+      srv_dbi_done(s);
+      return obs_err_set(err, OBS_ENOMEM, "out of memory");
+    }
+    *ids = grown;
+    (*ids)[(*nids)++] = sqlite3_column_int64(s, 0);
+  }
+  int rc = step == SQLITE_DONE ? 0 : srv_dbi_fail(c, err, "listing the comparison's jobs");
+  srv_dbi_done(s);
+  return rc;
+}
+
+int srv_db_delete_comparison(srv_db *db, int64_t id, int64_t **ids, int *nids, obs_err *err) {
+  *ids = NULL;
+  *nids = 0;
+  conn *c = srv_dbi_acquire(db);
+  int rc = srv_dbi_begin(c, err);
+  if (!rc) {
+    sqlite3_stmt *s = srv_dbi_stmt(c, ST_CMP_ACTIVE, err);
+    if (!s) rc = OBS_EIO;
+    else {
+      sqlite3_bind_int64(s, 1, id);
+      if (sqlite3_step(s) == SQLITE_ROW)
+        rc = !sqlite3_column_int(s, 0) ? OBS_ENOTFOUND : sqlite3_column_int(s, 1) ? OBS_EINVAL : 0;
+      else
+        rc = srv_dbi_fail(c, err, "reading the comparison");
+      srv_dbi_done(s);
+    }
+  }
+  if (!rc) rc = comparison_job_ids(c, id, ids, nids, err);
+  if (!rc) {
+    /* The candidates go first (cascade): they are what keeps the jobs from being deleted. */
+    sqlite3_stmt *s = srv_dbi_stmt(c, ST_CMP_DELETE, err);
+    if (!s) rc = OBS_EIO;
+    else {
+      sqlite3_bind_int64(s, 1, id);
+      rc = srv_dbi_exec_done(c, s, err, "deleting the comparison");
+    }
+  }
+  for (int i = 0; !rc && i < *nids; i++) {
+    sqlite3_stmt *s = srv_dbi_stmt(c, ST_JOB_DELETE_ANY, err);
+    if (!s) rc = OBS_EIO;
+    else {
+      sqlite3_bind_int64(s, 1, (*ids)[i]);
+      rc = srv_dbi_exec_done(c, s, err, "deleting a job of the comparison");
+    }
+  }
+  if (!rc) rc = srv_dbi_commit(c, err);
+  if (rc) {
+    srv_dbi_rollback(c);
+    free(*ids);
+    *ids = NULL;
+    *nids = 0;
   }
   srv_dbi_release(db, c);
   return rc;

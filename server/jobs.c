@@ -107,8 +107,8 @@ int srv_sched_cancel(srv_app *app, int64_t id, srv_cancel_result *res, obs_err *
     pthread_cond_broadcast(&s->gate_cv); /* the job may be waiting at the render gate */
   }
   pthread_mutex_unlock(&s->mu);
-  if (!rc && *res == SRV_CANCEL_DONE) srv_log("job %lld: queued -> cancelled", (long long)id);
-  if (!rc && *res == SRV_CANCEL_RUNNING) srv_log("job %lld: cancel requested", (long long)id);
+  if (!rc && *res == SRV_CANCEL_DONE) srv_job_log(app, id, "queued -> cancelled by request");
+  if (!rc && *res == SRV_CANCEL_RUNNING) srv_job_log(app, id, "cancel requested");
   return rc;
 }
 
@@ -234,7 +234,7 @@ static void fail_job(slot *sl, srv_job *j, srv_state state, const char *msg) {
   if (record(sl, j->id, &o, &err))
     srv_log("job %lld: cannot record the outcome: %s", (long long)j->id, obs_err_message(&err));
   else
-    srv_log("job %lld: running -> %s (%s)", (long long)j->id, srv_state_name(state), msg);
+    srv_job_log(sl->app, j->id, "running -> %s (%s)", srv_state_name(state), msg);
   obs_err_free(&err);
   job_done(sl->app->sched);
 }
@@ -248,8 +248,7 @@ static void stopped(slot *sl, srv_job *j, int why) {
     if (record(sl, j->id, &o, &err))
       srv_log("job %lld: cannot requeue: %s", (long long)j->id, obs_err_message(&err));
     else
-      srv_log("job %lld: running -> queued (daemon stopping; this attempt does not count)",
-              (long long)j->id);
+      srv_job_log(app, j->id, "running -> queued (daemon stopping; this attempt does not count)");
     obs_err_free(&err);
   } else if (why == STOP_TIMEOUT) {
     char msg[96];
@@ -346,9 +345,16 @@ static int finish_render(slot *sl, srv_job *j, obs_result *res, const obs_scene 
   }
   srv_metrics_render(res->technique->name, obs_backend_name(res->backend),
                      res->timings.total_ms / 1e3);
-  srv_log("job %lld: running -> succeeded (%s/%s %dx%d, %.1f ms)", (long long)j->id,
-          res->technique->name, obs_backend_name(res->backend), res->image.width,
-          res->image.height, res->timings.total_ms);
+  for (int w = 0; w < res->nwarnings; w++) srv_job_log(app, j->id, "warning: %s", res->warnings[w]);
+  char where[32] = "the Vulkan device";
+  if (res->backend != OBS_BACKEND_VULKAN)
+    snprintf(where, sizeof where, "%d CPU thread%s", res->threads, res->threads == 1 ? "" : "s");
+  srv_job_log(app, j->id,
+              "running -> succeeded (%s/%s %dx%d on %s, %.1f ms: load %.1f, build %.1f, "
+              "render %.1f, write %.1f)",
+              res->technique->name, obs_backend_name(res->backend), res->image.width,
+              res->image.height, where, res->timings.total_ms, res->timings.load_ms,
+              res->timings.build_ms, res->timings.render_ms, res->timings.write_ms);
   job_done(app->sched);
   return 1;
 }
@@ -357,8 +363,8 @@ static int finish_render(slot *sl, srv_job *j, obs_result *res, const obs_scene 
 static int run_job(slot *sl, srv_job *j) {
   srv_app *app = sl->app;
   int succeeded = 0;
-  srv_log("job %lld: queued -> running (%s lane, attempt %d)", (long long)j->id,
-          srv_lane_name(sl->lane), j->attempts);
+  srv_job_log(app, j->id, "queued -> running (%s lane, attempt %d)", srv_lane_name(sl->lane),
+              j->attempts);
   obs_err err = OBS_ERR_INIT;
   double t0 = obs_now_ms();
   obs_scene sc;
@@ -398,7 +404,7 @@ static int run_job(slot *sl, srv_job *j) {
     sl->deadline_ms = INFINITY;
     pthread_mutex_unlock(&app->sched->mu);
     if (exclusive)
-      srv_log("job %lld: timed renders wait until no other render runs", (long long)j->id);
+      srv_job_log(app, j->id, "timed renders wait until no other render runs");
     gated = gate_enter(app->sched, sl, exclusive);
     if (!gated) rc = OBS_ECANCELED;
   }
@@ -658,8 +664,8 @@ static void *maintenance(void *arg) {
       if (atomic_load(&sl->id) && !sl->stop && now > sl->deadline_ms) {
         sl->stop = STOP_TIMEOUT;
         atomic_store(&sl->cancel, 1);
-        srv_log("job %lld: render time limit of %d s exceeded, stopping it",
-                (long long)atomic_load(&sl->id), app->cfg.max_render_seconds);
+        srv_job_log(app, atomic_load(&sl->id), "render time limit of %d s exceeded, stopping it",
+                    app->cfg.max_render_seconds);
       }
     }
     pthread_mutex_unlock(&s->mu);

@@ -131,6 +131,8 @@ typedef struct srv_job {
   int repeats;             /* timed renders per attempt */
   int warmup;              /* 1: one untimed render first (comparison jobs) */
   char *backend_reason;    /* why this backend, may be NULL */
+  int64_t comparison;      /* the comparison it belongs to, 0 = none */
+  char *scene_name;        /* an inline scene's name, may be NULL */
   char *doc;               /* only filled by srv_db_claim */
   srv_output *outputs;
   int noutputs;
@@ -146,6 +148,7 @@ typedef struct srv_new_job {
   int repeats, warmup;        /* 0 repeats = 1 */
   double work;                /* width x height x spp x samples */
   const char *backend_reason; /* may be NULL */
+  const char *scene_name;     /* an inline scene's name, may be NULL */
 } srv_new_job;
 
 /* One timed render of a job (a row of `runs`). */
@@ -239,6 +242,8 @@ typedef enum {
   SRV_Q_AUTO_RUNS,          /* ?1 technique, ?2 work: timed runs at similar work per backend */
   SRV_Q_BUDGET,             /* candidates with metrics, newest comparisons first */
   SRV_Q_JOB_RUNS,           /* ?1 job id: its runs' totals */
+  SRV_Q_JOB_DOC,            /* ?1 job id: its stored document, scene, label and priority */
+  SRV_Q_JOB_MACHINE,        /* ?1 job id: the machine of its last timed run */
   SRV_NQUERIES
 } srv_query;
 typedef struct srv_arg {
@@ -263,6 +268,12 @@ int srv_db_cancel(srv_db *db, int64_t id, srv_cancel_result *res, obs_err *err);
 /* Deletes a finished job and its output rows and runs. OBS_ENOTFOUND, OBS_EINVAL when not
  * finished, OBS_EUNSUPPORTED when it belongs to a comparison (comparisons keep their jobs). */
 int srv_db_delete(srv_db *db, int64_t id, obs_err *err);
+/* A failed or cancelled job back to the queue (same id): OBS_ENOTFOUND, or OBS_EINVAL with
+ * *state filled when it is not failed or cancelled. */
+int srv_db_retry(srv_db *db, int64_t id, srv_state *state, obs_err *err);
+/* Deletes a comparison and all its jobs in one transaction; fills ids (malloc'ed, the caller
+ * frees) with the deleted jobs. OBS_ENOTFOUND, or OBS_EINVAL while any of its jobs is active. */
+int srv_db_delete_comparison(srv_db *db, int64_t id, int64_t **ids, int *nids, obs_err *err);
 int srv_db_get_output(srv_db *db, int64_t id, const char *name, srv_output *o, obs_err *err);
 /* Job counts by state. */
 int srv_db_counts(srv_db *db, int64_t counts[SRV_NSTATES], obs_err *err);
@@ -333,6 +344,9 @@ typedef enum {
   SRV_ROUTE_JOB,
   SRV_ROUTE_JOB_CANCEL,
   SRV_ROUTE_JOB_OUTPUT,
+  SRV_ROUTE_JOB_RETRY,
+  SRV_ROUTE_JOB_DOCUMENT,
+  SRV_ROUTE_JOB_LOG,
   SRV_ROUTE_TECHNIQUES,
   SRV_ROUTE_SCENES,
   SRV_ROUTE_HEALTH,
@@ -383,6 +397,12 @@ void srv_results_path(const struct srv_app *app, int64_t id, char *buf, size_t n
 int srv_outputs_describe(const char *dir, srv_output *outs, int max, int *n, obs_err *err);
 /* Removes results/<id> and any staging directory of job `id`. */
 void srv_outputs_remove(const struct srv_app *app, int64_t id);
+/* A line about job `id`: to the daemon's log and appended to the job's own log (joblog.c). */
+void srv_job_log(const struct srv_app *app, int64_t id, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
+/* The job's log as text (malloc'ed, "" when it has none; NULL when it cannot be read). */
+char *srv_job_log_read(const struct srv_app *app, int64_t id, size_t *len);
+void srv_job_log_remove(const struct srv_app *app, int64_t id);
 /* Removes staging directories and result directories of jobs that are not succeeded. */
 void srv_outputs_sweep(struct srv_app *app);
 /* Writes, fsyncs and removes a small file in `dir`: 0 when the directory takes files, else
@@ -455,6 +475,7 @@ int srv_output_serve(srv_req *r, int64_t id, const char *name);
 typedef struct srv_submission {
   int priority;
   char *label, *scene, *doc, *technique, *backend_requested;
+  char *scene_name; /* an inline scene's name (the request's scene_name), may be NULL */
   srv_lane lane;
   int width, height, spp;
   double work;

@@ -101,6 +101,7 @@ int srv_outputs_describe(const char *dir, srv_output *outs, int max, int *n, obs
 }
 
 void srv_outputs_remove(const srv_app *app, int64_t id) {
+  srv_job_log_remove(app, id);
   char path[8400];
   srv_results_path(app, id, path, sizeof path);
   if (srv_remove_tree(path)) srv_log("job %lld: cannot remove %s: %s", (long long)id, path,

@@ -25,6 +25,7 @@ static int number_range_error(const json_error_t *je) {
 
 void srv_submission_free(srv_submission *s) {
   free(s->label);
+  free(s->scene_name);
   free(s->scene);
   free(s->doc);
   free(s->technique);
@@ -330,6 +331,15 @@ unsigned srv_submit_parse(srv_app *app, const char *body, size_t len, srv_submis
     obs_jpath_pop(&p, m);
     label = NULL;
   }
+  /* An inline scene's name: the file it came from (the CLI and the form send it). */
+  const char *scene_name = NULL;
+  if (obs_json_get_string(&p, req, "scene_name", 0, NULL, &scene_name) == 0 && scene_name &&
+      (strlen(scene_name) > MAX_LABEL || !scene_name[0])) {
+    size_t m = obs_jpath_push_key(&p, "scene_name");
+    obs_jpath_fail(&p, "must be 1 to %d bytes (got %zu)", MAX_LABEL, strlen(scene_name));
+    obs_jpath_pop(&p, m);
+    scene_name = NULL;
+  }
   json_t *sets = srv_submit_get_sets(&p, req);
   const char *docname = "inline";
   json_t *file = json_object_get(req, "scene_file");
@@ -372,6 +382,7 @@ unsigned srv_submit_parse(srv_app *app, const char *body, size_t len, srv_submis
     json_object_del(doc, "priority");
     json_object_del(doc, "label");
     json_object_del(doc, "set");
+    json_object_del(doc, "scene_name");
   }
   /* Wrapper problems do not stop here: the scene is validated too, so one answer lists all. */
   if (sets && doc) srv_submit_apply_sets(&p, sets, doc);
@@ -431,6 +442,7 @@ unsigned srv_submit_parse(srv_app *app, const char *body, size_t len, srv_submis
   s->priority = (int)priority;
   s->label = label ? strdup(label) : NULL;
   s->scene = strdup(docname);
+  s->scene_name = scene_name && !file ? strdup(scene_name) : NULL;
   s->doc = text;
   text = NULL;
   s->technique = strdup(sc.technique->name);
@@ -444,6 +456,7 @@ unsigned srv_submit_parse(srv_app *app, const char *body, size_t len, srv_submis
   s->backend_reason = strdup(s->choice ? json_string_value(json_object_get(s->choice, "reason"))
                                        : reason);
   if (!s->scene || !s->technique || !s->backend_requested || (label && !s->label) ||
+      (scene_name && !file && !s->scene_name) ||
       !s->backend_reason) {
     srv_submission_free(s);
     *message = "out of memory";

@@ -91,6 +91,13 @@ static char *submit_body(const obs_scene *sc, const submit_opts *o) {
   json_t *doc = json_deep_copy(sc->doc);
   if (!doc) return NULL;
   if (o->priority >= 0) json_object_set_new(doc, "priority", json_integer(o->priority));
+  /* The server names the job's scene after the file (an inline document has no name). */
+  const char *base = strrchr(o->s.scene, '/');
+  json_t *name = json_string(base ? base + 1 : o->s.scene);
+  if (name && json_string_length(name) > 0 && json_string_length(name) <= 256)
+    json_object_set_new(doc, "scene_name", name);
+  else
+    json_decref(name);
   if (o->label) {
     json_t *l = json_string(o->label);
     if (!l) {

@@ -206,6 +206,7 @@ test('jobs, job detail and submit pages', async () => {
     assert.match(page.url(), new RegExp(`#/jobs/${tiny}$`), 'the skip link does not change the page');
     assert.equal(await page.evaluate(() => document.activeElement.id), 'view');
     await page.getByRole('button', {name: `Delete job ${tiny}`}).click();
+    await page.getByRole('dialog').getByRole('button', {name: 'Delete'}).click();
     await page.waitForURL(/#\/jobs$/);
     assert.equal((await request(d, 'GET', `/api/v1/jobs/${tiny}`)).status, 404, 'the job is gone');
 

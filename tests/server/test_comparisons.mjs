@@ -235,7 +235,7 @@ test('a sweep expands to the product of its lists, runs to completion with metri
     assert.equal((await request(d, 'GET', '/api/v1/comparisons?color=red')).status, 400);
     assert.equal((await request(d, 'GET', `/api/v1/comparisons/${id + 1}`)).status, 404);
     assert.equal((await request(d, 'GET', '/api/v1/comparisons/01')).status, 404);
-    assert.equal((await request(d, 'DELETE', `/api/v1/comparisons/${id}`)).status, 405);
+    assert.equal((await request(d, 'PUT', `/api/v1/comparisons/${id}`)).status, 405);
 
     // Jobs of a comparison cannot be deleted on their own.
     const del = await request(d, 'DELETE', `/api/v1/jobs/${c.candidates[0].job_id}`);

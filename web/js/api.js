@@ -76,9 +76,21 @@ export function stateBadge(state) {
   return el('span', {className: `state state-${state}`}, `${STATE_MARK[state] || '·'} ${state}`);
 }
 
-/** "k=v k=v" of a parameter object (values as JSON). */
+/**
+ * A value as people read it, the one formatter of parameter values: numbers with at most 6
+ * significant digits and no binary noise (0.360306, not 0.36030600000000002), strings bare, lists
+ * as [a, b], anything else as JSON.
+ */
+export function fmtValue(v) {
+  if (typeof v === 'number') return Number.isInteger(v) ? String(v) : String(Number(v.toPrecision(6)));
+  if (typeof v === 'string') return v;
+  if (Array.isArray(v)) return `[${v.map(fmtValue).join(', ')}]`;
+  return JSON.stringify(v);
+}
+
+/** "k=v k=v" of a parameter object (values through fmtValue). */
 export function paramText(params) {
-  return Object.entries(params || {}).map(([k, v]) => `${k}=${typeof v === 'string' ? v : JSON.stringify(v)}`).join(' ');
+  return Object.entries(params || {}).map(([k, v]) => `${k}=${fmtValue(v)}`).join(' ');
 }
 
 let registry = null;

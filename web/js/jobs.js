@@ -1,21 +1,24 @@
-// The jobs pages: the live job list (filters, progress, actions, a marker on jobs that carry
-// warnings, arrow-key navigation between jobs) and one job's detail (its warnings, every PNG
-// output, downloads, timings per stage, statistics, the parameters it ran with, and its metrics
-// when it is a comparison candidate).
+// One job's page (its warnings, every PNG output, downloads, timings per stage, statistics, the
+// parameters it ran with, its metrics when it belongs to a comparison, and its log), and what the job list
+// (joblist.js) shares with it: the actions on a job, the confirmation dialog, warning markers.
 import {ACTIVE, api, debug, el, fmtBytes, fmtMs, fmtNum, fmtTime, paramText, poll, stateBadge, techniques} from './api.js';
 import {metricsTable} from './comparisons.js';
 
-const backendOf = (j) => j.backend.actual || j.backend.requested;
+export {mountJobs} from './joblist.js';
+
+export const backendOf = (j) => j.backend.actual || j.backend.requested;
+/** The scene as people know it: the bundled file, or an inline scene's name (its file's). */
+export const sceneText = (j) => (j.scene === 'inline' && j.scene_name ? `${j.scene_name} (inline)` : j.scene);
 
 // What the registry declares about output files (GET /api/v1/techniques, typed_outputs): each
 // PNG's caption, and each technique's primary output and its PNG (the list's thumbnail). An
 // unreachable registry leaves the pages working with file names only.
 let outputFilesP = null;
-const primaryLabel = (files, technique) => {
+export const primaryLabel = (files, technique) => {
   const name = files.primaryName[technique];
   return !name || name === 'ao' ? 'AO' : name;
 };
-function outputFiles() {
+export function outputFiles() {
   if (!outputFilesP) {
     outputFilesP = techniques().then((reg) => {
       const f = {captions: {}, primaryPng: {}, primaryName: {}};
@@ -39,7 +42,7 @@ function outputFiles() {
 
 // A render outside the range its technique guarantees still succeeds, with warnings
 // (docs/accuracy.md, "Guaranteed ranges"): the list marks such jobs, the job page lists them.
-function warningMarker(j) {
+export function warningMarker(j) {
   const w = j.warnings || [];
   if (!w.length) return null;
   const what = `${w.length} warning${w.length === 1 ? '' : 's'}`;
@@ -56,7 +59,7 @@ function warningsSection(j) {
     el('ul', {}, ...w.map((t) => el('li', {className: 'warning'}, t))));
 }
 
-function progressCell(j) {
+export function progressCell(j) {
   const pct = Math.round(j.progress * 100);
   return [el('progress', {max: 1, value: j.progress, 'aria-label': `Progress of job ${j.id}`}),
           el('span', {className: 'pct'}, ` ${pct}%`)];
@@ -66,6 +69,7 @@ async function act(url, method, after) {
   let ok = true;
   try {
     await api(url, {method});
+    alertLine('');
   } catch (e) {
     ok = false;
     alertLine(e.message);
@@ -74,142 +78,67 @@ async function act(url, method, after) {
 }
 
 let alertEl = null;
-function alertLine(text) {
+/** The page's alert line (each page makes its own); returns it. */
+export function setAlertEl(e) {
+  alertEl = e;
+  return e;
+}
+export function alertLine(text) {
   if (alertEl) alertEl.textContent = text;
 }
 
-function actions(j, after) {
-  if (ACTIVE.has(j.state)) {
-    return el('button', {type: 'button', className: 'small', 'aria-label': `Cancel job ${j.id}`,
-                         disabled: j.cancel_requested, onclick: () => act(j.links.cancel, 'POST', after)}, 'Cancel');
-  }
-  return el('button', {type: 'button', className: 'small', 'aria-label': `Delete job ${j.id}`,
-                       onclick: () => act(j.links.self, 'DELETE', after)}, 'Delete');
+/**
+ * A modal question with two buttons; resolves true for `okLabel`, false for "Keep" or Escape.
+ * The focus starts on "Keep", so an Enter pressed by habit deletes nothing.
+ */
+export function confirmDialog(message, okLabel) {
+  return new Promise((resolve) => {
+    const ok = el('button', {type: 'button', className: 'danger'}, okLabel);
+    const keep = el('button', {type: 'button'}, 'Keep');
+    const d = el('dialog', {className: 'confirm', 'aria-labelledby': 'confirm-text'},
+      el('p', {id: 'confirm-text'}, message), el('p', {className: 'buttons'}, ok, ' ', keep));
+    const done = (v) => {
+      d.close();
+      d.remove();
+      resolve(v);
+    };
+    ok.onclick = () => done(true);
+    keep.onclick = () => done(false);
+    d.addEventListener('cancel', (ev) => {
+      ev.preventDefault();
+      done(false);
+    });
+    document.body.append(d);
+    d.showModal();
+    keep.focus();
+  });
 }
 
-// ---- the list -----------------------------------------------------------------------------------
-
-const filters = {state: '', technique: '', backend: ''};
-
-export function mountJobs(view) {
-  const state = el('select', {id: 'filter-state', onchange: () => { filters.state = state.value; handle.wake(); }},
-    el('option', {value: ''}, 'any'),
-    ...['queued', 'running', 'succeeded', 'failed', 'cancelled'].map((s) => el('option', {value: s}, s)));
-  const technique = el('select', {id: 'filter-technique', onchange: () => { filters.technique = technique.value; handle.wake(); }},
-    el('option', {value: ''}, 'any'));
-  const backend = el('select', {id: 'filter-backend', onchange: () => { filters.backend = backend.value; handle.wake(); }},
-    el('option', {value: ''}, 'any'), ...['cpu', 'vulkan', 'auto'].map((s) => el('option', {value: s}, s)));
-  state.value = filters.state;
-  backend.value = filters.backend;
-  techniques().then(({techniques: ts}) => {
-    technique.append(...ts.map((t) => el('option', {value: t.name}, t.name)));
-    technique.value = filters.technique;
-  }).catch(() => {});
-
-  const tbody = el('tbody');
-  const status = el('p', {role: 'status', className: 'muted'}, 'loading…');
-  alertEl = el('p', {role: 'alert', className: 'error'});
-  view.append(
-    el('h1', {}, 'Jobs'),
-    el('form', {className: 'filters', 'aria-label': 'Filter jobs', onsubmit: (e) => e.preventDefault()},
-      el('label', {for: 'filter-state'}, 'State'), state,
-      el('label', {for: 'filter-technique'}, 'Technique'), technique,
-      el('label', {for: 'filter-backend'}, 'Backend'), backend),
-    status, alertEl,
-    el('p', {className: 'hint'}, 'Tab to a job and press Enter to open it; ↑/↓ move between jobs.'),
-    el('table', {className: 'jobs'},
-      el('caption', {className: 'sr-only'}, 'Jobs, newest first'),
-      el('thead', {}, el('tr', {}, ...['Job', 'Scene / label', 'Technique', 'Backend', 'State', 'Progress',
-                                        'Created', 'Total ms', 'Image', 'Actions'].map((h) => el('th', {scope: 'col'}, h)))),
-      tbody));
-
-  // Arrow keys move between the jobs' links, so a long list need not be tabbed through.
-  tbody.addEventListener('keydown', (ev) => {
-    if (!['ArrowDown', 'ArrowUp', 'Home', 'End'].includes(ev.key)) return;
-    const links = [...tbody.querySelectorAll('a.job-link')];
-    const i = links.indexOf(document.activeElement);
-    if (i < 0) return;
-    ev.preventDefault();
-    const j = ev.key === 'ArrowDown' ? Math.min(i + 1, links.length - 1) : ev.key === 'ArrowUp' ? Math.max(i - 1, 0)
-      : ev.key === 'Home' ? 0 : links.length - 1;
-    links[j].focus();
-  });
-
-  const rows = new Map();
-  // Only the newest request may draw: a filter change starts a new one while an old one may still
-  // be in flight, and nothing draws once the page is gone.
-  let seq = 0, dead = false;
-  const refresh = async () => {
-    const q = new URLSearchParams({limit: '50'});
-    for (const [k, v] of Object.entries(filters)) if (v) q.set(k, v);
-    const mine = ++seq;
-    let list;
-    try {
-      list = await api(`/api/v1/jobs?${q}`);
-    } catch (e) {
-      if (dead || mine !== seq) return false;
-      status.textContent = e.message;
-      return false;
-    }
-    const files = await outputFiles();
-    if (dead || mine !== seq) return false;
-    render(list.jobs, files);
-    const active = list.jobs.filter((j) => ACTIVE.has(j.state)).length;
-    status.textContent = `${list.jobs.length} job${list.jobs.length === 1 ? '' : 's'}${list.next ? ' (newest 50)' : ''}` +
-      (active ? `, ${active} queued or running` : '');
-    debug.jobs = list.jobs.map((j) => ({id: j.id, state: j.state, progress: j.progress}));
-    return active > 0;
-  };
-
-  // Rows are kept by job id and rebuilt only when their job changed, so focus and the keyboard
-  // position survive the once-a-second refresh.
-  function render(jobs, files) {
-    const keep = new Set(jobs.map((j) => j.id));
-    for (const [id, tr] of rows) if (!keep.has(id)) { tr.remove(); rows.delete(id); }
-    let prev = null;
-    for (const j of jobs) {
-      let tr = rows.get(j.id);
-      const thumb = j.links.outputs[files.primaryPng[j.technique] || 'ao.png'];
-      const key = JSON.stringify([j.state, j.progress, j.cancel_requested, j.backend, j.timings_ms && j.timings_ms.total,
-                                  thumb, j.warnings]);
-      if (!tr) {
-        tr = el('tr', {'data-id': j.id});
-        rows.set(j.id, tr);
-      }
-      if (tr.dataset.key !== key) {
-        const focused = tr.contains(document.activeElement) ? document.activeElement.className : null;
-        tr.dataset.key = key;
-        tr.replaceChildren(
-          el('td', {}, el('a', {className: 'job-link', href: `#/jobs/${j.id}`}, `Job ${j.id}`)),
-          el('td', {}, j.scene + (j.label ? ` — ${j.label}` : '')),
-          el('td', {}, j.technique),
-          el('td', {}, backendOf(j)),
-          el('td', {title: j.error || ''}, stateBadge(j.state), warningMarker(j)),
-          el('td', {className: 'progress'}, progressCell(j)),
-          el('td', {}, new Date(j.created_at).toLocaleTimeString()),
-          el('td', {className: 'num'}, j.timings_ms ? fmtMs(j.timings_ms.total) : '–'),
-          el('td', {}, thumb
-            ? el('img', {className: 'thumb', src: thumb, alt: `${primaryLabel(files, j.technique)} of job ${j.id}`}) : ''),
-          el('td', {}, actions(j, () => handle.wake())));
-        if (focused) {
-          const again = tr.querySelector(focused.split(' ').map((c) => `.${c}`).join('')) || tr.querySelector('a');
-          if (again) again.focus();
-        }
-      }
-      // Newest first: keep DOM order equal to the listing's.
-      if (prev ? prev.nextSibling !== tr : tbody.firstChild !== tr) {
-        if (prev) prev.after(tr);
-        else tbody.prepend(tr);
-      }
-      prev = tr;
-    }
+/**
+ * The actions of a job: Cancel while queued or running; Retry when failed or cancelled (the same
+ * job back in the queue); Clone (the submit form filled from its document); Delete when finished
+ * and not part of a comparison (those go with their comparison), after a confirmation.
+ * after(ok, what) runs when an action is done.
+ */
+export function jobActions(j, after) {
+  const out = [];
+  if (ACTIVE.has(j.state)) {
+    out.push(el('button', {type: 'button', className: 'small', 'aria-label': `Cancel job ${j.id}`,
+                           disabled: j.cancel_requested, onclick: () => act(j.links.cancel, 'POST', (ok) => after(ok, 'cancel'))}, 'Cancel'));
   }
-
-  const handle = poll(refresh, {fast: 1000, slow: 4000});
-  return () => {
-    dead = true;
-    handle.stop();
-  };
+  if (j.state === 'failed' || j.state === 'cancelled') {
+    out.push(el('button', {type: 'button', className: 'small', 'aria-label': `Retry job ${j.id}`,
+                           onclick: () => act(j.links.retry || `${j.links.self}/retry`, 'POST', (ok) => after(ok, 'retry'))}, 'Retry'));
+  }
+  out.push(el('a', {className: 'button small', href: `#/submit?clone=${j.id}`, 'aria-label': `Clone job ${j.id} into the submit form`}, 'Clone'));
+  if (!ACTIVE.has(j.state) && !j.comparison_id) {
+    out.push(el('button', {type: 'button', className: 'small', 'aria-label': `Delete job ${j.id}`, onclick: async () => {
+      if (await confirmDialog(`Delete job ${j.id} and its outputs? This cannot be undone.`, 'Delete')) {
+        act(j.links.self, 'DELETE', (ok) => after(ok, 'delete'));
+      }
+    }}, 'Delete'));
+  }
+  return out;
 }
 
 // ---- one job ------------------------------------------------------------------------------------
@@ -245,23 +174,52 @@ function timingsSection(t) {
         el('th', {scope: 'row'}, sub ? `render › ${k}` : k), el('td', {className: 'num'}, fmtMs(v)))))));
 }
 
-function statsSection(j) {
+// The registry's entry of a technique (its needs and cost rule), null when unknown.
+async function techniqueOf(name) {
+  try {
+    return (await techniques()).techniques.find((t) => t.name === name) || null;
+  } catch {
+    return null;
+  }
+}
+
+/** Where a render ran: the Vulkan device by name, or the CPU threads one render used. */
+function ranOn(summary, machine) {
+  if (summary.backend === 'vulkan') return `vulkan (device ${(machine && machine.vulkan_device) || 'unknown'})`;
+  return `${summary.backend}, ${summary.threads} thread${summary.threads === 1 ? '' : 's'}`;
+}
+
+/** The technique's cost rule ("directions x steps") evaluated on the parameters it ran with. */
+function workPerPixel(cost, params) {
+  const names = cost.split(/\s*x\s*/);
+  const vals = names.map((n) => (params || {})[n]);
+  if (vals.some((v) => typeof v !== 'number')) return cost;
+  const total = vals.reduce((a, b) => a * b, 1);
+  return names.length > 1 ? `${vals.join(' × ')} = ${total}` : String(total);
+}
+
+function statsSection(j, technique) {
   const s = j.stats || {};
-  const rows = [['rays traced', j.rays], ['AO mean', s.ao && fmtNum(s.ao.mean)], ['AO min', s.ao && fmtNum(s.ao.min)],
+  // Techniques that trace rays count them; the screen-space ones sample the depth buffer, their
+  // work per pixel is the registry's cost rule (its value fills in when the parameters arrive).
+  const traces = !technique || (technique.needs || []).includes('bvh');
+  const work = traces ? ['rays traced', j.rays]
+    : [`depth-buffer samples per pixel (${technique.cost.replace(/ x /g, ' × ')})`,
+       el('span', {className: 'work-per-pixel', 'data-cost': technique.cost}, '…')];
+  const rows = [work, ['AO mean', s.ao && fmtNum(s.ao.mean)], ['AO min', s.ao && fmtNum(s.ao.min)],
                 ['AO max', s.ao && fmtNum(s.ao.max)], ['AO standard error (mean)', s.ao_stderr_mean !== undefined ? fmtNum(s.ao_stderr_mean) : null],
                 ['non-finite values', s.nan_count]].filter(([, v]) => v !== null && v !== undefined);
   return el('section', {'aria-labelledby': 'h-stats'},
     el('h2', {id: 'h-stats'}, 'Statistics'),
     el('table', {className: 'kv'}, el('tbody', {}, ...rows.map(([k, v]) => el('tr', {},
-      el('th', {scope: 'row'}, k), el('td', {className: 'num'}, String(v)))))));
+      el('th', {scope: 'row'}, k), el('td', {className: 'num'}, typeof v === 'object' ? v : String(v)))))));
 }
 
 export function mountJob(view, [id], query) {
   const head = el('div');
   const body = el('div');
-  alertEl = el('p', {role: 'alert', className: 'error'});
   view.append(el('p', {className: 'crumbs'}, el('a', {href: '#/jobs'}, '← all jobs')),
-              el('h1', {}, `Job ${id}`), alertEl, head, body);
+              el('h1', {}, `Job ${id}`), setAlertEl(el('p', {role: 'alert', className: 'error'})), head, body);
   let lastState = null, summaryDone = false, metricsDone = false, dead = false;
   // Only a comparison id, never a path: it is put into an API URL.
   const comparisonId = /^\d+$/.test(query.get('comparison') || '') ? query.get('comparison') : null;
@@ -284,7 +242,7 @@ export function mountJob(view, [id], query) {
         el('dt', {}, 'State'), el('dd', {className: 'job-state', 'aria-live': 'polite'}, stateBadge(j.state),
           j.cancel_requested && ACTIVE.has(j.state) ? ' (cancel requested)' : ''),
         el('dt', {}, 'Progress'), el('dd', {}, progressCell(j)),
-        el('dt', {}, 'Scene'), el('dd', {}, j.scene),
+        el('dt', {}, 'Scene'), el('dd', {}, sceneText(j)),
         el('dt', {}, 'Label'), el('dd', {}, j.label || '–'),
         el('dt', {}, 'Technique'), el('dd', {}, j.technique),
         el('dt', {}, 'Backend'), el('dd', {}, `${j.backend.requested}${j.backend.actual ? ` → ran on ${j.backend.actual}` : ''}`),
@@ -295,9 +253,9 @@ export function mountJob(view, [id], query) {
         el('dt', {}, 'Started'), el('dd', {}, fmtTime(j.started_at)),
         el('dt', {}, 'Finished'), el('dd', {}, fmtTime(j.finished_at)),
         j.error ? el('dt', {}, 'Error') : null, j.error ? el('dd', {className: 'error'}, j.error) : null),
-      el('p', {}, actions(j, (ok) => {
+      el('p', {className: 'actions'}, jobActions(j, (ok, what) => {
         // A deleted job has no page any more: back to the list.
-        if (ok && !ACTIVE.has(j.state)) location.hash = '#/jobs';
+        if (ok && what === 'delete') location.hash = '#/jobs';
         else handle.wake();
       })));
     if (focused) {
@@ -306,19 +264,31 @@ export function mountJob(view, [id], query) {
     }
     if (j.state !== lastState) {
       lastState = j.state;
-      body.replaceChildren(warningsSection(j), outputsSection(j, await outputFiles()),
+      // Sections a job does not have yet are left out (replaceChildren would print a null).
+      body.replaceChildren(...[warningsSection(j), outputsSection(j, await outputFiles()),
         j.timings_ms ? timingsSection(j.timings_ms) : null,
-        j.stats ? statsSection(j) : null,
-        el('div', {className: 'params-slot'}), el('div', {className: 'metrics-slot'}));
+        j.stats ? statsSection(j, await techniqueOf(j.technique)) : null,
+        el('div', {className: 'params-slot'}), el('div', {className: 'metrics-slot'}),
+        el('section', {className: 'log-slot', 'aria-labelledby': 'h-log'}, el('h2', {id: 'h-log'}, 'Log'),
+          el('pre', {className: 'job-log', tabIndex: 0, 'aria-label': `Log of job ${j.id}`}, '…'))].filter(Boolean));
       summaryDone = metricsDone = false;
     }
+    // The log grows while the job is queued or running: read it on every poll until it ends.
+    const logPre = body.querySelector('pre.job-log');
+    api(j.links.log || `${j.links.self}/log`).then((l) => {
+      if (dead || !logPre.isConnected) return;
+      const text = l.lines.length ? l.lines.join('\n') : 'No log lines (a job submitted before logs were kept).';
+      if (logPre.textContent !== text) logPre.textContent = text;
+    }).catch((e) => { logPre.textContent = `Cannot read the log: ${e.message}`; });
     const summary = j.links.outputs['summary.json'];
     if (summary && !summaryDone) {
       summaryDone = true;
       api(summary).then((s) => {
         body.querySelector('.params-slot').replaceChildren(el('section', {'aria-labelledby': 'h-params'},
           el('h2', {id: 'h-params'}, 'Parameters'),
-          el('p', {}, `${s.technique} on ${s.backend}, ${s.threads} thread(s): `, el('code', {}, paramText(s.params)))));
+          el('p', {}, `${s.technique} on ${ranOn(s, j.machine)}: `, el('code', {}, paramText(s.params)))));
+        const work = body.querySelector('.work-per-pixel');
+        if (work) work.textContent = workPerPixel(work.dataset.cost, s.params);
       }).catch(() => {});
     }
     const cid = comparisonId || j.comparison_id || (j.comparison && j.comparison.id);

@@ -3,6 +3,7 @@
 // GET /api/v1/techniques (params_schema), so a new technique needs no change here. Everything is
 // checked before sending; a 4xx's problems are shown next to the fields their JSON pointers name.
 import {ApiError, api, el, techniques} from './api.js';
+import {prefillClone} from './clone.js';
 import {checkValue, describeRule, parseField, parseToken} from './params.js';
 
 const MAX_CANDIDATES = 256;
@@ -272,6 +273,9 @@ function build(form, registry, scenes, query) {
   form.replaceChildren(mode, common, cmpOptions, techBox, addBtn, count, clientErrors, serverErrors, el('p', {}, submitBtn));
   showSource();
   showMode();
+  if (/^\d+$/.test(query.get('clone') || '') && !isComparison()) {
+    prefillClone(query.get('clone'), {form, sceneSel, sceneJson, width, height, priority, label, block: blocks[0], showSource});
+  }
 
   /** Everything the form says, checked; {body, errors: [[control, message]]}. */
   const read = () => {
@@ -324,7 +328,7 @@ function build(form, registry, scenes, query) {
       body.candidates = entries.map((e) => e.value);
     } else {
       const technique = entries[0].value;
-      if (doc) Object.assign(body, doc, {technique});
+      if (doc) Object.assign(body, doc, {technique}, form.dataset.sceneName ? {scene_name: form.dataset.sceneName} : {});
       else if (!paste) Object.assign(body, {scene_file: sceneSel.value, technique});
     }
     return {body, errors};
