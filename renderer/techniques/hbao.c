@@ -17,7 +17,7 @@ const char *const obs_hbao_pass_names[OBS_HBAO_PASS_COUNT] = {"downsample", "ao"
 static const obs_param hbao_params[] = {
     {.name = "radius", .type = OBS_PARAM_FLOAT, .flags = OBS_PARAM_MIN_EXCLUSIVE, .min = 0,
      .max = 1e30, .def = 1, .description = "occlusion radius R in scene units (view space)",
-     .offset = P(radius)},
+     .offset = P(radius), .size_default = 0.1},
     {.name = "directions", .type = OBS_PARAM_INT, .min = 1, .max = OBS_HBAO_MAX_DIRECTIONS,
      .def = 8,
      .description = "horizon directions per pixel, evenly spaced, randomly rotated per pixel",
