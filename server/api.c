@@ -447,11 +447,15 @@ static int scene_defaults(srv_req *r) {
   json_t *jname = json_string(name);
   json_t *doc = srv_submit_load_bundled(r->app, &p, jname);
   json_decref(jname);
-  const char *own = json_string_value(json_object_get(json_object_get(doc, "technique"), "name"));
-  if (!tn) tn = own;
+  /* Copied: the document's technique object is replaced below. */
+  char own[64] = "", want[64] = "";
+  const char *dn = json_string_value(json_object_get(json_object_get(doc, "technique"), "name"));
+  snprintf(own, sizeof own, "%s", dn ? dn : "");
+  snprintf(want, sizeof want, "%s", tn ? tn : own);
+  tn = want;
   if (doc && !obs_technique_find(tn))
     obs_err_set(&problems, OBS_EINVAL, "request: ?technique: no such technique (got \"%s\"; GET "
-                "/api/v1/techniques lists them)", tn ? tn : "");
+                "/api/v1/techniques lists them)", tn);
   if (problems.count) {
     json_decref(doc);
     int rc = srv_respond_error(r, MHD_HTTP_NOT_FOUND, &problems, "no such scene or technique");
@@ -460,7 +464,7 @@ static int scene_defaults(srv_req *r) {
   }
   json_t *notes = json_array();
   json_t *tech = json_pack("{s:s}", "name", tn);
-  json_t *scene_technique = json_string(own ? own : "");
+  json_t *scene_technique = json_string(own);
   srv_submit_set_technique(r->app, doc, name, tech, notes);
   json_t *t = json_object_get(doc, "technique");
   json_t *o = json_pack("{s:s, s:O, s:s, s:O, s:O, s:o}", "scene", name, "scene_technique",

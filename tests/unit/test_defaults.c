@@ -57,7 +57,7 @@ static void test_other_technique_derives_lengths(void **state) {
   json_t *p = obs_technique_defaults_for(obs_technique_find("hbao"), &sc, NULL, notes, NULL);
   assert_non_null(p);
   double r = json_number_value(json_object_get(p, "radius"));
-  assert_float_equal(r, 0.1 * size, 1e-3 * size);
+  assert_float_equal(r, 0.3 * size, 1e-3 * size);
   assert_int_equal(json_integer_value(json_object_get(p, "directions")), 8);
   assert_int_equal(json_array_size(notes), 1);
   const char *note = json_string_value(json_array_get(notes, 0));
