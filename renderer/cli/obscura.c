@@ -23,8 +23,8 @@ static void usage(FILE *f) {
   fputs("  obscura --version\n"
         "VALUE is JSON, e.g. --set /technique/params/samples=256 --set "
         "'/technique/params/falloff=\"sqrt\"'.\n"
-        "--technique replaces the document's technique; its params are dropped unless --set\n"
-        "gives them. submit and jobs send $OBSCURA_TOKEN as a bearer token; -o implies --wait.\n"
+        "--technique keeps the document's params for its own technique; another starts from its\n"
+        "defaults with lengths fitted to the scene's size (a note says which). submit and jobs send $OBSCURA_TOKEN as a bearer token; -o implies --wait.\n"
         "Exit codes: 0 ok, 2 bad input, 1 failure.\n",
         f);
 }
