@@ -465,15 +465,18 @@ static int scene_defaults(srv_req *r) {
   json_t *notes = json_array();
   json_t *tech = json_pack("{s:s}", "name", tn);
   json_t *scene_technique = json_string(own);
+  /* The scene's backend, for its own technique: what the form preselects. */
+  json_t *backend = json_incref(
+      !strcmp(tn, own) ? json_object_get(json_object_get(doc, "technique"), "backend") : NULL);
   srv_submit_set_technique(r->app, doc, name, tech, notes);
   json_t *t = json_object_get(doc, "technique");
   json_t *o = json_pack("{s:s, s:O, s:s, s:O, s:O, s:o}", "scene", name, "scene_technique",
                         scene_technique, "technique", tn, "backend",
-                        json_object_get(t, "backend") ? json_object_get(t, "backend") : json_null(),
-                        "params",
+                        backend ? backend : json_null(), "params",
                         json_object_get(t, "params") ? json_object_get(t, "params") : json_object(),
                         "notes", notes);
   json_decref(scene_technique);
+  json_decref(backend);
   json_decref(tech);
   json_decref(doc);
   if (!o) return srv_respond_error(r, MHD_HTTP_INTERNAL_SERVER_ERROR, NULL, "out of memory");

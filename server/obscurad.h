@@ -484,8 +484,8 @@ void srv_submit_check_limits(struct srv_app *app, const obs_scene *sc, obs_err *
 /* Sets the technique of bundled scene `doc` (named `docname`) to request member `tech` ({"name",
  * "backend", "params"}): the params are obs_technique_defaults_for the loaded scene with the
  * request's over them, so the scene's own params stay for its technique and lengths follow the
- * scene's size for another (one note each into `notes`, may be NULL). The backend stays the
- * scene's unless given, for its own technique. Problems of the scene are left to its validation. */
+ * scene's size for another (one note each into `notes`, may be NULL). The backend is the
+ * request's (absent: auto). Problems of the scene are left to its validation. */
 void srv_submit_set_technique(struct srv_app *app, json_t *doc, const char *docname,
                               const json_t *tech, json_t *notes);
 /* srv_pick_backend plus learned "auto": with stored timed runs of both backends for technique `t`

@@ -313,10 +313,6 @@ void srv_submit_set_technique(srv_app *app, json_t *doc, const char *docname,
   /* An unknown technique or a params member that is not an object: the scene's validation
    * names the fault, so the request's technique goes in as it is. */
   if (t && (!given || json_is_object(given)) && json_is_object(mine)) {
-    const char *own = json_string_value(json_object_get(mine, "name"));
-    json_t *backend = json_object_get(mine, "backend");
-    if (own && !strcmp(own, t->name) && backend && !json_object_get(out, "backend"))
-      json_object_set(out, "backend", backend);
     /* The scene as it is, to know its params and its size. */
     json_t *copy = json_deep_copy(doc);
     obs_scene sc;

@@ -34,7 +34,7 @@ test('the scene\'s technique keeps the scene\'s params', async () => {
     assert.deepEqual(named.notes, []);
     const t = storedParams(d, named.id);
     assert.equal(t.params.max_distance, 200);
-    assert.equal(t.backend, 'cpu');
+    assert.equal(t.backend, undefined); // the request's: none given, so auto
     const a = await finished(d, own.id), b = await finished(d, named.id);
     // The same params: the same image (the unbounded default made it nearly black).
     assert.equal(b.stats.ao.mean, a.stats.ao.mean);
@@ -69,6 +69,7 @@ test('another technique derives its lengths from the scene\'s size and says so',
     assert.equal(mine.technique, 'rt_ao');
     assert.equal(mine.params.max_distance, 200);
     assert.equal(mine.params.samples, 64);
+    assert.equal(mine.backend, 'cpu');
     assert.deepEqual(mine.notes, []);
     const rt = await getJSON(d, '/api/v1/scenes/cornell_box.json/defaults?technique=path_trace');
     assert.deepEqual(rt.notes, []);
