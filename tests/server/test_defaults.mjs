@@ -90,3 +90,24 @@ test('a radius far below the scene\'s size warns in the job', async () => {
               JSON.stringify(j.warnings));
   });
 });
+
+test('comparison candidates start from the scene\'s params, or lengths fitted to it', async () => {
+  await withDaemon({}, async (d) => {
+    const r = await request(d, 'POST', '/api/v1/comparisons', {body: {
+      scene_file: 'cornell_box.json', set: SMALL, repeats: 1, reference: {samples: 16},
+      candidates: [{technique: 'hbao', backend: 'cpu', params: {directions: [4, 8]}},
+                   {technique: 'rt_ao', params: {samples: 4}}]}});
+    assert.equal(r.status, 201, r.text);
+    validate('ComparisonCreated', r.json);
+    // One note for hbao's radius, though two hbao candidates derived it.
+    assert.equal(r.json.notes.length, 1);
+    assert.match(r.json.notes[0], /hbao radius = [0-9.]+ derived from the scene's size/);
+    const c = await getJSON(d, `/api/v1/comparisons/${r.json.id}`);
+    const hbao = c.candidates.filter((x) => x.technique === 'hbao');
+    assert.equal(hbao.length, 2);
+    for (const x of hbao) assert.ok(x.params.radius > 200 && x.params.radius < 400, `radius ${x.params.radius}`);
+    const rt = c.candidates.find((x) => x.technique === 'rt_ao');
+    assert.equal(rt.params.max_distance, 200);
+    assert.equal(rt.params.samples, 4);
+  });
+});

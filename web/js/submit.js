@@ -103,7 +103,7 @@ function techniqueBlock(registry, {comparison, legend, base, onRemove, onChange,
       control.addEventListener('input', onChange);
       return entry;
     });
-    paramsSlot.replaceChildren(el('p', {className: 'hint'}, comparison ? 'Parameters: leave empty for the default.'
+    paramsSlot.replaceChildren(el('p', {className: 'hint'}, comparison ? "Parameters: leave empty for the scene's value (its own technique) or the default, lengths fitted to the scene's size."
       : "Parameters: an empty field takes the bundled scene's value for its own technique, else the default fitted to the scene."),
                                ...state.params.map((p) => p.node));
     state.backend.addEventListener('change', onChange);
