@@ -10,6 +10,7 @@
 #include <strings.h>
 #include <sys/stat.h>
 
+#include "json_util.h"
 #include "obscurad.h"
 
 #define API "/api/v1"
@@ -41,6 +42,10 @@ srv_route srv_api_route(const char *path) {
   if (!strcmp(path, API "/jobs")) return SRV_ROUTE_JOBS;
   if (!strcmp(path, API "/techniques")) return SRV_ROUTE_TECHNIQUES;
   if (!strcmp(path, API "/scenes")) return SRV_ROUTE_SCENES;
+  if (!strncmp(path, API "/scenes/", sizeof API "/scenes/" - 1)) {
+    const char *slash = strchr(path + sizeof API "/scenes/" - 1, '/');
+    return slash && !strcmp(slash, "/defaults") ? SRV_ROUTE_SCENE_DEFAULTS : SRV_ROUTE_UNKNOWN;
+  }
   if (!strcmp(path, API "/health")) return SRV_ROUTE_HEALTH;
   if (!strncmp(path, API "/jobs/", sizeof API "/jobs/" - 1)) {
     const char *id, *rest;
@@ -207,6 +212,8 @@ static int submit(srv_req *r) {
   json_t *body = json_pack("{s:I, s:s, s:o}", "id", (json_int_t)id, "state", "queued", "links",
                            job_links(id, NULL));
   if (s.choice) json_object_set(body, "choice", s.choice);
+  /* Parameters derived from the scene's size, so the client can say so. */
+  json_object_set_new(body, "notes", s.notes ? json_incref(s.notes) : json_array());
   srv_submission_free(&s);
   srv_sched_notify(r->app);
   char loc[64];
@@ -547,6 +554,58 @@ static int scenes(srv_req *r) {
   return srv_respond_json(r, MHD_HTTP_OK, json_pack("{s:o}", "scenes", list));
 }
 
+/* The technique params a job of bundled scene {name} with ?technique= starts from, as a submission
+ * naming only the technique gets them (srv_submit_set_technique): the dashboard's form values. */
+static int scene_defaults(srv_req *r) {
+  const char *start = r->path + sizeof API "/scenes/" - 1;
+  char name[160];
+  size_t n = (size_t)(strchr(start, '/') - start);
+  if (n >= sizeof name) n = sizeof name - 1;
+  memcpy(name, start, n);
+  name[n] = '\0';
+  const char *tn = MHD_lookup_connection_value(r->conn, MHD_GET_ARGUMENT_KIND, "technique");
+  obs_err problems = OBS_ERR_INIT;
+  obs_jpath p;
+  obs_jpath_init(&p, "request", &problems);
+  json_t *jname = json_string(name);
+  json_t *doc = srv_submit_load_bundled(r->app, &p, jname);
+  json_decref(jname);
+  /* Copied: the document's technique object is replaced below. */
+  char own[64] = "", want[64] = "";
+  const char *dn = json_string_value(json_object_get(json_object_get(doc, "technique"), "name"));
+  snprintf(own, sizeof own, "%s", dn ? dn : "");
+  snprintf(want, sizeof want, "%s", tn ? tn : own);
+  tn = want;
+  if (doc && !obs_technique_find(tn))
+    obs_err_set(&problems, OBS_EINVAL, "request: ?technique: no such technique (got \"%s\"; GET "
+                "/api/v1/techniques lists them)", tn);
+  if (problems.count) {
+    json_decref(doc);
+    int rc = srv_respond_error(r, MHD_HTTP_NOT_FOUND, &problems, "no such scene or technique");
+    obs_err_free(&problems);
+    return rc;
+  }
+  json_t *notes = json_array();
+  json_t *tech = json_pack("{s:s}", "name", tn);
+  json_t *scene_technique = json_string(own);
+  /* The scene's backend, for its own technique: what the form preselects. */
+  json_t *backend = json_incref(
+      !strcmp(tn, own) ? json_object_get(json_object_get(doc, "technique"), "backend") : NULL);
+  srv_submit_set_technique(r->app, doc, name, tech, notes);
+  json_t *t = json_object_get(doc, "technique");
+  json_t *o = json_pack("{s:s, s:O, s:s, s:O, s:O, s:o}", "scene", name, "scene_technique",
+                        scene_technique, "technique", tn, "backend",
+                        backend ? backend : json_null(), "params",
+                        json_object_get(t, "params") ? json_object_get(t, "params") : json_object(),
+                        "notes", notes);
+  json_decref(scene_technique);
+  json_decref(backend);
+  json_decref(tech);
+  json_decref(doc);
+  if (!o) return srv_respond_error(r, MHD_HTTP_INTERNAL_SERVER_ERROR, NULL, "out of memory");
+  return srv_respond_json(r, MHD_HTTP_OK, o);
+}
+
 static int health(srv_req *r) {
   srv_app *app = r->app;
   int64_t counts[SRV_NSTATES];
@@ -596,6 +655,8 @@ int srv_api_dispatch(srv_req *r) {
     case SRV_ROUTE_TECHNIQUES:
       return is_get(r) ? techniques(r) : srv_respond_method(r, "GET, HEAD");
     case SRV_ROUTE_SCENES: return is_get(r) ? scenes(r) : srv_respond_method(r, "GET, HEAD");
+    case SRV_ROUTE_SCENE_DEFAULTS:
+      return is_get(r) ? scene_defaults(r) : srv_respond_method(r, "GET, HEAD");
     case SRV_ROUTE_HEALTH: return is_get(r) ? health(r) : srv_respond_method(r, "GET, HEAD");
     case SRV_ROUTE_COMPARISONS:
       if (!strcmp(r->method, "POST")) return srv_compare_post(r);

@@ -89,7 +89,38 @@ typedef struct cmp_req {
   long long priority, repeats, ref_samples, ref_seed;
   obs_backend ref_want; /* reference.backend as requested; picked per reference technique */
   const char *label;
+  /* The scene with its own technique, when it loads: what each candidate's params start from
+   * (obs_technique_defaults_for), and the notes of the values derived from its size. */
+  obs_scene scene;
+  int have_scene;
+  json_t *notes;
 } cmp_req;
+
+static void cmp_req_free(cmp_req *q) {
+  json_decref(q->base);
+  json_decref(q->req);
+  json_decref(q->notes);
+  if (q->have_scene) obs_scene_free(&q->scene);
+  q->base = q->req = q->notes = NULL;
+  q->have_scene = 0;
+}
+
+/* The candidate's params over what its technique starts from on the scene; a note per value
+ * derived from the scene's size, once per comparison. */
+static json_t *candidate_params(cmp_req *q, const cand *c) {
+  if (!q->have_scene) return json_incref(c->params);
+  json_t *notes = json_array();
+  json_t *p = obs_technique_defaults_for(c->t, &q->scene, c->params, notes, NULL);
+  size_t i, k;
+  json_t *n, *m;
+  json_array_foreach(notes, i, n) {
+    int seen = 0;
+    json_array_foreach(q->notes, k, m) seen |= json_equal(m, n);
+    if (!seen) json_array_append(q->notes, n);
+  }
+  json_decref(notes);
+  return p ? p : json_incref(c->params);
+}
 
 /* Loads `doc` (a scene document) as the renderer will: 0 with *sc, or the problems in `e`. */
 static int load_doc(srv_app *app, json_t *doc, const char *docname, obs_scene *sc,
@@ -109,10 +140,12 @@ static json_t *technique_obj(const char *name, obs_backend b, const json_t *para
 
 /* Validates one candidate like a job (scene rules, parameters, backend, limits), derives its
  * reference and registers it (shared when another candidate has the same definition). */
-static void validate_candidate(srv_app *app, const cmp_req *q, cand *c, expansion *x,
+static void validate_candidate(srv_app *app, cmp_req *q, cand *c, expansion *x,
                                obs_reference_facts *facts, obs_err *problems, int *dropped) {
   json_t *doc = json_deep_copy(q->base);
-  json_object_set_new(doc, "technique", technique_obj(c->t->name, c->backend, c->params));
+  json_t *params = candidate_params(q, c);
+  json_object_set_new(doc, "technique", technique_obj(c->t->name, c->backend, params));
+  json_decref(params);
   obs_scene sc;
   memset(&sc, 0, sizeof sc);
   obs_err e = OBS_ERR_INIT;
@@ -302,7 +335,14 @@ static unsigned parse_request(srv_app *app, const char *body, size_t len, cmp_re
     obs_err_set(problems, OBS_EINVAL, "%s: must be a scene document (an object)", q->docname);
   } else if (q->base) {
     if (sets) srv_submit_apply_sets(&p, sets, q->base);
-    /* The scene's own technique is ignored: each candidate brings one. */
+    /* Each candidate brings its technique; the scene's own gives the params they start from. */
+    json_t *copy = json_deep_copy(q->base);
+    obs_err ignored = OBS_ERR_INIT;
+    q->have_scene = copy && !obs_scene_load_json(&q->scene, copy, q->docname, app->scenes_real,
+                                                 NULL, 0, &ignored);
+    obs_err_free(&ignored);
+    json_decref(copy);
+    q->notes = json_array();
     json_object_del(q->base, "technique");
   }
   json_t *cands = obs_json_get_array(&p, req, "candidates", 1, &absent);
@@ -350,8 +390,7 @@ int srv_compare_post(srv_req *r) {
     int rc = srv_respond_error(r, status, &problems, "%s", message);
     obs_err_free(&problems);
     srv_compare_expansion_free(&x);
-    json_decref(q.base);
-    json_decref(q.req);
+    cmp_req_free(&q);
     return rc;
   }
   srv_new_job *refs = calloc((size_t)x.nrefs + 1, sizeof *refs);
@@ -424,22 +463,28 @@ int srv_compare_post(srv_req *r) {
   free(cs);
   free(request);
   srv_compare_expansion_free(&x);
-  json_decref(q.base);
-  json_decref(q.req);
+  json_t *notes = json_incref(q.notes);
+  cmp_req_free(&q);
   if (admit == 429) {
+    json_decref(notes);
     rc = srv_respond_too_busy(r, retry, &problems);
     obs_err_free(&problems);
     return rc;
   }
-  if (rc) return srv_respond_unavailable(r, &problems);
+  if (rc) {
+    json_decref(notes);
+    return srv_respond_unavailable(r, &problems);
+  }
   srv_log("comparison %lld: submitted (%d candidates, %d references)", (long long)id, ncand,
           nrefs);
   srv_sched_notify(r->app);
   char self[64], csv[72];
   snprintf(self, sizeof self, API "/comparisons/%lld", (long long)id);
   snprintf(csv, sizeof csv, "%s.csv", self);
+  /* Values derived from the scene's size, so the client can say so. */
   return srv_respond_created(
-      r, json_pack("{s:I, s:s, s:i, s:i, s:{s:s, s:s}}", "id", (json_int_t)id, "state", "running",
-                   "candidates", ncand, "references", nrefs, "links", "self", self, "csv", csv),
+      r, json_pack("{s:I, s:s, s:i, s:i, s:{s:s, s:s}, s:o}", "id", (json_int_t)id, "state",
+                   "running", "candidates", ncand, "references", nrefs, "links", "self", self,
+                   "csv", csv, "notes", notes ? notes : json_array()),
       self);
 }

@@ -349,6 +349,7 @@ typedef enum {
   SRV_ROUTE_JOB_LOG,
   SRV_ROUTE_TECHNIQUES,
   SRV_ROUTE_SCENES,
+  SRV_ROUTE_SCENE_DEFAULTS, /* /api/v1/scenes/{name}/defaults */
   SRV_ROUTE_HEALTH,
   SRV_ROUTE_METRICS,
   SRV_ROUTE_COMPARISONS,
@@ -481,6 +482,7 @@ typedef struct srv_submission {
   double work;
   char *backend_reason;
   json_t *choice; /* time-budget mode: what was chosen and why (owned), else NULL */
+  json_t *notes;  /* strings: parameters derived from the scene's size (owned), or NULL */
 } srv_submission;
 /* Returns 0 or the HTTP status to answer with; *message is a static summary, problems the list. */
 unsigned srv_submit_parse(struct srv_app *app, const char *body, size_t len, srv_submission *s,
@@ -504,6 +506,13 @@ json_t *srv_submit_load_bundled(struct srv_app *app, struct obs_jpath *p, const 
 json_t *srv_submit_get_sets(struct obs_jpath *p, const json_t *req);
 void srv_submit_apply_sets(struct obs_jpath *p, const json_t *sets, json_t *doc);
 void srv_submit_check_limits(struct srv_app *app, const obs_scene *sc, obs_err *problems);
+/* Sets the technique of bundled scene `doc` (named `docname`) to request member `tech` ({"name",
+ * "backend", "params"}): the params are obs_technique_defaults_for the loaded scene with the
+ * request's over them, so the scene's own params stay for its technique and lengths follow the
+ * scene's size for another (one note each into `notes`, may be NULL). The backend is the
+ * request's (absent: auto). Problems of the scene are left to its validation. */
+void srv_submit_set_technique(struct srv_app *app, json_t *doc, const char *docname,
+                              const json_t *tech, json_t *notes);
 /* srv_pick_backend plus learned "auto": with stored timed runs of both backends for technique `t`
  * at similar work (within 2x), the one with the lower median total; `reason` says which rule
  * decided (at most n bytes). */

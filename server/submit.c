@@ -32,6 +32,7 @@ void srv_submission_free(srv_submission *s) {
   free(s->backend_requested);
   free(s->backend_reason);
   json_decref(s->choice);
+  json_decref(s->notes);
   memset(s, 0, sizeof *s);
 }
 
@@ -303,6 +304,32 @@ int srv_pick_backend_learned(srv_app *app, const obs_technique *t, obs_backend r
   return 0;
 }
 
+void srv_submit_set_technique(srv_app *app, json_t *doc, const char *docname,
+                              const json_t *tech, json_t *notes) {
+  json_t *mine = json_object_get(doc, "technique");
+  const obs_technique *t = obs_technique_find(json_string_value(json_object_get(tech, "name")));
+  json_t *given = json_object_get(tech, "params");
+  json_t *out = json_deep_copy(tech);
+  if (!out) return;
+  /* An unknown technique or a params member that is not an object: the scene's validation
+   * names the fault, so the request's technique goes in as it is. */
+  if (t && (!given || json_is_object(given)) && json_is_object(mine)) {
+    /* The scene as it is, to know its params and its size. */
+    json_t *copy = json_deep_copy(doc);
+    obs_scene sc;
+    memset(&sc, 0, sizeof sc);
+    obs_err e = OBS_ERR_INIT;
+    if (copy && !obs_scene_load_json(&sc, copy, docname, app->scenes_real, NULL, 0, &e)) {
+      json_t *params = obs_technique_defaults_for(t, &sc, given, notes, &e);
+      if (params) json_object_set_new(out, "params", params);
+    }
+    obs_scene_free(&sc);
+    obs_err_free(&e);
+    json_decref(copy);
+  }
+  json_object_set_new(doc, "technique", out);
+}
+
 unsigned srv_submit_parse(srv_app *app, const char *body, size_t len, srv_submission *s,
                           const char **message, obs_err *problems) {
   memset(s, 0, sizeof *s);
@@ -373,7 +400,8 @@ unsigned srv_submit_parse(srv_app *app, const char *body, size_t len, srv_submis
                      obs_json_brief(tech));
       obs_jpath_pop(&p, m);
     } else if (tech && doc && json_is_object(doc)) {
-      json_object_set_new(doc, "technique", json_deep_copy(tech));
+      s->notes = json_array();
+      srv_submit_set_technique(app, doc, docname, tech, s->notes);
     }
   } else {
     /* The wrapper keys removed from a shallow copy: the scene's values are shared, not copied

@@ -74,6 +74,52 @@ void cli_scene_opts_free(cli_scene_opts *o) {
   o->nov = 0;
 }
 
+/* Sets the params of `doc`'s technique object to those --technique's technique starts from on the
+ * scene (obs_technique_defaults_for: lengths fitted to the scene's size), saying on stderr which
+ * were derived; a parameter --set gives is left to it. An unknown technique is left to the
+ * loader's message. The scene is loaded as it is, overrides aside (they may name the new
+ * technique's parameters). */
+static int switch_technique(const cli_scene_opts *o, json_t *doc, const char *base,
+                            const char *dir, obs_err *err) {
+  json_t *t = json_object_get(doc, "technique");
+  const obs_technique *to = obs_technique_find(o->technique);
+  json_object_del(t, "params");
+  json_object_del(t, "backend"); /* the scene's backend was chosen for its own technique */
+  if (!to) return 0;
+  static const char prefix[] = "/technique/params/";
+  json_t *given = json_object();
+  for (size_t i = 0; i < o->nov; i++)
+    if (!strncmp(o->ov[i].pointer, prefix, sizeof prefix - 1))
+      json_object_set_new(given, o->ov[i].pointer + sizeof prefix - 1, json_null());
+  obs_scene old;
+  char *text = json_dumps(doc, 0);
+  int rc = text ? obs_scene_load_string(&old, text, base, dir, NULL, 0, err)
+                : obs_err_set(err, OBS_ENOMEM, "out of memory");
+  free(text);
+  if (rc) {
+    json_decref(given);
+    return rc;
+  }
+  json_t *notes = json_array();
+  json_t *params = obs_technique_defaults_for(to, &old, given, notes, err);
+  obs_scene_free(&old);
+  json_decref(given);
+  if (!params) {
+    json_decref(notes);
+    return OBS_ENOMEM;
+  }
+  /* What --set gives is set by the loader; a placeholder must not stand in for it. */
+  for (size_t i = 0; i < o->nov; i++)
+    if (!strncmp(o->ov[i].pointer, prefix, sizeof prefix - 1))
+      json_object_del(params, o->ov[i].pointer + sizeof prefix - 1);
+  size_t k;
+  json_t *note;
+  json_array_foreach(notes, k, note) fprintf(stderr, "obscura: note: %s\n", json_string_value(note));
+  json_decref(notes);
+  json_object_set_new(t, "params", params);
+  return 0;
+}
+
 int cli_scene_load(const cli_scene_opts *o, obs_scene *sc, obs_err *err) {
   /* Why the file cannot be read (missing, permission, ...), before any parsing. */
   FILE *f = fopen(o->scene, "rb");
@@ -94,14 +140,6 @@ int cli_scene_load(const cli_scene_opts *o, obs_scene *sc, obs_err *err) {
     t = json_object();
     json_object_set_new(doc, "technique", t);
   }
-  if (o->technique) {
-    const char *old = json_string_value(json_object_get(t, "name"));
-    if (!old || strcmp(old, o->technique)) json_object_del(t, "params");
-    json_object_set_new(t, "name", json_string(o->technique));
-  }
-  if (o->backend) json_object_set_new(t, "backend", json_string(o->backend));
-  char *text = json_dumps(doc, 0);
-  json_decref(doc);
   char dir[PATH_MAX];
   snprintf(dir, sizeof dir, "%s", o->scene);
   char *slash = strrchr(dir, '/');
@@ -110,6 +148,20 @@ int cli_scene_load(const cli_scene_opts *o, obs_scene *sc, obs_err *err) {
     *slash = '\0';
   else
     strcpy(dir, ".");
+  if (o->technique) {
+    const char *old = json_string_value(json_object_get(t, "name"));
+    if (!old || strcmp(old, o->technique)) {
+      int rc = switch_technique(o, doc, base, dir, err);
+      if (rc) {
+        json_decref(doc);
+        return rc;
+      }
+    }
+    json_object_set_new(t, "name", json_string(o->technique));
+  }
+  if (o->backend) json_object_set_new(t, "backend", json_string(o->backend));
+  char *text = json_dumps(doc, 0);
+  json_decref(doc);
   int rc = obs_scene_load_string(sc, text, base, dir, o->ov, o->nov, err);
   free(text);
   return rc;

@@ -16,8 +16,8 @@ static const usage usages[] = {
      "                 [--set /json/pointer=VALUE]... [--threads N] [--quiet]\n",
      "Renders the scene here and writes its outputs, summary.json and PNGs into DIR (default "
      "out).\n"
-     "--technique replaces the document's technique; its params are dropped unless --set\n"
-     "gives them.\n"},
+     "--technique keeps the document's params for its own technique; another starts from its\n"
+     "defaults with lengths fitted to the scene's size (a note says which); --set wins.\n"},
     {"validate",
      "  obscura validate SCENE.json [--technique NAME] [--set /json/pointer=VALUE]...\n",
      "Checks the scene as render would, without rendering.\n"},

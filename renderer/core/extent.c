@@ -5,9 +5,11 @@
 #include <jansson.h>
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "geometry.h"
+#include "params.h"
 
 static void grow(obs_extent *ex, const double p[3]) {
   for (int k = 0; k < 3; k++) {
@@ -51,7 +53,8 @@ int obs_scene_extent(const obs_scene *sc, obs_extent *ex, obs_err *err) {
   return 0;
 }
 
-/* One warning per parameter of `range` that lies outside its subrange. */
+/* One warning per parameter of `range` that lies outside its subrange, and per length that is
+ * implausibly small or large for the scene (OBS_LENGTH_TINY, OBS_LENGTH_HUGE). */
 static int check_params(const obs_range *range, const char *who, const obs_scene *sc,
                         const obs_extent *ex, obs_render_ctx *ctx) {
   int n = 0;
@@ -59,6 +62,15 @@ static int check_params(const obs_range *range, const char *who, const obs_scene
     json_t *v = json_object_get(sc->params, p->name);
     if (!json_is_number(v)) continue; /* absent or null: no bound to check */
     double x = json_number_value(v), rel = x * pow(ex->size, -p->size_power);
+    if (p->size_power == 1 && (rel < OBS_LENGTH_TINY || rel > OBS_LENGTH_HUGE)) {
+      obs_render_ctx_warn(ctx,
+                          "%s = %g is %.3g scene sizes (scene size %.4g): %s than %g scene sizes, "
+                          "so the image is likely %s",
+                          p->name, x, rel, ex->size, rel < OBS_LENGTH_TINY ? "less" : "more",
+                          rel < OBS_LENGTH_TINY ? OBS_LENGTH_TINY : OBS_LENGTH_HUGE,
+                          rel < OBS_LENGTH_TINY ? "unoccluded (white)" : "saturated");
+      n++;
+    }
     if (rel >= p->min && rel <= p->max) continue;
     const char *unit = obs_param_range_unit(p);
     obs_render_ctx_warn(ctx,
@@ -111,4 +123,57 @@ int obs_range_check(const obs_range *range, const char *technique, obs_backend b
   }
   if (ex->size > 0) n += check_params(range, who, sc, ex, ctx);
   return n;
+}
+
+int obs_technique_param_size_power(const obs_technique *t, const char *name) {
+  for (int be = 0; be < OBS_BACKEND_COUNT; be++)
+    for (const obs_param_range *p = t->range[be].params; p->name; p++)
+      if (!strcmp(p->name, name)) return p->size_power;
+  return 0;
+}
+
+json_t *obs_technique_defaults_for(const obs_technique *t, const obs_scene *sc,
+                                   const json_t *given, json_t *notes, obs_err *err) {
+  json_t *out = json_object();
+  if (!out) {
+    obs_err_set(err, OBS_ENOMEM, "out of memory");
+    return NULL;
+  }
+  if (sc->technique == t) {
+    json_object_update(out, sc->params);
+  } else {
+    obs_extent ex;
+    if (obs_scene_extent(sc, &ex, err)) {
+      json_decref(out);
+      return NULL;
+    }
+    for (size_t i = 0; i < t->params_size; i++) {
+      const obs_param *d = &t->params[i];
+      int power = obs_technique_param_size_power(t, d->name);
+      if (!(d->size_default > 0) || power != 1 || ex.empty || !(ex.size > 0) ||
+          json_object_get(given, d->name)) {
+        json_object_set_new(out, d->name, obs_param_default_json(d));
+        continue;
+      }
+      /* Rounded to 4 significant digits: the value is a starting point people read and edit. */
+      char text[32];
+      snprintf(text, sizeof text, "%.4g", d->size_default * ex.size);
+      double x = strtod(text, NULL);
+      json_object_set_new(out, d->name, json_real(x));
+      if (notes) {
+        json_t *def = obs_param_default_json(d);
+        char *deftext = def ? json_dumps(def, JSON_ENCODE_ANY) : NULL;
+        char note[320];
+        snprintf(note, sizeof note,
+                 "%s %s = %g derived from the scene's size: %g x %.4g (the diagonal of its "
+                 "bounding box) instead of the fixed default %s",
+                 t->name, d->name, x, d->size_default, ex.size, deftext ? deftext : "?");
+        free(deftext);
+        json_decref(def);
+        json_array_append_new(notes, json_string(note));
+      }
+    }
+  }
+  if (json_is_object(given)) json_object_update(out, (json_t *)given); /* jansson reads it */
+  return out;
 }

@@ -391,6 +391,13 @@ int obs_technique_params_check(const obs_technique *t, obs_err *err) {
       bad = obs_err_set(err, OBS_EINVAL, "%s: /%s: %s", doc, d->name, why);
       continue;
     }
+    /* A scale-derived default is stated in scene sizes, which only a length has. */
+    if (d->size_default != 0 &&
+        (!(d->size_default > 0) || obs_technique_param_size_power(t, d->name) != 1))
+      bad = obs_err_set(err, OBS_EINVAL,
+                        "%s: /%s: size_default %g needs a positive value and a range entry with "
+                        "size_power 1",
+                        doc, d->name, d->size_default);
     /* The default must pass the same check as a document's value. */
     char where[160];
     snprintf(where, sizeof where, "%s default", doc);

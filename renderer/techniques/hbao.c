@@ -14,10 +14,12 @@ const char *const obs_hbao_pass_names[OBS_HBAO_PASS_COUNT] = {"downsample", "ao"
                                                               "blur"};
 
 #define P(member) offsetof(obs_hbao_params, member)
+/* The radius derived for a scene (size_default) is 0.3 scene sizes: hbao's reference (below) is
+ * rt_ao at 2R/3, so it matches rt_ao's derived max_distance of 0.2 scene sizes. */
 static const obs_param hbao_params[] = {
     {.name = "radius", .type = OBS_PARAM_FLOAT, .flags = OBS_PARAM_MIN_EXCLUSIVE, .min = 0,
      .max = 1e30, .def = 1, .description = "occlusion radius R in scene units (view space)",
-     .offset = P(radius)},
+     .offset = P(radius), .size_default = 0.3},
     {.name = "directions", .type = OBS_PARAM_INT, .min = 1, .max = OBS_HBAO_MAX_DIRECTIONS,
      .def = 8,
      .description = "horizon directions per pixel, evenly spaced, randomly rotated per pixel",

@@ -38,7 +38,7 @@ static const obs_param rt_ao_params[] = {
      .max = 1e30, .null_value = INFINITY,
      .description = "occlusion distance d_max in scene units; null = unbounded (binary and exp "
                     "falloff only)",
-     .offset = P(max_distance)},
+     .offset = P(max_distance), .size_default = 0.2},
     {.name = "falloff", .type = OBS_PARAM_ENUM, .choices = falloffs,
      .def = OBS_RT_AO_FALLOFF_BINARY,
      .description = "obscurance function rho(d): binary = classic AO, sqrt = sqrt(d/d_max) "

@@ -108,7 +108,9 @@ test('jobs, job detail and submit pages', async () => {
 
     // ---- the job list: live progress, a queued job behind it, cancel ------------------------
     const long = await submit(d, {scene_file: 'cornell_box.json', label: 'long',
-      technique: {name: 'rt_ao', backend: 'cpu', params: {samples: 65536}}, set: {'/image/width': 256, '/image/height': 256}});
+      // Unbounded rays (the Cornell box's own max_distance of 200 would stay): its first tiles end
+      // sooner, so the progress bar moves within the wait below.
+      technique: {name: 'rt_ao', backend: 'cpu', params: {samples: 65536, max_distance: null}}, set: {'/image/width': 256, '/image/height': 256}});
     const behind = await submit(d, {scene_file: 'sphere_on_plane.json', label: 'behind',
       technique: {name: 'ssao', backend: 'cpu'}, set: {'/image/width': 32, '/image/height': 24}});
     await page.getByRole('link', {name: 'Jobs', exact: true}).click();

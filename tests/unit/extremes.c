@@ -164,9 +164,17 @@ static int compare(const char *what, const obs_technique *t, const obs_image *b,
   return bad;
 }
 
+/* No range warning. A length far off the scene's size (OBS_LENGTH_TINY, OBS_LENGTH_HUGE) still
+ * warns that the image is likely white or saturated: that is about what was asked for, not about
+ * precision, and the ends of a length's range are such lengths. */
 static int no_warnings(const char *what, const obs_result *res) {
-  for (int i = 0; i < res->nwarnings; i++) printf("FAIL %s: warned: %s\n", what, res->warnings[i]);
-  return res->nwarnings ? 1 : 0;
+  int n = 0;
+  for (int i = 0; i < res->nwarnings; i++) {
+    if (strstr(res->warnings[i], "so the image is likely")) continue;
+    printf("FAIL %s: warned: %s\n", what, res->warnings[i]);
+    n++;
+  }
+  return n ? 1 : 0;
 }
 
 /* The scale-1 size of case `c`'s scene. */

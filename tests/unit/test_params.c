@@ -325,6 +325,9 @@ static void test_self_check(void **state) {
         .description = "d"},
        "a null default needs OBS_PARAM_NULLABLE"},
       {{.name = "a", .type = OBS_PARAM_ENUM, .description = "d"}, "an enum needs choices"},
+      /* A size-derived default on a parameter the ranges do not declare a length. */
+      {{.name = "a", .type = OBS_PARAM_DOUBLE, .max = 1, .description = "d", .size_default = 0.1},
+       "/a: size_default 0.1 needs a positive value and a range entry with size_power 1"},
       {{.name = "a", .type = OBS_PARAM_BOOL}, "/a: has no description"},
       {{.name = "", .type = OBS_PARAM_BOOL, .description = "d"}, "entry 0 has no name"},
   };

@@ -50,15 +50,17 @@ function setError(control, message) {
  * other parameters take comma-separated lists. `base` is the JSON pointer of the entry in the
  * request ("/technique" or "/candidates/K").
  */
-function techniqueBlock(registry, {comparison, legend, base, onRemove, onChange}) {
+function techniqueBlock(registry, {comparison, legend, base, onRemove, onChange, onTechnique}) {
   const ts = registry.techniques;
   const technique = el('select', {}, ...ts.map((t) => el('option', {value: t.name}, t.name)));
   const fs = el('fieldset', {className: 'technique-block'}, el('legend', {}, legend));
   const desc = el('p', {className: 'desc'});
   const backendSlot = el('div');
   const paramsSlot = el('div', {className: 'params'});
-  const state = {technique, backend: null, params: [], base};
-  fs.append(field('Technique', technique, {pointer: `${base}/${comparison ? 'technique' : 'name'}`}), desc, backendSlot, paramsSlot);
+  // Where the values shown come from (the scene's own params, or defaults fitted to its size).
+  const origin = el('div', {className: 'hint defaults-note', 'aria-live': 'polite'});
+  const state = {technique, backend: null, params: [], base, gen: 0};
+  fs.append(field('Technique', technique, {pointer: `${base}/${comparison ? 'technique' : 'name'}`}), desc, backendSlot, origin, paramsSlot);
   if (onRemove) fs.append(el('button', {type: 'button', className: 'small', onclick: onRemove}, `Remove ${legend.toLowerCase()}`));
 
   const build = () => {
@@ -94,17 +96,51 @@ function techniqueBlock(registry, {comparison, legend, base, onRemove, onChange}
           placeholder: comparison ? `default ${JSON.stringify(schema.default)}; e.g. 4, 16, 64` : `default ${JSON.stringify(schema.default)}`});
         node = field(name, control, {description: comparison ? `${description} A comma-separated list sweeps the values.` : description, pointer});
       }
+      const entry = {name, schema, control, node, choices, touched: -1};
+      const edited = () => { entry.touched = state.gen; };
+      control.addEventListener('change', edited);
+      control.addEventListener('input', edited);
       control.addEventListener('change', onChange);
       control.addEventListener('input', onChange);
-      return {name, schema, control, node, choices};
+      return entry;
     });
-    paramsSlot.replaceChildren(el('p', {className: 'hint'}, comparison ? 'Parameters: leave empty for the default.' : 'Parameters: leave empty for the default.'),
+    paramsSlot.replaceChildren(el('p', {className: 'hint'}, comparison ? "Parameters: leave empty for the scene's value (its own technique) or the default, lengths fitted to the scene's size."
+      : "Parameters: an empty field takes the bundled scene's value for its own technique, else the default fitted to the scene."),
                                ...state.params.map((p) => p.node));
     state.backend.addEventListener('change', onChange);
+    state.backendTouched = -1;
+    state.backend.addEventListener('change', () => { state.backendTouched = state.gen; });
+    origin.replaceChildren();
     onChange();
+    if (onTechnique) onTechnique(state);
   };
   technique.addEventListener('change', build);
   build();
+
+  /**
+   * Shows the params a job of this scene starts from (GET /api/v1/scenes/{name}/defaults) as the
+   * fields' values, and says where they come from; d null clears the note. Fields edited since
+   * request `gen` started keep what was typed.
+   */
+  state.fill = (d, gen) => {
+    if (!d) {
+      origin.replaceChildren();
+      return;
+    }
+    for (const p of state.params) {
+      if (!(p.name in d.params) || p.touched === gen) continue;
+      const v = d.params[p.name];
+      p.control.value = JSON.stringify(v);
+    }
+    if (d.backend && state.backendTouched !== gen &&
+        [...state.backend.options].some((o) => o.value === d.backend && !o.disabled)) state.backend.value = d.backend;
+    const own = d.technique === d.scene_technique;
+    origin.replaceChildren(el('p', {}, own
+      ? `Values: the parameters ${d.scene} declares for ${d.technique}.`
+      : `Values: ${d.technique}'s defaults (${d.scene} declares ${d.scene_technique}); lengths are fitted to the scene's size.`),
+    ...d.notes.map((n) => el('p', {className: 'derived'}, n)));
+    onChange();
+  };
 
   /** {value, errors: [[control, message]], count}: the entry for the request. */
   state.read = () => {
@@ -183,7 +219,7 @@ function build(form, registry, scenes, query) {
   const width = el('input', {type: 'text', inputMode: 'numeric', autocomplete: 'off', placeholder: "the scene's"});
   const height = el('input', {type: 'text', inputMode: 'numeric', autocomplete: 'off', placeholder: "the scene's"});
   const sceneFields = {bundled: field('Scene file', sceneSel, {pointer: '/scene_file'}),
-                       paste: field('Scene JSON', sceneJson, {description: 'A scene document (docs/scene-format.md); meshes must be bundled ones (models/…). Its technique is replaced by the one chosen below.'})};
+                       paste: field('Scene JSON', sceneJson, {description: "A scene document (docs/scene-format.md); meshes must be bundled ones (models/…). Its technique is replaced by the one chosen below; for the same technique its params stay where a field is empty."})};
   const source = el('fieldset', {className: 'inline'}, el('legend', {}, 'Scene'),
     radio('source', 'bundled', 'A bundled scene', true), radio('source', 'paste', 'Paste a scene document', false));
   const sceneBox = el('div');
@@ -256,7 +292,8 @@ function build(form, registry, scenes, query) {
       cmpOptions.hidden = false;
       addBtn.hidden = false;
     } else {
-      const b = techniqueBlock(registry, {comparison: false, legend: 'Technique', base: '/technique', onChange: () => {}});
+      const b = techniqueBlock(registry, {comparison: false, legend: 'Technique', base: '/technique', onChange: () => {},
+                                          onTechnique: loadDefaults});
       blocks.push(b);
       techBox.append(b.node);
       cmpOptions.hidden = true;
@@ -266,6 +303,21 @@ function build(form, registry, scenes, query) {
     recount();
   };
   mode.addEventListener('change', showMode);
+  // The single job's fields show what the chosen bundled scene runs with for the chosen technique.
+  function loadDefaults(b) {
+    const gen = ++b.gen;
+    const paste = form.querySelector('input[name=source]:checked').value === 'paste';
+    if (paste || !sceneSel.value) {
+      b.fill(null, gen);
+      return;
+    }
+    api(`/api/v1/scenes/${encodeURIComponent(sceneSel.value)}/defaults?technique=${encodeURIComponent(b.technique.value)}`)
+      .then((d) => { if (gen === b.gen) b.fill(d, gen); })
+      .catch(() => { if (gen === b.gen) b.fill(null, gen); });
+  }
+  const refill = () => { if (!isComparison() && blocks[0]) loadDefaults(blocks[0]); };
+  sceneSel.addEventListener('change', refill);
+  source.addEventListener('change', refill);
 
   const clientErrors = el('div', {className: 'problems', role: 'alert'});
   const serverErrors = el('div', {className: 'problems', role: 'alert'});
@@ -328,6 +380,11 @@ function build(form, registry, scenes, query) {
       body.candidates = entries.map((e) => e.value);
     } else {
       const technique = entries[0].value;
+      // A pasted scene's own params stay for its own technique; the form's are set over them.
+      const pt = doc && doc.technique;
+      if (pt && pt.name === technique.name && pt.params && typeof pt.params === 'object') {
+        technique.params = Object.assign({}, pt.params, technique.params);
+      }
       if (doc) Object.assign(body, doc, {technique}, form.dataset.sceneName ? {scene_name: form.dataset.sceneName} : {});
       else if (!paste) Object.assign(body, {scene_file: sceneSel.value, technique});
     }

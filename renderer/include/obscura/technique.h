@@ -140,6 +140,11 @@ typedef struct obs_param_range {
 } obs_param_range;
 
 #define OBS_MAX_PARAM_RANGES 4
+/* A length parameter (size_power 1) below OBS_LENGTH_TINY or above OBS_LENGTH_HUGE scene sizes
+ * renders, but hardly ever as meant (every pixel open, or every pixel occluded): the render says
+ * so in a warning (obs_range_check). */
+#define OBS_LENGTH_TINY 1e-3
+#define OBS_LENGTH_HUGE 10.0
 /* The unit a parameter's bounds are stated in: "scene sizes", "per scene size" or "". */
 const char *obs_param_range_unit(const obs_param_range *p);
 
@@ -207,6 +212,10 @@ typedef struct obs_param {
   int nvalues;
   const char *description;
   size_t offset;               /* offsetof the member in the technique's params struct */
+  /* A length (its obs_param_range has size_power 1): when the technique is chosen for a scene
+   * that declared another, its default is this many scene sizes (obs_technique_defaults_for);
+   * 0 = `def` (or null) at every scale. */
+  double size_default;
 } obs_param;
 
 /* The work of one pixel sample of a technique with bound params, in units the server's limits
@@ -360,6 +369,18 @@ double obs_technique_cost(const obs_technique *t, const json_t *params);
  * offsets inside bound_size and aligned, and every default accepted by its own range. Adds one
  * problem per fault and returns OBS_EINVAL, or 0. */
 int obs_technique_params_check(const obs_technique *t, obs_err *err);
+
+/* The params `t` starts from on the loaded `scene`, with `given` (an object, may be NULL) set over
+ * them: the scene's own params when `t` is the scene's technique; otherwise t's defaults, each
+ * length parameter with a size_default (size_power 1 in t's ranges) set to that many sizes of the
+ * scene, so a radius or a distance fits the scene's scale. Each derived value not in `given` adds
+ * a note saying so to `notes` (a JSON array of strings; may be NULL). Returns a new object, or
+ * NULL after filling err. */
+json_t *obs_technique_defaults_for(const obs_technique *t, const obs_scene *scene,
+                                   const json_t *given, json_t *notes, obs_err *err);
+/* The exponent of the scene size in the unit of t's parameter `name` (obs_param_range
+ * size_power, from the first backend that declares the parameter), or 0 when none does. */
+int obs_technique_param_size_power(const obs_technique *t, const char *name);
 
 /* Texts generated from the registry, each a new string (free() it), NULL when out of memory; the
  * repository keeps copies that tests compare (scripts/gen-registry.sh writes them):
