@@ -1,14 +1,32 @@
 // Browser test of the dashboard on a daemon with a token: the page asks for the token, logs in
 // (POST /api/v1/session), and then the job page's images load and its downloads work although an
-// <img> or a link cannot send the bearer header; the list's thumbnails too. Also the header's
+// <img> or a link cannot send the bearer header; the list's thumbnails and a comparison's slider,
+// heatmap and grid too. Also the header's
 // counts after a submission from the page, the comparison form's defaults taken from the server,
 // and the favicon the page links.
 import assert from 'node:assert/strict';
 import fs from 'node:fs';
 import test from 'node:test';
-import {getJSON, imageWidths, openBrowser, pngSize, request, screenshot, startDashboard, submit, waitJob} from './lib.mjs';
+import {getJSON, openBrowser, pngSize, request, screenshot, sleep, SLOW, startDashboard, submit, waitJob} from './lib.mjs';
 
 const TOKEN = 'browser-token-0123456789abcdef';
+
+/**
+ * The natural widths of the images matching selector once there are some and all have loaded. The
+ * pages re-render as they poll, so the images are read in the same turn as they are checked.
+ */
+async function loadedWidths(page, selector) {
+  try {
+    const h = await page.waitForFunction((sel) => {
+      const imgs = [...document.querySelectorAll(sel)];
+      return imgs.length > 0 && imgs.every((i) => i.complete && i.naturalWidth > 0) && imgs.map((i) => i.naturalWidth);
+    }, selector);
+    return h.jsonValue();
+  } catch (e) {
+    const now = await page.$$eval(selector, (imgs) => imgs.map((i) => `${i.getAttribute('src')}: complete ${i.complete}, ${i.naturalWidth}`));
+    throw new Error(`images ${selector} did not all load: ${now.join('; ') || 'none'} (${e.message.split('\n')[0]})`);
+  }
+}
 
 test('with a token the job page shows its images and downloads its outputs', async () => {
   const d = await startDashboard({token: TOKEN});
@@ -35,7 +53,7 @@ test('with a token the job page shows its images and downloads its outputs', asy
     assert.equal(c.sameSite, 'Strict');
 
     await page.locator('.job-state', {hasText: 'succeeded'}).waitFor();
-    const widths = await imageWidths(page, 'img.output');
+    const widths = await loadedWidths(page, 'img.output');
     assert.ok(widths.length >= 1, 'the job page shows its images');
     assert.ok(widths.every((w) => w === 24), `every image loaded at the job's width: ${widths}`);
     await screenshot(page, 'token-job');
@@ -51,14 +69,35 @@ test('with a token the job page shows its images and downloads its outputs', asy
     await page.context().clearCookies();
     await page.reload();
     await page.locator('.job-state', {hasText: 'succeeded'}).waitFor();
-    assert.ok((await imageWidths(page, 'img.output')).every((w) => w === 24), 'images load after a reload');
+    assert.ok((await loadedWidths(page, 'img.output')).every((w) => w === 24), 'images load after a reload');
     assert.ok(await box.isHidden(), 'no token prompt with a stored token');
 
     // The job list's thumbnails.
     await page.getByRole('link', {name: 'Jobs', exact: true}).click();
     await page.locator(`tr[data-id="${id}"]`).waitFor();
-    const thumbs = await imageWidths(page, 'img.thumb');
+    const thumbs = await loadedWidths(page, 'img.thumb');
     assert.ok(thumbs.length >= 1 && thumbs.every((w) => w > 0), `thumbnails load: ${thumbs}`);
+
+    // A comparison's slider, heatmap and image grid.
+    const r = await request(d, 'POST', '/api/v1/comparisons', {body: {scene_file: 'sphere_on_plane.json',
+      set: {'/image/width': 16, '/image/height': 12}, repeats: 1, reference: {samples: 16},
+      candidates: [{technique: 'rt_ao', backend: 'cpu', params: {samples: [2, 4]}}]}});
+    assert.equal(r.status, 201, r.text);
+    const deadline = Date.now() + 120000 * SLOW;
+    for (;;) {
+      const doc = await getJSON(d, `/api/v1/comparisons/${r.json.id}`);
+      if (doc.state !== 'running') break;
+      assert.ok(Date.now() < deadline, 'the comparison finishes');
+      await sleep(100);
+    }
+    await page.goto(`${d.url}/#/comparisons/${r.json.id}`);
+    await page.waitForFunction(() => window.__obscura.comparison && window.__obscura.comparison.rendered === 2);
+    await page.getByRole('button', {name: 'Show candidate 1'}).click();
+    await page.locator('figure.heatmap img').waitFor();
+    const cmp = await loadedWidths(page, 'main img');
+    assert.ok(cmp.length >= 6 && cmp.every((w) => w === 16), `the comparison's images load: ${cmp}`);
+    assert.equal((await loadedWidths(page, 'figure.heatmap img'))[0], 16, 'the heatmap loads');
+    await screenshot(page, 'token-comparison');
     assert.deepEqual(errors, []);
   } finally {
     await browser.close();
