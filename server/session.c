@@ -67,8 +67,7 @@ int srv_session_serve(srv_req *r) {
   srv_app *app = r->app;
   int post = !strcmp(r->method, "POST");
   if (!post && strcmp(r->method, "DELETE")) return srv_respond_method(r, "POST, DELETE");
-  if (!app->has_token)
-    return answer(r, json_pack("{s:b}", "token_required", 0), NULL);
+  if (!app->has_token) return answer(r, json_pack("{s:b}", "token_required", 0), NULL);
   if (!post)
     return answer(r, json_pack("{s:b}", "token_required", 1),
                   COOKIE_NAME "=; Path=/; Max-Age=0; HttpOnly; SameSite=Strict");
@@ -82,7 +81,8 @@ int srv_session_serve(srv_req *r) {
   struct tm tm;
   gmtime_r(&expires, &tm);
   strftime(iso, sizeof iso, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return answer(r, json_pack("{s:b, s:s, s:I}", "token_required", 1, "expires", iso,
-                             "expires_in", (json_int_t)ttl),
+  return answer(r,
+                json_pack("{s:b, s:s, s:I}", "token_required", 1, "expires", iso, "expires_in",
+                          (json_int_t)ttl),
                 cookie);
 }
