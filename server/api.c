@@ -47,6 +47,7 @@ srv_route srv_api_route(const char *path) {
     return slash && !strcmp(slash, "/defaults") ? SRV_ROUTE_SCENE_DEFAULTS : SRV_ROUTE_UNKNOWN;
   }
   if (!strcmp(path, API "/health")) return SRV_ROUTE_HEALTH;
+  if (!strcmp(path, API "/session")) return SRV_ROUTE_SESSION;
   if (!strncmp(path, API "/jobs/", sizeof API "/jobs/" - 1)) {
     const char *id, *rest;
     size_t n;
@@ -503,8 +504,11 @@ static int delete_comparison(srv_req *r, int64_t id) {
 
 static int techniques(srv_req *r) {
   return srv_respond_json(r, MHD_HTTP_OK,
-                          json_pack("{s:o, s:b}", "techniques", obs_technique_registry_json(),
-                                    "vulkan_available", r->app->vulkan_lane));
+                          json_pack("{s:o, s:b, s:{s:i, s:i}}", "techniques",
+                                    obs_technique_registry_json(), "vulkan_available",
+                                    r->app->vulkan_lane, "comparison_defaults", "repeats",
+                                    SRV_COMPARE_REPEATS, "reference_samples",
+                                    SRV_COMPARE_REF_SAMPLES));
 }
 
 static int cmp_names(const void *a, const void *b) {
@@ -658,6 +662,7 @@ int srv_api_dispatch(srv_req *r) {
     case SRV_ROUTE_SCENE_DEFAULTS:
       return is_get(r) ? scene_defaults(r) : srv_respond_method(r, "GET, HEAD");
     case SRV_ROUTE_HEALTH: return is_get(r) ? health(r) : srv_respond_method(r, "GET, HEAD");
+    case SRV_ROUTE_SESSION: return srv_session_serve(r);
     case SRV_ROUTE_COMPARISONS:
       if (!strcmp(r->method, "POST")) return srv_compare_post(r);
       return is_get(r) ? srv_compare_list(r) : srv_respond_method(r, "GET, HEAD, POST");

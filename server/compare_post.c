@@ -14,8 +14,6 @@
 #include "obscurad.h"
 
 #define MAX_PROBLEMS 100     /* problems reported for one request (the rest are summarised) */
-#define DEFAULT_REPEATS 3
-#define REF_SAMPLES 1024
 #define REF_SEED 7919        /* independent of candidates' default seed 1 */
 #define MAX_LABEL 256
 /* Every candidate and reference is a whole scene document, kept as text until the comparison is
@@ -282,8 +280,8 @@ static unsigned parse_request(srv_app *app, const char *body, size_t len, cmp_re
                                      "repeats", "reference", "candidates", NULL};
   obs_json_check_keys(&p, req, keys);
   q->priority = 50;
-  q->repeats = DEFAULT_REPEATS;
-  q->ref_samples = REF_SAMPLES;
+  q->repeats = SRV_COMPARE_REPEATS;
+  q->ref_samples = SRV_COMPARE_REF_SAMPLES;
   q->ref_seed = REF_SEED;
   q->ref_want = OBS_BACKEND_CPU;
   obs_json_get_int(&p, req, "priority", 0, 0, 100, &q->priority);

@@ -32,6 +32,8 @@ static const opt opts[] = {
      "npm modules directory the dashboard's /vendor/ files come from (default node_modules)"},
     {"token-file", OPT_STR, OFF(token_file), 0, 0,
      "file holding the bearer token every /api request and /metrics must carry"},
+    {"session-seconds", OPT_INT, OFF(session_seconds), 1, 86400 * 30,
+     "lifetime of the dashboard's session cookie from POST /api/v1/session (default 43200)"},
     {"workers", OPT_INT, OFF(workers), 1, 256,
      "CPU render workers (default 1); each render uses cores/workers threads"},
     {"vulkan", OPT_BOOL, OFF(vulkan), 0, 1,
@@ -226,6 +228,7 @@ int srv_config_parse(srv_config *cfg, int argc, char **argv) {
   cfg->max_work = 1e10;
   cfg->max_triangles = 4194304;
   cfg->max_render_seconds = 600;
+  cfg->session_seconds = 12 * 3600;
   cfg->worker_nice = 10;
   cfg->checkpoint_seconds = 30;
   cfg->checkpoint_jobs = 64;

@@ -1,7 +1,7 @@
 /* obscurad's HTTP layer on libmicrohttpd (internal epoll thread pool): strict message framing,
- * same-origin and JSON-only mutating requests, bearer-token checks, request bodies under the size
- * and in-flight limits, security headers on every response, JSON answers, and one log line plus
- * one metrics count per request. Connection-level limits live in guard.c. */
+ * same-origin and JSON-only mutating requests, bearer-token and session-cookie checks, request
+ * bodies under the size and in-flight limits, security headers on every response, JSON answers,
+ * and one log line plus one metrics count per request. Connection-level limits live in guard.c. */
 #include <arpa/inet.h>
 #include <ctype.h>
 #include <microhttpd.h>
@@ -191,6 +191,30 @@ static int auth_ok(srv_app *app, struct MHD_Connection *c) {
 
 static int needs_auth(const srv_app *app, srv_route route) {
   return app->has_token && route != SRV_ROUTE_STATIC;
+}
+
+/* A request without a valid bearer token: the session cookie stands in for it on reads alone. A
+ * request that changes something needs the token itself, so a cookie a browser attaches on its
+ * own can never act (SameSite=Strict and the origin checks aside); a read the browser marks as
+ * cross-site gets no help from the cookie either. Answers 401 unless the cookie is accepted. */
+static int check_session(srv_req *r) {
+  int s = srv_session_check(r->app, r->conn);
+  const char *site = MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, "Sec-Fetch-Site");
+  int cross = site && !strcasecmp(site, "cross-site");
+  int safe = !strcmp(r->method, "GET") || !strcmp(r->method, "HEAD");
+  if (s == SRV_SESSION_OK && safe && !cross && r->route != SRV_ROUTE_SESSION) return MHD_YES;
+  const char *why = s == SRV_SESSION_NONE      ? ""
+                    : s == SRV_SESSION_EXPIRED ? "; the session cookie has expired (POST "
+                                                 "/api/v1/session with the token again)"
+                    : s == SRV_SESSION_INVALID ? "; the session cookie is not valid (signed "
+                                                 "before a restart, or altered)"
+                    : cross ? "; the session cookie is not accepted on cross-site requests"
+                            : "; the session cookie stands in for the token on GET and HEAD "
+                              "only";
+  return srv_respond_error(r, MHD_HTTP_UNAUTHORIZED, NULL,
+                           "missing or wrong bearer token (send Authorization: Bearer "
+                           "<token>)%s",
+                           why);
 }
 
 /* Percent-decoding as libmicrohttpd does it, except that a URL holding an encoded NUL is left
@@ -452,10 +476,10 @@ static int header_checks(http_req *h, const char *version) {
   if (r->responded) return ret;
   /* Answered before any body is read: a wrong token or an announced oversized body never
    * costs the upload. */
-  if (needs_auth(app, r->route) && !auth_ok(app, r->conn))
-    return srv_respond_error(r, MHD_HTTP_UNAUTHORIZED, NULL,
-                             "missing or wrong bearer token (send Authorization: Bearer "
-                             "<token>)");
+  if (needs_auth(app, r->route) && !auth_ok(app, r->conn)) {
+    ret = check_session(r);
+    if (r->responded) return ret;
+  }
   ret = refuse_content_type(r, has_body);
   if (r->responded) return ret;
   return take_body_budget(h);

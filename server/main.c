@@ -98,6 +98,11 @@ int main(int argc, char **argv) {
     srv_config_free(&app.cfg);
     return 2;
   }
+  if (app.has_token && srv_session_init(&app)) {
+    fprintf(stderr, "obscurad: cannot draw the random key that signs session cookies\n");
+    srv_config_free(&app.cfg);
+    return 2;
+  }
   snprintf(app.results_dir, sizeof app.results_dir, "%s/results", app.cfg.data_dir);
   char dbdir[PATH_MAX];
   snprintf(dbdir, sizeof dbdir, "%s", app.cfg.db);

@@ -24,6 +24,7 @@ static const char *const route_names[SRV_NROUTES] = {
     [SRV_ROUTE_METRICS] = "/metrics",
     [SRV_ROUTE_COMPARISONS] = "/api/v1/comparisons",
     [SRV_ROUTE_COMPARISON] = "/api/v1/comparisons/{id}",
+    [SRV_ROUTE_SESSION] = "/api/v1/session",
     [SRV_ROUTE_STATIC] = "static",
     [SRV_ROUTE_UNKNOWN] = "unknown",
 };

@@ -13,6 +13,10 @@
 #define SRV_MAX_ATTEMPTS 3
 /* Timed renders per attempt (jobs.repeats) at most. */
 #define SRV_MAX_REPEATS 20
+/* What a comparison request that omits repeats or reference.samples gets (GET /api/v1/techniques
+ * shows both, so the dashboard's form starts from them). */
+#define SRV_COMPARE_REPEATS 3
+#define SRV_COMPARE_REF_SAMPLES 1024
 
 /* ---- configuration (config.c) ---------------------------------------------------------------- */
 
@@ -26,6 +30,7 @@ typedef struct srv_config {
   char *web_dir;         /* default web */
   char *vendor_dir;      /* default node_modules: only an allowlist of files is served from it */
   char *token_file;      /* NULL = no authentication (loopback only) */
+  int session_seconds;   /* lifetime of a dashboard session cookie (session.c) */
   int workers;           /* CPU lane workers, default 1 */
   int vulkan;            /* 1 = run a Vulkan lane when a device exists (default), 0 = never */
   int http_threads;      /* libmicrohttpd thread pool size, default: cores (at least 2) */
@@ -354,6 +359,7 @@ typedef enum {
   SRV_ROUTE_METRICS,
   SRV_ROUTE_COMPARISONS,
   SRV_ROUTE_COMPARISON,
+  SRV_ROUTE_SESSION,
   SRV_ROUTE_STATIC,
   SRV_ROUTE_UNKNOWN,
   SRV_NROUTES
@@ -469,6 +475,13 @@ int srv_api_dispatch(srv_req *r);
 srv_route srv_api_route(const char *path);
 /* Serves a static file of --web-dir (static.c). */
 int srv_static_serve(srv_req *r);
+/* Dashboard sessions (session.c): a signed, expiring HttpOnly cookie that stands in for the bearer
+ * token on GET and HEAD. init draws the signing key (0 or OBS_EIO); check says what the request's
+ * cookie is; serve answers POST (log in) and DELETE (log out) on /api/v1/session. */
+enum { SRV_SESSION_OK = 0, SRV_SESSION_NONE = -1, SRV_SESSION_INVALID = -2, SRV_SESSION_EXPIRED = -3 };
+int srv_session_init(struct srv_app *app);
+int srv_session_check(struct srv_app *app, struct MHD_Connection *c);
+int srv_session_serve(srv_req *r);
 /* Serves one output file with ETag/Range handling (outputs.c). */
 int srv_output_serve(srv_req *r, int64_t id, const char *name);
 /* Submission: body -> validated job spec (submit.c). Owns its strings; release with
@@ -589,6 +602,7 @@ typedef struct srv_app {
   char results_dir[4096];  /* <data-dir>/results */
   int has_token;
   unsigned char token_digest[32]; /* SHA-256 of the token: compared in constant time */
+  unsigned char session_key[32];  /* random per start: signs session cookies (session.c) */
   int vk_available;        /* the renderer found a Vulkan device */
   int vulkan_lane;         /* a Vulkan lane runs */
   int cpu_threads;         /* threads per render */

@@ -1,5 +1,5 @@
-// Shared helpers of the dashboard: the API client (bearer token from localStorage), a small DOM
-// builder, formatting, the registry cache, and the polling loop every live page uses.
+// Shared helpers of the dashboard: the API client (bearer token from localStorage, and the
+// session cookie login() gets for images and downloads), a small DOM builder, formatting, the registry cache, and the polling loop every live page uses.
 
 export let token = localStorage.getItem('obscura-token') || '';
 export function setToken(t) {
@@ -38,12 +38,34 @@ export async function api(path, options = {}) {
     throw new ApiError(0, `cannot reach the server (${e.message})`);
   }
   for (const fn of listeners) fn(res.status);
+  // A request that changed something (a submission, a cancel): the header's counts are stale.
+  const method = (options.method || 'GET').toUpperCase();
+  if (res.ok && method !== 'GET' && method !== 'HEAD') window.dispatchEvent(new Event('obscura:changed'));
   // options.raw: a successful body is returned as text (CSV); errors are JSON either way.
   if (options.raw && res.ok) return res.text();
   const body = res.status === 204 ? null : await res.json().catch(() => null);
   // options.allow: statuses whose body is an answer, not an error (health's 503).
   if (!res.ok && !(options.allow && options.allow.includes(res.status) && body)) throw new ApiError(res.status, (body && body.error) || res.statusText, body && body.problems);
   return body;
+}
+
+let sessionTimer = null;
+/**
+ * With a token: POST /api/v1/session, whose HttpOnly cookie stands in for the bearer header on the
+ * GETs an <img> or a download link makes (they cannot send the header). Renewed at half its life;
+ * a failure leaves the API calls working (they carry the header) and the token box shown on 401.
+ */
+export async function login() {
+  clearTimeout(sessionTimer);
+  if (!token) return null;
+  try {
+    const s = await api('/api/v1/session', {method: 'POST'});
+    if (s && s.expires_in) sessionTimer = setTimeout(login, s.expires_in * 500);
+    debug.session = s;
+    return s;
+  } catch {
+    return null;
+  }
 }
 
 /**

@@ -1,6 +1,6 @@
 // Entry point of the dashboard: hash routing to the page modules, the header's health line and
 // token box. Each page's mount(container, params) returns a cleanup that stops its polling.
-import {api, debug, el, onApiStatus, poll, setToken, token} from './api.js';
+import {api, debug, el, login, onApiStatus, poll, setToken, token} from './api.js';
 import {mountJobs, mountJob} from './jobs.js';
 import {mountComparisons, mountComparison} from './comparisons.js';
 import {mountSubmit} from './submit.js';
@@ -59,9 +59,10 @@ document.getElementById('token').value = token;
 onApiStatus((status) => {
   if (status === 401) tokenBox.hidden = false;
 });
-tokenBox.addEventListener('submit', (ev) => {
+tokenBox.addEventListener('submit', async (ev) => {
   ev.preventDefault();
   setToken(document.getElementById('token').value.trim());
+  await login();
   route();
 });
 
@@ -80,9 +81,17 @@ function showFaults(faults) {
   banner.hidden = faults.length === 0;
 }
 
-poll(async () => {
+// The counts follow the queue: every 2 s while something is queued or running, at most 5 s apart
+// when idle, and at once after this page changed something (obscura:changed, from api()).
+let uptime = Infinity;
+debug.health = {polls: 0, wakes: 0};
+const healthPoll = poll(async () => {
   try {
     const h = await api('/api/v1/health', {allow: [503]});
+    debug.health.polls++;
+    // A restarted daemon has forgotten the session: log in again for the images.
+    if (h.uptime_s < uptime && uptime !== Infinity) login();
+    uptime = h.uptime_s;
     health.textContent = `server ${h.status} · ${h.queue_depth} queued · ${h.running} running` +
       (h.vulkan_available ? ' · Vulkan' : '');
     showFaults(h.faults || []);
@@ -91,6 +100,11 @@ poll(async () => {
     health.textContent = `server: ${e.message}`;
     return false;
   }
-}, {fast: 2000, slow: 10000});
+}, {fast: 2000, slow: 5000});
+window.addEventListener('obscura:changed', () => {
+  debug.health.wakes++;
+  healthPoll.wake();
+});
 
-route();
+// Images on the first page need the session cookie before they load.
+login().then(route);

@@ -242,12 +242,16 @@ function build(form, registry, scenes, query) {
   const count = el('p', {className: 'count', 'aria-live': 'polite'});
   const techBox = el('div');
   let blocks = [];
-  const repeats = el('input', {type: 'text', inputMode: 'numeric', value: '3', autocomplete: 'off'});
+  // The server's defaults of a comparison (GET /api/v1/techniques), not the rt_ao schema's own
+  // default samples, which is a job's and not a reference's.
+  const cmpDefaults = registry.comparison_defaults || {};
+  const repeats = el('input', {type: 'text', inputMode: 'numeric', value: String(cmpDefaults.repeats ?? ''), autocomplete: 'off'});
   const rtSamples = registry.techniques.find((t) => t.name === 'rt_ao');
-  const refSchema = (rtSamples && rtSamples.params_schema.properties.samples) || {type: 'integer', minimum: 1};
-  const refSamples = el('input', {type: 'text', inputMode: 'numeric', value: '1024', autocomplete: 'off'});
+  const refSchema = {...((rtSamples && rtSamples.params_schema.properties.samples) || {type: 'integer', minimum: 1}),
+    default: cmpDefaults.reference_samples};
+  const refSamples = el('input', {type: 'text', inputMode: 'numeric', value: String(cmpDefaults.reference_samples ?? ''), autocomplete: 'off'});
   const cmpOptions = el('fieldset', {}, el('legend', {}, 'Measurement'), el('div', {className: 'row'},
-    field('Timed runs per candidate', repeats, {pointer: '/repeats', description: 'integer 1 to 20; the reported time is the median (after one warm-up run)'}),
+    field('Timed runs per candidate', repeats, {pointer: '/repeats', description: `integer 1 to 20, default ${cmpDefaults.repeats}; the reported time is the median (after one warm-up run)`}),
     field('Reference samples', refSamples, {pointer: '/reference/samples', description: "the reference technique's samples " +
       `(rays per pixel sample of rt_ao for the AO techniques, paths per pixel sample of path_trace for path_trace): ${describeRule(refSchema)}`})));
   const addBtn = el('button', {type: 'button', className: 'small'}, 'Add candidate');
