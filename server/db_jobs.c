@@ -345,6 +345,21 @@ int srv_db_cancel(srv_db *db, int64_t id, srv_cancel_result *res, obs_err *err) 
   return rc;
 }
 
+/* After a conditional write that changed no row: the job's state (0), OBS_ENOTFOUND when there is
+ * no such job, or a database error. */
+static int state_of(conn *c, int64_t id, srv_state *st, obs_err *err) {
+  sqlite3_stmt *q = srv_dbi_stmt(c, ST_STATE, err);
+  if (!q) return OBS_EIO;
+  sqlite3_bind_int64(q, 1, id);
+  int step = sqlite3_step(q);
+  if (step == SQLITE_ROW) srv_state_parse((const char *)sqlite3_column_text(q, 0), st);
+  int rc = step == SQLITE_ROW    ? 0
+           : step == SQLITE_DONE ? OBS_ENOTFOUND
+                                 : srv_dbi_fail(c, err, "reading the job");
+  srv_dbi_done(q);
+  return rc;
+}
+
 int srv_db_delete(srv_db *db, int64_t id, obs_err *err) {
   conn *c = srv_dbi_acquire(db);
   sqlite3_stmt *s = srv_dbi_stmt(c, ST_DELETE, err);
@@ -354,19 +369,9 @@ int srv_db_delete(srv_db *db, int64_t id, obs_err *err) {
     rc = srv_dbi_exec_done(c, s, err, "deleting the job");
     if (!rc && sqlite3_changes(c->db) == 0) {
       /* No such job (404), not finished (409), or finished but part of a comparison (409). */
-      sqlite3_stmt *q = srv_dbi_stmt(c, ST_STATE, err);
-      if (!q) rc = OBS_EIO;
-      else {
-        sqlite3_bind_int64(q, 1, id);
-        int step = sqlite3_step(q);
-        srv_state st = SRV_QUEUED;
-        if (step == SQLITE_ROW) srv_state_parse((const char *)sqlite3_column_text(q, 0), &st);
-        rc = step == SQLITE_ROW    ? (st == SRV_QUEUED || st == SRV_RUNNING ? OBS_EINVAL
-                                                                            : OBS_EUNSUPPORTED)
-             : step == SQLITE_DONE ? OBS_ENOTFOUND
-                                   : srv_dbi_fail(c, err, "reading the job");
-        srv_dbi_done(q);
-      }
+      srv_state st = SRV_QUEUED;
+      rc = state_of(c, id, &st, err);
+      if (!rc) rc = st == SRV_QUEUED || st == SRV_RUNNING ? OBS_EINVAL : OBS_EUNSUPPORTED;
     }
   }
   srv_dbi_release(db, c);
@@ -447,17 +452,8 @@ int srv_db_retry(srv_db *db, int64_t id, srv_state *state, obs_err *err) {
     sqlite3_bind_int64(s, 1, id);
     rc = srv_dbi_exec_done(c, s, err, "requeueing the job");
     if (!rc && sqlite3_changes(c->db) == 0) {
-      sqlite3_stmt *q = srv_dbi_stmt(c, ST_STATE, err);
-      if (!q) rc = OBS_EIO;
-      else {
-        sqlite3_bind_int64(q, 1, id);
-        int step = sqlite3_step(q);
-        if (step == SQLITE_ROW) srv_state_parse((const char *)sqlite3_column_text(q, 0), state);
-        rc = step == SQLITE_ROW    ? OBS_EINVAL
-             : step == SQLITE_DONE ? OBS_ENOTFOUND
-                                   : srv_dbi_fail(c, err, "reading the job");
-        srv_dbi_done(q);
-      }
+      rc = state_of(c, id, state, err);
+      if (!rc) rc = OBS_EINVAL;
     }
   }
   srv_dbi_release(db, c);
