@@ -1,6 +1,7 @@
 /* libFuzzer target: the CLI's `--set /json/pointer=VALUE` path. The first input byte picks one of
  * the bundled scenes without meshes; the rest is read as lines, each split at its first '=' into
- * a pointer and a JSON value exactly as `obscura render --set` splits its argument, and the scene
+ * a pointer and a value exactly as `obscura render --set` splits its argument (which refuses a
+ * value that is not JSON), and the scene
  * is loaded with those overrides (obs_scene_load_string, which applies them with
  * obs_json_pointer_set). The load must succeed with a complete scene or fail with problems naming
  * the scene; each override is also applied alone to a fresh copy of the document, which must
@@ -119,10 +120,16 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     char *next = strchr(line, '\n');
     if (next) *next++ = '\0';
     char *eq = strchr(line, '=');
+    json_t *value = eq ? json_loads(eq + 1, JSON_DECODE_ANY, NULL) : NULL;
+    int is_json = value != NULL;
+    json_decref(value);
     if (eq && line[0] == '/') {
+      /* The CLI takes a pointer with a JSON value, and refuses (with a hint) a value that is not
+       * JSON before any scene is read; the library then judges the pair. */
       char *argv[] = {"obscura", "--set", line, NULL};
-      int i = 1;
-      if (cli_scene_option(&o, 3, argv, &i) != 1) fail("the CLI refused a valid --set", line);
+      int i = 1, rc = cli_scene_option(&o, 3, argv, &i);
+      if (is_json && rc != 1) fail("the CLI refused a valid --set", line);
+      if (!is_json && rc != -1) fail("the CLI took a --set whose value is not JSON", line);
     } else if (eq) {
       char *ptr = strndup(line, (size_t)(eq - line));
       if (ptr) {

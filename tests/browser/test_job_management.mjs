@@ -10,7 +10,9 @@ import {assertAllNamed, getJSON, openBrowser, request, screenshot, startDashboar
 
 const SMALL = {'/image/width': 24, '/image/height': 16};
 const tiny = (label) => ({scene_file: 'sphere_on_plane.json', label, technique: {name: 'ssao', backend: 'cpu'}, set: SMALL});
-const BLOCKER = {scene_file: 'cornell_box.json', set: {...SMALL, '/technique/params/samples': 65536}, priority: 100, label: 'blocker'};
+// Long enough to hold the one worker while the test acts on a queued job (tens of seconds), cut
+// into tiles so that its cancel lands within one.
+const BLOCKER = {scene_file: 'cornell_box.json', set: {'/image/width': 128, '/image/height': 96, '/technique/params/samples': 65536}, priority: 100, label: 'blocker'};
 
 const noOverflow = (page) => page.evaluate(() => document.documentElement.scrollWidth <= window.innerWidth);
 
