@@ -51,6 +51,14 @@ int obs_driver_region(const obs_render_ctx *ctx, int width, int height, obs_regi
   return 0;
 }
 
+int obs_driver_image(const obs_render_ctx *ctx, int nchannels, const char *const *names,
+                     obs_image *out, obs_region *region, obs_err *err) {
+  const obs_scene *sc = ctx->scene;
+  memset(out, 0, sizeof *out);
+  int rc = obs_driver_region(ctx, sc->width, sc->height, region, err);
+  return rc ? rc : obs_image_init(out, sc->width, sc->height, nchannels, names, err);
+}
+
 int obs_driver_cancelled(const obs_render_ctx *ctx, obs_err *err) {
   if (!ctx->cancel || !atomic_load(ctx->cancel)) return 0;
   return obs_err_set(err, OBS_ECANCELED, "%s: render cancelled",

@@ -33,6 +33,10 @@ int obs_driver_pixels(obs_render_ctx *ctx, const obs_pixel_ops *ops, const void 
  * the region is empty or not inside the image. */
 int obs_driver_region(const obs_render_ctx *ctx, int width, int height, obs_region *out,
                       obs_err *err);
+/* The region to render (obs_driver_region) and `out` allocated at the scene's full size with
+ * `names`; on failure `out` is left empty. */
+int obs_driver_image(const obs_render_ctx *ctx, int nchannels, const char *const *names,
+                     obs_image *out, obs_region *region, obs_err *err);
 /* Sets every channel of the pixels of `img` outside `r` to 0 (drivers whose passes run on the
  * whole image, the screen-space ones, honour a region this way). */
 void obs_driver_clear_outside(obs_image *img, const obs_region *r);

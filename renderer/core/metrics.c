@@ -38,23 +38,15 @@ static const float *metrics_find(const obs_image *img, const char *name, const c
   return p;
 }
 
-int obs_metrics_stats(const obs_image *img, const char *channel, const char *mask, obs_stats *out,
-                      obs_err *err) {
-  if (!img || !img->data || !channel || !out)
-    return obs_err_set(err, OBS_EINVAL, "metrics: stats needs an image, a channel and an output");
-  int code = OBS_OK;
-  const float *v = metrics_find(img, channel, "the", &code, err);
-  if (!v) return code;
-  const float *m = NULL;
-  if (mask && !(m = metrics_find(img, mask, "the mask", &code, err))) return code;
-
+/* Count, NaN and inf counts, mean, min and max of the n values of v; with a mask, only where the
+ * mask is > 0 (a NaN mask value deselects, like 0). */
+static obs_stats stats_of(const float *v, const float *m, size_t n) {
   obs_stats s;
   memset(&s, 0, sizeof s);
   metrics_acc acc = {0, 0};
   double lo = INFINITY, hi = -INFINITY;
-  size_t n = (size_t)img->width * (size_t)img->height;
   for (size_t i = 0; i < n; i++) {
-    if (m && !(m[i] > 0.0f)) continue; /* NaN mask values deselect, like 0 */
+    if (m && !(m[i] > 0.0f)) continue;
     float x = v[i];
     if (isnan(x)) {
       s.nan_count++;
@@ -72,7 +64,20 @@ int obs_metrics_stats(const obs_image *img, const char *channel, const char *mas
     s.min = lo;
     s.max = hi;
   }
-  *out = s;
+  return s;
+}
+
+int obs_metrics_stats(const obs_image *img, const char *channel, const char *mask, obs_stats *out,
+                      obs_err *err) {
+  if (!img || !img->data || !channel || !out)
+    return obs_err_set(err, OBS_EINVAL, "metrics: stats needs an image, a channel and an output");
+  int code = OBS_OK;
+  const float *v = metrics_find(img, channel, "the", &code, err);
+  if (!v) return code;
+  const float *m = NULL;
+  if (mask && !(m = metrics_find(img, mask, "the mask", &code, err))) return code;
+
+  *out = stats_of(v, m, (size_t)img->width * (size_t)img->height);
   return OBS_OK;
 }
 
@@ -539,30 +544,8 @@ int obs_metrics_compare_rgb(const obs_image *candidate, const obs_image *referen
 }
 
 void obs_metrics_patch_stats(const obs_patches *p, obs_stats *out) {
-  obs_stats s;
-  memset(&s, 0, sizeof s);
-  metrics_acc acc = {0, 0};
-  double lo = INFINITY, hi = -INFINITY;
   size_t n = p && p->values ? (size_t)p->count * (size_t)p->components : 0;
-  for (size_t i = 0; i < n; i++) {
-    float x = p->values[i];
-    if (isnan(x)) {
-      s.nan_count++;
-    } else if (isinf(x)) {
-      s.inf_count++;
-    } else {
-      s.count++;
-      metrics_add(&acc, x);
-      if (x < lo) lo = x;
-      if (x > hi) hi = x;
-    }
-  }
-  if (s.count > 0) {
-    s.mean = metrics_total(&acc) / (double)s.count;
-    s.min = lo;
-    s.max = hi;
-  }
-  *out = s;
+  *out = stats_of(n ? p->values : NULL, NULL, n);
 }
 
 int obs_metrics_patch_rmse(const obs_patches *candidate, const obs_patches *reference,

@@ -29,15 +29,11 @@ void obs_screen_cpu_stage(obs_screen_cpu *r, const char *name, double ms) {
 int obs_screen_cpu_run(obs_render_ctx *ctx, obs_screen_cpu_passes_fn passes, const void *params,
                        obs_image *out, obs_err *err) {
   const obs_scene *sc = ctx->scene;
-  memset(out, 0, sizeof *out);
   obs_region region;
-  int rc = obs_driver_region(ctx, sc->width, sc->height, &region, err);
+  int rc = obs_driver_image(ctx, OBS_SCREEN_CHANNELS, obs_screen_channel_names, out, &region, err);
   if (rc) return rc;
   obs_camera_rig rig;
   obs_camera_setup(&sc->camera, sc->width, sc->height, &rig);
-  rc = obs_image_init(out, sc->width, sc->height, OBS_SCREEN_CHANNELS, obs_screen_channel_names,
-                      err);
-  if (rc) return rc;
   obs_gbuffer g;
   memset(&g, 0, sizeof g);
   double geo_ms = 0, gb_ms = 0, t0 = obs_now_ms();

@@ -16,15 +16,11 @@ static void progress(obs_render_ctx *ctx, double fraction) {
 int obs_screen_vk_run(obs_render_ctx *ctx, const char *technique, obs_screen_vk_passes_fn passes,
                       const void *params, obs_image *out, obs_err *err) {
   const obs_scene *sc = ctx->scene;
-  memset(out, 0, sizeof *out);
   obs_region region;
-  int rc = obs_driver_region(ctx, sc->width, sc->height, &region, err);
+  int rc = obs_driver_image(ctx, OBS_SCREEN_CHANNELS, obs_screen_channel_names, out, &region, err);
   if (rc) return rc;
   obs_camera_rig rig;
   obs_camera_setup(&sc->camera, sc->width, sc->height, &rig);
-  rc = obs_image_init(out, sc->width, sc->height, OBS_SCREEN_CHANNELS, obs_screen_channel_names,
-                      err);
-  if (rc) return rc;
   obs_vk *vk = NULL;
   obs_geometry geo;
   obs_vk_gbuffer dev;
