@@ -12,7 +12,6 @@
 #include "obscura/obscura.h"
 
 #define POLL_MS 500          /* the comparison is polled this often */
-#define LOST_SERVER_MS 30000 /* give up after the server was unreachable this long */
 
 typedef struct compare_opts {
   const char *file, *server;
@@ -129,30 +128,10 @@ static int follow(cli_client *c, long long id, const char *url, json_t **out) {
   size_t last_done = (size_t)-1;
   double lost_since = -1;
   for (;;) {
-    cli_response r;
-    CURLcode cc = cli_client_json(c, "GET", url, NULL, &r);
-    if ((cc && !r.body.overflow) || (!cc && r.status >= 500)) {
-      /* A restarting or briefly overloaded daemon: comparisons survive it. */
-      double now = obs_now_ms();
-      if (lost_since < 0) {
-        lost_since = now;
-        fprintf(stderr, "obscura: lost the server; retrying for %d s\n", LOST_SERVER_MS / 1000);
-      }
-      if (now - lost_since <= LOST_SERVER_MS) {
-        cli_response_free(&r);
-        cli_sleep_ms(POLL_MS);
-        continue;
-      }
-    }
-    if (cc || r.status != 200) {
-      int rc =
-          cc ? cli_transport_error(c, url, cc, r.body.overflow) : cli_http_error(c, "GET", url, &r);
-      cli_response_free(&r);
-      return rc;
-    }
-    lost_since = -1;
-    json_t *cmp = json_loads(r.body.p ? r.body.p : "", 0, NULL);
-    cli_response_free(&r);
+    json_t *cmp;
+    int rc = cli_poll_json(c, url, POLL_MS, &lost_since, NULL, NULL, &cmp);
+    if (rc == CLI_POLL_AGAIN) continue;
+    if (rc) return rc;
     const char *st = json_string_value(json_object_get(cmp, "state"));
     if (!st || !json_is_array(json_object_get(cmp, "candidates"))) {
       fprintf(stderr, "obscura: GET %s: the answer is not a comparison\n", url);

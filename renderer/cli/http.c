@@ -265,3 +265,39 @@ void cli_sleep_ms(long ms) {
   while (nanosleep(&ts, &ts) && errno == EINTR) {
   }
 }
+
+int cli_poll_json(cli_client *c, const char *url, long poll_ms, double *lost_since,
+                  void (*on_lost)(void *user), void *user, json_t **out) {
+  *out = NULL;
+  cli_response r;
+  CURLcode cc = cli_client_json(c, "GET", url, NULL, &r);
+  if ((cc && !r.body.overflow) || (!cc && r.status >= 500)) {
+    double now = obs_now_ms();
+    if (*lost_since < 0) {
+      if (on_lost) on_lost(user);
+      *lost_since = now;
+      fprintf(stderr, "obscura: lost the server (");
+      if (cc)
+        fputs(c->errbuf[0] ? c->errbuf : curl_easy_strerror(cc), stderr);
+      else
+        fprintf(stderr, "HTTP %ld", r.status);
+      fprintf(stderr, "); retrying for %d s\n", CLI_LOST_SERVER_MS / 1000);
+    }
+    if (now - *lost_since <= CLI_LOST_SERVER_MS) {
+      cli_response_free(&r);
+      cli_sleep_ms(poll_ms);
+      return CLI_POLL_AGAIN;
+    }
+  }
+  if (cc || r.status != 200) {
+    if (on_lost) on_lost(user);
+    int rc =
+        cc ? cli_transport_error(c, url, cc, r.body.overflow) : cli_http_error(c, "GET", url, &r);
+    cli_response_free(&r);
+    return rc;
+  }
+  *lost_since = -1;
+  *out = json_loads(r.body.p ? r.body.p : "", 0, NULL);
+  cli_response_free(&r);
+  return CLI_POLL_OK;
+}

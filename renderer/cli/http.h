@@ -68,4 +68,16 @@ int cli_http_error(const cli_client *c, const char *method, const char *url, con
 int cli_client_get_object(cli_client *c, const char *url, json_t **out);
 void cli_sleep_ms(long ms);
 
+/* A followed resource given up on after the server was unreachable this long. */
+#define CLI_LOST_SERVER_MS 30000
+enum { CLI_POLL_OK = 0, CLI_POLL_AGAIN = -1 };
+/* One GET of a resource being followed (a job, a comparison). CLI_POLL_OK: *out is the answer's
+ * body (new reference) and *lost_since is reset. CLI_POLL_AGAIN: the daemon is restarting or
+ * briefly overloaded (jobs and comparisons survive that): on the first such answer `on_lost`
+ * (may be NULL) runs with `user` and the cause is printed; the call has slept `poll_ms`, and the
+ * caller asks again. Otherwise an exit status, after printing why (also once the server was
+ * lost for CLI_LOST_SERVER_MS). *lost_since starts at -1. */
+int cli_poll_json(cli_client *c, const char *url, long poll_ms, double *lost_since,
+                  void (*on_lost)(void *user), void *user, json_t **out);
+
 #endif

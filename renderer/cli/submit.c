@@ -15,7 +15,6 @@
 #include "obscura/obscura.h"
 
 #define POLL_MS 200          /* --wait polls the job this often */
-#define LOST_SERVER_MS 30000 /* --wait gives up after the server was unreachable this long */
 
 typedef struct submit_opts {
   cli_scene_opts s;
@@ -114,65 +113,48 @@ static char *submit_body(const obs_scene *sc, const submit_opts *o) {
 
 /* Polls the job until it is succeeded, failed or cancelled. Returns 0 with *job set to its last
  * state (new reference), or an exit status after printing why. */
+/* The progress shown while a job is followed; reset when the server is lost (a restarted render
+ * starts again from 0). */
+typedef struct wait_state {
+  cli_progress pr;
+  int bar, last_tenth;
+} wait_state;
+
+static void wait_lost(void *user) {
+  wait_state *w = user;
+  if (w->bar) fputc('\n', stderr);
+  w->bar = 0;
+  w->pr.last = -1;
+  w->last_tenth = 0;
+}
+
 static int wait_job(cli_client *c, long long id, const char *url, json_t **job) {
   *job = NULL;
-  cli_progress pr = {.tty = isatty(2), .last = -1};
-  int bar = 0, last_tenth = 0;
+  wait_state w = {.pr = {.tty = isatty(2), .last = -1}};
   char state[16] = "";
   double lost_since = -1;
   for (;;) {
-    cli_response r;
-    CURLcode cc = cli_client_json(c, "GET", url, NULL, &r);
-    if ((cc && !r.body.overflow) || (!cc && r.status >= 500)) {
-      /* The daemon may be restarting (jobs survive that) or briefly unable to answer (503): keep
-       * trying for a while. */
-      double now = obs_now_ms();
-      if (lost_since < 0) {
-        if (bar) fputc('\n', stderr);
-        bar = 0;
-        pr.last = -1;
-        last_tenth = 0; /* a restarted render starts again from 0 */
-        lost_since = now;
-        fprintf(stderr, "obscura: lost the server (");
-        if (cc)
-          fputs(c->errbuf[0] ? c->errbuf : curl_easy_strerror(cc), stderr);
-        else
-          fprintf(stderr, "HTTP %ld", r.status);
-        fprintf(stderr, "); retrying for %d s\n", LOST_SERVER_MS / 1000);
-      }
-      if (now - lost_since <= LOST_SERVER_MS) {
-        cli_response_free(&r);
-        cli_sleep_ms(POLL_MS);
-        continue;
-      }
-    }
-    if (cc || r.status != 200) {
-      if (bar) fputc('\n', stderr);
-      int rc =
-          cc ? cli_transport_error(c, url, cc, r.body.overflow) : cli_http_error(c, "GET", url, &r);
-      cli_response_free(&r);
-      return rc;
-    }
-    lost_since = -1;
-    json_t *j = json_loads(r.body.p ? r.body.p : "", 0, NULL);
-    cli_response_free(&r);
+    json_t *j;
+    int rc = cli_poll_json(c, url, POLL_MS, &lost_since, wait_lost, &w, &j);
+    if (rc == CLI_POLL_AGAIN) continue;
+    if (rc) return rc;
     const char *st = json_string_value(json_object_get(j, "state"));
     double progress = json_number_value(json_object_get(j, "progress"));
     if (!st) {
-      if (bar) fputc('\n', stderr);
+      if (w.bar) fputc('\n', stderr);
       fprintf(stderr, "obscura: GET %s: the answer is not a job\n", url);
       json_decref(j);
       return EXIT_FAILURE;
     }
     int done = !strcmp(st, "succeeded") || !strcmp(st, "failed") || !strcmp(st, "cancelled");
     if (strcmp(st, state)) {
-      if (bar) {
-        if (!strcmp(st, "succeeded")) cli_progress_draw(&pr, 1.0);
+      if (w.bar) {
+        if (!strcmp(st, "succeeded")) cli_progress_draw(&w.pr, 1.0);
         fputc('\n', stderr);
-        bar = 0;
+        w.bar = 0;
       }
-      pr.last = -1;
-      last_tenth = 0;
+      w.pr.last = -1;
+      w.last_tenth = 0;
       fprintf(stderr, "job %lld: ", id);
       cli_put_clean(stderr, st);
       fputc('\n', stderr);
@@ -183,12 +165,12 @@ static int wait_job(cli_client *c, long long id, const char *url, json_t **job) 
       return 0;
     }
     if (!strcmp(st, "running")) {
-      if (pr.tty) {
-        cli_progress_draw(&pr, progress);
-        bar = 1;
-      } else if ((int)(progress * 10.0) > last_tenth && progress < 1.0) {
-        last_tenth = (int)(progress * 10.0);
-        fprintf(stderr, "job %lld: running %d%%\n", id, last_tenth * 10);
+      if (w.pr.tty) {
+        cli_progress_draw(&w.pr, progress);
+        w.bar = 1;
+      } else if ((int)(progress * 10.0) > w.last_tenth && progress < 1.0) {
+        w.last_tenth = (int)(progress * 10.0);
+        fprintf(stderr, "job %lld: running %d%%\n", id, w.last_tenth * 10);
       }
     }
     json_decref(j);
