@@ -91,13 +91,8 @@ static int path_trace_reference(const obs_scene *scene, const json_t *params,
   (void)facts;
   (void)err;
   static const char *const keys[] = {"max_bounces", "rr_depth", "light_sampling", "sampler",
-                                     "exposure"};
-  def->technique = &obs_technique_path_trace;
-  for (size_t i = 0; i < sizeof keys / sizeof keys[0]; i++) {
-    json_t *v = json_object_get(params, keys[i]);
-    if (v) json_object_set_new(def->params, keys[i], json_deep_copy(v));
-  }
-  def->response = OBS_RESPONSE_IDENTITY;
+                                     "exposure",    NULL};
+  obs_reference_def_same(def, &obs_technique_path_trace, params, keys);
   return 0;
 }
 

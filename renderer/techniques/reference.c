@@ -32,6 +32,16 @@ void obs_reference_def_free(obs_reference_def *def) {
   memset(def, 0, sizeof *def);
 }
 
+void obs_reference_def_same(obs_reference_def *def, const obs_technique *t, const json_t *params,
+                            const char *const *keys) {
+  def->technique = t;
+  def->response = OBS_RESPONSE_IDENTITY;
+  for (const char *const *k = keys; *k; k++) {
+    json_t *v = json_object_get(params, *k);
+    if (v) json_object_set_new(def->params, *k, json_deep_copy(v));
+  }
+}
+
 static const char *const response_names[OBS_RESPONSE_COUNT] = {"identity", "ssao_sphere",
                                                                "ssao_hemi"};
 

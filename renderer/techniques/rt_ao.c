@@ -79,17 +79,11 @@ static void rt_ao_check(const obs_scene *scene, const json_t *params, const char
  * sampler and seed differ (the caller sets them). */
 static int rt_ao_reference(const obs_scene *scene, const json_t *params, obs_reference_facts *facts,
                            obs_reference_def *def, obs_err *err) {
-  json_t *out = def->params;
-  def->technique = &obs_technique_rt_ao;
   (void)scene;
   (void)facts;
   (void)err;
-  static const char *const keys[] = {"weighting", "falloff", "max_distance", "tau"};
-  for (size_t i = 0; i < sizeof keys / sizeof keys[0]; i++) {
-    json_t *v = json_object_get(params, keys[i]);
-    if (v) json_object_set_new(out, keys[i], json_deep_copy(v));
-  }
-  def->response = OBS_RESPONSE_IDENTITY;
+  static const char *const keys[] = {"weighting", "falloff", "max_distance", "tau", NULL};
+  obs_reference_def_same(def, &obs_technique_rt_ao, params, keys);
   return 0;
 }
 

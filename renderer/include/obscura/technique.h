@@ -342,6 +342,11 @@ int obs_technique_pick_backend(const obs_technique *t, obs_backend requested, ob
 int obs_technique_reference(const obs_technique *t, const obs_scene *scene, const json_t *params,
                             obs_reference_facts *facts, obs_reference_def *def, obs_err *err);
 void obs_reference_def_free(obs_reference_def *def);
+/* For reference hooks whose reference is the candidate's own technique with more samples: copies
+ * the NULL-terminated `keys` that `params` has into def->params and sets the reference technique
+ * and the identity response. */
+void obs_reference_def_same(obs_reference_def *def, const struct obs_technique *t,
+                            const json_t *params, const char *const *keys);
 /* "identity", "ssao_sphere", "ssao_hemi" (stored by the server), and back (-1 when unknown). */
 const char *obs_response_name(obs_response r);
 int obs_response_parse(const char *name, obs_response *out);
