@@ -119,3 +119,9 @@ CREATE INDEX jobs_active_client ON jobs (client, state) WHERE state IN ('queued'
 -- The name of an inline scene (the request's scene_name: the submitting file's name); NULL for
 -- bundled scenes (their name is the scene column) and for inline ones submitted without one.
 ALTER TABLE jobs ADD COLUMN scene_name TEXT;
+
+-- migration 6
+-- Why parameters differ from what was asked: the values derived from the scene's size when a
+-- technique's own defaults would not fit it (a JSON array of sentences; NULL: none).
+ALTER TABLE jobs ADD COLUMN notes TEXT;
+ALTER TABLE comparisons ADD COLUMN notes TEXT;

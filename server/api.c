@@ -106,6 +106,9 @@ static json_t *job_json(srv_app *app, const srv_job *j) {
                                                    : j->scene && strcmp(j->scene, "inline")
                                                        ? j->scene
                                                        : NULL));
+  json_t *notes = j->notes ? json_loads(j->notes, 0, NULL) : NULL;
+  if (notes && !json_is_array(notes)) json_decref(notes), notes = NULL;
+  json_object_set_new(o, "notes", notes ? notes : json_array());
   json_object_set_new(o, "technique", str_or_null(j->technique));
   json_object_set_new(o, "backend", json_pack("{s:o, s:o, s:o}", "requested",
                                               str_or_null(j->backend_requested), "actual",
@@ -183,6 +186,7 @@ static int submit(srv_req *r) {
     obs_err_free(&problems);
     return rc;
   }
+  char *notes = json_array_size(s.notes) ? json_dumps(s.notes, JSON_COMPACT) : NULL;
   srv_new_job nj = {.priority = s.priority,
                     .label = s.label,
                     .scene = s.scene,
@@ -196,10 +200,12 @@ static int submit(srv_req *r) {
                     .repeats = 1,
                     .work = s.work,
                     .backend_reason = s.backend_reason,
-                    .scene_name = s.scene_name};
+                    .scene_name = s.scene_name,
+                    .notes = notes};
   int64_t id = 0;
   int retry = 0;
   unsigned admit = srv_admit_job(r->app, r->client, &nj, &id, &retry, &problems);
+  free(notes);
   if (admit) {
     srv_submission_free(&s);
     if (admit != 429) return srv_respond_unavailable(r, &problems);
@@ -210,6 +216,9 @@ static int submit(srv_req *r) {
   srv_job_log(r->app, id, "submitted -> queued (%s, %s/%s, %dx%d, priority %d; backend: %s)",
               s.scene, s.technique, s.backend_requested, s.width, s.height, s.priority,
               s.backend_reason ? s.backend_reason : "requested");
+  size_t k;
+  json_t *note;
+  json_array_foreach(s.notes, k, note) srv_job_log(r->app, id, "note: %s", json_string_value(note));
   json_t *body = json_pack("{s:I, s:s, s:o}", "id", (json_int_t)id, "state", "queued", "links",
                            job_links(id, NULL));
   if (s.choice) json_object_set(body, "choice", s.choice);

@@ -180,23 +180,86 @@ static json_t *pareto_set(json_t *list, const obs_pareto_point *pts, unsigned ch
 }
 
 /* The comparison document of docs/comparisons.md. 0, OBS_ENOTFOUND, or a database error. */
-static int comparison_json(srv_app *app, int64_t id, json_t **out, obs_err *err) {
-  *out = NULL;
-  srv_arg arg = {SRV_ARG_INT, id, 0, NULL};
-  json_t *head = NULL, *cands = NULL, *runs = NULL, *outs = NULL;
-  int rc = srv_db_query(app->db, SRV_Q_COMPARISON, &arg, 1, &head, err);
-  if (!rc && json_array_size(head) == 0) rc = OBS_ENOTFOUND;
-  if (!rc) rc = srv_db_query(app->db, SRV_Q_CANDIDATES, &arg, 1, &cands, err);
-  if (!rc) rc = srv_db_query(app->db, SRV_Q_COMPARISON_RUNS, &arg, 1, &runs, err);
-  if (!rc) rc = srv_db_query(app->db, SRV_Q_COMPARISON_OUTPUTS, &arg, 1, &outs, err);
-  if (rc) {
-    json_decref(head);
-    json_decref(cands);
-    json_decref(runs);
-    json_decref(outs);
-    return rc;
-  }
-  json_t *h = json_array_get(head, 0);
+/* A reference's entry of the comparison document (row: a candidate row naming it). */
+static json_t *reference_json(srv_app *app, const json_t *row, json_int_t rjob, const json_t *runs,
+                              const json_t *outs) {
+  json_t *ro = json_object();
+  json_object_set_new(ro, "job_id", json_integer(rjob));
+  const char *rtech = json_string_value(json_object_get(row, "ref_technique"));
+  json_object_set_new(ro, "technique", json_string(rtech ? rtech : "rt_ao"));
+  const char *rst = json_string_value(json_object_get(row, "ref_state"));
+  json_object_set(ro, "state", json_object_get(row, "ref_state"));
+  double prog = json_number_value(json_object_get(row, "ref_progress"));
+  if (rst && !strcmp(rst, "running")) srv_sched_progress(app, rjob, &prog);
+  json_object_set_new(ro, "progress", json_real(prog));
+  json_t *rp = json_loads(json_string_value(json_object_get(row, "reference_params")), 0, NULL);
+  json_object_set_new(ro, "params", rp ? rp : json_null());
+  const char *st = json_string_value(json_object_get(row, "ref_summary"));
+  json_t *sum = json_loads(st ? st : "null", JSON_DECODE_ANY, NULL);
+  json_t *se = json_object_get(sum, "ao_stderr_mean");
+  json_object_set_new(ro, "ao_stderr_mean",
+                      json_is_number(se) ? num_or_null(json_number_value(se)) : json_null());
+  json_decref(sum);
+  json_object_set_new(ro, "timings_ms", timings_of(runs, rjob, NULL));
+  json_t *links = json_object();
+  char url[96];
+  snprintf(url, sizeof url, API "/jobs/%lld", (long long)rjob);
+  json_object_set_new(links, "job", json_string(url));
+  output_link(links, outs, rjob, "ao.png", "ao.png");
+  output_link(links, outs, rjob, primary_png(rtech), "image");
+  json_object_set_new(ro, "links", links);
+  return ro;
+}
+
+/* A candidate's entry of the comparison document; *pt gets its place on the time/error plane. */
+static json_t *candidate_json(srv_app *app, const json_t *row, const json_t *runs,
+                              const json_t *outs, obs_pareto_point *pt) {
+  json_int_t job = json_integer_value(json_object_get(row, "job"));
+  json_int_t rjob = json_integer_value(json_object_get(row, "reference_job"));
+  json_t *co = json_object();
+  json_object_set(co, "index", json_object_get(row, "idx"));
+  json_object_set_new(co, "job_id", json_integer(job));
+  json_object_set_new(co, "reference_job_id", json_integer(rjob));
+  json_object_set(co, "technique", json_object_get(row, "technique"));
+  json_object_set(co, "backend", json_object_get(row, "backend"));
+  json_t *params = json_loads(json_string_value(json_object_get(row, "params")), 0, NULL);
+  json_object_set_new(co, "params", params ? params : json_object());
+  json_object_set(co, "response", json_object_get(row, "response"));
+  const char *st = json_string_value(json_object_get(row, "state"));
+  json_object_set(co, "state", json_object_get(row, "state"));
+  double prog = json_number_value(json_object_get(row, "progress"));
+  if (st && !strcmp(st, "running")) srv_sched_progress(app, job, &prog);
+  json_object_set_new(co, "progress", json_real(prog));
+  json_t *machine = NULL;
+  json_t *tm = timings_of(runs, job, &machine);
+  json_object_set_new(co, "timings_ms", tm);
+  const char *mt = json_string_value(json_object_get(row, "metrics"));
+  json_t *metrics = mt ? json_loads(mt, 0, NULL) : NULL;
+  json_object_set_new(co, "metrics", metrics ? metrics : json_null());
+  json_object_set(co, "error", json_object_get(row, "metrics_error"));
+  json_object_set_new(co, "machine", machine);
+  json_t *links = json_object();
+  char url[96];
+  snprintf(url, sizeof url, API "/jobs/%lld", (long long)job);
+  json_object_set_new(links, "job", json_string(url));
+  /* "image" is the primary output's PNG of any technique; "ao.png" stays for AO ones. */
+  const char *png = primary_png(json_string_value(json_object_get(row, "technique")));
+  output_link(links, outs, job, "ao.png", "ao.png");
+  output_link(links, outs, job, png, "image");
+  output_link(links, outs, job, "error.png", "error.png");
+  output_link(links, outs, job, "error.exr", "error.exr");
+  output_link(links, outs, rjob,
+              primary_png(json_string_value(json_object_get(row, "ref_technique"))),
+              "reference.png");
+  output_link(links, outs, job, SRV_MAPPED_REFERENCE_PNG, SRV_MAPPED_REFERENCE_PNG);
+  json_object_set_new(co, "links", links);
+  /* Ranking: median total time against RMSE; anything missing takes no part (NaN). */
+  pareto_point(tm, metrics, pt);
+  return co;
+}
+
+/* The comparison's own facts (h: its row). */
+static json_t *comparison_head(int64_t id, const json_t *h) {
   json_t *o = json_object();
   json_object_set_new(o, "id", json_integer(id));
   json_object_set(o, "label", json_object_get(h, "label"));
@@ -207,107 +270,58 @@ static int comparison_json(srv_app *app, int64_t id, json_t **out, obs_err *err)
   json_object_set(o, "repeats", json_object_get(h, "repeats"));
   json_object_set_new(o, "image", json_pack("{s:O, s:O}", "width", json_object_get(h, "width"),
                                             "height", json_object_get(h, "height")));
-  json_t *refs = json_array(), *list = json_array();
+  const char *notes = json_string_value(json_object_get(h, "notes"));
+  json_t *nj = notes ? json_loads(notes, 0, NULL) : NULL;
+  json_object_set_new(o, "notes", json_is_array(nj) ? nj : json_array());
+  if (nj && !json_is_array(nj)) json_decref(nj);
+  return o;
+}
+
+static int comparison_json(srv_app *app, int64_t id, json_t **out, obs_err *err) {
+  *out = NULL;
+  srv_arg arg = {SRV_ARG_INT, id, 0, NULL};
+  json_t *head = NULL, *cands = NULL, *runs = NULL, *outs = NULL;
+  int rc = srv_db_query(app->db, SRV_Q_COMPARISON, &arg, 1, &head, err);
+  if (!rc && json_array_size(head) == 0) rc = OBS_ENOTFOUND;
+  if (!rc) rc = srv_db_query(app->db, SRV_Q_CANDIDATES, &arg, 1, &cands, err);
+  if (!rc) rc = srv_db_query(app->db, SRV_Q_COMPARISON_RUNS, &arg, 1, &runs, err);
+  if (!rc) rc = srv_db_query(app->db, SRV_Q_COMPARISON_OUTPUTS, &arg, 1, &outs, err);
   size_t n = json_array_size(cands);
-  obs_pareto_point *pts = calloc(n + 1, sizeof *pts);
-  unsigned char *opt = calloc(n + 1, 1);
-  for (size_t i = 0; i < n; i++) {
-    json_t *row = json_array_get(cands, i);
-    json_int_t job = json_integer_value(json_object_get(row, "job"));
-    json_int_t rjob = json_integer_value(json_object_get(row, "reference_job"));
-    /* References: each once, in the order candidates name them. */
-    int seen = 0;
-    for (size_t k = 0; k < json_array_size(refs); k++)
-      if (json_integer_value(json_object_get(json_array_get(refs, k), "job_id")) == rjob) seen = 1;
-    if (!seen) {
-      json_t *ro = json_object();
-      json_object_set_new(ro, "job_id", json_integer(rjob));
-      const char *rtech = json_string_value(json_object_get(row, "ref_technique"));
-      json_object_set_new(ro, "technique", json_string(rtech ? rtech : "rt_ao"));
-      const char *rst = json_string_value(json_object_get(row, "ref_state"));
-      json_object_set(ro, "state", json_object_get(row, "ref_state"));
-      double prog = json_number_value(json_object_get(row, "ref_progress"));
-      if (rst && !strcmp(rst, "running")) srv_sched_progress(app, rjob, &prog);
-      json_object_set_new(ro, "progress", json_real(prog));
-      json_t *rp = json_loads(json_string_value(json_object_get(row, "reference_params")), 0,
-                              NULL);
-      json_object_set_new(ro, "params", rp ? rp : json_null());
-      json_t *sum = json_loads(json_string_value(json_object_get(row, "ref_summary"))
-                                   ? json_string_value(json_object_get(row, "ref_summary"))
-                                   : "null",
-                               JSON_DECODE_ANY, NULL);
-      json_t *se = json_object_get(sum, "ao_stderr_mean");
-      json_object_set_new(ro, "ao_stderr_mean",
-                          json_is_number(se) ? num_or_null(json_number_value(se)) : json_null());
-      json_decref(sum);
-      json_object_set_new(ro, "timings_ms", timings_of(runs, rjob, NULL));
-      json_t *links = json_object();
-      char url[96];
-      snprintf(url, sizeof url, API "/jobs/%lld", (long long)rjob);
-      json_object_set_new(links, "job", json_string(url));
-      output_link(links, outs, rjob, "ao.png", "ao.png");
-      output_link(links, outs, rjob, primary_png(rtech), "image");
-      json_object_set_new(ro, "links", links);
-      json_array_append_new(refs, ro);
+  obs_pareto_point *pts = rc ? NULL : calloc(n + 1, sizeof *pts);
+  unsigned char *opt = rc ? NULL : calloc(n + 1, 1);
+  if (!rc && (!pts || !opt)) rc = obs_err_set(err, OBS_ENOMEM, "comparison %lld: out of memory",
+                                              (long long)id);
+  if (!rc) {
+    json_t *o = comparison_head(id, json_array_get(head, 0));
+    json_t *refs = json_array(), *list = json_array();
+    for (size_t i = 0; i < n; i++) {
+      json_t *row = json_array_get(cands, i);
+      json_int_t rjob = json_integer_value(json_object_get(row, "reference_job"));
+      /* References: each once, in the order candidates name them. */
+      int seen = 0;
+      for (size_t k = 0; k < json_array_size(refs); k++)
+        if (json_integer_value(json_object_get(json_array_get(refs, k), "job_id")) == rjob)
+          seen = 1;
+      if (!seen) json_array_append_new(refs, reference_json(app, row, rjob, runs, outs));
+      json_array_append_new(list, candidate_json(app, row, runs, outs, &pts[i]));
     }
-    json_t *co = json_object();
-    json_object_set(co, "index", json_object_get(row, "idx"));
-    json_object_set_new(co, "job_id", json_integer(job));
-    json_object_set_new(co, "reference_job_id", json_integer(rjob));
-    json_object_set(co, "technique", json_object_get(row, "technique"));
-    json_object_set(co, "backend", json_object_get(row, "backend"));
-    json_t *params = json_loads(json_string_value(json_object_get(row, "params")), 0, NULL);
-    json_object_set_new(co, "params", params ? params : json_object());
-    json_object_set(co, "response", json_object_get(row, "response"));
-    const char *st = json_string_value(json_object_get(row, "state"));
-    json_object_set(co, "state", json_object_get(row, "state"));
-    double prog = json_number_value(json_object_get(row, "progress"));
-    if (st && !strcmp(st, "running")) srv_sched_progress(app, job, &prog);
-    json_object_set_new(co, "progress", json_real(prog));
-    json_t *machine = NULL;
-    json_t *tm = timings_of(runs, job, &machine);
-    json_object_set_new(co, "timings_ms", tm);
-    const char *mt = json_string_value(json_object_get(row, "metrics"));
-    json_t *metrics = mt ? json_loads(mt, 0, NULL) : NULL;
-    json_object_set_new(co, "metrics", metrics ? metrics : json_null());
-    json_object_set(co, "error", json_object_get(row, "metrics_error"));
-    json_object_set_new(co, "machine", machine);
-    json_t *links = json_object();
-    char url[96];
-    snprintf(url, sizeof url, API "/jobs/%lld", (long long)job);
-    json_object_set_new(links, "job", json_string(url));
-    /* "image" is the primary output's PNG of any technique; "ao.png" stays for AO ones. */
-    const char *png = primary_png(json_string_value(json_object_get(row, "technique")));
-    output_link(links, outs, job, "ao.png", "ao.png");
-    output_link(links, outs, job, png, "image");
-    output_link(links, outs, job, "error.png", "error.png");
-    output_link(links, outs, job, "error.exr", "error.exr");
-    output_link(links, outs, rjob,
-                primary_png(json_string_value(json_object_get(row, "ref_technique"))),
-                "reference.png");
-    output_link(links, outs, job, SRV_MAPPED_REFERENCE_PNG, SRV_MAPPED_REFERENCE_PNG);
-    json_object_set_new(co, "links", links);
-    /* Ranking: median total time against RMSE; anything missing takes no part (NaN). */
-    if (pts) pareto_point(tm, metrics, &pts[i]);
-    json_array_append_new(list, co);
+    json_object_set_new(o, "references", refs);
+    json_object_set_new(o, "candidates", list);
+    json_object_set_new(o, "pareto", pareto_set(list, pts, opt, n));
+    json_object_set_new(o, "ranking", ranking_of(list));
+    char self[64], csv[72];
+    snprintf(self, sizeof self, API "/comparisons/%lld", (long long)id);
+    snprintf(csv, sizeof csv, "%s.csv", self);
+    json_object_set_new(o, "links", json_pack("{s:s, s:s}", "self", self, "csv", csv));
+    *out = o;
   }
-  json_t *pareto = pareto_set(list, pts, opt, n);
   free(pts);
   free(opt);
-  json_object_set_new(o, "references", refs);
-  json_object_set_new(o, "candidates", list);
-  json_object_set_new(o, "pareto", pareto);
-  json_object_set_new(o, "ranking", ranking_of(list));
-  char self[64], csv[72];
-  snprintf(self, sizeof self, API "/comparisons/%lld", (long long)id);
-  snprintf(csv, sizeof csv, "%s.csv", self);
-  json_object_set_new(o, "links", json_pack("{s:s, s:s}", "self", self, "csv", csv));
   json_decref(head);
   json_decref(cands);
   json_decref(runs);
   json_decref(outs);
-  *out = o;
-  return 0;
+  return rc;
 }
 
 /* ---- CSV ------------------------------------------------------------------------------------- */

@@ -394,6 +394,7 @@ int srv_compare_post(srv_req *r) {
   srv_new_job *refs = calloc((size_t)x.nrefs + 1, sizeof *refs);
   srv_new_candidate *cs = calloc((size_t)x.n + 1, sizeof *cs);
   char *request = json_dumps(q.req, JSON_COMPACT | JSON_REAL_PRECISION(17));
+  char *notes_text = json_array_size(q.notes) ? json_dumps(q.notes, JSON_COMPACT) : NULL;
   int64_t id = 0;
   unsigned admit = 0;
   int retry = 0;
@@ -444,6 +445,7 @@ int srv_compare_post(srv_req *r) {
   }
   if (!rc) {
     srv_new_comparison nc = {.label = q.label,
+                             .notes = notes_text,
                              .scene = q.docname,
                              .request = request,
                              .width = width,
@@ -460,6 +462,7 @@ int srv_compare_post(srv_req *r) {
   free(refs);
   free(cs);
   free(request);
+  free(notes_text);
   srv_compare_expansion_free(&x);
   json_t *notes = json_incref(q.notes);
   cmp_req_free(&q);

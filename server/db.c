@@ -30,7 +30,7 @@ static const char *const sql[ST_COUNT] = {
     [ST_ROLLBACK] = "ROLLBACK",
     [ST_INSERT] = "INSERT INTO jobs (priority, label, scene, doc, technique, backend_requested, "
                   "lane, width, height, spp, created_ms, repeats, warmup, work, backend_reason, "
-                  "scene_name) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                  "scene_name, notes) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
     [ST_GET] = "SELECT " JOB_COLS " FROM jobs WHERE id = ?",
     [ST_OUTPUTS] = "SELECT name, size, sha256, content_type FROM outputs WHERE job_id = ? "
                    "ORDER BY name",
@@ -81,7 +81,7 @@ static const char *const sql[ST_COUNT] = {
     [ST_MACHINE_GET] = "SELECT id FROM machines WHERE cpu_model = ?1 AND cores = ?2 AND "
                        "vulkan_device IS ?3",
     [ST_CMP_INSERT] = "INSERT INTO comparisons (label, scene, width, height, repeats, request, "
-                      "created_ms) VALUES (?, ?, ?, ?, ?, ?, ?)",
+                      "created_ms, notes) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
     [ST_CAND_INSERT] = "INSERT INTO comparison_candidates (comparison, idx, job, reference_job, "
                        "technique, backend, params, reference_params, response) "
                        "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
@@ -113,7 +113,7 @@ static const char *const sql[ST_COUNT] = {
   "NULL) AS measured, "                                                                           \
   "(SELECT count(*) FROM comparison_candidates x WHERE x.comparison = c.id) AS candidates"
     [ST_QUERY + SRV_Q_COMPARISON] = "SELECT c.id, c.label, c.scene, c.width, c.height, c.repeats, "
-                                    "c.created_ms, " CMP_COUNTS " FROM comparisons c WHERE c.id = ?1",
+                                    "c.created_ms, c.notes, " CMP_COUNTS " FROM comparisons c WHERE c.id = ?1",
     [ST_QUERY + SRV_Q_CANDIDATES] =
         "SELECT cc.idx, cc.job, cc.reference_job, cc.technique, cc.backend, cc.params, "
         "cc.reference_params, cc.response, cc.metrics, cc.metrics_error, j.state, j.progress, "

@@ -28,6 +28,7 @@ int srv_db_insert_comparison(srv_db *db, const srv_new_comparison *cmp, int64_t 
       sqlite3_bind_int(s, 5, cmp->repeats);
       srv_dbi_bind_text(s, 6, cmp->request);
       sqlite3_bind_int64(s, 7, srv_now_unix_ms());
+      srv_dbi_bind_text(s, 8, cmp->notes);
       rc = srv_dbi_exec_done(c, s, err, "inserting the comparison");
       if (!rc) *id = sqlite3_last_insert_rowid(c->db);
     }

@@ -37,6 +37,7 @@ static void read_job(sqlite3_stmt *s, srv_job *j) {
   j->backend_reason = srv_dbi_col_str(s, 22);
   j->comparison = sqlite3_column_int64(s, 23);
   j->scene_name = srv_dbi_col_str(s, 24);
+  j->notes = srv_dbi_col_str(s, 25);
 }
 
 void srv_job_free(srv_job *j) {
@@ -50,6 +51,7 @@ void srv_job_free(srv_job *j) {
   free(j->summary);
   free(j->backend_reason);
   free(j->scene_name);
+  free(j->notes);
   free(j->doc);
   free(j->outputs);
   memset(j, 0, sizeof *j);
@@ -107,6 +109,7 @@ int srv_dbi_insert_job(conn *c, const srv_new_job *nj, int64_t *id, obs_err *err
   else sqlite3_bind_null(s, 14);
   srv_dbi_bind_text(s, 15, nj->backend_reason);
   srv_dbi_bind_text(s, 16, nj->scene_name);
+  srv_dbi_bind_text(s, 17, nj->notes);
   int rc = srv_dbi_exec_done(c, s, err, "inserting the job");
   if (!rc) *id = sqlite3_last_insert_rowid(c->db);
   return rc;
@@ -200,7 +203,7 @@ int srv_db_claim(srv_db *db, srv_lane lane, srv_job *j, obs_err *err) {
     int step = sqlite3_step(s);
     if (step == SQLITE_ROW) {
       read_job(s, j);
-      j->doc = srv_dbi_col_str(s, 25);
+      j->doc = srv_dbi_col_str(s, JOB_NCOLS);
       /* Step to the end so the UPDATE's transaction commits before we let go. */
       step = sqlite3_step(s);
       rc = step == SQLITE_DONE ? 0 : srv_dbi_fail(c, err, "claiming a job");

@@ -138,6 +138,7 @@ typedef struct srv_job {
   char *backend_reason;    /* why this backend, may be NULL */
   int64_t comparison;      /* the comparison it belongs to, 0 = none */
   char *scene_name;        /* an inline scene's name, may be NULL */
+  char *notes;             /* JSON array of the values derived from the scene's size, may be NULL */
   char *doc;               /* only filled by srv_db_claim */
   srv_output *outputs;
   int noutputs;
@@ -154,6 +155,7 @@ typedef struct srv_new_job {
   double work;                /* width x height x spp x samples */
   const char *backend_reason; /* may be NULL */
   const char *scene_name;     /* an inline scene's name, may be NULL */
+  const char *notes;          /* JSON array text of derived values, may be NULL */
 } srv_new_job;
 
 /* One timed render of a job (a row of `runs`). */
@@ -221,6 +223,7 @@ typedef struct srv_new_candidate {
 } srv_new_candidate;
 typedef struct srv_new_comparison {
   const char *label, *scene, *request;
+  const char *notes; /* JSON array text of values derived from the scene's size, may be NULL */
   int width, height, repeats;
   const srv_new_job *references;
   int nreferences;

@@ -36,6 +36,7 @@ test('the scene\'s technique keeps the scene\'s params', async () => {
     assert.equal(t.params.max_distance, 200);
     assert.equal(t.backend, undefined); // the request's: none given, so auto
     const a = await finished(d, own.id), b = await finished(d, named.id);
+    assert.deepEqual(b.notes, []);
     // The same params: the same image (the unbounded default made it nearly black).
     assert.equal(b.stats.ao.mean, a.stats.ao.mean);
     assert.ok(b.stats.ao.mean > 0.5, `ao mean ${b.stats.ao.mean}`);
@@ -56,6 +57,11 @@ test('another technique derives its lengths from the scene\'s size and says so',
     const radius = storedParams(d, r.id).params.radius;
     assert.ok(radius > 200 && radius < 400, `radius ${radius}`);
     const j = await finished(d, r.id);
+    // The job keeps the note: its JSON and its log say what was derived.
+    assert.deepEqual(j.notes, r.notes);
+    const log = await request(d, 'GET', `/api/v1/jobs/${r.id}/log`);
+    assert.equal(log.status, 200);
+    assert.ok(log.json.lines.some((l) => l.includes(`note: ${r.notes[0]}`)), JSON.stringify(log.json));
     // Neither the white of a 1-unit radius nor black.
     assert.ok(j.stats.ao.mean > 0.2 && j.stats.ao.mean < 0.95, `ao mean ${j.stats.ao.mean}`);
     assert.deepEqual(j.warnings.filter((w) => /scene sizes \(scene size/.test(w)), []);
@@ -103,6 +109,8 @@ test('comparison candidates start from the scene\'s params, or lengths fitted to
     assert.equal(r.json.notes.length, 1);
     assert.match(r.json.notes[0], /hbao radius = [0-9.]+ derived from the scene's size/);
     const c = await getJSON(d, `/api/v1/comparisons/${r.json.id}`);
+    validate('Comparison', c);
+    assert.deepEqual(c.notes, r.json.notes);
     const hbao = c.candidates.filter((x) => x.technique === 'hbao');
     assert.equal(hbao.length, 2);
     for (const x of hbao) assert.ok(x.params.radius > 200 && x.params.radius < 400, `radius ${x.params.radius}`);
