@@ -98,6 +98,13 @@ static int post_request(cli_client *c, json_t *req, long long *id, char **self) 
       fprintf(stderr, "comparison %lld: %lld candidate(s), %lld reference(s)\n", *id,
               (long long)json_integer_value(json_object_get(a, "candidates")),
               (long long)json_integer_value(json_object_get(a, "references")));
+      size_t k;
+      json_t *note;
+      json_array_foreach(json_object_get(a, "notes"), k, note) {
+        fputs("obscura: note: ", stderr);
+        cli_put_clean(stderr, json_string_value(note));
+        fputc('\n', stderr);
+      }
     }
     json_decref(a);
   }

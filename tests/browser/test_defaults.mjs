@@ -3,7 +3,7 @@
 // saying so, a field typed by hand survives, and a job sent from the form runs with those values.
 import assert from 'node:assert/strict';
 import test from 'node:test';
-import {openBrowser, screenshot, sql, startDashboard, waitJob} from './lib.mjs';
+import {openBrowser, request, screenshot, sql, startDashboard, waitJob} from './lib.mjs';
 
 test('the submit form shows the scene\'s params, or defaults fitted to the scene', async () => {
   const d = await startDashboard({workers: 1});
@@ -53,6 +53,24 @@ test('the submit form shows the scene\'s params, or defaults fitted to the scene
     await b2.locator('.defaults-note').getByText('declares for rt_ao').waitFor();
     assert.equal(await b2.getByLabel('samples', {exact: true}).inputValue(), '5');
     assert.equal(await b2.getByLabel('max_distance').inputValue(), '200');
+
+    // A job and a comparison sent without the lengths keep the server's notes: their pages say
+    // which values were derived.
+    const small = {'/image/width': 16, '/image/height': 16};
+    const j = await request(d, 'POST', '/api/v1/jobs', {body: {scene_file: 'cornell_box.json', technique: {name: 'hbao'}, set: small}});
+    assert.equal(j.status, 201, j.text);
+    assert.equal(j.json.notes.length, 1);
+    await page.goto(`${d.url}/#/jobs/${j.json.id}`);
+    const derived = page.getByRole('region', {name: 'Derived parameters'});
+    await derived.waitFor();
+    assert.equal((await derived.locator('li').allTextContents()).join('|'), j.json.notes[0]);
+    const c = await request(d, 'POST', '/api/v1/comparisons', {body: {scene_file: 'cornell_box.json', set: small, repeats: 1,
+      reference: {samples: 4}, candidates: [{technique: 'hbao', backend: 'cpu'}]}});
+    assert.equal(c.status, 201, c.text);
+    await page.goto(`${d.url}/#/comparisons/${c.json.id}`);
+    const dd = page.locator('dl.facts dd.notes');
+    await dd.waitFor();
+    assert.equal(await dd.textContent(), c.json.notes[0]);
     assert.deepEqual(errors, []);
   } finally {
     await browser.close();

@@ -150,6 +150,10 @@ check "the starred rows are the Pareto set" node -e "
 "$cli" compare - --server "$url" --no-wait <"$out/cmp.json" >"$out/cmp2.out" 2>&1
 check "compare - --no-wait reads stdin and returns at once" \
   bash -c "[ \$? -eq 0 ] && grep -Eq '^comparison [0-9]+ queued: ' '$out/cmp2.out' && ! grep -q '^pareto' '$out/cmp2.out'"
+printf '{"scene_file": "sphere_on_plane.json", "repeats": 1, "set": {"/image/width": 8, "/image/height": 8}, "reference": {"samples": 2}, "candidates": [{"technique": "hbao", "backend": "cpu"}]}' \
+  | "$cli" compare - --server "$url" --no-wait >/dev/null 2>"$out/cmp-notes.err"
+check "compare says which values the server derived from the scene's size" \
+  grep -Eq "^obscura: note: hbao radius = [0-9.e+-]+ derived from the scene's size" "$out/cmp-notes.err"
 "$cli" compare "$out/cmp.json" --server "$url" --json >"$out/cmp3.json" 2>/dev/null
 check "compare --json prints the finished comparison" node -e "
   const c = JSON.parse(require('fs').readFileSync('$out/cmp3.json'));

@@ -229,7 +229,9 @@ export function mountComparison(view, [id], query) {
         el('dt', {}, 'References'), el('dd', {}, ...c.references.flatMap((r, i) => [i ? ', ' : '',
           el('a', {href: `#/jobs/${r.job_id}?comparison=${id}`}, `job ${r.job_id}`), ` (${refTechnique(r)}, ${r.state}, ${paramText({samples: r.params && r.params.samples})})`])),
         el('dt', {}, 'Error measure'), el('dd', {className: 'error-measure'}, errorName(c.candidates)),
-        el('dt', {}, 'Created'), el('dd', {}, fmtTime(c.created_at))),
+        el('dt', {}, 'Created'), el('dd', {}, fmtTime(c.created_at)),
+        ...(c.notes && c.notes.length ? [el('dt', {}, 'Derived from the scene\'s size'),
+          el('dd', {className: 'notes'}, ...c.notes.map((n) => el('p', {className: 'derived'}, n)))] : [])),
       el('p', {}, csvLink(c.links.csv, `comparison-${id}.csv`)));
   }
 

@@ -49,6 +49,15 @@ export function warningMarker(j) {
   return el('span', {className: 'warn-marker', role: 'img', title: w.join('\n'), 'aria-label': what}, ' ⚠');
 }
 
+// Parameters the server derived from the scene's size rather than the technique's defaults.
+function notesSection(j) {
+  if (!j.notes || !j.notes.length) return null;
+  return el('section', {className: 'notes', 'aria-labelledby': 'h-notes'},
+    el('h2', {id: 'h-notes'}, 'Derived parameters'),
+    el('p', {}, 'The scene was made for another technique, so these lengths follow its size instead of the technique\'s defaults:'),
+    el('ul', {}, ...j.notes.map((t) => el('li', {className: 'derived'}, t))));
+}
+
 function warningsSection(j) {
   const w = j.warnings || [];
   if (!w.length) return null;
@@ -265,7 +274,7 @@ export function mountJob(view, [id], query) {
     if (j.state !== lastState) {
       lastState = j.state;
       // Sections a job does not have yet are left out (replaceChildren would print a null).
-      body.replaceChildren(...[warningsSection(j), outputsSection(j, await outputFiles()),
+      body.replaceChildren(...[notesSection(j), warningsSection(j), outputsSection(j, await outputFiles()),
         j.timings_ms ? timingsSection(j.timings_ms) : null,
         j.stats ? statsSection(j, await techniqueOf(j.technique)) : null,
         el('div', {className: 'params-slot'}), el('div', {className: 'metrics-slot'}),
