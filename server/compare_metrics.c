@@ -98,23 +98,98 @@ void srv_compare_metrics(srv_app *app, int64_t job) {
   pthread_mutex_unlock(&metrics_mu);
 }
 
-/* Whether a stored candidate can inform a time budget here: a known technique, a backend this
- * daemon runs, and a finite RMSE (filled in) of AO. RMSEs of other outputs (the luminance of
- * path_trace's radiance) measure another quantity on another scale, so they are not ranked
- * against AO ones. */
-static int budget_row(const srv_app *app, const json_t *row, double *rmse, int *at_ref) {
+/* One stored candidate that can inform a time budget: a known technique, a backend this daemon
+ * runs, and a finite RMSE of AO. RMSEs of other outputs (the luminance of path_trace's radiance)
+ * measure another quantity on another scale, so they are not ranked against AO ones. */
+typedef struct budget_row {
+  size_t row;            /* index into the stored rows */
+  obs_pareto_point pt;   /* median time, spread, RMSE, the reference's noise */
+} budget_row;
+
+static int budget_metrics(const srv_app *app, const json_t *row, obs_pareto_point *pt) {
   obs_backend be = OBS_BACKEND_AUTO;
   const obs_technique *t = obs_technique_find(json_string_value(json_object_get(row, "technique")));
   if (!t || obs_backend_parse(json_string_value(json_object_get(row, "backend")), &be) ||
       (be == OBS_BACKEND_VULKAN && !app->vulkan_lane))
     return 0;
   json_t *m = json_loads(json_string_value(json_object_get(row, "metrics")), 0, NULL);
-  json_t *rm = json_object_get(m, "rmse");
-  *rmse = json_is_number(rm) ? json_number_value(rm) : NAN;
-  *at_ref = json_is_true(json_object_get(m, "at_reference_accuracy"));
+  json_t *rm = json_object_get(m, "rmse"), *rn = json_object_get(m, "ref_noise");
+  pt->error = json_is_number(rm) ? json_number_value(rm) : NAN;
+  pt->error_tolerance = json_is_number(rn) ? json_number_value(rn) : 0;
+  pt->at_reference_accuracy = json_is_true(json_object_get(m, "at_reference_accuracy"));
   int ao = !json_object_get(m, "output");
   json_decref(m);
-  return ao && !isnan(*rmse);
+  return ao && !isnan(pt->error);
+}
+
+/* The median, fastest and slowest timed run of a candidate's job (NaN median: none). */
+static void budget_times(srv_app *app, const json_t *row, obs_pareto_point *pt) {
+  json_t *runs = NULL;
+  obs_err err = OBS_ERR_INIT;
+  srv_arg arg = {SRV_ARG_INT, json_integer_value(json_object_get(row, "job")), 0, NULL};
+  double v[SRV_MAX_REPEATS];
+  size_t nv = 0;
+  if (!srv_db_query(app->db, SRV_Q_JOB_RUNS, &arg, 1, &runs, &err))
+    for (size_t k = 0; k < json_array_size(runs) && nv < SRV_MAX_REPEATS; k++)
+      v[nv++] = json_number_value(json_object_get(json_array_get(runs, k), "total_ms"));
+  obs_err_free(&err);
+  json_decref(runs);
+  pt->time_ms = srv_median(v, nv);
+  pt->time_min_ms = pt->time_max_ms = 0;
+  for (size_t k = 0; k < nv; k++) {
+    if (!k || v[k] < pt->time_min_ms) pt->time_min_ms = v[k];
+    if (!k || v[k] > pt->time_max_ms) pt->time_max_ms = v[k];
+  }
+}
+
+/* The stored candidates measured on `scene` at a similar size (within 2x the pixel samples), or,
+ * when there are none, on any scene at a similar size. Returns how many went to `out` (n slots). */
+static size_t budget_rows(srv_app *app, const json_t *rows, const char *scene, double pixels,
+                          budget_row *out, int *same_scene) {
+  size_t n = json_array_size(rows), k = 0;
+  for (int pass = 1; pass >= 0 && !k; pass--) {
+    for (size_t i = 0; i < n; i++) {
+      const json_t *row = json_array_get(rows, i);
+      double px = json_number_value(json_object_get(row, "pixels"));
+      const char *sc = json_string_value(json_object_get(row, "scene"));
+      if (!(px >= pixels / 2 && px <= pixels * 2)) continue;
+      if (pass && (!sc || strcmp(sc, scene))) continue;
+      if (!budget_metrics(app, row, &out[k].pt)) continue;
+      budget_times(app, row, &out[k].pt);
+      if (isnan(out[k].pt.time_ms)) continue;
+      out[k++].row = i;
+    }
+    *same_scene = pass;
+  }
+  return k;
+}
+
+/* The configuration to run among those that fit: of the Pareto set with margins (faster only
+ * beyond the run-to-run spreads, more accurate only beyond the reference's noise), the lowest
+ * RMSE; among those as accurate as it within that noise, the fastest median. -1: none fits. */
+static int budget_pick(const budget_row *c, size_t n, double budget_ms, unsigned char *opt) {
+  obs_pareto_point *pts = malloc((n ? n : 1) * sizeof *pts);
+  if (!pts) return -1;
+  for (size_t i = 0; i < n; i++) {
+    pts[i] = c[i].pt;
+    if (c[i].pt.time_ms > budget_ms) pts[i].time_ms = NAN; /* does not fit: takes no part */
+  }
+  int best = -1;
+  if (obs_metrics_pareto(pts, n, opt, NULL) > 0) {
+    double lowest = INFINITY, tol = 0;
+    for (size_t i = 0; i < n; i++)
+      if (opt[i]) {
+        double e = pts[i].at_reference_accuracy ? -INFINITY : pts[i].error;
+        if (e < lowest) lowest = e, tol = isnan(pts[i].error_tolerance) ? 0 : pts[i].error_tolerance;
+      }
+    for (size_t i = 0; i < n; i++) {
+      double e = pts[i].at_reference_accuracy ? -INFINITY : pts[i].error;
+      if (opt[i] && e <= lowest + tol && (best < 0 || pts[i].time_ms < pts[best].time_ms))
+        best = (int)i;
+    }
+  }
+  free(pts);
+  return best;
 }
 
 /* ---- time budgets ---------------------------------------------------------------------------- */
@@ -130,87 +205,51 @@ int srv_compare_budget_choice(srv_app *app, const char *scene, double pixels, do
     obs_err_free(&err);
     return rc;
   }
-  /* Measurements of this scene at a similar size, else of any scene at a similar size. */
   size_t n = json_array_size(rows);
-  int same_scene = 0;
-  for (size_t i = 0; i < n; i++) {
-    json_t *row = json_array_get(rows, i);
-    double px = json_number_value(json_object_get(row, "pixels"));
-    const char *sc = json_string_value(json_object_get(row, "scene"));
-    double rmse;
-    int at_ref;
-    if (px >= pixels / 2 && px <= pixels * 2 && sc && !strcmp(sc, scene) &&
-        budget_row(app, row, &rmse, &at_ref))
-      same_scene = 1;
-  }
-  int best = -1, measured = 0;
-  double best_ms = 0, best_rmse = 0, fastest_ms = INFINITY;
-  int best_at_ref = 0;
-  for (size_t i = 0; i < n; i++) {
-    json_t *row = json_array_get(rows, i);
-    double px = json_number_value(json_object_get(row, "pixels"));
-    const char *sc = json_string_value(json_object_get(row, "scene"));
-    if (!(px >= pixels / 2 && px <= pixels * 2)) continue;
-    if (same_scene && (!sc || strcmp(sc, scene))) continue;
-    double rmse;
-    int at_ref;
-    if (!budget_row(app, row, &rmse, &at_ref)) continue;
-    json_t *runs = NULL;
-    srv_arg arg = {SRV_ARG_INT, json_integer_value(json_object_get(row, "job")), 0, NULL};
-    double v[SRV_MAX_REPEATS];
-    size_t nv = 0;
-    if (!srv_db_query(app->db, SRV_Q_JOB_RUNS, &arg, 1, &runs, &err))
-      for (size_t k = 0; k < json_array_size(runs) && nv < SRV_MAX_REPEATS; k++)
-        v[nv++] = json_number_value(json_object_get(json_array_get(runs, k), "total_ms"));
-    obs_err_clear(&err);
-    json_decref(runs);
-    double ms = srv_median(v, nv);
-    if (isnan(ms)) continue;
-    measured++;
-    if (ms < fastest_ms) fastest_ms = ms;
-    if (ms > budget_ms) continue;
-    /* Within the reference's noise, configurations are equally accurate: the fastest wins. */
-    int better = best < 0 || (at_ref && !best_at_ref) ||
-                 (at_ref && best_at_ref && ms < best_ms) ||
-                 (!at_ref && !best_at_ref && (rmse < best_rmse || (rmse == best_rmse && ms < best_ms)));
-    if (better) {
-      best = (int)i;
-      best_ms = ms;
-      best_rmse = rmse;
-      best_at_ref = at_ref;
-    }
-  }
-  obs_err_free(&err);
+  budget_row *c = malloc((n ? n : 1) * sizeof *c);
+  unsigned char *opt = calloc(n ? n : 1, 1);
+  int same_scene = 0, best = -1;
+  size_t measured = c && opt ? budget_rows(app, rows, scene, pixels, c, &same_scene) : 0;
+  double fastest_ms = INFINITY;
+  for (size_t i = 0; i < measured; i++) fastest_ms = fmin(fastest_ms, c[i].pt.time_ms);
+  if (measured) best = budget_pick(c, measured, budget_ms, opt);
   int rc = 0;
-  if (!measured) {
+  if (!c || !opt) {
+    rc = obs_err_set(problems, OBS_ENOMEM, "request: out of memory");
+  } else if (!measured) {
     rc = obs_err_set(problems, OBS_EINVAL, "request: /time_budget_ms: nothing has been measured "
                      "yet for %s or any scene of a similar size (%.0f pixel samples, within 2x): "
                      "run a comparison first (POST /api/v1/comparisons)", scene, pixels);
   } else if (best < 0) {
-    rc = obs_err_set(problems, OBS_EINVAL, "request: /time_budget_ms: none of the %d measured "
+    rc = obs_err_set(problems, OBS_EINVAL, "request: /time_budget_ms: none of the %zu measured "
                      "configurations%s fits %g ms: the fastest takes %.4g ms (median)", measured,
                      same_scene ? " of this scene" : " of similar scenes", budget_ms, fastest_ms);
   } else {
-    json_t *row = json_array_get(rows, (size_t)best);
+    const obs_pareto_point *b = &c[best].pt;
+    json_t *row = json_array_get(rows, c[best].row);
     json_t *params = json_loads(json_string_value(json_object_get(row, "params")), 0, NULL);
-    char reason[600];
+    char reason[700];
     snprintf(reason, sizeof reason,
-             "%s among %d measured configuration(s) %s that fit %g ms: %s on %s takes %.4g ms "
-             "(median) with RMSE %.4g (comparison %lld, candidate %lld)",
-             best_at_ref ? "the fastest at reference accuracy" : "the lowest RMSE", measured,
-             same_scene ? "of this scene" : "of scenes of a similar size", budget_ms,
+             "%s among %zu measured configuration(s) %s that fit %g ms (RMSEs within the "
+             "reference's noise count as equal, times within their run-to-run spread too): %s on "
+             "%s takes %.4g ms (median) with RMSE %.4g (comparison %lld, candidate %lld)",
+             b->at_reference_accuracy ? "the fastest at reference accuracy"
+                                      : "the fastest of the lowest RMSE",
+             measured, same_scene ? "of this scene" : "of scenes of a similar size", budget_ms,
              json_string_value(json_object_get(row, "technique")),
-             json_string_value(json_object_get(row, "backend")), best_ms, best_rmse,
+             json_string_value(json_object_get(row, "backend")), b->time_ms, b->error,
              (long long)json_integer_value(json_object_get(row, "comparison")),
              (long long)json_integer_value(json_object_get(row, "idx")));
     *choice = json_pack("{s:O, s:O, s:o, s:f, s:f, s:O, s:s}", "technique",
                         json_object_get(row, "technique"), "backend",
                         json_object_get(row, "backend"), "params",
-                        params ? params : json_object(), "expected_ms", best_ms, "expected_rmse",
-                        best_rmse, "comparison_id", json_object_get(row, "comparison"), "reason",
-                        reason);
+                        params ? params : json_object(), "expected_ms", b->time_ms,
+                        "expected_rmse", b->error, "comparison_id",
+                        json_object_get(row, "comparison"), "reason", reason);
     if (!*choice) rc = obs_err_set(problems, OBS_ENOMEM, "request: out of memory");
   }
+  free(c);
+  free(opt);
   json_decref(rows);
   return rc;
 }
