@@ -37,7 +37,7 @@ srv_route srv_api_route(const char *path) {
   if (!strcmp(path, API "/comparisons")) return SRV_ROUTE_COMPARISONS;
   if (!strncmp(path, API "/comparisons/", sizeof API "/comparisons/" - 1))
     return strchr(path + sizeof API "/comparisons/" - 1, '/') ? SRV_ROUTE_UNKNOWN
-                                                               : SRV_ROUTE_COMPARISON;
+                                                              : SRV_ROUTE_COMPARISON;
   if (strncmp(path, "/api/", 5) && strcmp(path, "/api")) return SRV_ROUTE_STATIC;
   if (!strcmp(path, API "/jobs")) return SRV_ROUTE_JOBS;
   if (!strcmp(path, API "/techniques")) return SRV_ROUTE_TECHNIQUES;
@@ -60,9 +60,7 @@ static int is_get(const srv_req *r) {
   return !strcmp(r->method, "GET") || !strcmp(r->method, "HEAD");
 }
 
-
 /* ---- the job object -------------------------------------------------------------------------- */
-
 
 static json_t *str_or_null(const char *s) { return s ? json_string(s) : json_null(); }
 
@@ -79,8 +77,8 @@ static json_t *job_links(int64_t id, const srv_job *j) {
     snprintf(url, sizeof url, "%s/outputs/%s", self, j->outputs[i].name);
     json_object_set_new(outs, j->outputs[i].name, json_string(url));
   }
-  json_t *l = json_pack("{s:s, s:s, s:s, s:s, s:o}", "self", self, "cancel", cancel, "retry",
-                        retry, "log", logl, "outputs", outs);
+  json_t *l = json_pack("{s:s, s:s, s:s, s:s, s:o}", "self", self, "cancel", cancel, "retry", retry,
+                        "log", logl, "outputs", outs);
   if (j && j->comparison) {
     char cmp[64];
     snprintf(cmp, sizeof cmp, API "/comparisons/%lld", (long long)j->comparison);
@@ -102,21 +100,22 @@ static json_t *job_json(srv_app *app, const srv_job *j) {
   json_object_set_new(o, "comparison_id",
                       j->comparison ? json_integer(j->comparison) : json_null());
   json_object_set_new(o, "scene", str_or_null(j->scene));
-  json_object_set_new(o, "scene_name", str_or_null(j->scene_name ? j->scene_name
-                                                   : j->scene && strcmp(j->scene, "inline")
-                                                       ? j->scene
-                                                       : NULL));
+  json_object_set_new(o, "scene_name",
+                      str_or_null(j->scene_name                            ? j->scene_name
+                                  : j->scene && strcmp(j->scene, "inline") ? j->scene
+                                                                           : NULL));
   json_t *notes = j->notes ? json_loads(j->notes, 0, NULL) : NULL;
   if (notes && !json_is_array(notes)) json_decref(notes), notes = NULL;
   json_object_set_new(o, "notes", notes ? notes : json_array());
   json_object_set_new(o, "technique", str_or_null(j->technique));
-  json_object_set_new(o, "backend", json_pack("{s:o, s:o, s:o}", "requested",
-                                              str_or_null(j->backend_requested), "actual",
-                                              str_or_null(j->backend), "reason",
-                                              str_or_null(j->backend_reason)));
+  json_object_set_new(
+      o, "backend",
+      json_pack("{s:o, s:o, s:o}", "requested", str_or_null(j->backend_requested), "actual",
+                str_or_null(j->backend), "reason", str_or_null(j->backend_reason)));
   json_object_set_new(o, "repeats", json_integer(j->repeats));
-  json_object_set_new(o, "image", json_pack("{s:i, s:i, s:i}", "width", j->width, "height",
-                                            j->height, "spp", j->spp));
+  json_object_set_new(
+      o, "image",
+      json_pack("{s:i, s:i, s:i}", "width", j->width, "height", j->height, "spp", j->spp));
   json_object_set_new(o, "created_at", srv_json_time(j->created_ms));
   json_object_set_new(o, "started_at", srv_json_time(j->started_ms));
   json_object_set_new(o, "finished_at", srv_json_time(j->finished_ms));
@@ -152,9 +151,9 @@ static json_t *job_json(srv_app *app, const srv_job *j) {
     const srv_output *x = &j->outputs[i];
     char url[128];
     snprintf(url, sizeof url, API "/jobs/%lld/outputs/%s", (long long)j->id, x->name);
-    json_array_append_new(outs, json_pack("{s:s, s:I, s:s, s:s, s:s}", "name", x->name, "size",
-                                          (json_int_t)x->size, "sha256", x->sha256,
-                                          "content_type", x->content_type, "url", url));
+    json_array_append_new(
+        outs, json_pack("{s:s, s:I, s:s, s:s, s:s}", "name", x->name, "size", (json_int_t)x->size,
+                        "sha256", x->sha256, "content_type", x->content_type, "url", url));
   }
   json_object_set_new(o, "outputs", outs);
   json_object_set_new(o, "links", job_links(j->id, j));
@@ -237,7 +236,8 @@ typedef struct query {
   int seen[6];
 } query;
 
-static const char *const query_keys[] = {"state", "technique", "backend", "limit", "after", "order"};
+static const char *const query_keys[] = {"state", "technique", "backend",
+                                         "limit", "after",     "order"};
 
 static enum MHD_Result on_query_arg(void *cls, enum MHD_ValueKind kind, const char *key,
                                     const char *value) {
@@ -268,33 +268,38 @@ static enum MHD_Result on_query_arg(void *cls, enum MHD_ValueKind kind, const ch
                   "query: /state: must be one of queued, running, succeeded, failed, cancelled "
                   "(got \"%s\")",
                   shown);
-    else q->f.has_state = 1;
+    else
+      q->f.has_state = 1;
   } else if (k == 1) {
     if (!obs_technique_find(value))
       obs_err_set(q->problems, OBS_EINVAL,
                   "query: /technique: not a technique (got \"%s\"; GET /api/v1/techniques lists "
                   "them)",
                   shown);
-    else q->f.technique = value;
+    else
+      q->f.technique = value;
   } else if (k == 2) {
     obs_backend be;
     if (obs_backend_parse(value, &be))
       obs_err_set(q->problems, OBS_EINVAL,
                   "query: /backend: must be one of cpu, vulkan, auto (got \"%s\")", shown);
-    else q->f.backend = value;
+    else
+      q->f.backend = value;
   } else if (k == 3) {
     int64_t n;
     if (srv_parse_id(value, strlen(value), &n) || n > 500)
       obs_err_set(q->problems, OBS_EINVAL,
                   "query: /limit: must be an integer from 1 to 500 (got \"%s\")", shown);
-    else q->f.limit = (int)n;
+    else
+      q->f.limit = (int)n;
   } else if (k == 4) {
     if (srv_parse_id(value, strlen(value), &q->f.after))
       obs_err_set(q->problems, OBS_EINVAL,
                   "query: /after: must be a job id from a previous page's \"next\" (got \"%s\")",
                   shown);
   } else {
-    if (!strcmp(value, "asc")) q->f.ascending = 1;
+    if (!strcmp(value, "asc"))
+      q->f.ascending = 1;
     else if (strcmp(value, "desc"))
       obs_err_set(q->problems, OBS_EINVAL, "query: /order: must be asc or desc (got \"%s\")",
                   shown);
@@ -316,7 +321,8 @@ static int list_jobs(srv_req *r) {
   }
   srv_job *jobs;
   int n;
-  if (srv_db_list_jobs(r->app->db, &q.f, &jobs, &n, &problems)) return srv_respond_unavailable(r, &problems);
+  if (srv_db_list_jobs(r->app->db, &q.f, &jobs, &n, &problems))
+    return srv_respond_unavailable(r, &problems);
   json_t *arr = json_array();
   int shown = n > q.f.limit ? q.f.limit : n;
   for (int i = 0; i < shown; i++) json_array_append_new(arr, job_json(r->app, &jobs[i]));
@@ -451,10 +457,10 @@ static int job_document(srv_req *r, int64_t id) {
   }
   const char *text = json_string_value(json_object_get(row, "doc"));
   json_t *doc = text ? json_loads(text, 0, NULL) : NULL;
-  json_t *o = json_pack("{s:o, s:O, s:O, s:O, s:O}", "document", doc ? doc : json_null(),
-                        "scene", json_object_get(row, "scene"), "scene_name",
-                        json_object_get(row, "scene_name"), "label",
-                        json_object_get(row, "label"), "priority", json_object_get(row, "priority"));
+  json_t *o = json_pack("{s:o, s:O, s:O, s:O, s:O}", "document", doc ? doc : json_null(), "scene",
+                        json_object_get(row, "scene"), "scene_name",
+                        json_object_get(row, "scene_name"), "label", json_object_get(row, "label"),
+                        "priority", json_object_get(row, "priority"));
   json_decref(rows);
   return srv_respond_json(r, MHD_HTTP_OK, o);
 }
@@ -467,13 +473,16 @@ static int job_log(srv_req *r, int64_t id) {
   if (rc == 0) return not_found_job(r, id);
   size_t len;
   char *text = srv_job_log_read(r->app, id, &len);
-  if (!text) return srv_respond_error(r, MHD_HTTP_INTERNAL_SERVER_ERROR, NULL,
-                                      "cannot read the log of job %lld", (long long)id);
+  if (!text)
+    return srv_respond_error(r, MHD_HTTP_INTERNAL_SERVER_ERROR, NULL,
+                             "cannot read the log of job %lld", (long long)id);
   json_t *lines = json_array();
   for (char *p = text, *nl; *p; p = nl + 1) {
     nl = strchr(p, '\n');
-    if (!nl) nl = p + strlen(p) - 1;
-    else *nl = '\0';
+    if (!nl)
+      nl = p + strlen(p) - 1;
+    else
+      *nl = '\0';
     json_t *l = json_string(p);
     /* A line that is not UTF-8 (a path's bytes) is shown with its bytes replaced. */
     if (!l) {
@@ -484,7 +493,8 @@ static int job_log(srv_req *r, int64_t id) {
     if (l) json_array_append_new(lines, l);
   }
   free(text);
-  return srv_respond_json(r, MHD_HTTP_OK, json_pack("{s:I, s:o}", "job", (json_int_t)id, "lines", lines));
+  return srv_respond_json(r, MHD_HTTP_OK,
+                          json_pack("{s:I, s:o}", "job", (json_int_t)id, "lines", lines));
 }
 
 static int delete_comparison(srv_req *r, int64_t id) {
@@ -512,12 +522,11 @@ static int delete_comparison(srv_req *r, int64_t id) {
 /* ---- catalogue routes ------------------------------------------------------------------------ */
 
 static int techniques(srv_req *r) {
-  return srv_respond_json(r, MHD_HTTP_OK,
-                          json_pack("{s:o, s:b, s:{s:i, s:i}}", "techniques",
-                                    obs_technique_registry_json(), "vulkan_available",
-                                    r->app->vulkan_lane, "comparison_defaults", "repeats",
-                                    SRV_COMPARE_REPEATS, "reference_samples",
-                                    SRV_COMPARE_REF_SAMPLES));
+  return srv_respond_json(
+      r, MHD_HTTP_OK,
+      json_pack("{s:o, s:b, s:{s:i, s:i}}", "techniques", obs_technique_registry_json(),
+                "vulkan_available", r->app->vulkan_lane, "comparison_defaults", "repeats",
+                SRV_COMPARE_REPEATS, "reference_samples", SRV_COMPARE_REF_SAMPLES));
 }
 
 static int cmp_names(const void *a, const void *b) {
@@ -536,8 +545,8 @@ static int scenes(srv_req *r) {
     char path[PATH_MAX + 300], real[PATH_MAX];
     snprintf(path, sizeof path, "%s/%s", app->scenes_real, e->d_name);
     struct stat st;
-    if (!realpath(path, real) || !obs_path_is_inside(app->scenes_real, real) ||
-        stat(real, &st) || !S_ISREG(st.st_mode))
+    if (!realpath(path, real) || !obs_path_is_inside(app->scenes_real, real) || stat(real, &st) ||
+        !S_ISREG(st.st_mode))
       continue;
     json_t *s = json_pack("{s:s, s:I}", "name", e->d_name, "size", (json_int_t)st.st_size);
     json_error_t je;
@@ -590,8 +599,10 @@ static int scene_defaults(srv_req *r) {
   snprintf(want, sizeof want, "%s", tn ? tn : own);
   tn = want;
   if (doc && !obs_technique_find(tn))
-    obs_err_set(&problems, OBS_EINVAL, "request: ?technique: no such technique (got \"%s\"; GET "
-                "/api/v1/techniques lists them)", tn);
+    obs_err_set(&problems, OBS_EINVAL,
+                "request: ?technique: no such technique (got \"%s\"; GET "
+                "/api/v1/techniques lists them)",
+                tn);
   if (problems.count) {
     json_decref(doc);
     int rc = srv_respond_error(r, MHD_HTTP_NOT_FOUND, &problems, "no such scene or technique");
@@ -606,11 +617,10 @@ static int scene_defaults(srv_req *r) {
       !strcmp(tn, own) ? json_object_get(json_object_get(doc, "technique"), "backend") : NULL);
   srv_submit_set_technique(r->app, doc, name, tech, notes);
   json_t *t = json_object_get(doc, "technique");
-  json_t *o = json_pack("{s:s, s:O, s:s, s:O, s:O, s:o}", "scene", name, "scene_technique",
-                        scene_technique, "technique", tn, "backend",
-                        backend ? backend : json_null(), "params",
-                        json_object_get(t, "params") ? json_object_get(t, "params") : json_object(),
-                        "notes", notes);
+  json_t *o = json_pack(
+      "{s:s, s:O, s:s, s:O, s:O, s:o}", "scene", name, "scene_technique", scene_technique,
+      "technique", tn, "backend", backend ? backend : json_null(), "params",
+      json_object_get(t, "params") ? json_object_get(t, "params") : json_object(), "notes", notes);
   json_decref(scene_technique);
   json_decref(backend);
   json_decref(tech);
@@ -628,13 +638,12 @@ static int health(srv_req *r) {
   json_t *faults = srv_fault_json(&level);
   if (rc && level < 1) level = 1;
   static const char *const names[] = {"ok", "degraded", "error"};
-  json_t *o = json_pack("{s:s, s:s, s:s, s:I, s:i, s:{s:i, s:i}, s:b, s:b, s:f}", "status",
-                        names[level], "version", OBSCURA_VERSION, "db",
-                        rc ? obs_err_message(&err) : "ok", "queue_depth",
-                        (json_int_t)(rc ? 0 : counts[SRV_QUEUED]), "running",
-                        srv_sched_running(app), "workers", "cpu", app->cfg.workers, "vulkan",
-                        app->vulkan_lane, "vulkan_available", app->vulkan_lane, "vulkan_device", app->vk_available,
-                        "uptime_s", (obs_now_ms() - app->start_ms) / 1e3);
+  json_t *o = json_pack(
+      "{s:s, s:s, s:s, s:I, s:i, s:{s:i, s:i}, s:b, s:b, s:f}", "status", names[level], "version",
+      OBSCURA_VERSION, "db", rc ? obs_err_message(&err) : "ok", "queue_depth",
+      (json_int_t)(rc ? 0 : counts[SRV_QUEUED]), "running", srv_sched_running(app), "workers",
+      "cpu", app->cfg.workers, "vulkan", app->vulkan_lane, "vulkan_available", app->vulkan_lane,
+      "vulkan_device", app->vk_available, "uptime_s", (obs_now_ms() - app->start_ms) / 1e3);
   obs_err_free(&err);
   if (!o) {
     json_decref(faults);
@@ -663,15 +672,20 @@ static int metrics(srv_req *r) {
 
 int srv_api_dispatch(srv_req *r) {
   switch (r->route) {
-    case SRV_ROUTE_STATIC: return srv_static_serve(r);
-    case SRV_ROUTE_METRICS: return is_get(r) ? metrics(r) : srv_respond_method(r, "GET, HEAD");
+    case SRV_ROUTE_STATIC:
+      return srv_static_serve(r);
+    case SRV_ROUTE_METRICS:
+      return is_get(r) ? metrics(r) : srv_respond_method(r, "GET, HEAD");
     case SRV_ROUTE_TECHNIQUES:
       return is_get(r) ? techniques(r) : srv_respond_method(r, "GET, HEAD");
-    case SRV_ROUTE_SCENES: return is_get(r) ? scenes(r) : srv_respond_method(r, "GET, HEAD");
+    case SRV_ROUTE_SCENES:
+      return is_get(r) ? scenes(r) : srv_respond_method(r, "GET, HEAD");
     case SRV_ROUTE_SCENE_DEFAULTS:
       return is_get(r) ? scene_defaults(r) : srv_respond_method(r, "GET, HEAD");
-    case SRV_ROUTE_HEALTH: return is_get(r) ? health(r) : srv_respond_method(r, "GET, HEAD");
-    case SRV_ROUTE_SESSION: return srv_session_serve(r);
+    case SRV_ROUTE_HEALTH:
+      return is_get(r) ? health(r) : srv_respond_method(r, "GET, HEAD");
+    case SRV_ROUTE_SESSION:
+      return srv_session_serve(r);
     case SRV_ROUTE_COMPARISONS:
       if (!strcmp(r->method, "POST")) return srv_compare_post(r);
       return is_get(r) ? srv_compare_list(r) : srv_respond_method(r, "GET, HEAD, POST");
@@ -719,7 +733,8 @@ int srv_api_dispatch(srv_req *r) {
         return is_get(r) ? job_log(r, id) : srv_respond_method(r, "GET, HEAD");
       return is_get(r) ? srv_output_serve(r, id, rest + 9) : srv_respond_method(r, "GET, HEAD");
     }
-    default: break;
+    default:
+      break;
   }
   return srv_respond_error(r, MHD_HTTP_NOT_FOUND, NULL, "no such route");
 }

@@ -13,7 +13,7 @@
 #include "obscurad.h"
 
 #define MAX_CANDIDATES 256
-#define MAX_LIST 64          /* values in one list of a grid */
+#define MAX_LIST 64 /* values in one list of a grid */
 
 void srv_compare_expansion_free(expansion *x) {
   for (int i = 0; i < x->n; i++) {
@@ -35,8 +35,8 @@ void srv_compare_expansion_free(expansion *x) {
 /* Whether parameter `key` of technique `t` is itself an array (never expanded). */
 static int param_is_array(const obs_technique *t, const char *key) {
   json_t *schema = obs_technique_params_schema(t);
-  json_t *type = json_object_get(json_object_get(json_object_get(schema, "properties"), key),
-                                 "type");
+  json_t *type =
+      json_object_get(json_object_get(json_object_get(schema, "properties"), key), "type");
   int arr = json_is_string(type) && !strcmp(json_string_value(type), "array");
   for (size_t i = 0; json_is_array(type) && i < json_array_size(type); i++) {
     const char *ti = json_string_value(json_array_get(type, i));
@@ -48,8 +48,8 @@ static int param_is_array(const obs_technique *t, const char *key) {
 
 /* An entry's backends (p at its "backend"): a string or a list of 1-2; absent = every backend the
  * technique has here. Fills bes/nb and *listed; returns 1 when a problem was reported. */
-static int entry_backends(const srv_app *app, obs_jpath *p, const obs_technique *t, const json_t *bv,
-                          obs_backend bes[8], int *nb, int *listed) {
+static int entry_backends(const srv_app *app, obs_jpath *p, const obs_technique *t,
+                          const json_t *bv, obs_backend bes[8], int *nb, int *listed) {
   int bad = 0;
   *nb = 0;
   *listed = 0;
@@ -172,8 +172,10 @@ void srv_compare_expand(srv_app *app, obs_jpath *p, const json_t *cands, expansi
     json_t *e = json_array_get(cands, i);
     size_t m = obs_jpath_push_index(p, i);
     if (!json_is_object(e)) {
-      obs_jpath_fail(p, "must be an object like {\"technique\": \"hbao\", \"backend\": [\"cpu\"], "
-                        "\"params\": {\"directions\": [4, 8]}} (got %s)", obs_json_brief(e));
+      obs_jpath_fail(p,
+                     "must be an object like {\"technique\": \"hbao\", \"backend\": [\"cpu\"], "
+                     "\"params\": {\"directions\": [4, 8]}} (got %s)",
+                     obs_json_brief(e));
       obs_jpath_pop(p, m);
       continue;
     }

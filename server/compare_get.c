@@ -124,8 +124,10 @@ static json_t *ranking_of(const json_t *cands) {
   if (e && m) qsort(e, m, sizeof *e, cmp_double);
   if (e && m > 1 && noise > 0)
     for (size_t i = 1; i < m; i++) ties += e[i] - e[i - 1] <= noise;
-  if (at_ref) why = "at reference accuracy";
-  else if (e && m > 1 && noise > 0 && noise >= 0.5 * (e[m - 1] - e[0])) why = "noise";
+  if (at_ref)
+    why = "at reference accuracy";
+  else if (e && m > 1 && noise > 0 && noise >= 0.5 * (e[m - 1] - e[0]))
+    why = "noise";
   if (why && at_ref)
     snprintf(msg, sizeof msg,
              "the reference is too noisy to rank the candidates: %zu of %zu are at reference "
@@ -137,10 +139,10 @@ static json_t *ranking_of(const json_t *cands) {
              "the reference is too noisy to rank the candidates: its noise %.3g is at least half "
              "the spread of their RMSEs (%.3g to %.3g); render the reference with more samples",
              noise, e[0], e[m - 1]);
-  json_t *r = json_pack("{s:o, s:I, s:I, s:b, s:o}", "ref_noise", num_or_null(noise),
-                        "at_reference_accuracy", (json_int_t)at_ref, "ties_within_noise",
-                        (json_int_t)ties, "noisy_reference", why != NULL, "warning",
-                        why ? json_string(msg) : json_null());
+  json_t *r =
+      json_pack("{s:o, s:I, s:I, s:b, s:o}", "ref_noise", num_or_null(noise),
+                "at_reference_accuracy", (json_int_t)at_ref, "ties_within_noise", (json_int_t)ties,
+                "noisy_reference", why != NULL, "warning", why ? json_string(msg) : json_null());
   free(e);
   return r;
 }
@@ -160,8 +162,7 @@ static void pareto_point(const json_t *tm, const json_t *metrics, obs_pareto_poi
 
 /* Marks each candidate of `list` "pareto" and returns the Pareto indices by ascending time (then
  * index): the frontier from fast to accurate. `pts`/`opt` NULL (out of memory): none optimal. */
-static json_t *pareto_set(json_t *list, const obs_pareto_point *pts, unsigned char *opt,
-                          size_t n) {
+static json_t *pareto_set(json_t *list, const obs_pareto_point *pts, unsigned char *opt, size_t n) {
   if (pts && opt) obs_metrics_pareto(pts, n, opt, NULL);
   json_t *pareto = json_array();
   for (size_t i = 0; i < n; i++) {
@@ -268,8 +269,9 @@ static json_t *comparison_head(int64_t id, const json_t *h) {
   json_object_set_new(o, "created_at",
                       srv_json_time(json_integer_value(json_object_get(h, "created_ms"))));
   json_object_set(o, "repeats", json_object_get(h, "repeats"));
-  json_object_set_new(o, "image", json_pack("{s:O, s:O}", "width", json_object_get(h, "width"),
-                                            "height", json_object_get(h, "height")));
+  json_object_set_new(o, "image",
+                      json_pack("{s:O, s:O}", "width", json_object_get(h, "width"), "height",
+                                json_object_get(h, "height")));
   const char *notes = json_string_value(json_object_get(h, "notes"));
   json_t *nj = notes ? json_loads(notes, 0, NULL) : NULL;
   json_object_set_new(o, "notes", json_is_array(nj) ? nj : json_array());
@@ -289,8 +291,8 @@ static int comparison_json(srv_app *app, int64_t id, json_t **out, obs_err *err)
   size_t n = json_array_size(cands);
   obs_pareto_point *pts = rc ? NULL : calloc(n + 1, sizeof *pts);
   unsigned char *opt = rc ? NULL : calloc(n + 1, 1);
-  if (!rc && (!pts || !opt)) rc = obs_err_set(err, OBS_ENOMEM, "comparison %lld: out of memory",
-                                              (long long)id);
+  if (!rc && (!pts || !opt))
+    rc = obs_err_set(err, OBS_ENOMEM, "comparison %lld: out of memory", (long long)id);
   if (!rc) {
     json_t *o = comparison_head(id, json_array_get(head, 0));
     json_t *refs = json_array(), *list = json_array();
@@ -413,9 +415,9 @@ static char *comparison_csv(const json_t *o, size_t *len) {
       first = 0;
       sb_put(&pb, key, strlen(key));
       sb_put(&pb, "=", 1);
-      char *t = json_is_string(v) ? strdup(json_string_value(v))
-                                  : json_dumps(v, JSON_ENCODE_ANY | JSON_COMPACT |
-                                                      JSON_REAL_PRECISION(12));
+      char *t = json_is_string(v)
+                    ? strdup(json_string_value(v))
+                    : json_dumps(v, JSON_ENCODE_ANY | JSON_COMPACT | JSON_REAL_PRECISION(12));
       if (t) sb_put(&pb, t, strlen(t));
       free(t);
     }
@@ -428,8 +430,8 @@ static char *comparison_csv(const json_t *o, size_t *len) {
     snprintf(buf, sizeof buf, "%zu", json_array_size(json_object_get(tm, "runs")));
     csv_field(&b, buf, 0);
     json_t *m = json_object_get(c, "metrics");
-    static const char *const mk[7] = {"rmse", "bias", "max_abs", "psnr", "ssim", "ref_noise",
-                                      "at_reference_accuracy"};
+    static const char *const mk[7] = {
+        "rmse", "bias", "max_abs", "psnr", "ssim", "ref_noise", "at_reference_accuracy"};
     for (int k = 0; k < 7; k++) csv_value(&b, json_object_get(m, mk[k]));
     csv_value(&b, json_object_get(c, "pareto"));
     json_t *mach = json_object_get(c, "machine");
@@ -438,8 +440,10 @@ static char *comparison_csv(const json_t *o, size_t *len) {
     csv_value(&b, json_object_get(mach, "vulkan_device"));
     /* The compared output and, for an RGB one, its own figures; empty for AO candidates. */
     json_t *rgb = json_object_get(m, "rgb"), *out = json_object_get(m, "output");
-    if (json_is_object(m) && !out) csv_field(&b, "ao", 0);
-    else csv_value(&b, out);
+    if (json_is_object(m) && !out)
+      csv_field(&b, "ao", 0);
+    else
+      csv_value(&b, out);
     for (size_t k = 0; k < 3; k++) csv_value(&b, json_array_get(json_object_get(rgb, "rmse"), k));
     static const char *const rk[3] = {"rmse_luminance", "ssim_luminance", "rel_mse"};
     for (int k = 0; k < 3; k++) csv_value(&b, json_object_get(rgb, rk[k]));
@@ -512,8 +516,10 @@ static enum MHD_Result on_list_arg(void *cls, enum MHD_ValueKind kind, const cha
                     "(got \"%s\")"
                   : "query: /limit: must be an integer from 1 to 500 (got \"%s\")",
                 shown);
-  else if (k == 0) q->limit = (int)n;
-  else q->after = n;
+  else if (k == 0)
+    q->limit = (int)n;
+  else
+    q->after = n;
   return MHD_YES;
 }
 
@@ -553,6 +559,6 @@ int srv_compare_list(srv_req *r) {
     next = json_string(buf);
   }
   json_decref(rows);
-  return srv_respond_json(r, MHD_HTTP_OK, json_pack("{s:o, s:o}", "comparisons", list, "next",
-                                                    next));
+  return srv_respond_json(r, MHD_HTTP_OK,
+                          json_pack("{s:o, s:o}", "comparisons", list, "next", next));
 }

@@ -102,8 +102,8 @@ void srv_compare_metrics(srv_app *app, int64_t job) {
  * runs, and a finite RMSE of AO. RMSEs of other outputs (the luminance of path_trace's radiance)
  * measure another quantity on another scale, so they are not ranked against AO ones. */
 typedef struct budget_row {
-  size_t row;            /* index into the stored rows */
-  obs_pareto_point pt;   /* median time, spread, RMSE, the reference's noise */
+  size_t row;          /* index into the stored rows */
+  obs_pareto_point pt; /* median time, spread, RMSE, the reference's noise */
 } budget_row;
 
 static int budget_metrics(const srv_app *app, const json_t *row, obs_pareto_point *pt) {
@@ -180,7 +180,8 @@ static int budget_pick(const budget_row *c, size_t n, double budget_ms, unsigned
     for (size_t i = 0; i < n; i++)
       if (opt[i]) {
         double e = pts[i].at_reference_accuracy ? -INFINITY : pts[i].error;
-        if (e < lowest) lowest = e, tol = isnan(pts[i].error_tolerance) ? 0 : pts[i].error_tolerance;
+        if (e < lowest)
+          lowest = e, tol = isnan(pts[i].error_tolerance) ? 0 : pts[i].error_tolerance;
       }
     for (size_t i = 0; i < n; i++) {
       double e = pts[i].at_reference_accuracy ? -INFINITY : pts[i].error;
@@ -200,8 +201,10 @@ int srv_compare_budget_choice(srv_app *app, const char *scene, double pixels, do
   json_t *rows = NULL;
   obs_err err = OBS_ERR_INIT;
   if (srv_db_query(app->db, SRV_Q_BUDGET, NULL, 0, &rows, &err)) {
-    int rc = obs_err_set(problems, OBS_EINVAL, "request: /time_budget_ms: cannot read the stored "
-                         "measurements: %s", obs_err_message(&err));
+    int rc = obs_err_set(problems, OBS_EINVAL,
+                         "request: /time_budget_ms: cannot read the stored "
+                         "measurements: %s",
+                         obs_err_message(&err));
     obs_err_free(&err);
     return rc;
   }
@@ -217,13 +220,17 @@ int srv_compare_budget_choice(srv_app *app, const char *scene, double pixels, do
   if (!c || !opt) {
     rc = obs_err_set(problems, OBS_ENOMEM, "request: out of memory");
   } else if (!measured) {
-    rc = obs_err_set(problems, OBS_EINVAL, "request: /time_budget_ms: nothing has been measured "
+    rc = obs_err_set(problems, OBS_EINVAL,
+                     "request: /time_budget_ms: nothing has been measured "
                      "yet for %s or any scene of a similar size (%.0f pixel samples, within 2x): "
-                     "run a comparison first (POST /api/v1/comparisons)", scene, pixels);
+                     "run a comparison first (POST /api/v1/comparisons)",
+                     scene, pixels);
   } else if (best < 0) {
-    rc = obs_err_set(problems, OBS_EINVAL, "request: /time_budget_ms: none of the %zu measured "
-                     "configurations%s fits %g ms: the fastest takes %.4g ms (median)", measured,
-                     same_scene ? " of this scene" : " of similar scenes", budget_ms, fastest_ms);
+    rc = obs_err_set(problems, OBS_EINVAL,
+                     "request: /time_budget_ms: none of the %zu measured "
+                     "configurations%s fits %g ms: the fastest takes %.4g ms (median)",
+                     measured, same_scene ? " of this scene" : " of similar scenes", budget_ms,
+                     fastest_ms);
   } else {
     const obs_pareto_point *b = &c[best].pt;
     json_t *row = json_array_get(rows, c[best].row);
@@ -242,9 +249,8 @@ int srv_compare_budget_choice(srv_app *app, const char *scene, double pixels, do
              (long long)json_integer_value(json_object_get(row, "idx")));
     *choice = json_pack("{s:O, s:O, s:o, s:f, s:f, s:O, s:s}", "technique",
                         json_object_get(row, "technique"), "backend",
-                        json_object_get(row, "backend"), "params",
-                        params ? params : json_object(), "expected_ms", b->time_ms,
-                        "expected_rmse", b->error, "comparison_id",
+                        json_object_get(row, "backend"), "params", params ? params : json_object(),
+                        "expected_ms", b->time_ms, "expected_rmse", b->error, "comparison_id",
                         json_object_get(row, "comparison"), "reason", reason);
     if (!*choice) rc = obs_err_set(problems, OBS_ENOMEM, "request: out of memory");
   }

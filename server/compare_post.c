@@ -13,8 +13,8 @@
 #include "json_util.h"
 #include "obscurad.h"
 
-#define MAX_PROBLEMS 100     /* problems reported for one request (the rest are summarised) */
-#define REF_SEED 7919        /* independent of candidates' default seed 1 */
+#define MAX_PROBLEMS 100 /* problems reported for one request (the rest are summarised) */
+#define REF_SEED 7919    /* independent of candidates' default seed 1 */
 #define MAX_LABEL 256
 /* Every candidate and reference is a whole scene document, kept as text until the comparison is
  * stored: the values of the scene times the documents made from it are bounded (the largest
@@ -121,8 +121,8 @@ static json_t *candidate_params(cmp_req *q, const cand *c) {
 }
 
 /* Loads `doc` (a scene document) as the renderer will: 0 with *sc, or the problems in `e`. */
-static int load_doc(srv_app *app, json_t *doc, const char *docname, obs_scene *sc,
-                    char **text, obs_err *e) {
+static int load_doc(srv_app *app, json_t *doc, const char *docname, obs_scene *sc, char **text,
+                    obs_err *e) {
   *text = NULL;
   int rc = obs_scene_load_json(sc, doc, docname, app->scenes_real, NULL, 0, e);
   if (rc) return rc;
@@ -182,8 +182,10 @@ static void validate_candidate(srv_app *app, cmp_req *q, cand *c, expansion *x,
   obs_backend ref_be;
   if (srv_pick_backend(rd.technique, q->ref_want, app->vulkan_lane, &ref_be, &e)) {
     char line[1200];
-    snprintf(line, sizeof line, "request: /reference/backend: the reference of /candidates/%d "
-             "(%s): %s", c->entry, ref_name, obs_err_message(&e));
+    snprintf(line, sizeof line,
+             "request: /reference/backend: the reference of /candidates/%d "
+             "(%s): %s",
+             c->entry, ref_name, obs_err_message(&e));
     add_problem(problems, dropped, line);
     obs_reference_def_free(&rd);
     goto out;
@@ -206,8 +208,10 @@ static void validate_candidate(srv_app *app, cmp_req *q, cand *c, expansion *x,
       const char *nl = strchr(p, '\n');
       size_t len = nl ? (size_t)(nl - p) : strlen(p);
       char line[2600];
-      snprintf(line, sizeof line, "request: /reference: the reference of /candidates/%d "
-               "(%s): %.*s", c->entry, ref_name, (int)len, p);
+      snprintf(line, sizeof line,
+               "request: /reference: the reference of /candidates/%d "
+               "(%s): %.*s",
+               c->entry, ref_name, (int)len, p);
       add_problem(problems, dropped, line);
       p = nl ? nl + 1 : p + len;
     }
@@ -262,22 +266,24 @@ out:
 
 /* Parses and validates the request; fills `x` with every candidate and reference. Returns 0 or
  * the HTTP status (problems listed). */
-static unsigned parse_request(srv_app *app, const char *body, size_t len, cmp_req *q,
-                              expansion *x, const char **message, obs_err *problems) {
+static unsigned parse_request(srv_app *app, const char *body, size_t len, cmp_req *q, expansion *x,
+                              const char **message, obs_err *problems) {
   memset(q, 0, sizeof *q);
   *message = "request is not a valid comparison";
   if (!body || !len) {
     *message = "request body is empty (send {\"scene_file\": ..., \"candidates\": [...]})";
     return 400;
   }
-  unsigned status = srv_submit_read_body(body, len, "a comparison like {\"scene_file\": ..., "
-                                         "\"candidates\": [...]}", &q->req, message, problems);
+  unsigned status = srv_submit_read_body(body, len,
+                                         "a comparison like {\"scene_file\": ..., "
+                                         "\"candidates\": [...]}",
+                                         &q->req, message, problems);
   if (status) return status;
   obs_jpath p;
   obs_jpath_init(&p, "request", problems);
   json_t *req = q->req;
-  static const char *const keys[] = {"scene_file", "scene", "set", "label", "priority",
-                                     "repeats", "reference", "candidates", NULL};
+  static const char *const keys[] = {"scene_file", "scene",     "set",        "label", "priority",
+                                     "repeats",    "reference", "candidates", NULL};
   obs_json_check_keys(&p, req, keys);
   q->priority = 50;
   q->repeats = SRV_COMPARE_REPEATS;
@@ -357,10 +363,12 @@ static unsigned parse_request(srv_app *app, const char *body, size_t len, cmp_re
     copies += 2.0 * (double)obs_json_count_values(x->c[i].params, OBS_JSON_MAX_DEPTH);
   if (copies > MAX_EXPANDED_VALUES) {
     size_t m = obs_jpath_push_key(&p, "candidates");
-    obs_jpath_fail(&p, "%d candidates (and their references) over a scene of %zu JSON values "
+    obs_jpath_fail(&p,
+                   "%d candidates (and their references) over a scene of %zu JSON values "
                    "make %.0f values; at most %d per comparison (use fewer candidates or a "
-                   "smaller scene)", x->n, obs_json_count_values(q->base, OBS_JSON_MAX_DEPTH),
-                   copies, MAX_EXPANDED_VALUES);
+                   "smaller scene)",
+                   x->n, obs_json_count_values(q->base, OBS_JSON_MAX_DEPTH), copies,
+                   MAX_EXPANDED_VALUES);
     obs_jpath_pop(&p, m);
     return 422;
   }
@@ -368,10 +376,60 @@ static unsigned parse_request(srv_app *app, const char *body, size_t len, cmp_re
   obs_reference_facts facts;
   memset(&facts, 0, sizeof facts);
   int dropped = 0;
-  for (int i = 0; i < x->n; i++) validate_candidate(app, q, &x->c[i], x, &facts, problems, &dropped);
+  for (int i = 0; i < x->n; i++)
+    validate_candidate(app, q, &x->c[i], x, &facts, problems, &dropped);
   if (dropped) obs_err_set(problems, OBS_EINVAL, "request: ... and %d more problems", dropped);
   if (problems->count) return 422;
   return 0;
+}
+
+/* The rows to insert: a job per reference, a job and a candidate row per candidate (borrowing
+ * from q and x). */
+static void new_rows(const cmp_req *q, const expansion *x, srv_new_job *refs,
+                     srv_new_candidate *cs) {
+  for (int i = 0; i < x->nrefs; i++) {
+    ref_job *rj = &x->refs[i];
+    refs[i] =
+        (srv_new_job){.priority = (int)q->priority,
+                      .label = q->label,
+                      .scene = q->docname,
+                      .doc = rj->doc,
+                      .technique = rj->technique,
+                      .backend_requested = obs_backend_name(rj->backend),
+                      .lane = rj->backend == OBS_BACKEND_VULKAN ? SRV_LANE_VULKAN : SRV_LANE_CPU,
+                      .width = rj->width,
+                      .height = rj->height,
+                      .spp = rj->spp,
+                      /* A reference is rendered once: its time is not ranked. */
+                      .repeats = 1,
+                      .warmup = 0,
+                      .work = rj->work,
+                      .backend_reason = "reference of a comparison"};
+  }
+  for (int i = 0; i < x->n; i++) {
+    cand *c = &x->c[i];
+    cs[i].job =
+        (srv_new_job){.priority = (int)q->priority,
+                      .label = q->label,
+                      .scene = q->docname,
+                      .doc = c->doc,
+                      .technique = c->t->name,
+                      .backend_requested = obs_backend_name(c->backend),
+                      .lane = c->backend == OBS_BACKEND_VULKAN ? SRV_LANE_VULKAN : SRV_LANE_CPU,
+                      .width = c->width,
+                      .height = c->height,
+                      .spp = c->spp,
+                      .repeats = (int)q->repeats,
+                      .warmup = 1,
+                      .work = c->work,
+                      .backend_reason = "requested by a comparison"};
+    cs[i].reference = c->ref;
+    cs[i].technique = c->t->name;
+    cs[i].backend = obs_backend_name(c->backend);
+    cs[i].params = c->params_full;
+    cs[i].reference_params = c->ref_key;
+    cs[i].response = obs_response_name(c->response);
+  }
 }
 
 int srv_compare_post(srv_req *r) {
@@ -400,49 +458,7 @@ int srv_compare_post(srv_req *r) {
   int retry = 0;
   int rc = !refs || !cs || !request ? obs_err_set(&problems, OBS_ENOMEM, "out of memory") : 0;
   int width = x.n ? x.c[0].width : 0, height = x.n ? x.c[0].height : 0;
-  for (int i = 0; !rc && i < x.nrefs; i++) {
-    ref_job *rj = &x.refs[i];
-    refs[i] = (srv_new_job){.priority = (int)q.priority,
-                            .label = q.label,
-                            .scene = q.docname,
-                            .doc = rj->doc,
-                            .technique = rj->technique,
-                            .backend_requested = obs_backend_name(rj->backend),
-                            .lane = rj->backend == OBS_BACKEND_VULKAN ? SRV_LANE_VULKAN
-                                                                      : SRV_LANE_CPU,
-                            .width = rj->width,
-                            .height = rj->height,
-                            .spp = rj->spp,
-                            /* A reference is rendered once: its time is not ranked. */
-                            .repeats = 1,
-                            .warmup = 0,
-                            .work = rj->work,
-                            .backend_reason = "reference of a comparison"};
-  }
-  for (int i = 0; !rc && i < x.n; i++) {
-    cand *c = &x.c[i];
-    cs[i].job = (srv_new_job){.priority = (int)q.priority,
-                              .label = q.label,
-                              .scene = q.docname,
-                              .doc = c->doc,
-                              .technique = c->t->name,
-                              .backend_requested = obs_backend_name(c->backend),
-                              .lane = c->backend == OBS_BACKEND_VULKAN ? SRV_LANE_VULKAN
-                                                                       : SRV_LANE_CPU,
-                              .width = c->width,
-                              .height = c->height,
-                              .spp = c->spp,
-                              .repeats = (int)q.repeats,
-                              .warmup = 1,
-                              .work = c->work,
-                              .backend_reason = "requested by a comparison"};
-    cs[i].reference = c->ref;
-    cs[i].technique = c->t->name;
-    cs[i].backend = obs_backend_name(c->backend);
-    cs[i].params = c->params_full;
-    cs[i].reference_params = c->ref_key;
-    cs[i].response = obs_response_name(c->response);
-  }
+  if (!rc) new_rows(&q, &x, refs, cs);
   if (!rc) {
     srv_new_comparison nc = {.label = q.label,
                              .notes = notes_text,
@@ -476,16 +492,16 @@ int srv_compare_post(srv_req *r) {
     json_decref(notes);
     return srv_respond_unavailable(r, &problems);
   }
-  srv_log("comparison %lld: submitted (%d candidates, %d references)", (long long)id, ncand,
-          nrefs);
+  srv_log("comparison %lld: submitted (%d candidates, %d references)", (long long)id, ncand, nrefs);
   srv_sched_notify(r->app);
   char self[64], csv[72];
   snprintf(self, sizeof self, API "/comparisons/%lld", (long long)id);
   snprintf(csv, sizeof csv, "%s.csv", self);
   /* Values derived from the scene's size, so the client can say so. */
   return srv_respond_created(
-      r, json_pack("{s:I, s:s, s:i, s:i, s:{s:s, s:s}, s:o}", "id", (json_int_t)id, "state",
-                   "running", "candidates", ncand, "references", nrefs, "links", "self", self,
-                   "csv", csv, "notes", notes ? notes : json_array()),
+      r,
+      json_pack("{s:I, s:s, s:i, s:i, s:{s:s, s:s}, s:o}", "id", (json_int_t)id, "state", "running",
+                "candidates", ncand, "references", nrefs, "links", "self", self, "csv", csv,
+                "notes", notes ? notes : json_array()),
       self);
 }

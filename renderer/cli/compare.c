@@ -11,7 +11,7 @@
 #include "http.h"
 #include "obscura/obscura.h"
 
-#define POLL_MS 500          /* the comparison is polled this often */
+#define POLL_MS 500 /* the comparison is polled this often */
 
 typedef struct compare_opts {
   const char *file, *server;

@@ -62,7 +62,8 @@ int obs_obscurance_env_compute(const obs_scene *scene, const obs_geometry *geo,
   if (!(env->area > 0) || !isfinite(env->area))
     return obs_err_set(err, OBS_EINVAL,
                        "%s: /objects: the obscurance model needs surfaces of finite, non-zero "
-                       "area (got %g)", scene->name, env->area);
+                       "area (got %g)",
+                       scene->name, env->area);
   for (int c = 0; c < 3; c++) {
     env->r_ave[c] /= env->area;
     env->emitted[c] = sum_e[c] / env->area;
@@ -70,7 +71,8 @@ int obs_obscurance_env_compute(const obs_scene *scene, const obs_geometry *geo,
       return obs_err_set(err, OBS_EINVAL,
                          "%s: /objects: the area-weighted average reflectivity reaches 1 in "
                          "channel %d (the closed-environment ambient term 1 / (1 - R_ave) "
-                         "diverges); lower a material's reflectivity", scene->name, c);
+                         "diverges); lower a material's reflectivity",
+                         scene->name, c);
   }
   return 0;
 }
