@@ -69,113 +69,97 @@ const defaultName = (c) => `Candidate ${c.index}: ${c.technique} on ${c.backend}
  * {points, series: [{label, points}], pareto, order, noiseFloor, spreads} (also what the tests
  * read).
  */
-export function paretoChart(box, cands, {colourOf, onSelect, selected = null, nameOf = defaultName, noise = null}) {
-  const uPlot = window.uPlot;
-  if (!uPlot) {
-    box.append('The chart library is missing (run npm ci; the daemon serves it from --vendor-dir).');
-    return null;
+// uPlot `paths` builders: one Path2D holding a shape at every non-null point of the series, in
+// canvas pixels; `filled` says whether uPlot should fill it as well as stroke it.
+const pathOf = (shape, filled) => (u, si) => {
+  const ys = u.data[si];
+  const path = new Path2D();
+  for (let i = 0; i < ys.length; i++) {
+    if (ys[i] !== null) shape(path, i, u.valToPos(u.data[0][i], 'x', true), u.valToPos(ys[i], 'y', true));
   }
-  // Log axes: a zero time or RMSE (a candidate identical to its reference) is drawn at a floor;
-  // a missing (null: not finite) one is not drawn at all, never at the floor.
-  const pts = cands.filter(plottable)
-    .map((c) => ({c, x: Math.max(c.timings_ms.median.total, 1e-3), y: Math.max(c.metrics.rmse, 1e-6),
-                  spread: spreadOf(c) && spreadOf(c).map((v) => Math.max(v, 1e-3))}))
-    .sort((a, b) => a.x - b.x || a.c.index - b.c.index);
-  if (!pts.length) return null;
-  const floor = Number.isFinite(noise) && noise > 0 ? noise : null;
-  // The scales take in the spreads' ends and the noise floor, so neither is cut off.
-  const xExt = pts.flatMap((p) => (p.spread ? p.spread : [p.x]));
-  const xRange = (u, min, max) => logPad(u, Math.min(min, ...xExt), Math.max(max, ...xExt));
-  const yRange = (u, min, max) => (floor ? logPad(u, Math.min(min, floor), Math.max(max, floor)) : logPad(u, min, max));
-  const xs = pts.map((p) => p.x);
-  const techs = [...new Set(pts.map((p) => p.c.technique))];
-  const ratio = window.devicePixelRatio || 1;
-  let sel = selected;
+  return {stroke: path, fill: filled ? path : null, clip: null, band: null, gaps: null, flags: 0};
+};
 
-  // uPlot `paths` builders: one Path2D holding a shape at every non-null point of the series, in
-  // canvas pixels; `filled` says whether uPlot should fill it as well as stroke it.
-  const pathOf = (shape, filled) => (u, si) => {
-    const ys = u.data[si];
-    const path = new Path2D();
-    for (let i = 0; i < ys.length; i++) {
-      if (ys[i] !== null) shape(path, i, u.valToPos(u.data[0][i], 'x', true), u.valToPos(ys[i], 'y', true));
-    }
-    return {stroke: path, fill: filled ? path : null, clip: null, band: null, gaps: null, flags: 0};
-  };
+const valueText = (u, v) => (v === null ? '–' : v.toPrecision(3));
+
+// The series and data: one series per technique (markers shaped by backend), the Pareto front as
+// a step line, and the ring around the selected point (last; `ringData` recomputes its data).
+function chartSeries(uPlot, pts, techs, colourOf, ratio, ringData) {
   const markers = pathOf((path, i, cx, cy) => addShape(path, shapeOf(pts[i].c.backend), cx, cy, (pts[i].c.pareto ? 6 : 4.5) * ratio), true);
   const ring = pathOf((path, i, cx, cy) => {
     path.moveTo(cx + 10 * ratio, cy);
     path.arc(cx, cy, 10 * ratio, 0, 2 * Math.PI);
   }, false);
-
   const series = [{label: 'median time (ms)'}];
-  const data = [xs];
+  const data = [pts.map((p) => p.x)];
   for (const t of techs) {
     const colour = colourOf(t);
     series.push({label: t, stroke: colour, fill: `${colour}66`, width: 1.5, paths: markers,
-                 points: {show: false}, value: (u, v) => (v === null ? '–' : v.toPrecision(3))});
+                 points: {show: false}, value: valueText});
     data.push(pts.map((p) => (p.c.technique === t ? p.y : null)));
   }
   series.push({label: 'Pareto front', stroke: '#333', width: 1.5, dash: [6, 4], spanGaps: true,
-               paths: uPlot.paths.stepped({align: 1}), points: {show: false}, value: (u, v) => (v === null ? '–' : v.toPrecision(3))});
+               paths: uPlot.paths.stepped({align: 1}), points: {show: false}, value: valueText});
   data.push(pts.map((p) => (p.c.pareto ? p.y : null)));
-  const selData = () => pts.map((p) => (p.c.index === sel ? p.y : null));
   // The ring takes no legend row: it is no data series of its own (the page's list explains it).
-  series.push({label: 'selected', stroke: '#000', width: 2.5, paths: ring, points: {show: false},
-               value: (u, v) => (v === null ? '–' : v.toPrecision(3))});
-  data.push(selData());
+  series.push({label: 'selected', stroke: '#000', width: 2.5, paths: ring, points: {show: false}, value: valueText});
+  data.push(ringData());
+  return {series, data};
+}
 
-  const drawn = {spreads: 0, noiseY: null};
-  // Spreads and the noise floor, on the canvas under uPlot's series (its `drawClear` hook runs
-  // before the series are drawn, after the axes and grid).
-  const decorate = (u) => {
-    const ctx = u.ctx, {left, top, width: w, height: h} = u.bbox;
-    ctx.save();
+// The reference's noise floor (a dotted line, shaded below twice it: "at reference accuracy").
+function drawNoise(u, floor, ratio) {
+  const ctx = u.ctx, {left, top, width: w, height: h} = u.bbox;
+  const y = u.valToPos(floor, 'y', true), y2 = u.valToPos(2 * floor, 'y', true);
+  ctx.fillStyle = 'rgba(120, 120, 120, 0.12)';
+  ctx.fillRect(left, Math.max(top, y2), w, top + h - Math.max(top, y2));
+  ctx.strokeStyle = '#777';
+  ctx.lineWidth = 1.5 * ratio;
+  ctx.setLineDash([2 * ratio, 3 * ratio]);
+  ctx.beginPath();
+  ctx.moveTo(left, y);
+  ctx.lineTo(left + w, y);
+  ctx.stroke();
+  ctx.setLineDash([]);
+  ctx.fillStyle = '#555';
+  ctx.font = `${11 * ratio}px sans-serif`;
+  ctx.fillText('reference noise', left + 4 * ratio, y - 4 * ratio);
+  return y / ratio;
+}
+
+// Spreads and the noise floor, on the canvas under uPlot's series (its `drawClear` hook runs
+// before the series are drawn, after the axes and grid). `drawn` records what was drawn.
+function decorate(u, pts, floor, colourOf, ratio, drawn) {
+  const ctx = u.ctx, {left, top, width: w, height: h} = u.bbox;
+  ctx.save();
+  ctx.beginPath();
+  ctx.rect(left, top, w, h);
+  ctx.clip();
+  drawn.noiseY = floor ? drawNoise(u, floor, ratio) : null;
+  drawn.spreads = 0;
+  ctx.lineWidth = 1.5 * ratio;
+  for (const p of pts) {
+    if (!p.spread) continue;
+    const y = u.valToPos(p.y, 'y', true), x0 = u.valToPos(p.spread[0], 'x', true), x1 = u.valToPos(p.spread[1], 'x', true);
+    const cap = 4 * ratio;
+    ctx.strokeStyle = colourOf(p.c.technique);
     ctx.beginPath();
-    ctx.rect(left, top, w, h);
-    ctx.clip();
-    drawn.noiseY = null;
-    if (floor) {
-      const y = u.valToPos(floor, 'y', true), y2 = u.valToPos(2 * floor, 'y', true);
-      // Below twice the noise a candidate is "at reference accuracy": shaded.
-      ctx.fillStyle = 'rgba(120, 120, 120, 0.12)';
-      ctx.fillRect(left, Math.max(top, y2), w, top + h - Math.max(top, y2));
-      ctx.strokeStyle = '#777';
-      ctx.lineWidth = 1.5 * ratio;
-      ctx.setLineDash([2 * ratio, 3 * ratio]);
-      ctx.beginPath();
-      ctx.moveTo(left, y);
-      ctx.lineTo(left + w, y);
-      ctx.stroke();
-      ctx.setLineDash([]);
-      ctx.fillStyle = '#555';
-      ctx.font = `${11 * ratio}px sans-serif`;
-      ctx.fillText('reference noise', left + 4 * ratio, y - 4 * ratio);
-      drawn.noiseY = y / ratio;
-    }
-    drawn.spreads = 0;
-    ctx.lineWidth = 1.5 * ratio;
-    for (const p of pts) {
-      if (!p.spread) continue;
-      const y = u.valToPos(p.y, 'y', true), x0 = u.valToPos(p.spread[0], 'x', true), x1 = u.valToPos(p.spread[1], 'x', true);
-      const cap = 4 * ratio;
-      ctx.strokeStyle = colourOf(p.c.technique);
-      ctx.beginPath();
-      ctx.moveTo(x0, y);
-      ctx.lineTo(x1, y);
-      ctx.moveTo(x0, y - cap);
-      ctx.lineTo(x0, y + cap);
-      ctx.moveTo(x1, y - cap);
-      ctx.lineTo(x1, y + cap);
-      ctx.stroke();
-      drawn.spreads++;
-    }
-    ctx.restore();
-  };
+    ctx.moveTo(x0, y);
+    ctx.lineTo(x1, y);
+    ctx.moveTo(x0, y - cap);
+    ctx.lineTo(x0, y + cap);
+    ctx.moveTo(x1, y - cap);
+    ctx.lineTo(x1, y + cap);
+    ctx.stroke();
+    drawn.spreads++;
+  }
+  ctx.restore();
+}
 
-  // One button per point over the plot: a roving tab stop (the selected point, else the
-  // fastest), arrow keys move between points in time order, Enter or a click selects.
-  const buttons = pts.map((p) => {
+// One button per point over the plot, named for screen readers; a click selects, focus and hover
+// show the tooltip (`tip.show`).
+function pointButtons(pts, nameOf, onSelect, tip) {
+  return pts.map((p) => {
     const b = document.createElement('button');
     b.type = 'button';
     b.className = 'pt';
@@ -188,52 +172,94 @@ export function paretoChart(box, cands, {colourOf, onSelect, selected = null, na
       ev.stopPropagation();
       onSelect(p.c.index);
     });
-    b.addEventListener('focus', () => showTip(p));
-    b.addEventListener('mouseenter', () => showTip(p));
-    b.addEventListener('blur', () => showTip(null));
+    b.addEventListener('focus', () => tip.show(p));
+    b.addEventListener('mouseenter', () => tip.show(p));
+    b.addEventListener('blur', () => tip.show(null));
     return b;
   });
-  const tip = document.createElement('div');
-  tip.className = 'chart-tip';
-  tip.setAttribute('aria-hidden', 'true'); // the buttons' names say the same to a screen reader
-  tip.hidden = true;
-  let tipOf = null;
-  function showTip(p) {
-    tipOf = p;
-    tip.hidden = !p;
+}
+
+// The hover tooltip naming a point; `plot()` gives the uPlot instance (made after the tooltip).
+function chartTip(nameOf, plot) {
+  const el = document.createElement('div');
+  el.className = 'chart-tip';
+  el.setAttribute('aria-hidden', 'true'); // the buttons' names say the same to a screen reader
+  el.hidden = true;
+  const tip = {el, of: null};
+  tip.show = (p) => {
+    tip.of = p;
+    el.hidden = !p;
     if (!p) return;
-    tip.textContent = nameOf(p.c);
+    const u = plot();
+    el.textContent = nameOf(p.c);
     const x = u.valToPos(p.x, 'x'), y = u.valToPos(p.y, 'y');
-    tip.style.left = `${x}px`;
-    tip.style.top = `${y}px`;
+    el.style.left = `${x}px`;
+    el.style.top = `${y}px`;
     // Near the right edge the tooltip opens to the left of the point.
-    tip.classList.toggle('left', x > u.over.clientWidth / 2);
+    el.classList.toggle('left', x > u.over.clientWidth / 2);
+  };
+  return tip;
+}
+
+// The nearest point to (left, top) on screen within 20 px, or null.
+function nearestPoint(u, pts, left, top) {
+  let best = null, bestD = 20 * 20;
+  for (const p of pts) {
+    const dx = u.valToPos(p.x, 'x') - left, dy = u.valToPos(p.y, 'y') - top;
+    if (dx * dx + dy * dy < bestD) { bestD = dx * dx + dy * dy; best = p; }
   }
-  const placeButtons = (u) => {
+  return best;
+}
+
+// The chart's points: log axes, so a zero time or RMSE (a candidate identical to its reference)
+// is drawn at a floor; a missing (null: not finite) one is not drawn at all, never at the floor.
+function chartPoints(cands) {
+  return cands.filter(plottable)
+    .map((c) => ({c, x: Math.max(c.timings_ms.median.total, 1e-3), y: Math.max(c.metrics.rmse, 1e-6),
+                  spread: spreadOf(c) && spreadOf(c).map((v) => Math.max(v, 1e-3))}))
+    .sort((a, b) => a.x - b.x || a.c.index - b.c.index);
+}
+
+export function paretoChart(box, cands, {colourOf, onSelect, selected = null, nameOf = defaultName, noise = null}) {
+  const uPlot = window.uPlot;
+  if (!uPlot) {
+    box.append('The chart library is missing (run npm ci; the daemon serves it from --vendor-dir).');
+    return null;
+  }
+  const pts = chartPoints(cands);
+  if (!pts.length) return null;
+  const floor = Number.isFinite(noise) && noise > 0 ? noise : null;
+  // The scales take in the spreads' ends and the noise floor, so neither is cut off.
+  const xExt = pts.flatMap((p) => (p.spread ? p.spread : [p.x]));
+  const xRange = (uu, min, max) => logPad(uu, Math.min(min, ...xExt), Math.max(max, ...xExt));
+  const yRange = (uu, min, max) => (floor ? logPad(uu, Math.min(min, floor), Math.max(max, floor)) : logPad(uu, min, max));
+  const techs = [...new Set(pts.map((p) => p.c.technique))];
+  const ratio = window.devicePixelRatio || 1;
+  let sel = selected;
+  const selData = () => pts.map((p) => (p.c.index === sel ? p.y : null));
+  const {series, data} = chartSeries(uPlot, pts, techs, colourOf, ratio, selData);
+  const drawn = {spreads: 0, noiseY: null};
+  let u = null;
+  const tip = chartTip(nameOf, () => u);
+  // A roving tab stop (the selected point, else the fastest); arrow keys move between points in
+  // time order (the page's handler), Enter or a click selects.
+  const buttons = pointButtons(pts, nameOf, onSelect, tip);
+  const placeButtons = (uu) => {
     pts.forEach((p, i) => {
-      buttons[i].style.left = `${u.valToPos(p.x, 'x')}px`;
-      buttons[i].style.top = `${u.valToPos(p.y, 'y')}px`;
+      buttons[i].style.left = `${uu.valToPos(p.x, 'x')}px`;
+      buttons[i].style.top = `${uu.valToPos(p.y, 'y')}px`;
     });
-    if (tipOf) showTip(tipOf);
+    if (tip.of) tip.show(tip.of);
   };
   const roving = () => {
     const k = Math.max(0, pts.findIndex((p) => p.c.index === sel));
     buttons.forEach((b, i) => { b.tabIndex = i === k ? 0 : -1; });
   };
-  // The nearest point to the cursor within 20 px names itself in the tooltip.
-  const nearest = (u, left, top) => {
-    let best = null, bestD = 20 * 20;
-    for (const p of pts) {
-      const dx = u.valToPos(p.x, 'x') - left, dy = u.valToPos(p.y, 'y') - top;
-      if (dx * dx + dy * dy < bestD) { bestD = dx * dx + dy * dy; best = p; }
-    }
-    return best;
-  };
 
   // Short enough for the axis' height: "RMSE of radiance luminance (log scale)".
   const yLabel = `${errorName(pts.map((p) => p.c))} (log scale)`;
   const width = Math.max(320, Math.min(box.clientWidth || 720, 960));
-  const u = new uPlot({
+  u = new uPlot({
     width, height: 340,
     // Padded by a factor on both sides so no marker sits on (and is clipped by) the plot's edge.
     scales: {x: {time: false, distr: 3, log: 10, range: xRange}, y: {distr: 3, log: 10, range: yRange}},
@@ -244,12 +270,12 @@ export function paretoChart(box, cands, {colourOf, onSelect, selected = null, na
     // time (one series at a time has a value there); the tooltip names the point instead.
     legend: {live: false},
     hooks: {
-      drawClear: [decorate],
+      drawClear: [(uu) => decorate(uu, pts, floor, colourOf, ratio, drawn)],
       draw: [placeButtons],
       setCursor: [(uu) => {
         const {left, top} = uu.cursor;
         if (document.activeElement && buttons.includes(document.activeElement)) return;
-        showTip(left === undefined || left < 0 ? null : nearest(uu, left, top));
+        tip.show(left === undefined || left < 0 ? null : nearestPoint(uu, pts, left, top));
       }],
     },
   }, data, box);
@@ -258,7 +284,7 @@ export function paretoChart(box, cands, {colourOf, onSelect, selected = null, na
   for (const row of u.root.querySelectorAll('.u-legend .u-series')) {
     if (row.querySelector('.u-label') && row.querySelector('.u-label').textContent === 'selected') row.style.display = 'none';
   }
-  u.over.append(...buttons, tip);
+  u.over.append(...buttons, tip.el);
   roving();
   placeButtons(u);
 
@@ -266,29 +292,36 @@ export function paretoChart(box, cands, {colourOf, onSelect, selected = null, na
   u.over.addEventListener('click', () => {
     const {left, top} = u.cursor;
     if (left === undefined || left < 0) return;
-    const p = nearest(u, left, top);
+    const p = nearestPoint(u, pts, left, top);
     if (p) onSelect(p.c.index);
   });
-  u.over.addEventListener('mouseleave', () => showTip(null));
+  u.over.addEventListener('mouseleave', () => tip.show(null));
 
   const info = {points: pts.length, series: techs.map((t, k) => ({label: t, points: data[k + 1].filter((v) => v !== null).length})),
                 pareto: data[techs.length + 1].filter((v) => v !== null).length, order: pts.map((p) => p.c.index), yLabel,
                 noiseFloor: floor, drawn, spreads: pts.filter((p) => p.spread).map((p) => ({index: p.c.index, min: p.spread[0], max: p.spread[1]}))};
+  return chartHandle(u, info, buttons, data, () => {
+    roving();
+    return selData();
+  }, (index) => { sel = index; }, () => sel);
+}
+
+// What the page holds of a chart: select, step and focus points, resize, destroy.
+function chartHandle(u, info, buttons, data, ringData, setSel, getSel) {
   return {
     info,
     uplot: u,
     /** Marks candidate `index` (or none) with the ring. */
     select(index) {
-      sel = index;
-      roving();
-      data[data.length - 1] = selData();
+      setSel(index);
+      data[data.length - 1] = ringData();
       // Same scales (the ring adds no new extent): keep them, and repaint.
       u.setData(data, false);
       u.redraw();
     },
     /** Next or previous point in time order from the selected one (keyboard on the chart). */
     step(dir) {
-      const i = info.order.indexOf(sel);
+      const i = info.order.indexOf(getSel());
       const j = i < 0 ? 0 : Math.max(0, Math.min(info.order.length - 1, i + dir));
       return info.order[j];
     },
