@@ -50,6 +50,105 @@ function setError(control, message) {
  * other parameters take comma-separated lists. `base` is the JSON pointer of the entry in the
  * request ("/technique" or "/candidates/K").
  */
+// The backend control of a block: ticks for a comparison, a select (with auto) for a job.
+function backendControl(t, registry, comparison, base) {
+  const vkNote = registry.vulkan_available ? null : 'not available on this server';
+  if (comparison) {
+    return checkGroup('Backends', t.backends.map((b) => ({value: b, label: b, disabled: b === 'vulkan' && !registry.vulkan_available,
+                                                         note: b === 'vulkan' ? vkNote : null})),
+                      {pointer: `${base}/backend`, checked: ['cpu'].filter((b) => t.backends.includes(b)).concat(t.backends.length === 1 ? t.backends : [])});
+  }
+  const sel = el('select', {}, el('option', {value: 'auto'}, 'auto (the server picks)'),
+    ...t.backends.map((b) => el('option', {value: b, disabled: b === 'vulkan' && !registry.vulkan_available}, b + (b === 'vulkan' && vkNote ? ` (${vkNote})` : ''))));
+  return field('Backend', sel, {pointer: `${base}/backend`}).querySelector('select');
+}
+
+// One parameter's control (ticks for a comparison's choices, a select for a job's, else text that
+// a comparison may fill with a list), remembering the request generation it was last edited in.
+function paramEntry(name, schema, comparison, state, onChange) {
+  const pointer = `${state.base}/params/${name}`;
+  const rule = describeRule(schema);
+  const description = `${schema.description || ''}${schema.description ? '. ' : ''}${rule}.`;
+  const choices = schema.enum || (JSON.stringify(schema.type) === '"boolean"' ? [true, false] : null);
+  let control, node;
+  if (choices && comparison) {
+    control = checkGroup(name, choices.map((v) => ({value: v, label: String(v)})),
+                         {description: `${description} None ticked: the default.`, pointer});
+    node = control;
+  } else if (choices) {
+    control = el('select', {}, el('option', {value: ''}, `default (${JSON.stringify(schema.default)})`),
+      ...choices.map((v) => el('option', {value: JSON.stringify(v)}, String(v))));
+    node = field(name, control, {description, pointer});
+  } else {
+    control = el('input', {type: 'text', inputMode: 'decimal', autocomplete: 'off', spellcheck: false,
+      placeholder: comparison ? `default ${JSON.stringify(schema.default)}; e.g. 4, 16, 64` : `default ${JSON.stringify(schema.default)}`});
+    node = field(name, control, {description: comparison ? `${description} A comma-separated list sweeps the values.` : description, pointer});
+  }
+  const entry = {name, schema, control, node, choices, touched: -1};
+  const edited = () => { entry.touched = state.gen; };
+  for (const ev of ['change', 'input']) {
+    control.addEventListener(ev, edited);
+    control.addEventListener(ev, onChange);
+  }
+  return entry;
+}
+
+/**
+ * Shows the params a job of this scene starts from (GET /api/v1/scenes/{name}/defaults) as the
+ * block's values, and says where they come from in `origin`; d null clears the note. Fields
+ * edited since request `gen` started keep what was typed.
+ */
+function fillBlock(state, origin, d, gen) {
+  if (!d) {
+    origin.replaceChildren();
+    return;
+  }
+  for (const p of state.params) {
+    if (!(p.name in d.params) || p.touched === gen) continue;
+    p.control.value = JSON.stringify(d.params[p.name]);
+  }
+  if (d.backend && state.backendTouched !== gen &&
+      [...state.backend.options].some((o) => o.value === d.backend && !o.disabled)) state.backend.value = d.backend;
+  const own = d.technique === d.scene_technique;
+  origin.replaceChildren(el('p', {}, own
+    ? `Values: the parameters ${d.scene} declares for ${d.technique}.`
+    : `Values: ${d.technique}'s defaults (${d.scene} declares ${d.scene_technique}); lengths are fitted to the scene's size.`),
+  ...d.notes.map((n) => el('p', {className: 'derived'}, n)));
+}
+
+/** {value, errors: [[control, message]], count}: a block's entry for the request. */
+function readBlock(state, comparison) {
+  const errors = [];
+  const params = {};
+  let count = 1;
+  for (const p of state.params) {
+    setError(p.control, '');
+    let values;
+    if (p.choices && comparison) values = p.control.values();
+    else if (p.choices) values = p.control.value === '' ? [] : [JSON.parse(p.control.value)];
+    else {
+      const r = parseField(p.schema, p.control.value, {list: comparison});
+      if (r.errors.length) errors.push([p.control, r.errors.join('; ')]);
+      values = r.values;
+    }
+    if (values.length) {
+      params[p.name] = comparison && values.length > 1 ? values : values[0];
+      count *= values.length;
+    }
+  }
+  setError(state.backend, '');
+  const value = {};
+  if (comparison) {
+    const bs = state.backend.values();
+    if (!bs.length) errors.push([state.backend, 'tick at least one backend']);
+    count *= Math.max(bs.length, 1);
+    Object.assign(value, {technique: state.technique.value, backend: bs.length === 1 ? bs[0] : bs, params});
+  } else {
+    Object.assign(value, {name: state.technique.value, backend: state.backend.value, params});
+  }
+  return {value, errors, count};
+}
+
 function techniqueBlock(registry, {comparison, legend, base, onRemove, onChange, onTechnique}) {
   const ts = registry.techniques;
   const technique = el('select', {}, ...ts.map((t) => el('option', {value: t.name}, t.name)));
@@ -66,44 +165,10 @@ function techniqueBlock(registry, {comparison, legend, base, onRemove, onChange,
   const build = () => {
     const t = ts.find((x) => x.name === technique.value);
     desc.textContent = t.description;
-    const vkNote = registry.vulkan_available ? null : 'not available on this server';
-    if (comparison) {
-      state.backend = checkGroup('Backends', t.backends.map((b) => ({value: b, label: b, disabled: b === 'vulkan' && !registry.vulkan_available,
-                                                                   note: b === 'vulkan' ? vkNote : null})),
-                                 {pointer: `${state.base}/backend`, checked: ['cpu'].filter((b) => t.backends.includes(b)).concat(t.backends.length === 1 ? t.backends : [])});
-    } else {
-      state.backend = el('select', {}, el('option', {value: 'auto'}, 'auto (the server picks)'),
-        ...t.backends.map((b) => el('option', {value: b, disabled: b === 'vulkan' && !registry.vulkan_available}, b + (b === 'vulkan' && vkNote ? ` (${vkNote})` : ''))));
-      state.backend = field('Backend', state.backend, {pointer: `${state.base}/backend`}).querySelector('select');
-    }
+    state.backend = backendControl(t, registry, comparison, state.base);
     backendSlot.replaceChildren(state.backend.closest('.field') || state.backend);
-    state.params = Object.entries(t.params_schema.properties || {}).map(([name, schema]) => {
-      const pointer = `${state.base}/params/${name}`;
-      const rule = describeRule(schema);
-      const description = `${schema.description || ''}${schema.description ? '. ' : ''}${rule}.`;
-      const choices = schema.enum || (JSON.stringify(schema.type) === '"boolean"' ? [true, false] : null);
-      let control, node;
-      if (choices && comparison) {
-        control = checkGroup(name, choices.map((v) => ({value: v, label: String(v)})),
-                             {description: `${description} None ticked: the default.`, pointer});
-        node = control;
-      } else if (choices) {
-        control = el('select', {}, el('option', {value: ''}, `default (${JSON.stringify(schema.default)})`),
-          ...choices.map((v) => el('option', {value: JSON.stringify(v)}, String(v))));
-        node = field(name, control, {description, pointer});
-      } else {
-        control = el('input', {type: 'text', inputMode: 'decimal', autocomplete: 'off', spellcheck: false,
-          placeholder: comparison ? `default ${JSON.stringify(schema.default)}; e.g. 4, 16, 64` : `default ${JSON.stringify(schema.default)}`});
-        node = field(name, control, {description: comparison ? `${description} A comma-separated list sweeps the values.` : description, pointer});
-      }
-      const entry = {name, schema, control, node, choices, touched: -1};
-      const edited = () => { entry.touched = state.gen; };
-      control.addEventListener('change', edited);
-      control.addEventListener('input', edited);
-      control.addEventListener('change', onChange);
-      control.addEventListener('input', onChange);
-      return entry;
-    });
+    state.params = Object.entries(t.params_schema.properties || {})
+      .map(([name, schema]) => paramEntry(name, schema, comparison, state, onChange));
     paramsSlot.replaceChildren(el('p', {className: 'hint'}, comparison ? "Parameters: leave empty for the scene's value (its own technique) or the default, lengths fitted to the scene's size."
       : "Parameters: an empty field takes the bundled scene's value for its own technique, else the default fitted to the scene."),
                                ...state.params.map((p) => p.node));
@@ -116,64 +181,11 @@ function techniqueBlock(registry, {comparison, legend, base, onRemove, onChange,
   };
   technique.addEventListener('change', build);
   build();
-
-  /**
-   * Shows the params a job of this scene starts from (GET /api/v1/scenes/{name}/defaults) as the
-   * fields' values, and says where they come from; d null clears the note. Fields edited since
-   * request `gen` started keep what was typed.
-   */
   state.fill = (d, gen) => {
-    if (!d) {
-      origin.replaceChildren();
-      return;
-    }
-    for (const p of state.params) {
-      if (!(p.name in d.params) || p.touched === gen) continue;
-      const v = d.params[p.name];
-      p.control.value = JSON.stringify(v);
-    }
-    if (d.backend && state.backendTouched !== gen &&
-        [...state.backend.options].some((o) => o.value === d.backend && !o.disabled)) state.backend.value = d.backend;
-    const own = d.technique === d.scene_technique;
-    origin.replaceChildren(el('p', {}, own
-      ? `Values: the parameters ${d.scene} declares for ${d.technique}.`
-      : `Values: ${d.technique}'s defaults (${d.scene} declares ${d.scene_technique}); lengths are fitted to the scene's size.`),
-    ...d.notes.map((n) => el('p', {className: 'derived'}, n)));
-    onChange();
+    fillBlock(state, origin, d, gen);
+    if (d) onChange();
   };
-
-  /** {value, errors: [[control, message]], count}: the entry for the request. */
-  state.read = () => {
-    const errors = [];
-    const params = {};
-    let count = 1;
-    for (const p of state.params) {
-      setError(p.control, '');
-      let values;
-      if (p.choices && comparison) values = p.control.values();
-      else if (p.choices) values = p.control.value === '' ? [] : [JSON.parse(p.control.value)];
-      else {
-        const r = parseField(p.schema, p.control.value, {list: comparison});
-        if (r.errors.length) errors.push([p.control, r.errors.join('; ')]);
-        values = r.values;
-      }
-      if (values.length) {
-        params[p.name] = comparison && values.length > 1 ? values : values[0];
-        count *= values.length;
-      }
-    }
-    setError(state.backend, '');
-    const value = {};
-    if (comparison) {
-      const bs = state.backend.values();
-      if (!bs.length) errors.push([state.backend, 'tick at least one backend']);
-      count *= Math.max(bs.length, 1);
-      Object.assign(value, {technique: technique.value, backend: bs.length === 1 ? bs[0] : bs, params});
-    } else {
-      Object.assign(value, {name: technique.value, backend: state.backend.value, params});
-    }
-    return {value, errors, count};
-  };
+  state.read = () => readBlock(state, comparison);
   state.node = fs;
   return state;
 }
@@ -202,222 +214,243 @@ export function mountSubmit(view, _args, query) {
   return () => { alive = false; };
 }
 
-function build(form, registry, scenes, query) {
-  const radio = (name, value, label, checked) => {
-    const r = el('input', {type: 'radio', name, value, id: `${name}-${value}`, checked});
-    return el('span', {className: 'check'}, r, el('label', {for: r.id}, label));
-  };
-  const mode = el('fieldset', {className: 'inline'}, el('legend', {}, 'What to submit'),
-    radio('mode', 'single', 'One job', query.get('mode') !== 'comparison'),
-    radio('mode', 'comparison', 'A comparison (techniques × backends × parameter values against a reference)', query.get('mode') === 'comparison'));
-  const isComparison = () => form.querySelector('input[name=mode]:checked').value === 'comparison';
+const radio = (name, value, label, checked) => {
+  const r = el('input', {type: 'radio', name, value, id: `${name}-${value}`, checked});
+  return el('span', {className: 'check'}, r, el('label', {for: r.id}, label));
+};
 
-  // ---- scene ----
-  const sceneSel = el('select', {}, ...scenes.map((s) => el('option', {value: s.name},
+// The scene (bundled or pasted), the image size, priority and label: controls into f.
+function sceneControls(f, scenes) {
+  const {form} = f;
+  f.sceneSel = el('select', {}, ...scenes.map((s) => el('option', {value: s.name},
     `${s.name} (${s.technique || 'unreadable'}${s.width ? `, ${s.width}×${s.height}` : ''})`)));
-  const sceneJson = el('textarea', {rows: 8, spellcheck: false, placeholder: '{"camera": {...}, "image": {...}, "objects": [...], "technique": {...}}'});
-  const width = el('input', {type: 'text', inputMode: 'numeric', autocomplete: 'off', placeholder: "the scene's"});
-  const height = el('input', {type: 'text', inputMode: 'numeric', autocomplete: 'off', placeholder: "the scene's"});
-  const sceneFields = {bundled: field('Scene file', sceneSel, {pointer: '/scene_file'}),
-                       paste: field('Scene JSON', sceneJson, {description: "A scene document (docs/scene-format.md); meshes must be bundled ones (models/…). Its technique is replaced by the one chosen below; for the same technique its params stay where a field is empty."})};
-  const source = el('fieldset', {className: 'inline'}, el('legend', {}, 'Scene'),
+  f.sceneJson = el('textarea', {rows: 8, spellcheck: false, placeholder: '{"camera": {...}, "image": {...}, "objects": [...], "technique": {...}}'});
+  f.width = el('input', {type: 'text', inputMode: 'numeric', autocomplete: 'off', placeholder: "the scene's"});
+  f.height = el('input', {type: 'text', inputMode: 'numeric', autocomplete: 'off', placeholder: "the scene's"});
+  const sceneFields = {bundled: field('Scene file', f.sceneSel, {pointer: '/scene_file'}),
+                       paste: field('Scene JSON', f.sceneJson, {description: "A scene document (docs/scene-format.md); meshes must be bundled ones (models/…). Its technique is replaced by the one chosen below; for the same technique its params stay where a field is empty."})};
+  f.source = el('fieldset', {className: 'inline'}, el('legend', {}, 'Scene'),
     radio('source', 'bundled', 'A bundled scene', true), radio('source', 'paste', 'Paste a scene document', false));
+  f.isPaste = () => form.querySelector('input[name=source]:checked').value === 'paste';
   const sceneBox = el('div');
-  const showSource = () => {
-    const paste = form.querySelector('input[name=source]:checked').value === 'paste';
-    sceneBox.replaceChildren(paste ? sceneFields.paste : sceneFields.bundled);
-  };
-  source.addEventListener('change', showSource);
-
-  const priority = el('input', {type: 'text', inputMode: 'numeric', value: '50', autocomplete: 'off'});
-  const label = el('input', {type: 'text', maxLength: 256, autocomplete: 'off'});
-  const common = el('fieldset', {}, el('legend', {}, 'Scene and image'), source, sceneBox,
+  f.showSource = () => sceneBox.replaceChildren(f.isPaste() ? sceneFields.paste : sceneFields.bundled);
+  f.source.addEventListener('change', f.showSource);
+  f.priority = el('input', {type: 'text', inputMode: 'numeric', value: '50', autocomplete: 'off'});
+  f.label = el('input', {type: 'text', maxLength: 256, autocomplete: 'off'});
+  return el('fieldset', {}, el('legend', {}, 'Scene and image'), f.source, sceneBox,
     el('div', {className: 'row'},
-      field('Image width (pixels)', width, {pointer: '/image/width', description: "Empty: the scene's own."}),
-      field('Image height (pixels)', height, {pointer: '/image/height', description: "Empty: the scene's own."}),
-      field('Priority', priority, {pointer: '/priority', description: 'integer 0 to 100; higher runs first'}),
-      field('Label', label, {pointer: '/label', description: 'free text, up to 256 characters'})));
+      field('Image width (pixels)', f.width, {pointer: '/image/width', description: "Empty: the scene's own."}),
+      field('Image height (pixels)', f.height, {pointer: '/image/height', description: "Empty: the scene's own."}),
+      field('Priority', f.priority, {pointer: '/priority', description: 'integer 0 to 100; higher runs first'}),
+      field('Label', f.label, {pointer: '/label', description: 'free text, up to 256 characters'})));
+}
 
-  // ---- technique(s) ----
-  const count = el('p', {className: 'count', 'aria-live': 'polite'});
-  const techBox = el('div');
-  let blocks = [];
-  // The server's defaults of a comparison (GET /api/v1/techniques), not the rt_ao schema's own
-  // default samples, which is a job's and not a reference's.
-  const cmpDefaults = registry.comparison_defaults || {};
-  const repeats = el('input', {type: 'text', inputMode: 'numeric', value: String(cmpDefaults.repeats ?? ''), autocomplete: 'off'});
-  const rtSamples = registry.techniques.find((t) => t.name === 'rt_ao');
-  const refSchema = {...((rtSamples && rtSamples.params_schema.properties.samples) || {type: 'integer', minimum: 1}),
+// A comparison's timed runs and reference samples, with the server's defaults (GET
+// /api/v1/techniques), not the rt_ao schema's own default samples, which is a job's and not a
+// reference's.
+function measurementControls(f) {
+  const cmpDefaults = f.registry.comparison_defaults || {};
+  f.repeats = el('input', {type: 'text', inputMode: 'numeric', value: String(cmpDefaults.repeats ?? ''), autocomplete: 'off'});
+  const rtSamples = f.registry.techniques.find((t) => t.name === 'rt_ao');
+  f.refSchema = {...((rtSamples && rtSamples.params_schema.properties.samples) || {type: 'integer', minimum: 1}),
     default: cmpDefaults.reference_samples};
-  const refSamples = el('input', {type: 'text', inputMode: 'numeric', value: String(cmpDefaults.reference_samples ?? ''), autocomplete: 'off'});
-  const cmpOptions = el('fieldset', {}, el('legend', {}, 'Measurement'), el('div', {className: 'row'},
-    field('Timed runs per candidate', repeats, {pointer: '/repeats', description: `integer 1 to 20, default ${cmpDefaults.repeats}; the reported time is the median (after one warm-up run)`}),
-    field('Reference samples', refSamples, {pointer: '/reference/samples', description: "the reference technique's samples " +
-      `(rays per pixel sample of rt_ao for the AO techniques, paths per pixel sample of path_trace for path_trace): ${describeRule(refSchema)}`})));
-  const addBtn = el('button', {type: 'button', className: 'small'}, 'Add candidate');
+  f.refSamples = el('input', {type: 'text', inputMode: 'numeric', value: String(cmpDefaults.reference_samples ?? ''), autocomplete: 'off'});
+  return el('fieldset', {}, el('legend', {}, 'Measurement'), el('div', {className: 'row'},
+    field('Timed runs per candidate', f.repeats, {pointer: '/repeats', description: `integer 1 to 20, default ${cmpDefaults.repeats}; the reported time is the median (after one warm-up run)`}),
+    field('Reference samples', f.refSamples, {pointer: '/reference/samples', description: "the reference technique's samples " +
+      `(rays per pixel sample of rt_ao for the AO techniques, paths per pixel sample of path_trace for path_trace): ${describeRule(f.refSchema)}`})));
+}
 
+// The single job's fields show what the chosen bundled scene runs with for the chosen technique.
+function loadDefaults(f, b) {
+  const gen = ++b.gen;
+  if (f.isPaste() || !f.sceneSel.value) {
+    b.fill(null, gen);
+    return;
+  }
+  api(`/api/v1/scenes/${encodeURIComponent(f.sceneSel.value)}/defaults?technique=${encodeURIComponent(b.technique.value)}`)
+    .then((d) => { if (gen === b.gen) b.fill(d, gen); })
+    .catch(() => { if (gen === b.gen) b.fill(null, gen); });
+}
+
+// The technique block of a job, or a comparison's candidate blocks with Add / Remove and their
+// count; f.showMode redraws them for the chosen mode.
+function techniqueControls(f) {
+  f.count = el('p', {className: 'count', 'aria-live': 'polite'});
+  f.techBox = el('div');
+  f.blocks = [];
+  f.addBtn = el('button', {type: 'button', className: 'small'}, 'Add candidate');
   const recount = () => {
-    if (!isComparison()) {
-      count.textContent = '';
+    if (!f.isComparison()) {
+      f.count.textContent = '';
       return;
     }
-    const n = blocks.reduce((a, b) => a + b.read().count, 0);
-    count.textContent = `${n} candidate${n === 1 ? '' : 's'} (at most ${MAX_CANDIDATES})`;
+    const n = f.blocks.reduce((a, b) => a + b.read().count, 0);
+    f.count.textContent = `${n} candidate${n === 1 ? '' : 's'} (at most ${MAX_CANDIDATES})`;
   };
   // After a removal the later candidates move up: their legends and the JSON pointers that map
   // the server's problems to fields move with them.
-  const renumber = () => blocks.forEach((b, k) => {
+  const renumber = () => f.blocks.forEach((b, k) => {
     b.node.querySelector('legend').textContent = `Candidate ${k + 1}`;
     b.base = `/candidates/${k}`;
-    for (const f of b.node.querySelectorAll('[data-pointer]')) {
-      f.dataset.pointer = f.dataset.pointer.replace(/^\/candidates\/\d+/, `/candidates/${k}`);
+    for (const x of b.node.querySelectorAll('[data-pointer]')) {
+      x.dataset.pointer = x.dataset.pointer.replace(/^\/candidates\/\d+/, `/candidates/${k}`);
     }
   });
   const addCandidate = () => {
-    const k = blocks.length;
-    const b = techniqueBlock(registry, {comparison: true, legend: `Candidate ${k + 1}`, base: `/candidates/${k}`, onChange: recount,
+    const k = f.blocks.length;
+    const b = techniqueBlock(f.registry, {comparison: true, legend: `Candidate ${k + 1}`, base: `/candidates/${k}`, onChange: recount,
       onRemove: () => {
-        blocks = blocks.filter((x) => x !== b);
+        f.blocks = f.blocks.filter((x) => x !== b);
         b.node.remove();
         renumber();
         recount();
       }});
-    blocks.push(b);
-    techBox.append(b.node);
+    f.blocks.push(b);
+    f.techBox.append(b.node);
     recount();
     return b;
   };
-  addBtn.addEventListener('click', () => addCandidate().technique.focus());
-  const showMode = () => {
-    techBox.replaceChildren();
-    blocks = [];
-    if (isComparison()) {
+  f.addBtn.addEventListener('click', () => addCandidate().technique.focus());
+  f.showMode = () => {
+    f.techBox.replaceChildren();
+    f.blocks = [];
+    if (f.isComparison()) {
       addCandidate();
-      cmpOptions.hidden = false;
-      addBtn.hidden = false;
     } else {
-      const b = techniqueBlock(registry, {comparison: false, legend: 'Technique', base: '/technique', onChange: () => {},
-                                          onTechnique: loadDefaults});
-      blocks.push(b);
-      techBox.append(b.node);
-      cmpOptions.hidden = true;
-      addBtn.hidden = true;
+      const b = techniqueBlock(f.registry, {comparison: false, legend: 'Technique', base: '/technique', onChange: () => {},
+                                            onTechnique: (x) => loadDefaults(f, x)});
+      f.blocks.push(b);
+      f.techBox.append(b.node);
     }
-    submitBtn.textContent = isComparison() ? 'Start comparison' : 'Submit job';
+    f.cmpOptions.hidden = f.addBtn.hidden = !f.isComparison();
+    f.submitBtn.textContent = f.isComparison() ? 'Start comparison' : 'Submit job';
     recount();
   };
-  mode.addEventListener('change', showMode);
-  // The single job's fields show what the chosen bundled scene runs with for the chosen technique.
-  function loadDefaults(b) {
-    const gen = ++b.gen;
-    const paste = form.querySelector('input[name=source]:checked').value === 'paste';
-    if (paste || !sceneSel.value) {
-      b.fill(null, gen);
-      return;
-    }
-    api(`/api/v1/scenes/${encodeURIComponent(sceneSel.value)}/defaults?technique=${encodeURIComponent(b.technique.value)}`)
-      .then((d) => { if (gen === b.gen) b.fill(d, gen); })
-      .catch(() => { if (gen === b.gen) b.fill(null, gen); });
+}
+
+function build(form, registry, scenes, query) {
+  const f = {form, registry};
+  const mode = el('fieldset', {className: 'inline'}, el('legend', {}, 'What to submit'),
+    radio('mode', 'single', 'One job', query.get('mode') !== 'comparison'),
+    radio('mode', 'comparison', 'A comparison (techniques × backends × parameter values against a reference)', query.get('mode') === 'comparison'));
+  f.isComparison = () => form.querySelector('input[name=mode]:checked').value === 'comparison';
+  const common = sceneControls(f, scenes);
+  f.cmpOptions = measurementControls(f);
+  f.submitBtn = el('button', {type: 'submit', className: 'primary'}, 'Submit job');
+  techniqueControls(f);
+  mode.addEventListener('change', f.showMode);
+  const refill = () => { if (!f.isComparison() && f.blocks[0]) loadDefaults(f, f.blocks[0]); };
+  f.sceneSel.addEventListener('change', refill);
+  f.source.addEventListener('change', refill);
+
+  f.clientErrors = el('div', {className: 'problems', role: 'alert'});
+  f.serverErrors = el('div', {className: 'problems', role: 'alert'});
+  form.replaceChildren(mode, common, f.cmpOptions, f.techBox, f.addBtn, f.count, f.clientErrors, f.serverErrors,
+                       el('p', {}, f.submitBtn));
+  f.showSource();
+  f.showMode();
+  if (/^\d+$/.test(query.get('clone') || '') && !f.isComparison()) {
+    prefillClone(query.get('clone'), {form, sceneSel: f.sceneSel, sceneJson: f.sceneJson, width: f.width, height: f.height,
+                                      priority: f.priority, label: f.label, block: f.blocks[0], showSource: f.showSource});
   }
-  const refill = () => { if (!isComparison() && blocks[0]) loadDefaults(blocks[0]); };
-  sceneSel.addEventListener('change', refill);
-  source.addEventListener('change', refill);
+  form.addEventListener('submit', (ev) => send(f, ev));
+}
 
-  const clientErrors = el('div', {className: 'problems', role: 'alert'});
-  const serverErrors = el('div', {className: 'problems', role: 'alert'});
-  const submitBtn = el('button', {type: 'submit', className: 'primary'}, 'Submit job');
-  form.replaceChildren(mode, common, cmpOptions, techBox, addBtn, count, clientErrors, serverErrors, el('p', {}, submitBtn));
-  showSource();
-  showMode();
-  if (/^\d+$/.test(query.get('clone') || '') && !isComparison()) {
-    prefillClone(query.get('clone'), {form, sceneSel, sceneJson, width, height, priority, label, block: blocks[0], showSource});
+// The pasted scene document, or null (with the problem in `errors`) when it is not one.
+function pastedScene(f, errors) {
+  setError(f.sceneJson, '');
+  if (!f.isPaste()) return null;
+  try {
+    const doc = JSON.parse(f.sceneJson.value);
+    if (!doc || typeof doc !== 'object' || Array.isArray(doc)) throw new Error('must be a JSON object');
+    return doc;
+  } catch (e) {
+    errors.push([f.sceneJson, `not a scene document: ${e.message}`]);
+    setError(f.sceneJson, `not a scene document: ${e.message}`);
+    return null;
   }
+}
 
-  /** Everything the form says, checked; {body, errors: [[control, message]]}. */
-  const read = () => {
-    const errors = [];
-    const body = {};
-    const paste = form.querySelector('input[name=source]:checked').value === 'paste';
-    setError(sceneJson, '');
-    let doc = null;
-    if (paste) {
-      try {
-        doc = JSON.parse(sceneJson.value);
-        if (!doc || typeof doc !== 'object' || Array.isArray(doc)) throw new Error('must be a JSON object');
-      } catch (e) {
-        errors.push([sceneJson, `not a scene document: ${e.message}`]);
-        setError(sceneJson, `not a scene document: ${e.message}`);
-      }
-    }
-    const set = {};
-    for (const [ctl, ptr] of [[width, '/image/width'], [height, '/image/height']]) {
-      const r = intField(ctl, {min: 1, max: 16384});
-      if (r.bad) errors.push([ctl, ctl._err.textContent]);
-      else if (r.value !== undefined) set[ptr] = r.value;
-    }
-    const pr = intField(priority, {min: 0, max: 100});
-    if (pr.bad) errors.push([priority, priority._err.textContent]);
-    else if (pr.value !== undefined) body.priority = pr.value;
-    if (label.value) body.label = label.value;
-    if (Object.keys(set).length) body.set = set;
-    const entries = blocks.map((b) => b.read());
-    for (const e of entries) {
-      for (const [ctl, msg] of e.errors) setError(ctl, msg);
-      errors.push(...e.errors);
-    }
-    if (isComparison()) {
-      const rp = intField(repeats, {min: 1, max: 20, required: true});
-      if (rp.bad) errors.push([repeats, repeats._err.textContent]);
-      setError(refSamples, '');
-      const rs = parseField(refSchema, refSamples.value);
-      if (rs.errors.length) {
-        setError(refSamples, rs.errors.join('; '));
-        errors.push([refSamples, rs.errors.join('; ')]);
-      }
-      const n = entries.reduce((a, e) => a + e.count, 0);
-      if (!entries.length) errors.push([addBtn, 'add at least one candidate']);
-      if (n > MAX_CANDIDATES) errors.push([blocks[0].technique, `${n} candidates: at most ${MAX_CANDIDATES}`]);
-      if (doc) body.scene = doc;
-      else if (!paste) body.scene_file = sceneSel.value;
-      body.repeats = rp.value;
-      if (rs.given) body.reference = {samples: rs.values[0], backend: 'cpu'};
-      body.candidates = entries.map((e) => e.value);
-    } else {
-      const technique = entries[0].value;
-      // A pasted scene's own params stay for its own technique; the form's are set over them.
-      const pt = doc && doc.technique;
-      if (pt && pt.name === technique.name && pt.params && typeof pt.params === 'object') {
-        technique.params = Object.assign({}, pt.params, technique.params);
-      }
-      if (doc) Object.assign(body, doc, {technique}, form.dataset.sceneName ? {scene_name: form.dataset.sceneName} : {});
-      else if (!paste) Object.assign(body, {scene_file: sceneSel.value, technique});
-    }
-    return {body, errors};
-  };
+// A comparison's own fields of the request body.
+function readComparison(f, body, entries, doc, errors) {
+  const rp = intField(f.repeats, {min: 1, max: 20, required: true});
+  if (rp.bad) errors.push([f.repeats, f.repeats._err.textContent]);
+  setError(f.refSamples, '');
+  const rs = parseField(f.refSchema, f.refSamples.value);
+  if (rs.errors.length) {
+    setError(f.refSamples, rs.errors.join('; '));
+    errors.push([f.refSamples, rs.errors.join('; ')]);
+  }
+  const n = entries.reduce((a, e) => a + e.count, 0);
+  if (!entries.length) errors.push([f.addBtn, 'add at least one candidate']);
+  if (n > MAX_CANDIDATES) errors.push([f.blocks[0].technique, `${n} candidates: at most ${MAX_CANDIDATES}`]);
+  if (doc) body.scene = doc;
+  else if (!f.isPaste()) body.scene_file = f.sceneSel.value;
+  body.repeats = rp.value;
+  if (rs.given) body.reference = {samples: rs.values[0], backend: 'cpu'};
+  body.candidates = entries.map((e) => e.value);
+}
 
-  form.addEventListener('submit', async (ev) => {
-    ev.preventDefault();
-    serverErrors.replaceChildren();
-    const {body, errors} = read();
-    if (errors.length) {
-      clientErrors.replaceChildren(el('p', {}, `Not sent: ${errors.length} problem${errors.length === 1 ? '' : 's'} to fix.`),
-        el('ul', {}, ...errors.map(([ctl, msg]) => el('li', {}, el('button', {type: 'button', className: 'link', onclick: () => focusControl(ctl)},
-          `${nameOf(ctl)}: ${msg}`)))));
-      focusControl(errors[0][0]);
-      return;
+/** Everything the form says, checked; {body, errors: [[control, message]]}. */
+function readForm(f) {
+  const errors = [];
+  const body = {};
+  const doc = pastedScene(f, errors);
+  const set = {};
+  for (const [ctl, ptr] of [[f.width, '/image/width'], [f.height, '/image/height']]) {
+    const r = intField(ctl, {min: 1, max: 16384});
+    if (r.bad) errors.push([ctl, ctl._err.textContent]);
+    else if (r.value !== undefined) set[ptr] = r.value;
+  }
+  const pr = intField(f.priority, {min: 0, max: 100});
+  if (pr.bad) errors.push([f.priority, f.priority._err.textContent]);
+  else if (pr.value !== undefined) body.priority = pr.value;
+  if (f.label.value) body.label = f.label.value;
+  if (Object.keys(set).length) body.set = set;
+  const entries = f.blocks.map((b) => b.read());
+  for (const e of entries) {
+    for (const [ctl, msg] of e.errors) setError(ctl, msg);
+    errors.push(...e.errors);
+  }
+  if (f.isComparison()) {
+    readComparison(f, body, entries, doc, errors);
+  } else {
+    const technique = entries[0].value;
+    // A pasted scene's own params stay for its own technique; the form's are set over them.
+    const pt = doc && doc.technique;
+    if (pt && pt.name === technique.name && pt.params && typeof pt.params === 'object') {
+      technique.params = Object.assign({}, pt.params, technique.params);
     }
-    clientErrors.replaceChildren();
-    submitBtn.disabled = true;
-    const comparison = isComparison();
-    try {
-      const r = await api(comparison ? '/api/v1/comparisons' : '/api/v1/jobs', {method: 'POST', json: body});
-      location.hash = comparison ? `#/comparisons/${r.id}` : `#/jobs/${r.id}`;
-    } catch (e) {
-      showServerProblems(form, serverErrors, e, comparison);
-    } finally {
-      submitBtn.disabled = false;
-    }
-  });
+    if (doc) Object.assign(body, doc, {technique}, f.form.dataset.sceneName ? {scene_name: f.form.dataset.sceneName} : {});
+    else if (!f.isPaste()) Object.assign(body, {scene_file: f.sceneSel.value, technique});
+  }
+  return {body, errors};
+}
+
+// Checks the form and sends it: problems at their fields, or on to the new job's or comparison's page.
+async function send(f, ev) {
+  ev.preventDefault();
+  f.serverErrors.replaceChildren();
+  const {body, errors} = readForm(f);
+  if (errors.length) {
+    f.clientErrors.replaceChildren(el('p', {}, `Not sent: ${errors.length} problem${errors.length === 1 ? '' : 's'} to fix.`),
+      el('ul', {}, ...errors.map(([ctl, msg]) => el('li', {}, el('button', {type: 'button', className: 'link', onclick: () => focusControl(ctl)},
+        `${nameOf(ctl)}: ${msg}`)))));
+    focusControl(errors[0][0]);
+    return;
+  }
+  f.clientErrors.replaceChildren();
+  f.submitBtn.disabled = true;
+  const comparison = f.isComparison();
+  try {
+    const r = await api(comparison ? '/api/v1/comparisons' : '/api/v1/jobs', {method: 'POST', json: body});
+    location.hash = comparison ? `#/comparisons/${r.id}` : `#/jobs/${r.id}`;
+  } catch (e) {
+    showServerProblems(f.form, f.serverErrors, e, comparison);
+  } finally {
+    f.submitBtn.disabled = false;
+  }
 }
 
 function focusControl(ctl) {
