@@ -71,10 +71,10 @@ static int check_formats(obs_vk *vk, obs_err *err) {
 }
 
 /* The render pass and pipeline do not depend on the image size, so they are built once. */
-static int ensure_pipeline(obs_vk *vk, obs_err *err) {
-  if (vk->gb_pipeline) return 0;
-  int rc = check_formats(vk, err);
-  if (rc) return rc;
+/* The G-buffer's render pass: three colour targets stored for readback and a depth buffer that
+ * is not. Kept once made, so a retry after a failure neither leaks nor rebuilds it. */
+static int ensure_render_pass(obs_vk *vk, obs_err *err) {
+  if (vk->gb_pass) return 0;
   VkAttachmentDescription att[T_COUNT];
   VkAttachmentReference color[3];
   for (int t = 0; t < T_COUNT; t++) {
@@ -120,30 +120,15 @@ static int ensure_pipeline(obs_vk *vk, obs_err *err) {
                                  .pSubpasses = &sub,
                                  .dependencyCount = 2,
                                  .pDependencies = dep};
-  /* Each object is kept once made, so a retry after a failure neither leaks nor rebuilds it. */
-  if (!vk->gb_pass && (rc = obs_vk_check(vk, vkCreateRenderPass(vk->dev, &rpci, NULL, &vk->gb_pass),
-                                         "vkCreateRenderPass (G-buffer)", err))) {
-    vk->gb_pass = VK_NULL_HANDLE;
-    return rc;
-  }
-  VkPushConstantRange pr = {VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0,
-                            sizeof(gb_push)};
-  VkPipelineLayoutCreateInfo plci = {.sType = VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO,
-                                     .pushConstantRangeCount = 1,
-                                     .pPushConstantRanges = &pr};
-  if (!vk->gb_layout &&
-      (rc = obs_vk_check(vk, vkCreatePipelineLayout(vk->dev, &plci, NULL, &vk->gb_layout),
-                         "vkCreatePipelineLayout (G-buffer)", err))) {
-    vk->gb_layout = VK_NULL_HANDLE;
-    return rc;
-  }
-  VkShaderModule vs, fs;
-  if ((rc = create_shader(vk, obs_spv_gbuffer_vert, obs_spv_gbuffer_vert_size, &vs, err)))
-    return rc;
-  if ((rc = create_shader(vk, obs_spv_gbuffer_frag, obs_spv_gbuffer_frag_size, &fs, err))) {
-    vkDestroyShaderModule(vk->dev, vs, NULL);
-    return rc;
-  }
+  int rc = obs_vk_check(vk, vkCreateRenderPass(vk->dev, &rpci, NULL, &vk->gb_pass),
+                        "vkCreateRenderPass (G-buffer)", err);
+  if (rc) vk->gb_pass = VK_NULL_HANDLE;
+  return rc;
+}
+
+/* The fixed-function state of the G-buffer pipeline and the pipeline itself, from the two shader
+ * stages. */
+static int create_gbuffer_pipeline(obs_vk *vk, VkShaderModule vs, VkShaderModule fs, obs_err *err) {
   VkPipelineShaderStageCreateInfo stages[2] = {
       {.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
        .stage = VK_SHADER_STAGE_VERTEX_BIT,
@@ -214,10 +199,37 @@ static int ensure_pipeline(obs_vk *vk, obs_err *err) {
                                      .pDynamicState = &dy,
                                      .layout = vk->gb_layout,
                                      .renderPass = vk->gb_pass};
-  rc = obs_vk_check(
+  int rc = obs_vk_check(
       vk, vkCreateGraphicsPipelines(vk->dev, VK_NULL_HANDLE, 1, &ci, NULL, &vk->gb_pipeline),
       "vkCreateGraphicsPipelines (G-buffer)", err);
   if (rc) vk->gb_pipeline = VK_NULL_HANDLE;
+  return rc;
+}
+
+static int ensure_pipeline(obs_vk *vk, obs_err *err) {
+  if (vk->gb_pipeline) return 0;
+  int rc = check_formats(vk, err);
+  if (!rc) rc = ensure_render_pass(vk, err);
+  if (rc) return rc;
+  VkPushConstantRange pr = {VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0,
+                            sizeof(gb_push)};
+  VkPipelineLayoutCreateInfo plci = {.sType = VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO,
+                                     .pushConstantRangeCount = 1,
+                                     .pPushConstantRanges = &pr};
+  if (!vk->gb_layout &&
+      (rc = obs_vk_check(vk, vkCreatePipelineLayout(vk->dev, &plci, NULL, &vk->gb_layout),
+                         "vkCreatePipelineLayout (G-buffer)", err))) {
+    vk->gb_layout = VK_NULL_HANDLE;
+    return rc;
+  }
+  VkShaderModule vs, fs;
+  if ((rc = create_shader(vk, obs_spv_gbuffer_vert, obs_spv_gbuffer_vert_size, &vs, err)))
+    return rc;
+  if ((rc = create_shader(vk, obs_spv_gbuffer_frag, obs_spv_gbuffer_frag_size, &fs, err))) {
+    vkDestroyShaderModule(vk->dev, vs, NULL);
+    return rc;
+  }
+  rc = create_gbuffer_pipeline(vk, vs, fs, err);
   vkDestroyShaderModule(vk->dev, vs, NULL);
   vkDestroyShaderModule(vk->dev, fs, NULL);
   return rc;
@@ -323,12 +335,12 @@ static int sphere_fill(const obs_sphere *s, int n, const double shift[3], double
   /* Exact poles, so both caps close on one point. */
   ct[0] = 1, st[0] = 0, ct[lat] = -1, st[lat] = 0;
   double *o = out;
-#define PUT(j, i)                                                        \
-  do {                                                                   \
+#define PUT(j, i)                                               \
+  do {                                                          \
     o[0] = s->center[0] + shift[0] + s->radius * st[j] * cp[i]; \
     o[1] = s->center[1] + shift[1] + s->radius * ct[j];         \
     o[2] = s->center[2] + shift[2] + s->radius * st[j] * sp[i]; \
-    o += 3;                                                              \
+    o += 3;                                                     \
   } while (0)
   for (int j = 0; j < lat; j++)
     for (int i = 0; i < n; i++) {
@@ -425,7 +437,8 @@ static int build_vertices(obs_vk *vk, const obs_scene *sc, const obs_geometry *g
     rc = obs_err_set(err, OBS_ENOMEM, "%s: out of memory for the G-buffer draw list", sc->name);
     goto fail;
   }
-  for (size_t m = 0; m < geo->nmeshes; m++) obs_gbuffer_albedo(&sc->objects[geo->meshes[m].object], d[m].albedo);
+  for (size_t m = 0; m < geo->nmeshes; m++)
+    obs_gbuffer_albedo(&sc->objects[geo->meshes[m].object], d[m].albedo);
   for (size_t s = 0; s < geo->nspheres; s++) {
     seg[s] = geo->spheres[s].radius > 0 ? sphere_segments(rig, &geo->spheres[s], shift) : 0;
     obs_gbuffer_albedo(&sc->objects[geo->spheres[s].object], d[geo->nmeshes + s].albedo);
