@@ -36,12 +36,14 @@ static int read_token(srv_app *app) {
   char *s = buf;
   while (*s == ' ' || *s == '\t' || *s == '\n' || *s == '\r') s++;
   size_t len = strlen(s);
-  while (len && (s[len - 1] == ' ' || s[len - 1] == '\t' || s[len - 1] == '\n' ||
-                 s[len - 1] == '\r'))
+  while (len &&
+         (s[len - 1] == ' ' || s[len - 1] == '\t' || s[len - 1] == '\n' || s[len - 1] == '\r'))
     s[--len] = '\0';
   if (too_long || len == 0 || strpbrk(s, " \t\r\n")) {
-    fprintf(stderr, "obscurad: --token-file %s: must hold one token of 1 to 4096 characters "
-                    "without spaces\n", path);
+    fprintf(stderr,
+            "obscurad: --token-file %s: must hold one token of 1 to 4096 characters "
+            "without spaces\n",
+            path);
     return -1;
   }
   if (len < 16) srv_log("warning: the token in %s is short (%zu characters)", path, len);
@@ -68,6 +70,53 @@ static int resolve_dir(const char *opt, const char *dir, char *out, int required
   return -1;
 }
 
+/* What the daemon checks and prepares before it opens anything: authentication off loopback,
+ * the token and session key, and the data, database, scenes, web and vendor directories. Returns
+ * 0, or the exit status after saying why on stderr. */
+static int prepare(srv_app *app) {
+  if (!is_loopback(app->cfg.listen) && !app->cfg.token_file) {
+    fprintf(stderr,
+            "obscurad: refusing to listen on %s without --token-file: only loopback "
+            "addresses may run without authentication\n",
+            app->cfg.listen);
+    return 2;
+  }
+  if (app->cfg.token_file && read_token(app)) return 2;
+  if (app->has_token && srv_session_init(app)) {
+    fprintf(stderr, "obscurad: cannot draw the random key that signs session cookies\n");
+    return 2;
+  }
+  snprintf(app->results_dir, sizeof app->results_dir, "%s/results", app->cfg.data_dir);
+  char dbdir[PATH_MAX];
+  snprintf(dbdir, sizeof dbdir, "%s", app->cfg.db);
+  char *slash = strrchr(dbdir, '/');
+  if (slash && slash != dbdir) *slash = '\0';
+  /* A results directory that exists but cannot be written is not refused here: that is a fault
+   * the render lanes report and wait out, like one that appears while running. */
+  if (obs_path_make_dirs(app->results_dir, NULL)) {
+    int e = errno;
+    fprintf(stderr, "obscurad: --data-dir %s: cannot create %s: %s%s\n", app->cfg.data_dir,
+            app->results_dir, strerror(e),
+            e == EROFS                  ? " (the data directory is on a read-only file system)"
+            : e == EACCES || e == EPERM ? " (the data directory is not writable by this user)"
+                                        : "");
+    return 1;
+  }
+  if (slash && slash != dbdir && obs_path_make_dirs(dbdir, NULL)) {
+    fprintf(stderr, "obscurad: --db %s: cannot create the database's directory %s: %s\n",
+            app->cfg.db, dbdir, strerror(errno));
+    return 1;
+  }
+  char real[PATH_MAX];
+  if (resolve_dir("scenes-dir", app->cfg.scenes_dir, app->scenes_real, 1) ||
+      resolve_dir("web-dir", app->cfg.web_dir, app->web_real, 0) ||
+      resolve_dir("vendor-dir", app->cfg.vendor_dir, app->vendor_real, 0) ||
+      resolve_dir("data-dir", app->results_dir, real, 1))
+    return 2;
+  snprintf(app->results_dir, sizeof app->results_dir, "%s", real);
+  return 0;
+}
+
 int main(int argc, char **argv) {
   static srv_app app;
   obs_render_keep_memory();
@@ -88,54 +137,11 @@ int main(int argc, char **argv) {
   pthread_sigmask(SIG_BLOCK, &sigs, NULL);
   signal(SIGPIPE, SIG_IGN);
 
-  if (!is_loopback(app.cfg.listen) && !app.cfg.token_file) {
-    fprintf(stderr, "obscurad: refusing to listen on %s without --token-file: only loopback "
-                    "addresses may run without authentication\n", app.cfg.listen);
+  int pre = prepare(&app);
+  if (pre) {
     srv_config_free(&app.cfg);
-    return 2;
+    return pre;
   }
-  if (app.cfg.token_file && read_token(&app)) {
-    srv_config_free(&app.cfg);
-    return 2;
-  }
-  if (app.has_token && srv_session_init(&app)) {
-    fprintf(stderr, "obscurad: cannot draw the random key that signs session cookies\n");
-    srv_config_free(&app.cfg);
-    return 2;
-  }
-  snprintf(app.results_dir, sizeof app.results_dir, "%s/results", app.cfg.data_dir);
-  char dbdir[PATH_MAX];
-  snprintf(dbdir, sizeof dbdir, "%s", app.cfg.db);
-  char *slash = strrchr(dbdir, '/');
-  if (slash && slash != dbdir) *slash = '\0';
-  /* A results directory that exists but cannot be written is not refused here: that is a fault
-   * the render lanes report and wait out, like one that appears while running. */
-  if (obs_path_make_dirs(app.results_dir, NULL)) {
-    int e = errno;
-    fprintf(stderr, "obscurad: --data-dir %s: cannot create %s: %s%s\n", app.cfg.data_dir,
-            app.results_dir, strerror(e),
-            e == EROFS ? " (the data directory is on a read-only file system)"
-            : e == EACCES || e == EPERM ? " (the data directory is not writable by this user)"
-                                        : "");
-    srv_config_free(&app.cfg);
-    return 1;
-  }
-  if (slash && slash != dbdir && obs_path_make_dirs(dbdir, NULL)) {
-    fprintf(stderr, "obscurad: --db %s: cannot create the database's directory %s: %s\n",
-            app.cfg.db, dbdir, strerror(errno));
-    srv_config_free(&app.cfg);
-    return 1;
-  }
-  char real[PATH_MAX];
-  if (resolve_dir("scenes-dir", app.cfg.scenes_dir, app.scenes_real, 1) ||
-      resolve_dir("web-dir", app.cfg.web_dir, app.web_real, 0) ||
-      resolve_dir("vendor-dir", app.cfg.vendor_dir, app.vendor_real, 0) ||
-      resolve_dir("data-dir", app.results_dir, real, 1)) {
-    srv_config_free(&app.cfg);
-    return 2;
-  }
-  snprintf(app.results_dir, sizeof app.results_dir, "%s", real);
-
   srv_metrics_init();
   if (srv_meshimport_start(&app, &err)) goto out;
   /* No probe with --no-vulkan: loading the driver only to leave it unused costs start-up time
@@ -164,14 +170,17 @@ int main(int argc, char **argv) {
 
   const char *host = app.cfg.listen;
   int v6 = strchr(host, ':') != NULL;
-  fprintf(stderr, "obscurad: listening on http://%s%s%s:%d\n", v6 ? "[" : "", host,
-          v6 ? "]" : "", app.port);
-  srv_log("obscurad %s: database %s, results %s, scenes %s, web %s; %d CPU worker(s) x %d "
-          "thread(s), Vulkan lane %s; token %s",
-          OBSCURA_VERSION, app.cfg.db, app.results_dir, app.scenes_real,
-          app.web_real[0] ? app.web_real : "(none)", app.cfg.workers, app.cpu_threads,
-          app.vulkan_lane ? "on" : !app.cfg.vulkan ? "off (--no-vulkan)" : "off (no device)",
-          app.has_token ? "required" : "not required (loopback)");
+  fprintf(stderr, "obscurad: listening on http://%s%s%s:%d\n", v6 ? "[" : "", host, v6 ? "]" : "",
+          app.port);
+  srv_log(
+      "obscurad %s: database %s, results %s, scenes %s, web %s; %d CPU worker(s) x %d "
+      "thread(s), Vulkan lane %s; token %s",
+      OBSCURA_VERSION, app.cfg.db, app.results_dir, app.scenes_real,
+      app.web_real[0] ? app.web_real : "(none)", app.cfg.workers, app.cpu_threads,
+      app.vulkan_lane   ? "on"
+      : !app.cfg.vulkan ? "off (--no-vulkan)"
+                        : "off (no device)",
+      app.has_token ? "required" : "not required (loopback)");
 
   int sig = 0;
   sigwait(&sigs, &sig);
