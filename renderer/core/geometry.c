@@ -84,6 +84,23 @@ static int mesh_alloc(obs_mesh *m, size_t nverts, size_t ntris, int normals) {
   return 0;
 }
 
+double obs_geometry_tri_area(const float a[3], const float b[3], const float c[3]) {
+  double e1[3], e2[3];
+  for (int j = 0; j < 3; j++) {
+    e1[j] = (double)b[j] - a[j];
+    e2[j] = (double)c[j] - a[j];
+  }
+  double cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2],
+         cz = e1[0] * e2[1] - e1[1] * e2[0];
+  return 0.5 * sqrt(cx * cx + cy * cy + cz * cz);
+}
+
+double obs_geometry_mesh_tri_area(const obs_mesh *m, size_t t) {
+  const uint32_t *i = m->idx + 3 * t;
+  return obs_geometry_tri_area(m->pos + 3 * (size_t)i[0], m->pos + 3 * (size_t)i[1],
+                               m->pos + 3 * (size_t)i[2]);
+}
+
 void obs_geometry_mesh_bounds(const obs_mesh *m, double b[2][3]) {
   for (int k = 0; k < 3; k++) b[0][k] = b[1][k] = 0;
   for (size_t i = 0; i < m->nverts; i++)

@@ -60,6 +60,10 @@ typedef int (*obs_mesh_importer)(void *user, const char *path, const char *root,
  * synchronised: call it before any thread imports (a server, at start) and after they stop. */
 void obs_geometry_set_importer(obs_mesh_importer fn, void *user);
 void obs_geometry_mesh_free(obs_mesh *m);
+/* The area of the triangle (a, b, c), in double. */
+double obs_geometry_tri_area(const float a[3], const float b[3], const float c[3]);
+/* The area of m's triangle t. */
+double obs_geometry_mesh_tri_area(const obs_mesh *m, size_t t);
 /* The box of m's vertices (zeros when it has none). */
 void obs_geometry_mesh_bounds(const obs_mesh *m, double bounds[2][3]);
 

@@ -4,19 +4,6 @@
 
 #include <string.h>
 
-static double tri_area(const obs_mesh *m, size_t t) {
-  const float *v[3];
-  for (int j = 0; j < 3; j++) v[j] = m->pos + 3 * (size_t)m->idx[3 * t + (size_t)j];
-  double e1[3], e2[3];
-  for (int j = 0; j < 3; j++) {
-    e1[j] = (double)v[1][j] - v[0][j];
-    e2[j] = (double)v[2][j] - v[0][j];
-  }
-  double cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2],
-         cz = e1[0] * e2[1] - e1[1] * e2[0];
-  return 0.5 * sqrt(cx * cx + cy * cy + cz * cz);
-}
-
 static double quad_area(const obs_light *l) {
   double a = 0;
   for (int k = 1; k < 3; k++) { /* triangles (v0, v1, v2) and (v0, v2, v3) */
@@ -47,7 +34,7 @@ int obs_obscurance_env_compute(const obs_scene *scene, const obs_geometry *geo,
   for (size_t m = 0; m < geo->nmeshes; m++) {
     const obs_mesh *me = &geo->meshes[m];
     double a = 0;
-    for (size_t t = 0; t < me->ntris; t++) a += tri_area(me, t);
+    for (size_t t = 0; t < me->ntris; t++) a += obs_geometry_mesh_tri_area(me, t);
     add_object(env, sum_e, &scene->objects[me->object], a);
   }
   for (size_t s = 0; s < geo->nspheres; s++) {

@@ -14,8 +14,8 @@
 #define PATCHES_FORMAT "obscura-patches"
 #define PATCHES_MAX_HEADER 4096
 
-int obs_patches_init(obs_patches *p, const char *name, int64_t count, int components,
-                     int with_area, obs_err *err) {
+int obs_patches_init(obs_patches *p, const char *name, int64_t count, int components, int with_area,
+                     obs_err *err) {
   memset(p, 0, sizeof p[0]);
   if (!name || strlen(name) >= sizeof p->name || count < 0 || components < 1 ||
       components > OBS_PATCHES_MAX_COMPONENTS)
@@ -88,9 +88,8 @@ static char *header_text(const obs_patches *p) {
     json_array_append_new(ch, json_string(n));
   }
   json_t *h = json_pack("{s:s, s:i, s:s, s:I, s:i, s:o, s:b, s:s}", "format", PATCHES_FORMAT,
-                        "version", 1, "name", p->name, "count", (json_int_t)p->count,
-                        "components", p->components, "channels", ch, "area", p->area != NULL,
-                        "dtype", "<f4");
+                        "version", 1, "name", p->name, "count", (json_int_t)p->count, "components",
+                        p->components, "channels", ch, "area", p->area != NULL, "dtype", "<f4");
   char *s = json_dumps(h, JSON_COMPACT | JSON_PRESERVE_ORDER);
   json_decref(h);
   return s;
@@ -135,8 +134,7 @@ int obs_patches_read(obs_patches *p, const char *path, obs_err *err) {
   const char *name = json_string_value(json_object_get(h, "name"));
   json_t *count = json_object_get(h, "count"), *comp = json_object_get(h, "components");
   if (!rc && (!fmt || strcmp(fmt, PATCHES_FORMAT) || !name || !json_is_integer(count) ||
-              !json_is_integer(comp) ||
-              json_integer_value(json_object_get(h, "version")) != 1))
+              !json_is_integer(comp) || json_integer_value(json_object_get(h, "version")) != 1))
     rc = obs_err_set(err, OBS_EINVAL, "%s: not an obscura-patches version 1 header", path);
   if (!rc)
     rc = obs_patches_init(p, name, json_integer_value(count), (int)json_integer_value(comp),
@@ -161,18 +159,8 @@ int obs_patches_scene(const obs_scene *scene, int64_t *count, float **area, obs_
     size_t k = 0;
     for (size_t m = 0; !rc && m < geo.nmeshes; m++) {
       const obs_mesh *me = &geo.meshes[m];
-      for (size_t t = 0; t < me->ntris; t++) {
-        const float *v[3];
-        for (int j = 0; j < 3; j++) v[j] = me->pos + 3 * (size_t)me->idx[3 * t + (size_t)j];
-        double e1[3], e2[3];
-        for (int j = 0; j < 3; j++) {
-          e1[j] = (double)v[1][j] - v[0][j];
-          e2[j] = (double)v[2][j] - v[0][j];
-        }
-        double cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2],
-               cz = e1[0] * e2[1] - e1[1] * e2[0];
-        (*area)[k++] = (float)(0.5 * sqrt(cx * cx + cy * cy + cz * cz));
-      }
+      for (size_t t = 0; t < me->ntris; t++)
+        (*area)[k++] = (float)obs_geometry_mesh_tri_area(me, t);
     }
   }
   obs_geometry_free(&geo);
@@ -188,8 +176,8 @@ int obs_patches_render(const obs_patches *p, const int32_t *ids, obs_image *out,
   size_t n = (size_t)out->width * (size_t)out->height;
   for (size_t i = 0; i < n; i++) {
     int32_t id = ids[i];
-    const float *v = id >= 0 && id < p->count ? p->values + (size_t)id * (size_t)p->components
-                                              : NULL;
+    const float *v =
+        id >= 0 && id < p->count ? p->values + (size_t)id * (size_t)p->components : NULL;
     for (int c = 0; c < p->components; c++) plane[c][i] = v ? v[c] : 0.0f;
   }
   return 0;
