@@ -4,6 +4,8 @@
 
 #include <string.h>
 
+const char *const obs_falloff_names[4] = {"binary", "sqrt", "exp", NULL};
+
 static double quad_area(const obs_light *l) {
   double a = 0;
   for (int k = 1; k < 3; k++) { /* triangles (v0, v1, v2) and (v0, v2, v3) */

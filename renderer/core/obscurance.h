@@ -20,6 +20,10 @@ typedef enum obs_falloff_kind {
   OBS_FALLOFF_EXP = 2     /* 1 - exp(-tau d) */
 } obs_falloff_kind;
 
+/* The falloffs' names, indexed by obs_falloff_kind, NULL-terminated: the `falloff` choices of
+ * every technique that has one. */
+extern const char *const obs_falloff_names[4];
+
 typedef struct obs_falloff {
   int kind;     /* obs_falloff_kind */
   double d_max; /* > 0; INFINITY: unbounded (not with SQRT) */

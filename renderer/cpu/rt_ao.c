@@ -11,6 +11,7 @@
 
 #include "camera.h"
 #include "driver.h"
+#include "obscurance.h"
 #include "obscura/render.h"
 #include "raytrace.h"
 #include "rt_ao.h"
@@ -28,18 +29,9 @@ typedef struct job {
   const obs_rt *rt;
   obs_camera_rig cam;
   rt_ao_params p;
+  obs_falloff falloff; /* rho(d) of p */
   int spp;
 } job;
-
-/* rho(d) for a hit at distance d (d = INFINITY: nothing within reach). */
-static double rho(const rt_ao_params *p, double d) {
-  if (!(d < p->max_distance)) return 1.0;
-  switch (p->falloff) {
-    case OBS_RT_AO_FALLOFF_BINARY: return 0.0;
-    case OBS_RT_AO_FALLOFF_SQRT: return sqrt(d / p->max_distance);
-    default: return isinf(d) ? 1.0 : -expm1(-p->tau * d);
-  }
-}
 
 /* The standard error reported for the mean `mean` of n values of rho in [0, 1]. The sample
  * variance says 0 whenever every ray agrees (all escape, or all hit near contact) although the
@@ -99,12 +91,12 @@ static uint64_t shade(const job *jb, const obs_hit *hit, uint32_t x, uint32_t y,
       /* Shading normals may tilt the hemisphere below the true surface; those directions run
        * into the surface itself, so they count as occluded at distance 0 rather than leak. */
       if (w[0] * hit->ng[0] + w[1] * hit->ng[1] + w[2] * hit->ng[2] <= 0.0f) {
-        r = rho(p, 0.0);
-      } else if (p->falloff == OBS_RT_AO_FALLOFF_BINARY) {
+        r = obs_falloff_rho(&jb->falloff, 0.0);
+      } else if (p->falloff == OBS_FALLOFF_BINARY) {
         r = obs_rt_occluded(jb->rt, &ctx, org, w, tfar) ? 0.0 : 1.0;
         rays++;
       } else {
-        r = rho(p, obs_rt_distance(jb->rt, &ctx, org, w, tfar));
+        r = obs_falloff_rho(&jb->falloff, obs_rt_distance(jb->rt, &ctx, org, w, tfar));
         rays++;
       }
       acc->sum += r;
@@ -173,6 +165,7 @@ int obs_rt_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   job jb;
   memset(&jb, 0, sizeof jb);
   jb.p = *(const rt_ao_params *)ctx->bound;
+  jb.falloff = (obs_falloff){jb.p.falloff, jb.p.max_distance, jb.p.tau};
   jb.rt = ctx->rt;
   jb.spp = sc->spp;
   obs_camera_setup(&sc->camera, sc->width, sc->height, &jb.cam);

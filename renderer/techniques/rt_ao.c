@@ -24,7 +24,6 @@ static const obs_output rt_ao_outputs[] = {
      .description = "Coverage (1 where a surface is hit, 0 on the background)"},
     {.name = NULL}};
 
-static const char *const falloffs[] = {"binary", "sqrt", "exp", NULL};
 static const char *const weightings[] = {"cosine", "uniform", NULL};
 /* In the order of obs_sampler_kind. */
 static const char *const samplers[] = {"sobol", "halton", "random", NULL};
@@ -39,8 +38,8 @@ static const obs_param rt_ao_params[] = {
      .description = "occlusion distance d_max in scene units; null = unbounded (binary and exp "
                     "falloff only)",
      .offset = P(max_distance), .size_default = 0.2},
-    {.name = "falloff", .type = OBS_PARAM_ENUM, .choices = falloffs,
-     .def = OBS_RT_AO_FALLOFF_BINARY,
+    {.name = "falloff", .type = OBS_PARAM_ENUM, .choices = obs_falloff_names,
+     .def = OBS_FALLOFF_BINARY,
      .description = "obscurance function rho(d): binary = classic AO, sqrt = sqrt(d/d_max) "
                     "(Mendez-Feliu et al.), exp = 1-exp(-tau d) (Iones et al.)",
      .offset = P(falloff)},

@@ -3,14 +3,12 @@
 #define OBS_RT_AO_H
 
 #include <stdint.h>
-
-/* Values of `falloff` and `weighting`: the indices of their choices in the table. */
-enum { OBS_RT_AO_FALLOFF_BINARY, OBS_RT_AO_FALLOFF_SQRT, OBS_RT_AO_FALLOFF_EXP };
+#include "obscurance.h"
 
 typedef struct obs_rt_ao_params {
   uint32_t samples;    /* occlusion rays per pixel sample */
   double max_distance; /* d_max; INFINITY when null */
-  int falloff;         /* OBS_RT_AO_FALLOFF_* */
+  int falloff;         /* obs_falloff_kind (core/obscurance.h) */
   double tau;          /* exp falloff's rate per scene unit */
   int uniform;         /* weighting: 0 cosine, 1 uniform */
   int sampler;         /* obs_sampler_kind: 0 sobol, 1 halton, 2 random */
