@@ -187,6 +187,17 @@ json_t *obs_params_resolve(obs_jpath *p, const obs_technique *t, const json_t *v
   return out;
 }
 
+void obs_params_check_rules(const obs_technique *t, const json_t *params, const char *doc,
+                            obs_err *err) {
+  for (const obs_param_rule *r = t->rules; r && r->param; r++) {
+    const char *v = json_string_value(json_object_get(params, r->param));
+    if (v && !strcmp(v, r->value) && json_is_null(json_object_get(params, r->needs)))
+      obs_err_set(err, OBS_EINVAL,
+                  "%s: /technique/params/%s: %s \"%s\" needs a finite %s (got null)", doc, r->needs,
+                  r->param, r->value, r->needs);
+  }
+}
+
 /* Stores one checked value (NULL: the default) at its offset. */
 static void store(const obs_param *d, const json_t *v, unsigned char *dst) {
   unsigned char *at = dst + d->offset;

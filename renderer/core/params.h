@@ -13,6 +13,10 @@
  * under p's pointer, and returns a new object with defaults filled in (table order after the
  * given members), or NULL after reporting. */
 json_t *obs_params_resolve(obs_jpath *p, const obs_technique *t, const json_t *value);
+/* The technique's cross-field rules (t->rules) on resolved `params`, reported under
+ * "/technique/params" of document `doc`. */
+void obs_params_check_rules(const obs_technique *t, const json_t *params, const char *doc,
+                            obs_err *err);
 /* One value against its entry; reports under p's pointer. Returns 0 or OBS_EINVAL. */
 int obs_param_check(obs_jpath *p, const obs_param *d, const json_t *v);
 /* The declared parameter name nearest to `name` by edit distance when it is close enough to be a

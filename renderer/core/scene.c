@@ -326,6 +326,7 @@ static void check_needs(obs_jpath *p, const obs_scene *sc) {
                     p->doc, i, t->name);
     }
   }
+  obs_params_check_rules(t, sc->params, p->doc, p->err);
   if (t->check) t->check(sc, sc->params, p->doc, p->err);
 }
 

@@ -140,20 +140,19 @@ static json_t *params_def(const obs_technique *t) {
   json_t *s = obs_technique_params_schema(t);
   char desc[600];
   snprintf(desc, sizeof desc, "Parameters of %s: %s.%s", t->name, t->description,
-           t->params_rules ? " Cross-field rules in allOf." : "");
+           t->rules && t->rules->param ? " Cross-field rules in allOf." : "");
   json_t *o = json_pack("{ss}", "description", desc);
   json_object_update(o, s);
   json_decref(s);
-  if (t->params_rules) {
-    size_t n = strlen(t->params_rules) + 3;
-    char *wrapped = malloc(n);
-    if (wrapped) {
-      snprintf(wrapped, n, "{%s}", t->params_rules);
-      json_t *rules = json_loads(wrapped, 0, NULL);
-      if (rules) json_object_update(o, rules);
-      json_decref(rules);
-      free(wrapped);
-    }
+  if (t->rules && t->rules->param) {
+    /* when param is value, needs is required and a number (not null) */
+    json_t *all = json_array();
+    for (const obs_param_rule *r = t->rules; r->param; r++)
+      json_array_append_new(
+          all, json_pack("{s:{s:{s:{s:s}}, s:[s]}, s:{s:[s], s:{s:{s:s}}}}", "if", "properties",
+                         r->param, "const", r->value, "required", r->param, "then", "required",
+                         r->needs, "properties", r->needs, "type", "number"));
+    json_object_set_new(o, "allOf", all);
   }
   return o;
 }
@@ -192,7 +191,7 @@ static void put_range(obs_strbuf *b, const obs_param *p) {
   shortest(p->min, lo, sizeof lo);
   shortest(p->max, hi, sizeof hi);
   obs_strbuf_put(b, "%s%s, %s%s", p->flags & OBS_PARAM_MIN_EXCLUSIVE ? "(" : "[", lo, hi,
-      p->flags & OBS_PARAM_MAX_EXCLUSIVE ? ")" : "]");
+                 p->flags & OBS_PARAM_MAX_EXCLUSIVE ? ")" : "]");
 }
 
 char *obs_registry_params_markdown(const char *technique) {
@@ -210,7 +209,8 @@ char *obs_registry_params_markdown(const char *technique) {
     const obs_param *p = &t->params[i];
     obs_strbuf_put(&b, "| `%s` | ", p->name);
     if (p->type == OBS_PARAM_ENUM) {
-      for (int c = 0; p->choices[c]; c++) obs_strbuf_put(&b, "%s`%s`", c ? " \\| " : "", p->choices[c]);
+      for (int c = 0; p->choices[c]; c++)
+        obs_strbuf_put(&b, "%s`%s`", c ? " \\| " : "", p->choices[c]);
     } else {
       obs_strbuf_put(&b, "%s%s", types[p->type], p->flags & OBS_PARAM_NULLABLE ? " or null" : "");
     }
@@ -228,7 +228,8 @@ char *obs_registry_params_markdown(const char *technique) {
     put_cell(&b, p->description);
     obs_strbuf_put(&b, " |\n");
   }
-  obs_strbuf_put(&b, "\nWork per pixel sample in the server's limits (the descriptor's cost hook): %s.\n",
+  obs_strbuf_put(
+      &b, "\nWork per pixel sample in the server's limits (the descriptor's cost hook): %s.\n",
       t->cost_rule ? t->cost_rule : "1");
   return obs_strbuf_finish(&b);
 }
@@ -239,8 +240,8 @@ char *obs_registry_params_markdown(const char *technique) {
 char *obs_registry_openapi(void) {
   obs_strbuf b = {0};
   obs_strbuf_put(&b,
-      "    TechniqueName:\n      description: A technique of the registry (GET "
-      "/api/v1/techniques).\n      type: string\n      enum: [");
+                 "    TechniqueName:\n      description: A technique of the registry (GET "
+                 "/api/v1/techniques).\n      type: string\n      enum: [");
   for (size_t i = 0; i < obs_technique_count(); i++)
     obs_strbuf_put(&b, "%s%s", i ? ", " : "", obs_technique_at(i)->name);
   obs_strbuf_put(&b, "]\n");

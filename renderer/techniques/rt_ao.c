@@ -9,18 +9,29 @@
 #include "techniques.h"
 
 static const obs_output rt_ao_outputs[] = {
-    {.name = "ao", .kind = OBS_OUTPUT_SCALAR, .show = OBS_SHOW_GREY, .png = "ao.png",
+    {.name = "ao",
+     .kind = OBS_OUTPUT_SCALAR,
+     .show = OBS_SHOW_GREY,
+     .png = "ao.png",
      .description = "Ambient occlusion (white = open, black = fully occluded)",
      .flags = OBS_OUTPUT_PRIMARY | OBS_OUTPUT_UNIT},
-    {.name = "ao_stderr", .kind = OBS_OUTPUT_SCALAR,
-     .description = "Standard error of the per-pixel AO estimate", .stderr_of = "ao"},
-    {.name = "bent_normal", .kind = OBS_OUTPUT_VECTOR, .show = OBS_SHOW_NORMAL,
+    {.name = "ao_stderr",
+     .kind = OBS_OUTPUT_SCALAR,
+     .description = "Standard error of the per-pixel AO estimate",
+     .stderr_of = "ao"},
+    {.name = "bent_normal",
+     .kind = OBS_OUTPUT_VECTOR,
+     .show = OBS_SHOW_NORMAL,
      .png = "bent_normal.png",
      .description = "Bent normals as colours (X, Y, Z \u2192 red, green, blue)"},
-    {.name = "depth", .kind = OBS_OUTPUT_DEPTH, .show = OBS_SHOW_DEPTH, .png = "depth.png",
+    {.name = "depth",
+     .kind = OBS_OUTPUT_DEPTH,
+     .show = OBS_SHOW_DEPTH,
+     .png = "depth.png",
      .description = "Depth (view distance, grey levels)"},
     {.name = "normal", .kind = OBS_OUTPUT_VECTOR, .description = "World-space surface normal"},
-    {.name = "alpha", .kind = OBS_OUTPUT_SCALAR,
+    {.name = "alpha",
+     .kind = OBS_OUTPUT_SCALAR,
      .description = "Coverage (1 where a surface is hit, 0 on the background)"},
     {.name = NULL}};
 
@@ -30,29 +41,57 @@ static const char *const samplers[] = {"sobol", "halton", "random", NULL};
 
 #define P(member) offsetof(obs_rt_ao_params, member)
 static const obs_param rt_ao_params[] = {
-    {.name = "samples", .type = OBS_PARAM_UINT, .min = 1, .max = 65536, .def = 64,
-     .description = "occlusion rays per pixel sample", .offset = P(samples)},
-    {.name = "max_distance", .type = OBS_PARAM_DOUBLE,
-     .flags = OBS_PARAM_MIN_EXCLUSIVE | OBS_PARAM_NULLABLE | OBS_PARAM_DEFAULT_NULL, .min = 0,
-     .max = 1e30, .null_value = INFINITY,
+    {.name = "samples",
+     .type = OBS_PARAM_UINT,
+     .min = 1,
+     .max = 65536,
+     .def = 64,
+     .description = "occlusion rays per pixel sample",
+     .offset = P(samples)},
+    {.name = "max_distance",
+     .type = OBS_PARAM_DOUBLE,
+     .flags = OBS_PARAM_MIN_EXCLUSIVE | OBS_PARAM_NULLABLE | OBS_PARAM_DEFAULT_NULL,
+     .min = 0,
+     .max = 1e30,
+     .null_value = INFINITY,
      .description = "occlusion distance d_max in scene units; null = unbounded (binary and exp "
                     "falloff only)",
-     .offset = P(max_distance), .size_default = 0.2},
-    {.name = "falloff", .type = OBS_PARAM_ENUM, .choices = obs_falloff_names,
+     .offset = P(max_distance),
+     .size_default = 0.2},
+    {.name = "falloff",
+     .type = OBS_PARAM_ENUM,
+     .choices = obs_falloff_names,
      .def = OBS_FALLOFF_BINARY,
      .description = "obscurance function rho(d): binary = classic AO, sqrt = sqrt(d/d_max) "
                     "(Mendez-Feliu et al.), exp = 1-exp(-tau d) (Iones et al.)",
      .offset = P(falloff)},
-    {.name = "tau", .type = OBS_PARAM_DOUBLE, .flags = OBS_PARAM_MIN_EXCLUSIVE, .min = 0,
-     .max = 1e30, .def = 1, .description = "decay rate of the exp falloff, per scene unit",
+    {.name = "tau",
+     .type = OBS_PARAM_DOUBLE,
+     .flags = OBS_PARAM_MIN_EXCLUSIVE,
+     .min = 0,
+     .max = 1e30,
+     .def = 1,
+     .description = "decay rate of the exp falloff, per scene unit",
      .offset = P(tau)},
-    {.name = "weighting", .type = OBS_PARAM_ENUM, .choices = weightings, .def = 0,
+    {.name = "weighting",
+     .type = OBS_PARAM_ENUM,
+     .choices = weightings,
+     .def = 0,
      .description = "cosine: W = 1/pi int rho cos; uniform: W = 1/(2 pi) int rho",
      .offset = P(uniform)},
-    {.name = "sampler", .type = OBS_PARAM_ENUM, .choices = samplers, .def = OBS_SAMPLER_SOBOL,
-     .description = "sample sequence, scrambled per pixel", .offset = P(sampler)},
-    {.name = "seed", .type = OBS_PARAM_UINT, .min = 0, .max = 4294967295.0, .def = 1,
-     .description = "random seed; images depend only on (pixel, sample, seed)", .offset = P(seed)},
+    {.name = "sampler",
+     .type = OBS_PARAM_ENUM,
+     .choices = samplers,
+     .def = OBS_SAMPLER_SOBOL,
+     .description = "sample sequence, scrambled per pixel",
+     .offset = P(sampler)},
+    {.name = "seed",
+     .type = OBS_PARAM_UINT,
+     .min = 0,
+     .max = 4294967295.0,
+     .def = 1,
+     .description = "random seed; images depend only on (pixel, sample, seed)",
+     .offset = P(seed)},
 };
 #undef P
 
@@ -62,17 +101,8 @@ static double rt_ao_cost(const void *bound) {
   return (double)((const obs_rt_ao_params *)bound)->samples;
 }
 
-/* The sqrt falloff needs a finite max_distance; params_rules states the same for the schema. */
-static void rt_ao_check(const obs_scene *scene, const json_t *params, const char *doc,
-                        obs_err *err) {
-  (void)scene;
-  const char *falloff = json_string_value(json_object_get(params, "falloff"));
-  if (falloff && !strcmp(falloff, "sqrt") && json_is_null(json_object_get(params, "max_distance")))
-    obs_err_set(err, OBS_EINVAL,
-                "%s: /technique/params/max_distance: falloff \"sqrt\" needs a finite max_distance "
-                "(got null)",
-                doc);
-}
+/* The sqrt falloff's rho(d) = sqrt(d / d_max) needs a finite d_max. */
+static const obs_param_rule rt_ao_rules[] = {{"falloff", "sqrt", "max_distance"}, {NULL}};
 
 /* The reference of an rt_ao candidate is rt_ao with the same AO definition: only the sample count,
  * sampler and seed differ (the caller sets them). */
@@ -94,24 +124,22 @@ static int rt_ao_reference(const obs_scene *scene, const json_t *params, obs_ref
  * pixels. A narrow field of view puts the camera far from the scene (about 1 / tan(fov_y / 2)
  * sizes); the ray tracer then moves its float frame from the camera to the geometry and starts
  * camera rays at the geometry's box in double (OBS_RT_FRAME_GEOMETRY), so the narrowest field of
- * view is the screen-space techniques' one. tau has no subrange: exp(-tau d) is evaluated in double at any rate, and a default tau
- * left beside another falloff must not warn. */
+ * view is the screen-space techniques' one. tau has no subrange: exp(-tau d) is evaluated in double
+ * at any rate, and a default tau left beside another falloff must not warn. */
 const obs_technique obs_technique_rt_ao = {
     .name = "rt_ao",
-    .description = "Monte-Carlo ray-traced ambient occlusion / obscurance (Embree); the reference "
-                   "every other technique is measured against",
+    .description =
+        "Monte-Carlo ray-traced ambient occlusion / obscurance (Embree); the reference "
+        "every other technique is measured against",
     .params = rt_ao_params,
     .params_size = sizeof rt_ao_params / sizeof rt_ao_params[0],
     .bound_size = sizeof(obs_rt_ao_params),
-    .params_rules = "\"allOf\": [{\"if\": {\"properties\": {\"falloff\": {\"const\": \"sqrt\"}}, "
-                    "\"required\": [\"falloff\"]}, \"then\": {\"required\": [\"max_distance\"], "
-                    "\"properties\": {\"max_distance\": {\"type\": \"number\"}}}}]",
+    .rules = rt_ao_rules,
     .cost = rt_ao_cost,
     .cost_rule = "samples",
     .ms_per_work = 9e-5,
     .needs = OBS_NEED_BVH | OBS_NEED_BVH_FRAME_GEOMETRY,
     .outputs = rt_ao_outputs,
-    .check = rt_ao_check,
     .reference = rt_ao_reference,
     .reference_quality = "samples",
     .run = {[OBS_BACKEND_CPU] = obs_rt_ao_cpu},

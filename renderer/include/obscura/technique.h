@@ -218,6 +218,13 @@ typedef struct obs_param {
   double size_default;
 } obs_param;
 
+/* A cross-field rule between parameters: when `param` (an enum) is the choice `value`, `needs`
+ * (a nullable number) must not be null. The scene loader's check and the allOf of the technique's
+ * params schema both come from it. */
+typedef struct obs_param_rule {
+  const char *param, *value, *needs; /* param NULL ends a list */
+} obs_param_rule;
+
 /* The work of one pixel sample of a technique with bound params, in units the server's limits
  * count (docs/server.md, "Mesh import and work limits"): e.g. rays or depth-buffer taps. */
 typedef double (*obs_technique_cost_fn)(const void *bound);
@@ -288,9 +295,8 @@ typedef struct obs_technique {
   const obs_param *params;      /* the parameter table, in the order documents list them */
   size_t params_size;           /* entries of `params` */
   size_t bound_size;            /* sizeof the C struct `params` lands in (ctx->bound) */
-  /* JSON Schema keywords (an object's members, JSON text) that state `check`'s cross-field rules
-   * for schema/scene.schema.json; NULL when there are none. */
-  const char *params_rules;
+  /* Cross-field rules of the parameters, ended by an entry with a NULL param; NULL: none. */
+  const obs_param_rule *rules;
   obs_technique_cost_fn cost;   /* NULL: 1 per pixel sample */
   const char *cost_rule;        /* the cost hook in words ("samples"), for the API and docs */
   /* Milliseconds per unit of work (width x height x spp x cost) on the reference machine of
