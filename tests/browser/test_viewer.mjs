@@ -352,3 +352,25 @@ test('image viewer: zoom, pan, readout, exposure, A/B, keyboard, 800 px', async 
     await d.stopClean();
   }
 });
+
+test('image viewer with a token: the EXR loads with the bearer header', async () => {
+  const TOKEN = 'viewer-token-0123456789abcdef';
+  const d = await startDashboard({token: TOKEN});
+  const {browser, page, errors} = await openBrowser();
+  try {
+    const id = await submit(d, {scene_file: 'sphere_on_plane.json', technique: {name: 'rt_ao', backend: 'cpu', params: {samples: 4}},
+      set: {'/image/width': 16, '/image/height': 12}});
+    await waitAll(d, [id]);
+    await page.goto(`${d.url}/#/jobs`);
+    await page.evaluate((t) => localStorage.setItem('obscura-token', t), TOKEN);
+    await page.goto(`${d.url}/#/view/${id}`);
+    await page.reload();
+    await waitViewer(page, {output: 'ao'});
+    const s = await viewer(page);
+    assert.deepEqual([s.w, s.h], [16, 12], 'the EXR was read');
+    assert.deepEqual(errors, []);
+  } finally {
+    await browser.close();
+    await d.stopClean();
+  }
+});

@@ -58,17 +58,18 @@ export function displayBytes(img, output, view, stops) {
     out[4 * i + 1] = g;
     out[4 * i + 2] = b;
   };
+  // One channel is grey (R = G = B); three are R, G, B.
+  const planeOf = (k) => src[Math.min(k, src.length - 1)];
   if (view === 'tonemap' || view === 'grey') {
     const gamma = view === 'tonemap', scale = gamma ? 2 ** stops : 1;
-    for (let i = 0; i < n; i++) {
-      const q = src.map((p) => quantize(Math.fround(p[i] * scale), gamma));
-      put(i, q[0], q[src.length > 1 ? 1 : 0], q[src.length > 2 ? 2 : 0]);
+    for (let k = 0; k < 3; k++) {
+      const p = planeOf(k);
+      for (let i = 0; i < n; i++) out[4 * i + k] = quantize(Math.fround(p[i] * scale), gamma);
     }
   } else if (view === 'normal') {
-    for (let i = 0; i < n; i++) {
-      if (!covered(i)) continue;
-      const q = src.map((p) => quantize(Math.fround(p[i] * 0.5 + 0.5), false));
-      put(i, q[0], q[src.length > 1 ? 1 : 0], q[src.length > 2 ? 2 : 0]);
+    for (let k = 0; k < 3; k++) {
+      const p = planeOf(k);
+      for (let i = 0; i < n; i++) if (covered(i)) out[4 * i + k] = quantize(Math.fround(p[i] * 0.5 + 0.5), false);
     }
   } else {
     const depth = view === 'depth';
@@ -99,6 +100,38 @@ export function toCanvas(data) {
   return c;
 }
 
+/** Paints image A or B (toggle), or A and B either side of the divider (split), as `s` says. */
+function paintView(ctx, s, imgs) {
+  const {width, height} = ctx.canvas;
+  ctx.setTransform(1, 0, 0, 1, 0, 0);
+  ctx.fillStyle = '#3a3d44';
+  ctx.fillRect(0, 0, width, height);
+  const first = imgs[s.showing], other = imgs[s.showing === 'A' ? 'B' : 'A'];
+  if (!first) return;
+  // Magnified pixels stay squares; a reduced image is filtered so it does not alias.
+  ctx.imageSmoothingEnabled = s.zoom < 1;
+  const paint = (img) => {
+    ctx.setTransform(s.zoom, 0, 0, s.zoom, s.panX, s.panY);
+    ctx.drawImage(img, 0, 0);
+    ctx.setTransform(1, 0, 0, 1, 0, 0);
+  };
+  if (s.mode !== 'split' || !other) {
+    paint(first);
+    return;
+  }
+  const x = Math.round(s.split * width);
+  for (const [img, x0, x1] of [[first, 0, x], [other, x, width]]) {
+    ctx.save();
+    ctx.beginPath();
+    ctx.rect(x0, 0, x1 - x0, height);
+    ctx.clip();
+    paint(img);
+    ctx.restore();
+  }
+  ctx.fillStyle = '#e07b00';
+  ctx.fillRect(x - 1, 0, 2, height);
+}
+
 /**
  * The view on `canvas`. hooks.pixel(x, y, pinned) reports the image pixel under the pointer (null
  * when outside), hooks.change() any change of zoom, pan, split or which image shows. Returns the
@@ -107,42 +140,14 @@ export function toCanvas(data) {
  */
 export function createView(canvas, hooks) {
   const ctx = canvas.getContext('2d', {willReadFrequently: true});
-  const s = {zoom: 1, panX: 0, panY: 0, fitted: true, split: 0.5, mode: 'toggle', showing: 'A', w: 0, h: 0};
+  const s = {zoom: 1, panX: 0, panY: 0, fitted: true, split: 0.5, mode: 'toggle', showing: 'A', hasB: false, w: 0, h: 0};
   let imgs = {A: null, B: null};
   const changed = () => {
     draw();
     hooks.change();
   };
 
-  function draw() {
-    ctx.setTransform(1, 0, 0, 1, 0, 0);
-    ctx.fillStyle = '#3a3d44';
-    ctx.fillRect(0, 0, canvas.width, canvas.height);
-    const first = imgs[s.showing], other = imgs[s.showing === 'A' ? 'B' : 'A'];
-    if (!first) return;
-    // Magnified pixels stay squares; a reduced image is filtered so it does not alias.
-    ctx.imageSmoothingEnabled = s.zoom < 1;
-    const paint = (img) => {
-      ctx.setTransform(s.zoom, 0, 0, s.zoom, s.panX, s.panY);
-      ctx.drawImage(img, 0, 0);
-      ctx.setTransform(1, 0, 0, 1, 0, 0);
-    };
-    if (s.mode === 'split' && other) {
-      const x = Math.round(s.split * canvas.width);
-      for (const [img, x0, x1] of [[first, 0, x], [other, x, canvas.width]]) {
-        ctx.save();
-        ctx.beginPath();
-        ctx.rect(x0, 0, x1 - x0, canvas.height);
-        ctx.clip();
-        paint(img);
-        ctx.restore();
-      }
-      ctx.fillStyle = '#e07b00';
-      ctx.fillRect(x - 1, 0, 2, canvas.height);
-    } else {
-      paint(first);
-    }
-  }
+  const draw = () => paintView(ctx, s, imgs);
 
   function fit() {
     if (!s.w) return;
@@ -173,51 +178,9 @@ export function createView(canvas, hooks) {
     const x = Math.floor((cx - s.panX) / s.zoom), y = Math.floor((cy - s.panY) / s.zoom);
     return x >= 0 && y >= 0 && x < s.w && y < s.h ? {x, y} : null;
   };
-  const local = (ev) => {
-    // Inside the border: the bitmap is as large as the content box.
-    const r = canvas.getBoundingClientRect();
-    return [(ev.clientX - r.left - canvas.clientLeft) * (canvas.width / canvas.clientWidth),
-            (ev.clientY - r.top - canvas.clientTop) * (canvas.height / canvas.clientHeight)];
-  };
 
-  // Dragging pans, or moves the divider when it starts on it; a press without a drag pins the pixel.
-  let drag = null;
-  canvas.addEventListener('pointerdown', (ev) => {
-    const [x, y] = local(ev);
-    const onDivider = s.mode === 'split' && imgs.B && Math.abs(x - s.split * canvas.width) <= 6;
-    drag = {x, y, x0: x, y0: y, divider: onDivider, moved: false};
-    canvas.setPointerCapture(ev.pointerId);
-  });
-  canvas.addEventListener('pointermove', (ev) => {
-    const [x, y] = local(ev);
-    if (!drag) {
-      canvas.classList.toggle('on-divider', s.mode === 'split' && !!imgs.B && Math.abs(x - s.split * canvas.width) <= 6);
-      const p = pixelAt(x, y);
-      hooks.pixel(p, false);
-      return;
-    }
-    drag.moved = drag.moved || Math.hypot(x - drag.x0, y - drag.y0) > 3;
-    if (drag.divider) setSplit(x / canvas.width);
-    else panBy(x - drag.x, y - drag.y);
-    drag.x = x;
-    drag.y = y;
-  });
-  canvas.addEventListener('pointerup', (ev) => {
-    const d = drag;
-    drag = null;
-    if (d && !d.moved && !d.divider) {
-      const [x, y] = local(ev);
-      hooks.pixel(pixelAt(x, y), true);
-    }
-  });
-  canvas.addEventListener('pointerleave', () => {
-    if (!drag) hooks.pixel(null, false);
-  });
-  canvas.addEventListener('wheel', (ev) => {
-    ev.preventDefault();
-    const [x, y] = local(ev);
-    zoomBy(ev.deltaY < 0 ? 1.25 : 0.8, x, y);
-  }, {passive: false});
+  const ctl = {state: s, draw, fit, zoomBy, oneToOne, panBy, pixelAt, setSplit: (f) => setSplit(f)};
+  attachPointer(canvas, ctl, hooks);
 
   // The canvas's bitmap follows its laid-out size (the window, 800 px or wider, or narrower).
   const resize = () => {
@@ -235,12 +198,12 @@ export function createView(canvas, hooks) {
     s.split = Math.min(1, Math.max(0, f));
     changed();
   }
-  return {
-    state: s, draw, fit, zoomBy, oneToOne, panBy, pixelAt, setSplit,
+  return Object.assign(ctl, {
     /** Images A and B (canvases at the image size; B may be null); the first call fits. */
     setImages(a, b) {
       const first = !imgs.A;
       imgs = {A: a, B: b};
+      s.hasB = !!b;
       if (!b) s.showing = 'A';
       s.w = a.width;
       s.h = a.height;
@@ -258,5 +221,52 @@ export function createView(canvas, hooks) {
       changed();
     },
     destroy: () => observer.disconnect(),
+  });
+}
+
+/**
+ * Pointer input on the view's canvas: dragging pans, or moves the divider when it starts on it; a
+ * press without a drag pins the pixel; the wheel zooms about the pointer. `ctl` is the view.
+ */
+function attachPointer(canvas, ctl, hooks) {
+  const s = ctl.state;
+  const onDivider = (x) => s.mode === 'split' && s.hasB && Math.abs(x - s.split * canvas.width) <= 6;
+  // Inside the border: the bitmap is as large as the content box.
+  const local = (ev) => {
+    const r = canvas.getBoundingClientRect();
+    return [(ev.clientX - r.left - canvas.clientLeft) * (canvas.width / canvas.clientWidth),
+            (ev.clientY - r.top - canvas.clientTop) * (canvas.height / canvas.clientHeight)];
   };
+  let drag = null;
+  canvas.addEventListener('pointerdown', (ev) => {
+    const [x, y] = local(ev);
+    drag = {x, y, x0: x, y0: y, divider: onDivider(x), moved: false};
+    canvas.setPointerCapture(ev.pointerId);
+  });
+  canvas.addEventListener('pointermove', (ev) => {
+    const [x, y] = local(ev);
+    if (!drag) {
+      canvas.classList.toggle('on-divider', onDivider(x));
+      hooks.pixel(ctl.pixelAt(x, y), false);
+      return;
+    }
+    drag.moved = drag.moved || Math.hypot(x - drag.x0, y - drag.y0) > 3;
+    if (drag.divider) ctl.setSplit(x / canvas.width);
+    else ctl.panBy(x - drag.x, y - drag.y);
+    drag.x = x;
+    drag.y = y;
+  });
+  canvas.addEventListener('pointerup', (ev) => {
+    const d = drag;
+    drag = null;
+    if (d && !d.moved && !d.divider) hooks.pixel(ctl.pixelAt(...local(ev)), true);
+  });
+  canvas.addEventListener('pointerleave', () => {
+    if (!drag) hooks.pixel(null, false);
+  });
+  canvas.addEventListener('wheel', (ev) => {
+    ev.preventDefault();
+    const [x, y] = local(ev);
+    ctl.zoomBy(ev.deltaY < 0 ? 1.25 : 0.8, x, y);
+  }, {passive: false});
 }

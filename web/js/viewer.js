@@ -143,178 +143,201 @@ function keyHandler(page) {
   };
 }
 
-export function mountViewer(view, [id], query) {
-  const back = SAFE_BACK.test(query.get('back') || '') ? query.get('back') : `#/jobs/${id}`;
-  const status = el('p', {role: 'alert', className: 'error'});
-  const note = el('p', {className: 'muted viewer-note'}, `Loading the EXR of job ${id}…`);
-  const canvas = el('canvas', {className: 'viewer-canvas', tabindex: '0', role: 'img',
-    'aria-label': `Job ${id} at full resolution. Keys: + and − zoom, F fits, 1 shows actual size, arrows pan, ` +
-      'P pins the centre pixel and Shift+arrows move it, B flips A and B, S splits, Escape closes.'});
-  const readout = el('div', {className: 'readout-box', 'aria-live': 'polite'});
-  const close = el('a', {href: back, className: 'button small'}, '✕ Close');
-  const title = el('h1', {}, `Job ${id}: viewer`);
-  const on = {
-    output: () => { chooseOutput(tools.output.value); redraw(); },
-    view: () => { st.view = tools.view.value; redraw(); },
-    exposure: () => { st.stops = Number(tools.exposure.value); redraw(); },
-    compare: () => setB(tools.compare.value ? Number(tools.compare.value) : null),
-    mode: () => setMode(tools.mode.value),
-    split: () => v.setSplit(Number(tools.split.value) / 100),
-    flip: () => v.flip(), zoom: (f) => v.zoomBy(f), fit: () => v.fit(), one: () => v.oneToOne(),
-  };
-  const tools = toolbar(on);
-  view.append(el('p', {className: 'crumbs'}, close, ' ', el('a', {href: `#/jobs/${id}`}, `job ${id}`)), title, status,
-    tools.bar, note, el('div', {className: 'viewer-main'}, canvas, el('section', {className: 'readout-panel', 'aria-label': 'Pixel values'}, readout)));
-  const v = createView(canvas, {pixel: (p, click) => onPixel(p, click), change: () => onChange()});
-  const st = {a: null, b: null, output: null, view: null, stops: 0, hover: null, pin: null, dead: false, rows: []};
-  debug.viewer = {ready: false, view: v.state, st};
-  const page = {view: v, close: () => { location.hash = back; }, flip: () => { v.flip(); }, setMode, movePin, pinCentre};
-  const onKey = keyHandler(page);
-  document.addEventListener('keydown', onKey);
+/** The viewer page of job `id`: its DOM, state and handlers; destroy() when the route changes. */
+class ViewerPage {
+  constructor(view, id, query) {
+    this.id = id;
+    this.query = query;
+    this.back = SAFE_BACK.test(query.get('back') || '') ? query.get('back') : `#/jobs/${id}`;
+    this.st = {a: null, b: null, output: null, view: null, stops: 0, made: 0, hover: null, pin: null, dead: false};
+    this.status = el('p', {role: 'alert', className: 'error'});
+    this.note = el('p', {className: 'muted viewer-note'}, `Loading the EXR of job ${id}…`);
+    this.canvas = el('canvas', {className: 'viewer-canvas', tabindex: '0', role: 'img',
+      'aria-label': `Job ${id} at full resolution. Keys: + and − zoom, F fits, 1 shows actual size, arrows pan, ` +
+        'P pins the centre pixel and Shift+arrows move it, B flips A and B, S splits, Escape closes.'});
+    this.readout = el('div', {className: 'readout-box'});
+    // Screen readers hear a pinned pixel's values, not every pixel the pointer crosses.
+    this.pinned = el('p', {className: 'sr-only', 'aria-live': 'polite'});
+    this.title = el('h1', {}, `Job ${id}: viewer`);
+    this.tools = toolbar({
+      output: () => { this.chooseOutput(this.tools.output.value); this.redraw(); },
+      view: () => { this.st.view = this.tools.view.value; this.redraw(); },
+      exposure: () => { this.st.stops = Number(this.tools.exposure.value); this.redraw(); },
+      compare: () => this.setB(this.tools.compare.value ? Number(this.tools.compare.value) : null),
+      mode: () => this.setMode(this.tools.mode.value),
+      split: () => this.view.setSplit(Number(this.tools.split.value) / 100),
+      flip: () => this.view.flip(), zoom: (f) => this.view.zoomBy(f), fit: () => this.view.fit(), one: () => this.view.oneToOne(),
+    });
+    view.append(el('p', {className: 'crumbs'}, el('a', {href: this.back, className: 'button small'}, '✕ Close'), ' ',
+      el('a', {href: `#/jobs/${id}`}, `job ${id}`)), this.title, this.status, this.tools.bar, this.note,
+      el('div', {className: 'viewer-main'}, this.canvas,
+        el('section', {className: 'readout-panel', 'aria-label': 'Pixel values'}, this.readout, this.pinned)));
+    this.view = createView(this.canvas, {pixel: (p, click) => this.onPixel(p, click), change: () => this.onChange()});
+    debug.viewer = {ready: false, view: this.view.state, st: this.st};
+    this.onKey = keyHandler(this);
+    document.addEventListener('keydown', this.onKey);
+  }
 
-  function onPixel(p, click) {
+  close() {
+    location.hash = this.back;
+  }
+  flip() {
+    this.view.flip();
+  }
+
+  onPixel(p, click) {
+    const {st} = this;
     if (click) st.pin = p && st.pin && p.x === st.pin.x && p.y === st.pin.y ? null : p;
     else st.hover = p;
-    showReadout();
+    this.showReadout();
   }
-  function showReadout() {
+  showReadout() {
+    const {st} = this;
     if (!st.a) return;
     const p = st.pin || st.hover;
-    st.rows = renderReadout(readout, st.a, st.b, p, !!st.pin && p === st.pin);
-    debug.viewer.readout = p ? {x: p.x, y: p.y, pinned: p === st.pin, rows: st.rows} : null;
+    const rows = renderReadout(this.readout, st.a, st.b, p, !!st.pin && p === st.pin);
+    const said = st.pin ? `Pinned x ${st.pin.x}, y ${st.pin.y}` : 'No pixel pinned';
+    if (p === st.pin || !st.pin) this.pinned.textContent = st.pin ? `${said}: ${rows.map((r) => `${r.name} ${fmt(r.a)}`).join(', ')}` : said;
+    debug.viewer.readout = p ? {x: p.x, y: p.y, pinned: p === st.pin, rows} : null;
   }
-  function movePin(dx, dy) {
+  movePin(dx, dy) {
+    const {st} = this;
     if (!st.a) return;
     const p = st.pin || st.hover || {x: 0, y: 0};
     st.pin = {x: Math.min(st.a.img.width - 1, Math.max(0, p.x + dx)), y: Math.min(st.a.img.height - 1, Math.max(0, p.y + dy))};
-    showReadout();
+    this.showReadout();
   }
-  function pinCentre() {
-    const p = v.pixelAt(canvas.width / 2, canvas.height / 2);
-    st.pin = st.pin ? null : p;
-    showReadout();
+  pinCentre() {
+    this.st.pin = this.st.pin ? null : this.view.pixelAt(this.canvas.width / 2, this.canvas.height / 2);
+    this.showReadout();
   }
-  function onChange() {
-    const s = v.state;
-    tools.zoomText.textContent = `${s.zoom >= 1 ? Math.round(s.zoom * 100) : (s.zoom * 100).toPrecision(2)} %${s.fitted ? ' (fit)' : ''}` +
-      (st.b ? ` · showing ${s.mode === 'split' ? `${s.showing} left, ${s.showing === 'A' ? 'B' : 'A'} right` : s.showing}` : '');
-    tools.split.value = String(Math.round(s.split * 100));
-    debug.viewer.draws = (debug.viewer.draws || 0) + 1;
+
+  onChange() {
+    const s = this.view.state, other = s.showing === 'A' ? 'B' : 'A';
+    this.tools.zoomText.textContent = `${s.zoom >= 1 ? Math.round(s.zoom * 100) : (s.zoom * 100).toPrecision(2)} %${s.fitted ? ' (fit)' : ''}` +
+      (this.st.b ? ` · showing ${s.mode === 'split' ? `${s.showing} left, ${other} right` : s.showing}` : '');
+    this.tools.split.value = String(Math.round(s.split * 100));
   }
-  function setMode(m) {
-    tools.mode.value = m;
-    v.setMode(m);
-    tools.splitWrap.hidden = m !== 'split';
-    keepUrl();
+  setMode(m) {
+    this.tools.mode.value = m;
+    this.view.setMode(m);
+    this.tools.splitWrap.hidden = m !== 'split';
+    this.keepUrl();
   }
 
   // The route's query follows the choices, so a view can be linked (replaceState: no new route).
-  function keepUrl() {
-    const q = new URLSearchParams();
+  keepUrl() {
+    const {st} = this, q = new URLSearchParams();
     if (st.b) q.set('b', String(st.b.id));
     if (st.output) q.set('output', st.output.name);
     if (st.view) q.set('view', st.view);
-    if (st.b) q.set('mode', v.state.mode);
-    if (st.stops) q.set('exposure', String(st.stops));
-    if (query.get('back')) q.set('back', back);
-    history.replaceState(null, '', `#/view/${id}${q.size ? `?${q}` : ''}`);
+    if (st.b) q.set('mode', this.view.state.mode);
+    if (st.stops !== st.made) q.set('exposure', String(st.stops));
+    if (this.query.get('back')) q.set('back', this.back);
+    history.replaceState(null, '', `#/view/${this.id}${q.size ? `?${q}` : ''}`);
   }
 
   /** B's output for A's: the same name when B has it, else B's primary, else its first. */
-  const outputOfB = () => st.b && (st.b.outputs.find((o) => o.name === st.output.name) ||
-    st.b.outputs.find((o) => o.primary) || st.b.outputs[0]);
+  outputOfB() {
+    const {st} = this;
+    return st.b && (st.b.outputs.find((o) => o.name === st.output.name) || st.b.outputs.find((o) => o.primary) || st.b.outputs[0]);
+  }
 
-  function redraw() {
-    const views = viewsOf(st.output);
-    const bOut = outputOfB();
+  redraw() {
+    const {st, tools} = this;
+    const bOut = this.outputOfB();
     const bView = bOut && (viewsOf(bOut).includes(st.view) ? st.view : viewsOf(bOut)[0]);
     tools.exposureWrap.hidden = st.view !== 'tonemap' && bView !== 'tonemap';
     tools.exposureText.textContent = `${st.stops > 0 ? '+' : ''}${st.stops} EV`;
-    v.setImages(toCanvas(displayBytes(st.a.img, st.output, views.includes(st.view) ? st.view : views[0], st.stops)),
-                st.b ? toCanvas(displayBytes(st.b.img, bOut, bView, st.stops)) : null);
+    this.view.setImages(toCanvas(displayBytes(st.a.img, st.output, st.view, st.stops)),
+                        st.b ? toCanvas(displayBytes(st.b.img, bOut, bView, st.stops)) : null);
     tools.abWrap.hidden = !st.b;
-    note.textContent = `${st.a.job.technique} on ${st.a.job.backend.actual}, ${st.a.img.width}×${st.a.img.height}, ` +
+    this.note.textContent = `${st.a.job.technique} on ${st.a.job.backend.actual}, ${st.a.img.width}×${st.a.img.height}, ` +
       `${st.a.file.name} (${st.a.img.compression}, ${st.a.img.channels.length} channels)` +
       (st.b ? `; B: job ${st.b.id}, ${st.b.job.technique} on ${st.b.job.backend.actual}, output ${bOut.name}` : '') + '.';
-    showReadout();
-    keepUrl();
+    this.showReadout();
+    this.keepUrl();
     Object.assign(debug.viewer, {a: st.a, b: st.b, output: st.output.name, mode: st.view, stops: st.stops});
   }
 
-  function chooseOutput(name) {
+  chooseOutput(name, view) {
+    const {st} = this;
     st.output = st.a.outputs.find((o) => o.name === name) || st.a.outputs.find((o) => o.primary) || st.a.outputs[0];
     const views = viewsOf(st.output);
+    if (views.includes(view)) st.view = view;
     if (!views.includes(st.view)) st.view = views[0];
-    tools.view.replaceChildren(...views.map((x) => el('option', {value: x, selected: x === st.view}, VIEW_NAMES[x])));
+    this.tools.view.replaceChildren(...views.map((x) => el('option', {value: x, selected: x === st.view}, VIEW_NAMES[x])));
   }
 
-  async function setB(bid) {
+  async setB(bid) {
+    const {st, tools} = this;
     tools.compare.value = bid ? String(bid) : '';
-    if (!bid) {
-      st.b = null;
-      redraw();
-      return;
-    }
-    status.textContent = '';
+    st.b = null;
+    this.status.textContent = '';
     try {
-      const b = await loadJob(bid);
+      const b = bid ? await loadJob(bid) : null;
       if (st.dead) return;
-      if (b.img.width !== st.a.img.width || b.img.height !== st.a.img.height) {
-        throw new Error(`job ${bid} is ${b.img.width}×${b.img.height}, job ${id} ${st.a.img.width}×${st.a.img.height}: A/B needs the same size`);
+      if (b && (b.img.width !== st.a.img.width || b.img.height !== st.a.img.height)) {
+        throw new Error(`job ${bid} is ${b.img.width}×${b.img.height}, job ${this.id} ${st.a.img.width}×${st.a.img.height}: A/B needs the same size`);
       }
       st.b = b;
     } catch (e) {
-      st.b = null;
       tools.compare.value = '';
-      status.textContent = `Cannot compare with job ${bid}: ${e.message}`;
+      this.status.textContent = `Cannot compare with job ${bid}: ${e.message}`;
     }
-    redraw();
+    this.redraw();
   }
 
-  (async () => {
+  /** The compare list: finished jobs of A's size. */
+  async listCandidates() {
+    const jobs = await sameSizeJobs(this.st.a);
+    if (this.st.dead) return;
+    this.tools.compare.replaceChildren(el('option', {value: ''}, 'nothing'), ...jobs.map((j) => el('option', {value: String(j.id)},
+      `job ${j.id}: ${j.technique} on ${j.backend.actual}${j.label ? ` (${j.label})` : ''}`)));
+    this.tools.compare.value = this.st.b ? String(this.st.b.id) : '';
+    debug.viewer.candidates = jobs.map((j) => j.id);
+  }
+
+  async start() {
+    const {st, query, tools} = this;
     try {
-      st.a = await loadJob(id);
+      st.a = await loadJob(this.id);
     } catch (e) {
       if (st.dead) return;
-      note.textContent = '';
-      status.textContent = `Cannot show job ${id}: ${e.message}`;
+      this.note.textContent = '';
+      this.status.textContent = `Cannot show job ${this.id}: ${e.message}`;
       debug.viewer.error = e.message;
       return;
     }
     if (st.dead) return;
-    title.textContent = `Job ${id}: ${st.a.job.technique} at full resolution`;
-    const png = query.get('png');
-    chooseOutput(query.get('output') || (st.a.outputs.find((o) => o.png && o.png === png) || {}).name);
-    if (query.get('view')) {
-      st.view = viewsOf(st.output).includes(query.get('view')) ? query.get('view') : st.view;
-      tools.view.value = st.view;
-    }
+    this.title.textContent = `Job ${this.id}: ${st.a.job.technique} at full resolution`;
+    const fromPng = st.a.outputs.find((o) => o.png && o.png === query.get('png'));
+    this.chooseOutput(query.get('output') || (fromPng && fromPng.name), query.get('view'));
     tools.output.replaceChildren(...st.a.outputs.map((o) => el('option', {value: o.name, selected: o === st.output},
       `${o.name} (${o.channels.join(', ')})`)));
     // The slider starts at the exposure the PNG was made with, so the first view is the PNG.
     const param = st.a.outputs.find((o) => o.exposure_param);
-    const made = param && st.a.summary ? Number(st.a.summary.params[param.exposure_param]) || 0 : 0;
-    st.stops = query.has('exposure') ? Number(query.get('exposure')) || 0 : made;
+    st.made = param && st.a.summary ? Number(st.a.summary.params[param.exposure_param]) || 0 : 0;
+    st.stops = query.has('exposure') ? Number(query.get('exposure')) || 0 : st.made;
     tools.exposure.value = String(st.stops);
-    setMode(query.get('mode') === 'split' ? 'split' : 'toggle');
-    redraw();
-    const bid = /^\d+$/.test(query.get('b') || '') ? Number(query.get('b')) : null;
-    if (bid) await setB(bid);
-    sameSizeJobs(st.a).then((jobs) => {
-      if (st.dead) return;
-      tools.compare.replaceChildren(el('option', {value: ''}, 'nothing'), ...jobs.map((j) => el('option', {value: String(j.id)},
-        `job ${j.id}: ${j.technique} on ${j.backend.actual}${j.label ? ` (${j.label})` : ''}`)));
-      tools.compare.value = st.b ? String(st.b.id) : '';
-      debug.viewer.candidates = jobs.map((j) => j.id);
-    }).catch((e) => { status.textContent = `Cannot list jobs to compare with: ${e.message}`; });
+    this.setMode(query.get('mode') === 'split' ? 'split' : 'toggle');
+    this.redraw();
+    if (/^\d+$/.test(query.get('b') || '')) await this.setB(Number(query.get('b')));
+    this.listCandidates().catch((e) => { this.status.textContent = `Cannot list jobs to compare with: ${e.message}`; });
     if (query.get('compare')) tools.compare.focus();
-    else canvas.focus({preventScroll: true});
+    else this.canvas.focus({preventScroll: true});
     debug.viewer.ready = true;
-  })();
+  }
 
-  return () => {
-    st.dead = true;
-    v.destroy();
-    document.removeEventListener('keydown', onKey);
-  };
+  destroy() {
+    this.st.dead = true;
+    this.view.destroy();
+    document.removeEventListener('keydown', this.onKey);
+  }
+}
+
+export function mountViewer(view, [id], query) {
+  const page = new ViewerPage(view, id, query);
+  page.start();
+  return () => page.destroy();
 }
