@@ -11,12 +11,21 @@ import path from 'node:path';
 import test from 'node:test';
 import {assertAllNamed, getJSON, openBrowser, request, ROOT, screenshot, SLOW, startDashboard, submit, waitAll} from './lib.mjs';
 import {decodeExr, ExrError} from '../../web/js/exr.js';
+import {quantize as viewQuantize, toneByte} from '../../web/js/viewcanvas.js';
 
 const FIXTURES = path.join(ROOT, 'tests/data/exr');
 const load = (name) => {
   const b = fs.readFileSync(path.join(FIXTURES, name));
   return decodeExr(b.buffer.slice(b.byteOffset, b.byteOffset + b.length));
 };
+
+// renderer/core/png.c's quantisation, written out again: sRGB curve, clamp, round half up, NaN 0.
+const srgb = (v) => (v <= 0.0031308 ? 12.92 * v : 1.055 * Math.pow(v, 1 / 2.4) - 0.055);
+const linear = (b) => {
+  const v = b / 255;
+  return v <= 0.04045 ? v / 12.92 : Math.pow((v + 0.055) / 1.055, 2.4);
+};
+const quantize = (v, gamma) => (Number.isNaN(v) ? 0 : Math.floor((gamma ? srgb(Math.min(1, Math.max(0, v))) : Math.min(1, Math.max(0, v))) * 255 + 0.5));
 
 test('EXR decoder: every compression obscura can write, HALF and FLOAT, refusals', async () => {
   const ref = await load('checker_none.exr');
@@ -55,14 +64,39 @@ test('EXR decoder: every compression obscura can write, HALF and FLOAT, refusals
   await assert.rejects(decodeExr(cut.buffer.slice(cut.byteOffset, cut.byteOffset + cut.length)), ExrError, 'a truncated file');
 });
 
+test('tone map: the table search gives the PNG writer\'s byte for every kind of float', () => {
+  const f = new Float32Array(1), bits = new Uint32Array(f.buffer);
+  const specials = [0, -0, -1, 1, 2, Infinity, -Infinity, NaN, 1e-45, 0.0031308, 0.5, 0.99999994];
+  let n = 0;
+  const check = (v) => {
+    assert.equal(toneByte(v), viewQuantize(v, true), `float ${v}`);
+    assert.equal(viewQuantize(v, true), quantize(v, true), `float ${v} against the test's own quantisation`);
+    n++;
+  };
+  specials.forEach(check);
+  // Every float32 in [2^-20, 1.5) at a stride, and each step's float and the one before it.
+  for (let b = 0x35800000; b < 0x3fc00000; b += 997) {
+    bits[0] = b;
+    check(f[0]);
+  }
+  for (let q = 1; q < 256; q++) {
+    let lo = 0, hi = 0x3f800000;
+    while (lo < hi) {
+      const mid = (lo + hi) >>> 1;
+      bits[0] = mid;
+      if (quantize(f[0], true) >= q) hi = mid;
+      else lo = mid + 1;
+    }
+    for (const b of [lo - 1, lo]) {
+      bits[0] = b;
+      check(f[0]);
+    }
+  }
+  assert.ok(n > 100000);
+});
+
 // ---- in the browser -----------------------------------------------------------------------------
 
-const srgb = (v) => (v <= 0.0031308 ? 12.92 * v : 1.055 * Math.pow(v, 1 / 2.4) - 0.055);
-const linear = (b) => {
-  const v = b / 255;
-  return v <= 0.04045 ? v / 12.92 : Math.pow((v + 0.055) / 1.055, 2.4);
-};
-const quantize = (v, gamma) => Math.floor((gamma ? srgb(Math.min(1, Math.max(0, v))) : Math.min(1, Math.max(0, v))) * 255 + 0.5);
 
 const viewer = (page) => page.evaluate(() => {
   const v = window.__obscura.viewer;

@@ -10,6 +10,7 @@ const COMPRESSIONS = ['NONE', 'RLE', 'ZIPS', 'ZIP', 'PIZ', 'PXR24', 'B44', 'B44A
 // Scanlines per chunk of the compressions read here (the others are refused before this matters).
 const LINES = {NONE: 1, RLE: 1, ZIPS: 1, ZIP: 16};
 const PIXEL_TYPES = ['UINT', 'HALF', 'FLOAT'];
+const LITTLE_ENDIAN = new Uint8Array(new Uint32Array([1]).buffer)[0] === 1;
 
 /** A cursor over the file's bytes (little-endian, as the format is). */
 class Reader {
@@ -124,12 +125,23 @@ function rleDecode(src, size) {
   return out;
 }
 
-/** ZIP and RLE store byte differences of the bytes split in two halves: undoes both. */
+/**
+ * ZIP and RLE store the bytes split in two halves (even positions, then odd ones) as differences
+ * (+128) of the byte before: undoes both in one pass.
+ */
 function unpredict(t) {
-  for (let i = 1; i < t.length; i++) t[i] = (t[i - 1] + t[i] - 128) & 0xff;
-  const out = new Uint8Array(t.length), half = (t.length + 1) >> 1;
-  for (let k = 0; k < half; k++) out[2 * k] = t[k];
-  for (let k = 0; k + half < t.length; k++) out[2 * k + 1] = t[half + k];
+  const n = t.length, out = new Uint8Array(n), half = (n + 1) >> 1;
+  if (!n) return out;
+  let prev = t[0];
+  out[0] = prev;
+  for (let k = 1; k < half; k++) {
+    prev = (prev + t[k] + 128) & 255;
+    out[2 * k] = prev;
+  }
+  for (let k = 0; k < n - half; k++) {
+    prev = (prev + t[half + k] + 128) & 255;
+    out[2 * k + 1] = prev;
+  }
   return out;
 }
 
@@ -150,16 +162,30 @@ function halfToFloat(h) {
 
 /** Copies one chunk's scanlines (each: every channel's row in turn) into the float planes. */
 function scatter(bytes, y0, lines, h, planes) {
+  const w = h.width;
+  if (LITTLE_ENDIAN && h.channels.every((c) => c.type === 2)) {
+    // All FLOAT: the rows are the platform's own layout, copied whole from one aligned view.
+    const b = bytes.byteOffset % 4 ? bytes.slice() : bytes;
+    const f = new Float32Array(b.buffer, b.byteOffset, b.byteLength >> 2);
+    let q = 0;
+    for (let l = 0; l < lines; l++) {
+      for (const dst of planes) {
+        dst.set(f.subarray(q, q + w), (y0 + l) * w);
+        q += w;
+      }
+    }
+    return;
+  }
   const view = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
   let p = 0;
   for (let l = 0; l < lines; l++) {
-    const row = (y0 + l) * h.width;
+    const row = (y0 + l) * w;
     h.channels.forEach((c, k) => {
       const dst = planes[k];
       if (c.type === 2) {
-        for (let x = 0; x < h.width; x++, p += 4) dst[row + x] = view.getFloat32(p, true);
+        for (let x = 0; x < w; x++, p += 4) dst[row + x] = view.getFloat32(p, true);
       } else {
-        for (let x = 0; x < h.width; x++, p += 2) dst[row + x] = halfToFloat(view.getUint16(p, true));
+        for (let x = 0; x < w; x++, p += 2) dst[row + x] = halfToFloat(view.getUint16(p, true));
       }
     });
   }

@@ -16,6 +16,40 @@ export function quantize(f, gamma) {
   return Math.min(255, Math.max(0, Math.floor(v * 255 + 0.5)));
 }
 
+let steps = null;
+/** For q = 1..255 the smallest float32 that quantize(v, true) maps to q or above (it is monotonic). */
+function srgbSteps() {
+  if (steps) return steps;
+  const f = new Float32Array(1), bits = new Uint32Array(f.buffer);
+  steps = new Float32Array(256);
+  steps[0] = -Infinity;
+  for (let q = 1; q < 256; q++) {
+    let lo = 0, hi = 0x3f800000; // the bits of 0 and of 1, whose byte is 255; positive floats sort as their bits
+    while (lo < hi) {
+      const mid = (lo + hi) >>> 1;
+      bits[0] = mid;
+      if (quantize(f[0], true) >= q) hi = mid;
+      else lo = mid + 1;
+    }
+    bits[0] = lo;
+    steps[q] = f[0];
+  }
+  return steps;
+}
+
+/** quantize(v, true) of a float32 by a search of the 255 steps: no pow per pixel, the same byte. */
+export function toneByte(v) {
+  const t = srgbSteps();
+  if (!(v > 0)) return 0;
+  let lo = 0, hi = 255;
+  while (lo < hi) {
+    const mid = (lo + hi + 1) >> 1;
+    if (t[mid] <= v) lo = mid;
+    else hi = mid - 1;
+  }
+  return lo;
+}
+
 /** The views an output offers: its PNG's mapping first (the registry's `show`), then the others. */
 export function viewsOf(output) {
   switch (output.kind) {
@@ -64,7 +98,8 @@ export function displayBytes(img, output, view, stops) {
     const gamma = view === 'tonemap', scale = gamma ? 2 ** stops : 1;
     for (let k = 0; k < 3; k++) {
       const p = planeOf(k);
-      for (let i = 0; i < n; i++) out[4 * i + k] = quantize(Math.fround(p[i] * scale), gamma);
+      if (gamma) for (let i = 0; i < n; i++) out[4 * i + k] = toneByte(Math.fround(p[i] * scale));
+      else for (let i = 0; i < n; i++) out[4 * i + k] = quantize(p[i], false);
     }
   } else if (view === 'normal') {
     for (let k = 0; k < 3; k++) {
