@@ -234,7 +234,7 @@ class ViewerPage {
     if (st.b) q.set('mode', this.view.state.mode);
     if (st.stops !== st.made) q.set('exposure', String(st.stops));
     if (this.query.get('back')) q.set('back', this.back);
-    history.replaceState(null, '', `#/view/${this.id}${q.size ? `?${q}` : ''}`);
+    history.replaceState(null, '', `#/view/${this.id}${q.toString() ? `?${q}` : ''}`);
   }
 
   /** B's output for A's: the same name when B has it, else B's primary, else its first. */
