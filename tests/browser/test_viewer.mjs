@@ -303,6 +303,10 @@ test('image viewer: zoom, pan, readout, exposure, A/B, keyboard, 800 px', async 
     assert.ok(Math.abs(s.split * width - (divider - 100)) < 1.5, `the divider follows the drag: ${s.split * width}`);
     assert.equal(Number(await page.getByLabel('Split position (%)').inputValue()), Math.round(s.split * 100));
     await screenshot(page, 'viewer-split');
+    await page.locator('canvas.viewer-canvas').focus();
+    await page.keyboard.press('s');
+    assert.equal((await viewer(page)).mode, 'toggle', 'S leaves the split');
+    assert.match(page.url(), /mode=toggle/);
 
     // ---- exposure on path_trace's radiance ----------------------------------------------------
     await page.goto(`${d.url}/#/view/${pt}`);
@@ -356,6 +360,20 @@ test('image viewer: zoom, pan, readout, exposure, A/B, keyboard, 800 px', async 
     assert.ok((await viewer(page)).fitted, 'still fitted after the resize');
     await screenshot(page, 'viewer-800');
     await page.setViewportSize({width: 1280, height: 900});
+
+    // P pins the pixel at the canvas's centre (the readout without a pointer), P again unpins.
+    await page.locator('canvas.viewer-canvas').focus();
+    await page.keyboard.press('p');
+    s = await viewer(page);
+    const centre = await page.evaluate(() => {
+      const c = document.querySelector('canvas.viewer-canvas'), v = window.__obscura.viewer.view;
+      return [Math.floor((c.width / 2 - v.panX) / v.zoom), Math.floor((c.height / 2 - v.panY) / v.zoom)];
+    });
+    assert.deepEqual([s.readout.x, s.readout.y, s.readout.pinned], [...centre, true], 'P pins the centre pixel');
+    assert.ok(Math.abs(Number(await readoutCell(page, 'radiance.G', 'a')) - await decoded(page, 'a', 'radiance.G', ...centre)) <= 1e-6);
+    await page.keyboard.press('p');
+    const after = (await viewer(page)).readout;
+    assert.ok(after === null || after.pinned === false, 'P again unpins');
 
     // Escape closes the viewer: back to the job.
     await page.locator('canvas.viewer-canvas').focus();
