@@ -292,7 +292,8 @@ class ViewerPage {
   async listCandidates() {
     const jobs = await sameSizeJobs(this.st.a);
     if (this.st.dead) return;
-    this.tools.compare.replaceChildren(el('option', {value: ''}, 'nothing'), ...jobs.map((j) => el('option', {value: String(j.id)},
+    const none = jobs.length ? 'nothing' : `nothing (no other finished job is ${this.st.a.img.width}×${this.st.a.img.height})`;
+    this.tools.compare.replaceChildren(el('option', {value: ''}, none), ...jobs.map((j) => el('option', {value: String(j.id)},
       `job ${j.id}: ${j.technique} on ${j.backend.actual}${j.label ? ` (${j.label})` : ''}`)));
     this.tools.compare.value = this.st.b ? String(this.st.b.id) : '';
     debug.viewer.candidates = jobs.map((j) => j.id);
