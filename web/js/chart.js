@@ -32,7 +32,12 @@ function addShape(path, shape, x, y, r) {
 }
 
 // Log-scale range: the data's extent widened by a factor of 1.5 each way (4 for a single value).
-function logPad(u, min, max) {
+// A log axis' range over the positive finite values among `vals` (uPlot passes null for a scale
+// it has no data for yet, and Math.min would turn that into 0, whose log breaks the axis).
+function logPad(vals) {
+  const ok = vals.filter((v) => Number.isFinite(v) && v > 0);
+  if (!ok.length) return [1e-3, 1];
+  const min = Math.min(...ok), max = Math.max(...ok);
   return min === max ? [min / 4, max * 4] : [min / 1.5, max * 1.5];
 }
 
@@ -231,8 +236,8 @@ export function paretoChart(box, cands, {colourOf, onSelect, selected = null, na
   const floor = Number.isFinite(noise) && noise > 0 ? noise : null;
   // The scales take in the spreads' ends and the noise floor, so neither is cut off.
   const xExt = pts.flatMap((p) => (p.spread ? p.spread : [p.x]));
-  const xRange = (uu, min, max) => logPad(uu, Math.min(min, ...xExt), Math.max(max, ...xExt));
-  const yRange = (uu, min, max) => (floor ? logPad(uu, Math.min(min, floor), Math.max(max, floor)) : logPad(uu, min, max));
+  const xRange = (uu, min, max) => logPad([min, max, ...xExt]);
+  const yRange = (uu, min, max) => logPad(floor ? [min, max, floor] : [min, max]);
   const techs = [...new Set(pts.map((p) => p.c.technique))];
   const ratio = window.devicePixelRatio || 1;
   let sel = selected;

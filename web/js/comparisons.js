@@ -313,11 +313,15 @@ export function mountComparison(view, [id], query) {
         `${s.c.state === 'running' ? ' yet' : ''}.` : '';
   }
 
+  // The image viewer (viewer.js) on a job's EXR, B the job to compare with; Close comes back here.
+  const viewerHref = (a, b) => `#/view/${a}?${b ? `b=${b}&mode=split&` : ''}back=${encodeURIComponent(location.hash)}`;
+
   function renderGrid() {
     const ctx = {params: varyingParams(s.c.candidates)};
     grid.replaceChildren(
       ...s.c.references.filter((r) => r.links && primaryImage(r.links)).map((r) => el('figure', {className: 'tile ref'},
-        el('img', {src: primaryImage(r.links), alt: `Reference job ${r.job_id}`}),
+        el('a', {href: viewerHref(r.job_id), 'aria-label': `View reference job ${r.job_id} at full resolution`},
+          el('img', {src: primaryImage(r.links), alt: `Reference job ${r.job_id}`})),
         el('figcaption', {}, `Reference (job ${r.job_id}, ${refTechnique(r)} ${paramText({samples: r.params && r.params.samples})})`))),
       ...s.c.candidates.map((c) => el('figure', {className: 'tile'},
         c.links && primaryImage(c.links)
@@ -336,7 +340,8 @@ export function mountComparison(view, [id], query) {
     const links = c.links || {};
     const parts = [el('h2', {id: 'h-selected'}, `Candidate ${c.index}: ${c.technique} on ${c.backend}`),
       el('p', {}, el('code', {}, paramText(c.params)), ' · ', stateBadge(c.state), ' · ',
-        el('a', {href: `#/jobs/${c.job_id}?comparison=${id}`, className: 'open-job'}, `Open job ${c.job_id}`))];
+        el('a', {href: `#/jobs/${c.job_id}?comparison=${id}`, className: 'open-job'}, `Open job ${c.job_id}`), ' · ',
+        el('a', {href: viewerHref(c.job_id, c.reference_job_id), className: 'open-viewer'}, 'View candidate (A) against reference (B)'))];
     const media = el('div', {className: 'media'});
     if (primaryImage(links) && links['reference.png']) {
       // The reference as the metrics saw it: mapped through the candidate's response when that
@@ -360,7 +365,7 @@ export function mountComparison(view, [id], query) {
       range.addEventListener('input', apply);
       apply();
       media.append(el('figure', {className: 'compare'},
-        el('div', {className: 'stack'}, ref, cand, line),
+        el('div', {className: 'stack', title: 'Click to open the viewer', onclick: () => { location.hash = viewerHref(c.job_id, c.reference_job_id); }}, ref, cand, line),
         el('label', {for: 'split'}, 'Split between candidate (left) and reference (right)'), range,
         el('figcaption', {className: 'compared'}, `Left of the line: the candidate; right: ${refWhat}. Arrow keys move the split.`)));
     }

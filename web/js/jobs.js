@@ -164,9 +164,13 @@ function outputsSection(j, files) {
   return el('section', {'aria-labelledby': 'h-outputs'},
     el('h2', {id: 'h-outputs'}, 'Outputs'),
     pngs.length ? el('div', {className: 'gallery'}, ...pngs.map((o) => el('figure', {},
-      el('img', {className: 'output', src: o.url, alt: CAPTIONS[o.name] || o.name, 'data-name': o.name}),
+      // A click opens the viewer (viewer.js) on the EXR output this PNG shows.
+      el('a', {href: `#/view/${j.id}?png=${encodeURIComponent(o.name)}`, className: 'to-viewer', 'aria-label': `View ${o.name} at full resolution`},
+        el('img', {className: 'output', src: o.url, alt: CAPTIONS[o.name] || o.name, 'data-name': o.name})),
       el('figcaption', {}, el('strong', {}, o.name), ' ', CAPTIONS[o.name] || ''))))
       : el('p', {className: 'muted'}, ACTIVE.has(j.state) ? 'Outputs appear when the job has succeeded.' : 'No outputs.'),
+    j.state === 'succeeded' && pngs.length ? el('p', {}, el('a', {href: `#/view/${j.id}?compare=1`, className: 'button small'}, 'Compare with…'),
+      ' a job of the same size, in the viewer (or click an image: zoom, pixel values, exposure).') : null,
     outs.length ? el('ul', {className: 'downloads', 'aria-label': 'Downloads'}, ...outs.map((o) => el('li', {},
       el('a', {href: o.url, download: `job${j.id}-${o.name}`}, o.name), ` ${o.content_type}, ${fmtBytes(o.size)}`))) : null);
 }

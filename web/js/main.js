@@ -1,9 +1,10 @@
-// Entry point of the dashboard: hash routing to the page modules, the header's health line and
+// Entry point of the dashboard: hash routing to the page modules (#/view/ID: the image viewer), the header's health line and
 // token box. Each page's mount(container, params) returns a cleanup that stops its polling.
 import {api, debug, el, login, onApiStatus, poll, setToken, token} from './api.js';
 import {mountJobs, mountJob} from './jobs.js';
 import {mountComparisons, mountComparison} from './comparisons.js';
 import {mountSubmit} from './submit.js';
+import {mountViewer} from './viewer.js';
 
 const routes = [
   [/^#\/jobs\/(\d+)$/, mountJob, 'jobs'],
@@ -11,6 +12,7 @@ const routes = [
   [/^#\/comparisons\/(\d+)$/, mountComparison, 'comparisons'],
   [/^#\/comparisons$/, mountComparisons, 'comparisons'],
   [/^#\/submit$/, mountSubmit, 'submit'],
+  [/^#\/view\/(\d+)$/, mountViewer, 'jobs'],
 ];
 
 const view = document.getElementById('view');
