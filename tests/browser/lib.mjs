@@ -45,7 +45,7 @@ export async function openBrowser() {
   context.setDefaultTimeout(30000 * SLOW);
   const page = await context.newPage();
   const errors = [];
-  page.on('pageerror', (e) => errors.push(`pageerror: ${e.message}`));
+  page.on('pageerror', (e) => errors.push(`pageerror: ${e.message} ${e.stack}`));
   page.on('console', (m) => {
     // 4xx answers are expected (a refused submission, a probe of the comparisons API) and the
     // page shows them; a 5xx or anything else logged as an error is a bug.

@@ -32,6 +32,24 @@ function addShape(path, shape, x, y, r) {
 }
 
 // Log-scale range: the data's extent widened by a factor of 1.5 each way (4 for a single value).
+// Ticks of a log axis: the powers of ten in [min, max], with their 2 and 5 multiples when the
+// range spans at most two decades. uPlot's own log splits step from the scale's minimum in
+// increments of its decade and never end on a degenerate scale (a minimum of 0 or a non-finite
+// end), which throws "Invalid array length" from inside the chart.
+function logSplits(u, axis, min, max) {
+  if (!(min > 0) || !(max >= min) || !Number.isFinite(max)) return [];
+  const k0 = Math.floor(Math.log10(min)), k1 = Math.ceil(Math.log10(max));
+  const mults = k1 - k0 <= 2 ? [1, 2, 5] : [1];
+  const out = [];
+  for (let k = k0; k <= k1 && out.length < 64; k++) {
+    for (const m of mults) {
+      const v = Number((m * 10 ** k).toPrecision(12));
+      if (v >= min && v <= max) out.push(v);
+    }
+  }
+  return out;
+}
+
 // A log axis' range over the positive finite values among `vals` (uPlot passes null for a scale
 // it has no data for yet, and Math.min would turn that into 0, whose log breaks the axis).
 function logPad(vals) {
@@ -268,7 +286,8 @@ export function paretoChart(box, cands, {colourOf, onSelect, selected = null, na
     width, height: 340,
     // Padded by a factor on both sides so no marker sits on (and is clipped by) the plot's edge.
     scales: {x: {time: false, distr: 3, log: 10, range: xRange}, y: {distr: 3, log: 10, range: yRange}},
-    axes: [{label: 'median total time per run (ms, log scale; bars: fastest to slowest run)'}, {label: yLabel, size: 70}],
+    axes: [{label: 'median total time per run (ms, log scale; bars: fastest to slowest run)', splits: logSplits},
+           {label: yLabel, size: 70, splits: logSplits}],
     series,
     cursor: {drag: {x: false, y: false}},
     // Not live: a live legend is a row of "–" values until the cursor sits exactly on a point's
