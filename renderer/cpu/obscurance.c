@@ -243,8 +243,8 @@ static uint64_t ob_shade(const void *job, int thread, int x, int y, float *v) {
 }
 
 /* The scene-wide terms: R_ave, W of an open point and I_A, which is, first found: the `ambient`
- * parameter; the sky (environment.color: an open scene, where an open point sees it all around);
- * the closed environment's I_A of the shared model. The first two are the light an open point
+ * parameter; a sky (environment.color above zero: an open scene, where an open point sees it all
+ * around); the closed environment's I_A of the shared model. The first two are the light an open point
  * receives, R(P) I_A with W = 1; with bleeding an open point has W = R_ave, so they are divided
  * by R_ave to give it the same light. */
 static int setup_ambient(ob_job *jb, obs_err *err) {
@@ -254,7 +254,10 @@ static int setup_ambient(ob_job *jb, obs_err *err) {
   obs_obscurance_ambient(&env, jb->p.color_bleeding, jb->ia);
   double given[3] = {jb->p.ambient, jb->p.ambient, jb->p.ambient};
   int have = jb->p.ambient >= 0;
-  if (!have && jb->sc->has_environment) vec3(&jb->sc->environment, given), have = 1;
+  if (!have && jb->sc->has_environment) {
+    vec3(&jb->sc->environment, given);
+    have = mean3_pos(given); /* a black sky lights nothing: the closed environment's I_A then */
+  }
   for (int k = 0; k < 3; k++) {
     jb->r_ave[k] = env.r_ave[k];
     jb->open[k] = jb->p.color_bleeding ? env.r_ave[k] : 1.0;

@@ -65,7 +65,7 @@ static const obs_param obscurance_params[] = {
      .flags = OBS_PARAM_NULLABLE | OBS_PARAM_DEFAULT_NULL, .min = 0, .max = 1e30,
      .null_value = -1,
      .description = "ambient intensity I_A (grey radiance) for open scenes; null = the sky's "
-                    "environment.color when the scene has one, else the closed environment's I_A "
+                    "environment.color when above zero, else the closed environment's I_A "
                     "from the scene's areas, reflectivities and emitters",
      .offset = P(ambient)},
     {.name = "light_samples", .type = OBS_PARAM_UINT, .min = 1, .max = 4096, .def = 4,
@@ -98,7 +98,8 @@ static int positive(const obs_vec3 *v) { return v->x + v->y + v->z > 0; }
 static void obscurance_check(const obs_scene *scene, const json_t *params, const char *doc,
                              obs_err *err) {
   json_t *ambient = json_object_get(params, "ambient");
-  int lit = (ambient && json_is_number(ambient)) || scene->has_environment;
+  int lit = (ambient && json_is_number(ambient)) ||
+            (scene->has_environment && positive(&scene->environment));
   for (size_t i = 0; !lit && i < scene->nlights; i++) lit = positive(&scene->lights[i].emission);
   for (size_t i = 0; !lit && i < scene->nobjects; i++) lit = positive(&scene->objects[i].emission);
   if (!lit)

@@ -74,6 +74,34 @@ static void test_open_plane(void **state) {
   }
 }
 
+/* Under a sky and without `ambient`, I_A is the sky's radiance: an open point receives
+ * R(P) L_sky per channel, with bleeding too (I_A = L_sky / R_ave there, W = R_ave). */
+static void test_sky_ambient(void **state) {
+  (void)state;
+  const double refl[3] = {0.2, 0.5, 0.8}, sky[3] = {0.3, 0.6, 0.9};
+  for (int bleed = 0; bleed < 2; bleed++) {
+    char doc[2048];
+    snprintf(doc, sizeof doc, "%s", open_plane("[0.2,0.5,0.8]", bleed ? "{\"samples\":8}"
+                                                                    : "{\"samples\":8,"
+                                                                      "\"color_bleeding\":false}"));
+    char *at = strstr(doc, "\"technique\"");
+    assert_non_null(at);
+    char tail[512];
+    snprintf(tail, sizeof tail, "%s", at);
+    snprintf(at, sizeof doc - (size_t)(at - doc), "\"environment\":{\"color\":[0.3,0.6,0.9]},%s",
+             tail);
+    obs_result r;
+    obs_test_render(doc, 2, &r);
+    assert_sane(&r);
+    const float *al = obs_image_channel(&r.image, "alpha");
+    size_t n = (size_t)r.image.width * (size_t)r.image.height;
+    for (size_t i = 0; i < n; i++)
+      for (int k = 0; al[i] > 0 && k < 3; k++)
+        assert_true(fabs(chan(&r, "indirect", k)[i] - refl[k] * sky[k]) < 1e-6);
+    obs_result_free(&r);
+  }
+}
+
 /* A scene without emitter, sky or ambient is refused at /lights. */
 static void test_needs_light(void **state) {
   (void)state;
@@ -390,6 +418,7 @@ static void test_reflectivity_extremes(void **state) {
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_open_plane),
+      cmocka_unit_test(test_sky_ambient),
       cmocka_unit_test(test_needs_light),
       cmocka_unit_test(test_plates_closed_form),
       cmocka_unit_test(test_error_halves),
