@@ -252,8 +252,8 @@ static int setup_ambient(ob_job *jb, obs_err *err) {
   int rc = obs_obscurance_env_compute(jb->sc, &jb->rt->geo, &env, err);
   if (rc) return rc;
   obs_obscurance_ambient(&env, jb->p.color_bleeding, jb->ia);
-  double given[3] = {jb->p.ambient, jb->p.ambient, jb->p.ambient};
-  int have = jb->p.ambient >= 0;
+  double given[3] = {jb->p.ambient[0], jb->p.ambient[1], jb->p.ambient[2]};
+  int have = jb->p.ambient[0] >= 0;
   if (!have && jb->sc->has_environment) {
     vec3(&jb->sc->environment, given);
     have = mean3_pos(given); /* a black sky lights nothing: the closed environment's I_A then */

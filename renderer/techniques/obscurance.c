@@ -61,10 +61,10 @@ static const obs_param obscurance_params[] = {
      .description = "weigh each direction by the reflectivity R(Q) of the surface it meets "
                     "within d_max (R_ave when none): W becomes RGB",
      .offset = P(color_bleeding)},
-    {.name = "ambient", .type = OBS_PARAM_DOUBLE,
+    {.name = "ambient", .type = OBS_PARAM_RGB,
      .flags = OBS_PARAM_NULLABLE | OBS_PARAM_DEFAULT_NULL, .min = 0, .max = 1e30,
      .null_value = -1,
-     .description = "ambient intensity I_A (grey radiance) for open scenes; null = the sky's "
+     .description = "ambient intensity I_A (RGB radiance) for open scenes; null = the sky's "
                     "environment.color when above zero, else the closed environment's I_A "
                     "from the scene's areas, reflectivities and emitters",
      .offset = P(ambient)},
@@ -98,7 +98,7 @@ static int positive(const obs_vec3 *v) { return v->x + v->y + v->z > 0; }
 static void obscurance_check(const obs_scene *scene, const json_t *params, const char *doc,
                              obs_err *err) {
   json_t *ambient = json_object_get(params, "ambient");
-  int lit = (ambient && json_is_number(ambient)) ||
+  int lit = (ambient && json_is_array(ambient)) ||
             (scene->has_environment && positive(&scene->environment));
   for (size_t i = 0; !lit && i < scene->nlights; i++) lit = positive(&scene->lights[i].emission);
   for (size_t i = 0; !lit && i < scene->nobjects; i++) lit = positive(&scene->objects[i].emission);

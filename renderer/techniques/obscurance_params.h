@@ -14,7 +14,8 @@ typedef struct obs_obscurance_params {
   int falloff;            /* obs_falloff_kind */
   double tau;             /* exp falloff's rate per scene unit */
   int color_bleeding;     /* W weighs each direction by the reflectivity it sees */
-  double ambient;         /* I_A override (grey); < 0 when null: the closed-environment I_A */
+  double ambient[3];      /* I_A override (RGB); all < 0 when null: the sky's or the closed
+                             environment's I_A */
   uint32_t light_samples; /* emitter points per pixel sample for the direct term */
   int sequence;           /* OBS_OBSCURANCE_HALTON or _SOBOL */
   uint32_t seed;

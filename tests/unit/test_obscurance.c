@@ -47,11 +47,11 @@ static const char *open_plane(const char *refl, const char *params_in) {
  * then R(P) times the ambient given. */
 static void test_open_plane(void **state) {
   (void)state;
-  const double refl[3] = {0.2, 0.5, 0.8};
+  const double refl[3] = {0.2, 0.5, 0.8}, amb[3] = {0.5, 1, 2};
   for (int bleed = 0; bleed < 2; bleed++) {
     obs_result r;
     obs_test_render(open_plane("[0.2,0.5,0.8]",
-                               obs_test_fmt("{\"samples\":32,\"d_max\":5,\"ambient\":0.5,"
+                               obs_test_fmt("{\"samples\":32,\"d_max\":5,\"ambient\":[0.5,1,2],"
                                             "\"color_bleeding\":%s}",
                                             bleed ? "true" : "false")),
                     2, &r);
@@ -63,10 +63,10 @@ static void test_open_plane(void **state) {
       covered++;
       for (int k = 0; k < 3; k++) {
         assert_true(chan(&r, "obscurance", k)[i] == (bleed ? (float)refl[k] : 1.0f));
-        assert_true(fabs(chan(&r, "indirect", k)[i] - refl[k] * 0.5) < 1e-6);
+        assert_true(fabs(chan(&r, "indirect", k)[i] - refl[k] * amb[k]) < 1e-6);
         /* No emitter: the final image is the indirect term, the constant ambient the same. */
         assert_true(chan(&r, "direct", k)[i] == 0.0f);
-        assert_true(fabs(chan(&r, "constant_ambient", k)[i] - refl[k] * 0.5) < 1e-6);
+        assert_true(fabs(chan(&r, "constant_ambient", k)[i] - refl[k] * amb[k]) < 1e-6);
       }
     }
     assert_true(covered > n / 3);
@@ -131,7 +131,7 @@ static const char *plates(double s, double off, double h, double dmax, const cha
       "[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g]]},\"material\":{\"reflectivity\":[0.5,0.5,0.5]}},"
       "{\"shape\":{\"type\":\"quad\",\"vertices\":[[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g],"
       "[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g]]},\"material\":{\"reflectivity\":[0.8,0.4,0.1]}}],"
-      "\"technique\":{\"name\":\"obscurance\",\"params\":{\"ambient\":1,\"d_max\":%.17g,%s}}}",
+      "\"technique\":{\"name\":\"obscurance\",\"params\":{\"ambient\":[1,1,1],\"d_max\":%.17g,%s}}}",
       off, 0.5 * h * s + off, off, off, off, off, size, size, off - L, off, off - L, off - L, off,
       off + L, off + L, off, off + L, off + L, off, off - L, off - L, y1, off - L, off - L, y1,
       off + L, off + L, y1, off + L, off + L, y1, off - L, dmax * s, params);
@@ -293,7 +293,7 @@ static void test_direct_is_one_bounce(void **state) {
   (void)state;
   obs_result a, b;
   /* ambient 0: no indirect term, so final_stderr is the direct term's. */
-  cornell("obscurance", "{\"samples\":1,\"light_samples\":256,\"d_max\":100,\"ambient\":0}", &a);
+  cornell("obscurance", "{\"samples\":1,\"light_samples\":256,\"d_max\":100,\"ambient\":[0,0,0]}", &a);
   cornell("path_trace", "{\"samples\":256,\"max_bounces\":1,\"seed\":3}", &b);
   size_t n = (size_t)a.image.width * (size_t)a.image.height;
   for (int k = 0; k < 3; k++) {
