@@ -4,8 +4,8 @@
  * For each pixel sample a camera ray finds P. `samples` cosine-distributed directions from P
  * (Halton or Sobol, scrambled per pixel) estimate W(P) = 1/pi int rho(d) cos dw as the plain mean
  * of rho(d) (with colour bleeding: of R(Q) rho(d), and R_ave where no surface lies within d_max).
- * The indirect term is R(P) I_A W(P), I_A the closed environment's ambient intensity of the shared
- * model (obscurance.h) or the `ambient` parameter. The direct term samples the emitters as
+ * The indirect term is R(P) I_A W(P), I_A the `ambient` parameter, the sky's radiance or the
+ * closed environment's ambient intensity of the shared model (obscurance.h). The direct term samples the emitters as
  * path_trace does (emitters.h), without the BSDF strategy: next-event estimation alone is unbiased
  * for direct light from area emitters. docs/techniques/obscurance.md states the model. */
 #include <math.h>
