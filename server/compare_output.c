@@ -29,12 +29,32 @@ static int read_exr(const char *dir, const obs_technique *t, obs_image *img, obs
   return obs_image_read_exr(img, path, err);
 }
 
+/* Renames the channels of output `from` in `img` to those of output `to` ("radiance.R" to
+ * "final.R"): a reference technique may declare the quantity a candidate's primary output
+ * estimates under another name (path_trace's `radiance` for obscurance's `final`). */
+static void rename_output(obs_image *img, const char *from, const char *to) {
+  size_t n = strlen(from);
+  for (int c = 0; c < img->nchannels; c++) {
+    char *name = img->names[c];
+    if (strncmp(name, from, n) || (name[n] && name[n] != '.')) continue;
+    char renamed[OBS_CHANNEL_NAME_MAX];
+    snprintf(renamed, sizeof renamed, "%s%s", to, name + n);
+    snprintf(name, OBS_CHANNEL_NAME_MAX, "%s", renamed);
+  }
+}
+
+/* The name of t's output that is the standard error of its output `of`, or NULL. */
+static const char *stderr_name(const obs_technique *t, const char *of) {
+  const char *se = NULL;
+  for (const obs_output *x = t->outputs; x->name; x++)
+    if (x->stderr_of && !strcmp(x->stderr_of, of)) se = x->name;
+  return se;
+}
+
 /* Replaces `img` by its luminance image for RGB output `o` of `t`. */
 static int to_luminance(const obs_technique *t, const obs_output *o, obs_image *img,
                         obs_err *err) {
-  const char *se = NULL;
-  for (const obs_output *x = t->outputs; x->name; x++)
-    if (x->stderr_of && !strcmp(x->stderr_of, o->name)) se = x->name;
+  const char *se = stderr_name(t, o->name);
   obs_image y;
   int rc = obs_metrics_luminance_image(img, o->name, se, &y, err);
   if (rc) return rc;
@@ -87,6 +107,13 @@ int srv_compare_primary(const char *dir, const char *rdir, obs_response resp, ob
   snprintf(channel, sizeof channel, o->kind == OBS_OUTPUT_DEPTH ? "%s.Z" : "%s", o->name);
   int rc = read_exr(dir, t, &cand, err);
   if (!rc) rc = read_exr(rdir, rt, &ref, err);
+  const obs_output *ro = obs_technique_primary(rt);
+  int renamed = !rc && ro && ro->kind == o->kind && strcmp(ro->name, o->name);
+  if (renamed) {
+    rename_output(&ref, ro->name, o->name);
+    const char *rs = stderr_name(rt, ro->name), *cs = stderr_name(t, o->name);
+    if (rs && cs) rename_output(&ref, rs, cs);
+  }
   /* Response curves map AO; an identity mapping leaves any output as it is. */
   if (!rc && resp != OBS_RESPONSE_IDENTITY) rc = obs_response_apply(resp, &ref, err);
   if (!rc && resp != OBS_RESPONSE_IDENTITY && o->kind == OBS_OUTPUT_SCALAR &&
@@ -108,7 +135,7 @@ int srv_compare_primary(const char *dir, const char *rdir, obs_response resp, ob
                                     num_or_null(c.rel_mse)));
       rc = to_luminance(t, o, &cand, err);
     }
-    if (!rc) rc = to_luminance(rt, o, &ref, err);
+    if (!rc) rc = to_luminance(renamed ? t : rt, o, &ref, err);
   }
   if (!rc) rc = obs_metrics_compare(&cand, &ref, channel, mask, m, err);
   if (!rc) rc = obs_metrics_error_image(&cand, &ref, channel, mask, eimg, err);

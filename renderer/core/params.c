@@ -23,6 +23,9 @@ static int is_number_type(obs_param_type t) {
 
 static int is_int_type(obs_param_type t) { return t == OBS_PARAM_INT || t == OBS_PARAM_UINT; }
 
+/* Types with a numeric range: the numbers and the components of an RGB. */
+static int has_range(obs_param_type t) { return is_number_type(t) || t == OBS_PARAM_RGB; }
+
 json_t *obs_param_default_json(const obs_param *d) {
   switch (d->type) {
     case OBS_PARAM_BOOL:
@@ -36,6 +39,8 @@ json_t *obs_param_default_json(const obs_param *d) {
     default:
       if ((d->flags & OBS_PARAM_NULLABLE) && (d->flags & OBS_PARAM_DEFAULT_NULL))
         return json_null();
+      if (d->type == OBS_PARAM_RGB)
+        return json_pack("[ooo]", number_json(d->def), number_json(d->def), number_json(d->def));
       return is_int_type(d->type) ? json_integer((json_int_t)d->def) : number_json(d->def);
   }
 }
@@ -54,10 +59,44 @@ static int fail_one_of(obs_jpath *p, const obs_param *d, const json_t *v) {
   return obs_jpath_fail(p, "must be one of %s (got %s)", list, obs_json_brief(v));
 }
 
+/* The range check of one number `v` (a value, or a component of an RGB). */
+static int check_range(obs_jpath *p, const obs_param *d, const json_t *v) {
+  double x = obs_json_number(v);
+  int lo_ex = (d->flags & OBS_PARAM_MIN_EXCLUSIVE) != 0,
+      hi_ex = (d->flags & OBS_PARAM_MAX_EXCLUSIVE) != 0;
+  if (!isinf(d->min) && (lo_ex ? !(x > d->min) : !(x >= d->min)))
+    return obs_jpath_fail(p, "must be %s %.10g (got %s)", lo_ex ? ">" : ">=", d->min,
+                          obs_json_brief(v));
+  if (!isinf(d->max) && (hi_ex ? !(x < d->max) : !(x <= d->max)))
+    return obs_jpath_fail(p, "must be %s %.10g (got %s)", hi_ex ? "<" : "<=", d->max,
+                          obs_json_brief(v));
+  return 0;
+}
+
+/* An RGB: three numbers, each in the range (a bad component named by its index). */
+static int check_rgb(obs_jpath *p, const obs_param *d, const json_t *v) {
+  int nullable = (d->flags & OBS_PARAM_NULLABLE) != 0;
+  if (nullable && json_is_null(v)) return 0;
+  int ok = json_is_array(v) && json_array_size(v) == 3;
+  for (size_t i = 0; ok && i < 3; i++) ok = obs_json_is_number(json_array_get(v, i));
+  if (!ok)
+    return obs_jpath_fail(p, "must be an array of 3 numbers [R, G, B]%s (got %s)",
+                          nullable ? " or null" : "", obs_json_brief(v));
+  int bad = 0;
+  for (size_t i = 0; i < 3; i++) {
+    size_t m = obs_jpath_push_index(p, i);
+    bad |= check_range(p, d, json_array_get(v, i)) != 0;
+    obs_jpath_pop(p, m);
+  }
+  return bad ? OBS_EINVAL : 0;
+}
+
 int obs_param_check(obs_jpath *p, const obs_param *d, const json_t *v) {
   int nullable = (d->flags & OBS_PARAM_NULLABLE) != 0;
   long long iv = 0;
   switch (d->type) {
+    case OBS_PARAM_RGB:
+      return check_rgb(p, d, v);
     case OBS_PARAM_BOOL:
       if (!json_is_boolean(v))
         return obs_jpath_fail(p, "must be boolean (got %s)", obs_json_brief(v));
@@ -85,16 +124,7 @@ int obs_param_check(obs_jpath *p, const obs_param *d, const json_t *v) {
                               obs_json_brief(v));
       break;
   }
-  double x = obs_json_number(v);
-  int lo_ex = (d->flags & OBS_PARAM_MIN_EXCLUSIVE) != 0,
-      hi_ex = (d->flags & OBS_PARAM_MAX_EXCLUSIVE) != 0;
-  if (!isinf(d->min) && (lo_ex ? !(x > d->min) : !(x >= d->min)))
-    return obs_jpath_fail(p, "must be %s %.10g (got %s)", lo_ex ? ">" : ">=", d->min,
-                          obs_json_brief(v));
-  if (!isinf(d->max) && (hi_ex ? !(x < d->max) : !(x <= d->max)))
-    return obs_jpath_fail(p, "must be %s %.10g (got %s)", hi_ex ? "<" : "<=", d->max,
-                          obs_json_brief(v));
-  return 0;
+  return check_range(p, d, v);
 }
 
 static const obs_param *find_param(const obs_technique *t, const char *name) {
@@ -243,6 +273,13 @@ static void store(const obs_param *d, const json_t *v, unsigned char *dst) {
     case OBS_PARAM_DOUBLE:
       memcpy(at, &x, sizeof x);
       break;
+    case OBS_PARAM_RGB: {
+      double c[3] = {x, x, x};
+      for (size_t i = 0; v && json_is_array(v) && i < 3; i++)
+        c[i] = obs_json_number(json_array_get(v, i));
+      memcpy(at, c, sizeof c);
+      break;
+    }
   }
 }
 
@@ -292,7 +329,8 @@ static json_t *param_schema(const obs_param *d) {
                                            [OBS_PARAM_INT] = "integer",
                                            [OBS_PARAM_UINT] = "integer",
                                            [OBS_PARAM_FLOAT] = "number",
-                                           [OBS_PARAM_DOUBLE] = "number"};
+                                           [OBS_PARAM_DOUBLE] = "number",
+                                           [OBS_PARAM_RGB] = "array"};
   if (d->type == OBS_PARAM_ENUM) {
     json_t *e = json_array();
     for (int i = 0; d->choices[i]; i++) json_array_append_new(e, json_string(d->choices[i]));
@@ -306,12 +344,20 @@ static json_t *param_schema(const obs_param *d) {
     json_t *e = json_array();
     for (int i = 0; i < d->nvalues; i++) json_array_append_new(e, json_integer(d->values[i]));
     json_object_set_new(o, "enum", e);
-  } else if (is_number_type(d->type)) {
+  } else if (has_range(d->type)) {
+    /* An RGB's range bounds its components: it goes on the items. */
+    json_t *r = o;
+    if (d->type == OBS_PARAM_RGB) {
+      r = json_pack("{ss}", "type", "number");
+      json_object_set_new(o, "items", r);
+      json_object_set_new(o, "minItems", json_integer(3));
+      json_object_set_new(o, "maxItems", json_integer(3));
+    }
     if (!isinf(d->min))
-      json_object_set_new(o, d->flags & OBS_PARAM_MIN_EXCLUSIVE ? "exclusiveMinimum" : "minimum",
+      json_object_set_new(r, d->flags & OBS_PARAM_MIN_EXCLUSIVE ? "exclusiveMinimum" : "minimum",
                           number_json(d->min));
     if (!isinf(d->max))
-      json_object_set_new(o, d->flags & OBS_PARAM_MAX_EXCLUSIVE ? "exclusiveMaximum" : "maximum",
+      json_object_set_new(r, d->flags & OBS_PARAM_MAX_EXCLUSIVE ? "exclusiveMaximum" : "maximum",
                           number_json(d->max));
   }
   json_object_set_new(o, "default", obs_param_default_json(d));
@@ -337,6 +383,8 @@ double obs_technique_cost(const obs_technique *t, const json_t *params) {
 
 static size_t type_size(obs_param_type t) {
   switch (t) {
+    case OBS_PARAM_RGB:
+      return 3 * sizeof(double);
     case OBS_PARAM_DOUBLE:
       return sizeof(double);
     case OBS_PARAM_FLOAT:
@@ -353,21 +401,21 @@ static size_t type_size(obs_param_type t) {
 /* The faults of one entry that do not need its default (see obs_technique_params_check). */
 static int entry_fault(const obs_technique *t, const obs_param *d, char *why, size_t n) {
   int nullable = (d->flags & OBS_PARAM_NULLABLE) != 0;
-  size_t sz = type_size(d->type);
-  if ((unsigned)d->type > OBS_PARAM_ENUM) return snprintf(why, n, "unknown type %d", d->type);
+  if ((unsigned)d->type > OBS_PARAM_RGB) return snprintf(why, n, "unknown type %d", d->type);
+  size_t sz = type_size(d->type), align = d->type == OBS_PARAM_RGB ? sizeof(double) : sz;
   if (!d->description || !*d->description) return snprintf(why, n, "has no description");
-  if (d->offset + sz > t->bound_size || d->offset % sz)
+  if (d->offset + sz > t->bound_size || d->offset % align)
     return snprintf(why, n, "offset %zu does not hold a %zu-byte member inside %zu bytes",
                     d->offset, sz, t->bound_size);
-  if ((nullable || (d->flags & OBS_PARAM_DEFAULT_NULL)) && !is_number_type(d->type))
-    return snprintf(why, n, "only numbers can be null");
+  if ((nullable || (d->flags & OBS_PARAM_DEFAULT_NULL)) && !has_range(d->type))
+    return snprintf(why, n, "only numbers and RGBs can be null");
   if ((d->flags & OBS_PARAM_DEFAULT_NULL) && !nullable)
     return snprintf(why, n, "a null default needs OBS_PARAM_NULLABLE");
   if (d->type == OBS_PARAM_ENUM && (!d->choices || !d->choices[0]))
     return snprintf(why, n, "an enum needs choices");
   if (d->values && (!is_int_type(d->type) || d->nvalues < 1))
     return snprintf(why, n, "a list of values needs an integer type and at least one value");
-  if (is_number_type(d->type) && !d->values) {
+  if (has_range(d->type) && !d->values) {
     double lo = is_int_type(d->type) ? (d->type == OBS_PARAM_UINT ? 0 : INT32_MIN) : -INFINITY;
     double hi = d->type == OBS_PARAM_UINT  ? UINT32_MAX
                 : d->type == OBS_PARAM_INT ? INT32_MAX

@@ -202,7 +202,8 @@ char *obs_registry_params_markdown(const char *technique) {
                                       [OBS_PARAM_UINT] = "integer (uint32)",
                                       [OBS_PARAM_FLOAT] = "number (float32)",
                                       [OBS_PARAM_DOUBLE] = "number (float64)",
-                                      [OBS_PARAM_ENUM] = "string"};
+                                      [OBS_PARAM_ENUM] = "string",
+                                      [OBS_PARAM_RGB] = "[R, G, B] (float64)"};
   obs_strbuf b = {0};
   obs_strbuf_put(&b, "| name | type | default | range | description |\n|---|---|---|---|---|\n");
   for (size_t i = 0; i < t->params_size; i++) {

@@ -28,6 +28,8 @@ int obs_hbao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 
 extern const obs_technique obs_technique_path_trace;
 int obs_path_trace_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
+extern const obs_technique obs_technique_obscurance;
+int obs_obscurance_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 
 /* One backend's guaranteed range as the registry's JSON (ranges.c). */
 json_t *obs_range_json(const obs_range *r);

@@ -43,6 +43,7 @@ static const char *fast_params(const char *name) {
   if (!strcmp(name, "ssao")) return "\"samples\":8";
   if (!strcmp(name, "hbao")) return "\"directions\":4,\"steps\":4";
   if (!strcmp(name, "path_trace")) return "\"max_bounces\":4";
+  if (!strcmp(name, "obscurance")) return "\"samples\":16,\"light_samples\":1";
   return "";
 }
 

@@ -234,6 +234,73 @@ static void test_schema(void **state) {
   json_decref(s);
 }
 
+/* RGB parameters: three numbers, each in the range, bound as double[3]; null where allowed. */
+typedef struct rgb_demo {
+  int flag;
+  double tint[3];
+  double base[3];
+} rgb_demo;
+
+static const obs_param rgb_params[] = {
+    {.name = "tint", .type = OBS_PARAM_RGB,
+     .flags = OBS_PARAM_NULLABLE | OBS_PARAM_DEFAULT_NULL, .min = 0, .max = 10, .null_value = -1,
+     .description = "an optional colour", .offset = offsetof(rgb_demo, tint)},
+    {.name = "base", .type = OBS_PARAM_RGB, .flags = OBS_PARAM_MAX_EXCLUSIVE, .min = 0, .max = 1,
+     .def = 0.5, .description = "a colour", .offset = offsetof(rgb_demo, base)},
+};
+
+static void test_rgb(void **state) {
+  (void)state;
+  obs_technique t;
+  memset(&t, 0, sizeof t);
+  t.name = "rgb";
+  t.params = rgb_params;
+  t.params_size = 2;
+  t.bound_size = sizeof(rgb_demo);
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(obs_technique_params_check(&t, &err), 0);
+  rgb_demo d;
+  json_t *j = json_loads("{\"tint\":[1,2.5,10]}", 0, NULL);
+  assert_int_equal(obs_params_bind(&t, j, &d, &err), 0);
+  json_decref(j);
+  assert_true(d.tint[0] == 1 && d.tint[1] == 2.5 && d.tint[2] == 10);
+  assert_true(d.base[0] == 0.5 && d.base[1] == 0.5 && d.base[2] == 0.5);
+  assert_int_equal(obs_params_bind(&t, NULL, &d, &err), 0);
+  assert_true(d.tint[0] == -1 && d.tint[1] == -1 && d.tint[2] == -1);
+  static const char *const bad[][2] = {
+      {"{\"tint\":[1,2]}", "rgb params: /tint: must be an array of 3 numbers [R, G, B] or null"},
+      {"{\"tint\":[1,-1,11]}", "rgb params: /tint/1: must be >= 0 (got -1)"},
+      {"{\"tint\":[1,-1,11]}", "rgb params: /tint/2: must be <= 10 (got 11)"},
+      {"{\"base\":null}", "rgb params: /base: must be an array of 3 numbers [R, G, B] (got null)"},
+      {"{\"base\":[0,1,0]}", "rgb params: /base/1: must be < 1 (got 1)"},
+      {"{\"base\":[0,\"x\",0]}", "rgb params: /base: must be an array of 3 numbers"}};
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+    obs_err e = OBS_ERR_INIT;
+    j = json_loads(bad[i][0], 0, NULL);
+    assert_int_equal(obs_params_bind(&t, j, &d, &e), OBS_EINVAL);
+    if (!strstr(obs_err_message(&e), bad[i][1]))
+      fprintf(stderr, "%s: expected \"%s\", got \"%s\"\n", bad[i][0], bad[i][1],
+              obs_err_message(&e));
+    assert_non_null(strstr(obs_err_message(&e), bad[i][1]));
+    json_decref(j);
+    obs_err_free(&e);
+  }
+  json_t *s = obs_technique_params_schema(&t);
+  char *text = json_dumps(s, JSON_COMPACT);
+  assert_string_equal(
+      text,
+      "{\"type\":\"object\",\"additionalProperties\":false,\"properties\":{"
+      "\"tint\":{\"type\":[\"array\",\"null\"],\"items\":{\"type\":\"number\",\"minimum\":0,"
+      "\"maximum\":10},\"minItems\":3,\"maxItems\":3,\"default\":null,"
+      "\"description\":\"an optional colour\"},"
+      "\"base\":{\"type\":\"array\",\"items\":{\"type\":\"number\",\"minimum\":0,"
+      "\"exclusiveMaximum\":1},\"minItems\":3,\"maxItems\":3,\"default\":[0.5,0.5,0.5],"
+      "\"description\":\"a colour\"}}}");
+  free(text);
+  json_decref(s);
+  obs_err_free(&err);
+}
+
 static void test_cost(void **state) {
   (void)state;
   obs_technique t = demo_technique();
@@ -391,6 +458,7 @@ int main(void) {
       cmocka_unit_test(test_defaults_and_offsets),
       cmocka_unit_test(test_bounds_types_messages),
       cmocka_unit_test(test_schema),
+      cmocka_unit_test(test_rgb),
       cmocka_unit_test(test_cost),
       cmocka_unit_test(test_self_check),
       cmocka_unit_test(test_nearest_name),

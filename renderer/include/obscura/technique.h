@@ -190,13 +190,14 @@ typedef enum obs_param_type {
   OBS_PARAM_UINT,   /* JSON integer; stored as uint32_t */
   OBS_PARAM_FLOAT,  /* JSON number; stored as float, rounded once */
   OBS_PARAM_DOUBLE, /* JSON number; stored as double */
-  OBS_PARAM_ENUM    /* JSON string, one of `choices`; stored as int, the index of the choice */
+  OBS_PARAM_ENUM,   /* JSON string, one of `choices`; stored as int, the index of the choice */
+  OBS_PARAM_RGB     /* JSON array of 3 numbers (R, G, B), each in the range; stored as double[3] */
 } obs_param_type;
 
 enum {
   OBS_PARAM_MIN_EXCLUSIVE = 1 << 0, /* value > min rather than >= min */
   OBS_PARAM_MAX_EXCLUSIVE = 1 << 1, /* value < max rather than <= max */
-  OBS_PARAM_NULLABLE = 1 << 2,      /* numbers: null is a value, bound as null_value */
+  OBS_PARAM_NULLABLE = 1 << 2,      /* numbers, RGB: null is a value, bound as null_value */
   OBS_PARAM_DEFAULT_NULL = 1 << 3   /* with NULLABLE: the default is null, not `def` */
 };
 
@@ -205,7 +206,8 @@ typedef struct obs_param {
   obs_param_type type;
   unsigned flags;              /* OBS_PARAM_* */
   double min, max;             /* numbers: the accepted range (ignored when `values` is set) */
-  double def;                  /* default: the number; 0/1 for a boolean; the choice's index */
+  double def;                  /* default: the number (each component of an RGB); 0/1 for a
+                                  boolean; the choice's index */
   double null_value;           /* NULLABLE: what null is bound as (e.g. INFINITY = unbounded) */
   const char *const *choices;  /* ENUM: the names, NULL-terminated */
   const int *values;           /* INT: the only values accepted (a JSON Schema enum), or NULL */

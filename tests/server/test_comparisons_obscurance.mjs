@@ -1,0 +1,52 @@
+// A comparison of obscurance (per-pixel obscurances with colour bleeding) against its reference,
+// path_trace, end to end: the reference hook names path_trace with the candidate's exposure, and
+// the candidate's primary output `final` is compared with the reference's `radiance` (the server
+// reads the reference's primary output under the candidate's name, its standard error too).
+import assert from 'node:assert/strict';
+import {test} from 'node:test';
+
+import {SLOW, getJSON, request, sleep, validate, withDaemon} from './lib.mjs';
+
+async function waitComparison(d, id, timeoutMs = 240000 * SLOW) {
+  const deadline = Date.now() + timeoutMs;
+  for (;;) {
+    const c = await getJSON(d, `/api/v1/comparisons/${id}`);
+    validate('Comparison', c);
+    if (c.state !== 'running') return c;
+    if (Date.now() > deadline) throw new Error(`comparison ${id} still running`);
+    await sleep(50);
+  }
+}
+
+test('obscurance against path_trace: final compared with radiance, RGB metrics', async () => {
+  await withDaemon({}, async (d) => {
+    const body = {
+      scene_file: 'cornell_box.json',
+      set: {'/image/width': 32, '/image/height': 24},
+      repeats: 1,
+      reference: {samples: 256},
+      candidates: [{technique: 'obscurance', backend: 'cpu',
+                    params: {samples: [4, 64], light_samples: 16, d_max: 300, exposure: 1}}],
+    };
+    const r = await request(d, 'POST', '/api/v1/comparisons', {body});
+    assert.equal(r.status, 201, r.text);
+    const c = await waitComparison(d, r.json.id);
+    assert.equal(c.state, 'succeeded', JSON.stringify(c.candidates.map((x) => [x.state, x.error])));
+    const ref = c.references[0];
+    assert.equal(ref.technique, 'path_trace');
+    assert.equal(ref.params.samples, 256);
+    assert.equal(ref.params.exposure, 1, 'the reference keeps the exposure');
+    for (const x of c.candidates) {
+      const m = x.metrics;
+      assert.equal(m.output, 'final');
+      for (const v of m.rgb.rmse) assert.ok(Number.isFinite(v) && v > 0, `per-channel RMSE ${m.rgb.rmse}`);
+      assert.ok(m.rgb.ssim_luminance > 0 && m.rgb.ssim_luminance <= 1);
+      assert.ok(m.ref_noise > 0, 'the reference noise comes from radiance_stderr');
+      assert.equal(x.links.image, `/api/v1/jobs/${x.job_id}/outputs/final.png`);
+    }
+    // The model's error does not vanish with samples (it is a model of the reference, not a
+    // sampler of it), but more rays do not make it worse by more than the noise.
+    const lum = c.candidates.map((x) => x.metrics.rgb.rmse_luminance);
+    assert.ok(lum[1] <= lum[0] * 1.05, `luminance RMSE ${lum}`);
+  });
+});
