@@ -113,16 +113,7 @@ static void obscurance_check(const obs_scene *scene, const json_t *params, const
  * its full transport (the article's reference): the same scene, emitters and reflectivities,
  * max_bounces and roulette at their defaults. The exposure is copied so the PNGs match. (path_trace
  * with max_bounces 1 computes `direct` alone.) */
-static int obscurance_reference(const obs_scene *scene, const json_t *params,
-                                obs_reference_facts *facts, obs_reference_def *def,
-                                obs_err *err) {
-  (void)scene;
-  (void)facts;
-  (void)err;
-  static const char *const keys[] = {"exposure", NULL};
-  obs_reference_def_same(def, &obs_technique_path_trace, params, keys);
-  return 0;
-}
+static const char *const obscurance_reference_keys[] = {"exposure", NULL};
 
 /* The guaranteed range below (docs/accuracy.md; tests/unit/test_extremes.c checks both ends on a
  * sphere over a plane with `ambient` set). The rays are rt_ao's and path_trace's, so are their
@@ -144,7 +135,8 @@ const obs_technique obs_technique_obscurance = {
     .needs = OBS_NEED_BVH | OBS_NEED_BVH_FRAME_GEOMETRY | OBS_NEED_MATERIALS,
     .outputs = obscurance_outputs,
     .check = obscurance_check,
-    .reference = obscurance_reference,
+    .reference_same = &obs_technique_path_trace,
+    .reference_keys = obscurance_reference_keys,
     .reference_quality = "samples",
     .run = {[OBS_BACKEND_CPU] = obs_obscurance_cpu},
     .range = {[OBS_BACKEND_CPU] = {.size_min = 1e-9,

@@ -84,17 +84,8 @@ static void path_trace_check(const obs_scene *scene, const json_t *params, const
 /* path_trace is its own reference: the same light transport (bounces, roulette, light sampling)
  * with more paths and another seed (the caller sets samples and seed). The sampler is kept too:
  * a converged reference differs from another only by its noise. */
-static int path_trace_reference(const obs_scene *scene, const json_t *params,
-                                obs_reference_facts *facts, obs_reference_def *def,
-                                obs_err *err) {
-  (void)scene;
-  (void)facts;
-  (void)err;
-  static const char *const keys[] = {"max_bounces", "rr_depth", "light_sampling", "sampler",
-                                     "exposure",    NULL};
-  obs_reference_def_same(def, &obs_technique_path_trace, params, keys);
-  return 0;
-}
+static const char *const path_trace_reference_keys[] = {"max_bounces", "rr_depth", "light_sampling",
+                                                        "sampler", "exposure", NULL};
 
 /* The guaranteed range below (docs/accuracy.md, "Guaranteed ranges"; tests/unit/test_extremes.c
  * checks both ends on the same sphere over a plane under a constant sky). The ray tracing is
@@ -116,7 +107,8 @@ const obs_technique obs_technique_path_trace = {
     .needs = OBS_NEED_BVH | OBS_NEED_BVH_FRAME_GEOMETRY | OBS_NEED_MATERIALS,
     .outputs = path_trace_outputs,
     .check = path_trace_check,
-    .reference = path_trace_reference,
+    .reference_same = &obs_technique_path_trace,
+    .reference_keys = path_trace_reference_keys,
     .reference_quality = "samples",
     .run = {[OBS_BACKEND_CPU] = obs_path_trace_cpu},
     .range = {[OBS_BACKEND_CPU] = {.size_min = 1e-9,

@@ -10,14 +10,16 @@
 int obs_technique_reference(const obs_technique *t, const obs_scene *scene, const json_t *params,
                             obs_reference_facts *facts, obs_reference_def *def, obs_err *err) {
   memset(def, 0, sizeof *def);
-  if (!t || !t->reference)
+  if (!t || (!t->reference && !(t->reference_same && t->reference_keys)))
     return obs_err_set(err, OBS_EUNSUPPORTED, "technique \"%s\" has no reference definition, so "
                        "it cannot be compared", t ? t->name : "?");
   obs_reference_facts local;
   memset(&local, 0, sizeof local);
   def->params = json_object();
   if (!def->params) return obs_err_set(err, OBS_ENOMEM, "out of memory");
-  int rc = t->reference(scene, params, facts ? facts : &local, def, err);
+  int rc = 0;
+  if (t->reference) rc = t->reference(scene, params, facts ? facts : &local, def, err);
+  else obs_reference_def_same(def, t->reference_same, params, t->reference_keys);
   if (!rc && (!def->technique || !def->technique->reference_quality))
     rc = obs_err_set(err, OBS_EUNSUPPORTED, "technique \"%s\": its reference technique \"%s\" "
                      "cannot serve as a reference (no quality parameter)", t->name,

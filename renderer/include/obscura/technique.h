@@ -308,7 +308,12 @@ typedef struct obs_technique {
   unsigned needs;               /* OBS_NEED_* */
   const obs_output *outputs;    /* ended by an entry with a NULL name; exactly one primary */
   obs_technique_check_fn check; /* may be NULL */
-  obs_technique_reference_fn reference; /* may be NULL: the technique cannot be compared */
+  obs_technique_reference_fn reference; /* may be NULL: see reference_same */
+  /* Without a `reference` hook: the candidate is judged against this technique given the values
+   * of the NULL-terminated `reference_keys` the candidate has (obs_reference_def_same, identity
+   * response). Both NULL: the technique cannot be compared. */
+  const struct obs_technique *reference_same;
+  const char *const *reference_keys;
   /* As a reference: the integer parameter a comparison's reference.samples sets (its converged
    * quality, e.g. "samples"); NULL: the technique cannot serve as a reference. */
   const char *reference_quality;
