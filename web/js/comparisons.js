@@ -149,23 +149,211 @@ function csvLink(url, name) {
 
 // ---- one comparison -----------------------------------------------------------------------------
 
-export function mountComparison(view, [id], query) {
-  const s = {
-    c: null, fingerprint: '', sort: {key: 'index', dir: 1}, split: 50,
-    selected: query.has('candidate') ? Number(query.get('candidate')) : null, chart: null, colours: new Map(),
-  };
-  const facts = el('div');
+// The image viewer (viewer.js) on a job's EXR, B the job to compare with; Close comes back here.
+const viewerHref = (a, b) => `#/view/${a}?${b ? `b=${b}&mode=split&` : ''}back=${encodeURIComponent(location.hash)}`;
+
+function select(pg, index, scroll = true) {
+  const {s, id, tbody, detail} = pg;
+  s.selected = index;
+  history.replaceState(null, '', `#/comparisons/${id}?candidate=${index}`);
+  if (s.chart) s.chart.select(index);
+  for (const tr of tbody.rows) tr.setAttribute('aria-selected', String(Number(tr.dataset.index) === index));
+  renderSelected(pg);
+  debug.comparison.selected = index;
+  if (scroll) detail.scrollIntoView({block: 'nearest'});
+}
+
+function renderFacts(pg) {
+  const {s, id, facts} = pg;
+  const c = s.c;
+  const done = c.candidates.filter((x) => !ACTIVE.has(x.state)).length;
+  facts.replaceChildren(
+    el('dl', {className: 'facts'},
+      el('dt', {}, 'State'), el('dd', {className: 'cmp-state', 'aria-live': 'polite'}, stateBadge(c.state)),
+      el('dt', {}, 'Label'), el('dd', {}, c.label || '–'),
+      el('dt', {}, 'Scene'), el('dd', {}, c.scene),
+      el('dt', {}, 'Image'), el('dd', {}, c.image ? `${c.image.width}×${c.image.height}` : '–'),
+      el('dt', {}, 'Timed runs per candidate'), el('dd', {}, String(c.repeats)),
+      el('dt', {}, 'Candidates finished'), el('dd', {},
+        el('progress', {max: c.candidates.length || 1, value: done, 'aria-label': 'Candidates finished'}), ` ${done} / ${c.candidates.length}`),
+      el('dt', {}, 'References'), el('dd', {}, ...c.references.flatMap((r, i) => [i ? ', ' : '',
+        el('a', {href: `#/jobs/${r.job_id}?comparison=${id}`}, `job ${r.job_id}`), ` (${refTechnique(r)}, ${r.state}, ${paramText({samples: r.params && r.params.samples})})`])),
+      el('dt', {}, 'Error measure'), el('dd', {className: 'error-measure'}, errorName(c.candidates)),
+      el('dt', {}, 'Created'), el('dd', {}, fmtTime(c.created_at)),
+      ...(c.notes && c.notes.length ? [el('dt', {}, 'Derived from the scene\'s size'),
+        el('dd', {className: 'notes'}, ...c.notes.map((n) => el('p', {className: 'derived'}, n)))] : [])),
+    el('p', {}, csvLink(c.links.csv, `comparison-${id}.csv`)));
+}
+
+function renderTable(pg) {
+  const {s, thead, tbody} = pg;
+  const ctx = {params: varyingParams(s.c.candidates)};
+  const cols = columnsFor(s.c.candidates);
+  if (!cols.some((c) => c.key === s.sort.key)) s.sort = {key: 'index', dir: 1};
+  const {key, dir} = s.sort;
+  const col = cols.find((c) => c.key === key);
+  const rows = [...s.c.candidates].sort((a, b) => {
+    const va = col.get(a, ctx), vb = col.get(b, ctx);
+    if (va === null || va === undefined) return vb === null || vb === undefined ? a.index - b.index : 1;
+    if (vb === null || vb === undefined) return -1;
+    const d = col.sortValue ? col.sortValue(va) - col.sortValue(vb) : col.num ? va - vb : String(va).localeCompare(String(vb));
+    return d ? d * dir : a.index - b.index;
+  });
+  thead.replaceChildren(el('tr', {}, ...cols.map((c) => el('th', {scope: 'col', 'aria-sort': c.key === key ? (dir > 0 ? 'ascending' : 'descending') : 'none'},
+    el('button', {type: 'button', className: 'sort', onclick: () => {
+      s.sort = {key: c.key, dir: s.sort.key === c.key ? -s.sort.dir : 1};
+      renderTable(pg);
+      thead.querySelector(`button[data-key="${c.key}"]`).focus();
+    }, 'data-key': c.key}, c.label, el('span', {'aria-hidden': 'true', className: 'arrow'}, c.key === key ? (dir > 0 ? ' ▲' : ' ▼') : ''))))));
+  const focusedIndex = tbody.contains(document.activeElement) ? document.activeElement.closest('tr').dataset.index : null;
+  tbody.replaceChildren(...rows.map((c) => {
+    const tr = el('tr', {'data-index': c.index, 'aria-selected': String(c.index === s.selected), className: c.pareto ? 'pareto' : ''},
+      ...cols.map((col, k) => {
+        const v = col.get(c, ctx);
+        if (k === 0) {
+          return el('td', {className: 'num'}, el('button', {type: 'button', className: 'small pick', 'aria-label': `Show candidate ${c.index}`,
+            onclick: () => select(pg, c.index)}, String(c.index)));
+        }
+        if (col.key === 'state') return el('td', {}, stateBadge(v));
+        return el('td', {className: [col.num && 'num', col.nowrap && 'nowrap'].filter(Boolean).join(' ')}, col.fmt ? col.fmt(v) : String(v ?? '–'));
+      }));
+    tr.addEventListener('click', (ev) => {
+      if (!ev.target.closest('button, a')) select(pg, c.index);
+    });
+    return tr;
+  }));
+  if (focusedIndex !== null) {
+    const b = tbody.querySelector(`tr[data-index="${focusedIndex}"] button`);
+    if (b) b.focus();
+  }
+}
+
+function renderRanking(pg) {
+  const {s, rankNote} = pg;
+  const r = s.c.ranking;
+  rankNote.replaceChildren(...(r && r.warning
+    ? [el('p', {className: 'warnings noisy-reference', role: 'note'}, el('strong', {}, 'Reference too noisy to rank: '),
+      r.warning.replace(/^the reference is too noisy to rank the candidates: /, ''), '.')]
+    : []));
+}
+
+function renderChart(pg) {
+  const {s, chartBox, chartNote, colourOf} = pg;
+  // A live update redraws the chart: keep the keyboard on the point it was on.
+  const focused = s.chart && s.chart.hasFocus() ? Number(document.activeElement.dataset.index) : null;
+  if (s.chart) s.chart.destroy();
+  chartBox.replaceChildren();
+  const ctx = {params: varyingParams(s.c.candidates)};
+  const noise = s.c.ranking ? s.c.ranking.ref_noise : null;
+  s.chart = paretoChart(chartBox, s.c.candidates, {colourOf, onSelect: (i) => select(pg, i), selected: s.selected, noise,
+    nameOf: (c) => {
+      const varying = ctx.params(c);
+      return `Candidate ${c.index}: ${c.technique} on ${c.backend}${varying === '(defaults)' ? '' : `, ${varying}`}`;
+    }});
+  if (s.chart && focused !== null) s.chart.focus(focused);
+  const info = s.chart ? s.chart.info : {points: 0, series: [], pareto: 0};
+  debug.comparison.chart = info;
+  debug.comparison.uplot = s.chart ? s.chart.uplot : null;
+  const withMetrics = s.c.candidates.filter(plottable);
+  const times = withMetrics.map((c) => c.timings_ms.median.total), errs = withMetrics.map((c) => c.metrics.rmse);
+  chartBox.setAttribute('aria-label', info.points
+    ? `Scatter chart, log scales: ${info.points} candidates, median time ${fmtMs(Math.min(...times))} to ${fmtMs(Math.max(...times))} ms, ` +
+      `${errorName(withMetrics)} ${fmtNum(Math.min(...errs), 3)} to ${fmtNum(Math.max(...errs), 3)}; ` +
+      `series: ${info.series.map((x) => `${x.label} (${x.points})`).join(', ')}; Pareto-optimal candidates: ${s.c.pareto.join(', ') || 'none yet'}.`
+    : 'Chart: no candidate has metrics yet.');
+  chartNote.textContent = info.points < s.c.candidates.length
+    ? `${info.points} of ${s.c.candidates.length} candidates plotted; the others have no metrics or no finite time and RMSE` +
+      `${s.c.state === 'running' ? ' yet' : ''}.` : '';
+}
+
+function renderGrid(pg) {
+  const {s, grid} = pg;
+  const ctx = {params: varyingParams(s.c.candidates)};
+  grid.replaceChildren(
+    ...s.c.references.filter((r) => r.links && primaryImage(r.links)).map((r) => el('figure', {className: 'tile ref'},
+      el('a', {href: viewerHref(r.job_id), 'aria-label': `View reference job ${r.job_id} at full resolution`},
+        el('img', {src: primaryImage(r.links), alt: `Reference job ${r.job_id}`})),
+      el('figcaption', {}, `Reference (job ${r.job_id}, ${refTechnique(r)} ${paramText({samples: r.params && r.params.samples})})`))),
+    ...s.c.candidates.map((c) => el('figure', {className: 'tile'},
+      c.links && primaryImage(c.links)
+        ? el('img', {src: primaryImage(c.links), alt: `Candidate ${c.index}: ${c.technique} on ${c.backend}`, onclick: () => select(pg, c.index)})
+        : el('div', {className: 'placeholder'}, c.state),
+      el('figcaption', {}, el('button', {type: 'button', className: 'link', onclick: () => select(pg, c.index)},
+        `#${c.index} ${c.technique}/${c.backend}`), ` ${ctx.params(c)}`, c.metrics ? ` · RMSE ${fmtNum(c.metrics.rmse, 3)}` : ''))));
+}
+
+function renderSelected(pg) {
+  const {s, id, detail} = pg;
+  const c = s.c && s.c.candidates.find((x) => x.index === s.selected);
+  if (!c) {
+    detail.replaceChildren();
+    return;
+  }
+  const links = c.links || {};
+  const parts = [el('h2', {id: 'h-selected'}, `Candidate ${c.index}: ${c.technique} on ${c.backend}`),
+    el('p', {}, el('code', {}, paramText(c.params)), ' · ', stateBadge(c.state), ' · ',
+      el('a', {href: `#/jobs/${c.job_id}?comparison=${id}`, className: 'open-job'}, `Open job ${c.job_id}`), ' · ',
+      el('a', {href: viewerHref(c.job_id, c.reference_job_id), className: 'open-viewer'}, 'View candidate (A) against reference (B)'))];
+  const media = el('div', {className: 'media'});
+  if (primaryImage(links) && links['reference.png']) {
+    // The reference as the metrics saw it: mapped through the candidate's response when that
+    // changes it (the server writes that image), else as rendered.
+    const mapped = links['reference_mapped.png'];
+    const refWhat = mapped ? `the reference mapped through the ${c.response} response, as the metrics compared it`
+      : 'the reference as rendered';
+    const ref = el('img', {className: 'ref', src: mapped || links['reference.png'],
+                           alt: `Reference job ${c.reference_job_id}${mapped ? ` mapped through ${c.response}` : ''}`});
+    const cand = el('img', {className: 'cand', src: primaryImage(links), alt: `Candidate ${c.index}`});
+    const line = el('div', {className: 'divider', 'aria-hidden': 'true'});
+    const range = el('input', {type: 'range', id: 'split', min: '0', max: '100', step: '1', value: String(s.split)});
+    const apply = () => {
+      const v = Number(range.value);
+      s.split = v;
+      // CSSOM properties, which the CSP (no inline styles) allows.
+      cand.style.clipPath = `inset(0 ${100 - v}% 0 0)`;
+      line.style.left = `${v}%`;
+      range.setAttribute('aria-valuetext', `${v}% candidate on the left, ${100 - v}% reference on the right`);
+    };
+    range.addEventListener('input', apply);
+    apply();
+    media.append(el('figure', {className: 'compare'},
+      el('div', {className: 'stack', title: 'Click to open the viewer', onclick: () => { location.hash = viewerHref(c.job_id, c.reference_job_id); }}, ref, cand, line),
+      el('label', {for: 'split'}, 'Split between candidate (left) and reference (right)'), range,
+      el('figcaption', {className: 'compared'}, `Left of the line: the candidate; right: ${refWhat}. Arrow keys move the split.`)));
+  }
+  if (links['error.png']) {
+    media.append(el('figure', {className: 'heatmap'},
+      el('img', {className: 'error', src: links['error.png'], alt: `Error heatmap of candidate ${c.index} against its reference`}),
+      el('div', {className: 'ramp', 'aria-hidden': 'true'}),
+      el('div', {className: 'ramp-labels'}, el('span', {}, '−0.25 blue: too dark'), el('span', {}, '0 white'), el('span', {}, '+0.25 red: too bright')),
+      el('figcaption', {}, `Signed error candidate − reference${c.metrics && c.metrics.rgb ? ` (of ${c.metrics.output} luminance)` : ''}, ` +
+        'saturating at ±0.25; grey: no geometry in the reference; green: NaN. ',
+        links['error.exr'] ? el('a', {href: links['error.exr'], download: `candidate${c.index}-error.exr`}, 'error.exr') : '')));
+  }
+  parts.push(media, c.metrics ? metricsTable(c)
+    : el('p', {className: c.error ? 'error' : 'muted'}, c.error ? `No metrics: ${c.error}` : 'No metrics yet.'));
+  // Live updates rebuild the panel: keep the keyboard on the slider if it was there.
+  const hadFocus = document.activeElement && document.activeElement.id === 'split';
+  detail.replaceChildren(el('section', {'aria-labelledby': 'h-selected', className: 'selected'}, ...parts));
+  if (hadFocus && document.getElementById('split')) document.getElementById('split').focus();
+}
+
+// The page's sections, into pg: facts, the chart with its legend and notes, the candidate table,
+// the selected candidate's panel and the grid of images.
+function comparisonLayout(pg, view) {
+  pg.facts = el('div');
   // A group of focusable points (chart.js), named by its text summary.
-  const chartBox = el('div', {className: 'chart', role: 'group'});
-  const rankNote = el('div', {className: 'rank-note'});
-  const chartNote = el('p', {className: 'muted'});
-  const thead = el('thead');
-  const tbody = el('tbody');
-  const detail = el('div', {className: 'selected-slot'});
-  const grid = el('div', {className: 'grid'});
+  pg.chartBox = el('div', {className: 'chart', role: 'group'});
+  pg.rankNote = el('div', {className: 'rank-note'});
+  pg.chartNote = el('p', {className: 'muted'});
+  pg.thead = el('thead');
+  pg.tbody = el('tbody');
+  pg.detail = el('div', {className: 'selected-slot'});
+  pg.grid = el('div', {className: 'grid'});
+  const {facts, chartBox, rankNote, chartNote, thead, tbody, detail, grid} = pg;
   view.append(
     el('p', {className: 'crumbs'}, el('a', {href: '#/comparisons'}, '← all comparisons')),
-    el('h1', {}, `Comparison ${id}`), facts,
+    el('h1', {}, `Comparison ${pg.id}`), facts,
     el('section', {'aria-labelledby': 'h-chart'},
       el('h2', {id: 'h-chart'}, 'Time against error'),
       el('p', {className: 'hint'}, 'Each point is a candidate: colour and legend name the technique, the shape the backend. ' +
@@ -187,204 +375,32 @@ export function mountComparison(view, [id], query) {
         el('caption', {className: 'sr-only'}, 'Candidates; column headers sort the table'), thead, tbody))),
     detail,
     el('section', {'aria-labelledby': 'h-grid'}, el('h2', {id: 'h-grid'}, 'All images'), grid));
+}
+
+export function mountComparison(view, [id], query) {
+  const s = {
+    c: null, fingerprint: '', sort: {key: 'index', dir: 1}, split: 50,
+    selected: query.has('candidate') ? Number(query.get('candidate')) : null, chart: null, colours: new Map(),
+  };
+  const pg = {s, id};
+  comparisonLayout(pg, view);
+  const {facts, chartBox} = pg;
 
   // Arrow keys on a point select the next or previous one in time order and move the focus there.
   chartBox.addEventListener('keydown', (ev) => {
     if (!s.chart || !['ArrowLeft', 'ArrowRight'].includes(ev.key)) return;
     ev.preventDefault();
     const next = s.chart.step(ev.key === 'ArrowRight' ? 1 : -1);
-    select(next, false);
+    select(pg, next, false);
     s.chart.focus(next);
   });
 
-  const colourOf = (t) => {
+  pg.colourOf = (t) => {
     if (!s.colours.has(t)) s.colours.set(t, PALETTE[s.colours.size % PALETTE.length]);
     return s.colours.get(t);
   };
   // Colours follow the registry's order, so a technique keeps its colour across comparisons.
-  const ready = techniques().then(({techniques: ts}) => ts.forEach((t) => colourOf(t.name))).catch(() => {});
-
-  function select(index, scroll = true) {
-    s.selected = index;
-    history.replaceState(null, '', `#/comparisons/${id}?candidate=${index}`);
-    if (s.chart) s.chart.select(index);
-    for (const tr of tbody.rows) tr.setAttribute('aria-selected', String(Number(tr.dataset.index) === index));
-    renderSelected();
-    debug.comparison.selected = index;
-    if (scroll) detail.scrollIntoView({block: 'nearest'});
-  }
-
-  function renderFacts() {
-    const c = s.c;
-    const done = c.candidates.filter((x) => !ACTIVE.has(x.state)).length;
-    facts.replaceChildren(
-      el('dl', {className: 'facts'},
-        el('dt', {}, 'State'), el('dd', {className: 'cmp-state', 'aria-live': 'polite'}, stateBadge(c.state)),
-        el('dt', {}, 'Label'), el('dd', {}, c.label || '–'),
-        el('dt', {}, 'Scene'), el('dd', {}, c.scene),
-        el('dt', {}, 'Image'), el('dd', {}, c.image ? `${c.image.width}×${c.image.height}` : '–'),
-        el('dt', {}, 'Timed runs per candidate'), el('dd', {}, String(c.repeats)),
-        el('dt', {}, 'Candidates finished'), el('dd', {},
-          el('progress', {max: c.candidates.length || 1, value: done, 'aria-label': 'Candidates finished'}), ` ${done} / ${c.candidates.length}`),
-        el('dt', {}, 'References'), el('dd', {}, ...c.references.flatMap((r, i) => [i ? ', ' : '',
-          el('a', {href: `#/jobs/${r.job_id}?comparison=${id}`}, `job ${r.job_id}`), ` (${refTechnique(r)}, ${r.state}, ${paramText({samples: r.params && r.params.samples})})`])),
-        el('dt', {}, 'Error measure'), el('dd', {className: 'error-measure'}, errorName(c.candidates)),
-        el('dt', {}, 'Created'), el('dd', {}, fmtTime(c.created_at)),
-        ...(c.notes && c.notes.length ? [el('dt', {}, 'Derived from the scene\'s size'),
-          el('dd', {className: 'notes'}, ...c.notes.map((n) => el('p', {className: 'derived'}, n)))] : [])),
-      el('p', {}, csvLink(c.links.csv, `comparison-${id}.csv`)));
-  }
-
-  function renderTable() {
-    const ctx = {params: varyingParams(s.c.candidates)};
-    const cols = columnsFor(s.c.candidates);
-    if (!cols.some((c) => c.key === s.sort.key)) s.sort = {key: 'index', dir: 1};
-    const {key, dir} = s.sort;
-    const col = cols.find((c) => c.key === key);
-    const rows = [...s.c.candidates].sort((a, b) => {
-      const va = col.get(a, ctx), vb = col.get(b, ctx);
-      if (va === null || va === undefined) return vb === null || vb === undefined ? a.index - b.index : 1;
-      if (vb === null || vb === undefined) return -1;
-      const d = col.sortValue ? col.sortValue(va) - col.sortValue(vb) : col.num ? va - vb : String(va).localeCompare(String(vb));
-      return d ? d * dir : a.index - b.index;
-    });
-    thead.replaceChildren(el('tr', {}, ...cols.map((c) => el('th', {scope: 'col', 'aria-sort': c.key === key ? (dir > 0 ? 'ascending' : 'descending') : 'none'},
-      el('button', {type: 'button', className: 'sort', onclick: () => {
-        s.sort = {key: c.key, dir: s.sort.key === c.key ? -s.sort.dir : 1};
-        renderTable();
-        thead.querySelector(`button[data-key="${c.key}"]`).focus();
-      }, 'data-key': c.key}, c.label, el('span', {'aria-hidden': 'true', className: 'arrow'}, c.key === key ? (dir > 0 ? ' ▲' : ' ▼') : ''))))));
-    const focusedIndex = tbody.contains(document.activeElement) ? document.activeElement.closest('tr').dataset.index : null;
-    tbody.replaceChildren(...rows.map((c) => {
-      const tr = el('tr', {'data-index': c.index, 'aria-selected': String(c.index === s.selected), className: c.pareto ? 'pareto' : ''},
-        ...cols.map((col, k) => {
-          const v = col.get(c, ctx);
-          if (k === 0) {
-            return el('td', {className: 'num'}, el('button', {type: 'button', className: 'small pick', 'aria-label': `Show candidate ${c.index}`,
-              onclick: () => select(c.index)}, String(c.index)));
-          }
-          if (col.key === 'state') return el('td', {}, stateBadge(v));
-          return el('td', {className: [col.num && 'num', col.nowrap && 'nowrap'].filter(Boolean).join(' ')}, col.fmt ? col.fmt(v) : String(v ?? '–'));
-        }));
-      tr.addEventListener('click', (ev) => {
-        if (!ev.target.closest('button, a')) select(c.index);
-      });
-      return tr;
-    }));
-    if (focusedIndex !== null) {
-      const b = tbody.querySelector(`tr[data-index="${focusedIndex}"] button`);
-      if (b) b.focus();
-    }
-  }
-
-  function renderRanking() {
-    const r = s.c.ranking;
-    rankNote.replaceChildren(...(r && r.warning
-      ? [el('p', {className: 'warnings noisy-reference', role: 'note'}, el('strong', {}, 'Reference too noisy to rank: '),
-        r.warning.replace(/^the reference is too noisy to rank the candidates: /, ''), '.')]
-      : []));
-  }
-
-  function renderChart() {
-    // A live update redraws the chart: keep the keyboard on the point it was on.
-    const focused = s.chart && s.chart.hasFocus() ? Number(document.activeElement.dataset.index) : null;
-    if (s.chart) s.chart.destroy();
-    chartBox.replaceChildren();
-    const ctx = {params: varyingParams(s.c.candidates)};
-    const noise = s.c.ranking ? s.c.ranking.ref_noise : null;
-    s.chart = paretoChart(chartBox, s.c.candidates, {colourOf, onSelect: (i) => select(i), selected: s.selected, noise,
-      nameOf: (c) => {
-        const varying = ctx.params(c);
-        return `Candidate ${c.index}: ${c.technique} on ${c.backend}${varying === '(defaults)' ? '' : `, ${varying}`}`;
-      }});
-    if (s.chart && focused !== null) s.chart.focus(focused);
-    const info = s.chart ? s.chart.info : {points: 0, series: [], pareto: 0};
-    debug.comparison.chart = info;
-    debug.comparison.uplot = s.chart ? s.chart.uplot : null;
-    const withMetrics = s.c.candidates.filter(plottable);
-    const times = withMetrics.map((c) => c.timings_ms.median.total), errs = withMetrics.map((c) => c.metrics.rmse);
-    chartBox.setAttribute('aria-label', info.points
-      ? `Scatter chart, log scales: ${info.points} candidates, median time ${fmtMs(Math.min(...times))} to ${fmtMs(Math.max(...times))} ms, ` +
-        `${errorName(withMetrics)} ${fmtNum(Math.min(...errs), 3)} to ${fmtNum(Math.max(...errs), 3)}; ` +
-        `series: ${info.series.map((x) => `${x.label} (${x.points})`).join(', ')}; Pareto-optimal candidates: ${s.c.pareto.join(', ') || 'none yet'}.`
-      : 'Chart: no candidate has metrics yet.');
-    chartNote.textContent = info.points < s.c.candidates.length
-      ? `${info.points} of ${s.c.candidates.length} candidates plotted; the others have no metrics or no finite time and RMSE` +
-        `${s.c.state === 'running' ? ' yet' : ''}.` : '';
-  }
-
-  // The image viewer (viewer.js) on a job's EXR, B the job to compare with; Close comes back here.
-  const viewerHref = (a, b) => `#/view/${a}?${b ? `b=${b}&mode=split&` : ''}back=${encodeURIComponent(location.hash)}`;
-
-  function renderGrid() {
-    const ctx = {params: varyingParams(s.c.candidates)};
-    grid.replaceChildren(
-      ...s.c.references.filter((r) => r.links && primaryImage(r.links)).map((r) => el('figure', {className: 'tile ref'},
-        el('a', {href: viewerHref(r.job_id), 'aria-label': `View reference job ${r.job_id} at full resolution`},
-          el('img', {src: primaryImage(r.links), alt: `Reference job ${r.job_id}`})),
-        el('figcaption', {}, `Reference (job ${r.job_id}, ${refTechnique(r)} ${paramText({samples: r.params && r.params.samples})})`))),
-      ...s.c.candidates.map((c) => el('figure', {className: 'tile'},
-        c.links && primaryImage(c.links)
-          ? el('img', {src: primaryImage(c.links), alt: `Candidate ${c.index}: ${c.technique} on ${c.backend}`, onclick: () => select(c.index)})
-          : el('div', {className: 'placeholder'}, c.state),
-        el('figcaption', {}, el('button', {type: 'button', className: 'link', onclick: () => select(c.index)},
-          `#${c.index} ${c.technique}/${c.backend}`), ` ${ctx.params(c)}`, c.metrics ? ` · RMSE ${fmtNum(c.metrics.rmse, 3)}` : ''))));
-  }
-
-  function renderSelected() {
-    const c = s.c && s.c.candidates.find((x) => x.index === s.selected);
-    if (!c) {
-      detail.replaceChildren();
-      return;
-    }
-    const links = c.links || {};
-    const parts = [el('h2', {id: 'h-selected'}, `Candidate ${c.index}: ${c.technique} on ${c.backend}`),
-      el('p', {}, el('code', {}, paramText(c.params)), ' · ', stateBadge(c.state), ' · ',
-        el('a', {href: `#/jobs/${c.job_id}?comparison=${id}`, className: 'open-job'}, `Open job ${c.job_id}`), ' · ',
-        el('a', {href: viewerHref(c.job_id, c.reference_job_id), className: 'open-viewer'}, 'View candidate (A) against reference (B)'))];
-    const media = el('div', {className: 'media'});
-    if (primaryImage(links) && links['reference.png']) {
-      // The reference as the metrics saw it: mapped through the candidate's response when that
-      // changes it (the server writes that image), else as rendered.
-      const mapped = links['reference_mapped.png'];
-      const refWhat = mapped ? `the reference mapped through the ${c.response} response, as the metrics compared it`
-        : 'the reference as rendered';
-      const ref = el('img', {className: 'ref', src: mapped || links['reference.png'],
-                             alt: `Reference job ${c.reference_job_id}${mapped ? ` mapped through ${c.response}` : ''}`});
-      const cand = el('img', {className: 'cand', src: primaryImage(links), alt: `Candidate ${c.index}`});
-      const line = el('div', {className: 'divider', 'aria-hidden': 'true'});
-      const range = el('input', {type: 'range', id: 'split', min: '0', max: '100', step: '1', value: String(s.split)});
-      const apply = () => {
-        const v = Number(range.value);
-        s.split = v;
-        // CSSOM properties, which the CSP (no inline styles) allows.
-        cand.style.clipPath = `inset(0 ${100 - v}% 0 0)`;
-        line.style.left = `${v}%`;
-        range.setAttribute('aria-valuetext', `${v}% candidate on the left, ${100 - v}% reference on the right`);
-      };
-      range.addEventListener('input', apply);
-      apply();
-      media.append(el('figure', {className: 'compare'},
-        el('div', {className: 'stack', title: 'Click to open the viewer', onclick: () => { location.hash = viewerHref(c.job_id, c.reference_job_id); }}, ref, cand, line),
-        el('label', {for: 'split'}, 'Split between candidate (left) and reference (right)'), range,
-        el('figcaption', {className: 'compared'}, `Left of the line: the candidate; right: ${refWhat}. Arrow keys move the split.`)));
-    }
-    if (links['error.png']) {
-      media.append(el('figure', {className: 'heatmap'},
-        el('img', {className: 'error', src: links['error.png'], alt: `Error heatmap of candidate ${c.index} against its reference`}),
-        el('div', {className: 'ramp', 'aria-hidden': 'true'}),
-        el('div', {className: 'ramp-labels'}, el('span', {}, '−0.25 blue: too dark'), el('span', {}, '0 white'), el('span', {}, '+0.25 red: too bright')),
-        el('figcaption', {}, `Signed error candidate − reference${c.metrics && c.metrics.rgb ? ` (of ${c.metrics.output} luminance)` : ''}, ` +
-          'saturating at ±0.25; grey: no geometry in the reference; green: NaN. ',
-          links['error.exr'] ? el('a', {href: links['error.exr'], download: `candidate${c.index}-error.exr`}, 'error.exr') : '')));
-    }
-    parts.push(media, c.metrics ? metricsTable(c)
-      : el('p', {className: c.error ? 'error' : 'muted'}, c.error ? `No metrics: ${c.error}` : 'No metrics yet.'));
-    // Live updates rebuild the panel: keep the keyboard on the slider if it was there.
-    const hadFocus = document.activeElement && document.activeElement.id === 'split';
-    detail.replaceChildren(el('section', {'aria-labelledby': 'h-selected', className: 'selected'}, ...parts));
-    if (hadFocus && document.getElementById('split')) document.getElementById('split').focus();
-  }
+  const ready = techniques().then(({techniques: ts}) => ts.forEach((t) => pg.colourOf(t.name))).catch(() => {});
 
   debug.comparison = {id: Number(id), selected: s.selected, chart: null, state: null};
   let dead = false; // set when the page goes: a late answer must not draw (or make a chart)
@@ -405,12 +421,12 @@ export function mountComparison(view, [id], query) {
     const fp = JSON.stringify([c.state, c.ranking, c.candidates.map((x) => [x.state, x.metrics, x.pareto, x.timings_ms, x.links]),
                                c.references.map((r) => [r.state, r.links])]);
     if (fp !== s.fingerprint) {
-      renderFacts();
-      renderRanking();
-      renderTable();
-      renderChart();
-      renderGrid();
-      renderSelected();
+      renderFacts(pg);
+      renderRanking(pg);
+      renderTable(pg);
+      renderChart(pg);
+      renderGrid(pg);
+      renderSelected(pg);
       s.fingerprint = fp; // only once drawn: a render that threw is retried at the next poll
       debug.comparison.rendered = c.candidates.length;
     }
