@@ -217,7 +217,9 @@ test('database disk fills during a render: the job is not stranded', async (t) =
     const filler = fill(dbfs);
     // The render ends, its outputs are published, the commit meets the full disk: the worker
     // holds the job (health counts it paused) and the fault shows.
-    const h = await waitHealth(d, (x) => faultOf(x, 'database') && x.paused === 1, 'reporting the database fault');
+    // The render itself takes seconds, many more on a loaded machine: wait for its end generously.
+    const h = await waitHealth(d, (x) => faultOf(x, 'database') && x.paused === 1, 'reporting the database fault',
+                               120000 * SLOW);
     assert.equal(h.status, 'degraded');
     assert.match(faultOf(h, 'database').message, /full/i);
     const j = (await listAll(d)).find((x) => x.id === id);
