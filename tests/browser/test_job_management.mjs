@@ -93,7 +93,8 @@ test('grouping, confirm, retry, clone, bulk actions, paging, URL filters, narrow
     await page.getByRole('button', {name: `Cancel job ${queued}`}).click();
     await page.locator(`tr[data-id="${queued}"]`, {hasText: 'cancelled'}).waitFor();
     await page.getByRole('button', {name: `Cancel job ${blocker}`}).click();
-    await page.locator(`tr[data-id="${blocker}"]`, {hasText: 'cancelled'}).waitFor();
+    // A running render stops at its next tile: on a loaded machine that can take a while.
+    await page.locator(`tr[data-id="${blocker}"]`, {hasText: 'cancelled'}).waitFor({timeout: 120000});
     await page.getByRole('button', {name: `Retry job ${queued}`}).click();
     await page.locator(`tr[data-id="${queued}"]`, {hasText: 'succeeded'}).waitFor();
     const retried = await getJSON(d, `/api/v1/jobs/${queued}`);
