@@ -1,0 +1,324 @@
+/* obscurance_map on the CPU: the patches, the per-patch accumulation shared by the estimators, the
+ * `rays` estimator (cosine rays from stratified points of each patch) and the run, which shows the
+ * map per pixel. */
+#include "obscurance_map_cpu.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "driver.h"
+#include "obscura/render.h"
+#include "parallel.h"
+#include "patch_ids.h"
+#include "sampling.h"
+#include "techniques.h"
+
+void obs_omap_free(obs_omap *m) {
+  if (!m) return;
+  obs_patch_mesh_free(&m->pm);
+  free(m->w);
+  free(m->se);
+  free(m->n);
+  memset(m, 0, sizeof *m);
+}
+
+uint64_t omap_global_count(const obs_obscurance_map_params *p) {
+  if (p->lines) return p->lines;
+  return (uint64_t)p->directions * p->bundle_resolution * p->bundle_resolution;
+}
+
+/* One sample of patch `patch` (on mesh `geom`'s triangle `prim`, corners c, unit normal n):
+ * a cosine-distributed ray from a stratified point. Returns the rays traced (0 or 1). */
+static uint64_t ray_sample(const omap_job *j, omap_acc *acc, unsigned geom, unsigned prim,
+                           const double c[3][3], const float n[3], const float tb[2][3],
+                           const obs_sampler2d *pts, const obs_sampler2d *dirs, uint32_t i,
+                           uint32_t shuffle_seed) {
+  float u1, v1, u2, v2;
+  obs_sampler2d_get(pts, i, &u1, &v1);
+  obs_sampler2d_get(dirs, obs_sample_shuffle(i, shuffle_seed), &u2, &v2);
+  /* Uniform on the triangle: (1 - s, s (1 - v), s v) with s = sqrt(u). */
+  double s = sqrt((double)u1), w[3] = {1 - s, s * (1 - v1), s * v1};
+  obs_hit from;
+  memset(&from, 0, sizeof from);
+  float mag = 0;
+  for (int k = 0; k < 3; k++) {
+    from.p[k] = (float)(w[0] * c[0][k] + w[1] * c[1][k] + w[2] * c[2][k]);
+    from.ng[k] = from.ns[k] = n[k];
+    mag = fmaxf(mag, fmaxf(fabsf((float)c[0][k]), fmaxf(fabsf((float)c[1][k]),
+                                                        fabsf((float)c[2][k]))));
+  }
+  /* The point is a convex combination rounded once: a few ulps of the largest coordinate. */
+  for (int k = 0; k < 3; k++) from.perr[k] = mag * 0x1p-21f;
+  from.geom = geom, from.prim = prim;
+  float org[3], l[3], dir[3];
+  obs_rt_offset(j->rt, &from, org);
+  obs_sample_cosine(u2, v2, l);
+  for (int k = 0; k < 3; k++) dir[k] = l[0] * tb[0][k] + l[1] * tb[1][k] + l[2] * n[k];
+  obs_rt_ctx ctx;
+  obs_rt_ctx_init(&ctx, j->rt, &from);
+  struct RTCRayHit rh;
+  memset(&rh, 0, sizeof rh);
+  rh.ray.org_x = org[0], rh.ray.org_y = org[1], rh.ray.org_z = org[2];
+  rh.ray.dir_x = dir[0], rh.ray.dir_y = dir[1], rh.ray.dir_z = dir[2];
+  rh.ray.tfar = isinf(j->f.d_max) ? INFINITY : (float)j->f.d_max;
+  rh.ray.mask = ~0u;
+  rh.hit.geomID = rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(j->rt->scene, &ctx.ctx, &rh);
+  double v[3];
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
+    omap_value(j, INFINITY, NULL, v);
+  } else {
+    float nb[3];
+    const float *r;
+    if (rh.hit.geomID == j->rt->sphere_geom) {
+      nb[0] = rh.hit.Ng_x, nb[1] = rh.hit.Ng_y, nb[2] = rh.hit.Ng_z;
+      r = j->sphere_r[rh.hit.primID];
+    } else {
+      omap_tri_normal(j->rt, rh.hit.geomID, rh.hit.primID, nb);
+      r = j->mesh_r[rh.hit.geomID];
+    }
+    /* Only a surface that faces the patch transfers; a back face eliminates the sample, as a
+     * non-facing pair of hits does for the line estimators. */
+    if (!(nb[0] * dir[0] + nb[1] * dir[1] + nb[2] * dir[2] < 0)) return 1;
+    omap_value(j, rh.ray.tfar, r, v);
+  }
+  omap_add(acc, v);
+  return 1;
+}
+
+int omap_rays_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+  (void)y0, (void)y1;
+  const omap_job *j = user;
+  const obs_patch_mesh *pm = j->pm;
+  omap_acc *acc = j->acc + (size_t)thread * (size_t)pm->count;
+  uint64_t rays = 0;
+  for (int64_t patch = (int64_t)x0 * OMAP_RAYS_CHUNK;
+       patch < (int64_t)x1 * OMAP_RAYS_CHUNK && patch < pm->count; patch++) {
+    int64_t sub;
+    size_t t = obs_patch_mesh_owner(pm, patch, &sub);
+    if (!(pm->area[patch] > 0)) continue; /* degenerate: no normal, no sample */
+    /* The mesh and primitive of scene triangle t. */
+    size_t m = 0;
+    while (pm->mesh_tri[m + 1] <= t) m++;
+    unsigned prim = (unsigned)(t - pm->mesh_tri[m]);
+    const obs_mesh *me = &j->rt->geo.meshes[m];
+    const float *v[3];
+    for (int k = 0; k < 3; k++) v[k] = me->pos + 3 * (size_t)me->idx[3 * (size_t)prim + (size_t)k];
+    double uv[3][2], c[3][3];
+    obs_patch_sub_corners(pm->split[t], sub, uv);
+    for (int q = 0; q < 3; q++)
+      for (int k = 0; k < 3; k++)
+        c[q][k] = v[0][k] + uv[q][0] * ((double)v[1][k] - v[0][k]) +
+                  uv[q][1] * ((double)v[2][k] - v[0][k]);
+    float n[3], tb[2][3];
+    omap_tri_normal(j->rt, (unsigned)m, prim, n);
+    float l = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    if (!(l > 0) || !isfinite(l)) continue;
+    for (int k = 0; k < 3; k++) n[k] /= l;
+    obs_onb(n, tb[0], tb[1]);
+    obs_sampler2d pts, dirs;
+    uint32_t lo = (uint32_t)patch, hi = (uint32_t)((uint64_t)patch >> 32);
+    obs_sampler2d_init(&pts, OBS_SAMPLER_HALTON, lo, hi, 0, 0, j->p.seed);
+    obs_sampler2d_init(&dirs, OBS_SAMPLER_HALTON, lo, hi, 0, 1, j->p.seed);
+    uint32_t shuffle = obs_hash_combine(obs_hash_combine(j->p.seed, lo), hi ^ 0x5bd1e995U);
+    for (uint32_t i = 0; i < j->p.samples; i++)
+      rays += ray_sample(j, &acc[patch], (unsigned)m, prim, c, n, tb, &pts, &dirs, i, shuffle);
+  }
+  j->rays[(size_t)thread * 8] += rays;
+  return 0;
+}
+
+/* Reflectivities per mesh and per sphere, from their objects' materials. */
+static int job_reflectivities(omap_job *j, const obs_scene *scene, obs_err *err) {
+  const obs_geometry *g = &j->rt->geo;
+  j->mesh_r = calloc(g->nmeshes ? g->nmeshes : 1, sizeof *j->mesh_r);
+  j->sphere_r = calloc(g->nspheres ? g->nspheres : 1, sizeof *j->sphere_r);
+  if (!j->mesh_r || !j->sphere_r)
+    return obs_err_set(err, OBS_ENOMEM, "%s: obscurance_map: out of memory", scene->name);
+  for (size_t k = 0; k < g->nmeshes + g->nspheres; k++) {
+    int sphere = k >= g->nmeshes;
+    size_t oi = sphere ? g->spheres[k - g->nmeshes].object : g->meshes[k].object;
+    const obs_object *o = &scene->objects[oi];
+    float *r = sphere ? j->sphere_r[k - g->nmeshes] : j->mesh_r[k];
+    r[0] = o->has_material ? (float)o->reflectivity.x : 0.0f;
+    r[1] = o->has_material ? (float)o->reflectivity.y : 0.0f;
+    r[2] = o->has_material ? (float)o->reflectivity.z : 0.0f;
+  }
+  return 0;
+}
+
+/* The accumulated sums into the map's values and standard errors, in patch order. */
+static void finish(const omap_job *j, obs_omap *out) {
+  const int64_t count = j->pm->count;
+  for (int64_t i = 0; i < count; i++) {
+    omap_acc a;
+    memset(&a, 0, sizeof a);
+    for (int t = 0; t < j->threads; t++) {
+      const omap_acc *b = &j->acc[(size_t)t * (size_t)count + (size_t)i];
+      for (int c = 0; c < 3; c++) a.s[c] += b->s[c];
+      a.q += b->q, a.n += b->n;
+    }
+    out->n[i] = a.n;
+    if (!a.n) {
+      double v[3];
+      omap_value(j, INFINITY, NULL, v);
+      for (int c = 0; c < 3; c++) out->w[3 * i + c] = (float)v[c];
+      out->se[i] = 1.0f;
+      out->unsampled += j->pm->area[i] > 0;
+      continue;
+    }
+    double n = (double)a.n, m = 0;
+    for (int c = 0; c < 3; c++) {
+      double w = (double)a.s[c] / OMAP_ONE / n;
+      out->w[3 * i + c] = (float)fmin(1.0, fmax(0.0, w));
+      m += w / 3;
+    }
+    double var = fmax(0.0, (double)a.q / OMAP_ONE / n - m * m) * (n > 1 ? n / (n - 1) : 0);
+    /* One sample says nothing of the spread: the widest a value in [0, 1] can have. */
+    out->se[i] = (float)(n > 1 ? sqrt(var / n) : 0.5);
+  }
+}
+
+static int run_estimator(omap_job *j, const atomic_int *cancel, obs_progress_fn progress,
+                         void *progress_user) {
+  switch (j->p.method) {
+  case OBS_OMAP_RAYS: {
+    int64_t chunks = (j->pm->count + OMAP_RAYS_CHUNK - 1) / OMAP_RAYS_CHUNK;
+    return obs_parallel_tiles((int)chunks, 1, j->threads, omap_rays_tile, j, cancel, progress,
+                              progress_user);
+  }
+  case OBS_OMAP_GLOBAL_LINES: {
+    uint64_t chunks = (omap_global_count(&j->p) + OMAP_GLOBAL_CHUNK - 1) / OMAP_GLOBAL_CHUNK;
+    return obs_parallel_tiles((int)chunks, 1, j->threads, omap_global_tile, j, cancel, progress,
+                              progress_user);
+  }
+  default: /* one chunk per grid row of each direction */
+    return obs_parallel_tiles((int)(j->p.directions * j->p.bundle_resolution), 1, j->threads,
+                              omap_bundle_tile, j, cancel, progress, progress_user);
+  }
+}
+
+int obs_omap_compute(const obs_rt *rt, const obs_scene *scene, const obs_obscurance_map_params *p,
+                     int threads, const atomic_int *cancel, obs_progress_fn progress,
+                     void *progress_user, obs_omap *out, obs_err *err) {
+  memset(out, 0, sizeof *out);
+  omap_job j;
+  memset(&j, 0, sizeof j);
+  j.rt = rt;
+  j.p = *p;
+  j.f = (obs_falloff){.kind = p->falloff, .d_max = p->d_max, .tau = p->tau};
+  j.threads = threads < 1 ? 1 : threads;
+  obs_obscurance_env env;
+  int rc = obs_obscurance_env_compute(scene, &rt->geo, &env, err);
+  if (!rc)
+    rc = obs_patch_mesh_build(&rt->geo, p->patch_size, "/technique/params/patch_size", &out->pm,
+                              err);
+  if (rc) return rc;
+  memcpy(j.r_ave, env.r_ave, sizeof j.r_ave);
+  memcpy(out->r_ave, env.r_ave, sizeof out->r_ave);
+  j.pm = &out->pm;
+  obs_bound_sphere_of(&rt->geo, &j.bs);
+  size_t count = (size_t)out->pm.count, n1 = count ? count : 1;
+  j.acc = calloc((size_t)j.threads * n1, sizeof *j.acc);
+  j.rays = calloc((size_t)j.threads * 8, sizeof *j.rays);
+  out->w = malloc(3 * n1 * sizeof *out->w);
+  out->se = malloc(n1 * sizeof *out->se);
+  out->n = malloc(n1 * sizeof *out->n);
+  if (!j.acc || !j.rays || !out->w || !out->se || !out->n)
+    rc = obs_err_set(err, OBS_ENOMEM, "%s: obscurance_map: out of memory for %zu patches",
+                     scene->name, count);
+  if (!rc) rc = job_reflectivities(&j, scene, err);
+  if (!rc && count) {
+    rc = run_estimator(&j, cancel, progress, progress_user);
+    if (rc == OBS_ECANCELED) obs_err_set(err, rc, "%s: render cancelled", scene->name);
+    else if (rc) obs_err_set(err, rc, "%s: obscurance_map failed", scene->name);
+  }
+  if (!rc) {
+    finish(&j, out);
+    for (int t = 0; t < j.threads; t++) out->rays += j.rays[(size_t)t * 8];
+  }
+  free(j.acc);
+  free(j.rays);
+  free(j.mesh_r);
+  free(j.sphere_r);
+  if (rc) obs_omap_free(out);
+  return rc;
+}
+
+/* ---- the run: the map, its patches file and its image ---- */
+
+enum { CH_W, CH_R, CH_G, CH_B, CH_ALPHA, CH_COUNT };
+static const char *const channel_names[CH_COUNT] = {
+    "obscurance", "obscurance_rgb.R", "obscurance_rgb.G", "obscurance_rgb.B", "alpha"};
+
+/* The patch a primary hit on a mesh sees: its triangle's sub-triangle at the hit. */
+static int64_t hit_patch(const void *user, const obs_rt *rt, const obs_hit *hit) {
+  const obs_patch_mesh *pm = user;
+  const obs_mesh *m = &rt->geo.meshes[hit->geom];
+  const uint32_t *t = m->idx + 3 * (size_t)hit->prim;
+  double u, v;
+  obs_patch_barycentric(m->pos + 3 * t[0], m->pos + 3 * t[1], m->pos + 3 * t[2], hit->p, &u, &v);
+  return obs_patch_mesh_find(pm, hit->geom, hit->prim, u, v);
+}
+
+static int show(obs_render_ctx *ctx, const obs_omap *m, obs_image *out, obs_err *err) {
+  const obs_scene *sc = ctx->scene;
+  obs_region region;
+  int rc = obs_driver_image(ctx, CH_COUNT, channel_names, out, &region, err);
+  if (rc) return rc;
+  size_t npx = (size_t)sc->width * (size_t)sc->height;
+  int32_t *ids = malloc(npx * sizeof *ids);
+  if (!ids) return obs_err_set(err, OBS_ENOMEM, "%s: out of memory for pixel ids", sc->name);
+  obs_patch_ids_map(ctx->rt, sc, hit_patch, &m->pm, ids);
+  for (size_t i = 0; i < npx; i++) {
+    int32_t id = ids[i];
+    int ok = id >= 0 && id < m->pm.count;
+    const float *w = ok ? m->w + 3 * (size_t)id : NULL;
+    for (int c = 0; c < 3; c++) out->data[(size_t)(CH_R + c) * npx + i] = ok ? w[c] : 0.0f;
+    out->data[(size_t)CH_W * npx + i] = ok ? (w[0] + w[1] + w[2]) / 3.0f : 0.0f;
+    out->data[(size_t)CH_ALPHA * npx + i] = ok ? 1.0f : 0.0f;
+  }
+  free(ids);
+  obs_driver_clear_outside(out, &region);
+  return 0;
+}
+
+int obs_obscurance_map_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
+  const obs_scene *sc = ctx->scene;
+  if (!ctx->rt)
+    return obs_err_set(err, OBS_EINTERNAL, "%s: obscurance_map: no BVH was built for it",
+                       sc->name);
+  const obs_obscurance_map_params *p = ctx->bound;
+  double t0 = obs_now_ms();
+  obs_omap m;
+  int rc = obs_omap_compute(ctx->rt, sc, p, ctx->threads, ctx->cancel, ctx->progress,
+                            ctx->progress_user, &m, err);
+  if (rc) return rc;
+  double t1 = obs_now_ms();
+  obs_driver_stage_add(ctx, "map", t1 - t0);
+  rc = obs_patches_init(&ctx->patches[0], "obscurance", m.pm.count, 3, 1, err);
+  if (!rc) {
+    memcpy(ctx->patches[0].values, m.w, (size_t)m.pm.count * 3 * sizeof(float));
+    memcpy(ctx->patches[0].area, m.pm.area, (size_t)m.pm.count * sizeof(float));
+    ctx->npatches = 1;
+    rc = show(ctx, &m, out, err);
+  }
+  double t2 = obs_now_ms();
+  obs_driver_stage_add(ctx, "show", t2 - t1);
+  ctx->render_ms += t2 - t0;
+  ctx->rays += m.rays + (uint64_t)sc->width * (uint64_t)sc->height;
+  if (!rc && m.unsampled)
+    obs_render_ctx_warn(ctx,
+                        "%lld of %lld patches received no sample and show \"nothing within "
+                        "d_max\"; raise directions, lines or bundle_resolution",
+                        (long long)m.unsampled, (long long)m.pm.count);
+  if (!rc && m.pm.capped)
+    obs_render_ctx_warn(ctx,
+                        "patch_size split %zu triangles into more than %d x %d patches; they were "
+                        "split %d x %d",
+                        m.pm.capped, OBS_PATCH_SPLIT_MAX, OBS_PATCH_SPLIT_MAX, OBS_PATCH_SPLIT_MAX,
+                        OBS_PATCH_SPLIT_MAX);
+  obs_omap_free(&m);
+  return rc;
+}
