@@ -156,8 +156,8 @@ static void finish(const omap_job *j, obs_omap *out) {
     memset(&a, 0, sizeof a);
     for (int t = 0; t < j->threads; t++) {
       const omap_acc *b = &j->acc[(size_t)t * (size_t)count + (size_t)i];
-      for (int c = 0; c < 3; c++) a.s[c] += b->s[c];
-      a.q += b->q, a.n += b->n;
+      for (int c = 0; c < 3; c++) a.s[c] += b->s[c], a.q[c] += b->q[c];
+      a.n += b->n;
     }
     out->n[i] = a.n;
     if (!a.n) {
@@ -168,13 +168,12 @@ static void finish(const omap_job *j, obs_omap *out) {
       out->unsampled += j->pm->area[i] > 0;
       continue;
     }
-    double n = (double)a.n, m = 0;
+    double n = (double)a.n, var = 0;
     for (int c = 0; c < 3; c++) {
       double w = (double)a.s[c] / OMAP_ONE / n;
       out->w[3 * i + c] = (float)fmin(1.0, fmax(0.0, w));
-      m += w / 3;
+      var = fmax(var, fmax(0.0, (double)a.q[c] / OMAP_ONE / n - w * w) * (n > 1 ? n / (n - 1) : 0));
     }
-    double var = fmax(0.0, (double)a.q / OMAP_ONE / n - m * m) * (n > 1 ? n / (n - 1) : 0);
     /* One sample says nothing of the spread: the widest a value in [0, 1] can have. */
     out->se[i] = (float)(n > 1 ? sqrt(var / n) : 0.5);
   }

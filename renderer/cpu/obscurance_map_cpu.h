@@ -19,7 +19,7 @@
 typedef struct obs_omap {
   obs_patch_mesh pm;
   float *w;           /* count x 3, patch-major: W per channel (equal without colour bleeding) */
-  float *se;          /* count: standard error of the mean of a patch's sample (RGB mean) */
+  float *se;          /* count: standard error of a patch's mean, the largest of its channels' */
   uint64_t *n;        /* count: samples per patch */
   uint64_t rays;      /* Embree queries made */
   int64_t unsampled;  /* patches of positive area that received no sample */
@@ -41,7 +41,7 @@ void obs_omap_free(obs_omap *m);
  * add up to the same bits whatever thread took which lines. */
 typedef struct omap_acc {
   uint64_t s[3]; /* sum of the sample's channels, OMAP_ONE = 1 */
-  uint64_t q;    /* sum of the square of the sample's channel mean */
+  uint64_t q[3]; /* sum of the squares of the sample's channels */
   uint64_t n;    /* samples */
 } omap_acc;
 #define OMAP_ONE 268435456.0 /* 2^28: 2^35 samples of value 1 fit in 63 bits */
@@ -73,8 +73,7 @@ static inline void omap_value(const omap_job *j, double d, const float *r, doubl
 
 static inline void omap_add(omap_acc *a, const double v[3]) {
   for (int c = 0; c < 3; c++) a->s[c] += (uint64_t)(v[c] * OMAP_ONE + 0.5);
-  double m = (v[0] + v[1] + v[2]) / 3;
-  a->q += (uint64_t)(m * m * OMAP_ONE + 0.5);
+  for (int c = 0; c < 3; c++) a->q[c] += (uint64_t)(v[c] * v[c] * OMAP_ONE + 0.5);
   a->n++;
 }
 
