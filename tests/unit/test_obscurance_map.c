@@ -103,14 +103,6 @@ static double plates_w(double m0, double r_ave, double r_other) {
   return r_ave * m0 * m0 + r_other * 4.0 / 3.0 * sqrt(m0) * (1 - pow(m0, 1.5));
 }
 
-/* The centroid of a patch (its triangle's sub-triangle). */
-static void patch_centroid(const obs_scene *sc, const obs_omap *m, int64_t patch, double c[3]) {
-  (void)sc;
-  (void)m;
-  (void)patch;
-  c[0] = c[1] = c[2] = 0;
-}
-
 static void check_plates(int method, int bleed) {
   const double h = 0.5, L = 2.5, dmax = 1.0;
   obs_obscurance_map_params p = defaults(method);
@@ -182,7 +174,6 @@ static void check_plates(int method, int bleed) {
       assert_true(fabs(got - want) <= 3 * sigma);
     }
   }
-  (void)patch_centroid;
   obs_omap_free(&m);
   obs_geometry_free(&geo);
   obs_scene_free(&sc);
@@ -205,12 +196,264 @@ static void test_plates_bundles(void **state) {
   check_plates(OBS_OMAP_BUNDLES, 1);
 }
 
+
+/* ---- the estimators agree on the Cornell box ---- */
+
+static char *cornell_doc(void) {
+  FILE *f = fopen(obs_test_src("scenes/cornell_box.json"), "rb");
+  assert_non_null(f);
+  char *buf = calloc(1, 1 << 16);
+  size_t n = fread(buf, 1, (1 << 16) - 1, f);
+  fclose(f);
+  assert_true(n > 0);
+  return buf;
+}
+
+static void test_cornell_agree(void **state) {
+  (void)state;
+  char *doc = cornell_doc();
+  obs_omap m[3];
+  for (int method = 0; method < 3; method++) {
+    obs_obscurance_map_params p = defaults(method);
+    p.d_max = 200;
+    p.patch_size = 100;
+    p.samples = 256;
+    p.directions = 128;
+    p.bundle_resolution = 128;
+    map_of(doc, &p, 2, &m[method]);
+  }
+  for (int a = 0; a < 3; a++)
+    for (int b = a + 1; b < 3; b++) {
+      double se2 = 0, d2 = 0;
+      size_t k = 0;
+      for (int64_t i = 0; i < m[a].pm.count; i++) {
+        /* Patches with few samples (some lie under the blocks, which have no bottom: they see the
+         * back of the block's top and every sample is eliminated) have no usable noise estimate. */
+        if (m[a].n[i] < 32 || m[b].n[i] < 32) continue;
+        for (int c = 0; c < 3; c++) {
+          double d = (double)m[a].w[3 * i + c] - m[b].w[3 * i + c];
+          d2 += d * d;
+        }
+        se2 += 3 * ((double)m[a].se[i] * m[a].se[i] + (double)m[b].se[i] * m[b].se[i]);
+        k++;
+      }
+      double rmse = sqrt(d2 / (3.0 * k)), noise = sqrt(se2 / (3.0 * k));
+      printf("%s vs %s: per-patch RMSE %.5f, noise %.5f over %zu of %lld patches\n",
+             method_names[a], method_names[b], rmse, noise, k, (long long)m[a].pm.count);
+      assert_true(k > (size_t)m[a].pm.count * 8 / 10);
+      /* The RMSE of two unbiased estimates is the root of their summed variances. */
+      assert_true(rmse <= 1.2 * noise);
+    }
+  for (int i = 0; i < 3; i++) obs_omap_free(&m[i]);
+  free(doc);
+}
+
+/* ---- subdivision ---- */
+
+static void test_subdivision(void **state) {
+  (void)state;
+  for (int n = 1; n <= 9; n++) {
+    int64_t total = (int64_t)n * n;
+    int *seen = calloc((size_t)total, sizeof *seen);
+    for (int64_t k = 0; k < total; k++) {
+      double uv[3][2];
+      obs_patch_sub_corners(n, k, uv);
+      /* Inside the triangle, same winding, area 1/n^2 of it. */
+      double cross = (uv[1][0] - uv[0][0]) * (uv[2][1] - uv[0][1]) -
+                     (uv[1][1] - uv[0][1]) * (uv[2][0] - uv[0][0]);
+      assert_true(fabs(cross - 1.0 / total) < 1e-12);
+      for (int q = 0; q < 3; q++) assert_true(uv[q][0] >= 0 && uv[q][1] >= 0 && uv[q][0] + uv[q][1] <= 1 + 1e-12);
+      /* Points inside sub-triangle k map back to k. */
+      for (int t = 0; t < 4; t++) {
+        double w[3] = {0.2 + 0.2 * (t == 1), 0.3 + 0.2 * (t == 2), 0.5 - 0.2 * (t == 1) - 0.2 * (t == 2)};
+        if (t == 3) w[0] = w[1] = w[2] = 1.0 / 3;
+        double u = w[0] * uv[0][0] + w[1] * uv[1][0] + w[2] * uv[2][0];
+        double v = w[0] * uv[0][1] + w[1] * uv[1][1] + w[2] * uv[2][1];
+        assert_int_equal(obs_patch_sub_index(n, u, v), k);
+      }
+      seen[k]++;
+    }
+    for (int64_t k = 0; k < total; k++) assert_int_equal(seen[k], 1);
+    /* Points on the boundary and outside clamp into the triangle. */
+    assert_true(obs_patch_sub_index(n, 1.0, 0.0) >= 0 && obs_patch_sub_index(n, 1.0, 0.0) < total);
+    assert_true(obs_patch_sub_index(n, 0.7, 0.7) >= 0 && obs_patch_sub_index(n, 0.7, 0.7) < total);
+    assert_true(obs_patch_sub_index(n, -0.1, NAN) >= 0 && obs_patch_sub_index(n, -0.1, NAN) < total);
+    free(seen);
+  }
+  /* Areas of a scene's patches add up to their triangles'; ids map back to their triangles. */
+  obs_scene sc;
+  obs_test_load(plates_doc(0.5, 2.5), "plates.json", &sc);
+  obs_geometry geo;
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(obs_geometry_build(&sc, &geo, &err), 0);
+  obs_patch_mesh pm;
+  assert_int_equal(obs_patch_mesh_build(&geo, 0.3, "/x", &pm, &err), 0);
+  assert_int_equal(pm.count, 4 * 24 * 24); /* diagonal 7.07 / 0.3: n = 24 */
+  for (size_t t = 0; t < pm.ntris; t++) {
+    double a = 0;
+    for (int64_t i = pm.first[t]; i < pm.first[t + 1]; i++) {
+      a += pm.area[i];
+      int64_t sub;
+      assert_int_equal(obs_patch_mesh_owner(&pm, i, &sub), t);
+      assert_int_equal(sub, i - pm.first[t]);
+    }
+    assert_true(fabs(a - 12.5) < 1e-4 * 12.5);
+  }
+  obs_patch_mesh_free(&pm);
+  /* A split finer than OBS_PATCH_SPLIT_MAX is capped, and counted. */
+  assert_int_equal(obs_patch_mesh_build(&geo, 1e-30, "/x", &pm, &err), 0);
+  assert_int_equal(pm.capped, 4);
+  assert_int_equal(pm.count, 4 * OBS_PATCH_SPLIT_MAX * OBS_PATCH_SPLIT_MAX);
+  obs_patch_mesh_free(&pm);
+  obs_geometry_free(&geo);
+  obs_scene_free(&sc);
+  obs_err_free(&err);
+}
+
+/* A zero-area triangle beside a plate: one patch of area 0, never sampled, "nothing" (no NaN). */
+static void test_degenerate(void **state) {
+  (void)state;
+  const char *doc =
+      "{\"camera\":{\"type\":\"perspective\",\"position\":[0,2,-3],\"look_at\":[0,0,0],"
+      "\"fov_y\":60},\"image\":{\"width\":8,\"height\":8},"
+      "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-2,0,-2],[-2,0,2],[2,0,2],"
+      "[2,0,-2]]},\"material\":{\"reflectivity\":[0.5,0.5,0.5]}},"
+      "{\"shape\":{\"type\":\"triangle\",\"vertices\":[[0,0.1,0],[1,0.1,0],[2,0.1,0]]},"
+      "\"material\":{\"reflectivity\":[0.5,0.5,0.5]}}],"
+      "\"technique\":{\"name\":\"obscurance_map\"}}";
+  for (int method = 0; method < 3; method++) {
+    obs_obscurance_map_params p = defaults(method);
+    p.patch_size = 0.5;
+    obs_omap m;
+    map_of(doc, &p, 2, &m);
+    assert_int_equal(m.pm.degenerate, 1);
+    int64_t last = m.pm.count - 1;
+    assert_true(m.pm.area[last] == 0.0f);
+    assert_int_equal(m.n[last], 0);
+    assert_true(m.w[3 * last] == (float)m.r_ave[0]);
+    assert_int_equal(m.unsampled, 0);
+    obs_omap_free(&m);
+  }
+}
+
+/* ---- extremes ---- */
+
+/* A floor with a block standing just above it (a bottom face coincident with the floor would
+ * make the order of the two along a line a matter of rounding), every length times s. */
+static const char *room_doc(double s, double refl) {
+  return obs_test_fmt(
+      "{\"camera\":{\"type\":\"perspective\",\"position\":[0,%g,%g],\"look_at\":[0,0,0],"
+      "\"fov_y\":60},\"image\":{\"width\":8,\"height\":8},"
+      "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[%g,0,%g],[%g,0,%g],[%g,0,%g],"
+      "[%g,0,%g]]},\"material\":{\"reflectivity\":[%g,%g,%g]}},"
+      "{\"shape\":{\"type\":\"box\",\"min\":[%g,%g,%g],\"max\":[%g,%g,%g]},"
+      "\"material\":{\"reflectivity\":[%g,%g,%g]}}],"
+      "\"technique\":{\"name\":\"obscurance_map\"}}",
+      2 * s, -3 * s, -2 * s, -2 * s, -2 * s, 2 * s, 2 * s, 2 * s, 2 * s, -2 * s, refl, refl, refl,
+      -0.5 * s, 0.05 * s, -0.5 * s, 0.5 * s, 0.7 * s, 0.5 * s, refl, refl * 0.5, refl);
+}
+
+static void test_scale_invariance(void **state) {
+  (void)state;
+  for (int method = 0; method < 3; method++) {
+    obs_omap ref;
+    obs_obscurance_map_params p = defaults(method);
+    p.patch_size = 0.5;
+    p.d_max = 1;
+    map_of(room_doc(1, 0.6), &p, 2, &ref);
+    const double scales[2] = {1e-4, 1e4};
+    for (int k = 0; k < 2; k++) {
+      obs_obscurance_map_params q = p;
+      q.patch_size *= scales[k];
+      q.d_max *= scales[k];
+      q.tau /= scales[k];
+      obs_omap m;
+      map_of(room_doc(scales[k], 0.6), &q, 2, &m);
+      assert_int_equal(m.pm.count, ref.pm.count);
+      double sum = 0, worst = 0;
+      for (int64_t i = 0; i < m.pm.count; i++) {
+        assert_true(fabs(m.pm.area[i] / (scales[k] * scales[k]) - ref.pm.area[i]) <=
+                    1e-5 * ref.pm.area[i]);
+        for (int c = 0; c < 3; c++) {
+          double d = fabs((double)m.w[3 * i + c] - ref.w[3 * i + c]);
+          sum += d, worst = fmax(worst, d);
+        }
+      }
+      printf("%s scale %g: mean |d| %.2g, max %.2g\n", method_names[method], scales[k],
+             sum / (3.0 * m.pm.count), worst);
+      /* The same lines and rays relative to the scene: only samples grazing an edge may change. */
+      assert_true(sum / (3.0 * m.pm.count) < 1e-5);
+      assert_true(worst < 1e-3);
+      obs_omap_free(&m);
+    }
+    obs_omap_free(&ref);
+  }
+}
+
+static void test_dmax_and_reflectivity_ends(void **state) {
+  (void)state;
+  for (int method = 0; method < 3; method++) {
+    obs_obscurance_map_params p = defaults(method);
+    p.patch_size = 0.5;
+    p.color_bleeding = 0;
+    obs_omap m;
+    /* d_max tiny: nothing is within reach but contact. */
+    p.d_max = 1e-9;
+    map_of(room_doc(1, 0.5), &p, 2, &m);
+    for (int64_t i = 0; i < m.pm.count; i++) assert_true(m.w[3 * i] >= 0.99f || m.n[i] == 0);
+    obs_omap_free(&m);
+    /* d_max huge: every surface seen is as good as in contact, open directions stay 1. */
+    p.d_max = 1e30;
+    map_of(room_doc(1, 0.5), &p, 2, &m);
+    obs_omap_free(&m);
+    p.falloff = OBS_FALLOFF_EXP;
+    p.tau = 1e-30;
+    map_of(room_doc(1, 0.5), &p, 2, &m);
+    obs_omap_free(&m);
+    /* Reflectivity 0 with bleeding: every sample is 0 (R_ave = 0 too). */
+    p = defaults(method);
+    p.patch_size = 0.5;
+    map_of(room_doc(1, 0.0), &p, 2, &m);
+    for (int64_t i = 0; i < 3 * m.pm.count; i++) assert_true(m.w[i] == 0.0f);
+    obs_omap_free(&m);
+    map_of(room_doc(1, 0.99), &p, 2, &m); /* in range: map_of checks [0, 1] and finite */
+    obs_omap_free(&m);
+  }
+}
+
+static void test_seed_and_threads(void **state) {
+  (void)state;
+  for (int method = 0; method < 3; method++) {
+    obs_obscurance_map_params p = defaults(method);
+    p.patch_size = 0.5;
+    p.samples = 16;
+    p.directions = 16;
+    p.bundle_resolution = 32;
+    obs_omap m[4];
+    for (int t = 0; t < 3; t++) map_of(room_doc(1, 0.6), &p, t + 1, &m[t]);
+    p.seed = 2;
+    map_of(room_doc(1, 0.6), &p, 2, &m[3]);
+    size_t bytes = (size_t)m[0].pm.count * 3 * sizeof(float);
+    assert_memory_equal(m[0].w, m[1].w, bytes);
+    assert_memory_equal(m[0].w, m[2].w, bytes);
+    assert_memory_equal(m[0].se, m[2].se, (size_t)m[0].pm.count * sizeof(float));
+    assert_true(memcmp(m[0].w, m[3].w, bytes) != 0);
+    for (int t = 0; t < 4; t++) obs_omap_free(&m[t]);
+  }
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_open_plane),
       cmocka_unit_test(test_plates_rays),
       cmocka_unit_test(test_plates_global_lines),
       cmocka_unit_test(test_plates_bundles),
+      cmocka_unit_test(test_cornell_agree),
+      cmocka_unit_test(test_subdivision),
+      cmocka_unit_test(test_degenerate),
+      cmocka_unit_test(test_scale_invariance),
+      cmocka_unit_test(test_dmax_and_reflectivity_ends),
+      cmocka_unit_test(test_seed_and_threads),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
