@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include "bench_args.h"
@@ -21,6 +22,7 @@ typedef struct options {
   int threads, res, ref_samples;
   int subdiv[MAX_LIST], nsubdiv;
   int dirs[MAX_LIST], ndirs;
+  int rays[MAX_LIST], nrays; /* extra rays rows: samples per patch */
   const char *models; /* directory, or NULL: none */
   const char *mesh[MAX_LIST];
   int nmesh;
@@ -30,6 +32,7 @@ typedef struct options {
 static void usage(FILE *f) {
   fprintf(f,
           "usage: bench_obscurance_map [--threads N] [--subdiv 8,9|none] [--dirs 32,64,128,256,512]\n"
+          "         [--rays 8,16,32]\n"
           "         [--res R] [--ref-samples S] [--models DIR|none] [--mesh ogre.obj,...]\n"
           "         [--dmax F]\n"
           "  Per-patch obscurance maps (no colour bleeding, sqrt falloff, d_max = F x the\n"
@@ -38,7 +41,8 @@ static void usage(FILE *f) {
           "  the bundles' query count, each timed and compared per patch with the mean of two\n"
           "  independent maps of S rays per patch. rmse is against that reference; rmse_c takes\n"
           "  out the reference's own error (half the mean square difference of its two halves\n"
-          "  over two), i.e. the per-patch RMSE against the converged map.\n");
+          "  over two), i.e. the per-patch RMSE against the converged map. Then rays at each\n"
+          "  --rays count per patch. cpu_s is the process's CPU time (robust to a busy machine).\n");
 }
 
 static int parse_list(const char *s, int *out, int lo, int hi) {
@@ -59,6 +63,7 @@ static int parse_args(int argc, char **argv, options *o) {
   const int dirs[] = {32, 64, 128, 256, 512};
   for (int i = 0; i < 5; i++) o->dirs[i] = dirs[i];
   o->ndirs = 5;
+  o->rays[0] = 8, o->rays[1] = 16, o->rays[2] = 32, o->nrays = 3;
   o->models = "../shared/models";
   o->mesh[0] = "ogre.obj", o->mesh[1] = "nefertiti.obj", o->nmesh = 2;
   o->dmax_frac = 0.25;
@@ -74,6 +79,7 @@ static int parse_args(int argc, char **argv, options *o) {
     else if (!strcmp(a, "--subdiv"))
       bad = !strcmp(v, "none") ? (o->nsubdiv = 0) : (o->nsubdiv = parse_list(v, o->subdiv, 0, 11)) < 0;
     else if (!strcmp(a, "--dirs")) bad = (o->ndirs = parse_list(v, o->dirs, 1, 4096)) < 0;
+    else if (!strcmp(a, "--rays")) bad = (o->nrays = parse_list(v, o->rays, 1, 65536)) < 0;
     else if (!strcmp(a, "--models")) o->models = strcmp(v, "none") ? v : NULL;
     else if (!strcmp(a, "--dmax")) bad = !((o->dmax_frac = atof(v)) > 0);
     else if (!strcmp(a, "--mesh")) {
@@ -89,17 +95,25 @@ static int parse_args(int argc, char **argv, options *o) {
 }
 
 typedef struct run {
-  double ms;
+  double ms, cpu_ms; /* wall and process CPU time (the latter robust to a busy machine) */
   uint64_t rays;
   obs_omap m;
 } run;
 
+static double cpu_ms(void) {
+  struct rusage u;
+  getrusage(RUSAGE_SELF, &u);
+  return (u.ru_utime.tv_sec + u.ru_stime.tv_sec) * 1e3 +
+         (u.ru_utime.tv_usec + u.ru_stime.tv_usec) / 1e3;
+}
+
 static int map_run(const obs_rt *rt, const obs_scene *sc, const obs_obscurance_map_params *p,
                    int threads, run *r) {
   obs_err err = OBS_ERR_INIT;
-  double t0 = obs_now_ms();
+  double c0 = cpu_ms(), t0 = obs_now_ms();
   int rc = obs_omap_compute(rt, sc, p, threads, NULL, NULL, NULL, &r->m, &err);
   r->ms = obs_now_ms() - t0;
+  r->cpu_ms = cpu_ms() - c0;
   if (rc) fprintf(stderr, "bench_obscurance_map: %s\n", obs_err_message(&err));
   r->rays = rc ? 0 : r->m.rays;
   obs_err_free(&err);
@@ -141,8 +155,8 @@ static void row(const char *scene, int64_t patches, const char *method, const ch
   rmse_of(&r->m, ref, ref_ms, &raw, &conv);
   double samples = 0;
   for (int64_t i = 0; i < r->m.pm.count; i++) samples += (double)r->m.n[i];
-  printf("%-18s %8lld  %-12s %-14s %9.3f %8.1f %9.1f  %7.4f %7.4f %8lld\n", scene,
-         (long long)patches, method, budget, r->ms / 1e3, (double)r->rays / 1e6,
+  printf("%-18s %8lld  %-12s %-14s %8.3f %8.3f %8.1f %9.1f  %7.4f %7.4f %8lld\n", scene,
+         (long long)patches, method, budget, r->ms / 1e3, r->cpu_ms / 1e3, (double)r->rays / 1e6,
          samples / (double)patches, raw, conv, (long long)r->m.unsampled);
   fflush(stdout);
 }
@@ -188,8 +202,9 @@ static int bench_scene(const options *o, const char *name, const char *doc, cons
            "%.1f s, its own RMSE %.4f\n",
            name, rt.geo.ntris, build_ms, p.d_max, o->ref_samples, (ref.ms + ref2.ms) / 1e3,
            sqrt(ref_ms));
-    printf("%-18s %8s  %-12s %-14s %9s %8s %9s  %7s %7s %8s\n", "scene", "patches", "method",
-           "budget", "time_s", "Mqueries", "samp/pat", "rmse", "rmse_c", "unsampled");
+    printf("%-18s %8s  %-12s %-14s %8s %8s %8s %9s  %7s %7s %8s\n", "scene", "patches",
+           "method", "budget", "wall_s", "cpu_s", "Mqueries", "samp/pat", "rmse", "rmse_c",
+           "unsampled");
   }
   for (int k = 0; !bad && k < o->ndirs; k++) {
     char budget[64];
@@ -212,6 +227,17 @@ static int bench_scene(const options *o, const char *name, const char *doc, cons
     p.method = OBS_OMAP_RAYS;
     double s = (double)bundle_queries / (double)ref.m.pm.count;
     p.samples = s < 1 ? 1 : (uint32_t)lround(s);
+    snprintf(budget, sizeof budget, "%u/patch", p.samples);
+    if ((bad = map_run(&rt, &sc, &p, o->threads, &r))) break;
+    row(name, ref.m.pm.count, "rays", budget, &r, &ref.m, ref_ms);
+    obs_omap_free(&r.m);
+  }
+  for (int k = 0; !bad && k < o->nrays; k++) {
+    char budget[64];
+    run r;
+    p = base_params(o->dmax_frac * bs.radius);
+    p.method = OBS_OMAP_RAYS;
+    p.samples = (uint32_t)o->rays[k];
     snprintf(budget, sizeof budget, "%u/patch", p.samples);
     if ((bad = map_run(&rt, &sc, &p, o->threads, &r))) break;
     row(name, ref.m.pm.count, "rays", budget, &r, &ref.m, ref_ms);
