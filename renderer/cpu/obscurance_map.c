@@ -30,13 +30,27 @@ uint64_t omap_global_count(const obs_obscurance_map_params *p) {
 
 /* One sample of patch `patch` (on mesh `geom`'s triangle `prim`, corners c, unit normal n):
  * a cosine-distributed ray from a stratified point. Returns the rays traced (0 or 1). */
+/* Halton point i of the patch's stream: the shared table turned by the stream's Cranley-Patterson
+ * rotation, as obs_sampler2d_get computes it (the radical inverses are the costly part). */
+static inline void halton_get(const omap_job *j, const obs_sampler2d *s, uint32_t i, float *u,
+                              float *v) {
+  float a = j->halton[i][0] + obs_u32_to_unit(s->scramble0);
+  float b = j->halton[i][1] + obs_u32_to_unit(s->scramble1);
+  a -= a >= 1.0f ? 1.0f : 0.0f;
+  b -= b >= 1.0f ? 1.0f : 0.0f;
+  *u = a < 1.0f ? a : 0x1.fffffep-1f;
+  *v = b < 1.0f ? b : 0x1.fffffep-1f;
+}
+
 static uint64_t ray_sample(const omap_job *j, omap_acc *acc, unsigned geom, unsigned prim,
                            const double c[3][3], const float n[3], const float tb[2][3],
                            const obs_sampler2d *pts, const obs_sampler2d *dirs, uint32_t i,
                            uint32_t shuffle_seed) {
   float u1, v1, u2, v2;
-  obs_sampler2d_get(pts, i, &u1, &v1);
-  obs_sampler2d_get(dirs, obs_sample_shuffle(i, shuffle_seed), &u2, &v2);
+  halton_get(j, pts, i, &u1, &v1);
+  /* The shuffle keeps the direction stream's stratification while decorrelating it from the
+   * points' stream at the same index. */
+  halton_get(j, dirs, obs_sample_shuffle(i, shuffle_seed) & j->halton_mask, &u2, &v2);
   /* Uniform on the triangle: (1 - s, s (1 - v), s v) with s = sqrt(u). */
   double s = sqrt((double)u1), w[3] = {1 - s, s * (1 - v1), s * v1};
   obs_hit from;
@@ -228,6 +242,19 @@ int obs_omap_compute(const obs_rt *rt, const obs_scene *scene, const obs_obscura
     rc = obs_err_set(err, OBS_ENOMEM, "%s: obscurance_map: out of memory for %zu patches",
                      scene->name, count);
   if (!rc) rc = job_reflectivities(&j, scene, err);
+  if (!rc && p->method == OBS_OMAP_RAYS) {
+    /* A stream with no rotation gives the bare radical inverses. The shuffle maps the first
+     * 2^k indices onto an aligned block of 2^k: their low k bits are a permutation of them, and
+     * the table covers the power of two at or above `samples`. */
+    obs_sampler2d bare = {.kind = OBS_SAMPLER_HALTON, .scramble0 = 0, .scramble1 = 0};
+    uint32_t size = 1;
+    while (size < p->samples) size *= 2;
+    j.halton_mask = size - 1;
+    if (!(j.halton = malloc((size_t)size * sizeof *j.halton)))
+      rc = obs_err_set(err, OBS_ENOMEM, "%s: obscurance_map: out of memory", scene->name);
+    for (uint32_t i = 0; !rc && i < size; i++)
+      obs_sampler2d_get(&bare, i, &j.halton[i][0], &j.halton[i][1]);
+  }
   if (!rc && count) {
     rc = run_estimator(&j, cancel, progress, progress_user);
     if (rc == OBS_ECANCELED) obs_err_set(err, rc, "%s: render cancelled", scene->name);
@@ -241,6 +268,7 @@ int obs_omap_compute(const obs_rt *rt, const obs_scene *scene, const obs_obscura
   free(j.rays);
   free(j.mesh_r);
   free(j.sphere_r);
+  free(j.halton);
   if (rc) obs_omap_free(out);
   return rc;
 }

@@ -58,6 +58,8 @@ typedef struct omap_job {
   int threads;
   omap_acc *acc;        /* threads x count */
   uint64_t *rays;       /* threads x 8 (one cache line each) */
+  float (*halton)[2];   /* rays: Halton points (bases 2, 3), unrotated, a power of two of them */
+  uint32_t halton_mask; /* their count less one */
 } omap_job;
 
 /* The value of a sample that sees a surface of reflectivity r at distance d (d = INFINITY or
