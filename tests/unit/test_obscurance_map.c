@@ -1,6 +1,7 @@
 /* obscurance_map's estimators against closed forms (an open plane, two parallel plates), against
  * each other on the Cornell box, and at the extremes: subdivision, degenerate patches, scale,
  * d_max, reflectivity, seeds and thread counts. */
+#include <jansson.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -442,6 +443,34 @@ static void test_seed_and_threads(void **state) {
   }
 }
 
+/* The reference is the same map by the rays estimator, with the defining parameters copied. */
+static void test_reference_hook(void **state) {
+  (void)state;
+  const obs_technique *t = obs_technique_find("obscurance_map");
+  assert_non_null(t);
+  obs_scene sc;
+  obs_test_load(plane_doc(0.5), "plane.json", &sc);
+  json_t *params = json_pack("{s:s, s:f, s:s, s:b, s:f, s:i}", "method", "bundles", "d_max", 2.5,
+                             "falloff", "exp", "color_bleeding", 0, "patch_size", 0.25,
+                             "directions", 32);
+  obs_reference_def def;
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(obs_technique_reference(t, &sc, params, NULL, &def, &err), 0);
+  assert_ptr_equal(def.technique, t);
+  assert_int_equal(def.response, OBS_RESPONSE_IDENTITY);
+  assert_string_equal(json_string_value(json_object_get(def.params, "method")), "rays");
+  assert_true(json_real_value(json_object_get(def.params, "d_max")) == 2.5);
+  assert_string_equal(json_string_value(json_object_get(def.params, "falloff")), "exp");
+  assert_true(json_is_false(json_object_get(def.params, "color_bleeding")));
+  assert_true(json_real_value(json_object_get(def.params, "patch_size")) == 0.25);
+  assert_null(json_object_get(def.params, "directions"));
+  assert_string_equal(t->reference_quality, "samples");
+  obs_reference_def_free(&def);
+  json_decref(params);
+  obs_scene_free(&sc);
+  obs_err_free(&err);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_open_plane),
@@ -454,6 +483,7 @@ int main(void) {
       cmocka_unit_test(test_scale_invariance),
       cmocka_unit_test(test_dmax_and_reflectivity_ends),
       cmocka_unit_test(test_seed_and_threads),
+      cmocka_unit_test(test_reference_hook),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
