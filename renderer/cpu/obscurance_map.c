@@ -28,8 +28,6 @@ uint64_t omap_global_count(const obs_obscurance_map_params *p) {
   return (uint64_t)p->directions * p->bundle_resolution * p->bundle_resolution;
 }
 
-/* One sample of patch `patch` (on mesh `geom`'s triangle `prim`, corners c, unit normal n):
- * a cosine-distributed ray from a stratified point. Returns the rays traced (0 or 1). */
 /* Halton point i of the patch's stream: the shared table turned by the stream's Cranley-Patterson
  * rotation, as obs_sampler2d_get computes it (the radical inverses are the costly part). */
 static inline void halton_get(const omap_job *j, const obs_sampler2d *s, uint32_t i, float *u,
@@ -42,35 +40,34 @@ static inline void halton_get(const omap_job *j, const obs_sampler2d *s, uint32_
   *v = b < 1.0f ? b : 0x1.fffffep-1f;
 }
 
-static uint64_t ray_sample(const omap_job *j, omap_acc *acc, unsigned geom, unsigned prim,
-                           const double c[3][3], const float n[3], const float tb[2][3],
-                           const obs_sampler2d *pts, const obs_sampler2d *dirs, uint32_t i,
-                           uint32_t shuffle_seed) {
+/* What every ray of one patch shares, set up once per patch. */
+typedef struct patch_frame {
+  double c[3][3];        /* corners */
+  float tb[2][3];        /* tangents of the unit normal from.ng */
+  obs_hit from;          /* ng, perr, geom, prim: what obs_rt_offset and the context read */
+  obs_rt_ctx ctx;        /* skips the patch's own triangle */
+  obs_sampler2d pts, dirs;
+  uint32_t shuffle;
+} patch_frame;
+
+/* Sample i of a patch: a cosine-distributed ray from a stratified point. Returns the rays traced
+ * (0 or 1). */
+static uint64_t ray_sample(const omap_job *j, omap_acc *acc, patch_frame *f, uint32_t i) {
   float u1, v1, u2, v2;
-  halton_get(j, pts, i, &u1, &v1);
+  halton_get(j, &f->pts, i, &u1, &v1);
   /* The shuffle keeps the direction stream's stratification while decorrelating it from the
    * points' stream at the same index. */
-  halton_get(j, dirs, obs_sample_shuffle(i, shuffle_seed) & j->halton_mask, &u2, &v2);
+  halton_get(j, &f->dirs, obs_sample_shuffle(i, f->shuffle) & j->halton_mask, &u2, &v2);
   /* Uniform on the triangle: (1 - s, s (1 - v), s v) with s = sqrt(u). */
   double s = sqrt((double)u1), w[3] = {1 - s, s * (1 - v1), s * v1};
-  obs_hit from;
-  memset(&from, 0, sizeof from);
-  float mag = 0;
-  for (int k = 0; k < 3; k++) {
-    from.p[k] = (float)(w[0] * c[0][k] + w[1] * c[1][k] + w[2] * c[2][k]);
-    from.ng[k] = from.ns[k] = n[k];
-    mag = fmaxf(mag, fmaxf(fabsf((float)c[0][k]), fmaxf(fabsf((float)c[1][k]),
-                                                        fabsf((float)c[2][k]))));
-  }
-  /* The point is a convex combination rounded once: a few ulps of the largest coordinate. */
-  for (int k = 0; k < 3; k++) from.perr[k] = mag * 0x1p-21f;
-  from.geom = geom, from.prim = prim;
+  obs_hit from = f->from;
+  for (int k = 0; k < 3; k++)
+    from.p[k] = (float)(w[0] * f->c[0][k] + w[1] * f->c[1][k] + w[2] * f->c[2][k]);
   float org[3], l[3], dir[3];
+  const float *n = f->from.ng;
   obs_rt_offset(j->rt, &from, org);
   obs_sample_cosine(u2, v2, l);
-  for (int k = 0; k < 3; k++) dir[k] = l[0] * tb[0][k] + l[1] * tb[1][k] + l[2] * n[k];
-  obs_rt_ctx ctx;
-  obs_rt_ctx_init(&ctx, j->rt, &from);
+  for (int k = 0; k < 3; k++) dir[k] = l[0] * f->tb[0][k] + l[1] * f->tb[1][k] + l[2] * n[k];
   struct RTCRayHit rh;
   memset(&rh, 0, sizeof rh);
   rh.ray.org_x = org[0], rh.ray.org_y = org[1], rh.ray.org_z = org[2];
@@ -78,7 +75,7 @@ static uint64_t ray_sample(const omap_job *j, omap_acc *acc, unsigned geom, unsi
   rh.ray.tfar = isinf(j->f.d_max) ? INFINITY : (float)j->f.d_max;
   rh.ray.mask = ~0u;
   rh.hit.geomID = rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-  rtcIntersect1(j->rt->scene, &ctx.ctx, &rh);
+  rtcIntersect1(j->rt->scene, &f->ctx.ctx, &rh);
   double v[3];
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
     omap_value(j, INFINITY, NULL, v);
@@ -119,25 +116,33 @@ int omap_rays_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
     const obs_mesh *me = &j->rt->geo.meshes[m];
     const float *v[3];
     for (int k = 0; k < 3; k++) v[k] = me->pos + 3 * (size_t)me->idx[3 * (size_t)prim + (size_t)k];
-    double uv[3][2], c[3][3];
+    patch_frame f;
+    memset(&f, 0, sizeof f);
+    double uv[3][2];
     obs_patch_sub_corners(pm->split[t], sub, uv);
+    float mag = 0;
     for (int q = 0; q < 3; q++)
-      for (int k = 0; k < 3; k++)
-        c[q][k] = v[0][k] + uv[q][0] * ((double)v[1][k] - v[0][k]) +
-                  uv[q][1] * ((double)v[2][k] - v[0][k]);
-    float n[3], tb[2][3];
+      for (int k = 0; k < 3; k++) {
+        f.c[q][k] = v[0][k] + uv[q][0] * ((double)v[1][k] - v[0][k]) +
+                    uv[q][1] * ((double)v[2][k] - v[0][k]);
+        mag = fmaxf(mag, fabsf((float)f.c[q][k]));
+      }
+    float n[3];
     omap_tri_normal(j->rt, (unsigned)m, prim, n);
     float l = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
     if (!(l > 0) || !isfinite(l)) continue;
-    for (int k = 0; k < 3; k++) n[k] /= l;
-    obs_onb(n, tb[0], tb[1]);
-    obs_sampler2d pts, dirs;
+    for (int k = 0; k < 3; k++) f.from.ng[k] = f.from.ns[k] = n[k] / l;
+    obs_onb(f.from.ng, f.tb[0], f.tb[1]);
+    /* A point is a convex combination of the corners rounded once: a few ulps of the largest
+     * coordinate. */
+    for (int k = 0; k < 3; k++) f.from.perr[k] = mag * 0x1p-21f;
+    f.from.geom = (unsigned)m, f.from.prim = prim;
+    obs_rt_ctx_init(&f.ctx, j->rt, &f.from);
     uint32_t lo = (uint32_t)patch, hi = (uint32_t)((uint64_t)patch >> 32);
-    obs_sampler2d_init(&pts, OBS_SAMPLER_HALTON, lo, hi, 0, 0, j->p.seed);
-    obs_sampler2d_init(&dirs, OBS_SAMPLER_HALTON, lo, hi, 0, 1, j->p.seed);
-    uint32_t shuffle = obs_hash_combine(obs_hash_combine(j->p.seed, lo), hi ^ 0x5bd1e995U);
-    for (uint32_t i = 0; i < j->p.samples; i++)
-      rays += ray_sample(j, &acc[patch], (unsigned)m, prim, c, n, tb, &pts, &dirs, i, shuffle);
+    obs_sampler2d_init(&f.pts, OBS_SAMPLER_HALTON, lo, hi, 0, 0, j->p.seed);
+    obs_sampler2d_init(&f.dirs, OBS_SAMPLER_HALTON, lo, hi, 0, 1, j->p.seed);
+    f.shuffle = obs_hash_combine(obs_hash_combine(j->p.seed, lo), hi ^ 0x5bd1e995U);
+    for (uint32_t i = 0; i < j->p.samples; i++) rays += ray_sample(j, &acc[patch], &f, i);
   }
   j->rays[(size_t)thread * 8] += rays;
   return 0;
