@@ -28,7 +28,7 @@ static const char *const falloffs[] = {"binary", "sqrt", "exp", NULL};
 
 #define P(member) offsetof(obs_obscurance_map_params, member)
 static const obs_param obscurance_map_params[] = {
-    {.name = "method", .type = OBS_PARAM_ENUM, .choices = methods, .def = OBS_OMAP_BUNDLES,
+    {.name = "method", .type = OBS_PARAM_ENUM, .choices = methods, .def = OBS_OMAP_RAYS,
      .description = "estimator: rays = cosine rays from stratified points of each patch; "
                     "global_lines = lines through random point pairs of the bounding sphere; "
                     "bundles = parallel lines on a grid per direction",
