@@ -39,9 +39,9 @@ static void usage(FILE *f) {
           "  bounding radius, one patch per triangle): bundles and global lines with each\n"
           "  direction count at an R x R grid (global lines: the same number of lines), rays at\n"
           "  the bundles' query count, each timed and compared per patch with the mean of two\n"
-          "  independent maps of S rays per patch. rmse is against that reference; rmse_c takes\n"
-          "  out the reference's own error (half the mean square difference of its two halves\n"
-          "  over two), i.e. the per-patch RMSE against the converged map. Then rays at each\n"
+          "  independent maps of S rays per patch, less the reference's own error (measured from\n"
+          "  the difference of its halves): the per-patch RMSE against the converged map, plain\n"
+          "  (rmse) and weighted by patch area (rmse_area). Then rays at each\n"
           "  --rays count per patch. cpu_s is the process's CPU time (robust to a busy machine).\n");
 }
 
@@ -120,18 +120,20 @@ static int map_run(const obs_rt *rt, const obs_scene *sc, const obs_obscurance_m
   return rc;
 }
 
-/* Per-patch RMSE of `m` against `ref` (first channel: no colour bleeding), and with the
- * reference's own mean square error `ref_ms` taken out. */
-static void rmse_of(const obs_omap *m, const obs_omap *ref, double ref_ms, double *raw,
-                    double *conv) {
-  double d2 = 0;
+/* Per-patch RMSE of `m` against `ref` (first channel: no colour bleeding) with the reference's
+ * own mean square error `ref_ms` taken out, unweighted and weighted by patch area. */
+static void rmse_of(const obs_omap *m, const obs_omap *ref, const double ref_ms[2], double *conv,
+                    double *conv_area) {
+  double d2 = 0, a2 = 0, area = 0;
   int64_t n = m->pm.count;
   for (int64_t i = 0; i < n; i++) {
-    double d = (double)m->w[3 * i] - ref->w[3 * i];
+    double d = (double)m->w[3 * i] - ref->w[3 * i], a = ref->pm.area[i];
     d2 += d * d;
+    a2 += a * d * d;
+    area += a;
   }
-  *raw = sqrt(d2 / (double)n);
-  *conv = sqrt(fmax(0.0, d2 / (double)n - ref_ms));
+  *conv = sqrt(fmax(0.0, d2 / (double)n - ref_ms[0]));
+  *conv_area = sqrt(fmax(0.0, a2 / area - ref_ms[1]));
 }
 
 static obs_obscurance_map_params base_params(double dmax) {
@@ -150,14 +152,14 @@ static obs_obscurance_map_params base_params(double dmax) {
 }
 
 static void row(const char *scene, int64_t patches, const char *method, const char *budget,
-                const run *r, const obs_omap *ref, double ref_ms) {
-  double raw, conv;
-  rmse_of(&r->m, ref, ref_ms, &raw, &conv);
+                const run *r, const obs_omap *ref, const double ref_ms[2]) {
+  double conv, conv_area;
+  rmse_of(&r->m, ref, ref_ms, &conv, &conv_area);
   double samples = 0;
   for (int64_t i = 0; i < r->m.pm.count; i++) samples += (double)r->m.n[i];
   printf("%-18s %8lld  %-12s %-14s %8.3f %8.3f %8.1f %9.1f  %7.4f %7.4f %8lld\n", scene,
          (long long)patches, method, budget, r->ms / 1e3, r->cpu_ms / 1e3, (double)r->rays / 1e6,
-         samples / (double)patches, raw, conv, (long long)r->m.unsampled);
+         samples / (double)patches, conv, conv_area, (long long)r->m.unsampled);
   fflush(stdout);
 }
 
@@ -187,23 +189,27 @@ static int bench_scene(const options *o, const char *name, const char *doc, cons
   int bad = map_run(&rt, &sc, &p, o->threads, &ref);
   p.seed = 1002;
   if (!bad && (bad = map_run(&rt, &sc, &p, o->threads, &ref2))) obs_omap_free(&ref.m);
-  double ref_ms = 0;
+  double ref_ms[2] = {0, 0}, area = 0;
   if (!bad) {
     /* The mean of the two halves errs by half the root mean square of their difference. */
     int64_t n = ref.m.pm.count;
-    for (int64_t i = 0; i < 3 * n; i++) {
-      double d = (double)ref.m.w[i] - ref2.m.w[i];
-      ref_ms += d * d / 4;
-      ref.m.w[i] = (float)(0.5 * ((double)ref.m.w[i] + ref2.m.w[i]));
+    for (int64_t i = 0; i < n; i++) {
+      double d = (double)ref.m.w[3 * i] - ref2.m.w[3 * i], a = ref.m.pm.area[i];
+      ref_ms[0] += d * d / 4;
+      ref_ms[1] += a * d * d / 4;
+      area += a;
+      for (int c = 0; c < 3; c++)
+        ref.m.w[3 * i + c] = (float)(0.5 * ((double)ref.m.w[3 * i + c] + ref2.m.w[3 * i + c]));
     }
-    ref_ms /= 3.0 * (double)n;
+    ref_ms[0] /= (double)n;
+    ref_ms[1] /= area;
     obs_omap_free(&ref2.m);
     printf("# %s: %zu triangles, BVH %.0f ms, d_max %.4g; reference: rays, 2 x %d per patch, "
            "%.1f s, its own RMSE %.4f\n",
            name, rt.geo.ntris, build_ms, p.d_max, o->ref_samples, (ref.ms + ref2.ms) / 1e3,
-           sqrt(ref_ms));
+           sqrt(ref_ms[0]));
     printf("%-18s %8s  %-12s %-14s %8s %8s %8s %9s  %7s %7s %8s\n", "scene", "patches",
-           "method", "budget", "wall_s", "cpu_s", "Mqueries", "samp/pat", "rmse", "rmse_c",
+           "method", "budget", "wall_s", "cpu_s", "Mqueries", "samp/pat", "rmse", "rmse_area",
            "unsampled");
   }
   for (int k = 0; !bad && k < o->ndirs; k++) {
