@@ -23,26 +23,27 @@ typedef struct options {
   int subdiv[MAX_LIST], nsubdiv;
   int dirs[MAX_LIST], ndirs;
   int rays[MAX_LIST], nrays; /* extra rays rows: samples per patch */
-  const char *models; /* directory, or NULL: none */
+  const char *models;        /* directory, or NULL: none */
   const char *mesh[MAX_LIST];
   int nmesh;
-  double dmax_frac;   /* d_max as a fraction of the bounding sphere's radius */
+  double dmax_frac; /* d_max as a fraction of the bounding sphere's radius */
 } options;
 
 static void usage(FILE *f) {
-  fprintf(f,
-          "usage: bench_obscurance_map [--threads N] [--subdiv 8,9|none] [--dirs 32,64,128,256,512]\n"
-          "         [--rays 8,16,32]\n"
-          "         [--res R] [--ref-samples S] [--models DIR|none] [--mesh ogre.obj,...]\n"
-          "         [--dmax F]\n"
-          "  Per-patch obscurance maps (no colour bleeding, sqrt falloff, d_max = F x the\n"
-          "  bounding radius, one patch per triangle): bundles and global lines with each\n"
-          "  direction count at an R x R grid (global lines: the same number of lines), rays at\n"
-          "  the bundles' query count, each timed and compared per patch with the mean of two\n"
-          "  independent maps of S rays per patch, less the reference's own error (measured from\n"
-          "  the difference of its halves): the per-patch RMSE against the converged map, plain\n"
-          "  (rmse) and weighted by patch area (rmse_area). Then rays at each\n"
-          "  --rays count per patch. cpu_s is the process's CPU time (robust to a busy machine).\n");
+  fprintf(
+      f,
+      "usage: bench_obscurance_map [--threads N] [--subdiv 8,9|none] [--dirs 32,64,128,256,512]\n"
+      "         [--rays 8,16,32]\n"
+      "         [--res R] [--ref-samples S] [--models DIR|none] [--mesh ogre.obj,...]\n"
+      "         [--dmax F]\n"
+      "  Per-patch obscurance maps (no colour bleeding, sqrt falloff, d_max = F x the\n"
+      "  bounding radius, one patch per triangle): bundles and global lines with each\n"
+      "  direction count at an R x R grid (global lines: the same number of lines), rays at\n"
+      "  the bundles' query count, each timed and compared per patch with the mean of two\n"
+      "  independent maps of S rays per patch, less the reference's own error (measured from\n"
+      "  the difference of its halves): the per-patch RMSE against the converged map, plain\n"
+      "  (rmse) and weighted by patch area (rmse_area). Then rays at each\n"
+      "  --rays count per patch. cpu_s is the process's CPU time (robust to a busy machine).\n");
 }
 
 static int parse_list(const char *s, int *out, int lo, int hi) {
@@ -73,22 +74,31 @@ static int parse_args(int argc, char **argv, options *o) {
     if (!v) return usage(stderr), -1;
     i++;
     int bad = 0;
-    if (!strcmp(a, "--threads")) bad = parse_int(v, 1, 1024, &o->threads);
-    else if (!strcmp(a, "--res")) bad = parse_int(v, 2, 512, &o->res);
-    else if (!strcmp(a, "--ref-samples")) bad = parse_int(v, 1, 65536, &o->ref_samples);
+    if (!strcmp(a, "--threads"))
+      bad = parse_int(v, 1, 1024, &o->threads);
+    else if (!strcmp(a, "--res"))
+      bad = parse_int(v, 2, 512, &o->res);
+    else if (!strcmp(a, "--ref-samples"))
+      bad = parse_int(v, 1, 65536, &o->ref_samples);
     else if (!strcmp(a, "--subdiv"))
-      bad = !strcmp(v, "none") ? (o->nsubdiv = 0) : (o->nsubdiv = parse_list(v, o->subdiv, 0, 11)) < 0;
-    else if (!strcmp(a, "--dirs")) bad = (o->ndirs = parse_list(v, o->dirs, 1, 4096)) < 0;
-    else if (!strcmp(a, "--rays")) bad = (o->nrays = parse_list(v, o->rays, 1, 65536)) < 0;
-    else if (!strcmp(a, "--models")) o->models = strcmp(v, "none") ? v : NULL;
-    else if (!strcmp(a, "--dmax")) bad = !((o->dmax_frac = atof(v)) > 0);
+      bad = !strcmp(v, "none") ? (o->nsubdiv = 0)
+                               : (o->nsubdiv = parse_list(v, o->subdiv, 0, 11)) < 0;
+    else if (!strcmp(a, "--dirs"))
+      bad = (o->ndirs = parse_list(v, o->dirs, 1, 4096)) < 0;
+    else if (!strcmp(a, "--rays"))
+      bad = (o->nrays = parse_list(v, o->rays, 1, 65536)) < 0;
+    else if (!strcmp(a, "--models"))
+      o->models = strcmp(v, "none") ? v : NULL;
+    else if (!strcmp(a, "--dmax"))
+      bad = !((o->dmax_frac = atof(v)) > 0);
     else if (!strcmp(a, "--mesh")) {
       static char buf[512];
       snprintf(buf, sizeof buf, "%s", v);
       o->nmesh = 0;
       for (char *t = strtok(buf, ","); t && o->nmesh < MAX_LIST; t = strtok(NULL, ","))
         o->mesh[o->nmesh++] = t;
-    } else bad = 1;
+    } else
+      bad = 1;
     if (bad) return fprintf(stderr, "bench_obscurance_map: bad %s %s\n", a, v), usage(stderr), -1;
   }
   return 0;
@@ -204,13 +214,13 @@ static int bench_scene(const options *o, const char *name, const char *doc, cons
     ref_ms[0] /= (double)n;
     ref_ms[1] /= area;
     obs_omap_free(&ref2.m);
-    printf("# %s: %zu triangles, BVH %.0f ms, d_max %.4g; reference: rays, 2 x %d per patch, "
-           "%.1f s, its own RMSE %.4f\n",
-           name, rt.geo.ntris, build_ms, p.d_max, o->ref_samples, (ref.ms + ref2.ms) / 1e3,
-           sqrt(ref_ms[0]));
-    printf("%-18s %8s  %-12s %-14s %8s %8s %8s %9s  %7s %7s %8s\n", "scene", "patches",
-           "method", "budget", "wall_s", "cpu_s", "Mqueries", "samp/pat", "rmse", "rmse_area",
-           "unsampled");
+    printf(
+        "# %s: %zu triangles, BVH %.0f ms, d_max %.4g; reference: rays, 2 x %d per patch, "
+        "%.1f s, its own RMSE %.4f\n",
+        name, rt.geo.ntris, build_ms, p.d_max, o->ref_samples, (ref.ms + ref2.ms) / 1e3,
+        sqrt(ref_ms[0]));
+    printf("%-18s %8s  %-12s %-14s %8s %8s %8s %9s  %7s %7s %8s\n", "scene", "patches", "method",
+           "budget", "wall_s", "cpu_s", "Mqueries", "samp/pat", "rmse", "rmse_area", "unsampled");
   }
   for (int k = 0; !bad && k < o->ndirs; k++) {
     char budget[64];
@@ -226,7 +236,7 @@ static int bench_scene(const options *o, const char *name, const char *doc, cons
     obs_omap_free(&r.m);
     p.method = OBS_OMAP_GLOBAL_LINES;
     if ((bad = map_run(&rt, &sc, &p, o->threads, &r))) break;
-    snprintf(budget, sizeof budget, "%llu lines", (unsigned long long)omap_global_count(&p));
+    snprintf(budget, sizeof budget, "%llu lines", (unsigned long long)obs_omap_global_count(&p));
     row(name, ref.m.pm.count, "global_lines", budget, &r, &ref.m, ref_ms);
     obs_omap_free(&r.m);
     /* rays at the bundles' number of Embree queries */
@@ -263,9 +273,10 @@ int main(int argc, char **argv) {
   printf("# bench_obscurance_map: %d threads, %d CPUs online\n", o.threads,
          (int)sysconf(_SC_NPROCESSORS_ONLN));
   int bad = 0;
-  const char *cam = "\"camera\":{\"type\":\"perspective\",\"position\":[0,0.6,3.2],"
-                    "\"look_at\":[0,0,0],\"up\":[0,1,0],\"fov_y\":40},"
-                    "\"image\":{\"width\":64,\"height\":64}";
+  const char *cam =
+      "\"camera\":{\"type\":\"perspective\",\"position\":[0,0.6,3.2],"
+      "\"look_at\":[0,0,0],\"up\":[0,1,0],\"fov_y\":40},"
+      "\"image\":{\"width\":64,\"height\":64}";
   for (int i = 0; i < o.nsubdiv; i++) {
     char doc[1024], name[64];
     snprintf(doc, sizeof doc,

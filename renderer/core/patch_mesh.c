@@ -131,8 +131,10 @@ size_t obs_patch_mesh_owner(const obs_patch_mesh *pm, int64_t patch, int64_t *su
   size_t lo = 0, hi = pm->ntris; /* the last t with first[t] <= patch */
   while (hi - lo > 1) {
     size_t mid = lo + (hi - lo) / 2;
-    if (pm->first[mid] <= patch) lo = mid;
-    else hi = mid;
+    if (pm->first[mid] <= patch)
+      lo = mid;
+    else
+      hi = mid;
   }
   /* Empty ranges cannot hold it: every triangle has at least one patch. */
   *sub = patch - pm->first[lo];

@@ -23,14 +23,14 @@ void obs_omap_free(obs_omap *m) {
   memset(m, 0, sizeof *m);
 }
 
-uint64_t omap_global_count(const obs_obscurance_map_params *p) {
+uint64_t obs_omap_global_count(const obs_obscurance_map_params *p) {
   if (p->lines) return p->lines;
   return (uint64_t)p->directions * p->bundle_resolution * p->bundle_resolution;
 }
 
 /* Halton point i of the patch's stream: the shared table turned by the stream's Cranley-Patterson
  * rotation, as obs_sampler2d_get computes it (the radical inverses are the costly part). */
-static inline void halton_get(const omap_job *j, const obs_sampler2d *s, uint32_t i, float *u,
+static inline void halton_get(const obs_omap_job *j, const obs_sampler2d *s, uint32_t i, float *u,
                               float *v) {
   float a = j->halton[i][0] + obs_u32_to_unit(s->scramble0);
   float b = j->halton[i][1] + obs_u32_to_unit(s->scramble1);
@@ -42,17 +42,17 @@ static inline void halton_get(const omap_job *j, const obs_sampler2d *s, uint32_
 
 /* What every ray of one patch shares, set up once per patch. */
 typedef struct patch_frame {
-  double c[3][3];        /* corners */
-  float tb[2][3];        /* tangents of the unit normal from.ng */
-  obs_hit from;          /* ng, perr, geom, prim: what obs_rt_offset and the context read */
-  obs_rt_ctx ctx;        /* skips the patch's own triangle */
+  double c[3][3]; /* corners */
+  float tb[2][3]; /* tangents of the unit normal from.ng */
+  obs_hit from;   /* ng, perr, geom, prim: what obs_rt_offset and the context read */
+  obs_rt_ctx ctx; /* skips the patch's own triangle */
   obs_sampler2d pts, dirs;
   uint32_t shuffle;
 } patch_frame;
 
 /* Sample i of a patch: a cosine-distributed ray from a stratified point. Returns the rays traced
  * (0 or 1). */
-static uint64_t ray_sample(const omap_job *j, omap_acc *acc, patch_frame *f, uint32_t i) {
+static uint64_t ray_sample(const obs_omap_job *j, obs_omap_acc *acc, patch_frame *f, uint32_t i) {
   float u1, v1, u2, v2;
   halton_get(j, &f->pts, i, &u1, &v1);
   /* The shuffle keeps the direction stream's stratification while decorrelating it from the
@@ -78,7 +78,7 @@ static uint64_t ray_sample(const omap_job *j, omap_acc *acc, patch_frame *f, uin
   rtcIntersect1(j->rt->scene, &f->ctx.ctx, &rh);
   double v[3];
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
-    omap_value(j, INFINITY, NULL, v);
+    obs_omap_value(j, INFINITY, NULL, v);
   } else {
     float nb[3];
     const float *r;
@@ -86,23 +86,23 @@ static uint64_t ray_sample(const omap_job *j, omap_acc *acc, patch_frame *f, uin
       nb[0] = rh.hit.Ng_x, nb[1] = rh.hit.Ng_y, nb[2] = rh.hit.Ng_z;
       r = j->sphere_r[rh.hit.primID];
     } else {
-      omap_tri_normal(j->rt, rh.hit.geomID, rh.hit.primID, nb);
+      obs_omap_tri_normal(j->rt, rh.hit.geomID, rh.hit.primID, nb);
       r = j->mesh_r[rh.hit.geomID];
     }
     /* Only a surface that faces the patch transfers; a back face eliminates the sample, as a
      * non-facing pair of hits does for the line estimators. */
     if (!(nb[0] * dir[0] + nb[1] * dir[1] + nb[2] * dir[2] < 0)) return 1;
-    omap_value(j, rh.ray.tfar, r, v);
+    obs_omap_value(j, rh.ray.tfar, r, v);
   }
-  omap_add(acc, v);
+  obs_omap_add(acc, v);
   return 1;
 }
 
-int omap_rays_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+int obs_omap_rays_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)y0, (void)y1;
-  const omap_job *j = user;
+  const obs_omap_job *j = user;
   const obs_patch_mesh *pm = j->pm;
-  omap_acc *acc = j->acc + (size_t)thread * (size_t)pm->count;
+  obs_omap_acc *acc = j->acc + (size_t)thread * (size_t)pm->count;
   uint64_t rays = 0;
   for (int64_t patch = (int64_t)x0 * OMAP_RAYS_CHUNK;
        patch < (int64_t)x1 * OMAP_RAYS_CHUNK && patch < pm->count; patch++) {
@@ -128,7 +128,7 @@ int omap_rays_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
         mag = fmaxf(mag, fabsf((float)f.c[q][k]));
       }
     float n[3];
-    omap_tri_normal(j->rt, (unsigned)m, prim, n);
+    obs_omap_tri_normal(j->rt, (unsigned)m, prim, n);
     float l = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
     if (!(l > 0) || !isfinite(l)) continue;
     for (int k = 0; k < 3; k++) f.from.ng[k] = f.from.ns[k] = n[k] / l;
@@ -149,7 +149,7 @@ int omap_rays_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
 }
 
 /* Reflectivities per mesh and per sphere, from their objects' materials. */
-static int job_reflectivities(omap_job *j, const obs_scene *scene, obs_err *err) {
+static int job_reflectivities(obs_omap_job *j, const obs_scene *scene, obs_err *err) {
   const obs_geometry *g = &j->rt->geo;
   j->mesh_r = calloc(g->nmeshes ? g->nmeshes : 1, sizeof *j->mesh_r);
   j->sphere_r = calloc(g->nspheres ? g->nspheres : 1, sizeof *j->sphere_r);
@@ -168,20 +168,20 @@ static int job_reflectivities(omap_job *j, const obs_scene *scene, obs_err *err)
 }
 
 /* The accumulated sums into the map's values and standard errors, in patch order. */
-static void finish(const omap_job *j, obs_omap *out) {
+static void finish(const obs_omap_job *j, obs_omap *out) {
   const int64_t count = j->pm->count;
   for (int64_t i = 0; i < count; i++) {
-    omap_acc a;
+    obs_omap_acc a;
     memset(&a, 0, sizeof a);
     for (int t = 0; t < j->threads; t++) {
-      const omap_acc *b = &j->acc[(size_t)t * (size_t)count + (size_t)i];
+      const obs_omap_acc *b = &j->acc[(size_t)t * (size_t)count + (size_t)i];
       for (int c = 0; c < 3; c++) a.s[c] += b->s[c], a.q[c] += b->q[c];
       a.n += b->n;
     }
     out->n[i] = a.n;
     if (!a.n) {
       double v[3];
-      omap_value(j, INFINITY, NULL, v);
+      obs_omap_value(j, INFINITY, NULL, v);
       for (int c = 0; c < 3; c++) out->w[3 * i + c] = (float)v[c];
       out->se[i] = 1.0f;
       out->unsampled += j->pm->area[i] > 0;
@@ -198,22 +198,22 @@ static void finish(const omap_job *j, obs_omap *out) {
   }
 }
 
-static int run_estimator(omap_job *j, const atomic_int *cancel, obs_progress_fn progress,
+static int run_estimator(obs_omap_job *j, const atomic_int *cancel, obs_progress_fn progress,
                          void *progress_user) {
   switch (j->p.method) {
-  case OBS_OMAP_RAYS: {
-    int64_t chunks = (j->pm->count + OMAP_RAYS_CHUNK - 1) / OMAP_RAYS_CHUNK;
-    return obs_parallel_tiles((int)chunks, 1, j->threads, omap_rays_tile, j, cancel, progress,
-                              progress_user);
-  }
-  case OBS_OMAP_GLOBAL_LINES: {
-    uint64_t chunks = (omap_global_count(&j->p) + OMAP_GLOBAL_CHUNK - 1) / OMAP_GLOBAL_CHUNK;
-    return obs_parallel_tiles((int)chunks, 1, j->threads, omap_global_tile, j, cancel, progress,
-                              progress_user);
-  }
-  default: /* one chunk per grid row of each direction */
-    return obs_parallel_tiles((int)(j->p.directions * j->p.bundle_resolution), 1, j->threads,
-                              omap_bundle_tile, j, cancel, progress, progress_user);
+    case OBS_OMAP_RAYS: {
+      int64_t chunks = (j->pm->count + OMAP_RAYS_CHUNK - 1) / OMAP_RAYS_CHUNK;
+      return obs_parallel_tiles((int)chunks, 1, j->threads, obs_omap_rays_tile, j, cancel, progress,
+                                progress_user);
+    }
+    case OBS_OMAP_GLOBAL_LINES: {
+      uint64_t chunks = (obs_omap_global_count(&j->p) + OMAP_GLOBAL_CHUNK - 1) / OMAP_GLOBAL_CHUNK;
+      return obs_parallel_tiles((int)chunks, 1, j->threads, obs_omap_global_tile, j, cancel,
+                                progress, progress_user);
+    }
+    default: /* one chunk per grid row of each direction */
+      return obs_parallel_tiles((int)(j->p.directions * j->p.bundle_resolution), 1, j->threads,
+                                obs_omap_bundle_tile, j, cancel, progress, progress_user);
   }
 }
 
@@ -221,7 +221,7 @@ int obs_omap_compute(const obs_rt *rt, const obs_scene *scene, const obs_obscura
                      int threads, const atomic_int *cancel, obs_progress_fn progress,
                      void *progress_user, obs_omap *out, obs_err *err) {
   memset(out, 0, sizeof *out);
-  omap_job j;
+  obs_omap_job j;
   memset(&j, 0, sizeof j);
   j.rt = rt;
   j.p = *p;
@@ -262,8 +262,10 @@ int obs_omap_compute(const obs_rt *rt, const obs_scene *scene, const obs_obscura
   }
   if (!rc && count) {
     rc = run_estimator(&j, cancel, progress, progress_user);
-    if (rc == OBS_ECANCELED) obs_err_set(err, rc, "%s: render cancelled", scene->name);
-    else if (rc) obs_err_set(err, rc, "%s: obscurance_map failed", scene->name);
+    if (rc == OBS_ECANCELED)
+      obs_err_set(err, rc, "%s: render cancelled", scene->name);
+    else if (rc)
+      obs_err_set(err, rc, "%s: obscurance_map failed", scene->name);
   }
   if (!rc) {
     finish(&j, out);
@@ -319,8 +321,7 @@ static int show(obs_render_ctx *ctx, const obs_omap *m, obs_image *out, obs_err 
 int obs_obscurance_map_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   const obs_scene *sc = ctx->scene;
   if (!ctx->rt)
-    return obs_err_set(err, OBS_EINTERNAL, "%s: obscurance_map: no BVH was built for it",
-                       sc->name);
+    return obs_err_set(err, OBS_EINTERNAL, "%s: obscurance_map: no BVH was built for it", sc->name);
   const obs_obscurance_map_params *p = ctx->bound;
   double t0 = obs_now_ms();
   obs_omap m;

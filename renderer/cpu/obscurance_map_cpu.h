@@ -18,12 +18,12 @@
 /* A map's values. Owns everything inside. */
 typedef struct obs_omap {
   obs_patch_mesh pm;
-  float *w;           /* count x 3, patch-major: W per channel (equal without colour bleeding) */
-  float *se;          /* count: standard error of a patch's mean, the largest of its channels' */
-  uint64_t *n;        /* count: samples per patch */
-  uint64_t rays;      /* Embree queries made */
-  int64_t unsampled;  /* patches of positive area that received no sample */
-  double r_ave[3];    /* the scene's average reflectivity (the value of "nothing within d_max") */
+  float *w;          /* count x 3, patch-major: W per channel (equal without colour bleeding) */
+  float *se;         /* count: standard error of a patch's mean, the largest of its channels' */
+  uint64_t *n;       /* count: samples per patch */
+  uint64_t rays;     /* Embree queries made */
+  int64_t unsampled; /* patches of positive area that received no sample */
+  double r_ave[3];   /* the scene's average reflectivity (the value of "nothing within d_max") */
 } obs_omap;
 
 /* Computes the map of `p` over rt's geometry (built from `scene`) on `threads` threads; the same
@@ -39,14 +39,14 @@ void obs_omap_free(obs_omap *m);
 
 /* Fixed-point sums of one patch's samples: integer addition is associative, so per-thread sums
  * add up to the same bits whatever thread took which lines. */
-typedef struct omap_acc {
+typedef struct obs_omap_acc {
   uint64_t s[3]; /* sum of the sample's channels, OMAP_ONE = 1 */
   uint64_t q[3]; /* sum of the squares of the sample's channels */
   uint64_t n;    /* samples */
-} omap_acc;
+} obs_omap_acc;
 #define OMAP_ONE 268435456.0 /* 2^28: 2^35 samples of value 1 fit in 63 bits */
 
-typedef struct omap_job {
+typedef struct obs_omap_job {
   const obs_rt *rt;
   obs_obscurance_map_params p;
   obs_falloff f;
@@ -56,15 +56,15 @@ typedef struct omap_job {
   double r_ave[3];
   obs_bound_sphere bs;
   int threads;
-  omap_acc *acc;        /* threads x count */
+  obs_omap_acc *acc;    /* threads x count */
   uint64_t *rays;       /* threads x 8 (one cache line each) */
   float (*halton)[2];   /* rays: Halton points (bases 2, 3), unrotated, a power of two of them */
   uint32_t halton_mask; /* their count less one */
-} omap_job;
+} obs_omap_job;
 
 /* The value of a sample that sees a surface of reflectivity r at distance d (d = INFINITY or
  * r = NULL: nothing). */
-static inline void omap_value(const omap_job *j, double d, const float *r, double v[3]) {
+static inline void obs_omap_value(const obs_omap_job *j, double d, const float *r, double v[3]) {
   if (!r || !(d < j->f.d_max)) {
     for (int c = 0; c < 3; c++) v[c] = j->p.color_bleeding ? j->r_ave[c] : 1.0;
     return;
@@ -73,7 +73,7 @@ static inline void omap_value(const omap_job *j, double d, const float *r, doubl
   for (int c = 0; c < 3; c++) v[c] = j->p.color_bleeding ? rho * r[c] : rho;
 }
 
-static inline void omap_add(omap_acc *a, const double v[3]) {
+static inline void obs_omap_add(obs_omap_acc *a, const double v[3]) {
   for (int c = 0; c < 3; c++) a->s[c] += (uint64_t)(v[c] * OMAP_ONE + 0.5);
   for (int c = 0; c < 3; c++) a->q[c] += (uint64_t)(v[c] * v[c] * OMAP_ONE + 0.5);
   a->n++;
@@ -81,7 +81,7 @@ static inline void omap_add(omap_acc *a, const double v[3]) {
 
 /* The right-handed normal of mesh `geom`'s triangle `prim` (unnormalised, float): a patch's
  * front side, the one its obscurance is of. */
-static inline void omap_tri_normal(const obs_rt *rt, unsigned geom, unsigned prim, float n[3]) {
+static inline void obs_omap_tri_normal(const obs_rt *rt, unsigned geom, unsigned prim, float n[3]) {
   const obs_mesh *m = &rt->geo.meshes[geom];
   const uint32_t *t = m->idx + 3 * (size_t)prim;
   const float *a = m->pos + 3 * t[0], *b = m->pos + 3 * t[1], *c = m->pos + 3 * t[2];
@@ -93,13 +93,13 @@ static inline void omap_tri_normal(const obs_rt *rt, unsigned geom, unsigned pri
 }
 
 /* Tile functions for obs_parallel_tiles (x = chunk index, one row): */
-int omap_rays_tile(void *user, int thread, int x0, int y0, int x1, int y1);
-int omap_global_tile(void *user, int thread, int x0, int y0, int x1, int y1);
-int omap_bundle_tile(void *user, int thread, int x0, int y0, int x1, int y1);
+int obs_omap_rays_tile(void *user, int thread, int x0, int y0, int x1, int y1);
+int obs_omap_global_tile(void *user, int thread, int x0, int y0, int x1, int y1);
+int obs_omap_bundle_tile(void *user, int thread, int x0, int y0, int x1, int y1);
 /* Lines per chunk of the global-line estimator; patches per chunk of the ray estimator. */
 #define OMAP_GLOBAL_CHUNK 1024
 #define OMAP_RAYS_CHUNK 16
 /* The number of global lines `p` asks for. */
-uint64_t omap_global_count(const obs_obscurance_map_params *p);
+uint64_t obs_omap_global_count(const obs_obscurance_map_params *p);
 
 #endif

@@ -14,9 +14,9 @@
 
 typedef struct line_hit {
   double t;
-  int64_t patch;     /* -1: a surface without patches (an analytic sphere) */
-  const float *r;    /* its reflectivity */
-  int face;          /* sign of (front normal . line direction); 0: grazing */
+  int64_t patch;  /* -1: a surface without patches (an analytic sphere) */
+  const float *r; /* its reflectivity */
+  int face;       /* sign of (front normal . line direction); 0: grazing */
 } line_hit;
 
 /* The context of one line's successive queries. The sphere geometry reads the obs_rt_ctx part (a
@@ -46,15 +46,15 @@ static void line_filter(const struct RTCFilterFunctionNArguments *a) {
 }
 
 typedef struct line_state {
-  const omap_job *j;
-  omap_acc *acc;
+  const obs_omap_job *j;
+  obs_omap_acc *acc;
   uint64_t rays;
   line_hit hits[LINE_MAX_HITS];
 } line_state;
 
 /* Every surface along (org, dir) within [0, len], in order, into st->hits; returns how many. */
 static int line_hits(line_state *st, const double org[3], const double dir[3], double len) {
-  const omap_job *j = st->j;
+  const obs_omap_job *j = st->j;
   const obs_rt *rt = j->rt;
   line_ctx c;
   rtcInitIntersectContext(&c.base.ctx);
@@ -90,7 +90,7 @@ static int line_hits(line_state *st, const double org[3], const double dir[3], d
       h.patch = -1;
       h.r = j->sphere_r[p];
     } else {
-      omap_tri_normal(rt, g, p, nf);
+      obs_omap_tri_normal(rt, g, p, nf);
       h.patch = obs_patch_mesh_find(j->pm, g, p, rh.hit.u, rh.hit.v);
       h.r = j->mesh_r[g];
     }
@@ -116,33 +116,33 @@ static int line_hits(line_state *st, const double org[3], const double dir[3], d
 /* The transfers along one line of n hits: consecutive hits whose fronts face each other see each
  * other at their distance; an outer hit facing out sees nothing within d_max. */
 static void line_transfer(line_state *st, int n) {
-  const omap_job *j = st->j;
+  const obs_omap_job *j = st->j;
   const line_hit *h = st->hits;
   double v[3];
   if (n && h[0].face < 0 && h[0].patch >= 0) {
-    omap_value(j, INFINITY, NULL, v);
-    omap_add(&st->acc[h[0].patch], v);
+    obs_omap_value(j, INFINITY, NULL, v);
+    obs_omap_add(&st->acc[h[0].patch], v);
   }
   for (int k = 0; k + 1 < n; k++) {
     const line_hit *a = &h[k], *b = &h[k + 1];
     if (!(a->face > 0 && b->face < 0)) continue;
     double d = b->t - a->t;
     if (a->patch >= 0) {
-      omap_value(j, d, b->r, v);
-      omap_add(&st->acc[a->patch], v);
+      obs_omap_value(j, d, b->r, v);
+      obs_omap_add(&st->acc[a->patch], v);
     }
     if (b->patch >= 0) {
-      omap_value(j, d, a->r, v);
-      omap_add(&st->acc[b->patch], v);
+      obs_omap_value(j, d, a->r, v);
+      obs_omap_add(&st->acc[b->patch], v);
     }
   }
   if (n && n < LINE_MAX_HITS && h[n - 1].face > 0 && h[n - 1].patch >= 0) {
-    omap_value(j, INFINITY, NULL, v);
-    omap_add(&st->acc[h[n - 1].patch], v);
+    obs_omap_value(j, INFINITY, NULL, v);
+    obs_omap_add(&st->acc[h[n - 1].patch], v);
   }
 }
 
-static line_state *state_new(const omap_job *j, int thread) {
+static line_state *state_new(const obs_omap_job *j, int thread) {
   line_state *st = malloc(sizeof *st);
   if (!st) return NULL;
   st->j = j;
@@ -151,12 +151,12 @@ static line_state *state_new(const omap_job *j, int thread) {
   return st;
 }
 
-int omap_global_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+int obs_omap_global_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)y0, (void)y1;
-  const omap_job *j = user;
+  const obs_omap_job *j = user;
   line_state *st = state_new(j, thread);
   if (!st) return OBS_ENOMEM;
-  uint64_t total = omap_global_count(&j->p);
+  uint64_t total = obs_omap_global_count(&j->p);
   for (uint64_t i = (uint64_t)x0 * OMAP_GLOBAL_CHUNK;
        i < (uint64_t)x1 * OMAP_GLOBAL_CHUNK && i < total; i++) {
     double org[3], dir[3], len;
@@ -169,9 +169,9 @@ int omap_global_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   return 0;
 }
 
-int omap_bundle_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+int obs_omap_bundle_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)y0, (void)y1;
-  const omap_job *j = user;
+  const obs_omap_job *j = user;
   line_state *st = state_new(j, thread);
   if (!st) return OBS_ENOMEM;
   const uint32_t res = j->p.bundle_resolution;

@@ -74,8 +74,10 @@ static void test_open_plane(void **state) {
       const double r[3] = {0.8, 0.4, 0.2};
       for (int64_t i = 0; i < m.pm.count; i++)
         for (int c = 0; c < 3; c++) {
-          if (!bleed) assert_true(m.w[3 * i + c] == 1.0f);
-          else assert_true(fabs(m.w[3 * i + c] - r[c]) < 1e-6);
+          if (!bleed)
+            assert_true(m.w[3 * i + c] == 1.0f);
+          else
+            assert_true(fabs(m.w[3 * i + c] - r[c]) < 1e-6);
         }
       obs_omap_free(&m);
     }
@@ -97,9 +99,9 @@ static const char *plates_doc(double h, double L) {
 }
 
 /* W at a plate facing another at distance h < d_max, sqrt falloff, mu = cos theta:
- *   W = 2 int_0^1 rho(h / mu) mu dmu, rho = 1 ("nothing", R_ave with bleeding) for mu < m0 = h/d_max
- *   and sqrt(h / (mu d_max)) (times R of the other plate) above:
- *   W = R_ave m0^2 + R_other 4/3 sqrt(m0) (1 - m0^(3/2)). */
+ *   W = 2 int_0^1 rho(h / mu) mu dmu, rho = 1 ("nothing", R_ave with bleeding) for mu < m0 =
+ * h/d_max and sqrt(h / (mu d_max)) (times R of the other plate) above: W = R_ave m0^2 + R_other 4/3
+ * sqrt(m0) (1 - m0^(3/2)). */
 static double plates_w(double m0, double r_ave, double r_other) {
   return r_ave * m0 * m0 + r_other * 4.0 / 3.0 * sqrt(m0) * (1 - pow(m0, 1.5));
 }
@@ -155,8 +157,8 @@ static void check_plates(int method, int bleed) {
           double want = plates_w(h / dmax, ra, rt);
           if (!(fabs(m.w[3 * id + k] - want) <= 5 * m.se[id] + 1e-6))
             printf("%s bleed %d: patch %lld channel %d: %g, want %g (se %g, n %llu)\n",
-                   method_names[method], bleed, (long long)id, k, m.w[3 * id + k], want,
-                   m.se[id], (unsigned long long)m.n[id]);
+                   method_names[method], bleed, (long long)id, k, m.w[3 * id + k], want, m.se[id],
+                   (unsigned long long)m.n[id]);
           assert_true(fabs(m.w[3 * id + k] - want) <= 5 * m.se[id] + 1e-6);
         }
       }
@@ -196,7 +198,6 @@ static void test_plates_bundles(void **state) {
   check_plates(OBS_OMAP_BUNDLES, 0);
   check_plates(OBS_OMAP_BUNDLES, 1);
 }
-
 
 /* ---- the estimators agree on the Cornell box ---- */
 
@@ -263,10 +264,12 @@ static void test_subdivision(void **state) {
       double cross = (uv[1][0] - uv[0][0]) * (uv[2][1] - uv[0][1]) -
                      (uv[1][1] - uv[0][1]) * (uv[2][0] - uv[0][0]);
       assert_true(fabs(cross - 1.0 / total) < 1e-12);
-      for (int q = 0; q < 3; q++) assert_true(uv[q][0] >= 0 && uv[q][1] >= 0 && uv[q][0] + uv[q][1] <= 1 + 1e-12);
+      for (int q = 0; q < 3; q++)
+        assert_true(uv[q][0] >= 0 && uv[q][1] >= 0 && uv[q][0] + uv[q][1] <= 1 + 1e-12);
       /* Points inside sub-triangle k map back to k. */
       for (int t = 0; t < 4; t++) {
-        double w[3] = {0.2 + 0.2 * (t == 1), 0.3 + 0.2 * (t == 2), 0.5 - 0.2 * (t == 1) - 0.2 * (t == 2)};
+        double w[3] = {0.2 + 0.2 * (t == 1), 0.3 + 0.2 * (t == 2),
+                       0.5 - 0.2 * (t == 1) - 0.2 * (t == 2)};
         if (t == 3) w[0] = w[1] = w[2] = 1.0 / 3;
         double u = w[0] * uv[0][0] + w[1] * uv[1][0] + w[2] * uv[2][0];
         double v = w[0] * uv[0][1] + w[1] * uv[1][1] + w[2] * uv[2][1];
@@ -278,7 +281,8 @@ static void test_subdivision(void **state) {
     /* Points on the boundary and outside clamp into the triangle. */
     assert_true(obs_patch_sub_index(n, 1.0, 0.0) >= 0 && obs_patch_sub_index(n, 1.0, 0.0) < total);
     assert_true(obs_patch_sub_index(n, 0.7, 0.7) >= 0 && obs_patch_sub_index(n, 0.7, 0.7) < total);
-    assert_true(obs_patch_sub_index(n, -0.1, NAN) >= 0 && obs_patch_sub_index(n, -0.1, NAN) < total);
+    assert_true(obs_patch_sub_index(n, -0.1, NAN) >= 0 &&
+                obs_patch_sub_index(n, -0.1, NAN) < total);
     free(seen);
   }
   /* Areas of a scene's patches add up to their triangles'; ids map back to their triangles. */
@@ -450,9 +454,9 @@ static void test_reference_hook(void **state) {
   assert_non_null(t);
   obs_scene sc;
   obs_test_load(plane_doc(0.5), "plane.json", &sc);
-  json_t *params = json_pack("{s:s, s:f, s:s, s:b, s:f, s:i}", "method", "bundles", "d_max", 2.5,
-                             "falloff", "exp", "color_bleeding", 0, "patch_size", 0.25,
-                             "directions", 32);
+  json_t *params =
+      json_pack("{s:s, s:f, s:s, s:b, s:f, s:i}", "method", "bundles", "d_max", 2.5, "falloff",
+                "exp", "color_bleeding", 0, "patch_size", 0.25, "directions", 32);
   obs_reference_def def;
   obs_err err = OBS_ERR_INIT;
   assert_int_equal(obs_technique_reference(t, &sc, params, NULL, &def, &err), 0);
