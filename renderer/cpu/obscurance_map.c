@@ -344,8 +344,12 @@ int obs_obscurance_map_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   if (!rc && m.unsampled)
     obs_render_ctx_warn(ctx,
                         "%lld of %lld patches received no sample and show \"nothing within "
-                        "d_max\"; raise directions, lines or bundle_resolution",
-                        (long long)m.unsampled, (long long)m.pm.count);
+                        "d_max\" (%s)",
+                        (long long)m.unsampled, (long long)m.pm.count,
+                        p->method == OBS_OMAP_RAYS
+                            ? "every ray met the back of a surface"
+                            : "no line met them, or only backs of surfaces; raise directions, "
+                              "lines or bundle_resolution");
   if (!rc && m.pm.capped)
     obs_render_ctx_warn(ctx,
                         "patch_size split %zu triangles into more than %d x %d patches; they were "

@@ -128,7 +128,7 @@ const obs_technique obs_technique_obscurance_map = {
                                    .fov_max = 170,
                                    .orthographic = 1,
                                    .params = {{"d_max", 1e-6, 1e6, 1},
-                                              {"patch_size", 0.05, 1e6, 1},
+                                              {"patch_size", 0.01, 1e6, 1},
                                               {NULL, 0, 0, 0}},
                                    .tol = {.ao_mean = 1e-3,
                                            .ao_pixel = 1e-4,
