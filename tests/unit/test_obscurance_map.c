@@ -475,6 +475,53 @@ static void test_reference_hook(void **state) {
   obs_err_free(&err);
 }
 
+/* A whole render: the .patches output (RGB, with areas adding up to the scene's), the image of
+ * the patch each pixel sees, and the coverage. */
+static void test_render(void **state) {
+  (void)state;
+  obs_result r;
+  obs_test_render(
+      "{\"camera\":{\"type\":\"perspective\",\"position\":[0,2,-3],\"look_at\":[0,0,0],"
+      "\"fov_y\":60},\"image\":{\"width\":16,\"height\":12},"
+      "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-2,0,-2],[-2,0,2],[2,0,2],"
+      "[2,0,-2]]},\"material\":{\"reflectivity\":[0.8,0.4,0.2]}}],"
+      "\"technique\":{\"name\":\"obscurance_map\",\"params\":{\"patch_size\":1,"
+      "\"samples\":8}}}",
+      2, &r);
+  obs_test_assert_finite(&r.image);
+  assert_int_equal(r.npatches, 1);
+  const obs_patches *p = &r.patches[0];
+  assert_string_equal(p->name, "obscurance");
+  assert_int_equal(p->components, 3);
+  assert_int_equal(p->count, 2 * 6 * 6); /* diagonal 5.66: n = 6 */
+  double area = 0;
+  for (int64_t i = 0; i < p->count; i++) {
+    area += p->area[i];
+    /* Nothing within d_max over an open plane: R_ave in each channel. */
+    assert_true(fabsf(p->values[3 * i] - 0.8f) < 1e-6f);
+    assert_true(fabsf(p->values[3 * i + 2] - 0.2f) < 1e-6f);
+  }
+  assert_true(fabs(area - 16.0) < 1e-4);
+  size_t n = (size_t)r.image.width * (size_t)r.image.height, seen = 0;
+  const float *w = obs_image_channel(&r.image, "obscurance");
+  const float *g = obs_image_channel(&r.image, "obscurance_rgb.G");
+  const float *al = obs_image_channel(&r.image, "alpha");
+  assert_non_null(w);
+  assert_non_null(g);
+  assert_non_null(al);
+  for (size_t i = 0; i < n; i++) {
+    if (al[i] == 0.0f) {
+      assert_true(w[i] == 0.0f && g[i] == 0.0f);
+      continue;
+    }
+    seen++;
+    assert_true(fabsf(w[i] - (0.8f + 0.4f + 0.2f) / 3) < 1e-6f);
+    assert_true(fabsf(g[i] - 0.4f) < 1e-6f);
+  }
+  assert_true(seen > n / 4 && seen < n);
+  obs_result_free(&r);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_open_plane),
@@ -488,6 +535,7 @@ int main(void) {
       cmocka_unit_test(test_dmax_and_reflectivity_ends),
       cmocka_unit_test(test_seed_and_threads),
       cmocka_unit_test(test_reference_hook),
+      cmocka_unit_test(test_render),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
