@@ -45,11 +45,20 @@ static void line_filter(const struct RTCFilterFunctionNArguments *a) {
   }
 }
 
+/* A hit as the collecting filter records it, before sorting. */
+typedef struct raw_hit {
+  float t, u, v;
+  unsigned geom, prim;
+} raw_hit;
+
 typedef struct line_state {
   const obs_omap_job *j;
   obs_omap_acc *acc;
   uint64_t rays;
   line_hit hits[LINE_MAX_HITS];
+  raw_hit raw[LINE_MAX_HITS];
+  int collect;   /* a scene of meshes only: one traversal per line (line_hits_collect) */
+  int truncated; /* the last line had more hits than kept: its last kept one is not its last */
 } line_state;
 
 /* Every surface along (org, dir) within [0, len], in order, into st->hits; returns how many. */
@@ -110,6 +119,92 @@ static int line_hits(line_state *st, const double org[3], const double dir[3], d
     if (n && h.t - st->hits[n - 1].t <= dup && h.face == st->hits[n - 1].face) continue;
     st->hits[n++] = h;
   }
+  st->truncated = n == LINE_MAX_HITS;
+  return n;
+}
+
+/* One traversal reports every triangle the line crosses to this filter, which records each and
+ * rejects it so that traversal goes on: the hits arrive in traversal order, not along the line. */
+typedef struct collect_ctx {
+  struct RTCIntersectContext ctx; /* first: Embree sees it as the context */
+  raw_hit *hits;
+  int n, max;
+} collect_ctx;
+
+static void collect_filter(const struct RTCFilterFunctionNArguments *a) {
+  collect_ctx *c = (collect_ctx *)a->context;
+  const float *r = (const float *)a->ray, *hf = (const float *)a->hit;
+  const unsigned *h = (const unsigned *)a->hit;
+  const unsigned N = a->N;
+  for (unsigned i = 0; i < N; i++) {
+    if (a->valid[i] != -1) continue;
+    /* RTCRayN field 8 is tfar, the potential hit's distance; RTCHitN: Ng (3), u, v, prim, geom. */
+    if (c->n < c->max)
+      c->hits[c->n++] = (raw_hit){r[8 * N + i], hf[3 * N + i], hf[4 * N + i], h[6 * N + i],
+                                  h[5 * N + i]};
+    a->valid[i] = 0;
+  }
+}
+
+static int raw_before(const raw_hit *x, const raw_hit *y) {
+  if (x->t != y->t) return x->t < y->t;
+  return x->geom != y->geom ? x->geom < y->geom : x->prim < y->prim;
+}
+
+/* Every surface along (org, dir) within [0, len] of a scene of meshes, in order, in one
+ * traversal: the collecting filter's hits sorted by parameter (then primitive, so that equal
+ * parameters come in one order), a primitive reported twice (it may sit in several BVH leaves)
+ * kept once, and neighbours' reports of one crossing at a shared edge merged as line_hits
+ * does. */
+static int line_hits_collect(line_state *st, const double org[3], const double dir[3],
+                             double len) {
+  const obs_omap_job *j = st->j;
+  collect_ctx c;
+  rtcInitIntersectContext(&c.ctx);
+  c.ctx.filter = collect_filter;
+  c.hits = st->raw;
+  c.n = 0;
+  c.max = LINE_MAX_HITS;
+  struct RTCRayHit rh;
+  rh.ray.org_x = (float)org[0], rh.ray.org_y = (float)org[1], rh.ray.org_z = (float)org[2];
+  rh.ray.dir_x = (float)dir[0], rh.ray.dir_y = (float)dir[1], rh.ray.dir_z = (float)dir[2];
+  rh.ray.tnear = 0.0f;
+  rh.ray.tfar = (float)len * 1.0001f;
+  rh.ray.time = 0.0f;
+  rh.ray.mask = ~0u;
+  rh.ray.id = 0;
+  rh.ray.flags = 0;
+  rh.hit.geomID = rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(j->rt->scene, &c.ctx, &rh);
+  st->rays++;
+  raw_hit *r = c.hits;
+  for (int k = 1; k < c.n; k++) { /* insertion sort: a line crosses few surfaces */
+    raw_hit x = r[k];
+    int m = k;
+    for (; m > 0 && raw_before(&x, &r[m - 1]); m--) r[m] = r[m - 1];
+    r[m] = x;
+  }
+  const double dup = 1e-6 * len;
+  int n = 0;
+  for (int k = 0; k < c.n; k++) {
+    int again = 0;
+    for (int m = k - 1; m >= 0 && r[m].t == r[k].t && !again; m--)
+      again = r[m].geom == r[k].geom && r[m].prim == r[k].prim;
+    if (again) continue;
+    line_hit h;
+    float nf[3];
+    obs_omap_tri_normal(j->rt, r[k].geom, r[k].prim, nf);
+    h.t = r[k].t;
+    h.patch = obs_patch_mesh_find(j->pm, r[k].geom, r[k].prim, r[k].u, r[k].v);
+    h.r = j->mesh_r[r[k].geom];
+    double dn = nf[0] * dir[0] + nf[1] * dir[1] + nf[2] * dir[2];
+    h.face = dn > 0 ? 1 : dn < 0 ? -1 : 0;
+    if (n && h.t - st->hits[n - 1].t <= dup && h.face == st->hits[n - 1].face) continue;
+    st->hits[n++] = h;
+  }
+  /* A line with more crossings than the buffer holds is cut where it filled: its last kept hit
+   * is not the line's last, so it gets no "nothing beyond" sample (line_transfer). */
+  st->truncated = c.n == LINE_MAX_HITS;
   return n;
 }
 
@@ -136,7 +231,7 @@ static void line_transfer(line_state *st, int n) {
       obs_omap_add(&st->acc[b->patch], v);
     }
   }
-  if (n && n < LINE_MAX_HITS && h[n - 1].face > 0 && h[n - 1].patch >= 0) {
+  if (n && !st->truncated && h[n - 1].face > 0 && h[n - 1].patch >= 0) {
     obs_omap_value(j, INFINITY, NULL, v);
     obs_omap_add(&st->acc[h[n - 1].patch], v);
   }
@@ -148,6 +243,9 @@ static line_state *state_new(const obs_omap_job *j, int thread) {
   st->j = j;
   st->acc = j->acc + (size_t)thread * (size_t)j->pm->count;
   st->rays = 0;
+  /* The analytic spheres' intersector reports to no filter: scenes with spheres step from hit
+   * to hit. */
+  st->collect = j->rt->geo.nspheres == 0;
   return st;
 }
 
@@ -162,7 +260,7 @@ int obs_omap_global_tile(void *user, int thread, int x0, int y0, int x1, int y1)
     double org[3], dir[3], len;
     obs_global_line(&j->bs, j->p.seed, i, org, dir, &len);
     if (!(len > 0)) continue;
-    line_transfer(st, line_hits(st, org, dir, len));
+    line_transfer(st, st->collect ? line_hits_collect(st, org, dir, len) : line_hits(st, org, dir, len));
   }
   j->rays[(size_t)thread * 8] += st->rays;
   free(st);
@@ -187,7 +285,8 @@ int obs_omap_bundle_tile(void *user, int thread, int x0, int y0, int x1, int y1)
       if (xx * xx + y * y > r * r) continue; /* outside the sphere's disc: meets nothing */
       double org[3];
       obs_bundle_line(&b, i, row, org);
-      line_transfer(st, line_hits(st, org, b.dir, len));
+      line_transfer(st, st->collect ? line_hits_collect(st, org, b.dir, len)
+                                 : line_hits(st, org, b.dir, len));
     }
   }
   j->rays[(size_t)thread * 8] += st->rays;
