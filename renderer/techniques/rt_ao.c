@@ -63,7 +63,8 @@ static double rt_ao_cost(const void *bound) {
 }
 
 /* The sqrt falloff's rho(d) = sqrt(d / d_max) needs a finite d_max. */
-static const obs_param_rule rt_ao_rules[] = {{"falloff", "sqrt", "max_distance"}, {NULL}};
+static const obs_param_rule rt_ao_rules[] = {{"falloff", "sqrt", "max_distance"},
+                                             {NULL, NULL, NULL}};
 
 /* The reference of an rt_ao candidate is rt_ao with the same AO definition: only the sample count,
  * sampler and seed differ (the comparison sets them). */
