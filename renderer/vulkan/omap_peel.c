@@ -36,6 +36,7 @@ typedef struct transfer_push {
   float dmax, tau;
   int32_t falloff, bleed, res;
   uint32_t bg_s[3], bg_q[3];
+  uint32_t layer; /* the slot of the covered-pixel counts */
 } transfer_push;
 
 enum { B_VERT, B_ACC, B_REFL, B_COUNT_, B_N };
@@ -515,8 +516,9 @@ static int peel_setup(peel *pl, obs_vk *vk, const obs_geometry *geo, const obs_p
                               &pl->buf[B_ACC], "depth peeling per-patch sums", err);
   if (!rc) rc = obs_vk_buffer_create(vk, (VkDeviceSize)(nrefl ? nrefl : 1) * 16, sb, 1,
                                      &pl->buf[B_REFL], "depth peeling reflectivities", err);
-  if (!rc) rc = obs_vk_buffer_create(vk, 16, sb, 1, &pl->buf[B_COUNT_], "depth peeling count",
-                                     err);
+  if (!rc)
+    rc = obs_vk_buffer_create(vk, OBS_PEEL_LAYERS_MAX * sizeof(uint32_t), sb, 1,
+                              &pl->buf[B_COUNT_], "depth peeling counts", err);
   if (rc) return rc;
   memset(pl->buf[B_ACC].map, 0, (size_t)pl->buf[B_ACC].size);
   memcpy(pl->buf[B_REFL].map, refl, nrefl * 16);
@@ -536,38 +538,51 @@ static int peel_setup(peel *pl, obs_vk *vk, const obs_geometry *geo, const obs_p
 
 /* One direction: layers until one covers no pixel. Layer 0 is peeled against nothing and
  * transfers against the virtual empty layer in front (the other image, cleared to background);
- * the empty layer that ends the loop is the virtual one behind the last. */
+ * the empty layer that ends the loop is the virtual one behind the last. Layers are recorded in
+ * batches of *batch (the previous direction's count: one submit and wait per direction as a
+ * rule); each counts its covered pixels into its own slot, and layers recorded past the first
+ * empty one peel nothing (every fragment lies at or before the background's depth 1) and
+ * transfer nothing. */
 static int peel_direction(peel *pl, const obs_bundle *b, uint32_t res, const transfer_push *tp,
-                          uint64_t *layers, int *capped, obs_err *err) {
+                          int *batch, uint64_t *layers, int *capped, obs_err *err) {
   obs_vk *vk = pl->vk;
   draw_push dp;
   bundle_view(b, res, &dp);
   uint32_t *covered = pl->buf[B_COUNT_].map;
-  for (int layer = 0;; layer++) {
-    if (layer == OBS_PEEL_LAYERS_MAX) {
-      (*capped)++;
-      return 0;
-    }
-    int cur = layer & 1;
-    *covered = 0;
+  for (int first = 0; first < OBS_PEEL_LAYERS_MAX;) {
+    int last = first + *batch;
+    if (last > OBS_PEEL_LAYERS_MAX) last = OBS_PEEL_LAYERS_MAX;
+    memset(covered + first, 0, (size_t)(last - first) * sizeof *covered);
     int rc = obs_vk_cmd_begin(vk, "depth peeling", err);
     if (rc) return rc;
-    if (layer == 0) {
-      VkClearColorValue bg = {{-1.0f, -1.0f, -1.0f, -1.0f}};
-      VkImageSubresourceRange range = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
-      vkCmdClearColorImage(vk->cmd, pl->img[cur ^ 1]->image, VK_IMAGE_LAYOUT_GENERAL, &bg, 1,
-                           &range);
-      obs_vk_cmd_barrier(vk->cmd);
-      dp.eps = -1.0f;
-    } else {
-      dp.eps = OBS_PEEL_EPS;
+    for (int layer = first; layer < last; layer++) {
+      int cur = layer & 1;
+      if (layer == 0) {
+        VkClearColorValue bg = {{-1.0f, -1.0f, -1.0f, -1.0f}};
+        VkImageSubresourceRange range = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+        vkCmdClearColorImage(vk->cmd, pl->img[cur ^ 1]->image, VK_IMAGE_LAYOUT_GENERAL, &bg, 1,
+                             &range);
+      }
+      if (layer) obs_vk_cmd_barrier(vk->cmd);
+      dp.eps = layer == 0 ? -1.0f : OBS_PEEL_EPS;
+      record_draw(pl, pl->fb[cur], pl->img[cur], cur, &dp);
+      transfer_push t = *tp;
+      t.layer = (uint32_t)layer;
+      record_transfer(pl, cur, &t, res);
     }
-    record_draw(pl, pl->fb[cur], pl->img[cur], cur, &dp);
-    record_transfer(pl, cur, tp, res);
     if ((rc = obs_vk_cmd_submit(vk, "depth peeling", err))) return rc;
-    (*layers)++;
-    if (!*covered) return 0;
+    for (int layer = first; layer < last; layer++) {
+      (*layers)++;
+      if (!covered[layer]) {
+        *batch = layer + 1 > 2 ? layer + 1 : 2;
+        return 0;
+      }
+    }
+    first = last;
+    *batch *= 2;
   }
+  (*capped)++;
+  return 0;
 }
 
 /* The patch ids each pixel of the camera sees: the nearest layer of a camera view. */
@@ -675,6 +690,7 @@ int obs_omap_peel_compute(obs_vk *vk, const obs_scene *scene, const obs_geometry
   rc = peel_setup(&pl, vk, geo, &out->pm, &bs, (const float(*)[4])refl, p->bundle_resolution,
                   show, err);
   free(refl);
+  int batch = 8;
   for (uint32_t k = 0; !rc && k < p->directions; k++) {
     if (cancel && atomic_load(cancel)) {
       rc = obs_err_set(err, OBS_ECANCELED, "%s: render cancelled", scene->name);
@@ -682,7 +698,8 @@ int obs_omap_peel_compute(obs_vk *vk, const obs_scene *scene, const obs_geometry
     }
     obs_bundle b;
     obs_bundle_get(&bs, p->seed, p->directions, k, p->bundle_resolution, &b);
-    rc = peel_direction(&pl, &b, p->bundle_resolution, &tp, &out->layers, &out->capped, err);
+    rc = peel_direction(&pl, &b, p->bundle_resolution, &tp, &batch, &out->layers, &out->capped,
+                        err);
     if (progress) progress(progress_user, (k + 1.0) / p->directions);
   }
   if (!rc && show) rc = peel_show(&pl, show, geo, &bs, out->ids, err);

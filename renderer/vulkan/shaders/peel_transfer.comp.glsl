@@ -12,7 +12,7 @@ layout(binding = 1, rgba32f) uniform readonly image2D lb;
 // Per patch 16 words: sum of each channel (lo, hi) x 3, sum of squares x 3, samples, 2 unused.
 layout(std430, binding = 2) buffer Acc { uint acc[]; };
 layout(std430, binding = 3) readonly buffer Refl { vec4 refl[]; };
-layout(std430, binding = 4) buffer Count { uint covered; };
+layout(std430, binding = 4) buffer Count { uint covered[]; }; // per layer of a batch
 
 layout(push_constant) uniform Push {
   float dmax;  // d_max over the depth range (window depth units)
@@ -22,6 +22,7 @@ layout(push_constant) uniform Push {
   int res;
   uint bg_s[3]; // fixed-point value of "nothing within d_max" (host-rounded, as the CPU's)
   uint bg_q[3]; // and of its square
+  uint layer;   // this layer's slot in covered
 } pc;
 
 const float ONE = 268435456.0; // 2^28, as the CPU estimators' OMAP_ONE
@@ -61,7 +62,7 @@ void main() {
   if (px.x >= pc.res || px.y >= pc.res) return;
   vec4 a = imageLoad(la, px), b = imageLoad(lb, px);
   bool ha = a.x != -1.0, hb = b.x != -1.0;
-  if (hb) atomicAdd(covered, 1u);
+  if (hb) atomicAdd(covered[pc.layer], 1u);
   int ia = int(a.x), ib = int(b.x);
   if (ha && hb) {
     // Pass 0 and pass 1 of the article at once: A faces away from the viewer (towards B) and B
