@@ -1,5 +1,6 @@
 /* Descriptor of obscurance_map: per-patch obscurances with colour bleeding (Mendez-Feliu, Sbert
- * et al.) by cosine rays per patch, global lines or bundles of parallel lines. */
+ * et al.) by cosine rays per patch, global lines or bundles of parallel lines on the CPU, depth
+ * peeling on Vulkan. */
 #include <jansson.h>
 #include <math.h>
 #include <stddef.h>
@@ -54,11 +55,13 @@ static const obs_param obscurance_map_params[] = {
     {.name = "samples", .type = OBS_PARAM_UINT, .min = 1, .max = 65536, .def = 64,
      .description = "rays: rays per patch", .offset = P(samples)},
     {.name = "directions", .type = OBS_PARAM_UINT, .min = 1, .max = 4096, .def = 64,
-     .description = "bundles: directions; global_lines: with lines 0, the line count is "
+     .description = "bundles, depth_peeling: directions; global_lines: with lines 0, the line "
+                    "count is "
                     "directions x bundle_resolution^2",
      .offset = P(directions)},
     {.name = "bundle_resolution", .type = OBS_PARAM_UINT, .min = 2, .max = 512, .def = 64,
-     .description = "bundles: parallel lines per side of the grid covering the bounding sphere",
+     .description = "bundles, depth_peeling: parallel lines (pixels) per side of the grid "
+                    "covering the bounding sphere",
      .offset = P(bundle_resolution)},
     {.name = "lines", .type = OBS_PARAM_UINT, .min = 0, .max = 16777216, .def = 0,
      .description = "global_lines: lines; 0 = directions x bundle_resolution^2",
@@ -129,13 +132,14 @@ static int obscurance_map_reference(const obs_scene *scene, const json_t *params
 const obs_technique obs_technique_obscurance_map = {
     .name = "obscurance_map",
     .description = "Per-patch obscurances with colour bleeding (Mendez-Feliu, Sbert et al.) by "
-                   "rays, global lines or bundles of parallel lines (Embree)",
+                   "rays, global lines or bundles of parallel lines (Embree), or by depth "
+                   "peeling along the bundles' directions (Vulkan)",
     .params = obscurance_map_params,
     .params_size = sizeof obscurance_map_params / sizeof obscurance_map_params[0],
     .bound_size = sizeof(obs_obscurance_map_params),
     .cost = obscurance_map_cost,
-    .cost_rule = "samples (rays); directions x bundle_resolution^2 / 65536 (bundles); lines / "
-                 "65536 (global_lines)",
+    .cost_rule = "samples (rays); directions x bundle_resolution^2 / 65536 (bundles, "
+                 "depth_peeling); lines / 65536 (global_lines)",
     .ms_per_work = 1e-4,
     .needs = OBS_NEED_BVH | OBS_NEED_BVH_FRAME_GEOMETRY | OBS_NEED_MATERIALS,
     .outputs = obscurance_map_outputs,

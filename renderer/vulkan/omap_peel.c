@@ -39,7 +39,7 @@ typedef struct transfer_push {
   uint32_t layer; /* the slot of the covered-pixel counts */
 } transfer_push;
 
-enum { B_VERT, B_ACC, B_REFL, B_COUNT_, B_N };
+enum { B_VERT, B_ACC, B_REFL, B_COVERED, B_N };
 enum { I_L0, I_L1, I_SHOW, I_N };
 
 typedef struct peel {
@@ -358,7 +358,7 @@ static int create_sets(peel *pl, obs_err *err) {
                                    {VK_NULL_HANDLE, pl->img[c]->view, VK_IMAGE_LAYOUT_GENERAL}};
     VkDescriptorBufferInfo bi[3] = {{pl->buf[B_ACC].buffer, 0, VK_WHOLE_SIZE},
                                     {pl->buf[B_REFL].buffer, 0, VK_WHOLE_SIZE},
-                                    {pl->buf[B_COUNT_].buffer, 0, VK_WHOLE_SIZE}};
+                                    {pl->buf[B_COVERED].buffer, 0, VK_WHOLE_SIZE}};
     VkWriteDescriptorSet w[5];
     for (uint32_t i = 0; i < 5; i++)
       w[i] = (VkWriteDescriptorSet){
@@ -518,7 +518,7 @@ static int peel_setup(peel *pl, obs_vk *vk, const obs_geometry *geo, const obs_p
                                      &pl->buf[B_REFL], "depth peeling reflectivities", err);
   if (!rc)
     rc = obs_vk_buffer_create(vk, OBS_PEEL_LAYERS_MAX * sizeof(uint32_t), sb, 1,
-                              &pl->buf[B_COUNT_], "depth peeling counts", err);
+                              &pl->buf[B_COVERED], "depth peeling counts", err);
   if (rc) return rc;
   memset(pl->buf[B_ACC].map, 0, (size_t)pl->buf[B_ACC].size);
   memcpy(pl->buf[B_REFL].map, refl, nrefl * 16);
@@ -548,7 +548,7 @@ static int peel_direction(peel *pl, const obs_bundle *b, uint32_t res, const tra
   obs_vk *vk = pl->vk;
   draw_push dp;
   bundle_view(b, res, &dp);
-  uint32_t *covered = pl->buf[B_COUNT_].map;
+  uint32_t *covered = pl->buf[B_COVERED].map;
   for (int first = 0; first < OBS_PEEL_LAYERS_MAX;) {
     int last = first + *batch;
     if (last > OBS_PEEL_LAYERS_MAX) last = OBS_PEEL_LAYERS_MAX;
