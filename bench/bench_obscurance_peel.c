@@ -57,13 +57,20 @@ static int parse_args(int argc, char **argv, options *o) {
     if (!v) return usage(stderr), -1;
     i++;
     int bad = 0;
-    if (!strcmp(a, "--threads")) bad = parse_int(v, 1, 1024, &o->threads);
-    else if (!strcmp(a, "--res")) bad = parse_int(v, 2, 512, &o->res);
-    else if (!strcmp(a, "--ref-samples")) bad = parse_int(v, 1, 65536, &o->ref_samples);
-    else if (!strcmp(a, "--subdiv")) bad = (o->nsubdiv = parse_list(v, o->subdiv, 0, 11)) < 0;
-    else if (!strcmp(a, "--dirs")) bad = (o->ndirs = parse_list(v, o->dirs, 1, 4096)) < 0;
-    else if (!strcmp(a, "--dmax")) bad = !((o->dmax_frac = atof(v)) > 0);
-    else bad = 1;
+    if (!strcmp(a, "--threads"))
+      bad = parse_int(v, 1, 1024, &o->threads);
+    else if (!strcmp(a, "--res"))
+      bad = parse_int(v, 2, 512, &o->res);
+    else if (!strcmp(a, "--ref-samples"))
+      bad = parse_int(v, 1, 65536, &o->ref_samples);
+    else if (!strcmp(a, "--subdiv"))
+      bad = (o->nsubdiv = parse_list(v, o->subdiv, 0, 11)) < 0;
+    else if (!strcmp(a, "--dirs"))
+      bad = (o->ndirs = parse_list(v, o->dirs, 1, 4096)) < 0;
+    else if (!strcmp(a, "--dmax"))
+      bad = !((o->dmax_frac = atof(v)) > 0);
+    else
+      bad = 1;
     if (bad) return fprintf(stderr, "bench_obscurance_peel: bad %s %s\n", a, v), usage(stderr), -1;
   }
   return 0;
@@ -136,9 +143,10 @@ static int bench_scene(const options *o, obs_vk *vk, const char *name, const cha
     }
     ref_ms /= 3.0 * (double)n;
     obs_omap_free(&ref2);
-    printf("# %s: %zu triangles, d_max %.4g; reference: rays, 2 x %d per patch, %.1f s, its own "
-           "RMSE %.4f\n",
-           name, rt.geo.ntris, p.d_max, o->ref_samples, (obs_now_ms() - t0) / 1e3, sqrt(ref_ms));
+    printf(
+        "# %s: %zu triangles, d_max %.4g; reference: rays, 2 x %d per patch, %.1f s, its own "
+        "RMSE %.4f\n",
+        name, rt.geo.ntris, p.d_max, o->ref_samples, (obs_now_ms() - t0) / 1e3, sqrt(ref_ms));
     printf("%-18s %8s  %-14s %-12s %9s %9s  %7s %7s %8s  %s\n", "scene", "patches", "method",
            "budget", "time_s", "samp/pat", "rmse", "rmse_c", "unsampled", "");
   }
@@ -156,8 +164,8 @@ static int bench_scene(const options *o, obs_vk *vk, const char *name, const cha
     obs_omap m;
     t0 = obs_now_ms();
     if ((bad = obs_omap_compute(&rt, &sc, &p, o->threads, NULL, NULL, NULL, &m, &err))) break;
-    row(name, n, "bundles (cpu)", budget, obs_now_ms() - t0, m.w, m.n, m.unsampled, ref.w,
-        ref_ms, extra);
+    row(name, n, "bundles (cpu)", budget, obs_now_ms() - t0, m.w, m.n, m.unsampled, ref.w, ref_ms,
+        extra);
     obs_omap_free(&m);
     if (!vk) continue;
     p.method = OBS_OMAP_DEPTH_PEELING;

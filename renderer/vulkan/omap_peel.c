@@ -146,7 +146,8 @@ static int create_layouts(peel *pl, obs_err *err) {
         i, i < 2 ? VK_DESCRIPTOR_TYPE_STORAGE_IMAGE : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
         VK_SHADER_STAGE_FRAGMENT_BIT | VK_SHADER_STAGE_COMPUTE_BIT, NULL};
   VkDescriptorSetLayoutCreateInfo dci = {
-      .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO, .bindingCount = 5,
+      .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO,
+      .bindingCount = 5,
       .pBindings = b};
   int rc = obs_vk_check(vk, vkCreateDescriptorSetLayout(vk->dev, &dci, NULL, &pl->dsl),
                         "vkCreateDescriptorSetLayout (depth peeling)", err);
@@ -221,9 +222,13 @@ static int create_draw(peel *pl, obs_err *err) {
   }
   VkPipelineShaderStageCreateInfo stages[2] = {
       {.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
-       .stage = VK_SHADER_STAGE_VERTEX_BIT, .module = vs, .pName = "main"},
+       .stage = VK_SHADER_STAGE_VERTEX_BIT,
+       .module = vs,
+       .pName = "main"},
       {.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
-       .stage = VK_SHADER_STAGE_FRAGMENT_BIT, .module = fs, .pName = "main"}};
+       .stage = VK_SHADER_STAGE_FRAGMENT_BIT,
+       .module = fs,
+       .pName = "main"}};
   VkVertexInputBindingDescription vb = {0, sizeof(peel_vertex), VK_VERTEX_INPUT_RATE_VERTEX};
   VkVertexInputAttributeDescription va[6] = {
       {0, 0, VK_FORMAT_R32G32B32_SFLOAT, offsetof(peel_vertex, pos)},
@@ -234,43 +239,57 @@ static int create_draw(peel *pl, obs_err *err) {
       {5, 0, VK_FORMAT_R32_SINT, offsetof(peel_vertex, robj)}};
   VkPipelineVertexInputStateCreateInfo vi = {
       .sType = VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO,
-      .vertexBindingDescriptionCount = 1, .pVertexBindingDescriptions = &vb,
-      .vertexAttributeDescriptionCount = 6, .pVertexAttributeDescriptions = va};
+      .vertexBindingDescriptionCount = 1,
+      .pVertexBindingDescriptions = &vb,
+      .vertexAttributeDescriptionCount = 6,
+      .pVertexAttributeDescriptions = va};
   VkPipelineInputAssemblyStateCreateInfo ia = {
       .sType = VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO,
       .topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST};
   VkPipelineViewportStateCreateInfo vps = {
       .sType = VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO,
-      .viewportCount = 1, .scissorCount = 1};
+      .viewportCount = 1,
+      .scissorCount = 1};
   /* Both sides of every surface: the facing cosine decides who transfers. */
   VkPipelineRasterizationStateCreateInfo rs = {
       .sType = VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO,
-      .polygonMode = VK_POLYGON_MODE_FILL, .cullMode = VK_CULL_MODE_NONE,
-      .frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE, .lineWidth = 1.0f};
+      .polygonMode = VK_POLYGON_MODE_FILL,
+      .cullMode = VK_CULL_MODE_NONE,
+      .frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE,
+      .lineWidth = 1.0f};
   VkPipelineMultisampleStateCreateInfo ms = {
       .sType = VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO,
       .rasterizationSamples = VK_SAMPLE_COUNT_1_BIT};
   VkPipelineDepthStencilStateCreateInfo ds = {
       .sType = VK_STRUCTURE_TYPE_PIPELINE_DEPTH_STENCIL_STATE_CREATE_INFO,
-      .depthTestEnable = VK_TRUE, .depthWriteEnable = VK_TRUE,
+      .depthTestEnable = VK_TRUE,
+      .depthWriteEnable = VK_TRUE,
       .depthCompareOp = VK_COMPARE_OP_LESS};
   VkPipelineColorBlendAttachmentState cba = {
       .colorWriteMask = VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT |
                         VK_COLOR_COMPONENT_B_BIT | VK_COLOR_COMPONENT_A_BIT};
   VkPipelineColorBlendStateCreateInfo cb = {
       .sType = VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO,
-      .attachmentCount = 1, .pAttachments = &cba};
+      .attachmentCount = 1,
+      .pAttachments = &cba};
   VkDynamicState dyn[2] = {VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
   VkPipelineDynamicStateCreateInfo dy = {
       .sType = VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO,
-      .dynamicStateCount = 2, .pDynamicStates = dyn};
+      .dynamicStateCount = 2,
+      .pDynamicStates = dyn};
   VkGraphicsPipelineCreateInfo ci = {.sType = VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO,
-                                     .stageCount = 2, .pStages = stages,
-                                     .pVertexInputState = &vi, .pInputAssemblyState = &ia,
-                                     .pViewportState = &vps, .pRasterizationState = &rs,
-                                     .pMultisampleState = &ms, .pDepthStencilState = &ds,
-                                     .pColorBlendState = &cb, .pDynamicState = &dy,
-                                     .layout = pl->layout, .renderPass = pl->pass};
+                                     .stageCount = 2,
+                                     .pStages = stages,
+                                     .pVertexInputState = &vi,
+                                     .pInputAssemblyState = &ia,
+                                     .pViewportState = &vps,
+                                     .pRasterizationState = &rs,
+                                     .pMultisampleState = &ms,
+                                     .pDepthStencilState = &ds,
+                                     .pColorBlendState = &cb,
+                                     .pDynamicState = &dy,
+                                     .layout = pl->layout,
+                                     .renderPass = pl->pass};
   rc = obs_vk_check(vk, vkCreateGraphicsPipelines(vk->dev, VK_NULL_HANDLE, 1, &ci, NULL, &pl->draw),
                     "vkCreateGraphicsPipelines (depth peeling)", err);
   vkDestroyShaderModule(vk->dev, vs, NULL);
@@ -282,7 +301,9 @@ static int create_draw(peel *pl, obs_err *err) {
   VkComputePipelineCreateInfo cci = {
       .sType = VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO,
       .stage = {.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
-                .stage = VK_SHADER_STAGE_COMPUTE_BIT, .module = cs, .pName = "main"},
+                .stage = VK_SHADER_STAGE_COMPUTE_BIT,
+                .module = cs,
+                .pName = "main"},
       .layout = pl->layout};
   rc = obs_vk_check(vk,
                     vkCreateComputePipelines(vk->dev, VK_NULL_HANDLE, 1, &cci, NULL, &pl->transfer),
@@ -307,7 +328,7 @@ static int create_target(peel *pl, int z, obs_vk_image *img, VkFramebuffer *fb, 
                           .usage = VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT,
                           .initialLayout = VK_IMAGE_LAYOUT_UNDEFINED};
   rc = obs_vk_check(vk, vkCreateImage(vk->dev, &ci, NULL, &pl->zimg[z]),
-                     "vkCreateImage (depth peeling depth buffer)", err);
+                    "vkCreateImage (depth peeling depth buffer)", err);
   if (rc) return rc;
   VkMemoryRequirements req;
   vkGetImageMemoryRequirements(vk->dev, pl->zimg[z], &req);
@@ -342,13 +363,16 @@ static int create_sets(peel *pl, obs_err *err) {
   VkDescriptorPoolSize sizes[2] = {{VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 4},
                                    {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 6}};
   VkDescriptorPoolCreateInfo pci = {.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
-                                    .maxSets = 2, .poolSizeCount = 2, .pPoolSizes = sizes};
+                                    .maxSets = 2,
+                                    .poolSizeCount = 2,
+                                    .pPoolSizes = sizes};
   int rc = obs_vk_check(vk, vkCreateDescriptorPool(vk->dev, &pci, NULL, &pl->dpool),
                         "vkCreateDescriptorPool (depth peeling)", err);
   if (rc) return rc;
   VkDescriptorSetLayout l[2] = {pl->dsl, pl->dsl};
   VkDescriptorSetAllocateInfo ai = {.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO,
-                                    .descriptorPool = pl->dpool, .descriptorSetCount = 2,
+                                    .descriptorPool = pl->dpool,
+                                    .descriptorSetCount = 2,
                                     .pSetLayouts = l};
   if ((rc = obs_vk_check(vk, vkAllocateDescriptorSets(vk->dev, &ai, pl->sets),
                          "vkAllocateDescriptorSets (depth peeling)", err)))
@@ -361,12 +385,14 @@ static int create_sets(peel *pl, obs_err *err) {
                                     {pl->buf[B_COVERED].buffer, 0, VK_WHOLE_SIZE}};
     VkWriteDescriptorSet w[5];
     for (uint32_t i = 0; i < 5; i++)
-      w[i] = (VkWriteDescriptorSet){
-          .sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET, .dstSet = pl->sets[c], .dstBinding = i,
-          .descriptorCount = 1,
-          .descriptorType =
-              i < 2 ? VK_DESCRIPTOR_TYPE_STORAGE_IMAGE : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
-          .pImageInfo = i < 2 ? &ii[i] : NULL, .pBufferInfo = i < 2 ? NULL : &bi[i - 2]};
+      w[i] = (VkWriteDescriptorSet){.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
+                                    .dstSet = pl->sets[c],
+                                    .dstBinding = i,
+                                    .descriptorCount = 1,
+                                    .descriptorType = i < 2 ? VK_DESCRIPTOR_TYPE_STORAGE_IMAGE
+                                                            : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
+                                    .pImageInfo = i < 2 ? &ii[i] : NULL,
+                                    .pBufferInfo = i < 2 ? NULL : &bi[i - 2]};
     vkUpdateDescriptorSets(vk->dev, 5, w, 0, NULL);
   }
   return 0;
@@ -399,22 +425,22 @@ static void peel_free(peel *pl) {
 static void record_draw(peel *pl, VkFramebuffer fb, const obs_vk_image *img, int set,
                         const draw_push *dp) {
   VkCommandBuffer cmd = pl->vk->cmd;
-  VkClearValue clear[2] = {{.color = {{-1.0f, -1.0f, 1.0f, 1.0f}}},
-                           {.depthStencil = {1.0f, 0}}};
-  VkRenderPassBeginInfo rbi = {.sType = VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO,
-                               .renderPass = pl->pass,
-                               .framebuffer = fb,
-                               .renderArea = {{0, 0}, {(uint32_t)img->width, (uint32_t)img->height}},
-                               .clearValueCount = 2,
-                               .pClearValues = clear};
+  VkClearValue clear[2] = {{.color = {{-1.0f, -1.0f, 1.0f, 1.0f}}}, {.depthStencil = {1.0f, 0}}};
+  VkRenderPassBeginInfo rbi = {
+      .sType = VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO,
+      .renderPass = pl->pass,
+      .framebuffer = fb,
+      .renderArea = {{0, 0}, {(uint32_t)img->width, (uint32_t)img->height}},
+      .clearValueCount = 2,
+      .pClearValues = clear};
   vkCmdBeginRenderPass(cmd, &rbi, VK_SUBPASS_CONTENTS_INLINE);
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pl->draw);
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pl->layout, 0, 1, &pl->sets[set],
-                          0, NULL);
-  vkCmdPushConstants(cmd, pl->layout,
-                     VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT |
-                         VK_SHADER_STAGE_COMPUTE_BIT,
-                     0, sizeof *dp, dp);
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pl->layout, 0, 1, &pl->sets[set], 0,
+                          NULL);
+  vkCmdPushConstants(
+      cmd, pl->layout,
+      VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT | VK_SHADER_STAGE_COMPUTE_BIT, 0,
+      sizeof *dp, dp);
   VkViewport vp = {0, 0, (float)img->width, (float)img->height, 0, 1};
   VkRect2D sc = {{0, 0}, {(uint32_t)img->width, (uint32_t)img->height}};
   vkCmdSetViewport(cmd, 0, 1, &vp);
@@ -429,12 +455,12 @@ static void record_transfer(peel *pl, int set, const transfer_push *tp, uint32_t
   VkCommandBuffer cmd = pl->vk->cmd;
   obs_vk_cmd_barrier(cmd);
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pl->transfer);
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pl->layout, 0, 1, &pl->sets[set],
-                          0, NULL);
-  vkCmdPushConstants(cmd, pl->layout,
-                     VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT |
-                         VK_SHADER_STAGE_COMPUTE_BIT,
-                     0, sizeof *tp, tp);
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pl->layout, 0, 1, &pl->sets[set], 0,
+                          NULL);
+  vkCmdPushConstants(
+      cmd, pl->layout,
+      VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT | VK_SHADER_STAGE_COMPUTE_BIT, 0,
+      sizeof *tp, tp);
   vkCmdDispatch(cmd, (res + 7) / 8, (res + 7) / 8, 1);
   /* The covered count and the sums are read by the host after the wait. */
   VkMemoryBarrier mb = {.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
@@ -514,8 +540,9 @@ static int peel_setup(peel *pl, obs_vk *vk, const obs_geometry *geo, const obs_p
   if (!rc)
     rc = obs_vk_buffer_create(vk, (VkDeviceSize)(pm->count ? pm->count : 1) * ACC_WORDS * 4, sb, 1,
                               &pl->buf[B_ACC], "depth peeling per-patch sums", err);
-  if (!rc) rc = obs_vk_buffer_create(vk, (VkDeviceSize)(nrefl ? nrefl : 1) * 16, sb, 1,
-                                     &pl->buf[B_REFL], "depth peeling reflectivities", err);
+  if (!rc)
+    rc = obs_vk_buffer_create(vk, (VkDeviceSize)(nrefl ? nrefl : 1) * 16, sb, 1, &pl->buf[B_REFL],
+                              "depth peeling reflectivities", err);
   if (!rc)
     rc = obs_vk_buffer_create(vk, OBS_PEEL_LAYERS_MAX * sizeof(uint32_t), sb, 1,
                               &pl->buf[B_COVERED], "depth peeling counts", err);
@@ -687,8 +714,8 @@ int obs_omap_peel_compute(obs_vk *vk, const obs_scene *scene, const obs_geometry
   }
   peel pl;
   double t0 = obs_now_ms();
-  rc = peel_setup(&pl, vk, geo, &out->pm, &bs, (const float(*)[4])refl, p->bundle_resolution,
-                  show, err);
+  rc = peel_setup(&pl, vk, geo, &out->pm, &bs, (const float(*)[4])refl, p->bundle_resolution, show,
+                  err);
   free(refl);
   int batch = 8;
   for (uint32_t k = 0; !rc && k < p->directions; k++) {
@@ -698,8 +725,8 @@ int obs_omap_peel_compute(obs_vk *vk, const obs_scene *scene, const obs_geometry
     }
     obs_bundle b;
     obs_bundle_get(&bs, p->seed, p->directions, k, p->bundle_resolution, &b);
-    rc = peel_direction(&pl, &b, p->bundle_resolution, &tp, &batch, &out->layers, &out->capped,
-                        err);
+    rc =
+        peel_direction(&pl, &b, p->bundle_resolution, &tp, &batch, &out->layers, &out->capped, err);
     if (progress) progress(progress_user, (k + 1.0) / p->directions);
   }
   if (!rc && show) rc = peel_show(&pl, show, geo, &bs, out->ids, err);

@@ -32,7 +32,7 @@ typedef struct obs_omap_peel {
   uint64_t layers;   /* layers rendered over all directions (the empty last ones included) */
   int capped;        /* directions that reached OBS_PEEL_LAYERS_MAX */
   double r_ave[3];
-  int32_t *ids;      /* with a camera: width x height patch ids of the primary view, -1: none */
+  int32_t *ids; /* with a camera: width x height patch ids of the primary view, -1: none */
 } obs_omap_peel;
 
 /* Computes the map of `p` (method depth_peeling) over `geo` (built from `scene`). With `show`

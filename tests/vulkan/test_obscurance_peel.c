@@ -77,8 +77,10 @@ static void test_open_plane(void **state) {
     const double r[3] = {0.8, 0.4, 0.2};
     for (int64_t i = 0; i < m.pm.count; i++)
       for (int c = 0; c < 3; c++) {
-        if (!bleed) assert_true(m.w[3 * i + c] == 1.0f);
-        else assert_true(fabs(m.w[3 * i + c] - r[c]) < 1e-6);
+        if (!bleed)
+          assert_true(m.w[3 * i + c] == 1.0f);
+        else
+          assert_true(fabs(m.w[3 * i + c] - r[c]) < 1e-6);
       }
     obs_omap_peel_free(&m);
   }
@@ -190,9 +192,10 @@ static void test_cornell_bundles(void **state) {
     k++;
   }
   double rmse = sqrt(d2 / (3.0 * k)), n_cpu = sqrt(se_cpu / k), n_gpu = sqrt(se_gpu / k);
-  printf("bundles vs depth_peeling: per-patch RMSE %.5f, noise %.5f (bundles) %.5f "
-         "(depth_peeling) over %zu of %lld patches, %llu layers\n",
-         rmse, n_cpu, n_gpu, k, (long long)cpu.pm.count, (unsigned long long)gpu.layers);
+  printf(
+      "bundles vs depth_peeling: per-patch RMSE %.5f, noise %.5f (bundles) %.5f "
+      "(depth_peeling) over %zu of %lld patches, %llu layers\n",
+      rmse, n_cpu, n_gpu, k, (long long)cpu.pm.count, (unsigned long long)gpu.layers);
   assert_true(k > (size_t)cpu.pm.count * 8 / 10);
   assert_true(rmse <= n_cpu && rmse <= n_gpu);
   obs_omap_free(&cpu);
@@ -311,7 +314,8 @@ static void test_extremes(void **state) {
     assert_true(m.w[3 * i] <= lo.w[3 * i] + 1e-6);
     mean += m.w[3 * i] - lo.w[3 * i];
   }
-  printf("d_max 1e6 scene sizes: mean W change %.3e against d_max 200\n", mean / (double)m.pm.count);
+  printf("d_max 1e6 scene sizes: mean W change %.3e against d_max 200\n",
+         mean / (double)m.pm.count);
   obs_omap_peel_free(&m);
   obs_omap_peel_free(&lo);
   free(doc);
@@ -335,9 +339,10 @@ static char *cornell_render_doc(const char *backend, const char *params) {
 static void test_render(void **state) {
   (void)state;
   vktest_need_vk();
-  char *doc = cornell_render_doc(
-      "vulkan", "{\"method\":\"depth_peeling\",\"directions\":8,\"bundle_resolution\":48,"
-                "\"d_max\":200,\"patch_size\":150}");
+  char *doc =
+      cornell_render_doc("vulkan",
+                         "{\"method\":\"depth_peeling\",\"directions\":8,\"bundle_resolution\":48,"
+                         "\"d_max\":200,\"patch_size\":150}");
   obs_scene sc;
   obs_test_load(doc, "cornell.json", &sc);
   obs_result res;
@@ -370,10 +375,9 @@ static void test_render(void **state) {
 /* A method on a backend that lacks it is refused, naming the parameter. */
 static void test_refusals(void **state) {
   (void)state;
-  static const char *const cases[3][2] = {
-      {"vulkan", "{\"method\":\"rays\"}"},
-      {"cpu", "{\"method\":\"depth_peeling\"}"},
-      {"auto", "{\"method\":\"depth_peeling\"}"}};
+  static const char *const cases[3][2] = {{"vulkan", "{\"method\":\"rays\"}"},
+                                          {"cpu", "{\"method\":\"depth_peeling\"}"},
+                                          {"auto", "{\"method\":\"depth_peeling\"}"}};
   for (int k = 0; k < 3; k++) {
     char *doc = cornell_render_doc(cases[k][0], cases[k][1]);
     obs_scene sc;
