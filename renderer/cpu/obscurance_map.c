@@ -225,6 +225,7 @@ int obs_omap_compute(const obs_rt *rt, const obs_scene *scene, const obs_obscura
   memset(&j, 0, sizeof j);
   j.rt = rt;
   j.p = *p;
+  if (j.p.method == OBS_OMAP_AUTO) j.p.method = OBS_OMAP_RAYS; /* the CPU's choice */
   j.f = (obs_falloff){.kind = p->falloff, .d_max = p->d_max, .tau = p->tau};
   j.threads = threads < 1 ? 1 : threads;
   obs_obscurance_env env;
@@ -247,7 +248,7 @@ int obs_omap_compute(const obs_rt *rt, const obs_scene *scene, const obs_obscura
     rc = obs_err_set(err, OBS_ENOMEM, "%s: obscurance_map: out of memory for %zu patches",
                      scene->name, count);
   if (!rc) rc = job_reflectivities(&j, scene, err);
-  if (!rc && p->method == OBS_OMAP_RAYS) {
+  if (!rc && j.p.method == OBS_OMAP_RAYS) {
     /* A stream with no rotation gives the bare radical inverses. The shuffle maps the first
      * 2^k indices onto an aligned block of 2^k: their low k bits are a permutation of them, and
      * the table covers the power of two at or above `samples`. */
@@ -346,7 +347,7 @@ int obs_obscurance_map_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
                         "%lld of %lld patches received no sample and show \"nothing within "
                         "d_max\" (%s)",
                         (long long)m.unsampled, (long long)m.pm.count,
-                        p->method == OBS_OMAP_RAYS
+                        p->method == OBS_OMAP_RAYS || p->method == OBS_OMAP_AUTO
                             ? "every ray met the back of a surface"
                             : "no line met them, or only backs of surfaces; raise directions, "
                               "lines or bundle_resolution");

@@ -1,5 +1,6 @@
 /* Descriptor of obscurance_map: per-patch obscurances with colour bleeding (Mendez-Feliu, Sbert
- * et al.) by cosine rays per patch, global lines or bundles of parallel lines. */
+ * et al.) by cosine rays per patch, global lines or bundles of parallel lines on the CPU, depth
+ * peeling on Vulkan. */
 #include <jansson.h>
 #include <math.h>
 #include <stddef.h>
@@ -22,14 +23,17 @@ static const obs_output obscurance_map_outputs[] = {
      .description = "Coverage (1 where a patch is seen, 0 on the background and spheres)"},
     {.name = NULL}};
 
-static const char *const methods[] = {"rays", "global_lines", "bundles", NULL};
+static const char *const methods[] = {"rays",          "global_lines", "bundles",
+                                      "depth_peeling", "auto",         NULL};
 
 #define P(member) offsetof(obs_obscurance_map_params, member)
 static const obs_param obscurance_map_params[] = {
-    {.name = "method", .type = OBS_PARAM_ENUM, .choices = methods, .def = OBS_OMAP_RAYS,
+    {.name = "method", .type = OBS_PARAM_ENUM, .choices = methods, .def = OBS_OMAP_AUTO,
      .description = "estimator: rays = cosine rays from stratified points of each patch; "
                     "global_lines = lines through random point pairs of the bounding sphere; "
-                    "bundles = parallel lines on a grid per direction",
+                    "bundles = parallel lines on a grid per direction; depth_peeling (vulkan "
+                    "only) = the bundles' directions and grids rendered and peeled layer by "
+                    "layer; auto = rays on the cpu, depth_peeling on vulkan",
      .offset = P(method)},
     {.name = "d_max", .type = OBS_PARAM_DOUBLE, .flags = OBS_PARAM_MIN_EXCLUSIVE, .min = 0,
      .max = 1e30, .def = 1,
@@ -49,11 +53,13 @@ static const obs_param obscurance_map_params[] = {
     {.name = "samples", .type = OBS_PARAM_UINT, .min = 1, .max = 65536, .def = 64,
      .description = "rays: rays per patch", .offset = P(samples)},
     {.name = "directions", .type = OBS_PARAM_UINT, .min = 1, .max = 4096, .def = 64,
-     .description = "bundles: directions; global_lines: with lines 0, the line count is "
+     .description = "bundles, depth_peeling: directions; global_lines: with lines 0, the line "
+                    "count is "
                     "directions x bundle_resolution^2",
      .offset = P(directions)},
     {.name = "bundle_resolution", .type = OBS_PARAM_UINT, .min = 2, .max = 512, .def = 64,
-     .description = "bundles: parallel lines per side of the grid covering the bounding sphere",
+     .description = "bundles, depth_peeling: parallel lines (pixels) per side of the grid "
+                    "covering the bounding sphere",
      .offset = P(bundle_resolution)},
     {.name = "lines", .type = OBS_PARAM_UINT, .min = 0, .max = 16777216, .def = 0,
      .description = "global_lines: lines; 0 = directions x bundle_resolution^2",
@@ -70,6 +76,24 @@ static const obs_param obscurance_map_params[] = {
 };
 #undef P
 
+/* Each estimator runs on one backend: depth_peeling on Vulkan, the others on the CPU. */
+static void obscurance_map_check(const obs_scene *scene, const json_t *params, const char *doc,
+                                 obs_err *err) {
+  const char *m = json_string_value(json_object_get(params, "method"));
+  if (!m || !strcmp(m, "auto")) return;
+  int peel = !strcmp(m, "depth_peeling"), vk = scene->backend == OBS_BACKEND_VULKAN;
+  if (peel && !vk)
+    obs_err_set(err, OBS_EINVAL,
+                "%s: /technique/params/method: \"depth_peeling\" runs on the vulkan backend only "
+                "(set /technique/backend to \"vulkan\")",
+                doc);
+  else if (!peel && vk)
+    obs_err_set(err, OBS_EINVAL,
+                "%s: /technique/params/method: \"%s\" runs on the cpu backend only (on the vulkan "
+                "backend use \"depth_peeling\" or \"auto\")",
+                doc, m);
+}
+
 /* Embree queries per pixel sample do not describe a per-patch map: the work counted is the line
  * or ray budget, in units of 2^16 lines (or rays per patch for `rays`). */
 static double obscurance_map_cost(const void *bound) {
@@ -80,6 +104,9 @@ static double obscurance_map_cost(const void *bound) {
     return (p->lines ? (double)p->lines
                      : (double)p->directions * p->bundle_resolution * p->bundle_resolution) /
            65536.0;
+  case OBS_OMAP_AUTO: /* rays on the cpu, depth_peeling on vulkan: the larger of the two */
+    return fmax(p->samples,
+                (double)p->directions * p->bundle_resolution * p->bundle_resolution / 65536.0);
   default: return (double)p->directions * p->bundle_resolution * p->bundle_resolution / 65536.0;
   }
 }
@@ -106,19 +133,22 @@ static int obscurance_map_reference(const obs_scene *scene, const json_t *params
 const obs_technique obs_technique_obscurance_map = {
     .name = "obscurance_map",
     .description = "Per-patch obscurances with colour bleeding (Mendez-Feliu, Sbert et al.) by "
-                   "rays, global lines or bundles of parallel lines (Embree)",
+                   "rays, global lines or bundles of parallel lines (Embree), or by depth "
+                   "peeling along the bundles' directions (Vulkan)",
     .params = obscurance_map_params,
     .params_size = sizeof obscurance_map_params / sizeof obscurance_map_params[0],
     .bound_size = sizeof(obs_obscurance_map_params),
     .cost = obscurance_map_cost,
-    .cost_rule = "samples (rays); directions x bundle_resolution^2 / 65536 (bundles); lines / "
-                 "65536 (global_lines)",
+    .cost_rule = "samples (rays); directions x bundle_resolution^2 / 65536 (bundles, "
+                 "depth_peeling); lines / 65536 (global_lines)",
     .ms_per_work = 1e-4,
     .needs = OBS_NEED_BVH | OBS_NEED_BVH_FRAME_GEOMETRY | OBS_NEED_MATERIALS,
     .outputs = obscurance_map_outputs,
+    .check = obscurance_map_check,
     .reference = obscurance_map_reference,
     .reference_quality = "samples",
-    .run = {[OBS_BACKEND_CPU] = obs_obscurance_map_cpu},
+    .run = {[OBS_BACKEND_CPU] = obs_obscurance_map_cpu,
+            [OBS_BACKEND_VULKAN] = obs_obscurance_map_vulkan},
     .range = {[OBS_BACKEND_CPU] = {.size_min = 1e-9,
                                    .size_max = 1e9,
                                    .translation_max = 1e9,
@@ -132,5 +162,21 @@ const obs_technique obs_technique_obscurance_map = {
                                            .ao_pixel = 1e-4,
                                            .share = 0.02,
                                            .normal = 1e-4,
-                                           .depth_rel = 3e-5}}},
+                                           .depth_rel = 3e-5}},
+              /* depth_peeling: the bundles' grid in coordinates normalised to the bounding
+               * sphere, the patch ids of the image by a float projection of the camera. */
+              [OBS_BACKEND_VULKAN] = {.size_min = 1e-4,
+                                      .size_max = 1e4,
+                                      .translation_max = 1e4,
+                                      .fov_min = 1,
+                                      .fov_max = 170,
+                                      .orthographic = 1,
+                                      .params = {{"d_max", 1e-6, 1e6, 1},
+                                                 {"patch_size", 0.05, 1e6, 1},
+                                                 {NULL, 0, 0, 0}},
+                                      .tol = {.ao_mean = 1e-3,
+                                              .ao_pixel = 1e-4,
+                                              .share = 0.02,
+                                              .normal = 1e-4,
+                                              .depth_rel = 3e-5}}},
 };

@@ -4,8 +4,9 @@
 
 #include <stdint.h>
 
-/* Values of `method`: the indices of its choices in the table. */
-enum { OBS_OMAP_RAYS, OBS_OMAP_GLOBAL_LINES, OBS_OMAP_BUNDLES };
+/* Values of `method`: the indices of its choices in the table. AUTO is BUNDLES on the CPU and
+ * DEPTH_PEELING on Vulkan. */
+enum { OBS_OMAP_RAYS, OBS_OMAP_GLOBAL_LINES, OBS_OMAP_BUNDLES, OBS_OMAP_DEPTH_PEELING, OBS_OMAP_AUTO };
 
 typedef struct obs_obscurance_map_params {
   int method;                 /* OBS_OMAP_* */

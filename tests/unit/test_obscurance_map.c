@@ -10,6 +10,7 @@
 #include "obscurance_map_cpu.h"
 #include "patch_mesh.h"
 #include "raytrace.h"
+#include "omap_scenes.h"
 #include "testutil.h"
 
 static const char *const method_names[3] = {"rays", "global_lines", "bundles"};
@@ -51,16 +52,6 @@ static void map_of(const char *doc, const obs_obscurance_map_params *p, int thre
 
 /* ---- an open plane: nothing within d_max ---- */
 
-static const char *plane_doc(double refl) {
-  return obs_test_fmt(
-      "{\"camera\":{\"type\":\"perspective\",\"position\":[0,2,-3],\"look_at\":[0,0,0],"
-      "\"fov_y\":60},\"image\":{\"width\":8,\"height\":8},"
-      "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-2,0,-2],[-2,0,2],[2,0,2],"
-      "[2,0,-2]]},\"material\":{\"reflectivity\":[%g,%g,%g]}}],"
-      "\"technique\":{\"name\":\"obscurance_map\"}}",
-      refl, refl * 0.5, refl * 0.25);
-}
-
 static void test_open_plane(void **state) {
   (void)state;
   for (int method = 0; method < 3; method++)
@@ -69,7 +60,7 @@ static void test_open_plane(void **state) {
       p.color_bleeding = bleed;
       p.patch_size = 0.5;
       obs_omap m;
-      map_of(plane_doc(0.8), &p, 2, &m);
+      map_of(obs_test_omap_plane_doc(0.8), &p, 2, &m);
       assert_int_equal(m.pm.count, 2 * 12 * 12); /* diagonal 5.66 / 0.5: n = 12 */
       const double r[3] = {0.8, 0.4, 0.2};
       for (int64_t i = 0; i < m.pm.count; i++)
@@ -85,27 +76,6 @@ static void test_open_plane(void **state) {
 
 /* ---- two parallel plates ---- */
 
-/* Plates of half-width L at y = 0 (facing up) and y = h (facing down). */
-static const char *plates_doc(double h, double L) {
-  return obs_test_fmt(
-      "{\"camera\":{\"type\":\"perspective\",\"position\":[0,%g,-9],\"look_at\":[0,%g,0],"
-      "\"fov_y\":60},\"image\":{\"width\":8,\"height\":8},"
-      "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-%g,0,-%g],[-%g,0,%g],[%g,0,%g],"
-      "[%g,0,-%g]]},\"material\":{\"reflectivity\":[0.2,0.5,0.8]}},"
-      "{\"shape\":{\"type\":\"quad\",\"vertices\":[[-%g,%g,-%g],[%g,%g,-%g],[%g,%g,%g],"
-      "[-%g,%g,%g]]},\"material\":{\"reflectivity\":[0.6,0.4,0.3]}}],"
-      "\"technique\":{\"name\":\"obscurance_map\"}}",
-      h / 2, h / 2, L, L, L, L, L, L, L, L, L, h, L, L, h, L, L, h, L, L, h, L);
-}
-
-/* W at a plate facing another at distance h < d_max, sqrt falloff, mu = cos theta:
- *   W = 2 int_0^1 rho(h / mu) mu dmu, rho = 1 ("nothing", R_ave with bleeding) for mu < m0 =
- * h/d_max and sqrt(h / (mu d_max)) (times R of the other plate) above: W = R_ave m0^2 + R_other 4/3
- * sqrt(m0) (1 - m0^(3/2)). */
-static double plates_w(double m0, double r_ave, double r_other) {
-  return r_ave * m0 * m0 + r_other * 4.0 / 3.0 * sqrt(m0) * (1 - pow(m0, 1.5));
-}
-
 static void check_plates(int method, int bleed) {
   const double h = 0.5, L = 2.5, dmax = 1.0;
   obs_obscurance_map_params p = defaults(method);
@@ -117,7 +87,7 @@ static void check_plates(int method, int bleed) {
   p.directions = method == OBS_OMAP_BUNDLES ? 1024 : 128;
   p.bundle_resolution = method == OBS_OMAP_BUNDLES ? 45 : 128;
   obs_omap m;
-  const char *doc = plates_doc(h, L);
+  const char *doc = obs_test_omap_plates_doc(h, L);
   obs_scene sc;
   obs_test_load(doc, "plates.json", &sc);
   obs_geometry geo;
@@ -154,7 +124,7 @@ static void check_plates(int method, int bleed) {
         const double *ro = top ? r_bot : r_top;
         for (int k = 0; k < 3; k++) {
           double ra = bleed ? (r_bot[k] + r_top[k]) / 2 : 1, rt = bleed ? ro[k] : 1;
-          double want = plates_w(h / dmax, ra, rt);
+          double want = obs_test_omap_plates_w(h / dmax, ra, rt);
           if (!(fabs(m.w[3 * id + k] - want) <= 5 * m.se[id] + 1e-6))
             printf("%s bleed %d: patch %lld channel %d: %g, want %g (se %g, n %llu)\n",
                    method_names[method], bleed, (long long)id, k, m.w[3 * id + k], want, m.se[id],
@@ -171,7 +141,7 @@ static void check_plates(int method, int bleed) {
     double sigma = sqrt(var[top]) / wsum[top];
     for (int k = 0; k < 3; k++) {
       double ra = bleed ? (r_bot[k] + r_top[k]) / 2 : 1, rt = bleed ? ro[k] : 1;
-      double want = plates_w(h / dmax, ra, rt), got = sum[top][k] / wsum[top];
+      double want = obs_test_omap_plates_w(h / dmax, ra, rt), got = sum[top][k] / wsum[top];
       printf("%-12s bleed %d plate %d ch %d: W %.5f want %.5f (3 sigma %.5f, %d patches)\n",
              method_names[method], bleed, top, k, got, want, 3 * sigma, npatch[top]);
       assert_true(fabs(got - want) <= 3 * sigma);
@@ -201,19 +171,9 @@ static void test_plates_bundles(void **state) {
 
 /* ---- the estimators agree on the Cornell box ---- */
 
-static char *cornell_doc(void) {
-  FILE *f = fopen(obs_test_src("scenes/cornell_box.json"), "rb");
-  assert_non_null(f);
-  char *buf = calloc(1, 1 << 16);
-  size_t n = fread(buf, 1, (1 << 16) - 1, f);
-  fclose(f);
-  assert_true(n > 0);
-  return buf;
-}
-
 static void test_cornell_agree(void **state) {
   (void)state;
-  char *doc = cornell_doc();
+  char *doc = obs_test_omap_cornell_doc();
   obs_omap m[3];
   for (int method = 0; method < 3; method++) {
     obs_obscurance_map_params p = defaults(method);
@@ -287,7 +247,7 @@ static void test_subdivision(void **state) {
   }
   /* Areas of a scene's patches add up to their triangles'; ids map back to their triangles. */
   obs_scene sc;
-  obs_test_load(plates_doc(0.5, 2.5), "plates.json", &sc);
+  obs_test_load(obs_test_omap_plates_doc(0.5, 2.5), "plates.json", &sc);
   obs_geometry geo;
   obs_err err = OBS_ERR_INIT;
   assert_int_equal(obs_geometry_build(&sc, &geo, &err), 0);
@@ -453,7 +413,7 @@ static void test_reference_hook(void **state) {
   const obs_technique *t = obs_technique_find("obscurance_map");
   assert_non_null(t);
   obs_scene sc;
-  obs_test_load(plane_doc(0.5), "plane.json", &sc);
+  obs_test_load(obs_test_omap_plane_doc(0.5), "plane.json", &sc);
   json_t *params =
       json_pack("{s:s, s:f, s:s, s:b, s:f, s:i}", "method", "bundles", "d_max", 2.5, "falloff",
                 "exp", "color_bleeding", 0, "patch_size", 0.25, "directions", 32);
