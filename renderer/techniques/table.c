@@ -11,6 +11,7 @@ static const obs_technique *const table[] = {
     &obs_technique_hbao,
     &obs_technique_path_trace,
     &obs_technique_obscurance,
+    &obs_technique_obscurance_map,
 };
 
 size_t obs_technique_count(void) { return sizeof table / sizeof table[0]; }

@@ -14,6 +14,9 @@ extern const obs_needs_builder obs_cpu_needs_builder;
 
 extern const obs_technique obs_technique_rt_ao;
 int obs_rt_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
+extern const obs_technique obs_technique_obscurance_map;
+int obs_obscurance_map_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
+int obs_obscurance_map_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 
 /* The outputs the screen-space drivers write (ssao.c), declared by ssao and hbao alike. */
 extern const obs_output obs_screen_outputs[];

@@ -200,6 +200,11 @@ static VkFormat image_format(int channels) {
 
 int obs_vk_image_create(obs_vk *vk, int width, int height, int channels, obs_vk_image **out,
                         obs_err *err) {
+  return obs_vk_image_create_usage(vk, width, height, channels, 0, out, err);
+}
+
+int obs_vk_image_create_usage(obs_vk *vk, int width, int height, int channels,
+                              VkImageUsageFlags extra, obs_vk_image **out, obs_err *err) {
   *out = NULL;
   int rc = obs_vk_usable(vk, "image create", err);
   if (rc) return rc;
@@ -216,13 +221,14 @@ int obs_vk_image_create(obs_vk *vk, int width, int height, int channels, obs_vk_
   VkFormatFeatureFlags need = VK_FORMAT_FEATURE_STORAGE_IMAGE_BIT |
                               VK_FORMAT_FEATURE_TRANSFER_SRC_BIT |
                               VK_FORMAT_FEATURE_TRANSFER_DST_BIT;
+  if (extra & VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT) need |= VK_FORMAT_FEATURE_COLOR_ATTACHMENT_BIT;
   if ((fp.optimalTilingFeatures & need) != need)
     return obs_err_set(err, OBS_EUNSUPPORTED,
                        "vulkan: \"%s\" cannot use %d-channel float images as storage images",
                        vk->name, channels);
   VkImageFormatProperties ifp;
   VkImageUsageFlags usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT |
-                            VK_IMAGE_USAGE_TRANSFER_DST_BIT;
+                            VK_IMAGE_USAGE_TRANSFER_DST_BIT | extra;
   if ((rc = obs_vk_check(
            vk,
            vkGetPhysicalDeviceImageFormatProperties(vk->phys, fmt, VK_IMAGE_TYPE_2D,

@@ -77,6 +77,11 @@ int obs_vk_memory_alloc(obs_vk *vk, const VkMemoryRequirements *req, VkMemoryPro
                         VkMemoryPropertyFlags prefer, VkDeviceMemory *out, const char *what,
                         obs_err *err);
 
+/* obs_vk_image_create with `extra` usage (e.g. a colour attachment, for a render pass that writes
+ * a storage image in GENERAL layout). */
+int obs_vk_image_create_usage(obs_vk *vk, int width, int height, int channels,
+                              VkImageUsageFlags extra, obs_vk_image **out, obs_err *err);
+
 /* One-shot command recording into vk->cmd: begin (with a full barrier against earlier
  * submissions), then submit-and-wait. abort discards a recording after an error. */
 int obs_vk_cmd_begin(obs_vk *vk, const char *what, obs_err *err);

@@ -50,3 +50,34 @@ test('obscurance against path_trace: final compared with radiance, RGB metrics',
     assert.ok(lum[1] <= lum[0] * 1.05, `luminance RMSE ${lum}`);
   });
 });
+
+test('obscurance_map against its rays reference: per-patch RMSE falls with more samples', async () => {
+  await withDaemon({}, async (d) => {
+    const body = {
+      scene_file: 'cornell_box.json',
+      set: {'/image/width': 32, '/image/height': 24},
+      repeats: 1,
+      reference: {samples: 512},
+      candidates: [{technique: 'obscurance_map', backend: 'cpu',
+                    params: {method: ['rays', 'bundles'], samples: [8, 128], directions: 32,
+                             bundle_resolution: 64, d_max: 300}}],
+    };
+    const r = await request(d, 'POST', '/api/v1/comparisons', {body});
+    assert.equal(r.status, 201, r.text);
+    const c = await waitComparison(d, r.json.id);
+    assert.equal(c.state, 'succeeded', JSON.stringify(c.candidates.map((x) => [x.state, x.error])));
+    // One reference for all four: the same map by rays at the reference's samples.
+    assert.equal(c.references.length, 1);
+    const ref = c.references[0];
+    assert.equal(ref.technique, 'obscurance_map');
+    assert.equal(ref.params.method, 'rays');
+    assert.equal(ref.params.samples, 512);
+    for (const x of c.candidates) {
+      assert.ok(Number.isFinite(x.metrics.rmse) && x.metrics.rmse > 0, JSON.stringify(x.metrics));
+      assert.ok(Number.isFinite(x.metrics.patch_rmse) && x.metrics.patch_rmse > 0, JSON.stringify(x.metrics));
+    }
+    const rays = c.candidates.filter((x) => x.params.method === 'rays').sort((a, b) => a.params.samples - b.params.samples);
+    assert.ok(rays[1].metrics.patch_rmse < rays[0].metrics.patch_rmse / 2,
+              `rays 8 -> 128 per patch: ${rays.map((x) => x.metrics.patch_rmse)}`);
+  });
+});

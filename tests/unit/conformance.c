@@ -76,7 +76,8 @@ static int each_pair(obs_backend be, int *ran, pair_fn fn) {
 
 /* Renders `params` and checks the result is sane; `what` labels the failure lines. With `key`
  * (the one parameter set), a refusal by validation that points at another parameter is a
- * cross-field rule (the check hook) and passes: that value needs a partner to be valid. */
+ * cross-field rule (the check hook) and passes: that value needs a partner to be valid. So does
+ * one that points at the key itself and names the backend: a value another backend runs. */
 static int render_sane(const obs_technique *t, obs_backend be, const char *params, const char *key,
                        const char *what) {
   /* Parameter ends can be the costliest settings (65536 rays or paths per pixel): a small image. */
@@ -91,7 +92,9 @@ static int render_sane(const obs_technique *t, obs_backend be, const char *param
     char own[160];
     snprintf(own, sizeof own, "/technique/params/%s:", key ? key : "");
     const char *m = obs_err_message(&err);
-    if (!key || strstr(m, own) || !strstr(m, "/technique/params/"))
+    if (key && strstr(m, own) && strstr(m, "backend"))
+      printf("     %s: refused on this backend: %s\n", what, m);
+    else if (!key || strstr(m, own) || !strstr(m, "/technique/params/"))
       printf("FAIL %s: refused: %s\n", what, m), bad++;
     else
       printf("     %s: refused by a cross-field rule: %s\n", what, m);

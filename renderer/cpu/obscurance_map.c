@@ -1,0 +1,362 @@
+/* obscurance_map on the CPU: the patches, the per-patch accumulation shared by the estimators, the
+ * `rays` estimator (cosine rays from stratified points of each patch) and the run, which shows the
+ * map per pixel. */
+#include "obscurance_map_cpu.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "driver.h"
+#include "obscura/render.h"
+#include "parallel.h"
+#include "patch_ids.h"
+#include "sampling.h"
+#include "techniques.h"
+
+void obs_omap_free(obs_omap *m) {
+  if (!m) return;
+  obs_patch_mesh_free(&m->pm);
+  free(m->w);
+  free(m->se);
+  free(m->n);
+  memset(m, 0, sizeof *m);
+}
+
+uint64_t obs_omap_global_count(const obs_obscurance_map_params *p) {
+  if (p->lines) return p->lines;
+  return (uint64_t)p->directions * p->bundle_resolution * p->bundle_resolution;
+}
+
+/* Halton point i of the patch's stream: the shared table turned by the stream's Cranley-Patterson
+ * rotation, as obs_sampler2d_get computes it (the radical inverses are the costly part). */
+static inline void halton_get(const obs_omap_job *j, const obs_sampler2d *s, uint32_t i, float *u,
+                              float *v) {
+  float a = j->halton[i][0] + obs_u32_to_unit(s->scramble0);
+  float b = j->halton[i][1] + obs_u32_to_unit(s->scramble1);
+  a -= a >= 1.0f ? 1.0f : 0.0f;
+  b -= b >= 1.0f ? 1.0f : 0.0f;
+  *u = a < 1.0f ? a : 0x1.fffffep-1f;
+  *v = b < 1.0f ? b : 0x1.fffffep-1f;
+}
+
+/* What every ray of one patch shares, set up once per patch. */
+typedef struct patch_frame {
+  double c[3][3]; /* corners */
+  float tb[2][3]; /* tangents of the unit normal from.ng */
+  obs_hit from;   /* ng, perr, geom, prim: what obs_rt_offset and the context read */
+  obs_rt_ctx ctx; /* skips the patch's own triangle */
+  obs_sampler2d pts, dirs;
+  uint32_t shuffle;
+} patch_frame;
+
+/* Sample i of a patch: a cosine-distributed ray from a stratified point. Returns the rays traced
+ * (0 or 1). */
+static uint64_t ray_sample(const obs_omap_job *j, obs_omap_acc *acc, patch_frame *f, uint32_t i) {
+  float u1, v1, u2, v2;
+  halton_get(j, &f->pts, i, &u1, &v1);
+  /* The shuffle keeps the direction stream's stratification while decorrelating it from the
+   * points' stream at the same index. */
+  halton_get(j, &f->dirs, obs_sample_shuffle(i, f->shuffle) & j->halton_mask, &u2, &v2);
+  /* Uniform on the triangle: (1 - s, s (1 - v), s v) with s = sqrt(u). */
+  double s = sqrt((double)u1), w[3] = {1 - s, s * (1 - v1), s * v1};
+  obs_hit from = f->from;
+  for (int k = 0; k < 3; k++)
+    from.p[k] = (float)(w[0] * f->c[0][k] + w[1] * f->c[1][k] + w[2] * f->c[2][k]);
+  float org[3], l[3], dir[3];
+  const float *n = f->from.ng;
+  obs_rt_offset(j->rt, &from, org);
+  obs_sample_cosine(u2, v2, l);
+  for (int k = 0; k < 3; k++) dir[k] = l[0] * f->tb[0][k] + l[1] * f->tb[1][k] + l[2] * n[k];
+  struct RTCRayHit rh;
+  memset(&rh, 0, sizeof rh);
+  rh.ray.org_x = org[0], rh.ray.org_y = org[1], rh.ray.org_z = org[2];
+  rh.ray.dir_x = dir[0], rh.ray.dir_y = dir[1], rh.ray.dir_z = dir[2];
+  rh.ray.tfar = isinf(j->f.d_max) ? INFINITY : (float)j->f.d_max;
+  rh.ray.mask = ~0u;
+  rh.hit.geomID = rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(j->rt->scene, &f->ctx.ctx, &rh);
+  double v[3];
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
+    obs_omap_value(j, INFINITY, NULL, v);
+  } else {
+    float nb[3];
+    const float *r;
+    if (rh.hit.geomID == j->rt->sphere_geom) {
+      nb[0] = rh.hit.Ng_x, nb[1] = rh.hit.Ng_y, nb[2] = rh.hit.Ng_z;
+      r = j->sphere_r[rh.hit.primID];
+    } else {
+      obs_omap_tri_normal(j->rt, rh.hit.geomID, rh.hit.primID, nb);
+      r = j->mesh_r[rh.hit.geomID];
+    }
+    /* Only a surface that faces the patch transfers; a back face eliminates the sample, as a
+     * non-facing pair of hits does for the line estimators. */
+    if (!(nb[0] * dir[0] + nb[1] * dir[1] + nb[2] * dir[2] < 0)) return 1;
+    obs_omap_value(j, rh.ray.tfar, r, v);
+  }
+  obs_omap_add(acc, v);
+  return 1;
+}
+
+int obs_omap_rays_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+  (void)y0, (void)y1;
+  const obs_omap_job *j = user;
+  const obs_patch_mesh *pm = j->pm;
+  obs_omap_acc *acc = j->acc + (size_t)thread * (size_t)pm->count;
+  uint64_t rays = 0;
+  for (int64_t patch = (int64_t)x0 * OMAP_RAYS_CHUNK;
+       patch < (int64_t)x1 * OMAP_RAYS_CHUNK && patch < pm->count; patch++) {
+    int64_t sub;
+    size_t t = obs_patch_mesh_owner(pm, patch, &sub);
+    if (!(pm->area[patch] > 0)) continue; /* degenerate: no normal, no sample */
+    /* The mesh and primitive of scene triangle t. */
+    size_t m = 0;
+    while (pm->mesh_tri[m + 1] <= t) m++;
+    unsigned prim = (unsigned)(t - pm->mesh_tri[m]);
+    const obs_mesh *me = &j->rt->geo.meshes[m];
+    const float *v[3];
+    for (int k = 0; k < 3; k++) v[k] = me->pos + 3 * (size_t)me->idx[3 * (size_t)prim + (size_t)k];
+    patch_frame f;
+    memset(&f, 0, sizeof f);
+    double uv[3][2];
+    obs_patch_sub_corners(pm->split[t], sub, uv);
+    float mag = 0;
+    for (int q = 0; q < 3; q++)
+      for (int k = 0; k < 3; k++) {
+        f.c[q][k] = v[0][k] + uv[q][0] * ((double)v[1][k] - v[0][k]) +
+                    uv[q][1] * ((double)v[2][k] - v[0][k]);
+        mag = fmaxf(mag, fabsf((float)f.c[q][k]));
+      }
+    float n[3];
+    obs_omap_tri_normal(j->rt, (unsigned)m, prim, n);
+    float l = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    if (!(l > 0) || !isfinite(l)) continue;
+    for (int k = 0; k < 3; k++) f.from.ng[k] = f.from.ns[k] = n[k] / l;
+    obs_onb(f.from.ng, f.tb[0], f.tb[1]);
+    /* A point is a convex combination of the corners rounded once: a few ulps of the largest
+     * coordinate. */
+    for (int k = 0; k < 3; k++) f.from.perr[k] = mag * 0x1p-21f;
+    f.from.geom = (unsigned)m, f.from.prim = prim;
+    obs_rt_ctx_init(&f.ctx, j->rt, &f.from);
+    uint32_t lo = (uint32_t)patch, hi = (uint32_t)((uint64_t)patch >> 32);
+    obs_sampler2d_init(&f.pts, OBS_SAMPLER_HALTON, lo, hi, 0, 0, j->p.seed);
+    obs_sampler2d_init(&f.dirs, OBS_SAMPLER_HALTON, lo, hi, 0, 1, j->p.seed);
+    f.shuffle = obs_hash_combine(obs_hash_combine(j->p.seed, lo), hi ^ 0x5bd1e995U);
+    for (uint32_t i = 0; i < j->p.samples; i++) rays += ray_sample(j, &acc[patch], &f, i);
+  }
+  j->rays[(size_t)thread * 8] += rays;
+  return 0;
+}
+
+/* Reflectivities per mesh and per sphere, from their objects' materials. */
+static int job_reflectivities(obs_omap_job *j, const obs_scene *scene, obs_err *err) {
+  const obs_geometry *g = &j->rt->geo;
+  j->mesh_r = calloc(g->nmeshes ? g->nmeshes : 1, sizeof *j->mesh_r);
+  j->sphere_r = calloc(g->nspheres ? g->nspheres : 1, sizeof *j->sphere_r);
+  if (!j->mesh_r || !j->sphere_r)
+    return obs_err_set(err, OBS_ENOMEM, "%s: obscurance_map: out of memory", scene->name);
+  for (size_t k = 0; k < g->nmeshes + g->nspheres; k++) {
+    int sphere = k >= g->nmeshes;
+    size_t oi = sphere ? g->spheres[k - g->nmeshes].object : g->meshes[k].object;
+    const obs_object *o = &scene->objects[oi];
+    float *r = sphere ? j->sphere_r[k - g->nmeshes] : j->mesh_r[k];
+    r[0] = o->has_material ? (float)o->reflectivity.x : 0.0f;
+    r[1] = o->has_material ? (float)o->reflectivity.y : 0.0f;
+    r[2] = o->has_material ? (float)o->reflectivity.z : 0.0f;
+  }
+  return 0;
+}
+
+/* The accumulated sums into the map's values and standard errors, in patch order. */
+static void finish(const obs_omap_job *j, obs_omap *out) {
+  const int64_t count = j->pm->count;
+  for (int64_t i = 0; i < count; i++) {
+    obs_omap_acc a;
+    memset(&a, 0, sizeof a);
+    for (int t = 0; t < j->threads; t++) {
+      const obs_omap_acc *b = &j->acc[(size_t)t * (size_t)count + (size_t)i];
+      for (int c = 0; c < 3; c++) a.s[c] += b->s[c], a.q[c] += b->q[c];
+      a.n += b->n;
+    }
+    out->n[i] = a.n;
+    if (!a.n) {
+      double v[3];
+      obs_omap_value(j, INFINITY, NULL, v);
+      for (int c = 0; c < 3; c++) out->w[3 * i + c] = (float)v[c];
+      out->se[i] = 1.0f;
+      out->unsampled += j->pm->area[i] > 0;
+      continue;
+    }
+    double n = (double)a.n, var = 0;
+    for (int c = 0; c < 3; c++) {
+      double w = (double)a.s[c] / OMAP_ONE / n;
+      out->w[3 * i + c] = (float)fmin(1.0, fmax(0.0, w));
+      var = fmax(var, fmax(0.0, (double)a.q[c] / OMAP_ONE / n - w * w) * (n > 1 ? n / (n - 1) : 0));
+    }
+    /* One sample says nothing of the spread: the widest a value in [0, 1] can have. */
+    out->se[i] = (float)(n > 1 ? sqrt(var / n) : 0.5);
+  }
+}
+
+static int run_estimator(obs_omap_job *j, const atomic_int *cancel, obs_progress_fn progress,
+                         void *progress_user) {
+  switch (j->p.method) {
+    case OBS_OMAP_RAYS: {
+      int64_t chunks = (j->pm->count + OMAP_RAYS_CHUNK - 1) / OMAP_RAYS_CHUNK;
+      return obs_parallel_tiles((int)chunks, 1, j->threads, obs_omap_rays_tile, j, cancel, progress,
+                                progress_user);
+    }
+    case OBS_OMAP_GLOBAL_LINES: {
+      uint64_t chunks = (obs_omap_global_count(&j->p) + OMAP_GLOBAL_CHUNK - 1) / OMAP_GLOBAL_CHUNK;
+      return obs_parallel_tiles((int)chunks, 1, j->threads, obs_omap_global_tile, j, cancel,
+                                progress, progress_user);
+    }
+    default: /* one chunk per grid row of each direction */
+      return obs_parallel_tiles((int)(j->p.directions * j->p.bundle_resolution), 1, j->threads,
+                                obs_omap_bundle_tile, j, cancel, progress, progress_user);
+  }
+}
+
+int obs_omap_compute(const obs_rt *rt, const obs_scene *scene, const obs_obscurance_map_params *p,
+                     int threads, const atomic_int *cancel, obs_progress_fn progress,
+                     void *progress_user, obs_omap *out, obs_err *err) {
+  memset(out, 0, sizeof *out);
+  obs_omap_job j;
+  memset(&j, 0, sizeof j);
+  j.rt = rt;
+  j.p = *p;
+  if (j.p.method == OBS_OMAP_AUTO) j.p.method = OBS_OMAP_RAYS; /* the CPU's choice */
+  j.f = (obs_falloff){.kind = p->falloff, .d_max = p->d_max, .tau = p->tau};
+  j.threads = threads < 1 ? 1 : threads;
+  obs_obscurance_env env;
+  int rc = obs_obscurance_env_compute(scene, &rt->geo, &env, err);
+  if (!rc)
+    rc = obs_patch_mesh_build(&rt->geo, p->patch_size, "/technique/params/patch_size", &out->pm,
+                              err);
+  if (rc) return rc;
+  memcpy(j.r_ave, env.r_ave, sizeof j.r_ave);
+  memcpy(out->r_ave, env.r_ave, sizeof out->r_ave);
+  j.pm = &out->pm;
+  obs_bound_sphere_of(&rt->geo, &j.bs);
+  size_t count = (size_t)out->pm.count, n1 = count ? count : 1;
+  j.acc = calloc((size_t)j.threads * n1, sizeof *j.acc);
+  j.rays = calloc((size_t)j.threads * 8, sizeof *j.rays);
+  out->w = malloc(3 * n1 * sizeof *out->w);
+  out->se = malloc(n1 * sizeof *out->se);
+  out->n = malloc(n1 * sizeof *out->n);
+  if (!j.acc || !j.rays || !out->w || !out->se || !out->n)
+    rc = obs_err_set(err, OBS_ENOMEM, "%s: obscurance_map: out of memory for %zu patches",
+                     scene->name, count);
+  if (!rc) rc = job_reflectivities(&j, scene, err);
+  if (!rc && j.p.method == OBS_OMAP_RAYS) {
+    /* A stream with no rotation gives the bare radical inverses. The shuffle maps the first
+     * 2^k indices onto an aligned block of 2^k: their low k bits are a permutation of them, and
+     * the table covers the power of two at or above `samples`. */
+    obs_sampler2d bare = {.kind = OBS_SAMPLER_HALTON, .scramble0 = 0, .scramble1 = 0};
+    uint32_t size = 1;
+    while (size < p->samples) size *= 2;
+    j.halton_mask = size - 1;
+    if (!(j.halton = malloc((size_t)size * sizeof *j.halton)))
+      rc = obs_err_set(err, OBS_ENOMEM, "%s: obscurance_map: out of memory", scene->name);
+    for (uint32_t i = 0; !rc && i < size; i++)
+      obs_sampler2d_get(&bare, i, &j.halton[i][0], &j.halton[i][1]);
+  }
+  if (!rc && count) {
+    rc = run_estimator(&j, cancel, progress, progress_user);
+    if (rc == OBS_ECANCELED)
+      obs_err_set(err, rc, "%s: render cancelled", scene->name);
+    else if (rc)
+      obs_err_set(err, rc, "%s: obscurance_map failed", scene->name);
+  }
+  if (!rc) {
+    finish(&j, out);
+    for (int t = 0; t < j.threads; t++) out->rays += j.rays[(size_t)t * 8];
+  }
+  free(j.acc);
+  free(j.rays);
+  free(j.mesh_r);
+  free(j.sphere_r);
+  free(j.halton);
+  if (rc) obs_omap_free(out);
+  return rc;
+}
+
+/* ---- the run: the map, its patches file and its image ---- */
+
+enum { CH_W, CH_R, CH_G, CH_B, CH_ALPHA, CH_COUNT };
+static const char *const channel_names[CH_COUNT] = {
+    "obscurance", "obscurance_rgb.R", "obscurance_rgb.G", "obscurance_rgb.B", "alpha"};
+
+/* The patch a primary hit on a mesh sees: its triangle's sub-triangle at the hit. */
+static int64_t hit_patch(const void *user, const obs_rt *rt, const obs_hit *hit) {
+  const obs_patch_mesh *pm = user;
+  const obs_mesh *m = &rt->geo.meshes[hit->geom];
+  const uint32_t *t = m->idx + 3 * (size_t)hit->prim;
+  double u, v;
+  obs_patch_barycentric(m->pos + 3 * t[0], m->pos + 3 * t[1], m->pos + 3 * t[2], hit->p, &u, &v);
+  return obs_patch_mesh_find(pm, hit->geom, hit->prim, u, v);
+}
+
+static int show(obs_render_ctx *ctx, const obs_omap *m, obs_image *out, obs_err *err) {
+  const obs_scene *sc = ctx->scene;
+  obs_region region;
+  int rc = obs_driver_image(ctx, CH_COUNT, channel_names, out, &region, err);
+  if (rc) return rc;
+  size_t npx = (size_t)sc->width * (size_t)sc->height;
+  int32_t *ids = malloc(npx * sizeof *ids);
+  if (!ids) return obs_err_set(err, OBS_ENOMEM, "%s: out of memory for pixel ids", sc->name);
+  obs_patch_ids_map(ctx->rt, sc, hit_patch, &m->pm, ids);
+  for (size_t i = 0; i < npx; i++) {
+    int32_t id = ids[i];
+    int ok = id >= 0 && id < m->pm.count;
+    const float *w = ok ? m->w + 3 * (size_t)id : NULL;
+    for (int c = 0; c < 3; c++) out->data[(size_t)(CH_R + c) * npx + i] = ok ? w[c] : 0.0f;
+    out->data[(size_t)CH_W * npx + i] = ok ? (w[0] + w[1] + w[2]) / 3.0f : 0.0f;
+    out->data[(size_t)CH_ALPHA * npx + i] = ok ? 1.0f : 0.0f;
+  }
+  free(ids);
+  obs_driver_clear_outside(out, &region);
+  return 0;
+}
+
+int obs_obscurance_map_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
+  const obs_scene *sc = ctx->scene;
+  if (!ctx->rt)
+    return obs_err_set(err, OBS_EINTERNAL, "%s: obscurance_map: no BVH was built for it", sc->name);
+  const obs_obscurance_map_params *p = ctx->bound;
+  double t0 = obs_now_ms();
+  obs_omap m;
+  int rc = obs_omap_compute(ctx->rt, sc, p, ctx->threads, ctx->cancel, ctx->progress,
+                            ctx->progress_user, &m, err);
+  if (rc) return rc;
+  double t1 = obs_now_ms();
+  obs_driver_stage_add(ctx, "map", t1 - t0);
+  rc = obs_patches_init(&ctx->patches[0], "obscurance", m.pm.count, 3, 1, err);
+  if (!rc) {
+    memcpy(ctx->patches[0].values, m.w, (size_t)m.pm.count * 3 * sizeof(float));
+    memcpy(ctx->patches[0].area, m.pm.area, (size_t)m.pm.count * sizeof(float));
+    ctx->npatches = 1;
+    rc = show(ctx, &m, out, err);
+  }
+  double t2 = obs_now_ms();
+  obs_driver_stage_add(ctx, "show", t2 - t1);
+  ctx->render_ms += t2 - t0;
+  ctx->rays += m.rays + (uint64_t)sc->width * (uint64_t)sc->height;
+  if (!rc && m.unsampled)
+    obs_render_ctx_warn(ctx,
+                        "%lld of %lld patches received no sample and show \"nothing within "
+                        "d_max\" (%s)",
+                        (long long)m.unsampled, (long long)m.pm.count,
+                        p->method == OBS_OMAP_RAYS || p->method == OBS_OMAP_AUTO
+                            ? "every ray met the back of a surface"
+                            : "no line met them, or only backs of surfaces; raise directions, "
+                              "lines or bundle_resolution");
+  if (!rc && m.pm.capped)
+    obs_render_ctx_warn(ctx,
+                        "patch_size split %zu triangles into more than %d x %d patches; they were "
+                        "split %d x %d",
+                        m.pm.capped, OBS_PATCH_SPLIT_MAX, OBS_PATCH_SPLIT_MAX, OBS_PATCH_SPLIT_MAX,
+                        OBS_PATCH_SPLIT_MAX);
+  obs_omap_free(&m);
+  return rc;
+}

@@ -1,0 +1,94 @@
+/* obscurance_map on Vulkan: the depth_peeling estimator (omap_peel.h) over the scene's geometry,
+ * its per-patch output, and the image of the patch each pixel sees (rendered on the device with
+ * the same numbering, since the Vulkan backend has no ray tracer). */
+#include <stdlib.h>
+#include <string.h>
+
+#include "camera.h"
+#include "driver.h"
+#include "obscura/render.h"
+#include "omap_peel.h"
+#include "techniques.h"
+
+/* The channels of the technique's image, as its outputs (obscurance_map.c) name them. */
+enum { CH_W, CH_R, CH_G, CH_B, CH_ALPHA, CH_COUNT };
+static const char *const channel_names[CH_COUNT] = {
+    "obscurance", "obscurance_rgb.R", "obscurance_rgb.G", "obscurance_rgb.B", "alpha"};
+
+static int show(obs_render_ctx *ctx, const obs_omap_peel *m, obs_image *out, obs_err *err) {
+  obs_region region;
+  int rc = obs_driver_image(ctx, CH_COUNT, channel_names, out, &region, err);
+  if (rc) return rc;
+  size_t npx = (size_t)ctx->scene->width * (size_t)ctx->scene->height;
+  for (size_t i = 0; i < npx; i++) {
+    int32_t id = m->ids[i];
+    int ok = id >= 0 && id < m->pm.count;
+    const float *w = ok ? m->w + 3 * (size_t)id : NULL;
+    for (int c = 0; c < 3; c++) out->data[(size_t)(CH_R + c) * npx + i] = ok ? w[c] : 0.0f;
+    out->data[(size_t)CH_W * npx + i] = ok ? (w[0] + w[1] + w[2]) / 3.0f : 0.0f;
+    out->data[(size_t)CH_ALPHA * npx + i] = ok ? 1.0f : 0.0f;
+  }
+  obs_driver_clear_outside(out, &region);
+  return 0;
+}
+
+int obs_obscurance_map_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
+  const obs_scene *sc = ctx->scene;
+  const obs_obscurance_map_params *p = ctx->bound;
+  obs_camera_rig rig;
+  obs_camera_setup(&sc->camera, sc->width, sc->height, &rig);
+  obs_vk *vk = NULL;
+  obs_geometry geo;
+  obs_omap_peel m;
+  memset(&geo, 0, sizeof geo);
+  memset(&m, 0, sizeof m);
+  const int validation = obs_vk_validation_requested();
+  int rc = obs_vk_acquire(&vk, validation, err);
+  double t0 = obs_now_ms(), ms = 0;
+  /* The camera's frame, as the CPU's BVH keeps it for every scene the camera is near. */
+  if (!rc) rc = obs_geometry_build_at(sc, rig.origin, &geo, err);
+  double t1 = obs_now_ms();
+  ctx->build_ms += t1 - t0;
+  if (!rc)
+    rc = obs_omap_peel_compute(vk, sc, &geo, p, &rig, ctx->cancel, ctx->progress,
+                               ctx->progress_user, &m, &ms, err);
+  if (!rc) {
+    obs_driver_stage_add(ctx, "map", ms);
+    rc = obs_patches_init(&ctx->patches[0], "obscurance", m.pm.count, 3, 1, err);
+  }
+  if (!rc) {
+    memcpy(ctx->patches[0].values, m.w, (size_t)m.pm.count * 3 * sizeof(float));
+    memcpy(ctx->patches[0].area, m.pm.area, (size_t)m.pm.count * sizeof(float));
+    ctx->npatches = 1;
+    rc = show(ctx, &m, out, err);
+  }
+  ctx->render_ms += obs_now_ms() - t1;
+  ctx->rays = 0;
+  if (!rc && validation && obs_vk_validation_messages(vk))
+    rc = obs_err_set(err, OBS_EINTERNAL,
+                     "%s: obscurance_map on \"%s\": %u Vulkan validation message(s) (printed "
+                     "above)",
+                     sc->name, obs_vk_device_name(vk), obs_vk_validation_messages(vk));
+  if (!rc && m.unsampled)
+    obs_render_ctx_warn(ctx,
+                        "%lld of %lld patches received no sample and show \"nothing within "
+                        "d_max\"; raise directions or bundle_resolution",
+                        (long long)m.unsampled, (long long)m.pm.count);
+  if (!rc && m.capped)
+    obs_render_ctx_warn(ctx, "%d directions had more than %d layers; deeper surfaces were skipped",
+                        m.capped, OBS_PEEL_LAYERS_MAX);
+  if (!rc && m.pm.capped)
+    obs_render_ctx_warn(ctx,
+                        "patch_size split %zu triangles into more than %d x %d patches; they were "
+                        "split %d x %d",
+                        m.pm.capped, OBS_PATCH_SPLIT_MAX, OBS_PATCH_SPLIT_MAX, OBS_PATCH_SPLIT_MAX,
+                        OBS_PATCH_SPLIT_MAX);
+  obs_omap_peel_free(&m);
+  obs_geometry_free(&geo);
+  obs_vk_release(vk);
+  if (rc) {
+    obs_image_free(out);
+    if (ctx->npatches) obs_patches_free(&ctx->patches[0]), ctx->npatches = 0;
+  }
+  return rc;
+}

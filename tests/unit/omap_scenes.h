@@ -1,0 +1,17 @@
+/* Scenes and closed forms shared by the per-patch obscurance tests of every backend
+ * (tests/unit/test_obscurance_map.c, tests/vulkan/test_obscurance_peel.c). */
+#ifndef OBS_OMAP_SCENES_H
+#define OBS_OMAP_SCENES_H
+
+/* An open 4 x 4 quad at y = 0 facing up, reflectivity (refl, refl / 2, refl / 4): nothing within
+ * any d_max. The text lives until the next obs_test_fmt call. */
+const char *obs_test_omap_plane_doc(double refl);
+/* Plates of half-width L at y = 0 (facing up, reflectivity (0.2, 0.5, 0.8)) and y = h (facing
+ * down, (0.6, 0.4, 0.3)). */
+const char *obs_test_omap_plates_doc(double h, double L);
+/* W at a plate facing another at distance h < d_max, sqrt falloff, m0 = h / d_max. */
+double obs_test_omap_plates_w(double m0, double r_ave, double r_other);
+/* scenes/cornell_box.json's text (free it). */
+char *obs_test_omap_cornell_doc(void);
+
+#endif
