@@ -44,16 +44,6 @@ static const VkFormat target_format[T_COUNT] = {VK_FORMAT_R32_SFLOAT, VK_FORMAT_
                                                 VK_FORMAT_R32G32B32A32_SFLOAT,
                                                 VK_FORMAT_D32_SFLOAT};
 
-static int create_shader(obs_vk *vk, const uint32_t *code, size_t size, VkShaderModule *out,
-                         obs_err *err) {
-  VkShaderModuleCreateInfo ci = {
-      .sType = VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO, .codeSize = size, .pCode = code};
-  int rc = obs_vk_check(vk, vkCreateShaderModule(vk->dev, &ci, NULL, out),
-                        "vkCreateShaderModule (G-buffer)", err);
-  if (rc) *out = VK_NULL_HANDLE;
-  return rc;
-}
-
 static int check_formats(obs_vk *vk, obs_err *err) {
   for (int t = 0; t < T_COUNT; t++) {
     VkFormatProperties fp;
@@ -126,86 +116,6 @@ static int ensure_render_pass(obs_vk *vk, obs_err *err) {
   return rc;
 }
 
-/* The fixed-function state of the G-buffer pipeline and the pipeline itself, from the two shader
- * stages. */
-static int create_gbuffer_pipeline(obs_vk *vk, VkShaderModule vs, VkShaderModule fs, obs_err *err) {
-  VkPipelineShaderStageCreateInfo stages[2] = {
-      {.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
-       .stage = VK_SHADER_STAGE_VERTEX_BIT,
-       .module = vs,
-       .pName = "main"},
-      {.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
-       .stage = VK_SHADER_STAGE_FRAGMENT_BIT,
-       .module = fs,
-       .pName = "main"}};
-  VkVertexInputBindingDescription vb = {0, OBS_VK_CLIP_FLOATS * sizeof(float),
-                                        VK_VERTEX_INPUT_RATE_VERTEX};
-  VkVertexInputAttributeDescription va[2] = {{0, 0, VK_FORMAT_R32G32B32_SFLOAT, 0},
-                                             {1, 0, VK_FORMAT_R32G32B32_SFLOAT, 3 * sizeof(float)}};
-  VkPipelineVertexInputStateCreateInfo vi = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO,
-      .vertexBindingDescriptionCount = 1,
-      .pVertexBindingDescriptions = &vb,
-      .vertexAttributeDescriptionCount = 2,
-      .pVertexAttributeDescriptions = va};
-  VkPipelineInputAssemblyStateCreateInfo ia = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO,
-      .topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST};
-  VkPipelineViewportStateCreateInfo vps = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO,
-      .viewportCount = 1,
-      .scissorCount = 1};
-  /* No culling: ambient occlusion sees both sides of every surface, as the ray caster does. */
-  VkPipelineRasterizationStateCreateInfo rs = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO,
-      .polygonMode = VK_POLYGON_MODE_FILL,
-      .cullMode = VK_CULL_MODE_NONE,
-      .frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE,
-      .lineWidth = 1.0f};
-  VkPipelineMultisampleStateCreateInfo ms = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO,
-      .rasterizationSamples = VK_SAMPLE_COUNT_1_BIT};
-  /* Reversed depth: cleared to 0 (infinitely far), nearer is greater. */
-  VkPipelineDepthStencilStateCreateInfo ds = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_DEPTH_STENCIL_STATE_CREATE_INFO,
-      .depthTestEnable = VK_TRUE,
-      .depthWriteEnable = VK_TRUE,
-      .depthCompareOp = VK_COMPARE_OP_GREATER};
-  /* Identical for all three (no independentBlend needed); R32F ignores the unused components. */
-  VkPipelineColorBlendAttachmentState cba[3];
-  for (int i = 0; i < 3; i++)
-    cba[i] = (VkPipelineColorBlendAttachmentState){
-        .colorWriteMask = VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT |
-                          VK_COLOR_COMPONENT_B_BIT | VK_COLOR_COMPONENT_A_BIT};
-  VkPipelineColorBlendStateCreateInfo cb = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO,
-      .attachmentCount = 3,
-      .pAttachments = cba};
-  VkDynamicState dyn[2] = {VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
-  VkPipelineDynamicStateCreateInfo dy = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO,
-      .dynamicStateCount = 2,
-      .pDynamicStates = dyn};
-  VkGraphicsPipelineCreateInfo ci = {.sType = VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO,
-                                     .stageCount = 2,
-                                     .pStages = stages,
-                                     .pVertexInputState = &vi,
-                                     .pInputAssemblyState = &ia,
-                                     .pViewportState = &vps,
-                                     .pRasterizationState = &rs,
-                                     .pMultisampleState = &ms,
-                                     .pDepthStencilState = &ds,
-                                     .pColorBlendState = &cb,
-                                     .pDynamicState = &dy,
-                                     .layout = vk->gb_layout,
-                                     .renderPass = vk->gb_pass};
-  int rc = obs_vk_check(
-      vk, vkCreateGraphicsPipelines(vk->dev, VK_NULL_HANDLE, 1, &ci, NULL, &vk->gb_pipeline),
-      "vkCreateGraphicsPipelines (G-buffer)", err);
-  if (rc) vk->gb_pipeline = VK_NULL_HANDLE;
-  return rc;
-}
-
 static int ensure_pipeline(obs_vk *vk, obs_err *err) {
   if (vk->gb_pipeline) return 0;
   int rc = check_formats(vk, err);
@@ -223,13 +133,28 @@ static int ensure_pipeline(obs_vk *vk, obs_err *err) {
     return rc;
   }
   VkShaderModule vs, fs;
-  if ((rc = create_shader(vk, obs_spv_gbuffer_vert, obs_spv_gbuffer_vert_size, &vs, err)))
+  if ((rc = obs_vk_shader(vk, obs_spv_gbuffer_vert, obs_spv_gbuffer_vert_size, &vs, "G-buffer",
+                          err)))
     return rc;
-  if ((rc = create_shader(vk, obs_spv_gbuffer_frag, obs_spv_gbuffer_frag_size, &fs, err))) {
+  if ((rc = obs_vk_shader(vk, obs_spv_gbuffer_frag, obs_spv_gbuffer_frag_size, &fs, "G-buffer",
+                          err))) {
     vkDestroyShaderModule(vk->dev, vs, NULL);
     return rc;
   }
-  rc = create_gbuffer_pipeline(vk, vs, fs, err);
+  /* Reversed depth: cleared to 0 (infinitely far), nearer is greater. */
+  static const VkVertexInputAttributeDescription va[2] = {
+      {0, 0, VK_FORMAT_R32G32B32_SFLOAT, 0}, {1, 0, VK_FORMAT_R32G32B32_SFLOAT, 3 * sizeof(float)}};
+  obs_vk_raster r = {.vs = vs,
+                     .fs = fs,
+                     .stride = OBS_VK_CLIP_FLOATS * sizeof(float),
+                     .attrs = va,
+                     .nattrs = 2,
+                     .depth_op = VK_COMPARE_OP_GREATER,
+                     .ncolor = 3,
+                     .layout = vk->gb_layout,
+                     .pass = vk->gb_pass,
+                     .what = "G-buffer"};
+  rc = obs_vk_raster_pipeline(vk, &r, &vk->gb_pipeline, err);
   vkDestroyShaderModule(vk->dev, vs, NULL);
   vkDestroyShaderModule(vk->dev, fs, NULL);
   return rc;

@@ -128,16 +128,6 @@ static peel_vertex *build_vertices(const obs_geometry *geo, const obs_patch_mesh
 
 /* ---- device objects ---- */
 
-static int shader(obs_vk *vk, const uint32_t *code, size_t size, VkShaderModule *out,
-                  obs_err *err) {
-  VkShaderModuleCreateInfo ci = {
-      .sType = VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO, .codeSize = size, .pCode = code};
-  int rc = obs_vk_check(vk, vkCreateShaderModule(vk->dev, &ci, NULL, out),
-                        "vkCreateShaderModule (depth peeling)", err);
-  if (rc) *out = VK_NULL_HANDLE;
-  return rc;
-}
-
 static int create_layouts(peel *pl, obs_err *err) {
   obs_vk *vk = pl->vk;
   VkDescriptorSetLayoutBinding b[5];
@@ -214,22 +204,13 @@ static int create_layouts(peel *pl, obs_err *err) {
 static int create_draw(peel *pl, obs_err *err) {
   obs_vk *vk = pl->vk;
   VkShaderModule vs, fs;
-  int rc = shader(vk, obs_spv_peel_vert, obs_spv_peel_vert_size, &vs, err);
+  int rc = obs_vk_shader(vk, obs_spv_peel_vert, obs_spv_peel_vert_size, &vs, "depth peeling", err);
   if (rc) return rc;
-  if ((rc = shader(vk, obs_spv_peel_frag, obs_spv_peel_frag_size, &fs, err))) {
+  if ((rc = obs_vk_shader(vk, obs_spv_peel_frag, obs_spv_peel_frag_size, &fs, "depth peeling",
+                          err))) {
     vkDestroyShaderModule(vk->dev, vs, NULL);
     return rc;
   }
-  VkPipelineShaderStageCreateInfo stages[2] = {
-      {.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
-       .stage = VK_SHADER_STAGE_VERTEX_BIT,
-       .module = vs,
-       .pName = "main"},
-      {.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
-       .stage = VK_SHADER_STAGE_FRAGMENT_BIT,
-       .module = fs,
-       .pName = "main"}};
-  VkVertexInputBindingDescription vb = {0, sizeof(peel_vertex), VK_VERTEX_INPUT_RATE_VERTEX};
   VkVertexInputAttributeDescription va[6] = {
       {0, 0, VK_FORMAT_R32G32B32_SFLOAT, offsetof(peel_vertex, pos)},
       {1, 0, VK_FORMAT_R32G32_SFLOAT, offsetof(peel_vertex, bary)},
@@ -237,66 +218,23 @@ static int create_draw(peel *pl, obs_err *err) {
       {3, 0, VK_FORMAT_R32_SINT, offsetof(peel_vertex, first)},
       {4, 0, VK_FORMAT_R32_SINT, offsetof(peel_vertex, split)},
       {5, 0, VK_FORMAT_R32_SINT, offsetof(peel_vertex, robj)}};
-  VkPipelineVertexInputStateCreateInfo vi = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO,
-      .vertexBindingDescriptionCount = 1,
-      .pVertexBindingDescriptions = &vb,
-      .vertexAttributeDescriptionCount = 6,
-      .pVertexAttributeDescriptions = va};
-  VkPipelineInputAssemblyStateCreateInfo ia = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO,
-      .topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST};
-  VkPipelineViewportStateCreateInfo vps = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO,
-      .viewportCount = 1,
-      .scissorCount = 1};
-  /* Both sides of every surface: the facing cosine decides who transfers. */
-  VkPipelineRasterizationStateCreateInfo rs = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO,
-      .polygonMode = VK_POLYGON_MODE_FILL,
-      .cullMode = VK_CULL_MODE_NONE,
-      .frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE,
-      .lineWidth = 1.0f};
-  VkPipelineMultisampleStateCreateInfo ms = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO,
-      .rasterizationSamples = VK_SAMPLE_COUNT_1_BIT};
-  VkPipelineDepthStencilStateCreateInfo ds = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_DEPTH_STENCIL_STATE_CREATE_INFO,
-      .depthTestEnable = VK_TRUE,
-      .depthWriteEnable = VK_TRUE,
-      .depthCompareOp = VK_COMPARE_OP_LESS};
-  VkPipelineColorBlendAttachmentState cba = {
-      .colorWriteMask = VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT |
-                        VK_COLOR_COMPONENT_B_BIT | VK_COLOR_COMPONENT_A_BIT};
-  VkPipelineColorBlendStateCreateInfo cb = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO,
-      .attachmentCount = 1,
-      .pAttachments = &cba};
-  VkDynamicState dyn[2] = {VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
-  VkPipelineDynamicStateCreateInfo dy = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO,
-      .dynamicStateCount = 2,
-      .pDynamicStates = dyn};
-  VkGraphicsPipelineCreateInfo ci = {.sType = VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO,
-                                     .stageCount = 2,
-                                     .pStages = stages,
-                                     .pVertexInputState = &vi,
-                                     .pInputAssemblyState = &ia,
-                                     .pViewportState = &vps,
-                                     .pRasterizationState = &rs,
-                                     .pMultisampleState = &ms,
-                                     .pDepthStencilState = &ds,
-                                     .pColorBlendState = &cb,
-                                     .pDynamicState = &dy,
-                                     .layout = pl->layout,
-                                     .renderPass = pl->pass};
-  rc = obs_vk_check(vk, vkCreateGraphicsPipelines(vk->dev, VK_NULL_HANDLE, 1, &ci, NULL, &pl->draw),
-                    "vkCreateGraphicsPipelines (depth peeling)", err);
+  obs_vk_raster r = {.vs = vs,
+                     .fs = fs,
+                     .stride = sizeof(peel_vertex),
+                     .attrs = va,
+                     .nattrs = 6,
+                     .depth_op = VK_COMPARE_OP_LESS,
+                     .ncolor = 1,
+                     .layout = pl->layout,
+                     .pass = pl->pass,
+                     .what = "depth peeling"};
+  rc = obs_vk_raster_pipeline(vk, &r, &pl->draw, err);
   vkDestroyShaderModule(vk->dev, vs, NULL);
   vkDestroyShaderModule(vk->dev, fs, NULL);
   if (rc) return rc;
   VkShaderModule cs;
-  if ((rc = shader(vk, obs_spv_peel_transfer_comp, obs_spv_peel_transfer_comp_size, &cs, err)))
+  if ((rc = obs_vk_shader(vk, obs_spv_peel_transfer_comp, obs_spv_peel_transfer_comp_size, &cs,
+                          "depth peeling", err)))
     return rc;
   VkComputePipelineCreateInfo cci = {
       .sType = VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO,

@@ -82,6 +82,26 @@ int obs_vk_memory_alloc(obs_vk *vk, const VkMemoryRequirements *req, VkMemoryPro
 int obs_vk_image_create_usage(obs_vk *vk, int width, int height, int channels,
                               VkImageUsageFlags extra, obs_vk_image **out, obs_err *err);
 
+/* A shader module from SPIR-V; errors name `what`. */
+int obs_vk_shader(obs_vk *vk, const uint32_t *code, size_t size, VkShaderModule *out,
+                  const char *what, obs_err *err);
+
+/* A raster pipeline of the device layer: triangle lists from one vertex binding, both faces
+ * drawn, depth test and write with `depth_op`, `ncolor` colour attachments written whole, one
+ * sample, viewport and scissor dynamic. */
+typedef struct obs_vk_raster {
+  VkShaderModule vs, fs;
+  uint32_t stride; /* bytes per vertex */
+  const VkVertexInputAttributeDescription *attrs;
+  uint32_t nattrs;
+  VkCompareOp depth_op;
+  uint32_t ncolor; /* at most 4 */
+  VkPipelineLayout layout;
+  VkRenderPass pass;
+  const char *what; /* names the pipeline in errors */
+} obs_vk_raster;
+int obs_vk_raster_pipeline(obs_vk *vk, const obs_vk_raster *r, VkPipeline *out, obs_err *err);
+
 /* One-shot command recording into vk->cmd: begin (with a full barrier against earlier
  * submissions), then submit-and-wait. abort discards a recording after an error. */
 int obs_vk_cmd_begin(obs_vk *vk, const char *what, obs_err *err);
