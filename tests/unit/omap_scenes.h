@@ -11,6 +11,15 @@ const char *obs_test_omap_plane_doc(double refl);
 const char *obs_test_omap_plates_doc(double h, double L);
 /* W at a plate facing another at distance h < d_max, sqrt falloff, m0 = h / d_max. */
 double obs_test_omap_plates_w(double m0, double r_ave, double r_other);
+/* Checks a map of the plates (doc from obs_test_omap_plates_doc(h, ...), sqrt falloff, d_max
+ * `dmax`, colour bleeding `bleed`; pm, w and se as obs_omap has them) against the closed form on
+ * the central patches of each plate (centroid within 0.6 of the axis, so everything within d_max
+ * of them lies on the other plate): every patch within 5 sigma, the area-weighted mean per plate
+ * and channel within 3 sigma. `what` names the estimator in the lines it prints. */
+struct obs_patch_mesh;
+void obs_test_omap_check_plates(const char *what, const char *doc, double h, double dmax,
+                                int bleed, const struct obs_patch_mesh *pm, const float *w,
+                                const float *se);
 /* scenes/cornell_box.json's text (free it). */
 char *obs_test_omap_cornell_doc(void);
 

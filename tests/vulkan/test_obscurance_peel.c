@@ -99,63 +99,11 @@ static void check_plates(int bleed) {
   p.directions = 1024;
   p.bundle_resolution = 45;
   const char *doc = obs_test_omap_plates_doc(h, L);
-  obs_scene sc;
-  obs_test_load(doc, "plates.json", &sc);
-  obs_geometry geo;
-  obs_err err = OBS_ERR_INIT;
-  assert_int_equal(obs_geometry_build(&sc, &geo, &err), 0);
   obs_omap_peel m;
   peel_of(doc, &p, &m);
-  const double r_bot[3] = {0.2, 0.5, 0.8}, r_top[3] = {0.6, 0.4, 0.3};
-  double sum[2][3] = {{0}}, var[2] = {0}, wsum[2] = {0};
-  int npatch[2] = {0, 0};
-  size_t tri = 0;
-  for (size_t mi = 0; mi < geo.nmeshes; mi++) {
-    const obs_mesh *me = &geo.meshes[mi];
-    for (size_t t = 0; t < me->ntris; t++, tri++) {
-      const float *v[3];
-      for (int k = 0; k < 3; k++) v[k] = me->pos + 3 * (size_t)me->idx[3 * t + (size_t)k];
-      int n = m.pm.split[tri];
-      for (int64_t s = 0; s < (int64_t)n * n; s++) {
-        double uv[3][2], c[3] = {0, 0, 0};
-        obs_patch_sub_corners(n, s, uv);
-        for (int q = 0; q < 3; q++)
-          for (int k = 0; k < 3; k++)
-            c[k] += (v[0][k] + uv[q][0] * (v[1][k] - v[0][k]) + uv[q][1] * (v[2][k] - v[0][k])) / 3;
-        if (c[0] * c[0] + c[2] * c[2] > 0.36) continue;
-        int top = c[1] > h / 2;
-        int64_t id = m.pm.first[tri] + s;
-        double a = m.pm.area[id];
-        const double *ro = top ? r_bot : r_top;
-        for (int k = 0; k < 3; k++) {
-          sum[top][k] += a * m.w[3 * id + k];
-          double want = obs_test_omap_plates_w(h / dmax, bleed ? (r_bot[k] + r_top[k]) / 2 : 1,
-                                               bleed ? ro[k] : 1);
-          assert_true(fabs(m.w[3 * id + k] - want) <= 5 * m.se[id] + 1e-6);
-        }
-        var[top] += a * a * (double)m.se[id] * m.se[id];
-        wsum[top] += a;
-        npatch[top]++;
-      }
-    }
-  }
-  for (int top = 0; top < 2; top++) {
-    assert_true(npatch[top] >= 20);
-    const double *ro = top ? r_bot : r_top;
-    double sigma = sqrt(var[top]) / wsum[top];
-    for (int k = 0; k < 3; k++) {
-      double want = obs_test_omap_plates_w(h / dmax, bleed ? (r_bot[k] + r_top[k]) / 2 : 1,
-                                           bleed ? ro[k] : 1);
-      double got = sum[top][k] / wsum[top];
-      printf("depth_peeling bleed %d plate %d ch %d: W %.5f want %.5f (3 sigma %.5f, %d patches)\n",
-             bleed, top, k, got, want, 3 * sigma, npatch[top]);
-      assert_true(fabs(got - want) <= 3 * sigma);
-    }
-  }
+  obs_test_omap_check_plates("depth_peeling", obs_test_omap_plates_doc(h, L), h, dmax, bleed,
+                             &m.pm, m.w, m.se);
   obs_omap_peel_free(&m);
-  obs_geometry_free(&geo);
-  obs_scene_free(&sc);
-  obs_err_free(&err);
 }
 
 static void test_plates(void **state) {
