@@ -13,6 +13,20 @@ static inline int parse_int(const char *s, int lo, int hi, int *out) {
   return 0;
 }
 
+/* Parses a comma-separated list of integers in [lo, hi] into out[0..max); returns how many, or
+ * -1 when one is not such an integer. */
+static inline int parse_list(const char *s, int *out, int max, int lo, int hi) {
+  int n = 0;
+  for (const char *p = s; *p && n < max;) {
+    char *end;
+    long v = strtol(p, &end, 10);
+    if (end == p || (*end && *end != ',') || v < lo || v > hi) return -1;
+    out[n++] = (int)v;
+    p = *end ? end + 1 : end;
+  }
+  return n;
+}
+
 static inline int bench_cmp_double(const void *a, const void *b) {
   double x = *(const double *)a, y = *(const double *)b;
   return (x > y) - (x < y);

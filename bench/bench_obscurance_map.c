@@ -46,15 +46,6 @@ static void usage(FILE *f) {
       "  --rays count per patch. cpu_s is the process's CPU time (robust to a busy machine).\n");
 }
 
-static int parse_list(const char *s, int *out, int lo, int hi) {
-  int n = 0;
-  char buf[256];
-  snprintf(buf, sizeof buf, "%s", s);
-  for (char *t = strtok(buf, ","); t && n < MAX_LIST; t = strtok(NULL, ","))
-    if (parse_int(t, lo, hi, &out[n++])) return -1;
-  return n;
-}
-
 static int parse_args(int argc, char **argv, options *o) {
   memset(o, 0, sizeof *o);
   o->threads = 2;
@@ -82,11 +73,11 @@ static int parse_args(int argc, char **argv, options *o) {
       bad = parse_int(v, 1, 65536, &o->ref_samples);
     else if (!strcmp(a, "--subdiv"))
       bad = !strcmp(v, "none") ? (o->nsubdiv = 0)
-                               : (o->nsubdiv = parse_list(v, o->subdiv, 0, 11)) < 0;
+                               : (o->nsubdiv = parse_list(v, o->subdiv, MAX_LIST, 0, 11)) < 0;
     else if (!strcmp(a, "--dirs"))
-      bad = (o->ndirs = parse_list(v, o->dirs, 1, 4096)) < 0;
+      bad = (o->ndirs = parse_list(v, o->dirs, MAX_LIST, 1, 4096)) < 0;
     else if (!strcmp(a, "--rays"))
-      bad = (o->nrays = parse_list(v, o->rays, 1, 65536)) < 0;
+      bad = (o->nrays = parse_list(v, o->rays, MAX_LIST, 1, 65536)) < 0;
     else if (!strcmp(a, "--models"))
       o->models = strcmp(v, "none") ? v : NULL;
     else if (!strcmp(a, "--dmax"))

@@ -35,15 +35,6 @@ static void usage(FILE *f) {
           "  the reference's own error.\n");
 }
 
-static int parse_list(const char *s, int *out, int lo, int hi) {
-  int n = 0;
-  char buf[256];
-  snprintf(buf, sizeof buf, "%s", s);
-  for (char *t = strtok(buf, ","); t && n < MAX_LIST; t = strtok(NULL, ","))
-    if (parse_int(t, lo, hi, &out[n++])) return -1;
-  return n;
-}
-
 static int parse_args(int argc, char **argv, options *o) {
   memset(o, 0, sizeof *o);
   o->threads = 2, o->res = 512, o->ref_samples = 512, o->dmax_frac = 0.25;
@@ -64,9 +55,9 @@ static int parse_args(int argc, char **argv, options *o) {
     else if (!strcmp(a, "--ref-samples"))
       bad = parse_int(v, 1, 65536, &o->ref_samples);
     else if (!strcmp(a, "--subdiv"))
-      bad = (o->nsubdiv = parse_list(v, o->subdiv, 0, 11)) < 0;
+      bad = (o->nsubdiv = parse_list(v, o->subdiv, MAX_LIST, 0, 11)) < 0;
     else if (!strcmp(a, "--dirs"))
-      bad = (o->ndirs = parse_list(v, o->dirs, 1, 4096)) < 0;
+      bad = (o->ndirs = parse_list(v, o->dirs, MAX_LIST, 1, 4096)) < 0;
     else if (!strcmp(a, "--dmax"))
       bad = !((o->dmax_frac = atof(v)) > 0);
     else
