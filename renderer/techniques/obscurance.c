@@ -44,22 +44,7 @@ static const obs_param obscurance_params[] = {
     {.name = "samples", .type = OBS_PARAM_UINT, .min = 1, .max = 65536, .def = 64,
      .description = "cosine-distributed obscurance rays per pixel sample (eq. 6)",
      .offset = P(samples)},
-    {.name = "d_max", .type = OBS_PARAM_DOUBLE, .flags = OBS_PARAM_MIN_EXCLUSIVE, .min = 0,
-     .max = 1e30, .def = 1,
-     .description = "distance d_max of the falloff in scene units: surfaces farther away do not "
-                    "obscure",
-     .offset = P(d_max), .size_default = 0.2},
-    {.name = "falloff", .type = OBS_PARAM_ENUM, .choices = obs_falloff_names, .def = 1,
-     .description = "obscurance function rho(d): sqrt = sqrt(d/d_max) (the article's), exp = "
-                    "1-exp(-tau d) within d_max, binary = 0 within d_max (ambient occlusion)",
-     .offset = P(falloff)},
-    {.name = "tau", .type = OBS_PARAM_DOUBLE, .flags = OBS_PARAM_MIN_EXCLUSIVE, .min = 0,
-     .max = 1e30, .def = 1, .description = "decay rate of the exp falloff, per scene unit",
-     .offset = P(tau)},
-    {.name = "color_bleeding", .type = OBS_PARAM_BOOL, .def = 1,
-     .description = "weigh each direction by the reflectivity R(Q) of the surface it meets "
-                    "within d_max (R_ave when none): W becomes RGB",
-     .offset = P(color_bleeding)},
+    OBS_OBSCURANCE_MODEL_PARAMS(P),
     {.name = "ambient", .type = OBS_PARAM_RGB,
      .flags = OBS_PARAM_NULLABLE | OBS_PARAM_DEFAULT_NULL, .min = 0, .max = 1e30,
      .null_value = -1,

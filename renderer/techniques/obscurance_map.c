@@ -35,21 +35,7 @@ static const obs_param obscurance_map_params[] = {
                     "only) = the bundles' directions and grids rendered and peeled layer by "
                     "layer; auto = rays on the cpu, depth_peeling on vulkan",
      .offset = P(method)},
-    {.name = "d_max", .type = OBS_PARAM_DOUBLE, .flags = OBS_PARAM_MIN_EXCLUSIVE, .min = 0,
-     .max = 1e30, .def = 1,
-     .description = "distance d_max in scene units beyond which a surface counts as open",
-     .offset = P(d_max), .size_default = 0.2},
-    {.name = "falloff", .type = OBS_PARAM_ENUM, .choices = obs_falloff_names, .def = OBS_FALLOFF_SQRT,
-     .description = "obscurance function rho(d): sqrt = sqrt(d/d_max) (the article's), exp = "
-                    "1-exp(-tau d), binary = 0 within d_max",
-     .offset = P(falloff)},
-    {.name = "tau", .type = OBS_PARAM_DOUBLE, .flags = OBS_PARAM_MIN_EXCLUSIVE, .min = 0,
-     .max = 1e30, .def = 1, .description = "decay rate of the exp falloff, per scene unit",
-     .offset = P(tau)},
-    {.name = "color_bleeding", .type = OBS_PARAM_BOOL, .def = 1,
-     .description = "weight each sample by the reflectivity R of the surface seen (R_ave when "
-                    "nothing is within d_max); false: W alone, the same in every channel",
-     .offset = P(color_bleeding)},
+    OBS_OBSCURANCE_MODEL_PARAMS(P),
     {.name = "samples", .type = OBS_PARAM_UINT, .min = 1, .max = 65536, .def = 64,
      .description = "rays: rays per patch", .offset = P(samples)},
     {.name = "directions", .type = OBS_PARAM_UINT, .min = 1, .max = 4096, .def = 64,

@@ -37,4 +37,27 @@ int obs_obscurance_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 /* One backend's guaranteed range as the registry's JSON (ranges.c). */
 json_t *obs_range_json(const obs_range *r);
 
+/* The obscurance model's parameters (core/obscurance.h), the same in every obscurance technique
+ * (per pixel, per patch): entries for d_max (a length), falloff, tau and color_bleeding, landing in
+ * the members of those names through P(member) (offsetof in the technique's params struct). */
+#define OBS_OBSCURANCE_MODEL_PARAMS(P)                                                           \
+  {.name = "d_max", .type = OBS_PARAM_DOUBLE, .flags = OBS_PARAM_MIN_EXCLUSIVE, .min = 0,        \
+   .max = 1e30, .def = 1,                                                                        \
+   .description = "distance d_max of the falloff in scene units: surfaces farther away do not "  \
+                  "obscure (they count as open)",                                                \
+   .offset = P(d_max), .size_default = 0.2},                                                     \
+      {.name = "falloff", .type = OBS_PARAM_ENUM, .choices = obs_falloff_names,                  \
+       .def = OBS_FALLOFF_SQRT,                                                                  \
+       .description = "obscurance function rho(d): sqrt = sqrt(d/d_max) (the article's), exp = " \
+                      "1-exp(-tau d) within d_max, binary = 0 within d_max (ambient occlusion)", \
+       .offset = P(falloff)},                                                                    \
+      {.name = "tau", .type = OBS_PARAM_DOUBLE, .flags = OBS_PARAM_MIN_EXCLUSIVE, .min = 0,      \
+       .max = 1e30, .def = 1, .description = "decay rate of the exp falloff, per scene unit",    \
+       .offset = P(tau)},                                                                        \
+      {.name = "color_bleeding", .type = OBS_PARAM_BOOL, .def = 1,                               \
+       .description = "weigh each direction by the reflectivity R(Q) of the surface it meets "   \
+                      "within d_max (R_ave when none): W becomes RGB; false: W alone, the same " \
+                      "in every channel",                                                        \
+       .offset = P(color_bleeding)}
+
 #endif
