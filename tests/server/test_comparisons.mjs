@@ -497,7 +497,9 @@ test('timed renders run alone: a candidate waits while another render runs; canc
       scene_file: 'sphere_on_plane.json', label: 'blocker',
       technique: {name: 'rt_ao', backend: 'cpu', params: {samples: 256}},
       set: {'/image/width': 1024, '/image/height': 1024}});
-    await waitJob(d, blocker, (j) => j.state === 'running');
+    // Rendering, not only claimed: a claimed job still loading its scene holds no render, so a
+    // candidate could pass the gate before it.
+    await waitJob(d, blocker, (j) => j.state === 'running' && j.progress > 0);
     const one = {scene_file: 'cornell_box.json', set: SMALL, repeats: 1, reference: {samples: 16},
                  candidates: [{technique: 'ssao', backend: 'cpu', params: {samples: 8}}]};
     // Claimed by the second worker, the candidate then waits at the gate (the reference, a

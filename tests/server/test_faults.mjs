@@ -284,7 +284,10 @@ test('database replaced while running: work refused, own copy written aside', as
     await waitAll(d, ids);
     for (const s of ['', '-wal', '-shm']) fs.rmSync(d.db + s, {force: true});
     fs.writeFileSync(d.db, 'not the database\n');
-    const h = await waitHealth(d, (x) => x.status === 'error', 'error', 10000 * SLOW);
+    // The fault shows at once (work is refused first); its action names the copy once written.
+    const h = await waitHealth(d, (x) => x.status === 'error' && faultOf(x, 'database_lost') &&
+                               /recovered-/.test(faultOf(x, 'database_lost').action || ''),
+                               'error with the copy named', 10000 * SLOW);
     assert.equal(h.status, 'error');
     const f = faultOf(h, 'database_lost');
     assert.ok(f, JSON.stringify(h));
