@@ -1,13 +1,17 @@
-// Produces docs/comparison-cornell.md: one measured comparison of every technique on the Cornell
-// box (a real obscurad with its CPU and Vulkan lanes, POST /api/v1/comparisons, the stored table)
-// plus a screenshot of the dashboard's Pareto chart taken in Debian's chromium. Anyone can rerun it:
+// Produces docs/comparison-cornell.md: measured comparisons of every technique on the Cornell box
+// (a real obscurad with its CPU and Vulkan lanes, POST /api/v1/comparisons, the stored tables),
+// one per quantity the techniques estimate (their primary output's kind: AO, RGB radiance,
+// per-patch values), since errors of different quantities do not share a scale, plus a
+// screenshot of the dashboard's Pareto chart of each, taken in Debian's chromium. Anyone can
+// rerun it:
 //
 //   cmake -S . -B build -DCMAKE_BUILD_TYPE=Release && make -C build -j2 && npm ci
-//   node bench/bench_comparison.mjs [--size 320x240] [--repeats 5] [--reference-samples 1024]
+//   node bench/bench_comparison.mjs [--size 320x240] [--repeats 5] [--reference-samples N]
 //                                   [--no-vulkan] [--no-screenshot] [--out docs]
 //
-// The techniques come from GET /api/v1/techniques, so a new technique joins the comparison when
-// it is given a parameter grid in GRIDS below (one without a grid runs with its defaults).
+// The techniques come from GET /api/v1/techniques, so a new technique joins the comparison of its
+// quantity when it is given a parameter grid in GRIDS below (one without a grid runs with its
+// defaults on every backend).
 import {spawn, spawnSync} from 'node:child_process';
 import fs from 'node:fs';
 import {createRequire} from 'node:module';
@@ -19,15 +23,28 @@ const ROOT = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '..');
 const require = createRequire(path.join(ROOT, 'package.json'));
 
 // Parameter grids per technique: the trade each one offers. hbao's radius is set to the Cornell
-// box's scale (a 550-unit room) as in docs/accuracy.md; rt_ao's distance is the scene file's.
+// box's scale (a 550-unit room) as in docs/accuracy.md; rt_ao's distance is the scene file's. A
+// list holds candidate entries of their own (a method that runs on one backend only).
 const GRIDS = {
   rt_ao: {samples: [4, 16, 64, 256], max_distance: 200},
   ssao: {samples: [8, 16, 24], normal_oriented: [false, true]},
   hbao: {directions: [4, 8, 16], steps: [4, 8], radius: 100},
+  path_trace: {samples: [1, 4, 16]},
+  obscurance: {samples: [4, 16, 64], light_samples: 16, d_max: 300, color_bleeding: [false, true]},
+  obscurance_map: [{backend: 'cpu', params: {method: ['rays', 'global_lines', 'bundles'], d_max: 300, patch_size: 50}},
+                   {backend: 'vulkan', params: {method: 'depth_peeling', d_max: 300, patch_size: 50}}],
 };
 
+// The quantities, by the kind of a technique's primary output, with the reference samples each
+// comparison uses unless --reference-samples sets them all.
+const QUANTITIES = [
+  {kind: 'scalar', title: 'Ambient occlusion', refSamples: 1024},
+  {kind: 'rgb', title: 'RGB radiance', refSamples: 256},
+  {kind: 'patch', title: 'Per-patch obscurances', refSamples: 1024},
+];
+
 function parseArgs(argv) {
-  const o = {size: '320x240', repeats: 5, refSamples: 1024, vulkan: true, screenshot: true,
+  const o = {size: '320x240', repeats: 5, refSamples: null, vulkan: true, screenshot: true,
              out: path.join(ROOT, 'docs'), obscurad: path.join(ROOT, 'build/obscurad'),
              chromium: '/usr/bin/chromium'};
   for (let i = 0; i < argv.length; i++) {
@@ -90,8 +107,12 @@ function machineFacts() {
 }
 
 const fmt = (x, d = 3) => (x === null || x === undefined || !Number.isFinite(x) ? '-' : x.toFixed(d));
-const paramText = (t, p) => Object.entries(p).filter(([k]) => k in (GRIDS[t] || {}) && Array.isArray(GRIDS[t][k]))
-  .map(([k, v]) => `${k} ${v}`).join(', ');
+// The parameters a grid varies (those given as lists), as text.
+function paramText(t, p) {
+  const entries = [GRIDS[t] || {}].flat().map((e) => (e.params ? e.params : e));
+  const varied = new Set(entries.flatMap((e) => Object.entries(e).filter(([, v]) => Array.isArray(v)).map(([k]) => k)));
+  return Object.entries(p).filter(([k]) => varied.has(k)).map(([k, v]) => `${k} ${v}`).join(', ');
+}
 
 async function screenshot(o, d, id, file) {
   let chromium;
@@ -121,6 +142,40 @@ async function screenshot(o, d, id, file) {
   }
 }
 
+const SLUG = {scalar: 'ao', rgb: 'rgb', patch: 'patch'};
+
+// The candidate entries of technique t: its grid's (one entry or several), on the backends this
+// server runs.
+function entriesOf(t, health) {
+  const backends = t.backends.filter((b) => b !== 'vulkan' || health.vulkan_available);
+  const grid = GRIDS[t.name];
+  if (Array.isArray(grid)) {
+    return grid.filter((e) => backends.includes(e.backend))
+      .map((e) => ({technique: t.name, backend: e.backend, params: e.params}));
+  }
+  return [{technique: t.name, backend: backends, params: grid || {}}];
+}
+
+// Runs one comparison to its end; returns it with its CSV and wall time.
+async function runComparison(d, o, q, candidates) {
+  const t0 = Date.now();
+  const made = await api(d, 'POST', '/api/v1/comparisons', {
+    scene_file: 'cornell_box.json', label: `${q.title} on the Cornell box`,
+    set: {'/image/width': o.width, '/image/height': o.height}, repeats: o.repeats,
+    reference: {samples: o.refSamples ?? q.refSamples}, candidates});
+  console.error(`${q.title}: comparison ${made.id}, ${made.candidates} candidates, ${made.references} references`);
+  let c;
+  for (;;) {
+    c = await api(d, 'GET', `/api/v1/comparisons/${made.id}`);
+    const done = c.candidates.filter((x) => x.metrics || ['failed', 'cancelled'].includes(x.state)).length;
+    process.stderr.write(`\r${done}/${c.candidates.length} candidates measured`);
+    if (c.state !== 'running') break;
+    await sleep(1000);
+  }
+  process.stderr.write('\n');
+  return {c, csv: await api(d, 'GET', `/api/v1/comparisons/${made.id}.csv`), wallS: (Date.now() - t0) / 1e3};
+}
+
 async function main() {
   const o = parseArgs(process.argv.slice(2));
   if (!fs.existsSync(o.obscurad)) throw new Error(`no obscurad at ${o.obscurad} (build first)`);
@@ -129,31 +184,20 @@ async function main() {
   try {
     const health = await api(d, 'GET', '/api/v1/health');
     const {techniques} = await api(d, 'GET', '/api/v1/techniques');
-    const backends = (t) => t.backends.filter((b) => b !== 'vulkan' || health.vulkan_available);
-    const candidates = techniques.map((t) => ({technique: t.name, backend: backends(t),
-                                               params: GRIDS[t.name] || {}}));
-    const t0 = Date.now();
-    const made = await api(d, 'POST', '/api/v1/comparisons', {
-      scene_file: 'cornell_box.json', label: 'every technique on the Cornell box',
-      set: {'/image/width': o.width, '/image/height': o.height}, repeats: o.repeats,
-      reference: {samples: o.refSamples}, candidates});
-    console.error(`comparison ${made.id}: ${made.candidates} candidates, ${made.references} references`);
-    let c;
-    for (;;) {
-      c = await api(d, 'GET', `/api/v1/comparisons/${made.id}`);
-      const done = c.candidates.filter((x) => x.metrics || ['failed', 'cancelled'].includes(x.state)).length;
-      process.stderr.write(`\r${done}/${c.candidates.length} candidates measured`);
-      if (c.state !== 'running') break;
-      await sleep(1000);
-    }
-    process.stderr.write('\n');
-    const wallS = (Date.now() - t0) / 1e3;
-    const csv = await api(d, 'GET', `/api/v1/comparisons/${made.id}.csv`);
+    const kindOf = (t) => (t.typed_outputs.find((x) => x.primary) || {}).kind;
     fs.mkdirSync(path.join(o.out, 'img'), {recursive: true});
-    const shot = path.join(o.out, 'img', 'comparison-cornell-pareto.png');
-    const haveShot = o.screenshot && (await screenshot(o, d, made.id, shot));
-    fs.writeFileSync(path.join(o.out, 'comparison-cornell.csv'), csv);
-    const md = page(o, c, health, wallS, haveShot);
+    const sections = [];
+    for (const q of QUANTITIES) {
+      const ts = techniques.filter((t) => kindOf(t) === q.kind);
+      if (!ts.length) continue;
+      const run = await runComparison(d, o, q, ts.flatMap((t) => entriesOf(t, health)));
+      const slug = SLUG[q.kind];
+      const shot = path.join(o.out, 'img', `comparison-cornell-${slug}.png`);
+      run.haveShot = o.screenshot && (await screenshot(o, d, run.c.id, shot));
+      fs.writeFileSync(path.join(o.out, `comparison-cornell-${slug}.csv`), run.csv);
+      sections.push({q, slug, ...run});
+    }
+    const md = page(o, sections, health);
     fs.writeFileSync(path.join(o.out, 'comparison-cornell.md'), md);
     console.log(md);
   } finally {
@@ -163,41 +207,53 @@ async function main() {
   }
 }
 
-function page(o, c, health, wallS, haveShot) {
-  const m = machineFacts();
-  const vk = c.candidates.find((x) => x.machine && x.machine.vulkan_device);
+// One comparison's section: its table (by technique, backend, time), its references and chart.
+function section(o, {q, slug, c, wallS, haveShot}) {
   const rows = [...c.candidates].sort((a, b) => a.technique.localeCompare(b.technique) ||
     a.backend.localeCompare(b.backend) || (a.timings_ms?.median?.total ?? 0) - (b.timings_ms?.median?.total ?? 0));
-  const lines = [];
-  lines.push('# Measured comparison: every technique on the Cornell box', '');
-  lines.push('Produced by `node bench/bench_comparison.mjs` (see the top of that file); do not edit by hand.',
-             'What the columns mean: [`comparisons.md`](comparisons.md) and [`metrics.md`](metrics.md).', '');
-  lines.push(`**Machine**: ${m.cpu}, ${m.cores} cores, Linux ${m.kernel}; Vulkan device: ` +
-             `${vk ? vk.machine.vulkan_device : health.vulkan_available ? 'available' : 'none (CPU only)'}. ` +
-             `One CPU worker (renders use every core), the Vulkan lane beside it; Release build.`, '');
-  lines.push(`**Setup**: \`scenes/cornell_box.json\` at ${o.width}x${o.height}, spp 1; each candidate ` +
-             `renders once to warm up, then ${o.repeats} timed times (median shown); references are ` +
-             `rt_ao with ${o.refSamples} samples and each candidate's AO definition. The whole ` +
-             `comparison took ${wallS.toFixed(0)} s of wall time.`, '');
+  const measure = c.candidates.find((x) => x.metrics && x.metrics.output)?.metrics.output;
+  const lines = [`## ${q.title}`, ''];
+  const refs = c.references.map((r) => `${r.technique} ${Object.entries(r.params)
+    .filter(([k]) => !['seed', 'sampler', 'samples'].includes(k)).map(([k, v]) => `${k}=${v}`).join(' ')}`);
+  lines.push(`References (${c.references.length}, ${o.refSamples ?? q.refSamples} samples each): ` +
+             `${refs.join('; ')}. Error measure: RMSE of ${measure ? `${measure}${q.kind === 'rgb' ? ' luminance' : ''}` : 'AO'}` +
+             `${q.kind === 'patch' ? ' (the image of the patches; per-patch RMSE in the CSV)' : ''}. ` +
+             `The comparison took ${wallS.toFixed(0)} s of wall time.`, '');
   lines.push('| technique | backend | parameters | ms (median) | RMSE | bias | SSIM | PSNR dB | Pareto |',
              '| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | :---: |');
   for (const x of rows) {
     const mm = x.metrics || {};
     const acc = mm.at_reference_accuracy ? ' (at reference accuracy)' : '';
-    lines.push(`| ${x.technique} | ${x.backend} | ${paramText(x.technique, x.params) || 'defaults'} | ` +
+    const err = x.metrics ? '' : ` (${x.error || x.state})`;
+    lines.push(`| ${x.technique} | ${x.backend} | ${paramText(x.technique, x.params) || 'defaults'}${err} | ` +
                `${fmt(x.timings_ms?.median?.total, 1)} | ${fmt(mm.rmse, 4)}${acc} | ${fmt(mm.bias, 4)} | ` +
                `${fmt(mm.ssim, 3)} | ${fmt(mm.psnr, 1)} | ${x.pareto ? 'yes' : ''} |`);
   }
   lines.push('');
-  const refs = c.references.map((r) => `${r.params.falloff ?? ''} ${r.params.weighting ?? ''} ` +
-    `d=${r.params.max_distance ?? 'inf'}: mean ao_stderr ${fmt(r.ao_stderr_mean, 4)}`).join('; ');
-  lines.push(`References (${c.references.length}): ${refs}.`, '');
   if (haveShot) {
-    lines.push('The dashboard\'s Pareto chart of this comparison (time against RMSE, log axes; one ' +
-               'series per technique, CPU and Vulkan told apart by marker shape):', '',
-               '![Pareto chart of time against RMSE](img/comparison-cornell-pareto.png)', '');
+    lines.push(`The dashboard's Pareto chart of this comparison (time against RMSE, log axes; one series ` +
+               'per technique, CPU and Vulkan told apart by marker shape):', '',
+               `![Pareto chart: ${q.title}](img/comparison-cornell-${slug}.png)`, '');
   }
-  lines.push('The same table as CSV: [`comparison-cornell.csv`](comparison-cornell.csv).', '');
+  lines.push(`The same table as CSV: [\`comparison-cornell-${slug}.csv\`](comparison-cornell-${slug}.csv).`, '');
+  return lines;
+}
+
+function page(o, sections, health) {
+  const m = machineFacts();
+  const vk = sections.flatMap((x) => x.c.candidates).find((x) => x.machine && x.machine.vulkan_device);
+  const lines = [];
+  lines.push('# Measured comparisons: every technique on the Cornell box', '');
+  lines.push('Produced by `node bench/bench_comparison.mjs` (see the top of that file); do not edit by hand.',
+             'What the columns mean: [`comparisons.md`](comparisons.md) and [`metrics.md`](metrics.md). One ' +
+             'comparison per quantity the techniques estimate, each against its own reference: errors of ' +
+             'different quantities do not share a scale.', '');
+  lines.push(`**Machine**: ${m.cpu}, ${m.cores} cores, Linux ${m.kernel}; Vulkan device: ` +
+             `${vk ? vk.machine.vulkan_device : health.vulkan_available ? 'available' : 'none (CPU only)'}. ` +
+             `One CPU worker (renders use every core), the Vulkan lane beside it; Release build.`, '');
+  lines.push(`**Setup**: \`scenes/cornell_box.json\` at ${o.width}x${o.height}, spp 1; each candidate ` +
+             `renders once to warm up, then ${o.repeats} timed times (median shown).`, '');
+  for (const x of sections) lines.push(...section(o, x));
   return lines.join('\n');
 }
 
