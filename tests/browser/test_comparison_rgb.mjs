@@ -48,6 +48,15 @@ test('an RGB comparison: luminance RMSE on the chart and in the table, per-chann
       assert.equal(chart.info, chart.axis);
       assert.match(chart.aria, /RMSE of radiance luminance \d/);
       assert.equal(await page.locator('dd.error-measure').textContent(), 'RMSE of radiance luminance');
+      // Outputs of other names compared by luminance (obscurance's final against path_trace's
+      // radiance) are one measure; AO beside them is another.
+      const names = await page.evaluate(async () => {
+        const {errorName} = await import('/js/chart.js');
+        const c = (output, rgb) => ({metrics: {output, rgb: rgb ? {} : undefined}});
+        return [errorName([c('radiance', true), c('final', true)]), errorName([c(null), c('final', true)]),
+                errorName([c(null), c(null)])];
+      });
+      assert.deepEqual(names, ['RMSE of luminance (final, radiance)', 'RMSE (AO; final luminance)', 'RMSE of AO']);
       assert.match(await page.locator('dl.facts').textContent(), new RegExp(`job ${doc.references[0].job_id} \\(path_trace, succeeded`));
 
       // The table: RMSE (luminance) as the API gives it, the per-channel RMSE and relative MSE.

@@ -64,10 +64,15 @@ function logPad(vals) {
  * output (path_trace's radiance) when the metrics name one; both when a comparison mixes them.
  */
 export function errorName(cands) {
-  const names = new Set(cands.filter((c) => c.metrics).map((c) => (c.metrics.output
-    ? `${c.metrics.output}${c.metrics.rgb ? ' luminance' : ''}` : 'AO')));
-  if (names.size === 1) return `RMSE of ${[...names][0]}`;
-  return names.size ? `RMSE (${[...names].sort().join('; ')})` : 'RMSE';
+  const ms = cands.filter((c) => c.metrics).map((c) => c.metrics);
+  const rgb = [...new Set(ms.filter((m) => m.output && m.rgb).map((m) => m.output))].sort();
+  const other = [...new Set(ms.filter((m) => !(m.output && m.rgb)).map((m) => m.output || 'AO'))].sort();
+  // RGB outputs of several names (obscurance's final against path_trace's radiance) are all
+  // compared by their luminance: one measure.
+  if (!other.length && rgb.length > 1) return `RMSE of luminance (${rgb.join(', ')})`;
+  const names = [...other, ...rgb.map((r) => `${r} luminance`)];
+  if (names.length === 1) return `RMSE of ${names[0]}`;
+  return names.length ? `RMSE (${names.sort().join('; ')})` : 'RMSE';
 }
 
 /** Whether a candidate has a finite median time and a finite RMSE (the API sends null otherwise). */
