@@ -104,9 +104,7 @@ static json_t *job_json(srv_app *app, const srv_job *j) {
                       str_or_null(j->scene_name                            ? j->scene_name
                                   : j->scene && strcmp(j->scene, "inline") ? j->scene
                                                                            : NULL));
-  json_t *notes = j->notes ? json_loads(j->notes, 0, NULL) : NULL;
-  if (notes && !json_is_array(notes)) json_decref(notes), notes = NULL;
-  json_object_set_new(o, "notes", notes ? notes : json_array());
+  json_object_set_new(o, "notes", srv_json_array_of(j->notes));
   json_object_set_new(o, "technique", str_or_null(j->technique));
   json_object_set_new(
       o, "backend",

@@ -272,10 +272,8 @@ static json_t *comparison_head(int64_t id, const json_t *h) {
   json_object_set_new(o, "image",
                       json_pack("{s:O, s:O}", "width", json_object_get(h, "width"), "height",
                                 json_object_get(h, "height")));
-  const char *notes = json_string_value(json_object_get(h, "notes"));
-  json_t *nj = notes ? json_loads(notes, 0, NULL) : NULL;
-  json_object_set_new(o, "notes", json_is_array(nj) ? nj : json_array());
-  if (nj && !json_is_array(nj)) json_decref(nj);
+  json_object_set_new(o, "notes",
+                      srv_json_array_of(json_string_value(json_object_get(h, "notes"))));
   return o;
 }
 

@@ -78,6 +78,8 @@ int64_t srv_now_unix_ms(void);
 void srv_format_time(int64_t unix_ms, char *buf, size_t n);
 /* The same as a JSON string, or null for 0 (not yet). */
 json_t *srv_json_time(int64_t unix_ms);
+/* A stored JSON array (e.g. a job's notes) as a new array; NULL text or anything else: []. */
+json_t *srv_json_array_of(const char *text);
 /* Strict decimal id (1..2^63-1, no sign, no leading zero). Returns 0 on success. */
 int srv_parse_id(const char *s, size_t len, int64_t *out);
 /* rm -rf of a directory we created (no symlink following). Returns 0 when gone. */

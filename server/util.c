@@ -101,6 +101,13 @@ void srv_printable(const char *in, char *out, size_t n) {
     if ((unsigned char)*p < 0x20 || (unsigned char)*p >= 0x7f || *p == '"') *p = '?';
 }
 
+json_t *srv_json_array_of(const char *text) {
+  json_t *a = text ? json_loads(text, 0, NULL) : NULL;
+  if (json_is_array(a)) return a;
+  json_decref(a);
+  return json_array();
+}
+
 json_t *srv_json_time(int64_t unix_ms) {
   if (!unix_ms) return json_null();
   char buf[40];
