@@ -10,6 +10,16 @@ static double dist3(const float *a, const float *b) {
   return sqrt(x * x + y * y + z * z);
 }
 
+int obs_patch_mesh_publish(obs_render_ctx *ctx, const char *name, const obs_patch_mesh *pm,
+                           const float *rgb, obs_err *err) {
+  int rc = obs_patches_init(&ctx->patches[0], name, pm->count, 3, 1, err);
+  if (rc) return rc;
+  memcpy(ctx->patches[0].values, rgb, (size_t)pm->count * 3 * sizeof(float));
+  memcpy(ctx->patches[0].area, pm->area, (size_t)pm->count * sizeof(float));
+  ctx->npatches = 1;
+  return 0;
+}
+
 void obs_patch_mesh_free(obs_patch_mesh *pm) {
   if (!pm) return;
   free(pm->first);

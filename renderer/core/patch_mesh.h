@@ -9,6 +9,7 @@
 
 #include "geometry.h"
 #include "obscura/error.h"
+#include "obscura/technique.h"
 
 /* A triangle is split into at most OBS_PATCH_SPLIT_MAX^2 patches; a smaller patch_size is capped
  * there (obs_patch_mesh.capped counts the triangles it caps), so any length renders. */
@@ -52,6 +53,10 @@ static inline int64_t obs_patch_mesh_find(const obs_patch_mesh *pm, unsigned geo
   size_t t = obs_patch_mesh_tri(pm, geom, prim);
   return pm->first[t] + obs_patch_sub_index(pm->split[t], u, v);
 }
+/* Hands a map of RGB values per patch (pm->count x 3) to the render as its per-patch output
+ * `name`, with the patches' areas (both copied). */
+int obs_patch_mesh_publish(obs_render_ctx *ctx, const char *name, const obs_patch_mesh *pm,
+                           const float *rgb, obs_err *err);
 /* The triangle holding `patch` and its sub-triangle index there. */
 size_t obs_patch_mesh_owner(const obs_patch_mesh *pm, int64_t patch, int64_t *sub);
 /* Barycentric weights (u, v) of p on triangle (a, b, c), in double; (0, 0) when degenerate. */

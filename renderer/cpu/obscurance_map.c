@@ -225,7 +225,7 @@ int obs_omap_compute(const obs_rt *rt, const obs_scene *scene, const obs_obscura
   memset(&j, 0, sizeof j);
   j.rt = rt;
   j.p = *p;
-  if (j.p.method == OBS_OMAP_AUTO) j.p.method = OBS_OMAP_RAYS; /* the CPU's choice */
+  j.p.method = obs_omap_method_on(p->method, 0);
   j.f = (obs_falloff){.kind = p->falloff, .d_max = p->d_max, .tau = p->tau};
   j.threads = threads < 1 ? 1 : threads;
   obs_obscurance_env env;
@@ -331,13 +331,8 @@ int obs_obscurance_map_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   if (rc) return rc;
   double t1 = obs_now_ms();
   obs_driver_stage_add(ctx, "map", t1 - t0);
-  rc = obs_patches_init(&ctx->patches[0], "obscurance", m.pm.count, 3, 1, err);
-  if (!rc) {
-    memcpy(ctx->patches[0].values, m.w, (size_t)m.pm.count * 3 * sizeof(float));
-    memcpy(ctx->patches[0].area, m.pm.area, (size_t)m.pm.count * sizeof(float));
-    ctx->npatches = 1;
-    rc = show(ctx, &m, out, err);
-  }
+  rc = obs_patch_mesh_publish(ctx, "obscurance", &m.pm, m.w, err);
+  if (!rc) rc = show(ctx, &m, out, err);
   double t2 = obs_now_ms();
   obs_driver_stage_add(ctx, "show", t2 - t1);
   ctx->render_ms += t2 - t0;
@@ -347,7 +342,7 @@ int obs_obscurance_map_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
                         "%lld of %lld patches received no sample and show \"nothing within "
                         "d_max\" (%s)",
                         (long long)m.unsampled, (long long)m.pm.count,
-                        p->method == OBS_OMAP_RAYS || p->method == OBS_OMAP_AUTO
+                        obs_omap_method_on(p->method, 0) == OBS_OMAP_RAYS
                             ? "every ray met the back of a surface"
                             : "no line met them, or only backs of surfaces; raise directions, "
                               "lines or bundle_resolution");

@@ -8,6 +8,11 @@
  * DEPTH_PEELING on Vulkan. */
 enum { OBS_OMAP_RAYS, OBS_OMAP_GLOBAL_LINES, OBS_OMAP_BUNDLES, OBS_OMAP_DEPTH_PEELING, OBS_OMAP_AUTO };
 
+/* The estimator `method` means on a backend: auto is rays on the CPU, depth_peeling on Vulkan. */
+static inline int obs_omap_method_on(int method, int vulkan) {
+  return method != OBS_OMAP_AUTO ? method : vulkan ? OBS_OMAP_DEPTH_PEELING : OBS_OMAP_RAYS;
+}
+
 typedef struct obs_obscurance_map_params {
   int method;                 /* OBS_OMAP_* */
   double d_max;               /* scene units, > 0 */

@@ -54,14 +54,9 @@ int obs_obscurance_map_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err)
                                ctx->progress_user, &m, &ms, err);
   if (!rc) {
     obs_driver_stage_add(ctx, "map", ms);
-    rc = obs_patches_init(&ctx->patches[0], "obscurance", m.pm.count, 3, 1, err);
+    rc = obs_patch_mesh_publish(ctx, "obscurance", &m.pm, m.w, err);
   }
-  if (!rc) {
-    memcpy(ctx->patches[0].values, m.w, (size_t)m.pm.count * 3 * sizeof(float));
-    memcpy(ctx->patches[0].area, m.pm.area, (size_t)m.pm.count * sizeof(float));
-    ctx->npatches = 1;
-    rc = show(ctx, &m, out, err);
-  }
+  if (!rc) rc = show(ctx, &m, out, err);
   ctx->render_ms += obs_now_ms() - t1;
   ctx->rays = 0;
   if (!rc && validation && obs_vk_validation_messages(vk))
