@@ -4,10 +4,28 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "geometry.h"
+#include "obscurance.h"
 #include "patch_mesh.h"
 #include "testutil.h"
+
+obs_obscurance_map_params obs_test_omap_defaults(int method) {
+  obs_obscurance_map_params p;
+  memset(&p, 0, sizeof p);
+  p.method = method;
+  p.d_max = 1;
+  p.falloff = OBS_FALLOFF_SQRT;
+  p.tau = 1;
+  p.color_bleeding = 1;
+  p.samples = 64;
+  p.directions = 64;
+  p.bundle_resolution = 64;
+  p.patch_size = INFINITY;
+  p.seed = 1;
+  return p;
+}
 
 const char *obs_test_omap_plane_doc(double refl) {
   return obs_test_fmt(

@@ -3,6 +3,12 @@
 #ifndef OBS_OMAP_SCENES_H
 #define OBS_OMAP_SCENES_H
 
+#include "obscurance_map.h"
+
+/* The parameters the tests start from: `method`, d_max 1, sqrt falloff, colour bleeding, 64
+ * samples, 64 directions of 64 x 64 lines, one patch per triangle, seed 1. */
+obs_obscurance_map_params obs_test_omap_defaults(int method);
+
 /* An open 4 x 4 quad at y = 0 facing up, reflectivity (refl, refl / 2, refl / 4): nothing within
  * any d_max. The text lives until the next obs_test_fmt call. */
 const char *obs_test_omap_plane_doc(double refl);

@@ -15,22 +15,6 @@
 
 static const char *const method_names[3] = {"rays", "global_lines", "bundles"};
 
-static obs_obscurance_map_params defaults(int method) {
-  obs_obscurance_map_params p;
-  memset(&p, 0, sizeof p);
-  p.method = method;
-  p.d_max = 1;
-  p.falloff = OBS_FALLOFF_SQRT;
-  p.tau = 1;
-  p.color_bleeding = 1;
-  p.samples = 64;
-  p.directions = 64;
-  p.bundle_resolution = 64;
-  p.patch_size = INFINITY;
-  p.seed = 1;
-  return p;
-}
-
 /* The map of `p` on the scene `doc` with `threads` threads (asserting success). */
 static void map_of(const char *doc, const obs_obscurance_map_params *p, int threads, obs_omap *m) {
   obs_scene sc;
@@ -56,7 +40,7 @@ static void test_open_plane(void **state) {
   (void)state;
   for (int method = 0; method < 3; method++)
     for (int bleed = 0; bleed < 2; bleed++) {
-      obs_obscurance_map_params p = defaults(method);
+      obs_obscurance_map_params p = obs_test_omap_defaults(method);
       p.color_bleeding = bleed;
       p.patch_size = 0.5;
       obs_omap m;
@@ -78,7 +62,7 @@ static void test_open_plane(void **state) {
 
 static void check_plates(int method, int bleed) {
   const double h = 0.5, L = 2.5, dmax = 1.0;
-  obs_obscurance_map_params p = defaults(method);
+  obs_obscurance_map_params p = obs_test_omap_defaults(method);
   p.color_bleeding = bleed;
   p.patch_size = 0.25;
   p.samples = 256;
@@ -117,7 +101,7 @@ static void test_cornell_agree(void **state) {
   char *doc = obs_test_omap_cornell_doc();
   obs_omap m[3];
   for (int method = 0; method < 3; method++) {
-    obs_obscurance_map_params p = defaults(method);
+    obs_obscurance_map_params p = obs_test_omap_defaults(method);
     p.d_max = 200;
     p.patch_size = 100;
     p.samples = 256;
@@ -228,7 +212,7 @@ static void test_degenerate(void **state) {
       "\"material\":{\"reflectivity\":[0.5,0.5,0.5]}}],"
       "\"technique\":{\"name\":\"obscurance_map\"}}";
   for (int method = 0; method < 3; method++) {
-    obs_obscurance_map_params p = defaults(method);
+    obs_obscurance_map_params p = obs_test_omap_defaults(method);
     p.patch_size = 0.5;
     obs_omap m;
     map_of(doc, &p, 2, &m);
@@ -263,7 +247,7 @@ static void test_scale_invariance(void **state) {
   (void)state;
   for (int method = 0; method < 3; method++) {
     obs_omap ref;
-    obs_obscurance_map_params p = defaults(method);
+    obs_obscurance_map_params p = obs_test_omap_defaults(method);
     p.patch_size = 0.5;
     p.d_max = 1;
     map_of(room_doc(1, 0.6), &p, 2, &ref);
@@ -299,7 +283,7 @@ static void test_scale_invariance(void **state) {
 static void test_dmax_and_reflectivity_ends(void **state) {
   (void)state;
   for (int method = 0; method < 3; method++) {
-    obs_obscurance_map_params p = defaults(method);
+    obs_obscurance_map_params p = obs_test_omap_defaults(method);
     p.patch_size = 0.5;
     p.color_bleeding = 0;
     obs_omap m;
@@ -317,7 +301,7 @@ static void test_dmax_and_reflectivity_ends(void **state) {
     map_of(room_doc(1, 0.5), &p, 2, &m);
     obs_omap_free(&m);
     /* Reflectivity 0 with bleeding: every sample is 0 (R_ave = 0 too). */
-    p = defaults(method);
+    p = obs_test_omap_defaults(method);
     p.patch_size = 0.5;
     map_of(room_doc(1, 0.0), &p, 2, &m);
     for (int64_t i = 0; i < 3 * m.pm.count; i++) assert_true(m.w[i] == 0.0f);
@@ -330,7 +314,7 @@ static void test_dmax_and_reflectivity_ends(void **state) {
 static void test_seed_and_threads(void **state) {
   (void)state;
   for (int method = 0; method < 3; method++) {
-    obs_obscurance_map_params p = defaults(method);
+    obs_obscurance_map_params p = obs_test_omap_defaults(method);
     p.patch_size = 0.5;
     p.samples = 16;
     p.directions = 16;

@@ -13,19 +13,11 @@
 #include "raytrace.h"
 #include "vktest.h"
 
+/* The shared test parameters with 32 directions: a rendered direction costs more than a traced
+ * bundle. */
 static obs_obscurance_map_params defaults(int method) {
-  obs_obscurance_map_params p;
-  memset(&p, 0, sizeof p);
-  p.method = method;
-  p.d_max = 1;
-  p.falloff = OBS_FALLOFF_SQRT;
-  p.tau = 1;
-  p.color_bleeding = 1;
-  p.samples = 64;
+  obs_obscurance_map_params p = obs_test_omap_defaults(method);
   p.directions = 32;
-  p.bundle_resolution = 64;
-  p.patch_size = INFINITY;
-  p.seed = 1;
   return p;
 }
 
