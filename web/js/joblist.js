@@ -141,25 +141,25 @@ function syncChecks(s) {
 async function bulk(s, what) {
   const jobs = s.shown.filter((j) => s.selected.has(j.id));
   const skipped = [];
-  let todo;
+  let targets;
   if (what === 'cancel') {
-    todo = jobs.filter((j) => ACTIVE.has(j.state));
+    targets = jobs.filter((j) => ACTIVE.has(j.state));
   } else {
-    todo = jobs.filter((j) => !ACTIVE.has(j.state) && !j.comparison_id);
+    targets = jobs.filter((j) => !ACTIVE.has(j.state) && !j.comparison_id);
     for (const j of jobs) {
       if (ACTIVE.has(j.state)) skipped.push(`job ${j.id} is ${j.state}`);
       else if (j.comparison_id) skipped.push(`job ${j.id} goes with comparison ${j.comparison_id}`);
     }
   }
-  if (!todo.length) {
+  if (!targets.length) {
     alertLine(`Nothing to ${what}${skipped.length ? `: ${skipped.join('; ')}` : ''}.`);
     return;
   }
-  const ids = todo.map((j) => j.id).join(', ');
-  if (what === 'delete' && !await confirmDialog(`Delete ${todo.length} job${todo.length === 1 ? '' : 's'} (${ids}) and ` +
+  const ids = targets.map((j) => j.id).join(', ');
+  if (what === 'delete' && !await confirmDialog(`Delete ${targets.length} job${targets.length === 1 ? '' : 's'} (${ids}) and ` +
       'their outputs? This cannot be undone.', 'Delete')) return;
   const failed = [];
-  for (const j of todo) {
+  for (const j of targets) {
     try {
       await api(what === 'cancel' ? j.links.cancel : j.links.self, {method: what === 'cancel' ? 'POST' : 'DELETE'});
       s.selected.delete(j.id);
