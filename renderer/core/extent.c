@@ -23,13 +23,15 @@ static void grow(obs_extent *ex, const double p[3]) {
  * the loader measured when it imported the file, so nothing is imported again). */
 static void grow_object(obs_extent *ex, const obs_scene *sc, size_t oi) {
   const obs_object *o = &sc->objects[oi];
-  double pts[8][3], r;
-  int n = obs_geometry_object_points(o, NULL, pts, &r);
-  for (int i = 0; i < n; i++)
-    for (int s = -1; s <= 1; s += 2) {
-      double q[3] = {pts[i][0] + s * r, pts[i][1] + s * r, pts[i][2] + s * r};
-      grow(ex, q);
-    }
+  for (size_t f = 0; f <= o->nmotion; f++) { /* a moving object: where it is in every frame */
+    double pts[8][3], r;
+    int n = obs_geometry_object_points(o, (int)f, NULL, pts, &r);
+    for (int i = 0; i < n; i++)
+      for (int s = -1; s <= 1; s += 2) {
+        double q[3] = {pts[i][0] + s * r, pts[i][1] + s * r, pts[i][2] + s * r};
+        grow(ex, q);
+      }
+  }
 }
 
 int obs_scene_extent(const obs_scene *sc, obs_extent *ex, obs_err *err) {

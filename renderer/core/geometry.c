@@ -115,6 +115,8 @@ void obs_geometry_mesh_free(obs_mesh *m) {
   free(m->pos);
   free(m->idx);
   free(m->nrm);
+  free(m->obj_pos);
+  free(m->obj_nrm);
   memset(m, 0, sizeof *m);
 }
 
@@ -135,6 +137,35 @@ static void mesh_transform(obs_mesh *m, const obs_transform *t, const double ori
       for (int k = 0; k < 3; k++) m->nrm[3 * i + k] = (float)q[k];
     }
   }
+}
+
+void obs_geometry_mesh_place(obs_mesh *m, const obs_transform *t, const double origin[3]) {
+  xform x;
+  xform_from(t, &x);
+  for (size_t i = 0; i < m->nverts; i++) {
+    const float *src = m->obj_pos + 3 * i;
+    double p[3] = {src[0], src[1], src[2]}, o[3];
+    xform_point(&x, p, o);
+    for (int k = 0; k < 3; k++) m->pos[3 * i + k] = (float)(o[k] - origin[k]);
+    if (m->nrm && m->obj_nrm) {
+      const float *sn = m->obj_nrm + 3 * i;
+      double q[3];
+      for (int k = 0; k < 3; k++) q[k] = x.n[k][0] * sn[0] + x.n[k][1] * sn[1] + x.n[k][2] * sn[2];
+      if (obs_normalize3d(q)) q[0] = q[1] = q[2] = 0;
+      for (int k = 0; k < 3; k++) m->nrm[3 * i + k] = (float)q[k];
+    }
+  }
+}
+
+/* Keeps a just-built object-space mesh as the moving object's own (obj_pos, obj_nrm). */
+static int keep_object_space(obs_mesh *m) {
+  size_t bytes = m->nverts * 3 * sizeof(float);
+  m->obj_pos = malloc(bytes ? bytes : 1);
+  m->obj_nrm = m->nrm ? malloc(bytes ? bytes : 1) : NULL;
+  if (!m->obj_pos || (m->nrm && !m->obj_nrm)) return OBS_ENOMEM;
+  memcpy(m->obj_pos, m->pos, bytes);
+  if (m->nrm) memcpy(m->obj_nrm, m->nrm, bytes);
+  return 0;
 }
 
 /* Shapes given by world-space vertices (quads, triangles, boxes) are transformed and shifted in
@@ -369,8 +400,9 @@ int obs_geometry_import_mesh_assimp(const char *path, const char *root, obs_mesh
   return 0;
 }
 
-int obs_geometry_object_points(const obs_object *o, const double mesh_bounds[2][3],
+int obs_geometry_object_points(const obs_object *o, int frame, const double mesh_bounds[2][3],
                                double pts[8][3], double *radius) {
+  const obs_transform *t = obs_object_transform_at(o, frame);
   double local[8][3];
   int n;
   if (mesh_bounds) { /* a built mesh's own box, in place of what the document promised */
@@ -381,23 +413,25 @@ int obs_geometry_object_points(const obs_object *o, const double mesh_bounds[2][
   } else {
     n = obs_shape_kind_of(o->shape.type)->points(&o->shape, local, radius);
   }
-  *radius *= fabs(o->transform.scale.x);
+  *radius *= fabs(t->scale.x);
   xform x;
-  xform_from(&o->transform, &x);
+  xform_from(t, &x);
   for (int i = 0; i < n; i++) xform_point(&x, local[i], pts[i]);
   return n;
 }
 
 double obs_geometry_object_reach(const obs_object *o, const double mesh_bounds[2][3],
                                  const double origin[3]) {
-  double pts[8][3], grow;
-  int n = obs_geometry_object_points(o, mesh_bounds, pts, &grow);
   double reach = 0;
-  for (int i = 0; i < n; i++) {
-    for (int k = 0; k < 3; k++) {
-      double a = fabs(pts[i][k] - origin[k]) + grow;
-      if (isnan(a)) return NAN; /* refused as beyond the range, whatever comes after */
-      if (a > reach) reach = a;
+  for (size_t f = 0; f <= o->nmotion; f++) {
+    double pts[8][3], grow;
+    int n = obs_geometry_object_points(o, (int)f, mesh_bounds, pts, &grow);
+    for (int i = 0; i < n; i++) {
+      for (int k = 0; k < 3; k++) {
+        double a = fabs(pts[i][k] - origin[k]) + grow;
+        if (isnan(a)) return NAN; /* refused as beyond the range, whatever comes after */
+        if (a > reach) reach = a;
+      }
     }
   }
   return reach;
@@ -420,15 +454,23 @@ static int fail_oom(const obs_scene *sc, size_t oi, int rc, obs_err *err) {
 
 static int build_object(const obs_scene *sc, size_t oi, const double origin[3], obs_mesh *m,
                         obs_err *err) {
+  static const double zero[3] = {0, 0, 0};
+  static const obs_transform identity = {{1, 1, 1}, {0, 0, 0}, {0, 0, 0}, 0};
   const obs_object *o = &sc->objects[oi];
   const obs_shape_kind *k = obs_shape_kind_of(o->shape.type);
+  /* A moving object is built in object space and then placed (obs_geometry_mesh_place). */
+  int moves = o->nmotion > 0;
   int rc = obs_geometry_check_reach(sc, oi, NULL, origin, sc->name, err);
   if (rc) return rc;
   if (k->vertices) {
     obs_vec3 v[8];
     const uint32_t *tri;
     size_t nt, nv = k->vertices(&o->shape, v, &tri, &nt);
-    return fail_oom(sc, oi, mesh_from_vertices(v, nv, tri, nt, &o->transform, origin, m), err);
+    rc = mesh_from_vertices(v, nv, tri, nt, moves ? &identity : &o->transform,
+                            moves ? zero : origin, m);
+    if (!rc && moves && (rc = keep_object_space(m))) obs_geometry_mesh_free(m);
+    if (!rc && moves) obs_geometry_mesh_place(m, &o->transform, origin);
+    return fail_oom(sc, oi, rc, err);
   }
   char where[256];
   snprintf(where, sizeof where, "%s: /objects/%zu/shape%s", sc->name, oi,
@@ -441,7 +483,15 @@ static int build_object(const obs_scene *sc, size_t oi, const double origin[3], 
     obs_geometry_mesh_free(m);
     return rc;
   }
-  mesh_transform(m, &o->transform, origin);
+  if (moves) {
+    if ((rc = keep_object_space(m))) {
+      obs_geometry_mesh_free(m);
+      return fail_oom(sc, oi, rc, err);
+    }
+    obs_geometry_mesh_place(m, &o->transform, origin);
+  } else {
+    mesh_transform(m, &o->transform, origin);
+  }
   return 0;
 }
 
@@ -451,6 +501,25 @@ static void grow_bounds(obs_geometry *g, const double p[3], int *first) {
     if (*first || p[k] > g->bounds[1][k]) g->bounds[1][k] = p[k];
   }
   *first = 0;
+}
+
+/* A moving mesh's later frames, by the corners of its object-space box: the bounds then hold
+ * every frame's geometry. */
+static void grow_motion(obs_geometry *g, const obs_object *o, const obs_mesh *m,
+                        const double origin[3], int *first) {
+  if (!m->obj_pos) return;
+  double ob[2][3];
+  obs_mesh object_space = *m;
+  object_space.pos = m->obj_pos;
+  obs_geometry_mesh_bounds(&object_space, ob);
+  for (size_t f = 1; f <= o->nmotion; f++) {
+    double pts[8][3], r;
+    int n = obs_geometry_object_points(o, (int)f, ob, pts, &r);
+    for (int i = 0; i < n; i++) {
+      double p[3] = {pts[i][0] - origin[0], pts[i][1] - origin[1], pts[i][2] - origin[2]};
+      grow_bounds(g, p, first);
+    }
+  }
 }
 
 int obs_geometry_build(const obs_scene *sc, obs_geometry *g, obs_err *err) {
@@ -515,6 +584,7 @@ int obs_geometry_build_at(const obs_scene *sc, const double origin[3], obs_geome
       double p[3] = {m->pos[3 * v], m->pos[3 * v + 1], m->pos[3 * v + 2]};
       grow_bounds(g, p, &first);
     }
+    grow_motion(g, o, m, origin, &first);
   }
   for (int k = 0; k < 3; k++) {
     double a = fmax(fabs(g->bounds[0][k]), fabs(g->bounds[1][k]));

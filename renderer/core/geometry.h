@@ -13,6 +13,10 @@ typedef struct obs_mesh {
   uint32_t *idx;   /* 3 indices per triangle; owned */
   size_t nverts, ntris;
   size_t object;   /* index into scene->objects */
+  /* A moving object's vertices (and normals, when nrm is set) in object space, rounded to float
+   * once, from which obs_geometry_mesh_place puts it where each frame wants it; NULL for the
+   * objects that stay put. Owned. */
+  float *obj_pos, *obj_nrm;
 } obs_mesh;
 
 typedef struct obs_sphere {
@@ -33,7 +37,8 @@ typedef struct obs_geometry {
   double origin[3];   /* world position of this geometry's (0,0,0): coordinates are world - origin */
 } obs_geometry;
 
-/* Builds world-space geometry for every object (importing mesh files through assimp). */
+/* Builds world-space geometry for every object (importing mesh files through assimp), moving
+ * objects in frame 0; `bounds` and `extent` cover every frame. */
 int obs_geometry_build(const obs_scene *scene, obs_geometry *geo, obs_err *err);
 /* The same in a frame shifted to `origin` (e.g. the camera): transforms and the shift are applied
  * in double before rounding to float, so geometry far from the world origin but near the camera
@@ -60,6 +65,10 @@ typedef int (*obs_mesh_importer)(void *user, const char *path, const char *root,
  * synchronised: call it before any thread imports (a server, at start) and after they stop. */
 void obs_geometry_set_importer(obs_mesh_importer fn, void *user);
 void obs_geometry_mesh_free(obs_mesh *m);
+/* Places moving mesh `m` (obj_pos set) by `t` into the frame at `origin`: pos (and nrm) from
+ * obj_pos (and obj_nrm), each vertex through the transform and the shift in double, rounded once.
+ * Frame 0 of a geometry build is placed so too: a frame's vertices depend only on its transform. */
+void obs_geometry_mesh_place(obs_mesh *m, const obs_transform *t, const double origin[3]);
 /* The area of the triangle (a, b, c), in double. */
 double obs_geometry_tri_area(const float a[3], const float b[3], const float c[3]);
 /* The area of m's triangle t. */
@@ -70,16 +79,16 @@ void obs_geometry_mesh_bounds(const obs_mesh *m, double bounds[2][3]);
 /* The ray tracer's range: Embree rejects coordinates beyond about 1.8e19, and float products of
  * coordinates must stay finite. */
 #define OBS_GEOMETRY_MAX 1e18
-/* The largest |coordinate| relative to `origin` that object `o` reaches once transformed, from
- * obs_geometry_object_points. Non-finite when the transform overflows. */
+/* The largest |coordinate| relative to `origin` that object `o` reaches once transformed, in any
+ * of its frames, from obs_geometry_object_points. Non-finite when the transform overflows. */
 double obs_geometry_object_reach(const obs_object *o, const double mesh_bounds[2][3],
                                  const double origin[3]);
-/* The world-space points (in double, through the object's transform) that bound object `o`: its
+/* The world-space points (in double, through its transform in `frame`) that bound object `o`: its
  * shape kind's object-space points (core/shapes.c: the vertices of quads and triangles, the
  * corners of a box, of a displaced sphere's bound or of a mesh's imported box, a sphere's centre)
  * with *radius to grow them by (a sphere's radius, 0 for the others); with `mesh_bounds`, the
  * corners of that object-space box instead (a mesh just built). Returns how many (at most 8). */
-int obs_geometry_object_points(const obs_object *o, const double mesh_bounds[2][3],
+int obs_geometry_object_points(const obs_object *o, int frame, const double mesh_bounds[2][3],
                                double pts[8][3], double *radius);
 /* Refuses object `oi` of `sc` when its reach from `origin` (the camera) exceeds OBS_GEOMETRY_MAX,
  * with a message "<doc>: /objects/<oi>: ..."; the check scene validation and every geometry build

@@ -544,7 +544,7 @@ int obs_metrics_compare_rgb(const obs_image *candidate, const obs_image *referen
 }
 
 void obs_metrics_patch_stats(const obs_patches *p, obs_stats *out) {
-  size_t n = p && p->values ? (size_t)p->count * (size_t)p->components : 0;
+  size_t n = p && p->values ? obs_patches_values(p) : 0;
   *out = stats_of(n ? p->values : NULL, NULL, n);
 }
 
@@ -552,23 +552,28 @@ int obs_metrics_patch_rmse(const obs_patches *candidate, const obs_patches *refe
                            double *rmse, obs_err *err) {
   if (!candidate || !reference || !candidate->values || !reference->values || !rmse)
     return obs_err_set(err, OBS_EINVAL, "metrics: patch rmse needs two patch sets and an output");
-  if (candidate->count != reference->count || candidate->components != reference->components)
+  int cf = candidate->frames > 1 ? candidate->frames : 1;
+  int rf = reference->frames > 1 ? reference->frames : 1;
+  if (candidate->count != reference->count || candidate->components != reference->components ||
+      cf != rf)
     return obs_err_set(err, OBS_EINVAL,
-                       "metrics: patch sets differ (%lld x %d vs %lld x %d values)",
-                       (long long)candidate->count, candidate->components,
+                       "metrics: patch sets differ (%d x %lld x %d vs %d x %lld x %d values)", cf,
+                       (long long)candidate->count, candidate->components, rf,
                        (long long)reference->count, reference->components);
   const float *area = reference->area ? reference->area : candidate->area;
   metrics_acc acc = {0, 0}, total = {0, 0};
   int nan = 0, inf = 0, k = reference->components;
-  for (int64_t i = 0; i < reference->count; i++) {
-    double a = area ? area[i] : 1.0;
-    if (!(a > 0.0)) continue;
-    metrics_add(&total, a);
-    for (int c = 0; c < k; c++) {
-      size_t j = (size_t)i * (size_t)k + (size_t)c;
-      metrics_sq(&acc, candidate->values[j], reference->values[j], a, &nan, &inf);
+  /* Every frame counts alike: the patches' areas are frame 0's in all of them. */
+  for (int f = 0; f < rf; f++)
+    for (int64_t i = 0; i < reference->count; i++) {
+      double a = area ? area[i] : 1.0;
+      if (!(a > 0.0)) continue;
+      metrics_add(&total, a);
+      for (int c = 0; c < k; c++) {
+        size_t j = ((size_t)f * (size_t)reference->count + (size_t)i) * (size_t)k + (size_t)c;
+        metrics_sq(&acc, candidate->values[j], reference->values[j], a, &nan, &inf);
+      }
     }
-  }
   *rmse = metrics_root(&acc, metrics_total(&total) * k, nan, inf);
   return OBS_OK;
 }

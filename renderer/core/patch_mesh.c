@@ -12,9 +12,14 @@ static double dist3(const float *a, const float *b) {
 
 int obs_patch_mesh_publish(obs_render_ctx *ctx, const char *name, const obs_patch_mesh *pm,
                            const float *rgb, obs_err *err) {
-  int rc = obs_patches_init(&ctx->patches[0], name, pm->count, 3, 1, err);
+  return obs_patch_mesh_publish_frames(ctx, name, pm, 1, rgb, err);
+}
+
+int obs_patch_mesh_publish_frames(obs_render_ctx *ctx, const char *name, const obs_patch_mesh *pm,
+                                  int frames, const float *rgb, obs_err *err) {
+  int rc = obs_patches_init_frames(&ctx->patches[0], name, frames, pm->count, 3, 1, err);
   if (rc) return rc;
-  memcpy(ctx->patches[0].values, rgb, (size_t)pm->count * 3 * sizeof(float));
+  memcpy(ctx->patches[0].values, rgb, obs_patches_values(&ctx->patches[0]) * sizeof(float));
   memcpy(ctx->patches[0].area, pm->area, (size_t)pm->count * sizeof(float));
   ctx->npatches = 1;
   return 0;

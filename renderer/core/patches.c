@@ -16,15 +16,21 @@
 
 int obs_patches_init(obs_patches *p, const char *name, int64_t count, int components, int with_area,
                      obs_err *err) {
+  return obs_patches_init_frames(p, name, 1, count, components, with_area, err);
+}
+
+int obs_patches_init_frames(obs_patches *p, const char *name, int frames, int64_t count,
+                            int components, int with_area, obs_err *err) {
   memset(p, 0, sizeof p[0]);
   if (!name || strlen(name) >= sizeof p->name || count < 0 || components < 1 ||
-      components > OBS_PATCHES_MAX_COMPONENTS)
-    return obs_err_set(err, OBS_EINVAL, "patches: bad name, count or components");
+      components > OBS_PATCHES_MAX_COMPONENTS || frames < 1 || frames > OBS_PATCHES_MAX_FRAMES)
+    return obs_err_set(err, OBS_EINVAL, "patches: bad name, count, components or frames");
   snprintf(p->name, sizeof p->name, "%s", name);
   p->count = count;
   p->components = components;
+  p->frames = frames;
   size_t n = count ? (size_t)count : 1;
-  p->values = calloc(n * (size_t)components, sizeof(float));
+  p->values = calloc(n * (size_t)components * (size_t)frames, sizeof(float));
   if (with_area) p->area = calloc(n, sizeof(float));
   if (!p->values || (with_area && !p->area)) {
     obs_patches_free(p);
@@ -90,6 +96,7 @@ static char *header_text(const obs_patches *p) {
   json_t *h = json_pack("{s:s, s:i, s:s, s:I, s:i, s:o, s:b, s:s}", "format", PATCHES_FORMAT,
                         "version", 1, "name", p->name, "count", (json_int_t)p->count, "components",
                         p->components, "channels", ch, "area", p->area != NULL, "dtype", "<f4");
+  if (p->frames > 1) json_object_set_new(h, "frames", json_integer(p->frames));
   char *s = json_dumps(h, JSON_COMPACT | JSON_PRESERVE_ORDER);
   json_decref(h);
   return s;
@@ -109,7 +116,7 @@ int obs_patches_write(const obs_patches *p, const char *path, obs_err *err) {
   int bad = fputs(h, fp) < 0;
   for (size_t i = 0; i < pad && !bad; i++) bad = fputc(' ', fp) == EOF;
   bad = bad || fputc('\n', fp) == EOF;
-  bad = bad || write_floats(fp, p->values, (size_t)p->count * (size_t)p->components);
+  bad = bad || write_floats(fp, p->values, obs_patches_values(p));
   if (p->area) bad = bad || write_floats(fp, p->area, (size_t)p->count);
   bad = fclose(fp) || bad;
   free(h);
@@ -133,13 +140,20 @@ int obs_patches_read(obs_patches *p, const char *path, obs_err *err) {
   const char *fmt = json_string_value(json_object_get(h, "format"));
   const char *name = json_string_value(json_object_get(h, "name"));
   json_t *count = json_object_get(h, "count"), *comp = json_object_get(h, "components");
+  json_t *frames = json_object_get(h, "frames");
   if (!rc && (!fmt || strcmp(fmt, PATCHES_FORMAT) || !name || !json_is_integer(count) ||
-              !json_is_integer(comp) || json_integer_value(json_object_get(h, "version")) != 1))
+              !json_is_integer(comp) || (frames && !json_is_integer(frames)) ||
+              json_integer_value(json_object_get(h, "version")) != 1))
     rc = obs_err_set(err, OBS_EINVAL, "%s: not an obscura-patches version 1 header", path);
+  json_int_t nf = frames ? json_integer_value(frames) : 1;
+  if (!rc && (nf < 1 || nf > OBS_PATCHES_MAX_FRAMES))
+    rc = obs_err_set(err, OBS_EINVAL, "%s: frames must be 1 to %d (got %lld)", path,
+                     OBS_PATCHES_MAX_FRAMES, (long long)nf);
   if (!rc)
-    rc = obs_patches_init(p, name, json_integer_value(count), (int)json_integer_value(comp),
-                          json_is_true(json_object_get(h, "area")), err);
-  if (!rc && (read_floats(fp, p->values, (size_t)p->count * (size_t)p->components) ||
+    rc = obs_patches_init_frames(p, name, (int)nf, json_integer_value(count),
+                                 (int)json_integer_value(comp),
+                                 json_is_true(json_object_get(h, "area")), err);
+  if (!rc && (read_floats(fp, p->values, obs_patches_values(p)) ||
               (p->area && read_floats(fp, p->area, (size_t)p->count)) || fgetc(fp) != EOF))
     rc = obs_err_set(err, OBS_EINVAL, "%s: data does not match the header's size", path);
   if (rc) obs_patches_free(p);
@@ -174,10 +188,10 @@ int obs_patches_render(const obs_patches *p, const int32_t *ids, obs_image *out,
     if (!(plane[c] = obs_image_channel(out, channels[c])))
       return obs_err_set(err, OBS_ENOTFOUND, "patches: image has no channel \"%s\"", channels[c]);
   size_t n = (size_t)out->width * (size_t)out->height;
+  const float *last = p->values + obs_patches_values(p) - (size_t)p->count * (size_t)p->components;
   for (size_t i = 0; i < n; i++) {
     int32_t id = ids[i];
-    const float *v =
-        id >= 0 && id < p->count ? p->values + (size_t)id * (size_t)p->components : NULL;
+    const float *v = id >= 0 && id < p->count ? last + (size_t)id * (size_t)p->components : NULL;
     for (int c = 0; c < p->components; c++) plane[c][i] = v ? v[c] : 0.0f;
   }
   return 0;

@@ -84,7 +84,10 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
   if (nb) nb->release(built);
   free(bound);
   res->npatches = ctx.npatches;
+  res->frames = ctx.frames;
   if (rc) {
+    json_decref(res->frames);
+    res->frames = NULL;
     for (int i = 0; i < res->npatches && i < OBS_MAX_PATCH_OUTPUTS; i++)
       obs_patches_free(&res->patches[i]);
     res->npatches = 0;
@@ -130,6 +133,7 @@ void obs_result_free(obs_result *res) {
   obs_image_free(&res->image);
   for (int i = 0; i < res->npatches && i < OBS_MAX_PATCH_OUTPUTS; i++)
     obs_patches_free(&res->patches[i]);
+  json_decref(res->frames);
   memset(res, 0, sizeof *res);
 }
 
@@ -230,6 +234,7 @@ json_t *obs_result_summary_json(const obs_result *r, const obs_scene *sc) {
   json_t *w = json_array();
   for (int i = 0; i < r->nwarnings; i++) json_array_append_new(w, json_string(r->warnings[i]));
   json_object_set_new(o, "warnings", w);
+  if (r->frames) json_object_set_new(o, "frames", json_deep_copy(r->frames));
   return o;
 }
 

@@ -109,17 +109,8 @@ static void load_shape(obs_jpath *p, const json_t *obj, const char *base_dir, ob
   obs_jpath_pop(p, m);
 }
 
-static void load_transform(obs_jpath *p, const json_t *obj, obs_object *o) {
-  obs_transform *t = &o->transform;
-  double one[3] = {1, 1, 1}, zero[3] = {0, 0, 0};
-  set_vec(&t->scale, one);
-  set_vec(&t->rotate, zero);
-  set_vec(&t->translate, zero);
-  int absent = 0;
-  json_t *tr = obs_json_get_object(p, obj, "transform", 0, &absent);
-  if (!tr) return;
-  t->present = 1;
-  size_t m = obs_jpath_push_key(p, "transform");
+/* One transform document (at the path's top) into `t`; `analytic`: the object stays a sphere. */
+static void parse_transform(obs_jpath *p, const json_t *tr, int analytic, obs_transform *t) {
   static const char *const k[] = {"scale", "rotate", "translate", NULL};
   obs_json_check_keys(p, tr, k);
   double s[3] = {1, 1, 1}, r[3] = {0, 0, 0}, x[3] = {0, 0, 0};
@@ -129,15 +120,86 @@ static void load_transform(obs_jpath *p, const json_t *obj, obs_object *o) {
   set_vec(&t->scale, s);
   set_vec(&t->rotate, r);
   set_vec(&t->translate, x);
+  t->present = 1;
   /* Spheres stay analytic, so only a uniform scale keeps them spheres. */
-  if (!bad && obs_shape_is_analytic(&o->shape) &&
-      !(fabs(s[0]) == fabs(s[1]) && fabs(s[1]) == fabs(s[2]))) {
+  if (!bad && analytic && !(fabs(s[0]) == fabs(s[1]) && fabs(s[1]) == fabs(s[2]))) {
     size_t mk = obs_jpath_push_key(p, "scale");
     obs_jpath_fail(p, "must be uniform for a sphere, which stays analytic (got %s)",
                    obs_json_brief(json_object_get(tr, "scale")));
     obs_jpath_pop(p, mk);
   }
+}
+
+static void load_transform(obs_jpath *p, const json_t *obj, obs_object *o) {
+  obs_transform *t = &o->transform;
+  double one[3] = {1, 1, 1}, zero[3] = {0, 0, 0};
+  set_vec(&t->scale, one);
+  set_vec(&t->rotate, zero);
+  set_vec(&t->translate, zero);
+  int absent = 0;
+  json_t *tr = obs_json_get_object(p, obj, "transform", 0, &absent);
+  if (!tr) return;
+  size_t m = obs_jpath_push_key(p, "transform");
+  parse_transform(p, tr, obs_shape_is_analytic(&o->shape), t);
   obs_jpath_pop(p, m);
+}
+
+/* `motion`: the object's transform in each later frame. Rigid, so that areas, patches and the
+ * scene's average reflectivity stay those of frame 0; analytic spheres do not move. */
+static void load_motion(obs_jpath *p, const json_t *obj, obs_object *o) {
+  int absent = 0;
+  json_t *arr = obs_json_get_array(p, obj, "motion", 0, &absent);
+  if (!arr) return;
+  size_t m = obs_jpath_push_key(p, "motion");
+  size_t n = json_array_size(arr);
+  if (n < 1 || n > OBS_MOTION_MAX) {
+    obs_jpath_fail(p, "must list 1 to %d transforms, one per frame after the first (got %zu)",
+                   OBS_MOTION_MAX, n);
+  } else if (obs_shape_is_analytic(&o->shape)) {
+    obs_jpath_fail(p, "an analytic sphere cannot move (use a displaced_sphere or a mesh)");
+  } else if (!(o->motion = calloc(n, sizeof *o->motion))) {
+    obs_err_set(p->err, OBS_ENOMEM, "%s: out of memory", p->doc);
+  } else {
+    o->nmotion = n;
+    for (size_t i = 0; i < n; i++) {
+      size_t mi = obs_jpath_push_index(p, i);
+      json_t *tr = json_array_get(arr, i);
+      if (!json_is_object(tr)) {
+        obs_jpath_fail(p, "must be a transform object (got %s)", obs_json_brief(tr));
+      } else {
+        parse_transform(p, tr, 0, &o->motion[i]);
+        const obs_vec3 *a = &o->motion[i].scale, *b = &o->transform.scale;
+        if (a->x != b->x || a->y != b->y || a->z != b->z) {
+          size_t mk = obs_jpath_push_key(p, "scale");
+          obs_jpath_fail(p, "must equal the object's transform scale [%g, %g, %g]: motion is "
+                         "rigid (got %s)", b->x, b->y, b->z,
+                         obs_json_brief(json_object_get(tr, "scale")));
+          obs_jpath_pop(p, mk);
+        }
+      }
+      obs_jpath_pop(p, mi);
+    }
+  }
+  obs_jpath_pop(p, m);
+}
+
+/* Every moving object moves through the same frames. */
+static void check_frames(obs_jpath *p, obs_scene *sc) {
+  sc->frames = 1;
+  size_t first = 0;
+  for (size_t i = 0; i < sc->nobjects; i++) {
+    const obs_object *o = &sc->objects[i];
+    if (!o->nmotion) continue;
+    if (sc->frames == 1) {
+      sc->frames = 1 + (int)o->nmotion;
+      first = i;
+    } else if ((size_t)sc->frames != 1 + o->nmotion) {
+      obs_err_set(p->err, OBS_EINVAL,
+                  "%s: /objects/%zu/motion: lists %zu transforms but /objects/%zu/motion lists "
+                  "%d: every moving object needs one per frame",
+                  p->doc, i, o->nmotion, first, sc->frames - 1);
+    }
+  }
 }
 
 /* Geometry beyond the renderer's range around the camera: the check every geometry build runs,
@@ -177,7 +239,7 @@ static void load_objects(obs_jpath *p, const json_t *doc, const char *base_dir, 
       obs_jpath_pop(p, mi);
       continue;
     }
-    static const char *const k[] = {"name", "shape", "material", "transform", NULL};
+    static const char *const k[] = {"name", "shape", "material", "transform", "motion", NULL};
     obs_json_check_keys(p, o, k);
     const char *name = NULL;
     char defname[32];
@@ -198,6 +260,7 @@ static void load_objects(obs_jpath *p, const json_t *doc, const char *base_dir, 
     int before = p->err ? p->err->count : 0;
     load_shape(p, o, base_dir, ob);
     load_transform(p, o, ob);
+    load_motion(p, o, ob);
     if (camera_ok && (p->err ? p->err->count : 0) == before) check_reach(p, sc, i);
     int absent = 0;
     json_t *mat = obs_json_get_object(p, o, "material", 0, &absent);
@@ -326,6 +389,21 @@ static void check_needs(obs_jpath *p, const obs_scene *sc) {
                     p->doc, i, t->name);
     }
   }
+  if (sc->frames > 1 && !(t->needs & OBS_NEED_MOTION)) {
+    char list[256] = "";
+    for (size_t k = 0; k < obs_technique_count(); k++) {
+      const obs_technique *m = obs_technique_at(k);
+      size_t l = strlen(list);
+      if (m->needs & OBS_NEED_MOTION)
+        snprintf(list + l, sizeof list - l, "%s\"%s\"", l ? ", " : "", m->name);
+    }
+    for (size_t i = 0; i < sc->nobjects; i++)
+      if (sc->objects[i].nmotion)
+        obs_err_set(p->err, OBS_EINVAL,
+                    "%s: /objects/%zu/motion: technique \"%s\" renders one frame; moving objects "
+                    "need a technique that renders frames (%s)",
+                    p->doc, i, t->name, list);
+  }
   obs_params_check_rules(t, sc->params, p->doc, p->err);
   if (t->check) t->check(sc, sc->params, p->doc, p->err);
 }
@@ -361,6 +439,7 @@ static int validate(obs_scene *sc, const json_t *doc, const char *name, const ch
     obs_jpath_pop(&p, m);
   }
   load_objects(&p, doc, base_dir, sc, camera_ok);
+  check_frames(&p, sc);
   load_lights(&p, doc, sc);
   load_environment(&p, doc, sc);
   load_technique(&p, doc, sc);
@@ -376,6 +455,7 @@ void obs_scene_free(obs_scene *sc) {
   if (!sc) return;
   for (size_t i = 0; i < sc->nobjects; i++) {
     free(sc->objects[i].name);
+    free(sc->objects[i].motion);
     obs_shape_free(&sc->objects[i].shape);
   }
   free(sc->objects);

@@ -48,7 +48,21 @@ typedef struct patch_frame {
   obs_rt_ctx ctx; /* skips the patch's own triangle */
   obs_sampler2d pts, dirs;
   uint32_t shuffle;
+  int own_moving;  /* the patch is on a moving mesh */
+  int hit_moving;  /* a sample met a moving mesh */
 } patch_frame;
+
+/* Records what a sample met for the update of moving objects: whether it was a moving mesh, and
+ * which patch of a still mesh a moving patch's sample met. */
+static void note_hit(const obs_omap_job *j, patch_frame *f, const struct RTCRayHit *rh) {
+  const obs_mesh *m = &j->rt->geo.meshes[rh->hit.geomID];
+  if (m->obj_pos) {
+    f->hit_moving = 1;
+  } else if (f->own_moving && j->seen) {
+    int64_t q = obs_patch_mesh_find(j->pm, rh->hit.geomID, rh->hit.primID, rh->hit.u, rh->hit.v);
+    atomic_store_explicit(&j->seen[q], 1, memory_order_relaxed);
+  }
+}
 
 /* Sample i of a patch: a cosine-distributed ray from a stratified point. Returns the rays traced
  * (0 or 1). */
@@ -88,6 +102,7 @@ static uint64_t ray_sample(const obs_omap_job *j, obs_omap_acc *acc, patch_frame
     } else {
       obs_omap_tri_normal(j->rt, rh.hit.geomID, rh.hit.primID, nb);
       r = j->mesh_r[rh.hit.geomID];
+      if (j->hits_moving) note_hit(j, f, &rh);
     }
     /* Only a surface that faces the patch transfers; a back face eliminates the sample, as a
      * non-facing pair of hits does for the line estimators. */
@@ -98,51 +113,62 @@ static uint64_t ray_sample(const obs_omap_job *j, obs_omap_acc *acc, patch_frame
   return 1;
 }
 
+/* Every sample of one patch into acc (zeroed here). */
+static uint64_t rays_patch(const obs_omap_job *j, int64_t patch, obs_omap_acc *acc) {
+  const obs_patch_mesh *pm = j->pm;
+  memset(acc, 0, sizeof *acc);
+  int64_t sub;
+  size_t t = obs_patch_mesh_owner(pm, patch, &sub);
+  if (!(pm->area[patch] > 0)) return 0; /* degenerate: no normal, no sample */
+  /* The mesh and primitive of scene triangle t. */
+  size_t m = 0;
+  while (pm->mesh_tri[m + 1] <= t) m++;
+  unsigned prim = (unsigned)(t - pm->mesh_tri[m]);
+  const obs_mesh *me = &j->rt->geo.meshes[m];
+  const float *v[3];
+  for (int k = 0; k < 3; k++) v[k] = me->pos + 3 * (size_t)me->idx[3 * (size_t)prim + (size_t)k];
+  patch_frame f;
+  memset(&f, 0, sizeof f);
+  double uv[3][2];
+  obs_patch_sub_corners(pm->split[t], sub, uv);
+  float mag = 0;
+  for (int q = 0; q < 3; q++)
+    for (int k = 0; k < 3; k++) {
+      f.c[q][k] = v[0][k] + uv[q][0] * ((double)v[1][k] - v[0][k]) +
+                  uv[q][1] * ((double)v[2][k] - v[0][k]);
+      mag = fmaxf(mag, fabsf((float)f.c[q][k]));
+    }
+  float n[3];
+  obs_omap_tri_normal(j->rt, (unsigned)m, prim, n);
+  float l = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+  if (!(l > 0) || !isfinite(l)) return 0;
+  for (int k = 0; k < 3; k++) f.from.ng[k] = f.from.ns[k] = n[k] / l;
+  obs_onb(f.from.ng, f.tb[0], f.tb[1]);
+  /* A point is a convex combination of the corners rounded once: a few ulps of the largest
+   * coordinate. */
+  for (int k = 0; k < 3; k++) f.from.perr[k] = mag * 0x1p-21f;
+  f.from.geom = (unsigned)m, f.from.prim = prim;
+  f.own_moving = me->obj_pos != NULL;
+  obs_rt_ctx_init(&f.ctx, j->rt, &f.from);
+  uint32_t lo = (uint32_t)patch, hi = (uint32_t)((uint64_t)patch >> 32);
+  obs_sampler2d_init(&f.pts, OBS_SAMPLER_HALTON, lo, hi, 0, 0, j->p.seed);
+  obs_sampler2d_init(&f.dirs, OBS_SAMPLER_HALTON, lo, hi, 0, 1, j->p.seed);
+  f.shuffle = obs_hash_combine(obs_hash_combine(j->p.seed, lo), hi ^ 0x5bd1e995U);
+  uint64_t rays = 0;
+  for (uint32_t i = 0; i < j->p.samples; i++) rays += ray_sample(j, acc, &f, i);
+  if (j->hits_moving) j->hits_moving[patch] = (unsigned char)f.hit_moving;
+  return rays;
+}
+
 int obs_omap_rays_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)y0, (void)y1;
   const obs_omap_job *j = user;
-  const obs_patch_mesh *pm = j->pm;
-  obs_omap_acc *acc = j->acc + (size_t)thread * (size_t)pm->count;
+  int64_t n = j->list ? j->nlist : j->pm->count;
   uint64_t rays = 0;
-  for (int64_t patch = (int64_t)x0 * OMAP_RAYS_CHUNK;
-       patch < (int64_t)x1 * OMAP_RAYS_CHUNK && patch < pm->count; patch++) {
-    int64_t sub;
-    size_t t = obs_patch_mesh_owner(pm, patch, &sub);
-    if (!(pm->area[patch] > 0)) continue; /* degenerate: no normal, no sample */
-    /* The mesh and primitive of scene triangle t. */
-    size_t m = 0;
-    while (pm->mesh_tri[m + 1] <= t) m++;
-    unsigned prim = (unsigned)(t - pm->mesh_tri[m]);
-    const obs_mesh *me = &j->rt->geo.meshes[m];
-    const float *v[3];
-    for (int k = 0; k < 3; k++) v[k] = me->pos + 3 * (size_t)me->idx[3 * (size_t)prim + (size_t)k];
-    patch_frame f;
-    memset(&f, 0, sizeof f);
-    double uv[3][2];
-    obs_patch_sub_corners(pm->split[t], sub, uv);
-    float mag = 0;
-    for (int q = 0; q < 3; q++)
-      for (int k = 0; k < 3; k++) {
-        f.c[q][k] = v[0][k] + uv[q][0] * ((double)v[1][k] - v[0][k]) +
-                    uv[q][1] * ((double)v[2][k] - v[0][k]);
-        mag = fmaxf(mag, fabsf((float)f.c[q][k]));
-      }
-    float n[3];
-    obs_omap_tri_normal(j->rt, (unsigned)m, prim, n);
-    float l = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-    if (!(l > 0) || !isfinite(l)) continue;
-    for (int k = 0; k < 3; k++) f.from.ng[k] = f.from.ns[k] = n[k] / l;
-    obs_onb(f.from.ng, f.tb[0], f.tb[1]);
-    /* A point is a convex combination of the corners rounded once: a few ulps of the largest
-     * coordinate. */
-    for (int k = 0; k < 3; k++) f.from.perr[k] = mag * 0x1p-21f;
-    f.from.geom = (unsigned)m, f.from.prim = prim;
-    obs_rt_ctx_init(&f.ctx, j->rt, &f.from);
-    uint32_t lo = (uint32_t)patch, hi = (uint32_t)((uint64_t)patch >> 32);
-    obs_sampler2d_init(&f.pts, OBS_SAMPLER_HALTON, lo, hi, 0, 0, j->p.seed);
-    obs_sampler2d_init(&f.dirs, OBS_SAMPLER_HALTON, lo, hi, 0, 1, j->p.seed);
-    f.shuffle = obs_hash_combine(obs_hash_combine(j->p.seed, lo), hi ^ 0x5bd1e995U);
-    for (uint32_t i = 0; i < j->p.samples; i++) rays += ray_sample(j, &acc[patch], &f, i);
+  for (int64_t i = (int64_t)x0 * OMAP_RAYS_CHUNK; i < (int64_t)x1 * OMAP_RAYS_CHUNK && i < n;
+       i++) {
+    int64_t patch = j->list ? j->list[i] : i;
+    rays += rays_patch(j, patch, &j->acc[patch]);
   }
   j->rays[(size_t)thread * 8] += rays;
   return 0;
@@ -167,42 +193,49 @@ static int job_reflectivities(obs_omap_job *j, const obs_scene *scene, obs_err *
   return 0;
 }
 
-/* The accumulated sums into the map's values and standard errors, in patch order. */
-static void finish(const obs_omap_job *j, obs_omap *out) {
+/* Patch i's accumulated sums into its value, standard error and count in `out`. */
+static void finish_patch(const obs_omap_job *j, obs_omap *out, int64_t i) {
   const int64_t count = j->pm->count;
-  for (int64_t i = 0; i < count; i++) {
-    obs_omap_acc a;
-    memset(&a, 0, sizeof a);
-    for (int t = 0; t < j->threads; t++) {
-      const obs_omap_acc *b = &j->acc[(size_t)t * (size_t)count + (size_t)i];
-      for (int c = 0; c < 3; c++) a.s[c] += b->s[c], a.q[c] += b->q[c];
-      a.n += b->n;
-    }
-    out->n[i] = a.n;
-    if (!a.n) {
-      double v[3];
-      obs_omap_value(j, INFINITY, NULL, v);
-      for (int c = 0; c < 3; c++) out->w[3 * i + c] = (float)v[c];
-      out->se[i] = 1.0f;
-      out->unsampled += j->pm->area[i] > 0;
-      continue;
-    }
-    double n = (double)a.n, var = 0;
-    for (int c = 0; c < 3; c++) {
-      double w = (double)a.s[c] / OMAP_ONE / n;
-      out->w[3 * i + c] = (float)fmin(1.0, fmax(0.0, w));
-      var = fmax(var, fmax(0.0, (double)a.q[c] / OMAP_ONE / n - w * w) * (n > 1 ? n / (n - 1) : 0));
-    }
-    /* One sample says nothing of the spread: the widest a value in [0, 1] can have. */
-    out->se[i] = (float)(n > 1 ? sqrt(var / n) : 0.5);
+  obs_omap_acc a;
+  memset(&a, 0, sizeof a);
+  for (int t = 0; t < j->acc_sets; t++) {
+    const obs_omap_acc *b = &j->acc[(size_t)t * (size_t)count + (size_t)i];
+    for (int c = 0; c < 3; c++) a.s[c] += b->s[c], a.q[c] += b->q[c];
+    a.n += b->n;
   }
+  out->n[i] = a.n;
+  if (!a.n) {
+    double v[3];
+    obs_omap_value(j, INFINITY, NULL, v);
+    for (int c = 0; c < 3; c++) out->w[3 * i + c] = (float)v[c];
+    out->se[i] = 1.0f;
+    return;
+  }
+  double n = (double)a.n, var = 0;
+  for (int c = 0; c < 3; c++) {
+    double w = (double)a.s[c] / OMAP_ONE / n;
+    out->w[3 * i + c] = (float)fmin(1.0, fmax(0.0, w));
+    var = fmax(var, fmax(0.0, (double)a.q[c] / OMAP_ONE / n - w * w) * (n > 1 ? n / (n - 1) : 0));
+  }
+  /* One sample says nothing of the spread: the widest a value in [0, 1] can have. */
+  out->se[i] = (float)(n > 1 ? sqrt(var / n) : 0.5);
+}
+
+/* The accumulated sums of the patches sampled into `out`; the unsampled count of the whole map. */
+static void finish(const obs_omap_job *j, obs_omap *out) {
+  int64_t n = j->list ? j->nlist : j->pm->count;
+  for (int64_t i = 0; i < n; i++) finish_patch(j, out, j->list ? j->list[i] : i);
+  out->unsampled = 0;
+  for (int64_t i = 0; i < j->pm->count; i++) out->unsampled += !out->n[i] && j->pm->area[i] > 0;
 }
 
 static int run_estimator(obs_omap_job *j, const atomic_int *cancel, obs_progress_fn progress,
                          void *progress_user) {
   switch (j->p.method) {
     case OBS_OMAP_RAYS: {
-      int64_t chunks = (j->pm->count + OMAP_RAYS_CHUNK - 1) / OMAP_RAYS_CHUNK;
+      int64_t n = j->list ? j->nlist : j->pm->count;
+      int64_t chunks = (n + OMAP_RAYS_CHUNK - 1) / OMAP_RAYS_CHUNK;
+      if (!chunks) return 0;
       return obs_parallel_tiles((int)chunks, 1, j->threads, obs_omap_rays_tile, j, cancel, progress,
                                 progress_user);
     }
@@ -217,66 +250,94 @@ static int run_estimator(obs_omap_job *j, const atomic_int *cancel, obs_progress
   }
 }
 
-int obs_omap_compute(const obs_rt *rt, const obs_scene *scene, const obs_obscurance_map_params *p,
-                     int threads, const atomic_int *cancel, obs_progress_fn progress,
-                     void *progress_user, obs_omap *out, obs_err *err) {
+/* The rays estimator's table of Halton points. A stream with no rotation gives the bare radical
+ * inverses. The shuffle maps the first 2^k indices onto an aligned block of 2^k: their low k bits
+ * are a permutation of them, and the table covers the power of two at or above `samples`. */
+static int halton_table(obs_omap_job *j) {
+  obs_sampler2d bare = {.kind = OBS_SAMPLER_HALTON, .scramble0 = 0, .scramble1 = 0};
+  uint32_t size = 1;
+  while (size < j->p.samples) size *= 2;
+  j->halton_mask = size - 1;
+  if (!(j->halton = malloc((size_t)size * sizeof *j->halton))) return OBS_ENOMEM;
+  for (uint32_t i = 0; i < size; i++) obs_sampler2d_get(&bare, i, &j->halton[i][0], &j->halton[i][1]);
+  return 0;
+}
+
+int obs_omap_job_init(obs_omap_job *j, const obs_rt *rt, const obs_scene *scene,
+                      const obs_obscurance_map_params *p, int threads, obs_omap *out,
+                      obs_err *err) {
   memset(out, 0, sizeof *out);
-  obs_omap_job j;
-  memset(&j, 0, sizeof j);
-  j.rt = rt;
-  j.p = *p;
-  j.p.method = obs_omap_method_on(p->method, 0);
-  j.f = (obs_falloff){.kind = p->falloff, .d_max = p->d_max, .tau = p->tau};
-  j.threads = threads < 1 ? 1 : threads;
+  memset(j, 0, sizeof *j);
+  j->rt = rt;
+  j->p = *p;
+  j->p.method = obs_omap_method_on(p->method, 0);
+  j->f = (obs_falloff){.kind = p->falloff, .d_max = p->d_max, .tau = p->tau};
+  j->threads = threads < 1 ? 1 : threads;
   obs_obscurance_env env;
   int rc = obs_obscurance_env_compute(scene, &rt->geo, &env, err);
   if (!rc)
     rc = obs_patch_mesh_build(&rt->geo, p->patch_size, "/technique/params/patch_size", &out->pm,
                               err);
   if (rc) return rc;
-  memcpy(j.r_ave, env.r_ave, sizeof j.r_ave);
+  memcpy(j->r_ave, env.r_ave, sizeof j->r_ave);
   memcpy(out->r_ave, env.r_ave, sizeof out->r_ave);
-  j.pm = &out->pm;
-  obs_bound_sphere_of(&rt->geo, &j.bs);
+  j->pm = &out->pm;
+  obs_bound_sphere_of(&rt->geo, &j->bs);
   size_t count = (size_t)out->pm.count, n1 = count ? count : 1;
-  j.acc = calloc((size_t)j.threads * n1, sizeof *j.acc);
-  j.rays = calloc((size_t)j.threads * 8, sizeof *j.rays);
+  j->acc_sets = j->p.method == OBS_OMAP_RAYS ? 1 : j->threads;
+  j->acc = calloc((size_t)j->acc_sets * n1, sizeof *j->acc);
+  j->rays = calloc((size_t)j->threads * 8, sizeof *j->rays);
   out->w = malloc(3 * n1 * sizeof *out->w);
   out->se = malloc(n1 * sizeof *out->se);
   out->n = malloc(n1 * sizeof *out->n);
-  if (!j.acc || !j.rays || !out->w || !out->se || !out->n)
+  if (!j->acc || !j->rays || !out->w || !out->se || !out->n)
     rc = obs_err_set(err, OBS_ENOMEM, "%s: obscurance_map: out of memory for %zu patches",
                      scene->name, count);
-  if (!rc) rc = job_reflectivities(&j, scene, err);
-  if (!rc && j.p.method == OBS_OMAP_RAYS) {
-    /* A stream with no rotation gives the bare radical inverses. The shuffle maps the first
-     * 2^k indices onto an aligned block of 2^k: their low k bits are a permutation of them, and
-     * the table covers the power of two at or above `samples`. */
-    obs_sampler2d bare = {.kind = OBS_SAMPLER_HALTON, .scramble0 = 0, .scramble1 = 0};
-    uint32_t size = 1;
-    while (size < p->samples) size *= 2;
-    j.halton_mask = size - 1;
-    if (!(j.halton = malloc((size_t)size * sizeof *j.halton)))
-      rc = obs_err_set(err, OBS_ENOMEM, "%s: obscurance_map: out of memory", scene->name);
-    for (uint32_t i = 0; !rc && i < size; i++)
-      obs_sampler2d_get(&bare, i, &j.halton[i][0], &j.halton[i][1]);
+  if (!rc) rc = job_reflectivities(j, scene, err);
+  if (!rc && j->p.method == OBS_OMAP_RAYS && halton_table(j))
+    rc = obs_err_set(err, OBS_ENOMEM, "%s: obscurance_map: out of memory", scene->name);
+  if (rc) {
+    obs_omap_job_free(j);
+    obs_omap_free(out);
   }
-  if (!rc && count) {
-    rc = run_estimator(&j, cancel, progress, progress_user);
-    if (rc == OBS_ECANCELED)
-      obs_err_set(err, rc, "%s: render cancelled", scene->name);
-    else if (rc)
-      obs_err_set(err, rc, "%s: obscurance_map failed", scene->name);
+  return rc;
+}
+
+int obs_omap_job_run(obs_omap_job *j, obs_omap *out, const atomic_int *cancel,
+                     obs_progress_fn progress, void *progress_user) {
+  if (j->p.method != OBS_OMAP_RAYS) { /* the line estimators sum into per-thread sets */
+    j->list = NULL;
+    memset(j->acc, 0, (size_t)j->acc_sets * (size_t)j->pm->count * sizeof *j->acc);
   }
-  if (!rc) {
-    finish(&j, out);
-    for (int t = 0; t < j.threads; t++) out->rays += j.rays[(size_t)t * 8];
-  }
-  free(j.acc);
-  free(j.rays);
-  free(j.mesh_r);
-  free(j.sphere_r);
-  free(j.halton);
+  int rc = j->pm->count ? run_estimator(j, cancel, progress, progress_user) : 0;
+  if (rc) return rc;
+  finish(j, out);
+  for (int t = 0; t < j->threads; t++) out->rays += j->rays[(size_t)t * 8];
+  memset(j->rays, 0, (size_t)j->threads * 8 * sizeof *j->rays);
+  return 0;
+}
+
+void obs_omap_job_free(obs_omap_job *j) {
+  free(j->acc);
+  free(j->rays);
+  free(j->mesh_r);
+  free(j->sphere_r);
+  free(j->halton);
+  memset(j, 0, sizeof *j);
+}
+
+int obs_omap_compute(const obs_rt *rt, const obs_scene *scene, const obs_obscurance_map_params *p,
+                     int threads, const atomic_int *cancel, obs_progress_fn progress,
+                     void *progress_user, obs_omap *out, obs_err *err) {
+  obs_omap_job j;
+  int rc = obs_omap_job_init(&j, rt, scene, p, threads, out, err);
+  if (rc) return rc;
+  rc = obs_omap_job_run(&j, out, cancel, progress, progress_user);
+  if (rc == OBS_ECANCELED)
+    obs_err_set(err, rc, "%s: render cancelled", scene->name);
+  else if (rc)
+    obs_err_set(err, rc, "%s: obscurance_map failed", scene->name);
+  obs_omap_job_free(&j);
   if (rc) obs_omap_free(out);
   return rc;
 }
@@ -326,12 +387,23 @@ int obs_obscurance_map_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   const obs_obscurance_map_params *p = ctx->bound;
   double t0 = obs_now_ms();
   obs_omap m;
-  int rc = obs_omap_compute(ctx->rt, sc, p, ctx->threads, ctx->cancel, ctx->progress,
-                            ctx->progress_user, &m, err);
-  if (rc) return rc;
+  int rc;
+  if (sc->frames > 1) {
+    /* The framework's BVH is the technique's to move: the frames place the moving meshes in it,
+     * and the image shows the last frame. */
+    rc = obs_omap_frames(ctx, (obs_rt *)ctx->rt, p, &m, err);
+    if (rc) {
+      obs_omap_free(&m);
+      return rc;
+    }
+  } else {
+    rc = obs_omap_compute(ctx->rt, sc, p, ctx->threads, ctx->cancel, ctx->progress,
+                          ctx->progress_user, &m, err);
+    if (rc) return rc;
+  }
   double t1 = obs_now_ms();
-  obs_driver_stage_add(ctx, "map", t1 - t0);
-  rc = obs_patch_mesh_publish(ctx, "obscurance", &m.pm, m.w, err);
+  obs_driver_stage_add(ctx, sc->frames > 1 ? "frames" : "map", t1 - t0);
+  if (sc->frames <= 1) rc = obs_patch_mesh_publish(ctx, "obscurance", &m.pm, m.w, err);
   if (!rc) rc = show(ctx, &m, out, err);
   double t2 = obs_now_ms();
   obs_driver_stage_add(ctx, "show", t2 - t1);

@@ -56,7 +56,15 @@ typedef struct obs_omap_job {
   double r_ave[3];
   obs_bound_sphere bs;
   int threads;
-  obs_omap_acc *acc;    /* threads x count */
+  obs_omap_acc *acc;    /* threads x count (lines); count (rays: a patch is one thread's) */
+  int acc_sets;         /* the sets of count in acc: threads for lines, 1 for rays */
+  /* rays: the patches to sample (NULL: all of them, in order) */
+  const int64_t *list;
+  int64_t nlist;
+  /* rays, when set: per patch, whether one of its samples met a moving mesh (written by the
+   * patch's thread); and, per patch, whether a sample of a moving mesh's patch met it. */
+  unsigned char *hits_moving;
+  atomic_uchar *seen;
   uint64_t *rays;       /* threads x 8 (one cache line each) */
   float (*halton)[2];   /* rays: Halton points (bases 2, 3), unrotated, a power of two of them */
   uint32_t halton_mask; /* their count less one */
@@ -101,5 +109,20 @@ int obs_omap_bundle_tile(void *user, int thread, int x0, int y0, int x1, int y1)
 #define OMAP_RAYS_CHUNK 16
 /* The number of global lines `p` asks for. */
 uint64_t obs_omap_global_count(const obs_obscurance_map_params *p);
+
+/* A job set up to compute maps of `p` over rt's geometry, again and again as objects move: the
+ * patches (into out->pm), the scene's R_ave and the value arrays of `out`, all of frame 0. */
+int obs_omap_job_init(obs_omap_job *j, const obs_rt *rt, const obs_scene *scene,
+                      const obs_obscurance_map_params *p, int threads, obs_omap *out, obs_err *err);
+/* Samples the patches j->list names (rays; NULL: every patch; the line estimators always do all)
+ * and writes their values, errors and counts into `out` (the init's or one of the same size). */
+int obs_omap_job_run(obs_omap_job *j, obs_omap *out, const atomic_int *cancel,
+                     obs_progress_fn progress, void *progress_user);
+void obs_omap_job_free(obs_omap_job *j);
+
+/* The run of a scene with moving objects (obscurance_map_motion.c): every frame's map, updated
+ * as `update` says, into the render's patches output; `out` is left holding the last frame. */
+int obs_omap_frames(obs_render_ctx *ctx, obs_rt *rt, const obs_obscurance_map_params *p,
+                    obs_omap *out, obs_err *err);
 
 #endif

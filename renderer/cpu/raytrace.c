@@ -251,7 +251,12 @@ static int build_bvh(obs_rt *rt, int threads, obs_err *err) {
   }
   rtcSetDeviceErrorFunction(rt->device, on_embree_error, NULL);
   rt->scene = rtcNewScene(rt->device);
-  rtcSetSceneFlags(rt->scene, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
+  /* Moving meshes are refitted each frame, the rest kept: Embree's dynamic scenes build one BVH
+   * per geometry under a top level, and rebuild only what changed. */
+  int moves = 0;
+  for (size_t i = 0; i < rt->geo.nmeshes; i++) moves |= rt->geo.meshes[i].obj_pos != NULL;
+  rtcSetSceneFlags(rt->scene, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION |
+                                  (moves ? RTC_SCENE_FLAG_DYNAMIC : RTC_SCENE_FLAG_NONE));
   unsigned id = 0;
   for (size_t i = 0; i < rt->geo.nmeshes; i++) {
     obs_mesh *m = &rt->geo.meshes[i];
@@ -269,6 +274,7 @@ static int build_bvh(obs_rt *rt, int threads, obs_err *err) {
     }
     memcpy(vb, m->pos, m->nverts * 3 * sizeof(float));
     memcpy(ib, m->idx, m->ntris * 3 * sizeof(unsigned));
+    if (m->obj_pos) rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_REFIT);
     rtcCommitGeometry(g);
     rtcAttachGeometryByID(rt->scene, g, id++);
     rtcReleaseGeometry(g);
@@ -292,6 +298,27 @@ static int build_bvh(obs_rt *rt, int threads, obs_err *err) {
     return obs_err_set(err, e == RTC_ERROR_OUT_OF_MEMORY ? OBS_ENOMEM : OBS_EINTERNAL,
                        "embree: scene build failed (error %d)", (int)e);
   }
+  return 0;
+}
+
+int obs_rt_place(obs_rt *rt, const obs_scene *sc, int frame, obs_err *err) {
+  for (size_t i = 0; i < rt->geo.nmeshes; i++) {
+    obs_mesh *m = &rt->geo.meshes[i];
+    if (!m->obj_pos) continue;
+    obs_geometry_mesh_place(m, obs_object_transform_at(&sc->objects[m->object], frame),
+                            rt->geo.origin);
+    RTCGeometry g = rtcGetGeometry(rt->scene, (unsigned)i);
+    float *vb = rtcGetGeometryBufferData(g, RTC_BUFFER_TYPE_VERTEX, 0);
+    memcpy(vb, m->pos, m->nverts * 3 * sizeof(float));
+    rtcUpdateGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0);
+    rtcCommitGeometry(g);
+  }
+  rtcCommitScene(rt->scene);
+  enum RTCError e = rtcGetDeviceError(rt->device);
+  if (e != RTC_ERROR_NONE)
+    return obs_err_set(err, e == RTC_ERROR_OUT_OF_MEMORY ? OBS_ENOMEM : OBS_EINTERNAL,
+                       "%s: embree: update to frame %d failed (error %d)", sc->name, frame,
+                       (int)e);
   return 0;
 }
 

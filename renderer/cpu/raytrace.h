@@ -69,6 +69,10 @@ int obs_rt_build_ex(const obs_scene *scene, obs_rt *rt, int threads, int frame, 
  * over: released by obs_rt_free, and on failure here. */
 int obs_rt_build_geo(obs_geometry *geo, obs_rt *rt, int threads, obs_err *err);
 void obs_rt_free(obs_rt *rt);
+/* Moves the scene's moving meshes (obs_mesh.obj_pos) to where `frame` puts them (sc: the scene
+ * rt was built from) and updates the BVH: refits theirs and rebuilds the top level. Not
+ * thread-safe with queries on rt. */
+int obs_rt_place(obs_rt *rt, const obs_scene *sc, int frame, obs_err *err);
 
 /* Closest hit along (org, dir) within [0, tfar], org in world space. Returns 1 and fills `hit`
  * (p in the ray tracer's frame, world minus rt->geo.origin; t from org), or 0 on a miss. */

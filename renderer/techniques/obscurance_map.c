@@ -26,6 +26,8 @@ static const obs_output obscurance_map_outputs[] = {
 static const char *const methods[] = {"rays",          "global_lines", "bundles",
                                       "depth_peeling", "auto",         NULL};
 
+static const char *const updates[] = {"full", "exact", "article", NULL};
+
 #define P(member) offsetof(obs_obscurance_map_params, member)
 static const obs_param obscurance_map_params[] = {
     {.name = "method", .type = OBS_PARAM_ENUM, .choices = methods, .def = OBS_OMAP_AUTO,
@@ -59,15 +61,41 @@ static const obs_param obscurance_map_params[] = {
     {.name = "seed", .type = OBS_PARAM_UINT, .min = 0, .max = 4294967295.0, .def = 1,
      .description = "random seed; the map depends only on (scene, parameters, seed)",
      .offset = P(seed)},
+    {.name = "update", .type = OBS_PARAM_ENUM, .choices = updates, .def = OBS_OMAP_UPDATE_EXACT,
+     .description = "scenes with moving objects: how each frame after the first is computed. "
+                    "full = every patch again; exact (rays) = the patches within d_max of a "
+                    "moving object's bounds in the frame before or this one, equal to full bit "
+                    "for bit; article (rays) = the article's influenced list: the patches whose "
+                    "samples hit a moving object and the objects' own, then those the objects' "
+                    "samples hit (misses patches that only start to see an object)",
+     .offset = P(update)},
+    {.name = "measure_full", .type = OBS_PARAM_BOOL, .def = 1,
+     .description = "scenes with moving objects: also compute every frame in full, to report "
+                    "each update's speed-up and error against it (summary.json frames)",
+     .offset = P(measure_full)},
 };
 #undef P
 
-/* Each estimator runs on one backend: depth_peeling on Vulkan, the others on the CPU. */
+/* Each estimator runs on one backend: depth_peeling on Vulkan, the others on the CPU. Moving
+ * objects are updated patch by patch, which only the rays estimator does, on the CPU. */
 static void obscurance_map_check(const obs_scene *scene, const json_t *params, const char *doc,
                                  obs_err *err) {
   const char *m = json_string_value(json_object_get(params, "method"));
+  const char *u = json_string_value(json_object_get(params, "update"));
+  int vk = scene->backend == OBS_BACKEND_VULKAN;
+  if (scene->frames > 1 && vk)
+    obs_err_set(err, OBS_EINVAL,
+                "%s: /technique/backend: moving objects (motion) render on the cpu backend only",
+                doc);
+  if (scene->frames > 1 && m && u && strcmp(m, "rays") && strcmp(m, "auto") &&
+      strcmp(u, "full"))
+    obs_err_set(err, OBS_EINVAL,
+                "%s: /technique/params/update: \"%s\" recomputes patch by patch, which method "
+                "\"%s\" cannot (its lines cross every patch); use method \"rays\" or update "
+                "\"full\"",
+                doc, u, m);
   if (!m || !strcmp(m, "auto")) return;
-  int peel = !strcmp(m, "depth_peeling"), vk = scene->backend == OBS_BACKEND_VULKAN;
+  int peel = !strcmp(m, "depth_peeling");
   if (peel && !vk)
     obs_err_set(err, OBS_EINVAL,
                 "%s: /technique/params/method: \"depth_peeling\" runs on the vulkan backend only "
@@ -109,6 +137,8 @@ static int obscurance_map_reference(const obs_scene *scene, const json_t *params
                                      NULL};
   obs_reference_def_same(def, &obs_technique_obscurance_map, params, keys);
   json_object_set_new(def->params, "method", json_string("rays"));
+  /* With moving objects, every frame of the reference is exact; nothing to measure it against. */
+  json_object_set_new(def->params, "measure_full", json_false());
   return 0;
 }
 
@@ -128,7 +158,7 @@ const obs_technique obs_technique_obscurance_map = {
     .cost_rule = "samples (rays); directions x bundle_resolution^2 / 65536 (bundles, "
                  "depth_peeling); lines / 65536 (global_lines)",
     .ms_per_work = 1e-4,
-    .needs = OBS_NEED_BVH | OBS_NEED_BVH_FRAME_GEOMETRY | OBS_NEED_MATERIALS,
+    .needs = OBS_NEED_BVH | OBS_NEED_BVH_FRAME_GEOMETRY | OBS_NEED_MATERIALS | OBS_NEED_MOTION,
     .outputs = obscurance_map_outputs,
     .check = obscurance_map_check,
     .reference = obscurance_map_reference,

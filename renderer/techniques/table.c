@@ -110,7 +110,8 @@ static const struct {
                   {OBS_NEED_MATERIALS, "materials"},
                   {OBS_NEED_LIGHTS, "lights"},
                   {OBS_NEED_GBUFFER, "gbuffer"},
-                  {OBS_NEED_BVH_FRAME_GEOMETRY, "bvh_frame_geometry"}};
+                  {OBS_NEED_BVH_FRAME_GEOMETRY, "bvh_frame_geometry"},
+                  {OBS_NEED_MOTION, "motion"}};
 
 json_t *obs_technique_registry_json(void) {
   json_t *arr = json_array();

@@ -38,7 +38,7 @@ typedef struct reply {
 static void triangle_reply(reply *r, int normals) {
   float pos[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0}, nrm[9] = {0, 0, 1, 0, 0, 1, 0, 0, 1};
   uint32_t idx[3] = {0, 1, 2};
-  obs_mesh m = {pos, normals ? nrm : NULL, idx, 3, 1, 0};
+  obs_mesh m = {pos, normals ? nrm : NULL, idx, 3, 1, 0, NULL, NULL};
   int p[2];
   assert_int_equal(pipe(p), 0);
   assert_int_equal(srv_meshproto_write_mesh(p[1], &m), 0);

@@ -66,7 +66,7 @@ static void test_counts_and_bounds_match_geometry(void **state) {
     const obs_mesh *m = &g.meshes[mi];
     double pts[8][3], r, lo[3] = {INFINITY, INFINITY, INFINITY},
                          hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    int n = obs_geometry_object_points(&sc.objects[m->object], NULL, pts, &r);
+    int n = obs_geometry_object_points(&sc.objects[m->object], 0, NULL, pts, &r);
     for (int i = 0; i < n; i++)
       for (int k = 0; k < 3; k++)
         lo[k] = fmin(lo[k], pts[i][k] - r), hi[k] = fmax(hi[k], pts[i][k] + r);

@@ -124,11 +124,11 @@ int obs_metrics_compare_rgb(const obs_image *candidate, const obs_image *referen
                             const char *rgb, const char *mask, obs_compare_rgb *out,
                             obs_err *err);
 
-/* Statistics of every value of `p` (all components), like obs_metrics_stats. */
+/* Statistics of every value of `p` (all components, all frames), like obs_metrics_stats. */
 void obs_metrics_patch_stats(const obs_patches *p, obs_stats *out);
 
-/* Root-mean-square error over the patches of a candidate against a reference with the same count
- * and components, weighted by the patches' areas (the reference's, else the candidate's, else
+/* Root-mean-square error over the patches of a candidate against a reference with the same count,
+ * components and frames (every frame's patches count), weighted by the patches' areas (the reference's, else the candidate's, else
  * all equal): sqrt(sum_i a_i sum_k (c_ik - r_ik)^2 / (components * sum_i a_i)). Patches of zero
  * area do not count. Non-finite differences as in obs_metrics_rmse. */
 int obs_metrics_patch_rmse(const obs_patches *candidate, const obs_patches *reference,

@@ -20,7 +20,7 @@ typedef struct obs_render_opts {
   obs_region region;           /* all zero: the whole image (see obs_render_ctx.region) */
 } obs_render_opts;
 
-/* The outcome of one render. Owns `image` and `patches`; release with obs_result_free. */
+/* The outcome of one render. Owns `image`, `patches` and `frames`; release with obs_result_free. */
 typedef struct obs_result {
   const obs_technique *technique;
   obs_backend backend;         /* the backend that ran */
@@ -33,6 +33,7 @@ typedef struct obs_result {
   int threads;
   obs_patches patches[OBS_MAX_PATCH_OUTPUTS]; /* per-patch outputs (obs_render_ctx.patches) */
   int npatches;
+  json_t *frames;              /* per-frame figures (obs_render_ctx.frames) or NULL; owned */
   int nwarnings;               /* copied from the render context; see obs_render_ctx_warn */
   char warnings[OBS_MAX_WARNINGS][OBS_WARNING_LEN];
 } obs_result;

@@ -74,6 +74,10 @@ typedef struct obs_object {
   obs_vec3 reflectivity;
   obs_vec3 emission;    /* radiance emitted from both sides of the surface; zero when absent */
   obs_transform transform;
+  /* A moving object's transforms in frames 1..nmotion (frame 0 is `transform`); NULL and 0 when
+   * it stays put. Owned. Motion is rigid: every entry has `transform`'s scale. */
+  obs_transform *motion;
+  size_t nmotion;
 } obs_object;
 
 typedef struct obs_light {
@@ -92,6 +96,7 @@ typedef struct obs_scene {
   size_t nobjects;
   obs_light *lights;
   size_t nlights;
+  int frames;           /* 1, or 1 + the nmotion every moving object shares */
   int has_environment;
   obs_vec3 environment;
   const struct obs_technique *technique; /* from the registry; never NULL once loaded */
@@ -99,6 +104,13 @@ typedef struct obs_scene {
   json_t *params;       /* technique parameters with defaults filled in (owned reference) */
   json_t *doc;          /* the whole document after overrides (owned reference) */
 } obs_scene;
+
+/* The most transforms an object's `motion` may list. */
+#define OBS_MOTION_MAX 1024
+/* Object `o`'s transform in frame f (0 <= f < the scene's frames). */
+static inline const obs_transform *obs_object_transform_at(const obs_object *o, int f) {
+  return f > 0 && o->motion ? &o->motion[f - 1] : &o->transform;
+}
 
 /* Bounds on untrusted input (the bundled scene documents nest 6 levels, the job server's requests 7):
  * documents may nest at most OBS_JSON_MAX_DEPTH arrays/objects, counted from the top (`[1]` is 1,

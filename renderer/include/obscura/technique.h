@@ -23,7 +23,11 @@ enum {
   /* With OBS_NEED_BVH: the BVH's float frame sits at the geometry, not at the camera, when the
    * camera is far from it (renderer/cpu/raytrace.h, OBS_RT_FRAME_GEOMETRY): for techniques whose
    * camera rays start at the geometry's box rather than at an eye inside the frame. */
-  OBS_NEED_BVH_FRAME_GEOMETRY = 1 << 4
+  OBS_NEED_BVH_FRAME_GEOMETRY = 1 << 4,
+  /* Renders scenes whose objects move (object `motion`): every frame, each output holding all of
+   * them (per-patch outputs frame by frame; images show the last frame). Scenes with motion are
+   * refused by techniques without it. */
+  OBS_NEED_MOTION = 1 << 5
 };
 
 typedef void (*obs_progress_fn)(void *user, double fraction);
@@ -78,6 +82,9 @@ typedef struct obs_render_ctx {
    * result; never NULL. */
   obs_patches *patches;
   int npatches;
+  /* A scene with moving objects: what each frame took, one JSON object per frame (the technique
+   * says which figures), for summary.json's "frames"; NULL otherwise. The result takes it over. */
+  json_t *frames;
   /* Added with obs_render_ctx_warn, from the thread that called the run function only. */
   int nwarnings;
   char warnings[OBS_MAX_WARNINGS][OBS_WARNING_LEN];
