@@ -251,12 +251,14 @@ static int build_bvh(obs_rt *rt, int threads, obs_err *err) {
   }
   rtcSetDeviceErrorFunction(rt->device, on_embree_error, NULL);
   rt->scene = rtcNewScene(rt->device);
-  /* Moving meshes are refitted each frame, the rest kept: Embree's dynamic scenes build one BVH
-   * per geometry under a top level, and rebuild only what changed. */
+  /* Moving meshes are refitted each frame, the rest kept: with a low scene quality Embree builds
+   * one BVH per geometry under a top level (each at its geometry's own quality) and rebuilds only
+   * what changed. */
   int moves = 0;
   for (size_t i = 0; i < rt->geo.nmeshes; i++) moves |= rt->geo.meshes[i].obj_pos != NULL;
   rtcSetSceneFlags(rt->scene, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION |
                                   (moves ? RTC_SCENE_FLAG_DYNAMIC : RTC_SCENE_FLAG_NONE));
+  if (moves) rtcSetSceneBuildQuality(rt->scene, RTC_BUILD_QUALITY_LOW);
   unsigned id = 0;
   for (size_t i = 0; i < rt->geo.nmeshes; i++) {
     obs_mesh *m = &rt->geo.meshes[i];
