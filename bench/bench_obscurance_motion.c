@@ -19,12 +19,14 @@ typedef struct options {
   double d_max;
   const char *models; /* NULL: the synthetic scene only */
   const char *mesh;
+  const char *updates[3];
+  int nupdates;
 } options;
 
 static void usage(FILE *f) {
   fprintf(f,
           "usage: bench_obscurance_motion [--threads N] [--frames F] [--samples S] [--dmax D]\n"
-          "         [--models DIR|none] [--mesh ogre.obj]\n"
+          "         [--models DIR|none] [--mesh ogre.obj] [--updates exact,article,full]\n"
           "  A 0.3-wide box orbits the scene, grazing it, for F frames (default 24); obscurance_map by\n"
           "  rays (S per patch, default 25; d_max D, default 0.3 scene units; one patch per\n"
           "  triangle, no colour bleeding). Scenes: a floor with displaced spheres of 65,536 +\n"
@@ -39,6 +41,7 @@ static int parse_args(int argc, char **argv, options *o) {
   memset(o, 0, sizeof *o);
   o->threads = 2, o->frames = 24, o->samples = 25, o->d_max = 0.3;
   o->models = "../shared/models", o->mesh = "ogre.obj";
+  o->updates[0] = "exact", o->updates[1] = "article", o->nupdates = 2;
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
     if (!strcmp(a, "--help")) {
@@ -61,6 +64,13 @@ static int parse_args(int argc, char **argv, options *o) {
       o->models = strcmp(v, "none") ? v : NULL;
     } else if (!strcmp(a, "--mesh")) {
       o->mesh = v;
+    } else if (!strcmp(a, "--updates")) {
+      static char buf[64];
+      snprintf(buf, sizeof buf, "%s", v);
+      o->nupdates = 0;
+      for (char *t = strtok(buf, ","); t && o->nupdates < 3; t = strtok(NULL, ","))
+        o->updates[o->nupdates++] = t;
+      if (!o->nupdates) return -1;
     } else {
       return -1;
     }
@@ -208,9 +218,8 @@ int main(int argc, char **argv) {
   printf("%-16s %-8s %8s %9s %8s %6s %6s %10s %8s %10s %10s %9s\n", "scene", "update", "patches",
          "frame0_ms", "frame_ms", "bvh_ms", "fps", "patches/f", "speedup", "rmse_mean",
          "rmse_max", "abs_max");
-  const char *modes[] = {"exact", "article"};
-  for (int m = 0; m < 2; m++)
-    if (run_mode(&o, "synthetic", NULL, modes[m])) return 1;
+  for (int m = 0; m < o.nupdates; m++)
+    if (run_mode(&o, "synthetic", NULL, o.updates[m])) return 1;
   if (o.models) {
     char path[4096];
     snprintf(path, sizeof path, "%s/%s", o.models, o.mesh);
@@ -219,8 +228,8 @@ int main(int argc, char **argv) {
       fclose(f);
       char real[4096];
       if (!realpath(o.models, real)) return 1;
-      for (int m = 0; m < 2; m++)
-        if (run_mode(&o, o.mesh, real, modes[m])) return 1;
+      for (int m = 0; m < o.nupdates; m++)
+        if (run_mode(&o, o.mesh, real, o.updates[m])) return 1;
     } else {
       printf("(%s not present: skipped)\n", path);
     }

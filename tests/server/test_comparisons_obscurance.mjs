@@ -81,3 +81,54 @@ test('obscurance_map against its rays reference: per-patch RMSE falls with more 
               `rays 8 -> 128 per patch: ${rays.map((x) => x.metrics.patch_rmse)}`);
   });
 });
+
+// A moving box: the jobs render every frame, report each one (frames in the job), the per-patch
+// file holds them all, and the comparison's per-patch RMSE is over every frame.
+test('obscurance_map with a moving object: frames reported, exact update, RMSE over all frames', async () => {
+  await withDaemon({}, async (d) => {
+    const quad = (y, s, refl) => ({shape: {type: 'quad', vertices: [[-s, y, -s], [-s, y, s], [s, y, s], [s, y, -s]]},
+                                   material: {reflectivity: refl}});
+    const scene = {
+      camera: {type: 'perspective', position: [0, 2, 4], look_at: [0, 0.3, 0], fov_y: 50},
+      image: {width: 24, height: 18},
+      objects: [quad(0, 2, [0.7, 0.7, 0.7]),
+        {name: 'box', shape: {type: 'box', min: [-0.3, 0, -0.3], max: [0.3, 0.6, 0.3]},
+         material: {reflectivity: [0.3, 0.8, 0.3]}, transform: {translate: [-1, 0, 0]},
+         motion: [{translate: [0, 0, 0], rotate: [0, 30, 0]}, {translate: [1, 0, 0.3], rotate: [0, 60, 0]}]}],
+      technique: {name: 'obscurance_map', params: {patch_size: 0.4, d_max: 0.8}},
+    };
+    const body = {
+      scene, repeats: 1, reference: {samples: 256},
+      candidates: [{technique: 'obscurance_map', backend: 'cpu',
+                    params: {method: 'rays', samples: [4, 64], update: ['exact', 'article']}}],
+    };
+    const r = await request(d, 'POST', '/api/v1/comparisons', {body});
+    assert.equal(r.status, 201, r.text);
+    const c = await waitComparison(d, r.json.id);
+    assert.equal(c.state, 'succeeded', JSON.stringify(c.candidates.map((x) => [x.state, x.error])));
+    assert.equal(c.references[0].params.measure_full, false, 'the reference measures nothing');
+    for (const x of c.candidates) {
+      assert.ok(Number.isFinite(x.metrics.patch_rmse) && x.metrics.patch_rmse > 0, JSON.stringify(x.metrics));
+      const j = await getJSON(d, `/api/v1/jobs/${x.job_id}`);
+      validate('Job', j);
+      assert.equal(j.frames.length, 3);
+      assert.deepEqual(j.frames.map((f) => f.frame), [0, 1, 2]);
+      for (const f of j.frames.slice(1)) {
+        assert.ok(f.update_ms >= 0 && f.full_ms >= 0 && f.patches_updated > 0, JSON.stringify(f));
+        if (x.params.update === 'exact') assert.equal(f.patches_differing, 0, JSON.stringify(f));
+      }
+      const p = await request(d, 'GET', `/api/v1/jobs/${x.job_id}/outputs/obscurance.patches`);
+      assert.equal(p.status, 200);
+      const header = JSON.parse(p.body.subarray(0, p.body.indexOf(10)).toString());
+      assert.equal(header.frames, 3);
+      assert.equal(p.body.length, p.body.indexOf(10) + 1 + 4 * header.count * (3 * 3 + 1));
+    }
+    const exact = c.candidates.filter((x) => x.params.update === 'exact').sort((a, b) => a.params.samples - b.params.samples);
+    assert.ok(exact[1].metrics.patch_rmse < exact[0].metrics.patch_rmse / 2,
+      `exact: ${exact.map((x) => x.metrics.patch_rmse)}`);
+    // A technique that renders one frame refuses the scene, naming the moving object.
+    const bad = await request(d, 'POST', '/api/v1/jobs', {body: {...scene, technique: {name: 'rt_ao'}}});
+    assert.equal(bad.status, 422, bad.text);
+    assert.match(bad.text, /\/objects\/1\/motion: technique \\?"rt_ao\\?" renders one frame/);
+  });
+});

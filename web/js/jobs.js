@@ -187,6 +187,26 @@ function timingsSection(t) {
         el('th', {scope: 'row'}, sub ? `render › ${k}` : k), el('td', {className: 'num'}, fmtMs(v)))))));
 }
 
+// The figures of each frame of a scene with moving objects, as the technique reported them
+// (summary.json frames): one row per frame, one column per figure any frame has.
+const FRAME_LABELS = {bvh_ms: 'BVH ms', update_ms: 'update ms', patches_updated: 'patches updated', full_ms: 'full ms',
+  speedup: 'speed-up', rmse_vs_full: 'RMSE vs full', max_abs_vs_full: 'max |Δ| vs full', patches_differing: 'patches differing'};
+function framesSection(frames) {
+  const keys = [...new Set(frames.flatMap((f) => Object.keys(f)))].filter((k) => k !== 'frame');
+  const cell = (k, v) => {
+    if (typeof v !== 'number') return '';
+    if (k.endsWith('_ms')) return fmtMs(v);
+    if (k === 'speedup') return `${fmtNum(v, 3)}×`;
+    return Number.isInteger(v) ? String(v) : fmtNum(v, 4);
+  };
+  return el('section', {'aria-labelledby': 'h-frames'},
+    el('h2', {id: 'h-frames'}, `Frames (${frames.length})`),
+    el('table', {className: 'kv frames'},
+      el('thead', {}, el('tr', {}, el('th', {scope: 'col'}, 'frame'), ...keys.map((k) => el('th', {scope: 'col'}, FRAME_LABELS[k] || k)))),
+      el('tbody', {}, ...frames.map((f) => el('tr', {}, el('th', {scope: 'row'}, String(f.frame)),
+        ...keys.map((k) => el('td', {className: 'num'}, cell(k, f[k]))))))));
+}
+
 // The registry's entry of a technique (its needs and cost rule), null when unknown.
 async function techniqueOf(name) {
   try {
@@ -280,6 +300,7 @@ export function mountJob(view, [id], query) {
       // Sections a job does not have yet are left out (replaceChildren would print a null).
       body.replaceChildren(...[notesSection(j), warningsSection(j), outputsSection(j, await outputFiles()),
         j.timings_ms ? timingsSection(j.timings_ms) : null,
+        Array.isArray(j.frames) && j.frames.length ? framesSection(j.frames) : null,
         j.stats ? statsSection(j, await techniqueOf(j.technique)) : null,
         el('div', {className: 'params-slot'}), el('div', {className: 'metrics-slot'}),
         el('section', {className: 'log-slot', 'aria-labelledby': 'h-log'}, el('h2', {id: 'h-log'}, 'Log'),
