@@ -2,7 +2,8 @@
 // vendor allowlist, client-side validation and a server-side refusal on the submit page, a job
 // submitted from the page followed to success with its outputs, live progress and a cancel on the
 // job list without reloads, filters, keyboard navigation to a job, a job rendered outside its
-// technique's guaranteed range marked in the list and its warning shown on its page, and named
+// technique's guaranteed range marked in the list and its warning shown on its page, a moving
+// scene's per-frame figures in its Frames table, and named
 // controls everywhere.
 import assert from 'node:assert/strict';
 import test from 'node:test';
@@ -194,6 +195,29 @@ test('jobs, job detail and submit pages', async () => {
     assert.deepEqual(await page.$$eval('section.warnings li', (lis) => lis.map((l) => l.textContent)), wj.warnings);
     await assertAllNamed(page, 'job with warnings');
     await screenshot(page, 'job-warnings');
+
+    // ---- a scene with a moving object: one row per frame with the job's figures -------------------
+    const moving = await submit(d, {label: 'moving box', camera: {type: 'perspective', position: [0, 2, 4], look_at: [0, 0.3, 0], fov_y: 50},
+      image: {width: 24, height: 18},
+      objects: [{shape: {type: 'quad', vertices: [[-2, 0, -2], [-2, 0, 2], [2, 0, 2], [2, 0, -2]]}, material: {reflectivity: [0.7, 0.7, 0.7]}},
+        {shape: {type: 'box', min: [-0.3, 0, -0.3], max: [0.3, 0.6, 0.3]}, material: {reflectivity: [0.3, 0.8, 0.3]},
+         transform: {translate: [-1, 0, 0]}, motion: [{translate: [0, 0, 0]}, {translate: [1, 0, 0]}]}],
+      technique: {name: 'obscurance_map', params: {method: 'rays', samples: 8, patch_size: 0.5, d_max: 0.8}}});
+    const mj = await waitJob(d, moving);
+    assert.equal(mj.state, 'succeeded', mj.error);
+    await page.goto(`${d.url}/#/jobs/${moving}`);
+    await page.getByRole('heading', {name: 'Frames (3)'}).waitFor();
+    const frameRows = await page.$$eval('table.frames tbody tr', (trs) => trs.map((tr) => [...tr.children].map((c) => c.textContent)));
+    assert.deepEqual(frameRows.map((r) => r[0]), ['0', '1', '2']);
+    const heads = await page.$$eval('table.frames thead th', (ths) => ths.map((t) => t.textContent));
+    const col = (name) => heads.indexOf(name);
+    assert.ok(col('patches updated') > 0 && col('speed-up') > 0 && col('patches differing') > 0, heads.join('|'));
+    for (const [i, f] of mj.frames.entries()) {
+      assert.equal(frameRows[i][col('patches updated')], String(f.patches_updated));
+      if (i > 0) assert.equal(frameRows[i][col('patches differing')], '0', 'exact (the default) equals a full recompute');
+    }
+    assert.equal(frameRows[0][col('speed-up')], '', 'frame 0 is the full map: no speed-up');
+    await assertAllNamed(page, 'job with frames');
 
     // ---- API text is shown as text; the skip link stays on the page; Delete leaves the page --------
     const xss = '<img src=x onerror="window.__pwned=1">';
