@@ -126,8 +126,8 @@ static int entry_grid(obs_jpath *p, const obs_technique *t, const json_t *params
 /* Appends entry `i`'s Cartesian product to x: backends outermost, then the parameters in request
  * order, the last varying fastest. Returns -1 (reported) when out of memory. */
 static int entry_product(obs_jpath *p, expansion *x, int i, const obs_technique *t,
-                         const obs_backend *bes, int nb, int listed, const json_t *params,
-                         const grid *g) {
+                         const char *against, const obs_backend *bes, int nb, int listed,
+                         const json_t *params, const grid *g) {
   for (int bi = 0; bi < nb; bi++) {
     size_t idx[64] = {0};
     for (;;) {
@@ -145,6 +145,7 @@ static int entry_product(obs_jpath *p, expansion *x, int i, const obs_technique 
       memset(c, 0, sizeof *c);
       c->entry = i;
       c->t = t;
+      c->against = against;
       c->backend = bes[bi];
       c->backend_pos = listed ? bi : -1;
       /* Shallow: only top-level keys are replaced below, so candidates share the rest of the
@@ -179,8 +180,12 @@ void srv_compare_expand(srv_app *app, obs_jpath *p, const json_t *cands, expansi
       obs_jpath_pop(p, m);
       continue;
     }
-    static const char *const keys[] = {"technique", "backend", "params", NULL};
+    static const char *const keys[] = {"technique", "backend", "params", "against", NULL};
     obs_json_check_keys(p, e, keys);
+    /* Another reference than the technique's own (obs_reference_alt), checked per candidate. */
+    const char *against = NULL;
+    json_t *av = json_object_get(e, "against");
+    if (av && !json_is_null(av)) obs_json_get_string(p, e, "against", 0, NULL, &against);
     const char *tn = NULL;
     const obs_technique *t = NULL;
     if (!obs_json_get_string(p, e, "technique", 1, NULL, &tn) && !(t = obs_technique_find(tn))) {
@@ -205,7 +210,7 @@ void srv_compare_expand(srv_app *app, obs_jpath *p, const json_t *cands, expansi
     total += combos;
     if (!t || bad || !nb || (params == NULL && !absent) || p->err->count) continue;
     if (total > MAX_CANDIDATES) continue; /* reported once below */
-    if (entry_product(p, x, (int)i, t, bes, nb, listed, params, &g)) return;
+    if (entry_product(p, x, (int)i, t, against, bes, nb, listed, params, &g)) return;
   }
   if (total > MAX_CANDIDATES)
     obs_jpath_fail(p, "expands to %.0f candidates; at most %d per comparison", total,

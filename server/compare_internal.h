@@ -22,6 +22,7 @@ typedef struct cand {
   int backend_pos;        /* index in the entry's backend list, -1 when a single string */
   json_t *params;         /* this combination's parameter values (owned) */
   json_t *pos;            /* key -> index in that parameter's list (owned; only listed keys) */
+  const char *against;    /* the entry's "against" (a reference technique), or NULL; borrowed */
   /* Filled once validated: */
   char *doc, *params_full, *ref_key;
   int width, height, spp;

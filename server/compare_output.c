@@ -1,7 +1,8 @@
-/* The metrics of one comparison candidate on the primary output its technique declares, of any
- * kind: scalar outputs as they are, RGB outputs on their luminance (plus RMSE per channel, SSIM on
- * luminance and relative MSE), depth on its ".Z" channel, per-patch outputs on their rendered
- * channel plus the area-weighted RMSE over the patches. */
+/* The metrics of one comparison candidate on the primary output its technique declares (or the
+ * output an alternative reference compares), of any kind: scalar outputs as they are, RGB outputs
+ * on their luminance (plus RMSE per channel, SSIM on luminance and relative MSE against an RGB
+ * reference), depth on its ".Z" channel, per-patch outputs on their rendered channel plus the
+ * area-weighted RMSE over the patches against a per-patch reference. */
 #include <errno.h>
 #include <jansson.h>
 #include <stdio.h>
@@ -98,7 +99,8 @@ static int write_mapped_reference(const obs_image *ref, const obs_output *o, con
 int srv_compare_primary(const char *dir, const char *rdir, obs_response resp, obs_compare *m,
                         json_t *extra, obs_image *eimg, obs_err *err) {
   const obs_technique *t = result_technique(dir), *rt = result_technique(rdir);
-  const obs_output *o = obs_technique_primary(t);
+  /* The candidate's primary output, or the one an alternative reference compares. */
+  const obs_output *o = obs_technique_compared_output(t, rt);
   if (!o) return obs_err_set(err, OBS_EINVAL, "technique %s declares no primary output", t->name);
   obs_image cand, ref;
   memset(&cand, 0, sizeof cand);
@@ -108,11 +110,19 @@ int srv_compare_primary(const char *dir, const char *rdir, obs_response resp, ob
   int rc = read_exr(dir, t, &cand, err);
   if (!rc) rc = read_exr(rdir, rt, &ref, err);
   const obs_output *ro = obs_technique_primary(rt);
-  int renamed = !rc && ro && ro->kind == o->kind && strcmp(ro->name, o->name);
+  /* A scalar reference of another kind of output (rt_ao's ao for obscurance's W, in RGB with
+   * equal channels, or obscurance_map's per-patch W shown per pixel) is compared with that
+   * output's per-pixel luminance or channel. */
+  int scalar_ref = !rc && ro && ro->kind == OBS_OUTPUT_SCALAR && o->kind != OBS_OUTPUT_SCALAR;
+  int renamed = !rc && ro && (ro->kind == o->kind || scalar_ref) && strcmp(ro->name, o->name);
   if (renamed) {
     rename_output(&ref, ro->name, o->name);
-    const char *rs = stderr_name(rt, ro->name), *cs = stderr_name(t, o->name);
-    if (rs && cs) rename_output(&ref, rs, cs);
+    /* The reference's noise follows it under the name the metrics look for, "<output>_stderr"
+     * (which is the candidate's own stderr output's name where it has one). */
+    const char *rs = stderr_name(rt, ro->name);
+    char cs[OBS_CHANNEL_NAME_MAX];
+    snprintf(cs, sizeof cs, "%s_stderr", o->name);
+    if (rs) rename_output(&ref, rs, cs);
   }
   /* Response curves map AO; an identity mapping leaves any output as it is. */
   if (!rc && resp != OBS_RESPONSE_IDENTITY) rc = obs_response_apply(resp, &ref, err);
@@ -122,7 +132,9 @@ int srv_compare_primary(const char *dir, const char *rdir, obs_response resp, ob
   if (!rc && o->kind == OBS_OUTPUT_VECTOR)
     rc = obs_err_set(err, OBS_EUNSUPPORTED, "no metrics for the vector output \"%s\"", o->name);
   const char *mask = obs_image_channel(&ref, "alpha") ? "alpha" : NULL;
-  if (!rc && o->kind == OBS_OUTPUT_RGB) {
+  if (!rc && o->kind == OBS_OUTPUT_RGB && scalar_ref) {
+    rc = to_luminance(t, o, &cand, err);
+  } else if (!rc && o->kind == OBS_OUTPUT_RGB) {
     obs_compare_rgb c;
     rc = obs_metrics_compare_rgb(&cand, &ref, o->name, mask, &c, err);
     if (!rc) {
@@ -140,7 +152,8 @@ int srv_compare_primary(const char *dir, const char *rdir, obs_response resp, ob
   if (!rc) rc = obs_metrics_compare(&cand, &ref, channel, mask, m, err);
   if (!rc) rc = obs_metrics_error_image(&cand, &ref, channel, mask, eimg, err);
   double prmse;
-  if (!rc && o->kind == OBS_OUTPUT_PATCH && !(rc = patch_rmse(dir, rdir, o, &prmse, err)))
+  if (!rc && o->kind == OBS_OUTPUT_PATCH && ro->kind == OBS_OUTPUT_PATCH &&
+      !(rc = patch_rmse(dir, rdir, o, &prmse, err)))
     json_object_set_new(extra, "patch_rmse", json_real(prmse));
   if (!rc && strcmp(o->name, "ao")) json_object_set_new(extra, "output", json_string(o->name));
   obs_image_free(&cand);

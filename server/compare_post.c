@@ -169,10 +169,10 @@ static void validate_candidate(srv_app *app, cmp_req *q, cand *c, expansion *x,
   /* The reference: the technique the candidate's hook names, with the candidate's definition,
    * the reference's quality (samples) and seed. */
   obs_reference_def rd;
-  if (obs_technique_reference(sc.technique, &sc, sc.params, facts, &rd, &e)) {
+  if (obs_technique_reference_against(sc.technique, &sc, sc.params, c->against, facts, &rd, &e)) {
     char line[1200];
-    snprintf(line, sizeof line, "request: /candidates/%d: cannot define its reference: %s",
-             c->entry, obs_err_message(&e));
+    snprintf(line, sizeof line, "request: /candidates/%d%s: cannot define its reference: %s",
+             c->entry, c->against ? "/against" : "", obs_err_message(&e));
     add_problem(problems, dropped, line);
     goto out;
   }

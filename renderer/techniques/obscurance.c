@@ -100,6 +100,11 @@ static void obscurance_check(const obs_scene *scene, const json_t *params, const
  * with max_bounces 1 computes `direct` alone.) */
 static const char *const obscurance_reference_keys[] = {"exposure", NULL};
 
+static const char *const w_alt_keys[] = {"d_max", "max_distance", "falloff", "falloff",
+                                         "tau",   "tau",          NULL};
+const obs_reference_alt obs_obscurance_w_alts[] = {
+    {&obs_technique_rt_ao, "obscurance", w_alt_keys, "color_bleeding"}, {NULL, NULL, NULL, NULL}};
+
 /* The guaranteed range below (docs/accuracy.md; tests/unit/test_extremes.c checks both ends on a
  * sphere over a plane with `ambient` set). The rays are rt_ao's and path_trace's, so are their
  * limits; I_A is a ratio of areas and W depends on d / d_max only, so the outputs are
@@ -122,6 +127,7 @@ const obs_technique obs_technique_obscurance = {
     .check = obscurance_check,
     .reference_same = &obs_technique_path_trace,
     .reference_keys = obscurance_reference_keys,
+    .reference_alts = obs_obscurance_w_alts,
     .reference_quality = "samples",
     .run = {[OBS_BACKEND_CPU] = obs_obscurance_cpu},
     .range = {[OBS_BACKEND_CPU] = {.size_min = 1e-9,

@@ -162,6 +162,7 @@ const obs_technique obs_technique_obscurance_map = {
     .outputs = obscurance_map_outputs,
     .check = obscurance_map_check,
     .reference = obscurance_map_reference,
+    .reference_alts = obs_obscurance_w_alts,
     .reference_quality = "samples",
     .run = {[OBS_BACKEND_CPU] = obs_obscurance_map_cpu,
             [OBS_BACKEND_VULKAN] = obs_obscurance_map_vulkan},

@@ -28,6 +28,55 @@ int obs_technique_reference(const obs_technique *t, const obs_scene *scene, cons
   return rc;
 }
 
+static const obs_reference_alt *find_alt(const obs_technique *t, const char *name) {
+  for (const obs_reference_alt *a = t->reference_alts; a && a->technique; a++)
+    if (!strcmp(a->technique->name, name)) return a;
+  return NULL;
+}
+
+int obs_technique_reference_against(const obs_technique *t, const obs_scene *scene,
+                                    const json_t *params, const char *against,
+                                    obs_reference_facts *facts, obs_reference_def *def,
+                                    obs_err *err) {
+  if (!against) return obs_technique_reference(t, scene, params, facts, def, err);
+  memset(def, 0, sizeof *def);
+  const obs_reference_alt *a = find_alt(t, against);
+  if (!a) {
+    char list[256] = "";
+    for (const obs_reference_alt *x = t->reference_alts; x && x->technique; x++) {
+      size_t l = strlen(list);
+      snprintf(list + l, sizeof list - l, ", \"%s\"", x->technique->name);
+    }
+    return obs_err_set(err, OBS_EINVAL,
+                       "technique \"%s\" cannot be compared against \"%s\" (it can be: null, "
+                       "its own reference%s)",
+                       t->name, against, list);
+  }
+  if (a->needs_false && json_is_true(json_object_get(params, a->needs_false)))
+    return obs_err_set(err, OBS_EINVAL,
+                       "/technique/params/%s: comparing %s's \"%s\" against \"%s\" needs %s "
+                       "false (with it the two are not the same quantity)",
+                       a->needs_false, t->name, a->output, against, a->needs_false);
+  def->params = json_object();
+  if (!def->params) return obs_err_set(err, OBS_ENOMEM, "out of memory");
+  def->technique = a->technique;
+  def->response = OBS_RESPONSE_IDENTITY;
+  def->output = a->output;
+  for (const char *const *k = a->keys; k && k[0]; k += 2) {
+    json_t *v = json_object_get(params, k[0]);
+    if (v && !json_is_null(v)) json_object_set_new(def->params, k[1], json_deep_copy(v));
+  }
+  (void)scene;
+  (void)facts;
+  return 0;
+}
+
+const obs_output *obs_technique_compared_output(const obs_technique *t, const obs_technique *ref) {
+  const obs_reference_alt *a = ref ? find_alt(t, ref->name) : NULL;
+  const obs_output *o = a ? obs_technique_output(t, a->output) : NULL;
+  return o ? o : obs_technique_primary(t);
+}
+
 void obs_reference_def_free(obs_reference_def *def) {
   if (!def) return;
   json_decref(def->params);

@@ -126,6 +126,13 @@ json_t *obs_technique_registry_json(void) {
     json_object_set_new(o, "backends", be);
     json_object_set_new(o, "params_schema", obs_technique_params_schema(t));
     json_object_set_new(o, "cost", json_string(t->cost_rule ? t->cost_rule : "1"));
+    json_t *alts = json_array();
+    for (const obs_reference_alt *a = t->reference_alts; a && a->technique; a++)
+      json_array_append_new(alts, json_pack("{s:s, s:s, s:o}", "technique", a->technique->name,
+                                            "output", a->output, "needs_false",
+                                            a->needs_false ? json_string(a->needs_false)
+                                                           : json_null()));
+    json_object_set_new(o, "against", alts);
     json_t *needs = json_array();
     for (size_t k = 0; k < sizeof need_names / sizeof need_names[0]; k++)
       if (t->needs & need_names[k].flag)

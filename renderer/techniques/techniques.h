@@ -40,6 +40,10 @@ json_t *obs_range_json(const obs_range *r);
 /* The obscurance model's parameters (core/obscurance.h), the same in every obscurance technique
  * (per pixel, per patch): entries for d_max (a length), falloff, tau and color_bleeding, landing in
  * the members of those names through P(member) (offsetof in the technique's params struct). */
+/* The obscurance techniques' W without colour bleeding against rt_ao with the same falloff (a
+ * comparison candidate's "against": "rt_ao"): the same quantity, W = (1/pi) int rho cos. */
+extern const obs_reference_alt obs_obscurance_w_alts[];
+
 #define OBS_OBSCURANCE_MODEL_PARAMS(P)                                                           \
   {.name = "d_max", .type = OBS_PARAM_DOUBLE, .flags = OBS_PARAM_MIN_EXCLUSIVE, .min = 0,        \
    .max = 1e30, .def = 1,                                                                        \

@@ -132,3 +132,54 @@ test('obscurance_map with a moving object: frames reported, exact update, RMSE o
     assert.match(bad.text, /\/objects\/1\/motion: technique \\?"rt_ao\\?" renders one frame/);
   });
 });
+
+// W without colour bleeding against rt_ao with the same falloff: the per-pixel technique's
+// `obscurance` output and the map's per-pixel W, each against the same rt_ao reference.
+test('obscurance and obscurance_map against rt_ao: W without colour bleeding', async () => {
+  await withDaemon({}, async (d) => {
+    const reg = await getJSON(d, '/api/v1/techniques');
+    for (const name of ['obscurance', 'obscurance_map']) {
+      const t = reg.techniques.find((x) => x.name === name);
+      assert.deepEqual(t.against, [{technique: 'rt_ao', output: 'obscurance', needs_false: 'color_bleeding'}]);
+    }
+    const model = {d_max: 300, falloff: 'sqrt', color_bleeding: false};
+    const body = {
+      scene_file: 'cornell_box.json',
+      set: {'/image/width': 32, '/image/height': 24},
+      repeats: 1,
+      reference: {samples: 1024},
+      candidates: [{technique: 'obscurance', backend: 'cpu', against: 'rt_ao',
+                    params: {...model, samples: [4, 64], light_samples: 1}},
+                   {technique: 'obscurance_map', backend: 'cpu', against: 'rt_ao',
+                    params: {...model, method: 'rays', samples: 64, patch_size: 30}}],
+    };
+    const r = await request(d, 'POST', '/api/v1/comparisons', {body});
+    assert.equal(r.status, 201, r.text);
+    const c = await waitComparison(d, r.json.id);
+    assert.equal(c.state, 'succeeded', JSON.stringify(c.candidates.map((x) => [x.state, x.error])));
+    // One reference for all: rt_ao with the candidates' falloff and d_max.
+    assert.equal(c.references.length, 1);
+    const ref = c.references[0];
+    assert.equal(ref.technique, 'rt_ao');
+    assert.equal(ref.params.falloff, 'sqrt');
+    assert.equal(ref.params.max_distance, 300);
+    for (const x of c.candidates) {
+      assert.equal(x.metrics.output, 'obscurance', JSON.stringify(x.metrics));
+      assert.ok(Number.isFinite(x.metrics.rmse) && x.metrics.rmse > 0, JSON.stringify(x.metrics));
+      assert.equal(x.metrics.patch_rmse, undefined, 'rt_ao is not per patch');
+    }
+    console.log(c.candidates.map((x) => `${x.technique} ${x.params.samples}: rmse ${x.metrics.rmse} ssim ${x.metrics.ssim} ref_noise ${x.metrics.ref_noise}`).join('\n'));
+    const px = c.candidates.filter((x) => x.technique === 'obscurance').sort((a, b) => a.params.samples - b.params.samples);
+    // The same quantity: the error falls as the samples grow (4 -> 64: a quarter, less the
+    // reference's noise), to the level of the reference's noise.
+    assert.ok(px[1].metrics.rmse < px[0].metrics.rmse / 2, `obscurance vs rt_ao: ${px.map((x) => x.metrics.rmse)}`);
+    // Refused: colour bleeding on (W is then RGB), and a reference the technique does not offer.
+    for (const [cand, re] of [
+      [{technique: 'obscurance', against: 'rt_ao', params: {color_bleeding: true}}, /\/candidates\/0\/against: .*color_bleeding: comparing obscurance's "obscurance" against "rt_ao" needs color_bleeding false/],
+      [{technique: 'obscurance', against: 'hbao', params: {color_bleeding: false}}, /\/candidates\/0\/against: .*cannot be compared against "hbao" \(it can be: null, its own reference, "rt_ao"\)/]]) {
+      const bad = await request(d, 'POST', '/api/v1/comparisons', {body: {...body, candidates: [cand]}});
+      assert.equal(bad.status, 422, bad.text);
+      assert.match(bad.json.problems.join('\n'), re);
+    }
+  });
+});

@@ -332,7 +332,8 @@ static void test_seed_and_threads(void **state) {
   }
 }
 
-/* The reference is the same map by the rays estimator, with the defining parameters copied. */
+/* The reference is the same map by the rays estimator, with the defining parameters copied; on
+ * request, rt_ao with the same falloff for W without colour bleeding. */
 static void test_reference_hook(void **state) {
   (void)state;
   const obs_technique *t = obs_technique_find("obscurance_map");
@@ -354,7 +355,27 @@ static void test_reference_hook(void **state) {
   assert_true(json_real_value(json_object_get(def.params, "patch_size")) == 0.25);
   assert_null(json_object_get(def.params, "directions"));
   assert_string_equal(t->reference_quality, "samples");
+  assert_null(def.output);
+  assert_ptr_equal(obs_technique_compared_output(t, t), obs_technique_primary(t));
   obs_reference_def_free(&def);
+  /* Against rt_ao: W without bleeding, the falloff's parameters under rt_ao's names. */
+  const obs_technique *rt = obs_technique_find("rt_ao");
+  assert_int_equal(obs_technique_reference_against(t, &sc, params, "rt_ao", NULL, &def, &err), 0);
+  assert_ptr_equal(def.technique, rt);
+  assert_string_equal(def.output, "obscurance");
+  assert_true(json_real_value(json_object_get(def.params, "max_distance")) == 2.5);
+  assert_string_equal(json_string_value(json_object_get(def.params, "falloff")), "exp");
+  assert_int_equal((int)json_object_size(def.params), 2); /* these params have no tau */
+  assert_string_equal(obs_technique_compared_output(t, rt)->name, "obscurance");
+  obs_reference_def_free(&def);
+  json_object_set_new(params, "color_bleeding", json_true());
+  assert_int_equal(obs_technique_reference_against(t, &sc, params, "rt_ao", NULL, &def, &err),
+                   OBS_EINVAL);
+  assert_non_null(strstr(obs_err_message(&err), "/technique/params/color_bleeding"));
+  obs_err_clear(&err);
+  assert_int_equal(obs_technique_reference_against(t, &sc, params, "ssao", NULL, &def, &err),
+                   OBS_EINVAL);
+  assert_non_null(strstr(obs_err_message(&err), "cannot be compared against \"ssao\""));
   json_decref(params);
   obs_scene_free(&sc);
   obs_err_free(&err);

@@ -128,7 +128,23 @@ typedef struct obs_reference_def {
   const struct obs_technique *technique;
   json_t *params;        /* owned */
   obs_response response;
+  /* The candidate's output compared with the reference's primary one: NULL for the candidate's
+   * primary output, else an obs_reference_alt's. */
+  const char *output;
 } obs_reference_def;
+
+/* Another reference a candidate may be compared with, on request (a comparison candidate's
+ * "against"): one of the candidate's outputs against another technique's primary output, e.g.
+ * obscurance's W without colour bleeding against rt_ao with the same falloff. */
+typedef struct obs_reference_alt {
+  const struct obs_technique *technique; /* the reference technique; NULL ends a list */
+  const char *output;          /* the candidate's output compared (its per-pixel channel) */
+  /* Pairs (candidate parameter, reference parameter), NULL-terminated: the values copied. */
+  const char *const *keys;
+  /* A boolean parameter of the candidate that must be false for the outputs to be the same
+   * quantity (obscurance's color_bleeding: W is RGB with it); NULL: none. */
+  const char *needs_false;
+} obs_reference_alt;
 
 /* A technique's reference hook: sets def->technique and def->response and fills def->params (an
  * empty object) with the reference technique's parameters that define the same quantity as the
@@ -322,6 +338,9 @@ typedef struct obs_technique {
    * response). Both NULL: the technique cannot be compared. */
   const struct obs_technique *reference_same;
   const char *const *reference_keys;
+  /* The other references a comparison may ask for (obs_reference_alt), ended by a NULL technique;
+   * NULL: none. */
+  const obs_reference_alt *reference_alts;
   /* As a reference: the integer parameter a comparison's reference.samples sets (its converged
    * quality, e.g. "samples"); NULL: the technique cannot serve as a reference. */
   const char *reference_quality;
@@ -362,6 +381,16 @@ int obs_technique_pick_backend(const obs_technique *t, obs_backend requested, ob
  * reference technique that has no reference_quality. */
 int obs_technique_reference(const obs_technique *t, const obs_scene *scene, const json_t *params,
                             obs_reference_facts *facts, obs_reference_def *def, obs_err *err);
+/* The same against `against` (a technique name; NULL: the technique's own reference, as above):
+ * one of t's reference_alts. OBS_EINVAL naming what t can be compared against when it is none of
+ * them, or naming the parameter when the alternative's needs_false parameter is true. */
+int obs_technique_reference_against(const obs_technique *t, const obs_scene *scene,
+                                    const json_t *params, const char *against,
+                                    obs_reference_facts *facts, obs_reference_def *def,
+                                    obs_err *err);
+/* The output of a candidate of `t` compared with a reference by `ref`: an alternative's output
+ * when `ref` is one of t's reference_alts, else t's primary output. */
+const obs_output *obs_technique_compared_output(const obs_technique *t, const obs_technique *ref);
 void obs_reference_def_free(obs_reference_def *def);
 /* For reference hooks whose reference is the candidate's own technique with more samples: copies
  * the NULL-terminated `keys` that `params` has into def->params and sets the reference technique
