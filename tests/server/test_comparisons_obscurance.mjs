@@ -18,6 +18,15 @@ async function waitComparison(d, id, timeoutMs = 240000 * SLOW) {
   }
 }
 
+/** Posts a comparison, waits for it and asserts every candidate succeeded. */
+async function compareOk(d, body) {
+  const r = await request(d, 'POST', '/api/v1/comparisons', {body});
+  assert.equal(r.status, 201, r.text);
+  const c = await waitComparison(d, r.json.id);
+  assert.equal(c.state, 'succeeded', JSON.stringify(c.candidates.map((x) => [x.state, x.error])));
+  return c;
+}
+
 test('obscurance against path_trace: final compared with radiance, RGB metrics', async () => {
   await withDaemon({}, async (d) => {
     const body = {
@@ -28,10 +37,7 @@ test('obscurance against path_trace: final compared with radiance, RGB metrics',
       candidates: [{technique: 'obscurance', backend: 'cpu',
                     params: {samples: [4, 64], light_samples: 16, d_max: 300, exposure: 1}}],
     };
-    const r = await request(d, 'POST', '/api/v1/comparisons', {body});
-    assert.equal(r.status, 201, r.text);
-    const c = await waitComparison(d, r.json.id);
-    assert.equal(c.state, 'succeeded', JSON.stringify(c.candidates.map((x) => [x.state, x.error])));
+    const c = await compareOk(d, body);
     const ref = c.references[0];
     assert.equal(ref.technique, 'path_trace');
     assert.equal(ref.params.samples, 256);
@@ -62,10 +68,7 @@ test('obscurance_map against its rays reference: per-patch RMSE falls with more 
                     params: {method: ['rays', 'bundles'], samples: [8, 128], directions: 32,
                              bundle_resolution: 64, d_max: 300}}],
     };
-    const r = await request(d, 'POST', '/api/v1/comparisons', {body});
-    assert.equal(r.status, 201, r.text);
-    const c = await waitComparison(d, r.json.id);
-    assert.equal(c.state, 'succeeded', JSON.stringify(c.candidates.map((x) => [x.state, x.error])));
+    const c = await compareOk(d, body);
     // One reference for all four: the same map by rays at the reference's samples.
     assert.equal(c.references.length, 1);
     const ref = c.references[0];
@@ -102,10 +105,7 @@ test('obscurance_map with a moving object: frames reported, exact update, RMSE o
       candidates: [{technique: 'obscurance_map', backend: 'cpu',
                     params: {method: 'rays', samples: [4, 64], update: ['exact', 'article']}}],
     };
-    const r = await request(d, 'POST', '/api/v1/comparisons', {body});
-    assert.equal(r.status, 201, r.text);
-    const c = await waitComparison(d, r.json.id);
-    assert.equal(c.state, 'succeeded', JSON.stringify(c.candidates.map((x) => [x.state, x.error])));
+    const c = await compareOk(d, body);
     assert.equal(c.references[0].params.measure_full, false, 'the reference measures nothing');
     for (const x of c.candidates) {
       assert.ok(Number.isFinite(x.metrics.patch_rmse) && x.metrics.patch_rmse > 0, JSON.stringify(x.metrics));
@@ -153,10 +153,7 @@ test('obscurance and obscurance_map against rt_ao: W without colour bleeding', a
                    {technique: 'obscurance_map', backend: 'cpu', against: 'rt_ao',
                     params: {...model, method: 'rays', samples: 64, patch_size: 30}}],
     };
-    const r = await request(d, 'POST', '/api/v1/comparisons', {body});
-    assert.equal(r.status, 201, r.text);
-    const c = await waitComparison(d, r.json.id);
-    assert.equal(c.state, 'succeeded', JSON.stringify(c.candidates.map((x) => [x.state, x.error])));
+    const c = await compareOk(d, body);
     // One reference for all: rt_ao with the candidates' falloff and d_max.
     assert.equal(c.references.length, 1);
     const ref = c.references[0];
