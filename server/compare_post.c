@@ -238,7 +238,7 @@ static void validate_candidate(srv_app *app, cmp_req *q, cand *c, expansion *x,
       r->width = rs.width;
       r->height = rs.height;
       r->spp = rs.spp;
-      r->work = (double)rs.width * rs.height * rs.spp * obs_technique_cost(rs.technique, rs.params);
+      r->work = obs_scene_work(&rs);
       r->backend = ref_be;
       found = x->nrefs++;
     }
@@ -254,7 +254,7 @@ static void validate_candidate(srv_app *app, cmp_req *q, cand *c, expansion *x,
   c->width = sc.width;
   c->height = sc.height;
   c->spp = sc.spp;
-  c->work = (double)sc.width * sc.height * sc.spp * obs_technique_cost(sc.technique, sc.params);
+  c->work = obs_scene_work(&sc);
   if (found < 0 || !c->params_full || !c->ref_key)
     obs_err_set(problems, OBS_ENOMEM, "request: out of memory");
 out:

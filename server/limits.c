@@ -35,8 +35,7 @@ void srv_submit_check_estimate(srv_app *app, const obs_scene *sc, obs_err *probl
   int rc = srv_pick_backend(sc->technique, sc->backend, app->vulkan_lane, &be, &e);
   obs_err_free(&e);
   if (rc) return; /* reported by the backend check */
-  double work =
-      (double)sc->width * sc->height * sc->spp * obs_technique_cost(sc->technique, sc->params);
+  double work = obs_scene_work(sc);
   if (!(work > 0)) return;
   double *rates = NULL, rate = NAN;
   size_t n = 0;

@@ -192,12 +192,15 @@ void srv_submit_check_limits(srv_app *app, const obs_scene *sc, obs_err *problem
                 "= %lld",
                 d, pixels, (long long)c->max_pixels);
   double samples = obs_technique_cost(sc->technique, sc->params);
-  double work = pixels * sc->spp * samples;
+  double work = obs_scene_work(sc);
+  char frames[48] = "";
+  if (sc->frames > 1) snprintf(frames, sizeof frames, " x %d frames", sc->frames);
   if (work > c->max_work)
     obs_err_set(problems, OBS_EINVAL,
-                "%s: /technique/params: work = width x height x spp x samples = %.0f x %d x %.0f "
-                "= %.4g exceeds the server's limit max-work = %.4g",
-                d, pixels, sc->spp, samples, work, c->max_work);
+                "%s: /technique/params: work = width x height x spp x samples%s = %.0f x %d x "
+                "%.0f%s = %.4g exceeds the server's limit max-work = %.4g",
+                d, sc->frames > 1 ? " x frames" : "", pixels, sc->spp, samples, frames, work,
+                c->max_work);
   double tris = triangles_of(sc, problems);
   if (tris > (double)c->max_triangles)
     obs_err_set(problems, OBS_EINVAL,
@@ -451,7 +454,7 @@ unsigned srv_submit_parse(srv_app *app, const char *body, size_t len, srv_submis
   obs_backend be;
   obs_err e = OBS_ERR_INIT;
   char reason[512];
-  double work = (double)sc.width * sc.height * sc.spp * obs_technique_cost(sc.technique, sc.params);
+  double work = obs_scene_work(&sc);
   if (srv_pick_backend_learned(app, sc.technique, sc.backend, work, &be, reason, sizeof reason,
                                &e))
     obs_err_set(problems, OBS_EINVAL, "%s: /technique/backend: %s", docname, obs_err_message(&e));

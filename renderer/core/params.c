@@ -381,6 +381,11 @@ double obs_technique_cost(const obs_technique *t, const json_t *params) {
   return c;
 }
 
+double obs_scene_work(const obs_scene *sc) {
+  return (double)sc->width * sc->height * sc->spp * obs_technique_cost(sc->technique, sc->params) *
+         (sc->frames > 1 ? sc->frames : 1);
+}
+
 static size_t type_size(obs_param_type t) {
   switch (t) {
     case OBS_PARAM_RGB:

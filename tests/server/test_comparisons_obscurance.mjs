@@ -180,3 +180,23 @@ test('obscurance and obscurance_map against rt_ao: W without colour bleeding', a
     }
   });
 });
+
+// A job's work counts every frame of a moving scene: one frame fits the limit, three do not.
+test('max-work counts the frames of a moving scene', async () => {
+  await withDaemon({args: ['--max-work', '50000']}, async (d) => {
+    const scene = {
+      camera: {type: 'perspective', position: [0, 2, 4], look_at: [0, 0.3, 0], fov_y: 50},
+      image: {width: 24, height: 18},
+      objects: [{shape: {type: 'quad', vertices: [[-2, 0, -2], [-2, 0, 2], [2, 0, 2], [2, 0, -2]]}, material: {reflectivity: [0.7, 0.7, 0.7]}},
+        {shape: {type: 'box', min: [-0.3, 0, -0.3], max: [0.3, 0.6, 0.3]}, material: {reflectivity: [0.3, 0.8, 0.3]}}],
+      technique: {name: 'obscurance_map', params: {method: 'rays', samples: 64, patch_size: 0.5}},
+    };
+    const still = await request(d, 'POST', '/api/v1/jobs', {body: scene});
+    assert.equal(still.status, 201, still.text);
+    scene.objects[1].motion = [{translate: [0.5, 0, 0]}, {translate: [1, 0, 0]}];
+    const moving = await request(d, 'POST', '/api/v1/jobs', {body: scene});
+    assert.equal(moving.status, 422, moving.text);
+    assert.match(moving.json.problems.join('\n'),
+      /\/technique\/params: work = width x height x spp x samples x frames = 432 x 1 x 64 x 3 frames = 8\.294e\+04 exceeds the server's limit max-work = 5e\+04/);
+  });
+});

@@ -420,6 +420,9 @@ json_t *obs_technique_params_schema(const obs_technique *t);
 /* The work per pixel sample of t with `params` (see obs_technique_cost_fn); 1 when t has no cost
  * hook, and when `params` do not bind (the loader reports those). */
 double obs_technique_cost(const obs_technique *t, const json_t *params);
+/* The work of rendering `sc` with its technique: width x height x spp x obs_technique_cost x
+ * frames (a scene with moving objects renders every frame; each costs a whole one at most). */
+double obs_scene_work(const obs_scene *sc);
 /* Checks t's parameter table against itself: names unique and non-empty, enums with choices,
  * offsets inside bound_size and aligned, and every default accepted by its own range. Adds one
  * problem per fault and returns OBS_EINVAL, or 0. */
