@@ -143,6 +143,7 @@ function readBlock(state, comparison) {
     if (!bs.length) errors.push([state.backend, 'tick at least one backend']);
     count *= Math.max(bs.length, 1);
     Object.assign(value, {technique: state.technique.value, backend: bs.length === 1 ? bs[0] : bs, params});
+    if (state.against && state.against.value) value.against = state.against.value;
   } else {
     Object.assign(value, {name: state.technique.value, backend: state.backend.value, params});
   }
@@ -155,11 +156,12 @@ function techniqueBlock(registry, {comparison, legend, base, onRemove, onChange,
   const fs = el('fieldset', {className: 'technique-block'}, el('legend', {}, legend));
   const desc = el('p', {className: 'desc'});
   const backendSlot = el('div');
+  const againstSlot = el('div');
   const paramsSlot = el('div', {className: 'params'});
   // Where the values shown come from (the scene's own params, or defaults fitted to its size).
   const origin = el('div', {className: 'hint defaults-note', 'aria-live': 'polite'});
   const state = {technique, backend: null, params: [], base, gen: 0};
-  fs.append(field('Technique', technique, {pointer: `${base}/${comparison ? 'technique' : 'name'}`}), desc, backendSlot, origin, paramsSlot);
+  fs.append(field('Technique', technique, {pointer: `${base}/${comparison ? 'technique' : 'name'}`}), desc, backendSlot, againstSlot, origin, paramsSlot);
   if (onRemove) fs.append(el('button', {type: 'button', className: 'small', onclick: onRemove}, `Remove ${legend.toLowerCase()}`));
 
   const build = () => {
@@ -167,6 +169,13 @@ function techniqueBlock(registry, {comparison, legend, base, onRemove, onChange,
     desc.textContent = t.description;
     state.backend = backendControl(t, registry, comparison, state.base);
     backendSlot.replaceChildren(state.backend.closest('.field') || state.backend);
+    // The other references the registry says a candidate may be compared with (`against`).
+    const alts = comparison ? t.against || [] : [];
+    state.against = alts.length ? el('select', {}, el('option', {value: ''}, 'its own reference'),
+      ...alts.map((a) => el('option', {value: a.technique},
+        `${a.technique}, on its ${a.output}${a.needs_false ? ` (needs ${a.needs_false} false)` : ''}`))) : null;
+    againstSlot.replaceChildren(...(state.against ? [field('Compare against', state.against, {pointer: `${state.base}/against`,
+      description: 'The reference technique the candidates are judged against (docs/comparisons.md).'})] : []));
     state.params = Object.entries(t.params_schema.properties || {})
       .map(([name, schema]) => paramEntry(name, schema, comparison, state, onChange));
     paramsSlot.replaceChildren(el('p', {className: 'hint'}, comparison ? "Parameters: leave empty for the scene's value (its own technique) or the default, lengths fitted to the scene's size."
