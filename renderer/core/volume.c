@@ -1,0 +1,189 @@
+/* Scalar volumes: allocation, trilinear reconstruction, procedural volumes and the min/max
+ * macrocell grid (volume.h). */
+#include "volume.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define PI 3.14159265358979323846
+
+const char *const obs_volume_procedural_names[] = {"sphere", "torus", "marschner_lobb", "noise",
+                                                   NULL};
+
+int obs_volume_init(obs_volume *v, const int n[3], const double spacing[3], obs_err *err) {
+  memset(v, 0, sizeof *v);
+  int64_t count = 1;
+  for (int a = 0; a < 3; a++) {
+    if (n[a] < 1)
+      return obs_err_set(err, OBS_EINVAL, "volume: dims must be at least 1 (got %d on axis %d)",
+                         n[a], a);
+    if (!(spacing[a] > 0) || !isfinite(spacing[a]))
+      return obs_err_set(err, OBS_EINVAL,
+                         "volume: spacing must be finite and positive (got %g on axis %d)",
+                         spacing[a], a);
+    count *= n[a];
+    if (count > OBS_VOLUME_MAX_VOXELS)
+      return obs_err_set(err, OBS_EINVAL, "volume: more than %lld voxels",
+                         (long long)OBS_VOLUME_MAX_VOXELS);
+  }
+  if (!(v->data = calloc((size_t)count, sizeof *v->data)))
+    return obs_err_set(err, OBS_ENOMEM, "volume: out of memory for %lld voxels", (long long)count);
+  memcpy(v->n, n, sizeof v->n);
+  memcpy(v->spacing, spacing, sizeof v->spacing);
+  return 0;
+}
+
+void obs_volume_free(obs_volume *v) {
+  if (!v) return;
+  free(v->data);
+  memset(v, 0, sizeof *v);
+}
+
+/* The continuous index of p along axis a, clamped to the voxel centres: the lower sample and the
+ * weight of the upper one. */
+static inline void axis_index(const obs_volume *v, int a, double p, int *i0, float *w) {
+  double u = p / v->spacing[a] - 0.5;
+  double hi = v->n[a] - 1;
+  if (!(u > 0)) u = 0; /* NaN too */
+  if (u > hi) u = hi;
+  int i = (int)u;
+  if (i > v->n[a] - 2) i = v->n[a] > 1 ? v->n[a] - 2 : 0;
+  *i0 = i;
+  *w = v->n[a] > 1 ? (float)(u - i) : 0.0f;
+}
+
+float obs_volume_sample(const obs_volume *v, const double p[3]) {
+  int i, j, k;
+  float wx, wy, wz;
+  axis_index(v, 0, p[0], &i, &wx);
+  axis_index(v, 1, p[1], &j, &wy);
+  axis_index(v, 2, p[2], &k, &wz);
+  int i1 = i + (v->n[0] > 1), j1 = j + (v->n[1] > 1), k1 = k + (v->n[2] > 1);
+  float c00 = obs_volume_at(v, i, j, k) + wx * (obs_volume_at(v, i1, j, k) - obs_volume_at(v, i, j, k));
+  float c10 =
+      obs_volume_at(v, i, j1, k) + wx * (obs_volume_at(v, i1, j1, k) - obs_volume_at(v, i, j1, k));
+  float c01 =
+      obs_volume_at(v, i, j, k1) + wx * (obs_volume_at(v, i1, j, k1) - obs_volume_at(v, i, j, k1));
+  float c11 = obs_volume_at(v, i, j1, k1) +
+              wx * (obs_volume_at(v, i1, j1, k1) - obs_volume_at(v, i, j1, k1));
+  float c0 = c00 + wy * (c10 - c00), c1 = c01 + wy * (c11 - c01);
+  return c0 + wz * (c1 - c0);
+}
+
+static double clamp01(double x) { return x < 0 ? 0 : x > 1 ? 1 : x; }
+
+static uint32_t hash3(uint32_t seed, int x, int y, int z) {
+  uint32_t h = seed * 0x9E3779B1u ^ (uint32_t)x * 0x85EBCA77u ^ (uint32_t)y * 0xC2B2AE3Du ^
+               (uint32_t)z * 0x27D4EB2Fu;
+  h ^= h >> 15;
+  h *= 0x2C1B3C6Du;
+  h ^= h >> 12;
+  h *= 0x297A2D39u;
+  h ^= h >> 15;
+  return h;
+}
+
+/* Value noise on a lattice of 8 cells across [-1, 1], smoothstep-weighted: in [0, 1]. */
+static double value_noise(uint32_t seed, const double x[3]) {
+  double u[3], w[3];
+  int c[3];
+  for (int a = 0; a < 3; a++) {
+    u[a] = (x[a] + 1) * 4;
+    c[a] = (int)floor(u[a]);
+    double f = u[a] - c[a];
+    w[a] = f * f * (3 - 2 * f);
+  }
+  double r = 0;
+  for (int k = 0; k < 8; k++) {
+    int dx = k & 1, dy = (k >> 1) & 1, dz = (k >> 2) & 1;
+    double wt = (dx ? w[0] : 1 - w[0]) * (dy ? w[1] : 1 - w[1]) * (dz ? w[2] : 1 - w[2]);
+    r += wt * (hash3(seed, c[0] + dx, c[1] + dy, c[2] + dz) >> 8) * 0x1p-24;
+  }
+  return clamp01(r);
+}
+
+double obs_volume_procedural_value(obs_volume_procedural kind, uint32_t seed, const double x[3]) {
+  switch (kind) {
+  case OBS_VOLUME_SPHERE: {
+    double d = sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]) - 0.6;
+    return clamp01(0.5 - d / 2);
+  }
+  case OBS_VOLUME_TORUS: {
+    double q = sqrt(x[0] * x[0] + x[1] * x[1]) - 0.6;
+    double d = sqrt(q * q + x[2] * x[2]) - 0.25;
+    return clamp01(0.5 - d / 2);
+  }
+  case OBS_VOLUME_MARSCHNER_LOBB: {
+    const double fm = 6, alpha = 0.25;
+    double r = sqrt(x[0] * x[0] + x[1] * x[1]);
+    double rho = cos(2 * PI * fm * cos(PI * r / 2));
+    return clamp01((1 - sin(PI * x[2] / 2) + alpha * (1 + rho)) / (2 * (1 + alpha)));
+  }
+  default: return value_noise(seed, x);
+  }
+}
+
+int obs_volume_procedural_fill(obs_volume_procedural kind, uint32_t seed, const int n[3],
+                               obs_volume *v, obs_err *err) {
+  if ((int)kind < 0 || kind >= OBS_VOLUME_PROCEDURAL_COUNT)
+    return obs_err_set(err, OBS_EINVAL, "volume: unknown procedural kind %d", (int)kind);
+  double s[3] = {2.0 / n[0], 2.0 / n[1], 2.0 / n[2]};
+  int rc = obs_volume_init(v, n, s, err);
+  if (rc) return rc;
+  for (int k = 0; k < n[2]; k++)
+    for (int j = 0; j < n[1]; j++)
+      for (int i = 0; i < n[0]; i++) {
+        double x[3] = {-1 + (i + 0.5) * s[0], -1 + (j + 0.5) * s[1], -1 + (k + 0.5) * s[2]};
+        v->data[((size_t)k * (size_t)n[1] + (size_t)j) * (size_t)n[0] + (size_t)i] =
+            (float)obs_volume_procedural_value(kind, seed, x);
+      }
+  return 0;
+}
+
+int obs_volume_cells_build(const obs_volume *v, int cell, obs_volume_cells *c, obs_err *err) {
+  memset(c, 0, sizeof *c);
+  if (cell < 1) return obs_err_set(err, OBS_EINVAL, "volume: cell size must be at least 1");
+  c->cell = cell;
+  size_t count = 1;
+  for (int a = 0; a < 3; a++) {
+    /* n - 1 intervals between centres, at least one cell (a 1-voxel axis has none). */
+    int intervals = v->n[a] > 1 ? v->n[a] - 1 : 1;
+    c->n[a] = (intervals + cell - 1) / cell;
+    count *= (size_t)c->n[a];
+  }
+  c->min = malloc(count * sizeof *c->min);
+  c->max = malloc(count * sizeof *c->max);
+  if (!c->min || !c->max) {
+    obs_volume_cells_free(c);
+    return obs_err_set(err, OBS_ENOMEM, "volume: out of memory for %zu cells", count);
+  }
+  for (int ck = 0; ck < c->n[2]; ck++)
+    for (int cj = 0; cj < c->n[1]; cj++)
+      for (int ci = 0; ci < c->n[0]; ci++) {
+        int lo[3] = {ci * cell, cj * cell, ck * cell}, hi[3];
+        for (int a = 0; a < 3; a++) {
+          hi[a] = lo[a] + cell;
+          if (hi[a] > v->n[a] - 1) hi[a] = v->n[a] - 1;
+        }
+        float mn = INFINITY, mx = -INFINITY;
+        for (int k = lo[2]; k <= hi[2]; k++)
+          for (int j = lo[1]; j <= hi[1]; j++)
+            for (int i = lo[0]; i <= hi[0]; i++) {
+              float x = obs_volume_at(v, i, j, k);
+              mn = fminf(mn, x);
+              mx = fmaxf(mx, x);
+            }
+        size_t at = ((size_t)ck * (size_t)c->n[1] + (size_t)cj) * (size_t)c->n[0] + (size_t)ci;
+        c->min[at] = mn;
+        c->max[at] = mx;
+      }
+  return 0;
+}
+
+void obs_volume_cells_free(obs_volume_cells *c) {
+  if (!c) return;
+  free(c->min);
+  free(c->max);
+  memset(c, 0, sizeof *c);
+}

@@ -1,0 +1,72 @@
+/* Scalar volumes for isosurface techniques: a grid of values normalised to [0, 1] with its voxel
+ * spacing, trilinear reconstruction, the procedural volumes that tests and benchmarks use without
+ * files (sphere, torus, Marschner-Lobb, seeded noise), and the min/max macrocell grid that lets
+ * rays skip cells the isosurface cannot cross. */
+#ifndef OBS_VOLUME_H
+#define OBS_VOLUME_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "obscura/error.h"
+
+/* A volume in object space: voxel (i, j, k) is the sample at ((i + 0.5) sx, (j + 0.5) sy,
+ * (k + 0.5) sz), so the volume fills the box [0, n s] per axis (the unit cube scaled by dims x
+ * spacing). Owns `data`. */
+typedef struct obs_volume {
+  int n[3];          /* dims, each >= 1 */
+  double spacing[3]; /* > 0 */
+  float *data;       /* n[0] x n[1] x n[2], x fastest; values in [0, 1] */
+} obs_volume;
+
+/* Allocates a zeroed volume. OBS_EINVAL for a dim below 1, a spacing not finite and positive, or
+ * more than OBS_VOLUME_MAX_VOXELS voxels; OBS_ENOMEM. */
+#define OBS_VOLUME_MAX_VOXELS ((int64_t)1 << 31)
+int obs_volume_init(obs_volume *v, const int n[3], const double spacing[3], obs_err *err);
+void obs_volume_free(obs_volume *v);
+
+static inline float obs_volume_at(const obs_volume *v, int i, int j, int k) {
+  return v->data[((size_t)k * (size_t)v->n[1] + (size_t)j) * (size_t)v->n[0] + (size_t)i];
+}
+
+/* The trilinear field at object-space point p. Outside the voxel centres the field is constant
+ * along the axis (clamped to the nearest sample), so it is defined everywhere and continuous. */
+float obs_volume_sample(const obs_volume *v, const double p[3]);
+
+/* Procedural volumes, sampled at the voxel centres of the box [-1, 1]^3 (spacing 2 / n):
+ *   sphere:   0.5 - d / 2 clamped to [0, 1], d the signed distance to the sphere of radius 0.6
+ *             about the centre (isovalue 0.5 is its surface);
+ *   torus:    the same for the torus of radii 0.6 and 0.25 about the z axis;
+ *   marschner_lobb: the test signal of Marschner and Lobb (1994), f_M = 6, alpha = 0.25:
+ *             (1 - sin(pi z / 2) + alpha (1 + cos(2 pi f_M cos(pi r / 2)))) / (2 (1 + alpha)),
+ *             r = sqrt(x^2 + y^2), in [0, 1];
+ *   noise:    smooth value noise of `seed` (trilinear lattice of 8^3 cells, smoothstep weights),
+ *             in [0, 1].
+ * The volume's spacing is set to 2 / n per axis, so it spans [0, 2]^3 in object space. */
+typedef enum {
+  OBS_VOLUME_SPHERE,
+  OBS_VOLUME_TORUS,
+  OBS_VOLUME_MARSCHNER_LOBB,
+  OBS_VOLUME_NOISE,
+  OBS_VOLUME_PROCEDURAL_COUNT
+} obs_volume_procedural;
+/* "sphere", "torus", "marschner_lobb", "noise"; NULL-terminated (for parameter tables). */
+extern const char *const obs_volume_procedural_names[];
+/* The procedural value at a point x of [-1, 1]^3 (any point: the formulas extend). */
+double obs_volume_procedural_value(obs_volume_procedural kind, uint32_t seed, const double x[3]);
+int obs_volume_procedural_fill(obs_volume_procedural kind, uint32_t seed, const int n[3],
+                               obs_volume *v, obs_err *err);
+
+/* Min and max of the trilinear field over blocks of `cell` x `cell` x `cell` voxel intervals:
+ * cell c spans the voxel centres c * cell ... (c + 1) * cell (shared with the next cell), which
+ * bound every value the field takes between them, so a ray segment inside a cell whose [min, max]
+ * does not contain the isovalue cannot cross it. Owns its arrays. */
+typedef struct obs_volume_cells {
+  int cell;       /* voxels per cell side */
+  int n[3];       /* cells per axis */
+  float *min, *max;
+} obs_volume_cells;
+int obs_volume_cells_build(const obs_volume *v, int cell, obs_volume_cells *c, obs_err *err);
+void obs_volume_cells_free(obs_volume_cells *c);
+
+#endif

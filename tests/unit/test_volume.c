@@ -1,0 +1,166 @@
+/* Scalar volumes (renderer/core/volume.h): trilinear reconstruction against linear fields and at
+ * the extremes of shape, the procedural volumes against their formulas, and the macrocell grid's
+ * bounds against the field they bound. */
+#include <math.h>
+#include <string.h>
+
+#include "testutil.h"
+#include "volume.h"
+
+static double urand(uint32_t *s) { return (obs_test_rand(s) >> 8) * 0x1p-24; }
+
+/* A linear field a + b.x sampled at the voxel centres is reconstructed exactly (to float) between
+ * them, and held constant beyond them. */
+static void test_trilinear_linear(void **state) {
+  (void)state;
+  const int n[3] = {7, 5, 4};
+  const double s[3] = {0.5, 2.0, 0.25};
+  obs_volume v;
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(obs_volume_init(&v, n, s, &err), 0);
+  const double b[3] = {0.03, 0.02, 0.1};
+  for (int k = 0; k < n[2]; k++)
+    for (int j = 0; j < n[1]; j++)
+      for (int i = 0; i < n[0]; i++)
+        v.data[(k * n[1] + j) * n[0] + i] =
+            (float)(0.1 + b[0] * (i + 0.5) * s[0] + b[1] * (j + 0.5) * s[1] + b[2] * (k + 0.5) * s[2]);
+  uint32_t seed = 7;
+  for (int t = 0; t < 2000; t++) {
+    double p[3], q[3];
+    for (int a = 0; a < 3; a++) {
+      /* Anywhere in the box and a little beyond it. */
+      p[a] = (urand(&seed) * 1.4 - 0.2) * n[a] * s[a];
+      q[a] = fmin(fmax(p[a], 0.5 * s[a]), (n[a] - 0.5) * s[a]); /* held beyond the centres */
+    }
+    double want = 0.1 + b[0] * q[0] + b[1] * q[1] + b[2] * q[2];
+    assert_true(fabs(obs_volume_sample(&v, p) - want) < 1e-6);
+  }
+  obs_volume_free(&v);
+  obs_err_free(&err);
+}
+
+/* Degenerate shapes: one voxel, a 4096 x 1 x 1 line, extreme spacings; and refused shapes. */
+static void test_shapes_and_refusals(void **state) {
+  (void)state;
+  obs_volume v;
+  obs_err err = OBS_ERR_INIT;
+  const int one[3] = {1, 1, 1};
+  const double s1[3] = {1e-4, 1e-4, 1e-4};
+  assert_int_equal(obs_volume_init(&v, one, s1, &err), 0);
+  v.data[0] = 0.25f;
+  const double far[3] = {-1e30, 5, NAN};
+  assert_true(obs_volume_sample(&v, far) == 0.25f);
+  obs_volume_free(&v);
+  const int line[3] = {4096, 1, 1};
+  const double s4[3] = {1e4, 1e4, 1e4};
+  assert_int_equal(obs_volume_init(&v, line, s4, &err), 0);
+  for (int i = 0; i < 4096; i++) v.data[i] = (float)i / 4095;
+  const double mid[3] = {2048.0 * 1e4, 0, 3e4};
+  assert_true(fabs(obs_volume_sample(&v, mid) - 2047.5 / 4095) < 1e-6);
+  obs_volume_cells c;
+  assert_int_equal(obs_volume_cells_build(&v, 8, &c, &err), 0);
+  assert_int_equal(c.n[0], 512);
+  assert_int_equal(c.n[1], 1);
+  assert_true(c.min[0] == 0.0f && c.max[0] == 8.0f / 4095);
+  obs_volume_cells_free(&c);
+  obs_volume_free(&v);
+  const int zero[3] = {4, 0, 4}, huge[3] = {2048, 2048, 1024};
+  const double bad[3] = {1, 0, 1}, nan[3] = {1, NAN, 1};
+  assert_int_equal(obs_volume_init(&v, zero, s1, &err), OBS_EINVAL);
+  assert_int_equal(obs_volume_init(&v, one, bad, &err), OBS_EINVAL);
+  assert_int_equal(obs_volume_init(&v, one, nan, &err), OBS_EINVAL);
+  assert_int_equal(obs_volume_init(&v, huge, s1, &err), OBS_EINVAL);
+  assert_non_null(strstr(obs_err_message(&err), "more than"));
+  obs_err_free(&err);
+}
+
+/* The procedural formulas at points where they are known, and the sphere's isosurface where the
+ * sphere is. */
+static void test_procedural(void **state) {
+  (void)state;
+  const double o[3] = {0, 0, 0}, top[3] = {0, 0, 1}, rim[3] = {0.6, 0, 0};
+  /* Marschner-Lobb: (1 - sin(pi z/2) + a (1 + cos(2 pi 6 cos(pi r/2)))) / (2 (1 + a)), a = 0.25. */
+  assert_true(fabs(obs_volume_procedural_value(OBS_VOLUME_MARSCHNER_LOBB, 0, o) - 0.6) < 1e-12);
+  assert_true(fabs(obs_volume_procedural_value(OBS_VOLUME_MARSCHNER_LOBB, 0, top) - 0.2) < 1e-12);
+  assert_true(fabs(obs_volume_procedural_value(OBS_VOLUME_SPHERE, 0, rim) - 0.5) < 1e-12);
+  const double tor[3] = {0.85, 0, 0};
+  assert_true(fabs(obs_volume_procedural_value(OBS_VOLUME_TORUS, 0, tor) - 0.5) < 1e-12);
+  obs_volume v;
+  obs_err err = OBS_ERR_INIT;
+  const int n[3] = {32, 32, 32};
+  assert_int_equal(obs_volume_procedural_fill(OBS_VOLUME_SPHERE, 0, n, &v, &err), 0);
+  /* Along random directions from the centre (object space (1, 1, 1)), the field crosses 0.5 at
+   * radius 0.6 within a tenth of a voxel. */
+  uint32_t seed = 3;
+  for (int t = 0; t < 200; t++) {
+    double d[3], l = 0;
+    for (int a = 0; a < 3; a++) d[a] = urand(&seed) * 2 - 1, l += d[a] * d[a];
+    l = sqrt(l);
+    if (!(l > 0.1)) continue;
+    double lo = 0.3, hi = 0.9;
+    for (int it = 0; it < 50; it++) {
+      double r = 0.5 * (lo + hi), p[3];
+      for (int a = 0; a < 3; a++) p[a] = 1 + r * d[a] / l;
+      if (obs_volume_sample(&v, p) > 0.5f) lo = r; else hi = r;
+    }
+    assert_true(fabs(lo - 0.6) < 0.1 * v.spacing[0]);
+  }
+  obs_volume_free(&v);
+  /* Noise: in [0, 1], the same for a seed, another for another seed. */
+  obs_volume a, b, c;
+  const int m[3] = {16, 12, 8};
+  assert_int_equal(obs_volume_procedural_fill(OBS_VOLUME_NOISE, 5, m, &a, &err), 0);
+  assert_int_equal(obs_volume_procedural_fill(OBS_VOLUME_NOISE, 5, m, &b, &err), 0);
+  assert_int_equal(obs_volume_procedural_fill(OBS_VOLUME_NOISE, 6, m, &c, &err), 0);
+  size_t count = 16 * 12 * 8;
+  assert_memory_equal(a.data, b.data, count * sizeof(float));
+  assert_true(memcmp(a.data, c.data, count * sizeof(float)) != 0);
+  float lo = 1, hi = 0;
+  for (size_t i = 0; i < count; i++) lo = fminf(lo, a.data[i]), hi = fmaxf(hi, a.data[i]);
+  assert_true(lo >= 0 && hi <= 1 && hi - lo > 0.3f);
+  obs_volume_free(&a);
+  obs_volume_free(&b);
+  obs_volume_free(&c);
+  obs_err_free(&err);
+}
+
+/* Every value of the field in a cell lies within the cell's [min, max]. */
+static void test_cells_bound_the_field(void **state) {
+  (void)state;
+  obs_volume v;
+  obs_volume_cells c;
+  obs_err err = OBS_ERR_INIT;
+  const int n[3] = {37, 20, 9};
+  assert_int_equal(obs_volume_procedural_fill(OBS_VOLUME_MARSCHNER_LOBB, 0, n, &v, &err), 0);
+  assert_int_equal(obs_volume_cells_build(&v, 8, &c, &err), 0);
+  assert_int_equal(c.n[0], 5);
+  assert_int_equal(c.n[1], 3);
+  assert_int_equal(c.n[2], 1);
+  uint32_t seed = 11;
+  for (int t = 0; t < 20000; t++) {
+    double p[3];
+    int ci[3];
+    for (int a = 0; a < 3; a++) {
+      p[a] = (urand(&seed) * 1.2 - 0.1) * n[a] * v.spacing[a];
+      double u = fmin(fmax(p[a] / v.spacing[a] - 0.5, 0), n[a] - 1);
+      ci[a] = (int)(u / c.cell);
+      if (ci[a] >= c.n[a]) ci[a] = c.n[a] - 1;
+    }
+    size_t at = ((size_t)ci[2] * (size_t)c.n[1] + (size_t)ci[1]) * (size_t)c.n[0] + (size_t)ci[0];
+    float x = obs_volume_sample(&v, p);
+    assert_true(x >= c.min[at] - 1e-6f && x <= c.max[at] + 1e-6f);
+  }
+  obs_volume_cells_free(&c);
+  obs_volume_free(&v);
+  obs_err_free(&err);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_trilinear_linear),
+      cmocka_unit_test(test_shapes_and_refusals),
+      cmocka_unit_test(test_procedural),
+      cmocka_unit_test(test_cells_bound_the_field),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
