@@ -27,12 +27,14 @@ static void usage(FILE *f) {
   fprintf(f,
           "usage: bench_obscurance_motion [--threads N] [--frames F] [--samples S] [--dmax D]\n"
           "         [--models DIR|none] [--mesh ogre.obj] [--updates exact,article,full]\n"
-          "  A 0.3-wide box orbits the scene, grazing it, for F frames (default 24); obscurance_map by\n"
+          "  A 0.3-wide box orbits the scene, grazing it, for F frames (default 24); "
+          "obscurance_map by\n"
           "  rays (S per patch, default 25; d_max D, default 0.3 scene units; one patch per\n"
           "  triangle, no colour bleeding). Scenes: a floor with displaced spheres of 65,536 +\n"
           "  2 x 16,384 triangles; and, when DIR/MESH exists, that mesh scaled to a radius of 1\n"
           "  on the floor. Per update mode: frame_ms (median over frames 1..F-1 of BVH refit +\n"
-          "  update; bvh_ms the refit alone), fps = 1000 / frame_ms, patches sampled per frame, speedup = full\n"
+          "  update; bvh_ms the refit alone), fps = 1000 / frame_ms, patches sampled per frame, "
+          "speedup = full\n"
           "  recompute / update (same frame, same run), and rmse / max_abs of the update\n"
           "  against the full recompute (mean, max over frames).\n");
 }
@@ -83,14 +85,16 @@ static void motion_json(const options *o, double orbit, char *buf, size_t n) {
   size_t l = (size_t)snprintf(buf, n, "[");
   for (int f = 1; f < o->frames && l < n; f++) {
     double a = 2 * 3.14159265358979 * f / o->frames;
-    l += (size_t)snprintf(buf + l, n - l, "%s{\"translate\":[%.6f,0.45,%.6f],\"rotate\":[0,%.3f,0]}",
-                          f > 1 ? "," : "", orbit * cos(a), orbit * sin(a), -a * 180 / 3.14159265);
+    l +=
+        (size_t)snprintf(buf + l, n - l, "%s{\"translate\":[%.6f,0.45,%.6f],\"rotate\":[0,%.3f,0]}",
+                         f > 1 ? "," : "", orbit * cos(a), orbit * sin(a), -a * 180 / 3.14159265);
   }
   if (l < n) snprintf(buf + l, n - l, "]");
 }
 
 /* The transform that puts a mesh's box (from the document: obs_geometry_object_points) into a
- * sphere of radius 1 about (0, 1, 0); returns the radius of an orbit that grazes the box's sides. */
+ * sphere of radius 1 about (0, 1, 0); returns the radius of an orbit that grazes the box's sides.
+ */
 static double fit_mesh(const char *mesh, const char *dir, char *out, size_t n) {
   char doc[1024];
   snprintf(doc, sizeof doc,
@@ -100,8 +104,8 @@ static double fit_mesh(const char *mesh, const char *dir, char *out, size_t n) {
            mesh);
   obs_scene sc;
   obs_err err = OBS_ERR_INIT;
-  double pts[8][3], r, lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY,
-                                                                        -INFINITY};
+  double pts[8][3], r, lo[3] = {INFINITY, INFINITY, INFINITY},
+                       hi[3] = {-INFINITY, -INFINITY, -INFINITY};
   if (obs_scene_load_string(&sc, doc, "fit.json", dir, NULL, 0, &err)) {
     fprintf(stderr, "%s\n", obs_err_message(&err));
     exit(1);
@@ -180,7 +184,8 @@ static int run_mode(const options *o, const char *what, const char *dir, const c
     return rc;
   }
   int nf = (int)json_array_size(r.frames) - 1;
-  double *frame_ms = malloc((size_t)nf * sizeof *frame_ms), *ratio = malloc((size_t)nf * sizeof *ratio);
+  double *frame_ms = malloc((size_t)nf * sizeof *frame_ms),
+         *ratio = malloc((size_t)nf * sizeof *ratio);
   double patches = 0, rmse = 0, rmse_max = 0, abs_max = 0, *bvh = malloc((size_t)nf * sizeof *bvh);
   for (int f = 1; f <= nf; f++) {
     json_t *fr = json_array_get(r.frames, (size_t)f);
@@ -216,8 +221,8 @@ int main(int argc, char **argv) {
   printf("obscurance_map, a moving box: %d frames, rays %d per patch, d_max %g, %d threads\n",
          o.frames, o.samples, o.d_max, o.threads);
   printf("%-16s %-8s %8s %9s %8s %6s %6s %10s %8s %10s %10s %9s\n", "scene", "update", "patches",
-         "frame0_ms", "frame_ms", "bvh_ms", "fps", "patches/f", "speedup", "rmse_mean",
-         "rmse_max", "abs_max");
+         "frame0_ms", "frame_ms", "bvh_ms", "fps", "patches/f", "speedup", "rmse_mean", "rmse_max",
+         "abs_max");
   for (int m = 0; m < o.nupdates; m++)
     if (run_mode(&o, "synthetic", NULL, o.updates[m])) return 1;
   if (o.models) {

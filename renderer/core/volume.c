@@ -60,7 +60,8 @@ float obs_volume_sample(const obs_volume *v, const double p[3]) {
   axis_index(v, 1, p[1], &j, &wy);
   axis_index(v, 2, p[2], &k, &wz);
   int i1 = i + (v->n[0] > 1), j1 = j + (v->n[1] > 1), k1 = k + (v->n[2] > 1);
-  float c00 = obs_volume_at(v, i, j, k) + wx * (obs_volume_at(v, i1, j, k) - obs_volume_at(v, i, j, k));
+  float c00 =
+      obs_volume_at(v, i, j, k) + wx * (obs_volume_at(v, i1, j, k) - obs_volume_at(v, i, j, k));
   float c10 =
       obs_volume_at(v, i, j1, k) + wx * (obs_volume_at(v, i1, j1, k) - obs_volume_at(v, i, j1, k));
   float c01 =
@@ -105,22 +106,23 @@ static double value_noise(uint32_t seed, const double x[3]) {
 
 double obs_volume_procedural_value(obs_volume_procedural kind, uint32_t seed, const double x[3]) {
   switch (kind) {
-  case OBS_VOLUME_SPHERE: {
-    double d = sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]) - 0.6;
-    return clamp01(0.5 - d / 2);
-  }
-  case OBS_VOLUME_TORUS: {
-    double q = sqrt(x[0] * x[0] + x[1] * x[1]) - 0.6;
-    double d = sqrt(q * q + x[2] * x[2]) - 0.25;
-    return clamp01(0.5 - d / 2);
-  }
-  case OBS_VOLUME_MARSCHNER_LOBB: {
-    const double fm = 6, alpha = 0.25;
-    double r = sqrt(x[0] * x[0] + x[1] * x[1]);
-    double rho = cos(2 * PI * fm * cos(PI * r / 2));
-    return clamp01((1 - sin(PI * x[2] / 2) + alpha * (1 + rho)) / (2 * (1 + alpha)));
-  }
-  default: return value_noise(seed, x);
+    case OBS_VOLUME_SPHERE: {
+      double d = sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]) - 0.6;
+      return clamp01(0.5 - d / 2);
+    }
+    case OBS_VOLUME_TORUS: {
+      double q = sqrt(x[0] * x[0] + x[1] * x[1]) - 0.6;
+      double d = sqrt(q * q + x[2] * x[2]) - 0.25;
+      return clamp01(0.5 - d / 2);
+    }
+    case OBS_VOLUME_MARSCHNER_LOBB: {
+      const double fm = 6, alpha = 0.25;
+      double r = sqrt(x[0] * x[0] + x[1] * x[1]);
+      double rho = cos(2 * PI * fm * cos(PI * r / 2));
+      return clamp01((1 - sin(PI * x[2] / 2) + alpha * (1 + rho)) / (2 * (1 + alpha)));
+    }
+    default:
+      return value_noise(seed, x);
   }
 }
 

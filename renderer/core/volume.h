@@ -62,8 +62,8 @@ int obs_volume_procedural_fill(obs_volume_procedural kind, uint32_t seed, const 
  * bound every value the field takes between them, so a ray segment inside a cell whose [min, max]
  * does not contain the isovalue cannot cross it. Owns its arrays. */
 typedef struct obs_volume_cells {
-  int cell;       /* voxels per cell side */
-  int n[3];       /* cells per axis */
+  int cell; /* voxels per cell side */
+  int n[3]; /* cells per axis */
   float *min, *max;
 } obs_volume_cells;
 int obs_volume_cells_build(const obs_volume *v, int cell, obs_volume_cells *c, obs_err *err);

@@ -16,8 +16,8 @@ typedef struct motion {
   obs_render_ctx *ctx;
   obs_rt *rt;
   obs_omap_job job;
-  obs_omap *map;             /* carried from frame to frame */
-  obs_omap full;             /* a full recompute of the frame, to measure against */
+  obs_omap *map; /* carried from frame to frame */
+  obs_omap full; /* a full recompute of the frame, to measure against */
   int64_t count;
   double (*pbox)[2][3];      /* count: each patch's box in frame 0 (still patches stay there) */
   unsigned char *own;        /* count: the patch is on a moving mesh */
@@ -124,8 +124,7 @@ static int64_t update_article(motion *m) {
   if (rc) return rc;
   int64_t k = n;
   for (int64_t p = 0; p < m->count; p++)
-    if (atomic_load_explicit(&m->seen[p], memory_order_relaxed) && !m->own[p] &&
-        !m->influenced[p])
+    if (atomic_load_explicit(&m->seen[p], memory_order_relaxed) && !m->own[p] && !m->influenced[p])
       m->list[k++] = p;
   /* influenced[] of the first list was just rewritten: a patch of the second is one that was
    * neither moving nor influenced, so it is not in the first. */
@@ -170,18 +169,24 @@ static int next_frame(motion *m, json_t *frames, obs_err *err) {
   double t1 = obs_now_ms();
   int64_t n;
   switch (m->job.p.update) {
-  case OBS_OMAP_UPDATE_EXACT: n = select_exact(m, now); rc = run_list(m, m->map, m->list, n); break;
-  case OBS_OMAP_UPDATE_ARTICLE:
-    n = update_article(m);
-    rc = n < 0 ? (int)n : 0;
-    break;
-  default: n = m->count; rc = run_list(m, m->map, NULL, n); break;
+    case OBS_OMAP_UPDATE_EXACT:
+      n = select_exact(m, now);
+      rc = run_list(m, m->map, m->list, n);
+      break;
+    case OBS_OMAP_UPDATE_ARTICLE:
+      n = update_article(m);
+      rc = n < 0 ? (int)n : 0;
+      break;
+    default:
+      n = m->count;
+      rc = run_list(m, m->map, NULL, n);
+      break;
   }
   double t2 = obs_now_ms();
   if (rc) return rc;
   memcpy(m->mbox, now, sizeof now);
-  json_t *fj = json_pack("{s:i, s:f, s:f, s:I}", "frame", m->frame, "bvh_ms", t1 - t0,
-                         "update_ms", t2 - t1, "patches_updated", (json_int_t)n);
+  json_t *fj = json_pack("{s:i, s:f, s:f, s:I}", "frame", m->frame, "bvh_ms", t1 - t0, "update_ms",
+                         t2 - t1, "patches_updated", (json_int_t)n);
   if (m->job.p.measure_full) {
     unsigned char *keep = m->job.hits_moving;
     m->job.hits_moving = NULL; /* the influenced list is the update's own */
@@ -238,8 +243,8 @@ static int motion_init(motion *m, obs_render_ctx *ctx, obs_rt *rt,
   }
   if (!m->pbox || !m->own || !m->influenced || !m->seen || !m->list || !m->all ||
       (p->measure_full && (!m->full.w || !m->full.se || !m->full.n)))
-    return obs_err_set(err, OBS_ENOMEM, "%s: obscurance_map: out of memory for %d frames",
-                       sc->name, m->frames);
+    return obs_err_set(err, OBS_ENOMEM, "%s: obscurance_map: out of memory for %d frames", sc->name,
+                       m->frames);
   m->full.pm = out->pm; /* shared, read only: not freed through `full` */
   patch_boxes(m);
   moving_bounds(rt, m->mbox);
@@ -260,9 +265,9 @@ int obs_omap_frames(obs_render_ctx *ctx, obs_rt *rt, const obs_obscurance_map_pa
     m.stages = p->measure_full ? 2 : 1;
   }
   if (!rc) {
-    json_array_append_new(frames, json_pack("{s:i, s:f, s:I}", "frame", 0, "update_ms",
-                                            obs_now_ms() - t0, "patches_updated",
-                                            (json_int_t)m.count));
+    json_array_append_new(frames,
+                          json_pack("{s:i, s:f, s:I}", "frame", 0, "update_ms", obs_now_ms() - t0,
+                                    "patches_updated", (json_int_t)m.count));
     memcpy(m.all, out->w, (size_t)m.count * 3 * sizeof *m.all);
   }
   for (m.frame = 1; !rc && m.frame < m.frames; m.frame++) {

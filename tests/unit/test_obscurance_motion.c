@@ -39,23 +39,25 @@ static char *motion_doc(double s, int lid, const char *update, int extra_frames)
                             f > 1 ? "," : "", (-1.0 + 0.6 * f) * s, -0.4 * s * f, 25 * f);
     snprintf(motion + l, sizeof motion - l, "]}");
   }
-  return strdup(obs_test_fmt(
-      "{\"camera\":{\"type\":\"perspective\",\"position\":[0,%.17g,%.17g],"
-      "\"look_at\":[0,%.17g,0],\"fov_y\":50},\"image\":{\"width\":24,\"height\":18},"
-      "\"objects\":[{\"name\":\"floor\",\"shape\":{\"type\":\"quad\",\"vertices\":"
-      "[[%.17g,0,%.17g],[%.17g,0,%.17g],[%.17g,0,%.17g],[%.17g,0,%.17g]]},"
-      "\"material\":{\"reflectivity\":[0.7,0.7,0.7]}},"
-      "{\"name\":\"wall\",\"shape\":{\"type\":\"quad\",\"vertices\":"
-      "[[%.17g,0,%.17g],[%.17g,0,%.17g],[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g]]},"
-      "\"material\":{\"reflectivity\":[0.8,0.3,0.3]}},%s%s],"
-      "\"technique\":{\"name\":\"obscurance_map\",\"params\":{\"method\":\"rays\","
-      "\"samples\":16,\"patch_size\":%.17g,\"d_max\":%.17g,\"update\":\"%s\"}}}",
-      1.5 * s, 4.0 * s, 0.4 * s, -2 * s, -2 * s, -2 * s, 2 * s, 2 * s, 2 * s, 2 * s, -2 * s, -2 * s,
-      -2 * s, 2 * s, -2 * s, 2 * s, 2 * s, -2 * s, -2 * s, 2 * s, -2 * s, obj, motion, 0.25 * s,
-      0.8 * s, update));
+  return strdup(
+      obs_test_fmt("{\"camera\":{\"type\":\"perspective\",\"position\":[0,%.17g,%.17g],"
+                   "\"look_at\":[0,%.17g,0],\"fov_y\":50},\"image\":{\"width\":24,\"height\":18},"
+                   "\"objects\":[{\"name\":\"floor\",\"shape\":{\"type\":\"quad\",\"vertices\":"
+                   "[[%.17g,0,%.17g],[%.17g,0,%.17g],[%.17g,0,%.17g],[%.17g,0,%.17g]]},"
+                   "\"material\":{\"reflectivity\":[0.7,0.7,0.7]}},"
+                   "{\"name\":\"wall\",\"shape\":{\"type\":\"quad\",\"vertices\":"
+                   "[[%.17g,0,%.17g],[%.17g,0,%.17g],[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g]]},"
+                   "\"material\":{\"reflectivity\":[0.8,0.3,0.3]}},%s%s],"
+                   "\"technique\":{\"name\":\"obscurance_map\",\"params\":{\"method\":\"rays\","
+                   "\"samples\":16,\"patch_size\":%.17g,\"d_max\":%.17g,\"update\":\"%s\"}}}",
+                   1.5 * s, 4.0 * s, 0.4 * s, -2 * s, -2 * s, -2 * s, 2 * s, 2 * s, 2 * s, 2 * s,
+                   -2 * s, -2 * s, -2 * s, 2 * s, -2 * s, 2 * s, 2 * s, -2 * s, -2 * s, 2 * s,
+                   -2 * s, obj, motion, 0.25 * s, 0.8 * s, update));
 }
 
-static void render(const char *doc, int threads, obs_result *r) { obs_test_render(doc, threads, r); }
+static void render(const char *doc, int threads, obs_result *r) {
+  obs_test_render(doc, threads, r);
+}
 
 /* The frames' figures of a result: frame f's member `key`. */
 static double frame_fig(const obs_result *r, int f, const char *key) {

@@ -23,7 +23,8 @@ static void test_trilinear_linear(void **state) {
     for (int j = 0; j < n[1]; j++)
       for (int i = 0; i < n[0]; i++)
         v.data[(k * n[1] + j) * n[0] + i] =
-            (float)(0.1 + b[0] * (i + 0.5) * s[0] + b[1] * (j + 0.5) * s[1] + b[2] * (k + 0.5) * s[2]);
+            (float)(0.1 + b[0] * (i + 0.5) * s[0] + b[1] * (j + 0.5) * s[1] +
+                    b[2] * (k + 0.5) * s[2]);
   uint32_t seed = 7;
   for (int t = 0; t < 2000; t++) {
     double p[3], q[3];
@@ -101,7 +102,10 @@ static void test_procedural(void **state) {
     for (int it = 0; it < 50; it++) {
       double r = 0.5 * (lo + hi), p[3];
       for (int a = 0; a < 3; a++) p[a] = 1 + r * d[a] / l;
-      if (obs_volume_sample(&v, p) > 0.5f) lo = r; else hi = r;
+      if (obs_volume_sample(&v, p) > 0.5f)
+        lo = r;
+      else
+        hi = r;
     }
     assert_true(fabs(lo - 0.6) < 0.1 * v.spacing[0]);
   }
