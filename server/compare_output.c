@@ -131,7 +131,13 @@ int srv_compare_primary(const char *dir, const char *rdir, obs_response resp, ob
     rc = write_mapped_reference(&ref, o, dir, err);
   if (!rc && o->kind == OBS_OUTPUT_VECTOR)
     rc = obs_err_set(err, OBS_EUNSUPPORTED, "no metrics for the vector output \"%s\"", o->name);
-  const char *mask = obs_image_channel(&ref, "alpha") ? "alpha" : NULL;
+  float *ra = obs_image_channel(&ref, "alpha");
+  const char *mask = ra ? "alpha" : NULL;
+  /* Against another technique's output, only pixels both cover count: obscurance_map has no
+   * patch on an analytic sphere (alpha 0) where rt_ao sees one. */
+  const float *ca = scalar_ref ? obs_image_channel(&cand, "alpha") : NULL;
+  if (ra && ca && cand.width == ref.width && cand.height == ref.height)
+    for (size_t i = 0; i < (size_t)ref.width * (size_t)ref.height; i++) ra[i] *= ca[i];
   if (!rc && o->kind == OBS_OUTPUT_RGB && scalar_ref) {
     rc = to_luminance(t, o, &cand, err);
   } else if (!rc && o->kind == OBS_OUTPUT_RGB) {
@@ -152,7 +158,7 @@ int srv_compare_primary(const char *dir, const char *rdir, obs_response resp, ob
   if (!rc) rc = obs_metrics_compare(&cand, &ref, channel, mask, m, err);
   if (!rc) rc = obs_metrics_error_image(&cand, &ref, channel, mask, eimg, err);
   double prmse;
-  if (!rc && o->kind == OBS_OUTPUT_PATCH && ro->kind == OBS_OUTPUT_PATCH &&
+  if (!rc && o->kind == OBS_OUTPUT_PATCH && ro && ro->kind == OBS_OUTPUT_PATCH &&
       !(rc = patch_rmse(dir, rdir, o, &prmse, err)))
     json_object_set_new(extra, "patch_rmse", json_real(prmse));
   if (!rc && strcmp(o->name, "ao")) json_object_set_new(extra, "output", json_string(o->name));

@@ -193,8 +193,11 @@ void srv_submit_check_limits(srv_app *app, const obs_scene *sc, obs_err *problem
                 d, pixels, (long long)c->max_pixels);
   double samples = obs_technique_cost(sc->technique, sc->params);
   double work = obs_scene_work(sc);
-  char frames[48] = "";
-  if (sc->frames > 1) snprintf(frames, sizeof frames, " x %d frames", sc->frames);
+  /* A moving scene: the frames' cost in whole maps (the technique's frames_cost). */
+  char frames[80] = "";
+  double per = pixels * sc->spp * samples;
+  if (sc->frames > 1 && per > 0)
+    snprintf(frames, sizeof frames, " x %.6g (%d frames)", work / per, sc->frames);
   if (work > c->max_work)
     obs_err_set(problems, OBS_EINVAL,
                 "%s: /technique/params: work = width x height x spp x samples%s = %.0f x %d x "
@@ -458,6 +461,12 @@ unsigned srv_submit_parse(srv_app *app, const char *body, size_t len, srv_submis
   if (srv_pick_backend_learned(app, sc.technique, sc.backend, work, &be, reason, sizeof reason,
                                &e))
     obs_err_set(problems, OBS_EINVAL, "%s: /technique/backend: %s", docname, obs_err_message(&e));
+  obs_backend mb = problems->count ? be : obs_technique_motion_backend(sc.technique, &sc, be);
+  if (mb != be) { /* timings of still scenes may favour a backend that renders no frames */
+    snprintf(reason, sizeof reason, "moving objects: %s renders frames on %s", sc.technique->name,
+             obs_backend_name(mb));
+    be = mb;
+  }
   obs_err_free(&e);
   if (problems->count) {
     *message = "backend not available";

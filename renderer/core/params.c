@@ -382,8 +382,22 @@ double obs_technique_cost(const obs_technique *t, const json_t *params) {
 }
 
 double obs_scene_work(const obs_scene *sc) {
-  return (double)sc->width * sc->height * sc->spp * obs_technique_cost(sc->technique, sc->params) *
-         (sc->frames > 1 ? sc->frames : 1);
+  const obs_technique *t = sc->technique;
+  double frames = sc->frames > 1 ? sc->frames : 1;
+  void *b = NULL;
+  if (frames > 1 && t && t->frames_cost && !obs_params_bind_new(t, sc->params, &b, NULL))
+    frames = t->frames_cost(b, sc->frames);
+  free(b);
+  return (double)sc->width * sc->height * sc->spp * obs_technique_cost(t, sc->params) * frames;
+}
+
+obs_backend obs_technique_motion_backend(const obs_technique *t, const obs_scene *sc,
+                                         obs_backend be) {
+  if (sc->frames <= 1 || (be > 0 && (t->motion_backends & (1u << be)))) return be;
+  for (int b = 1; b < OBS_BACKEND_COUNT; b++)
+    if ((t->motion_backends & (1u << b)) && obs_technique_has_backend(t, (obs_backend)b))
+      return (obs_backend)b;
+  return be;
 }
 
 static size_t type_size(obs_param_type t) {

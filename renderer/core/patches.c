@@ -25,6 +25,10 @@ int obs_patches_init_frames(obs_patches *p, const char *name, int frames, int64_
   if (!name || strlen(name) >= sizeof p->name || count < 0 || components < 1 ||
       components > OBS_PATCHES_MAX_COMPONENTS || frames < 1 || frames > OBS_PATCHES_MAX_FRAMES)
     return obs_err_set(err, OBS_EINVAL, "patches: bad name, count, components or frames");
+  /* A header may say anything: the values must be countable in memory. */
+  if ((double)count * components * frames > (double)(SIZE_MAX / sizeof(float) / 2))
+    return obs_err_set(err, OBS_EINVAL, "patches: %lld x %d x %d values do not fit in memory",
+                       (long long)count, components, frames);
   snprintf(p->name, sizeof p->name, "%s", name);
   p->count = count;
   p->components = components;

@@ -48,6 +48,7 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
   obs_backend be;
   int rc = obs_technique_pick_backend(t, scene->backend, &be, err);
   if (rc) return rc;
+  be = obs_technique_motion_backend(t, scene, be);
   obs_render_ctx ctx;
   memset(&ctx, 0, sizeof ctx);
   ctx.scene = scene;

@@ -403,6 +403,17 @@ static void check_needs(obs_jpath *p, const obs_scene *sc) {
                     "%s: /objects/%zu/motion: technique \"%s\" renders one frame; moving objects "
                     "need a technique that renders frames (%s)",
                     p->doc, i, t->name, list);
+  } else if (sc->frames > 1 && sc->backend != OBS_BACKEND_AUTO &&
+             !(t->motion_backends & (1u << sc->backend))) {
+    char list[64] = "";
+    for (int b = 1; b < OBS_BACKEND_COUNT; b++) {
+      size_t l = strlen(list);
+      if (t->motion_backends & (1u << b))
+        snprintf(list + l, sizeof list - l, "%s%s", l ? " or " : "", obs_backend_name(b));
+    }
+    obs_err_set(p->err, OBS_EINVAL,
+                "%s: /technique/backend: moving objects (motion) render on the %s backend only",
+                p->doc, list);
   }
   obs_params_check_rules(t, sc->params, p->doc, p->err);
   if (t->check) t->check(sc, sc->params, p->doc, p->err);

@@ -151,7 +151,7 @@ int obs_volume_cells_build(const obs_volume *v, int cell, obs_volume_cells *c, o
   for (int a = 0; a < 3; a++) {
     /* n - 1 intervals between centres, at least one cell (a 1-voxel axis has none). */
     int intervals = v->n[a] > 1 ? v->n[a] - 1 : 1;
-    c->n[a] = (intervals + cell - 1) / cell;
+    c->n[a] = intervals / cell + (intervals % cell != 0);
     count *= (size_t)c->n[a];
   }
   c->min = malloc(count * sizeof *c->min);

@@ -34,7 +34,8 @@ static int slurp(const char *path, size_t max, unsigned char **out, size_t *len,
   if (size < 0 || fseek(f, 0, SEEK_SET))
     rc = obs_err_set(err, OBS_EIO, "%s: cannot read its size", path);
   else if ((size_t)size > max)
-    rc = obs_err_set(err, OBS_EINVAL, "%s: %ld bytes, more than a volume may have", path, size);
+    rc = obs_err_set(err, OBS_EINVAL, "%s: %ld bytes, more than the %zu expected", path, size,
+                     max - 1);
   else if (!(*out = malloc(size ? (size_t)size : 1)))
     rc = obs_err_set(err, OBS_ENOMEM, "%s: out of memory", path);
   else if (fread(*out, 1, (size_t)size, f) != (size_t)size) {
@@ -102,7 +103,7 @@ static int read_raw(const obs_volume_source *s, obs_volume *v, obs_err *err) {
 static int read_den(const obs_volume_source *s, obs_volume *v, obs_err *err) {
   unsigned char *b = NULL;
   size_t len = 0;
-  int rc = slurp(s->path, ((size_t)1 << 31) + 62, &b, &len, err);
+  int rc = slurp(s->path, ((size_t)1 << 31) + 63, &b, &len, err);
   if (rc) return rc;
   int big = len >= 62 && b[0] == 0 && b[1] == 1, little = len >= 62 && b[0] == 1 && b[1] == 0;
   if (!big && !little) {
@@ -170,9 +171,39 @@ static int nrrd_fail(const char *path, const char *what, obs_err *err) {
   return rc;
 }
 
-static int read_nrrd(const obs_volume_source *s, obs_volume *v, obs_err *err) {
-  Nrrd *in = nrrdNew(), *f = nrrdNew();
+/* The header alone first: its sizes are checked before teem allocates for them, and a detached
+ * header (whose data file could lie anywhere) is refused. */
+static int nrrd_header_ok(const obs_volume_source *s, obs_err *err) {
+  Nrrd *h = nrrdNew();
+  NrrdIoState *nio = nrrdIoStateNew();
   int rc = 0;
+  if (!h || !nio) {
+    rc = obs_err_set(err, OBS_ENOMEM, "%s: out of memory", s->path);
+  } else {
+    nio->skipData = 1;
+    if (nrrdLoad(h, s->path, nio)) {
+      rc = nrrd_fail(s->path, "cannot read as NRRD", err);
+    } else if (nio->dataFNArr && nio->dataFNArr->len) {
+      rc = obs_err_set(err, OBS_EINVAL,
+                       "%s: detached NRRD headers are not read (put the data in the .nrrd file)",
+                       s->path);
+    } else if (h->dim == 3) {
+      double count = 1;
+      for (int a = 0; a < 3; a++) count *= (double)h->axis[a].size;
+      if (count > (double)OBS_VOLUME_MAX_VOXELS)
+        rc = obs_err_set(err, OBS_EINVAL, "%s: %.0f samples, more than %lld", s->path, count,
+                         (long long)OBS_VOLUME_MAX_VOXELS);
+    }
+  }
+  if (nio) nrrdIoStateNix(nio);
+  if (h) nrrdNix(h);
+  return rc;
+}
+
+static int read_nrrd(const obs_volume_source *s, obs_volume *v, obs_err *err) {
+  int rc = nrrd_header_ok(s, err);
+  if (rc) return rc;
+  Nrrd *in = nrrdNew(), *f = nrrdNew();
   if (!in || !f)
     rc = obs_err_set(err, OBS_ENOMEM, "%s: out of memory", s->path);
   else if (nrrdLoad(in, s->path, NULL))

@@ -61,7 +61,9 @@ static double skip_cell(const obs_volume_iso *s, const double o[3], const double
 int obs_volume_first_hit(const obs_volume_iso *s, const double o[3], const double d[3], double t0,
                          double t1, double *t) {
   const obs_volume *v = s->v;
-  if (!clip_box(v, o, d, &t0, &t1)) return 0;
+  for (int a = 0; a < 3; a++)
+    if (!isfinite(o[a]) || !isfinite(d[a])) return 0;
+  if (!clip_box(v, o, d, &t0, &t1) || !isfinite(t0) || !isfinite(t1)) return 0;
   double len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
   double smin = fmin(v->spacing[0], fmin(v->spacing[1], v->spacing[2]));
   if (!(len > 0)) return 0;
@@ -85,11 +87,14 @@ int obs_volume_first_hit(const obs_volume_iso *s, const double o[3], const doubl
         continue;
       }
     }
-    double tb = fmin(ta + dt, t1), fb = field_at(v, o, d, tb);
+    double tb = fmin(ta + dt, t1);
+    if (!(tb > ta)) return 0; /* a step too small for t's precision: the ray cannot go on */
+    double fb = field_at(v, o, d, tb);
     if (fb >= s->iso) {
-      /* The root between ta (below) and tb (at or above). */
+      /* The root between ta (below) and tb (at or above), to tol or to adjacent doubles. */
       while (tb - ta > tol) {
         double tm = 0.5 * (ta + tb);
+        if (!(tm > ta && tm < tb)) break;
         if (field_at(v, o, d, tm) >= s->iso)
           tb = tm;
         else
@@ -124,17 +129,21 @@ void obs_volume_normal(const obs_volume *v, const double p[3], double n[3]) {
 static int occluded(const obs_volume_iso *s, const double p[3], const double dir[3],
                     const obs_volume_ao_params *a) {
   const obs_volume *v = s->v;
+  if (!(a->step > 0) || !(a->max_distance >= a->start)) return 0;
+  double steps = floor((a->max_distance - a->start) / a->step + 1e-9);
+  if (!(steps <= OBS_VOLUME_AO_MAX_STEPS)) steps = OBS_VOLUME_AO_MAX_STEPS;
   double prev = field_at(v, p, dir, a->start);
-  for (double dist = a->start + a->step; dist <= a->max_distance + 1e-12; dist += a->step) {
+  for (int64_t i = 1; i <= (int64_t)steps; i++) {
+    double dist = a->start + (double)i * a->step;
     double q[3] = {p[0] + dist * dir[0], p[1] + dist * dir[1], p[2] + dist * dir[2]};
-    int outside = 0;
-    for (int k = 0; k < 3; k++)
-      outside |= q[k] < -v->spacing[k] || q[k] > (v->n[k] + 1) * v->spacing[k];
-    if (outside) return 0; /* the field is held constant beyond the box: no crossing there */
     double cur = obs_volume_sample(v, q);
     int hit = a->crossing == OBS_VOLUME_CROSS_RISING ? prev < s->iso && cur > s->iso
                                                      : (prev < s->iso) != (cur < s->iso);
     if (hit) return 1;
+    int outside = 0;
+    for (int k = 0; k < 3; k++)
+      outside |= q[k] < -v->spacing[k] || q[k] > (v->n[k] + 1) * v->spacing[k];
+    if (outside) return 0; /* the field is held constant beyond the box: no crossing further */
     prev = cur;
   }
   return 0;

@@ -36,9 +36,13 @@ void obs_volume_normal(const obs_volume *v, const double p[3], double n[3]);
  * between two samples) or any crossing. */
 typedef enum { OBS_VOLUME_CROSS_RISING, OBS_VOLUME_CROSS_ANY } obs_volume_crossing;
 
+/* The most steps one AO direction takes; (max_distance - start) / step beyond it is cut there. */
+#define OBS_VOLUME_AO_MAX_STEPS 1000000
+
 typedef struct obs_volume_ao_params {
   uint32_t samples;                 /* directions */
-  double start, step, max_distance; /* object-space units along each direction */
+  double start, step, max_distance; /* object-space units along each direction (step > 0: a
+                                       * direction with none counts as open) */
   obs_volume_crossing crossing;
 } obs_volume_ao_params;
 

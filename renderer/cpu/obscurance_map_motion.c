@@ -23,6 +23,7 @@ typedef struct motion {
   unsigned char *own;        /* count: the patch is on a moving mesh */
   unsigned char *influenced; /* count: one of its samples met a moving mesh (the job's) */
   atomic_uchar *seen;        /* count: a moving patch's sample met it (article) */
+  unsigned char *first;      /* count: in the article's first list of this frame */
   int64_t *list;             /* count: the patches a frame samples */
   double mbox[2][3];         /* the moving meshes' bounds in the frame before */
   float *all;                /* frames x count x 3 */
@@ -33,8 +34,15 @@ typedef struct motion {
 static void motion_progress(void *user, double fraction) {
   const motion *m = user;
   if (!m->ctx->progress) return;
-  double f = (m->frame + (m->stage + fraction) / m->stages) / m->frames;
+  double within = fmin(m->stage + fraction, m->stages) / m->stages;
+  double f = (m->frame + within) / m->frames;
   m->ctx->progress(m->ctx->progress_user, f);
+}
+
+/* The runs of one frame after the first, for progress: the update's (two for the article's
+ * lists) and the full recompute's. */
+static int frame_stages(const obs_obscurance_map_params *p) {
+  return (p->update == OBS_OMAP_UPDATE_ARTICLE ? 2 : 1) + (p->measure_full ? 1 : 0);
 }
 
 static void moving_bounds(const obs_rt *rt, double b[2][3]) {
@@ -116,7 +124,8 @@ static int64_t update_article(motion *m) {
   int64_t n = 0;
   for (int64_t p = 0; p < m->count; p++) {
     atomic_store_explicit(&m->seen[p], 0, memory_order_relaxed);
-    if (m->own[p] || m->influenced[p]) m->list[n++] = p;
+    m->first[p] = m->own[p] || m->influenced[p];
+    if (m->first[p]) m->list[n++] = p;
   }
   m->job.seen = m->seen;
   int rc = run_list(m, m->map, m->list, n);
@@ -124,10 +133,7 @@ static int64_t update_article(motion *m) {
   if (rc) return rc;
   int64_t k = n;
   for (int64_t p = 0; p < m->count; p++)
-    if (atomic_load_explicit(&m->seen[p], memory_order_relaxed) && !m->own[p] && !m->influenced[p])
-      m->list[k++] = p;
-  /* influenced[] of the first list was just rewritten: a patch of the second is one that was
-   * neither moving nor influenced, so it is not in the first. */
+    if (atomic_load_explicit(&m->seen[p], memory_order_relaxed) && !m->first[p]) m->list[k++] = p;
   if (k > n && (rc = run_list(m, m->map, m->list + n, k - n))) return rc;
   return k;
 }
@@ -210,6 +216,7 @@ static void motion_free(motion *m) {
   free(m->own);
   free(m->influenced);
   free(m->seen);
+  free(m->first);
   free(m->list);
   free(m->all);
 }
@@ -219,7 +226,7 @@ static int motion_init(motion *m, obs_render_ctx *ctx, obs_rt *rt,
   const obs_scene *sc = ctx->scene;
   memset(m, 0, sizeof *m);
   m->ctx = ctx, m->rt = rt, m->map = out, m->frames = sc->frames;
-  m->stages = p->measure_full ? 2 : 1;
+  m->stages = frame_stages(p);
   int rc = obs_omap_job_init(&m->job, rt, sc, p, ctx->threads, out, err);
   if (rc) return rc;
   m->count = out->pm.count;
@@ -234,6 +241,7 @@ static int motion_init(motion *m, obs_render_ctx *ctx, obs_rt *rt,
   m->own = calloc(n1, 1);
   m->influenced = calloc(n1, 1);
   m->seen = calloc(n1, sizeof *m->seen);
+  m->first = calloc(n1, 1);
   m->list = malloc(n1 * sizeof *m->list);
   m->all = malloc((size_t)m->frames * n1 * 3 * sizeof *m->all);
   if (p->measure_full) {
@@ -241,7 +249,7 @@ static int motion_init(motion *m, obs_render_ctx *ctx, obs_rt *rt,
     m->full.se = malloc(n1 * sizeof *m->full.se);
     m->full.n = malloc(n1 * sizeof *m->full.n);
   }
-  if (!m->pbox || !m->own || !m->influenced || !m->seen || !m->list || !m->all ||
+  if (!m->pbox || !m->own || !m->influenced || !m->seen || !m->first || !m->list || !m->all ||
       (p->measure_full && (!m->full.w || !m->full.se || !m->full.n)))
     return obs_err_set(err, OBS_ENOMEM, "%s: obscurance_map: out of memory for %d frames", sc->name,
                        m->frames);
@@ -262,7 +270,7 @@ int obs_omap_frames(obs_render_ctx *ctx, obs_rt *rt, const obs_obscurance_map_pa
   if (!rc) {
     m.stages = 1; /* frame 0 is computed once, in full */
     rc = run_list(&m, m.map, NULL, m.count);
-    m.stages = p->measure_full ? 2 : 1;
+    m.stages = frame_stages(p);
   }
   if (!rc) {
     json_array_append_new(frames,
@@ -272,10 +280,9 @@ int obs_omap_frames(obs_render_ctx *ctx, obs_rt *rt, const obs_obscurance_map_pa
   }
   for (m.frame = 1; !rc && m.frame < m.frames; m.frame++) {
     m.stage = 0;
-    rc = next_frame(&m, frames, err);
-    if (!rc)
-      memcpy(m.all + (size_t)m.frame * (size_t)m.count * 3, out->w,
-             (size_t)m.count * 3 * sizeof *m.all);
+    if ((rc = next_frame(&m, frames, err))) break; /* m.frame: the frame that failed */
+    memcpy(m.all + (size_t)m.frame * (size_t)m.count * 3, out->w,
+           (size_t)m.count * 3 * sizeof *m.all);
   }
   if (rc == OBS_ECANCELED)
     obs_err_set(err, rc, "%s: render cancelled", sc->name);

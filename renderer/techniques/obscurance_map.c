@@ -83,10 +83,6 @@ static void obscurance_map_check(const obs_scene *scene, const json_t *params, c
   const char *m = json_string_value(json_object_get(params, "method"));
   const char *u = json_string_value(json_object_get(params, "update"));
   int vk = scene->backend == OBS_BACKEND_VULKAN;
-  if (scene->frames > 1 && vk)
-    obs_err_set(err, OBS_EINVAL,
-                "%s: /technique/backend: moving objects (motion) render on the cpu backend only",
-                doc);
   if (scene->frames > 1 && m && u && strcmp(m, "rays") && strcmp(m, "auto") &&
       strcmp(u, "full"))
     obs_err_set(err, OBS_EINVAL,
@@ -106,6 +102,12 @@ static void obscurance_map_check(const obs_scene *scene, const json_t *params, c
                 "%s: /technique/params/method: \"%s\" runs on the cpu backend only (on the vulkan "
                 "backend use \"depth_peeling\" or \"auto\")",
                 doc, m);
+}
+
+/* Frame 0 in full, then per frame at most a full map, and a second with measure_full. */
+static double obscurance_map_frames_cost(const void *bound, int frames) {
+  const obs_obscurance_map_params *p = bound;
+  return 1.0 + (frames - 1) * (p->measure_full ? 2.0 : 1.0);
 }
 
 /* Embree queries per pixel sample do not describe a per-patch map: the work counted is the line
@@ -155,6 +157,8 @@ const obs_technique obs_technique_obscurance_map = {
     .params_size = sizeof obscurance_map_params / sizeof obscurance_map_params[0],
     .bound_size = sizeof(obs_obscurance_map_params),
     .cost = obscurance_map_cost,
+    .frames_cost = obscurance_map_frames_cost,
+    .motion_backends = 1u << OBS_BACKEND_CPU,
     .cost_rule = "samples (rays); directions x bundle_resolution^2 / 65536 (bundles, "
                  "depth_peeling); lines / 65536 (global_lines)",
     .ms_per_work = 1e-4,

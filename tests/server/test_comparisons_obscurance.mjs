@@ -181,7 +181,8 @@ test('obscurance and obscurance_map against rt_ao: W without colour bleeding', a
   });
 });
 
-// A job's work counts every frame of a moving scene: one frame fits the limit, three do not.
+// A job's work counts every frame of a moving scene, and the full recompute of each that
+// measure_full adds: one frame fits the limit, three do not.
 test('max-work counts the frames of a moving scene', async () => {
   await withDaemon({args: ['--max-work', '50000']}, async (d) => {
     const scene = {
@@ -197,6 +198,11 @@ test('max-work counts the frames of a moving scene', async () => {
     const moving = await request(d, 'POST', '/api/v1/jobs', {body: scene});
     assert.equal(moving.status, 422, moving.text);
     assert.match(moving.json.problems.join('\n'),
-      /\/technique\/params: work = width x height x spp x samples x frames = 432 x 1 x 64 x 3 frames = 8\.294e\+04 exceeds the server's limit max-work = 5e\+04/);
+      /\/technique\/params: work = width x height x spp x samples x frames = 432 x 1 x 64 x 5 \(3 frames\) = 1\.382e\+05 exceeds the server's limit max-work = 5e\+04/);
+    // Without the full recompute of every frame to measure against, three frames cost three maps.
+    scene.technique.params.measure_full = false;
+    const cheaper = await request(d, 'POST', '/api/v1/jobs', {body: scene});
+    assert.equal(cheaper.status, 422, cheaper.text);
+    assert.match(cheaper.json.problems.join('\n'), / = 432 x 1 x 64 x 3 \(3 frames\) = 8\.294e\+04 exceeds/);
   });
 });

@@ -145,6 +145,13 @@ static void test_patches_file(void **state) {
   obs_scene sc;
   obs_test_load(doc, "motion.json", &sc);
   assert_int_equal(sc.frames, 4);
+  /* Backend auto never lands on one that renders no frames; the work counts frame 0 and, per
+   * later frame, the update (at most a map) and the full recompute measure_full adds. */
+  assert_int_equal(obs_technique_motion_backend(sc.technique, &sc, OBS_BACKEND_VULKAN),
+                   OBS_BACKEND_CPU);
+  assert_int_equal(obs_technique_motion_backend(sc.technique, &sc, OBS_BACKEND_CPU),
+                   OBS_BACKEND_CPU);
+  assert_true(obs_scene_work(&sc) == 24.0 * 18 * 16 * (1 + 3 * 2));
   obs_result r;
   obs_err err = OBS_ERR_INIT;
   render(doc, 2, &r);

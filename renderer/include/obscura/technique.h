@@ -324,6 +324,12 @@ typedef struct obs_technique {
   /* Cross-field rules of the parameters, ended by an entry with a NULL param; NULL: none. */
   const obs_param_rule *rules;
   obs_technique_cost_fn cost;   /* NULL: 1 per pixel sample */
+  /* With OBS_NEED_MOTION: the work of a scene of `frames` frames in units of one frame's, an
+   * upper bound (NULL: frames). */
+  double (*frames_cost)(const void *bound, int frames);
+  /* With OBS_NEED_MOTION: the backends (bit 1 << obs_backend) whose runs render moving scenes;
+   * a moving scene on another is refused, and backend auto picks among these. */
+  unsigned motion_backends;
   const char *cost_rule;        /* the cost hook in words ("samples"), for the API and docs */
   /* Milliseconds per unit of work (width x height x spp x cost) on the reference machine of
    * docs/server.md, rounded up: the server's render-time estimate before it has stored runs of
@@ -421,8 +427,12 @@ json_t *obs_technique_params_schema(const obs_technique *t);
  * hook, and when `params` do not bind (the loader reports those). */
 double obs_technique_cost(const obs_technique *t, const json_t *params);
 /* The work of rendering `sc` with its technique: width x height x spp x obs_technique_cost x
- * frames (a scene with moving objects renders every frame; each costs a whole one at most). */
+ * the frames' cost (frames_cost: a scene with moving objects renders every frame). */
 double obs_scene_work(const obs_scene *sc);
+/* `be` (picked for t), or, for a scene with moving objects that `be` does not render frames of,
+ * the first backend of t's motion_backends that runs here (`be` again when there is none). */
+obs_backend obs_technique_motion_backend(const obs_technique *t, const obs_scene *sc,
+                                         obs_backend be);
 /* Checks t's parameter table against itself: names unique and non-empty, enums with choices,
  * offsets inside bound_size and aligned, and every default accepted by its own range. Adds one
  * problem per fault and returns OBS_EINVAL, or 0. */
