@@ -120,41 +120,36 @@ void obs_geometry_mesh_free(obs_mesh *m) {
   memset(m, 0, sizeof *m);
 }
 
-/* Transforms an object-space float mesh in place into the frame at `origin`: each vertex goes
- * through the transform and the shift in double and is rounded to float once. */
-static void mesh_transform(obs_mesh *m, const obs_transform *t, const double origin[3]) {
-  if (!t->present && origin[0] == 0 && origin[1] == 0 && origin[2] == 0) return;
+/* m's vertices (and normals, with both nrm and src_nrm) from the object-space arrays src_pos and
+ * src_nrm (m's own for a transform in place) through `t` and the shift to `origin`, each in
+ * double and rounded to float once; normals through the inverse transpose, renormalised. */
+static void transform_vertices(obs_mesh *m, const float *src_pos, const float *src_nrm,
+                               const obs_transform *t, const double origin[3]) {
   xform x;
   xform_from(t, &x);
   for (size_t i = 0; i < m->nverts; i++) {
-    double p[3] = {m->pos[3 * i], m->pos[3 * i + 1], m->pos[3 * i + 2]}, o[3];
+    const float *sp = src_pos + 3 * i;
+    double p[3] = {sp[0], sp[1], sp[2]}, o[3];
     xform_point(&x, p, o);
     for (int k = 0; k < 3; k++) m->pos[3 * i + k] = (float)(o[k] - origin[k]);
-    if (m->nrm) {
-      double n[3] = {m->nrm[3 * i], m->nrm[3 * i + 1], m->nrm[3 * i + 2]}, q[3];
-      for (int k = 0; k < 3; k++) q[k] = x.n[k][0] * n[0] + x.n[k][1] * n[1] + x.n[k][2] * n[2];
-      if (obs_normalize3d(q)) q[0] = q[1] = q[2] = 0;
-      for (int k = 0; k < 3; k++) m->nrm[3 * i + k] = (float)q[k];
-    }
-  }
-}
-
-void obs_geometry_mesh_place(obs_mesh *m, const obs_transform *t, const double origin[3]) {
-  xform x;
-  xform_from(t, &x);
-  for (size_t i = 0; i < m->nverts; i++) {
-    const float *src = m->obj_pos + 3 * i;
-    double p[3] = {src[0], src[1], src[2]}, o[3];
-    xform_point(&x, p, o);
-    for (int k = 0; k < 3; k++) m->pos[3 * i + k] = (float)(o[k] - origin[k]);
-    if (m->nrm && m->obj_nrm) {
-      const float *sn = m->obj_nrm + 3 * i;
+    if (m->nrm && src_nrm) {
+      const float *sn = src_nrm + 3 * i;
       double q[3];
       for (int k = 0; k < 3; k++) q[k] = x.n[k][0] * sn[0] + x.n[k][1] * sn[1] + x.n[k][2] * sn[2];
       if (obs_normalize3d(q)) q[0] = q[1] = q[2] = 0;
       for (int k = 0; k < 3; k++) m->nrm[3 * i + k] = (float)q[k];
     }
   }
+}
+
+/* Transforms an object-space float mesh in place into the frame at `origin`. */
+static void mesh_transform(obs_mesh *m, const obs_transform *t, const double origin[3]) {
+  if (!t->present && origin[0] == 0 && origin[1] == 0 && origin[2] == 0) return;
+  transform_vertices(m, m->pos, m->nrm, t, origin);
+}
+
+void obs_geometry_mesh_place(obs_mesh *m, const obs_transform *t, const double origin[3]) {
+  transform_vertices(m, m->obj_pos, m->obj_nrm, t, origin);
 }
 
 /* Keeps a just-built object-space mesh as the moving object's own (obj_pos, obj_nrm). */
