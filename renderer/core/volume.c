@@ -6,6 +6,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "sampling.h"
+
 #define PI 3.14159265358979323846
 
 const char *const obs_volume_procedural_names[] = {"sphere", "torus", "marschner_lobb", "noise",
@@ -74,15 +76,10 @@ float obs_volume_sample(const obs_volume *v, const double p[3]) {
 
 static double clamp01(double x) { return x < 0 ? 0 : x > 1 ? 1 : x; }
 
+/* The lattice value at (x, y, z) of noise `seed`: the shared sampling hashes. */
 static uint32_t hash3(uint32_t seed, int x, int y, int z) {
-  uint32_t h = seed * 0x9E3779B1u ^ (uint32_t)x * 0x85EBCA77u ^ (uint32_t)y * 0xC2B2AE3Du ^
-               (uint32_t)z * 0x27D4EB2Fu;
-  h ^= h >> 15;
-  h *= 0x2C1B3C6Du;
-  h ^= h >> 12;
-  h *= 0x297A2D39u;
-  h ^= h >> 15;
-  return h;
+  return obs_hash32(obs_hash_combine(
+      obs_hash_combine(obs_hash_combine(seed, (uint32_t)x), (uint32_t)y), (uint32_t)z));
 }
 
 /* Value noise on a lattice of 8 cells across [-1, 1], smoothstep-weighted: in [0, 1]. */
