@@ -25,6 +25,15 @@ int obs_patch_mesh_publish_frames(obs_render_ctx *ctx, const char *name, const o
   return 0;
 }
 
+void obs_patch_mesh_warn_capped(obs_render_ctx *ctx, const obs_patch_mesh *pm) {
+  if (pm->capped)
+    obs_render_ctx_warn(ctx,
+                        "patch_size split %zu triangles into more than %d x %d patches; they were "
+                        "split %d x %d",
+                        pm->capped, OBS_PATCH_SPLIT_MAX, OBS_PATCH_SPLIT_MAX, OBS_PATCH_SPLIT_MAX,
+                        OBS_PATCH_SPLIT_MAX);
+}
+
 void obs_patch_mesh_free(obs_patch_mesh *pm) {
   if (!pm) return;
   free(pm->first);

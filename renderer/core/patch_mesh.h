@@ -60,6 +60,8 @@ int obs_patch_mesh_publish(obs_render_ctx *ctx, const char *name, const obs_patc
 /* The same for `frames` maps one after the other (frames x pm->count x 3 values). */
 int obs_patch_mesh_publish_frames(obs_render_ctx *ctx, const char *name, const obs_patch_mesh *pm,
                                   int frames, const float *rgb, obs_err *err);
+/* Warns the render when the split of some triangles was capped at OBS_PATCH_SPLIT_MAX. */
+void obs_patch_mesh_warn_capped(obs_render_ctx *ctx, const obs_patch_mesh *pm);
 /* The triangle holding `patch` and its sub-triangle index there. */
 size_t obs_patch_mesh_owner(const obs_patch_mesh *pm, int64_t patch, int64_t *sub);
 /* Barycentric weights (u, v) of p on triangle (a, b, c), in double; (0, 0) when degenerate. */

@@ -418,12 +418,7 @@ int obs_obscurance_map_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
                             ? "every ray met the back of a surface"
                             : "no line met them, or only backs of surfaces; raise directions, "
                               "lines or bundle_resolution");
-  if (!rc && m.pm.capped)
-    obs_render_ctx_warn(ctx,
-                        "patch_size split %zu triangles into more than %d x %d patches; they were "
-                        "split %d x %d",
-                        m.pm.capped, OBS_PATCH_SPLIT_MAX, OBS_PATCH_SPLIT_MAX, OBS_PATCH_SPLIT_MAX,
-                        OBS_PATCH_SPLIT_MAX);
+  if (!rc) obs_patch_mesh_warn_capped(ctx, &m.pm);
   obs_omap_free(&m);
   return rc;
 }

@@ -77,12 +77,7 @@ int obs_obscurance_map_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err)
   if (!rc && m.capped)
     obs_render_ctx_warn(ctx, "%d directions had more than %d layers; deeper surfaces were skipped",
                         m.capped, OBS_PEEL_LAYERS_MAX);
-  if (!rc && m.pm.capped)
-    obs_render_ctx_warn(ctx,
-                        "patch_size split %zu triangles into more than %d x %d patches; they were "
-                        "split %d x %d",
-                        m.pm.capped, OBS_PATCH_SPLIT_MAX, OBS_PATCH_SPLIT_MAX, OBS_PATCH_SPLIT_MAX,
-                        OBS_PATCH_SPLIT_MAX);
+  if (!rc) obs_patch_mesh_warn_capped(ctx, &m.pm);
   obs_omap_peel_free(&m);
   obs_geometry_free(&geo);
   obs_vk_release(vk);
