@@ -48,7 +48,14 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
   obs_backend be;
   int rc = obs_technique_pick_backend(t, scene->backend, &be, err);
   if (rc) return rc;
+  /* A moving scene runs only where the technique renders frames (the loader refuses another
+   * backend asked for by name; auto picks among them). */
   be = obs_technique_motion_backend(t, scene, be);
+  if (scene->frames > 1 && !(t->motion_backends & (1u << be)))
+    return obs_err_set(err, OBS_EUNSUPPORTED,
+                       "%s: /technique/backend: technique \"%s\" renders no moving objects "
+                       "(motion) on the %s backend",
+                       scene->name, t->name, obs_backend_name(be));
   obs_render_ctx ctx;
   memset(&ctx, 0, sizeof ctx);
   ctx.scene = scene;

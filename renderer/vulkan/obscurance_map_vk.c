@@ -35,11 +35,6 @@ static int show(obs_render_ctx *ctx, const obs_omap_peel *m, obs_image *out, obs
 int obs_obscurance_map_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   const obs_scene *sc = ctx->scene;
   const obs_obscurance_map_params *p = ctx->bound;
-  if (sc->frames > 1) /* backend auto may land here; an explicit vulkan was refused at load */
-    return obs_err_set(err, OBS_EUNSUPPORTED,
-                       "%s: /technique/backend: moving objects (motion) render on the cpu backend "
-                       "only",
-                       sc->name);
   obs_camera_rig rig;
   obs_camera_setup(&sc->camera, sc->width, sc->height, &rig);
   obs_vk *vk = NULL;
