@@ -7,8 +7,6 @@
 #include "testutil.h"
 #include "volume.h"
 
-static double urand(uint32_t *s) { return (obs_test_rand(s) >> 8) * 0x1p-24; }
-
 /* A linear field a + b.x sampled at the voxel centres is reconstructed exactly (to float) between
  * them, and held constant beyond them. */
 static void test_trilinear_linear(void **state) {
@@ -30,7 +28,7 @@ static void test_trilinear_linear(void **state) {
     double p[3], q[3];
     for (int a = 0; a < 3; a++) {
       /* Anywhere in the box and a little beyond it. */
-      p[a] = (urand(&seed) * 1.4 - 0.2) * n[a] * s[a];
+      p[a] = (obs_test_unit(&seed) * 1.4 - 0.2) * n[a] * s[a];
       q[a] = fmin(fmax(p[a], 0.5 * s[a]), (n[a] - 0.5) * s[a]); /* held beyond the centres */
     }
     double want = 0.1 + b[0] * q[0] + b[1] * q[1] + b[2] * q[2];
@@ -95,7 +93,7 @@ static void test_procedural(void **state) {
   uint32_t seed = 3;
   for (int t = 0; t < 200; t++) {
     double d[3], l = 0;
-    for (int a = 0; a < 3; a++) d[a] = urand(&seed) * 2 - 1, l += d[a] * d[a];
+    for (int a = 0; a < 3; a++) d[a] = obs_test_unit(&seed) * 2 - 1, l += d[a] * d[a];
     l = sqrt(l);
     if (!(l > 0.1)) continue;
     double lo = 0.3, hi = 0.9;
@@ -145,7 +143,7 @@ static void test_cells_bound_the_field(void **state) {
     double p[3];
     int ci[3];
     for (int a = 0; a < 3; a++) {
-      p[a] = (urand(&seed) * 1.2 - 0.1) * n[a] * v.spacing[a];
+      p[a] = (obs_test_unit(&seed) * 1.2 - 0.1) * n[a] * v.spacing[a];
       double u = fmin(fmax(p[a] / v.spacing[a] - 0.5, 0), n[a] - 1);
       ci[a] = (int)(u / c.cell);
       if (ci[a] >= c.n[a]) ci[a] = c.n[a] - 1;

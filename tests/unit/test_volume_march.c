@@ -9,12 +9,10 @@
 #include "testutil.h"
 #include "volume_march.h"
 
-static double urand(uint32_t *s) { return (obs_test_rand(s) >> 8) * 0x1p-24; }
-
 static void unit_dir(uint32_t *s, double d[3]) {
   double l;
   do {
-    for (int a = 0; a < 3; a++) d[a] = urand(s) * 2 - 1;
+    for (int a = 0; a < 3; a++) d[a] = obs_test_unit(s) * 2 - 1;
     l = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
   } while (!(l > 0.2 && l <= 1));
   for (int a = 0; a < 3; a++) d[a] /= l;
@@ -72,8 +70,8 @@ static float *strata(uint32_t *samples) {
   uint32_t s = 21;
   for (int j = 0; j < k; j++)
     for (int i = 0; i < k; i++) {
-      u[2 * (j * k + i)] = (float)((i + urand(&s)) / k);
-      u[2 * (j * k + i) + 1] = (float)((j + urand(&s)) / k);
+      u[2 * (j * k + i)] = (float)((i + obs_test_unit(&s)) / k);
+      u[2 * (j * k + i) + 1] = (float)((j + obs_test_unit(&s)) / k);
       if (u[2 * (j * k + i)] >= 1.0f) u[2 * (j * k + i)] = 0x1.fffffep-1f;
       if (u[2 * (j * k + i) + 1] >= 1.0f) u[2 * (j * k + i) + 1] = 0x1.fffffep-1f;
     }

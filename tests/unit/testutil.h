@@ -19,6 +19,8 @@ const char *obs_test_path(const char *dir, const char *name);
 int obs_test_file_exists(const char *path);
 /* The next value of a xorshift32 sequence whose state is *s (nonzero). */
 uint32_t obs_test_rand(uint32_t *s);
+/* The next value of that sequence as a double in [0, 1) (24 bits). */
+static inline double obs_test_unit(uint32_t *s) { return (obs_test_rand(s) >> 8) * 0x1p-24; }
 /* Path of a file in the source tree (static buffer, overwritten by the next call). */
 const char *obs_test_src(const char *rel);
 /* Loads `json` as the document `name` into `sc` (asserting success; the loader's message is
