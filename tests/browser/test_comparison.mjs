@@ -7,19 +7,34 @@ import test from 'node:test';
 import {assertAllNamed, assertNoReload, checkComparisonPage, getJSON, markPage, openBrowser, screenshot, SLOW,
         startDashboard} from './lib.mjs';
 
+/** The submit page in comparison mode on the Cornell box at w x h, one timed run, 64 reference samples. */
+async function openComparisonForm(page, d, w, h) {
+  await page.goto(`${d.url}/#/submit`);
+  await page.getByRole('radio', {name: /A comparison/}).check();
+  await page.getByLabel('Scene file').selectOption('cornell_box.json');
+  await page.getByLabel('Image width (pixels)').fill(String(w));
+  await page.getByLabel('Image height (pixels)').fill(String(h));
+  await page.getByLabel('Timed runs per candidate').fill('1');
+  await page.getByLabel('Reference samples').fill('64');
+}
+
+/** Starts the comparison and waits on its page until it is no longer running; returns its id. */
+async function startAndFollow(page) {
+  await page.getByRole('button', {name: 'Start comparison'}).click();
+  await page.waitForURL(/#\/comparisons\/\d+/);
+  const id = Number(page.url().match(/#\/comparisons\/(\d+)/)[1]);
+  await page.waitForFunction(() => window.__obscura.comparison && window.__obscura.comparison.state &&
+                             window.__obscura.comparison.state !== 'running', null, {timeout: 120000 * SLOW});
+  return id;
+}
+
 test('comparison submitted from the submit page, followed to the end', async () => {
   const d = await startDashboard({workers: 1});
   try {
     const {browser, page, errors} = await openBrowser();
     try {
-      await page.goto(`${d.url}/#/submit`);
-      await page.getByRole('radio', {name: /A comparison/}).check();
-      await page.getByLabel('Scene file').selectOption('cornell_box.json');
-      await page.getByLabel('Image width (pixels)').fill('32');
-      await page.getByLabel('Image height (pixels)').fill('24');
+      await openComparisonForm(page, d, 32, 24);
       await page.getByLabel('Label').fill('browser comparison');
-      await page.getByLabel('Timed runs per candidate').fill('1');
-      await page.getByLabel('Reference samples').fill('64');
       const c1 = page.getByRole('group', {name: 'Candidate 1'});
       await c1.getByLabel('Technique', {exact: true}).selectOption('rt_ao');
       await c1.getByLabel('samples', {exact: true}).fill('4, 16');
@@ -35,11 +50,7 @@ test('comparison submitted from the submit page, followed to the end', async () 
       await assertAllNamed(page, 'submit (comparison)');
       await screenshot(page, 'comparison-submit');
       await markPage(page);
-      await page.getByRole('button', {name: 'Start comparison'}).click();
-      await page.waitForURL(/#\/comparisons\/\d+/);
-      const id = Number(page.url().match(/#\/comparisons\/(\d+)/)[1]);
-      await page.waitForFunction(() => window.__obscura.comparison && window.__obscura.comparison.state &&
-                                 window.__obscura.comparison.state !== 'running', null, {timeout: 120000 * SLOW});
+      const id = await startAndFollow(page);
       await assertNoReload(page);
       const doc = await getJSON(d, `/api/v1/comparisons/${id}`);
       assert.equal(doc.state, 'succeeded', JSON.stringify(doc).slice(0, 2000));
@@ -67,13 +78,7 @@ test('a candidate compared against another reference, chosen on the submit page'
   try {
     const {browser, page, errors} = await openBrowser();
     try {
-      await page.goto(`${d.url}/#/submit`);
-      await page.getByRole('radio', {name: /A comparison/}).check();
-      await page.getByLabel('Scene file').selectOption('cornell_box.json');
-      await page.getByLabel('Image width (pixels)').fill('24');
-      await page.getByLabel('Image height (pixels)').fill('18');
-      await page.getByLabel('Timed runs per candidate').fill('1');
-      await page.getByLabel('Reference samples').fill('64');
+      await openComparisonForm(page, d, 24, 18);
       const c1 = page.getByRole('group', {name: 'Candidate 1'});
       await c1.getByLabel('Technique', {exact: true}).selectOption('rt_ao');
       assert.equal(await c1.getByLabel('Compare against').count(), 0, 'rt_ao offers no other reference');
@@ -89,11 +94,7 @@ test('a candidate compared against another reference, chosen on the submit page'
       await page.waitForFunction(() => [...document.querySelectorAll('.field-error')].some((e) => /needs color_bleeding false/.test(e.textContent)));
       await bleed.getByLabel('true', {exact: true}).uncheck();
       await bleed.getByLabel('false', {exact: true}).check();
-      await page.getByRole('button', {name: 'Start comparison'}).click();
-      await page.waitForURL(/#\/comparisons\/\d+/);
-      const id = Number(page.url().match(/#\/comparisons\/(\d+)/)[1]);
-      await page.waitForFunction(() => window.__obscura.comparison && window.__obscura.comparison.state &&
-                                 window.__obscura.comparison.state !== 'running', null, {timeout: 120000 * SLOW});
+      const id = await startAndFollow(page);
       const doc = await getJSON(d, `/api/v1/comparisons/${id}`);
       assert.equal(doc.state, 'succeeded', JSON.stringify(doc).slice(0, 2000));
       assert.equal(doc.references[0].technique, 'rt_ao');
