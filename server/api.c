@@ -507,8 +507,8 @@ static int delete_comparison(srv_req *r, int64_t id) {
     return rc == OBS_ENOTFOUND
                ? srv_respond_error(r, MHD_HTTP_NOT_FOUND, NULL, "no comparison %lld", (long long)id)
                : srv_respond_error(r, MHD_HTTP_CONFLICT, NULL,
-                                   "comparison %lld still has queued or running jobs (cancel "
-                                   "them first)",
+                                   "comparison %lld still has queued or running jobs or metrics "
+                                   "being computed (cancel the jobs or wait)",
                                    (long long)id);
   }
   if (rc) return srv_respond_unavailable(r, &err);

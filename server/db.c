@@ -94,8 +94,14 @@ static const char *const sql[ST_COUNT] = {
     [ST_RETRY] = "UPDATE jobs SET state = 'queued', error = NULL, cancel_requested = 0, "
                  "started_ms = NULL, finished_ms = NULL, progress = 0, backend = NULL "
                  "WHERE id = ? AND state IN ('failed', 'cancelled')",
+    /* A candidate whose jobs have succeeded but whose metrics are not stored yet is still being
+     * measured: deleting it then would pull the rows from under the metrics being written. */
     [ST_CMP_ACTIVE] = "SELECT (SELECT count(*) FROM comparisons WHERE id = ?1), (SELECT count(*) "
-                      "FROM jobs WHERE id IN " CMP_JOBS " AND state IN ('queued', 'running'))",
+                      "FROM jobs WHERE id IN " CMP_JOBS " AND state IN ('queued', 'running')) + "
+                      "(SELECT count(*) FROM comparison_candidates cc JOIN jobs j ON j.id = cc.job "
+                      "JOIN jobs r ON r.id = cc.reference_job WHERE cc.comparison = ?1 AND "
+                      "cc.metrics IS NULL AND cc.metrics_error IS NULL AND j.state = 'succeeded' "
+                      "AND r.state = 'succeeded')",
     [ST_CMP_JOBS] = "SELECT job FROM comparison_candidates WHERE comparison = ?1 UNION "
                     "SELECT reference_job FROM comparison_candidates WHERE comparison = ?1",
     [ST_CMP_DELETE] = "DELETE FROM comparisons WHERE id = ?",

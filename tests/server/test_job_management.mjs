@@ -36,13 +36,8 @@ test('comparison_id on jobs and deleting a comparison as a whole', async () => {
     let c = await getJSON(d, `/api/v1/comparisons/${cid}`);
     const jobIds = [...c.references.map((x) => x.job_id), ...c.candidates.map((x) => x.job_id)];
     assert.equal(jobIds.length, 3);
-    // While its jobs are queued or running the comparison cannot be deleted.
-    const busy = await request(d, 'DELETE', `/api/v1/comparisons/${cid}`);
-    if (c.state === 'running') {
-      assert.equal(busy.status, 409, busy.text);
-      validate('Error', busy.json);
-      assert.match(busy.json.error, /queued or running/);
-    }
+    // The refusal while it runs is the next test's, which holds the jobs back with a blocker: here
+    // they may all finish before a request could see them running.
     c = await waitComparison(d, cid);
     await waitJob(d, plain);
     for (const id of jobIds) {
