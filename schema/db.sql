@@ -125,3 +125,7 @@ ALTER TABLE jobs ADD COLUMN scene_name TEXT;
 -- technique's own defaults would not fit it (a JSON array of sentences; NULL: none).
 ALTER TABLE jobs ADD COLUMN notes TEXT;
 ALTER TABLE comparisons ADD COLUMN notes TEXT;
+
+-- migration 7
+-- Open MPI ranks a job renders on (obscurad --mpirun; docs/mpi.md): 1 renders in the daemon.
+ALTER TABLE jobs ADD COLUMN ranks INTEGER NOT NULL DEFAULT 1 CHECK (ranks BETWEEN 1 AND 256);

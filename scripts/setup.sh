@@ -9,7 +9,8 @@ DEB_PACKAGES=(build-essential cmake pkg-config libembree-dev libjansson-dev libo
               libspng-dev libassimp-dev libcmocka-dev libvulkan-dev mesa-vulkan-drivers glslc
               vulkan-validationlayers libcurl4-openssl-dev
               libmicrohttpd-dev libsqlite3-dev libssl-dev openimageio-tools python3-numpy
-              sqlite3 curl wrk chromium clang libclang-rt-14-dev libteem-dev libvolpack1-dev)
+              sqlite3 curl wrk chromium clang libclang-rt-14-dev libteem-dev libvolpack1-dev
+              libopenmpi-dev openmpi-bin)
 command -v node >/dev/null 2>&1 || DEB_PACKAGES+=(nodejs)
 command -v npm >/dev/null 2>&1 || DEB_PACKAGES+=(npm)
 
@@ -33,6 +34,12 @@ obs_install_npm() {
     npm ci --no-audit --no-fund --loglevel=error
   fi
   node scripts/make-models.mjs >/dev/null
+  # The MRI head of libvolpack1-dev's examples, for scenes/volume_head.json (a copy, not a link:
+  # the scene tree must not reach outside itself).
+  local den=/usr/share/doc/libvolpack1-dev/examples/brainsmall.den
+  if [ -f "$den" ] && ! cmp -s "$den" scenes/models/brainsmall.den; then
+    cp "$den" scenes/models/brainsmall.den
+  fi
 }
 
 # obs_build DIR [cmake args...]

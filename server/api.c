@@ -111,6 +111,7 @@ static json_t *job_json(srv_app *app, const srv_job *j) {
       json_pack("{s:o, s:o, s:o}", "requested", str_or_null(j->backend_requested), "actual",
                 str_or_null(j->backend), "reason", str_or_null(j->backend_reason)));
   json_object_set_new(o, "repeats", json_integer(j->repeats));
+  json_object_set_new(o, "ranks", json_integer(j->ranks > 1 ? j->ranks : 1));
   json_object_set_new(
       o, "image",
       json_pack("{s:i, s:i, s:i}", "width", j->width, "height", j->height, "spp", j->spp));
@@ -200,7 +201,8 @@ static int submit(srv_req *r) {
                     .work = s.work,
                     .backend_reason = s.backend_reason,
                     .scene_name = s.scene_name,
-                    .notes = notes};
+                    .notes = notes,
+                    .ranks = s.ranks};
   int64_t id = 0;
   int retry = 0;
   unsigned admit = srv_admit_job(r->app, r->client, &nj, &id, &retry, &problems);

@@ -81,6 +81,13 @@ static const opt opts[] = {
      "limit on the work of all queued and running jobs (default 2e11)"},
     {"estimate-render-time", OPT_BOOL, OFF(estimate_render_time), 0, 1,
      "refuse at submission a job estimated to outlast --max-render-seconds (default true)"},
+    {"mpirun", OPT_STR, OFF(mpirun), 0, 0,
+     "Open MPI's mpirun: jobs with \"ranks\" > 1 run under it (default: none, such jobs are "
+     "refused)"},
+    {"hostfile", OPT_STR, OFF(hostfile), 0, 0,
+     "passed to mpirun as --hostfile FILE (default: none, every rank on this machine)"},
+    {"obscura-cli", OPT_STR, OFF(obscura_cli), 0, 0,
+     "the obscura CLI that mpirun starts per rank (default: obscura next to obscurad)"},
 };
 #define NOPTS (sizeof opts / sizeof opts[0])
 
@@ -326,5 +333,8 @@ void srv_config_free(srv_config *cfg) {
   free(cfg->vendor_dir);
   free(cfg->token_file);
   free(cfg->mesh_importer);
+  free(cfg->mpirun);
+  free(cfg->hostfile);
+  free(cfg->obscura_cli);
   memset(cfg, 0, sizeof *cfg);
 }

@@ -62,9 +62,9 @@ enum {
   "id, state, priority, label, scene, technique, backend_requested, backend, lane, width, "      \
   "height, spp, attempts, cancel_requested, created_ms, started_ms, finished_ms, error, summary, " \
   "progress, repeats, warmup, backend_reason, (SELECT comparison FROM comparison_candidates "      \
-  "WHERE job = jobs.id OR reference_job = jobs.id LIMIT 1), scene_name, notes"
+  "WHERE job = jobs.id OR reference_job = jobs.id LIMIT 1), scene_name, notes, ranks"
 /* How many columns JOB_COLS selects: a statement's further columns start there. */
-#define JOB_NCOLS 26
+#define JOB_NCOLS 27
 #define LIST_WHERE                                                                                \
   "(?1 IS NULL OR state = ?1) AND (?2 IS NULL OR technique = ?2) AND "                           \
   "(?3 IS NULL OR coalesce(backend, backend_requested) = ?3) "

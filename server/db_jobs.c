@@ -38,6 +38,8 @@ static void read_job(sqlite3_stmt *s, srv_job *j) {
   j->comparison = sqlite3_column_int64(s, 23);
   j->scene_name = srv_dbi_col_str(s, 24);
   j->notes = srv_dbi_col_str(s, 25);
+  j->ranks = sqlite3_column_int(s, 26);
+  if (j->ranks < 1) j->ranks = 1;
 }
 
 void srv_job_free(srv_job *j) {
@@ -110,6 +112,7 @@ int srv_dbi_insert_job(conn *c, const srv_new_job *nj, int64_t *id, obs_err *err
   srv_dbi_bind_text(s, 15, nj->backend_reason);
   srv_dbi_bind_text(s, 16, nj->scene_name);
   srv_dbi_bind_text(s, 17, nj->notes);
+  sqlite3_bind_int(s, 18, nj->ranks > 1 ? nj->ranks : 1);
   int rc = srv_dbi_exec_done(c, s, err, "inserting the job");
   if (!rc) *id = sqlite3_last_insert_rowid(c->db);
   return rc;

@@ -266,21 +266,26 @@ static int stop_reason(slot *sl) {
   return why;
 }
 
-/* Writes the outputs into a staging directory and renames it into place. A failure the
- * environment caused (disk full, read-only, I/O) pauses the lanes and retries with the render
- * kept in memory. Returns 0, <0 for a job fault (err filled), or a stop reason (>0). */
+/* The staging directory of an attempt's outputs. */
+static void stage_path(const srv_app *app, const srv_job *j, char *buf, size_t n) {
+  snprintf(buf, n, "%s/.tmp-%lld-%d", app->results_dir, (long long)j->id, j->attempts);
+}
+
+/* Writes the outputs into a staging directory (unless `res` is NULL: an mpirun job's CLI wrote
+ * them there already) and renames it into place. A failure the environment caused (disk full,
+ * read-only, I/O) pauses the lanes and retries with the render kept in memory (or on disk).
+ * Returns 0, <0 for a job fault (err filled), or a stop reason (>0). */
 static int publish(slot *sl, srv_job *j, obs_result *res, const obs_scene *sc, srv_output *outs,
                    int *nouts, obs_err *err) {
   srv_app *app = sl->app;
   char stage[4200], final[4200];
-  snprintf(stage, sizeof stage, "%s/.tmp-%lld-%d", app->results_dir, (long long)j->id,
-           j->attempts);
+  stage_path(app, j, stage, sizeof stage);
   srv_results_path(app, j->id, final, sizeof final);
   for (int tries = 0;; tries++) {
     obs_err_clear(err);
-    srv_remove_tree(stage);
+    if (res) srv_remove_tree(stage);
     *nouts = 0;
-    int rc = obs_result_write(res, sc, stage, err);
+    int rc = res ? obs_result_write(res, sc, stage, err) : 0;
     if (!rc) rc = srv_outputs_describe(stage, outs, 16, nouts, err);
     if (!rc) {
       srv_remove_tree(final);
@@ -289,25 +294,33 @@ static int publish(slot *sl, srv_job *j, obs_result *res, const obs_scene *sc, s
                          strerror(errno));
     }
     if (!rc) return 0;
-    srv_remove_tree(stage);
+    if (res) srv_remove_tree(stage);
     char code[40] = "";
     obs_err probe = OBS_ERR_INIT;
     int env = srv_outputs_fault(app->results_dir, obs_err_message(err), code, sizeof code, &probe);
     obs_err_free(&probe);
     /* Once more before blaming the job: the probe may have just recreated a removed directory. */
     if (!env && tries == 0) continue;
-    if (!env) return rc;
+    if (!env) {
+      srv_remove_tree(stage);
+      return rc;
+    }
     srv_fault_raise(SRV_FAULT_RESULTS, app->results_dir, code, obs_err_message(err), NULL);
     srv_log("job %lld: cannot write its outputs yet (%s); the render is kept and the lanes wait",
             (long long)j->id, obs_err_message(err));
     int why = wait_fault(sl, SRV_FAULT_RESULTS, 0);
-    if (why) return why;
+    if (why) {
+      srv_remove_tree(stage);
+      return why;
+    }
   }
 }
 
-/* Publishes a finished render and records it; returns 1 when the job succeeded. */
+/* Publishes a finished render and records it; returns 1 when the job succeeded. `res` NULL: an
+ * mpirun job, whose outputs are in the staging directory and whose summary.json text is
+ * `mpi_summary` (taken). */
 static int finish_render(slot *sl, srv_job *j, obs_result *res, const obs_scene *sc,
-                         const srv_run *runs, int nruns, obs_err *err) {
+                         char *mpi_summary, const srv_run *runs, int nruns, obs_err *err) {
   srv_app *app = sl->app;
   srv_output outs[16];
   int nouts = 0;
@@ -315,16 +328,19 @@ static int finish_render(slot *sl, srv_job *j, obs_result *res, const obs_scene 
   if (rc > 0) {
     /* Stopped while waiting for the results directory: nothing was published, so the attempt
      * ends as any stopped render does (a shutdown requeues it without counting it). */
+    free(mpi_summary);
     stopped(sl, j, rc);
     return 0;
   }
-  char *summary = NULL;
-  if (!rc) {
+  char *summary = mpi_summary;
+  if (!rc && res) {
     json_t *sum = obs_result_summary_json(res, sc);
     summary = json_dumps(sum, JSON_COMPACT | JSON_REAL_PRECISION(9));
     json_decref(sum);
+  }
+  if (!rc) {
     outcome o = {.kind = OUT_SUCCESS,
-                 .backend = obs_backend_name(res->backend),
+                 .backend = res ? obs_backend_name(res->backend) : "cpu",
                  .summary = summary,
                  .outs = outs,
                  .nouts = nouts,
@@ -334,6 +350,7 @@ static int finish_render(slot *sl, srv_job *j, obs_result *res, const obs_scene 
      * the database, which recovery requeues and whose directory it removes. */
     rc = record(sl, j->id, &o, err);
   }
+  if (!rc && !res) srv_mpi_succeeded(app, j, summary);
   free(summary);
   if (rc == OBS_ETRANSIENT) return 0; /* stopping with the database down: left to recovery */
   if (rc) {
@@ -342,6 +359,10 @@ static int finish_render(slot *sl, srv_job *j, obs_result *res, const obs_scene 
     srv_remove_tree(final);
     fail_job(sl, j, SRV_FAILED, obs_err_message(err));
     return 0;
+  }
+  if (!res) {
+    job_done(app->sched);
+    return 1;
   }
   srv_metrics_render(res->technique->name, obs_backend_name(res->backend),
                      res->timings.total_ms / 1e3);
@@ -359,12 +380,53 @@ static int finish_render(slot *sl, srv_job *j, obs_result *res, const obs_scene 
   return 1;
 }
 
+/* A job on Open MPI ranks: mpirun renders it into the staging directory (mpi_jobs.c), under the
+ * same render gate, time limit, cancel and publication as a local render. Returns 1 when it
+ * succeeded. */
+static int run_mpi(slot *sl, srv_job *j) {
+  srv_app *app = sl->app;
+  obs_err err = OBS_ERR_INIT;
+  /* Submission accepted it for the CPU backend only. */
+  if (srv_db_set_backend(app->db, j->id, "cpu", &err))
+    srv_log("job %lld: %s", (long long)j->id, obs_err_message(&err));
+  obs_err_clear(&err);
+  char stage[4200];
+  stage_path(app, j, stage, sizeof stage);
+  pthread_mutex_lock(&app->sched->mu);
+  sl->deadline_ms = INFINITY; /* waiting at the gate is not rendering */
+  pthread_mutex_unlock(&app->sched->mu);
+  int gated = gate_enter(app->sched, sl, 0), rc = OBS_ECANCELED, ok = 0;
+  char *summary = NULL;
+  if (gated) {
+    pthread_mutex_lock(&app->sched->mu);
+    sl->deadline_ms = obs_now_ms() + 1e3 * app->cfg.max_render_seconds;
+    pthread_mutex_unlock(&app->sched->mu);
+    rc = srv_mpi_render(app, j, stage, &sl->cancel, &summary, &err);
+    gate_leave(app->sched, 0);
+  }
+  pthread_mutex_lock(&app->sched->mu);
+  sl->deadline_ms = INFINITY;
+  pthread_mutex_unlock(&app->sched->mu);
+  int why = stop_reason(sl);
+  if (why || rc) {
+    free(summary);
+    srv_remove_tree(stage);
+    if (why) stopped(sl, j, why);
+    else fail_job(sl, j, SRV_FAILED, obs_err_message(&err));
+  } else {
+    ok = finish_render(sl, j, NULL, NULL, summary, NULL, 0, &err);
+  }
+  obs_err_free(&err);
+  return ok;
+}
+
 /* Runs one claimed job to its outcome; returns 1 when it succeeded. */
 static int run_job(slot *sl, srv_job *j) {
   srv_app *app = sl->app;
   int succeeded = 0;
-  srv_job_log(app, j->id, "queued -> running (%s lane, attempt %d)", srv_lane_name(sl->lane),
-              j->attempts);
+  srv_job_log(app, j->id, "queued -> running (%s lane, attempt %d%s)", srv_lane_name(sl->lane),
+              j->attempts, j->ranks > 1 ? ", on Open MPI ranks" : "");
+  if (j->ranks > 1) return run_mpi(sl, j);
   obs_err err = OBS_ERR_INIT;
   double t0 = obs_now_ms();
   obs_scene sc;
@@ -448,7 +510,7 @@ static int run_job(slot *sl, srv_job *j) {
   } else {
     res.timings.load_ms = load_ms;
     res.timings.total_ms += load_ms;
-    succeeded = finish_render(sl, j, &res, &sc, runs, nruns, &err);
+    succeeded = finish_render(sl, j, &res, &sc, NULL, runs, nruns, &err);
   }
   obs_result_free(&res);
   obs_scene_free(&sc);

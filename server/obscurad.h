@@ -13,6 +13,8 @@
 #define SRV_MAX_ATTEMPTS 3
 /* Timed renders per attempt (jobs.repeats) at most. */
 #define SRV_MAX_REPEATS 20
+/* Open MPI ranks one job may ask for (its "ranks"). */
+#define SRV_MAX_RANKS 256
 /* What a comparison request that omits repeats or reference.samples gets (GET /api/v1/techniques
  * shows both, so the dashboard's form starts from them). */
 #define SRV_COMPARE_REPEATS 3
@@ -57,6 +59,10 @@ typedef struct srv_config {
   double max_queued_work;       /* per client: work of its queued and running jobs */
   double max_queued_work_total; /* the same over all clients */
   int estimate_render_time;     /* refuse jobs estimated to outlast max_render_seconds */
+  /* Jobs split over Open MPI ranks (mpi_jobs.c). */
+  char *mpirun;      /* the mpirun executable; NULL = jobs with ranks > 1 are refused */
+  char *hostfile;    /* mpirun --hostfile; NULL = none */
+  char *obscura_cli; /* the CLI each rank runs; NULL = obscura next to obscurad */
 } srv_config;
 
 /* Fills defaults, reads --config FILE (if any) and then the command line, which wins. Returns 0,
@@ -141,6 +147,7 @@ typedef struct srv_job {
   int64_t comparison;      /* the comparison it belongs to, 0 = none */
   char *scene_name;        /* an inline scene's name, may be NULL */
   char *notes;             /* JSON array of the values derived from the scene's size, may be NULL */
+  int ranks;               /* Open MPI ranks (> 1: rendered by mpirun, mpi_jobs.c) */
   char *doc;               /* only filled by srv_db_claim */
   srv_output *outputs;
   int noutputs;
@@ -158,6 +165,7 @@ typedef struct srv_new_job {
   const char *backend_reason; /* may be NULL */
   const char *scene_name;     /* an inline scene's name, may be NULL */
   const char *notes;          /* JSON array text of derived values, may be NULL */
+  int ranks;                  /* Open MPI ranks; 0 = 1 */
 } srv_new_job;
 
 /* One timed render of a job (a row of `runs`). */
@@ -501,6 +509,7 @@ typedef struct srv_submission {
   char *backend_reason;
   json_t *choice; /* time-budget mode: what was chosen and why (owned), else NULL */
   json_t *notes;  /* strings: parameters derived from the scene's size (owned), or NULL */
+  int ranks;      /* Open MPI ranks, 1..SRV_MAX_RANKS */
 } srv_submission;
 /* Returns 0 or the HTTP status to answer with; *message is a static summary, problems the list. */
 unsigned srv_submit_parse(struct srv_app *app, const char *body, size_t len, srv_submission *s,
@@ -650,6 +659,23 @@ int srv_db_set_job_client(srv_db *db, int64_t job, int64_t comparison, const cha
  * whose job's work is at least min_work; *rates malloc'd (db.c). */
 int srv_db_run_rates(srv_db *db, const char *technique, const char *backend, int64_t machine,
                      double min_work, double **rates, size_t *n, obs_err *err);
+
+/* ---- jobs on Open MPI ranks (mpi_jobs.c, docs/mpi.md) ---------------------------------------- */
+
+/* Submission of a job with ranks > 1 on backend `be`: adds a problem under /ranks and returns 1
+ * when this daemon cannot run it (no --mpirun, not the CPU backend, a scene that reads files). */
+int srv_mpi_check(srv_app *app, const obs_scene *sc, obs_backend be, int ranks,
+                  obs_err *problems);
+/* Renders claimed job `j` (j->ranks > 1) with `mpirun -np ranks obscura render` into `stage`
+ * (created by the CLI: every output and summary.json). Polls `cancel` and, once raised, ends
+ * mpirun's process group (SIGTERM, SIGKILL after a grace period) and returns OBS_ECANCELED.
+ * Returns 0 with *summary (summary.json's text, malloc'ed), or an error whose message quotes the
+ * end of mpirun's output; mpirun's output goes to the job's log either way. */
+int srv_mpi_render(srv_app *app, const srv_job *j, const char *stage, atomic_int *cancel,
+                   char **summary, obs_err *err);
+
+/* The log lines, warnings and metrics of a recorded mpirun job's success. */
+void srv_mpi_succeeded(srv_app *app, const srv_job *j, const char *summary);
 
 /* SHA-256 of a buffer (outputs.c). */
 void srv_sha256(const void *data, size_t len, unsigned char out[32]);

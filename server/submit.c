@@ -214,6 +214,16 @@ void srv_submit_check_limits(srv_app *app, const obs_scene *sc, obs_err *problem
 
 int srv_pick_backend(const obs_technique *t, obs_backend requested, int vulkan_lane,
                      obs_backend *out, obs_err *err) {
+  /* Without a Vulkan lane "auto" is the CPU wherever the technique has one, decided here rather
+   * than by the registry's rule, whose probe of the Vulkan device would load its driver into a
+   * daemon that promised to load none (--no-vulkan). */
+  if (!vulkan_lane && requested == OBS_BACKEND_AUTO && obs_technique_has_backend(t, OBS_BACKEND_CPU)) {
+    *out = OBS_BACKEND_CPU;
+    return 0;
+  }
+  if (!vulkan_lane && requested == OBS_BACKEND_VULKAN && t->run[OBS_BACKEND_VULKAN])
+    return obs_err_set(err, OBS_EUNSUPPORTED,
+                       "this server runs no Vulkan lane (started with --no-vulkan); use \"cpu\"");
   int rc = obs_technique_pick_backend(t, requested, out, err);
   if (rc || *out != OBS_BACKEND_VULKAN || vulkan_lane) return rc;
   if (requested == OBS_BACKEND_AUTO && obs_technique_has_backend(t, OBS_BACKEND_CPU)) {
@@ -373,6 +383,9 @@ unsigned srv_submit_parse(srv_app *app, const char *body, size_t len, srv_submis
     obs_jpath_pop(&p, m);
     scene_name = NULL;
   }
+  /* Open MPI ranks (mpi_jobs.c): checked against the daemon and the scene once it is loaded. */
+  long long ranks = 1;
+  obs_json_get_int(&p, req, "ranks", 0, 1, SRV_MAX_RANKS, &ranks);
   json_t *sets = srv_submit_get_sets(&p, req);
   const char *docname = "inline";
   json_t *file = json_object_get(req, "scene_file");
@@ -380,7 +393,7 @@ unsigned srv_submit_parse(srv_app *app, const char *body, size_t len, srv_submis
   double budget_ms = 0;
   if (file) {
     static const char *const keys[] = {"scene_file", "technique", "set", "priority", "label",
-                                       "time_budget_ms", NULL};
+                                       "time_budget_ms", "ranks", NULL};
     obs_json_check_keys(&p, req, keys);
     doc = srv_submit_load_bundled(app, &p, file);
     if (json_is_string(file)) docname = json_string_value(file);
@@ -417,6 +430,7 @@ unsigned srv_submit_parse(srv_app *app, const char *body, size_t len, srv_submis
     json_object_del(doc, "label");
     json_object_del(doc, "set");
     json_object_del(doc, "scene_name");
+    json_object_del(doc, "ranks");
   }
   /* Wrapper problems do not stop here: the scene is validated too, so one answer lists all. */
   if (sets && doc) srv_submit_apply_sets(&p, sets, doc);
@@ -473,6 +487,11 @@ unsigned srv_submit_parse(srv_app *app, const char *body, size_t len, srv_submis
     status = 422;
     goto out;
   }
+  if (ranks > 1 && srv_mpi_check(app, &sc, be, (int)ranks, problems)) {
+    *message = "job cannot run on Open MPI ranks";
+    status = 422;
+    goto out;
+  }
   srv_submit_check_limits(app, &sc, problems);
   if (problems->count) {
     *message = "job exceeds a server limit";
@@ -480,6 +499,7 @@ unsigned srv_submit_parse(srv_app *app, const char *body, size_t len, srv_submis
     goto out;
   }
   s->priority = (int)priority;
+  s->ranks = (int)ranks;
   s->label = label ? strdup(label) : NULL;
   s->scene = strdup(docname);
   s->scene_name = scene_name && !file ? strdup(scene_name) : NULL;

@@ -7,6 +7,7 @@
 
 #include "args.h"
 #include "client.h"
+#include "mpi_render.h"
 #include "obscura/obscura.h"
 
 typedef struct cli {
@@ -58,69 +59,96 @@ static int parse_args(int argc, char **argv, int first, cli *c) {
 
 static void free_args(cli *c) { cli_scene_opts_free(&c->s); }
 
+/* Prints what a finished render wrote: the mean of the primary output (its channel, or the
+ * luminance of an RGB one), the times and the rays. */
+static void print_render(const obs_result *res, const obs_scene *sc, const char *out_dir) {
+  const obs_output *prim = obs_technique_primary(res->technique);
+  char exr[OBS_OUTPUT_FILE_MAX], what[OBS_OUTPUT_NAME_MAX + 16];
+  obs_technique_exr_name(res->technique, exr, sizeof exr);
+  double mean = 0;
+  obs_stats st;
+  if (prim->kind == OBS_OUTPUT_RGB) {
+    obs_metrics_luminance_mean(&res->image, prim->name, NULL, &mean, NULL);
+    snprintf(what, sizeof what, "%s luminance", prim->name);
+  } else if (obs_metrics_stats(&res->image, prim->name, NULL, &st, NULL) == 0) {
+    mean = st.mean;
+    snprintf(what, sizeof what, "%s", strcmp(prim->name, "ao") ? prim->name : "AO");
+  } else {
+    snprintf(what, sizeof what, "%s", prim->name);
+  }
+  char rays[48] = "", ranks[24] = "";
+  if (res->rays && res->timings.render_ms > 0)
+    snprintf(rays, sizeof rays, ", %.3g Mrays/s", (double)res->rays / res->timings.render_ms / 1e3);
+  if (res->ranks > 1) snprintf(ranks, sizeof ranks, " on %d ranks", res->ranks);
+  printf("%s: %s/%s %dx%d%s, %.1f ms render (%.1f build)%s, %s mean %.4f -> %s/%s\n", sc->name,
+         res->technique->name, obs_backend_name(res->backend), res->image.width, res->image.height,
+         ranks, res->timings.render_ms, res->timings.build_ms, rays, what, mean, out_dir, exr);
+}
+
+/* Under mpirun (more than one rank) the render is split across the ranks (mpi_render.h); rank 0
+ * alone speaks and writes, as a one-process run would. */
 static int cmd_render(int argc, char **argv) {
   cli c;
+  int worker = cli_mpi_env_size() > 1 && cli_mpi_env_rank() > 0;
   if (parse_args(argc, argv, 2, &c)) {
-    cli_usage(stderr, "render");
+    if (!worker) cli_usage(stderr, "render");
     free_args(&c);
     return EXIT_BAD_INPUT;
   }
   obs_err err = OBS_ERR_INIT;
-  obs_scene sc;
-  double t0 = obs_now_ms();
-  int rc = cli_scene_load(&c.s, &sc, &err);
+  cli_mpi *mpi = NULL;
+  int rc = cli_mpi_env_size() > 1 ? cli_mpi_init(&mpi, &err) : 0;
   if (rc) {
     fprintf(stderr, "%s\n", obs_err_message(&err));
     obs_err_free(&err);
     free_args(&c);
-    return cli_load_exit_code(rc);
+    return EXIT_FAILURE;
+  }
+  obs_scene sc;
+  double t0 = obs_now_ms();
+  rc = cli_scene_load(&c.s, &sc, &err);
+  int code = rc ? cli_load_exit_code(rc) : 0;
+  if (mpi)
+    code = cli_mpi_loaded(mpi, code, &err);
+  else if (rc)
+    fprintf(stderr, "%s\n", obs_err_message(&err));
+  if (code) {
+    if (!rc) obs_scene_free(&sc);
+    obs_err_free(&err);
+    free_args(&c);
+    cli_mpi_finish(mpi);
+    return code;
   }
   double load_ms = obs_now_ms() - t0;
-  cli_progress pr = {.tty = !c.quiet && isatty(2), .last = -1};
+  int tty = mpi ? cli_mpi_tty() : isatty(2);
+  cli_progress pr = {.tty = !c.quiet && !worker && tty, .last = -1};
   obs_render_opts opts = {.threads = c.threads, .progress = cli_progress_draw, .progress_user = &pr};
+  if (mpi && !opts.threads) opts.threads = cli_mpi_threads();
   obs_result res;
-  rc = obs_render(&sc, &opts, &res, &err);
+  rc = mpi ? cli_mpi_render(mpi, &sc, &opts, &pr, &res, &err) : obs_render(&sc, &opts, &res, &err);
   if (pr.tty) fputc('\n', stderr);
-  if (rc) {
-    fprintf(stderr, "%s\n", obs_err_message(&err));
+  if (rc || worker) {
+    if (rc && !worker) fprintf(stderr, "%s\n", obs_err_message(&err));
+    obs_result_free(&res);
     obs_scene_free(&sc);
     obs_err_free(&err);
     free_args(&c);
-    return rc == OBS_EINVAL ? EXIT_BAD_INPUT : EXIT_FAILURE;
+    cli_mpi_finish(mpi);
+    return rc == 0 ? 0 : rc == OBS_EINVAL ? EXIT_BAD_INPUT : EXIT_FAILURE;
   }
   res.timings.load_ms = load_ms;
   res.timings.total_ms += load_ms;
   for (int i = 0; i < res.nwarnings; i++) fprintf(stderr, "obscura: warning: %s\n", res.warnings[i]);
   rc = obs_result_write(&res, &sc, c.out_dir, &err);
-  if (rc) {
+  if (rc)
     fprintf(stderr, "%s\n", obs_err_message(&err));
-  } else if (!c.quiet) {
-    /* The mean of the primary output: its channel, or the luminance of an RGB one. */
-    const obs_output *prim = obs_technique_primary(res.technique);
-    char exr[OBS_OUTPUT_FILE_MAX], what[OBS_OUTPUT_NAME_MAX + 16];
-    obs_technique_exr_name(res.technique, exr, sizeof exr);
-    double mean = 0;
-    obs_stats st;
-    if (prim->kind == OBS_OUTPUT_RGB) {
-      obs_metrics_luminance_mean(&res.image, prim->name, NULL, &mean, NULL);
-      snprintf(what, sizeof what, "%s luminance", prim->name);
-    } else if (obs_metrics_stats(&res.image, prim->name, NULL, &st, NULL) == 0) {
-      mean = st.mean;
-      snprintf(what, sizeof what, "%s", strcmp(prim->name, "ao") ? prim->name : "AO");
-    } else {
-      snprintf(what, sizeof what, "%s", prim->name);
-    }
-    char rays[48] = "";
-    if (res.rays && res.timings.render_ms > 0)
-      snprintf(rays, sizeof rays, ", %.3g Mrays/s", (double)res.rays / res.timings.render_ms / 1e3);
-    printf("%s: %s/%s %dx%d, %.1f ms render (%.1f build)%s, %s mean %.4f -> %s/%s\n", sc.name,
-           res.technique->name, obs_backend_name(res.backend), res.image.width, res.image.height,
-           res.timings.render_ms, res.timings.build_ms, rays, what, mean, c.out_dir, exr);
-  }
+  else if (!c.quiet)
+    print_render(&res, &sc, c.out_dir);
   obs_result_free(&res);
   obs_scene_free(&sc);
   obs_err_free(&err);
   free_args(&c);
+  cli_mpi_finish(mpi);
   return rc == 0 ? 0 : rc == OBS_EINVAL ? EXIT_BAD_INPUT : EXIT_FAILURE;
 }
 

@@ -17,7 +17,9 @@ static const usage usages[] = {
      "Renders the scene here and writes its outputs, summary.json and PNGs into DIR (default "
      "out).\n"
      "--technique keeps the document's params for its own technique; another starts from its\n"
-     "defaults with lengths fitted to the scene's size (a note says which); --set wins.\n"},
+     "defaults with lengths fitted to the scene's size (a note says which); --set wins.\n"
+     "Under mpirun the image is split in tiles across the ranks and rank 0 writes DIR, the same\n"
+     "files bit for bit; --threads is per rank (docs/mpi.md).\n"},
     {"validate",
      "  obscura validate SCENE.json [--technique NAME] [--set /json/pointer=VALUE]...\n",
      "Checks the scene as render would, without rendering.\n"},

@@ -20,10 +20,13 @@ typedef struct pixel_run {
   float *values;   /* threads x SLOT-rounded nchannels */
   size_t stride;   /* floats per thread in values */
   uint64_t *rays;  /* threads x SLOT */
+  const obs_tile_source *src; /* NULL: the driver's own tiles over r */
+  atomic_int bad;  /* the source gave a tile outside r (bad_tile holds the first) */
+  obs_region bad_tile;
 } pixel_run;
 
-static int pixel_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
-  pixel_run *pr = user;
+/* Shades [x0, x1) x [y0, y1) of the region (relative to its corner); returns the rays traced. */
+static uint64_t shade_tile(pixel_run *pr, int thread, int x0, int y0, int x1, int y1) {
   obs_image *img = pr->img;
   const size_t plane = (size_t)img->width * (size_t)img->height;
   const int nch = pr->ops->nchannels;
@@ -35,8 +38,52 @@ static int pixel_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
       size_t i = (size_t)y * (size_t)img->width + (size_t)x;
       for (int c = 0; c < nch; c++) img->data[(size_t)c * plane + i] = v[c];
     }
-  pr->rays[(size_t)thread * SLOT] += rays;
+  return rays;
+}
+
+static int pixel_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+  pixel_run *pr = user;
+  pr->rays[(size_t)thread * SLOT] += shade_tile(pr, thread, x0, y0, x1, y1);
   return 0;
+}
+
+/* The source's next tile, checked against the region and made relative to its corner. */
+static int source_next(void *user, int *x0, int *y0, int *x1, int *y1) {
+  pixel_run *pr = user;
+  obs_region t;
+  int rc = pr->src->next(pr->src->user, &t);
+  if (rc <= 0) return rc;
+  if (t.x0 < pr->r.x0 || t.y0 < pr->r.y0 || t.x1 > pr->r.x1 || t.y1 > pr->r.y1 || t.x0 >= t.x1 ||
+      t.y0 >= t.y1) {
+    int expected = 0;
+    if (atomic_compare_exchange_strong(&pr->bad, &expected, 1)) pr->bad_tile = t;
+    return OBS_EINVAL;
+  }
+  *x0 = t.x0 - pr->r.x0, *y0 = t.y0 - pr->r.y0, *x1 = t.x1 - pr->r.x0, *y1 = t.y1 - pr->r.y0;
+  return 1;
+}
+
+static int source_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+  pixel_run *pr = user;
+  uint64_t rays = shade_tile(pr, thread, x0, y0, x1, y1);
+  pr->rays[(size_t)thread * SLOT] += rays;
+  obs_region t = {x0 + pr->r.x0, y0 + pr->r.y0, x1 + pr->r.x0, y1 + pr->r.y0};
+  return pr->src->done ? pr->src->done(pr->src->user, pr->img, &t, rays) : 0;
+}
+
+/* Why the tile loop stopped, in the driver's words. */
+static int loop_failed(const pixel_run *pr, const char *name, int rc, obs_err *err) {
+  if (rc == OBS_ECANCELED) return obs_err_set(err, rc, "%s: render cancelled", name);
+  if (atomic_load(&pr->bad)) {
+    const obs_region *t = &pr->bad_tile;
+    return obs_err_set(err, rc,
+                       "%s: the tile source gave tile [%d,%d)x[%d,%d), empty or outside the "
+                       "region [%d,%d)x[%d,%d)",
+                       name, t->x0, t->x1, t->y0, t->y1, pr->r.x0, pr->r.x1, pr->r.y0, pr->r.y1);
+  }
+  if (pr->src)
+    return obs_err_set(err, rc, "%s: render failed: tile source: %s", name, obs_strerror(rc));
+  return obs_err_set(err, rc, "%s: render failed", name);
 }
 
 int obs_driver_region(const obs_render_ctx *ctx, int width, int height, obs_region *out,
@@ -89,18 +136,22 @@ int obs_driver_pixels(obs_render_ctx *ctx, const obs_pixel_ops *ops, const void 
     free(rays);
     return rc;
   }
-  pixel_run pr = {ops, job, out, r, values, stride, rays};
+  pixel_run pr = {ops, job, out, r, values, stride, rays, ctx->tiles, 0, {0, 0, 0, 0}};
   double t0 = obs_now_ms();
-  rc = obs_parallel_tiles(r.x1 - r.x0, r.y1 - r.y0, threads, pixel_tile, &pr, ctx->cancel,
-                          ctx->progress, ctx->progress_user);
+  if (ctx->tiles) {
+    ctx->tiled = 1;
+    rc = obs_parallel_tiles_from(source_next, &pr, threads, source_tile, &pr, ctx->cancel);
+  } else {
+    rc = obs_parallel_tiles(r.x1 - r.x0, r.y1 - r.y0, threads, pixel_tile, &pr, ctx->cancel,
+                            ctx->progress, ctx->progress_user);
+  }
   ctx->render_ms = obs_now_ms() - t0;
   for (int t = 0; t < threads; t++) ctx->rays += rays[(size_t)t * SLOT];
   free(values);
   free(rays);
   if (rc) {
     obs_image_free(out);
-    return rc == OBS_ECANCELED ? obs_err_set(err, rc, "%s: render cancelled", name)
-                               : obs_err_set(err, rc, "%s: render failed", name);
+    return loop_failed(&pr, name, rc, err);
   }
   obs_driver_stage_add(ctx, "shade", ctx->render_ms);
   return 0;

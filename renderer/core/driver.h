@@ -24,8 +24,11 @@ typedef struct obs_pixel_ops {
 /* Allocates `out`, runs shade over ctx's region in tiles on ctx->threads threads with progress
  * and cancellation, adds ctx->rays and sets ctx->render_ms (stage "shade"). Bit-identical for any
  * thread count.
- * Pixels outside the region stay 0. On failure (OBS_ECANCELED when ctx->cancel was raised)
- * `out` is released and nothing stays allocated. */
+ * Pixels outside the region stay 0. With ctx->tiles it shades only the tiles that source hands
+ * out, calls its `done` after each, reports no progress and sets ctx->tiled; the pixels it shades
+ * are the same bits either way. On failure (OBS_ECANCELED when ctx->cancel was raised; the
+ * source's code, or OBS_EINVAL for a tile outside the region) `out` is released and nothing stays
+ * allocated. */
 int obs_driver_pixels(obs_render_ctx *ctx, const obs_pixel_ops *ops, const void *job,
                       obs_image *out, obs_err *err);
 

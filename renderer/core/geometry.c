@@ -415,6 +415,12 @@ int obs_geometry_object_points(const obs_object *o, int frame, const double mesh
   return n;
 }
 
+void obs_geometry_transform_matrix(const obs_transform *t, double m[3][4]) {
+  xform x;
+  xform_from(t, &x);
+  memcpy(m, x.m, sizeof x.m);
+}
+
 double obs_geometry_object_reach(const obs_object *o, const double mesh_bounds[2][3],
                                  const double origin[3]) {
   double reach = 0;

@@ -76,6 +76,10 @@ double obs_geometry_mesh_tri_area(const obs_mesh *m, size_t t);
 /* The box of m's vertices (zeros when it has none). */
 void obs_geometry_mesh_bounds(const obs_mesh *m, double bounds[2][3]);
 
+/* The affine map of `t` (scale, then rotations about X, Y, Z, then translation) as rows of
+ * [linear | translation]: world = m x (object, 1). */
+void obs_geometry_transform_matrix(const obs_transform *t, double m[3][4]);
+
 /* The ray tracer's range: Embree rejects coordinates beyond about 1.8e19, and float products of
  * coordinates must stay finite. */
 #define OBS_GEOMETRY_MAX 1e18

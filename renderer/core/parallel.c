@@ -13,6 +13,8 @@ typedef struct pool {
   const atomic_int *cancel;
   void (*progress)(void *, double);
   void *progress_user;
+  obs_tile_next_fn source; /* NULL: the grid of width x height below, counted by `next` */
+  void *source_user;
   atomic_int next, done, status;
   pthread_mutex_t progress_lock;
 } pool;
@@ -22,25 +24,37 @@ typedef struct worker {
   int index;
 } worker;
 
+/* The next tile: from the caller's source, else the next of the grid. 1, 0 or a negative code. */
+static int take_tile(pool *p, int *x0, int *y0, int *x1, int *y1) {
+  if (p->source) return p->source(p->source_user, x0, y0, x1, y1);
+  int t = atomic_fetch_add(&p->next, 1);
+  if (t >= p->ntiles) return 0;
+  *x0 = (t % p->tiles_x) * OBS_TILE, *y0 = (t / p->tiles_x) * OBS_TILE;
+  *x1 = *x0 + OBS_TILE < p->width ? *x0 + OBS_TILE : p->width;
+  *y1 = *y0 + OBS_TILE < p->height ? *y0 + OBS_TILE : p->height;
+  return 1;
+}
+
+static void fail(pool *p, int rc) {
+  int expected = 0;
+  atomic_compare_exchange_strong(&p->status, &expected, rc);
+}
+
 static void *run_worker(void *arg) {
   worker *w = arg;
   pool *p = w->p;
   for (;;) {
     if (atomic_load(&p->status)) break;
     if (p->cancel && atomic_load(p->cancel)) {
-      int expected = 0;
-      atomic_compare_exchange_strong(&p->status, &expected, OBS_ECANCELED);
+      fail(p, OBS_ECANCELED);
       break;
     }
-    int t = atomic_fetch_add(&p->next, 1);
-    if (t >= p->ntiles) break;
-    int x0 = (t % p->tiles_x) * OBS_TILE, y0 = (t / p->tiles_x) * OBS_TILE;
-    int x1 = x0 + OBS_TILE < p->width ? x0 + OBS_TILE : p->width;
-    int y1 = y0 + OBS_TILE < p->height ? y0 + OBS_TILE : p->height;
-    int rc = p->fn(p->user, w->index, x0, y0, x1, y1);
+    int x0, y0, x1, y1;
+    int rc = take_tile(p, &x0, &y0, &x1, &y1);
+    if (rc == 0) break;
+    if (rc == 1) rc = p->fn(p->user, w->index, x0, y0, x1, y1);
     if (rc) {
-      int expected = 0;
-      atomic_compare_exchange_strong(&p->status, &expected, rc);
+      fail(p, rc);
       break;
     }
     if (p->progress) {
@@ -57,6 +71,39 @@ static void *run_worker(void *arg) {
   return NULL;
 }
 
+/* Runs the pool's loop on p->threads threads, the caller's thread being one of them. */
+static int run_pool(pool *p) {
+  atomic_init(&p->next, 0);
+  atomic_init(&p->done, 0);
+  atomic_init(&p->status, 0);
+  pthread_mutex_init(&p->progress_lock, NULL);
+  worker *ws = calloc((size_t)p->threads, sizeof *ws);
+  pthread_t *tids = calloc((size_t)p->threads, sizeof *tids);
+  if (!ws || !tids) {
+    free(ws);
+    free(tids);
+    pthread_mutex_destroy(&p->progress_lock);
+    return OBS_ENOMEM;
+  }
+  int started = 1;
+  for (int i = 0; i < p->threads; i++) {
+    ws[i].p = p;
+    ws[i].index = i;
+  }
+  for (int i = 1; i < p->threads; i++) {
+    if (pthread_create(&tids[i], NULL, run_worker, &ws[i])) break;
+    started++;
+  }
+  run_worker(&ws[0]);
+  for (int i = 1; i < started; i++) pthread_join(tids[i], NULL);
+  free(ws);
+  free(tids);
+  pthread_mutex_destroy(&p->progress_lock);
+  return atomic_load(&p->status);
+}
+
+static int clamp_threads(int threads) { return threads < 1 ? 1 : threads > 256 ? 256 : threads; }
+
 int obs_parallel_tiles(int width, int height, int threads, obs_tile_fn fn, void *user,
                        const atomic_int *cancel, void (*progress)(void *, double),
                        void *progress_user) {
@@ -65,38 +112,24 @@ int obs_parallel_tiles(int width, int height, int threads, obs_tile_fn fn, void 
   p.height = height;
   p.tiles_x = (width + OBS_TILE - 1) / OBS_TILE;
   p.ntiles = p.tiles_x * ((height + OBS_TILE - 1) / OBS_TILE);
-  p.threads = threads < 1 ? 1 : threads > 256 ? 256 : threads;
+  p.threads = clamp_threads(threads);
   if (p.threads > p.ntiles) p.threads = p.ntiles > 0 ? p.ntiles : 1;
   p.fn = fn;
   p.user = user;
   p.cancel = cancel;
   p.progress = progress;
   p.progress_user = progress_user;
-  atomic_init(&p.next, 0);
-  atomic_init(&p.done, 0);
-  atomic_init(&p.status, 0);
-  pthread_mutex_init(&p.progress_lock, NULL);
-  worker *ws = calloc((size_t)p.threads, sizeof *ws);
-  pthread_t *tids = calloc((size_t)p.threads, sizeof *tids);
-  if (!ws || !tids) {
-    free(ws);
-    free(tids);
-    pthread_mutex_destroy(&p.progress_lock);
-    return OBS_ENOMEM;
-  }
-  int started = 1;
-  for (int i = 0; i < p.threads; i++) {
-    ws[i].p = &p;
-    ws[i].index = i;
-  }
-  for (int i = 1; i < p.threads; i++) {
-    if (pthread_create(&tids[i], NULL, run_worker, &ws[i])) break;
-    started++;
-  }
-  run_worker(&ws[0]);
-  for (int i = 1; i < started; i++) pthread_join(tids[i], NULL);
-  free(ws);
-  free(tids);
-  pthread_mutex_destroy(&p.progress_lock);
-  return atomic_load(&p.status);
+  return run_pool(&p);
+}
+
+int obs_parallel_tiles_from(obs_tile_next_fn next, void *next_user, int threads, obs_tile_fn fn,
+                            void *user, const atomic_int *cancel) {
+  pool p = {0};
+  p.threads = clamp_threads(threads);
+  p.fn = fn;
+  p.user = user;
+  p.cancel = cancel;
+  p.source = next;
+  p.source_user = next_user;
+  return run_pool(&p);
 }

@@ -27,4 +27,13 @@ int obs_parallel_tiles(int width, int height, int threads, obs_tile_fn fn, void 
                        const atomic_int *cancel, void (*progress)(void *, double),
                        void *progress_user);
 
+/* Gives the next tile [*x0, *x1) x [*y0, *y1): returns 1, 0 when there are no more, or a negative
+ * code (which stops the loop and is returned). Called from any of the loop's threads at once. */
+typedef int (*obs_tile_next_fn)(void *user, int *x0, int *y0, int *x1, int *y1);
+
+/* As obs_parallel_tiles, over the tiles `next` hands out (any size, any order) instead of a
+ * width x height grid, and without progress: only the source knows how many tiles there are. */
+int obs_parallel_tiles_from(obs_tile_next_fn next, void *next_user, int threads, obs_tile_fn fn,
+                            void *user, const atomic_int *cancel);
+
 #endif

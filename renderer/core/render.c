@@ -19,6 +19,8 @@
 #include "driver.h"
 #include "extent.h"
 #include "obscura/path.h"
+#include "environment.h"
+#include "volume_scene.h"
 
 void obs_render_keep_memory(void) {
 #if defined(M_MMAP_THRESHOLD) && defined(M_TRIM_THRESHOLD)
@@ -37,6 +39,24 @@ double obs_now_ms(void) {
 int obs_cpu_count(void) {
   long n = sysconf(_SC_NPROCESSORS_ONLN);
   return n > 0 ? (int)n : 1;
+}
+
+/* Objects of a kind the technique does not render are left out, with a warning naming them. */
+static void warn_ignored(const obs_scene *sc, obs_render_ctx *ctx) {
+  int volumes = (sc->technique->needs & OBS_NEED_VOLUME) != 0;
+  char names[200] = "";
+  size_t n = 0;
+  for (size_t i = 0; i < sc->nobjects; i++) {
+    if ((sc->objects[i].shape.type == OBS_SHAPE_VOLUME) == volumes) continue;
+    size_t l = strlen(names);
+    if (n++ < 4) snprintf(names + l, sizeof names - l, "%s\"%s\"", l ? ", " : "",
+                          sc->objects[i].name);
+  }
+  if (!n) return;
+  obs_render_ctx_warn(ctx, "technique \"%s\" renders %s only: it ignores %s object%s %s%s",
+                      sc->technique->name, volumes ? "volumes" : "surfaces",
+                      volumes ? "the surface" : "the volume", n > 1 ? "s" : "", names,
+                      n > 4 ? " and more" : "");
 }
 
 int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *res,
@@ -67,6 +87,7 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
     ctx.progress_user = opts->progress_user;
     ctx.cancel = opts->cancel;
     ctx.region = opts->region;
+    ctx.tiles = opts->tiles;
   }
   obs_region region;
   if ((rc = obs_driver_region(&ctx, scene->width, scene->height, &region, err))) return rc;
@@ -87,8 +108,31 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
     free(bound);
     return rc;
   }
+  /* Volumes are read the same way for every backend, so here rather than by a backend's builder. */
+  obs_scene_volumes vols = {0};
+  if (t->needs & OBS_NEED_VOLUME) {
+    if ((rc = obs_scene_volumes_load(scene, &vols, err))) {
+      if (nb) nb->release(built);
+      free(bound);
+      return rc;
+    }
+    ctx.volumes = &vols;
+  }
+  obs_env env = {0};
+  if (t->needs & OBS_NEED_ENV_MAP && scene->has_environment) {
+    if ((rc = obs_env_from_scene(scene, &env, err))) {
+      obs_scene_volumes_free(&vols);
+      if (nb) nb->release(built);
+      free(bound);
+      return rc;
+    }
+    ctx.environment = &env;
+  }
+  warn_ignored(scene, &ctx);
   ctx.build_ms = obs_now_ms() - t0;
   if ((rc = obs_driver_cancelled(&ctx, err)) == 0) rc = t->run[be](&ctx, &res->image, err);
+  obs_scene_volumes_free(&vols);
+  obs_env_free(&env);
   if (nb) nb->release(built);
   free(bound);
   res->npatches = ctx.npatches;
@@ -105,6 +149,7 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
   res->backend = be;
   res->rays = ctx.rays;
   res->threads = ctx.threads;
+  res->tiled = ctx.tiled;
   res->timings.build_ms = ctx.build_ms;
   res->timings.render_ms = ctx.render_ms;
   res->timings.total_ms = obs_now_ms() - t0;
@@ -203,6 +248,7 @@ json_t *obs_result_summary_json(const obs_result *r, const obs_scene *sc) {
   json_object_set_new(o, "samples", samples ? json_copy(samples) : json_null());
   json_object_set_new(o, "params", json_deep_copy(sc->params));
   json_object_set_new(o, "threads", json_integer(r->threads));
+  if (r->ranks > 1) json_object_set_new(o, "ranks", json_integer(r->ranks));
   json_t *t = json_object();
   json_object_set_new(t, "load", json_real(r->timings.load_ms));
   json_object_set_new(t, "build", json_real(r->timings.build_ms));

@@ -157,6 +157,8 @@ static void load_motion(obs_jpath *p, const json_t *obj, obs_object *o) {
                    OBS_MOTION_MAX, n);
   } else if (obs_shape_is_analytic(&o->shape)) {
     obs_jpath_fail(p, "an analytic sphere cannot move (use a displaced_sphere or a mesh)");
+  } else if (o->shape.type == OBS_SHAPE_VOLUME) {
+    obs_jpath_fail(p, "a volume cannot move (volume techniques render one frame)");
   } else if (!(o->motion = calloc(n, sizeof *o->motion))) {
     obs_err_set(p->err, OBS_ENOMEM, "%s: out of memory", p->doc);
   } else {
@@ -280,6 +282,45 @@ static void load_objects(obs_jpath *p, const json_t *doc, const char *base_dir, 
   obs_jpath_pop(p, m);
 }
 
+/* One light's kind and placement (its emission is read by the caller). */
+static void load_light(obs_jpath *p, const json_t *l, obs_light *out) {
+  static const char *const types[] = {"quad", "point", "directional", NULL}; /* obs_light_type */
+  static const char *const keys[][4] = {{"type", "vertices", "emission", NULL},
+                                        {"type", "position", "emission", NULL},
+                                        {"type", "direction", "emission", NULL}};
+  const char *t = NULL;
+  obs_json_get_string(p, l, "type", 1, types, &t);
+  for (int i = 0; t && types[i]; i++)
+    if (!strcmp(t, types[i])) out->type = (obs_light_type)i;
+  obs_json_check_keys(p, l, keys[out->type]);
+  if (out->type == OBS_LIGHT_QUAD) {
+    /* A quad light's vertices read as a quad shape's. */
+    obs_shape tmp;
+    memset(&tmp, 0, sizeof tmp);
+    tmp.type = OBS_SHAPE_QUAD;
+    obs_shape_kind_of(OBS_SHAPE_QUAD)->parse(p, l, NULL, &tmp);
+    memcpy(out->v, tmp.v, sizeof tmp.v);
+  } else if (out->type == OBS_LIGHT_POINT) {
+    double x[3] = {0, 0, 0};
+    obs_json_get_vec3(p, l, "position", 1, -COORD_MAX, COORD_MAX, x);
+    set_vec(&out->position, x);
+  } else {
+    double d[3] = {0, 0, -1};
+    if (obs_json_get_vec3(p, l, "direction", 1, -COORD_MAX, COORD_MAX, d) == 0) {
+      double n = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+      if (!(n > 1e-150) || !isfinite(n)) {
+        size_t m = obs_jpath_push_key(p, "direction");
+        obs_jpath_fail(p, "must be a non-zero direction (got %s)",
+                       obs_json_brief(json_object_get(l, "direction")));
+        obs_jpath_pop(p, m);
+      } else {
+        for (int k = 0; k < 3; k++) d[k] /= n;
+      }
+    }
+    set_vec(&out->direction, d);
+  }
+}
+
 static void load_lights(obs_jpath *p, const json_t *doc, obs_scene *sc) {
   int absent = 0;
   json_t *arr = obs_json_get_array(p, doc, "lights", 0, &absent);
@@ -294,17 +335,7 @@ static void load_lights(obs_jpath *p, const json_t *doc, obs_scene *sc) {
     if (!json_is_object(l)) {
       obs_jpath_fail(p, "must be an object (got %s)", obs_json_brief(l));
     } else {
-      static const char *const k[] = {"type", "vertices", "emission", NULL};
-      static const char *const types[] = {"quad", NULL};
-      obs_json_check_keys(p, l, k);
-      const char *t = NULL;
-      obs_json_get_string(p, l, "type", 1, types, &t);
-      /* A quad light's vertices read as a quad shape's. */
-      obs_shape tmp;
-      memset(&tmp, 0, sizeof tmp);
-      tmp.type = OBS_SHAPE_QUAD;
-      obs_shape_kind_of(OBS_SHAPE_QUAD)->parse(p, l, NULL, &tmp);
-      memcpy(sc->lights[i].v, tmp.v, sizeof tmp.v);
+      load_light(p, l, &sc->lights[i]);
       double e[3] = {0, 0, 0};
       obs_json_get_vec3(p, l, "emission", 1, 0, COORD_MAX, e);
       set_vec(&sc->lights[i].emission, e);
@@ -314,16 +345,100 @@ static void load_lights(obs_jpath *p, const json_t *doc, obs_scene *sc) {
   obs_jpath_pop(p, m);
 }
 
-static void load_environment(obs_jpath *p, const json_t *doc, obs_scene *sc) {
+/* A map environment's files, resolved inside the scene's tree into sc->env.files. */
+static void env_files(obs_jpath *p, const json_t *env, const char *base_dir, obs_scene *sc) {
+  static const char *const exts[] = {".exr", NULL};
+  char real_file[PATH_MAX], real_base[PATH_MAX];
+  if (sc->env.kind == OBS_ENV_LATLONG) {
+    if (obs_shape_resolve_file(p, env, "file", base_dir, exts, "an .exr", real_file, real_base))
+      sc->env.files[0] = strdup(real_file);
+    return;
+  }
+  json_t *arr = obs_json_get_array(p, env, "files", 1, NULL);
+  if (!arr) return;
+  size_t m = obs_jpath_push_key(p, "files");
+  if (json_array_size(arr) != 6) {
+    obs_jpath_fail(p, "must list the six cube faces +X, -X, +Y, -Y, +Z, -Z (got %zu files)",
+                   json_array_size(arr));
+  } else {
+    for (size_t i = 0; i < 6; i++) {
+      char key[4];
+      snprintf(key, sizeof key, "%zu", i);
+      json_t *wrap = json_object(); /* so the resolver's pointer ends in /files/<i> */
+      json_object_set(wrap, key, json_array_get(arr, i));
+      if (obs_shape_resolve_file(p, wrap, key, base_dir, exts, "an .exr", real_file, real_base))
+        sc->env.files[i] = strdup(real_file);
+      json_decref(wrap);
+    }
+  }
+  obs_jpath_pop(p, m);
+}
+
+static void env_sky(obs_jpath *p, const json_t *env, obs_scene *sc) {
+  /* Defaults: a blue zenith over a pale horizon and brown ground, a sun up to the side. */
+  double z[3] = {0.25, 0.45, 0.9}, h[3] = {0.9, 0.9, 0.85}, g[3] = {0.25, 0.2, 0.15};
+  double sd[3] = {0.5, 1, 0.3}, su[3] = {20, 18, 15}, r = 2;
+  obs_json_get_vec3(p, env, "zenith", 0, 0, COORD_MAX, z);
+  obs_json_get_vec3(p, env, "horizon", 0, 0, COORD_MAX, h);
+  obs_json_get_vec3(p, env, "ground", 0, 0, COORD_MAX, g);
+  obs_json_get_vec3(p, env, "sun", 0, 0, COORD_MAX, su);
+  obs_json_get_number(p, env, "sun_radius", 0, 0, 45, 0, 0, &r);
+  if (obs_json_get_vec3(p, env, "sun_direction", 0, -COORD_MAX, COORD_MAX, sd) == 0) {
+    double n = sqrt(sd[0] * sd[0] + sd[1] * sd[1] + sd[2] * sd[2]);
+    if (!(n > 1e-150) || !isfinite(n)) {
+      size_t m = obs_jpath_push_key(p, "sun_direction");
+      obs_jpath_fail(p, "must be a non-zero direction (got %s)",
+                     obs_json_brief(json_object_get(env, "sun_direction")));
+      obs_jpath_pop(p, m);
+    }
+  }
+  double n = sqrt(sd[0] * sd[0] + sd[1] * sd[1] + sd[2] * sd[2]);
+  for (int k = 0; k < 3 && n > 0 && isfinite(n); k++) sd[k] /= n;
+  set_vec(&sc->env.zenith, z);
+  set_vec(&sc->env.horizon, h);
+  set_vec(&sc->env.ground, g);
+  set_vec(&sc->env.sun_direction, sd);
+  set_vec(&sc->env.sun, su);
+  sc->env.sun_radius = r;
+}
+
+/* environment: {"color": [r, g, b]}, or a map: {"map": "latlong", "file"}, {"map": "faces",
+ * "files"} or {"map": "sky", ...}, with "resolution" and "intensity". */
+static void load_environment(obs_jpath *p, const json_t *doc, const char *base_dir,
+                             obs_scene *sc) {
   int absent = 0;
   json_t *env = obs_json_get_object(p, doc, "environment", 0, &absent);
   if (!env) return;
   size_t m = obs_jpath_push_key(p, "environment");
-  static const char *const k[] = {"color", NULL};
-  obs_json_check_keys(p, env, k);
-  double c[3] = {0, 0, 0};
-  if (obs_json_get_vec3(p, env, "color", 1, 0, COORD_MAX, c) == 0) sc->has_environment = 1;
-  set_vec(&sc->environment, c);
+  static const char *const maps[] = {"latlong", "faces", "sky", NULL}; /* obs_env_kind - 1 */
+  static const char *const keys[][12] = {
+      {"color", NULL},
+      {"map", "file", "resolution", "intensity", NULL},
+      {"map", "files", "intensity", NULL},
+      {"map", "zenith", "horizon", "ground", "sun_direction", "sun", "sun_radius", "resolution",
+       "intensity", NULL}};
+  const char *map = NULL;
+  if (json_object_get(env, "map")) obs_json_get_string(p, env, "map", 1, maps, &map);
+  sc->env.kind = OBS_ENV_COLOR;
+  for (int i = 0; map && maps[i]; i++)
+    if (!strcmp(map, maps[i])) sc->env.kind = (obs_env_kind)(i + 1);
+  obs_json_check_keys(p, env, keys[sc->env.kind]);
+  sc->env.resolution = 128;
+  sc->env.intensity = 1;
+  long long res = 128;
+  obs_json_get_int(p, env, "resolution", 0, 1, 2048, &res);
+  sc->env.resolution = (int)res;
+  obs_json_get_number(p, env, "intensity", 0, 0, COORD_MAX, 0, 0, &sc->env.intensity);
+  sc->has_environment = 1;
+  if (sc->env.kind == OBS_ENV_COLOR) {
+    double c[3] = {0, 0, 0};
+    if (obs_json_get_vec3(p, env, "color", 1, 0, COORD_MAX, c)) sc->has_environment = 0;
+    set_vec(&sc->environment, c);
+  } else if (sc->env.kind == OBS_ENV_SKY) {
+    env_sky(p, env, sc);
+  } else {
+    env_files(p, env, base_dir, sc);
+  }
   obs_jpath_pop(p, m);
 }
 
@@ -375,12 +490,48 @@ static void load_technique(obs_jpath *p, const json_t *doc, obs_scene *sc) {
   obs_jpath_pop(p, m);
 }
 
+/* The registered techniques with every bit of `need`, as "\"a\", \"b\"" into list. */
+static const char *techniques_with(unsigned need, char *list, size_t n) {
+  list[0] = '\0';
+  for (size_t k = 0; k < obs_technique_count(); k++) {
+    const obs_technique *m = obs_technique_at(k);
+    size_t l = strlen(list);
+    if ((m->needs & need) == need)
+      snprintf(list + l, n - l, "%s\"%s\"", l ? ", " : "", m->name);
+  }
+  return list;
+}
+
 /* Feature requirements and technique-specific cross-field rules, once the basics are valid. */
 static void check_needs(obs_jpath *p, const obs_scene *sc) {
   const obs_technique *t = sc->technique;
+  char list[256];
   if (t->needs & OBS_NEED_LIGHTS && sc->nlights == 0)
     obs_err_set(p->err, OBS_EINVAL, "%s: /lights: technique \"%s\" needs at least one light",
                 p->doc, t->name);
+  for (size_t i = 0; i < sc->nlights; i++)
+    if (sc->lights[i].type != OBS_LIGHT_QUAD && !(t->needs & OBS_NEED_PUNCTUAL_LIGHTS))
+      obs_err_set(p->err, OBS_EINVAL,
+                  "%s: /lights/%zu/type: technique \"%s\" lights with quad lights only; point "
+                  "and directional lights are for shading techniques (%s)",
+                  p->doc, i, t->name, techniques_with(OBS_NEED_PUNCTUAL_LIGHTS, list, sizeof list));
+  if (sc->has_environment && sc->env.kind != OBS_ENV_COLOR && !(t->needs & OBS_NEED_ENV_MAP))
+    obs_err_set(p->err, OBS_EINVAL,
+                "%s: /environment/map: technique \"%s\" takes a constant environment "
+                "(\"color\"); environment maps light %s",
+                p->doc, t->name, techniques_with(OBS_NEED_ENV_MAP, list, sizeof list));
+  size_t nvol = 0;
+  for (size_t i = 0; i < sc->nobjects; i++) nvol += sc->objects[i].shape.type == OBS_SHAPE_VOLUME;
+  if (t->needs & OBS_NEED_VOLUME && nvol == 0)
+    obs_err_set(p->err, OBS_EINVAL,
+                "%s: /objects: technique \"%s\" renders volumes, and the scene has none (an "
+                "object with shape type \"volume\")",
+                p->doc, t->name);
+  if (!(t->needs & OBS_NEED_VOLUME) && nvol > 0 && nvol == sc->nobjects)
+    obs_err_set(p->err, OBS_EINVAL,
+                "%s: /objects: technique \"%s\" renders surfaces, and every object of the scene "
+                "is a volume (volume techniques: %s)",
+                p->doc, t->name, techniques_with(OBS_NEED_VOLUME, list, sizeof list));
   if (t->needs & OBS_NEED_MATERIALS) {
     for (size_t i = 0; i < sc->nobjects; i++) {
       if (!sc->objects[i].has_material)
@@ -390,13 +541,7 @@ static void check_needs(obs_jpath *p, const obs_scene *sc) {
     }
   }
   if (sc->frames > 1 && !(t->needs & OBS_NEED_MOTION)) {
-    char list[256] = "";
-    for (size_t k = 0; k < obs_technique_count(); k++) {
-      const obs_technique *m = obs_technique_at(k);
-      size_t l = strlen(list);
-      if (m->needs & OBS_NEED_MOTION)
-        snprintf(list + l, sizeof list - l, "%s\"%s\"", l ? ", " : "", m->name);
-    }
+    techniques_with(OBS_NEED_MOTION, list, sizeof list);
     for (size_t i = 0; i < sc->nobjects; i++)
       if (sc->objects[i].nmotion)
         obs_err_set(p->err, OBS_EINVAL,
@@ -452,7 +597,7 @@ static int validate(obs_scene *sc, const json_t *doc, const char *name, const ch
   load_objects(&p, doc, base_dir, sc, camera_ok);
   check_frames(&p, sc);
   load_lights(&p, doc, sc);
-  load_environment(&p, doc, sc);
+  load_environment(&p, doc, base_dir, sc);
   load_technique(&p, doc, sc);
   /* Technique rules run even after other problems so the list is complete; they only read what
    * loaded (objects/lights arrays may be partial). */
@@ -471,6 +616,7 @@ void obs_scene_free(obs_scene *sc) {
   }
   free(sc->objects);
   free(sc->lights);
+  for (int i = 0; i < 6; i++) free(sc->env.files[i]);
   free(sc->name);
   free(sc->base_dir);
   json_decref(sc->params);

@@ -195,19 +195,20 @@ static void import_checked(obs_jpath *p, const char *real_file, const char *real
   }
 }
 
-static void parse_mesh(obs_jpath *p, const json_t *shape, const char *base_dir, obs_shape *s) {
+int obs_shape_resolve_file(obs_jpath *p, const json_t *shape, const char *key,
+                           const char *base_dir, const char *const *exts, const char *what,
+                           char *real_file, char *real_base) {
   const char *file = NULL;
-  if (obs_json_get_string(p, shape, "file", 1, NULL, &file) || !file) return;
-  size_t m = obs_jpath_push_key(p, "file");
+  if (obs_json_get_string(p, shape, key, 1, NULL, &file) || !file) return 0;
+  size_t m = obs_jpath_push_key(p, key);
   const char *ext = strrchr(file, '.');
-  static const char *const exts[] = {".obj", ".ply", ".gltf", ".glb", ".stl", NULL};
-  int ext_ok = 0;
+  int ext_ok = 0, ok = 0;
   for (const char *const *e = exts; ext && *e; e++) ext_ok |= !strcasecmp(ext, *e);
-  char joined[PATH_MAX + 2], real_base[PATH_MAX], real_file[PATH_MAX];
+  char joined[PATH_MAX + 2];
   struct stat st;
   if (!*file || strlen(file) > 4096) {
     obs_jpath_fail(p, "must be a relative path of 1 to 4096 characters (got %s)",
-                   obs_json_brief(json_object_get(shape, "file")));
+                   obs_json_brief(json_object_get(shape, key)));
   } else if (file[0] == '/') {
     obs_jpath_fail(p, "must be relative to the scene file, not absolute (got \"%s\")", file);
   } else if (has_dotdot(file)) {
@@ -215,9 +216,9 @@ static void parse_mesh(obs_jpath *p, const json_t *shape, const char *base_dir, 
      * the tree exists; symlinks that leave the tree are caught after realpath below. */
     obs_jpath_fail(p, "must stay inside the scene's directory tree (got \"%s\")", file);
   } else if (!ext_ok) {
-    obs_jpath_fail(p, "must name a .obj, .ply, .gltf, .glb or .stl file (got \"%s\")", file);
+    obs_jpath_fail(p, "must name %s file (got \"%s\")", what, file);
   } else if (!base_dir) {
-    obs_jpath_fail(p, "mesh files need a scene directory to resolve against (got \"%s\")", file);
+    obs_jpath_fail(p, "files need a scene directory to resolve against (got \"%s\")", file);
   } else if (!realpath(base_dir, real_base)) {
     obs_jpath_fail(p, "scene directory cannot be resolved (got \"%s\")", base_dir);
   } else if ((size_t)snprintf(joined, sizeof joined, "%s/%s", real_base, file) >= sizeof joined) {
@@ -229,8 +230,20 @@ static void parse_mesh(obs_jpath *p, const json_t *shape, const char *base_dir, 
   } else if (stat(real_file, &st) || !S_ISREG(st.st_mode)) {
     obs_jpath_fail(p, "is not a regular file (got \"%s\")", file);
   } else {
-    import_checked(p, real_file, real_base, s);
+    ok = 1;
   }
+  obs_jpath_pop(p, m);
+  return ok;
+}
+
+static void parse_mesh(obs_jpath *p, const json_t *shape, const char *base_dir, obs_shape *s) {
+  static const char *const exts[] = {".obj", ".ply", ".gltf", ".glb", ".stl", NULL};
+  char real_base[PATH_MAX], real_file[PATH_MAX];
+  if (!obs_shape_resolve_file(p, shape, "file", base_dir, exts, "a .obj, .ply, .gltf, .glb or .stl",
+                              real_file, real_base))
+    return;
+  size_t m = obs_jpath_push_key(p, "file");
+  import_checked(p, real_file, real_base, s);
   obs_jpath_pop(p, m);
 }
 
@@ -290,6 +303,9 @@ static const char *const keys_sphere[] = {"type", "center", "radius", NULL};
 static const char *const keys_box[] = {"type", "min", "max", NULL};
 static const char *const keys_mesh[] = {"type", "file", NULL};
 static const char *const keys_displaced[] = {"type", "subdivisions", NULL};
+static const char *const keys_volume[] = {"type",    "file",   "format",     "procedural",
+                                          "seed",    "dims",   "data_type",  "spacing",
+                                          "range",   "isovalue", "colormap", NULL};
 
 #define KIND(n, k, parse_, points_, vertices_, mesh_, sphere_, triangles_)           \
   {                                                                                  \
@@ -310,6 +326,10 @@ static const obs_shape_kind kinds[OBS_SHAPE_COUNT] = {
     [OBS_SHAPE_DISPLACED_SPHERE] =
         KIND("displaced_sphere", keys_displaced, parse_displaced, points_displaced, NULL,
              mesh_displaced, NULL, triangles_displaced),
+    /* No surface of its own: the techniques that need volumes read it (renderer/core/
+     * volume_scene.h); the others ignore it (obs_render warns). */
+    [OBS_SHAPE_VOLUME] = KIND("volume", keys_volume, obs_shape_volume_parse,
+                              obs_shape_volume_points, NULL, NULL, NULL, triangles_none),
 };
 #undef KIND
 
@@ -326,6 +346,11 @@ void obs_shape_free(obs_shape *s) {
   if (s->type == OBS_SHAPE_MESH) {
     free(s->mesh.path);
     s->mesh.path = NULL;
+  } else if (s->type == OBS_SHAPE_VOLUME) {
+    free(s->volume.path);
+    free(s->volume.colormap);
+    s->volume.path = NULL;
+    s->volume.colormap = NULL;
   }
 }
 

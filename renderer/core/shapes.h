@@ -38,6 +38,17 @@ typedef struct obs_shape_kind {
   double (*triangles)(const obs_shape *s, const char *base_dir, obs_err *err, const char *where);
 } obs_shape_kind;
 
+/* Resolves member `key` ("file") of `shape` inside the scene's tree (relative, no "..", no link
+ * leaving it, a regular file with one of the NULL-terminated `exts`, named `what` in messages:
+ * "a .obj or .ply") into real_file and real_base (PATH_MAX bytes each). Returns 1, or 0 after
+ * adding the problem with its JSON pointer. */
+int obs_shape_resolve_file(obs_jpath *p, const json_t *shape, const char *key,
+                           const char *base_dir, const char *const *exts, const char *what,
+                           char *real_file, char *real_base);
+/* The volume kind (shape_volume.c). */
+void obs_shape_volume_parse(obs_jpath *p, const json_t *js, const char *base_dir, obs_shape *s);
+int obs_shape_volume_points(const obs_shape *s, double pts[8][3], double *radius);
+
 /* The entry of kind `type` (never NULL for a valid type). */
 const obs_shape_kind *obs_shape_kind_of(obs_shape_type type);
 /* The kinds' document names in table order, NULL-terminated (the loader's enum). */

@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include <teem/nrrd.h>
 
@@ -247,6 +248,86 @@ int obs_volume_read(const obs_volume_source *s, obs_volume *v, obs_err *err) {
       return read_den(s, v, err);
     case OBS_VOLUME_FILE_NRRD:
       return read_nrrd(s, v, err);
+    default:
+      return obs_err_set(err, OBS_EINVAL, "%s: unknown volume format", s->path);
+  }
+}
+
+/* The dims and spacing of the .den at s->path from its 62-byte header and its size. */
+static int probe_den(const obs_volume_source *s, int dims[3], double sp[3], obs_err *err) {
+  FILE *f = fopen(s->path, "rb");
+  if (!f) return obs_err_set(err, OBS_EIO, "%s: cannot open: %s", s->path, strerror(errno));
+  unsigned char b[62];
+  size_t got = fread(b, 1, sizeof b, f);
+  long size = fseek(f, 0, SEEK_END) == 0 ? ftell(f) : -1;
+  fclose(f);
+  int big = got == 62 && b[0] == 0 && b[1] == 1, little = got == 62 && b[0] == 1 && b[1] == 0;
+  if (!big && !little)
+    return obs_err_set(err, OBS_EINVAL, "%s: not a .den density file (no version 1 header)",
+                       s->path);
+  for (int a = 0; a < 3; a++) {
+    const unsigned char *x = b + 2 * (25 + a);
+    dims[a] = big ? x[0] << 8 | x[1] : x[1] << 8 | x[0];
+    sp[a] = spacing_of(s, a, 0);
+  }
+  double n = (double)dims[0] * dims[1] * dims[2];
+  if (!(n >= 1) || size != 62 + (long)n)
+    return obs_err_set(err, OBS_EINVAL,
+                       "%s: the header's %d x %d x %d samples do not match the file's %ld data "
+                       "bytes",
+                       s->path, dims[0], dims[1], dims[2], size - 62);
+  return 0;
+}
+
+static int probe_nrrd(const obs_volume_source *s, int dims[3], double sp[3], obs_err *err) {
+  int rc = nrrd_header_ok(s, err);
+  if (rc) return rc;
+  Nrrd *h = nrrdNew();
+  NrrdIoState *nio = nrrdIoStateNew();
+  if (!h || !nio) {
+    rc = obs_err_set(err, OBS_ENOMEM, "%s: out of memory", s->path);
+  } else {
+    nio->skipData = 1;
+    if (nrrdLoad(h, s->path, nio))
+      rc = nrrd_fail(s->path, "cannot read as NRRD", err);
+    else if (h->dim != 3)
+      rc = obs_err_set(err, OBS_EINVAL, "%s: a volume has 3 axes (this NRRD has %u)", s->path,
+                       h->dim);
+    for (int a = 0; !rc && a < 3; a++) {
+      if (h->axis[a].size > (size_t)1 << 30)
+        rc = obs_err_set(err, OBS_EINVAL, "%s: axis %d has %zu samples", s->path, a,
+                         h->axis[a].size);
+      dims[a] = (int)h->axis[a].size;
+      sp[a] = spacing_of(s, a, h->axis[a].spacing);
+    }
+  }
+  if (nio) nrrdIoStateNix(nio);
+  if (h) nrrdNix(h);
+  return rc;
+}
+
+int obs_volume_probe(const obs_volume_source *s, int dims[3], double spacing[3], obs_err *err) {
+  switch (s->format) {
+    case OBS_VOLUME_FILE_RAW: {
+      static const size_t bytes[] = {1, 2, 4};
+      if ((int)s->type < 0 || s->type > OBS_VOLUME_FLOAT32)
+        return obs_err_set(err, OBS_EINVAL, "%s: unknown raw sample type", s->path);
+      struct stat st;
+      if (stat(s->path, &st))
+        return obs_err_set(err, OBS_EIO, "%s: cannot open: %s", s->path, strerror(errno));
+      double want = (double)s->dims[0] * s->dims[1] * s->dims[2] * (double)bytes[s->type];
+      if ((double)st.st_size != want)
+        return obs_err_set(err, OBS_EINVAL,
+                           "%s: %lld bytes, but dims %d x %d x %d of %zu-byte samples need %.0f",
+                           s->path, (long long)st.st_size, s->dims[0], s->dims[1], s->dims[2],
+                           bytes[s->type], want);
+      for (int a = 0; a < 3; a++) dims[a] = s->dims[a], spacing[a] = spacing_of(s, a, 0);
+      return 0;
+    }
+    case OBS_VOLUME_FILE_DEN:
+      return probe_den(s, dims, spacing, err);
+    case OBS_VOLUME_FILE_NRRD:
+      return probe_nrrd(s, dims, spacing, err);
     default:
       return obs_err_set(err, OBS_EINVAL, "%s: unknown volume format", s->path);
   }

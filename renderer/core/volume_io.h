@@ -29,4 +29,9 @@ typedef struct obs_volume_source {
  * naming the file when its contents do not fit (size, dimension, header), OBS_ENOMEM. */
 int obs_volume_read(const obs_volume_source *s, obs_volume *v, obs_err *err);
 
+/* The shape of `s` without reading its samples: the dims (the file's header, or raw's stated
+ * ones, checked against the file's size) and the spacing read_volume would use. The same errors
+ * as obs_volume_read for a header or size that does not fit. */
+int obs_volume_probe(const obs_volume_source *s, int dims[3], double spacing[3], obs_err *err);
+
 #endif

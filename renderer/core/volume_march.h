@@ -19,6 +19,10 @@ typedef struct obs_volume_iso {
   float iso;
 } obs_volume_iso;
 
+/* The most steps a camera ray takes across a volume's diagonal (only volumes whose thinnest voxel
+ * is below a millionth of the diagonal reach it: their step is then longer than half a voxel). */
+#define OBS_VOLUME_HIT_MAX_STEPS (1 << 20)
+
 /* The first t in [t0, t1] where the field along o + t d (object space, d need not be unit) rises
  * from below `iso` to at least it, sampled at steps of at most half the smallest voxel side and
  * refined by bisection to a thousandth of a voxel; the ray is first clipped to the volume's box.
@@ -45,6 +49,13 @@ typedef struct obs_volume_ao_params {
                                        * direction with none counts as open) */
   obs_volume_crossing crossing;
 } obs_volume_ao_params;
+
+/* Whether the field along o + t d crosses iso (a->crossing) between consecutive samples at
+ * t = start + i step, i = 0, 1, ... up to max_distance (at most OBS_VOLUME_AO_MAX_STEPS steps);
+ * the field reads 0 outside the volume's box. Macrocells (when s has them) skip samples that
+ * cannot end a crossing, with the same answer as without. */
+int obs_volume_grid_crossing(const obs_volume_iso *s, const double o[3], const double d[3],
+                             const obs_volume_ao_params *a);
 
 /* AO at surface point p with unit normal n: `samples` directions cosine-distributed about n (the
  * points u[i] of the unit square mapped to the unit disk, r = sqrt(u), phi = 2 pi v, and projected

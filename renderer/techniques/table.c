@@ -12,6 +12,7 @@ static const obs_technique *const table[] = {
     &obs_technique_path_trace,
     &obs_technique_obscurance,
     &obs_technique_obscurance_map,
+    &obs_technique_volume_ao,
 };
 
 size_t obs_technique_count(void) { return sizeof table / sizeof table[0]; }
@@ -111,7 +112,10 @@ static const struct {
                   {OBS_NEED_LIGHTS, "lights"},
                   {OBS_NEED_GBUFFER, "gbuffer"},
                   {OBS_NEED_BVH_FRAME_GEOMETRY, "bvh_frame_geometry"},
-                  {OBS_NEED_MOTION, "motion"}};
+                  {OBS_NEED_MOTION, "motion"},
+                  {OBS_NEED_VOLUME, "volume"},
+                  {OBS_NEED_PUNCTUAL_LIGHTS, "punctual_lights"},
+                  {OBS_NEED_ENV_MAP, "environment_map"}};
 
 json_t *obs_technique_registry_json(void) {
   json_t *arr = json_array();

@@ -33,6 +33,9 @@ extern const obs_technique obs_technique_path_trace;
 int obs_path_trace_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 extern const obs_technique obs_technique_obscurance;
 int obs_obscurance_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
+extern const obs_technique obs_technique_volume_ao;
+int obs_volume_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
+int obs_volume_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 
 /* One backend's guaranteed range as the registry's JSON (ranges.c). */
 json_t *obs_range_json(const obs_range *r);

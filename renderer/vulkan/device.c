@@ -300,6 +300,11 @@ void obs_vk_close(obs_vk *vk) {
     vkDestroyRenderPass(vk->dev, vk->gb_pass, NULL);
     vkDestroyPipelineLayout(vk->dev, vk->compute_layout, NULL);
     vkDestroyDescriptorSetLayout(vk->dev, vk->set_layout, NULL);
+    for (int i = 0; i <= OBS_VK_MAX_TEXTURES; i++)
+      for (int j = 0; j < 2; j++) {
+        vkDestroyPipelineLayout(vk->dev, vk->tex_compute_layout[i][j], NULL);
+        vkDestroyDescriptorSetLayout(vk->dev, vk->tex_set_layout[i][j], NULL);
+      }
     obs_vk_buffer_free(vk, &vk->staging);
     vkDestroyQueryPool(vk->dev, vk->queries, NULL);
     vkDestroyFence(vk->dev, vk->fence, NULL);
@@ -355,6 +360,12 @@ void obs_vk_release(obs_vk *vk) {
 }
 
 const char *obs_vk_device_name(const obs_vk *vk) { return vk ? vk->name : ""; }
+
+uint32_t obs_vk_loop_limit(const obs_vk *vk) {
+  if (!vk || vk->props.deviceType != VK_PHYSICAL_DEVICE_TYPE_CPU) return 0;
+  /* Measured on Mesa 22.3; tests/vulkan/test_volume_ao_vk.c renders past it. */
+  return strstr(vk->name, "llvmpipe") ? 65535u : 0u;
+}
 
 uint32_t obs_vk_validation_messages(const obs_vk *vk) {
   return vk ? atomic_load(&((obs_vk *)vk)->messages) : 0;

@@ -314,7 +314,7 @@ void obs_vk_image_free(obs_vk *vk, obs_vk_image *img) {
   free(img);
 }
 
-static int staging_reserve(obs_vk *vk, VkDeviceSize size, obs_err *err) {
+int obs_vk_staging_reserve(obs_vk *vk, VkDeviceSize size, obs_err *err) {
   if (vk->staging.buffer && vk->staging.size >= size) return 0;
   obs_vk_buffer_free(vk, &vk->staging);
   VkDeviceSize cap = 1 << 20;
@@ -341,7 +341,7 @@ int obs_vk_image_upload(obs_vk *vk, obs_vk_image *img, const float *data, obs_er
   if (rc) return rc;
   if (!img || !data) return obs_err_set(err, OBS_EINVAL, "vulkan: image upload: no image or data");
   VkDeviceSize n = image_bytes(img);
-  if ((rc = staging_reserve(vk, n, err))) return rc;
+  if ((rc = obs_vk_staging_reserve(vk, n, err))) return rc;
   memcpy(vk->staging.map, data, (size_t)n);
   if ((rc = obs_vk_cmd_begin(vk, "image upload", err))) return rc;
   VkBufferImageCopy reg = image_region(img);
@@ -363,7 +363,7 @@ int obs_vk_image_download(obs_vk *vk, const obs_vk_image *img, float *data, obs_
   if (!img || !data)
     return obs_err_set(err, OBS_EINVAL, "vulkan: image download: no image or destination");
   VkDeviceSize n = image_bytes(img);
-  if ((rc = staging_reserve(vk, n, err))) return rc;
+  if ((rc = obs_vk_staging_reserve(vk, n, err))) return rc;
   if ((rc = obs_vk_cmd_begin(vk, "image download", err))) return rc;
   VkBufferImageCopy reg = image_region(img);
   obs_vk_cmd_layout(vk->cmd, img->image, VK_IMAGE_LAYOUT_GENERAL,

@@ -1,9 +1,10 @@
 /* The Vulkan backend's device layer: a headless device (lavapipe in tests), the rasterised
- * G-buffer, and generic compute passes over 2D float images. Techniques build on these only.
+ * G-buffer, and generic compute passes over 2D float images, which may also read sampled
+ * textures and a parameter buffer. Techniques build on these only.
  *
- * Ownership: obs_vk owns every pipeline and pool it creates; images and G-buffers are owned by the
- * caller and freed with their _free functions before obs_vk_close. All calls on one obs_vk must come
- * from one thread at a time. */
+ * Ownership: obs_vk owns every pipeline and pool it creates; images, textures, data buffers and
+ * G-buffers are owned by the caller and freed with their _free functions before obs_vk_close.
+ * All calls on one obs_vk must come from one thread at a time. */
 #ifndef OBS_VK_H
 #define OBS_VK_H
 
@@ -33,6 +34,13 @@ void obs_vk_close(obs_vk *vk);
 int obs_vk_acquire(obs_vk **out, int validation, obs_err *err);
 void obs_vk_release(obs_vk *vk);
 const char *obs_vk_device_name(const obs_vk *vk);
+/* The most loop iterations one shader invocation may run, all its loops together, before the
+ * device silently ends them; 0 where no such limit is known. Mesa's llvmpipe (lavapipe) has one:
+ * gallivm counts every iteration of every loop the compiler left in an invocation and, past 65535,
+ * leaves each loop after one pass (LP_MAX_TGSI_LOOP_ITERATIONS, a guard against hung shaders).
+ * Loops with a constant trip count are unrolled and do not count. Passes whose work per invocation
+ * is data-dependent split it across dispatches under this limit. */
+uint32_t obs_vk_loop_limit(const obs_vk *vk);
 /* Number of validation-layer messages (warnings and errors) seen so far. */
 uint32_t obs_vk_validation_messages(const obs_vk *vk);
 /* Whether a Vulkan device can be opened here (probed once per process, cached). */
@@ -73,10 +81,50 @@ int obs_vk_gbuffer_download(obs_vk *vk, const obs_vk_gbuffer *dev, obs_gbuffer *
                             obs_err *err);
 void obs_vk_gbuffer_free(obs_vk *vk, obs_vk_gbuffer *g);
 
+/* A read-only float texture that compute passes sample through its own sampler (clamp to edge,
+ * normalised coordinates, no mipmaps, linear or nearest filtering): a 3D image (volumes, grids)
+ * or a 2D array image (e.g. the six faces of a cube map as layers), 1 (R32_SFLOAT) or 4
+ * (R32G32B32A32_SFLOAT) channels, zeroed at creation, in SHADER_READ_ONLY_OPTIMAL layout between
+ * calls. Large data travels as read-only images rather than storage buffers, whose range is
+ * limited (128 MiB on lavapipe). */
+typedef struct obs_vk_texture obs_vk_texture;
+typedef enum { OBS_VK_TEXTURE_3D, OBS_VK_TEXTURE_2D_ARRAY } obs_vk_texture_type;
+typedef struct obs_vk_texture_desc {
+  obs_vk_texture_type type;
+  int width, height, depth; /* depth: the 3D image's depth, or the array's layers */
+  int channels;             /* 1 or 4 */
+  int linear;               /* linear filtering; needs obs_vk_texture_filterable */
+} obs_vk_texture_desc;
+/* Whether float textures of `channels` can be filtered linearly on this device. */
+int obs_vk_texture_filterable(obs_vk *vk, int channels);
+/* The largest side (width, height, depth or layers) a texture of `type` may have here. */
+int obs_vk_texture_max_side(const obs_vk *vk, obs_vk_texture_type type);
+/* OBS_EINVAL for a bad description (sizes past the device's limits, linear filtering it lacks),
+ * OBS_ENOMEM past what one image may hold, both before anything is allocated. */
+int obs_vk_texture_create(obs_vk *vk, const obs_vk_texture_desc *d, obs_vk_texture **out,
+                          obs_err *err);
+/* Writes the box of size[0] x size[1] x size[2] texels at at[] (x, y, and z or the first layer)
+ * from `data`: tightly packed, x fastest, then y, then z or layer, channels interleaved. Goes
+ * through the staging buffer in slabs of whole slices (at most ~64 MiB each). */
+int obs_vk_texture_upload(obs_vk *vk, obs_vk_texture *t, const int at[3], const int size[3],
+                          const float *data, obs_err *err);
+void obs_vk_texture_free(obs_vk *vk, obs_vk_texture *t);
+
+/* A small read-only storage buffer (a pass's parameters: per-object transforms, lights, tables),
+ * copied to device memory at creation. At most the device's maxStorageBufferRange. */
+typedef struct obs_vk_data obs_vk_data;
+int obs_vk_data_create(obs_vk *vk, const void *bytes, size_t size, obs_vk_data **out,
+                       obs_err *err);
+void obs_vk_data_free(obs_vk *vk, obs_vk_data *d);
+
 /* One compute dispatch. The shader (SPIR-V, entry "main", local size chosen by the shader) sees
  * images[i] as `layout(binding = i, r32f or rgba32f) uniform image2D` (set 0) and the push
- * constants (at most 128 bytes). */
+ * constants (at most 128 bytes). A pass with textures or data also has set 1: textures[i] at
+ * `layout(set = 1, binding = i) uniform sampler3D or sampler2DArray` and the data at
+ * `layout(set = 1, binding = OBS_VK_MAX_TEXTURES, std430) readonly buffer`; passes without them
+ * have set 0 alone. */
 #define OBS_VK_MAX_BINDINGS 8
+#define OBS_VK_MAX_TEXTURES 4
 #define OBS_VK_PUSH_MAX 128u /* bytes of push constants a pass may use */
 typedef struct obs_vk_pass {
   const char *name;           /* for timings and messages */
@@ -87,6 +135,9 @@ typedef struct obs_vk_pass {
   const void *push;
   uint32_t push_size;
   uint32_t groups_x, groups_y;
+  obs_vk_texture *textures[OBS_VK_MAX_TEXTURES]; /* set 1 (optional) */
+  int ntextures;
+  obs_vk_data *data; /* set 1, binding OBS_VK_MAX_TEXTURES (optional) */
 } obs_vk_pass;
 
 /* Records the passes in order into one command buffer with full memory barriers between them,

@@ -1,5 +1,5 @@
-/* Private to renderer/vulkan: the obs_vk and obs_vk_image structs and the device helpers shared by
- * device.c and gbuffer_vk.c. Techniques use vk.h only. */
+/* Private to renderer/vulkan: the obs_vk, obs_vk_image, obs_vk_texture and obs_vk_data structs and
+ * the device helpers shared by the device layer's files. Techniques use vk.h only. */
 #ifndef OBS_VK_INTERNAL_H
 #define OBS_VK_INTERNAL_H
 
@@ -9,7 +9,8 @@
 #include "vk.h"
 
 typedef struct obs_vk_pipe {
-  const uint32_t *spirv; /* cache key: the embedded array's address */
+  const uint32_t *spirv;   /* cache key: the embedded array's address ... */
+  VkPipelineLayout layout; /* ... and the layout it was made for (with or without set 1) */
   VkPipeline pipeline;
 } obs_vk_pipe;
 
@@ -42,6 +43,12 @@ struct obs_vk {
   obs_vk_buffer staging;
   VkDescriptorSetLayout set_layout; /* OBS_VK_MAX_BINDINGS storage images */
   VkPipelineLayout compute_layout;  /* that set + 128 bytes of push constants */
+  /* Set 1 of the passes that read textures or data (texture.c), built on first use, one per
+   * [number of textures][whether there is data] (a set must have exactly the bindings a pass
+   * writes: lavapipe reads every binding of a bound set), and the pipeline layouts with both
+   * sets. */
+  VkDescriptorSetLayout tex_set_layout[OBS_VK_MAX_TEXTURES + 1][2];
+  VkPipelineLayout tex_compute_layout[OBS_VK_MAX_TEXTURES + 1][2];
   obs_vk_pipe *pipes;
   int npipes, cappipes;
   /* The G-buffer rasteriser's objects (gbuffer_vk.c), built on first use. */
@@ -60,6 +67,19 @@ struct obs_vk_image {
   VkImageView view;
   VkFormat format;
   int width, height, channels;
+};
+
+struct obs_vk_texture {
+  VkImage image;
+  VkDeviceMemory memory;
+  VkImageView view;
+  VkSampler sampler;
+  VkFormat format;
+  obs_vk_texture_desc desc;
+};
+
+struct obs_vk_data {
+  obs_vk_buffer buf;
 };
 
 /* Turns a failed VkResult into an obs error naming `what` (0 on VK_SUCCESS): out-of-memory results
@@ -81,6 +101,13 @@ int obs_vk_memory_alloc(obs_vk *vk, const VkMemoryRequirements *req, VkMemoryPro
  * a storage image in GENERAL layout). */
 int obs_vk_image_create_usage(obs_vk *vk, int width, int height, int channels,
                               VkImageUsageFlags extra, obs_vk_image **out, obs_err *err);
+
+/* Makes the host-visible staging buffer at least `size` bytes (memory.c). */
+int obs_vk_staging_reserve(obs_vk *vk, VkDeviceSize size, obs_err *err);
+/* Set 1's layout for `ntextures` textures with or without data, and the pipeline layout with
+ * sets 0 and 1 (texture.c), created on first use. */
+int obs_vk_tex_layout(obs_vk *vk, int ntextures, int data, VkDescriptorSetLayout *set,
+                      VkPipelineLayout *out, obs_err *err);
 
 /* A shader module from SPIR-V; errors name `what`. */
 int obs_vk_shader(obs_vk *vk, const uint32_t *code, size_t size, VkShaderModule *out,

@@ -1,5 +1,5 @@
 // Every bundled scene (scaled down) through the daemon, both submission forms, the CPU techniques:
-// the job completes, its outputs decode, and ao.exr / ao.png are byte for byte what `obscura
+// the job completes, its outputs decode, and its EXR and primary PNG are byte for byte what `obscura
 // render` writes for the same document. Also the output serving rules (ETag, ranges, HEAD) and the
 // read-only listings (scenes, techniques, health, metrics).
 //
@@ -61,6 +61,7 @@ test('bundled scenes match the CLI bit for bit', async () => {
       c.dir = cliRender(path.join(SCENES_DIR, c.cli.file), path.join(tmp, String(i)), c.cli);
     }
     const jobs = await waitAll(d, cs.map((c) => c.id));
+    const registry = (await getJSON(d, '/api/v1/techniques')).techniques;
     for (const [i, c] of cs.entries()) {
       const j = jobs[i];
       assert.equal(j.state, 'succeeded', `${c.name}: ${j.state}: ${j.error}`);
@@ -76,28 +77,32 @@ test('bundled scenes match the CLI bit for bit', async () => {
       assert.ok(Date.parse(j.created_at) <= Date.parse(j.started_at) && Date.parse(j.started_at) <= Date.parse(j.finished_at));
       // Every output the CLI wrote (bent normals only where the technique has them), no other.
       const names = fs.readdirSync(c.dir).sort();
-      const want = ['ao.exr', 'ao.png', ...(j.technique === 'rt_ao' ? ['bent_normal.png'] : []), 'depth.png', 'summary.json'];
+      // The files the technique declares: its EXR, each PNG, summary.json.
+      const reg = registry.find((t) => t.name === j.technique);
+      const primary = reg.typed_outputs.find((o) => o.primary);
+      const exrName = reg.exr, pngName = primary.png;
+      const want = [exrName, ...reg.typed_outputs.filter((o) => o.png).map((o) => o.png), 'summary.json'].sort();
       assert.deepEqual(names, want, `${c.name}: CLI outputs`);
       assert.deepEqual(j.outputs.map((o) => o.name).sort(), want, c.name);
       assert.deepEqual(Object.keys(j.links.outputs).sort(), want);
-      for (const n of want.filter((x) => x !== 'summary.json' && x !== 'ao.exr' && x !== 'ao.png')) {
+      for (const n of want.filter((x) => x !== 'summary.json' && x !== exrName && x !== pngName)) {
         const b = (await download(d, j, n)).body;
         assert.deepEqual(pngSize(b), {width: W, height: H}, `${c.name}: ${n} size`);
         assert.ok(b.equals(fs.readFileSync(path.join(c.dir, n))), `${c.name}: ${n} differs from the CLI's`);
       }
 
-      const exr = (await download(d, j, 'ao.exr')).body;
-      const png = (await download(d, j, 'ao.png')).body;
+      const exr = (await download(d, j, exrName)).body;
+      const png = (await download(d, j, pngName)).body;
       const summary = JSON.parse((await download(d, j, 'summary.json')).text);
       assert.deepEqual(pngSize(png), {width: W, height: H}, `${c.name}: PNG size`);
       const hdr = exrHeader(exr);
       assert.deepEqual({w: hdr.width, h: hdr.height}, {w: W, h: H}, `${c.name}: EXR data window`);
-      assert.ok(hdr.channels.includes('ao'), `${c.name}: EXR channels ${hdr.channels}`);
+      assert.ok(hdr.channels.includes(primary.channels[0]), `${c.name}: EXR channels ${hdr.channels}`);
       // Bit for bit with the CLI.
-      const cliExr = fs.readFileSync(path.join(c.dir, 'ao.exr'));
-      const cliPng = fs.readFileSync(path.join(c.dir, 'ao.png'));
-      assert.ok(exr.equals(cliExr), `${c.name}: ao.exr differs from the CLI's (${sha256(exr)} vs ${sha256(cliExr)})`);
-      assert.ok(png.equals(cliPng), `${c.name}: ao.png differs from the CLI's`);
+      const cliExr = fs.readFileSync(path.join(c.dir, exrName));
+      const cliPng = fs.readFileSync(path.join(c.dir, pngName));
+      assert.ok(exr.equals(cliExr), `${c.name}: ${exrName} differs from the CLI's (${sha256(exr)} vs ${sha256(cliExr)})`);
+      assert.ok(png.equals(cliPng), `${c.name}: ${pngName} differs from the CLI's`);
       // The summary agrees with the CLI's except for timings, and the job shows the same figures.
       const cliSum = JSON.parse(fs.readFileSync(path.join(c.dir, 'summary.json'), 'utf8'));
       // (timings and what derives from them, and the thread count, may differ)
@@ -152,7 +157,8 @@ test('bundled scenes match the CLI bit for bit', async () => {
     assert.deepEqual(scenes.scenes.map((s) => s.name), sceneFiles);
     for (const s of scenes.scenes) {
       assert.equal(s.size, fs.statSync(path.join(SCENES_DIR, s.name)).size);
-      assert.equal(s.technique, 'rt_ao');
+      const doc = JSON.parse(fs.readFileSync(path.join(SCENES_DIR, s.name), 'utf8'));
+      assert.equal(s.technique, doc.technique.name);
     }
     const tech = await getJSON(d, '/api/v1/techniques');
     const cliTech = JSON.parse(spawnSync(OBSCURA, ['techniques'], {encoding: 'utf8'}).stdout);

@@ -22,17 +22,18 @@ static char *scene_doc_sized(const obs_technique *t, obs_backend be, const char 
              "%.17g],[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g]],\"emission\":[4,4,4]}],"
              "\"environment\":{\"color\":[0.2,0.2,0.2]},",
              -s, 4 * s, -s, s, 4 * s, -s, s, 4 * s, s, -s, 4 * s, s);
+  char ball[512];
+  obs_test_ball(t, 0, s, 0, 0.5 * s, ball, sizeof ball);
   char *doc = malloc(4096);
   snprintf(doc, 4096,
            "{\"camera\":{\"type\":\"perspective\",\"position\":[0,%.17g,%.17g],"
            "\"look_at\":[0,%.17g,0],\"up\":[0,1,0],\"fov_y\":45},"
            "\"image\":{\"width\":%d,\"height\":%d,\"spp\":1},"
            "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[%.17g,0,%.17g],"
-           "[%.17g,0,%.17g],[%.17g,0,%.17g],[%.17g,0,%.17g]]}%s},{\"shape\":{\"type\":\"sphere\","
-           "\"center\":[0,%.17g,0],\"radius\":%.17g}%s}],"
+           "[%.17g,0,%.17g],[%.17g,0,%.17g],[%.17g,0,%.17g]]}%s},{%s%s}],"
            "%s\"technique\":{\"name\":\"%s\",\"backend\":\"%s\",\"params\":%s}}",
            3 * s, -4 * s, 0.3 * s, w, h, -5 * s, -5 * s, -5 * s, 5 * s, 5 * s, 5 * s, 5 * s, -5 * s,
-           mat, s, 0.5 * s, mat, light, t->name, obs_backend_name(be), params ? params : "{}");
+           mat, ball, mat, light, t->name, obs_backend_name(be), params ? params : "{}");
   return doc;
 }
 

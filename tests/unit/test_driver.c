@@ -2,6 +2,7 @@
  * independence on a synthetic shade function, then the same properties through obs_render for
  * rt_ao (per-pixel driver, BVH built by the framework) and ssao/hbao (CPU screen-space driver). */
 #include <math.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -269,12 +270,202 @@ static void test_ssao_progress_cancel(void **state) {
   check_progress_cancel("ssao", "{\"samples\":8,\"blur\":true}");
 }
 
+/* A tile source over a list of tiles, as a caller splitting a render hands them out: any size,
+ * any order, only some of the region. Serialised by its own lock, as sources must be. */
+typedef struct list_source {
+  pthread_mutex_t lock;
+  const obs_region *tiles;
+  int ntiles, next, done;
+  uint64_t rays;
+  int fail_next; /* the code `next` returns once the list is half taken (0: none) */
+  int fail_done; /* the code `done` returns (0: none) */
+} list_source;
+
+static int list_next(void *user, obs_region *tile) {
+  list_source *s = user;
+  pthread_mutex_lock(&s->lock);
+  int rc = 0;
+  if (s->fail_next && s->next >= s->ntiles / 2)
+    rc = s->fail_next;
+  else if (s->next < s->ntiles)
+    *tile = s->tiles[s->next++], rc = 1;
+  pthread_mutex_unlock(&s->lock);
+  return rc;
+}
+
+static int list_done(void *user, const obs_image *img, const obs_region *tile, uint64_t rays) {
+  list_source *s = user;
+  /* The tile's pixels are there when done is called. */
+  size_t i = (size_t)tile->y0 * (size_t)img->width + (size_t)tile->x0;
+  assert_true(img->data[(size_t)2 * img->width * img->height + i] == 1.0f);
+  pthread_mutex_lock(&s->lock);
+  s->done++;
+  s->rays += rays;
+  pthread_mutex_unlock(&s->lock);
+  return s->fail_done;
+}
+
+static void list_init(list_source *s, const obs_region *tiles, int n) {
+  memset(s, 0, sizeof *s);
+  pthread_mutex_init(&s->lock, NULL);
+  s->tiles = tiles;
+  s->ntiles = n;
+}
+
+/* The tiles of the region [5,67)x[3,41) in a scrambled order and odd sizes, leaving some out. */
+static const obs_region source_tiles[] = {{40, 20, 67, 41}, {5, 3, 6, 4},    {20, 3, 40, 20},
+                                          {6, 3, 20, 11},   {5, 30, 17, 41}, {40, 3, 67, 20},
+                                          {5, 11, 20, 20}};
+
+static void test_pixels_source(void **state) {
+  (void)state;
+  obs_scene sc;
+  obs_test_load(scene_json("rt_ao", "{}"), "d.json", &sc);
+  const obs_region region = {5, 3, 67, 41};
+  const int n = (int)(sizeof source_tiles / sizeof source_tiles[0]);
+  synth s = {NULL};
+  obs_err err = OBS_ERR_INIT;
+  obs_render_ctx ctx;
+  ctx_init(&ctx, &sc, 1);
+  ctx.region = region;
+  obs_image whole;
+  assert_int_equal(obs_driver_pixels(&ctx, &synth_ops, &s, &whole, &err), 0);
+  assert_int_equal(ctx.tiled, 0);
+  for (int threads = 1; threads <= 3; threads += 2) {
+    list_source src;
+    list_init(&src, source_tiles, n);
+    obs_tile_source ts = {list_next, list_done, &src};
+    progress_log pl = {0, 0, 1};
+    ctx_init(&ctx, &sc, threads);
+    ctx.region = region;
+    ctx.tiles = &ts;
+    ctx.progress = log_progress;
+    ctx.progress_user = &pl;
+    obs_image img;
+    assert_int_equal(obs_driver_pixels(&ctx, &synth_ops, &s, &img, &err), 0);
+    assert_int_equal(ctx.tiled, 1);
+    assert_int_equal(src.done, n);
+    assert_int_equal(src.rays, ctx.rays);
+    assert_int_equal(pl.calls, 0); /* the source sees the tiles; the driver reports nothing */
+    /* Each tile holds the whole render's bits; the rest of the image stays 0. */
+    size_t plane = (size_t)W * H;
+    for (int y = 0; y < H; y++)
+      for (int x = 0; x < W; x++) {
+        int in = 0;
+        for (int t = 0; t < n; t++)
+          in |= x >= source_tiles[t].x0 && x < source_tiles[t].x1 && y >= source_tiles[t].y0 &&
+                y < source_tiles[t].y1;
+        for (int c = 0; c < 3; c++) {
+          size_t i = (size_t)c * plane + (size_t)y * W + (size_t)x;
+          if (in)
+            assert_memory_equal(&whole.data[i], &img.data[i], sizeof(float));
+          else
+            assert_true(img.data[i] == 0.0f);
+        }
+      }
+    obs_image_free(&img);
+    pthread_mutex_destroy(&src.lock);
+  }
+  obs_image_free(&whole);
+  obs_err_free(&err);
+  obs_scene_free(&sc);
+}
+
+/* A source's failure stops the render with its code; a tile outside the region is refused. */
+static void test_pixels_source_errors(void **state) {
+  (void)state;
+  obs_scene sc;
+  obs_test_load(scene_json("rt_ao", "{}"), "d.json", &sc);
+  const int n = (int)(sizeof source_tiles / sizeof source_tiles[0]);
+  synth s = {NULL};
+  obs_err err = OBS_ERR_INIT;
+  obs_render_ctx ctx;
+  obs_image img;
+  list_source src;
+  obs_tile_source ts = {list_next, list_done, &src};
+  for (int k = 0; k < 3; k++) {
+    list_init(&src, source_tiles, n);
+    if (k == 0) src.fail_next = OBS_EIO;
+    if (k == 1) src.fail_done = OBS_ENOMEM;
+    ctx_init(&ctx, &sc, 2);
+    ctx.region = (obs_region){5, 3, 67, 41};
+    if (k == 2) ctx.region = (obs_region){5, 3, 60, 41}; /* the first tile reaches x 67 */
+    ctx.tiles = &ts;
+    obs_err_clear(&err);
+    int rc = obs_driver_pixels(&ctx, &synth_ops, &s, &img, &err);
+    assert_int_equal(rc, k == 0 ? OBS_EIO : k == 1 ? OBS_ENOMEM : OBS_EINVAL);
+    assert_null(img.data);
+    if (k == 2)
+      assert_non_null(strstr(obs_err_message(&err), "tile [40,67)x[20,41)"));
+    else
+      assert_non_null(strstr(obs_err_message(&err), "tile source"));
+    pthread_mutex_destroy(&src.lock);
+  }
+  obs_err_free(&err);
+  obs_scene_free(&sc);
+}
+
+/* Through obs_render: rt_ao split between two sources (as two processes would) adds up to the
+ * whole render's bits and rays, and says `tiled`; ssao, which does not render per pixel, ignores
+ * the source and renders the whole image. */
+static void test_render_tile_source(void **state) {
+  (void)state;
+  obs_err err = OBS_ERR_INIT;
+  const char *techniques[2][2] = {{"rt_ao", "{\"samples\":8}"}, {"ssao", "{\"samples\":8}"}};
+  for (int k = 0; k < 2; k++) {
+    obs_scene sc;
+    obs_test_load(scene_json(techniques[k][0], techniques[k][1]), "d.json", &sc);
+    obs_render_opts o = {.threads = 2};
+    obs_result whole, part[2];
+    assert_int_equal(obs_render(&sc, &o, &whole, &err), 0);
+    assert_int_equal(whole.tiled, 0);
+    /* Alternate 16x16 tiles to the two halves. */
+    obs_region tiles[2][16];
+    int n[2] = {0, 0}, i = 0;
+    for (int y = 0; y < H; y += 16)
+      for (int x = 0; x < W; x += 16, i++)
+        tiles[i % 2][n[i % 2]++] =
+            (obs_region){x, y, x + 16 < W ? x + 16 : W, y + 16 < H ? y + 16 : H};
+    uint64_t rays = 0;
+    for (int h = 0; h < 2; h++) {
+      list_source src;
+      list_init(&src, tiles[h], n[h]);
+      obs_tile_source ts = {list_next, NULL, &src};
+      o.tiles = &ts;
+      assert_int_equal(obs_render(&sc, &o, &part[h], &err), 0);
+      assert_int_equal(part[h].tiled, k == 0);
+      rays += part[h].rays;
+      pthread_mutex_destroy(&src.lock);
+    }
+    size_t count = (size_t)whole.image.nchannels * W * H;
+    if (k == 0) {
+      /* Pasted, not added: -0.0 + 0.0 would not keep the bits. */
+      for (int c = 0; c < whole.image.nchannels; c++)
+        for (int t = 0; t < n[1]; t++)
+          for (int y = tiles[1][t].y0; y < tiles[1][t].y1; y++)
+            for (int x = tiles[1][t].x0; x < tiles[1][t].x1; x++) {
+              size_t j = (size_t)c * W * H + (size_t)y * W + (size_t)x;
+              part[0].image.data[j] = part[1].image.data[j];
+            }
+      assert_int_equal(rays, whole.rays);
+    }
+    for (int h = 0; h < (k == 0 ? 1 : 2); h++)
+      assert_memory_equal(whole.image.data, part[h].image.data, count * sizeof(float));
+    obs_result_free(&whole);
+    for (int h = 0; h < 2; h++) obs_result_free(&part[h]);
+    obs_scene_free(&sc);
+  }
+  obs_err_free(&err);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_pixels_region),       cmocka_unit_test(test_pixels_threads),
       cmocka_unit_test(test_pixels_cancel),       cmocka_unit_test(test_rt_ao_region),
       cmocka_unit_test(test_ssao_region),         cmocka_unit_test(test_hbao_region),
       cmocka_unit_test(test_hbao_progress_cancel), cmocka_unit_test(test_ssao_progress_cancel),
+      cmocka_unit_test(test_pixels_source),       cmocka_unit_test(test_pixels_source_errors),
+      cmocka_unit_test(test_render_tile_source),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -389,10 +389,13 @@ static void test_channels_match_declarations(void **state) {
   for (size_t i = 0; i < obs_technique_count(); i++) {
     const obs_technique *t = obs_technique_at(i);
     if (!obs_technique_has_backend(t, OBS_BACKEND_CPU)) continue;
-    char doc[2048];
-    const char *tail = strstr(quad_scene, "\"technique\"");
-    snprintf(doc, sizeof doc, "%.*s\"technique\":{\"name\":\"%s\",\"backend\":\"cpu\"}}",
-             (int)(tail - quad_scene), quad_scene, t->name);
+    char doc[2048], ball[512];
+    const char *tail = strstr(quad_scene, "],\"environment\"");
+    obs_test_ball(t, 0, 0.5, 0, 0.5, ball, sizeof ball);
+    snprintf(doc, sizeof doc,
+             "%.*s,{%s,\"material\":{\"reflectivity\":[0.5,0.5,0.5]}}],\"environment\":{\"color\":"
+             "[1,1,1]},\"technique\":{\"name\":\"%s\",\"backend\":\"cpu\"}}",
+             (int)(tail - quad_scene), quad_scene, ball, t->name);
     obs_result r;
     obs_test_render(doc, 1, &r);
     char ch[OBS_OUTPUT_MAX_CHANNELS][OBS_CHANNEL_NAME_MAX];

@@ -46,7 +46,9 @@ static void test_counts_and_bounds_match_geometry(void **state) {
            "{\"shape\":{\"type\":\"mesh\",\"file\":\"tests/data/tetra.obj\"},"
            "\"transform\":{\"scale\":[2,2,2]}},"
            "{\"shape\":{\"type\":\"displaced_sphere\",\"subdivisions\":3},"
-           "\"transform\":{\"translate\":[0,5,0]}}],"
+           "\"transform\":{\"translate\":[0,5,0]}},"
+           "{\"shape\":{\"type\":\"volume\",\"procedural\":\"torus\",\"dims\":[8,8,4]},"
+           "\"transform\":{\"translate\":[0,-5,0]}}],"
            "\"technique\":{\"name\":\"rt_ao\"}}");
   obs_scene sc;
   obs_err err = OBS_ERR_INIT;

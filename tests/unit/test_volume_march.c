@@ -137,10 +137,44 @@ static void test_ao_spheres(void **state) {
   free(u);
 }
 
+/* AO marches skip macrocells below the isovalue and must answer exactly as without: random
+ * segments through seeded noise, both crossing tests, several steps and isovalues. */
+static void test_grid_crossing_skip_exact(void **state) {
+  (void)state;
+  obs_volume v;
+  obs_volume_cells c;
+  obs_err err = OBS_ERR_INIT;
+  const int n[3] = {40, 32, 24};
+  assert_int_equal(obs_volume_procedural_fill(OBS_VOLUME_NOISE, 5, n, &v, &err), 0);
+  assert_int_equal(obs_volume_cells_build(&v, 8, &c, &err), 0);
+  uint32_t seed = 4;
+  int hits = 0, total = 0;
+  static const float isos[] = {0.3f, 0.55f, 0.7f};
+  static const double steps[] = {0.003, 0.02, 0.37};
+  for (int t = 0; t < 3000; t++) {
+    double o[3], d[3];
+    for (int a = 0; a < 3; a++) o[a] = obs_test_unit(&seed) * 2.4 - 0.2;
+    unit_dir(&seed, d);
+    obs_volume_ao_params p = {1, obs_test_unit(&seed) * 0.1, steps[t % 3], 0.5 + t % 7 * 0.3,
+                              t % 2 ? OBS_VOLUME_CROSS_ANY : OBS_VOLUME_CROSS_RISING};
+    obs_volume_iso plain = {&v, NULL, isos[t % 3]}, skip = {&v, &c, isos[t % 3]};
+    int a = obs_volume_grid_crossing(&plain, o, d, &p), b = obs_volume_grid_crossing(&skip, o, d, &p);
+    assert_int_equal(a, b);
+    hits += a;
+    total++;
+  }
+  printf("grid crossings: %d of %d segments cross, the same with and without skipping\n", hits,
+         total);
+  assert_true(hits > total / 10 && hits < total * 9 / 10);
+  obs_volume_cells_free(&c);
+  obs_volume_free(&v);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_first_hit_sphere),
       cmocka_unit_test(test_ao_spheres),
+      cmocka_unit_test(test_grid_crossing_skip_exact),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

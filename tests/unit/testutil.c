@@ -130,3 +130,16 @@ int obs_test_check_sane(const char *what, const obs_technique *t, const obs_imag
   if (out) printf("FAIL %s: %zu primary values outside [%g, %g]\n", what, out, lo, hi), bad++;
   return bad;
 }
+
+void obs_test_ball(const obs_technique *t, double x, double y, double z, double r, char *buf,
+                   size_t n) {
+  if (t->needs & OBS_NEED_VOLUME) /* the procedural sphere's radius is 0.3 of its box's side */
+    snprintf(buf, n,
+             "\"shape\":{\"type\":\"volume\",\"procedural\":\"sphere\",\"dims\":[48,48,48]},"
+             "\"transform\":{\"scale\":[%.17g,%.17g,%.17g],\"translate\":[%.17g,%.17g,%.17g]}",
+             r / 0.3, r / 0.3, r / 0.3, x, y, z);
+  else
+    snprintf(buf, n,
+             "\"shape\":{\"type\":\"sphere\",\"center\":[%.17g,%.17g,%.17g],\"radius\":%.17g}",
+             x, y, z, r);
+}

@@ -41,4 +41,9 @@ int obs_test_check_sane(const char *what, const obs_technique *t, const obs_imag
 /* Asserts every value of every channel is finite. */
 void obs_test_assert_finite(const obs_image *img);
 
+/* The members of a ball object of radius r at (x, y, z) for technique t, into buf: an analytic
+ * sphere, or for a technique that renders volumes a procedural sphere volume of that size. */
+void obs_test_ball(const obs_technique *t, double x, double y, double z, double r, char *buf,
+                   size_t n);
+
 #endif

@@ -18,6 +18,10 @@ typedef struct obs_render_opts {
   void *progress_user;
   const atomic_int *cancel;    /* may be NULL */
   obs_region region;           /* all zero: the whole image (see obs_render_ctx.region) */
+  /* NULL, or the tiles of the region this render shades (obs_tile_source): a technique that
+   * renders per pixel shades only those (the rest of the image stays 0) and the result says
+   * `tiled`; any other renders the whole region as without a source. */
+  const obs_tile_source *tiles;
 } obs_render_opts;
 
 /* The outcome of one render. Owns `image`, `patches` and `frames`; release with obs_result_free. */
@@ -31,6 +35,12 @@ typedef struct obs_result {
   double stage_ms[OBS_MAX_STAGES];
   uint64_t rays;
   int threads;
+  /* 1 when the run took its tiles from obs_render_opts.tiles (the technique renders per pixel on
+   * this backend), 0 when it rendered the region itself. */
+  int tiled;
+  /* Processes the render was split across, set by the caller that split it (the CLI under
+   * mpirun); summary.json says "ranks" when it is above 1. */
+  int ranks;
   obs_patches patches[OBS_MAX_PATCH_OUTPUTS]; /* per-patch outputs (obs_render_ctx.patches) */
   int npatches;
   json_t *frames;              /* per-frame figures (obs_render_ctx.frames) or NULL; owned */

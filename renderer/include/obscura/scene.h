@@ -35,6 +35,7 @@ typedef enum {
   OBS_SHAPE_BOX,
   OBS_SHAPE_MESH,
   OBS_SHAPE_DISPLACED_SPHERE,
+  OBS_SHAPE_VOLUME,
   OBS_SHAPE_COUNT
 } obs_shape_type;
 
@@ -57,6 +58,24 @@ typedef struct obs_shape {
     struct {
       int subdivisions;
     } displaced;
+    /* A scalar volume whose isosurface is the surface: read from a file (path set) or procedural.
+     * It fills a box centred on the object's origin whose sides are dims x spacing scaled so the
+     * longest is 1 (`extent`). Read by the techniques that need volumes, not at validation (which
+     * reads the file's header only). */
+    struct {
+      char *path;          /* owned: the resolved file; NULL for a procedural volume */
+      int format;          /* the file's format (renderer/core/volume_io.h's obs_volume_file) */
+      int procedural;      /* a procedural kind (renderer/core/volume.h), or -1 for a file */
+      unsigned seed;       /* procedural noise */
+      int dims[3];         /* samples per axis (the file's, or as given) */
+      int data_type;       /* raw files: obs_volume_type */
+      double spacing[3];   /* as given, 0 = the file's (1 where it has none) */
+      double range[2];     /* normalisation range as given; equal = the type's or the data's */
+      double isovalue;     /* in [0, 1]: the surface */
+      double extent[3];    /* object-space box sides (longest 1) */
+      double *colormap;    /* owned: ncolormap points (value, r, g, b) by rising value; NULL */
+      size_t ncolormap;
+    } volume;
   };
 } obs_shape;
 
@@ -80,10 +99,34 @@ typedef struct obs_object {
   size_t nmotion;
 } obs_object;
 
+/* Light kinds: an area light (a quad, emitting from its front), or the punctual lights that
+ * shading techniques light with (OBS_NEED_PUNCTUAL_LIGHTS). */
+typedef enum { OBS_LIGHT_QUAD, OBS_LIGHT_POINT, OBS_LIGHT_DIRECTIONAL } obs_light_type;
+
 typedef struct obs_light {
-  obs_vec3 v[4];
+  obs_light_type type;
+  obs_vec3 v[4];      /* quad: its vertices */
+  obs_vec3 position;  /* point: where it is */
+  obs_vec3 direction; /* directional: the way its light travels (unit) */
+  /* quad: emitted radiance; point: radiant intensity per steradian; directional: irradiance on
+   * a surface facing it. */
   obs_vec3 emission;
 } obs_light;
+
+/* The kinds of environment: a constant colour, or a map (a lat-long EXR, six cube-face EXRs or
+ * a procedural sky) that techniques with OBS_NEED_ENV_MAP turn into a cube map. */
+typedef enum { OBS_ENV_COLOR, OBS_ENV_LATLONG, OBS_ENV_FACES, OBS_ENV_SKY } obs_env_kind;
+
+typedef struct obs_environment {
+  obs_env_kind kind;
+  char *files[6];      /* owned, resolved: latlong's file in [0]; faces' six in cube-face order */
+  int resolution;      /* latlong, sky: the cube map's face size */
+  double intensity;    /* maps: radiance scale */
+  /* sky: radiance up, at the horizon and below it; the sun's direction (unit, toward it), its
+   * angular radius in degrees (0: none) and radiance. */
+  obs_vec3 zenith, horizon, ground, sun_direction, sun;
+  double sun_radius;
+} obs_environment;
 
 /* A validated scene. Owns every pointer inside it, `doc` included; release with obs_scene_free. */
 typedef struct obs_scene {
@@ -98,7 +141,9 @@ typedef struct obs_scene {
   size_t nlights;
   int frames;           /* 1, or 1 + the nmotion every moving object shares */
   int has_environment;
-  obs_vec3 environment;
+  obs_vec3 environment; /* the constant colour (env.kind OBS_ENV_COLOR) */
+  obs_environment env;  /* what the environment is (an environment map for techniques with
+                           OBS_NEED_ENV_MAP) */
   const struct obs_technique *technique; /* from the registry; never NULL once loaded */
   obs_backend backend;                   /* as requested: may be AUTO */
   json_t *params;       /* technique parameters with defaults filled in (owned reference) */

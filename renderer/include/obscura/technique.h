@@ -27,7 +27,18 @@ enum {
   /* Renders scenes whose objects move (object `motion`): every frame, each output holding all of
    * them (per-patch outputs frame by frame; images show the last frame). Scenes with motion are
    * refused by techniques without it. */
-  OBS_NEED_MOTION = 1 << 5
+  OBS_NEED_MOTION = 1 << 5,
+  /* Renders the scene's volume objects (shape "volume") and only them: the framework reads them
+   * (ctx->volumes) and the technique ignores surface objects; techniques without it ignore
+   * volumes. Either way the render warns about what it ignored, and a scene with nothing the
+   * technique renders is refused. */
+  OBS_NEED_VOLUME = 1 << 6,
+  /* Shades with the scene's point and directional lights (techniques without it refuse them:
+   * they light with quad lights, or with none). */
+  OBS_NEED_PUNCTUAL_LIGHTS = 1 << 7,
+  /* Lights with an environment map (environment "latlong", "faces" or "sky"), read by the
+   * framework (ctx->environment); techniques without it refuse those and take a colour only. */
+  OBS_NEED_ENV_MAP = 1 << 8
 };
 
 typedef void (*obs_progress_fn)(void *user, double fraction);
@@ -45,6 +56,25 @@ typedef void (*obs_progress_fn)(void *user, double fraction);
 typedef struct obs_region {
   int x0, y0, x1, y1;
 } obs_region;
+
+/* Where the per-pixel driver takes its tiles when one render is split across processes (the
+ * CLI's MPI ranks: docs/mpi.md): instead of every tile of the region, the tiles `next` hands out,
+ * and after each one `done`. Borrowed by the render; `user` is the source's.
+ * Thread safety: `next` and `done` are called from any of the render's threads, concurrently; the
+ * source serialises itself.
+ * - next: the next tile into *tile (non-empty, inside the render's region; any size, any order):
+ *   returns 1, or 0 when there are no more, or a negative OBS_E* code, which stops the render
+ *   with that code.
+ * - done (may be NULL): the tile's pixels are written into `img` (the driver's full-size image,
+ *   borrowed for the call: other threads write other tiles of it meanwhile) and it traced `rays`;
+ *   returns 0, or a negative OBS_E* code, which stops the render.
+ * The driver reports no progress while it takes tiles from a source (it cannot know how many
+ * there are): the source sees every tile. Cancellation still stops it between tiles. */
+typedef struct obs_tile_source {
+  int (*next)(void *user, obs_region *tile);
+  int (*done)(void *user, const obs_image *img, const obs_region *tile, uint64_t rays);
+  void *user;
+} obs_tile_source;
 
 /* Timings mean the same on every technique and backend (docs/architecture.md, "Timings"):
  * build_ms is what the framework builds for the technique's `needs` (geometry, BVH, G-buffer),
@@ -65,9 +95,20 @@ typedef struct obs_render_ctx {
   /* The pixels to render; all zero: the whole image. The image is always full size: pixels
    * outside the region are 0 in every channel (the seam for renders split across processes). */
   obs_region region;
+  /* NULL, or where the per-pixel driver takes its tiles (obs_render_opts.tiles); the driver sets
+   * `tiled` when it did. Runs that do not go through the per-pixel driver ignore both: a caller
+   * learns from `tiled` (obs_result.tiled) whether the technique rendered per pixel. */
+  const obs_tile_source *tiles;
+  int tiled;
   /* Built by the framework before the run for the technique's `needs`, owned by it: on the CPU
    * backend, for OBS_NEED_BVH, the BVH (renderer/cpu/raytrace.h's obs_rt); else NULL. */
   const void *rt;
+  /* For OBS_NEED_VOLUME, on every backend: the scene's volumes (renderer/core/volume_scene.h's
+   * obs_scene_volumes), read by the framework and owned by it; else NULL. */
+  const void *volumes;
+  /* For OBS_NEED_ENV_MAP: the scene's environment as a cube map (renderer/core/environment.h's
+   * obs_env), read by the framework and owned by it; NULL when the scene has none. */
+  const void *environment;
   /* Filled by the framework and the drivers (see obs_timings): */
   double build_ms;             /* what the framework builds for `needs` */
   double render_ms;            /* the technique's pixels or passes */

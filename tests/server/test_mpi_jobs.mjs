@@ -1,0 +1,121 @@
+// Jobs split over Open MPI ranks ("ranks" > 1, docs/server.md "Jobs on Open MPI ranks"): obscurad
+// --mpirun runs `mpirun -np N obscura render` per job; the outputs are bit-identical to a
+// one-process render; a cancel leaves no process behind; without --mpirun, or out of range, ranks
+// is refused naming /ranks.
+//
+//   node tests/server/test_mpi_jobs.mjs <obscurad> <obscura>
+import assert from 'node:assert/strict';
+import {spawnSync} from 'node:child_process';
+import fs from 'node:fs';
+import os from 'node:os';
+import path from 'node:path';
+import {test} from 'node:test';
+
+import {SCENES_DIR, SLOW, cliRender, download, getJob, request, sleep, submit, validate, waitJob,
+        withDaemon} from './lib.mjs';
+
+const MPIRUN = spawnSync('sh', ['-c', 'command -v mpirun'], {encoding: 'utf8'}).stdout.trim();
+
+// Tests run as root in containers, where single copy through CMA needs ptrace rights they often
+// lack (tests/cli/mpi.sh). Under ASan the ranks are ASan builds that leak inside Open MPI: they
+// get cli.mpi's suppressions (tests/CMakeLists.txt). The daemon passes its environment on to
+// mpirun; neither setting changes anything for the daemon itself, which links no MPI.
+process.env.OMPI_MCA_btl_vader_single_copy_mechanism = 'none';
+if (SLOW > 1) {
+  const root = path.resolve(SCENES_DIR, '..');
+  process.env.LSAN_OPTIONS = `suppressions=${root}/tests/lsan_mpi.supp:print_suppressions=0:fast_unwind_on_malloc=0`;
+  process.env.OMPI_MCA_mca_base_component_disable_dlclose = '1';
+  process.env.PMIX_MCA_mca_base_component_disable_dlclose = '1';
+}
+
+const SETS = {'/image/width': 48, '/image/height': 32, '/technique/params/samples': 8};
+const job = (ranks) => ({
+  scene_file: 'sphere_on_plane.json',
+  technique: {name: 'rt_ao', backend: 'cpu'},
+  set: SETS,
+  ranks,
+});
+
+test('ranks 2 renders the same bytes as ranks 1 and the CLI', {skip: !MPIRUN && 'no mpirun'}, async () => {
+  await withDaemon({args: ['--mpirun', MPIRUN]}, async (d) => {
+    const two = await submit(d, job(2));
+    const one = await submit(d, job(1));
+    const j2 = await waitJob(d, two);
+    const j1 = await waitJob(d, one);
+    assert.equal(j2.state, 'succeeded', `ranks 2: ${j2.error}\n${d.log().slice(-3000)}`);
+    assert.equal(j1.state, 'succeeded', `ranks 1: ${j1.error}`);
+    validate('Job', j2);
+    assert.equal(j2.ranks, 2);
+    assert.equal(j1.ranks, 1);
+    assert.equal(j2.backend.actual, 'cpu');
+    const ao2 = (await download(d, j2, 'ao.exr')).body;
+    const ao1 = (await download(d, j1, 'ao.exr')).body;
+    assert.ok(ao2.equals(ao1), 'ao.exr of ranks 2 differs from ranks 1');
+    const sum = JSON.parse((await download(d, j2, 'summary.json')).body.toString());
+    assert.equal(sum.ranks, 2, 'summary.json of the ranks 2 job says ranks 2');
+    const out = fs.mkdtempSync(path.join(os.tmpdir(), 'obsd-mpi-cli-'));
+    try {
+      cliRender(path.join(SCENES_DIR, 'sphere_on_plane.json'), out,
+                {technique: 'rt_ao', backend: 'cpu', sets: SETS});
+      assert.ok(fs.readFileSync(path.join(out, 'ao.exr')).equals(ao2), 'ao.exr differs from obscura render');
+    } finally {
+      fs.rmSync(out, {recursive: true, force: true});
+    }
+    const log = await request(d, 'GET', `/api/v1/jobs/${two}/log`);
+    assert.match(log.text, /mpirun started/);
+    // The ranks read the document from the job's work directory: a scene that reads files is
+    // refused rather than failing there.
+    const mesh = await request(d, 'POST', '/api/v1/jobs', {body: {scene_file: 'teapot.json', ranks: 2,
+                                                                  technique: {name: 'rt_ao', backend: 'cpu'}}});
+    assert.equal(mesh.status, 422, mesh.text);
+    assert.ok(mesh.json.problems.some((p) => /\/ranks: .*mesh file/.test(p)), mesh.text);
+  });
+});
+
+test('a cancelled ranks 2 job leaves no mpirun or obscura behind', {skip: !MPIRUN && 'no mpirun'}, async () => {
+  await withDaemon({args: ['--mpirun', MPIRUN]}, async (d) => {
+    // Many seconds on two cores, in 16x16 tiles: it is still running when cancelled.
+    const id = await submit(d, {
+      scene_file: 'sphere_on_plane.json',
+      technique: {name: 'rt_ao', backend: 'cpu', params: {samples: 256}},
+      set: {'/image/width': 1024, '/image/height': 1024},
+      ranks: 2,
+    });
+    await waitJob(d, id, (j) => j.state !== 'queued');
+    // The ranks are up once mpirun's log line is there; give them a moment to start rendering.
+    const deadline = Date.now() + 20000 * SLOW;
+    while (!/mpirun started/.test(d.log()) && Date.now() < deadline) await sleep(50);
+    await sleep(1000 * SLOW);
+    const pattern = `\\.tmp-${id}-[0-9]+-mpi/`;
+    const before = spawnSync('pgrep', ['-f', pattern], {encoding: 'utf8'});
+    assert.equal(before.status, 0, 'mpirun runs the job before the cancel');
+    const r = await request(d, 'POST', `/api/v1/jobs/${id}/cancel`);
+    assert.equal(r.status, 202, `cancel: ${r.status} ${r.text}`);
+    const j = await waitJob(d, id, undefined, 30000 * SLOW);
+    assert.equal(j.state, 'cancelled', `state ${j.state}: ${j.error}`);
+    const after = spawnSync('pgrep', ['-af', pattern], {encoding: 'utf8'});
+    assert.notEqual(after.status, 0, `left behind:\n${after.stdout}`);
+    assert.deepEqual(fs.readdirSync(d.resultsDir).filter((n) => n.startsWith(`.tmp-${id}-`)), []);
+  });
+});
+
+test('ranks is refused without --mpirun and out of range', async () => {
+  await withDaemon({}, async (d) => {
+    for (const [ranks, re] of [[2, /\/ranks: ranks > 1 needs the daemon started with --mpirun/],
+                               [0, /\/ranks: must be >= 1/], [300, /\/ranks: must be <= 256/],
+                               ['2', /\/ranks/]]) {
+      const r = await request(d, 'POST', '/api/v1/jobs', {body: job(ranks)});
+      assert.equal(r.status, 422, `ranks ${ranks}: ${r.status} ${r.text}`);
+      validate('Error', r.json);
+      assert.ok(r.json.problems.some((p) => re.test(p)), `ranks ${ranks}: ${r.text}`);
+    }
+    // Inline documents take it as a wrapper key too.
+    const doc = JSON.parse(fs.readFileSync(path.join(SCENES_DIR, 'sphere_on_plane.json'), 'utf8'));
+    const r = await request(d, 'POST', '/api/v1/jobs', {body: {...doc, ranks: 2}});
+    assert.equal(r.status, 422, r.text);
+    assert.ok(r.json.problems.some((p) => /\/ranks:/.test(p)), r.text);
+    const id = await submit(d, job(1));
+    assert.equal((await waitJob(d, id)).state, 'succeeded');
+    assert.equal((await getJob(d, id)).ranks, 1);
+  });
+});
