@@ -156,6 +156,7 @@ int main(int argc, char **argv) {
   int nconn = app.cfg.http_threads + app.cfg.workers + 3;
   if (srv_db_open(&app.db, app.cfg.db, nconn, &err)) goto out;
   if (srv_db_recover(app.db, srv_pick_lane_recovered, clean_outputs, &app, &err)) goto out;
+  srv_mpi_kill_orphans(&app);
   srv_outputs_sweep(&app);
   /* The facts every timed run is recorded with: this CPU, the threads a render uses, and the
    * Vulkan device when a Vulkan lane runs. */

@@ -44,8 +44,7 @@ static const char *reads_files(const obs_scene *sc) {
   return NULL;
 }
 
-int srv_mpi_check(srv_app *app, const obs_scene *sc, obs_backend be, int ranks,
-                  obs_err *problems) {
+int srv_mpi_check(srv_app *app, const obs_scene *sc, obs_backend be, int ranks, obs_err *problems) {
   int before = problems->count;
   const char *file = reads_files(sc);
   if (!app->cfg.mpirun)
@@ -68,7 +67,8 @@ int srv_mpi_check(srv_app *app, const obs_scene *sc, obs_backend be, int ranks,
 /* The CLI each rank runs: --obscura-cli, else obscura beside this executable (the build puts
  * them together, as it does obscura-import). */
 static int cli_path(const srv_app *app, char *buf, size_t n) {
-  if (app->cfg.obscura_cli) return (size_t)snprintf(buf, n, "%s", app->cfg.obscura_cli) < n ? 0 : -1;
+  if (app->cfg.obscura_cli)
+    return (size_t)snprintf(buf, n, "%s", app->cfg.obscura_cli) < n ? 0 : -1;
   char self[PATH_MAX];
   ssize_t len = readlink("/proc/self/exe", self, sizeof self - 1);
   if (len <= 0) return -1;
@@ -113,14 +113,16 @@ static char *read_tail(const char *path, size_t max) {
   return buf;
 }
 
-/* Every process still running whose command line names `needle` (the job's unique document
- * path) gets SIGKILL: a rank that mpirun started outside its process group must not outlive a
- * cancelled job. */
-static void kill_stragglers(const char *needle) {
+/* SIGKILL to every process of ours with a command-line argument equal to `doc`, or, with `prefix`
+ * set, starting with `doc`: an MPI job's ranks name its document (under the results directory's
+ * `.tmp-` staging names, which nothing else uses), so a whole-argument match finds them and not
+ * a pager or editor showing the file under another path. */
+static void kill_matching(const char *doc, int prefix) {
   DIR *d = opendir("/proc");
   if (!d) return;
   struct dirent *e;
   uid_t me = geteuid();
+  size_t dn = strlen(doc);
   while ((e = readdir(d))) {
     char *end;
     long pid = strtol(e->d_name, &end, 10);
@@ -133,12 +135,24 @@ static void kill_stragglers(const char *needle) {
     if (!f) continue;
     size_t n = fread(cmd, 1, sizeof cmd - 1, f);
     fclose(f);
-    for (size_t i = 0; i < n; i++)
-      if (!cmd[i]) cmd[i] = ' ';
     cmd[n] = '\0';
-    if (strstr(cmd, needle)) kill((pid_t)pid, SIGKILL);
+    for (size_t a = 0; a < n; a += strlen(cmd + a) + 1)
+      if (prefix ? !strncmp(cmd + a, doc, dn) : !strcmp(cmd + a, doc)) {
+        kill((pid_t)pid, SIGKILL);
+        break;
+      }
   }
   closedir(d);
+}
+
+static void kill_stragglers(const char *doc) { kill_matching(doc, 0); }
+
+void srv_mpi_kill_orphans(const srv_app *app) {
+  /* A daemon that died (OOM, SIGKILL) leaves its mpirun and ranks running, writing into staging
+   * names the start-up sweep removes and a retried attempt may reuse: they end first. */
+  char prefix[4200];
+  snprintf(prefix, sizeof prefix, "%s/.tmp-", app->results_dir);
+  kill_matching(prefix, 1);
 }
 
 static void nap_ms(long ms) {
@@ -239,15 +253,14 @@ static int spawn_mpirun(srv_app *app, int ranks, const char *cli, const char *do
   posix_spawnattr_setsigmask(&at, &none);
   posix_spawnattr_setsigdefault(&at, &defs);
   posix_spawnattr_setpgroup(&at, 0);
-  posix_spawnattr_setflags(&at, POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF |
-                                    POSIX_SPAWN_SETPGROUP);
+  posix_spawnattr_setflags(&at,
+                           POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF | POSIX_SPAWN_SETPGROUP);
   /* posix_spawnp: a bare "--mpirun mpirun" is looked up in PATH. */
   int rc = posix_spawnp(pid, app->cfg.mpirun, &fa, &at, argv, environ);
   posix_spawn_file_actions_destroy(&fa);
   posix_spawnattr_destroy(&at);
   if (rc)
-    return obs_err_set(err, OBS_EIO, "cannot start --mpirun %s: %s", app->cfg.mpirun,
-                       strerror(rc));
+    return obs_err_set(err, OBS_EIO, "cannot start --mpirun %s: %s", app->cfg.mpirun, strerror(rc));
   return 0;
 }
 
@@ -280,8 +293,10 @@ int srv_mpi_render(srv_app *app, const srv_job *j, const char *stage, atomic_int
     return obs_err_set(err, OBS_EUNSUPPORTED, "ranks %d needs the daemon started with --mpirun",
                        j->ranks);
   if (cli_path(app, cli, sizeof cli) || access(cli, X_OK))
-    return obs_err_set(err, OBS_EIO, "cannot run the obscura CLI %s for mpirun (pass "
-                       "--obscura-cli)", cli_path(app, cli, sizeof cli) ? "beside obscurad" : cli);
+    return obs_err_set(err, OBS_EIO,
+                       "cannot run the obscura CLI %s for mpirun (pass "
+                       "--obscura-cli)",
+                       cli_path(app, cli, sizeof cli) ? "beside obscurad" : cli);
   /* The document and mpirun's output live beside the staging directory (same `.tmp-<id>-`
    * prefix: the start-up sweep and a job's deletion remove it with the rest). */
   snprintf(work, sizeof work, "%s-mpi", stage);

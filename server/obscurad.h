@@ -676,6 +676,9 @@ int srv_mpi_render(srv_app *app, const srv_job *j, const char *stage, atomic_int
 
 /* The log lines, warnings and metrics of a recorded mpirun job's success. */
 void srv_mpi_succeeded(srv_app *app, const srv_job *j, const char *summary);
+/* Kills what a previous daemon on the same results directory left running of its MPI jobs
+ * (mpirun and ranks naming a document under its `.tmp-` staging names); at start-up. */
+void srv_mpi_kill_orphans(const srv_app *app);
 
 /* SHA-256 of a buffer (outputs.c). */
 void srv_sha256(const void *data, size_t len, unsigned char out[32]);

@@ -11,8 +11,8 @@ import os from 'node:os';
 import path from 'node:path';
 import {test} from 'node:test';
 
-import {SCENES_DIR, SLOW, cliRender, download, getJob, request, sleep, submit, validate, waitJob,
-        withDaemon} from './lib.mjs';
+import {SCENES_DIR, SLOW, cliRender, download, getJob, request, sleep, startDaemon, submit, validate,
+        waitJob, withDaemon} from './lib.mjs';
 
 const MPIRUN = spawnSync('sh', ['-c', 'command -v mpirun'], {encoding: 'utf8'}).stdout.trim();
 
@@ -97,6 +97,35 @@ test('a cancelled ranks 2 job leaves no mpirun or obscura behind', {skip: !MPIRU
     assert.notEqual(after.status, 0, `left behind:\n${after.stdout}`);
     assert.deepEqual(fs.readdirSync(d.resultsDir).filter((n) => n.startsWith(`.tmp-${id}-`)), []);
   });
+});
+
+test('a restarted daemon ends the ranks its killed predecessor left running', {skip: !MPIRUN && 'no mpirun'}, async () => {
+  const first = await startDaemon({args: ['--mpirun', MPIRUN]});
+  const id = await submit(first, {
+    scene_file: 'sphere_on_plane.json',
+    technique: {name: 'rt_ao', backend: 'cpu', params: {samples: 256}},
+    set: {'/image/width': 1024, '/image/height': 1024},
+    ranks: 2,
+  });
+  const deadline = Date.now() + 20000 * SLOW;
+  while (!/mpirun started/.test(first.log()) && Date.now() < deadline) await sleep(50);
+  await sleep(500 * SLOW);
+  const pattern = `\\.tmp-${id}-[0-9]+-mpi/`;
+  assert.equal(spawnSync('pgrep', ['-f', pattern]).status, 0, 'mpirun runs the job');
+  // The daemon dies without a word (OOM, SIGKILL): its mpirun and ranks go on.
+  first.proc.kill('SIGKILL');
+  await first.exited;
+  assert.equal(spawnSync('pgrep', ['-f', pattern]).status, 0, 'the orphans outlive the daemon');
+  // The next daemon on the same directory kills them before it sweeps their staging names; the
+  // job is requeued and runs again (to the end: left alone here, it is cancelled).
+  await withDaemon({dir: first.dir, args: ['--mpirun', MPIRUN]}, async (d) => {
+    const j = await getJob(d, id);
+    assert.ok(['queued', 'running'].includes(j.state), `requeued: ${j.state}`);
+    await request(d, 'POST', `/api/v1/jobs/${id}/cancel`);
+    await waitJob(d, id, undefined, 30000 * SLOW);
+  });
+  const left = spawnSync('pgrep', ['-af', pattern], {encoding: 'utf8'});
+  assert.notEqual(left.status, 0, `left behind:\n${left.stdout}`);
 });
 
 test('ranks is refused without --mpirun and out of range', async () => {
