@@ -118,18 +118,9 @@ static int spawn_worker(srv_meshimport *mi, char *msg, size_t n) {
   posix_spawn_file_actions_init(&fa);
   posix_spawn_file_actions_adddup2(&fa, in[0], 0);
   posix_spawn_file_actions_adddup2(&fa, outp[1], 1);
-  posix_spawnattr_init(&at);
-  /* The daemon blocks SIGINT/SIGTERM in every thread (sigwait) and ignores SIGPIPE; the worker
-   * gets neither, so a terminal's ^C or a dead daemon's pipe ends it. */
-  sigset_t none, defs;
-  sigemptyset(&none);
-  sigemptyset(&defs);
-  sigaddset(&defs, SIGPIPE);
-  sigaddset(&defs, SIGINT);
-  sigaddset(&defs, SIGTERM);
-  posix_spawnattr_setsigmask(&at, &none);
-  posix_spawnattr_setsigdefault(&at, &defs);
-  posix_spawnattr_setflags(&at, POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF);
+  /* The daemon's signal state is not the worker's: a terminal's ^C or a dead daemon's pipe must
+   * end it. */
+  srv_spawnattr_init(&at, 0);
   pid_t pid;
   int rc = posix_spawn(&pid, mi->exe, &fa, &at, argv, environ);
   posix_spawn_file_actions_destroy(&fa);

@@ -241,20 +241,10 @@ static int spawn_mpirun(srv_app *app, int ranks, const char *cli, const char *do
   posix_spawn_file_actions_addopen(&fa, 0, "/dev/null", O_RDONLY, 0);
   posix_spawn_file_actions_addopen(&fa, 1, logp, O_WRONLY | O_CREAT | O_APPEND, 0600);
   posix_spawn_file_actions_adddup2(&fa, 1, 2);
-  posix_spawnattr_init(&at);
-  /* The daemon blocks SIGINT/SIGTERM in every thread (sigwait) and ignores SIGPIPE: mpirun gets
-   * the defaults back, or it could not be stopped. */
-  sigset_t none, defs;
-  sigemptyset(&none);
-  sigemptyset(&defs);
-  sigaddset(&defs, SIGPIPE);
-  sigaddset(&defs, SIGINT);
-  sigaddset(&defs, SIGTERM);
-  posix_spawnattr_setsigmask(&at, &none);
-  posix_spawnattr_setsigdefault(&at, &defs);
+  /* mpirun gets the default signal state back, or it could not be stopped; its own process group
+   * lets a stop reach its ranks. */
+  srv_spawnattr_init(&at, POSIX_SPAWN_SETPGROUP);
   posix_spawnattr_setpgroup(&at, 0);
-  posix_spawnattr_setflags(&at,
-                           POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF | POSIX_SPAWN_SETPGROUP);
   /* posix_spawnp: a bare "--mpirun mpirun" is looked up in PATH. */
   int rc = posix_spawnp(pid, app->cfg.mpirun, &fa, &at, argv, environ);
   posix_spawn_file_actions_destroy(&fa);

@@ -4,6 +4,7 @@
 #define OBSCURAD_H
 
 #include <jansson.h>
+#include <spawn.h>
 #include <stdatomic.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -342,6 +343,24 @@ int srv_fault_due(srv_fault_kind k);
 void srv_fault_probe_failed(srv_fault_kind k, const char *code, const char *message);
 void srv_fault_clear(srv_fault_kind k);
 int srv_fault_active(srv_fault_kind k);
+
+/* Spawn attributes that give a child process the signal state the daemon's threads lack: nothing
+ * blocked, and SIGPIPE, SIGINT and SIGTERM at their default actions (the daemon blocks the last
+ * two for sigwait and ignores SIGPIPE, and a child inherits both). `flags` adds POSIX_SPAWN_*
+ * flags (e.g. POSIX_SPAWN_SETPGROUP). Release with posix_spawnattr_destroy. */
+void srv_spawnattr_init(posix_spawnattr_t *at, short flags);
+
+struct srv_app;
+/* When the maintenance thread last checked the database file (fault_checks.c). */
+typedef struct srv_fault_clock {
+  double identity_ms, check_ms;
+  int lost_settled; /* the file was replaced and copied aside: nothing more to do until restart */
+} srv_fault_clock;
+/* Probes due faults, checks the database file's identity every 2 s and its integrity every
+ * --db-check-seconds (at once after a statement met SQLITE_CORRUPT). Without the scheduler
+ * lock: probes may wait for the disk. Returns 1 when a fault was cleared; sets *metrics_due when
+ * a cleared results or database fault lets postponed comparison metrics run. */
+int srv_faults_check(struct srv_app *app, srv_fault_clock *mc, int *metrics_due);
 int srv_fault_any(void);
 /* 1 with a message when work must be refused (database lost or corrupt). */
 int srv_fault_refusing(char *msg, size_t n);

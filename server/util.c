@@ -1,5 +1,7 @@
-/* Small helpers of obscurad: the log line, wall-clock times, id parsing and directory handling. */
+/* Small helpers of obscurad: the log line, wall-clock times, id parsing, directory handling and
+ * the signal state of spawned children. */
 #include <dirent.h>
+#include <signal.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <limits.h>
@@ -113,4 +115,17 @@ json_t *srv_json_time(int64_t unix_ms) {
   char buf[40];
   srv_format_time(unix_ms, buf, sizeof buf);
   return json_string(buf);
+}
+
+void srv_spawnattr_init(posix_spawnattr_t *at, short flags) {
+  sigset_t none, defs;
+  sigemptyset(&none);
+  sigemptyset(&defs);
+  sigaddset(&defs, SIGPIPE);
+  sigaddset(&defs, SIGINT);
+  sigaddset(&defs, SIGTERM);
+  posix_spawnattr_init(at);
+  posix_spawnattr_setsigmask(at, &none);
+  posix_spawnattr_setsigdefault(at, &defs);
+  posix_spawnattr_setflags(at, (short)(POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF | flags));
 }

@@ -23,24 +23,6 @@
 
 #define PI 3.14159265358979323846
 
-enum {
-  CH_R,
-  CH_G,
-  CH_B,
-  CH_AO,
-  CH_BX,
-  CH_BY,
-  CH_BZ,
-  CH_NX,
-  CH_NY,
-  CH_NZ,
-  CH_DEPTH,
-  CH_ALPHA,
-  CH_COUNT
-};
-static const char *const channel_names[CH_COUNT] = {
-    "final.R",       "final.G",  "final.B",  "ao",       "bent_normal.X", "bent_normal.Y",
-    "bent_normal.Z", "normal.X", "normal.Y", "normal.Z", "depth.Z",       "alpha"};
 
 typedef struct job {
   const obs_scene_volumes *vols;
@@ -127,15 +109,17 @@ static void march_ao(const job *jb, const hit *h, const double n[3], uint32_t x,
     obs_affine_dir(va->to_data, w, da);
     normalize3(da);
     int blocked = 0;
+    /* The direction of the march's parameter in world space, for the other volumes. */
+    double dw[3] = {0, 0, 0};
+    if (nv > 1) obs_affine_dir(va->to_world, da, dw);
     for (size_t b = 0; b < nv && !blocked; b++) {
       const obs_scene_volume *vb = &jb->vols->v[b];
       obs_volume_iso is = iso_of(vb);
       if (b == h->vol) {
         blocked = obs_volume_grid_crossing(&is, h->p, da, &jb->march);
       } else { /* the same parameter t, carried through world space into b's data space */
-        double ob[3], dw[3], db[3];
+        double ob[3], db[3];
         obs_affine_point(vb->to_data, world, ob);
-        obs_affine_dir(va->to_world, da, dw);
         obs_affine_dir(vb->to_data, dw, db);
         blocked = obs_volume_grid_crossing(&is, ob, db, &jb->march);
       }
@@ -299,6 +283,6 @@ int obs_volume_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   if (jb.env && jb.p.ibl == OBS_IBL_IRRADIANCE) obs_env_sh9(jb.env, jb.sh);
   obs_camera_setup(&sc->camera, sc->width, sc->height, &jb.cam);
   obs_volume_ao_warn(ctx, sc, &jb.p);
-  static const obs_pixel_ops ops = {CH_COUNT, channel_names, shade_pixel};
+  static const obs_pixel_ops ops = {CH_COUNT, obs_volume_ao_channels, shade_pixel};
   return obs_driver_pixels(ctx, &ops, &jb, out, err);
 }

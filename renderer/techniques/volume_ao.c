@@ -42,6 +42,10 @@ static const obs_output volume_ao_outputs[] = {
      .flags = OBS_OUTPUT_UNIT},
     {.name = NULL}};
 
+const char *const obs_volume_ao_channels[CH_COUNT] = {
+    "final.R",       "final.G",  "final.B",  "ao",       "bent_normal.X", "bent_normal.Y",
+    "bent_normal.Z", "normal.X", "normal.Y", "normal.Z", "depth.Z",       "alpha"};
+
 static const char *const crossings[] = {"rising", "any", NULL}; /* obs_volume_crossing */
 static const char *const shadings[] = {"lambert", "blinn_phong", NULL};
 static const char *const ibls[] = {"none", "bent_normal_lookup", "irradiance", "reference", NULL};
@@ -194,6 +198,16 @@ void obs_volume_ao_warn(obs_render_ctx *ctx, const obs_scene *sc, const obs_volu
  * AO length is in that space, so the result does not depend on the object's scale or place until
  * double's relative precision (1e-16) times the translation over the size reaches a thousandth
  * of a voxel of a 4096-sample axis: 1e9 sizes. */
+/* Both backends' range: the same sizes, translation and fields of view; only the depth
+ * tolerance differs (float on Vulkan). */
+#define VOLUME_AO_RANGE(depth_rel_)                                                          \
+  {                                                                                          \
+    .size_min = 1e-9, .size_max = 1e9, .translation_max = 1e6, .fov_min = 1e-3,              \
+    .fov_max = 170, .orthographic = 1, .params = {{NULL, 0, 0, 0}},                          \
+    .tol = {.ao_mean = 1e-3, .ao_pixel = 1e-4, .share = 0.02, .normal = 1e-4,                \
+            .depth_rel = depth_rel_}                                                         \
+  }
+
 const obs_technique obs_technique_volume_ao = {
     .name = "volume_ao",
     .description =
@@ -210,18 +224,7 @@ const obs_technique obs_technique_volume_ao = {
     .reference = volume_ao_reference,
     .reference_quality = "samples",
     .run = {[OBS_BACKEND_CPU] = obs_volume_ao_cpu, [OBS_BACKEND_VULKAN] = obs_volume_ao_vulkan},
-    .range = {[OBS_BACKEND_CPU] = {.size_min = 1e-9,
-                                   .size_max = 1e9,
-                                   .translation_max = 1e6,
-                                   .fov_min = 1e-3,
-                                   .fov_max = 170,
-                                   .orthographic = 1,
-                                   .params = {{NULL, 0, 0, 0}},
-                                   .tol = {.ao_mean = 1e-3,
-                                           .ao_pixel = 1e-4,
-                                           .share = 0.02,
-                                           .normal = 1e-4,
-                                           .depth_rel = 3e-5}},
+    .range = {[OBS_BACKEND_CPU] = VOLUME_AO_RANGE(3e-5),
               /* The shader computes in float, but in each volume's data space, from maps the
                * host composes in double relative to a point on the view axis at the volumes'
                * depth, and camera rays start where they cross that point's depth plane
@@ -231,16 +234,5 @@ const obs_technique obs_technique_volume_ao = {
                * bisected hit within its thousandth of a voxel, and over both ends of this range
                * (tests/vulkan/test_extremes_vk.c) depth moved by up to 7.8e-5 of itself and
                * normals by 6.2e-5, while AO and colour did not change on any pixel. */
-              [OBS_BACKEND_VULKAN] = {.size_min = 1e-9,
-                                      .size_max = 1e9,
-                                      .translation_max = 1e6,
-                                      .fov_min = 1e-3,
-                                      .fov_max = 170,
-                                      .orthographic = 1,
-                                      .params = {{NULL, 0, 0, 0}},
-                                      .tol = {.ao_mean = 1e-3,
-                                              .ao_pixel = 1e-4,
-                                              .share = 0.02,
-                                              .normal = 1e-4,
-                                              .depth_rel = 1e-4}}},
+              [OBS_BACKEND_VULKAN] = VOLUME_AO_RANGE(1e-4)},
 };

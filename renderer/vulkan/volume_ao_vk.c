@@ -26,24 +26,6 @@
 #include "volume_scene.h"
 #include "volume_textures_vk.h"
 
-enum {
-  CH_R,
-  CH_G,
-  CH_B,
-  CH_AO,
-  CH_BX,
-  CH_BY,
-  CH_BZ,
-  CH_NX,
-  CH_NY,
-  CH_NZ,
-  CH_DEPTH,
-  CH_ALPHA,
-  CH_COUNT
-};
-static const char *const channel_names[CH_COUNT] = {
-    "final.R",       "final.G",  "final.B",  "ao",       "bent_normal.X", "bent_normal.Y",
-    "bent_normal.Z", "normal.X", "normal.Y", "normal.Z", "depth.Z",       "alpha"};
 
 /* The parameter buffer, rows of 4 floats as the shader reads them: a header, then per volume
  * V_COUNT rows, per light L_COUNT rows, then the colormaps' points (value, r, g, b). Keep in
@@ -465,7 +447,7 @@ int obs_volume_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   obs_camera_setup(&sc->camera, sc->width, sc->height, &jb.rig);
   march_grid(&jb);
   obs_region rg;
-  int rc = obs_driver_image(ctx, CH_COUNT, channel_names, out, &rg, err);
+  int rc = obs_driver_image(ctx, CH_COUNT, obs_volume_ao_channels, out, &rg, err);
   if (rc) return rc;
   obs_volume_ao_warn(ctx, jb.sc, &jb.p);
   obs_vk *vk = NULL;
