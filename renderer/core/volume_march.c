@@ -131,25 +131,161 @@ void obs_volume_normal(const obs_volume *v, const double p[3], double n[3]) {
   for (int a = 0; a < 3; a++) n[a] = -g[a] / l;
 }
 
-/* The data-space box of the macrocell holding q, and whether the field stays below iso in it. */
-static int cell_below(const obs_volume_iso *s, const double q[3], double lo[3], double hi[3]) {
-  const obs_volume *v = s->v;
-  const obs_volume_cells *c = s->cells;
-  int ci[3];
+/* A volume as the AO march reads it: in index space, where voxel (i, j, k)'s centre lies at
+ * u = (i, j, k), so a sample costs no division; float, as the Vulkan twin's march. */
+typedef struct grid {
+  const float *data;
+  float hi[3];       /* n - 1: the field is held beyond the outer centres */
+  int top[3];        /* the largest lower corner: n - 2, 0 on a 1-voxel axis */
+  size_t row[3];     /* 1, n0, n0 n1 */
+  size_t up[3];      /* the upper corner's offset: row, 0 on a 1-voxel axis (its weight is 0) */
+} grid;
+
+static void grid_init(const obs_volume *v, grid *g) {
+  g->data = v->data;
+  size_t row = 1;
   for (int a = 0; a < 3; a++) {
-    double sp = v->spacing[a];
-    double u = fmin(fmax(q[a] / sp - 0.5, 0), v->n[a] > 1 ? v->n[a] - 1 : 0);
-    ci[a] = (int)(u / c->cell);
-    if (ci[a] >= c->n[a]) ci[a] = c->n[a] - 1;
-    lo[a] = ci[a] == 0 ? -INFINITY : (ci[a] * c->cell + 0.5) * sp;
-    hi[a] = ci[a] == c->n[a] - 1 ? INFINITY : ((ci[a] + 1) * c->cell + 0.5) * sp;
+    g->hi[a] = (float)(v->n[a] - 1);
+    g->top[a] = v->n[a] > 1 ? v->n[a] - 2 : 0;
+    g->row[a] = row;
+    g->up[a] = v->n[a] > 1 ? row : 0;
+    row *= (size_t)v->n[a];
   }
-  size_t at = ((size_t)ci[2] * (size_t)c->n[1] + (size_t)ci[1]) * (size_t)c->n[0] + (size_t)ci[0];
-  return c->max[at] < s->iso;
 }
 
-static int crosses(obs_volume_crossing how, double prev, double cur, double iso) {
+/* The trilinear field at index-space point u (obs_volume_sample's field, in float). */
+static inline float grid_sample(const grid *g, const float u[3]) {
+  int i[3];
+  float w[3];
+  for (int a = 0; a < 3; a++) {
+    float x = u[a] > 0 ? u[a] : 0; /* NaN too */
+    x = x < g->hi[a] ? x : g->hi[a];
+    i[a] = (int)x;
+    if (i[a] > g->top[a]) i[a] = g->top[a];
+    w[a] = x - (float)i[a];
+  }
+  const float *p = g->data + (size_t)i[0] + (size_t)i[1] * g->row[1] + (size_t)i[2] * g->row[2];
+  size_t sx = g->up[0], sy = g->up[1], sz = g->up[2];
+  float c00 = p[0] + w[0] * (p[sx] - p[0]);
+  float c10 = p[sy] + w[0] * (p[sy + sx] - p[sy]);
+  float c01 = p[sz] + w[0] * (p[sz + sx] - p[sz]);
+  float c11 = p[sz + sy] + w[0] * (p[sz + sy + sx] - p[sz + sy]);
+  float c0 = c00 + w[1] * (c10 - c00), c1 = c01 + w[1] * (c11 - c01);
+  return c0 + w[2] * (c1 - c0);
+}
+
+/* A 3D-DDA over the macrocells along u0 + t du (index space): the cell the ray is in and, per
+ * axis, the t where it crosses into the next cell (infinite where it never does: du is 0 there,
+ * or the cell is the outer one on that side, which reaches past the volume's faces). */
+typedef struct cell_walk {
+  const obs_volume_cells *c;
+  const float *u0, *inv; /* inv: 1 / du per axis, 0 where du is 0 */
+  int ci[3];
+  float next[3];
+} cell_walk;
+
+static void walk_face(cell_walk *w, int a) {
+  const obs_volume_cells *c = w->c;
+  w->next[a] = INFINITY;
+  if (w->inv[a] > 0 && w->ci[a] < c->n[a] - 1)
+    w->next[a] = ((float)((w->ci[a] + 1) * c->cell) - w->u0[a]) * w->inv[a];
+  else if (w->inv[a] < 0 && w->ci[a] > 0)
+    w->next[a] = ((float)(w->ci[a] * c->cell) - w->u0[a]) * w->inv[a];
+}
+
+/* Starts the walk in the cell holding index-space point q. A point on a face between two cells
+ * lies in both (the field there is within either's bounds), so the index may round either way. */
+static void walk_init(cell_walk *w, const grid *g, const float q[3]) {
+  const obs_volume_cells *c = w->c;
+  float inv_cell = 1.0f / (float)c->cell;
+  for (int a = 0; a < 3; a++) {
+    float x = q[a] > 0 ? q[a] : 0;
+    x = x < g->hi[a] ? x : g->hi[a];
+    w->ci[a] = (int)(x * inv_cell);
+    if (w->ci[a] >= c->n[a]) w->ci[a] = c->n[a] - 1;
+    walk_face(w, a);
+  }
+}
+
+static float walk_exit(const cell_walk *w) {
+  float e = w->next[0] < w->next[1] ? w->next[0] : w->next[1];
+  return e < w->next[2] ? e : w->next[2];
+}
+
+static void walk_step(cell_walk *w) {
+  int a = w->next[0] <= w->next[1] ? 0 : 1;
+  if (w->next[2] < w->next[a]) a = 2;
+  w->ci[a] += w->inv[a] > 0 ? 1 : -1;
+  walk_face(w, a);
+}
+
+static int crosses(obs_volume_crossing how, float prev, float cur, float iso) {
   return how == OBS_VOLUME_CROSS_RISING ? prev < iso && cur > iso : (prev < iso) != (cur < iso);
+}
+
+/* The march's grid: samples at t = start + i step for i = ia ... ib, all inside the box. */
+typedef struct march {
+  const grid *g;
+  float u0[3], du[3], inv[3], iso;
+  double start, step, inv_step;
+  int64_t ia, ib;
+  obs_volume_crossing how;
+} march;
+
+static inline float march_sample(const march *m, int64_t i) {
+  float t = (float)(m->start + (double)i * m->step);
+  float q[3] = {m->u0[0] + t * m->du[0], m->u0[1] + t * m->du[1], m->u0[2] + t * m->du[2]};
+  return grid_sample(m->g, q);
+}
+
+/* Samples ia ... ib one by one; *prev is the value before ia and the last on return. */
+static int march_plain(const march *m, float *prev) {
+  for (int64_t i = m->ia; i <= m->ib; i++) {
+    float cur = march_sample(m, i);
+    if (crosses(m->how, *prev, cur, m->iso)) return 1;
+    *prev = cur;
+  }
+  return 0;
+}
+
+/* The same answer cell by cell: a cell wholly below or wholly above iso decides its samples from
+ * its bounds (the tests read only which side of iso each value lies on), a cell that reaches iso
+ * is sampled. */
+static int march_cells(const march *m, const obs_volume_cells *c, float *prev) {
+  float t = (float)(m->start + (double)m->ia * m->step);
+  float q[3] = {m->u0[0] + t * m->du[0], m->u0[1] + t * m->du[1], m->u0[2] + t * m->du[2]};
+  cell_walk w = {c, m->u0, m->inv, {0, 0, 0}, {0, 0, 0}};
+  walk_init(&w, m->g, q);
+  for (int64_t i = m->ia; i <= m->ib; walk_step(&w)) {
+    /* The cell's last sample: the last grid t at or before its exit. */
+    float exit = walk_exit(&w);
+    int64_t j = m->ib;
+    if (exit < INFINITY) {
+      /* The quotient by a reciprocal may round across an integer: the grid itself decides. */
+      double last_in = floor((exit - m->start) * m->inv_step);
+      if (m->start + last_in * m->step > exit)
+        last_in -= 1;
+      else if (m->start + (last_in + 1) * m->step <= exit)
+        last_in += 1;
+      if (last_in < (double)j) j = (int64_t)last_in;
+    }
+    if (j < i) continue; /* no sample in this cell */
+    size_t at = ((size_t)w.ci[2] * (size_t)c->n[1] + (size_t)w.ci[1]) * (size_t)c->n[0] +
+                (size_t)w.ci[0];
+    if (c->max[at] < m->iso) {
+      if (crosses(m->how, *prev, -1, m->iso)) return 1;
+      *prev = -1;
+    } else if (c->min[at] > m->iso) {
+      if (crosses(m->how, *prev, 2, m->iso)) return 1;
+      *prev = 2;
+    } else {
+      march sub = *m;
+      sub.ia = i, sub.ib = j;
+      if (march_plain(&sub, prev)) return 1;
+    }
+    i = j + 1;
+  }
+  return 0;
 }
 
 int obs_volume_grid_crossing(const obs_volume_iso *s, const double o[3], const double d[3],
@@ -160,45 +296,25 @@ int obs_volume_grid_crossing(const obs_volume_iso *s, const double o[3], const d
   if (!(last <= OBS_VOLUME_AO_MAX_STEPS)) last = OBS_VOLUME_AO_MAX_STEPS;
   double t0 = a->start, t1 = a->start + last * a->step;
   if (!clip_box(v, o, d, &t0, &t1)) return 0; /* 0 all along: no crossing */
-  /* Grid indices inside the box; the samples before and after read 0. */
-  int64_t ia = (int64_t)ceil((t0 - a->start) / a->step),
-          ib = (int64_t)floor((t1 - a->start) / a->step);
-  if (ia < 0) ia = 0;
-  if (ib > (int64_t)last) ib = (int64_t)last;
-  double prev = 0;
-  if (ia == 0) prev = field_at(v, o, d, a->start), ia = 1;
-  /* Up to t = known the ray stays in a cell that reaches iso: no cell test is needed there. */
-  double known = -INFINITY;
-  for (int64_t i = ia; i <= ib; i++) {
-    double t = a->start + (double)i * a->step;
-    double q[3] = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]};
-    double lo[3], hi[3];
-    if (s->cells && prev < s->iso && t > known) {
-      int below = cell_below(s, q, lo, hi);
-      double exit = INFINITY;
-      for (int k = 0; k < 3; k++) {
-        if (d[k] > 0 && isfinite(hi[k])) exit = fmin(exit, (hi[k] - o[k]) / d[k]);
-        if (d[k] < 0 && isfinite(lo[k])) exit = fmin(exit, (lo[k] - o[k]) / d[k]);
-      }
-      /* A cell below iso holds no end of a crossing: jump past its last grid sample, whose
-       * value, below iso like prev's, is all the next test needs (the tests read only which
-       * side of iso prev lies on, so any skipped samples give the same answer). */
-      double last_in = floor((exit - a->start) / a->step);
-      if (below && a->start + last_in * a->step > exit) last_in -= 1;
-      if (!below) {
-        known = exit;
-      } else if (last_in > (double)i) {
-        i = last_in >= (double)ib ? ib : (int64_t)last_in; /* the loop's i++ leaves the cell */
-        prev = -1;
-        continue;
-      }
-    }
-    double cur = obs_volume_sample(v, q);
-    if (crosses(a->crossing, prev, cur, s->iso)) return 1;
-    prev = cur;
+  grid g;
+  grid_init(v, &g);
+  march m = {&g, {0, 0, 0}, {0, 0, 0}, {0, 0, 0}, s->iso, a->start, a->step, 1 / a->step, 0, 0, a->crossing};
+  for (int k = 0; k < 3; k++) {
+    m.u0[k] = (float)(o[k] / v->spacing[k] - 0.5);
+    m.du[k] = (float)(d[k] / v->spacing[k]);
+    m.inv[k] = m.du[k] != 0 ? 1 / m.du[k] : 0;
   }
+  /* Grid indices inside the box; the samples before and after read 0. */
+  m.ia = (int64_t)ceil((t0 - a->start) / a->step);
+  m.ib = (int64_t)floor((t1 - a->start) / a->step);
+  if (m.ia < 0) m.ia = 0;
+  if (m.ib > (int64_t)last) m.ib = (int64_t)last;
+  float prev = 0;
+  if (m.ia == 0) prev = march_sample(&m, 0), m.ia = 1;
+  if (m.ia <= m.ib && (s->cells ? march_cells(&m, s->cells, &prev) : march_plain(&m, &prev)))
+    return 1;
   /* Past the box the field reads 0. */
-  return ib < (int64_t)last && crosses(a->crossing, prev, 0, s->iso);
+  return m.ib < (int64_t)last && crosses(a->crossing, prev, 0, s->iso);
 }
 
 double obs_volume_ao(const obs_volume_iso *s, const double p[3], const double n[3],
