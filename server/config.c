@@ -48,6 +48,9 @@ static const opt opts[] = {
      "per-job limit on width x height x spp x samples (default 1e10)"},
     {"max-triangles", OPT_I64, OFF(max_triangles), 1, 1e10,
      "per-job limit on triangles (default 4194304)"},
+    {"max-voxels", OPT_I64, OFF(max_voxels), 1, 1e12,
+     "per-job limit on the volume samples its renders hold on this machine, every local MPI "
+     "rank counted (default 268435456)"},
     {"max-render-seconds", OPT_INT, OFF(max_render_seconds), 1, 86400 * 7,
      "a render running longer is stopped and the job fails (default 600)"},
     {"worker-nice", OPT_INT, OFF(worker_nice), 0, 19,
@@ -234,6 +237,7 @@ int srv_config_parse(srv_config *cfg, int argc, char **argv) {
   cfg->max_pixels = 4096 * 4096;
   cfg->max_work = 1e10;
   cfg->max_triangles = 4194304;
+  cfg->max_voxels = 268435456;
   cfg->max_render_seconds = 600;
   cfg->session_seconds = 12 * 3600;
   cfg->worker_nice = 10;

@@ -41,6 +41,7 @@ typedef struct srv_config {
   int64_t max_pixels;    /* width x height */
   double max_work;       /* width x height x spp x samples */
   int64_t max_triangles;
+  int64_t max_voxels;    /* volume samples a job's processes hold on this machine */
   int max_render_seconds;
   int worker_nice;        /* nice value of render threads (0..19), default 10 */
   int checkpoint_seconds; /* WAL checkpoint period */
@@ -552,6 +553,9 @@ json_t *srv_submit_load_bundled(struct srv_app *app, struct obs_jpath *p, const 
 json_t *srv_submit_get_sets(struct obs_jpath *p, const json_t *req);
 void srv_submit_apply_sets(struct obs_jpath *p, const json_t *sets, json_t *doc);
 void srv_submit_check_limits(struct srv_app *app, const obs_scene *sc, obs_err *problems);
+/* The volume samples one render of sc holds: every volume's dims multiplied and summed when the
+ * technique reads volumes (OBS_NEED_VOLUME), else 0. */
+double srv_scene_voxels(const obs_scene *sc);
 /* Sets the technique of bundled scene `doc` (named `docname`) to request member `tech` ({"name",
  * "backend", "params"}): the params are obs_technique_defaults_for the loaded scene with the
  * request's over them, so the scene's own params stay for its technique and lengths follow the

@@ -182,6 +182,17 @@ static double triangles_of(const obs_scene *sc, obs_err *err) {
   return n;
 }
 
+double srv_scene_voxels(const obs_scene *sc) {
+  if (!(sc->technique->needs & OBS_NEED_VOLUME)) return 0;
+  double n = 0;
+  for (size_t i = 0; i < sc->nobjects; i++) {
+    const obs_shape *s = &sc->objects[i].shape;
+    if (s->type == OBS_SHAPE_VOLUME)
+      n += (double)s->volume.dims[0] * s->volume.dims[1] * s->volume.dims[2];
+  }
+  return n;
+}
+
 void srv_submit_check_limits(srv_app *app, const obs_scene *sc, obs_err *problems) {
   const srv_config *c = &app->cfg;
   const char *d = sc->name;
@@ -209,6 +220,11 @@ void srv_submit_check_limits(srv_app *app, const obs_scene *sc, obs_err *problem
     obs_err_set(problems, OBS_EINVAL,
                 "%s: /objects: %.0f triangles exceed the server's limit max-triangles = %lld", d,
                 tris, (long long)c->max_triangles);
+  double voxels = srv_scene_voxels(sc);
+  if (voxels > (double)c->max_voxels)
+    obs_err_set(problems, OBS_EINVAL,
+                "%s: /objects: %.0f volume samples exceed the server's limit max-voxels = %lld", d,
+                voxels, (long long)c->max_voxels);
   if (work <= c->max_work) srv_submit_check_estimate(app, sc, problems);
 }
 

@@ -170,7 +170,8 @@ test('bad input corpus', async () => {
     }
   }
   await withDaemon({token: corpus.token, args: ['--max-body', '1048576', '--max-pixels', '1000000',
-                                                '--max-work', '1e8', '--max-triangles', '100000']}, async (d) => {
+                                                '--max-work', '1e8', '--max-triangles', '100000',
+                                                '--max-voxels', '1000000']}, async (d) => {
     const pid = d.proc.pid;
     // One finished job for the routes that need an id; both base bodies must be valid as they are.
     const id = await submit(d, corpus.bases.file);

@@ -37,7 +37,7 @@ const job = (ranks) => ({
 });
 
 test('ranks 2 renders the same bytes as ranks 1 and the CLI', {skip: !MPIRUN && 'no mpirun'}, async () => {
-  await withDaemon({args: ['--mpirun', MPIRUN]}, async (d) => {
+  await withDaemon({args: ['--mpirun', MPIRUN, '--max-voxels', '1500000']}, async (d) => {
     const two = await submit(d, job(2));
     const one = await submit(d, job(1));
     const j2 = await waitJob(d, two);
@@ -69,6 +69,12 @@ test('ranks 2 renders the same bytes as ranks 1 and the CLI', {skip: !MPIRUN && 
                                                                   technique: {name: 'rt_ao', backend: 'cpu'}}});
     assert.equal(mesh.status, 422, mesh.text);
     assert.ok(mesh.json.problems.some((p) => /\/ranks: .*mesh file/.test(p)), mesh.text);
+    // Every local rank reads the whole volume: volume_torus's 96^3 + 48^3 = 995328 samples fit
+    // --max-voxels once, not twice.
+    const vol = await request(d, 'POST', '/api/v1/jobs', {body: {scene_file: 'volume_torus.json', ranks: 2,
+                                                                 technique: {name: 'volume_ao', backend: 'cpu'}}});
+    assert.equal(vol.status, 422, vol.text);
+    assert.ok(vol.json.problems.some((p) => /\/ranks: 2 ranks on this machine each hold the scene's 995328 volume samples, 1990656 in all, beyond the server's limit max-voxels = 1500000/.test(p)), vol.text);
   });
 });
 
