@@ -316,6 +316,28 @@ static int publish(slot *sl, srv_job *j, obs_result *res, const obs_scene *sc, s
   }
 }
 
+/* The job's warnings and its success line; `res` NULL: an mpirun job, whose summary.json text
+ * is `summary`. */
+static void log_success(srv_app *app, const srv_job *j, const obs_result *res,
+                        const char *summary) {
+  if (!res) {
+    srv_mpi_succeeded(app, j, summary);
+    return;
+  }
+  srv_metrics_render(res->technique->name, obs_backend_name(res->backend),
+                     res->timings.total_ms / 1e3);
+  for (int w = 0; w < res->nwarnings; w++) srv_job_log(app, j->id, "warning: %s", res->warnings[w]);
+  char where[32] = "the Vulkan device";
+  if (res->backend != OBS_BACKEND_VULKAN)
+    snprintf(where, sizeof where, "%d CPU thread%s", res->threads, res->threads == 1 ? "" : "s");
+  srv_job_log(app, j->id,
+              "running -> succeeded (%s/%s %dx%d on %s, %.1f ms: load %.1f, build %.1f, "
+              "render %.1f, write %.1f)",
+              res->technique->name, obs_backend_name(res->backend), res->image.width,
+              res->image.height, where, res->timings.total_ms, res->timings.load_ms,
+              res->timings.build_ms, res->timings.render_ms, res->timings.write_ms);
+}
+
 /* Publishes a finished render and records it; returns 1 when the job succeeded. `res` NULL: an
  * mpirun job, whose outputs are in the staging directory and whose summary.json text is
  * `mpi_summary` (taken). */
@@ -339,6 +361,8 @@ static int finish_render(slot *sl, srv_job *j, obs_result *res, const obs_scene 
     json_decref(sum);
   }
   if (!rc) {
+    /* The log lines go first: a client that sees the job succeeded must find them in its log. */
+    log_success(app, j, res, summary);
     outcome o = {.kind = OUT_SUCCESS,
                  .backend = res ? obs_backend_name(res->backend) : "cpu",
                  .summary = summary,
@@ -349,8 +373,9 @@ static int finish_render(slot *sl, srv_job *j, obs_result *res, const obs_scene 
     /* Published first, committed second: a crash in between leaves a job still `running` in
      * the database, which recovery requeues and whose directory it removes. */
     rc = record(sl, j->id, &o, err);
+    if (rc)
+      srv_job_log(app, j->id, "the success above was not recorded: %s", obs_err_message(err));
   }
-  if (!rc && !res) srv_mpi_succeeded(app, j, summary);
   free(summary);
   if (rc == OBS_ETRANSIENT) return 0; /* stopping with the database down: left to recovery */
   if (rc) {
@@ -360,22 +385,6 @@ static int finish_render(slot *sl, srv_job *j, obs_result *res, const obs_scene 
     fail_job(sl, j, SRV_FAILED, obs_err_message(err));
     return 0;
   }
-  if (!res) {
-    job_done(app->sched);
-    return 1;
-  }
-  srv_metrics_render(res->technique->name, obs_backend_name(res->backend),
-                     res->timings.total_ms / 1e3);
-  for (int w = 0; w < res->nwarnings; w++) srv_job_log(app, j->id, "warning: %s", res->warnings[w]);
-  char where[32] = "the Vulkan device";
-  if (res->backend != OBS_BACKEND_VULKAN)
-    snprintf(where, sizeof where, "%d CPU thread%s", res->threads, res->threads == 1 ? "" : "s");
-  srv_job_log(app, j->id,
-              "running -> succeeded (%s/%s %dx%d on %s, %.1f ms: load %.1f, build %.1f, "
-              "render %.1f, write %.1f)",
-              res->technique->name, obs_backend_name(res->backend), res->image.width,
-              res->image.height, where, res->timings.total_ms, res->timings.load_ms,
-              res->timings.build_ms, res->timings.render_ms, res->timings.write_ms);
   job_done(app->sched);
   return 1;
 }
