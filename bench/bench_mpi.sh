@@ -15,7 +15,11 @@
 #   Environment: SCENE (default scenes/sphere_on_plane.json), TECHNIQUE (rt_ao; any per-pixel CPU
 #   technique with a `samples` parameter, e.g. volume_ao on scenes/volume_engine.json), SIZE (512:
 #   SIZE x SIZE pixels), SAMPLES (64, the technique's samples), MPIRUN_ARGS (extra mpirun options,
-#   e.g. --oversubscribe).
+#   e.g. --oversubscribe), DATA (1: also the data-parallel render, `--distribute data`, of a volume
+#   technique, timed the same way, with its image difference against one process: AO and final
+#   RMSE and the fraction of pixels off by more than 1e-3, from the build's tests/metrics_tool),
+#   EXTRA (more render options for every run, split at spaces, e.g.
+#   "--set /technique/params/max_distance=0.15").
 set -u
 root=$(cd "$(dirname "$0")/.." && pwd)
 build=${1:-$root/build}
@@ -36,6 +40,8 @@ out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
 args=(render "$scene" --technique "$technique" --backend cpu --set "/image/width=$size"
       --set "/image/height=$size" --set "/technique/params/samples=$samples" --threads 1 --quiet)
+# shellcheck disable=SC2206
+[ -n "${EXTRA:-}" ] && args+=(${EXTRA})
 
 now() { date +%s.%N; }
 # Runs "$@" and appends "<wall s> <render ms>" (the render time from DIR/summary.json) to FILE.
@@ -62,6 +68,11 @@ for i in $(seq "$repeats"); do
   # shellcheck disable=SC2086
   timed "$out/split.txt" "$out/split$i" mpirun ${MPIRUN_ARGS:-} -np "$ranks" "$cli" "${args[@]}"
   timed "$out/threads.txt" "$out/threads$i" "$cli" "${args[@]}" --threads "$ranks"
+  if [ "${DATA:-0}" = 1 ]; then
+    # shellcheck disable=SC2086
+    timed "$out/data.txt" "$out/data$i" mpirun ${MPIRUN_ARGS:-} -np "$ranks" "$cli" "${args[@]}" \
+      --distribute data
+  fi
   exr=$(cd "$out/one$i" && ls ./*.exr | head -1)
   for run in split threads; do
     cmp -s "$out/one$i/$exr" "$out/$run$i/$exr" ||
@@ -85,3 +96,14 @@ awk -v w1="$w1" -v wn="$wn" -v wt="$wt" -v r1="$r1" -v rn="$rn" -v rt="$rt" -v n
     w1 / (n * wt), r1 / (n * rt)
 }'
 echo "same EXR bytes in every run"
+if [ "${DATA:-0}" = 1 ]; then
+  wd=$(cut -d' ' -f1 "$out/data.txt" | median) rd=$(cut -d' ' -f2 "$out/data.txt" | median)
+  printf '%-22s %10s %12s\n' "$ranks ranks, data" "$wd" "$rd"
+  awk -v w1="$w1" -v wd="$wd" -v r1="$r1" -v rd="$rd" -v n="$ranks" 'BEGIN {
+    printf "%d ranks, data-parallel: efficiency wall %.2f   render %.2f\n", n, w1 / (n * wd),
+      r1 / (n * rd) }'
+  if [ -x "$build/tests/metrics_tool" ]; then
+    echo "data-parallel against one process (channel rmse max_abs differ>1e-3):"
+    "$build/tests/metrics_tool" diff "$out/data1/$exr" "$out/one1/$exr" ao final.G alpha
+  fi
+fi

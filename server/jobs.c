@@ -410,7 +410,7 @@ static int run_mpi(slot *sl, srv_job *j) {
     pthread_mutex_lock(&app->sched->mu);
     sl->deadline_ms = obs_now_ms() + 1e3 * app->cfg.max_render_seconds;
     pthread_mutex_unlock(&app->sched->mu);
-    rc = srv_mpi_render(app, j, stage, &sl->cancel, &summary, &err);
+    rc = srv_mpi_render(app, j, stage, &sl->cancel, &sl->progress_ppm, &summary, &err);
     gate_leave(app->sched, 0);
   }
   pthread_mutex_lock(&app->sched->mu);

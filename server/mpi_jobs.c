@@ -30,23 +30,17 @@ extern char **environ;
 /* How much of mpirun's output a failure message quotes. */
 #define MPI_TAIL_BYTES 1500
 
-/* Whether the scene reads files beside its document (meshes, volume files, environment maps):
- * the ranks load the document from the job's work directory, where such relative paths do not
- * resolve, and the daemon's contained mesh importer would be bypassed. */
-static const char *reads_files(const obs_scene *sc) {
-  for (size_t i = 0; i < sc->nobjects; i++) {
-    const obs_shape *s = &sc->objects[i].shape;
-    if (s->type == OBS_SHAPE_MESH) return "a mesh file";
-    if (s->type == OBS_SHAPE_VOLUME && s->volume.path) return "a volume file";
-  }
-  for (int i = 0; i < 6; i++)
-    if (sc->env.files[i]) return "an environment map";
-  return NULL;
+/* Whether the scene reads a mesh: the ranks would parse it themselves, outside the daemon's
+ * contained importer. Volume files and environment maps are read by the renderer in a local
+ * job too; the ranks resolve them against the scenes directory (--base-dir), as the daemon does. */
+static int reads_mesh(const obs_scene *sc) {
+  for (size_t i = 0; i < sc->nobjects; i++)
+    if (sc->objects[i].shape.type == OBS_SHAPE_MESH) return 1;
+  return 0;
 }
 
 int srv_mpi_check(srv_app *app, const obs_scene *sc, obs_backend be, int ranks, obs_err *problems) {
   int before = problems->count;
-  const char *file = reads_files(sc);
   if (!app->cfg.mpirun)
     obs_err_set(problems, OBS_EINVAL,
                 "request: /ranks: ranks > 1 needs the daemon started with --mpirun (got %d)",
@@ -56,11 +50,10 @@ int srv_mpi_check(srv_app *app, const obs_scene *sc, obs_backend be, int ranks, 
                 "request: /ranks: ranks > 1 renders on the cpu backend only (this job's backend "
                 "is %s; ask for \"backend\": \"cpu\")",
                 obs_backend_name(be));
-  else if (file)
+  else if (reads_mesh(sc))
     obs_err_set(problems, OBS_EUNSUPPORTED,
-                "request: /ranks: ranks > 1 is not supported for scenes that read %s (the ranks "
-                "load the scene from the job's work directory)",
-                file);
+                "request: /ranks: ranks > 1 is not supported for scenes that read a mesh file "
+                "(the ranks would parse it outside the daemon's contained mesh importer)");
   /* Each rank reads the whole volume; without a hostfile they all run on this machine. */
   double voxels = srv_scene_voxels(sc), local = app->cfg.hostfile ? 1 : ranks;
   if (voxels > 0 && voxels * local > (double)app->cfg.max_voxels)
@@ -168,18 +161,38 @@ static void nap_ms(long ms) {
   }
 }
 
+/* Where rank 0 writes the fraction done (the CLI's --progress-file) and the job's slot. */
+typedef struct progress_src {
+  const char *path;
+  atomic_int *ppm; /* millionths */
+} progress_src;
+
+static void read_progress(const progress_src *ps) {
+  int fd = open(ps->path, O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return; /* not written yet */
+  char text[32];
+  ssize_t n = pread(fd, text, sizeof text - 1, 0);
+  close(fd);
+  if (n <= 0) return;
+  text[n] = '\0';
+  char *end;
+  double f = strtod(text, &end);
+  if (end != text && *end == '\n' && f >= 0 && f <= 1) atomic_store(ps->ppm, (int)(f * 1e6));
+}
+
 /* Waits for `pid` to end without reaping it (so its process-group id cannot be reused while the
  * group is signalled), polling: 1 once it ended, 0 when `cancel` was raised (or, with cancel
  * NULL, when `limit_ms` passed) first. */
-static int wait_child(pid_t pid, atomic_int *cancel, double limit_ms) {
+static int wait_child(pid_t pid, atomic_int *cancel, double limit_ms, const progress_src *ps) {
   double t0 = obs_now_ms();
-  for (;;) {
+  for (int polls = 0;; polls++) {
     siginfo_t info;
     memset(&info, 0, sizeof info);
     int r = waitid(P_PID, (id_t)pid, &info, WEXITED | WNOHANG | WNOWAIT);
     if ((r == 0 && info.si_pid == pid) || (r < 0 && errno == ECHILD)) return 1;
     if (cancel && atomic_load(cancel)) return 0;
     if (!cancel && obs_now_ms() - t0 > limit_ms) return 0;
+    if (ps && polls % 10 == 0) read_progress(ps);
     nap_ms(20);
   }
 }
@@ -199,9 +212,9 @@ static int reap(pid_t pid, const char *doc) {
  * period; reaped either way. */
 static void stop_group(pid_t pid, const char *doc) {
   kill(-pid, SIGTERM);
-  if (!wait_child(pid, NULL, MPI_GRACE_MS)) {
+  if (!wait_child(pid, NULL, MPI_GRACE_MS, NULL)) {
     kill(-pid, SIGKILL);
-    if (!wait_child(pid, NULL, MPI_REAP_MS)) {
+    if (!wait_child(pid, NULL, MPI_REAP_MS, NULL)) {
       srv_log("mpirun (pid %d) did not end after SIGKILL; not waiting for it", (int)pid);
       kill_stragglers(doc);
       return;
@@ -213,7 +226,8 @@ static void stop_group(pid_t pid, const char *doc) {
 /* Starts `mpirun ... -np N <cli> render <doc> -o <stage> --threads T` in a process group of its
  * own (so a cancel reaches every rank it started), stdout and stderr into `logp`. */
 static int spawn_mpirun(srv_app *app, int ranks, const char *cli, const char *doc,
-                        const char *stage, const char *logp, pid_t *pid, obs_err *err) {
+                        const char *stage, const char *logp, const char *progress, pid_t *pid,
+                        obs_err *err) {
   char np[16], threads[16];
   snprintf(np, sizeof np, "%d", ranks);
   /* The job's share of the cores (what a local render gets) spread over its ranks. */
@@ -238,6 +252,10 @@ static int spawn_mpirun(srv_app *app, int ranks, const char *cli, const char *do
   argv[n++] = (char *)stage;
   argv[n++] = "--threads";
   argv[n++] = threads;
+  argv[n++] = "--base-dir";
+  argv[n++] = app->scenes_real;
+  argv[n++] = "--progress-file";
+  argv[n++] = (char *)progress;
   /* The lane chose the CPU; pinned so no rank's "auto" can pick a GPU it finds. */
   argv[n++] = "--backend";
   argv[n++] = "cpu";
@@ -282,9 +300,9 @@ static void log_output(srv_app *app, int64_t id, const char *logp, char *tail, s
 }
 
 int srv_mpi_render(srv_app *app, const srv_job *j, const char *stage, atomic_int *cancel,
-                   char **summary, obs_err *err) {
+                   atomic_int *progress_ppm, char **summary, obs_err *err) {
   *summary = NULL;
-  char cli[PATH_MAX], work[4400], doc[4600], logp[4600];
+  char cli[PATH_MAX], work[4400], doc[4600], logp[4600], prog[4600];
   /* Accepted by a daemon with --mpirun, left queued, and this start has none. */
   if (!app->cfg.mpirun)
     return obs_err_set(err, OBS_EUNSUPPORTED, "ranks %d needs the daemon started with --mpirun",
@@ -306,16 +324,18 @@ int srv_mpi_render(srv_app *app, const srv_job *j, const char *stage, atomic_int
   if (!base || !*base || !strcmp(base, ".") || !strcmp(base, "..")) base = "scene.json";
   snprintf(doc, sizeof doc, "%s/%s", work, base);
   snprintf(logp, sizeof logp, "%s/mpirun.log", work);
+  snprintf(prog, sizeof prog, "%s/progress", work);
   pid_t pid = 0;
   int rc = write_text(doc, j->doc ? j->doc : "", err);
-  if (!rc) rc = spawn_mpirun(app, j->ranks, cli, doc, stage, logp, &pid, err);
+  if (!rc) rc = spawn_mpirun(app, j->ranks, cli, doc, stage, logp, prog, &pid, err);
   if (rc) {
     srv_remove_tree(work);
     return rc;
   }
   srv_job_log(app, j->id, "mpirun started (pid %d): %d ranks of %s", (int)pid, j->ranks, cli);
   int status = -1;
-  if (wait_child(pid, cancel, 0)) {
+  progress_src ps = {prog, progress_ppm};
+  if (wait_child(pid, cancel, 0, &ps)) {
     status = reap(pid, doc);
   } else {
     stop_group(pid, doc);

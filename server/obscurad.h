@@ -690,14 +690,17 @@ int srv_db_run_rates(srv_db *db, const char *technique, const char *backend, int
 int srv_mpi_check(srv_app *app, const obs_scene *sc, obs_backend be, int ranks,
                   obs_err *problems);
 /* Renders claimed job `j` (j->ranks > 1) with `mpirun -np ranks obscura render` into `stage`
- * (created by the CLI: every output and summary.json). Polls `cancel` and, once raised, ends
+ * (created by the CLI: every output and summary.json), the scene's relative files resolved
+ * against --scenes-dir. Stores rank 0's fraction done in `progress_ppm` (millionths) every
+ * 200 ms. Polls `cancel` and, once raised, ends
  * mpirun's process group (SIGTERM, SIGKILL after a grace period) and returns OBS_ECANCELED.
  * Returns 0 with *summary (summary.json's text, malloc'ed), or an error whose message quotes the
  * end of mpirun's output; mpirun's output goes to the job's log either way. */
 int srv_mpi_render(srv_app *app, const srv_job *j, const char *stage, atomic_int *cancel,
-                   char **summary, obs_err *err);
+                   atomic_int *progress_ppm, char **summary, obs_err *err);
 
-/* The log lines, warnings and metrics of a recorded mpirun job's success. */
+/* The log lines, warnings and metrics of an mpirun job's success (written before it is
+ * recorded). */
 void srv_mpi_succeeded(srv_app *app, const srv_job *j, const char *summary);
 /* Kills what a previous daemon on the same results directory left running of its MPI jobs
  * (mpirun and ranks naming a document under its `.tmp-` staging names); at start-up. */

@@ -2,10 +2,12 @@
 #include "args.h"
 
 #include <errno.h>
+#include <fcntl.h>
 #include <jansson.h>
 #include <limits.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 const char *cli_option_value(int argc, char **argv, int *i) {
@@ -43,11 +45,20 @@ static int check_value(const char *arg, const char *eq) {
 
 int cli_scene_option(cli_scene_opts *o, int argc, char **argv, int *i) {
   const char *a = argv[*i];
-  if (strcmp(a, "--technique") && strcmp(a, "--backend") && strcmp(a, "--set")) return 0;
+  if (strcmp(a, "--technique") && strcmp(a, "--backend") && strcmp(a, "--set") &&
+      strcmp(a, "--base-dir"))
+    return 0;
   const char *val = cli_option_value(argc, argv, i);
   if (!val) return -1;
   if (!strcmp(a, "--technique")) {
     o->technique = val;
+  } else if (!strcmp(a, "--base-dir")) {
+    struct stat st;
+    if (stat(val, &st) || !S_ISDIR(st.st_mode)) {
+      fprintf(stderr, "obscura: --base-dir %s: not a directory\n", val);
+      return -1;
+    }
+    o->base_dir = val;
   } else if (!strcmp(a, "--backend")) {
     o->backend = val;
   } else {
@@ -128,7 +139,8 @@ int cli_scene_load(const cli_scene_opts *o, obs_scene *sc, obs_err *err) {
     return obs_err_set(err, OBS_EIO, "%s: cannot open scene file: %s", o->scene, strerror(errno));
   }
   fclose(f);
-  if (!o->technique && !o->backend) return obs_scene_load_file(sc, o->scene, o->ov, o->nov, err);
+  if (!o->technique && !o->backend && !o->base_dir)
+    return obs_scene_load_file(sc, o->scene, o->ov, o->nov, err);
   memset(sc, 0, sizeof *sc);
   json_error_t je;
   json_t *doc = json_load_file(o->scene, JSON_REJECT_DUPLICATES, &je);
@@ -144,7 +156,9 @@ int cli_scene_load(const cli_scene_opts *o, obs_scene *sc, obs_err *err) {
   snprintf(dir, sizeof dir, "%s", o->scene);
   char *slash = strrchr(dir, '/');
   const char *base = strrchr(o->scene, '/') ? strrchr(o->scene, '/') + 1 : o->scene;
-  if (slash)
+  if (o->base_dir)
+    snprintf(dir, sizeof dir, "%s", o->base_dir);
+  else if (slash)
     *slash = '\0';
   else
     strcpy(dir, ".");
@@ -171,8 +185,34 @@ int cli_load_exit_code(int rc) {
   return rc == OBS_EINVAL || rc == OBS_EIO ? EXIT_BAD_INPUT : EXIT_FAILURE;
 }
 
+int cli_progress_file(cli_progress *p, const char *path) {
+  p->fd = open(path, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (p->fd < 0) {
+    fprintf(stderr, "obscura: --progress-file %s: %s\n", path, strerror(errno));
+    return -1;
+  }
+  p->last_file = -1;
+  cli_progress_draw(p, 0);
+  return 0;
+}
+
+/* The fraction in --progress-file, whole: a reader sees the old text or the new one (same
+ * length, one pwrite at offset 0). */
+static void progress_write(cli_progress *p, double f) {
+  int k = (int)(f * 1e4);
+  if (p->fd <= 0 || k == p->last_file) return;
+  p->last_file = k;
+  char text[16];
+  int n = snprintf(text, sizeof text, "%d.%04d\n", k / 10000, k % 10000);
+  if (pwrite(p->fd, text, (size_t)n, 0) != n) {
+    close(p->fd); /* a full disk: the render matters more than its progress */
+    p->fd = -1;
+  }
+}
+
 void cli_progress_draw(void *user, double f) {
   cli_progress *p = user;
+  progress_write(p, f);
   int pct = (int)(f * 100.0);
   if (!p->tty || pct == p->last) return;
   p->last = pct;

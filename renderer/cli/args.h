@@ -14,11 +14,13 @@
  * cli_scene_opts_free (also valid on a zeroed struct). */
 typedef struct cli_scene_opts {
   const char *scene, *technique, *backend;
+  const char *base_dir; /* --base-dir: where the scene's relative files resolve (NULL: its own
+                         * directory) */
   obs_override ov[CLI_MAX_OVERRIDES];
   size_t nov;
 } cli_scene_opts;
 
-/* Takes argv[*i] when it is --technique, --backend or --set together with its value (advancing
+/* Takes argv[*i] when it is --technique, --backend, --set or --base-dir with its value (advancing
  * *i past the value). Returns 1 when taken, 0 when argv[*i] is none of them, -1 after printing
  * what is wrong. */
 int cli_scene_option(cli_scene_opts *o, int argc, char **argv, int *i);
@@ -41,12 +43,19 @@ int cli_wants_help(int argc, char **argv);
 int cli_load_exit_code(int rc);
 
 /* A one-line progress bar on a terminal: draws "\r[####    ]  42%" on `f` when the whole percent
+ * changes; and, for a program that watches the render (obscurad's MPI jobs), the fraction done
+ * as text ("0.4213\n", rewritten in place) in file descriptor `fd` when its ten-thousandth
  * changes. */
 typedef struct cli_progress {
   int tty;  /* draw only when set */
   int last; /* last percent drawn; start at -1 */
   FILE *f;  /* NULL: stderr */
+  int fd;   /* --progress-file, or -1 (a zeroed struct writes nothing: fd 0 is never used) */
+  int last_file; /* last ten-thousandth written; start at -1 */
 } cli_progress;
+/* Opens --progress-file `path` into p->fd (created or truncated, 0 written); -1 after printing
+ * why not. */
+int cli_progress_file(cli_progress *p, const char *path);
 void cli_progress_draw(void *user, double fraction); /* an obs_progress_fn */
 
 #endif

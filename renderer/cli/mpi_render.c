@@ -6,6 +6,7 @@
  * bits depend only on (pixel, sample, seed), never on the rank or thread that shaded it. */
 #define _GNU_SOURCE /* sched_getaffinity, CPU_COUNT */
 #include "mpi_render.h"
+#include "mpi_composite.h"
 
 #include <mpi.h>
 #include <pthread.h>
@@ -27,8 +28,11 @@
 #define NAP_MIN_US 10
 #define NAP_MAX_US 500
 
-enum { TAG_REQUEST = 1, TAG_GRANT, TAG_TILE, TAG_BYE };
+enum { TAG_REQUEST = 1, TAG_GRANT, TAG_TILE, TAG_BYE, TAG_BRICK };
 enum { BYE_TILED = 0, BYE_IDLE = 1 };
+/* A grant's answer besides a tile index: -1, the queue is empty; GRANT_LATER, a request made
+ * ahead was declined because few tiles are left (ask again when one is needed). */
+enum { GRANT_NONE = -1, GRANT_LATER = -2 };
 
 struct cli_mpi {
   int rank, size;
@@ -240,7 +244,7 @@ typedef struct master {
 /* The next queued tile for `rank`, or -1 when none is left. */
 static int master_take(master *ms, int rank) {
   pthread_mutex_lock(&ms->lock);
-  int t = ms->next < ms->g.ntiles ? ms->next++ : -1;
+  int t = ms->next < ms->g.ntiles ? ms->next++ : GRANT_NONE;
   if (t >= 0) {
     ms->state[t] = TILE_OUT;
     ms->owner[t] = rank;
@@ -311,9 +315,16 @@ static void master_take_tile(master *ms, const MPI_Status *st) {
 static void master_handle(master *ms, const MPI_Status *st) {
   int src = st->MPI_SOURCE;
   if (st->MPI_TAG == TAG_REQUEST) {
-    mpi_check(MPI_Recv(NULL, 0, MPI_BYTE, src, TAG_REQUEST, MPI_COMM_WORLD, MPI_STATUS_IGNORE),
+    int32_t held = 0; /* the worker's requests out before this one: tiles it will have first */
+    mpi_check(MPI_Recv(&held, 1, MPI_INT32_T, src, TAG_REQUEST, MPI_COMM_WORLD,
+                       MPI_STATUS_IGNORE),
               "MPI_Recv (tile request)");
-    int t = master_take(ms, src);
+    /* Near the end a tile parked in a worker's queue may leave another rank idle: requests made
+     * ahead get no tile once fewer than 4 per rank are left. */
+    pthread_mutex_lock(&ms->lock);
+    int few = ms->g.ntiles - ms->next < 4 * ms->m->size;
+    pthread_mutex_unlock(&ms->lock);
+    int t = held > 0 && few ? GRANT_LATER : master_take(ms, src);
     mpi_check(MPI_Send(&t, 1, MPI_INT, src, TAG_GRANT, MPI_COMM_WORLD), "MPI_Send (tile grant)");
   } else if (st->MPI_TAG == TAG_TILE) {
     master_take_tile(ms, st);
@@ -371,7 +382,7 @@ static void master_init(master *ms, cli_mpi *m, const obs_scene *sc, cli_progres
   pthread_mutex_init(&ms->lock, NULL);
   if (!ms->state || !ms->owner || !ms->parts || !ms->part_nch)
     fail_job(EXIT_FAILURE, "out of memory");
-  ms->pr = pr && pr->tty ? pr : NULL;
+  ms->pr = pr && (pr->tty || pr->fd > 0) ? pr : NULL;
   ms->src = (obs_tile_source){master_next, master_done, ms};
 }
 
@@ -464,7 +475,9 @@ static void worker_ask(worker *w) {
   int i = (w->head + w->asking) % RING;
   mpi_check(MPI_Irecv(&w->grant[i], 1, MPI_INT, 0, TAG_GRANT, MPI_COMM_WORLD, &w->grant_req[i]),
             "MPI_Irecv (tile grant)");
-  mpi_check(MPI_Send(NULL, 0, MPI_BYTE, 0, TAG_REQUEST, MPI_COMM_WORLD), "MPI_Send (tile request)");
+  int32_t held = w->asking;
+  mpi_check(MPI_Send(&held, 1, MPI_INT32_T, 0, TAG_REQUEST, MPI_COMM_WORLD),
+            "MPI_Send (tile request)");
   w->asking++;
 }
 
@@ -496,9 +509,15 @@ static int worker_next(void *user, obs_region *tile) {
   pthread_mutex_lock(&w->lock);
   int t = -1;
   if (!w->exhausted) {
-    /* `ahead` more stay out while this tile renders, so their answers are here when needed. */
-    while (w->asking <= w->ahead) worker_ask(w);
-    t = worker_answer(w);
+    /* `ahead` more stay out while this tile renders, so their answers are here when needed. A
+     * request made ahead that rank 0 declined (the last tiles go one at a time) ends asking
+     * ahead; the tile is asked for again. */
+    for (;;) {
+      while (w->asking <= w->ahead) worker_ask(w);
+      t = worker_answer(w);
+      if (t != GRANT_LATER) break;
+      w->ahead = 0;
+    }
     if (t < 0) {
       /* The queue is empty for good: the requests still out are answered -1 too. */
       w->exhausted = 1;
@@ -593,13 +612,126 @@ static int worker_render(obs_scene *sc, int size, const obs_render_opts *opts, o
   return 0;
 }
 
+/* ---- data-parallel: each rank renders its brick of the volumes, rank 0 composites ---- */
+
+/* What a rank sends rank 0 after its brick's render: this header, then its image's channel
+ * planes, one message each. */
+typedef struct brick_head {
+  int32_t width, height, nch, pad;
+  uint64_t rays;
+} brick_head;
+
+/* A worker's image, sent to rank 0 (waits with naps, not spinning, as every wait here). */
+static void brick_send(const obs_result *r) {
+  const obs_image *im = &r->image;
+  brick_head h = {im->width, im->height, im->nchannels, 0, r->rays};
+  size_t plane = (size_t)im->width * (size_t)im->height;
+  MPI_Request req;
+  mpi_check(MPI_Isend(&h, (int)sizeof h, MPI_BYTE, 0, TAG_BRICK, MPI_COMM_WORLD, &req),
+            "MPI_Isend (brick header)");
+  wait_request(&req, "MPI_Isend (brick header)");
+  for (int c = 0; c < im->nchannels; c++) {
+    mpi_check(MPI_Isend(im->data + (size_t)c * plane, (int)plane, MPI_FLOAT, 0, TAG_BRICK,
+                        MPI_COMM_WORLD, &req),
+              "MPI_Isend (brick pixels)");
+    wait_request(&req, "MPI_Isend (brick pixels)");
+  }
+}
+
+/* Rank `src`'s image into `im` (rank 0's names), its rays added to *rays. */
+static void brick_recv(int src, const obs_image *mine, obs_image *im, uint64_t *rays) {
+  brick_head h;
+  MPI_Request req;
+  mpi_check(MPI_Irecv(&h, (int)sizeof h, MPI_BYTE, src, TAG_BRICK, MPI_COMM_WORLD, &req),
+            "MPI_Irecv (brick header)");
+  wait_request(&req, "MPI_Irecv (brick header)");
+  if (h.width != mine->width || h.height != mine->height || h.nch != mine->nchannels)
+    fail_job(EXIT_FAILURE, "rank %d rendered a %dx%d image of %d channels, rank 0 %dx%d of %d",
+             src, h.width, h.height, h.nch, mine->width, mine->height, mine->nchannels);
+  *im = *mine;
+  size_t plane = (size_t)h.width * (size_t)h.height;
+  if (!(im->data = malloc((size_t)h.nch * plane * sizeof *im->data)))
+    fail_job(EXIT_FAILURE, "out of memory");
+  for (int c = 0; c < h.nch; c++) {
+    mpi_check(MPI_Irecv(im->data + (size_t)c * plane, (int)plane, MPI_FLOAT, src, TAG_BRICK,
+                        MPI_COMM_WORLD, &req),
+              "MPI_Irecv (brick pixels)");
+    wait_request(&req, "MPI_Irecv (brick pixels)");
+  }
+  *rays += h.rays;
+}
+
+/* Collective: whether every rank's brick rendered. A rank that failed where rank 0 did not says
+ * why itself; rank 0 returns the first failure's code (its own message in `err`). */
+static int bricks_rendered(cli_mpi *m, int rc, obs_err *err) {
+  int *all = calloc((size_t)m->size, sizeof *all);
+  if (!all) fail_job(EXIT_FAILURE, "out of memory");
+  /* Not MPI_Allgather: a rank done early would spin in it on a core a slower rank renders on. */
+  MPI_Request req;
+  mpi_check(MPI_Iallgather(&rc, 1, MPI_INT, all, 1, MPI_INT, MPI_COMM_WORLD, &req),
+            "MPI_Iallgather");
+  wait_request(&req, "MPI_Iallgather");
+  int first = 0, rank0 = all[0];
+  for (int r = 0; r < m->size && !first; r++) first = all[r];
+  free(all);
+  if (rc && m->rank > 0 && !rank0)
+    fprintf(stderr, "obscura: rank %d: %s\n", m->rank, obs_err_message(err));
+  if (first && m->rank == 0 && !rank0)
+    obs_err_set(err, first, "obscura: another rank could not render its brick (it said why)");
+  return first;
+}
+
+static int data_render(cli_mpi *m, obs_scene *sc, const obs_render_opts *opts, obs_result *res,
+                       obs_err *err) {
+  obs_render_opts o = *opts;
+  o.brick.index = m->rank;
+  o.brick.count = m->size;
+  if (m->rank > 0) o.progress = NULL;
+  obs_result mine;
+  int rc = obs_render(sc, &o, &mine, err);
+  /* The render is not over until the last rank's image is in and composited. */
+  double t0 = obs_now_ms();
+  if ((rc = bricks_rendered(m, rc, err))) {
+    obs_result_free(&mine);
+    return rc;
+  }
+  if (m->rank > 0) {
+    brick_send(&mine);
+    obs_result_free(&mine);
+    return 0;
+  }
+  const obs_image **parts = calloc((size_t)m->size, sizeof *parts);
+  obs_image *theirs = calloc((size_t)m->size, sizeof *theirs);
+  if (!parts || !theirs) fail_job(EXIT_FAILURE, "out of memory");
+  parts[0] = &mine.image;
+  for (int r = 1; r < m->size; r++) {
+    brick_recv(r, &mine.image, &theirs[r], &mine.rays);
+    parts[r] = &theirs[r];
+  }
+  /* The composite overwrites rank 0's image, which it reads pixel by pixel before writing. */
+  rc = cli_composite_depth(&mine.image, parts, m->size, err);
+  for (int r = 1; r < m->size; r++) free(theirs[r].data);
+  free(theirs);
+  free(parts);
+  if (rc) fail_job(EXIT_FAILURE, "%s", obs_err_message(err));
+  double wait_ms = obs_now_ms() - t0;
+  mine.timings.render_ms += wait_ms;
+  mine.timings.total_ms += wait_ms;
+  mine.ranks = m->size;
+  *res = mine;
+  return 0;
+}
+
 int cli_mpi_render(cli_mpi *m, obs_scene *sc, const obs_render_opts *opts, cli_progress *pr,
                    obs_result *res, obs_err *err) {
   memset(res, 0, sizeof *res);
+  /* Bricks render on the CPU backend only: `auto` must not pick another on some rank. */
+  if (opts->brick.count > 0 && sc->backend == OBS_BACKEND_AUTO) sc->backend = OBS_BACKEND_CPU;
   obs_err quiet = OBS_ERR_INIT;
   int rc = agree_backend(m, sc, m->rank == 0 ? err : &quiet);
   obs_err_free(&quiet);
   if (rc) return rc;
+  if (opts->brick.count > 0) return data_render(m, sc, opts, res, err);
   return m->rank == 0 ? master_render(m, sc, opts, pr, res, err)
                       : worker_render(sc, m->size, opts, err);
 }

@@ -35,7 +35,11 @@ int cli_mpi_tty(void);
 int cli_mpi_loaded(cli_mpi *m, int code, const obs_err *err);
 
 /* Collective: renders the scene, the image split in tiles across the ranks when the technique
- * renders per pixel, else by rank 0 alone (with a warning in the result). Returns 0 with the whole
+ * renders per pixel, else by rank 0 alone (with a warning in the result). With opts->brick.count
+ * above 0 (`--distribute data`) it is split by data instead: rank r renders brick r of size of
+ * the volumes over the whole image (opts->brick.no_ghost kept) and rank 0 composites every rank's
+ * image front to back by depth (mpi_composite.h); a failure to render a brick (a technique
+ * without volumes) is reported by rank 0 and returned on every rank. Returns 0 with the whole
  * result in `res` on rank 0 (ranks and rays over every rank) and an empty `res` on the others.
  * Before any rank renders it may fail as obs_render would: on rank 0 with the problem in `err`, on
  * the others with `err` empty (rank 0 reports it). A failure once rendering started ends the

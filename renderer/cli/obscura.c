@@ -14,6 +14,8 @@ typedef struct cli {
   cli_scene_opts s;
   const char *out_dir;
   int threads, quiet;
+  int data, no_ghost; /* --distribute data, --no-ghost */
+  const char *progress_file;
 } cli;
 
 static int parse_args(int argc, char **argv, int first, cli *c) {
@@ -24,11 +26,20 @@ static int parse_args(int argc, char **argv, int first, cli *c) {
     if (taken < 0) return -1;
     if (taken) continue;
     const char *a = argv[i];
-    if (!strcmp(a, "-o") || !strcmp(a, "--threads")) {
+    if (!strcmp(a, "-o") || !strcmp(a, "--threads") || !strcmp(a, "--distribute") ||
+        !strcmp(a, "--progress-file")) {
       const char *val = cli_option_value(argc, argv, &i);
       if (!val) return -1;
       if (!strcmp(a, "-o")) {
         c->out_dir = val;
+      } else if (!strcmp(a, "--progress-file")) {
+        c->progress_file = val;
+      } else if (!strcmp(a, "--distribute")) {
+        if (strcmp(val, "image") && strcmp(val, "data")) {
+          fprintf(stderr, "obscura: --distribute takes image or data (got %s)\n", val);
+          return -1;
+        }
+        c->data = !strcmp(val, "data");
       } else {
         char *end;
         long n = strtol(val, &end, 10);
@@ -40,6 +51,8 @@ static int parse_args(int argc, char **argv, int first, cli *c) {
       }
     } else if (!strcmp(a, "--quiet") || !strcmp(a, "-q")) {
       c->quiet = 1;
+    } else if (!strcmp(a, "--no-ghost")) {
+      c->no_ghost = 1;
     } else if (a[0] == '-') {
       fprintf(stderr, "obscura: unknown option %s\n", a);
       return -1;
@@ -54,6 +67,27 @@ static int parse_args(int argc, char **argv, int first, cli *c) {
     fprintf(stderr, "obscura: missing SCENE.json\n");
     return -1;
   }
+  if (c->no_ghost && !c->data) {
+    fprintf(stderr, "obscura: --no-ghost goes with --distribute data\n");
+    return -1;
+  }
+  return 0;
+}
+
+/* --distribute data splits the scene's volumes, on the CPU backend (obs_brick): said before any
+ * rank renders, as bad input. */
+static int check_distribute(const cli *c, const obs_scene *sc, obs_err *err) {
+  if (!c->data) return 0;
+  if (!(sc->technique->needs & OBS_NEED_VOLUME))
+    return obs_err_set(err, OBS_EINVAL,
+                       "%s: --distribute data splits the scene's volumes across the ranks, and "
+                       "technique \"%s\" renders no volumes (use a volume technique such as "
+                       "volume_ao, or the default --distribute image)",
+                       c->s.scene, sc->technique->name);
+  if (sc->backend != OBS_BACKEND_AUTO && sc->backend != OBS_BACKEND_CPU)
+    return obs_err_set(err, OBS_EINVAL,
+                       "%s: --distribute data renders on the cpu backend only, not %s",
+                       c->s.scene, obs_backend_name(sc->backend));
   return 0;
 }
 
@@ -107,6 +141,7 @@ static int cmd_render(int argc, char **argv) {
   obs_scene sc;
   double t0 = obs_now_ms();
   rc = cli_scene_load(&c.s, &sc, &err);
+  if (!rc && (rc = check_distribute(&c, &sc, &err))) obs_scene_free(&sc);
   int code = rc ? cli_load_exit_code(rc) : 0;
   if (mpi)
     code = cli_mpi_loaded(mpi, code, &err);
@@ -122,7 +157,11 @@ static int cmd_render(int argc, char **argv) {
   double load_ms = obs_now_ms() - t0;
   int tty = mpi ? cli_mpi_tty() : isatty(2);
   cli_progress pr = {.tty = !c.quiet && !worker && tty, .last = -1};
+  /* Without it the render goes on: progress is for whoever watches, the outputs are the job. */
+  if (c.progress_file && !worker) cli_progress_file(&pr, c.progress_file);
   obs_render_opts opts = {.threads = c.threads, .progress = cli_progress_draw, .progress_user = &pr};
+  /* One process renders the one brick there is; under mpirun each rank its own. */
+  if (c.data) opts.brick = (obs_brick){0, 1, c.no_ghost};
   if (mpi && !opts.threads) opts.threads = cli_mpi_threads();
   obs_result res;
   rc = mpi ? cli_mpi_render(mpi, &sc, &opts, &pr, &res, &err) : obs_render(&sc, &opts, &res, &err);

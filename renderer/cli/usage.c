@@ -13,15 +13,24 @@ typedef struct usage {
 static const usage usages[] = {
     {"render",
      "  obscura render SCENE.json [-o DIR] [--technique NAME] [--backend cpu|vulkan|auto]\n"
-     "                 [--set /json/pointer=VALUE]... [--threads N] [--quiet]\n",
+     "                 [--set /json/pointer=VALUE]... [--threads N] [--quiet]\n"
+     "                 [--distribute image|data [--no-ghost]] [--base-dir DIR]\n"
+     "                 [--progress-file FILE]\n",
      "Renders the scene here and writes its outputs, summary.json and PNGs into DIR (default "
      "out).\n"
      "--technique keeps the document's params for its own technique; another starts from its\n"
      "defaults with lengths fitted to the scene's size (a note says which); --set wins.\n"
      "Under mpirun the image is split in tiles across the ranks and rank 0 writes DIR, the same\n"
-     "files bit for bit; --threads is per rank (docs/mpi.md).\n"},
+     "files bit for bit; --threads is per rank (docs/mpi.md). --distribute data splits the\n"
+     "volumes instead (volume techniques, cpu backend): each rank reads and renders one brick of\n"
+     "them with a ghost zone as wide as the AO distance (none with --no-ghost, to see why it is\n"
+     "there) and rank 0 composites the images front to back by depth.\n"
+     "--base-dir resolves the scene's relative files (volumes, environment maps, meshes) against\n"
+     "DIR instead of the document's directory; --progress-file keeps the fraction done in FILE\n"
+     "(\"0.4213\", rewritten in place) for a program that watches the render.\n"},
     {"validate",
-     "  obscura validate SCENE.json [--technique NAME] [--set /json/pointer=VALUE]...\n",
+     "  obscura validate SCENE.json [--technique NAME] [--set /json/pointer=VALUE]...\n"
+     "                 [--base-dir DIR]\n",
      "Checks the scene as render would, without rendering.\n"},
     {"techniques", "  obscura techniques [--markdown | --schema | --openapi | --docs NAME]\n",
      "The registry as JSON, or texts generated from it: the guaranteed-range table, the technique\n"

@@ -59,6 +59,34 @@ static void warn_ignored(const obs_scene *sc, obs_render_ctx *ctx) {
                       n > 4 ? " and more" : "");
 }
 
+/* A brick (obs_render_opts.brick) needs a technique that reads volumes, and the CPU backend: its
+ * camera rays are clipped to the brick there (renderer/cpu/volume_ao.c), and nowhere else. */
+static int check_brick(const obs_scene *sc, obs_backend be, const obs_brick *b, obs_err *err) {
+  const obs_technique *t = sc->technique;
+  if (!(t->needs & OBS_NEED_VOLUME))
+    return obs_err_set(err, OBS_EUNSUPPORTED,
+                       "%s: technique \"%s\" renders no volumes, so it cannot render one brick "
+                       "of them (a data-parallel render needs a volume technique such as "
+                       "volume_ao)",
+                       sc->name, t->name);
+  if (be != OBS_BACKEND_CPU)
+    return obs_err_set(err, OBS_EUNSUPPORTED,
+                       "%s: technique \"%s\" renders one brick of a volume (a data-parallel "
+                       "render) on the cpu backend only, not on %s",
+                       sc->name, t->name, obs_backend_name(be));
+  if (b->index < 0 || b->index >= b->count)
+    return obs_err_set(err, OBS_EINVAL, "%s: brick %d of %d does not exist", sc->name, b->index,
+                       b->count);
+  return 0;
+}
+
+/* How far the technique reads the volume from a hit, in data-space units of the volume hit (the
+ * width of a brick's ghost zone): volume_ao's AO march ends at max_distance. */
+static double brick_reach(const obs_scene *sc) {
+  double d = json_number_value(json_object_get(sc->params, "max_distance"));
+  return isfinite(d) && d > 0 ? d : 0;
+}
+
 int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *res,
                obs_err *err) {
   memset(res, 0, sizeof *res);
@@ -91,6 +119,10 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
   }
   obs_region region;
   if ((rc = obs_driver_region(&ctx, scene->width, scene->height, &region, err))) return rc;
+  const obs_brick *brick = opts && opts->brick.count > 0 ? &opts->brick : NULL;
+  /* auto picks the backend that renders bricks. */
+  if (brick && scene->backend == OBS_BACKEND_AUTO && t->run[OBS_BACKEND_CPU]) be = OBS_BACKEND_CPU;
+  if (brick && (rc = check_brick(scene, be, brick, err))) return rc;
   /* Outside its backend's guaranteed range a render still runs, but says so (docs/accuracy.md). */
   obs_extent ex;
   rc = obs_scene_extent(scene, &ex, err);
@@ -111,7 +143,7 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
   /* Volumes are read the same way for every backend, so here rather than by a backend's builder. */
   obs_scene_volumes vols = {0};
   if (t->needs & OBS_NEED_VOLUME) {
-    if ((rc = obs_scene_volumes_load(scene, &vols, err))) {
+    if ((rc = obs_scene_volumes_load_brick(scene, brick, brick_reach(scene), &vols, err))) {
       if (nb) nb->release(built);
       free(bound);
       return rc;

@@ -7,6 +7,7 @@
 
 #include <stddef.h>
 
+#include "obscura/render.h"
 #include "obscura/scene.h"
 #include "volume.h"
 
@@ -22,6 +23,18 @@ typedef struct obs_scene_volume {
   double normal[3][3];    /* the inverse transpose of to_world's linear part (normals) */
   const double *colormap; /* borrowed from the scene: ncolormap (value, r, g, b) points */
   size_t ncolormap;
+  /* A brick of the volume (obs_render_opts.brick): `v` holds only the voxels origin .. origin +
+   * v.n of the full volume's full_n (the owned slab along `axis` and its ghost zone), and the maps
+   * above are those of v's own data space, so a world point samples the same field in v as in the
+   * full volume wherever v holds the voxels around it. The render owns the slab [own[0], own[1]]
+   * along `axis` (v's data space; the whole box on the other axes); open[s] says whether that
+   * side is shared with the neighbouring brick (1) or is the volume's own face (0). Without a
+   * brick: brick 0, origin 0, full_n = v.n, own = the whole box, open = {0, 0}. */
+  int brick;
+  int axis;
+  int full_n[3], origin[3];
+  double own[2];
+  int open[2];
 } obs_scene_volume;
 
 typedef struct obs_scene_volumes {
@@ -36,6 +49,18 @@ typedef struct obs_scene_volumes {
  * object (/objects/i) when its transform cannot be inverted or its file no longer reads as it did
  * at validation; OBS_EIO, OBS_ENOMEM. On failure `out` is left empty. */
 int obs_scene_volumes_load(const obs_scene *sc, obs_scene_volumes *out, obs_err *err);
+
+/* The same for one brick of every volume (brick->count > 0; count 0 reads them whole): each
+ * volume is cut in brick->count slabs of whole voxels along its axis with the most voxels (the
+ * first of equals), and brick->index's slab is kept with a ghost zone on each side (clamped to the
+ * volume) that holds every voxel a march of `reach` (data-space units of the volume hit, the
+ * technique's AO distance) from the slab can read: ceil(reach' / spacing) + 2 voxels, reach'
+ * being `reach` carried into this volume's data space from the most stretching of the scene's
+ * volumes (reach itself for one volume); none with brick->no_ghost. A procedural volume computes
+ * only the kept voxels; a file is read whole, then cut. OBS_EINVAL naming the object when a
+ * volume has fewer voxels along its axis than brick->count, or for a brick index out of range. */
+int obs_scene_volumes_load_brick(const obs_scene *sc, const obs_brick *brick, double reach,
+                                 obs_scene_volumes *out, obs_err *err);
 void obs_scene_volumes_free(obs_scene_volumes *vs);
 
 /* The colour of data value `value` (the colormap's piecewise-linear ramp, held at its ends;

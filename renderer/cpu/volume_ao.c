@@ -45,16 +45,49 @@ static obs_volume_iso iso_of(const obs_scene_volume *sv) {
   return (obs_volume_iso){&sv->v, &sv->cells, sv->iso};
 }
 
+/* For a brick of the volume (obs_scene_volume.brick): the ray's parameter range [*t0, *t1] inside
+ * the slab the render owns (clipped to the volume's box), 0 when it misses. A ray that enters the
+ * slab through a side shared with the neighbouring brick, where the field is already at or above
+ * iso, hits nothing here: the whole volume's ray was inside the surface before that side, so its
+ * first hit lies in a brick nearer the eye (or at the volume's own face there), which reports it.
+ * Counting it here would add a false surface along the seam behind the true one. */
+static int owned_range(const obs_scene_volume *sv, const double o[3], const double d[3],
+                       double *t0, double *t1) {
+  int entered_open = 0;
+  for (int a = 0; a < 3; a++) {
+    double lo = 0, hi = sv->v.n[a] * sv->v.spacing[a];
+    if (a == sv->axis) lo = sv->own[0], hi = sv->own[1];
+    if (d[a] == 0) {
+      if (o[a] < lo || o[a] > hi) return 0;
+      continue;
+    }
+    double ta = (lo - o[a]) / d[a], tb = (hi - o[a]) / d[a];
+    int open_in = a == sv->axis && sv->open[d[a] > 0 ? 0 : 1];
+    if (ta > tb) {
+      double x = ta;
+      ta = tb;
+      tb = x;
+    }
+    if (ta > *t0) *t0 = ta, entered_open = open_in;
+    if (tb < *t1) *t1 = tb;
+  }
+  if (!(*t0 <= *t1)) return 0;
+  if (!entered_open) return 1;
+  double p[3] = {o[0] + *t0 * d[0], o[1] + *t0 * d[1], o[2] + *t0 * d[2]};
+  return obs_volume_sample(&sv->v, p) < sv->iso;
+}
+
 static int first_hit(const job *jb, const double org[3], const double dir[3], hit *h) {
   double best = INFINITY;
   int found = 0;
   for (size_t k = 0; k < jb->vols->n; k++) {
     const obs_scene_volume *sv = &jb->vols->v[k];
-    double o[3], d[3], t;
+    double o[3], d[3], t, t0 = 0, t1 = best;
     obs_affine_point(sv->to_data, org, o);
     obs_affine_dir(sv->to_data, dir, d);
+    if (sv->brick && !owned_range(sv, o, d, &t0, &t1)) continue;
     obs_volume_iso s = iso_of(sv);
-    if (obs_volume_first_hit(&s, o, d, 0, best, &t) && t < best) {
+    if (obs_volume_first_hit(&s, o, d, t0, t1, &t) && t < best) {
       best = t;
       found = 1;
       h->vol = k;

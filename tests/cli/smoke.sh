@@ -103,6 +103,21 @@ check "misspelt parameter keeps the pointer and suggests the name" \
   >"$out/n2.log" 2>&1
 check "misspelt parameter of another technique suggests its name" \
   grep -qF '/technique/params/raduis: unknown parameter (did you mean "radius"?)' "$out/n2.log"
+# --base-dir: a copy of a scene that reads a file, elsewhere, resolves it against the directory
+# given; --progress-file holds the fraction done, 1 at the end.
+mkdir -p "$out/elsewhere"
+cp "$root/scenes/volume_head.json" "$out/elsewhere/"
+"$cli" render "$out/elsewhere/volume_head.json" -o "$out/nobase" --set /image/width=8 \
+  --set /image/height=8 >"$out/nobase.log" 2>&1
+check "a relative volume file beside the copy is missing (exit 2)" test $? -eq 2
+"$cli" render "$out/elsewhere/volume_head.json" -o "$out/base" --base-dir "$root/scenes" \
+  --set /image/width=8 --set /image/height=8 --set /technique/params/samples=2 \
+  --progress-file "$out/progress" >"$out/base.log" 2>&1
+check "--base-dir resolves it" test -s "$out/base/final.exr"
+check "--progress-file ends at 1" test "$(cat "$out/progress")" = "1.0000"
+"$cli" render "$out/elsewhere/volume_head.json" --base-dir "$out/none" >"$out/nodir.log" 2>&1
+check "--base-dir that is no directory exits 2" test $? -eq 2
+check "--base-dir names it" grep -q -- "--base-dir $out/none: not a directory" "$out/nodir.log"
 # --help on every subcommand: its own usage on stdout, exit 0.
 for cmd in render validate techniques submit jobs compare; do
   "$cli" "$cmd" --help >"$out/help-$cmd.txt" 2>&1

@@ -1,7 +1,7 @@
 // Jobs split over Open MPI ranks ("ranks" > 1, docs/server.md "Jobs on Open MPI ranks"): obscurad
 // --mpirun runs `mpirun -np N obscura render` per job; the outputs are bit-identical to a
-// one-process render; a cancel leaves no process behind; without --mpirun, or out of range, ranks
-// is refused naming /ranks.
+// one-process render (a volume file too); progress moves while the ranks render; a cancel leaves
+// no process behind; without --mpirun, or out of range, ranks is refused naming /ranks.
 //
 //   node tests/server/test_mpi_jobs.mjs <obscurad> <obscura>
 import assert from 'node:assert/strict';
@@ -37,7 +37,7 @@ const job = (ranks) => ({
 });
 
 test('ranks 2 renders the same bytes as ranks 1 and the CLI', {skip: !MPIRUN && 'no mpirun'}, async () => {
-  await withDaemon({args: ['--mpirun', MPIRUN, '--max-voxels', '1500000']}, async (d) => {
+  await withDaemon({args: ['--mpirun', MPIRUN, '--max-voxels', '2800000']}, async (d) => {
     const two = await submit(d, job(2));
     const one = await submit(d, job(1));
     const j2 = await waitJob(d, two);
@@ -69,12 +69,24 @@ test('ranks 2 renders the same bytes as ranks 1 and the CLI', {skip: !MPIRUN && 
                                                                   technique: {name: 'rt_ao', backend: 'cpu'}}});
     assert.equal(mesh.status, 422, mesh.text);
     assert.ok(mesh.json.problems.some((p) => /\/ranks: .*mesh file/.test(p)), mesh.text);
+    // A volume file resolves against the daemon's scenes directory on every rank, as in a local
+    // job: volume_head reads models/brainsmall.den.
+    const head = (ranks) => ({scene_file: 'volume_head.json', ranks,
+                              technique: {name: 'volume_ao', backend: 'cpu', params: {samples: 4}},
+                              set: {'/image/width': 24, '/image/height': 16}});
+    const h2 = await waitJob(d, await submit(d, head(2)));
+    const h1 = await waitJob(d, await submit(d, head(1)));
+    assert.equal(h2.state, 'succeeded', `volume_head ranks 2: ${h2.error}\n${d.log().slice(-3000)}`);
+    assert.equal(h1.state, 'succeeded', `volume_head ranks 1: ${h1.error}`);
+    assert.equal(h2.progress, 1);
+    const v2 = (await download(d, h2, 'final.exr')).body;
+    assert.ok(v2.equals((await download(d, h1, 'final.exr')).body), 'final.exr of ranks 2 differs from ranks 1');
     // Every local rank reads the whole volume: volume_torus's 96^3 + 48^3 = 995328 samples fit
-    // --max-voxels once, not twice.
-    const vol = await request(d, 'POST', '/api/v1/jobs', {body: {scene_file: 'volume_torus.json', ranks: 2,
+    // --max-voxels twice, not three times.
+    const vol = await request(d, 'POST', '/api/v1/jobs', {body: {scene_file: 'volume_torus.json', ranks: 3,
                                                                  technique: {name: 'volume_ao', backend: 'cpu'}}});
     assert.equal(vol.status, 422, vol.text);
-    assert.ok(vol.json.problems.some((p) => /\/ranks: 2 ranks on this machine each hold the scene's 995328 volume samples, 1990656 in all, beyond the server's limit max-voxels = 1500000/.test(p)), vol.text);
+    assert.ok(vol.json.problems.some((p) => /\/ranks: 3 ranks on this machine each hold the scene's 995328 volume samples, 2985984 in all, beyond the server's limit max-voxels = 2800000/.test(p)), vol.text);
   });
 });
 
@@ -91,7 +103,12 @@ test('a cancelled ranks 2 job leaves no mpirun or obscura behind', {skip: !MPIRU
     // The ranks are up once mpirun's log line is there; give them a moment to start rendering.
     const deadline = Date.now() + 20000 * SLOW;
     while (!/mpirun started/.test(d.log()) && Date.now() < deadline) await sleep(50);
-    await sleep(1000 * SLOW);
+    // Rank 0's progress reaches the job while the ranks render (read every 200 ms).
+    let progress = 0, state = 'running';
+    while (Date.now() < deadline && state === 'running' && !(progress > 0)) {
+      ({progress, state} = await getJob(d, id));
+      await sleep(50);
+    }
     const pattern = `\\.tmp-${id}-[0-9]+-mpi/`;
     const before = spawnSync('pgrep', ['-f', pattern], {encoding: 'utf8'});
     assert.equal(before.status, 0, 'mpirun runs the job before the cancel');
@@ -99,6 +116,9 @@ test('a cancelled ranks 2 job leaves no mpirun or obscura behind', {skip: !MPIRU
     assert.equal(r.status, 202, `cancel: ${r.status} ${r.text}`);
     const j = await waitJob(d, id, undefined, 30000 * SLOW);
     assert.equal(j.state, 'cancelled', `state ${j.state}: ${j.error}`);
+    // Checked once the job is over, so a failure leaves no ranks running.
+    assert.ok(state === 'running' && progress > 0 && progress < 1,
+              `progress ${progress} (${state}) while the ranks render`);
     const after = spawnSync('pgrep', ['-af', pattern], {encoding: 'utf8'});
     assert.notEqual(after.status, 0, `left behind:\n${after.stdout}`);
     assert.deepEqual(fs.readdirSync(d.resultsDir).filter((n) => n.startsWith(`.tmp-${id}-`)), []);

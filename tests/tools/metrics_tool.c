@@ -8,6 +8,10 @@
  *     "<case> <ext> <mask 0|1>"
  *   metrics_tool compare CAND REF [MASK]
  *     prints key=value lines: obs_metrics_compare over the pixels where MASK > 0
+ *   metrics_tool diff CAND.exr REF.exr CHANNEL...
+ *     per channel present in both (all pixels): "<channel> rmse=R max_abs=M differ=F", F the
+ *     fraction of pixels whose values differ by more than 1e-3 (the data-parallel render's check
+ *     against the image-parallel one, tests/cli/mpi.sh)
  */
 #include <math.h>
 #include <stdint.h>
@@ -125,8 +129,36 @@ static int read_any(obs_image *img, const char *path, obs_err *err) {
   return obs_image_read_exr(img, path, err);
 }
 
+/* The diff subcommand (see the top of the file). */
+static int diff_channels(int argc, char **argv, obs_err *err) {
+  obs_image a, b;
+  if (obs_image_read_exr(&a, argv[2], err)) return die(err, argv[2]);
+  if (obs_image_read_exr(&b, argv[3], err)) return die(err, argv[3]);
+  if (a.width != b.width || a.height != b.height)
+    return fprintf(stderr, "metrics_tool: the images' sizes differ\n"), 1;
+  size_t n = (size_t)a.width * (size_t)a.height;
+  for (int i = 4; i < argc; i++) {
+    const float *x = obs_image_channel(&a, argv[i]), *y = obs_image_channel(&b, argv[i]);
+    if (!x || !y) return fprintf(stderr, "metrics_tool: no channel %s\n", argv[i]), 1;
+    double se = 0, mx = 0;
+    size_t differ = 0;
+    for (size_t k = 0; k < n; k++) {
+      double d = fabs((double)x[k] - (double)y[k]);
+      if (!(d <= mx)) mx = d; /* NaN sticks */
+      se += d * d;
+      differ += !(d <= 1e-3);
+    }
+    printf("%s rmse=%.6g max_abs=%.6g differ=%.6g\n", argv[i], sqrt(se / (double)n), mx,
+           (double)differ / (double)n);
+  }
+  obs_image_free(&a);
+  obs_image_free(&b);
+  return 0;
+}
+
 int main(int argc, char **argv) {
   obs_err err = OBS_ERR_INIT;
+  if (argc >= 5 && !strcmp(argv[1], "diff")) return diff_channels(argc, argv, &err);
   if (argc == 3 && !strcmp(argv[1], "gen")) {
     for (size_t i = 0; i < sizeof k_cases / sizeof k_cases[0]; i++) {
       if (write_pair(&k_cases[i], argv[2], &err)) return die(&err, k_cases[i].name);
@@ -172,6 +204,7 @@ int main(int argc, char **argv) {
     obs_err_free(&err);
     return 0;
   }
-  fprintf(stderr, "usage: metrics_tool gen DIR | metrics_tool compare CAND REF [MASK]\n");
+  fprintf(stderr, "usage: metrics_tool gen DIR | metrics_tool compare CAND REF [MASK] |\n"
+                  "       metrics_tool diff CAND.exr REF.exr CHANNEL...\n");
   return 2;
 }

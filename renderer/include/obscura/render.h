@@ -12,6 +12,19 @@
 extern "C" {
 #endif
 
+/* One brick of a data-parallel (sort-last) render: each volume of the scene is cut in `count`
+ * slabs along its axis with the most voxels and this render reads and owns slab `index` only
+ * (plus a ghost zone as wide as the technique's AO reach, unless `no_ghost`), so its memory
+ * shrinks with `count`. A camera ray counts only the isosurface hits inside the owned slab;
+ * compositing the `count` renders front to back by depth gives the whole image. count 0: no
+ * brick, the whole volume. Techniques that need no volumes, and every backend but the CPU,
+ * refuse a brick (OBS_EUNSUPPORTED); `auto` picks the CPU backend. The caller composites the
+ * bricks' images (the CLI: renderer/cli/mpi_composite.h; docs/mpi.md, "Data-parallel"). */
+typedef struct obs_brick {
+  int index, count; /* 0 <= index < count; count 0: none */
+  int no_ghost;     /* 1: keep the slab's voxels alone (shows what the ghost zone is for) */
+} obs_brick;
+
 typedef struct obs_render_opts {
   int threads;                 /* 0 = all cores */
   obs_progress_fn progress;    /* may be NULL */
@@ -22,6 +35,8 @@ typedef struct obs_render_opts {
    * renders per pixel shades only those (the rest of the image stays 0) and the result says
    * `tiled`; any other renders the whole region as without a source. */
   const obs_tile_source *tiles;
+  /* The caller's (the CLI under `mpirun ... --distribute data`): the brick this render owns. */
+  obs_brick brick;
 } obs_render_opts;
 
 /* The outcome of one render. Owns `image`, `patches` and `frames`; release with obs_result_free. */
