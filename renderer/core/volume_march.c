@@ -32,30 +32,32 @@ static double field_at(const obs_volume *v, const double o[3], const double d[3]
   return obs_volume_sample(v, p);
 }
 
-/* When the macrocell holding o + t d cannot reach iso (its max is below it), the parameter where
- * the ray leaves that cell; else t. Cells span voxel centres c cell ... (c + 1) cell, the first
- * and last reaching the volume's faces (where the field is held). */
-static double skip_cell(const obs_volume_iso *s, const double o[3], const double d[3], double t) {
+/* Where the ray o + t d leaves the macrocell holding o + t d (*exit), and whether that cell
+ * cannot reach iso (its max is below it). Cells span voxel centres c cell ... (c + 1) cell, the
+ * first and last reaching the volume's faces (where the field is held). */
+static int skip_cell(const obs_volume_iso *s, const double o[3], const double d[3], double t,
+                     double *exit) {
   const obs_volume *v = s->v;
   const obs_volume_cells *c = s->cells;
   int ci[3];
-  double lo[3], hi[3];
+  double e = INFINITY;
   for (int a = 0; a < 3; a++) {
-    double x = o[a] + t * d[a], sp = v->spacing[a];
-    double u = fmin(fmax(x / sp - 0.5, 0), v->n[a] > 1 ? v->n[a] - 1 : 0);
+    double x = o[a] + t * d[a], sp = v->spacing[a], top = v->n[a] > 1 ? v->n[a] - 1 : 0;
+    double u = x / sp - 0.5;
+    u = u > 0 ? u : 0;
+    u = u < top ? u : top;
     ci[a] = (int)(u / c->cell);
     if (ci[a] >= c->n[a]) ci[a] = c->n[a] - 1;
-    lo[a] = ci[a] == 0 ? -INFINITY : (ci[a] * c->cell + 0.5) * sp;
-    hi[a] = ci[a] == c->n[a] - 1 ? INFINITY : ((ci[a] + 1) * c->cell + 0.5) * sp;
+    double f = INFINITY;
+    if (d[a] > 0 && ci[a] < c->n[a] - 1)
+      f = (((ci[a] + 1) * c->cell + 0.5) * sp - o[a]) / d[a];
+    else if (d[a] < 0 && ci[a] > 0)
+      f = ((ci[a] * c->cell + 0.5) * sp - o[a]) / d[a];
+    e = f < e ? f : e;
   }
+  *exit = e;
   size_t at = ((size_t)ci[2] * (size_t)c->n[1] + (size_t)ci[1]) * (size_t)c->n[0] + (size_t)ci[0];
-  if (!(c->max[at] < s->iso)) return t;
-  double exit = INFINITY;
-  for (int a = 0; a < 3; a++) {
-    if (d[a] > 0 && isfinite(hi[a])) exit = fmin(exit, (hi[a] - o[a]) / d[a]);
-    if (d[a] < 0 && isfinite(lo[a])) exit = fmin(exit, (lo[a] - o[a]) / d[a]);
-  }
-  return exit;
+  return c->max[at] < s->iso;
 }
 
 int obs_volume_first_hit(const obs_volume_iso *s, const double o[3], const double d[3], double t0,
@@ -79,10 +81,14 @@ int obs_volume_first_hit(const obs_volume_iso *s, const double o[3], const doubl
     *t = ta;
     return 1;
   }
+  /* Before t = known the ray stays in a cell that reaches iso: no cell test is needed there. */
+  double known = -INFINITY;
   while (ta < t1) {
-    if (s->cells) {
-      double exit = skip_cell(s, o, d, ta);
-      if (exit > ta) { /* nothing reaches iso before the cell's exit */
+    double exit;
+    if (s->cells && ta >= known) {
+      if (!skip_cell(s, o, d, ta, &exit)) {
+        known = exit;
+      } else if (exit > ta) { /* nothing reaches iso before the cell's exit */
         if (exit >= t1) return 0;
         ta = fmax(exit, ta + 1e-6 * dt);
         fa = field_at(v, o, d, ta);
