@@ -56,6 +56,11 @@ extern const char *const obs_volume_procedural_names[];
 double obs_volume_procedural_value(obs_volume_procedural kind, uint32_t seed, const double x[3]);
 int obs_volume_procedural_fill(obs_volume_procedural kind, uint32_t seed, const int n[3],
                                obs_volume *v, obs_err *err);
+/* The part of that fill of `full` voxels that starts at voxel `off` and spans `n`, into a volume of
+ * n voxels (spacing 2 / full), each sample with the whole fill's bits. OBS_EINVAL for a part not
+ * inside the volume. */
+int obs_volume_procedural_fill_part(obs_volume_procedural kind, uint32_t seed, const int full[3],
+                                    const int off[3], const int n[3], obs_volume *v, obs_err *err);
 
 /* Min and max of the trilinear field over blocks of `cell` x `cell` x `cell` voxel intervals:
  * cell c spans the voxel centres c * cell ... (c + 1) * cell (shared with the next cell), which

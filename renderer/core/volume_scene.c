@@ -78,25 +78,14 @@ static int crop(const obs_volume *full, const keep *kp, obs_volume *v, obs_err *
 }
 
 /* The kept voxels of a procedural volume of full_n voxels, each computed exactly as the whole
- * volume's fill computes it (obs_volume_procedural_fill), so a brick's samples are its bits. */
+ * volume's fill computes it, so a brick's samples are its bits. */
 static int procedural_brick(const obs_shape *s, const keep *kp, obs_volume *v, obs_err *err) {
   const int *fn = s->volume.dims;
-  double sp[3] = {2.0 / fn[0], 2.0 / fn[1], 2.0 / fn[2]};
   int n[3] = {fn[0], fn[1], fn[2]}, o[3] = {0, 0, 0};
   n[kp->axis] = kp->k1 - kp->k0;
   o[kp->axis] = kp->k0;
-  int rc = obs_volume_init(v, n, sp, err);
-  if (rc) return rc;
-  obs_volume_procedural kind = (obs_volume_procedural)s->volume.procedural;
-  for (int k = 0; k < n[2]; k++)
-    for (int j = 0; j < n[1]; j++)
-      for (int i = 0; i < n[0]; i++) {
-        double x[3] = {-1 + ((i + o[0]) + 0.5) * sp[0], -1 + ((j + o[1]) + 0.5) * sp[1],
-                       -1 + ((k + o[2]) + 0.5) * sp[2]};
-        v->data[((size_t)k * (size_t)n[1] + (size_t)j) * (size_t)n[0] + (size_t)i] =
-            (float)obs_volume_procedural_value(kind, s->volume.seed, x);
-      }
-  return 0;
+  return obs_volume_procedural_fill_part((obs_volume_procedural)s->volume.procedural,
+                                         s->volume.seed, fn, o, n, v, err);
 }
 
 /* The largest singular value of a (power iteration on a^T a from each axis; a bound on how much
@@ -198,7 +187,7 @@ static int read_samples(const obs_object *o, obs_scene_volume *sv, const obs_bri
   }
   /* The box is [0, extent]: the same scale on every axis keeps the voxels' aspect. */
   for (int a = 0; a < 3; a++) sp[a] /= longest;
-  keep kp;
+  keep kp = {0, 0, 0, 0, 0};
   if (b && !brick_keep(b, sv->full_n, sp, reach, &kp)) {
     obs_volume_free(&full);
     return obs_err_set(err, OBS_EINVAL,

@@ -157,12 +157,46 @@ static void test_cells_bound_the_field(void **state) {
   obs_err_free(&err);
 }
 
+/* A fill's samples are the formula's, bit for bit, for every kind (Marschner-Lobb is filled by its
+ * separable terms), and a part of the lattice holds the whole fill's samples. */
+static void test_fill_parts_are_the_formula(void **state) {
+  (void)state;
+  obs_err err = OBS_ERR_INIT;
+  const int full[3] = {19, 14, 11}, off[3] = {3, 0, 5}, n[3] = {9, 14, 4};
+  for (int kind = 0; kind < OBS_VOLUME_PROCEDURAL_COUNT; kind++) {
+    obs_volume whole, part;
+    assert_int_equal(obs_volume_procedural_fill(kind, 3, full, &whole, &err), 0);
+    assert_int_equal(obs_volume_procedural_fill_part(kind, 3, full, off, n, &part, &err), 0);
+    for (int k = 0; k < full[2]; k++)
+      for (int j = 0; j < full[1]; j++)
+        for (int i = 0; i < full[0]; i++) {
+          double x[3] = {-1 + (i + 0.5) * (2.0 / full[0]), -1 + (j + 0.5) * (2.0 / full[1]),
+                         -1 + (k + 0.5) * (2.0 / full[2])};
+          float want = (float)obs_volume_procedural_value(kind, 3, x);
+          assert_true(obs_volume_at(&whole, i, j, k) == want);
+          int in = i >= off[0] && i < off[0] + n[0] && j >= off[1] && j < off[1] + n[1] &&
+                   k >= off[2] && k < off[2] + n[2];
+          if (in) assert_true(obs_volume_at(&part, i - off[0], j - off[1], k - off[2]) == want);
+        }
+    assert_true(part.spacing[0] == whole.spacing[0] && part.spacing[2] == whole.spacing[2]);
+    obs_volume_free(&whole);
+    obs_volume_free(&part);
+  }
+  const int outside[3] = {3, 0, 8};
+  obs_volume v;
+  assert_int_equal(obs_volume_procedural_fill_part(OBS_VOLUME_SPHERE, 0, full, outside, n, &v, &err),
+                   OBS_EINVAL);
+  assert_non_null(strstr(obs_err_message(&err), "[8, 12) of 11 voxels on axis 2"));
+  obs_err_free(&err);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_trilinear_linear),
       cmocka_unit_test(test_shapes_and_refusals),
       cmocka_unit_test(test_procedural),
       cmocka_unit_test(test_cells_bound_the_field),
+      cmocka_unit_test(test_fill_parts_are_the_formula),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
