@@ -5,16 +5,26 @@
 #include <stdlib.h>
 #include <string.h>
 
-enum { KIND_PREMUL, KIND_BG_ONE, KIND_ALPHA, KIND_DEPTH, KIND_VECTOR };
+enum { KIND_OVER, KIND_ALPHA, KIND_DEPTH, KIND_VECTOR };
 
-/* How a channel merges (see mpi_composite.h); a vector channel's group is the three channels
- * from its X (the renderer writes X, Y, Z in a row). */
-static int kind_of(const char *name) {
-  if (!strcmp(name, "alpha")) return KIND_ALPHA;
-  if (!strncmp(name, "depth.", 6)) return KIND_DEPTH;
-  if (!strcmp(name, "ao")) return KIND_BG_ONE;
-  if (!strncmp(name, "normal.", 7) || !strncmp(name, "bent_normal.", 12)) return KIND_VECTOR;
-  return KIND_PREMUL;
+/* How channel `name` merges, from the technique's outputs: its kind, and for KIND_OVER its
+ * background; -1 for a channel no output has. A vector output's group is the three channels
+ * from its X (the writer puts X, Y, Z in a row). */
+static int kind_of(const obs_technique *t, const char *name, double *bg) {
+  *bg = 0;
+  for (const obs_output *o = t->outputs; o && o->name; o++) {
+    char names[OBS_OUTPUT_MAX_CHANNELS][OBS_CHANNEL_NAME_MAX];
+    int n = obs_output_channels(o, names);
+    for (int c = 0; c < n; c++) {
+      if (strcmp(names[c], name)) continue;
+      if (!strcmp(o->name, "alpha")) return KIND_ALPHA;
+      if (o->kind == OBS_OUTPUT_DEPTH) return KIND_DEPTH;
+      if (o->kind == OBS_OUTPUT_VECTOR) return KIND_VECTOR;
+      *bg = o->background;
+      return KIND_OVER;
+    }
+  }
+  return -1;
 }
 
 typedef struct frag {
@@ -42,8 +52,8 @@ static int fragments(const obs_image *const *parts, int nparts, int ca, int cd, 
 }
 
 /* The "over" merge of n > 1 fragments, or one that covers part of the pixel. */
-static void merge(const obs_image *const *parts, const frag *f, int n, const int *kind, size_t at,
-                  double *acc, int nch) {
+static void merge(const obs_image *const *parts, const frag *f, int n, const int *kind,
+                  const double *bg, size_t at, double *acc, int nch) {
   size_t plane = (size_t)parts[0]->width * (size_t)parts[0]->height;
   double t = 1, wsum = 0;
   memset(acc, 0, (size_t)nch * sizeof *acc);
@@ -52,15 +62,14 @@ static void merge(const obs_image *const *parts, const frag *f, int n, const int
     double a = f[i].alpha, w = t * a;
     for (int c = 0; c < nch; c++) {
       double v = d[(size_t)c * plane];
-      if (kind[c] == KIND_PREMUL) acc[c] += t * v;
-      if (kind[c] == KIND_BG_ONE) acc[c] += t * (v - (1 - a));
+      if (kind[c] == KIND_OVER) acc[c] += t * (v - (1 - a) * bg[c]);
       if (kind[c] == KIND_DEPTH || kind[c] == KIND_VECTOR) acc[c] += w * v;
     }
     wsum += w;
     t *= 1 - a;
   }
   for (int c = 0; c < nch; c++) {
-    if (kind[c] == KIND_BG_ONE) acc[c] += t;
+    if (kind[c] == KIND_OVER) acc[c] += t * bg[c];
     if (kind[c] == KIND_ALPHA) acc[c] = 1 - t;
     if (kind[c] == KIND_DEPTH && wsum > 0) acc[c] /= wsum;
     if (kind[c] == KIND_VECTOR && c + 2 < nch && kind[c + 1] == KIND_VECTOR &&
@@ -73,15 +82,24 @@ static void merge(const obs_image *const *parts, const frag *f, int n, const int
   }
 }
 
-static int check_parts(const obs_image *out, const obs_image *const *parts, int nparts, int *ca,
-                       int *cd, obs_err *err) {
+/* Each channel's kind and background (kind_of), the alpha and depth channels, and whether every
+ * part matches `out`. */
+static int check_parts(const obs_image *out, const obs_image *const *parts, int nparts,
+                       const obs_technique *t, int *kind, double *bg, int *ca, int *cd,
+                       obs_err *err) {
   *ca = *cd = -1;
   for (int c = 0; c < out->nchannels; c++) {
-    if (!strcmp(out->names[c], "alpha")) *ca = c;
-    if (!strncmp(out->names[c], "depth.", 6)) *cd = c;
+    kind[c] = kind_of(t, out->names[c], &bg[c]);
+    if (kind[c] < 0)
+      return obs_err_set(err, OBS_EINVAL, "composite: channel %s is none of %s's outputs",
+                         out->names[c], t->name);
+    if (kind[c] == KIND_ALPHA) *ca = c;
+    if (kind[c] == KIND_DEPTH) *cd = c;
   }
   if (*ca < 0 || *cd < 0)
-    return obs_err_set(err, OBS_EINVAL, "composite: the image has no alpha or depth channel");
+    return obs_err_set(err, OBS_EINVAL,
+                       "composite: %s's image has no alpha or depth channel to composite by",
+                       t->name);
   for (int p = 0; p < nparts; p++) {
     const obs_image *im = parts[p];
     int same =
@@ -95,13 +113,13 @@ static int check_parts(const obs_image *out, const obs_image *const *parts, int 
   return 0;
 }
 
-int cli_composite_depth(obs_image *out, const obs_image *const *parts, int nparts, obs_err *err) {
-  int ca, cd, nch = out->nchannels;
-  int rc = check_parts(out, parts, nparts, &ca, &cd, err);
+int cli_composite_depth(obs_image *out, const obs_image *const *parts, int nparts,
+                        const obs_technique *t, obs_err *err) {
+  int ca, cd, nch = out->nchannels, kind[OBS_IMAGE_MAX_CHANNELS];
+  double bg[OBS_IMAGE_MAX_CHANNELS];
+  int rc = check_parts(out, parts, nparts, t, kind, bg, &ca, &cd, err);
   if (rc) return rc;
   size_t plane = (size_t)out->width * (size_t)out->height;
-  int kind[OBS_IMAGE_MAX_CHANNELS];
-  for (int c = 0; c < nch; c++) kind[c] = kind_of(out->names[c]);
   frag *f = malloc((size_t)nparts * sizeof *f);
   double *acc = malloc((size_t)nch * sizeof *acc);
   if (!f || !acc) {
@@ -119,7 +137,7 @@ int cli_composite_depth(obs_image *out, const obs_image *const *parts, int npart
           out->data[(size_t)c * plane + at] = src->data[(size_t)c * plane + at];
       continue;
     }
-    merge(parts, f, n, kind, at, acc, nch);
+    merge(parts, f, n, kind, bg, at, acc, nch);
     for (int c = 0; c < nch; c++) out->data[(size_t)c * plane + at] = (float)acc[c];
   }
   free(f);

@@ -709,7 +709,7 @@ static int data_render(cli_mpi *m, obs_scene *sc, const obs_render_opts *opts, o
     parts[r] = &theirs[r];
   }
   /* The composite overwrites rank 0's image, which it reads pixel by pixel before writing. */
-  rc = cli_composite_depth(&mine.image, parts, m->size, err);
+  rc = cli_composite_depth(&mine.image, parts, m->size, sc->technique, err);
   for (int r = 1; r < m->size; r++) free(theirs[r].data);
   free(theirs);
   free(parts);

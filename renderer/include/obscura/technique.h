@@ -345,6 +345,10 @@ typedef struct obs_output {
   const char *stderr_of;   /* names the output this one is the per-pixel standard error of */
   const char *exposure;    /* OBS_SHOW_TONEMAP: the parameter holding the exposure in EV (a number
                               in the technique's params); NULL or absent = 0 EV */
+  float background;        /* scalar and RGB outputs of techniques with an `alpha` output: the
+                              value of a pixel nothing covers (an AO of 1, an open sky), which a
+                              pixel partly covered mixes in by (1 - alpha); 0 by default. What
+                              compositing the bricks of a data-parallel render fills in */
 } obs_output;
 
 #define OBS_OUTPUT_MAX_CHANNELS 3
