@@ -50,30 +50,32 @@ static int handle_lost(srv_app *app, srv_db_identity id, const char *detail) {
   return settled;
 }
 
+/* A due probe's outcome: the fault stays raised with the probe's reason (rc != 0), or clears and
+ * the error images postponed while it was raised become due. Returns 1 when it cleared. */
+static int settle_probe(srv_fault_kind f, int rc, const char *code, obs_err *e, int *metrics_due) {
+  int cleared = 0;
+  if (rc) {
+    srv_fault_probe_failed(f, code, obs_err_message(e));
+  } else {
+    srv_fault_clear(f);
+    *metrics_due = 1;
+    cleared = 1;
+  }
+  obs_err_clear(e);
+  return cleared;
+}
+
 int srv_faults_check(struct srv_app *app, srv_fault_clock *mc, int *metrics_due) {
   int cleared = 0;
   char code[40] = "";
   obs_err e = OBS_ERR_INIT;
-  if (srv_fault_due(SRV_FAULT_RESULTS)) {
-    if (srv_outputs_probe(app->results_dir, code, sizeof code, &e))
-      srv_fault_probe_failed(SRV_FAULT_RESULTS, code, obs_err_message(&e));
-    else {
-      srv_fault_clear(SRV_FAULT_RESULTS);
-      *metrics_due = 1; /* error images may have been postponed */
-      cleared = 1;
-    }
-    obs_err_clear(&e);
-  }
-  if (srv_fault_due(SRV_FAULT_DB)) {
-    if (srv_db_probe(app->db, code, sizeof code, &e))
-      srv_fault_probe_failed(SRV_FAULT_DB, code, obs_err_message(&e));
-    else {
-      srv_fault_clear(SRV_FAULT_DB);
-      *metrics_due = 1;
-      cleared = 1;
-    }
-    obs_err_clear(&e);
-  }
+  if (srv_fault_due(SRV_FAULT_RESULTS))
+    cleared |= settle_probe(SRV_FAULT_RESULTS,
+                            srv_outputs_probe(app->results_dir, code, sizeof code, &e), code, &e,
+                            metrics_due);
+  if (srv_fault_due(SRV_FAULT_DB))
+    cleared |= settle_probe(SRV_FAULT_DB, srv_db_probe(app->db, code, sizeof code, &e), code, &e,
+                            metrics_due);
   double now = obs_now_ms();
   int lost = srv_fault_active(SRV_FAULT_DB_LOST);
   if ((!lost && now - mc->identity_ms >= 2000) ||

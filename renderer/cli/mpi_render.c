@@ -726,7 +726,7 @@ int cli_mpi_render(cli_mpi *m, obs_scene *sc, const obs_render_opts *opts, cli_p
                    obs_result *res, obs_err *err) {
   memset(res, 0, sizeof *res);
   /* Bricks render on the CPU backend only: `auto` must not pick another on some rank. */
-  if (opts->brick.count > 0 && sc->backend == OBS_BACKEND_AUTO) sc->backend = OBS_BACKEND_CPU;
+  if (opts->brick.count > 0) sc->backend = obs_render_brick_backend(sc);
   obs_err quiet = OBS_ERR_INIT;
   int rc = agree_backend(m, sc, m->rank == 0 ? err : &quiet);
   obs_err_free(&quiet);

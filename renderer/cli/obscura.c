@@ -74,21 +74,10 @@ static int parse_args(int argc, char **argv, int first, cli *c) {
   return 0;
 }
 
-/* --distribute data splits the scene's volumes, on the CPU backend (obs_brick): said before any
- * rank renders, as bad input. */
+/* --distribute data splits the scene's volumes, on the CPU backend (obs_brick): what cannot is
+ * said before any rank renders, as bad input. */
 static int check_distribute(const cli *c, const obs_scene *sc, obs_err *err) {
-  if (!c->data) return 0;
-  if (!(sc->technique->needs & OBS_NEED_VOLUME))
-    return obs_err_set(err, OBS_EINVAL,
-                       "%s: --distribute data splits the scene's volumes across the ranks, and "
-                       "technique \"%s\" renders no volumes (use a volume technique such as "
-                       "volume_ao, or the default --distribute image)",
-                       c->s.scene, sc->technique->name);
-  if (sc->backend != OBS_BACKEND_AUTO && sc->backend != OBS_BACKEND_CPU)
-    return obs_err_set(err, OBS_EINVAL,
-                       "%s: --distribute data renders on the cpu backend only, not %s",
-                       c->s.scene, obs_backend_name(sc->backend));
-  return 0;
+  return c->data && obs_render_brick_check(sc, err) ? OBS_EINVAL : 0;
 }
 
 static void free_args(cli *c) { cli_scene_opts_free(&c->s); }

@@ -59,9 +59,7 @@ static void warn_ignored(const obs_scene *sc, obs_render_ctx *ctx) {
                       n > 4 ? " and more" : "");
 }
 
-/* A brick (obs_render_opts.brick) needs a technique that reads volumes, and the CPU backend: its
- * camera rays are clipped to the brick there (renderer/cpu/volume_ao.c), and nowhere else. */
-static int check_brick(const obs_scene *sc, obs_backend be, const obs_brick *b, obs_err *err) {
+int obs_render_brick_check(const obs_scene *sc, obs_err *err) {
   const obs_technique *t = sc->technique;
   if (!(t->needs & OBS_NEED_VOLUME))
     return obs_err_set(err, OBS_EUNSUPPORTED,
@@ -69,22 +67,16 @@ static int check_brick(const obs_scene *sc, obs_backend be, const obs_brick *b, 
                        "of them (a data-parallel render needs a volume technique such as "
                        "volume_ao)",
                        sc->name, t->name);
-  if (be != OBS_BACKEND_CPU)
+  if (obs_render_brick_backend(sc) != OBS_BACKEND_CPU || !t->run[OBS_BACKEND_CPU])
     return obs_err_set(err, OBS_EUNSUPPORTED,
                        "%s: technique \"%s\" renders one brick of a volume (a data-parallel "
                        "render) on the cpu backend only, not on %s",
-                       sc->name, t->name, obs_backend_name(be));
-  if (b->index < 0 || b->index >= b->count)
-    return obs_err_set(err, OBS_EINVAL, "%s: brick %d of %d does not exist", sc->name, b->index,
-                       b->count);
+                       sc->name, t->name, obs_backend_name(sc->backend));
   return 0;
 }
 
-/* How far the technique reads the volume from a hit, in data-space units of the volume hit (the
- * width of a brick's ghost zone): volume_ao's AO march ends at max_distance. */
-static double brick_reach(const obs_scene *sc) {
-  double d = json_number_value(json_object_get(sc->params, "max_distance"));
-  return isfinite(d) && d > 0 ? d : 0;
+obs_backend obs_render_brick_backend(const obs_scene *sc) {
+  return sc->backend == OBS_BACKEND_AUTO ? OBS_BACKEND_CPU : sc->backend;
 }
 
 int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *res,
@@ -120,9 +112,8 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
   obs_region region;
   if ((rc = obs_driver_region(&ctx, scene->width, scene->height, &region, err))) return rc;
   const obs_brick *brick = opts && opts->brick.count > 0 ? &opts->brick : NULL;
-  /* auto picks the backend that renders bricks. */
-  if (brick && scene->backend == OBS_BACKEND_AUTO && t->run[OBS_BACKEND_CPU]) be = OBS_BACKEND_CPU;
-  if (brick && (rc = check_brick(scene, be, brick, err))) return rc;
+  if (brick && (rc = obs_render_brick_check(scene, err))) return rc;
+  if (brick) be = obs_render_brick_backend(scene);
   /* Outside its backend's guaranteed range a render still runs, but says so (docs/accuracy.md). */
   obs_extent ex;
   rc = obs_scene_extent(scene, &ex, err);
@@ -143,7 +134,8 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
   /* Volumes are read the same way for every backend, so here rather than by a backend's builder. */
   obs_scene_volumes vols = {0};
   if (t->needs & OBS_NEED_VOLUME) {
-    if ((rc = obs_scene_volumes_load_brick(scene, brick, brick_reach(scene), &vols, err))) {
+    double reach = brick && t->volume_reach ? t->volume_reach(bound) : 0;
+    if ((rc = obs_scene_volumes_load_brick(scene, brick, reach, &vols, err))) {
       if (nb) nb->release(built);
       free(bound);
       return rc;

@@ -238,9 +238,15 @@ typedef struct march {
   obs_volume_crossing how;
 } march;
 
-static inline float march_sample(const march *m, int64_t i) {
+/* Grid sample i's index-space point. */
+static inline void march_point(const march *m, int64_t i, float q[3]) {
   float t = (float)(m->start + (double)i * m->step);
-  float q[3] = {m->u0[0] + t * m->du[0], m->u0[1] + t * m->du[1], m->u0[2] + t * m->du[2]};
+  for (int a = 0; a < 3; a++) q[a] = m->u0[a] + t * m->du[a];
+}
+
+static inline float march_sample(const march *m, int64_t i) {
+  float q[3];
+  march_point(m, i, q);
   return grid_sample(m->g, q);
 }
 
@@ -258,8 +264,8 @@ static int march_plain(const march *m, float *prev) {
  * its bounds (the tests read only which side of iso each value lies on), a cell that reaches iso
  * is sampled. */
 static int march_cells(const march *m, const obs_volume_cells *c, float *prev) {
-  float t = (float)(m->start + (double)m->ia * m->step);
-  float q[3] = {m->u0[0] + t * m->du[0], m->u0[1] + t * m->du[1], m->u0[2] + t * m->du[2]};
+  float q[3];
+  march_point(m, m->ia, q);
   cell_walk w = {c, m->u0, m->inv, {0, 0, 0}, {0, 0, 0}};
   walk_init(&w, m->g, q);
   for (int64_t i = m->ia; i <= m->ib; walk_step(&w)) {
@@ -304,7 +310,8 @@ int obs_volume_grid_crossing(const obs_volume_iso *s, const double o[3], const d
   if (!clip_box(v, o, d, &t0, &t1)) return 0; /* 0 all along: no crossing */
   grid g;
   grid_init(v, &g);
-  march m = {&g, {0, 0, 0}, {0, 0, 0}, {0, 0, 0}, s->iso, a->start, a->step, 1 / a->step, 0, 0, a->crossing};
+  march m = {.g = &g, .iso = s->iso, .start = a->start, .step = a->step,
+             .inv_step = 1 / a->step, .how = a->crossing};
   for (int k = 0; k < 3; k++) {
     m.u0[k] = (float)(o[k] / v->spacing[k] - 0.5);
     m.du[k] = (float)(d[k] / v->spacing[k]);

@@ -60,11 +60,17 @@ typedef struct keep {
   int axis, lo, hi, k0, k1;
 } keep;
 
-/* A volume of the kept voxels of `full`, voxel for voxel (the data array is copied). */
-static int crop(const obs_volume *full, const keep *kp, obs_volume *v, obs_err *err) {
-  int n[3] = {full->n[0], full->n[1], full->n[2]}, o[3] = {0, 0, 0};
+/* The kept part of a volume of full_n voxels: its first voxel `o` and its size `n`. */
+static void kept_part(const int full_n[3], const keep *kp, int n[3], int o[3]) {
+  for (int a = 0; a < 3; a++) n[a] = full_n[a], o[a] = 0;
   n[kp->axis] = kp->k1 - kp->k0;
   o[kp->axis] = kp->k0;
+}
+
+/* A volume of the kept voxels of `full`, voxel for voxel (the data array is copied). */
+static int crop(const obs_volume *full, const keep *kp, obs_volume *v, obs_err *err) {
+  int n[3], o[3];
+  kept_part(full->n, kp, n, o);
   int rc = obs_volume_init(v, n, full->spacing, err);
   if (rc) return rc;
   for (int k = 0; k < n[2]; k++)
@@ -80,12 +86,10 @@ static int crop(const obs_volume *full, const keep *kp, obs_volume *v, obs_err *
 /* The kept voxels of a procedural volume of full_n voxels, each computed exactly as the whole
  * volume's fill computes it, so a brick's samples are its bits. */
 static int procedural_brick(const obs_shape *s, const keep *kp, obs_volume *v, obs_err *err) {
-  const int *fn = s->volume.dims;
-  int n[3] = {fn[0], fn[1], fn[2]}, o[3] = {0, 0, 0};
-  n[kp->axis] = kp->k1 - kp->k0;
-  o[kp->axis] = kp->k0;
+  int n[3], o[3];
+  kept_part(s->volume.dims, kp, n, o);
   return obs_volume_procedural_fill_part((obs_volume_procedural)s->volume.procedural,
-                                         s->volume.seed, fn, o, n, v, err);
+                                         s->volume.seed, s->volume.dims, o, n, v, err);
 }
 
 /* The largest singular value of a (power iteration on a^T a from each axis; a bound on how much

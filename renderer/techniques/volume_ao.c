@@ -147,6 +147,11 @@ static const obs_param volume_ao_params[] = {
 /* A hit marches `samples` directions of (max_distance - start) / step samples each (at most
  * OBS_VOLUME_AO_MAX_STEPS), in units of the article's 90-sample march; the camera ray's march
  * is about one more. */
+/* The AO march ends max_distance from the hit. */
+static double volume_ao_reach(const void *bound) {
+  return ((const obs_volume_ao_tparams *)bound)->max_distance;
+}
+
 static double volume_ao_cost(const void *bound) {
   const obs_volume_ao_tparams *p = bound;
   double steps = (p->max_distance - p->start) / p->step;
@@ -218,6 +223,7 @@ const obs_technique obs_technique_volume_ao = {
     .params_size = sizeof volume_ao_params / sizeof volume_ao_params[0],
     .bound_size = sizeof(obs_volume_ao_tparams),
     .cost = volume_ao_cost,
+    .volume_reach = volume_ao_reach,
     .cost_rule = "1 + samples x (max_distance - start) / step / 90",
     .ms_per_work = 5e-4,
     .needs = OBS_NEED_VOLUME | OBS_NEED_PUNCTUAL_LIGHTS | OBS_NEED_ENV_MAP,

@@ -65,6 +65,13 @@ typedef struct obs_result {
 
 int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *result,
                obs_err *err);
+/* Whether scene sc can render bricks (obs_render_opts.brick): 0, or OBS_EUNSUPPORTED naming why
+ * (its technique reads no volumes, or its backend is not the CPU); obs_render checks it, callers
+ * that split a render may say it first. */
+int obs_render_brick_check(const obs_scene *sc, obs_err *err);
+/* The backend a brick of sc renders on: its own, auto being the CPU (the one that renders
+ * bricks). */
+obs_backend obs_render_brick_backend(const obs_scene *sc);
 void obs_result_free(obs_result *result);
 
 /* Writes the result's files into DIR (creating it), all from the technique's declared outputs:

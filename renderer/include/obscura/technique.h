@@ -369,6 +369,9 @@ typedef struct obs_technique {
   /* Cross-field rules of the parameters, ended by an entry with a NULL param; NULL: none. */
   const obs_param_rule *rules;
   obs_technique_cost_fn cost;   /* NULL: 1 per pixel sample */
+  /* With OBS_NEED_VOLUME: how far from a surface point the run reads the volume, in data-space
+   * units of the volume hit (a brick's ghost zone, obs_render_opts.brick); NULL: 0. */
+  double (*volume_reach)(const void *bound);
   /* With OBS_NEED_MOTION: the work of a scene of `frames` frames in units of one frame's, an
    * upper bound (NULL: frames). */
   double (*frames_cost)(const void *bound, int frames);
