@@ -2,6 +2,7 @@
  * macrocell grid (volume.h). */
 #include "volume.h"
 
+#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -220,8 +221,8 @@ int obs_volume_cells_build(const obs_volume *v, int cell, obs_volume_cells *c, o
           for (int j = lo[1]; j <= hi[1]; j++)
             for (int i = lo[0]; i <= hi[0]; i++) {
               float x = obs_volume_at(v, i, j, k);
-              mn = fminf(mn, x);
-              mx = fmaxf(mx, x);
+              mn = x < mn ? x : mn;
+              mx = x > mx ? x : mx;
             }
         size_t at = ((size_t)ck * (size_t)c->n[1] + (size_t)cj) * (size_t)c->n[0] + (size_t)ci;
         c->min[at] = mn;
@@ -235,4 +236,66 @@ void obs_volume_cells_free(obs_volume_cells *c) {
   free(c->min);
   free(c->max);
   memset(c, 0, sizeof *c);
+}
+
+/* The min and max of the 2 x 2 corners of every x position of row (j, k) across y and z: a cell's
+ * bounds are then those of two neighbouring columns. */
+static void column_bounds(const obs_volume *v, int j, int k, float *mn, float *mx) {
+  int j1 = v->n[1] > 1 ? j + 1 : j, k1 = v->n[2] > 1 ? k + 1 : k;
+  const float *r[4] = {&v->data[((size_t)k * v->n[1] + j) * v->n[0]],
+                       &v->data[((size_t)k * v->n[1] + j1) * v->n[0]],
+                       &v->data[((size_t)k1 * v->n[1] + j) * v->n[0]],
+                       &v->data[((size_t)k1 * v->n[1] + j1) * v->n[0]]};
+  for (int i = 0; i < v->n[0]; i++) {
+    float a = r[0][i], b = a;
+    for (int q = 1; q < 4; q++) {
+      a = r[q][i] < a ? r[q][i] : a;
+      b = r[q][i] > b ? r[q][i] : b;
+    }
+    mn[i] = a;
+    mx[i] = b;
+  }
+}
+
+int obs_volume_sides_build(const obs_volume *v, float iso, obs_volume_sides *s, obs_err *err) {
+  memset(s, 0, sizeof *s);
+  size_t count = 1;
+  for (int a = 0; a < 3; a++) {
+    s->n[a] = v->n[a] > 1 ? v->n[a] - 1 : 1;
+    count *= (size_t)s->n[a];
+  }
+  s->iso = iso;
+  s->bits = calloc(count / 4 + 4, 1); /* the slack: 4-byte gathers of the last cells */
+  float *mn = malloc((size_t)v->n[0] * sizeof *mn), *mx = malloc((size_t)v->n[0] * sizeof *mx);
+  if (!s->bits || !mn || !mx) {
+    free(mn);
+    free(mx);
+    obs_volume_sides_free(s);
+    return obs_err_set(err, OBS_ENOMEM, "volume: out of memory for %zu cell sides", count);
+  }
+  int up = v->n[0] > 1;
+  size_t c = 0;
+  for (int k = 0; k < s->n[2]; k++)
+    for (int j = 0; j < s->n[1]; j++) {
+      column_bounds(v, j, k, mn, mx);
+      for (int i = 0; i < s->n[0]; i++, c++) {
+        float lo = mn[i + up] < mn[i] ? mn[i + up] : mn[i];
+        float hi = mx[i + up] > mx[i] ? mx[i + up] : mx[i];
+        /* A float lerp chain strays from its corners' hull by a few roundings of their size. */
+        float size = fabsf(lo) > fabsf(hi) ? fabsf(lo) : fabsf(hi);
+        size = size > fabsf(iso) ? size : fabsf(iso);
+        float margin = 64 * FLT_EPSILON * size;
+        int side = hi < iso - margin ? OBS_VOLUME_BELOW : lo > iso + margin ? OBS_VOLUME_ABOVE : 0;
+        s->bits[c >> 2] |= (uint8_t)(side << ((c & 3) * 2));
+      }
+    }
+  free(mn);
+  free(mx);
+  return 0;
+}
+
+void obs_volume_sides_free(obs_volume_sides *s) {
+  if (!s) return;
+  free(s->bits);
+  memset(s, 0, sizeof *s);
 }

@@ -1,7 +1,7 @@
 /* Scalar volumes for isosurface techniques: a grid of values normalised to [0, 1] with its voxel
  * spacing, trilinear reconstruction, the procedural volumes that tests and benchmarks use without
- * files (sphere, torus, Marschner-Lobb, seeded noise), and the min/max macrocell grid that lets
- * rays skip cells the isosurface cannot cross. */
+ * files (sphere, torus, Marschner-Lobb, seeded noise), the min/max macrocell grid that lets
+ * rays skip cells the isosurface cannot cross, and the per-voxel-cell side of one isovalue. */
 #ifndef OBS_VOLUME_H
 #define OBS_VOLUME_H
 
@@ -73,5 +73,23 @@ typedef struct obs_volume_cells {
 } obs_volume_cells;
 int obs_volume_cells_build(const obs_volume *v, int cell, obs_volume_cells *c, obs_err *err);
 void obs_volume_cells_free(obs_volume_cells *c);
+
+/* Which side of one isovalue the trilinear field lies on in each voxel cell: cell (i, j, k) spans
+ * the voxel centres i ... i + 1 per axis (one centre on a 1-voxel axis), n[a] = max(dims - 1, 1)
+ * cells per axis, 2 bits each (OBS_VOLUME_BELOW, OBS_VOLUME_ABOVE, or 0 where the field may reach
+ * iso). A cell is wholly on one side only with a margin of a few float roundings past its
+ * corners, so no float trilinear sample inside it lands on the other side. An AO march reads one
+ * byte here instead of eight samples wherever the isosurface is not near. Owns `bits`. */
+enum { OBS_VOLUME_BELOW = 1, OBS_VOLUME_ABOVE = 2 };
+typedef struct obs_volume_sides {
+  int n[3];
+  float iso;
+  uint8_t *bits; /* cell c = (k n1 + j) n0 + i at bits c / 4, shift 2 (c % 4) */
+} obs_volume_sides;
+int obs_volume_sides_build(const obs_volume *v, float iso, obs_volume_sides *s, obs_err *err);
+void obs_volume_sides_free(obs_volume_sides *s);
+static inline int obs_volume_side(const obs_volume_sides *s, size_t cell) {
+  return s->bits[cell >> 2] >> ((cell & 3) * 2) & 3;
+}
 
 #endif

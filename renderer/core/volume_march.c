@@ -5,6 +5,7 @@
 #include <math.h>
 
 #include "sampling.h"
+#include "simd.h"
 
 /* The ray's parameter range inside the box [0, n s] (slabs in double); 0 when it misses. */
 static int clip_box(const obs_volume *v, const double o[3], const double d[3], double *t0,
@@ -145,24 +146,27 @@ typedef struct grid {
   int top[3];        /* the largest lower corner: n - 2, 0 on a 1-voxel axis */
   size_t row[3];     /* 1, n0, n0 n1 */
   size_t up[3];      /* the upper corner's offset: row, 0 on a 1-voxel axis (its weight is 0) */
+  const obs_volume_sides *sides; /* NULL: none */
+  size_t cell_row[3];            /* the sides' rows: 1, top0 + 1, (top0 + 1)(top1 + 1) */
 } grid;
 
-static void grid_init(const obs_volume *v, grid *g) {
+static void grid_init(const obs_volume *v, const obs_volume_sides *sides, grid *g) {
   g->data = v->data;
-  size_t row = 1;
+  g->sides = sides;
+  size_t row = 1, cell_row = 1;
   for (int a = 0; a < 3; a++) {
     g->hi[a] = (float)(v->n[a] - 1);
     g->top[a] = v->n[a] > 1 ? v->n[a] - 2 : 0;
     g->row[a] = row;
     g->up[a] = v->n[a] > 1 ? row : 0;
+    g->cell_row[a] = cell_row;
     row *= (size_t)v->n[a];
+    cell_row *= (size_t)g->top[a] + 1;
   }
 }
 
-/* The trilinear field at index-space point u (obs_volume_sample's field, in float). */
-static inline float grid_sample(const grid *g, const float u[3]) {
-  int i[3];
-  float w[3];
+/* Where index-space point u falls: its cell's lower corner i and the upper corners' weights. */
+static inline void grid_locate(const grid *g, const float u[3], int i[3], float w[3]) {
   for (int a = 0; a < 3; a++) {
     float x = u[a] > 0 ? u[a] : 0; /* NaN too */
     x = x < g->hi[a] ? x : g->hi[a];
@@ -170,6 +174,9 @@ static inline float grid_sample(const grid *g, const float u[3]) {
     if (i[a] > g->top[a]) i[a] = g->top[a];
     w[a] = x - (float)i[a];
   }
+}
+
+static inline float grid_lerp(const grid *g, const int i[3], const float w[3]) {
   const float *p = g->data + (size_t)i[0] + (size_t)i[1] * g->row[1] + (size_t)i[2] * g->row[2];
   size_t sx = g->up[0], sy = g->up[1], sz = g->up[2];
   float c00 = p[0] + w[0] * (p[sx] - p[0]);
@@ -179,6 +186,30 @@ static inline float grid_sample(const grid *g, const float u[3]) {
   float c0 = c00 + w[1] * (c10 - c00), c1 = c01 + w[1] * (c11 - c01);
   return c0 + w[2] * (c1 - c0);
 }
+
+/* The trilinear field at index-space point u (obs_volume_sample's field, in float). */
+static inline float grid_sample(const grid *g, const float u[3]) {
+  int i[3];
+  float w[3];
+  grid_locate(g, u, i, w);
+  return grid_lerp(g, i, w);
+}
+
+/* The same where it may reach iso; where u's voxel cell lies wholly on one side of it (g->sides),
+ * an infinity on that side instead: the crossing tests read only the side. */
+static inline float grid_side_sample(const grid *g, const float u[3]) {
+  int i[3];
+  float w[3];
+  grid_locate(g, u, i, w);
+  size_t cell = (size_t)i[0] + (size_t)i[1] * g->cell_row[1] + (size_t)i[2] * g->cell_row[2];
+  int side = obs_volume_side(g->sides, cell);
+  if (side) return side == OBS_VOLUME_BELOW ? -INFINITY : INFINITY;
+  return grid_lerp(g, i, w);
+}
+
+/* The step (in voxels along the axis it moves most) from which an AO march with cell sides
+ * takes every sample instead of walking macrocells. */
+#define OBS_VOLUME_SIDES_STEP 1.0f
 
 /* A 3D-DDA over the macrocells along u0 + t du (index space): the cell the ray is in and, per
  * axis, the t where it crosses into the next cell (infinite where it never does: du is 0 there,
@@ -236,6 +267,7 @@ typedef struct march {
   double start, step, inv_step;
   int64_t ia, ib;
   obs_volume_crossing how;
+  int simd, loads; /* eight samples at a time (cell sides and AVX2), their loads as loads */
 } march;
 
 /* Grid sample i's index-space point. */
@@ -247,11 +279,96 @@ static inline void march_point(const march *m, int64_t i, float q[3]) {
 static inline float march_sample(const march *m, int64_t i) {
   float q[3];
   march_point(m, i, q);
-  return grid_sample(m->g, q);
+  return m->g->sides ? grid_side_sample(m->g, q) : grid_sample(m->g, q);
 }
+
+#if OBS_SIMD_AVX2
+/* bits[byte[l]] for the 8 lanes l, as 32-bit lanes (the sides array has 3 bytes of slack). */
+OBS_AVX2_INLINE __m256i gather_bytes(int loads, const uint8_t *bits, __m256i byte) {
+  if (!loads) return _mm256_and_si256(_mm256_i32gather_epi32((const int *)bits, byte, 1),
+                                      _mm256_set1_epi32(0xff));
+  int at[8];
+  _mm256_storeu_si256((__m256i *)at, byte);
+  return _mm256_setr_epi32(bits[at[0]], bits[at[1]], bits[at[2]], bits[at[3]], bits[at[4]],
+                           bits[at[5]], bits[at[6]], bits[at[7]]);
+}
+
+/* grid_side_sample at eight index-space points (x, y, z), lane for lane the scalar code's
+ * operations: the clamps, truncation, weights and the lerps in the same order. */
+OBS_AVX2_INLINE __m256 side_sample8(const grid *g, int loads, const __m256 u[3]) {
+  __m256i i[3];
+  __m256 w[3];
+  for (int a = 0; a < 3; a++) {
+    __m256 x = _mm256_min_ps(_mm256_max_ps(u[a], _mm256_setzero_ps()), _mm256_set1_ps(g->hi[a]));
+    i[a] = _mm256_min_epi32(_mm256_cvttps_epi32(x), _mm256_set1_epi32(g->top[a]));
+    w[a] = _mm256_sub_ps(x, _mm256_cvtepi32_ps(i[a]));
+  }
+  __m256i cell = _mm256_add_epi32(
+      _mm256_add_epi32(i[0], _mm256_mullo_epi32(i[1], _mm256_set1_epi32((int)g->cell_row[1]))),
+      _mm256_mullo_epi32(i[2], _mm256_set1_epi32((int)g->cell_row[2])));
+  __m256i byte = gather_bytes(loads, g->sides->bits, _mm256_srli_epi32(cell, 2));
+  __m256i side = _mm256_and_si256(
+      _mm256_srlv_epi32(byte, _mm256_slli_epi32(_mm256_and_si256(cell, _mm256_set1_epi32(3)), 1)),
+      _mm256_set1_epi32(3));
+  __m256 above = _mm256_castsi256_ps(_mm256_cmpeq_epi32(side, _mm256_set1_epi32(OBS_VOLUME_ABOVE)));
+  __m256 settled = _mm256_blendv_ps(_mm256_set1_ps(-INFINITY), _mm256_set1_ps(INFINITY), above);
+  __m256 open = _mm256_castsi256_ps(_mm256_cmpeq_epi32(side, _mm256_setzero_si256()));
+  int todo = _mm256_movemask_ps(open);
+  if (!todo) return settled;
+  /* Few lanes reach iso (the surface is thin): those take grid_lerp's scalar loads and lerps. */
+  int ii[3][8];
+  float ww[3][8], out[8];
+  for (int a = 0; a < 3; a++) {
+    _mm256_storeu_si256((__m256i *)ii[a], i[a]);
+    _mm256_storeu_ps(ww[a], w[a]);
+  }
+  _mm256_storeu_ps(out, settled);
+  for (; todo; todo &= todo - 1) {
+    int l = __builtin_ctz((unsigned)todo);
+    const int li[3] = {ii[0][l], ii[1][l], ii[2][l]};
+    const float lw[3] = {ww[0][l], ww[1][l], ww[2][l]};
+    out[l] = grid_lerp(g, li, lw);
+  }
+  return _mm256_loadu_ps(out);
+}
+
+/* march_plain eight samples at a time: every sample's point is march_point's (t in double, then
+ * float), and a crossing between any two neighbours, the first one against *prev, answers. */
+OBS_AVX2_FN static int march_plain8(const march *m, float *prev) {
+  const __m256d step = _mm256_set1_pd(m->step), start = _mm256_set1_pd(m->start);
+  const __m256 iso = _mm256_set1_ps(m->iso);
+  const __m256i shift = _mm256_setr_epi32(7, 0, 1, 2, 3, 4, 5, 6);
+  for (int64_t i = m->ia; i <= m->ib; i += 8) {
+    double base = (double)i;
+    __m256d k0 = _mm256_add_pd(_mm256_set1_pd(base), _mm256_setr_pd(0, 1, 2, 3));
+    __m256d k1 = _mm256_add_pd(_mm256_set1_pd(base), _mm256_setr_pd(4, 5, 6, 7));
+    __m256 t = _mm256_set_m128(_mm256_cvtpd_ps(_mm256_add_pd(start, _mm256_mul_pd(k1, step))),
+                               _mm256_cvtpd_ps(_mm256_add_pd(start, _mm256_mul_pd(k0, step))));
+    __m256 u[3];
+    for (int a = 0; a < 3; a++)
+      u[a] = _mm256_add_ps(_mm256_set1_ps(m->u0[a]), _mm256_mul_ps(t, _mm256_set1_ps(m->du[a])));
+    __m256 v = side_sample8(m->g, m->loads, u);
+    __m256 pv = _mm256_blend_ps(_mm256_permutevar8x32_ps(v, shift), _mm256_set1_ps(*prev), 1);
+    __m256 below_before = _mm256_cmp_ps(pv, iso, _CMP_LT_OQ);
+    __m256 hit = m->how == OBS_VOLUME_CROSS_RISING
+                     ? _mm256_and_ps(below_before, _mm256_cmp_ps(v, iso, _CMP_GT_OQ))
+                     : _mm256_xor_ps(below_before, _mm256_cmp_ps(v, iso, _CMP_LT_OQ));
+    int64_t left = m->ib - i + 1;
+    int lanes = left < 8 ? (int)left : 8, valid = (1 << lanes) - 1;
+    if (_mm256_movemask_ps(hit) & valid) return 1;
+    float last[8];
+    _mm256_storeu_ps(last, v);
+    *prev = last[lanes - 1];
+  }
+  return 0;
+}
+#endif
 
 /* Samples ia ... ib one by one; *prev is the value before ia and the last on return. */
 static int march_plain(const march *m, float *prev) {
+#if OBS_SIMD_AVX2
+  if (m->simd) return march_plain8(m, prev);
+#endif
   for (int64_t i = m->ia; i <= m->ib; i++) {
     float cur = march_sample(m, i);
     if (crosses(m->how, *prev, cur, m->iso)) return 1;
@@ -285,11 +402,11 @@ static int march_cells(const march *m, const obs_volume_cells *c, float *prev) {
     size_t at = ((size_t)w.ci[2] * (size_t)c->n[1] + (size_t)w.ci[1]) * (size_t)c->n[0] +
                 (size_t)w.ci[0];
     if (c->max[at] < m->iso) {
-      if (crosses(m->how, *prev, -1, m->iso)) return 1;
-      *prev = -1;
+      if (crosses(m->how, *prev, -INFINITY, m->iso)) return 1;
+      *prev = -INFINITY;
     } else if (c->min[at] > m->iso) {
-      if (crosses(m->how, *prev, 2, m->iso)) return 1;
-      *prev = 2;
+      if (crosses(m->how, *prev, INFINITY, m->iso)) return 1;
+      *prev = INFINITY;
     } else {
       march sub = *m;
       sub.ia = i, sub.ib = j;
@@ -309,9 +426,10 @@ int obs_volume_grid_crossing(const obs_volume_iso *s, const double o[3], const d
   double t0 = a->start, t1 = a->start + last * a->step;
   if (!clip_box(v, o, d, &t0, &t1)) return 0; /* 0 all along: no crossing */
   grid g;
-  grid_init(v, &g);
+  grid_init(v, s->sides, &g);
   march m = {.g = &g, .iso = s->iso, .start = a->start, .step = a->step,
-             .inv_step = 1 / a->step, .how = a->crossing};
+             .inv_step = 1 / a->step, .how = a->crossing,
+             .simd = s->sides && a->isa >= OBS_ISA_AVX2, .loads = a->gather_loads};
   for (int k = 0; k < 3; k++) {
     m.u0[k] = (float)(o[k] / v->spacing[k] - 0.5);
     m.du[k] = (float)(d[k] / v->spacing[k]);
@@ -322,9 +440,16 @@ int obs_volume_grid_crossing(const obs_volume_iso *s, const double o[3], const d
   m.ib = (int64_t)floor((t1 - a->start) / a->step);
   if (m.ia < 0) m.ia = 0;
   if (m.ib > (int64_t)last) m.ib = (int64_t)last;
+  /* Macrocells pay where several samples share one; cell sides settle a sample for a byte. */
+  float reach = 0;
+  for (int k = 0; k < 3; k++) {
+    float r = fabsf(m.du[k]) * (float)a->step;
+    reach = r > reach ? r : reach;
+  }
+  int by_cells = s->cells && !(s->sides && reach >= OBS_VOLUME_SIDES_STEP);
   float prev = 0;
   if (m.ia == 0) prev = march_sample(&m, 0), m.ia = 1;
-  if (m.ia <= m.ib && (s->cells ? march_cells(&m, s->cells, &prev) : march_plain(&m, &prev)))
+  if (m.ia <= m.ib && (by_cells ? march_cells(&m, s->cells, &prev) : march_plain(&m, &prev)))
     return 1;
   /* Past the box the field reads 0. */
   return m.ib < (int64_t)last && crosses(a->crossing, prev, 0, s->iso);

@@ -11,12 +11,14 @@
 
 #include "volume.h"
 
-/* What the marcher needs of a volume: the field, its macrocells (NULL: none skipped) and the
- * isovalue. */
+/* What the marcher needs of a volume: the field, its macrocells (NULL: none skipped), the
+ * isovalue and its voxel cells' sides of it (NULL: every AO sample is taken; else built for this
+ * isovalue). */
 typedef struct obs_volume_iso {
   const obs_volume *v;
   const obs_volume_cells *cells;
   float iso;
+  const obs_volume_sides *sides;
 } obs_volume_iso;
 
 /* The most steps a camera ray takes across a volume's diagonal (only volumes whose thinnest voxel
@@ -48,12 +50,16 @@ typedef struct obs_volume_ao_params {
   double start, step, max_distance; /* object-space units along each direction (step > 0: a
                                        * direction with none counts as open) */
   obs_volume_crossing crossing;
+  /* How the samples are taken, with the same answer either way: 0 one by one; with cell sides,
+   * OBS_ISA_AVX2 or more (simd.h, asked once per render) eight at a time, their loads as
+   * vgatherdps or (gather_loads) scalar loads. */
+  int isa, gather_loads;
 } obs_volume_ao_params;
 
 /* Whether the field along o + t d crosses iso (a->crossing) between consecutive samples at
  * t = start + i step, i = 0, 1, ... up to max_distance (at most OBS_VOLUME_AO_MAX_STEPS steps);
- * the field reads 0 outside the volume's box. Macrocells (when s has them) skip samples that
- * cannot end a crossing, with the same answer as without. */
+ * the field reads 0 outside the volume's box. Macrocells and cell sides (when s has them) settle
+ * samples that cannot end a crossing, with the same answer as without. */
 int obs_volume_grid_crossing(const obs_volume_iso *s, const double o[3], const double d[3],
                              const obs_volume_ao_params *a);
 

@@ -215,13 +215,15 @@ static int read_samples(const obs_object *o, obs_scene_volume *sv, const obs_bri
   return 0;
 }
 
-/* Reads volume sv (its maps set): whole, or the brick's part of it, and its macrocells. */
+/* Reads volume sv (its maps and isovalue set): whole, or the brick's part of it, its macrocells
+ * and its cells' sides of the isovalue. */
 static int read_volume(const obs_scene *sc, obs_scene_volume *sv, const obs_brick *b,
                        double reach, obs_err *err) {
   const obs_object *o = &sc->objects[sv->object];
   obs_err e = OBS_ERR_INIT;
   int rc = read_samples(o, sv, b, reach, &e);
   if (!rc) rc = obs_volume_cells_build(&sv->v, OBS_VOLUME_CELL, &sv->cells, &e);
+  if (!rc) rc = obs_volume_sides_build(&sv->v, sv->iso, &sv->sides, &e);
   if (rc)
     obs_err_set(err, rc, "%s: /objects/%zu/shape: volume \"%s\": %s", sc->name, sv->object,
                 o->name, obs_err_message(&e));
@@ -275,6 +277,7 @@ void obs_scene_volumes_free(obs_scene_volumes *vs) {
   for (size_t i = 0; i < vs->n; i++) {
     obs_volume_free(&vs->v[i].v);
     obs_volume_cells_free(&vs->v[i].cells);
+    obs_volume_sides_free(&vs->v[i].sides);
   }
   free(vs->v);
   memset(vs, 0, sizeof *vs);

@@ -1,5 +1,5 @@
 /* The volumes of a scene, read for the techniques that need them (OBS_NEED_VOLUME): each volume
- * object's samples (its file or procedural kind), its macrocells, and the maps between world
+ * object's samples (its file or procedural kind), its macrocells and cell sides, and the maps between world
  * space and the volume's data space, which the marcher (volume_march.h) works in. Built once per
  * render by obs_render, shared by every backend. */
 #ifndef OBS_VOLUME_SCENE_H
@@ -18,6 +18,7 @@ typedef struct obs_scene_volume {
   obs_volume v;           /* owned; spacing scaled: the box is [0, extent] */
   obs_volume_cells cells; /* owned */
   float iso;
+  obs_volume_sides sides; /* owned: the voxel cells' sides of iso */
   double to_world[3][4];  /* data space -> world: rows [linear | translation] */
   double to_data[3][4];   /* world -> data space */
   double normal[3][3];    /* the inverse transpose of to_world's linear part (normals) */

@@ -16,6 +16,7 @@
 #include "environment.h"
 #include "obscura/render.h"
 #include "sampling.h"
+#include "simd.h"
 #include "techniques.h"
 #include "volume_ao.h"
 #include "volume_march.h"
@@ -42,7 +43,7 @@ typedef struct hit {
 } hit;
 
 static obs_volume_iso iso_of(const obs_scene_volume *sv) {
-  return (obs_volume_iso){&sv->v, &sv->cells, sv->iso};
+  return (obs_volume_iso){&sv->v, &sv->cells, sv->iso, &sv->sides};
 }
 
 /* For a brick of the volume (obs_scene_volume.brick): the ray's parameter range [*t0, *t1] inside
@@ -310,8 +311,13 @@ int obs_volume_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   jb.scene = sc;
   jb.env = ctx->environment;
   jb.p = *(const obs_volume_ao_tparams *)ctx->bound;
-  jb.march = (obs_volume_ao_params){jb.p.samples, jb.p.start, jb.p.step, jb.p.max_distance,
-                                    (obs_volume_crossing)jb.p.crossing};
+  jb.march = (obs_volume_ao_params){jb.p.samples,
+                                    jb.p.start,
+                                    jb.p.step,
+                                    jb.p.max_distance,
+                                    (obs_volume_crossing)jb.p.crossing,
+                                    obs_simd_isa(),
+                                    obs_simd_gather_loads()};
   jb.spp = sc->spp;
   if (jb.env && jb.p.ibl == OBS_IBL_IRRADIANCE) obs_env_sh9(jb.env, jb.sh);
   obs_camera_setup(&sc->camera, sc->width, sc->height, &jb.cam);

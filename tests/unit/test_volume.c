@@ -2,6 +2,7 @@
  * the extremes of shape, the procedural volumes against their formulas, and the macrocell grid's
  * bounds against the field they bound. */
 #include <math.h>
+#include <stdio.h>
 #include <string.h>
 
 #include "testutil.h"
@@ -157,6 +158,57 @@ static void test_cells_bound_the_field(void **state) {
   obs_err_free(&err);
 }
 
+/* A voxel cell said to lie below (above) the isovalue holds no sample at or above (below) it, and
+ * the sides are those of its corners: each side is seen, and a cell whose corners straddle the
+ * isovalue is never settled. Thin axes (1 voxel) have one cell. */
+static void test_sides_bound_the_field(void **state) {
+  (void)state;
+  obs_err err = OBS_ERR_INIT;
+  const int dims[2][3] = {{37, 20, 9}, {12, 1, 5}};
+  for (int vi = 0; vi < 2; vi++) {
+    obs_volume v;
+    obs_volume_sides s;
+    const int *n = dims[vi];
+    assert_int_equal(obs_volume_procedural_fill(OBS_VOLUME_MARSCHNER_LOBB, 0, n, &v, &err), 0);
+    assert_int_equal(obs_volume_sides_build(&v, 0.5f, &s, &err), 0);
+    for (int a = 0; a < 3; a++) assert_int_equal(s.n[a], n[a] > 1 ? n[a] - 1 : 1);
+    int seen[3] = {0, 0, 0};
+    uint32_t seed = 12;
+    for (int t = 0; t < 20000; t++) {
+      double p[3];
+      int ci[3];
+      for (int a = 0; a < 3; a++) {
+        p[a] = (obs_test_unit(&seed) * 1.2 - 0.1) * n[a] * v.spacing[a];
+        double u = fmin(fmax(p[a] / v.spacing[a] - 0.5, 0), n[a] - 1);
+        ci[a] = (int)u;
+        if (ci[a] >= s.n[a]) ci[a] = s.n[a] - 1;
+      }
+      size_t at = ((size_t)ci[2] * (size_t)s.n[1] + (size_t)ci[1]) * (size_t)s.n[0] + (size_t)ci[0];
+      int side = obs_volume_side(&s, at);
+      float x = obs_volume_sample(&v, p);
+      seen[side]++;
+      if (side == OBS_VOLUME_BELOW) assert_true(x < 0.5f);
+      if (side == OBS_VOLUME_ABOVE) assert_true(x > 0.5f);
+      float lo = 1, hi = 0;
+      for (int c = 0; c < 8; c++) {
+        int q[3];
+        for (int a = 0; a < 3; a++) q[a] = n[a] > 1 ? ci[a] + (c >> a & 1) : 0;
+        float y = obs_volume_at(&v, q[0], q[1], q[2]);
+        lo = fminf(lo, y), hi = fmaxf(hi, y);
+      }
+      if (lo <= 0.5f && hi >= 0.5f) assert_int_equal(side, 0);
+      if (hi < 0.49f) assert_int_equal(side, OBS_VOLUME_BELOW);
+      if (lo > 0.51f) assert_int_equal(side, OBS_VOLUME_ABOVE);
+    }
+    printf("cell sides (%dx%dx%d): %d open, %d below, %d above of 20000 samples\n", n[0], n[1],
+           n[2], seen[0], seen[1], seen[2]);
+    for (int k = 0; k < 3; k++) assert_true(seen[k] > 0);
+    obs_volume_sides_free(&s);
+    obs_volume_free(&v);
+  }
+  obs_err_free(&err);
+}
+
 /* A fill's samples are the formula's, bit for bit, for every kind (Marschner-Lobb is filled by its
  * separable terms), and a part of the lattice holds the whole fill's samples. */
 static void test_fill_parts_are_the_formula(void **state) {
@@ -196,6 +248,7 @@ int main(void) {
       cmocka_unit_test(test_shapes_and_refusals),
       cmocka_unit_test(test_procedural),
       cmocka_unit_test(test_cells_bound_the_field),
+      cmocka_unit_test(test_sides_bound_the_field),
       cmocka_unit_test(test_fill_parts_are_the_formula),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

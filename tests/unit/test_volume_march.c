@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "testutil.h"
+#include "simd.h"
 #include "volume_march.h"
 
 static void unit_dir(uint32_t *s, double d[3]) {
@@ -29,7 +30,7 @@ static void test_first_hit_sphere(void **state) {
   const int n[3] = {64, 64, 64};
   assert_int_equal(obs_volume_procedural_fill(OBS_VOLUME_SPHERE, 0, n, &v, &err), 0);
   assert_int_equal(obs_volume_cells_build(&v, 8, &c, &err), 0);
-  obs_volume_iso plain = {&v, NULL, 0.5f}, skip = {&v, &c, 0.5f};
+  obs_volume_iso plain = {&v, NULL, 0.5f, NULL}, skip = {&v, &c, 0.5f, NULL};
   double voxel = v.spacing[0];
   uint32_t seed = 9;
   for (int t = 0; t < 300; t++) {
@@ -114,8 +115,8 @@ static void test_ao_spheres(void **state) {
   double cb[3] = {p[0] + dist * sin(alpha), p[1] + dist * cos(alpha), p[2]};
   obs_volume v;
   two_spheres(ca, ra, cb, r, 128, &v);
-  obs_volume_ao_params a = {ns, 0.01, 0.01, 0.9, OBS_VOLUME_CROSS_RISING};
-  obs_volume_iso s = {&v, NULL, 0.5f};
+  obs_volume_ao_params a = {ns, 0.01, 0.01, 0.9, OBS_VOLUME_CROSS_RISING, 0, 0};
+  obs_volume_iso s = {&v, NULL, 0.5f, NULL};
   double po[3] = {p[0] + 1, p[1] + 1, p[2] + 1}, bent[3];
   double ao = obs_volume_ao(&s, po, nrm, &a, u, bent);
   double want = 1 - cos(alpha) * (r / dist) * (r / dist);
@@ -137,8 +138,10 @@ static void test_ao_spheres(void **state) {
   free(u);
 }
 
-/* AO marches skip macrocells below the isovalue and must answer exactly as without: random
- * segments through seeded noise, both crossing tests, several steps and isovalues. */
+/* AO marches skip macrocells and settle samples from their voxel cell's side of the isovalue, and
+ * must answer exactly as without: random segments through seeded noise, both crossing tests,
+ * steps shorter and longer than a voxel (macrocells with sides inside, sides alone), several
+ * isovalues, and the isovalue at the data's minimum and maximum. */
 static void test_grid_crossing_skip_exact(void **state) {
   (void)state;
   obs_volume v;
@@ -147,25 +150,43 @@ static void test_grid_crossing_skip_exact(void **state) {
   const int n[3] = {40, 32, 24};
   assert_int_equal(obs_volume_procedural_fill(OBS_VOLUME_NOISE, 5, n, &v, &err), 0);
   assert_int_equal(obs_volume_cells_build(&v, 8, &c, &err), 0);
+  float lo = 1, hi = 0;
+  for (size_t i = 0; i < (size_t)n[0] * n[1] * n[2]; i++)
+    lo = fminf(lo, v.data[i]), hi = fmaxf(hi, v.data[i]);
+  const float isos[] = {0.3f, 0.55f, 0.7f, lo, hi};
+  obs_volume_sides sides[5];
+  for (int k = 0; k < 5; k++) assert_int_equal(obs_volume_sides_build(&v, isos[k], &sides[k], &err), 0);
   uint32_t seed = 4;
-  int hits = 0, total = 0;
-  static const float isos[] = {0.3f, 0.55f, 0.7f};
+  int hits = 0, total = 0, isa = obs_simd_isa();
   static const double steps[] = {0.003, 0.02, 0.37};
-  for (int t = 0; t < 3000; t++) {
+  for (int t = 0; t < 5000; t++) {
     double o[3], d[3];
     for (int a = 0; a < 3; a++) o[a] = obs_test_unit(&seed) * 2.4 - 0.2;
     unit_dir(&seed, d);
     obs_volume_ao_params p = {1, obs_test_unit(&seed) * 0.1, steps[t % 3], 0.5 + t % 7 * 0.3,
-                              t % 2 ? OBS_VOLUME_CROSS_ANY : OBS_VOLUME_CROSS_RISING};
-    obs_volume_iso plain = {&v, NULL, isos[t % 3]}, skip = {&v, &c, isos[t % 3]};
-    int a = obs_volume_grid_crossing(&plain, o, d, &p), b = obs_volume_grid_crossing(&skip, o, d, &p);
-    assert_int_equal(a, b);
+                              t % 2 ? OBS_VOLUME_CROSS_ANY : OBS_VOLUME_CROSS_RISING, 0, 0};
+    int k = t % 5;
+    obs_volume_iso plain = {&v, NULL, isos[k], NULL}, skip = {&v, &c, isos[k], NULL},
+                   side = {&v, NULL, isos[k], &sides[k]}, both = {&v, &c, isos[k], &sides[k]};
+    int a = obs_volume_grid_crossing(&plain, o, d, &p);
+    assert_int_equal(obs_volume_grid_crossing(&skip, o, d, &p), a);
+    assert_int_equal(obs_volume_grid_crossing(&side, o, d, &p), a);
+    assert_int_equal(obs_volume_grid_crossing(&both, o, d, &p), a);
+    /* Eight samples at a time (the best level here, its gathers both ways) answer the same. */
+    for (int loads = 0; loads < 2; loads++) {
+      obs_volume_ao_params q = p;
+      q.isa = isa;
+      q.gather_loads = loads;
+      assert_int_equal(obs_volume_grid_crossing(&side, o, d, &q), a);
+      assert_int_equal(obs_volume_grid_crossing(&both, o, d, &q), a);
+    }
     hits += a;
     total++;
   }
-  printf("grid crossings: %d of %d segments cross, the same with and without skipping\n", hits,
-         total);
+  printf("grid crossings: %d of %d segments cross, the same with and without skipping (%s)\n",
+         hits, total, obs_simd_isa_name(isa));
   assert_true(hits > total / 10 && hits < total * 9 / 10);
+  for (int k = 0; k < 5; k++) obs_volume_sides_free(&sides[k]);
   obs_volume_cells_free(&c);
   obs_volume_free(&v);
 }
