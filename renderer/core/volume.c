@@ -257,28 +257,81 @@ static void column_bounds(const obs_volume *v, int j, int k, float *mn, float *m
   }
 }
 
+/* One pass of the separable Chebyshev distance transform along axis a of the brick grid (dims
+ * n): d[x] = min over |e| <= OBS_VOLUME_FAR_MAX of max(|e|, d[x + e e_a]) (the first pass starts
+ * from 0 at the feature bricks and the cap elsewhere, so it is the 1-D distance). */
+static void far_pass(uint8_t *d, uint8_t *line, const int n[3], int a) {
+  size_t stride[3] = {1, (size_t)n[0], (size_t)n[0] * n[1]};
+  int b = a == 0 ? 1 : 0, c = a == 2 ? 1 : 2;
+  for (int y = 0; y < n[c]; y++)
+    for (int x = 0; x < n[b]; x++) {
+      uint8_t *p = d + (size_t)x * stride[b] + (size_t)y * stride[c];
+      for (int i = 0; i < n[a]; i++) line[i] = p[(size_t)i * stride[a]];
+      for (int i = 0; i < n[a]; i++) {
+        int best = line[i];
+        for (int e = 1; e < best && e <= OBS_VOLUME_FAR_MAX; e++) {
+          int lo = i - e >= 0 ? line[i - e] : OBS_VOLUME_FAR_MAX;
+          int hi = i + e < n[a] ? line[i + e] : OBS_VOLUME_FAR_MAX;
+          int m = lo < hi ? lo : hi;
+          m = m > e ? m : e;
+          best = m < best ? m : best;
+        }
+        p[(size_t)i * stride[a]] = (uint8_t)best;
+      }
+    }
+}
+
+/* Fills the distances of s->far, whose bytes hold each brick's side. */
+static int far_distances(obs_volume_sides *s, obs_err *err) {
+  size_t count = (size_t)s->bricks[0] * s->bricks[1] * s->bricks[2];
+  int most = s->bricks[0] > s->bricks[1] ? s->bricks[0] : s->bricks[1];
+  most = most > s->bricks[2] ? most : s->bricks[2];
+  uint8_t *d = malloc(2 * count), *line = malloc((size_t)most);
+  if (!d || !line) {
+    free(d);
+    free(line);
+    obs_volume_sides_free(s);
+    return obs_err_set(err, OBS_ENOMEM, "volume: out of memory for %zu bricks", count);
+  }
+  /* One transform per side: the distance to the nearest brick not wholly on it. */
+  for (int side = 1; side <= 2; side++) {
+    uint8_t *ds = d + (size_t)(side - 1) * count;
+    for (size_t b = 0; b < count; b++) ds[b] = s->far[b] == side ? OBS_VOLUME_FAR_MAX : 0;
+    for (int a = 0; a < 3; a++) far_pass(ds, line, s->bricks, a);
+  }
+  for (size_t b = 0; b < count; b++) {
+    int side = s->far[b] & 3;
+    s->far[b] = (uint8_t)(side ? side | d[(size_t)(side - 1) * count + b] << 2 : 0);
+  }
+  free(d);
+  free(line);
+  return 0;
+}
+
 int obs_volume_sides_build(const obs_volume *v, float iso, obs_volume_sides *s, obs_err *err) {
   memset(s, 0, sizeof *s);
-  size_t count = 1;
+  size_t count = 512;
   for (int a = 0; a < 3; a++) {
     s->n[a] = v->n[a] > 1 ? v->n[a] - 1 : 1;
-    count *= (size_t)s->n[a];
+    s->bricks[a] = (s->n[a] + 7) / 8;
+    count *= (size_t)s->bricks[a];
   }
   s->iso = iso;
   s->bits = calloc(count / 4 + 4, 1); /* the slack: 4-byte gathers of the last cells */
+  s->far = malloc(count / 512);
   float *mn = malloc((size_t)v->n[0] * sizeof *mn), *mx = malloc((size_t)v->n[0] * sizeof *mx);
-  if (!s->bits || !mn || !mx) {
+  if (s->far) memset(s->far, 3, count / 512);
+  if (!s->bits || !s->far || !mn || !mx) {
     free(mn);
     free(mx);
     obs_volume_sides_free(s);
     return obs_err_set(err, OBS_ENOMEM, "volume: out of memory for %zu cell sides", count);
   }
   int up = v->n[0] > 1;
-  size_t c = 0;
   for (int k = 0; k < s->n[2]; k++)
     for (int j = 0; j < s->n[1]; j++) {
       column_bounds(v, j, k, mn, mx);
-      for (int i = 0; i < s->n[0]; i++, c++) {
+      for (int i = 0; i < s->n[0]; i++) {
         float lo = mn[i + up] < mn[i] ? mn[i + up] : mn[i];
         float hi = mx[i + up] > mx[i] ? mx[i + up] : mx[i];
         /* A float lerp chain strays from its corners' hull by a few roundings of their size. */
@@ -286,16 +339,21 @@ int obs_volume_sides_build(const obs_volume *v, float iso, obs_volume_sides *s, 
         size = size > fabsf(iso) ? size : fabsf(iso);
         float margin = 64 * FLT_EPSILON * size;
         int side = hi < iso - margin ? OBS_VOLUME_BELOW : lo > iso + margin ? OBS_VOLUME_ABOVE : 0;
+        size_t c = obs_volume_side_index(s, i, j, k);
         s->bits[c >> 2] |= (uint8_t)(side << ((c & 3) * 2));
+        /* The brick's side so far: every cell's, or none (3 & 1 = 1, 3 & 2 = 2, 1 & 2 = 0). */
+        size_t b = c >> 9;
+        s->far[b] = (uint8_t)(s->far[b] & side);
       }
     }
   free(mn);
   free(mx);
-  return 0;
+  return far_distances(s, err);
 }
 
 void obs_volume_sides_free(obs_volume_sides *s) {
   if (!s) return;
   free(s->bits);
+  free(s->far);
   memset(s, 0, sizeof *s);
 }

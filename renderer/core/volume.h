@@ -78,18 +78,34 @@ void obs_volume_cells_free(obs_volume_cells *c);
  * the voxel centres i ... i + 1 per axis (one centre on a 1-voxel axis), n[a] = max(dims - 1, 1)
  * cells per axis, 2 bits each (OBS_VOLUME_BELOW, OBS_VOLUME_ABOVE, or 0 where the field may reach
  * iso). A cell is wholly on one side only with a margin of a few float roundings past its
- * corners, so no float trilinear sample inside it lands on the other side. An AO march reads one
- * byte here instead of eight samples wherever the isosurface is not near. Owns `bits`. */
+ * corners, so no float trilinear sample inside it lands on the other side. An AO march reads two
+ * bits here instead of eight samples wherever the isosurface is not near; the bits are stored in
+ * bricks of 8^3 cells (128 bytes), so the few samples a march takes in one brick share its cache
+ * lines. Owns `bits`. */
 enum { OBS_VOLUME_BELOW = 1, OBS_VOLUME_ABOVE = 2 };
 typedef struct obs_volume_sides {
   int n[3];
+  int bricks[3]; /* bricks per axis: ceil(n / 8) */
   float iso;
-  uint8_t *bits; /* cell c = (k n1 + j) n0 + i at bits c / 4, shift 2 (c % 4) */
+  uint8_t *bits; /* obs_volume_side_index's cell c at bits c / 4, shift 2 (c % 4) */
+  /* Per brick (x fastest): its side when every cell in it has that side (0 otherwise) in the low
+   * 2 bits, and above them the Chebyshev distance in bricks to the nearest brick not wholly on
+   * that side, capped at OBS_VOLUME_FAR_MAX (0 for a brick on neither side): every brick nearer
+   * than that is on the same side, so a march settles the samples within that reach at once. */
+  uint8_t *far;
 } obs_volume_sides;
+#define OBS_VOLUME_FAR_MAX 31
 int obs_volume_sides_build(const obs_volume *v, float iso, obs_volume_sides *s, obs_err *err);
 void obs_volume_sides_free(obs_volume_sides *s);
-static inline int obs_volume_side(const obs_volume_sides *s, size_t cell) {
-  return s->bits[cell >> 2] >> ((cell & 3) * 2) & 3;
+/* Cell (i, j, k)'s place: its brick, then its place in the brick, x fastest in both. */
+static inline size_t obs_volume_side_index(const obs_volume_sides *s, int i, int j, int k) {
+  size_t brick = ((size_t)(k >> 3) * (size_t)s->bricks[1] + (size_t)(j >> 3)) * s->bricks[0] +
+                 (size_t)(i >> 3);
+  return brick << 9 | (size_t)((k & 7) << 6 | (j & 7) << 3 | (i & 7));
+}
+static inline int obs_volume_side(const obs_volume_sides *s, int i, int j, int k) {
+  size_t c = obs_volume_side_index(s, i, j, k);
+  return s->bits[c >> 2] >> ((c & 3) * 2) & 3;
 }
 
 #endif

@@ -147,21 +147,18 @@ typedef struct grid {
   size_t row[3];     /* 1, n0, n0 n1 */
   size_t up[3];      /* the upper corner's offset: row, 0 on a 1-voxel axis (its weight is 0) */
   const obs_volume_sides *sides; /* NULL: none */
-  size_t cell_row[3];            /* the sides' rows: 1, top0 + 1, (top0 + 1)(top1 + 1) */
 } grid;
 
 static void grid_init(const obs_volume *v, const obs_volume_sides *sides, grid *g) {
   g->data = v->data;
   g->sides = sides;
-  size_t row = 1, cell_row = 1;
+  size_t row = 1;
   for (int a = 0; a < 3; a++) {
     g->hi[a] = (float)(v->n[a] - 1);
     g->top[a] = v->n[a] > 1 ? v->n[a] - 2 : 0;
     g->row[a] = row;
     g->up[a] = v->n[a] > 1 ? row : 0;
-    g->cell_row[a] = cell_row;
     row *= (size_t)v->n[a];
-    cell_row *= (size_t)g->top[a] + 1;
   }
 }
 
@@ -201,8 +198,7 @@ static inline float grid_side_sample(const grid *g, const float u[3]) {
   int i[3];
   float w[3];
   grid_locate(g, u, i, w);
-  size_t cell = (size_t)i[0] + (size_t)i[1] * g->cell_row[1] + (size_t)i[2] * g->cell_row[2];
-  int side = obs_volume_side(g->sides, cell);
+  int side = obs_volume_side(g->sides, i[0], i[1], i[2]);
   if (side) return side == OBS_VOLUME_BELOW ? -INFINITY : INFINITY;
   return grid_lerp(g, i, w);
 }
@@ -268,6 +264,7 @@ typedef struct march {
   int64_t ia, ib;
   obs_volume_crossing how;
   int simd, loads; /* eight samples at a time (cell sides and AVX2), their loads as loads */
+  double inv_step_voxels; /* 1 / the step along the axis it moves most, in voxels */
 } march;
 
 /* Grid sample i's index-space point. */
@@ -280,6 +277,41 @@ static inline float march_sample(const march *m, int64_t i) {
   float q[3];
   march_point(m, i, q);
   return m->g->sides ? grid_side_sample(m->g, q) : grid_sample(m->g, q);
+}
+
+/* How many samples from i on (i included, at most to ib) lie in bricks wholly on the side of iso
+ * that sample i's brick is on, by its distance to the nearest other brick (obs_volume_sides.far),
+ * with that side's value in *value; 0 when it says nothing. Bricks are 8 voxel cells a side, so a
+ * point less than 8 (dist - 1) voxels (Chebyshev) from sample i lies in a brick nearer than dist;
+ * a voxel of margin covers the rounding of the samples' points. */
+static inline int64_t far_run(const march *m, int64_t i, float *value) {
+  const obs_volume_sides *sd = m->g->sides;
+  float q[3], w[3];
+  int c[3];
+  march_point(m, i, q);
+  grid_locate(m->g, q, c, w);
+  size_t b = ((size_t)(c[2] >> 3) * (size_t)sd->bricks[1] + (size_t)(c[1] >> 3)) *
+                 (size_t)sd->bricks[0] +
+             (size_t)(c[0] >> 3);
+  int far = sd->far[b], dist = far >> 2;
+  if (dist < 2) return 0;
+  *value = (far & 3) == OBS_VOLUME_BELOW ? -INFINITY : INFINITY;
+  /* The reciprocal's roundings are far inside the 1e-6 taken off. */
+  double run = floor((8.0 * (dist - 1) - 1) * m->inv_step_voxels * (1 - 1e-6)) + 1;
+  double left = (double)(m->ib - i + 1);
+  return (int64_t)(run < left ? run : left); /* run is +inf for a step of 0: all at one point */
+}
+
+/* Settles the run of samples far_run finds at i: 1 when it ends a crossing, else *i moves past it
+ * (unchanged when there is none). */
+static inline int far_skip(const march *m, int64_t *i, float *prev, int *crossed) {
+  float v;
+  int64_t run = far_run(m, *i, &v);
+  if (run < 2) return 0;
+  *crossed = crosses(m->how, *prev, v, m->iso);
+  *prev = v;
+  *i += run;
+  return 1;
 }
 
 #if OBS_SIMD_AVX2
@@ -303,9 +335,20 @@ OBS_AVX2_INLINE __m256 side_sample8(const grid *g, int loads, const __m256 u[3])
     i[a] = _mm256_min_epi32(_mm256_cvttps_epi32(x), _mm256_set1_epi32(g->top[a]));
     w[a] = _mm256_sub_ps(x, _mm256_cvtepi32_ps(i[a]));
   }
-  __m256i cell = _mm256_add_epi32(
-      _mm256_add_epi32(i[0], _mm256_mullo_epi32(i[1], _mm256_set1_epi32((int)g->cell_row[1]))),
-      _mm256_mullo_epi32(i[2], _mm256_set1_epi32((int)g->cell_row[2])));
+  /* obs_volume_side_index, lane by lane. */
+  const __m256i seven = _mm256_set1_epi32(7);
+  __m256i brick = _mm256_add_epi32(
+      _mm256_mullo_epi32(
+          _mm256_add_epi32(_mm256_mullo_epi32(_mm256_srli_epi32(i[2], 3),
+                                              _mm256_set1_epi32(g->sides->bricks[1])),
+                           _mm256_srli_epi32(i[1], 3)),
+          _mm256_set1_epi32(g->sides->bricks[0])),
+      _mm256_srli_epi32(i[0], 3));
+  __m256i cell = _mm256_or_si256(
+      _mm256_slli_epi32(brick, 9),
+      _mm256_or_si256(_mm256_slli_epi32(_mm256_and_si256(i[2], seven), 6),
+                      _mm256_or_si256(_mm256_slli_epi32(_mm256_and_si256(i[1], seven), 3),
+                                      _mm256_and_si256(i[0], seven))));
   __m256i byte = gather_bytes(loads, g->sides->bits, _mm256_srli_epi32(cell, 2));
   __m256i side = _mm256_and_si256(
       _mm256_srlv_epi32(byte, _mm256_slli_epi32(_mm256_and_si256(cell, _mm256_set1_epi32(3)), 1)),
@@ -338,7 +381,14 @@ OBS_AVX2_FN static int march_plain8(const march *m, float *prev) {
   const __m256d step = _mm256_set1_pd(m->step), start = _mm256_set1_pd(m->start);
   const __m256 iso = _mm256_set1_ps(m->iso);
   const __m256i shift = _mm256_setr_epi32(7, 0, 1, 2, 3, 4, 5, 6);
+  /* The march starts at a surface; far bricks are asked only once a group found its eight samples
+   * settled on one side. */
+  int settled = 0;
   for (int64_t i = m->ia; i <= m->ib; i += 8) {
+    int crossed = 0;
+    while (settled && i <= m->ib && far_skip(m, &i, prev, &crossed))
+      if (crossed) return 1;
+    if (i > m->ib) break;
     double base = (double)i;
     __m256d k0 = _mm256_add_pd(_mm256_set1_pd(base), _mm256_setr_pd(0, 1, 2, 3));
     __m256d k1 = _mm256_add_pd(_mm256_set1_pd(base), _mm256_setr_pd(4, 5, 6, 7));
@@ -359,6 +409,8 @@ OBS_AVX2_FN static int march_plain8(const march *m, float *prev) {
     float last[8];
     _mm256_storeu_ps(last, v);
     *prev = last[lanes - 1];
+    settled = isinf(*prev) &&
+              (_mm256_movemask_ps(_mm256_cmp_ps(v, _mm256_set1_ps(*prev), _CMP_EQ_OQ)) & valid) == valid;
   }
   return 0;
 }
@@ -370,6 +422,12 @@ static int march_plain(const march *m, float *prev) {
   if (m->simd) return march_plain8(m, prev);
 #endif
   for (int64_t i = m->ia; i <= m->ib; i++) {
+    int crossed = 0;
+    if (m->g->sides && isinf(*prev)) {
+      while (i <= m->ib && far_skip(m, &i, prev, &crossed))
+        if (crossed) return 1;
+      if (i > m->ib) break;
+    }
     float cur = march_sample(m, i);
     if (crosses(m->how, *prev, cur, m->iso)) return 1;
     *prev = cur;
@@ -446,6 +504,7 @@ int obs_volume_grid_crossing(const obs_volume_iso *s, const double o[3], const d
     float r = fabsf(m.du[k]) * (float)a->step;
     reach = r > reach ? r : reach;
   }
+  m.inv_step_voxels = 1.0 / reach;
   int by_cells = s->cells && !(s->sides && reach >= OBS_VOLUME_SIDES_STEP);
   float prev = 0;
   if (m.ia == 0) prev = march_sample(&m, 0), m.ia = 1;

@@ -3,6 +3,7 @@
  * bounds against the field they bound. */
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "testutil.h"
@@ -183,8 +184,7 @@ static void test_sides_bound_the_field(void **state) {
         ci[a] = (int)u;
         if (ci[a] >= s.n[a]) ci[a] = s.n[a] - 1;
       }
-      size_t at = ((size_t)ci[2] * (size_t)s.n[1] + (size_t)ci[1]) * (size_t)s.n[0] + (size_t)ci[0];
-      int side = obs_volume_side(&s, at);
+      int side = obs_volume_side(&s, ci[0], ci[1], ci[2]);
       float x = obs_volume_sample(&v, p);
       seen[side]++;
       if (side == OBS_VOLUME_BELOW) assert_true(x < 0.5f);
@@ -206,6 +206,54 @@ static void test_sides_bound_the_field(void **state) {
     obs_volume_sides_free(&s);
     obs_volume_free(&v);
   }
+  obs_err_free(&err);
+}
+
+/* Each brick's far distance is the Chebyshev distance (in bricks, capped) to the nearest brick not
+ * wholly on its side, by brute force over the brick grid, and a brick's side is that of all its
+ * cells; a sphere volume has bricks far from its surface, inside and out. */
+static void test_sides_far_bricks(void **state) {
+  (void)state;
+  obs_err err = OBS_ERR_INIT;
+  obs_volume v;
+  obs_volume_sides s;
+  const int n[3] = {97, 81, 66};
+  assert_int_equal(obs_volume_procedural_fill(OBS_VOLUME_SPHERE, 0, n, &v, &err), 0);
+  assert_int_equal(obs_volume_sides_build(&v, 0.5f, &s, &err), 0);
+  const int *b = s.bricks;
+  int far_seen = 0, sides_seen[3] = {0, 0, 0};
+  for (int z = 0; z < b[2]; z++)
+    for (int y = 0; y < b[1]; y++)
+      for (int x = 0; x < b[0]; x++) {
+        int far = s.far[((size_t)z * b[1] + y) * b[0] + x], side = far & 3, dist = far >> 2;
+        sides_seen[side]++;
+        int all = 3;
+        for (int k = z * 8; k < z * 8 + 8 && k < s.n[2]; k++)
+          for (int j = y * 8; j < y * 8 + 8 && j < s.n[1]; j++)
+            for (int i = x * 8; i < x * 8 + 8 && i < s.n[0]; i++) all &= obs_volume_side(&s, i, j, k);
+        assert_int_equal(side, all);
+        if (!side) {
+          assert_int_equal(dist, 0);
+          continue;
+        }
+        int want = OBS_VOLUME_FAR_MAX;
+        for (int zz = 0; zz < b[2]; zz++)
+          for (int yy = 0; yy < b[1]; yy++)
+            for (int xx = 0; xx < b[0]; xx++) {
+              if ((s.far[((size_t)zz * b[1] + yy) * b[0] + xx] & 3) == side) continue;
+              int d = abs(xx - x);
+              d = abs(yy - y) > d ? abs(yy - y) : d;
+              d = abs(zz - z) > d ? abs(zz - z) : d;
+              want = d < want ? d : want;
+            }
+        assert_int_equal(dist, want);
+        far_seen += dist >= 2;
+      }
+  printf("far bricks (%dx%dx%d bricks): %d mixed, %d below, %d above, %d at 2 or more\n", b[0],
+         b[1], b[2], sides_seen[0], sides_seen[1], sides_seen[2], far_seen);
+  assert_true(sides_seen[0] > 0 && sides_seen[1] > 0 && sides_seen[2] > 0 && far_seen > 0);
+  obs_volume_sides_free(&s);
+  obs_volume_free(&v);
   obs_err_free(&err);
 }
 
@@ -249,6 +297,7 @@ int main(void) {
       cmocka_unit_test(test_procedural),
       cmocka_unit_test(test_cells_bound_the_field),
       cmocka_unit_test(test_sides_bound_the_field),
+      cmocka_unit_test(test_sides_far_bricks),
       cmocka_unit_test(test_fill_parts_are_the_formula),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
