@@ -75,6 +75,15 @@ float obs_volume_sample(const obs_volume *v, const double p[3]) {
   return c0 + wz * (c1 - c0);
 }
 
+float obs_volume_sample_sided(const obs_volume *v, const obs_volume_sides *s, const double p[3]) {
+  int c[3];
+  float w[3];
+  for (int a = 0; a < 3; a++) axis_index(v, a, p[a], &c[a], &w[a]);
+  int side = obs_volume_side(s, c[0], c[1], c[2]);
+  if (side) return side == OBS_VOLUME_BELOW ? -INFINITY : INFINITY;
+  return obs_volume_sample(v, p);
+}
+
 static double clamp01(double x) { return x < 0 ? 0 : x > 1 ? 1 : x; }
 
 /* The lattice value at (x, y, z) of noise `seed`: the shared sampling hashes. */

@@ -107,5 +107,8 @@ static inline int obs_volume_side(const obs_volume_sides *s, int i, int j, int k
   size_t c = obs_volume_side_index(s, i, j, k);
   return s->bits[c >> 2] >> ((c & 3) * 2) & 3;
 }
+/* obs_volume_sample at p where its voxel cell may reach s's isovalue; -INFINITY or INFINITY where
+ * the cell lies wholly below or above it (for tests that read only the side). */
+float obs_volume_sample_sided(const obs_volume *v, const obs_volume_sides *s, const double p[3]);
 
 #endif

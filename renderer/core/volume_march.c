@@ -28,9 +28,11 @@ static int clip_box(const obs_volume *v, const double o[3], const double d[3], d
   return *t0 <= *t1;
 }
 
-static double field_at(const obs_volume *v, const double o[3], const double d[3], double t) {
+/* The field along the ray, or an infinity on the side of iso of a voxel cell wholly on one side
+ * (the tests read only the side). */
+static double field_at(const obs_volume_iso *s, const double o[3], const double d[3], double t) {
   double p[3] = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]};
-  return obs_volume_sample(v, p);
+  return s->sides ? obs_volume_sample_sided(s->v, s->sides, p) : obs_volume_sample(s->v, p);
 }
 
 /* Where the ray o + t d leaves the macrocell holding o + t d (*exit), and whether that cell
@@ -77,7 +79,7 @@ int obs_volume_first_hit(const obs_volume_iso *s, const double o[3], const doubl
   for (int a = 0; a < 3; a++) diag += pow(v->n[a] * v->spacing[a], 2);
   double dt = fmax(0.5 * smin, sqrt(diag) / OBS_VOLUME_HIT_MAX_STEPS) / len,
          tol = 1e-3 * smin / len;
-  double ta = t0, fa = field_at(v, o, d, ta);
+  double ta = t0, fa = field_at(s, o, d, ta);
   if (fa >= s->iso) {
     *t = ta;
     return 1;
@@ -92,7 +94,7 @@ int obs_volume_first_hit(const obs_volume_iso *s, const double o[3], const doubl
       } else if (exit > ta) { /* nothing reaches iso before the cell's exit */
         if (exit >= t1) return 0;
         ta = fmax(exit, ta + 1e-6 * dt);
-        fa = field_at(v, o, d, ta);
+        fa = field_at(s, o, d, ta);
         if (fa >= s->iso) { /* only by rounding at the boundary: the crossing is here */
           *t = ta;
           return 1;
@@ -102,13 +104,13 @@ int obs_volume_first_hit(const obs_volume_iso *s, const double o[3], const doubl
     }
     double tb = fmin(ta + dt, t1);
     if (!(tb > ta)) return 0; /* a step too small for t's precision: the ray cannot go on */
-    double fb = field_at(v, o, d, tb);
+    double fb = field_at(s, o, d, tb);
     if (fb >= s->iso) {
       /* The root between ta (below) and tb (at or above), to tol or to adjacent doubles. */
       while (tb - ta > tol) {
         double tm = 0.5 * (ta + tb);
         if (!(tm > ta && tm < tb)) break;
-        if (field_at(v, o, d, tm) >= s->iso)
+        if (field_at(s, o, d, tm) >= s->iso)
           tb = tm;
         else
           ta = tm;
@@ -491,7 +493,7 @@ int obs_volume_grid_crossing(const obs_volume_iso *s, const double o[3], const d
   for (int k = 0; k < 3; k++) {
     m.u0[k] = (float)(o[k] / v->spacing[k] - 0.5);
     m.du[k] = (float)(d[k] / v->spacing[k]);
-    m.inv[k] = m.du[k] != 0 ? 1 / m.du[k] : 0;
+
   }
   /* Grid indices inside the box; the samples before and after read 0. */
   m.ia = (int64_t)ceil((t0 - a->start) / a->step);
@@ -506,6 +508,8 @@ int obs_volume_grid_crossing(const obs_volume_iso *s, const double o[3], const d
   }
   m.inv_step_voxels = 1.0 / reach;
   int by_cells = s->cells && !(s->sides && reach >= OBS_VOLUME_SIDES_STEP);
+  if (by_cells)
+    for (int k = 0; k < 3; k++) m.inv[k] = m.du[k] != 0 ? 1 / m.du[k] : 0;
   float prev = 0;
   if (m.ia == 0) prev = march_sample(&m, 0), m.ia = 1;
   if (m.ia <= m.ib && (by_cells ? march_cells(&m, s->cells, &prev) : march_plain(&m, &prev)))

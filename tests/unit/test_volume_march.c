@@ -30,7 +30,10 @@ static void test_first_hit_sphere(void **state) {
   const int n[3] = {64, 64, 64};
   assert_int_equal(obs_volume_procedural_fill(OBS_VOLUME_SPHERE, 0, n, &v, &err), 0);
   assert_int_equal(obs_volume_cells_build(&v, 8, &c, &err), 0);
-  obs_volume_iso plain = {&v, NULL, 0.5f, NULL}, skip = {&v, &c, 0.5f, NULL};
+  obs_volume_sides sd;
+  assert_int_equal(obs_volume_sides_build(&v, 0.5f, &sd, &err), 0);
+  obs_volume_iso plain = {&v, NULL, 0.5f, NULL}, skip = {&v, &c, 0.5f, NULL},
+                 sided = {&v, &c, 0.5f, &sd};
   double voxel = v.spacing[0];
   uint32_t seed = 9;
   for (int t = 0; t < 300; t++) {
@@ -40,6 +43,9 @@ static void test_first_hit_sphere(void **state) {
     double t1, t2;
     assert_int_equal(obs_volume_first_hit(&plain, o, d, 0, 10, &t1), 1);
     assert_int_equal(obs_volume_first_hit(&skip, o, d, 0, 10, &t2), 1);
+    double t3;
+    assert_int_equal(obs_volume_first_hit(&sided, o, d, 0, 10, &t3), 1);
+    assert_true(t3 == t2); /* cell sides change no sample's side: the same steps */
     assert_true(fabs(t1 - 2.4) < 0.1 * voxel);
     assert_true(fabs(t1 - t2) < 2e-3 * voxel);
     double p[3], nrm[3];
@@ -52,6 +58,7 @@ static void test_first_hit_sphere(void **state) {
     for (int a = 0; a < 3; a++) side[a] = o[a] + 0.7 * perp[a] / pl;
     assert_int_equal(obs_volume_first_hit(&plain, side, d, 0, 10, &t1), 0);
     assert_int_equal(obs_volume_first_hit(&skip, side, d, 0, 10, &t2), 0);
+    assert_int_equal(obs_volume_first_hit(&sided, side, d, 0, 10, &t2), 0);
   }
   /* A ray starting inside the isosurface hits where it starts; one outside the box misses. */
   const double inside[3] = {1, 1, 1}, dir[3] = {1, 0, 0}, away[3] = {5, 5, 5};
@@ -59,6 +66,9 @@ static void test_first_hit_sphere(void **state) {
   assert_int_equal(obs_volume_first_hit(&skip, inside, dir, 0.25, 10, &th), 1);
   assert_true(th == 0.25);
   assert_int_equal(obs_volume_first_hit(&skip, away, dir, 0, 10, &th), 0);
+  assert_int_equal(obs_volume_first_hit(&sided, inside, dir, 0.25, 10, &th), 1);
+  assert_true(th == 0.25);
+  obs_volume_sides_free(&sd);
   obs_volume_cells_free(&c);
   obs_volume_free(&v);
   obs_err_free(&err);
