@@ -134,37 +134,46 @@ static void march_ao(const job *jb, const hit *h, const double n[3], uint32_t x,
   double sum[3] = {0, 0, 0};
   memset(r, 0, sizeof *r);
   uint32_t open = 0;
-  for (uint32_t i = 0; i < jb->p.samples; i++) {
-    float u, v, l[3];
-    obs_sampler2d_get(&smp, i, &u, &v);
-    obs_sample_cosine(u, v, l);
-    double w[3], da[3];
-    for (int k = 0; k < 3; k++) w[k] = l[0] * (double)t1[k] + l[1] * (double)t2[k] + l[2] * n[k];
-    obs_affine_dir(va->to_data, w, da);
-    normalize3(da);
-    int blocked = 0;
-    /* The direction of the march's parameter in world space, for the other volumes. */
-    double dw[3] = {0, 0, 0};
-    if (nv > 1) obs_affine_dir(va->to_world, da, dw);
-    for (size_t b = 0; b < nv && !blocked; b++) {
-      const obs_scene_volume *vb = &jb->vols->v[b];
-      obs_volume_iso is = iso_of(vb);
-      if (b == h->vol) {
-        blocked = obs_volume_grid_crossing(&is, h->p, da, &jb->march);
-      } else { /* the same parameter t, carried through world space into b's data space */
-        double ob[3], db[3];
-        obs_affine_point(vb->to_data, world, ob);
-        obs_affine_dir(vb->to_data, dw, db);
-        blocked = obs_volume_grid_crossing(&is, ob, db, &jb->march);
-      }
+  /* Directions are drawn a batch ahead of their marches: each one's chain (sampler, sincos, the
+   * maps, a square root and divisions) is independent of the others and overlaps them. */
+  enum { BATCH = 16 };
+  double w[BATCH][3], da[BATCH][3];
+  for (uint32_t i0 = 0; i0 < jb->p.samples; i0 += BATCH) {
+    uint32_t nb = jb->p.samples - i0 < BATCH ? jb->p.samples - i0 : BATCH;
+    for (uint32_t q = 0; q < nb; q++) {
+      float u, v, l[3];
+      obs_sampler2d_get(&smp, i0 + q, &u, &v);
+      obs_sample_cosine(u, v, l);
+      for (int k = 0; k < 3; k++)
+        w[q][k] = l[0] * (double)t1[k] + l[1] * (double)t2[k] + l[2] * n[k];
+      obs_affine_dir(va->to_data, w[q], da[q]);
+      normalize3(da[q]);
     }
-    if (blocked) continue;
-    open++;
-    for (int k = 0; k < 3; k++) sum[k] += w[k];
-    if (jb->p.ibl == OBS_IBL_REFERENCE) {
-      double e[3];
-      env_radiance(jb, w, e);
-      for (int k = 0; k < 3; k++) r->env[k] += e[k];
+    for (uint32_t q = 0; q < nb; q++) {
+      int blocked = 0;
+      /* The direction of the march's parameter in world space, for the other volumes. */
+      double dw[3] = {0, 0, 0};
+      if (nv > 1) obs_affine_dir(va->to_world, da[q], dw);
+      for (size_t b = 0; b < nv && !blocked; b++) {
+        const obs_scene_volume *vb = &jb->vols->v[b];
+        obs_volume_iso is = iso_of(vb);
+        if (b == h->vol) {
+          blocked = obs_volume_grid_crossing(&is, h->p, da[q], &jb->march);
+        } else { /* the same parameter t, carried through world space into b's data space */
+          double ob[3], db[3];
+          obs_affine_point(vb->to_data, world, ob);
+          obs_affine_dir(vb->to_data, dw, db);
+          blocked = obs_volume_grid_crossing(&is, ob, db, &jb->march);
+        }
+      }
+      if (blocked) continue;
+      open++;
+      for (int k = 0; k < 3; k++) sum[k] += w[q][k];
+      if (jb->p.ibl == OBS_IBL_REFERENCE) {
+        double e[3];
+        env_radiance(jb, w[q], e);
+        for (int k = 0; k < 3; k++) r->env[k] += e[k];
+      }
     }
   }
   r->ao = (double)open / jb->p.samples;
