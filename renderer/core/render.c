@@ -135,7 +135,8 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
   obs_scene_volumes vols = {0};
   if (t->needs & OBS_NEED_VOLUME) {
     double reach = brick && t->volume_reach ? t->volume_reach(bound) : 0;
-    if ((rc = obs_scene_volumes_load_brick(scene, brick, reach, &vols, err))) {
+    int sides = obs_backend_volume_sides(be);
+    if ((rc = obs_scene_volumes_load_brick(scene, brick, reach, sides, &vols, err))) {
       if (nb) nb->release(built);
       free(bound);
       return rc;

@@ -216,14 +216,14 @@ static int read_samples(const obs_object *o, obs_scene_volume *sv, const obs_bri
 }
 
 /* Reads volume sv (its maps and isovalue set): whole, or the brick's part of it, its macrocells
- * and its cells' sides of the isovalue. */
+ * and (sides) its cells' sides of the isovalue. */
 static int read_volume(const obs_scene *sc, obs_scene_volume *sv, const obs_brick *b,
-                       double reach, obs_err *err) {
+                       double reach, int sides, obs_err *err) {
   const obs_object *o = &sc->objects[sv->object];
   obs_err e = OBS_ERR_INIT;
   int rc = read_samples(o, sv, b, reach, &e);
   if (!rc) rc = obs_volume_cells_build(&sv->v, OBS_VOLUME_CELL, &sv->cells, &e);
-  if (!rc) rc = obs_volume_sides_build(&sv->v, sv->iso, &sv->sides, &e);
+  if (!rc && sides) rc = obs_volume_sides_build(&sv->v, sv->iso, &sv->sides, &e);
   if (rc)
     obs_err_set(err, rc, "%s: /objects/%zu/shape: volume \"%s\": %s", sc->name, sv->object,
                 o->name, obs_err_message(&e));
@@ -246,7 +246,7 @@ static int start_one(const obs_scene *sc, size_t oi, obs_scene_volume *sv, obs_e
 }
 
 int obs_scene_volumes_load_brick(const obs_scene *sc, const obs_brick *brick, double reach,
-                                 obs_scene_volumes *out, obs_err *err) {
+                                 int sides, obs_scene_volumes *out, obs_err *err) {
   memset(out, 0, sizeof *out);
   const obs_brick *b = brick && brick->count > 0 ? brick : NULL;
   if (b && (b->index < 0 || b->index >= b->count))
@@ -263,14 +263,14 @@ int obs_scene_volumes_load_brick(const obs_scene *sc, const obs_brick *brick, do
       rc = start_one(sc, i, &out->v[out->n++], err);
   /* Every map is known before any volume is read: a brick's ghost zone depends on them all. */
   for (size_t k = 0; k < out->n && !rc; k++) {
-    rc = read_volume(sc, &out->v[k], b, b ? reach_in(out, k, reach) : 0, err);
+    rc = read_volume(sc, &out->v[k], b, b ? reach_in(out, k, reach) : 0, sides, err);
   }
   if (rc) obs_scene_volumes_free(out);
   return rc;
 }
 
 int obs_scene_volumes_load(const obs_scene *sc, obs_scene_volumes *out, obs_err *err) {
-  return obs_scene_volumes_load_brick(sc, NULL, 0, out, err);
+  return obs_scene_volumes_load_brick(sc, NULL, 0, 1, out, err);
 }
 
 void obs_scene_volumes_free(obs_scene_volumes *vs) {

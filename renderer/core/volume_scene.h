@@ -1,7 +1,8 @@
 /* The volumes of a scene, read for the techniques that need them (OBS_NEED_VOLUME): each volume
- * object's samples (its file or procedural kind), its macrocells and cell sides, and the maps between world
- * space and the volume's data space, which the marcher (volume_march.h) works in. Built once per
- * render by obs_render, shared by every backend. */
+ * object's samples (its file or procedural kind), its macrocells (and cell sides for a backend
+ * that reads them), and the maps between world space and the volume's data space, which the
+ * marcher (volume_march.h) works in. Built once per render by obs_render, shared by every
+ * backend. */
 #ifndef OBS_VOLUME_SCENE_H
 #define OBS_VOLUME_SCENE_H
 
@@ -18,7 +19,7 @@ typedef struct obs_scene_volume {
   obs_volume v;           /* owned; spacing scaled: the box is [0, extent] */
   obs_volume_cells cells; /* owned */
   float iso;
-  obs_volume_sides sides; /* owned: the voxel cells' sides of iso */
+  obs_volume_sides sides; /* owned: the voxel cells' sides of iso (all zero when not built) */
   double to_world[3][4];  /* data space -> world: rows [linear | translation] */
   double to_data[3][4];   /* world -> data space */
   double normal[3][3];    /* the inverse transpose of to_world's linear part (normals) */
@@ -51,7 +52,8 @@ typedef struct obs_scene_volumes {
  * at validation; OBS_EIO, OBS_ENOMEM. On failure `out` is left empty. */
 int obs_scene_volumes_load(const obs_scene *sc, obs_scene_volumes *out, obs_err *err);
 
-/* The same for one brick of every volume (brick->count > 0; count 0 reads them whole): each
+/* The same for one brick of every volume (brick->count > 0; count 0 reads them whole), with the
+ * cells' sides of the isovalue when `sides` (obs_scene_volumes_load builds them): each
  * volume is cut in brick->count slabs of whole voxels along its axis with the most voxels (the
  * first of equals), and brick->index's slab is kept with a ghost zone on each side (clamped to the
  * volume) that holds every voxel a march of `reach` (data-space units of the volume hit, the
@@ -61,7 +63,7 @@ int obs_scene_volumes_load(const obs_scene *sc, obs_scene_volumes *out, obs_err 
  * only the kept voxels; a file is read whole, then cut. OBS_EINVAL naming the object when a
  * volume has fewer voxels along its axis than brick->count, or for a brick index out of range. */
 int obs_scene_volumes_load_brick(const obs_scene *sc, const obs_brick *brick, double reach,
-                                 obs_scene_volumes *out, obs_err *err);
+                                 int sides, obs_scene_volumes *out, obs_err *err);
 void obs_scene_volumes_free(obs_scene_volumes *vs);
 
 /* The colour of data value `value` (the colormap's piecewise-linear ramp, held at its ends;

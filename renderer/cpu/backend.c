@@ -43,4 +43,5 @@ const obs_backend_ops obs_backend_cpu_ops = {
     .device_name = cpu_device_name,
     .gbuffer = obs_gbuffer_cpu,
     .needs = &obs_cpu_needs_builder,
+    .volume_sides = 1,
 };

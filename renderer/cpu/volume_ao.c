@@ -43,7 +43,7 @@ typedef struct hit {
 } hit;
 
 static obs_volume_iso iso_of(const obs_scene_volume *sv) {
-  return (obs_volume_iso){&sv->v, &sv->cells, sv->iso, &sv->sides};
+  return (obs_volume_iso){&sv->v, &sv->cells, sv->iso, sv->sides.bits ? &sv->sides : NULL};
 }
 
 /* For a brick of the volume (obs_scene_volume.brick): the ray's parameter range [*t0, *t1] inside

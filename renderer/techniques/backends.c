@@ -39,6 +39,11 @@ const obs_needs_builder *obs_backend_needs_builder(obs_backend b) {
   return ops ? ops->needs : NULL;
 }
 
+int obs_backend_volume_sides(obs_backend b) {
+  const obs_backend_ops *ops = obs_backend_ops_get(b);
+  return ops && ops->volume_sides;
+}
+
 int obs_backend_runs(obs_backend b, const obs_technique *t) {
   const obs_backend_ops *ops = obs_backend_ops_get(b);
   return ops && t && t->run[b] && ops->available();

@@ -25,7 +25,7 @@ static void load_brick(const obs_scene *sc, int index, int count, int no_ghost, 
                        obs_scene_volumes *out) {
   obs_err err = OBS_ERR_INIT;
   obs_brick b = {index, count, no_ghost};
-  int rc = obs_scene_volumes_load_brick(sc, &b, reach, out, &err);
+  int rc = obs_scene_volumes_load_brick(sc, &b, reach, 1, out, &err);
   if (rc) printf("brick %d of %d: %s\n", index, count, obs_err_message(&err));
   assert_int_equal(rc, 0);
   assert_int_equal(out->n, 1);
@@ -111,7 +111,7 @@ static void test_refusals(void **state) {
   obs_err err = OBS_ERR_INIT;
   obs_scene_volumes vs;
   obs_brick b = {0, 41, 0};
-  assert_int_equal(obs_scene_volumes_load_brick(&sc, &b, 0.2, &vs, &err), OBS_EINVAL);
+  assert_int_equal(obs_scene_volumes_load_brick(&sc, &b, 0.2, 1, &vs, &err), OBS_EINVAL);
   assert_non_null(strstr(obs_err_message(&err), "too few for 41 bricks"));
   assert_non_null(strstr(obs_err_message(&err), "/objects/0/shape"));
   obs_err_clear(&err);

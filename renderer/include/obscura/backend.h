@@ -41,6 +41,9 @@ typedef struct obs_backend_ops {
   /* What the backend builds for a technique's `needs` before its run (renderer/core/driver.h), or
    * NULL when its drivers build what they need themselves. */
   const struct obs_needs_builder *needs;
+  /* 1 when the backend's volume marcher reads each voxel cell's side of the isovalue
+   * (renderer/core/volume.h's obs_volume_sides): the renderer builds them with the volumes. */
+  int volume_sides;
 } obs_backend_ops;
 
 /* The operations of a concrete backend; NULL for OBS_BACKEND_AUTO or an out-of-range value. */
