@@ -477,8 +477,8 @@ static int march_cells(const march *m, const obs_volume_cells *c, float *prev) {
   return 0;
 }
 
-int obs_volume_grid_crossing(const obs_volume_iso *s, const double o[3], const double d[3],
-                             const obs_volume_ao_params *a) {
+static inline __attribute__((always_inline)) int grid_crossing_body(
+    const obs_volume_iso *s, const double o[3], const double d[3], const obs_volume_ao_params *a) {
   const obs_volume *v = s->v;
   if (!(a->step > 0) || !(a->max_distance >= a->start) || !isfinite(a->max_distance)) return 0;
   double last = floor((a->max_distance - a->start) / a->step + 1e-9);
@@ -516,6 +516,28 @@ int obs_volume_grid_crossing(const obs_volume_iso *s, const double o[3], const d
     return 1;
   /* Past the box the field reads 0. */
   return m.ib < (int64_t)last && crosses(a->crossing, prev, 0, s->iso);
+}
+
+/* The set-up's double arithmetic is the same IEEE operations at either level (no contraction);
+ * x86-64-v3 rounds with roundsd and keeps more in registers. */
+static int grid_crossing_base(const obs_volume_iso *s, const double o[3], const double d[3],
+                              const obs_volume_ao_params *a) {
+  return grid_crossing_body(s, o, d, a);
+}
+
+#if OBS_SIMD_AVX2
+OBS_V3_FN static int grid_crossing_v3(const obs_volume_iso *s, const double o[3], const double d[3],
+                                      const obs_volume_ao_params *a) {
+  return grid_crossing_body(s, o, d, a);
+}
+#endif
+
+int obs_volume_grid_crossing(const obs_volume_iso *s, const double o[3], const double d[3],
+                             const obs_volume_ao_params *a) {
+#if OBS_SIMD_AVX2
+  if (a->isa >= OBS_ISA_AVX2) return grid_crossing_v3(s, o, d, a);
+#endif
+  return grid_crossing_base(s, o, d, a);
 }
 
 double obs_volume_ao(const obs_volume_iso *s, const double p[3], const double n[3],
