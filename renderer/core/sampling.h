@@ -36,6 +36,10 @@ void obs_sampler2d_init(obs_sampler2d *s, obs_sampler_kind kind, uint32_t x, uin
                         uint32_t pixel_sample, uint32_t stream, uint32_t seed);
 /* The i-th point of the stream in [0,1)^2. */
 void obs_sampler2d_get(const obs_sampler2d *s, uint32_t i, float *u, float *v);
+/* Points i0 ... i0 + n - 1 of the stream into u[], v[]: obs_sampler2d_get's values, a Sobol
+ * stream's computed many at a time (vectorised at x86-64-v3 when isa, simd.h's level, has it). */
+void obs_sampler2d_get_n(const obs_sampler2d *s, uint32_t i0, uint32_t n, float *u, float *v,
+                         int isa);
 
 /* The sample index shuffled by a nested uniform scramble of its bits (Burley 2020, section 4):
  * the first 2^k indices map onto one aligned block of 2^k, so a Sobol stream read at the

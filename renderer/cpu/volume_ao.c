@@ -140,10 +140,11 @@ static void march_ao(const job *jb, const hit *h, const double n[3], uint32_t x,
   double w[BATCH][3], da[BATCH][3];
   for (uint32_t i0 = 0; i0 < jb->p.samples; i0 += BATCH) {
     uint32_t nb = jb->p.samples - i0 < BATCH ? jb->p.samples - i0 : BATCH;
+    float us[BATCH], vs[BATCH];
+    obs_sampler2d_get_n(&smp, i0, nb, us, vs, jb->march.isa);
     for (uint32_t q = 0; q < nb; q++) {
-      float u, v, l[3];
-      obs_sampler2d_get(&smp, i0 + q, &u, &v);
-      obs_sample_cosine(u, v, l);
+      float l[3];
+      obs_sample_cosine(us[q], vs[q], l);
       for (int k = 0; k < 3; k++)
         w[q][k] = l[0] * (double)t1[k] + l[1] * (double)t2[k] + l[2] * n[k];
       obs_affine_dir(va->to_data, w[q], da[q]);
