@@ -56,25 +56,6 @@ void obs_sampler2d_init(obs_sampler2d *s, obs_sampler_kind kind, uint32_t x, uin
   s->scramble1 = obs_hash32(h ^ 0xa511e9b3U);
 }
 
-/* The Sobol points of obs_sampler2d_get in a loop of integer operations the compiler vectorises:
- * the reversed second dimension takes as many rounds as the largest index has bits, each lane's
- * missing bits adding nothing. */
-static inline __attribute__((always_inline)) void sobol_n(const obs_sampler2d *s, uint32_t i0,
-                                                          uint32_t n, float *u, float *v) {
-  uint32_t top = i0 + n - 1 < i0 ? UINT32_MAX : i0 + n - 1, rounds = 0; /* indices wrap */
-  while (rounds < 32 && top >> rounds) rounds++;
-  for (uint32_t k = 0; k < n; k++) {
-    uint32_t i = i0 + k, r = 0, w = 1;
-    for (uint32_t b = 0; b < rounds; b++, w ^= w << 1) r ^= w & (0u - (i >> b & 1u));
-    u[k] = obs_u32_to_unit(reverse_bits(laine_karras(i, s->scramble0)));
-    v[k] = obs_u32_to_unit(reverse_bits(laine_karras(r, s->scramble1)));
-  }
-}
-
-static void sobol_n_base(const obs_sampler2d *s, uint32_t i0, uint32_t n, float *u, float *v) {
-  sobol_n(s, i0, n, u, v);
-}
-
 #if OBS_SIMD_AVX2
 OBS_AVX2_INLINE __m256i reverse_bits8(__m256i x) {
   static const uint32_t m[4] = {0x55555555U, 0x33333333U, 0x0F0F0F0FU, 0x00FF00FFU};
@@ -99,9 +80,11 @@ OBS_AVX2_INLINE __m256 unit8(__m256i x) {
   return _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_srli_epi32(x, 8)), _mm256_set1_ps(0x1p-24f));
 }
 
-/* sobol_n eight lanes at a time with the same integer operations. */
-OBS_V3_FN static void sobol_n_v3(const obs_sampler2d *s, uint32_t i0, uint32_t n, float *u,
-                                 float *v) {
+/* obs_sampler2d_get's Sobol points eight lanes at a time, with its integer operations: the
+ * reversed second dimension takes as many rounds as the largest index has bits (a lane's missing
+ * bits add nothing). Returns how many points it wrote (whole groups of eight). */
+OBS_V3_FN static uint32_t sobol8_v3(const obs_sampler2d *s, uint32_t i0, uint32_t n, float *u,
+                                    float *v) {
   uint32_t k = 0;
   for (; k + 8 <= n; k += 8) {
     uint32_t top = i0 + k + 7 < i0 + k ? UINT32_MAX : i0 + k + 7, rounds = 0;
@@ -118,25 +101,18 @@ OBS_V3_FN static void sobol_n_v3(const obs_sampler2d *s, uint32_t i0, uint32_t n
     _mm256_storeu_ps(u + k, unit8(reverse_bits8(laine_karras8(i, s->scramble0))));
     _mm256_storeu_ps(v + k, unit8(reverse_bits8(laine_karras8(r, s->scramble1))));
   }
-  if (k < n) sobol_n(s, i0 + k, n - k, u + k, v + k);
+  return k;
 }
 #endif
 
 void obs_sampler2d_get_n(const obs_sampler2d *s, uint32_t i0, uint32_t n, float *u, float *v,
                          int isa) {
-  if (!n) return;
-  if (s->kind != OBS_SAMPLER_SOBOL) {
-    for (uint32_t k = 0; k < n; k++) obs_sampler2d_get(s, i0 + k, &u[k], &v[k]);
-    return;
-  }
+  uint32_t k = 0;
 #if OBS_SIMD_AVX2
-  if (isa >= OBS_ISA_AVX2) {
-    sobol_n_v3(s, i0, n, u, v);
-    return;
-  }
+  if (s->kind == OBS_SAMPLER_SOBOL && isa >= OBS_ISA_AVX2) k = sobol8_v3(s, i0, n, u, v);
 #endif
   (void)isa;
-  sobol_n_base(s, i0, n, u, v);
+  for (; k < n; k++) obs_sampler2d_get(s, i0 + k, &u[k], &v[k]);
 }
 
 void obs_sampler2d_get(const obs_sampler2d *s, uint32_t i, float *u, float *v) {

@@ -37,7 +37,7 @@ void obs_sampler2d_init(obs_sampler2d *s, obs_sampler_kind kind, uint32_t x, uin
 /* The i-th point of the stream in [0,1)^2. */
 void obs_sampler2d_get(const obs_sampler2d *s, uint32_t i, float *u, float *v);
 /* Points i0 ... i0 + n - 1 of the stream into u[], v[]: obs_sampler2d_get's values, a Sobol
- * stream's computed many at a time (vectorised at x86-64-v3 when isa, simd.h's level, has it). */
+ * stream's computed eight at a time at x86-64-v3 when isa (simd.h's level) has it. */
 void obs_sampler2d_get_n(const obs_sampler2d *s, uint32_t i0, uint32_t n, float *u, float *v,
                          int isa);
 

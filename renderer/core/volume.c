@@ -325,7 +325,6 @@ int obs_volume_sides_build(const obs_volume *v, float iso, obs_volume_sides *s, 
     s->bricks[a] = (s->n[a] + 7) / 8;
     count *= (size_t)s->bricks[a];
   }
-  s->iso = iso;
   s->bits = calloc(count / 4 + 4, 1); /* the slack: 4-byte gathers of the last cells */
   s->far = malloc(count / 512);
   float *mn = malloc((size_t)v->n[0] * sizeof *mn), *mx = malloc((size_t)v->n[0] * sizeof *mx);

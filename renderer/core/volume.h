@@ -86,7 +86,6 @@ enum { OBS_VOLUME_BELOW = 1, OBS_VOLUME_ABOVE = 2 };
 typedef struct obs_volume_sides {
   int n[3];
   int bricks[3]; /* bricks per axis: ceil(n / 8) */
-  float iso;
   uint8_t *bits; /* obs_volume_side_index's cell c at bits c / 4, shift 2 (c % 4) */
   /* Per brick (x fastest): its side when every cell in it has that side (0 otherwise) in the low
    * 2 bits, and above them the Chebyshev distance in bricks to the nearest brick not wholly on
@@ -97,11 +96,14 @@ typedef struct obs_volume_sides {
 #define OBS_VOLUME_FAR_MAX 31
 int obs_volume_sides_build(const obs_volume *v, float iso, obs_volume_sides *s, obs_err *err);
 void obs_volume_sides_free(obs_volume_sides *s);
+/* The brick holding cell (i, j, k), x fastest (its index in `far`). */
+static inline size_t obs_volume_brick_index(const obs_volume_sides *s, int i, int j, int k) {
+  return ((size_t)(k >> 3) * (size_t)s->bricks[1] + (size_t)(j >> 3)) * (size_t)s->bricks[0] +
+         (size_t)(i >> 3);
+}
 /* Cell (i, j, k)'s place: its brick, then its place in the brick, x fastest in both. */
 static inline size_t obs_volume_side_index(const obs_volume_sides *s, int i, int j, int k) {
-  size_t brick = ((size_t)(k >> 3) * (size_t)s->bricks[1] + (size_t)(j >> 3)) * s->bricks[0] +
-                 (size_t)(i >> 3);
-  return brick << 9 | (size_t)((k & 7) << 6 | (j & 7) << 3 | (i & 7));
+  return obs_volume_brick_index(s, i, j, k) << 9 | (size_t)((k & 7) << 6 | (j & 7) << 3 | (i & 7));
 }
 static inline int obs_volume_side(const obs_volume_sides *s, int i, int j, int k) {
   size_t c = obs_volume_side_index(s, i, j, k);

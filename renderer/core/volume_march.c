@@ -292,10 +292,7 @@ static inline int64_t far_run(const march *m, int64_t i, float *value) {
   int c[3];
   march_point(m, i, q);
   grid_locate(m->g, q, c, w);
-  size_t b = ((size_t)(c[2] >> 3) * (size_t)sd->bricks[1] + (size_t)(c[1] >> 3)) *
-                 (size_t)sd->bricks[0] +
-             (size_t)(c[0] >> 3);
-  int far = sd->far[b], dist = far >> 2;
+  int far = sd->far[obs_volume_brick_index(sd, c[0], c[1], c[2])], dist = far >> 2;
   if (dist < 2) return 0;
   *value = (far & 3) == OBS_VOLUME_BELOW ? -INFINITY : INFINITY;
   /* The reciprocal's roundings are far inside the 1e-6 taken off. */
@@ -358,8 +355,8 @@ OBS_AVX2_INLINE __m256 side_sample8(const grid *g, int loads, const __m256 u[3])
   __m256 above = _mm256_castsi256_ps(_mm256_cmpeq_epi32(side, _mm256_set1_epi32(OBS_VOLUME_ABOVE)));
   __m256 settled = _mm256_blendv_ps(_mm256_set1_ps(-INFINITY), _mm256_set1_ps(INFINITY), above);
   __m256 open = _mm256_castsi256_ps(_mm256_cmpeq_epi32(side, _mm256_setzero_si256()));
-  int todo = _mm256_movemask_ps(open);
-  if (!todo) return settled;
+  int open_lanes = _mm256_movemask_ps(open);
+  if (!open_lanes) return settled;
   /* Few lanes reach iso (the surface is thin): those take grid_lerp's scalar loads and lerps. */
   int ii[3][8];
   float ww[3][8], out[8];
@@ -368,8 +365,8 @@ OBS_AVX2_INLINE __m256 side_sample8(const grid *g, int loads, const __m256 u[3])
     _mm256_storeu_ps(ww[a], w[a]);
   }
   _mm256_storeu_ps(out, settled);
-  for (; todo; todo &= todo - 1) {
-    int l = __builtin_ctz((unsigned)todo);
+  for (; open_lanes; open_lanes &= open_lanes - 1) {
+    int l = __builtin_ctz((unsigned)open_lanes);
     const int li[3] = {ii[0][l], ii[1][l], ii[2][l]};
     const float lw[3] = {ww[0][l], ww[1][l], ww[2][l]};
     out[l] = grid_lerp(g, li, lw);
@@ -411,8 +408,8 @@ OBS_AVX2_FN static int march_plain8(const march *m, float *prev) {
     float last[8];
     _mm256_storeu_ps(last, v);
     *prev = last[lanes - 1];
-    settled = isinf(*prev) &&
-              (_mm256_movemask_ps(_mm256_cmp_ps(v, _mm256_set1_ps(*prev), _CMP_EQ_OQ)) & valid) == valid;
+    __m256 same = _mm256_cmp_ps(v, _mm256_set1_ps(*prev), _CMP_EQ_OQ);
+    settled = isinf(*prev) && (_mm256_movemask_ps(same) & valid) == valid;
   }
   return 0;
 }
@@ -493,7 +490,6 @@ static inline __attribute__((always_inline)) int grid_crossing_body(
   for (int k = 0; k < 3; k++) {
     m.u0[k] = (float)(o[k] / v->spacing[k] - 0.5);
     m.du[k] = (float)(d[k] / v->spacing[k]);
-
   }
   /* Grid indices inside the box; the samples before and after read 0. */
   m.ia = (int64_t)ceil((t0 - a->start) / a->step);

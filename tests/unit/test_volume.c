@@ -128,6 +128,15 @@ static void test_procedural(void **state) {
   obs_err_free(&err);
 }
 
+/* A random object-space point p in and a little around v's box, and its continuous voxel index u
+ * clamped to the voxel centres (where the field is held beyond them). */
+static void random_point(uint32_t *seed, const obs_volume *v, double p[3], double u[3]) {
+  for (int a = 0; a < 3; a++) {
+    p[a] = (obs_test_unit(seed) * 1.2 - 0.1) * v->n[a] * v->spacing[a];
+    u[a] = fmin(fmax(p[a] / v->spacing[a] - 0.5, 0), v->n[a] - 1);
+  }
+}
+
 /* Every value of the field in a cell lies within the cell's [min, max]. */
 static void test_cells_bound_the_field(void **state) {
   (void)state;
@@ -142,12 +151,11 @@ static void test_cells_bound_the_field(void **state) {
   assert_int_equal(c.n[2], 1);
   uint32_t seed = 11;
   for (int t = 0; t < 20000; t++) {
-    double p[3];
+    double p[3], u[3];
     int ci[3];
+    random_point(&seed, &v, p, u);
     for (int a = 0; a < 3; a++) {
-      p[a] = (obs_test_unit(&seed) * 1.2 - 0.1) * n[a] * v.spacing[a];
-      double u = fmin(fmax(p[a] / v.spacing[a] - 0.5, 0), n[a] - 1);
-      ci[a] = (int)(u / c.cell);
+      ci[a] = (int)(u[a] / c.cell);
       if (ci[a] >= c.n[a]) ci[a] = c.n[a] - 1;
     }
     size_t at = ((size_t)ci[2] * (size_t)c.n[1] + (size_t)ci[1]) * (size_t)c.n[0] + (size_t)ci[0];
@@ -176,12 +184,11 @@ static void test_sides_bound_the_field(void **state) {
     int seen[3] = {0, 0, 0};
     uint32_t seed = 12;
     for (int t = 0; t < 20000; t++) {
-      double p[3];
+      double p[3], u[3];
       int ci[3];
+      random_point(&seed, &v, p, u);
       for (int a = 0; a < 3; a++) {
-        p[a] = (obs_test_unit(&seed) * 1.2 - 0.1) * n[a] * v.spacing[a];
-        double u = fmin(fmax(p[a] / v.spacing[a] - 0.5, 0), n[a] - 1);
-        ci[a] = (int)u;
+        ci[a] = (int)u[a];
         if (ci[a] >= s.n[a]) ci[a] = s.n[a] - 1;
       }
       int side = obs_volume_side(&s, ci[0], ci[1], ci[2]);
@@ -230,7 +237,8 @@ static void test_sides_far_bricks(void **state) {
         int all = 3;
         for (int k = z * 8; k < z * 8 + 8 && k < s.n[2]; k++)
           for (int j = y * 8; j < y * 8 + 8 && j < s.n[1]; j++)
-            for (int i = x * 8; i < x * 8 + 8 && i < s.n[0]; i++) all &= obs_volume_side(&s, i, j, k);
+            for (int i = x * 8; i < x * 8 + 8 && i < s.n[0]; i++)
+              all &= obs_volume_side(&s, i, j, k);
         assert_int_equal(side, all);
         if (!side) {
           assert_int_equal(dist, 0);

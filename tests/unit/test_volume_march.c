@@ -160,7 +160,8 @@ static void grid_crossing_skip_exact(obs_volume_procedural kind, const int n[3],
     lo = fminf(lo, v.data[i]), hi = fmaxf(hi, v.data[i]);
   const float isos[] = {iso0, 0.55f, 0.7f, lo, hi};
   obs_volume_sides sides[5];
-  for (int k = 0; k < 5; k++) assert_int_equal(obs_volume_sides_build(&v, isos[k], &sides[k], &err), 0);
+  for (int k = 0; k < 5; k++)
+    assert_int_equal(obs_volume_sides_build(&v, isos[k], &sides[k], &err), 0);
   uint32_t seed = 4;
   int hits = 0, total = 0, isa = obs_simd_isa();
   static const double steps[] = {0.003, 0.02, 0.37, 0.05};
