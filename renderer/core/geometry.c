@@ -496,6 +496,31 @@ static int build_object(const obs_scene *sc, size_t oi, const double origin[3], 
   return 0;
 }
 
+int obs_geometry_object_mesh(const obs_scene *sc, size_t oi, obs_mesh *m, obs_err *err) {
+  static const double zero[3] = {0, 0, 0};
+  static const obs_transform identity = {{1, 1, 1}, {0, 0, 0}, {0, 0, 0}, 0};
+  const obs_object *o = &sc->objects[oi];
+  const obs_shape_kind *k = obs_shape_kind_of(o->shape.type);
+  memset(m, 0, sizeof *m);
+  int rc;
+  if (k->vertices) {
+    obs_vec3 v[8];
+    const uint32_t *tri;
+    size_t nt, nv = k->vertices(&o->shape, v, &tri, &nt);
+    rc = fail_oom(sc, oi, mesh_from_vertices(v, nv, tri, nt, &identity, zero, m), err);
+  } else if (k->mesh) {
+    char where[256];
+    snprintf(where, sizeof where, "%s: /objects/%zu/shape%s", sc->name, oi,
+             o->shape.type == OBS_SHAPE_MESH ? "/file" : "");
+    rc = k->mesh(&o->shape, sc->base_dir, m, err, where);
+  } else {
+    return obs_err_set(err, OBS_EINVAL, "%s: /objects/%zu/shape: a %s is not a triangle mesh",
+                       sc->name, oi, k->name);
+  }
+  m->object = oi;
+  return rc;
+}
+
 static void grow_bounds(obs_geometry *g, const double p[3], int *first) {
   for (int k = 0; k < 3; k++) {
     if (*first || p[k] < g->bounds[0][k]) g->bounds[0][k] = p[k];

@@ -46,6 +46,11 @@ int obs_geometry_build(const obs_scene *scene, obs_geometry *geo, obs_err *err);
 int obs_geometry_build_at(const obs_scene *scene, const double origin[3], obs_geometry *geo,
                           obs_err *err);
 void obs_geometry_free(obs_geometry *geo);
+/* Object `oi`'s triangles in its own object space (no transform), for structures built per
+ * object and reused whatever its placement (proximity fields). OBS_EINVAL for shapes without
+ * triangles (analytic spheres, volumes). `m` is the caller's (obs_geometry_mesh_free). */
+int obs_geometry_object_mesh(const obs_scene *sc, size_t oi, obs_mesh *m, obs_err *err);
+
 
 /* Imports a mesh file (object space), reading only files inside the directory tree `root` (the
  * scene's). Messages are prefixed with `where` (e.g. "scene.json: /objects/3/shape/file"). Every

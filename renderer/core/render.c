@@ -20,6 +20,7 @@
 #include "extent.h"
 #include "obscura/path.h"
 #include "environment.h"
+#include "proximity.h"
 #include "volume_scene.h"
 
 void obs_render_keep_memory(void) {
@@ -143,9 +144,24 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
     }
     ctx.volumes = &vols;
   }
+  obs_prox_fields prox = {0};
+  if (t->needs & OBS_NEED_PROXIMITY) {
+    obs_prox_layout lay;
+    t->prox_layout(bound, &lay);
+    if ((rc = obs_prox_build(scene, &lay, ctx.threads, NULL, NULL, &prox, err))) {
+      obs_scene_volumes_free(&vols);
+      if (nb) nb->release(built);
+      free(bound);
+      return rc;
+    }
+    obs_driver_stage_add(&ctx, "voxelise", prox.voxelise_ms);
+    obs_driver_stage_add(&ctx, "flood", prox.flood_ms);
+    ctx.proximity = &prox;
+  }
   obs_env env = {0};
   if (t->needs & OBS_NEED_ENV_MAP && scene->has_environment) {
     if ((rc = obs_env_from_scene(scene, &env, err))) {
+      obs_prox_fields_free(&prox);
       obs_scene_volumes_free(&vols);
       if (nb) nb->release(built);
       free(bound);
@@ -157,6 +173,7 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
   ctx.build_ms = obs_now_ms() - t0;
   if ((rc = obs_driver_cancelled(&ctx, err)) == 0) rc = t->run[be](&ctx, &res->image, err);
   obs_scene_volumes_free(&vols);
+  obs_prox_fields_free(&prox);
   obs_env_free(&env);
   if (nb) nb->release(built);
   free(bound);

@@ -13,6 +13,7 @@ static const obs_technique *const table[] = {
     &obs_technique_obscurance,
     &obs_technique_obscurance_map,
     &obs_technique_volume_ao,
+    &obs_technique_proximity_ao,
 };
 
 size_t obs_technique_count(void) { return sizeof table / sizeof table[0]; }
@@ -115,7 +116,8 @@ static const struct {
                   {OBS_NEED_MOTION, "motion"},
                   {OBS_NEED_VOLUME, "volume"},
                   {OBS_NEED_PUNCTUAL_LIGHTS, "punctual_lights"},
-                  {OBS_NEED_ENV_MAP, "environment_map"}};
+                  {OBS_NEED_ENV_MAP, "environment_map"},
+                  {OBS_NEED_PROXIMITY, "proximity_fields"}};
 
 json_t *obs_technique_registry_json(void) {
   json_t *arr = json_array();

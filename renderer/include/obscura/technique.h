@@ -38,8 +38,14 @@ enum {
   OBS_NEED_PUNCTUAL_LIGHTS = 1 << 7,
   /* Lights with an environment map (environment "latlong", "faces" or "sky"), read by the
    * framework (ctx->environment); techniques without it refuse those and take a colour only. */
-  OBS_NEED_ENV_MAP = 1 << 8
+  OBS_NEED_ENV_MAP = 1 << 8,
+  /* Reads per-object proximity fields (renderer/core/proximity.h's obs_prox_fields): voxelised
+   * and flooded by the framework before the run, laid out by the technique's prox_layout hook,
+   * in ctx->proximity. */
+  OBS_NEED_PROXIMITY = 1 << 9
 };
+
+struct obs_prox_layout;
 
 typedef void (*obs_progress_fn)(void *user, double fraction);
 
@@ -109,6 +115,9 @@ typedef struct obs_render_ctx {
   /* For OBS_NEED_ENV_MAP: the scene's environment as a cube map (renderer/core/environment.h's
    * obs_env), read by the framework and owned by it; NULL when the scene has none. */
   const void *environment;
+  /* For OBS_NEED_PROXIMITY: every surface object's proximity field (renderer/core/proximity.h's
+   * obs_prox_fields), built by the framework and owned by it; else NULL. */
+  const void *proximity;
   /* Filled by the framework and the drivers (see obs_timings): */
   double build_ms;             /* what the framework builds for `needs` */
   double render_ms;            /* the technique's pixels or passes */
@@ -378,6 +387,8 @@ typedef struct obs_technique {
   /* With OBS_NEED_MOTION: the backends (bit 1 << obs_backend) whose runs render moving scenes;
    * a moving scene on another is refused, and backend auto picks among these. */
   unsigned motion_backends;
+  /* With OBS_NEED_PROXIMITY: the layout of the fields the bound params ask for. */
+  void (*prox_layout)(const void *bound, struct obs_prox_layout *out);
   const char *cost_rule;        /* the cost hook in words ("samples"), for the API and docs */
   /* Milliseconds per unit of work (width x height x spp x cost) on the reference machine of
    * docs/server.md, rounded up: the server's render-time estimate before it has stored runs of

@@ -1,0 +1,123 @@
+/* Proximity fields (Menexi and Papaioannou, "Pre-calculated Volumetric Illumination for Real-time
+ * Graphics"): per object, a voxel grid over its object-space box grown by the propagation radius,
+ * voxelised (every voxel the surface touches holds 1) and flooded outward, and the reconstruction
+ * of ambient occlusion from such fields along a surface normal. Backend-independent: the CPU
+ * floods here; a backend may flood on its own device (obs_prox_flood_fn) with the same values. */
+#ifndef OBS_PROXIMITY_H
+#define OBS_PROXIMITY_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "geometry.h"
+#include "obscura/error.h"
+#include "obscura/scene.h"
+
+/* How the grids are laid out (docs/techniques/proximity_ao.md, "Pre-processing"). */
+typedef struct obs_prox_layout {
+  double fraction; /* r_p = fraction x the reference box's diagonal (world units) */
+  int union_box;   /* reference box: 0 the largest object's world box, 1 every object's union */
+  int res;         /* voxels per axis of the largest grid side (>= 1) */
+  int min_res;     /* the fewest voxels per axis (clamped to res) */
+} obs_prox_layout;
+
+/* One object's field. Voxel (i, j, k) covers grid coordinates [i, i+1] x [j, j+1] x [k, k+1];
+ * grid coordinates g = (object-space point - lo) / voxel; values sit at voxel centres. */
+typedef struct obs_prox_field {
+  size_t object;      /* index into scene->objects */
+  int dims[3];
+  double lo[3];       /* object-space corner of the grid: the object's box less r_p per axis */
+  double voxel[3];    /* voxel sides, object space */
+  int iterations;     /* N_p = ceil(r_p / voxel diagonal in world units) */
+  size_t count;       /* dims[0] x dims[1] x dims[2] */
+  size_t occupied_count;
+  uint8_t *occupied;  /* 1 per voxel the surface touches, x fastest; owned */
+  float *value;       /* the flooded field, x fastest; owned */
+} obs_prox_field;
+
+/* Every surface object's field (volumes have none). Owns its fields. */
+typedef struct obs_prox_fields {
+  obs_prox_field *f;
+  size_t n;
+  double rp;          /* the propagation radius, world units (frame 0) */
+  double voxelise_ms, flood_ms;
+  size_t bytes;       /* memory of the fields (values and occupancy) */
+} obs_prox_fields;
+
+/* Floods field `f` in place: f->iterations times, every unoccupied voxel takes
+ * P <- 0.5 (P + (S - P) / 26), S the sum of the 3x3x3 block around it (outside the grid counts
+ * 0), summed as ((x-1 + x) + x+1) along x, then the same along y, then along z, and / 26 taken
+ * as x OBS_PROX_INV26; occupied voxels keep 1. Double-buffered (every voxel reads the previous
+ * iteration). Returns 0 or a negative code. */
+typedef int (*obs_prox_flood_fn)(void *user, obs_prox_field *f, int threads, obs_err *err);
+#define OBS_PROX_INV26 (1.0f / 26.0f)
+
+/* The CPU flood (threaded); `user` unused. */
+int obs_prox_flood_cpu(void *user, obs_prox_field *f, int threads, obs_err *err);
+
+/* The propagation radius r_p of `sc` under `lay` (world units): `fraction` of the diagonal of
+ * the largest surface object's world box in frame 0 (or of their union), each box from the points
+ * its shape declares (a mesh file's box as imported at validation). */
+double obs_prox_radius(const obs_scene *sc, const obs_prox_layout *lay);
+
+/* Lays out, voxelises (exact triangle-box and sphere-box overlap with voxels grown by
+ * OBS_PROX_VOXEL_MARGIN; threaded) and
+ * floods (with `flood`, or the CPU's when NULL) every surface object of `sc` in frame 0's
+ * placement. Messages name the scene. On failure `out` holds nothing. */
+int obs_prox_build(const obs_scene *sc, const obs_prox_layout *lay, int threads,
+                   obs_prox_flood_fn flood, void *flood_user, obs_prox_fields *out,
+                   obs_err *err);
+void obs_prox_fields_free(obs_prox_fields *fs);
+
+/* Occupancy of one field from object-space triangles (3 floats per vertex) and the layout already
+ * in `f` (dims, lo, voxel; occupied allocated and zeroed): for tests and the builder. */
+void obs_prox_voxelise_mesh(obs_prox_field *f, const obs_mesh *m, int threads);
+/* The same for a sphere (object-space centre and radius). */
+void obs_prox_voxelise_sphere(obs_prox_field *f, const double c[3], double r, int threads);
+/* Voxels are voxelised as boxes grown by this fraction of a voxel on every side: a surface
+ * on a voxel face (a flat object centred in an even grid) touches both neighbours, and stays
+ * touching them when rounding moves it by less than the margin (a translated scene). */
+#define OBS_PROX_VOXEL_MARGIN 1e-3
+/* The exact overlap of the triangle (a, b, c) with the closed box centre +- half (separating
+ * axes, Akenine-Moeller 2001). */
+int obs_prox_tri_box(const double centre[3], const double half[3], const double a[3],
+                     const double b[3], const double c[3]);
+
+/* The world -> grid map of field `f` for object `o` placed by its transform in `frame`:
+ * g = m x (w, 1) in grid coordinates (voxel centres at +0.5). */
+void obs_prox_world_to_grid(const obs_prox_field *f, const obs_object *o, int frame,
+                            double m[3][4]);
+
+/* The field's trilinear value at grid point g (voxel centres at integer + 0.5), the point
+ * inside the grid's box [0, dims]; near the faces the edge voxels' values extend. */
+float obs_prox_sample(const obs_prox_field *f, const float g[3]);
+
+/* Reconstruction of one field's occlusion at a surface point (docs/techniques/proximity_ao.md,
+ * "Reconstruction"). */
+enum { OBS_PROX_THESIS_CODE = 0, OBS_PROX_CORRECTED = 1 };
+enum { OBS_PROX_ADDITIVE = 0, OBS_PROX_MULTIPLICATIVE = 1 };
+#define OBS_PROX_MAX_STEPS 64
+/* Disc points per step i: floor(i / 2); all steps: the sum of those. */
+#define OBS_PROX_DISC_POINTS ((OBS_PROX_MAX_STEPS / 2) * (OBS_PROX_MAX_STEPS / 2 - 1) + \
+                              (OBS_PROX_MAX_STEPS % 2) * (OBS_PROX_MAX_STEPS / 2))
+typedef struct obs_prox_recon {
+  int steps;          /* N */
+  int mode;           /* OBS_PROX_THESIS_CODE or OBS_PROX_CORRECTED */
+  float stop_value;   /* a step's value above this ends the walk (a surface reached) */
+  float scale_before, scale_after;
+  /* The unit-disc points of step i start at disc[first[i]]: floor(i/2) of them, (x, y). */
+  int first[OBS_PROX_MAX_STEPS + 1];
+  float disc[OBS_PROX_DISC_POINTS][2];
+} obs_prox_recon;
+
+/* The disc points: step i's angles stratified over floor(i/2) sectors, radii sqrt(u), both
+ * jittered from `seed` (the thesis's PerturbPoint is not given). Same for every pixel. */
+void obs_prox_recon_init(obs_prox_recon *r, int steps, int mode, float stop_value,
+                         float scale_before, float scale_after, uint32_t seed);
+/* Occlusion in [0, scale_after] from field `f` at a point whose grid coordinates are `gp`, the
+ * step R/N along the normal mapped into grid coordinates `gs`, and the disc axes of radius
+ * R/N (two unit vectors orthogonal to the normal, times R/N, mapped) `gt`, `gb`. */
+float obs_prox_occlusion(const obs_prox_field *f, const obs_prox_recon *r, const float gp[3],
+                         const float gs[3], const float gt[3], const float gb[3]);
+
+#endif

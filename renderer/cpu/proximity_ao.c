@@ -1,0 +1,182 @@
+/* proximity_ao on the CPU: a ray through each pixel finds the surface point, its face normal
+ * and its object (the ray-cast G-buffer with object ids); every object's proximity field whose
+ * box holds the point is read along the normal (core/proximity.c) and the occlusions combined.
+ * The framework builds the BVH and the fields (needs); the per-pixel driver owns the image. A
+ * scene with moving objects renders every frame from the same fields. */
+#include <jansson.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "camera.h"
+#include "driver.h"
+#include "obscura/render.h"
+#include "proximity_ao.h"
+#include "raytrace.h"
+#include "sampling.h"
+#include "techniques.h"
+
+enum { CH_AO, CH_FIELDS, CH_DEPTH, CH_NX, CH_NY, CH_NZ, CH_ALPHA, CH_COUNT };
+static const char *const channel_names[CH_COUNT] = {
+    "ao", "fields", "depth.Z", "normal.X", "normal.Y", "normal.Z", "alpha"};
+
+typedef struct job {
+  const obs_scene *sc;
+  const obs_rt *rt;
+  const obs_prox_fields *fs;
+  obs_camera_rig cam;
+  obs_proximity_ao_params p;
+  obs_prox_recon recon;
+  double range;       /* R, world units */
+  int spp;
+  double (*maps)[3][4]; /* per field: world -> grid in the frame being rendered */
+} job;
+
+static size_t hit_object(const obs_rt *rt, const obs_hit *h) {
+  if (h->geom == rt->sphere_geom) return rt->geo.spheres[h->prim].object;
+  return rt->geo.meshes[h->geom].object;
+}
+
+static void map_point(const double m[3][4], const double p[3], float out[3]) {
+  for (int i = 0; i < 3; i++)
+    out[i] = (float)(m[i][0] * p[0] + m[i][1] * p[1] + m[i][2] * p[2] + m[i][3]);
+}
+
+static void map_vector(const double m[3][4], const double v[3], float out[3]) {
+  for (int i = 0; i < 3; i++) out[i] = (float)(m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2]);
+}
+
+/* Accessibility at world point p with unit normal n on object `self`; *nfields: the fields read. */
+static float accessibility(const job *jb, const double p[3], const float n[3], size_t self,
+                           int *nfields) {
+  float t[3], b[3];
+  obs_onb(n, t, b);
+  double h = jb->range / jb->p.steps, s[3], tv[3], bv[3];
+  for (int k = 0; k < 3; k++) {
+    s[k] = n[k] * h;
+    tv[k] = t[k] * h;
+    bv[k] = b[k] * h;
+  }
+  float occl = 0.0f, keep = 1.0f;
+  *nfields = 0;
+  for (size_t i = 0; i < jb->fs->n; i++) {
+    const obs_prox_field *f = &jb->fs->f[i];
+    if (!jb->p.self_occlusion && f->object == self) continue;
+    float gp[3];
+    map_point(jb->maps[i], p, gp);
+    if (!(gp[0] >= 0.0f && gp[0] <= (float)f->dims[0] && gp[1] >= 0.0f &&
+          gp[1] <= (float)f->dims[1] && gp[2] >= 0.0f && gp[2] <= (float)f->dims[2]))
+      continue;
+    float gs[3], gt[3], gb[3];
+    map_vector(jb->maps[i], s, gs);
+    map_vector(jb->maps[i], tv, gt);
+    map_vector(jb->maps[i], bv, gb);
+    float a = obs_prox_occlusion(f, &jb->recon, gp, gs, gt, gb);
+    occl += a;
+    keep *= 1.0f - a;
+    ++*nfields;
+  }
+  float total = jb->p.combine == OBS_PROX_MULTIPLICATIVE ? 1.0f - keep : occl;
+  if (total > 1.0f) total = 1.0f;
+  return 1.0f - total;
+}
+
+static uint64_t shade_pixel(const void *user, int thread, int x, int y, float *d) {
+  (void)thread;
+  const job *jb = user;
+  double ao = 0, depth = 0, nrm[3] = {0, 0, 0}, fields = 0;
+  int hits = 0;
+  obs_sampler2d jit;
+  obs_sampler2d_init(&jit, OBS_SAMPLER_SOBOL, (uint32_t)x, (uint32_t)y, 0, 0, jb->p.seed);
+  for (int s = 0; s < jb->spp; s++) {
+    float jx = 0.5f, jy = 0.5f;
+    if (jb->spp > 1) obs_sampler2d_get(&jit, (uint32_t)s, &jx, &jy);
+    double org[3], dir[3];
+    obs_camera_ray(&jb->cam, x + jx, y + jy, org, dir);
+    obs_hit hit;
+    if (!obs_rt_intersect(jb->rt, org, dir, INFINITY, &hit)) {
+      ao += 1.0;
+      continue;
+    }
+    hits++;
+    double p[3];
+    for (int k = 0; k < 3; k++) p[k] = (double)hit.p[k] + jb->rt->geo.origin[k];
+    int nf;
+    ao += accessibility(jb, p, hit.ng, hit_object(jb->rt, &hit), &nf);
+    fields += nf;
+    for (int k = 0; k < 3; k++) nrm[k] += hit.ng[k];
+    double fwd =
+        dir[0] * jb->cam.forward[0] + dir[1] * jb->cam.forward[1] + dir[2] * jb->cam.forward[2];
+    depth += hit.t * fwd;
+  }
+  d[CH_AO] = (float)(ao / jb->spp);
+  d[CH_FIELDS] = hits ? (float)(fields / hits) : 0.0f;
+  d[CH_ALPHA] = (float)hits / (float)jb->spp;
+  d[CH_DEPTH] = hits ? (float)(depth / hits) : 0.0f;
+  double nl = sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
+  for (int k = 0; k < 3; k++) d[CH_NX + k] = nl > 0 ? (float)(nrm[k] / nl) : 0.0f;
+  return (uint64_t)jb->spp;
+}
+
+static void place_fields(job *jb, int frame) {
+  for (size_t i = 0; i < jb->fs->n; i++) {
+    const obs_prox_field *f = &jb->fs->f[i];
+    obs_prox_world_to_grid(f, &jb->sc->objects[f->object], frame, jb->maps[i]);
+  }
+}
+
+/* Frames after the first: the BVH moved, the fields' maps moved, the pixels again. */
+static int render_frames(obs_render_ctx *ctx, job *jb, const obs_pixel_ops *ops, obs_image *out,
+                         obs_err *err) {
+  const obs_scene *sc = ctx->scene;
+  json_t *frames = json_array();
+  double shade = 0;
+  int rc = 0;
+  for (int f = 0; f < sc->frames && !rc; f++) {
+    double t0 = obs_now_ms();
+    if (f > 0) {
+      obs_image_free(out);
+      rc = obs_rt_place((obs_rt *)jb->rt, sc, f, err);
+    }
+    place_fields(jb, f);
+    double t1 = obs_now_ms();
+    if (!rc) rc = obs_driver_pixels(ctx, ops, jb, out, err);
+    if (!rc) {
+      shade += ctx->render_ms;
+      json_array_append_new(frames, json_pack("{s:i, s:f, s:f}", "frame", f, "place_ms", t1 - t0,
+                                              "render_ms", ctx->render_ms));
+    }
+  }
+  if (rc) {
+    json_decref(frames);
+    return rc;
+  }
+  ctx->render_ms = shade;
+  if (sc->frames > 1) ctx->frames = frames;
+  else json_decref(frames);
+  return 0;
+}
+
+int obs_proximity_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
+  const obs_scene *sc = ctx->scene;
+  if (!ctx->rt || !ctx->proximity)
+    return obs_err_set(err, OBS_EINTERNAL, "%s: proximity_ao: no BVH or fields were built for it",
+                       sc->name);
+  job jb;
+  memset(&jb, 0, sizeof jb);
+  jb.sc = sc;
+  jb.rt = ctx->rt;
+  jb.fs = ctx->proximity;
+  jb.p = *(const obs_proximity_ao_params *)ctx->bound;
+  jb.spp = sc->spp;
+  jb.range = jb.p.range * jb.fs->rp;
+  obs_prox_recon_init(&jb.recon, jb.p.steps, jb.p.reconstruction, jb.p.stop_value,
+                      jb.p.scale_before, jb.p.scale_after, jb.p.seed);
+  obs_camera_setup(&sc->camera, sc->width, sc->height, &jb.cam);
+  jb.maps = malloc((jb.fs->n ? jb.fs->n : 1) * sizeof *jb.maps);
+  if (!jb.maps) return obs_err_set(err, OBS_ENOMEM, "%s: proximity_ao: out of memory", sc->name);
+  static const obs_pixel_ops ops = {CH_COUNT, channel_names, shade_pixel};
+  int rc = render_frames(ctx, &jb, &ops, out, err);
+  free(jb.maps);
+  return rc;
+}

@@ -1,0 +1,27 @@
+/* proximity_ao's parameters as its backends read them (bound from the descriptor's table), and
+ * the layout and reconstruction settings they imply. */
+#ifndef OBS_PROXIMITY_AO_H
+#define OBS_PROXIMITY_AO_H
+
+#include <stdint.h>
+
+#include "proximity.h"
+
+typedef struct obs_proximity_ao_params {
+  double range;                /* R as a fraction of the propagation radius r_p */
+  int32_t steps;               /* N */
+  int32_t volume_res;
+  int32_t min_res;
+  double propagation_fraction;
+  int propagation_box;         /* 0 largest object, 1 union of all */
+  int reconstruction;          /* OBS_PROX_THESIS_CODE, OBS_PROX_CORRECTED */
+  int combine;                 /* OBS_PROX_ADDITIVE, OBS_PROX_MULTIPLICATIVE */
+  int self_occlusion;
+  float stop_value, scale_before, scale_after;
+  uint32_t seed;
+} obs_proximity_ao_params;
+
+/* The grid layout the parameters ask for. */
+void obs_proximity_ao_layout(const obs_proximity_ao_params *p, obs_prox_layout *out);
+
+#endif
