@@ -9,6 +9,7 @@
 #include "obscura/render.h"
 #include "sampling.h"
 #include "shapes.h"
+#include "simd.h"
 
 #define PI 3.14159265358979323846
 
@@ -172,7 +173,7 @@ int obs_prox_build(const obs_scene *sc, const obs_prox_layout *lay, int threads,
   for (size_t i = 0; i < m && !rc; i++) {
     obs_prox_field *f = &out->f[i];
     f->occupied = calloc(f->count, 1);
-    f->value = malloc(f->count * sizeof *f->value);
+    f->value = malloc((f->count + 1) * sizeof *f->value);
     out->n++;
     if (!f->occupied || !f->value) {
       rc = obs_err_set(err, OBS_ENOMEM, "%s: /objects/%zu: out of memory for its proximity field "
@@ -181,6 +182,7 @@ int obs_prox_build(const obs_scene *sc, const obs_prox_layout *lay, int threads,
     }
     if (src[i].sphere) obs_prox_voxelise_sphere(f, src[i].centre, src[i].radius, threads);
     else obs_prox_voxelise_mesh(f, &src[i].mesh, threads);
+    f->value[f->count] = 0.0f;
     for (size_t v = 0; v < f->count; v++) {
       f->value[v] = f->occupied[v] ? 1.0f : 0.0f;
       f->occupied_count += f->occupied[v];
@@ -231,6 +233,8 @@ void obs_prox_world_to_grid(const obs_prox_field *f, const obs_object *o, int fr
   }
 }
 
+/* The trilinear read: the one definition, shared by the scalar and the eight-lane paths (which
+ * take the same float operations in the same order, lane by lane). */
 float obs_prox_sample(const obs_prox_field *f, const float g[3]) {
   int i0[3], i1[3];
   float w[3];
@@ -266,6 +270,11 @@ void obs_prox_recon_init(obs_prox_recon *r, int steps, int mode, float stop_valu
   r->stop_value = stop_value;
   r->scale_before = scale_before;
   r->scale_after = scale_after;
+  r->isa = obs_simd_isa();
+  r->loads = obs_simd_gather_loads();
+  /* The thesis's code advances one step before its loop and again at the top of each: step i
+   * samples at p + (i + 2) step. The corrected walk samples at p + i step. */
+  float base = mode == OBS_PROX_THESIS_CODE ? 2.0f : 0.0f;
   int at = 0;
   for (int i = 0; i < steps; i++) {
     r->first[i] = at;
@@ -276,36 +285,137 @@ void obs_prox_recon_init(obs_prox_recon *r, int steps, int mode, float stop_valu
       double phi = 2 * PI * (k + u) / m, rad = sqrt(v);
       r->disc[at][0] = (float)(rad * cos(phi));
       r->disc[at][1] = (float)(rad * sin(phi));
+      /* The disc's radius is R i / N: i steps. */
+      r->along[at] = base + (float)i;
+      r->across_t[at] = r->disc[at][0] * (float)i;
+      r->across_b[at] = r->disc[at][1] * (float)i;
     }
   }
   r->first[steps] = at;
 }
 
-static int inside(const obs_prox_field *f, const float q[3]) {
-  return q[0] >= 0.0f && q[0] <= (float)f->dims[0] && q[1] >= 0.0f &&
-         q[1] <= (float)f->dims[1] && q[2] >= 0.0f && q[2] <= (float)f->dims[2];
+/* A chunk of the walk's points read into val[] (0 where a point lies outside the field's box,
+ * counted in inside[]). */
+typedef struct prox_walk {
+  const obs_prox_field *f;
+  const obs_prox_recon *r;
+  float gp[3], gs[3], gt[3], gb[3];
+  float val[OBS_PROX_DISC_POINTS + 8];
+  unsigned char inside[OBS_PROX_DISC_POINTS + 8];
+} prox_walk;
+
+static void walk_point(prox_walk *w, int k) {
+  const obs_prox_field *f = w->f;
+  float q[3];
+  for (int c = 0; c < 3; c++)
+    q[c] = ((w->gp[c] + w->r->along[k] * w->gs[c]) + w->r->across_t[k] * w->gt[c]) +
+           w->r->across_b[k] * w->gb[c];
+  int in = q[0] >= 0.0f && q[0] <= (float)f->dims[0] && q[1] >= 0.0f &&
+           q[1] <= (float)f->dims[1] && q[2] >= 0.0f && q[2] <= (float)f->dims[2];
+  w->inside[k] = (unsigned char)in;
+  w->val[k] = in ? obs_prox_sample(f, q) : 0.0f;
+}
+
+#if OBS_SIMD_AVX2
+/* base[idx[l]] into *a and base[idx[l] + 1] into *b for the 8 lanes, as eight 8-byte loads (the
+ * field holds one float past its last voxel for this). */
+OBS_AVX2_INLINE void pair_loads(const float *base, __m256i idx, __m256 *a, __m256 *b) {
+  int ix[8];
+  _mm256_storeu_si256((__m256i *)ix, idx);
+  __m128d p[8];
+  for (int l = 0; l < 8; l++) p[l] = _mm_load_sd((const double *)(const void *)(base + ix[l]));
+  __m256 lo = _mm256_castpd_ps(_mm256_setr_m128d(_mm_unpacklo_pd(p[0], p[1]),
+                                                 _mm_unpacklo_pd(p[2], p[3])));
+  __m256 hi = _mm256_castpd_ps(_mm256_setr_m128d(_mm_unpacklo_pd(p[4], p[5]),
+                                                 _mm_unpacklo_pd(p[6], p[7])));
+  /* lo = a0 b0 a1 b1 | a2 b2 a3 b3, hi the same for lanes 4..7. */
+  __m256 ea = _mm256_shuffle_ps(lo, hi, _MM_SHUFFLE(2, 0, 2, 0)); /* a0 a1 a4 a5 | a2 a3 a6 a7 */
+  __m256 eb = _mm256_shuffle_ps(lo, hi, _MM_SHUFFLE(3, 1, 3, 1));
+  *a = _mm256_castpd_ps(_mm256_permute4x64_pd(_mm256_castps_pd(ea), _MM_SHUFFLE(3, 1, 2, 0)));
+  *b = _mm256_castpd_ps(_mm256_permute4x64_pd(_mm256_castps_pd(eb), _MM_SHUFFLE(3, 1, 2, 0)));
+}
+
+/* Eight points k0..k0+7 at once: walk_point's operations lane by lane. */
+OBS_AVX2_FN static void walk_points8(prox_walk *w, int k0) {
+  const obs_prox_field *f = w->f;
+  const obs_prox_recon *r = w->r;
+  __m256 al = _mm256_loadu_ps(r->along + k0), at = _mm256_loadu_ps(r->across_t + k0),
+         ab = _mm256_loadu_ps(r->across_b + k0);
+  __m256 in = _mm256_castsi256_ps(_mm256_set1_epi32(-1)), wt[3];
+  __m256i i0[3], step[3], more_x = _mm256_setzero_si256();
+  const int stride[3] = {1, f->dims[0], f->dims[0] * f->dims[1]};
+  for (int c = 0; c < 3; c++) {
+    __m256 q = _mm256_add_ps(
+        _mm256_add_ps(_mm256_add_ps(_mm256_set1_ps(w->gp[c]),
+                                    _mm256_mul_ps(al, _mm256_set1_ps(w->gs[c]))),
+                      _mm256_mul_ps(at, _mm256_set1_ps(w->gt[c]))),
+        _mm256_mul_ps(ab, _mm256_set1_ps(w->gb[c])));
+    __m256 dim = _mm256_set1_ps((float)f->dims[c]);
+    in = _mm256_and_ps(in, _mm256_and_ps(_mm256_cmp_ps(q, _mm256_setzero_ps(), _CMP_GE_OQ),
+                                         _mm256_cmp_ps(q, dim, _CMP_LE_OQ)));
+    __m256 u = _mm256_sub_ps(q, _mm256_set1_ps(0.5f));
+    u = _mm256_max_ps(u, _mm256_setzero_ps()); /* NaN and below 0: 0, as !(u > 0) */
+    u = _mm256_min_ps(u, _mm256_set1_ps((float)(f->dims[c] - 1)));
+    __m256i i = _mm256_cvttps_epi32(u);
+    wt[c] = _mm256_sub_ps(u, _mm256_cvtepi32_ps(i));
+    __m256i more = _mm256_cmpgt_epi32(_mm256_set1_epi32(f->dims[c] - 1), i);
+    step[c] = _mm256_and_si256(more, _mm256_set1_epi32(stride[c]));
+    if (c == 0) more_x = more;
+    i0[c] = _mm256_mullo_epi32(i, _mm256_set1_epi32(stride[c]));
+  }
+  __m256i base = _mm256_add_epi32(_mm256_add_epi32(i0[0], i0[1]), i0[2]);
+  __m256 cz[2];
+  for (int dz = 0; dz < 2; dz++) {
+    __m256 cy[2];
+    for (int dy = 0; dy < 2; dy++) {
+      __m256i row = _mm256_add_epi32(base, _mm256_add_epi32(dz ? step[2] : _mm256_setzero_si256(),
+                                                            dy ? step[1] : _mm256_setzero_si256()));
+      __m256 a, b;
+      if (w->r->loads) {
+        pair_loads(f->value, row, &a, &b);
+        /* At the grid's last column the neighbour is the voxel itself. */
+        b = _mm256_blendv_ps(a, b, _mm256_castsi256_ps(more_x));
+      } else {
+        a = obs_avx2_gather(0, f->value, row);
+        b = obs_avx2_gather(0, f->value, _mm256_add_epi32(row, step[0]));
+      }
+      cy[dy] = _mm256_add_ps(a, _mm256_mul_ps(_mm256_sub_ps(b, a), wt[0]));
+    }
+    cz[dz] = _mm256_add_ps(cy[0], _mm256_mul_ps(_mm256_sub_ps(cy[1], cy[0]), wt[1]));
+  }
+  __m256 v = _mm256_add_ps(cz[0], _mm256_mul_ps(_mm256_sub_ps(cz[1], cz[0]), wt[2]));
+  _mm256_storeu_ps(w->val + k0, _mm256_and_ps(v, in));
+  int m = _mm256_movemask_ps(in);
+  for (int l = 0; l < 8; l++) w->inside[k0 + l] = (unsigned char)((m >> l) & 1);
+}
+#endif
+
+/* Reads the points up to `upto` (exclusive) that are not read yet. */
+static void walk_read(prox_walk *w, int *done, int upto) {
+#if OBS_SIMD_AVX2
+  if (w->r->isa >= OBS_ISA_AVX2) {
+    for (; *done < upto; *done += 8) walk_points8(w, *done);
+    return;
+  }
+#endif
+  for (; *done < upto; ++*done) walk_point(w, *done);
 }
 
 float obs_prox_occlusion(const obs_prox_field *f, const obs_prox_recon *r, const float gp[3],
                          const float gs[3], const float gt[3], const float gb[3]) {
   const int n = r->steps, code = r->mode == OBS_PROX_THESIS_CODE;
-  /* The thesis's code advances one step before its loop and again at the top of each: step i
-   * samples at p + (i + 2) step. The corrected walk samples at p + i step. */
-  float base = code ? 2.0f : 0.0f, ao = 0.0f, prev = 0.0f;
+  prox_walk w;
+  w.f = f;
+  w.r = r;
+  for (int c = 0; c < 3; c++) w.gp[c] = gp[c], w.gs[c] = gs[c], w.gt[c] = gt[c], w.gb[c] = gb[c];
+  float ao = 0.0f, prev = 0.0f;
+  int done = r->first[0];
   for (int i = 0; i < n; i++) {
-    float d = base + (float)i, rad = (float)i; /* the disc's radius: R i / N */
-    float c[3];
-    for (int k = 0; k < 3; k++) c[k] = gp[k] + d * gs[k];
+    walk_read(&w, &done, r->first[i + 1]);
     float sum = 0.0f;
     int read = 0;
-    for (int j = r->first[i]; j < r->first[i + 1]; j++) {
-      float q[3];
-      float dx = r->disc[j][0] * rad, dy = r->disc[j][1] * rad;
-      for (int k = 0; k < 3; k++) q[k] = c[k] + dx * gt[k] + dy * gb[k];
-      if (!inside(f, q)) continue;
-      sum += obs_prox_sample(f, q);
-      read++;
-    }
+    for (int k = r->first[i]; k < r->first[i + 1]; k++)
+      if (w.inside[k]) sum += w.val[k], read++;
     float value = code ? sum : read ? sum / (float)read : 0.0f;
     if (value < prev) continue; /* moving away from what occludes: dropped, prev kept */
     /* The listing's (1 - i / N) is integer division: 1 for every i < N. */

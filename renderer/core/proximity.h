@@ -32,7 +32,8 @@ typedef struct obs_prox_field {
   size_t count;       /* dims[0] x dims[1] x dims[2] */
   size_t occupied_count;
   uint8_t *occupied;  /* 1 per voxel the surface touches, x fastest; owned */
-  float *value;       /* the flooded field, x fastest; owned */
+  float *value;       /* the flooded field, x fastest, and one 0 past the end (pairs of
+                         neighbours are read 8 bytes at a time); owned */
 } obs_prox_field;
 
 /* Every surface object's field (volumes have none). Owns its fields. */
@@ -105,18 +106,27 @@ typedef struct obs_prox_recon {
   int mode;           /* OBS_PROX_THESIS_CODE or OBS_PROX_CORRECTED */
   float stop_value;   /* a step's value above this ends the walk (a surface reached) */
   float scale_before, scale_after;
+  int isa;            /* simd.h level the reads run at (the same bits at every level) */
+  int loads;          /* AVX2 reads as scalar loads (obs_simd_gather_loads) */
   /* The unit-disc points of step i start at disc[first[i]]: floor(i/2) of them, (x, y). */
   int first[OBS_PROX_MAX_STEPS + 1];
   float disc[OBS_PROX_DISC_POINTS][2];
+  /* Per point, what every pixel shares: its distance along the step (in steps: i + 2 for the
+   * thesis's code, i corrected) and its disc offset times the disc's radius in steps (i). Padded
+   * to a multiple of 8 with zeros for the eight-lane reads. */
+  float along[OBS_PROX_DISC_POINTS + 8], across_t[OBS_PROX_DISC_POINTS + 8],
+      across_b[OBS_PROX_DISC_POINTS + 8];
 } obs_prox_recon;
 
 /* The disc points: step i's angles stratified over floor(i/2) sectors, radii sqrt(u), both
- * jittered from `seed` (the thesis's PerturbPoint is not given). Same for every pixel. */
+ * jittered from `seed` (the thesis's PerturbPoint is not given). Same for every pixel. Reads run
+ * at the process's instruction-set level (obs_simd_isa). */
 void obs_prox_recon_init(obs_prox_recon *r, int steps, int mode, float stop_value,
                          float scale_before, float scale_after, uint32_t seed);
 /* Occlusion in [0, scale_after] from field `f` at a point whose grid coordinates are `gp`, the
  * step R/N along the normal mapped into grid coordinates `gs`, and the disc axes of radius
- * R/N (two unit vectors orthogonal to the normal, times R/N, mapped) `gt`, `gb`. */
+ * R/N (two unit vectors orthogonal to the normal, times R/N, mapped) `gt`, `gb`. Point k of the
+ * walk is read at (gp + along[k] gs) + across_t[k] gt + across_b[k] gb. */
 float obs_prox_occlusion(const obs_prox_field *f, const obs_prox_recon *r, const float gp[3],
                          const float gs[3], const float gt[3], const float gb[3]);
 

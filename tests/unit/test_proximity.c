@@ -134,7 +134,7 @@ static void random_field(obs_prox_field *f, int nx, int ny, int nz, uint32_t see
   f->count = (size_t)nx * ny * nz;
   for (int k = 0; k < 3; k++) f->voxel[k] = 1;
   f->occupied = calloc(f->count, 1);
-  f->value = malloc(f->count * sizeof *f->value);
+  f->value = calloc(f->count + 1, sizeof *f->value);
   for (size_t i = 0; i < f->count; i++) {
     f->occupied[i] = obs_test_unit(&seed) < 0.05;
     f->value[i] = f->occupied[i];
@@ -171,7 +171,7 @@ static void planes_field(obs_prox_field *f, const double *zs, int nplanes, int i
   for (int k = 0; k < 3; k++) f->dims[k] = 32, f->voxel[k] = 1, f->lo[k] = 0;
   f->count = 32 * 32 * 32;
   f->occupied = calloc(f->count, 1);
-  f->value = malloc(f->count * sizeof *f->value);
+  f->value = calloc(f->count + 1, sizeof *f->value);
   float pos[8 * 3];
   uint32_t idx[4 * 3];
   for (int p = 0; p < nplanes; p++) {
@@ -260,8 +260,8 @@ static void test_reconstruction_arithmetic(void **state) {
   memset(&f, 0, sizeof f);
   for (int k = 0; k < 3; k++) f.dims[k] = 8, f.voxel[k] = 1;
   f.count = 512;
-  float ones[512];
-  for (int i = 0; i < 512; i++) ones[i] = 1.0f;
+  float ones[513];
+  for (int i = 0; i < 513; i++) ones[i] = i < 512 ? 1.0f : 0.0f;
   f.value = ones;
   const float gp[3] = {4, 4, 4}, gs[3] = {0.1f, 0, 0}, gt[3] = {0, 0.1f, 0}, gb[3] = {0, 0, 0.1f};
   obs_prox_recon r;
@@ -285,6 +285,41 @@ static void test_reconstruction_arithmetic(void **state) {
     for (int j = r.first[i]; j < r.first[i + 1]; j++)
       assert_true(r.disc[j][0] * r.disc[j][0] + r.disc[j][1] * r.disc[j][1] <= 1.0f);
   }
+}
+
+/* The eight-lane reads give the scalar reads' bits: random fields, points and axes, at every
+ * instruction-set path this CPU has, both reconstructions. */
+static void test_reconstruction_paths(void **state) {
+  (void)state;
+  obs_prox_field f;
+  random_field(&f, 17, 12, 9, 3);
+  f.iterations = 4;
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(obs_prox_flood_cpu(NULL, &f, 2, &err), 0);
+  uint32_t seed = 5;
+  for (int mode = 0; mode < 2; mode++) {
+    obs_prox_recon scalar, wide;
+    obs_prox_recon_init(&scalar, 20, mode, 0.95f, 0.8f, 0.8f, 9);
+    scalar.isa = 0; /* OBS_ISA_SSE2 */
+    for (int loads = 0; loads < 2; loads++) {
+      wide = scalar;
+      obs_prox_recon_init(&wide, 20, mode, 0.95f, 0.8f, 0.8f, 9);
+      wide.loads = loads;
+      for (int t = 0; t < 2000; t++) {
+        float gp[3], gs[3], gt[3], gb[3];
+        for (int k = 0; k < 3; k++) {
+          gp[k] = (float)(obs_test_unit(&seed) * (f.dims[k] + 4) - 2);
+          gs[k] = (float)(obs_test_unit(&seed) - 0.5);
+          gt[k] = (float)(obs_test_unit(&seed) - 0.5);
+          gb[k] = (float)(obs_test_unit(&seed) - 0.5);
+        }
+        float a = obs_prox_occlusion(&f, &scalar, gp, gs, gt, gb);
+        float b = obs_prox_occlusion(&f, &wide, gp, gs, gt, gb);
+        assert_memory_equal(&a, &b, sizeof a);
+      }
+    }
+  }
+  free(f.occupied), free(f.value);
 }
 
 static const char *const two_balls =
@@ -395,6 +430,7 @@ int main(void) {
       cmocka_unit_test(test_voxelise_no_holes),
       cmocka_unit_test(test_two_planes_sum),
       cmocka_unit_test(test_reconstruction_arithmetic),
+      cmocka_unit_test(test_reconstruction_paths),
       cmocka_unit_test(test_render_outside_fields),
       cmocka_unit_test(test_motion_last_frame),
       cmocka_unit_test(test_extremes),
