@@ -323,7 +323,9 @@ OBS_AVX2_INLINE void pair_loads(const float *base, __m256i idx, __m256 *a, __m25
   int ix[8];
   _mm256_storeu_si256((__m256i *)ix, idx);
   __m128d p[8];
-  for (int l = 0; l < 8; l++) p[l] = _mm_load_sd((const double *)(const void *)(base + ix[l]));
+  /* movq: an unaligned 8-byte load (the pair starts at any float). */
+  for (int l = 0; l < 8; l++)
+    p[l] = _mm_castsi128_pd(_mm_loadl_epi64((const __m128i_u *)(const void *)(base + ix[l])));
   __m256 lo = _mm256_castpd_ps(_mm256_setr_m128d(_mm_unpacklo_pd(p[0], p[1]),
                                                  _mm_unpacklo_pd(p[2], p[3])));
   __m256 hi = _mm256_castpd_ps(_mm256_setr_m128d(_mm_unpacklo_pd(p[4], p[5]),
