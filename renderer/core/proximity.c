@@ -281,6 +281,11 @@ void obs_prox_recon_init(obs_prox_recon *r, int steps, int mode, float stop_valu
   r->first[steps] = at;
 }
 
+void obs_prox_disc_axes(const float n[3], float t[3], float b[3]) {
+  float m[3] = {n[0], n[1], fabsf(n[2]) < OBS_PROX_FLAT_Z ? 0.0f : n[2]};
+  obs_onb(m, t, b);
+}
+
 static int inside(const obs_prox_field *f, const float q[3]) {
   return q[0] >= 0.0f && q[0] <= (float)f->dims[0] && q[1] >= 0.0f &&
          q[1] <= (float)f->dims[1] && q[2] >= 0.0f && q[2] <= (float)f->dims[2];
