@@ -403,6 +403,11 @@ static void walk_read(prox_walk *w, int *done, int upto) {
   for (; *done < upto; ++*done) walk_point(w, *done);
 }
 
+void obs_prox_disc_axes(const float n[3], float t[3], float b[3]) {
+  float m[3] = {n[0], n[1], fabsf(n[2]) < OBS_PROX_FLAT_Z ? 0.0f : n[2]};
+  obs_onb(m, t, b);
+}
+
 float obs_prox_occlusion(const obs_prox_field *f, const obs_prox_recon *r, const float gp[3],
                          const float gs[3], const float gt[3], const float gb[3]) {
   const int n = r->steps, code = r->mode == OBS_PROX_THESIS_CODE;

@@ -123,6 +123,13 @@ typedef struct obs_prox_recon {
  * at the process's instruction-set level (obs_simd_isa). */
 void obs_prox_recon_init(obs_prox_recon *r, int steps, int mode, float stop_value,
                          float scale_before, float scale_after, uint32_t seed);
+/* The disc's axes about unit normal n (world space): obs_onb's basis, which flips with the sign
+ * of n's z. A z within OBS_PROX_FLAT_Z of 0 counts as +0, so a surface with a zero z (every wall
+ * of an axis-aligned room) gets the same disc whichever way its triangles are wound, and whatever
+ * sign of zero or last-bit error the backend's normal carries. */
+#define OBS_PROX_FLAT_Z 0x1p-20f
+void obs_prox_disc_axes(const float n[3], float t[3], float b[3]);
+
 /* Occlusion in [0, scale_after] from field `f` at a point whose grid coordinates are `gp`, the
  * step R/N along the normal mapped into grid coordinates `gs`, and the disc axes of radius
  * R/N (two unit vectors orthogonal to the normal, times R/N, mapped) `gt`, `gb`. Point k of the

@@ -148,7 +148,9 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
   if (t->needs & OBS_NEED_PROXIMITY) {
     obs_prox_layout lay;
     t->prox_layout(bound, &lay);
-    if ((rc = obs_prox_build(scene, &lay, ctx.threads, NULL, NULL, &prox, err))) {
+    const obs_backend_ops *ops = obs_backend_ops_get(be);
+    if ((rc = obs_prox_build(scene, &lay, ctx.threads, ops ? ops->prox_flood : NULL, NULL, &prox,
+                             err))) {
       obs_scene_volumes_free(&vols);
       if (nb) nb->release(built);
       free(bound);

@@ -17,8 +17,7 @@
 #include "techniques.h"
 
 enum { CH_AO, CH_FIELDS, CH_DEPTH, CH_NX, CH_NY, CH_NZ, CH_ALPHA, CH_COUNT };
-static const char *const channel_names[CH_COUNT] = {
-    "ao", "fields", "depth.Z", "normal.X", "normal.Y", "normal.Z", "alpha"};
+_Static_assert(CH_COUNT == OBS_PROX_CHANNELS, "the channels of obs_proximity_ao_channels");
 
 typedef struct job {
   const obs_scene *sc;
@@ -50,7 +49,7 @@ static void map_vector(const double m[3][4], const double v[3], float out[3]) {
 static float accessibility(const job *jb, const double p[3], const float n[3], size_t self,
                            int *nfields) {
   float t[3], b[3];
-  obs_onb(n, t, b);
+  obs_prox_disc_axes(n, t, b);
   double h = jb->range / jb->p.steps, s[3], tv[3], bv[3];
   for (int k = 0; k < 3; k++) {
     s[k] = n[k] * h;
@@ -175,7 +174,7 @@ int obs_proximity_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   obs_camera_setup(&sc->camera, sc->width, sc->height, &jb.cam);
   jb.maps = malloc((jb.fs->n ? jb.fs->n : 1) * sizeof *jb.maps);
   if (!jb.maps) return obs_err_set(err, OBS_ENOMEM, "%s: proximity_ao: out of memory", sc->name);
-  static const obs_pixel_ops ops = {CH_COUNT, channel_names, shade_pixel};
+  static const obs_pixel_ops ops = {CH_COUNT, obs_proximity_ao_channels, shade_pixel};
   int rc = render_frames(ctx, &jb, &ops, out, err);
   free(jb.maps);
   return rc;

@@ -21,6 +21,9 @@ static const obs_output proximity_ao_outputs[] = {
      .description = "Coverage (1 where a surface is hit, 0 on the background)"},
     {.name = NULL}};
 
+const char *const obs_proximity_ao_channels[OBS_PROX_CHANNELS] = {
+    "ao", "fields", "depth.Z", "normal.X", "normal.Y", "normal.Z", "alpha"};
+
 static const char *const boxes[] = {"largest", "union", NULL};
 static const char *const reconstructions[] = {"thesis_code", "corrected", NULL};
 static const char *const combines[] = {"additive", "multiplicative", NULL};
@@ -146,6 +149,7 @@ const obs_technique obs_technique_proximity_ao = {
     .motion_backends = 1u << OBS_BACKEND_CPU,
     .outputs = proximity_ao_outputs,
     .reference = proximity_ao_reference,
-    .run = {[OBS_BACKEND_CPU] = obs_proximity_ao_cpu},
-    .range = {[OBS_BACKEND_CPU] = PROXIMITY_AO_RANGE},
+    .run = {[OBS_BACKEND_CPU] = obs_proximity_ao_cpu,
+            [OBS_BACKEND_VULKAN] = obs_proximity_ao_vulkan},
+    .range = {[OBS_BACKEND_CPU] = PROXIMITY_AO_RANGE, [OBS_BACKEND_VULKAN] = PROXIMITY_AO_RANGE},
 };

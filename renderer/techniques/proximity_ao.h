@@ -21,6 +21,11 @@ typedef struct obs_proximity_ao_params {
   uint32_t seed;
 } obs_proximity_ao_params;
 
+/* The outputs' channels in image order, as both backends write them: ao, fields, depth.Z,
+ * normal.X/Y/Z, alpha. */
+#define OBS_PROX_CHANNELS 7
+extern const char *const obs_proximity_ao_channels[OBS_PROX_CHANNELS];
+
 /* The grid layout the parameters ask for. */
 void obs_proximity_ao_layout(const obs_proximity_ao_params *p, obs_prox_layout *out);
 

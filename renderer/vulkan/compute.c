@@ -76,9 +76,12 @@ static int check_pass(const obs_vk *vk, const obs_vk_pass *p, int i, obs_err *er
                        "vulkan: pass %d \"%s\": push constants of %u bytes (a multiple of 4, at "
                        "most %u, with data)",
                        i, name, p->push_size, OBS_VK_PUSH_MAX);
-  if (p->groups_x < 1 || p->groups_y < 1 || p->groups_x > lim[0] || p->groups_y > lim[1])
-    return obs_err_set(err, OBS_EINVAL, "vulkan: pass %d \"%s\": %ux%u work groups (each 1..%ux%u)",
-                       i, name, p->groups_x, p->groups_y, lim[0], lim[1]);
+  if (p->groups_x < 1 || p->groups_y < 1 || p->groups_x > lim[0] || p->groups_y > lim[1] ||
+      p->groups_z > lim[2])
+    return obs_err_set(err, OBS_EINVAL,
+                       "vulkan: pass %d \"%s\": %ux%ux%u work groups (each 1..%ux%ux%u)", i, name,
+                       p->groups_x, p->groups_y, p->groups_z ? p->groups_z : 1, lim[0], lim[1],
+                       lim[2]);
   return 0;
 }
 
@@ -212,7 +215,7 @@ int obs_vk_run(obs_vk *vk, const obs_vk_pass *passes, int npasses, double *ms_pe
                            p->push);
       if (!host_timing)
         vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, vk->queries, 2 * (uint32_t)i);
-      vkCmdDispatch(cmd, p->groups_x, p->groups_y, 1);
+      vkCmdDispatch(cmd, p->groups_x, p->groups_y, p->groups_z ? p->groups_z : 1);
       if (!host_timing)
         vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, vk->queries,
                             2 * (uint32_t)i + 1);

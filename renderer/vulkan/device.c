@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "obscura/render.h"
+#include "proximity_vk.h"
 #include "vk_internal.h"
 #include "techniques.h"
 
@@ -399,6 +400,7 @@ const obs_backend_ops obs_backend_vulkan_ops = {
     .available = obs_vk_available,
     .device_name = obs_vk_available_device_name,
     .gbuffer = NULL,
+    .prox_flood = obs_prox_flood_vulkan,
 };
 
 int obs_vk_validation_requested(void) {

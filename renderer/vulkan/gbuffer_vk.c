@@ -31,6 +31,7 @@ typedef struct gb_push {
 typedef struct gb_draw {
   uint32_t first, count;
   float albedo[3];
+  float id; /* the scene object's index + 1, exact in float below 2^24 */
 } gb_draw;
 
 typedef struct gb_target {
@@ -362,11 +363,14 @@ static int build_vertices(obs_vk *vk, const obs_scene *sc, const obs_geometry *g
     rc = obs_err_set(err, OBS_ENOMEM, "%s: out of memory for the G-buffer draw list", sc->name);
     goto fail;
   }
-  for (size_t m = 0; m < geo->nmeshes; m++)
+  for (size_t m = 0; m < geo->nmeshes; m++) {
     obs_gbuffer_albedo(&sc->objects[geo->meshes[m].object], d[m].albedo);
+    d[m].id = (float)(geo->meshes[m].object + 1);
+  }
   for (size_t s = 0; s < geo->nspheres; s++) {
     seg[s] = geo->spheres[s].radius > 0 ? sphere_segments(rig, &geo->spheres[s], shift) : 0;
     obs_gbuffer_albedo(&sc->objects[geo->spheres[s].object], d[geo->nmeshes + s].albedo);
+    d[geo->nmeshes + s].id = (float)(geo->spheres[s].object + 1);
   }
   /* Three passes: the depth extent in view (near plane at the eye), the counts with the chosen
    * near plane, then the vertices. */
@@ -511,6 +515,7 @@ int obs_vk_gbuffer_render(obs_vk *vk, const obs_scene *sc, const obs_geometry *g
     for (size_t i = 0; i < ndraws; i++) {
       if (!draws[i].count) continue;
       memcpy(pc.albedo, draws[i].albedo, sizeof draws[i].albedo);
+      pc.albedo[3] = draws[i].id;
       vkCmdPushConstants(cmd, vk->gb_layout,
                          VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0, sizeof pc,
                          &pc);

@@ -203,18 +203,27 @@ int obs_vk_image_create(obs_vk *vk, int width, int height, int channels, obs_vk_
   return obs_vk_image_create_usage(vk, width, height, channels, 0, out, err);
 }
 
-int obs_vk_image_create_usage(obs_vk *vk, int width, int height, int channels,
-                              VkImageUsageFlags extra, obs_vk_image **out, obs_err *err) {
+/* A 2D image (depth 0) or a 3D one of `depth` slices. */
+static int image_make(obs_vk *vk, int width, int height, int depth, int channels,
+                      VkImageUsageFlags extra, obs_vk_image **out, obs_err *err) {
   *out = NULL;
   int rc = obs_vk_usable(vk, "image create", err);
   if (rc) return rc;
-  uint32_t maxdim = vk->props.limits.maxImageDimension2D;
+  int is3d = depth > 0;
+  uint32_t maxdim =
+      is3d ? vk->props.limits.maxImageDimension3D : vk->props.limits.maxImageDimension2D;
+  char dims[64];
+  if (is3d)
+    snprintf(dims, sizeof dims, "%dx%dx%d", width, height, depth);
+  else
+    snprintf(dims, sizeof dims, "%dx%d", width, height);
   if (channels != 1 && channels != 4)
-    return obs_err_set(err, OBS_EINVAL, "vulkan: image %dx%d: %d channels (must be 1 or 4)", width,
-                       height, channels);
-  if (width < 1 || height < 1 || (uint32_t)width > maxdim || (uint32_t)height > maxdim)
-    return obs_err_set(err, OBS_EINVAL, "vulkan: image %dx%d: each side must be 1..%u on \"%s\"",
-                       width, height, maxdim, vk->name);
+    return obs_err_set(err, OBS_EINVAL, "vulkan: image %s: %d channels (must be 1 or 4)", dims,
+                       channels);
+  if (width < 1 || height < 1 || (uint32_t)width > maxdim || (uint32_t)height > maxdim ||
+      (is3d && (uint32_t)depth > maxdim))
+    return obs_err_set(err, OBS_EINVAL, "vulkan: image %s: each side must be 1..%u on \"%s\"", dims,
+                       maxdim, vk->name);
   VkFormat fmt = image_format(channels);
   VkFormatProperties fp;
   vkGetPhysicalDeviceFormatProperties(vk->phys, fmt, &fp);
@@ -229,19 +238,20 @@ int obs_vk_image_create_usage(obs_vk *vk, int width, int height, int channels,
   VkImageFormatProperties ifp;
   VkImageUsageFlags usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT |
                             VK_IMAGE_USAGE_TRANSFER_DST_BIT | extra;
-  if ((rc = obs_vk_check(
-           vk,
-           vkGetPhysicalDeviceImageFormatProperties(vk->phys, fmt, VK_IMAGE_TYPE_2D,
-                                                    VK_IMAGE_TILING_OPTIMAL, usage, 0, &ifp),
-           "vkGetPhysicalDeviceImageFormatProperties", err)))
+  VkImageType type = is3d ? VK_IMAGE_TYPE_3D : VK_IMAGE_TYPE_2D;
+  if ((rc = obs_vk_check(vk,
+                         vkGetPhysicalDeviceImageFormatProperties(
+                             vk->phys, fmt, type, VK_IMAGE_TILING_OPTIMAL, usage, 0, &ifp),
+                         "vkGetPhysicalDeviceImageFormatProperties", err)))
     return rc;
-  VkDeviceSize bytes = (VkDeviceSize)width * (VkDeviceSize)height * (VkDeviceSize)channels * 4;
+  VkDeviceSize bytes = (VkDeviceSize)width * (VkDeviceSize)height *
+                       (VkDeviceSize)(is3d ? depth : 1) * (VkDeviceSize)channels * 4;
   if (bytes > ifp.maxResourceSize || bytes > vk->max_alloc)
     return obs_err_set(
         err, OBS_ENOMEM,
-        "vulkan: image %dx%d with %d channels needs %llu bytes, more than \"%s\" "
+        "vulkan: image %s with %d channels needs %llu bytes, more than \"%s\" "
         "allows for one image (%llu)",
-        width, height, channels, (unsigned long long)bytes, vk->name,
+        dims, channels, (unsigned long long)bytes, vk->name,
         (unsigned long long)(ifp.maxResourceSize < vk->max_alloc ? ifp.maxResourceSize
                                                                  : vk->max_alloc));
   obs_vk_image *img = calloc(1, sizeof *img);
@@ -249,13 +259,15 @@ int obs_vk_image_create_usage(obs_vk *vk, int width, int height, int channels,
   img->format = fmt;
   img->width = width;
   img->height = height;
+  img->depth = is3d ? depth : 1;
+  img->is3d = is3d;
   img->channels = channels;
   char what[96];
-  snprintf(what, sizeof what, "a %dx%d %d-channel image", width, height, channels);
+  snprintf(what, sizeof what, "a %s %d-channel image", dims, channels);
   VkImageCreateInfo ci = {.sType = VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO,
-                          .imageType = VK_IMAGE_TYPE_2D,
+                          .imageType = type,
                           .format = fmt,
-                          .extent = {(uint32_t)width, (uint32_t)height, 1},
+                          .extent = {(uint32_t)width, (uint32_t)height, (uint32_t)img->depth},
                           .mipLevels = 1,
                           .arrayLayers = 1,
                           .samples = VK_SAMPLE_COUNT_1_BIT,
@@ -279,7 +291,7 @@ int obs_vk_image_create_usage(obs_vk *vk, int width, int height, int channels,
     goto fail;
   VkImageViewCreateInfo vci = {.sType = VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO,
                                .image = img->image,
-                               .viewType = VK_IMAGE_VIEW_TYPE_2D,
+                               .viewType = is3d ? VK_IMAGE_VIEW_TYPE_3D : VK_IMAGE_VIEW_TYPE_2D,
                                .format = fmt,
                                .subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1}};
   if ((rc = obs_vk_check(vk, vkCreateImageView(vk->dev, &vci, NULL, &img->view),
@@ -304,6 +316,21 @@ fail:
   return rc;
 }
 
+int obs_vk_image_create_usage(obs_vk *vk, int width, int height, int channels,
+                              VkImageUsageFlags extra, obs_vk_image **out, obs_err *err) {
+  return image_make(vk, width, height, 0, channels, extra, out, err);
+}
+
+int obs_vk_image_create_3d(obs_vk *vk, int width, int height, int depth, int channels,
+                           obs_vk_image **out, obs_err *err) {
+  if (depth < 1) {
+    *out = NULL;
+    return obs_err_set(err, OBS_EINVAL, "vulkan: image %dx%dx%d: each side must be at least 1",
+                       width, height, depth);
+  }
+  return image_make(vk, width, height, depth, channels, 0, out, err);
+}
+
 void obs_vk_image_free(obs_vk *vk, obs_vk_image *img) {
   if (!img) return;
   if (vk && vk->dev) {
@@ -325,36 +352,65 @@ int obs_vk_staging_reserve(obs_vk *vk, VkDeviceSize size, obs_err *err) {
                               1, &vk->staging, "the staging buffer", err);
 }
 
-static VkDeviceSize image_bytes(const obs_vk_image *img) {
+/* Bytes of one z slice of an image (the whole of a 2D one). */
+static VkDeviceSize slice_bytes(const obs_vk_image *img) {
   return (VkDeviceSize)img->width * (VkDeviceSize)img->height * (VkDeviceSize)img->channels *
          sizeof(float);
 }
 
-static VkBufferImageCopy image_region(const obs_vk_image *img) {
+/* Slices [z, z + nz) of an image, from or to the start of the staging buffer. */
+static VkBufferImageCopy image_region(const obs_vk_image *img, int z, int nz) {
   /* bufferRowLength 0: rows tightly packed, exactly the host layout. */
-  return (VkBufferImageCopy){.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1},
-                             .imageExtent = {(uint32_t)img->width, (uint32_t)img->height, 1}};
+  return (VkBufferImageCopy){
+      .imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1},
+      .imageOffset = {0, 0, z},
+      .imageExtent = {(uint32_t)img->width, (uint32_t)img->height, (uint32_t)nz}};
+}
+
+/* 3D images move through the staging buffer in slabs of whole slices of at most this many bytes,
+ * so a large voxel grid needs no staging buffer of its own size; a 2D image moves in one piece. */
+#define IMAGE_SLAB_BYTES ((VkDeviceSize)64 << 20)
+
+/* Slices per transfer of `img`. */
+static int slab_slices(const obs_vk_image *img) {
+  VkDeviceSize slice = slice_bytes(img);
+  int per = slice >= IMAGE_SLAB_BYTES ? 1 : (int)(IMAGE_SLAB_BYTES / slice);
+  return per < img->depth ? per : img->depth;
+}
+
+static void image_what(const obs_vk_image *img, const char *verb, char *what, size_t size) {
+  if (img->is3d)
+    snprintf(what, size, "%s of a %dx%dx%d %d-channel image", verb, img->width, img->height,
+             img->depth, img->channels);
+  else
+    snprintf(what, size, "%s of a %dx%d %d-channel image", verb, img->width, img->height,
+             img->channels);
 }
 
 int obs_vk_image_upload(obs_vk *vk, obs_vk_image *img, const float *data, obs_err *err) {
   int rc = obs_vk_usable(vk, "image upload", err);
   if (rc) return rc;
   if (!img || !data) return obs_err_set(err, OBS_EINVAL, "vulkan: image upload: no image or data");
-  VkDeviceSize n = image_bytes(img);
-  if ((rc = obs_vk_staging_reserve(vk, n, err))) return rc;
-  memcpy(vk->staging.map, data, (size_t)n);
-  if ((rc = obs_vk_cmd_begin(vk, "image upload", err))) return rc;
-  VkBufferImageCopy reg = image_region(img);
-  obs_vk_cmd_layout(vk->cmd, img->image, VK_IMAGE_LAYOUT_GENERAL,
-                    VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL);
-  vkCmdCopyBufferToImage(vk->cmd, vk->staging.buffer, img->image,
-                         VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &reg);
-  obs_vk_cmd_layout(vk->cmd, img->image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
-                    VK_IMAGE_LAYOUT_GENERAL);
+  VkDeviceSize slice = slice_bytes(img);
+  int per = slab_slices(img);
+  if ((rc = obs_vk_staging_reserve(vk, slice * (VkDeviceSize)per, err))) return rc;
   char what[96];
-  snprintf(what, sizeof what, "upload of a %dx%d %d-channel image", img->width, img->height,
-           img->channels);
-  return obs_vk_cmd_submit(vk, what, err);
+  image_what(img, "upload", what, sizeof what);
+  for (int z = 0; z < img->depth && !rc; z += per) {
+    int nz = img->depth - z < per ? img->depth - z : per;
+    memcpy(vk->staging.map, (const char *)data + slice * (VkDeviceSize)z,
+           (size_t)(slice * (VkDeviceSize)nz));
+    if ((rc = obs_vk_cmd_begin(vk, "image upload", err))) return rc;
+    VkBufferImageCopy reg = image_region(img, z, nz);
+    obs_vk_cmd_layout(vk->cmd, img->image, VK_IMAGE_LAYOUT_GENERAL,
+                      VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL);
+    vkCmdCopyBufferToImage(vk->cmd, vk->staging.buffer, img->image,
+                           VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &reg);
+    obs_vk_cmd_layout(vk->cmd, img->image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                      VK_IMAGE_LAYOUT_GENERAL);
+    rc = obs_vk_cmd_submit(vk, what, err);
+  }
+  return rc;
 }
 
 int obs_vk_image_download(obs_vk *vk, const obs_vk_image *img, float *data, obs_err *err) {
@@ -362,25 +418,29 @@ int obs_vk_image_download(obs_vk *vk, const obs_vk_image *img, float *data, obs_
   if (rc) return rc;
   if (!img || !data)
     return obs_err_set(err, OBS_EINVAL, "vulkan: image download: no image or destination");
-  VkDeviceSize n = image_bytes(img);
-  if ((rc = obs_vk_staging_reserve(vk, n, err))) return rc;
-  if ((rc = obs_vk_cmd_begin(vk, "image download", err))) return rc;
-  VkBufferImageCopy reg = image_region(img);
-  obs_vk_cmd_layout(vk->cmd, img->image, VK_IMAGE_LAYOUT_GENERAL,
-                    VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
-  vkCmdCopyImageToBuffer(vk->cmd, img->image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
-                         vk->staging.buffer, 1, &reg);
-  obs_vk_cmd_layout(vk->cmd, img->image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
-                    VK_IMAGE_LAYOUT_GENERAL);
-  VkMemoryBarrier mb = {.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
-                        .srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT,
-                        .dstAccessMask = VK_ACCESS_HOST_READ_BIT};
-  vkCmdPipelineBarrier(vk->cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1,
-                       &mb, 0, NULL, 0, NULL);
+  VkDeviceSize slice = slice_bytes(img);
+  int per = slab_slices(img);
+  if ((rc = obs_vk_staging_reserve(vk, slice * (VkDeviceSize)per, err))) return rc;
   char what[96];
-  snprintf(what, sizeof what, "download of a %dx%d %d-channel image", img->width, img->height,
-           img->channels);
-  if ((rc = obs_vk_cmd_submit(vk, what, err))) return rc;
-  memcpy(data, vk->staging.map, (size_t)n);
-  return 0;
+  image_what(img, "download", what, sizeof what);
+  for (int z = 0; z < img->depth && !rc; z += per) {
+    int nz = img->depth - z < per ? img->depth - z : per;
+    if ((rc = obs_vk_cmd_begin(vk, "image download", err))) return rc;
+    VkBufferImageCopy reg = image_region(img, z, nz);
+    obs_vk_cmd_layout(vk->cmd, img->image, VK_IMAGE_LAYOUT_GENERAL,
+                      VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
+    vkCmdCopyImageToBuffer(vk->cmd, img->image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                           vk->staging.buffer, 1, &reg);
+    obs_vk_cmd_layout(vk->cmd, img->image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                      VK_IMAGE_LAYOUT_GENERAL);
+    VkMemoryBarrier mb = {.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
+                          .srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT,
+                          .dstAccessMask = VK_ACCESS_HOST_READ_BIT};
+    vkCmdPipelineBarrier(vk->cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1,
+                         &mb, 0, NULL, 0, NULL);
+    if ((rc = obs_vk_cmd_submit(vk, what, err))) return rc;
+    memcpy((char *)data + slice * (VkDeviceSize)z, vk->staging.map,
+           (size_t)(slice * (VkDeviceSize)nz));
+  }
+  return rc;
 }

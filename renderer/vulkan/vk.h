@@ -55,12 +55,19 @@ int obs_vk_validation_requested(void);
  * interleaved. */
 int obs_vk_image_create(obs_vk *vk, int width, int height, int channels, obs_vk_image **out,
                         obs_err *err);
+/* The same as a 3D storage image of `depth` slices (sides up to maxImageDimension3D), for passes
+ * over voxel grids: bound like the 2D ones, declared `image3D` in the shader. Host data is x
+ * fastest, then y, then z; transfers go through the staging buffer in slabs of whole slices. */
+int obs_vk_image_create_3d(obs_vk *vk, int width, int height, int depth, int channels,
+                           obs_vk_image **out, obs_err *err);
 int obs_vk_image_upload(obs_vk *vk, obs_vk_image *img, const float *data, obs_err *err);
 int obs_vk_image_download(obs_vk *vk, const obs_vk_image *img, float *data, obs_err *err);
 void obs_vk_image_free(obs_vk *vk, obs_vk_image *img);
 
 /* The G-buffer on the device: depth (1 channel: linear view depth, 0 = uncovered),
- * normal (4 channels: view-space face normal xyz, coverage in w), albedo (4 channels: rgb, 0). */
+ * normal (4 channels: view-space face normal xyz, coverage in w), albedo (4 channels: rgb, and
+ * in w the index of the scene object seen + 1 as a float, 0 = uncovered; uploaded host buffers
+ * carry no object and have 0 there). */
 typedef struct obs_vk_gbuffer {
   obs_vk_image *depth, *normal, *albedo;
   int width, height;
@@ -135,6 +142,7 @@ typedef struct obs_vk_pass {
   const void *push;
   uint32_t push_size;
   uint32_t groups_x, groups_y;
+  uint32_t groups_z; /* 0 or 1: one layer of work groups */
   obs_vk_texture *textures[OBS_VK_MAX_TEXTURES]; /* set 1 (optional) */
   int ntextures;
   obs_vk_data *data; /* set 1, binding OBS_VK_MAX_TEXTURES (optional) */

@@ -67,6 +67,8 @@ struct obs_vk_image {
   VkImageView view;
   VkFormat format;
   int width, height, channels;
+  int depth; /* slices of a 3D image; 1 for a 2D one */
+  int is3d;
 };
 
 struct obs_vk_texture {

@@ -5,11 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Places boxes of dims[k] in one 3D texture of sides at most `max`: stacked along z, a new column
- * along x when the stack would pass `max` (each column as wide as its widest box). at[k] receives
- * each box's corner, total the texture's size. Returns the index of a box that does not fit, or
- * -1. */
-static long pack(const int (*dims)[3], size_t n, int max, int (*at)[3], int total[3]) {
+long obs_vk_atlas_pack(const int (*dims)[3], size_t n, int max, int (*at)[3], int total[3]) {
   int x = 0, width = 0, z = 0;
   total[0] = total[1] = total[2] = 1;
   for (size_t k = 0; k < n; k++) {
@@ -42,7 +38,7 @@ static int build_one(obs_vk *vk, const obs_scene_volumes *vs, int cells, obs_vk_
   int max = obs_vk_texture_max_side(vk, OBS_VK_TEXTURE_3D);
   int(*at)[3] = cells ? a->cell_at : a->at;
   int *total = cells ? a->cell_dims : a->dims;
-  long bad = pack((const int(*)[3])dims, vs->n, max, at, total);
+  long bad = obs_vk_atlas_pack((const int(*)[3])dims, vs->n, max, at, total);
   int rc = 0;
   if (bad >= 0) {
     const int *d = dims[bad];

@@ -9,6 +9,12 @@
 #include "vk.h"
 #include "volume_scene.h"
 
+/* Places boxes of dims[k] in one 3D texture of sides at most `max`: stacked along z, a new column
+ * along x when the stack would pass `max` (each column as wide as its widest box). at[k] receives
+ * each box's corner, total the texture's size. Returns the index of a box that does not fit, or
+ * -1. (Also packs proximity_ao's fields.) */
+long obs_vk_atlas_pack(const int (*dims)[3], size_t n, int max, int (*at)[3], int total[3]);
+
 /* Where volume k lives: its samples at voxel offset `at[k]` of `data` (texel (i, j, l) of the
  * volume is texel at + (i, j, l)), its macrocells at `cell_at[k]` of `cells`. */
 typedef struct obs_vk_volume_atlas {

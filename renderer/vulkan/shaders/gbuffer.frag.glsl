@@ -1,4 +1,5 @@
-// G-buffer rasteriser, fragment stage: linear view depth, camera-facing face normal, albedo.
+// G-buffer rasteriser, fragment stage: linear view depth, camera-facing face normal, albedo and
+// the object's index + 1 (in the albedo target's alpha).
 #version 450
 layout(location = 0) in vec3 v_view;
 // The triangle's unit face normal, computed on the host in double (screen-space derivatives of
@@ -7,7 +8,7 @@ layout(location = 1) flat in vec3 v_normal;
 
 layout(push_constant) uniform Push {
   vec4 proj; // w: orthographic (1) or perspective (0)
-  vec4 albedo;
+  vec4 albedo; // rgb; a: the object's index + 1
 } pc;
 
 layout(location = 0) out float o_depth;
@@ -23,5 +24,5 @@ void main() {
   if (dot(n, ray) > 0.0) n = -n;
   o_depth = v_view.z;
   o_normal = vec4(n, 1.0);
-  o_albedo = vec4(pc.albedo.rgb, 0.0);
+  o_albedo = pc.albedo;
 }
