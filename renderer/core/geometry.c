@@ -421,6 +421,23 @@ void obs_geometry_transform_matrix(const obs_transform *t, double m[3][4]) {
   memcpy(m, x.m, sizeof x.m);
 }
 
+int obs_geometry_invert3(const double a[3][3], double inv[3][3]) {
+  double c[3][3];
+  for (int i = 0; i < 3; i++)
+    for (int j = 0; j < 3; j++) {
+      int i1 = (i + 1) % 3, i2 = (i + 2) % 3, j1 = (j + 1) % 3, j2 = (j + 2) % 3;
+      c[j][i] = a[i1][j1] * a[i2][j2] - a[i1][j2] * a[i2][j1]; /* adjugate (transposed) */
+    }
+  double det = a[0][0] * c[0][0] + a[0][1] * c[1][0] + a[0][2] * c[2][0];
+  if (!(fabs(det) > 0) || !isfinite(det)) return 0;
+  for (int i = 0; i < 3; i++)
+    for (int j = 0; j < 3; j++) {
+      inv[i][j] = c[i][j] / det;
+      if (!isfinite(inv[i][j])) return 0;
+    }
+  return 1;
+}
+
 double obs_geometry_object_reach(const obs_object *o, const double mesh_bounds[2][3],
                                  const double origin[3]) {
   double reach = 0;

@@ -85,6 +85,10 @@ void obs_geometry_mesh_bounds(const obs_mesh *m, double bounds[2][3]);
  * [linear | translation]: world = m x (object, 1). */
 void obs_geometry_transform_matrix(const obs_transform *t, double m[3][4]);
 
+/* The inverse of the 3x3 matrix a (by its adjugate) into inv: returns 1, or 0 when a is singular
+ * or an entry of the inverse is not finite. */
+int obs_geometry_invert3(const double a[3][3], double inv[3][3]);
+
 /* The ray tracer's range: Embree rejects coordinates beyond about 1.8e19, and float products of
  * coordinates must stay finite. */
 #define OBS_GEOMETRY_MAX 1e18

@@ -159,7 +159,8 @@ int obs_prox_build(const obs_scene *sc, const obs_prox_layout *lay, int threads,
   double longest = 0;
   for (size_t i = 0; i < m; i++)
     for (int k = 0; k < 3; k++)
-      longest = fmax(longest, (src[i].box[1][k] - src[i].box[0][k]) * src[i].scale[k] + 2 * out->rp);
+      longest =
+          fmax(longest, (src[i].box[1][k] - src[i].box[0][k]) * src[i].scale[k] + 2 * out->rp);
   double bytes = 0, biggest = 0;
   for (size_t i = 0; i < m && !rc; i++) {
     layout_grid(&src[i], out->rp, longest, lay, &out->f[i]);
@@ -203,32 +204,20 @@ void obs_prox_world_to_grid(const obs_prox_field *f, const obs_object *o, int fr
                             double g[3][4]) {
   double m[3][4];
   obs_geometry_transform_matrix(obs_object_transform_at(o, frame), m);
-  /* The inverse of the linear part by cofactors; a singular transform maps every point to the
-   * grid's far outside, where nothing is read. */
-  double a[3][3], det;
-  a[0][0] = m[1][1] * m[2][2] - m[1][2] * m[2][1];
-  a[0][1] = m[0][2] * m[2][1] - m[0][1] * m[2][2];
-  a[0][2] = m[0][1] * m[1][2] - m[0][2] * m[1][1];
-  a[1][0] = m[1][2] * m[2][0] - m[1][0] * m[2][2];
-  a[1][1] = m[0][0] * m[2][2] - m[0][2] * m[2][0];
-  a[1][2] = m[0][2] * m[1][0] - m[0][0] * m[1][2];
-  a[2][0] = m[1][0] * m[2][1] - m[1][1] * m[2][0];
-  a[2][1] = m[0][1] * m[2][0] - m[0][0] * m[2][1];
-  a[2][2] = m[0][0] * m[1][1] - m[0][1] * m[1][0];
-  det = m[0][0] * a[0][0] + m[0][1] * a[1][0] + m[0][2] * a[2][0];
-  if (det == 0 || !isfinite(det)) {
+  /* A singular transform maps every point to the grid's far outside, where nothing is read. */
+  double lin[3][3], inv[3][3];
+  for (int i = 0; i < 3; i++)
+    for (int j = 0; j < 3; j++) lin[i][j] = m[i][j];
+  if (!obs_geometry_invert3(lin, inv)) {
     memset(g, 0, sizeof(double[3][4]));
     for (int i = 0; i < 3; i++) g[i][3] = -1e30;
     return;
   }
   for (int i = 0; i < 3; i++) {
-    double inv[3], t = 0;
-    for (int j = 0; j < 3; j++) {
-      inv[j] = a[i][j] / det;
-      t -= inv[j] * m[j][3];
-    }
+    double t = 0;
+    for (int j = 0; j < 3; j++) t -= inv[i][j] * m[j][3];
     /* object = inv (w) + t; grid = (object - lo) / voxel */
-    for (int j = 0; j < 3; j++) g[i][j] = inv[j] / f->voxel[i];
+    for (int j = 0; j < 3; j++) g[i][j] = inv[i][j] / f->voxel[i];
     g[i][3] = (t - f->lo[i]) / f->voxel[i];
   }
 }
@@ -281,7 +270,8 @@ void obs_prox_recon_init(obs_prox_recon *r, int steps, int mode, float stop_valu
     int m = i / 2;
     for (int k = 0; k < m; k++, at++) {
       uint32_t h = obs_hash_combine(obs_hash_combine(seed, (uint32_t)i), (uint32_t)k);
-      double u = obs_u32_to_unit(obs_hash_combine(h, 0)), v = obs_u32_to_unit(obs_hash_combine(h, 1));
+      double u = obs_u32_to_unit(obs_hash_combine(h, 0));
+      double v = obs_u32_to_unit(obs_hash_combine(h, 1));
       double phi = 2 * PI * (k + u) / m, rad = sqrt(v);
       r->disc[at][0] = (float)(rad * cos(phi));
       r->disc[at][1] = (float)(rad * sin(phi));
@@ -310,8 +300,7 @@ static void walk_point(prox_walk *w, int k) {
   for (int c = 0; c < 3; c++)
     q[c] = ((w->gp[c] + w->r->along[k] * w->gs[c]) + w->r->across_t[k] * w->gt[c]) +
            w->r->across_b[k] * w->gb[c];
-  int in = q[0] >= 0.0f && q[0] <= (float)f->dims[0] && q[1] >= 0.0f &&
-           q[1] <= (float)f->dims[1] && q[2] >= 0.0f && q[2] <= (float)f->dims[2];
+  int in = obs_prox_inside(f, q);
   w->inside[k] = (unsigned char)in;
   w->val[k] = in ? obs_prox_sample(f, q) : 0.0f;
 }

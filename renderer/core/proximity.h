@@ -89,6 +89,13 @@ int obs_prox_tri_box(const double centre[3], const double half[3], const double 
 void obs_prox_world_to_grid(const obs_prox_field *f, const obs_object *o, int frame,
                             double m[3][4]);
 
+/* Whether grid point g lies in the field's box [0, dims] (closed): where the walk reads, and
+ * which fields a surface point lies in. */
+static inline int obs_prox_inside(const obs_prox_field *f, const float g[3]) {
+  return g[0] >= 0.0f && g[0] <= (float)f->dims[0] && g[1] >= 0.0f &&
+         g[1] <= (float)f->dims[1] && g[2] >= 0.0f && g[2] <= (float)f->dims[2];
+}
+
 /* The field's trilinear value at grid point g (voxel centres at integer + 0.5), the point
  * inside the grid's box [0, dims]; near the faces the edge voxels' values extend. */
 float obs_prox_sample(const obs_prox_field *f, const float g[3]);

@@ -36,6 +36,13 @@ void obs_sampler2d_init(obs_sampler2d *s, obs_sampler_kind kind, uint32_t x, uin
                         uint32_t pixel_sample, uint32_t stream, uint32_t seed);
 /* The i-th point of the stream in [0,1)^2. */
 void obs_sampler2d_get(const obs_sampler2d *s, uint32_t i, float *u, float *v);
+/* Where pixel sample `i` of `spp` looks through its pixel, (jx, jy) in [0, 1)^2 from the pixel's
+ * corner: one sample looks through the centre; several are stratified over the pixel by `s`. */
+static inline void obs_sampler2d_pixel(const obs_sampler2d *s, int spp, uint32_t i, float *jx,
+                                       float *jy) {
+  *jx = 0.5f, *jy = 0.5f;
+  if (spp > 1) obs_sampler2d_get(s, i, jx, jy);
+}
 /* Points i0 ... i0 + n - 1 of the stream into u[], v[]: obs_sampler2d_get's values, a Sobol
  * stream's computed eight at a time at x86-64-v3 when isa (simd.h's level) has it. */
 void obs_sampler2d_get_n(const obs_sampler2d *s, uint32_t i0, uint32_t n, float *u, float *v,

@@ -10,24 +10,6 @@
 #include "geometry.h"
 #include "volume_io.h"
 
-/* Inverts the linear part a (3x3); 0 when it is singular or not finite. */
-static int invert3(const double a[3][3], double inv[3][3]) {
-  double c[3][3];
-  for (int i = 0; i < 3; i++)
-    for (int j = 0; j < 3; j++) {
-      int i1 = (i + 1) % 3, i2 = (i + 2) % 3, j1 = (j + 1) % 3, j2 = (j + 2) % 3;
-      c[j][i] = a[i1][j1] * a[i2][j2] - a[i1][j2] * a[i2][j1]; /* adjugate (transposed) */
-    }
-  double det = a[0][0] * c[0][0] + a[0][1] * c[1][0] + a[0][2] * c[2][0];
-  if (!(fabs(det) > 0) || !isfinite(det)) return 0;
-  for (int i = 0; i < 3; i++)
-    for (int j = 0; j < 3; j++) {
-      inv[i][j] = c[i][j] / det;
-      if (!isfinite(inv[i][j])) return 0;
-    }
-  return 1;
-}
-
 /* to_world = object transform x (data - extent / 2), and its inverse. */
 static int set_maps(const obs_object *o, obs_scene_volume *sv) {
   double m[3][4], lin[3][3], inv[3][3];
@@ -41,7 +23,7 @@ static int set_maps(const obs_object *o, obs_scene_volume *sv) {
     memcpy(sv->to_world[i], m[i], sizeof m[i]);
     sv->to_world[i][3] = m[i][3] - shift;
   }
-  if (!invert3(lin, inv)) return 0;
+  if (!obs_geometry_invert3(lin, inv)) return 0;
   for (int i = 0; i < 3; i++) {
     double t = 0;
     for (int j = 0; j < 3; j++) {

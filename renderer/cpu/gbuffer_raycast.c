@@ -23,8 +23,7 @@ typedef struct gb_job {
 } gb_job;
 
 static const obs_object *hit_object(const gb_job *j, const obs_rt_primary *h) {
-  if (h->geom == j->rt->sphere_geom) return &j->scene->objects[j->rt->geo.spheres[h->prim].object];
-  return &j->scene->objects[j->rt->geo.meshes[h->geom].object];
+  return &j->scene->objects[obs_rt_hit_object(j->rt, h->geom, h->prim)];
 }
 
 static int gb_tile(void *user, int thread, int x0, int y0, int x1, int y1) {

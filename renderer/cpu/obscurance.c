@@ -63,10 +63,7 @@ static int mean3_pos(const double v[3]) { return v[0] + v[1] + v[2] > 0; }
 
 /* The scene object a hit lies on. */
 static const obs_object *hit_object(const ob_job *jb, const obs_hit *h) {
-  const obs_rt *rt = jb->rt;
-  size_t o = h->geom == rt->sphere_geom ? rt->geo.spheres[h->prim].object
-                                        : rt->geo.meshes[h->geom].object;
-  return &jb->sc->objects[o];
+  return &jb->sc->objects[obs_rt_hit_object(jb->rt, h->geom, h->prim)];
 }
 
 /* The standard error reported for the mean of n values in [0, 1]: the Wilson score interval at
@@ -186,8 +183,8 @@ static uint64_t ob_shade(const void *job, int thread, int x, int y, float *v) {
   obs_sampler2d jit;
   obs_sampler2d_init(&jit, jb->sampler, (uint32_t)x, (uint32_t)y, 0, 0, jb->p.seed);
   for (int s = 0; s < jb->spp; s++) {
-    float jx = 0.5f, jy = 0.5f;
-    if (jb->spp > 1) obs_sampler2d_get(&jit, (uint32_t)s, &jx, &jy);
+    float jx, jy;
+    obs_sampler2d_pixel(&jit, jb->spp, (uint32_t)s, &jx, &jy);
     double org[3], dir[3], o[3];
     obs_camera_ray(&jb->cam, x + jx, y + jy, org, dir);
     for (int k = 0; k < 3; k++) o[k] = org[k] - jb->rt->geo.origin[k];

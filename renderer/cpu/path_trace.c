@@ -139,9 +139,7 @@ static uint64_t trace_path(const pt_job *jb, pt_dims *dc, int s, const double or
       for (int k = 0; k < 3; k++) L[k] += beta[k] * jb->env[k];
       break;
     }
-    const obs_object *ob =
-        &jb->sc->objects[hit.geom == rt->sphere_geom ? rt->geo.spheres[hit.prim].object
-                                                     : rt->geo.meshes[hit.geom].object];
+    const obs_object *ob = &jb->sc->objects[obs_rt_hit_object(rt, hit.geom, hit.prim)];
     double le[3], rho[3];
     vec3(&ob->emission, le);
     vec3(&ob->reflectivity, rho);

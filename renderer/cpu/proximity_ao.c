@@ -26,15 +26,10 @@ typedef struct job {
   obs_camera_rig cam;
   obs_proximity_ao_params p;
   obs_prox_recon recon;
-  double range;       /* R, world units */
+  double step;        /* R / N, world units */
   int spp;
   double (*maps)[3][4]; /* per field: world -> grid in the frame being rendered */
 } job;
-
-static size_t hit_object(const obs_rt *rt, const obs_hit *h) {
-  if (h->geom == rt->sphere_geom) return rt->geo.spheres[h->prim].object;
-  return rt->geo.meshes[h->geom].object;
-}
 
 static void map_point(const double m[3][4], const double p[3], float out[3]) {
   for (int i = 0; i < 3; i++)
@@ -50,7 +45,7 @@ static float accessibility(const job *jb, const double p[3], const float n[3], s
                            int *nfields) {
   float t[3], b[3];
   obs_prox_disc_axes(n, t, b);
-  double h = jb->range / jb->p.steps, s[3], tv[3], bv[3];
+  double h = jb->step, s[3], tv[3], bv[3];
   for (int k = 0; k < 3; k++) {
     s[k] = n[k] * h;
     tv[k] = t[k] * h;
@@ -63,9 +58,7 @@ static float accessibility(const job *jb, const double p[3], const float n[3], s
     if (!jb->p.self_occlusion && f->object == self) continue;
     float gp[3];
     map_point(jb->maps[i], p, gp);
-    if (!(gp[0] >= 0.0f && gp[0] <= (float)f->dims[0] && gp[1] >= 0.0f &&
-          gp[1] <= (float)f->dims[1] && gp[2] >= 0.0f && gp[2] <= (float)f->dims[2]))
-      continue;
+    if (!obs_prox_inside(f, gp)) continue;
     float gs[3], gt[3], gb[3];
     map_vector(jb->maps[i], s, gs);
     map_vector(jb->maps[i], tv, gt);
@@ -88,8 +81,8 @@ static uint64_t shade_pixel(const void *user, int thread, int x, int y, float *d
   obs_sampler2d jit;
   obs_sampler2d_init(&jit, OBS_SAMPLER_SOBOL, (uint32_t)x, (uint32_t)y, 0, 0, jb->p.seed);
   for (int s = 0; s < jb->spp; s++) {
-    float jx = 0.5f, jy = 0.5f;
-    if (jb->spp > 1) obs_sampler2d_get(&jit, (uint32_t)s, &jx, &jy);
+    float jx, jy;
+    obs_sampler2d_pixel(&jit, jb->spp, (uint32_t)s, &jx, &jy);
     double org[3], dir[3];
     obs_camera_ray(&jb->cam, x + jx, y + jy, org, dir);
     obs_hit hit;
@@ -101,7 +94,7 @@ static uint64_t shade_pixel(const void *user, int thread, int x, int y, float *d
     double p[3];
     for (int k = 0; k < 3; k++) p[k] = (double)hit.p[k] + jb->rt->geo.origin[k];
     int nf;
-    ao += accessibility(jb, p, hit.ng, hit_object(jb->rt, &hit), &nf);
+    ao += accessibility(jb, p, hit.ng, obs_rt_hit_object(jb->rt, hit.geom, hit.prim), &nf);
     fields += nf;
     for (int k = 0; k < 3; k++) nrm[k] += hit.ng[k];
     double fwd =
@@ -168,9 +161,8 @@ int obs_proximity_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   jb.fs = ctx->proximity;
   jb.p = *(const obs_proximity_ao_params *)ctx->bound;
   jb.spp = sc->spp;
-  jb.range = jb.p.range * jb.fs->rp;
-  obs_prox_recon_init(&jb.recon, jb.p.steps, jb.p.reconstruction, jb.p.stop_value,
-                      jb.p.scale_before, jb.p.scale_after, jb.p.seed);
+  jb.step = obs_proximity_ao_step(&jb.p, jb.fs->rp);
+  obs_proximity_ao_recon(&jb.p, &jb.recon);
   obs_camera_setup(&sc->camera, sc->width, sc->height, &jb.cam);
   jb.maps = malloc((jb.fs->n ? jb.fs->n : 1) * sizeof *jb.maps);
   if (!jb.maps) return obs_err_set(err, OBS_ENOMEM, "%s: proximity_ao: out of memory", sc->name);

@@ -98,6 +98,12 @@ typedef struct obs_rt_view {
   double forward[3], right[3], up[3];
 } obs_rt_view;
 
+/* The scene object (index into scene->objects) that primitive `prim` of geometry `geom` belongs
+ * to: an analytic sphere or a mesh. */
+static inline size_t obs_rt_hit_object(const obs_rt *rt, unsigned geom, unsigned prim) {
+  return geom == rt->sphere_geom ? rt->geo.spheres[prim].object : rt->geo.meshes[geom].object;
+}
+
 /* The ray of `view` through image-plane offset (sx, sy), in double. */
 static inline void obs_rt_view_ray(const obs_rt_view *v, double sx, double sy, double o[3],
                                    double d[3]) {

@@ -117,9 +117,8 @@ static uint64_t shade_pixel(const void *user, int thread, int x, int y, float *d
   obs_sampler2d jit;
   obs_sampler2d_init(&jit, jb->p.sampler, (uint32_t)x, (uint32_t)y, 0, 0, jb->p.seed);
   for (int s = 0; s < jb->spp; s++) {
-    float jx = 0.5f, jy = 0.5f;
-    /* One pixel sample looks through the centre; several are stratified over the pixel. */
-    if (jb->spp > 1) obs_sampler2d_get(&jit, (uint32_t)s, &jx, &jy);
+    float jx, jy;
+    obs_sampler2d_pixel(&jit, jb->spp, (uint32_t)s, &jx, &jy);
     double org[3], dir[3];
     obs_camera_ray(&jb->cam, x + jx, y + jy, org, dir);
     obs_hit hit;

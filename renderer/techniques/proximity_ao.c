@@ -87,6 +87,19 @@ void obs_proximity_ao_layout(const obs_proximity_ao_params *p, obs_prox_layout *
   out->min_res = p->min_res;
 }
 
+void obs_proximity_ao_recon(const obs_proximity_ao_params *p, obs_prox_recon *out) {
+  obs_prox_recon_init(out, p->steps, p->reconstruction, p->stop_value, p->scale_before,
+                      p->scale_after, p->seed);
+}
+
+double obs_proximity_ao_reach(const obs_proximity_ao_params *p, double rp) {
+  return p->range * rp;
+}
+
+double obs_proximity_ao_step(const obs_proximity_ao_params *p, double rp) {
+  return obs_proximity_ao_reach(p, rp) / p->steps;
+}
+
 static void layout_hook(const void *bound, struct obs_prox_layout *out) {
   obs_proximity_ao_layout(bound, out);
 }
@@ -108,7 +121,7 @@ static int proximity_ao_reference(const obs_scene *scene, const json_t *params,
   if (rc) return rc;
   obs_prox_layout lay;
   obs_proximity_ao_layout(&p, &lay);
-  double r = p.range * obs_prox_radius(scene, &lay);
+  double r = obs_proximity_ao_reach(&p, obs_prox_radius(scene, &lay));
   if (!(r > 0) || !isfinite(r))
     return obs_err_set(err, OBS_EINVAL, "proximity_ao: the reference distance R = range x r_p "
                        "is not a positive number (got %g; is propagation_fraction 0?)", r);

@@ -28,5 +28,12 @@ extern const char *const obs_proximity_ao_channels[OBS_PROX_CHANNELS];
 
 /* The grid layout the parameters ask for. */
 void obs_proximity_ao_layout(const obs_proximity_ao_params *p, obs_prox_layout *out);
+/* The walk the parameters ask for (obs_prox_recon_init with their steps, reconstruction,
+ * constants and seed). */
+void obs_proximity_ao_recon(const obs_proximity_ao_params *p, obs_prox_recon *out);
+/* The walk's reach R = range x r_p, and its step R / N, in world units, for fields of
+ * propagation radius `rp`. */
+double obs_proximity_ao_reach(const obs_proximity_ao_params *p, double rp);
+double obs_proximity_ao_step(const obs_proximity_ao_params *p, double rp);
 
 #endif

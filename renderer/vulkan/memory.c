@@ -367,15 +367,9 @@ static VkBufferImageCopy image_region(const obs_vk_image *img, int z, int nz) {
       .imageExtent = {(uint32_t)img->width, (uint32_t)img->height, (uint32_t)nz}};
 }
 
-/* 3D images move through the staging buffer in slabs of whole slices of at most this many bytes,
- * so a large voxel grid needs no staging buffer of its own size; a 2D image moves in one piece. */
-#define IMAGE_SLAB_BYTES ((VkDeviceSize)64 << 20)
-
-/* Slices per transfer of `img`. */
-static int slab_slices(const obs_vk_image *img) {
-  VkDeviceSize slice = slice_bytes(img);
-  int per = slice >= IMAGE_SLAB_BYTES ? 1 : (int)(IMAGE_SLAB_BYTES / slice);
-  return per < img->depth ? per : img->depth;
+int obs_vk_slab_slices(VkDeviceSize slice, int depth) {
+  int per = slice >= OBS_VK_SLAB_BYTES ? 1 : (int)(OBS_VK_SLAB_BYTES / slice);
+  return per < depth ? per : depth;
 }
 
 static void image_what(const obs_vk_image *img, const char *verb, char *what, size_t size) {
@@ -392,7 +386,7 @@ int obs_vk_image_upload(obs_vk *vk, obs_vk_image *img, const float *data, obs_er
   if (rc) return rc;
   if (!img || !data) return obs_err_set(err, OBS_EINVAL, "vulkan: image upload: no image or data");
   VkDeviceSize slice = slice_bytes(img);
-  int per = slab_slices(img);
+  int per = obs_vk_slab_slices(slice, img->depth);
   if ((rc = obs_vk_staging_reserve(vk, slice * (VkDeviceSize)per, err))) return rc;
   char what[96];
   image_what(img, "upload", what, sizeof what);
@@ -419,7 +413,7 @@ int obs_vk_image_download(obs_vk *vk, const obs_vk_image *img, float *data, obs_
   if (!img || !data)
     return obs_err_set(err, OBS_EINVAL, "vulkan: image download: no image or destination");
   VkDeviceSize slice = slice_bytes(img);
-  int per = slab_slices(img);
+  int per = obs_vk_slab_slices(slice, img->depth);
   if ((rc = obs_vk_staging_reserve(vk, slice * (VkDeviceSize)per, err))) return rc;
   char what[96];
   image_what(img, "download", what, sizeof what);

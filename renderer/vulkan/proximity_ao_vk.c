@@ -128,7 +128,7 @@ done:
 static void put_field(float *r, const job *jb, size_t i, const int at[3]) {
   const obs_prox_field *f = &jb->fs->f[i];
   const obs_camera_rig *rig = &jb->rig;
-  double m[3][4], h = jb->p.range * jb->fs->rp / jb->p.steps, o[3], gf[3], gr[3], gu[3];
+  double m[3][4], h = obs_proximity_ao_step(&jb->p, jb->fs->rp), o[3], gf[3], gr[3], gu[3];
   obs_prox_world_to_grid(f, &jb->sc->objects[f->object], 0, m);
   for (int k = 0; k < 3; k++) {
     o[k] = m[k][3], gf[k] = 0, gr[k] = 0, gu[k] = 0;
@@ -299,8 +299,7 @@ int obs_proximity_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
                        sc->name, (1u << 24) - 2, sc->nobjects);
   job jb = {.sc = sc, .fs = ctx->proximity};
   jb.p = *(const obs_proximity_ao_params *)ctx->bound;
-  obs_prox_recon_init(&jb.recon, jb.p.steps, jb.p.reconstruction, jb.p.stop_value,
-                      jb.p.scale_before, jb.p.scale_after, jb.p.seed);
+  obs_proximity_ao_recon(&jb.p, &jb.recon);
   obs_camera_setup(&sc->camera, sc->width, sc->height, &jb.rig);
   obs_region rg;
   int rc = obs_driver_image(ctx, OBS_PROX_CHANNELS, obs_proximity_ao_channels, out, &rg, err);

@@ -7,10 +7,6 @@
 
 #include "vk_internal.h"
 
-/* Uploads move at most this much per submission, so the staging buffer stays modest even for a
- * volume of gigabytes. */
-#define SLAB_BYTES ((VkDeviceSize)64 << 20)
-
 int obs_vk_tex_layout(obs_vk *vk, int ntextures, int data, VkDescriptorSetLayout *set,
                       VkPipelineLayout *out, obs_err *err) {
   VkDescriptorSetLayout *sl = &vk->tex_set_layout[ntextures][data != 0];
@@ -268,8 +264,7 @@ int obs_vk_texture_upload(obs_vk *vk, obs_vk_texture *t, const int at[3], const 
                          size[0], size[1], size[2], at[0], at[1], at[2], dims[0], dims[1], dims[2]);
   VkDeviceSize slice = (VkDeviceSize)size[0] * (VkDeviceSize)size[1] *
                        (VkDeviceSize)t->desc.channels * sizeof(float);
-  int per = slice >= SLAB_BYTES ? 1 : (int)(SLAB_BYTES / slice);
-  if (per > size[2]) per = size[2];
+  int per = obs_vk_slab_slices(slice, size[2]);
   if ((rc = obs_vk_staging_reserve(vk, slice * (VkDeviceSize)per, err))) return rc;
   for (int z = 0; z < size[2] && !rc; z += per) {
     int nz = size[2] - z < per ? size[2] - z : per;

@@ -106,6 +106,11 @@ int obs_vk_image_create_usage(obs_vk *vk, int width, int height, int channels,
 
 /* Makes the host-visible staging buffer at least `size` bytes (memory.c). */
 int obs_vk_staging_reserve(obs_vk *vk, VkDeviceSize size, obs_err *err);
+/* Transfers of 3D data (images, textures) move through the staging buffer in slabs of whole
+ * slices of at most this many bytes, so it stays modest even for a volume of gigabytes. */
+#define OBS_VK_SLAB_BYTES ((VkDeviceSize)64 << 20)
+/* Slices of `slice` bytes per slab, at least 1 and at most `depth` (memory.c). */
+int obs_vk_slab_slices(VkDeviceSize slice, int depth);
 /* Set 1's layout for `ntextures` textures with or without data, and the pipeline layout with
  * sets 0 and 1 (texture.c), created on first use. */
 int obs_vk_tex_layout(obs_vk *vk, int ntextures, int data, VkDescriptorSetLayout *set,

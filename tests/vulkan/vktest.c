@@ -3,6 +3,7 @@
 
 #include <math.h>
 #include <stdio.h>
+#include <string.h>
 
 obs_vk *g_vk;
 
@@ -79,4 +80,21 @@ void vktest_ao_diff(const obs_result *a, const obs_result *b, const char *channe
     if (d > *max) *max = d;
     *over += d > tol;
   }
+}
+
+size_t vktest_assert_region(const obs_result *whole, const obs_result *part, obs_region r) {
+  const obs_image *a = &whole->image, *b = &part->image;
+  assert_int_equal(a->width, b->width);
+  assert_int_equal(a->height, b->height);
+  assert_int_equal(a->nchannels, b->nchannels);
+  size_t plane = (size_t)a->width * (size_t)a->height, covered = 0;
+  for (int c = 0; c < a->nchannels; c++)
+    for (int y = 0; y < a->height; y++)
+      for (int x = 0; x < a->width; x++) {
+        size_t i = (size_t)c * plane + (size_t)y * (size_t)a->width + (size_t)x;
+        int in = x >= r.x0 && x < r.x1 && y >= r.y0 && y < r.y1;
+        assert_true(b->data[i] == (in ? a->data[i] : 0.0f));
+        covered += in && !strcmp(a->names[c], "alpha") && a->data[i] > 0;
+      }
+  return covered;
 }

@@ -28,5 +28,8 @@ void vktest_moved_scene(double s, double t, double g, double fov, char *buf, siz
  * pixels differ by more than `tol`. Coverage must be identical. */
 void vktest_ao_diff(const obs_result *a, const obs_result *b, const char *channel, double tol,
                     double *max, size_t *over);
+/* Asserts that `part`, a render of region r alone, has `whole`'s bits inside r and 0 in every
+ * channel outside it; returns how many pixels of r `whole` covers (alpha > 0). */
+size_t vktest_assert_region(const obs_result *whole, const obs_result *part, obs_region r);
 
 #endif
