@@ -126,6 +126,8 @@ static json_t *job_json(srv_app *app, const srv_job *j) {
   json_object_set(o, "rays", rays ? rays : json_null());
   json_t *frames = json_object_get(sum, "frames");
   json_object_set(o, "frames", json_is_array(frames) ? frames : json_null());
+  json_t *built = json_object_get(sum, "built");
+  json_object_set(o, "built", json_is_array(built) ? built : json_null());
   if (sum) {
     json_t *stats = json_object();
     json_t *ao = json_object_get(sum, "ao");

@@ -2,11 +2,13 @@
  * voxelises and floods them, the world-to-grid maps and the reconstruction of occlusion. */
 #include "proximity.h"
 
+#include <jansson.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "obscura/render.h"
+#include "parallel.h"
 #include "sampling.h"
 #include "shapes.h"
 #include "simd.h"
@@ -133,8 +135,19 @@ void obs_prox_fields_free(obs_prox_fields *fs) {
   memset(fs, 0, sizeof *fs);
 }
 
-/* Every field together must stay within this many bytes (values and occupancy, plus the flood's
- * two working copies of the largest). */
+void obs_prox_fields_built(const obs_prox_fields *fs, json_t *built) {
+  for (size_t i = 0; i < fs->n; i++) {
+    const obs_prox_field *f = &fs->f[i];
+    json_array_append_new(
+        built, json_pack("{s:s, s:I, s:[i,i,i], s:I, s:i, s:I}", "name", "proximity_field",
+                         "object", (json_int_t)f->object, "dims", f->dims[0], f->dims[1],
+                         f->dims[2], "occupied", (json_int_t)f->occupied_count, "iterations",
+                         f->iterations, "bytes", (json_int_t)(OBS_PROX_VOXEL_BYTES * f->count)));
+  }
+}
+
+/* Every field together must stay within this many bytes (values, occupancy and the CPU walk's
+ * read copy, plus the flood's two working copies of the largest). */
 #define PROX_MAX_BYTES ((double)(6ull << 30))
 
 int obs_prox_build(const obs_scene *sc, const obs_prox_layout *lay, int threads,
@@ -164,7 +177,8 @@ int obs_prox_build(const obs_scene *sc, const obs_prox_layout *lay, int threads,
   double bytes = 0, biggest = 0;
   for (size_t i = 0; i < m && !rc; i++) {
     layout_grid(&src[i], out->rp, longest, lay, &out->f[i]);
-    bytes += 5.0 * (double)out->f[i].count;
+    bytes += (double)OBS_PROX_VOXEL_BYTES * (double)out->f[i].count +
+             sizeof(float) * (double)obs_prox_corners_count(&out->f[i]);
     biggest = fmax(biggest, 8.0 * (double)out->f[i].count);
   }
   if (!rc && bytes + biggest > PROX_MAX_BYTES)
@@ -174,7 +188,7 @@ int obs_prox_build(const obs_scene *sc, const obs_prox_layout *lay, int threads,
   for (size_t i = 0; i < m && !rc; i++) {
     obs_prox_field *f = &out->f[i];
     f->occupied = calloc(f->count, 1);
-    f->value = malloc((f->count + 1) * sizeof *f->value);
+    f->value = malloc(f->count * sizeof *f->value);
     out->n++;
     if (!f->occupied || !f->value) {
       rc = obs_err_set(err, OBS_ENOMEM, "%s: /objects/%zu: out of memory for its proximity field "
@@ -183,12 +197,11 @@ int obs_prox_build(const obs_scene *sc, const obs_prox_layout *lay, int threads,
     }
     if (src[i].sphere) obs_prox_voxelise_sphere(f, src[i].centre, src[i].radius, threads);
     else obs_prox_voxelise_mesh(f, &src[i].mesh, threads);
-    f->value[f->count] = 0.0f;
     for (size_t v = 0; v < f->count; v++) {
       f->value[v] = f->occupied[v] ? 1.0f : 0.0f;
       f->occupied_count += f->occupied[v];
     }
-    out->bytes += 5 * f->count;
+    out->bytes += OBS_PROX_VOXEL_BYTES * f->count;
   }
   src_free(src, n);
   double t1 = obs_now_ms();
@@ -260,7 +273,6 @@ void obs_prox_recon_init(obs_prox_recon *r, int steps, int mode, float stop_valu
   r->scale_before = scale_before;
   r->scale_after = scale_after;
   r->isa = obs_simd_isa();
-  r->loads = obs_simd_gather_loads();
   /* The thesis's code advances one step before its loop and again at the top of each: step i
    * samples at p + (i + 2) step. The corrected walk samples at p + i step. */
   float base = mode == OBS_PROX_THESIS_CODE ? 2.0f : 0.0f;
@@ -284,12 +296,20 @@ void obs_prox_recon_init(obs_prox_recon *r, int steps, int mode, float stop_valu
   r->first[steps] = at;
 }
 
-/* A chunk of the walk's points read into val[] (0 where a point lies outside the field's box,
- * counted in inside[]). */
+/* The walk's points read into val[] (+0 where a point lies outside the field's box, and
+ * inside[] 0 there when counted). */
 typedef struct prox_walk {
   const obs_prox_field *f;
+  const float *corners;
+  int count; /* inside[] is needed: the corrected walk averages over the points read */
   const obs_prox_recon *r;
   float gp[3], gs[3], gt[3], gb[3];
+#if OBS_SIMD_AVX2
+  /* The eight-lane walk's per-point constants, once per walk: the grid's sides, its last voxel
+   * centres' cells (dims - 1) and the corner copy's strides, as lanes. */
+  __m256 dim[3], top[3];
+  __m256i stride[3];
+#endif
   float val[OBS_PROX_DISC_POINTS + 8];
   unsigned char inside[OBS_PROX_DISC_POINTS + 8];
 } prox_walk;
@@ -305,124 +325,176 @@ static void walk_point(prox_walk *w, int k) {
   w->val[k] = in ? obs_prox_sample(f, q) : 0.0f;
 }
 
-#if OBS_SIMD_AVX2
-/* base[idx[l]] into *a and base[idx[l] + 1] into *b for the 8 lanes, as eight 8-byte loads (the
- * field holds one float past its last voxel for this). */
-OBS_AVX2_INLINE void pair_loads(const float *base, __m256i idx, __m256 *a, __m256 *b) {
-  int ix[8];
-  _mm256_storeu_si256((__m256i *)ix, idx);
-  __m128d p[8];
-  /* movq: an unaligned 8-byte load (the pair starts at any float). */
-  for (int l = 0; l < 8; l++)
-    p[l] = _mm_castsi128_pd(_mm_loadl_epi64((const __m128i_u *)(const void *)(base + ix[l])));
-  __m256 lo = _mm256_castpd_ps(_mm256_setr_m128d(_mm_unpacklo_pd(p[0], p[1]),
-                                                 _mm_unpacklo_pd(p[2], p[3])));
-  __m256 hi = _mm256_castpd_ps(_mm256_setr_m128d(_mm_unpacklo_pd(p[4], p[5]),
-                                                 _mm_unpacklo_pd(p[6], p[7])));
-  /* lo = a0 b0 a1 b1 | a2 b2 a3 b3, hi the same for lanes 4..7. */
-  __m256 ea = _mm256_shuffle_ps(lo, hi, _MM_SHUFFLE(2, 0, 2, 0)); /* a0 a1 a4 a5 | a2 a3 a6 a7 */
-  __m256 eb = _mm256_shuffle_ps(lo, hi, _MM_SHUFFLE(3, 1, 3, 1));
-  *a = _mm256_castpd_ps(_mm256_permute4x64_pd(_mm256_castps_pd(ea), _MM_SHUFFLE(3, 1, 2, 0)));
-  *b = _mm256_castpd_ps(_mm256_permute4x64_pd(_mm256_castps_pd(eb), _MM_SHUFFLE(3, 1, 2, 0)));
+size_t obs_prox_corners_count(const obs_prox_field *f) {
+  return 2 * (size_t)(f->dims[0] + 1) * (size_t)f->dims[1] * (size_t)(f->dims[2] + 1);
 }
 
-/* Eight points k0..k0+7 at once: walk_point's operations lane by lane. */
-OBS_AVX2_FN static void walk_points8(prox_walk *w, int k0) {
-  const obs_prox_field *f = w->f;
+typedef struct corners_job {
+  const obs_prox_field *f;
+  float *c;
+} corners_job;
+
+static int corners_slab(void *user, int thread, int z0, int y0, int z1, int y1) {
+  (void)thread, (void)y0, (void)y1;
+  const corners_job *j = user;
+  const int dx = j->f->dims[0], dy = j->f->dims[1], dz = j->f->dims[2];
+  const size_t row = 2 * (size_t)(dx + 1);
+  for (int z = z0; z < z1; z++) {
+    const float *slice = j->f->value + (size_t)(z < dz ? z : dz - 1) * (size_t)dy * (size_t)dx;
+    for (int y = 0; y < dy; y++) {
+      const float *v0 = slice + (size_t)y * dx, *v1 = slice + (size_t)(y + 1 < dy ? y + 1 : y) * dx;
+      float *c = j->c + ((size_t)z * (size_t)dy + (size_t)y) * row;
+      for (int x = 0; x <= dx; x++) {
+        int xs = x < dx ? x : dx - 1;
+        c[2 * x] = v0[xs];
+        c[2 * x + 1] = v1[xs];
+      }
+    }
+  }
+  return 0;
+}
+
+float *obs_prox_corners(const obs_prox_field *f, const obs_prox_recon *r, int threads) {
+  if (r->isa < OBS_ISA_AVX2) return NULL;
+  corners_job j = {f, malloc(obs_prox_corners_count(f) * sizeof(float))};
+  if (j.c) obs_parallel_tiles(f->dims[2] + 1, 1, threads, corners_slab, &j, NULL, NULL, NULL);
+  return j.c;
+}
+
+#if OBS_SIMD_AVX2
+/* Eight points k0..k0+7 at once: walk_point's operations lane by lane, each lane's corners in
+ * two 16-byte reads of w->corners (obs_prox_corners). */
+OBS_AVX2_INLINE void walk_points8(prox_walk *w, int k0) {
   const obs_prox_recon *r = w->r;
   __m256 al = _mm256_loadu_ps(r->along + k0), at = _mm256_loadu_ps(r->across_t + k0),
          ab = _mm256_loadu_ps(r->across_b + k0);
   __m256 in = _mm256_castsi256_ps(_mm256_set1_epi32(-1)), wt[3];
-  __m256i i0[3], step[3], more_x = _mm256_setzero_si256();
-  const int stride[3] = {1, f->dims[0], f->dims[0] * f->dims[1]};
+  __m256i base = _mm256_setzero_si256();
   for (int c = 0; c < 3; c++) {
     __m256 q = _mm256_add_ps(
         _mm256_add_ps(_mm256_add_ps(_mm256_set1_ps(w->gp[c]),
                                     _mm256_mul_ps(al, _mm256_set1_ps(w->gs[c]))),
                       _mm256_mul_ps(at, _mm256_set1_ps(w->gt[c]))),
         _mm256_mul_ps(ab, _mm256_set1_ps(w->gb[c])));
-    __m256 dim = _mm256_set1_ps((float)f->dims[c]);
     in = _mm256_and_ps(in, _mm256_and_ps(_mm256_cmp_ps(q, _mm256_setzero_ps(), _CMP_GE_OQ),
-                                         _mm256_cmp_ps(q, dim, _CMP_LE_OQ)));
+                                         _mm256_cmp_ps(q, w->dim[c], _CMP_LE_OQ)));
     __m256 u = _mm256_sub_ps(q, _mm256_set1_ps(0.5f));
     u = _mm256_max_ps(u, _mm256_setzero_ps()); /* NaN and below 0: 0, as !(u > 0) */
-    u = _mm256_min_ps(u, _mm256_set1_ps((float)(f->dims[c] - 1)));
+    u = _mm256_min_ps(u, w->top[c]);
     __m256i i = _mm256_cvttps_epi32(u);
     wt[c] = _mm256_sub_ps(u, _mm256_cvtepi32_ps(i));
-    __m256i more = _mm256_cmpgt_epi32(_mm256_set1_epi32(f->dims[c] - 1), i);
-    step[c] = _mm256_and_si256(more, _mm256_set1_epi32(stride[c]));
-    if (c == 0) more_x = more;
-    i0[c] = _mm256_mullo_epi32(i, _mm256_set1_epi32(stride[c]));
+    base = _mm256_add_epi32(base, _mm256_mullo_epi32(i, w->stride[c]));
   }
-  __m256i base = _mm256_add_epi32(_mm256_add_epi32(i0[0], i0[1]), i0[2]);
+  const size_t slice = (size_t)_mm256_cvtsi256_si32(w->stride[2]);
+  int ix[8];
+  _mm256_storeu_si256((__m256i *)ix, base);
   __m256 cz[2];
   for (int dz = 0; dz < 2; dz++) {
-    __m256 cy[2];
-    for (int dy = 0; dy < 2; dy++) {
-      __m256i row = _mm256_add_epi32(base, _mm256_add_epi32(dz ? step[2] : _mm256_setzero_si256(),
-                                                            dy ? step[1] : _mm256_setzero_si256()));
-      __m256 a, b;
-      if (w->r->loads) {
-        pair_loads(f->value, row, &a, &b);
-        /* At the grid's last column the neighbour is the voxel itself. */
-        b = _mm256_blendv_ps(a, b, _mm256_castsi256_ps(more_x));
-      } else {
-        a = obs_avx2_gather(0, f->value, row);
-        b = obs_avx2_gather(0, f->value, _mm256_add_epi32(row, step[0]));
-      }
-      cy[dy] = _mm256_add_ps(a, _mm256_mul_ps(_mm256_sub_ps(b, a), wt[0]));
-    }
-    cz[dz] = _mm256_add_ps(cy[0], _mm256_mul_ps(_mm256_sub_ps(cy[1], cy[0]), wt[1]));
+    const float *v = w->corners + (dz ? slice : 0);
+    __m256 q[4];
+    for (int l = 0; l < 4; l++)
+      q[l] = _mm256_setr_m128(_mm_loadu_ps(v + ix[l]), _mm_loadu_ps(v + ix[l + 4]));
+    /* q[l] = a(y0) a(y1) b(y0) b(y1) of lanes l | l + 4; transposed to one vector each. */
+    __m256 t0 = _mm256_unpacklo_ps(q[0], q[1]), t1 = _mm256_unpackhi_ps(q[0], q[1]);
+    __m256 t2 = _mm256_unpacklo_ps(q[2], q[3]), t3 = _mm256_unpackhi_ps(q[2], q[3]);
+    __m256 a0 = _mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(1, 0, 1, 0));
+    __m256 a1 = _mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(3, 2, 3, 2));
+    __m256 b0 = _mm256_shuffle_ps(t1, t3, _MM_SHUFFLE(1, 0, 1, 0));
+    __m256 b1 = _mm256_shuffle_ps(t1, t3, _MM_SHUFFLE(3, 2, 3, 2));
+    __m256 c0 = _mm256_add_ps(a0, _mm256_mul_ps(_mm256_sub_ps(b0, a0), wt[0]));
+    __m256 c1 = _mm256_add_ps(a1, _mm256_mul_ps(_mm256_sub_ps(b1, a1), wt[0]));
+    cz[dz] = _mm256_add_ps(c0, _mm256_mul_ps(_mm256_sub_ps(c1, c0), wt[1]));
   }
   __m256 v = _mm256_add_ps(cz[0], _mm256_mul_ps(_mm256_sub_ps(cz[1], cz[0]), wt[2]));
   _mm256_storeu_ps(w->val + k0, _mm256_and_ps(v, in));
-  int m = _mm256_movemask_ps(in);
-  for (int l = 0; l < 8; l++) w->inside[k0 + l] = (unsigned char)((m >> l) & 1);
+  if (!w->count) return;
+  /* The lane masks (all ones or zero) narrowed to bytes 1 or 0. */
+  __m128i m32 = _mm_packs_epi32(_mm256_castsi256_si128(_mm256_castps_si256(in)),
+                                _mm256_extracti128_si256(_mm256_castps_si256(in), 1));
+  __m128i m8 = _mm_and_si128(_mm_packs_epi16(m32, m32), _mm_set1_epi8(1));
+  _mm_storel_epi64((__m128i_u *)(void *)(w->inside + k0), m8);
 }
 #endif
 
+typedef void (*walk_read_fn)(prox_walk *w, int *done, int upto);
+
 /* Reads the points up to `upto` (exclusive) that are not read yet. */
-static void walk_read(prox_walk *w, int *done, int upto) {
-#if OBS_SIMD_AVX2
-  if (w->r->isa >= OBS_ISA_AVX2) {
-    for (; *done < upto; *done += 8) walk_points8(w, *done);
-    return;
-  }
-#endif
+static inline __attribute__((always_inline)) void walk_read(prox_walk *w, int *done, int upto) {
   for (; *done < upto; ++*done) walk_point(w, *done);
 }
+
+#if OBS_SIMD_AVX2
+OBS_AVX2_INLINE void walk_read8(prox_walk *w, int *done, int upto) {
+  for (; *done < upto; *done += 8) walk_points8(w, *done);
+}
+#endif
 
 void obs_prox_disc_axes(const float n[3], float t[3], float b[3]) {
   float m[3] = {n[0], n[1], fabsf(n[2]) < OBS_PROX_FLAT_Z ? 0.0f : n[2]};
   obs_onb(m, t, b);
 }
 
-float obs_prox_occlusion(const obs_prox_field *f, const obs_prox_recon *r, const float gp[3],
-                         const float gs[3], const float gt[3], const float gb[3]) {
+/* The walk's steps over points read by `read` (inlined into each instruction-set level). */
+static inline __attribute__((always_inline)) float walk_steps(prox_walk *w, walk_read_fn read) {
+  const obs_prox_recon *r = w->r;
   const int n = r->steps, code = r->mode == OBS_PROX_THESIS_CODE;
-  prox_walk w;
-  w.f = f;
-  w.r = r;
-  for (int c = 0; c < 3; c++) w.gp[c] = gp[c], w.gs[c] = gs[c], w.gt[c] = gt[c], w.gb[c] = gb[c];
   float ao = 0.0f, prev = 0.0f;
   int done = r->first[0];
   for (int i = 0; i < n; i++) {
-    walk_read(&w, &done, r->first[i + 1]);
-    float sum = 0.0f;
-    int read = 0;
-    for (int k = r->first[i]; k < r->first[i + 1]; k++)
-      if (w.inside[k]) sum += w.val[k], read++;
-    float value = code ? sum : read ? sum / (float)read : 0.0f;
-    if (value < prev) continue; /* moving away from what occludes: dropped, prev kept */
+    read(w, &done, r->first[i + 1]);
+    float sum = 0.0f, value;
+    /* Points outside the box read +0: the thesis's sum skips them without a test. */
+    if (code) {
+      for (int k = r->first[i]; k < r->first[i + 1]; k++) sum += w->val[k];
+      value = sum;
+    } else {
+      int count = 0;
+      for (int k = r->first[i]; k < r->first[i + 1]; k++)
+        if (w->inside[k]) sum += w->val[k], count++;
+      value = count ? sum / (float)count : 0.0f;
+    }
+    /* A step below the last kept one moves away from what occludes: dropped, prev kept.
+     * Selected rather than branched on: which steps drop is the data's, not a pattern. */
+    int keep = !(value < prev);
     /* The listing's (1 - i / N) is integer division: 1 for every i < N. */
     float weight = code ? 1.0f : 1.0f - (float)i / (float)n;
-    ao += value * weight;
-    if (value > r->stop_value) break;
-    prev = value;
+    float more = ao + value * weight;
+    ao = keep ? more : ao;
+    if (keep && value > r->stop_value) break;
+    prev = keep ? value : prev;
   }
   ao *= r->scale_before;
   ao /= (float)n;
   if (!(ao > 0.0f)) ao = 0.0f;
   if (ao > 1.0f) ao = 1.0f;
   return ao * r->scale_after;
+}
+
+#if OBS_SIMD_AVX2
+OBS_AVX2_FN static float walk_steps8(prox_walk *w) {
+  const int *d = w->f->dims;
+  /* int indices: the copy holds at most 2 x 513 x 512 x 513 < 2^31 floats (volume_res <= 512). */
+  const int stride[3] = {2, 2 * (d[0] + 1), 2 * (d[0] + 1) * d[1]};
+  for (int c = 0; c < 3; c++) {
+    w->dim[c] = _mm256_set1_ps((float)d[c]);
+    w->top[c] = _mm256_set1_ps((float)(d[c] - 1));
+    w->stride[c] = _mm256_set1_epi32(stride[c]);
+  }
+  return walk_steps(w, walk_read8);
+}
+#endif
+
+float obs_prox_occlusion(const obs_prox_field *f, const float *corners, const obs_prox_recon *r,
+                         const float gp[3], const float gs[3], const float gt[3],
+                         const float gb[3]) {
+  prox_walk w;
+  w.f = f;
+  w.r = r;
+  w.corners = corners;
+  w.count = r->mode != OBS_PROX_THESIS_CODE;
+  for (int c = 0; c < 3; c++) w.gp[c] = gp[c], w.gs[c] = gs[c], w.gt[c] = gt[c], w.gb[c] = gb[c];
+#if OBS_SIMD_AVX2
+  if (r->isa >= OBS_ISA_AVX2 && corners) return walk_steps8(&w);
+#endif
+  return walk_steps(&w, walk_read);
 }

@@ -6,6 +6,7 @@
 #ifndef OBS_PROXIMITY_H
 #define OBS_PROXIMITY_H
 
+#include <jansson.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -32,9 +33,10 @@ typedef struct obs_prox_field {
   size_t count;       /* dims[0] x dims[1] x dims[2] */
   size_t occupied_count;
   uint8_t *occupied;  /* 1 per voxel the surface touches, x fastest; owned */
-  float *value;       /* the flooded field, x fastest, and one 0 past the end (pairs of
-                         neighbours are read 8 bytes at a time); owned */
+  float *value;       /* the flooded field, x fastest; owned */
 } obs_prox_field;
+/* A field's bytes per voxel: its value and its occupancy. */
+#define OBS_PROX_VOXEL_BYTES (sizeof(float) + sizeof(uint8_t))
 
 /* Every surface object's field (volumes have none). Owns its fields. */
 typedef struct obs_prox_fields {
@@ -69,6 +71,9 @@ int obs_prox_build(const obs_scene *sc, const obs_prox_layout *lay, int threads,
                    obs_prox_flood_fn flood, void *flood_user, obs_prox_fields *out,
                    obs_err *err);
 void obs_prox_fields_free(obs_prox_fields *fs);
+/* Appends one object per field to `built` (a JSON array; obs_render_ctx.built): its object,
+ * dims, occupied voxels, flood iterations and bytes (values and occupancy). */
+void obs_prox_fields_built(const obs_prox_fields *fs, json_t *built);
 
 /* Occupancy of one field from object-space triangles (3 floats per vertex) and the layout already
  * in `f` (dims, lo, voxel; occupied allocated and zeroed): for tests and the builder. */
@@ -114,7 +119,6 @@ typedef struct obs_prox_recon {
   float stop_value;   /* a step's value above this ends the walk (a surface reached) */
   float scale_before, scale_after;
   int isa;            /* simd.h level the reads run at (the same bits at every level) */
-  int loads;          /* AVX2 reads as scalar loads (obs_simd_gather_loads) */
   /* The unit-disc points of step i start at disc[first[i]]: floor(i/2) of them, (x, y). */
   int first[OBS_PROX_MAX_STEPS + 1];
   float disc[OBS_PROX_DISC_POINTS][2];
@@ -137,11 +141,25 @@ void obs_prox_recon_init(obs_prox_recon *r, int steps, int mode, float stop_valu
 #define OBS_PROX_FLAT_Z 0x1p-20f
 void obs_prox_disc_axes(const float n[3], float t[3], float b[3]);
 
+/* The eight-lane walk's copy of field `f`: for voxel (x, y, z) the pair v(x, y, z),
+ * v(x, min(y + 1, dy - 1), z) at float 2x + 2(dx + 1) y + 2(dx + 1) dy z, x and z padded with a
+ * copy of their last voxel. One 16-byte read at (x, y, z) then holds the four x-y corners of a
+ * trilinear read, clamped at the grid's faces as obs_prox_sample clamps them, and the other
+ * slice's four sit one slice further: 8 bytes per voxel of the padded grid. Built over
+ * `threads` for a walk `r` that reads eight points at a time; NULL where it reads one at a time
+ * (below AVX2) or memory is short (the walk then reads `value`, with the same bits). Caller
+ * frees. obs_prox_corners_count: its floats. */
+size_t obs_prox_corners_count(const obs_prox_field *f);
+float *obs_prox_corners(const obs_prox_field *f, const obs_prox_recon *r, int threads);
+
 /* Occlusion in [0, scale_after] from field `f` at a point whose grid coordinates are `gp`, the
  * step R/N along the normal mapped into grid coordinates `gs`, and the disc axes of radius
  * R/N (two unit vectors orthogonal to the normal, times R/N, mapped) `gt`, `gb`. Point k of the
- * walk is read at (gp + along[k] gs) + across_t[k] gt + across_b[k] gb. */
-float obs_prox_occlusion(const obs_prox_field *f, const obs_prox_recon *r, const float gp[3],
-                         const float gs[3], const float gt[3], const float gb[3]);
+ * walk is read at (gp + along[k] gs) + across_t[k] gt + across_b[k] gb. `corners`:
+ * obs_prox_corners of `f`, read eight points at a time where r->isa allows; NULL: read one by
+ * one from f->value. Same bits either way. */
+float obs_prox_occlusion(const obs_prox_field *f, const float *corners, const obs_prox_recon *r,
+                         const float gp[3], const float gs[3], const float gt[3],
+                         const float gb[3]);
 
 #endif

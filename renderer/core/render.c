@@ -173,6 +173,8 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
   }
   warn_ignored(scene, &ctx);
   ctx.build_ms = obs_now_ms() - t0;
+  ctx.built = json_array();
+  if (ctx.proximity) obs_prox_fields_built(&prox, ctx.built);
   if ((rc = obs_driver_cancelled(&ctx, err)) == 0) rc = t->run[be](&ctx, &res->image, err);
   obs_scene_volumes_free(&vols);
   obs_prox_fields_free(&prox);
@@ -181,9 +183,11 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
   free(bound);
   res->npatches = ctx.npatches;
   res->frames = ctx.frames;
+  res->built = ctx.built;
   if (rc) {
     json_decref(res->frames);
-    res->frames = NULL;
+    json_decref(res->built);
+    res->frames = res->built = NULL;
     for (int i = 0; i < res->npatches && i < OBS_MAX_PATCH_OUTPUTS; i++)
       obs_patches_free(&res->patches[i]);
     res->npatches = 0;
@@ -231,6 +235,7 @@ void obs_result_free(obs_result *res) {
   for (int i = 0; i < res->npatches && i < OBS_MAX_PATCH_OUTPUTS; i++)
     obs_patches_free(&res->patches[i]);
   json_decref(res->frames);
+  json_decref(res->built);
   memset(res, 0, sizeof *res);
 }
 
@@ -333,6 +338,8 @@ json_t *obs_result_summary_json(const obs_result *r, const obs_scene *sc) {
   for (int i = 0; i < r->nwarnings; i++) json_array_append_new(w, json_string(r->warnings[i]));
   json_object_set_new(o, "warnings", w);
   if (r->frames) json_object_set_new(o, "frames", json_deep_copy(r->frames));
+  if (r->built && json_array_size(r->built))
+    json_object_set_new(o, "built", json_deep_copy(r->built));
   return o;
 }
 

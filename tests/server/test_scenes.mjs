@@ -121,6 +121,13 @@ test('bundled scenes match the CLI bit for bit', async () => {
       assert.equal(summary.scene, c.body.scene_file || 'inline');
       assert.equal(j.technique, cliSum.technique);
       assert.equal(j.rays, summary.rays);
+      // What was built, with its memory: the job shows summary.json's (proximity fields here).
+      assert.deepEqual(j.built, summary.built ?? null, `${c.name}: built`);
+      if (j.technique === 'proximity_ao') {
+        const fields = j.built.filter((b) => b.name === 'proximity_field');
+        assert.ok(fields.length > 0, `${c.name}: built`);
+        for (const b of fields) assert.equal(b.bytes, 5 * b.dims[0] * b.dims[1] * b.dims[2]);
+      }
       assert.equal(j.stats.nan_count, 0);
       assert.equal(j.stats.ao.mean, summary.ao.mean);
       for (const k of ['load', 'build', 'render', 'write', 'total']) {

@@ -134,7 +134,7 @@ static void random_field(obs_prox_field *f, int nx, int ny, int nz, uint32_t see
   f->count = (size_t)nx * ny * nz;
   for (int k = 0; k < 3; k++) f->voxel[k] = 1;
   f->occupied = calloc(f->count, 1);
-  f->value = calloc(f->count + 1, sizeof *f->value);
+  f->value = calloc(f->count, sizeof *f->value);
   for (size_t i = 0; i < f->count; i++) {
     f->occupied[i] = obs_test_unit(&seed) < 0.05;
     f->value[i] = f->occupied[i];
@@ -171,7 +171,7 @@ static void planes_field(obs_prox_field *f, const double *zs, int nplanes, int i
   for (int k = 0; k < 3; k++) f->dims[k] = 32, f->voxel[k] = 1, f->lo[k] = 0;
   f->count = 32 * 32 * 32;
   f->occupied = calloc(f->count, 1);
-  f->value = calloc(f->count + 1, sizeof *f->value);
+  f->value = calloc(f->count, sizeof *f->value);
   float pos[8 * 3];
   uint32_t idx[4 * 3];
   for (int p = 0; p < nplanes; p++) {
@@ -267,18 +267,18 @@ static void test_reconstruction_arithmetic(void **state) {
   obs_prox_recon r;
   /* Everything occupied: the first step that reads (i = 2) reaches the stop value. */
   obs_prox_recon_init(&r, 20, OBS_PROX_THESIS_CODE, 0.95f, 0.8f, 0.8f, 1);
-  assert_float_equal(obs_prox_occlusion(&f, &r, gp, gs, gt, gb), 1 * 0.8 / 20 * 0.8, 1e-6);
+  assert_float_equal(obs_prox_occlusion(&f, NULL, &r, gp, gs, gt, gb), 1 * 0.8 / 20 * 0.8, 1e-6);
   obs_prox_recon_init(&r, 20, OBS_PROX_CORRECTED, 0.95f, 0.8f, 0.8f, 1);
-  assert_float_equal(obs_prox_occlusion(&f, &r, gp, gs, gt, gb), 0.9 * 0.8 / 20 * 0.8, 1e-6);
+  assert_float_equal(obs_prox_occlusion(&f, NULL, &r, gp, gs, gt, gb), 0.9 * 0.8 / 20 * 0.8, 1e-6);
   /* No stop: the code sums floor(i/2) reads per step (90 in all), clamped to 1 after / N; the
    * text averages them and weighs step i by 1 - i/N (8.55 in all for i = 2..19). */
   obs_prox_recon_init(&r, 20, OBS_PROX_THESIS_CODE, 1000.0f, 0.8f, 0.8f, 1);
-  assert_float_equal(obs_prox_occlusion(&f, &r, gp, gs, gt, gb), 0.8, 1e-6);
+  assert_float_equal(obs_prox_occlusion(&f, NULL, &r, gp, gs, gt, gb), 0.8, 1e-6);
   obs_prox_recon_init(&r, 20, OBS_PROX_CORRECTED, 1000.0f, 0.8f, 0.8f, 1);
-  assert_float_equal(obs_prox_occlusion(&f, &r, gp, gs, gt, gb), 8.55 * 0.8 / 20 * 0.8, 1e-6);
+  assert_float_equal(obs_prox_occlusion(&f, NULL, &r, gp, gs, gt, gb), 8.55 * 0.8 / 20 * 0.8, 1e-6);
   /* Every read outside the box is skipped: nothing occludes. */
   const float far[3] = {40, 4, 4};
-  assert_float_equal(obs_prox_occlusion(&f, &r, far, gs, gt, gb), 0.0, 0.0);
+  assert_float_equal(obs_prox_occlusion(&f, NULL, &r, far, gs, gt, gb), 0.0, 0.0);
   /* The disc points lie in the unit disc, floor(i/2) per step. */
   for (int i = 0; i < 20; i++) {
     assert_int_equal(r.first[i + 1] - r.first[i], i / 2);
@@ -287,39 +287,49 @@ static void test_reconstruction_arithmetic(void **state) {
   }
 }
 
-/* The eight-lane reads give the scalar reads' bits: random fields, points and axes, at every
- * instruction-set path this CPU has, both reconstructions. */
-static void test_reconstruction_paths(void **state) {
-  (void)state;
+/* The eight-lane reads (from the corner copy) give the scalar reads' bits: random fields, points
+ * and axes, both reconstructions, and a grid one voxel thin on two axes (every read clamped). */
+static void reconstruction_paths(int nx, int ny, int nz) {
   obs_prox_field f;
-  random_field(&f, 17, 12, 9, 3);
+  random_field(&f, nx, ny, nz, 3);
   f.iterations = 4;
   obs_err err = OBS_ERR_INIT;
   assert_int_equal(obs_prox_flood_cpu(NULL, &f, 2, &err), 0);
+  assert_int_equal(obs_prox_corners_count(&f), 2 * (size_t)(nx + 1) * ny * (size_t)(nz + 1));
   uint32_t seed = 5;
   for (int mode = 0; mode < 2; mode++) {
     obs_prox_recon scalar, wide;
     obs_prox_recon_init(&scalar, 20, mode, 0.95f, 0.8f, 0.8f, 9);
     scalar.isa = 0; /* OBS_ISA_SSE2 */
-    for (int loads = 0; loads < 2; loads++) {
-      wide = scalar;
-      obs_prox_recon_init(&wide, 20, mode, 0.95f, 0.8f, 0.8f, 9);
-      wide.loads = loads;
-      for (int t = 0; t < 2000; t++) {
-        float gp[3], gs[3], gt[3], gb[3];
-        for (int k = 0; k < 3; k++) {
-          gp[k] = (float)(obs_test_unit(&seed) * (f.dims[k] + 4) - 2);
-          gs[k] = (float)(obs_test_unit(&seed) - 0.5);
-          gt[k] = (float)(obs_test_unit(&seed) - 0.5);
-          gb[k] = (float)(obs_test_unit(&seed) - 0.5);
-        }
-        float a = obs_prox_occlusion(&f, &scalar, gp, gs, gt, gb);
-        float b = obs_prox_occlusion(&f, &wide, gp, gs, gt, gb);
-        assert_memory_equal(&a, &b, sizeof a);
-      }
+    obs_prox_recon_init(&wide, 20, mode, 0.95f, 0.8f, 0.8f, 9);
+    assert_null(obs_prox_corners(&f, &scalar, 2));
+    float *corners = obs_prox_corners(&f, &wide, 2);
+    if (wide.isa < 1) { /* below OBS_ISA_AVX2: one path only */
+      assert_null(corners);
+      continue;
     }
+    assert_non_null(corners);
+    for (int t = 0; t < 2000; t++) {
+      float gp[3], gs[3], gt[3], gb[3];
+      for (int k = 0; k < 3; k++) {
+        gp[k] = (float)(obs_test_unit(&seed) * (f.dims[k] + 4) - 2);
+        gs[k] = (float)(obs_test_unit(&seed) - 0.5);
+        gt[k] = (float)(obs_test_unit(&seed) - 0.5);
+        gb[k] = (float)(obs_test_unit(&seed) - 0.5);
+      }
+      float a = obs_prox_occlusion(&f, NULL, &scalar, gp, gs, gt, gb);
+      float b = obs_prox_occlusion(&f, corners, &wide, gp, gs, gt, gb);
+      assert_memory_equal(&a, &b, sizeof a);
+    }
+    free(corners);
   }
   free(f.occupied), free(f.value);
+}
+
+static void test_reconstruction_paths(void **state) {
+  (void)state;
+  reconstruction_paths(17, 12, 9);
+  reconstruction_paths(1, 5, 1);
 }
 
 static const char *const two_balls =
@@ -330,6 +340,33 @@ static const float *channel(const obs_image *img, const char *name) {
   const float *c = obs_image_channel(img, name);
   assert_non_null(c);
   return c;
+}
+
+/* The result's "built" (summary.json's): each of the `n` fields with its dims and bytes, and the CPU walk's
+ * corner copy of each where it reads eight points at a time. */
+static void check_built(const obs_result *res, size_t n) {
+  const json_t *built = res->built;
+  obs_prox_recon r;
+  obs_prox_recon_init(&r, 1, OBS_PROX_THESIS_CODE, 1, 1, 1, 1);
+  size_t per = r.isa >= 1 ? 2 : 1; /* OBS_ISA_AVX2 and above: a copy per field */
+  assert_int_equal(json_array_size(built), n * per);
+  for (size_t i = 0; i < n; i++) {
+    json_t *f = json_array_get(built, i), *d = json_object_get(f, "dims");
+    assert_string_equal(json_string_value(json_object_get(f, "name")), "proximity_field");
+    json_int_t nx = json_integer_value(json_array_get(d, 0)),
+               ny = json_integer_value(json_array_get(d, 1)),
+               nz = json_integer_value(json_array_get(d, 2));
+    assert_true(nx > 0 && ny > 0 && nz > 0);
+    assert_int_equal(json_integer_value(json_object_get(f, "bytes")), 5 * nx * ny * nz);
+    assert_true(json_integer_value(json_object_get(f, "occupied")) > 0);
+    if (per == 1) continue;
+    json_t *c = json_array_get(built, n + i);
+    assert_string_equal(json_string_value(json_object_get(c, "name")), "proximity_corners");
+    assert_int_equal(json_integer_value(json_object_get(c, "object")),
+                     json_integer_value(json_object_get(f, "object")));
+    assert_int_equal(json_integer_value(json_object_get(c, "bytes")),
+                     8 * (nx + 1) * ny * (nz + 1));
+  }
 }
 
 /* Receivers outside every field are open; inside their own, they read one field. */
@@ -353,6 +390,7 @@ static void test_render_outside_fields(void **state) {
     }
     assert_true(covered > 0);
     assert_int_equal(obs_test_check_sane("two balls", res.technique, &res.image), 0);
+    if (self) check_built(&res, 2);
     obs_result_free(&res);
   }
 }

@@ -39,7 +39,8 @@ typedef struct obs_render_opts {
   obs_brick brick;
 } obs_render_opts;
 
-/* The outcome of one render. Owns `image`, `patches` and `frames`; release with obs_result_free. */
+/* The outcome of one render. Owns `image`, `patches`, `frames` and `built`; release with
+ * obs_result_free. */
 typedef struct obs_result {
   const obs_technique *technique;
   obs_backend backend;         /* the backend that ran */
@@ -59,6 +60,7 @@ typedef struct obs_result {
   obs_patches patches[OBS_MAX_PATCH_OUTPUTS]; /* per-patch outputs (obs_render_ctx.patches) */
   int npatches;
   json_t *frames;              /* per-frame figures (obs_render_ctx.frames) or NULL; owned */
+  json_t *built;               /* what was built, with sizes (obs_render_ctx.built); owned */
   int nwarnings;               /* copied from the render context; see obs_render_ctx_warn */
   char warnings[OBS_MAX_WARNINGS][OBS_WARNING_LEN];
 } obs_result;

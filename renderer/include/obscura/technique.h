@@ -135,6 +135,11 @@ typedef struct obs_render_ctx {
   /* A scene with moving objects: what each frame took, one JSON object per frame (the technique
    * says which figures), for summary.json's "frames"; NULL otherwise. The result takes it over. */
   json_t *frames;
+  /* What was built for this render (its needs, and a run's own copies), one object per
+   * structure: its "name", "bytes" and the figures that size it, for summary.json's "built".
+   * The framework creates the array and adds what it builds; a run may append. The result takes
+   * it over. */
+  json_t *built;
   /* Added with obs_render_ctx_warn, from the thread that called the run function only. */
   int nwarnings;
   char warnings[OBS_MAX_WARNINGS][OBS_WARNING_LEN];
