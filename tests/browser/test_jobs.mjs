@@ -219,6 +219,28 @@ test('jobs, job detail and submit pages', async () => {
     assert.equal(frameRows[0][col('speed-up')], '', 'frame 0 is the full map: no speed-up');
     await assertAllNamed(page, 'job with frames');
 
+    // ---- what a render built, with its memory: proximity_ao's fields and their corner copies ------
+    const fielded = await submit(d, {scene_file: 'sphere_on_plane.json', label: 'fields',
+      technique: {name: 'proximity_ao', backend: 'cpu', params: {volume_res: 16, min_res: 8, steps: 6}},
+      set: {'/image/width': 24, '/image/height': 18}});
+    const fj = await waitJob(d, fielded);
+    assert.equal(fj.state, 'succeeded', fj.error);
+    const fields = fj.built.filter((b) => b.name === 'proximity_field');
+    assert.ok(fields.length >= 2, JSON.stringify(fj.built));
+    await page.goto(`${d.url}/#/jobs/${fielded}`);
+    const total = fj.built.reduce((a, b) => a + b.bytes, 0);
+    const size = total < 1024 ? `${total} B` : total < 1 << 20 ? `${(total / 1024).toFixed(1)} KiB` : `${(total / (1 << 20)).toFixed(1)} MiB`;
+    await page.getByRole('heading', {name: `Built (${size})`}).waitFor();
+    const builtRows = await page.$$eval('table.built tbody tr', (trs) => trs.map((tr) => [...tr.children].map((c) => c.textContent)));
+    assert.equal(builtRows.length, fj.built.length);
+    for (const [i, b] of fj.built.entries()) {
+      assert.equal(builtRows[i][0], b.name);
+      if (b.dims) assert.equal(builtRows[i][2], b.dims.join(' × '));
+    }
+    assert.ok((await page.locator('table.timings th', {hasText: /^voxelise \(stage\)$/}).count()) === 1, 'stages named as stages');
+    await assertAllNamed(page, 'job with built structures');
+    await screenshot(page, 'job-built');
+
     // ---- API text is shown as text; the skip link stays on the page; Delete leaves the page --------
     const xss = '<img src=x onerror="window.__pwned=1">';
     const tiny = await submit(d, {scene_file: 'sphere_on_plane.json', label: xss,

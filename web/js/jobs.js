@@ -184,7 +184,24 @@ function timingsSection(t) {
     el('table', {className: 'kv timings'},
       el('thead', {}, el('tr', {}, el('th', {scope: 'col'}, 'Stage'), el('th', {scope: 'col'}, 'ms'))),
       el('tbody', {}, ...rows.map(([k, v, sub]) => el('tr', {className: sub ? 'sub' : ''},
-        el('th', {scope: 'row'}, sub ? `render › ${k}` : k), el('td', {className: 'num'}, fmtMs(v)))))));
+        el('th', {scope: 'row'}, sub ? `${k} (stage)` : k), el('td', {className: 'num'}, fmtMs(v)))))));
+}
+
+// What the render built for the technique, with its memory (summary.json built): one row per
+// structure, the columns any of them has.
+const BUILT_COLUMNS = [['object', 'object'], ['dims', 'voxels'], ['occupied', 'occupied'], ['iterations', 'iterations']];
+function builtSection(built) {
+  const cols = BUILT_COLUMNS.filter(([k]) => built.some((b) => b[k] !== undefined));
+  const text = (k, v) => (v === undefined ? '' : Array.isArray(v) ? v.join(' × ') : String(v));
+  const total = built.reduce((a, b) => a + (Number.isFinite(b.bytes) ? b.bytes : 0), 0);
+  return el('section', {'aria-labelledby': 'h-built'},
+    el('h2', {id: 'h-built'}, `Built (${fmtBytes(total)})`),
+    el('table', {className: 'kv built'},
+      el('thead', {}, el('tr', {}, el('th', {scope: 'col'}, 'structure'), ...cols.map(([, h]) => el('th', {scope: 'col'}, h)),
+        el('th', {scope: 'col'}, 'memory'))),
+      el('tbody', {}, ...built.map((b) => el('tr', {}, el('th', {scope: 'row'}, String(b.name)),
+        ...cols.map(([k]) => el('td', {className: 'num'}, text(k, b[k]))),
+        el('td', {className: 'num'}, Number.isFinite(b.bytes) ? fmtBytes(b.bytes) : ''))))));
 }
 
 // The figures of each frame of a scene with moving objects, as the technique reported them
@@ -301,6 +318,7 @@ export function mountJob(view, [id], query) {
       body.replaceChildren(...[notesSection(j), warningsSection(j), outputsSection(j, await outputFiles()),
         j.timings_ms ? timingsSection(j.timings_ms) : null,
         Array.isArray(j.frames) && j.frames.length ? framesSection(j.frames) : null,
+        Array.isArray(j.built) && j.built.length ? builtSection(j.built) : null,
         j.stats ? statsSection(j, await techniqueOf(j.technique)) : null,
         el('div', {className: 'params-slot'}), el('div', {className: 'metrics-slot'}),
         el('section', {className: 'log-slot', 'aria-labelledby': 'h-log'}, el('h2', {id: 'h-log'}, 'Log'),
