@@ -80,6 +80,61 @@ obs_backend obs_render_brick_backend(const obs_scene *sc) {
   return sc->backend == OBS_BACKEND_AUTO ? OBS_BACKEND_CPU : sc->backend;
 }
 
+/* What obs_render builds for a technique's needs before its run, released after it. */
+typedef struct render_needs {
+  const obs_needs_builder *nb; /* the backend's builder (BVH, ...), or NULL */
+  void *state;                 /* what it built */
+  obs_scene_volumes vols;
+  obs_prox_fields prox;
+  obs_env env;
+} render_needs;
+
+static void needs_release(render_needs *n) {
+  obs_scene_volumes_free(&n->vols);
+  obs_prox_fields_free(&n->prox);
+  obs_env_free(&n->env);
+  if (n->nb) n->nb->release(n->state);
+  n->nb = NULL;
+}
+
+/* Builds what the technique's needs ask, once, for every backend its way, into `n` and the
+ * context (ctx->rt and the like, ctx->volumes, ctx->proximity, ctx->environment; ctx->built
+ * lists what has a size). On failure releases what it built. */
+static int needs_build(obs_render_ctx *ctx, const obs_technique *t, obs_backend be,
+                       const obs_brick *brick, const void *bound, render_needs *n, obs_err *err) {
+  memset(n, 0, sizeof *n);
+  const obs_scene *scene = ctx->scene;
+  n->nb = obs_backend_needs_builder(be);
+  int rc = n->nb ? n->nb->build(ctx, t->needs, &n->state, err) : 0;
+  if (rc) n->nb = NULL;
+  /* Volumes are read the same way for every backend, so here rather than by a backend's builder. */
+  if (!rc && t->needs & OBS_NEED_VOLUME) {
+    double reach = brick && t->volume_reach ? t->volume_reach(bound) : 0;
+    int sides = obs_backend_volume_sides(be);
+    rc = obs_scene_volumes_load_brick(scene, brick, reach, sides, &n->vols, err);
+    if (!rc) ctx->volumes = &n->vols;
+  }
+  if (!rc && t->needs & OBS_NEED_PROXIMITY) {
+    obs_prox_layout lay;
+    t->prox_layout(bound, &lay);
+    const obs_backend_ops *ops = obs_backend_ops_get(be);
+    rc = obs_prox_build(scene, &lay, ctx->threads, ops ? ops->prox_flood : NULL, NULL, &n->prox,
+                        err);
+    if (!rc) {
+      obs_driver_stage_add(ctx, "voxelise", n->prox.voxelise_ms);
+      obs_driver_stage_add(ctx, "flood", n->prox.flood_ms);
+      obs_prox_fields_built(&n->prox, ctx->built);
+      ctx->proximity = &n->prox;
+    }
+  }
+  if (!rc && t->needs & OBS_NEED_ENV_MAP && scene->has_environment) {
+    rc = obs_env_from_scene(scene, &n->env, err);
+    if (!rc) ctx->environment = &n->env;
+  }
+  if (rc) needs_release(n);
+  return rc;
+}
+
 int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *res,
                obs_err *err) {
   memset(res, 0, sizeof *res);
@@ -125,61 +180,17 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
   if (rc) return rc;
   ctx.bound = bound;
   double t0 = obs_now_ms();
-  /* What the technique's needs ask is built once here, before its run, which is handed it. */
-  const obs_needs_builder *nb = obs_backend_needs_builder(be);
-  void *built = NULL;
-  if (nb && (rc = nb->build(&ctx, t->needs, &built, err))) {
+  ctx.built = json_array();
+  render_needs needs;
+  if ((rc = needs_build(&ctx, t, be, brick, bound, &needs, err))) {
+    json_decref(ctx.built);
     free(bound);
     return rc;
   }
-  /* Volumes are read the same way for every backend, so here rather than by a backend's builder. */
-  obs_scene_volumes vols = {0};
-  if (t->needs & OBS_NEED_VOLUME) {
-    double reach = brick && t->volume_reach ? t->volume_reach(bound) : 0;
-    int sides = obs_backend_volume_sides(be);
-    if ((rc = obs_scene_volumes_load_brick(scene, brick, reach, sides, &vols, err))) {
-      if (nb) nb->release(built);
-      free(bound);
-      return rc;
-    }
-    ctx.volumes = &vols;
-  }
-  obs_prox_fields prox = {0};
-  if (t->needs & OBS_NEED_PROXIMITY) {
-    obs_prox_layout lay;
-    t->prox_layout(bound, &lay);
-    const obs_backend_ops *ops = obs_backend_ops_get(be);
-    if ((rc = obs_prox_build(scene, &lay, ctx.threads, ops ? ops->prox_flood : NULL, NULL, &prox,
-                             err))) {
-      obs_scene_volumes_free(&vols);
-      if (nb) nb->release(built);
-      free(bound);
-      return rc;
-    }
-    obs_driver_stage_add(&ctx, "voxelise", prox.voxelise_ms);
-    obs_driver_stage_add(&ctx, "flood", prox.flood_ms);
-    ctx.proximity = &prox;
-  }
-  obs_env env = {0};
-  if (t->needs & OBS_NEED_ENV_MAP && scene->has_environment) {
-    if ((rc = obs_env_from_scene(scene, &env, err))) {
-      obs_prox_fields_free(&prox);
-      obs_scene_volumes_free(&vols);
-      if (nb) nb->release(built);
-      free(bound);
-      return rc;
-    }
-    ctx.environment = &env;
-  }
   warn_ignored(scene, &ctx);
   ctx.build_ms = obs_now_ms() - t0;
-  ctx.built = json_array();
-  if (ctx.proximity) obs_prox_fields_built(&prox, ctx.built);
   if ((rc = obs_driver_cancelled(&ctx, err)) == 0) rc = t->run[be](&ctx, &res->image, err);
-  obs_scene_volumes_free(&vols);
-  obs_prox_fields_free(&prox);
-  obs_env_free(&env);
-  if (nb) nb->release(built);
+  needs_release(&needs);
   free(bound);
   res->npatches = ctx.npatches;
   res->frames = ctx.frames;

@@ -1,6 +1,7 @@
 /* What the CPU backend builds for a technique's `needs` before its run: the Embree BVH for
  * OBS_NEED_BVH, in the frame the technique asks for, handed to the run as ctx->rt. The screen-space
  * drivers build their own G-buffer (renderer/cpu/screen.c). */
+#include <jansson.h>
 #include <stdlib.h>
 
 #include "driver.h"
@@ -20,6 +21,15 @@ static int cpu_build(obs_render_ctx *ctx, unsigned needs, void **state, obs_err 
     return rc;
   }
   obs_driver_stage_add(ctx, "bvh", obs_now_ms() - t0);
+  size_t tris = 0;
+  for (size_t i = 0; i < rt->geo.nmeshes; i++) tris += rt->geo.meshes[i].ntris;
+  /* Embree's memory once built (BVH and its copies of the vertices and indices) and at the
+   * build's peak; our own geometry arrays are not in it. */
+  json_array_append_new(ctx->built,
+                        json_pack("{s:s, s:I, s:I, s:I, s:I}", "name", "bvh", "triangles",
+                                  (json_int_t)tris, "spheres", (json_int_t)rt->geo.nspheres,
+                                  "bytes", (json_int_t)atomic_load(&rt->embree_bytes),
+                                  "peak_bytes", (json_int_t)atomic_load(&rt->embree_peak)));
   ctx->rt = rt;
   *state = rt;
   return 0;

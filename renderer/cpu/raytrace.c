@@ -122,6 +122,16 @@ static void on_embree_error(void *user, enum RTCError code, const char *str) {
   fprintf(stderr, "obscura: embree error %d: %s\n", (int)code, str ? str : "");
 }
 
+static bool on_embree_memory(void *user, ssize_t bytes, bool post) {
+  (void)post;
+  obs_rt *rt = user;
+  long long now = atomic_fetch_add(&rt->embree_bytes, (long long)bytes) + (long long)bytes;
+  long long peak = atomic_load(&rt->embree_peak);
+  while (now > peak && !atomic_compare_exchange_weak(&rt->embree_peak, &peak, now)) {
+  }
+  return true; /* counted, never refused */
+}
+
 void obs_rt_device_config(int threads, char *buf, size_t size) {
   /* Embree's own names of the levels; native leaves Embree its best. */
   const int cap = obs_simd_isa_cap();
@@ -250,6 +260,7 @@ static int build_bvh(obs_rt *rt, int threads, obs_err *err) {
                        (int)rtcGetDeviceError(NULL));
   }
   rtcSetDeviceErrorFunction(rt->device, on_embree_error, NULL);
+  rtcSetDeviceMemoryMonitorFunction(rt->device, on_embree_memory, rt);
   rt->scene = rtcNewScene(rt->device);
   /* Moving meshes are refitted each frame, the rest kept: with a low scene quality Embree builds
    * one BVH per geometry under a top level (each at its geometry's own quality) and rebuilds only

@@ -4,6 +4,7 @@
 #define OBS_RAYTRACE_H
 
 #include <embree3/rtcore.h>
+#include <stdatomic.h>
 #include <math.h>
 
 #include "geometry.h"
@@ -22,6 +23,9 @@ typedef struct obs_rt {
    * slightly grown) in double before Embree sees it in float. */
   int advance;
   double box[2][3];
+  /* Embree's own memory on this device (its memory monitor: BVH, vertex and index copies), now
+   * and at its peak, in bytes; written from Embree's build threads. */
+  atomic_llong embree_bytes, embree_peak;
 } obs_rt;
 
 /* A surface point seen along a ray, with normals faced toward the ray's origin side. */

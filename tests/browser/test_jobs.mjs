@@ -233,9 +233,14 @@ test('jobs, job detail and submit pages', async () => {
     await page.getByRole('heading', {name: `Built (${size})`}).waitFor();
     const builtRows = await page.$$eval('table.built tbody tr', (trs) => trs.map((tr) => [...tr.children].map((c) => c.textContent)));
     assert.equal(builtRows.length, fj.built.length);
+    const builtHeads = await page.$$eval('table.built thead th', (ths) => ths.map((t) => t.textContent));
+    const vox = builtHeads.indexOf('voxels'), tri = builtHeads.indexOf('triangles');
+    assert.ok(vox > 0 && tri > 0, builtHeads.join('|'));
+    assert.equal(fj.built[0].name, 'bvh', 'the camera rays\' BVH first');
     for (const [i, b] of fj.built.entries()) {
       assert.equal(builtRows[i][0], b.name);
-      if (b.dims) assert.equal(builtRows[i][2], b.dims.join(' × '));
+      assert.equal(builtRows[i][vox], b.dims ? b.dims.join(' × ') : '');
+      assert.equal(builtRows[i][tri], b.triangles !== undefined ? String(b.triangles) : '');
     }
     assert.ok((await page.locator('table.timings th', {hasText: /^voxelise \(stage\)$/}).count()) === 1, 'stages named as stages');
     await assertAllNamed(page, 'job with built structures');

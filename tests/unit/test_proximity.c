@@ -349,9 +349,16 @@ static void check_built(const obs_result *res, size_t n) {
   obs_prox_recon r;
   obs_prox_recon_init(&r, 1, OBS_PROX_THESIS_CODE, 1, 1, 1, 1);
   size_t per = r.isa >= 1 ? 2 : 1; /* OBS_ISA_AVX2 and above: a copy per field */
-  assert_int_equal(json_array_size(built), n * per);
+  /* First the BVH of the camera rays (Embree's memory: some, and at least as much at its peak). */
+  assert_int_equal(json_array_size(built), 1 + n * per);
+  json_t *bvh = json_array_get(built, 0);
+  assert_string_equal(json_string_value(json_object_get(bvh, "name")), "bvh");
+  assert_int_equal(json_integer_value(json_object_get(bvh, "spheres")), n);
+  assert_true(json_integer_value(json_object_get(bvh, "bytes")) > 0);
+  assert_true(json_integer_value(json_object_get(bvh, "peak_bytes")) >=
+              json_integer_value(json_object_get(bvh, "bytes")));
   for (size_t i = 0; i < n; i++) {
-    json_t *f = json_array_get(built, i), *d = json_object_get(f, "dims");
+    json_t *f = json_array_get(built, 1 + i), *d = json_object_get(f, "dims");
     assert_string_equal(json_string_value(json_object_get(f, "name")), "proximity_field");
     json_int_t nx = json_integer_value(json_array_get(d, 0)),
                ny = json_integer_value(json_array_get(d, 1)),
@@ -360,7 +367,7 @@ static void check_built(const obs_result *res, size_t n) {
     assert_int_equal(json_integer_value(json_object_get(f, "bytes")), 5 * nx * ny * nz);
     assert_true(json_integer_value(json_object_get(f, "occupied")) > 0);
     if (per == 1) continue;
-    json_t *c = json_array_get(built, n + i);
+    json_t *c = json_array_get(built, 1 + n + i);
     assert_string_equal(json_string_value(json_object_get(c, "name")), "proximity_corners");
     assert_int_equal(json_integer_value(json_object_get(c, "object")),
                      json_integer_value(json_object_get(f, "object")));

@@ -189,10 +189,11 @@ function timingsSection(t) {
 
 // What the render built for the technique, with its memory (summary.json built): one row per
 // structure, the columns any of them has.
-const BUILT_COLUMNS = [['object', 'object'], ['dims', 'voxels'], ['occupied', 'occupied'], ['iterations', 'iterations']];
+const BUILT_COLUMNS = [['object', 'object'], ['triangles', 'triangles'], ['spheres', 'spheres'], ['dims', 'voxels'],
+  ['occupied', 'occupied'], ['iterations', 'iterations'], ['peak_bytes', 'peak memory']];
 function builtSection(built) {
   const cols = BUILT_COLUMNS.filter(([k]) => built.some((b) => b[k] !== undefined));
-  const text = (k, v) => (v === undefined ? '' : Array.isArray(v) ? v.join(' × ') : String(v));
+  const text = (k, v) => (v === undefined ? '' : Array.isArray(v) ? v.join(' × ') : k.endsWith('bytes') ? fmtBytes(v) : String(v));
   const total = built.reduce((a, b) => a + (Number.isFinite(b.bytes) ? b.bytes : 0), 0);
   return el('section', {'aria-labelledby': 'h-built'},
     el('h2', {id: 'h-built'}, `Built (${fmtBytes(total)})`),
