@@ -301,7 +301,6 @@ void obs_prox_recon_init(obs_prox_recon *r, int steps, int mode, float stop_valu
 typedef struct prox_walk {
   const obs_prox_field *f;
   const float *corners;
-  int count; /* inside[] is needed: the corrected walk averages over the points read */
   const obs_prox_recon *r;
   float gp[3], gs[3], gt[3], gb[3];
 #if OBS_SIMD_AVX2
@@ -407,7 +406,7 @@ OBS_AVX2_INLINE void walk_points8(prox_walk *w, int k0) {
   }
   __m256 v = _mm256_add_ps(cz[0], _mm256_mul_ps(_mm256_sub_ps(cz[1], cz[0]), wt[2]));
   _mm256_storeu_ps(w->val + k0, _mm256_and_ps(v, in));
-  if (!w->count) return;
+  if (r->mode == OBS_PROX_THESIS_CODE) return; /* inside[] only for the corrected average */
   /* The lane masks (all ones or zero) narrowed to bytes 1 or 0. */
   __m128i m32 = _mm_packs_epi32(_mm256_castsi256_si128(_mm256_castps_si256(in)),
                                 _mm256_extracti128_si256(_mm256_castps_si256(in), 1));
@@ -491,7 +490,6 @@ float obs_prox_occlusion(const obs_prox_field *f, const float *corners, const ob
   w.f = f;
   w.r = r;
   w.corners = corners;
-  w.count = r->mode != OBS_PROX_THESIS_CODE;
   for (int c = 0; c < 3; c++) w.gp[c] = gp[c], w.gs[c] = gs[c], w.gt[c] = gt[c], w.gb[c] = gb[c];
 #if OBS_SIMD_AVX2
   if (r->isa >= OBS_ISA_AVX2 && corners) return walk_steps8(&w);

@@ -372,6 +372,15 @@ uint32_t obs_vk_validation_messages(const obs_vk *vk) {
   return vk ? atomic_load(&((obs_vk *)vk)->messages) : 0;
 }
 
+int obs_vk_validation_verdict(const obs_vk *vk, int validation, const char *who, const char *what,
+                              obs_err *err) {
+  uint32_t n = validation ? obs_vk_validation_messages(vk) : 0;
+  if (!n) return 0;
+  return obs_err_set(err, OBS_EINTERNAL,
+                     "%s: %s on \"%s\": %u Vulkan validation message(s) (printed above)", who, what,
+                     obs_vk_device_name(vk), n);
+}
+
 static int available;
 static char available_name[256];
 static pthread_once_t available_once = PTHREAD_ONCE_INIT;

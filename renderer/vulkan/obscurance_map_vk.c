@@ -59,11 +59,7 @@ int obs_obscurance_map_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err)
   if (!rc) rc = show(ctx, &m, out, err);
   ctx->render_ms += obs_now_ms() - t1;
   ctx->rays = 0;
-  if (!rc && validation && obs_vk_validation_messages(vk))
-    rc = obs_err_set(err, OBS_EINTERNAL,
-                     "%s: obscurance_map on \"%s\": %u Vulkan validation message(s) (printed "
-                     "above)",
-                     sc->name, obs_vk_device_name(vk), obs_vk_validation_messages(vk));
+  if (!rc) rc = obs_vk_validation_verdict(vk, validation, sc->name, "obscurance_map", err);
   if (!rc && m.unsampled)
     obs_render_ctx_warn(ctx,
                         "%lld of %lld patches received no sample and show \"nothing within "

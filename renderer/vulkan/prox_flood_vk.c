@@ -3,6 +3,7 @@
  * (shaders/prox_flood_xy.comp.glsl, prox_flood_z.comp.glsl) that repeat the CPU's separable sums
  * in its order of float operations. The values are updated in place by the second pass, so the
  * device holds three grids, not the CPU's four. */
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -108,11 +109,11 @@ static int flood_on(obs_vk *vk, int validation, obs_prox_field *f, obs_err *err)
                      f->object, f->count);
   /* Into a copy first, so a failure leaves the field as it was. */
   if (!rc) rc = obs_vk_image_download(vk, d.val, out, err);
-  if (!rc && validation && obs_vk_validation_messages(vk))
-    rc = obs_err_set(err, OBS_EINTERNAL,
-                     "proximity field of object %zu: flood on \"%s\": %u Vulkan validation "
-                     "message(s) (printed above)",
-                     f->object, obs_vk_device_name(vk), obs_vk_validation_messages(vk));
+  if (!rc) {
+    char who[64];
+    snprintf(who, sizeof who, "proximity field of object %zu", f->object);
+    rc = obs_vk_validation_verdict(vk, validation, who, "flood", err);
+  }
   if (!rc) memcpy(f->value, out, f->count * sizeof *out);
   free(out);
   dev_free(vk, &d);

@@ -57,12 +57,7 @@ int obs_screen_vk_run(obs_render_ctx *ctx, const char *technique, obs_screen_vk_
   obs_driver_clear_outside(out, &region);
   ctx->render_ms = obs_now_ms() - t1;
   ctx->rays = 0;
-  /* A render the validation layer complained about is not trusted, whatever it produced. */
-  if (validation && obs_vk_validation_messages(vk))
-    rc = obs_err_set(err, OBS_EINTERNAL,
-                     "%s: %s on \"%s\": %u Vulkan validation message(s) (printed above)",
-                     sc->name, technique, obs_vk_device_name(vk),
-                     obs_vk_validation_messages(vk));
+  rc = obs_vk_validation_verdict(vk, validation, sc->name, technique, err);
   if (!rc) progress(ctx, 1.0);
 done:
   obs_gbuffer_free(&host);

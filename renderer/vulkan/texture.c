@@ -79,22 +79,6 @@ int obs_vk_texture_max_side(const obs_vk *vk, obs_vk_texture_type type) {
   return (int)(m > 65536 ? 65536 : m);
 }
 
-/* A whole-image layout transition (every layer), with a full memory dependency. */
-static void tex_layout(VkCommandBuffer cmd, VkImage image, VkImageLayout from, VkImageLayout to) {
-  VkImageMemoryBarrier ib = {
-      .sType = VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER,
-      .srcAccessMask = VK_ACCESS_MEMORY_WRITE_BIT,
-      .dstAccessMask = VK_ACCESS_MEMORY_READ_BIT | VK_ACCESS_MEMORY_WRITE_BIT,
-      .oldLayout = from,
-      .newLayout = to,
-      .srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED,
-      .dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED,
-      .image = image,
-      .subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, VK_REMAINING_ARRAY_LAYERS}};
-  vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
-                       0, 0, NULL, 0, NULL, 1, &ib);
-}
-
 /* The description checked against the device before anything is allocated. */
 static int check_desc(obs_vk *vk, const obs_vk_texture_desc *d, VkImageCreateInfo *ci,
                       obs_err *err) {
@@ -202,12 +186,13 @@ int obs_vk_texture_create(obs_vk *vk, const obs_vk_texture_desc *d, obs_vk_textu
   if ((rc = make_view(vk, t, err))) goto fail;
   /* Zeroed and in the layout passes read it in, so no pass sees garbage. */
   if ((rc = obs_vk_cmd_begin(vk, "texture create", err))) goto fail;
-  tex_layout(vk->cmd, t->image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL);
+  obs_vk_cmd_layout(vk->cmd, t->image, VK_IMAGE_LAYOUT_UNDEFINED,
+                    VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL);
   VkClearColorValue zero = {{0, 0, 0, 0}};
   VkImageSubresourceRange all = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, VK_REMAINING_ARRAY_LAYERS};
   vkCmdClearColorImage(vk->cmd, t->image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, &zero, 1, &all);
-  tex_layout(vk->cmd, t->image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
-             VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL);
+  obs_vk_cmd_layout(vk->cmd, t->image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                    VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL);
   if ((rc = obs_vk_cmd_submit(vk, what, err))) goto fail;
   *out = t;
   return 0;
@@ -238,12 +223,12 @@ static int upload_slab(obs_vk *vk, obs_vk_texture *t, const int at[3], const int
       .imageExtent = {(uint32_t)size[0], (uint32_t)size[1], is3d ? (uint32_t)nz : 1}};
   int rc = obs_vk_cmd_begin(vk, "texture upload", err);
   if (rc) return rc;
-  tex_layout(vk->cmd, t->image, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL,
-             VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL);
+  obs_vk_cmd_layout(vk->cmd, t->image, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL,
+                    VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL);
   vkCmdCopyBufferToImage(vk->cmd, vk->staging.buffer, t->image,
                          VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &reg);
-  tex_layout(vk->cmd, t->image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
-             VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL);
+  obs_vk_cmd_layout(vk->cmd, t->image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                    VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL);
   char what[128];
   snprintf(what, sizeof what, "upload of %dx%dx%d texels into a texture", size[0], size[1], nz);
   return obs_vk_cmd_submit(vk, what, err);

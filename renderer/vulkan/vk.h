@@ -43,6 +43,10 @@ const char *obs_vk_device_name(const obs_vk *vk);
 uint32_t obs_vk_loop_limit(const obs_vk *vk);
 /* Number of validation-layer messages (warnings and errors) seen so far. */
 uint32_t obs_vk_validation_messages(const obs_vk *vk);
+/* With `validation` on, fails work the layer complained about (its result is not trusted,
+ * whatever it holds): OBS_EINTERNAL naming "<who>: <what> on <device>"; otherwise 0. */
+int obs_vk_validation_verdict(const obs_vk *vk, int validation, const char *who, const char *what,
+                              obs_err *err);
 /* Whether a Vulkan device can be opened here (probed once per process, cached). */
 int obs_vk_available(void);
 /* The name of the device obs_vk_available found (what renders will use), or NULL when none. */

@@ -142,7 +142,8 @@ int obs_vk_cmd_begin(obs_vk *vk, const char *what, obs_err *err);
 int obs_vk_cmd_submit(obs_vk *vk, const char *what, obs_err *err);
 void obs_vk_cmd_abort(obs_vk *vk);
 void obs_vk_cmd_barrier(VkCommandBuffer cmd);
-/* Layout transition of a whole single-level colour image, with a full memory dependency. */
+/* Layout transition of a whole single-level colour image (every array layer), with a full memory
+ * dependency. */
 void obs_vk_cmd_layout(VkCommandBuffer cmd, VkImage image, VkImageLayout from, VkImageLayout to);
 /* Ensures `n` timestamp queries exist (call before obs_vk_cmd_begin) and reads them afterwards as
  * milliseconds between consecutive pairs: ms[i] = t[2i+1] - t[2i]. */

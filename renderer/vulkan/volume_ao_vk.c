@@ -468,11 +468,7 @@ int obs_volume_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   if ((rc = readback(ctx, vk, &jb, &rg, &d, out, err))) goto done;
   obs_driver_stage_add(ctx, "readback", obs_now_ms() - t2);
   ctx->render_ms = obs_now_ms() - t1;
-  /* A render the validation layer complained about is not trusted, whatever it produced. */
-  if (validation && obs_vk_validation_messages(vk))
-    rc = obs_err_set(err, OBS_EINTERNAL,
-                     "%s: volume_ao on \"%s\": %u Vulkan validation message(s) (printed above)",
-                     sc->name, obs_vk_device_name(vk), obs_vk_validation_messages(vk));
+  rc = obs_vk_validation_verdict(vk, validation, sc->name, "volume_ao", err);
   if (!rc) progress(ctx, 1.0);
 done:
   if (vk) dev_free(vk, &d);
