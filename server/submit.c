@@ -91,6 +91,11 @@ json_t *srv_submit_load_bundled(srv_app *app, obs_jpath *p, const json_t *v) {
                     obs_json_prescan_strict(text, len, &lim, name, p->err, NULL)))
         obs_err_set(p->err, OBS_EINVAL, "%s: line %d, column %d: invalid JSON: %s", name, je.line,
                     je.column, je.text);
+      /* Parsed: a number jansson stored as another value (1e-99999 as 0) is refused too. */
+      if (doc && obs_json_prescan_exact(text, len, &lim, name, p->err, NULL)) {
+        json_decref(doc);
+        doc = NULL;
+      }
     }
     free(text);
   }
@@ -153,6 +158,13 @@ unsigned srv_submit_read_body(const char *body, size_t len, const char *shape, j
   if (!req && number_range_error(&je) &&
       obs_json_prescan_strict(body, len, &lim, "request", problems, NULL)) {
     *message = "request has a number outside what a double or a 64-bit integer holds";
+    return 422;
+  }
+  /* Only once it parsed (a syntax error is reported as one): numbers that jansson stored as
+   * another value than the text says, 1e-99999 as 0 or 9007199254740993 as 9007199254740992. */
+  if (req && obs_json_prescan_exact(body, len, &lim, "request", problems, NULL)) {
+    json_decref(req);
+    *message = "request has a number that a double would hold as another value";
     return 422;
   }
   if (!req) {
