@@ -590,6 +590,10 @@ int srv_compare_primary(const char *dir, const char *rdir, obs_response resp, ob
  * reason), or OBS_EINVAL with the problem under `pointer`. */
 int srv_compare_budget_choice(struct srv_app *app, const char *scene, double pixels,
                               double budget_ms, json_t **choice, obs_err *problems);
+/* Binds and listens on --listen/--port (the daemon's first act after its checks, so that a port
+ * in use stops it before it touches the database); sets app->port. */
+int srv_http_bind(struct srv_app *app, obs_err *err);
+/* Serves on the bound socket (binding first if srv_http_bind was not called). */
 int srv_http_start(struct srv_app *app, obs_err *err);
 void srv_http_stop(struct srv_app *app);
 
@@ -645,6 +649,9 @@ typedef struct srv_app {
   int cpu_threads;         /* threads per render */
   int64_t machine_id;      /* machines row of this daemon (CPU model, threads, Vulkan device) */
   int port;                /* the bound port */
+  int listen_fd;           /* the bound socket, until libmicrohttpd takes it (listening) */
+  int listening;
+  int data_lock_fd;        /* flock of the results directory: one daemon per data directory */
   double start_ms;
   struct srv_meshimport *meshimport; /* the contained mesh importer (meshimport.c) */
 } srv_app;
