@@ -405,11 +405,13 @@ static int take_body_budget(http_req *h) {
                              "request body of %llu bytes exceeds the limit max-body = %lld bytes",
                              n, (long long)app->cfg.max_body);
   if (!n) return MHD_YES;
-  if (srv_guard_reserve(app->guard, (int64_t)n + 1))
+  if (srv_guard_reserve(app->guard, (int64_t)n + 1)) {
+    srv_refused("max-inflight-bytes");
     return respond_busy(r,
                         "request bodies in flight would exceed max-inflight-bytes = %lld bytes "
                         "with this one of %llu bytes: try again shortly",
                         (long long)app->cfg.max_inflight, n);
+  }
   h->reserved = (int64_t)n + 1;
   r->body = malloc((size_t)n + 1);
   if (!r->body) return respond_busy(r, "out of memory for a body of %llu bytes", n);
@@ -470,10 +472,12 @@ static int header_checks(http_req *h, const char *version) {
   int busy = srv_guard_headers_done(app->guard, h->guard_ctx, has_body && !r->responded);
   if (r->responded) return ret;
   /* The reserve of connections is for the health check: a monitor must see a busy server as up. */
-  if (busy && r->route != SRV_ROUTE_HEALTH)
+  if (busy && r->route != SRV_ROUTE_HEALTH) {
+    srv_refused("max-connections");
     return respond_busy(r,
                         "every connection up to max-connections = %d is busy: try again shortly",
                         app->cfg.max_connections);
+  }
   ret = check_origin(r);
   if (r->responded) return ret;
   /* Answered before any body is read: a wrong token or an announced oversized body never
@@ -523,13 +527,16 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *c, const cha
   if (*size) {
     size_t n = *size;
     *size = 0;
+    srv_guard_body_progress(app->guard, h->guard_ctx, n);
     return append_body(h, data, n);
   }
   srv_guard_body_done(app->guard, h->guard_ctx);
-  if (h->overloaded)
+  if (h->overloaded) {
+    srv_refused("max-inflight-bytes");
     return respond_busy(r, "request bodies in flight exceed max-inflight-bytes = %lld bytes: "
                         "try again shortly",
                         (long long)app->cfg.max_inflight);
+  }
   if (r->too_big)
     return srv_respond_error(r, 413, NULL,
                              "request body exceeds the limit max-body = %lld bytes",
