@@ -97,6 +97,7 @@ static srv_load job_load(const srv_new_job *j, int64_t extra) {
 /* One queue dimension: its caps and how a problem names it. */
 typedef struct cap {
   const char *what, *unit, *per_client, *total;
+  int whole; /* amounts are counts, shown in full (work is shown to 4 digits) */
   double (*get)(const srv_load *);
   double mine_cap, total_cap;
 } cap;
@@ -104,6 +105,11 @@ typedef struct cap {
 static double get_work(const srv_load *l) { return l->work; }
 static double get_jobs(const srv_load *l) { return l->jobs; }
 static double get_bytes(const srv_load *l) { return l->bytes; }
+
+static void amount(char *buf, size_t n, double v, int whole) {
+  if (whole) snprintf(buf, n, "%.0f", v);
+  else snprintf(buf, n, "%.4g", v);
+}
 
 /* A queue of `work` drains in about this many seconds at the slowest built-in rate (5 s to 1 h):
  * when a client may usefully try again. */
@@ -124,33 +130,41 @@ static unsigned check_caps(srv_app *app, const char *client, const srv_load *add
   }
   const srv_config *c = &app->cfg;
   const cap caps[] = {
-      {"queued work", "", "max-queued-work", "max-queued-work-total", get_work,
+      {"queued work", "", "max-queued-work", "max-queued-work-total", 0, get_work,
        c->max_queued_work, c->max_queued_work_total},
       {"queued jobs (a job on N MPI ranks counts N)", "", "max-queued-jobs",
-       "max-queued-jobs-total", get_jobs, c->max_queued_jobs, c->max_queued_jobs_total},
+       "max-queued-jobs-total", 1, get_jobs, c->max_queued_jobs, c->max_queued_jobs_total},
       {"bytes stored by queued jobs", " bytes", "max-queued-bytes", "max-queued-bytes-total",
-       get_bytes, (double)c->max_queued_bytes, (double)c->max_queued_bytes_total},
+       1, get_bytes, (double)c->max_queued_bytes, (double)c->max_queued_bytes_total},
   };
   int wait = 0;
   for (size_t i = 0; i < sizeof caps / sizeof caps[0]; i++) {
     const cap *k = &caps[i];
     double add = k->get(adding), m = k->get(&mine), t = k->get(&total);
     if (add <= 0) continue;
+    char sum[32], held[32], more[32], limit[32];
+    amount(more, sizeof more, add, k->whole);
     if (m + add > k->mine_cap) {
+      amount(sum, sizeof sum, m + add, k->whole);
+      amount(held, sizeof held, m, k->whole);
+      amount(limit, sizeof limit, k->mine_cap, k->whole);
       obs_err_set(problems, OBS_EINVAL,
-                  "%s of client %s would be %.4g%s (%.4g queued or running + %.4g in this "
-                  "request), over the server's limit %s = %.4g per client",
-                  k->what, client, m + add, k->unit, m, add, k->per_client, k->mine_cap);
+                  "%s of client %s would be %s%s (%s queued or running + %s in this request), "
+                  "over the server's limit %s = %s per client",
+                  k->what, client, sum, k->unit, held, more, k->per_client, limit);
       /* Work: roughly when enough of it will have rendered; otherwise the client's queue. */
       int s = drain_seconds(i == 0 ? fmin(m + add - k->mine_cap, add) : mine.work);
       if (s > wait) wait = s;
       srv_refused(k->per_client);
     }
     if (t + add > k->total_cap) {
+      amount(sum, sizeof sum, t + add, k->whole);
+      amount(held, sizeof held, t, k->whole);
+      amount(limit, sizeof limit, k->total_cap, k->whole);
       obs_err_set(problems, OBS_EINVAL,
-                  "%s of all clients would be %.4g%s (%.4g queued or running + %.4g in this "
-                  "request), over the server's limit %s = %.4g",
-                  k->what, t + add, k->unit, t, add, k->total, k->total_cap);
+                  "%s of all clients would be %s%s (%s queued or running + %s in this request), "
+                  "over the server's limit %s = %s",
+                  k->what, sum, k->unit, held, more, k->total, limit);
       int s = drain_seconds(i == 0 ? fmin(t + add - k->total_cap, add) : total.work);
       if (s > wait) wait = s;
       srv_refused(k->total);
