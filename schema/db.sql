@@ -129,3 +129,10 @@ ALTER TABLE comparisons ADD COLUMN notes TEXT;
 -- migration 7
 -- Open MPI ranks a job renders on (obscurad --mpirun; docs/mpi.md): 1 renders in the daemon.
 ALTER TABLE jobs ADD COLUMN ranks INTEGER NOT NULL DEFAULT 1 CHECK (ranks BETWEEN 1 AND 256);
+
+-- migration 8
+-- The bytes a job stores while it waits: its document and texts, its candidate row, and for a
+-- comparison's first reference the comparison's request. Queued bytes are bounded per client and
+-- in total (--max-queued-bytes); jobs that had finished before no longer count and stay 0.
+ALTER TABLE jobs ADD COLUMN stored_bytes INTEGER NOT NULL DEFAULT 0;
+UPDATE jobs SET stored_bytes = length(CAST(doc AS BLOB)) WHERE state IN ('queued', 'running');

@@ -426,21 +426,28 @@ static int delete_job(srv_req *r, int64_t id) {
   return srv_respond(r, MHD_HTTP_NO_CONTENT, resp);
 }
 
+/* A retry queues the job's work again, so it passes the same admission as a submission. */
 static int retry_job(srv_req *r, int64_t id) {
   obs_err err = OBS_ERR_INIT;
   srv_state st = SRV_QUEUED;
-  int rc = srv_db_retry(r->app->db, id, &st, &err);
-  if (rc == OBS_ENOTFOUND) {
+  int retry = 0;
+  unsigned status = srv_admit_retry(r->app, r->client, id, &st, &retry, &err);
+  if (status == 404) {
     obs_err_free(&err);
     return not_found_job(r, id);
   }
-  if (rc == OBS_EINVAL) {
+  if (status == 409) {
     obs_err_free(&err);
     return srv_respond_error(r, MHD_HTTP_CONFLICT, NULL,
                              "job %lld is %s: only failed or cancelled jobs can be retried",
                              (long long)id, srv_state_name(st));
   }
-  if (rc) return srv_respond_unavailable(r, &err);
+  if (status == 429) {
+    int rc = srv_respond_too_busy(r, retry, &err);
+    obs_err_free(&err);
+    return rc;
+  }
+  if (status) return srv_respond_unavailable(r, &err);
   srv_job_log(r->app, id, "retried by request -> queued");
   srv_sched_notify(r->app);
   return get_job(r, id, MHD_HTTP_ACCEPTED);
@@ -660,6 +667,13 @@ static int health(srv_req *r) {
   json_object_set_new(o, "recent_faults", recent ? recent : json_array());
   json_object_set_new(o, "lanes_paused", json_boolean(level > 0 && srv_fault_any()));
   json_object_set_new(o, "paused", json_integer(srv_sched_paused(app)));
+  /* Refusing work for want of room is degraded service, even with every fault clear. */
+  int refusing = 0;
+  json_t *capacity = srv_refusals_json(&refusing);
+  json_object_set_new(capacity, "inflight_bytes", json_integer(srv_guard_inflight(app->guard)));
+  json_object_set_new(capacity, "max_inflight_bytes", json_integer(app->cfg.max_inflight));
+  json_object_set_new(o, "capacity", capacity);
+  if (refusing && level < 1) json_object_set_new(o, "status", json_string(names[1]));
   return srv_respond_json(r, rc || level == 2 ? MHD_HTTP_SERVICE_UNAVAILABLE : MHD_HTTP_OK, o);
 }
 

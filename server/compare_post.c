@@ -161,7 +161,7 @@ static void validate_candidate(srv_app *app, cmp_req *q, cand *c, expansion *x,
     remap_problems(&e, q->docname, c, "", problems, dropped);
     goto out;
   }
-  srv_submit_check_limits(app, &sc, &e);
+  srv_submit_check_limits(app, &sc, 1, &e);
   if (e.count) {
     remap_problems(&e, q->docname, c, "", problems, dropped);
     goto out;
@@ -199,7 +199,7 @@ static void validate_candidate(srv_app *app, cmp_req *q, cand *c, expansion *x,
   memset(&rs, 0, sizeof rs);
   char *rtext = NULL;
   obs_err re = OBS_ERR_INIT;
-  if (!load_doc(app, rdoc, q->docname, &rs, &rtext, &re)) srv_submit_check_limits(app, &rs, &re);
+  if (!load_doc(app, rdoc, q->docname, &rs, &rtext, &re)) srv_submit_check_limits(app, &rs, 1, &re);
   json_decref(rdoc);
   if (re.count) {
     /* The reference inherits its definition from the candidate: say which candidate. */
@@ -262,6 +262,20 @@ out:
   obs_scene_free(&sc);
   obs_err_free(&e);
   json_decref(doc);
+}
+
+/* A comparison's jobs (candidates and references) within --max-comparison-jobs: each is a queued
+ * row with its own copy of the scene, and a request of a few kilobytes can ask for hundreds. */
+static int too_many_jobs(srv_app *app, obs_jpath *p, int ncandidates, int njobs) {
+  if (njobs <= app->cfg.max_comparison_jobs) return 0;
+  size_t m = obs_jpath_push_key(p, "candidates");
+  obs_jpath_fail(p,
+                 "%d candidates and their references make %s%d jobs; this server takes at most "
+                 "max-comparison-jobs = %d per comparison (use fewer candidates)",
+                 ncandidates, njobs == ncandidates + 1 ? "at least " : "", njobs,
+                 app->cfg.max_comparison_jobs);
+  obs_jpath_pop(p, m);
+  return 1;
 }
 
 /* Parses and validates the request; fills `x` with every candidate and reference. Returns 0 or
@@ -357,6 +371,9 @@ static unsigned parse_request(srv_app *app, const char *body, size_t len, cmp_re
   }
   if (cands) srv_compare_expand(app, &p, cands, x);
   if (problems->count) return 422;
+  /* Before validating hundreds of combinations: every candidate is a job, and at least one
+   * reference is another. */
+  if (too_many_jobs(app, &p, x->n, x->n + 1)) return 422;
   /* Each candidate's document (and its reference's) is the scene plus its parameters. */
   double copies = 2.0 * x->n * (double)obs_json_count_values(q->base, OBS_JSON_MAX_DEPTH);
   for (int i = 0; i < x->n && copies <= MAX_EXPANDED_VALUES; i++)
@@ -380,6 +397,7 @@ static unsigned parse_request(srv_app *app, const char *body, size_t len, cmp_re
     validate_candidate(app, q, &x->c[i], x, &facts, problems, &dropped);
   if (dropped) obs_err_set(problems, OBS_EINVAL, "request: ... and %d more problems", dropped);
   if (problems->count) return 422;
+  if (too_many_jobs(app, &p, x->n, x->n + x->nrefs)) return 422;
   return 0;
 }
 

@@ -70,6 +70,11 @@ static const opt opts[] = {
      "connections of one client address still sending headers; its oldest close (default 32)"},
     {"max-inflight-bytes", OPT_SIZE, OFF(max_inflight), 1024, 1024.0 * 1024 * 1024 * 1024,
      "request-body bytes buffered across all connections; more get 503 (default 64M)"},
+    {"body-timeout", OPT_INT, OFF(body_timeout), 1, 3600,
+     "seconds a request body has, beyond one second per --min-body-rate bytes received, from "
+     "the end of its headers; a slower upload is ended (default 10)"},
+    {"min-body-rate", OPT_SIZE, OFF(min_body_rate), 1, 1024.0 * 1024 * 1024,
+     "bytes per second an upload must average beyond --body-timeout (default 64K)"},
     {"mesh-importer", OPT_STR, OFF(mesh_importer), 0, 0,
      "the mesh-import worker program (default: obscura-import next to obscurad)"},
     {"mesh-import-seconds", OPT_INT, OFF(mesh_import_seconds), 1, 3600,
@@ -82,6 +87,22 @@ static const opt opts[] = {
      "per client: limit on the work of its queued and running jobs (default 5e10)"},
     {"max-queued-work-total", OPT_REAL, OFF(max_queued_work_total), 1, 1e21,
      "limit on the work of all queued and running jobs (default 2e11)"},
+    {"max-queued-jobs", OPT_INT, OFF(max_queued_jobs), 1, 1e8,
+     "per client: limit on its queued and running jobs, a job on N MPI ranks counting N "
+     "(default 500)"},
+    {"max-queued-jobs-total", OPT_INT, OFF(max_queued_jobs_total), 1, 1e8,
+     "limit on all queued and running jobs, counted as for --max-queued-jobs (default 2000)"},
+    {"max-queued-bytes", OPT_SIZE, OFF(max_queued_bytes), 1024, 1024.0 * 1024 * 1024 * 1024,
+     "per client: limit on the bytes its queued and running jobs store (documents, comparison "
+     "requests; default 64M)"},
+    {"max-queued-bytes-total", OPT_SIZE, OFF(max_queued_bytes_total), 1024,
+     1024.0 * 1024 * 1024 * 1024,
+     "limit on the bytes all queued and running jobs store (default 256M)"},
+    {"max-comparison-jobs", OPT_INT, OFF(max_comparison_jobs), 2, 4096,
+     "jobs one comparison may create, references and candidates (default 128)"},
+    {"output-space-retries", OPT_INT, OFF(output_space_retries), 0, 20,
+     "a job whose outputs do not fit the results disk (while smaller files do) is retried this "
+     "often, waiting 1, 2, 4 ... s, then fails (default 5)"},
     {"estimate-render-time", OPT_BOOL, OFF(estimate_render_time), 0, 1,
      "refuse at submission a job estimated to outlast --max-render-seconds (default true)"},
     {"mpirun", OPT_STR, OFF(mpirun), 0, 0,
@@ -253,6 +274,14 @@ int srv_config_parse(srv_config *cfg, int argc, char **argv) {
   cfg->mesh_cache_bytes = 256LL * 1024 * 1024;
   cfg->max_queued_work = 5e10;
   cfg->max_queued_work_total = 2e11;
+  cfg->max_queued_jobs = 500;
+  cfg->max_queued_jobs_total = 2000;
+  cfg->max_queued_bytes = 64LL * 1024 * 1024;
+  cfg->max_queued_bytes_total = 256LL * 1024 * 1024;
+  cfg->max_comparison_jobs = 128;
+  cfg->output_space_retries = 5;
+  cfg->body_timeout = 10;
+  cfg->min_body_rate = 64 * 1024;
   cfg->estimate_render_time = 1;
   /* The config file first, wherever --config stands, so the command line always wins. */
   for (int i = 1; i < argc; i++) {

@@ -35,11 +35,12 @@ int srv_db_insert_comparison(srv_db *db, const srv_new_comparison *cmp, int64_t 
   }
   /* References first, so a scheduler taking jobs in id order renders a shared reference early. */
   for (int i = 0; !rc && i < cmp->nreferences; i++)
-    rc = srv_dbi_insert_job(c, &cmp->references[i], &ref_ids[i], err);
+    rc = srv_dbi_insert_job(c, &cmp->references[i], i ? 0 : srv_comparison_stored_bytes(cmp),
+                            &ref_ids[i], err);
   for (int i = 0; !rc && i < cmp->ncandidates; i++) {
     const srv_new_candidate *cd = &cmp->candidates[i];
     int64_t job = 0;
-    rc = srv_dbi_insert_job(c, &cd->job, &job, err);
+    rc = srv_dbi_insert_job(c, &cd->job, srv_candidate_row_bytes(cd), &job, err);
     if (rc) break;
     s = srv_dbi_stmt(c, ST_CAND_INSERT, err);
     if (!s) {

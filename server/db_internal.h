@@ -120,7 +120,9 @@ int srv_dbi_vacuum_into(conn *c, const char *target, obs_err *err);
  * corrupt): accepting a job that a restart would not find is losing it. */
 int srv_dbi_refused(srv_db *db, obs_err *err);
 /* Inserts one job row on `c` (in autocommit or the caller's transaction). */
-int srv_dbi_insert_job(conn *c, const srv_new_job *nj, int64_t *id, obs_err *err);
+/* `extra`: bytes stored for the job beside its row (its candidate row; a comparison's row with
+ * its first reference), added to its stored_bytes. */
+int srv_dbi_insert_job(conn *c, const srv_new_job *nj, int64_t extra, int64_t *id, obs_err *err);
 /* Inserts or replaces output rows of job `id` (statement `which`: ST_OUT_INSERT or UPSERT). */
 int srv_dbi_put_outputs(conn *c, int which, int64_t id, const srv_output *outs, int nouts,
                         obs_err *err);

@@ -91,7 +91,8 @@ static int read_outputs(conn *c, srv_job *j, obs_err *err) {
 
 /* ---- jobs ------------------------------------------------------------------------------------ */
 
-int srv_dbi_insert_job(conn *c, const srv_new_job *nj, int64_t *id, obs_err *err) {
+int srv_dbi_insert_job(conn *c, const srv_new_job *nj, int64_t extra, int64_t *id,
+                       obs_err *err) {
   sqlite3_stmt *s = srv_dbi_stmt(c, ST_INSERT, err);
   if (!s) return OBS_EIO;
   sqlite3_bind_int(s, 1, nj->priority);
@@ -113,6 +114,7 @@ int srv_dbi_insert_job(conn *c, const srv_new_job *nj, int64_t *id, obs_err *err
   srv_dbi_bind_text(s, 16, nj->scene_name);
   srv_dbi_bind_text(s, 17, nj->notes);
   sqlite3_bind_int(s, 18, nj->ranks > 1 ? nj->ranks : 1);
+  sqlite3_bind_int64(s, 19, srv_job_stored_bytes(nj) + extra);
   int rc = srv_dbi_exec_done(c, s, err, "inserting the job");
   if (!rc) *id = sqlite3_last_insert_rowid(c->db);
   return rc;
@@ -122,7 +124,7 @@ int srv_db_insert_job(srv_db *db, const srv_new_job *nj, int64_t *id, obs_err *e
   if (srv_dbi_refused(db, err)) return OBS_ETRANSIENT;
   conn *c = srv_dbi_acquire(db);
   /* Autocommit: when the step returned DONE the row is committed to the WAL. */
-  int rc = srv_dbi_insert_job(c, nj, id, err);
+  int rc = srv_dbi_insert_job(c, nj, 0, id, err);
   srv_dbi_release(db, c);
   return rc;
 }

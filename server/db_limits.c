@@ -1,5 +1,5 @@
-/* The database queries behind the admission limits (limits.c): queued work per client and in
- * total, the client of a job, and stored run rates. Prepared per call rather than kept with the
+/* The database queries behind the admission limits (limits.c): the queue's work, jobs and stored
+ * bytes per client and in total, what one job adds, the client of a job, and stored run rates. Prepared per call rather than kept with the
  * pool's statements: they run once per submission. */
 #include <errno.h>
 #include <fcntl.h>
@@ -21,23 +21,59 @@ static int prepare(conn *c, const char *q, sqlite3_stmt **s, obs_err *err) {
   return 0;
 }
 
-int srv_db_queued_work(srv_db *db, const char *client, double *mine, double *total,
-                       obs_err *err) {
-  *mine = *total = 0;
+int srv_db_queued(srv_db *db, const char *client, srv_load *mine, srv_load *total,
+                  obs_err *err) {
+  memset(mine, 0, sizeof *mine);
+  memset(total, 0, sizeof *total);
   conn *c = srv_dbi_acquire(db);
   sqlite3_stmt *s;
+  /* Work times renders, renderer processes (a job on N ranks starts N), stored bytes. */
   int rc = prepare(c,
                    "SELECT coalesce(sum(coalesce(work, 0) * (repeats + warmup)), 0), "
+                   "coalesce(sum(ranks), 0), coalesce(sum(stored_bytes), 0), "
                    "coalesce(sum(CASE WHEN client = ?1 THEN coalesce(work, 0) * (repeats + warmup) "
-                   "END), 0) FROM jobs WHERE state IN ('queued', 'running')",
+                   "END), 0), coalesce(sum(CASE WHEN client = ?1 THEN ranks END), 0), "
+                   "coalesce(sum(CASE WHEN client = ?1 THEN stored_bytes END), 0) "
+                   "FROM jobs WHERE state IN ('queued', 'running')",
                    &s, err);
   if (!rc) {
     srv_dbi_bind_text(s, 1, client);
     if (sqlite3_step(s) == SQLITE_ROW) {
-      *total = sqlite3_column_double(s, 0);
-      *mine = sqlite3_column_double(s, 1);
+      total->work = sqlite3_column_double(s, 0);
+      total->jobs = sqlite3_column_double(s, 1);
+      total->bytes = sqlite3_column_double(s, 2);
+      mine->work = sqlite3_column_double(s, 3);
+      mine->jobs = sqlite3_column_double(s, 4);
+      mine->bytes = sqlite3_column_double(s, 5);
     } else {
-      rc = srv_dbi_fail(c, err, "summing queued work");
+      rc = srv_dbi_fail(c, err, "summing the queue");
+    }
+    sqlite3_finalize(s);
+  }
+  srv_dbi_release(db, c);
+  return rc;
+}
+
+int srv_db_job_load(srv_db *db, int64_t id, srv_load *load, srv_state *state, obs_err *err) {
+  memset(load, 0, sizeof *load);
+  conn *c = srv_dbi_acquire(db);
+  sqlite3_stmt *s;
+  int rc = prepare(c,
+                   "SELECT coalesce(work, 0) * (repeats + warmup), ranks, stored_bytes, state "
+                   "FROM jobs WHERE id = ?1",
+                   &s, err);
+  if (!rc) {
+    sqlite3_bind_int64(s, 1, id);
+    int step = sqlite3_step(s);
+    if (step == SQLITE_ROW) {
+      load->work = sqlite3_column_double(s, 0);
+      load->jobs = sqlite3_column_double(s, 1);
+      load->bytes = sqlite3_column_double(s, 2);
+      if (srv_state_parse((const char *)sqlite3_column_text(s, 3), state)) *state = SRV_FAILED;
+    } else if (step == SQLITE_DONE) {
+      rc = OBS_ENOTFOUND;
+    } else {
+      rc = srv_dbi_fail(c, err, "reading the job");
     }
     sqlite3_finalize(s);
   }

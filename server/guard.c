@@ -2,7 +2,7 @@
  * their request headers and since when, and closes them when they take too long in all (not per
  * byte), when one client address holds too many of them, or when the pool nears its limit, so a
  * client that sends a complete request promptly always gets in. It also bounds the request-body
- * bytes held in memory across all connections. */
+ * bytes held in memory across all connections, and the time an upload may take to send them. */
 #include <arpa/inet.h>
 #include <errno.h>
 #include <netinet/in.h>
@@ -38,6 +38,7 @@ typedef struct gconn {
   int closing;   /* shut down here; libmicrohttpd closes it and then reports it closed */
   double since;  /* when it began waiting (accept, or the end of its previous request) or
                     uploading */
+  int64_t received; /* body bytes of the request being uploaded */
 } gconn;
 
 struct peer {
@@ -60,8 +61,9 @@ struct srv_guard {
   int soft_limit, per_address;
   int64_t max_inflight;
   _Atomic int64_t inflight;
+  double body_timeout_ms, min_body_rate; /* an upload's time: timeout + received / rate */
   /* Closed connections by reason, and what the last log line reported. */
-  unsigned long long timed_out, over_quota, for_room, logged;
+  unsigned long long timed_out, over_quota, for_room, too_slow, logged;
   double last_log;
 };
 
@@ -206,10 +208,19 @@ int srv_guard_headers_done(srv_guard *g, void *ctx, int has_body) {
   if (c->waiting && !c->closing) c->peer->waiting--;
   c->waiting = 0;
   c->uploading = has_body;
+  c->received = 0;
   c->since = obs_now_ms();
   int busy = !c->closing && make_room(g, c, NULL, obs_now_ms());
   pthread_mutex_unlock(&g->mu);
   return busy;
+}
+
+void srv_guard_body_progress(srv_guard *g, void *ctx, size_t n) {
+  gconn *c = ctx;
+  if (!g || !c) return;
+  pthread_mutex_lock(&g->mu);
+  c->received += (int64_t)n;
+  pthread_mutex_unlock(&g->mu);
 }
 
 void srv_guard_body_done(srv_guard *g, void *ctx) {
@@ -268,25 +279,37 @@ void srv_guard_release(srv_guard *g, int64_t bytes) {
   if (g && bytes) atomic_fetch_sub(&g->inflight, bytes);
 }
 
-/* One pass of the reaper: the header time as a whole, then quotas that grew while connections
- * were young. Returns what to log (a line, or ""). */
+int64_t srv_guard_inflight(srv_guard *g) { return g ? atomic_load(&g->inflight) : 0; }
+
+/* One pass of the reaper: the header time as a whole, the pace of uploads, then quotas that grew
+ * while connections were young. Returns what to log (a line, or ""). An upload has
+ * --body-timeout plus one second per --min-body-rate bytes received, from the end of its headers:
+ * a client trickling a byte now and then would otherwise hold its share of the in-flight budget
+ * (the whole announced length) for as long as it likes, and four such held all of it. */
 static void reap(srv_guard *g, char *line, size_t n) {
   double now = obs_now_ms();
   line[0] = '\0';
-  for (gconn *c = g->head; c; c = c->next)
-    if (c->waiting && !c->closing && now - c->since > g->header_timeout_ms)
+  for (gconn *c = g->head; c; c = c->next) {
+    if (c->closing) continue;
+    if (c->waiting && now - c->since > g->header_timeout_ms) {
       evict(g, c, &g->timed_out);
+    } else if (c->uploading && now - c->since > g->body_timeout_ms +
+                                                    1e3 * (double)c->received / g->min_body_rate) {
+      evict(g, c, &g->too_slow);
+      srv_refused("min-body-rate");
+    }
+  }
   for (int b = 0; b < BUCKETS; b++)
     for (peer *p = g->buckets[b]; p; p = p->next)
       if (p->waiting > g->per_address) make_room(g, NULL, p, now);
   make_room(g, NULL, NULL, now);
-  unsigned long long total = g->timed_out + g->over_quota + g->for_room;
+  unsigned long long total = g->timed_out + g->over_quota + g->for_room + g->too_slow;
   if (total != g->logged && now - g->last_log >= LOG_PERIOD_MS) {
     snprintf(line, n,
-             "http: %llu connection(s) closed so far before completing their request headers: "
-             "%llu after header-timeout, %llu over max-pending-per-address, %llu to keep room "
-             "in max-connections",
-             total, g->timed_out, g->over_quota, g->for_room);
+             "http: %llu connection(s) closed so far before completing their request: %llu "
+             "after header-timeout, %llu over max-pending-per-address, %llu to keep room in "
+             "max-connections, %llu uploading slower than body-timeout and min-body-rate allow",
+             total, g->timed_out, g->over_quota, g->for_room, g->too_slow);
     g->logged = total;
     g->last_log = now;
   }
@@ -346,6 +369,8 @@ int srv_guard_create(const srv_config *cfg, srv_guard **out, obs_err *err) {
   g->soft_limit = cfg->max_connections - srv_guard_reserve_slots(cfg->max_connections);
   g->per_address = cfg->max_pending_per_address;
   g->max_inflight = cfg->max_inflight;
+  g->body_timeout_ms = cfg->body_timeout * 1e3;
+  g->min_body_rate = (double)cfg->min_body_rate;
   g->last_log = -LOG_PERIOD_MS;
   atomic_init(&g->inflight, 0);
   pthread_condattr_t ca;

@@ -4,6 +4,7 @@
  * and one log line plus one metrics count per request. Connection-level limits live in guard.c. */
 #include <arpa/inet.h>
 #include <ctype.h>
+#include <errno.h>
 #include <microhttpd.h>
 #include <netinet/in.h>
 #include <openssl/crypto.h>
@@ -13,6 +14,7 @@
 #include <string.h>
 #include <strings.h>
 #include <sys/socket.h>
+#include <unistd.h>
 
 #include "obscurad.h"
 
@@ -403,11 +405,13 @@ static int take_body_budget(http_req *h) {
                              "request body of %llu bytes exceeds the limit max-body = %lld bytes",
                              n, (long long)app->cfg.max_body);
   if (!n) return MHD_YES;
-  if (srv_guard_reserve(app->guard, (int64_t)n + 1))
+  if (srv_guard_reserve(app->guard, (int64_t)n + 1)) {
+    srv_refused("max-inflight-bytes");
     return respond_busy(r,
                         "request bodies in flight would exceed max-inflight-bytes = %lld bytes "
                         "with this one of %llu bytes: try again shortly",
                         (long long)app->cfg.max_inflight, n);
+  }
   h->reserved = (int64_t)n + 1;
   r->body = malloc((size_t)n + 1);
   if (!r->body) return respond_busy(r, "out of memory for a body of %llu bytes", n);
@@ -468,10 +472,12 @@ static int header_checks(http_req *h, const char *version) {
   int busy = srv_guard_headers_done(app->guard, h->guard_ctx, has_body && !r->responded);
   if (r->responded) return ret;
   /* The reserve of connections is for the health check: a monitor must see a busy server as up. */
-  if (busy && r->route != SRV_ROUTE_HEALTH)
+  if (busy && r->route != SRV_ROUTE_HEALTH) {
+    srv_refused("max-connections");
     return respond_busy(r,
                         "every connection up to max-connections = %d is busy: try again shortly",
                         app->cfg.max_connections);
+  }
   ret = check_origin(r);
   if (r->responded) return ret;
   /* Answered before any body is read: a wrong token or an announced oversized body never
@@ -521,13 +527,16 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *c, const cha
   if (*size) {
     size_t n = *size;
     *size = 0;
+    srv_guard_body_progress(app->guard, h->guard_ctx, n);
     return append_body(h, data, n);
   }
   srv_guard_body_done(app->guard, h->guard_ctx);
-  if (h->overloaded)
+  if (h->overloaded) {
+    srv_refused("max-inflight-bytes");
     return respond_busy(r, "request bodies in flight exceed max-inflight-bytes = %lld bytes: "
                         "try again shortly",
                         (long long)app->cfg.max_inflight);
+  }
   if (r->too_big)
     return srv_respond_error(r, 413, NULL,
                              "request body exceeds the limit max-body = %lld bytes",
@@ -604,49 +613,87 @@ static void on_mhd_log(void *cls, const char *fmt, va_list ap) {
   srv_log("http: %s", msg);
 }
 
-int srv_http_start(srv_app *app, obs_err *err) {
+/* The listening socket, bound before anything else of the daemon starts: a port another process
+ * listens on is refused here, with its reason, before the database is opened (whose recovery
+ * would requeue another daemon's running jobs). SO_REUSEADDR lets a restart bind while the last
+ * run's connections linger in TIME_WAIT; SO_REUSEPORT is never set, since with it a second daemon
+ * would bind the same port and the kernel would share the connections between the two. */
+int srv_http_bind(srv_app *app, obs_err *err) {
   struct sockaddr_storage ss;
   memset(&ss, 0, sizeof ss);
-  unsigned flags = MHD_USE_INTERNAL_POLLING_THREAD | MHD_USE_ERROR_LOG;
-  if (MHD_is_feature_supported(MHD_FEATURE_EPOLL) == MHD_YES) flags |= MHD_USE_EPOLL;
   const char *host = app->cfg.listen;
   if (!strcmp(host, "localhost")) host = "127.0.0.1";
   struct sockaddr_in *v4 = (struct sockaddr_in *)&ss;
   struct sockaddr_in6 *v6 = (struct sockaddr_in6 *)&ss;
+  socklen_t len;
   if (inet_pton(AF_INET, host, &v4->sin_addr) == 1) {
     v4->sin_family = AF_INET;
     v4->sin_port = htons((uint16_t)app->cfg.port);
+    len = sizeof *v4;
   } else if (inet_pton(AF_INET6, host, &v6->sin6_addr) == 1) {
     v6->sin6_family = AF_INET6;
     v6->sin6_port = htons((uint16_t)app->cfg.port);
-    flags |= MHD_USE_IPv6;
+    len = sizeof *v6;
   } else {
     return obs_err_set(err, OBS_EINVAL, "--listen: not an IPv4 or IPv6 address (got \"%s\")",
                        app->cfg.listen);
   }
+  int fd = socket(ss.ss_family, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return obs_err_set(err, OBS_EIO, "cannot create a socket: %s", strerror(errno));
+  int one = 1;
+  setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+  if (ss.ss_family == AF_INET6) setsockopt(fd, IPPROTO_IPV6, IPV6_V6ONLY, &one, sizeof one);
+  if (bind(fd, (struct sockaddr *)&ss, len) || listen(fd, SOMAXCONN)) {
+    int e = errno;
+    close(fd);
+    return obs_err_set(err, OBS_EIO, "cannot listen on %s port %d: %s%s", app->cfg.listen,
+                       app->cfg.port, strerror(e),
+                       e == EADDRINUSE ? " (another obscurad or another program listens there: "
+                                         "stop it or choose another --port)"
+                       : e == EACCES   ? " (ports below 1024 need privileges)"
+                       : e == EADDRNOTAVAIL ? " (no interface of this machine has that address)"
+                                            : "");
+  }
+  struct sockaddr_storage got;
+  socklen_t gl = sizeof got;
+  app->port = app->cfg.port;
+  if (!getsockname(fd, (struct sockaddr *)&got, &gl))
+    app->port = ntohs(got.ss_family == AF_INET6 ? ((struct sockaddr_in6 *)&got)->sin6_port
+                                                : ((struct sockaddr_in *)&got)->sin_port);
+  app->listen_fd = fd;
+  app->listening = 1;
+  return 0;
+}
+
+int srv_http_start(srv_app *app, obs_err *err) {
+  unsigned flags = MHD_USE_INTERNAL_POLLING_THREAD | MHD_USE_ERROR_LOG;
+  if (MHD_is_feature_supported(MHD_FEATURE_EPOLL) == MHD_YES) flags |= MHD_USE_EPOLL;
+  if (!app->listening && srv_http_bind(app, err)) return OBS_EIO;
+  if (strchr(app->cfg.listen, ':')) flags |= MHD_USE_IPv6;
   if (srv_guard_create(&app->cfg, &app->guard, err)) return OBS_EIO;
   app->mhd = MHD_start_daemon(
-      flags, (uint16_t)app->cfg.port, NULL, NULL, on_request, app, MHD_OPTION_EXTERNAL_LOGGER,
-      on_mhd_log, NULL, MHD_OPTION_SOCK_ADDR, (struct sockaddr *)&ss, MHD_OPTION_THREAD_POOL_SIZE,
+      flags, 0, NULL, NULL, on_request, app, MHD_OPTION_EXTERNAL_LOGGER, on_mhd_log, NULL,
+      MHD_OPTION_LISTEN_SOCKET, (MHD_socket)app->listen_fd, MHD_OPTION_THREAD_POOL_SIZE,
       (unsigned)app->cfg.http_threads, MHD_OPTION_NOTIFY_COMPLETED, on_completed, app,
       MHD_OPTION_NOTIFY_CONNECTION, on_connection, app, MHD_OPTION_CONNECTION_TIMEOUT, 30u,
       MHD_OPTION_CONNECTION_LIMIT, (unsigned)app->cfg.max_connections,
-      MHD_OPTION_LISTENING_ADDRESS_REUSE, 1u, MHD_OPTION_UNESCAPE_CALLBACK, unescape, NULL,
-      MHD_OPTION_END);
+      MHD_OPTION_UNESCAPE_CALLBACK, unescape, NULL, MHD_OPTION_END);
   if (!app->mhd) {
     srv_guard_free(app->guard);
     app->guard = NULL;
-    return obs_err_set(err, OBS_EIO, "cannot listen on %s port %d (in use, or not permitted)",
-                       app->cfg.listen, app->cfg.port);
+    return obs_err_set(err, OBS_EIO, "cannot start the HTTP server on %s port %d",
+                       app->cfg.listen, app->port);
   }
-  const union MHD_DaemonInfo *info = MHD_get_daemon_info(app->mhd, MHD_DAEMON_INFO_BIND_PORT);
-  app->port = info && info->port ? info->port : app->cfg.port;
+  /* libmicrohttpd owns the socket now and closes it when it stops. */
+  app->listening = 0;
   return 0;
 }
 
 void srv_http_stop(srv_app *app) {
   if (app->mhd) MHD_stop_daemon(app->mhd);
   app->mhd = NULL;
+  if (app->listening) close(app->listen_fd);
+  app->listening = 0;
   srv_guard_free(app->guard);
   app->guard = NULL;
 }

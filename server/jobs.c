@@ -266,6 +266,54 @@ static int stop_reason(slot *sl) {
   return why;
 }
 
+/* Waits `seconds` holding the finished job, or less when the slot is asked to stop or the daemon
+ * stops. Returns the stop reason, 0 when the time is up. */
+static int wait_space(slot *sl, double seconds) {
+  srv_sched *s = sl->app->sched;
+  struct timespec until;
+  clock_gettime(CLOCK_REALTIME, &until);
+  until.tv_sec += (time_t)seconds;
+  pthread_mutex_lock(&s->mu);
+  sl->deadline_ms = INFINITY; /* waiting for room is not rendering */
+  while (!sl->stop && !s->stopping)
+    if (pthread_cond_timedwait(&s->fault_cv, &s->mu, &until) == ETIMEDOUT) break;
+  int why = s->stopping ? STOP_SHUTDOWN : sl->stop;
+  pthread_mutex_unlock(&s->mu);
+  return why;
+}
+
+/* Outputs that found no room while the results directory still takes a page: the disk is not
+ * down for everyone, these files are too big for what is free. Other lanes keep running (no
+ * fault is raised); this job keeps its render and tries again after 1, 2, 4 ... s (at most 60)
+ * in case room is made, --output-space-retries times, then fails with the reason, so it never
+ * holds its lane (or, as a fault, every lane) until someone frees the disk. Returns 0 to try
+ * again, a stop reason (> 0), or OBS_EIO with `err` holding why the job fails. */
+static int no_room(slot *sl, srv_job *j, int *tries, double since, const char *code,
+                   obs_err *err) {
+  srv_app *app = sl->app;
+  double free_bytes = srv_outputs_free_bytes(app->results_dir);
+  char room[64] = "";
+  if (free_bytes >= 0) snprintf(room, sizeof room, ", %.4g MB free", free_bytes / 1e6);
+  if (*tries >= app->cfg.output_space_retries) {
+    char cause[1200];
+    obs_path_err_relative(err, app->results_dir); /* the job's error is the client's to read */
+    snprintf(cause, sizeof cause, "%s", obs_err_message(err));
+    obs_err_clear(err);
+    obs_err_set(err, OBS_EIO,
+                "its outputs do not fit the free space of the results disk (%s%s after %d "
+                "tries over %.0f s, while smaller files could still be written): %s",
+                code, room, *tries + 1, (obs_now_ms() - since) / 1e3, cause);
+    return OBS_EIO;
+  }
+  double wait = fmin(60, ldexp(1, *tries));
+  (*tries)++;
+  srv_job_log(app, j->id,
+              "its outputs do not fit the results disk (%s%s) while smaller files do: the render "
+              "is kept, try %d of %d in %.0f s; the other jobs go on",
+              code, room, *tries + 1, app->cfg.output_space_retries + 1, wait);
+  return wait_space(sl, wait);
+}
+
 /* The staging directory of an attempt's outputs. */
 static void stage_path(const srv_app *app, const srv_job *j, char *buf, size_t n) {
   snprintf(buf, n, "%s/.tmp-%lld-%d", app->results_dir, (long long)j->id, j->attempts);
@@ -281,6 +329,8 @@ static int publish(slot *sl, srv_job *j, obs_result *res, const obs_scene *sc, s
   char stage[4200], final[4200];
   stage_path(app, j, stage, sizeof stage);
   srv_results_path(app, j->id, final, sizeof final);
+  int room_tries = 0;
+  double since = obs_now_ms();
   for (int tries = 0;; tries++) {
     obs_err_clear(err);
     if (res) srv_remove_tree(stage);
@@ -304,6 +354,12 @@ static int publish(slot *sl, srv_job *j, obs_result *res, const obs_scene *sc, s
     if (!env) {
       srv_remove_tree(stage);
       return rc;
+    }
+    if (env == SRV_OUTPUTS_NO_ROOM) {
+      int why = no_room(sl, j, &room_tries, since, code, err);
+      if (!why) continue;
+      srv_remove_tree(stage);
+      return why;
     }
     srv_fault_raise(SRV_FAULT_RESULTS, app->results_dir, code, obs_err_message(err), NULL);
     srv_log("job %lld: cannot write its outputs yet (%s); the render is kept and the lanes wait",

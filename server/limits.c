@@ -1,6 +1,8 @@
-/* Bounds on the work obscurad accepts: queued work per client and in total (a small request can
- * expand into hundreds of jobs), and a refusal at submission of a job whose estimated render time
- * exceeds the per-render limit, rather than letting it run into the limit and fail. */
+/* Bounds on the work obscurad accepts: what its queue holds per client and in total — work, jobs
+ * (renderer processes: a job on N MPI ranks counts N) and the bytes their documents store — for
+ * submissions, comparisons (a small request can expand into hundreds of jobs) and retries alike,
+ * and a refusal at submission of a job whose estimated render time exceeds the per-render limit,
+ * rather than letting it run into the limit and fail. */
 #include <arpa/inet.h>
 #include <math.h>
 #include <microhttpd.h>
@@ -64,48 +66,112 @@ void srv_submit_check_estimate(srv_app *app, const obs_scene *sc, obs_err *probl
                 sc->name, seconds, work, rate, from, app->cfg.max_render_seconds);
 }
 
-/* ---- queued work ------------------------------------------------------------------------------ */
+/* ---- admission: the queue's work, jobs and stored bytes ------------------------------------- */
 
 /* Check and insert under one lock: two submissions that each fit could otherwise both pass the
  * check and together exceed the cap. This daemon is the database's only writer of jobs. */
 static pthread_mutex_t admit_mu = PTHREAD_MUTEX_INITIALIZER;
 
-/* What a job costs the queue: every render it will do. */
-static double job_work(const srv_new_job *j) {
-  return j->work * ((j->repeats > 0 ? j->repeats : 1) + (j->warmup ? 1 : 0));
+static int64_t text_bytes(const char *s) { return s ? (int64_t)strlen(s) : 0; }
+
+int64_t srv_job_stored_bytes(const srv_new_job *j) {
+  return text_bytes(j->doc) + text_bytes(j->label) + text_bytes(j->scene) +
+         text_bytes(j->scene_name) + text_bytes(j->notes) + text_bytes(j->backend_reason);
 }
 
-/* 0 when `adding` fits both caps; else 429 with the problem. Called under admit_mu. */
-static unsigned check_caps(srv_app *app, const char *client, double adding, int *retry_after,
-                           obs_err *problems) {
-  double mine = 0, total = 0;
+int64_t srv_candidate_row_bytes(const srv_new_candidate *c) {
+  return text_bytes(c->params) + text_bytes(c->reference_params) + text_bytes(c->response);
+}
+
+int64_t srv_comparison_stored_bytes(const srv_new_comparison *c) {
+  return text_bytes(c->request) + text_bytes(c->label) + text_bytes(c->notes);
+}
+
+/* What a job costs the queue: every render it will do, its renderer processes, its bytes. */
+static srv_load job_load(const srv_new_job *j, int64_t extra) {
+  srv_load l = {j->work * ((j->repeats > 0 ? j->repeats : 1) + (j->warmup ? 1 : 0)),
+                j->ranks > 1 ? j->ranks : 1, (double)(srv_job_stored_bytes(j) + extra)};
+  return l;
+}
+
+/* One queue dimension: its caps and how a problem names it. */
+typedef struct cap {
+  const char *what, *unit, *per_client, *total;
+  int whole; /* amounts are counts, shown in full (work is shown to 4 digits) */
+  double (*get)(const srv_load *);
+  double mine_cap, total_cap;
+} cap;
+
+static double get_work(const srv_load *l) { return l->work; }
+static double get_jobs(const srv_load *l) { return l->jobs; }
+static double get_bytes(const srv_load *l) { return l->bytes; }
+
+static void amount(char *buf, size_t n, double v, int whole) {
+  if (whole) snprintf(buf, n, "%.0f", v);
+  else snprintf(buf, n, "%.4g", v);
+}
+
+/* A queue of `work` drains in about this many seconds at the slowest built-in rate (5 s to 1 h):
+ * when a client may usefully try again. */
+static int drain_seconds(double work) {
+  double s = ceil(work * FALLBACK_UNKNOWN / 1e3);
+  return s < 5 ? 5 : s > 3600 ? 3600 : (int)s;
+}
+
+/* 0 when `adding` fits every cap; else 429 with the problems. Called under admit_mu. */
+static unsigned check_caps(srv_app *app, const char *client, const srv_load *adding,
+                           int *retry_after, obs_err *problems) {
+  srv_load mine, total;
   obs_err e = OBS_ERR_INIT;
-  if (srv_db_queued_work(app->db, client, &mine, &total, &e)) {
+  if (srv_db_queued(app->db, client, &mine, &total, &e)) {
     obs_err_set(problems, OBS_EIO, "%s", obs_err_message(&e));
     obs_err_free(&e);
     return 503;
   }
   const srv_config *c = &app->cfg;
-  double over = 0;
-  if (mine + adding > c->max_queued_work) {
-    obs_err_set(problems, OBS_EINVAL,
-                "queued work of client %s would be %.4g (%.4g queued or running + %.4g in this "
-                "request), over the server's limit max-queued-work = %.4g per client",
-                client, mine + adding, mine, adding, c->max_queued_work);
-    over = mine + adding - c->max_queued_work;
+  const cap caps[] = {
+      {"queued work", "", "max-queued-work", "max-queued-work-total", 0, get_work,
+       c->max_queued_work, c->max_queued_work_total},
+      {"queued jobs (a job on N MPI ranks counts N)", "", "max-queued-jobs",
+       "max-queued-jobs-total", 1, get_jobs, c->max_queued_jobs, c->max_queued_jobs_total},
+      {"bytes stored by queued jobs", " bytes", "max-queued-bytes", "max-queued-bytes-total",
+       1, get_bytes, (double)c->max_queued_bytes, (double)c->max_queued_bytes_total},
+  };
+  int wait = 0;
+  for (size_t i = 0; i < sizeof caps / sizeof caps[0]; i++) {
+    const cap *k = &caps[i];
+    double add = k->get(adding), m = k->get(&mine), t = k->get(&total);
+    if (add <= 0) continue;
+    char sum[32], held[32], more[32], limit[32];
+    amount(more, sizeof more, add, k->whole);
+    if (m + add > k->mine_cap) {
+      amount(sum, sizeof sum, m + add, k->whole);
+      amount(held, sizeof held, m, k->whole);
+      amount(limit, sizeof limit, k->mine_cap, k->whole);
+      obs_err_set(problems, OBS_EINVAL,
+                  "%s of client %s would be %s%s (%s queued or running + %s in this request), "
+                  "over the server's limit %s = %s per client",
+                  k->what, client, sum, k->unit, held, more, k->per_client, limit);
+      /* Work: roughly when enough of it will have rendered; otherwise the client's queue. */
+      int s = drain_seconds(i == 0 ? fmin(m + add - k->mine_cap, add) : mine.work);
+      if (s > wait) wait = s;
+      srv_refused(k->per_client);
+    }
+    if (t + add > k->total_cap) {
+      amount(sum, sizeof sum, t + add, k->whole);
+      amount(held, sizeof held, t, k->whole);
+      amount(limit, sizeof limit, k->total_cap, k->whole);
+      obs_err_set(problems, OBS_EINVAL,
+                  "%s of all clients would be %s%s (%s queued or running + %s in this request), "
+                  "over the server's limit %s = %s",
+                  k->what, sum, k->unit, held, more, k->total, limit);
+      int s = drain_seconds(i == 0 ? fmin(t + add - k->total_cap, add) : total.work);
+      if (s > wait) wait = s;
+      srv_refused(k->total);
+    }
   }
-  if (total + adding > c->max_queued_work_total) {
-    obs_err_set(problems, OBS_EINVAL,
-                "queued work of all clients would be %.4g (%.4g queued or running + %.4g in this "
-                "request), over the server's limit max-queued-work-total = %.4g",
-                total + adding, total, adding, c->max_queued_work_total);
-    double o = total + adding - c->max_queued_work_total;
-    if (o > over) over = o;
-  }
-  if (over <= 0) return 0;
-  /* Roughly when enough of the queue will have rendered, at the slowest built-in rate. */
-  double s = ceil(fmin(over, adding) * FALLBACK_UNKNOWN / 1e3);
-  *retry_after = s < 5 ? 5 : s > 3600 ? 3600 : (int)s;
+  if (!wait) return 0;
+  *retry_after = wait;
   return 429;
 }
 
@@ -118,38 +184,64 @@ static unsigned insert_failed(srv_app *app, int rc, const obs_err *problems) {
   return 503;
 }
 
+/* After a job or comparison was queued: whose it is (without its client it counts only towards
+ * the total). */
+static void record_client(srv_app *app, int64_t job, int64_t comparison, const char *client) {
+  obs_err e = OBS_ERR_INIT;
+  if (srv_db_set_job_client(app->db, job, comparison, client, &e))
+    srv_log("%s %lld: client not recorded: %s", job ? "job" : "comparison",
+            (long long)(job ? job : comparison), obs_err_message(&e));
+  obs_err_free(&e);
+}
+
 unsigned srv_admit_job(srv_app *app, const char *client, const srv_new_job *nj, int64_t *id,
                        int *retry_after, obs_err *problems) {
+  srv_load adding = job_load(nj, 0);
   pthread_mutex_lock(&admit_mu);
-  unsigned st = check_caps(app, client, job_work(nj), retry_after, problems);
+  unsigned st = check_caps(app, client, &adding, retry_after, problems);
   int rc = st ? 0 : srv_db_insert_job(app->db, nj, id, problems);
   if (rc) st = insert_failed(app, rc, problems);
-  if (!st) {
-    obs_err e = OBS_ERR_INIT;
-    /* The job is queued either way; without its client it counts only towards the total. */
-    if (srv_db_set_job_client(app->db, *id, 0, client, &e))
-      srv_log("job %lld: client not recorded: %s", (long long)*id, obs_err_message(&e));
-    obs_err_free(&e);
-  }
+  if (!st) record_client(app, *id, 0, client);
   pthread_mutex_unlock(&admit_mu);
   return st;
 }
 
 unsigned srv_admit_comparison(srv_app *app, const char *client, const srv_new_comparison *c,
                               int64_t *id, int *retry_after, obs_err *problems) {
-  double adding = 0;
-  for (int i = 0; i < c->nreferences; i++) adding += job_work(&c->references[i]);
-  for (int i = 0; i < c->ncandidates; i++) adding += job_work(&c->candidates[i].job);
+  srv_load adding = {0, 0, 0};
+  for (int i = 0; i < c->nreferences; i++) {
+    srv_load l = job_load(&c->references[i], i ? 0 : srv_comparison_stored_bytes(c));
+    adding.work += l.work, adding.jobs += l.jobs, adding.bytes += l.bytes;
+  }
+  for (int i = 0; i < c->ncandidates; i++) {
+    srv_load l = job_load(&c->candidates[i].job, srv_candidate_row_bytes(&c->candidates[i]));
+    adding.work += l.work, adding.jobs += l.jobs, adding.bytes += l.bytes;
+  }
   pthread_mutex_lock(&admit_mu);
-  unsigned st = check_caps(app, client, adding, retry_after, problems);
+  unsigned st = check_caps(app, client, &adding, retry_after, problems);
   int rc = st ? 0 : srv_db_insert_comparison(app->db, c, id, problems);
   if (rc) st = insert_failed(app, rc, problems);
+  if (!st) record_client(app, 0, *id, client);
+  pthread_mutex_unlock(&admit_mu);
+  return st;
+}
+
+unsigned srv_admit_retry(srv_app *app, const char *client, int64_t id, srv_state *state,
+                         int *retry_after, obs_err *problems) {
+  srv_load adding;
+  pthread_mutex_lock(&admit_mu);
+  int rc = srv_db_job_load(app->db, id, &adding, state, problems);
+  unsigned st = rc == OBS_ENOTFOUND ? 404 : rc ? 503 : 0;
+  /* A job that cannot be retried is answered as such, whatever the queue holds. */
+  if (!st && *state != SRV_FAILED && *state != SRV_CANCELLED) st = 409;
+  if (!st) st = check_caps(app, client, &adding, retry_after, problems);
   if (!st) {
-    obs_err e = OBS_ERR_INIT;
-    if (srv_db_set_job_client(app->db, 0, *id, client, &e))
-      srv_log("comparison %lld: client not recorded: %s", (long long)*id, obs_err_message(&e));
-    obs_err_free(&e);
+    rc = srv_db_retry(app->db, id, state, problems);
+    st = rc == OBS_ENOTFOUND ? 404 : rc == OBS_EINVAL ? 409 : rc ? insert_failed(app, rc, problems)
+                                                                 : 0;
   }
+  /* The requeued work is now the retrying client's. */
+  if (!st) record_client(app, id, 0, client);
   pthread_mutex_unlock(&admit_mu);
   return st;
 }
@@ -164,7 +256,8 @@ int srv_respond_too_busy(srv_req *r, int retry_after, const obs_err *problems) {
     if (*t) t++;
   }
   char msg[96];
-  snprintf(msg, sizeof msg, "too much queued work: try again in %d s", retry_after);
+  snprintf(msg, sizeof msg, "the queue is over a limit of this server: try again in %d s",
+           retry_after);
   struct MHD_Response *resp =
       srv_json_response(json_pack("{s:s, s:o}", "error", msg, "problems", list));
   if (!resp) return MHD_NO;

@@ -7,7 +7,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <fcntl.h>
+#include <sys/file.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "obscurad.h"
 
@@ -117,6 +120,26 @@ static int prepare(srv_app *app) {
   return 0;
 }
 
+/* One daemon per data directory: a second one's start-up recovery would requeue the running jobs
+ * of the first and sweep its staging directories. The lock goes with the process (kill -9
+ * included). */
+static int lock_data_dir(srv_app *app, obs_err *err) {
+  app->data_lock_fd = open(app->results_dir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (app->data_lock_fd < 0)
+    return obs_err_set(err, OBS_EIO, "--data-dir %s: cannot open %s: %s", app->cfg.data_dir,
+                       app->results_dir, strerror(errno));
+  if (flock(app->data_lock_fd, LOCK_EX | LOCK_NB)) {
+    int e = errno;
+    close(app->data_lock_fd);
+    app->data_lock_fd = -1;
+    return obs_err_set(err, OBS_EIO, "--data-dir %s: %s", app->cfg.data_dir,
+                       e == EWOULDBLOCK ? "another obscurad uses this data directory (stop it, or "
+                                          "give this one another --data-dir)"
+                                        : strerror(e));
+  }
+  return 0;
+}
+
 int main(int argc, char **argv) {
   static srv_app app;
   obs_render_keep_memory();
@@ -143,6 +166,9 @@ int main(int argc, char **argv) {
     return pre;
   }
   srv_metrics_init();
+  /* Before anything that changes state: a second daemon on this port or this data directory
+   * must stop here, not after its recovery requeued the first one's running jobs. */
+  if (lock_data_dir(&app, &err) || srv_http_bind(&app, &err)) goto out;
   if (srv_meshimport_start(&app, &err)) goto out;
   /* No probe with --no-vulkan: loading the driver only to leave it unused costs start-up time
    * and leaves its process-lifetime allocations for LeakSanitizer to report at exit. */
@@ -200,6 +226,7 @@ out:
   }
   srv_db_close(app.db);
   srv_metrics_free();
+  if (app.data_lock_fd > 0) close(app.data_lock_fd);
   obs_err_free(&err);
   srv_config_free(&app.cfg);
   return status;

@@ -169,6 +169,11 @@ char *srv_metrics_text(srv_app *app, size_t *len) {
   char mesh[2048];
   srv_meshimport_metrics(app, mesh, sizeof mesh);
   put(&b, "%s", mesh);
+  srv_refusals_metrics(mesh, sizeof mesh);
+  put(&b, "%s", mesh);
+  put(&b, "# HELP obscura_inflight_bytes Request-body bytes held for uploads in progress.\n"
+          "# TYPE obscura_inflight_bytes gauge\nobscura_inflight_bytes %lld\n",
+      (long long)srv_guard_inflight(app->guard));
   put(&b, "# HELP obscura_uptime_seconds Seconds since the daemon started.\n"
           "# TYPE obscura_uptime_seconds gauge\nobscura_uptime_seconds %.3f\n",
       (obs_now_ms() - app->start_ms) / 1e3);

@@ -54,13 +54,7 @@ int srv_mpi_check(srv_app *app, const obs_scene *sc, obs_backend be, int ranks, 
     obs_err_set(problems, OBS_EUNSUPPORTED,
                 "request: /ranks: ranks > 1 is not supported for scenes that read a mesh file "
                 "(the ranks would parse it outside the daemon's contained mesh importer)");
-  /* Each rank reads the whole volume; without a hostfile they all run on this machine. */
-  double voxels = srv_scene_voxels(sc), local = app->cfg.hostfile ? 1 : ranks;
-  if (voxels > 0 && voxels * local > (double)app->cfg.max_voxels)
-    obs_err_set(problems, OBS_EINVAL,
-                "request: /ranks: %d ranks on this machine each hold the scene's %.0f volume "
-                "samples, %.0f in all, beyond the server's limit max-voxels = %lld",
-                ranks, voxels, voxels * local, (long long)app->cfg.max_voxels);
+  /* What each rank's process holds is counted by the per-job limits (srv_submit_check_limits). */
   return problems->count > before;
 }
 

@@ -53,6 +53,8 @@ typedef struct srv_config {
   int max_connections;         /* connections held at once; default 1000 */
   int max_pending_per_address; /* connections of one address still sending headers; 32 */
   int64_t max_inflight;        /* request-body bytes buffered across connections; 64 MiB */
+  int body_timeout;            /* seconds a body has beyond one per min_body_rate bytes; 10 */
+  int64_t min_body_rate;       /* bytes per second an upload averages at least; 64 KiB */
   /* Mesh import (meshimport.c) and queued-work limits (limits.c). */
   char *mesh_importer;        /* the worker program; NULL = obscura-import next to obscurad */
   int mesh_import_seconds;    /* per import, default 10 */
@@ -60,6 +62,12 @@ typedef struct srv_config {
   int64_t mesh_cache_bytes;   /* imported meshes kept in memory, default 256 MiB */
   double max_queued_work;       /* per client: work of its queued and running jobs */
   double max_queued_work_total; /* the same over all clients */
+  int max_queued_jobs;          /* per client: queued and running jobs (MPI ranks each count) */
+  int max_queued_jobs_total;    /* the same over all clients */
+  int64_t max_queued_bytes;     /* per client: bytes its queued and running jobs store */
+  int64_t max_queued_bytes_total;
+  int max_comparison_jobs;      /* jobs (references and candidates) of one comparison */
+  int output_space_retries;     /* tries of a job whose outputs alone do not fit the disk */
   int estimate_render_time;     /* refuse jobs estimated to outlast max_render_seconds */
   /* Jobs split over Open MPI ranks (mpi_jobs.c). */
   char *mpirun;      /* the mpirun executable; NULL = jobs with ranks > 1 are refused */
@@ -375,6 +383,17 @@ const char *srv_errno_name(int e);
 int srv_errno_transient(int e);
 const char *srv_sqlite_code_name(int code);
 
+/* ---- refusals for capacity (refusals.c) -------------------------------------------------------- */
+
+/* Counts one refusal (a 429 or 503) or ended upload, by the option name of the limit that decided
+ * ("max-queued-jobs-total", "max-inflight-bytes", "min-body-rate", ...). */
+void srv_refused(const char *limit);
+/* Health's `capacity` part: {"refusing": [server-wide limits that refused in the last minute],
+ * "refused": [{limit, scope, count, last}]}; *refusing set when the first list is not empty. */
+json_t *srv_refusals_json(int *refusing);
+/* The counters as Prometheus text into buf (truncated at n). */
+void srv_refusals_metrics(char *buf, size_t n);
+
 /* ---- metrics (metrics.c) --------------------------------------------------------------------- */
 
 typedef enum {
@@ -448,9 +467,14 @@ void srv_outputs_sweep(struct srv_app *app);
 /* Writes, fsyncs and removes a small file in `dir`: 0 when the directory takes files, else
  * OBS_ETRANSIENT with the errno name in `code`. */
 int srv_outputs_probe(const char *dir, char *code, size_t n, obs_err *err);
-/* Whether a failure to write outputs (its message) is the environment's: a failing probe of
- * `dir` or an errno such as ENOSPC/EROFS/EACCES/EIO/EDQUOT named in the message. */
+/* Whether a failure to write outputs (its message) is the environment's: 1 for a failing probe of
+ * `dir` or an errno such as EROFS/EACCES/EIO named in the message; SRV_OUTPUTS_NO_ROOM when the
+ * message says ENOSPC or EDQUOT but the probe's page fits (the disk has no room for these files
+ * only); 0 when it is the job's. */
+#define SRV_OUTPUTS_NO_ROOM 2
 int srv_outputs_fault(const char *dir, const char *message, char *code, size_t n, obs_err *probe);
+/* Bytes an unprivileged writer may still put in `dir`'s file system; -1 when unknown. */
+double srv_outputs_free_bytes(const char *dir);
 
 /* ---- HTTP (http.c, api.c, static.c) ----------------------------------------------------------- */
 
@@ -552,7 +576,8 @@ json_t *srv_submit_load_bundled(struct srv_app *app, struct obs_jpath *p, const 
 /* The optional "set" object of a request (at most 64 entries), NULL after reporting. */
 json_t *srv_submit_get_sets(struct obs_jpath *p, const json_t *req);
 void srv_submit_apply_sets(struct obs_jpath *p, const json_t *sets, json_t *doc);
-void srv_submit_check_limits(struct srv_app *app, const obs_scene *sc, obs_err *problems);
+void srv_submit_check_limits(struct srv_app *app, const obs_scene *sc, int ranks,
+                             obs_err *problems);
 /* The volume samples one render of sc holds: every volume's dims multiplied and summed when the
  * technique reads volumes (OBS_NEED_VOLUME), else 0. */
 double srv_scene_voxels(const obs_scene *sc);
@@ -590,6 +615,10 @@ int srv_compare_primary(const char *dir, const char *rdir, obs_response resp, ob
  * reason), or OBS_EINVAL with the problem under `pointer`. */
 int srv_compare_budget_choice(struct srv_app *app, const char *scene, double pixels,
                               double budget_ms, json_t **choice, obs_err *problems);
+/* Binds and listens on --listen/--port (the daemon's first act after its checks, so that a port
+ * in use stops it before it touches the database); sets app->port. */
+int srv_http_bind(struct srv_app *app, obs_err *err);
+/* Serves on the bound socket (binding first if srv_http_bind was not called). */
 int srv_http_start(struct srv_app *app, obs_err *err);
 void srv_http_stop(struct srv_app *app);
 
@@ -624,6 +653,10 @@ void srv_guard_closed(srv_guard *g, void *ctx);
 /* Takes `bytes` of the in-flight budget (0), or refuses (-1) when it would exceed it. */
 int srv_guard_reserve(srv_guard *g, int64_t bytes);
 void srv_guard_release(srv_guard *g, int64_t bytes);
+/* Request-body bytes held now. */
+int64_t srv_guard_inflight(srv_guard *g);
+/* `n` more bytes of the connection's body arrived (its upload's pace, --min-body-rate). */
+void srv_guard_body_progress(srv_guard *g, void *ctx, size_t n);
 
 /* ---- the application ------------------------------------------------------------------------- */
 
@@ -645,6 +678,9 @@ typedef struct srv_app {
   int cpu_threads;         /* threads per render */
   int64_t machine_id;      /* machines row of this daemon (CPU model, threads, Vulkan device) */
   int port;                /* the bound port */
+  int listen_fd;           /* the bound socket, until libmicrohttpd takes it (listening) */
+  int listening;
+  int data_lock_fd;        /* flock of the results directory: one daemon per data directory */
   double start_ms;
   struct srv_meshimport *meshimport; /* the contained mesh importer (meshimport.c) */
 } srv_app;
@@ -657,14 +693,25 @@ int srv_meshimport_start(srv_app *app, obs_err *err);
 void srv_meshimport_stop(srv_app *app);
 /* Its counters as Prometheus text into buf (NUL-terminated, truncated at n). */
 void srv_meshimport_metrics(srv_app *app, char *buf, size_t n);
-/* Admission of new work under --max-queued-work (per client) and --max-queued-work-total: inserts
- * the job / comparison tagged with `client` when the queued work it adds fits both caps. Returns 0
- * with *id; 429 with the cap in `problems` and *retry_after (seconds); 503 on a database error
- * (in `problems`). The check and the insert are atomic with respect to other submissions. */
+/* Admission: what queued and running jobs hold, per client and in total, is capped in work
+ * (work x renders; --max-queued-work[-total]), jobs (renderer processes, a job on N ranks counting
+ * N; --max-queued-jobs[-total]) and stored bytes (documents and comparison rows;
+ * --max-queued-bytes[-total]). Each call inserts (or requeues) tagged with `client` only when
+ * what it adds fits every cap. Returns 0 with *id; 429 with every cap exceeded in `problems` and
+ * *retry_after (seconds); 503 on a database error (in `problems`). The check and the change are
+ * atomic with respect to other admissions. */
 unsigned srv_admit_job(srv_app *app, const char *client, const srv_new_job *nj, int64_t *id,
                        int *retry_after, obs_err *problems);
 unsigned srv_admit_comparison(srv_app *app, const char *client, const srv_new_comparison *c,
                               int64_t *id, int *retry_after, obs_err *problems);
+/* POST /jobs/{id}/retry through the same caps: also 404 (no such job) and 409 (not failed or
+ * cancelled, *state filled). */
+unsigned srv_admit_retry(srv_app *app, const char *client, int64_t id, srv_state *state,
+                         int *retry_after, obs_err *problems);
+/* The bytes a new job's row stores (its texts), a candidate row's, a comparison row's. */
+int64_t srv_job_stored_bytes(const srv_new_job *j);
+int64_t srv_candidate_row_bytes(const srv_new_candidate *c);
+int64_t srv_comparison_stored_bytes(const srv_new_comparison *c);
 /* 429 with Retry-After and {"error", "problems"}. */
 int srv_respond_too_busy(srv_req *r, int retry_after, const obs_err *problems);
 /* Refuses (adds a problem naming /image or /technique/params) a job whose estimated render time
@@ -673,8 +720,14 @@ int srv_respond_too_busy(srv_req *r, int retry_after, const obs_err *problems);
 void srv_submit_check_estimate(srv_app *app, const obs_scene *sc, obs_err *problems);
 /* The client a request's queued work counts against, into buf (filled when a request starts). */
 void srv_req_client(srv_app *app, struct MHD_Connection *c, char *buf, size_t n);
-/* Work x renders of the queued and running jobs: of `client`, and of all (db.c). */
-int srv_db_queued_work(srv_db *db, const char *client, double *mine, double *total, obs_err *err);
+/* What jobs hold in the queue: work x renders, renderer processes, stored bytes. */
+typedef struct srv_load {
+  double work, jobs, bytes;
+} srv_load;
+/* The queued and running jobs' load: of `client`, and of all (db_limits.c). */
+int srv_db_queued(srv_db *db, const char *client, srv_load *mine, srv_load *total, obs_err *err);
+/* What job `id` adds to the queue when it is queued again, and its state; OBS_ENOTFOUND. */
+int srv_db_job_load(srv_db *db, int64_t id, srv_load *load, srv_state *state, obs_err *err);
 /* Records the client of job `job`, or of every job of comparison `comparison` (db.c). */
 int srv_db_set_job_client(srv_db *db, int64_t job, int64_t comparison, const char *client,
                           obs_err *err);

@@ -11,6 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 #include "obscurad.h"
@@ -338,8 +339,15 @@ int srv_outputs_fault(const char *dir, const char *message, char *code, size_t n
     if (strstr(message, strerror(transient[i]))) {
       snprintf(code, n, "%s", srv_errno_name(transient[i]));
       obs_err_set(probe, OBS_ETRANSIENT, "%s", message);
-      return 1;
+      /* Out of room for these files while a page still fits: the disk serves smaller jobs. */
+      return transient[i] == ENOSPC || transient[i] == EDQUOT ? SRV_OUTPUTS_NO_ROOM : 1;
     }
   }
   return 0;
+}
+
+double srv_outputs_free_bytes(const char *dir) {
+  struct statvfs st;
+  if (statvfs(dir, &st)) return -1;
+  return (double)st.f_bavail * (double)st.f_frsize;
 }

@@ -91,6 +91,11 @@ json_t *srv_submit_load_bundled(srv_app *app, obs_jpath *p, const json_t *v) {
                     obs_json_prescan_strict(text, len, &lim, name, p->err, NULL)))
         obs_err_set(p->err, OBS_EINVAL, "%s: line %d, column %d: invalid JSON: %s", name, je.line,
                     je.column, je.text);
+      /* Parsed: a number jansson stored as another value (1e-99999 as 0) is refused too. */
+      if (doc && obs_json_prescan_exact(text, len, &lim, name, p->err, NULL)) {
+        json_decref(doc);
+        doc = NULL;
+      }
     }
     free(text);
   }
@@ -155,6 +160,13 @@ unsigned srv_submit_read_body(const char *body, size_t len, const char *shape, j
     *message = "request has a number outside what a double or a 64-bit integer holds";
     return 422;
   }
+  /* Only once it parsed (a syntax error is reported as one): numbers that jansson stored as
+   * another value than the text says, 1e-99999 as 0 or 9007199254740993 as 9007199254740992. */
+  if (req && obs_json_prescan_exact(body, len, &lim, "request", problems, NULL)) {
+    json_decref(req);
+    *message = "request has a number that a double would hold as another value";
+    return 422;
+  }
   if (!req) {
     *message = "request body is not valid JSON";
     obs_err_set(problems, OBS_EINVAL, "request: line %d, column %d: %s", je.line, je.column,
@@ -193,15 +205,30 @@ double srv_scene_voxels(const obs_scene *sc) {
   return n;
 }
 
-void srv_submit_check_limits(srv_app *app, const obs_scene *sc, obs_err *problems) {
+/* A per-process amount (pixels, triangles, volume samples) that fits its limit alone but not as
+ * many times as renderer processes of the job run on this machine: each MPI rank loads the scene,
+ * builds its own BVH and volumes and holds a whole image. */
+static void check_ranks_hold(int ranks, double amount, const char *what, int64_t limit,
+                             const char *option, obs_err *problems) {
+  if (ranks > 1 && amount <= (double)limit && amount * ranks > (double)limit)
+    obs_err_set(problems, OBS_EINVAL,
+                "request: /ranks: %d ranks on this machine each hold the scene's %.0f %s, %.0f in "
+                "all, beyond the server's limit %s = %lld",
+                ranks, amount, what, amount * ranks, option, (long long)limit);
+}
+
+void srv_submit_check_limits(srv_app *app, const obs_scene *sc, int ranks, obs_err *problems) {
   const srv_config *c = &app->cfg;
   const char *d = sc->name;
+  /* Without a hostfile every rank runs here; with one, mpirun places them. */
+  int here = c->hostfile ? 1 : ranks;
   double pixels = (double)sc->width * sc->height;
   if (pixels > (double)c->max_pixels)
     obs_err_set(problems, OBS_EINVAL,
                 "%s: /image: width x height = %.0f pixels exceeds the server's limit max-pixels "
                 "= %lld",
                 d, pixels, (long long)c->max_pixels);
+  check_ranks_hold(here, pixels, "pixels", c->max_pixels, "max-pixels", problems);
   double samples = obs_technique_cost(sc->technique, sc->params);
   double work = obs_scene_work(sc);
   /* A moving scene: the frames' cost in whole maps (the technique's frames_cost). */
@@ -220,11 +247,13 @@ void srv_submit_check_limits(srv_app *app, const obs_scene *sc, obs_err *problem
     obs_err_set(problems, OBS_EINVAL,
                 "%s: /objects: %.0f triangles exceed the server's limit max-triangles = %lld", d,
                 tris, (long long)c->max_triangles);
+  check_ranks_hold(here, tris, "triangles", c->max_triangles, "max-triangles", problems);
   double voxels = srv_scene_voxels(sc);
   if (voxels > (double)c->max_voxels)
     obs_err_set(problems, OBS_EINVAL,
                 "%s: /objects: %.0f volume samples exceed the server's limit max-voxels = %lld", d,
                 voxels, (long long)c->max_voxels);
+  check_ranks_hold(here, voxels, "volume samples", c->max_voxels, "max-voxels", problems);
   if (work <= c->max_work) srv_submit_check_estimate(app, sc, problems);
 }
 
@@ -503,12 +532,15 @@ unsigned srv_submit_parse(srv_app *app, const char *body, size_t len, srv_submis
     status = 422;
     goto out;
   }
-  if (ranks > 1 && srv_mpi_check(app, &sc, be, (int)ranks, problems)) {
+  /* Both lists in one answer: what keeps the daemon from running ranks, and the limits every
+   * rank's process counts against. */
+  int no_mpi = ranks > 1 && srv_mpi_check(app, &sc, be, (int)ranks, problems);
+  srv_submit_check_limits(app, &sc, (int)ranks, problems);
+  if (no_mpi) {
     *message = "job cannot run on Open MPI ranks";
     status = 422;
     goto out;
   }
-  srv_submit_check_limits(app, &sc, problems);
   if (problems->count) {
     *message = "job exceeds a server limit";
     status = 422;

@@ -42,6 +42,30 @@ void obs_err_clear(obs_err *err) {
   if (err->text) err->text[0] = '\0';
 }
 
+void obs_err_replace(obs_err *err, const char *from, const char *to) {
+  if (!err || !err->text || !from || !*from) return;
+  size_t fl = strlen(from), tl = strlen(to), hits = 0;
+  for (const char *p = strstr(err->text, from); p; p = strstr(p + fl, from)) hits++;
+  if (!hits) return;
+  size_t len = err->len - hits * fl + hits * tl;
+  char *out = malloc(len + 1);
+  if (!out) return; /* the message stays as it was: a failure to shorten it hides nothing */
+  char *o = out;
+  const char *s = err->text;
+  for (const char *p = strstr(s, from); p; s = p + fl, p = strstr(s, from)) {
+    memcpy(o, s, (size_t)(p - s));
+    o += p - s;
+    memcpy(o, to, tl);
+    o += tl;
+  }
+  size_t rest = strlen(s);
+  memcpy(o, s, rest + 1);
+  free(err->text);
+  err->text = out;
+  err->len = len;
+  err->cap = len + 1;
+}
+
 void obs_err_free(obs_err *err) {
   if (!err) return;
   free(err->text);

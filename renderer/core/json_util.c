@@ -354,6 +354,7 @@ static int prescan(const char *text, size_t len, const obs_json_limits *lim, int
   int depth = 0, rc = 0;
   size_t values = 0, i = 0;
   char where[200];
+  double as = 0;
   if (!doc) doc = "document";
   while (i < len && !rc) {
     unsigned char c = (unsigned char)text[i];
@@ -419,14 +420,17 @@ static int prescan(const char *text, size_t len, const obs_json_limits *lim, int
         while (i + 1 < len && (isalnum((unsigned char)text[i + 1]) || text[i + 1] == '.' ||
                                text[i + 1] == '+' || text[i + 1] == '-'))
           i++;
-        int range = rc || !numbers ? 0 : obs_json_number_out_of_range(text + start, i + 1 - start);
-        if (range) {
+        int fault = rc || !numbers ? 0
+                    : obs_json_number_fault(text + start, i + 1 - start, numbers > 1, &as);
+        if (fault) {
           scan_location(text, lv, depth, where, sizeof where);
           size_t tl = i + 1 - start;
-          rc = obs_err_set(err, OBS_EINVAL, "%s: %s: %s (got %.*s%s)", doc, where,
-                           range == 1 ? "integer outside the 64-bit range [-2^63, 2^63 - 1]"
-                                      : "number too large for a double (beyond +-1.8e308)",
-                           (int)(tl > 40 ? 40 : tl), text + start, tl > 40 ? "..." : "");
+          char became[64] = "";
+          if (fault >= OBS_JSON_NUMBER_UNDERFLOW)
+            snprintf(became, sizeof became, "; it would be read as %.17g", as);
+          rc = obs_err_set(err, OBS_EINVAL, "%s: %s: %s (got %.*s%s%s)", doc, where,
+                           obs_json_number_fault_text(fault), (int)(tl > 40 ? 40 : tl),
+                           text + start, tl > 40 ? "..." : "", became);
         }
         break;
     }
@@ -444,6 +448,11 @@ int obs_json_prescan(const char *text, size_t len, const obs_json_limits *lim, c
 int obs_json_prescan_strict(const char *text, size_t len, const obs_json_limits *lim,
                             const char *doc, obs_err *err, size_t *values) {
   return prescan(text, len, lim, 1, doc, err, values);
+}
+
+int obs_json_prescan_exact(const char *text, size_t len, const obs_json_limits *lim,
+                           const char *doc, obs_err *err, size_t *values) {
+  return prescan(text, len, lim, 2, doc, err, values);
 }
 
 static int depth_walk(obs_jpath *p, const json_t *v, int level, int max_depth) {
@@ -661,7 +670,7 @@ int obs_json_pointer_set(json_t *doc, const char *pointer, const char *value, ob
   /* The value is untrusted text too: bounded before it is parsed. */
   static const obs_json_limits lim = {OBS_JSON_MAX_DEPTH, 0, 0};
   if (!value) value = "";
-  if (obs_json_prescan_strict(value, strlen(value), &lim, "value", err, NULL)) return OBS_EINVAL;
+  if (obs_json_prescan_exact(value, strlen(value), &lim, "value", err, NULL)) return OBS_EINVAL;
   json_error_t je;
   json_t *val = json_loads(value, JSON_DECODE_ANY | JSON_REJECT_DUPLICATES, &je);
   if (!val) return obs_err_set(err, OBS_EINVAL, "value is not valid JSON: %s", je.text);

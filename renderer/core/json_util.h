@@ -80,11 +80,31 @@ int obs_json_prescan(const char *text, size_t len, const obs_json_limits *lim, c
  * those to the parser, which names only a line and column. */
 int obs_json_prescan_strict(const char *text, size_t len, const obs_json_limits *lim,
                             const char *doc, obs_err *err, size_t *values);
-/* Whether the number token t[0..n) is beyond what the parser stores: an integer (no '.', 'e' or
- * 'E') outside json_int_t (64-bit: [-2^63, 2^63 - 1]), or a real whose magnitude rounds to
- * infinity. Returns 0, 1 (integer) or 2 (real); tokens that are not numbers give 0 (the parser
- * refuses those). */
-int obs_json_number_out_of_range(const char *t, size_t n);
+/* The same, also refusing numbers the parser would store as another value: a nonzero number
+ * too small for any double (below 4.9e-324 in magnitude: 1e-99999 would be read as 0), an
+ * integer literal a double cannot hold exactly (9007199254740993 would be read as
+ * 9007199254740992), and a fraction a double rounds to a whole number (0.99999999999999999 would
+ * be read as 1, which an integer field accepts). For documents whose numbers mean what they say:
+ * requests, scene files, --set values. */
+int obs_json_prescan_exact(const char *text, size_t len, const obs_json_limits *lim,
+                           const char *doc, obs_err *err, size_t *values);
+/* What happens to the number token t[0..n) when it is parsed: OBS_JSON_NUMBER_OK, or beyond what
+ * the parser stores (_INT_RANGE: an integer, no '.', 'e' or 'E', outside json_int_t's 64 bits;
+ * _REAL_RANGE: a real whose magnitude rounds to infinity), or, with `exact`, stored as another
+ * value (_UNDERFLOW, _INEXACT, _ROUNDS_WHOLE, as obs_json_prescan_exact says). *read_as (may be
+ * NULL) gets the double it becomes when that was computed. Tokens that are not numbers give OK
+ * (the parser refuses those). */
+enum {
+  OBS_JSON_NUMBER_OK,
+  OBS_JSON_NUMBER_INT_RANGE,
+  OBS_JSON_NUMBER_REAL_RANGE,
+  OBS_JSON_NUMBER_UNDERFLOW,
+  OBS_JSON_NUMBER_INEXACT,
+  OBS_JSON_NUMBER_ROUNDS_WHOLE
+};
+int obs_json_number_fault(const char *t, size_t n, int exact, double *read_as);
+/* What a fault of obs_json_number_fault is, for a message. */
+const char *obs_json_number_fault_text(int fault);
 /* Whether a parsed value nests deeper than `max_depth` arrays/objects: reports the first place
  * under the pointer `p` and returns OBS_EINVAL, else 0. Recursion stops at max_depth + 1. */
 int obs_json_check_depth(obs_jpath *p, const json_t *v, int max_depth);

@@ -3,6 +3,8 @@
 
 #include <errno.h>
 #include <limits.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 
@@ -53,4 +55,20 @@ int obs_path_make_dirs(const char *dir, obs_err *err) {
     return obs_err_set(err, OBS_EIO, "%s: exists and is not a directory", buf);
   }
   return OBS_OK;
+}
+
+void obs_path_err_relative(obs_err *err, const char *dir) {
+  if (!err || !err->count || !dir || !*dir) return;
+  char real[PATH_MAX], with_slash[PATH_MAX + 2];
+  const char *forms[2] = {realpath(dir, real) ? real : NULL, dir};
+  for (int i = 0; i < 2; i++) {
+    if (!forms[i] || !strcmp(forms[i], "/") || (i == 1 && forms[0] && !strcmp(forms[0], dir)))
+      continue;
+    size_t n = strlen(forms[i]);
+    while (n > 1 && forms[i][n - 1] == '/') n--;
+    if ((size_t)snprintf(with_slash, sizeof with_slash, "%.*s/", (int)n, forms[i]) >=
+        sizeof with_slash)
+      continue;
+    obs_err_replace(err, with_slash, "");
+  }
 }

@@ -135,9 +135,8 @@ static int needs_build(obs_render_ctx *ctx, const obs_technique *t, obs_backend 
   return rc;
 }
 
-int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *res,
-               obs_err *err) {
-  memset(res, 0, sizeof *res);
+static int render(const obs_scene *scene, const obs_render_opts *opts, obs_result *res,
+                  obs_err *err) {
   if (!scene || !scene->technique)
     return obs_err_set(err, OBS_EINVAL, "render: no loaded scene");
   const obs_technique *t = scene->technique;
@@ -220,6 +219,15 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
   res->nwarnings = ctx.nwarnings;
   memcpy(res->warnings, ctx.warnings, sizeof res->warnings);
   return 0;
+}
+
+int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *res,
+               obs_err *err) {
+  memset(res, 0, sizeof *res);
+  int rc = render(scene, opts, res, err);
+  /* Files the scene reads (volumes, environment maps) are named as the scene names them. */
+  if (rc && scene) obs_path_err_relative(err, scene->base_dir);
+  return rc;
 }
 
 void obs_render_ctx_stage(obs_render_ctx *ctx, const char *name, double ms) {

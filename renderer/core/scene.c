@@ -564,8 +564,8 @@ static void check_needs(obs_jpath *p, const obs_scene *sc) {
   if (t->check) t->check(sc, sc->params, p->doc, p->err);
 }
 
-static int validate(obs_scene *sc, const json_t *doc, const char *name, const char *base_dir,
-                    obs_err *err) {
+static int validate_doc(obs_scene *sc, const json_t *doc, const char *name,
+                        const char *base_dir, obs_err *err) {
   obs_jpath p;
   obs_jpath_init(&p, name, err);
   int before = err ? err->count : 0;
@@ -607,6 +607,15 @@ static int validate(obs_scene *sc, const json_t *doc, const char *name, const ch
   return 0;
 }
 
+/* Validation whose messages name the scene's files as the scene does (relative to its
+ * directory), never by where they were found. */
+static int validate(obs_scene *sc, const json_t *doc, const char *name, const char *base_dir,
+                    obs_err *err) {
+  int rc = validate_doc(sc, doc, name, base_dir, err);
+  if (rc) obs_path_err_relative(err, base_dir);
+  return rc;
+}
+
 void obs_scene_free(obs_scene *sc) {
   if (!sc) return;
   for (size_t i = 0; i < sc->nobjects; i++) {
@@ -643,7 +652,7 @@ int obs_scene_validate_json(const json_t *doc, const char *name, const char *bas
 static int parse_doc(const char *text, const char *name, json_t **out, obs_err *err) {
   static const obs_json_limits lim = {OBS_JSON_MAX_DEPTH, 0, 0};
   *out = NULL;
-  if (obs_json_prescan_strict(text, strlen(text), &lim, name, err, NULL)) return OBS_EINVAL;
+  if (obs_json_prescan_exact(text, strlen(text), &lim, name, err, NULL)) return OBS_EINVAL;
   json_error_t je;
   *out = json_loads(text, JSON_REJECT_DUPLICATES, &je);
   if (!*out)

@@ -2,7 +2,8 @@
 // database disk that fills during a render, a database deleted or replaced while the daemon runs,
 // and database pages overwritten. Each fault must pause the lanes (no job fails for it, none stays
 // `running` with nothing rendering it), show in GET /api/v1/health and /metrics, refuse new work
-// where the database itself is gone, and clear by itself where the disk recovers.
+// where the database itself is gone, and clear by itself where the disk recovers. A job whose
+// outputs alone do not fit the free space is not such a fault: it fails after bounded tries.
 //
 // Full and read-only disks are small tmpfs mounts (`mount -t tmpfs`, `mount -o remount,ro`), so
 // this needs root with CAP_SYS_ADMIN; without it those subtests are skipped with the reason.
@@ -192,6 +193,43 @@ test('results directory full while jobs are queued', async (t) => {
 
 test('results directory read-only while jobs are queued', async (t) => {
   await resultsFault(t, (data) => remount(data, 'ro'), (data) => remount(data, 'rw'), 'EROFS');
+});
+
+// Outputs that alone do not fit what the disk has free, while smaller files still do: not a fault
+// of the environment (the lanes would wait for it to clear, and it never would), so the job keeps
+// its render for a few bounded tries and then fails saying why, while the other jobs go on.
+test('a job whose outputs do not fit the free space fails with that reason; the others run', async (t) => {
+  await inDir(async (dir, mounts, daemons) => {
+    const data = path.join(dir, 'data');
+    const why = mountTmpfs(data, '1m');
+    if (why) return t.skip(why);
+    mounts.push(data);
+    const d = await startDaemon({dir, workers: 2, args: ['--output-space-retries', '2']});
+    daemons.push(d);
+    // hbao at 1024 x 1024: its EXR alone is megabytes; the small jobs' files are kilobytes.
+    const big = await submit(d, {scene_file: 'sphere_on_plane.json', technique: {name: 'hbao', backend: 'cpu'},
+                                 set: {'/image/width': 1024, '/image/height': 1024}, label: 'too big'});
+    const small = [];
+    for (let i = 0; i < 3; i++) small.push(await submit(d, {...JOB, label: `small ${i}`}));
+    // Waits of 1 and 2 s, then the verdict: bounded, whatever the disk does meanwhile.
+    const b = await waitJob(d, big, undefined, 30000 * SLOW);
+    assert.equal(b.state, 'failed', JSON.stringify(b));
+    assert.match(b.error, /^its outputs do not fit the free space of the results disk \(ENOSPC, [\d.e+-]+ MB free after 3 tries over \d+ s, while smaller files could still be written\)/);
+    assert.ok(!b.error.includes(dir), `the error names the server's directories: ${b.error}`);
+    assert.equal(b.attempts, 1);
+    assert.deepEqual(b.outputs, []);
+    const log = (await request(d, 'GET', `/api/v1/jobs/${big}/log`)).json.lines.join('\n');
+    assert.match(log, /try 2 of 3 in 1 s; the other jobs go on/);
+    assert.match(log, /try 3 of 3 in 2 s/);
+    for (const j of await waitAll(d, small)) assert.equal(j.state, 'succeeded', `job ${j.id}: ${j.error}`);
+    // No fault was raised: the lanes never paused for this job.
+    const h = await health(d);
+    assert.equal(h.status, 'ok', JSON.stringify(h));
+    assert.deepEqual(h.faults, []);
+    assert.equal(await metric(d, 'obscura_faults_total{kind="results"}'), 0);
+    assert.deepEqual(fs.readdirSync(d.resultsDir).filter((f) => f.startsWith('.tmp-')), [], 'staging left behind');
+    await d.stopClean();
+  });
 });
 
 test('database disk fills during a render: the job is not stranded', async (t) => {

@@ -1,7 +1,8 @@
 // HTTP hardening of obscurad against hostile clients: cross-origin and non-JSON mutating requests
 // are refused (and change nothing), ambiguous message framing is answered at once, the request
-// bodies buffered at once are bounded, and 1,000 slow clients neither lock out a health check nor
-// stay connected past the header timeout.
+// bodies buffered at once are bounded, uploads that stall are ended, a second daemon cannot take
+// the port or data directory of a running one, and 1,000 slow clients neither lock out a health
+// check nor stay connected past the header timeout.
 //
 //   node tests/server/test_http_hardening.mjs <obscurad> <obscura>
 //
@@ -14,7 +15,12 @@ import http from 'node:http';
 import net from 'node:net';
 import {test} from 'node:test';
 
-import {SLOW, request, sleep, sql, submit, validate, waitJob, withDaemon} from './lib.mjs';
+import {spawn} from 'node:child_process';
+import os from 'node:os';
+import path from 'node:path';
+
+import {OBSCURAD, SCENES_DIR, SLOW, getJob, request, sleep, sql, submit, validate, waitJob,
+        withDaemon} from './lib.mjs';
 
 const small = {scene_file: 'sphere_on_plane.json', set: {'/image/width': 16, '/image/height': 16, '/technique/params/samples': 4}};
 // Runs for many seconds (1024 tiles) but sees a cancel flag quickly.
@@ -284,6 +290,131 @@ test('unfinished uploads are bounded by max-inflight-bytes; later ones get 503, 
   });
 });
 
+// Uploads that stall hold their share of the budget only for --body-timeout plus one second per
+// --min-body-rate bytes received: four stalled ones announcing max-body - 1 bytes each (the whole
+// budget) are ended, the 503s they caused show in health, and an upload that keeps a pace above
+// the rate is never cut, however long it takes.
+test('stalled uploads are ended after body-timeout; the refusals show in health', async () => {
+  const MAX_BODY = 1 << 20;
+  const TIMEOUT_S = 2;
+  await withDaemon({args: ['--max-body', String(MAX_BODY), '--max-inflight-bytes', String(4 * MAX_BODY),
+                           '--body-timeout', String(TIMEOUT_S), '--min-body-rate', '65536']}, async (d) => {
+    const head = `POST /api/v1/jobs HTTP/1.1\r\nHost: 127.0.0.1:${d.port}\r\nContent-Type: application/json\r\n` +
+                 `Content-Length: ${MAX_BODY - 1}\r\n\r\n{`;
+    const stalled = [];
+    const t0 = Date.now();
+    for (let i = 0; i < 4; i++) {
+      const s = net.connect({host: '127.0.0.1', port: d.port});
+      const c = {s, data: '', closedMs: null};
+      s.on('data', (b) => (c.data += b.toString('latin1')));
+      s.on('error', () => {});
+      s.on('close', () => (c.closedMs = Date.now() - t0));
+      s.write(head);
+      stalled.push(c);
+    }
+    // One byte every 200 ms from each: alive, far below the rate.
+    const drip = setInterval(() => stalled.forEach((c) => c.closedMs === null && c.s.write(' ')), 200);
+    try {
+      await sleep(300 * SLOW);
+      // The budget is theirs: a submission is refused, and health says the server is refusing.
+      const refused = await request(d, 'POST', '/api/v1/jobs', {body: small});
+      assertError(refused, 503, /max-inflight-bytes = 4194304/, 'a submission while four uploads stall');
+      let h = (await request(d, 'GET', '/api/v1/health')).json;
+      validate('Health', h);
+      assert.equal(h.status, 'degraded', JSON.stringify(h.capacity));
+      assert.deepEqual(h.capacity.refusing, ['max-inflight-bytes']);
+      assert.equal(h.capacity.inflight_bytes, 4 * MAX_BODY);
+      assert.ok(h.capacity.refused.find((x) => x.limit === 'max-inflight-bytes').count >= 1);
+      // Ended at about body-timeout plus 1 s per 64 KiB received (a few bytes here), without an
+      // answer, though each kept sending.
+      for (let i = 0; i < 100 && stalled.some((c) => c.closedMs === null); i++) await sleep(100 * SLOW);
+      for (const c of stalled) {
+        assert.notEqual(c.closedMs, null, 'a stalled upload was never ended');
+        assert.ok(c.closedMs >= TIMEOUT_S * 1000 - 100, `ended after ${c.closedMs} ms, before body-timeout`);
+        assert.equal(c.data, '', 'an ended upload got an answer');
+      }
+      const ok = await request(d, 'POST', '/api/v1/jobs', {body: small});
+      assert.equal(ok.status, 201, `after the stalled uploads were ended: ${ok.status} ${ok.text}`);
+      h = (await request(d, 'GET', '/api/v1/health')).json;
+      assert.equal(h.capacity.inflight_bytes, 0);
+      assert.equal(h.capacity.refused.find((x) => x.limit === 'min-body-rate').count, 4);
+      const m = await request(d, 'GET', '/metrics');
+      assert.match(m.text, /^obscura_refusals_total\{limit="min-body-rate"\} 4$/m);
+      assert.match(m.text, /^obscura_refusals_total\{limit="max-inflight-bytes"\} [1-9]\d*$/m);
+      assert.match(d.log(), /4 uploading slower than body-timeout and min-body-rate allow/);
+    } finally {
+      clearInterval(drip);
+      for (const c of stalled) c.s.destroy();
+    }
+    // Slow but steady: 600 KB in three parts a second apart outlasts body-timeout and is read.
+    const body = JSON.stringify({...small, label: 'x'.repeat(600000)});
+    const r = await new Promise((resolve) => {
+      const s = net.connect({host: '127.0.0.1', port: d.port});
+      let data = '';
+      s.on('data', (b) => (data += b.toString('latin1')));
+      s.on('close', () => resolve(data));
+      s.on('error', () => resolve(data));
+      s.write(`POST /api/v1/jobs HTTP/1.1\r\nHost: 127.0.0.1:${d.port}\r\nContent-Type: application/json\r\n` +
+              `Content-Length: ${body.length}\r\nConnection: close\r\n\r\n`);
+      const third = Math.ceil(body.length / 3);
+      [0, 1, 2].forEach((k) => setTimeout(() => s.write(body.slice(k * third, (k + 1) * third)), k * 1000 * SLOW));
+    });
+    // Read whole and answered (the label is over the pre-scan's string bound: 422), not cut off.
+    assert.match(r, /^HTTP\/1\.1 422 /, r.slice(0, 300));
+    assert.match(r, /\/label: string of 600000 bytes/);
+  });
+});
+
+// Runs obscurad with `args` until it exits (killed after `ms`: it should not have started);
+// resolves {code, signal, output}.
+function runDaemon(args, ms = 15000 * SLOW) {
+  return new Promise((resolve) => {
+    const p = spawn(OBSCURAD, ['--listen', '127.0.0.1', '--scenes-dir', SCENES_DIR, '--no-vulkan', ...args],
+                    {stdio: ['ignore', 'pipe', 'pipe']});
+    let output = '';
+    p.stdout.on('data', (b) => (output += b));
+    p.stderr.on('data', (b) => (output += b));
+    const timer = setTimeout(() => p.kill('SIGKILL'), ms);
+    p.on('exit', (code, signal) => {
+      clearTimeout(timer);
+      resolve({code, signal, output});
+    });
+  });
+}
+
+// A port another daemon listens on is refused at bind (no SO_REUSEPORT: the kernel would share the
+// connections between two databases), and so is a data directory another daemon uses, before the
+// newcomer opens anything: its start-up recovery would requeue the running job of the first.
+test('a second obscurad on a bound port or data directory stops with a clear error', async () => {
+  await withDaemon({}, async (d) => {
+    const id = await submit(d, LONG);
+    await waitJob(d, id, (j) => j.state === 'running');
+    const other = fs.mkdtempSync(path.join(os.tmpdir(), 'obsd-second-'));
+    try {
+      const second = await runDaemon(['--port', String(d.port), '--db', path.join(other, 'obscura.db'),
+                                      '--data-dir', path.join(other, 'data')]);
+      assert.equal(second.signal, null, `the second daemon kept running on port ${d.port}:\n${second.output}`);
+      assert.equal(second.code, 1, second.output);
+      assert.match(second.output, new RegExp(`obscurad: cannot listen on 127\\.0\\.0\\.1 port ${d.port}: ` +
+                                             'Address already in use \\(another obscurad or another program listens there'));
+      assert.doesNotMatch(second.output, /listening on/);
+      assert.ok(!fs.existsSync(path.join(other, 'obscura.db')), 'the refused daemon created its database');
+      const third = await runDaemon(['--port', '0', '--db', d.db, '--data-dir', d.dataDir]);
+      assert.equal(third.code, 1, third.output);
+      assert.match(third.output, /another obscurad uses this data directory/);
+      assert.doesNotMatch(third.output, /listening on|applied migration|requeue/);
+    } finally {
+      fs.rmSync(other, {recursive: true, force: true});
+    }
+    // The first is untouched: it answers, and its job still runs in its first attempt.
+    const j = await getJob(d, id);
+    assert.equal(j.state, 'running', JSON.stringify(j));
+    assert.equal(j.attempts, 1);
+    await request(d, 'POST', `/api/v1/jobs/${id}/cancel`);
+    assert.equal((await waitJob(d, id)).state, 'cancelled');
+  });
+});
+
 // ---- slow clients -------------------------------------------------------------------------------
 
 const HEADER_TIMEOUT_S = 4;
@@ -376,7 +507,7 @@ async function slowAttack(name, addresses, maxOpen, extraArgs = []) {
     } finally {
       slow.stop();
     }
-    assert.match(d.log(), /connection\(s\) closed so far before completing their request headers/);
+    assert.match(d.log(), /connection\(s\) closed so far before completing their request: \d+ after header-timeout/);
   });
 }
 

@@ -1,7 +1,9 @@
 // Input limits: deep `set` pointers, deep bodies and bodies of millions of values are refused with
 // a 422 naming where and which limit, before the JSON parser builds them, so the daemon neither
 // crashes (stack overflow in recursive dump/free) nor swells (a parsed value costs ~20x its text);
-// and a read-only data or database directory at start is named with the reason.
+// numbers that a double would hold as another value are refused with their pointer; problems
+// name a scene's files relative to the scenes directory; and a read-only data or database
+// directory at start is named with the reason.
 //
 //   node tests/server/test_input_limits.mjs <obscurad> <obscura>
 import assert from 'node:assert/strict';
@@ -11,7 +13,7 @@ import os from 'node:os';
 import path from 'node:path';
 import {test} from 'node:test';
 
-import {SLOW, getJSON, request, sql, startDaemon, validate, withDaemon} from './lib.mjs';
+import {SCENES_DIR, SLOW, getJSON, request, sql, startDaemon, validate, withDaemon} from './lib.mjs';
 
 const MiB = 1024 * 1024;
 
@@ -54,6 +56,48 @@ test('a 30,000-level set pointer is a 422 naming /set/..., for jobs and comparis
     const over = await request(d, 'POST', '/api/v1/jobs', {body: {scene_file: 'sphere_on_plane.json', set: {[p31]: [[1]]}}});
     assertProblem(over, /^sphere_on_plane\.json: \/a\/a\/a.*nested deeper than 32/);
     await assertAlive(d);
+    assertNothingStored(d);
+  });
+});
+
+// A number is what its text says, or refused: JSON parsers store numbers as doubles, and a text
+// that becomes another value (1e-99999 becomes 0, which priority, a radius or a weight would take
+// as given) is a 422 naming its pointer, in every field of jobs and comparisons alike.
+test('numbers a double would hold as another value are refused with their pointer', async () => {
+  await withDaemon({}, async (d) => {
+    const raw = (text) => request(d, 'POST', '/api/v1/jobs', {body: text});
+    assertProblem(await raw('{"scene_file": "sphere_on_plane.json", "priority": 1e-99999}'),
+                  /^request: \/priority: nonzero number too small for a double .*\(got 1e-99999; it would be read as 0\)$/);
+    assertProblem(await raw('{"scene_file": "sphere_on_plane.json", "priority": 49.99999999999999999}'),
+                  /^request: \/priority: fraction that a double rounds to a whole number \(got 49\.99999999999999999; it would be read as 50\)$/);
+    assertProblem(await raw('{"scene_file": "sphere_on_plane.json", "set": {"/technique/params/samples": 9007199254740993}}'),
+                  /^request: \/set\/~1technique~1params~1samples: integer a double cannot hold exactly .*it would be read as 9007199254740992\)$/);
+    // Inside an inline scene and a comparison's candidates.
+    const doc = fs.readFileSync(path.join(SCENES_DIR, 'sphere_on_plane.json'), 'utf8');
+    assertProblem(await raw(doc.replace('"radius": 0.5', '"radius": 5e-400')), /^request: \/objects\/1\/shape\/radius: nonzero number too small/);
+    const cmp = await request(d, 'POST', '/api/v1/comparisons',
+                              {body: '{"scene_file": "sphere_on_plane.json", "candidates": [{"technique": "rt_ao", "backend": "cpu", "params": {"samples": [4, 1e-99999]}}]}'});
+    assertProblem(cmp, /^request: \/candidates\/0\/params\/samples\/1: nonzero number too small/);
+    // A syntax error is still one (400), whatever its numbers.
+    assert.equal((await raw('{"scene_file": "sphere_on_plane.json", "priority": 1e-99999')).status, 400);
+    // Small and precise numbers that are themselves pass.
+    const ok = await raw('{"scene_file": "sphere_on_plane.json", "priority": 50.0, "set": {"/image/width": 16, "/image/height": 16, "/camera/position/0": 1e-300, "/technique/params/samples": 4}}');
+    assert.equal(ok.status, 201, ok.text);
+    await assertAlive(d);
+  });
+});
+
+// A 422 names a scene's file as the scene does, never by where the server keeps it.
+test('problems name files relative to the scenes directory', async () => {
+  await withDaemon({}, async (d) => {
+    const raw = {scene_file: 'volume_head.json', set: {'/objects/0/shape/format': 'raw', '/objects/0/shape/data_type': 'uint8',
+                                                       '/objects/0/shape/dims': [2, 2, 2]}};
+    const nrrd = {scene_file: 'volume_head.json', set: {'/objects/0/shape/format': 'nrrd'}};
+    for (const body of [raw, nrrd]) {
+      const r = await request(d, 'POST', '/api/v1/jobs', {body});
+      assertProblem(r, /^volume_head\.json: \/objects\/0\/shape\/file: models\/brainsmall\.den: /);
+      assert.ok(!r.text.includes(SCENES_DIR) && !r.text.includes(fs.realpathSync(SCENES_DIR)), `the answer names the scenes directory: ${r.text}`);
+    }
     assertNothingStored(d);
   });
 });

@@ -1,7 +1,8 @@
 // Jobs split over Open MPI ranks ("ranks" > 1, docs/server.md "Jobs on Open MPI ranks"): obscurad
 // --mpirun runs `mpirun -np N obscura render` per job; the outputs are bit-identical to a
 // one-process render (a volume file too); progress moves while the ranks render; a cancel leaves
-// no process behind; without --mpirun, or out of range, ranks is refused naming /ranks.
+// no process behind; without --mpirun, or out of range, ranks is refused naming /ranks; every rank
+// counts as a renderer process against the per-job limits and the queued-jobs cap.
 //
 //   node tests/server/test_mpi_jobs.mjs <obscurad> <obscura>
 import assert from 'node:assert/strict';
@@ -172,5 +173,45 @@ test('ranks is refused without --mpirun and out of range', async () => {
     const id = await submit(d, job(1));
     assert.equal((await waitJob(d, id)).state, 'succeeded');
     assert.equal((await getJob(d, id)).ranks, 1);
+  });
+});
+
+// Every rank is a full renderer process on this machine (it loads the scene, builds its BVH and
+// holds a whole image), so the per-job limits count each: 48 x 32 = 1536 pixels fit
+// --max-pixels 5000 three times, not four; sphere_on_plane's 2 triangles fit --max-triangles 5
+// twice, not three times. Both answers also say the daemon has no --mpirun.
+test('per-job limits count every rank on this machine', async () => {
+  await withDaemon({args: ['--max-pixels', '5000', '--max-triangles', '5']}, async (d) => {
+    let r = await request(d, 'POST', '/api/v1/jobs', {body: job(4)});
+    assert.equal(r.status, 422, r.text);
+    validate('Error', r.json);
+    const has = (re) => r.json.problems.some((p) => re.test(p));
+    assert.ok(has(/^request: \/ranks: 4 ranks on this machine each hold the scene's 1536 pixels, 6144 in all, beyond the server's limit max-pixels = 5000$/), r.text);
+    assert.ok(has(/^request: \/ranks: 4 ranks on this machine each hold the scene's 2 triangles, 8 in all, beyond the server's limit max-triangles = 5$/), r.text);
+    assert.ok(has(/\/ranks: ranks > 1 needs the daemon started with --mpirun/), r.text);
+    r = await request(d, 'POST', '/api/v1/jobs', {body: job(2)});
+    assert.equal(r.status, 422, r.text);
+    assert.deepEqual(r.json.problems, ['request: /ranks: ranks > 1 needs the daemon started with --mpirun (got 2)']);
+    assert.equal((await waitJob(d, await submit(d, job(1)))).state, 'succeeded');
+  });
+});
+
+// The queue counts renderer processes too: a job on N ranks is N of --max-queued-jobs.
+test('a job on N ranks counts N against the queued-jobs cap', {skip: !MPIRUN && 'no mpirun'}, async () => {
+  await withDaemon({args: ['--mpirun', MPIRUN, '--max-queued-jobs', '5']}, async (d) => {
+    // A local render keeps the only worker busy, so what is submitted next stays queued.
+    const blocker = await submit(d, {scene_file: 'sphere_on_plane.json', technique: {name: 'rt_ao', backend: 'cpu'},
+                                     set: {'/image/width': 1024, '/image/height': 1024, '/technique/params/samples': 512}});
+    await waitJob(d, blocker, (j) => j.state === 'running');
+    const three = await submit(d, job(3));
+    const r = await request(d, 'POST', '/api/v1/jobs', {body: job(2)});
+    assert.equal(r.status, 429, r.text);
+    validate('Error', r.json);
+    assert.match(r.headers['retry-after'] || '', /^[1-9]\d*$/);
+    assert.ok(r.json.problems.some((p) => p.startsWith('queued jobs (a job on N MPI ranks counts N) of client 127.0.0.1 would be 6 (4 queued or running + 2 in this request), over the server\'s limit max-queued-jobs = 5 per client')), r.text);
+    // One process more fits exactly.
+    const one = await submit(d, job(1));
+    for (const id of [blocker, three, one]) await request(d, 'POST', `/api/v1/jobs/${id}/cancel`);
+    for (const id of [blocker, three, one]) assert.equal((await waitJob(d, id)).state, 'cancelled');
   });
 });

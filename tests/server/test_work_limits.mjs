@@ -1,16 +1,19 @@
 // Work limits: queued work (width x height x spp x samples, times the renders of each job) is
 // capped per client (--max-queued-work; client = remote address, here distinct 127.0.0.x source
 // addresses) and in total (--max-queued-work-total), for jobs and for all jobs of a comparison at
-// once: over a cap is 429 with Retry-After and nothing queued. A job whose estimated render time
-// exceeds --max-render-seconds is refused with 422 naming /image, estimated from the built-in rate
-// while nothing is stored and from this machine's stored runs once there are some.
+// once: over a cap is 429 with Retry-After and nothing queued. The same holds for queued jobs
+// (--max-queued-jobs) and the bytes they store (--max-queued-bytes), and for a retry, which
+// queues a job again. A comparison creates at most --max-comparison-jobs jobs (422 naming
+// /candidates). A job whose estimated render time exceeds --max-render-seconds is refused with
+// 422 naming /image, estimated from the built-in rate while nothing is stored and from this
+// machine's stored runs once there are some.
 //
 //   node tests/server/test_work_limits.mjs <obscurad> <obscura>
 import assert from 'node:assert/strict';
 import http from 'node:http';
 import {test} from 'node:test';
 
-import {getJSON, listAll, request, submit, validate, waitJob, withDaemon} from './lib.mjs';
+import {getJSON, listAll, request, sql, submit, validate, waitJob, withDaemon} from './lib.mjs';
 
 // POST from a given loopback source address (Linux routes all of 127.0.0.0/8 to lo).
 function postFrom(d, from, p, body) {
@@ -107,5 +110,83 @@ test('a job estimated to outlast --max-render-seconds is refused at submission',
     // A small job still goes through.
     const id = await submit(d, job(32, 32, 16));
     assert.equal((await waitJob(d, id)).state, 'succeeded');
+  });
+});
+
+// Keeps the only worker busy for many seconds (a cancel stops it within a tile).
+const BLOCKER = job(1024, 1024, 2048);
+
+test('a retry passes the same admission as a submission', async () => {
+  // Each BLOCKER is 1024 x 1024 x 2048 = 2.1e9 work: one fits 3e9, two do not.
+  await withDaemon({args: ['--max-queued-work', '3e9']}, async (d) => {
+    const again = await submit(d, BLOCKER);
+    await request(d, 'POST', `/api/v1/jobs/${again}/cancel`);
+    assert.equal((await waitJob(d, again)).state, 'cancelled');
+    const blocker = await submit(d, BLOCKER);
+    await waitJob(d, blocker, (j) => j.state === 'running');
+    // Queued again, the cancelled job would make this client's work 4.3e9.
+    const r = await request(d, 'POST', `/api/v1/jobs/${again}/retry`);
+    assertBusy(r, 'max-queued-work = 3e+09 per client');
+    assert.ok(r.json.problems.some((p) => p.includes('would be 4.295e+09 (2.147e+09 queued or running + 2.147e+09 in this request)')), r.text);
+    assert.equal((await getJSON(d, `/api/v1/jobs/${again}`)).state, 'cancelled', 'a refused retry requeued the job');
+    assert.doesNotMatch((await getJSON(d, `/api/v1/jobs/${again}/log`)).lines.join('\n'), /retried by request/);
+    // A job that is neither failed nor cancelled is a 409, whatever the queue holds.
+    assert.equal((await request(d, 'POST', `/api/v1/jobs/${blocker}/retry`)).status, 409);
+    // Room again: the retry goes through.
+    await request(d, 'POST', `/api/v1/jobs/${blocker}/cancel`);
+    assert.equal((await waitJob(d, blocker)).state, 'cancelled');
+    const ok = await request(d, 'POST', `/api/v1/jobs/${again}/retry`);
+    assert.equal(ok.status, 202, ok.text);
+    assert.equal(ok.json.state, 'queued');
+    await request(d, 'POST', `/api/v1/jobs/${again}/cancel`);
+    await waitJob(d, again);
+  });
+});
+
+test('queued jobs and stored bytes are capped; a comparison creates at most max-comparison-jobs', async () => {
+  // cornell_box's stored document is about 4 KB: two fit 10 KiB, three do not.
+  await withDaemon({args: ['--max-queued-bytes', '10K', '--max-queued-jobs-total', '4']}, async (d) => {
+    const blocker = await postFrom(d, '127.0.0.1', '/api/v1/jobs', BLOCKER);
+    assert.equal(blocker.status, 201, blocker.text);
+    await waitJob(d, blocker.json.id, (j) => j.state === 'running');
+    const second = await postFrom(d, '127.0.0.1', '/api/v1/jobs', job(32, 32, 4));
+    assert.equal(second.status, 201, second.text);
+    const third = await postFrom(d, '127.0.0.1', '/api/v1/jobs', job(32, 32, 4));
+    assertBusy(third, 'max-queued-bytes = 10240 per client');
+    assert.ok(third.json.problems.some((p) => /^bytes stored by queued jobs of client 127\.0\.0\.1 would be \d+ bytes/.test(p)), third.text);
+    // Another client has room for bytes, but the server's job count is full at 4.
+    for (let i = 0; i < 2; i++) assert.equal((await postFrom(d, '127.0.0.2', '/api/v1/jobs', job(32, 32, 4))).status, 201);
+    assertBusy(await postFrom(d, '127.0.0.3', '/api/v1/jobs', job(32, 32, 4)), 'max-queued-jobs-total = 4');
+    const health = await getJSON(d, '/api/v1/health');
+    validate('Health', health);
+    assert.equal(health.status, 'degraded', 'refusing for the server-wide job cap');
+    assert.deepEqual(health.capacity.refusing, ['max-queued-jobs-total']);
+    const count = (limit) => health.capacity.refused.find((x) => x.limit === limit).count;
+    assert.equal(count('max-queued-bytes'), 1);
+    assert.equal(count('max-queued-jobs-total'), 1);
+    assert.equal((await listAll(d)).length, 4);
+    for (const j of await listAll(d)) await request(d, 'POST', `/api/v1/jobs/${j.id}/cancel`);
+  });
+  await withDaemon({args: ['--max-comparison-jobs', '4']}, async (d) => {
+    // 4 candidates and their reference: 5 jobs, refused before anything is stored.
+    const cmp = {scene_file: 'cornell_box.json', set: {'/image/width': 16, '/image/height': 16}, repeats: 1,
+                 candidates: [{technique: 'rt_ao', backend: 'cpu', params: {samples: [1, 2, 3, 4]}}]};
+    const big = await postFrom(d, '127.0.0.4', '/api/v1/comparisons', cmp);
+    assert.equal(big.status, 422, big.text);
+    validate('Error', big.json);
+    assert.ok(big.json.problems.some((p) => p.startsWith('request: /candidates: 4 candidates and their references make at least 5 jobs; this server takes at most max-comparison-jobs = 4 per comparison')), big.text);
+    assert.equal((await getJSON(d, '/api/v1/comparisons')).comparisons.length, 0);
+    assert.equal((await listAll(d)).length, 0);
+    // Three candidates and their reference fit; their documents and the comparison's request
+    // count as stored bytes.
+    const ok = await postFrom(d, '127.0.0.4', '/api/v1/comparisons', {...cmp, candidates: [{technique: 'rt_ao', backend: 'cpu', params: {samples: [1, 2, 3]}}]});
+    assert.equal(ok.status, 201, ok.text);
+    const stored = Number(sql(d.db, "SELECT sum(stored_bytes) FROM jobs WHERE client = '127.0.0.4'")[0][0]);
+    const docs = Number(sql(d.db, "SELECT sum(length(doc)) FROM jobs WHERE client = '127.0.0.4'")[0][0]);
+    const req = Number(sql(d.db, 'SELECT length(request) FROM comparisons')[0][0]);
+    assert.ok(stored >= docs + req, `stored ${stored} < documents ${docs} + request ${req}`);
+    const c = await getJSON(d, `/api/v1/comparisons/${ok.json.id}`);
+    for (const x of c.candidates) await request(d, 'POST', `/api/v1/jobs/${x.job_id}/cancel`);
+    for (const x of c.candidates) await waitJob(d, x.job_id);
   });
 });

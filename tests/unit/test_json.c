@@ -378,6 +378,69 @@ static void test_prescan_numbers_match_parser(void **state) {
   assert_true(refused > 2000 && refused < 18000);
 }
 
+/* The exact pre-scan refuses, with the pointer and the value it would become, numbers that the
+ * parser stores as another value; the strict one (jansson's own refusals) lets them through. A
+ * round trip of doubles through jansson's 17-digit output is never refused: the daemon reads the
+ * documents it stored with the same scan. */
+static void test_prescan_exact_numbers(void **state) {
+  (void)state;
+  const struct {
+    const char *text, *needle;
+  } bad[] = {
+      {"{\"priority\":1e-99999}", "doc: /priority: nonzero number too small for a double"},
+      {"[0,-1e-400]", "doc: /1: nonzero number too small"},
+      {"[-0.000000000000000000000000000000001e-300]", "it would be read as -0)"},
+      {"[9007199254740993]", "doc: /0: integer a double cannot hold exactly"},
+      {"[-9223372036854775807]", "it would be read as -9.2233720368547758e+18"},
+      {"{\"a\":[1,{\"b\":0.99999999999999999}]}", "doc: /a/1/b: fraction that a double rounds"},
+      {"[4503599627370495.75]", "fraction that a double rounds to a whole number"},
+      {"[123456789012345678901234567890.5]", "(got 123456789012345678901234567890.5; it would"},
+  };
+  obs_json_limits lim = {8, 0, 0};
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+    obs_err err = OBS_ERR_INIT;
+    assert_int_equal(obs_json_prescan_exact(bad[i].text, strlen(bad[i].text), &lim, "doc", &err,
+                                            NULL),
+                     OBS_EINVAL);
+    if (!strstr(obs_err_message(&err), bad[i].needle))
+      fprintf(stderr, "%s: %s\n", bad[i].text, obs_err_message(&err));
+    assert_non_null(strstr(obs_err_message(&err), bad[i].needle));
+    obs_err_clear(&err);
+    assert_int_equal(scan_numbers(bad[i].text, &err), 0); /* jansson takes them */
+    obs_err_free(&err);
+  }
+  const char *ok[] = {"[0, -0, 0.0, 0e-99999, -0.000e5]",    "[4.9e-324, 1e-310, 2.2e-308]",
+                      "[9007199254740992, -9007199254740992]", "[1152921504606846976]",
+                      "[1e22, 1.5e300, 9.9999999999999992e+22]", "[0.30000000000000004, 0.1]",
+                      "[4503599627370495.5, 1.00000000000000000000000]", "[\"1e-99999\"]",
+                      "[1.2345678901234568e+19, 123456789012345678901234567890.0]"};
+  for (size_t i = 0; i < sizeof ok / sizeof ok[0]; i++) {
+    obs_err err = OBS_ERR_INIT;
+    int rc = obs_json_prescan_exact(ok[i], strlen(ok[i]), &lim, "doc", &err, NULL);
+    if (rc) fprintf(stderr, "%s: %s\n", ok[i], obs_err_message(&err));
+    assert_int_equal(rc, 0);
+    obs_err_free(&err);
+  }
+  /* Doubles as jansson writes them (17 significant digits) read back as themselves. */
+  uint64_t x = 0x243f6a8885a308d3ULL;
+  for (int n = 0; n < 20000; n++) {
+    x = x * 6364136223846793005ULL + 1442695040888963407ULL;
+    double d;
+    uint64_t bits = x;
+    memcpy(&d, &bits, sizeof d);
+    if (d != d || d - d != 0) continue; /* NaN, infinities */
+    json_t *a = json_pack("[f]", d);
+    char *text = json_dumps(a, JSON_COMPACT | JSON_REAL_PRECISION(17));
+    obs_err err = OBS_ERR_INIT;
+    int rc = obs_json_prescan_exact(text, strlen(text), &lim, "doc", &err, NULL);
+    if (rc) fprintf(stderr, "%s: %s\n", text, obs_err_message(&err));
+    assert_int_equal(rc, 0);
+    obs_err_free(&err);
+    free(text);
+    json_decref(a);
+  }
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_prescan_depth_bound),   cmocka_unit_test(test_prescan_strings_skipped),
@@ -387,6 +450,7 @@ int main(void) {
       cmocka_unit_test(test_prescan_number_range),
       cmocka_unit_test(test_prescan_numbers_long_tails),
       cmocka_unit_test(test_prescan_numbers_match_parser),
+      cmocka_unit_test(test_prescan_exact_numbers),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

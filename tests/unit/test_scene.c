@@ -264,7 +264,7 @@ static void test_camera_basis_validation(void **state) {
   }
   const char *bad[][4] = {
       /* equal once in double, though written differently */
-      {"1,2,3", "1.0000000000000000001,2,3", "0,1,0", "/camera/look_at: must differ"},
+      {"1.5,2,3", "1.50000000000000000001,2,3", "0,1,0", "/camera/look_at: must differ"},
       {"1e30,0,0", "1.00000000000000001e30,0,0", "0,1,0", "/camera/look_at: must differ"},
       {"0,0,0", "0,1e-200,0", "0,1,0", "/camera/up: must not be zero or parallel"},
       {"0,0,0", "0,0,1", "0,0,-1e-300", "/camera/up: must not be zero or parallel"},
@@ -293,10 +293,21 @@ static void test_number_range_pointers(void **state) {
   expect_error("{" BASE ",\"objects\":[],\"technique\":{\"name\":\"rt_ao\",\"params\":{\"seed\":"
                "9223372036854775808}}}",
                "t.json: /technique/params/seed: integer outside the 64-bit range");
-  /* In range for the parser: the ordinary range rules answer. */
+  /* In range for the parser and exact as a double: the ordinary range rules answer. */
+  expect_error("{" BASE ",\"objects\":[],\"technique\":{\"name\":\"rt_ao\",\"params\":{\"samples\":"
+               "9007199254740992}}}",
+               "t.json: /technique/params/samples: must be <=");
+  /* Numbers the parser stores as another value. */
   expect_error("{" BASE ",\"objects\":[],\"technique\":{\"name\":\"rt_ao\",\"params\":{\"samples\":"
                "9223372036854775807}}}",
-               "t.json: /technique/params/samples: must be <=");
+               "t.json: /technique/params/samples: integer a double cannot hold exactly");
+  expect_error("{" BASE ",\"objects\":[{\"shape\":{\"type\":\"sphere\",\"center\":[0,0,0],"
+               "\"radius\":1e-99999}}],\"technique\":{\"name\":\"rt_ao\"}}",
+               "t.json: /objects/0/shape/radius: nonzero number too small for a double (below "
+               "4.9e-324 in magnitude it becomes 0) (got 1e-99999; it would be read as 0)");
+  expect_error("{" BASE ",\"objects\":[],\"technique\":{\"name\":\"rt_ao\",\"params\":{\"samples\":"
+               "63.99999999999999999}}}",
+               "t.json: /technique/params/samples: fraction that a double rounds to a whole number");
 }
 
 /* displaced_sphere at level 1 is a closed, displaced tetrahedron of 4 triangles (2^(2s)), wound

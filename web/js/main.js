@@ -69,18 +69,25 @@ tokenBox.addEventListener('submit', async (ev) => {
 });
 
 // Every page shows the server's active faults (a full or read-only disk, a lost or corrupt
-// database) above its content: what failed, where, since when, the next retry and what to do.
+// database) above its content: what failed, where, since when, the next retry and what to do; and
+// the server-wide limits that refused requests in the last minute (health's capacity.refusing).
 const banner = document.getElementById('fault-banner');
-function showFaults(faults) {
-  banner.replaceChildren(...faults.map((f) => {
+function showFaults(faults, refusing = []) {
+  const lines = faults.map((f) => {
     const when = f.next_retry ? ` · next retry ${new Date(f.next_retry).toLocaleTimeString()}` : '';
     return el('p', {className: f.severity === 'error' ? 'fault error' : 'fault'},
       el('strong', {}, f.severity === 'error' ? 'Not accepting work: ' : 'Paused: '),
       `${f.what} (${f.code ? f.code + ', ' : ''}${f.path}) since ${new Date(f.since).toLocaleTimeString()}${when}. `,
       el('span', {className: 'fault-message'}, f.message), ' ',
       el('span', {className: 'fault-action'}, f.action));
-  }));
-  banner.hidden = faults.length === 0;
+  });
+  if (refusing.length) {
+    lines.push(el('p', {className: 'fault'}, el('strong', {}, 'Refusing requests: '),
+      `no room under ${refusing.join(', ')} in the last minute; submissions may get 429 or 503 ` +
+      '(GET /api/v1/health lists every limit\'s refusals).'));
+  }
+  banner.replaceChildren(...lines);
+  banner.hidden = lines.length === 0;
 }
 
 // The counts follow the queue: every 2 s while something is queued or running, at most 5 s apart
@@ -96,7 +103,7 @@ const healthPoll = poll(async () => {
     uptime = h.uptime_s;
     health.textContent = `server ${h.status} · ${h.queue_depth} queued · ${h.running} running` +
       (h.vulkan_available ? ' · Vulkan' : '');
-    showFaults(h.faults || []);
+    showFaults(h.faults || [], (h.capacity && h.capacity.refusing) || []);
     return h.queue_depth + h.running > 0 || (h.faults || []).length > 0;
   } catch (e) {
     health.textContent = `server: ${e.message}`;

@@ -42,6 +42,9 @@ int obs_err_set(obs_err *err, int code, const char *fmt, ...)
 /* Message text, "" when empty. Borrowed pointer, valid until the next call on `err`. */
 const char *obs_err_message(const obs_err *err);
 void obs_err_clear(obs_err *err);
+/* Rewrites every occurrence of `from` in the messages as `to` (e.g. a scene directory's resolved
+ * path as "", so that files are named as the scene names them, not where they lie). */
+void obs_err_replace(obs_err *err, const char *from, const char *to);
 void obs_err_free(obs_err *err);
 /* Short name of a code ("invalid input", ...). Static string. */
 const char *obs_strerror(int code);

@@ -22,6 +22,11 @@ int obs_path_is_inside(const char *dir, const char *path);
  * the failing call's, so callers can explain EACCES or EROFS. */
 int obs_path_make_dirs(const char *dir, obs_err *err);
 
+/* Names the files under `dir` in err's messages relative to it, as a scene names them: every
+ * "<dir>/" (as given and as resolved) is removed. A render's or a scene's problems then never
+ * show where the scene's tree lies on this machine (a server would reveal its directories). */
+void obs_path_err_relative(obs_err *err, const char *dir);
+
 #ifdef __cplusplus
 }
 #endif
