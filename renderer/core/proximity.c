@@ -428,11 +428,6 @@ OBS_AVX2_INLINE void walk_read8(prox_walk *w, int *done, int upto) {
 }
 #endif
 
-void obs_prox_disc_axes(const float n[3], float t[3], float b[3]) {
-  float m[3] = {n[0], n[1], fabsf(n[2]) < OBS_PROX_FLAT_Z ? 0.0f : n[2]};
-  obs_onb(m, t, b);
-}
-
 /* The walk's steps over points read by `read` (inlined into each instruction-set level). */
 static inline __attribute__((always_inline)) float walk_steps(prox_walk *w, walk_read_fn read) {
   const obs_prox_recon *r = w->r;

@@ -134,13 +134,6 @@ typedef struct obs_prox_recon {
  * at the process's instruction-set level (obs_simd_isa). */
 void obs_prox_recon_init(obs_prox_recon *r, int steps, int mode, float stop_value,
                          float scale_before, float scale_after, uint32_t seed);
-/* The disc's axes about unit normal n (world space): obs_onb's basis, which flips with the sign
- * of n's z. A z within OBS_PROX_FLAT_Z of 0 counts as +0, so a surface with a zero z (every wall
- * of an axis-aligned room) gets the same disc whichever way its triangles are wound, and whatever
- * sign of zero or last-bit error the backend's normal carries. */
-#define OBS_PROX_FLAT_Z 0x1p-20f
-void obs_prox_disc_axes(const float n[3], float t[3], float b[3]);
-
 /* The eight-lane walk's copy of field `f`: for voxel (x, y, z) the pair v(x, y, z),
  * v(x, min(y + 1, dy - 1), z) at float 2x + 2(dx + 1) y + 2(dx + 1) dy z, x and z padded with a
  * copy of their last voxel. One 16-byte read at (x, y, z) then holds the four x-y corners of a

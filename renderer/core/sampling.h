@@ -70,17 +70,43 @@ static inline void obs_sample_uniform(float u, float v, float d[3]) {
   d[2] = z;
 }
 
-/* Orthonormal basis (t, b) around unit n (Duff et al. 2017), branchless and stable. */
+/* The sampling frame: the one orthonormal basis (t, b) about a unit normal n that every technique
+ * and backend builds its hemisphere, disc or march directions on (GLSL twin obs_onb in
+ * renderer/vulkan/shaders/include/frame.glsl, the same operations in the same order, so the same
+ * bits). Duff et al. 2017: branchless and stable, but it turns half-way round with the sign of
+ * n's z, so every direction built on it changes with that sign.
+ *
+ * The guard: each component of n within OBS_ONB_FLAT (2^-20) of 0 counts as +0 before the basis
+ * is built, and only then is the sign taken. Why this guard, relative to what:
+ *  - n is unit length, so an absolute bound on its components is a relative one: the same at
+ *    every scene scale and translation.
+ *  - A component that is 0 in exact arithmetic reaches here as +0, -0 or a few float rounding
+ *    errors of 1 (2^-24 each) of either sign: a wall of an axis-aligned room gets its sign of
+ *    zero from its triangle's winding; a cross product of edges whose products cancel
+ *    (dx dy - dy dx) gives the rounding error of dx dy under a fused multiply-add, with a sign
+ *    that changes with the scale and the instruction set; a normal rotated from view space in
+ *    float carries a last-bit error. 2^-20 is 16 of those rounding errors, far above them and
+ *    far below any tilt that matters: ignoring a component below it tilts the frame by under
+ *    2^-20 radians (1e-6), a millionth of the way a direction travels.
+ *  - Guarding z alone would remove the flip; guarding all three also makes the frame of a normal
+ *    that differs only by such noise the same bits (normals rotated back from view space on
+ *    Vulkan against the CPU's exact ones), at no cost.
+ * The flip itself remains, at z = -2^-20 instead of 0, where no rounding of a zero lands. The
+ * caller's own n stays the frame's third axis: t and b are orthogonal to it within 2^-20. */
+#define OBS_ONB_FLAT 0x1p-20f
 static inline void obs_onb(const float n[3], float t[3], float b[3]) {
-  float sign = copysignf(1.0f, n[2]);
-  float a = -1.0f / (sign + n[2]);
-  float c = n[0] * n[1] * a;
-  t[0] = 1.0f + sign * n[0] * n[0] * a;
+  const float x = fabsf(n[0]) < OBS_ONB_FLAT ? 0.0f : n[0];
+  const float y = fabsf(n[1]) < OBS_ONB_FLAT ? 0.0f : n[1];
+  const float z = fabsf(n[2]) < OBS_ONB_FLAT ? 0.0f : n[2];
+  const float sign = z < 0.0f ? -1.0f : 1.0f;
+  const float a = -1.0f / (sign + z);
+  const float c = x * y * a;
+  t[0] = 1.0f + sign * x * x * a;
   t[1] = sign * c;
-  t[2] = -sign * n[0];
+  t[2] = -sign * x;
   b[0] = c;
-  b[1] = sign + n[1] * n[1] * a;
-  b[2] = -n[1];
+  b[1] = sign + y * y * a;
+  b[2] = -y;
 }
 
 #endif

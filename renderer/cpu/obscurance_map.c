@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "driver.h"
+#include "normalize.h"
 #include "obscura/render.h"
 #include "parallel.h"
 #include "patch_ids.h"
@@ -94,7 +95,7 @@ static uint64_t ray_sample(const obs_omap_job *j, obs_omap_acc *acc, patch_frame
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
     obs_omap_value(j, INFINITY, NULL, v);
   } else {
-    float nb[3];
+    double nb[3];
     const float *r;
     if (rh.hit.geomID == j->rt->sphere_geom) {
       nb[0] = rh.hit.Ng_x, nb[1] = rh.hit.Ng_y, nb[2] = rh.hit.Ng_z;
@@ -138,11 +139,10 @@ static uint64_t rays_patch(const obs_omap_job *j, int64_t patch, obs_omap_acc *a
                   uv[q][1] * ((double)v[2][k] - v[0][k]);
       mag = fmaxf(mag, fabsf((float)f.c[q][k]));
     }
-  float n[3];
+  double n[3];
   obs_omap_tri_normal(j->rt, (unsigned)m, prim, n);
-  float l = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-  if (!(l > 0) || !isfinite(l)) return 0;
-  for (int k = 0; k < 3; k++) f.from.ng[k] = f.from.ns[k] = n[k] / l;
+  if (obs_normalize3d(n)) return 0;
+  for (int k = 0; k < 3; k++) f.from.ng[k] = f.from.ns[k] = (float)n[k];
   obs_onb(f.from.ng, f.tb[0], f.tb[1]);
   /* A point is a convex combination of the corners rounded once: a few ulps of the largest
    * coordinate. */

@@ -87,17 +87,14 @@ static inline void obs_omap_add(obs_omap_acc *a, const double v[3]) {
   a->n++;
 }
 
-/* The right-handed normal of mesh `geom`'s triangle `prim` (unnormalised, float): a patch's
- * front side, the one its obscurance is of. */
-static inline void obs_omap_tri_normal(const obs_rt *rt, unsigned geom, unsigned prim, float n[3]) {
+/* The right-handed normal of mesh `geom`'s triangle `prim` (unnormalised): a patch's front side,
+ * the one its obscurance is of. obs_rt_plane_normal's double cross product, the ray tracer's face
+ * normal: a component whose products cancel is exactly 0 at every scale. */
+static inline void obs_omap_tri_normal(const obs_rt *rt, unsigned geom, unsigned prim,
+                                       double n[3]) {
   const obs_mesh *m = &rt->geo.meshes[geom];
   const uint32_t *t = m->idx + 3 * (size_t)prim;
-  const float *a = m->pos + 3 * t[0], *b = m->pos + 3 * t[1], *c = m->pos + 3 * t[2];
-  float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-  float e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-  n[0] = e1[1] * e2[2] - e1[2] * e2[1];
-  n[1] = e1[2] * e2[0] - e1[0] * e2[2];
-  n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+  obs_rt_plane_normal(m->pos + 3 * t[0], m->pos + 3 * t[1], m->pos + 3 * t[2], n);
 }
 
 /* Tile functions for obs_parallel_tiles (x = chunk index, one row): */

@@ -92,7 +92,7 @@ static int line_hits(line_state *st, const double org[3], const double dir[3], d
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) break;
     const unsigned g = rh.hit.geomID, p = rh.hit.primID;
     line_hit h;
-    float nf[3];
+    double nf[3];
     h.t = rh.ray.tfar;
     if (g == rt->sphere_geom) {
       nf[0] = rh.hit.Ng_x, nf[1] = rh.hit.Ng_y, nf[2] = rh.hit.Ng_z;
@@ -192,7 +192,7 @@ static int line_hits_collect(line_state *st, const double org[3], const double d
       again = r[m].geom == r[k].geom && r[m].prim == r[k].prim;
     if (again) continue;
     line_hit h;
-    float nf[3];
+    double nf[3];
     obs_omap_tri_normal(j->rt, r[k].geom, r[k].prim, nf);
     h.t = r[k].t;
     h.patch = obs_patch_mesh_find(j->pm, r[k].geom, r[k].prim, r[k].u, r[k].v);

@@ -45,7 +45,7 @@ static void map_vector(const double m[3][4], const double v[3], float out[3]) {
 static float accessibility(const job *jb, const double p[3], const float n[3], size_t self,
                            int *nfields) {
   float t[3], b[3];
-  obs_prox_disc_axes(n, t, b);
+  obs_onb(n, t, b); /* the disc's axes */
   double h = jb->step, s[3], tv[3], bv[3];
   for (int k = 0; k < 3; k++) {
     s[k] = n[k] * h;

@@ -426,7 +426,7 @@ static void fill_hit(const obs_rt *rt, const double org[3], const double dir[3],
   hit->sphere_inside = 0;
   float d[3] = {rh.ray.dir_x, rh.ray.dir_y, rh.ray.dir_z};
   float ng[3] = {rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z};
-  int have_ns = 0;
+  int have_ns = 0, unit = 0;
   float ns[3] = {0, 0, 0};
   if (rh.hit.geomID == rt->sphere_geom) {
     const obs_sphere *s = &rt->geo.spheres[rh.hit.primID];
@@ -451,15 +451,9 @@ static void fill_hit(const obs_rt *rt, const double org[3], const double dir[3],
      * proportion to the vertices' magnitude, which on a huge triangle is a visible shift of P.
      * In double, P is on the plane and where the ray meets it to ~1e-16; rounding to float is
      * then its only error. Degenerate planes fall back to Embree's t. */
-    double e1[3], e2[3], n[3], oa[3];
-    for (int k = 0; k < 3; k++) {
-      e1[k] = (double)b[k] - a[k];
-      e2[k] = (double)c[k] - a[k];
-      oa[k] = (double)a[k] - org[k];
-    }
-    n[0] = e1[1] * e2[2] - e1[2] * e2[1];
-    n[1] = e1[2] * e2[0] - e1[0] * e2[2];
-    n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+    double n[3], oa[3];
+    obs_rt_plane_normal(a, b, c, n);
+    for (int k = 0; k < 3; k++) oa[k] = (double)a[k] - org[k];
     double dn = n[0] * dir[0] + n[1] * dir[1] + n[2] * dir[2];
     double t = (oa[0] * n[0] + oa[1] * n[1] + oa[2] * n[2]) / dn;
     int exact = dn != 0.0 && isfinite(t) && t >= 0.0;
@@ -472,19 +466,25 @@ static void fill_hit(const obs_rt *rt, const double org[3], const double dir[3],
                          : 7.0f * 0x1p-24f * (fabsf(w * a[k]) + fabsf(u * b[k]) + fabsf(v * c[k]));
     }
     if (exact) hit->t = (float)t;
-    /* Embree's float normal, a product of two edges, runs into the subnormals (and loses its
-     * precision) for edges below ~1e-19. Where it is below 2^-100 the double cross product of the
-     * same float vertices stands in: its products stay far inside double's range. */
-    if (!(fabsf(ng[0]) >= 0x1p-100f || fabsf(ng[1]) >= 0x1p-100f || fabsf(ng[2]) >= 0x1p-100f) &&
-        !obs_normalize3d(n))
+    /* The face normal is that double cross product of the float vertices, normalised in double
+     * and rounded once (obs_rt_intersect_primary's too), not Embree's float Ng: Embree forms its
+     * edge products with fused multiply-adds on AVX2 and AVX-512 and plain ones on SSE2, so a
+     * component whose products cancel (dx dy - dy dx, two vertices that differ in one coordinate
+     * only) came out as +-(the rounding error of dx dy), its sign changing with the scale and the
+     * instruction set, where the double one is exactly 0 everywhere; and Embree's runs into the
+     * subnormals for edges below ~1e-19. Embree's stands in only for a triangle without area in
+     * double. */
+    if (!obs_normalize3d(n)) {
       for (int k = 0; k < 3; k++) ng[k] = (float)n[k];
+      unit = 1;
+    }
     if (m->nrm) {
       const float *na = m->nrm + 3 * tri[0], *nb = m->nrm + 3 * tri[1], *nc = m->nrm + 3 * tri[2];
       for (int k = 0; k < 3; k++) ns[k] = w * na[k] + u * nb[k] + v * nc[k];
       have_ns = ns[0] != 0 || ns[1] != 0 || ns[2] != 0;
     }
   }
-  if (obs_normalize3f(ng)) ng[0] = 0, ng[1] = 0, ng[2] = 1;
+  if (!unit && obs_normalize3f(ng)) ng[0] = 0, ng[1] = 0, ng[2] = 1;
   int back = ng[0] * d[0] + ng[1] * d[1] + ng[2] * d[2] > 0;
   if (back) {
     for (int k = 0; k < 3; k++) ng[k] = -ng[k];
@@ -612,9 +612,11 @@ static inline __attribute__((always_inline)) void intersect_primary(const obs_rt
         plane_geom = h->geom;
         plane_prim = h->prim;
       }
+      /* The plane's normal is the face normal wherever it has one (fill_hit says why), even
+       * where the ray runs along the plane and Embree's t stays. */
       double tp;
-      if (obs_rt_plane_hit(plane_n, plane_a, ro, rd, &tp)) {
-        t = tp;
+      if (obs_rt_plane_hit(plane_n, plane_a, ro, rd, &tp)) t = tp;
+      if (plane_unit[0] != 0 || plane_unit[1] != 0 || plane_unit[2] != 0) {
         ng[0] = plane_unit[0], ng[1] = plane_unit[1], ng[2] = plane_unit[2];
         unit = 1;
       }

@@ -2,6 +2,8 @@
  * technique comes from the registry: its backends, its needs, its parameter schema (ranges, enums,
  * defaults) and its outputs, so it runs unchanged over any technique that registers. */
 #include "conformance.h"
+#include "extent.h"
+#include "extremes.h"
 #include "testutil.h"
 
 #include <jansson.h>
@@ -278,6 +280,20 @@ static double param_default(const obs_technique *t, const char *key) {
   return v;
 }
 
+/* Into `out`, a params object of `extra` (members, may be "") and every length parameter of `rg`
+ * with a default, at that default times s^size_power: the scale-1 scene's lengths scaled by s. */
+static void scaled_params(const obs_technique *t, const obs_range *rg, const char *extra, double s,
+                          char *out, size_t size) {
+  size_t m = (size_t)snprintf(out, size, "{%s", extra);
+  for (int i = 0; rg->params[i].name && m < size; i++) {
+    double d = param_default(t, rg->params[i].name);
+    if (!rg->params[i].size_power || isnan(d)) continue;
+    m += (size_t)snprintf(out + m, size - m, "%s\"%s\":%.17g", m > 1 ? "," : "", rg->params[i].name,
+                          d * pow(s, rg->params[i].size_power));
+  }
+  if (m < size) snprintf(out + m, size - m, "}");
+}
+
 /* `b` (scale 1) against `r` (scale s) on the primary output's channels: coverage equal, the mean
  * and the share of large differences within the declared tolerance. */
 static int compare_scaled(const char *what, const obs_technique *t, const obs_image *b,
@@ -323,15 +339,8 @@ static int scales_pair(const obs_technique *t, obs_backend be) {
   int bad = 0;
   memset(res, 0, sizeof res);
   for (int k = 0; k < 3; k++) {
-    char params[512] = "{";
-    size_t m = 1;
-    for (int i = 0; rg->params[i].name; i++) {
-      double d = param_default(t, rg->params[i].name);
-      if (!rg->params[i].size_power || isnan(d)) continue;
-      m += (size_t)snprintf(params + m, sizeof params - m, "%s\"%s\":%.17g", m > 1 ? "," : "",
-                            rg->params[i].name, d * pow(scales[k], rg->params[i].size_power));
-    }
-    snprintf(params + m, sizeof params - m, "}");
+    char params[512];
+    scaled_params(t, rg, "", scales[k], params, sizeof params);
     char *doc = scene_doc_scaled(t, be, params, 1, 1, scales[k]);
     char what[160];
     snprintf(what, sizeof what, "%s/%s scaled by %g", t->name, obs_backend_name(be), scales[k]);
@@ -351,3 +360,201 @@ static int scales_pair(const obs_technique *t, obs_backend be) {
 }
 
 int obs_conformance_scales(obs_backend be, int *ran) { return each_pair(be, ran, scales_pair); }
+
+/* ---- scale invariance where normals cancel ------------------------------------------------
+ * A room with leaning walls and a prism lying along z. Several of their triangles have two
+ * vertices that differ only in one coordinate, so the edges from the third vertex are
+ * (dx, dy, a) and (dx, dy, b) (or the like in another axis) and a normal component comes out as
+ * dx dy - dy dx: exactly 0, whatever the scale and translation (equal coordinates stay equal
+ * when rounded), but only if nothing fuses the products. A fused multiply-add leaves the rounding
+ * error of dx dy instead, with a sign that changes with the scale, and a sampling frame that
+ * turns with that sign (Duff et al.'s flips with the sign of z) then changes every direction
+ * sampled on that wall. The axis-aligned sphere over a plane of the range check has no such
+ * triangle. */
+
+#define CANCEL_W 32
+#define CANCEL_H 24
+#define CANCEL_FACTORS 24
+
+/* Faces of the room at scale 1: quads (4 vertices) and one triangle (the prism's front). */
+typedef struct room_face {
+  int n;
+  double v[4][3];
+} room_face;
+
+static const room_face k_room[] = {
+    /* floor, ceiling */
+    {4, {{-1.0371, 0, 0}, {-1.0371, 0, 3.1187}, {0.9613, 0, 3.1187}, {0.9613, 0, 0}}},
+    {4,
+     {{-1.2119, 1.9273, 0},
+      {1.1437, 1.9273, 0},
+      {1.1437, 1.9273, 3.3719},
+      {-1.2119, 1.9273, 3.3719}}},
+    /* leaning walls: left and right (top edges along z), back (top edge along x) */
+    {4, {{-1.0371, 0, 0}, {-1.2119, 1.9273, 0}, {-1.2119, 1.9273, 3.3719}, {-1.0371, 0, 3.1187}}},
+    {4, {{0.9613, 0, 3.1187}, {1.1437, 1.9273, 3.3719}, {1.1437, 1.9273, 0}, {0.9613, 0, 0}}},
+    {4,
+     {{-1.0371, 0, 3.1187},
+      {-1.2119, 1.9273, 3.3719},
+      {1.1437, 1.9273, 3.3719},
+      {0.9613, 0, 3.1187}}},
+    /* the prism: two sloping sides along z and its front */
+    {4,
+     {{-0.6173, 0, 1.2113},
+      {-0.2437, 0.7769, 1.2113},
+      {-0.2437, 0.7769, 2.3291},
+      {-0.6173, 0, 2.3291}}},
+    {4,
+     {{0.0911, 0, 2.3291},
+      {-0.2437, 0.7769, 2.3291},
+      {-0.2437, 0.7769, 1.2113},
+      {0.0911, 0, 1.2113}}},
+    {3, {{-0.6173, 0, 1.2113}, {0.0911, 0, 1.2113}, {-0.2437, 0.7769, 1.2113}}},
+};
+
+/* The room for technique t on backend be at scale s, every position shifted by `off` (volume
+ * techniques, which ignore surfaces, see two procedural balls where the prism stands). */
+static char *room_doc(const obs_technique *t, obs_backend be, const char *params, double s,
+                      const double off[3]) {
+  size_t cap = 8192, n = 0;
+  char *doc = malloc(cap);
+#define PUT(...) (n += (size_t)snprintf(doc + n, n < cap ? cap - n : 0, __VA_ARGS__))
+#define P(x, y, z) s *(x) + off[0], s *(y) + off[1], s *(z) + off[2]
+  PUT("{\"camera\":{\"type\":\"perspective\",\"fov_y\":55,\"position\":[%.17g,%.17g,%.17g],"
+      "\"look_at\":[%.17g,%.17g,%.17g],\"up\":[0,1,0]},"
+      "\"image\":{\"width\":%d,\"height\":%d,\"spp\":1},\"objects\":[",
+      P(0.1713, 1.2219, -0.9), P(-0.1, 0.6, 1.9), CANCEL_W, CANCEL_H);
+  const char *mat = ",\"material\":{\"reflectivity\":[0.5,0.5,0.5]}}";
+  if (t->needs & OBS_NEED_VOLUME) {
+    char ball[512];
+    obs_test_ball(t, P(-0.3, 0.6, 1.7), 0.55 * s, ball, sizeof ball);
+    PUT("{%s%s,", ball, mat);
+    obs_test_ball(t, P(0.5, 0.35, 2.2), 0.35 * s, ball, sizeof ball);
+    PUT("{%s%s", ball, mat);
+  } else {
+    for (size_t f = 0; f < sizeof k_room / sizeof k_room[0]; f++) {
+      const room_face *q = &k_room[f];
+      PUT("%s{\"shape\":{\"type\":\"%s\",\"vertices\":[", f ? "," : "",
+          q->n == 4 ? "quad" : "triangle");
+      for (int i = 0; i < q->n; i++)
+        PUT("%s[%.17g,%.17g,%.17g]", i ? "," : "", P(q->v[i][0], q->v[i][1], q->v[i][2]));
+      PUT("]}%s", mat);
+    }
+  }
+  PUT("]");
+  if (!(t->needs & OBS_NEED_VOLUME)) /* volume techniques light with points and directions */
+    PUT(",\"lights\":[{\"type\":\"quad\",\"vertices\":[[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g],"
+        "[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g]],\"emission\":[4,4,4]}]",
+        P(-0.31, 1.9, 1.3), P(0.29, 1.9, 1.3), P(0.29, 1.9, 1.9), P(-0.31, 1.9, 1.9));
+  PUT(",\"environment\":{\"color\":[0.2,0.2,0.2]},"
+      "\"technique\":{\"name\":\"%s\",\"backend\":\"%s\",\"params\":%s}}",
+      t->name, obs_backend_name(be), params);
+#undef P
+#undef PUT
+  if (n >= cap) doc[0] = 0; /* a truncated document fails to load, naming nothing false */
+  return doc;
+}
+
+/* The range check's cheap settings, and coarser fields and maps: the room has eight objects. */
+static void room_params(const obs_technique *t, const obs_range *rg, double s, char *out,
+                        size_t size) {
+  char extra[256];
+  const char *fast = obs_extremes_fast_params(t->name), *more = "";
+  if (!strcmp(t->name, "proximity_ao")) more = "\"volume_res\":48,\"min_res\":16";
+  if (!strcmp(t->name, "obscurance_map"))
+    more = "\"samples\":16,\"directions\":16,\"bundle_resolution\":32";
+  snprintf(extra, sizeof extra, "%s%s%s", fast, *fast && *more ? "," : "", more);
+  scaled_params(t, rg, extra, s, out, size);
+}
+
+/* Whether the primary output of a and b has the same bits. */
+static int same_primary(const obs_technique *t, const obs_image *a, const obs_image *b) {
+  const float *x[3], *y[3];
+  double lo, hi;
+  int nch = obs_test_primary_channels(t, a, x, &lo, &hi);
+  if (!nch || obs_test_primary_channels(t, b, y, &lo, &hi) != nch) return 0;
+  size_t bytes = (size_t)a->width * (size_t)a->height * sizeof(float);
+  for (int c = 0; c < nch; c++)
+    if (memcmp(x[c], y[c], bytes)) return 0;
+  return 1;
+}
+
+/* Loads and renders `doc` with 2 threads; fills *size with the scene's size. */
+static int render_sized(const char *doc, obs_result *res, double *size, obs_err *err) {
+  obs_scene sc;
+  memset(res, 0, sizeof *res);
+  int rc = obs_scene_load_string(&sc, doc, "room.json", NULL, NULL, 0, err);
+  if (rc) return rc;
+  obs_extent ex = {0};
+  rc = obs_scene_extent(&sc, &ex, err);
+  *size = ex.size;
+  obs_render_opts o = {.threads = 2};
+  if (!rc) rc = obs_render(&sc, &o, res, err);
+  obs_scene_free(&sc);
+  return rc;
+}
+
+static int cancel_pair(const obs_technique *t, obs_backend be) {
+  const obs_range *rg = &t->range[be];
+  if (!(rg->size_max > 0))
+    return printf("FAIL %s/%s declares no range\n", t->name, obs_backend_name(be)), 1;
+  const double zero[3] = {0, 0, 0};
+  char params[512], what[256];
+  obs_err err = OBS_ERR_INIT;
+  obs_result base;
+  double size = 0, worst_mean = 0, worst_share = 0;
+  int bad = 0, same = 0;
+  snprintf(what, sizeof what, "%s/%s room at scale 1", t->name, obs_backend_name(be));
+  room_params(t, rg, 1, params, sizeof params);
+  char *doc = room_doc(t, be, params, 1, zero);
+  int rc = render_sized(doc, &base, &size, &err);
+  free(doc);
+  if (rc || !(size > 0)) {
+    printf("FAIL %s: %s\n", what, rc ? obs_err_message(&err) : "no size");
+    obs_result_free(&base);
+    obs_err_free(&err);
+    return 1;
+  }
+  bad += obs_test_check_sane(what, t, &base.image) + obs_extremes_no_warnings(what, &base);
+  /* Both ends of the size range (just inside) and 22 factors spaced evenly in log between them;
+   * every other one also moved 3 sizes away from the origin. */
+  const double lo = rg->size_min / size * (1 + 1e-6), hi = rg->size_max / size * (1 - 1e-6);
+  for (int k = 0; k < CANCEL_FACTORS; k++) {
+    double s = lo * pow(hi / lo, (double)k / (CANCEL_FACTORS - 1)), off[3] = {0, 0, 0};
+    if (k & 1)
+      for (int c = 0; c < 3; c++) off[c] = 3 * size * s * (c == 0 ? 0.36 : c == 1 ? 0.48 : 0.8);
+    snprintf(what, sizeof what, "%s/%s room scaled by %.6g%s", t->name, obs_backend_name(be), s,
+             k & 1 ? ", 3 sizes from the origin" : "");
+    room_params(t, rg, s, params, sizeof params);
+    doc = room_doc(t, be, params, s, off);
+    obs_result res;
+    double sz;
+    obs_err_clear(&err);
+    rc = render_sized(doc, &res, &sz, &err);
+    free(doc);
+    if (rc) {
+      printf("FAIL %s: %s\n", what, obs_err_message(&err));
+      bad++;
+    } else {
+      obs_extremes_dev dev;
+      bad += obs_test_check_sane(what, t, &res.image) + obs_extremes_no_warnings(what, &res);
+      bad += obs_extremes_compare(what, t, &base.image, &res.image, s, &rg->tol, &dev);
+      same += same_primary(t, &base.image, &res.image);
+      worst_mean = fmax(worst_mean, dev.mean);
+      worst_share = fmax(worst_share, dev.share);
+    }
+    obs_result_free(&res);
+  }
+  printf(
+      "     %s/%s room: %d of %d factors in [%.3g, %.3g] give scale 1's bits; worst mean |d| "
+      "%.3g, worst share over %g %.3g\n",
+      t->name, obs_backend_name(be), same, CANCEL_FACTORS, lo, hi, worst_mean, rg->tol.ao_pixel,
+      worst_share);
+  obs_result_free(&base);
+  obs_err_free(&err);
+  return bad;
+}
+
+int obs_conformance_cancellation(obs_backend be, int *ran) {
+  return each_pair(be, ran, cancel_pair);
+}

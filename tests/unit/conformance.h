@@ -21,6 +21,12 @@ int obs_conformance_threads(obs_backend backend, int *ran);
 /* The scene and every length parameter scaled by 1e-4 and by 1e4: the primary output equals the
  * scale-1 render within the tolerance the backend declares (obs_range.tol). */
 int obs_conformance_scales(obs_backend backend, int *ran);
+/* A room whose wall triangles have normal components that cancel to exactly 0 (dx dy - dy dx),
+ * rendered at scale 1 and at 24 factors spread over the backend's guaranteed size range (both
+ * ends included), every other one translated: each equals the scale-1 render within the declared
+ * tolerance (obs_range.tol) and carries no range warning. Prints how many factors give scale 1's
+ * bits. */
+int obs_conformance_cancellation(obs_backend backend, int *ran);
 /* Scenes the technique cannot handle (a backend it lacks, a need of its descriptor unmet) give a
  * clean error that names the problem, and nothing is left allocated. */
 int obs_conformance_refusals(obs_backend backend, int *ran);

@@ -37,8 +37,7 @@ typedef struct ext_case {
   char label[160];
 } ext_case;
 
-/* Cheap settings for the techniques the repository has; others render with their defaults. */
-static const char *fast_params(const char *name) {
+const char *obs_extremes_fast_params(const char *name) {
   if (!strcmp(name, "rt_ao")) return "\"samples\":16";
   if (!strcmp(name, "ssao")) return "\"samples\":8";
   if (!strcmp(name, "hbao")) return "\"directions\":4,\"steps\":4";
@@ -58,7 +57,7 @@ static char *scene_json(const ext_case *c, double s, const double off[3], double
   double h, half, P;
   cam_geometry(&c->cam, &h, &half, &P);
   char params[512];
-  int n = snprintf(params, sizeof params, "%s", fast_params(c->t->name));
+  int n = snprintf(params, sizeof params, "%s", obs_extremes_fast_params(c->t->name));
   for (int i = 0; c->r->params[i].name; i++) {
     if (isnan(c->rel[i])) continue;
     double v = c->rel[i] * pow(size * s, c->r->params[i].size_power);
@@ -113,9 +112,9 @@ static int render_doc(const char *doc, obs_result *res, obs_extent *ex, obs_err 
   return rc;
 }
 
-/* `b` (scale 1) against `r` (scale s) within `tol`; one line per check that fails. */
-static int compare(const char *what, const obs_technique *t, const obs_image *b,
-                   const obs_image *r, double s, const obs_tolerance *tol) {
+int obs_extremes_compare(const char *what, const obs_technique *t, const obs_image *b,
+                         const obs_image *r, double s, const obs_tolerance *tol,
+                         obs_extremes_dev *dev) {
   size_t n = (size_t)b->width * (size_t)b->height, cov = 0, ao_out = 0, n_out = 0, z_out = 0;
   const float *ba = obs_image_channel(b, "alpha"), *ra = obs_image_channel(r, "alpha");
   const float *bo[3], *ro[3];
@@ -151,6 +150,9 @@ static int compare(const char *what, const obs_technique *t, const obs_image *b,
     }
   }
   double allowed = tol->share * (double)cov;
+  if (dev)
+    *dev =
+        (obs_extremes_dev){cov ? sum / (double)cov : 0.0, worst, cov ? (double)ao_out / cov : 0.0};
   if (getenv("OBS_EXTREMES_VERBOSE"))
     printf("     %s: primary mean %.3g max %.3g (%zu over), normal max %.3g, depth max %.3g\n",
            what, cov ? sum / (double)cov : 0.0, worst, ao_out, worst_n, worst_z);
@@ -172,10 +174,7 @@ static int compare(const char *what, const obs_technique *t, const obs_image *b,
   return bad;
 }
 
-/* No range warning. A length far off the scene's size (OBS_LENGTH_TINY, OBS_LENGTH_HUGE) still
- * warns that the image is likely white or saturated: that is about what was asked for, not about
- * precision, and the ends of a length's range are such lengths. */
-static int no_warnings(const char *what, const obs_result *res) {
+int obs_extremes_no_warnings(const char *what, const obs_result *res) {
   int n = 0;
   for (int i = 0; i < res->nwarnings; i++) {
     if (strstr(res->warnings[i], "so the image is likely")) continue;
@@ -227,7 +226,8 @@ static int run_case(ext_case *c) {
     obs_err_free(&err);
     return 1;
   }
-  bad += obs_test_check_sane(c->label, c->t, &base.image) + no_warnings(c->label, &base);
+  bad +=
+      obs_test_check_sane(c->label, c->t, &base.image) + obs_extremes_no_warnings(c->label, &base);
   double smin = r->size_min / size * (1 + EXT_MARGIN), smax = r->size_max / size * (1 - EXT_MARGIN);
   double tmax = r->translation_max * (1 - EXT_MARGIN);
   const struct {
@@ -254,8 +254,8 @@ static int run_case(ext_case *c) {
       printf("FAIL %s: the case lies outside the range (size %.17g, translation %.17g)\n", what,
              ex.size, ex.translation),
           bad++;
-    bad += obs_test_check_sane(what, c->t, &res.image) + no_warnings(what, &res);
-    bad += compare(what, c->t, &base.image, &res.image, at[k].s, &r->tol);
+    bad += obs_test_check_sane(what, c->t, &res.image) + obs_extremes_no_warnings(what, &res);
+    bad += obs_extremes_compare(what, c->t, &base.image, &res.image, at[k].s, &r->tol, NULL);
     obs_result_free(&res);
   }
   obs_result_free(&base);

@@ -15,4 +15,25 @@ int obs_extremes_check_backend(obs_backend backend, int *ran);
  * returns the number of failures. */
 int obs_extremes_check_warnings(obs_backend backend);
 
+/* The pieces of the check that other scale checks share (tests/unit/conformance.c): */
+/* Cheap settings for the techniques the repository has ("" for others: their defaults). */
+const char *obs_extremes_fast_params(const char *technique);
+/* `base` (scale 1) against `scaled` (scale s) within `tol` over base's covered pixels: coverage
+ * equal, the primary output's mean and share of per-pixel differences, normals, depth / s. One
+ * "FAIL" line per check that fails; returns how many failed. OBS_EXTREMES_VERBOSE=1 prints the
+ * deviations of every comparison; `dev` (may be NULL) receives the primary output's. */
+typedef struct obs_extremes_dev {
+  double mean;  /* of the primary output's |d| over the covered pixels */
+  double worst; /* its largest */
+  double share; /* of the covered pixels with |d| > tol->ao_pixel */
+} obs_extremes_dev;
+int obs_extremes_compare(const char *what, const obs_technique *t, const obs_image *base,
+                         const obs_image *scaled, double s, const obs_tolerance *tol,
+                         obs_extremes_dev *dev);
+/* No range warning on `res`. A length far off the scene's size (OBS_LENGTH_TINY,
+ * OBS_LENGTH_HUGE) still warns that the image is likely white or saturated: that is about what
+ * was asked for, not about precision, and the ends of a length's range are such lengths. Returns
+ * 1 (after a "FAIL" line per warning) when there is one. */
+int obs_extremes_no_warnings(const char *what, const obs_result *res);
+
 #endif

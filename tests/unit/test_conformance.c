@@ -24,6 +24,11 @@ static void test_cpu_scales(void **state) {
   assert_int_equal(obs_conformance_scales(OBS_BACKEND_CPU, NULL), 0);
 }
 
+static void test_cpu_cancellation(void **state) {
+  (void)state;
+  assert_int_equal(obs_conformance_cancellation(OBS_BACKEND_CPU, NULL), 0);
+}
+
 static void test_cpu_refusals(void **state) {
   (void)state;
   assert_int_equal(obs_conformance_refusals(OBS_BACKEND_CPU, NULL), 0);
@@ -31,11 +36,9 @@ static void test_cpu_refusals(void **state) {
 
 int main(void) {
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_cpu_defaults),
-      cmocka_unit_test(test_cpu_param_ends),
-      cmocka_unit_test(test_cpu_threads),
-      cmocka_unit_test(test_cpu_scales),
-      cmocka_unit_test(test_cpu_refusals),
+      cmocka_unit_test(test_cpu_defaults),     cmocka_unit_test(test_cpu_param_ends),
+      cmocka_unit_test(test_cpu_threads),      cmocka_unit_test(test_cpu_scales),
+      cmocka_unit_test(test_cpu_cancellation), cmocka_unit_test(test_cpu_refusals),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -29,6 +29,12 @@ static void test_vulkan_scales(void **state) {
   assert_int_equal(obs_conformance_scales(OBS_BACKEND_VULKAN, NULL), 0);
 }
 
+static void test_vulkan_cancellation(void **state) {
+  (void)state;
+  vktest_need_vk();
+  assert_int_equal(obs_conformance_cancellation(OBS_BACKEND_VULKAN, NULL), 0);
+}
+
 static void test_vulkan_refusals(void **state) {
   (void)state;
   vktest_need_vk();
@@ -41,6 +47,7 @@ int main(void) {
       cmocka_unit_test_teardown(test_vulkan_param_ends, vktest_quiet_teardown),
       cmocka_unit_test_teardown(test_vulkan_threads, vktest_quiet_teardown),
       cmocka_unit_test_teardown(test_vulkan_scales, vktest_quiet_teardown),
+      cmocka_unit_test_teardown(test_vulkan_cancellation, vktest_quiet_teardown),
       cmocka_unit_test_teardown(test_vulkan_refusals, vktest_quiet_teardown),
   };
   return cmocka_run_group_tests(tests, vktest_group_setup, vktest_group_teardown);

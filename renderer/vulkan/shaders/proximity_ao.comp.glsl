@@ -7,6 +7,8 @@
 // invocation runs more loop iterations than lavapipe allows. Pixels on an analytic sphere (drawn
 // tessellated) take the ray's hit on the true sphere, as the CPU's ray caster does.
 #version 450
+#extension GL_GOOGLE_include_directive : require
+#include "include/frame.glsl"
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(binding = 0, r32f) uniform readonly image2D g_depth;    // linear view depth
 layout(binding = 1, rgba32f) uniform readonly image2D g_normal; // view-space normal, coverage
@@ -48,20 +50,6 @@ int first_point(int i) { return int(rows[H_FIRST + i / 4][i % 4]); }
 vec2 disc(int j) {
   vec4 r = rows[H_DISC + j / 2];
   return (j & 1) == 0 ? r.xy : r.zw;
-}
-
-// obs_prox_disc_axes: obs_onb (Duff et al. 2017) with a z within OBS_PROX_FLAT_Z (2^-20) of 0
-// taken as +0. Here the normal is rotated back from view space in float, so a wall's zero z
-// arrives as a few ulps of either sign; the CPU's carries its triangle's sign of zero.
-void onb(vec3 n, out vec3 t, out vec3 b) {
-  if (abs(n.z) < 9.5367431640625e-7) n.z = 0.0; // 2^-20
-  float sign = (floatBitsToUint(n.z) & 0x80000000u) != 0u ? -1.0 : 1.0;
-  precise float a = -1.0 / (sign + n.z);
-  precise float c = n.x * n.y * a;
-  precise vec3 tt = vec3(1.0 + sign * n.x * n.x * a, sign * c, -sign * n.x);
-  precise vec3 bb = vec3(c, sign + n.y * n.y * a, -n.y);
-  t = tt;
-  b = bb;
 }
 
 bool inside(vec3 q, vec3 dims) {
@@ -178,8 +166,11 @@ void main() {
     if (sph.w > 0.0) sphere_hit(sph, o, d, p, nview);
     precise vec3 n = nview.x * R.xyz + nview.y * U.xyz + nview.z * F.xyz;
     sf = vec4(n, p.z);
+    // The disc's axes. n is rotated back from view space in float, so a wall's zero component
+    // arrives as a few ulps of either sign where the CPU's is exact: obs_onb's guard takes both
+    // as +0.
     vec3 t, b;
-    onb(n, t, b);
+    obs_onb(n, t, b);
     for (int f = pc.f0; f < pc.f1; f++) {
       int r = H_COUNT + F_COUNT * f;
       vec4 og = rows[r + F_ORIGIN];

@@ -15,6 +15,8 @@
 // host refuses the result. Loops over the three axes are written out: constant loops are unrolled
 // and cost nothing, but a loop with an early exit might not be.
 #version 450
+#extension GL_GOOGLE_include_directive : require
+#include "include/frame.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
@@ -142,14 +144,6 @@ vec3 sample_cosine(vec2 uv) {
   float r = sqrt(uv.x), phi = 6.28318530717958647692 * uv.y;
   return vec3(r * cos(phi), r * sin(phi), sqrt(uv.x < 1.0 ? 1.0 - uv.x : 0.0));
 }
-// obs_onb (Duff et al.), with copysign's sign of zero.
-void onb(vec3 n, out vec3 t, out vec3 b) {
-  float sign = (floatBitsToUint(n.z) & 0x80000000u) != 0u ? -1.0 : 1.0;
-  float a = -1.0 / (sign + n.z), c = n.x * n.y * a;
-  t = vec3(1.0 + sign * n.x * n.x * a, sign * c, -sign * n.x);
-  b = vec3(c, sign + n.y * n.y * a, -n.y);
-}
-
 // ---- the field (obs_volume_sample) ----
 
 // Texel t of the volume at its corner `at` of the atlas, held at the edges (CPU: clamped to the
@@ -438,7 +432,7 @@ struct Dirs {
 // a; other volumes are marched at the same parameter through the (Q-relative) world.
 void march_chunk(int a, vec3 p, vec3 n, uvec2 px, inout Dirs r) {
   vec3 xw = map_point(a, V_TO_WORLD, p), t1, t2;
-  onb(n, t1, t2);
+  obs_onb(n, t1, t2);
   uvec2 smp = sampler_init(px.x, px.y, uint(pc.pixel_sample), 1u);
   for (uint i = pc.dir0; i < pc.dir1; i++) {
     iters++;
