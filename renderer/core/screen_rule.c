@@ -4,12 +4,14 @@
  * Both backends' drivers call it, so the rule and its words are the same on each. */
 #include <jansson.h>
 #include <math.h>
+#include <stdio.h>
 
 #include "gbuffer.h"
 #include "obscura/render.h"
 
 /* The share of the covered pixels (0 to 1) whose reach is under 1 by `which` (0: pixels, 1:
- * depth), and the smallest such reach over all of them. Runs only when some pixel misses. */
+ * depth) and the smallest such reach over them; with rule->pixel_decides the depth is judged
+ * only where the pixel reach is at least 1. Runs only when some pixel may miss. */
 static double short_share(const obs_screen_rule *rule, const void *bound, const obs_gbuffer *g,
                           int which, double *least) {
   size_t n = (size_t)g->width * (size_t)g->height, covered = 0, missed = 0;
@@ -18,8 +20,9 @@ static double short_share(const obs_screen_rule *rule, const void *bound, const 
     if (!(g->depth[i] > 0.0f)) continue;
     obs_screen_reach r;
     rule->reach(bound, g, g->depth[i], &r);
-    double v = which ? r.depth : r.pixels;
     covered++;
+    if (which && rule->pixel_decides && !(r.pixels >= 1.0)) continue;
+    double v = which ? r.depth : r.pixels;
     missed += !(v >= 1.0);
     *least = fmin(*least, v);
   }
@@ -49,13 +52,18 @@ void obs_screen_rule_check(obs_render_ctx *ctx, obs_backend backend, const obs_g
     if (at_far[k] >= 1.0) continue;
     double least;
     double share = short_share(rule, ctx->bound, g, k, &least);
-    /* Both figures grow in proportion to the radius, so this value reaches 1 everywhere. */
-    double need = least > 0 ? value / least : INFINITY;
+    if (!(share > 0)) continue;
+    /* Both figures grow in proportion to the radius, so value / least reaches 1 everywhere;
+     * a radius that rounds to 0 in the bound params reaches nothing, and suggests nothing. */
+    char need[96] = "it rounds to 0 in float";
+    if (least > 0)
+      snprintf(need, sizeof need, "%s >= %.3g reaches one %s everywhere", rule->param,
+               value / least, one[k]);
     obs_render_ctx_warn(ctx,
                         "%s %s = %g reaches %.3g %s (under one) at %.3g%% of the covered "
-                        "pixels, so there the image is likely %s; %s >= %.3g reaches one %s "
-                        "everywhere (docs/accuracy.md, Screen-space radius)",
+                        "pixels, so there the image is likely %s; %s (docs/accuracy.md, "
+                        "Screen-space radius)",
                         t->name, rule->param, value, least, unit[k], 100.0 * share, image[k],
-                        rule->param, need, one[k]);
+                        need);
   }
 }

@@ -119,6 +119,7 @@ static const obs_screen_rule hbao_screen_rule = {
     .reach = hbao_screen_reach,
     .below_pixel = "1 (open): no other texel lies within the radius",
     .below_depth = "noise: the radius lies within the depth buffer's precision",
+    .pixel_decides = 1,
 };
 
 /* The guaranteed range of both backends (docs/accuracy.md, "Guaranteed ranges";

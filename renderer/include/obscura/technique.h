@@ -249,12 +249,14 @@ typedef struct obs_screen_reach {
  * figure may grow with z. Where a covered pixel's reach is under one pixel or one depth step the
  * render warns (obs_screen_rule_check): the share of the covered pixels, what the image reads
  * there (`below_pixel`, `below_depth`) and the smallest value of `param` that reaches one of each
- * at every covered pixel. */
+ * at every covered pixel. With `pixel_decides` a pixel under one pixel reads below_pixel whatever
+ * its depth reach (hbao's early exit), so only the others are held to the depth step. */
 struct obs_gbuffer;
 typedef struct obs_screen_rule {
   const char *param;
   void (*reach)(const void *bound, const struct obs_gbuffer *g, double z, obs_screen_reach *out);
   const char *below_pixel, *below_depth;
+  int pixel_decides;
 } obs_screen_rule;
 
 /* The range over which one backend of a technique guarantees its output: finite, in range, and
