@@ -1,7 +1,7 @@
-/* Benchmark of volume_ao in the shape of the RTPara article's Tables 3.1 and 3.2: frames per
+/* Benchmark of volume_ao in the shape of the RTPara report's Tables 3.1 and 3.2: frames per
  * second by AO samples (32, 64, 128, 256) on the engine-shaped volume (256 x 256 x 118,
  * scenes/volume_engine.json) and a 512^3 procedural volume, at W x W, on each backend that runs
- * here, against the article's single-node figures, with the error of each ibl method against the
+ * here, against the report's single-node figures, with the error of each ibl method against the
  * reference on the same view. Multi-rank figures come from bench/volume_mpi.sh (mpirun). */
 #include <math.h>
 #include <stdio.h>
@@ -26,7 +26,7 @@ static void usage(FILE *f) {
           "  Renders scenes/volume_engine.json (256x256x118) and a procedural N^3 Marschner-Lobb\n"
           "  volume (default N 512; 0 skips it) with volume_ao at W x W (default 512) for each\n"
           "  sample count, R times each, and prints the median frames per second beside the\n"
-          "  article's single-node figures, then each ibl method's RMSE against the reference.\n");
+          "  report's single-node figures, then each ibl method's RMSE against the reference.\n");
 }
 
 static int parse_args(int argc, char **argv, options *o) {
@@ -69,8 +69,8 @@ static int parse_args(int argc, char **argv, options *o) {
   return 0;
 }
 
-/* The article's fps on one node (Tables 3.1, 3.2) for 32, 64, 128, 256 samples. */
-static double article_fps(int big, int samples) {
+/* The report's fps on one node (Tables 3.1, 3.2) for 32, 64, 128, 256 samples. */
+static double report_fps(int big, int samples) {
   static const double engine[4] = {3.6, 1.9, 1.0, 0.5}, human[4] = {2.8, 1.5, 0.8, 0.4};
   int k = samples == 32 ? 0 : samples == 64 ? 1 : samples == 128 ? 2 : samples == 256 ? 3 : -1;
   return k < 0 ? NAN : (big ? human : engine)[k];
@@ -168,10 +168,10 @@ int main(int argc, char **argv) {
         char p[96];
         snprintf(p, sizeof p, "{\"samples\": %d, \"seed\": 1}", o.samples[i]);
         double ms = time_render(&o, big, be, p, NULL, NULL);
-        double want = article_fps(big, o.samples[i]);
+        double want = report_fps(big, o.samples[i]);
         printf(
             "volume_ao %s %s %dx%d, %d samples, %d threads: %.1f ms = %.3g fps "
-            "(article, one node: %.2g fps; ratio %.3g)\n",
+            "(report, one node: %.2g fps; ratio %.3g)\n",
             big ? "marschner_lobb" : "engine 256x256x118", be, o.size, o.size, o.samples[i],
             o.threads, ms, 1e3 / ms, want, 1e3 / ms / want);
       }

@@ -134,6 +134,38 @@ int obs_technique_param_size_power(const obs_technique *t, const char *name) {
   return 0;
 }
 
+/* Whether a length x lies inside every declared range of parameter `name` of t for a scene of
+ * size `size`, by check_params's own arithmetic (x times size^-1 against the bounds). */
+static int length_in_ranges(const obs_technique *t, const char *name, double x, double size) {
+  for (int be = 0; be < OBS_BACKEND_COUNT; be++)
+    for (const obs_param_range *p = t->range[be].params; p->name; p++) {
+      if (strcmp(p->name, name)) continue;
+      double rel = x * pow(size, -p->size_power);
+      if (!(rel >= p->min && rel <= p->max)) return 0;
+    }
+  return 1;
+}
+
+/* A length of `share` scene sizes rounded to 4 significant digits (a starting point people read
+ * and edit). Where rounding to nearest leaves it outside a backend's guaranteed range of the
+ * parameter (a share on a bound: obscurance_map's patch_size, 0.05 scene sizes, is Vulkan's
+ * minimum, and 0.05 x 56.59 rounds to 2.829, under it), the 4-digit neighbour on the inside is
+ * taken: a derived default never trips the range check. */
+static double derived_length(const obs_technique *t, const char *name, double share,
+                             double size) {
+  char text[32];
+  snprintf(text, sizeof text, "%.4g", share * size);
+  double x = strtod(text, NULL);
+  if (length_in_ranges(t, name, x, size)) return x;
+  double unit = pow(10.0, floor(log10(fabs(x))) - 3);
+  for (int s = -1; s <= 1; s += 2) {
+    snprintf(text, sizeof text, "%.4g", x + s * unit);
+    double y = strtod(text, NULL);
+    if (length_in_ranges(t, name, y, size)) return y;
+  }
+  return x; /* a range narrower than the rounding: the check says so */
+}
+
 json_t *obs_technique_defaults_for(const obs_technique *t, const obs_scene *sc,
                                    const json_t *given, json_t *notes, obs_err *err) {
   json_t *out = json_object();
@@ -157,10 +189,7 @@ json_t *obs_technique_defaults_for(const obs_technique *t, const obs_scene *sc,
         json_object_set_new(out, d->name, obs_param_default_json(d));
         continue;
       }
-      /* Rounded to 4 significant digits: the value is a starting point people read and edit. */
-      char text[32];
-      snprintf(text, sizeof text, "%.4g", d->size_default * ex.size);
-      double x = strtod(text, NULL);
+      double x = derived_length(t, d->name, d->size_default, ex.size);
       json_object_set_new(out, d->name, json_real(x));
       if (notes) {
         json_t *def = obs_param_default_json(d);

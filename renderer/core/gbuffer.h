@@ -16,6 +16,7 @@
 #include "obscura/error.h"
 #include "obscura/image.h"
 #include "obscura/scene.h"
+#include "obscura/technique.h"
 
 /* Owns its planes (one allocation); release with obs_gbuffer_free. */
 typedef struct obs_gbuffer {
@@ -70,6 +71,12 @@ static inline void obs_gbuffer_position(const obs_gbuffer *g, float fx, float fy
  * when nothing covers the image. Used by reference hooks that scale screen-space radii. */
 int obs_gbuffer_median_depth(const obs_scene *scene, int max_side, int threads, double *out,
                              obs_err *err);
+
+/* The screen-space rule (obs_range.screen of the scene's technique on `backend`) held against the
+ * covered pixels of `g`, the G-buffer the technique ran on: one warning added to `ctx` per limit
+ * (a pixel, a depth step) the radius falls short of somewhere (renderer/core/screen_rule.c).
+ * Nothing when the technique declares no rule. */
+void obs_screen_rule_check(obs_render_ctx *ctx, obs_backend backend, const obs_gbuffer *g);
 
 /* The output channels of every screen-space technique, in this order: AO after and before its
  * blur, then the G-buffer's depth, world-space normal and coverage. */

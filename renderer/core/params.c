@@ -476,6 +476,17 @@ int obs_technique_params_check(const obs_technique *t, obs_err *err) {
                         "%s: /%s: size_default %g needs a positive value and a range entry with "
                         "size_power 1",
                         doc, d->name, d->size_default);
+    /* A derived default lands in every backend's guaranteed range (obs_technique_defaults_for
+     * rounds it toward the inside), so the render it starts from carries no range warning. */
+    for (int be = 0; be < OBS_BACKEND_COUNT && d->size_default > 0; be++)
+      for (const obs_param_range *r = t->range[be].params; r->name; r++)
+        if (!strcmp(r->name, d->name) &&
+            !(d->size_default >= r->min && d->size_default <= r->max))
+          bad = obs_err_set(err, OBS_EINVAL,
+                            "%s: /%s: size_default %g lies outside [%g, %g], the range %s "
+                            "guarantees",
+                            doc, d->name, d->size_default, r->min, r->max,
+                            obs_backend_name((obs_backend)be));
     /* The default must pass the same check as a document's value. */
     char where[160];
     snprintf(where, sizeof where, "%s default", doc);

@@ -74,19 +74,23 @@ static int src_read(const obs_scene *sc, size_t oi, prox_src *s, obs_err *err) {
 }
 
 double obs_prox_radius(const obs_scene *sc, const obs_prox_layout *lay) {
-  double ref = 0, ubox[2][3] = {{0}}, w[2][3] = {{0}};
+  double largest = 0, ubox[2][3] = {{0}}, w[2][3] = {{0}}, extent[3] = {0, 0, 0};
   int first = 1;
   for (size_t i = 0; i < sc->nobjects; i++) {
     if (!has_surface(&sc->objects[i])) continue;
     world_box(&sc->objects[i], w);
-    ref = fmax(ref, diag(w));
+    largest = fmax(largest, diag(w));
     for (int k = 0; k < 3; k++) {
+      extent[k] = fmax(extent[k], w[1][k] - w[0][k]);
       if (first || w[0][k] < ubox[0][k]) ubox[0][k] = w[0][k];
       if (first || w[1][k] > ubox[1][k]) ubox[1][k] = w[1][k];
     }
     first = 0;
   }
-  if (lay->union_box && !first) ref = diag(ubox);
+  double ref = largest;
+  if (lay->box == OBS_PROX_BOX_UNION && !first) ref = diag(ubox);
+  if (lay->box == OBS_PROX_BOX_MAXIMAL)
+    ref = sqrt(extent[0] * extent[0] + extent[1] * extent[1] + extent[2] * extent[2]);
   return lay->fraction * ref;
 }
 

@@ -14,10 +14,15 @@
 #include "obscura/error.h"
 #include "obscura/scene.h"
 
+/* The reference box whose diagonal r_p is a fraction of, from the surface objects' world boxes in
+ * frame 0: per axis the largest extent over all objects (the thesis's "maximal box"), the largest
+ * single object's box, or the union of all. */
+enum { OBS_PROX_BOX_MAXIMAL, OBS_PROX_BOX_LARGEST, OBS_PROX_BOX_UNION };
+
 /* How the grids are laid out (docs/techniques/proximity_ao.md, "Pre-processing"). */
 typedef struct obs_prox_layout {
   double fraction; /* r_p = fraction x the reference box's diagonal (world units) */
-  int union_box;   /* reference box: 0 the largest object's world box, 1 every object's union */
+  int box;         /* the reference box: OBS_PROX_BOX_* */
   int res;         /* voxels per axis of the largest grid side (>= 1) */
   int min_res;     /* the fewest voxels per axis (clamped to res) */
 } obs_prox_layout;
@@ -59,8 +64,8 @@ typedef int (*obs_prox_flood_fn)(void *user, obs_prox_field *f, int threads, obs
 int obs_prox_flood_cpu(void *user, obs_prox_field *f, int threads, obs_err *err);
 
 /* The propagation radius r_p of `sc` under `lay` (world units): `fraction` of the diagonal of
- * the largest surface object's world box in frame 0 (or of their union), each box from the points
- * its shape declares (a mesh file's box as imported at validation). */
+ * the reference box (lay->box) of the surface objects' world boxes in frame 0, each box from the
+ * points its shape declares (a mesh file's box as imported at validation). */
 double obs_prox_radius(const obs_scene *sc, const obs_prox_layout *lay);
 
 /* Lays out, voxelises (exact triangle-box and sphere-box overlap with voxels grown by

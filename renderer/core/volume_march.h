@@ -1,7 +1,7 @@
 /* Marching a scalar volume (volume.h) in its object space: the first crossing of an isosurface
  * along a ray (steps of at most half a voxel, empty macrocells skipped, the root refined by
  * bisection), the normal from the trilinear field's gradient, and ray-marched ambient occlusion
- * with a bent normal (the RTPara article's AO: cosine-distributed directions, fixed start, step
+ * with a bent normal (the RTPara report's AO: cosine-distributed directions, fixed start, step
  * and distance, occluded where the field crosses the isovalue). Used by the volume techniques of
  * both backends' CPU paths and by their tests. */
 #ifndef OBS_VOLUME_MARCH_H
@@ -38,7 +38,7 @@ int obs_volume_first_hit(const obs_volume_iso *s, const double o[3], const doubl
  * vanishes. */
 void obs_volume_normal(const obs_volume *v, const double p[3], double n[3]);
 
-/* How an AO ray counts as occluded: the article's one-sided test (the field rises through iso
+/* How an AO ray counts as occluded: the report's one-sided test (the field rises through iso
  * between two samples) or any crossing. */
 typedef enum { OBS_VOLUME_CROSS_RISING, OBS_VOLUME_CROSS_ANY } obs_volume_crossing;
 

@@ -52,6 +52,7 @@ int obs_screen_cpu_run(obs_render_ctx *ctx, obs_screen_cpu_passes_fn passes, con
     if (rc == OBS_ECANCELED) obs_err_set(err, rc, "%s: render cancelled", sc->name);
   }
   if (!rc) {
+    obs_screen_rule_check(ctx, OBS_BACKEND_CPU, &g);
     obs_gbuffer_export(&g, &rig, out);
     obs_driver_clear_outside(out, &region);
     ctx->render_ms = obs_now_ms() - t1;

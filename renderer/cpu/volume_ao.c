@@ -1,4 +1,4 @@
-/* volume_ao on the CPU: isosurface ray casting of the scene's volumes with the RTPara article's
+/* volume_ao on the CPU: isosurface ray casting of the scene's volumes with the RTPara report's
  * ray-marched ambient occlusion, bent normals and environment lighting.
  *
  * Each pixel sample's camera ray is mapped into every volume's data space (affine, so the ray

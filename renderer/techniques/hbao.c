@@ -7,6 +7,7 @@
 #include <stddef.h>
 #include <string.h>
 
+#include "gbuffer.h"
 #include "sampling.h"
 #include "techniques.h"
 
@@ -99,16 +100,40 @@ static int hbao_reference(const obs_scene *scene, const json_t *params, obs_refe
   return 0;
 }
 
+/* hbao's reach (obs_screen_rule): R projects to R (W/2) / (half_w z) pixels at depth z (R (W/2) /
+ * half_w orthographic), divided by the level's s = 2 at half resolution, which is the radius
+ * in texels the AO pass marches (under one it returns 1 at once); every sample is moved away by
+ * its depth's uncertainty, OBS_HBAO_DEPTH_EPS (z_s + z), about 2 eps z, before its distance is
+ * measured in units of R, so R under that is within the depth buffer's precision. */
+static void hbao_screen_reach(const void *bound, const obs_gbuffer *g, double z,
+                              obs_screen_reach *out) {
+  const obs_hbao_params *p = bound;
+  double R = p->radius, s = p->half_res ? 2.0 : 1.0;
+  double num = R * 0.5 * g->width;
+  out->pixels = (g->ortho ? num / g->half_w : num / (g->half_w * z)) / s;
+  out->depth = R / (2.0 * (double)OBS_HBAO_DEPTH_EPS * z);
+}
+
+static const obs_screen_rule hbao_screen_rule = {
+    .param = "radius",
+    .reach = hbao_screen_reach,
+    .below_pixel = "1 (open): no other texel lies within the radius",
+    .below_depth = "noise: the radius lies within the depth buffer's precision",
+    .pixel_decides = 1,
+};
+
 /* The guaranteed range of both backends (docs/accuracy.md, "Guaranteed ranges";
  * tests/unit/test_extremes.c and tests/vulkan/test_extremes_vk.c check both ends). The twins
  * share the AO pass, so they share the range. The radius is stated in scene sizes: far below a
  * pixel's footprint every pixel reads 1, far beyond the scene the falloff saturates, and both
- * ends hold at every scale; the bounds keep the sample distances within float's range. */
+ * ends hold at every scale; the bounds keep the sample distances within float's range. Where
+ * the radius misses a pixel or a depth step on screen (hbao_screen_rule) the render warns. */
 #define HBAO_RANGE                                                              \
   {                                                                             \
     .size_min = 1e-9, .size_max = 1e9, .translation_max = 1e9, .fov_min = 1e-4, \
     .fov_max = 170, .orthographic = 1,                                          \
     .params = {{"radius", 1e-6, 1e6, 1}, {NULL, 0, 0, 0}},                      \
+    .screen = &hbao_screen_rule,                                                \
     .tol = {.ao_mean = 2e-3, .ao_pixel = 1e-2, .share = 0.02, .normal = 1e-4,   \
             .depth_rel = 3e-5}                                                  \
   }

@@ -24,7 +24,8 @@ static const obs_output proximity_ao_outputs[] = {
 const char *const obs_proximity_ao_channels[OBS_PROX_CHANNELS] = {
     "ao", "fields", "depth.Z", "normal.X", "normal.Y", "normal.Z", "alpha"};
 
-static const char *const boxes[] = {"largest", "union", NULL};
+/* In OBS_PROX_BOX_* order. */
+static const char *const boxes[] = {"maximal", "largest", "union", NULL};
 static const char *const reconstructions[] = {"thesis_code", "corrected", NULL};
 static const char *const combines[] = {"additive", "multiplicative", NULL};
 
@@ -51,8 +52,11 @@ static const obs_param proximity_ao_params[] = {
      .description = "propagation radius r_p as a fraction of the diagonal of the reference box "
                     "(the thesis: 10-15 %)",
      .offset = P(propagation_fraction)},
-    {.name = "propagation_box", .type = OBS_PARAM_ENUM, .choices = boxes, .def = 0,
-     .description = "the reference box of r_p: the largest object's, or the union of all objects",
+    {.name = "propagation_box", .type = OBS_PARAM_ENUM, .choices = boxes,
+     .def = OBS_PROX_BOX_MAXIMAL,
+     .description = "the reference box of r_p: maximal = per axis the largest extent over all "
+                    "objects (the thesis's maximal box); largest = the largest single object's "
+                    "box; union = the box of all objects",
      .offset = P(propagation_box)},
     {.name = "reconstruction", .type = OBS_PARAM_ENUM, .choices = reconstructions, .def = 0,
      .description = "thesis_code: the listing as printed (samples at (i+2) steps, disc points "
@@ -73,7 +77,9 @@ static const obs_param proximity_ao_params[] = {
      .description = "the occlusion sum is scaled by this before it is divided by N and clamped",
      .offset = P(scale_before)},
     {.name = "scale_after", .type = OBS_PARAM_FLOAT, .min = 0, .max = 1, .def = 0.8,
-     .description = "and by this after (so accessibility stays >= 1 - scale_after)",
+     .description = "and by this after: each field's occlusion is at most scale_after, so "
+                    "accessibility >= max(0, 1 - k scale_after) (additive) or (1 - "
+                    "scale_after)^k (multiplicative) where k fields hold the point",
      .offset = P(scale_after)},
     {.name = "seed", .type = OBS_PARAM_UINT, .min = 0, .max = 4294967295.0, .def = 1,
      .description = "seed of the disc points (the same for every pixel)", .offset = P(seed)},
@@ -82,7 +88,7 @@ static const obs_param proximity_ao_params[] = {
 
 void obs_proximity_ao_layout(const obs_proximity_ao_params *p, obs_prox_layout *out) {
   out->fraction = p->propagation_fraction;
-  out->union_box = p->propagation_box;
+  out->box = p->propagation_box;
   out->res = p->volume_res;
   out->min_res = p->min_res;
 }

@@ -13,7 +13,7 @@ typedef struct obs_proximity_ao_params {
   int32_t volume_res;
   int32_t min_res;
   double propagation_fraction;
-  int propagation_box;         /* 0 largest object, 1 union of all */
+  int propagation_box;         /* OBS_PROX_BOX_MAXIMAL, _LARGEST, _UNION */
   int reconstruction;          /* OBS_PROX_THESIS_CODE, OBS_PROX_CORRECTED */
   int combine;                 /* OBS_PROX_ADDITIVE, OBS_PROX_MULTIPLICATIVE */
   int self_occlusion;

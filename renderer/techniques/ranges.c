@@ -26,6 +26,7 @@ json_t *obs_range_json(const obs_range *r) {
                         json_pack("{sfsfss}", "min", p->min, "max", p->max, "unit",
                                   obs_param_range_unit(p)));
   json_object_set_new(o, "params", ps);
+  if (r->screen) json_object_set_new(o, "screen_radius", json_string(r->screen->param));
   json_object_set_new(o, "tolerance",
                       json_pack("{sfsfsfsfsf}", "ao_mean", r->tol.ao_mean, "ao_pixel",
                                 r->tol.ao_pixel, "share", r->tol.share, "normal", r->tol.normal,
@@ -53,10 +54,13 @@ char *obs_technique_ranges_markdown(void) {
       }
       obs_strbuf_put(&b, "%g to %g | up to %g sizes | %g to %g | %s | ", r->size_min, r->size_max,
           r->translation_max, r->fov_min, r->fov_max, r->orthographic ? "yes" : "no");
-      if (!r->params[0].name) obs_strbuf_put(&b, "as the schema");
+      if (!r->params[0].name && !r->screen) obs_strbuf_put(&b, "as the schema");
       for (const obs_param_range *p = r->params; p->name; p++)
         obs_strbuf_put(&b, "%s`%s` %g to %g %s", p == r->params ? "" : "; ", p->name, p->min, p->max,
             obs_param_range_unit(p));
+      if (r->screen)
+        obs_strbuf_put(&b, "%s`%s` reaching 1 pixel and 1 depth step at every covered pixel "
+                       "(screen-space rule)", r->params[0].name ? "; " : "", r->screen->param);
       obs_strbuf_put(&b, " | %g, %g (%g) | %g | %g |\n", r->tol.ao_mean, r->tol.ao_pixel, r->tol.share,
           r->tol.normal, r->tol.depth_rel);
     }

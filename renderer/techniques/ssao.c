@@ -1,6 +1,7 @@
 /* Descriptor of ssao (Crytek screen-space AO, Kajalin 2009), its parameters and shared tables. */
 #include "ssao.h"
 
+#include <float.h>
 #include <jansson.h>
 #include <math.h>
 #include <stddef.h>
@@ -134,17 +135,40 @@ static int ssao_reference(const obs_scene *scene, const json_t *params, obs_refe
   return 0;
 }
 
+/* ssao's reach (obs_screen_rule): the longest offset, r (1 + 2.4/N)^N in texture coordinates,
+ * moves a sample at most that fraction of the image along either axis, so max(W, H) times it in
+ * pixels; along the view axis it moves the sample's depth by 2 z r (1 + 2.4/N)^N at most, which
+ * the depth test `z_s > d` resolves from z itself only above float's relative precision,
+ * FLT_EPSILON (one ulp of z is between 2^-24 and 2^-23 of z). Neither depends on z. */
+static void ssao_screen_reach(const void *bound, const obs_gbuffer *g, double z,
+                              obs_screen_reach *out) {
+  (void)z;
+  const obs_ssao_params *p = bound;
+  double reach = (double)p->radius * pow(1.0 + 2.4 / p->samples, p->samples);
+  out->pixels = reach * (g->width > g->height ? g->width : g->height);
+  out->depth = 2.0 * reach / FLT_EPSILON;
+}
+
+static const obs_screen_rule ssao_screen_rule = {
+    .param = "radius",
+    .reach = ssao_screen_reach,
+    .below_pixel = "blind to the geometry: samples read only the pixel and its neighbours",
+    .below_depth = "dark: sample depths round to the pixel's own and count as occluded",
+};
+
 /* The guaranteed range of both backends (docs/accuracy.md, "Guaranteed ranges";
  * tests/unit/test_extremes.c and tests/vulkan/test_extremes_vk.c check both ends). The twins
  * share the AO pass, so they share the range; the radius is a fraction of the image, so no
  * parameter depends on the scene's size. Depths are compared relative to the pixel's own depth,
  * so the result is scale-free once the G-buffer is: the per-pixel bound allows depth-quantised
- * samples that land on the other side of a surface. */
+ * samples that land on the other side of a surface. Its radius must reach a pixel and a depth
+ * step (ssao_screen_rule): smaller ones render, with a warning. */
 #define SSAO_RANGE                                                              \
   {                                                                             \
     .size_min = 1e-9, .size_max = 1e9, .translation_max = 1e9, .fov_min = 1e-4, \
     .fov_max = 170, .orthographic = 1,                                          \
     .params = {{NULL, 0, 0, 0}},                                                \
+    .screen = &ssao_screen_rule,                                                \
     .tol = {.ao_mean = 2e-3, .ao_pixel = 1e-2, .share = 0.02, .normal = 1e-4,   \
             .depth_rel = 3e-5}                                                  \
   }

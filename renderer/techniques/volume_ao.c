@@ -1,5 +1,5 @@
 /* Descriptor of volume_ao: isosurface ray casting of scalar volumes with ray-marched ambient
- * occlusion, bent normals and environment lighting (the RTPara article's method). */
+ * occlusion, bent normals and environment lighting (the RTPara report's method). */
 #include <jansson.h>
 #include <stddef.h>
 #include <string.h>
@@ -89,7 +89,7 @@ static const obs_param volume_ao_params[] = {
      .choices = crossings,
      .def = 0,
      .description = "rising: occluded where the field rises through the isovalue between two "
-                    "samples (the article's test); any: where it crosses either way",
+                    "samples (the report's test); any: where it crosses either way",
      .offset = P(crossing)},
     {.name = "shading",
      .type = OBS_PARAM_ENUM,
@@ -117,7 +117,7 @@ static const obs_param volume_ao_params[] = {
      .choices = ibls,
      .def = 1,
      .description = "environment light: bent_normal_lookup = AO x environment at the bent "
-                    "normal (the article's), irradiance = AO x the environment's diffuse SH9 "
+                    "normal (the report's), irradiance = AO x the environment's diffuse SH9 "
                     "convolution at the bent normal, reference = Monte-Carlo integral of "
                     "environment x visibility over the AO directions (the ground truth), none",
      .offset = P(ibl)},
@@ -145,7 +145,7 @@ static const obs_param volume_ao_params[] = {
 #undef P
 
 /* A hit marches `samples` directions of (max_distance - start) / step samples each (at most
- * OBS_VOLUME_AO_MAX_STEPS), in units of the article's 90-sample march; the camera ray's march
+ * OBS_VOLUME_AO_MAX_STEPS), in units of the report's 90-sample march; the camera ray's march
  * is about one more. */
 /* The AO march ends max_distance from the hit. */
 static double volume_ao_reach(const void *bound) {

@@ -4,7 +4,7 @@
 
 #include <stdint.h>
 
-/* How the environment lights the surface (the article's bent-normal lookup, a diffuse SH
+/* How the environment lights the surface (the report's bent-normal lookup, a diffuse SH
  * convolution at the bent normal, or the Monte-Carlo integral it approximates). */
 typedef enum {
   OBS_IBL_NONE,

@@ -53,6 +53,7 @@ int obs_screen_vk_run(obs_render_ctx *ctx, const char *technique, obs_screen_vk_
   double t2 = obs_now_ms();
   if ((rc = obs_vk_gbuffer_download(vk, &dev, &host, 0, err))) goto done;
   obs_driver_stage_add(ctx, "readback", obs_now_ms() - t2);
+  obs_screen_rule_check(ctx, OBS_BACKEND_VULKAN, &host);
   obs_gbuffer_export(&host, &rig, out);
   obs_driver_clear_outside(out, &region);
   ctx->render_ms = obs_now_ms() - t1;

@@ -31,9 +31,11 @@ int obs_extremes_compare(const char *what, const obs_technique *t, const obs_ima
                          const obs_image *scaled, double s, const obs_tolerance *tol,
                          obs_extremes_dev *dev);
 /* No range warning on `res`. A length far off the scene's size (OBS_LENGTH_TINY,
- * OBS_LENGTH_HUGE) still warns that the image is likely white or saturated: that is about what
- * was asked for, not about precision, and the ends of a length's range are such lengths. Returns
- * 1 (after a "FAIL" line per warning) when there is one. */
+ * OBS_LENGTH_HUGE) still warns that the image is likely white or saturated, and a screen-space
+ * radius under a pixel (obs_screen_rule) that it sees no geometry: that is about what was asked
+ * for, not about precision, and the ends of a length's range are such lengths. A radius under the
+ * depth precision is about precision, and must not happen inside the range. Returns 1 (after a
+ * "FAIL" line per warning) when there is one. */
 int obs_extremes_no_warnings(const char *what, const obs_result *res);
 
 #endif

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "testutil.h"
+#include "screen_rule_cases.h"
 
 #include "gbuffer_cpu.h"
 #include "simd.h"
@@ -528,6 +529,12 @@ static void test_params(void **state) {
     }
 }
 
+/* The screen-space rule on the CPU (screen_rule_cases.c). */
+static void test_screen_rule(void **state) {
+  (void)state;
+  assert_int_equal(obs_screen_rule_hbao_cases(OBS_BACKEND_CPU), 0);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_plane_is_one),     cmocka_unit_test(test_empty_frame),
@@ -537,6 +544,7 @@ int main(void) {
       cmocka_unit_test(test_extremes),         cmocka_unit_test(test_params),
       cmocka_unit_test(test_simd_matches_scalar), cmocka_unit_test(test_huge_radius),
       cmocka_unit_test(test_tiny_fov),
+      cmocka_unit_test(test_screen_rule),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

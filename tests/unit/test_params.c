@@ -432,6 +432,26 @@ static void test_self_check(void **state) {
   obs_err_free(&err);
   assert_int_equal(obs_technique_params_check(&t, &err), OBS_EINVAL);
   assert_non_null(strstr(obs_err_message(&err), "the cost of the defaults is 0"));
+  /* A size-derived default outside a backend's guaranteed range of its length: the default a
+   * scene is given would draw a range warning. On its bound it is accepted (the derivation rounds
+   * toward the inside). */
+  t = demo_technique();
+  obs_param len = {.name = "dist", .type = OBS_PARAM_DOUBLE, .min = 0, .max = 1e30, .def = 1,
+                   .description = "d", .offset = offsetof(demo, dist), .size_default = 0.01};
+  t.params = &len;
+  t.params_size = 1;
+  t.cost = NULL;
+  t.run[OBS_BACKEND_CPU] = t.run[OBS_BACKEND_VULKAN] = NULL;
+  t.range[OBS_BACKEND_CPU].params[0] = (obs_param_range){"dist", 0.01, 1e6, 1};
+  t.range[OBS_BACKEND_VULKAN].params[0] = (obs_param_range){"dist", 0.05, 1e6, 1};
+  obs_err_free(&err);
+  assert_int_equal(obs_technique_params_check(&t, &err), OBS_EINVAL);
+  assert_non_null(strstr(obs_err_message(&err),
+                         "/dist: size_default 0.01 lies outside [0.05, 1e+06], the range vulkan "
+                         "guarantees"));
+  len.size_default = 0.05;
+  obs_err_free(&err);
+  assert_int_equal(obs_technique_params_check(&t, &err), 0);
   obs_err_free(&err);
 }
 

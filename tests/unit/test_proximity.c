@@ -1,6 +1,7 @@
 /* Proximity fields and proximity_ao: the overlap test, the voxelisation, the flood against a
  * brute-force one, the two-plane superposition, the reconstruction's arithmetic, renders with
- * objects outside each other's fields, moving objects, and the extremes of the layout. */
+ * objects outside each other's fields, moving objects, the extremes of the layout, r_p's
+ * reference boxes and the accessibility bound over several fields. */
 #include <jansson.h>
 #include <math.h>
 #include <stdio.h>
@@ -8,10 +9,12 @@
 #include <string.h>
 
 #include "proximity.h"
+#include "proximity_ao.h"
 #include "testutil.h"
+#include "prox_bound_cases.h"
 
-static const obs_prox_layout default_layout = {.fraction = 0.1, .union_box = 0, .res = 32,
-                                               .min_res = 8};
+static const obs_prox_layout default_layout = {.fraction = 0.1, .box = OBS_PROX_BOX_LARGEST,
+                                               .res = 32, .min_res = 8};
 
 static const char *scene_doc(const char *objects, const char *params) {
   return obs_test_fmt(
@@ -467,6 +470,59 @@ static void test_extremes(void **state) {
   }
 }
 
+/* r_p's reference boxes: the thesis's maximal box takes per axis the largest extent over all
+ * objects, `largest` the largest single object's box, `union` the box of all. A floor 10 x 4 and a
+ * pillar 1 x 6 x 1 standing apart: sqrt(10^2 + 6^2 + 4^2), the floor's sqrt(10^2 + 4^2), the
+ * union's. And a room of six wall quads has the same maximal box as one box shape, while its
+ * largest object is one wall: the maximal box does not depend on how the scene is cut up. */
+static void test_propagation_boxes(void **state) {
+  (void)state;
+  const char *floor_pillar =
+      "{\"shape\":{\"type\":\"quad\",\"vertices\":[[0,0,0],[0,0,4],[10,0,4],[10,0,0]]}},"
+      "{\"shape\":{\"type\":\"box\",\"min\":[12,0,1],\"max\":[13,6,2]}}";
+  obs_prox_layout lay = {.fraction = 1, .res = 8, .min_res = 8};
+  const double want[3] = {sqrt(100.0 + 36 + 16), sqrt(100.0 + 16), sqrt(169.0 + 36 + 16)};
+  obs_scene sc;
+  obs_test_load(scene_doc(floor_pillar, ""), "boxes.json", &sc);
+  for (int b = OBS_PROX_BOX_MAXIMAL; b <= OBS_PROX_BOX_UNION; b++) {
+    lay.box = b;
+    assert_float_equal(obs_prox_radius(&sc, &lay), want[b], 1e-12);
+  }
+  obs_scene_free(&sc);
+  const char *walls =
+      "{\"shape\":{\"type\":\"quad\",\"vertices\":[[0,0,0],[0,0,5],[4,0,5],[4,0,0]]}},"
+      "{\"shape\":{\"type\":\"quad\",\"vertices\":[[0,3,0],[4,3,0],[4,3,5],[0,3,5]]}},"
+      "{\"shape\":{\"type\":\"quad\",\"vertices\":[[0,0,0],[0,3,0],[0,3,5],[0,0,5]]}},"
+      "{\"shape\":{\"type\":\"quad\",\"vertices\":[[4,0,0],[4,0,5],[4,3,5],[4,3,0]]}},"
+      "{\"shape\":{\"type\":\"quad\",\"vertices\":[[0,0,0],[4,0,0],[4,3,0],[0,3,0]]}},"
+      "{\"shape\":{\"type\":\"quad\",\"vertices\":[[0,0,5],[0,3,5],[4,3,5],[4,0,5]]}}";
+  const char *box = "{\"shape\":{\"type\":\"box\",\"min\":[0,0,0],\"max\":[4,3,5]}}";
+  double r[2][2];
+  const char *rooms[2] = {walls, box};
+  for (int k = 0; k < 2; k++) {
+    obs_test_load(scene_doc(rooms[k], ""), "room.json", &sc);
+    lay.box = OBS_PROX_BOX_MAXIMAL;
+    r[k][0] = obs_prox_radius(&sc, &lay);
+    lay.box = OBS_PROX_BOX_LARGEST;
+    r[k][1] = obs_prox_radius(&sc, &lay);
+    obs_scene_free(&sc);
+  }
+  assert_true(r[0][0] == r[1][0]);
+  assert_float_equal(r[0][0], sqrt(50.0), 1e-12);
+  assert_float_equal(r[0][1], sqrt(41.0), 1e-12); /* the floor's 4 x 5 */
+  assert_float_equal(r[1][1], sqrt(50.0), 1e-12);
+  /* The default is the maximal box. */
+  obs_proximity_ao_params p;
+  assert_int_equal(obs_params_bind(obs_technique_find("proximity_ao"), NULL, &p, NULL), 0);
+  assert_int_equal(p.propagation_box, OBS_PROX_BOX_MAXIMAL);
+}
+
+/* Accessibility over several fields: the bound of the combination, reached (prox_bound_cases.c). */
+static void test_bound_several_fields(void **state) {
+  (void)state;
+  assert_int_equal(obs_prox_bound_cases(OBS_BACKEND_CPU), 0);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_tri_box),
@@ -479,6 +535,8 @@ int main(void) {
       cmocka_unit_test(test_render_outside_fields),
       cmocka_unit_test(test_motion_last_frame),
       cmocka_unit_test(test_extremes),
+      cmocka_unit_test(test_bound_several_fields),
+      cmocka_unit_test(test_propagation_boxes),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

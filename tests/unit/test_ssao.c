@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "testutil.h"
+#include "screen_rule_cases.h"
 
 #include "gbuffer_cpu.h"
 #include "simd.h"
@@ -427,6 +428,13 @@ static void test_extremes(void **state) {
   obs_result_free(&r);
 }
 
+/* The screen-space rule on the CPU: a radius under a pixel or a depth step warns, with the share
+ * of pixels and the smallest radius that reaches one (screen_rule_cases.c). */
+static void test_screen_rule(void **state) {
+  (void)state;
+  assert_int_equal(obs_screen_rule_ssao_cases(OBS_BACKEND_CPU), 0);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_params),
@@ -439,6 +447,7 @@ int main(void) {
       cmocka_unit_test(test_thread_independence),
       cmocka_unit_test(test_simd_matches_scalar),
       cmocka_unit_test(test_extremes),
+      cmocka_unit_test(test_screen_rule),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

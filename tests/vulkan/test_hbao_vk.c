@@ -8,6 +8,7 @@
 
 #include "gbuffer_cpu.h"
 #include "vktest.h"
+#include "screen_rule_cases.h"
 #include "vk.h"
 
 #include "../../renderer/techniques/hbao.h"
@@ -451,6 +452,13 @@ static void test_errors(void **state) {
   obs_err_free(&err);
 }
 
+/* The screen-space rule on Vulkan: the same cases and words as on the CPU. */
+static void test_screen_rule(void **state) {
+  (void)state;
+  vktest_need_vk();
+  assert_int_equal(obs_screen_rule_hbao_cases(OBS_BACKEND_VULKAN), 0);
+}
+
 int main(void) {
   /* The loader's own debug output would be counted as validation messages. */
   unsetenv("VK_LOADER_DEBUG");
@@ -464,6 +472,7 @@ int main(void) {
       cmocka_unit_test_teardown(test_moved_and_scaled, vktest_quiet_teardown),
       cmocka_unit_test_teardown(test_huge_radius, vktest_quiet_teardown),
       cmocka_unit_test_teardown(test_tiny_fov, vktest_quiet_teardown),
+      cmocka_unit_test_teardown(test_screen_rule, vktest_quiet_teardown),
   };
   return cmocka_run_group_tests(tests, vktest_group_setup, vktest_group_teardown);
 }

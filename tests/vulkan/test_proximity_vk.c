@@ -14,6 +14,7 @@
 #include "proximity.h"
 #include "proximity_vk.h"
 #include "vktest.h"
+#include "prox_bound_cases.h"
 
 /* Floods a copy of `f` on both backends and asserts every value's bits are equal. */
 static void flood_both(obs_vk *vk, const obs_prox_field *f, size_t *nonzero) {
@@ -55,7 +56,7 @@ static void test_flood_sphere(void **state) {
       "\"fov_y\":50},\"image\":{\"width\":8,\"height\":8},\"objects\":[{\"shape\":{\"type\":"
       "\"sphere\",\"center\":[0.1,0,0],\"radius\":1}}],\"technique\":{\"name\":\"proximity_ao\"}}",
       "sphere.json", &sc);
-  obs_prox_layout lay = {.fraction = 0.3, .union_box = 0, .res = 48, .min_res = 8};
+  obs_prox_layout lay = {.fraction = 0.3, .box = OBS_PROX_BOX_LARGEST, .res = 48, .min_res = 8};
   obs_prox_fields fs;
   obs_err err = OBS_ERR_INIT;
   vktest_check_rc(obs_prox_build(&sc, &lay, 2, NULL, NULL, &fs, &err), &err);
@@ -354,6 +355,13 @@ static void test_backend_hook(void **state) {
   assert_null(obs_backend_ops_get(OBS_BACKEND_CPU)->prox_flood);
 }
 
+/* Accessibility over several fields on the device: the same bound, reached (prox_bound_cases.c). */
+static void test_bound_several_fields(void **state) {
+  (void)state;
+  vktest_need_vk();
+  assert_int_equal(obs_prox_bound_cases(OBS_BACKEND_VULKAN), 0);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test_teardown(test_flood_sphere, vktest_quiet_teardown),
@@ -362,6 +370,7 @@ int main(void) {
       cmocka_unit_test_teardown(test_against_cpu, vktest_quiet_teardown),
       cmocka_unit_test_teardown(test_many_fields, vktest_quiet_teardown),
       cmocka_unit_test_teardown(test_region, vktest_quiet_teardown),
+      cmocka_unit_test_teardown(test_bound_several_fields, vktest_quiet_teardown),
       cmocka_unit_test(test_backend_hook),
   };
   return cmocka_run_group_tests(tests, vktest_group_setup, vktest_group_teardown);

@@ -7,6 +7,7 @@
 
 #include "gbuffer_cpu.h"
 #include "vktest.h"
+#include "screen_rule_cases.h"
 #include "vk.h"
 #include "../../renderer/techniques/ssao.h"
 
@@ -362,6 +363,13 @@ static void test_bad_calls(void **state) {
   obs_err_free(&err);
 }
 
+/* The screen-space rule on Vulkan: the same cases and words as on the CPU. */
+static void test_screen_rule(void **state) {
+  (void)state;
+  vktest_need_vk();
+  assert_int_equal(obs_screen_rule_ssao_cases(OBS_BACKEND_VULKAN), 0);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test_teardown(test_cross_room, vktest_quiet_teardown),
@@ -372,6 +380,7 @@ int main(void) {
       cmocka_unit_test_teardown(test_wall, vktest_quiet_teardown),
       cmocka_unit_test_teardown(test_bad_calls, vktest_quiet_teardown),
       cmocka_unit_test_teardown(test_moved_and_scaled, vktest_quiet_teardown),
+      cmocka_unit_test_teardown(test_screen_rule, vktest_quiet_teardown),
   };
   return cmocka_run_group_tests(tests, vktest_group_setup, vktest_group_teardown);
 }

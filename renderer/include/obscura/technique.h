@@ -235,6 +235,30 @@ typedef struct obs_tolerance {
   double ao_mean, ao_pixel, share, normal, depth_rel;
 } obs_tolerance;
 
+/* How far a screen-space technique's samples reach around a covered pixel at linear view depth
+ * z: `pixels`, how far across the screen its farthest sample reaches, in the pixels (texels of
+ * the level it samples) it reads; `depth`, that sample's reach along the view axis over the
+ * smallest depth difference its depth test resolves. Under 1 either way its samples cannot see
+ * the geometry: the answer no longer depends on it. */
+typedef struct obs_screen_reach {
+  double pixels, depth;
+} obs_screen_reach;
+
+/* The screen-space rule of a length parameter (docs/accuracy.md, "Screen-space radius"): `reach`
+ * gives obs_screen_reach for the bound params, the G-buffer's camera and a depth z (> 0); neither
+ * figure may grow with z. Where a covered pixel's reach is under one pixel or one depth step the
+ * render warns (obs_screen_rule_check): the share of the covered pixels, what the image reads
+ * there (`below_pixel`, `below_depth`) and the smallest value of `param` that reaches one of each
+ * at every covered pixel. With `pixel_decides` a pixel under one pixel reads below_pixel whatever
+ * its depth reach (hbao's early exit), so only the others are held to the depth step. */
+struct obs_gbuffer;
+typedef struct obs_screen_rule {
+  const char *param;
+  void (*reach)(const void *bound, const struct obs_gbuffer *g, double z, obs_screen_reach *out);
+  const char *below_pixel, *below_depth;
+  int pixel_decides;
+} obs_screen_rule;
+
 /* The range over which one backend of a technique guarantees its output: finite, in range, and
  * equal to the scale-1 result within `tol` (docs/accuracy.md, "Guaranteed ranges").
  *  - size: the diagonal of the axis-aligned bounding box of the transformed geometry, in scene
@@ -253,6 +277,8 @@ typedef struct obs_range {
   double fov_min, fov_max;
   int orthographic;
   obs_param_range params[OBS_MAX_PARAM_RANGES + 1];
+  /* Screen-space techniques: the rule their radius is held to on the G-buffer; NULL: none. */
+  const obs_screen_rule *screen;
   obs_tolerance tol;
 } obs_range;
 
