@@ -38,11 +38,12 @@ static uint64_t shade_blocks(pixel_run *pr, int thread, int x0, int y0, int x1, 
       if (ex > x1) ex = x1;
       if (ey > y1) ey = y1;
       rays += pr->ops->block(pr->job, thread, bx, by, ex, ey, v);
-      const float *p = v;
-      for (int y = by; y < ey; y++)
-        for (int x = bx; x < ex; x++, p += nch) {
-          size_t i = (size_t)y * (size_t)img->width + (size_t)x;
-          for (int c = 0; c < nch; c++) img->data[(size_t)c * plane + i] = p[c];
+      const int w = ex - bx, n = w * (ey - by);
+      for (int c = 0; c < nch; c++)
+        for (int y = by; y < ey; y++) {
+          float *to = img->data + (size_t)c * plane + (size_t)y * (size_t)img->width + (size_t)bx;
+          const float *from = v + (size_t)c * (size_t)n + (size_t)(y - by) * (size_t)w;
+          for (int x = 0; x < w; x++) to[x] = from[x];
         }
     }
   return rays;

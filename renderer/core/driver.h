@@ -18,10 +18,10 @@ typedef uint64_t (*obs_shade_fn)(const void *job, int thread, int x, int y, floa
 /* The pixels of a block, for techniques whose pixels are cheaper together (camera rays traced as
  * one packet): blocks are the cells of an OBS_PIXEL_BLOCK x OBS_PIXEL_BLOCK grid on the image
  * (corners at multiples of it), cut to the tile being shaded, so a block is [x0, x1) x [y0, y1)
- * inside one cell. Writes ops->nchannels values per pixel, pixel after pixel in row order
- * (values + ((y - y0) * (x1 - x0) + (x - x0)) * nchannels), and returns the rays traced for
- * those pixels. A pixel's values may depend on its cell (the same whatever the tile) but not on
- * which part of it is shaded. */
+ * inside one cell. Writes ops->nchannels planes of the block's n = (x1 - x0) (y1 - y0) pixels in
+ * row order (channel c of pixel (x, y) at values[c n + (y - y0) (x1 - x0) + (x - x0)]) and
+ * returns the rays traced for those pixels. A pixel's values may depend on its cell (the same
+ * whatever the tile) but not on which part of it is shaded. */
 enum { OBS_PIXEL_BLOCK = 4 };
 typedef uint64_t (*obs_shade_block_fn)(const void *job, int thread, int x0, int y0, int x1, int y1,
                                        float *values);

@@ -32,6 +32,7 @@ typedef struct job {
   int spp;
   double (*maps)[3][4]; /* per field: world -> grid in the frame being rendered */
   float **corners;      /* per field: obs_prox_corners, or NULL (read one point at a time) */
+  double *centre_sx, *centre_sy; /* obs_rt_view_sx / _sy of each column's and row's centre */
 } job;
 
 static void map_point(const double m[3][4], const double p[3], float out[3]) {
@@ -109,8 +110,13 @@ static uint64_t shade_block(const void *user, int thread, int x0, int y0, int x1
   for (int s = 0; s < spp; s++) {
     double sx[CELL], sy[CELL];
     for (int i = 0; i < n; i++) {
-      float jx = 0.5f, jy = 0.5f;
-      if (spp > 1) obs_sampler2d_pixel(&jit[i], spp, (uint32_t)s, &jx, &jy);
+      if (spp == 1) {
+        sx[i] = jb->centre_sx[cx + i % cw];
+        sy[i] = jb->centre_sy[cy + i / cw];
+        continue;
+      }
+      float jx, jy;
+      obs_sampler2d_pixel(&jit[i], spp, (uint32_t)s, &jx, &jy);
       sx[i] = obs_rt_view_sx(&jb->cam, cx + i % cw + (double)jx);
       sy[i] = obs_rt_view_sy(&jb->cam, cy + i / cw + (double)jy);
     }
@@ -139,18 +145,21 @@ static uint64_t shade_block(const void *user, int thread, int x0, int y0, int x1
       depth[i] += h[i].t;
     }
   }
-  float *d = values;
-  for (int i = 0; i < n; i++) {
+  /* Channel after channel (obs_shade_block_fn); one reciprocal per pixel for the averages. */
+  const int m = (x1 - x0) * (y1 - y0);
+  for (int i = 0, j = 0; i < n; i++) {
     if (!shade[i]) continue;
-    d[CH_AO] = (float)(ao[i] / spp);
-    d[CH_FIELDS] = hits[i] ? (float)(fields[i] / hits[i]) : 0.0f;
-    d[CH_ALPHA] = (float)hits[i] / (float)spp;
-    d[CH_DEPTH] = hits[i] ? (float)(depth[i] / hits[i]) : 0.0f;
+    double per_hit = hits[i] > 1 ? 1.0 / hits[i] : 1.0;
     double nl = sqrt(nrm[i][0] * nrm[i][0] + nrm[i][1] * nrm[i][1] + nrm[i][2] * nrm[i][2]);
-    for (int k = 0; k < 3; k++) d[CH_NX + k] = nl > 0 ? (float)(nrm[i][k] / nl) : 0.0f;
-    d += CH_COUNT;
+    double per_len = nl > 0 ? 1.0 / nl : 0.0;
+    values[CH_AO * m + j] = (float)(spp > 1 ? ao[i] / spp : ao[i]);
+    values[CH_FIELDS * m + j] = (float)(fields[i] * per_hit);
+    values[CH_ALPHA * m + j] = (float)hits[i] / (float)spp;
+    values[CH_DEPTH * m + j] = (float)(depth[i] * per_hit);
+    for (int k = 0; k < 3; k++) values[(CH_NX + k) * m + j] = (float)(nrm[i][k] * per_len);
+    j++;
   }
-  return (uint64_t)spp * (uint64_t)((x1 - x0) * (y1 - y0));
+  return (uint64_t)spp * (uint64_t)m;
 }
 
 static void place_fields(job *jb, int frame) {
@@ -211,9 +220,13 @@ int obs_proximity_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   size_t n = jb.fs->n ? jb.fs->n : 1;
   jb.maps = malloc(n * sizeof *jb.maps);
   jb.corners = calloc(n, sizeof *jb.corners);
+  jb.centre_sx = malloc((size_t)sc->width * sizeof *jb.centre_sx);
+  jb.centre_sy = malloc((size_t)sc->height * sizeof *jb.centre_sy);
   int rc = 0;
-  if (!jb.maps || !jb.corners)
+  if (!jb.maps || !jb.corners || !jb.centre_sx || !jb.centre_sy)
     rc = obs_err_set(err, OBS_ENOMEM, "%s: proximity_ao: out of memory", sc->name);
+  for (int x = 0; !rc && x < sc->width; x++) jb.centre_sx[x] = obs_rt_view_sx(&jb.cam, x + 0.5);
+  for (int y = 0; !rc && y < sc->height; y++) jb.centre_sy[y] = obs_rt_view_sy(&jb.cam, y + 0.5);
   /* The eight-lane walk's read copies; a field without one (memory short) reads one point at a
    * time, with the same bits. */
   double t0 = obs_now_ms();
@@ -234,5 +247,7 @@ int obs_proximity_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   for (size_t i = 0; jb.corners && i < jb.fs->n; i++) free(jb.corners[i]);
   free(jb.corners);
   free(jb.maps);
+  free(jb.centre_sx);
+  free(jb.centre_sy);
   return rc;
 }

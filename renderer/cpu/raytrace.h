@@ -19,6 +19,7 @@ typedef struct obs_rt {
   obs_geometry geo;
   unsigned sphere_geom;  /* geomID of the analytic-sphere user geometry, or RTC_INVALID_GEOMETRY_ID */
   int isa;               /* obs_simd_isa() when built: the level of obs_rt_intersect_primary */
+  int native16;          /* Embree runs rtcIntersect16 natively (its AVX-512 kernels) */
   /* Set when the frame sits at the geometry rather than at a far camera (OBS_RT_FRAME_GEOMETRY):
    * obs_rt_intersect then moves each ray's origin up to `box` (the geometry's bounds in the frame,
    * slightly grown) in double before Embree sees it in float. */
