@@ -49,9 +49,14 @@ static uint64_t synth_block(const void *job, int thread, int x0, int y0, int x1,
   assert_true(x0 < x1 && y0 < y1);
   assert_int_equal(x0 / B, (x1 - 1) / B);
   assert_int_equal(y0 / B, (y1 - 1) / B);
+  const int n = (x1 - x0) * (y1 - y0);
   uint64_t rays = 0;
-  for (int y = y0; y < y1; y++)
-    for (int x = x0; x < x1; x++, v += 3) rays += synth_shade(job, thread, x, y, v);
+  for (int y = y0, i = 0; y < y1; y++)
+    for (int x = x0; x < x1; x++, i++) {
+      float p[3];
+      rays += synth_shade(job, thread, x, y, p);
+      for (int c = 0; c < 3; c++) v[c * n + i] = p[c];
+    }
   return rays;
 }
 
