@@ -95,30 +95,29 @@ static uint64_t shade_block(const void *user, int thread, int x0, int y0, int x1
   const int cw = jb->cam.width - cx < B ? jb->cam.width - cx : B;
   const int chh = jb->cam.height - cy < B ? jb->cam.height - cy : B;
   const int n = cw * chh, spp = jb->spp;
-  double ao[CELL], depth[CELL], nrm[CELL][3], fields[CELL];
-  int hits[CELL], shade[CELL];
+  double ao[CELL] = {0}, depth[CELL] = {0}, nrm[CELL][3] = {{0}}, fields[CELL] = {0};
+  int hits[CELL] = {0}, shade[CELL], px[CELL], py[CELL];
   obs_sampler2d jit[CELL];
-  for (int i = 0; i < n; i++) {
-    int x = cx + i % cw, y = cy + i / cw;
-    shade[i] = x >= x0 && x < x1 && y >= y0 && y < y1;
-    ao[i] = depth[i] = fields[i] = nrm[i][0] = nrm[i][1] = nrm[i][2] = 0;
-    hits[i] = 0;
-    if (spp > 1)
-      obs_sampler2d_init(&jit[i], OBS_SAMPLER_SOBOL, (uint32_t)x, (uint32_t)y, 0, 0, jb->p.seed);
-  }
+  for (int y = cy, i = 0; y < cy + chh; y++)
+    for (int x = cx; x < cx + cw; x++, i++) {
+      px[i] = x, py[i] = y;
+      shade[i] = x >= x0 && x < x1 && y >= y0 && y < y1;
+      if (spp > 1)
+        obs_sampler2d_init(&jit[i], OBS_SAMPLER_SOBOL, (uint32_t)x, (uint32_t)y, 0, 0, jb->p.seed);
+    }
   const double *origin = jb->rt->geo.origin;
   for (int s = 0; s < spp; s++) {
     double sx[CELL], sy[CELL];
     for (int i = 0; i < n; i++) {
       if (spp == 1) {
-        sx[i] = jb->centre_sx[cx + i % cw];
-        sy[i] = jb->centre_sy[cy + i / cw];
+        sx[i] = jb->centre_sx[px[i]];
+        sy[i] = jb->centre_sy[py[i]];
         continue;
       }
       float jx, jy;
       obs_sampler2d_pixel(&jit[i], spp, (uint32_t)s, &jx, &jy);
-      sx[i] = obs_rt_view_sx(&jb->cam, cx + i % cw + (double)jx);
-      sy[i] = obs_rt_view_sy(&jb->cam, cy + i / cw + (double)jy);
+      sx[i] = obs_rt_view_sx(&jb->cam, px[i] + (double)jx);
+      sy[i] = obs_rt_view_sy(&jb->cam, py[i] + (double)jy);
     }
     obs_rt_primary h[CELL];
     for (int i = 0; i < n; i += OBS_RT_PACKET)
