@@ -33,9 +33,9 @@ typedef struct obs_pixel_ops {
   obs_shade_block_fn block;    /* NULL: shade, one pixel at a time */
 } obs_pixel_ops;
 
-/* Allocates `out`, runs shade (or block) over ctx's region in tiles on ctx->threads threads with progress
- * and cancellation, adds ctx->rays and sets ctx->render_ms (stage "shade"). Bit-identical for any
- * thread count.
+/* Allocates `out`, runs shade (or block) over ctx's region in tiles on ctx->threads threads with
+ * progress and cancellation, adds ctx->rays and sets ctx->render_ms (stage "shade"). Bit-identical
+ * for any thread count.
  * Pixels outside the region stay 0. With ctx->tiles it shades only the tiles that source hands
  * out, calls its `done` after each, reports no progress and sets ctx->tiled; the pixels it shades
  * are the same bits either way. On failure (OBS_ECANCELED when ctx->cancel was raised; the

@@ -43,8 +43,7 @@ static uint64_t synth_shade(const void *job, int thread, int x, int y, float *v)
 }
 
 /* The same pixels a block at a time: a block never leaves its cell of the block grid. */
-static uint64_t synth_block(const void *job, int thread, int x0, int y0, int x1, int y1,
-                            float *v) {
+static uint64_t synth_block(const void *job, int thread, int x0, int y0, int x1, int y1, float *v) {
   const int B = OBS_PIXEL_BLOCK;
   assert_true(x0 < x1 && y0 < y1);
   assert_int_equal(x0 / B, (x1 - 1) / B);
