@@ -15,6 +15,7 @@
 #include "proximity.h"
 #include "raytrace.h"
 #include "sampling.h"
+#include "simd.h"
 
 #define MAX_REPEATS 16
 
@@ -255,7 +256,7 @@ static const char cornell[] = OBS_SOURCE_DIR "/scenes/cornell_box.json";
 static void table_res(void) {
   printf("\n## voxel resolution (Cornell box, %dx%d, thesis_code, 20 steps)\n\n", opt.size,
          opt.size);
-  printf("| volume_res | voxelise ms | flood ms | reconstruct+rays ms | RMSE | SSIM | mean AO |\n");
+  printf("| volume_res | voxelise ms | flood ms | frame ms | RMSE | SSIM | mean AO |\n");
   printf("|---|---|---|---|---|---|---|\n");
   run ref;
   reference(cornell, "", &ref);
@@ -330,40 +331,50 @@ static void table_pre(void) {
   }
 }
 
-/* The reconstruction's own time: the render at 20 steps less the same render at one step (which
- * reads nothing: the camera rays and the per-pixel driver alone), the two alternated so that a
- * slow phase of the machine hits both; the median of the differences, and the medians of each. */
-static double recon_ms(const char *doc, int size, const char *params, double *total,
-                       double *rays) {
+/* A frame and its steps: the render at 20 steps (the whole frame: camera rays, reconstruction
+ * and the image's writes) and the same render at one step (which reads nothing: the camera rays,
+ * the per-pixel set-up and the driver), the two alternated so that a slow phase of the machine
+ * hits both. The reconstruction step is the median of the paired differences. */
+typedef struct frame_steps {
+  double frame, frame_lo, frame_hi; /* the 20-step render: median, fastest, slowest */
+  double rays;                      /* the 1-step render's median */
+  double recon;                     /* median of (20 steps - 1 step), pair by pair */
+} frame_steps;
+
+static void frame_steps_of(const char *doc, int size, const char *params, frame_steps *out) {
   char p20[256], p1[256];
   snprintf(p20, sizeof p20, "%s%s\"steps\":20", params, *params ? "," : "");
   snprintf(p1, sizeof p1, "%s%s\"steps\":1", params, *params ? "," : "");
   double a[MAX_REPEATS], b[MAX_REPEATS], d[MAX_REPEATS];
+  out->frame_lo = INFINITY, out->frame_hi = 0;
   for (int r = 0; r < opt.repeats; r++) {
     run x, y;
     prox(doc, size, p20, 1, &x);
     prox(doc, size, p1, 1, &y);
     a[r] = x.render_ms, b[r] = y.render_ms, d[r] = a[r] - b[r];
+    out->frame_lo = fmin(out->frame_lo, a[r]);
+    out->frame_hi = fmax(out->frame_hi, a[r]);
     obs_result_free(&x.res), obs_result_free(&y.res);
   }
-  *total = bench_median(a, opt.repeats);
-  *rays = bench_median(b, opt.repeats);
-  return bench_median(d, opt.repeats);
+  out->frame = bench_median(a, opt.repeats);
+  out->rays = bench_median(b, opt.repeats);
+  out->recon = bench_median(d, opt.repeats);
 }
 
 /* Frame time against the number of objects (its Fig. 4.3.3). */
 static void table_objects(void) {
   printf("\n## frame time against objects (unit cubes, %dx%d, volume_res 64)\n\n", opt.size,
          opt.size);
-  printf("| objects | frame ms | camera rays ms | reconstruction ms | build ms |\n");
+  printf("| objects | frame ms | step: camera rays ms | step: reconstruction ms | build ms |\n");
   printf("|---|---|---|---|---|\n");
   const int counts[] = {1, 2, 4, 8, 16};
   for (int i = 0; i < 5; i++) {
-    double total, rays, recon = recon_ms(cubes(counts[i]), opt.size, "\"volume_res\":64", &total,
-                                         &rays);
+    frame_steps f;
+    frame_steps_of(cubes(counts[i]), opt.size, "\"volume_res\":64", &f);
     run r;
     prox(cubes(counts[i]), opt.size, "\"volume_res\":64", 1, &r);
-    printf("| %d | %.1f | %.1f | %.1f | %.1f |\n", counts[i], total, rays, recon, r.build_ms);
+    printf("| %d | %.1f | %.1f | %.1f | %.1f |\n", counts[i], f.frame, f.rays, f.recon,
+           r.build_ms);
     obs_result_free(&r.res);
   }
 }
@@ -373,10 +384,12 @@ static void table_objects(void) {
 static void table_tris(void) {
   printf("\n## frame time against triangles (displaced sphere, %dx%d, volume_res 128)\n\n",
          opt.size, opt.size);
-  printf("| triangles | frame ms | camera rays ms | reconstruction ms |\n|---|---|---|---|\n");
+  printf("| triangles | frame ms | step: camera rays ms | step: reconstruction ms |\n"
+         "|---|---|---|---|\n");
   for (int s = 6; s <= 10; s++) {
-    double total, rays, recon = recon_ms(displaced(s), opt.size, "", &total, &rays);
-    printf("| %d | %.1f | %.1f | %.1f |\n", 1 << (2 * s), total, rays, recon);
+    frame_steps f;
+    frame_steps_of(displaced(s), opt.size, "", &f);
+    printf("| %d | %.1f | %.1f | %.1f |\n", 1 << (2 * s), f.frame, f.rays, f.recon);
   }
 }
 
@@ -487,23 +500,37 @@ static void table_flood(void) {
   obs_scene_free(&sc);
 }
 
-/* The goals of docs/performance.md. */
+/* The goals of docs/performance.md. The frame goal compares like with like: the thesis's 135 ms
+ * is its whole frame (G-buffer and reconstruction), so ours is the whole render of a frame; the
+ * steps are printed apart and are not the goal. */
 static void goals(void) {
-  double total, rays, recon = recon_ms(displaced(10), opt.goal_size, "", &total, &rays);
+  frame_steps f;
+  frame_steps_of(displaced(10), opt.goal_size, "", &f);
   run r;
   prox(displaced(10), 64, "", opt.repeats, &r);
+  char path[256];
+  bench_isa_label(path, sizeof path);
   printf("\n## goals\n\n");
-  printf("goal reconstruction at %dx%d, 1,048,576-triangle displaced sphere, 20 steps, %d threads: "
-         "%.1f ms (frame %.1f ms, camera rays %.1f ms) <= 135 ms: %s\n",
-         opt.goal_size, opt.goal_size, opt.threads, recon, total, rays,
-         recon <= 135 ? "PASS" : "FAIL");
+  printf("path: %s; proximity walk %s; camera rays in Embree packets of %d (4x4 pixels)\n", path,
+         obs_simd_isa() >= OBS_ISA_AVX2 ? "eight points at a time (x86-64-v3)"
+                                        : "one point at a time",
+         OBS_RT_PACKET);
+  printf("goal whole frame at %dx%d, 1,048,576-triangle displaced sphere, 20 steps, %d threads: "
+         "%.1f ms (median of %d, %.1f-%.1f) <= 135 ms (the thesis's whole frame): %s\n",
+         opt.goal_size, opt.goal_size, opt.threads, f.frame, opt.repeats, f.frame_lo, f.frame_hi,
+         f.frame <= 135 ? "PASS" : "FAIL");
+  printf("  steps of that frame (not goals): camera rays and per-pixel set-up %.1f ms (the frame "
+         "at 1 step), reconstruction %.1f ms (20 steps less 1, median of the pairs)\n",
+         f.rays, f.recon);
   if (obs_technique_has_backend(obs_technique_find("proximity_ao"), OBS_BACKEND_VULKAN)) {
     run v;
     render(displaced(10), opt.goal_size,
            "{\"name\":\"proximity_ao\",\"backend\":\"vulkan\"}", opt.repeats, &v);
-    printf("  vulkan (lavapipe): reconstruction pass %.1f ms, G-buffer %.1f ms, flood %.1f ms: "
-           "the CPU is the faster backend\n",
-           stage(&v.res, "shade"), stage(&v.res, "gbuffer"), v.flood_ms);
+    double gb = stage(&v.res, "gbuffer"), sh = stage(&v.res, "shade"),
+           rb = stage(&v.res, "readback");
+    printf("  vulkan (lavapipe) whole frame %.1f ms: G-buffer %.1f + reconstruction pass %.1f + "
+           "readback %.1f (flood %.1f ms, built once)\n",
+           gb + sh + rb, gb, sh, rb, v.flood_ms);
     obs_result_free(&v.res);
   }
   printf("goal voxelise 128^3 (same mesh): %.1f ms <= 1000 ms: %s\n", r.voxelise_ms,
@@ -515,6 +542,9 @@ static void goals(void) {
 
 int main(int argc, char **argv) {
   if (parse_args(argc, argv)) return 2;
+  /* As obscurad does: a frame's image reuses the last one's pages instead of faulting in 28 MB
+   * afresh, as a renderer drawing frame after frame would. */
+  obs_render_keep_memory();
   bench_print_machine();
   printf("proximity_ao, %d threads, medians of %d runs\n", opt.threads, opt.repeats);
   if (want("res")) table_res();

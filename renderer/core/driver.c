@@ -17,7 +17,7 @@ typedef struct pixel_run {
   const void *job;
   obs_image *img;
   obs_region r;
-  float *values;   /* threads x SLOT-rounded nchannels */
+  float *values;   /* threads x SLOT-rounded nchannels (a block's pixels' with ops->block) */
   size_t stride;   /* floats per thread in values */
   uint64_t *rays;  /* threads x SLOT */
   const obs_tile_source *src; /* NULL: the driver's own tiles over r */
@@ -25,8 +25,34 @@ typedef struct pixel_run {
   obs_region bad_tile;
 } pixel_run;
 
+/* Shades the image's pixels [x0, x1) x [y0, y1) block by block (obs_shade_block_fn). */
+static uint64_t shade_blocks(pixel_run *pr, int thread, int x0, int y0, int x1, int y1) {
+  obs_image *img = pr->img;
+  const size_t plane = (size_t)img->width * (size_t)img->height;
+  const int nch = pr->ops->nchannels, B = OBS_PIXEL_BLOCK;
+  float *v = pr->values + (size_t)thread * pr->stride;
+  uint64_t rays = 0;
+  for (int by = y0; by < y1; by = (by / B + 1) * B)
+    for (int bx = x0; bx < x1; bx = (bx / B + 1) * B) {
+      int ex = (bx / B + 1) * B, ey = (by / B + 1) * B;
+      if (ex > x1) ex = x1;
+      if (ey > y1) ey = y1;
+      rays += pr->ops->block(pr->job, thread, bx, by, ex, ey, v);
+      const int w = ex - bx, n = w * (ey - by);
+      for (int c = 0; c < nch; c++)
+        for (int y = by; y < ey; y++) {
+          float *to = img->data + (size_t)c * plane + (size_t)y * (size_t)img->width + (size_t)bx;
+          const float *from = v + (size_t)c * (size_t)n + (size_t)(y - by) * (size_t)w;
+          for (int x = 0; x < w; x++) to[x] = from[x];
+        }
+    }
+  return rays;
+}
+
 /* Shades [x0, x1) x [y0, y1) of the region (relative to its corner); returns the rays traced. */
 static uint64_t shade_tile(pixel_run *pr, int thread, int x0, int y0, int x1, int y1) {
+  if (pr->ops->block)
+    return shade_blocks(pr, thread, x0 + pr->r.x0, y0 + pr->r.y0, x1 + pr->r.x0, y1 + pr->r.y0);
   obs_image *img = pr->img;
   const size_t plane = (size_t)img->width * (size_t)img->height;
   const int nch = pr->ops->nchannels;
@@ -117,13 +143,14 @@ int obs_driver_pixels(obs_render_ctx *ctx, const obs_pixel_ops *ops, const void 
   const obs_scene *sc = ctx->scene;
   const char *name = sc ? sc->name : "render";
   memset(out, 0, sizeof *out);
-  if (!sc || !ops || !ops->shade || ops->nchannels < 1)
+  if (!sc || !ops || (!ops->shade && !ops->block) || ops->nchannels < 1)
     return obs_err_set(err, OBS_EINVAL, "%s: per-pixel driver: no scene or shade function", name);
   obs_region r;
   int rc = obs_driver_region(ctx, sc->width, sc->height, &r, err);
   if (rc) return rc;
   int threads = ctx->threads < 1 ? 1 : ctx->threads;
-  size_t stride = ((size_t)ops->nchannels + SLOT - 1) / SLOT * SLOT;
+  size_t per = (size_t)ops->nchannels * (ops->block ? OBS_PIXEL_BLOCK * OBS_PIXEL_BLOCK : 1);
+  size_t stride = (per + SLOT - 1) / SLOT * SLOT;
   float *values = calloc((size_t)threads * stride, sizeof *values);
   uint64_t *rays = calloc((size_t)threads * SLOT, sizeof *rays);
   /* The image is allocated before timing starts: the render is not charged for it. */

@@ -15,15 +15,27 @@
  * ops->channels) for pixel (x, y) and returns the rays it traced. `thread` < ctx->threads. */
 typedef uint64_t (*obs_shade_fn)(const void *job, int thread, int x, int y, float *values);
 
+/* The pixels of a block, for techniques whose pixels are cheaper together (camera rays traced as
+ * one packet): blocks are the cells of an OBS_PIXEL_BLOCK x OBS_PIXEL_BLOCK grid on the image
+ * (corners at multiples of it), cut to the tile being shaded, so a block is [x0, x1) x [y0, y1)
+ * inside one cell. Writes ops->nchannels planes of the block's n = (x1 - x0) (y1 - y0) pixels in
+ * row order (channel c of pixel (x, y) at values[c n + (y - y0) (x1 - x0) + (x - x0)]) and
+ * returns the rays traced for those pixels. A pixel's values may depend on its cell (the same
+ * whatever the tile) but not on which part of it is shaded. */
+enum { OBS_PIXEL_BLOCK = 4 };
+typedef uint64_t (*obs_shade_block_fn)(const void *job, int thread, int x0, int y0, int x1, int y1,
+                                       float *values);
+
 typedef struct obs_pixel_ops {
   int nchannels;
   const char *const *channels; /* EXR channel names of `out` */
-  obs_shade_fn shade;
+  obs_shade_fn shade;          /* NULL when block is set */
+  obs_shade_block_fn block;    /* NULL: shade, one pixel at a time */
 } obs_pixel_ops;
 
-/* Allocates `out`, runs shade over ctx's region in tiles on ctx->threads threads with progress
- * and cancellation, adds ctx->rays and sets ctx->render_ms (stage "shade"). Bit-identical for any
- * thread count.
+/* Allocates `out`, runs shade (or block) over ctx's region in tiles on ctx->threads threads with
+ * progress and cancellation, adds ctx->rays and sets ctx->render_ms (stage "shade"). Bit-identical
+ * for any thread count.
  * Pixels outside the region stay 0. With ctx->tiles it shades only the tiles that source hands
  * out, calls its `done` after each, reports no progress and sets ctx->tiled; the pixels it shades
  * are the same bits either way. On failure (OBS_ECANCELED when ctx->cancel was raised; the

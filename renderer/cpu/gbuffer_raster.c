@@ -584,9 +584,8 @@ static int raster_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   t->x0 = x0, t->y0 = y0, t->w = x1 - x0, t->h = y1 - y0;
   const obs_camera_rig *cam = &j->cam;
   /* The ray cast's image-plane offsets and rays (gb_tile, obs_rt_view_ray). */
-  for (int x = 0; x < t->w; x++) t->sx[x] = (2.0 * (x0 + x + 0.5) / cam->width - 1.0) * cam->half_w;
-  for (int y = 0; y < t->h; y++)
-    t->sy[y] = (1.0 - 2.0 * (y0 + y + 0.5) / cam->height) * cam->half_h;
+  for (int x = 0; x < t->w; x++) t->sx[x] = obs_rt_view_sx(cam, x0 + x + 0.5);
+  for (int y = 0; y < t->h; y++) t->sy[y] = obs_rt_view_sy(cam, y0 + y + 0.5);
   for (int p = 0; p < OBS_TILE * OBS_TILE; p++) t->t[p] = INFINITY;
   for (int p = 0; p < OBS_TILE * OBS_TILE; p++) t->win[p] = UINT32_MAX;
   /* obs_rt_view_ray's expressions, a row at a time. */
@@ -624,13 +623,7 @@ static int rs_prepare(rs_job *j, const obs_scene *sc, const obs_geometry *geo, i
   j->scene = sc;
   j->geo = geo;
   obs_camera_setup(&sc->camera, sc->width, sc->height, &j->cam);
-  j->view.ortho = j->cam.ortho;
-  for (int k = 0; k < 3; k++) {
-    j->view.eye[k] = j->cam.origin[k] - geo->origin[k];
-    j->view.forward[k] = j->cam.forward[k];
-    j->view.right[k] = j->cam.right[k];
-    j->view.up[k] = j->cam.up[k];
-  }
+  obs_rt_view_init(&j->cam, geo->origin, &j->view);
   j->ntris = geo->ntris;
   j->nprims = geo->ntris + geo->nspheres;
   if (j->nprims >= UINT32_MAX)

@@ -33,8 +33,8 @@ static int gb_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   obs_gbuffer *g = j->g;
   /* obs_camera_ray's image-plane offsets, per column and per row of the tile. */
   double sxs[OBS_TILE], sys[OBS_TILE];
-  for (int x = x0; x < x1; x++) sxs[x - x0] = (2.0 * (x + 0.5) / cam->width - 1.0) * cam->half_w;
-  for (int y = y0; y < y1; y++) sys[y - y0] = (1.0 - 2.0 * (y + 0.5) / cam->height) * cam->half_h;
+  for (int x = x0; x < x1; x++) sxs[x - x0] = obs_rt_view_sx(cam, x + 0.5);
+  for (int y = y0; y < y1; y++) sys[y - y0] = obs_rt_view_sy(cam, y + 0.5);
   /* Runs of pixels see the same face: its view-space normal and albedo are reused while the hit's
    * primitive and world normal stay the same. */
   unsigned last_geom = RTC_INVALID_GEOMETRY_ID, last_prim = 0;
@@ -96,13 +96,7 @@ int obs_gbuffer_raycast_geo(const obs_scene *sc, obs_geometry *geo, obs_gbuffer 
   j.rt = &rt;
   /* obs_camera_ray's rays, but with the perspective direction left unnormalised: its projection
    * on forward is 1, so a hit's ray parameter is its view depth. */
-  j.view.ortho = j.cam.ortho;
-  for (int k = 0; k < 3; k++) {
-    j.view.eye[k] = j.cam.origin[k] - rt.geo.origin[k];
-    j.view.forward[k] = j.cam.forward[k];
-    j.view.right[k] = j.cam.right[k];
-    j.view.up[k] = j.cam.up[k];
-  }
+  obs_rt_view_init(&j.cam, rt.geo.origin, &j.view);
   j.g = g;
   rc = obs_parallel_tiles(sc->width, sc->height, threads, gb_tile, &j, NULL, NULL, NULL);
   if (bvh_ms) *bvh_ms = t1 - t0;

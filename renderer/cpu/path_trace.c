@@ -251,7 +251,7 @@ int obs_path_trace_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   int rc = obs_emitters_build(sc, jb.rt, &jb.em, err);
   ctx->build_ms += obs_now_ms() - t0;
   if (!rc) {
-    static const obs_pixel_ops ops = {CH_COUNT, channel_names, pt_shade};
+    static const obs_pixel_ops ops = {CH_COUNT, channel_names, pt_shade, NULL};
     rc = obs_driver_pixels(ctx, &ops, &jb, out, err);
   }
   obs_emitters_free(&jb.em);

@@ -1,8 +1,9 @@
-/* proximity_ao on the CPU: a ray through each pixel finds the surface point, its face normal
- * and its object (the ray-cast G-buffer with object ids); every object's proximity field whose
- * box holds the point is read along the normal (core/proximity.c) and the occlusions combined.
- * The framework builds the BVH and the fields (needs); the per-pixel driver owns the image. A
- * scene with moving objects renders every frame from the same fields. */
+/* proximity_ao on the CPU: camera rays, traced a cell of pixels at a time as Embree packets,
+ * find each pixel sample's surface point, face normal and object (a ray-cast G-buffer with object
+ * ids); every object's proximity field whose box holds the point is read along the normal
+ * (core/proximity.c) and the occlusions combined. The framework builds the BVH and the fields
+ * (needs); the per-pixel driver owns the image and hands out the cells. A scene with moving
+ * objects renders every frame from the same fields. */
 #include <jansson.h>
 #include <math.h>
 #include <stdlib.h>
@@ -24,12 +25,14 @@ typedef struct job {
   const obs_rt *rt;
   const obs_prox_fields *fs;
   obs_camera_rig cam;
+  obs_rt_view view; /* the camera in the ray tracer's frame */
   obs_proximity_ao_params p;
   obs_prox_recon recon;
   double step;        /* R / N, world units */
   int spp;
   double (*maps)[3][4]; /* per field: world -> grid in the frame being rendered */
   float **corners;      /* per field: obs_prox_corners, or NULL (read one point at a time) */
+  double *centre_sx, *centre_sy; /* obs_rt_view_sx / _sy of each column's and row's centre */
 } job;
 
 static void map_point(const double m[3][4], const double p[3], float out[3]) {
@@ -74,41 +77,88 @@ static float accessibility(const job *jb, const double p[3], const float n[3], s
   return 1.0f - total;
 }
 
-static uint64_t shade_pixel(const void *user, int thread, int x, int y, float *d) {
+/* Rays per cell of the driver's block grid, traced as packets of OBS_RT_PACKET. */
+enum { CELL = OBS_PIXEL_BLOCK * OBS_PIXEL_BLOCK };
+_Static_assert(CELL % OBS_RT_PACKET == 0, "a cell is whole packets");
+
+/* The pixels [x0, x1) x [y0, y1) of one cell of the driver's grid (obs_shade_block_fn). Each
+ * pixel sample is one camera ray; sample s of every pixel of the cell goes to Embree in one
+ * packet, the whole cell even where a tile cuts it, so a pixel's hit never depends on the tiles
+ * (the packet's lanes are always the same rays). The hit comes refined in double (the triangle's
+ * plane, or the analytic sphere's root: obs_rt_intersect_primary), its point taken along the
+ * double ray, its depth the ray parameter (the view depth: the rays are not normalised). */
+static uint64_t shade_block(const void *user, int thread, int x0, int y0, int x1, int y1,
+                            float *values) {
   (void)thread;
   const job *jb = user;
-  double ao = 0, depth = 0, nrm[3] = {0, 0, 0}, fields = 0;
-  int hits = 0;
-  obs_sampler2d jit;
-  obs_sampler2d_init(&jit, OBS_SAMPLER_SOBOL, (uint32_t)x, (uint32_t)y, 0, 0, jb->p.seed);
-  for (int s = 0; s < jb->spp; s++) {
-    float jx, jy;
-    obs_sampler2d_pixel(&jit, jb->spp, (uint32_t)s, &jx, &jy);
-    double org[3], dir[3];
-    obs_camera_ray(&jb->cam, x + jx, y + jy, org, dir);
-    obs_hit hit;
-    if (!obs_rt_intersect(jb->rt, org, dir, INFINITY, &hit)) {
-      ao += 1.0;
-      continue;
+  const int B = OBS_PIXEL_BLOCK, cx = x0 / B * B, cy = y0 / B * B;
+  const int cw = jb->cam.width - cx < B ? jb->cam.width - cx : B;
+  const int chh = jb->cam.height - cy < B ? jb->cam.height - cy : B;
+  const int n = cw * chh, spp = jb->spp;
+  double ao[CELL] = {0}, depth[CELL] = {0}, nrm[CELL][3] = {{0}}, fields[CELL] = {0};
+  int hits[CELL] = {0}, shade[CELL], px[CELL], py[CELL];
+  obs_sampler2d jit[CELL];
+  for (int y = cy, i = 0; y < cy + chh; y++)
+    for (int x = cx; x < cx + cw; x++, i++) {
+      px[i] = x, py[i] = y;
+      shade[i] = x >= x0 && x < x1 && y >= y0 && y < y1;
+      if (spp > 1)
+        obs_sampler2d_init(&jit[i], OBS_SAMPLER_SOBOL, (uint32_t)x, (uint32_t)y, 0, 0, jb->p.seed);
     }
-    hits++;
-    double p[3];
-    for (int k = 0; k < 3; k++) p[k] = (double)hit.p[k] + jb->rt->geo.origin[k];
-    int nf;
-    ao += accessibility(jb, p, hit.ng, obs_rt_hit_object(jb->rt, hit.geom, hit.prim), &nf);
-    fields += nf;
-    for (int k = 0; k < 3; k++) nrm[k] += hit.ng[k];
-    double fwd =
-        dir[0] * jb->cam.forward[0] + dir[1] * jb->cam.forward[1] + dir[2] * jb->cam.forward[2];
-    depth += hit.t * fwd;
+  const double *origin = jb->rt->geo.origin;
+  for (int s = 0; s < spp; s++) {
+    double sx[CELL], sy[CELL];
+    for (int i = 0; i < n; i++) {
+      if (spp == 1) {
+        sx[i] = jb->centre_sx[px[i]];
+        sy[i] = jb->centre_sy[py[i]];
+        continue;
+      }
+      float jx, jy;
+      obs_sampler2d_pixel(&jit[i], spp, (uint32_t)s, &jx, &jy);
+      sx[i] = obs_rt_view_sx(&jb->cam, px[i] + (double)jx);
+      sy[i] = obs_rt_view_sy(&jb->cam, py[i] + (double)jy);
+    }
+    obs_rt_primary h[CELL];
+    for (int i = 0; i < n; i += OBS_RT_PACKET)
+      obs_rt_intersect_primary(jb->rt, &jb->view, n - i < OBS_RT_PACKET ? n - i : OBS_RT_PACKET,
+                               sx + i, sy + i, h + i);
+    for (int i = 0; i < n; i++) {
+      if (!shade[i]) continue;
+      if (h[i].geom == RTC_INVALID_GEOMETRY_ID) {
+        ao[i] += 1.0;
+        continue;
+      }
+      hits[i]++;
+      double ro[3], rd[3], p[3];
+      obs_rt_view_ray(&jb->view, sx[i], sy[i], ro, rd);
+      float ng[3];
+      for (int k = 0; k < 3; k++) {
+        p[k] = origin[k] + (ro[k] + h[i].t * rd[k]);
+        ng[k] = (float)h[i].ng[k];
+        nrm[i][k] += ng[k];
+      }
+      int nf;
+      ao[i] += accessibility(jb, p, ng, obs_rt_hit_object(jb->rt, h[i].geom, h[i].prim), &nf);
+      fields[i] += nf;
+      depth[i] += h[i].t;
+    }
   }
-  d[CH_AO] = (float)(ao / jb->spp);
-  d[CH_FIELDS] = hits ? (float)(fields / hits) : 0.0f;
-  d[CH_ALPHA] = (float)hits / (float)jb->spp;
-  d[CH_DEPTH] = hits ? (float)(depth / hits) : 0.0f;
-  double nl = sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
-  for (int k = 0; k < 3; k++) d[CH_NX + k] = nl > 0 ? (float)(nrm[k] / nl) : 0.0f;
-  return (uint64_t)jb->spp;
+  /* Channel after channel (obs_shade_block_fn); one reciprocal per pixel for the averages. */
+  const int m = (x1 - x0) * (y1 - y0);
+  for (int i = 0, j = 0; i < n; i++) {
+    if (!shade[i]) continue;
+    double per_hit = hits[i] > 1 ? 1.0 / hits[i] : 1.0;
+    double nl = sqrt(nrm[i][0] * nrm[i][0] + nrm[i][1] * nrm[i][1] + nrm[i][2] * nrm[i][2]);
+    double per_len = nl > 0 ? 1.0 / nl : 0.0;
+    values[CH_AO * m + j] = (float)(spp > 1 ? ao[i] / spp : ao[i]);
+    values[CH_FIELDS * m + j] = (float)(fields[i] * per_hit);
+    values[CH_ALPHA * m + j] = (float)hits[i] / (float)spp;
+    values[CH_DEPTH * m + j] = (float)(depth[i] * per_hit);
+    for (int k = 0; k < 3; k++) values[(CH_NX + k) * m + j] = (float)(nrm[i][k] * per_len);
+    j++;
+  }
+  return (uint64_t)spp * (uint64_t)m;
 }
 
 static void place_fields(job *jb, int frame) {
@@ -165,12 +215,17 @@ int obs_proximity_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   jb.step = obs_proximity_ao_step(&jb.p, jb.fs->rp);
   obs_proximity_ao_recon(&jb.p, &jb.recon);
   obs_camera_setup(&sc->camera, sc->width, sc->height, &jb.cam);
+  obs_rt_view_init(&jb.cam, jb.rt->geo.origin, &jb.view);
   size_t n = jb.fs->n ? jb.fs->n : 1;
   jb.maps = malloc(n * sizeof *jb.maps);
   jb.corners = calloc(n, sizeof *jb.corners);
+  jb.centre_sx = malloc((size_t)sc->width * sizeof *jb.centre_sx);
+  jb.centre_sy = malloc((size_t)sc->height * sizeof *jb.centre_sy);
   int rc = 0;
-  if (!jb.maps || !jb.corners)
+  if (!jb.maps || !jb.corners || !jb.centre_sx || !jb.centre_sy)
     rc = obs_err_set(err, OBS_ENOMEM, "%s: proximity_ao: out of memory", sc->name);
+  for (int x = 0; !rc && x < sc->width; x++) jb.centre_sx[x] = obs_rt_view_sx(&jb.cam, x + 0.5);
+  for (int y = 0; !rc && y < sc->height; y++) jb.centre_sy[y] = obs_rt_view_sy(&jb.cam, y + 0.5);
   /* The eight-lane walk's read copies; a field without one (memory short) reads one point at a
    * time, with the same bits. */
   double t0 = obs_now_ms();
@@ -184,12 +239,14 @@ int obs_proximity_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   }
   double corners_ms = obs_now_ms() - t0;
   if (!rc) obs_driver_stage_add(ctx, "corners", corners_ms);
-  static const obs_pixel_ops ops = {CH_COUNT, obs_proximity_ao_channels, shade_pixel};
+  static const obs_pixel_ops ops = {CH_COUNT, obs_proximity_ao_channels, NULL, shade_block};
   if (!rc) rc = render_frames(ctx, &jb, &ops, out, err);
   /* Built once per render for every frame, as the fields are: part of the build. */
   ctx->build_ms += corners_ms;
   for (size_t i = 0; jb.corners && i < jb.fs->n; i++) free(jb.corners[i]);
   free(jb.corners);
   free(jb.maps);
+  free(jb.centre_sx);
+  free(jb.centre_sy);
   return rc;
 }

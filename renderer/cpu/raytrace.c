@@ -259,6 +259,8 @@ static int build_bvh(obs_rt *rt, int threads, obs_err *err) {
     return obs_err_set(err, OBS_EINTERNAL, "embree: cannot create device (error %d)",
                        (int)rtcGetDeviceError(NULL));
   }
+  /* Follows the device's instruction-set cap (config): 0 under OBSCURA_ISA=avx2. */
+  rt->native16 = rtcGetDeviceProperty(rt->device, RTC_DEVICE_PROPERTY_NATIVE_RAY16_SUPPORTED) > 0;
   rtcSetDeviceErrorFunction(rt->device, on_embree_error, NULL);
   rtcSetDeviceMemoryMonitorFunction(rt->device, on_embree_memory, rt);
   rt->scene = rtcNewScene(rt->device);
@@ -510,14 +512,23 @@ typedef struct RTCRayHit8 rt_packet;
 #error "OBS_RT_PACKET must be 8 or 16"
 #endif
 
-/* The packet's rays go to Embree as a structure-of-arrays stream (rtcIntersectNp), not through
- * rtcIntersect16/8: Embree has 16-wide packet kernels only in its AVX-512 build and 8-wide ones
- * only from AVX on, and on a CPU without them those calls fail and leave every ray a miss, while a
- * stream is split into whatever packets the CPU has. On the AVX-512 machine of
- * docs/performance.md the stream is as fast as rtcIntersect16 (G-buffer 8.4 against 8.3 ms), and
- * under OBSCURA_ISA=avx2 (sse2) it is 1.5-2.3x (1.4x) faster than the same rays in two
- * rtcIntersect8 (four rtcIntersect4) packets of 4x2 (4x1) pixels. */
-static void trace_packet(RTCScene scene, struct RTCIntersectContext *ctx, rt_packet *rh, int n) {
+/* The packet's rays go to Embree through rtcIntersect16 where Embree has 16-wide packet kernels
+ * (its AVX-512 build on a CPU that has it: obs_rt.native16), else as a structure-of-arrays stream
+ * (rtcIntersectNp), which Embree splits into whatever packets the CPU has: rtcIntersect16/8
+ * without native kernels fail and leave every ray a miss. The stream costs Embree a copy of the
+ * rays into its own packets: on the proximity_ao goal frame (1M-triangle displaced sphere, 1024^2
+ * rays in 4x4 packets, one thread of the AVX-512 machine) rtcIntersect16 traced them in 53-55 ms
+ * against 66-67 ms as a stream. Under OBSCURA_ISA=avx2 (sse2) the stream is 1.5-2.3x (1.4x) faster
+ * than the same rays in two rtcIntersect8 (four rtcIntersect4) packets of 4x2 (4x1) pixels. */
+static void trace_packet(const obs_rt *rt, struct RTCIntersectContext *ctx, rt_packet *rh, int n) {
+#if OBS_RT_PACKET == 16
+  if (rt->native16) {
+    _Alignas(64) int valid[16];
+    for (int i = 0; i < 16; i++) valid[i] = i < n ? -1 : 0;
+    rtcIntersect16(valid, rt->scene, ctx, rh);
+    return;
+  }
+#endif
   struct RTCRayHitNp np;
   np.ray.org_x = rh->ray.org_x, np.ray.org_y = rh->ray.org_y, np.ray.org_z = rh->ray.org_z;
   np.ray.dir_x = rh->ray.dir_x, np.ray.dir_y = rh->ray.dir_y, np.ray.dir_z = rh->ray.dir_z;
@@ -527,7 +538,7 @@ static void trace_packet(RTCScene scene, struct RTCIntersectContext *ctx, rt_pac
   np.hit.u = rh->hit.u, np.hit.v = rh->hit.v;
   np.hit.primID = rh->hit.primID, np.hit.geomID = rh->hit.geomID;
   np.hit.instID[0] = rh->hit.instID[0];
-  rtcIntersectNp(scene, ctx, &np, (unsigned)n);
+  rtcIntersectNp(rt->scene, ctx, &np, (unsigned)n);
 }
 
 static inline __attribute__((always_inline)) void intersect_primary(const obs_rt *rt,
@@ -572,7 +583,7 @@ static inline __attribute__((always_inline)) void intersect_primary(const obs_rt
   c.ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
   c.skip_geom = c.skip_prim = ~0u;
   c.skip_mode = 0;
-  trace_packet(rt->scene, &c.ctx, &rh, n);
+  trace_packet(rt, &c.ctx, &rh, n);
   /* Neighbouring lanes mostly hit the same triangle: its plane is set up once per run of them. */
   unsigned plane_geom = RTC_INVALID_GEOMETRY_ID, plane_prim = 0;
   const float *plane_a = NULL;

@@ -7,6 +7,7 @@
 #include <stdatomic.h>
 #include <math.h>
 
+#include "camera.h"
 #include "geometry.h"
 #include "obscura/error.h"
 #include "obscura/scene.h"
@@ -18,6 +19,7 @@ typedef struct obs_rt {
   obs_geometry geo;
   unsigned sphere_geom;  /* geomID of the analytic-sphere user geometry, or RTC_INVALID_GEOMETRY_ID */
   int isa;               /* obs_simd_isa() when built: the level of obs_rt_intersect_primary */
+  int native16;          /* Embree runs rtcIntersect16 natively (its AVX-512 kernels) */
   /* Set when the frame sits at the geometry rather than at a far camera (OBS_RT_FRAME_GEOMETRY):
    * obs_rt_intersect then moves each ray's origin up to `box` (the geometry's bounds in the frame,
    * slightly grown) in double before Embree sees it in float. */
@@ -101,6 +103,27 @@ typedef struct obs_rt_view {
   double eye[3]; /* world minus rt->geo.origin */
   double forward[3], right[3], up[3];
 } obs_rt_view;
+
+/* The view of camera rig `cam` in a frame whose origin is `origin` (rt->geo.origin). */
+static inline void obs_rt_view_init(const obs_camera_rig *cam, const double origin[3],
+                                    obs_rt_view *v) {
+  v->ortho = cam->ortho;
+  for (int k = 0; k < 3; k++) {
+    v->eye[k] = cam->origin[k] - origin[k];
+    v->forward[k] = cam->forward[k];
+    v->right[k] = cam->right[k];
+    v->up[k] = cam->up[k];
+  }
+}
+
+/* The image-plane offsets (sx, sy) of image position (fx, fy) in pixels, as obs_camera_ray takes
+ * them. */
+static inline double obs_rt_view_sx(const obs_camera_rig *cam, double fx) {
+  return (2.0 * fx / cam->width - 1.0) * cam->half_w;
+}
+static inline double obs_rt_view_sy(const obs_camera_rig *cam, double fy) {
+  return (1.0 - 2.0 * fy / cam->height) * cam->half_h;
+}
 
 /* The scene object (index into scene->objects) that primitive `prim` of geometry `geom` belongs
  * to: an analytic sphere or a mesh. */

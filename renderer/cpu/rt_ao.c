@@ -168,6 +168,6 @@ int obs_rt_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   jb.rt = ctx->rt;
   jb.spp = sc->spp;
   obs_camera_setup(&sc->camera, sc->width, sc->height, &jb.cam);
-  static const obs_pixel_ops ops = {CH_COUNT, channel_names, shade_pixel};
+  static const obs_pixel_ops ops = {CH_COUNT, channel_names, shade_pixel, NULL};
   return obs_driver_pixels(ctx, &ops, &jb, out, err);
 }

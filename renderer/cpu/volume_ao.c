@@ -332,6 +332,6 @@ int obs_volume_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   if (jb.env && jb.p.ibl == OBS_IBL_IRRADIANCE) obs_env_sh9(jb.env, jb.sh);
   obs_camera_setup(&sc->camera, sc->width, sc->height, &jb.cam);
   obs_volume_ao_warn(ctx, sc, &jb.p);
-  static const obs_pixel_ops ops = {CH_COUNT, obs_volume_ao_channels, shade_pixel};
+  static const obs_pixel_ops ops = {CH_COUNT, obs_volume_ao_channels, shade_pixel, NULL};
   return obs_driver_pixels(ctx, &ops, &jb, out, err);
 }

@@ -1,6 +1,7 @@
 /* The shared drivers: the per-pixel driver's region, rays, progress, cancellation and thread
- * independence on a synthetic shade function, then the same properties through obs_render for
- * rt_ao (per-pixel driver, BVH built by the framework) and ssao/hbao (CPU screen-space driver). */
+ * independence on a synthetic shade function (a pixel and a block at a time), then the same
+ * properties through obs_render for rt_ao and proximity_ao (per-pixel driver, BVH built by the
+ * framework; proximity_ao shades blocks) and ssao/hbao (CPU screen-space driver). */
 #include <math.h>
 #include <pthread.h>
 #include <stdio.h>
@@ -41,8 +42,28 @@ static uint64_t synth_shade(const void *job, int thread, int x, int y, float *v)
   return (uint64_t)(x % 3 + 1);
 }
 
+/* The same pixels a block at a time: a block never leaves its cell of the block grid. */
+static uint64_t synth_block(const void *job, int thread, int x0, int y0, int x1, int y1, float *v) {
+  const int B = OBS_PIXEL_BLOCK;
+  assert_true(x0 < x1 && y0 < y1);
+  assert_int_equal(x0 / B, (x1 - 1) / B);
+  assert_int_equal(y0 / B, (y1 - 1) / B);
+  const int n = (x1 - x0) * (y1 - y0);
+  uint64_t rays = 0;
+  for (int y = y0, i = 0; y < y1; y++)
+    for (int x = x0; x < x1; x++, i++) {
+      float p[3];
+      rays += synth_shade(job, thread, x, y, p);
+      for (int c = 0; c < 3; c++) v[c * n + i] = p[c];
+    }
+  return rays;
+}
+
 static const char *const synth_names[3] = {"a", "b", "alpha"};
-static const obs_pixel_ops synth_ops = {3, synth_names, synth_shade};
+static const obs_pixel_ops synth_ops = {3, synth_names, synth_shade, NULL};
+static const obs_pixel_ops synth_block_ops = {3, synth_names, NULL, synth_block};
+/* Both ways of shading: every property of the driver holds for each. */
+static const obs_pixel_ops *const synth_ways[2] = {&synth_ops, &synth_block_ops};
 
 typedef struct progress_log {
   int calls;
@@ -63,8 +84,7 @@ static void ctx_init(obs_render_ctx *ctx, const obs_scene *sc, int threads) {
   ctx->threads = threads;
 }
 
-static void test_pixels_region(void **state) {
-  (void)state;
+static void check_pixels_region(const obs_pixel_ops *ops) {
   obs_scene sc;
   obs_test_load(scene_json("rt_ao", "{}"), "d.json", &sc);
   obs_render_ctx ctx;
@@ -76,7 +96,7 @@ static void test_pixels_region(void **state) {
   synth s = {NULL};
   obs_image img;
   obs_err err = OBS_ERR_INIT;
-  assert_int_equal(obs_driver_pixels(&ctx, &synth_ops, &s, &img, &err), 0);
+  assert_int_equal(obs_driver_pixels(&ctx, ops, &s, &img, &err), 0);
   assert_int_equal(img.width, W);
   assert_int_equal(img.height, H);
   assert_int_equal(img.nchannels, 3);
@@ -103,34 +123,39 @@ static void test_pixels_region(void **state) {
   obs_image_free(&img);
   /* A region outside the image, or empty, is refused. */
   ctx.region = (obs_region){0, 0, W + 1, H};
-  assert_int_equal(obs_driver_pixels(&ctx, &synth_ops, &s, &img, &err), OBS_EINVAL);
+  assert_int_equal(obs_driver_pixels(&ctx, ops, &s, &img, &err), OBS_EINVAL);
   assert_null(img.data);
   ctx.region = (obs_region){10, 10, 10, 20};
-  assert_int_equal(obs_driver_pixels(&ctx, &synth_ops, &s, &img, &err), OBS_EINVAL);
+  assert_int_equal(obs_driver_pixels(&ctx, ops, &s, &img, &err), OBS_EINVAL);
   obs_err_free(&err);
   obs_scene_free(&sc);
+}
+
+static void test_pixels_region(void **state) {
+  (void)state;
+  for (int k = 0; k < 2; k++) check_pixels_region(synth_ways[k]);
 }
 
 static void test_pixels_threads(void **state) {
   (void)state;
   obs_scene sc;
   obs_test_load(scene_json("rt_ao", "{}"), "d.json", &sc);
-  obs_image img[3];
-  uint64_t rays[3];
+  obs_image img[6];
+  uint64_t rays[6];
   const int threads[3] = {1, 2, 5};
   synth s = {NULL};
   obs_err err = OBS_ERR_INIT;
-  for (int k = 0; k < 3; k++) {
+  for (int k = 0; k < 6; k++) {
     obs_render_ctx ctx;
-    ctx_init(&ctx, &sc, threads[k]);
-    assert_int_equal(obs_driver_pixels(&ctx, &synth_ops, &s, &img[k], &err), 0);
+    ctx_init(&ctx, &sc, threads[k % 3]);
+    assert_int_equal(obs_driver_pixels(&ctx, synth_ways[k / 3], &s, &img[k], &err), 0);
     rays[k] = ctx.rays;
   }
-  for (int k = 1; k < 3; k++) {
+  for (int k = 1; k < 6; k++) {
     assert_memory_equal(img[0].data, img[k].data, sizeof(float) * 3 * W * H);
     assert_int_equal(rays[0], rays[k]);
   }
-  for (int k = 0; k < 3; k++) obs_image_free(&img[k]);
+  for (int k = 0; k < 6; k++) obs_image_free(&img[k]);
   obs_err_free(&err);
   obs_scene_free(&sc);
 }
@@ -160,21 +185,6 @@ static void test_pixels_cancel(void **state) {
   obs_scene_free(&sc);
 }
 
-/* Channel `c` of a and b agree inside r (bit for bit) and b is 0 outside it. */
-static void assert_region_of(const obs_image *a, const obs_image *b, obs_region r) {
-  assert_int_equal(a->nchannels, b->nchannels);
-  size_t plane = (size_t)a->width * (size_t)a->height;
-  for (int c = 0; c < a->nchannels; c++)
-    for (int y = 0; y < a->height; y++)
-      for (int x = 0; x < a->width; x++) {
-        size_t i = c * plane + (size_t)y * (size_t)a->width + (size_t)x;
-        if (x >= r.x0 && x < r.x1 && y >= r.y0 && y < r.y1)
-          assert_memory_equal(&a->data[i], &b->data[i], sizeof(float));
-        else
-          assert_true(b->data[i] == 0.0f);
-      }
-}
-
 static int has_stage(const obs_result *r, const char *name) {
   for (int i = 0; i < r->nstages; i++)
     if (!strcmp(r->stage_names[i], name)) return 1;
@@ -195,7 +205,7 @@ static void check_region(const char *technique, const char *params, const char *
   obs_region r = {17, 9, 53, 40};
   o.region = r;
   assert_int_equal(obs_render(&sc, &o, &part, &err), 0);
-  assert_region_of(&full.image, &part.image, r);
+  obs_test_assert_region(&full.image, &part.image, r);
   obs_render_opts o1 = {.threads = 1};
   assert_int_equal(obs_render(&sc, &o1, &one, &err), 0);
   assert_memory_equal(full.image.data, one.image.data,
@@ -210,6 +220,11 @@ static void check_region(const char *technique, const char *params, const char *
 static void test_rt_ao_region(void **state) {
   (void)state;
   check_region("rt_ao", "{\"samples\":16}", "bvh");
+}
+
+static void test_proximity_ao_region(void **state) {
+  (void)state;
+  check_region("proximity_ao", "{\"volume_res\":32}", "corners");
 }
 
 static void test_ssao_region(void **state) {
@@ -331,7 +346,8 @@ static void test_pixels_source(void **state) {
   obs_image whole;
   assert_int_equal(obs_driver_pixels(&ctx, &synth_ops, &s, &whole, &err), 0);
   assert_int_equal(ctx.tiled, 0);
-  for (int threads = 1; threads <= 3; threads += 2) {
+  for (int way = 0; way < 4; way++) {
+    const int threads = way % 2 ? 3 : 1;
     list_source src;
     list_init(&src, source_tiles, n);
     obs_tile_source ts = {list_next, list_done, &src};
@@ -342,7 +358,7 @@ static void test_pixels_source(void **state) {
     ctx.progress = log_progress;
     ctx.progress_user = &pl;
     obs_image img;
-    assert_int_equal(obs_driver_pixels(&ctx, &synth_ops, &s, &img, &err), 0);
+    assert_int_equal(obs_driver_pixels(&ctx, synth_ways[way / 2], &s, &img, &err), 0);
     assert_int_equal(ctx.tiled, 1);
     assert_int_equal(src.done, n);
     assert_int_equal(src.rays, ctx.rays);
@@ -405,14 +421,16 @@ static void test_pixels_source_errors(void **state) {
   obs_scene_free(&sc);
 }
 
-/* Through obs_render: rt_ao split between two sources (as two processes would) adds up to the
- * whole render's bits and rays, and says `tiled`; ssao, which does not render per pixel, ignores
- * the source and renders the whole image. */
+/* Through obs_render: rt_ao and proximity_ao (which shades blocks of pixels) split between two
+ * sources (as two processes would) add up to the whole render's bits and rays, and say `tiled`;
+ * ssao, which does not render per pixel, ignores the source and renders the whole image. */
 static void test_render_tile_source(void **state) {
   (void)state;
   obs_err err = OBS_ERR_INIT;
-  const char *techniques[2][2] = {{"rt_ao", "{\"samples\":8}"}, {"ssao", "{\"samples\":8}"}};
-  for (int k = 0; k < 2; k++) {
+  const char *techniques[3][2] = {{"ssao", "{\"samples\":8}"},
+                                  {"rt_ao", "{\"samples\":8}"},
+                                  {"proximity_ao", "{\"volume_res\":32}"}};
+  for (int k = 0; k < 3; k++) {
     obs_scene sc;
     obs_test_load(scene_json(techniques[k][0], techniques[k][1]), "d.json", &sc);
     obs_render_opts o = {.threads = 2};
@@ -433,12 +451,12 @@ static void test_render_tile_source(void **state) {
       obs_tile_source ts = {list_next, NULL, &src};
       o.tiles = &ts;
       assert_int_equal(obs_render(&sc, &o, &part[h], &err), 0);
-      assert_int_equal(part[h].tiled, k == 0);
+      assert_int_equal(part[h].tiled, k > 0);
       rays += part[h].rays;
       pthread_mutex_destroy(&src.lock);
     }
     size_t count = (size_t)whole.image.nchannels * W * H;
-    if (k == 0) {
+    if (k > 0) {
       /* Pasted, not added: -0.0 + 0.0 would not keep the bits. */
       for (int c = 0; c < whole.image.nchannels; c++)
         for (int t = 0; t < n[1]; t++)
@@ -449,7 +467,7 @@ static void test_render_tile_source(void **state) {
             }
       assert_int_equal(rays, whole.rays);
     }
-    for (int h = 0; h < (k == 0 ? 1 : 2); h++)
+    for (int h = 0; h < (k > 0 ? 1 : 2); h++)
       assert_memory_equal(whole.image.data, part[h].image.data, count * sizeof(float));
     obs_result_free(&whole);
     for (int h = 0; h < 2; h++) obs_result_free(&part[h]);
@@ -465,7 +483,7 @@ int main(void) {
       cmocka_unit_test(test_ssao_region),         cmocka_unit_test(test_hbao_region),
       cmocka_unit_test(test_hbao_progress_cancel), cmocka_unit_test(test_ssao_progress_cancel),
       cmocka_unit_test(test_pixels_source),       cmocka_unit_test(test_pixels_source_errors),
-      cmocka_unit_test(test_render_tile_source),
+      cmocka_unit_test(test_render_tile_source), cmocka_unit_test(test_proximity_ao_region),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -1,15 +1,18 @@
 /* Proximity fields and proximity_ao: the overlap test, the voxelisation, the flood against a
  * brute-force one, the two-plane superposition, the reconstruction's arithmetic, renders with
- * objects outside each other's fields, moving objects, the extremes of the layout, r_p's
- * reference boxes and the accessibility bound over several fields. */
+ * objects outside each other's fields, the camera rays against one ray at a time and under
+ * regions and tiles, moving objects, the extremes of the layout, r_p's reference boxes and the
+ * accessibility bound over several fields. */
 #include <jansson.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "camera.h"
 #include "proximity.h"
 #include "proximity_ao.h"
+#include "raytrace.h"
 #include "testutil.h"
 #include "prox_bound_cases.h"
 
@@ -405,6 +408,89 @@ static void test_render_outside_fields(void **state) {
   }
 }
 
+/* A floor, a ball on it and a box beside it, seen at an angle: triangles, an analytic sphere and
+ * the background in one view, at `spp` samples per pixel. */
+static const char *gbuffer_doc(int spp) {
+  return obs_test_fmt(
+      "{\"camera\":{\"type\":\"perspective\",\"position\":[1.3,2.1,-4.2],\"look_at\":"
+      "[0,0.4,0],\"up\":[0,1,0],\"fov_y\":47},\"image\":{\"width\":37,\"height\":23,"
+      "\"spp\":%d},\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-2,0,-2],"
+      "[-2,0,2],[2,0,2],[2,0,-2]]}},{\"shape\":{\"type\":\"sphere\",\"center\":[-0.4,0.5,0],"
+      "\"radius\":0.5}},{\"shape\":{\"type\":\"box\",\"min\":[0.3,0,-0.5],\"max\":[1,0.8,"
+      "0.4]}}],\"technique\":{\"name\":\"proximity_ao\",\"backend\":\"cpu\",\"params\":"
+      "{\"volume_res\":32}}}",
+      spp);
+}
+
+/* The camera rays go to Embree a cell of pixels at a time: each pixel's depth, normal and
+ * coverage are those of one ray through its centre (obs_rt_intersect, the ray caster's other
+ * entry), to the rounding of the hit's depth. */
+static void test_camera_rays(void **state) {
+  (void)state;
+  obs_result res;
+  obs_test_render(gbuffer_doc(1), 2, &res);
+  obs_scene sc;
+  obs_test_load(gbuffer_doc(1), "rays.json", &sc);
+  obs_rt rt;
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(obs_rt_build(&sc, &rt, 1, &err), 0);
+  obs_camera_rig cam;
+  obs_camera_setup(&sc.camera, sc.width, sc.height, &cam);
+  const float *depth = channel(&res.image, "depth.Z"), *alpha = channel(&res.image, "alpha");
+  const float *nrm[3] = {channel(&res.image, "normal.X"), channel(&res.image, "normal.Y"),
+                         channel(&res.image, "normal.Z")};
+  int hits = 0, misses = 0;
+  for (int y = 0; y < sc.height; y++)
+    for (int x = 0; x < sc.width; x++) {
+      size_t i = (size_t)y * (size_t)sc.width + (size_t)x;
+      double org[3], dir[3];
+      obs_camera_ray(&cam, x + 0.5, y + 0.5, org, dir);
+      obs_hit h;
+      if (!obs_rt_intersect(&rt, org, dir, INFINITY, &h)) {
+        assert_true(alpha[i] == 0.0f && depth[i] == 0.0f);
+        misses++;
+        continue;
+      }
+      hits++;
+      assert_true(alpha[i] == 1.0f);
+      double z = h.t * (dir[0] * cam.forward[0] + dir[1] * cam.forward[1] +
+                        dir[2] * cam.forward[2]);
+      assert_true(fabs(depth[i] - z) <= 1e-6 * z);
+      for (int k = 0; k < 3; k++) assert_true(fabsf(nrm[k][i] - h.ng[k]) <= 1e-6f);
+    }
+  assert_true(hits > 200 && misses > 20);
+  obs_rt_free(&rt);
+  obs_scene_free(&sc);
+  obs_result_free(&res);
+  obs_err_free(&err);
+}
+
+/* A region and tiles that cut the cells of four pixels, on 1 and 2 threads, at one sample per
+ * pixel and at three: every pixel they shade has the whole render's bits, and the rays add up. */
+static void test_camera_rays_tiles(void **state) {
+  (void)state;
+  for (int spp = 1; spp <= 3; spp += 2) {
+    obs_scene sc;
+    obs_test_load(gbuffer_doc(spp), "tiles.json", &sc);
+    obs_err err = OBS_ERR_INIT;
+    obs_render_opts o = {.threads = 2};
+    obs_result whole, part;
+    assert_int_equal(obs_render(&sc, &o, &whole, &err), 0);
+    assert_int_equal(whole.rays, (uint64_t)spp * 37 * 23);
+    const obs_region r = {3, 1, 35, 22};
+    for (int threads = 1; threads <= 2; threads++) {
+      o = (obs_render_opts){.threads = threads, .region = r};
+      assert_int_equal(obs_render(&sc, &o, &part, &err), 0);
+      assert_int_equal(part.rays, (uint64_t)spp * (35 - 3) * (22 - 1));
+      obs_test_assert_region(&whole.image, &part.image, r);
+      obs_result_free(&part);
+    }
+    obs_result_free(&whole);
+    obs_err_free(&err);
+    obs_scene_free(&sc);
+  }
+}
+
 static const char *const floor_quad =
     "{\"name\":\"floor\",\"shape\":{\"type\":\"quad\",\"vertices\":[[-2,0,-2],[-2,0,2],"
     "[2,0,2],[2,0,-2]]}}";
@@ -533,6 +619,8 @@ int main(void) {
       cmocka_unit_test(test_reconstruction_arithmetic),
       cmocka_unit_test(test_reconstruction_paths),
       cmocka_unit_test(test_render_outside_fields),
+      cmocka_unit_test(test_camera_rays),
+      cmocka_unit_test(test_camera_rays_tiles),
       cmocka_unit_test(test_motion_last_frame),
       cmocka_unit_test(test_extremes),
       cmocka_unit_test(test_bound_several_fields),

@@ -101,6 +101,22 @@ void obs_test_assert_finite(const obs_image *img) {
   }
 }
 
+void obs_test_assert_region(const obs_image *whole, const obs_image *part, obs_region r) {
+  assert_int_equal(whole->nchannels, part->nchannels);
+  assert_int_equal(whole->width, part->width);
+  assert_int_equal(whole->height, part->height);
+  size_t plane = (size_t)whole->width * (size_t)whole->height;
+  for (int c = 0; c < whole->nchannels; c++)
+    for (int y = 0; y < whole->height; y++)
+      for (int x = 0; x < whole->width; x++) {
+        size_t i = (size_t)c * plane + (size_t)y * (size_t)whole->width + (size_t)x;
+        if (x >= r.x0 && x < r.x1 && y >= r.y0 && y < r.y1)
+          assert_memory_equal(&whole->data[i], &part->data[i], sizeof(float));
+        else
+          assert_true(part->data[i] == 0.0f);
+      }
+}
+
 int obs_test_primary_channels(const obs_technique *t, const obs_image *img, const float *ch[3],
                               double *lo, double *hi) {
   const obs_output *o = obs_technique_primary(t);

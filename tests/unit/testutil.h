@@ -40,6 +40,9 @@ const char *obs_test_fmt(const char *f, ...) __attribute__((format(printf, 1, 2)
 int obs_test_check_sane(const char *what, const obs_technique *t, const obs_image *img);
 /* Asserts every value of every channel is finite. */
 void obs_test_assert_finite(const obs_image *img);
+/* Asserts that `part` (a render of region r) holds `whole`'s bits inside r, channel by channel,
+ * and 0 outside it. */
+void obs_test_assert_region(const obs_image *whole, const obs_image *part, obs_region r);
 
 /* The members of a ball object of radius r at (x, y, z) for technique t, into buf: an analytic
  * sphere, or for a technique that renders volumes a procedural sphere volume of that size. */

@@ -54,16 +54,7 @@ static void check(const char *technique, const char *params, const char *const *
   obs_region r = {17, 9, 53, 40};
   obs_render_opts op = {.threads = 2, .region = r};
   vktest_check_rc(obs_render(&sc, &op, &part, &err), &err);
-  size_t plane = (size_t)W * H;
-  for (int c = 0; c < full.image.nchannels; c++)
-    for (int y = 0; y < H; y++)
-      for (int x = 0; x < W; x++) {
-        size_t i = c * plane + (size_t)y * W + (size_t)x;
-        if (x >= r.x0 && x < r.x1 && y >= r.y0 && y < r.y1)
-          assert_memory_equal(&full.image.data[i], &part.image.data[i], sizeof(float));
-        else
-          assert_true(part.image.data[i] == 0.0f);
-      }
+  obs_test_assert_region(&full.image, &part.image, r);
   obs_result_free(&full);
   obs_result_free(&part);
   /* Raised at the first report (after the G-buffer): the passes never run. */
