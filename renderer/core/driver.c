@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "obscura/render.h"
+#include "driver_prior.h"
 #include "parallel.h"
 
 /* Per-thread slots sit a cache line apart so the counters of two threads never share one. */
@@ -23,6 +24,7 @@ typedef struct pixel_run {
   const obs_tile_source *src; /* NULL: the driver's own tiles over r */
   atomic_int bad;  /* the source gave a tile outside r (bad_tile holds the first) */
   obs_region bad_tile;
+  const obs_prior_grid *prior; /* NULL: none */
 } pixel_run;
 
 /* Shades [x0, x1) x [y0, y1) of the region (relative to its corner); returns the rays traced. */
@@ -35,6 +37,7 @@ static uint64_t shade_tile(pixel_run *pr, int thread, int x0, int y0, int x1, in
   for (int y = y0 + pr->r.y0; y < y1 + pr->r.y0; y++)
     for (int x = x0 + pr->r.x0; x < x1 + pr->r.x0; x++) {
       rays += pr->ops->shade(pr->job, thread, x, y, v);
+      if (pr->prior) obs_prior_grid_apply(pr->prior, pr->ops->prior, pr->job, x, y, v);
       size_t i = (size_t)y * (size_t)img->width + (size_t)x;
       for (int c = 0; c < nch; c++) img->data[(size_t)c * plane + i] = v[c];
     }
@@ -136,8 +139,24 @@ int obs_driver_pixels(obs_render_ctx *ctx, const obs_pixel_ops *ops, const void 
     free(rays);
     return rc;
   }
-  pixel_run pr = {ops, job, out, r, values, stride, rays, ctx->tiles, 0, {0, 0, 0, 0}};
-  double t0 = obs_now_ms();
+  pixel_run pr = {ops, job, out, r, values, stride, rays, ctx->tiles, 0, {0, 0, 0, 0}, NULL};
+  obs_prior_grid grid;
+  memset(&grid, 0, sizeof grid);
+  double t0 = obs_now_ms(), prior_ms = 0;
+  if (ops->prior) {
+    rc = obs_prior_grid_build(&grid, ops, job, &r, sc->width, sc->height, threads, ctx->cancel,
+                              &rays[0]);
+    if (rc) {
+      free(values);
+      free(rays);
+      obs_image_free(out);
+      return rc == OBS_ECANCELED ? obs_err_set(err, rc, "%s: render cancelled", name)
+                                 : obs_err_set(err, rc, "%s: per-pixel driver: out of memory", name);
+    }
+    pr.prior = &grid;
+    prior_ms = obs_now_ms() - t0;
+    obs_driver_stage_add(ctx, "prior", prior_ms);
+  }
   if (ctx->tiles) {
     ctx->tiled = 1;
     rc = obs_parallel_tiles_from(source_next, &pr, threads, source_tile, &pr, ctx->cancel);
@@ -147,13 +166,14 @@ int obs_driver_pixels(obs_render_ctx *ctx, const obs_pixel_ops *ops, const void 
   }
   ctx->render_ms = obs_now_ms() - t0;
   for (int t = 0; t < threads; t++) ctx->rays += rays[(size_t)t * SLOT];
+  obs_prior_grid_free(&grid);
   free(values);
   free(rays);
   if (rc) {
     obs_image_free(out);
     return loop_failed(&pr, name, rc, err);
   }
-  obs_driver_stage_add(ctx, "shade", ctx->render_ms);
+  obs_driver_stage_add(ctx, "shade", ctx->render_ms - prior_ms);
   return 0;
 }
 

@@ -15,15 +15,43 @@
  * ops->channels) for pixel (x, y) and returns the rays it traced. `thread` < ctx->threads. */
 typedef uint64_t (*obs_shade_fn)(const void *job, int thread, int x, int y, float *values);
 
+/* The pooled prior of a technique's standard-error channels (driver_prior.c; docs/accuracy.md,
+ * "Standard errors"). A pixel's own variance estimate rests on few degrees of freedom and cannot
+ * see events rarer than its samples (a path tracer's rare bright paths): where they were missed,
+ * the mean and its spread are both low, and the error is far outside 3 standard errors. So before
+ * the tiles, the driver shades a pilot pixel at the centre of every OBS_PRIOR_CELL-pixel cell
+ * OBS_PRIOR_REPLICAS times, each with a copy of the job whose seed (the uint32_t at
+ * `seed_offset`) is that of a replica (sampling.h, obs_sampler_replica_seed), and takes the
+ * variance of those independent estimates;
+ * each pixel's variance is then (df v + OBS_PRIOR_WEIGHT p) / (df + OBS_PRIOR_WEIGHT), v its own
+ * (the square of its stderr channel), df its degrees of freedom, p the mean of the pilot
+ * variances of its cell and the 8 around it (pilots that see no surface left out). A shade
+ * function with a prior writes -f into a stderr channel when its samples all agreed: its own
+ * variance is then 0 and f (>= 0) the conservative floor (mcerr.h) it reports where no pilot
+ * covers its neighbourhood. A pilot depends only on its position and the seed: the same bits for
+ * any thread count, region or tile source. */
+typedef struct obs_pixel_prior {
+  int nse;                   /* standard-error channels */
+  const int *se, *value;     /* their indices, and those of the channels they are the error of */
+  int alpha;                 /* coverage channel: pilots where it is 0 in any replica are left out */
+  size_t job_size, seed_offset; /* the job's size, and where its seed lies in it */
+  /* The degrees of freedom of a pixel's own variance estimate in standard-error channel c. */
+  double (*df)(const void *job, int c);
+} obs_pixel_prior;
+#define OBS_PRIOR_CELL 8
+#define OBS_PRIOR_REPLICAS 8
+#define OBS_PRIOR_WEIGHT 8.0
+
 typedef struct obs_pixel_ops {
   int nchannels;
   const char *const *channels; /* EXR channel names of `out` */
   obs_shade_fn shade;
+  const obs_pixel_prior *prior; /* NULL: the stderr channels are the pixel's own */
 } obs_pixel_ops;
 
 /* Allocates `out`, runs shade over ctx's region in tiles on ctx->threads threads with progress
- * and cancellation, adds ctx->rays and sets ctx->render_ms (stage "shade"). Bit-identical for any
- * thread count.
+ * and cancellation, adds ctx->rays and sets ctx->render_ms (stage "shade"; with a prior, its pilot
+ * first, stage "prior"). Bit-identical for any thread count.
  * Pixels outside the region stay 0. With ctx->tiles it shades only the tiles that source hands
  * out, calls its `done` after each, reports no progress and sets ctx->tiled; the pixels it shades
  * are the same bits either way. On failure (OBS_ECANCELED when ctx->cancel was raised; the

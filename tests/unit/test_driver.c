@@ -42,7 +42,7 @@ static uint64_t synth_shade(const void *job, int thread, int x, int y, float *v)
 }
 
 static const char *const synth_names[3] = {"a", "b", "alpha"};
-static const obs_pixel_ops synth_ops = {3, synth_names, synth_shade};
+static const obs_pixel_ops synth_ops = {3, synth_names, synth_shade, NULL};
 
 typedef struct progress_log {
   int calls;

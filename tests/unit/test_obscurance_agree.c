@@ -9,7 +9,9 @@
 
 #include "testutil.h"
 
-#define RES 96
+/* Fine enough that the pixel centres' average over a patch is its area average: at 96 the
+ * grid's quadrature error (7e-4 in the mean) exceeds the honest noise. */
+#define RES 192
 
 static const char *scene_doc(const char *technique, const char *params) {
   return obs_test_fmt(
@@ -93,11 +95,11 @@ static void test_pixels_average_to_patches(void **state) {
   printf("patches %d (of %d groups): rms z %.3f, mean difference %.5f (3 sigma %.5f), map noise "
          "%.5f\n",
          nbig, ng, rms_z, dmean / nbig, 3 * sqrt(dvar) / nbig, sqrt(map_var));
-  /* Under agreement z is at most standard normal per patch (the per-pixel standard error is a
-   * bound, as rt_ao's, so its RMS comes out below 1: 0.32 here), and the mean difference lies
-   * within 3 sigma. A map with d_max 1.1 instead of 1 gives RMS 1.08 and a mean difference of
-   * 9 sigma. */
-  assert_true(rms_z < 1.0);
+  /* Under agreement z is standard normal per patch (both standard errors are honest: RMS 0.98
+   * here; over 90 patches its own spread is 0.075, so 1.3 is 4 of those), and the mean difference
+   * lies within 3 sigma. A map with d_max 1.1 instead of 1 gives RMS 4.6 and a mean difference of
+   * 38 sigma. */
+  assert_true(rms_z < 1.3);
   assert_true(fabs(dmean / nbig) <= 3 * sqrt(dvar) / nbig);
   /* The wall makes W vary: the test is not of a constant. */
   double lo = 1, hi = 0;

@@ -38,7 +38,8 @@ static void peel_of(const char *doc, const obs_obscurance_map_params *p, obs_oma
   obs_scene_free(&sc);
   for (int64_t i = 0; i < m->pm.count; i++) {
     for (int c = 0; c < 3; c++) assert_true(m->w[3 * i + c] >= 0.0f && m->w[3 * i + c] <= 1.0f);
-    assert_true(isfinite(m->se[i]) && m->se[i] >= 0.0f);
+    for (int c = 0; c < 3; c++)
+      assert_true(isfinite(m->se[3 * i + c]) && m->se[3 * i + c] >= 0.0f);
   }
 }
 
@@ -127,8 +128,10 @@ static void test_cornell_bundles(void **state) {
       double d = (double)cpu.w[3 * i + c] - gpu.w[3 * i + c];
       d2 += d * d;
     }
-    se_cpu += (double)cpu.se[i] * cpu.se[i];
-    se_gpu += (double)gpu.se[i] * gpu.se[i];
+    for (int c = 0; c < 3; c++) {
+      se_cpu += (double)cpu.se[3 * i + c] * cpu.se[3 * i + c] / 3;
+      se_gpu += (double)gpu.se[3 * i + c] * gpu.se[3 * i + c] / 3;
+    }
     k++;
   }
   double rmse = sqrt(d2 / (3.0 * k)), n_cpu = sqrt(se_cpu / k), n_gpu = sqrt(se_gpu / k);
@@ -291,14 +294,17 @@ static void test_render(void **state) {
   int rc = obs_render(&sc, &o, &res, &err);
   vktest_check_rc(rc, &err);
   assert_int_equal(res.backend, OBS_BACKEND_VULKAN);
-  assert_int_equal(res.npatches, 1);
+  assert_int_equal(res.npatches, 2); /* obscurance and obscurance_stderr */
   assert_true(res.patches[0].count > 0);
+  assert_int_equal(res.patches[1].count, res.patches[0].count);
   const obs_image *im = &res.image;
   size_t npx = (size_t)im->width * (size_t)im->height, covered = 0;
+  const float *alpha = obs_image_channel(im, "alpha");
+  assert_non_null(alpha);
   for (size_t i = 0; i < npx; i++) {
-    float a = im->data[4 * npx + i];
+    float a = alpha[i];
     covered += a == 1.0f;
-    for (int c = 0; c < 4; c++) {
+    for (int c = 0; c < 5; c++) { /* W, its error, RGB */
       float v = im->data[(size_t)c * npx + i];
       assert_true(isfinite(v) && v >= 0 && v <= 1);
       if (a == 0.0f) assert_true(v == 0.0f);

@@ -1,0 +1,138 @@
+/* The per-pixel driver's pooled prior of standard errors (driver.h, obs_pixel_prior): the pilot
+ * grid shaded before the tiles, and each pixel's variance combined with its neighbourhood's. */
+#include "driver_prior.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "parallel.h"
+#include "sampling.h"
+
+typedef struct pilot_run {
+  obs_prior_grid *g;
+  const obs_pixel_ops *ops;
+  const void *job;
+  int width, height;
+  float *values;  /* threads x stride */
+  size_t stride;
+  unsigned char *jobs; /* threads x job_size: each thread's copy of the job */
+  uint64_t *rays;      /* threads x 8 */
+} pilot_run;
+
+/* Pilot cells [x0, x1) x [y0, y1) of the grid's window (one "pixel" of the loop per cell). */
+static int pilot_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+  pilot_run *pr = user;
+  obs_prior_grid *g = pr->g;
+  const obs_pixel_prior *p = pr->ops->prior;
+  float *v = pr->values + (size_t)thread * pr->stride;
+  unsigned char *job = pr->jobs + (size_t)thread * p->job_size;
+  uint32_t seed;
+  memcpy(job, pr->job, p->job_size);
+  memcpy(&seed, job + p->seed_offset, sizeof seed);
+  for (int cy = y0; cy < y1; cy++)
+    for (int cx = x0; cx < x1; cx++) {
+      int px, py;
+      obs_prior_grid_pilot(g, cx, cy, pr->width, pr->height, &px, &py);
+      double vals[OBS_PRIOR_MAX_SE][OBS_PRIOR_REPLICAS];
+      int covered = 1;
+      for (uint32_t k = 0; k < OBS_PRIOR_REPLICAS; k++) {
+        uint32_t rs = obs_sampler_replica_seed(seed, k + 1);
+        memcpy(job + p->seed_offset, &rs, sizeof rs);
+        pr->rays[(size_t)thread * 8] += pr->ops->shade(job, thread, px, py, v);
+        covered &= p->alpha < 0 || v[p->alpha] > 0.0f;
+        for (int c = 0; c < p->nse; c++) vals[c][k] = v[p->value[c]];
+      }
+      for (int c = 0; c < p->nse; c++) obs_prior_grid_set(g, cx, cy, c, vals[c], covered);
+    }
+  return 0;
+}
+
+int obs_prior_grid_init(obs_prior_grid *g, const obs_region *r, int width, int height, int nse) {
+  memset(g, 0, sizeof *g);
+  const int gw = (width + OBS_PRIOR_CELL - 1) / OBS_PRIOR_CELL;
+  const int gh = (height + OBS_PRIOR_CELL - 1) / OBS_PRIOR_CELL;
+  g->cx0 = r->x0 / OBS_PRIOR_CELL - 1, g->cy0 = r->y0 / OBS_PRIOR_CELL - 1;
+  int cx1 = (r->x1 - 1) / OBS_PRIOR_CELL + 2, cy1 = (r->y1 - 1) / OBS_PRIOR_CELL + 2;
+  if (g->cx0 < 0) g->cx0 = 0;
+  if (g->cy0 < 0) g->cy0 = 0;
+  if (cx1 > gw) cx1 = gw;
+  if (cy1 > gh) cy1 = gh;
+  g->ncx = cx1 - g->cx0, g->ncy = cy1 - g->cy0, g->nse = nse;
+  g->var = malloc((size_t)g->ncx * (size_t)g->ncy * (size_t)nse * sizeof *g->var);
+  if (!g->var) return obs_prior_grid_free(g), OBS_ENOMEM;
+  return 0;
+}
+
+void obs_prior_grid_pilot(const obs_prior_grid *g, int cx, int cy, int width, int height, int *px,
+                          int *py) {
+  *px = (g->cx0 + cx) * OBS_PRIOR_CELL + OBS_PRIOR_CELL / 2;
+  *py = (g->cy0 + cy) * OBS_PRIOR_CELL + OBS_PRIOR_CELL / 2;
+  if (*px >= width) *px = width - 1;
+  if (*py >= height) *py = height - 1;
+}
+
+int obs_prior_grid_build(obs_prior_grid *g, const obs_pixel_ops *ops, const void *job,
+                         const obs_region *r, int width, int height, int threads,
+                         const atomic_int *cancel, uint64_t *rays) {
+  const obs_pixel_prior *p = ops->prior;
+  memset(g, 0, sizeof *g);
+  if (p->nse < 1 || p->nse > OBS_PRIOR_MAX_SE) return OBS_EINVAL;
+  if (obs_prior_grid_init(g, r, width, height, p->nse)) return OBS_ENOMEM;
+  size_t stride = ((size_t)ops->nchannels + 7) / 8 * 8;
+  float *values = calloc((size_t)threads * stride, sizeof *values);
+  uint64_t *tr = calloc((size_t)threads * 8, sizeof *tr);
+  unsigned char *jobs = malloc((size_t)threads * p->job_size);
+  int rc = OBS_ENOMEM;
+  if (values && tr && jobs) {
+    pilot_run pr = {g, ops, job, width, height, values, stride, jobs, tr};
+    rc = obs_parallel_tiles(g->ncx, g->ncy, threads, pilot_tile, &pr, cancel, NULL, NULL);
+    for (int t = 0; t < threads; t++) *rays += tr[(size_t)t * 8];
+  }
+  free(values);
+  free(tr);
+  free(jobs);
+  if (rc) obs_prior_grid_free(g);
+  return rc;
+}
+
+void obs_prior_grid_set(obs_prior_grid *g, int cx, int cy, int c,
+                        const double v[OBS_PRIOR_REPLICAS], int covered) {
+  double mean = 0, m2 = 0; /* Welford over the replicas */
+  for (int k = 0; k < OBS_PRIOR_REPLICAS; k++) {
+    double d = v[k] - mean;
+    mean += d / (k + 1);
+    m2 += d * (v[k] - mean);
+  }
+  g->var[((size_t)cy * (size_t)g->ncx + (size_t)cx) * (size_t)g->nse + (size_t)c] =
+      covered ? (float)(m2 / (OBS_PRIOR_REPLICAS - 1)) : NAN;
+}
+
+void obs_prior_grid_apply(const obs_prior_grid *g, const obs_pixel_prior *p, const void *job,
+                          int x, int y, float *v) {
+  const int cx = x / OBS_PRIOR_CELL - g->cx0, cy = y / OBS_PRIOR_CELL - g->cy0;
+  for (int c = 0; c < p->nse; c++) {
+    double sum = 0;
+    int n = 0;
+    for (int j = cy - 1; j <= cy + 1; j++)
+      for (int i = cx - 1; i <= cx + 1; i++) {
+        if (i < 0 || j < 0 || i >= g->ncx || j >= g->ncy) continue;
+        float pv = g->var[((size_t)j * (size_t)g->ncx + (size_t)i) * (size_t)g->nse + (size_t)c];
+        if (isnan(pv)) continue;
+        sum += pv;
+        n++;
+      }
+    float *se = &v[p->se[c]];
+    if (!n) { /* no pilot nearby: the pixel's own, its floor where its samples agreed */
+      *se = fabsf(*se);
+      continue;
+    }
+    double own = *se > 0 ? (double)*se * *se : 0.0, df = p->df(job, c);
+    *se = (float)sqrt((df * own + OBS_PRIOR_WEIGHT * (sum / n)) / (df + OBS_PRIOR_WEIGHT));
+  }
+}
+
+void obs_prior_grid_free(obs_prior_grid *g) {
+  free(g->var);
+  memset(g, 0, sizeof *g);
+}
