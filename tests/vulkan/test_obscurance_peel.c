@@ -11,6 +11,7 @@
 #include "omap_peel.h"
 #include "omap_scenes.h"
 #include "raytrace.h"
+#include "stderr_check.h"
 #include "vktest.h"
 
 /* The shared test parameters with 32 directions: a rendered direction costs more than a traced
@@ -338,6 +339,20 @@ static void test_refusals(void **state) {
   }
 }
 
+/* depth_peeling's per-patch standard errors, held to the CPU's check (stderr_check.h): groups of
+ * directions with their own rotations, pooled over each triangle's patches. */
+static void test_stderr_calibrated(void **state) {
+  (void)state;
+  vktest_need_vk();
+  static const obs_stderr_case c = {
+      "obscurance_map depth_peeling (vulkan)", "scenes/cornell_box.json", "obscurance_map",
+      "vulkan",
+      "{\"method\":\"depth_peeling\",\"directions\":$N,\"bundle_resolution\":64,"
+      "\"patch_size\":100,\"d_max\":150,\"seed\":$S}",
+      "obscurance", "obscurance_stderr", 1, 8};
+  obs_test_stderr_check(&c, 16);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test_teardown(test_open_plane, vktest_quiet_teardown),
@@ -347,6 +362,7 @@ int main(void) {
       cmocka_unit_test_teardown(test_extremes, vktest_quiet_teardown),
       cmocka_unit_test_teardown(test_render, vktest_quiet_teardown),
       cmocka_unit_test_teardown(test_refusals, vktest_quiet_teardown),
+      cmocka_unit_test_teardown(test_stderr_calibrated, vktest_quiet_teardown),
   };
   return cmocka_run_group_tests(tests, vktest_group_setup, vktest_group_teardown);
 }
