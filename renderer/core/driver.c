@@ -69,8 +69,9 @@ static int source_next(void *user, int *x0, int *y0, int *x1, int *y1) {
 static int source_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   pixel_run *pr = user;
   uint64_t rays = shade_tile(pr, thread, x0, y0, x1, y1);
-  pr->rays[(size_t)thread * SLOT] += rays;
   obs_region t = {x0 + pr->r.x0, y0 + pr->r.y0, x1 + pr->r.x0, y1 + pr->r.y0};
+  if (pr->prior) rays += obs_prior_grid_rays(pr->prior, &t, pr->img->width, pr->img->height);
+  pr->rays[(size_t)thread * SLOT] += rays;
   return pr->src->done ? pr->src->done(pr->src->user, pr->img, &t, rays) : 0;
 }
 
@@ -144,8 +145,7 @@ int obs_driver_pixels(obs_render_ctx *ctx, const obs_pixel_ops *ops, const void 
   memset(&grid, 0, sizeof grid);
   double t0 = obs_now_ms(), prior_ms = 0;
   if (ops->prior) {
-    rc = obs_prior_grid_build(&grid, ops, job, &r, sc->width, sc->height, threads, ctx->cancel,
-                              &rays[0]);
+    rc = obs_prior_grid_build(&grid, ops, job, &r, sc->width, sc->height, threads, ctx->cancel);
     if (rc) {
       free(values);
       free(rays);
@@ -166,6 +166,7 @@ int obs_driver_pixels(obs_render_ctx *ctx, const obs_pixel_ops *ops, const void 
   }
   ctx->render_ms = obs_now_ms() - t0;
   for (int t = 0; t < threads; t++) ctx->rays += rays[(size_t)t * SLOT];
+  if (pr.prior && !ctx->tiles) ctx->rays += obs_prior_grid_rays(&grid, &r, sc->width, sc->height);
   obs_prior_grid_free(&grid);
   free(values);
   free(rays);

@@ -26,10 +26,13 @@ typedef uint64_t (*obs_shade_fn)(const void *job, int thread, int x, int y, floa
  * each pixel's variance is then (df v + OBS_PRIOR_WEIGHT p) / (df + OBS_PRIOR_WEIGHT), v its own
  * (the square of its stderr channel), df its degrees of freedom, p the mean of the pilot
  * variances of its cell and the 8 around it (pilots that see no surface left out). A shade
- * function with a prior writes -f into a stderr channel when its samples all agreed: its own
- * variance is then 0 and f (>= 0) the conservative floor (mcerr.h) it reports where no pilot
- * covers its neighbourhood. A pilot depends only on its position and the seed: the same bits for
- * any thread count, region or tile source. */
+ * function with a prior writes -f (the sign bit set, f >= 0) into a stderr channel when its
+ * samples all agreed: their spread of 0 then counts with no more weight than the prior
+ * (w p / (min(df, w) + w)), and f is the conservative floor (mcerr.h) it reports where no pilot
+ * covers its neighbourhood; +0 marks an exact value, which stays 0. A pixel's own variance above
+ * p stands: rare events missed only ever lower it. A pilot depends only on its position and the seed: the same
+ * bits for any thread count, region or tile source; `rays` counts the pilots whose pixel lies in
+ * the region (with a tile source: in the tiles shaded), so split renders add up to the whole. */
 typedef struct obs_pixel_prior {
   int nse;                   /* standard-error channels */
   const int *se, *value;     /* their indices, and those of the channels they are the error of */

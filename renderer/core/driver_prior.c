@@ -17,7 +17,6 @@ typedef struct pilot_run {
   float *values;  /* threads x stride */
   size_t stride;
   unsigned char *jobs; /* threads x job_size: each thread's copy of the job */
-  uint64_t *rays;      /* threads x 8 */
 } pilot_run;
 
 /* Pilot cells [x0, x1) x [y0, y1) of the grid's window (one "pixel" of the loop per cell). */
@@ -36,10 +35,11 @@ static int pilot_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
       obs_prior_grid_pilot(g, cx, cy, pr->width, pr->height, &px, &py);
       double vals[OBS_PRIOR_MAX_SE][OBS_PRIOR_REPLICAS];
       int covered = 1;
+      uint64_t *rays = &g->rays[(size_t)cy * (size_t)g->ncx + (size_t)cx];
       for (uint32_t k = 0; k < OBS_PRIOR_REPLICAS; k++) {
         uint32_t rs = obs_sampler_replica_seed(seed, k + 1);
         memcpy(job + p->seed_offset, &rs, sizeof rs);
-        pr->rays[(size_t)thread * 8] += pr->ops->shade(job, thread, px, py, v);
+        *rays += pr->ops->shade(job, thread, px, py, v);
         covered &= p->alpha < 0 || v[p->alpha] > 0.0f;
         for (int c = 0; c < p->nse; c++) vals[c][k] = v[p->value[c]];
       }
@@ -60,7 +60,8 @@ int obs_prior_grid_init(obs_prior_grid *g, const obs_region *r, int width, int h
   if (cy1 > gh) cy1 = gh;
   g->ncx = cx1 - g->cx0, g->ncy = cy1 - g->cy0, g->nse = nse;
   g->var = malloc((size_t)g->ncx * (size_t)g->ncy * (size_t)nse * sizeof *g->var);
-  if (!g->var) return obs_prior_grid_free(g), OBS_ENOMEM;
+  g->rays = calloc((size_t)g->ncx * (size_t)g->ncy, sizeof *g->rays);
+  if (!g->var || !g->rays) return obs_prior_grid_free(g), OBS_ENOMEM;
   return 0;
 }
 
@@ -74,23 +75,20 @@ void obs_prior_grid_pilot(const obs_prior_grid *g, int cx, int cy, int width, in
 
 int obs_prior_grid_build(obs_prior_grid *g, const obs_pixel_ops *ops, const void *job,
                          const obs_region *r, int width, int height, int threads,
-                         const atomic_int *cancel, uint64_t *rays) {
+                         const atomic_int *cancel) {
   const obs_pixel_prior *p = ops->prior;
   memset(g, 0, sizeof *g);
   if (p->nse < 1 || p->nse > OBS_PRIOR_MAX_SE) return OBS_EINVAL;
   if (obs_prior_grid_init(g, r, width, height, p->nse)) return OBS_ENOMEM;
   size_t stride = ((size_t)ops->nchannels + 7) / 8 * 8;
   float *values = calloc((size_t)threads * stride, sizeof *values);
-  uint64_t *tr = calloc((size_t)threads * 8, sizeof *tr);
   unsigned char *jobs = malloc((size_t)threads * p->job_size);
   int rc = OBS_ENOMEM;
-  if (values && tr && jobs) {
-    pilot_run pr = {g, ops, job, width, height, values, stride, jobs, tr};
+  if (values && jobs) {
+    pilot_run pr = {g, ops, job, width, height, values, stride, jobs};
     rc = obs_parallel_tiles(g->ncx, g->ncy, threads, pilot_tile, &pr, cancel, NULL, NULL);
-    for (int t = 0; t < threads; t++) *rays += tr[(size_t)t * 8];
   }
   free(values);
-  free(tr);
   free(jobs);
   if (rc) obs_prior_grid_free(g);
   return rc;
@@ -123,16 +121,36 @@ void obs_prior_grid_apply(const obs_prior_grid *g, const obs_pixel_prior *p, con
         n++;
       }
     float *se = &v[p->se[c]];
+    if (*se == 0 && !signbit(*se)) continue; /* exact */
     if (!n) { /* no pilot nearby: the pixel's own, its floor where its samples agreed */
       *se = fabsf(*se);
       continue;
     }
-    double own = *se > 0 ? (double)*se * *se : 0.0, df = p->df(job, c);
-    *se = (float)sqrt((df * own + OBS_PRIOR_WEIGHT * (sum / n)) / (df + OBS_PRIOR_WEIGHT));
+    double prior = sum / n, df = p->df(job, c), own = (double)*se * *se;
+    const double w = OBS_PRIOR_WEIGHT;
+    /* Samples that all agreed have a spread of 0, which counts as no more than the prior: they
+     * may have missed what the pilots saw, or there was nothing to miss. A spread above the prior
+     * stands (the pixel's variance is its own: missed events only lower it). */
+    *se = signbit(*se)   ? (float)sqrt(w * prior / ((df < w ? df : w) + w))
+          : own >= prior ? *se
+                         : (float)sqrt((df * own + w * prior) / (df + w));
   }
+}
+
+uint64_t obs_prior_grid_rays(const obs_prior_grid *g, const obs_region *r, int width, int height) {
+  uint64_t rays = 0;
+  for (int cy = 0; cy < g->ncy; cy++)
+    for (int cx = 0; cx < g->ncx; cx++) {
+      int px, py;
+      obs_prior_grid_pilot(g, cx, cy, width, height, &px, &py);
+      if (px >= r->x0 && px < r->x1 && py >= r->y0 && py < r->y1)
+        rays += g->rays[(size_t)cy * (size_t)g->ncx + (size_t)cx];
+    }
+  return rays;
 }
 
 void obs_prior_grid_free(obs_prior_grid *g) {
   free(g->var);
+  free(g->rays);
   memset(g, 0, sizeof *g);
 }

@@ -47,7 +47,8 @@ static inline int obs_mcerr_agreed(const obs_mcerr *e) { return !(e->m2 > 0 && e
 
 /* The standard error of the estimate of n samples with these replicates: the replicates' spread,
  * or, when they all agreed, the floor for `span`. `pooled` (a technique whose driver pools errors
- * with a prior, driver.h): the floor is given negated, the mark of agreeing samples. */
+ * with a prior, driver.h): the floor is given negated (the sign bit set even for a floor of 0),
+ * the mark of agreeing samples. */
 static inline double obs_mcerr_stderr(const obs_mcerr *e, uint32_t n, double span, int pooled) {
   if (!obs_mcerr_agreed(e)) return sqrt(obs_mcerr_var(e));
   return pooled ? -obs_mcerr_floor(n, span) : obs_mcerr_floor(n, span);
@@ -84,8 +85,8 @@ static inline double obs_mcerr_ratio_var(const obs_mcerr_ratio *e) {
 }
 
 /* A pixel's standard error over its independent pixel samples, whose variances add: the root of
- * their sum of squares over spp, negated when some sample's was negated (agreed) and none had a
- * spread. */
+ * their sum of squares over spp, negated (the sign bit set) when some sample's was (agreed) and
+ * none had a spread; +0 when every sample was exact. */
 typedef struct obs_mcerr_pixel {
   double var;
   int agreed, spread;
@@ -93,7 +94,7 @@ typedef struct obs_mcerr_pixel {
 
 static inline void obs_mcerr_pixel_add(obs_mcerr_pixel *p, double se) {
   p->var += se * se;
-  p->agreed += se < 0;
+  p->agreed += signbit(se) != 0;
   p->spread += se > 0;
 }
 

@@ -34,7 +34,7 @@ typedef struct obs_bundle {
 void obs_bundle_get(const obs_bound_sphere *s, uint32_t seed, uint32_t count, uint32_t k,
                     uint32_t res, obs_bundle *b);
 /* The bundles' directions form independent groups for the standard error (sampling.h's
- * replicates, mcerr.h's ratio over groups): min(count, OBS_RQMC_REPLICATES) blocks of
+ * replicates, mcerr.h's ratio over groups): min(count, 8) blocks of
  * consecutive directions, each a spherical Fibonacci set of its own size turned by its own random
  * rotation, so that the groups' estimates are independent. Group r holds directions
  * [obs_bundle_group_first(count, r), obs_bundle_group_first(count, r + 1)). */

@@ -58,9 +58,16 @@ void obs_sampler2d_init(obs_sampler2d *s, obs_sampler_kind kind, uint32_t x, uin
 
 void obs_rqmc_init(obs_rqmc *q, obs_sampler_kind kind, uint32_t x, uint32_t y,
                    uint32_t pixel_sample, uint32_t stream, uint32_t seed, uint32_t n) {
+  obs_rqmc_init_max(q, kind, x, y, pixel_sample, stream, seed, n, OBS_RQMC_REPLICATES);
+}
+
+void obs_rqmc_init_max(obs_rqmc *q, obs_sampler_kind kind, uint32_t x, uint32_t y,
+                       uint32_t pixel_sample, uint32_t stream, uint32_t seed, uint32_t n,
+                       uint32_t max) {
   obs_sampler2d_init(&q->s[0], kind, x, y, pixel_sample, stream, seed);
   q->n = n;
-  q->reps = obs_rqmc_replicates(kind, n);
+  if (max > OBS_RQMC_MAX) max = OBS_RQMC_MAX;
+  q->reps = kind == OBS_SAMPLER_RANDOM ? (n ? n : 1) : n < max ? (n ? n : 1) : max;
   if (kind == OBS_SAMPLER_RANDOM) return;
   /* Replicate r > 0: the stream's seeds hashed with r, an independent scramble. */
   for (uint32_t r = 1; r < q->reps; r++) {

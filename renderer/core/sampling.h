@@ -60,14 +60,19 @@ uint32_t obs_sample_shuffle(uint32_t index, uint32_t seed);
  * (sizes n / R or one more), each an independently scrambled stream read from its first point
  * (Sobol: its own Owen scramble; Halton: its own Cranley-Patterson rotation), so the replicates'
  * means are independent unbiased estimates and their spread measures the estimate's error, QMC's
- * stratification included. R = min(n, OBS_RQMC_REPLICATES): 8 leaves 7 degrees of freedom, with
- * which a Student t falls outside 3 standard errors 2 % of the time (4 % at 4 replicates), and
- * keeps 32 points per replicate at 256 samples. A random stream is i.i.d. already: every sample
- * is its own replicate (R = n) and reads the stream at its index. */
-#define OBS_RQMC_REPLICATES 8
+ * stratification included. R = min(n, OBS_RQMC_REPLICATES). Replicates cost accuracy: R sets of
+ * n / R points converge at the scrambled sequence's rate but with a larger constant than one set
+ * of n (measured on the Cornell box at 16-256 samples: RMSE x1.4 with 4 replicates, x1.75 with 8
+ * for binary AO; x2 and x3 for the smooth exp falloff). 4 replicates leave 3 degrees of freedom,
+ * too few alone (a Student t with 3 puts 5.8 % outside 3 standard errors): every user pools them
+ * with a prior worth 8 more (driver.h's obs_pixel_prior, patch_mesh.h's obs_patch_mesh_errors),
+ * which brings that to 1.2 %. A random stream is i.i.d. already: every sample is its own replicate
+ * (R = n) and reads the stream at its index. */
+#define OBS_RQMC_REPLICATES 4
+#define OBS_RQMC_MAX 8 /* the most replicates a caller may ask for (obs_rqmc_init_max) */
 typedef struct obs_rqmc {
-  obs_sampler2d s[OBS_RQMC_REPLICATES]; /* replicate r's stream; random: s[0] only */
-  uint32_t n, reps;                     /* samples, replicates */
+  obs_sampler2d s[OBS_RQMC_MAX]; /* replicate r's stream; random: s[0] only */
+  uint32_t n, reps;              /* samples, replicates */
 } obs_rqmc;
 
 /* The seed of replica r >= 1 of a render seeded `seed`: an independent set of every sample (the
@@ -85,6 +90,11 @@ static inline uint32_t obs_rqmc_replicates(obs_sampler_kind kind, uint32_t n) {
  * obs_sampler2d_init). */
 void obs_rqmc_init(obs_rqmc *q, obs_sampler_kind kind, uint32_t x, uint32_t y,
                    uint32_t pixel_sample, uint32_t stream, uint32_t seed, uint32_t n);
+/* The same with up to `max` (<= OBS_RQMC_MAX) replicates for QMC streams, for estimates pooled
+ * more coarsely than per pixel, which must carry more of their error themselves. */
+void obs_rqmc_init_max(obs_rqmc *q, obs_sampler_kind kind, uint32_t x, uint32_t y,
+                       uint32_t pixel_sample, uint32_t stream, uint32_t seed, uint32_t n,
+                       uint32_t max);
 /* Replicate r's samples: [obs_rqmc_first(r), obs_rqmc_first(r + 1)). */
 static inline uint32_t obs_rqmc_first(const obs_rqmc *q, uint32_t r) {
   uint32_t base = q->n / q->reps, extra = q->n % q->reps;

@@ -126,7 +126,10 @@ static uint64_t obscurance_at(const ob_job *jb, const obs_hit *hit, const float 
                           : -1;
   for (int k = 0; k < 3; k++) {
     pt->w[k] = e[k].mean;
-    pt->w_se[k] = escaped_se >= 0 ? -escaped_se : obs_mcerr_stderr(&e[k], p->samples, 1.0, 1);
+    /* An exact W stays +0; a floor is negated (driver.h, obs_pixel_prior). */
+    pt->w_se[k] = escaped_se > 0    ? -escaped_se
+                  : escaped_se == 0 ? 0.0
+                                    : obs_mcerr_stderr(&e[k], p->samples, 1.0, 1);
   }
   return rays;
 }
@@ -248,9 +251,9 @@ static uint64_t ob_shade(const void *job, int thread, int x, int y, float *v) {
       /* Direct and indirect errors are independent; negated (agreed) only when neither has a
        * spread. */
       double fse = sqrt(pt.d_se[k] * pt.d_se[k] + ind_se * ind_se);
-      obs_mcerr_pixel_add(&err_f[k], pt.d_se[k] > 0 || ind_se > 0             ? fse
-                                     : pt.d_se[k] < 0 || ind_se < 0 ? -fse
-                                                                      : 0.0);
+      obs_mcerr_pixel_add(&err_f[k], pt.d_se[k] > 0 || ind_se > 0                   ? fse
+                                     : signbit(pt.d_se[k]) || signbit(ind_se) ? -fse
+                                                                              : 0.0);
       acc[CH_C + k] += pt.direct[k] + (found ? a * jb->open[k] : 0.0);
     }
   }

@@ -239,8 +239,8 @@ static uint64_t pt_shade(const void *job, int thread, int x, int y, float *v) {
   for (int k = 0; k < 3; k++) {
     v[CH_R + k] = (float)e[k].mean;
     /* Radiance has no bound: replicates that all agree (every path 0, say) leave the error to
-     * the prior. */
-    v[CH_SR + k] = (float)sqrt(obs_mcerr_var(&e[k]));
+     * the prior (a floor of 0, negated). */
+    v[CH_SR + k] = (float)obs_mcerr_stderr(&e[k], (uint32_t)jb->paths, 0.0, 1);
     v[CH_AR + k] = hits ? (float)(alb[k] / hits) : 0.0f;
     v[CH_NX + k] = nl > 0 ? (float)(nrm[k] / nl) : 0.0f;
   }

@@ -34,7 +34,6 @@ typedef struct job {
   rt_ao_params p;
   obs_falloff falloff; /* rho(d) of p */
   int spp;
-  int pooled; /* the driver pools the errors with a prior (continuous falloffs) */
 } job;
 
 /* One pixel sample's occlusion estimate at `hit`. */
@@ -99,10 +98,12 @@ static uint64_t shade(const job *jb, const obs_hit *hit, uint32_t x, uint32_t y,
   }
   acc->mean = e.mean;
   if (escaped == p->samples) { /* every ray escaped: exact, or bounded by what lies within reach */
-    acc->se = obs_rt_escape_stderr(jb->rt, hit, org, &jb->falloff, tfar, p->uniform, 0, p->samples);
-    if (jb->pooled) acc->se = -acc->se;
+    /* 0 where exact; else negated: the rays agreed (driver.h, obs_pixel_prior) */
+    acc->se = obs_rt_escape_stderr(jb->rt, hit, org, &jb->falloff, tfar, p->uniform, 0,
+                                   p->samples);
+    if (acc->se > 0) acc->se = -acc->se;
   } else {
-    acc->se = obs_mcerr_stderr(&e, p->samples, 1.0, jb->pooled);
+    acc->se = obs_mcerr_stderr(&e, p->samples, 1.0, 1);
   }
   return rays;
 }
@@ -181,10 +182,6 @@ int obs_rt_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   jb.rt = ctx->rt;
   jb.spp = sc->spp;
   obs_camera_setup(&sc->camera, sc->width, sc->height, &jb.cam);
-  /* Binary rays' replicates are calibrated alone; the continuous falloffs' values are skewed (rare
-   * near hits), which the pooled prior of the driver makes up for (docs/techniques/rt_ao.md). */
-  static const obs_pixel_ops binary = {CH_COUNT, channel_names, shade_pixel, NULL};
-  static const obs_pixel_ops pooled = {CH_COUNT, channel_names, shade_pixel, &prior};
-  jb.pooled = jb.p.falloff != OBS_FALLOFF_BINARY;
-  return obs_driver_pixels(ctx, jb.pooled ? &pooled : &binary, &jb, out, err);
+  static const obs_pixel_ops ops = {CH_COUNT, channel_names, shade_pixel, &prior};
+  return obs_driver_pixels(ctx, &ops, &jb, out, err);
 }

@@ -98,11 +98,11 @@ static void test_volume_ao(void **state) {
   (void)state;
   static const obs_stderr_case cases[] = {
       {"volume_ao sobol", "scenes/volume_torus.json", "volume_ao", "cpu",
-       "{\"samples\":$N,\"sampler\":\"sobol\",\"seed\":$S}", "ao", "ao_stderr", 0, 48},
+       "{\"samples\":$N,\"sampler\":\"sobol\",\"seed\":$S}", "ao", "ao_stderr", 0, 64},
       {"volume_ao halton", "scenes/volume_torus.json", "volume_ao", "cpu",
-       "{\"samples\":$N,\"sampler\":\"halton\",\"seed\":$S}", "ao", "ao_stderr", 0, 48},
+       "{\"samples\":$N,\"sampler\":\"halton\",\"seed\":$S}", "ao", "ao_stderr", 0, 64},
       {"volume_ao random", "scenes/volume_torus.json", "volume_ao", "cpu",
-       "{\"samples\":$N,\"sampler\":\"random\",\"seed\":$S}", "ao", "ao_stderr", 0, 48},
+       "{\"samples\":$N,\"sampler\":\"random\",\"seed\":$S}", "ao", "ao_stderr", 0, 64},
   };
   for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) obs_test_stderr_check(&cases[i], 16);
 }

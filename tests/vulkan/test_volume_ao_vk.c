@@ -281,7 +281,7 @@ static void test_stderr_calibrated(void **state) {
   static const obs_stderr_case c = {"volume_ao sobol (vulkan)", "scenes/volume_torus.json",
                                     "volume_ao", "vulkan",
                                     "{\"samples\":$N,\"sampler\":\"sobol\",\"seed\":$S}", "ao",
-                                    "ao_stderr", 0, 48};
+                                    "ao_stderr", 0, 64};
   obs_test_stderr_check(&c, 16);
 }
 

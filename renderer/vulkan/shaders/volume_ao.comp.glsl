@@ -149,7 +149,7 @@ vec2 sampler_get(uvec2 s, uint i) {
 // obs_rqmc: the n directions form R replicates of consecutive directions, each its own scramble.
 uint rqmc_reps() {
   uint n = max(pc.samples, 1u);
-  return pc.sampler_kind == 2 || n < 8u ? n : 8u;
+  return pc.sampler_kind == 2 || n < 4u ? n : 4u; // OBS_RQMC_REPLICATES
 }
 uint rqmc_first(uint r) {
   uint R = rqmc_reps(), base = pc.samples / R, extra = pc.samples % R;
