@@ -19,8 +19,11 @@ typedef struct pilot_run {
   unsigned char *jobs; /* threads x job_size: each thread's copy of the job */
 } pilot_run;
 
-/* Pilot cells [x0, x1) x [y0, y1) of the grid's window (one "pixel" of the loop per cell). */
+/* The pilot cells of a tile of the window's loop, where each cell is one OBS_TILE x OBS_TILE
+ * tile: the loop hands out one cell at a time and checks for cancellation between them. */
 static int pilot_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+  x0 /= OBS_TILE, y0 /= OBS_TILE;
+  x1 = (x1 + OBS_TILE - 1) / OBS_TILE, y1 = (y1 + OBS_TILE - 1) / OBS_TILE;
   pilot_run *pr = user;
   obs_prior_grid *g = pr->g;
   const obs_pixel_prior *p = pr->ops->prior;
@@ -75,7 +78,8 @@ void obs_prior_grid_pilot(const obs_prior_grid *g, int cx, int cy, int width, in
 
 int obs_prior_grid_build(obs_prior_grid *g, const obs_pixel_ops *ops, const void *job,
                          const obs_region *r, int width, int height, int threads,
-                         const atomic_int *cancel) {
+                         const atomic_int *cancel, void (*progress)(void *, double),
+                         void *progress_user) {
   const obs_pixel_prior *p = ops->prior;
   memset(g, 0, sizeof *g);
   if (p->nse < 1 || p->nse > OBS_PRIOR_MAX_SE) return OBS_EINVAL;
@@ -86,7 +90,8 @@ int obs_prior_grid_build(obs_prior_grid *g, const obs_pixel_ops *ops, const void
   int rc = OBS_ENOMEM;
   if (values && jobs) {
     pilot_run pr = {g, ops, job, width, height, values, stride, jobs};
-    rc = obs_parallel_tiles(g->ncx, g->ncy, threads, pilot_tile, &pr, cancel, NULL, NULL);
+    rc = obs_parallel_tiles(g->ncx * OBS_TILE, g->ncy * OBS_TILE, threads, pilot_tile, &pr,
+                            cancel, progress, progress_user);
   }
   free(values);
   free(jobs);

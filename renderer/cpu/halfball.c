@@ -164,10 +164,12 @@ static bool halfball_prim(struct RTCPointQueryFunctionArguments *args) {
   halfball_q *q = args->userPtr;
   const obs_rt *rt = q->rt;
   unsigned g = args->geomID, p = args->primID;
-  if (q->out.nearest == 0 && q->out.cover_cos >= 1) return false; /* nothing more to learn */
-  if (++q->prims > HALFBALL_MAX_PRIMS) {
-    note_unknown(q);
-    return false;
+  if (++q->prims > HALFBALL_MAX_PRIMS) note_unknown(q);
+  if (q->out.nearest == 0 && q->out.cover_cos >= 1) {
+    /* Nothing more to learn: a radius of 0 ends the traversal (a huge mesh under an unbounded
+     * radius would otherwise call back once per triangle). */
+    args->query->radius = 0.0f;
+    return true;
   }
   if (g == rt->sphere_geom) {
     /* The sphere the point lies on, left outward, is below its tangent plane. */
