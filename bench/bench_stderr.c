@@ -33,28 +33,33 @@ static const bench_case cases[] = {
      "\"seed\":$S}",
      "ao", "ao_stderr", 0, 0},
     {"obscurance W sobol", "obscurance", "cpu", "cornell_box.json",
-     "{\"samples\":$N,\"sequence\":\"sobol\",\"d_max\":150,\"seed\":$S}", "obscurance", "obscurance_stderr", 0, 0},
+     "{\"samples\":$N,\"sequence\":\"sobol\",\"d_max\":150,\"seed\":$S}", "obscurance",
+     "obscurance_stderr", 0, 0},
     {"obscurance W halton", "obscurance", "cpu", "cornell_box.json",
-     "{\"samples\":$N,\"sequence\":\"halton\",\"d_max\":150,\"seed\":$S}", "obscurance", "obscurance_stderr", 0, 0},
+     "{\"samples\":$N,\"sequence\":\"halton\",\"d_max\":150,\"seed\":$S}", "obscurance",
+     "obscurance_stderr", 0, 0},
     {"obscurance final sobol", "obscurance", "cpu", "cornell_box.json",
-     "{\"samples\":$N,\"light_samples\":$L,\"sequence\":\"sobol\",\"d_max\":150,\"seed\":$S}", "final",
-     "final_stderr", 0, 0},
+     "{\"samples\":$N,\"light_samples\":$L,\"sequence\":\"sobol\",\"d_max\":150,"
+     "\"seed\":$S}",
+     "final", "final_stderr", 0, 0},
     {"obscurance final halton", "obscurance", "cpu", "cornell_box.json",
-     "{\"samples\":$N,\"light_samples\":$L,\"sequence\":\"halton\",\"d_max\":150,\"seed\":$S}", "final",
-     "final_stderr", 0, 0},
+     "{\"samples\":$N,\"light_samples\":$L,\"sequence\":\"halton\",\"d_max\":150,"
+     "\"seed\":$S}",
+     "final", "final_stderr", 0, 0},
     {"path_trace random", "path_trace", "cpu", "cornell_box.json",
      "{\"samples\":$N,\"sampler\":\"random\",\"seed\":$S}", "radiance", "radiance_stderr", 0, 0},
     {"path_trace sobol", "path_trace", "cpu", "cornell_box.json",
      "{\"samples\":$N,\"sampler\":\"sobol\",\"seed\":$S}", "radiance", "radiance_stderr", 0, 0},
     {"obscurance_map rays", "obscurance_map", "cpu", "cornell_box.json",
-     "{\"method\":\"rays\",\"samples\":$N,\"patch_size\":100,\"d_max\":150,\"seed\":$S}", "obscurance",
-     "obscurance_stderr", 1, 0},
+     "{\"method\":\"rays\",\"samples\":$N,\"patch_size\":100,\"d_max\":150,\"seed\":$S}",
+     "obscurance", "obscurance_stderr", 1, 0},
     {"obscurance_map global_lines", "obscurance_map", "cpu", "cornell_box.json",
-     "{\"method\":\"global_lines\",\"lines\":$G,\"patch_size\":100,\"d_max\":150,\"seed\":$S}", "obscurance",
-     "obscurance_stderr", 1, 0},
-    {"obscurance_map bundles", "obscurance_map", "cpu", "cornell_box.json",
-     "{\"method\":\"bundles\",\"directions\":$N,\"bundle_resolution\":128,\"patch_size\":100,\"d_max\":150,"
+     "{\"method\":\"global_lines\",\"lines\":$G,\"patch_size\":100,\"d_max\":150,"
      "\"seed\":$S}",
+     "obscurance", "obscurance_stderr", 1, 0},
+    {"obscurance_map bundles", "obscurance_map", "cpu", "cornell_box.json",
+     "{\"method\":\"bundles\",\"directions\":$N,\"bundle_resolution\":128,"
+     "\"patch_size\":100,\"d_max\":150,\"seed\":$S}",
      "obscurance", "obscurance_stderr", 1, 0},
     {"volume_ao sobol", "volume_ao", "cpu", "volume_torus.json",
      "{\"samples\":$N,\"sampler\":\"sobol\",\"seed\":$S}", "ao", "ao_stderr", 0, 64},
@@ -77,12 +82,13 @@ static void usage(FILE *f) {
   fprintf(f,
           "usage: bench_stderr [--threads T] [--size W] [--n 4,16,64] [--factor F] [--only TEXT]\n"
           "  For each technique x sampler (rows whose label contains TEXT), renders a W x W\n"
-          "  image (64 x 64 for the volume, whose torus covers little of it; one pixel sample) at each N samples with seed 1 and a reference at F x N\n"
-          "  (default 64) with seed 1000003, and prints RMS stderr / RMSE, the share of values\n"
-          "  (pixel channels or patch channels) within 3 stderr of the reference, the share\n"
-          "  reporting 0 with a non-zero error, and the RMSE. N is the samples parameter\n"
-          "  (rays per point, paths per pixel, obscurance's AO rays with light_samples N/4 (at least 4),\n"
-          "  bundles' directions at a 128 x 128 grid, global lines 4096 N).\n");
+          "  image (64 x 64 for the volume, whose torus covers little of it; one pixel sample)\n"
+          "  at each N samples with seed 1 and a reference at F x N (default 64) with seed\n"
+          "  1000003, and prints RMS stderr / RMSE, the share of values (pixel channels or patch\n"
+          "  channels) within 3 stderr of the reference, the share reporting 0 with a non-zero\n"
+          "  error, and the RMSE. N is the samples parameter (rays per point, paths per pixel,\n"
+          "  obscurance's AO rays with light_samples N/4 (at least 4), bundles' directions at a\n"
+          "  128 x 128 grid, global lines 4096 N).\n");
 }
 
 static int parse_args(int argc, char **argv, options *o) {

@@ -75,18 +75,6 @@ static int source_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   return pr->src->done ? pr->src->done(pr->src->user, pr->img, &t, rays) : 0;
 }
 
-/* Progress of one part of the loop (the prior's pilots, then the tiles): its share of the whole. */
-typedef struct progress_part {
-  void (*fn)(void *, double);
-  void *user;
-  double base, share;
-} progress_part;
-
-static void part_report(void *user, double f) {
-  const progress_part *p = user;
-  p->fn(p->user, p->base + p->share * f);
-}
-
 /* Why the tile loop stopped, in the driver's words. */
 static int loop_failed(const pixel_run *pr, const char *name, int rc, obs_err *err) {
   if (rc == OBS_ECANCELED) return obs_err_set(err, rc, "%s: render cancelled", name);
@@ -157,8 +145,8 @@ int obs_driver_pixels(obs_render_ctx *ctx, const obs_pixel_ops *ops, const void 
   memset(&grid, 0, sizeof grid);
   double t0 = obs_now_ms(), prior_ms = 0;
   /* The pilots' share of the work: OBS_PRIOR_REPLICAS pixels per cell of the window. */
-  progress_part parts[2] = {{ctx->progress, ctx->progress_user, 0, 0},
-                            {ctx->progress, ctx->progress_user, 0, 1}};
+  obs_progress_part parts[2] = {{ctx->progress, ctx->progress_user, 0, 0},
+                                {ctx->progress, ctx->progress_user, 0, 1}};
   if (ops->prior) {
     double cells = ((r.x1 - r.x0) / (double)OBS_PRIOR_CELL + 2) *
                    ((r.y1 - r.y0) / (double)OBS_PRIOR_CELL + 2) * OBS_PRIOR_REPLICAS;
@@ -166,13 +154,13 @@ int obs_driver_pixels(obs_render_ctx *ctx, const obs_pixel_ops *ops, const void 
     parts[0].share = parts[1].base = cells / (cells + pixels);
     parts[1].share = 1 - parts[1].base;
     rc = obs_prior_grid_build(&grid, ops, job, &r, sc->width, sc->height, threads, ctx->cancel,
-                              ctx->progress ? part_report : NULL, &parts[0]);
+                              ctx->progress ? obs_progress_part_report : NULL, &parts[0]);
     if (rc) {
       free(values);
       free(rays);
       obs_image_free(out);
-      return rc == OBS_ECANCELED ? obs_err_set(err, rc, "%s: render cancelled", name)
-                                 : obs_err_set(err, rc, "%s: per-pixel driver: out of memory", name);
+      if (rc == OBS_ECANCELED) return obs_err_set(err, rc, "%s: render cancelled", name);
+      return obs_err_set(err, rc, "%s: per-pixel driver: out of memory", name);
     }
     pr.prior = &grid;
     prior_ms = obs_now_ms() - t0;
@@ -183,7 +171,7 @@ int obs_driver_pixels(obs_render_ctx *ctx, const obs_pixel_ops *ops, const void 
     rc = obs_parallel_tiles_from(source_next, &pr, threads, source_tile, &pr, ctx->cancel);
   } else {
     rc = obs_parallel_tiles(r.x1 - r.x0, r.y1 - r.y0, threads, pixel_tile, &pr, ctx->cancel,
-                            ctx->progress ? part_report : NULL, &parts[1]);
+                            ctx->progress ? obs_progress_part_report : NULL, &parts[1]);
   }
   ctx->render_ms = obs_now_ms() - t0;
   for (int t = 0; t < threads; t++) ctx->rays += rays[(size_t)t * SLOT];

@@ -20,23 +20,22 @@ typedef uint64_t (*obs_shade_fn)(const void *job, int thread, int x, int y, floa
  * see events rarer than its samples (a path tracer's rare bright paths): where they were missed,
  * the mean and its spread are both low, and the error is far outside 3 standard errors. So before
  * the tiles, the driver shades a pilot pixel at the centre of every OBS_PRIOR_CELL-pixel cell
- * OBS_PRIOR_REPLICAS times, each with a copy of the job whose seed (the uint32_t at
- * `seed_offset`) is that of a replica (sampling.h, obs_sampler_replica_seed), and takes the
- * variance of those independent estimates;
- * each pixel's variance is then (df v + OBS_PRIOR_WEIGHT p) / (df + OBS_PRIOR_WEIGHT), v its own
- * (the square of its stderr channel), df its degrees of freedom, p the mean of the pilot
- * variances of its cell and the 8 around it (pilots that see no surface left out). A shade
- * function with a prior writes -f (the sign bit set, f >= 0) into a stderr channel when its
- * samples all agreed: their spread of 0 then counts with no more weight than the prior
- * (w p / (min(df, w) + w)), and f is the conservative floor (mcerr.h) it reports where no pilot
- * covers its neighbourhood; +0 marks an exact value, which stays 0. A pixel's own variance above
- * p stands: rare events missed only ever lower it. A pilot depends only on its position and the seed: the same
- * bits for any thread count, region or tile source; `rays` counts the pilots whose pixel lies in
- * the region (with a tile source: in the tiles shaded), so split renders add up to the whole. */
+ * OBS_PRIOR_REPLICAS times, each with a copy of the job whose seed (the uint32_t at `seed_offset`)
+ * is that of a replica (sampling.h, obs_sampler_replica_seed), and takes the variance of those
+ * independent estimates; p, the mean of the pilot variances of a pixel's cell and the 8 around it
+ * (pilots that see no surface left out), is its prior. A pixel's own variance v (the square of its
+ * stderr channel) at or above p stands: rare events missed only ever lower it. One below becomes
+ * (df v + w p) / (df + w), df its degrees of freedom, w = OBS_PRIOR_WEIGHT. A shade function with a
+ * prior writes -f (the sign bit set, f >= 0) into a stderr channel when its samples all agreed:
+ * their spread of 0 then counts with no more weight than the prior, w p / (min(df, w) + w), and f
+ * is the conservative floor (mcerr.h) it reports where no pilot covers its neighbourhood; +0 marks
+ * an exact value, which stays 0. A pilot depends only on its position and the seed: the same bits
+ * for any thread count, region or tile source; `rays` counts the pilots whose pixel lies in the
+ * region (with a tile source: in the tiles shaded), so split renders add up to the whole. */
 typedef struct obs_pixel_prior {
-  int nse;                   /* standard-error channels */
-  const int *se, *value;     /* their indices, and those of the channels they are the error of */
-  int alpha;                 /* coverage channel: pilots where it is 0 in any replica are left out */
+  int nse;                      /* standard-error channels */
+  const int *se, *value;        /* their indices, and those of the channels they are the error of */
+  int alpha;                    /* coverage: pilots where it is 0 in any replica are left out */
   size_t job_size, seed_offset; /* the job's size, and where its seed lies in it */
   /* The degrees of freedom of a pixel's own variance estimate in standard-error channel c. */
   double (*df)(const void *job, int c);

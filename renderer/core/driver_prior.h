@@ -25,9 +25,9 @@ void obs_prior_grid_pilot(const obs_prior_grid *g, int cx, int cy, int width, in
                           int *py);
 /* Shades the pilots of the cells region `r` of a width x height image needs on `threads`
  * threads with ops->prior's replicas, keeping each cell's rays, reporting the fraction done to
- * `progress` (may be NULL). 0, OBS_ECANCELED or OBS_ENOMEM (g then empty). A backend that shades its pilots itself fills an
- * obs_prior_grid_init window's `var` instead: per cell and channel the sample variance of the
- * OBS_PRIOR_REPLICAS replicas' values (obs_prior_grid_set). */
+ * `progress` (may be NULL). 0, OBS_ECANCELED or OBS_ENOMEM (g then empty). A backend that shades
+ * its pilots itself fills an obs_prior_grid_init window's `var` instead: per cell and channel the
+ * sample variance of the OBS_PRIOR_REPLICAS replicas' values (obs_prior_grid_set). */
 int obs_prior_grid_build(obs_prior_grid *g, const obs_pixel_ops *ops, const void *job,
                          const obs_region *r, int width, int height, int threads,
                          const atomic_int *cancel, void (*progress)(void *, double),

@@ -84,7 +84,8 @@ void obs_bundle_get(const obs_bound_sphere *s, uint32_t seed, uint32_t count, ui
                     uint32_t res, obs_bundle *b) {
   uint32_t g = 0;
   while (g + 1 < obs_bundle_groups(count) && obs_bundle_group_first(count, g + 1) <= k) g++;
-  uint32_t first = obs_bundle_group_first(count, g), n = obs_bundle_group_first(count, g + 1) - first;
+  uint32_t first = obs_bundle_group_first(count, g);
+  uint32_t n = obs_bundle_group_first(count, g + 1) - first;
   uint32_t j = k - first;
   /* Spherical Fibonacci over the group: z uniform in strata, azimuth by the golden angle. */
   double z = 1 - (2.0 * j + 1) / n, r = sqrt(fmax(0.0, 1 - z * z));

@@ -21,9 +21,10 @@ void obs_bound_sphere_of(const obs_geometry *geo, obs_bound_sphere *s);
  * and the origin of line (i, j) of the res x res grid,
  *   org = corner + (i + offset[0]) cell u + (j + offset[1]) cell v,
  * the lines starting one radius behind the sphere's centre and running 2 radii along dir. The
- * directions are a spherical Fibonacci set of `count` points turned by one random rotation from
- * `seed` (one per group of directions, obs_bundle_groups); the grid covers the disc the sphere projects to, shifted by a random fraction of a cell
- * per direction (`offset`), so that a patch's sample count has no aliasing with the grid. */
+ * directions are spherical Fibonacci sets, one per group of directions (obs_bundle_groups), each
+ * turned by its own random rotation from `seed`; the grid covers the disc the sphere projects to,
+ * shifted by a random fraction of a cell per direction (`offset`), so that a patch's sample count
+ * has no aliasing with the grid. */
 typedef struct obs_bundle {
   double dir[3], u[3], v[3];
   double corner[3];

@@ -69,9 +69,10 @@ typedef struct obs_patch_err {
   float floor;
 } obs_patch_err;
 /* The patches' standard errors (docs/techniques/obscurance_map.md, "Standard errors"): each
- * patch's variance in each channel pooled with a prior, the mean variance of one sample over the patches of
- * its triangle (or, for a triangle of one patch, of its mesh) with samples and not exact, over its
- * own n, with OBS_PATCH_PRIOR_WEIGHT degrees of freedom: (df var + w p / n) / (df + w). Like the
+ * patch's variance in each channel pooled with a prior, the mean variance of one sample over the
+ * patches of its triangle (or, for a triangle of one patch, of its mesh) with samples and not
+ * exact, over its own n, with OBS_PATCH_PRIOR_WEIGHT degrees of freedom:
+ * (df var + w p / n) / (df + w). Like the
  * per-pixel prior (driver.h) it makes up for events too rare for a patch's few samples: where they
  * were missed, mean and spread are both low. 1 where no sample reached a patch (its value is a
  * convention); the floor where the pooled variance is 0 (0 where exact). */

@@ -285,18 +285,6 @@ static void finish(const obs_omap_job *j, obs_omap *out) {
   for (int64_t i = 0; i < j->pm->count; i++) out->unsampled += !out->n[i] && j->pm->area[i] > 0;
 }
 
-/* Progress of one pass of several: its fraction of the whole. */
-typedef struct pass_progress {
-  obs_progress_fn fn;
-  void *user;
-  double base, share;
-} pass_progress;
-
-static void pass_report(void *user, double f) {
-  const pass_progress *pp = user;
-  pp->fn(pp->user, pp->base + pp->share * f);
-}
-
 /* The bundles, group by group of directions (obs_bundle_groups), one chunk per grid row of each
  * direction; after each group its per-thread sums are folded into every patch's groups and
  * cleared. */
@@ -309,10 +297,11 @@ static int run_bundles(obs_omap_job *j, const atomic_int *cancel, obs_progress_f
   for (uint32_t r = 0; r < ng && !rc; r++) {
     j->dir0 = obs_bundle_group_first(j->p.directions, r);
     uint32_t dirs = obs_bundle_group_first(j->p.directions, r + 1) - j->dir0;
-    pass_progress pp = {progress, progress_user, (double)j->dir0 / j->p.directions,
-                        (double)dirs / j->p.directions};
+    obs_progress_part pp = {progress, progress_user, (double)j->dir0 / j->p.directions,
+                            (double)dirs / j->p.directions};
     rc = obs_parallel_tiles((int)(dirs * j->p.bundle_resolution), 1, j->threads,
-                            obs_omap_bundle_tile, j, cancel, progress ? pass_report : NULL, &pp);
+                            obs_omap_bundle_tile, j, cancel,
+                            progress ? obs_progress_part_report : NULL, &pp);
     for (int64_t i = 0; i < count && !rc; i++) {
       obs_omap_acc a;
       memset(&a, 0, sizeof a);
