@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "obscura/render.h"
+#include "driver_prior.h"
 #include "parallel.h"
 
 /* Per-thread slots sit a cache line apart so the counters of two threads never share one. */
@@ -23,6 +24,7 @@ typedef struct pixel_run {
   const obs_tile_source *src; /* NULL: the driver's own tiles over r */
   atomic_int bad;  /* the source gave a tile outside r (bad_tile holds the first) */
   obs_region bad_tile;
+  const obs_prior_grid *prior; /* NULL: none */
 } pixel_run;
 
 /* Shades the image's pixels [x0, x1) x [y0, y1) block by block (obs_shade_block_fn). */
@@ -61,6 +63,7 @@ static uint64_t shade_tile(pixel_run *pr, int thread, int x0, int y0, int x1, in
   for (int y = y0 + pr->r.y0; y < y1 + pr->r.y0; y++)
     for (int x = x0 + pr->r.x0; x < x1 + pr->r.x0; x++) {
       rays += pr->ops->shade(pr->job, thread, x, y, v);
+      if (pr->prior) obs_prior_grid_apply(pr->prior, pr->ops->prior, pr->job, x, y, v);
       size_t i = (size_t)y * (size_t)img->width + (size_t)x;
       for (int c = 0; c < nch; c++) img->data[(size_t)c * plane + i] = v[c];
     }
@@ -92,8 +95,9 @@ static int source_next(void *user, int *x0, int *y0, int *x1, int *y1) {
 static int source_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   pixel_run *pr = user;
   uint64_t rays = shade_tile(pr, thread, x0, y0, x1, y1);
-  pr->rays[(size_t)thread * SLOT] += rays;
   obs_region t = {x0 + pr->r.x0, y0 + pr->r.y0, x1 + pr->r.x0, y1 + pr->r.y0};
+  if (pr->prior) rays += obs_prior_grid_rays(pr->prior, &t, pr->img->width, pr->img->height);
+  pr->rays[(size_t)thread * SLOT] += rays;
   return pr->src->done ? pr->src->done(pr->src->user, pr->img, &t, rays) : 0;
 }
 
@@ -145,6 +149,9 @@ int obs_driver_pixels(obs_render_ctx *ctx, const obs_pixel_ops *ops, const void 
   memset(out, 0, sizeof *out);
   if (!sc || !ops || (!ops->shade && !ops->block) || ops->nchannels < 1)
     return obs_err_set(err, OBS_EINVAL, "%s: per-pixel driver: no scene or shade function", name);
+  if (ops->prior && !ops->shade) /* the pilots shade single pixels */
+    return obs_err_set(err, OBS_EINVAL, "%s: per-pixel driver: a prior needs a shade function",
+                       name);
   obs_region r;
   int rc = obs_driver_region(ctx, sc->width, sc->height, &r, err);
   if (rc) return rc;
@@ -163,24 +170,50 @@ int obs_driver_pixels(obs_render_ctx *ctx, const obs_pixel_ops *ops, const void 
     free(rays);
     return rc;
   }
-  pixel_run pr = {ops, job, out, r, values, stride, rays, ctx->tiles, 0, {0, 0, 0, 0}};
-  double t0 = obs_now_ms();
+  pixel_run pr = {ops, job, out, r, values, stride, rays, ctx->tiles, 0, {0, 0, 0, 0}, NULL};
+  obs_prior_grid grid;
+  memset(&grid, 0, sizeof grid);
+  double t0 = obs_now_ms(), prior_ms = 0;
+  /* The pilots' share of the work: OBS_PRIOR_REPLICAS pixels per cell of the window. */
+  obs_progress_part parts[2] = {{ctx->progress, ctx->progress_user, 0, 0},
+                                {ctx->progress, ctx->progress_user, 0, 1}};
+  if (ops->prior) {
+    double cells = ((r.x1 - r.x0) / (double)OBS_PRIOR_CELL + 2) *
+                   ((r.y1 - r.y0) / (double)OBS_PRIOR_CELL + 2) * OBS_PRIOR_REPLICAS;
+    double pixels = (double)(r.x1 - r.x0) * (r.y1 - r.y0);
+    parts[0].share = parts[1].base = cells / (cells + pixels);
+    parts[1].share = 1 - parts[1].base;
+    rc = obs_prior_grid_build(&grid, ops, job, &r, sc->width, sc->height, threads, ctx->cancel,
+                              ctx->progress ? obs_progress_part_report : NULL, &parts[0]);
+    if (rc) {
+      free(values);
+      free(rays);
+      obs_image_free(out);
+      if (rc == OBS_ECANCELED) return obs_err_set(err, rc, "%s: render cancelled", name);
+      return obs_err_set(err, rc, "%s: per-pixel driver: out of memory", name);
+    }
+    pr.prior = &grid;
+    prior_ms = obs_now_ms() - t0;
+    obs_driver_stage_add(ctx, "prior", prior_ms);
+  }
   if (ctx->tiles) {
     ctx->tiled = 1;
     rc = obs_parallel_tiles_from(source_next, &pr, threads, source_tile, &pr, ctx->cancel);
   } else {
     rc = obs_parallel_tiles(r.x1 - r.x0, r.y1 - r.y0, threads, pixel_tile, &pr, ctx->cancel,
-                            ctx->progress, ctx->progress_user);
+                            ctx->progress ? obs_progress_part_report : NULL, &parts[1]);
   }
   ctx->render_ms = obs_now_ms() - t0;
   for (int t = 0; t < threads; t++) ctx->rays += rays[(size_t)t * SLOT];
+  if (pr.prior && !ctx->tiles) ctx->rays += obs_prior_grid_rays(&grid, &r, sc->width, sc->height);
+  obs_prior_grid_free(&grid);
   free(values);
   free(rays);
   if (rc) {
     obs_image_free(out);
     return loop_failed(&pr, name, rc, err);
   }
-  obs_driver_stage_add(ctx, "shade", ctx->render_ms);
+  obs_driver_stage_add(ctx, "shade", ctx->render_ms - prior_ms);
   return 0;
 }
 

@@ -65,13 +65,33 @@ static void rotate(uint32_t seed, const double d[3], double out[3]) {
   normalize(out);
 }
 
+/* Eight, not sampling.h's four replicates: the groups' errors are common to all the patches that
+ * pool them (one direction set for every patch), so the pooling adds less here, and the groups'
+ * own degrees of freedom must carry the estimate (measured: 93 % of patches within 3 standard
+ * errors at 16 directions with 4 groups, 99 % with 8). */
+#define BUNDLE_GROUPS 8
+
+uint32_t obs_bundle_groups(uint32_t count) {
+  return count < BUNDLE_GROUPS ? (count ? count : 1) : BUNDLE_GROUPS;
+}
+
+uint32_t obs_bundle_group_first(uint32_t count, uint32_t r) {
+  uint32_t g = obs_bundle_groups(count), base = count / g, extra = count % g;
+  return r * base + (r < extra ? r : extra);
+}
+
 void obs_bundle_get(const obs_bound_sphere *s, uint32_t seed, uint32_t count, uint32_t k,
                     uint32_t res, obs_bundle *b) {
-  /* Spherical Fibonacci: z uniform in strata, azimuth by the golden angle. */
-  double z = 1 - (2.0 * k + 1) / count, r = sqrt(fmax(0.0, 1 - z * z));
-  double phi = k * (M_PI * (3 - sqrt(5.0)));
+  uint32_t g = 0;
+  while (g + 1 < obs_bundle_groups(count) && obs_bundle_group_first(count, g + 1) <= k) g++;
+  uint32_t first = obs_bundle_group_first(count, g);
+  uint32_t n = obs_bundle_group_first(count, g + 1) - first;
+  uint32_t j = k - first;
+  /* Spherical Fibonacci over the group: z uniform in strata, azimuth by the golden angle. */
+  double z = 1 - (2.0 * j + 1) / n, r = sqrt(fmax(0.0, 1 - z * z));
+  double phi = j * (M_PI * (3 - sqrt(5.0)));
   double d[3] = {r * cos(phi), r * sin(phi), z};
-  rotate(seed, d, b->dir);
+  rotate(g ? obs_sampler_replica_seed(seed, g) : seed, d, b->dir);
   double ax[3] = {1, 0, 0};
   if (fabs(b->dir[0]) > 0.6) ax[0] = 0, ax[1] = 1;
   double dot = ax[0] * b->dir[0] + ax[1] * b->dir[1] + ax[2] * b->dir[2];

@@ -21,9 +21,10 @@ void obs_bound_sphere_of(const obs_geometry *geo, obs_bound_sphere *s);
  * and the origin of line (i, j) of the res x res grid,
  *   org = corner + (i + offset[0]) cell u + (j + offset[1]) cell v,
  * the lines starting one radius behind the sphere's centre and running 2 radii along dir. The
- * directions are a spherical Fibonacci set of `count` points turned by one random rotation from
- * `seed`; the grid covers the disc the sphere projects to, shifted by a random fraction of a cell
- * per direction (`offset`), so that a patch's sample count has no aliasing with the grid. */
+ * directions are spherical Fibonacci sets, one per group of directions (obs_bundle_groups), each
+ * turned by its own random rotation from `seed`; the grid covers the disc the sphere projects to,
+ * shifted by a random fraction of a cell per direction (`offset`), so that a patch's sample count
+ * has no aliasing with the grid. */
 typedef struct obs_bundle {
   double dir[3], u[3], v[3];
   double corner[3];
@@ -33,6 +34,13 @@ typedef struct obs_bundle {
 
 void obs_bundle_get(const obs_bound_sphere *s, uint32_t seed, uint32_t count, uint32_t k,
                     uint32_t res, obs_bundle *b);
+/* The bundles' directions form independent groups for the standard error (sampling.h's
+ * replicates, mcerr.h's ratio over groups): min(count, 8) blocks of
+ * consecutive directions, each a spherical Fibonacci set of its own size turned by its own random
+ * rotation, so that the groups' estimates are independent. Group r holds directions
+ * [obs_bundle_group_first(count, r), obs_bundle_group_first(count, r + 1)). */
+uint32_t obs_bundle_groups(uint32_t count);
+uint32_t obs_bundle_group_first(uint32_t count, uint32_t r);
 /* The origin of line (i, j) of bundle `b`. */
 static inline void obs_bundle_line(const obs_bundle *b, uint32_t i, uint32_t j, double org[3]) {
   double x = (i + b->offset[0]) * b->cell, y = (j + b->offset[1]) * b->cell;

@@ -133,3 +133,8 @@ int obs_parallel_tiles_from(obs_tile_next_fn next, void *next_user, int threads,
   p.source_user = next_user;
   return run_pool(&p);
 }
+
+void obs_progress_part_report(void *part, double fraction) {
+  const obs_progress_part *p = part;
+  p->fn(p->user, p->base + p->share * fraction);
+}

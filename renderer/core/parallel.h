@@ -27,6 +27,15 @@ int obs_parallel_tiles(int width, int height, int threads, obs_tile_fn fn, void 
                        const atomic_int *cancel, void (*progress)(void *, double),
                        void *progress_user);
 
+/* One loop of several that make up a render's progress: its loop's fraction f is reported to
+ * `fn` as base + share f. Pass obs_progress_part_report (NULL when fn is) and the part. */
+typedef struct obs_progress_part {
+  void (*fn)(void *, double);
+  void *user;
+  double base, share;
+} obs_progress_part;
+void obs_progress_part_report(void *part, double fraction);
+
 /* Gives the next tile [*x0, *x1) x [*y0, *y1): returns 1, 0 when there are no more, or a negative
  * code (which stops the loop and is returned). Called from any of the loop's threads at once. */
 typedef int (*obs_tile_next_fn)(void *user, int *x0, int *y0, int *x1, int *y1);

@@ -11,18 +11,73 @@ static double dist3(const float *a, const float *b) {
 }
 
 int obs_patch_mesh_publish(obs_render_ctx *ctx, const char *name, const obs_patch_mesh *pm,
-                           const float *rgb, obs_err *err) {
-  return obs_patch_mesh_publish_frames(ctx, name, pm, 1, rgb, err);
+                           int components, const float *values, obs_err *err) {
+  return obs_patch_mesh_publish_frames(ctx, name, pm, 1, components, values, err);
 }
 
 int obs_patch_mesh_publish_frames(obs_render_ctx *ctx, const char *name, const obs_patch_mesh *pm,
-                                  int frames, const float *rgb, obs_err *err) {
-  int rc = obs_patches_init_frames(&ctx->patches[0], name, frames, pm->count, 3, 1, err);
+                                  int frames, int components, const float *values, obs_err *err) {
+  if (ctx->npatches >= OBS_MAX_PATCH_OUTPUTS)
+    return obs_err_set(err, OBS_EINTERNAL, "per-patch output \"%s\": more than %d of them", name,
+                       OBS_MAX_PATCH_OUTPUTS);
+  obs_patches *p = &ctx->patches[ctx->npatches];
+  int rc = obs_patches_init_frames(p, name, frames, pm->count, components, 1, err);
   if (rc) return rc;
-  memcpy(ctx->patches[0].values, rgb, obs_patches_values(&ctx->patches[0]) * sizeof(float));
-  memcpy(ctx->patches[0].area, pm->area, (size_t)pm->count * sizeof(float));
-  ctx->npatches = 1;
+  memcpy(p->values, values, obs_patches_values(p) * sizeof(float));
+  memcpy(p->area, pm->area, (size_t)pm->count * sizeof(float));
+  ctx->npatches++;
   return 0;
+}
+
+/* Whether a patch's own error says nothing: no sample, or an exact value (its samples all agreed
+ * and its floor is 0). */
+static int pool_skips(const obs_patch_err *e) {
+  return !(e->n > 0) || (e->floor == 0 && !(e->var[0] > 0 || e->var[1] > 0 || e->var[2] > 0));
+}
+
+/* The mean variance of one sample per channel over patches [a, b) with samples and not exact. */
+static void pool_range(const obs_patch_err *e, int64_t a, int64_t b, double prior[3]) {
+  int64_t k = 0;
+  prior[0] = prior[1] = prior[2] = 0;
+  for (int64_t i = a; i < b; i++) {
+    if (pool_skips(&e[i])) continue;
+    for (int c = 0; c < 3; c++) prior[c] += e[i].var[c] * e[i].n;
+    k++;
+  }
+  for (int c = 0; c < 3 && k; c++) prior[c] /= (double)k;
+}
+
+void obs_patch_mesh_errors(const obs_patch_mesh *pm, const obs_patch_err *e, float *se) {
+  size_t m = 0, cached = (size_t)-1;
+  double mesh_prior[3] = {0, 0, 0};
+  for (size_t t = 0; t < pm->ntris; t++) {
+    while (pm->mesh_tri[m + 1] <= t) m++;
+    int64_t a = pm->first[t], b = pm->first[t + 1];
+    double prior[3];
+    pool_range(e, a, b, prior);
+    if (b - a == 1) { /* the mesh's, once per mesh */
+      if (cached != m) {
+        pool_range(e, pm->first[pm->mesh_tri[m]], pm->first[pm->mesh_tri[m + 1]], mesh_prior);
+        cached = m;
+      }
+      memcpy(prior, mesh_prior, sizeof prior);
+    }
+    for (int64_t i = a; i < b; i++) {
+      const obs_patch_err *p = &e[i];
+      for (int c = 0; c < 3; c++) {
+        float *out = &se[3 * i + c];
+        if (!(p->n > 0)) {
+          *out = 1.0f;
+        } else if (pool_skips(p)) {
+          *out = 0.0f;
+        } else {
+          double v = (p->df * p->var[c] + OBS_PATCH_PRIOR_WEIGHT * prior[c] / p->n) /
+                     (p->df + OBS_PATCH_PRIOR_WEIGHT);
+          *out = v > 0 ? (float)sqrt(v) : p->floor;
+        }
+      }
+    }
+  }
 }
 
 void obs_patch_mesh_warn_capped(obs_render_ctx *ctx, const obs_patch_mesh *pm) {

@@ -53,13 +53,32 @@ static inline int64_t obs_patch_mesh_find(const obs_patch_mesh *pm, unsigned geo
   size_t t = obs_patch_mesh_tri(pm, geom, prim);
   return pm->first[t] + obs_patch_sub_index(pm->split[t], u, v);
 }
-/* Hands a map of RGB values per patch (pm->count x 3) to the render as its per-patch output
- * `name`, with the patches' areas (both copied). */
+/* Hands a map of `components` values per patch (pm->count x components: 3 for RGB, 1 for a
+ * scalar) to the render as its next per-patch output `name` (ctx->patches[ctx->npatches]), with
+ * the patches' areas (both copied). */
 int obs_patch_mesh_publish(obs_render_ctx *ctx, const char *name, const obs_patch_mesh *pm,
-                           const float *rgb, obs_err *err);
-/* The same for `frames` maps one after the other (frames x pm->count x 3 values). */
+                           int components, const float *values, obs_err *err);
+/* The same for `frames` maps one after the other (frames x pm->count x components values). */
 int obs_patch_mesh_publish_frames(obs_render_ctx *ctx, const char *name, const obs_patch_mesh *pm,
-                                  int frames, const float *rgb, obs_err *err);
+                                  int frames, int components, const float *values, obs_err *err);
+/* What a map's patch knows of its own error: the variance of its mean from its samples (0 when
+ * they all agreed), their number n (0: none reached it) and the variance's degrees of freedom,
+ * and the floor it reports when they agreed (mcerr.h; 0: its value is exact). */
+typedef struct obs_patch_err {
+  double var[3], n, df; /* var per channel */
+  float floor;
+} obs_patch_err;
+/* The patches' standard errors (docs/techniques/obscurance_map.md, "Standard errors"): each
+ * patch's variance in each channel pooled with a prior, the mean variance of one sample over the
+ * patches of its triangle (or, for a triangle of one patch, of its mesh) with samples and not
+ * exact, over its own n, with OBS_PATCH_PRIOR_WEIGHT degrees of freedom:
+ * (df var + w p / n) / (df + w). Like the
+ * per-pixel prior (driver.h) it makes up for events too rare for a patch's few samples: where they
+ * were missed, mean and spread are both low. 1 where no sample reached a patch (its value is a
+ * convention); the floor where the pooled variance is 0 (0 where exact). */
+#define OBS_PATCH_PRIOR_WEIGHT 8.0
+void obs_patch_mesh_errors(const obs_patch_mesh *pm, const obs_patch_err *e, float *se);
+/* (se: count x 3, patch-major, one per channel) */
 /* Warns the render when the split of some triangles was capped at OBS_PATCH_SPLIT_MAX. */
 void obs_patch_mesh_warn_capped(obs_render_ctx *ctx, const obs_patch_mesh *pm);
 /* The triangle holding `patch` and its sub-triangle index there. */

@@ -56,6 +56,60 @@ void obs_sampler2d_init(obs_sampler2d *s, obs_sampler_kind kind, uint32_t x, uin
   s->scramble1 = obs_hash32(h ^ 0xa511e9b3U);
 }
 
+void obs_rqmc_init(obs_rqmc *q, obs_sampler_kind kind, uint32_t x, uint32_t y,
+                   uint32_t pixel_sample, uint32_t stream, uint32_t seed, uint32_t n) {
+  obs_rqmc_init_max(q, kind, x, y, pixel_sample, stream, seed, n, OBS_RQMC_REPLICATES);
+}
+
+void obs_rqmc_init_max(obs_rqmc *q, obs_sampler_kind kind, uint32_t x, uint32_t y,
+                       uint32_t pixel_sample, uint32_t stream, uint32_t seed, uint32_t n,
+                       uint32_t max) {
+  obs_sampler2d_init(&q->s[0], kind, x, y, pixel_sample, stream, seed);
+  q->n = n;
+  if (max > OBS_RQMC_MAX) max = OBS_RQMC_MAX;
+  q->reps = kind == OBS_SAMPLER_RANDOM ? (n ? n : 1) : n < max ? (n ? n : 1) : max;
+  if (kind == OBS_SAMPLER_RANDOM) return;
+  /* Replicate r > 0: the stream's seeds hashed with r, an independent scramble. */
+  for (uint32_t r = 1; r < q->reps; r++) {
+    q->s[r].kind = kind;
+    q->s[r].scramble0 = obs_hash_combine(q->s[0].scramble0, 0x51ed270bU + r);
+    q->s[r].scramble1 = obs_hash32(q->s[r].scramble0 ^ 0xa511e9b3U);
+  }
+}
+
+uint32_t obs_rqmc_locate(const obs_rqmc *q, uint32_t i, uint32_t *j) {
+  if (q->s[0].kind == OBS_SAMPLER_RANDOM) {
+    *j = i;
+    return 0;
+  }
+  uint32_t base = q->n / q->reps, extra = q->n % q->reps, big = extra * (base + 1);
+  if (i < big) {
+    *j = i % (base + 1);
+    return i / (base + 1);
+  }
+  *j = (i - big) % base;
+  return extra + (i - big) / base;
+}
+
+int obs_rqmc_get(const obs_rqmc *q, uint32_t i, float *u, float *v) {
+  uint32_t j, r = obs_rqmc_locate(q, i, &j);
+  obs_sampler2d_get(&q->s[r], j, u, v);
+  return q->s[0].kind == OBS_SAMPLER_RANDOM || i + 1 == obs_rqmc_first(q, r + 1);
+}
+
+void obs_rqmc_get_n(const obs_rqmc *q, uint32_t i0, uint32_t m, float *u, float *v, int isa) {
+  if (q->s[0].kind == OBS_SAMPLER_RANDOM) {
+    obs_sampler2d_get_n(&q->s[0], i0, m, u, v, isa);
+    return;
+  }
+  for (uint32_t k = 0; k < m;) {
+    uint32_t j, r = obs_rqmc_locate(q, i0 + k, &j), end = obs_rqmc_first(q, r + 1) - i0;
+    uint32_t len = (end < m ? end : m) - k;
+    obs_sampler2d_get_n(&q->s[r], j, len, u + k, v + k, isa);
+    k += len;
+  }
+}
+
 #if OBS_SIMD_AVX2
 OBS_AVX2_INLINE __m256i reverse_bits8(__m256i x) {
   static const uint32_t m[4] = {0x55555555U, 0x33333333U, 0x0F0F0F0FU, 0x00FF00FFU};

@@ -9,12 +9,15 @@
  * path_trace does (emitters.h), without the BSDF strategy: next-event estimation alone is unbiased
  * for direct light from area emitters. docs/techniques/obscurance.md states the model. */
 #include <math.h>
+#include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "camera.h"
 #include "driver.h"
 #include "emitters.h"
+#include "halfball.h"
+#include "mcerr.h"
 #include "obscura/render.h"
 #include "obscurance.h"
 #include "obscurance_params.h"
@@ -66,95 +69,118 @@ static const obs_object *hit_object(const ob_job *jb, const obs_hit *h) {
   return &jb->sc->objects[obs_rt_hit_object(jb->rt, h->geom, h->prim)];
 }
 
-/* The standard error reported for the mean of n values in [0, 1]: the Wilson score interval at
- * z = 3 (rt_ao's, see renderer/cpu/rt_ao.c), honest also when every ray agrees. */
-static double wilson_stderr(double mean, double n) {
-  const double z = 3.0, z2 = z * z;
-  double den = 1.0 + z2 / n;
-  double c = (mean + z2 / (2.0 * n)) / den;
-  double h = z / den * sqrt(fmax(0.0, mean * (1.0 - mean)) / n + z2 / (4.0 * n * n));
-  return (fabs(c - mean) + h) / z;
-}
-
 /* W(P) by eq. (6): the mean over cosine-distributed directions of rho(d), or with colour bleeding
- * of R(Q) rho(d) (R_ave when no surface lies within d_max). */
+ * of R(Q) rho(d) (R_ave when no surface lies within d_max), with its standard error from the
+ * directions' replicates (mcerr.h). */
 static uint64_t obscurance_at(const ob_job *jb, const obs_hit *hit, const float org[3],
                               obs_rt_ctx *ctx, uint32_t x, uint32_t y, uint32_t s, ob_point *pt) {
   const obs_obscurance_params *p = &jb->p;
   float t[3], b[3];
   obs_onb(hit->ns, t, b);
-  obs_sampler2d smp;
-  obs_sampler2d_init(&smp, jb->sampler, x, y, s, 1, p->seed);
+  obs_rqmc smp;
+  obs_rqmc_init(&smp, jb->sampler, x, y, s, 1, p->seed, p->samples);
   float tfar = (float)p->d_max;
-  double sum[3] = {0, 0, 0};
+  double part[3] = {0, 0, 0};
+  obs_mcerr e[3];
+  memset(e, 0, sizeof e);
   uint64_t rays = 0;
+  uint32_t first = 0, escaped = 0;
   for (uint32_t i = 0; i < p->samples; i++) {
     float u, v, l[3], w[3];
-    obs_sampler2d_get(&smp, i, &u, &v);
+    int last = obs_rqmc_get(&smp, i, &u, &v);
     obs_sample_cosine(u, v, l);
     for (int k = 0; k < 3; k++) w[k] = l[0] * t[k] + l[1] * b[k] + l[2] * hit->ns[k];
     /* Shading normals may tilt the hemisphere below the true surface; such a direction runs
      * into the surface itself: a surface at distance 0, rho(0) = 0 for every falloff. */
-    if (w[0] * hit->ng[0] + w[1] * hit->ng[1] + w[2] * hit->ng[2] <= 0.0f) continue;
-    rays++;
-    if (p->color_bleeding) {
-      obs_hit q;
-      if (obs_rt_intersect_from(jb->rt, ctx, org, w, tfar, &q) && (double)q.t < p->d_max) {
-        double r = obs_falloff_rho(&jb->f, (double)q.t), rq[3];
-        vec3(&hit_object(jb, &q)->reflectivity, rq);
-        for (int k = 0; k < 3; k++) sum[k] += rq[k] * r;
+    if (w[0] * hit->ng[0] + w[1] * hit->ng[1] + w[2] * hit->ng[2] > 0.0f) {
+      rays++;
+      if (p->color_bleeding) {
+        obs_hit q;
+        if (obs_rt_intersect_from(jb->rt, ctx, org, w, tfar, &q) && (double)q.t < p->d_max) {
+          double r = obs_falloff_rho(&jb->f, (double)q.t), rq[3];
+          vec3(&hit_object(jb, &q)->reflectivity, rq);
+          for (int k = 0; k < 3; k++) part[k] += rq[k] * r;
+        } else {
+          for (int k = 0; k < 3; k++) part[k] += jb->r_ave[k];
+          escaped++;
+        }
       } else {
-        for (int k = 0; k < 3; k++) sum[k] += jb->r_ave[k];
+        double r = p->falloff == OBS_FALLOFF_BINARY
+                       ? (obs_rt_occluded(jb->rt, ctx, org, w, tfar) ? 0.0 : 1.0)
+                       : obs_falloff_rho(&jb->f, obs_rt_distance(jb->rt, ctx, org, w, tfar));
+        for (int k = 0; k < 3; k++) part[k] += r;
+        escaped += r == 1.0;
       }
-    } else {
-      double r = p->falloff == OBS_FALLOFF_BINARY
-                     ? (obs_rt_occluded(jb->rt, ctx, org, w, tfar) ? 0.0 : 1.0)
-                     : obs_falloff_rho(&jb->f, obs_rt_distance(jb->rt, ctx, org, w, tfar));
-      for (int k = 0; k < 3; k++) sum[k] += r;
+    }
+    if (last) {
+      for (int k = 0; k < 3; k++) obs_mcerr_add(&e[k], part[k] / (double)(i + 1 - first));
+      memset(part, 0, sizeof part);
+      first = i + 1;
     }
   }
+  /* Every direction escaped: exact where nothing lies within d_max above the point, else bounded
+   * by what does. With colour bleeding an unseen hit changes R_ave to R(Q) rho, by up to 1. */
+  double escaped_se = escaped == p->samples
+                          ? obs_rt_escape_stderr(jb->rt, hit, org, &jb->f, tfar, 0,
+                                                 p->color_bleeding ? 1.0 : 0.0, p->samples)
+                          : -1;
   for (int k = 0; k < 3; k++) {
-    pt->w[k] = sum[k] / p->samples;
-    pt->w_se[k] = wilson_stderr(pt->w[k], p->samples);
+    pt->w[k] = e[k].mean;
+    /* An exact W stays +0; a floor is negated (driver.h, obs_pixel_prior). */
+    pt->w_se[k] = escaped_se > 0    ? -escaped_se
+                  : escaped_se == 0 ? 0.0
+                                    : obs_mcerr_stderr(&e[k], p->samples, 1.0, 1);
   }
   return rays;
 }
 
 /* Direct light reflected at the hit: light_samples emitter points, each with its shadow ray
- * (emitters.h; the same choice and densities as path_trace's next-event estimation). */
+ * (emitters.h; the same choice and densities as path_trace's next-event estimation), in
+ * replicates for the standard error. When they all agree (every point shadowed, say) one unseen
+ * visible point adds at most its unshadowed value: the largest such value met is the span. */
 static uint64_t direct_at(const ob_job *jb, const obs_hit *hit, const float org[3],
                           obs_rt_ctx *ctx, uint32_t x, uint32_t y, uint32_t s, ob_point *pt) {
   const uint32_t n = jb->p.light_samples;
-  double sum[3] = {0, 0, 0}, sum2[3] = {0, 0, 0};
+  double part[3] = {0, 0, 0}, span = 0;
+  obs_mcerr e[3];
+  memset(e, 0, sizeof e);
   uint64_t rays = 0;
-  if (jb->em.n && mean3_pos(pt->rho)) {
-    obs_sampler2d s2, s3;
-    obs_sampler2d_init(&s2, jb->sampler, x, y, s, 2, jb->p.seed);
-    obs_sampler2d_init(&s3, jb->sampler, x, y, s, 3, jb->p.seed);
-    for (uint32_t i = 0; i < n; i++) {
-      float a, b, c, unused;
-      obs_sampler2d_get(&s2, i, &a, &b);
+  int lit = jb->em.n && mean3_pos(pt->rho);
+  obs_rqmc s2, s3;
+  obs_rqmc_init(&s2, jb->sampler, x, y, s, 2, jb->p.seed, n);
+  obs_rqmc_init(&s3, jb->sampler, x, y, s, 3, jb->p.seed, n);
+  uint32_t first = 0;
+  for (uint32_t i = 0; i < n; i++) {
+    float a, b, c, unused;
+    int last = obs_rqmc_get(&s2, i, &a, &b);
+    if (lit) {
       /* The third coordinate from another stream at a shuffled index: two streams read at one
        * index are correlated (sampling.h, obs_sample_shuffle). */
-      obs_sampler2d_get(&s3, obs_sample_shuffle(i, s3.scramble0 ^ 0x5bd1e995U), &c, &unused);
+      uint32_t j, r = obs_rqmc_locate(&s3, i, &j);
+      obs_sampler2d_get(&s3.s[r], obs_sample_shuffle(j, s3.s[r].scramble0 ^ 0x5bd1e995U), &c,
+                        &unused);
       const double u[3] = {a, b, c};
       obs_emitter_sample es;
-      if (!obs_emitters_sample(&jb->em, hit, u, &es)) continue;
-      rays++;
-      float w[3] = {(float)es.wi[0], (float)es.wi[1], (float)es.wi[2]};
-      if (obs_rt_occluded(jb->rt, ctx, org, w, (float)(es.dist * (1 - 1e-4)))) continue;
-      for (int k = 0; k < 3; k++) {
-        double v = pt->rho[k] * INV_PI * es.e->le[k] * es.coss / es.pdf;
-        sum[k] += v;
-        sum2[k] += v * v;
+      if (obs_emitters_sample(&jb->em, hit, u, &es)) {
+        rays++;
+        float w[3] = {(float)es.wi[0], (float)es.wi[1], (float)es.wi[2]};
+        int shadowed = obs_rt_occluded(jb->rt, ctx, org, w, (float)(es.dist * (1 - 1e-4)));
+        for (int k = 0; k < 3; k++) {
+          double v = pt->rho[k] * INV_PI * es.e->le[k] * es.coss / es.pdf;
+          span = fmax(span, v);
+          if (!shadowed) part[k] += v;
+        }
       }
+    }
+    if (last) {
+      for (int k = 0; k < 3; k++) obs_mcerr_add(&e[k], part[k] / (double)(i + 1 - first));
+      memset(part, 0, sizeof part);
+      first = i + 1;
     }
   }
   for (int k = 0; k < 3; k++) {
-    double mean = sum[k] / n;
-    double var = n > 1 ? fmax(0.0, (sum2[k] - n * mean * mean) / (n - 1)) : 0.0;
-    pt->direct[k] += mean;
-    pt->d_se[k] = sqrt(var / n);
+    pt->direct[k] += e[k].mean;
+    pt->d_se[k] = obs_mcerr_stderr(&e[k], n, span, 1);
   }
   return rays;
 }
@@ -178,6 +204,9 @@ static uint64_t ob_shade(const void *job, int thread, int x, int y, float *v) {
   const ob_job *jb = job;
   double acc[CH_COUNT];
   memset(acc, 0, sizeof acc);
+  obs_mcerr_pixel err_w[3], err_f[3];
+  memset(err_w, 0, sizeof err_w);
+  memset(err_f, 0, sizeof err_f);
   uint64_t rays = 0;
   int hits = 0;
   obs_sampler2d jit;
@@ -215,11 +244,16 @@ static uint64_t ob_shade(const void *job, int thread, int x, int y, float *v) {
       double a = pt.rho[k] * jb->ia[k]; /* R(P) I_A */
       double ind = a * pt.w[k], ind_se = a * pt.w_se[k];
       acc[CH_W + k] += pt.w[k];
-      acc[CH_WS + k] += pt.w_se[k] * pt.w_se[k];
+      obs_mcerr_pixel_add(&err_w[k], pt.w_se[k]);
       acc[CH_I + k] += ind;
       acc[CH_D + k] += pt.direct[k];
       acc[CH_F + k] += pt.direct[k] + ind;
-      acc[CH_FS + k] += pt.d_se[k] * pt.d_se[k] + ind_se * ind_se;
+      /* Direct and indirect errors are independent; negated (agreed) only when neither has a
+       * spread. */
+      double fse = sqrt(pt.d_se[k] * pt.d_se[k] + ind_se * ind_se);
+      obs_mcerr_pixel_add(&err_f[k], pt.d_se[k] > 0 || ind_se > 0                   ? fse
+                                     : signbit(pt.d_se[k]) || signbit(ind_se) ? -fse
+                                                                              : 0.0);
       acc[CH_C + k] += pt.direct[k] + (found ? a * jb->open[k] : 0.0);
     }
   }
@@ -228,8 +262,8 @@ static uint64_t ob_shade(const void *job, int thread, int x, int y, float *v) {
     static const int means[] = {CH_F, CH_W, CH_I, CH_D, CH_C};
     for (size_t m = 0; m < sizeof means / sizeof means[0]; m++)
       v[means[m] + k] = (float)(acc[means[m] + k] / n);
-    v[CH_FS + k] = (float)(sqrt(acc[CH_FS + k]) / n);
-    v[CH_WS + k] = (float)(sqrt(acc[CH_WS + k]) / n);
+    v[CH_FS + k] = (float)obs_mcerr_pixel_stderr(&err_f[k], jb->spp);
+    v[CH_WS + k] = (float)obs_mcerr_pixel_stderr(&err_w[k], jb->spp);
   }
   double nl = sqrt(acc[CH_NX] * acc[CH_NX] + acc[CH_NX + 1] * acc[CH_NX + 1] +
                    acc[CH_NX + 2] * acc[CH_NX + 2]);
@@ -238,6 +272,20 @@ static uint64_t ob_shade(const void *job, int thread, int x, int y, float *v) {
   v[CH_ALPHA] = (float)hits / (float)jb->spp;
   return rays;
 }
+
+/* Channels 0-2 (final) carry W's error and the direct light's: the fewer degrees of freedom. */
+static double ob_df(const void *job, int c) {
+  const ob_job *jb = job;
+  double w = obs_rqmc_replicates(jb->sampler, jb->p.samples) - 1.0;
+  double d = obs_rqmc_replicates(jb->sampler, jb->p.light_samples) - 1.0;
+  return jb->spp * (c < 3 && d < w ? d : w);
+}
+
+static const int ob_se[6] = {CH_FS, CH_FS + 1, CH_FS + 2, CH_WS, CH_WS + 1, CH_WS + 2};
+static const int ob_values[6] = {CH_F, CH_F + 1, CH_F + 2, CH_W, CH_W + 1, CH_W + 2};
+static const obs_pixel_prior ob_prior = {
+    6, ob_se, ob_values, CH_ALPHA, sizeof(ob_job),
+    offsetof(ob_job, p) + offsetof(obs_obscurance_params, seed), ob_df};
 
 /* The scene-wide terms: R_ave, W of an open point and I_A, which is, first found: the `ambient`
  * parameter; a sky (environment.color above zero: an open scene, where an open point sees it all
@@ -284,7 +332,8 @@ int obs_obscurance_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   if (!rc) rc = obs_emitters_build(sc, jb.rt, &jb.em, err);
   ctx->build_ms += obs_now_ms() - t0;
   if (!rc) {
-    static const obs_pixel_ops ops = {CH_COUNT, channel_names, ob_shade, NULL};
+    static const obs_pixel_ops ops = {CH_COUNT, channel_names, .shade = ob_shade,
+                                        .prior = &ob_prior};
     rc = obs_driver_pixels(ctx, &ops, &jb, out, err);
   }
   obs_emitters_free(&jb.em);

@@ -9,6 +9,8 @@
 
 #include "driver.h"
 #include "normalize.h"
+#include "halfball.h"
+#include "mcerr.h"
 #include "obscura/render.h"
 #include "parallel.h"
 #include "patch_ids.h"
@@ -114,10 +116,10 @@ static uint64_t ray_sample(const obs_omap_job *j, obs_omap_acc *acc, patch_frame
   return 1;
 }
 
-/* Every sample of one patch into acc (zeroed here). */
-static uint64_t rays_patch(const obs_omap_job *j, int64_t patch, obs_omap_acc *acc) {
+/* Patch `patch`'s frame: corners, normal, tangents, the hit its rays leave and their context.
+ * 0 for a patch without area or normal (no sample). */
+static int patch_frame_init(const obs_omap_job *j, int64_t patch, patch_frame *f) {
   const obs_patch_mesh *pm = j->pm;
-  memset(acc, 0, sizeof *acc);
   int64_t sub;
   size_t t = obs_patch_mesh_owner(pm, patch, &sub);
   if (!(pm->area[patch] > 0)) return 0; /* degenerate: no normal, no sample */
@@ -128,34 +130,76 @@ static uint64_t rays_patch(const obs_omap_job *j, int64_t patch, obs_omap_acc *a
   const obs_mesh *me = &j->rt->geo.meshes[m];
   const float *v[3];
   for (int k = 0; k < 3; k++) v[k] = me->pos + 3 * (size_t)me->idx[3 * (size_t)prim + (size_t)k];
-  patch_frame f;
-  memset(&f, 0, sizeof f);
+  memset(f, 0, sizeof *f);
   double uv[3][2];
   obs_patch_sub_corners(pm->split[t], sub, uv);
   float mag = 0;
   for (int q = 0; q < 3; q++)
     for (int k = 0; k < 3; k++) {
-      f.c[q][k] = v[0][k] + uv[q][0] * ((double)v[1][k] - v[0][k]) +
-                  uv[q][1] * ((double)v[2][k] - v[0][k]);
-      mag = fmaxf(mag, fabsf((float)f.c[q][k]));
+      f->c[q][k] = v[0][k] + uv[q][0] * ((double)v[1][k] - v[0][k]) +
+                   uv[q][1] * ((double)v[2][k] - v[0][k]);
+      mag = fmaxf(mag, fabsf((float)f->c[q][k]));
     }
   double n[3];
   obs_omap_tri_normal(j->rt, (unsigned)m, prim, n);
   if (obs_normalize3d(n)) return 0;
-  for (int k = 0; k < 3; k++) f.from.ng[k] = f.from.ns[k] = (float)n[k];
-  obs_onb(f.from.ng, f.tb[0], f.tb[1]);
+  for (int k = 0; k < 3; k++) f->from.ng[k] = f->from.ns[k] = (float)n[k];
+  obs_onb(f->from.ng, f->tb[0], f->tb[1]);
   /* A point is a convex combination of the corners rounded once: a few ulps of the largest
    * coordinate. */
-  for (int k = 0; k < 3; k++) f.from.perr[k] = mag * 0x1p-21f;
-  f.from.geom = (unsigned)m, f.from.prim = prim;
-  f.own_moving = me->obj_pos != NULL;
-  obs_rt_ctx_init(&f.ctx, j->rt, &f.from);
+  for (int k = 0; k < 3; k++) f->from.perr[k] = mag * 0x1p-21f;
+  f->from.geom = (unsigned)m, f->from.prim = prim;
+  f->own_moving = me->obj_pos != NULL;
+  obs_rt_ctx_init(&f->ctx, j->rt, &f->from);
+  return 1;
+}
+
+/* Whether no surface lies within d_max above the patch: then every ray from any of its points
+ * escapes, its value is exact. Tested from its centroid over d_max plus its circumradius. */
+static int patch_open(const obs_omap_job *j, int64_t patch) {
+  patch_frame f;
+  if (!patch_frame_init(j, patch, &f)) return 0;
+  double r = 0;
+  for (int k = 0; k < 3; k++) f.from.p[k] = (float)((f.c[0][k] + f.c[1][k] + f.c[2][k]) / 3);
+  for (int q = 0; q < 3; q++) {
+    double d2 = 0;
+    for (int k = 0; k < 3; k++) d2 += (f.c[q][k] - f.from.p[k]) * (f.c[q][k] - f.from.p[k]);
+    r = fmax(r, sqrt(d2));
+  }
+  float org[3];
+  obs_rt_offset(j->rt, &f.from, org);
+  obs_halfball h;
+  obs_rt_halfball(j->rt, &f.from, org, isinf(j->f.d_max) ? INFINITY : (float)(j->f.d_max + r), &h);
+  return isinf(h.nearest);
+}
+
+/* Every sample of one patch into acc (zeroed here), in replicates (sampling.h): each with its
+ * own rotations of the points' and directions' Halton streams, its sums into the patch's groups
+ * (mcerr.h's ratio over groups: the back faces a replicate meets leave it fewer samples). */
+static uint64_t rays_patch(const obs_omap_job *j, int64_t patch, obs_omap_acc *acc) {
+  memset(acc, 0, sizeof *acc);
+  obs_mcerr_ratio *g = j->groups + 3 * (size_t)patch;
+  memset(g, 0, 3 * sizeof *g);
+  patch_frame f;
+  if (!patch_frame_init(j, patch, &f)) return 0;
   uint32_t lo = (uint32_t)patch, hi = (uint32_t)((uint64_t)patch >> 32);
-  obs_sampler2d_init(&f.pts, OBS_SAMPLER_HALTON, lo, hi, 0, 0, j->p.seed);
-  obs_sampler2d_init(&f.dirs, OBS_SAMPLER_HALTON, lo, hi, 0, 1, j->p.seed);
-  f.shuffle = obs_hash_combine(obs_hash_combine(j->p.seed, lo), hi ^ 0x5bd1e995U);
+  /* Eight replicates: the pooling over a triangle's patches is coarser than a pixel's, so a
+   * patch's own spread must carry more (with four, the two seeds' difference came out 0.75 of
+   * the reported error on tests/unit/test_obscurance_agree.c's floor). */
+  obs_rqmc pts, dirs;
+  obs_rqmc_init_max(&pts, OBS_SAMPLER_HALTON, lo, hi, 0, 0, j->p.seed, j->p.samples, 8);
+  obs_rqmc_init_max(&dirs, OBS_SAMPLER_HALTON, lo, hi, 0, 1, j->p.seed, j->p.samples, 8);
   uint64_t rays = 0;
-  for (uint32_t i = 0; i < j->p.samples; i++) rays += ray_sample(j, acc, &f, i);
+  for (uint32_t r = 0; r < pts.reps; r++) {
+    f.pts = pts.s[r], f.dirs = dirs.s[r];
+    f.shuffle = obs_hash_combine(obs_hash_combine(j->p.seed + r, lo), hi ^ 0x5bd1e995U);
+    obs_omap_acc before = *acc;
+    uint32_t m = obs_rqmc_first(&pts, r + 1) - obs_rqmc_first(&pts, r);
+    for (uint32_t i = 0; i < m; i++) rays += ray_sample(j, acc, &f, i);
+    for (int c = 0; c < 3; c++)
+      obs_mcerr_ratio_add(&g[c], (double)(acc->s[c] - before.s[c]) / OMAP_ONE,
+                          (double)(acc->n - before.n));
+  }
   if (j->hits_moving) j->hits_moving[patch] = (unsigned char)f.hit_moving;
   return rays;
 }
@@ -193,7 +237,12 @@ static int job_reflectivities(obs_omap_job *j, const obs_scene *scene, obs_err *
   return 0;
 }
 
-/* Patch i's accumulated sums into its value, standard error and count in `out`. */
+/* Patch i's accumulated sums into its value and count in `out`, and what it knows of its error
+ * into j->errs (pooled into out->se by obs_patch_mesh_errors). The rays and bundles estimators'
+ * samples come in independent groups (replicates, groups of directions): the variance is their
+ * spread (mcerr.h's ratio over groups). The global lines' are independent: each sample its own
+ * group, from the sums of values and squares. When they all agree the floor is mcerr.h's, or 0
+ * where no surface lies within d_max above the patch (its value is then exact). */
 static void finish_patch(const obs_omap_job *j, obs_omap *out, int64_t i) {
   const int64_t count = j->pm->count;
   obs_omap_acc a;
@@ -203,30 +252,71 @@ static void finish_patch(const obs_omap_job *j, obs_omap *out, int64_t i) {
     for (int c = 0; c < 3; c++) a.s[c] += b->s[c], a.q[c] += b->q[c];
     a.n += b->n;
   }
-  out->n[i] = a.n;
-  if (!a.n) {
+  const obs_mcerr_ratio *g = j->groups ? j->groups + 3 * (size_t)i : NULL;
+  double n = g ? g[0].n : (double)a.n;
+  obs_patch_err *e = &j->errs[i];
+  out->n[i] = (uint64_t)n;
+  *e = (obs_patch_err){{0, 0, 0}, n, 0, 0};
+  if (!(n > 0)) {
     double v[3];
     obs_omap_value(j, INFINITY, NULL, v);
     for (int c = 0; c < 3; c++) out->w[3 * i + c] = (float)v[c];
-    out->se[i] = 1.0f;
     return;
   }
-  double n = (double)a.n, var = 0;
   for (int c = 0; c < 3; c++) {
-    double w = (double)a.s[c] / OMAP_ONE / n;
+    double w = g ? g[c].s / n : (double)a.s[c] / OMAP_ONE / n;
     out->w[3 * i + c] = (float)fmin(1.0, fmax(0.0, w));
-    var = fmax(var, fmax(0.0, (double)a.q[c] / OMAP_ONE / n - w * w) * (n > 1 ? n / (n - 1) : 0));
+    double v = g ? obs_mcerr_ratio_var(&g[c])
+                 : fmax(0.0, (double)a.q[c] / OMAP_ONE / n - w * w) / (n > 1 ? n - 1 : 1);
+    e->var[c] = v;
   }
-  /* One sample says nothing of the spread: the widest a value in [0, 1] can have. */
-  out->se[i] = (float)(n > 1 ? sqrt(var / n) : 0.5);
+  e->df = g ? g[0].groups - 1.0 : n - 1;
+  /* A channel whose samples all agreed reports the floor, 0 where the patch is open. */
+  if (!(e->var[0] > 0 && e->var[1] > 0 && e->var[2] > 0))
+    e->floor = patch_open(j, i) ? 0.0f : (float)obs_mcerr_floor((uint32_t)fmin(n, 4e9), 1.0);
 }
 
 /* The accumulated sums of the patches sampled into `out`; the unsampled count of the whole map. */
 static void finish(const obs_omap_job *j, obs_omap *out) {
   int64_t n = j->list ? j->nlist : j->pm->count;
   for (int64_t i = 0; i < n; i++) finish_patch(j, out, j->list ? j->list[i] : i);
+  obs_patch_mesh_errors(j->pm, j->errs, out->se);
   out->unsampled = 0;
   for (int64_t i = 0; i < j->pm->count; i++) out->unsampled += !out->n[i] && j->pm->area[i] > 0;
+}
+
+/* The bundles, group by group of directions (obs_bundle_groups), one chunk per grid row of each
+ * direction; after each group its per-thread sums are folded into every patch's groups and
+ * cleared. */
+static int run_bundles(obs_omap_job *j, const atomic_int *cancel, obs_progress_fn progress,
+                       void *progress_user) {
+  const int64_t count = j->pm->count;
+  const uint32_t ng = obs_bundle_groups(j->p.directions);
+  memset(j->groups, 0, 3 * (size_t)count * sizeof *j->groups);
+  int rc = 0;
+  for (uint32_t r = 0; r < ng && !rc; r++) {
+    j->dir0 = obs_bundle_group_first(j->p.directions, r);
+    uint32_t dirs = obs_bundle_group_first(j->p.directions, r + 1) - j->dir0;
+    obs_progress_part pp = {progress, progress_user, (double)j->dir0 / j->p.directions,
+                            (double)dirs / j->p.directions};
+    rc = obs_parallel_tiles((int)(dirs * j->p.bundle_resolution), 1, j->threads,
+                            obs_omap_bundle_tile, j, cancel,
+                            progress ? obs_progress_part_report : NULL, &pp);
+    for (int64_t i = 0; i < count && !rc; i++) {
+      obs_omap_acc a;
+      memset(&a, 0, sizeof a);
+      for (int t = 0; t < j->acc_sets; t++) {
+        obs_omap_acc *b = &j->acc[(size_t)t * (size_t)count + (size_t)i];
+        for (int c = 0; c < 3; c++) a.s[c] += b->s[c];
+        a.n += b->n;
+        memset(b, 0, sizeof *b);
+      }
+      for (int c = 0; c < 3; c++)
+        obs_mcerr_ratio_add(&j->groups[3 * (size_t)i + (size_t)c], (double)a.s[c] / OMAP_ONE,
+                            (double)a.n);
+    }
+  }
+  return rc;
 }
 
 static int run_estimator(obs_omap_job *j, const atomic_int *cancel, obs_progress_fn progress,
@@ -244,9 +334,8 @@ static int run_estimator(obs_omap_job *j, const atomic_int *cancel, obs_progress
       return obs_parallel_tiles((int)chunks, 1, j->threads, obs_omap_global_tile, j, cancel,
                                 progress, progress_user);
     }
-    default: /* one chunk per grid row of each direction */
-      return obs_parallel_tiles((int)(j->p.directions * j->p.bundle_resolution), 1, j->threads,
-                                obs_omap_bundle_tile, j, cancel, progress, progress_user);
+    default:
+      return run_bundles(j, cancel, progress, progress_user);
   }
 }
 
@@ -286,14 +375,18 @@ int obs_omap_job_init(obs_omap_job *j, const obs_rt *rt, const obs_scene *scene,
   size_t count = (size_t)out->pm.count, n1 = count ? count : 1;
   j->acc_sets = j->p.method == OBS_OMAP_RAYS ? 1 : j->threads;
   j->acc = calloc((size_t)j->acc_sets * n1, sizeof *j->acc);
+  if (j->p.method != OBS_OMAP_GLOBAL_LINES) j->groups = calloc(3 * n1, sizeof *j->groups);
   j->rays = calloc((size_t)j->threads * 8, sizeof *j->rays);
   out->w = malloc(3 * n1 * sizeof *out->w);
-  out->se = malloc(n1 * sizeof *out->se);
+  out->se = malloc(3 * n1 * sizeof *out->se);
   out->n = malloc(n1 * sizeof *out->n);
-  if (!j->acc || !j->rays || !out->w || !out->se || !out->n)
+  if (!j->acc || !j->rays || !out->w || !out->se || !out->n ||
+      (j->p.method != OBS_OMAP_GLOBAL_LINES && !j->groups))
     rc = obs_err_set(err, OBS_ENOMEM, "%s: obscurance_map: out of memory for %zu patches",
                      scene->name, count);
   if (!rc) rc = job_reflectivities(j, scene, err);
+  if (!rc && !(j->errs = calloc(n1, sizeof *j->errs)))
+    rc = obs_err_set(err, OBS_ENOMEM, "%s: obscurance_map: out of memory", scene->name);
   if (!rc && j->p.method == OBS_OMAP_RAYS && halton_table(j))
     rc = obs_err_set(err, OBS_ENOMEM, "%s: obscurance_map: out of memory", scene->name);
   if (rc) {
@@ -319,6 +412,8 @@ int obs_omap_job_run(obs_omap_job *j, obs_omap *out, const atomic_int *cancel,
 
 void obs_omap_job_free(obs_omap_job *j) {
   free(j->acc);
+  free(j->groups);
+  free(j->errs);
   free(j->rays);
   free(j->mesh_r);
   free(j->sphere_r);
@@ -344,9 +439,10 @@ int obs_omap_compute(const obs_rt *rt, const obs_scene *scene, const obs_obscura
 
 /* ---- the run: the map, its patches file and its image ---- */
 
-enum { CH_W, CH_R, CH_G, CH_B, CH_ALPHA, CH_COUNT };
-static const char *const channel_names[CH_COUNT] = {
-    "obscurance", "obscurance_rgb.R", "obscurance_rgb.G", "obscurance_rgb.B", "alpha"};
+enum { CH_W, CH_SE, CH_R, CH_G, CH_B, CH_ALPHA, CH_COUNT };
+static const char *const channel_names[CH_COUNT] = {"obscurance",       "obscurance_stderr",
+                                                    "obscurance_rgb.R", "obscurance_rgb.G",
+                                                    "obscurance_rgb.B", "alpha"};
 
 /* The patch a primary hit on a mesh sees: its triangle's sub-triangle at the hit. */
 static int64_t hit_patch(const void *user, const obs_rt *rt, const obs_hit *hit) {
@@ -373,6 +469,9 @@ static int show(obs_render_ctx *ctx, const obs_omap *m, obs_image *out, obs_err 
     const float *w = ok ? m->w + 3 * (size_t)id : NULL;
     for (int c = 0; c < 3; c++) out->data[(size_t)(CH_R + c) * npx + i] = ok ? w[c] : 0.0f;
     out->data[(size_t)CH_W * npx + i] = ok ? (w[0] + w[1] + w[2]) / 3.0f : 0.0f;
+    /* The image's W is the mean of the channels: the mean of their errors bounds its error. */
+    const float *se = ok ? m->se + 3 * (size_t)id : NULL;
+    out->data[(size_t)CH_SE * npx + i] = ok ? (se[0] + se[1] + se[2]) / 3.0f : 0.0f;
     out->data[(size_t)CH_ALPHA * npx + i] = ok ? 1.0f : 0.0f;
   }
   free(ids);
@@ -403,7 +502,10 @@ int obs_obscurance_map_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   }
   double t1 = obs_now_ms();
   obs_driver_stage_add(ctx, sc->frames > 1 ? "frames" : "map", t1 - t0);
-  if (sc->frames <= 1) rc = obs_patch_mesh_publish(ctx, "obscurance", &m.pm, m.w, err);
+  if (sc->frames <= 1) {
+    rc = obs_patch_mesh_publish(ctx, "obscurance", &m.pm, 3, m.w, err);
+    if (!rc) rc = obs_patch_mesh_publish(ctx, "obscurance_stderr", &m.pm, 3, m.se, err);
+  }
   if (!rc) rc = show(ctx, &m, out, err);
   double t2 = obs_now_ms();
   obs_driver_stage_add(ctx, "show", t2 - t1);

@@ -19,7 +19,8 @@
 typedef struct obs_omap {
   obs_patch_mesh pm;
   float *w;          /* count x 3, patch-major: W per channel (equal without colour bleeding) */
-  float *se;         /* count: standard error of a patch's mean, the largest of its channels' */
+  float *se;         /* count x 3: standard error of a patch's W per channel (1: no sample;
+                        docs/techniques/obscurance_map.md, "Standard errors") */
   uint64_t *n;       /* count: samples per patch */
   uint64_t rays;     /* Embree queries made */
   int64_t unsampled; /* patches of positive area that received no sample */
@@ -66,6 +67,11 @@ typedef struct obs_omap_job {
   unsigned char *hits_moving;
   atomic_uchar *seen;
   uint64_t *rays;       /* threads x 8 (one cache line each) */
+  /* rays, bundles: per patch and channel, its samples' independent groups (replicates; groups of
+   * directions, obs_bundle_groups), count x 3; NULL for global lines (independent samples) */
+  struct obs_mcerr_ratio *groups;
+  uint32_t dir0;        /* bundles: the first direction of the group being cast */
+  obs_patch_err *errs;  /* count: what each patch knows of its error (patch_mesh.h) */
   float (*halton)[2];   /* rays: Halton points (bases 2, 3), unrotated, a power of two of them */
   uint32_t halton_mask; /* their count less one */
 } obs_omap_job;

@@ -277,7 +277,7 @@ int obs_omap_bundle_tile(void *user, int thread, int x0, int y0, int x1, int y1)
   obs_bundle b;
   uint32_t have = ~0u;
   for (int x = x0; x < x1; x++) {
-    uint32_t k = (uint32_t)x / res, row = (uint32_t)x % res;
+    uint32_t k = j->dir0 + (uint32_t)x / res, row = (uint32_t)x % res;
     if (k != have) obs_bundle_get(&j->bs, j->p.seed, j->p.directions, k, res, &b), have = k;
     double y = (row + b.offset[1]) * b.cell - r;
     for (uint32_t i = 0; i < res; i++) {

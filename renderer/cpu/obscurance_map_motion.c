@@ -27,6 +27,7 @@ typedef struct motion {
   int64_t *list;             /* count: the patches a frame samples */
   double mbox[2][3];         /* the moving meshes' bounds in the frame before */
   float *all;                /* frames x count x 3 */
+  float *all_se;             /* frames x count x 3: each frame's standard errors */
   int frame, frames, stage, stages;
 } motion;
 
@@ -219,6 +220,7 @@ static void motion_free(motion *m) {
   free(m->first);
   free(m->list);
   free(m->all);
+  free(m->all_se);
 }
 
 static int motion_init(motion *m, obs_render_ctx *ctx, obs_rt *rt,
@@ -231,7 +233,7 @@ static int motion_init(motion *m, obs_render_ctx *ctx, obs_rt *rt,
   if (rc) return rc;
   m->count = out->pm.count;
   size_t n1 = m->count ? (size_t)m->count : 1;
-  double bytes = (double)m->frames * (double)n1 * 3 * sizeof(float);
+  double bytes = (double)m->frames * (double)n1 * 6 * sizeof(float); /* values and errors */
   if (bytes > (double)((size_t)1 << 31))
     return obs_err_set(err, OBS_EINVAL,
                        "%s: /objects: %d frames of %lld patches need %.1f GiB of maps, more than "
@@ -244,12 +246,14 @@ static int motion_init(motion *m, obs_render_ctx *ctx, obs_rt *rt,
   m->first = calloc(n1, 1);
   m->list = malloc(n1 * sizeof *m->list);
   m->all = malloc((size_t)m->frames * n1 * 3 * sizeof *m->all);
+  m->all_se = malloc((size_t)m->frames * n1 * 3 * sizeof *m->all_se);
   if (p->measure_full) {
     m->full.w = malloc(3 * n1 * sizeof *m->full.w);
-    m->full.se = malloc(n1 * sizeof *m->full.se);
+    m->full.se = malloc(3 * n1 * sizeof *m->full.se);
     m->full.n = malloc(n1 * sizeof *m->full.n);
   }
   if (!m->pbox || !m->own || !m->influenced || !m->seen || !m->first || !m->list || !m->all ||
+      !m->all_se ||
       (p->measure_full && (!m->full.w || !m->full.se || !m->full.n)))
     return obs_err_set(err, OBS_ENOMEM, "%s: obscurance_map: out of memory for %d frames", sc->name,
                        m->frames);
@@ -277,18 +281,24 @@ int obs_omap_frames(obs_render_ctx *ctx, obs_rt *rt, const obs_obscurance_map_pa
                           json_pack("{s:i, s:f, s:I}", "frame", 0, "update_ms", obs_now_ms() - t0,
                                     "patches_updated", (json_int_t)m.count));
     memcpy(m.all, out->w, (size_t)m.count * 3 * sizeof *m.all);
+    memcpy(m.all_se, out->se, (size_t)m.count * 3 * sizeof *m.all_se);
   }
   for (m.frame = 1; !rc && m.frame < m.frames; m.frame++) {
     m.stage = 0;
     if ((rc = next_frame(&m, frames, err))) break; /* m.frame: the frame that failed */
     memcpy(m.all + (size_t)m.frame * (size_t)m.count * 3, out->w,
            (size_t)m.count * 3 * sizeof *m.all);
+    memcpy(m.all_se + (size_t)m.frame * (size_t)m.count * 3, out->se,
+           (size_t)m.count * 3 * sizeof *m.all_se);
   }
   if (rc == OBS_ECANCELED)
     obs_err_set(err, rc, "%s: render cancelled", sc->name);
   else if (rc && err && !err->count)
     obs_err_set(err, rc, "%s: obscurance_map failed in frame %d", sc->name, m.frame);
-  if (!rc) rc = obs_patch_mesh_publish_frames(ctx, "obscurance", &out->pm, m.frames, m.all, err);
+  if (!rc) rc = obs_patch_mesh_publish_frames(ctx, "obscurance", &out->pm, m.frames, 3, m.all, err);
+  if (!rc)
+    rc = obs_patch_mesh_publish_frames(ctx, "obscurance_stderr", &out->pm, m.frames, 3, m.all_se,
+                                       err);
   if (!rc) {
     ctx->frames = frames;
     frames = NULL;

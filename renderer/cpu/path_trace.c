@@ -9,6 +9,7 @@
  * bounces keeps long paths unbiased and cheap. docs/techniques/path_trace.md states the model. */
 #include <jansson.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -16,6 +17,7 @@
 #include "obscura/render.h"
 #include "driver.h"
 #include "emitters.h"
+#include "mcerr.h"
 #include "path_trace.h"
 #include "raytrace.h"
 #include "sampling.h"
@@ -51,31 +53,35 @@ static double dot3(const double a[3], const double b[3]) {
   return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
 }
 
-/* The streams of one pixel's dimension pairs, seeded once per pixel (the seeding hashes cost as
- * much as a point): the first PT_CACHED_DIMS pairs are kept, deeper ones seeded on each use. */
+/* The streams of one replicate's dimension pairs (see pt_shade), seeded once per replicate (the
+ * seeding hashes cost as much as a point): the first PT_CACHED_DIMS pairs are kept, deeper ones
+ * seeded on each use. */
 #define PT_CACHED_DIMS 64
 typedef struct pt_dims {
   const pt_job *jb;
   int x, y;
+  uint32_t rep;  /* the replicate whose streams are cached (0 for random streams) */
   uint64_t have; /* bit d: s[d] is seeded */
   obs_sampler2d s[PT_CACHED_DIMS];
 } pt_dims;
 
-/* The 2D point of dimension pair `dim` for pixel sample s: each pair is its own scrambled
- * sequence over the pixel's samples, so every pair is stratified across the samples, read at a
- * shuffled index so that pairs are independent of one another (measured: without the shuffle
- * the white furnace converges 1.3 % low in its rho = 0.8 channel with Sobol). The shuffle maps
- * the first 2^k indices onto an aligned block of 2^k; keeping its low 16 bits keeps that (for
- * spp <= 2^16) and keeps Sobol's generator loop short. */
-static void pt_sample(pt_dims *dc, int s, uint32_t dim, double *u, double *v) {
+/* The 2D point of dimension pair `dim` for the path at index j of replicate `rep`: each pair of a
+ * replicate is its own scrambled sequence over the replicate's paths, so every pair is stratified
+ * across them, read at a shuffled index so that pairs are independent of one another (measured:
+ * without the shuffle the white furnace converges 1.3 % low in its rho = 0.8 channel with Sobol).
+ * Replicates have independent scrambles (their own pixel-sample seed). The shuffle maps the first
+ * 2^k indices onto an aligned block of 2^k; keeping its low 16 bits keeps that (for up to 2^16
+ * paths) and keeps Sobol's generator loop short. */
+static void pt_sample(pt_dims *dc, uint32_t rep, uint32_t j, uint32_t dim, double *u, double *v) {
+  if (rep != dc->rep) dc->rep = rep, dc->have = 0;
   obs_sampler2d local, *smp = dim < PT_CACHED_DIMS ? &dc->s[dim] : &local;
   if (dim >= PT_CACHED_DIMS || !(dc->have >> dim & 1)) {
-    obs_sampler2d_init(smp, dc->jb->sampler, (uint32_t)dc->x, (uint32_t)dc->y, 0, dim,
+    obs_sampler2d_init(smp, dc->jb->sampler, (uint32_t)dc->x, (uint32_t)dc->y, rep, dim,
                        dc->jb->p.seed);
     if (dim < PT_CACHED_DIMS) dc->have |= (uint64_t)1 << dim;
   }
   float fu, fv;
-  uint32_t i = obs_sample_shuffle((uint32_t)s, smp->scramble0 ^ 0x5bd1e995U) & 0xffffu;
+  uint32_t i = obs_sample_shuffle(j, smp->scramble0 ^ 0x5bd1e995U) & 0xffffu;
   obs_sampler2d_get(smp, i, &fu, &fv);
   *u = fu, *v = fv;
 }
@@ -123,8 +129,9 @@ typedef struct pt_first {
 } pt_first;
 
 /* The radiance one camera path carries back, starting from the primary hit or miss. */
-static uint64_t trace_path(const pt_job *jb, pt_dims *dc, int s, const double org[3],
-                           const double dir[3], double L[3], pt_first *first) {
+static uint64_t trace_path(const pt_job *jb, pt_dims *dc, uint32_t rep, uint32_t j,
+                           const double org[3], const double dir[3], double L[3],
+                           pt_first *first) {
   const obs_rt *rt = jb->rt;
   const obs_path_trace_params *p = &jb->p;
   double beta[3] = {1, 1, 1}, o[3], d[3] = {dir[0], dir[1], dir[2]}, pdf_bsdf = 0;
@@ -161,9 +168,9 @@ static uint64_t trace_path(const pt_job *jb, pt_dims *dc, int s, const double or
     obs_rt_ctx ctx;
     obs_rt_ctx_init(&ctx, rt, &hit);
     double u[6];
-    pt_sample(dc, s, 1 + 3 * (uint32_t)depth, &u[0], &u[1]);
-    pt_sample(dc, s, 2 + 3 * (uint32_t)depth, &u[2], &u[3]);
-    pt_sample(dc, s, 3 + 3 * (uint32_t)depth, &u[4], &u[5]);
+    pt_sample(dc, rep, j, 1 + 3 * (uint32_t)depth, &u[0], &u[1]);
+    pt_sample(dc, rep, j, 2 + 3 * (uint32_t)depth, &u[2], &u[3]);
+    pt_sample(dc, rep, j, 3 + 3 * (uint32_t)depth, &u[4], &u[5]);
     if (!p->bsdf_only && jb->em.n) {
       const double ul[3] = {u[2], u[3], u[4]};
       rays += sample_light(jb, &hit, &ctx, from, rho, ul, beta, L);
@@ -188,42 +195,52 @@ static uint64_t trace_path(const pt_job *jb, pt_dims *dc, int s, const double or
   return rays;
 }
 
-/* One pixel: the mean of its paths (p.samples per pixel sample), their standard error, and the
- * first hits' facts. */
+/* One pixel: the mean of its n = spp x samples paths, its standard error and the first hits'
+ * facts. The paths form replicates (sampling.h, obs_rqmc: with `random` every path is one; with
+ * `sobol` 8 of consecutive paths, each with its own scrambles), whose means' spread is the
+ * standard error (mcerr.h), pooled with the neighbourhood's by the driver (pt_prior). With
+ * several pixel samples every path looks through its own point of the pixel (dimension pair 0,
+ * used for nothing else); one pixel sample looks through the pixel's centre. */
 static uint64_t pt_shade(const void *job, int thread, int x, int y, float *v) {
   (void)thread;
   const pt_job *jb = job;
-  double sum[3] = {0, 0, 0}, sum2[3] = {0, 0, 0}, alb[3] = {0, 0, 0}, nrm[3] = {0, 0, 0};
+  double part[3] = {0, 0, 0}, alb[3] = {0, 0, 0}, nrm[3] = {0, 0, 0};
   double depth = 0;
   int hits = 0;
   uint64_t rays = 0;
+  obs_mcerr e[3];
+  memset(e, 0, sizeof e);
+  obs_rqmc reps;
+  obs_rqmc_init(&reps, jb->sampler, (uint32_t)x, (uint32_t)y, 0, 0, jb->p.seed,
+                (uint32_t)jb->paths);
   pt_dims dc;
-  dc.jb = jb, dc.x = x, dc.y = y, dc.have = 0;
-  for (int s = 0; s < jb->paths; s++) {
+  dc.jb = jb, dc.x = x, dc.y = y, dc.rep = 0, dc.have = 0;
+  uint32_t first = 0;
+  for (uint32_t s = 0; s < (uint32_t)jb->paths; s++) {
+    uint32_t j, rep = obs_rqmc_locate(&reps, s, &j);
     double jx = 0.5, jy = 0.5;
-    /* One pixel sample looks through the pixel's centre; several are stratified over the pixel
-     * (dimension pair 0, indexed by pixel sample, is used for nothing else). */
-    if (jb->spp > 1) pt_sample(&dc, s / jb->p.samples, 0, &jx, &jy);
+    if (jb->spp > 1) pt_sample(&dc, rep, j, 0, &jx, &jy);
     double org[3], dir[3], L[3];
     obs_camera_ray(&jb->cam, x + jx, y + jy, org, dir);
     pt_first f;
-    rays += trace_path(jb, &dc, s, org, dir, L, &f);
-    for (int k = 0; k < 3; k++) {
-      sum[k] += L[k];
-      sum2[k] += L[k] * L[k];
+    rays += trace_path(jb, &dc, rep, j, org, dir, L, &f);
+    for (int k = 0; k < 3; k++) part[k] += L[k];
+    if (jb->sampler == OBS_SAMPLER_RANDOM || s + 1 == obs_rqmc_first(&reps, rep + 1)) {
+      for (int k = 0; k < 3; k++) obs_mcerr_add(&e[k], part[k] / (double)(s + 1 - first));
+      memset(part, 0, sizeof part);
+      first = s + 1;
     }
     if (!f.hit) continue;
     hits++;
     depth += f.depth;
     for (int k = 0; k < 3; k++) alb[k] += f.albedo[k], nrm[k] += f.normal[k];
   }
-  double n = jb->paths, nl = sqrt(dot3(nrm, nrm));
+  double nl = sqrt(dot3(nrm, nrm));
   for (int k = 0; k < 3; k++) {
-    double mean = sum[k] / n;
-    /* Unbiased sample variance of one path's radiance, over n for the mean's; 0 for n = 1. */
-    double var = n > 1 ? fmax(0.0, (sum2[k] - n * mean * mean) / (n - 1)) : 0.0;
-    v[CH_R + k] = (float)mean;
-    v[CH_SR + k] = (float)sqrt(var / n);
+    v[CH_R + k] = (float)e[k].mean;
+    /* Radiance has no bound: replicates that all agree (every path 0, say) leave the error to
+     * the prior (a floor of 0, negated). */
+    v[CH_SR + k] = (float)obs_mcerr_stderr(&e[k], (uint32_t)jb->paths, 0.0, 1);
     v[CH_AR + k] = hits ? (float)(alb[k] / hits) : 0.0f;
     v[CH_NX + k] = nl > 0 ? (float)(nrm[k] / nl) : 0.0f;
   }
@@ -231,6 +248,17 @@ static uint64_t pt_shade(const void *job, int thread, int x, int y, float *v) {
   v[CH_ALPHA] = (float)hits / (float)jb->paths;
   return rays;
 }
+
+static double pt_df(const void *job, int c) {
+  (void)c;
+  const pt_job *jb = job;
+  return obs_rqmc_replicates(jb->sampler, (uint32_t)jb->paths) - 1.0;
+}
+
+static const int pt_se[3] = {CH_SR, CH_SG, CH_SB}, pt_values[3] = {CH_R, CH_G, CH_B};
+static const obs_pixel_prior pt_prior = {
+    3, pt_se, pt_values, CH_ALPHA, sizeof(pt_job),
+    offsetof(pt_job, p) + offsetof(obs_path_trace_params, seed), pt_df};
 
 int obs_path_trace_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   const obs_scene *sc = ctx->scene;
@@ -251,7 +279,8 @@ int obs_path_trace_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   int rc = obs_emitters_build(sc, jb.rt, &jb.em, err);
   ctx->build_ms += obs_now_ms() - t0;
   if (!rc) {
-    static const obs_pixel_ops ops = {CH_COUNT, channel_names, pt_shade, NULL};
+    static const obs_pixel_ops ops = {CH_COUNT, channel_names, .shade = pt_shade,
+                                        .prior = &pt_prior};
     rc = obs_driver_pixels(ctx, &ops, &jb, out, err);
   }
   obs_emitters_free(&jb.em);

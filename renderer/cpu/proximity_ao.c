@@ -239,7 +239,7 @@ int obs_proximity_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   }
   double corners_ms = obs_now_ms() - t0;
   if (!rc) obs_driver_stage_add(ctx, "corners", corners_ms);
-  static const obs_pixel_ops ops = {CH_COUNT, obs_proximity_ao_channels, NULL, shade_block};
+  static const obs_pixel_ops ops = {CH_COUNT, obs_proximity_ao_channels, .block = shade_block};
   if (!rc) rc = render_frames(ctx, &jb, &ops, out, err);
   /* Built once per render for every frame, as the fields are: part of the build. */
   ctx->build_ms += corners_ms;

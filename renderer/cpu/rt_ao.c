@@ -6,11 +6,14 @@
  * owns the image, tiles, progress and cancellation: this file is the pixel's shading. */
 #include <jansson.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "camera.h"
 #include "driver.h"
+#include "halfball.h"
+#include "mcerr.h"
 #include "obscurance.h"
 #include "obscura/render.h"
 #include "raytrace.h"
@@ -33,30 +36,10 @@ typedef struct job {
   int spp;
 } job;
 
-/* The standard error reported for the mean `mean` of n values of rho in [0, 1]. The sample
- * variance says 0 whenever every ray agrees (all escape, or all hit near contact) although the
- * truth then differs from the mean by up to ~z^2 / n. Instead: the Wilson score interval at z = 3,
- * the set of m with |mean - m| <= z sqrt(m (1 - m) / n). m (1 - m) is the binomial variance for
- * binary rho and, by the Bhatia-Davis inequality, an upper bound on the variance of any rho in
- * [0, 1] of mean m, so the interval is honest for every falloff. It is not centred on the mean, so
- * the reported value is its larger reach from the mean over z: mean +- 3 stderr contains the whole
- * interval. Closed form (c: centre, h: half-width):
- *   c = (mean + z^2 / 2n) / (1 + z^2 / n),
- *   h = z / (1 + z^2 / n) sqrt(mean (1 - mean) / n + z^2 / 4n^2),
- *   stderr = (|c - mean| + h) / z,
- * which is > 0 for every finite n (at mean 0 or 1 it is 3 / (n + 9)). */
-static double wilson_stderr(double mean, double n) {
-  const double z = 3.0, z2 = z * z;
-  double den = 1.0 + z2 / n;
-  double c = (mean + z2 / (2.0 * n)) / den;
-  double h = z / den * sqrt(fmax(0.0, mean * (1.0 - mean)) / n + z2 / (4.0 * n * n));
-  return (fabs(c - mean) + h) / z;
-}
-
-/* Accumulates one pixel sample's occlusion estimate at `hit`. */
+/* One pixel sample's occlusion estimate at `hit`. */
 typedef struct ao_accum {
-  double sum;          /* of rho over the rays */
-  double bent[3];      /* rho-weighted directions */
+  double mean, se; /* of rho over the rays, and its standard error (mcerr.h) */
+  double bent[3];  /* rho-weighted directions */
 } ao_accum;
 
 static uint64_t shade(const job *jb, const obs_hit *hit, uint32_t x, uint32_t y, uint32_t s,
@@ -67,20 +50,24 @@ static uint64_t shade(const job *jb, const obs_hit *hit, uint32_t x, uint32_t y,
   obs_onb(hit->ns, t, b);
   obs_rt_ctx ctx;
   obs_rt_ctx_init(&ctx, jb->rt, hit);
-  obs_sampler2d smp;
-  obs_sampler2d_init(&smp, p->sampler, x, y, s, 1, p->seed);
+  obs_rqmc smp;
+  obs_rqmc_init(&smp, p->sampler, x, y, s, 1, p->seed, p->samples);
   float tfar = isinf(p->max_distance) ? INFINITY : (float)p->max_distance;
   uint64_t rays = 0;
+  obs_mcerr e = {0};
+  double part = 0;
+  uint32_t first = 0, escaped = 0;
   memset(acc, 0, sizeof *acc);
   /* Directions are made in batches before any is traced: the sampler's latency then overlaps
    * instead of sitting between two traversals (measured: ~10 % of rt_ao's time). */
   enum { BATCH = 16 };
   float ws[BATCH][3];
+  unsigned char last[BATCH];
   for (uint32_t i0 = 0; i0 < p->samples; i0 += BATCH) {
     uint32_t n = p->samples - i0 < BATCH ? p->samples - i0 : BATCH;
     for (uint32_t j = 0; j < n; j++) {
       float u, v, l[3];
-      obs_sampler2d_get(&smp, i0 + j, &u, &v);
+      last[j] = (unsigned char)obs_rqmc_get(&smp, i0 + j, &u, &v);
       if (p->uniform) obs_sample_uniform(u, v, l);
       else obs_sample_cosine(u, v, l);
       for (int k = 0; k < 3; k++) ws[j][k] = l[0] * t[k] + l[1] * b[k] + l[2] * hit->ns[k];
@@ -99,20 +86,37 @@ static uint64_t shade(const job *jb, const obs_hit *hit, uint32_t x, uint32_t y,
         r = obs_falloff_rho(&jb->falloff, obs_rt_distance(jb->rt, &ctx, org, w, tfar));
         rays++;
       }
-      acc->sum += r;
+      part += r;
+      escaped += r == 1.0;
       for (int k = 0; k < 3; k++) acc->bent[k] += r * w[k];
+      if (last[j]) { /* the replicate's mean */
+        obs_mcerr_add(&e, part / (double)(i0 + j + 1 - first));
+        part = 0;
+        first = i0 + j + 1;
+      }
     }
+  }
+  acc->mean = e.mean;
+  if (escaped == p->samples) { /* every ray escaped: exact, or bounded by what lies within reach */
+    /* 0 where exact; else negated: the rays agreed (driver.h, obs_pixel_prior) */
+    acc->se = obs_rt_escape_stderr(jb->rt, hit, org, &jb->falloff, tfar, p->uniform, 0,
+                                   p->samples);
+    if (acc->se > 0) acc->se = -acc->se;
+  } else {
+    acc->se = obs_mcerr_stderr(&e, p->samples, 1.0, 1);
   }
   return rays;
 }
 
-/* One pixel: its spp camera rays, each hit's occlusion estimate, averaged. */
+/* One pixel: its spp camera rays, each hit's occlusion estimate, averaged. Pixel samples are
+ * independent estimates, so their errors add in quadrature; one that sees no surface reads 1
+ * exactly. */
 static uint64_t shade_pixel(const void *user, int thread, int x, int y, float *d) {
   (void)thread;
   const job *jb = user;
-  const double n = jb->p.samples;
   uint64_t rays = 0;
-  double ao = 0, var = 0, depth = 0, bent[3] = {0, 0, 0}, nrm[3] = {0, 0, 0};
+  double ao = 0, depth = 0, bent[3] = {0, 0, 0}, nrm[3] = {0, 0, 0};
+  obs_mcerr_pixel err = {0};
   int hits = 0;
   obs_sampler2d jit;
   obs_sampler2d_init(&jit, jb->p.sampler, (uint32_t)x, (uint32_t)y, 0, 0, jb->p.seed);
@@ -130,10 +134,8 @@ static uint64_t shade_pixel(const void *user, int thread, int x, int y, float *d
     hits++;
     ao_accum acc;
     rays += shade(jb, &hit, (uint32_t)x, (uint32_t)y, (uint32_t)s, &acc);
-    double mean = acc.sum / n;
-    ao += mean;
-    double se = wilson_stderr(mean, n);
-    var += se * se;
+    ao += acc.mean;
+    obs_mcerr_pixel_add(&err, acc.se);
     double bl = sqrt(acc.bent[0] * acc.bent[0] + acc.bent[1] * acc.bent[1] +
                      acc.bent[2] * acc.bent[2]);
     for (int k = 0; k < 3; k++) {
@@ -145,7 +147,7 @@ static uint64_t shade_pixel(const void *user, int thread, int x, int y, float *d
     depth += hit.t * fwd;
   }
   d[CH_AO] = (float)(ao / jb->spp);
-  d[CH_STDERR] = (float)(sqrt(var) / jb->spp);
+  d[CH_STDERR] = (float)obs_mcerr_pixel_stderr(&err, jb->spp);
   d[CH_ALPHA] = (float)hits / (float)jb->spp;
   d[CH_DEPTH] = hits ? (float)(depth / hits) : 0.0f;
   double bl = sqrt(bent[0] * bent[0] + bent[1] * bent[1] + bent[2] * bent[2]);
@@ -156,6 +158,18 @@ static uint64_t shade_pixel(const void *user, int thread, int x, int y, float *d
   }
   return rays;
 }
+
+static double shade_df(const void *user, int c) {
+  (void)c;
+  const job *jb = user;
+  return jb->spp * (obs_rqmc_replicates(jb->p.sampler, jb->p.samples) - 1.0);
+}
+
+static const int se_channel[1] = {CH_STDERR}, value_channel[1] = {CH_AO};
+static const obs_pixel_prior prior = {1,           se_channel,
+                                      value_channel, CH_ALPHA,
+                                      sizeof(job),  offsetof(job, p) + offsetof(rt_ao_params, seed),
+                                      shade_df};
 
 int obs_rt_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   const obs_scene *sc = ctx->scene;
@@ -168,6 +182,7 @@ int obs_rt_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   jb.rt = ctx->rt;
   jb.spp = sc->spp;
   obs_camera_setup(&sc->camera, sc->width, sc->height, &jb.cam);
-  static const obs_pixel_ops ops = {CH_COUNT, channel_names, shade_pixel, NULL};
+  static const obs_pixel_ops ops = {CH_COUNT, channel_names, .shade = shade_pixel,
+                                        .prior = &prior};
   return obs_driver_pixels(ctx, &ops, &jb, out, err);
 }

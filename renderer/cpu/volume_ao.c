@@ -8,12 +8,14 @@
  * `max_distance`: a direction is occluded where any volume's field crosses its isovalue. The
  * per-pixel driver owns the image, tiles, threads, progress and cancellation. */
 #include <math.h>
+#include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "camera.h"
 #include "driver.h"
 #include "environment.h"
+#include "mcerr.h"
 #include "obscura/render.h"
 #include "sampling.h"
 #include "simd.h"
@@ -117,7 +119,8 @@ static void env_radiance(const job *jb, const double w[3], double rgb[3]) {
 
 /* What the AO directions found at a hit. */
 typedef struct ao_result {
-  double ao, bent[3], env[3]; /* env: the mean of environment x visibility (ibl reference) */
+  double ao, se;              /* AO and its standard error (replicates: sampling.h, mcerr.h) */
+  double bent[3], env[3];     /* env: the mean of environment x visibility (ibl reference) */
 } ao_result;
 
 /* Marches the hit's directions (world normal n, data-space point h->p of volume h->vol). */
@@ -129,11 +132,12 @@ static void march_ao(const job *jb, const hit *h, const double n[3], uint32_t x,
   obs_affine_point(va->to_world, h->p, world);
   float nf[3] = {(float)n[0], (float)n[1], (float)n[2]}, t1[3], t2[3];
   obs_onb(nf, t1, t2);
-  obs_sampler2d smp;
-  obs_sampler2d_init(&smp, (obs_sampler_kind)jb->p.sampler, x, y, s, 1, jb->p.seed);
+  obs_rqmc smp;
+  obs_rqmc_init(&smp, (obs_sampler_kind)jb->p.sampler, x, y, s, 1, jb->p.seed, jb->p.samples);
   double sum[3] = {0, 0, 0};
   memset(r, 0, sizeof *r);
-  uint32_t open = 0;
+  uint32_t open = 0, part = 0, first = 0, rep = 0;
+  obs_mcerr e = {0};
   /* Directions are drawn a batch ahead of their marches: each one's chain (sampler, sincos, the
    * maps, a square root and divisions) is independent of the others and overlaps them. */
   enum { BATCH = 16 };
@@ -141,7 +145,7 @@ static void march_ao(const job *jb, const hit *h, const double n[3], uint32_t x,
   for (uint32_t i0 = 0; i0 < jb->p.samples; i0 += BATCH) {
     uint32_t nb = jb->p.samples - i0 < BATCH ? jb->p.samples - i0 : BATCH;
     float us[BATCH], vs[BATCH];
-    obs_sampler2d_get_n(&smp, i0, nb, us, vs, jb->march.isa);
+    obs_rqmc_get_n(&smp, i0, nb, us, vs, jb->march.isa);
     for (uint32_t q = 0; q < nb; q++) {
       float l[3];
       obs_sample_cosine(us[q], vs[q], l);
@@ -167,6 +171,13 @@ static void march_ao(const job *jb, const hit *h, const double n[3], uint32_t x,
           blocked = obs_volume_grid_crossing(&is, ob, db, &jb->march);
         }
       }
+      /* The replicate ends with this direction: its mean goes to the estimate. */
+      uint32_t end = obs_rqmc_first(&smp, rep + 1);
+      if (!blocked) part++;
+      if (i0 + q + 1 == end) {
+        obs_mcerr_add(&e, (double)part / (double)(i0 + q + 1 - first));
+        part = 0, first = i0 + q + 1, rep++;
+      }
       if (blocked) continue;
       open++;
       for (int k = 0; k < 3; k++) sum[k] += w[q][k];
@@ -177,7 +188,8 @@ static void march_ao(const job *jb, const hit *h, const double n[3], uint32_t x,
       }
     }
   }
-  r->ao = (double)open / jb->p.samples;
+  r->ao = e.mean;
+  r->se = obs_mcerr_stderr(&e, jb->p.samples, 1.0, 1);
   for (int k = 0; k < 3; k++) {
     r->env[k] /= jb->p.samples;
     r->bent[k] = sum[k];
@@ -239,7 +251,7 @@ static void albedo_at(const obs_scene_volume *sv, const double p[3], const doubl
 
 /* One pixel sample at a hit: the final colour and what it adds to the other channels. */
 static void shade_hit(const job *jb, const hit *h, const double org[3], const double dir[3],
-                      uint32_t x, uint32_t y, uint32_t s, double *acc) {
+                      uint32_t x, uint32_t y, uint32_t s, double *acc, obs_mcerr_pixel *err) {
   const obs_scene_volume *sv = &jb->vols->v[h->vol];
   double nd[3], n[3];
   obs_volume_normal(&sv->v, h->p, nd);
@@ -268,6 +280,7 @@ static void shade_hit(const job *jb, const hit *h, const double org[3], const do
   albedo_at(sv, h->p, nd, alb);
   for (int k = 0; k < 3; k++) acc[CH_R + k] += alb[k] * (diffuse[k] + ibl[k]) + spec[k];
   acc[CH_AO] += r.ao;
+  obs_mcerr_pixel_add(err, r.se);
   for (int k = 0; k < 3; k++) {
     acc[CH_BX + k] += r.bent[k];
     acc[CH_NX + k] += n[k];
@@ -282,6 +295,7 @@ static uint64_t shade_pixel(const void *user, int thread, int x, int y, float *d
   (void)thread;
   const job *jb = user;
   double acc[CH_COUNT] = {0};
+  obs_mcerr_pixel err = {0};
   obs_sampler2d jit;
   obs_sampler2d_init(&jit, (obs_sampler_kind)jb->p.sampler, (uint32_t)x, (uint32_t)y, 0, 0,
                      jb->p.seed);
@@ -295,11 +309,12 @@ static uint64_t shade_pixel(const void *user, int thread, int x, int y, float *d
       acc[CH_AO] += 1;
       continue;
     }
-    shade_hit(jb, &h, org, dir, (uint32_t)x, (uint32_t)y, (uint32_t)s, acc);
+    shade_hit(jb, &h, org, dir, (uint32_t)x, (uint32_t)y, (uint32_t)s, acc, &err);
   }
   double hits = acc[CH_ALPHA];
   for (int k = CH_R; k <= CH_B; k++) d[k] = (float)(acc[k] / jb->spp);
   d[CH_AO] = (float)(acc[CH_AO] / jb->spp);
+  d[CH_AOSE] = (float)obs_mcerr_pixel_stderr(&err, jb->spp);
   d[CH_ALPHA] = (float)(hits / jb->spp);
   d[CH_DEPTH] = hits ? (float)(acc[CH_DEPTH] / hits) : 0.0f;
   normalize3(acc + CH_BX);
@@ -309,6 +324,12 @@ static uint64_t shade_pixel(const void *user, int thread, int x, int y, float *d
     d[CH_NX + k] = hits ? (float)acc[CH_NX + k] : 0.0f;
   }
   return (uint64_t)jb->spp + (uint64_t)hits * jb->p.samples;
+}
+
+static double shade_df(const void *user, int c) {
+  (void)c;
+  const job *jb = user;
+  return jb->spp * (obs_rqmc_replicates((obs_sampler_kind)jb->p.sampler, jb->p.samples) - 1.0);
 }
 
 int obs_volume_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
@@ -332,6 +353,10 @@ int obs_volume_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   if (jb.env && jb.p.ibl == OBS_IBL_IRRADIANCE) obs_env_sh9(jb.env, jb.sh);
   obs_camera_setup(&sc->camera, sc->width, sc->height, &jb.cam);
   obs_volume_ao_warn(ctx, sc, &jb.p);
-  static const obs_pixel_ops ops = {CH_COUNT, obs_volume_ao_channels, shade_pixel, NULL};
+  static const obs_pixel_prior prior = {
+      1,           obs_volume_ao_se, obs_volume_ao_value, CH_ALPHA,
+      sizeof(job), offsetof(job, p) + offsetof(obs_volume_ao_tparams, seed), shade_df};
+  static const obs_pixel_ops ops = {CH_COUNT, obs_volume_ao_channels, .shade = shade_pixel,
+                                    .prior = &prior};
   return obs_driver_pixels(ctx, &ops, &jb, out, err);
 }

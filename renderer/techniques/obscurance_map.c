@@ -16,6 +16,10 @@ static const obs_output obscurance_map_outputs[] = {
      .description = "Obscurance W per patch (RGB in the .patches file; the image shows the mean "
                     "of the channels of the patch each pixel sees)",
      .flags = OBS_OUTPUT_PRIMARY | OBS_OUTPUT_UNIT},
+    {.name = "obscurance_stderr", .kind = OBS_OUTPUT_PATCH,
+     .description = "Standard error of each patch's W per channel (the image shows the mean of "
+                    "the channels' errors of the patch each pixel sees; 1: no sample reached it)",
+     .stderr_of = "obscurance"},
     {.name = "obscurance_rgb", .kind = OBS_OUTPUT_RGB, .show = OBS_SHOW_TONEMAP,
      .png = "obscurance_rgb.png",
      .description = "Obscurance W per patch in colour (with colour bleeding), per pixel"},

@@ -24,6 +24,10 @@ static const obs_output volume_ao_outputs[] = {
      .description = "Ambient occlusion of the isosurface (white = open)",
      .flags = OBS_OUTPUT_UNIT,
      .background = 1},
+    {.name = "ao_stderr",
+     .kind = OBS_OUTPUT_SCALAR,
+     .description = "Standard error of the per-pixel AO estimate",
+     .stderr_of = "ao"},
     {.name = "bent_normal",
      .kind = OBS_OUTPUT_VECTOR,
      .show = OBS_SHOW_NORMAL,
@@ -44,8 +48,10 @@ static const obs_output volume_ao_outputs[] = {
     {.name = NULL}};
 
 const char *const obs_volume_ao_channels[CH_COUNT] = {
-    "final.R",       "final.G",  "final.B",  "ao",       "bent_normal.X", "bent_normal.Y",
-    "bent_normal.Z", "normal.X", "normal.Y", "normal.Z", "depth.Z",       "alpha"};
+    "final.R",  "final.G",  "final.B",  "ao",      "ao_stderr", "bent_normal.X", "bent_normal.Y",
+    "bent_normal.Z", "normal.X", "normal.Y", "normal.Z", "depth.Z",   "alpha"};
+
+const int obs_volume_ao_se[1] = {CH_AOSE}, obs_volume_ao_value[1] = {CH_AO};
 
 static const char *const crossings[] = {"rising", "any", NULL}; /* obs_volume_crossing */
 static const char *const shadings[] = {"lambert", "blinn_phong", NULL};

@@ -27,9 +27,13 @@ typedef struct obs_volume_ao_tparams {
 
 /* The image both backends write, channel by channel (the outputs' EXR channels in this order). */
 enum {
-  CH_R, CH_G, CH_B, CH_AO, CH_BX, CH_BY, CH_BZ, CH_NX, CH_NY, CH_NZ, CH_DEPTH, CH_ALPHA, CH_COUNT
+  CH_R, CH_G, CH_B, CH_AO, CH_AOSE, CH_BX, CH_BY, CH_BZ, CH_NX, CH_NY, CH_NZ, CH_DEPTH, CH_ALPHA,
+  CH_COUNT
 };
 extern const char *const obs_volume_ao_channels[CH_COUNT];
+/* The AO's standard-error channel and its value channel, for the pooled prior both backends apply
+ * (driver.h, obs_pixel_prior). */
+extern const int obs_volume_ao_se[1], obs_volume_ao_value[1];
 
 /* The warnings both backends give for a render of `sc` with `p`: quad lights ignored, and an AO
  * march that is empty, cut short or a single step. */

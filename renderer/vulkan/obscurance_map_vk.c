@@ -11,9 +11,10 @@
 #include "techniques.h"
 
 /* The channels of the technique's image, as its outputs (obscurance_map.c) name them. */
-enum { CH_W, CH_R, CH_G, CH_B, CH_ALPHA, CH_COUNT };
-static const char *const channel_names[CH_COUNT] = {
-    "obscurance", "obscurance_rgb.R", "obscurance_rgb.G", "obscurance_rgb.B", "alpha"};
+enum { CH_W, CH_SE, CH_R, CH_G, CH_B, CH_ALPHA, CH_COUNT };
+static const char *const channel_names[CH_COUNT] = {"obscurance",       "obscurance_stderr",
+                                                    "obscurance_rgb.R", "obscurance_rgb.G",
+                                                    "obscurance_rgb.B", "alpha"};
 
 static int show(obs_render_ctx *ctx, const obs_omap_peel *m, obs_image *out, obs_err *err) {
   obs_region region;
@@ -26,6 +27,9 @@ static int show(obs_render_ctx *ctx, const obs_omap_peel *m, obs_image *out, obs
     const float *w = ok ? m->w + 3 * (size_t)id : NULL;
     for (int c = 0; c < 3; c++) out->data[(size_t)(CH_R + c) * npx + i] = ok ? w[c] : 0.0f;
     out->data[(size_t)CH_W * npx + i] = ok ? (w[0] + w[1] + w[2]) / 3.0f : 0.0f;
+    /* The image's W is the mean of the channels: the mean of their errors bounds its error. */
+    const float *se = ok ? m->se + 3 * (size_t)id : NULL;
+    out->data[(size_t)CH_SE * npx + i] = ok ? (se[0] + se[1] + se[2]) / 3.0f : 0.0f;
     out->data[(size_t)CH_ALPHA * npx + i] = ok ? 1.0f : 0.0f;
   }
   obs_driver_clear_outside(out, &region);
@@ -54,7 +58,8 @@ int obs_obscurance_map_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err)
                                ctx->progress_user, &m, &ms, err);
   if (!rc) {
     obs_driver_stage_add(ctx, "map", ms);
-    rc = obs_patch_mesh_publish(ctx, "obscurance", &m.pm, m.w, err);
+    rc = obs_patch_mesh_publish(ctx, "obscurance", &m.pm, 3, m.w, err);
+    if (!rc) rc = obs_patch_mesh_publish(ctx, "obscurance_stderr", &m.pm, 3, m.se, err);
   }
   if (!rc) rc = show(ctx, &m, out, err);
   ctx->render_ms += obs_now_ms() - t1;
@@ -74,7 +79,8 @@ int obs_obscurance_map_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err)
   obs_vk_release(vk);
   if (rc) {
     obs_image_free(out);
-    if (ctx->npatches) obs_patches_free(&ctx->patches[0]), ctx->npatches = 0;
+    for (int i = 0; i < ctx->npatches; i++) obs_patches_free(&ctx->patches[i]);
+    ctx->npatches = 0;
   }
   return rc;
 }

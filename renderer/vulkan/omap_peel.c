@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "mcerr.h"
 #include "obscura/render.h"
 #include "obscurance.h"
 #include "obscurance_lines.h"
@@ -572,27 +573,44 @@ static int peel_show(peel *pl, const obs_camera_rig *rig, const obs_geometry *ge
 
 static uint64_t word64(const uint32_t *w) { return (uint64_t)w[0] | (uint64_t)w[1] << 32; }
 
-/* The device's sums into values and standard errors, as the CPU estimators make them. */
-static void finish(const uint32_t *acc, const double bg[3], obs_omap_peel *out) {
+/* One group of directions' sums (obs_bundle_groups) from the device into every patch's groups,
+ * the device's sums cleared for the next group. */
+static void fold_group(uint32_t *acc, int64_t count, obs_mcerr_ratio *groups) {
+  for (int64_t i = 0; i < count; i++) {
+    uint32_t *a = acc + (size_t)i * ACC_WORDS;
+    double n = (double)word64(a + 12);
+    for (int c = 0; c < 3; c++)
+      obs_mcerr_ratio_add(&groups[3 * (size_t)i + (size_t)c], (double)word64(a + 2 * c) / FIXED_ONE,
+                          n);
+    memset(a, 0, ACC_WORDS * sizeof *a);
+  }
+}
+
+/* The groups' sums into values and standard errors, as the CPU's bundles make them (there without
+ * the test of an open patch: an agreeing patch has the floor). */
+static int finish(const obs_mcerr_ratio *groups, const double bg[3], obs_omap_peel *out) {
+  obs_patch_err *e = calloc(out->pm.count ? (size_t)out->pm.count : 1, sizeof *e);
+  if (!e) return OBS_ENOMEM;
   for (int64_t i = 0; i < out->pm.count; i++) {
-    const uint32_t *a = acc + (size_t)i * ACC_WORDS;
-    uint64_t n = word64(a + 12);
-    out->n[i] = n;
-    if (!n) {
+    const obs_mcerr_ratio *g = groups + 3 * (size_t)i;
+    double n = g[0].n;
+    out->n[i] = (uint64_t)n;
+    e[i] = (obs_patch_err){{0, 0, 0}, n, 0, 0};
+    if (!(n > 0)) {
       for (int c = 0; c < 3; c++) out->w[3 * i + c] = (float)bg[c];
-      out->se[i] = 1.0f;
       out->unsampled += out->pm.area[i] > 0;
       continue;
     }
-    double dn = (double)n, var = 0;
     for (int c = 0; c < 3; c++) {
-      double w = (double)word64(a + 2 * c) / FIXED_ONE / dn;
-      out->w[3 * i + c] = (float)fmin(1.0, fmax(0.0, w));
-      double q = (double)word64(a + 6 + 2 * c) / FIXED_ONE / dn;
-      var = fmax(var, fmax(0.0, q - w * w) * (dn > 1 ? dn / (dn - 1) : 0));
+      out->w[3 * i + c] = (float)fmin(1.0, fmax(0.0, g[c].s / n));
+      e[i].var[c] = obs_mcerr_ratio_var(&g[c]);
     }
-    out->se[i] = (float)(dn > 1 ? sqrt(var / dn) : 0.5);
+    e[i].df = g[0].groups - 1.0;
+    e[i].floor = (float)obs_mcerr_floor((uint32_t)fmin(n, 4e9), 1.0);
   }
+  obs_patch_mesh_errors(&out->pm, e, out->se);
+  free(e);
+  return 0;
 }
 
 /* Reflectivities of every mesh, then every sphere, from their objects (0 without material). */
@@ -626,7 +644,7 @@ int obs_omap_peel_compute(obs_vk *vk, const obs_scene *scene, const obs_geometry
   memcpy(out->r_ave, env.r_ave, sizeof out->r_ave);
   size_t n1 = out->pm.count ? (size_t)out->pm.count : 1;
   out->w = malloc(3 * n1 * sizeof *out->w);
-  out->se = malloc(n1 * sizeof *out->se);
+  out->se = malloc(3 * n1 * sizeof *out->se);
   out->n = malloc(n1 * sizeof *out->n);
   if (show) out->ids = malloc((size_t)show->width * (size_t)show->height * sizeof *out->ids);
   float(*refl)[4] = reflectivities(scene, geo);
@@ -656,7 +674,10 @@ int obs_omap_peel_compute(obs_vk *vk, const obs_scene *scene, const obs_geometry
                   err);
   free(refl);
   int batch = 8;
-  for (uint32_t k = 0; !rc && k < p->directions; k++) {
+  obs_mcerr_ratio *groups = calloc(3 * n1, sizeof *groups);
+  if (!rc && !groups)
+    rc = obs_err_set(err, OBS_ENOMEM, "%s: obscurance_map: out of memory", scene->name);
+  for (uint32_t k = 0, g = 0; !rc && k < p->directions; k++) {
     if (cancel && atomic_load(cancel)) {
       rc = obs_err_set(err, OBS_ECANCELED, "%s: render cancelled", scene->name);
       break;
@@ -665,14 +686,20 @@ int obs_omap_peel_compute(obs_vk *vk, const obs_scene *scene, const obs_geometry
     obs_bundle_get(&bs, p->seed, p->directions, k, p->bundle_resolution, &b);
     rc =
         peel_direction(&pl, &b, p->bundle_resolution, &tp, &batch, &out->layers, &out->capped, err);
+    if (!rc && k + 1 == obs_bundle_group_first(p->directions, g + 1)) {
+      fold_group(pl.buf[B_ACC].map, out->pm.count, groups);
+      g++;
+    }
     if (progress) progress(progress_user, (k + 1.0) / p->directions);
   }
   if (!rc && show) rc = peel_show(&pl, show, geo, &bs, out->ids, err);
   if (!rc) {
     double bg[3];
     for (int c = 0; c < 3; c++) bg[c] = p->color_bleeding ? env.r_ave[c] : 1.0;
-    finish(pl.buf[B_ACC].map, bg, out);
+    if (finish(groups, bg, out))
+      rc = obs_err_set(err, OBS_ENOMEM, "%s: obscurance_map: out of memory", scene->name);
   }
+  free(groups);
   if (device_ms) *device_ms = obs_now_ms() - t0;
   peel_free(&pl);
   if (rc) obs_omap_peel_free(out);

@@ -26,7 +26,7 @@
 typedef struct obs_omap_peel {
   obs_patch_mesh pm;
   float *w;          /* count x 3, patch-major: W per channel */
-  float *se;         /* count: standard error of a patch's mean, the largest of its channels' */
+  float *se;         /* count x 3: standard error of a patch's W per channel (1: no sample) */
   uint64_t *n;       /* count: samples per patch */
   int64_t unsampled; /* patches of positive area that received no sample */
   uint64_t layers;   /* layers rendered over all directions (the empty last ones included) */

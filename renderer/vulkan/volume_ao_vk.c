@@ -16,8 +16,10 @@
 
 #include "camera.h"
 #include "driver.h"
+#include "driver_prior.h"
 #include "environment.h"
 #include "obscura/render.h"
+#include "sampling.h"
 #include "shaders.h"
 #include "techniques.h"
 #include "vk.h"
@@ -62,10 +64,13 @@ typedef struct vol_push {
   uint32_t dir0, dir1;                  /* its AO directions [dir0, dir1) */
   int32_t phase;                        /* PH_* */
   uint32_t iter_limit;                  /* obs_vk_loop_limit; 0: none */
+  int32_t pilot;    /* 0; the prior's pilots: the cell side, invocation (i, j) the pilot of cell */
+  int32_t cell0[2]; /* (cell0 + (i, j)), stored at (i, j) */
 } vol_push;
 _Static_assert(sizeof(vol_push) <= OBS_VK_PUSH_MAX, "push constants past the device layer's");
 enum { FLAG_VOL_MANUAL = 1, FLAG_ENV_MANUAL = 2, FLAG_ENV = 4 };
 enum { PH_FIRST_CHUNK = 1, PH_LAST_CHUNK = 2, PH_FIRST_SAMPLE = 4, PH_FINAL = 8 };
+enum { NIMG = 6 }; /* the shader's storage images, bindings 0 .. 5 */
 
 /* A band of rows holds about this many AO directions per dispatch, and one obs_vk_run at most
  * GROUP dispatches: progress and cancellation come between runs, and no dispatch runs long. */
@@ -206,8 +211,12 @@ typedef struct dev {
   obs_vk_texture *env;
   obs_vk_data *params;
   /* The shader's acc0..acc2 (the outputs at the end: (R, G, B, ao), (bent normal, depth),
-   * (normal, alpha)) and st0, st1 (the sample in progress; st1.w the loop-limit flag). */
-  obs_vk_image *img[5];
+   * (normal, alpha)), st0, st1 (the sample in progress; st1.w the loop-limit flag) and st2 (the
+   * replicates of the sample in progress, and in w the pixel's AO variance, at the end its
+   * standard error). */
+  obs_vk_image *img[NIMG];
+  obs_vk_image *pilot[NIMG]; /* the same for the pooled prior's pilots, one texel per cell */
+  obs_prior_grid grid;       /* the cells of the region's prior */
   int env_linear;
 } dev;
 
@@ -215,7 +224,8 @@ static void dev_free(obs_vk *vk, dev *d) {
   obs_vk_volume_atlas_free(vk, &d->atlas);
   obs_vk_texture_free(vk, d->env);
   obs_vk_data_free(vk, d->params);
-  for (int i = 0; i < 5; i++) obs_vk_image_free(vk, d->img[i]);
+  for (int i = 0; i < NIMG; i++) obs_vk_image_free(vk, d->img[i]), obs_vk_image_free(vk, d->pilot[i]);
+  obs_prior_grid_free(&d->grid);
   memset(d, 0, sizeof *d);
 }
 
@@ -230,8 +240,12 @@ static int dev_build(obs_vk *vk, const job *jb, const obs_region *rg, dev *d, ob
   if (!rc && !b) rc = obs_err_set(err, OBS_ENOMEM, "%s: volume_ao: out of memory", jb->sc->name);
   if (!rc) rc = obs_vk_data_create(vk, b, rows * 4 * sizeof *b, &d->params, err);
   free(b);
-  for (int i = 0; i < 5 && !rc; i++)
+  for (int i = 0; i < NIMG && !rc; i++)
     rc = obs_vk_image_create(vk, rg->x1 - rg->x0, rg->y1 - rg->y0, 4, &d->img[i], err);
+  if (!rc && obs_prior_grid_init(&d->grid, rg, jb->sc->width, jb->sc->height, 1))
+    rc = obs_err_set(err, OBS_ENOMEM, "%s: volume_ao: out of memory", jb->sc->name);
+  for (int i = 0; i < NIMG && !rc; i++)
+    rc = obs_vk_image_create(vk, d->grid.ncx, d->grid.ncy, 4, &d->pilot[i], err);
   return rc;
 }
 
@@ -314,6 +328,7 @@ static void batch_put(batch *b, int i, const vol_push *base, const dev *d, uint6
                       uint32_t chunk, uint32_t nchunks) {
   uint32_t n = base->samples, s = (uint32_t)(at / nchunks), c = (uint32_t)(at % nchunks);
   vol_push *pc = &b->pc[i];
+  obs_vk_image *const *img = base->pilot ? d->pilot : d->img;
   *pc = *base;
   pc->pixel_sample = (int32_t)s;
   pc->dir0 = c * chunk;
@@ -324,8 +339,8 @@ static void batch_put(batch *b, int i, const vol_push *base, const dev *d, uint6
   b->pass[i] = (obs_vk_pass){.name = "volume_ao",
                              .spirv = obs_spv_volume_ao_comp,
                              .spirv_size = obs_spv_volume_ao_comp_size,
-                             .images = {d->img[0], d->img[1], d->img[2], d->img[3], d->img[4]},
-                             .nimages = 5,
+                             .images = {img[0], img[1], img[2], img[3], img[4], img[5]},
+                             .nimages = NIMG,
                              .push = pc,
                              .push_size = sizeof *pc,
                              .groups_x = (uint32_t)(base->band[2] + 7) / 8,
@@ -377,9 +392,12 @@ static vol_push push_base(obs_vk *vk, const job *jb, const obs_region *rg, const
                     .iter_limit = obs_vk_loop_limit(vk)};
 }
 
-/* The dispatches over the region, a band of rows at a time; *ms gets their device time. */
+/* The dispatches over the region, a band of rows at a time, then those of the pooled prior's
+ * pilots (driver.h, obs_pixel_prior: every cell's pilot OBS_PRIOR_REPLICAS times, with the
+ * replicas' seeds, into the pilot images, read back after each replica into vals); *ms gets their
+ * device time. */
 static int shade(obs_render_ctx *ctx, obs_vk *vk, const job *jb, const obs_region *rg, const dev *d,
-                 double *ms, obs_err *err) {
+                 float *vals, double *ms, obs_err *err) {
   int rw = rg->x1 - rg->x0, rh = rg->y1 - rg->y0;
   uint32_t chunk = chunk_directions(vk, jb);
   vol_push pc = push_base(vk, jb, rg, d);
@@ -388,9 +406,15 @@ static int shade(obs_render_ctx *ctx, obs_vk *vk, const job *jb, const obs_regio
   if (rows > rh) rows = rh;
   int bands = (rh + rows - 1) / rows;
   uint32_t nchunks = (jb->p.samples + chunk - 1) / chunk;
-  double total = (double)bands * jb->sc->spp * nchunks, done = 0;
+  double total = (double)(bands + OBS_PRIOR_REPLICAS) * jb->sc->spp * nchunks, done = 0;
   batch *b = malloc(sizeof *b);
-  if (!b) return obs_err_set(err, OBS_ENOMEM, "%s: volume_ao: out of memory", jb->sc->name);
+  size_t cells = (size_t)d->grid.ncx * (size_t)d->grid.ncy;
+  float *px = malloc(cells * 4 * 3 * sizeof *px);
+  if (!b || !px) {
+    free(b);
+    free(px);
+    return obs_err_set(err, OBS_ENOMEM, "%s: volume_ao: out of memory", jb->sc->name);
+  }
   *ms = 0;
   int rc = 0;
   for (int y = rg->y0; y < rg->y1 && !rc; y += rows) {
@@ -398,8 +422,70 @@ static int shade(obs_render_ctx *ctx, obs_vk *vk, const job *jb, const obs_regio
     pc.band[0] = rg->x0, pc.band[1] = y, pc.band[2] = rw, pc.band[3] = h;
     rc = shade_band(ctx, vk, &pc, d, chunk, b, total, &done, ms, err);
   }
+  vol_push pp = pc;
+  pp.origin[0] = pp.origin[1] = 0;
+  pp.band[0] = pp.band[1] = 0, pp.band[2] = d->grid.ncx, pp.band[3] = d->grid.ncy;
+  pp.pilot = OBS_PRIOR_CELL, pp.cell0[0] = d->grid.cx0, pp.cell0[1] = d->grid.cy0;
+  for (uint32_t k = 0; k < OBS_PRIOR_REPLICAS && !rc; k++) {
+    pp.seed = obs_sampler_replica_seed(jb->p.seed, k + 1);
+    rc = shade_band(ctx, vk, &pp, d, chunk, b, total, &done, ms, err);
+    /* (R, G, B, ao), (normal, alpha), st1 (w: the loop-limit flag) */
+    for (int i = 0; i < 3 && !rc; i++)
+      rc = obs_vk_image_download(vk, d->pilot[i == 0 ? 0 : i == 1 ? 2 : 4], px + (size_t)i * cells * 4,
+                                 err);
+    for (size_t c = 0; c < cells && !rc; c++) {
+      if (px[2 * cells * 4 + 4 * c + 3] != 0) rc = OBS_EUNSUPPORTED;
+      vals[(size_t)k * cells * 2 + 2 * c] = px[4 * c + 3];
+      vals[(size_t)k * cells * 2 + 2 * c + 1] = px[cells * 4 + 4 * c + 3];
+    }
+    if (rc == OBS_EUNSUPPORTED)
+      obs_err_set(err, rc, "%s: volume_ao on \"%s\": a pilot of the standard errors needs more "
+                  "loop iterations than one shader invocation may run there; raise step or lower "
+                  "max_distance", jb->sc->name, obs_vk_device_name(vk));
+  }
+  free(px);
   free(b);
   return rc;
+}
+
+/* The pooled prior: each cell's variance over its pilot's replicas (vals: per replica, per cell,
+ * ao and alpha), combined into every pixel's standard error as the CPU's driver does. */
+static double vk_df(const void *user, int c) {
+  (void)c;
+  const job *jb = user;
+  return jb->sc->spp *
+         (obs_rqmc_replicates((obs_sampler_kind)jb->p.sampler, jb->p.samples) - 1.0);
+}
+
+static uint64_t apply_prior(const job *jb, const obs_region *rg, dev *d, const float *vals,
+                            obs_image *out) {
+  static const obs_pixel_prior prior = {1, obs_volume_ao_se, obs_volume_ao_value, CH_ALPHA, 0, 0,
+                                        vk_df};
+  size_t cells = (size_t)d->grid.ncx * (size_t)d->grid.ncy;
+  uint64_t rays = 0;
+  for (int cy = 0; cy < d->grid.ncy; cy++)
+    for (int cx = 0; cx < d->grid.ncx; cx++) {
+      size_t c = (size_t)cy * (size_t)d->grid.ncx + (size_t)cx;
+      double v[OBS_PRIOR_REPLICAS];
+      int covered = 1;
+      for (int k = 0; k < OBS_PRIOR_REPLICAS; k++) {
+        float alpha = vals[(size_t)k * cells * 2 + 2 * c + 1];
+        v[k] = vals[(size_t)k * cells * 2 + 2 * c];
+        covered &= alpha > 0;
+        rays += (uint64_t)jb->sc->spp + (uint64_t)round(alpha * jb->sc->spp) * jb->p.samples;
+      }
+      obs_prior_grid_set(&d->grid, cx, cy, 0, v, covered);
+    }
+  size_t plane = (size_t)out->width * (size_t)out->height;
+  for (int y = rg->y0; y < rg->y1; y++)
+    for (int x = rg->x0; x < rg->x1; x++) {
+      size_t at = (size_t)y * (size_t)out->width + (size_t)x;
+      float px[CH_COUNT];
+      for (int c = 0; c < CH_COUNT; c++) px[c] = out->data[(size_t)c * plane + at];
+      obs_prior_grid_apply(&d->grid, &prior, jb, x, y, px);
+      out->data[(size_t)CH_AOSE * plane + at] = px[CH_AOSE];
+    }
+  return rays;
 }
 
 /* Downloads the outputs into the region of `out` and counts the rays as the CPU does (camera
@@ -409,12 +495,14 @@ static int readback(obs_render_ctx *ctx, obs_vk *vk, const job *jb, const obs_re
                     const dev *d, obs_image *out, obs_err *err) {
   int rw = rg->x1 - rg->x0, rh = rg->y1 - rg->y0, rc = 0;
   size_t n = (size_t)rw * (size_t)rh, plane = (size_t)out->width * (size_t)out->height;
-  /* Where each channel is in the images: (R, G, B, ao), (bent normal, depth), (normal, alpha). */
-  static const int src[CH_COUNT] = {0, 1, 2, 3, 4, 5, 6, 8, 9, 10, 7, 11};
-  float *px = malloc(4 * n * 4 * sizeof *px);
+  /* Where each channel is in the images downloaded: (R, G, B, ao), (bent normal, depth),
+   * (normal, alpha), st1 (w: the loop-limit flag), st2 (w: the AO's standard error). */
+  static const int src[CH_COUNT] = {0, 1, 2, 3, 19, 4, 5, 6, 8, 9, 10, 7, 11};
+  static const int image[5] = {0, 1, 2, 4, 5};
+  float *px = malloc(5 * n * 4 * sizeof *px);
   if (!px) return obs_err_set(err, OBS_ENOMEM, "%s: volume_ao: out of memory", jb->sc->name);
-  for (int i = 0; i < 4 && !rc; i++)
-    rc = obs_vk_image_download(vk, d->img[i < 3 ? i : 4], px + i * n * 4, err);
+  for (int i = 0; i < 5 && !rc; i++)
+    rc = obs_vk_image_download(vk, d->img[image[i]], px + i * n * 4, err);
   size_t limited = 0;
   for (size_t i = 0; i < n && !rc; i++) limited += px[3 * n * 4 + 4 * i + 3] != 0;
   if (limited)
@@ -453,6 +541,7 @@ int obs_volume_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   obs_vk *vk = NULL;
   dev d;
   memset(&d, 0, sizeof d);
+  float *vals = NULL;
   const int validation = obs_vk_validation_requested();
   /* Acquiring the device is not timed: only its first use in a process opens it. */
   if ((rc = obs_vk_acquire(&vk, validation, err))) goto done;
@@ -462,15 +551,23 @@ int obs_volume_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   ctx->build_ms += t1 - t0;
   obs_driver_stage_add(ctx, "upload", t1 - t0);
   progress(ctx, 0.05);
-  if ((rc = shade(ctx, vk, &jb, &rg, &d, &ms, err))) goto done;
+  vals = malloc((size_t)OBS_PRIOR_REPLICAS * (size_t)d.grid.ncx * (size_t)d.grid.ncy * 2 *
+                sizeof *vals);
+  if (!vals) {
+    rc = obs_err_set(err, OBS_ENOMEM, "%s: volume_ao: out of memory", sc->name);
+    goto done;
+  }
+  if ((rc = shade(ctx, vk, &jb, &rg, &d, vals, &ms, err))) goto done;
   obs_driver_stage_add(ctx, "shade", ms);
   double t2 = obs_now_ms();
   if ((rc = readback(ctx, vk, &jb, &rg, &d, out, err))) goto done;
+  ctx->rays += apply_prior(&jb, &rg, &d, vals, out);
   obs_driver_stage_add(ctx, "readback", obs_now_ms() - t2);
   ctx->render_ms = obs_now_ms() - t1;
   rc = obs_vk_validation_verdict(vk, validation, sc->name, "volume_ao", err);
   if (!rc) progress(ctx, 1.0);
 done:
+  free(vals);
   if (vk) dev_free(vk, &d);
   obs_vk_release(vk);
   if (rc) obs_image_free(out);

@@ -60,8 +60,8 @@ static uint64_t synth_block(const void *job, int thread, int x0, int y0, int x1,
 }
 
 static const char *const synth_names[3] = {"a", "b", "alpha"};
-static const obs_pixel_ops synth_ops = {3, synth_names, synth_shade, NULL};
-static const obs_pixel_ops synth_block_ops = {3, synth_names, NULL, synth_block};
+static const obs_pixel_ops synth_ops = {3, synth_names, .shade = synth_shade};
+static const obs_pixel_ops synth_block_ops = {3, synth_names, .block = synth_block};
 /* Both ways of shading: every property of the driver holds for each. */
 static const obs_pixel_ops *const synth_ways[2] = {&synth_ops, &synth_block_ops};
 

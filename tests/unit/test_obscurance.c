@@ -246,21 +246,30 @@ static void test_matches_rt_ao(void **state) {
     const float *al = obs_image_channel(&a.image, "alpha");
     size_t n = (size_t)a.image.width * (size_t)a.image.height, cov = 0;
     double diff = 0, var = 0, chi = 0;
+    size_t exact = 0;
     for (size_t i = 0; i < n; i++) {
       if (al[i] == 0.0f) continue;
       double v = (double)ws[i] * ws[i] + (double)as[i] * as[i];
       cov++;
       diff += w[i] - ao[i];
       var += v;
+      if (v == 0) { /* both exact: nothing within d_max above the point */
+        assert_true(w[i] == ao[i]);
+        exact++;
+        continue;
+      }
       chi += (w[i] - ao[i]) * (w[i] - ao[i]) / v;
       assert_true(chan(&a, "obscurance", 1)[i] == w[i] && chan(&a, "obscurance", 2)[i] == w[i]);
     }
-    printf("%s: mean W - AO %.3g, 3 sigma %.3g, mean chi^2 %.3f over %zu pixels\n", falloffs[f],
-           diff / cov, 3 * sqrt(var) / cov, chi / cov, cov);
+    double mchi = chi / (double)(cov - exact);
+    printf("%s: mean W - AO %.3g, 3 sigma %.3g, mean chi^2 %.3f over %zu pixels (%zu exact)\n",
+           falloffs[f], diff / cov, 3 * sqrt(var) / cov, mchi, cov - exact, exact);
     assert_true(cov > n / 2);
     assert_true(fabs(diff) <= 3 * sqrt(var));
-    /* The reported errors are bounds (Wilson at z = 3 over 3), so chi^2 per pixel stays below 1. */
-    assert_true(chi / cov < 1.0);
+    /* The reported errors are honest standard errors: chi^2 per pixel averages about 1 (0.95,
+     * 1.15 and 1.52 for the three falloffs here), within what docs/accuracy.md's calibration band
+     * (RMS stderr / RMSE in [0.67, 1.5]) allows: [1 / 1.5^2, 1 / 0.67^2]. */
+    assert_true(mchi > 0.44 && mchi < 2.2);
     obs_result_free(&a);
     obs_result_free(&b);
   }

@@ -58,9 +58,9 @@ static void test_open_plane_is_one(void **state) {
         continue;
       }
       assert_true(px(&r, "ao", x, y) == 1.0f);
-      /* Every ray escapes, yet the truth could lie below 1: the z = 3 Wilson bound at mean 1 is
-       * 3 / (n + 9), never 0. */
-      assert_true(fabs(px(&r, "ao_stderr", x, y) - 3.0 / (64 + 9)) < 1e-6);
+      /* Every ray escapes, and no surface lies above the plane: the estimate is exact, its
+       * variance truly 0 (docs/techniques/rt_ao.md, "The reported error"). */
+      assert_true(px(&r, "ao_stderr", x, y) == 0.0f);
       assert_true(fabsf(px(&r, "normal.Y", x, y) - 1.0f) < 1e-6f);
       assert_true(fabsf(px(&r, "bent_normal.Y", x, y) - 1.0f) < 0.05f);
       assert_true(px(&r, "depth.Z", x, y) > 0.0f);
@@ -141,26 +141,32 @@ static const double sphere_cases[][3] = {{0.5, 1.0, 0.0},  {0.5, 1.0, 30.0}, {0.
                                          {1e-3, 1e3, 0.0}};
 
 /* Cosine weighting sees the projected solid angle: W = 1 - cos(alpha) (r/d)^2; uniform weighting
- * the solid angle: W = sqrt(1 - (r/d)^2). Scrambled Sobol at 16384 rays, within 3 sigma. */
+ * the solid angle: W = sqrt(1 - (r/d)^2). Scrambled Sobol at 16384 rays, within a fixed tolerance
+ * and within 3 sigma. The standard error of 8 replicates is honest, so 3 sigma is a Student t with
+ * 7 degrees of freedom: each of the 14 estimates is outside it with probability 2 %; at most 2 of
+ * them may be (a binomial tail of 3 %), none outside 6 sigma (4e-4 each). */
 static void test_sphere_analytic(void **state) {
   (void)state;
+  int outside = 0;
   for (size_t i = 0; i < sizeof sphere_cases / sizeof sphere_cases[0]; i++) {
     double r = sphere_cases[i][0], d = sphere_cases[i][1], al = sphere_cases[i][2], se;
     double expect = 1.0 - cos(al * PI / 180.0) * (r / d) * (r / d);
     double ao = sphere_ao(r, d, al, "cosine", "sobol", 16384, 1, &se);
     printf("cosine r=%g d=%g alpha=%g: ao=%.5f expect=%.5f stderr=%.5f\n", r, d, al, ao, expect, se);
     assert_true(se < 0.01);
-    /* The reported stderr is the iid formula, loose for scrambled Sobol; hold the estimate to a
-     * fixed tolerance too (16384 Sobol rays converge far below it). */
-    assert_true(fabs(ao - expect) <= 3.0 * se + 1e-6);
+    outside += fabs(ao - expect) > 3.0 * se + 1e-6;
+    assert_true(fabs(ao - expect) <= 6.0 * se + 1e-6);
     assert_true(fabs(ao - expect) <= 1.5e-3);
     double expect_u = sqrt(1.0 - (r / d) * (r / d));
     ao = sphere_ao(r, d, al, "uniform", "sobol", 16384, 1, &se);
     printf("uniform r=%g d=%g alpha=%g: ao=%.5f expect=%.5f stderr=%.5f\n", r, d, al, ao, expect_u,
            se);
-    assert_true(fabs(ao - expect_u) <= 3.0 * se + 1e-6);
+    outside += fabs(ao - expect_u) > 3.0 * se + 1e-6;
+    assert_true(fabs(ao - expect_u) <= 6.0 * se + 1e-6);
     assert_true(fabs(ao - expect_u) <= 1.5e-3);
   }
+  printf("%d of 14 estimates outside 3 sigma\n", outside);
+  assert_true(outside <= 2);
 }
 
 /* Mixed scales: a small sphere close to a point on a ground plane of any size gives the same
@@ -364,7 +370,10 @@ static void test_sample_count_extremes(void **state) {
   for (int i = 0; i < 24 * 24; i++) {
     if (al[i] > 0) {
       assert_true(ao[i] == 0.0f || ao[i] == 1.0f); /* one binary ray */
-      assert_true(fabsf(se[i] - 0.3f) < 1e-6f);    /* Wilson at n = 1: (0.45 + 0.45) / 3 */
+      /* One ray has no spread: its error is the pooled prior's (the spread of the pilots'
+       * rays around it), at most 0.5 (the largest standard deviation of a value in [0, 1]). */
+      assert_true(se[i] >= 0.0f && se[i] <= 0.5f);
+      if (ao[i] == 0.0f) assert_true(se[i] > 0.0f);
     }
   }
   obs_result_free(&r);
@@ -652,17 +661,16 @@ static int outside_3sigma(double cy, double cx, double r, double elev_deg, doubl
   return out;
 }
 
-/* Honest per-pixel error. For iid binary rays the reported ao_stderr (z = 3 Wilson score bound)
- * leaves a share q(p) = P(|mean - p| > 3 stderr(mean)) of pixels outside 3 sigma. Summed exactly
- * over the binomial distribution of 256 rays, q(p) <= 0.0033 for every p in (0, 1) (the largest
- * near p = 0.48; below 1e-5 at p = 0.002, 0.001 at p = 0.78), against 0.0027 for a normal variable.
- * Over N replicates the count outside is then at most Binomial(N, 0.0033): its mean plus 3 of its
- * standard deviations plus 1 is the tolerance. The sample-variance error of before reported 0 for
- * ~60 % of near-contact pixels and failed this by two orders of magnitude. Scrambled Sobol errs
- * less than iid rays, so the same bound holds for it. */
+/* Honest per-pixel error, near contact (where every ray usually agrees) and on an ordinary case,
+ * per pixel over seeds (docs/techniques/rt_ao.md, "The reported error"). With `random` the
+ * error is the spread of 256 i.i.d. rays (255 degrees of freedom, or the floor where they all
+ * agree): about the normal 0.27 % fall outside 3 sigma; q = 0.0033 leaves room for the binomial's
+ * discreteness. With `sobol` it is the spread of 8 independently scrambled replicates: a Student t
+ * with 7 degrees of freedom, 1.97 % outside 3 sigma; q = 0.02. Over N pixels the count outside is
+ * then at most Binomial(N, q): its mean plus 3 of its standard deviations plus 1 is the
+ * tolerance. Near contact (truth 0.002) both report the floor or a spread, never 0. */
 static void test_stderr_is_honest(void **state) {
   (void)state;
-  const double q = 0.0033;
   /* Near contact: a unit sphere 0.001 above the point; truth 1 - 1/1.001^2 = 0.002. The camera
    * looks in under it at 1 degree of elevation, through the gap. Ordinary: r = 0.5 at d = 1, 30
    * degrees off the normal; truth 0.7835. */
@@ -675,6 +683,7 @@ static void test_stderr_is_honest(void **state) {
     for (int k = 0; k < 2; k++) {
       int total, out = outside_3sigma(cases[c].cy, cases[c].cx, cases[c].r, cases[c].elev,
                                       cases[c].truth, samplers[k], 256, 6, &total);
+      const double q = k == 0 ? 0.0033 : 0.02;
       double allowed = total * q + 3.0 * sqrt(total * q * (1 - q)) + 1.0;
       printf("truth %.4f, %s: %d of %d pixels outside 3 sigma (allowed %.1f)\n", cases[c].truth,
              samplers[k], out, total, allowed);

@@ -171,7 +171,9 @@ static void test_white_environment(void **state) {
 }
 
 /* The RMSE of the reference's `final` against a 1024-sample one under the sky: four times the
- * samples, about half the error (1.5 to 2.7x: one noisy draw of each). */
+ * samples, about half the error with independent samples, more with the scrambled Sobol
+ * replicates (sampling.h: 4 of n/4 points each converge faster; measured 2.96): 1.5 to 4x, one
+ * noisy draw of each. */
 static double sky_rmse(int samples, uint32_t seed) {
   char objs[1200];
   snprintf(objs, sizeof objs, "%s, %s", volume_obj("a", "sphere", 48, "", 2, 0, 0, 0),
@@ -205,7 +207,7 @@ static void test_reference_converges(void **state) {
   double e16 = sky_rmse(16, 3), e64 = sky_rmse(64, 3);
   printf("ibl reference under the sky: RMSE %.4g at 16 samples, %.4g at 64 (ratio %.2f)\n", e16,
          e64, e16 / e64);
-  assert_true(e16 / e64 > 1.5 && e16 / e64 < 2.7);
+  assert_true(e16 / e64 > 1.5 && e16 / e64 < 4.0);
 }
 
 /* Each ibl method's error against the reference under the sky is finite and reported. */

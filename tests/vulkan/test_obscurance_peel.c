@@ -13,6 +13,7 @@
 #include "omap_peel.h"
 #include "omap_scenes.h"
 #include "raytrace.h"
+#include "stderr_check.h"
 #include "vktest.h"
 
 /* The shared test parameters with 32 directions: a rendered direction costs more than a traced
@@ -40,7 +41,8 @@ static void peel_of(const char *doc, const obs_obscurance_map_params *p, obs_oma
   obs_scene_free(&sc);
   for (int64_t i = 0; i < m->pm.count; i++) {
     for (int c = 0; c < 3; c++) assert_true(m->w[3 * i + c] >= 0.0f && m->w[3 * i + c] <= 1.0f);
-    assert_true(isfinite(m->se[i]) && m->se[i] >= 0.0f);
+    for (int c = 0; c < 3; c++)
+      assert_true(isfinite(m->se[3 * i + c]) && m->se[3 * i + c] >= 0.0f);
   }
 }
 
@@ -129,8 +131,10 @@ static void test_cornell_bundles(void **state) {
       double d = (double)cpu.w[3 * i + c] - gpu.w[3 * i + c];
       d2 += d * d;
     }
-    se_cpu += (double)cpu.se[i] * cpu.se[i];
-    se_gpu += (double)gpu.se[i] * gpu.se[i];
+    for (int c = 0; c < 3; c++) {
+      se_cpu += (double)cpu.se[3 * i + c] * cpu.se[3 * i + c] / 3;
+      se_gpu += (double)gpu.se[3 * i + c] * gpu.se[3 * i + c] / 3;
+    }
     k++;
   }
   double rmse = sqrt(d2 / (3.0 * k)), n_cpu = sqrt(se_cpu / k), n_gpu = sqrt(se_gpu / k);
@@ -293,14 +297,17 @@ static void test_render(void **state) {
   int rc = obs_render(&sc, &o, &res, &err);
   vktest_check_rc(rc, &err);
   assert_int_equal(res.backend, OBS_BACKEND_VULKAN);
-  assert_int_equal(res.npatches, 1);
+  assert_int_equal(res.npatches, 2); /* obscurance and obscurance_stderr */
   assert_true(res.patches[0].count > 0);
+  assert_int_equal(res.patches[1].count, res.patches[0].count);
   const obs_image *im = &res.image;
   size_t npx = (size_t)im->width * (size_t)im->height, covered = 0;
+  const float *alpha = obs_image_channel(im, "alpha");
+  assert_non_null(alpha);
   for (size_t i = 0; i < npx; i++) {
-    float a = im->data[4 * npx + i];
+    float a = alpha[i];
     covered += a == 1.0f;
-    for (int c = 0; c < 4; c++) {
+    for (int c = 0; c < 5; c++) { /* W, its error, RGB */
       float v = im->data[(size_t)c * npx + i];
       assert_true(isfinite(v) && v >= 0 && v <= 1);
       if (a == 0.0f) assert_true(v == 0.0f);
@@ -388,6 +395,20 @@ static void test_derived_defaults(void **state) {
   }
 }
 
+/* depth_peeling's per-patch standard errors, held to the CPU's check (stderr_check.h): groups of
+ * directions with their own rotations, pooled over each triangle's patches. */
+static void test_stderr_calibrated(void **state) {
+  (void)state;
+  vktest_need_vk();
+  static const obs_stderr_case c = {
+      "obscurance_map depth_peeling (vulkan)", "scenes/cornell_box.json", "obscurance_map",
+      "vulkan",
+      "{\"method\":\"depth_peeling\",\"directions\":$N,\"bundle_resolution\":64,"
+      "\"patch_size\":100,\"d_max\":150,\"seed\":$S}",
+      "obscurance", "obscurance_stderr", 1, 8};
+  obs_test_stderr_check(&c, 16);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test_teardown(test_open_plane, vktest_quiet_teardown),
@@ -398,6 +419,7 @@ int main(void) {
       cmocka_unit_test_teardown(test_render, vktest_quiet_teardown),
       cmocka_unit_test_teardown(test_refusals, vktest_quiet_teardown),
       cmocka_unit_test_teardown(test_derived_defaults, vktest_quiet_teardown),
+      cmocka_unit_test_teardown(test_stderr_calibrated, vktest_quiet_teardown),
   };
   return cmocka_run_group_tests(tests, vktest_group_setup, vktest_group_teardown);
 }

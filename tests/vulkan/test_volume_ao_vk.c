@@ -11,6 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "stderr_check.h"
 #include "vktest.h"
 
 /* Acceptance bounds (the issue's). DEPTH_REL is relative to the depth. */
@@ -272,12 +273,25 @@ static void test_region(void **state) {
   free(doc);
 }
 
+/* The AO's standard error on Vulkan, held to the CPU's check (stderr_check.h): replicates and the
+ * pooled prior's pilots rendered on the device. */
+static void test_stderr_calibrated(void **state) {
+  (void)state;
+  vktest_need_vk();
+  static const obs_stderr_case c = {"volume_ao sobol (vulkan)", "scenes/volume_torus.json",
+                                    "volume_ao", "vulkan",
+                                    "{\"samples\":$N,\"sampler\":\"sobol\",\"seed\":$S}", "ao",
+                                    "ao_stderr", 0, 64};
+  obs_test_stderr_check(&c, 16);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test_teardown(test_against_cpu, vktest_quiet_teardown),
       cmocka_unit_test_teardown(test_lone_sphere_open, vktest_quiet_teardown),
       cmocka_unit_test_teardown(test_white_environment, vktest_quiet_teardown),
       cmocka_unit_test_teardown(test_region, vktest_quiet_teardown),
+      cmocka_unit_test_teardown(test_stderr_calibrated, vktest_quiet_teardown),
   };
   return cmocka_run_group_tests(tests, vktest_group_setup, vktest_group_teardown);
 }

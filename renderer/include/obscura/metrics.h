@@ -134,6 +134,38 @@ void obs_metrics_patch_stats(const obs_patches *p, obs_stats *out);
 int obs_metrics_patch_rmse(const obs_patches *candidate, const obs_patches *reference,
                            double *rmse, obs_err *err);
 
+/* How well a candidate's reported standard errors describe its actual error against a reference
+ * of the same quantity made with many more samples (docs/accuracy.md, "Standard errors"). Every
+ * selected value counts once (each channel of each pixel, or of each patch); with d = candidate -
+ * reference and s the reported standard error:
+ *   rms_stderr = sqrt(mean s^2), rmse = sqrt(mean d^2), ratio = rms_stderr / rmse (1 when both
+ *   are 0, +Inf when only rmse is);
+ *   within3 = share of values with |d| <= 3 s;
+ *   zero_with_error = share of values with s = 0 and d != 0.
+ * The reference's own noise adds to d: at 64x the samples it widens d by under 1 %. Values whose
+ * candidate, reference or standard error is not finite are counted in `nonfinite` and left out. */
+typedef struct obs_stderr_calib {
+  double rms_stderr, rmse, ratio, within3, zero_with_error;
+  int64_t values, nonfinite;
+  int64_t unsampled; /* patches: values left out as carrying no estimate (below) */
+} obs_stderr_calib;
+
+/* The calibration of output `name` of `candidate` (channel "<name>", or "<name>.R/G/B") with its
+ * standard error `stderr_name` ("<stderr_name>" or "<stderr_name>.R/G/B", the same kind) against
+ * `reference`'s `name`, over the pixels where the reference's `mask` channel is > 0 (NULL: all). */
+int obs_metrics_stderr_calib(const obs_image *candidate, const obs_image *reference,
+                             const char *name, const char *stderr_name, const char *mask,
+                             obs_stderr_calib *out, obs_err *err);
+
+/* The same over per-patch values of equal count and frames: `se` has one component (the error of
+ * every component of `candidate`) or as many as `candidate`; patches of zero area (when the
+ * reference's or the candidate's areas are known) are left out, and so are those whose standard
+ * error is 1 or more: per-patch values lie in [0, 1], and 1 marks a patch no sample reached
+ * (obscurance_map's), whose value is a convention, not an estimate (counted in `unsampled`). */
+int obs_metrics_patch_stderr_calib(const obs_patches *candidate, const obs_patches *se,
+                                   const obs_patches *reference, obs_stderr_calib *out,
+                                   obs_err *err);
+
 /* One candidate of a speed/accuracy comparison for obs_metrics_pareto. */
 typedef struct obs_pareto_point {
   double time_ms; /* lower is better (the median of the timed runs) */

@@ -9,8 +9,10 @@
 //
 // One dispatch shades pixel sample `sample` with AO directions [dir0, dir1): the host splits the
 // directions so that no invocation runs more loop iterations than the device allows (lavapipe:
-// 65535, obs_vk_loop_limit). The sample's open count and sums carry over in st0/st1 and the pixel's
-// sums in acc0..acc2, added in the CPU's order, so the split does not change a bit. Every loop
+// 65535, obs_vk_loop_limit). The sample's open count, sums and replicates carry over in st0..st2
+// and the pixel's sums in acc0..acc2 and st2.w, added in the CPU's order, so the split does not
+// change a bit. The AO's standard error comes from the directions' replicates as on the CPU
+// (sampling.h obs_rqmc, mcerr.h), in float where the CPU sums in double. Every loop
 // with a data-dependent trip count bumps `iters`; past the limit the invocation flags st1.w and the
 // host refuses the result. Loops over the three axes are written out: constant loops are unrolled
 // and cost nothing, but a loop with an early exit might not be.
@@ -28,6 +30,10 @@ layout(set = 0, binding = 2, rgba32f) uniform image2D acc2; // normal, hits (alp
 // in w the loop-limit flag (kept over the whole render).
 layout(set = 0, binding = 3, rgba32f) uniform image2D st0;
 layout(set = 0, binding = 4, rgba32f) uniform image2D st1;
+// Per pixel: the sample in progress's open directions in its current replicate, the Welford mean
+// and sum of squares of its replicates' means; in w the pixel's AO variance over its samples (at
+// the end its standard error).
+layout(set = 0, binding = 5, rgba32f) uniform image2D st2;
 layout(set = 1, binding = 0) uniform sampler3D vol_atlas;  // samples, linear (or nearest: flags)
 layout(set = 1, binding = 1) uniform sampler3D cell_atlas; // macrocell maxima, read by texel
 layout(set = 1, binding = 2) uniform sampler2DArray env_faces; // the cube map's faces as layers
@@ -48,6 +54,8 @@ layout(push_constant, std430) uniform Push {
   uint dir0, dir1; // its AO directions [dir0, dir1)
   int phase;      // PH_*
   uint iter_limit; // 0: none
+  int pilot;       // 0; the pooled prior's pilots (driver.h): the cell side, and invocation (i, j)
+  int cell_x0, cell_y0; // shades the pilot of cell (cell_x0 + i, cell_y0 + j), stored at (i, j)
 } pc;
 
 // Layout of P (volume_ao_vk.c): header rows, then per volume VS rows, per light 2, colormaps.
@@ -140,6 +148,35 @@ vec2 sampler_get(uvec2 s, uint i) {
   }
   return vec2(u32_to_unit(hash_combine(s.x, i)), u32_to_unit(hash_combine(s.y, i)));
 }
+// obs_rqmc: the n directions form R replicates of consecutive directions, each its own scramble.
+uint rqmc_reps() {
+  uint n = max(pc.samples, 1u);
+  return pc.sampler_kind == 2 || n < 4u ? n : 4u; // OBS_RQMC_REPLICATES
+}
+uint rqmc_first(uint r) {
+  uint R = rqmc_reps(), base = pc.samples / R, extra = pc.samples % R;
+  return r * base + min(r, extra);
+}
+// The replicate of direction i (returned) and i's index j in it.
+uint rqmc_locate(uint i, out uint j) {
+  if (pc.sampler_kind == 2) {
+    j = i;
+    return 0u;
+  }
+  uint R = rqmc_reps(), base = pc.samples / R, extra = pc.samples % R, big = extra * (base + 1u);
+  if (i < big) {
+    j = i % (base + 1u);
+    return i / (base + 1u);
+  }
+  j = (i - big) % base;
+  return extra + (i - big) / base;
+}
+uvec2 rqmc_stream(uvec2 s0, uint r) {
+  if (r == 0u) return s0;
+  uint a = hash_combine(s0.x, 0x51ed270bu + r);
+  return uvec2(a, hash32(a ^ 0xa511e9b3u));
+}
+
 vec3 sample_cosine(vec2 uv) {
   float r = sqrt(uv.x), phi = 6.28318530717958647692 * uv.y;
   return vec3(r * cos(phi), r * sin(phi), sqrt(uv.x < 1.0 ? 1.0 - uv.x : 0.0));
@@ -426,6 +463,7 @@ vec3 colormap(int k, float value) {
 struct Dirs {
   float open;
   vec3 sum, env;
+  float part, wmean, wm2; // the current replicate's open directions; Welford over replicates
 };
 
 // march_ao's loop over directions [dir0, dir1) about world normal n from data point p of volume
@@ -436,7 +474,8 @@ void march_chunk(int a, vec3 p, vec3 n, uvec2 px, inout Dirs r) {
   uvec2 smp = sampler_init(px.x, px.y, uint(pc.pixel_sample), 1u);
   for (uint i = pc.dir0; i < pc.dir1; i++) {
     iters++;
-    vec3 l = sample_cosine(sampler_get(smp, i));
+    uint j, rep = rqmc_locate(i, j);
+    vec3 l = sample_cosine(sampler_get(rqmc_stream(smp, rep), j));
     vec3 w = l.x * t1 + l.y * t2 + l.z * n;
     vec3 da = normalize3(map_dir(a, V_TO_DATA, w));
     bool blocked = false;
@@ -448,6 +487,15 @@ void march_chunk(int a, vec3 p, vec3 n, uvec2 px, inout Dirs r) {
         blocked = grid_crossing(b, map_point(b, V_TO_DATA, xw),
                                 map_dir(b, V_TO_DATA, map_dir(a, V_TO_WORLD, da)));
     }
+    if (!blocked) r.part += 1.0;
+    if (pc.sampler_kind == 2 || i + 1u == rqmc_first(rep + 1u)) { // the replicate's last
+      uint first = pc.sampler_kind == 2 ? i : rqmc_first(rep);
+      float y = r.part / float(i + 1u - first);
+      float cnt = float(pc.sampler_kind == 2 ? i + 1u : rep + 1u), d = y - r.wmean;
+      r.wmean += d / cnt;
+      r.wm2 += d * (y - r.wmean);
+      r.part = 0.0;
+    }
     if (blocked) continue;
     r.open += 1.0;
     r.sum += w;
@@ -458,8 +506,16 @@ void march_chunk(int a, vec3 p, vec3 n, uvec2 px, inout Dirs r) {
 // shade_hit once the sample's directions are all marched: its colour and what it adds to the
 // pixel's sums (a0: R, G, B, ao; a1: bent normal, depth; a2: normal, hits).
 void shade_hit(int k, vec3 p, vec3 nd, vec3 n, vec3 x, vec3 dir, float depth, Dirs r,
-               inout vec4 a0, inout vec4 a1, inout vec4 a2) {
-  float ao = r.open / float(pc.samples);
+               inout vec4 a0, inout vec4 a1, inout vec4 a2, inout float var) {
+  float ao = r.wmean, R = float(rqmc_reps());
+  // mcerr.h: the replicates' spread, or when they all agree the floor 1.5 / (n + 2), at most 0.5,
+  // marked as agreed: var holds minus the sum while no sample had a spread (obs_mcerr_pixel).
+  if (r.wm2 > 0.0 && R > 1.0) {
+    var = abs(var) + r.wm2 / (R * (R - 1.0));
+  } else {
+    float floor_ = min(0.5, 1.5 / (float(pc.samples) + 2.0));
+    var = var > 0.0 ? var + floor_ * floor_ : var - floor_ * floor_;
+  }
   vec3 bent = r.open > 0.0 ? normalize3(r.sum) : n, env = r.env / float(pc.samples);
   vec3 diffuse, spec, ibl = vec3(0.0);
   direct_light(x, n, -dir, diffuse, spec);
@@ -481,14 +537,20 @@ void main() {
   ivec2 g = ivec2(gl_GlobalInvocationID.xy);
   if (g.x >= pc.band.z || g.y >= pc.band.w) return;
   ivec2 pix = pc.band.xy + g, at = pix - pc.origin;
+  if (pc.pilot != 0) {
+    pix = min((ivec2(pc.cell_x0, pc.cell_y0) + g) * pc.pilot + pc.pilot / 2, pc.size - 1);
+    at = g;
+  }
   uvec2 px = uvec2(pix);
   bool first = (pc.phase & PH_FIRST_CHUNK) != 0, last = (pc.phase & PH_LAST_CHUNK) != 0;
   bool fresh = first && (pc.phase & PH_FIRST_SAMPLE) != 0;
   vec4 a0 = fresh ? vec4(0.0) : imageLoad(acc0, at), a1 = fresh ? vec4(0.0) : imageLoad(acc1, at);
   vec4 a2 = fresh ? vec4(0.0) : imageLoad(acc2, at), s1 = fresh ? vec4(0.0) : imageLoad(st1, at);
   vec4 s0 = first ? vec4(0.0) : imageLoad(st0, at);
-  if (first) s1.xyz = vec3(0.0);
-  Dirs r = Dirs(s0.x, s1.xyz, s0.yzw);
+  vec4 s2 = fresh ? vec4(0.0) : imageLoad(st2, at);
+  if (first) s1.xyz = vec3(0.0), s2.xyz = vec3(0.0);
+  Dirs r = Dirs(s0.x, s1.xyz, s0.yzw, s2.x, s2.y, s2.z);
+  float var = s2.w;
 
   // The camera ray of this pixel sample meets Q's depth plane at `org` (Q-relative), ray
   // parameter tp from the eye (or, orthographic, from the image plane).
@@ -528,7 +590,8 @@ void main() {
     march_chunk(hit, hp, n, px, r);
     float t = best + tp;
     if (last)
-      shade_hit(hit, hp, nd, n, org + best * dir, dir, pc.ortho != 0 ? t : t / len, r, a0, a1, a2);
+      shade_hit(hit, hp, nd, n, org + best * dir, dir, pc.ortho != 0 ? t : t / len, r, a0, a1, a2,
+                var);
   }
   if (pc.iter_limit != 0u && iters > pc.iter_limit) s1.w = 1.0;
   if ((pc.phase & PH_FINAL) != 0) {
@@ -536,10 +599,12 @@ void main() {
     a0 *= inv;
     a1 = hits > 0.0 ? vec4(normalize3(a1.xyz), a1.w / hits) : vec4(0.0);
     a2 = vec4(hits > 0.0 ? normalize3(a2.xyz) : vec3(0.0), hits * inv);
+    var = sign(var) * sqrt(abs(var)) * inv; // now the standard error, negated where agreed
   }
   imageStore(acc0, at, a0);
   imageStore(acc1, at, a1);
   imageStore(acc2, at, a2);
   imageStore(st0, at, vec4(r.open, r.env));
   imageStore(st1, at, vec4(r.sum, s1.w));
+  imageStore(st2, at, vec4(r.part, r.wmean, r.wm2, var));
 }
