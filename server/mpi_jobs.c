@@ -107,13 +107,20 @@ static char *read_tail(const char *path, size_t max) {
   return buf;
 }
 
+static void nap_ms(long ms) {
+  struct timespec ts = {ms / 1000, (ms % 1000) * 1000000L};
+  while (nanosleep(&ts, &ts) && errno == EINTR) {
+  }
+}
+
 /* SIGKILL to every process of ours with a command-line argument equal to `doc`, or, with `prefix`
  * set, starting with `doc`: an MPI job's ranks name its document (under the results directory's
  * `.tmp-` staging names, which nothing else uses), so a whole-argument match finds them and not
  * a pager or editor showing the file under another path. */
-static void kill_matching(const char *doc, int prefix) {
+static int kill_matching(const char *doc, int prefix) {
   DIR *d = opendir("/proc");
-  if (!d) return;
+  int hit = 0;
+  if (!d) return 0;
   struct dirent *e;
   uid_t me = geteuid();
   size_t dn = strlen(doc);
@@ -133,13 +140,20 @@ static void kill_matching(const char *doc, int prefix) {
     for (size_t a = 0; a < n; a += strlen(cmd + a) + 1)
       if (prefix ? !strncmp(cmd + a, doc, dn) : !strcmp(cmd + a, doc)) {
         kill((pid_t)pid, SIGKILL);
+        hit++;
         break;
       }
   }
   closedir(d);
+  return hit;
 }
 
-static void kill_stragglers(const char *doc) { kill_matching(doc, 0); }
+/* Kills the job's stragglers and waits until none is left (a process killed while it renders
+ * keeps its command line until its memory is released): a job that ends has no rank left. */
+static void kill_stragglers(const char *doc) {
+  for (double t0 = obs_now_ms(); kill_matching(doc, 0) && obs_now_ms() - t0 < MPI_REAP_MS;)
+    nap_ms(10);
+}
 
 void srv_mpi_kill_orphans(const srv_app *app) {
   /* A daemon that died (OOM, SIGKILL) leaves its mpirun and ranks running, writing into staging
@@ -147,12 +161,6 @@ void srv_mpi_kill_orphans(const srv_app *app) {
   char prefix[4200];
   snprintf(prefix, sizeof prefix, "%s/.tmp-", app->results_dir);
   kill_matching(prefix, 1);
-}
-
-static void nap_ms(long ms) {
-  struct timespec ts = {ms / 1000, (ms % 1000) * 1000000L};
-  while (nanosleep(&ts, &ts) && errno == EINTR) {
-  }
 }
 
 /* Where rank 0 writes the fraction done (the CLI's --progress-file) and the job's slot. */
