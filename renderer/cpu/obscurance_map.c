@@ -521,6 +521,7 @@ int obs_obscurance_map_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
                             : "no line met them, or only backs of surfaces; raise directions, "
                               "lines or bundle_resolution");
   if (!rc) obs_patch_mesh_warn_capped(ctx, &m.pm);
+  if (!rc) obs_omap_warn_stderr(ctx, obs_omap_method_on(p->method, 0), p);
   obs_omap_free(&m);
   return rc;
 }

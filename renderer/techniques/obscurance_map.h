@@ -4,6 +4,8 @@
 
 #include <stdint.h>
 
+#include "obscura/technique.h"
+
 /* Values of `method`: the indices of its choices in the table. AUTO is RAYS on the CPU and
  * DEPTH_PEELING on Vulkan. */
 enum { OBS_OMAP_RAYS, OBS_OMAP_GLOBAL_LINES, OBS_OMAP_BUNDLES, OBS_OMAP_DEPTH_PEELING, OBS_OMAP_AUTO };
@@ -31,5 +33,23 @@ typedef struct obs_obscurance_map_params {
   int update;                 /* OBS_OMAP_UPDATE_* */
   int measure_full;           /* 0 or 1: also recompute every frame in full, to compare */
 } obs_obscurance_map_params;
+
+/* bundles and depth_peeling take a patch's standard error from obs_bundle_groups' groups of
+ * directions: below this many directions (8 groups of 2) the groups are too few for it, and it
+ * understates the error (docs/accuracy.md, "Standard errors": RMS stderr / RMSE 0.55 at 4). */
+#define OBS_OMAP_STDERR_MIN_DIRECTIONS 16u
+
+/* Says so on a render whose estimator (`method` as run) groups directions too few for its
+ * standard errors. */
+static inline void obs_omap_warn_stderr(obs_render_ctx *ctx, int method,
+                                        const obs_obscurance_map_params *p) {
+  if ((method == OBS_OMAP_BUNDLES || method == OBS_OMAP_DEPTH_PEELING) &&
+      p->directions < OBS_OMAP_STDERR_MIN_DIRECTIONS)
+    obs_render_ctx_warn(ctx,
+                        "obscurance_stderr is calibrated from %u directions; with %u its groups of "
+                        "directions are too few and it understates the error (docs/accuracy.md, "
+                        "Standard errors)",
+                        OBS_OMAP_STDERR_MIN_DIRECTIONS, p->directions);
+}
 
 #endif

@@ -74,6 +74,7 @@ int obs_obscurance_map_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err)
     obs_render_ctx_warn(ctx, "%d directions had more than %d layers; deeper surfaces were skipped",
                         m.capped, OBS_PEEL_LAYERS_MAX);
   if (!rc) obs_patch_mesh_warn_capped(ctx, &m.pm);
+  if (!rc) obs_omap_warn_stderr(ctx, OBS_OMAP_DEPTH_PEELING, p);
   obs_omap_peel_free(&m);
   obs_geometry_free(&geo);
   obs_vk_release(vk);

@@ -11,6 +11,7 @@
 #include "patch_mesh.h"
 #include "raytrace.h"
 #include "omap_scenes.h"
+#include "obscurance_map.h"
 #include "testutil.h"
 
 static const char *const method_names[3] = {"rays", "global_lines", "bundles"};
@@ -441,6 +442,31 @@ static void test_render(void **state) {
   obs_result_free(&r);
 }
 
+/* bundles below OBS_OMAP_STDERR_MIN_DIRECTIONS directions: the render says its standard errors
+ * are not calibrated there (too few groups of directions); from that count on it does not. */
+static void test_bundles_stderr_warning(void **state) {
+  (void)state;
+  const unsigned dirs[2] = {OBS_OMAP_STDERR_MIN_DIRECTIONS - 1, OBS_OMAP_STDERR_MIN_DIRECTIONS};
+  for (int k = 0; k < 2; k++) {
+    obs_result r;
+    obs_test_render(
+        obs_test_fmt(
+            "{\"camera\":{\"type\":\"perspective\",\"position\":[0,2,-3],\"look_at\":[0,0,0],"
+            "\"fov_y\":60},\"image\":{\"width\":8,\"height\":6},"
+            "\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-2,0,-2],[-2,0,2],"
+            "[2,0,2],[2,0,-2]]},\"material\":{\"reflectivity\":[0.5,0.5,0.5]}}],"
+            "\"technique\":{\"name\":\"obscurance_map\",\"params\":{\"method\":\"bundles\","
+            "\"directions\":%u,\"bundle_resolution\":8}}}",
+            dirs[k]),
+        2, &r);
+    int warned = 0;
+    for (int w = 0; w < r.nwarnings; w++)
+      warned |= strstr(r.warnings[w], "obscurance_stderr is calibrated from 16 directions") != NULL;
+    assert_int_equal(warned, k == 0);
+    obs_result_free(&r);
+  }
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_open_plane),
@@ -455,6 +481,7 @@ int main(void) {
       cmocka_unit_test(test_seed_and_threads),
       cmocka_unit_test(test_reference_hook),
       cmocka_unit_test(test_render),
+      cmocka_unit_test(test_bundles_stderr_warning),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
