@@ -21,9 +21,13 @@ import {SLOW, getJSON, listAll, request, sleep, startDaemon, submit, tail, valid
 
 const SETS = {'/image/width': 48, '/image/height': 48, '/technique/params/samples': 64};
 const JOB = {scene_file: 'sphere_on_plane.json', set: SETS};
-// About 2.5 s in the release build: long enough to fill a disk while it renders.
+// About 2.5 s in the release build, and about as long in a sanitizer build (a quarter of the
+// samples): long enough to fill a disk while it renders.
 const LONG = {scene_file: 'sphere_on_plane.json',
-              set: {'/image/width': 512, '/image/height': 512, '/technique/params/samples': 256}};
+              set: {'/image/width': 512, '/image/height': 512, '/technique/params/samples': 256 / SLOW}};
+// The fault probes run on the wall clock (1 s, then doubling): a quiet wait spans several of them
+// whatever the build.
+const PROBES_MS = 2500;
 
 function run(cmd, args) {
   return spawnSync(cmd, args, {encoding: 'utf8'});
@@ -156,7 +160,7 @@ async function resultsFault(t, makeFault, clearFault, code) {
     assert.equal(await metric(d, 'obscura_fault{kind="results"}'), 1);
     // Several probes' worth of time: still nothing failed, and at most the one job whose render
     // was done when the fault was met is running (held by its worker, never orphaned).
-    await sleep(2500 * SLOW);
+    await sleep(PROBES_MS);
     await assertNoneFailed(d);
     const jobs = await listAll(d);
     const running = jobs.filter((j) => j.state === 'running');
@@ -261,10 +265,12 @@ test('database disk fills during a render: the job is not stranded', async (t) =
     assert.equal(h.status, 'degraded');
     assert.match(faultOf(h, 'database').message, /full/i);
     const j = (await listAll(d)).find((x) => x.id === id);
-    // Still `running` in the database, but held by its worker: health counts it as paused.
-    assert.equal(j.state, 'running', JSON.stringify(j));
+    // Still `running` in the database, but held by its worker: health counts it as paused. A retry
+    // of the commit can find room before this read (the failed attempt's log frames are reused),
+    // and then the outcome is recorded: never failed, never stranded.
+    assert.ok(['running', 'succeeded'].includes(j.state), JSON.stringify(j));
     assert.match(d.log(), new RegExp(`job ${id}: cannot record the outcome yet`));
-    await sleep(1500 * SLOW);
+    await sleep(1500);
     await assertNoneFailed(d);
     fs.rmSync(filler);
     const [jl, jq] = await waitAll(d, [id, queued]);
@@ -394,7 +400,7 @@ test('start on read-only disks: a results fault from the start, a database that 
     assert.equal(h.status, 'degraded', JSON.stringify(h));
     assert.equal(faultOf(h, 'results').code, 'EROFS');
     const id = await submit(d, JOB);
-    await sleep(1500 * SLOW);
+    await sleep(1500);
     assert.equal((await getJSON(d, `/api/v1/jobs/${id}`)).state, 'queued', 'claimed while the results directory is read-only');
     remount(data, 'rw');
     const [j] = await waitAll(d, [id]);

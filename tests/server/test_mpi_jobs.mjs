@@ -211,7 +211,9 @@ test('a job on N ranks counts N against the queued-jobs cap', {skip: !MPIRUN && 
     assert.ok(r.json.problems.some((p) => p.startsWith('queued jobs (a job on N MPI ranks counts N) of client 127.0.0.1 would be 6 (4 queued or running + 2 in this request), over the server\'s limit max-queued-jobs = 5 per client')), r.text);
     // One process more fits exactly.
     const one = await submit(d, job(1));
-    for (const id of [blocker, three, one]) await request(d, 'POST', `/api/v1/jobs/${id}/cancel`);
-    for (const id of [blocker, three, one]) assert.equal((await waitJob(d, id)).state, 'cancelled');
+    // The queued jobs are cancelled before the blocker: cancelled first, the blocker would free the
+    // worker for a small job that can finish before its own cancel arrives.
+    for (const id of [one, three, blocker]) await request(d, 'POST', `/api/v1/jobs/${id}/cancel`);
+    for (const id of [one, three, blocker]) assert.equal((await waitJob(d, id)).state, 'cancelled');
   });
 });

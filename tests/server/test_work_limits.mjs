@@ -137,7 +137,8 @@ test('a retry passes the same admission as a submission', async () => {
     assert.equal((await waitJob(d, blocker)).state, 'cancelled');
     const ok = await request(d, 'POST', `/api/v1/jobs/${again}/retry`);
     assert.equal(ok.status, 202, ok.text);
-    assert.equal(ok.json.state, 'queued');
+    // The idle worker may take it before the reply is written.
+    assert.ok(['queued', 'running'].includes(ok.json.state), ok.text);
     await request(d, 'POST', `/api/v1/jobs/${again}/cancel`);
     await waitJob(d, again);
   });

@@ -14,7 +14,9 @@
  * allows. */
 int obs_conformance_defaults(obs_backend backend, int *ran);
 /* Every parameter at both ends of its declared range (and every choice of an enum, both values of
- * a flag), the others at their defaults: the render succeeds, finite and in range. */
+ * a flag), the others at their defaults but for the technique's other cost drivers, held small
+ * (conformance.c, end_companions): the render succeeds, finite and in range. The sanitizer
+ * builds leave the two costliest ends to the release build (conformance.c, release_only_end). */
 int obs_conformance_param_ends(obs_backend backend, int *ran);
 /* The same bits for 1, 2 and 3 threads. */
 int obs_conformance_threads(obs_backend backend, int *ran);

@@ -16,16 +16,19 @@ static void test_cpu_param_ends(void **state) {
 
 static void test_cpu_threads(void **state) {
   (void)state;
+  obs_test_numeric_only();
   assert_int_equal(obs_conformance_threads(OBS_BACKEND_CPU, NULL), 0);
 }
 
 static void test_cpu_scales(void **state) {
   (void)state;
+  obs_test_numeric_only();
   assert_int_equal(obs_conformance_scales(OBS_BACKEND_CPU, NULL), 0);
 }
 
 static void test_cpu_cancellation(void **state) {
   (void)state;
+  obs_test_numeric_only();
   assert_int_equal(obs_conformance_cancellation(OBS_BACKEND_CPU, NULL), 0);
 }
 

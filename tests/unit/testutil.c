@@ -23,6 +23,18 @@ __attribute__((constructor)) static void isa_variant_skip(void) {
   exit(77);
 }
 
+int obs_test_sanitized(void) {
+  const char *v = getenv("OBS_TEST_SANITIZED");
+  return v && !strcmp(v, "1");
+}
+
+void obs_test_numeric_only(void) {
+  if (obs_test_sanitized()) {
+    printf("skipped under the sanitizers: a numerical check, run by the release build\n");
+    skip();
+  }
+}
+
 static void mkdir_p(const char *path) {
   char buf[1024];
   snprintf(buf, sizeof buf, "%s", path);

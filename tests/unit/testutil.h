@@ -10,6 +10,14 @@
 
 #include "obscura/obscura.h"
 
+/* Numerical checks (bits across thread counts, scale invariance, statistical calibration) repeat
+ * in a sanitizer build the code paths the plain checks run there, and what they assert is shown
+ * by the release build: under OBS_TEST_SANITIZED=1 (tests/CMakeLists.txt sets it for the
+ * sanitizer builds) this skips the calling cmocka test, with its reason. */
+void obs_test_numeric_only(void);
+/* Whether this is a sanitizer build's run (OBS_TEST_SANITIZED=1). */
+int obs_test_sanitized(void);
+
 /* A fresh directory under $OBS_TMP (or /tmp) for this test; returned string is static per call
  * site until the next call. */
 const char *obs_test_tmpdir(const char *tag);

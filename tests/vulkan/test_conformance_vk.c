@@ -19,18 +19,21 @@ static void test_vulkan_param_ends(void **state) {
 
 static void test_vulkan_threads(void **state) {
   (void)state;
+  obs_test_numeric_only();
   vktest_need_vk();
   assert_int_equal(obs_conformance_threads(OBS_BACKEND_VULKAN, NULL), 0);
 }
 
 static void test_vulkan_scales(void **state) {
   (void)state;
+  obs_test_numeric_only();
   vktest_need_vk();
   assert_int_equal(obs_conformance_scales(OBS_BACKEND_VULKAN, NULL), 0);
 }
 
 static void test_vulkan_cancellation(void **state) {
   (void)state;
+  obs_test_numeric_only();
   vktest_need_vk();
   assert_int_equal(obs_conformance_cancellation(OBS_BACKEND_VULKAN, NULL), 0);
 }
