@@ -12,15 +12,17 @@
 
 /* Primitives examined at most per query: past this the answer is "unknown" (a surface at
  * distance 0 covering every direction), which costs a conservative error, never a wrong one. */
-#define HALFBALL_MAX_PRIMS 256
+#define HALFBALL_MAX_PRIMS 32
 #define PI 3.14159265358979323846
 
 typedef struct halfball_q {
   const obs_rt *rt;
   const obs_hit *from;
   double o[3], n[3], radius;
+  obs_halfball_need need;
   obs_halfball out;
   int prims;
+  int capped; /* the cover reached need.cover: only the nearest distance is still measured */
 } halfball_q;
 
 static double dot3(const double a[3], const double b[3]) {
@@ -137,6 +139,7 @@ static void add_triangle(halfball_q *q, const double v[3][3]) {
     note_unknown(q);
     return;
   }
+  if (q->capped) return;
   double cs, us;
   poly_cover(p, m, q->n, &cs, &us);
   q->out.cover_cos = fmin(1.0, q->out.cover_cos + cs);
@@ -153,11 +156,30 @@ static void add_sphere(halfball_q *q, const double c[3], double r) {
     note_unknown(q);
     return;
   }
+  if (q->capped) return;
   /* The cone of half-angle asin(r / l): solid angle 2 pi (1 - cos), at most twice that share of
    * cosine-weighted directions. */
   double share = 1.0 - sqrt(1.0 - (r / l) * (r / l));
   q->out.cover_uniform = fmin(1.0, q->out.cover_uniform + share);
   q->out.cover_cos = fmin(1.0, q->out.cover_cos + 2 * share);
+}
+
+/* After a primitive: once the cover reaches what the caller needs, the cover is reported as 1 (an
+ * upper bound still) and no longer measured; the traversal then ends, or, where the nearest
+ * distance still matters, goes on only within it (a primitive farther than the nearest so far
+ * cannot change it). Returns whether the query's radius changed. */
+static bool settle(halfball_q *q, struct RTCPointQueryFunctionArguments *args) {
+  if (!(q->out.nearest < INFINITY)) return false;
+  if (!q->capped) {
+    double c = q->need.uniform ? q->out.cover_uniform : q->out.cover_cos;
+    if (!(c >= q->need.cover)) return false;
+    q->capped = 1;
+    q->out.cover_cos = q->out.cover_uniform = 1;
+  }
+  float r = q->need.nearest && q->out.nearest > 0 ? nextafterf((float)q->out.nearest, INFINITY) : 0.0f;
+  if (!(r < args->query->radius)) return false;
+  args->query->radius = r;
+  return true;
 }
 
 static bool halfball_prim(struct RTCPointQueryFunctionArguments *args) {
@@ -185,15 +207,16 @@ static bool halfball_prim(struct RTCPointQueryFunctionArguments *args) {
       for (int c = 0; c < 3; c++) v[k][c] = (double)m->pos[3 * (size_t)t[k] + (size_t)c] - q->o[c];
     add_triangle(q, v);
   }
-  return false;
+  return settle(q, args);
 }
 
 void obs_rt_halfball(const obs_rt *rt, const obs_hit *from, const float org[3], float radius,
-                     obs_halfball *out) {
+                     const obs_halfball_need *need, obs_halfball *out) {
   halfball_q q;
   memset(&q, 0, sizeof q);
   q.rt = rt;
   q.from = from;
+  q.need = *need;
   for (int c = 0; c < 3; c++) q.o[c] = org[c], q.n[c] = from->ns[c];
   /* A little past the radius: a ray's float hit distance may fall short of the exact one. */
   q.radius = isinf(radius) ? INFINITY : (double)radius * (1 + 1e-4);
@@ -213,8 +236,13 @@ double obs_rt_escape_stderr(const obs_rt *rt, const obs_hit *from, const float o
                             uint32_t n) {
   for (int k = 0; k < 3; k++)
     if (from->ns[k] != from->ng[k]) return obs_mcerr_floor(n, 1.0); /* some run into the surface */
+  /* Past a cover of 3 floors the bound below is the floor: the cover need not be known better, and
+   * under a binary falloff (or a given span) neither does the nearest distance. */
+  obs_halfball_need need = {.cover = 3 * obs_mcerr_floor(n, 1.0),
+                            .uniform = uniform,
+                            .nearest = !(value_span > 0) && f->kind != OBS_FALLOFF_BINARY};
   obs_halfball h;
-  obs_rt_halfball(rt, from, org, radius, &h);
+  obs_rt_halfball(rt, from, org, radius, &need, &h);
   if (isinf(h.nearest)) return 0.0;
   double span = value_span > 0 ? value_span : 1.0 - obs_falloff_rho(f, h.nearest);
   double cover = uniform ? h.cover_uniform : h.cover_cos;

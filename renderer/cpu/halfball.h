@@ -15,13 +15,23 @@ typedef struct obs_halfball {
   double cover_uniform; /* the same for uniformly distributed directions */
 } obs_halfball;
 
+/* How much of the half-ball a caller needs to know: past a cover of `cover` (of `uniform` or
+ * cosine-weighted directions) both covers are reported as 1 and no longer measured, and the query
+ * ends there unless `nearest` asks for the exact nearest distance still. */
+typedef struct obs_halfball_need {
+  double cover;
+  int uniform;
+  int nearest;
+} obs_halfball_need;
+
 /* What lies in the open half-ball of `radius` (INFINITY: the half-space) above the plane through
  * `org` (the obs_rt_offset origin of `from`) normal to from->ns, the surface `from` lies on
  * excluded as the ray context obs_rt_ctx_init excludes it. Rays from org into that hemisphere
  * meet nothing within `radius` when `nearest` is INFINITY. Conservative: a query that would
- * examine more than a few hundred primitives answers a surface at 0 covering every direction. */
+ * examine more than a few hundred primitives answers a surface at 0 covering every direction.
+ * Measures only what `need` asks for. */
 void obs_rt_halfball(const obs_rt *rt, const obs_hit *from, const float org[3], float radius,
-                     obs_halfball *out);
+                     const obs_halfball_need *need, obs_halfball *out);
 
 /* The standard error of an occlusion estimate at `from` whose every one of n rays escaped, each
  * with the value of "nothing within reach": 0 when nothing lies within `radius` above org (the

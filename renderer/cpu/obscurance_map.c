@@ -169,7 +169,9 @@ static int patch_open(const obs_omap_job *j, int64_t patch) {
   float org[3];
   obs_rt_offset(j->rt, &f.from, org);
   obs_halfball h;
-  obs_rt_halfball(j->rt, &f.from, org, isinf(j->f.d_max) ? INFINITY : (float)(j->f.d_max + r), &h);
+  const obs_halfball_need any = {.cover = 0}; /* whether anything is there, nothing more */
+  obs_rt_halfball(j->rt, &f.from, org, isinf(j->f.d_max) ? INFINITY : (float)(j->f.d_max + r), &any,
+                  &h);
   return isinf(h.nearest);
 }
 
