@@ -431,6 +431,12 @@ static int master_render(cli_mpi *m, obs_scene *sc, const obs_render_opts *opts,
   if (res->tiled) {
     master_assemble(&ms, &res->image);
     res->rays += ms.worker_rays;
+    /* Right bytes still (rank 0 rendered what they left), but not the split asked for. */
+    if (ms.idle && res->nwarnings < OBS_MAX_WARNINGS)
+      snprintf(res->warnings[res->nwarnings++], OBS_WARNING_LEN,
+               "%d of the %d other ranks judged the run not per pixel and rendered no tile: "
+               "rank 0 rendered their share",
+               ms.idle, m->size - 1);
   } else if (res->nwarnings < OBS_MAX_WARNINGS) {
     char others[32] = "rank";
     if (m->size > 2) snprintf(others, sizeof others, "%d ranks", m->size - 1);

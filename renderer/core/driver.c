@@ -183,8 +183,11 @@ int obs_driver_pixels(obs_render_ctx *ctx, const obs_pixel_ops *ops, const void 
     double pixels = (double)(r.x1 - r.x0) * (r.y1 - r.y0);
     parts[0].share = parts[1].base = cells / (cells + pixels);
     parts[1].share = 1 - parts[1].base;
+    /* No progress while tiles come from a source (its ranks tell from progress that a run does
+     * not render per pixel, and would leave their tiles to rank 0). */
+    int report = ctx->progress && !ctx->tiles;
     rc = obs_prior_grid_build(&grid, ops, job, &r, sc->width, sc->height, threads, ctx->cancel,
-                              ctx->progress ? obs_progress_part_report : NULL, &parts[0]);
+                              report ? obs_progress_part_report : NULL, &parts[0]);
     if (rc) {
       free(values);
       free(rays);

@@ -12,6 +12,7 @@ check() { # description, command...
   local d=$1; shift
   if "$@"; then pass=$((pass + 1)); echo "ok: $d"; else fail=$((fail + 1)); echo "FAIL: $d"; fi
 }
+not() { ! "$@"; }
 if ! command -v mpirun >/dev/null; then
   echo "FAIL: mpirun not found (Debian: openmpi-bin; scripts/setup.sh installs it)"
   exit 1
@@ -89,6 +90,8 @@ for t in $techniques; do
       break # a render rank 0 does alone needs no third rank
     fi
     check "$t: $np ranks: rank 0 reports the ranks" grep -q " on $np ranks," "$d.np$np.log"
+    check "$t: $np ranks: every rank renders per pixel" \
+      not grep -q "judged the run not per pixel" "$d.np$np.log"
   done
   case " $per_pixel " in
     *" $t "*) check "$t: renders per pixel, so it is split" test "$how" = split ;;
