@@ -28,7 +28,7 @@ typedef struct obs_halfball_need {
  * `org` (the obs_rt_offset origin of `from`) normal to from->ns, the surface `from` lies on
  * excluded as the ray context obs_rt_ctx_init excludes it. Rays from org into that hemisphere
  * meet nothing within `radius` when `nearest` is INFINITY. Conservative: a query that would
- * examine more than a few hundred primitives answers a surface at 0 covering every direction.
+ * examine more than a few dozen primitives answers a surface at 0 covering every direction.
  * Measures only what `need` asks for. */
 void obs_rt_halfball(const obs_rt *rt, const obs_hit *from, const float org[3], float radius,
                      const obs_halfball_need *need, obs_halfball *out);
