@@ -500,7 +500,7 @@ static void room_params(const obs_technique *t, const obs_range *rg, double s, c
   const char *fast = obs_extremes_fast_params(t->name), *more = "";
   if (!strcmp(t->name, "proximity_ao")) more = "\"volume_res\":48,\"min_res\":16";
   if (!strcmp(t->name, "obscurance_map"))
-    more = "\"samples\":16,\"directions\":16,\"bundle_resolution\":32";
+    more = "\"samples\":16,\"bundle_resolution\":32"; /* 16 directions: the fast params */
   snprintf(extra, sizeof extra, "%s%s%s", fast, *fast && *more ? "," : "", more);
   scaled_params(t, rg, extra, s, out, size);
 }
