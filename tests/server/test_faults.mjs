@@ -21,10 +21,10 @@ import {SLOW, getJSON, listAll, request, sleep, startDaemon, submit, tail, valid
 
 const SETS = {'/image/width': 48, '/image/height': 48, '/technique/params/samples': 64};
 const JOB = {scene_file: 'sphere_on_plane.json', set: SETS};
-// About 2.5 s in the release build, and about as long in a sanitizer build (a quarter of the
-// samples): long enough to fill a disk while it renders.
+// About 3 s in the release build (with its standard errors), and about as long in a sanitizer
+// build (a quarter of the samples): long enough to fill a disk while it renders.
 const LONG = {scene_file: 'sphere_on_plane.json',
-              set: {'/image/width': 512, '/image/height': 512, '/technique/params/samples': 256 / SLOW}};
+              set: {'/image/width': 512, '/image/height': 512, '/technique/params/samples': 128 / SLOW}};
 // The fault probes run on the wall clock (1 s, then doubling): a quiet wait spans several of them
 // whatever the build.
 const PROBES_MS = 2500;
