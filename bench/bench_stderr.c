@@ -10,64 +10,58 @@
 #include "bench_args.h"
 #include "bench_machine.h"
 #include "obscura/obscura.h"
+#include "stderr_run.h"
 
 #define MAX_LIST 16
 
-/* One row family: a technique on a scene with a sampler (or estimator), N substituted for $N in
- * `params` and the seed for $S; `value` and `se` the outputs compared (per patch when `patch`). */
-typedef struct bench_case {
-  const char *label, *technique, *backend, *scene, *params, *value, *se;
-  int patch;
-  int size; /* the image's side when the scene needs more pixels than --size gives; 0: --size */
-} bench_case;
-
-static const bench_case cases[] = {
-    {"rt_ao sobol", "rt_ao", "cpu", "cornell_box.json",
+/* The rows: every Monte-Carlo technique and sampler; 0 as size renders at --size. */
+static const obs_stderr_case cases[] = {
+    {"rt_ao sobol", "scenes/cornell_box.json", "rt_ao", "cpu",
      "{\"samples\":$N,\"sampler\":\"sobol\",\"seed\":$S}", "ao", "ao_stderr", 0, 0},
-    {"rt_ao halton", "rt_ao", "cpu", "cornell_box.json",
+    {"rt_ao halton", "scenes/cornell_box.json", "rt_ao", "cpu",
      "{\"samples\":$N,\"sampler\":\"halton\",\"seed\":$S}", "ao", "ao_stderr", 0, 0},
-    {"rt_ao random", "rt_ao", "cpu", "cornell_box.json",
+    {"rt_ao random", "scenes/cornell_box.json", "rt_ao", "cpu",
      "{\"samples\":$N,\"sampler\":\"random\",\"seed\":$S}", "ao", "ao_stderr", 0, 0},
-    {"rt_ao sobol exp", "rt_ao", "cpu", "cornell_box.json",
+    {"rt_ao sobol exp", "scenes/cornell_box.json", "rt_ao", "cpu",
      "{\"samples\":$N,\"sampler\":\"sobol\",\"falloff\":\"exp\",\"tau\":0.02,"
      "\"seed\":$S}",
      "ao", "ao_stderr", 0, 0},
-    {"obscurance W sobol", "obscurance", "cpu", "cornell_box.json",
+    {"obscurance W sobol", "scenes/cornell_box.json", "obscurance", "cpu",
      "{\"samples\":$N,\"sequence\":\"sobol\",\"d_max\":150,\"seed\":$S}", "obscurance",
      "obscurance_stderr", 0, 0},
-    {"obscurance W halton", "obscurance", "cpu", "cornell_box.json",
+    {"obscurance W halton", "scenes/cornell_box.json", "obscurance", "cpu",
      "{\"samples\":$N,\"sequence\":\"halton\",\"d_max\":150,\"seed\":$S}", "obscurance",
      "obscurance_stderr", 0, 0},
-    {"obscurance final sobol", "obscurance", "cpu", "cornell_box.json",
+    {"obscurance final sobol", "scenes/cornell_box.json", "obscurance", "cpu",
      "{\"samples\":$N,\"light_samples\":$L,\"sequence\":\"sobol\",\"d_max\":150,"
      "\"seed\":$S}",
      "final", "final_stderr", 0, 0},
-    {"obscurance final halton", "obscurance", "cpu", "cornell_box.json",
+    {"obscurance final halton", "scenes/cornell_box.json", "obscurance", "cpu",
      "{\"samples\":$N,\"light_samples\":$L,\"sequence\":\"halton\",\"d_max\":150,"
      "\"seed\":$S}",
      "final", "final_stderr", 0, 0},
-    {"path_trace random", "path_trace", "cpu", "cornell_box.json",
+    {"path_trace random", "scenes/cornell_box.json", "path_trace", "cpu",
      "{\"samples\":$N,\"sampler\":\"random\",\"seed\":$S}", "radiance", "radiance_stderr", 0, 0},
-    {"path_trace sobol", "path_trace", "cpu", "cornell_box.json",
+    {"path_trace sobol", "scenes/cornell_box.json", "path_trace", "cpu",
      "{\"samples\":$N,\"sampler\":\"sobol\",\"seed\":$S}", "radiance", "radiance_stderr", 0, 0},
-    {"obscurance_map rays", "obscurance_map", "cpu", "cornell_box.json",
+    {"obscurance_map rays", "scenes/cornell_box.json", "obscurance_map", "cpu",
      "{\"method\":\"rays\",\"samples\":$N,\"patch_size\":100,\"d_max\":150,\"seed\":$S}",
      "obscurance", "obscurance_stderr", 1, 0},
-    {"obscurance_map global_lines", "obscurance_map", "cpu", "cornell_box.json",
+    {"obscurance_map global_lines", "scenes/cornell_box.json", "obscurance_map", "cpu",
      "{\"method\":\"global_lines\",\"lines\":$G,\"patch_size\":100,\"d_max\":150,"
      "\"seed\":$S}",
      "obscurance", "obscurance_stderr", 1, 0},
-    {"obscurance_map bundles", "obscurance_map", "cpu", "cornell_box.json",
+    {"obscurance_map bundles", "scenes/cornell_box.json", "obscurance_map", "cpu",
      "{\"method\":\"bundles\",\"directions\":$N,\"bundle_resolution\":128,"
      "\"patch_size\":100,\"d_max\":150,\"seed\":$S}",
      "obscurance", "obscurance_stderr", 1, 0},
-    {"volume_ao sobol", "volume_ao", "cpu", "volume_torus.json",
+    {"volume_ao sobol", "scenes/volume_torus.json", "volume_ao", "cpu",
      "{\"samples\":$N,\"sampler\":\"sobol\",\"seed\":$S}", "ao", "ao_stderr", 0, 64},
-    {"volume_ao halton", "volume_ao", "cpu", "volume_torus.json",
+    {"volume_ao halton", "scenes/volume_torus.json", "volume_ao", "cpu",
      "{\"samples\":$N,\"sampler\":\"halton\",\"seed\":$S}", "ao", "ao_stderr", 0, 64},
-    {"volume_ao random", "volume_ao", "cpu", "volume_torus.json",
+    {"volume_ao random", "scenes/volume_torus.json", "volume_ao", "cpu",
      "{\"samples\":$N,\"sampler\":\"random\",\"seed\":$S}", "ao", "ao_stderr", 0, 64},
-    {"volume_ao sobol (vulkan)", "volume_ao", "vulkan", "volume_torus.json",
+    {"volume_ao sobol (vulkan)", "scenes/volume_torus.json", "volume_ao", "vulkan",
      "{\"samples\":$N,\"sampler\":\"sobol\",\"seed\":$S}", "ao", "ao_stderr", 0, 64},
 };
 #define NCASES (sizeof cases / sizeof cases[0])
@@ -120,73 +114,16 @@ static int parse_args(int argc, char **argv, options *o) {
   return 0;
 }
 
-/* `tmpl` with $N, $L (light samples: N / 4, at least 4), $G (global lines: 4096 N) and $S. */
-static void expand(const char *tmpl, long n, unsigned seed, char *out, size_t size) {
-  size_t k = 0;
-  for (const char *p = tmpl; *p && k + 24 < size; p++) {
-    if (*p != '$') {
-      out[k++] = *p;
-      continue;
-    }
-    long v = p[1] == 'N' ? n : p[1] == 'L' ? (n / 4 > 4 ? n / 4 : 4) : p[1] == 'G' ? 4096 * n
-                                                                                     : (long)seed;
-    k += (size_t)snprintf(out + k, size - k, "%ld", v);
-    p++;
-  }
-  out[k] = 0;
-}
-
-static int render(const options *o, const bench_case *c, long n, unsigned seed, obs_result *res,
-                  obs_err *err) {
-  char params[512], size[16], name[64], backend[32], path[1024];
-  expand(c->params, n, seed, params, sizeof params);
-  snprintf(size, sizeof size, "%d", c->size ? c->size : o->size);
-  snprintf(name, sizeof name, "\"%s\"", c->technique);
-  snprintf(backend, sizeof backend, "\"%s\"", c->backend);
-  snprintf(path, sizeof path, "%s/scenes/%s", OBS_SOURCE_DIR, c->scene);
-  const obs_override ov[] = {{"/image/width", size},     {"/image/height", size},
-                             {"/image/spp", "1"},        {"/technique/name", name},
-                             {"/technique/backend", backend}, {"/technique/params", params}};
-  obs_scene sc;
-  if (obs_scene_load_file(&sc, path, ov, sizeof ov / sizeof ov[0], err)) return -1;
-  obs_render_opts opts = {.threads = o->threads};
-  int rc = obs_render(&sc, &opts, res, err);
-  obs_scene_free(&sc);
-  return rc;
-}
-
-static const obs_patches *patches_named(const obs_result *r, const char *name) {
-  for (int i = 0; i < r->npatches; i++)
-    if (!strcmp(r->patches[i].name, name)) return &r->patches[i];
-  return NULL;
-}
-
-static int row(const options *o, const bench_case *c, long n) {
+static int row(const options *o, const obs_stderr_case *c, long n) {
   obs_err err = OBS_ERR_INIT;
-  obs_result cand, ref;
-  memset(&cand, 0, sizeof cand);
-  memset(&ref, 0, sizeof ref);
   obs_stderr_calib k;
-  double t0 = obs_now_ms();
-  int rc = render(o, c, n, 1, &cand, &err);
-  double ms = obs_now_ms() - t0;
-  if (!rc) rc = render(o, c, n * o->factor, 1000003, &ref, &err);
-  if (!rc && c->patch) {
-    const obs_patches *v = patches_named(&cand, c->value), *s = patches_named(&cand, c->se);
-    const obs_patches *r = patches_named(&ref, c->value);
-    rc = v && s && r ? obs_metrics_patch_stderr_calib(v, s, r, &k, &err)
-                     : obs_err_set(&err, OBS_ENOTFOUND, "no per-patch %s with %s", c->value, c->se);
-  } else if (!rc) {
-    rc = obs_metrics_stderr_calib(&cand.image, &ref.image, c->value, c->se, "alpha", &k, &err);
-  }
-  if (rc)
+  double ms = 0;
+  if (obs_stderr_run(c, n, n * o->factor, o->size, o->threads, &k, &ms, &err))
     printf("| %s | %ld | %s |\n", c->label, n, obs_err_message(&err));
   else
     printf("| %s | %ld | %.2f | %.1f %% | %.2f %% | %.4g | %lld | %.0f |\n", c->label, n, k.ratio,
            100 * k.within3, 100 * k.zero_with_error, k.rmse, (long long)k.values, ms);
   fflush(stdout);
-  obs_result_free(&cand);
-  obs_result_free(&ref);
   obs_err_free(&err);
   return 0;
 }

@@ -4,18 +4,9 @@
 #ifndef OBS_STDERR_CHECK_H
 #define OBS_STDERR_CHECK_H
 
-#include "obscura/metrics.h"
+#include "stderr_run.h"
 
 #define OBS_TEST_STDERR_FACTOR 64
-
-/* One technique and sampler: the scene (relative to the source tree) rendered size x size with
- * one pixel sample, `technique` on `backend`, its params from `params` with $N replaced by the
- * sample count (and $L by a quarter of it, at least 4; $G by 4096 times it) and $S by the seed;
- * `value` and `se` the outputs compared (per patch when `patch`). */
-typedef struct obs_stderr_case {
-  const char *label, *scene, *technique, *backend, *params, *value, *se;
-  int patch, size;
-} obs_stderr_case;
 
 /* Renders the case at n samples and its reference, prints the figures and returns them. */
 obs_stderr_calib obs_test_stderr_calib(const obs_stderr_case *c, long n);

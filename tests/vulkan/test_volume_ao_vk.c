@@ -14,7 +14,8 @@
 #include "stderr_check.h"
 #include "vktest.h"
 
-/* Acceptance bounds (the issue's). DEPTH_REL is relative to the depth. */
+/* Acceptance bounds of the Vulkan twin against the CPU's render: AO RMSE, and depth relative to
+ * the depth (float32 depth's precision after the march). */
 #define AO_RMSE_MAX 1e-2
 #define DEPTH_REL 1e-4
 
