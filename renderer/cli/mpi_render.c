@@ -427,6 +427,7 @@ static int master_render(cli_mpi *m, obs_scene *sc, const obs_render_opts *opts,
   double wait_ms = obs_now_ms() - t0;
   res->timings.render_ms += wait_ms;
   res->timings.total_ms += wait_ms;
+  obs_result_stage_add(res, "wait", wait_ms);
   res->ranks = m->size;
   if (res->tiled) {
     master_assemble(&ms, &res->image);
@@ -723,6 +724,7 @@ static int data_render(cli_mpi *m, obs_scene *sc, const obs_render_opts *opts, o
   double wait_ms = obs_now_ms() - t0;
   mine.timings.render_ms += wait_ms;
   mine.timings.total_ms += wait_ms;
+  obs_result_stage_add(&mine, "wait", wait_ms);
   mine.ranks = m->size;
   *res = mine;
   return 0;

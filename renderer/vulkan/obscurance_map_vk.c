@@ -47,8 +47,10 @@ int obs_obscurance_map_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err)
   memset(&geo, 0, sizeof geo);
   memset(&m, 0, sizeof m);
   const int validation = obs_vk_validation_requested();
+  double ta = obs_now_ms();
   int rc = obs_vk_acquire(&vk, validation, err);
   double t0 = obs_now_ms(), ms = 0;
+  obs_driver_stage_add(ctx, "device", t0 - ta);
   /* The camera's frame, as the CPU's BVH keeps it for every scene the camera is near. */
   if (!rc) rc = obs_geometry_build_at(sc, rig.origin, &geo, err);
   double t1 = obs_now_ms();

@@ -316,9 +316,12 @@ int obs_proximity_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   memset(&geo, 0, sizeof geo);
   jb.geo = &geo;
   const int validation = obs_vk_validation_requested();
-  /* Acquiring the device is not timed: only its first use in a process opens it. */
+  /* Acquiring the device is a stage of its own, kept out of build_ms: only its first use in a
+   * process opens it. */
+  double ta = obs_now_ms();
   if ((rc = obs_vk_acquire(&vk, validation, err))) goto done;
   double t0 = obs_now_ms();
+  obs_driver_stage_add(ctx, "device", t0 - ta);
   rc = obs_geometry_build_at(sc, jb.rig.origin, &geo, err);
   ctx->build_ms += obs_now_ms() - t0;
   if (rc || (rc = dev_build(ctx, vk, &jb, &rg, &d, err))) goto done;

@@ -30,14 +30,19 @@ int obs_screen_vk_run(obs_render_ctx *ctx, const char *technique, obs_screen_vk_
   memset(&host, 0, sizeof host);
   const int validation = obs_vk_validation_requested();
   double gb_ms = 0;
-  /* Acquiring the device is not timed: only its first use in a process opens it. */
+  /* Acquiring the device is a stage of its own, kept out of build_ms: only its first use in a
+   * process opens it. */
+  double ta = obs_now_ms();
   if ((rc = obs_vk_acquire(&vk, validation, err))) goto done;
   double t0 = obs_now_ms();
+  obs_driver_stage_add(ctx, "device", t0 - ta);
   if ((rc = obs_geometry_build_at(sc, rig.origin, &geo, err))) goto done;
   if ((rc = obs_vk_gbuffer_render(vk, sc, &geo, &dev, &gb_ms, err))) goto done;
   double t1 = obs_now_ms();
   ctx->build_ms += t1 - t0;
   obs_driver_stage_add(ctx, "gbuffer", gb_ms);
+  /* The triangles in the camera's frame and their upload, around the G-buffer's passes. */
+  obs_driver_stage_add(ctx, "geometry", t1 - t0 - gb_ms);
   progress(ctx, 1.0 / 3.0);
   /* The host copy is made now so its projection (floats from the rig) is the one the passes use,
    * exactly as on the CPU. */

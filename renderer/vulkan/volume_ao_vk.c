@@ -543,9 +543,12 @@ int obs_volume_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   memset(&d, 0, sizeof d);
   float *vals = NULL;
   const int validation = obs_vk_validation_requested();
-  /* Acquiring the device is not timed: only its first use in a process opens it. */
+  /* Acquiring the device is a stage of its own, kept out of build_ms: only its first use in a
+   * process opens it. */
+  double ta = obs_now_ms();
   if ((rc = obs_vk_acquire(&vk, validation, err))) goto done;
   double t0 = obs_now_ms();
+  obs_driver_stage_add(ctx, "device", t0 - ta);
   if ((rc = dev_build(vk, &jb, &rg, &d, err))) goto done;
   double t1 = obs_now_ms(), ms = 0;
   ctx->build_ms += t1 - t0;
@@ -557,8 +560,12 @@ int obs_volume_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
     rc = obs_err_set(err, OBS_ENOMEM, "%s: volume_ao: out of memory", sc->name);
     goto done;
   }
+  double ts = obs_now_ms();
   if ((rc = shade(ctx, vk, &jb, &rg, &d, vals, &ms, err))) goto done;
   obs_driver_stage_add(ctx, "shade", ms);
+  /* What the passes' submission cost around their measured time: pipelines (compiled on first
+   * use), descriptor sets, command buffers and the pilots' copies between replicas. */
+  obs_driver_stage_add(ctx, "dispatch", obs_now_ms() - ts - ms);
   double t2 = obs_now_ms();
   if ((rc = readback(ctx, vk, &jb, &rg, &d, out, err))) goto done;
   ctx->rays += apply_prior(&jb, &rg, &d, vals, out);

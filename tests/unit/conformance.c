@@ -77,6 +77,35 @@ static int each_pair(obs_backend be, int *ran, pair_fn fn) {
   return bad;
 }
 
+/* The timings' accounting (not their values): summary.json's stages, the render's with the
+ * caller's load and write, are each >= 0 (a negative "prepare" or "other" means stages overlap)
+ * and sum to its total, up to the rounding of the sums. */
+static int stages_account(const char *what, obs_result *res, const obs_scene *sc) {
+  res->timings.load_ms = 0.25;
+  res->timings.write_ms = 0.5;
+  res->timings.total_ms += 0.75;
+  json_t *sum = obs_result_summary_json(res, sc);
+  json_t *tm = json_object_get(sum, "timings_ms"), *st = json_object_get(tm, "stages"), *v;
+  double total = json_number_value(json_object_get(tm, "total")), acc = 0;
+  const char *name;
+  int bad = 0;
+  char list[512] = "";
+  size_t len = 0;
+  json_object_foreach(st, name, v) {
+    double ms = json_number_value(v);
+    acc += ms;
+    if (len < sizeof list)
+      len += (size_t)snprintf(list + len, sizeof list - len, " %s=%.4g", name, ms);
+    if (!(ms >= -1e-9 * (1 + total))) printf("FAIL %s: stage %s is %.6g ms\n", what, name, ms), bad++;
+  }
+  if (!(fabs(acc - total) <= 1e-9 * (1 + total)) || !json_object_get(st, "other"))
+    printf("FAIL %s: stages sum to %.9g ms, total %.9g ms:%s\n", what, acc, total, list), bad++;
+  else
+    printf("     %s: stages%s\n", what, list);
+  json_decref(sum);
+  return bad;
+}
+
 /* Renders `params` and checks the result is sane; `what` labels the failure lines. With `key`
  * (the one parameter set), a refusal by validation that points at another parameter is a
  * cross-field rule (the check hook) and passes: that value needs a partner to be valid. So does
@@ -108,11 +137,11 @@ static int render_sane(const obs_technique *t, obs_backend be, const char *param
   double t0 = obs_now_ms();
   rc = obs_render(&sc, &o, &res, &err);
   double secs = (obs_now_ms() - t0) / 1e3;
-  obs_scene_free(&sc);
   if (rc)
     printf("FAIL %s: %s\n", what, obs_err_message(&err)), bad++;
   else
-    bad += obs_test_check_sane(what, t, &res.image);
+    bad += obs_test_check_sane(what, t, &res.image) + stages_account(what, &res, &sc);
+  obs_scene_free(&sc);
   /* The costly settings are named, so a slow suite shows where its time goes. */
   if (secs >= 1.0) printf("     %s: rendered in %.1f s\n", what, secs);
 done:

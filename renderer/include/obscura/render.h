@@ -46,7 +46,9 @@ typedef struct obs_result {
   obs_backend backend;         /* the backend that ran */
   obs_image image;
   obs_timings timings;         /* load_ms/write_ms are filled by the caller that did those stages */
-  int nstages;                 /* finer stages reported by the technique */
+  /* The render's stages: they sum to timings.total_ms less load_ms and write_ms (the technique's
+   * own, "prepare" and "other" for the rest, "wait" for the ranks of a split render). */
+  int nstages;
   const char *stage_names[OBS_MAX_STAGES];
   double stage_ms[OBS_MAX_STAGES];
   uint64_t rays;
@@ -75,6 +77,9 @@ int obs_render_brick_check(const obs_scene *sc, obs_err *err);
  * bricks). */
 obs_backend obs_render_brick_backend(const obs_scene *sc);
 void obs_result_free(obs_result *result);
+/* Adds `ms` to the result's stage `name` (a static string), appending it when new; for callers
+ * that add time to timings.total_ms after obs_render (a split render's wait for its ranks). */
+void obs_result_stage_add(obs_result *result, const char *name, double ms);
 
 /* Writes the result's files into DIR (creating it), all from the technique's declared outputs:
  * "<primary>.exr" with every channel of the image; the PNG of each output that names one, shown

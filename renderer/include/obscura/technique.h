@@ -49,7 +49,7 @@ struct obs_prox_layout;
 
 typedef void (*obs_progress_fn)(void *user, double fraction);
 
-#define OBS_MAX_STAGES 8
+#define OBS_MAX_STAGES 16
 /* Warnings a render may attach to its result: the scene lies outside the range over which the
  * technique's output is guaranteed (docs/accuracy.md), or a parameter is suspicious. */
 #define OBS_MAX_WARNINGS 8
