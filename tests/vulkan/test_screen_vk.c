@@ -70,15 +70,17 @@ static void check(const char *technique, const char *params, const char *const *
 
 static void test_ssao(void **state) {
   (void)state;
-  static const char *const st[] = {"gbuffer", "ao", "blur", "readback"};
-  check("ssao", "{\"samples\":8,\"blur\":true}", st, 4);
+  static const char *const st[] = {"prepare", "device", "gbuffer", "geometry",
+                                   "ao",      "blur",   "readback", "other"};
+  check("ssao", "{\"samples\":8,\"blur\":true}", st, 8);
 }
 
 static void test_hbao(void **state) {
   (void)state;
-  static const char *const st[] = {"gbuffer", "downsample", "ao", "upsample", "blur", "readback"};
+  static const char *const st[] = {"prepare", "device", "gbuffer", "geometry", "downsample",
+                                   "ao",      "upsample", "blur",  "readback", "other"};
   check("hbao", "{\"directions\":4,\"steps\":4,\"radius\":1,\"half_res\":true,\"blur_radius\":2}",
-        st, 6);
+        st, 10);
 }
 
 int main(void) {
