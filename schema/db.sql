@@ -136,3 +136,13 @@ ALTER TABLE jobs ADD COLUMN ranks INTEGER NOT NULL DEFAULT 1 CHECK (ranks BETWEE
 -- in total (--max-queued-bytes); jobs that had finished before no longer count and stay 0.
 ALTER TABLE jobs ADD COLUMN stored_bytes INTEGER NOT NULL DEFAULT 0;
 UPDATE jobs SET stored_bytes = length(CAST(doc AS BLOB)) WHERE state IN ('queued', 'running');
+
+-- migration 9
+-- The Vulkan device's kind, from its VkPhysicalDeviceType: 'gpu' (integrated, discrete or
+-- virtual GPU), 'software' (VK_PHYSICAL_DEVICE_TYPE_CPU: a CPU rasteriser such as llvmpipe) or
+-- 'other'. Timings of one kind never predict another (learned auto, time budgets); NULL on rows
+-- recorded before kinds were, whose Vulkan runs therefore predict nothing.
+ALTER TABLE machines ADD COLUMN vulkan_kind TEXT;
+-- A time-budget job's choice (JSON: the pick's expected time and RMSE, the alternatives
+-- considered and why each lost), made at submission; NULL for every other job.
+ALTER TABLE jobs ADD COLUMN choice TEXT;

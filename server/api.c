@@ -189,6 +189,7 @@ static int submit(srv_req *r) {
     return rc;
   }
   char *notes = json_array_size(s.notes) ? json_dumps(s.notes, JSON_COMPACT) : NULL;
+  char *choice = s.choice ? json_dumps(s.choice, JSON_COMPACT | JSON_REAL_PRECISION(17)) : NULL;
   srv_new_job nj = {.priority = s.priority,
                     .label = s.label,
                     .scene = s.scene,
@@ -204,11 +205,13 @@ static int submit(srv_req *r) {
                     .backend_reason = s.backend_reason,
                     .scene_name = s.scene_name,
                     .notes = notes,
-                    .ranks = s.ranks};
+                    .ranks = s.ranks,
+                    .choice = choice};
   int64_t id = 0;
   int retry = 0;
   unsigned admit = srv_admit_job(r->app, r->client, &nj, &id, &retry, &problems);
   free(notes);
+  free(choice);
   if (admit) {
     srv_submission_free(&s);
     if (admit != 429) return srv_respond_unavailable(r, &problems);
@@ -366,7 +369,11 @@ static int get_job(srv_req *r, int64_t id, unsigned status) {
     m = json_incref(json_array_get(rows, 0));
   obs_err_free(&err);
   json_decref(rows);
+  json_object_set_new(o, "device", srv_device_json(json_string_value(json_object_get(
+                                                       json_object_get(o, "backend"), "actual")),
+                                                   m));
   json_object_set_new(o, "machine", m ? m : json_null());
+  json_object_set_new(o, "choice", srv_job_choice_json(r->app, id));
   return srv_respond_json(r, status, o);
 }
 
@@ -666,6 +673,7 @@ static int health(srv_req *r) {
   json_t *recent = srv_fault_recent_json();
   json_object_set_new(o, "recent_faults", recent ? recent : json_array());
   json_object_set_new(o, "lanes_paused", json_boolean(level > 0 && srv_fault_any()));
+  json_object_set_new(o, "devices", srv_devices_json(app));
   json_object_set_new(o, "paused", json_integer(srv_sched_paused(app)));
   /* Refusing work for want of room is degraded service, even with every fault clear. */
   int refusing = 0;

@@ -238,6 +238,8 @@ static json_t *candidate_json(srv_app *app, const json_t *row, const json_t *run
   json_t *metrics = mt ? json_loads(mt, 0, NULL) : NULL;
   json_object_set_new(co, "metrics", metrics ? metrics : json_null());
   json_object_set(co, "error", json_object_get(row, "metrics_error"));
+  json_object_set_new(co, "device",
+                      srv_device_json(json_string_value(json_object_get(row, "backend")), machine));
   json_object_set_new(co, "machine", machine);
   json_t *links = json_object();
   char url[96];
@@ -309,6 +311,9 @@ static int comparison_json(srv_app *app, int64_t id, json_t **out, obs_err *err)
     json_object_set_new(o, "candidates", list);
     json_object_set_new(o, "pareto", pareto_set(list, pts, opt, n));
     json_object_set_new(o, "ranking", ranking_of(list));
+    json_object_set_new(o, "answer", srv_compare_answer(list, json_number_value(json_object_get(
+                                                                  json_array_get(head, 0),
+                                                                  "budget_ms"))));
     char self[64], csv[72];
     snprintf(self, sizeof self, API "/comparisons/%lld", (long long)id);
     snprintf(csv, sizeof csv, "%s.csv", self);
@@ -393,7 +398,7 @@ static char *comparison_csv(const json_t *o, size_t *len) {
       "index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs,rmse,"
       "bias,max_abs,psnr,ssim,ref_noise,at_reference_accuracy,pareto,cpu_model,cores,"
       "vulkan_device,output,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse,"
-      "total_ms_min,total_ms_max\r\n";
+      "total_ms_min,total_ms_max,device\r\n";
   sb_put(&b, header, sizeof header - 1);
   json_t *cands = json_object_get(o, "candidates");
   for (size_t i = 0; i < json_array_size(cands); i++) {
@@ -448,6 +453,7 @@ static char *comparison_csv(const json_t *o, size_t *len) {
     /* The run-to-run spread of the total time, last so older readers' columns stay put. */
     csv_value(&b, json_object_get(json_object_get(tm, "min"), "total"));
     csv_value(&b, json_object_get(json_object_get(tm, "max"), "total"));
+    csv_value(&b, json_object_get(json_object_get(c, "device"), "label"));
     sb_put(&b, "\r\n", 2);
   }
   if (b.oom) {
@@ -461,7 +467,16 @@ static char *comparison_csv(const json_t *o, size_t *len) {
 int srv_compare_get(srv_req *r, int64_t id, int csv) {
   json_t *o = NULL;
   obs_err err = OBS_ERR_INIT;
+  double budget_ms = NAN;
+  if (srv_compare_budget_arg(r, &budget_ms, &err)) {
+    int ret = srv_respond_error(r, MHD_HTTP_BAD_REQUEST, &err, "bad query parameters");
+    obs_err_free(&err);
+    return ret;
+  }
   int rc = comparison_json(r->app, id, &o, &err);
+  /* A budget asked in the query answers for it instead of the stored one (the chart's input). */
+  if (!rc && !isnan(budget_ms))
+    json_object_set_new(o, "answer", srv_compare_answer(json_object_get(o, "candidates"), budget_ms));
   if (rc == OBS_ENOTFOUND) {
     obs_err_free(&err);
     return srv_respond_error(r, MHD_HTTP_NOT_FOUND, NULL, "no comparison %lld", (long long)id);
@@ -547,6 +562,14 @@ int srv_compare_list(srv_req *r) {
                         json_object_get(row, "scene"), "state", state_of(row), "created_at",
                         srv_json_time(json_integer_value(json_object_get(row, "created_ms"))),
                         "candidates", total, "done", done));
+    /* Each comparison's answer, so the list says it without opening one. */
+    json_t *full = NULL;
+    obs_err aerr = OBS_ERR_INIT;
+    if (!comparison_json(r->app, json_integer_value(json_object_get(row, "id")), &full, &aerr))
+      json_object_set(json_array_get(list, json_array_size(list) - 1), "answer",
+                      json_object_get(full, "answer"));
+    json_decref(full);
+    obs_err_free(&aerr);
   }
   json_t *next = json_null();
   if (n > shown && shown) {

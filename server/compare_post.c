@@ -297,8 +297,12 @@ static unsigned parse_request(srv_app *app, const char *body, size_t len, cmp_re
   obs_jpath_init(&p, "request", problems);
   json_t *req = q->req;
   static const char *const keys[] = {"scene_file", "scene",     "set",        "label", "priority",
-                                     "repeats",    "reference", "candidates", NULL};
+                                     "repeats",    "reference", "candidates", "budget_ms",
+                                     NULL};
   obs_json_check_keys(&p, req, keys);
+  /* The budget the comparison's answer is read at (stored with the request). */
+  double budget_ms = 0;
+  obs_json_get_number(&p, req, "budget_ms", 0, 0, 1e9, 1, 0, &budget_ms);
   q->priority = 50;
   q->repeats = SRV_COMPARE_REPEATS;
   q->ref_samples = SRV_COMPARE_REF_SAMPLES;

@@ -30,8 +30,8 @@ static const char *const sql[ST_COUNT] = {
     [ST_ROLLBACK] = "ROLLBACK",
     [ST_INSERT] = "INSERT INTO jobs (priority, label, scene, doc, technique, backend_requested, "
                   "lane, width, height, spp, created_ms, repeats, warmup, work, backend_reason, "
-                  "scene_name, notes, ranks, stored_bytes) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
-                  "?, ?, ?, ?, ?, ?, ?)",
+                  "scene_name, notes, ranks, stored_bytes, choice) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
+                  "?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
     [ST_GET] = "SELECT " JOB_COLS " FROM jobs WHERE id = ?",
     [ST_OUTPUTS] = "SELECT name, size, sha256, content_type FROM outputs WHERE job_id = ? "
                    "ORDER BY name",
@@ -77,8 +77,11 @@ static const char *const sql[ST_COUNT] = {
     [ST_MIGRATION_PUT] = "INSERT INTO schema_migrations (version, applied_ms) VALUES (?, ?)",
     [ST_RUN_INSERT] = "INSERT INTO runs (job, run, build_ms, render_ms, post_ms, total_ms, machine) "
                       "VALUES (?, ?, ?, ?, ?, ?, ?)",
-    [ST_MACHINE_INSERT] = "INSERT INTO machines (cpu_model, cores, vulkan_device) VALUES (?, ?, ?) "
-                          "ON CONFLICT DO NOTHING",
+    [ST_MACHINE_INSERT] = "INSERT INTO machines (cpu_model, cores, vulkan_device, vulkan_kind) "
+                          "VALUES (?, ?, ?, ?) ON CONFLICT DO NOTHING",
+    /* A row recorded before kinds were gets this device's kind (same name, same device). */
+    [ST_MACHINE_KIND] = "UPDATE machines SET vulkan_kind = ?2 WHERE id = ?1 AND vulkan_kind IS NULL "
+                        "AND ?2 IS NOT NULL",
     [ST_MACHINE_GET] = "SELECT id FROM machines WHERE cpu_model = ?1 AND cores = ?2 AND "
                        "vulkan_device IS ?3",
     [ST_CMP_INSERT] = "INSERT INTO comparisons (label, scene, width, height, repeats, request, "
@@ -120,7 +123,8 @@ static const char *const sql[ST_COUNT] = {
   "NULL) AS measured, "                                                                           \
   "(SELECT count(*) FROM comparison_candidates x WHERE x.comparison = c.id) AS candidates"
     [ST_QUERY + SRV_Q_COMPARISON] = "SELECT c.id, c.label, c.scene, c.width, c.height, c.repeats, "
-                                    "c.created_ms, c.notes, " CMP_COUNTS " FROM comparisons c WHERE c.id = ?1",
+                                    "c.created_ms, c.notes, json_extract(c.request, '$.budget_ms') AS budget_ms, "
+                                    CMP_COUNTS " FROM comparisons c WHERE c.id = ?1",
     [ST_QUERY + SRV_Q_CANDIDATES] =
         "SELECT cc.idx, cc.job, cc.reference_job, cc.technique, cc.backend, cc.params, "
         "cc.reference_params, cc.response, cc.metrics, cc.metrics_error, j.state, j.progress, "
@@ -130,8 +134,8 @@ static const char *const sql[ST_COUNT] = {
         "JOIN jobs r ON r.id = cc.reference_job WHERE cc.comparison = ?1 ORDER BY cc.idx",
     [ST_QUERY + SRV_Q_COMPARISON_RUNS] =
         "SELECT ru.job, ru.run, ru.build_ms, ru.render_ms, ru.post_ms, ru.total_ms, m.cpu_model, "
-        "m.cores, m.vulkan_device FROM runs ru LEFT JOIN machines m ON m.id = ru.machine "
-        "WHERE ru.job IN " CMP_JOBS " ORDER BY ru.job, ru.run",
+        "m.cores, m.vulkan_device, m.vulkan_kind FROM runs ru LEFT JOIN machines m ON "
+        "m.id = ru.machine WHERE ru.job IN " CMP_JOBS " ORDER BY ru.job, ru.run",
     [ST_QUERY + SRV_Q_COMPARISON_OUTPUTS] =
         "SELECT job_id AS job, name FROM outputs WHERE job_id IN " CMP_JOBS " ORDER BY job_id, name",
     [ST_QUERY + SRV_Q_COMPARISONS] = "SELECT c.id, c.label, c.scene, c.created_ms, " CMP_COUNTS
@@ -139,9 +143,12 @@ static const char *const sql[ST_COUNT] = {
                                      "ORDER BY c.id DESC LIMIT ?2",
     [ST_QUERY + SRV_Q_JOB_DOC] = "SELECT doc, scene, scene_name, label, priority FROM jobs "
                                  "WHERE id = ?1",
-    [ST_QUERY + SRV_Q_JOB_MACHINE] = "SELECT m.cpu_model, m.cores, m.vulkan_device FROM runs ru "
-                                     "JOIN machines m ON m.id = ru.machine WHERE ru.job = ?1 "
-                                     "ORDER BY ru.run DESC LIMIT 1",
+    [ST_QUERY + SRV_Q_JOB_MACHINE] = "SELECT m.cpu_model, m.cores, m.vulkan_device, m.vulkan_kind "
+                                     "FROM runs ru JOIN machines m ON m.id = ru.machine WHERE "
+                                     "ru.job = ?1 ORDER BY ru.run DESC LIMIT 1",
+    [ST_QUERY + SRV_Q_JOB_CHOICE] = "SELECT choice FROM jobs WHERE id = ?1",
+    [ST_QUERY + SRV_Q_MACHINE] = "SELECT cpu_model, cores, vulkan_device, vulkan_kind FROM "
+                                 "machines WHERE id = ?1",
     [ST_QUERY + SRV_Q_JOB_COMPARISON] = "SELECT comparison FROM comparison_candidates WHERE "
                                         "job = ?1 OR reference_job = ?1 LIMIT 1",
     [ST_QUERY + SRV_Q_METRICS_PENDING] =
@@ -153,11 +160,15 @@ static const char *const sql[ST_COUNT] = {
     /* The newest 5000 runs are plenty for a median and bound the work of one submission. */
     [ST_QUERY + SRV_Q_AUTO_RUNS] =
         "SELECT j.backend, ru.total_ms FROM runs ru JOIN jobs j ON j.id = ru.job "
+        "LEFT JOIN machines m ON m.id = ru.machine "
         "WHERE j.technique = ?1 AND j.work BETWEEN ?2 / 2.0 AND ?2 * 2.0 AND "
-        "j.backend IS NOT NULL AND j.state = 'succeeded' ORDER BY ru.job DESC LIMIT 5000",
+        "j.backend IS NOT NULL AND j.state = 'succeeded' AND "
+        "(j.backend <> 'vulkan' OR m.vulkan_kind = ?3) ORDER BY ru.job DESC LIMIT 5000",
     [ST_QUERY + SRV_Q_BUDGET] =
         "SELECT c.id AS comparison, c.scene, cc.idx, cc.job, cc.technique, cc.backend, cc.params, "
-        "cc.metrics, j.width * j.height * j.spp AS pixels FROM comparison_candidates cc "
+        "cc.metrics, j.width * j.height * j.spp AS pixels, (SELECT m.vulkan_kind FROM runs ru "
+        "JOIN machines m ON m.id = ru.machine WHERE ru.job = cc.job LIMIT 1) AS vulkan_kind "
+        "FROM comparison_candidates cc "
         "JOIN comparisons c ON c.id = cc.comparison JOIN jobs j ON j.id = cc.job "
         "WHERE cc.metrics IS NOT NULL AND j.state = 'succeeded' "
         "ORDER BY c.id DESC, cc.idx LIMIT 2000",

@@ -66,7 +66,7 @@ int srv_db_insert_comparison(srv_db *db, const srv_new_comparison *cmp, int64_t 
 }
 
 int srv_db_machine(srv_db *db, const char *cpu_model, int cores, const char *vulkan_device,
-                   int64_t *id, obs_err *err) {
+                   const char *vulkan_kind, int64_t *id, obs_err *err) {
   conn *c = srv_dbi_acquire(db);
   sqlite3_stmt *s = srv_dbi_stmt(c, ST_MACHINE_INSERT, err);
   int rc = OBS_EIO;
@@ -74,6 +74,7 @@ int srv_db_machine(srv_db *db, const char *cpu_model, int cores, const char *vul
     srv_dbi_bind_text(s, 1, cpu_model);
     sqlite3_bind_int(s, 2, cores);
     srv_dbi_bind_text(s, 3, vulkan_device);
+    srv_dbi_bind_text(s, 4, vulkan_kind);
     rc = srv_dbi_exec_done(c, s, err, "recording the machine");
   }
   if (!rc) {
@@ -88,6 +89,13 @@ int srv_db_machine(srv_db *db, const char *cpu_model, int cores, const char *vul
       else rc = srv_dbi_fail(c, err, "reading the machine");
       srv_dbi_done(s);
     }
+  }
+  if (!rc && (s = srv_dbi_stmt(c, ST_MACHINE_KIND, err))) {
+    sqlite3_bind_int64(s, 1, *id);
+    srv_dbi_bind_text(s, 2, vulkan_kind);
+    rc = srv_dbi_exec_done(c, s, err, "recording the machine's Vulkan kind");
+  } else if (!rc) {
+    rc = OBS_EIO;
   }
   srv_dbi_release(db, c);
   return rc;

@@ -115,6 +115,7 @@ int srv_dbi_insert_job(conn *c, const srv_new_job *nj, int64_t extra, int64_t *i
   srv_dbi_bind_text(s, 17, nj->notes);
   sqlite3_bind_int(s, 18, nj->ranks > 1 ? nj->ranks : 1);
   sqlite3_bind_int64(s, 19, srv_job_stored_bytes(nj) + extra);
+  srv_dbi_bind_text(s, 20, nj->choice);
   int rc = srv_dbi_exec_done(c, s, err, "inserting the job");
   if (!rc) *id = sqlite3_last_insert_rowid(c->db);
   return rc;

@@ -76,7 +76,8 @@ static int64_t text_bytes(const char *s) { return s ? (int64_t)strlen(s) : 0; }
 
 int64_t srv_job_stored_bytes(const srv_new_job *j) {
   return text_bytes(j->doc) + text_bytes(j->label) + text_bytes(j->scene) +
-         text_bytes(j->scene_name) + text_bytes(j->notes) + text_bytes(j->backend_reason);
+         text_bytes(j->scene_name) + text_bytes(j->notes) + text_bytes(j->backend_reason) +
+         text_bytes(j->choice);
 }
 
 int64_t srv_candidate_row_bytes(const srv_new_candidate *c) {

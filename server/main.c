@@ -186,8 +186,10 @@ int main(int argc, char **argv) {
   srv_outputs_sweep(&app);
   /* The facts every timed run is recorded with: this CPU, the threads a render uses, and the
    * Vulkan device when a Vulkan lane runs. */
+  app.vulkan_kind = app.vulkan_lane ? vk->device_kind() : NULL;
   if (srv_db_machine(app.db, obs_backend_ops_get(OBS_BACKEND_CPU)->device_name(), app.cpu_threads,
-                     app.vulkan_lane ? vk->device_name() : NULL, &app.machine_id, &err))
+                     app.vulkan_lane ? vk->device_name() : NULL, app.vulkan_kind, &app.machine_id,
+                     &err))
     goto out;
   /* Recovery of comparisons: metrics of candidates whose jobs both succeeded but which the last
    * process did not get to (it died between a job's commit and its metrics). */

@@ -176,6 +176,7 @@ typedef struct srv_new_job {
   const char *scene_name;     /* an inline scene's name, may be NULL */
   const char *notes;          /* JSON array text of derived values, may be NULL */
   int ranks;                  /* Open MPI ranks; 0 = 1 */
+  const char *choice;         /* a time-budget job's choice (JSON text), may be NULL */
 } srv_new_job;
 
 /* One timed render of a job (a row of `runs`). */
@@ -232,8 +233,17 @@ int srv_db_finish_success(srv_db *db, int64_t id, const char *backend, const cha
                           const srv_output *outs, int nouts, const srv_run *runs, int nruns,
                           int64_t machine, obs_err *err);
 /* The id of the machines row with these facts, inserted when new. vulkan_device may be NULL. */
+/* Where a time came from (device.c): {"backend", "name", "kind" ("cpu", "gpu", "software",
+ * "other", null when unknown), "label"} for a job of `backend` timed on a machines row
+ * (cpu_model, cores, vulkan_device, vulkan_kind); null without a machine. The label reads
+ * "vulkan · llvmpipe (...) (software)" or "cpu · <model> (N threads)". */
+json_t *srv_device_json(const char *backend, const json_t *machine);
+/* This daemon's devices: {"cpu": device, "vulkan": device or null without a Vulkan lane}. */
+struct srv_app;
+json_t *srv_devices_json(const struct srv_app *app);
+
 int srv_db_machine(srv_db *db, const char *cpu_model, int cores, const char *vulkan_device,
-                   int64_t *id, obs_err *err);
+                   const char *vulkan_kind, int64_t *id, obs_err *err);
 
 /* A comparison as submitted: its reference jobs and candidate jobs (borrowed). */
 typedef struct srv_new_candidate {
@@ -267,11 +277,14 @@ typedef enum {
   SRV_Q_COMPARISONS,        /* ?1 after (0 = start), ?2 limit: newest first, with counts */
   SRV_Q_JOB_COMPARISON,     /* ?1 job id: the comparison it belongs to, if any */
   SRV_Q_METRICS_PENDING,    /* ?1 job id (0 = all): candidates ready for metrics */
-  SRV_Q_AUTO_RUNS,          /* ?1 technique, ?2 work: timed runs at similar work per backend */
+  SRV_Q_AUTO_RUNS,          /* ?1 technique, ?2 work, ?3 this daemon's Vulkan kind: timed runs
+                             * at similar work per backend, Vulkan ones of that kind only */
   SRV_Q_BUDGET,             /* candidates with metrics, newest comparisons first */
   SRV_Q_JOB_RUNS,           /* ?1 job id: its runs' totals */
   SRV_Q_JOB_DOC,            /* ?1 job id: its stored document, scene, label and priority */
   SRV_Q_JOB_MACHINE,        /* ?1 job id: the machine of its last timed run */
+  SRV_Q_JOB_CHOICE,         /* ?1 job id: a time-budget job's stored choice (JSON text) */
+  SRV_Q_MACHINE,            /* ?1 machine id: its facts */
   SRV_NQUERIES
 } srv_query;
 typedef struct srv_arg {
@@ -609,6 +622,18 @@ void srv_compare_metrics(struct srv_app *app, int64_t job);
  * rel_mse} for RGB outputs and "patch_rmse" for per-patch ones. `resp` maps the reference. */
 int srv_compare_primary(const char *dir, const char *rdir, obs_response resp, obs_compare *m,
                         json_t *extra, obs_image *eimg, obs_err *err);
+/* A comparison's answer (compare_budget.c), from its candidate objects: per reference (only
+ * candidates measured against one reference are ranked together) the best candidate (the fastest
+ * at reference accuracy, else the fastest of the lowest RMSE, with the Pareto set's margins) and,
+ * with a budget (finite and > 0), the best whose median total time fits it; docs/comparisons.md. */
+json_t *srv_compare_answer(const json_t *candidates, double budget_ms);
+/* The `budget_ms` query parameter of GET /api/v1/comparisons/{id}: 0 with *budget_ms NaN when
+ * absent or the number; OBS_EINVAL naming it when it is not a time above 0. */
+struct srv_req;
+int srv_compare_budget_arg(struct srv_req *r, double *budget_ms, obs_err *err);
+/* A time-budget job's stored choice with, once it ran, its median timed total ("actual_ms",
+ * comparable with "expected_ms"); null for any other job. */
+json_t *srv_job_choice_json(struct srv_app *app, int64_t job);
 /* Time-budget mode of POST /api/v1/jobs: the most accurate measured configuration for `scene`
  * (or any scene at similar pixel count) whose median time fits `budget_ms`. Returns 0 with
  * *choice (new object: technique, backend, params, expected_ms, expected_rmse, comparison_id,
@@ -677,6 +702,7 @@ typedef struct srv_app {
   int vulkan_lane;         /* a Vulkan lane runs */
   int cpu_threads;         /* threads per render */
   int64_t machine_id;      /* machines row of this daemon (CPU model, threads, Vulkan device) */
+  const char *vulkan_kind; /* the Vulkan lane's device kind (backend.h device_kind), else NULL */
   int port;                /* the bound port */
   int listen_fd;           /* the bound socket, until libmicrohttpd takes it (listening) */
   int listening;

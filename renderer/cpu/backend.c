@@ -36,11 +36,14 @@ static const char *cpu_device_name(void) {
   return model;
 }
 
+static const char *cpu_device_kind(void) { return "cpu"; }
+
 const obs_backend_ops obs_backend_cpu_ops = {
     .id = OBS_BACKEND_CPU,
     .name = "cpu",
     .available = cpu_available,
     .device_name = cpu_device_name,
+    .device_kind = cpu_device_kind,
     .gbuffer = obs_gbuffer_cpu,
     .needs = &obs_cpu_needs_builder,
     .volume_sides = 1,

@@ -362,6 +362,17 @@ void obs_vk_release(obs_vk *vk) {
 
 const char *obs_vk_device_name(const obs_vk *vk) { return vk ? vk->name : ""; }
 
+const char *obs_vk_device_kind(const obs_vk *vk) {
+  if (!vk) return "other";
+  switch (vk->props.deviceType) {
+  case VK_PHYSICAL_DEVICE_TYPE_CPU: return "software";
+  case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU:
+  case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU:
+  case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU: return "gpu";
+  default: return "other";
+  }
+}
+
 uint32_t obs_vk_loop_limit(const obs_vk *vk) {
   if (!vk || vk->props.deviceType != VK_PHYSICAL_DEVICE_TYPE_CPU) return 0;
   /* Measured on Mesa 22.3; tests/vulkan/test_volume_ao_vk.c renders past it. */
@@ -383,13 +394,17 @@ int obs_vk_validation_verdict(const obs_vk *vk, int validation, const char *who,
 
 static int available;
 static char available_name[256];
+static const char *available_kind;
 static pthread_once_t available_once = PTHREAD_ONCE_INIT;
 
 static void probe(void) {
   obs_vk *vk = NULL;
   obs_err err = OBS_ERR_INIT;
   available = obs_vk_open(&vk, NULL, 0, &err) == 0;
-  if (available) snprintf(available_name, sizeof available_name, "%s", obs_vk_device_name(vk));
+  if (available) {
+    snprintf(available_name, sizeof available_name, "%s", obs_vk_device_name(vk));
+    available_kind = obs_vk_device_kind(vk);
+  }
   obs_vk_close(vk);
   obs_err_free(&err);
 }
@@ -403,11 +418,16 @@ const char *obs_vk_available_device_name(void) {
   return obs_vk_available() ? available_name : NULL;
 }
 
+static const char *available_device_kind(void) {
+  return obs_vk_available() ? available_kind : NULL;
+}
+
 const obs_backend_ops obs_backend_vulkan_ops = {
     .id = OBS_BACKEND_VULKAN,
     .name = "vulkan",
     .available = obs_vk_available,
     .device_name = obs_vk_available_device_name,
+    .device_kind = available_device_kind,
     .gbuffer = NULL,
     .prox_flood = obs_prox_flood_vulkan,
 };

@@ -34,6 +34,9 @@ void obs_vk_close(obs_vk *vk);
 int obs_vk_acquire(obs_vk **out, int validation, obs_err *err);
 void obs_vk_release(obs_vk *vk);
 const char *obs_vk_device_name(const obs_vk *vk);
+/* The device's kind from its VkPhysicalDeviceType (backend.h, device_kind): "software" for
+ * VK_PHYSICAL_DEVICE_TYPE_CPU, "gpu" for the GPU types, else "other". */
+const char *obs_vk_device_kind(const obs_vk *vk);
 /* The most loop iterations one shader invocation may run, all its loops together, before the
  * device silently ends them; 0 where no such limit is known. Mesa's llvmpipe (lavapipe) has one:
  * gallivm counts every iteration of every loop the compiler left in an invocation and, past 65535,

@@ -42,6 +42,11 @@ typedef struct obs_backend_ops {
   /* The device renders use, in words (a CPU model, a Vulkan device name), or NULL when the
    * backend is not available. The string lives as long as the process. */
   const char *(*device_name)(void);
+  /* What kind of device that is, so timings of one kind never stand for another: "cpu" (the CPU
+   * backend), "gpu" (a Vulkan device of an integrated, discrete or virtual GPU type), "software"
+   * (a Vulkan device of VK_PHYSICAL_DEVICE_TYPE_CPU, such as lavapipe's llvmpipe), "other"; NULL
+   * when the backend is not available. */
+  const char *(*device_kind)(void);
   /* A host G-buffer producer, or NULL when the backend has none. */
   obs_backend_gbuffer_fn gbuffer;
   /* What the backend builds for a technique's `needs` before its run (renderer/core/driver.h), or
