@@ -50,9 +50,10 @@ static json_t *timings_of(const json_t *runs, json_int_t job, json_t **machine) 
     json_array_append_new(list, o);
     if (n < SRV_MAX_REPEATS) n++;
     if (machine && !*machine && json_is_string(json_object_get(row, "cpu_model")))
-      *machine = json_pack("{s:O, s:O, s:O}", "cpu_model", json_object_get(row, "cpu_model"),
+      *machine = json_pack("{s:O, s:O, s:O, s:O}", "cpu_model", json_object_get(row, "cpu_model"),
                            "cores", json_object_get(row, "cores"), "vulkan_device",
-                           json_object_get(row, "vulkan_device"));
+                           json_object_get(row, "vulkan_device"), "vulkan_kind",
+                           json_object_get(row, "vulkan_kind"));
   }
   json_t *med = json_null(), *lo = json_null(), *hi = json_null();
   if (n) {

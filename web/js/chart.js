@@ -184,6 +184,29 @@ function decorate(u, pts, floor, colourOf, ratio, drawn) {
   ctx.restore();
 }
 
+// The time budget: a vertical line at `ms` on the time axis, labelled; its x in CSS pixels, or
+// null when there is none (or it lies off the plot).
+function drawBudget(u, ms, ratio) {
+  if (!(ms > 0)) return null;
+  const ctx = u.ctx, {left, top, width: w, height: h} = u.bbox;
+  const x = u.valToPos(ms, 'x', true);
+  if (!(x >= left && x <= left + w)) return null;
+  ctx.save();
+  ctx.strokeStyle = '#B00020';
+  ctx.lineWidth = 2 * ratio;
+  ctx.setLineDash([8 * ratio, 4 * ratio]);
+  ctx.beginPath();
+  ctx.moveTo(x, top);
+  ctx.lineTo(x, top + h);
+  ctx.stroke();
+  ctx.setLineDash([]);
+  ctx.fillStyle = '#B00020';
+  ctx.font = `${11 * ratio}px sans-serif`;
+  ctx.fillText(`budget ${ms} ms`, x + 4 * ratio, top + 12 * ratio);
+  ctx.restore();
+  return x / ratio;
+}
+
 // One button per point over the plot, named for screen readers; a click selects, focus and hover
 // show the tooltip (`tip.show`).
 function pointButtons(pts, nameOf, onSelect, tip) {
@@ -248,7 +271,7 @@ function chartPoints(cands) {
     .sort((a, b) => a.x - b.x || a.c.index - b.c.index);
 }
 
-export function paretoChart(box, cands, {colourOf, onSelect, selected = null, nameOf = defaultName, noise = null}) {
+export function paretoChart(box, cands, {colourOf, onSelect, selected = null, nameOf = defaultName, noise = null, budget = null}) {
   const uPlot = window.uPlot;
   if (!uPlot) {
     box.append('The chart library is missing (run npm ci; the daemon serves it from --vendor-dir).');
@@ -259,14 +282,15 @@ export function paretoChart(box, cands, {colourOf, onSelect, selected = null, na
   const floor = Number.isFinite(noise) && noise > 0 ? noise : null;
   // The scales take in the spreads' ends and the noise floor, so neither is cut off.
   const xExt = pts.flatMap((p) => (p.spread ? p.spread : [p.x]));
-  const xRange = (uu, min, max) => logPad([min, max, ...xExt]);
+  let budgetMs = budget;
+  const xRange = (uu, min, max) => logPad([min, max, ...xExt, ...(budgetMs > 0 ? [budgetMs] : [])]);
   const yRange = (uu, min, max) => logPad(floor ? [min, max, floor] : [min, max]);
   const techs = [...new Set(pts.map((p) => p.c.technique))];
   const ratio = window.devicePixelRatio || 1;
   let sel = selected;
   const selData = () => pts.map((p) => (p.c.index === sel ? p.y : null));
   const {series, data} = chartSeries(uPlot, pts, techs, colourOf, ratio, selData);
-  const drawn = {spreads: 0, noiseY: null};
+  const drawn = {spreads: 0, noiseY: null, budgetX: null};
   let u = null;
   const tip = chartTip(nameOf, () => u);
   // A roving tab stop (the selected point, else the fastest); arrow keys move between points in
@@ -300,7 +324,7 @@ export function paretoChart(box, cands, {colourOf, onSelect, selected = null, na
     legend: {live: false},
     hooks: {
       drawClear: [(uu) => decorate(uu, pts, floor, colourOf, ratio, drawn)],
-      draw: [placeButtons],
+      draw: [(uu) => { drawn.budgetX = drawBudget(uu, budgetMs, ratio); }, placeButtons],
       setCursor: [(uu) => {
         const {left, top} = uu.cursor;
         if (document.activeElement && buttons.includes(document.activeElement)) return;
@@ -329,10 +353,18 @@ export function paretoChart(box, cands, {colourOf, onSelect, selected = null, na
   const info = {points: pts.length, series: techs.map((t, k) => ({label: t, points: data[k + 1].filter((v) => v !== null).length})),
                 pareto: data[techs.length + 1].filter((v) => v !== null).length, order: pts.map((p) => p.c.index), yLabel,
                 noiseFloor: floor, drawn, spreads: pts.filter((p) => p.spread).map((p) => ({index: p.c.index, min: p.spread[0], max: p.spread[1]}))};
-  return chartHandle(u, info, buttons, data, () => {
+  const handle = chartHandle(u, info, buttons, data, () => {
     roving();
     return selData();
   }, (index) => { sel = index; }, () => sel);
+  /** Moves the budget line to `ms` (null: none), widening the time axis to show it. */
+  handle.setBudget = (ms) => {
+    budgetMs = ms;
+    info.budget = ms;
+    u.setData(data, true);
+  };
+  info.budget = budget;
+  return handle;
 }
 
 // What the page holds of a chart: select, step and focus points, resize, destroy.

@@ -3,6 +3,7 @@
 // over two stacked images) with its error heatmap, an image grid of every candidate, and the CSV.
 import {ACTIVE, ApiError, api, debug, el, fmtMs, fmtNum, fmtTime, paramText, poll, stateBadge, techniques, token} from './api.js';
 import {PALETTE, SHAPE_GLYPH, SHAPES, errorName, paretoChart, plottable, shapeOf, spreadOf} from './chart.js';
+import {answerCell, budgetPanel, deviceLabels, deviceText} from './budget.js';
 
 // The image of a candidate's or reference's primary output ("image"), or "ao.png" from a daemon
 // that predates typed outputs.
@@ -23,7 +24,7 @@ export function mountComparisons(view) {
     status,
     el('table', {},
       el('caption', {className: 'sr-only'}, 'Comparisons, newest first'),
-      el('thead', {}, el('tr', {}, ...['Comparison', 'Label', 'Scene', 'State', 'Candidates done', 'Created']
+      el('thead', {}, el('tr', {}, ...['Comparison', 'Label', 'Scene', 'State', 'Candidates done', 'Created', 'Answer']
         .map((h) => el('th', {scope: 'col'}, h)))),
       tbody));
   const handle = poll(async () => {
@@ -40,7 +41,7 @@ export function mountComparisons(view) {
       el('td', {}, c.label || '–'), el('td', {}, c.scene), el('td', {}, stateBadge(c.state)),
       el('td', {}, el('progress', {max: c.candidates || 1, value: c.done, 'aria-label': `Candidates done in comparison ${c.id}`}),
         ` ${c.done} / ${c.candidates}`),
-      el('td', {}, fmtTime(c.created_at)))));
+      el('td', {}, fmtTime(c.created_at)), answerCell(c))));
     return list.comparisons.some((c) => c.state === 'running');
   }, {fast: 1000, slow: 5000});
   return () => handle.stop();
@@ -103,6 +104,7 @@ const COLUMNS = [
   {key: 'index', label: '#', get: (c) => c.index, num: true},
   {key: 'technique', label: 'Technique', get: (c) => c.technique},
   {key: 'backend', label: 'Backend', get: (c) => c.backend},
+  {key: 'device', label: 'Timed on', get: (c) => (c.device ? deviceText(c.device) : null)},
   {key: 'params', label: 'Parameters', get: (c, ctx) => ctx.params(c)},
   {key: 'state', label: 'State', get: (c) => c.state},
   {key: 'total', label: 'Median ms', get: (c) => c.timings_ms && c.timings_ms.median ? c.timings_ms.median.total : null, num: true, fmt: fmtMs},
@@ -179,6 +181,7 @@ function renderFacts(pg) {
       el('dt', {}, 'References'), el('dd', {}, ...c.references.flatMap((r, i) => [i ? ', ' : '',
         el('a', {href: `#/jobs/${r.job_id}?comparison=${id}`}, `job ${r.job_id}`), ` (${refTechnique(r)}, ${r.state}, ${paramText({samples: r.params && r.params.samples})})`])),
       el('dt', {}, 'Error measure'), el('dd', {className: 'error-measure'}, errorName(c.candidates)),
+      el('dt', {}, 'Timed on'), el('dd', {className: 'devices'}, deviceLabels(c.candidates).join('; ') || '–'),
       el('dt', {}, 'Created'), el('dd', {}, fmtTime(c.created_at)),
       ...(c.notes && c.notes.length ? [el('dt', {}, 'Derived from the scene\'s size'),
         el('dd', {className: 'notes'}, ...c.notes.map((n) => el('p', {className: 'derived'}, n)))] : [])),
@@ -245,7 +248,7 @@ function renderChart(pg) {
   chartBox.replaceChildren();
   const ctx = {params: varyingParams(s.c.candidates)};
   const noise = s.c.ranking ? s.c.ranking.ref_noise : null;
-  s.chart = paretoChart(chartBox, s.c.candidates, {colourOf, onSelect: (i) => select(pg, i), selected: s.selected, noise,
+  s.chart = paretoChart(chartBox, s.c.candidates, {colourOf, onSelect: (i) => select(pg, i), selected: s.selected, noise, budget: s.budget,
     nameOf: (c) => {
       const varying = ctx.params(c);
       return `Candidate ${c.index}: ${c.technique} on ${c.backend}${varying === '(defaults)' ? '' : `, ${varying}`}`;
@@ -264,6 +267,23 @@ function renderChart(pg) {
   chartNote.textContent = info.points < s.c.candidates.length
     ? `${info.points} of ${s.c.candidates.length} candidates plotted; the others have no metrics or no finite time and RMSE` +
       `${s.c.state === 'running' ? ' yet' : ''}.` : '';
+}
+
+// The budget input with its readout (budget.js), once per page; each refresh re-reads the answer.
+// The shape legend says which device each backend's times came from.
+function renderBudget(pg) {
+  const {s, id} = pg;
+  pg.deviceKey.textContent = `times measured on: ${deviceLabels(s.c.candidates).join('; ') || 'no timed run yet'}`;
+  if (!pg.budget) {
+    s.budget = Number.isFinite(s.c.answer && s.c.answer.budget_ms) ? s.c.answer.budget_ms : null;
+    pg.budget = budgetPanel(id, s.budget, (ms) => {
+      s.budget = ms;
+      if (s.chart) s.chart.setBudget(ms);
+      debug.comparison.budget = ms;
+    });
+    pg.budgetSlot.replaceChildren(pg.budget.node);
+  }
+  pg.budget.refresh();
 }
 
 function renderGrid(pg) {
@@ -346,6 +366,7 @@ function comparisonLayout(pg, view) {
   pg.chartBox = el('div', {className: 'chart', role: 'group'});
   pg.rankNote = el('div', {className: 'rank-note'});
   pg.chartNote = el('p', {className: 'muted'});
+  pg.budgetSlot = el('div', {className: 'budget-slot'});
   pg.thead = el('thead');
   pg.tbody = el('tbody');
   pg.detail = el('div', {className: 'selected-slot'});
@@ -360,9 +381,10 @@ function comparisonLayout(pg, view) {
         'Hover a point for its name; click it (or Tab to the chart\'s points, move with ← → and press Enter) to show that ' +
         'candidate below. A bar through a point spans its fastest to slowest timed run; the dotted line is the reference\'s noise. ' +
         'The table holds the same data.'),
-      rankNote, chartBox, el('ul', {className: 'shape-legend', 'aria-label': 'Marker shapes'},
+      rankNote, pg.budgetSlot, chartBox, el('ul', {className: 'shape-legend', 'aria-label': 'Marker shapes'},
         ...Object.entries(SHAPES).map(([b, sh]) => el('li', {}, el('span', {'aria-hidden': 'true'}, SHAPE_GLYPH[sh]), ` ${sh}: ${b}`)),
         el('li', {}, el('span', {'aria-hidden': 'true'}, SHAPE_GLYPH.triangle), ' triangle: any other backend'),
+        pg.deviceKey = el('li', {className: 'device-key'}),
         el('li', {}, el('span', {'aria-hidden': 'true'}, '╌'), ' dashed step line: the Pareto front (nothing is both faster and more accurate)'),
         el('li', {}, el('span', {'aria-hidden': 'true'}, '◯'), ' ring: the selected candidate; larger markers: Pareto-optimal'),
         el('li', {}, el('span', {'aria-hidden': 'true'}, '├─┤'), ' bar: fastest to slowest timed run'),
@@ -422,6 +444,7 @@ export function mountComparison(view, [id], query) {
                                c.references.map((r) => [r.state, r.links])]);
     if (fp !== s.fingerprint) {
       renderFacts(pg);
+      renderBudget(pg);
       renderRanking(pg);
       renderTable(pg);
       renderChart(pg);

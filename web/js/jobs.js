@@ -2,6 +2,7 @@
 // parameters it ran with, its metrics when it belongs to a comparison, and its log), and what the job list
 // (joblist.js) shares with it: the actions on a job, the confirmation dialog, warning markers.
 import {ACTIVE, api, debug, el, fmtBytes, fmtMs, fmtNum, fmtTime, paramText, poll, stateBadge, techniques} from './api.js';
+import {choiceSection, deviceText} from './budget.js';
 import {metricsTable} from './comparisons.js';
 
 export {mountJobs} from './joblist.js';
@@ -175,12 +176,13 @@ function outputsSection(j, files) {
       el('a', {href: o.url, download: `job${j.id}-${o.name}`}, o.name), ` ${o.content_type}, ${fmtBytes(o.size)}`))) : null);
 }
 
-function timingsSection(t) {
+function timingsSection(t, device) {
   const rows = [];
   for (const k of ['load', 'build', 'render', 'write', 'total']) if (t[k] !== undefined) rows.push([k, t[k], false]);
   for (const [k, v] of Object.entries(t.stages || {})) rows.push([k, v, true]);
   return el('section', {'aria-labelledby': 'h-timings'},
     el('h2', {id: 'h-timings'}, 'Timings'),
+    device ? el('p', {className: 'device'}, `Measured on ${deviceText(device)}; the stages sum to the total.`) : null,
     el('table', {className: 'kv timings'},
       el('thead', {}, el('tr', {}, el('th', {scope: 'col'}, 'Stage'), el('th', {scope: 'col'}, 'ms'))),
       el('tbody', {}, ...rows.map(([k, v, sub]) => el('tr', {className: sub ? 'sub' : ''},
@@ -234,8 +236,9 @@ async function techniqueOf(name) {
   }
 }
 
-/** Where a render ran: the Vulkan device by name, or the CPU threads one render used. */
-function ranOn(summary, machine) {
+/** Where a render ran: the device as the server labels it (budget.js), else the CPU threads one render used. */
+function ranOn(summary, machine, device) {
+  if (device) return deviceText(device);
   if (summary.backend === 'vulkan') return `vulkan (device ${(machine && machine.vulkan_device) || 'unknown'})`;
   return `${summary.backend}, ${summary.threads} thread${summary.threads === 1 ? '' : 's'}`;
 }
@@ -316,8 +319,8 @@ export function mountJob(view, [id], query) {
     if (j.state !== lastState) {
       lastState = j.state;
       // Sections a job does not have yet are left out (replaceChildren would print a null).
-      body.replaceChildren(...[notesSection(j), warningsSection(j), outputsSection(j, await outputFiles()),
-        j.timings_ms ? timingsSection(j.timings_ms) : null,
+      body.replaceChildren(...[choiceSection(j), notesSection(j), warningsSection(j), outputsSection(j, await outputFiles()),
+        j.timings_ms ? timingsSection(j.timings_ms, j.device) : null,
         Array.isArray(j.frames) && j.frames.length ? framesSection(j.frames) : null,
         Array.isArray(j.built) && j.built.length ? builtSection(j.built) : null,
         j.stats ? statsSection(j, await techniqueOf(j.technique)) : null,
@@ -339,7 +342,7 @@ export function mountJob(view, [id], query) {
       api(summary).then((s) => {
         body.querySelector('.params-slot').replaceChildren(el('section', {'aria-labelledby': 'h-params'},
           el('h2', {id: 'h-params'}, 'Parameters'),
-          el('p', {}, `${s.technique} on ${ranOn(s, j.machine)}: `, el('code', {}, paramText(s.params)))));
+          el('p', {}, `${s.technique} on ${ranOn(s, j.machine, j.device)}: `, el('code', {}, paramText(s.params)))));
         const work = body.querySelector('.work-per-pixel');
         if (work) work.textContent = workPerPixel(work.dataset.cost, s.params);
       }).catch(() => {});

@@ -101,8 +101,10 @@ const healthPoll = poll(async () => {
     // A restarted daemon has forgotten the session: log in again for the images.
     if (h.uptime_s < uptime && uptime !== Infinity) login();
     uptime = h.uptime_s;
+    // Where times are measured: every backend's device, so a software rasteriser reads as one.
+    const devices = h.devices ? Object.values(h.devices).filter(Boolean).map((d) => d.label) : [];
     health.textContent = `server ${h.status} · ${h.queue_depth} queued · ${h.running} running` +
-      (h.vulkan_available ? ' · Vulkan' : '');
+      (devices.length ? ` · ${devices.join(' · ')}` : h.vulkan_available ? ' · Vulkan' : '');
     showFaults(h.faults || [], (h.capacity && h.capacity.refusing) || []);
     return h.queue_depth + h.running > 0 || (h.faults || []).length > 0;
   } catch (e) {

@@ -3,6 +3,7 @@
 // GET /api/v1/techniques (params_schema), so a new technique needs no change here. Everything is
 // checked before sending; a 4xx's problems are shown next to the fields their JSON pointers name.
 import {ApiError, api, el, techniques} from './api.js';
+import {budgetFields, readBudget} from './budget.js';
 import {prefillClone} from './clone.js';
 import {checkValue, describeRule, parseField, parseToken} from './params.js';
 
@@ -333,6 +334,9 @@ function techniqueControls(f) {
       f.techBox.append(b.node);
     }
     f.cmpOptions.hidden = f.addBtn.hidden = !f.isComparison();
+    // auto picks technique, backend and parameters itself: only the budget is asked.
+    f.budget.node.hidden = !f.isBudget();
+    f.techBox.hidden = f.isBudget();
     f.submitBtn.textContent = f.isComparison() ? 'Start comparison' : 'Submit job';
     recount();
   };
@@ -342,8 +346,11 @@ function build(form, registry, scenes, query) {
   const f = {form, registry};
   const mode = el('fieldset', {className: 'inline'}, el('legend', {}, 'What to submit'),
     radio('mode', 'single', 'One job', query.get('mode') !== 'comparison'),
-    radio('mode', 'comparison', 'A comparison (techniques × backends × parameter values against a reference)', query.get('mode') === 'comparison'));
+    radio('mode', 'comparison', 'A comparison (techniques × backends × parameter values against a reference)', query.get('mode') === 'comparison'),
+    radio('mode', 'budget', 'One job, technique auto (fastest within a time budget)', query.get('mode') === 'budget'));
   f.isComparison = () => form.querySelector('input[name=mode]:checked').value === 'comparison';
+  f.isBudget = () => form.querySelector('input[name=mode]:checked').value === 'budget';
+  f.budget = budgetFields();
   const common = sceneControls(f, scenes);
   f.cmpOptions = measurementControls(f);
   f.submitBtn = el('button', {type: 'submit', className: 'primary'}, 'Submit job');
@@ -355,7 +362,7 @@ function build(form, registry, scenes, query) {
 
   f.clientErrors = el('div', {className: 'problems', role: 'alert'});
   f.serverErrors = el('div', {className: 'problems', role: 'alert'});
-  form.replaceChildren(mode, common, f.cmpOptions, f.techBox, f.addBtn, f.count, f.clientErrors, f.serverErrors,
+  form.replaceChildren(mode, common, f.cmpOptions, f.budget.node, f.techBox, f.addBtn, f.count, f.clientErrors, f.serverErrors,
                        el('p', {}, f.submitBtn));
   f.showSource();
   f.showMode();
@@ -417,6 +424,16 @@ function readForm(f) {
   else if (pr.value !== undefined) body.priority = pr.value;
   if (f.label.value) body.label = f.label.value;
   if (Object.keys(set).length) body.set = set;
+  if (f.isBudget()) {
+    setError(f.budget.input, '');
+    const r = readBudget(f.budget.input, {...body, ...(f.isPaste() ? {} : {scene_file: f.sceneSel.value})});
+    if (r.error) {
+      setError(f.budget.input, r.error);
+      errors.push([f.budget.input, r.error]);
+      return {body, errors};
+    }
+    return {body: r.body, errors};
+  }
   const entries = f.blocks.map((b) => b.read());
   for (const e of entries) {
     for (const [ctl, msg] of e.errors) setError(ctl, msg);
