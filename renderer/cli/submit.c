@@ -21,6 +21,7 @@ typedef struct submit_opts {
   const char *server, *label, *out_dir;
   int priority; /* -1: not given (the server's default) */
   int wait;
+  double budget_ms; /* --budget: > 0 asks the server for technique "auto" within it */
 } submit_opts;
 
 static int parse_submit(int argc, char **argv, submit_opts *o) {
@@ -32,10 +33,18 @@ static int parse_submit(int argc, char **argv, submit_opts *o) {
     if (taken) continue;
     const char *a = argv[i];
     if (!strcmp(a, "--server") || !strcmp(a, "--priority") || !strcmp(a, "--label") ||
-        !strcmp(a, "-o")) {
+        !strcmp(a, "-o") || !strcmp(a, "--budget")) {
       const char *val = cli_option_value(argc, argv, &i);
       if (!val) return -1;
-      if (!strcmp(a, "--server")) {
+      if (!strcmp(a, "--budget")) {
+        char *end;
+        o->budget_ms = strtod(val, &end);
+        if (!*val || *end || !(o->budget_ms > 0) || o->budget_ms > 1e9) {
+          fprintf(stderr, "obscura: --budget must be a time in milliseconds above 0 and at most 1e9 "
+                          "(got %s)\n", val);
+          return -1;
+        }
+      } else if (!strcmp(a, "--server")) {
         o->server = val;
       } else if (!strcmp(a, "--label")) {
         o->label = val;
@@ -71,8 +80,23 @@ static int parse_submit(int argc, char **argv, submit_opts *o) {
     fprintf(stderr, "obscura: missing SCENE.json\n");
     return -1;
   }
+  if (o->budget_ms > 0 && (o->s.technique || o->s.backend)) {
+    fprintf(stderr, "obscura: --budget lets the server pick technique and backend: drop %s\n",
+            o->s.technique ? "--technique" : "--backend");
+    return -1;
+  }
   o->server = cli_server(o->server);
   return 0;
+}
+
+/* Time-budget mode (--budget): the server picks technique, backend and parameters from what it
+ * measured for its bundled scene of this file's name, so the request names that scene and sends
+ * this document's image size (its width, height and spp) as overrides. */
+static json_t *budget_request(const obs_scene *sc, const submit_opts *o) {
+  const char *base = strrchr(o->s.scene, '/');
+  return json_pack("{s:s, s:s, s:f, s:{s:i, s:i, s:i}}", "scene_file", base ? base + 1 : o->s.scene,
+                   "technique", "auto", "time_budget_ms", o->budget_ms, "set", "/image/width",
+                   sc->width, "/image/height", sc->height, "/image/spp", sc->spp);
 }
 
 /* The request body: the validated document (overrides and --technique/--backend applied) with
@@ -87,13 +111,15 @@ static char *submit_body(const obs_scene *sc, const submit_opts *o) {
     fprintf(stderr, "obscura: note: mesh file \"%s\" is read by the server from its --scenes-dir\n",
             file ? file : "?");
   }
-  json_t *doc = json_deep_copy(sc->doc);
+  json_t *doc = o->budget_ms > 0 ? budget_request(sc, o) : json_deep_copy(sc->doc);
   if (!doc) return NULL;
   if (o->priority >= 0) json_object_set_new(doc, "priority", json_integer(o->priority));
   /* The server names the job's scene after the file (an inline document has no name). */
   const char *base = strrchr(o->s.scene, '/');
   json_t *name = json_string(base ? base + 1 : o->s.scene);
-  if (name && json_string_length(name) > 0 && json_string_length(name) <= 256)
+  if (o->budget_ms > 0)
+    json_decref(name); /* a bundled scene is named by scene_file */
+  else if (name && json_string_length(name) > 0 && json_string_length(name) <= 256)
     json_object_set_new(doc, "scene_name", name);
   else
     json_decref(name);
@@ -427,6 +453,18 @@ int cli_submit(int argc, char **argv) {
   }
   printf("job %lld queued: %s\n", id, page);
   free(page);
+  json_t *ch = json_object_get(answer, "choice");
+  if (ch) {
+    /* What auto picked within the budget, and what it expects (docs/comparisons.md). */
+    printf("auto picked %s on %s: expected %.4g ms, RMSE %.4g (comparison %lld); ",
+           json_string_value(json_object_get(ch, "technique")),
+           json_string_value(json_object_get(ch, "backend")),
+           json_number_value(json_object_get(ch, "expected_ms")),
+           json_number_value(json_object_get(ch, "expected_rmse")),
+           (long long)json_integer_value(json_object_get(ch, "comparison_id")));
+    cli_put_clean(stdout, json_string_value(json_object_get(ch, "reason")));
+    fputc('\n', stdout);
+  }
   fflush(stdout);
   if (!o.wait) goto done;
   rc = wait_job(&c, id, self, &job);

@@ -39,9 +39,12 @@ static const usage usages[] = {
     {"submit",
      "  obscura submit SCENE.json [--server URL] [--technique NAME] [--backend cpu|vulkan|auto]\n"
      "                 [--set /json/pointer=VALUE]... [--priority N] [--label TEXT] [--wait]\n"
-     "                 [-o DIR]\n",
+     "                 [-o DIR] [--budget MS]\n",
      "Validates the scene here, sends it to obscurad and prints the job's dashboard page.\n"
-     "--wait follows the job to its end; -o DIR (implies --wait) downloads its outputs.\n"},
+     "--wait follows the job to its end; -o DIR (implies --wait) downloads its outputs.\n"
+     "--budget MS sends technique auto with time_budget_ms: the server picks, from its measured\n"
+     "comparisons of the bundled scene of this file's name (at this image size), the most\n"
+     "accurate configuration whose median time fits MS, and the CLI prints the pick.\n"},
     {"jobs",
      "  obscura jobs [--server URL] [--state S] [--technique T] [--backend B] [--limit N]\n"
      "                 [--json]\n",

@@ -8,7 +8,7 @@ import assert from 'node:assert/strict';
 import {spawnSync} from 'node:child_process';
 import {test} from 'node:test';
 
-import {SLOW, exrHeader, getJSON, getJob, pngSize, request, sql, startDaemon, submit,
+import {OBSCURA, ROOT, SLOW, exrHeader, getJSON, getJob, pngSize, request, sql, startDaemon, submit,
         validate, waitJob, withDaemon, download, sleep} from './lib.mjs';
 
 const SMALL = {'/image/width': 32, '/image/height': 24};
@@ -198,7 +198,7 @@ test('a sweep expands to the product of its lists, runs to completion with metri
     assert.equal(r.status, 200);
     assert.match(r.headers['content-type'], /^text\/csv/);
     const rows = parseCsv(r.text);
-    assert.equal(rows[0].join(','), 'index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs,rmse,bias,max_abs,psnr,ssim,ref_noise,at_reference_accuracy,pareto,cpu_model,cores,vulkan_device,output,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse,total_ms_min,total_ms_max');
+    assert.equal(rows[0].join(','), 'index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs,rmse,bias,max_abs,psnr,ssim,ref_noise,at_reference_accuracy,pareto,cpu_model,cores,vulkan_device,output,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse,total_ms_min,total_ms_max,device');
     assert.equal(rows.length, 1 + c.candidates.length);
     for (const [k, x] of c.candidates.entries()) {
       const f = Object.fromEntries(rows[0].map((h, i) => [h, rows[k + 1][i]]));
@@ -221,6 +221,7 @@ test('a sweep expands to the product of its lists, runs to completion with metri
       assert.equal(f.cpu_model, x.machine.cpu_model);
       assert.equal(Number(f.cores), x.machine.cores);
       assert.equal(f.vulkan_device, '');
+      assert.equal(f.device, x.device.label);
       // AO candidates: the compared output is named, the RGB columns stay empty.
       assert.deepEqual([f.output, f.rmse_r, f.rmse_luminance, f.rel_mse], ['ao', '', '', '']);
     }
@@ -336,9 +337,17 @@ test('a failed reference fails its candidates and the comparison', async () => {
   });
 });
 
-// A succeeded job with runs, as a past render would have left it (for learned "auto").
-function seedRuns(db, technique, backend, work, totals) {
-  const rows = totals.map((t, i) => `((SELECT max(id) FROM jobs), ${i + 1}, 0, ${t}, 0, ${t}, NULL)`).join(', ');
+// A succeeded job with runs, as a past render would have left it (for learned "auto"); Vulkan
+// runs on a seeded machine whose device is of `kind` (gpu, software): not this daemon's own row,
+// whose runs the render-time estimate would read.
+function seedRuns(db, technique, backend, work, totals, kind = 'software') {
+  const machine = backend === 'vulkan'
+    ? `(SELECT id FROM machines WHERE vulkan_device = 'seeded ${kind} device')` : 'NULL';
+  if (backend === 'vulkan') {
+    sqlWrite(db, `INSERT OR IGNORE INTO machines (cpu_model, cores, vulkan_device, vulkan_kind)
+                  VALUES ('seed', 1, 'seeded ${kind} device', '${kind}');`);
+  }
+  const rows = totals.map((t, i) => `((SELECT max(id) FROM jobs), ${i + 1}, 0, ${t}, 0, ${t}, ${machine})`).join(', ');
   sqlWrite(db, `INSERT INTO jobs (state, scene, doc, technique, backend_requested, lane, backend, width, height, spp, created_ms, work)
                 VALUES ('succeeded', 'cornell_box.json', '{}', '${technique}', '${backend}', '${backend}', '${backend}', 32, 24, 1, 0, ${work});
                 INSERT INTO runs (job, run, build_ms, render_ms, post_ms, total_ms, machine) VALUES ${rows};`);
@@ -374,8 +383,9 @@ test('learned auto: the backend with the lower median at similar work, else the 
     seedRuns(d.db, 'hbao', 'cpu', HBAO_WORK / 1.5, [5, 6, 7]);
     d2 = await startDaemon({dir: d.dir});
     j = await autoReason(d2);
+    // Without a Vulkan lane no device kind is known here: Vulkan timings predict nothing.
     assert.equal(j.backend.actual, 'cpu');
-    assert.match(j.backend.reason, /^measured: vulkan is faster \(median cpu [\d.]+ ms \(\d+ runs\) vs vulkan 3 ms \(3 runs\).*but this server runs no Vulkan lane/);
+    assert.match(j.backend.reason, /^static rule \(no stored runs of hbao on both backends/);
     // An explicit backend is never second-guessed.
     const e = await waitJob(d2, await submit(d2, {...HBAO_AUTO, technique: {...HBAO_AUTO.technique, backend: 'cpu'}}));
     assert.equal(e.backend.reason, 'requested');
@@ -402,10 +412,17 @@ test('learned auto: the backend with the lower median at similar work, else the 
     // This job's own run counts too; seed enough cpu-faster runs to outvote it.
     seedRuns(v.db, 'hbao', 'cpu', HBAO_WORK, [0.001, 0.001, 0.001, 0.001, 0.001]);
     seedRuns(v.db, 'hbao', 'vulkan', HBAO_WORK, [1e6, 1e6, 1e6, 1e6, 1e6]);
+    // A GPU's far faster runs never stand for this software device's.
+    seedRuns(v.db, 'hbao', 'vulkan', HBAO_WORK, [1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6], 'gpu');
     const v2 = await startDaemon({dir: v.dir, args: ['--vulkan']});
+    const devices = (await getJSON(v2, '/api/v1/health')).devices;
+    assert.equal(devices.vulkan.kind, health.devices.vulkan.kind);
+    assert.match(devices.vulkan.label, /^vulkan · .+ \((software|GPU|other)\)$/);
     j = await autoReason(v2);
     assert.equal(j.backend.actual, 'cpu');
     assert.match(j.backend.reason, /^measured: cpu is faster/);
+    assert.match(j.backend.reason, devices.vulkan.kind === 'gpu' ? /vulkan/ : /vulkan [\d.e+]+ ms \(\d+ runs\)/);
+    if (devices.vulkan.kind === 'software') assert.doesNotMatch(j.backend.reason, /vulkan 1e-06 ms/);
     await v2.stopClean();
   } finally {
     await v.kill9();
@@ -463,12 +480,55 @@ test('time budget: the most accurate measured configuration within the budget (w
                          rounded([want.technique, want.backend, want.params, want.timings_ms.median.total, id, want.metrics.rmse]),
                          `budget ${budget}`);
         assert.match(ch.reason, /of this scene/);
+        // The reasoning kept with the job: what was considered, each alternative with why it lost.
+        assert.equal(ch.budget_ms, budget);
+        assert.equal(ch.considered, c.candidates.length);
+        assert.equal(ch.alternatives.length, Math.min(12, c.candidates.length - 1));
+        for (const a of ch.alternatives) {
+          assert.equal(a.fits, a.expected_ms <= budget);
+          if (!a.fits) assert.equal(a.why_not, 'over the budget');
+        }
         const j = await waitJob(d2, r.json.id);
         assert.equal(j.state, 'succeeded', j.error);
+        validate('Job', j);
+        assert.deepEqual(rounded(j.choice.alternatives), rounded(ch.alternatives));
+        assert.ok(j.choice.actual_ms > 0, 'the actual time once it ran');
+        assert.match(j.device.label, /^cpu · .+ \(\d+ threads\)$/);
         assert.equal(j.technique, want.technique);
         assert.equal(j.backend.reason, ch.reason);
         assert.equal(j.backend.actual, want.backend);
       }
+      // The comparison's answer, per reference (candidates of different references are not
+      // ranked together), by the same rule as the budget choice; a budget in the query.
+      const refs = new Set(c.candidates.map((x) => x.reference_job_id));
+      assert.deepEqual(new Set(c.answer.groups.map((g) => g.reference_job_id)), refs);
+      assert.equal(c.answer.budget_ms, null);
+      const a = await getJSON(d2, `/api/v1/comparisons/${id}?budget_ms=35`);
+      validate('Comparison', a);
+      assert.equal(a.answer.budget_ms, 35);
+      for (const g of a.answer.groups) {
+        const mine = c.candidates.filter((x) => x.reference_job_id === g.reference_job_id);
+        assert.equal(g.candidates, mine.length);
+        const fit = mine.filter((x) => x.timings_ms.median.total <= 35);
+        if (!fit.length) assert.equal(g.best_under_budget, null);
+        else assert.ok(fit.some((x) => x.index === g.best_under_budget.index), JSON.stringify(g));
+        assert.ok(mine.some((x) => x.index === g.best.index));
+      }
+      assert.equal((await request(d2, 'GET', `/api/v1/comparisons/${id}?budget_ms=-1`)).status, 400);
+      const listed = (await getJSON(d2, '/api/v1/comparisons')).comparisons.find((x) => x.id === id);
+      assert.deepEqual(listed.answer, c.answer);
+      const csv = (await request(d2, 'GET', `/api/v1/comparisons/${id}.csv`)).text.trim().split('\r\n');
+      assert.equal(csv[0].split(',').at(-1), 'device');
+      assert.match(csv[1], /,cpu · [^,]+ \(\d+ threads\)$/);
+      // The CLI asks the same question: --budget sends technique auto with time_budget_ms.
+      const cli = spawnSync(OBSCURA, ['submit', 'scenes/cornell_box.json', '--set', '/image/width=32', '--set', '/image/height=24',
+                                      '--budget', '1000', '--server', d2.url], {encoding: 'utf8', cwd: ROOT});
+      assert.equal(cli.status, 0, cli.stderr);
+      assert.match(cli.stdout, /^job \d+ queued: .*\nauto picked \w+ on (cpu|vulkan): expected [\d.e+-]+ ms, RMSE [\d.e+-]+ \(comparison \d+\); /);
+      await waitJob(d2, Number(cli.stdout.match(/^job (\d+)/)[1]));
+      const bad = spawnSync(OBSCURA, ['submit', 'scenes/cornell_box.json', '--budget', '0', '--server', d2.url], {encoding: 'utf8', cwd: ROOT});
+      assert.equal(bad.status, 2);
+      assert.match(bad.stderr, /--budget must be a time in milliseconds above 0/);
       // Under the fastest configuration: 422 naming the fastest time.
       e = await request(d2, 'POST', '/api/v1/jobs', {body: {scene_file: 'cornell_box.json', set: SMALL, technique: 'auto', time_budget_ms: 9.5}});
       assert.equal(e.status, 422, e.text);

@@ -116,6 +116,15 @@ test('retry puts a cancelled or failed job back in the queue', async () => {
     validate('Job', one);
     assert.ok(one.machine && one.machine.cores >= 1, JSON.stringify(one.machine));
     assert.equal(one.machine.vulkan_device, null);
+    assert.deepEqual([one.device.backend, one.device.kind], ['cpu', 'cpu']);
+    assert.equal(one.device.label, `cpu · ${one.machine.cpu_model} (${one.machine.cores} threads)`);
+    assert.equal(one.choice, null, 'no time budget, no choice');
+    // Every millisecond is a stage: load, the render's own and write sum to the total (the
+    // accounting, not the timings' values).
+    const st = Object.values(one.timings_ms.stages);
+    assert.ok(st.every((v) => v >= 0), JSON.stringify(one.timings_ms));
+    assert.ok(Math.abs(st.reduce((a, b) => a + b, 0) - one.timings_ms.total) <= 1e-6 * (1 + one.timings_ms.total),
+              JSON.stringify(one.timings_ms));
     assert.equal((await getJSON(d, '/api/v1/jobs')).jobs[0].machine, undefined);
     const bj = await waitJob(d, blocker);
     assert.equal(bj.state, 'cancelled');

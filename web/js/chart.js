@@ -202,7 +202,7 @@ function drawBudget(u, ms, ratio) {
   ctx.setLineDash([]);
   ctx.fillStyle = '#B00020';
   ctx.font = `${11 * ratio}px sans-serif`;
-  ctx.fillText(`budget ${ms} ms`, x + 4 * ratio, top + 12 * ratio);
+  ctx.fillText(`budget ${Number(ms.toPrecision(3))} ms`, x + 4 * ratio, top + 12 * ratio);
   ctx.restore();
   return x / ratio;
 }
