@@ -93,7 +93,7 @@ export async function imageWidths(page, selector) {
 }
 
 export const CSV_HEADER = 'index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs,rmse,bias,' +
-  'max_abs,psnr,ssim,ref_noise,at_reference_accuracy,pareto,cpu_model,cores,vulkan_device,output,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse,total_ms_min,total_ms_max';
+  'max_abs,psnr,ssim,ref_noise,at_reference_accuracy,pareto,cpu_model,cores,vulkan_device,output,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse,total_ms_min,total_ms_max,device';
 
 /**
  * The checks of a finished comparison page (`doc` is its GET /api/v1/comparisons/{id} answer):
