@@ -288,6 +288,8 @@ test('bad grids are 422 with a pointer for every problem, and store nothing', as
       [{set: SMALL, candidates: [{technique: 'hbao'}]}, 'request: /: needs scene_file'],
       [{...base, colour: 1, candidates: [{technique: 'hbao'}]}, 'request: /colour'],
       [{...base, repeats: 0, candidates: [{technique: 'hbao'}]}, 'request: /repeats: must be >= 1'],
+      [{...base, budget_ms: 0, candidates: [{technique: 'hbao'}]}, 'request: /budget_ms: must be > 0'],
+      [{...base, budget_ms: 'fast', candidates: [{technique: 'hbao'}]}, 'request: /budget_ms'],
       [{...base, reference: {samples: 1024, sampler: 'halton'}, candidates: [{technique: 'hbao'}]}, 'request: /reference/sampler'],
       // max_distance null given: the Cornell box's own is 200.
       [{...base, candidates: [{technique: 'rt_ao', params: {falloff: ['binary', 'sqrt'], max_distance: null}}]},
