@@ -228,19 +228,21 @@ test('job pages: no "null" text, where it ran, what a screen-space technique did
     assert.doesNotMatch(t, /rays traced/);
     assert.match(t, /radius=0\.3 /);
     assert.doesNotMatch(t, /0\.30000000000000004/);
-    assert.match(t, /ssao on cpu, \d+ threads?:/);
+    assert.match(t, /ssao on cpu · .+ \(\d+ threads\):/);
     await page.locator('pre.job-log', {hasText: 'running -> succeeded (ssao/cpu 24x16'}).waitFor();
     assert.doesNotMatch(t, /thread\(s\)|null/);
     await page.goto(`${d.url}/#/jobs/${hbao}`);
     await page.locator('.work-per-pixel', {hasText: '4 × 3 = 12'}).waitFor();
     assert.match(await text(), /depth-buffer samples per pixel \(directions × steps\)\s+4 × 3 = 12/);
 
-    // A Vulkan job names its device instead of a thread count (the answers are rewritten as a
-    // Vulkan lane would give them: the test daemon has none).
+    // A Vulkan job names its device by the server's label, a software one as such (the answers
+    // are rewritten as a Vulkan lane would give them: the test daemon has none).
     await page.route(`**/api/v1/jobs/${hbao}`, async (route) => {
       const j = await (await route.fetch()).json();
       j.backend.actual = 'vulkan';
-      j.machine = {cpu_model: 'test cpu', cores: 2, vulkan_device: 'llvmpipe (LLVM 15.0.6, 256 bits)'};
+      j.machine = {cpu_model: 'test cpu', cores: 2, vulkan_device: 'llvmpipe (LLVM 15.0.6, 256 bits)', vulkan_kind: 'software'};
+      j.device = {backend: 'vulkan', name: j.machine.vulkan_device, kind: 'software',
+                  label: 'vulkan · llvmpipe (LLVM 15.0.6, 256 bits) (software)'};
       await route.fulfill({json: j});
     });
     await page.route(`**/api/v1/jobs/${hbao}/outputs/summary.json`, async (route) => {
@@ -250,7 +252,7 @@ test('job pages: no "null" text, where it ran, what a screen-space technique did
     });
     await page.goto(`${d.url}/#/jobs`);
     await page.goto(`${d.url}/#/jobs/${hbao}`);
-    await page.getByText('hbao on vulkan (device llvmpipe (LLVM 15.0.6, 256 bits)):').waitFor();
+    await page.getByText('hbao on vulkan · llvmpipe (LLVM 15.0.6, 256 bits) (software):').waitFor();
     assert.doesNotMatch(await page.locator('.params-slot').innerText(), /thread/);
 
     // An inline scene shows the name it was submitted with.
