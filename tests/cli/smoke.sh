@@ -126,6 +126,29 @@ check "--progress-file ends at 1" test "$(cat "$out/progress")" = "1.0000"
 "$cli" render "$out/elsewhere/volume_head.json" --base-dir "$out/none" >"$out/nodir.log" 2>&1
 check "--base-dir that is no directory exits 2" test $? -eq 2
 check "--base-dir names it" grep -q -- "--base-dir $out/none: not a directory" "$out/nodir.log"
+# The bundled defaults give a readable first image (small renders; figures at these sizes):
+# proximity_ao on the hangar shows its occlusion (the thesis's settings gave AO mean 0.980, min
+# 0.64: nearly white; now 0.964, min 0), volume_engine's final.png is not clipped (radiance mean
+# 1.01, max 1.63: the exposure of -1 EV shows 0.51 and 0.82), path_trace's default paths keep the
+# noise under 7.5 % of the radiance (16 paths: 9.9 %, 64: 5.3 %).
+"$cli" render "$root/scenes/hangar.json" -o "$out/hangar" --set /image/width=80 \
+  --set /image/height=60 --quiet >"$out/hangar.log" 2>&1
+check "hangar: proximity_ao shows occlusion (AO mean <= 0.97, min <= 0.3)" node -e "
+  const s = JSON.parse(require('fs').readFileSync('$out/hangar/summary.json'));
+  process.exit(s.ao.mean <= 0.97 && s.ao.mean >= 0.85 && s.ao.min <= 0.3 ? 0 : 1);"
+"$cli" render "$root/scenes/volume_engine.json" -o "$out/engine" --set /image/width=48 \
+  --set /image/height=48 --quiet >"$out/engine.log" 2>&1
+check "volume_engine: final.png neither blown out nor dark (shown mean in [0.25, 0.75], max <= 1)" node -e "
+  const s = JSON.parse(require('fs').readFileSync('$out/engine/summary.json'));
+  const k = 2 ** s.params.exposure, f = s.outputs.final;
+  const mean = f.luminance_mean * k, max = Math.max(...Object.values(f.channels).map(c => c.max)) * k;
+  process.exit(mean >= 0.25 && mean <= 0.75 && max <= 1 ? 0 : 1);"
+"$cli" render "$root/scenes/cornell_box.json" --technique path_trace -o "$out/pt" \
+  --set /image/width=32 --set /image/height=32 --quiet >"$out/pt.log" 2>&1
+check "path_trace's default: noise under 7.5 % of the radiance" node -e "
+  const s = JSON.parse(require('fs').readFileSync('$out/pt/summary.json'));
+  const r = s.outputs.radiance_stderr.luminance_mean / s.outputs.radiance.luminance_mean;
+  process.exit(r > 0 && r <= 0.075 ? 0 : 1);"
 # --help on every subcommand: its own usage on stdout, exit 0.
 for cmd in render validate techniques submit jobs compare; do
   "$cli" "$cmd" --help >"$out/help-$cmd.txt" 2>&1
