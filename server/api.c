@@ -650,9 +650,12 @@ static int health(srv_req *r) {
   if (rc && level < 1) level = 1;
   static const char *const names[] = {"ok", "degraded", "error"};
   json_t *o = json_pack(
-      "{s:s, s:s, s:s, s:I, s:i, s:{s:i, s:i}, s:b, s:b, s:f}", "status", names[level], "version",
+      "{s:s, s:s, s:s, s:I, s:I, s:{s:i, s:i}, s:b, s:b, s:f}", "status", names[level], "version",
       OBSCURA_VERSION, "db", rc ? obs_err_message(&err) : "ok", "queue_depth",
-      (json_int_t)(rc ? 0 : counts[SRV_QUEUED]), "running", srv_sched_running(app), "workers",
+      (json_int_t)(rc ? 0 : counts[SRV_QUEUED]), "running",
+      /* Counted from the rows, as the job list shows them (the scheduler's slots and the rows'
+       * states change at different moments); the slots when the database cannot be read. */
+      rc ? (json_int_t)srv_sched_running(app) : (json_int_t)counts[SRV_RUNNING], "workers",
       "cpu", app->cfg.workers, "vulkan", app->vulkan_lane, "vulkan_available", app->vulkan_lane,
       "vulkan_device", app->vk_available, "uptime_s", (obs_now_ms() - app->start_ms) / 1e3);
   obs_err_free(&err);
