@@ -63,9 +63,11 @@ function logSplits(u, axis, min, max) {
 }
 
 // A tick's label: plain below 1e5 and from 1e-3 (uPlot's default rounds to three decimals, so
-// 0.0002 would read 0), else as a power of ten.
-const tickLabels = (u, splits) => splits.map((v) => (v >= 1e-3 && v < 1e5 ? String(Number(v.toPrecision(6)))
+// 0.0002 would read 0), else as a power of ten. Every split logSplits chose is labelled (uPlot's
+// own log filter would blank all but the 1-2-5 ones, leaving two labels).
+const tickLabels = (u, splits) => splits.map((v) => (v === null ? null : v >= 1e-3 && v < 1e5 ? String(Number(v.toPrecision(6)))
   : v.toExponential().replace(/\.?0+e/, 'e').replace('e+', 'e')));
+const keepSplits = (u, splits) => splits;
 
 // A log axis' range over the positive finite values among `vals` (uPlot passes null for a scale
 // it has no data for yet, and Math.min would turn that into 0, whose log breaks the axis).
@@ -308,8 +310,8 @@ export function paretoChart(box, cands, {colourOf, onSelect, selected = null, na
     width, height: 340,
     // Padded by a factor on both sides so no marker sits on (and is clipped by) the plot's edge.
     scales: {x: {time: false, distr: 3, log: 10, range: xRange}, y: {distr: 3, log: 10, range: yRange}},
-    axes: [{label: 'median total time per run (ms, log scale; bars: fastest to slowest run)', splits: logSplits, values: tickLabels},
-           {label: yLabel, size: 70, splits: logSplits, values: tickLabels}],
+    axes: [{label: 'median total time per run (ms, log scale; bars: fastest to slowest run)', splits: logSplits, values: tickLabels, filter: keepSplits},
+           {label: yLabel, size: 70, splits: logSplits, values: tickLabels, filter: keepSplits}],
     series,
     cursor: {drag: {x: false, y: false}},
     // Not live: a live legend is a row of "–" values until the cursor sits exactly on a point's
