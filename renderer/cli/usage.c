@@ -18,7 +18,7 @@ static const usage usages[] = {
      "                 [--distribute image|data [--no-ghost]] [--base-dir DIR]\n"
      "                 [--progress-file FILE]\n",
      "Renders the scene here and writes its outputs, summary.json and PNGs into DIR (default "
-     "out).\n"
+     "out;\nwithout -o it refuses to replace another scene's outputs there: -o out replaces them).\n"
      "--technique keeps the document's params for its own technique; another starts from its\n"
      "defaults with lengths fitted to the scene's size (a note says which); --set wins.\n"
      "Under mpirun the image is split in tiles across the ranks and rank 0 writes DIR, the same\n"
@@ -70,8 +70,9 @@ static void common(FILE *f) {
       "taken as a string: --set /technique/params/samples=256 --set\n"
       "/technique/params/falloff=sqrt. Quote what must stay a string but reads as JSON:\n"
       "--set '/objects/0/name=\"8\"'.\n"
-      "submit, jobs, job, cancel, fetch, comparisons and compare talk to --server, else $OBSCURA_SERVER, else " CLI_DEFAULT_SERVER
-      "\n(scripts/run), sending $OBSCURA_TOKEN as a bearer token when set.\n"
+      "The client commands (submit, jobs, job, cancel, fetch, comparisons, compare) talk to\n"
+      "--server, else $OBSCURA_SERVER, else " CLI_DEFAULT_SERVER
+      " (scripts/run), sending\n$OBSCURA_TOKEN as a bearer token when set.\n"
       "Exit codes: 0 ok, 2 bad input, 1 failure.\n",
       f);
 }

@@ -282,8 +282,12 @@ function statsSection(j, technique) {
   // cost rule, shown evaluated when the summary arrives (a G-buffer technique's is depth-buffer
   // samples).
   const traces = !technique || (technique.needs || []).includes('bvh');
+  // A product of parameters reads as a label ("(directions × steps)"); a longer rule is the
+  // value's tooltip only.
+  const product = /^[a-z_]+( x [a-z_]+)*$/.test((technique && technique.cost) || '');
   const work = traces ? ['rays traced', j.rays]
-    : [(technique.needs || []).includes('gbuffer') ? 'depth-buffer samples per pixel' : 'work per pixel sample',
+    : [((technique.needs || []).includes('gbuffer') ? 'depth-buffer samples per pixel' : 'work per pixel sample') +
+       (product ? ` (${technique.cost.replace(/ x /g, ' × ')})` : ''),
        el('span', {className: 'work-per-pixel', 'data-cost': technique.cost,
                    title: `the technique's cost rule: ${technique.cost.replace(/ x /g, ' × ')}`}, '…')];
   const rows = [work, ['AO mean', s.ao && fmtNum(s.ao.mean)], ['AO min', s.ao && fmtNum(s.ao.min)],
