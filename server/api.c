@@ -27,6 +27,7 @@ static srv_route job_route(const char *path, const char **id, size_t *idlen, con
   if (!strcmp(slash, "/retry")) return SRV_ROUTE_JOB_RETRY;
   if (!strcmp(slash, "/document")) return SRV_ROUTE_JOB_DOCUMENT;
   if (!strcmp(slash, "/log")) return SRV_ROUTE_JOB_LOG;
+  if (!strcmp(slash, "/preview.exr")) return SRV_ROUTE_JOB_PREVIEW;
   if (!strncmp(slash, "/outputs/", 9) && slash[9] && !strchr(slash + 9, '/'))
     return SRV_ROUTE_JOB_OUTPUT;
   return SRV_ROUTE_UNKNOWN;
@@ -728,6 +729,7 @@ int srv_api_dispatch(srv_req *r) {
     case SRV_ROUTE_JOB_RETRY:
     case SRV_ROUTE_JOB_DOCUMENT:
     case SRV_ROUTE_JOB_LOG:
+    case SRV_ROUTE_JOB_PREVIEW:
     case SRV_ROUTE_JOB_OUTPUT: {
       const char *idtext, *rest;
       size_t n;
@@ -749,6 +751,8 @@ int srv_api_dispatch(srv_req *r) {
         return is_get(r) ? job_document(r, id) : srv_respond_method(r, "GET, HEAD");
       if (r->route == SRV_ROUTE_JOB_LOG)
         return is_get(r) ? job_log(r, id) : srv_respond_method(r, "GET, HEAD");
+      if (r->route == SRV_ROUTE_JOB_PREVIEW)
+        return is_get(r) ? srv_preview_serve(r, id) : srv_respond_method(r, "GET, HEAD");
       return is_get(r) ? srv_output_serve(r, id, rest + 9) : srv_respond_method(r, "GET, HEAD");
     }
     default:
