@@ -527,7 +527,7 @@ static int run_job(slot *sl, srv_job *j) {
   const int exclusive = j->warmup;
   int gated = 0;
   /* A preview for jobs that are not timed against others: a comparison's renders stay alone. */
-  srv_preview *preview = j->warmup ? NULL : srv_preview_begin(app, j->id);
+  srv_preview *preview = j->warmup ? NULL : srv_preview_begin(app, j->id, sc.technique->name);
   if (!rc) {
     pthread_mutex_lock(&app->sched->mu);
     sl->deadline_ms = INFINITY;

@@ -544,12 +544,12 @@ int srv_session_serve(srv_req *r);
 int srv_output_serve(srv_req *r, int64_t id, const char *name);
 
 /* Previews of running jobs (preview.c): begin() before a job's renders (NULL when out of
- * memory), its watch passed to obs_render (obs_render_opts.watch), finish() once the renders are
+ * memory or the technique is unknown), its watch passed to obs_render (obs_render_opts.watch), finish() once the renders are
  * over (removes the file); tick() from the maintenance thread writes each preview with new tiles,
  * at most every SRV_PREVIEW_MS; serve() answers GET /api/v1/jobs/{id}/preview.exr. */
 #define SRV_PREVIEW_MS 500
 typedef struct srv_preview srv_preview;
-srv_preview *srv_preview_begin(const struct srv_app *app, int64_t job);
+srv_preview *srv_preview_begin(const struct srv_app *app, int64_t job, const char *technique);
 const obs_tile_watch *srv_preview_watch(const srv_preview *p);
 void srv_preview_finish(srv_preview *p);
 void srv_preview_tick(void);

@@ -25,9 +25,14 @@ struct srv_preview {
   const obs_image *img;     /* the driver's image between its first tile and end() */
   obs_region *queue;        /* tiles finished since the last copy */
   int nqueue, cap;
+  /* The channels a preview holds: the primary output's and alpha (the others would multiply
+   * the bytes written for an image nobody looks at in full until the job ends). */
+  char want[OBS_OUTPUT_MAX_CHANNELS + 1][OBS_CHANNEL_NAME_MAX];
+  int nwant;
   /* The maintenance thread's own (under io_mu). */
   obs_image copy;
-  double last_ms;
+  int from[OBS_OUTPUT_MAX_CHANNELS + 1]; /* copy's channel k is the image's from[k] */
+  double last_ms, wait_ms;              /* the last write, and the pause before the next */
   int dirty;
   struct srv_preview *next;
 };
@@ -68,9 +73,14 @@ static void on_end(void *user, const obs_image *img) {
   pthread_mutex_unlock(&p->read_mu);
 }
 
-srv_preview *srv_preview_begin(const srv_app *app, int64_t job) {
-  srv_preview *p = calloc(1, sizeof *p);
+srv_preview *srv_preview_begin(const srv_app *app, int64_t job, const char *technique) {
+  const obs_technique *t = obs_technique_find(technique);
+  const obs_output *prim = t ? obs_technique_primary(t) : NULL;
+  srv_preview *p = prim ? calloc(1, sizeof *p) : NULL;
   if (!p) return NULL;
+  p->nwant = obs_output_channels(prim, p->want);
+  snprintf(p->want[p->nwant++], OBS_CHANNEL_NAME_MAX, "alpha");
+  p->wait_ms = SRV_PREVIEW_MS;
   p->job = job;
   p->app = app;
   p->watch = (obs_tile_watch){on_tile, on_end, p};
@@ -118,24 +128,26 @@ static int copy_tiles(srv_preview *p) {
   pthread_mutex_unlock(&p->mu);
   int copied = 0;
   obs_image *c = &p->copy;
-  if (img && n && (c->width != img->width || c->height != img->height ||
-                   c->nchannels != img->nchannels ||
-                   memcmp(c->names, img->names, sizeof c->names))) {
-    const char *names[OBS_IMAGE_MAX_CHANNELS];
-    for (int k = 0; k < img->nchannels; k++) names[k] = img->names[k];
+  if (img && n && (c->width != img->width || c->height != img->height || !c->data)) {
+    const char *names[OBS_OUTPUT_MAX_CHANNELS + 1];
+    int k = 0;
+    for (int w = 0; w < p->nwant; w++)
+      for (int i = 0; i < img->nchannels; i++)
+        if (!strcmp(img->names[i], p->want[w])) names[k] = p->want[w], p->from[k++] = i;
     obs_err err = OBS_ERR_INIT;
     obs_image_free(c);
-    if (obs_image_init(c, img->width, img->height, img->nchannels, names, &err)) n = 0;
+    if (!k || obs_image_init(c, img->width, img->height, k, names, &err)) n = 0;
     obs_err_free(&err);
   }
   /* The tiles' pixels are final: the render's threads write other tiles meanwhile. */
   const size_t plane = img ? (size_t)img->width * (size_t)img->height : 0;
   for (int i = 0; img && i < n; i++) {
     const obs_region *t = &q[i];
-    for (int k = 0; k < img->nchannels; k++)
+    for (int k = 0; k < c->nchannels; k++)
       for (int y = t->y0; y < t->y1; y++) {
-        size_t at = (size_t)k * plane + (size_t)y * (size_t)img->width + (size_t)t->x0;
-        memcpy(c->data + at, img->data + at, (size_t)(t->x1 - t->x0) * sizeof *c->data);
+        size_t at = (size_t)y * (size_t)img->width + (size_t)t->x0;
+        memcpy(c->data + (size_t)k * plane + at, img->data + (size_t)p->from[k] * plane + at,
+               (size_t)(t->x1 - t->x0) * sizeof *c->data);
       }
     copied = 1;
   }
@@ -167,11 +179,15 @@ void srv_preview_tick(void) {
   pthread_mutex_unlock(&list_mu);
   double now = obs_now_ms();
   for (; p; p = p->next) {
-    if (now - p->last_ms < SRV_PREVIEW_MS) continue;
+    if (now - p->last_ms < p->wait_ms) continue;
     if (copy_tiles(p)) p->dirty = 1;
     if (p->dirty) {
       write_preview(p);
       p->last_ms = now;
+      /* A large image's write waits four times its own duration: the previews take at most a
+       * fifth of this thread's time, whatever the size. */
+      double took = obs_now_ms() - now;
+      p->wait_ms = took * 4 > SRV_PREVIEW_MS ? took * 4 : SRV_PREVIEW_MS;
     }
   }
   pthread_mutex_unlock(&io_mu);

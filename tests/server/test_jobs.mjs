@@ -5,8 +5,9 @@
 import assert from 'node:assert/strict';
 import {test} from 'node:test';
 
-import {SLOW, getJSON, getJob, listAll, listFiles, request, sleep, sql, submit, validate, waitAll, waitJob,
+import {SLOW, exrHeader, getJSON, getJob, listAll, listFiles, request, sleep, sql, submit, validate, waitAll, waitJob,
         withDaemon} from './lib.mjs';
+import {decodeExr} from '../../web/js/exr.js';
 
 // A tiny job (about a millisecond of rendering in the release build).
 const small = (extra = {}) => ({
@@ -39,6 +40,71 @@ async function cancel(d, id, expectStatus = 202) {
   return r.json;
 }
 
+// The running job's preview (GET /api/v1/jobs/{id}/preview.exr): an EXR of the primary output and
+// alpha at the job's size, some 32x32 tiles rendered and others still empty, not cached; a later
+// one holds at least the tiles of the first, with the same values; gone once the job ends, a
+// finished job's being its EXR output (303). Eight workers: the render runs on one or two threads
+// whatever the machine, so it lasts seconds (the first tiles after the standard errors' pilot
+// pixels, an eighth of the work) and is cancelled once seen.
+test('preview of a running job', async () => {
+  await withDaemon({workers: 8}, async (d) => {
+    const W = 256, id = await submit(d, {scene_file: 'sphere_on_plane.json', technique: {name: 'rt_ao', backend: 'cpu', params: {samples: 96}},
+      set: {'/image/width': W, '/image/height': W}});
+    const small = await submit(d, {scene_file: 'sphere_on_plane.json', technique: {name: 'rt_ao', backend: 'cpu', params: {samples: 4}},
+      set: {'/image/width': 16, '/image/height': 16}});
+    const get = async () => {
+      const deadline = Date.now() + 10000 * SLOW;
+      for (;;) {
+        const r = await request(d, 'GET', `/api/v1/jobs/${id}/preview.exr`);
+        if (r.status === 200) return r;
+        assert.equal(r.status, 404, r.text);
+        assert.match(r.json.error, new RegExp(`job ${id} is (queued: a preview exists only while a job runs|running and has no preview yet)`));
+        assert.ok(Date.now() < deadline, 'a preview within 10 s');
+        await sleep(50);
+      }
+    };
+    const img = async (r) => {
+      const x = await decodeExr(r.body.buffer.slice(r.body.byteOffset, r.body.byteOffset + r.body.length));
+      return Object.fromEntries(x.channels.map((c) => [c.name, c.data]));
+    };
+    // A tile is rendered when any of its pixels has alpha or AO above 0 (AO is above 0 on the
+    // covered pixels of this scene, 1 on the open sky).
+    const done = (p) => {
+      const tiles = new Set();
+      for (let i = 0; i < W * W; i++) if (p.alpha[i] > 0 || p.ao[i] > 0) tiles.add(Math.floor(i / W / 32) * (W / 32) + Math.floor((i % W) / 32));
+      return tiles;
+    };
+    const r1 = await get();
+    assert.equal(r1.headers['content-type'], 'image/x-exr');
+    assert.equal(r1.headers['cache-control'], 'no-store');
+    assert.deepEqual(exrHeader(r1.body), {channels: ['alpha', 'ao'], width: W, height: W});
+    const p1 = await img(r1), t1 = done(p1);
+    assert.ok(t1.size > 0 && t1.size < (W / 32) ** 2, `some tiles rendered, not all: ${t1.size} of ${(W / 32) ** 2}`);
+    await sleep(700);
+    const r2 = await request(d, 'GET', `/api/v1/jobs/${id}/preview.exr`);
+    assert.equal(r2.status, 200, 'still running after 0.7 s (make the job longer)');
+    const p2 = await img(r2), t2 = done(p2);
+    assert.ok([...t1].every((t) => t2.has(t)) && t2.size > t1.size, `a later preview adds tiles: ${t1.size} then ${t2.size}`);
+    for (let i = 0; i < W * W; i++) {
+      if (p1.alpha[i] > 0 || p1.ao[i] > 0) assert.ok(p2.ao[i] === p1.ao[i] && p2.alpha[i] === p1.alpha[i], `pixel ${i} is final once shown`);
+    }
+    assert.equal((await request(d, 'POST', `/api/v1/jobs/${id}/preview.exr`)).status, 405);
+    const none = await request(d, 'GET', '/api/v1/jobs/999999/preview.exr');
+    assert.equal(none.status, 404);
+    assert.match(none.json.error, /no job 999999/);
+    await cancel(d, id);
+    await waitJob(d, id, (j) => j.state === 'cancelled');
+    const gone = await request(d, 'GET', `/api/v1/jobs/${id}/preview.exr`);
+    assert.equal(gone.status, 404);
+    assert.match(gone.json.error, new RegExp(`job ${id} is cancelled: a preview exists only while a job runs`));
+    assert.deepEqual(listFiles(d.resultsDir).filter((f) => f.includes('preview')), [], 'the preview file is removed');
+    await waitJob(d, small, (j) => j.state === 'succeeded');
+    const fin = await request(d, 'GET', `/api/v1/jobs/${small}/preview.exr`);
+    assert.equal(fin.status, 303);
+    assert.equal(fin.headers.location, `/api/v1/jobs/${small}/outputs/ao.exr`);
+  });
+});
+
 test('cancellation of queued and running jobs', async () => {
   await withDaemon({}, async (d) => {
     const a = await blocker(d);
@@ -54,6 +120,9 @@ test('cancellation of queued and running jobs', async () => {
     assert.equal(jb.attempts, 0);
     assert.deepEqual(jb.outputs, []);
     await cancel(d, b, 409);
+    const bPreview = await request(d, 'GET', `/api/v1/jobs/${b}/preview.exr`);
+    assert.equal(bPreview.status, 404);
+    assert.match(bPreview.json.error, new RegExp(`job ${b} is cancelled: a preview exists only while a job runs`));
     // Running, some tiles done (live progress): stops between tiles.
     const running = await waitJob(d, a, (j) => j.state !== 'running' || j.progress > 0);
     assert.equal(running.state, 'running', 'the blocker must still run (make it longer)');
