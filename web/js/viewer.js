@@ -78,7 +78,7 @@ function toolbar(on) {
     exposureText: el('output', {className: 'exposure-text'}, '0 EV'),
     compare: el('select', {onchange: () => on.compare()}, el('option', {value: ''}, 'nothing')),
     add: el('select', {onchange: () => on.add()}, el('option', {value: ''}, 'choose a job…')),
-    show: el('select', {onchange: () => on.show(), 'aria-keyshortcuts': 'E'}, el('option', {value: 'image'}, 'the image (A/B)'),
+    show: el('select', {onchange: () => on.show(), 'aria-keyshortcuts': 'E'}, el('option', {value: 'image'}, 'none: the image (A/B)'),
       ...Object.entries(ERROR_MODES).map(([k, m]) => el('option', {value: k}, m.label))),
     max: el('input', {type: 'number', min: '0', step: 'any', placeholder: 'automatic', className: 'ramp-max', onchange: () => on.max()}),
     mode: el('select', {onchange: () => on.mode()}, el('option', {value: 'toggle'}, 'toggle A/B'), el('option', {value: 'split'}, 'split wipe')),
@@ -93,7 +93,7 @@ function toolbar(on) {
     labelled('v-output', 'Output', c.output), labelled('v-view', 'View', c.view),
     c.exposureWrap = el('span', {className: 'tool'}, el('label', {for: 'v-exposure'}, 'Exposure (stops)'), ' ', c.exposure, ' ', c.exposureText),
     labelled('v-compare', 'Compare with', c.compare), labelled('v-add', 'Add to the stack', c.add),
-    c.showWrap = el('span', {className: 'tool'}, labelled('v-show', 'Show', c.show), ' ',
+    c.showWrap = el('span', {className: 'tool'}, labelled('v-show', 'Error map', c.show), ' ',
       c.maxWrap = labelled('v-max', 'Ramp maximum', c.max)),
     c.abWrap = el('span', {className: 'tool'}, labelled('v-mode', 'Mode', c.mode), ' ', c.flip, ' ',
       c.splitWrap = el('span', {}, el('label', {for: 'v-split'}, 'Split position (%)'), ' ', c.split)));
@@ -287,8 +287,7 @@ class ViewerPage {
     this.renderStack();
     this.showReadout();
     this.keepUrl();
-    Object.assign(debug.viewer, {a, b, output: st.output.name, mode: st.view, stops: st.stops, cur: st.cur, ref: st.ref, show: st.show,
-                                 stack: st.stack.map((e) => ({id: e.id, file: e.file, live: e.live, version: e.version}))});
+    Object.assign(debug.viewer, {a, b, output: st.output.name, mode: st.view, stops: st.stops, cur: st.cur, ref: st.ref, show: st.show});
   }
 
   /** The error map of A against B for the output shown (FLIP from the server, the rest here). */
@@ -345,6 +344,7 @@ class ViewerPage {
       el('label', {}, el('input', {type: 'radio', name: 'v-ref', checked: k === st.ref, disabled: !e.img,
         'aria-label': `${entryName(e)} as the reference (B)`, onchange: () => { st.ref = k; this.redraw(); }}), ' reference'),
       k ? el('button', {type: 'button', className: 'small', 'aria-label': `Remove ${entryName(e)} from the stack`, onclick: () => this.removeEntry(k)}, '✕') : null));
+    debug.viewer.stack = st.stack.map((e) => ({id: e.id, file: e.file, live: e.live, version: e.version}));
     this.stackBox.replaceChildren(el('h2', {}, 'Stack'), el('ol', {className: 'image-stack'}, ...items),
       el('p', {className: 'muted'}, 'Keys 1–9 show an image; the reference (B) is what the error maps and A/B compare against.'));
   }
