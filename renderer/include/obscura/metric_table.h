@@ -92,12 +92,17 @@ typedef struct obs_metric_opts {
   double ppd;          /* FLIP's pixels per degree; 0: OBS_FLIP_DEFAULT_PPD */
 } obs_metric_opts;
 
-/* Computes every applicable metric of the table for `candidate` against `reference` (same size):
- *   scalar channel: rmse, bias, max_abs, psnr, ssim, flip (LDR, the value as grey), ref_noise;
- *   RGB output: rmse_r/g/b, rmse_luminance, ssim_luminance, rel_mse, and rmse, bias, max_abs,
- *     psnr, ssim, ref_noise on the luminance Y, flip = HDR-FLIP of the RGB;
- *   vector output: angle_deg (and rmse, bias, max_abs over the three components).
- * patch_rmse is never filled here (the server computes it on the patches). */
+/* Computes every applicable metric of the table for `candidate` against `reference` (same size),
+ * the kind of `channel` found from the reference's channels:
+ *   scalar channel: rmse, bias, max_abs, psnr, ssim, ref_noise (obs_metrics_compare), and flip
+ *     (LDR-FLIP, the value as grey) when every finite selected reference value lies in [0, 1]
+ *     (a display value such as AO; depth has no FLIP);
+ *   RGB output: rmse_r/g/b, rmse_luminance, ssim_luminance, rel_mse (obs_metrics_compare_rgb),
+ *     rmse, bias, max_abs, psnr, ssim and ref_noise on the luminance Y (the reference's noise from
+ *     the luminance of its standard error), and flip = HDR-FLIP of the RGB;
+ *   vector output: angle_deg (pixels where either vector has length 0 are left out).
+ * patch_rmse is never filled here (the server computes it on the patches). Unfilled entries have
+ * has[id] = 0 and v[id] = NaN. */
 int obs_metrics_compare_all(const obs_image *candidate, const obs_image *reference,
                             const obs_metric_opts *opts, obs_metric_values *out, obs_err *err);
 

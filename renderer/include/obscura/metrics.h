@@ -35,9 +35,10 @@ int obs_metrics_rmse(const obs_image *a, const obs_image *b, const char *channel
  * AO and luminance both; docs/metrics.md), and the mean of the SSIM map over the pixels at least 5
  * from every border (skimage's crop). With `mask` (channel of b, may be NULL) only the selected
  * pixels of that cropped area count (the windows still read their unselected neighbours: a mask
- * chooses which local similarities are averaged, it does not change them). Images with fewer
- * than 11 pixels in a dimension are refused (as skimage refuses them). 1 means identical; NaN when
- * a counted pixel's window holds a non-finite value; 1 when no pixel counts. */
+ * chooses which local similarities are averaged, it does not change them). Computed in double.
+ * 1 means identical; NaN (undefined) for images with fewer than 11 pixels in a dimension (skimage
+ * refuses them) and when a counted pixel's window holds a non-finite value; 1 when no pixel
+ * counts. */
 #define OBS_SSIM_WINDOW 11
 #define OBS_SSIM_SIGMA 1.5
 #define OBS_SSIM_DATA_RANGE 1.0
@@ -58,7 +59,9 @@ int obs_metrics_ssim(const obs_image *a, const obs_image *b, const char *channel
  * selects, may be NULL) chooses the pixels the mean averages (none selected: mean 0). `map`
  * (may be NULL; initialised by the call, owned by the caller) receives the per-pixel error in
  * channel "flip" for every pixel. A non-finite input value makes its pixel's error NaN. */
-#define OBS_FLIP_DEFAULT_PPD 67.0
+/* FLIP's default observer: a 0.7 m wide 4K display seen from 0.7 m, 3840 pi / 180 = 67.02
+ * pixels per degree. */
+#define OBS_FLIP_DEFAULT_PPD (3840.0 * 3.14159265358979323846 / 180.0)
 int obs_metrics_flip(const obs_image *test, const obs_image *reference, const char *channel,
                      const char *mask, int hdr, obs_image *map /* may be NULL; channel "flip" */,
                      double *mean, obs_err *err);
