@@ -48,6 +48,7 @@ srv_route srv_api_route(const char *path) {
     return slash && !strcmp(slash, "/defaults") ? SRV_ROUTE_SCENE_DEFAULTS : SRV_ROUTE_UNKNOWN;
   }
   if (!strcmp(path, API "/health")) return SRV_ROUTE_HEALTH;
+  if (!strcmp(path, API "/diff")) return SRV_ROUTE_DIFF;
   if (!strcmp(path, API "/session")) return SRV_ROUTE_SESSION;
   if (!strncmp(path, API "/jobs/", sizeof API "/jobs/" - 1)) {
     const char *id, *rest;
@@ -705,6 +706,8 @@ int srv_api_dispatch(srv_req *r) {
       return is_get(r) ? health(r) : srv_respond_method(r, "GET, HEAD");
     case SRV_ROUTE_SESSION:
       return srv_session_serve(r);
+    case SRV_ROUTE_DIFF:
+      return is_get(r) ? srv_diff_serve(r) : srv_respond_method(r, "GET, HEAD");
     case SRV_ROUTE_COMPARISONS:
       if (!strcmp(r->method, "POST")) return srv_compare_post(r);
       return is_get(r) ? srv_compare_list(r) : srv_respond_method(r, "GET, HEAD, POST");

@@ -405,6 +405,7 @@ typedef enum {
   SRV_ROUTE_JOB_DOCUMENT,
   SRV_ROUTE_JOB_LOG,
   SRV_ROUTE_JOB_PREVIEW,    /* /api/v1/jobs/{id}/preview.exr (preview.c) */
+  SRV_ROUTE_DIFF,           /* /api/v1/diff (diff.c) */
   SRV_ROUTE_TECHNIQUES,
   SRV_ROUTE_SCENES,
   SRV_ROUTE_SCENE_DEFAULTS, /* /api/v1/scenes/{name}/defaults */
@@ -554,6 +555,9 @@ const obs_tile_watch *srv_preview_watch(const srv_preview *p);
 void srv_preview_finish(srv_preview *p);
 void srv_preview_tick(void);
 int srv_preview_serve(srv_req *r, int64_t id);
+
+/* GET /api/v1/diff (diff.c): the FLIP map of one succeeded job's EXR output against another's. */
+int srv_diff_serve(srv_req *r);
 /* Submission: body -> validated job spec (submit.c). Owns its strings; release with
  * srv_submission_free (a zeroed struct is fine). */
 typedef struct srv_submission {

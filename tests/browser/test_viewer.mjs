@@ -229,6 +229,22 @@ async function checkStack(page, d, {ao, ao2, hb}) {
   await page.locator('canvas.viewer-canvas').focus();
   await page.keyboard.press('e');
   await page.waitForFunction(() => window.__obscura.viewer.show === 'flip' && window.__obscura.viewer.ref === 2);
+  // FLIP is the server's (GET /api/v1/diff, the C implementation): the viewer shows its map.
+  await page.getByLabel('Ramp maximum', {exact: true}).fill('');
+  await page.getByLabel('Ramp maximum', {exact: true}).press('Enter');
+  await page.waitForFunction(() => { const e = window.__obscura.viewer.error; return e && e.mode === 'flip' && e.counts && e.hi === 1; });
+  const server = await page.evaluate(async ([a, b, pts]) => {
+    const {decodeExr} = await import('/js/exr.js');
+    const r = await fetch(`/api/v1/diff?a=${a}/ao.exr&b=${b}/ao.exr&channel=ao&hdr=0`);
+    const m = (await decodeExr(await r.arrayBuffer())).channels[0].data, w = window.__obscura.viewer.a.img.width;
+    return {mean: Number(r.headers.get('X-Obscura-Flip-Mean')), at: pts.map(([x, y]) => [m[y * w + x], window.__obscura.viewer.errorAt(x, y)])};
+  }, [ao, hb, pins]);
+  for (const [want, got] of server.at) assert.ok(got === null || got === want, `the viewer's FLIP is the server's: ${want} ${got}`);
+  assert.ok(server.at.some(([w, g]) => g !== null && w > 0), 'FLIP of hbao against rt_ao is not 0');
+  assert.equal(await page.evaluate(() => window.__obscura.viewer.error.mean), server.mean);
+  assert.equal(await page.evaluate(() => window.__obscura.viewer.error.lo), 0);
+  assert.match(await page.locator('.flip-mean').textContent(), /Mean FLIP over every pixel/);
+  await screenshot(page, 'viewer-error-flip');
   await assertAllNamed(page, 'viewer stack');
 }
 
@@ -239,7 +255,7 @@ async function checkStack(page, d, {ao, ao2, hb}) {
  */
 async function checkPreview(page, d) {
   const W = 256;
-  const id = await submit(d, {scene_file: 'sphere_on_plane.json', technique: {name: 'rt_ao', backend: 'cpu', params: {samples: 48}},
+  const id = await submit(d, {scene_file: 'sphere_on_plane.json', technique: {name: 'rt_ao', backend: 'cpu', params: {samples: 128}},
     set: {'/image/width': W, '/image/height': W}});
   await page.goto(`${d.url}/#/view/${id}`);
   await page.waitForFunction(() => { const v = window.__obscura.viewer; return v && v.ready && v.stack && v.stack[0].live && v.a && v.a.img; },

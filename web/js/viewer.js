@@ -294,12 +294,12 @@ class ViewerPage {
   drawError(a, b) {
     const {st} = this, out = st.output, bOut = outputFor(b, out.name);
     const same = out.channels.length === bOut.channels.length && out.channels.every((c, k) => c === bOut.channels[k]);
-    let map = null, why = '';
+    let map = null, why = '', mean = null;
     if (!same) why = `B has no output ${out.name}: an error map compares the same channels`;
     else if (st.show !== 'flip') map = errorMap(a.img, b.img, out.channels, st.show);
     else {
       const got = this.flipMap(a, b, out);
-      if (got && got.map) map = got.map;
+      if (got && got.map) [map, mean] = [got.map, got.mean];
       else why = got ? got.why : 'FLIP: asking the server…';
     }
     if (!map) {
@@ -311,8 +311,9 @@ class ViewerPage {
     const [lo, hi] = rampRange(map, st.show, st.max), hist = histogram(map, lo, hi);
     st.err = {mode: st.show, output: out.name, map, lo, hi, hist};
     this.view.setImages(toCanvas(errorBytes(map, st.show, lo, hi, a.img.width, a.img.height)), null);
-    this.errorBox.replaceChildren(legend(st.show, lo, hi), histogramFigure(hist, st.show));
-    debug.viewer.error = {mode: st.show, output: out.name, lo, hi, counts: hist.counts, total: hist.total};
+    this.errorBox.replaceChildren(legend(st.show, lo, hi), histogramFigure(hist, st.show),
+      mean !== null ? el('p', {className: 'flip-mean'}, `Mean FLIP over every pixel (the server's): ${fmt(mean)}`) : '');
+    debug.viewer.error = {mode: st.show, output: out.name, lo, hi, counts: hist.counts, total: hist.total, mean};
   }
 
   /** FLIP's map of A against B from GET /api/v1/diff, cached; null while it is being fetched. */
