@@ -161,6 +161,8 @@ test('FLIP maps between outputs (GET /api/v1/diff)', async () => {
       assert.match(`${r.json.error} ${r.json.problems.join(' ')}`, msg, q);
     }
     assert.equal((await request(d, 'POST', `/api/v1/diff?a=${a}/ao.exr&b=${b}/ao.exr&channel=ao`)).status, 405);
+    const metrics = (await request(d, 'GET', '/metrics')).text;
+    assert.match(metrics, /obscura_http_requests_total\{route="\/api\/v1\/diff",status="200"\} [1-9]/, 'the route has its metrics label');
   });
 });
 
