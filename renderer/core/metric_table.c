@@ -113,7 +113,8 @@ static int compare_scalar(const obs_image *cand, const obs_image *ref, const obs
   double flip;
   if (display_range(ref, op->channel, m)) {
     rc = obs_metrics_flip_ppd(cand, ref, op->channel, op->mask, 0,
-                              op->ppd > 0 ? op->ppd : OBS_FLIP_DEFAULT_PPD, NULL, &flip, err);
+                              op->ppd > 0 ? op->ppd : OBS_FLIP_DEFAULT_PPD, op->flip_map, &flip,
+                              err);
     if (!rc) put(o, OBS_METRIC_FLIP, flip);
   }
   return rc;
@@ -147,7 +148,8 @@ static int compare_rgb(const obs_image *cand, const obs_image *ref, const obs_me
   double flip;
   if (!rc)
     rc = obs_metrics_flip_ppd(cand, ref, op->channel, op->mask, 1,
-                              op->ppd > 0 ? op->ppd : OBS_FLIP_DEFAULT_PPD, NULL, &flip, err);
+                              op->ppd > 0 ? op->ppd : OBS_FLIP_DEFAULT_PPD, op->flip_map, &flip,
+                              err);
   if (!rc) put(o, OBS_METRIC_FLIP, flip);
   return rc;
 }
@@ -207,6 +209,7 @@ int obs_metrics_compare_all(const obs_image *candidate, const obs_image *referen
   if (candidate->width != reference->width || candidate->height != reference->height)
     return obs_err_set(err, OBS_EINVAL, "metrics: image sizes differ (%dx%d vs %dx%d)",
                        candidate->width, candidate->height, reference->width, reference->height);
+  if (opts->flip_map) memset(opts->flip_map, 0, sizeof *opts->flip_map);
   obs_metric_values o;
   memset(&o, 0, sizeof o);
   for (int i = 0; i < OBS_METRIC_COUNT; i++) o.v[i] = NAN;
@@ -226,6 +229,7 @@ int obs_metrics_compare_all(const obs_image *candidate, const obs_image *referen
                      ch, ch, ch);
   }
   if (!rc) *out = o;
+  else if (opts->flip_map) obs_image_free(opts->flip_map);
   return rc;
 }
 
