@@ -20,6 +20,7 @@ static const char *const route_names[SRV_NROUTES] = {
     [SRV_ROUTE_JOB_PREVIEW] = "/api/v1/jobs/{id}/preview.exr",
     [SRV_ROUTE_DIFF] = "/api/v1/diff",
     [SRV_ROUTE_TECHNIQUES] = "/api/v1/techniques",
+    [SRV_ROUTE_METRIC_TABLE] = "/api/v1/metrics",
     [SRV_ROUTE_SCENES] = "/api/v1/scenes",
     [SRV_ROUTE_SCENE_DEFAULTS] = "/api/v1/scenes/{name}/defaults",
     [SRV_ROUTE_HEALTH] = "/api/v1/health",

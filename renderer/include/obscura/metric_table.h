@@ -64,6 +64,8 @@ typedef struct obs_metric {
   obs_metric_needs needs;
   int digits;             /* significant digits a table shows */
   const char *definition; /* one line, as docs/metrics.md states it */
+  const char *same_as;    /* NULL, or the metric whose value this one always equals where both
+                             apply (rmse_luminance is an RGB output's rmse): tables show one */
 } obs_metric;
 
 /* The table: obs_metric_table()[id] for id in [0, OBS_METRIC_COUNT). */
@@ -90,6 +92,8 @@ typedef struct obs_metric_opts {
   const char *stderr_channel; /* the reference's standard error of `channel` (scalar, or RGB
                                  prefix); NULL: "<channel>_stderr" where present */
   double ppd;          /* FLIP's pixels per degree; 0: OBS_FLIP_DEFAULT_PPD */
+  obs_image *flip_map; /* may be NULL; where flip applies (has[OBS_METRIC_FLIP]), receives its
+                          per-pixel map (channel "flip"; the caller frees it), else is zeroed */
 } obs_metric_opts;
 
 /* Computes every applicable metric of the table for `candidate` against `reference` (same size),
@@ -110,9 +114,16 @@ int obs_metrics_compare_all(const obs_image *candidate, const obs_image *referen
  * label, unit, direction, min, max (null when open), needs, digits, definition}. */
 struct json_t;
 struct json_t *obs_metric_table_json(void);
+/* The table as docs/metrics.md shows it (a Markdown table) and as schema/openapi.yaml's Metrics
+ * schema (YAML at its indentation); new strings the caller frees, NULL when out of memory. */
+char *obs_metric_table_markdown(void);
+char *obs_metric_table_openapi(void);
 /* Sets, in `metrics` (a JSON object), every metric `vals` has at its json_group/json_key place
  * (null for NaN), plus "pixels", "at_reference_accuracy". */
 int obs_metric_values_json(const obs_metric_values *vals, struct json_t *metrics);
+/* Metric m's value in a `metrics` object as obs_metric_values_json writes it (borrowed; NULL when
+ * absent). */
+struct json_t *obs_metric_json_get(const struct json_t *metrics, const obs_metric *m);
 
 #ifdef __cplusplus
 }
