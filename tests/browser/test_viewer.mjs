@@ -171,7 +171,7 @@ const expectedError = (page, mode, ch) => page.evaluate(([m, c]) => {
  * switch the image shown; each error mode's value at pinned pixels and its histogram against the
  * EXRs; the URL keeps the error mode across a reload.
  */
-async function checkStack(page, d, {ao, ao2, hb}) {
+async function checkStack(page, d, {ao, ao2, hb, pt}) {
   await page.goto(`${d.url}/#/view/${ao}?stack=${ao2},${hb}&ref=2`);
   await page.waitForFunction(() => { const v = window.__obscura.viewer; return v && v.ready && v.stack && v.stack.length === 3; });
   assert.deepEqual(await stackState(page), {ids: [ao, ao2, hb], cur: 0, ref: 1, a: ao, show: 'image'}, 'the URL gives the stack');
@@ -224,6 +224,21 @@ async function checkStack(page, d, {ao, ao2, hb}) {
   await page.waitForFunction(() => { const v = window.__obscura.viewer; return v && v.ready && v.error && v.error.counts; });
   assert.deepEqual(await stackState(page), {ids: [ao, ao2, hb], cur: 0, ref: 1, a: ao, show: 'squared'}, 'a reload restores the view');
   assert.equal(await page.evaluate(() => window.__obscura.viewer.error.hi), 0.001);
+  // A file by name: a job's EXR output as "<job>/<file>.exr"; a bad name says why.
+  await page.getByLabel('or by name', {exact: true}).fill(`${ao2}/nope.exr`);
+  await page.getByLabel('or by name', {exact: true}).press('Enter');
+  await page.waitForFunction(() => /Cannot add \d+\/nope.exr: job \d+ has no output nope.exr/.test(document.querySelector('p.error').textContent));
+  // The file an entry already shows is not added twice; path_trace's radiance.exr by name is.
+  await page.getByLabel('or by name', {exact: true}).fill(`${ao2}/ao.exr`);
+  await page.getByLabel('or by name', {exact: true}).press('Enter');
+  await page.waitForFunction(() => document.querySelector('p.error').textContent === '');
+  assert.equal(await page.evaluate(() => window.__obscura.viewer.stack.length), 3, 'no twin entry');
+  await page.getByLabel('or by name', {exact: true}).fill(`${pt}/radiance.exr`);
+  await page.getByLabel('or by name', {exact: true}).press('Enter');
+  await page.waitForFunction(() => window.__obscura.viewer.stack.length === 4);
+  assert.match(page.url(), new RegExp(`stack=${ao2}%2C${hb}%2C${pt}%2Fradiance.exr&`), 'a named file keeps its name in the URL');
+  await page.getByRole('button', {name: `Remove job ${pt} radiance.exr from the stack`}).click();
+  await page.waitForFunction(() => window.__obscura.viewer.stack.length === 3);
   // The reference chosen in the stack: hbao; E steps on to the next mode.
   await page.getByLabel(`job ${hb} as the reference (B)`).check();
   await page.locator('canvas.viewer-canvas').focus();
@@ -455,7 +470,7 @@ test('image viewer: zoom, pan, readout, exposure, A/B, keyboard, 800 px', async 
     assert.match(page.url(), /mode=toggle/);
 
     // ---- a stack: keys, error maps, histograms, the URL ----------------------------------------
-    await checkStack(page, d, {ao, ao2, hb});
+    await checkStack(page, d, {ao, ao2, hb, pt});
 
     // ---- exposure on path_trace's radiance ----------------------------------------------------
     await page.goto(`${d.url}/#/view/${pt}`);
