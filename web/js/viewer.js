@@ -385,6 +385,7 @@ class ViewerPage {
         }
         st.stack.push(e);
         if (asRef) st.ref = st.stack.length - 1;
+        this.keepRefreshing();
       }
     } catch (err) {
       this.status.textContent = `Cannot add ${spec}: ${err.message}`;
@@ -442,7 +443,12 @@ class ViewerPage {
         else this.redraw();
       }
     }
-    if (st.stack.some((e) => e.live)) this.timer = setTimeout(() => this.refresh(), REFRESH_MS);
+    this.timer = null;
+    this.keepRefreshing();
+  }
+  /** Schedules the next refresh while any entry is a running job's. */
+  keepRefreshing() {
+    if (!this.timer && !this.st.dead && this.st.stack.some((e) => e.live)) this.timer = setTimeout(() => this.refresh(), REFRESH_MS);
   }
 
   /** Once the first entry has an image: outputs, exposure, the rest of the query, the first draw. */
@@ -485,7 +491,7 @@ class ViewerPage {
     if (Number(query.get('max')) > 0) tools.max.value = String(st.max = Number(query.get('max')));
     if (st.dead) return;
     this.redraw();
-    if (st.stack.some((e) => e.live)) this.timer = setTimeout(() => this.refresh(), REFRESH_MS);
+    this.keepRefreshing();
     this.listCandidates().catch((e) => { this.status.textContent = `Cannot list jobs to compare with: ${e.message}`; });
     if (query.get('compare')) tools.compare.focus();
     else this.canvas.focus({preventScroll: true});
