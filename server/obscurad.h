@@ -404,7 +404,10 @@ typedef enum {
   SRV_ROUTE_JOB_RETRY,
   SRV_ROUTE_JOB_DOCUMENT,
   SRV_ROUTE_JOB_LOG,
+  SRV_ROUTE_JOB_PREVIEW,    /* /api/v1/jobs/{id}/preview.exr (preview.c) */
+  SRV_ROUTE_DIFF,           /* /api/v1/diff (diff.c) */
   SRV_ROUTE_TECHNIQUES,
+  SRV_ROUTE_METRIC_TABLE, /* /api/v1/metrics: the metric table (not /metrics, Prometheus's) */
   SRV_ROUTE_SCENES,
   SRV_ROUTE_SCENE_DEFAULTS, /* /api/v1/scenes/{name}/defaults */
   SRV_ROUTE_HEALTH,
@@ -541,6 +544,21 @@ int srv_session_check(struct srv_app *app, struct MHD_Connection *c);
 int srv_session_serve(srv_req *r);
 /* Serves one output file with ETag/Range handling (outputs.c). */
 int srv_output_serve(srv_req *r, int64_t id, const char *name);
+
+/* Previews of running jobs (preview.c): begin() before a job's renders (NULL when out of
+ * memory or the technique is unknown), its watch passed to obs_render (obs_render_opts.watch), finish() once the renders are
+ * over (removes the file); tick() from the maintenance thread writes each preview with new tiles,
+ * at most every SRV_PREVIEW_MS; serve() answers GET /api/v1/jobs/{id}/preview.exr. */
+#define SRV_PREVIEW_MS 500
+typedef struct srv_preview srv_preview;
+srv_preview *srv_preview_begin(const struct srv_app *app, int64_t job, const char *technique);
+const obs_tile_watch *srv_preview_watch(const srv_preview *p);
+void srv_preview_finish(srv_preview *p);
+void srv_preview_tick(void);
+int srv_preview_serve(srv_req *r, int64_t id);
+
+/* GET /api/v1/diff (diff.c): the FLIP map of one succeeded job's EXR output against another's. */
+int srv_diff_serve(srv_req *r);
 /* Submission: body -> validated job spec (submit.c). Owns its strings; release with
  * srv_submission_free (a zeroed struct is fine). */
 typedef struct srv_submission {
@@ -604,11 +622,13 @@ int srv_compare_get(srv_req *r, int64_t id, int csv);
  * metrics are missing, involving job `job` (0 = all: recovery at start). */
 void srv_compare_metrics(struct srv_app *app, int64_t job);
 /* Compares the result in `dir` with the reference result in `rdir` on the primary output of the
- * candidate's technique (compare_output.c): fills `m`, the error image `eimg` and, in `extra`
- * (an object), "output" (when not "ao"), "rgb" {rmse [R,G,B], rmse_luminance, ssim_luminance,
- * rel_mse} for RGB outputs and "patch_rmse" for per-patch ones. `resp` maps the reference. */
-int srv_compare_primary(const char *dir, const char *rdir, obs_response resp, obs_compare *m,
-                        json_t *extra, obs_image *eimg, obs_err *err);
+ * candidate's technique (compare_output.c): fills `m` with every metric of the table that applies
+ * (obs_metrics_compare_all; patch_rmse for per-patch outputs), the error image `eimg`, FLIP's map
+ * `flip` (zeroed where FLIP does not apply) and, in `extra` (an object), "output" (when not
+ * "ao"). `resp` maps the reference. */
+int srv_compare_primary(const char *dir, const char *rdir, obs_response resp,
+                        obs_metric_values *m, json_t *extra, obs_image *eimg, obs_image *flip,
+                        obs_err *err);
 /* Time-budget mode of POST /api/v1/jobs: the most accurate measured configuration for `scene`
  * (or any scene at similar pixel count) whose median time fits `budget_ms`. Returns 0 with
  * *choice (new object: technique, backend, params, expected_ms, expected_rmse, comparison_id,

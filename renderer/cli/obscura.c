@@ -8,6 +8,7 @@
 
 #include "args.h"
 #include "client.h"
+#include "diff.h"
 #include "mpi_render.h"
 #include "obscura/obscura.h"
 
@@ -297,6 +298,8 @@ int main(int argc, char **argv) {
   if (!strcmp(argv[1], "fetch")) return cli_fetch(argc, argv);
   if (!strcmp(argv[1], "comparisons")) return cli_comparisons(argc, argv);
   if (!strcmp(argv[1], "compare")) return cli_compare(argc, argv);
+  if (!strcmp(argv[1], "diff")) return cli_diff(argc, argv);
+  if (!strcmp(argv[1], "metrics")) return cli_metrics(argc, argv);
   if (!strcmp(argv[1], "--version")) {
     puts("obscura " OBSCURA_VERSION);
     return 0;

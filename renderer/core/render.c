@@ -163,6 +163,7 @@ static int render(const obs_scene *scene, const obs_render_opts *opts, obs_resul
     ctx.cancel = opts->cancel;
     ctx.region = opts->region;
     ctx.tiles = opts->tiles;
+    ctx.watch = opts->watch;
   }
   obs_region region;
   if ((rc = obs_driver_region(&ctx, scene->width, scene->height, &region, err))) return rc;

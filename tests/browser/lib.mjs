@@ -92,8 +92,10 @@ export async function imageWidths(page, selector) {
   return page.$$eval(selector, (imgs) => imgs.map((i) => i.naturalWidth));
 }
 
-export const CSV_HEADER = 'index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs,rmse,bias,' +
-  'max_abs,psnr,ssim,ref_noise,at_reference_accuracy,pareto,cpu_model,cores,vulkan_device,output,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse,total_ms_min,total_ms_max';
+// The metric columns are the metric table's (`obscura metrics`), in its order.
+export const CSV_HEADER = 'index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs,' +
+  'rmse,bias,max_abs,psnr,ssim,flip,angle_deg,ref_noise,patch_rmse,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse,' +
+  'at_reference_accuracy,pareto,cpu_model,cores,vulkan_device,output,total_ms_min,total_ms_max';
 
 /**
  * The checks of a finished comparison page (`doc` is its GET /api/v1/comparisons/{id} answer):

@@ -159,7 +159,9 @@ test('a sweep expands to the product of its lists, runs to completion with metri
     for (const x of c.candidates) {
       assert.equal(x.state, 'succeeded');
       assert.ok(x.metrics, `candidate ${x.index} has metrics`);
-      for (const k of ['rmse', 'bias', 'max_abs', 'psnr', 'ssim', 'ref_noise']) assert.equal(typeof x.metrics[k], 'number', `${x.index} ${k}`);
+      for (const k of ['rmse', 'bias', 'max_abs', 'psnr', 'ssim', 'flip', 'ref_noise']) assert.equal(typeof x.metrics[k], 'number', `${x.index} ${k}`);
+      assert.ok(x.metrics.flip > 0 && x.metrics.flip < 1, `FLIP ${x.metrics.flip}`);
+      assert.ok(x.metrics.ssim > -1 && x.metrics.ssim < 1, `SSIM ${x.metrics.ssim}`);
       assert.equal(x.metrics.pixels > 0, true);
       assert.equal(x.metrics.at_reference_accuracy, x.metrics.rmse < 2 * x.metrics.ref_noise);
       assert.equal(x.timings_ms.runs.length, 2, 'repeats timed runs');
@@ -174,6 +176,11 @@ test('a sweep expands to the product of its lists, runs to completion with metri
       assert.deepEqual(pngSize(errPng), {width: 32, height: 24});
       assert.deepEqual(exrHeader((await download(d, job, 'error.exr')).body).channels, ['error']);
       assert.equal(x.links['error.png'], `/api/v1/jobs/${x.job_id}/outputs/error.png`);
+      // FLIP's map beside them: the magma picture and the float map.
+      assert.deepEqual(pngSize((await download(d, job, 'flip.png')).body), {width: 32, height: 24});
+      assert.deepEqual(exrHeader((await download(d, job, 'flip.exr')).body).channels, ['flip']);
+      assert.equal(x.links['flip.png'], `/api/v1/jobs/${x.job_id}/outputs/flip.png`);
+      assert.equal(x.links['flip.exr'], `/api/v1/jobs/${x.job_id}/outputs/flip.exr`);
     }
     // rt_ao with the reference's own samples is at reference accuracy: the noise floor.
     assert.equal(c.candidates[11].metrics.at_reference_accuracy, true, JSON.stringify(c.candidates[11].metrics));
@@ -198,7 +205,11 @@ test('a sweep expands to the product of its lists, runs to completion with metri
     assert.equal(r.status, 200);
     assert.match(r.headers['content-type'], /^text\/csv/);
     const rows = parseCsv(r.text);
-    assert.equal(rows[0].join(','), 'index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs,rmse,bias,max_abs,psnr,ssim,ref_noise,at_reference_accuracy,pareto,cpu_model,cores,vulkan_device,output,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse,total_ms_min,total_ms_max');
+    // The metric columns are the metric table's (GET /api/v1/metrics), in its order.
+    const table = (await getJSON(d, '/api/v1/metrics')).metrics;
+    assert.ok(['rmse', 'psnr', 'ssim', 'flip', 'rmse_r', 'rel_mse'].every((n) => table.some((m) => m.name === n)));
+    assert.equal(rows[0].join(','), ['index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs',
+      ...table.map((m) => m.name), 'at_reference_accuracy,pareto,cpu_model,cores,vulkan_device,output,total_ms_min,total_ms_max'].join(','));
     assert.equal(rows.length, 1 + c.candidates.length);
     for (const [k, x] of c.candidates.entries()) {
       const f = Object.fromEntries(rows[0].map((h, i) => [h, rows[k + 1][i]]));
@@ -215,7 +226,7 @@ test('a sweep expands to the product of its lists, runs to completion with metri
       assert.equal(f.state, x.state);
       for (const s of ['total', 'build', 'render', 'post']) assert.equal(csvNum(f[`${s}_ms`]), x.timings_ms.median[s]);
       assert.equal(Number(f.runs), x.timings_ms.runs.length);
-      for (const m of ['rmse', 'bias', 'max_abs', 'psnr', 'ssim', 'ref_noise']) assert.equal(csvNum(f[m]), x.metrics[m], m);
+      for (const m of ['rmse', 'bias', 'max_abs', 'psnr', 'ssim', 'flip', 'ref_noise']) assert.equal(csvNum(f[m]), x.metrics[m], m);
       assert.equal(f.at_reference_accuracy, String(x.metrics.at_reference_accuracy));
       assert.equal(f.pareto, String(x.pareto));
       assert.equal(f.cpu_model, x.machine.cpu_model);
