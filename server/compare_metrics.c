@@ -31,20 +31,25 @@ static void metrics_one(srv_app *app, const json_t *row) {
   char dir[4200], rdir[4200];
   srv_results_path(app, job, dir, sizeof dir);
   srv_results_path(app, rjob, rdir, sizeof rdir);
-  srv_output outs[16], err_outs[3];
+  srv_output outs[16], err_outs[4];
   int nouts = 0, nerr = 0;
   obs_compare m;
   int rc = obs_response_parse(json_string_value(json_object_get(row, "response")), &resp)
                ? obs_err_set(&e, OBS_EINVAL, "unknown response mapping")
                : 0;
   json_t *extra = json_object();
+  /* A further measurement (common reference, another output) has figures only: the error images
+   * and the mapped reference are the candidate's own row's. */
+  const char *role = json_string_value(json_object_get(row, "role"));
+  int own = !role || !strcmp(role, "own");
   if (!rc) rc = srv_compare_primary(dir, rdir, resp, &m, extra, &eimg, &e);
   /* Written into the candidate's published directory under staging names and renamed, so a crash
    * leaves either no error image or a whole one (recorded below, or again after a restart). */
-  if (!rc) rc = obs_metrics_write_error_files(&eimg, dir, &e);
-  if (!rc) rc = srv_outputs_describe(dir, outs, 16, &nouts, &e);
+  if (!rc && own) rc = obs_metrics_write_error_files(&eimg, dir, &e);
+  if (!rc && own) rc = srv_outputs_describe(dir, outs, 16, &nouts, &e);
   for (int i = 0; !rc && i < nouts; i++)
-    if ((!strncmp(outs[i].name, "error.", 6) || !strcmp(outs[i].name, SRV_MAPPED_REFERENCE_PNG)) &&
+    if ((!strncmp(outs[i].name, "error.", 6) || !strcmp(outs[i].name, SRV_MAPPED_REFERENCE_PNG) ||
+         !strcmp(outs[i].name, SRV_MAPPED_REFERENCE_EXR)) &&
         nerr < (int)(sizeof err_outs / sizeof *err_outs))
       err_outs[nerr++] = outs[i];
   char *metrics = NULL;
