@@ -63,9 +63,18 @@ async function waitComparison(d, id, timeoutMs = 120000 * SLOW) {
 
 /**
  * The Pareto set by its definition, from the returned table (docs/comparisons.md, "Ranking"):
- * faster only beyond both timing spreads, more accurate only beyond the larger reference noise.
+ * within each reference's group (errors against different references do not compare), faster
+ * only beyond both timing spreads, more accurate only beyond the larger reference noise; the
+ * groups' sets together by ascending time.
  */
 function paretoOf(cands) {
+  const groups = [...new Set(cands.map((c) => c.reference.id))];
+  const all = groups.flatMap((g) => paretoIn(cands.filter((c) => c.reference.id === g)));
+  const time = (i) => cands.find((c) => c.index === i).timings_ms.median.total;
+  return all.sort((a, b) => time(a) - time(b) || a - b);
+}
+
+function paretoIn(cands) {
   const pts = cands.map((c) => ({
     i: c.index,
     t: c.metrics && c.timings_ms.median ? c.timings_ms.median.total : null,
@@ -135,7 +144,11 @@ test('a sweep expands to the product of its lists, runs to completion with metri
     }
     assert.deepEqual(c.candidates.map((x) => x.response),
                      [...Array(6).fill('identity'), 'ssao_sphere', 'ssao_hemi', 'ssao_sphere', 'ssao_hemi', 'identity', 'identity']);
-    assert.equal(c.references.length, 4);
+    // Four reference jobs; a reference is a job mapped through a response, and ssao's two jobs are
+    // each mapped through both of its responses (whole sphere and normal-oriented): six references.
+    assert.equal(new Set(c.references.map((r) => r.job_id)).size, 4);
+    assert.deepEqual(c.references.map((r) => r.response).sort(),
+                     ['identity', 'identity', 'ssao_hemi', 'ssao_hemi', 'ssao_sphere', 'ssao_sphere']);
     for (const r of c.references) {
       assert.equal(r.technique, 'rt_ao');
       assert.equal(r.params.samples, 64);
@@ -198,7 +211,7 @@ test('a sweep expands to the product of its lists, runs to completion with metri
     assert.equal(r.status, 200);
     assert.match(r.headers['content-type'], /^text\/csv/);
     const rows = parseCsv(r.text);
-    assert.equal(rows[0].join(','), 'index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs,rmse,bias,max_abs,psnr,ssim,ref_noise,at_reference_accuracy,pareto,cpu_model,cores,vulkan_device,output,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse,total_ms_min,total_ms_max');
+    assert.equal(rows[0].join(','), 'index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs,rmse,bias,max_abs,psnr,ssim,ref_noise,at_reference_accuracy,pareto,cpu_model,cores,vulkan_device,output,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse,total_ms_min,total_ms_max,reference,reference_label,common_rmse,common_bias,common_psnr,common_ssim,common_pareto');
     assert.equal(rows.length, 1 + c.candidates.length);
     for (const [k, x] of c.candidates.entries()) {
       const f = Object.fromEntries(rows[0].map((h, i) => [h, rows[k + 1][i]]));
@@ -218,6 +231,7 @@ test('a sweep expands to the product of its lists, runs to completion with metri
       for (const m of ['rmse', 'bias', 'max_abs', 'psnr', 'ssim', 'ref_noise']) assert.equal(csvNum(f[m]), x.metrics[m], m);
       assert.equal(f.at_reference_accuracy, String(x.metrics.at_reference_accuracy));
       assert.equal(f.pareto, String(x.pareto));
+      assert.deepEqual([f.reference, f.reference_label, f.common_rmse], [x.reference.id, x.reference.label, '']);
       assert.equal(f.cpu_model, x.machine.cpu_model);
       assert.equal(Number(f.cores), x.machine.cores);
       assert.equal(f.vulkan_device, '');

@@ -2,7 +2,8 @@
 // resolution on a canvas (zoom, pan), a readout of every channel's float value at a pixel, an
 // exposure control for radiance, and A/B against a second job of the same size (toggle or split
 // wipe) with the values of both and their difference. The route's query keeps what is shown:
-// b (the second job), output, view, mode, exposure, back (the page Close returns to).
+// b (the second job; bfile, which of its EXRs), output, view, mode, exposure, back (the page Close
+// returns to).
 import {api, debug, el, token, techniques} from './api.js';
 import {decodeExr} from './exr.js';
 import {createView, displayBytes, toCanvas, viewsOf} from './viewcanvas.js';
@@ -24,12 +25,13 @@ async function fetchBytes(url) {
  * channels the file has (the registry's typed_outputs; channels no output claims become outputs
  * of their own, so every channel can be looked at).
  */
-async function loadJob(id) {
+async function loadJob(id, name = null) {
   const [job, reg] = await Promise.all([api(`/api/v1/jobs/${id}`), techniques().catch(() => ({techniques: []}))]);
   if (job.state !== 'succeeded') throw new Error(`job ${id} is ${job.state}: only a finished job has images`);
   const tech = reg.techniques.find((t) => t.name === job.technique) || {};
   const exrs = (job.outputs || []).filter((o) => o.name.endsWith('.exr'));
-  const file = exrs.find((o) => o.name === tech.exr) || exrs[0];
+  const file = name ? exrs.find((o) => o.name === name) : exrs.find((o) => o.name === tech.exr) || exrs[0];
+  if (name && !file) throw new Error(`job ${id} has no output ${name}`);
   if (!file) throw new Error(`job ${id} has no EXR output`);
   const summaryUrl = job.links.outputs['summary.json'];
   const [img, summary] = await Promise.all([fetchBytes(file.url).then(decodeExr),
@@ -229,6 +231,7 @@ class ViewerPage {
   keepUrl() {
     const {st} = this, q = new URLSearchParams();
     if (st.b) q.set('b', String(st.b.id));
+    if (st.b && st.b.file.name !== st.b.tech.exr) q.set('bfile', st.b.file.name);
     if (st.output) q.set('output', st.output.name);
     if (st.view) q.set('view', st.view);
     if (st.b) q.set('mode', this.view.state.mode);
@@ -269,13 +272,13 @@ class ViewerPage {
     this.tools.view.replaceChildren(...views.map((x) => el('option', {value: x, selected: x === st.view}, VIEW_NAMES[x])));
   }
 
-  async setB(bid) {
+  async setB(bid, bfile = null) {
     const {st, tools} = this;
     tools.compare.value = bid ? String(bid) : '';
     st.b = null;
     this.status.textContent = '';
     try {
-      const b = bid ? await loadJob(bid) : null;
+      const b = bid ? await loadJob(bid, bfile) : null;
       if (st.dead) return;
       if (b && (b.img.width !== st.a.img.width || b.img.height !== st.a.img.height)) {
         throw new Error(`job ${bid} is ${b.img.width}×${b.img.height}, job ${this.id} ${st.a.img.width}×${st.a.img.height}: A/B needs the same size`);
@@ -323,7 +326,8 @@ class ViewerPage {
     tools.exposure.value = String(st.stops);
     this.setMode(query.get('mode') === 'split' ? 'split' : 'toggle');
     this.redraw();
-    if (/^\d+$/.test(query.get('b') || '')) await this.setB(Number(query.get('b')));
+    // bfile: another EXR output of job b than its technique's (a candidate's mapped reference).
+    if (/^\d+$/.test(query.get('b') || '')) await this.setB(Number(query.get('b')), /^[\w.-]+\.exr$/.test(query.get('bfile') || '') ? query.get('bfile') : null);
     this.listCandidates().catch((e) => { this.status.textContent = `Cannot list jobs to compare with: ${e.message}`; });
     if (query.get('compare')) tools.compare.focus();
     else this.canvas.focus({preventScroll: true});
