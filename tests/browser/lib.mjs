@@ -93,7 +93,8 @@ export async function imageWidths(page, selector) {
 }
 
 export const CSV_HEADER = 'index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs,rmse,bias,' +
-  'max_abs,psnr,ssim,ref_noise,at_reference_accuracy,pareto,cpu_model,cores,vulkan_device,output,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse,total_ms_min,total_ms_max';
+  'max_abs,psnr,ssim,ref_noise,at_reference_accuracy,pareto,cpu_model,cores,vulkan_device,output,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse,total_ms_min,total_ms_max,' +
+  'reference,reference_label,common_rmse,common_bias,common_psnr,common_ssim,common_pareto';
 
 /**
  * The checks of a finished comparison page (`doc` is its GET /api/v1/comparisons/{id} answer):
@@ -114,16 +115,22 @@ export async function checkComparisonPage(page, doc, prefix) {
             canvas: !!document.querySelector('.chart canvas'), aria: document.querySelector('.chart').getAttribute('aria-label')};
   });
   assert.ok(chart.canvas, 'uPlot drew a canvas');
-  const techs = [...new Set(withMetrics.map((c) => c.technique))];
-  assert.deepEqual(chart.labels.slice(1, 1 + techs.length).sort(), [...techs].sort(), 'one series per technique');
+  // One series per technique; per reference (named by its label) when the candidates have several.
+  const byRef = new Set(withMetrics.map((c) => c.reference.id)).size > 1;
+  const keyOf = (c) => (byRef ? c.reference.id : c.technique);
+  const nameOf = (k) => (byRef ? `${k}: ${doc.references.find((r) => r.id === k).label}` : k);
+  const techs = [...new Set(withMetrics.map(keyOf))].map(nameOf);
+  assert.deepEqual(chart.labels.slice(1, 1 + techs.length).sort(), [...techs].sort(), 'one series per technique or reference');
   let total = 0;
-  for (const t of techs) {
-    const k = chart.labels.indexOf(t);
-    assert.equal(chart.counts[k], withMetrics.filter((c) => c.technique === t).length, `points of ${t}`);
+  for (const t of [...new Set(withMetrics.map(keyOf))]) {
+    const k = chart.labels.indexOf(nameOf(t));
+    assert.equal(chart.counts[k], withMetrics.filter((c) => keyOf(c) === t).length, `points of ${t}`);
     total += chart.counts[k];
   }
   assert.equal(total, withMetrics.length, 'one point per candidate with metrics');
-  assert.equal(chart.counts[chart.labels.indexOf('Pareto front')], doc.pareto.length, 'Pareto front points');
+  // One front (one per reference when the markers are grouped by reference).
+  const fronts = chart.labels.map((l, i) => (String(l).startsWith('Pareto front') ? chart.counts[i] : 0));
+  assert.equal(fronts.reduce((a, b) => a + b, 0), doc.pareto.length, 'Pareto front points');
   assert.match(chart.aria, new RegExp(`${withMetrics.length} candidates`), 'the chart has a text summary');
 
   // Clicking a point selects its candidate. Measured timings vary from run to run, so two points

@@ -168,7 +168,7 @@ const viewerHref = (a, b, bfile) => `#/view/${a}?${b ? `b=${b}&${bfile ? `bfile=
 // A candidate against its reference as the metrics compared them: the mapped reference the
 // server wrote beside the candidate when its response changes the reference, else the reference.
 const againstHref = (c) => (c.links && c.links['reference_mapped.exr'] ? viewerHref(c.job_id, c.job_id, 'reference_mapped.exr')
-  : againstHref(c));
+  : viewerHref(c.job_id, c.reference_job_id));
 
 function select(pg, index, scroll = true) {
   const {s, id, tbody, detail} = pg;
