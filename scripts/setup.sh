@@ -9,6 +9,7 @@ DEB_PACKAGES=(build-essential cmake pkg-config libembree-dev libjansson-dev libo
               libspng-dev libassimp-dev libcmocka-dev libvulkan-dev mesa-vulkan-drivers glslc
               vulkan-validationlayers libcurl4-openssl-dev
               libmicrohttpd-dev libsqlite3-dev libssl-dev openimageio-tools python3-numpy
+              python3-skimage
               sqlite3 curl wrk chromium clang libclang-rt-14-dev libteem-dev libvolpack1-dev
               libopenmpi-dev openmpi-bin)
 command -v node >/dev/null 2>&1 || DEB_PACKAGES+=(nodejs)

@@ -7,6 +7,7 @@
 
 #include "args.h"
 #include "client.h"
+#include "diff.h"
 #include "mpi_render.h"
 #include "obscura/obscura.h"
 
@@ -251,6 +252,8 @@ int main(int argc, char **argv) {
   if (!strcmp(argv[1], "submit")) return cli_submit(argc, argv);
   if (!strcmp(argv[1], "jobs")) return cli_jobs(argc, argv);
   if (!strcmp(argv[1], "compare")) return cli_compare(argc, argv);
+  if (!strcmp(argv[1], "diff")) return cli_diff(argc, argv);
+  if (!strcmp(argv[1], "metrics")) return cli_metrics(argc, argv);
   if (!strcmp(argv[1], "--version")) {
     puts("obscura " OBSCURA_VERSION);
     return 0;

@@ -51,6 +51,17 @@ static const usage usages[] = {
      "standard input), prints its dashboard page and follows it to its end: per candidate the\n"
      "median time and the error against the reference, then the Pareto set. --json prints the\n"
      "finished comparison as the API gives it. Exit 0 when it succeeded, 1 when it failed.\n"},
+    {"diff",
+     "  obscura diff A B [--channel NAME] [--mask CHANNEL|none] [--ppd N] [--json] [-o DIR]\n",
+     "Every metric of the table (obscura metrics) for A against the reference B: two EXR files\n"
+     "or two output folders (their primary EXR, from summary.json). --channel: a scalar channel,\n"
+     "an RGB output (radiance for radiance.R/G/B) or directions (bent_normal); default the output\n"
+     "a comparison of the folders' techniques compares, else ao. --mask: pixels where B's\n"
+     "channel > 0 (default alpha when B has it). --ppd: FLIP's pixels per degree (67). -o DIR\n"
+     "writes error.exr/png (A - B) and flip.exr/png. Exit 0, 2 for bad input.\n"},
+    {"metrics", "  obscura metrics [--json | --markdown | --openapi]\n",
+     "The metric table: name, label, unit, which way is better, range, what it needs, definition\n"
+     "(JSON), or the copies generated from it (docs/metrics.md's table, OpenAPI's Metrics).\n"},
 };
 
 static void common(FILE *f) {
