@@ -142,5 +142,8 @@ UPDATE jobs SET stored_bytes = length(CAST(doc AS BLOB)) WHERE state IN ('queued
 -- reference; 'common', the candidate's job against the comparison's common reference; 'output',
 -- another output of the candidate's job against the reference its technique declares for it.
 -- Rows other than 'own' reuse their candidate's job, under indices after the candidates'.
+-- output: the candidate's output an 'output' row compares with its own reference job's (NULL:
+-- the output the reference technique decides, as for 'own' rows).
 ALTER TABLE comparison_candidates ADD COLUMN role TEXT NOT NULL DEFAULT 'own'
   CHECK (role IN ('own', 'common', 'output'));
+ALTER TABLE comparison_candidates ADD COLUMN output TEXT;

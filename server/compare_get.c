@@ -277,8 +277,15 @@ static void attach_measure(json_t *co, const json_t *row, const json_t *refs, co
   const obs_technique *t = obs_technique_find(json_string_value(json_object_get(row, "technique")));
   const obs_technique *rt =
       obs_technique_find(json_string_value(json_object_get(row, "ref_technique")));
+  const char *pout = json_string_value(json_object_get(row, "output"));
   const obs_output *o = t && rt ? obs_technique_compared_output(t, rt) : NULL;
   const obs_output *ro = rt ? obs_technique_primary(rt) : NULL;
+  /* A pair the technique declares: its output against the reference's output it names. */
+  for (const obs_output_pair *q = t && rt && pout ? t->compared_outputs : NULL; q && q->output; q++)
+    if (!strcmp(q->output, pout)) {
+      o = obs_technique_output(t, q->output);
+      ro = obs_technique_output(rt, q->reference_output);
+    }
   json_object_set_new(m, "output", o ? json_string(o->name) : json_null());
   json_object_set_new(m, "reference_output", ro ? json_string(ro->name) : json_null());
   json_array_append_new(json_object_get(co, "outputs"), m);

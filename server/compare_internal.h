@@ -34,8 +34,9 @@ typedef struct cand {
    * declares a reference for (obs_reference_alt), with that reference. */
   int common_ref;
   char *common_key;
-  int alt_ref[4], nalt;
-  char *alt_key[4];
+  int alt_ref[8], nalt;
+  char *alt_key[8];
+  const char *alt_output[8]; /* a compared_outputs pair's output; NULL for reference_alts */
 } cand;
 
 typedef struct ref_job {

@@ -42,7 +42,11 @@ static void metrics_one(srv_app *app, const json_t *row) {
    * and the mapped reference are the candidate's own row's. */
   const char *role = json_string_value(json_object_get(row, "role"));
   int own = !role || !strcmp(role, "own");
-  if (!rc) rc = srv_compare_primary(dir, rdir, resp, &m, extra, &eimg, &e);
+  /* An output a technique pairs with its reference's (bent normals): every metric that applies. */
+  const char *output = json_string_value(json_object_get(row, "output"));
+  json_t *pair = output ? json_object() : NULL;
+  if (!rc && output) rc = srv_compare_output(dir, rdir, output, pair, &e);
+  else if (!rc) rc = srv_compare_primary(dir, rdir, resp, &m, extra, &eimg, &e);
   /* Written into the candidate's published directory under staging names and renamed, so a crash
    * leaves either no error image or a whole one (recorded below, or again after a restart). */
   if (!rc && own) rc = obs_metrics_write_error_files(&eimg, dir, &e);
@@ -53,7 +57,9 @@ static void metrics_one(srv_app *app, const json_t *row) {
         nerr < (int)(sizeof err_outs / sizeof *err_outs))
       err_outs[nerr++] = outs[i];
   char *metrics = NULL;
-  if (!rc) {
+  if (!rc && pair) {
+    metrics = json_dumps(pair, JSON_COMPACT | JSON_REAL_PRECISION(17));
+  } else if (!rc) {
     json_t *mj = json_object();
     json_object_set_new(mj, "rmse", num_or_null(m.rmse));
     json_object_set_new(mj, "bias", num_or_null(m.bias));
@@ -80,10 +86,14 @@ static void metrics_one(srv_app *app, const json_t *row) {
   else if (rc)
     srv_log("comparison %lld candidate %d: no metrics: %s", (long long)cmp, idx,
             obs_err_message(&e));
+  else if (pair)
+    srv_log("comparison %lld candidate %d: output %s measured (job %lld vs reference %lld)",
+            (long long)cmp, idx, output, (long long)job, (long long)rjob);
   else
     srv_log("comparison %lld candidate %d: rmse %.4g, ssim %.4g (job %lld vs reference %lld)",
             (long long)cmp, idx, m.rmse, m.ssim, (long long)job, (long long)rjob);
   free(metrics);
+  json_decref(pair);
   json_decref(extra);
   obs_err_free(&dberr);
   obs_err_free(&e);

@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include "compare_internal.h"
+#include "obscura/metric_table.h"
 #include "obscurad.h"
 
 /* The technique whose result lies in `dir`, from its summary.json; rt_ao for a result written
@@ -188,6 +189,36 @@ int srv_compare_primary(const char *dir, const char *rdir, obs_response resp, ob
       !(rc = patch_rmse(dir, rdir, o, &prmse, err)))
     json_object_set_new(extra, "patch_rmse", json_real(prmse));
   if (!rc && strcmp(o->name, "ao")) json_object_set_new(extra, "output", json_string(o->name));
+  obs_image_free(&cand);
+  obs_image_free(&ref);
+  return rc;
+}
+
+int srv_compare_output(const char *dir, const char *rdir, const char *output, json_t *metrics,
+                       obs_err *err) {
+  const obs_technique *t = result_technique(dir), *rt = result_technique(rdir);
+  const obs_output_pair *q = t->compared_outputs;
+  while (q && q->output && strcmp(q->output, output)) q++;
+  const obs_output *o = obs_technique_output(t, output);
+  const obs_output *ro = q && q->output ? obs_technique_output(rt, q->reference_output) : NULL;
+  if (!o || !ro)
+    return obs_err_set(err, OBS_EINVAL, "%s does not compare its output \"%s\" with %s's",
+                       t->name, output, rt->name);
+  obs_image cand, ref;
+  memset(&cand, 0, sizeof cand);
+  memset(&ref, 0, sizeof ref);
+  int rc = read_exr(dir, t, &cand, err);
+  if (!rc) rc = read_exr(rdir, rt, &ref, err);
+  if (!rc && strcmp(ro->name, o->name)) rename_output(&ref, ro->name, o->name);
+  obs_metric_opts opts = {.channel = o->name,
+                          .mask = obs_image_channel(&ref, "alpha") ? "alpha" : NULL};
+  obs_metric_values v;
+  if (!rc) rc = obs_metrics_compare_all(&cand, &ref, &opts, &v, err);
+  if (!rc) rc = obs_metric_values_json(&v, metrics);
+  if (!rc) {
+    json_object_set_new(metrics, "output", json_string(o->name));
+    json_object_set_new(metrics, "reference_output", json_string(ro->name));
+  }
   obs_image_free(&cand);
   obs_image_free(&ref);
   return rc;

@@ -249,7 +249,7 @@ static int add_reference(srv_app *app, cmp_req *q, expansion *x, const obs_refer
  * quantity the candidate estimates (it is the candidate's own reference technique or one its
  * technique declares for another output), and each other output against its declared reference
  * (obs_reference_alt; skipped where the alternative's needs_false parameter is true, as the two
- * are then not the same quantity). */
+ * are then not the same quantity) or against its own reference job's (obs_output_pair). */
 static void add_measures(srv_app *app, cmp_req *q, cand *c, obs_scene *sc, expansion *x,
                          obs_reference_facts *facts, obs_err *problems, int *dropped) {
   if (x->common >= 0) {
@@ -277,7 +277,16 @@ static void add_measures(srv_app *app, cmp_req *q, cand *c, obs_scene *sc, expan
     obs_reference_def_free(&rd);
     if (r < 0) continue;
     c->alt_ref[c->nalt] = r;
+    c->alt_output[c->nalt] = NULL;
     c->alt_key[c->nalt++] = key;
+  }
+  /* Outputs compared with the own reference job's (the bent normals), where it has them. */
+  const obs_technique *rt = obs_technique_find(x->refs[c->ref].technique);
+  for (const obs_output_pair *q = c->t->compared_outputs; q && q->output && c->nalt < 8; q++) {
+    if (!rt || !obs_technique_output(rt, q->reference_output)) continue;
+    c->alt_ref[c->nalt] = c->ref;
+    c->alt_output[c->nalt] = q->output;
+    c->alt_key[c->nalt++] = strdup(x->refs[c->ref].key);
   }
 }
 
@@ -602,9 +611,10 @@ static int new_measures(const expansion *x, srv_new_measure *ms) {
   for (int i = 0; i < x->n; i++) {
     const cand *c = &x->c[i];
     if (c->common_ref >= 0)
-      ms[n++] = (srv_new_measure){i, c->common_ref, "common", c->common_key, "identity"};
+      ms[n++] = (srv_new_measure){i, c->common_ref, "common", c->common_key, "identity", NULL};
     for (int k = 0; k < c->nalt; k++)
-      ms[n++] = (srv_new_measure){i, c->alt_ref[k], "output", c->alt_key[k], "identity"};
+      ms[n++] = (srv_new_measure){i, c->alt_ref[k], "output", c->alt_key[k], "identity",
+                                  c->alt_output[k]};
   }
   return n;
 }
@@ -628,7 +638,7 @@ int srv_compare_post(srv_req *r) {
   }
   srv_new_job *refs = calloc((size_t)x.nrefs + 1, sizeof *refs);
   srv_new_candidate *cs = calloc((size_t)x.n + 1, sizeof *cs);
-  srv_new_measure *ms = calloc((size_t)x.n * 5 + 1, sizeof *ms);
+  srv_new_measure *ms = calloc((size_t)x.n * 9 + 1, sizeof *ms);
   char *request = json_dumps(q.req, JSON_COMPACT | JSON_REAL_PRECISION(17));
   char *notes_text = json_array_size(q.notes) ? json_dumps(q.notes, JSON_COMPACT) : NULL;
   int64_t id = 0;

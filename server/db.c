@@ -84,8 +84,8 @@ static const char *const sql[ST_COUNT] = {
     [ST_CMP_INSERT] = "INSERT INTO comparisons (label, scene, width, height, repeats, request, "
                       "created_ms, notes) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
     [ST_CAND_INSERT] = "INSERT INTO comparison_candidates (comparison, idx, job, reference_job, "
-                       "technique, backend, params, reference_params, response, role) "
-                       "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                       "technique, backend, params, reference_params, response, role, output) "
+                       "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
     [ST_SET_METRICS] = "UPDATE comparison_candidates SET metrics = ?3, metrics_error = ?4 "
                        "WHERE comparison = ?1 AND idx = ?2 AND metrics IS NULL AND "
                        "metrics_error IS NULL",
@@ -129,7 +129,7 @@ static const char *const sql[ST_COUNT] = {
                                     "c.created_ms, c.notes, " CMP_COUNTS " FROM comparisons c WHERE c.id = ?1",
     [ST_QUERY + SRV_Q_CANDIDATES] =
         "SELECT cc.idx, cc.job, cc.reference_job, cc.technique, cc.backend, cc.params, "
-        "cc.reference_params, cc.response, cc.role, cc.metrics, cc.metrics_error, j.state, j.progress, "
+        "cc.reference_params, cc.response, cc.role, cc.output, cc.metrics, cc.metrics_error, j.state, j.progress, "
         "r.state AS ref_state, r.progress AS ref_progress, r.summary AS ref_summary, "
         "r.technique AS ref_technique "
         "FROM comparison_candidates cc JOIN jobs j ON j.id = cc.job "
@@ -151,7 +151,7 @@ static const char *const sql[ST_COUNT] = {
     [ST_QUERY + SRV_Q_JOB_COMPARISON] = "SELECT comparison FROM comparison_candidates WHERE "
                                         "job = ?1 OR reference_job = ?1 LIMIT 1",
     [ST_QUERY + SRV_Q_METRICS_PENDING] =
-        "SELECT cc.comparison, cc.idx, cc.job, cc.reference_job, cc.response, cc.role "
+        "SELECT cc.comparison, cc.idx, cc.job, cc.reference_job, cc.response, cc.role, cc.output "
         "FROM comparison_candidates cc JOIN jobs j ON j.id = cc.job "
         "JOIN jobs r ON r.id = cc.reference_job WHERE cc.metrics IS NULL AND "
         "cc.metrics_error IS NULL AND j.state = 'succeeded' AND r.state = 'succeeded' AND "

@@ -62,6 +62,7 @@ int srv_db_insert_comparison(srv_db *db, const srv_new_comparison *cmp, int64_t 
     srv_dbi_bind_text(s, 8, cd->reference_params);
     srv_dbi_bind_text(s, 9, cd->response);
     srv_dbi_bind_text(s, 10, "own");
+    srv_dbi_bind_text(s, 11, NULL);
     rc = srv_dbi_exec_done(c, s, err, "inserting a candidate");
     if (!rc) cand_ids[i] = job;
   }
@@ -83,6 +84,7 @@ int srv_db_insert_comparison(srv_db *db, const srv_new_comparison *cmp, int64_t 
     srv_dbi_bind_text(s, 8, m->reference_params);
     srv_dbi_bind_text(s, 9, m->response);
     srv_dbi_bind_text(s, 10, m->role);
+    srv_dbi_bind_text(s, 11, m->output);
     rc = srv_dbi_exec_done(c, s, err, "inserting a measurement");
   }
   if (!rc) rc = srv_dbi_commit(c, err);

@@ -246,6 +246,7 @@ typedef struct srv_new_candidate {
 typedef struct srv_new_measure {
   int candidate, reference; /* indices into .candidates and .references */
   const char *role, *reference_params, *response;
+  const char *output; /* a compared_outputs pair's candidate output, or NULL */
 } srv_new_measure;
 typedef struct srv_new_comparison {
   const char *label, *scene, *request;
@@ -620,6 +621,12 @@ void srv_compare_metrics(struct srv_app *app, int64_t job);
  * rel_mse} for RGB outputs and "patch_rmse" for per-patch ones. `resp` maps the reference. */
 int srv_compare_primary(const char *dir, const char *rdir, obs_response resp, obs_compare *m,
                         json_t *extra, obs_image *eimg, obs_err *err);
+/* Compares output `output` of the result in `dir` with the output its technique pairs it with
+ * (obs_output_pair) in the reference result in `rdir`, over the reference's covered pixels:
+ * every metric of the table that applies (angle_deg for vector outputs) into `metrics` (an
+ * object, obs_metric_values_json) with "output" and "reference_output". */
+int srv_compare_output(const char *dir, const char *rdir, const char *output, json_t *metrics,
+                       obs_err *err);
 /* Time-budget mode of POST /api/v1/jobs: the most accurate measured configuration for `scene`
  * (or any scene at similar pixel count) whose median time fits `budget_ms`. Returns 0 with
  * *choice (new object: technique, backend, params, expected_ms, expected_rmse, comparison_id,

@@ -210,7 +210,7 @@ test('references labelled and grouped, the mapped reference EXR, the common refe
       candidates: [
         {technique: 'ssao', backend: 'cpu', params: {samples: 8}},
         {technique: 'hbao', backend: 'cpu', params: {directions: 4}},
-        {technique: 'rt_ao', backend: 'cpu', params: {samples: 4}},
+        {technique: 'rt_ao', backend: 'cpu', params: {samples: [4, 64]}},
         {technique: 'obscurance', backend: 'cpu', params: {samples: 4, light_samples: 1, color_bleeding: false}},
       ]}});
     assert.equal(r.status, 201, r.text);
@@ -278,7 +278,19 @@ test('references labelled and grouped, the mapped reference EXR, the common refe
     assert.equal(w.reference_output, 'ao');
     assert.ok(Number.isFinite(w.metrics.rmse));
     assert.equal(c.references.find((x) => x.id === w.reference.id).technique, 'rt_ao');
-    for (const x of c.candidates.filter((y) => y.technique !== 'obscurance')) assert.deepEqual(x.outputs, []);
+    for (const x of c.candidates.filter((y) => y.technique === 'ssao' || y.technique === 'hbao')) assert.deepEqual(x.outputs, []);
+    // rt_ao's bent normal against its reference's (the pair rt_ao's descriptor declares): the
+    // mean angle between them, smaller with 16 times the samples.
+    const angle = (samples) => {
+      const x = c.candidates.find((y) => y.technique === 'rt_ao' && y.params.samples === samples);
+      assert.equal(x.outputs.length, 1, JSON.stringify(x.outputs));
+      const bn = x.outputs[0];
+      assert.deepEqual([bn.output, bn.reference_output, bn.reference.id, bn.reference_job_id],
+                       ['bent_normal', 'bent_normal', x.reference.id, x.reference_job_id]);
+      assert.ok(bn.metrics.angle_deg > 0 && bn.metrics.angle_deg < 90, JSON.stringify(bn.metrics));
+      return bn.metrics.angle_deg;
+    };
+    assert.ok(angle(64) < angle(4) / 2, `${angle(64)} deg at 64 samples against ${angle(4)} at 4`);
 
     // The mapped reference as floats: the RMSE of the candidate's ao against it over the covered
     // pixels is the candidate's RMSE.
@@ -298,7 +310,7 @@ test('references labelled and grouped, the mapped reference EXR, the common refe
     const csv = parseCsv((await request(d, 'GET', c.links.csv)).text);
     const head = csv[0], col = (k) => head.indexOf(k);
     for (const k of ['reference', 'reference_label', 'common_rmse', 'common_pareto']) assert.ok(col(k) > 0, k);
-    assert.equal(csv.length, 1 + c.candidates.length + 1);
+    assert.equal(csv.length, 1 + c.candidates.length + c.candidates.reduce((a, x) => a + x.outputs.length, 0));
     const rowsOf = (i) => csv.slice(1).filter((x) => Number(x[0]) === i);
     for (const x of c.candidates) {
       const own = rowsOf(x.index)[0];

@@ -78,6 +78,10 @@ export function metricsTable(c) {
     el('th', {scope: 'row'}, k), el('td', {className: 'num'}, v)))));
 }
 
+/** An other output's figures in words: the mean angle for directions, else RMSE, bias and SSIM. */
+const measureText = (m) => (m.angle_deg !== undefined ? `mean angle ${fmtNum(m.angle_deg)}°`
+  : `RMSE ${fmtNum(m.rmse)}, bias ${fmtNum(m.bias)}, SSIM ${fmtNum(m.ssim)}`);
+
 /** "min–max" of a candidate's total time over its timed runs (the run-to-run spread). */
 export function spreadText(c) {
   const sp = spreadOf(c);
@@ -245,7 +249,7 @@ function renderTable(pg) {
     // The candidate's other outputs, each against its own reference, in rows under it.
     return [tr, ...(c.outputs || []).map((o) => el('tr', {className: 'output-row', 'data-of': c.index},
       el('td', {colSpan: cols.length}, `↳ candidate ${c.index}'s ${o.output} against ${o.reference.id} (${o.reference_output}): `,
-        o.metrics ? `RMSE ${fmtNum(o.metrics.rmse)}, bias ${fmtNum(o.metrics.bias)}, SSIM ${fmtNum(o.metrics.ssim)}` : (o.error ? `no metrics: ${o.error}` : 'no metrics yet'))))];
+        o.metrics ? measureText(o.metrics) : (o.error ? `no metrics: ${o.error}` : 'no metrics yet'))))];
   }).flat());
   if (focusedIndex !== null) {
     const b = tbody.querySelector(`tr[data-index="${focusedIndex}"] button`);
