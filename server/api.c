@@ -41,6 +41,7 @@ srv_route srv_api_route(const char *path) {
   if (strncmp(path, "/api/", 5) && strcmp(path, "/api")) return SRV_ROUTE_STATIC;
   if (!strcmp(path, API "/jobs")) return SRV_ROUTE_JOBS;
   if (!strcmp(path, API "/techniques")) return SRV_ROUTE_TECHNIQUES;
+  if (!strcmp(path, API "/metrics")) return SRV_ROUTE_METRIC_TABLE;
   if (!strcmp(path, API "/scenes")) return SRV_ROUTE_SCENES;
   if (!strncmp(path, API "/scenes/", sizeof API "/scenes/" - 1)) {
     const char *slash = strchr(path + sizeof API "/scenes/" - 1, '/');
@@ -540,6 +541,11 @@ static int techniques(srv_req *r) {
                 SRV_COMPARE_REPEATS, "reference_samples", SRV_COMPARE_REF_SAMPLES));
 }
 
+/* The metric table every comparison's figures follow (the dashboard builds its columns from it). */
+static int metric_table(srv_req *r) {
+  return srv_respond_json(r, MHD_HTTP_OK, json_pack("{s:o}", "metrics", obs_metric_table_json()));
+}
+
 static int cmp_names(const void *a, const void *b) {
   return strcmp(json_string_value(json_object_get(*(json_t *const *)a, "name")),
                 json_string_value(json_object_get(*(json_t *const *)b, "name")));
@@ -696,6 +702,8 @@ int srv_api_dispatch(srv_req *r) {
       return is_get(r) ? metrics(r) : srv_respond_method(r, "GET, HEAD");
     case SRV_ROUTE_TECHNIQUES:
       return is_get(r) ? techniques(r) : srv_respond_method(r, "GET, HEAD");
+    case SRV_ROUTE_METRIC_TABLE:
+      return is_get(r) ? metric_table(r) : srv_respond_method(r, "GET, HEAD");
     case SRV_ROUTE_SCENES:
       return is_get(r) ? scenes(r) : srv_respond_method(r, "GET, HEAD");
     case SRV_ROUTE_SCENE_DEFAULTS:

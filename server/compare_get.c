@@ -188,6 +188,8 @@ static json_t *candidate_json(srv_app *app, const json_t *row, const json_t *run
   output_link(links, outs, job, png, "image");
   output_link(links, outs, job, "error.png", "error.png");
   output_link(links, outs, job, "error.exr", "error.exr");
+  output_link(links, outs, job, "flip.png", "flip.png");
+  output_link(links, outs, job, "flip.exr", "flip.exr");
   output_link(links, outs, rjob,
               primary_png(json_string_value(json_object_get(row, "ref_technique"))),
               "reference.png");
@@ -523,25 +525,22 @@ static void csv_row(sbuf *b, const json_t *c, const json_t *m, const json_t *ref
   for (int k = 0; k < 4; k++) csv_value(b, json_object_get(med, order[k]));
   snprintf(buf, sizeof buf, "%zu", json_array_size(json_object_get(tm, "runs")));
   csv_field(b, buf, 0);
-  static const char *const mk[7] = {
-      "rmse", "bias", "max_abs", "psnr", "ssim", "ref_noise", "at_reference_accuracy"};
-  for (int k = 0; k < 7; k++) csv_value(b, json_object_get(m, mk[k]));
+  const obs_metric *table = obs_metric_table();
+  for (int k = 0; k < OBS_METRIC_COUNT; k++) csv_value(b, obs_metric_json_get(m, &table[k]));
+  csv_value(b, json_object_get(m, "at_reference_accuracy"));
   csv_value(b, output ? NULL : json_object_get(c, "pareto"));
   json_t *mach = json_object_get(c, "machine");
   csv_value(b, json_object_get(mach, "cpu_model"));
   csv_value(b, json_object_get(mach, "cores"));
   csv_value(b, json_object_get(mach, "vulkan_device"));
-  /* The compared output and, for an RGB one, its own figures; empty for AO candidates. */
-  json_t *rgb = json_object_get(m, "rgb"), *out = json_object_get(m, "output");
+  /* The compared output; empty without metrics. */
+  json_t *out = json_object_get(m, "output");
   if (output)
     csv_field(b, output, 0);
   else if (json_is_object(m) && !out)
     csv_field(b, "ao", 0);
   else
     csv_value(b, out);
-  for (size_t k = 0; k < 3; k++) csv_value(b, json_array_get(json_object_get(rgb, "rmse"), k));
-  static const char *const rk[3] = {"rmse_luminance", "ssim_luminance", "rel_mse"};
-  for (int k = 0; k < 3; k++) csv_value(b, json_object_get(rgb, rk[k]));
   /* The run-to-run spread of the total time, last so older readers' columns stay put. */
   csv_value(b, json_object_get(json_object_get(tm, "min"), "total"));
   csv_value(b, json_object_get(json_object_get(tm, "max"), "total"));
@@ -550,8 +549,8 @@ static void csv_row(sbuf *b, const json_t *c, const json_t *m, const json_t *ref
   csv_value(b, json_object_get(ref, "id"));
   csv_value(b, json_object_get(ref, "label"));
   json_t *cm = json_object_get(common, "metrics");
-  static const char *const ck[4] = {"rmse", "bias", "psnr", "ssim"};
-  for (int k = 0; k < 4; k++) csv_value(b, json_object_get(cm, ck[k]));
+  static const char *const ck[5] = {"rmse", "bias", "psnr", "ssim", "flip"};
+  for (int k = 0; k < 5; k++) csv_value(b, json_object_get(cm, ck[k]));
   csv_value(b, output ? NULL : json_object_get(common, "pareto"));
   sb_put(b, "\r\n", 2);
 }
@@ -559,13 +558,20 @@ static void csv_row(sbuf *b, const json_t *c, const json_t *m, const json_t *ref
 /* A row per candidate, then a row per further output of it (its "output" column names which). */
 static char *comparison_csv(const json_t *o, size_t *len) {
   sbuf b = {0};
-  static const char header[] =
-      "index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs,rmse,"
-      "bias,max_abs,psnr,ssim,ref_noise,at_reference_accuracy,pareto,cpu_model,cores,"
-      "vulkan_device,output,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse,"
-      "total_ms_min,total_ms_max,reference,reference_label,common_rmse,common_bias,common_psnr,"
-      "common_ssim,common_pareto\r\n";
-  sb_put(&b, header, sizeof header - 1);
+  /* The metric columns are the metric table's, in its order (docs/comparisons.md); then what
+   * each row is measured against and the candidate's figures against the common reference. */
+  static const char head[] = "index,job_id,technique,backend,params,state,total_ms,build_ms,"
+                             "render_ms,post_ms,runs,";
+  static const char tail[] = "at_reference_accuracy,pareto,cpu_model,cores,vulkan_device,output,"
+                             "total_ms_min,total_ms_max,reference,reference_label,common_rmse,"
+                             "common_bias,common_psnr,common_ssim,common_flip,common_pareto\r\n";
+  const obs_metric *table = obs_metric_table();
+  sb_put(&b, head, sizeof head - 1);
+  for (int k = 0; k < OBS_METRIC_COUNT; k++) {
+    sb_put(&b, table[k].name, strlen(table[k].name));
+    sb_put(&b, ",", 1);
+  }
+  sb_put(&b, tail, sizeof tail - 1);
   json_t *cands = json_object_get(o, "candidates");
   for (size_t i = 0; i < json_array_size(cands); i++) {
     json_t *c = json_array_get(cands, i);

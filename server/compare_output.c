@@ -1,8 +1,8 @@
 /* The metrics of one comparison candidate on the primary output its technique declares (or the
- * output an alternative reference compares), of any kind: scalar outputs as they are, RGB outputs
- * on their luminance (plus RMSE per channel, SSIM on luminance and relative MSE against an RGB
- * reference), depth on its ".Z" channel, per-patch outputs on their rendered channel plus the
- * area-weighted RMSE over the patches against a per-patch reference. */
+ * output an alternative reference compares), of any kind, by obs_metrics_compare_all: scalar
+ * outputs as they are, RGB outputs with their RGB figures and on their luminance, depth on its ".Z"
+ * channel, per-patch outputs on their rendered channel plus the area-weighted RMSE over the
+ * patches against a per-patch reference. */
 #include <errno.h>
 #include <jansson.h>
 #include <stdio.h>
@@ -123,8 +123,9 @@ static int write_mapped_reference(const obs_image *ref, const obs_output *o, con
   return rc;
 }
 
-int srv_compare_primary(const char *dir, const char *rdir, obs_response resp, obs_compare *m,
-                        json_t *extra, obs_image *eimg, obs_err *err) {
+int srv_compare_primary(const char *dir, const char *rdir, obs_response resp,
+                        obs_metric_values *m, json_t *extra, obs_image *eimg, obs_image *flip,
+                        obs_err *err) {
   const obs_technique *t = result_technique(dir), *rt = result_technique(rdir);
   /* The candidate's primary output, or the one an alternative reference compares. */
   const obs_output *o = obs_technique_compared_output(t, rt);
@@ -165,29 +166,22 @@ int srv_compare_primary(const char *dir, const char *rdir, obs_response resp, ob
   const float *ca = scalar_ref ? obs_image_channel(&cand, "alpha") : NULL;
   if (ra && ca && cand.width == ref.width && cand.height == ref.height)
     for (size_t i = 0; i < (size_t)ref.width * (size_t)ref.height; i++) ra[i] *= ca[i];
-  if (!rc && o->kind == OBS_OUTPUT_RGB && scalar_ref) {
+  if (!rc && o->kind == OBS_OUTPUT_RGB && scalar_ref) rc = to_luminance(t, o, &cand, err);
+  /* Every metric of the table that applies: an RGB output's RGB figures and HDR-FLIP, and the
+   * scalar ones on its luminance (the reference's noise from its standard error's). */
+  obs_metric_opts mo = {.channel = channel, .mask = mask, .flip_map = flip};
+  if (!rc) rc = obs_metrics_compare_all(&cand, &ref, &mo, m, err);
+  if (!rc && o->kind == OBS_OUTPUT_RGB && !scalar_ref) {
     rc = to_luminance(t, o, &cand, err);
-  } else if (!rc && o->kind == OBS_OUTPUT_RGB) {
-    obs_compare_rgb c;
-    rc = obs_metrics_compare_rgb(&cand, &ref, o->name, mask, &c, err);
-    if (!rc) {
-      /* Non-finite figures are null, as the scalar ones (json_pack would refuse a NaN). */
-      json_object_set_new(extra, "rgb",
-                          json_pack("{s:[o,o,o], s:o, s:o, s:o}", "rmse", num_or_null(c.rmse[0]),
-                                    num_or_null(c.rmse[1]), num_or_null(c.rmse[2]),
-                                    "rmse_luminance", num_or_null(c.rmse_luminance),
-                                    "ssim_luminance", num_or_null(c.ssim_luminance), "rel_mse",
-                                    num_or_null(c.rel_mse)));
-      rc = to_luminance(t, o, &cand, err);
-    }
     if (!rc) rc = to_luminance(renamed ? t : rt, o, &ref, err);
   }
-  if (!rc) rc = obs_metrics_compare(&cand, &ref, channel, mask, m, err);
   if (!rc) rc = obs_metrics_error_image(&cand, &ref, channel, mask, eimg, err);
   double prmse;
   if (!rc && o->kind == OBS_OUTPUT_PATCH && ro && ro->kind == OBS_OUTPUT_PATCH &&
-      !(rc = patch_rmse(dir, rdir, o, &prmse, err)))
-    json_object_set_new(extra, "patch_rmse", json_real(prmse));
+      !(rc = patch_rmse(dir, rdir, o, &prmse, err))) {
+    m->v[OBS_METRIC_PATCH_RMSE] = prmse;
+    m->has[OBS_METRIC_PATCH_RMSE] = 1;
+  }
   if (!rc && strcmp(o->name, "ao")) json_object_set_new(extra, "output", json_string(o->name));
   obs_image_free(&cand);
   obs_image_free(&ref);

@@ -18,6 +18,7 @@ static const char *const route_names[SRV_NROUTES] = {
     [SRV_ROUTE_JOB_DOCUMENT] = "/api/v1/jobs/{id}/document",
     [SRV_ROUTE_JOB_LOG] = "/api/v1/jobs/{id}/log",
     [SRV_ROUTE_TECHNIQUES] = "/api/v1/techniques",
+    [SRV_ROUTE_METRIC_TABLE] = "/api/v1/metrics",
     [SRV_ROUTE_SCENES] = "/api/v1/scenes",
     [SRV_ROUTE_SCENE_DEFAULTS] = "/api/v1/scenes/{name}/defaults",
     [SRV_ROUTE_HEALTH] = "/api/v1/health",

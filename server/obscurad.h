@@ -415,6 +415,7 @@ typedef enum {
   SRV_ROUTE_JOB_DOCUMENT,
   SRV_ROUTE_JOB_LOG,
   SRV_ROUTE_TECHNIQUES,
+  SRV_ROUTE_METRIC_TABLE, /* /api/v1/metrics: the metric table (not /metrics, Prometheus's) */
   SRV_ROUTE_SCENES,
   SRV_ROUTE_SCENE_DEFAULTS, /* /api/v1/scenes/{name}/defaults */
   SRV_ROUTE_HEALTH,
@@ -616,11 +617,13 @@ int srv_compare_get(srv_req *r, int64_t id, int csv);
  * metrics are missing, involving job `job` (0 = all: recovery at start). */
 void srv_compare_metrics(struct srv_app *app, int64_t job);
 /* Compares the result in `dir` with the reference result in `rdir` on the primary output of the
- * candidate's technique (compare_output.c): fills `m`, the error image `eimg` and, in `extra`
- * (an object), "output" (when not "ao"), "rgb" {rmse [R,G,B], rmse_luminance, ssim_luminance,
- * rel_mse} for RGB outputs and "patch_rmse" for per-patch ones. `resp` maps the reference. */
-int srv_compare_primary(const char *dir, const char *rdir, obs_response resp, obs_compare *m,
-                        json_t *extra, obs_image *eimg, obs_err *err);
+ * candidate's technique (compare_output.c): fills `m` with every metric of the table that applies
+ * (obs_metrics_compare_all; patch_rmse for per-patch outputs), the error image `eimg`, FLIP's map
+ * `flip` (zeroed where FLIP does not apply) and, in `extra` (an object), "output" (when not
+ * "ao"). `resp` maps the reference. */
+int srv_compare_primary(const char *dir, const char *rdir, obs_response resp,
+                        obs_metric_values *m, json_t *extra, obs_image *eimg, obs_image *flip,
+                        obs_err *err);
 /* Compares output `output` of the result in `dir` with the output its technique pairs it with
  * (obs_output_pair) in the reference result in `rdir`, over the reference's covered pixels:
  * every metric of the table that applies (angle_deg for vector outputs) into `metrics` (an

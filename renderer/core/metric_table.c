@@ -14,10 +14,10 @@ static const obs_metric k_table[OBS_METRIC_COUNT] = {
                          OBS_METRIC_NEEDS_SCALAR, 4,
                          "sqrt(mean((c - r)^2)) over the selected pixels"},
     [OBS_METRIC_BIAS] = {"bias", NULL, "bias", -1, "Bias", "", OBS_METRIC_ZERO, -INF, INF,
-                         OBS_METRIC_NEEDS_SCALAR, 3,
+                         OBS_METRIC_NEEDS_SCALAR, 4,
                          "mean(c - r): > 0 means the candidate is too bright"},
     [OBS_METRIC_MAX_ABS] = {"max_abs", NULL, "max_abs", -1, "Max |error|", "", OBS_METRIC_LOWER,
-                            0, INF, OBS_METRIC_NEEDS_SCALAR, 3, "max |c - r|"},
+                            0, INF, OBS_METRIC_NEEDS_SCALAR, 4, "max |c - r|"},
     [OBS_METRIC_PSNR] = {"psnr", NULL, "psnr", -1, "PSNR", "dB", OBS_METRIC_HIGHER, -INF,
                          OBS_METRICS_PSNR_MAX, OBS_METRIC_NEEDS_SCALAR, 3,
                          "min(10 log10(1 / RMSE^2), 100): peak 1, 100 dB for identical images"},
@@ -48,10 +48,10 @@ static const obs_metric k_table[OBS_METRIC_COUNT] = {
     [OBS_METRIC_RMSE_LUMINANCE] = {"rmse_luminance", "rgb", "rmse_luminance", -1,
                                    "RMSE of luminance", "", OBS_METRIC_LOWER, 0, INF,
                                    OBS_METRIC_NEEDS_RGB, 4,
-                                   "RMSE of Y = 0.2126 R + 0.7152 G + 0.0722 B"},
+                                   "RMSE of Y = 0.2126 R + 0.7152 G + 0.0722 B", "rmse"},
     [OBS_METRIC_SSIM_LUMINANCE] = {"ssim_luminance", "rgb", "ssim_luminance", -1,
                                    "SSIM of luminance", "", OBS_METRIC_HIGHER, -1, 1,
-                                   OBS_METRIC_NEEDS_RGB, 4, "SSIM of Y, data range 1"},
+                                   OBS_METRIC_NEEDS_RGB, 4, "SSIM of Y, data range 1", "ssim"},
     [OBS_METRIC_REL_MSE] = {"rel_mse", "rgb", "rel_mse", -1, "Rel. MSE", "", OBS_METRIC_LOWER, 0,
                             INF, OBS_METRIC_NEEDS_RGB, 4,
                             "mean over pixels and channels of (c - r)^2 / (r^2 + 0.01)"},
@@ -241,13 +241,13 @@ json_t *obs_metric_table_json(void) {
   json_t *a = json_array();
   for (int i = 0; a && i < OBS_METRIC_COUNT; i++) {
     const obs_metric *m = &k_table[i];
-    json_t *o = json_pack("{s:s, s:s?, s:s, s:i, s:s, s:s, s:s, s:o, s:o, s:s, s:i, s:s}",
+    json_t *o = json_pack("{s:s, s:s?, s:s, s:i, s:s, s:s, s:s, s:o, s:o, s:s, s:i, s:s, s:s?}",
                           "name", m->name, "json_group", m->json_group, "json_key", m->json_key,
                           "json_index", m->json_index, "label", m->label, "unit", m->unit,
                           "direction", obs_metric_direction_name(m->direction), "min",
                           num_or_null(m->min), "max", num_or_null(m->max), "needs",
                           obs_metric_needs_name(m->needs), "digits", m->digits, "definition",
-                          m->definition);
+                          m->definition, "same_as", m->same_as);
     if (!o || json_array_append_new(a, o)) {
       json_decref(a);
       return NULL;
@@ -287,4 +287,10 @@ int obs_metric_values_json(const obs_metric_values *vals, json_t *metrics) {
                           json_boolean(vals->at_reference_accuracy)))
     return OBS_ENOMEM;
   return OBS_OK;
+}
+
+json_t *obs_metric_json_get(const json_t *metrics, const obs_metric *m) {
+  const json_t *obj = m->json_group ? json_object_get(metrics, m->json_group) : metrics;
+  json_t *v = json_object_get(obj, m->json_key);
+  return m->json_index >= 0 ? json_array_get(v, (size_t)m->json_index) : v;
 }

@@ -92,9 +92,12 @@ export async function imageWidths(page, selector) {
   return page.$$eval(selector, (imgs) => imgs.map((i) => i.naturalWidth));
 }
 
-export const CSV_HEADER = 'index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs,rmse,bias,' +
-  'max_abs,psnr,ssim,ref_noise,at_reference_accuracy,pareto,cpu_model,cores,vulkan_device,output,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse,total_ms_min,total_ms_max,' +
-  'reference,reference_label,common_rmse,common_bias,common_psnr,common_ssim,common_pareto';
+// The metric columns are the metric table's (`obscura metrics`), in its order; then what each row
+// is measured against and the common reference's figures.
+export const CSV_HEADER = 'index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs,' +
+  'rmse,bias,max_abs,psnr,ssim,flip,angle_deg,ref_noise,patch_rmse,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse,' +
+  'at_reference_accuracy,pareto,cpu_model,cores,vulkan_device,output,total_ms_min,total_ms_max,' +
+  'reference,reference_label,common_rmse,common_bias,common_psnr,common_ssim,common_flip,common_pareto';
 
 /**
  * The checks of a finished comparison page (`doc` is its GET /api/v1/comparisons/{id} answer):
@@ -105,7 +108,7 @@ export const CSV_HEADER = 'index,job_id,technique,backend,params,state,total_ms,
 export async function checkComparisonPage(page, doc, prefix) {
   const n = doc.candidates.length;
   await page.waitForFunction((k) => window.__obscura.comparison && window.__obscura.comparison.rendered === k, n);
-  assert.equal(await page.locator('table.candidates tbody tr').count(), n, 'one table row per candidate');
+  assert.equal(await page.locator('table.candidates tbody tr[data-index]').count(), n, 'one table row per candidate');
 
   // The chart: points per technique series, read from uPlot's data arrays.
   const withMetrics = doc.candidates.filter((c) => c.metrics);
@@ -174,7 +177,7 @@ export async function checkComparisonPage(page, doc, prefix) {
 
   // Sorting by RMSE, both ways; rows without metrics go last.
   const rmseOrder = (dir) => [...withMetrics].sort((a, b) => dir * (a.metrics.rmse - b.metrics.rmse) || a.index - b.index).map((c) => String(c.index));
-  const rowOrder = () => page.$$eval('table.candidates tbody tr', (trs) => trs.map((t) => t.dataset.index));
+  const rowOrder = () => page.$$eval('table.candidates tbody tr[data-index]', (trs) => trs.map((t) => t.dataset.index));
   await page.getByRole('button', {name: 'RMSE', exact: true}).click();
   assert.deepEqual((await rowOrder()).slice(0, withMetrics.length), rmseOrder(1));
   assert.equal(await page.locator('th[aria-sort="ascending"]').textContent(), 'RMSE ▲');
@@ -187,6 +190,7 @@ export async function checkComparisonPage(page, doc, prefix) {
   await download.saveAs(file);
   const lines = fs.readFileSync(file, 'utf8').trim().split(/\r?\n/);
   assert.equal(lines[0], CSV_HEADER, 'CSV header as in docs/comparisons.md');
-  assert.equal(lines.length, n + 1, 'one CSV row per candidate');
+  const outputs = doc.candidates.reduce((a, c) => a + (c.outputs ? c.outputs.length : 0), 0);
+  assert.equal(lines.length, n + outputs + 1, 'one CSV row per candidate and per other output of it');
   await screenshot(page, prefix);
 }

@@ -208,7 +208,7 @@ def main():
     cases = [line.split() for line in run(tool, "gen", work).splitlines()]
     print(f"{'pair':<10} {'size':>6} {'pixels':>6} | {'obscura rmse':>13} {'idiff rms':>11} | "
           f"{'psnr':>9} {'idiff':>9} | {'max_abs':>10} {'idiff':>10} | {'bias':>11} "
-          f"{'oiiotool':>10} | {'ssim':>10} {'numpy':>10} {'|diff|':>8}")
+          f"{'oiiotool':>10} | {'ssim':>10} {'skimage':>10} {'|diff|':>8}")
     for name, ext, has_mask in cases:
         cand = os.path.join(work, f"{name}_cand.{ext}")
         ref = os.path.join(work, f"{name}_ref.{ext}")

@@ -27,6 +27,8 @@ static void test_table_complete(void **state) {
     for (int j = 0; j < i; j++) assert_string_not_equal(t[i].name, t[j].name);
   }
   assert_null(obs_metric_find("nope"));
+  for (int i = 0; i < OBS_METRIC_COUNT; i++)
+    if (t[i].same_as) assert_non_null(obs_metric_find(t[i].same_as));
   assert_true(t[OBS_METRIC_PSNR].max == OBS_METRICS_PSNR_MAX);
 }
 
@@ -91,6 +93,13 @@ static void test_rgb(void **state) {
   assert_true(v.v[OBS_METRIC_FLIP] == flip);
   assert_int_equal(v.has[OBS_METRIC_ANGLE_DEG], 0);
   assert_int_equal(v.has[OBS_METRIC_SSIM_LUMINANCE], 1);
+  /* same_as: equal where both apply (the RMSEs up to the float luminance plane's rounding). */
+  const obs_metric *t = obs_metric_table();
+  for (int i = 0; i < OBS_METRIC_COUNT; i++) {
+    if (!t[i].same_as) continue;
+    double other = v.v[obs_metric_find(t[i].same_as) - t];
+    assert_true(fabs(v.v[i] - other) <= 1e-6 * fabs(other));
+  }
   /* JSON: the RGB entries in "rgb", the per-channel RMSE as an array. */
   json_t *j = json_object();
   assert_int_equal(obs_metric_values_json(&v, j), 0);

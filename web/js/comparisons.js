@@ -52,27 +52,63 @@ export function mountComparisons(view) {
 
 // ---- shared pieces ------------------------------------------------------------------------------
 
-/** Metrics and timings of one candidate as a two-column table (also used by the job page). */
+// ---- the metric table (GET /api/v1/metrics): every metric column and row is built from it -----
+
+let METRICS = null; // the table once loaded
+let metricsLoad = null;
+/** The metric table, fetched once (callers await it before drawing metrics). */
+export function metricTable() {
+  if (!metricsLoad) metricsLoad = api('/api/v1/metrics').then((r) => (METRICS = r.metrics)).catch(() => (METRICS = []));
+  return metricsLoad;
+}
+/** Metric m's value in a candidate's metrics document: at its group, key and array index. */
+const metricValue = (metrics, m) => {
+  const o = m.json_group ? metrics && metrics[m.json_group] : metrics;
+  const v = o ? o[m.json_key] : undefined;
+  return m.json_index >= 0 ? (v ? v[m.json_index] : undefined) : v;
+};
+const BETTER = {lower: 'lower is better', higher: 'higher is better', zero: 'closer to 0 is better'};
+const metricTitle = (m) => `${m.definition}${BETTER[m.direction] ? ` (${BETTER[m.direction]})` : ''}`;
+
+/** The table's columns of metrics some candidate has, in the table's order: the reference's noise
+ * (information, not a quality) and figures equal to another (same_as) left out; a metric's array
+ * entries (RMSE R, G, B) share one column. */
+function metricColumns(cands) {
+  const cols = [];
+  for (const m of METRICS || []) {
+    if (m.direction === 'none' || m.same_as || m.json_index > 0) continue;
+    if (!cands.some((c) => metricValue(c.metrics, m) !== undefined)) continue;
+    if (m.json_index === 0) {
+      const parts = METRICS.filter((x) => x.json_group === m.json_group && x.json_key === m.json_key);
+      cols.push({key: m.name, label: [m.label, ...parts.slice(1).map((x) => x.label.split(' ').pop())].join(' / '),
+        title: metricTitle(m), num: true, nowrap: true,
+        get: (c) => (c.metrics && c.metrics[m.json_group] ? c.metrics[m.json_group][m.json_key] : null),
+        sortValue: (v) => v.reduce((a, x) => a + (x ?? Infinity), 0),
+        fmt: (v) => (v ? v.map((x) => fmtNum(x, m.digits)).join(' / ') : '–')});
+    } else {
+      cols.push({key: m.name, label: m.unit ? `${m.label} ${m.unit}` : m.label, title: metricTitle(m), num: true,
+        get: (c) => metricValue(c.metrics, m) ?? null, fmt: (v) => fmtNum(v, m.digits)});
+    }
+  }
+  return cols;
+}
+
+/** Metrics and timings of one candidate as a two-column table (also used by the job page, after
+ * metricTable()). */
 export function metricsTable(c) {
   const m = c.metrics || {};
   const med = (c.timings_ms && c.timings_ms.median) || {};
   const runs = (c.timings_ms && c.timings_ms.runs) || [];
   const rows = [
-    ['RMSE', fmtNum(m.rmse)], ['bias (mean signed error)', fmtNum(m.bias)], ['max |error|', fmtNum(m.max_abs)],
-    ['PSNR (dB)', fmtNum(m.psnr)], ['SSIM', fmtNum(m.ssim)], ['reference noise (mean standard error)', fmtNum(m.ref_noise)],
+    ...(METRICS || []).filter((x) => metricValue(m, x) !== undefined)
+      .map((x) => [x.unit ? `${x.label} (${x.unit})` : x.label, fmtNum(metricValue(m, x), x.digits)]),
     ['at reference accuracy', m.at_reference_accuracy ? 'yes (RMSE below 2 × reference noise)' : 'no'],
     ['Pareto-optimal', c.pareto ? 'yes' : 'no'],
     ['median total ms', fmtMs(med.total)], ['total ms, fastest to slowest run', spreadText(c)], ['median build ms', fmtMs(med.build)], ['median render ms', fmtMs(med.render)],
     ['median post ms', fmtMs(med.post)], ['timed runs', String(runs.length)],
   ];
-  // Metrics of a primary output that is not AO: which one, and the RGB or per-patch figures.
+  // Metrics of a primary output that is not AO: which one.
   if (m.output) rows.unshift(['output compared', m.output + (m.rgb ? ' (luminance)' : '')]);
-  if (m.rgb) {
-    rows.splice(rows.length - 7, 0, ['RMSE R, G, B', m.rgb.rmse.map((v) => fmtNum(v)).join(', ')],
-                ['RMSE of luminance', fmtNum(m.rgb.rmse_luminance)], ['SSIM of luminance', fmtNum(m.rgb.ssim_luminance)],
-                ['relative MSE', fmtNum(m.rgb.rel_mse)]);
-  }
-  if (m.patch_rmse !== undefined) rows.splice(rows.length - 7, 0, ['RMSE over patches (area-weighted)', fmtNum(m.patch_rmse)]);
   if (c.machine) rows.push(['machine', [c.machine.cpu_model, c.machine.cores && `${c.machine.cores} cores`, c.machine.vulkan_device].filter(Boolean).join(', ')]);
   return el('table', {className: 'kv metrics'}, el('tbody', {}, ...rows.map(([k, v]) => el('tr', {},
     el('th', {scope: 'row'}, k), el('td', {className: 'num'}, v)))));
@@ -117,18 +153,9 @@ const COLUMNS = [
   {key: 'spread', label: 'Spread ms (min–max)', get: (c) => spreadOf(c), num: true, nowrap: true,
    sortValue: (v) => v[1] - v[0], fmt: (v) => (v ? `${fmtMs(v[0])}–${fmtMs(v[1])}` : '–')},
   {key: 'render', label: 'Render ms', get: (c) => c.timings_ms && c.timings_ms.median ? c.timings_ms.median.render : null, num: true, fmt: fmtMs},
-  {key: 'rmse', label: 'RMSE', get: (c) => c.metrics && c.metrics.rmse, num: true, fmt: fmtNum},
-  {key: 'bias', label: 'Bias', get: (c) => c.metrics && c.metrics.bias, num: true, fmt: fmtNum},
-  {key: 'max_abs', label: 'Max |err|', get: (c) => c.metrics && c.metrics.max_abs, num: true, fmt: fmtNum},
-  {key: 'psnr', label: 'PSNR dB', get: (c) => c.metrics && c.metrics.psnr, num: true, fmt: (v) => fmtNum(v, 3)},
-  {key: 'ssim', label: 'SSIM', get: (c) => c.metrics && c.metrics.ssim, num: true, fmt: fmtNum},
-  // RGB outputs only (added when a candidate has them): the per-channel RMSE and relative MSE.
-  {key: 'rmse_rgb', label: 'RMSE R / G / B', rgb: true, get: (c) => (c.metrics && c.metrics.rgb ? c.metrics.rgb.rmse : null), num: true, nowrap: true,
-   sortValue: (v) => v.reduce((a, x) => a + (x ?? Infinity), 0), fmt: (v) => (v ? v.map((x) => fmtNum(x, 3)).join(' / ') : '–')},
-  {key: 'rel_mse', label: 'Rel. MSE', rgb: true, get: (c) => c.metrics && c.metrics.rgb && c.metrics.rgb.rel_mse, num: true, fmt: fmtNum},
   // What the row's figures are measured against: the reference's id (the References list and the
   // cell's title give its label).
-  {key: 'reference', label: 'Reference', get: (c) => (c.reference ? c.reference.id : null), title: (c) => c.reference && c.reference.label},
+  {key: 'reference', label: 'Reference', get: (c) => (c.reference ? c.reference.id : null), cellTitle: (c) => c.reference && c.reference.label},
   {key: 'pareto', label: 'Pareto', get: (c) => (c.pareto ? 1 : 0), num: true, fmt: (v) => (v ? '★ yes' : 'no')},
   // With a common reference: every candidate's error on that one scale.
   {key: 'common_rmse', label: 'RMSE vs common', common: true, get: (c) => c.common && c.common.metrics && c.common.metrics.rmse, num: true, fmt: fmtNum},
@@ -138,9 +165,12 @@ const COLUMNS = [
    fmt: (v) => (v === null ? '–' : v ? '≈ yes' : 'no')},
 ];
 
-/** The table's columns: the RGB ones only when some candidate has RGB metrics, the common ones with a common reference. */
-const columnsFor = (cands) => COLUMNS.filter((c) => (!c.rgb || cands.some((x) => x.metrics && x.metrics.rgb)) &&
-                                                    (!c.common || cands.some((x) => x.common)));
+/** The table's columns: the metric table's (those the candidates have) after the render time; the common ones with a common reference. */
+const columnsFor = (cands) => {
+  const at = COLUMNS.findIndex((c) => c.key === 'render') + 1;
+  return [...COLUMNS.slice(0, at), ...metricColumns(cands), ...COLUMNS.slice(at)]
+    .filter((c) => !c.common || cands.some((x) => x.common));
+};
 
 /** Downloads url through fetch when a token is needed (a plain link cannot send the header). */
 function csvLink(url, name) {
@@ -224,7 +254,7 @@ function renderTable(pg) {
     const d = col.sortValue ? col.sortValue(va) - col.sortValue(vb) : col.num ? va - vb : String(va).localeCompare(String(vb));
     return d ? d * dir : a.index - b.index;
   });
-  thead.replaceChildren(el('tr', {}, ...cols.map((c) => el('th', {scope: 'col', 'aria-sort': c.key === key ? (dir > 0 ? 'ascending' : 'descending') : 'none'},
+  thead.replaceChildren(el('tr', {}, ...cols.map((c) => el('th', {scope: 'col', title: c.title || '', 'aria-sort': c.key === key ? (dir > 0 ? 'ascending' : 'descending') : 'none'},
     el('button', {type: 'button', className: 'sort', onclick: () => {
       s.sort = {key: c.key, dir: s.sort.key === c.key ? -s.sort.dir : 1};
       renderTable(pg);
@@ -241,7 +271,7 @@ function renderTable(pg) {
         }
         if (col.key === 'state') return el('td', {}, stateBadge(v));
         return el('td', {className: [col.num && 'num', col.nowrap && 'nowrap', col.key].filter(Boolean).join(' '),
-                         ...(col.title && col.title(c) ? {title: col.title(c)} : {})}, col.fmt ? col.fmt(v) : String(v ?? '–'));
+                         ...(col.cellTitle && col.cellTitle(c) ? {title: col.cellTitle(c)} : {})}, col.fmt ? col.fmt(v) : String(v ?? '–'));
       }));
     tr.addEventListener('click', (ev) => {
       if (!ev.target.closest('button, a')) select(pg, c.index);
@@ -472,7 +502,8 @@ export function mountComparison(view, [id], query) {
     return s.colours.get(t);
   };
   // Colours follow the registry's order, so a technique keeps its colour across comparisons.
-  const ready = techniques().then(({techniques: ts}) => ts.forEach((t) => pg.colourOf(t.name))).catch(() => {});
+  const ready = Promise.all([metricTable(),
+    techniques().then(({techniques: ts}) => ts.forEach((t) => pg.colourOf(t.name))).catch(() => {})]);
 
   debug.comparison = {id: Number(id), selected: s.selected, chart: null, state: null};
   let dead = false; // set when the page goes: a late answer must not draw (or make a chart)

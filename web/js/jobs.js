@@ -2,7 +2,7 @@
 // parameters it ran with, its metrics when it belongs to a comparison, and its log), and what the job list
 // (joblist.js) shares with it: the actions on a job, the confirmation dialog, warning markers.
 import {ACTIVE, api, debug, el, fmtBytes, fmtMs, fmtNum, fmtTime, paramText, poll, stateBadge, techniques} from './api.js';
-import {metricsTable} from './comparisons.js';
+import {metricTable, metricsTable} from './comparisons.js';
 
 export {mountJobs} from './joblist.js';
 
@@ -362,7 +362,7 @@ export function mountJob(view, [id], query) {
 async function showMetrics(slot, cid, jobId) {
   let c;
   try {
-    c = await api(`/api/v1/comparisons/${cid}`);
+    [c] = await Promise.all([api(`/api/v1/comparisons/${cid}`), metricTable()]);
   } catch {
     return;
   }

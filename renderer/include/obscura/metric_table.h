@@ -64,6 +64,8 @@ typedef struct obs_metric {
   obs_metric_needs needs;
   int digits;             /* significant digits a table shows */
   const char *definition; /* one line, as docs/metrics.md states it */
+  const char *same_as;    /* NULL, or the metric whose value this one always equals where both
+                             apply (rmse_luminance is an RGB output's rmse): tables show one */
 } obs_metric;
 
 /* The table: obs_metric_table()[id] for id in [0, OBS_METRIC_COUNT). */
@@ -119,6 +121,9 @@ char *obs_metric_table_openapi(void);
 /* Sets, in `metrics` (a JSON object), every metric `vals` has at its json_group/json_key place
  * (null for NaN), plus "pixels", "at_reference_accuracy". */
 int obs_metric_values_json(const obs_metric_values *vals, struct json_t *metrics);
+/* Metric m's value in a `metrics` object as obs_metric_values_json writes it (borrowed; NULL when
+ * absent). */
+struct json_t *obs_metric_json_get(const struct json_t *metrics, const obs_metric *m);
 
 #ifdef __cplusplus
 }
