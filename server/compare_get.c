@@ -371,8 +371,7 @@ static void rank_all(json_t *o, json_t *list, obs_pareto_point *pts, const json_
     if (group[i]) cid = group[i], ncommon++;
     cp[i] = pts[i];
     json_t *rm = json_object_get(ms[i], "rmse"), *rn = json_object_get(ms[i], "ref_noise");
-    cp[i].error = json_is_number(rm) && json_is_number(json_object_get(ms[i], "rmse"))
-                      ? json_number_value(rm) : NAN;
+    cp[i].error = json_is_number(rm) ? json_number_value(rm) : NAN;
     cp[i].error_tolerance = json_is_number(rn) ? json_number_value(rn) : 0;
     cp[i].at_reference_accuracy = json_is_true(json_object_get(ms[i], "at_reference_accuracy"));
   }

@@ -255,6 +255,7 @@ test('comparison page: references labelled, reference column, markers by referen
       assert.equal(await page.locator('table.candidates tr[data-index="1"] td').nth(col).textContent(), '0.1500');
       await page.getByLabel(/the common reference R3/).check();
       await page.waitForFunction(() => window.__obscura.comparison.scale === 'common');
+      assert.match(page.url(), new RegExp(`#/comparisons/${ID + 1}\\?scale=common$`), 'the route keeps the scale');
       const common = await page.evaluate(() => window.__obscura.comparison.chart);
       assert.equal(common.byReference, false, 'one reference: markers by technique again');
       assert.equal(common.points, 3);

@@ -204,10 +204,14 @@ const viewerHref = (a, b, bfile) => `#/view/${a}?${b ? `b=${b}&${bfile ? `bfile=
 const againstHref = (c) => (c.links && c.links['reference_mapped.exr'] ? viewerHref(c.job_id, c.job_id, 'reference_mapped.exr')
   : viewerHref(c.job_id, c.reference_job_id));
 
+// The page's route: the selected candidate and the error scale, so a reload keeps both.
+const routeOf = ({id, s}) => `#/comparisons/${id}?` +
+  [s.selected !== null && `candidate=${s.selected}`, s.scale === 'common' && 'scale=common'].filter(Boolean).join('&');
+
 function select(pg, index, scroll = true) {
   const {s, id, tbody, detail} = pg;
   s.selected = index;
-  history.replaceState(null, '', `#/comparisons/${id}?candidate=${index}`);
+  history.replaceState(null, '', routeOf(pg));
   if (s.chart) s.chart.select(index);
   for (const tr of tbody.rows) if (tr.dataset.index !== undefined) tr.setAttribute('aria-selected', String(Number(tr.dataset.index) === index));
   renderSelected(pg);
@@ -315,6 +319,7 @@ function renderScale(pg) {
   const choice = (value, text) => el('label', {}, el('input', {type: 'radio', name: 'scale', value, checked: s.scale === value,
     onchange: () => {
       s.scale = value;
+      history.replaceState(null, '', routeOf(pg));
       renderRanking(pg);
       renderChart(pg);
     }}), ` ${text}`);
