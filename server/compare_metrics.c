@@ -32,26 +32,37 @@ static void metrics_one(srv_app *app, const json_t *row) {
   char dir[4200], rdir[4200];
   srv_results_path(app, job, dir, sizeof dir);
   srv_results_path(app, rjob, rdir, sizeof rdir);
-  srv_output outs[16], err_outs[5];
+  srv_output outs[16], err_outs[6];
   int nouts = 0, nerr = 0;
   obs_metric_values m;
   int rc = obs_response_parse(json_string_value(json_object_get(row, "response")), &resp)
                ? obs_err_set(&e, OBS_EINVAL, "unknown response mapping")
                : 0;
   json_t *extra = json_object();
-  if (!rc) rc = srv_compare_primary(dir, rdir, resp, &m, extra, &eimg, &flip, &e);
+  /* A further measurement (common reference, another output) has figures only: the error images,
+   * FLIP map and mapped reference are the candidate's own row's. */
+  const char *role = json_string_value(json_object_get(row, "role"));
+  int own = !role || !strcmp(role, "own");
+  /* An output a technique pairs with its reference's (bent normals): every metric that applies. */
+  const char *output = json_string_value(json_object_get(row, "output"));
+  json_t *pair = output ? json_object() : NULL;
+  if (!rc && output) rc = srv_compare_output(dir, rdir, output, pair, &e);
+  else if (!rc) rc = srv_compare_primary(dir, rdir, resp, &m, extra, &eimg, &flip, &e);
   /* Written into the candidate's published directory under staging names and renamed, so a crash
    * leaves either no error image or a whole one (recorded below, or again after a restart). */
-  if (!rc) rc = obs_metrics_write_error_files(&eimg, dir, &e);
-  if (!rc && flip.data) rc = obs_metrics_write_flip_files(&flip, dir, &e);
-  if (!rc) rc = srv_outputs_describe(dir, outs, 16, &nouts, &e);
+  if (!rc && own) rc = obs_metrics_write_error_files(&eimg, dir, &e);
+  if (!rc && own && flip.data) rc = obs_metrics_write_flip_files(&flip, dir, &e);
+  if (!rc && own) rc = srv_outputs_describe(dir, outs, 16, &nouts, &e);
   for (int i = 0; !rc && i < nouts; i++)
     if ((!strncmp(outs[i].name, "error.", 6) || !strncmp(outs[i].name, "flip.", 5) ||
-         !strcmp(outs[i].name, SRV_MAPPED_REFERENCE_PNG)) &&
+         !strcmp(outs[i].name, SRV_MAPPED_REFERENCE_PNG) ||
+         !strcmp(outs[i].name, SRV_MAPPED_REFERENCE_EXR)) &&
         nerr < (int)(sizeof err_outs / sizeof *err_outs))
       err_outs[nerr++] = outs[i];
   char *metrics = NULL;
-  if (!rc) {
+  if (!rc && pair) {
+    metrics = json_dumps(pair, JSON_COMPACT | JSON_REAL_PRECISION(17));
+  } else if (!rc) {
     /* Every metric of the table that applied, at its place (the table's json_group/json_key). */
     json_t *mj = json_object();
     obs_metric_values_json(&m, mj);
@@ -72,12 +83,16 @@ static void metrics_one(srv_app *app, const json_t *row) {
   else if (rc)
     srv_log("comparison %lld candidate %d: no metrics: %s", (long long)cmp, idx,
             obs_err_message(&e));
+  else if (pair)
+    srv_log("comparison %lld candidate %d: output %s measured (job %lld vs reference %lld)",
+            (long long)cmp, idx, output, (long long)job, (long long)rjob);
   else
     srv_log("comparison %lld candidate %d: rmse %.4g, ssim %.4g, flip %.4g (job %lld vs "
             "reference %lld)",
             (long long)cmp, idx, m.v[OBS_METRIC_RMSE], m.v[OBS_METRIC_SSIM], m.v[OBS_METRIC_FLIP],
             (long long)job, (long long)rjob);
   free(metrics);
+  json_decref(pair);
   json_decref(extra);
   obs_err_free(&dberr);
   obs_err_free(&e);

@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include "compare_internal.h"
+#include "obscura/metric_table.h"
 #include "obscurad.h"
 
 /* The technique whose result lies in `dir`, from its summary.json; rt_ao for a result written
@@ -80,19 +81,45 @@ static int patch_rmse(const char *dir, const char *rdir, const obs_output *o, do
   return rc;
 }
 
+/* Moves staged file `stage` to `final` (removing the stage when that fails). */
+static int put_in_place(int rc, const char *stage, const char *final, obs_err *err) {
+  if (!rc && rename(stage, final))
+    rc = obs_err_set(err, OBS_EIO, "%s: cannot rename into place: %s", final, strerror(errno));
+  if (rc) unlink(stage);
+  return rc;
+}
+
 /* Writes `dir`/reference_mapped.png: the reference's output `o` after the candidate's response
  * mapping, as the candidate's own PNG shows it (linear grey), so the dashboard's slider shows what
- * the metrics compared. Staged and renamed like the error images. */
+ * the metrics compared; and reference_mapped.exr, the same values as floats under the candidate's
+ * channel names (with the reference's noise and coverage), so the viewer's A - B at a pixel is the
+ * error the metrics summed. Staged and renamed like the error images. */
 static int write_mapped_reference(const obs_image *ref, const obs_output *o, const char *dir,
                                   obs_err *err) {
   char stage[4300], final[4300];
   snprintf(stage, sizeof stage, "%s/.%s.new", dir, SRV_MAPPED_REFERENCE_PNG);
   snprintf(final, sizeof final, "%s/%s", dir, SRV_MAPPED_REFERENCE_PNG);
   const char *ch[1] = {o->name};
-  int rc = obs_image_write_png(ref, ch, 1, 0, stage, err);
-  if (!rc && rename(stage, final))
-    rc = obs_err_set(err, OBS_EIO, "%s: cannot rename into place: %s", final, strerror(errno));
-  if (rc) unlink(stage);
+  int rc = put_in_place(obs_image_write_png(ref, ch, 1, 0, stage, err), stage, final, err);
+  if (rc) return rc;
+  char se[OBS_CHANNEL_NAME_MAX + 8];
+  snprintf(se, sizeof se, "%s_stderr", o->name);
+  const char *want[3] = {o->name, se, "alpha"};
+  const char *names[3];
+  int n = 0;
+  for (int i = 0; i < 3; i++)
+    if (obs_image_channel(ref, want[i])) names[n++] = want[i];
+  obs_image out;
+  memset(&out, 0, sizeof out);
+  rc = obs_image_init(&out, ref->width, ref->height, n, names, err);
+  size_t px = (size_t)ref->width * (size_t)ref->height;
+  for (int i = 0; !rc && i < n; i++)
+    memcpy(obs_image_channel(&out, names[i]), obs_image_channel(ref, names[i]),
+           px * sizeof(float));
+  snprintf(stage, sizeof stage, "%s/.%s.new", dir, SRV_MAPPED_REFERENCE_EXR);
+  snprintf(final, sizeof final, "%s/%s", dir, SRV_MAPPED_REFERENCE_EXR);
+  if (!rc) rc = put_in_place(obs_image_write_exr(&out, stage, err), stage, final, err);
+  obs_image_free(&out);
   return rc;
 }
 
@@ -156,6 +183,36 @@ int srv_compare_primary(const char *dir, const char *rdir, obs_response resp,
     m->has[OBS_METRIC_PATCH_RMSE] = 1;
   }
   if (!rc && strcmp(o->name, "ao")) json_object_set_new(extra, "output", json_string(o->name));
+  obs_image_free(&cand);
+  obs_image_free(&ref);
+  return rc;
+}
+
+int srv_compare_output(const char *dir, const char *rdir, const char *output, json_t *metrics,
+                       obs_err *err) {
+  const obs_technique *t = result_technique(dir), *rt = result_technique(rdir);
+  const obs_output_pair *q = t->compared_outputs;
+  while (q && q->output && strcmp(q->output, output)) q++;
+  const obs_output *o = obs_technique_output(t, output);
+  const obs_output *ro = q && q->output ? obs_technique_output(rt, q->reference_output) : NULL;
+  if (!o || !ro)
+    return obs_err_set(err, OBS_EINVAL, "%s does not compare its output \"%s\" with %s's",
+                       t->name, output, rt->name);
+  obs_image cand, ref;
+  memset(&cand, 0, sizeof cand);
+  memset(&ref, 0, sizeof ref);
+  int rc = read_exr(dir, t, &cand, err);
+  if (!rc) rc = read_exr(rdir, rt, &ref, err);
+  if (!rc && strcmp(ro->name, o->name)) rename_output(&ref, ro->name, o->name);
+  obs_metric_opts opts = {.channel = o->name,
+                          .mask = obs_image_channel(&ref, "alpha") ? "alpha" : NULL};
+  obs_metric_values v;
+  if (!rc) rc = obs_metrics_compare_all(&cand, &ref, &opts, &v, err);
+  if (!rc) rc = obs_metric_values_json(&v, metrics);
+  if (!rc) {
+    json_object_set_new(metrics, "output", json_string(o->name));
+    json_object_set_new(metrics, "reference_output", json_string(ro->name));
+  }
   obs_image_free(&cand);
   obs_image_free(&ref);
   return rc;

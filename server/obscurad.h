@@ -241,6 +241,13 @@ typedef struct srv_new_candidate {
   int reference; /* index into srv_new_comparison.references */
   const char *technique, *backend, *params, *reference_params, *response;
 } srv_new_candidate;
+/* A further measurement of a candidate's job (its own row, no job of its own): against the
+ * common reference ("common") or another output against its declared reference ("output"). */
+typedef struct srv_new_measure {
+  int candidate, reference; /* indices into .candidates and .references */
+  const char *role, *reference_params, *response;
+  const char *output; /* a compared_outputs pair's candidate output, or NULL */
+} srv_new_measure;
 typedef struct srv_new_comparison {
   const char *label, *scene, *request;
   const char *notes; /* JSON array text of values derived from the scene's size, may be NULL */
@@ -249,8 +256,11 @@ typedef struct srv_new_comparison {
   int nreferences;
   const srv_new_candidate *candidates;
   int ncandidates;
+  const srv_new_measure *measures; /* rows after the candidates' (indices ncandidates + k) */
+  int nmeasures;
 } srv_new_comparison;
-/* Inserts the comparison, every job and every candidate row in one transaction. */
+/* Inserts the comparison, every job, every candidate row and every further measurement's row in
+ * one transaction. */
 int srv_db_insert_comparison(srv_db *db, const srv_new_comparison *c, int64_t *id, obs_err *err);
 /* Stores a candidate's metrics (JSON) or why they could not be computed, unless already stored,
  * and records `outs` (the error images) as outputs of `job`, in one transaction. */
@@ -450,6 +460,8 @@ void srv_sched_stop(struct srv_app *app);
 /* The reference as a comparison candidate was measured against it (mapped through the candidate's
  * response), written beside the candidate's error images when the mapping changes it. */
 #define SRV_MAPPED_REFERENCE_PNG "reference_mapped.png"
+/* The same values as floats (its channel named as the candidate's), for the viewer's A - B. */
+#define SRV_MAPPED_REFERENCE_EXR "reference_mapped.exr"
 
 /* The fixed set of output files: content type, or NULL when `name` is not one. */
 const char *srv_output_content_type(const char *name);
@@ -629,6 +641,12 @@ void srv_compare_metrics(struct srv_app *app, int64_t job);
 int srv_compare_primary(const char *dir, const char *rdir, obs_response resp,
                         obs_metric_values *m, json_t *extra, obs_image *eimg, obs_image *flip,
                         obs_err *err);
+/* Compares output `output` of the result in `dir` with the output its technique pairs it with
+ * (obs_output_pair) in the reference result in `rdir`, over the reference's covered pixels:
+ * every metric of the table that applies (angle_deg for vector outputs) into `metrics` (an
+ * object, obs_metric_values_json) with "output" and "reference_output". */
+int srv_compare_output(const char *dir, const char *rdir, const char *output, json_t *metrics,
+                       obs_err *err);
 /* Time-budget mode of POST /api/v1/jobs: the most accurate measured configuration for `scene`
  * (or any scene at similar pixel count) whose median time fits `budget_ms`. Returns 0 with
  * *choice (new object: technique, backend, params, expected_ms, expected_rmse, comparison_id,

@@ -26,12 +26,13 @@ static size_t nknown;
 static pthread_once_t known_once = PTHREAD_ONCE_INIT;
 
 static void known_init(void) {
-  nknown = obs_output_file_names(known, MAX_KNOWN - 5);
+  nknown = obs_output_file_names(known, MAX_KNOWN - 6);
   snprintf(known[nknown++], OBS_OUTPUT_FILE_MAX, "error.exr");
   snprintf(known[nknown++], OBS_OUTPUT_FILE_MAX, "error.png");
   snprintf(known[nknown++], OBS_OUTPUT_FILE_MAX, "flip.exr");
   snprintf(known[nknown++], OBS_OUTPUT_FILE_MAX, "flip.png");
   snprintf(known[nknown++], OBS_OUTPUT_FILE_MAX, "%s", SRV_MAPPED_REFERENCE_PNG);
+  snprintf(known[nknown++], OBS_OUTPUT_FILE_MAX, "%s", SRV_MAPPED_REFERENCE_EXR);
 }
 
 const char *srv_output_content_type(const char *name) {

@@ -1,6 +1,6 @@
 // The comparison's Pareto chart on uPlot (npm `uplot`, served at /vendor/uplot/): median time
 // against RMSE (of AO, or of an RGB output's luminance), both log scales, one series per technique
-// (colour), the backend as the point's shape, the Pareto front as a step line and the selected
+// (colour; per reference instead when the candidates have several), the backend as the point's shape, the Pareto front as a step line and the selected
 // candidate as a ring. uPlot draws axes, grid, legend and cursor; drawn here: each point's marker
 // path (uPlot fills and strokes it with the series' colours, its `paths` hook), and in its `draw`
 // hook the run-to-run spread of each point's time (a horizontal bar from the fastest to the
@@ -111,7 +111,8 @@ const defaultName = (c) => `Candidate ${c.index}: ${c.technique} on ${c.backend}
 /**
  * Draws the chart into `box`. cands: candidates of the comparison JSON; colourOf(technique);
  * onSelect(candidateIndex); nameOf(candidate): how the tooltip and the point's button name it;
- * noise: the reference's noise (RMSE units) drawn as the noise floor, or null. Returns
+ * noise: the reference's noise (RMSE units) drawn as the noise floor, or null; labelOf(id): a
+ * reference's label, for the legend when the markers are grouped by reference. Returns
  * {select(index), focus(index), destroy(), info} or null when there is nothing to plot. info:
  * {points, series: [{label, points}], pareto, order, noiseFloor, spreads} (also what the tests
  * read).
@@ -129,9 +130,11 @@ const pathOf = (shape, filled) => (u, si) => {
 
 const valueText = (u, v) => (v === null ? '–' : v.toPrecision(3));
 
-// The series and data: one series per technique (markers shaped by backend), the Pareto front as
-// a step line, and the ring around the selected point (last; `ringData` recomputes its data).
-function chartSeries(uPlot, pts, techs, colourOf, ratio, ringData) {
+// The series and data: one series per technique, or per reference when the candidates are measured
+// against several (markers shaped by backend), the Pareto front as a step line (one per reference:
+// a front across references would compare incomparable errors), and the ring around the selected
+// point (last; `ringData` recomputes its data).
+function chartSeries(uPlot, pts, keys, ratio, ringData) {
   const markers = pathOf((path, i, cx, cy) => addShape(path, shapeOf(pts[i].c.backend), cx, cy, (pts[i].c.pareto ? 6 : 4.5) * ratio), true);
   const ring = pathOf((path, i, cx, cy) => {
     path.moveTo(cx + 10 * ratio, cy);
@@ -139,15 +142,18 @@ function chartSeries(uPlot, pts, techs, colourOf, ratio, ringData) {
   }, false);
   const series = [{label: 'median time (ms)'}];
   const data = [pts.map((p) => p.x)];
-  for (const t of techs) {
-    const colour = colourOf(t);
-    series.push({label: t, stroke: colour, fill: `${colour}66`, width: 1.5, paths: markers,
+  for (const k of keys.list) {
+    const colour = k.colour;
+    series.push({label: k.label, stroke: colour, fill: `${colour}66`, width: 1.5, paths: markers,
                  points: {show: false}, value: valueText});
-    data.push(pts.map((p) => (p.c.technique === t ? p.y : null)));
+    data.push(pts.map((p) => (keys.of(p.c) === k.key ? p.y : null)));
   }
-  series.push({label: 'Pareto front', stroke: '#333', width: 1.5, dash: [6, 4], spanGaps: true,
-               paths: uPlot.paths.stepped({align: 1}), points: {show: false}, value: valueText});
-  data.push(pts.map((p) => (p.c.pareto ? p.y : null)));
+  const fronts = keys.byReference ? keys.list : [{key: null}];
+  for (const f of fronts) {
+    series.push({label: f.key === null ? 'Pareto front' : `Pareto front ${f.key}`, stroke: f.key === null ? '#333' : f.colour,
+                 width: 1.5, dash: [6, 4], spanGaps: true, paths: uPlot.paths.stepped({align: 1}), points: {show: false}, value: valueText});
+    data.push(pts.map((p) => (p.c.pareto && (f.key === null || keys.of(p.c) === f.key) ? p.y : null)));
+  }
   // The ring takes no legend row: it is no data series of its own (the page's list explains it).
   series.push({label: 'selected', stroke: '#000', width: 2.5, paths: ring, points: {show: false}, value: valueText});
   data.push(ringData());
@@ -189,7 +195,7 @@ function decorate(u, pts, floor, colourOf, ratio, drawn) {
     if (!p.spread) continue;
     const y = u.valToPos(p.y, 'y', true), x0 = u.valToPos(p.spread[0], 'x', true), x1 = u.valToPos(p.spread[1], 'x', true);
     const cap = 4 * ratio;
-    ctx.strokeStyle = colourOf(p.c.technique);
+    ctx.strokeStyle = colourOf(p.c);
     ctx.beginPath();
     ctx.moveTo(x0, y);
     ctx.lineTo(x1, y);
@@ -267,7 +273,23 @@ function chartPoints(cands) {
     .sort((a, b) => a.x - b.x || a.c.index - b.c.index);
 }
 
-export function paretoChart(box, cands, {colourOf, onSelect, selected = null, nameOf = defaultName, noise = null}) {
+/**
+ * How the chart's markers are grouped: by technique (colourOf(technique)), or, when the candidates
+ * are measured against more than one reference (each candidate's `reference.id`), by reference,
+ * named by `labelOf(id)` in the legend, so errors of different references are never read as one
+ * scale. {list: [{key, label, colour}], of(c), byReference}.
+ */
+export function markerGroups(cands, colourOf, labelOf = (id) => id) {
+  const refs = [...new Set(cands.map((c) => c.reference && c.reference.id).filter(Boolean))];
+  if (refs.length > 1) {
+    return {byReference: true, of: (c) => c.reference && c.reference.id,
+            list: refs.map((r, k) => ({key: r, label: `${r}: ${labelOf(r)}`, colour: PALETTE[k % PALETTE.length]}))};
+  }
+  const techs = [...new Set(cands.map((c) => c.technique))];
+  return {byReference: false, of: (c) => c.technique, list: techs.map((t) => ({key: t, label: t, colour: colourOf(t)}))};
+}
+
+export function paretoChart(box, cands, {colourOf, onSelect, selected = null, nameOf = defaultName, noise = null, labelOf}) {
   const uPlot = window.uPlot;
   if (!uPlot) {
     box.append('The chart library is missing (run npm ci; the daemon serves it from --vendor-dir).');
@@ -280,11 +302,12 @@ export function paretoChart(box, cands, {colourOf, onSelect, selected = null, na
   const xExt = pts.flatMap((p) => (p.spread ? p.spread : [p.x]));
   const xRange = (uu, min, max) => logPad([min, max, ...xExt]);
   const yRange = (uu, min, max) => logPad(floor ? [min, max, floor] : [min, max]);
-  const techs = [...new Set(pts.map((p) => p.c.technique))];
+  const keys = markerGroups(pts.map((p) => p.c), colourOf, labelOf);
+  const colourFor = (c) => keys.list.find((k) => k.key === keys.of(c)).colour;
   const ratio = window.devicePixelRatio || 1;
   let sel = selected;
   const selData = () => pts.map((p) => (p.c.index === sel ? p.y : null));
-  const {series, data} = chartSeries(uPlot, pts, techs, colourOf, ratio, selData);
+  const {series, data} = chartSeries(uPlot, pts, keys, ratio, selData);
   const drawn = {spreads: 0, noiseY: null};
   let u = null;
   const tip = chartTip(nameOf, () => u);
@@ -318,7 +341,7 @@ export function paretoChart(box, cands, {colourOf, onSelect, selected = null, na
     // time (one series at a time has a value there); the tooltip names the point instead.
     legend: {live: false},
     hooks: {
-      drawClear: [(uu) => decorate(uu, pts, floor, colourOf, ratio, drawn)],
+      drawClear: [(uu) => decorate(uu, pts, floor, colourFor, ratio, drawn)],
       draw: [placeButtons],
       setCursor: [(uu) => {
         const {left, top} = uu.cursor;
@@ -345,8 +368,11 @@ export function paretoChart(box, cands, {colourOf, onSelect, selected = null, na
   });
   u.over.addEventListener('mouseleave', () => tip.show(null));
 
-  const info = {points: pts.length, series: techs.map((t, k) => ({label: t, points: data[k + 1].filter((v) => v !== null).length})),
-                pareto: data[techs.length + 1].filter((v) => v !== null).length, order: pts.map((p) => p.c.index), yLabel,
+  const nk = keys.list.length, nf = keys.byReference ? nk : 1;
+  const info = {points: pts.length, series: keys.list.map((k, i) => ({label: k.label, points: data[i + 1].filter((v) => v !== null).length})),
+                byReference: keys.byReference,
+                pareto: data.slice(nk + 1, nk + 1 + nf).reduce((a, d) => a + d.filter((v) => v !== null).length, 0),
+                order: pts.map((p) => p.c.index), yLabel,
                 noiseFloor: floor, drawn, spreads: pts.filter((p) => p.spread).map((p) => ({index: p.c.index, min: p.spread[0], max: p.spread[1]}))};
   return chartHandle(u, info, buttons, data, () => {
     roving();

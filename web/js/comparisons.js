@@ -10,6 +10,10 @@ const primaryImage = (links) => links.image || links['ao.png'];
 
 // The technique of a reference; a daemon that predates reference techniques only had rt_ao.
 const refTechnique = (r) => r.technique || 'rt_ao';
+// A reference's id and label (the server makes both from what defines the reference; a daemon
+// that predates them gets its job and technique).
+const refId = (r) => r.id || `job ${r.job_id}`;
+const refLabel = (r) => r.label || refTechnique(r);
 
 // ---- the list -----------------------------------------------------------------------------------
 
@@ -110,6 +114,10 @@ export function metricsTable(c) {
     el('th', {scope: 'row'}, k), el('td', {className: 'num'}, v)))));
 }
 
+/** An other output's figures in words: the mean angle for directions, else RMSE, bias and SSIM. */
+const measureText = (m) => (m.angle_deg !== undefined ? `mean angle ${fmtNum(m.angle_deg)}°`
+  : `RMSE ${fmtNum(m.rmse)}, bias ${fmtNum(m.bias)}, SSIM ${fmtNum(m.ssim)}`);
+
 /** "min–max" of a candidate's total time over its timed runs (the run-to-run spread). */
 export function spreadText(c) {
   const sp = spreadOf(c);
@@ -145,15 +153,23 @@ const COLUMNS = [
   {key: 'spread', label: 'Spread ms (min–max)', get: (c) => spreadOf(c), num: true, nowrap: true,
    sortValue: (v) => v[1] - v[0], fmt: (v) => (v ? `${fmtMs(v[0])}–${fmtMs(v[1])}` : '–')},
   {key: 'render', label: 'Render ms', get: (c) => c.timings_ms && c.timings_ms.median ? c.timings_ms.median.render : null, num: true, fmt: fmtMs},
+  // What the row's figures are measured against: the reference's id (the References list and the
+  // cell's title give its label).
+  {key: 'reference', label: 'Reference', get: (c) => (c.reference ? c.reference.id : null), cellTitle: (c) => c.reference && c.reference.label},
   {key: 'pareto', label: 'Pareto', get: (c) => (c.pareto ? 1 : 0), num: true, fmt: (v) => (v ? '★ yes' : 'no')},
+  // With a common reference: every candidate's error on that one scale.
+  {key: 'common_rmse', label: 'RMSE vs common', common: true, get: (c) => c.common && c.common.metrics && c.common.metrics.rmse, num: true, fmt: fmtNum},
+  {key: 'common_pareto', label: 'Pareto (common)', common: true, get: (c) => (c.common ? (c.common.pareto ? 1 : 0) : null), num: true,
+   fmt: (v) => (v === null ? '–' : v ? '★ yes' : 'no')},
   {key: 'at_ref', label: 'At ref. accuracy', get: (c) => (c.metrics ? (c.metrics.at_reference_accuracy ? 1 : 0) : null), num: true,
    fmt: (v) => (v === null ? '–' : v ? '≈ yes' : 'no')},
 ];
 
-/** The table's columns: the metric table's (those the candidates have) after the render time. */
+/** The table's columns: the metric table's (those the candidates have) after the render time; the common ones with a common reference. */
 const columnsFor = (cands) => {
   const at = COLUMNS.findIndex((c) => c.key === 'render') + 1;
-  return [...COLUMNS.slice(0, at), ...metricColumns(cands), ...COLUMNS.slice(at)];
+  return [...COLUMNS.slice(0, at), ...metricColumns(cands), ...COLUMNS.slice(at)]
+    .filter((c) => !c.common || cands.some((x) => x.common));
 };
 
 /** Downloads url through fetch when a token is needed (a plain link cannot send the header). */
@@ -179,15 +195,25 @@ function csvLink(url, name) {
 
 // ---- one comparison -----------------------------------------------------------------------------
 
-// The image viewer (viewer.js) on a job's EXR, B the job to compare with; Close comes back here.
-const viewerHref = (a, b) => `#/view/${a}?${b ? `b=${b}&mode=split&` : ''}back=${encodeURIComponent(location.hash)}`;
+// The image viewer (viewer.js) on a job's EXR, B the job to compare with (bfile: which of its EXR
+// outputs, given as the viewer's "<job>/<file>" spec); Close comes back here.
+const viewerHref = (a, b, bfile) => `#/view/${a}?${b ? `b=${encodeURIComponent(bfile ? `${b}/${bfile}` : String(b))}&mode=split&` : ''}` +
+  `back=${encodeURIComponent(location.hash)}`;
+// A candidate against its reference as the metrics compared them: the mapped reference the
+// server wrote beside the candidate when its response changes the reference, else the reference.
+const againstHref = (c) => (c.links && c.links['reference_mapped.exr'] ? viewerHref(c.job_id, c.job_id, 'reference_mapped.exr')
+  : viewerHref(c.job_id, c.reference_job_id));
+
+// The page's route: the selected candidate and the error scale, so a reload keeps both.
+const routeOf = ({id, s}) => `#/comparisons/${id}?` +
+  [s.selected !== null && `candidate=${s.selected}`, s.scale === 'common' && 'scale=common'].filter(Boolean).join('&');
 
 function select(pg, index, scroll = true) {
   const {s, id, tbody, detail} = pg;
   s.selected = index;
-  history.replaceState(null, '', `#/comparisons/${id}?candidate=${index}`);
+  history.replaceState(null, '', routeOf(pg));
   if (s.chart) s.chart.select(index);
-  for (const tr of tbody.rows) tr.setAttribute('aria-selected', String(Number(tr.dataset.index) === index));
+  for (const tr of tbody.rows) if (tr.dataset.index !== undefined) tr.setAttribute('aria-selected', String(Number(tr.dataset.index) === index));
   renderSelected(pg);
   debug.comparison.selected = index;
   if (scroll) detail.scrollIntoView({block: 'nearest'});
@@ -206,8 +232,11 @@ function renderFacts(pg) {
       el('dt', {}, 'Timed runs per candidate'), el('dd', {}, String(c.repeats)),
       el('dt', {}, 'Candidates finished'), el('dd', {},
         el('progress', {max: c.candidates.length || 1, value: done, 'aria-label': 'Candidates finished'}), ` ${done} / ${c.candidates.length}`),
-      el('dt', {}, 'References'), el('dd', {}, ...c.references.flatMap((r, i) => [i ? ', ' : '',
-        el('a', {href: `#/jobs/${r.job_id}?comparison=${id}`}, `job ${r.job_id}`), ` (${refTechnique(r)}, ${r.state}, ${paramText({samples: r.params && r.params.samples})})`])),
+      el('dt', {}, 'References'), el('dd', {}, el('ul', {className: 'references'}, ...c.references.map((r) => el('li', {'data-ref': refId(r)},
+        el('strong', {}, refId(r)), ': ', el('span', {className: 'ref-label'}, refLabel(r)),
+        r.roles && r.roles.includes('common') ? el('em', {}, ' (the common reference)') : '', ' — ',
+        el('a', {href: `#/jobs/${r.job_id}?comparison=${id}`}, `job ${r.job_id}`),
+        ` (${r.state}, ${paramText({samples: r.params && r.params.samples})})`)))),
       el('dt', {}, 'Error measure'), el('dd', {className: 'error-measure'}, errorName(c.candidates)),
       el('dt', {}, 'Created'), el('dd', {}, fmtTime(c.created_at)),
       ...(c.notes && c.notes.length ? [el('dt', {}, 'Derived from the scene\'s size'),
@@ -245,13 +274,17 @@ function renderTable(pg) {
             onclick: () => select(pg, c.index)}, String(c.index)));
         }
         if (col.key === 'state') return el('td', {}, stateBadge(v));
-        return el('td', {className: [col.num && 'num', col.nowrap && 'nowrap'].filter(Boolean).join(' ')}, col.fmt ? col.fmt(v) : String(v ?? '–'));
+        return el('td', {className: [col.num && 'num', col.nowrap && 'nowrap', col.key].filter(Boolean).join(' '),
+                         ...(col.cellTitle && col.cellTitle(c) ? {title: col.cellTitle(c)} : {})}, col.fmt ? col.fmt(v) : String(v ?? '–'));
       }));
     tr.addEventListener('click', (ev) => {
       if (!ev.target.closest('button, a')) select(pg, c.index);
     });
-    return tr;
-  }));
+    // The candidate's other outputs, each against its own reference, in rows under it.
+    return [tr, ...(c.outputs || []).map((o) => el('tr', {className: 'output-row', 'data-of': c.index},
+      el('td', {colSpan: cols.length}, `↳ candidate ${c.index}'s ${o.output} against ${o.reference.id} (${o.reference_output}): `,
+        o.metrics ? measureText(o.metrics) : (o.error ? `no metrics: ${o.error}` : 'no metrics yet'))))];
+  }).flat());
   if (focusedIndex !== null) {
     const b = tbody.querySelector(`tr[data-index="${focusedIndex}"] button`);
     if (b) b.focus();
@@ -260,11 +293,46 @@ function renderTable(pg) {
 
 function renderRanking(pg) {
   const {s, rankNote} = pg;
-  const r = s.c.ranking;
+  const common = s.scale === 'common' && s.c.common;
+  const r = common ? s.c.common.ranking : s.c.ranking;
   rankNote.replaceChildren(...(r && r.warning
     ? [el('p', {className: 'warnings noisy-reference', role: 'note'}, el('strong', {}, 'Reference too noisy to rank: '),
-      r.warning.replace(/^the reference is too noisy to rank the candidates: /, ''), '.')]
+      r.warning.replace(/the reference is too noisy to rank the candidates: /g, ''), '.')]
+    : []),
+  // Candidates of different references on one axis: say that their errors do not compare.
+  ...(!common && s.c.comparable === false
+    ? [el('p', {className: 'warnings not-comparable', role: 'note'}, el('strong', {}, 'Errors measured against different references are not comparable: '),
+      `the candidates are measured against ${s.c.groups.length} references (${s.c.groups.map((g) => g.reference).join(', ')}, listed above); ` +
+      'each reference\'s candidates have their own marker colour and Pareto front and are ranked among themselves only' +
+      (s.c.common ? '. Choose the common reference above the chart to rank all of them on one scale.' : '. A common reference ranks all of them on one scale.'))]
     : []));
+}
+
+// The scale the chart and the ranking use: each candidate's own reference, or, when the
+// comparison has one, the common reference every candidate was also measured against.
+function renderScale(pg) {
+  const {s, scaleBox} = pg;
+  if (!s.c.common) {
+    scaleBox.replaceChildren();
+    return;
+  }
+  const choice = (value, text) => el('label', {}, el('input', {type: 'radio', name: 'scale', value, checked: s.scale === value,
+    onchange: () => {
+      s.scale = value;
+      history.replaceState(null, '', routeOf(pg));
+      renderRanking(pg);
+      renderChart(pg);
+    }}), ` ${text}`);
+  scaleBox.replaceChildren(el('fieldset', {className: 'scale'}, el('legend', {}, 'Errors against'),
+    choice('own', 'each candidate\'s own reference'),
+    choice('common', `the common reference ${s.c.common.reference.id} (${s.c.common.reference.label})`)));
+}
+
+/** The candidates as the chart plots them on the chosen scale. */
+function onScale(s) {
+  if (s.scale !== 'common' || !s.c.common) return s.c.candidates;
+  return s.c.candidates.map((c) => ({...c, metrics: c.common && c.common.metrics, pareto: Boolean(c.common && c.common.pareto),
+                                    reference: c.common && c.common.reference}));
 }
 
 function renderChart(pg) {
@@ -274,8 +342,14 @@ function renderChart(pg) {
   if (s.chart) s.chart.destroy();
   chartBox.replaceChildren();
   const ctx = {params: varyingParams(s.c.candidates)};
-  const noise = s.c.ranking ? s.c.ranking.ref_noise : null;
-  s.chart = paretoChart(chartBox, s.c.candidates, {colourOf, onSelect: (i) => select(pg, i), selected: s.selected, noise,
+  const cands = onScale(s);
+  const ranking = s.scale === 'common' && s.c.common ? s.c.common.ranking : s.c.ranking;
+  const noise = ranking ? ranking.ref_noise : null;
+  const labelOf = (rid) => {
+    const r = s.c.references.find((x) => x.id === rid);
+    return r ? refLabel(r) : rid;
+  };
+  s.chart = paretoChart(chartBox, cands, {colourOf, onSelect: (i) => select(pg, i), selected: s.selected, noise, labelOf,
     nameOf: (c) => {
       const varying = ctx.params(c);
       return `Candidate ${c.index}: ${c.technique} on ${c.backend}${varying === '(defaults)' ? '' : `, ${varying}`}`;
@@ -284,13 +358,14 @@ function renderChart(pg) {
   const info = s.chart ? s.chart.info : {points: 0, series: [], pareto: 0};
   debug.comparison.chart = info;
   debug.comparison.uplot = s.chart ? s.chart.uplot : null;
-  const withMetrics = s.c.candidates.filter(plottable);
+  const withMetrics = cands.filter(plottable);
   const times = withMetrics.map((c) => c.timings_ms.median.total), errs = withMetrics.map((c) => c.metrics.rmse);
   chartBox.setAttribute('aria-label', info.points
     ? `Scatter chart, log scales: ${info.points} candidates, median time ${fmtMs(Math.min(...times))} to ${fmtMs(Math.max(...times))} ms, ` +
       `${errorName(withMetrics)} ${fmtNum(Math.min(...errs), 3)} to ${fmtNum(Math.max(...errs), 3)}; ` +
       `series: ${info.series.map((x) => `${x.label} (${x.points})`).join(', ')}; Pareto-optimal candidates: ${s.c.pareto.join(', ') || 'none yet'}.`
     : 'Chart: no candidate has metrics yet.');
+  debug.comparison.scale = s.scale;
   chartNote.textContent = info.points < s.c.candidates.length
     ? `${info.points} of ${s.c.candidates.length} candidates plotted; the others have no metrics or no finite time and RMSE` +
       `${s.c.state === 'running' ? ' yet' : ''}.` : '';
@@ -303,7 +378,7 @@ function renderGrid(pg) {
     ...s.c.references.filter((r) => r.links && primaryImage(r.links)).map((r) => el('figure', {className: 'tile ref'},
       el('a', {href: viewerHref(r.job_id), 'aria-label': `View reference job ${r.job_id} at full resolution`},
         el('img', {src: primaryImage(r.links), alt: `Reference job ${r.job_id}`})),
-      el('figcaption', {}, `Reference (job ${r.job_id}, ${refTechnique(r)} ${paramText({samples: r.params && r.params.samples})})`))),
+      el('figcaption', {}, `Reference ${refId(r)}: ${refLabel(r)} (job ${r.job_id}, ${paramText({samples: r.params && r.params.samples})})`))),
     ...s.c.candidates.map((c) => el('figure', {className: 'tile'},
       c.links && primaryImage(c.links)
         ? el('img', {src: primaryImage(c.links), alt: `Candidate ${c.index}: ${c.technique} on ${c.backend}`, onclick: () => select(pg, c.index)})
@@ -323,7 +398,7 @@ function renderSelected(pg) {
   const parts = [el('h2', {id: 'h-selected'}, `Candidate ${c.index}: ${c.technique} on ${c.backend}`),
     el('p', {}, el('code', {}, paramText(c.params)), ' · ', stateBadge(c.state), ' · ',
       el('a', {href: `#/jobs/${c.job_id}?comparison=${id}`, className: 'open-job'}, `Open job ${c.job_id}`), ' · ',
-      el('a', {href: viewerHref(c.job_id, c.reference_job_id), className: 'open-viewer'}, 'View candidate (A) against reference (B)'))];
+      el('a', {href: againstHref(c), className: 'open-viewer'}, 'View candidate (A) against reference (B)'))];
   const media = el('div', {className: 'media'});
   if (primaryImage(links) && links['reference.png']) {
     // The reference as the metrics saw it: mapped through the candidate's response when that
@@ -347,7 +422,7 @@ function renderSelected(pg) {
     range.addEventListener('input', apply);
     apply();
     media.append(el('figure', {className: 'compare'},
-      el('div', {className: 'stack', title: 'Click to open the viewer', onclick: () => { location.hash = viewerHref(c.job_id, c.reference_job_id); }}, ref, cand, line),
+      el('div', {className: 'stack', title: 'Click to open the viewer', onclick: () => { location.hash = againstHref(c); }}, ref, cand, line),
       el('label', {for: 'split'}, 'Split between candidate (left) and reference (right)'), range,
       el('figcaption', {className: 'compared'}, `Left of the line: the candidate; right: ${refWhat}. Arrow keys move the split.`)));
   }
@@ -375,22 +450,24 @@ function comparisonLayout(pg, view) {
   // A group of focusable points (chart.js), named by its text summary.
   pg.chartBox = el('div', {className: 'chart', role: 'group'});
   pg.rankNote = el('div', {className: 'rank-note'});
+  pg.scaleBox = el('div', {className: 'scale-box'});
   pg.chartNote = el('p', {className: 'muted'});
   pg.thead = el('thead');
   pg.tbody = el('tbody');
   pg.detail = el('div', {className: 'selected-slot'});
   pg.grid = el('div', {className: 'grid'});
-  const {facts, chartBox, rankNote, chartNote, thead, tbody, detail, grid} = pg;
+  const {facts, chartBox, rankNote, scaleBox, chartNote, thead, tbody, detail, grid} = pg;
   view.append(
     el('p', {className: 'crumbs'}, el('a', {href: '#/comparisons'}, '← all comparisons')),
     el('h1', {}, `Comparison ${pg.id}`), facts,
     el('section', {'aria-labelledby': 'h-chart'},
       el('h2', {id: 'h-chart'}, 'Time against error'),
-      el('p', {className: 'hint'}, 'Each point is a candidate: colour and legend name the technique, the shape the backend. ' +
+      el('p', {className: 'hint'}, 'Each point is a candidate: colour and legend name the technique (the reference it is measured against, when the ' +
+        'candidates have several), the shape the backend. ' +
         'Hover a point for its name; click it (or Tab to the chart\'s points, move with ← → and press Enter) to show that ' +
         'candidate below. A bar through a point spans its fastest to slowest timed run; the dotted line is the reference\'s noise. ' +
         'The table holds the same data.'),
-      rankNote, chartBox, el('ul', {className: 'shape-legend', 'aria-label': 'Marker shapes'},
+      scaleBox, rankNote, chartBox, el('ul', {className: 'shape-legend', 'aria-label': 'Marker shapes'},
         ...Object.entries(SHAPES).map(([b, sh]) => el('li', {}, el('span', {'aria-hidden': 'true'}, SHAPE_GLYPH[sh]), ` ${sh}: ${b}`)),
         el('li', {}, el('span', {'aria-hidden': 'true'}, SHAPE_GLYPH.triangle), ' triangle: any other backend'),
         el('li', {}, el('span', {'aria-hidden': 'true'}, '╌'), ' dashed step line: the Pareto front (nothing is both faster and more accurate)'),
@@ -409,7 +486,7 @@ function comparisonLayout(pg, view) {
 
 export function mountComparison(view, [id], query) {
   const s = {
-    c: null, fingerprint: '', sort: {key: 'index', dir: 1}, split: 50,
+    c: null, fingerprint: '', sort: {key: 'index', dir: 1}, split: 50, scale: query.get('scale') === 'common' ? 'common' : 'own',
     selected: query.has('candidate') ? Number(query.get('candidate')) : null, chart: null, colours: new Map(),
   };
   const pg = {s, id};
@@ -449,10 +526,11 @@ export function mountComparison(view, [id], query) {
     if (dead) return false;
     s.c = c;
     debug.comparison.state = c.state;
-    const fp = JSON.stringify([c.state, c.ranking, c.candidates.map((x) => [x.state, x.metrics, x.pareto, x.timings_ms, x.links]),
+    const fp = JSON.stringify([c.state, c.ranking, c.common, c.candidates.map((x) => [x.state, x.metrics, x.pareto, x.timings_ms, x.links, x.common, x.outputs]),
                                c.references.map((r) => [r.state, r.links])]);
     if (fp !== s.fingerprint) {
       renderFacts(pg);
+      renderScale(pg);
       renderRanking(pg);
       renderTable(pg);
       renderChart(pg);

@@ -215,6 +215,14 @@ typedef struct obs_reference_alt {
   const char *needs_false;
 } obs_reference_alt;
 
+/* Another output of a candidate compared with an output of the candidate's own reference job,
+ * beside the primary one (a comparison measures it as a row of its own; the metric follows from
+ * the output's kind: the mean angle between directions for vector outputs). */
+typedef struct obs_output_pair {
+  const char *output;           /* the candidate's output; NULL ends a list */
+  const char *reference_output; /* the reference technique's output it is compared with */
+} obs_output_pair;
+
 /* A technique's reference hook: sets def->technique and def->response and fills def->params (an
  * empty object) with the reference technique's parameters that define the same quantity as the
  * technique with `params` (defaults filled) on `scene`. */
@@ -451,6 +459,9 @@ typedef struct obs_technique {
   /* The other references a comparison may ask for (obs_reference_alt), ended by a NULL technique;
    * NULL: none. */
   const obs_reference_alt *reference_alts;
+  /* Other outputs compared with the own reference's (obs_output_pair), ended by a NULL output;
+   * NULL: none. */
+  const obs_output_pair *compared_outputs;
   /* As a reference: the integer parameter a comparison's reference.samples sets (its converged
    * quality, e.g. "samples"); NULL: the technique cannot serve as a reference. */
   const char *reference_quality;
