@@ -138,6 +138,17 @@ ALTER TABLE jobs ADD COLUMN stored_bytes INTEGER NOT NULL DEFAULT 0;
 UPDATE jobs SET stored_bytes = length(CAST(doc AS BLOB)) WHERE state IN ('queued', 'running');
 
 -- migration 9
+-- What a candidate row measures (docs/comparisons.md): 'own', the candidate against its own
+-- reference; 'common', the candidate's job against the comparison's common reference; 'output',
+-- another output of the candidate's job against the reference its technique declares for it.
+-- Rows other than 'own' reuse their candidate's job, under indices after the candidates'.
+-- output: the candidate's output an 'output' row compares with its own reference job's (NULL:
+-- the output the reference technique decides, as for 'own' rows).
+ALTER TABLE comparison_candidates ADD COLUMN role TEXT NOT NULL DEFAULT 'own'
+  CHECK (role IN ('own', 'common', 'output'));
+ALTER TABLE comparison_candidates ADD COLUMN output TEXT;
+
+-- migration 10
 -- The Vulkan device's kind, from its VkPhysicalDeviceType: 'gpu' (integrated, discrete or
 -- virtual GPU), 'software' (VK_PHYSICAL_DEVICE_TYPE_CPU: a CPU rasteriser such as llvmpipe) or
 -- 'other'. Timings of one kind never predict another (learned auto, time budgets); NULL on rows

@@ -3,8 +3,10 @@
 # (`obscura techniques --schema | --openapi | --docs NAME | --markdown`): the technique members of
 # $defs in schema/scene.schema.json (from "technique" to the end of $defs), the registry block of
 # schema/openapi.yaml and the parameter table of each docs/techniques/<name>.md (between their
-# markers), and docs/accuracy.md's range table (scripts/gen-ranges.sh). The tests cli.registry_*
-# and cli.ranges_doc fail while a copy differs. Usage:
+# markers), docs/accuracy.md's range table (scripts/gen-ranges.sh), and the metric table's copies
+# (`obscura metrics --markdown | --openapi`): docs/metrics.md's table and schema/openapi.yaml's
+# Metrics schema, between their markers. The tests cli.registry_* and cli.ranges_doc fail while
+# a copy differs. Usage:
 #   scripts/gen-registry.sh [path/to/obscura]     (default: build/obscura)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -33,4 +35,8 @@ for name in $("$cli" techniques | sed -n 's/^    "name": "\(.*\)",$/\1/p'); do
   "$cli" techniques --docs "$name" >"$part"
   splice "$doc" '<!-- params-table:begin -->' '<!-- params-table:end -->' 1
 done
+"$cli" metrics --markdown >"$part"
+splice "$root/docs/metrics.md" '<!-- metrics-table:begin -->' '<!-- metrics-table:end -->' 1
+"$cli" metrics --openapi >"$part"
+splice "$root/schema/openapi.yaml" '^    # metrics:begin' '^    # metrics:end' 1
 "$root/scripts/gen-ranges.sh" "$cli"

@@ -9,6 +9,7 @@ DEB_PACKAGES=(build-essential cmake pkg-config libembree-dev libjansson-dev libo
               libspng-dev libassimp-dev libcmocka-dev libvulkan-dev mesa-vulkan-drivers glslc
               vulkan-validationlayers libcurl4-openssl-dev
               libmicrohttpd-dev libsqlite3-dev libssl-dev openimageio-tools python3-numpy
+              python3-skimage
               sqlite3 curl wrk chromium clang libclang-rt-14-dev libteem-dev libvolpack1-dev
               libopenmpi-dev openmpi-bin)
 command -v node >/dev/null 2>&1 || DEB_PACKAGES+=(nodejs)
@@ -29,7 +30,11 @@ obs_install_packages() {
 }
 
 obs_install_npm() {
-  if [ ! -d node_modules ] || [ package-lock.json -nt node_modules/.package-lock.json ]; then
+  # npm ci empties node_modules first: through a link that would empty the install it points at
+  # (one shared by several checkouts), so a linked node_modules is left as it is.
+  if [ -L node_modules ]; then
+    [ -f node_modules/.package-lock.json ] || echo "setup: node_modules is a link to no npm install" >&2
+  elif [ ! -d node_modules ] || [ package-lock.json -nt node_modules/.package-lock.json ]; then
     echo "setup: npm ci"
     npm ci --no-audit --no-fund --loglevel=error
   fi
@@ -48,6 +53,15 @@ obs_build() {
   shift
   cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=Release "$@" >/dev/null
   cmake --build "$dir" -j "$(nproc)"
+}
+
+# obs_build_targets DIR TARGET...: configures DIR as obs_build does and builds only the targets
+# named (and what they depend on).
+obs_build_targets() {
+  local dir=$1
+  shift
+  cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=Release >/dev/null
+  cmake --build "$dir" -j "$(nproc)" --target "$@"
 }
 
 obs_setup() {

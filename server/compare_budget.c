@@ -285,6 +285,16 @@ static json_t *answer_pick(const json_t *c, const obs_pareto_point *p) {
                    "at_reference_accuracy", p->at_reference_accuracy);
 }
 
+/* Whether candidates a and b were measured against the same reference: the same reference id
+ * (job and response) where the objects carry one, else the same reference job. */
+static int same_reference(const json_t *a, const json_t *b) {
+  const char *x = json_string_value(json_object_get(json_object_get(a, "reference"), "id"));
+  const char *y = json_string_value(json_object_get(json_object_get(b, "reference"), "id"));
+  if (x && y) return !strcmp(x, y);
+  return json_integer_value(json_object_get(a, "reference_job_id")) ==
+         json_integer_value(json_object_get(b, "reference_job_id"));
+}
+
 json_t *srv_compare_answer(const json_t *cands, double budget_ms) {
   size_t n = json_array_size(cands);
   int has_budget = isfinite(budget_ms) && budget_ms > 0;
@@ -294,12 +304,15 @@ json_t *srv_compare_answer(const json_t *cands, double budget_ms) {
   unsigned char *done = calloc(n ? n : 1, 1);
   for (size_t i = 0; pts && idx && done && i < n; i++) {
     if (done[i]) continue;
-    /* One reference, one scale: only candidates measured against it are ranked together. */
-    json_int_t ref = json_integer_value(json_object_get(json_array_get(cands, i), "reference_job_id"));
+    /* One reference, one scale: only candidates measured against it (its job seen through one
+     * response, the comparison's reference id) are ranked together. */
+    const json_t *first = json_array_get(cands, i);
+    const json_t *ref = json_object_get(first, "reference");
+    json_int_t rjob = json_integer_value(json_object_get(first, "reference_job_id"));
     size_t k = 0, measured = 0;
     for (size_t j = i; j < n; j++) {
       const json_t *c = json_array_get(cands, j);
-      if (done[j] || json_integer_value(json_object_get(c, "reference_job_id")) != ref) continue;
+      if (done[j] || !same_reference(first, c)) continue;
       done[j] = 1;
       idx[k] = j;
       pts[k] = answer_point(c);
@@ -307,8 +320,10 @@ json_t *srv_compare_answer(const json_t *cands, double budget_ms) {
       k++;
     }
     int best = budget_pick(pts, k, INFINITY, NULL);
-    json_t *g = json_pack("{s:I, s:I, s:I}", "reference_job_id", ref, "candidates", (json_int_t)k,
-                          "measured", (json_int_t)measured);
+    json_t *rid = json_object_get(ref, "id"), *rlabel = json_object_get(ref, "label");
+    json_t *g = json_pack("{s:O, s:O, s:I, s:I, s:I}", "reference", rid ? rid : json_null(),
+                          "label", rlabel ? rlabel : json_null(), "reference_job_id", rjob,
+                          "candidates", (json_int_t)k, "measured", (json_int_t)measured);
     json_object_set_new(g, "best",
                         best < 0 ? json_null()
                                  : answer_pick(json_array_get(cands, idx[best]), &pts[best]));

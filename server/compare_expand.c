@@ -22,6 +22,8 @@ void srv_compare_expansion_free(expansion *x) {
     free(x->c[i].doc);
     free(x->c[i].params_full);
     free(x->c[i].ref_key);
+    free(x->c[i].common_key);
+    for (int k = 0; k < x->c[i].nalt; k++) free(x->c[i].alt_key[k]);
   }
   for (int i = 0; i < x->nrefs; i++) {
     free(x->refs[i].doc);
@@ -143,6 +145,7 @@ static int entry_product(obs_jpath *p, expansion *x, int i, const obs_technique 
       }
       cand *c = &x->c[x->n++];
       memset(c, 0, sizeof *c);
+      c->common_ref = -1;
       c->entry = i;
       c->t = t;
       c->against = against;

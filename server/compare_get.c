@@ -13,14 +13,15 @@
 #include "obscurad.h"
 
 /* The comparison's state from its counts (docs/comparisons.md): running while a job is queued or
- * running, or while finished candidates still wait for their metrics; failed when a candidate can
- * no longer get metrics; succeeded when all have them. */
+ * running, or while finished candidates (or their further measurements) still wait for their
+ * metrics; failed when a candidate can no longer get metrics; succeeded when all have them. */
 static const char *state_of(const json_t *row) {
   json_int_t active = json_integer_value(json_object_get(row, "active"));
   json_int_t broken = json_integer_value(json_object_get(row, "broken"));
   json_int_t measured = json_integer_value(json_object_get(row, "measured"));
   json_int_t total = json_integer_value(json_object_get(row, "candidates"));
-  if (active) return "running";
+  json_int_t measuring = json_integer_value(json_object_get(row, "measuring"));
+  if (active || measuring) return "running";
   if (broken) return "failed";
   return measured == total ? "succeeded" : "running";
 }
@@ -99,55 +100,6 @@ static const char *primary_png(const char *technique) {
   return o && o->png ? o->png : "ao.png";
 }
 
-static int cmp_double(const void *a, const void *b) {
-  double x = *(const double *)a, y = *(const double *)b;
-  return (x > y) - (x < y);
-}
-
-/* How far the reference lets the candidates be ranked (docs/comparisons.md, "Ranking"): the
- * largest reference noise among the candidates with metrics, how many are at reference accuracy,
- * how many neighbours in RMSE order lie within that noise of each other, and a warning when the
- * reference is too noisy to rank them: some candidate is at reference accuracy, or the noise is
- * at least half the spread of the candidates' RMSEs (max - min). */
-static json_t *ranking_of(const json_t *cands) {
-  size_t n = json_array_size(cands), m = 0, at_ref = 0, ties = 0;
-  double noise = NAN, *e = calloc(n + 1, sizeof *e);
-  for (size_t i = 0; i < n; i++) {
-    json_t *mt = json_object_get(json_array_get(cands, i), "metrics");
-    json_t *rm = json_object_get(mt, "rmse"), *rn = json_object_get(mt, "ref_noise");
-    if (!json_is_number(rm)) continue;
-    if (json_is_number(rn) && !(json_number_value(rn) <= noise)) noise = json_number_value(rn);
-    if (json_is_true(json_object_get(mt, "at_reference_accuracy"))) at_ref++;
-    if (e) e[m++] = json_number_value(rm);
-  }
-  const char *why = NULL;
-  char msg[400];
-  if (e && m) qsort(e, m, sizeof *e, cmp_double);
-  if (e && m > 1 && noise > 0)
-    for (size_t i = 1; i < m; i++) ties += e[i] - e[i - 1] <= noise;
-  if (at_ref)
-    why = "at reference accuracy";
-  else if (e && m > 1 && noise > 0 && noise >= 0.5 * (e[m - 1] - e[0]))
-    why = "noise";
-  if (why && at_ref)
-    snprintf(msg, sizeof msg,
-             "the reference is too noisy to rank the candidates: %zu of %zu are at reference "
-             "accuracy (RMSE below twice its noise %.3g), so their RMSEs measure the reference's "
-             "noise, not their error; render the reference with more samples",
-             at_ref, m, noise);
-  else if (why)
-    snprintf(msg, sizeof msg,
-             "the reference is too noisy to rank the candidates: its noise %.3g is at least half "
-             "the spread of their RMSEs (%.3g to %.3g); render the reference with more samples",
-             noise, e[0], e[m - 1]);
-  json_t *r =
-      json_pack("{s:o, s:I, s:I, s:b, s:o}", "ref_noise", num_or_null(noise),
-                "at_reference_accuracy", (json_int_t)at_ref, "ties_within_noise", (json_int_t)ties,
-                "noisy_reference", why != NULL, "warning", why ? json_string(msg) : json_null());
-  free(e);
-  return r;
-}
-
 /* A candidate's figures for the Pareto set: median total time and its spread over the timed runs,
  * RMSE and the reference's noise; anything missing takes no part (NaN). */
 static void pareto_point(const json_t *tm, const json_t *metrics, obs_pareto_point *p) {
@@ -161,27 +113,6 @@ static void pareto_point(const json_t *tm, const json_t *metrics, obs_pareto_poi
   p->at_reference_accuracy = json_is_true(json_object_get(metrics, "at_reference_accuracy"));
 }
 
-/* Marks each candidate of `list` "pareto" and returns the Pareto indices by ascending time (then
- * index): the frontier from fast to accurate. `pts`/`opt` NULL (out of memory): none optimal. */
-static json_t *pareto_set(json_t *list, const obs_pareto_point *pts, unsigned char *opt, size_t n) {
-  if (pts && opt) obs_metrics_pareto(pts, n, opt, NULL);
-  json_t *pareto = json_array();
-  for (size_t i = 0; i < n; i++) {
-    int on = pts && opt && opt[i];
-    json_object_set_new(json_array_get(list, i), "pareto", json_boolean(on));
-    if (!on) continue;
-    size_t at = json_array_size(pareto);
-    while (at > 0) {
-      size_t prev = (size_t)json_integer_value(json_array_get(pareto, at - 1));
-      if (!(pts[prev].time_ms > pts[i].time_ms)) break;
-      at--;
-    }
-    json_array_insert_new(pareto, at, json_integer((json_int_t)i));
-  }
-  return pareto;
-}
-
-/* The comparison document of docs/comparisons.md. 0, OBS_ENOTFOUND, or a database error. */
 /* A reference's entry of the comparison document (row: a candidate row naming it). */
 static json_t *reference_json(srv_app *app, const json_t *row, json_int_t rjob, const json_t *runs,
                               const json_t *outs) {
@@ -196,6 +127,14 @@ static json_t *reference_json(srv_app *app, const json_t *row, json_int_t rjob, 
   json_object_set_new(ro, "progress", json_real(prog));
   json_t *rp = json_loads(json_string_value(json_object_get(row, "reference_params")), 0, NULL);
   json_object_set_new(ro, "params", rp ? rp : json_null());
+  /* What the candidates are measured against: the job mapped through the response. */
+  const char *resp = json_string_value(json_object_get(row, "response"));
+  json_t *def = srv_compare_definition(rtech ? rtech : "rt_ao", rp);
+  char *label = srv_compare_label(rtech ? rtech : "rt_ao", def, resp);
+  json_object_set_new(ro, "definition", def);
+  json_object_set_new(ro, "response", json_string(resp ? resp : "identity"));
+  json_object_set_new(ro, "label", label ? json_string(label) : json_null());
+  free(label);
   const char *st = json_string_value(json_object_get(row, "ref_summary"));
   json_t *sum = json_loads(st ? st : "null", JSON_DECODE_ANY, NULL);
   json_t *se = json_object_get(sum, "ao_stderr_mean");
@@ -252,10 +191,13 @@ static json_t *candidate_json(srv_app *app, const json_t *row, const json_t *run
   output_link(links, outs, job, png, "image");
   output_link(links, outs, job, "error.png", "error.png");
   output_link(links, outs, job, "error.exr", "error.exr");
+  output_link(links, outs, job, "flip.png", "flip.png");
+  output_link(links, outs, job, "flip.exr", "flip.exr");
   output_link(links, outs, rjob,
               primary_png(json_string_value(json_object_get(row, "ref_technique"))),
               "reference.png");
   output_link(links, outs, job, SRV_MAPPED_REFERENCE_PNG, SRV_MAPPED_REFERENCE_PNG);
+  output_link(links, outs, job, SRV_MAPPED_REFERENCE_EXR, SRV_MAPPED_REFERENCE_EXR);
   json_object_set_new(co, "links", links);
   /* Ranking: median total time against RMSE; anything missing takes no part (NaN). */
   pareto_point(tm, metrics, pt);
@@ -280,6 +222,176 @@ static json_t *comparison_head(int64_t id, const json_t *h) {
   return o;
 }
 
+/* The id ("R1", "R2", ...) of the reference a candidate row is measured against: its job mapped
+ * through the row's response, entered into `refs` when new; `role` says which rows use it
+ * ("candidates", "common", "output"). Borrowed from refs. */
+static const char *reference_id(srv_app *app, json_t *refs, const json_t *row, const char *role,
+                                const json_t *runs, const json_t *outs) {
+  json_int_t rjob = json_integer_value(json_object_get(row, "reference_job"));
+  const char *resp = json_string_value(json_object_get(row, "response"));
+  json_t *r = NULL;
+  for (size_t k = 0; !r && k < json_array_size(refs); k++) {
+    json_t *e = json_array_get(refs, k);
+    if (json_integer_value(json_object_get(e, "job_id")) == rjob &&
+        !strcmp(json_string_value(json_object_get(e, "response")), resp ? resp : "identity"))
+      r = e;
+  }
+  if (!r) {
+    r = reference_json(app, row, rjob, runs, outs);
+    char id[24];
+    snprintf(id, sizeof id, "R%zu", json_array_size(refs) + 1);
+    json_object_set_new(r, "id", json_string(id));
+    json_object_set_new(r, "roles", json_array());
+    json_array_append_new(refs, r);
+  }
+  json_t *roles = json_object_get(r, "roles");
+  int seen = 0;
+  for (size_t k = 0; k < json_array_size(roles); k++)
+    seen |= !strcmp(json_string_value(json_array_get(roles, k)), role);
+  if (!seen) json_array_append_new(roles, json_string(role));
+  return json_string_value(json_object_get(r, "id"));
+}
+
+/* {reference, reference_job_id, label} of a measurement against reference `rid` of refs. */
+static json_t *reference_ref(const json_t *refs, const char *rid) {
+  for (size_t k = 0; k < json_array_size(refs); k++) {
+    json_t *e = json_array_get(refs, k);
+    if (!strcmp(json_string_value(json_object_get(e, "id")), rid))
+      return json_pack("{s:s, s:O, s:O, s:O, s:O}", "id", rid, "job_id",
+                       json_object_get(e, "job_id"), "label", json_object_get(e, "label"),
+                       "definition", json_object_get(e, "definition"), "response",
+                       json_object_get(e, "response"));
+  }
+  return json_null();
+}
+
+/* A further measurement (row of role "common" or "output") of candidate object `co`. */
+static void attach_measure(json_t *co, const json_t *row, const json_t *refs, const char *rid) {
+  const char *mt = json_string_value(json_object_get(row, "metrics"));
+  json_t *metrics = mt ? json_loads(mt, 0, NULL) : NULL;
+  json_t *m = json_pack("{s:o, s:O, s:o, s:O}", "reference", reference_ref(refs, rid),
+                        "reference_job_id", json_object_get(row, "reference_job"), "metrics",
+                        metrics ? metrics : json_null(), "error",
+                        json_object_get(row, "metrics_error"));
+  const char *role = json_string_value(json_object_get(row, "role"));
+  if (!strcmp(role, "common")) {
+    json_object_set_new(co, "common", m);
+    return;
+  }
+  /* Which output of the candidate, against which output of the reference. */
+  const obs_technique *t = obs_technique_find(json_string_value(json_object_get(row, "technique")));
+  const obs_technique *rt =
+      obs_technique_find(json_string_value(json_object_get(row, "ref_technique")));
+  const char *pout = json_string_value(json_object_get(row, "output"));
+  const obs_output *o = t && rt ? obs_technique_compared_output(t, rt) : NULL;
+  const obs_output *ro = rt ? obs_technique_primary(rt) : NULL;
+  /* A pair the technique declares: its output against the reference's output it names. */
+  for (const obs_output_pair *q = t && rt && pout ? t->compared_outputs : NULL; q && q->output; q++)
+    if (!strcmp(q->output, pout)) {
+      o = obs_technique_output(t, q->output);
+      ro = obs_technique_output(rt, q->reference_output);
+    }
+  json_object_set_new(m, "output", o ? json_string(o->name) : json_null());
+  json_object_set_new(m, "reference_output", ro ? json_string(ro->name) : json_null());
+  json_array_append_new(json_object_get(co, "outputs"), m);
+}
+
+/* The candidates' rows into `list` (one object each, with its reference, its common measurement
+ * and its other outputs) and their references into `refs`; pts[i] gets candidate i's place. */
+static void candidates_of(srv_app *app, const json_t *rows, const json_t *runs, const json_t *outs,
+                          json_t *refs, json_t *list, obs_pareto_point *pts, int has_common) {
+  for (int pass = 0; pass < 2; pass++) {
+    for (size_t i = 0; i < json_array_size(rows); i++) {
+      json_t *row = json_array_get(rows, i);
+      const char *role = json_string_value(json_object_get(row, "role"));
+      int own = !role || !strcmp(role, "own");
+      if (own != !pass) continue;
+      const char *rid =
+          reference_id(app, refs, row, own ? "candidates" : role, runs, outs);
+      if (own) {
+        json_t *co = candidate_json(app, row, runs, outs, &pts[json_array_size(list)]);
+        json_object_set_new(co, "reference", reference_ref(refs, rid));
+        if (has_common) json_object_set_new(co, "common", json_null());
+        json_object_set_new(co, "outputs", json_array());
+        json_array_append_new(list, co);
+        continue;
+      }
+      json_int_t job = json_integer_value(json_object_get(row, "job"));
+      for (size_t k = 0; k < json_array_size(list); k++) {
+        json_t *co = json_array_get(list, k);
+        if (json_integer_value(json_object_get(co, "job_id")) == job)
+          attach_measure(co, row, refs, rid);
+      }
+    }
+  }
+}
+
+/* Ranks the candidates of `o` within their references' groups (and on the common reference's
+ * scale when there is one), into o's "groups", "pareto", "ranking", "comparable", "note" and
+ * "common". */
+static void rank_all(json_t *o, json_t *list, obs_pareto_point *pts, const json_t *refs) {
+  size_t n = json_array_size(list);
+  json_t **holder = calloc(n + 1, sizeof *holder), **ms = calloc(n + 1, sizeof *ms);
+  const char **group = calloc(n + 1, sizeof *group);
+  obs_pareto_point *cp = calloc(n + 1, sizeof *cp);
+  if (!holder || !ms || !group || !cp) n = 0;
+  size_t with_metrics = 0, ncommon = 0;
+  for (size_t i = 0; i < n; i++) {
+    json_t *co = json_array_get(list, i);
+    holder[i] = co;
+    ms[i] = json_object_get(co, "metrics");
+    group[i] = json_string_value(json_object_get(json_object_get(co, "reference"), "id"));
+  }
+  json_t *pareto, *ranking;
+  json_t *groups = srv_compare_rank(holder, ms, group, pts, n, &pareto, &ranking);
+  for (size_t g = 0; g < json_array_size(groups); g++) {
+    json_t *gr = json_array_get(groups, g);
+    json_t *ref = reference_ref(refs, json_string_value(json_object_get(gr, "reference")));
+    json_object_set(gr, "label", json_object_get(ref, "label"));
+    json_decref(ref);
+    int any = 0;
+    json_t *members = json_object_get(gr, "candidates");
+    for (size_t k = 0; k < json_array_size(members); k++)
+      any |= json_is_object(ms[json_integer_value(json_array_get(members, k))]);
+    with_metrics += any;
+  }
+  json_object_set_new(o, "groups", groups);
+  json_object_set_new(o, "pareto", pareto);
+  json_object_set_new(o, "ranking", ranking);
+  json_object_set_new(o, "comparable", json_boolean(with_metrics <= 1));
+  json_object_set_new(o, "note", with_metrics > 1
+      ? json_string("errors measured against different references are not comparable: the "
+                    "candidates are ranked within each reference's group; a common reference "
+                    "ranks them on one scale")
+      : json_null());
+  /* The common reference's scale: every candidate that has a common measurement, in one group. */
+  const char *cid = NULL;
+  for (size_t i = 0; i < n; i++) {
+    json_t *cm = json_object_get(json_array_get(list, i), "common");
+    holder[i] = cm;
+    ms[i] = json_object_get(cm, "metrics");
+    group[i] = json_is_object(cm) ? json_string_value(json_object_get(json_object_get(cm, "reference"), "id")) : NULL;
+    if (group[i]) cid = group[i], ncommon++;
+    cp[i] = pts[i];
+    json_t *rm = json_object_get(ms[i], "rmse"), *rn = json_object_get(ms[i], "ref_noise");
+    cp[i].error = json_is_number(rm) ? json_number_value(rm) : NAN;
+    cp[i].error_tolerance = json_is_number(rn) ? json_number_value(rn) : 0;
+    cp[i].at_reference_accuracy = json_is_true(json_object_get(ms[i], "at_reference_accuracy"));
+  }
+  if (ncommon) {
+    json_t *cpareto, *cranking;
+    json_decref(srv_compare_rank(holder, ms, group, cp, n, &cpareto, &cranking));
+    json_object_set_new(o, "common", json_pack("{s:o, s:o, s:o}", "reference",
+                                               reference_ref(refs, cid), "pareto", cpareto,
+                                               "ranking", cranking));
+  }
+  free(holder);
+  free(ms);
+  free(group);
+  free(cp);
+}
+
+/* The comparison document of docs/comparisons.md. 0, OBS_ENOTFOUND, or a database error. */
 static int comparison_json(srv_app *app, int64_t id, json_t **out, obs_err *err) {
   *out = NULL;
   srv_arg arg = {SRV_ARG_INT, id, 0, NULL};
@@ -291,27 +403,20 @@ static int comparison_json(srv_app *app, int64_t id, json_t **out, obs_err *err)
   if (!rc) rc = srv_db_query(app->db, SRV_Q_COMPARISON_OUTPUTS, &arg, 1, &outs, err);
   size_t n = json_array_size(cands);
   obs_pareto_point *pts = rc ? NULL : calloc(n + 1, sizeof *pts);
-  unsigned char *opt = rc ? NULL : calloc(n + 1, 1);
-  if (!rc && (!pts || !opt))
+  if (!rc && !pts)
     rc = obs_err_set(err, OBS_ENOMEM, "comparison %lld: out of memory", (long long)id);
   if (!rc) {
     json_t *o = comparison_head(id, json_array_get(head, 0));
     json_t *refs = json_array(), *list = json_array();
+    int has_common = 0;
     for (size_t i = 0; i < n; i++) {
-      json_t *row = json_array_get(cands, i);
-      json_int_t rjob = json_integer_value(json_object_get(row, "reference_job"));
-      /* References: each once, in the order candidates name them. */
-      int seen = 0;
-      for (size_t k = 0; k < json_array_size(refs); k++)
-        if (json_integer_value(json_object_get(json_array_get(refs, k), "job_id")) == rjob)
-          seen = 1;
-      if (!seen) json_array_append_new(refs, reference_json(app, row, rjob, runs, outs));
-      json_array_append_new(list, candidate_json(app, row, runs, outs, &pts[i]));
+      const char *role = json_string_value(json_object_get(json_array_get(cands, i), "role"));
+      has_common |= role && !strcmp(role, "common");
     }
+    candidates_of(app, cands, runs, outs, refs, list, pts, has_common);
     json_object_set_new(o, "references", refs);
     json_object_set_new(o, "candidates", list);
-    json_object_set_new(o, "pareto", pareto_set(list, pts, opt, n));
-    json_object_set_new(o, "ranking", ranking_of(list));
+    rank_all(o, list, pts, refs);
     json_object_set_new(o, "answer", srv_compare_answer(list, json_number_value(json_object_get(
                                                                   json_array_get(head, 0),
                                                                   "budget_ms"))));
@@ -322,7 +427,6 @@ static int comparison_json(srv_app *app, int64_t id, json_t **out, obs_err *err)
     *out = o;
   }
   free(pts);
-  free(opt);
   json_decref(head);
   json_decref(cands);
   json_decref(runs);
@@ -393,69 +497,98 @@ static void csv_value(sbuf *b, const json_t *v) {
   }
 }
 
+/* One CSV row: candidate c with metrics m (its own, or one further output's) against reference
+ * ref ({id, label, ...}); common: its common measurement (null on an output's row). */
+static void csv_row(sbuf *b, const json_t *c, const json_t *m, const json_t *ref,
+                    const json_t *common, const char *output) {
+  char buf[32];
+  snprintf(buf, sizeof buf, "%lld", (long long)json_integer_value(json_object_get(c, "index")));
+  csv_field(b, buf, 1);
+  csv_value(b, json_object_get(c, "job_id"));
+  csv_value(b, json_object_get(c, "technique"));
+  csv_value(b, json_object_get(c, "backend"));
+  sbuf pb = {0};
+  const char *key;
+  json_t *v;
+  int first = 1;
+  json_object_foreach(json_object_get(c, "params"), key, v) {
+    if (!first) sb_put(&pb, ";", 1);
+    first = 0;
+    sb_put(&pb, key, strlen(key));
+    sb_put(&pb, "=", 1);
+    char *t = json_is_string(v)
+                  ? strdup(json_string_value(v))
+                  : json_dumps(v, JSON_ENCODE_ANY | JSON_COMPACT | JSON_REAL_PRECISION(12));
+    if (t) sb_put(&pb, t, strlen(t));
+    free(t);
+  }
+  csv_field(b, pb.p ? pb.p : "", 0);
+  free(pb.p);
+  csv_value(b, json_object_get(c, "state"));
+  json_t *tm = json_object_get(c, "timings_ms"), *med = json_object_get(tm, "median");
+  static const char *const order[4] = {"total", "build", "render", "post"};
+  for (int k = 0; k < 4; k++) csv_value(b, json_object_get(med, order[k]));
+  snprintf(buf, sizeof buf, "%zu", json_array_size(json_object_get(tm, "runs")));
+  csv_field(b, buf, 0);
+  const obs_metric *table = obs_metric_table();
+  for (int k = 0; k < OBS_METRIC_COUNT; k++) csv_value(b, obs_metric_json_get(m, &table[k]));
+  csv_value(b, json_object_get(m, "at_reference_accuracy"));
+  csv_value(b, output ? NULL : json_object_get(c, "pareto"));
+  json_t *mach = json_object_get(c, "machine");
+  csv_value(b, json_object_get(mach, "cpu_model"));
+  csv_value(b, json_object_get(mach, "cores"));
+  csv_value(b, json_object_get(mach, "vulkan_device"));
+  /* The compared output; empty without metrics. */
+  json_t *out = json_object_get(m, "output");
+  if (output)
+    csv_field(b, output, 0);
+  else if (json_is_object(m) && !out)
+    csv_field(b, "ao", 0);
+  else
+    csv_value(b, out);
+  /* The run-to-run spread of the total time, last so older readers' columns stay put. */
+  csv_value(b, json_object_get(json_object_get(tm, "min"), "total"));
+  csv_value(b, json_object_get(json_object_get(tm, "max"), "total"));
+  /* What the row's figures are measured against, and the candidate's figures against the common
+   * reference (empty without one). */
+  csv_value(b, json_object_get(ref, "id"));
+  csv_value(b, json_object_get(ref, "label"));
+  json_t *cm = json_object_get(common, "metrics");
+  static const char *const ck[5] = {"rmse", "bias", "psnr", "ssim", "flip"};
+  for (int k = 0; k < 5; k++) csv_value(b, json_object_get(cm, ck[k]));
+  csv_value(b, output ? NULL : json_object_get(common, "pareto"));
+  csv_value(b, json_object_get(json_object_get(c, "device"), "label"));
+  sb_put(b, "\r\n", 2);
+}
+
+/* A row per candidate, then a row per further output of it (its "output" column names which). */
 static char *comparison_csv(const json_t *o, size_t *len) {
   sbuf b = {0};
-  static const char header[] =
-      "index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs,rmse,"
-      "bias,max_abs,psnr,ssim,ref_noise,at_reference_accuracy,pareto,cpu_model,cores,"
-      "vulkan_device,output,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse,"
-      "total_ms_min,total_ms_max,device\r\n";
-  sb_put(&b, header, sizeof header - 1);
+  /* The metric columns are the metric table's, in its order (docs/comparisons.md); then what
+   * each row is measured against and the candidate's figures against the common reference. */
+  static const char head[] = "index,job_id,technique,backend,params,state,total_ms,build_ms,"
+                             "render_ms,post_ms,runs,";
+  static const char tail[] = "at_reference_accuracy,pareto,cpu_model,cores,vulkan_device,output,"
+                             "total_ms_min,total_ms_max,reference,reference_label,common_rmse,"
+                             "common_bias,common_psnr,common_ssim,common_flip,common_pareto,device\r\n";
+  const obs_metric *table = obs_metric_table();
+  sb_put(&b, head, sizeof head - 1);
+  for (int k = 0; k < OBS_METRIC_COUNT; k++) {
+    sb_put(&b, table[k].name, strlen(table[k].name));
+    sb_put(&b, ",", 1);
+  }
+  sb_put(&b, tail, sizeof tail - 1);
   json_t *cands = json_object_get(o, "candidates");
   for (size_t i = 0; i < json_array_size(cands); i++) {
     json_t *c = json_array_get(cands, i);
-    char buf[32];
-    snprintf(buf, sizeof buf, "%lld", (long long)json_integer_value(json_object_get(c, "index")));
-    csv_field(&b, buf, 1);
-    csv_value(&b, json_object_get(c, "job_id"));
-    csv_value(&b, json_object_get(c, "technique"));
-    csv_value(&b, json_object_get(c, "backend"));
-    sbuf pb = {0};
-    const char *key;
-    json_t *v;
-    int first = 1;
-    json_object_foreach(json_object_get(c, "params"), key, v) {
-      if (!first) sb_put(&pb, ";", 1);
-      first = 0;
-      sb_put(&pb, key, strlen(key));
-      sb_put(&pb, "=", 1);
-      char *t = json_is_string(v)
-                    ? strdup(json_string_value(v))
-                    : json_dumps(v, JSON_ENCODE_ANY | JSON_COMPACT | JSON_REAL_PRECISION(12));
-      if (t) sb_put(&pb, t, strlen(t));
-      free(t);
+    csv_row(&b, c, json_object_get(c, "metrics"), json_object_get(c, "reference"),
+            json_object_get(c, "common"), NULL);
+    json_t *outs = json_object_get(c, "outputs");
+    for (size_t k = 0; k < json_array_size(outs); k++) {
+      json_t *x = json_array_get(outs, k);
+      csv_row(&b, c, json_object_get(x, "metrics"), json_object_get(x, "reference"), NULL,
+              json_string_value(json_object_get(x, "output")));
     }
-    csv_field(&b, pb.p ? pb.p : "", 0);
-    free(pb.p);
-    csv_value(&b, json_object_get(c, "state"));
-    json_t *tm = json_object_get(c, "timings_ms"), *med = json_object_get(tm, "median");
-    static const char *const order[4] = {"total", "build", "render", "post"};
-    for (int k = 0; k < 4; k++) csv_value(&b, json_object_get(med, order[k]));
-    snprintf(buf, sizeof buf, "%zu", json_array_size(json_object_get(tm, "runs")));
-    csv_field(&b, buf, 0);
-    json_t *m = json_object_get(c, "metrics");
-    static const char *const mk[7] = {
-        "rmse", "bias", "max_abs", "psnr", "ssim", "ref_noise", "at_reference_accuracy"};
-    for (int k = 0; k < 7; k++) csv_value(&b, json_object_get(m, mk[k]));
-    csv_value(&b, json_object_get(c, "pareto"));
-    json_t *mach = json_object_get(c, "machine");
-    csv_value(&b, json_object_get(mach, "cpu_model"));
-    csv_value(&b, json_object_get(mach, "cores"));
-    csv_value(&b, json_object_get(mach, "vulkan_device"));
-    /* The compared output and, for an RGB one, its own figures; empty for AO candidates. */
-    json_t *rgb = json_object_get(m, "rgb"), *out = json_object_get(m, "output");
-    if (json_is_object(m) && !out)
-      csv_field(&b, "ao", 0);
-    else
-      csv_value(&b, out);
-    for (size_t k = 0; k < 3; k++) csv_value(&b, json_array_get(json_object_get(rgb, "rmse"), k));
-    static const char *const rk[3] = {"rmse_luminance", "ssim_luminance", "rel_mse"};
-    for (int k = 0; k < 3; k++) csv_value(&b, json_object_get(rgb, rk[k]));
-    /* The run-to-run spread of the total time, last so older readers' columns stay put. */
-    csv_value(&b, json_object_get(json_object_get(tm, "min"), "total"));
-    csv_value(&b, json_object_get(json_object_get(tm, "max"), "total"));
-    csv_value(&b, json_object_get(json_object_get(c, "device"), "label"));
-    sb_put(&b, "\r\n", 2);
   }
   if (b.oom) {
     free(b.p);

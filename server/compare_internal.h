@@ -29,6 +29,14 @@ typedef struct cand {
   double work;
   obs_response response;
   int ref;                /* index into the references */
+  /* Further measurements of the candidate's job (srv_new_measure): against the common reference
+   * (-1: none, or not the quantity the candidate estimates), and each other output its technique
+   * declares a reference for (obs_reference_alt), with that reference. */
+  int common_ref;
+  char *common_key;
+  int alt_ref[8], nalt;
+  char *alt_key[8];
+  const char *alt_output[8]; /* a compared_outputs pair's output; NULL for reference_alts */
 } cand;
 
 typedef struct ref_job {
@@ -44,7 +52,22 @@ typedef struct expansion {
   int n, cap;
   ref_job *refs;
   int nrefs;
+  int common; /* the common reference's index in refs, -1: none asked for */
 } expansion;
+
+/* What defines a reference (compare_refs.c): the values of its technique's reference keys in its
+ * params (a new object). */
+json_t *srv_compare_definition(const char *technique, const json_t *params);
+/* A reference's label from its technique, definition and response ("rt_ao: weighting cosine,
+ * falloff binary, ...; mapped through ssao_hemi"); malloc'ed, NULL when out of memory. */
+char *srv_compare_label(const char *technique, const json_t *definition, const char *response);
+/* Ranks n candidates within groups of one reference: group[i] names candidate i's reference
+ * (NULL: none, it takes no part), metrics[i] its metrics object, pts[i] its place on the
+ * time/error plane; each holder[i] gets "pareto". Returns the groups ([{reference, candidates,
+ * pareto, ranking}]) with *pareto (every group's optimal candidates by ascending time) and
+ * *ranking (one group's, or all groups' merged). */
+json_t *srv_compare_rank(json_t *const *holder, json_t *const *metrics, const char *const *group,
+                         const obs_pareto_point *pts, size_t n, json_t **pareto, json_t **ranking);
 
 void srv_compare_expansion_free(expansion *x);
 /* Reads the candidate entries into the expansion (structure only: values are checked later by

@@ -25,38 +25,46 @@ static void metrics_one(srv_app *app, const json_t *row) {
   json_int_t rjob = json_integer_value(json_object_get(row, "reference_job"));
   obs_response resp = OBS_RESPONSE_IDENTITY;
   obs_err e = OBS_ERR_INIT;
-  obs_image eimg;
+  obs_image eimg, flip;
   memset(&eimg, 0, sizeof eimg);
+  memset(&flip, 0, sizeof flip);
   char dir[4200], rdir[4200];
   srv_results_path(app, job, dir, sizeof dir);
   srv_results_path(app, rjob, rdir, sizeof rdir);
-  srv_output outs[16], err_outs[3];
+  srv_output outs[16], err_outs[6];
   int nouts = 0, nerr = 0;
-  obs_compare m;
+  obs_metric_values m;
   int rc = obs_response_parse(json_string_value(json_object_get(row, "response")), &resp)
                ? obs_err_set(&e, OBS_EINVAL, "unknown response mapping")
                : 0;
   json_t *extra = json_object();
-  if (!rc) rc = srv_compare_primary(dir, rdir, resp, &m, extra, &eimg, &e);
+  /* A further measurement (common reference, another output) has figures only: the error images,
+   * FLIP map and mapped reference are the candidate's own row's. */
+  const char *role = json_string_value(json_object_get(row, "role"));
+  int own = !role || !strcmp(role, "own");
+  /* An output a technique pairs with its reference's (bent normals): every metric that applies. */
+  const char *output = json_string_value(json_object_get(row, "output"));
+  json_t *pair = output ? json_object() : NULL;
+  if (!rc && output) rc = srv_compare_output(dir, rdir, output, pair, &e);
+  else if (!rc) rc = srv_compare_primary(dir, rdir, resp, &m, extra, &eimg, &flip, &e);
   /* Written into the candidate's published directory under staging names and renamed, so a crash
    * leaves either no error image or a whole one (recorded below, or again after a restart). */
-  if (!rc) rc = obs_metrics_write_error_files(&eimg, dir, &e);
-  if (!rc) rc = srv_outputs_describe(dir, outs, 16, &nouts, &e);
+  if (!rc && own) rc = obs_metrics_write_error_files(&eimg, dir, &e);
+  if (!rc && own && flip.data) rc = obs_metrics_write_flip_files(&flip, dir, &e);
+  if (!rc && own) rc = srv_outputs_describe(dir, outs, 16, &nouts, &e);
   for (int i = 0; !rc && i < nouts; i++)
-    if ((!strncmp(outs[i].name, "error.", 6) || !strcmp(outs[i].name, SRV_MAPPED_REFERENCE_PNG)) &&
+    if ((!strncmp(outs[i].name, "error.", 6) || !strncmp(outs[i].name, "flip.", 5) ||
+         !strcmp(outs[i].name, SRV_MAPPED_REFERENCE_PNG) ||
+         !strcmp(outs[i].name, SRV_MAPPED_REFERENCE_EXR)) &&
         nerr < (int)(sizeof err_outs / sizeof *err_outs))
       err_outs[nerr++] = outs[i];
   char *metrics = NULL;
-  if (!rc) {
+  if (!rc && pair) {
+    metrics = json_dumps(pair, JSON_COMPACT | JSON_REAL_PRECISION(17));
+  } else if (!rc) {
+    /* Every metric of the table that applied, at its place (the table's json_group/json_key). */
     json_t *mj = json_object();
-    json_object_set_new(mj, "rmse", num_or_null(m.rmse));
-    json_object_set_new(mj, "bias", num_or_null(m.bias));
-    json_object_set_new(mj, "max_abs", num_or_null(m.max_abs));
-    json_object_set_new(mj, "psnr", num_or_null(m.psnr));
-    json_object_set_new(mj, "ssim", num_or_null(m.ssim));
-    json_object_set_new(mj, "ref_noise", num_or_null(m.ref_noise));
-    json_object_set_new(mj, "at_reference_accuracy", json_boolean(m.at_reference_accuracy));
-    json_object_set_new(mj, "pixels", json_integer(m.pixels));
+    obs_metric_values_json(&m, mj);
     json_object_update(mj, extra);
     metrics = json_dumps(mj, JSON_COMPACT | JSON_REAL_PRECISION(17));
     json_decref(mj);
@@ -74,14 +82,21 @@ static void metrics_one(srv_app *app, const json_t *row) {
   else if (rc)
     srv_log("comparison %lld candidate %d: no metrics: %s", (long long)cmp, idx,
             obs_err_message(&e));
+  else if (pair)
+    srv_log("comparison %lld candidate %d: output %s measured (job %lld vs reference %lld)",
+            (long long)cmp, idx, output, (long long)job, (long long)rjob);
   else
-    srv_log("comparison %lld candidate %d: rmse %.4g, ssim %.4g (job %lld vs reference %lld)",
-            (long long)cmp, idx, m.rmse, m.ssim, (long long)job, (long long)rjob);
+    srv_log("comparison %lld candidate %d: rmse %.4g, ssim %.4g, flip %.4g (job %lld vs "
+            "reference %lld)",
+            (long long)cmp, idx, m.v[OBS_METRIC_RMSE], m.v[OBS_METRIC_SSIM], m.v[OBS_METRIC_FLIP],
+            (long long)job, (long long)rjob);
   free(metrics);
+  json_decref(pair);
   json_decref(extra);
   obs_err_free(&dberr);
   obs_err_free(&e);
   obs_image_free(&eimg);
+  obs_image_free(&flip);
 }
 
 void srv_compare_metrics(srv_app *app, int64_t job) {

@@ -81,6 +81,15 @@ static void remap_problems(const obs_err *from, const char *docname, const cand 
 }
 
 /* The parts of a request shared by every candidate. */
+/* The comparison's common reference (the request's "common_reference"): one reference job every
+ * candidate is also measured against, so that techniques of different definitions share a scale. */
+typedef struct cmp_common {
+  const obs_technique *technique;
+  const json_t *params; /* borrowed from the request */
+  long long samples, seed;
+  obs_backend backend;
+} cmp_common;
+
 typedef struct cmp_req {
   json_t *req, *base;  /* the request; the scene document with overrides, without technique */
   const char *docname; /* bundled file name or "inline" */
@@ -92,6 +101,8 @@ typedef struct cmp_req {
   obs_scene scene;
   int have_scene;
   json_t *notes;
+  cmp_common common;
+  int has_common;
 } cmp_req;
 
 static void cmp_req_free(cmp_req *q) {
@@ -136,6 +147,149 @@ static json_t *technique_obj(const char *name, obs_backend b, const json_t *para
                    params);
 }
 
+/* Rewrites a problem of the common reference's document ("<doc>: /technique/params/x: ...") into
+ * a pointer into the request ("request: /common_reference/params/x: ..."). */
+static void common_problem(const char *docname, const char *line, obs_err *problems, int *dropped) {
+  size_t dl = strlen(docname);
+  const char *rest = line;
+  if (!strncmp(rest, docname, dl) && !strncmp(rest + dl, ": ", 2)) rest += dl + 2;
+  char out[2700];
+  if (!strncmp(rest, "/technique/name", 15))
+    snprintf(out, sizeof out, "request: /common_reference/technique%s", rest + 15);
+  else if (!strncmp(rest, "/technique", 10))
+    snprintf(out, sizeof out, "request: /common_reference%s", rest + 10);
+  else
+    snprintf(out, sizeof out, "request: /common_reference: %s", rest);
+  add_problem(problems, dropped, out);
+}
+
+/* Registers the reference job `rd` defines (its technique with its params, the reference's
+ * quality and seed; `common`: the comparison's common reference, else the reference of candidate
+ * `entry`), shared with any reference of the same definition. Returns its index with *key (its
+ * params as canonical JSON, malloc'ed), or -1 with the problems reported. */
+static int add_reference(srv_app *app, cmp_req *q, expansion *x, const obs_reference_def *rd,
+                         int entry, const cmp_common *common, char **key, obs_err *problems,
+                         int *dropped) {
+  *key = NULL;
+  const char *ref_name = rd->technique->name;
+  obs_err e = OBS_ERR_INIT;
+  obs_backend want = common ? common->backend : q->ref_want, ref_be;
+  /* The reference technique may run on fewer backends than rt_ao (path_trace: cpu only). */
+  if (srv_pick_backend(rd->technique, want, app->vulkan_lane, &ref_be, &e)) {
+    char line[1200];
+    if (common)
+      snprintf(line, sizeof line, "request: /common_reference/backend: %s", obs_err_message(&e));
+    else
+      snprintf(line, sizeof line, "request: /reference/backend: the reference of /candidates/%d "
+               "(%s): %s", entry, ref_name, obs_err_message(&e));
+    add_problem(problems, dropped, line);
+    obs_err_free(&e);
+    return -1;
+  }
+  json_t *params = json_deep_copy(rd->params);
+  json_object_set_new(params, rd->technique->reference_quality,
+                      json_integer(common ? common->samples : q->ref_samples));
+  json_object_set_new(params, "seed", json_integer(common ? common->seed : q->ref_seed));
+  json_t *rdoc = json_deep_copy(q->base);
+  json_object_set_new(rdoc, "technique", technique_obj(ref_name, ref_be, params));
+  json_decref(params);
+  obs_scene rs;
+  memset(&rs, 0, sizeof rs);
+  char *rtext = NULL;
+  if (!load_doc(app, rdoc, q->docname, &rs, &rtext, &e)) srv_submit_check_limits(app, &rs, 1, &e);
+  json_decref(rdoc);
+  int found = -1;
+  const char *t = e.text;
+  for (const char *p = t; e.count && p && *p;) {
+    const char *nl = strchr(p, '\n');
+    size_t len = nl ? (size_t)(nl - p) : strlen(p);
+    char line[2600];
+    if (common) {
+      snprintf(line, sizeof line, "%.*s", (int)len, p);
+      common_problem(q->docname, line, problems, dropped);
+    } else {
+      /* The reference inherits its definition from the candidate: say which candidate. */
+      snprintf(line, sizeof line, "request: /reference: the reference of /candidates/%d (%s): %.*s",
+               entry, ref_name, (int)len, p);
+      add_problem(problems, dropped, line);
+    }
+    p = nl ? nl + 1 : p + len;
+  }
+  char *k = e.count ? NULL
+                    : json_dumps(rs.params, JSON_COMPACT | JSON_SORT_KEYS | JSON_REAL_PRECISION(17));
+  for (int i = 0; k && i < x->nrefs; i++)
+    if (!strcmp(x->refs[i].key, k) && !strcmp(x->refs[i].technique, ref_name)) found = i;
+  if (k && found < 0) {
+    ref_job *nr = realloc(x->refs, (size_t)(x->nrefs + 1) * sizeof *nr);
+    if (nr) {
+      x->refs = nr;
+      ref_job *r = &x->refs[x->nrefs];
+      r->technique = ref_name;
+      r->doc = rtext;
+      rtext = NULL;
+      r->key = strdup(k);
+      r->width = rs.width;
+      r->height = rs.height;
+      r->spp = rs.spp;
+      r->work = obs_scene_work(&rs);
+      r->backend = ref_be;
+      if (r->key) found = x->nrefs++;
+    }
+  }
+  if (!e.count && found < 0) obs_err_set(problems, OBS_ENOMEM, "request: out of memory");
+  if (found >= 0) *key = k;
+  else free(k);
+  free(rtext);
+  obs_scene_free(&rs);
+  obs_err_free(&e);
+  return found;
+}
+
+/* The candidate's further measurements: against the common reference when that measures the
+ * quantity the candidate estimates (it is the candidate's own reference technique or one its
+ * technique declares for another output), and each other output against its declared reference
+ * (obs_reference_alt; skipped where the alternative's needs_false parameter is true, as the two
+ * are then not the same quantity) or against its own reference job's (obs_output_pair). */
+static void add_measures(srv_app *app, cmp_req *q, cand *c, obs_scene *sc, expansion *x,
+                         obs_reference_facts *facts, obs_err *problems, int *dropped) {
+  if (x->common >= 0) {
+    const char *ct = x->refs[x->common].technique;
+    int same = !strcmp(ct, x->refs[c->ref].technique);
+    for (const obs_reference_alt *a = c->t->reference_alts; a && a->technique; a++)
+      same |= !strcmp(a->technique->name, ct);
+    if (same) {
+      c->common_ref = x->common;
+      c->common_key = strdup(x->refs[x->common].key);
+    }
+  }
+  for (const obs_reference_alt *a = c->t->reference_alts; a && a->technique && c->nalt < 4; a++) {
+    if (c->against && !strcmp(c->against, a->technique->name)) continue; /* the primary row */
+    if (a->needs_false && json_is_true(json_object_get(sc->params, a->needs_false))) continue;
+    obs_reference_def rd;
+    obs_err e = OBS_ERR_INIT;
+    if (obs_technique_reference_against(sc->technique, sc, sc->params, a->technique->name, facts,
+                                        &rd, &e)) {
+      obs_err_free(&e);
+      continue;
+    }
+    char *key = NULL;
+    int r = add_reference(app, q, x, &rd, c->entry, NULL, &key, problems, dropped);
+    obs_reference_def_free(&rd);
+    if (r < 0) continue;
+    c->alt_ref[c->nalt] = r;
+    c->alt_output[c->nalt] = NULL;
+    c->alt_key[c->nalt++] = key;
+  }
+  /* Outputs compared with the own reference job's (the bent normals), where it has them. */
+  const obs_technique *rt = obs_technique_find(x->refs[c->ref].technique);
+  for (const obs_output_pair *q = c->t->compared_outputs; q && q->output && c->nalt < 8; q++) {
+    if (!rt || !obs_technique_output(rt, q->reference_output)) continue;
+    c->alt_ref[c->nalt] = c->ref;
+    c->alt_output[c->nalt] = q->output;
+    c->alt_key[c->nalt++] = strdup(x->refs[c->ref].key);
+  }
+}
+
 /* Validates one candidate like a job (scene rules, parameters, backend, limits), derives its
  * reference and registers it (shared when another candidate has the same definition). */
 static void validate_candidate(srv_app *app, cmp_req *q, cand *c, expansion *x,
@@ -177,77 +331,12 @@ static void validate_candidate(srv_app *app, cmp_req *q, cand *c, expansion *x,
     goto out;
   }
   c->response = rd.response;
-  const char *ref_name = rd.technique->name;
-  /* The reference technique may run on fewer backends than rt_ao (path_trace: cpu only). */
-  obs_backend ref_be;
-  if (srv_pick_backend(rd.technique, q->ref_want, app->vulkan_lane, &ref_be, &e)) {
-    char line[1200];
-    snprintf(line, sizeof line,
-             "request: /reference/backend: the reference of /candidates/%d "
-             "(%s): %s",
-             c->entry, ref_name, obs_err_message(&e));
-    add_problem(problems, dropped, line);
-    obs_reference_def_free(&rd);
-    goto out;
-  }
-  json_object_set_new(rd.params, rd.technique->reference_quality, json_integer(q->ref_samples));
-  json_object_set_new(rd.params, "seed", json_integer(q->ref_seed));
-  json_t *rdoc = json_deep_copy(q->base);
-  json_object_set_new(rdoc, "technique", technique_obj(ref_name, ref_be, rd.params));
+  char *key = NULL;
+  c->ref = add_reference(app, q, x, &rd, c->entry, NULL, &key, problems, dropped);
   obs_reference_def_free(&rd);
-  obs_scene rs;
-  memset(&rs, 0, sizeof rs);
-  char *rtext = NULL;
-  obs_err re = OBS_ERR_INIT;
-  if (!load_doc(app, rdoc, q->docname, &rs, &rtext, &re)) srv_submit_check_limits(app, &rs, 1, &re);
-  json_decref(rdoc);
-  if (re.count) {
-    /* The reference inherits its definition from the candidate: say which candidate. */
-    const char *t = re.text;
-    for (const char *p = t; p && *p;) {
-      const char *nl = strchr(p, '\n');
-      size_t len = nl ? (size_t)(nl - p) : strlen(p);
-      char line[2600];
-      snprintf(line, sizeof line,
-               "request: /reference: the reference of /candidates/%d "
-               "(%s): %.*s",
-               c->entry, ref_name, (int)len, p);
-      add_problem(problems, dropped, line);
-      p = nl ? nl + 1 : p + len;
-    }
-    free(rtext);
-    obs_scene_free(&rs);
-    obs_err_free(&re);
-    goto out;
-  }
-  obs_err_free(&re);
-  char *key = json_dumps(rs.params, JSON_COMPACT | JSON_SORT_KEYS | JSON_REAL_PRECISION(17));
-  int found = -1;
-  for (int i = 0; key && i < x->nrefs; i++)
-    if (!strcmp(x->refs[i].key, key) && !strcmp(x->refs[i].technique, ref_name)) found = i;
-  if (key && found < 0) {
-    ref_job *nr = realloc(x->refs, (size_t)(x->nrefs + 1) * sizeof *nr);
-    if (nr) {
-      x->refs = nr;
-      ref_job *r = &x->refs[x->nrefs];
-      r->technique = ref_name;
-      r->doc = rtext;
-      rtext = NULL;
-      r->key = key;
-      key = NULL;
-      r->width = rs.width;
-      r->height = rs.height;
-      r->spp = rs.spp;
-      r->work = obs_scene_work(&rs);
-      r->backend = ref_be;
-      found = x->nrefs++;
-    }
-  }
-  c->ref = found;
-  c->ref_key = found >= 0 ? strdup(x->refs[found].key) : NULL;
-  free(key);
-  free(rtext);
-  obs_scene_free(&rs);
+  if (c->ref < 0) goto out;
+  c->ref_key = key;
+  add_measures(app, q, c, &sc, x, facts, problems, dropped);
   c->doc = text;
   text = NULL;
   c->params_full = json_dumps(sc.params, JSON_COMPACT | JSON_REAL_PRECISION(17));
@@ -255,8 +344,7 @@ static void validate_candidate(srv_app *app, cmp_req *q, cand *c, expansion *x,
   c->height = sc.height;
   c->spp = sc.spp;
   c->work = obs_scene_work(&sc);
-  if (found < 0 || !c->params_full || !c->ref_key)
-    obs_err_set(problems, OBS_ENOMEM, "request: out of memory");
+  if (!c->params_full) obs_err_set(problems, OBS_ENOMEM, "request: out of memory");
 out:
   free(text);
   obs_scene_free(&sc);
@@ -278,6 +366,65 @@ static int too_many_jobs(srv_app *app, obs_jpath *p, int ncandidates, int njobs)
   return 1;
 }
 
+/* A reference's samples, seed and backend (p at the object holding them); the backend is checked
+ * against the reference technique once it is known. */
+static void reference_opts(obs_jpath *p, const json_t *o, long long *samples, long long *seed,
+                           obs_backend *backend) {
+  obs_json_get_int(p, o, "samples", 0, 1, 65536, samples);
+  obs_json_get_int(p, o, "seed", 0, 0, 4294967295LL, seed);
+  const char *b = NULL;
+  const char *rbe[] = {obs_backend_name(OBS_BACKEND_CPU), obs_backend_name(OBS_BACKEND_VULKAN),
+                       obs_backend_name(OBS_BACKEND_AUTO), NULL};
+  if (!obs_json_get_string(p, o, "backend", 0, rbe, &b) && b) obs_backend_parse(b, backend);
+}
+
+/* The request's "common_reference" (optional): a technique that can serve as a reference, its
+ * params (checked with the scene like a job's, once the scene is read) and the reference options;
+ * samples, seed and backend default to the request's reference's. */
+static void read_common(obs_jpath *p, const json_t *req, cmp_req *q) {
+  int absent = 0;
+  json_t *cr = obs_json_get_object(p, req, "common_reference", 0, &absent);
+  if (!cr) return;
+  size_t m = obs_jpath_push_key(p, "common_reference");
+  static const char *const keys[] = {"technique", "params", "samples", "backend", "seed", NULL};
+  obs_json_check_keys(p, cr, keys);
+  cmp_common *c = &q->common;
+  c->samples = q->ref_samples;
+  c->seed = q->ref_seed;
+  c->backend = q->ref_want;
+  reference_opts(p, cr, &c->samples, &c->seed, &c->backend);
+  const char *tn = NULL;
+  if (!obs_json_get_string(p, cr, "technique", 1, NULL, &tn)) {
+    c->technique = obs_technique_find(tn);
+    size_t k = obs_jpath_push_key(p, "technique");
+    char list[512] = "";
+    for (size_t i = 0; i < obs_technique_count(); i++) {
+      const obs_technique *t = obs_technique_at(i);
+      size_t l = strlen(list);
+      if (t->reference_quality) snprintf(list + l, sizeof list - l, "%s\"%s\"", l ? ", " : "", t->name);
+    }
+    if (!c->technique || !c->technique->reference_quality) {
+      obs_jpath_fail(p, "must be a technique that can serve as a reference: %s (got %s)", list,
+                     obs_json_brief(json_object_get(cr, "technique")));
+      c->technique = NULL;
+    }
+    obs_jpath_pop(p, k);
+  }
+  c->params = obs_json_get_object(p, cr, "params", 0, &absent);
+  /* The reference's quality and seed are the options beside params, as for "reference". */
+  const char *own[2] = {c->technique ? c->technique->reference_quality : NULL, "seed"};
+  for (int i = 0; i < 2 && c->params; i++) {
+    if (!own[i] || !json_object_get(c->params, own[i])) continue;
+    size_t k = obs_jpath_push_key(p, "params");
+    size_t k2 = obs_jpath_push_key(p, own[i]);
+    obs_jpath_fail(p, "is set by /common_reference/%s, not in params", i ? "seed" : "samples");
+    obs_jpath_pop(p, k2);
+    obs_jpath_pop(p, k);
+  }
+  q->has_common = c->technique && (c->params || absent);
+  obs_jpath_pop(p, m);
+}
+
 /* Parses and validates the request; fills `x` with every candidate and reference. Returns 0 or
  * the HTTP status (problems listed). */
 static unsigned parse_request(srv_app *app, const char *body, size_t len, cmp_req *q, expansion *x,
@@ -296,8 +443,10 @@ static unsigned parse_request(srv_app *app, const char *body, size_t len, cmp_re
   obs_jpath p;
   obs_jpath_init(&p, "request", problems);
   json_t *req = q->req;
-  static const char *const keys[] = {"scene_file", "scene",     "set",        "label", "priority",
-                                     "repeats",    "reference", "candidates", "budget_ms",
+  static const char *const keys[] = {"scene_file", "scene",      "set",
+                                     "label",      "priority",   "repeats",
+                                     "reference",  "candidates", "common_reference",
+                                     "budget_ms",
                                      NULL};
   obs_json_check_keys(&p, req, keys);
   /* The budget the comparison's answer is read at (stored with the request). */
@@ -322,16 +471,10 @@ static unsigned parse_request(srv_app *app, const char *body, size_t len, cmp_re
     size_t m = obs_jpath_push_key(&p, "reference");
     static const char *const rkeys[] = {"samples", "backend", "seed", NULL};
     obs_json_check_keys(&p, ref, rkeys);
-    obs_json_get_int(&p, ref, "samples", 0, 1, 65536, &q->ref_samples);
-    obs_json_get_int(&p, ref, "seed", 0, 0, 4294967295LL, &q->ref_seed);
-    const char *b = NULL;
-    const char *rbe[] = {obs_backend_name(OBS_BACKEND_CPU), obs_backend_name(OBS_BACKEND_VULKAN),
-                         obs_backend_name(OBS_BACKEND_AUTO), NULL};
-    /* Checked against each reference technique once the candidates name them. */
-    if (!obs_json_get_string(&p, ref, "backend", 0, rbe, &b) && b)
-      obs_backend_parse(b, &q->ref_want);
+    reference_opts(&p, ref, &q->ref_samples, &q->ref_seed, &q->ref_want);
     obs_jpath_pop(&p, m);
   }
+  read_common(&p, req, q);
   json_t *sets = srv_submit_get_sets(&p, req);
   json_t *file = json_object_get(req, "scene_file"), *inl = json_object_get(req, "scene");
   q->docname = "inline";
@@ -397,6 +540,18 @@ static unsigned parse_request(srv_app *app, const char *body, size_t len, cmp_re
   obs_reference_facts facts;
   memset(&facts, 0, sizeof facts);
   int dropped = 0;
+  x->common = -1;
+  if (q->has_common) {
+    obs_reference_def rd = {.technique = q->common.technique,
+                            .params = q->common.params ? json_deep_copy(q->common.params)
+                                                       : json_object(),
+                            .response = OBS_RESPONSE_IDENTITY};
+    char *key = NULL;
+    x->common = add_reference(app, q, x, &rd, -1, &q->common, &key, problems, &dropped);
+    free(key);
+    obs_reference_def_free(&rd);
+    if (problems->count) return 422;
+  }
   for (int i = 0; i < x->n; i++)
     validate_candidate(app, q, &x->c[i], x, &facts, problems, &dropped);
   if (dropped) obs_err_set(problems, OBS_EINVAL, "request: ... and %d more problems", dropped);
@@ -454,6 +609,20 @@ static void new_rows(const cmp_req *q, const expansion *x, srv_new_job *refs,
   }
 }
 
+/* The further measurements' rows (borrowing from x); ms has room for every one. */
+static int new_measures(const expansion *x, srv_new_measure *ms) {
+  int n = 0;
+  for (int i = 0; i < x->n; i++) {
+    const cand *c = &x->c[i];
+    if (c->common_ref >= 0)
+      ms[n++] = (srv_new_measure){i, c->common_ref, "common", c->common_key, "identity", NULL};
+    for (int k = 0; k < c->nalt; k++)
+      ms[n++] = (srv_new_measure){i, c->alt_ref[k], "output", c->alt_key[k], "identity",
+                                  c->alt_output[k]};
+  }
+  return n;
+}
+
 int srv_compare_post(srv_req *r) {
   int refused;
   if (srv_refuse_non_json(r, &refused)) return refused;
@@ -473,12 +642,15 @@ int srv_compare_post(srv_req *r) {
   }
   srv_new_job *refs = calloc((size_t)x.nrefs + 1, sizeof *refs);
   srv_new_candidate *cs = calloc((size_t)x.n + 1, sizeof *cs);
+  srv_new_measure *ms = calloc((size_t)x.n * 9 + 1, sizeof *ms);
   char *request = json_dumps(q.req, JSON_COMPACT | JSON_REAL_PRECISION(17));
   char *notes_text = json_array_size(q.notes) ? json_dumps(q.notes, JSON_COMPACT) : NULL;
   int64_t id = 0;
   unsigned admit = 0;
   int retry = 0;
-  int rc = !refs || !cs || !request ? obs_err_set(&problems, OBS_ENOMEM, "out of memory") : 0;
+  int rc = !refs || !cs || !ms || !request ? obs_err_set(&problems, OBS_ENOMEM, "out of memory")
+                                           : 0;
+  int nms = rc ? 0 : new_measures(&x, ms);
   int width = x.n ? x.c[0].width : 0, height = x.n ? x.c[0].height : 0;
   if (!rc) new_rows(&q, &x, refs, cs);
   if (!rc) {
@@ -492,13 +664,16 @@ int srv_compare_post(srv_req *r) {
                              .references = refs,
                              .nreferences = x.nrefs,
                              .candidates = cs,
-                             .ncandidates = x.n};
+                             .ncandidates = x.n,
+                             .measures = ms,
+                             .nmeasures = nms};
     admit = srv_admit_comparison(r->app, r->client, &nc, &id, &retry, &problems);
     rc = admit ? OBS_EIO : 0;
   }
   int nrefs = x.nrefs, ncand = x.n;
   free(refs);
   free(cs);
+  free(ms);
   free(request);
   free(notes_text);
   srv_compare_expansion_free(&x);

@@ -87,8 +87,8 @@ static const char *const sql[ST_COUNT] = {
     [ST_CMP_INSERT] = "INSERT INTO comparisons (label, scene, width, height, repeats, request, "
                       "created_ms, notes) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
     [ST_CAND_INSERT] = "INSERT INTO comparison_candidates (comparison, idx, job, reference_job, "
-                       "technique, backend, params, reference_params, response) "
-                       "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                       "technique, backend, params, reference_params, response, role, output) "
+                       "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
     [ST_SET_METRICS] = "UPDATE comparison_candidates SET metrics = ?3, metrics_error = ?4 "
                        "WHERE comparison = ?1 AND idx = ?2 AND metrics IS NULL AND "
                        "metrics_error IS NULL",
@@ -116,18 +116,24 @@ static const char *const sql[ST_COUNT] = {
   "comparison = c.id UNION SELECT reference_job FROM comparison_candidates WHERE comparison = "    \
   "c.id) AND state IN ('queued', 'running')) AS active, "                                         \
   "(SELECT count(*) FROM comparison_candidates x JOIN jobs j ON j.id = x.job JOIN jobs r ON "     \
-  "r.id = x.reference_job WHERE x.comparison = c.id AND x.metrics IS NULL AND "                   \
+  "r.id = x.reference_job WHERE x.comparison = c.id AND x.role = 'own' AND x.metrics IS NULL AND " \
   "(x.metrics_error IS NOT NULL OR j.state IN ('failed', 'cancelled') OR "                        \
   "r.state IN ('failed', 'cancelled'))) AS broken, "                                              \
-  "(SELECT count(*) FROM comparison_candidates x WHERE x.comparison = c.id AND x.metrics IS NOT " \
-  "NULL) AS measured, "                                                                           \
-  "(SELECT count(*) FROM comparison_candidates x WHERE x.comparison = c.id) AS candidates"
+  "(SELECT count(*) FROM comparison_candidates x WHERE x.comparison = c.id AND x.role = 'own' "   \
+  "AND x.metrics IS NOT NULL) AS measured, "                                                      \
+  "(SELECT count(*) FROM comparison_candidates x WHERE x.comparison = c.id AND x.role = 'own') "  \
+  "AS candidates, "                                                                               \
+  /* Further measurements still to come: the comparison runs until they have their figures. */   \
+  "(SELECT count(*) FROM comparison_candidates x JOIN jobs j ON j.id = x.job JOIN jobs r ON "     \
+  "r.id = x.reference_job WHERE x.comparison = c.id AND x.role <> 'own' AND x.metrics IS NULL "   \
+  "AND x.metrics_error IS NULL AND j.state = 'succeeded' AND r.state NOT IN ('failed', "          \
+  "'cancelled')) AS measuring"
     [ST_QUERY + SRV_Q_COMPARISON] = "SELECT c.id, c.label, c.scene, c.width, c.height, c.repeats, "
                                     "c.created_ms, c.notes, json_extract(c.request, '$.budget_ms') AS budget_ms, "
                                     CMP_COUNTS " FROM comparisons c WHERE c.id = ?1",
     [ST_QUERY + SRV_Q_CANDIDATES] =
         "SELECT cc.idx, cc.job, cc.reference_job, cc.technique, cc.backend, cc.params, "
-        "cc.reference_params, cc.response, cc.metrics, cc.metrics_error, j.state, j.progress, "
+        "cc.reference_params, cc.response, cc.role, cc.output, cc.metrics, cc.metrics_error, j.state, j.progress, "
         "r.state AS ref_state, r.progress AS ref_progress, r.summary AS ref_summary, "
         "r.technique AS ref_technique "
         "FROM comparison_candidates cc JOIN jobs j ON j.id = cc.job "
@@ -152,7 +158,7 @@ static const char *const sql[ST_COUNT] = {
     [ST_QUERY + SRV_Q_JOB_COMPARISON] = "SELECT comparison FROM comparison_candidates WHERE "
                                         "job = ?1 OR reference_job = ?1 LIMIT 1",
     [ST_QUERY + SRV_Q_METRICS_PENDING] =
-        "SELECT cc.comparison, cc.idx, cc.job, cc.reference_job, cc.response "
+        "SELECT cc.comparison, cc.idx, cc.job, cc.reference_job, cc.response, cc.role, cc.output "
         "FROM comparison_candidates cc JOIN jobs j ON j.id = cc.job "
         "JOIN jobs r ON r.id = cc.reference_job WHERE cc.metrics IS NULL AND "
         "cc.metrics_error IS NULL AND j.state = 'succeeded' AND r.state = 'succeeded' AND "
@@ -170,7 +176,7 @@ static const char *const sql[ST_COUNT] = {
         "JOIN machines m ON m.id = ru.machine WHERE ru.job = cc.job LIMIT 1) AS vulkan_kind "
         "FROM comparison_candidates cc "
         "JOIN comparisons c ON c.id = cc.comparison JOIN jobs j ON j.id = cc.job "
-        "WHERE cc.metrics IS NOT NULL AND j.state = 'succeeded' "
+        "WHERE cc.metrics IS NOT NULL AND cc.role = 'own' AND j.state = 'succeeded' "
         "ORDER BY c.id DESC, cc.idx LIMIT 2000",
     [ST_QUERY + SRV_Q_JOB_RUNS] = "SELECT total_ms FROM runs WHERE job = ?1 ORDER BY run",
 };

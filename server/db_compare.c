@@ -13,7 +13,12 @@ int srv_db_insert_comparison(srv_db *db, const srv_new_comparison *cmp, int64_t 
                              obs_err *err) {
   if (srv_dbi_refused(db, err)) return OBS_ETRANSIENT;
   int64_t *ref_ids = calloc((size_t)cmp->nreferences + 1, sizeof *ref_ids);
-  if (!ref_ids) return obs_err_set(err, OBS_ENOMEM, "out of memory");
+  int64_t *cand_ids = calloc((size_t)cmp->ncandidates + 1, sizeof *cand_ids);
+  if (!ref_ids || !cand_ids) {
+    free(ref_ids);
+    free(cand_ids);
+    return obs_err_set(err, OBS_ENOMEM, "out of memory");
+  }
   conn *c = srv_dbi_acquire(db);
   int rc = srv_dbi_begin(c, err);
   sqlite3_stmt *s;
@@ -56,12 +61,37 @@ int srv_db_insert_comparison(srv_db *db, const srv_new_comparison *cmp, int64_t 
     srv_dbi_bind_text(s, 7, cd->params);
     srv_dbi_bind_text(s, 8, cd->reference_params);
     srv_dbi_bind_text(s, 9, cd->response);
+    srv_dbi_bind_text(s, 10, "own");
+    srv_dbi_bind_text(s, 11, NULL);
     rc = srv_dbi_exec_done(c, s, err, "inserting a candidate");
+    if (!rc) cand_ids[i] = job;
+  }
+  for (int i = 0; !rc && i < cmp->nmeasures; i++) {
+    const srv_new_measure *m = &cmp->measures[i];
+    const srv_new_candidate *cd = &cmp->candidates[m->candidate];
+    s = srv_dbi_stmt(c, ST_CAND_INSERT, err);
+    if (!s) {
+      rc = OBS_EIO;
+      break;
+    }
+    sqlite3_bind_int64(s, 1, *id);
+    sqlite3_bind_int(s, 2, cmp->ncandidates + i);
+    sqlite3_bind_int64(s, 3, cand_ids[m->candidate]);
+    sqlite3_bind_int64(s, 4, ref_ids[m->reference]);
+    srv_dbi_bind_text(s, 5, cd->technique);
+    srv_dbi_bind_text(s, 6, cd->backend);
+    srv_dbi_bind_text(s, 7, cd->params);
+    srv_dbi_bind_text(s, 8, m->reference_params);
+    srv_dbi_bind_text(s, 9, m->response);
+    srv_dbi_bind_text(s, 10, m->role);
+    srv_dbi_bind_text(s, 11, m->output);
+    rc = srv_dbi_exec_done(c, s, err, "inserting a measurement");
   }
   if (!rc) rc = srv_dbi_commit(c, err);
   if (rc) srv_dbi_rollback(c);
   srv_dbi_release(db, c);
   free(ref_ids);
+  free(cand_ids);
   return rc;
 }
 

@@ -251,6 +251,13 @@ typedef struct srv_new_candidate {
   int reference; /* index into srv_new_comparison.references */
   const char *technique, *backend, *params, *reference_params, *response;
 } srv_new_candidate;
+/* A further measurement of a candidate's job (its own row, no job of its own): against the
+ * common reference ("common") or another output against its declared reference ("output"). */
+typedef struct srv_new_measure {
+  int candidate, reference; /* indices into .candidates and .references */
+  const char *role, *reference_params, *response;
+  const char *output; /* a compared_outputs pair's candidate output, or NULL */
+} srv_new_measure;
 typedef struct srv_new_comparison {
   const char *label, *scene, *request;
   const char *notes; /* JSON array text of values derived from the scene's size, may be NULL */
@@ -259,8 +266,11 @@ typedef struct srv_new_comparison {
   int nreferences;
   const srv_new_candidate *candidates;
   int ncandidates;
+  const srv_new_measure *measures; /* rows after the candidates' (indices ncandidates + k) */
+  int nmeasures;
 } srv_new_comparison;
-/* Inserts the comparison, every job and every candidate row in one transaction. */
+/* Inserts the comparison, every job, every candidate row and every further measurement's row in
+ * one transaction. */
 int srv_db_insert_comparison(srv_db *db, const srv_new_comparison *c, int64_t *id, obs_err *err);
 /* Stores a candidate's metrics (JSON) or why they could not be computed, unless already stored,
  * and records `outs` (the error images) as outputs of `job`, in one transaction. */
@@ -417,7 +427,10 @@ typedef enum {
   SRV_ROUTE_JOB_RETRY,
   SRV_ROUTE_JOB_DOCUMENT,
   SRV_ROUTE_JOB_LOG,
+  SRV_ROUTE_JOB_PREVIEW,    /* /api/v1/jobs/{id}/preview.exr (preview.c) */
+  SRV_ROUTE_DIFF,           /* /api/v1/diff (diff.c) */
   SRV_ROUTE_TECHNIQUES,
+  SRV_ROUTE_METRIC_TABLE, /* /api/v1/metrics: the metric table (not /metrics, Prometheus's) */
   SRV_ROUTE_SCENES,
   SRV_ROUTE_SCENE_DEFAULTS, /* /api/v1/scenes/{name}/defaults */
   SRV_ROUTE_HEALTH,
@@ -460,6 +473,8 @@ void srv_sched_stop(struct srv_app *app);
 /* The reference as a comparison candidate was measured against it (mapped through the candidate's
  * response), written beside the candidate's error images when the mapping changes it. */
 #define SRV_MAPPED_REFERENCE_PNG "reference_mapped.png"
+/* The same values as floats (its channel named as the candidate's), for the viewer's A - B. */
+#define SRV_MAPPED_REFERENCE_EXR "reference_mapped.exr"
 
 /* The fixed set of output files: content type, or NULL when `name` is not one. */
 const char *srv_output_content_type(const char *name);
@@ -554,6 +569,21 @@ int srv_session_check(struct srv_app *app, struct MHD_Connection *c);
 int srv_session_serve(srv_req *r);
 /* Serves one output file with ETag/Range handling (outputs.c). */
 int srv_output_serve(srv_req *r, int64_t id, const char *name);
+
+/* Previews of running jobs (preview.c): begin() before a job's renders (NULL when out of
+ * memory or the technique is unknown), its watch passed to obs_render (obs_render_opts.watch), finish() once the renders are
+ * over (removes the file); tick() from the maintenance thread writes each preview with new tiles,
+ * at most every SRV_PREVIEW_MS; serve() answers GET /api/v1/jobs/{id}/preview.exr. */
+#define SRV_PREVIEW_MS 500
+typedef struct srv_preview srv_preview;
+srv_preview *srv_preview_begin(const struct srv_app *app, int64_t job, const char *technique);
+const obs_tile_watch *srv_preview_watch(const srv_preview *p);
+void srv_preview_finish(srv_preview *p);
+void srv_preview_tick(void);
+int srv_preview_serve(srv_req *r, int64_t id);
+
+/* GET /api/v1/diff (diff.c): the FLIP map of one succeeded job's EXR output against another's. */
+int srv_diff_serve(srv_req *r);
 /* Submission: body -> validated job spec (submit.c). Owns its strings; release with
  * srv_submission_free (a zeroed struct is fine). */
 typedef struct srv_submission {
@@ -617,11 +647,19 @@ int srv_compare_get(srv_req *r, int64_t id, int csv);
  * metrics are missing, involving job `job` (0 = all: recovery at start). */
 void srv_compare_metrics(struct srv_app *app, int64_t job);
 /* Compares the result in `dir` with the reference result in `rdir` on the primary output of the
- * candidate's technique (compare_output.c): fills `m`, the error image `eimg` and, in `extra`
- * (an object), "output" (when not "ao"), "rgb" {rmse [R,G,B], rmse_luminance, ssim_luminance,
- * rel_mse} for RGB outputs and "patch_rmse" for per-patch ones. `resp` maps the reference. */
-int srv_compare_primary(const char *dir, const char *rdir, obs_response resp, obs_compare *m,
-                        json_t *extra, obs_image *eimg, obs_err *err);
+ * candidate's technique (compare_output.c): fills `m` with every metric of the table that applies
+ * (obs_metrics_compare_all; patch_rmse for per-patch outputs), the error image `eimg`, FLIP's map
+ * `flip` (zeroed where FLIP does not apply) and, in `extra` (an object), "output" (when not
+ * "ao"). `resp` maps the reference. */
+int srv_compare_primary(const char *dir, const char *rdir, obs_response resp,
+                        obs_metric_values *m, json_t *extra, obs_image *eimg, obs_image *flip,
+                        obs_err *err);
+/* Compares output `output` of the result in `dir` with the output its technique pairs it with
+ * (obs_output_pair) in the reference result in `rdir`, over the reference's covered pixels:
+ * every metric of the table that applies (angle_deg for vector outputs) into `metrics` (an
+ * object, obs_metric_values_json) with "output" and "reference_output". */
+int srv_compare_output(const char *dir, const char *rdir, const char *output, json_t *metrics,
+                       obs_err *err);
 /* A comparison's answer (compare_budget.c), from its candidate objects: per reference (only
  * candidates measured against one reference are ranked together) the best candidate (the fastest
  * at reference accuracy, else the fastest of the lowest RMSE, with the Pareto set's margins) and,

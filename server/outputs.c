@@ -18,18 +18,21 @@
 
 /* Only these are ever recorded or served: a name from a URL is never used as a path unless it is
  * one of them. They are the files the registered techniques declare (obs_output_file_names),
- * then the error images and the mapped reference the comparison metrics step writes into a
- * candidate's directory. */
+ * then the error and FLIP images and the mapped reference the comparison metrics step writes into
+ * a candidate's directory. */
 #define MAX_KNOWN 64
 static char known[MAX_KNOWN][OBS_OUTPUT_FILE_MAX];
 static size_t nknown;
 static pthread_once_t known_once = PTHREAD_ONCE_INIT;
 
 static void known_init(void) {
-  nknown = obs_output_file_names(known, MAX_KNOWN - 3);
+  nknown = obs_output_file_names(known, MAX_KNOWN - 6);
   snprintf(known[nknown++], OBS_OUTPUT_FILE_MAX, "error.exr");
   snprintf(known[nknown++], OBS_OUTPUT_FILE_MAX, "error.png");
+  snprintf(known[nknown++], OBS_OUTPUT_FILE_MAX, "flip.exr");
+  snprintf(known[nknown++], OBS_OUTPUT_FILE_MAX, "flip.png");
   snprintf(known[nknown++], OBS_OUTPUT_FILE_MAX, "%s", SRV_MAPPED_REFERENCE_PNG);
+  snprintf(known[nknown++], OBS_OUTPUT_FILE_MAX, "%s", SRV_MAPPED_REFERENCE_EXR);
 }
 
 const char *srv_output_content_type(const char *name) {

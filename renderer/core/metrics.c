@@ -6,11 +6,13 @@
 #include <math.h>
 #include <stddef.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include "obscura/path.h"
+#include "metrics_internal.h"
 
 /* Neumaier-compensated sum: large renders sum millions of values of similar magnitude, where a
  * plain double accumulator would drift in the last digits that reference comparisons look at. */
@@ -124,6 +126,27 @@ int obs_metrics_rmse(const obs_image *a, const obs_image *b, const char *channel
   return OBS_OK;
 }
 
+/* One row or column pass of the SSIM window's normalised Gaussian over n values at stride `st`,
+ * the line mirrored at its ends as scipy.ndimage's "reflect" mode does (d c b a | a b c d); n is
+ * at least the window, so one mirroring reaches every tap. */
+static void ssim_pass(const double *in, double *out, int n, size_t st, const double *g, int r) {
+  for (int i = 0; i < n; i++) {
+    double s = 0;
+    for (int k = -r; k <= r; k++) {
+      int j = i + k;
+      j = j < 0 ? -j - 1 : j >= n ? 2 * n - j - 1 : j;
+      s += g[k + r] * in[(size_t)j * st];
+    }
+    out[(size_t)i * st] = s;
+  }
+}
+
+/* The Gaussian-filtered plane of `v` (w x h, in place through `tmp`). */
+static void ssim_filter(double *v, double *tmp, int w, int h, const double *g, int r) {
+  for (int y = 0; y < h; y++) ssim_pass(v + (size_t)y * w, tmp + (size_t)y * w, w, 1, g, r);
+  for (int x = 0; x < w; x++) ssim_pass(tmp + x, v + x, h, (size_t)w, g, r);
+}
+
 int obs_metrics_ssim(const obs_image *a, const obs_image *b, const char *channel, const char *mask,
                      double *ssim, obs_err *err) {
   if (!a || !b || !a->data || !b->data || !channel || !ssim)
@@ -139,40 +162,40 @@ int obs_metrics_ssim(const obs_image *a, const obs_image *b, const char *channel
   const float *m = NULL;
   if (mask && !(m = metrics_find(b, mask, "second (mask)", &code, err))) return code;
   int w = a->width, h = a->height;
-  int ww = w < 8 ? w : 8, wh = h < 8 ? h : 8;
-  /* Separable Gaussian weights centred in the window, normalised to sum 1. */
-  double gx[8], gy[8], sx = 0, sy = 0;
-  for (int i = 0; i < ww; i++) sx += gx[i] = exp(-pow(i - (ww - 1) / 2.0, 2) / (2 * 1.5 * 1.5));
-  for (int i = 0; i < wh; i++) sy += gy[i] = exp(-pow(i - (wh - 1) / 2.0, 2) / (2 * 1.5 * 1.5));
-  const double c1 = 0.01 * 0.01, c2 = 0.03 * 0.03;
+  if (w < OBS_SSIM_WINDOW || h < OBS_SSIM_WINDOW) {
+    *ssim = NAN; /* no whole window fits: undefined, as skimage refuses it */
+    return OBS_OK;
+  }
+  /* skimage's window: radius int(3.5 sigma + 0.5) = 5, weights exp(-k^2 / 2 sigma^2) / sum. */
+  enum { R = OBS_SSIM_WINDOW / 2 };
+  double g[OBS_SSIM_WINDOW], gs = 0;
+  for (int k = -R; k <= R; k++) gs += g[k + R] = exp(-(double)(k * k) / (2 * OBS_SSIM_SIGMA * OBS_SSIM_SIGMA));
+  for (int k = 0; k < OBS_SSIM_WINDOW; k++) g[k] /= gs;
+  size_t n = (size_t)w * (size_t)h;
+  double *buf = malloc(6 * n * sizeof *buf);
+  if (!buf) return obs_err_set(err, OBS_ENOMEM, "metrics: ssim: out of memory (%dx%d)", w, h);
+  double *mx = buf, *my = buf + n, *mxx = buf + 2 * n, *myy = buf + 3 * n, *mxy = buf + 4 * n,
+         *tmp = buf + 5 * n;
+  for (size_t i = 0; i < n; i++) {
+    double x = pa[i], y = pb[i];
+    mx[i] = x, my[i] = y, mxx[i] = x * x, myy[i] = y * y, mxy[i] = x * y;
+  }
+  for (int p = 0; p < 5; p++) ssim_filter(buf + (size_t)p * n, tmp, w, h, g, R);
+  const double c1 = pow(0.01 * OBS_SSIM_DATA_RANGE, 2), c2 = pow(0.03 * OBS_SSIM_DATA_RANGE, 2);
   metrics_acc acc = {0, 0};
-  size_t windows = 0;
-  for (int y0 = 0; y0 + wh <= h; y0++)
-    for (int x0 = 0; x0 + ww <= w; x0++) {
-      int cx = x0 + ww / 2, cy = y0 + wh / 2;
-      if (m && !(m[(size_t)cy * (size_t)w + (size_t)cx] > 0.0f)) continue;
-      double ma = 0, mb = 0, va = 0, vb = 0, cov = 0;
-      for (int j = 0; j < wh; j++)
-        for (int i = 0; i < ww; i++) {
-          double g = gx[i] / sx * gy[j] / sy;
-          size_t k = (size_t)(y0 + j) * (size_t)w + (size_t)(x0 + i);
-          ma += g * pa[k];
-          mb += g * pb[k];
-        }
-      for (int j = 0; j < wh; j++)
-        for (int i = 0; i < ww; i++) {
-          double g = gx[i] / sx * gy[j] / sy;
-          size_t k = (size_t)(y0 + j) * (size_t)w + (size_t)(x0 + i);
-          double da = pa[k] - ma, db = pb[k] - mb;
-          va += g * da * da;
-          vb += g * db * db;
-          cov += g * da * db;
-        }
-      metrics_add(&acc, ((2 * ma * mb + c1) * (2 * cov + c2)) /
-                            ((ma * ma + mb * mb + c1) * (va + vb + c2)));
-      windows++;
+  size_t counted = 0;
+  for (int y = R; y < h - R; y++)
+    for (int x = R; x < w - R; x++) {
+      size_t i = (size_t)y * (size_t)w + (size_t)x;
+      if (m && !(m[i] > 0.0f)) continue;
+      double ux = mx[i], uy = my[i];
+      double vx = mxx[i] - ux * ux, vy = myy[i] - uy * uy, vxy = mxy[i] - ux * uy;
+      metrics_add(&acc, ((2 * ux * uy + c1) * (2 * vxy + c2)) /
+                            ((ux * ux + uy * uy + c1) * (vx + vy + c2)));
+      counted++;
     }
-  *ssim = windows ? metrics_total(&acc) / (double)windows : 1.0;
+  free(buf);
+  *ssim = counted ? metrics_total(&acc) / (double)counted : 1.0;
   return OBS_OK;
 }
 
@@ -302,37 +325,39 @@ int obs_metrics_error_image(const obs_image *candidate, const obs_image *referen
   return OBS_OK;
 }
 
-int obs_metrics_write_error_files(const obs_image *err_img, const char *dir, obs_err *err) {
-  if (!err_img || !err_img->data || !dir || !dir[0])
-    return obs_err_set(err, OBS_EINVAL,
-                       "metrics: writing error files needs an image and a directory");
-  const float *e = obs_image_channel(err_img, "error");
-  if (!e) return obs_err_set(err, OBS_ENOTFOUND, "metrics: error image has no channel \"error\"");
-  static const char *const rgb[] = {"R", "G", "B"};
+int obs_metrics_write_map_files(const obs_image *img, const char *channel, const obs_image *rgb,
+                                const char *dir, const char *base, obs_err *err) {
+  const float *e = obs_image_channel(img, channel);
+  if (!e)
+    return obs_err_set(err, OBS_ENOTFOUND, "metrics: %s image has no channel \"%s\"", base,
+                       channel);
+  static const char *const names[] = {"R", "G", "B"};
   for (int c = 0; c < 3; c++)
-    if (!obs_image_channel(err_img, rgb[c]))
-      return obs_err_set(err, OBS_ENOTFOUND, "metrics: error image has no channel \"%s\"", rgb[c]);
+    if (!obs_image_channel(rgb, names[c]))
+      return obs_err_set(err, OBS_ENOTFOUND, "metrics: %s image has no channel \"%s\"", base,
+                         names[c]);
   int code = obs_path_make_dirs(dir, err);
   if (code) return code;
 
-  /* A one-channel view of the "error" plane, so the EXR holds that channel only (no copy). */
+  /* A one-channel view of the plane, so the EXR holds that channel only (no copy). */
   obs_image view;
   memset(&view, 0, sizeof view);
-  view.width = err_img->width;
-  view.height = err_img->height;
+  view.width = img->width;
+  view.height = img->height;
   view.nchannels = 1;
-  memcpy(view.names[0], "error", sizeof "error");
+  snprintf(view.names[0], sizeof view.names[0], "%s", channel);
   view.data = (float *)e; /* only read by the writer */
 
-  static const char *const files[] = {"error.exr", "error.png"};
+  static const char *const ext[] = {"exr", "png"};
   char stage[2][4200], final[2][4200];
   for (int i = 0; i < 2; i++) {
-    if (snprintf(stage[i], sizeof stage[i], "%s/.%s.new", dir, files[i]) >= (int)sizeof stage[i] ||
-        snprintf(final[i], sizeof final[i], "%s/%s", dir, files[i]) >= (int)sizeof final[i])
+    if (snprintf(stage[i], sizeof stage[i], "%s/.%s.%s.new", dir, base, ext[i]) >=
+            (int)sizeof stage[i] ||
+        snprintf(final[i], sizeof final[i], "%s/%s.%s", dir, base, ext[i]) >= (int)sizeof final[i])
       return obs_err_set(err, OBS_EINVAL, "%s: output path too long", dir);
   }
   code = obs_image_write_exr(&view, stage[0], err);
-  if (!code) code = obs_image_write_png(err_img, rgb, 3, 0, stage[1], err);
+  if (!code) code = obs_image_write_png(rgb, names, 3, 0, stage[1], err);
   for (int i = 0; !code && i < 2; i++)
     if (rename(stage[i], final[i]))
       code =
@@ -340,6 +365,13 @@ int obs_metrics_write_error_files(const obs_image *err_img, const char *dir, obs
   if (code)
     for (int i = 0; i < 2; i++) unlink(stage[i]);
   return code;
+}
+
+int obs_metrics_write_error_files(const obs_image *err_img, const char *dir, obs_err *err) {
+  if (!err_img || !err_img->data || !dir || !dir[0])
+    return obs_err_set(err, OBS_EINVAL,
+                       "metrics: writing error files needs an image and a directory");
+  return obs_metrics_write_map_files(err_img, "error", err_img, dir, "error", err);
 }
 
 /* ---- Pareto set ------------------------------------------------------------------------------ */

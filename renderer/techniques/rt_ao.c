@@ -68,6 +68,10 @@ static const obs_param_rule rt_ao_rules[] = {{"falloff", "sqrt", "max_distance"}
 
 /* The reference of an rt_ao candidate is rt_ao with the same AO definition: only the sample count,
  * sampler and seed differ (the comparison sets them). */
+/* The bent normal (the mean unoccluded direction) against the reference's: same estimator, more
+ * samples. */
+static const obs_output_pair rt_ao_compared[] = {{"bent_normal", "bent_normal"}, {NULL, NULL}};
+
 static const char *const rt_ao_reference_keys[] = {"weighting", "falloff", "max_distance", "tau",
                                                    NULL};
 
@@ -97,6 +101,7 @@ const obs_technique obs_technique_rt_ao = {
     .outputs = rt_ao_outputs,
     .reference_same = &obs_technique_rt_ao,
     .reference_keys = rt_ao_reference_keys,
+    .compared_outputs = rt_ao_compared,
     .reference_quality = "samples",
     .run = {[OBS_BACKEND_CPU] = obs_rt_ao_cpu},
     .range = {[OBS_BACKEND_CPU] = {.size_min = 1e-9,

@@ -139,6 +139,11 @@ json_t *obs_technique_registry_json(void) {
                                             a->needs_false ? json_string(a->needs_false)
                                                            : json_null()));
     json_object_set_new(o, "against", alts);
+    json_t *pairs = json_array();
+    for (const obs_output_pair *q = t->compared_outputs; q && q->output; q++)
+      json_array_append_new(pairs, json_pack("{s:s, s:s}", "output", q->output,
+                                             "reference_output", q->reference_output));
+    json_object_set_new(o, "compared_outputs", pairs);
     json_t *needs = json_array();
     for (size_t k = 0; k < sizeof need_names / sizeof need_names[0]; k++)
       if (t->needs & need_names[k].flag)

@@ -171,6 +171,9 @@ static const char *const volume_ao_reference_keys[] = {"start",    "step",     "
                                                        "crossing", "shading",  "shininess",
                                                        "specular", "exposure", NULL};
 
+/* The bent normal against the reference's (the Monte-Carlo integral's mean open direction). */
+static const obs_output_pair volume_ao_compared[] = {{"bent_normal", "bent_normal"}, {NULL, NULL}};
+
 static int volume_ao_reference(const obs_scene *scene, const json_t *params,
                                obs_reference_facts *facts, obs_reference_def *def, obs_err *err) {
   (void)scene, (void)facts, (void)err;
@@ -235,6 +238,7 @@ const obs_technique obs_technique_volume_ao = {
     .needs = OBS_NEED_VOLUME | OBS_NEED_PUNCTUAL_LIGHTS | OBS_NEED_ENV_MAP,
     .outputs = volume_ao_outputs,
     .reference = volume_ao_reference,
+    .compared_outputs = volume_ao_compared,
     .reference_quality = "samples",
     .run = {[OBS_BACKEND_CPU] = obs_volume_ao_cpu, [OBS_BACKEND_VULKAN] = obs_volume_ao_vulkan},
     .range = {[OBS_BACKEND_CPU] = VOLUME_AO_RANGE(3e-5),

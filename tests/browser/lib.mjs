@@ -92,8 +92,12 @@ export async function imageWidths(page, selector) {
   return page.$$eval(selector, (imgs) => imgs.map((i) => i.naturalWidth));
 }
 
-export const CSV_HEADER = 'index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs,rmse,bias,' +
-  'max_abs,psnr,ssim,ref_noise,at_reference_accuracy,pareto,cpu_model,cores,vulkan_device,output,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse,total_ms_min,total_ms_max,device';
+// The metric columns are the metric table's (`obscura metrics`), in its order; then what each row
+// is measured against and the common reference's figures.
+export const CSV_HEADER = 'index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs,' +
+  'rmse,bias,max_abs,psnr,ssim,flip,angle_deg,ref_noise,patch_rmse,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse,' +
+  'at_reference_accuracy,pareto,cpu_model,cores,vulkan_device,output,total_ms_min,total_ms_max,' +
+  'reference,reference_label,common_rmse,common_bias,common_psnr,common_ssim,common_flip,common_pareto,device';
 
 /**
  * The checks of a finished comparison page (`doc` is its GET /api/v1/comparisons/{id} answer):
@@ -104,7 +108,7 @@ export const CSV_HEADER = 'index,job_id,technique,backend,params,state,total_ms,
 export async function checkComparisonPage(page, doc, prefix) {
   const n = doc.candidates.length;
   await page.waitForFunction((k) => window.__obscura.comparison && window.__obscura.comparison.rendered === k, n);
-  assert.equal(await page.locator('table.candidates tbody tr').count(), n, 'one table row per candidate');
+  assert.equal(await page.locator('table.candidates tbody tr[data-index]').count(), n, 'one table row per candidate');
 
   // The chart: points per technique series, read from uPlot's data arrays.
   const withMetrics = doc.candidates.filter((c) => c.metrics);
@@ -114,16 +118,22 @@ export async function checkComparisonPage(page, doc, prefix) {
             canvas: !!document.querySelector('.chart canvas'), aria: document.querySelector('.chart').getAttribute('aria-label')};
   });
   assert.ok(chart.canvas, 'uPlot drew a canvas');
-  const techs = [...new Set(withMetrics.map((c) => c.technique))];
-  assert.deepEqual(chart.labels.slice(1, 1 + techs.length).sort(), [...techs].sort(), 'one series per technique');
+  // One series per technique; per reference (named by its label) when the candidates have several.
+  const byRef = new Set(withMetrics.map((c) => c.reference.id)).size > 1;
+  const keyOf = (c) => (byRef ? c.reference.id : c.technique);
+  const nameOf = (k) => (byRef ? `${k}: ${doc.references.find((r) => r.id === k).label}` : k);
+  const techs = [...new Set(withMetrics.map(keyOf))].map(nameOf);
+  assert.deepEqual(chart.labels.slice(1, 1 + techs.length).sort(), [...techs].sort(), 'one series per technique or reference');
   let total = 0;
-  for (const t of techs) {
-    const k = chart.labels.indexOf(t);
-    assert.equal(chart.counts[k], withMetrics.filter((c) => c.technique === t).length, `points of ${t}`);
+  for (const t of [...new Set(withMetrics.map(keyOf))]) {
+    const k = chart.labels.indexOf(nameOf(t));
+    assert.equal(chart.counts[k], withMetrics.filter((c) => keyOf(c) === t).length, `points of ${t}`);
     total += chart.counts[k];
   }
   assert.equal(total, withMetrics.length, 'one point per candidate with metrics');
-  assert.equal(chart.counts[chart.labels.indexOf('Pareto front')], doc.pareto.length, 'Pareto front points');
+  // One front (one per reference when the markers are grouped by reference).
+  const fronts = chart.labels.map((l, i) => (String(l).startsWith('Pareto front') ? chart.counts[i] : 0));
+  assert.equal(fronts.reduce((a, b) => a + b, 0), doc.pareto.length, 'Pareto front points');
   assert.match(chart.aria, new RegExp(`${withMetrics.length} candidates`), 'the chart has a text summary');
 
   // Clicking a point selects its candidate. Measured timings vary from run to run, so two points
@@ -167,7 +177,7 @@ export async function checkComparisonPage(page, doc, prefix) {
 
   // Sorting by RMSE, both ways; rows without metrics go last.
   const rmseOrder = (dir) => [...withMetrics].sort((a, b) => dir * (a.metrics.rmse - b.metrics.rmse) || a.index - b.index).map((c) => String(c.index));
-  const rowOrder = () => page.$$eval('table.candidates tbody tr', (trs) => trs.map((t) => t.dataset.index));
+  const rowOrder = () => page.$$eval('table.candidates tbody tr[data-index]', (trs) => trs.map((t) => t.dataset.index));
   await page.getByRole('button', {name: 'RMSE', exact: true}).click();
   assert.deepEqual((await rowOrder()).slice(0, withMetrics.length), rmseOrder(1));
   assert.equal(await page.locator('th[aria-sort="ascending"]').textContent(), 'RMSE ▲');
@@ -180,6 +190,7 @@ export async function checkComparisonPage(page, doc, prefix) {
   await download.saveAs(file);
   const lines = fs.readFileSync(file, 'utf8').trim().split(/\r?\n/);
   assert.equal(lines[0], CSV_HEADER, 'CSV header as in docs/comparisons.md');
-  assert.equal(lines.length, n + 1, 'one CSV row per candidate');
+  const outputs = doc.candidates.reduce((a, c) => a + (c.outputs ? c.outputs.length : 0), 0);
+  assert.equal(lines.length, n + outputs + 1, 'one CSV row per candidate and per other output of it');
   await screenshot(page, prefix);
 }

@@ -7,7 +7,8 @@
 import assert from 'node:assert/strict';
 import zlib from 'node:zlib';
 import test from 'node:test';
-import {assertAllNamed, openBrowser, screenshot, startDashboard} from './lib.mjs';
+import {SLOW, assertAllNamed, download, getJSON, openBrowser, request, screenshot, startDashboard} from './lib.mjs';
+import {decodeExr} from '../../web/js/exr.js';
 
 /** A w x h 8-bit grey PNG of one value. */
 function greyPng(w, h, v) {
@@ -181,6 +182,147 @@ test('comparison page: mapped reference, noise floor, spreads, hover names, lege
       await page.keyboard.press('Enter');
       await page.waitForFunction(() => window.__obscura.comparison.selected === 3);
       await assertAllNamed(page, 'comparison (constructed)');
+      assert.deepEqual(errors, [], 'no script errors');
+    } finally {
+      await browser.close();
+    }
+  } finally {
+    await d.stopClean();
+  }
+});
+
+// References shown (docs/dashboard.md, "Comparisons"): each reference listed by its id and label,
+// the table's reference column, the chart's markers grouped by reference with each reference's
+// label in the legend and the note that errors of different references are not comparable, the
+// common reference's scale, and another output's row under its candidate. Constructed document.
+const REF = (id, job, label, roles = ['candidates']) => ({id, job_id: job, technique: 'rt_ao', state: 'succeeded', progress: 1,
+  params: {samples: 16}, definition: {}, response: 'identity', label, roles, ao_stderr_mean: 0.006, timings_ms: timings([500]),
+  links: {job: `/api/v1/jobs/${job}`}});
+const refOf = (r) => ({id: r.id, job_id: r.job_id, label: r.label, definition: r.definition, response: r.response});
+const R = [REF('R1', 100, 'rt_ao: weighting uniform, falloff sqrt, max_distance 30.81, tau 1; mapped through ssao_hemi'),
+           REF('R2', 110, 'rt_ao: weighting uniform, falloff binary, max_distance 192.1, tau 1'),
+           REF('R3', 120, 'rt_ao: weighting cosine, falloff binary, max_distance 200, tau 1', ['candidates', 'common'])];
+const withRef = (c, r, common, pareto) => ({...c, reference: refOf(r), reference_job_id: r.job_id, outputs: [],
+  common: {reference: refOf(R[2]), reference_job_id: 120, metrics: metrics(common), error: null, pareto}});
+const GROUPED = {
+  ...DOC, id: ID + 1, references: R, comparable: false,
+  note: 'errors measured against different references are not comparable',
+  candidates: [withRef(DOC.candidates[2], R[0], 0.2, false), withRef(DOC.candidates[1], R[1], 0.15, true),
+               withRef(DOC.candidates[3], R[2], 0.01, true)].map((c, i) => ({...c, index: i})),
+  pareto: [0, 1, 2],
+  groups: ['R1', 'R2', 'R3'].map((r, i) => ({reference: r, label: R[i].label, candidates: [i], pareto: [i], ranking: DOC.ranking})),
+  ranking: {...DOC.ranking, warning: null, noisy_reference: false},
+  common: {reference: refOf(R[2]), pareto: [1, 2], ranking: {...DOC.ranking, warning: null, noisy_reference: false}},
+  links: {self: `/api/v1/comparisons/${ID + 1}`, csv: `/api/v1/comparisons/${ID + 1}.csv`},
+};
+GROUPED.candidates[2].outputs = [{output: 'obscurance', reference_output: 'ao', reference_job_id: 110, reference: refOf(R[1]),
+                                  metrics: metrics(0.05), error: null}];
+
+test('comparison page: references labelled, reference column, markers by reference, the note, the common scale', async () => {
+  const d = await startDashboard();
+  try {
+    const {browser, page, errors} = await openBrowser();
+    try {
+      await page.route(`**/api/v1/comparisons/${ID + 1}`, (r) => r.fulfill({json: GROUPED}));
+      await page.route('**/api/v1/jobs/*/outputs/*.png', (r) => r.fulfill({contentType: 'image/png', body: greyPng(32, 24, 128)}));
+      await page.goto(`${d.url}/#/comparisons/${ID + 1}`);
+      await page.waitForFunction(() => window.__obscura.comparison && window.__obscura.comparison.rendered === 3);
+      // The References list: each by id and label; the common one says so.
+      const items = await page.locator('ul.references li').allTextContents();
+      assert.equal(items.length, 3);
+      R.forEach((r, i) => assert.ok(items[i].startsWith(`${r.id}: ${r.label}`), items[i]));
+      assert.match(items[2], /the common reference/);
+      // The reference column: each row names its reference, its label in the cell's title.
+      const cells = page.locator('table.candidates td.reference');
+      assert.deepEqual(await cells.allTextContents(), ['R1', 'R2', 'R3']);
+      assert.equal(await cells.first().getAttribute('title'), R[0].label);
+      // The chart: one series per reference named by its label, one Pareto front per reference.
+      const chart = await page.evaluate(() => window.__obscura.comparison.chart);
+      assert.equal(chart.byReference, true);
+      assert.deepEqual(chart.series.map((x) => x.label), R.map((r) => `${r.id}: ${r.label}`));
+      const legend = await page.locator('.u-legend .u-series .u-label').allTextContents();
+      for (const r of R) assert.ok(legend.includes(`${r.id}: ${r.label}`), legend.join(' | '));
+      assert.equal(chart.pareto, 3);
+      // The note.
+      assert.match(await page.locator('.not-comparable').textContent(),
+                   /^Errors measured against different references are not comparable: .*3 references \(R1, R2, R3/);
+      // Another output of candidate 2, in a row under it.
+      assert.match(await page.locator('tr.output-row[data-of="2"]').textContent(), /candidate 2's obscurance against R2 \(ao\): RMSE 0\.05000/);
+      // Common columns, and the chart on the common scale: one reference, all ranked together.
+      const header = await page.$$eval('table.candidates thead th', (ths) => ths.map((t) => t.textContent));
+      const col = header.findIndex((h) => h.startsWith('RMSE vs common'));
+      assert.ok(col > 0, header.join(' | '));
+      assert.equal(await page.locator('table.candidates tr[data-index="1"] td').nth(col).textContent(), '0.1500');
+      await page.getByLabel(/the common reference R3/).check();
+      await page.waitForFunction(() => window.__obscura.comparison.scale === 'common');
+      assert.match(page.url(), new RegExp(`#/comparisons/${ID + 1}\\?scale=common$`), 'the route keeps the scale');
+      const common = await page.evaluate(() => window.__obscura.comparison.chart);
+      assert.equal(common.byReference, false, 'one reference: markers by technique again');
+      assert.equal(common.points, 3);
+      assert.equal(common.pareto, 2);
+      assert.equal(await page.locator('.not-comparable').count(), 0, 'on one scale the note goes');
+      await screenshot(page, 'comparison-references');
+      await assertAllNamed(page, 'comparison with references');
+      assert.deepEqual(errors, [], 'no script errors');
+    } finally {
+      await browser.close();
+    }
+  } finally {
+    await d.stopClean();
+  }
+});
+
+// The viewer opened from a real comparison's ssao candidate shows as B the reference mapped through
+// ssao's response, as the metrics compared it: A - B over the covered pixels has the candidate's
+// RMSE, and at a pinned wall pixel the readout's A - B is the candidate minus the mapped value
+// (the raw reference there differs from B: it is not the raw job).
+test('viewer: candidate against the mapped reference, A - B as the metrics measured it', async () => {
+  const d = await startDashboard({workers: 2});
+  try {
+    const r = await request(d, 'POST', '/api/v1/comparisons', {body: {scene_file: 'cornell_box.json',
+      set: {'/image/width': 32, '/image/height': 24}, repeats: 1, reference: {samples: 16},
+      candidates: [{technique: 'ssao', backend: 'cpu', params: {samples: 8}}]}});
+    assert.equal(r.status, 201, r.text);
+    const deadline = Date.now() + 120000 * SLOW;
+    let doc;
+    while ((doc = await getJSON(d, `/api/v1/comparisons/${r.json.id}`)).state === 'running') {
+      assert.ok(Date.now() < deadline, 'the comparison finishes');
+      await new Promise((res) => setTimeout(res, 50));
+    }
+    assert.equal(doc.state, 'succeeded');
+    const cand = doc.candidates[0];
+    assert.notEqual(cand.response, 'identity');
+    const {browser, page, errors} = await openBrowser();
+    try {
+      await page.goto(`${d.url}/#/comparisons/${doc.id}?candidate=0`);
+      await page.getByRole('link', {name: 'View candidate (A) against reference (B)'}).click();
+      await page.waitForFunction(() => {
+        const v = window.__obscura.viewer;
+        return v && v.ready && v.b;
+      });
+      assert.match(page.url(), new RegExp(`#/view/${cand.job_id}\\?b=${cand.job_id}%2Freference_mapped\\.exr&`));
+      const got = await page.evaluate(() => {
+        const {a, b} = window.__obscura.viewer;
+        const ch = (im, n) => im.img.channels.find((c) => c.name === n).data;
+        const [ca, cb, alpha] = [ch(a, 'ao'), ch(b, 'ao'), ch(b, 'alpha')];
+        let sq = 0, n = 0;
+        for (let i = 0; i < ca.length; i++) if (alpha[i] > 0) { sq += (ca[i] - cb[i]) ** 2; n++; }
+        return {file: b.file, rmse: Math.sqrt(sq / n)};
+      });
+      assert.equal(got.file, 'reference_mapped.exr');
+      assert.ok(Math.abs(got.rmse - cand.metrics.rmse) < 1e-5, `A - B RMSE ${got.rmse} vs the metrics' ${cand.metrics.rmse}`);
+      // A wall pixel (the back wall, a third of the way down the middle), pinned.
+      const [px, py] = [16, 8];
+      const s = await page.evaluate(() => window.__obscura.viewer.view);
+      const box = await page.locator('canvas.viewer-canvas').boundingBox();
+      await page.mouse.click(box.x + 1 + Math.floor(s.panX + (px + 0.5) * s.zoom), box.y + 1 + Math.floor(s.panY + (py + 0.5) * s.zoom));
+      await page.waitForFunction(() => window.__obscura.viewer.readout && window.__obscura.viewer.readout.pinned);
+      const row = await page.evaluate(() => window.__obscura.viewer.readout.rows.find((x) => x.name === 'ao'));
+      const raw = await decodeExr(new Uint8Array((await download(d, await getJSON(d, `/api/v1/jobs/${cand.reference_job_id}`), 'ao.exr')).body).buffer);
+      const rawAo = raw.channels.find((c) => c.name === 'ao').data[py * 32 + px];
+      assert.ok(Math.abs(row.diff - (row.a - row.b)) < 1e-7);
+      assert.ok(Math.abs(row.diff) <= cand.metrics.max_abs + 1e-6, `A - B ${row.diff} within the largest error ${cand.metrics.max_abs}`);
+      assert.ok(Math.abs(rawAo - row.b) > 1e-3, `B ${row.b} is the mapped reference, not the raw ${rawAo}`);
       assert.deepEqual(errors, [], 'no script errors');
     } finally {
       await browser.close();

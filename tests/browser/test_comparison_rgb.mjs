@@ -57,7 +57,7 @@ test('an RGB comparison: luminance RMSE on the chart and in the table, per-chann
                 errorName([c(null), c(null)])];
       });
       assert.deepEqual(names, ['RMSE of luminance (final, radiance)', 'RMSE (AO; final luminance)', 'RMSE of AO']);
-      assert.match(await page.locator('dl.facts').textContent(), new RegExp(`job ${doc.references[0].job_id} \\(path_trace, succeeded`));
+      assert.match(await page.locator('dl.facts').textContent(), new RegExp(`R1: path_trace: max_bounces \\d+.* — job ${doc.references[0].job_id} \\(succeeded`));
 
       // The table: RMSE (luminance) as the API gives it, the per-channel RMSE and relative MSE.
       const heads = await page.$$eval('table.candidates thead th', (ths) => ths.map((t) => t.textContent.replace(/[▲▼]/g, '').trim()));

@@ -63,9 +63,18 @@ async function waitComparison(d, id, timeoutMs = 120000 * SLOW) {
 
 /**
  * The Pareto set by its definition, from the returned table (docs/comparisons.md, "Ranking"):
- * faster only beyond both timing spreads, more accurate only beyond the larger reference noise.
+ * within each reference's group (errors against different references do not compare), faster
+ * only beyond both timing spreads, more accurate only beyond the larger reference noise; the
+ * groups' sets together by ascending time.
  */
 function paretoOf(cands) {
+  const groups = [...new Set(cands.map((c) => c.reference.id))];
+  const all = groups.flatMap((g) => paretoIn(cands.filter((c) => c.reference.id === g)));
+  const time = (i) => cands.find((c) => c.index === i).timings_ms.median.total;
+  return all.sort((a, b) => time(a) - time(b) || a - b);
+}
+
+function paretoIn(cands) {
   const pts = cands.map((c) => ({
     i: c.index,
     t: c.metrics && c.timings_ms.median ? c.timings_ms.median.total : null,
@@ -135,7 +144,11 @@ test('a sweep expands to the product of its lists, runs to completion with metri
     }
     assert.deepEqual(c.candidates.map((x) => x.response),
                      [...Array(6).fill('identity'), 'ssao_sphere', 'ssao_hemi', 'ssao_sphere', 'ssao_hemi', 'identity', 'identity']);
-    assert.equal(c.references.length, 4);
+    // Four reference jobs; a reference is a job mapped through a response, and ssao's two jobs are
+    // each mapped through both of its responses (whole sphere and normal-oriented): six references.
+    assert.equal(new Set(c.references.map((r) => r.job_id)).size, 4);
+    assert.deepEqual(c.references.map((r) => r.response).sort(),
+                     ['identity', 'identity', 'ssao_hemi', 'ssao_hemi', 'ssao_sphere', 'ssao_sphere']);
     for (const r of c.references) {
       assert.equal(r.technique, 'rt_ao');
       assert.equal(r.params.samples, 64);
@@ -149,8 +162,9 @@ test('a sweep expands to the product of its lists, runs to completion with metri
     for (const rid of ssaoRefs) assert.equal(c.references.find((r) => r.job_id === rid).params.falloff, 'sqrt');
     const rtRef = c.references.find((r) => r.job_id === c.candidates[10].reference_job_id);
     assert.deepEqual([rtRef.params.falloff, rtRef.params.max_distance, rtRef.params.weighting], ['binary', 200, 'cosine']);
-    // Rows in the database: one comparison, 12 candidates, 16 jobs.
-    assert.deepEqual(sql(d.db, 'SELECT count(*) FROM comparison_candidates'), [['12']]);
+    // Rows in the database: one comparison, 12 candidates and a row for each rt_ao candidate's bent
+    // normal (against its reference's), 16 jobs.
+    assert.deepEqual(sql(d.db, "SELECT role, count(*) FROM comparison_candidates GROUP BY 1 ORDER BY 1"), [['output', '2'], ['own', '12']]);
     assert.deepEqual(sql(d.db, 'SELECT count(*) FROM jobs'), [['16']]);
     assert.deepEqual(sql(d.db, "SELECT repeats, warmup, count(*) FROM jobs WHERE technique != 'rt_ao' OR id IN (SELECT job FROM comparison_candidates) GROUP BY 1, 2"), [['2', '1', '12']]);
 
@@ -159,7 +173,9 @@ test('a sweep expands to the product of its lists, runs to completion with metri
     for (const x of c.candidates) {
       assert.equal(x.state, 'succeeded');
       assert.ok(x.metrics, `candidate ${x.index} has metrics`);
-      for (const k of ['rmse', 'bias', 'max_abs', 'psnr', 'ssim', 'ref_noise']) assert.equal(typeof x.metrics[k], 'number', `${x.index} ${k}`);
+      for (const k of ['rmse', 'bias', 'max_abs', 'psnr', 'ssim', 'flip', 'ref_noise']) assert.equal(typeof x.metrics[k], 'number', `${x.index} ${k}`);
+      assert.ok(x.metrics.flip > 0 && x.metrics.flip < 1, `FLIP ${x.metrics.flip}`);
+      assert.ok(x.metrics.ssim > -1 && x.metrics.ssim < 1, `SSIM ${x.metrics.ssim}`);
       assert.equal(x.metrics.pixels > 0, true);
       assert.equal(x.metrics.at_reference_accuracy, x.metrics.rmse < 2 * x.metrics.ref_noise);
       assert.equal(x.timings_ms.runs.length, 2, 'repeats timed runs');
@@ -174,6 +190,11 @@ test('a sweep expands to the product of its lists, runs to completion with metri
       assert.deepEqual(pngSize(errPng), {width: 32, height: 24});
       assert.deepEqual(exrHeader((await download(d, job, 'error.exr')).body).channels, ['error']);
       assert.equal(x.links['error.png'], `/api/v1/jobs/${x.job_id}/outputs/error.png`);
+      // FLIP's map beside them: the magma picture and the float map.
+      assert.deepEqual(pngSize((await download(d, job, 'flip.png')).body), {width: 32, height: 24});
+      assert.deepEqual(exrHeader((await download(d, job, 'flip.exr')).body).channels, ['flip']);
+      assert.equal(x.links['flip.png'], `/api/v1/jobs/${x.job_id}/outputs/flip.png`);
+      assert.equal(x.links['flip.exr'], `/api/v1/jobs/${x.job_id}/outputs/flip.exr`);
     }
     // rt_ao with the reference's own samples is at reference accuracy: the noise floor.
     assert.equal(c.candidates[11].metrics.at_reference_accuracy, true, JSON.stringify(c.candidates[11].metrics));
@@ -198,10 +219,17 @@ test('a sweep expands to the product of its lists, runs to completion with metri
     assert.equal(r.status, 200);
     assert.match(r.headers['content-type'], /^text\/csv/);
     const rows = parseCsv(r.text);
-    assert.equal(rows[0].join(','), 'index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs,rmse,bias,max_abs,psnr,ssim,ref_noise,at_reference_accuracy,pareto,cpu_model,cores,vulkan_device,output,rmse_r,rmse_g,rmse_b,rmse_luminance,ssim_luminance,rel_mse,total_ms_min,total_ms_max,device');
-    assert.equal(rows.length, 1 + c.candidates.length);
+    // The metric columns are the metric table's (GET /api/v1/metrics), in its order.
+    const table = (await getJSON(d, '/api/v1/metrics')).metrics;
+    assert.ok(['rmse', 'psnr', 'ssim', 'flip', 'rmse_r', 'rel_mse'].every((n) => table.some((m) => m.name === n)));
+    assert.equal(rows[0].join(','), ['index,job_id,technique,backend,params,state,total_ms,build_ms,render_ms,post_ms,runs',
+      ...table.map((m) => m.name), 'at_reference_accuracy,pareto,cpu_model,cores,vulkan_device,output,total_ms_min,total_ms_max',
+      'reference,reference_label,common_rmse,common_bias,common_psnr,common_ssim,common_flip,common_pareto,device'].join(','));
+    // A row per candidate, each followed by a row per other output (rt_ao's bent normal).
+    assert.equal(rows.length, 1 + c.candidates.length + c.candidates.filter((x) => x.technique === 'rt_ao').length);
+    const own = rows.slice(1).filter((r, k, all) => k === 0 || r[0] !== all[k - 1][0]);
     for (const [k, x] of c.candidates.entries()) {
-      const f = Object.fromEntries(rows[0].map((h, i) => [h, rows[k + 1][i]]));
+      const f = Object.fromEntries(rows[0].map((h, i) => [h, own[k][i]]));
       assert.equal(Number(f.index), x.index);
       assert.equal(Number(f.job_id), x.job_id);
       assert.deepEqual([csvNum(f.total_ms_min), csvNum(f.total_ms_max)], [x.timings_ms.min.total, x.timings_ms.max.total]);
@@ -215,9 +243,10 @@ test('a sweep expands to the product of its lists, runs to completion with metri
       assert.equal(f.state, x.state);
       for (const s of ['total', 'build', 'render', 'post']) assert.equal(csvNum(f[`${s}_ms`]), x.timings_ms.median[s]);
       assert.equal(Number(f.runs), x.timings_ms.runs.length);
-      for (const m of ['rmse', 'bias', 'max_abs', 'psnr', 'ssim', 'ref_noise']) assert.equal(csvNum(f[m]), x.metrics[m], m);
+      for (const m of ['rmse', 'bias', 'max_abs', 'psnr', 'ssim', 'flip', 'ref_noise']) assert.equal(csvNum(f[m]), x.metrics[m], m);
       assert.equal(f.at_reference_accuracy, String(x.metrics.at_reference_accuracy));
       assert.equal(f.pareto, String(x.pareto));
+      assert.deepEqual([f.reference, f.reference_label, f.common_rmse], [x.reference.id, x.reference.label, '']);
       assert.equal(f.cpu_model, x.machine.cpu_model);
       assert.equal(Number(f.cores), x.machine.cores);
       assert.equal(f.vulkan_device, '');

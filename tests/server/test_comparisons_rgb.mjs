@@ -103,8 +103,10 @@ async function assertCsv(d, c) {
   assert.equal(csv.status, 200);
   assert.match(csv.headers['content-type'], /^text\/csv/);
   const {head, rows} = csvRows(csv.text);
-  assert.deepEqual(head.slice(-9), ['output', 'rmse_r', 'rmse_g', 'rmse_b', 'rmse_luminance', 'ssim_luminance', 'rel_mse',
-                                   'total_ms_min', 'total_ms_max']);
+  // The metric columns are the metric table's, in its order (GET /api/v1/metrics).
+  const table = (await request(d, 'GET', '/api/v1/metrics')).json.metrics.map((m) => m.name);
+  assert.deepEqual(head.slice(11, 11 + table.length), table);
+  assert.deepEqual(head.slice(-11, -8), ['output', 'total_ms_min', 'total_ms_max']);
   assert.equal(rows.length, 4);
   for (const [k, x] of c.candidates.entries()) {
     const f = rows[k];
@@ -113,6 +115,8 @@ async function assertCsv(d, c) {
     assert.deepEqual([f.rmse_r, f.rmse_g, f.rmse_b].map(csvNum), x.metrics.rgb.rmse);
     for (const key of ['rmse_luminance', 'ssim_luminance', 'rel_mse']) assert.equal(csvNum(f[key]), x.metrics.rgb[key], key);
     assert.equal(csvNum(f.rmse), x.metrics.rmse);
+    assert.equal(csvNum(f.flip), x.metrics.flip);
+    assert.ok(x.metrics.flip > 0 && x.metrics.flip < 1, `HDR-FLIP ${x.metrics.flip}`);
     assert.equal(f.pareto, String(x.pareto));
     assert.equal(csvNum(f.total_ms), x.timings_ms.median.total);
   }
@@ -156,6 +160,11 @@ test('path_trace at 4..256 paths against path_trace at 4096: RGB metrics, Pareto
     const rel = c.candidates.map((x) => x.metrics.rgb.rel_mse);
     assert.ok(rel[3] < 0.25 * rel[0], `relative MSE falls: ${rel}`);
     assert.ok(c.candidates[3].metrics.ssim > c.candidates[0].metrics.ssim);
+    // HDR-FLIP sees the noise fall too (perceived differences shrink with the error).
+    const flip = c.candidates.map((x) => x.metrics.flip);
+    for (let k = 1; k < flip.length; k++) assert.ok(flip[k] < flip[k - 1], `HDR-FLIP falls: ${flip}`);
+    console.log(`# luminance RMSE ${lum.map((v) => v.toPrecision(3))}, SSIM ${c.candidates.map((x) => x.metrics.ssim.toPrecision(4))}, ` +
+                `HDR-FLIP ${flip.map((v) => v.toPrecision(3))}`);
 
     // Pareto set: non-empty, flags agree with the list, ascending time.
     assert.ok(c.pareto.length >= 1);

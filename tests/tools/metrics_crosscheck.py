@@ -1,7 +1,9 @@
 """Cross-checks obscura's comparison metrics (obs_metrics_compare) against OpenImageIO's idiff and
-oiiotool and against an independent numpy implementation, on image pairs written by metrics_tool.
+oiiotool, against numpy, and its SSIM against scikit-image's structural_similarity, on image pairs
+written by metrics_tool and on two small real renders (rt_ao and ssao of the Cornell box).
 
-Usage: metrics_crosscheck.py METRICS_TOOL WORK_DIR   (run through metrics_crosscheck.sh)
+Usage: metrics_crosscheck.py METRICS_TOOL WORK_DIR OBSCURA SCENE
+       (run through metrics_crosscheck.sh)
 
 For every pair:
   * obscura: `metrics_tool compare` (reads the files back, prints full-precision numbers);
@@ -10,9 +12,13 @@ For every pair:
     printstats 6 decimals (%f), which sets the tolerances below. Masks: both images are multiplied
     by the mask with oiiotool first, so uncovered pixels contribute 0, and the whole-image values
     are rescaled to the covered pixels (RMS by sqrt(N/n), PSNR by -10 log10(N/n), mean by N/n);
-  * numpy: RMSE, bias, max |error|, PSNR and SSIM recomputed from the pixels as OpenImageIO reads
-    them (converted to uncompressed TIFF by oiiotool, so obscura's readers are not involved), SSIM
-    with a vectorised E[x^2]-mu^2 formulation rather than obscura's two-pass loop.
+  * numpy: RMSE, bias, max |error| and PSNR recomputed from the pixels as OpenImageIO reads them
+    (converted to uncompressed TIFF by oiiotool, so obscura's readers are not involved);
+  * scikit-image: structural_similarity(a, b, gaussian_weights=True, sigma=1.5,
+    use_sample_covariance=False, data_range=1) on those pixels in float64, the definition
+    obs_metrics_ssim follows (with a mask: skimage's SSIM map, cropped as skimage crops it, averaged
+    over the selected pixels). Images smaller than the 11x11 window: skimage refuses, obscura
+    reports NaN.
 Prints one table row per pair and exits 1 when anything disagrees.
 """
 import math
@@ -34,9 +40,9 @@ TOL_IDIFF_REL = 1e-5
 TOL_STATS_ABS = 1e-6
 # numpy sums the same float32 values in double, in another order: agreement to ~1e-13 expected.
 TOL_NUMPY_REL = 1e-12
-# SSIM: both in double from the same float32 values; the variance formulas differ (two-pass vs
-# E[x^2]-mu^2, cancellation ~1e-16 * mu^2/sigma^2). Any definitional slip (window, centre, sigma,
-# C1/C2) moves SSIM by more than 1e-5 on these pairs (sigma 1.6: 7e-5 to 1e-2).
+# SSIM: both in double from the same float32 values, the same filter and formula in another
+# summation order: agreement to ~1e-15 expected; 1e-9 leaves room and still catches any
+# definitional slip (window, sigma, border mode, crop, constants), which moves SSIM by > 1e-5.
 TOL_SSIM_ABS = 1e-9
 
 
@@ -80,14 +86,16 @@ def read_tiff(path):
     return np.frombuffer(data, dtype=dtype, count=w * h).reshape(h, w)
 
 
-def load(path, work):
+def load(path, work, channel=None):
     """Pixels of `path` as OpenImageIO reads them (row 0 at the top), via an uncompressed TIFF, in
     double. 8-bit PNG codes are converted the way obs_image_read_png documents, float32(code)/255
     in float32: OpenImageIO's own 8-bit-to-float conversion differs from it by up to one float ulp,
     a reader difference that is no business of the metrics."""
     png = path.endswith(".png")
-    tif = os.path.join(work, os.path.basename(path) + ".tif")
-    run("oiiotool", path, "-d", "uint8" if png else "float", "--compression", "none", "-o", tif)
+    tif = os.path.join(work, os.path.basename(path) + (f".{channel}" if channel else "") + ".tif")
+    pick = ["--ch", channel] if channel else []
+    run("oiiotool", path, *pick, "-d", "uint8" if png else "float", "--compression", "none",
+        "-o", tif)
     img = read_tiff(tif)
     if png:
         img = img.astype(np.float32) / np.float32(255.0)
@@ -103,26 +111,17 @@ def check_corners(img, ours, path):
         sys.exit(f"{path}: corner values {got} as read by OpenImageIO differ from obscura's {want}")
 
 
-def ssim_numpy(a, b, sel):
-    h, w = a.shape
-    wh, ww = min(8, h), min(8, w)
-
-    def gauss(n):
-        i = np.arange(n) - (n - 1) / 2.0
-        g = np.exp(-i * i / (2 * 1.5 * 1.5))
-        return g / g.sum()
-
-    g = np.outer(gauss(wh), gauss(ww))
-    win = lambda x: sliding_window_view(x, (wh, ww))  # noqa: E731
-    mean = lambda x: np.einsum("ijkl,kl->ij", win(x), g)  # noqa: E731
-    ma, mb = mean(a), mean(b)
-    va = mean(a * a) - ma * ma
-    vb = mean(b * b) - mb * mb
-    cov = mean(a * b) - ma * mb
-    c1, c2 = 0.01 ** 2, 0.03 ** 2
-    s = (2 * ma * mb + c1) * (2 * cov + c2) / ((ma * ma + mb * mb + c1) * (va + vb + c2))
-    centre = sel[wh // 2: wh // 2 + s.shape[0], ww // 2: ww // 2 + s.shape[1]]
-    return float(s[centre].mean()) if centre.any() else 1.0
+def ssim_skimage(a, b, sel):
+    """skimage's SSIM of candidate a against reference b (float64), averaged over the selected
+    pixels of its cropped SSIM map; NaN where skimage refuses the size."""
+    from skimage.metrics import structural_similarity
+    if min(a.shape) < 11:
+        return math.nan
+    _, smap = structural_similarity(a, b, gaussian_weights=True, sigma=1.5,
+                                    use_sample_covariance=False, data_range=1.0, full=True)
+    pad = 5  # (win_size - 1) // 2, skimage's crop
+    s, keep = smap[pad:-pad, pad:-pad], sel[pad:-pad, pad:-pad]
+    return float(s[keep].mean()) if keep.any() else 1.0
 
 
 def numpy_metrics(cand, ref, sel):
@@ -135,7 +134,7 @@ def numpy_metrics(cand, ref, sel):
         "bias": float(d.mean()) if n else 0.0,
         "max_abs": float(np.abs(d).max()) if n else 0.0,
         "psnr": min(10 * math.log10(1 / mse), PSNR_CAP) if mse > 0 else PSNR_CAP,
-        "ssim": ssim_numpy(cand, ref, sel),
+        "ssim": ssim_skimage(cand, ref, sel),
     }
 
 
@@ -175,12 +174,41 @@ def check(case, what, ours, theirs, tol_rel=0.0, tol_abs=0.0):
     return ok
 
 
+def check_ssim(case, ours, theirs):
+    if math.isnan(theirs):
+        if not math.isnan(ours):
+            failures.append(f"{case}: ssim: skimage refuses the size, obscura gives {ours!r}")
+        return
+    check(case, "ssim (skimage)", ours, theirs, 0.0, TOL_SSIM_ABS)
+
+
+def real_renders(tool, work, obscura, scene):
+    """SSIM of two small real renders of one scene (rt_ao and ssao AO, 64x48), both ways round."""
+    dirs = {}
+    for tech in ("rt_ao", "ssao"):
+        d = os.path.join(work, "render_" + tech)
+        run(obscura, "render", scene, "-o", d, "--quiet", "--technique", tech,
+            "--set", "/image/width=64", "--set", "/image/height=48")
+        dirs[tech] = os.path.join(d, "ao.exr")
+    for cand, ref in (("ssao", "rt_ao"), ("rt_ao", "ssao")):
+        ours = {}
+        for line in run(tool, "compare", dirs[cand], dirs[ref], "--channel", "ao").splitlines():
+            k, v = line.split("=", 1)
+            ours[k] = float(v)
+        a, b = load(dirs[cand], work, "ao"), load(dirs[ref], work, "ao")
+        theirs = ssim_skimage(a, b, np.ones_like(b, dtype=bool))
+        name = f"{cand}/{ref}"
+        check_ssim(name, ours["ssim"], theirs)
+        print(f"{name:<11} 64x48 render | ssim {ours['ssim']:.12f} skimage {theirs:.12f} "
+              f"|diff| {abs(ours['ssim'] - theirs):.1e}")
+
+
 def main():
-    tool, work = sys.argv[1], sys.argv[2]
+    tool, work, obscura, scene = sys.argv[1:5]
     cases = [line.split() for line in run(tool, "gen", work).splitlines()]
     print(f"{'pair':<10} {'size':>6} {'pixels':>6} | {'obscura rmse':>13} {'idiff rms':>11} | "
           f"{'psnr':>9} {'idiff':>9} | {'max_abs':>10} {'idiff':>10} | {'bias':>11} "
-          f"{'oiiotool':>10} | {'ssim':>10} {'numpy':>10} {'|diff|':>8}")
+          f"{'oiiotool':>10} | {'ssim':>10} {'skimage':>10} {'|diff|':>8}")
     for name, ext, has_mask in cases:
         cand = os.path.join(work, f"{name}_cand.{ext}")
         ref = os.path.join(work, f"{name}_ref.{ext}")
@@ -200,7 +228,7 @@ def main():
         check(name, "pixels (numpy)", ours["pixels"], npm["pixels"])
         for k in ("rmse", "bias", "max_abs", "psnr"):
             check(name, f"{k} (numpy)", ours[k], npm[k], TOL_NUMPY_REL, 1e-15)
-        check(name, "ssim (numpy)", ours["ssim"], npm["ssim"], 0.0, TOL_SSIM_ABS)
+        check_ssim(name, ours["ssim"], npm["ssim"])
 
         # OpenImageIO.
         a, b, scale = cand, ref, 1.0
@@ -231,6 +259,7 @@ def main():
               f"{rms:>11.6g} | {ours['psnr']:>9.5f} {psnr:>9.6g} | {ours['max_abs']:>10.7f} "
               f"{di['max']:>10.6g} | {ours['bias']:>+11.8f} {bias:>+10.6f} | {ours['ssim']:>10.8f} "
               f"{npm['ssim']:>10.8f} {abs(ours['ssim'] - npm['ssim']):>8.1e}")
+    real_renders(tool, work, obscura, scene)
     print("\nlargest differences over all pairs (absolute, relative):")
     for what, (diff, rel) in worst.items():
         print(f"  {what:<34} {diff:9.2e} {rel:9.2e}")
@@ -238,7 +267,7 @@ def main():
         print("\nFAILED:\n  " + "\n  ".join(failures))
         return 1
     print(f"\nall {len(cases)} pairs agree (idiff/oiiotool to their printed precision, numpy to "
-          f"{TOL_NUMPY_REL:g} relative, SSIM to {TOL_SSIM_ABS:g})")
+          f"{TOL_NUMPY_REL:g} relative, SSIM to skimage within {TOL_SSIM_ABS:g})")
     return 0
 
 

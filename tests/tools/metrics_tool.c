@@ -6,8 +6,9 @@
  *   metrics_tool gen DIR
  *     writes DIR/<case>_cand.*, <case>_ref.* (and <case>_mask.exr) and prints one line per case:
  *     "<case> <ext> <mask 0|1>"
- *   metrics_tool compare CAND REF [MASK]
- *     prints key=value lines: obs_metrics_compare over the pixels where MASK > 0
+ *   metrics_tool compare CAND REF [MASK] [--channel CH]
+ *     prints key=value lines: obs_metrics_compare of channel CH (default "Y") over the pixels
+ *     where MASK > 0
  *   metrics_tool diff CAND.exr REF.exr CHANNEL...
  *     per channel present in both (all pixels): "<channel> rmse=R max_abs=M differ=F", F the
  *     fraction of pixels whose values differ by more than 1e-3 (the data-parallel render's check
@@ -166,6 +167,11 @@ int main(int argc, char **argv) {
     }
     return 0;
   }
+  const char *ch = "Y";
+  if (argc >= 6 && !strcmp(argv[argc - 2], "--channel")) {
+    ch = argv[argc - 1];
+    argc -= 2;
+  }
   if ((argc == 4 || argc == 5) && !strcmp(argv[1], "compare")) {
     obs_image cand, ref, mask, refm;
     if (read_any(&cand, argv[2], &err)) return die(&err, argv[2]);
@@ -176,21 +182,23 @@ int main(int argc, char **argv) {
     if (argc == 5) {
       /* The reference with the mask file's plane added as "alpha". */
       if (read_any(&mask, argv[4], &err)) return die(&err, argv[4]);
-      const char *names[] = {"Y", "alpha"};
+      const char *names[] = {ch, "alpha"};
       if (mask.width != ref.width || mask.height != ref.height)
         return fprintf(stderr, "metrics_tool: mask size differs\n"), 1;
       if (obs_image_init(&refm, ref.width, ref.height, 2, names, &err)) return die(&err, "mask");
       size_t n = (size_t)ref.width * (size_t)ref.height;
-      memcpy(obs_image_channel(&refm, "Y"), obs_image_channel(&ref, "Y"), n * sizeof(float));
+      const float *rv = obs_image_channel(&ref, ch);
+      if (!rv) return fprintf(stderr, "metrics_tool: no channel %s\n", ch), 1;
+      memcpy(obs_image_channel(&refm, ch), rv, n * sizeof(float));
       memcpy(obs_image_channel(&refm, "alpha"), mask.data, n * sizeof(float));
       obs_image_free(&mask);
       reference = &refm;
       mask_name = "alpha";
     }
     obs_compare m;
-    if (obs_metrics_compare(&cand, reference, "Y", mask_name, &m, &err))
+    if (obs_metrics_compare(&cand, reference, ch, mask_name, &m, &err))
       return die(&err, "compare");
-    const float *r = obs_image_channel(&ref, "Y");
+    const float *r = obs_image_channel(&ref, ch);
     int w = ref.width, h = ref.height;
     printf("width=%d\nheight=%d\npixels=%lld\n", w, h, (long long)m.pixels);
     printf("rmse=%.17g\nbias=%.17g\nmax_abs=%.17g\npsnr=%.17g\nssim=%.17g\n", m.rmse, m.bias,
@@ -204,7 +212,8 @@ int main(int argc, char **argv) {
     obs_err_free(&err);
     return 0;
   }
-  fprintf(stderr, "usage: metrics_tool gen DIR | metrics_tool compare CAND REF [MASK] |\n"
+  fprintf(stderr, "usage: metrics_tool gen DIR | metrics_tool compare CAND REF [MASK] "
+                  "[--channel CH] |\n"
                   "       metrics_tool diff CAND.exr REF.exr CHANNEL...\n");
   return 2;
 }

@@ -242,8 +242,8 @@ static void test_rmse_errors(void **state) {
   obs_err_free(&err);
 }
 
-/* SSIM: identical images give 1; constant images reduce to the luminance term, computed by hand;
- * noise lowers it; windows follow the mask. */
+/* SSIM: identical images give 1; constant images reduce to the luminance term, computed by hand
+ * (the mirrored borders keep them constant); noise lowers it; the mask picks the pixels. */
 static void test_ssim(void **state) {
   (void)state;
   float va[256], vb[256], vn[256], mask[256];
@@ -272,12 +272,12 @@ static void test_ssim(void **state) {
   double masked;
   assert_int_equal(obs_metrics_ssim(&a, &nm, "v", "alpha", &masked, &err), 0);
   assert_true(masked < 0.5);
-  /* Tiny images use one window of their own size. */
+  /* Images smaller than the 11x11 window have no SSIM (skimage refuses them): NaN. */
   obs_image t1, t2;
-  make_image(&t1, 1, 1, va, NULL);
-  make_image(&t2, 1, 1, vb, NULL);
+  make_image(&t1, 10, 1, va, NULL);
+  make_image(&t2, 10, 1, vb, NULL);
   assert_int_equal(obs_metrics_ssim(&t1, &t2, "v", NULL, &r, &err), 0);
-  assert_true(fabs(r - expect) < 1e-9);
+  assert_true(isnan(r));
   assert_int_equal(obs_metrics_ssim(&t1, &a, "v", NULL, &r, &err), OBS_EINVAL);
   obs_image_free(&a);
   obs_image_free(&b);
@@ -329,7 +329,7 @@ static void test_compare_hand_computed(void **state) {
   assert_int_equal(m.at_reference_accuracy, 0);
   double ssim;
   assert_int_equal(obs_metrics_ssim(&c, &r, "v", NULL, &ssim, &err), 0);
-  assert_true(m.ssim == ssim);
+  assert_true(isnan(m.ssim) && isnan(ssim)); /* 4x1: smaller than SSIM's window */
 
   /* Swapped roles: the bias changes sign, everything else is symmetric. */
   obs_compare s;
@@ -350,21 +350,37 @@ static void test_compare_hand_computed(void **state) {
   obs_err_free(&err);
 }
 
-/* SSIM by hand on a 2x1 pair (one 2x1 window, equal weights 1/2): a = {0, 1}, b = {0, 0.5}:
- * means 0.5 and 0.25, variances 0.25 and 0.0625, covariance 0.125. */
+/* SSIM by hand on an 11x11 pair: after the 5-pixel border crop only the centre pixel counts, and
+ * its window covers the image exactly (no mirroring), so the weighted moments are plain sums with
+ * the Gaussian weights exp(-(x^2 + y^2) / 4.5) / sum. a is a checkerboard of 0 and 1, b = a/2 + a
+ * ramp in x. */
 static void test_compare_ssim_hand_computed(void **state) {
   (void)state;
-  const float va[] = {0.0f, 1.0f}, vb[] = {0.0f, 0.5f};
+  enum { N = 11 };
+  float va[N * N], vb[N * N];
+  double g[N * N], gs = 0;
+  for (int y = 0; y < N; y++)
+    for (int x = 0; x < N; x++) {
+      va[y * N + x] = (float)((x + y) % 2);
+      vb[y * N + x] = 0.5f * va[y * N + x] + 0.03125f * (float)x;
+      gs += g[y * N + x] = exp(-((x - 5) * (x - 5) + (y - 5) * (y - 5)) / 4.5);
+    }
+  double ma = 0, mb = 0, saa = 0, sbb = 0, sab = 0;
+  for (int i = 0; i < N * N; i++) {
+    double w = g[i] / gs;
+    ma += w * va[i], mb += w * vb[i];
+    saa += w * va[i] * va[i], sbb += w * vb[i] * vb[i], sab += w * va[i] * vb[i];
+  }
+  double vaa = saa - ma * ma, vbb = sbb - mb * mb, cov = sab - ma * mb;
   obs_image a, b;
-  make_image(&a, 2, 1, va, NULL);
-  make_image(&b, 2, 1, vb, NULL);
+  make_image(&a, N, N, va, NULL);
+  make_image(&b, N, N, vb, NULL);
   obs_compare m;
   assert_int_equal(obs_metrics_compare(&a, &b, "v", NULL, &m, NULL), 0);
   const double c1 = 1e-4, c2 = 9e-4;
-  double want = (2 * 0.5 * 0.25 + c1) * (2 * 0.125 + c2) / ((0.25 + 0.0625 + c1) * (0.3125 + c2));
+  double want = (2 * ma * mb + c1) * (2 * cov + c2) / ((ma * ma + mb * mb + c1) * (vaa + vbb + c2));
   assert_true(near(m.ssim, want, 1e-12));
-  assert_true(near(m.rmse, sqrt(0.125), 1e-15));
-  assert_true(m.bias == 0.25 && m.max_abs == 0.5);
+  assert_true(m.ssim > 0.5 && m.ssim < 1.0);
   obs_image_free(&a);
   obs_image_free(&b);
 }
@@ -397,7 +413,7 @@ static void test_compare_masked(void **state) {
   assert_int_equal(obs_metrics_compare(&c, &r, "v", NULL, &m, NULL), 0);
   assert_int_equal(m.pixels, 6);
   assert_true(isnan(m.rmse) && isnan(m.bias) && isnan(m.max_abs) && isnan(m.psnr));
-  assert_true(isnan(m.ssim));                   /* the one 6x1 window holds the NaN */
+  assert_true(isnan(m.ssim));                   /* 6x1: smaller than SSIM's window */
   assert_int_equal(m.at_reference_accuracy, 0); /* NaN never passes */
 
   /* A mask selecting nothing: no error by convention, and pixels says so. */
@@ -407,7 +423,7 @@ static void test_compare_masked(void **state) {
   assert_int_equal(obs_metrics_compare(&c, &z, "v", "alpha", &m, NULL), 0);
   assert_int_equal(m.pixels, 0);
   assert_true(m.rmse == 0.0 && m.bias == 0.0 && m.max_abs == 0.0);
-  assert_true(m.psnr == OBS_METRICS_PSNR_MAX && m.ssim == 1.0);
+  assert_true(m.psnr == OBS_METRICS_PSNR_MAX && isnan(m.ssim)); /* 6x1: no SSIM */
   assert_true(m.ref_noise == 0.0); /* obs_stats' empty-set mean */
   obs_image_free(&z);
   obs_image_free(&r);
@@ -427,7 +443,7 @@ static void test_compare_psnr_cap(void **state) {
   obs_compare m;
   assert_int_equal(obs_metrics_compare(&r, &r, "v", NULL, &m, NULL), 0);
   assert_true(m.rmse == 0.0 && m.psnr == 100.0 && m.max_abs == 0.0 && m.bias == 0.0);
-  assert_true(near(m.ssim, 1.0, 1e-12));
+  assert_true(isnan(m.ssim)); /* 2x2: smaller than SSIM's window */
   assert_int_equal(obs_metrics_compare(&t, &r, "v", NULL, &m, NULL), 0);
   assert_true(m.rmse > 0 && m.psnr == 100.0);
   assert_int_equal(obs_metrics_compare(&u, &r, "v", NULL, &m, NULL), 0);

@@ -39,7 +39,9 @@ static void test_rgb_by_hand(void **state) {
   /* relMSE: (0.5^2 / (0.5^2 + 0.01) + 0.5^2 / (1 + 0.01)) / (3 channels x 2 pixels). */
   double rel = (0.25 / 0.26 + 0.25 / 1.01) / 6.0;
   assert_true(fabs(m.rel_mse - rel) < 1e-12);
-  /* SSIM on luminance equals obs_metrics_ssim on hand-made luminance planes. */
+  /* SSIM on luminance is obs_metrics_ssim on hand-made luminance planes: both undefined (NaN) on
+   * a 2x1 image, smaller than SSIM's 11x11 window (test_metric_table.c compares them on a larger
+   * one). */
   const char *yn[] = {"Y", "alpha"};
   obs_image yc, yr;
   assert_int_equal(obs_image_init(&yc, 2, 1, 2, yn, &err), 0);
@@ -49,12 +51,10 @@ static void test_rgb_by_hand(void **state) {
   for (int i = 0; i < 2; i++) yc.data[2 + i] = yr.data[2 + i] = 1.0f;
   double ssim;
   assert_int_equal(obs_metrics_ssim(&yc, &yr, "Y", "alpha", &ssim, &err), 0);
-  assert_true(fabs(m.ssim_luminance - ssim) < 1e-6);
-  assert_true(m.ssim_luminance < 1.0);
-  /* Identical images: no error, SSIM 1. */
+  assert_true(isnan(ssim) && isnan(m.ssim_luminance));
+  /* Identical images: no error. */
   assert_int_equal(obs_metrics_compare_rgb(&r, &r, "rad", "alpha", &m, &err), 0);
   assert_true(m.rmse[0] == 0 && m.rmse_luminance == 0 && m.rel_mse == 0);
-  assert_true(fabs(m.ssim_luminance - 1.0) < 1e-12);
   obs_image_free(&c);
   obs_image_free(&r);
   obs_image_free(&yc);

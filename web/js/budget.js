@@ -24,7 +24,7 @@ export function answerLines(answer, {short = false} = {}) {
   if (!answer || !answer.groups || !answer.groups.length) return [];
   const many = answer.groups.length > 1;
   return answer.groups.map((g) => {
-    const head = many ? `Reference job ${g.reference_job_id}: ` : '';
+    const head = many ? `${g.reference || `reference job ${g.reference_job_id}`}${g.label ? ` (${g.label})` : ''}: ` : '';
     if (!g.best) return `${head}no candidate measured yet`;
     const best = `best ${pickText(g.best)}`;
     if (answer.budget_ms === null || answer.budget_ms === undefined) return head + best;

@@ -1,6 +1,6 @@
 // The comparison's Pareto chart on uPlot (npm `uplot`, served at /vendor/uplot/): median time
 // against RMSE (of AO, or of an RGB output's luminance), both log scales, one series per technique
-// (colour), the backend as the point's shape, the Pareto front as a step line and the selected
+// (colour; per reference instead when the candidates have several), the backend as the point's shape, the Pareto front as a step line and the selected
 // candidate as a ring. uPlot draws axes, grid, legend and cursor; drawn here: each point's marker
 // path (uPlot fills and strokes it with the series' colours, its `paths` hook), and in its `draw`
 // hook the run-to-run spread of each point's time (a horizontal bar from the fastest to the
@@ -32,23 +32,42 @@ function addShape(path, shape, x, y, r) {
 }
 
 // Log-scale range: the data's extent widened by a factor of 1.5 each way (4 for a single value).
-// Ticks of a log axis: the powers of ten in [min, max], with their 2 and 5 multiples when the
-// range spans at most two decades. uPlot's own log splits step from the scale's minimum in
-// increments of its decade and never end on a degenerate scale (a minimum of 0 or a non-finite
-// end), which throws "Invalid array length" from inside the chart.
+// Ticks of a log axis: at least four (two ticks cannot be read as a scale). The powers of ten in
+// [min, max] when they are four or more, else with their 2 and 5 multiples, then 3 too, then every
+// multiple; within a factor of about two, evenly spaced round values. uPlot's own log splits step
+// from the scale's minimum in increments of its decade and never end on a degenerate scale (a
+// minimum of 0 or a non-finite end), which throws "Invalid array length" from inside the chart.
+const MIN_TICKS = 4;
 function logSplits(u, axis, min, max) {
   if (!(min > 0) || !(max >= min) || !Number.isFinite(max)) return [];
   const k0 = Math.floor(Math.log10(min)), k1 = Math.ceil(Math.log10(max));
-  const mults = k1 - k0 <= 2 ? [1, 2, 5] : [1];
-  const out = [];
-  for (let k = k0; k <= k1 && out.length < 64; k++) {
-    for (const m of mults) {
-      const v = Number((m * 10 ** k).toPrecision(12));
-      if (v >= min && v <= max) out.push(v);
+  let out = [];
+  for (const mults of [[1], [1, 2, 5], [1, 2, 3, 5], [1, 2, 3, 4, 5, 6, 7, 8, 9]]) {
+    out = [];
+    for (let k = k0; k <= k1 && out.length < 64; k++) {
+      for (const m of mults) {
+        const v = Number((m * 10 ** k).toPrecision(12));
+        if (v >= min && v <= max) out.push(v);
+      }
     }
+    if (out.length >= MIN_TICKS) return out;
   }
-  return out;
+  // The largest step of 1, 2 or 5 times a power of ten that gives MIN_TICKS values or more.
+  const raw = (max - min) / MIN_TICKS;
+  if (!(raw > 0)) return out;
+  const p = 10 ** Math.floor(Math.log10(raw));
+  const step = [5, 2, 1].map((m) => m * p).find((x) => x <= raw) || p;
+  const lin = [];
+  for (let v = Math.ceil(min / step) * step; v <= max && lin.length < 64; v += step) lin.push(Number(v.toPrecision(12)));
+  return lin.length > out.length ? lin : out;
 }
+
+// A tick's label: plain below 1e5 and from 1e-3 (uPlot's default rounds to three decimals, so
+// 0.0002 would read 0), else as a power of ten. Every split logSplits chose is labelled (uPlot's
+// own log filter would blank all but the 1-2-5 ones, leaving two labels).
+const tickLabels = (u, splits) => splits.map((v) => (v === null ? null : v >= 1e-3 && v < 1e5 ? String(Number(v.toPrecision(6)))
+  : v.toExponential().replace(/\.?0+e/, 'e').replace('e+', 'e')));
+const keepSplits = (u, splits) => splits;
 
 // A log axis' range over the positive finite values among `vals` (uPlot passes null for a scale
 // it has no data for yet, and Math.min would turn that into 0, whose log breaks the axis).
@@ -92,7 +111,8 @@ const defaultName = (c) => `Candidate ${c.index}: ${c.technique} on ${c.backend}
 /**
  * Draws the chart into `box`. cands: candidates of the comparison JSON; colourOf(technique);
  * onSelect(candidateIndex); nameOf(candidate): how the tooltip and the point's button name it;
- * noise: the reference's noise (RMSE units) drawn as the noise floor, or null. Returns
+ * noise: the reference's noise (RMSE units) drawn as the noise floor, or null; labelOf(id): a
+ * reference's label, for the legend when the markers are grouped by reference. Returns
  * {select(index), focus(index), destroy(), info} or null when there is nothing to plot. info:
  * {points, series: [{label, points}], pareto, order, noiseFloor, spreads} (also what the tests
  * read).
@@ -110,9 +130,11 @@ const pathOf = (shape, filled) => (u, si) => {
 
 const valueText = (u, v) => (v === null ? '–' : v.toPrecision(3));
 
-// The series and data: one series per technique (markers shaped by backend), the Pareto front as
-// a step line, and the ring around the selected point (last; `ringData` recomputes its data).
-function chartSeries(uPlot, pts, techs, colourOf, ratio, ringData) {
+// The series and data: one series per technique, or per reference when the candidates are measured
+// against several (markers shaped by backend), the Pareto front as a step line (one per reference:
+// a front across references would compare incomparable errors), and the ring around the selected
+// point (last; `ringData` recomputes its data).
+function chartSeries(uPlot, pts, keys, ratio, ringData) {
   const markers = pathOf((path, i, cx, cy) => addShape(path, shapeOf(pts[i].c.backend), cx, cy, (pts[i].c.pareto ? 6 : 4.5) * ratio), true);
   const ring = pathOf((path, i, cx, cy) => {
     path.moveTo(cx + 10 * ratio, cy);
@@ -120,15 +142,18 @@ function chartSeries(uPlot, pts, techs, colourOf, ratio, ringData) {
   }, false);
   const series = [{label: 'median time (ms)'}];
   const data = [pts.map((p) => p.x)];
-  for (const t of techs) {
-    const colour = colourOf(t);
-    series.push({label: t, stroke: colour, fill: `${colour}66`, width: 1.5, paths: markers,
+  for (const k of keys.list) {
+    const colour = k.colour;
+    series.push({label: k.label, stroke: colour, fill: `${colour}66`, width: 1.5, paths: markers,
                  points: {show: false}, value: valueText});
-    data.push(pts.map((p) => (p.c.technique === t ? p.y : null)));
+    data.push(pts.map((p) => (keys.of(p.c) === k.key ? p.y : null)));
   }
-  series.push({label: 'Pareto front', stroke: '#333', width: 1.5, dash: [6, 4], spanGaps: true,
-               paths: uPlot.paths.stepped({align: 1}), points: {show: false}, value: valueText});
-  data.push(pts.map((p) => (p.c.pareto ? p.y : null)));
+  const fronts = keys.byReference ? keys.list : [{key: null}];
+  for (const f of fronts) {
+    series.push({label: f.key === null ? 'Pareto front' : `Pareto front ${f.key}`, stroke: f.key === null ? '#333' : f.colour,
+                 width: 1.5, dash: [6, 4], spanGaps: true, paths: uPlot.paths.stepped({align: 1}), points: {show: false}, value: valueText});
+    data.push(pts.map((p) => (p.c.pareto && (f.key === null || keys.of(p.c) === f.key) ? p.y : null)));
+  }
   // The ring takes no legend row: it is no data series of its own (the page's list explains it).
   series.push({label: 'selected', stroke: '#000', width: 2.5, paths: ring, points: {show: false}, value: valueText});
   data.push(ringData());
@@ -170,7 +195,7 @@ function decorate(u, pts, floor, colourOf, ratio, drawn) {
     if (!p.spread) continue;
     const y = u.valToPos(p.y, 'y', true), x0 = u.valToPos(p.spread[0], 'x', true), x1 = u.valToPos(p.spread[1], 'x', true);
     const cap = 4 * ratio;
-    ctx.strokeStyle = colourOf(p.c.technique);
+    ctx.strokeStyle = colourOf(p.c);
     ctx.beginPath();
     ctx.moveTo(x0, y);
     ctx.lineTo(x1, y);
@@ -271,7 +296,23 @@ function chartPoints(cands) {
     .sort((a, b) => a.x - b.x || a.c.index - b.c.index);
 }
 
-export function paretoChart(box, cands, {colourOf, onSelect, selected = null, nameOf = defaultName, noise = null, budget = null}) {
+/**
+ * How the chart's markers are grouped: by technique (colourOf(technique)), or, when the candidates
+ * are measured against more than one reference (each candidate's `reference.id`), by reference,
+ * named by `labelOf(id)` in the legend, so errors of different references are never read as one
+ * scale. {list: [{key, label, colour}], of(c), byReference}.
+ */
+export function markerGroups(cands, colourOf, labelOf = (id) => id) {
+  const refs = [...new Set(cands.map((c) => c.reference && c.reference.id).filter(Boolean))];
+  if (refs.length > 1) {
+    return {byReference: true, of: (c) => c.reference && c.reference.id,
+            list: refs.map((r, k) => ({key: r, label: `${r}: ${labelOf(r)}`, colour: PALETTE[k % PALETTE.length]}))};
+  }
+  const techs = [...new Set(cands.map((c) => c.technique))];
+  return {byReference: false, of: (c) => c.technique, list: techs.map((t) => ({key: t, label: t, colour: colourOf(t)}))};
+}
+
+export function paretoChart(box, cands, {colourOf, onSelect, selected = null, nameOf = defaultName, noise = null, labelOf, budget = null}) {
   const uPlot = window.uPlot;
   if (!uPlot) {
     box.append('The chart library is missing (run npm ci; the daemon serves it from --vendor-dir).');
@@ -285,11 +326,12 @@ export function paretoChart(box, cands, {colourOf, onSelect, selected = null, na
   let budgetMs = budget;
   const xRange = (uu, min, max) => logPad([min, max, ...xExt, ...(budgetMs > 0 ? [budgetMs] : [])]);
   const yRange = (uu, min, max) => logPad(floor ? [min, max, floor] : [min, max]);
-  const techs = [...new Set(pts.map((p) => p.c.technique))];
+  const keys = markerGroups(pts.map((p) => p.c), colourOf, labelOf);
+  const colourFor = (c) => keys.list.find((k) => k.key === keys.of(c)).colour;
   const ratio = window.devicePixelRatio || 1;
   let sel = selected;
   const selData = () => pts.map((p) => (p.c.index === sel ? p.y : null));
-  const {series, data} = chartSeries(uPlot, pts, techs, colourOf, ratio, selData);
+  const {series, data} = chartSeries(uPlot, pts, keys, ratio, selData);
   const drawn = {spreads: 0, noiseY: null, budgetX: null};
   let u = null;
   const tip = chartTip(nameOf, () => u);
@@ -315,15 +357,15 @@ export function paretoChart(box, cands, {colourOf, onSelect, selected = null, na
     width, height: 340,
     // Padded by a factor on both sides so no marker sits on (and is clipped by) the plot's edge.
     scales: {x: {time: false, distr: 3, log: 10, range: xRange}, y: {distr: 3, log: 10, range: yRange}},
-    axes: [{label: 'median total time per run (ms, log scale; bars: fastest to slowest run)', splits: logSplits},
-           {label: yLabel, size: 70, splits: logSplits}],
+    axes: [{label: 'median total time per run (ms, log scale; bars: fastest to slowest run)', splits: logSplits, values: tickLabels, filter: keepSplits},
+           {label: yLabel, size: 70, splits: logSplits, values: tickLabels, filter: keepSplits}],
     series,
     cursor: {drag: {x: false, y: false}},
     // Not live: a live legend is a row of "–" values until the cursor sits exactly on a point's
     // time (one series at a time has a value there); the tooltip names the point instead.
     legend: {live: false},
     hooks: {
-      drawClear: [(uu) => decorate(uu, pts, floor, colourOf, ratio, drawn)],
+      drawClear: [(uu) => decorate(uu, pts, floor, colourFor, ratio, drawn)],
       draw: [(uu) => { drawn.budgetX = drawBudget(uu, budgetMs, ratio); }, placeButtons],
       setCursor: [(uu) => {
         const {left, top} = uu.cursor;
@@ -350,8 +392,11 @@ export function paretoChart(box, cands, {colourOf, onSelect, selected = null, na
   });
   u.over.addEventListener('mouseleave', () => tip.show(null));
 
-  const info = {points: pts.length, series: techs.map((t, k) => ({label: t, points: data[k + 1].filter((v) => v !== null).length})),
-                pareto: data[techs.length + 1].filter((v) => v !== null).length, order: pts.map((p) => p.c.index), yLabel,
+  const nk = keys.list.length, nf = keys.byReference ? nk : 1;
+  const info = {points: pts.length, series: keys.list.map((k, i) => ({label: k.label, points: data[i + 1].filter((v) => v !== null).length})),
+                byReference: keys.byReference,
+                pareto: data.slice(nk + 1, nk + 1 + nf).reduce((a, d) => a + d.filter((v) => v !== null).length, 0),
+                order: pts.map((p) => p.c.index), yLabel,
                 noiseFloor: floor, drawn, spreads: pts.filter((p) => p.spread).map((p) => ({index: p.c.index, min: p.spread[0], max: p.spread[1]}))};
   const handle = chartHandle(u, info, buttons, data, () => {
     roving();

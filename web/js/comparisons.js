@@ -11,6 +11,10 @@ const primaryImage = (links) => links.image || links['ao.png'];
 
 // The technique of a reference; a daemon that predates reference techniques only had rt_ao.
 const refTechnique = (r) => r.technique || 'rt_ao';
+// A reference's id and label (the server makes both from what defines the reference; a daemon
+// that predates them gets its job and technique).
+const refId = (r) => r.id || `job ${r.job_id}`;
+const refLabel = (r) => r.label || refTechnique(r);
 
 // ---- the list -----------------------------------------------------------------------------------
 
@@ -49,31 +53,71 @@ export function mountComparisons(view) {
 
 // ---- shared pieces ------------------------------------------------------------------------------
 
-/** Metrics and timings of one candidate as a two-column table (also used by the job page). */
+// ---- the metric table (GET /api/v1/metrics): every metric column and row is built from it -----
+
+let METRICS = null; // the table once loaded
+let metricsLoad = null;
+/** The metric table, fetched once (callers await it before drawing metrics). */
+export function metricTable() {
+  if (!metricsLoad) metricsLoad = api('/api/v1/metrics').then((r) => (METRICS = r.metrics)).catch(() => (METRICS = []));
+  return metricsLoad;
+}
+/** Metric m's value in a candidate's metrics document: at its group, key and array index. */
+const metricValue = (metrics, m) => {
+  const o = m.json_group ? metrics && metrics[m.json_group] : metrics;
+  const v = o ? o[m.json_key] : undefined;
+  return m.json_index >= 0 ? (v ? v[m.json_index] : undefined) : v;
+};
+const BETTER = {lower: 'lower is better', higher: 'higher is better', zero: 'closer to 0 is better'};
+const metricTitle = (m) => `${m.definition}${BETTER[m.direction] ? ` (${BETTER[m.direction]})` : ''}`;
+
+/** The table's columns of metrics some candidate has, in the table's order: the reference's noise
+ * (information, not a quality) and figures equal to another (same_as) left out; a metric's array
+ * entries (RMSE R, G, B) share one column. */
+function metricColumns(cands) {
+  const cols = [];
+  for (const m of METRICS || []) {
+    if (m.direction === 'none' || m.same_as || m.json_index > 0) continue;
+    if (!cands.some((c) => metricValue(c.metrics, m) !== undefined)) continue;
+    if (m.json_index === 0) {
+      const parts = METRICS.filter((x) => x.json_group === m.json_group && x.json_key === m.json_key);
+      cols.push({key: m.name, label: [m.label, ...parts.slice(1).map((x) => x.label.split(' ').pop())].join(' / '),
+        title: metricTitle(m), num: true, nowrap: true,
+        get: (c) => (c.metrics && c.metrics[m.json_group] ? c.metrics[m.json_group][m.json_key] : null),
+        sortValue: (v) => v.reduce((a, x) => a + (x ?? Infinity), 0),
+        fmt: (v) => (v ? v.map((x) => fmtNum(x, m.digits)).join(' / ') : '–')});
+    } else {
+      cols.push({key: m.name, label: m.unit ? `${m.label} ${m.unit}` : m.label, title: metricTitle(m), num: true,
+        get: (c) => metricValue(c.metrics, m) ?? null, fmt: (v) => fmtNum(v, m.digits)});
+    }
+  }
+  return cols;
+}
+
+/** Metrics and timings of one candidate as a two-column table (also used by the job page, after
+ * metricTable()). */
 export function metricsTable(c) {
   const m = c.metrics || {};
   const med = (c.timings_ms && c.timings_ms.median) || {};
   const runs = (c.timings_ms && c.timings_ms.runs) || [];
   const rows = [
-    ['RMSE', fmtNum(m.rmse)], ['bias (mean signed error)', fmtNum(m.bias)], ['max |error|', fmtNum(m.max_abs)],
-    ['PSNR (dB)', fmtNum(m.psnr)], ['SSIM', fmtNum(m.ssim)], ['reference noise (mean standard error)', fmtNum(m.ref_noise)],
+    ...(METRICS || []).filter((x) => metricValue(m, x) !== undefined)
+      .map((x) => [x.unit ? `${x.label} (${x.unit})` : x.label, fmtNum(metricValue(m, x), x.digits)]),
     ['at reference accuracy', m.at_reference_accuracy ? 'yes (RMSE below 2 × reference noise)' : 'no'],
     ['Pareto-optimal', c.pareto ? 'yes' : 'no'],
     ['median total ms', fmtMs(med.total)], ['total ms, fastest to slowest run', spreadText(c)], ['median build ms', fmtMs(med.build)], ['median render ms', fmtMs(med.render)],
     ['median post ms', fmtMs(med.post)], ['timed runs', String(runs.length)],
   ];
-  // Metrics of a primary output that is not AO: which one, and the RGB or per-patch figures.
+  // Metrics of a primary output that is not AO: which one.
   if (m.output) rows.unshift(['output compared', m.output + (m.rgb ? ' (luminance)' : '')]);
-  if (m.rgb) {
-    rows.splice(rows.length - 7, 0, ['RMSE R, G, B', m.rgb.rmse.map((v) => fmtNum(v)).join(', ')],
-                ['RMSE of luminance', fmtNum(m.rgb.rmse_luminance)], ['SSIM of luminance', fmtNum(m.rgb.ssim_luminance)],
-                ['relative MSE', fmtNum(m.rgb.rel_mse)]);
-  }
-  if (m.patch_rmse !== undefined) rows.splice(rows.length - 7, 0, ['RMSE over patches (area-weighted)', fmtNum(m.patch_rmse)]);
   if (c.machine) rows.push(['machine', [c.machine.cpu_model, c.machine.cores && `${c.machine.cores} cores`, c.machine.vulkan_device].filter(Boolean).join(', ')]);
   return el('table', {className: 'kv metrics'}, el('tbody', {}, ...rows.map(([k, v]) => el('tr', {},
     el('th', {scope: 'row'}, k), el('td', {className: 'num'}, v)))));
 }
+
+/** An other output's figures in words: the mean angle for directions, else RMSE, bias and SSIM. */
+const measureText = (m) => (m.angle_deg !== undefined ? `mean angle ${fmtNum(m.angle_deg)}°`
+  : `RMSE ${fmtNum(m.rmse)}, bias ${fmtNum(m.bias)}, SSIM ${fmtNum(m.ssim)}`);
 
 /** "min–max" of a candidate's total time over its timed runs (the run-to-run spread). */
 export function spreadText(c) {
@@ -111,22 +155,24 @@ const COLUMNS = [
   {key: 'spread', label: 'Spread ms (min–max)', get: (c) => spreadOf(c), num: true, nowrap: true,
    sortValue: (v) => v[1] - v[0], fmt: (v) => (v ? `${fmtMs(v[0])}–${fmtMs(v[1])}` : '–')},
   {key: 'render', label: 'Render ms', get: (c) => c.timings_ms && c.timings_ms.median ? c.timings_ms.median.render : null, num: true, fmt: fmtMs},
-  {key: 'rmse', label: 'RMSE', get: (c) => c.metrics && c.metrics.rmse, num: true, fmt: fmtNum},
-  {key: 'bias', label: 'Bias', get: (c) => c.metrics && c.metrics.bias, num: true, fmt: fmtNum},
-  {key: 'max_abs', label: 'Max |err|', get: (c) => c.metrics && c.metrics.max_abs, num: true, fmt: fmtNum},
-  {key: 'psnr', label: 'PSNR dB', get: (c) => c.metrics && c.metrics.psnr, num: true, fmt: (v) => fmtNum(v, 3)},
-  {key: 'ssim', label: 'SSIM', get: (c) => c.metrics && c.metrics.ssim, num: true, fmt: fmtNum},
-  // RGB outputs only (added when a candidate has them): the per-channel RMSE and relative MSE.
-  {key: 'rmse_rgb', label: 'RMSE R / G / B', rgb: true, get: (c) => (c.metrics && c.metrics.rgb ? c.metrics.rgb.rmse : null), num: true, nowrap: true,
-   sortValue: (v) => v.reduce((a, x) => a + (x ?? Infinity), 0), fmt: (v) => (v ? v.map((x) => fmtNum(x, 3)).join(' / ') : '–')},
-  {key: 'rel_mse', label: 'Rel. MSE', rgb: true, get: (c) => c.metrics && c.metrics.rgb && c.metrics.rgb.rel_mse, num: true, fmt: fmtNum},
+  // What the row's figures are measured against: the reference's id (the References list and the
+  // cell's title give its label).
+  {key: 'reference', label: 'Reference', get: (c) => (c.reference ? c.reference.id : null), cellTitle: (c) => c.reference && c.reference.label},
   {key: 'pareto', label: 'Pareto', get: (c) => (c.pareto ? 1 : 0), num: true, fmt: (v) => (v ? '★ yes' : 'no')},
+  // With a common reference: every candidate's error on that one scale.
+  {key: 'common_rmse', label: 'RMSE vs common', common: true, get: (c) => c.common && c.common.metrics && c.common.metrics.rmse, num: true, fmt: fmtNum},
+  {key: 'common_pareto', label: 'Pareto (common)', common: true, get: (c) => (c.common ? (c.common.pareto ? 1 : 0) : null), num: true,
+   fmt: (v) => (v === null ? '–' : v ? '★ yes' : 'no')},
   {key: 'at_ref', label: 'At ref. accuracy', get: (c) => (c.metrics ? (c.metrics.at_reference_accuracy ? 1 : 0) : null), num: true,
    fmt: (v) => (v === null ? '–' : v ? '≈ yes' : 'no')},
 ];
 
-/** The table's columns: the RGB ones only when some candidate has RGB metrics. */
-const columnsFor = (cands) => (cands.some((c) => c.metrics && c.metrics.rgb) ? COLUMNS : COLUMNS.filter((c) => !c.rgb));
+/** The table's columns: the metric table's (those the candidates have) after the render time; the common ones with a common reference. */
+const columnsFor = (cands) => {
+  const at = COLUMNS.findIndex((c) => c.key === 'render') + 1;
+  return [...COLUMNS.slice(0, at), ...metricColumns(cands), ...COLUMNS.slice(at)]
+    .filter((c) => !c.common || cands.some((x) => x.common));
+};
 
 /** Downloads url through fetch when a token is needed (a plain link cannot send the header). */
 function csvLink(url, name) {
@@ -151,15 +197,25 @@ function csvLink(url, name) {
 
 // ---- one comparison -----------------------------------------------------------------------------
 
-// The image viewer (viewer.js) on a job's EXR, B the job to compare with; Close comes back here.
-const viewerHref = (a, b) => `#/view/${a}?${b ? `b=${b}&mode=split&` : ''}back=${encodeURIComponent(location.hash)}`;
+// The image viewer (viewer.js) on a job's EXR, B the job to compare with (bfile: which of its EXR
+// outputs, given as the viewer's "<job>/<file>" spec); Close comes back here.
+const viewerHref = (a, b, bfile) => `#/view/${a}?${b ? `b=${encodeURIComponent(bfile ? `${b}/${bfile}` : String(b))}&mode=split&` : ''}` +
+  `back=${encodeURIComponent(location.hash)}`;
+// A candidate against its reference as the metrics compared them: the mapped reference the
+// server wrote beside the candidate when its response changes the reference, else the reference.
+const againstHref = (c) => (c.links && c.links['reference_mapped.exr'] ? viewerHref(c.job_id, c.job_id, 'reference_mapped.exr')
+  : viewerHref(c.job_id, c.reference_job_id));
+
+// The page's route: the selected candidate and the error scale, so a reload keeps both.
+const routeOf = ({id, s}) => `#/comparisons/${id}?` +
+  [s.selected !== null && `candidate=${s.selected}`, s.scale === 'common' && 'scale=common'].filter(Boolean).join('&');
 
 function select(pg, index, scroll = true) {
   const {s, id, tbody, detail} = pg;
   s.selected = index;
-  history.replaceState(null, '', `#/comparisons/${id}?candidate=${index}`);
+  history.replaceState(null, '', routeOf(pg));
   if (s.chart) s.chart.select(index);
-  for (const tr of tbody.rows) tr.setAttribute('aria-selected', String(Number(tr.dataset.index) === index));
+  for (const tr of tbody.rows) if (tr.dataset.index !== undefined) tr.setAttribute('aria-selected', String(Number(tr.dataset.index) === index));
   renderSelected(pg);
   debug.comparison.selected = index;
   if (scroll) detail.scrollIntoView({block: 'nearest'});
@@ -178,8 +234,11 @@ function renderFacts(pg) {
       el('dt', {}, 'Timed runs per candidate'), el('dd', {}, String(c.repeats)),
       el('dt', {}, 'Candidates finished'), el('dd', {},
         el('progress', {max: c.candidates.length || 1, value: done, 'aria-label': 'Candidates finished'}), ` ${done} / ${c.candidates.length}`),
-      el('dt', {}, 'References'), el('dd', {}, ...c.references.flatMap((r, i) => [i ? ', ' : '',
-        el('a', {href: `#/jobs/${r.job_id}?comparison=${id}`}, `job ${r.job_id}`), ` (${refTechnique(r)}, ${r.state}, ${paramText({samples: r.params && r.params.samples})})`])),
+      el('dt', {}, 'References'), el('dd', {}, el('ul', {className: 'references'}, ...c.references.map((r) => el('li', {'data-ref': refId(r)},
+        el('strong', {}, refId(r)), ': ', el('span', {className: 'ref-label'}, refLabel(r)),
+        r.roles && r.roles.includes('common') ? el('em', {}, ' (the common reference)') : '', ' — ',
+        el('a', {href: `#/jobs/${r.job_id}?comparison=${id}`}, `job ${r.job_id}`),
+        ` (${r.state}, ${paramText({samples: r.params && r.params.samples})})`)))),
       el('dt', {}, 'Error measure'), el('dd', {className: 'error-measure'}, errorName(c.candidates)),
       el('dt', {}, 'Timed on'), el('dd', {className: 'devices'}, deviceLabels(c.candidates).join('; ') || '–'),
       el('dt', {}, 'Created'), el('dd', {}, fmtTime(c.created_at)),
@@ -202,7 +261,7 @@ function renderTable(pg) {
     const d = col.sortValue ? col.sortValue(va) - col.sortValue(vb) : col.num ? va - vb : String(va).localeCompare(String(vb));
     return d ? d * dir : a.index - b.index;
   });
-  thead.replaceChildren(el('tr', {}, ...cols.map((c) => el('th', {scope: 'col', 'aria-sort': c.key === key ? (dir > 0 ? 'ascending' : 'descending') : 'none'},
+  thead.replaceChildren(el('tr', {}, ...cols.map((c) => el('th', {scope: 'col', title: c.title || '', 'aria-sort': c.key === key ? (dir > 0 ? 'ascending' : 'descending') : 'none'},
     el('button', {type: 'button', className: 'sort', onclick: () => {
       s.sort = {key: c.key, dir: s.sort.key === c.key ? -s.sort.dir : 1};
       renderTable(pg);
@@ -218,13 +277,17 @@ function renderTable(pg) {
             onclick: () => select(pg, c.index)}, String(c.index)));
         }
         if (col.key === 'state') return el('td', {}, stateBadge(v));
-        return el('td', {className: [col.num && 'num', col.nowrap && 'nowrap'].filter(Boolean).join(' ')}, col.fmt ? col.fmt(v) : String(v ?? '–'));
+        return el('td', {className: [col.num && 'num', col.nowrap && 'nowrap', col.key].filter(Boolean).join(' '),
+                         ...(col.cellTitle && col.cellTitle(c) ? {title: col.cellTitle(c)} : {})}, col.fmt ? col.fmt(v) : String(v ?? '–'));
       }));
     tr.addEventListener('click', (ev) => {
       if (!ev.target.closest('button, a')) select(pg, c.index);
     });
-    return tr;
-  }));
+    // The candidate's other outputs, each against its own reference, in rows under it.
+    return [tr, ...(c.outputs || []).map((o) => el('tr', {className: 'output-row', 'data-of': c.index},
+      el('td', {colSpan: cols.length}, `↳ candidate ${c.index}'s ${o.output} against ${o.reference.id} (${o.reference_output}): `,
+        o.metrics ? measureText(o.metrics) : (o.error ? `no metrics: ${o.error}` : 'no metrics yet'))))];
+  }).flat());
   if (focusedIndex !== null) {
     const b = tbody.querySelector(`tr[data-index="${focusedIndex}"] button`);
     if (b) b.focus();
@@ -233,11 +296,46 @@ function renderTable(pg) {
 
 function renderRanking(pg) {
   const {s, rankNote} = pg;
-  const r = s.c.ranking;
+  const common = s.scale === 'common' && s.c.common;
+  const r = common ? s.c.common.ranking : s.c.ranking;
   rankNote.replaceChildren(...(r && r.warning
     ? [el('p', {className: 'warnings noisy-reference', role: 'note'}, el('strong', {}, 'Reference too noisy to rank: '),
-      r.warning.replace(/^the reference is too noisy to rank the candidates: /, ''), '.')]
+      r.warning.replace(/the reference is too noisy to rank the candidates: /g, ''), '.')]
+    : []),
+  // Candidates of different references on one axis: say that their errors do not compare.
+  ...(!common && s.c.comparable === false
+    ? [el('p', {className: 'warnings not-comparable', role: 'note'}, el('strong', {}, 'Errors measured against different references are not comparable: '),
+      `the candidates are measured against ${s.c.groups.length} references (${s.c.groups.map((g) => g.reference).join(', ')}, listed above); ` +
+      'each reference\'s candidates have their own marker colour and Pareto front and are ranked among themselves only' +
+      (s.c.common ? '. Choose the common reference above the chart to rank all of them on one scale.' : '. A common reference ranks all of them on one scale.'))]
     : []));
+}
+
+// The scale the chart and the ranking use: each candidate's own reference, or, when the
+// comparison has one, the common reference every candidate was also measured against.
+function renderScale(pg) {
+  const {s, scaleBox} = pg;
+  if (!s.c.common) {
+    scaleBox.replaceChildren();
+    return;
+  }
+  const choice = (value, text) => el('label', {}, el('input', {type: 'radio', name: 'scale', value, checked: s.scale === value,
+    onchange: () => {
+      s.scale = value;
+      history.replaceState(null, '', routeOf(pg));
+      renderRanking(pg);
+      renderChart(pg);
+    }}), ` ${text}`);
+  scaleBox.replaceChildren(el('fieldset', {className: 'scale'}, el('legend', {}, 'Errors against'),
+    choice('own', 'each candidate\'s own reference'),
+    choice('common', `the common reference ${s.c.common.reference.id} (${s.c.common.reference.label})`)));
+}
+
+/** The candidates as the chart plots them on the chosen scale. */
+function onScale(s) {
+  if (s.scale !== 'common' || !s.c.common) return s.c.candidates;
+  return s.c.candidates.map((c) => ({...c, metrics: c.common && c.common.metrics, pareto: Boolean(c.common && c.common.pareto),
+                                    reference: c.common && c.common.reference}));
 }
 
 function renderChart(pg) {
@@ -247,8 +345,14 @@ function renderChart(pg) {
   if (s.chart) s.chart.destroy();
   chartBox.replaceChildren();
   const ctx = {params: varyingParams(s.c.candidates)};
-  const noise = s.c.ranking ? s.c.ranking.ref_noise : null;
-  s.chart = paretoChart(chartBox, s.c.candidates, {colourOf, onSelect: (i) => select(pg, i), selected: s.selected, noise, budget: s.budget,
+  const cands = onScale(s);
+  const ranking = s.scale === 'common' && s.c.common ? s.c.common.ranking : s.c.ranking;
+  const noise = ranking ? ranking.ref_noise : null;
+  const labelOf = (rid) => {
+    const r = s.c.references.find((x) => x.id === rid);
+    return r ? refLabel(r) : rid;
+  };
+  s.chart = paretoChart(chartBox, cands, {colourOf, onSelect: (i) => select(pg, i), selected: s.selected, noise, labelOf, budget: s.budget,
     nameOf: (c) => {
       const varying = ctx.params(c);
       return `Candidate ${c.index}: ${c.technique} on ${c.backend}${varying === '(defaults)' ? '' : `, ${varying}`}`;
@@ -257,13 +361,14 @@ function renderChart(pg) {
   const info = s.chart ? s.chart.info : {points: 0, series: [], pareto: 0};
   debug.comparison.chart = info;
   debug.comparison.uplot = s.chart ? s.chart.uplot : null;
-  const withMetrics = s.c.candidates.filter(plottable);
+  const withMetrics = cands.filter(plottable);
   const times = withMetrics.map((c) => c.timings_ms.median.total), errs = withMetrics.map((c) => c.metrics.rmse);
   chartBox.setAttribute('aria-label', info.points
     ? `Scatter chart, log scales: ${info.points} candidates, median time ${fmtMs(Math.min(...times))} to ${fmtMs(Math.max(...times))} ms, ` +
       `${errorName(withMetrics)} ${fmtNum(Math.min(...errs), 3)} to ${fmtNum(Math.max(...errs), 3)}; ` +
       `series: ${info.series.map((x) => `${x.label} (${x.points})`).join(', ')}; Pareto-optimal candidates: ${s.c.pareto.join(', ') || 'none yet'}.`
     : 'Chart: no candidate has metrics yet.');
+  debug.comparison.scale = s.scale;
   chartNote.textContent = info.points < s.c.candidates.length
     ? `${info.points} of ${s.c.candidates.length} candidates plotted; the others have no metrics or no finite time and RMSE` +
       `${s.c.state === 'running' ? ' yet' : ''}.` : '';
@@ -293,7 +398,7 @@ function renderGrid(pg) {
     ...s.c.references.filter((r) => r.links && primaryImage(r.links)).map((r) => el('figure', {className: 'tile ref'},
       el('a', {href: viewerHref(r.job_id), 'aria-label': `View reference job ${r.job_id} at full resolution`},
         el('img', {src: primaryImage(r.links), alt: `Reference job ${r.job_id}`})),
-      el('figcaption', {}, `Reference (job ${r.job_id}, ${refTechnique(r)} ${paramText({samples: r.params && r.params.samples})})`))),
+      el('figcaption', {}, `Reference ${refId(r)}: ${refLabel(r)} (job ${r.job_id}, ${paramText({samples: r.params && r.params.samples})})`))),
     ...s.c.candidates.map((c) => el('figure', {className: 'tile'},
       c.links && primaryImage(c.links)
         ? el('img', {src: primaryImage(c.links), alt: `Candidate ${c.index}: ${c.technique} on ${c.backend}`, onclick: () => select(pg, c.index)})
@@ -313,7 +418,7 @@ function renderSelected(pg) {
   const parts = [el('h2', {id: 'h-selected'}, `Candidate ${c.index}: ${c.technique} on ${c.backend}`),
     el('p', {}, el('code', {}, paramText(c.params)), ' · ', stateBadge(c.state), ' · ',
       el('a', {href: `#/jobs/${c.job_id}?comparison=${id}`, className: 'open-job'}, `Open job ${c.job_id}`), ' · ',
-      el('a', {href: viewerHref(c.job_id, c.reference_job_id), className: 'open-viewer'}, 'View candidate (A) against reference (B)'))];
+      el('a', {href: againstHref(c), className: 'open-viewer'}, 'View candidate (A) against reference (B)'))];
   const media = el('div', {className: 'media'});
   if (primaryImage(links) && links['reference.png']) {
     // The reference as the metrics saw it: mapped through the candidate's response when that
@@ -337,7 +442,7 @@ function renderSelected(pg) {
     range.addEventListener('input', apply);
     apply();
     media.append(el('figure', {className: 'compare'},
-      el('div', {className: 'stack', title: 'Click to open the viewer', onclick: () => { location.hash = viewerHref(c.job_id, c.reference_job_id); }}, ref, cand, line),
+      el('div', {className: 'stack', title: 'Click to open the viewer', onclick: () => { location.hash = againstHref(c); }}, ref, cand, line),
       el('label', {for: 'split'}, 'Split between candidate (left) and reference (right)'), range,
       el('figcaption', {className: 'compared'}, `Left of the line: the candidate; right: ${refWhat}. Arrow keys move the split.`)));
   }
@@ -365,23 +470,25 @@ function comparisonLayout(pg, view) {
   // A group of focusable points (chart.js), named by its text summary.
   pg.chartBox = el('div', {className: 'chart', role: 'group'});
   pg.rankNote = el('div', {className: 'rank-note'});
+  pg.scaleBox = el('div', {className: 'scale-box'});
   pg.chartNote = el('p', {className: 'muted'});
   pg.budgetSlot = el('div', {className: 'budget-slot'});
   pg.thead = el('thead');
   pg.tbody = el('tbody');
   pg.detail = el('div', {className: 'selected-slot'});
   pg.grid = el('div', {className: 'grid'});
-  const {facts, chartBox, rankNote, chartNote, thead, tbody, detail, grid} = pg;
+  const {facts, chartBox, rankNote, scaleBox, chartNote, thead, tbody, detail, grid} = pg;
   view.append(
     el('p', {className: 'crumbs'}, el('a', {href: '#/comparisons'}, '← all comparisons')),
     el('h1', {}, `Comparison ${pg.id}`), facts,
     el('section', {'aria-labelledby': 'h-chart'},
       el('h2', {id: 'h-chart'}, 'Time against error'),
-      el('p', {className: 'hint'}, 'Each point is a candidate: colour and legend name the technique, the shape the backend. ' +
+      el('p', {className: 'hint'}, 'Each point is a candidate: colour and legend name the technique (the reference it is measured against, when the ' +
+        'candidates have several), the shape the backend. ' +
         'Hover a point for its name; click it (or Tab to the chart\'s points, move with ← → and press Enter) to show that ' +
         'candidate below. A bar through a point spans its fastest to slowest timed run; the dotted line is the reference\'s noise. ' +
         'The table holds the same data.'),
-      rankNote, pg.budgetSlot, chartBox, el('ul', {className: 'shape-legend', 'aria-label': 'Marker shapes'},
+      scaleBox, rankNote, pg.budgetSlot, chartBox, el('ul', {className: 'shape-legend', 'aria-label': 'Marker shapes'},
         ...Object.entries(SHAPES).map(([b, sh]) => el('li', {}, el('span', {'aria-hidden': 'true'}, SHAPE_GLYPH[sh]), ` ${sh}: ${b}`)),
         el('li', {}, el('span', {'aria-hidden': 'true'}, SHAPE_GLYPH.triangle), ' triangle: any other backend'),
         pg.deviceKey = el('li', {className: 'device-key'}),
@@ -401,7 +508,7 @@ function comparisonLayout(pg, view) {
 
 export function mountComparison(view, [id], query) {
   const s = {
-    c: null, fingerprint: '', sort: {key: 'index', dir: 1}, split: 50,
+    c: null, fingerprint: '', sort: {key: 'index', dir: 1}, split: 50, scale: query.get('scale') === 'common' ? 'common' : 'own',
     selected: query.has('candidate') ? Number(query.get('candidate')) : null, chart: null, colours: new Map(),
   };
   const pg = {s, id};
@@ -422,7 +529,8 @@ export function mountComparison(view, [id], query) {
     return s.colours.get(t);
   };
   // Colours follow the registry's order, so a technique keeps its colour across comparisons.
-  const ready = techniques().then(({techniques: ts}) => ts.forEach((t) => pg.colourOf(t.name))).catch(() => {});
+  const ready = Promise.all([metricTable(),
+    techniques().then(({techniques: ts}) => ts.forEach((t) => pg.colourOf(t.name))).catch(() => {})]);
 
   debug.comparison = {id: Number(id), selected: s.selected, chart: null, state: null};
   let dead = false; // set when the page goes: a late answer must not draw (or make a chart)
@@ -440,10 +548,11 @@ export function mountComparison(view, [id], query) {
     if (dead) return false;
     s.c = c;
     debug.comparison.state = c.state;
-    const fp = JSON.stringify([c.state, c.ranking, c.candidates.map((x) => [x.state, x.metrics, x.pareto, x.timings_ms, x.links]),
+    const fp = JSON.stringify([c.state, c.ranking, c.common, c.candidates.map((x) => [x.state, x.metrics, x.pareto, x.timings_ms, x.links, x.common, x.outputs]),
                                c.references.map((r) => [r.state, r.links])]);
     if (fp !== s.fingerprint) {
       renderFacts(pg);
+      renderScale(pg);
       renderBudget(pg);
       renderRanking(pg);
       renderTable(pg);

@@ -27,12 +27,52 @@ int obs_metrics_stats(const obs_image *img, const char *channel, const char *mas
 int obs_metrics_rmse(const obs_image *a, const obs_image *b, const char *channel, const char *mask,
                      double *rmse, obs_err *err);
 
-/* Mean structural similarity of channel `channel` (values in [0,1]) between a and b: 8x8 windows at
- * every position, Gaussian-weighted (sigma 1.5), C1 = 0.01^2, C2 = 0.03^2. With `mask` (channel of
- * b, may be NULL) only windows whose pixel (x+4, y+4) is selected count. Images smaller than 8
- * pixels in a dimension use one window of that size. 1 means identical. */
+/* Mean structural similarity of channel `channel` between a and b (same size), as Wang et al.
+ * (2004) and scikit-image's structural_similarity(a, b, gaussian_weights=True, sigma=1.5,
+ * use_sample_covariance=False, data_range=L) define it: local means, variances and covariance under
+ * an 11x11 Gaussian window (sigma 1.5, truncated at 3.5 sigma, normalised), the image mirrored at
+ * its borders (scipy's "reflect"), C1 = (0.01 L)^2, C2 = (0.03 L)^2, L = OBS_SSIM_DATA_RANGE (1:
+ * AO and luminance both; docs/metrics.md), and the mean of the SSIM map over the pixels at least 5
+ * from every border (skimage's crop). With `mask` (channel of b, may be NULL) only the selected
+ * pixels of that cropped area count (the windows still read their unselected neighbours: a mask
+ * chooses which local similarities are averaged, it does not change them). Computed in double.
+ * 1 means identical; NaN (undefined) for images with fewer than 11 pixels in a dimension (skimage
+ * refuses them) and when a counted pixel's window holds a non-finite value; 1 when no pixel
+ * counts. */
+#define OBS_SSIM_WINDOW 11
+#define OBS_SSIM_SIGMA 1.5
+#define OBS_SSIM_DATA_RANGE 1.0
 int obs_metrics_ssim(const obs_image *a, const obs_image *b, const char *channel, const char *mask,
                      double *ssim, obs_err *err);
+
+/* FLIP (Andersson et al., "FLIP: A Difference Evaluator for Alternating Images", HPG 2020): the
+ * per-pixel perceived difference in [0, 1] of `test` against `reference` (same size) for a viewer
+ * at OBS_FLIP_DEFAULT_PPD pixels per degree, and its mean. `channel` names
+ *   - a scalar channel: a display value in [0, 1] (AO), entering LDR-FLIP as the grey sRGB
+ *     colour (v, v, v), since that is what obscura's PNGs show for it (values are clamped to
+ *     [0, 1], as a display does); `hdr` must be 0;
+ *   - an RGB output prefix ("radiance" for radiance.R/G/B): with hdr = 0 the values are taken as
+ *     linear in [0, 1] (clamped) and sRGB-encoded for LDR-FLIP; with hdr = 1 HDR-FLIP: the maximum
+ *     over LDR-FLIP of ACES-tone-mapped exposures between the start and stop exposures the
+ *     reference's luminance median and maximum give (docs/metrics.md).
+ * The filters read every pixel (the picture as shown); `mask` (channel of the reference, > 0
+ * selects, may be NULL) chooses the pixels the mean averages (none selected: mean 0). `map`
+ * (may be NULL; initialised by the call, owned by the caller) receives the per-pixel error in
+ * channel "flip" for every pixel. A non-finite input value makes its pixel's error NaN. */
+/* FLIP's default observer: a 0.7 m wide 4K display seen from 0.7 m, 3840 pi / 180 = 67.02
+ * pixels per degree. */
+#define OBS_FLIP_DEFAULT_PPD (3840.0 * 3.14159265358979323846 / 180.0)
+int obs_metrics_flip(const obs_image *test, const obs_image *reference, const char *channel,
+                     const char *mask, int hdr, obs_image *map /* may be NULL; channel "flip" */,
+                     double *mean, obs_err *err);
+/* obs_metrics_flip at `ppd` pixels per degree (> 0). */
+int obs_metrics_flip_ppd(const obs_image *test, const obs_image *reference, const char *channel,
+                         const char *mask, int hdr, double ppd, obs_image *map, double *mean,
+                         obs_err *err);
+/* Writes `dir`/flip.exr (channel "flip", float) and `dir`/flip.png (the error through the magma
+ * colour ramp, FLIP's own display: black 0 to light yellow 1) from a map made by obs_metrics_flip,
+ * creating `dir` when missing; staged and renamed like obs_metrics_write_error_files. */
+int obs_metrics_write_flip_files(const obs_image *map, const char *dir, obs_err *err);
 
 /* PSNR reported for identical images (and the ceiling for all): 10 log10(1/MSE) is +Inf at MSE 0,
  * which JSON cannot carry and a ranking cannot use. 100 dB is RMSE 1e-5, far below any AO noise. */

@@ -5,6 +5,7 @@
 #include "obscura/backend.h"
 #include "obscura/error.h"
 #include "obscura/image.h"
+#include "obscura/metric_table.h"
 #include "obscura/metrics.h"
 #include "obscura/path.h"
 #include "obscura/patches.h"

@@ -1,0 +1,130 @@
+/* Texts generated from the metric table: docs/metrics.md's table and schema/openapi.yaml's Metrics
+ * schema (`obscura metrics --markdown | --openapi`; scripts/gen-registry.sh splices them in and
+ * tests cli.registry_metrics_* check the copies). */
+#include <jansson.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "obscura/metric_table.h"
+#include "strbuf.h"
+
+static const char *needs_words(obs_metric_needs n) {
+  switch (n) {
+  case OBS_METRIC_NEEDS_SCALAR: return "a scalar channel (an RGB output: its luminance)";
+  case OBS_METRIC_NEEDS_DISPLAY: return "a scalar channel in [0, 1] (LDR) or an RGB output (HDR)";
+  case OBS_METRIC_NEEDS_RGB: return "an RGB output";
+  case OBS_METRIC_NEEDS_VECTOR: return "directions (`.X/.Y/.Z`)";
+  case OBS_METRIC_NEEDS_STDERR: return "the reference's `<output>_stderr`";
+  case OBS_METRIC_NEEDS_PATCHES: return "per-patch outputs";
+  }
+  return "?";
+}
+
+static const char *better_words(obs_metric_direction d) {
+  switch (d) {
+  case OBS_METRIC_LOWER: return "lower";
+  case OBS_METRIC_HIGHER: return "higher";
+  case OBS_METRIC_ZERO: return "closer to 0";
+  case OBS_METRIC_NONE: return "(information)";
+  }
+  return "?";
+}
+
+static void range_text(const obs_metric *m, char *buf, size_t n) {
+  char lo[32], hi[32];
+  if (isinf(m->min)) snprintf(lo, sizeof lo, "(-inf");
+  else snprintf(lo, sizeof lo, "[%g", m->min);
+  if (isinf(m->max)) snprintf(hi, sizeof hi, "inf)");
+  else snprintf(hi, sizeof hi, "%g]", m->max);
+  snprintf(buf, n, "%s, %s", lo, hi);
+}
+
+/* Appends `s` as a Markdown table cell's text: a '|' would end the cell. */
+static void md_cell(obs_strbuf *b, const char *s) {
+  obs_strbuf_put(b, " ");
+  for (; *s; s++) obs_strbuf_put(b, *s == '|' ? "\\|" : "%c", *s);
+  obs_strbuf_put(b, " |");
+}
+
+char *obs_metric_table_markdown(void) {
+  obs_strbuf b = {0};
+  obs_strbuf_put(&b, "| Metric | Label | Unit | Better | Range | Needs | Definition |\n"
+                        "|---|---|---|---|---|---|---|\n");
+  const obs_metric *t = obs_metric_table();
+  for (int i = 0; i < OBS_METRIC_COUNT; i++) {
+    char range[80];
+    range_text(&t[i], range, sizeof range);
+    char where[64];
+    if (t[i].json_group && t[i].json_index >= 0)
+      snprintf(where, sizeof where, " (`%s.%s[%d]`)", t[i].json_group, t[i].json_key,
+               t[i].json_index);
+    else if (t[i].json_group)
+      snprintf(where, sizeof where, " (`%s.%s`)", t[i].json_group, t[i].json_key);
+    else
+      where[0] = 0;
+    obs_strbuf_put(&b, "| `%s`%s |", t[i].name, where);
+    const char *cells[] = {t[i].label, t[i].unit, better_words(t[i].direction), range,
+                           needs_words(t[i].needs), t[i].definition};
+    for (size_t c = 0; c < sizeof cells / sizeof *cells; c++) md_cell(&b, cells[c]);
+    obs_strbuf_put(&b, "\n");
+  }
+  return obs_strbuf_finish(&b);
+}
+
+/* One property line: `key: {type: ['number', 'null'], description: "..."}` (the description
+ * JSON-quoted, which YAML reads as a double-quoted scalar). */
+static void yaml_number(obs_strbuf *b, int indent, const obs_metric *m, int array) {
+  char text[600];
+  if (array) /* one array for the channels' entries, which follow this one in the table */
+    snprintf(text, sizeof text, "RMSE of R, G, B (%s is better; docs/metrics.md)",
+             better_words(m->direction));
+  else
+    snprintf(text, sizeof text, "%s%s%s%s: %s (%s%s; docs/metrics.md)", m->label,
+             m->unit[0] ? " (" : "", m->unit, m->unit[0] ? ")" : "", m->definition,
+             m->direction == OBS_METRIC_NONE ? "information" : better_words(m->direction),
+             m->direction == OBS_METRIC_NONE ? "" : " is better");
+  json_t *s = json_string(text);
+  char *q = s ? json_dumps(s, JSON_ENCODE_ANY) : NULL;
+  if (array)
+    obs_strbuf_put(b, "%*s%s: {type: array, items: {type: ['number', 'null']}, minItems: 3, "
+                             "maxItems: 3, description: %s}\n",
+                      indent, "", m->json_key, q ? q : "\"\"");
+  else
+    obs_strbuf_put(b, "%*s%s: {type: ['number', 'null'], description: %s}\n", indent, "",
+                      m->json_key, q ? q : "\"\"");
+  free(q);
+  json_decref(s);
+}
+
+char *obs_metric_table_openapi(void) {
+  obs_strbuf b = {0};
+  obs_strbuf_put(
+      &b, "    Metrics:\n"
+          "      type: object\n"
+          "      required: [at_reference_accuracy, pixels]\n"
+          "      additionalProperties: false\n"
+          "      description: obs_metrics_compare_all on the output compared (the primary output of\n"
+          "        the candidate's technique; the luminance of an RGB output for the scalar figures)\n"
+          "        over the reference's covered pixels. A metric is present when it applies to the\n"
+          "        pair (the metric table, GET /api/v1/metrics); non-finite values are null\n"
+          "        (docs/metrics.md). Generated by `obscura metrics --openapi`.\n"
+          "      properties:\n");
+  const obs_metric *t = obs_metric_table();
+  for (int i = 0; i < OBS_METRIC_COUNT; i++)
+    if (!t[i].json_group) yaml_number(&b, 8, &t[i], 0);
+  obs_strbuf_put(&b, "        at_reference_accuracy: {type: boolean, description: rmse < 2 "
+                        "ref_noise}\n"
+                        "        pixels: {type: integer, description: the selected pixels}\n"
+                        "        output: {type: string, description: \"the output compared, when "
+                        "it is not ao\"}\n"
+                        "        rgb:\n"
+                        "          type: object\n"
+                        "          description: RGB outputs only\n"
+                        "          additionalProperties: false\n"
+                        "          properties:\n");
+  for (int i = 0; i < OBS_METRIC_COUNT; i++)
+    if (t[i].json_group && t[i].json_index <= 0) yaml_number(&b, 12, &t[i], t[i].json_index == 0);
+  return obs_strbuf_finish(&b);
+}
