@@ -531,14 +531,15 @@ test('time budget: the most accurate measured configuration within the budget (w
       }
       // The comparison's answer, per reference (candidates of different references are not
       // ranked together), by the same rule as the budget choice; a budget in the query.
-      const refs = new Set(c.candidates.map((x) => x.reference_job_id));
-      assert.deepEqual(new Set(c.answer.groups.map((g) => g.reference_job_id)), refs);
+      const refs = new Set(c.candidates.map((x) => x.reference.id));
+      assert.deepEqual(new Set(c.answer.groups.map((g) => g.reference)), refs);
+      assert.deepEqual(c.answer.groups.map((g) => g.reference), c.groups.map((g) => g.reference), 'the groups of the ranking');
       assert.equal(c.answer.budget_ms, null);
       const a = await getJSON(d2, `/api/v1/comparisons/${id}?budget_ms=35`);
       validate('Comparison', a);
       assert.equal(a.answer.budget_ms, 35);
       for (const g of a.answer.groups) {
-        const mine = c.candidates.filter((x) => x.reference_job_id === g.reference_job_id);
+        const mine = c.candidates.filter((x) => x.reference.id === g.reference);
         assert.equal(g.candidates, mine.length);
         const fit = mine.filter((x) => x.timings_ms.median.total <= 35);
         if (!fit.length) assert.equal(g.best_under_budget, null);
