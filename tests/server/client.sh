@@ -161,7 +161,7 @@ check "jobs with a bad filter shows the server's problem" grep -q "state" "$out/
 cat >"$out/cmp.json" <<JSON
 {"scene_file": "sphere_on_plane.json", "label": "cli compare", "repeats": 1,
  "set": {"/image/width": 16, "/image/height": 12},
- "reference": {"samples": 16},
+ "reference": {"samples": 256},
  "candidates": [{"technique": "rt_ao", "backend": "cpu", "params": {"samples": [2, 8]}},
                 {"technique": "ssao", "backend": "cpu"}]}
 JSON
