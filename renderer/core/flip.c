@@ -372,11 +372,12 @@ static int flip_compute(const obs_image *test, const obs_image *ref, const char 
   flip_filters f;
   int rc = flip_filters_init(&f, ppd, err);
   if (rc) return rc;
-  float *mem = malloc(12 * n * sizeof *mem);
+  /* The inputs' planes, and for HDR-FLIP one exposure's tone-mapped planes. */
+  float *mem = malloc((hdr ? 12 : 6) * n * sizeof *mem);
   if (!mem) return obs_err_set(err, OBS_ENOMEM, "flip: out of memory (%dx%d)", w, h);
   float *tp[3] = {mem, mem + n, mem + 2 * n}, *rp[3] = {mem + 3 * n, mem + 4 * n, mem + 5 * n};
-  float *tm[3] = {mem + 6 * n, mem + 7 * n, mem + 8 * n};
-  float *rm[3] = {mem + 9 * n, mem + 10 * n, mem + 11 * n};
+  float *tm[3] = {NULL, NULL, NULL}, *rm[3] = {NULL, NULL, NULL};
+  for (int k = 0; hdr && k < 3; k++) tm[k] = mem + (6 + k) * n, rm[k] = mem + (9 + k) * n;
   rc = flip_planes(test, channel, hdr, mem, bad, "test", err);
   if (!rc) rc = flip_planes(ref, channel, hdr, mem + 3 * n, bad, "reference", err);
   if (!rc && !hdr) rc = flip_ldr(tp, rp, w, h, &f, e, 0, err);
