@@ -183,7 +183,7 @@ typedef struct flip_side {
   float *lab[3], *edge, *point;
 } flip_side;
 
-/* lin: linear RGB planes in [0, 1]; buf: 9 w*h planes of scratch. */
+/* lin: linear RGB planes in [0, 1]; buf: 7 w*h planes of scratch. */
 static void flip_prepare(float *const lin[3], int w, int h, const flip_filters *f, float *buf,
                          flip_side *out) {
   size_t n = (size_t)w * (size_t)h;
@@ -233,11 +233,11 @@ static void flip_prepare(float *const lin[3], int w, int h, const flip_filters *
 static int flip_ldr(float *const test[3], float *const ref[3], int w, int h,
                     const flip_filters *f, float *err_out, int accumulate, obs_err *err) {
   size_t n = (size_t)w * (size_t)h;
-  float *mem = malloc(19 * n * sizeof *mem);
+  float *mem = malloc(17 * n * sizeof *mem); /* 7 planes of scratch, 5 per image */
   if (!mem) return obs_err_set(err, OBS_ENOMEM, "flip: out of memory (%dx%d)", w, h);
   flip_side s[2];
   for (int k = 0; k < 2; k++) {
-    float *b = mem + 9 * n + (size_t)k * 5 * n;
+    float *b = mem + 7 * n + (size_t)k * 5 * n;
     s[k] = (flip_side){{b, b + n, b + 2 * n}, b + 3 * n, b + 4 * n};
   }
   flip_prepare(ref, w, h, f, mem, &s[0]);
