@@ -211,7 +211,8 @@ int cli_metrics(int argc, char **argv) {
     txt = what[2] == 'm' ? obs_metric_table_markdown() : obs_metric_table_openapi();
     if (txt) fputs(txt, stdout);
   } else {
-    cli_usage(stderr, "metrics");
+    fprintf(stderr, "obscura metrics: takes one of --json, --markdown, --openapi%s%s\n",
+            argc > 2 ? "; got " : "", argc > 2 ? argv[2] : "");
     return EXIT_BAD_INPUT;
   }
   if (!txt) return EXIT_FAILURE;

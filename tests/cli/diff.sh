@@ -76,6 +76,10 @@ check "path_trace radiance: the RGB entries and HDR-FLIP" node -e "
   process.exit(m.channel === 'radiance' && x.rmse_r > 0 && x.rmse_g > 0 && x.rmse_b > 0 &&
     x.rel_mse > 0 && x.flip > 0 && x.flip < 1 && x.ssim === x.ssim_luminance ? 0 : 1);"
 
+"$cli" metrics --bogus >"$out/bad.log" 2>&1
+check "metrics with an unknown option exits 2" test $? -eq 2
+check "metrics says what it takes" grep -q -- "--json, --markdown, --openapi; got --bogus" "$out/bad.log"
+
 # Bad input: exit 2, a message naming what is wrong, nothing written.
 bad() { # description, expected message, args...
   local d=$1 msg=$2; shift 2
