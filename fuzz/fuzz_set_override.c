@@ -112,7 +112,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
 
   /* Lines the CLI accepts go through its own parser (cli_scene_option); other lines with an '='
    * are split the same way by hand, since the library must also cope with pointers the CLI would
-   * refuse (the daemon passes request keys). Pointers are owned, values point into `text`. */
+   * refuse (the daemon passes request keys). Pointers and values are owned. */
   cli_scene_opts o;
   memset(&o, 0, sizeof o);
   char *line = text;
@@ -124,18 +124,30 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     int is_json = value != NULL;
     json_decref(value);
     if (eq && line[0] == '/') {
-      /* The CLI takes a pointer with a JSON value, and refuses (with a hint) a value that is not
-       * JSON before any scene is read; the library then judges the pair. */
+      /* The CLI takes a pointer with a JSON value or a bare word (a string, args.c), and refuses
+       * a value that is neither before any scene is read; the library then judges the pair. */
       char *argv[] = {"obscura", "--set", line, NULL};
+      int bare = !is_json && eq[1] && !strchr("{[\"-+.0123456789 \t\n", eq[1]);
+      size_t before = o.nov;
       int i = 1, rc = cli_scene_option(&o, 3, argv, &i);
       if (is_json && rc != 1) fail("the CLI refused a valid --set", line);
-      if (!is_json && rc != -1) fail("the CLI took a --set whose value is not JSON", line);
+      if (!is_json && !bare && rc != -1) fail("the CLI took a --set whose value is not JSON", line);
+      if (bare && rc == 1) {
+        json_t *w = json_loads(o.ov[before].value, JSON_DECODE_ANY, NULL);
+        if (!json_is_string(w) || strcmp(json_string_value(w), eq + 1))
+          fail("a bare --set word did not become that string", line);
+        json_decref(w);
+      }
     } else if (eq) {
       char *ptr = strndup(line, (size_t)(eq - line));
-      if (ptr) {
+      char *val = strdup(eq + 1);
+      if (ptr && val) {
         o.ov[o.nov].pointer = ptr;
-        o.ov[o.nov].value = eq + 1;
+        o.ov[o.nov].value = val;
         o.nov++;
+      } else {
+        free(ptr);
+        free(val);
       }
     }
     line = next;

@@ -30,7 +30,11 @@ obs_install_packages() {
 }
 
 obs_install_npm() {
-  if [ ! -d node_modules ] || [ package-lock.json -nt node_modules/.package-lock.json ]; then
+  # npm ci empties node_modules first: through a link that would empty the install it points at
+  # (one shared by several checkouts), so a linked node_modules is left as it is.
+  if [ -L node_modules ]; then
+    [ -f node_modules/.package-lock.json ] || echo "setup: node_modules is a link to no npm install" >&2
+  elif [ ! -d node_modules ] || [ package-lock.json -nt node_modules/.package-lock.json ]; then
     echo "setup: npm ci"
     npm ci --no-audit --no-fund --loglevel=error
   fi
@@ -49,6 +53,15 @@ obs_build() {
   shift
   cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=Release "$@" >/dev/null
   cmake --build "$dir" -j "$(nproc)"
+}
+
+# obs_build_targets DIR TARGET...: configures DIR as obs_build does and builds only the targets
+# named (and what they depend on).
+obs_build_targets() {
+  local dir=$1
+  shift
+  cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=Release >/dev/null
+  cmake --build "$dir" -j "$(nproc)" --target "$@"
 }
 
 obs_setup() {

@@ -27,6 +27,7 @@ static srv_route job_route(const char *path, const char **id, size_t *idlen, con
   if (!strcmp(slash, "/retry")) return SRV_ROUTE_JOB_RETRY;
   if (!strcmp(slash, "/document")) return SRV_ROUTE_JOB_DOCUMENT;
   if (!strcmp(slash, "/log")) return SRV_ROUTE_JOB_LOG;
+  if (!strcmp(slash, "/preview.exr")) return SRV_ROUTE_JOB_PREVIEW;
   if (!strncmp(slash, "/outputs/", 9) && slash[9] && !strchr(slash + 9, '/'))
     return SRV_ROUTE_JOB_OUTPUT;
   return SRV_ROUTE_UNKNOWN;
@@ -48,6 +49,7 @@ srv_route srv_api_route(const char *path) {
     return slash && !strcmp(slash, "/defaults") ? SRV_ROUTE_SCENE_DEFAULTS : SRV_ROUTE_UNKNOWN;
   }
   if (!strcmp(path, API "/health")) return SRV_ROUTE_HEALTH;
+  if (!strcmp(path, API "/diff")) return SRV_ROUTE_DIFF;
   if (!strcmp(path, API "/session")) return SRV_ROUTE_SESSION;
   if (!strncmp(path, API "/jobs/", sizeof API "/jobs/" - 1)) {
     const char *id, *rest;
@@ -656,9 +658,12 @@ static int health(srv_req *r) {
   if (rc && level < 1) level = 1;
   static const char *const names[] = {"ok", "degraded", "error"};
   json_t *o = json_pack(
-      "{s:s, s:s, s:s, s:I, s:i, s:{s:i, s:i}, s:b, s:b, s:f}", "status", names[level], "version",
+      "{s:s, s:s, s:s, s:I, s:I, s:{s:i, s:i}, s:b, s:b, s:f}", "status", names[level], "version",
       OBSCURA_VERSION, "db", rc ? obs_err_message(&err) : "ok", "queue_depth",
-      (json_int_t)(rc ? 0 : counts[SRV_QUEUED]), "running", srv_sched_running(app), "workers",
+      (json_int_t)(rc ? 0 : counts[SRV_QUEUED]), "running",
+      /* Counted from the rows, as the job list shows them (the scheduler's slots and the rows'
+       * states change at different moments); the slots when the database cannot be read. */
+      rc ? (json_int_t)srv_sched_running(app) : (json_int_t)counts[SRV_RUNNING], "workers",
       "cpu", app->cfg.workers, "vulkan", app->vulkan_lane, "vulkan_available", app->vulkan_lane,
       "vulkan_device", app->vk_available, "uptime_s", (obs_now_ms() - app->start_ms) / 1e3);
   obs_err_free(&err);
@@ -712,6 +717,8 @@ int srv_api_dispatch(srv_req *r) {
       return is_get(r) ? health(r) : srv_respond_method(r, "GET, HEAD");
     case SRV_ROUTE_SESSION:
       return srv_session_serve(r);
+    case SRV_ROUTE_DIFF:
+      return is_get(r) ? srv_diff_serve(r) : srv_respond_method(r, "GET, HEAD");
     case SRV_ROUTE_COMPARISONS:
       if (!strcmp(r->method, "POST")) return srv_compare_post(r);
       return is_get(r) ? srv_compare_list(r) : srv_respond_method(r, "GET, HEAD, POST");
@@ -736,6 +743,7 @@ int srv_api_dispatch(srv_req *r) {
     case SRV_ROUTE_JOB_RETRY:
     case SRV_ROUTE_JOB_DOCUMENT:
     case SRV_ROUTE_JOB_LOG:
+    case SRV_ROUTE_JOB_PREVIEW:
     case SRV_ROUTE_JOB_OUTPUT: {
       const char *idtext, *rest;
       size_t n;
@@ -757,6 +765,8 @@ int srv_api_dispatch(srv_req *r) {
         return is_get(r) ? job_document(r, id) : srv_respond_method(r, "GET, HEAD");
       if (r->route == SRV_ROUTE_JOB_LOG)
         return is_get(r) ? job_log(r, id) : srv_respond_method(r, "GET, HEAD");
+      if (r->route == SRV_ROUTE_JOB_PREVIEW)
+        return is_get(r) ? srv_preview_serve(r, id) : srv_respond_method(r, "GET, HEAD");
       return is_get(r) ? srv_output_serve(r, id, rest + 9) : srv_respond_method(r, "GET, HEAD");
     }
     default:

@@ -526,6 +526,8 @@ static int run_job(slot *sl, srv_job *j) {
    * (cancel, shutdown) ends the wait and is recorded below like any other stop. */
   const int exclusive = j->warmup;
   int gated = 0;
+  /* A preview for jobs that are not timed against others: a comparison's renders stay alone. */
+  srv_preview *preview = j->warmup ? NULL : srv_preview_begin(app, j->id, sc.technique->name);
   if (!rc) {
     pthread_mutex_lock(&app->sched->mu);
     sl->deadline_ms = INFINITY;
@@ -546,7 +548,8 @@ static int run_job(slot *sl, srv_job *j) {
     obs_render_opts opts = {.threads = app->cpu_threads,
                             .progress = on_progress,
                             .progress_user = sl,
-                            .cancel = &sl->cancel};
+                            .cancel = &sl->cancel,
+                            .watch = srv_preview_watch(preview)};
     rc = obs_render(&sc, &opts, &res, &err);
     if (!rc && (k > 0 || !j->warmup)) {
       srv_run *r = &runs[nruns++];
@@ -562,6 +565,7 @@ static int run_job(slot *sl, srv_job *j) {
     if (stop_reason(sl)) break;
   }
   if (gated) gate_leave(app->sched, exclusive);
+  srv_preview_finish(preview);
   /* The time limit is the renders': publishing and committing an outcome is not held to it (a
    * slow or faulty disk must not turn a finished render into a timed-out job). */
   pthread_mutex_lock(&app->sched->mu);
@@ -688,6 +692,7 @@ static void *maintenance(void *arg) {
       }
     }
     pthread_mutex_unlock(&s->mu);
+    srv_preview_tick();
     int metrics_due = 0, cleared = srv_faults_check(app, &mc, &metrics_due);
     if (metrics_due) atomic_store(&s->metrics_due, 1); /* postponed error images may go now */
     if (cleared) {

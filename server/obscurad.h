@@ -404,6 +404,8 @@ typedef enum {
   SRV_ROUTE_JOB_RETRY,
   SRV_ROUTE_JOB_DOCUMENT,
   SRV_ROUTE_JOB_LOG,
+  SRV_ROUTE_JOB_PREVIEW,    /* /api/v1/jobs/{id}/preview.exr (preview.c) */
+  SRV_ROUTE_DIFF,           /* /api/v1/diff (diff.c) */
   SRV_ROUTE_TECHNIQUES,
   SRV_ROUTE_METRIC_TABLE, /* /api/v1/metrics: the metric table (not /metrics, Prometheus's) */
   SRV_ROUTE_SCENES,
@@ -542,6 +544,21 @@ int srv_session_check(struct srv_app *app, struct MHD_Connection *c);
 int srv_session_serve(srv_req *r);
 /* Serves one output file with ETag/Range handling (outputs.c). */
 int srv_output_serve(srv_req *r, int64_t id, const char *name);
+
+/* Previews of running jobs (preview.c): begin() before a job's renders (NULL when out of
+ * memory or the technique is unknown), its watch passed to obs_render (obs_render_opts.watch), finish() once the renders are
+ * over (removes the file); tick() from the maintenance thread writes each preview with new tiles,
+ * at most every SRV_PREVIEW_MS; serve() answers GET /api/v1/jobs/{id}/preview.exr. */
+#define SRV_PREVIEW_MS 500
+typedef struct srv_preview srv_preview;
+srv_preview *srv_preview_begin(const struct srv_app *app, int64_t job, const char *technique);
+const obs_tile_watch *srv_preview_watch(const srv_preview *p);
+void srv_preview_finish(srv_preview *p);
+void srv_preview_tick(void);
+int srv_preview_serve(srv_req *r, int64_t id);
+
+/* GET /api/v1/diff (diff.c): the FLIP map of one succeeded job's EXR output against another's. */
+int srv_diff_serve(srv_req *r);
 /* Submission: body -> validated job spec (submit.c). Owns its strings; release with
  * srv_submission_free (a zeroed struct is fine). */
 typedef struct srv_submission {

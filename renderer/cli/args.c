@@ -18,29 +18,28 @@ const char *cli_option_value(int argc, char **argv, int *i) {
   return argv[++*i];
 }
 
-/* A --set VALUE must be JSON. A bare word is most often a string whose quotes the shell ate or
- * that were never typed: show the quoted form. */
-static int check_value(const char *arg, const char *eq) {
+/* A --set VALUE is JSON when it parses as JSON: a number (8, 0.5, -1e3), true, false, null, a
+ * quoted string, an array or an object. A bare word that does not (sqrt, cosine) is a string,
+ * so enum values need no shell-proof quotes; a value that starts like a number or a JSON
+ * container and does not parse is a mistake, not a string. Returns the JSON text to apply
+ * (malloc'd), or NULL after printing why. */
+static char *set_value(const char *arg, const char *eq) {
+  const char *value = eq + 1;
   json_error_t je;
-  json_t *v = json_loads(eq + 1, JSON_DECODE_ANY, &je);
+  json_t *v = json_loads(value, JSON_DECODE_ANY, &je);
   if (v) {
     json_decref(v);
-    return 0;
+    char *copy = strdup(value);
+    if (!copy) fprintf(stderr, "obscura: out of memory\n");
+    return copy;
   }
-  const char *value = eq + 1;
-  int bare = *value && !strchr("{[\"-0123456789", *value);
+  int bare = *value && !strchr("{[\"-+.0123456789 \t\n", *value);
   json_t *s = bare ? json_string(value) : NULL;
   char *quoted = s ? json_dumps(s, JSON_ENCODE_ANY) : NULL;
   json_decref(s);
-  if (quoted && !strchr(quoted, '\''))
-    fprintf(stderr,
-            "obscura: --set %s: the value is not JSON (did you mean '%s'? a string needs its "
-            "quotes: --set '%.*s=%s')\n",
-            arg, quoted, (int)(eq - arg), arg, quoted);
-  else
+  if (!quoted)
     fprintf(stderr, "obscura: --set %s: the value is not JSON: %s\n", arg, je.text);
-  free(quoted);
-  return -1;
+  return quoted;
 }
 
 int cli_scene_option(cli_scene_opts *o, int argc, char **argv, int *i) {
@@ -67,21 +66,26 @@ int cli_scene_option(cli_scene_opts *o, int argc, char **argv, int *i) {
       fprintf(stderr, "obscura: --set takes /json/pointer=VALUE (got %s)\n", val);
       return -1;
     }
-    if (check_value(val, eq)) return -1;
+    char *value = set_value(val, eq);
+    if (!value) return -1;
     char *ptr = strndup(val, (size_t)(eq - val));
     if (!ptr) {
+      free(value);
       fprintf(stderr, "obscura: out of memory\n");
       return -1;
     }
     o->ov[o->nov].pointer = ptr;
-    o->ov[o->nov].value = eq + 1;
+    o->ov[o->nov].value = value;
     o->nov++;
   }
   return 1;
 }
 
 void cli_scene_opts_free(cli_scene_opts *o) {
-  for (size_t i = 0; i < o->nov; i++) free((char *)o->ov[i].pointer);
+  for (size_t i = 0; i < o->nov; i++) {
+    free((char *)o->ov[i].pointer);
+    free((char *)o->ov[i].value);
+  }
   o->nov = 0;
 }
 

@@ -9,8 +9,8 @@
 #define EXIT_BAD_INPUT 2
 #define CLI_MAX_OVERRIDES 64
 
-/* The scene file and what changes it before validation. `ov[i].pointer` is owned (strndup'd);
- * `ov[i].value` and the other strings borrow argv. Zero it before use; free with
+/* The scene file and what changes it before validation. `ov[i].pointer` and `ov[i].value` (JSON
+ * text: a bare --set word arrives quoted) are owned; the other strings borrow argv. Zero it before use; free with
  * cli_scene_opts_free (also valid on a zeroed struct). */
 typedef struct cli_scene_opts {
   const char *scene, *technique, *backend;
@@ -36,6 +36,9 @@ int cli_scene_load(const cli_scene_opts *o, obs_scene *sc, obs_err *err);
 /* Prints the usage of subcommand `cmd`, or of all of them when `cmd` is NULL. Returns 0, or -1
  * (printing nothing) for an unknown subcommand. */
 int cli_usage(FILE *f, const char *cmd);
+/* After a specific mistake in `cmd`'s arguments (already printed), one line saying where its
+ * options are (`obscura help CMD`); with NULL, where the commands are. */
+void cli_hint(const char *cmd);
 /* Whether the subcommand's arguments (argv[2..]) ask for help (--help or -h). */
 int cli_wants_help(int argc, char **argv);
 

@@ -103,7 +103,9 @@ static void fill_row(row *r, json_t *j) {
   snprintf(r->cell[3], 64, "%s", str_or(json_object_get(j, "technique"), "?"));
   snprintf(r->cell[4], 64, "%s",
            str_or(json_object_get(be, "actual"), str_or(json_object_get(be, "requested"), "?")));
-  snprintf(r->cell[5], 64, "%s", str_or(json_object_get(j, "scene"), "?"));
+  /* An inline scene's name (its file's, sent by submit) says more than "inline". */
+  snprintf(r->cell[5], 64, "%s",
+           str_or(json_object_get(j, "scene_name"), str_or(json_object_get(j, "scene"), "?")));
   fmt_ms(r->cell[6], 64, json_object_get(json_object_get(j, "timings_ms"), "total"));
   snprintf(r->cell[7], 64, "%lld", (long long)json_integer_value(json_object_get(j, "priority")));
   snprintf(r->cell[8], 64, "%s", str_or(json_object_get(j, "created_at"), "?"));
@@ -144,7 +146,7 @@ static void print_table(json_t *jobs) {
 int cli_jobs(int argc, char **argv) {
   jobs_opts o;
   if (parse_jobs(argc, argv, &o)) {
-    cli_usage(stderr, "jobs");
+    cli_hint("jobs");
     return EXIT_BAD_INPUT;
   }
   cli_client c;

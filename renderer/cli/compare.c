@@ -287,7 +287,7 @@ static void print_summary(long long id, json_t *cmp) {
 int cli_compare(int argc, char **argv) {
   compare_opts o;
   if (parse_compare(argc, argv, &o)) {
-    cli_usage(stderr, "compare");
+    cli_hint("compare");
     return EXIT_BAD_INPUT;
   }
   json_t *req = read_request(o.file);
@@ -319,6 +319,15 @@ int cli_compare(int argc, char **argv) {
     free(s);
   } else {
     print_summary(id, cmp);
+  }
+  /* A reference too noisy to rank the candidates makes the table's order meaningless: said
+   * after it, where it is read, also with --json (on stderr). */
+  const char *warning =
+      json_string_value(json_object_get(json_object_get(cmp, "ranking"), "warning"));
+  if (warning) {
+    fputs("obscura: warning: ", stderr);
+    cli_put_clean(stderr, warning);
+    fputc('\n', stderr);
   }
   rc = strcmp(json_string_value(json_object_get(cmp, "state")), "succeeded") ? EXIT_FAILURE : 0;
 done:

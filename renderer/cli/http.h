@@ -67,6 +67,10 @@ int cli_http_error(const cli_client *c, const char *method, const char *url, con
  * status after printing why. */
 int cli_client_get_object(cli_client *c, const char *url, json_t **out);
 void cli_sleep_ms(long ms);
+/* Downloads every output the job document `job` links into `dir` (created when missing), each
+ * through a temporary file and checked against its listed size, printing "DIR/NAME (N bytes)"
+ * per file. Returns 0, or an exit status after printing why (submit.c). */
+int cli_download_outputs(cli_client *c, json_t *job, const char *dir);
 
 /* A followed resource given up on after the server was unreachable this long. */
 #define CLI_LOST_SERVER_MS 30000

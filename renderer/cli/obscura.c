@@ -1,4 +1,5 @@
-/* The obscura command-line tool: render, validate, list techniques, submit to obscurad. */
+/* The obscura command-line tool: render, validate, list techniques, and the job server's client
+ * commands (client.h). */
 #include <jansson.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -11,9 +12,13 @@
 #include "mpi_render.h"
 #include "obscura/obscura.h"
 
+/* Where render writes when -o is not given. */
+#define DEFAULT_OUT "out"
+
 typedef struct cli {
   cli_scene_opts s;
-  const char *out_dir;
+  const char *out_dir; /* -o, else DEFAULT_OUT */
+  int out_given;       /* -o was given: the folder was named, so whatever is there is replaced */
   int threads, quiet;
   int data, no_ghost; /* --distribute data, --no-ghost */
   const char *progress_file;
@@ -21,7 +26,7 @@ typedef struct cli {
 
 static int parse_args(int argc, char **argv, int first, cli *c) {
   memset(c, 0, sizeof *c);
-  c->out_dir = "out";
+  c->out_dir = DEFAULT_OUT;
   for (int i = first; i < argc; i++) {
     int taken = cli_scene_option(&c->s, argc, argv, &i);
     if (taken < 0) return -1;
@@ -33,6 +38,7 @@ static int parse_args(int argc, char **argv, int first, cli *c) {
       if (!val) return -1;
       if (!strcmp(a, "-o")) {
         c->out_dir = val;
+        c->out_given = 1;
       } else if (!strcmp(a, "--progress-file")) {
         c->progress_file = val;
       } else if (!strcmp(a, "--distribute")) {
@@ -81,6 +87,25 @@ static int check_distribute(const cli *c, const obs_scene *sc, obs_err *err) {
   return c->data && obs_render_brick_check(sc, err) ? OBS_EINVAL : 0;
 }
 
+/* Without -o a render writes DEFAULT_OUT, the same folder for every scene, so running a second
+ * scene would silently replace the first one's outputs. The folder's summary.json names the scene
+ * it was rendered from (its file name): a render of another scene is refused, bad input, before
+ * anything renders; naming the folder with -o says to replace it. */
+static int check_default_out(const cli *c, const obs_scene *sc, obs_err *err) {
+  if (c->out_given) return 0;
+  json_t *sum = json_load_file(DEFAULT_OUT "/summary.json", 0, NULL);
+  const char *was = json_string_value(json_object_get(sum, "scene"));
+  int rc = 0;
+  if (was && strcmp(was, sc->name))
+    rc = obs_err_set(err, OBS_EINVAL,
+                     "obscura: " DEFAULT_OUT "/ holds the outputs of %s (" DEFAULT_OUT
+                     "/summary.json), not of %s: give -o DIR for this scene's, or -o " DEFAULT_OUT
+                     " to replace them",
+                     was, sc->name);
+  json_decref(sum);
+  return rc;
+}
+
 static void free_args(cli *c) { cli_scene_opts_free(&c->s); }
 
 /* Prints what a finished render wrote: the mean of the primary output (its channel, or the
@@ -115,7 +140,7 @@ static int cmd_render(int argc, char **argv) {
   cli c;
   int worker = cli_mpi_env_size() > 1 && cli_mpi_env_rank() > 0;
   if (parse_args(argc, argv, 2, &c)) {
-    if (!worker) cli_usage(stderr, "render");
+    if (!worker) cli_hint("render");
     free_args(&c);
     return EXIT_BAD_INPUT;
   }
@@ -132,6 +157,7 @@ static int cmd_render(int argc, char **argv) {
   double t0 = obs_now_ms();
   rc = cli_scene_load(&c.s, &sc, &err);
   if (!rc && (rc = check_distribute(&c, &sc, &err))) obs_scene_free(&sc);
+  if (!rc && !worker && (rc = check_default_out(&c, &sc, &err))) obs_scene_free(&sc);
   int code = rc ? cli_load_exit_code(rc) : 0;
   if (mpi)
     code = cli_mpi_loaded(mpi, code, &err);
@@ -184,7 +210,7 @@ static int cmd_render(int argc, char **argv) {
 static int cmd_validate(int argc, char **argv) {
   cli c;
   if (parse_args(argc, argv, 2, &c)) {
-    cli_usage(stderr, "validate");
+    cli_hint("validate");
     free_args(&c);
     return EXIT_BAD_INPUT;
   }
@@ -214,7 +240,9 @@ static int cmd_techniques(int argc, char **argv) {
                     !strcmp(argv[2], "--docs"))) {
     int docs = !strcmp(argv[2], "--docs");
     if (argc != (docs ? 4 : 3)) {
-      cli_usage(stderr, "techniques");
+      fprintf(stderr, "obscura: %s %s\n", argv[2],
+              docs ? "takes one technique name" : "takes no argument");
+      cli_hint("techniques");
       return EXIT_BAD_INPUT;
     }
     char *txt = docs ? obs_registry_params_markdown(argv[3])
@@ -229,7 +257,8 @@ static int cmd_techniques(int argc, char **argv) {
     return 0;
   }
   if (argc > 2) {
-    cli_usage(stderr, "techniques");
+    fprintf(stderr, "obscura: unknown option %s\n", argv[2]);
+    cli_hint("techniques");
     return EXIT_BAD_INPUT;
   }
   json_t *reg = obs_technique_registry_json();
@@ -240,17 +269,34 @@ static int cmd_techniques(int argc, char **argv) {
   return 0;
 }
 
+/* `obscura help [CMD]`: the usage of CMD, or of every command. */
+static int cmd_help(int argc, char **argv) {
+  if (argc > 3) {
+    fprintf(stderr, "obscura: help takes at most one command\n");
+    return EXIT_BAD_INPUT;
+  }
+  if (!cli_usage(stdout, argc == 3 ? argv[2] : NULL)) return 0;
+  fprintf(stderr, "obscura: no command %s\n", argv[2]);
+  cli_hint(NULL);
+  return EXIT_BAD_INPUT;
+}
+
 int main(int argc, char **argv) {
   if (argc < 2) {
     cli_usage(stderr, NULL);
     return EXIT_BAD_INPUT;
   }
   if (argv[1][0] != '-' && cli_wants_help(argc, argv) && !cli_usage(stdout, argv[1])) return 0;
+  if (!strcmp(argv[1], "help")) return cmd_help(argc, argv);
   if (!strcmp(argv[1], "render")) return cmd_render(argc, argv);
   if (!strcmp(argv[1], "validate")) return cmd_validate(argc, argv);
   if (!strcmp(argv[1], "techniques")) return cmd_techniques(argc, argv);
   if (!strcmp(argv[1], "submit")) return cli_submit(argc, argv);
   if (!strcmp(argv[1], "jobs")) return cli_jobs(argc, argv);
+  if (!strcmp(argv[1], "job")) return cli_job(argc, argv);
+  if (!strcmp(argv[1], "cancel")) return cli_cancel(argc, argv);
+  if (!strcmp(argv[1], "fetch")) return cli_fetch(argc, argv);
+  if (!strcmp(argv[1], "comparisons")) return cli_comparisons(argc, argv);
   if (!strcmp(argv[1], "compare")) return cli_compare(argc, argv);
   if (!strcmp(argv[1], "diff")) return cli_diff(argc, argv);
   if (!strcmp(argv[1], "metrics")) return cli_metrics(argc, argv);
@@ -263,6 +309,6 @@ int main(int argc, char **argv) {
     return 0;
   }
   fprintf(stderr, "obscura: unknown command %s\n", argv[1]);
-  cli_usage(stderr, NULL);
+  cli_hint(NULL);
   return EXIT_BAD_INPUT;
 }

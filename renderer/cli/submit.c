@@ -276,8 +276,7 @@ static int download(cli_client *c, const char *dir, const char *name, const char
   return rc;
 }
 
-/* Downloads every output in the job's links into `dir`. */
-static int download_outputs(cli_client *c, json_t *job, const char *dir) {
+int cli_download_outputs(cli_client *c, json_t *job, const char *dir) {
   json_t *links = json_object_get(json_object_get(job, "links"), "outputs");
   json_t *list = json_object_get(job, "outputs");
   if (!json_is_object(links) || !json_object_size(links)) {
@@ -349,7 +348,7 @@ static void print_finished(long long id, json_t *job) {
 int cli_submit(int argc, char **argv) {
   submit_opts o;
   if (parse_submit(argc, argv, &o)) {
-    cli_usage(stderr, "submit");
+    cli_hint("submit");
     cli_scene_opts_free(&o.s);
     return EXIT_BAD_INPUT;
   }
@@ -441,7 +440,7 @@ int cli_submit(int argc, char **argv) {
     goto done;
   }
   print_finished(id, job);
-  if (o.out_dir) rc = download_outputs(&c, job, o.out_dir);
+  if (o.out_dir) rc = cli_download_outputs(&c, job, o.out_dir);
 done:
   json_decref(job);
   json_decref(answer);

@@ -1,5 +1,6 @@
 /* The usage texts of the obscura subcommands: `obscura --help` prints them all, `obscura CMD
- * --help` (and a mistake in CMD's arguments) prints CMD's own. */
+ * --help` (or `obscura help CMD`) prints CMD's own, and a mistake in CMD's arguments is followed
+ * by one line saying so (cli_hint), not by the whole text. */
 #include <stdio.h>
 #include <string.h>
 
@@ -17,7 +18,7 @@ static const usage usages[] = {
      "                 [--distribute image|data [--no-ghost]] [--base-dir DIR]\n"
      "                 [--progress-file FILE]\n",
      "Renders the scene here and writes its outputs, summary.json and PNGs into DIR (default "
-     "out).\n"
+     "out;\nwithout -o it refuses to replace another scene's outputs there: -o out replaces them).\n"
      "--technique keeps the document's params for its own technique; another starts from its\n"
      "defaults with lengths fitted to the scene's size (a note says which); --set wins.\n"
      "Under mpirun the image is split in tiles across the ranks and rank 0 writes DIR, the same\n"
@@ -46,6 +47,16 @@ static const usage usages[] = {
      "  obscura jobs [--server URL] [--state S] [--technique T] [--backend B] [--limit N]\n"
      "                 [--json]\n",
      "Lists the newest jobs (default 50) with their scene and render time.\n"},
+    {"job", "  obscura job ID [--server URL] [--json]\n",
+     "One job: its state, technique, scene, image, timings, the mean of its primary output,\n"
+     "warnings, error and outputs; --json prints it as the API gives it.\n"},
+    {"cancel", "  obscura cancel ID [--server URL]\n",
+     "Cancels a queued or running job (a running render stops between tiles); exit 2 when the\n"
+     "job has already ended.\n"},
+    {"fetch", "  obscura fetch ID -o DIR [--server URL]\n",
+     "Downloads every output of a succeeded job into DIR (created when missing).\n"},
+    {"comparisons", "  obscura comparisons [--server URL] [--limit N] [--json]\n",
+     "Lists the newest comparisons (default 50): state, candidates done, scene, label.\n"},
     {"compare", "  obscura compare FILE|- [--server URL] [--no-wait] [--json]\n",
      "Sends the comparison request in FILE (JSON, schema/openapi.yaml ComparisonRequest; - reads\n"
      "standard input), prints its dashboard page and follows it to its end: per candidate the\n"
@@ -66,10 +77,13 @@ static const usage usages[] = {
 
 static void common(FILE *f) {
   fputs(
-      "VALUE is JSON, e.g. --set /technique/params/samples=256 --set "
-      "'/technique/params/falloff=\"sqrt\"'.\n"
-      "submit, jobs and compare talk to --server, else $OBSCURA_SERVER, else " CLI_DEFAULT_SERVER
-      "\n(scripts/run), sending $OBSCURA_TOKEN as a bearer token when set.\n"
+      "VALUE is JSON (a number, true, false, null, \"text\", [..], {..}) or else a bare word,\n"
+      "taken as a string: --set /technique/params/samples=256 --set\n"
+      "/technique/params/falloff=sqrt. Quote what must stay a string but reads as JSON:\n"
+      "--set '/objects/0/name=\"8\"'.\n"
+      "The client commands (submit, jobs, job, cancel, fetch, comparisons, compare) talk to\n"
+      "--server, else $OBSCURA_SERVER, else " CLI_DEFAULT_SERVER
+      " (scripts/run), sending\n$OBSCURA_TOKEN as a bearer token when set.\n"
       "Exit codes: 0 ok, 2 bad input, 1 failure.\n",
       f);
 }
@@ -85,9 +99,16 @@ int cli_usage(FILE *f, const char *cmd) {
   if (cmd) return -1;
   fputs("usage:\n", f);
   for (size_t i = 0; i < n; i++) fputs(usages[i].synopsis, f);
-  fputs("  obscura CMD --help\n  obscura --version\n", f);
+  fputs("  obscura help [CMD]  (or obscura CMD --help)\n  obscura --version\n", f);
   common(f);
   return 0;
+}
+
+void cli_hint(const char *cmd) {
+  if (cmd)
+    fprintf(stderr, "obscura: 'obscura help %s' shows its options\n", cmd);
+  else
+    fprintf(stderr, "obscura: 'obscura help' lists the commands\n");
 }
 
 int cli_wants_help(int argc, char **argv) {

@@ -25,7 +25,15 @@ typedef struct pixel_run {
   atomic_int bad;  /* the source gave a tile outside r (bad_tile holds the first) */
   obs_region bad_tile;
   const obs_prior_grid *prior; /* NULL: none */
+  const obs_tile_watch *watch;  /* NULL: none */
 } pixel_run;
+
+/* Tells the watcher that tile [x0, x1) x [y0, y1) of the region is final. */
+static void tile_watched(const pixel_run *pr, int x0, int y0, int x1, int y1) {
+  if (!pr->watch || !pr->watch->tile) return;
+  obs_region t = {x0 + pr->r.x0, y0 + pr->r.y0, x1 + pr->r.x0, y1 + pr->r.y0};
+  pr->watch->tile(pr->watch->user, pr->img, &t);
+}
 
 /* Shades the image's pixels [x0, x1) x [y0, y1) block by block (obs_shade_block_fn). */
 static uint64_t shade_blocks(pixel_run *pr, int thread, int x0, int y0, int x1, int y1) {
@@ -73,6 +81,7 @@ static uint64_t shade_tile(pixel_run *pr, int thread, int x0, int y0, int x1, in
 static int pixel_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   pixel_run *pr = user;
   pr->rays[(size_t)thread * SLOT] += shade_tile(pr, thread, x0, y0, x1, y1);
+  tile_watched(pr, x0, y0, x1, y1);
   return 0;
 }
 
@@ -98,6 +107,7 @@ static int source_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   obs_region t = {x0 + pr->r.x0, y0 + pr->r.y0, x1 + pr->r.x0, y1 + pr->r.y0};
   if (pr->prior) rays += obs_prior_grid_rays(pr->prior, &t, pr->img->width, pr->img->height);
   pr->rays[(size_t)thread * SLOT] += rays;
+  tile_watched(pr, x0, y0, x1, y1);
   return pr->src->done ? pr->src->done(pr->src->user, pr->img, &t, rays) : 0;
 }
 
@@ -170,7 +180,8 @@ int obs_driver_pixels(obs_render_ctx *ctx, const obs_pixel_ops *ops, const void 
     free(rays);
     return rc;
   }
-  pixel_run pr = {ops, job, out, r, values, stride, rays, ctx->tiles, 0, {0, 0, 0, 0}, NULL};
+  pixel_run pr = {ops, job, out, r, values, stride, rays, ctx->tiles, 0, {0, 0, 0, 0}, NULL,
+                  ctx->watch};
   obs_prior_grid grid;
   memset(&grid, 0, sizeof grid);
   double t0 = obs_now_ms(), prior_ms = 0;
@@ -207,6 +218,8 @@ int obs_driver_pixels(obs_render_ctx *ctx, const obs_pixel_ops *ops, const void 
                             ctx->progress ? obs_progress_part_report : NULL, &parts[1]);
   }
   ctx->render_ms = obs_now_ms() - t0;
+  /* After the timing: the watcher may still be copying tiles out of the image. */
+  if (pr.watch && pr.watch->end) pr.watch->end(pr.watch->user, out);
   for (int t = 0; t < threads; t++) ctx->rays += rays[(size_t)t * SLOT];
   if (pr.prior && !ctx->tiles) ctx->rays += obs_prior_grid_rays(&grid, &r, sc->width, sc->height);
   obs_prior_grid_free(&grid);

@@ -163,6 +163,7 @@ static int render(const obs_scene *scene, const obs_render_opts *opts, obs_resul
     ctx.cancel = opts->cancel;
     ctx.region = opts->region;
     ctx.tiles = opts->tiles;
+    ctx.watch = opts->watch;
   }
   obs_region region;
   if ((rc = obs_driver_region(&ctx, scene->width, scene->height, &region, err))) return rc;
@@ -315,6 +316,10 @@ json_t *obs_result_summary_json(const obs_result *r, const obs_scene *sc) {
   json_t *samples = json_object_get(sc->params, "samples");
   json_object_set_new(o, "samples", samples ? json_copy(samples) : json_null());
   json_object_set_new(o, "params", json_deep_copy(sc->params));
+  /* The technique's cost rule evaluated on these params (what the server's limits and estimates
+   * multiply by the pixel samples), so a page can show the number rather than the rule. */
+  json_object_set_new(o, "work_per_pixel_sample",
+                      json_real(obs_technique_cost(r->technique, sc->params)));
   json_object_set_new(o, "threads", json_integer(r->threads));
   if (r->ranks > 1) json_object_set_new(o, "ranks", json_integer(r->ranks));
   json_t *t = json_object();

@@ -28,7 +28,7 @@ static const char *const samplers[] = {"sobol", "random", NULL};
 
 #define P(member) offsetof(obs_path_trace_params, member)
 static const obs_param path_trace_params[] = {
-    {.name = "samples", .type = OBS_PARAM_INT, .min = 1, .max = 65536, .def = 16,
+    {.name = "samples", .type = OBS_PARAM_INT, .min = 1, .max = 65536, .def = 64,
      .description = "paths per pixel sample (image.spp pixel samples, each through its point of "
                     "the pixel); at most 65536 paths per pixel in all",
      .offset = P(samples)},

@@ -36,6 +36,10 @@ test('grouping, confirm, retry, clone, bulk actions, paging, URL filters, narrow
     await group.waitFor();
     assert.equal(await group.getByRole('link', {name: `Comparison ${cid}`}).getAttribute('href'), `#/comparisons/${cid}`);
     await group.getByText('steps sweep').waitFor();
+    // A comparison's jobs start folded under its row; Show unfolds them.
+    assert.equal(await page.locator(`tr[data-id="${members[0]}"]`).isHidden(), true, 'folded at first');
+    assert.equal(await group.getByRole('button', {name: `Show the jobs of comparison ${cid}`}).getAttribute('aria-expanded'), 'false');
+    await group.getByRole('button', {name: `Show the jobs of comparison ${cid}`}).click();
     // Each member says what it is in the comparison, not the same scene and label again.
     for (const x of c.candidates) {
       await page.locator(`tr[data-id="${x.job_id}"] .role`, {hasText: `candidate ${x.index}: hbao on cpu`}).waitFor();

@@ -135,6 +135,166 @@ const decoded = (page, which, name, x, y) => page.evaluate(([w, n, px, py]) => {
 }, [which, name, x, y]);
 const readoutCell = (page, channel, col) => page.locator(`.readout-box tr[data-channel="${channel}"] td.${col}`).textContent();
 
+/** The viewer's stack, shown image and reference, as the page holds them. */
+const stackState = (page) => page.evaluate(() => {
+  const v = window.__obscura.viewer;
+  return {ids: v.stack.map((e) => e.id), cur: v.cur, ref: v.ref, a: v.a.id, show: v.show};
+});
+
+/**
+ * The error maps of A against the reference B, computed here again from the decoded EXRs (stored
+ * as float32, as the viewer's map is): per pixel, for channel `ch`, the mode's error; covered
+ * where B's alpha is above 0 and the error finite; the ramp's range (signed: ± the largest
+ * |error|, the others 0 to the largest) and the counts of 64 equal bins over it.
+ */
+const expectedError = (page, mode, ch) => page.evaluate(([m, c]) => {
+  const v = window.__obscura.viewer, w = v.a.img.width;
+  const plane = (img, n) => (img.channels.find((x) => x.name === n) || {}).data;
+  const A = plane(v.a.img, c), B = plane(v.b.img, c), alpha = plane(v.b.img, 'alpha');
+  const f = {signed: (a, b) => a - b, absolute: (a, b) => Math.abs(a - b), relative: (a, b) => Math.abs(a - b) / (Math.abs(b) + 0.01),
+             squared: (a, b) => (a - b) ** 2}[m];
+  const e = new Float32Array(A.length), cov = [];
+  let top = 0;
+  for (let i = 0; i < A.length; i++) {
+    e[i] = f(A[i], B[i]);
+    cov[i] = (!alpha || alpha[i] > 0) && Number.isFinite(e[i]);
+    if (cov[i]) top = Math.max(top, m === 'signed' ? Math.abs(e[i]) : e[i]);
+  }
+  const [lo, hi] = m === 'signed' ? [-top, top] : [0, top];
+  const counts = new Array(64).fill(0);
+  for (let i = 0; i < A.length; i++) if (cov[i]) counts[Math.min(63, Math.max(0, Math.floor(((e[i] - lo) / (hi - lo)) * 64)))]++;
+  return {lo, hi, counts, total: cov.filter(Boolean).length, e: [...e], cov, w};
+}, [mode, ch]);
+
+/**
+ * A stack of three images (rt_ao at 8 and at 2 samples, hbao) restored from its URL; number keys
+ * switch the image shown; each error mode's value at pinned pixels and its histogram against the
+ * EXRs; the URL keeps the error mode across a reload.
+ */
+async function checkStack(page, d, {ao, ao2, hb, pt}) {
+  await page.goto(`${d.url}/#/view/${ao}?stack=${ao2},${hb}&ref=2`);
+  await page.waitForFunction(() => { const v = window.__obscura.viewer; return v && v.ready && v.stack && v.stack.length === 3; });
+  assert.deepEqual(await stackState(page), {ids: [ao, ao2, hb], cur: 0, ref: 1, a: ao, show: 'image'}, 'the URL gives the stack');
+  assert.equal(await page.locator('ol.image-stack li').count(), 3);
+  const [px, py] = [9, 14];
+  const at = await spot(page, px, py);
+  await page.locator('canvas.viewer-canvas').focus();
+  for (const [key, id] of [['3', hb], ['2', ao2], ['1', ao]]) {
+    await page.keyboard.press(key);
+    const st = await stackState(page);
+    assert.deepEqual([st.cur, st.a], [Number(key) - 1, id], `key ${key} shows job ${id}`);
+    const g = quantize(await decoded(page, 'a', 'ao', px, py), false);
+    assert.deepEqual(await canvasRGB(page, at.cx, at.cy), [g, g, g], `the canvas shows job ${id}`);
+    assert.equal(await page.locator('ol.image-stack li.current').getAttribute('data-index'), String(Number(key) - 1));
+  }
+  assert.match(page.url(), new RegExp(`stack=${ao2}%2C${hb}&ref=2`), 'the URL keeps the stack');
+  await page.mouse.click(at.px, at.py);
+  const pins = [[px, py], [3, 20], [30, 2]];
+  for (const mode of ['signed', 'absolute', 'relative', 'squared']) {
+    await page.getByLabel('Error map', {exact: true}).selectOption(mode);
+    await page.waitForFunction((m) => window.__obscura.viewer.error && window.__obscura.viewer.error.mode === m && window.__obscura.viewer.error.counts, mode);
+    const want = await expectedError(page, mode, 'ao');
+    const got = await page.evaluate(() => window.__obscura.viewer.error);
+    assert.deepEqual([got.lo, got.hi], [want.lo, want.hi], `${mode}: the ramp's range`);
+    assert.deepEqual(got.counts, want.counts, `${mode}: the histogram's counts`);
+    assert.equal(got.total, want.total, `${mode}: covered pixels`);
+    assert.ok(want.total > 300 && want.hi > 0, `${mode}: the two renders differ: ${JSON.stringify(want).slice(0, 200)}`);
+    for (const [x, y] of pins) {
+      const e = want.e[y * want.w + x], va = await decoded(page, 'a', 'ao', x, y), vb = await decoded(page, 'b', 'ao', x, y);
+      if (mode === 'signed') assert.equal(e, Math.fround(va - vb), 'the test\'s own A − B');
+      assert.equal(await page.evaluate(([x_, y_]) => window.__obscura.viewer.errorAt(x_, y_), [x, y]), want.cov[y * want.w + x] ? e : null,
+        `${mode} at (${x}, ${y})`);
+    }
+    assert.ok(want.cov[py * want.w + px], `pixel (${px}, ${py}) is covered`);
+    const shown = Number(await page.locator('.readout-error .err-value').textContent());
+    assert.ok(Math.abs(shown - want.e[py * want.w + px]) <= 1e-6 * Math.max(1, Math.abs(shown)), `${mode}: the readout's error`);
+    const ticks = await page.locator('.error-panel .ticks span').allTextContents();
+    assert.equal(ticks.length, 3, 'the legend has its scale');
+    assert.ok(Math.abs(Number(ticks[2]) - want.hi) <= 0.005 * want.hi, `${mode}: the legend ends at ${want.hi}: ${ticks}`);
+    assert.match(await page.locator('canvas.histogram').getAttribute('aria-label'), new RegExp(`over ${want.total} covered pixels`));
+  }
+  await screenshot(page, 'viewer-error-squared');
+  assert.match(page.url(), /show=squared/);
+  // A ramp maximum of the user's: the histogram's bins span it, larger errors in the last bin.
+  await page.getByLabel('Ramp maximum', {exact: true}).fill('0.001');
+  await page.getByLabel('Ramp maximum', {exact: true}).press('Enter');
+  await page.waitForFunction(() => window.__obscura.viewer.error.hi === 0.001);
+  // The URL restores the stack, the reference and the mode.
+  await page.reload();
+  await page.waitForFunction(() => { const v = window.__obscura.viewer; return v && v.ready && v.error && v.error.counts; });
+  assert.deepEqual(await stackState(page), {ids: [ao, ao2, hb], cur: 0, ref: 1, a: ao, show: 'squared'}, 'a reload restores the view');
+  assert.equal(await page.evaluate(() => window.__obscura.viewer.error.hi), 0.001);
+  // A file by name: a job's EXR output as "<job>/<file>.exr"; a bad name says why.
+  await page.getByLabel('or by name', {exact: true}).fill(`${ao2}/nope.exr`);
+  await page.getByLabel('or by name', {exact: true}).press('Enter');
+  await page.waitForFunction(() => /Cannot add \d+\/nope.exr: job \d+ has no output nope.exr/.test(document.querySelector('p.error').textContent));
+  // The file an entry already shows is not added twice; path_trace's radiance.exr by name is.
+  await page.getByLabel('or by name', {exact: true}).fill(`${ao2}/ao.exr`);
+  await page.getByLabel('or by name', {exact: true}).press('Enter');
+  await page.waitForFunction(() => document.querySelector('p.error').textContent === '');
+  assert.equal(await page.evaluate(() => window.__obscura.viewer.stack.length), 3, 'no twin entry');
+  await page.getByLabel('or by name', {exact: true}).fill(`${pt}/radiance.exr`);
+  await page.getByLabel('or by name', {exact: true}).press('Enter');
+  await page.waitForFunction(() => window.__obscura.viewer.stack.length === 4);
+  assert.match(page.url(), new RegExp(`stack=${ao2}%2C${hb}%2C${pt}%2Fradiance.exr&`), 'a named file keeps its name in the URL');
+  await page.getByRole('button', {name: `Remove job ${pt} radiance.exr from the stack`}).click();
+  await page.waitForFunction(() => window.__obscura.viewer.stack.length === 3);
+  // The reference chosen in the stack: hbao; E steps on to the next mode.
+  await page.getByLabel(`job ${hb} as the reference (B)`).check();
+  await page.locator('canvas.viewer-canvas').focus();
+  await page.keyboard.press('e');
+  await page.waitForFunction(() => window.__obscura.viewer.show === 'flip' && window.__obscura.viewer.ref === 2);
+  // FLIP is the server's (GET /api/v1/diff, the C implementation): the viewer shows its map.
+  await page.getByLabel('Ramp maximum', {exact: true}).fill('');
+  await page.getByLabel('Ramp maximum', {exact: true}).press('Enter');
+  await page.waitForFunction(() => { const e = window.__obscura.viewer.error; return e && e.mode === 'flip' && e.counts && e.hi === 1; });
+  const server = await page.evaluate(async ([a, b, pts]) => {
+    const {decodeExr} = await import('/js/exr.js');
+    const r = await fetch(`/api/v1/diff?a=${a}/ao.exr&b=${b}/ao.exr&channel=ao&hdr=0`);
+    const m = (await decodeExr(await r.arrayBuffer())).channels[0].data, w = window.__obscura.viewer.a.img.width;
+    return {mean: Number(r.headers.get('X-Obscura-Flip-Mean')), at: pts.map(([x, y]) => [m[y * w + x], window.__obscura.viewer.errorAt(x, y)])};
+  }, [ao, hb, pins]);
+  for (const [want, got] of server.at) assert.ok(got === null || got === want, `the viewer's FLIP is the server's: ${want} ${got}`);
+  assert.ok(server.at.some(([w, g]) => g !== null && w > 0), 'FLIP of hbao against rt_ao is not 0');
+  assert.equal(await page.evaluate(() => window.__obscura.viewer.error.mean), server.mean);
+  assert.equal(await page.evaluate(() => window.__obscura.viewer.error.lo), 0);
+  assert.match(await page.locator('.flip-mean').textContent(), /Mean FLIP over every pixel/);
+  await screenshot(page, 'viewer-error-flip');
+  await assertAllNamed(page, 'viewer stack');
+}
+
+/**
+ * A running job opened in the viewer: its preview appears (partly rendered: some pixels still
+ * empty) and refreshes; once the job succeeds its final EXR replaces the preview, and every
+ * pixel the preview had rendered holds the final value.
+ */
+async function checkPreview(page, d) {
+  const W = 256;
+  const id = await submit(d, {scene_file: 'sphere_on_plane.json', technique: {name: 'rt_ao', backend: 'cpu', params: {samples: 128}},
+    set: {'/image/width': W, '/image/height': W}});
+  await page.goto(`${d.url}/#/view/${id}`);
+  await page.waitForFunction(() => { const v = window.__obscura.viewer; return v && v.ready && v.stack && v.stack[0].live && v.a && v.a.img; },
+    null, {timeout: 20000 * SLOW});
+  assert.match(await page.locator('.viewer-note').textContent(), /Running: the preview of the tiles rendered so far/);
+  const seen = await page.evaluate(() => {
+    const im = window.__obscura.viewer.a.img, ch = (n) => im.channels.find((c) => c.name === n).data;
+    const ao = ch('ao'), alpha = ch('alpha'), done = [];
+    for (let i = 0; i < ao.length; i++) if (ao[i] > 0 || alpha[i] > 0) done.push([i, ao[i]]);
+    return {done, n: ao.length, names: im.channels.map((c) => c.name)};
+  });
+  assert.deepEqual(seen.names, ['alpha', 'ao'], 'the preview holds the primary output and alpha');
+  assert.ok(seen.done.length > 0 && seen.done.length < seen.n, `partly rendered: ${seen.done.length} of ${seen.n}`);
+  await screenshot(page, 'viewer-preview');
+  await page.waitForFunction(() => !window.__obscura.viewer.stack[0].live && window.__obscura.viewer.stack[0].file === 'ao.exr',
+    null, {timeout: 60000 * SLOW});
+  const final = await page.evaluate((idx) => {
+    const ao = window.__obscura.viewer.a.img.channels.find((c) => c.name === 'ao').data;
+    return idx.map((i) => ao[i]);
+  }, seen.done.map(([i]) => i));
+  assert.deepEqual(final, seen.done.map(([, v]) => v), 'the preview\'s pixels are the final ones');
+  assert.doesNotMatch(await page.locator('.viewer-note').textContent(), /Running/);
+}
+
 async function checkStatistics(page, summary) {
   // Every channel's mean, min, max and count over the covered pixels (alpha > 0; alpha itself over
   // all), computed from the decoded floats, equals the renderer's summary.json.
@@ -178,8 +338,8 @@ async function checkZoomPan(page) {
   await canvas.focus();
   await page.keyboard.press('-');
   assert.equal((await viewer(page)).zoom, s0.zoom, '- halves it');
-  await page.keyboard.press('1');
-  assert.equal((await viewer(page)).zoom, 1, '1 is actual size');
+  await page.keyboard.press('a');
+  assert.equal((await viewer(page)).zoom, 1, 'A is actual size');
   await page.keyboard.press('f');
   const fit = await viewer(page);
   assert.deepEqual([fit.zoom, fit.panX, fit.panY, fit.fitted], [s0.zoom, s0.panX, s0.panY, true], 'F fits again');
@@ -215,18 +375,19 @@ async function checkZoomPan(page) {
 }
 
 test('image viewer: zoom, pan, readout, exposure, A/B, keyboard, 800 px', async () => {
-  const d = await startDashboard({workers: 2});
+  const d = await startDashboard({workers: 8});
   const {browser, page, errors} = await openBrowser();
   try {
     const size = {'/image/width': 32, '/image/height': 24};
     const pt = await submit(d, {scene_file: 'cornell_box.json', technique: {name: 'path_trace', backend: 'cpu', params: {samples: 8}}, set: size});
     const ao = await submit(d, {scene_file: 'cornell_box.json', technique: {name: 'rt_ao', backend: 'cpu', params: {samples: 8}}, set: size});
     const hb = await submit(d, {scene_file: 'cornell_box.json', technique: {name: 'hbao', backend: 'cpu'}, set: size});
+    const ao2 = await submit(d, {scene_file: 'cornell_box.json', technique: {name: 'rt_ao', backend: 'cpu', params: {samples: 2}}, set: size});
     const other = await submit(d, {scene_file: 'cornell_box.json', technique: {name: 'ssao', backend: 'cpu'}, set: {'/image/width': 16, '/image/height': 12}});
     const cmp = await request(d, 'POST', '/api/v1/comparisons', {body: {scene_file: 'sphere_on_plane.json', set: {'/image/width': 16, '/image/height': 12},
       repeats: 1, reference: {samples: 16}, candidates: [{technique: 'hbao', backend: 'cpu'}]}});
     assert.equal(cmp.status, 201, cmp.text);
-    await waitAll(d, [pt, ao, hb, other]);
+    await waitAll(d, [pt, ao, hb, other, ao2]);
 
     // ---- opened from the job page by clicking its AO image -------------------------------------
     await page.goto(`${d.url}/#/jobs/${ao}`);
@@ -285,7 +446,7 @@ test('image viewer: zoom, pan, readout, exposure, A/B, keyboard, 800 px', async 
     assert.deepEqual(await canvasRGB(page, at.cx, at.cy), [grey, grey, grey]);
     // Split: A left of the divider, B right of it; dragging the divider moves it.
     await page.getByLabel('Mode').selectOption('split');
-    assert.match(page.url(), new RegExp(`b=${hb}.*mode=split`), 'the route keeps B and the mode');
+    assert.match(page.url(), new RegExp(`stack=${hb}&ref=2.*mode=split`), 'the route keeps B and the mode');
     s = await viewer(page);
     const box = await page.locator('canvas.viewer-canvas').boundingBox();
     const width = Math.round(box.width - 2);
@@ -307,6 +468,9 @@ test('image viewer: zoom, pan, readout, exposure, A/B, keyboard, 800 px', async 
     await page.keyboard.press('s');
     assert.equal((await viewer(page)).mode, 'toggle', 'S leaves the split');
     assert.match(page.url(), /mode=toggle/);
+
+    // ---- a stack: keys, error maps, histograms, the URL ----------------------------------------
+    await checkStack(page, d, {ao, ao2, hb, pt});
 
     // ---- exposure on path_trace's radiance ----------------------------------------------------
     await page.goto(`${d.url}/#/view/${pt}`);
@@ -379,6 +543,9 @@ test('image viewer: zoom, pan, readout, exposure, A/B, keyboard, 800 px', async 
     await page.locator('canvas.viewer-canvas').focus();
     await page.keyboard.press('Escape');
     await page.waitForURL(new RegExp(`#/jobs/${pt}$`));
+
+    // ---- a running job's preview -----------------------------------------------------------
+    await checkPreview(page, d);
 
     // ---- from a comparison: candidate (A) against its reference (B), split --------------------
     const deadline = Date.now() + 120000 * SLOW;

@@ -88,10 +88,19 @@ if [ "$(id -u)" -ne 0 ]; then
   check "unreadable file exits 2" test $? -eq 2
   check "unreadable file says why" grep -q "cannot open scene file: Permission denied" "$out/perm.log"
 fi
-"$cli" validate "$root/scenes/cornell_box.json" --set /technique/name=ssao >"$out/q.log" 2>&1
-check "bare string --set exits 2" test $? -eq 2
-check "bare string --set suggests the quotes" grep -qF "did you mean '\"ssao\"'?" "$out/q.log"
-check "bare string --set shows the quoted option" grep -qF -e "--set '/technique/name=\"ssao\"'" "$out/q.log"
+# A bare word is a string: enum values need no JSON quotes; JSON values stay JSON.
+"$cli" validate "$root/scenes/cornell_box.json" --set /technique/params/weighting=uniform >"$out/q.log" 2>&1
+check "bare string --set is taken as a string" grep -q "valid (rt_ao," "$out/q.log"
+"$cli" render "$root/scenes/sphere_on_plane.json" -o "$out/sqrt" --set /image/width=8 \
+  --set /image/height=8 --set /technique/params/samples=2 --set /technique/params/falloff=sqrt \
+  --set /technique/params/max_distance=2 --quiet >"$out/sqrt.log" 2>&1
+check "bare enum --set renders with that value" node -e "
+  const s = JSON.parse(require('fs').readFileSync('$out/sqrt/summary.json'));
+  process.exit(s.params.falloff === 'sqrt' && s.params.max_distance === 2 ? 0 : 1);"
+"$cli" validate "$root/scenes/cornell_box.json" --set /technique/params/samples=many >"$out/q3.log" 2>&1
+rc=$?
+check "a bare word where a number belongs exits 2 naming the pointer" \
+  bash -c "[ $rc -eq 2 ] && grep -q '/technique/params/samples: .*\"many\"' '$out/q3.log'"
 "$cli" validate "$root/scenes/cornell_box.json" --set '/image/width={' >"$out/q2.log" 2>&1
 check "broken JSON --set exits 2 without a quote hint" \
   bash -c "grep -q 'the value is not JSON: ' '$out/q2.log' && ! grep -q 'did you mean' '$out/q2.log'"
@@ -118,6 +127,29 @@ check "--progress-file ends at 1" test "$(cat "$out/progress")" = "1.0000"
 "$cli" render "$out/elsewhere/volume_head.json" --base-dir "$out/none" >"$out/nodir.log" 2>&1
 check "--base-dir that is no directory exits 2" test $? -eq 2
 check "--base-dir names it" grep -q -- "--base-dir $out/none: not a directory" "$out/nodir.log"
+# The bundled defaults give a readable first image (small renders; figures at these sizes):
+# proximity_ao on the hangar shows its occlusion (the thesis's settings gave AO mean 0.980, min
+# 0.64: nearly white; now 0.964, min 0), volume_engine's final.png is not clipped (radiance mean
+# 1.01, max 1.63: the exposure of -1 EV shows 0.51 and 0.82), path_trace's default paths keep the
+# noise under 7.5 % of the radiance (16 paths: 9.9 %, 64: 5.3 %).
+"$cli" render "$root/scenes/hangar.json" -o "$out/hangar" --set /image/width=80 \
+  --set /image/height=60 --quiet >"$out/hangar.log" 2>&1
+check "hangar: proximity_ao shows occlusion (AO mean <= 0.97, min <= 0.3)" node -e "
+  const s = JSON.parse(require('fs').readFileSync('$out/hangar/summary.json'));
+  process.exit(s.ao.mean <= 0.97 && s.ao.mean >= 0.85 && s.ao.min <= 0.3 ? 0 : 1);"
+"$cli" render "$root/scenes/volume_engine.json" -o "$out/engine" --set /image/width=48 \
+  --set /image/height=48 --quiet >"$out/engine.log" 2>&1
+check "volume_engine: final.png neither blown out nor dark (shown mean in [0.25, 0.75], max <= 1)" node -e "
+  const s = JSON.parse(require('fs').readFileSync('$out/engine/summary.json'));
+  const k = 2 ** s.params.exposure, f = s.outputs.final;
+  const mean = f.luminance_mean * k, max = Math.max(...Object.values(f.channels).map(c => c.max)) * k;
+  process.exit(mean >= 0.25 && mean <= 0.75 && max <= 1 ? 0 : 1);"
+"$cli" render "$root/scenes/cornell_box.json" --technique path_trace -o "$out/pt" \
+  --set /image/width=32 --set /image/height=32 --quiet >"$out/pt.log" 2>&1
+check "path_trace's default: noise under 7.5 % of the radiance" node -e "
+  const s = JSON.parse(require('fs').readFileSync('$out/pt/summary.json'));
+  const r = s.outputs.radiance_stderr.luminance_mean / s.outputs.radiance.luminance_mean;
+  process.exit(r > 0 && r <= 0.075 ? 0 : 1);"
 # --help on every subcommand: its own usage on stdout, exit 0.
 for cmd in render validate techniques submit jobs compare; do
   "$cli" "$cmd" --help >"$out/help-$cmd.txt" 2>&1
@@ -127,7 +159,33 @@ for cmd in render validate techniques submit jobs compare; do
 done
 "$cli" jobs -h | grep -q "OBSCURA_SERVER, else http://127.0.0.1:8080"
 check "help names the default server and OBSCURA_SERVER" test $? -eq 0
-"$cli" frobnicate >/dev/null 2>&1
+"$cli" frobnicate >/dev/null 2>"$out/unknown.err"
 check "unknown command exits 2" test $? -eq 2
+check "unknown command points at obscura help, without the whole usage" bash -c "
+  grep -qx \"obscura: 'obscura help' lists the commands\" '$out/unknown.err' && ! grep -q usage '$out/unknown.err'"
+for cmd in job cancel fetch comparisons; do
+  "$cli" help "$cmd" >"$out/help-$cmd.txt" 2>&1
+  check "help $cmd shows only its usage" \
+    bash -c "grep -q '^  obscura $cmd ' '$out/help-$cmd.txt' && [ \$(grep -c '^  obscura ' '$out/help-$cmd.txt') -eq 1 ]"
+done
+"$cli" render "$root/scenes/sphere_on_plane.json" --threads 0 >"$out/hint.out" 2>"$out/hint.err"
+rc=$?
+check "a bad option exits 2 with its message and the hint only" bash -c "[ $rc -eq 2 ] &&
+  grep -q -- '--threads must be' '$out/hint.err' && grep -qx \"obscura: 'obscura help render' shows its options\" '$out/hint.err' &&
+  [ \$(wc -l <'$out/hint.err') -eq 2 ]"
+# Without -o every render writes out/: a second scene's render must not replace the first's.
+mkdir -p "$out/cwd"
+tiny=(--set /image/width=8 --set /image/height=6 --set /technique/params/samples=1 --quiet)
+(cd "$out/cwd" && "$cli" render "$root/scenes/sphere_on_plane.json" "${tiny[@]}") >/dev/null 2>&1
+check "render without -o writes out/" test -s "$out/cwd/out/summary.json"
+(cd "$out/cwd" && "$cli" render "$root/scenes/sphere_on_plane.json" "${tiny[@]}") >/dev/null 2>&1
+check "render without -o of the same scene replaces out/" test $? -eq 0
+(cd "$out/cwd" && "$cli" render "$root/scenes/cornell_box.json" "${tiny[@]}") >"$out/guard.log" 2>&1
+check "render without -o of another scene exits 2" test $? -eq 2
+check "render without -o of another scene says whose outputs out/ holds" \
+  grep -q "out/ holds the outputs of sphere_on_plane.json (out/summary.json), not of cornell_box.json: give -o DIR" "$out/guard.log"
+check "out/ still holds the first scene's outputs" grep -q '"scene": "sphere_on_plane.json"' "$out/cwd/out/summary.json"
+(cd "$out/cwd" && "$cli" render "$root/scenes/cornell_box.json" "${tiny[@]}" -o out) >/dev/null 2>&1
+check "render -o out replaces them" grep -q '"scene": "cornell_box.json"' "$out/cwd/out/summary.json"
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# The CLI's job-server client end to end: `obscura submit`, `obscura jobs` and `obscura compare`
-# against obscurad.
+# The CLI's job-server client end to end: `obscura submit`, `jobs`, `job`, `fetch`, `cancel`,
+# `comparisons` and `compare` against obscurad.
 # usage: client.sh OBSCURA_CLI OBSCURAD SOURCE_ROOT WORK_DIR
 set -u
 cli=$1 daemon=$2 root=$3 out=$4
@@ -98,8 +98,43 @@ check "jobs table has the header" \
   grep -Eq "^ID +STATE +PROGRESS +TECHNIQUE +BACKEND +SCENE +TIME +PRIORITY +CREATED +LABEL$" \
   "$out/jobs.txt"
 check "jobs lists the job with its scene and render time" \
-  grep -Eq "^$id +succeeded +100% +rt_ao +cpu +(inline|sphere_on_plane[^ ]*) +[0-9.]+ m?s +70 +[0-9T:.-]+Z +client test$" \
+  grep -Eq "^$id +succeeded +100% +rt_ao +cpu +sphere_on_plane\.json +[0-9.]+ m?s +70 +[0-9T:.-]+Z +client test$" \
   "$out/jobs.txt"
+# --- job, fetch, cancel of a finished job ------------------------------------------------------
+"$cli" job "$id" --server "$url" >"$out/job.txt" 2>"$out/job.err"
+check "job exits 0" test $? -eq 0
+check "job shows the state" grep -q "^job $id: succeeded 100%$" "$out/job.txt"
+check "job shows technique, scene and image" bash -c "grep -Eq '^  technique +rt_ao on cpu' '$out/job.txt' &&
+  grep -Eq '^  scene +sphere_on_plane\.json$' '$out/job.txt' &&
+  grep -Eq '^  image +40x30, 1 pixel sample \(image\.spp\)$' '$out/job.txt'"
+check "job shows the AO mean and the outputs" bash -c "grep -Eq '^  AO mean +0\.[0-9]{4}$' '$out/job.txt' &&
+  grep -Eq '^  outputs +ao\.exr \([0-9]+ bytes\)$' '$out/job.txt'"
+check "job shows the dashboard page" grep -q "^  page .*$url/#/jobs/$id$" "$out/job.txt"
+"$cli" job "$id" --server "$url" --json >"$out/job.json"
+check "job --json is the API's job" node -e "
+  const j = JSON.parse(require('fs').readFileSync('$out/job.json'));
+  process.exit(j.id === $id && j.state === 'succeeded' && j.scene_name === 'sphere_on_plane.json' ? 0 : 1);"
+"$cli" job 999999 --server "$url" >/dev/null 2>"$out/job-404.err"
+rc=$?
+check "job of a missing id exits 2 with the server's answer" \
+  bash -c "[ $rc -eq 2 ] && grep -q 'answered 404' '$out/job-404.err'"
+"$cli" job abc --server "$url" >/dev/null 2>"$out/job-bad.err"
+check "job with a bad id exits 2" test $? -eq 2
+check "a specific error is followed by the hint, not the usage" bash -c "
+  grep -q 'a job id is a positive integer (got abc)' '$out/job-bad.err' &&
+  grep -qx \"obscura: 'obscura help job' shows its options\" '$out/job-bad.err' &&
+  ! grep -q 'usage' '$out/job-bad.err'"
+"$cli" fetch "$id" --server "$url" -o "$out/fetched" >"$out/fetch.out" 2>"$out/fetch.err"
+check "fetch exits 0" test $? -eq 0
+check "fetch downloads every output" test "$(ls "$out/fetched" | wc -l)" -eq "$(ls "$out/remote" | wc -l)"
+check "fetch gives the same bytes as submit -o" cmp "$out/fetched/ao.exr" "$out/remote/ao.exr"
+"$cli" fetch "$id" --server "$url" >/dev/null 2>"$out/fetch-no-o.err"
+rc=$?
+check "fetch without -o exits 2 and says so" \
+  bash -c "[ $rc -eq 2 ] && grep -q 'missing -o DIR' '$out/fetch-no-o.err'"
+"$cli" cancel "$id" --server "$url" >/dev/null 2>"$out/cancel-done.err"
+check "cancel of a finished job exits 2" test $? -eq 2
+check "cancel of a finished job shows the 409" grep -q "answered 409" "$out/cancel-done.err"
 # The server from $OBSCURA_SERVER when --server is not given.
 OBSCURA_SERVER=$url "$cli" jobs >"$out/jobs-env.txt" 2>&1
 check "jobs uses OBSCURA_SERVER" grep -Eq "^$id +succeeded" "$out/jobs-env.txt"
@@ -149,6 +184,21 @@ check "the starred rows are the Pareto set" node -e "
   const starred = [...t.matchAll(/^ +([0-9]+)\* /gm)].map(m => +m[1]);
   const listed = t.match(/^pareto[^:]*:(.*)$/m)[1].trim().split(' ').map(Number);
   process.exit(starred.length > 0 && JSON.stringify([...starred].sort()) === JSON.stringify([...listed].sort()) ? 0 : 1);"
+"$cli" comparisons --server "$url" >"$out/cmps.txt" 2>&1
+check "comparisons lists the comparison with its state and candidates done" \
+  grep -Eq "^$cmpid +succeeded +3/3 +[0-9T:.-]+Z +sphere_on_plane\.json +cli compare$" "$out/cmps.txt"
+"$cli" comparisons --server "$url" --json >"$out/cmps.json"
+check "comparisons --json is the API's list" node -e "
+  const l = JSON.parse(require('fs').readFileSync('$out/cmps.json'));
+  process.exit(l.comparisons.some(c => c.id === $cmpid && c.done === 3) ? 0 : 1);"
+# A reference with 2 samples against candidates with 256: their RMSEs measure its noise.
+printf '{"scene_file": "sphere_on_plane.json", "repeats": 1, "set": {"/image/width": 16, "/image/height": 12}, "reference": {"samples": 2}, "candidates": [{"technique": "rt_ao", "backend": "cpu", "params": {"samples": [256, 512]}}]}' \
+  >"$out/cmp-noisy.json"
+"$cli" compare "$out/cmp-noisy.json" --server "$url" >"$out/cmp-noisy.out" 2>"$out/cmp-noisy.err"
+check "compare prints the ranking warning of a noisy reference" \
+  grep -q "^obscura: warning: the reference is too noisy to rank the candidates" "$out/cmp-noisy.err"
+check "compare prints no ranking warning when the reference can rank" \
+  bash -c "! grep -q 'too noisy' '$out/cmp.err'"
 "$cli" compare - --server "$url" --no-wait <"$out/cmp.json" >"$out/cmp2.out" 2>&1
 check "compare - --no-wait reads stdin and returns at once" \
   bash -c "[ \$? -eq 0 ] && grep -Eq '^comparison [0-9]+ queued: ' '$out/cmp2.out' && ! grep -q '^pareto' '$out/cmp2.out'"
@@ -245,12 +295,9 @@ for ((i = 0; i < 200 * slow; i++)); do
   [ -n "$cid" ] && grep -q "^job $cid: running" "$out/cancel.err" && break
   sleep 0.05
 done
-node -e "
-  const r = require('http').request('$plain_url/api/v1/jobs/$cid/cancel', {method: 'POST'},
-    res => process.exit(res.statusCode === 202 ? 0 : 1));
-  r.on('error', () => process.exit(1));
-  r.end();"
-check "cancel request accepted" test $? -eq 0
+"$cli" cancel "$cid" --server "$plain_url" >"$out/cancel-cmd.out" 2>&1
+check "cancel of a running job exits 0" test $? -eq 0
+check "cancel says the render stops" grep -q "^job $cid: cancel requested" "$out/cancel-cmd.out"
 wait "$waiter"
 check "--wait on a cancelled job exits 1" test $? -eq 1
 check "--wait prints the server's error" grep -q "^obscura: job $cid cancelled: " "$out/cancel.err"

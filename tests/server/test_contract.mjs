@@ -116,6 +116,10 @@ test('a typical client run matches openapi.yaml', async () => {
     const ranged = await call(d, 'GET', Object.values(ja.links.outputs)[0], {headers: {range: 'bytes=0-7'}});
     assert.equal(ranged.status, 206);
     assert.equal((await call(d, 'GET', `/api/v1/jobs/${ja.id}/outputs/nope.exr`)).status, 404);
+    // A finished job's preview is its EXR; the FLIP map of the job against itself, and a refusal.
+    assert.equal((await call(d, 'GET', `/api/v1/jobs/${ja.id}/preview.exr`)).status, 303);
+    assert.equal((await call(d, 'GET', `/api/v1/diff?a=${ja.id}/ao.exr&b=${ja.id}/ao.exr&channel=ao`)).status, 200);
+    assert.equal((await call(d, 'GET', `/api/v1/diff?a=${ja.id}/ao.exr&channel=ao`)).status, 400);
 
     // A small comparison, followed to its end; the list and the CSV.
     const c = await call(d, 'POST', '/api/v1/comparisons', {body: {

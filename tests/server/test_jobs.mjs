@@ -5,8 +5,9 @@
 import assert from 'node:assert/strict';
 import {test} from 'node:test';
 
-import {SLOW, getJSON, getJob, listAll, listFiles, request, sleep, sql, submit, validate, waitAll, waitJob,
+import {SLOW, exrHeader, getJSON, getJob, listAll, listFiles, request, sleep, sql, submit, validate, waitAll, waitJob,
         withDaemon} from './lib.mjs';
+import {decodeExr} from '../../web/js/exr.js';
 
 // A tiny job (about a millisecond of rendering in the release build).
 const small = (extra = {}) => ({
@@ -39,6 +40,132 @@ async function cancel(d, id, expectStatus = 202) {
   return r.json;
 }
 
+// The running job's preview (GET /api/v1/jobs/{id}/preview.exr): an EXR of the primary output and
+// alpha at the job's size, some 32x32 tiles rendered and others still empty, not cached; a later
+// one holds at least the tiles of the first, with the same values; gone once the job ends, a
+// finished job's being its EXR output (303). Eight workers: the render runs on one or two threads
+// whatever the machine, so it lasts several seconds (the first tiles come after the standard
+// errors' pilot pixels, an eighth of the work) and is cancelled once its previews are seen.
+test('preview of a running job', async () => {
+  await withDaemon({workers: 8}, async (d) => {
+    const W = 256, id = await submit(d, {scene_file: 'sphere_on_plane.json', technique: {name: 'rt_ao', backend: 'cpu', params: {samples: 384}},
+      set: {'/image/width': W, '/image/height': W}});
+    const small = await submit(d, {scene_file: 'sphere_on_plane.json', technique: {name: 'rt_ao', backend: 'cpu', params: {samples: 4}},
+      set: {'/image/width': 16, '/image/height': 16}});
+    const get = async () => {
+      const deadline = Date.now() + 10000 * SLOW;
+      for (;;) {
+        const r = await request(d, 'GET', `/api/v1/jobs/${id}/preview.exr`);
+        if (r.status === 200) return r;
+        assert.equal(r.status, 404, r.text);
+        assert.match(r.json.error, new RegExp(`job ${id} is (queued: a preview exists only while a job runs|running and has no preview yet)`));
+        assert.ok(Date.now() < deadline, 'a preview within 10 s');
+        await sleep(50);
+      }
+    };
+    const img = async (r) => {
+      const x = await decodeExr(r.body.buffer.slice(r.body.byteOffset, r.body.byteOffset + r.body.length));
+      return Object.fromEntries(x.channels.map((c) => [c.name, c.data]));
+    };
+    // A tile is rendered when any of its pixels has alpha or AO above 0 (AO is above 0 on the
+    // covered pixels of this scene, 1 on the open sky).
+    const done = (p) => {
+      const tiles = new Set();
+      for (let i = 0; i < W * W; i++) if (p.alpha[i] > 0 || p.ao[i] > 0) tiles.add(Math.floor(i / W / 32) * (W / 32) + Math.floor((i % W) / 32));
+      return tiles;
+    };
+    const r1 = await get();
+    assert.equal(r1.headers['content-type'], 'image/x-exr');
+    assert.equal(r1.headers['cache-control'], 'no-store');
+    assert.deepEqual(exrHeader(r1.body), {channels: ['alpha', 'ao'], width: W, height: W});
+    const p1 = await img(r1), t1 = done(p1);
+    assert.ok(t1.size > 0 && t1.size < (W / 32) ** 2, `some tiles rendered, not all: ${t1.size} of ${(W / 32) ** 2}`);
+    await sleep(700);
+    const r2 = await request(d, 'GET', `/api/v1/jobs/${id}/preview.exr`);
+    assert.equal(r2.status, 200, 'still running after 0.7 s (make the job longer)');
+    const p2 = await img(r2), t2 = done(p2);
+    assert.ok([...t1].every((t) => t2.has(t)) && t2.size > t1.size, `a later preview adds tiles: ${t1.size} then ${t2.size}`);
+    for (let i = 0; i < W * W; i++) {
+      if (p1.alpha[i] > 0 || p1.ao[i] > 0) assert.ok(p2.ao[i] === p1.ao[i] && p2.alpha[i] === p1.alpha[i], `pixel ${i} is final once shown`);
+    }
+    assert.equal((await request(d, 'POST', `/api/v1/jobs/${id}/preview.exr`)).status, 405);
+    const busy = await request(d, 'GET', `/api/v1/diff?a=${id}/ao.exr&b=${small}/ao.exr&channel=ao`);
+    assert.equal(busy.status, 409, busy.text);
+    assert.match(busy.json.error, new RegExp(`^a=${id}/ao.exr: job ${id} is running; only a succeeded job's outputs can be compared`));
+    const none = await request(d, 'GET', '/api/v1/jobs/999999/preview.exr');
+    assert.equal(none.status, 404);
+    assert.match(none.json.error, /no job 999999/);
+    await cancel(d, id);
+    await waitJob(d, id, (j) => j.state === 'cancelled');
+    const gone = await request(d, 'GET', `/api/v1/jobs/${id}/preview.exr`);
+    assert.equal(gone.status, 404);
+    assert.match(gone.json.error, new RegExp(`job ${id} is cancelled: a preview exists only while a job runs`));
+    assert.deepEqual(listFiles(d.resultsDir).filter((f) => f.includes('preview')), [], 'the preview file is removed');
+    await waitJob(d, small, (j) => j.state === 'succeeded');
+    const fin = await request(d, 'GET', `/api/v1/jobs/${small}/preview.exr`);
+    assert.equal(fin.status, 303);
+    assert.equal(fin.headers.location, `/api/v1/jobs/${small}/outputs/ao.exr`);
+  });
+});
+
+// GET /api/v1/diff: the renderer's FLIP of one output against another as an EXR of channel
+// "flip" with its mean in a header; an image against itself is 0 everywhere; every bad input is
+// named in a 4xx answer.
+test('FLIP maps between outputs (GET /api/v1/diff)', async () => {
+  await withDaemon({workers: 2}, async (d) => {
+    const size = {'/image/width': 32, '/image/height': 24};
+    const rt = (samples, set = size) => submit(d, {scene_file: 'cornell_box.json', technique: {name: 'rt_ao', backend: 'cpu', params: {samples}}, set});
+    const [a, b, pt, tiny] = [await rt(8), await rt(2),
+      await submit(d, {scene_file: 'cornell_box.json', technique: {name: 'path_trace', backend: 'cpu', params: {samples: 4}}, set: size}),
+      await rt(2, {'/image/width': 16, '/image/height': 12})];
+    await waitAll(d, [a, b, pt, tiny]);
+    const flip = async (q) => {
+      const r = await request(d, 'GET', `/api/v1/diff?${q}`);
+      assert.equal(r.status, 200, `${q}: ${r.text}`);
+      assert.equal(r.headers['content-type'], 'image/x-exr');
+      const img = await decodeExr(r.body.buffer.slice(r.body.byteOffset, r.body.byteOffset + r.body.length));
+      assert.deepEqual([img.width, img.height, img.channels.map((c) => c.name)], [32, 24, ['flip']]);
+      return {map: img.channels[0].data, mean: Number(r.headers['x-obscura-flip-mean'])};
+    };
+    const self = await flip(`a=${a}/ao.exr&b=${a}/ao.exr&channel=ao`);
+    assert.ok(self.map.every((v) => v === 0) && self.mean === 0, 'an image against itself');
+    const hdrSelf = await flip(`a=${pt}/radiance.exr&b=${pt}/radiance.exr&channel=radiance&hdr=1`);
+    assert.ok(hdrSelf.map.every((v) => v === 0) && hdrSelf.mean === 0, 'HDR-FLIP of radiance against itself');
+    const ab = await flip(`a=${a}/ao.exr&b=${b}/ao.exr&channel=ao`);
+    assert.ok(ab.map.every((v) => v >= 0 && v <= 1) && ab.map.some((v) => v > 0.05), '8 against 2 samples differ, within [0, 1]');
+    const mean = ab.map.reduce((x, v) => x + v, 0) / ab.map.length;
+    assert.ok(Math.abs(ab.mean - mean) <= 1e-6 * mean, `the header's mean is the map's: ${ab.mean} vs ${mean}`);
+    // A mask of the reference: the same map, the mean over its selected pixels.
+    const ref = await decodeExr((await request(d, 'GET', `/api/v1/jobs/${b}/outputs/ao.exr`)).body.buffer);
+    const alpha = ref.channels.find((c) => c.name === 'alpha').data;
+    const masked = await flip(`a=${a}/ao.exr&b=${b}/ao.exr&channel=ao&mask=alpha`);
+    assert.deepEqual(masked.map, ab.map);
+    let sum = 0, n = 0;
+    alpha.forEach((v, i) => { if (v > 0) { sum += ab.map[i]; n++; } });
+    assert.ok(n > 0 && n < alpha.length && Math.abs(masked.mean - sum / n) <= 1e-6 * masked.mean, `masked mean ${masked.mean} vs ${sum / n}`);
+    for (const [q, status, msg] of [
+      [`b=${b}/ao.exr&channel=ao`, 400, /query parameter a is missing/],
+      [`a=${a}/ao.exr&b=${b}/ao.exr`, 400, /query parameter channel is missing/],
+      [`a=${a}/ao.exr&b=${b}/ao.exr&channel=ao&gamma=2`, 400, /unknown query parameter "gamma"/],
+      [`a=${a}&b=${b}/ao.exr&channel=ao`, 400, new RegExp(`^a=${a}: not <job>/<file>.exr`)],
+      [`a=${a}/ao.png&b=${b}/ao.exr&channel=ao`, 400, new RegExp(`^a=${a}/ao.png: not <job>/<file>.exr`)],
+      [`a=${a}/ao.exr&b=${b}/ao.exr&channel=ao&hdr=yes`, 400, /hdr must be 0/],
+      [`a=${a}/ao.exr&b=999999/ao.exr&channel=ao`, 404, /^b=999999\/ao.exr: no job 999999/],
+      [`a=${a}/radiance.exr&b=${b}/ao.exr&channel=ao`, 404, new RegExp(`^a=${a}/radiance.exr: job ${a} has no output radiance.exr`)],
+      [`a=${a}/ao.exr&b=${b}/ao.exr&channel=nope`, 422, /cannot compute FLIP of a \(the test image\) against b/],
+      [`a=${a}/ao.exr&b=${tiny}/ao.exr&channel=ao`, 422, /a is 32x24, b 16x12/],
+    ]) {
+      const r = await request(d, 'GET', `/api/v1/diff?${q}`);
+      assert.equal(r.status, status, `${q}: ${r.text}`);
+      validate('Error', r.json);
+      assert.match(`${r.json.error} ${r.json.problems.join(' ')}`, msg, q);
+    }
+    assert.equal((await request(d, 'POST', `/api/v1/diff?a=${a}/ao.exr&b=${b}/ao.exr&channel=ao`)).status, 405);
+    const metrics = (await request(d, 'GET', '/metrics')).text;
+    assert.match(metrics, /obscura_http_requests_total\{route="\/api\/v1\/diff",status="200"\} [1-9]/, 'the route has its metrics label');
+  });
+});
+
 test('cancellation of queued and running jobs', async () => {
   await withDaemon({}, async (d) => {
     const a = await blocker(d);
@@ -54,6 +181,9 @@ test('cancellation of queued and running jobs', async () => {
     assert.equal(jb.attempts, 0);
     assert.deepEqual(jb.outputs, []);
     await cancel(d, b, 409);
+    const bPreview = await request(d, 'GET', `/api/v1/jobs/${b}/preview.exr`);
+    assert.equal(bPreview.status, 404);
+    assert.match(bPreview.json.error, new RegExp(`job ${b} is cancelled: a preview exists only while a job runs`));
     // Running, some tiles done (live progress): stops between tiles.
     const running = await waitJob(d, a, (j) => j.state !== 'running' || j.progress > 0);
     assert.equal(running.state, 'running', 'the blocker must still run (make it longer)');

@@ -41,7 +41,7 @@ const char *obs_extremes_fast_params(const char *name) {
   if (!strcmp(name, "rt_ao")) return "\"samples\":16";
   if (!strcmp(name, "ssao")) return "\"samples\":8";
   if (!strcmp(name, "hbao")) return "\"directions\":4,\"steps\":4";
-  if (!strcmp(name, "path_trace")) return "\"max_bounces\":4";
+  if (!strcmp(name, "path_trace")) return "\"samples\":16,\"max_bounces\":4";
   if (!strcmp(name, "obscurance")) return "\"samples\":16,\"light_samples\":1";
   /* 16 directions: the fewest whose standard errors are calibrated (fewer warn). */
   if (!strcmp(name, "obscurance_map")) return "\"directions\":16";

@@ -1,7 +1,8 @@
 /* The shared drivers: the per-pixel driver's region, rays, progress, cancellation and thread
  * independence on a synthetic shade function (a pixel and a block at a time), then the same
  * properties through obs_render for rt_ao and proximity_ao (per-pixel driver, BVH built by the
- * framework; proximity_ao shades blocks) and ssao/hbao (CPU screen-space driver). */
+ * framework; proximity_ao shades blocks) and ssao/hbao (CPU screen-space driver); the tile watch
+ * (obs_tile_watch) told of every tile once, with its pixels final, and of the end once. */
 #include <math.h>
 #include <pthread.h>
 #include <stdio.h>
@@ -182,6 +183,72 @@ static void test_pixels_cancel(void **state) {
   assert_int_equal(pl.calls, 1);
   assert_non_null(strstr(obs_err_message(&err), "cancelled"));
   obs_err_free(&err);
+  obs_scene_free(&sc);
+}
+
+/* What a tile watch saw: each pixel's tile count, its values when told, the end calls. */
+typedef struct watch_log {
+  pthread_mutex_t mu;
+  int seen[W * H];
+  float at_tile[W * H];
+  int ends, tiles;
+  const obs_image *img;
+} watch_log;
+
+static void watch_tile(void *user, const obs_image *img, const obs_region *t) {
+  watch_log *w = user;
+  pthread_mutex_lock(&w->mu);
+  w->img = img;
+  w->tiles++;
+  for (int y = t->y0; y < t->y1; y++)
+    for (int x = t->x0; x < t->x1; x++) {
+      w->seen[y * W + x]++;
+      w->at_tile[y * W + x] = img->data[y * W + x];
+    }
+  pthread_mutex_unlock(&w->mu);
+}
+
+static void watch_end(void *user, const obs_image *img) {
+  watch_log *w = user;
+  assert_ptr_equal(img, w->img);
+  w->ends++;
+}
+
+static void test_pixels_watch(void **state) {
+  (void)state;
+  obs_scene sc;
+  obs_test_load(scene_json("rt_ao", "{}"), "d.json", &sc);
+  for (int way = 0; way < 2; way++) {
+    watch_log *w = calloc(1, sizeof *w);
+    pthread_mutex_init(&w->mu, NULL);
+    obs_tile_watch watch = {watch_tile, watch_end, w};
+    obs_render_ctx ctx;
+    ctx_init(&ctx, &sc, 3);
+    ctx.region = (obs_region){5, 3, 67, 41};
+    ctx.watch = &watch;
+    synth s = {NULL};
+    obs_image img;
+    obs_err err = OBS_ERR_INIT;
+    assert_int_equal(obs_driver_pixels(&ctx, synth_ways[way], &s, &img, &err), 0);
+    /* Every pixel of the region in exactly one tile, none outside; the value seen when its tile
+     * was reported is the final one; one end, after the last tile, with the image returned. */
+    int inside = 0;
+    for (int y = 0; y < H; y++)
+      for (int x = 0; x < W; x++) {
+        int in = x >= 5 && x < 67 && y >= 3 && y < 41;
+        assert_int_equal(w->seen[y * W + x], in);
+        if (in) assert_true(w->at_tile[y * W + x] == img.data[y * W + x]);
+        inside += in;
+      }
+    assert_int_equal(inside, 62 * 38);
+    assert_int_equal(w->tiles, 2 * 2); /* 62 x 38 in 32 x 32 tiles */
+    assert_int_equal(w->ends, 1);
+    assert_ptr_equal(w->img, &img);
+    obs_image_free(&img);
+    obs_err_free(&err);
+    pthread_mutex_destroy(&w->mu);
+    free(w);
+  }
   obs_scene_free(&sc);
 }
 
@@ -479,7 +546,8 @@ static void test_render_tile_source(void **state) {
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_pixels_region),       cmocka_unit_test(test_pixels_threads),
-      cmocka_unit_test(test_pixels_cancel),       cmocka_unit_test(test_rt_ao_region),
+      cmocka_unit_test(test_pixels_cancel),       cmocka_unit_test(test_pixels_watch),
+      cmocka_unit_test(test_rt_ao_region),
       cmocka_unit_test(test_ssao_region),         cmocka_unit_test(test_hbao_region),
       cmocka_unit_test(test_hbao_progress_cancel), cmocka_unit_test(test_ssao_progress_cancel),
       cmocka_unit_test(test_pixels_source),       cmocka_unit_test(test_pixels_source_errors),

@@ -32,23 +32,42 @@ function addShape(path, shape, x, y, r) {
 }
 
 // Log-scale range: the data's extent widened by a factor of 1.5 each way (4 for a single value).
-// Ticks of a log axis: the powers of ten in [min, max], with their 2 and 5 multiples when the
-// range spans at most two decades. uPlot's own log splits step from the scale's minimum in
-// increments of its decade and never end on a degenerate scale (a minimum of 0 or a non-finite
-// end), which throws "Invalid array length" from inside the chart.
+// Ticks of a log axis: at least four (two ticks cannot be read as a scale). The powers of ten in
+// [min, max] when they are four or more, else with their 2 and 5 multiples, then 3 too, then every
+// multiple; within a factor of about two, evenly spaced round values. uPlot's own log splits step
+// from the scale's minimum in increments of its decade and never end on a degenerate scale (a
+// minimum of 0 or a non-finite end), which throws "Invalid array length" from inside the chart.
+const MIN_TICKS = 4;
 function logSplits(u, axis, min, max) {
   if (!(min > 0) || !(max >= min) || !Number.isFinite(max)) return [];
   const k0 = Math.floor(Math.log10(min)), k1 = Math.ceil(Math.log10(max));
-  const mults = k1 - k0 <= 2 ? [1, 2, 5] : [1];
-  const out = [];
-  for (let k = k0; k <= k1 && out.length < 64; k++) {
-    for (const m of mults) {
-      const v = Number((m * 10 ** k).toPrecision(12));
-      if (v >= min && v <= max) out.push(v);
+  let out = [];
+  for (const mults of [[1], [1, 2, 5], [1, 2, 3, 5], [1, 2, 3, 4, 5, 6, 7, 8, 9]]) {
+    out = [];
+    for (let k = k0; k <= k1 && out.length < 64; k++) {
+      for (const m of mults) {
+        const v = Number((m * 10 ** k).toPrecision(12));
+        if (v >= min && v <= max) out.push(v);
+      }
     }
+    if (out.length >= MIN_TICKS) return out;
   }
-  return out;
+  // The largest step of 1, 2 or 5 times a power of ten that gives MIN_TICKS values or more.
+  const raw = (max - min) / MIN_TICKS;
+  if (!(raw > 0)) return out;
+  const p = 10 ** Math.floor(Math.log10(raw));
+  const step = [5, 2, 1].map((m) => m * p).find((x) => x <= raw) || p;
+  const lin = [];
+  for (let v = Math.ceil(min / step) * step; v <= max && lin.length < 64; v += step) lin.push(Number(v.toPrecision(12)));
+  return lin.length > out.length ? lin : out;
 }
+
+// A tick's label: plain below 1e5 and from 1e-3 (uPlot's default rounds to three decimals, so
+// 0.0002 would read 0), else as a power of ten. Every split logSplits chose is labelled (uPlot's
+// own log filter would blank all but the 1-2-5 ones, leaving two labels).
+const tickLabels = (u, splits) => splits.map((v) => (v === null ? null : v >= 1e-3 && v < 1e5 ? String(Number(v.toPrecision(6)))
+  : v.toExponential().replace(/\.?0+e/, 'e').replace('e+', 'e')));
+const keepSplits = (u, splits) => splits;
 
 // A log axis' range over the positive finite values among `vals` (uPlot passes null for a scale
 // it has no data for yet, and Math.min would turn that into 0, whose log breaks the axis).
@@ -291,8 +310,8 @@ export function paretoChart(box, cands, {colourOf, onSelect, selected = null, na
     width, height: 340,
     // Padded by a factor on both sides so no marker sits on (and is clipped by) the plot's edge.
     scales: {x: {time: false, distr: 3, log: 10, range: xRange}, y: {distr: 3, log: 10, range: yRange}},
-    axes: [{label: 'median total time per run (ms, log scale; bars: fastest to slowest run)', splits: logSplits},
-           {label: yLabel, size: 70, splits: logSplits}],
+    axes: [{label: 'median total time per run (ms, log scale; bars: fastest to slowest run)', splits: logSplits, values: tickLabels, filter: keepSplits},
+           {label: yLabel, size: 70, splits: logSplits, values: tickLabels, filter: keepSplits}],
     series,
     cursor: {drag: {x: false, y: false}},
     // Not live: a live legend is a row of "–" values until the cursor sits exactly on a point's

@@ -49,7 +49,9 @@ function pageState(query) {
     selected: new Set(),
     shown: [],
     rows: new Map(),
-    collapsed: new Set(),
+    // Comparisons whose jobs are shown: a group starts folded (its row says what it holds), so a
+    // sweep of dozens of jobs does not push the other jobs off the page.
+    expanded: new Set(),
     handle: null,
     ui: {},
   };
@@ -188,10 +190,10 @@ async function deleteComparison(s, cid) {
 function groupRow(s, cid, members) {
   const info = loadComparison(cid, () => s.handle.wake());
   const active = members.filter((j) => ACTIVE.has(j.state)).length;
-  const open = !s.collapsed.has(cid);
+  const open = s.expanded.has(cid);
   const toggle = el('button', {type: 'button', className: 'small', 'aria-expanded': String(open),
     'aria-label': `${open ? 'Hide' : 'Show'} the jobs of comparison ${cid}`,
-    onclick: () => { if (open) s.collapsed.add(cid); else s.collapsed.delete(cid); s.handle.wake(); }}, open ? '▾' : '▸');
+    onclick: () => { if (open) s.expanded.delete(cid); else s.expanded.add(cid); s.handle.wake(); }}, open ? '▾' : '▸');
   const what = info ? `${info.scene}${info.label ? ` — ${info.label}` : ''}` : '';
   return [JSON.stringify([open, active, members.length, what]),
     el('td', {colSpan: COLUMNS.length},
@@ -268,12 +270,31 @@ function render(s, jobs, files) {
       for (let k = i; k < jobs.length && jobs[k].comparison_id === cid; k++) members.push(jobs[k]);
       order.push([`c${cid}`, 'group', groupRow(s, cid, members)]);
     }
-    order.push([String(jobs[i].id), cid ? 'member' : '', jobRow(s, jobs[i], files), cid && s.collapsed.has(cid)]);
+    order.push([String(jobs[i].id), cid ? 'member' : '', jobRow(s, jobs[i], files), cid && !s.expanded.has(cid)]);
   }
   const keep = new Set(order.map(([k]) => k));
   for (const [k, tr] of s.rows) if (!keep.has(k)) { tr.remove(); s.rows.delete(k); }
   let prev = null;
   for (const [k, cls, [key, cells], hidden] of order) prev = placeRow(s, k, cls, key, cells, hidden, prev);
+}
+
+// An empty install says how to start instead of showing an empty table; an empty filter result
+// says so.
+function emptyState(s, list) {
+  const u = s.ui;
+  const none = list.jobs.length === 0;
+  const filtered = FILTERS.some((k) => s.filters[k]) || s.after;
+  u.table.hidden = none;
+  u.empty.hidden = !none;
+  if (!none) return;
+  u.empty.replaceChildren(...(filtered
+    ? [el('p', {}, 'No jobs match these filters.')]
+    : [el('h2', {}, 'No jobs yet'),
+       el('p', {}, 'Submit a first job: pick a bundled scene (the Cornell box renders in a second or two) and a ' +
+         'technique on the ', el('a', {href: '#/submit', className: 'button'}, 'Submit page'),
+         ', or compare techniques there against a converged reference.'),
+       el('p', {}, 'From the command line: ', el('code', {}, 'build/obscura submit scenes/cornell_box.json --wait'),
+         ' (', el('code', {}, 'obscura help submit'), ' shows the options).')]));
 }
 
 // The status line, pager and debug hook after a listing arrived.
@@ -283,6 +304,12 @@ function showListing(s, list) {
   const page = s.after ? `older jobs (below ${s.after})` : 'the newest';
   u.status.textContent = `${list.jobs.length} job${list.jobs.length === 1 ? '' : 's'}, ${page}` +
     (active ? `, ${active} queued or running` : '');
+  emptyState(s, list);
+  // The header's counts (main.js) come from another poll: when a job here starts or ends, it asks
+  // again at once, so "N running" agrees with the rows.
+  const states = JSON.stringify(list.jobs.filter((j) => ACTIVE.has(j.state)).map((j) => [j.id, j.state]));
+  if (s.activeStates !== undefined && states !== s.activeStates) window.dispatchEvent(new Event('obscura:jobs-moved'));
+  s.activeStates = states;
   u.pager.querySelector('.page-where').textContent = list.jobs.length
     ? `jobs ${list.jobs[list.jobs.length - 1].id}–${list.jobs[0].id}` : '';
   u.newest.disabled = u.newer.disabled = !s.after;
@@ -302,7 +329,8 @@ export function mountJobs(view, _args, query) {
     el('h1', {}, 'Jobs'), filterForm(s), u.status, alertP,
     el('p', {className: 'hint'}, 'Tab to a job and press Enter to open it; ↑/↓ move between jobs.'),
     tools,
-    el('table', {className: 'jobs'},
+    u.empty = el('div', {className: 'empty-state', hidden: true}),
+    u.table = el('table', {className: 'jobs'},
       el('caption', {className: 'sr-only'}, 'Jobs, newest first; the jobs of a comparison under its row'),
       el('thead', {}, el('tr', {}, el('th', {scope: 'col'}, u.selectAll),
                          ...COLUMNS.slice(1).map((h) => el('th', {scope: 'col'}, h)))),

@@ -240,23 +240,56 @@ function ranOn(summary, machine) {
   return `${summary.backend}, ${summary.threads} thread${summary.threads === 1 ? '' : 's'}`;
 }
 
-/** The technique's cost rule ("directions x steps") evaluated on the parameters it ran with. */
-function workPerPixel(cost, params) {
+/**
+ * The work per pixel sample a render did: the technique's cost rule evaluated by the renderer
+ * (summary.json's work_per_pixel_sample), else a product rule ("directions x steps") evaluated
+ * here, else a phrase (a rule is never shown as if it were a number).
+ */
+function workPerPixel(cost, summary) {
+  const params = summary.params || {};
   const names = cost.split(/\s*x\s*/);
-  const vals = names.map((n) => (params || {})[n]);
-  if (vals.some((v) => typeof v !== 'number')) return cost;
-  const total = vals.reduce((a, b) => a * b, 1);
-  return names.length > 1 ? `${vals.join(' × ')} = ${total}` : String(total);
+  const vals = names.map((n) => params[n]);
+  if (names.length > 1 && vals.every((v) => typeof v === 'number')) {
+    return `${vals.join(' × ')} = ${vals.reduce((a, b) => a * b, 1)}`;
+  }
+  if (typeof summary.work_per_pixel_sample === 'number') return String(Number(summary.work_per_pixel_sample.toPrecision(4)));
+  return vals.length === 1 && typeof vals[0] === 'number' ? String(vals[0]) : 'not reported by this render';
+}
+
+/** What a pixel sample's `samples` are, from the parameter's description ("paths per pixel sample …"). */
+function samplesUnit(technique) {
+  const d = technique && technique.params_schema && technique.params_schema.properties &&
+    technique.params_schema.properties.samples && technique.params_schema.properties.samples.description;
+  const m = /^(.*?) per pixel sample/.exec(d || '');
+  return m ? m[1] : null;
+}
+
+/**
+ * The image line: size and pixel samples (image.spp, the points of each pixel rendered), and, for
+ * a technique whose `samples` are per pixel sample (paths, rays), what that makes per pixel.
+ */
+function imageText(j, technique, params) {
+  const spp = j.image.spp;
+  const base = `${j.image.width}×${j.image.height}, ${spp} pixel sample${spp === 1 ? '' : 's'} (image.spp)`;
+  const unit = samplesUnit(technique);
+  const n = params && params.samples;
+  return unit && typeof n === 'number' ? `${base} × ${n} ${unit} = ${spp * n} ${unit} per pixel` : base;
 }
 
 function statsSection(j, technique) {
   const s = j.stats || {};
-  // Techniques that trace rays count them; the screen-space ones sample the depth buffer, their
-  // work per pixel is the registry's cost rule (its value fills in when the parameters arrive).
+  // Techniques that trace rays count them; the others' work per pixel sample is the registry's
+  // cost rule, shown evaluated when the summary arrives (a G-buffer technique's is depth-buffer
+  // samples).
   const traces = !technique || (technique.needs || []).includes('bvh');
+  // A product of parameters reads as a label ("(directions × steps)"); a longer rule is the
+  // value's tooltip only.
+  const product = /^[a-z_]+( x [a-z_]+)*$/.test((technique && technique.cost) || '');
   const work = traces ? ['rays traced', j.rays]
-    : [`depth-buffer samples per pixel (${technique.cost.replace(/ x /g, ' × ')})`,
-       el('span', {className: 'work-per-pixel', 'data-cost': technique.cost}, '…')];
+    : [((technique.needs || []).includes('gbuffer') ? 'depth-buffer samples per pixel' : 'work per pixel sample') +
+       (product ? ` (${technique.cost.replace(/ x /g, ' × ')})` : ''),
+       el('span', {className: 'work-per-pixel', 'data-cost': technique.cost,
+                   title: `the technique's cost rule: ${technique.cost.replace(/ x /g, ' × ')}`}, '…')];
   const rows = [work, ['AO mean', s.ao && fmtNum(s.ao.mean)], ['AO min', s.ao && fmtNum(s.ao.min)],
                 ['AO max', s.ao && fmtNum(s.ao.max)], ['AO standard error (mean)', s.ao_stderr_mean !== undefined ? fmtNum(s.ao_stderr_mean) : null],
                 ['non-finite values', s.nan_count]].filter(([, v]) => v !== null && v !== undefined);
@@ -272,6 +305,9 @@ export function mountJob(view, [id], query) {
   view.append(el('p', {className: 'crumbs'}, el('a', {href: '#/jobs'}, '← all jobs')),
               el('h1', {}, `Job ${id}`), setAlertEl(el('p', {role: 'alert', className: 'error'})), head, body);
   let lastState = null, summaryDone = false, metricsDone = false, dead = false;
+  // The image line's technique and params, once the summary arrived (the facts are redrawn on
+  // every poll).
+  let imageOf = null;
   // Only a comparison id, never a path: it is put into an API URL.
   const comparisonId = /^\d+$/.test(query.get('comparison') || '') ? query.get('comparison') : null;
 
@@ -297,7 +333,7 @@ export function mountJob(view, [id], query) {
         el('dt', {}, 'Label'), el('dd', {}, j.label || '–'),
         el('dt', {}, 'Technique'), el('dd', {}, j.technique),
         el('dt', {}, 'Backend'), el('dd', {}, `${j.backend.requested}${j.backend.actual ? ` → ran on ${j.backend.actual}` : ''}`),
-        el('dt', {}, 'Image'), el('dd', {}, `${j.image.width}×${j.image.height}, ${j.image.spp} spp`),
+        el('dt', {}, 'Image'), el('dd', {className: 'image-text'}, imageOf ? imageText(j, imageOf.t, imageOf.params) : imageText(j, null, null)),
         el('dt', {}, 'Priority'), el('dd', {}, String(j.priority)),
         el('dt', {}, 'Attempts'), el('dd', {}, String(j.attempts)),
         el('dt', {}, 'Created'), el('dd', {}, fmtTime(j.created_at)),
@@ -341,7 +377,12 @@ export function mountJob(view, [id], query) {
           el('h2', {id: 'h-params'}, 'Parameters'),
           el('p', {}, `${s.technique} on ${ranOn(s, j.machine)}: `, el('code', {}, paramText(s.params)))));
         const work = body.querySelector('.work-per-pixel');
-        if (work) work.textContent = workPerPixel(work.dataset.cost, s.params);
+        if (work) work.textContent = workPerPixel(work.dataset.cost, s);
+        techniqueOf(j.technique).then((t) => {
+          imageOf = {t, params: s.params};
+          const img = head.querySelector('.image-text');
+          if (img && !dead) img.textContent = imageText(j, t, s.params);
+        });
       }).catch(() => {});
     }
     const cid = comparisonId || j.comparison_id || (j.comparison && j.comparison.id);

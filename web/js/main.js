@@ -114,6 +114,8 @@ window.addEventListener('obscura:changed', () => {
   debug.health.wakes++;
   healthPoll.wake();
 });
+// The job list saw a job start or end (joblist.js): the counts follow.
+window.addEventListener('obscura:jobs-moved', () => healthPoll.wake());
 
 // Images on the first page need the session cookie before they load.
 login().then(route);

@@ -4,6 +4,7 @@
 // checked before sending; a 4xx's problems are shown next to the fields their JSON pointers name.
 import {ApiError, api, el, techniques} from './api.js';
 import {prefillClone} from './clone.js';
+import {lineColumn, locatePointer} from './jsonpos.js';
 import {checkValue, describeRule, parseField, parseToken} from './params.js';
 
 const MAX_CANDIDATES = 256;
@@ -100,12 +101,18 @@ function paramEntry(name, schema, comparison, state, onChange) {
  */
 function fillBlock(state, origin, d, gen) {
   if (!d) {
+    // No bundled scene (a pasted document): the values a bundled scene filled in go, or they
+    // would be sent over the pasted document's own; what was typed since stays.
+    for (const p of state.params) {
+      if (p.filled !== undefined && p.control.value === p.filled) p.control.value = '';
+      p.filled = undefined;
+    }
     origin.replaceChildren();
     return;
   }
   for (const p of state.params) {
     if (!(p.name in d.params) || p.touched === gen) continue;
-    p.control.value = JSON.stringify(d.params[p.name]);
+    p.control.value = p.filled = JSON.stringify(d.params[p.name]);
   }
   if (d.backend && state.backendTouched !== gen &&
       [...state.backend.options].some((o) => o.value === d.backend && !o.disabled)) state.backend.value = d.backend;
@@ -179,7 +186,7 @@ function techniqueBlock(registry, {comparison, legend, base, onRemove, onChange,
     state.params = Object.entries(t.params_schema.properties || {})
       .map(([name, schema]) => paramEntry(name, schema, comparison, state, onChange));
     paramsSlot.replaceChildren(el('p', {className: 'hint'}, comparison ? "Parameters: leave empty for the scene's value (its own technique) or the default, lengths fitted to the scene's size."
-      : "Parameters: an empty field takes the bundled scene's value for its own technique, else the default fitted to the scene."),
+      : "Parameters: an empty field takes the scene's own value for its own technique (the bundled file's or the pasted document's), else the default fitted to the scene."),
                                ...state.params.map((p) => p.node));
     state.backend.addEventListener('change', onChange);
     state.backendTouched = -1;
@@ -375,8 +382,13 @@ function pastedScene(f, errors) {
     if (!doc || typeof doc !== 'object' || Array.isArray(doc)) throw new Error('must be a JSON object');
     return doc;
   } catch (e) {
-    errors.push([f.sceneJson, `not a scene document: ${e.message}`]);
-    setError(f.sceneJson, `not a scene document: ${e.message}`);
+    // JSON.parse says where ("at position 45"): as a line and column, with the place selected.
+    const at = /position (\d+)/.exec(e.message);
+    const where = at ? lineColumn(f.sceneJson.value, Number(at[1])) : null;
+    const msg = `not a scene document: ${where ? `line ${where.line}, column ${where.column}: ` : ''}${e.message}`;
+    errors.push([f.sceneJson, msg]);
+    setError(f.sceneJson, msg);
+    if (at) f.sceneJson.setSelectionRange(Number(at[1]), Number(at[1]) + 1);
     return null;
   }
 }
@@ -456,7 +468,7 @@ async function send(f, ev) {
     const r = await api(comparison ? '/api/v1/comparisons' : '/api/v1/jobs', {method: 'POST', json: body});
     location.hash = comparison ? `#/comparisons/${r.id}` : `#/jobs/${r.id}`;
   } catch (e) {
-    showServerProblems(f.form, f.serverErrors, e, comparison);
+    showServerProblems(f, e, comparison);
   } finally {
     f.submitBtn.disabled = false;
   }
@@ -474,23 +486,52 @@ function nameOf(ctl) {
   return `${block ? `${block.querySelector('legend').textContent} › ` : ''}${l ? l.textContent : ctl.textContent}`;
 }
 
-/** Shows a refusal; each problem whose JSON pointer falls inside a field is also shown there. */
-function showServerProblems(form, box, e, comparison) {
+// A problem in a pasted document, at its place in the text: a button that selects the value the
+// pointer names (or the nearest part of the document that holds it) in the textarea.
+function textPlace(ta, pointer, message) {
+  const at = locatePointer(ta.value, pointer);
+  if (!at) return null;
+  const select = () => {
+    ta.focus();
+    ta.setSelectionRange(at.start, at.end);
+  };
+  return {at, message: `line ${at.line}, column ${at.column}: ${pointer}: ${message}`,
+          button: el('button', {type: 'button', className: 'link text-place', onclick: select},
+            `line ${at.line}, column ${at.column}`), select};
+}
+
+/**
+ * Shows a refusal; each problem whose JSON pointer falls inside a field is also shown there, and
+ * with a pasted document every other problem of the document at its line and column in the text.
+ */
+function showServerProblems(f, e, comparison) {
+  const {form} = f;
   const problems = e instanceof ApiError ? e.problems : [];
-  box.replaceChildren(el('p', {}, e.status === 404 && comparison
-    ? 'This server has no comparisons API (POST /api/v1/comparisons answered 404).'
-    : `The server refused it (${e.status || 'no answer'}): ${e.message}`),
-  problems.length ? el('ul', {}, ...problems.map((p) => el('li', {}, el('code', {}, p)))) : null);
+  const paste = f.isPaste() ? f.sceneJson : null;
+  const places = [];
   const fields = [...form.querySelectorAll('[data-pointer]')];
-  for (const p of problems) {
-    const m = /^[^:]*: (\/[^:]*): (.*)$/.exec(p);
-    if (!m) continue;
+  const items = problems.map((p) => {
+    // "<document>: <pointer>: <rule>": "request" names the request's own keys, anything else
+    // (a pasted scene is "inline") the scene document.
+    const m = /^([^:]*): (\/[^:]*): (.*)$/.exec(p);
+    if (!m) return el('li', {}, el('code', {}, p));
     // Longest field pointer that is the problem's pointer or a prefix of it at a segment boundary.
     let best = null;
-    for (const f of fields) {
-      const fp = f.dataset.pointer;
-      if ((m[1] === fp || m[1].startsWith(`${fp}/`)) && (!best || fp.length > best.dataset.pointer.length)) best = f;
+    for (const x of fields) {
+      const fp = x.dataset.pointer;
+      if ((m[2] === fp || m[2].startsWith(`${fp}/`)) && (!best || fp.length > best.dataset.pointer.length)) best = x;
     }
-    if (best) setError(best, m[2]);
+    if (best) setError(best, m[3]);
+    const place = !best && paste && m[1] !== 'request' ? textPlace(paste, m[2], m[3]) : null;
+    if (place) places.push(place);
+    return el('li', {}, place ? place.button : null, place ? ' ' : null, el('code', {}, p));
+  });
+  f.serverErrors.replaceChildren(el('p', {}, e.status === 404 && comparison
+    ? 'This server has no comparisons API (POST /api/v1/comparisons answered 404).'
+    : `The server refused it (${e.status || 'no answer'}): ${e.message}`),
+  items.length ? el('ul', {}, ...items) : null);
+  if (places.length) {
+    setError(paste, places.map((x) => x.message).join('; '));
+    places[0].select();
   }
 }

@@ -35,6 +35,9 @@ typedef struct obs_render_opts {
    * renders per pixel shades only those (the rest of the image stays 0) and the result says
    * `tiled`; any other renders the whole region as without a source. */
   const obs_tile_source *tiles;
+  /* NULL, or who watches the per-pixel driver's finished tiles (obs_tile_watch): renders that do
+   * not go through the per-pixel driver never call it. */
+  const obs_tile_watch *watch;
   /* The caller's (the CLI under `mpirun ... --distribute data`): the brick this render owns. */
   obs_brick brick;
 } obs_render_opts;

@@ -63,6 +63,18 @@ typedef struct obs_region {
   int x0, y0, x1, y1;
 } obs_region;
 
+/* Who watches the per-pixel driver fill its image (obscurad's preview of a running job). `tile`
+ * is called from the render thread that shaded a tile, once its pixels in `img` (the driver's
+ * full-size image) are final: the watcher may read those pixels from any thread until `end`,
+ * which the driver calls once after the last tile, before `img` is returned or freed; `end`
+ * returns only when the watcher has stopped reading. Both must be cheap (a lock and an append):
+ * `tile` runs inside the timed shading loop. */
+typedef struct obs_tile_watch {
+  void (*tile)(void *user, const obs_image *img, const obs_region *tile);
+  void (*end)(void *user, const obs_image *img);
+  void *user;
+} obs_tile_watch;
+
 /* Where the per-pixel driver takes its tiles when one render is split across processes (the
  * CLI's MPI ranks: docs/mpi.md): instead of every tile of the region, the tiles `next` hands out,
  * and after each one `done`. Borrowed by the render; `user` is the source's.
@@ -106,6 +118,8 @@ typedef struct obs_render_ctx {
    * learns from `tiled` (obs_result.tiled) whether the technique rendered per pixel. */
   const obs_tile_source *tiles;
   int tiled;
+  /* NULL, or who watches the per-pixel driver's tiles (obs_render_opts.watch). */
+  const obs_tile_watch *watch;
   /* Built by the framework before the run for the technique's `needs`, owned by it: on the CPU
    * backend, for OBS_NEED_BVH, the BVH (renderer/cpu/raytrace.h's obs_rt); else NULL. */
   const void *rt;
