@@ -23,6 +23,7 @@ static int diff_bad(const char *fmt, const char *what) {
   fprintf(stderr, "obscura diff: ");
   fprintf(stderr, fmt, what);
   fputc('\n', stderr);
+  cli_hint("diff");
   return EXIT_BAD_INPUT;
 }
 
@@ -213,6 +214,7 @@ int cli_metrics(int argc, char **argv) {
   } else {
     fprintf(stderr, "obscura metrics: takes one of --json, --markdown, --openapi%s%s\n",
             argc > 2 ? "; got " : "", argc > 2 ? argv[2] : "");
+    cli_hint("metrics");
     return EXIT_BAD_INPUT;
   }
   if (!txt) return EXIT_FAILURE;
