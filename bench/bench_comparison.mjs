@@ -184,6 +184,7 @@ async function main() {
   try {
     const health = await api(d, 'GET', '/api/v1/health');
     const {techniques} = await api(d, 'GET', '/api/v1/techniques');
+    o.metrics = (await api(d, 'GET', '/api/v1/metrics')).metrics;
     const kindOf = (t) => (t.typed_outputs.find((x) => x.primary) || {}).kind;
     fs.mkdirSync(path.join(o.out, 'img'), {recursive: true});
     const sections = [];
@@ -219,15 +220,23 @@ function section(o, {q, slug, c, wallS, haveShot}) {
              `${refs.join('; ')}. Error measure: RMSE of ${measure ? `${measure}${q.kind === 'rgb' ? ' luminance' : ''}` : 'AO'}` +
              `${q.kind === 'patch' ? ' (the image of the patches; per-patch RMSE in the CSV)' : ''}. ` +
              `The comparison took ${wallS.toFixed(0)} s of wall time.`, '');
-  lines.push('| technique | backend | parameters | ms (median) | RMSE | bias | SSIM | PSNR dB | Pareto |',
-             '| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | :---: |');
+  // The metric columns: the metric table's top-level figures the candidates have (GET
+  // /api/v1/metrics), in its order, each to its digits; the reference's noise is information.
+  const cols = o.metrics.filter((m) => !m.json_group && m.direction !== 'none' &&
+                                       rows.some((x) => x.metrics && x.metrics[m.json_key] !== undefined));
+  lines.push(`| technique | backend | parameters | ms (median) | ${cols.map((m) => (m.unit ? `${m.label} ${m.unit}` : m.label)
+    .replace(/\|/g, '\\|')).join(' | ')} | Pareto |`, `| --- | --- | --- | ---: | ${cols.map(() => '---:').join(' | ')} | :---: |`);
   for (const x of rows) {
     const mm = x.metrics || {};
     const acc = mm.at_reference_accuracy ? ' (at reference accuracy)' : '';
     const err = x.metrics ? '' : ` (${x.error || x.state})`;
+    const cells = cols.map((m) => {
+      const v = mm[m.json_key];
+      const t = v === null || v === undefined || !Number.isFinite(v) ? '-' : Number(v.toPrecision(m.digits)).toString();
+      return m.name === 'rmse' ? t + acc : t;
+    });
     lines.push(`| ${x.technique} | ${x.backend} | ${paramText(x.technique, x.params) || 'defaults'}${err} | ` +
-               `${fmt(x.timings_ms?.median?.total, 1)} | ${fmt(mm.rmse, 4)}${acc} | ${fmt(mm.bias, 4)} | ` +
-               `${fmt(mm.ssim, 3)} | ${fmt(mm.psnr, 1)} | ${x.pareto ? 'yes' : ''} |`);
+               `${fmt(x.timings_ms?.median?.total, 1)} | ${cells.join(' | ')} | ${x.pareto ? 'yes' : ''} |`);
   }
   lines.push('');
   if (haveShot) {
