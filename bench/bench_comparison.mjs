@@ -37,8 +37,12 @@ const GRIDS = {
 
 // The quantities, by the kind of a technique's primary output, with the reference samples each
 // comparison uses unless --reference-samples sets them all.
+// The AO comparison also scores every candidate against one common reference (rt_ao, binary,
+// cosine, the scene file's distance), the one scale on which techniques of different AO
+// definitions may be ranked together.
 const QUANTITIES = [
-  {kind: 'scalar', title: 'Ambient occlusion', refSamples: 1024},
+  {kind: 'scalar', title: 'Ambient occlusion', refSamples: 1024,
+   common: {technique: 'rt_ao', params: {falloff: 'binary', weighting: 'cosine', max_distance: 200}}},
   {kind: 'rgb', title: 'RGB radiance', refSamples: 256},
   {kind: 'patch', title: 'Per-patch obscurances', refSamples: 1024},
 ];
@@ -144,6 +148,15 @@ async function screenshot(o, d, id, file) {
 
 const SLUG = {scalar: 'ao', rgb: 'rgb', patch: 'patch'};
 
+// The backend with the device its time came from, as the dashboard labels it: a Vulkan time
+// measured on a software rasteriser is a CPU time.
+function deviceText(x) {
+  const m = x.machine || {};
+  if (x.backend !== 'vulkan') return x.backend;
+  const name = (m.vulkan_device || '').split(' (')[0];
+  return m.vulkan_device_kind === 'software' ? `vulkan · ${name} (software)` : name ? `vulkan · ${name}` : 'vulkan';
+}
+
 // The candidate entries of technique t: its grid's (one entry or several), on the backends this
 // server runs.
 function entriesOf(t, health) {
@@ -162,7 +175,8 @@ async function runComparison(d, o, q, candidates) {
   const made = await api(d, 'POST', '/api/v1/comparisons', {
     scene_file: 'cornell_box.json', label: `${q.title} on the Cornell box`,
     set: {'/image/width': o.width, '/image/height': o.height}, repeats: o.repeats,
-    reference: {samples: o.refSamples ?? q.refSamples}, candidates});
+    reference: {samples: o.refSamples ?? q.refSamples}, candidates,
+    ...(q.common ? {common_reference: {...q.common, samples: o.refSamples ?? q.refSamples}} : {})});
   console.error(`${q.title}: comparison ${made.id}, ${made.candidates} candidates, ${made.references} references`);
   let c;
   for (;;) {
@@ -184,11 +198,14 @@ async function main() {
   try {
     const health = await api(d, 'GET', '/api/v1/health');
     const {techniques} = await api(d, 'GET', '/api/v1/techniques');
+    o.metrics = (await api(d, 'GET', '/api/v1/metrics')).metrics;
     const kindOf = (t) => (t.typed_outputs.find((x) => x.primary) || {}).kind;
     fs.mkdirSync(path.join(o.out, 'img'), {recursive: true});
     const sections = [];
     for (const q of QUANTITIES) {
-      const ts = techniques.filter((t) => kindOf(t) === q.kind);
+      // The Cornell box has no volume or environment map: techniques needing one are not run.
+      const ts = techniques.filter((t) => kindOf(t) === q.kind &&
+                                          !t.needs.some((n) => ['volume', 'environment_map'].includes(n)));
       if (!ts.length) continue;
       const run = await runComparison(d, o, q, ts.flatMap((t) => entriesOf(t, health)));
       const slug = SLUG[q.kind];
@@ -213,21 +230,36 @@ function section(o, {q, slug, c, wallS, haveShot}) {
     a.backend.localeCompare(b.backend) || (a.timings_ms?.median?.total ?? 0) - (b.timings_ms?.median?.total ?? 0));
   const measure = c.candidates.find((x) => x.metrics && x.metrics.output)?.metrics.output;
   const lines = [`## ${q.title}`, ''];
-  const refs = c.references.map((r) => `${r.technique} ${Object.entries(r.params)
-    .filter(([k]) => !['seed', 'sampler', 'samples'].includes(k)).map(([k, v]) => `${k}=${v}`).join(' ')}`);
-  lines.push(`References (${c.references.length}, ${o.refSamples ?? q.refSamples} samples each): ` +
-             `${refs.join('; ')}. Error measure: RMSE of ${measure ? `${measure}${q.kind === 'rgb' ? ' luminance' : ''}` : 'AO'}` +
+  const refs = c.references.map((r) => `**${r.id}** ${r.label}${(r.roles || []).includes('common') ? ' (the common reference)' : ''}`);
+  lines.push(`References (${c.references.length}, ${o.refSamples ?? q.refSamples} samples each; each candidate's ` +
+             'Pareto mark is within its own reference\'s group, since errors against different references do ' +
+             `not share a scale):`, '', ...refs.map((r) => `- ${r}`), '',
+             `${c.note ? `Note: ${c.note} ` : ''}Error measure: RMSE of ${measure ? `${measure}${q.kind === 'rgb' ? ' luminance' : ''}` : 'AO'}` +
              `${q.kind === 'patch' ? ' (the image of the patches; per-patch RMSE in the CSV)' : ''}. ` +
              `The comparison took ${wallS.toFixed(0)} s of wall time.`, '');
-  lines.push('| technique | backend | parameters | ms (median) | RMSE | bias | SSIM | PSNR dB | Pareto |',
-             '| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | :---: |');
+  // The metric columns: the metric table's top-level figures the candidates have (GET
+  // /api/v1/metrics), in its order, each to its digits; the reference's noise is information.
+  const cols = o.metrics.filter((m) => !m.json_group && m.direction !== 'none' &&
+                                       rows.some((x) => x.metrics && x.metrics[m.json_key] !== undefined));
+  const common = c.common && c.common.reference;
+  const commonHead = common ? ` RMSE vs ${common.id} | Pareto (${common.id}) |` : '';
+  lines.push(`| technique | backend | parameters | reference | ms (median) | ${cols.map((m) => (m.unit ? `${m.label} ${m.unit}` : m.label)
+    .replace(/\|/g, '\\|')).join(' | ')} | Pareto |${commonHead}`,
+             `| --- | --- | --- | --- | ---: | ${cols.map(() => '---:').join(' | ')} | :---: |${common ? ' ---: | :---: |' : ''}`);
   for (const x of rows) {
     const mm = x.metrics || {};
     const acc = mm.at_reference_accuracy ? ' (at reference accuracy)' : '';
     const err = x.metrics ? '' : ` (${x.error || x.state})`;
-    lines.push(`| ${x.technique} | ${x.backend} | ${paramText(x.technique, x.params) || 'defaults'}${err} | ` +
-               `${fmt(x.timings_ms?.median?.total, 1)} | ${fmt(mm.rmse, 4)}${acc} | ${fmt(mm.bias, 4)} | ` +
-               `${fmt(mm.ssim, 3)} | ${fmt(mm.psnr, 1)} | ${x.pareto ? 'yes' : ''} |`);
+    const cells = cols.map((m) => {
+      const v = mm[m.json_key];
+      const t = v === null || v === undefined || !Number.isFinite(v) ? '-' : Number(v.toPrecision(m.digits)).toString();
+      return m.name === 'rmse' ? t + acc : t;
+    });
+    const cm = x.common && x.common.metrics;
+    const commonCells = common ? ` ${cm ? fmt(cm.rmse, 4) : '-'} | ${x.common && x.common.pareto ? 'yes' : ''} |` : '';
+    lines.push(`| ${x.technique} | ${deviceText(x)} | ${paramText(x.technique, x.params) || 'defaults'}${err} | ` +
+               `${x.reference ? x.reference.id : '-'} | ` +
+               `${fmt(x.timings_ms?.median?.total, 1)} | ${cells.join(' | ')} | ${x.pareto ? 'yes' : ''} |${commonCells}`);
   }
   lines.push('');
   if (haveShot) {

@@ -220,11 +220,38 @@ static void print_why(json_t *cmp, json_t *cand) {
   }
 }
 
+/* The metric columns: the metric table's top-level figures some candidate has, in its order
+ * (the reference's noise, information rather than a quality, left out). Returns how many. */
+static int metric_columns(json_t *cands, const obs_metric **cols) {
+  const obs_metric *t = obs_metric_table();
+  int n = 0;
+  for (int k = 0; k < OBS_METRIC_COUNT; k++) {
+    if (t[k].json_group || t[k].direction == OBS_METRIC_NONE) continue;
+    size_t i;
+    json_t *cand;
+    json_array_foreach(cands, i, cand) {
+      if (obs_metric_json_get(json_object_get(cand, "metrics"), &t[k])) {
+        cols[n++] = &t[k];
+        break;
+      }
+    }
+  }
+  return n;
+}
+
 /* The table of candidates, then the Pareto set. */
 static void print_summary(long long id, json_t *cmp) {
   json_t *cands = json_object_get(cmp, "candidates");
-  printf("%3s  %-10s  %-7s  %10s  %10s  %8s  %7s  %s\n", "#", "TECHNIQUE", "BACKEND", "TIME_MS",
-         "RMSE", "PSNR", "SSIM", "PARAMS");
+  const obs_metric *cols[OBS_METRIC_COUNT];
+  int ncols = metric_columns(cands, cols);
+  printf("%3s  %-10s  %-7s  %10s", "#", "TECHNIQUE", "BACKEND", "TIME_MS");
+  for (int k = 0; k < ncols; k++) {
+    char head[24];
+    snprintf(head, sizeof head, "%s", cols[k]->name);
+    for (char *p = head; *p; p++) *p = (char)(*p >= 'a' && *p <= 'z' ? *p - 32 : *p);
+    printf("  %10s", head);
+  }
+  printf("  %s\n", "PARAMS");
   size_t i;
   json_t *cand;
   json_array_foreach(cands, i, cand) {
@@ -237,12 +264,12 @@ static void print_summary(long long id, json_t *cmp) {
     printf(" %-10s  %-7s  ", json_string_value(json_object_get(cand, "technique")),
            json_string_value(json_object_get(cand, "backend")));
     put_number(json_object_get(median, "total"), "%.2f", 10);
-    fputs("  ", stdout);
-    put_number(json_object_get(m, "rmse"), "%.3g", 10);
-    fputs("  ", stdout);
-    put_number(json_object_get(m, "psnr"), "%.1f", 8);
-    fputs("  ", stdout);
-    put_number(json_object_get(m, "ssim"), "%.4f", 7);
+    for (int k = 0; k < ncols; k++) {
+      char fmt[8];
+      snprintf(fmt, sizeof fmt, "%%.%dg", cols[k]->digits);
+      fputs("  ", stdout);
+      put_number(obs_metric_json_get(m, cols[k]), fmt, 10);
+    }
     if (params[0]) fputs("  ", stdout);
     cli_put_clean(stdout, params);
     print_why(cmp, cand);

@@ -23,6 +23,7 @@ static int diff_bad(const char *fmt, const char *what) {
   fprintf(stderr, "obscura diff: ");
   fprintf(stderr, fmt, what);
   fputc('\n', stderr);
+  cli_hint("diff");
   return EXIT_BAD_INPUT;
 }
 
@@ -211,7 +212,9 @@ int cli_metrics(int argc, char **argv) {
     txt = what[2] == 'm' ? obs_metric_table_markdown() : obs_metric_table_openapi();
     if (txt) fputs(txt, stdout);
   } else {
-    cli_usage(stderr, "metrics");
+    fprintf(stderr, "obscura metrics: takes one of --json, --markdown, --openapi%s%s\n",
+            argc > 2 ? "; got " : "", argc > 2 ? argv[2] : "");
+    cli_hint("metrics");
     return EXIT_BAD_INPUT;
   }
   if (!txt) return EXIT_FAILURE;

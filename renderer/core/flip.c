@@ -183,7 +183,7 @@ typedef struct flip_side {
   float *lab[3], *edge, *point;
 } flip_side;
 
-/* lin: linear RGB planes in [0, 1]; buf: 9 w*h planes of scratch. */
+/* lin: linear RGB planes in [0, 1]; buf: 7 w*h planes of scratch. */
 static void flip_prepare(float *const lin[3], int w, int h, const flip_filters *f, float *buf,
                          flip_side *out) {
   size_t n = (size_t)w * (size_t)h;
@@ -233,11 +233,11 @@ static void flip_prepare(float *const lin[3], int w, int h, const flip_filters *
 static int flip_ldr(float *const test[3], float *const ref[3], int w, int h,
                     const flip_filters *f, float *err_out, int accumulate, obs_err *err) {
   size_t n = (size_t)w * (size_t)h;
-  float *mem = malloc(19 * n * sizeof *mem);
+  float *mem = malloc(17 * n * sizeof *mem); /* 7 planes of scratch, 5 per image */
   if (!mem) return obs_err_set(err, OBS_ENOMEM, "flip: out of memory (%dx%d)", w, h);
   flip_side s[2];
   for (int k = 0; k < 2; k++) {
-    float *b = mem + 9 * n + (size_t)k * 5 * n;
+    float *b = mem + 7 * n + (size_t)k * 5 * n;
     s[k] = (flip_side){{b, b + n, b + 2 * n}, b + 3 * n, b + 4 * n};
   }
   flip_prepare(ref, w, h, f, mem, &s[0]);
@@ -372,11 +372,12 @@ static int flip_compute(const obs_image *test, const obs_image *ref, const char 
   flip_filters f;
   int rc = flip_filters_init(&f, ppd, err);
   if (rc) return rc;
-  float *mem = malloc(12 * n * sizeof *mem);
+  /* The inputs' planes, and for HDR-FLIP one exposure's tone-mapped planes. */
+  float *mem = malloc((hdr ? 12 : 6) * n * sizeof *mem);
   if (!mem) return obs_err_set(err, OBS_ENOMEM, "flip: out of memory (%dx%d)", w, h);
   float *tp[3] = {mem, mem + n, mem + 2 * n}, *rp[3] = {mem + 3 * n, mem + 4 * n, mem + 5 * n};
-  float *tm[3] = {mem + 6 * n, mem + 7 * n, mem + 8 * n};
-  float *rm[3] = {mem + 9 * n, mem + 10 * n, mem + 11 * n};
+  float *tm[3] = {NULL, NULL, NULL}, *rm[3] = {NULL, NULL, NULL};
+  for (int k = 0; hdr && k < 3; k++) tm[k] = mem + (6 + k) * n, rm[k] = mem + (9 + k) * n;
   rc = flip_planes(test, channel, hdr, mem, bad, "test", err);
   if (!rc) rc = flip_planes(ref, channel, hdr, mem + 3 * n, bad, "reference", err);
   if (!rc && !hdr) rc = flip_ldr(tp, rp, w, h, &f, e, 0, err);

@@ -300,7 +300,8 @@ test('viewer: candidate against the mapped reference, A - B as the metrics measu
         const v = window.__obscura.viewer;
         return v && v.ready && v.b;
       });
-      assert.match(page.url(), new RegExp(`#/view/${cand.job_id}\\?b=${cand.job_id}%2Freference_mapped\\.exr&`));
+      // The link names the mapped EXR as B; the viewer keeps it as the stack's reference.
+      assert.match(page.url(), new RegExp(`#/view/${cand.job_id}\\?stack=${cand.job_id}%2Freference_mapped\\.exr&ref=2&`));
       const got = await page.evaluate(() => {
         const {a, b} = window.__obscura.viewer;
         const ch = (im, n) => im.img.channels.find((c) => c.name === n).data;

@@ -61,12 +61,17 @@ test('an RGB comparison: luminance RMSE on the chart and in the table, per-chann
 
       // The table: RMSE (luminance) as the API gives it, the per-channel RMSE and relative MSE.
       const heads = await page.$$eval('table.candidates thead th', (ths) => ths.map((t) => t.textContent.replace(/[▲▼]/g, '').trim()));
-      for (const h of ['RMSE', 'RMSE R / G / B', 'Rel. MSE']) assert.ok(heads.includes(h), `column ${h} in ${heads}`);
+      // The metric columns follow the table (GET /api/v1/metrics): FLIP here is HDR-FLIP; figures
+      // equal to another (RMSE and SSIM of luminance) and the reference's noise have none.
+      for (const h of ['RMSE', 'PSNR dB', 'SSIM', 'FLIP', 'RMSE R / G / B', 'Rel. MSE']) assert.ok(heads.includes(h), `column ${h} in ${heads}`);
+      for (const h of ['RMSE of luminance', 'SSIM of luminance', 'Reference noise']) assert.ok(!heads.includes(h), `no column ${h} in ${heads}`);
+      assert.match(await page.locator('table.candidates thead th', {hasText: 'FLIP'}).getAttribute('title'), /HDR-FLIP .*\(lower is better\)/);
       const cell = (index, head) => page.locator(`table.candidates tr[data-index="${index}"] td`).nth(heads.indexOf(head)).textContent();
       for (const c of doc.candidates) {
         assert.equal(await cell(c.index, 'RMSE'), c.metrics.rmse.toPrecision(4));
         assert.equal(await cell(c.index, 'RMSE R / G / B'), c.metrics.rgb.rmse.map((v) => v.toPrecision(3)).join(' / '));
         assert.equal(await cell(c.index, 'Rel. MSE'), c.metrics.rgb.rel_mse.toPrecision(4));
+        assert.equal(await cell(c.index, 'FLIP'), c.metrics.flip.toPrecision(4));
       }
 
       // The selected candidate (checkComparisonPage clicked one): its RGB figures and heatmap caption.

@@ -12,7 +12,8 @@ check() { # description, command...
   if "$@"; then pass=$((pass + 1)); echo "ok: $d"; else fail=$((fail + 1)); echo "FAIL: $d"; fi
 }
 rm -rf "$out" && mkdir -p "$out"
-small=(--quiet --set /image/width=40 --set /image/height=30)
+# --backend cpu: no Vulkan probe (its driver's process-lifetime allocations trouble LeakSanitizer).
+small=(--quiet --backend cpu --set /image/width=40 --set /image/height=30)
 "$cli" render "$root/scenes/cornell_box.json" -o "$out/rt" "${small[@]}" \
   --set /technique/params/samples=64 >/dev/null 2>&1 &&
   "$cli" render "$root/scenes/cornell_box.json" -o "$out/ss" --technique ssao "${small[@]}" \
@@ -74,6 +75,10 @@ check "path_trace radiance: the RGB entries and HDR-FLIP" node -e "
   const x = m.metrics;
   process.exit(m.channel === 'radiance' && x.rmse_r > 0 && x.rmse_g > 0 && x.rmse_b > 0 &&
     x.rel_mse > 0 && x.flip > 0 && x.flip < 1 && x.ssim === x.ssim_luminance ? 0 : 1);"
+
+"$cli" metrics --bogus >"$out/bad.log" 2>&1
+check "metrics with an unknown option exits 2" test $? -eq 2
+check "metrics says what it takes" grep -q -- "--json, --markdown, --openapi; got --bogus" "$out/bad.log"
 
 # Bad input: exit 2, a message naming what is wrong, nothing written.
 bad() { # description, expected message, args...

@@ -161,7 +161,7 @@ check "jobs with a bad filter shows the server's problem" grep -q "state" "$out/
 cat >"$out/cmp.json" <<JSON
 {"scene_file": "sphere_on_plane.json", "label": "cli compare", "repeats": 1,
  "set": {"/image/width": 16, "/image/height": 12},
- "reference": {"samples": 16},
+ "reference": {"samples": 256},
  "candidates": [{"technique": "rt_ao", "backend": "cpu", "params": {"samples": [2, 8]}},
                 {"technique": "ssao", "backend": "cpu"}]}
 JSON
@@ -171,8 +171,10 @@ check "compare prints the comparison's dashboard page" \
   grep -Eq "^comparison [0-9]+ queued: $url/#/comparisons/[0-9]+$" "$out/cmp.out"
 cmpid=$(sed -n 's/^comparison \([0-9]*\) queued.*/\1/p' "$out/cmp.out")
 check "compare reports progress" grep -q "^comparison $cmpid: 3/3 candidate(s) done$" "$out/cmp.err"
-check "compare prints a row per candidate with time and error" \
-  test "$(grep -Ec '^ +[0-9]+[* ] +(rt_ao|ssao) +cpu +[0-9.]+ +[0-9.e-]+ +[0-9.]+ +[0-9.]+' "$out/cmp.out")" -eq 3
+check "compare prints a row per candidate with time and every metric of the table" \
+  test "$(grep -Ec '^ +[0-9]+[* ] +(rt_ao|ssao) +cpu +[0-9.]+( +-?[0-9.e-]+){6}( |$)' "$out/cmp.out")" -eq 3
+check "compare's metric columns are the table's" \
+  grep -Eq '^ +# +TECHNIQUE +BACKEND +TIME_MS +RMSE +BIAS +MAX_ABS +PSNR +SSIM +FLIP +PARAMS$' "$out/cmp.out"
 check "compare names the parameter that varies" grep -Eq "rt_ao .* samples=2$" "$out/cmp.out"
 check "compare leaves out the parameters that do not vary" bash -c "! grep -q falloff '$out/cmp.out'"
 check "compare prints the Pareto set" grep -Eq "^pareto \(\* above, fastest first\):( [0-9]+)+$" "$out/cmp.out"
