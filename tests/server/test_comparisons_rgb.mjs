@@ -106,7 +106,8 @@ async function assertCsv(d, c) {
   // The metric columns are the metric table's, in its order (GET /api/v1/metrics).
   const table = (await request(d, 'GET', '/api/v1/metrics')).json.metrics.map((m) => m.name);
   assert.deepEqual(head.slice(11, 11 + table.length), table);
-  assert.deepEqual(head.slice(-11, -8), ['output', 'total_ms_min', 'total_ms_max']);
+  assert.deepEqual(head.slice(-12, -9), ['output', 'total_ms_min', 'total_ms_max']);
+  assert.equal(head.at(-1), 'device');
   assert.equal(rows.length, 4);
   for (const [k, x] of c.candidates.entries()) {
     const f = rows[k];
