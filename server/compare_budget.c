@@ -20,7 +20,71 @@
 typedef struct budget_row {
   size_t row;          /* index into the stored rows */
   obs_pareto_point pt; /* median time, spread, RMSE, the reference's noise */
+  char *scale;         /* what the RMSE is measured against (scale_key; owned) */
 } budget_row;
+
+/* The scale a stored RMSE is on: its reference's technique, definition (srv_compare_definition:
+ * the keys that define the reference, not its quality or seed) and response. Two RMSEs are
+ * comparable only on one scale (an ssao RMSE against its mapped sqrt-falloff reference says
+ * nothing against an rt_ao one against binary AO). */
+static json_t *scale_definition(const json_t *row) {
+  const char *rt = json_string_value(json_object_get(row, "reference_technique"));
+  json_t *params = json_loads(json_string_value(json_object_get(row, "reference_params")), 0, NULL);
+  json_t *def = srv_compare_definition(rt ? rt : "rt_ao", params);
+  json_decref(params);
+  return def ? def : json_object();
+}
+
+/* scale_definition as text, with the technique and response; NULL when out of memory. */
+static char *scale_key(const json_t *row) {
+  const char *rt = json_string_value(json_object_get(row, "reference_technique"));
+  json_t *def = scale_definition(row);
+  char *d = json_dumps(def, JSON_SORT_KEYS | JSON_COMPACT);
+  json_decref(def);
+  const char *resp = json_string_value(json_object_get(row, "response"));
+  size_t n = (d ? strlen(d) : 0) + (rt ? strlen(rt) : 0) + (resp ? strlen(resp) : 0) + 3;
+  char *key = malloc(n);
+  if (key) snprintf(key, n, "%s|%s|%s", rt ? rt : "", d ? d : "", resp ? resp : "");
+  free(d);
+  return key;
+}
+
+/* Keeps the rows of one scale in c[0..n): the scale on which the most techniques were measured
+ * (the question is which technique to run), then the most configurations, then the newest
+ * comparison's (rows come newest first). Returns how many rows stay; *dropped gets the others. */
+static size_t one_scale(budget_row *c, size_t n, size_t *dropped, const json_t *rows) {
+  size_t best = 0, best_techs = 0, best_rows = 0;
+  for (size_t i = 0; i < n; i++) {
+    size_t techs = 0, nrows = 0;
+    int first = 1;
+    for (size_t k = 0; k < i && first; k++) first = strcmp(c[k].scale, c[i].scale) != 0;
+    if (!first) continue;
+    for (size_t k = 0; k < n; k++) {
+      if (strcmp(c[k].scale, c[i].scale)) continue;
+      nrows++;
+      const char *tk = json_string_value(json_object_get(json_array_get(rows, c[k].row), "technique"));
+      int seen = 0;
+      for (size_t j = 0; j < k && !seen; j++)
+        seen = !strcmp(c[j].scale, c[i].scale) &&
+               !strcmp(tk, json_string_value(
+                               json_object_get(json_array_get(rows, c[j].row), "technique")));
+      techs += !seen;
+    }
+    if (techs > best_techs || (techs == best_techs && nrows > best_rows))
+      best = i, best_techs = techs, best_rows = nrows;
+  }
+  size_t k = 0;
+  char *keep = n ? c[best].scale : NULL;
+  for (size_t i = 0; i < n; i++) {
+    if (!strcmp(c[i].scale, keep)) {
+      budget_row r = c[i];
+      c[i] = c[k];
+      c[k++] = r;
+    }
+  }
+  *dropped = n - k;
+  return k;
+}
 
 static int budget_metrics(const srv_app *app, const json_t *row, obs_pareto_point *pt) {
   obs_backend be = OBS_BACKEND_AUTO;
@@ -75,6 +139,8 @@ static size_t budget_rows(srv_app *app, const json_t *rows, const char *scene, d
       if (!budget_metrics(app, row, &out[k].pt)) continue;
       budget_times(app, json_integer_value(json_object_get(row, "job")), &out[k].pt);
       if (isnan(out[k].pt.time_ms)) continue;
+      out[k].scale = scale_key(row);
+      if (!out[k].scale) continue;
       out[k++].row = i;
     }
     *same_scene = pass;
@@ -203,7 +269,17 @@ int srv_compare_budget_choice(srv_app *app, const char *scene, double pixels, do
   budget_row *c = malloc((n ? n : 1) * sizeof *c);
   obs_pareto_point *pts = malloc((n ? n : 1) * sizeof *pts);
   int same_scene = 0, best = -1;
-  size_t measured = c && pts ? budget_rows(app, rows, scene, pixels, c, &same_scene) : 0;
+  size_t found = c && pts ? budget_rows(app, rows, scene, pixels, c, &same_scene) : 0;
+  size_t other_scales = 0;
+  size_t measured = one_scale(c, found, &other_scales, rows);
+  char *scale_label = NULL;
+  if (measured) {
+    const json_t *r0 = json_array_get(rows, c[0].row);
+    json_t *def = scale_definition(r0);
+    scale_label = srv_compare_label(json_string_value(json_object_get(r0, "reference_technique")),
+                                    def, json_string_value(json_object_get(r0, "response")));
+    json_decref(def);
+  }
   double fastest_ms = INFINITY;
   for (size_t i = 0; i < measured; i++) fastest_ms = fmin(fastest_ms, c[i].pt.time_ms);
   for (size_t i = 0; i < measured; i++) pts[i] = c[i].pt;
@@ -227,14 +303,16 @@ int srv_compare_budget_choice(srv_app *app, const char *scene, double pixels, do
     const obs_pareto_point *b = &c[best].pt;
     json_t *row = json_array_get(rows, c[best].row);
     json_t *params = json_loads(json_string_value(json_object_get(row, "params")), 0, NULL);
-    char reason[700];
+    char reason[1400];
     snprintf(reason, sizeof reason,
              "%s among %zu measured configuration(s) %s that fit %g ms (RMSEs within the "
-             "reference's noise count as equal, times within their run-to-run spread too): %s on "
-             "%s takes %.4g ms (median) with RMSE %.4g (comparison %lld, candidate %lld)",
+             "reference's noise count as equal, times within their run-to-run spread too), all "
+             "measured against %s (%zu measured against other references not ranked with them): "
+             "%s on %s takes %.4g ms (median) with RMSE %.4g (comparison %lld, candidate %lld)",
              b->at_reference_accuracy ? "the fastest at reference accuracy"
                                       : "the fastest of the lowest RMSE",
              measured, same_scene ? "of this scene" : "of scenes of a similar size", budget_ms,
+             scale_label ? scale_label : "one reference", other_scales,
              json_string_value(json_object_get(row, "technique")),
              json_string_value(json_object_get(row, "backend")), b->time_ms, b->error,
              (long long)json_integer_value(json_object_get(row, "comparison")),
@@ -252,8 +330,15 @@ int srv_compare_budget_choice(srv_app *app, const char *scene, double pixels, do
                         "stored comparison candidates with AO metrics (docs/comparisons.md)",
                         "vulkan_kind",
                         app->vulkan_kind ? json_string(app->vulkan_kind) : json_null());
+    if (*choice) {
+      json_object_set_new(*choice, "reference_label",
+                          scale_label ? json_string(scale_label) : json_null());
+      json_object_set_new(*choice, "other_references", json_integer((json_int_t)other_scales));
+    }
     if (!*choice) rc = obs_err_set(problems, OBS_ENOMEM, "request: out of memory");
   }
+  for (size_t i = 0; c && i < found; i++) free(c[i].scale);
+  free(scale_label);
   free(c);
   free(pts);
   json_decref(rows);

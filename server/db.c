@@ -172,11 +172,13 @@ static const char *const sql[ST_COUNT] = {
         "(j.backend <> 'vulkan' OR m.vulkan_kind = ?3) ORDER BY ru.job DESC LIMIT 5000",
     [ST_QUERY + SRV_Q_BUDGET] =
         "SELECT c.id AS comparison, c.scene, cc.idx, cc.job, cc.technique, cc.backend, cc.params, "
-        "cc.metrics, j.width * j.height * j.spp AS pixels, (SELECT m.vulkan_kind FROM runs ru "
+        "cc.metrics, cc.role, cc.reference_params, cc.response, rj.technique AS reference_technique, "
+        "j.width * j.height * j.spp AS pixels, (SELECT m.vulkan_kind FROM runs ru "
         "JOIN machines m ON m.id = ru.machine WHERE ru.job = cc.job LIMIT 1) AS vulkan_kind "
         "FROM comparison_candidates cc "
         "JOIN comparisons c ON c.id = cc.comparison JOIN jobs j ON j.id = cc.job "
-        "WHERE cc.metrics IS NOT NULL AND cc.role = 'own' AND j.state = 'succeeded' "
+        "JOIN jobs rj ON rj.id = cc.reference_job "
+        "WHERE cc.metrics IS NOT NULL AND cc.role IN ('own', 'common') AND j.state = 'succeeded' "
         "ORDER BY c.id DESC, cc.idx LIMIT 2000",
     [ST_QUERY + SRV_Q_JOB_RUNS] = "SELECT total_ms FROM runs WHERE job = ?1 ORDER BY run",
 };
