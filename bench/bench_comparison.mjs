@@ -148,14 +148,9 @@ async function screenshot(o, d, id, file) {
 
 const SLUG = {scalar: 'ao', rgb: 'rgb', patch: 'patch'};
 
-// The backend with the device its time came from, as the dashboard labels it: a Vulkan time
-// measured on a software rasteriser is a CPU time.
-function deviceText(x) {
-  const m = x.machine || {};
-  if (x.backend !== 'vulkan') return x.backend;
-  const name = (m.vulkan_device || '').split(' (')[0];
-  return m.vulkan_device_kind === 'software' ? `vulkan · ${name} (software)` : name ? `vulkan · ${name}` : 'vulkan';
-}
+// The backend with the device its time came from, the server's label (a Vulkan time measured on
+// a software rasteriser is a CPU time, and the label says so).
+const deviceText = (x) => (x.device && x.device.label ? x.device.label : x.backend);
 
 // The candidate entries of technique t: its grid's (one entry or several), on the backends this
 // server runs.
@@ -234,7 +229,7 @@ function section(o, {q, slug, c, wallS, haveShot}) {
   lines.push(`References (${c.references.length}, ${o.refSamples ?? q.refSamples} samples each; each candidate's ` +
              'Pareto mark is within its own reference\'s group, since errors against different references do ' +
              `not share a scale):`, '', ...refs.map((r) => `- ${r}`), '',
-             `${c.note ? `Note: ${c.note} ` : ''}Error measure: RMSE of ${measure ? `${measure}${q.kind === 'rgb' ? ' luminance' : ''}` : 'AO'}` +
+             `${c.note ? `Note: ${c.note.replace(/\.?$/, '.')} ` : ''}Error measure: RMSE of ${measure ? `${measure}${q.kind === 'rgb' ? ' luminance' : ''}` : 'AO'}` +
              `${q.kind === 'patch' ? ' (the image of the patches; per-patch RMSE in the CSV)' : ''}. ` +
              `The comparison took ${wallS.toFixed(0)} s of wall time.`, '');
   // The metric columns: the metric table's top-level figures the candidates have (GET
@@ -263,8 +258,9 @@ function section(o, {q, slug, c, wallS, haveShot}) {
   }
   lines.push('');
   if (haveShot) {
-    lines.push(`The dashboard's Pareto chart of this comparison (time against RMSE, log axes; one series ` +
-               'per technique, CPU and Vulkan told apart by marker shape):', '',
+    lines.push(`The dashboard's Pareto chart of this comparison (time against RMSE, log axes; one colour and ` +
+               'Pareto front per reference when the candidates have several, else per technique; CPU and Vulkan ' +
+               'told apart by marker shape):', '',
                `![Pareto chart: ${q.title}](img/comparison-cornell-${slug}.png)`, '');
   }
   lines.push(`The same table as CSV: [\`comparison-cornell-${slug}.csv\`](comparison-cornell-${slug}.csv).`, '');

@@ -60,7 +60,12 @@ static int cmp_double(const void *a, const void *b) {
  * "Ranking"), from their metrics objects: the largest reference noise, how many are at reference
  * accuracy, how many neighbours in RMSE order lie within that noise, and a warning when the
  * reference is too noisy to rank them: some candidate is at reference accuracy, or the noise is
- * at least half the spread of their RMSEs (max - min). */
+ * at least half the spread of their RMSEs (max - min) and at least a tenth of the smallest. The
+ * second bound: a reference's noise s adds s^2 to every candidate's MSE alike, moving an RMSE e
+ * to sqrt(e^2 + s^2), which keeps their order; it can only matter where it moves them by a
+ * visible share, and at s = e/10 that share is 0.5 %. Below it, RMSEs within the noise of each
+ * other (a technique on two backends) are ties, not a reference too noisy to rank: more
+ * reference samples would not tell them apart. */
 static json_t *ranking_of(json_t *const *ms, size_t n) {
   size_t m = 0, at_ref = 0, ties = 0;
   double noise = NAN, *e = calloc(n + 1, sizeof *e);
@@ -78,7 +83,7 @@ static json_t *ranking_of(json_t *const *ms, size_t n) {
     for (size_t i = 1; i < m; i++) ties += e[i] - e[i - 1] <= noise;
   if (at_ref)
     why = "at reference accuracy";
-  else if (e && m > 1 && noise > 0 && noise >= 0.5 * (e[m - 1] - e[0]))
+  else if (e && m > 1 && noise > 0 && noise >= 0.5 * (e[m - 1] - e[0]) && noise >= 0.1 * e[0])
     why = "noise";
   if (why && at_ref)
     snprintf(msg, sizeof msg,

@@ -141,6 +141,9 @@ export async function checkComparisonPage(page, doc, prefix) {
   // least 10 px from every other. Measured after two frames, once layout (and uPlot's resize) has
   // settled.
   const target = await page.evaluate(async () => {
+    // The chart in the viewport first: the page above it (references, notes, the budget's
+    // answer) may push it below the fold, where a click reaches nothing.
+    window.__obscura.comparison.uplot.over.scrollIntoView({block: 'center'});
     for (let k = 0; k < 2; k++) await new Promise((r) => requestAnimationFrame(r));
     const u = window.__obscura.comparison.uplot;
     const order = window.__obscura.comparison.chart.order;

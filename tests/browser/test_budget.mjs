@@ -79,10 +79,12 @@ test('budget: form, chart line and readout, list answer, auto job reasoning, dev
       await page.getByRole('heading', {name: 'Why this configuration (auto)'}).waitFor();
       const j = await waitJob(d, jid);
       assert.equal(j.state, 'succeeded', j.error);
-      await page.locator('section.choice', {hasText: 'against'}).waitFor();
+      await page.locator('section.choice', {hasText: 'ran in'}).waitFor();
       const choice = await page.locator('section.choice').textContent();
       assert.match(choice, /Budget 1000 ms\. Picked \w+ on (cpu|vulkan)/);
       assert.match(choice, /ran in [\d.]+ ms \(median of its timed renders\) against [\d.]+ ms expected/);
+      // The scale the pick was ranked on, named, and what was left out as measured elsewhere.
+      assert.ok(choice.includes(`Every RMSE weighed here is measured against ${j.choice.reference_label}`), choice);
       assert.equal(await page.locator('table.alternatives tbody tr').count(), j.choice.alternatives.length);
       await assertAllNamed(page, 'auto job');
       await screenshot(page, 'budget-job');

@@ -113,13 +113,15 @@ export function choiceSection(j) {
   const actual = Number.isFinite(c.actual_ms)
     ? `ran in ${fmtMs(c.actual_ms)} ms (median of its timed renders) against ${fmtMs(c.expected_ms)} ms expected: ` +
       `${(c.actual_ms / c.expected_ms).toPrecision(3)}×${c.actual_ms > c.budget_ms ? `, over the ${fmtMs(c.budget_ms)} ms budget` : ''}`
-    : 'not run yet: its actual time appears here once it has.';
+    : 'has not run yet: its actual time appears here once it has.';
   return el('section', {className: 'choice', 'aria-labelledby': 'h-choice'},
     el('h2', {id: 'h-choice'}, 'Why this configuration (auto)'),
     el('p', {}, `Budget ${fmtMs(c.budget_ms)} ms. Picked ${c.technique} on ${c.backend} `, el('code', {}, paramText(c.params)),
       `: expected ${fmtMs(c.expected_ms)} ms with RMSE ${fmtNum(c.expected_rmse, 3)} (comparison `,
       el('a', {href: `#/comparisons/${c.comparison_id}`}, String(c.comparison_id)), `, candidate ${c.candidate}). `,
       `It ${actual}`),
+    c.reference_label ? el('p', {}, `Every RMSE weighed here is measured against ${c.reference_label}` +
+      (c.other_references ? `; ${c.other_references} measured against other references were left out, since errors against different references are not comparable.` : '.')) : null,
     el('p', {className: 'muted'}, `${c.reason}. Read from ${c.from}; ${c.considered} configuration${c.considered === 1 ? '' : 's'} considered` +
       `${c.vulkan_kind ? `, Vulkan timings of ${c.vulkan_kind} devices only` : ', CPU timings only (no Vulkan lane)'}.`),
     c.alternatives && c.alternatives.length ? el('table', {className: 'alternatives'},
