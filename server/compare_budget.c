@@ -6,6 +6,7 @@
 #include <math.h>
 #include <microhttpd.h>
 #include <pthread.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -49,41 +50,44 @@ static char *scale_key(const json_t *row) {
   return key;
 }
 
-/* Keeps the rows of one scale in c[0..n): the scale on which the most techniques were measured
- * (the question is which technique to run), then the most configurations, then the newest
- * comparison's (rows come newest first). Returns how many rows stay; *dropped gets the others. */
+/* Keeps the rows of one scale in c[0..n), in their order (ties in budget_pick go to the
+ * earlier): the scale on which the most techniques were measured (the question is which
+ * technique to run), then the most configurations, then the newest comparison's (rows come newest
+ * first). The other rows follow. One pass over the rows per distinct scale seen, techniques as
+ * bits of their registry index. Returns how many rows stay; *dropped gets the others. */
 static size_t one_scale(budget_row *c, size_t n, size_t *dropped, const json_t *rows) {
-  size_t best = 0, best_techs = 0, best_rows = 0;
+  typedef struct {
+    const char *scale;
+    uint64_t techs;
+    size_t nrows;
+  } group;
+  group *g = calloc(n ? n : 1, sizeof *g);
+  budget_row *sorted = malloc((n ? n : 1) * sizeof *sorted);
+  size_t ng = 0, best = 0, k = 0;
+  if (!g || !sorted) n = 0; /* out of memory: nothing is ranked */
   for (size_t i = 0; i < n; i++) {
-    size_t techs = 0, nrows = 0;
-    int first = 1;
-    for (size_t k = 0; k < i && first; k++) first = strcmp(c[k].scale, c[i].scale) != 0;
-    if (!first) continue;
-    for (size_t k = 0; k < n; k++) {
-      if (strcmp(c[k].scale, c[i].scale)) continue;
-      nrows++;
-      const char *tk = json_string_value(json_object_get(json_array_get(rows, c[k].row), "technique"));
-      int seen = 0;
-      for (size_t j = 0; j < k && !seen; j++)
-        seen = !strcmp(c[j].scale, c[i].scale) &&
-               !strcmp(tk, json_string_value(
-                               json_object_get(json_array_get(rows, c[j].row), "technique")));
-      techs += !seen;
-    }
-    if (techs > best_techs || (techs == best_techs && nrows > best_rows))
-      best = i, best_techs = techs, best_rows = nrows;
+    size_t j = 0;
+    while (j < ng && strcmp(g[j].scale, c[i].scale)) j++;
+    if (j == ng) g[ng++].scale = c[i].scale;
+    const obs_technique *t = obs_technique_find(
+        json_string_value(json_object_get(json_array_get(rows, c[i].row), "technique")));
+    for (size_t x = 0; x < obs_technique_count() && x < 64; x++)
+      if (obs_technique_at(x) == t) g[j].techs |= (uint64_t)1 << x;
+    g[j].nrows++;
   }
-  size_t k = 0;
-  char *keep = n ? c[best].scale : NULL;
-  for (size_t i = 0; i < n; i++) {
-    if (!strcmp(c[i].scale, keep)) {
-      budget_row r = c[i];
-      c[i] = c[k];
-      c[k++] = r;
-    }
+  for (size_t j = 1; j < ng; j++) {
+    int tj = __builtin_popcountll(g[j].techs), tb = __builtin_popcountll(g[best].techs);
+    if (tj > tb || (tj == tb && g[j].nrows > g[best].nrows)) best = j;
   }
-  *dropped = n - k;
-  return k;
+  for (int keep = 1; keep >= 0; keep--)
+    for (size_t i = 0; i < n; i++)
+      if ((strcmp(c[i].scale, g[best].scale) == 0) == keep) sorted[k++] = c[i];
+  if (n) memcpy(c, sorted, n * sizeof *c);
+  *dropped = n ? n - g[best].nrows : 0;
+  size_t kept = n ? g[best].nrows : 0;
+  free(g);
+  free(sorted);
+  return kept;
 }
 
 static int budget_metrics(const srv_app *app, const json_t *row, obs_pareto_point *pt) {
