@@ -1,0 +1,258 @@
+/* The job server's database interface (db.c and the db_*.c files behind it): job and lane
+ * states, the jobs, comparisons, runs and machines rows, the named queries and the database's
+ * recovery. Included by obscurad.h; the SQL itself stays private to the db files. */
+#ifndef SRV_DB_H
+#define SRV_DB_H
+
+#include <jansson.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "obscura/obscura.h"
+
+typedef struct srv_db srv_db;
+
+typedef enum {
+  SRV_QUEUED,
+  SRV_RUNNING,
+  SRV_SUCCEEDED,
+  SRV_FAILED,
+  SRV_CANCELLED,
+  SRV_NSTATES
+} srv_state;
+const char *srv_state_name(srv_state s);
+int srv_state_parse(const char *s, srv_state *out);
+
+typedef enum { SRV_LANE_CPU, SRV_LANE_VULKAN, SRV_NLANES } srv_lane;
+const char *srv_lane_name(srv_lane l);
+/* The lane of a stored lane name ("cpu" or "vulkan"; anything else reads as the CPU lane). */
+srv_lane srv_lane_parse(const char *name);
+
+typedef struct srv_output {
+  char name[32];
+  int64_t size;
+  char sha256[65];
+  char content_type[40];
+} srv_output;
+
+/* A row of `jobs` with its outputs. Owns its strings; release with srv_job_free. */
+typedef struct srv_job {
+  int64_t id;
+  srv_state state;
+  int priority;
+  char *label;             /* may be NULL */
+  char *scene;
+  char *technique;
+  char *backend_requested;
+  char *backend;           /* may be NULL until claimed */
+  srv_lane lane;
+  int width, height, spp;
+  int attempts;
+  int cancel_requested;
+  int64_t created_ms, started_ms, finished_ms; /* 0 = not yet */
+  char *error;             /* may be NULL */
+  char *summary;           /* summary.json text, may be NULL */
+  double progress;         /* stored at the end of an attempt; live value comes from the scheduler */
+  int repeats;             /* timed renders per attempt */
+  int warmup;              /* 1: one untimed render first (comparison jobs) */
+  char *backend_reason;    /* why this backend, may be NULL */
+  int64_t comparison;      /* the comparison it belongs to, 0 = none */
+  char *scene_name;        /* an inline scene's name, may be NULL */
+  char *notes;             /* JSON array of the values derived from the scene's size, may be NULL */
+  int ranks;               /* Open MPI ranks (> 1: rendered by mpirun, mpi_jobs.c) */
+  char *doc;               /* only filled by srv_db_claim */
+  srv_output *outputs;
+  int noutputs;
+} srv_job;
+void srv_job_free(srv_job *j);
+
+/* What the submission path hands to srv_db_insert_job (borrowed). */
+typedef struct srv_new_job {
+  int priority;
+  const char *label, *scene, *doc, *technique, *backend_requested;
+  srv_lane lane;
+  int width, height, spp;
+  int repeats, warmup;        /* 0 repeats = 1 */
+  double work;                /* width x height x spp x samples */
+  const char *backend_reason; /* may be NULL */
+  const char *scene_name;     /* an inline scene's name, may be NULL */
+  const char *notes;          /* JSON array text of derived values, may be NULL */
+  int ranks;                  /* Open MPI ranks; 0 = 1 */
+  const char *choice;         /* a time-budget job's choice (JSON text), may be NULL */
+} srv_new_job;
+
+/* One timed render of a job (a row of `runs`). */
+typedef struct srv_run {
+  double build_ms, render_ms, post_ms, total_ms;
+} srv_run;
+
+typedef struct srv_job_filter {
+  int has_state;
+  srv_state state;
+  const char *technique, *backend; /* NULL = any */
+  int64_t after;                   /* 0 = from the start */
+  int ascending;
+  int limit;
+} srv_job_filter;
+
+/* Opens (creating) the database with `nconn` pooled connections, applies the migrations of
+ * schema/db.sql. Messages go to err. */
+int srv_db_open(srv_db **out, const char *path, int nconn, obs_err *err);
+void srv_db_close(srv_db *db);
+/* The backend a job runs on in this daemon: the renderer's choice, except that "auto" falls back
+ * to the CPU when the renderer would pick Vulkan but no Vulkan lane runs (--no-vulkan). An
+ * explicit "vulkan" without a lane is an error naming the flag. */
+int srv_pick_backend(const obs_technique *t, obs_backend requested, int vulkan_lane,
+                     obs_backend *out, obs_err *err);
+/* The scheduler's lane for a job left queued by the last process: 0 and *lane (which may differ
+ * from the stored one when the Vulkan device came or went), or an error whose message the job
+ * fails with. `user` is the srv_app. */
+int srv_pick_lane_recovered(void *user, const char *technique, const char *backend_requested,
+                            srv_lane stored, srv_lane *lane, obs_err *err);
+/* Returns running jobs to queued (or fails them at SRV_MAX_ATTEMPTS), and gives every queued job
+ * the lane `pick` decides (storage records, the scheduler decides), failing those it refuses.
+ * Calls `clean(user, id)` for every job whose half-written outputs must go. Run before any
+ * worker. */
+int srv_db_recover(srv_db *db,
+                   int (*pick)(void *user, const char *technique, const char *backend_requested,
+                               srv_lane stored, srv_lane *lane, obs_err *err),
+                   void (*clean)(void *, int64_t), void *user, obs_err *err);
+
+int srv_db_insert_job(srv_db *db, const srv_new_job *nj, int64_t *id, obs_err *err);
+/* 0 and *j filled, OBS_ENOTFOUND, or another error. */
+int srv_db_get_job(srv_db *db, int64_t id, srv_job *j, obs_err *err);
+/* Fills up to f->limit + 1 jobs (the extra one only tells whether there is a next page). */
+int srv_db_list_jobs(srv_db *db, const srv_job_filter *f, srv_job **jobs, int *n, obs_err *err);
+void srv_jobs_free(srv_job *jobs, int n);
+/* Claims the next queued job of `lane` (state running, attempts + 1, started now, backend) in one
+ * UPDATE ... RETURNING. Returns 0 with *j filled (doc included), 1 when none is queued, or <0. */
+int srv_db_claim(srv_db *db, srv_lane lane, srv_job *j, obs_err *err);
+/* Sets the resolved backend of a running job. */
+int srv_db_set_backend(srv_db *db, int64_t id, const char *backend, obs_err *err);
+/* Marks a running job succeeded with its summary and records its outputs and its timed runs (with
+ * the machine that ran them, 0 = unknown), in one transaction. */
+int srv_db_finish_success(srv_db *db, int64_t id, const char *backend, const char *summary,
+                          const srv_output *outs, int nouts, const srv_run *runs, int nruns,
+                          int64_t machine, obs_err *err);
+/* The id of the machines row with these facts, inserted when new. vulkan_device may be NULL. */
+/* Where a time came from (device.c): {"backend", "name", "kind" ("cpu", "gpu", "software",
+ * "other", null when unknown), "label"} for a job of `backend` timed on a machines row
+ * (cpu_model, cores, vulkan_device, vulkan_kind); null without a machine. The label reads
+ * "vulkan · llvmpipe (...) (software)" or "cpu · <model> (N threads)". */
+json_t *srv_device_json(const char *backend, const json_t *machine);
+/* This daemon's devices: {"cpu": device, "vulkan": device or null without a Vulkan lane}. */
+struct srv_app;
+json_t *srv_devices_json(const struct srv_app *app);
+
+int srv_db_machine(srv_db *db, const char *cpu_model, int cores, const char *vulkan_device,
+                   const char *vulkan_kind, int64_t *id, obs_err *err);
+
+/* A comparison as submitted: its reference jobs and candidate jobs (borrowed). */
+typedef struct srv_new_candidate {
+  srv_new_job job;
+  int reference; /* index into srv_new_comparison.references */
+  const char *technique, *backend, *params, *reference_params, *response;
+} srv_new_candidate;
+/* A further measurement of a candidate's job (its own row, no job of its own): against the
+ * common reference ("common") or another output against its declared reference ("output"). */
+typedef struct srv_new_measure {
+  int candidate, reference; /* indices into .candidates and .references */
+  const char *role, *reference_params, *response;
+  const char *output; /* a compared_outputs pair's candidate output, or NULL */
+} srv_new_measure;
+typedef struct srv_new_comparison {
+  const char *label, *scene, *request;
+  const char *notes; /* JSON array text of values derived from the scene's size, may be NULL */
+  int width, height, repeats;
+  const srv_new_job *references;
+  int nreferences;
+  const srv_new_candidate *candidates;
+  int ncandidates;
+  const srv_new_measure *measures; /* rows after the candidates' (indices ncandidates + k) */
+  int nmeasures;
+} srv_new_comparison;
+/* Inserts the comparison, every job, every candidate row and every further measurement's row in
+ * one transaction. */
+int srv_db_insert_comparison(srv_db *db, const srv_new_comparison *c, int64_t *id, obs_err *err);
+/* Stores a candidate's metrics (JSON) or why they could not be computed, unless already stored,
+ * and records `outs` (the error images) as outputs of `job`, in one transaction. */
+int srv_db_set_metrics(srv_db *db, int64_t comparison, int idx, int64_t job, const char *metrics,
+                       const char *error, const srv_output *outs, int nouts, obs_err *err);
+
+/* Read-only queries (prepared like every statement) whose rows come back as JSON objects keyed by
+ * column name: integers, reals, strings or null. See db.c for each statement. */
+typedef enum {
+  SRV_Q_COMPARISON,         /* ?1 comparison id */
+  SRV_Q_CANDIDATES,         /* ?1 comparison id: candidates with their jobs' states */
+  SRV_Q_COMPARISON_RUNS,    /* ?1 comparison id: runs of all its jobs, with machines */
+  SRV_Q_COMPARISON_OUTPUTS, /* ?1 comparison id: output names of all its jobs */
+  SRV_Q_COMPARISONS,        /* ?1 after (0 = start), ?2 limit: newest first, with counts */
+  SRV_Q_JOB_COMPARISON,     /* ?1 job id: the comparison it belongs to, if any */
+  SRV_Q_METRICS_PENDING,    /* ?1 job id (0 = all): candidates ready for metrics */
+  SRV_Q_AUTO_RUNS,          /* ?1 technique, ?2 work, ?3 this daemon's Vulkan kind: timed runs
+                             * at similar work per backend, Vulkan ones of that kind only */
+  SRV_Q_BUDGET,             /* candidates with metrics, newest comparisons first */
+  SRV_Q_JOB_RUNS,           /* ?1 job id: its runs' totals */
+  SRV_Q_JOB_DOC,            /* ?1 job id: its stored document, scene, label and priority */
+  SRV_Q_JOB_MACHINE,        /* ?1 job id: the machine of its last timed run */
+  SRV_Q_JOB_CHOICE,         /* ?1 job id: a time-budget job's stored choice (JSON text) */
+  SRV_Q_MACHINE,            /* ?1 machine id: its facts */
+  SRV_NQUERIES
+} srv_query;
+typedef struct srv_arg {
+  int kind; /* SRV_ARG_* */
+  int64_t i;
+  double d;
+  const char *s;
+} srv_arg;
+enum { SRV_ARG_INT, SRV_ARG_REAL, SRV_ARG_TEXT };
+int srv_db_query(srv_db *db, srv_query q, const srv_arg *args, int nargs, json_t **rows,
+                 obs_err *err);
+/* Marks a running job failed or cancelled with `error`. */
+/* Ends a running job as failed or cancelled, keeping the last progress it reached. */
+int srv_db_finish(srv_db *db, int64_t id, srv_state state, const char *error, double progress,
+                  obs_err *err);
+/* Returns a running job to the queue (daemon shutting down): its attempt does not count. */
+int srv_db_requeue(srv_db *db, int64_t id, obs_err *err);
+
+typedef enum { SRV_CANCEL_DONE, SRV_CANCEL_RUNNING, SRV_CANCEL_FINISHED } srv_cancel_result;
+/* Queued: cancelled now. Running: cancel_requested set (the scheduler stops the render). */
+int srv_db_cancel(srv_db *db, int64_t id, srv_cancel_result *res, obs_err *err);
+/* Deletes a finished job and its output rows and runs. OBS_ENOTFOUND, OBS_EINVAL when not
+ * finished, OBS_EUNSUPPORTED when it belongs to a comparison (comparisons keep their jobs). */
+int srv_db_delete(srv_db *db, int64_t id, obs_err *err);
+/* A failed or cancelled job back to the queue (same id): OBS_ENOTFOUND, or OBS_EINVAL with
+ * *state filled when it is not failed or cancelled. */
+int srv_db_retry(srv_db *db, int64_t id, srv_state *state, obs_err *err);
+/* Deletes a comparison and all its jobs in one transaction; fills ids (malloc'ed, the caller
+ * frees) with the deleted jobs. OBS_ENOTFOUND, or OBS_EINVAL while any of its jobs is active. */
+int srv_db_delete_comparison(srv_db *db, int64_t id, int64_t **ids, int *nids, obs_err *err);
+int srv_db_get_output(srv_db *db, int64_t id, const char *name, srv_output *o, obs_err *err);
+/* Job counts by state. */
+int srv_db_counts(srv_db *db, int64_t counts[SRV_NSTATES], obs_err *err);
+/* PRAGMA wal_checkpoint(TRUNCATE). */
+int srv_db_checkpoint(srv_db *db, obs_err *err);
+/* 1 with *state when job `id` exists, 0 when not, <0 on error. */
+int srv_db_job_exists(srv_db *db, int64_t id, srv_state *state, obs_err *err);
+
+/* Integrity and identity of the open database file (the maintenance thread's checks). */
+typedef enum { SRV_DB_SAME, SRV_DB_DELETED, SRV_DB_REPLACED, SRV_DB_WAL_LOST } srv_db_identity;
+/* Compares the file at the database's path (and its -wal) with the ones opened. */
+srv_db_identity srv_db_check_identity(srv_db *db, char *detail, size_t n);
+/* Writes the open (unlinked) database back: VACUUM INTO its path when nothing is there, else
+ * into PATH.recovered-TIME; after writing its own path (or checkpointing a lost WAL), reopens
+ * every connection on it. Returns 0 when the pool runs on the path again, 1 when the copy went
+ * elsewhere (written to `where`), <0 on error. */
+int srv_db_restore(srv_db *db, srv_db_identity what, char *where, size_t n, obs_err *err);
+/* PRAGMA quick_check on a fresh read-only connection (no cached pages): 0 ok, 1 corrupt (the
+ * report in err), <0 when it could not run. */
+int srv_db_quick_check(srv_db *db, obs_err *err);
+/* A trivial write transaction: 0 when the database takes writes again. */
+int srv_db_probe(srv_db *db, char *code, size_t n, obs_err *err);
+/* Set when a statement met SQLITE_CORRUPT or SQLITE_NOTADB; read and reset by the caller. */
+int srv_db_take_corrupt_flag(srv_db *db);
+/* While `msg` is set, inserting jobs or comparisons fails with it (NULL accepts work again). */
+void srv_db_refuse(srv_db *db, const char *msg);
+const char *srv_db_path(const srv_db *db);
+
+#endif
