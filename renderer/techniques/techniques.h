@@ -21,6 +21,9 @@ int obs_obscurance_map_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err)
 /* The outputs the screen-space drivers write (ssao.c), declared by ssao and hbao alike. */
 extern const obs_output obs_screen_outputs[];
 
+extern const obs_technique obs_technique_ss_radiosity;
+int obs_ss_radiosity_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
+int obs_ss_radiosity_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 extern const obs_technique obs_technique_ssao;
 int obs_ssao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 int obs_ssao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
