@@ -9,6 +9,7 @@
 #include "obscura/render.h"
 #include "parallel.h"
 #include "screen.h"
+#include "simd.h"
 #include "ss_radiosity.h"
 #include "techniques.h"
 
@@ -24,14 +25,14 @@ typedef struct srad_job {
 
 /* floor(v) clamped to [0, n-1], NaN to 0: the texel a sample lands on, clamp-to-edge; the clamp
  * comes before the conversion, as in the shader. */
-static int texel(float v, int n) {
+OBS_HOT_INLINE int texel(float v, int n) {
   float f = floorf(v);
   if (!(f >= 0.0f)) f = 0.0f;
   if (f > (float)(n - 1)) f = (float)(n - 1);
   return (int)f;
 }
 
-static void gather_pixel(const srad_job *j, int x, int y, float *res) {
+OBS_HOT_INLINE void gather_pixel(const srad_job *j, int x, int y, float *res) {
   const obs_gbuffer *g = j->g;
   const obs_srad_gather_push *pc = &j->pc;
   const int w = pc->width, h = pc->height;
@@ -102,7 +103,7 @@ static void gather_pixel(const srad_job *j, int x, int y, float *res) {
   res[3] = ao < 0.0f ? 0.0f : ao > 1.0f ? 1.0f : ao;
 }
 
-static void blur_pixel(const srad_job *j, int x, int y, float *res) {
+OBS_HOT_INLINE void blur_pixel(const srad_job *j, int x, int y, float *res) {
   const obs_gbuffer *g = j->g;
   const int w = g->width, h = g->height;
   const float zc = g->depth[(size_t)y * (size_t)w + (size_t)x];
@@ -130,7 +131,9 @@ static void blur_pixel(const srad_job *j, int x, int y, float *res) {
   res[3] = res[3] > 1.0f ? 1.0f : res[3];
 }
 
-static int gather_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+/* The tile loops twice (simd.h): baseline and x86-64-v3, the same scalar operations either way
+ * (no contraction), so the same bits at every level. */
+OBS_HOT_INLINE int gather_tile_body(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)thread;
   srad_job *j = user;
   for (int y = y0; y < y1; y++)
@@ -139,7 +142,9 @@ static int gather_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   return 0;
 }
 
-static int blur_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+OBS_TILE_KERNELS(gather_tile)
+
+OBS_HOT_INLINE int blur_tile_body(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)thread;
   srad_job *j = user;
   for (int y = y0; y < y1; y++)
@@ -147,6 +152,7 @@ static int blur_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
       blur_pixel(j, x, y, j->out + 4 * ((size_t)y * (size_t)j->g->width + (size_t)x));
   return 0;
 }
+OBS_TILE_KERNELS(blur_tile)
 
 static int srad_passes(obs_screen_cpu *r, const obs_gbuffer *g, const float *direct,
                        const obs_ss_radiosity_params *p, float *raw, float *out,
@@ -164,12 +170,13 @@ static int srad_passes(obs_screen_cpu *r, const obs_gbuffer *g, const float *dir
                 .raw = raw, .out = raw};
   obs_ss_radiosity_push_make(p, g->width, g->height, g->ortho, g->half_w, g->half_h, &j.pc);
   r->passes = p->blur ? 2 : 1;
+  const int isa = obs_simd_isa();
   double t0 = obs_now_ms();
-  int rc = obs_screen_cpu_tiles(r, g->width, g->height, gather_tile, &j);
+  int rc = obs_screen_cpu_tiles(r, g->width, g->height, obs_simd_tile_pick(gather_tile, isa), &j);
   double t1 = obs_now_ms();
   if (!rc && p->blur) {
     j.out = out;
-    rc = obs_screen_cpu_tiles(r, g->width, g->height, blur_tile, &j);
+    rc = obs_screen_cpu_tiles(r, g->width, g->height, obs_simd_tile_pick(blur_tile, isa), &j);
   }
   if (stage_ms) {
     stage_ms[0] = t1 - t0;
