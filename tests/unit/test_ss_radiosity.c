@@ -105,7 +105,7 @@ static obs_ss_radiosity_params closed_params(void) {
 static float *closed_run(closed_case *c, const obs_ss_radiosity_params *p) {
   float *raw = malloc(4 * CW * CH * sizeof *raw), *out = malloc(4 * CW * CH * sizeof *out);
   obs_err err = OBS_ERR_INIT;
-  int rc = obs_ss_radiosity_cpu_apply(&c->g, c->direct, p, 2, raw, out, NULL, &err);
+  int rc = obs_ss_radiosity_cpu_apply(&c->g, c->direct, NULL, 0, p, 2, raw, out, NULL, &err);
   if (rc) printf("%s\n", obs_err_message(&err));
   obs_err_free(&err);
   assert_int_equal(rc, 0);
@@ -197,6 +197,102 @@ static void test_closed_form(void **state) {
   closed_expect(raw, 1.0 - w, b);
   free(raw);
   obs_gbuffer_free(&c.g);
+}
+
+/* AO probes at P: one at height h along n, area A: ao = 1 - A / h^2; two (a, b) multiplied:
+ * (1 - a)(1 - b), added: 1 - a - b; a probe behind the surface (inside the mesh): exactly 1. */
+static float *probe_run(closed_case *c, const float *probes, int np, int add) {
+  float *raw = malloc(4 * CW * CH * sizeof *raw);
+  obs_ss_radiosity_params p = closed_params();
+  p.probe_add = add;
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(obs_ss_radiosity_cpu_apply(&c->g, c->direct, probes, np, &p, 1, raw, NULL,
+                                              NULL, &err),
+                   0);
+  obs_err_free(&err);
+  return raw;
+}
+
+static void test_probes_closed_form(void **state) {
+  (void)state;
+  static closed_case c;
+  const float nq[3] = {-0.6f, 0.0f, -0.8f};
+  closed_make(&c, 11.0f, nq); /* Q behind P: P's gather reads nothing */
+  const float px = 2.0f * 16.5f / 32.0f - 1.0f, py = 1.0f - 2.0f * 16.5f / 32.0f;
+  const float n[3] = {0.6f, 0.0f, -0.8f};
+  const double h1 = 2.0, h2 = 3.0, a1 = 0.5, a2 = 1.5;
+  float probes[8];
+  for (int k = 0; k < 3; k++) {
+    const float pk = k == 0 ? px : k == 1 ? py : 10.0f;
+    probes[k] = pk + (float)h1 * n[k];
+    probes[4 + k] = pk + (float)h2 * n[k];
+  }
+  probes[3] = (float)a1;
+  probes[7] = (float)a2;
+  const int at = 4 * (PY * CW + PX) + 3;
+  const double o1 = a1 / (h1 * h1), o2 = a2 / (h2 * h2);
+  float *raw = probe_run(&c, probes, 1, 0);
+  printf("one probe: %.7f (expected %.7f)\n", raw[at], 1.0 - o1);
+  assert_true(fabs(raw[at] - (1.0 - o1)) < 1e-5);
+  free(raw);
+  raw = probe_run(&c, probes, 2, 0);
+  assert_true(fabs(raw[at] - (1.0 - o1) * (1.0 - o2)) < 1e-5);
+  for (int i = 0; i < CW * CH; i++) assert_true(raw[4 * i + 3] >= 0.0f && raw[4 * i + 3] <= 1.0f);
+  free(raw);
+  raw = probe_run(&c, probes, 2, 1);
+  assert_true(fabs(raw[at] - (1.0 - o1 - o2)) < 1e-5);
+  free(raw);
+  /* Behind the surface: the Lambertian term is negative, nothing darkens. */
+  for (int k = 0; k < 3; k++) probes[k] -= 2.0f * (float)h1 * n[k];
+  raw = probe_run(&c, probes, 1, 0);
+  assert_true(raw[at] == 1.0f);
+  free(raw);
+  /* A huge probe saturates to 0, never below, never NaN. */
+  for (int k = 0; k < 3; k++) probes[k] += 2.0f * (float)h1 * n[k];
+  probes[3] = 1e30f;
+  raw = probe_run(&c, probes, 1, 1);
+  assert_true(raw[at] == 0.0f);
+  free(raw);
+  obs_gbuffer_free(&c.g);
+}
+
+/* The loader: probes are points with a positive radius; more than the gather reads are refused. */
+static void test_probes_loader(void **state) {
+  (void)state;
+  const char *fmt =
+      "{\"camera\":{\"type\":\"perspective\",\"position\":[0,0,0],\"look_at\":[0,0,1],"
+      "\"fov_y\":40},\"image\":{\"width\":4,\"height\":4},\"objects\":[],\"probes\":%s,"
+      "\"technique\":{\"name\":\"ss_radiosity\"}}";
+  obs_scene sc;
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(obs_scene_load_string(&sc, obs_test_fmt(fmt, "[{\"position\":[1,2,3],"
+                                                                 "\"radius\":0.5}]"),
+                                         "p.json", NULL, NULL, 0, &err),
+                   0);
+  assert_int_equal(sc.nprobes, 1);
+  assert_true(sc.probes[0].position.z == 3.0 && sc.probes[0].radius == 0.5);
+  obs_scene_free(&sc);
+  const char *bad[] = {"[{\"position\":[1,2,3],\"radius\":0}]", "[{\"position\":[1,2]}]",
+                       "[{\"position\":[1,2,3],\"radius\":1,\"area\":2}]", "[3]"};
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+    int rc = obs_scene_load_string(&sc, obs_test_fmt(fmt, bad[i]), "p.json", NULL, NULL, 0, &err);
+    printf("refused: %s\n", obs_err_message(&err));
+    assert_true(rc != 0);
+    assert_non_null(strstr(obs_err_message(&err), "/probes/0"));
+    obs_err_clear(&err);
+  }
+  char *many = malloc(64 * (OBS_SRAD_MAX_PROBES + 2));
+  size_t m = (size_t)sprintf(many, "[");
+  for (int i = 0; i <= OBS_SRAD_MAX_PROBES; i++)
+    m += (size_t)sprintf(many + m, "%s{\"position\":[0,0,%d],\"radius\":1}", i ? "," : "", i);
+  sprintf(many + m, "]");
+  char *doc = malloc(strlen(many) + 512);
+  sprintf(doc, fmt, many);
+  assert_true(obs_scene_load_string(&sc, doc, "p.json", NULL, NULL, 0, &err) != 0);
+  assert_non_null(strstr(obs_err_message(&err), "/probes: technique \"ss_radiosity\" reads at most"));
+  free(doc);
+  free(many);
+  obs_err_free(&err);
 }
 
 /* ---- renders ---- */
@@ -389,6 +485,8 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_params),
       cmocka_unit_test(test_closed_form),
+      cmocka_unit_test(test_probes_closed_form),
+      cmocka_unit_test(test_probes_loader),
       cmocka_unit_test(test_open_plane),
       cmocka_unit_test(test_empty_frame),
       cmocka_unit_test(test_direct_matches_path_trace),
