@@ -21,9 +21,9 @@ static void cornell_load_probes(int w, int h, const char *backend, const char *p
   snprintf(size, sizeof size, "{\"width\":%d,\"height\":%d,\"spp\":1}", w, h);
   const obs_override ov[] = {{"/technique", tech}, {"/image", size}, {"/probes", probes}};
   obs_err err = OBS_ERR_INIT;
-  vktest_check_rc(obs_scene_load_file(sc, obs_test_src("scenes/cornell_box.json"), ov,
-                                      probes ? 3 : 2, &err),
-                  &err);
+  vktest_check_rc(
+      obs_scene_load_file(sc, obs_test_src("scenes/cornell_box.json"), ov, probes ? 3 : 2, &err),
+      &err);
   obs_err_free(&err);
 }
 
@@ -102,8 +102,8 @@ static void cross_backend(int ortho, const char *label) {
     memset(vo, 0, 4 * n * sizeof(float));
     float probes[4 * OBS_SRAD_MAX_PROBES];
     int np = obs_ss_radiosity_probes_make(&ps, probes);
-    vktest_check_rc(
-        obs_ss_radiosity_cpu_apply(&g, direct, probes, np, &p, 2, cr, co, NULL, &err), &err);
+    vktest_check_rc(obs_ss_radiosity_cpu_apply(&g, direct, probes, np, &p, 2, cr, co, NULL, &err),
+                    &err);
     vktest_check_rc(
         obs_ss_radiosity_vk_apply(vk, &dev, &g, direct, probes, np, &p, vr, vo, NULL, &err), &err);
     double rr, ro;
@@ -111,9 +111,10 @@ static void cross_backend(int ortho, const char *label) {
     obs_scene_free(&ps);
     size_t gathered = 0;
     for (size_t i = 0; i < n; i++) gathered += cr[4 * i + 3] < 1.0f;
-    printf("%-10s %-78s raw %zu/%zu exact (rmse %.2g), blurred %zu/%zu exact (rmse %.2g), "
-           "%zu pixels gathered\n",
-           label, params, sr, 4 * n, rr, so, 4 * n, ro, gathered);
+    printf(
+        "%-10s %-78s raw %zu/%zu exact (rmse %.2g), blurred %zu/%zu exact (rmse %.2g), "
+        "%zu pixels gathered\n",
+        label, params, sr, 4 * n, rr, so, 4 * n, ro, gathered);
     /* The same float operations in the same order on the same inputs: the same bits. */
     assert_int_equal(sr, 4 * n);
     assert_int_equal(so, 4 * n);
@@ -141,7 +142,8 @@ static void test_cross_cornell_ortho(void **state) {
 }
 
 /* Full renders on both backends: the same direct pass, G-buffers that differ only on silhouettes
- * (rasterised vs CPU), so final agrees within a small RMSE and each output is finite and in range. */
+ * (rasterised vs CPU), so final agrees within a small RMSE and each output is finite and in range.
+ */
 static void test_pipeline(void **state) {
   (void)state;
   vktest_need_vk();
@@ -161,7 +163,8 @@ static void test_pipeline(void **state) {
   double ss = 0, sb = 0;
   for (int k = 0; k < 3; k++) {
     static const char *const f[3] = {"final.R", "final.G", "final.B"};
-    const float *a = obs_image_channel(&r[0].image, f[k]), *v = obs_image_channel(&r[1].image, f[k]);
+    const float *a = obs_image_channel(&r[0].image, f[k]),
+                *v = obs_image_channel(&r[1].image, f[k]);
     for (size_t i = 0; i < n; i++) ss += ((double)a[i] - v[i]) * ((double)a[i] - v[i]);
   }
   const float *ba = obs_image_channel(&r[0].image, "bounce.R");

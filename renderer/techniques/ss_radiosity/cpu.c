@@ -200,8 +200,13 @@ static int srad_passes(obs_screen_cpu *r, const obs_gbuffer *g, const float *dir
                        OBS_SRAD_MAX_SAMPLES, p->samples);
   obs_ss_radiosity_tables t;
   obs_ss_radiosity_tables_make(p, &t);
-  srad_job j = {.g = g, .direct = direct, .probes = probes, .t = &t, .threshold = p->blur_depth_threshold,
-                .raw = raw, .out = raw};
+  srad_job j = {.g = g,
+                .direct = direct,
+                .probes = probes,
+                .t = &t,
+                .threshold = p->blur_depth_threshold,
+                .raw = raw,
+                .out = raw};
   obs_ss_radiosity_push_make(p, g->width, g->height, g->ortho, g->half_w, g->half_h, &j.pc);
   j.pc.nprobes = nprobes;
   r->passes = p->blur ? 2 : 1;
@@ -235,8 +240,7 @@ static int passes(obs_screen_cpu *r, const obs_gbuffer *g, const void *params, f
   size_t n = (size_t)g->width * (size_t)g->height;
   float *buf = malloc((3 * 4 * n + 4 * OBS_SRAD_MAX_PROBES) * sizeof *buf);
   if (!buf)
-    return obs_err_set(err, OBS_ENOMEM, "ss_radiosity: %dx%d: out of memory", g->width,
-                       g->height);
+    return obs_err_set(err, OBS_ENOMEM, "ss_radiosity: %dx%d: out of memory", g->width, g->height);
   float *direct = buf, *raw = buf + 4 * n, *res = buf + 8 * n, *probes = buf + 12 * n;
   double dms[2], st[OBS_SRAD_CPU_STAGES];
   int rc = obs_ss_radiosity_direct(sc, p, r->threads, r->cancel, direct, dms, err);

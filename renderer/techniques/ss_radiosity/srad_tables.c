@@ -8,7 +8,7 @@
 #include "ss_radiosity.h"
 
 const char *const obs_ss_radiosity_extra_names[OBS_SRAD_EXTRA] = {
-    "final.R", "final.G", "final.B", "bounce.R", "bounce.G",
+    "final.R",  "final.G",  "final.B",  "bounce.R", "bounce.G",
     "bounce.B", "direct.R", "direct.G", "direct.B"};
 
 /* A uniform direction from hash h: rejection from the cube [-1,1)^3 into the unit ball, a vector

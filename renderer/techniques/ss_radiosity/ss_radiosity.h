@@ -17,15 +17,15 @@ typedef struct obs_vk_gbuffer obs_vk_gbuffer;
 
 /* Bound from the descriptor's parameter table. */
 typedef struct obs_ss_radiosity_params {
-  int samples;          /* 1..OBS_SRAD_MAX_SAMPLES */
-  float kernel_size;    /* sampling radius in scene units at depth 0 */
-  float directivity;    /* 0: the hemisphere about the normal; 1: along the normal only */
-  float attenuation;    /* per scene unit: the radius is kernel_size / (1 + attenuation z) */
-  float bias;           /* depth difference (scene units) at which a sample stops counting */
-  float strength;       /* scale of the gathered bounce */
-  int exclude_self;     /* samples on the pixel's own object gather nothing */
-  int blur;             /* 4x4 depth-aware blur of bounce and ao */
-  int probe_add;        /* AO probes combined additively (else multiplicatively) */
+  int samples;       /* 1..OBS_SRAD_MAX_SAMPLES */
+  float kernel_size; /* sampling radius in scene units at depth 0 */
+  float directivity; /* 0: the hemisphere about the normal; 1: along the normal only */
+  float attenuation; /* per scene unit: the radius is kernel_size / (1 + attenuation z) */
+  float bias;        /* depth difference (scene units) at which a sample stops counting */
+  float strength;    /* scale of the gathered bounce */
+  int exclude_self;  /* samples on the pixel's own object gather nothing */
+  int blur;          /* 4x4 depth-aware blur of bounce and ao */
+  int probe_add;     /* AO probes combined additively (else multiplicatively) */
   float blur_depth_threshold;
   uint32_t light_samples; /* emitter points per pixel of the direct pass */
   uint32_t seed;

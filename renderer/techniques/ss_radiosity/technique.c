@@ -135,6 +135,7 @@ const obs_technique obs_technique_ss_radiosity = {
     .reference_same = &obs_technique_path_trace,
     .reference_keys = srad_reference_keys,
     .reference_alts = srad_alts,
-    .run = {[OBS_BACKEND_CPU] = obs_ss_radiosity_cpu, [OBS_BACKEND_VULKAN] = obs_ss_radiosity_vulkan},
+    .run = {[OBS_BACKEND_CPU] = obs_ss_radiosity_cpu,
+            [OBS_BACKEND_VULKAN] = obs_ss_radiosity_vulkan},
     .range = {[OBS_BACKEND_CPU] = SRAD_RANGE, [OBS_BACKEND_VULKAN] = SRAD_RANGE},
 };

@@ -1,6 +1,6 @@
 /* ss_radiosity on Vulkan: the gather and blur compute passes (ss_radiosity*.comp.glsl) over the
- * device G-buffer, run by the Vulkan screen-space driver. The direct pass is the CPU's (cpu_direct.c,
- * Embree), uploaded as an image, so both twins gather from the same bits. */
+ * device G-buffer, run by the Vulkan screen-space driver. The direct pass is the CPU's
+ * (cpu_direct.c, Embree), uploaded as an image, so both twins gather from the same bits. */
 #include <stdlib.h>
 #include <string.h>
 
@@ -48,30 +48,29 @@ int obs_ss_radiosity_vk_apply(obs_vk *vk, obs_vk_gbuffer *g, const obs_gbuffer *
   obs_srad_gather_push gp;
   obs_ss_radiosity_push_make(p, g->width, g->height, proj->ortho, proj->half_w, proj->half_h, &gp);
   gp.nprobes = nprobes;
-  obs_srad_blur_push bp = {.width = g->width, .height = g->height,
-                           .threshold = p->blur_depth_threshold};
+  obs_srad_blur_push bp = {
+      .width = g->width, .height = g->height, .threshold = p->blur_depth_threshold};
   memcpy(bp.inv_count, t.inv_count, sizeof bp.inv_count);
   uint32_t gx = (uint32_t)(g->width + 7) / 8, gy = (uint32_t)(g->height + 7) / 8;
-  obs_vk_pass passes[2] = {
-      {.name = "ss_radiosity_gather",
-       .spirv = obs_spv_ss_radiosity_gather_comp,
-       .spirv_size = obs_spv_ss_radiosity_gather_comp_size,
-       .images = {g->depth, g->normal, g->albedo, dir, rot, off, raw},
-       .nimages = 7,
-       .push = &gp,
-       .push_size = sizeof gp,
-       .groups_x = gx,
-       .groups_y = gy,
-       .data = pdata},
-      {.name = "ss_radiosity_blur",
-       .spirv = obs_spv_ss_radiosity_blur_comp,
-       .spirv_size = obs_spv_ss_radiosity_blur_comp_size,
-       .images = {g->depth, raw, res},
-       .nimages = 3,
-       .push = &bp,
-       .push_size = sizeof bp,
-       .groups_x = gx,
-       .groups_y = gy}};
+  obs_vk_pass passes[2] = {{.name = "ss_radiosity_gather",
+                            .spirv = obs_spv_ss_radiosity_gather_comp,
+                            .spirv_size = obs_spv_ss_radiosity_gather_comp_size,
+                            .images = {g->depth, g->normal, g->albedo, dir, rot, off, raw},
+                            .nimages = 7,
+                            .push = &gp,
+                            .push_size = sizeof gp,
+                            .groups_x = gx,
+                            .groups_y = gy,
+                            .data = pdata},
+                           {.name = "ss_radiosity_blur",
+                            .spirv = obs_spv_ss_radiosity_blur_comp,
+                            .spirv_size = obs_spv_ss_radiosity_blur_comp_size,
+                            .images = {g->depth, raw, res},
+                            .nimages = 3,
+                            .push = &bp,
+                            .push_size = sizeof bp,
+                            .groups_x = gx,
+                            .groups_y = gy}};
   double ms[2] = {0, 0};
   if ((rc = obs_vk_run(vk, passes, p->blur ? 2 : 1, ms, err))) goto done;
   double t0 = obs_now_ms();
