@@ -9,16 +9,6 @@
 #include "obscura/render.h"
 #include "vk_internal.h"
 
-/* One run's state: the handles it uses and the images bound to them. */
-typedef struct run {
-  const obs_vk_plan *plan;
-  const char *who;
-  int fw, fh;                   /* the frame */
-  int used[OBS_VK_PLAN_IMAGES]; /* bound by an enabled pass or read by an active download */
-  obs_vk_image *img[OBS_VK_PLAN_IMAGES];
-  int owned[OBS_VK_PLAN_IMAGES]; /* made here, so freed here */
-} run;
-
 static int count_passes(const obs_vk_plan *p) {
   int n = 0;
   while (n < OBS_VK_PLAN_PASSES && p->passes[n].stage) n++;
@@ -32,7 +22,7 @@ static int count_bound(const obs_vk_plan_pass *ps) {
 }
 
 /* Checks handle h, referred to as `what`, and marks it used. */
-static int use(run *r, int h, const char *what, obs_err *err) {
+static int use(obs_vk_plan_state *r, int h, const char *what, obs_err *err) {
   if (h < OBS_VK_PLAN_DEPTH || h >= OBS_VK_PLAN_IMAGES)
     return obs_err_set(err, OBS_EINVAL, "vulkan: %s: %s: image handle %d (1..%d)", r->who, what, h,
                        OBS_VK_PLAN_IMAGES - 1);
@@ -41,7 +31,7 @@ static int use(run *r, int h, const char *what, obs_err *err) {
 }
 
 /* Marks what the enabled passes and the active downloads use, checking every reference. */
-static int mark(run *r, obs_err *err) {
+static int mark(obs_vk_plan_state *r, obs_err *err) {
   const obs_vk_plan *p = r->plan;
   char what[128];
   int rc = 0;
@@ -73,7 +63,7 @@ static obs_vk_image *gbuffer_image(const obs_vk_gbuffer *g, int h) {
 }
 
 /* Checks every used image's description before anything is made. */
-static int check_images(run *r, const obs_vk_gbuffer *g, obs_err *err) {
+static int check_images(obs_vk_plan_state *r, const obs_vk_gbuffer *g, obs_err *err) {
   for (int h = OBS_VK_PLAN_DEPTH; h < OBS_VK_PLAN_IMAGES; h++) {
     if (!r->used[h]) continue;
     if (h < OBS_VK_PLAN_IMAGE0) {
@@ -98,7 +88,7 @@ static int check_images(run *r, const obs_vk_gbuffer *g, obs_err *err) {
 }
 
 /* Binds the G-buffer and the callers' images, makes and uploads the technique's own. */
-static int make_images(obs_vk *vk, run *r, const obs_vk_gbuffer *g, obs_err *err) {
+static int make_images(obs_vk *vk, obs_vk_plan_state *r, const obs_vk_gbuffer *g, obs_err *err) {
   for (int h = OBS_VK_PLAN_DEPTH; h < OBS_VK_PLAN_IMAGES; h++) {
     if (!r->used[h]) continue;
     const obs_vk_plan_image *d = &r->plan->images[h];
@@ -134,11 +124,12 @@ static void add_stage(obs_vk_plan_times *t, const char *stage, double ms) {
 }
 
 /* The enabled passes, in order, through one obs_vk_run. */
-static int dispatch(obs_vk *vk, run *r, obs_vk_plan_times *t, obs_err *err) {
+static int dispatch(obs_vk_plan_state *r, obs_err *err) {
   const obs_vk_plan *p = r->plan;
   obs_vk_pass ps[OBS_VK_PLAN_PASSES];
   char names[OBS_VK_PLAN_PASSES][96];
   int from[OBS_VK_PLAN_PASSES], n = 0;
+  memset(ps, 0, sizeof ps);
   for (int i = 0; i < count_passes(p); i++) {
     const obs_vk_plan_pass *s = &p->passes[i];
     if (s->skip) continue;
@@ -159,47 +150,65 @@ static int dispatch(obs_vk *vk, run *r, obs_vk_plan_times *t, obs_err *err) {
     from[n++] = i;
   }
   double ms[OBS_VK_PLAN_PASSES] = {0};
-  int rc = obs_vk_run(vk, ps, n, ms, err);
+  int rc = obs_vk_run(r->vk, ps, n, ms, err);
   if (rc) return rc;
-  for (int i = 0; i < n; i++) add_stage(t, p->passes[from[i]].stage, ms[i]);
+  for (int i = 0; i < n; i++) add_stage(&r->times, p->passes[from[i]].stage, ms[i]);
   return 0;
 }
 
-static int download(obs_vk *vk, run *r, obs_vk_plan_times *t, obs_err *err) {
+static int download(obs_vk_plan_state *r, obs_err *err) {
   double t0 = obs_now_ms();
   for (int i = 0; i < OBS_VK_PLAN_DOWNLOADS; i++) {
     const obs_vk_plan_download *d = &r->plan->downloads[i];
-    int rc = d->to ? obs_vk_image_download(vk, r->img[d->image], d->to, err) : 0;
+    int rc = d->to ? obs_vk_image_download(r->vk, r->img[d->image], d->to, err) : 0;
     if (rc) return rc;
   }
-  add_stage(t, "readback", obs_now_ms() - t0);
+  add_stage(&r->times, "readback", obs_now_ms() - t0);
   return 0;
 }
 
-int obs_vk_plan_run(obs_vk *vk, const obs_vk_gbuffer *g, const obs_vk_plan *plan,
-                    obs_vk_plan_times *times, obs_err *err) {
-  obs_vk_plan_times t = {0};
-  if (times) *times = t;
-  if (!vk || !plan) return obs_err_set(err, OBS_EINVAL, "vulkan: plan run: no device or plan");
-  run r = {.plan = plan, .who = plan->technique ? plan->technique : "(unnamed plan)"};
-  r.fw = plan->width || plan->height ? plan->width : g ? g->width : 0;
-  r.fh = plan->width || plan->height ? plan->height : g ? g->height : 0;
-  uint32_t seen = obs_vk_validation_messages(vk);
-  int rc = mark(&r, err);
-  if (!rc) rc = check_images(&r, g, err);
-  if (!rc) rc = make_images(vk, &r, g, err);
-  if (!rc) rc = dispatch(vk, &r, &t, err);
-  if (!rc) rc = download(vk, &r, &t, err);
+int obs_vk_plan_open(obs_vk *vk, const obs_vk_gbuffer *g, const obs_vk_plan *plan,
+                     obs_vk_plan_state *s, obs_err *err) {
+  memset(s, 0, sizeof *s);
+  if (!vk || !plan) return obs_err_set(err, OBS_EINVAL, "vulkan: plan: no device or plan");
+  s->vk = vk;
+  s->plan = plan;
+  s->who = plan->technique ? plan->technique : "(unnamed plan)";
+  s->fw = plan->width || plan->height ? plan->width : g ? g->width : 0;
+  s->fh = plan->width || plan->height ? plan->height : g ? g->height : 0;
+  s->seen = obs_vk_validation_messages(vk);
+  int rc = mark(s, err);
+  if (!rc) rc = check_images(s, g, err);
+  if (!rc) rc = make_images(vk, s, g, err);
+  return rc;
+}
+
+int obs_vk_plan_dispatch(obs_vk_plan_state *s, obs_err *err) {
+  if (!s->vk) return obs_err_set(err, OBS_EINVAL, "vulkan: plan: dispatch before a good open");
+  return dispatch(s, err);
+}
+
+int obs_vk_plan_close(obs_vk_plan_state *s, int rc, obs_vk_plan_times *times, obs_err *err) {
+  if (!rc) rc = download(s, err);
   for (int h = 0; h < OBS_VK_PLAN_IMAGES; h++)
-    if (r.owned[h]) obs_vk_image_free(vk, r.img[h]);
-  uint32_t complaints = obs_vk_validation_messages(vk) - seen;
+    if (s->owned[h]) obs_vk_image_free(s->vk, s->img[h]);
+  uint32_t complaints = s->vk ? obs_vk_validation_messages(s->vk) - s->seen : 0;
   if (!rc && complaints)
     rc = obs_err_set(err, OBS_EINTERNAL,
                      "vulkan: %s: %u Vulkan validation message(s) on its passes on \"%s\" (printed "
                      "above)",
-                     r.who, complaints, obs_vk_device_name(vk));
-  if (!rc && times) *times = t;
+                     s->who, complaints, obs_vk_device_name(s->vk));
+  if (times) *times = rc ? (obs_vk_plan_times){0} : s->times;
+  memset(s, 0, sizeof *s);
   return rc;
+}
+
+int obs_vk_plan_run(obs_vk *vk, const obs_vk_gbuffer *g, const obs_vk_plan *plan,
+                    obs_vk_plan_times *times, obs_err *err) {
+  obs_vk_plan_state s;
+  int rc = obs_vk_plan_open(vk, g, plan, &s, err);
+  if (!rc) rc = obs_vk_plan_dispatch(&s, err);
+  return obs_vk_plan_close(&s, rc, times, err);
 }
 
 double obs_vk_plan_ms(const obs_vk_plan_times *t, const char *stage) {

@@ -92,12 +92,36 @@ typedef struct obs_vk_plan_times {
 } obs_vk_plan_times;
 
 /* Runs `plan` over the G-buffer `g` (may be NULL when no pass binds it and the plan gives its
- * frame). A bad plan (a handle out of range or undescribed, channels not 1 or 4, too many
- * bindings) is OBS_EINVAL naming the technique, the pass or image and the offence, before anything
- * is made. Validation-layer messages during the run fail it (OBS_EINTERNAL). `times` (may be
- * NULL) is filled on success, zeroed on failure. */
+ * frame): obs_vk_plan_open, obs_vk_plan_dispatch and obs_vk_plan_close. A bad plan (a handle out
+ * of range or undescribed, channels not 1 or 4, an image of no texels, a pass binding nothing) is
+ * OBS_EINVAL naming the technique, the pass or image and the offence, before anything is made.
+ * Validation-layer messages during the run fail it (OBS_EINTERNAL). `times` (may be NULL) is
+ * filled on success, zeroed on failure. */
 int obs_vk_plan_run(obs_vk *vk, const obs_vk_gbuffer *g, const obs_vk_plan *plan,
                     obs_vk_plan_times *times, obs_err *err);
+
+/* The same in steps, for work split across submissions (a pass whose work per invocation must
+ * stay under obs_vk_loop_limit, with cancellation and progress between the parts): open checks
+ * the plan and makes its images; each dispatch runs the enabled passes once, reading the push
+ * blocks as they are then (the caller changes them between dispatches); close downloads (when rc
+ * is 0), fails on validation messages, frees everything whatever rc was, fills `times` as
+ * obs_vk_plan_run does and returns the final code. Close must follow every open, failed ones
+ * included; the plan must outlive them. */
+typedef struct obs_vk_plan_state { /* the driver's */
+  obs_vk *vk;
+  const obs_vk_plan *plan;
+  const char *who;
+  int fw, fh;     /* the frame */
+  uint32_t seen;  /* validation messages before open */
+  int used[OBS_VK_PLAN_IMAGES];  /* bound by an enabled pass or read by an active download */
+  int owned[OBS_VK_PLAN_IMAGES]; /* made by open, freed by close */
+  obs_vk_image *img[OBS_VK_PLAN_IMAGES];
+  obs_vk_plan_times times;
+} obs_vk_plan_state;
+int obs_vk_plan_open(obs_vk *vk, const obs_vk_gbuffer *g, const obs_vk_plan *plan,
+                     obs_vk_plan_state *s, obs_err *err);
+int obs_vk_plan_dispatch(obs_vk_plan_state *s, obs_err *err);
+int obs_vk_plan_close(obs_vk_plan_state *s, int rc, obs_vk_plan_times *times, obs_err *err);
 
 /* The time of `stage` in `t` (0 when no pass ran under it). */
 double obs_vk_plan_ms(const obs_vk_plan_times *t, const char *stage);

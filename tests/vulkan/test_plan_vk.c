@@ -146,10 +146,54 @@ static void test_plan_refused(void **state) {
   free(out);
 }
 
+/* In steps: each dispatch reads the push block as it is then; a close after a failure frees and
+ * downloads nothing. */
+static void test_plan_steps(void **state) {
+  (void)state;
+  obs_vk *vk = vktest_need_vk();
+  obs_err err = OBS_ERR_INIT;
+  float *in = ramp(), *out = malloc(N * sizeof *out);
+  assert_non_null(out);
+  scale_push p = {3.0f, W, H};
+  obs_vk_plan plan = {.technique = "plan-test",
+                      .width = W,
+                      .height = H,
+                      .images = {[SRC] = {.channels = 4, .data = in}, [DST] = {.channels = 4}},
+                      .passes = {{.stage = "scale", OBS_VK_SPIRV(test_scale_comp), OBS_VK_PUSH(p),
+                                  .images = {SRC, DST}}},
+                      .downloads = {{DST, out}}};
+  obs_vk_plan_state s;
+  obs_vk_plan_times t;
+  vktest_check_rc(obs_vk_plan_open(vk, NULL, &plan, &s, &err), &err);
+  vktest_check_rc(obs_vk_plan_dispatch(&s, &err), &err);
+  p.factor = 5.0f;
+  vktest_check_rc(obs_vk_plan_dispatch(&s, &err), &err);
+  vktest_check_rc(obs_vk_plan_close(&s, 0, &t, &err), &err);
+  for (size_t i = 0; i < N; i++) assert_true(out[i] == in[i] * 5.0f);
+  assert_int_equal(t.n, 2);
+  assert_string_equal(t.stage[0], "scale");
+  /* A failure between the steps: close keeps the code, downloads nothing, zeroes the times. */
+  memset(out, 0, N * sizeof *out);
+  vktest_check_rc(obs_vk_plan_open(vk, NULL, &plan, &s, &err), &err);
+  vktest_check_rc(obs_vk_plan_dispatch(&s, &err), &err);
+  assert_int_equal(obs_vk_plan_close(&s, OBS_ECANCELED, &t, &err), OBS_ECANCELED);
+  assert_int_equal(t.n, 0);
+  for (size_t i = 0; i < N; i++) assert_true(out[i] == 0.0f);
+  /* A failed open still needs its close, which returns the open's code. */
+  plan.images[DST].channels = 3;
+  int rc = obs_vk_plan_open(vk, NULL, &plan, &s, &err);
+  assert_int_equal(rc, OBS_EINVAL);
+  assert_int_equal(obs_vk_plan_close(&s, rc, NULL, &err), OBS_EINVAL);
+  free(in);
+  free(out);
+  obs_err_free(&err);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test_teardown(test_plan_runs, vktest_quiet_teardown),
       cmocka_unit_test_teardown(test_plan_refused, vktest_quiet_teardown),
+      cmocka_unit_test_teardown(test_plan_steps, vktest_quiet_teardown),
   };
   return cmocka_run_group_tests(tests, vktest_group_setup, vktest_group_teardown);
 }
