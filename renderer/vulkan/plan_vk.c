@@ -39,8 +39,8 @@ static int mark(obs_vk_plan_state *r, obs_err *err) {
     const obs_vk_plan_pass *ps = &p->passes[i];
     if (ps->skip) continue;
     if (!count_bound(ps))
-      return obs_err_set(err, OBS_EINVAL, "vulkan: %s: pass %d (\"%s\"): no image bound", r->who,
-                         i, ps->stage);
+      return obs_err_set(err, OBS_EINVAL, "vulkan: %s: pass %d (\"%s\"): no image bound", r->who, i,
+                         ps->stage);
     for (int k = 0; k < count_bound(ps) && !rc; k++) {
       snprintf(what, sizeof what, "pass %d (\"%s\"), binding %d", i, ps->stage, k);
       rc = use(r, ps->images[k], what, err);
@@ -80,7 +80,8 @@ static int check_images(obs_vk_plan_state *r, const obs_vk_gbuffer *g, obs_err *
     if (d->channels != 1 && d->channels != 4)
       return obs_err_set(err, OBS_EINVAL, "vulkan: %s: image %d: %d channels (1 or 4)", r->who, h,
                          d->channels);
-    int w = d->width || d->height ? d->width : r->fw, ht = d->width || d->height ? d->height : r->fh;
+    int w = d->width || d->height ? d->width : r->fw,
+        ht = d->width || d->height ? d->height : r->fh;
     if (w < 1 || ht < 1)
       return obs_err_set(err, OBS_EINVAL, "vulkan: %s: image %d: %dx%d texels", r->who, h, w, ht);
   }

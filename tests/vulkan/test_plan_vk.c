@@ -33,20 +33,27 @@ static float *ramp(void) {
  * describes: a skipped pass's images are neither checked nor made. */
 static obs_vk_plan scale_plan(const float *in, const scale_push *p1, const scale_push *p2,
                               float *out, float *mid) {
-  obs_vk_plan plan = {
-      .technique = "plan-test",
-      .width = W,
-      .height = H,
-      .images = {[SRC] = {.width = W, .height = H, .channels = 4, .data = in},
-                 [MID] = {.channels = 4},
-                 [DST] = {.channels = 4}},
-      .passes = {{.stage = "scale", OBS_VK_SPIRV(test_scale_comp), OBS_VK_PUSH(*p1),
-                  .images = {SRC, MID}},
-                 {.stage = "scale", OBS_VK_SPIRV(test_scale_comp), OBS_VK_PUSH(*p2),
-                  .images = {MID, DST}, .grid = DST},
-                 {.stage = "never", OBS_VK_SPIRV(test_scale_comp), OBS_VK_PUSH(*p2),
-                  .images = {DST, UNUSED}, .skip = 1}},
-      .downloads = {{DST, out}, {MID, mid}}};
+  obs_vk_plan plan = {.technique = "plan-test",
+                      .width = W,
+                      .height = H,
+                      .images = {[SRC] = {.width = W, .height = H, .channels = 4, .data = in},
+                                 [MID] = {.channels = 4},
+                                 [DST] = {.channels = 4}},
+                      .passes = {{.stage = "scale",
+                                  OBS_VK_SPIRV(test_scale_comp),
+                                  OBS_VK_PUSH(*p1),
+                                  .images = {SRC, MID}},
+                                 {.stage = "scale",
+                                  OBS_VK_SPIRV(test_scale_comp),
+                                  OBS_VK_PUSH(*p2),
+                                  .images = {MID, DST},
+                                  .grid = DST},
+                                 {.stage = "never",
+                                  OBS_VK_SPIRV(test_scale_comp),
+                                  OBS_VK_PUSH(*p2),
+                                  .images = {DST, UNUSED},
+                                  .skip = 1}},
+                      .downloads = {{DST, out}, {MID, mid}}};
   return plan;
 }
 
@@ -159,7 +166,9 @@ static void test_plan_steps(void **state) {
                       .width = W,
                       .height = H,
                       .images = {[SRC] = {.channels = 4, .data = in}, [DST] = {.channels = 4}},
-                      .passes = {{.stage = "scale", OBS_VK_SPIRV(test_scale_comp), OBS_VK_PUSH(p),
+                      .passes = {{.stage = "scale",
+                                  OBS_VK_SPIRV(test_scale_comp),
+                                  OBS_VK_PUSH(p),
                                   .images = {SRC, DST}}},
                       .downloads = {{DST, out}}};
   obs_vk_plan_state s;
