@@ -32,7 +32,7 @@
 
 enum {
   OBS_VK_PLAN_NONE,
-  OBS_VK_PLAN_DEPTH,  /* the G-buffer's images (vk.h, obs_vk_gbuffer) */
+  OBS_VK_PLAN_DEPTH, /* the G-buffer's images (vk.h, obs_vk_gbuffer) */
   OBS_VK_PLAN_NORMAL,
   OBS_VK_PLAN_ALBEDO,
   OBS_VK_PLAN_IMAGE0, /* the technique's first own image */
@@ -42,25 +42,26 @@ enum {
 #define OBS_VK_PLAN_DOWNLOADS 4
 #define OBS_VK_PLAN_LOCAL 8 /* the shaders' default local size, 8 x 8 */
 
-/* A scratch image the driver makes (obs_vk_image_create: zeroed), or one the caller owns. */
+/* A 2D scratch image the driver makes (obs_vk_image_create: zeroed), or one the caller owns. */
 typedef struct obs_vk_plan_image {
-  int width, height;  /* texels; both 0: the frame's size */
-  int channels;       /* 1 (r32f) or 4 (rgba32f) */
-  const float *data;  /* uploaded once made (width x height x channels floats); NULL: zeros */
-  obs_vk_image *use;  /* a caller's image, bound as it is: not made, uploaded or freed */
+  int width, height; /* texels; both 0: the frame's size */
+  int channels;      /* 1 (r32f) or 4 (rgba32f) */
+  const float *data; /* uploaded once made (width x height x channels floats); NULL: zeros */
+  obs_vk_image *use; /* a caller's image, bound as it is: not made, uploaded or freed */
 } obs_vk_plan_image;
 
 /* One compute dispatch over an image (vk.h, obs_vk_pass, for what the shader sees). */
 typedef struct obs_vk_plan_pass {
-  const char *stage;     /* the timing stage it adds to (passes may share one); NULL ends the list */
+  const char *stage;     /* the timing stage it adds to (passes may share one), a static string (the
+                          * times and the render keep the pointer); NULL ends the list */
   const uint32_t *spirv; /* embedded SPIR-V (OBS_VK_SPIRV) */
   size_t spirv_size;
   int images[OBS_VK_MAX_BINDINGS]; /* handles in binding order, up to the first 0 */
   const void *push;                /* its push-constant block (OBS_VK_PUSH), may be NULL */
   uint32_t push_size;
-  int grid;      /* the handle whose size the dispatch covers; 0: the frame */
-  int local[2];  /* the shader's local size; 0: OBS_VK_PLAN_LOCAL */
-  int skip;      /* nonzero: the pass does not run */
+  int grid;     /* the handle whose size the dispatch covers; 0: the frame */
+  int local[2]; /* the shader's local size; 0: OBS_VK_PLAN_LOCAL */
+  int skip;     /* nonzero: the pass does not run */
   obs_vk_texture *textures[OBS_VK_MAX_TEXTURES]; /* set 1, as in obs_vk_pass (optional) */
   int ntextures;
   obs_vk_data *data;
@@ -111,8 +112,8 @@ typedef struct obs_vk_plan_state { /* the driver's */
   obs_vk *vk;
   const obs_vk_plan *plan;
   const char *who;
-  int fw, fh;     /* the frame */
-  uint32_t seen;  /* validation messages before open */
+  int fw, fh;                    /* the frame */
+  uint32_t seen;                 /* validation messages before open */
   int used[OBS_VK_PLAN_IMAGES];  /* bound by an enabled pass or read by an active download */
   int owned[OBS_VK_PLAN_IMAGES]; /* made by open, freed by close */
   obs_vk_image *img[OBS_VK_PLAN_IMAGES];
