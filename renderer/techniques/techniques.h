@@ -18,8 +18,9 @@ extern const obs_technique obs_technique_obscurance_map;
 int obs_obscurance_map_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 int obs_obscurance_map_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 
-/* The outputs the screen-space drivers write (ssao.c), declared by ssao and hbao alike. */
-extern const obs_output obs_screen_outputs[];
+/* The outputs the screen-space drivers write (obs_screen_outputs), declared by every screen-space
+ * technique alike. */
+#include "gbuffer.h"
 
 extern const obs_technique obs_technique_ssao;
 int obs_ssao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);

@@ -1,4 +1,4 @@
-/* ssao on the CPU: the twin of renderer/vulkan/shaders/ssao*.comp.glsl, operation for operation.
+/* ssao on the CPU: the twin of ssao*.comp.glsl beside it, operation for operation.
  *
  * Both sides must give the same bits on the same G-buffer, so this file keeps to float32, performs
  * each expression in the shader's order (the C build is ISO C, so nothing is contracted to FMA;

@@ -64,7 +64,7 @@ static int positive(const obs_vec3 *v) { return v->x + v->y + v->z > 0; }
 /* A scene without any emitter could only render black: refused, naming what counts. */
 static void path_trace_check(const obs_scene *scene, const json_t *params, const char *doc,
                              obs_err *err) {
-  /* The sample streams index paths with 16 bits (renderer/cpu/path_trace.c, pt_sample). */
+  /* The sample streams index paths with 16 bits (cpu.c, pt_sample). */
   json_int_t samples = json_integer_value(json_object_get(params, "samples"));
   if ((json_int_t)scene->spp * samples > 65536)
     obs_err_set(err, OBS_EINVAL,

@@ -1,5 +1,5 @@
 /* volume_ao on Vulkan: the CPU's per-pixel isosurface ray casting with ray-marched AO, bent
- * normals and environment light (renderer/cpu/volume_ao.c) as one compute shader
+ * normals and environment light (cpu.c) as one compute shader
  * (shaders/volume_ao.comp.glsl) over the scene's volumes in 3D textures
  * (volume_textures_vk.h).
  *

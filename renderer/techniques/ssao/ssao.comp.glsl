@@ -1,4 +1,4 @@
-// ssao AO pass (Kajalin, ShaderX7 6.1): the twin of ssao_pixel in renderer/cpu/ssao.c.
+// ssao AO pass (Kajalin, ShaderX7 6.1): the twin of ssao_pixel in cpu.c.
 // Every value that feeds a comparison or the output is `precise`, so nothing is contracted to FMA
 // or reassociated and the CPU twin can repeat it bit for bit; fetches are texel-snapped imageLoads.
 #version 450

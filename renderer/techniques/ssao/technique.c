@@ -1,4 +1,4 @@
-/* Descriptor of ssao (Crytek screen-space AO, Kajalin 2009), its parameters and shared tables. */
+/* Descriptor of ssao (Crytek screen-space AO, Kajalin 2009), its parameters and reference. */
 #include "ssao.h"
 
 #include <float.h>
@@ -11,21 +11,6 @@
 #include "obscura/render.h"
 #include "sampling.h"
 #include "techniques.h"
-
-/* The outputs of every screen-space technique: the channels the screen-space drivers write
- * (core/gbuffer.h's obs_screen_channel_names), so ssao and hbao declare the same table. */
-const obs_output obs_screen_outputs[] = {
-    {.name = "ao", .kind = OBS_OUTPUT_SCALAR, .show = OBS_SHOW_GREY, .png = "ao.png",
-     .description = "Ambient occlusion (white = open, black = fully occluded)",
-     .flags = OBS_OUTPUT_PRIMARY | OBS_OUTPUT_UNIT},
-    {.name = "ao_raw", .kind = OBS_OUTPUT_SCALAR,
-     .description = "Ambient occlusion before the blur"},
-    {.name = "depth", .kind = OBS_OUTPUT_DEPTH, .show = OBS_SHOW_DEPTH, .png = "depth.png",
-     .description = "Depth (view distance, grey levels)"},
-    {.name = "normal", .kind = OBS_OUTPUT_VECTOR, .description = "World-space surface normal"},
-    {.name = "alpha", .kind = OBS_OUTPUT_SCALAR,
-     .description = "Coverage (1 where a surface is hit, 0 on the background)"},
-    {.name = NULL}};
 
 static const int ssao_sample_counts[] = {8, 16, 24};
 

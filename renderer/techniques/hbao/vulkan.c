@@ -1,4 +1,4 @@
-/* hbao on Vulkan: the passes of renderer/cpu/hbao.c as compute shaders (shaders/hbao_*.comp.glsl)
+/* hbao on Vulkan: the passes of cpu.c as compute shaders (hbao_*.comp.glsl)
  * over a device G-buffer, run by the Vulkan screen-space driver (screen_vk.h). */
 #include <math.h>
 #include <stdlib.h>

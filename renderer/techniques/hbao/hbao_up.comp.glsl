@@ -1,5 +1,5 @@
 // hbao depth-aware bilinear upsampling of the half-resolution AO: the twin of up_tile in
-// renderer/cpu/hbao.c.
+// cpu.c.
 #version 450
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(binding = 0, r32f) uniform readonly image2D depth;

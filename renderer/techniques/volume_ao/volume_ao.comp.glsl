@@ -1,6 +1,6 @@
-// volume_ao on Vulkan, one invocation per pixel: what shade_pixel of renderer/cpu/volume_ao.c does,
+// volume_ao on Vulkan, one invocation per pixel: what shade_pixel of cpu.c does,
 // in float. Camera rays through the rig, the nearest isosurface hit over all volumes (clip to the
-// box, half-voxel steps, macrocell skipping, bisection: renderer/core/volume_march.c), the
+// box, half-voxel steps, macrocell skipping, bisection: volume_march.c), the
 // gradient normal, AO directions from the same sample streams as the CPU's obs_sampler2d
 // (renderer/core/sampling.c, ported bit for bit), marched through every volume
 // (obs_volume_grid_crossing), the bent normal, direct lights, the ibl methods and the colormap.
@@ -211,7 +211,7 @@ float field(int k, vec3 p) {
   return textureLod(vol_atlas, (c + V(k, V_AT).xyz) * P[H_ATLAS].xyz, 0.0).r;
 }
 
-// ---- marching (renderer/core/volume_march.c) ----
+// ---- marching (volume_march.c) ----
 
 // Component-wise and / or of boolean vectors (GLSL has none).
 bvec3 both(bvec3 a, bvec3 b) { return bvec3(uvec3(a) & uvec3(b)); }

@@ -1,5 +1,5 @@
-/* ssao on Vulkan: the AO and blur compute passes (shaders/ssao*.comp.glsl) over a device G-buffer,
- * run by the Vulkan screen-space driver (screen_vk.h). The CPU twin is renderer/cpu/ssao.c. */
+/* ssao on Vulkan: the AO and blur compute passes (ssao*.comp.glsl) over a device G-buffer,
+ * run by the Vulkan screen-space driver (screen_vk.h). The CPU twin is cpu.c. */
 #include <stdlib.h>
 #include <string.h>
 

@@ -1,5 +1,5 @@
 // ssao blur pass: 4x4 box over pixels of similar depth; the twin of blur_pixel in
-// renderer/cpu/ssao.c (same window, same summation order, same reciprocal table).
+// cpu.c (same window, same summation order, same reciprocal table).
 #version 450
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(binding = 0, r32f) uniform readonly image2D depth_img;

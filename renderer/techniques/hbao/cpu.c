@@ -1,4 +1,4 @@
-/* hbao on the CPU: the twin of renderer/vulkan/hbao_vk.c and its shaders, operation for operation.
+/* hbao on the CPU: the twin of vulkan.c and its shaders, operation for operation.
  *
  * Every float expression here is written in the order the GLSL writes it, in float32 (no double in
  * per-pixel math, no FMA contraction in ISO C mode), so that both backends give the same bits on the

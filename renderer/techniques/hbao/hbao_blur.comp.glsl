@@ -1,5 +1,5 @@
 // hbao cross-bilateral blur, one direction per dispatch: the twin of blur_tile in
-// renderer/cpu/hbao.c (exp here and libm's expf may differ in the last bits).
+// cpu.c (exp here and libm's expf may differ in the last bits).
 #version 450
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(binding = 0, r32f) uniform readonly image2D depth;

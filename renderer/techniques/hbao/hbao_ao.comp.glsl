@@ -1,4 +1,4 @@
-// hbao horizon search, one AO texel per invocation: the twin of ao_texel in renderer/cpu/hbao.c,
+// hbao horizon search, one AO texel per invocation: the twin of ao_texel in cpu.c,
 // written operation for operation in the same order; `precise` stops FMA contraction so the bits
 // match the C code's.
 #version 450
@@ -30,7 +30,7 @@ vec3 position(float fx, float fy, float z) {
 }
 
 // Elevation (sin, cos) of the tangent line along view-space direction (dx, dy); see tangent() in
-// renderer/cpu/hbao.c.
+// cpu.c.
 vec2 tangent(vec3 n, vec3 r, float nr, float dx, float dy) {
   precise float nd = n.x * dx + n.y * dy;
   precise float lx = nd * r.x - nr * dx;
@@ -74,7 +74,7 @@ float ao_texel(ivec2 a) {
   int cell = (a.y & 3) * 4 + (a.x & 3);
   precise float cx = float(a.x) + 0.5;
   precise float cy = float(a.y) + 0.5;
-  // pow2_scale in renderer/cpu/hbao.c: 2^-e and 2^e for the binary exponent e of z.
+  // pow2_scale in cpu.c: 2^-e and 2^e for the binary exponent e of z.
   uint be = clamp((floatBitsToUint(z) >> 23) & 0xffu, 1u, 253u);
   precise float down = uintBitsToFloat((254u - be) << 23);
   precise float rscale = uintBitsToFloat(be << 23) * pc.inv_r;

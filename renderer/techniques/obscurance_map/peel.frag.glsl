@@ -1,7 +1,7 @@
 // Depth peeling of obscurance_map: the nearest fragment strictly behind the previous layer, as
 // (patch id, facing cosine b, window depth, reflectivity index). The patch is the sub-triangle of
 // the scene triangle at the fragment's barycentric weights, numbered as the CPU's patch mesh
-// (renderer/core/patch_mesh.c, obs_patch_sub_index).
+// (patch_mesh.c, obs_patch_sub_index).
 #version 450
 
 layout(location = 0) in vec2 bary;

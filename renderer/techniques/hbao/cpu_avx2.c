@@ -1,4 +1,4 @@
-/* The AVX2 kernel of the CPU hbao's AO pass: ao_texel (renderer/cpu/hbao.c) eight texels at a
+/* The AVX2 kernel of the CPU hbao's AO pass: ao_texel (cpu.c) eight texels at a
  * time with the same float32 operations per lane, so every lane gives ao_texel's bits (simd.h);
  * how it orders and skips work is described in docs/techniques/hbao.md. */
 #include <string.h>

@@ -1,6 +1,6 @@
 // proximity_ao, reconstruction: per pixel of the rasterised G-buffer, the walk along the normal
 // through every field whose box holds the point, the twin of accessibility() in
-// renderer/cpu/proximity_ao.c and obs_prox_occlusion / obs_prox_sample in
+// cpu.c and obs_prox_occlusion / obs_prox_sample in
 // renderer/core/proximity.c, operation for operation (`precise`: no fused multiply-adds). The
 // fields are one 3D texture atlas read texel by texel (the CPU's trilinear, not the hardware's).
 // One dispatch reads fields [f0, f1) and carries the combination in `acc` to the next, so no
@@ -18,7 +18,7 @@ layout(binding = 3, rgba32f) uniform image2D acc;
 // Per pixel of the region: world normal, view depth (written by the first dispatch).
 layout(binding = 4, rgba32f) uniform image2D surf;
 layout(set = 1, binding = 0) uniform sampler3D atlas;
-// Rows of 4 floats, written by renderer/vulkan/proximity_ao_vk.c (keep the two in step).
+// Rows of 4 floats, written by vulkan.c (keep the two in step).
 layout(set = 1, binding = 4, std430) readonly buffer Data { vec4 rows[]; };
 
 const int H_RIGHT = 0;  // camera right, half_w

@@ -245,7 +245,7 @@ const obs_technique obs_technique_volume_ao = {
               /* The shader computes in float, but in each volume's data space, from maps the
                * host composes in double relative to a point on the view axis at the volumes'
                * depth, and camera rays start where they cross that point's depth plane
-               * (renderer/vulkan/volume_ao_vk.c): scale, translation and the eye's distance
+               * (vulkan.c): scale, translation and the eye's distance
                * (3e5 sizes at fov_y 1e-3) cancel before anything is rounded to float, so the
                * range is the CPU's. Float sets the tolerance instead: the rounded maps move the
                * bisected hit within its thousandth of a voxel, and over both ends of this range

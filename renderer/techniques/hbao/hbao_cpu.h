@@ -1,5 +1,5 @@
-/* The CPU hbao's pass job, shared by renderer/cpu/hbao.c (passes, scalar texels, blur) and
- * renderer/cpu/hbao_avx2.c (the AVX2 AO kernel). Internal to the CPU backend. */
+/* The CPU hbao's pass job, shared by cpu.c (passes, scalar texels, blur) and
+ * cpu_avx2.c (the AVX2 AO kernel). Internal to the CPU backend. */
 #ifndef OBS_HBAO_CPU_H
 #define OBS_HBAO_CPU_H
 
@@ -39,7 +39,7 @@ typedef struct hbao_job {
 } hbao_job;
 
 #if OBS_SIMD_AVX2
-/* ao_texel (renderer/cpu/hbao.c) for texels x + stride l, l = 0..7, of level row y, all inside
+/* ao_texel (cpu.c) for texels x + stride l, l = 0..7, of level row y, all inside
  * the level; stride 1 or 4. Writes dst[stride l]. Same bits as ao_texel on every lane. */
 void obs_hbao_ao_span8(const hbao_job *jb, int x, int stride, int y, float *dst);
 #endif
