@@ -5,6 +5,8 @@
 
 #include <stdint.h>
 
+#include "obscura/technique.h"
+
 /* Values of `sequence`: the indices of its choices in the table. */
 enum { OBS_OBSCURANCE_HALTON, OBS_OBSCURANCE_SOBOL };
 
@@ -21,5 +23,8 @@ typedef struct obs_obscurance_params {
   uint32_t seed;
   double exposure;        /* EV; display only (the PNGs of radiances) */
 } obs_obscurance_params;
+
+/* The run of each backend (cpu.c), named by the descriptor's `run`. */
+int obs_obscurance_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 
 #endif

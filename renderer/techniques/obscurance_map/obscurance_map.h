@@ -52,4 +52,8 @@ static inline void obs_omap_warn_stderr(obs_render_ctx *ctx, int method,
                         OBS_OMAP_STDERR_MIN_DIRECTIONS, p->directions);
 }
 
+/* The run of each backend (cpu.c and vulkan.c), named by the descriptor's `run`. */
+int obs_obscurance_map_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
+int obs_obscurance_map_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
+
 #endif

@@ -4,6 +4,8 @@
 
 #include <stdint.h>
 
+#include "obscura/technique.h"
+
 typedef struct obs_path_trace_params {
   int32_t samples;     /* paths per pixel sample */
   int32_t max_bounces; /* reflections a path may take; 0 = emitters seen directly only */
@@ -13,5 +15,8 @@ typedef struct obs_path_trace_params {
   uint32_t seed;
   double exposure;     /* EV; display only (final.png), not applied to radiance */
 } obs_path_trace_params;
+
+/* The run of each backend (cpu.c), named by the descriptor's `run`. */
+int obs_path_trace_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 
 #endif

@@ -5,6 +5,8 @@
 
 #include <stdint.h>
 
+#include "obscura/technique.h"
+
 #include "proximity.h"
 
 typedef struct obs_proximity_ao_params {
@@ -35,5 +37,9 @@ void obs_proximity_ao_recon(const obs_proximity_ao_params *p, obs_prox_recon *ou
  * propagation radius `rp`. */
 double obs_proximity_ao_reach(const obs_proximity_ao_params *p, double rp);
 double obs_proximity_ao_step(const obs_proximity_ao_params *p, double rp);
+
+/* The run of each backend (cpu.c and vulkan.c), named by the descriptor's `run`. */
+int obs_proximity_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
+int obs_proximity_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 
 #endif

@@ -3,6 +3,8 @@
 #define OBS_RT_AO_H
 
 #include <stdint.h>
+
+#include "obscura/technique.h"
 #include "obscurance.h"
 
 typedef struct obs_rt_ao_params {
@@ -14,5 +16,8 @@ typedef struct obs_rt_ao_params {
   int sampler;         /* obs_sampler_kind: 0 sobol, 1 halton, 2 random */
   uint32_t seed;
 } obs_rt_ao_params;
+
+/* The run of each backend (cpu.c), named by the descriptor's `run`. */
+int obs_rt_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 
 #endif

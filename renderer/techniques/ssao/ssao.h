@@ -4,6 +4,8 @@
 
 #include <stdint.h>
 
+#include "obscura/technique.h"
+
 #include "gbuffer.h"
 #include "obscura/error.h"
 #include "obscura/scene.h"
@@ -71,5 +73,9 @@ int obs_ssao_vk_apply(obs_vk *vk, obs_vk_gbuffer *g, const obs_ssao_params *p, f
 int obs_ssao_vk_apply_ex(obs_vk *vk, obs_vk_gbuffer *g, const obs_ssao_projection *proj,
                          const obs_ssao_params *p, float *ao_host, float *ao_raw_host,
                          double *stage_ms, obs_err *err);
+
+/* The run of each backend (cpu.c and vulkan.c), named by the descriptor's `run`. */
+int obs_ssao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
+int obs_ssao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 
 #endif

@@ -4,6 +4,8 @@
 
 #include <stdint.h>
 
+#include "obscura/technique.h"
+
 /* How the environment lights the surface (the report's bent-normal lookup, a diffuse SH
  * convolution at the bent normal, or the Monte-Carlo integral it approximates). */
 typedef enum {
@@ -41,5 +43,9 @@ struct obs_render_ctx;
 struct obs_scene;
 void obs_volume_ao_warn(struct obs_render_ctx *ctx, const struct obs_scene *sc,
                         const obs_volume_ao_tparams *p);
+
+/* The run of each backend (cpu.c and vulkan.c), named by the descriptor's `run`. */
+int obs_volume_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
+int obs_volume_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 
 #endif
