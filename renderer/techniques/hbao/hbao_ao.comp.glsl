@@ -2,16 +2,14 @@
 // written operation for operation in the same order; `precise` stops FMA contraction so the bits
 // match the C code's.
 #version 450
+#extension GL_GOOGLE_include_directive : require
+#define OBS_HBAO_AO_PASS
+#include "layout.h"
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(binding = 0, r32f) uniform readonly image2D depth_l;
 layout(binding = 1, rgba32f) uniform readonly image2D normal_l;
 layout(binding = 2, rgba32f) uniform readonly image2D dirs; // directions x 16: (dx, dy, jitter, 0)
 layout(binding = 3, r32f) uniform writeonly image2D ao_out;
-layout(push_constant) uniform Push {
-  int lw, lh, s, width, height, ortho, directions, steps;
-  float half_w, half_h, radius, cos_b, sin_b, scale, inv_r; // inv_r = 1 / radius, host float
-  float depth_eps;                                          // OBS_HBAO_DEPTH_EPS
-} pc;
 
 // obs_gbuffer_position (renderer/core/gbuffer.h).
 vec3 position(float fx, float fy, float z) {

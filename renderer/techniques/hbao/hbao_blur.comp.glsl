@@ -1,14 +1,13 @@
 // hbao cross-bilateral blur, one direction per dispatch: the twin of blur_tile in
 // cpu.c (exp here and libm's expf may differ in the last bits).
 #version 450
+#extension GL_GOOGLE_include_directive : require
+#define OBS_HBAO_BLUR_PASS
+#include "layout.h"
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(binding = 0, r32f) uniform readonly image2D depth;
 layout(binding = 1, r32f) uniform readonly image2D ao_in;
 layout(binding = 2, r32f) uniform writeonly image2D ao_out;
-layout(push_constant) uniform Push {
-  int width, height, axis, radius;
-  float falloff, sharpness, max_rel_dz;
-} pc;
 
 void main() {
   ivec2 p = ivec2(gl_GlobalInvocationID.xy);

@@ -1,15 +1,14 @@
 // hbao depth-aware bilinear upsampling of the half-resolution AO: the twin of up_tile in
 // cpu.c.
 #version 450
+#extension GL_GOOGLE_include_directive : require
+#define OBS_HBAO_UP_PASS
+#include "layout.h"
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(binding = 0, r32f) uniform readonly image2D depth;
 layout(binding = 1, r32f) uniform readonly image2D half_depth;
 layout(binding = 2, r32f) uniform readonly image2D half_ao;
 layout(binding = 3, r32f) uniform writeonly image2D ao_out;
-layout(push_constant) uniform Push {
-  int width, height, lw, lh;
-  float max_rel_dz, upsample_k;
-} pc;
 
 void main() {
   ivec2 p = ivec2(gl_GlobalInvocationID.xy);

@@ -22,6 +22,7 @@
 #include "driver.h"
 #include "geometry.h"
 #include "obscura/render.h"
+#include "plan_vk.h"
 #include "proximity_ao.h"
 #include "shaders.h"
 #include "techniques.h"
@@ -75,16 +76,12 @@ typedef struct dev {
   obs_vk_texture *atlas;
   int (*at)[3]; /* each field's corner in the atlas */
   obs_vk_data *params;
-  obs_vk_image *acc;  /* per pixel of the region: occlusion sum, product of (1 - a), fields, ao */
-  obs_vk_image *surf; /* per pixel of the region: world normal, view depth */
 } dev;
 
 static void dev_free(obs_vk *vk, dev *d) {
   obs_vk_gbuffer_free(vk, &d->gb);
   obs_vk_texture_free(vk, d->atlas);
   obs_vk_data_free(vk, d->params);
-  obs_vk_image_free(vk, d->acc);
-  obs_vk_image_free(vk, d->surf);
   free(d->at);
   memset(d, 0, sizeof *d);
 }
@@ -194,9 +191,11 @@ static int fields_per_dispatch(obs_vk *vk, const job *jb) {
   return n < 1 ? 1 : n > 1e6 ? 1000000 : (int)n;
 }
 
-/* The dispatches over the region, a chunk of fields each; *ms gets their device time. */
+/* The dispatches over the region, a chunk of fields each, then its two images read back into px
+ * (per pixel, 4 floats of each): acc (occlusion sum, product of (1 - a), fields, ao) and surf
+ * (world normal, view depth). `t` gets the stages "shade" and "readback". */
 static int shade(obs_render_ctx *ctx, obs_vk *vk, const job *jb, const obs_region *rg, const dev *d,
-                 double *ms, obs_err *err) {
+                 float *px, obs_vk_plan_times *t, obs_err *err) {
   int per = fields_per_dispatch(vk, jb), nf = (int)jb->fs->n;
   int chunks = nf ? (nf + per - 1) / per : 1;
   recon_push pc = {.region = {rg->x0, rg->y0, rg->x1 - rg->x0, rg->y1 - rg->y0},
@@ -206,65 +205,52 @@ static int shade(obs_render_ctx *ctx, obs_vk *vk, const job *jb, const obs_regio
                    .combine = jb->p.combine,
                    .self_occlusion = jb->p.self_occlusion,
                    .objects = (int32_t)(H_COUNT + jb->fs->n * F_COUNT)};
-  obs_vk_pass pass = {.name = "proximity_ao",
-                      .spirv = obs_spv_proximity_ao_comp,
-                      .spirv_size = obs_spv_proximity_ao_comp_size,
-                      .images = {d->gb.depth, d->gb.normal, d->gb.albedo, d->acc, d->surf},
-                      .nimages = 5,
-                      .push = &pc,
-                      .push_size = sizeof pc,
-                      .groups_x = (uint32_t)(pc.region[2] + 7) / 8,
-                      .groups_y = (uint32_t)(pc.region[3] + 7) / 8,
-                      .textures = {d->atlas},
-                      .ntextures = 1,
-                      .data = d->params};
-  *ms = 0;
-  for (int c = 0; c < chunks; c++) {
-    int rc = obs_driver_cancelled(ctx, err);
-    if (rc) return rc;
+  enum { ACC = OBS_VK_PLAN_IMAGE0, SURF };
+  obs_vk_plan plan = {
+      .technique = "proximity_ao",
+      .width = pc.region[2],
+      .height = pc.region[3],
+      .images = {[ACC] = {.channels = 4}, [SURF] = {.channels = 4}},
+      .passes = {{.stage = "shade", OBS_VK_SPIRV(proximity_ao_comp), OBS_VK_PUSH(pc),
+                  .images = {OBS_VK_PLAN_DEPTH, OBS_VK_PLAN_NORMAL, OBS_VK_PLAN_ALBEDO, ACC, SURF},
+                  .textures = {d->atlas},
+                  .ntextures = 1,
+                  .data = d->params}},
+      .downloads = {{ACC, px}, {SURF, px + 4 * (size_t)pc.region[2] * (size_t)pc.region[3]}}};
+  obs_vk_plan_state s;
+  int rc = obs_vk_plan_open(vk, &d->gb, &plan, &s, err);
+  for (int c = 0; c < chunks && !rc; c++) {
+    if ((rc = obs_driver_cancelled(ctx, err))) break;
     pc.f0 = c * per;
     pc.f1 = pc.f0 + per < nf ? pc.f0 + per : nf;
     pc.phase = (c == 0 ? PH_FIRST : 0) | (c + 1 == chunks ? PH_LAST : 0);
-    double t = 0;
-    if ((rc = obs_vk_run(vk, &pass, 1, &t, err))) return rc;
-    *ms += t;
-    progress(ctx, 0.3 + 0.6 * (c + 1) / chunks);
+    if (!(rc = obs_vk_plan_dispatch(&s, err))) progress(ctx, 0.3 + 0.6 * (c + 1) / chunks);
   }
-  return 0;
+  return obs_vk_plan_close(&s, rc, t, err);
 }
 
 /* The region's AO, field counts, depths, world normals and coverage (a covered pixel's normal is
- * a unit vector, an uncovered one's 0). */
-static int readback(obs_vk *vk, const job *jb, const obs_region *rg, const dev *d, obs_image *out,
-                    obs_err *err) {
+ * a unit vector, an uncovered one's 0) from what shade read back. */
+static void scatter(const obs_region *rg, const float *px, obs_image *out) {
   int rw = rg->x1 - rg->x0, rh = rg->y1 - rg->y0;
   size_t n = (size_t)rw * (size_t)rh;
-  float *px = malloc(8 * n * sizeof *px);
-  if (!px) return obs_err_set(err, OBS_ENOMEM, "%s: proximity_ao: out of memory", jb->sc->name);
-  int rc = obs_vk_image_download(vk, d->acc, px, err);
-  if (!rc) rc = obs_vk_image_download(vk, d->surf, px + 4 * n, err);
-  if (!rc) {
-    float *ch[OBS_PROX_CHANNELS];
-    for (int c = 0; c < OBS_PROX_CHANNELS; c++)
-      ch[c] = obs_image_channel(out, obs_proximity_ao_channels[c]);
-    for (size_t i = 0; i < n; i++) {
-      size_t at = (size_t)(rg->y0 + (int)(i / (size_t)rw)) * (size_t)out->width + (size_t)rg->x0 +
-                  i % (size_t)rw;
-      const float *a = px + 4 * i, *s = px + 4 * (n + i);
-      ch[0][at] = a[3];
-      ch[1][at] = a[2];
-      ch[2][at] = s[3];
-      for (int k = 0; k < 3; k++) ch[3 + k][at] = s[k];
-      ch[6][at] = s[0] != 0.0f || s[1] != 0.0f || s[2] != 0.0f ? 1.0f : 0.0f;
-    }
+  float *ch[OBS_PROX_CHANNELS];
+  for (int c = 0; c < OBS_PROX_CHANNELS; c++)
+    ch[c] = obs_image_channel(out, obs_proximity_ao_channels[c]);
+  for (size_t i = 0; i < n; i++) {
+    size_t at = (size_t)(rg->y0 + (int)(i / (size_t)rw)) * (size_t)out->width + (size_t)rg->x0 +
+                i % (size_t)rw;
+    const float *a = px + 4 * i, *s = px + 4 * (n + i);
+    ch[0][at] = a[3];
+    ch[1][at] = a[2];
+    ch[2][at] = s[3];
+    for (int k = 0; k < 3; k++) ch[3 + k][at] = s[k];
+    ch[6][at] = s[0] != 0.0f || s[1] != 0.0f || s[2] != 0.0f ? 1.0f : 0.0f;
   }
-  free(px);
-  return rc;
 }
 
-/* The G-buffer, the fields, the parameters and the output images on the device; timed as the
- * render's build. */
-static int dev_build(obs_render_ctx *ctx, obs_vk *vk, const job *jb, const obs_region *rg, dev *d,
+/* The G-buffer, the fields and the parameters on the device; timed as the render's build. */
+static int dev_build(obs_render_ctx *ctx, obs_vk *vk, const job *jb, dev *d,
                      obs_err *err) {
   double gb_ms = 0, t0 = obs_now_ms();
   int rc = obs_vk_gbuffer_render(vk, jb->sc, jb->geo, &d->gb, &gb_ms, err);
@@ -277,9 +263,6 @@ static int dev_build(obs_render_ctx *ctx, obs_vk *vk, const job *jb, const obs_r
     rc = obs_err_set(err, OBS_ENOMEM, "%s: proximity_ao: out of memory", jb->sc->name);
   if (!rc) rc = obs_vk_data_create(vk, b, rows * 4 * sizeof *b, &d->params, err);
   free(b);
-  int rw = rg->x1 - rg->x0, rh = rg->y1 - rg->y0;
-  if (!rc) rc = obs_vk_image_create(vk, rw, rh, 4, &d->acc, err);
-  if (!rc) rc = obs_vk_image_create(vk, rw, rh, 4, &d->surf, err);
   obs_driver_stage_add(ctx, "upload", obs_now_ms() - t1);
   ctx->build_ms += obs_now_ms() - t0;
   return rc;
@@ -312,6 +295,7 @@ int obs_proximity_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   obs_vk *vk = NULL;
   dev d;
   obs_geometry geo;
+  float *px = NULL;
   memset(&d, 0, sizeof d);
   memset(&geo, 0, sizeof geo);
   jb.geo = &geo;
@@ -324,19 +308,26 @@ int obs_proximity_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   obs_driver_stage_add(ctx, "device", t0 - ta);
   rc = obs_geometry_build_at(sc, jb.rig.origin, &geo, err);
   ctx->build_ms += obs_now_ms() - t0;
-  if (rc || (rc = dev_build(ctx, vk, &jb, &rg, &d, err))) goto done;
+  if (rc || (rc = dev_build(ctx, vk, &jb, &d, err))) goto done;
   progress(ctx, 0.3);
-  double t1 = obs_now_ms(), ms = 0;
-  if ((rc = shade(ctx, vk, &jb, &rg, &d, &ms, err))) goto done;
-  obs_driver_stage_add(ctx, "shade", ms);
+  double t1 = obs_now_ms();
+  size_t npx = (size_t)(rg.x1 - rg.x0) * (size_t)(rg.y1 - rg.y0);
+  obs_vk_plan_times t;
+  if (!(px = malloc(8 * npx * sizeof *px))) {
+    rc = obs_err_set(err, OBS_ENOMEM, "%s: proximity_ao: out of memory", sc->name);
+    goto done;
+  }
+  if ((rc = shade(ctx, vk, &jb, &rg, &d, px, &t, err))) goto done;
   double t2 = obs_now_ms();
-  if ((rc = readback(vk, &jb, &rg, &d, out, err))) goto done;
+  scatter(&rg, px, out);
+  obs_vk_plan_record(ctx, &t);
   obs_driver_stage_add(ctx, "readback", obs_now_ms() - t2);
   ctx->render_ms = obs_now_ms() - t1;
   ctx->rays = 0;
   rc = obs_vk_validation_verdict(vk, validation, sc->name, "proximity_ao", err);
   if (!rc) progress(ctx, 1.0);
 done:
+  free(px);
   if (vk) dev_free(vk, &d);
   obs_vk_release(vk);
   obs_geometry_free(&geo);

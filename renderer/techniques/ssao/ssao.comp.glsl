@@ -2,17 +2,15 @@
 // Every value that feeds a comparison or the output is `precise`, so nothing is contracted to FMA
 // or reassociated and the CPU twin can repeat it bit for bit; fetches are texel-snapped imageLoads.
 #version 450
+#extension GL_GOOGLE_include_directive : require
+#define OBS_SSAO_AO_PASS
+#include "layout.h"
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(binding = 0, r32f) uniform readonly image2D depth_img;     // linear view depth, 0 = none
 layout(binding = 1, rgba32f) uniform readonly image2D normal_img; // view-space normal, coverage
 layout(binding = 2, rgba32f) uniform readonly image2D rot_img;    // 4x4 unit reflection normals
 layout(binding = 3, rgba32f) uniform readonly image2D offset_img; // samples x 1 offsets
 layout(binding = 4, r32f) uniform writeonly image2D raw_img;
-layout(push_constant) uniform Push {
-  int width, height, samples;
-  int flags; // 1: normal_oriented, 2: orthographic camera
-  float half_w, half_h, inv_samples;
-} pc;
 
 void main() {
   ivec2 p = ivec2(gl_GlobalInvocationID.xy);
@@ -27,7 +25,7 @@ void main() {
   precise float fx = float(p.x) + 0.5;
   precise float fy = float(p.y) + 0.5;
   float fw = float(pc.width), fh = float(pc.height);
-  float s = (pc.flags & 2) != 0 ? 1.0 : zp;
+  float s = (pc.flags & OBS_SSAO_FLAG_ORTHO) != 0 ? 1.0 : zp;
   precise float kx = 2.0 * pc.half_w * s;
   precise float ky = -2.0 * pc.half_h * s;
   precise float kz = 2.0 * zp;
@@ -40,7 +38,7 @@ void main() {
     precise float ox = v.x - tt * rot.x;
     precise float oy = v.y - tt * rot.y;
     precise float oz = v.z - tt * rot.z;
-    if ((pc.flags & 1) != 0) {
+    if ((pc.flags & OBS_SSAO_FLAG_NORMAL_ORIENTED) != 0) {
       precise float dn = ox * kx * n.x + oy * ky * n.y + oz * kz * n.z;
       if (dn < 0.0) {
         ox = -ox;

@@ -1,15 +1,13 @@
 // ssao blur pass: 4x4 box over pixels of similar depth; the twin of blur_pixel in
 // cpu.c (same window, same summation order, same reciprocal table).
 #version 450
+#extension GL_GOOGLE_include_directive : require
+#define OBS_SSAO_BLUR_PASS
+#include "layout.h"
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(binding = 0, r32f) uniform readonly image2D depth_img;
 layout(binding = 1, r32f) uniform readonly image2D raw_img;
 layout(binding = 2, r32f) uniform writeonly image2D ao_img;
-layout(push_constant) uniform Push {
-  int width, height;
-  float threshold;      // relative depth difference that still mixes
-  float inv_count[17];  // 1/n rounded on the host, so no division differs
-} pc;
 
 void main() {
   ivec2 p = ivec2(gl_GlobalInvocationID.xy);
