@@ -8,6 +8,7 @@
 #include "driver.h"
 #include "obscura/render.h"
 #include "omap_peel.h"
+#include "session_vk.h"
 #include "techniques.h"
 
 /* The channels of the technique's image, as its outputs (obscurance_map.c) name them. */
@@ -36,23 +37,19 @@ static int show(obs_render_ctx *ctx, const obs_omap_peel *m, obs_image *out, obs
   return 0;
 }
 
-int obs_obscurance_map_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
+/* The map on the device (obs_vk_session_fn) and the image of it; `user` is the render's image. */
+static int render(obs_render_ctx *ctx, obs_vk *vk, void *user, obs_err *err) {
   const obs_scene *sc = ctx->scene;
   const obs_obscurance_map_params *p = ctx->bound;
   obs_camera_rig rig;
   obs_camera_setup(&sc->camera, sc->width, sc->height, &rig);
-  obs_vk *vk = NULL;
   obs_geometry geo;
   obs_omap_peel m;
   memset(&geo, 0, sizeof geo);
   memset(&m, 0, sizeof m);
-  const int validation = obs_vk_validation_requested();
-  double ta = obs_now_ms();
-  int rc = obs_vk_acquire(&vk, validation, err);
   double t0 = obs_now_ms(), ms = 0;
-  obs_driver_stage_add(ctx, "device", t0 - ta);
   /* The camera's frame, as the CPU's BVH keeps it for every scene the camera is near. */
-  if (!rc) rc = obs_geometry_build_at(sc, rig.origin, &geo, err);
+  int rc = obs_geometry_build_at(sc, rig.origin, &geo, err);
   double t1 = obs_now_ms();
   ctx->build_ms += t1 - t0;
   if (!rc)
@@ -63,10 +60,9 @@ int obs_obscurance_map_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err)
     rc = obs_patch_mesh_publish(ctx, "obscurance", &m.pm, 3, m.w, err);
     if (!rc) rc = obs_patch_mesh_publish(ctx, "obscurance_stderr", &m.pm, 3, m.se, err);
   }
-  if (!rc) rc = show(ctx, &m, out, err);
+  if (!rc) rc = show(ctx, &m, user, err);
   ctx->render_ms += obs_now_ms() - t1;
   ctx->rays = 0;
-  if (!rc) rc = obs_vk_validation_verdict(vk, validation, sc->name, "obscurance_map", err);
   if (!rc && m.unsampled)
     obs_render_ctx_warn(ctx,
                         "%lld of %lld patches received no sample and show \"nothing within "
@@ -79,7 +75,12 @@ int obs_obscurance_map_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err)
   if (!rc) obs_omap_warn_stderr(ctx, OBS_OMAP_DEPTH_PEELING, p);
   obs_omap_peel_free(&m);
   obs_geometry_free(&geo);
-  obs_vk_release(vk);
+  return rc;
+}
+
+int obs_obscurance_map_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
+  memset(out, 0, sizeof *out);
+  int rc = obs_vk_session_run(ctx, "obscurance_map", render, out, err);
   if (rc) {
     obs_image_free(out);
     for (int i = 0; i < ctx->npatches; i++) obs_patches_free(&ctx->patches[i]);

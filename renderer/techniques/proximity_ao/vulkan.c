@@ -23,6 +23,7 @@
 #include "geometry.h"
 #include "obscura/render.h"
 #include "plan_vk.h"
+#include "session_vk.h"
 #include "proximity_ao.h"
 #include "shaders.h"
 #include "techniques.h"
@@ -68,6 +69,8 @@ typedef struct job {
   obs_proximity_ao_params p;
   obs_prox_recon recon;
   obs_camera_rig rig;
+  obs_region rg;  /* the region rendered */
+  obs_image *out; /* the render's image */
 } job;
 
 /* What the device holds for one render. */
@@ -268,6 +271,44 @@ static int dev_build(obs_render_ctx *ctx, obs_vk *vk, const job *jb, dev *d,
   return rc;
 }
 
+/* The render on the device (obs_vk_session_fn): geometry, G-buffer, fields and parameters, the
+ * shading dispatches and the readback into the region of the image. */
+static int render(obs_render_ctx *ctx, obs_vk *vk, void *user, obs_err *err) {
+  job *jb = user;
+  const obs_region *rg = &jb->rg;
+  dev d;
+  obs_geometry geo;
+  float *px = NULL;
+  memset(&d, 0, sizeof d);
+  memset(&geo, 0, sizeof geo);
+  jb->geo = &geo;
+  double t0 = obs_now_ms();
+  int rc = obs_geometry_build_at(jb->sc, jb->rig.origin, &geo, err);
+  ctx->build_ms += obs_now_ms() - t0;
+  if (rc || (rc = dev_build(ctx, vk, jb, &d, err))) goto done;
+  progress(ctx, 0.3);
+  double t1 = obs_now_ms();
+  size_t npx = (size_t)(rg->x1 - rg->x0) * (size_t)(rg->y1 - rg->y0);
+  obs_vk_plan_times t;
+  if (!(px = malloc(8 * npx * sizeof *px))) {
+    rc = obs_err_set(err, OBS_ENOMEM, "%s: proximity_ao: out of memory", jb->sc->name);
+    goto done;
+  }
+  if ((rc = shade(ctx, vk, jb, rg, &d, px, &t, err))) goto done;
+  double t2 = obs_now_ms();
+  scatter(rg, px, jb->out);
+  obs_vk_plan_record(ctx, &t);
+  obs_driver_stage_add(ctx, "readback", obs_now_ms() - t2);
+  ctx->render_ms = obs_now_ms() - t1;
+  ctx->rays = 0;
+done:
+  free(px);
+  dev_free(vk, &d);
+  obs_geometry_free(&geo);
+  jb->geo = NULL;
+  return rc;
+}
+
 int obs_proximity_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   const obs_scene *sc = ctx->scene;
   memset(out, 0, sizeof *out);
@@ -280,57 +321,17 @@ int obs_proximity_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
                        "%s: /objects: proximity_ao on Vulkan tells at most %u objects apart "
                        "(got %zu)",
                        sc->name, (1u << 24) - 2, sc->nobjects);
-  job jb = {.sc = sc, .fs = ctx->proximity};
+  job jb = {.sc = sc, .fs = ctx->proximity, .out = out};
   jb.p = *(const obs_proximity_ao_params *)ctx->bound;
   obs_proximity_ao_recon(&jb.p, &jb.recon);
   obs_camera_setup(&sc->camera, sc->width, sc->height, &jb.rig);
-  obs_region rg;
-  int rc = obs_driver_image(ctx, OBS_PROX_CHANNELS, obs_proximity_ao_channels, out, &rg, err);
+  int rc = obs_driver_image(ctx, OBS_PROX_CHANNELS, obs_proximity_ao_channels, out, &jb.rg, err);
   if (rc) return rc;
   if (sc->spp > 1)
     obs_render_ctx_warn(ctx,
                         "proximity_ao on vulkan shades each pixel at its centre: image.spp "
                         "%d is not used (the cpu backend averages jittered pixel samples)",
                         sc->spp);
-  obs_vk *vk = NULL;
-  dev d;
-  obs_geometry geo;
-  float *px = NULL;
-  memset(&d, 0, sizeof d);
-  memset(&geo, 0, sizeof geo);
-  jb.geo = &geo;
-  const int validation = obs_vk_validation_requested();
-  /* Acquiring the device is a stage of its own, kept out of build_ms: only its first use in a
-   * process opens it. */
-  double ta = obs_now_ms();
-  if ((rc = obs_vk_acquire(&vk, validation, err))) goto done;
-  double t0 = obs_now_ms();
-  obs_driver_stage_add(ctx, "device", t0 - ta);
-  rc = obs_geometry_build_at(sc, jb.rig.origin, &geo, err);
-  ctx->build_ms += obs_now_ms() - t0;
-  if (rc || (rc = dev_build(ctx, vk, &jb, &d, err))) goto done;
-  progress(ctx, 0.3);
-  double t1 = obs_now_ms();
-  size_t npx = (size_t)(rg.x1 - rg.x0) * (size_t)(rg.y1 - rg.y0);
-  obs_vk_plan_times t;
-  if (!(px = malloc(8 * npx * sizeof *px))) {
-    rc = obs_err_set(err, OBS_ENOMEM, "%s: proximity_ao: out of memory", sc->name);
-    goto done;
-  }
-  if ((rc = shade(ctx, vk, &jb, &rg, &d, px, &t, err))) goto done;
-  double t2 = obs_now_ms();
-  scatter(&rg, px, out);
-  obs_vk_plan_record(ctx, &t);
-  obs_driver_stage_add(ctx, "readback", obs_now_ms() - t2);
-  ctx->render_ms = obs_now_ms() - t1;
-  ctx->rays = 0;
-  rc = obs_vk_validation_verdict(vk, validation, sc->name, "proximity_ao", err);
-  if (!rc) progress(ctx, 1.0);
-done:
-  free(px);
-  if (vk) dev_free(vk, &d);
-  obs_vk_release(vk);
-  obs_geometry_free(&geo);
-  if (rc) obs_image_free(out);
+  if ((rc = obs_vk_session_run(ctx, "proximity_ao", render, &jb, err))) obs_image_free(out);
   return rc;
 }

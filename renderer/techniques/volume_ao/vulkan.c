@@ -20,6 +20,7 @@
 #include "environment.h"
 #include "obscura/render.h"
 #include "sampling.h"
+#include "session_vk.h"
 #include "shaders.h"
 #include "techniques.h"
 #include "vk.h"
@@ -133,8 +134,10 @@ typedef struct job {
   const obs_env *env;
   obs_volume_ao_tparams p;
   obs_camera_rig rig;
-  double t_end; /* where the AO march's grid ends */
-  int32_t last; /* its last index; -1: no march */
+  double t_end;   /* where the AO march's grid ends */
+  int32_t last;   /* its last index; -1: no march */
+  obs_region rg;  /* the region rendered */
+  obs_image *out; /* the render's image */
 } job;
 
 /* The whole parameter buffer (malloc'd, *rows rows of 4 floats). */
@@ -525,31 +528,17 @@ static int readback(obs_render_ctx *ctx, obs_vk *vk, const job *jb, const obs_re
   return rc;
 }
 
-int obs_volume_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
-  const obs_scene *sc = ctx->scene;
-  memset(out, 0, sizeof *out);
-  if (!ctx->volumes)
-    return obs_err_set(err, OBS_EINTERNAL, "%s: volume_ao: the volumes were not read", sc->name);
-  job jb = {.sc = sc, .vs = ctx->volumes, .env = ctx->environment};
-  jb.p = *(const obs_volume_ao_tparams *)ctx->bound;
-  obs_camera_setup(&sc->camera, sc->width, sc->height, &jb.rig);
-  march_grid(&jb);
-  obs_region rg;
-  int rc = obs_driver_image(ctx, CH_COUNT, obs_volume_ao_channels, out, &rg, err);
-  if (rc) return rc;
-  obs_volume_ao_warn(ctx, jb.sc, &jb.p);
-  obs_vk *vk = NULL;
+/* The render on the device (obs_vk_session_fn): volumes, environment and parameters up, the
+ * dispatches, the readback into the region of the image and the pooled prior. */
+static int render(obs_render_ctx *ctx, obs_vk *vk, void *user, obs_err *err) {
+  job *jb = user;
+  const obs_region *rg = &jb->rg;
   dev d;
   memset(&d, 0, sizeof d);
   float *vals = NULL;
-  const int validation = obs_vk_validation_requested();
-  /* Acquiring the device is a stage of its own, kept out of build_ms: only its first use in a
-   * process opens it. */
-  double ta = obs_now_ms();
-  if ((rc = obs_vk_acquire(&vk, validation, err))) goto done;
   double t0 = obs_now_ms();
-  obs_driver_stage_add(ctx, "device", t0 - ta);
-  if ((rc = dev_build(vk, &jb, &rg, &d, err))) goto done;
+  int rc = dev_build(vk, jb, rg, &d, err);
+  if (rc) goto done;
   double t1 = obs_now_ms(), ms = 0;
   ctx->build_ms += t1 - t0;
   obs_driver_stage_add(ctx, "upload", t1 - t0);
@@ -557,26 +546,38 @@ int obs_volume_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   vals = malloc((size_t)OBS_PRIOR_REPLICAS * (size_t)d.grid.ncx * (size_t)d.grid.ncy * 2 *
                 sizeof *vals);
   if (!vals) {
-    rc = obs_err_set(err, OBS_ENOMEM, "%s: volume_ao: out of memory", sc->name);
+    rc = obs_err_set(err, OBS_ENOMEM, "%s: volume_ao: out of memory", jb->sc->name);
     goto done;
   }
   double ts = obs_now_ms();
-  if ((rc = shade(ctx, vk, &jb, &rg, &d, vals, &ms, err))) goto done;
+  if ((rc = shade(ctx, vk, jb, rg, &d, vals, &ms, err))) goto done;
   obs_driver_stage_add(ctx, "shade", ms);
   /* What the passes' submission cost around their measured time: pipelines (compiled on first
    * use), descriptor sets, command buffers and the pilots' copies between replicas. */
   obs_driver_stage_add(ctx, "dispatch", obs_now_ms() - ts - ms);
   double t2 = obs_now_ms();
-  if ((rc = readback(ctx, vk, &jb, &rg, &d, out, err))) goto done;
-  ctx->rays += apply_prior(&jb, &rg, &d, vals, out);
+  if ((rc = readback(ctx, vk, jb, rg, &d, jb->out, err))) goto done;
+  ctx->rays += apply_prior(jb, rg, &d, vals, jb->out);
   obs_driver_stage_add(ctx, "readback", obs_now_ms() - t2);
   ctx->render_ms = obs_now_ms() - t1;
-  rc = obs_vk_validation_verdict(vk, validation, sc->name, "volume_ao", err);
-  if (!rc) progress(ctx, 1.0);
 done:
   free(vals);
-  if (vk) dev_free(vk, &d);
-  obs_vk_release(vk);
-  if (rc) obs_image_free(out);
+  dev_free(vk, &d);
+  return rc;
+}
+
+int obs_volume_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
+  const obs_scene *sc = ctx->scene;
+  memset(out, 0, sizeof *out);
+  if (!ctx->volumes)
+    return obs_err_set(err, OBS_EINTERNAL, "%s: volume_ao: the volumes were not read", sc->name);
+  job jb = {.sc = sc, .vs = ctx->volumes, .env = ctx->environment, .out = out};
+  jb.p = *(const obs_volume_ao_tparams *)ctx->bound;
+  obs_camera_setup(&sc->camera, sc->width, sc->height, &jb.rig);
+  march_grid(&jb);
+  int rc = obs_driver_image(ctx, CH_COUNT, obs_volume_ao_channels, out, &jb.rg, err);
+  if (rc) return rc;
+  obs_volume_ao_warn(ctx, jb.sc, &jb.p);
+  if ((rc = obs_vk_session_run(ctx, "volume_ao", render, &jb, err))) obs_image_free(out);
   return rc;
 }
