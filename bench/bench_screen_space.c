@@ -21,6 +21,9 @@
 /* The timing goals at 1280x720 on the faster backend, 2 cores, milliseconds (sum of stages). */
 #define GOAL_SSAO16_MS 30.0
 #define GOAL_HBAO88_MS 60.0
+#define GOAL_SSO16_MS 25.0
+/* ss_obscurance's R in the timing runs: 0.2 of the Cornell box's size, rt_ao's derived distance. */
+#define SSO_BENCH_RADIUS 150.0
 
 typedef struct options {
   int repeats;     /* timed renders per configuration and backend (after one warm-up) */
@@ -40,12 +43,14 @@ static void usage(FILE *f) {
   fprintf(f,
           "usage: bench_screen_space [--repeats R] [--size WxH] [--scene PATH] [--threads N]\n"
           "                          [--hbao-radius R] [--backend both|cpu|vulkan] [--only TEXT]\n"
-          "                          [--verbose] [--accuracy]\n"
+          "                          [--verbose] [--accuracy] [--sso-experiment]\n"
           "  Timing (default): renders the scene (default scenes/cornell_box.json at 1280x720)\n"
-          "  with ssao (samples 8/16/24) and hbao (4/4, 8/8, 16/16, full and half resolution) on\n"
+          "  with ssao (samples 8/16/24), hbao (4/4, 8/8, 16/16, full and half resolution) and\n"
+          "  ss_obscurance (samples 8/16/32, R 150) on\n"
           "  the CPU twin and on Vulkan, one warm-up then R renders each (default 5), and prints\n"
           "  median stage times, their sum, obs_render's wall time, the CPU/Vulkan ratio and the\n"
-          "  goals (ssao 16 <= 30 ms, hbao 8/8 <= 60 ms on the faster backend). hbao's radius\n"
+          "  goals (ssao 16 <= 30 ms, hbao 8/8 <= 60 ms, ss_obscurance 16 <= 25 ms on the faster\n"
+          "  backend). hbao's radius\n"
           "  is --hbao-radius (default 100, the Cornell box's scale; the schema default 1 would\n"
           "  make most of that frame exit early); everything else keeps its default.\n"
           "  --accuracy: ssao and hbao against rt_ao (uniform, sobol, 1024 samples) on the\n"
@@ -273,7 +278,7 @@ typedef struct config {
 } config;
 
 /* Configuration indices the goal lines use (the order make_configs writes). */
-enum { CFG_SSAO16 = 1, CFG_HBAO88_FULL = 4, CFG_HBAO88_HALF = 7 };
+enum { CFG_SSAO16 = 1, CFG_HBAO88_FULL = 4, CFG_HBAO88_HALF = 7, CFG_SSO16 = 10 };
 
 static int make_configs(config *c, double R) {
   int n = 0;
@@ -292,6 +297,13 @@ static int make_configs(config *c, double R) {
                "{\"radius\":%.9g,\"directions\":%d,\"steps\":%d,\"half_res\":%s}", R, hb[i],
                hb[i], half ? "true" : "false");
     }
+  static const int so[3] = {8, 16, 32};
+  for (int i = 0; i < 3; i++, n++) {
+    c[n].tech = "ss_obscurance";
+    snprintf(c[n].label, sizeof c[n].label, "ss_obscurance %d", so[i]);
+    snprintf(c[n].params, sizeof c[n].params, "{\"samples\":%d,\"radius\":%.9g}", so[i],
+             SSO_BENCH_RADIUS);
+  }
   return n;
 }
 
@@ -381,11 +393,12 @@ static int timing_mode(const options *o, int have_vk) {
     int c;
     double goal;
     const char *what;
-  } goals[2] = {{CFG_SSAO16, GOAL_SSAO16_MS, "SSAO 16 samples"},
-                {CFG_HBAO88_FULL, GOAL_HBAO88_MS, "HBAO 8/8 (full res)"}};
+  } goals[3] = {{CFG_SSAO16, GOAL_SSAO16_MS, "SSAO 16 samples"},
+                {CFG_HBAO88_FULL, GOAL_HBAO88_MS, "HBAO 8/8 (full res)"},
+                {CFG_SSO16, GOAL_SSO16_MS, "ss_obscurance 16 samples"}};
   char label[96];
   bench_isa_label(label, sizeof label);
-  for (int g = 0; g < 2; g++) {
+  for (int g = 0; g < 3; g++) {
     int c = goals[g].c, best = -1;
     for (int b = 0; b < nb; b++)
       if (done[c][b] && (best < 0 || sum[c][b].total < sum[c][best].total)) best = b;

@@ -40,6 +40,8 @@ OBS_PUSH_BEGIN(obs_sso_push)
   OBS_F32 radius;    /* R in scene units */
   OBS_F32 two_inv_w; /* 2 / width and 2 / height rounded once on the host */
   OBS_F32 two_inv_h;
+  OBS_F32 inv_half_w; /* 1 / half_w and 1 / half_h rounded once on the host: the projection */
+  OBS_F32 inv_half_h; /* divides once per sample (by z), not once per axis */
 OBS_PUSH_END(obs_sso_push)
 OBS_PUSH_CHECK(obs_sso_push)
 #endif

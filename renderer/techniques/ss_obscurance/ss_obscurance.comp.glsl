@@ -67,12 +67,13 @@ void main() {
     precise float sz = p.z + (o.x * tr.z + o.y * br.z + o.z * nr.z);
     precise float u, v;
     if (ortho) {
-      u = sx / pc.half_w;
-      v = sy / pc.half_h;
+      u = sx * pc.inv_half_w;
+      v = sy * pc.inv_half_h;
     } else {
       if (!(sz > 0.0)) continue; // behind the eye
-      u = sx / (sz * pc.half_w);
-      v = sy / (sz * pc.half_h);
+      precise float rz = 1.0 / sz;
+      u = sx * rz * pc.inv_half_w;
+      v = sy * rz * pc.inv_half_h;
     }
     ivec2 q = ivec2(texel((u + 1.0) * hw, pc.width), texel((1.0 - v) * hh, pc.height));
     float zq = imageLoad(depth_img, q).r;

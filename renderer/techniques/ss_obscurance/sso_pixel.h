@@ -62,13 +62,14 @@ OBS_HOT_INLINE float obs_sso_pixel(const obs_sso_push *pc, const float *depth, c
     const float sz = p[2] + (o[0] * tz + o[1] * bz + o[2] * nz);
     float u, v;
     if (ortho) {
-      u = sx / pc->half_w;
-      v = sy / pc->half_h;
+      u = sx * pc->inv_half_w;
+      v = sy * pc->inv_half_h;
     } else {
       /* Behind the eye: outside every view of the depth buffer, and the eye is in free space. */
       if (!(sz > 0.0f)) continue;
-      u = sx / (sz * pc->half_w);
-      v = sy / (sz * pc->half_h);
+      const float rz = 1.0f / sz;
+      u = sx * rz * pc->inv_half_w;
+      v = sy * rz * pc->inv_half_h;
     }
     const int qx = obs_sso_texel((u + 1.0f) * hw, w), qy = obs_sso_texel((1.0f - v) * hh, h);
     const size_t q = (size_t)qy * (size_t)w + (size_t)qx;

@@ -145,4 +145,6 @@ void obs_sso_push_make(const obs_sso_params *p, int width, int height, int ortho
   pc->radius = p->radius;
   pc->two_inv_w = 2.0f / (float)width;
   pc->two_inv_h = 2.0f / (float)height;
+  pc->inv_half_w = 1.0f / half_w;
+  pc->inv_half_h = 1.0f / half_h;
 }
