@@ -14,6 +14,7 @@ static const obs_technique *const table[] = {
     &obs_technique_obscurance_map,
     &obs_technique_volume_ao,
     &obs_technique_proximity_ao,
+    &obs_technique_ssao_variance,
 };
 
 size_t obs_technique_count(void) { return sizeof table / sizeof table[0]; }

@@ -39,6 +39,9 @@ int obs_volume_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 extern const obs_technique obs_technique_proximity_ao;
 int obs_proximity_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 int obs_proximity_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
+extern const obs_technique obs_technique_ssao_variance;
+int obs_ssao_variance_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
+int obs_ssao_variance_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 
 /* One backend's guaranteed range as the registry's JSON (ranges.c). */
 json_t *obs_range_json(const obs_range *r);
