@@ -88,10 +88,10 @@ OBS_TILE_KERNELS(moments_tile)
  * written without branches so it vectorises: each lane computes both methods' values and keeps the
  * one the shader's branches would, with the same operations. 1 / N is a division here and the
  * shader's table entry there: the table holds 1.0f / N, which a correctly rounded division
- * reproduces. */
+ * reproduces. `taps_x` holds each column's taps in the box's row, `taps_y` is the row's. */
 OBS_HOT_INLINE void svar_estimate_row(const obs_svar_ao_push *ap, int nx, const float *z0,
                                       const float *nn, const float *t1, const float *t2,
-                                      float *restrict out) {
+                                      const float *taps_x, float taps_y, float *restrict out) {
   const int variance = ap->method == OBS_SVAR_VARIANCE;
   for (int i = 0; i < nx; i++) {
     const float z = z0[i];
@@ -100,22 +100,23 @@ OBS_HOT_INLINE void svar_estimate_row(const obs_svar_ao_push *ap, int nx, const 
     const float e2 = t2[i] * iv;
     float var = e2 - mo * mo;
     var = var > 0.0f ? var : 0.0f;
+    const float share = nn[i] * (1.0f / (taps_x[i] * taps_y));
     const float tz = ap->tol * z;
     const float dd = (0.0f - mo) - tz;
     const float R = ap->ortho ? ap->rw : ap->rw * z;
     const float den = var + dd * dd;
     const float vis = var / (den > 0.0f ? den : 1.0f);
     const float q = var / (R * R);
-    const float vv = (den > 0.0f ? vis : 1.0f) + ap->weight * q;
+    const float ov = 1.0f - (den > 0.0f ? vis : 1.0f);
+    const float vv = (1.0f - share * ov) + ap->weight * q;
     const float u = dd / R;
-    const float vu = 1.0f - ap->strength * u;
+    const float vu = 1.0f - share * (ap->strength * u);
     float v = variance ? vv : vu;
     v = dd > 0.0f ? v : 1.0f;
     v = v > 0.0f ? (v < 1.0f ? v : 1.0f) : 0.0f;
     out[i] = z > 0.0f ? v : 1.0f;
   }
 }
-
 
 OBS_HOT_INLINE int ao_tile_body(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)x0;
@@ -151,7 +152,9 @@ OBS_HOT_INLINE int ao_tile_body(void *user, int thread, int x0, int y0, int x1, 
         nn[x] = nn[x] + an[x];
       }
     }
-    svar_estimate_row(&j->ap, w - xb, z0 + xb, nn + xb, t1 + xb, t2 + xb, j->ao + row + xb);
+    const float ty = (float)(2 * (K < m / s ? K : m / s) + 1);
+    svar_estimate_row(&j->ap, w - xb, z0 + xb, nn + xb, t1 + xb, t2 + xb, j->rows.taps_x + xb, ty,
+                      j->ao + row + xb);
   }
   return 0;
 }
@@ -178,7 +181,8 @@ static int svar_passes(obs_screen_cpu *r, const obs_gbuffer *g, const obs_ssao_v
     for (size_t i = 0; i < n; i++) ao[i] = 1.0f;
   } else {
     const int threads = r->threads < 1 ? 1 : r->threads;
-    float *planes = malloc((4 * n + (size_t)threads * 4 * (size_t)g->width) * sizeof *planes);
+    const size_t wz = (size_t)g->width;
+    float *planes = malloc((4 * n + (size_t)threads * 4 * wz + wz) * sizeof *planes);
     if (!planes) {
       free(plan);
       return obs_err_set(err, OBS_ENOMEM, "ssao_variance: %dx%d: out of memory", g->width,
@@ -189,7 +193,12 @@ static int svar_passes(obs_screen_cpu *r, const obs_gbuffer *g, const obs_ssao_v
     j.rows = (obs_svar_rows){.depth = g->depth, .w = g->width, .h = g->height,
                              .stride = plan->stride, .taps = plan->taps, .zscale = plan->zscale,
                              .mn = planes, .m1 = planes + n, .m2 = planes + 2 * n,
-                             .mc = planes + 3 * n};
+                             .mc = planes + 3 * n, .taps_x = planes + 4 * n + (size_t)threads * 4 * wz};
+    /* Each column's taps in the box's row: the symmetric box's, 2 min(taps, m / stride) + 1. */
+    for (int x = 0; x < g->width; x++) {
+      const int m = x < g->width - 1 - x ? x : g->width - 1 - x, k = m / plan->stride;
+      j.rows.taps_x[x] = (float)(2 * (plan->taps < k ? plan->taps : k) + 1);
+    }
     obs_svar_ao_push_make(p, plan, g->width, g->height, g->ortho, &j.ap);
     const int isa = obs_simd_isa();
     rc = obs_screen_cpu_tiles(r, 1, g->height, obs_simd_tile_pick(moments_tile, isa), &j);

@@ -71,13 +71,14 @@ OBS_AVX2_FN void obs_svar_moments_row_avx2(const obs_svar_rows *r, int y, float 
 
 /* svar_estimate_row (cpu.c) for eight lanes. */
 OBS_AVX2_INLINE __m256 estimate8(const obs_svar_ao_push *ap, __m256 z, __m256 n, __m256 t1,
-                                 __m256 t2) {
+                                 __m256 t2, __m256 taps) {
   const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f);
   const __m256 iv = _mm256_div_ps(one, _mm256_blendv_ps(one, n, _mm256_cmp_ps(n, zero, _CMP_GT_OQ)));
   const __m256 mo = _mm256_mul_ps(t1, iv);
   const __m256 e2 = _mm256_mul_ps(t2, iv);
   __m256 var = _mm256_sub_ps(e2, _mm256_mul_ps(mo, mo));
   var = _mm256_and_ps(var, _mm256_cmp_ps(var, zero, _CMP_GT_OQ));
+  const __m256 share = _mm256_mul_ps(n, _mm256_div_ps(one, taps));
   const __m256 dd = _mm256_sub_ps(_mm256_sub_ps(zero, mo), _mm256_mul_ps(_mm256_set1_ps(ap->tol), z));
   const __m256 rw = _mm256_set1_ps(ap->rw);
   const __m256 R = ap->ortho ? rw : _mm256_mul_ps(rw, z);
@@ -87,10 +88,12 @@ OBS_AVX2_INLINE __m256 estimate8(const obs_svar_ao_push *ap, __m256 z, __m256 n,
     const __m256 pos = _mm256_cmp_ps(den, zero, _CMP_GT_OQ);
     const __m256 vis = _mm256_blendv_ps(one, _mm256_div_ps(var, _mm256_blendv_ps(one, den, pos)), pos);
     const __m256 q = _mm256_div_ps(var, _mm256_mul_ps(R, R));
-    v = _mm256_add_ps(vis, _mm256_mul_ps(_mm256_set1_ps(ap->weight), q));
+    const __m256 ov = _mm256_sub_ps(one, vis);
+    v = _mm256_add_ps(_mm256_sub_ps(one, _mm256_mul_ps(share, ov)),
+                      _mm256_mul_ps(_mm256_set1_ps(ap->weight), q));
   } else {
     const __m256 u = _mm256_div_ps(dd, R);
-    v = _mm256_sub_ps(one, _mm256_mul_ps(_mm256_set1_ps(ap->strength), u));
+    v = _mm256_sub_ps(one, _mm256_mul_ps(share, _mm256_mul_ps(_mm256_set1_ps(ap->strength), u)));
   }
   v = _mm256_blendv_ps(one, v, _mm256_cmp_ps(dd, zero, _CMP_GT_OQ));
   /* v > 0 ? (v < 1 ? v : 1) : 0: min(v, 1) returns v where v < 1. */
@@ -130,9 +133,11 @@ OBS_AVX2_FN int obs_svar_ao_row_avx2(const obs_svar_rows *r, const obs_svar_ao_p
       _mm256_storeu_ps(nn + x, _mm256_add_ps(_mm256_loadu_ps(nn + x), an));
     }
   }
+  const __m256 ty = _mm256_set1_ps((float)(2 * (K < m / s ? K : m / s) + 1));
   for (int x = 0; x < we; x += 8)
     _mm256_storeu_ps(out + x, estimate8(ap, _mm256_loadu_ps(z0 + x), _mm256_loadu_ps(nn + x),
-                                        _mm256_loadu_ps(t1 + x), _mm256_loadu_ps(t2 + x)));
+                                        _mm256_loadu_ps(t1 + x), _mm256_loadu_ps(t2 + x),
+                                        _mm256_mul_ps(_mm256_loadu_ps(r->taps_x + x), ty)));
   return we;
 }
 

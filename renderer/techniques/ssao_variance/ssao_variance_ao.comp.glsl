@@ -32,6 +32,10 @@ void main() {
     nn = nn + a.x;
   }
   float iv = imageLoad(inv_img, ivec2(int(nn), 0)).r;
+  // the covered share of the box's taps: uncovered taps are open sky, behind every pixel
+  int mx = min(p.x, pc.width - 1 - p.x);
+  precise float ntot = float(2 * min(K, mx / s) + 1) * float(2 * min(K, m / s) + 1);
+  precise float share = nn * imageLoad(inv_img, ivec2(int(ntot), 0)).r;
   precise float mo = t1 * iv;
   precise float e2 = t2 * iv;
   precise float var = e2 - mo * mo;
@@ -45,10 +49,11 @@ void main() {
       precise float den = var + dd * dd;
       precise float vis = den > 0.0 ? var / den : 1.0;
       precise float q = var / (R * R);
-      v = vis + pc.weight * q;
+      precise float ov = 1.0 - vis;
+      v = (1.0 - share * ov) + pc.weight * q;
     } else {
       precise float u = dd / R;
-      v = 1.0 - pc.strength * u;
+      v = 1.0 - share * (pc.strength * u);
     }
   }
   float ao = v > 0.0 ? (v < 1.0 ? v : 1.0) : 0.0;

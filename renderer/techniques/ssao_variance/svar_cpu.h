@@ -11,6 +11,7 @@ typedef struct obs_svar_rows {
   int w, h, stride, taps;
   float zscale;
   float *mn, *m1, *m2, *mc; /* n, sum d, sum d^2, shift; mc filled before the moments rows */
+  float *taps_x;            /* per column: the taps of the box's row (2 min(taps, m/stride) + 1) */
 } obs_svar_rows;
 
 #if OBS_SIMD_AVX2

@@ -12,7 +12,8 @@
 static const char *const svar_methods[] = {"variance", "depth_unsharp", NULL};
 
 #define P(member) offsetof(obs_ssao_variance_params, member)
-/* The radius derived for a scene (size_default) is 0.2 scene sizes, rt_ao's derived max_distance,
+/* The defaults of variance_weight and strength are the values closest to the reference, rt_ao
+ * within R (docs/techniques/ssao_variance.md, "Against rt_ao"); the radius derived for a scene (size_default) is 0.2 scene sizes, rt_ao's derived max_distance,
  * which is this technique's reference radius (svar_reference). */
 static const obs_param svar_params[] = {
     {.name = "method", .type = OBS_PARAM_ENUM, .choices = svar_methods, .def = OBS_SVAR_VARIANCE,
@@ -24,11 +25,11 @@ static const obs_param svar_params[] = {
      .description = "neighbourhood radius R in scene units: the box's half-width is R projected "
                     "at the median depth of the covered pixels, in pixels",
      .offset = P(radius), .size_default = 0.2},
-    {.name = "variance_weight", .type = OBS_PARAM_FLOAT, .min = 0, .max = 1e6, .def = 0.25,
+    {.name = "variance_weight", .type = OBS_PARAM_FLOAT, .min = 0, .max = 1e6, .def = 0,
      .description = "variance: k in AO = saturate(p + k sigma^2 / R^2), lifting occlusion where "
                     "the depths spread far (distant occluders)",
      .offset = P(variance_weight)},
-    {.name = "strength", .type = OBS_PARAM_FLOAT, .min = 0, .max = 1e6, .def = 1,
+    {.name = "strength", .type = OBS_PARAM_FLOAT, .min = 0, .max = 1e6, .def = 0.3,
      .description = "depth_unsharp: lambda in AO = saturate(1 - lambda (z - mean) / R)",
      .offset = P(strength)},
 };
