@@ -26,11 +26,12 @@ static const obs_param svar_params[] = {
                     "at the median depth of the covered pixels, in pixels",
      .offset = P(radius), .size_default = 0.2},
     {.name = "variance_weight", .type = OBS_PARAM_FLOAT, .min = 0, .max = 1e6, .def = 0,
-     .description = "variance: k in AO = saturate(p + k sigma^2 / R^2), lifting occlusion where "
-                    "the depths spread far (distant occluders)",
+     .description = "variance: k in AO = saturate(1 - s (1 - p) + k sigma^2 / R^2) (p Cantelli's "
+                    "bound, s the covered share of the box), lifting occlusion where the depths "
+                    "spread far (distant occluders)",
      .offset = P(variance_weight)},
     {.name = "strength", .type = OBS_PARAM_FLOAT, .min = 0, .max = 1e6, .def = 0.3,
-     .description = "depth_unsharp: lambda in AO = saturate(1 - lambda (z - mean) / R)",
+     .description = "depth_unsharp: lambda in AO = saturate(1 - s lambda (z - mean) / R)",
      .offset = P(strength)},
 };
 #undef P
