@@ -9,7 +9,6 @@
 #include "obscura/render.h"
 #include "proximity_vk.h"
 #include "vk_internal.h"
-#include "techniques.h"
 
 #define NO_DEVICE_HINT "install mesa-vulkan-drivers for lavapipe"
 #define VALIDATION_LAYER "VK_LAYER_KHRONOS_validation"
