@@ -21,7 +21,6 @@
 #include "extent.h"
 #include "obscura/path.h"
 #include "environment.h"
-#include "proximity.h"
 #include "registry.h"
 #include "volume_scene.h"
 
@@ -68,20 +67,22 @@ typedef struct render_needs {
   const obs_needs_builder *nb; /* the backend's builder (BVH, ...), or NULL */
   void *state;                 /* what it built */
   obs_scene_volumes vols;
-  obs_prox_fields prox;
+  const obs_technique *t;      /* whose prepare hook built `prepared` */
+  obs_prepared *prepared;
   obs_env env;
 } render_needs;
 
 static void needs_release(render_needs *n) {
   obs_scene_volumes_free(&n->vols);
-  obs_prox_fields_free(&n->prox);
+  if (n->prepared && n->t->release) n->t->release(n->prepared);
+  n->prepared = NULL;
   obs_env_free(&n->env);
   if (n->nb) n->nb->release(n->state);
   n->nb = NULL;
 }
 
 /* Builds what the technique's needs ask, once, for every backend its way, into `n` and the
- * context (ctx->rt and the like, ctx->volumes, ctx->proximity, ctx->environment; ctx->built
+ * context (ctx->rt and the like, ctx->volumes, ctx->prepared, ctx->environment; ctx->built
  * lists what has a size). On failure releases what it built. */
 static int needs_build(obs_render_ctx *ctx, const obs_technique *t, obs_backend be,
                        const obs_brick *brick, const void *bound, render_needs *n, obs_err *err) {
@@ -97,18 +98,11 @@ static int needs_build(obs_render_ctx *ctx, const obs_technique *t, obs_backend 
     rc = obs_scene_volumes_load_brick(scene, brick, reach, sides, &n->vols, err);
     if (!rc) ctx->volumes = &n->vols;
   }
-  if (!rc && t->needs & OBS_NEED_PROXIMITY) {
-    obs_prox_layout lay;
-    t->prox_layout(bound, &lay);
-    const obs_backend_ops *ops = obs_backend_ops_get(be);
-    rc = obs_prox_build(scene, &lay, ctx->threads, ops ? ops->prox_flood : NULL, NULL, &n->prox,
-                        err);
-    if (!rc) {
-      obs_driver_stage_add(ctx, "voxelise", n->prox.voxelise_ms);
-      obs_driver_stage_add(ctx, "flood", n->prox.flood_ms);
-      obs_prox_fields_built(&n->prox, ctx->built);
-      ctx->proximity = &n->prox;
-    }
+  /* What only this technique needs, its own way (proximity_ao: its proximity fields). */
+  if (!rc && t->prepare) {
+    n->t = t;
+    rc = t->prepare(ctx, be, &n->prepared, err);
+    if (!rc) ctx->prepared = n->prepared;
   }
   if (!rc && t->needs & OBS_NEED_ENV_MAP && scene->has_environment) {
     rc = obs_env_from_scene(scene, &n->env, err);
