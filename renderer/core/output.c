@@ -1,4 +1,5 @@
-/* Declared outputs of a technique: their EXR channel names, their files and the primary one. */
+/* Declared outputs: their EXR channel names, kind and display names, patch file names and content
+ * types (a descriptor's files and primary output: renderer/registry/descriptor.c). */
 #include <stdio.h>
 #include <string.h>
 

@@ -1,6 +1,7 @@
 /* Technique parameters from their descriptor's table (obs_param): validation of a document's
- * params with JSON-pointer messages, defaults, binding into the technique's C struct, the JSON
- * Schema the registry publishes, the cost hook's caller and the table's self-check. */
+ * params with JSON-pointer messages, defaults, binding into the technique's C struct, and each
+ * entry's JSON Schema and faults (the table's schema, cost and self-check as a whole:
+ * renderer/registry/descriptor.c). */
 #include "params.h"
 
 #include <float.h>

@@ -1,5 +1,5 @@
-/* Strict loading of scene documents: parse, apply overrides, validate every rule, fill obs_scene.
- */
+/* Strict loading of scene documents: parse, apply overrides, validate every rule, fill obs_scene;
+ * the technique block is read by the caller's hook (scene_read.h). */
 #include "obscura/scene.h"
 
 #include <jansson.h>

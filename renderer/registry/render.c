@@ -3,9 +3,6 @@
 #include "obscura/render.h"
 
 #include <errno.h>
-#if defined(__GLIBC__) || defined(__linux__)
-#include <malloc.h>
-#endif
 #include <jansson.h>
 #include <math.h>
 #include <pthread.h>
