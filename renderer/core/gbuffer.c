@@ -12,6 +12,21 @@
 const char *const obs_screen_channel_names[OBS_SCREEN_CHANNELS] = {
     "ao", "ao_raw", "depth.Z", "normal.X", "normal.Y", "normal.Z", "alpha"};
 
+/* The outputs of every screen-space technique: the channels the screen-space drivers write
+ * (obs_screen_channel_names), so every screen-space technique declares this one table. */
+const obs_output obs_screen_outputs[] = {
+    {.name = "ao", .kind = OBS_OUTPUT_SCALAR, .show = OBS_SHOW_GREY, .png = "ao.png",
+     .description = "Ambient occlusion (white = open, black = fully occluded)",
+     .flags = OBS_OUTPUT_PRIMARY | OBS_OUTPUT_UNIT},
+    {.name = "ao_raw", .kind = OBS_OUTPUT_SCALAR,
+     .description = "Ambient occlusion before the blur"},
+    {.name = "depth", .kind = OBS_OUTPUT_DEPTH, .show = OBS_SHOW_DEPTH, .png = "depth.png",
+     .description = "Depth (view distance, grey levels)"},
+    {.name = "normal", .kind = OBS_OUTPUT_VECTOR, .description = "World-space surface normal"},
+    {.name = "alpha", .kind = OBS_OUTPUT_SCALAR,
+     .description = "Coverage (1 where a surface is hit, 0 on the background)"},
+    {.name = NULL}};
+
 /* n floats, not zeroed. Large ones on 2 MiB boundaries and marked for huge pages where the
  * system has them: a tile's rows reach 4 rows of pages per buffer, and with 4 KiB pages their
  * address translations miss far more than the stores do. */

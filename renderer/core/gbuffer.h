@@ -83,6 +83,8 @@ void obs_screen_rule_check(obs_render_ctx *ctx, obs_backend backend, const obs_g
 enum { OBS_SCREEN_AO, OBS_SCREEN_AO_RAW, OBS_SCREEN_DEPTH, OBS_SCREEN_NX, OBS_SCREEN_NY,
        OBS_SCREEN_NZ, OBS_SCREEN_ALPHA, OBS_SCREEN_CHANNELS };
 extern const char *const obs_screen_channel_names[OBS_SCREEN_CHANNELS];
+/* The declared outputs those channels make: what a screen-space technique's descriptor names. */
+extern const obs_output obs_screen_outputs[];
 
 /* Output channels every screen-space technique writes besides its own: "depth.Z", "normal.X/Y/Z"
  * (world space) and "alpha", taken from the G-buffer. `img` must already have those channels. */

@@ -26,11 +26,20 @@ void obs_screen_cpu_stage(obs_screen_cpu *r, const char *name, double ms) {
   if (r->ctx) obs_driver_stage_add(r->ctx, name, ms);
 }
 
-int obs_screen_cpu_run(obs_render_ctx *ctx, obs_screen_cpu_passes_fn passes, const void *params,
-                       obs_image *out, obs_err *err) {
+/* The driver for either kind of passes (exactly one of passes, passes_ex is set). */
+static int screen_cpu_run(obs_render_ctx *ctx, obs_screen_cpu_passes_fn passes,
+                          obs_screen_cpu_passes_ex_fn passes_ex, const obs_screen_extra *extra,
+                          const void *params, obs_image *out, obs_err *err) {
   const obs_scene *sc = ctx->scene;
   obs_region region;
-  int rc = obs_driver_image(ctx, OBS_SCREEN_CHANNELS, obs_screen_channel_names, out, &region, err);
+  const char *names[OBS_SCREEN_CHANNELS + OBS_SCREEN_EXTRA_MAX];
+  int nextra = extra ? extra->n : 0;
+  if (nextra < 0 || nextra > OBS_SCREEN_EXTRA_MAX)
+    return obs_err_set(err, OBS_EINVAL, "screen: %d extra channels (at most %d)", nextra,
+                       OBS_SCREEN_EXTRA_MAX);
+  for (int c = 0; c < OBS_SCREEN_CHANNELS; c++) names[c] = obs_screen_channel_names[c];
+  for (int c = 0; c < nextra; c++) names[OBS_SCREEN_CHANNELS + c] = extra->names[c];
+  int rc = obs_driver_image(ctx, OBS_SCREEN_CHANNELS + nextra, names, out, &region, err);
   if (rc) return rc;
   obs_camera_rig rig;
   obs_camera_setup(&sc->camera, sc->width, sc->height, &rig);
@@ -47,8 +56,10 @@ int obs_screen_cpu_run(obs_render_ctx *ctx, obs_screen_cpu_passes_fn passes, con
   if (!rc) {
     obs_screen_cpu r = {.threads = ctx->threads, .cancel = ctx->cancel, .ctx = ctx};
     size_t plane = (size_t)sc->width * (size_t)sc->height;
-    rc = passes(&r, &g, params, out->data + OBS_SCREEN_AO * plane,
-                out->data + OBS_SCREEN_AO_RAW * plane, err);
+    float *ao = out->data + OBS_SCREEN_AO * plane, *ao_raw = out->data + OBS_SCREEN_AO_RAW * plane;
+    rc = passes ? passes(&r, &g, params, ao, ao_raw, err)
+                : passes_ex(&r, &g, params, ao, ao_raw, out->data + OBS_SCREEN_CHANNELS * plane,
+                            err);
     if (rc == OBS_ECANCELED) obs_err_set(err, rc, "%s: render cancelled", sc->name);
   }
   if (!rc) {
@@ -63,4 +74,15 @@ int obs_screen_cpu_run(obs_render_ctx *ctx, obs_screen_cpu_passes_fn passes, con
   obs_gbuffer_free(&g);
   if (rc) obs_image_free(out);
   return rc;
+}
+
+int obs_screen_cpu_run(obs_render_ctx *ctx, obs_screen_cpu_passes_fn passes, const void *params,
+                       obs_image *out, obs_err *err) {
+  return screen_cpu_run(ctx, passes, NULL, NULL, params, out, err);
+}
+
+int obs_screen_cpu_run_ex(obs_render_ctx *ctx, obs_screen_cpu_passes_ex_fn passes,
+                          const obs_screen_extra *extra, const void *params, obs_image *out,
+                          obs_err *err) {
+  return screen_cpu_run(ctx, NULL, passes, extra, params, out, err);
 }

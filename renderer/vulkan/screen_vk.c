@@ -13,11 +13,20 @@ static void progress(obs_render_ctx *ctx, double fraction) {
   if (ctx->progress) ctx->progress(ctx->progress_user, fraction);
 }
 
-int obs_screen_vk_run(obs_render_ctx *ctx, const char *technique, obs_screen_vk_passes_fn passes,
-                      const void *params, obs_image *out, obs_err *err) {
+/* The driver for either kind of passes (exactly one of passes, passes_ex is set). */
+static int screen_vk_run(obs_render_ctx *ctx, const char *technique, obs_screen_vk_passes_fn passes,
+                         obs_screen_vk_passes_ex_fn passes_ex, const obs_screen_vk_extra *extra,
+                         const void *params, obs_image *out, obs_err *err) {
   const obs_scene *sc = ctx->scene;
   obs_region region;
-  int rc = obs_driver_image(ctx, OBS_SCREEN_CHANNELS, obs_screen_channel_names, out, &region, err);
+  const char *names[OBS_SCREEN_CHANNELS + OBS_SCREEN_VK_EXTRA_MAX];
+  int nextra = extra ? extra->n : 0;
+  if (nextra < 0 || nextra > OBS_SCREEN_VK_EXTRA_MAX)
+    return obs_err_set(err, OBS_EINVAL, "screen: %d extra channels (at most %d)", nextra,
+                       OBS_SCREEN_VK_EXTRA_MAX);
+  for (int c = 0; c < OBS_SCREEN_CHANNELS; c++) names[c] = obs_screen_channel_names[c];
+  for (int c = 0; c < nextra; c++) names[OBS_SCREEN_CHANNELS + c] = extra->names[c];
+  int rc = obs_driver_image(ctx, OBS_SCREEN_CHANNELS + nextra, names, out, &region, err);
   if (rc) return rc;
   obs_camera_rig rig;
   obs_camera_setup(&sc->camera, sc->width, sc->height, &rig);
@@ -49,15 +58,23 @@ int obs_screen_vk_run(obs_render_ctx *ctx, const char *technique, obs_screen_vk_
   if ((rc = obs_gbuffer_alloc(&host, sc->width, sc->height, &rig, err))) goto done;
   if ((rc = obs_driver_cancelled(ctx, err))) goto done;
   size_t plane = (size_t)sc->width * (size_t)sc->height;
-  if ((rc = passes(ctx, vk, &dev, &host, params, out->data + OBS_SCREEN_AO * plane,
-                   out->data + OBS_SCREEN_AO_RAW * plane, err)))
-    goto done;
+  float *ao = out->data + OBS_SCREEN_AO * plane, *ao_raw = out->data + OBS_SCREEN_AO_RAW * plane;
+  double t2 = obs_now_ms();
+  if (passes_ex) {
+    if ((rc = obs_vk_gbuffer_download(vk, &dev, &host, 1, err))) goto done;
+    obs_driver_stage_add(ctx, "readback", obs_now_ms() - t2);
+    rc = passes_ex(ctx, vk, &dev, &host, params, ao, ao_raw,
+                   out->data + OBS_SCREEN_CHANNELS * plane, err);
+  } else {
+    rc = passes(ctx, vk, &dev, &host, params, ao, ao_raw, err);
+  }
+  if (rc) goto done;
   progress(ctx, 2.0 / 3.0);
   if ((rc = obs_driver_cancelled(ctx, err))) goto done;
   /* The depth and normal outputs come from the device G-buffer, so they match the AO. */
-  double t2 = obs_now_ms();
-  if ((rc = obs_vk_gbuffer_download(vk, &dev, &host, 0, err))) goto done;
-  obs_driver_stage_add(ctx, "readback", obs_now_ms() - t2);
+  t2 = obs_now_ms();
+  if (!passes_ex && (rc = obs_vk_gbuffer_download(vk, &dev, &host, 0, err))) goto done;
+  if (!passes_ex) obs_driver_stage_add(ctx, "readback", obs_now_ms() - t2);
   obs_screen_rule_check(ctx, OBS_BACKEND_VULKAN, &host);
   obs_gbuffer_export(&host, &rig, out);
   obs_driver_clear_outside(out, &region);
@@ -72,4 +89,15 @@ done:
   obs_vk_release(vk);
   if (rc) obs_image_free(out);
   return rc;
+}
+
+int obs_screen_vk_run(obs_render_ctx *ctx, const char *technique, obs_screen_vk_passes_fn passes,
+                      const void *params, obs_image *out, obs_err *err) {
+  return screen_vk_run(ctx, technique, passes, NULL, NULL, params, out, err);
+}
+
+int obs_screen_vk_run_ex(obs_render_ctx *ctx, const char *technique,
+                         obs_screen_vk_passes_ex_fn passes, const obs_screen_vk_extra *extra,
+                         const void *params, obs_image *out, obs_err *err) {
+  return screen_vk_run(ctx, technique, NULL, passes, extra, params, out, err);
 }

@@ -12,7 +12,8 @@
 /* A screen-space technique on Vulkan: its passes over the device G-buffer `dev` (`host` is the
  * host G-buffer of the same camera, not yet downloaded: its projection is the passes'), with the
  * params the run read, downloading the AO after and before its blur into `ao` and `ao_raw` (w x h
- * each). Records its stages on ctx (obs_driver_stage_add), the download as "readback". */
+ * each), usually as one plan for the Vulkan pass driver (plan_vk.h). Records its stages on ctx
+ * (obs_vk_plan_record or obs_driver_stage_add), the download as "readback". */
 typedef int (*obs_screen_vk_passes_fn)(obs_render_ctx *ctx, obs_vk *vk, obs_vk_gbuffer *dev,
                                        const obs_gbuffer *host, const void *params, float *ao,
                                        float *ao_raw, obs_err *err);
@@ -24,5 +25,26 @@ typedef int (*obs_screen_vk_passes_fn)(obs_render_ctx *ctx, obs_vk *vk, obs_vk_g
  * about fails. On failure `out` is released. */
 int obs_screen_vk_run(obs_render_ctx *ctx, const char *technique, obs_screen_vk_passes_fn passes,
                       const void *params, obs_image *out, obs_err *err);
+
+/* Channels a screen-space technique writes besides obs_screen_channel_names: `n` names, appended
+ * to the image after the fixed set (the CPU twin's obs_screen_extra). */
+#define OBS_SCREEN_VK_EXTRA_MAX 16
+typedef struct obs_screen_vk_extra {
+  int n;
+  const char *const *names;
+} obs_screen_vk_extra;
+
+/* The passes of such a technique: `host` is the device G-buffer already downloaded (albedo
+ * included) before the passes, for passes that also need host work on it; `extra` holds the
+ * extra channels' planes (w x h each, in the order of the names). */
+typedef int (*obs_screen_vk_passes_ex_fn)(obs_render_ctx *ctx, obs_vk *vk, obs_vk_gbuffer *dev,
+                                          const obs_gbuffer *host, const void *params, float *ao,
+                                          float *ao_raw, float *extra, obs_err *err);
+
+/* obs_screen_vk_run for a technique with extra channels; the G-buffer is downloaded before the
+ * passes instead of after them. */
+int obs_screen_vk_run_ex(obs_render_ctx *ctx, const char *technique,
+                         obs_screen_vk_passes_ex_fn passes, const obs_screen_vk_extra *extra,
+                         const void *params, obs_image *out, obs_err *err);
 
 #endif

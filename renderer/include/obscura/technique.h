@@ -364,7 +364,7 @@ typedef enum {
   OBS_OUTPUT_RGB,        /* linear radiance per pixel: channels "<name>.R", ".G", ".B" */
   OBS_OUTPUT_DEPTH,      /* linear view depth per pixel: channel "<name>.Z" */
   /* One value per patch of the scene (a triangle, numbered in the order geometry.c emits them,
-   * or a sub-triangle of one: renderer/core/patch_mesh.h),
+   * or a sub-triangle of one: renderer/techniques/obscurance_map/patch_mesh.h),
    * stored in "<name>.patches" (obscura/patches.h) and rendered per pixel into channel "<name>"
    * by casting a primary ray per pixel. */
   OBS_OUTPUT_PATCH,

@@ -8,6 +8,7 @@
 #include "gbuffer.h"
 #include "layout.h"
 #include "obscura/error.h"
+#include "obscura/technique.h"
 
 typedef struct obs_vk obs_vk;
 typedef struct obs_vk_gbuffer obs_vk_gbuffer;
@@ -75,5 +76,9 @@ typedef struct obs_sso_projection {
 int obs_sso_vk_apply(obs_vk *vk, obs_vk_gbuffer *g, const obs_sso_projection *proj,
                      const obs_sso_params *p, float *ao_host, float *ao_raw_host,
                      double *stage_ms, obs_err *err);
+
+/* The run functions the descriptor names (obs_technique_run_fn). */
+int obs_ss_obscurance_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
+int obs_ss_obscurance_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 
 #endif
