@@ -99,8 +99,8 @@ static int cmp_float(const void *a, const void *b) {
   return (x > y) - (x < y);
 }
 
-int obs_gbuffer_median_depth(const obs_scene *scene, int max_side, int threads, double *out,
-                             obs_err *err) {
+int obs_gbuffer_median_depth(const obs_scene *scene, obs_backend_gbuffer_fn gbuffer, int max_side,
+                             int threads, double *out, obs_err *err) {
   /* A shallow copy with a smaller image: the G-buffer only reads the camera, the size and the
    * geometry, and the aspect ratio (hence the camera rig) is kept. */
   obs_scene coarse = *scene;
@@ -112,14 +112,12 @@ int obs_gbuffer_median_depth(const obs_scene *scene, int max_side, int threads, 
     if (coarse.width < 1) coarse.width = 1;
     if (coarse.height < 1) coarse.height = 1;
   }
-  /* The CPU backend's G-buffer: it is always there, and is what the CPU twins render from. */
-  const obs_backend_ops *cpu = obs_backend_ops_get(OBS_BACKEND_CPU);
-  if (!cpu || !cpu->gbuffer)
+  if (!gbuffer)
     return obs_err_set(err, OBS_EUNSUPPORTED, "%s: no backend makes a host G-buffer",
                        scene->name ? scene->name : "scene");
   obs_gbuffer g;
   double build_ms = 0, render_ms = 0;
-  int rc = cpu->gbuffer(&coarse, &g, threads > 0 ? threads : 1, &build_ms, &render_ms, err);
+  int rc = gbuffer(&coarse, &g, threads > 0 ? threads : 1, &build_ms, &render_ms, err);
   if (rc) return rc;
   size_t n = (size_t)g.width * (size_t)g.height, k = 0;
   for (size_t i = 0; i < n; i++)

@@ -1,17 +1,11 @@
-/* What the technique folders and the registry share: the backend tables, the descriptors, the
- * screen-space outputs and the obscurance model's parameter entries. */
+/* What the technique folders share: the descriptors (each may name another as its reference),
+ * the screen-space outputs and the obscurance model's parameter entries. */
 #ifndef OBS_TECHNIQUES_H
 #define OBS_TECHNIQUES_H
 
 #include "driver.h"
 #include "obscura/backend.h"
 #include "obscura/technique.h"
-
-/* Each backend layer's operations table (renderer/cpu/backend.c, renderer/vulkan/device.c). */
-extern const obs_backend_ops obs_backend_cpu_ops;
-extern const obs_backend_ops obs_backend_vulkan_ops;
-/* What the CPU builds for a technique's needs (renderer/cpu/needs.c; its ops table's `needs`). */
-extern const obs_needs_builder obs_cpu_needs_builder;
 
 /* Every registered descriptor (generated from the folders; each folder's own header declares its
  * run functions). */
@@ -20,9 +14,6 @@ extern const obs_needs_builder obs_cpu_needs_builder;
 /* The outputs the screen-space drivers write (obs_screen_outputs), declared by every screen-space
  * technique alike. */
 #include "gbuffer.h"
-
-/* One backend's guaranteed range as the registry's JSON (ranges.c). */
-json_t *obs_range_json(const obs_range *r);
 
 /* The obscurance model's parameters (core/obscurance.h), the same in every obscurance technique
  * (per pixel, per patch): entries for d_max (a length), falloff, tau and color_bleeding, landing in

@@ -202,14 +202,14 @@ static int render_frames(obs_render_ctx *ctx, job *jb, const obs_pixel_ops *ops,
 
 int obs_proximity_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   const obs_scene *sc = ctx->scene;
-  if (!ctx->rt || !ctx->proximity)
+  if (!ctx->rt || !ctx->prepared)
     return obs_err_set(err, OBS_EINTERNAL, "%s: proximity_ao: no BVH or fields were built for it",
                        sc->name);
   job jb;
   memset(&jb, 0, sizeof jb);
   jb.sc = sc;
   jb.rt = ctx->rt;
-  jb.fs = ctx->proximity;
+  jb.fs = &ctx->prepared->fields;
   jb.p = *(const obs_proximity_ao_params *)ctx->bound;
   jb.spp = sc->spp;
   jb.step = obs_proximity_ao_step(&jb.p, jb.fs->rp);

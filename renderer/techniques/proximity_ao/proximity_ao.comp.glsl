@@ -1,7 +1,7 @@
 // proximity_ao, reconstruction: per pixel of the rasterised G-buffer, the walk along the normal
 // through every field whose box holds the point, the twin of accessibility() in
 // cpu.c and obs_prox_occlusion / obs_prox_sample in
-// renderer/core/proximity.c, operation for operation (`precise`: no fused multiply-adds). The
+// proximity.c, operation for operation (`precise`: no fused multiply-adds). The
 // fields are one 3D texture atlas read texel by texel (the CPU's trilinear, not the hardware's).
 // One dispatch reads fields [f0, f1) and carries the combination in `acc` to the next, so no
 // invocation runs more loop iterations than lavapipe allows. Pixels on an analytic sphere (drawn

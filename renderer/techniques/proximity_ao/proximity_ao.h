@@ -38,6 +38,12 @@ void obs_proximity_ao_recon(const obs_proximity_ao_params *p, obs_prox_recon *ou
 double obs_proximity_ao_reach(const obs_proximity_ao_params *p, double rp);
 double obs_proximity_ao_step(const obs_proximity_ao_params *p, double rp);
 
+/* What proximity_ao prepares before its run (technique.c's prepare hook, ctx->prepared): every
+ * surface object's proximity field, voxelised and flooded (on the device for Vulkan). */
+struct obs_prepared {
+  obs_prox_fields fields;
+};
+
 /* The run of each backend (cpu.c and vulkan.c), named by the descriptor's `run`. */
 int obs_proximity_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 int obs_proximity_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);

@@ -5,7 +5,9 @@
 #include <jansson.h>
 #include <math.h>
 #include <stddef.h>
+#include <stdlib.h>
 
+#include "proximity_vk.h"
 #include "techniques.h"
 
 static const obs_output proximity_ao_outputs[] = {
@@ -106,8 +108,30 @@ double obs_proximity_ao_step(const obs_proximity_ao_params *p, double rp) {
   return obs_proximity_ao_reach(p, rp) / p->steps;
 }
 
-static void layout_hook(const void *bound, struct obs_prox_layout *out) {
-  obs_proximity_ao_layout(bound, out);
+/* The fields, built once for every frame and backend: voxelised on the CPU, flooded where the
+ * run reads them (the Vulkan flood gives the CPU's bits on the device). */
+static int prepare_fields(obs_render_ctx *ctx, obs_backend backend, obs_prepared **out,
+                          obs_err *err) {
+  obs_prox_layout lay;
+  obs_proximity_ao_layout(ctx->bound, &lay);
+  obs_prepared *p = calloc(1, sizeof *p);
+  if (!p) return obs_err_set(err, OBS_ENOMEM, "out of memory");
+  obs_prox_flood_fn flood = backend == OBS_BACKEND_VULKAN ? obs_prox_flood_vulkan : NULL;
+  int rc = obs_prox_build(ctx->scene, &lay, ctx->threads, flood, NULL, &p->fields, err);
+  if (rc) {
+    free(p);
+    return rc;
+  }
+  obs_driver_stage_add(ctx, "voxelise", p->fields.voxelise_ms);
+  obs_driver_stage_add(ctx, "flood", p->fields.flood_ms);
+  obs_prox_fields_built(&p->fields, ctx->built);
+  *out = p;
+  return 0;
+}
+
+static void release_fields(obs_prepared *p) {
+  obs_prox_fields_free(&p->fields);
+  free(p);
 }
 
 /* Field reads per pixel sample and object: floor(i/2) points at each of N steps. */
@@ -164,7 +188,8 @@ const obs_technique obs_technique_proximity_ao = {
     .cost_rule = "floor(steps/2) summed over the steps, + 1",
     .ms_per_work = 1e-5,
     .needs = OBS_NEED_BVH | OBS_NEED_PROXIMITY | OBS_NEED_MOTION,
-    .prox_layout = layout_hook,
+    .prepare = prepare_fields,
+    .release = release_fields,
     .motion_backends = 1u << OBS_BACKEND_CPU,
     .outputs = proximity_ao_outputs,
     .reference = proximity_ao_reference,

@@ -271,7 +271,7 @@ static int dev_build(obs_render_ctx *ctx, obs_vk *vk, const job *jb, dev *d,
 int obs_proximity_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   const obs_scene *sc = ctx->scene;
   memset(out, 0, sizeof *out);
-  if (!ctx->proximity)
+  if (!ctx->prepared)
     return obs_err_set(err, OBS_EINTERNAL, "%s: proximity_ao: no fields were built for it",
                        sc->name);
   /* The G-buffer carries object indices + 1 as floats, exact below 2^24. */
@@ -280,7 +280,7 @@ int obs_proximity_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
                        "%s: /objects: proximity_ao on Vulkan tells at most %u objects apart "
                        "(got %zu)",
                        sc->name, (1u << 24) - 2, sc->nobjects);
-  job jb = {.sc = sc, .fs = ctx->proximity};
+  job jb = {.sc = sc, .fs = &ctx->prepared->fields};
   jb.p = *(const obs_proximity_ao_params *)ctx->bound;
   obs_proximity_ao_recon(&jb.p, &jb.recon);
   obs_camera_setup(&sc->camera, sc->width, sc->height, &jb.rig);

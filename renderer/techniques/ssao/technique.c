@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "gbuffer.h"
+#include "gbuffer_cpu.h"
 #include "obscura/render.h"
 #include "sampling.h"
 #include "techniques.h"
@@ -99,8 +100,8 @@ static int ssao_reference(const obs_scene *scene, const json_t *params, obs_refe
   double reach = radius * pow(1.0 + 2.4 / p.samples, p.samples);
   if (scene->camera.type == OBS_CAMERA_PERSPECTIVE) {
     if (!facts->have_z_median) {
-      rc = obs_gbuffer_median_depth(scene, SSAO_REFERENCE_DEPTH_SIDE, obs_cpu_count(),
-                                        &facts->z_median, err);
+      rc = obs_gbuffer_median_depth(scene, obs_gbuffer_cpu, SSAO_REFERENCE_DEPTH_SIDE,
+                                    obs_cpu_count(), &facts->z_median, err);
       if (rc) return rc;
       facts->have_z_median = 1;
     }

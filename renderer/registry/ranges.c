@@ -6,11 +6,7 @@
 #include <string.h>
 
 #include "strbuf.h"
-#include "techniques.h"
-
-const char *obs_param_range_unit(const obs_param_range *p) {
-  return p->size_power > 0 ? "scene sizes" : p->size_power < 0 ? "per scene size" : "";
-}
+#include "registry.h"
 
 static json_t *pair(double a, double b) { return json_pack("[ff]", a, b); }
 

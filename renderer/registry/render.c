@@ -1,10 +1,8 @@
-/* Running a scene's technique on a backend, and writing its images and summary. */
+/* Running a scene's technique on a backend, and writing its images and summary: the registry's
+ * orchestration, which finds the technique's run and asks the backend's table for its needs. */
 #include "obscura/render.h"
 
 #include <errno.h>
-#if defined(__GLIBC__) || defined(__linux__)
-#include <malloc.h>
-#endif
 #include <jansson.h>
 #include <math.h>
 #include <pthread.h>
@@ -20,27 +18,8 @@
 #include "extent.h"
 #include "obscura/path.h"
 #include "environment.h"
-#include "proximity.h"
+#include "registry.h"
 #include "volume_scene.h"
-
-void obs_render_keep_memory(void) {
-#if defined(M_MMAP_THRESHOLD) && defined(M_TRIM_THRESHOLD)
-  /* 32 MiB is glibc's ceiling for the mmap threshold: larger blocks are always mapped afresh. */
-  mallopt(M_MMAP_THRESHOLD, 32 << 20);
-  mallopt(M_TRIM_THRESHOLD, 256 << 20);
-#endif
-}
-
-double obs_now_ms(void) {
-  struct timespec ts;
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
-}
-
-int obs_cpu_count(void) {
-  long n = sysconf(_SC_NPROCESSORS_ONLN);
-  return n > 0 ? (int)n : 1;
-}
 
 /* Objects of a kind the technique does not render are left out, with a warning naming them. */
 static void warn_ignored(const obs_scene *sc, obs_render_ctx *ctx) {
@@ -85,20 +64,22 @@ typedef struct render_needs {
   const obs_needs_builder *nb; /* the backend's builder (BVH, ...), or NULL */
   void *state;                 /* what it built */
   obs_scene_volumes vols;
-  obs_prox_fields prox;
+  const obs_technique *t;      /* whose prepare hook built `prepared` */
+  obs_prepared *prepared;
   obs_env env;
 } render_needs;
 
 static void needs_release(render_needs *n) {
   obs_scene_volumes_free(&n->vols);
-  obs_prox_fields_free(&n->prox);
+  if (n->prepared && n->t->release) n->t->release(n->prepared);
+  n->prepared = NULL;
   obs_env_free(&n->env);
   if (n->nb) n->nb->release(n->state);
   n->nb = NULL;
 }
 
 /* Builds what the technique's needs ask, once, for every backend its way, into `n` and the
- * context (ctx->rt and the like, ctx->volumes, ctx->proximity, ctx->environment; ctx->built
+ * context (ctx->rt and the like, ctx->volumes, ctx->prepared, ctx->environment; ctx->built
  * lists what has a size). On failure releases what it built. */
 static int needs_build(obs_render_ctx *ctx, const obs_technique *t, obs_backend be,
                        const obs_brick *brick, const void *bound, render_needs *n, obs_err *err) {
@@ -114,18 +95,11 @@ static int needs_build(obs_render_ctx *ctx, const obs_technique *t, obs_backend 
     rc = obs_scene_volumes_load_brick(scene, brick, reach, sides, &n->vols, err);
     if (!rc) ctx->volumes = &n->vols;
   }
-  if (!rc && t->needs & OBS_NEED_PROXIMITY) {
-    obs_prox_layout lay;
-    t->prox_layout(bound, &lay);
-    const obs_backend_ops *ops = obs_backend_ops_get(be);
-    rc = obs_prox_build(scene, &lay, ctx->threads, ops ? ops->prox_flood : NULL, NULL, &n->prox,
-                        err);
-    if (!rc) {
-      obs_driver_stage_add(ctx, "voxelise", n->prox.voxelise_ms);
-      obs_driver_stage_add(ctx, "flood", n->prox.flood_ms);
-      obs_prox_fields_built(&n->prox, ctx->built);
-      ctx->proximity = &n->prox;
-    }
+  /* What only this technique needs, its own way (proximity_ao: its proximity fields). */
+  if (!rc && t->prepare) {
+    n->t = t;
+    rc = t->prepare(ctx, be, &n->prepared, err);
+    if (!rc) ctx->prepared = n->prepared;
   }
   if (!rc && t->needs & OBS_NEED_ENV_MAP && scene->has_environment) {
     rc = obs_env_from_scene(scene, &n->env, err);
@@ -182,7 +156,7 @@ static int render(const obs_scene *scene, const obs_render_opts *opts, obs_resul
   obs_extent ex;
   rc = obs_scene_extent(scene, &ex, err);
   if (rc) return rc;
-  obs_range_check(&t->range[be], t->name, be, scene, &ex, &ctx);
+  obs_range_check(&t->range[be], t->name, obs_backend_name(be), scene, &ex, &ctx);
   void *bound = NULL;
   rc = obs_params_bind_new(t, scene->params, &bound, err);
   if (rc) return rc;
@@ -245,45 +219,6 @@ int obs_render(const obs_scene *scene, const obs_render_opts *opts, obs_result *
   /* Files the scene reads (volumes, environment maps) are named as the scene names them. */
   if (rc && scene) obs_path_err_relative(err, scene->base_dir);
   return rc;
-}
-
-void obs_result_stage_add(obs_result *r, const char *name, double ms) {
-  for (int i = 0; i < r->nstages; i++)
-    if (!strcmp(r->stage_names[i], name)) {
-      r->stage_ms[i] += ms;
-      return;
-    }
-  if (r->nstages >= OBS_MAX_STAGES) return;
-  r->stage_names[r->nstages] = name;
-  r->stage_ms[r->nstages++] = ms;
-}
-
-void obs_render_ctx_stage(obs_render_ctx *ctx, const char *name, double ms) {
-  if (ctx->nstages >= OBS_MAX_STAGES) return;
-  ctx->stage_names[ctx->nstages] = name;
-  ctx->stage_ms[ctx->nstages++] = ms;
-}
-
-void obs_render_ctx_warn(obs_render_ctx *ctx, const char *fmt, ...) {
-  if (ctx->nwarnings >= OBS_MAX_WARNINGS) return;
-  char *w = ctx->warnings[ctx->nwarnings];
-  va_list ap;
-  va_start(ap, fmt);
-  vsnprintf(w, OBS_WARNING_LEN, fmt, ap);
-  va_end(ap);
-  for (int i = 0; i < ctx->nwarnings; i++)
-    if (!strcmp(ctx->warnings[i], w)) return;
-  ctx->nwarnings++;
-}
-
-void obs_result_free(obs_result *res) {
-  if (!res) return;
-  obs_image_free(&res->image);
-  for (int i = 0; i < res->npatches && i < OBS_MAX_PATCH_OUTPUTS; i++)
-    obs_patches_free(&res->patches[i]);
-  json_decref(res->frames);
-  json_decref(res->built);
-  memset(res, 0, sizeof *res);
 }
 
 static json_t *stats_json(const obs_stats *st) {

@@ -1,6 +1,6 @@
 // Proximity-field flood, second half of an iteration: the block sum along z and the update
 // P <- 0.5 (P + (S - P) inv26) of unoccupied voxels, the twin of flood_z in
-// renderer/core/voxelise.c. Each voxel reads its own value and writes it in place (no other
+// voxelise.c. Each voxel reads its own value and writes it in place (no other
 // invocation of this pass reads it). inv26 is the host's float 1/26; `precise` keeps every
 // product and sum a separate rounding, so the bits are the CPU's.
 #version 450

@@ -1,4 +1,4 @@
-/* Proximity fields (renderer/core/proximity.h): the grids' layout per object, the build that
+/* Proximity fields (proximity.h): the grids' layout per object, the build that
  * voxelises and floods them, the world-to-grid maps and the reconstruction of occlusion. */
 #include "proximity.h"
 

@@ -1,4 +1,4 @@
-/* The Vulkan side of proximity fields (renderer/core/proximity.h): the flood as compute passes
+/* The Vulkan side of proximity fields (proximity.h): the flood as compute passes
  * over 3D storage images, giving exactly the CPU flood's bits, and the backend's hook for it.
  * Internal to the Vulkan backend; tests and benchmarks call the flood directly. */
 #ifndef OBS_PROXIMITY_VK_H

@@ -1,4 +1,4 @@
-/* Voxelisation and flooding of proximity fields (renderer/core/proximity.h): which voxels a
+/* Voxelisation and flooding of proximity fields (proximity.h): which voxels a
  * surface touches, by exact overlap tests, and the flood that spreads proximity outward. */
 #include <math.h>
 #include <stdlib.h>

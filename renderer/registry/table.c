@@ -5,8 +5,7 @@
 #include <string.h>
 
 #include "obscura/technique.h"
-#include "technique_list.h"
-#include "techniques.h"
+#include "registry.h"
 
 #define OBS_TECHNIQUE_ENTRY(name) &obs_technique_##name,
 static const obs_technique *const table[] = {OBS_TECHNIQUE_LIST(OBS_TECHNIQUE_ENTRY)};

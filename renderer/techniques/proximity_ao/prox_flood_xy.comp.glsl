@@ -1,5 +1,5 @@
 // Proximity-field flood, first half of an iteration: each voxel's 3x3 block sum in x and y, the
-// twin of flood_xy in renderer/core/voxelise.c (((x-1 + x) + x+1) per row, then the rows the same
+// twin of flood_xy in voxelise.c (((x-1 + x) + x+1) per row, then the rows the same
 // way along y; outside the grid 0), so the sums are the CPU's bits.
 #version 450
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;

@@ -7,7 +7,7 @@
 #include "driver.h"
 #include "obscura/backend.h"
 #include "obscura/technique.h"
-#include "techniques.h"
+#include "registry.h"
 
 static const obs_backend_ops *const backends[OBS_BACKEND_COUNT] = {
     [OBS_BACKEND_CPU] = &obs_backend_cpu_ops,
