@@ -53,6 +53,55 @@ static void lanes_make(const obs_sso_tables *t, int samples, float *out) {
 }
 
 #if OBS_SIMD_AVX2
+/* The pixels' view-space positions and their frames scaled by R (obs_sso_position, obs_onb), for
+ * the eight lanes of sso_span8. */
+typedef struct span_frame {
+  __m256 p0, p1, tx, ty, tz, bx, by, bz, ux, uy, uz;
+} span_frame;
+
+OBS_AVX2_INLINE void span_frame_make(const sso_job *j, int x, int y, __m256 zp, span_frame *f) {
+  const obs_sso_push *pc = &j->pc;
+  const size_t i = (size_t)y * (size_t)j->g->width + (size_t)x;
+  const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f);
+  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256 R = _mm256_set1_ps(pc->radius);
+  const __m256 fx = _mm256_add_ps(_mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_set1_epi32(x), lane)),
+                                  _mm256_set1_ps(0.5f));
+  const __m256 nxp = _mm256_sub_ps(_mm256_mul_ps(fx, _mm256_set1_ps(pc->two_inv_w)), one);
+  const __m256 nyp = _mm256_set1_ps(1.0f - ((float)y + 0.5f) * pc->two_inv_h);
+  f->p0 = _mm256_mul_ps(nxp, _mm256_set1_ps(pc->half_w));
+  f->p1 = _mm256_mul_ps(nyp, _mm256_set1_ps(pc->half_h));
+  if (!(pc->flags & OBS_SSO_FLAG_ORTHO)) {
+    f->p0 = _mm256_mul_ps(f->p0, zp);
+    f->p1 = _mm256_mul_ps(f->p1, zp);
+  }
+  const __m256i i3 = _mm256_mullo_epi32(lane, _mm256_set1_epi32(3));
+  const float *nb = j->g->normal + 3 * i;
+  const __m256 n0 = obs_avx2_gather(j->loads, nb, i3), n1 = obs_avx2_gather(j->loads, nb + 1, i3);
+  const __m256 n2 = obs_avx2_gather(j->loads, nb + 2, i3);
+  /* obs_onb lane by lane: a component within OBS_ONB_FLAT of 0 is +0, then the sign of z. */
+  const __m256 absmask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
+  const __m256 flat = _mm256_set1_ps(OBS_ONB_FLAT), neg = _mm256_set1_ps(-0.0f);
+  const __m256 gx = _mm256_andnot_ps(_mm256_cmp_ps(_mm256_and_ps(n0, absmask), flat, _CMP_LT_OQ), n0);
+  const __m256 gy = _mm256_andnot_ps(_mm256_cmp_ps(_mm256_and_ps(n1, absmask), flat, _CMP_LT_OQ), n1);
+  const __m256 gz = _mm256_andnot_ps(_mm256_cmp_ps(_mm256_and_ps(n2, absmask), flat, _CMP_LT_OQ), n2);
+  const __m256 sign = _mm256_blendv_ps(one, _mm256_set1_ps(-1.0f), _mm256_cmp_ps(gz, zero, _CMP_LT_OQ));
+  const __m256 a = _mm256_div_ps(_mm256_set1_ps(-1.0f), _mm256_add_ps(sign, gz));
+  const __m256 c = _mm256_mul_ps(_mm256_mul_ps(gx, gy), a);
+  const __m256 t0 = _mm256_add_ps(one, _mm256_mul_ps(_mm256_mul_ps(_mm256_mul_ps(sign, gx), gx), a));
+  const __m256 t1 = _mm256_mul_ps(sign, c), t2 = _mm256_mul_ps(_mm256_xor_ps(sign, neg), gx);
+  const __m256 b1 = _mm256_add_ps(sign, _mm256_mul_ps(_mm256_mul_ps(gy, gy), a));
+  f->tx = _mm256_mul_ps(t0, R);
+  f->ty = _mm256_mul_ps(t1, R);
+  f->tz = _mm256_mul_ps(t2, R);
+  f->bx = _mm256_mul_ps(c, R);
+  f->by = _mm256_mul_ps(b1, R);
+  f->bz = _mm256_mul_ps(_mm256_xor_ps(gy, neg), R);
+  f->ux = _mm256_mul_ps(n0, R);
+  f->uy = _mm256_mul_ps(n1, R);
+  f->uz = _mm256_mul_ps(n2, R);
+}
+
 /* obs_sso_pixel for pixels x..x+7 of row y (all inside the image): the same operations per lane,
  * every branch of the scalar code a mask. */
 OBS_AVX2_FN static void sso_span8(const sso_job *j, int x, int y, float *dst) {
@@ -68,42 +117,15 @@ OBS_AVX2_FN static void sso_span8(const sso_job *j, int x, int y, float *dst) {
     return;
   }
   const int ortho = pc->flags & OBS_SSO_FLAG_ORTHO;
-  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  span_frame f;
+  span_frame_make(j, x, y, zp, &f);
+  const __m256 p0 = f.p0, p1 = f.p1, tx = f.tx, ty = f.ty, tz = f.tz, bx = f.bx, by = f.by;
+  const __m256 bz = f.bz, ux = f.ux, uy = f.uy, uz = f.uz;
   const __m256 hwv = _mm256_set1_ps(pc->half_w), hhv = _mm256_set1_ps(pc->half_h);
   const __m256 tiw = _mm256_set1_ps(pc->two_inv_w), tih = _mm256_set1_ps(pc->two_inv_h);
   const __m256 R = _mm256_set1_ps(pc->radius);
   const __m256 ihw = _mm256_set1_ps(pc->inv_half_w), ihh = _mm256_set1_ps(pc->inv_half_h);
-  /* The pixel's position (obs_sso_position). */
-  const __m256 fx = _mm256_add_ps(_mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_set1_epi32(x), lane)),
-                                  half);
-  const __m256 nxp = _mm256_sub_ps(_mm256_mul_ps(fx, tiw), one);
-  const __m256 nyp = _mm256_set1_ps(1.0f - ((float)y + 0.5f) * pc->two_inv_h);
-  __m256 p0 = _mm256_mul_ps(nxp, hwv), p1 = _mm256_mul_ps(nyp, hhv);
-  if (!ortho) {
-    p0 = _mm256_mul_ps(p0, zp);
-    p1 = _mm256_mul_ps(p1, zp);
-  }
-  /* The normal and obs_onb's frame, lane by lane. */
-  const __m256i i3 = _mm256_mullo_epi32(lane, _mm256_set1_epi32(3));
-  const float *nb = g->normal + 3 * i;
-  const __m256 n0 = obs_avx2_gather(j->loads, nb, i3), n1 = obs_avx2_gather(j->loads, nb + 1, i3);
-  const __m256 n2 = obs_avx2_gather(j->loads, nb + 2, i3);
   const __m256 absmask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
-  const __m256 flat = _mm256_set1_ps(OBS_ONB_FLAT);
-  const __m256 gx = _mm256_andnot_ps(_mm256_cmp_ps(_mm256_and_ps(n0, absmask), flat, _CMP_LT_OQ), n0);
-  const __m256 gy = _mm256_andnot_ps(_mm256_cmp_ps(_mm256_and_ps(n1, absmask), flat, _CMP_LT_OQ), n1);
-  const __m256 gz = _mm256_andnot_ps(_mm256_cmp_ps(_mm256_and_ps(n2, absmask), flat, _CMP_LT_OQ), n2);
-  const __m256 sign = _mm256_blendv_ps(one, _mm256_set1_ps(-1.0f), _mm256_cmp_ps(gz, zero, _CMP_LT_OQ));
-  const __m256 a = _mm256_div_ps(_mm256_set1_ps(-1.0f), _mm256_add_ps(sign, gz));
-  const __m256 c = _mm256_mul_ps(_mm256_mul_ps(gx, gy), a);
-  const __m256 negsign = _mm256_xor_ps(sign, _mm256_set1_ps(-0.0f));
-  const __m256 t0 = _mm256_add_ps(one, _mm256_mul_ps(_mm256_mul_ps(_mm256_mul_ps(sign, gx), gx), a));
-  const __m256 t1 = _mm256_mul_ps(sign, c), t2 = _mm256_mul_ps(negsign, gx);
-  const __m256 b0 = c, b1 = _mm256_add_ps(sign, _mm256_mul_ps(_mm256_mul_ps(gy, gy), a));
-  const __m256 b2 = _mm256_xor_ps(gy, _mm256_set1_ps(-0.0f));
-  const __m256 tx = _mm256_mul_ps(t0, R), ty = _mm256_mul_ps(t1, R), tz = _mm256_mul_ps(t2, R);
-  const __m256 bx = _mm256_mul_ps(b0, R), by = _mm256_mul_ps(b1, R), bz = _mm256_mul_ps(b2, R);
-  const __m256 ux = _mm256_mul_ps(n0, R), uy = _mm256_mul_ps(n1, R), uz = _mm256_mul_ps(n2, R);
   const float *lt = j->lanes + (size_t)(((y & 3) << 2) | (x & 3)) *
                                    ((size_t)pc->samples * SSO_LANE_VALUES + 1) * 8;
   const __m256 hw = _mm256_set1_ps(0.5f * (float)w), hh = _mm256_set1_ps(0.5f * (float)g->height);
