@@ -21,6 +21,7 @@
 /* The timing goals at 1280x720 on the faster backend, 2 cores, milliseconds (sum of stages). */
 #define GOAL_SSAO16_MS 30.0
 #define GOAL_HBAO88_MS 60.0
+#define GOAL_SVAR_MS 15.0
 
 typedef struct options {
   int repeats;     /* timed renders per configuration and backend (after one warm-up) */
@@ -41,10 +42,11 @@ static void usage(FILE *f) {
           "                          [--hbao-radius R] [--backend both|cpu|vulkan] [--only TEXT]\n"
           "                          [--verbose] [--accuracy]\n"
           "  Timing (default): renders the scene (default scenes/cornell_box.json at 1280x720)\n"
-          "  with ssao (samples 8/16/24) and hbao (4/4, 8/8, 16/16, full and half resolution) on\n"
-          "  the CPU twin and on Vulkan, one warm-up then R renders each (default 5), and prints\n"
-          "  median stage times, their sum, obs_render's wall time, the CPU/Vulkan ratio and the\n"
-          "  goals (ssao 16 <= 30 ms, hbao 8/8 <= 60 ms on the faster backend). hbao's radius\n"
+          "  with ssao (samples 8/16/24), hbao (4/4, 8/8, 16/16, full and half resolution) and\n"
+          "  ssao_variance (both methods, radius --hbao-radius) on the CPU twin and on Vulkan,\n"
+          "  one warm-up then R renders each (default 5), and prints median stage times, their\n"
+          "  sum, obs_render's wall time, the CPU/Vulkan ratio and the goals (ssao 16 <= 30 ms,\n"
+          "  hbao 8/8 <= 60 ms, ssao_variance <= 15 ms on the faster backend). hbao's radius\n"
           "  is --hbao-radius (default 100, the Cornell box's scale; the schema default 1 would\n"
           "  make most of that frame exit early); everything else keeps its default.\n"
           "  --accuracy: ssao and hbao against rt_ao (uniform, sobol, 1024 samples) on the\n"
@@ -265,7 +267,7 @@ typedef struct config {
 } config;
 
 /* Configuration indices the goal lines use (the order make_configs writes). */
-enum { CFG_SSAO16 = 1, CFG_HBAO88_FULL = 4, CFG_HBAO88_HALF = 7 };
+enum { CFG_SSAO16 = 1, CFG_HBAO88_FULL = 4, CFG_HBAO88_HALF = 7, CFG_SVAR = 9 };
 
 static int make_configs(config *c, double R) {
   int n = 0;
@@ -284,6 +286,13 @@ static int make_configs(config *c, double R) {
                "{\"radius\":%.9g,\"directions\":%d,\"steps\":%d,\"half_res\":%s}", R, hb[i],
                hb[i], half ? "true" : "false");
     }
+  /* ssao_variance, both methods, at the same R as hbao (the Cornell box's scale). */
+  for (int m = 0; m < 2; m++, n++) {
+    c[n].tech = "ssao_variance";
+    snprintf(c[n].label, sizeof c[n].label, "svar %s", m ? "unsharp" : "variance");
+    snprintf(c[n].params, sizeof c[n].params, "{\"radius\":%.9g,\"method\":\"%s\"}", R,
+             m ? "depth_unsharp" : "variance");
+  }
   return n;
 }
 
@@ -373,11 +382,12 @@ static int timing_mode(const options *o, int have_vk) {
     int c;
     double goal;
     const char *what;
-  } goals[2] = {{CFG_SSAO16, GOAL_SSAO16_MS, "SSAO 16 samples"},
-                {CFG_HBAO88_FULL, GOAL_HBAO88_MS, "HBAO 8/8 (full res)"}};
+  } goals[3] = {{CFG_SSAO16, GOAL_SSAO16_MS, "SSAO 16 samples"},
+                {CFG_HBAO88_FULL, GOAL_HBAO88_MS, "HBAO 8/8 (full res)"},
+                {CFG_SVAR, GOAL_SVAR_MS, "ssao_variance (variance, R 100)"}};
   char label[96];
   bench_isa_label(label, sizeof label);
-  for (int g = 0; g < 2; g++) {
+  for (int g = 0; g < 3; g++) {
     int c = goals[g].c, best = -1;
     for (int b = 0; b < nb; b++)
       if (done[c][b] && (best < 0 || sum[c][b].total < sum[c][best].total)) best = b;
