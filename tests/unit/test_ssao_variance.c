@@ -62,10 +62,12 @@ static void test_params(void **state) {
   assert_true(p.radius == 1.0);
   assert_true(p.variance_weight == 0.0f);
   assert_true(p.strength == 0.3f);
+  assert_int_equal(p.taps, 8);
   obs_scene_free(&sc);
   const char *bad[] = {"{\"method\":\"unsharp\"}", "{\"radius\":0}", "{\"radius\":-1}",
                        "{\"radius\":1e31}", "{\"variance_weight\":-1}",
-                       "{\"variance_weight\":1000001}", "{\"strength\":-0.5}", "{\"kernel\":3}"};
+                       "{\"variance_weight\":1000001}", "{\"strength\":-0.5}", "{\"kernel\":3}",
+                       "{\"taps\":0}", "{\"taps\":17}", "{\"taps\":2.5}"};
   for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
     obs_scene s2;
     obs_err err = OBS_ERR_INIT;
@@ -97,7 +99,7 @@ static void test_plan(void **state) {
   qsort(sorted, (size_t)nc, sizeof(float), cmp_float);
   assert_true(obs_svar_median_depth(z, w, h) == (double)sorted[(nc - 1) / 2]);
   obs_ssao_variance_params p = {.method = 0, .radius = 1.0, .variance_weight = 0.25f,
-                                .strength = 1.0f};
+                                .strength = 1.0f, .taps = 16};
   obs_svar_projection pr = {0, 0.5f};
   obs_svar_plan plan;
   /* A constant depth 2: a pixel spans 2 * 0.5 / 37 * 2 = 0.054 units, R = 1 is 18.5 -> 19 px. */
@@ -112,6 +114,13 @@ static void test_plan(void **state) {
   assert_true(plan.zscale == 0.5f);
   assert_true(fabsf(plan.rw - 9.0f * 2.0f * 0.5f / 37.0f) < 1e-7f);
   for (int n = 1; n < OBS_SVAR_INV_COUNT; n++) assert_true(plan.inv_count[n] == 1.0f / (float)n);
+  /* At most `taps` a side: r = 9 with 4 taps is read every 3 pixels. */
+  p.taps = 4;
+  obs_svar_plan_make(&p, z, w, h, &pr, &plan);
+  assert_int_equal(plan.stride, 3);
+  assert_int_equal(plan.taps, 3);
+  assert_true(fabsf(plan.rw - 9.0f * 2.0f * 0.5f / 37.0f) < 1e-7f);
+  p.taps = 16;
   /* A wide image: r = 100 px is read with stride 7, 14 taps a side. */
   free(z);
   z = calloc(400 * 3, sizeof(float));
@@ -268,7 +277,7 @@ static const char *ROOM_CAM = "{\"type\":\"perspective\",\"position\":[0.3,1,3.4
  * leave tails of every length, with both methods and with a box that needs a stride. */
 static void test_paths_and_threads(void **state) {
   (void)state;
-  const char *params[] = {"{\"radius\":0.4}", "{\"radius\":1.5,\"variance_weight\":0.5}",
+  const char *params[] = {"{\"radius\":0.4}", "{\"radius\":1.5,\"variance_weight\":0.5,\"taps\":16}",
                           "{\"method\":\"depth_unsharp\",\"radius\":0.4}",
                           "{\"method\":\"depth_unsharp\",\"radius\":2,\"strength\":2}"};
   const int widths[] = {77, 64, 13};

@@ -52,7 +52,8 @@ static void load(const char *json, obs_scene *sc) { obs_test_load(json, "svar_vk
 static const char *const param_sets[] = {
     "{\"radius\":0.4}",
     "{\"radius\":0.1}",
-    "{\"radius\":2,\"variance_weight\":0.5}",
+    "{\"radius\":2,\"variance_weight\":0.5,\"taps\":16}",
+    "{\"radius\":2,\"taps\":1}",
     "{\"radius\":1e6}",
     "{\"method\":\"depth_unsharp\",\"radius\":0.4}",
     "{\"method\":\"depth_unsharp\",\"radius\":3,\"strength\":2}",
