@@ -55,8 +55,8 @@ void obs_svar_plan_make(const obs_ssao_variance_params *p, const float *depth, i
  * selection on the float bits. */
 double obs_svar_median_depth(const float *depth, int width, int height);
 /* The AO push block of a plan. */
-void obs_svar_ao_push_make(const obs_ssao_variance_params *p, const obs_svar_plan *plan,
-                           int width, int height, int ortho, obs_svar_ao_push *out);
+void obs_svar_ao_push_make(const obs_ssao_variance_params *p, const obs_svar_plan *plan, int width,
+                           int height, int ortho, obs_svar_ao_push *out);
 
 /* The passes on the CPU: `ao` (width*height floats) receives the AO, 1 where uncovered; stage_ms
  * (may be NULL) OBS_SVAR_CPU_STAGES entries; plan_out (may be NULL) the plan used. */

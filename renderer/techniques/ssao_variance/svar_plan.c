@@ -86,8 +86,8 @@ void obs_svar_plan_make(const obs_ssao_variance_params *p, const float *depth, i
   out->rw = (float)(proj->ortho ? reach * (double)out->zscale : reach);
 }
 
-void obs_svar_ao_push_make(const obs_ssao_variance_params *p, const obs_svar_plan *plan,
-                           int width, int height, int ortho, obs_svar_ao_push *out) {
+void obs_svar_ao_push_make(const obs_ssao_variance_params *p, const obs_svar_plan *plan, int width,
+                           int height, int ortho, obs_svar_ao_push *out) {
   memset(out, 0, sizeof *out);
   out->width = width;
   out->height = height;

@@ -13,8 +13,9 @@ static const char *const svar_methods[] = {"variance", "depth_unsharp", NULL};
 
 #define P(member) offsetof(obs_ssao_variance_params, member)
 /* The defaults of variance_weight and strength are the values closest to the reference, rt_ao
- * within R (docs/techniques/ssao_variance.md, "Against rt_ao"); the radius derived for a scene (size_default) is 0.2 scene sizes, rt_ao's derived max_distance,
- * which is this technique's reference radius (svar_reference). */
+ * within R (docs/techniques/ssao_variance.md, "Against rt_ao"); the radius derived for a scene
+ * (size_default) is 0.2 scene sizes, rt_ao's derived max_distance, which is this technique's
+ * reference radius (svar_reference). */
 static const obs_param svar_params[] = {
     {.name = "method", .type = OBS_PARAM_ENUM, .choices = svar_methods, .def = OBS_SVAR_VARIANCE,
      .description = "variance: Cantelli's bound from the box's depth mean and variance (Pesce); "
