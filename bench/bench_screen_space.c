@@ -27,6 +27,7 @@
 /* ss_radiosity 4 samples: its screen-space passes (gather, blur, readback, G-buffer); the direct
  * pass it gathers from (CPU shadow rays, stages bvh and direct) is shown beside them. */
 #define GOAL_SSRAD4_MS 30.0
+#define GOAL_SVAR_MS 15.0
 
 typedef struct options {
   int repeats;     /* timed renders per configuration and backend (after one warm-up) */
@@ -49,11 +50,12 @@ static void usage(FILE *f) {
           "                          [--verbose] [--accuracy] [--sso-experiment]\n"
           "  Timing (default): renders the scene (default scenes/cornell_box.json at 1280x720)\n"
           "  with ssao (samples 8/16/24), hbao (4/4, 8/8, 16/16, full and half resolution) and\n"
-          "  ss_obscurance (samples 8/16/32, R 150) on\n"
+          "  ss_obscurance (samples 8/16/32, R 150), ss_radiosity (4 samples) and ssao_variance\n"
+          "  (both methods at radius --hbao-radius, 8 and 16 taps) on\n"
           "  the CPU twin and on Vulkan, one warm-up then R renders each (default 5), and prints\n"
           "  median stage times, their sum, obs_render's wall time, the CPU/Vulkan ratio and the\n"
-          "  goals (ssao 16 <= 30 ms, hbao 8/8 <= 60 ms, ss_obscurance 16 <= 25 ms on the faster\n"
-          "  backend). hbao's radius\n"
+          "  goals (ssao 16 <= 30 ms, hbao 8/8 <= 60 ms, ss_obscurance 16 <= 25 ms, ss_radiosity 4\n"
+          "  <= 30 ms, ssao_variance <= 15 ms on the faster backend). hbao's radius\n"
           "  is --hbao-radius (default 100, the Cornell box's scale; the schema default 1 would\n"
           "  make most of that frame exit early); everything else keeps its default.\n"
           "  --accuracy: ssao and hbao against rt_ao (uniform, sobol, 1024 samples) on the\n"
@@ -291,7 +293,14 @@ typedef struct config {
 } config;
 
 /* Configuration indices the goal lines use (the order make_configs writes). */
-enum { CFG_SSAO16 = 1, CFG_HBAO88_FULL = 4, CFG_HBAO88_HALF = 7, CFG_SSO16 = 10, CFG_SSRAD4 = 12 };
+enum {
+  CFG_SSAO16 = 1,
+  CFG_HBAO88_FULL = 4,
+  CFG_HBAO88_HALF = 7,
+  CFG_SSO16 = 10,
+  CFG_SSRAD4 = 12,
+  CFG_SVAR = 13
+};
 
 static int make_configs(config *c, double R) {
   int n = 0;
@@ -322,7 +331,17 @@ static int make_configs(config *c, double R) {
   snprintf(c[n].label, sizeof c[n].label, "ss_radiosity 4");
   snprintf(c[n].params, sizeof c[n].params,
            "{\"samples\":4,\"kernel_size\":%.9g,\"bias\":%.9g,\"light_samples\":1}", R, R);
-  return n + 1;
+  n++;
+  /* ssao_variance at the same R as hbao (the Cornell box's scale): both methods with the
+   * default 8 taps a side, and the variance method with 16. */
+  for (int m = 0; m < 3; m++, n++) {
+    c[n].tech = "ssao_variance";
+    snprintf(c[n].label, sizeof c[n].label, "svar %s t%d", m == 1 ? "unsharp" : "variance",
+             m == 2 ? 16 : 8);
+    snprintf(c[n].params, sizeof c[n].params, "{\"radius\":%.9g,\"method\":\"%s\",\"taps\":%d}",
+             R, m == 1 ? "depth_unsharp" : "variance", m == 2 ? 16 : 8);
+  }
+  return n;
 }
 
 static void print_ms(double v, int has) {
@@ -411,12 +430,13 @@ static int timing_mode(const options *o, int have_vk) {
     int c;
     double goal;
     const char *what;
-  } goals[3] = {{CFG_SSAO16, GOAL_SSAO16_MS, "SSAO 16 samples"},
+  } goals[4] = {{CFG_SSAO16, GOAL_SSAO16_MS, "SSAO 16 samples"},
                 {CFG_HBAO88_FULL, GOAL_HBAO88_MS, "HBAO 8/8 (full res)"},
-                {CFG_SSO16, GOAL_SSO16_MS, "ss_obscurance 16 samples"}};
+                {CFG_SSO16, GOAL_SSO16_MS, "ss_obscurance 16 samples"},
+                {CFG_SVAR, GOAL_SVAR_MS, "ssao_variance (variance, 8 taps)"}};
   char label[96];
   bench_isa_label(label, sizeof label);
-  for (int g = 0; g < 3; g++) {
+  for (int g = 0; g < 4; g++) {
     int c = goals[g].c, best = -1;
     for (int b = 0; b < nb; b++)
       if (done[c][b] && (best < 0 || sum[c][b].total < sum[c][best].total)) best = b;

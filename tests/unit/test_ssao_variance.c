@@ -17,17 +17,21 @@
 static const char *TECH =
     "\"technique\":{\"name\":\"ssao_variance\",\"backend\":\"cpu\",\"params\":%s}";
 
-static const char *PERSP = "{\"type\":\"perspective\",\"position\":[0,0,0],\"look_at\":[0,0,1],"
-                           "\"fov_y\":50}";
-static const char *ORTHO = "{\"type\":\"orthographic\",\"position\":[0,0,0],\"look_at\":[0,0,1],"
-                           "\"height\":4}";
+static const char *PERSP =
+    "{\"type\":\"perspective\",\"position\":[0,0,0],\"look_at\":[0,0,1],"
+    "\"fov_y\":50}";
+static const char *ORTHO =
+    "{\"type\":\"orthographic\",\"position\":[0,0,0],\"look_at\":[0,0,1],"
+    "\"height\":4}";
 
 static const char *doc(const char *camera, int w, int h, const char *objects, const char *params) {
   static char buf[8192];
   char tech[1024];
   snprintf(tech, sizeof tech, TECH, params);
-  snprintf(buf, sizeof buf, "{\"camera\":%s,\"image\":{\"width\":%d,\"height\":%d},"
-           "\"objects\":[%s],%s}", camera, w, h, objects, tech);
+  snprintf(buf, sizeof buf,
+           "{\"camera\":%s,\"image\":{\"width\":%d,\"height\":%d},"
+           "\"objects\":[%s],%s}",
+           camera, w, h, objects, tech);
   return buf;
 }
 
@@ -62,15 +66,24 @@ static void test_params(void **state) {
   assert_true(p.radius == 1.0);
   assert_true(p.variance_weight == 0.0f);
   assert_true(p.strength == 0.3f);
+  assert_int_equal(p.taps, 8);
   obs_scene_free(&sc);
-  const char *bad[] = {"{\"method\":\"unsharp\"}", "{\"radius\":0}", "{\"radius\":-1}",
-                       "{\"radius\":1e31}", "{\"variance_weight\":-1}",
-                       "{\"variance_weight\":1000001}", "{\"strength\":-0.5}", "{\"kernel\":3}"};
+  const char *bad[] = {"{\"method\":\"unsharp\"}",
+                       "{\"radius\":0}",
+                       "{\"radius\":-1}",
+                       "{\"radius\":1e31}",
+                       "{\"variance_weight\":-1}",
+                       "{\"variance_weight\":1000001}",
+                       "{\"strength\":-0.5}",
+                       "{\"kernel\":3}",
+                       "{\"taps\":0}",
+                       "{\"taps\":17}",
+                       "{\"taps\":2.5}"};
   for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
     obs_scene s2;
     obs_err err = OBS_ERR_INIT;
-    int rc = obs_scene_load_string(&s2, doc(PERSP, 4, 4, "", bad[i]), "svar.json", NULL, NULL, 0,
-                                   &err);
+    int rc =
+        obs_scene_load_string(&s2, doc(PERSP, 4, 4, "", bad[i]), "svar.json", NULL, NULL, 0, &err);
     printf("%s: %s\n", bad[i], rc ? obs_err_message(&err) : "accepted");
     assert_int_not_equal(rc, 0);
     obs_err_free(&err);
@@ -96,8 +109,8 @@ static void test_plan(void **state) {
   }
   qsort(sorted, (size_t)nc, sizeof(float), cmp_float);
   assert_true(obs_svar_median_depth(z, w, h) == (double)sorted[(nc - 1) / 2]);
-  obs_ssao_variance_params p = {.method = 0, .radius = 1.0, .variance_weight = 0.25f,
-                                .strength = 1.0f};
+  obs_ssao_variance_params p = {
+      .method = 0, .radius = 1.0, .variance_weight = 0.25f, .strength = 1.0f, .taps = 16};
   obs_svar_projection pr = {0, 0.5f};
   obs_svar_plan plan;
   /* A constant depth 2: a pixel spans 2 * 0.5 / 37 * 2 = 0.054 units, R = 1 is 18.5 -> 19 px. */
@@ -112,6 +125,13 @@ static void test_plan(void **state) {
   assert_true(plan.zscale == 0.5f);
   assert_true(fabsf(plan.rw - 9.0f * 2.0f * 0.5f / 37.0f) < 1e-7f);
   for (int n = 1; n < OBS_SVAR_INV_COUNT; n++) assert_true(plan.inv_count[n] == 1.0f / (float)n);
+  /* At most `taps` a side: r = 9 with 4 taps is read every 3 pixels. */
+  p.taps = 4;
+  obs_svar_plan_make(&p, z, w, h, &pr, &plan);
+  assert_int_equal(plan.stride, 3);
+  assert_int_equal(plan.taps, 3);
+  assert_true(fabsf(plan.rw - 9.0f * 2.0f * 0.5f / 37.0f) < 1e-7f);
+  p.taps = 16;
   /* A wide image: r = 100 px is read with stride 7, 14 taps a side. */
   free(z);
   z = calloc(400 * 3, sizeof(float));
@@ -206,8 +226,9 @@ static double crease_closed_form(int method, double u0, int K, double k_weight, 
  * as a plane does, in both methods; the crease's pixels match the closed form. */
 static void test_crease_and_edge(void **state) {
   (void)state;
-  const char *cam = "{\"type\":\"orthographic\",\"position\":[0,0,0],\"look_at\":[0,0,1],"
-                    "\"height\":4}";
+  const char *cam =
+      "{\"type\":\"orthographic\",\"position\":[0,0,0],\"look_at\":[0,0,1],"
+      "\"height\":4}";
   for (int m = 0; m < 2; m++) {
     char params[128];
     /* 64 px across 16/3 units: R = 0.5 is 6 px. */
@@ -228,10 +249,11 @@ static void test_crease_and_edge(void **state) {
       assert_true(a[y * 64 + 2] == 1.0f);
       for (int x = 0; x < 64; x++) worst_edge = fmin(worst_edge, b[y * 64 + x]);
     }
-    printf("%s: crease pixels %.4f %.4f (closed form %.4f), largest deviation %.2g; convex edge "
-           "min %.6f\n",
-           METHODS[m], a[24 * 64 + 31], a[24 * 64 + 30], crease_closed_form(m, -0.5, 6, 0.25, 1.0),
-           worst, worst_edge);
+    printf(
+        "%s: crease pixels %.4f %.4f (closed form %.4f), largest deviation %.2g; convex edge "
+        "min %.6f\n",
+        METHODS[m], a[24 * 64 + 31], a[24 * 64 + 30], crease_closed_form(m, -0.5, 6, 0.25, 1.0),
+        worst, worst_edge);
     assert_true(a[24 * 64 + 31] < 0.6f);
     assert_true(worst < 2e-3);
     assert_true(worst_edge == 1.0);
@@ -261,14 +283,16 @@ static const char *ROOM =
     "\"transform\":{\"rotate\":[0,20,0],\"translate\":[-0.35,0,-0.3]}},"
     "{\"shape\":{\"type\":\"box\",\"min\":[-0.3,0,-0.3],\"max\":[0.3,0.6,0.3]},"
     "\"transform\":{\"rotate\":[0,-15,0],\"translate\":[0.4,0,0.35]}}";
-static const char *ROOM_CAM = "{\"type\":\"perspective\",\"position\":[0.3,1,3.4],"
-                              "\"look_at\":[0,0.8,0],\"fov_y\":50}";
+static const char *ROOM_CAM =
+    "{\"type\":\"perspective\",\"position\":[0.3,1,3.4],"
+    "\"look_at\":[0,0.8,0],\"fov_y\":50}";
 
 /* Every instruction-set path gives the scalar path's bits, for any thread count, on widths that
  * leave tails of every length, with both methods and with a box that needs a stride. */
 static void test_paths_and_threads(void **state) {
   (void)state;
-  const char *params[] = {"{\"radius\":0.4}", "{\"radius\":1.5,\"variance_weight\":0.5}",
+  const char *params[] = {"{\"radius\":0.4}",
+                          "{\"radius\":1.5,\"variance_weight\":0.5,\"taps\":16}",
                           "{\"method\":\"depth_unsharp\",\"radius\":0.4}",
                           "{\"method\":\"depth_unsharp\",\"radius\":2,\"strength\":2}"};
   const int widths[] = {77, 64, 13};
@@ -329,9 +353,9 @@ static void test_scale_invariance(void **state) {
                "%g]},\"transform\":{\"rotate\":[0,20,0],\"translate\":[%g,0,%g]}},{\"shape\":{"
                "\"type\":\"box\",\"min\":[%g,0,%g],\"max\":[%g,%g,%g]},\"transform\":{\"rotate\":"
                "[0,-15,0],\"translate\":[%g,0,%g]}}",
-               -s, -s, s, -s, s, s, -s, s, -s, -s, -s, 2 * s, -s, s, 2 * s, -s, s, -s,
-               -0.3 * s, -0.3 * s, 0.3 * s, 1.2 * s, 0.3 * s, -0.35 * s, -0.3 * s, -0.3 * s,
-               -0.3 * s, 0.3 * s, 0.6 * s, 0.3 * s, 0.4 * s, 0.35 * s);
+               -s, -s, s, -s, s, s, -s, s, -s, -s, -s, 2 * s, -s, s, 2 * s, -s, s, -s, -0.3 * s,
+               -0.3 * s, 0.3 * s, 1.2 * s, 0.3 * s, -0.35 * s, -0.3 * s, -0.3 * s, -0.3 * s,
+               0.3 * s, 0.6 * s, 0.3 * s, 0.4 * s, 0.35 * s);
       snprintf(cam, sizeof cam,
                "{\"type\":\"perspective\",\"position\":[%g,%g,%g],\"look_at\":[0,%g,0],"
                "\"fov_y\":50}",
@@ -352,7 +376,8 @@ static void test_scale_invariance(void **state) {
       snprintf(cam1, sizeof cam1, "%s", ROOM_CAM);
       snprintf(p1, sizeof p1, "{\"method\":\"%s\",\"radius\":0.6}", METHODS[m]);
       render(doc(cam1, 64, 48, objs1, p1), &base1);
-      const float *a = obs_image_channel(&base1.image, "ao"), *b = obs_image_channel(&r.image, "ao");
+      const float *a = obs_image_channel(&base1.image, "ao"),
+                  *b = obs_image_channel(&r.image, "ao");
       double sum = 0, worst = 0;
       size_t over = 0, shaded = 0;
       for (int i = 0; i < 64 * 48; i++) {
@@ -389,8 +414,10 @@ static void test_extremes(void **state) {
       obs_result_free(&r);
     }
     char params[128];
-    snprintf(params, sizeof params, "{\"method\":\"%s\",\"radius\":0.01,\"variance_weight\":1e6,"
-             "\"strength\":1e6}", METHODS[m]);
+    snprintf(params, sizeof params,
+             "{\"method\":\"%s\",\"radius\":0.01,\"variance_weight\":1e6,"
+             "\"strength\":1e6}",
+             METHODS[m]);
     obs_result r;
     render(doc(PERSP, 16, 12,
                "{\"shape\":{\"type\":\"quad\",\"vertices\":[[-1e-4,-1e-4,1e-3],[1e-4,-1e-4,1e-3],"
@@ -406,8 +433,7 @@ static void test_extremes(void **state) {
     obs_result_free(&r);
     render(doc("{\"type\":\"perspective\",\"position\":[0.1,0.2,0.3],\"look_at\":[1,0,0.5],"
                "\"fov_y\":120}",
-               16, 16, "{\"shape\":{\"type\":\"box\",\"min\":[-1,-1,-1],\"max\":[1,1,1]}}",
-               params),
+               16, 16, "{\"shape\":{\"type\":\"box\",\"min\":[-1,-1,-1],\"max\":[1,1,1]}}", params),
            &r);
     obs_result_free(&r);
     render(doc(ROOM_CAM, 1, 1, ROOM, params), &r);
@@ -445,8 +471,9 @@ static char *scene_with(const char *file, int w, int h, const char *technique, j
   json_t *d = json_load_file(obs_test_src(file), 0, &je);
   assert_non_null(d);
   json_object_set_new(d, "image", json_pack("{s:i, s:i, s:i}", "width", w, "height", h, "spp", 1));
-  json_object_set_new(d, "technique", json_pack("{s:s, s:s, s:O}", "name", technique, "backend",
-                                                "cpu", "params", params));
+  json_object_set_new(
+      d, "technique",
+      json_pack("{s:s, s:s, s:O}", "name", technique, "backend", "cpu", "params", params));
   char *s = json_dumps(d, 0);
   json_decref(d);
   return s;
@@ -508,8 +535,7 @@ static void test_against_rt_ao(void **state) {
       {"scenes/cornell_box.json", "{\"radius\":100}", 0.19, 0.03},
       {"scenes/cornell_box.json", "{\"radius\":100,\"method\":\"depth_unsharp\"}", 0.19, 0.03},
       {"scenes/displaced_sphere.json", "{\"radius\":0.2}", 0.20, 0.03},
-      {"scenes/displaced_sphere.json", "{\"radius\":0.2,\"method\":\"depth_unsharp\"}", 0.20,
-       0.03},
+      {"scenes/displaced_sphere.json", "{\"radius\":0.2,\"method\":\"depth_unsharp\"}", 0.20, 0.03},
   };
   for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
     double white;
@@ -523,16 +549,11 @@ static void test_against_rt_ao(void **state) {
 
 int main(void) {
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_params),
-      cmocka_unit_test(test_plan),
-      cmocka_unit_test(test_plane_is_open),
-      cmocka_unit_test(test_crease_and_edge),
-      cmocka_unit_test(test_empty_frame),
-      cmocka_unit_test(test_paths_and_threads),
-      cmocka_unit_test(test_scale_invariance),
-      cmocka_unit_test(test_extremes),
-      cmocka_unit_test(test_screen_rule),
-      cmocka_unit_test(test_against_rt_ao),
+      cmocka_unit_test(test_params),           cmocka_unit_test(test_plan),
+      cmocka_unit_test(test_plane_is_open),    cmocka_unit_test(test_crease_and_edge),
+      cmocka_unit_test(test_empty_frame),      cmocka_unit_test(test_paths_and_threads),
+      cmocka_unit_test(test_scale_invariance), cmocka_unit_test(test_extremes),
+      cmocka_unit_test(test_screen_rule),      cmocka_unit_test(test_against_rt_ao),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -52,7 +52,8 @@ static void load(const char *json, obs_scene *sc) { obs_test_load(json, "svar_vk
 static const char *const param_sets[] = {
     "{\"radius\":0.4}",
     "{\"radius\":0.1}",
-    "{\"radius\":2,\"variance_weight\":0.5}",
+    "{\"radius\":2,\"variance_weight\":0.5,\"taps\":16}",
+    "{\"radius\":2,\"taps\":1}",
     "{\"radius\":1e6}",
     "{\"method\":\"depth_unsharp\",\"radius\":0.4}",
     "{\"method\":\"depth_unsharp\",\"radius\":3,\"strength\":2}",
@@ -145,7 +146,7 @@ static void pipeline(const char *scene, const char *label, int w, int h, const c
   render_backend(scene_doc(scene, w, h, "cpu", params), &c);
   render_backend(scene_doc(scene, w, h, "vulkan", params), &v);
   assert_int_equal(v.backend, OBS_BACKEND_VULKAN);
-  static const char *const vst[] = {"prepare", "device", "gbuffer", "geometry",
+  static const char *const vst[] = {"prepare", "device", "gbuffer",  "geometry",
                                     "blur",    "ao",     "readback", "other"};
   assert_int_equal(v.nstages, 8);
   for (int i = 0; i < 8; i++) assert_string_equal(v.stage_names[i], vst[i]);
@@ -190,9 +191,10 @@ static void test_planes_open(void **state) {
   for (size_t q = 0; q < 3; q++)
     for (int m = 0; m < 2; m++) {
       obs_result r;
-      render_backend(scene_doc(planes[q], 48, 36, "vulkan",
-                               m ? "{\"method\":\"depth_unsharp\",\"radius\":1}" : "{\"radius\":1}"),
-                     &r);
+      render_backend(
+          scene_doc(planes[q], 48, 36, "vulkan",
+                    m ? "{\"method\":\"depth_unsharp\",\"radius\":1}" : "{\"radius\":1}"),
+          &r);
       const float *ao = obs_image_channel(&r.image, "ao");
       size_t off = 0;
       for (int i = 0; i < 48 * 36; i++) off += ao[i] != 1.0f;
@@ -220,16 +222,18 @@ static void test_extremes(void **state) {
     both_backends(ROOM, 20, 14, params[i]);
     both_backends(ROOM, 1, 1, params[i]);
   }
-  both_backends("\"camera\":{\"type\":\"perspective\",\"position\":[0,0,0],\"look_at\":[0,0,1],"
-                "\"fov_y\":50},\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-1e-4,"
-                "-1e-4,1e-3],[1e-4,-1e-4,1e-3],[1e-4,1e-4,1e-3],[-1e-4,1e-4,1e-3]]}},{\"shape\":{"
-                "\"type\":\"quad\",\"vertices\":[[-1e4,-1e4,1e3],[1e4,-1e4,1e3],[1e4,1e4,1e3],"
-                "[-1e4,1e4,1e3]]}}]",
-                16, 12, "{\"radius\":0.01}");
-  both_backends("\"camera\":{\"type\":\"perspective\",\"position\":[0,5,0],\"look_at\":[0,0,0],"
-                "\"up\":[0,0,-1],\"fov_y\":60},\"objects\":[{\"shape\":{\"type\":\"quad\","
-                "\"vertices\":[[-1,0,-1],[1,0,-1],[1,0,1],[-1,0,1]]}}]",
-                24, 24, "{\"radius\":0.3}");
+  both_backends(
+      "\"camera\":{\"type\":\"perspective\",\"position\":[0,0,0],\"look_at\":[0,0,1],"
+      "\"fov_y\":50},\"objects\":[{\"shape\":{\"type\":\"quad\",\"vertices\":[[-1e-4,"
+      "-1e-4,1e-3],[1e-4,-1e-4,1e-3],[1e-4,1e-4,1e-3],[-1e-4,1e-4,1e-3]]}},{\"shape\":{"
+      "\"type\":\"quad\",\"vertices\":[[-1e4,-1e4,1e3],[1e4,-1e4,1e3],[1e4,1e4,1e3],"
+      "[-1e4,1e4,1e3]]}}]",
+      16, 12, "{\"radius\":0.01}");
+  both_backends(
+      "\"camera\":{\"type\":\"perspective\",\"position\":[0,5,0],\"look_at\":[0,0,0],"
+      "\"up\":[0,0,-1],\"fov_y\":60},\"objects\":[{\"shape\":{\"type\":\"quad\","
+      "\"vertices\":[[-1,0,-1],[1,0,-1],[1,0,1],[-1,0,1]]}}]",
+      24, 24, "{\"radius\":0.3}");
   both_backends(ROOM, 4096, 16, "{\"radius\":0.5}");
   obs_result r;
   render_backend(scene_doc("\"camera\":{\"type\":\"perspective\",\"position\":[0,0,0],\"look_at\":"

@@ -37,7 +37,6 @@ static float shift_of_uncovered(const float *zr, int x, int m, int s, int K, flo
   return 0.0f;
 }
 
-
 /* The passes run over bands of whole rows (the driver's tiles over a one-pixel-wide image, so
  * x0 = 0 and x1 = 1): a row's taps then sweep the full width, which vectorises better than the
  * 32 pixels of a tile. */
@@ -142,7 +141,7 @@ OBS_HOT_INLINE int ao_tile_body(void *user, int thread, int x0, int y0, int x1, 
       if ((k < 0 ? -k : k) * s > m) continue;
       const size_t r = (size_t)(y + k * s) * (size_t)w;
       const float *restrict an = j->rows.mn + r, *restrict a1 = j->rows.m1 + r,
-                          *restrict a2 = j->rows.m2 + r, *restrict ac = j->rows.mc + r;
+                            *restrict a2 = j->rows.m2 + r, *restrict ac = j->rows.mc + r;
       for (int x = xb; x < w; x++) {
         const float dl = ac[x] - z0[x];
         const float an_d = an[x] * dl;
@@ -188,12 +187,19 @@ static int svar_passes(obs_screen_cpu *r, const obs_gbuffer *g, const obs_ssao_v
       return obs_err_set(err, OBS_ENOMEM, "ssao_variance: %dx%d: out of memory", g->width,
                          g->height);
     }
-    svar_job j = {.g = g, .plan = plan, .ao = ao, .scratch = planes + 4 * n,
-                  .simd = obs_simd_avx2()};
-    j.rows = (obs_svar_rows){.depth = g->depth, .w = g->width, .h = g->height,
-                             .stride = plan->stride, .taps = plan->taps, .zscale = plan->zscale,
-                             .mn = planes, .m1 = planes + n, .m2 = planes + 2 * n,
-                             .mc = planes + 3 * n, .taps_x = planes + 4 * n + (size_t)threads * 4 * wz};
+    svar_job j = {
+        .g = g, .plan = plan, .ao = ao, .scratch = planes + 4 * n, .simd = obs_simd_avx2()};
+    j.rows = (obs_svar_rows){.depth = g->depth,
+                             .w = g->width,
+                             .h = g->height,
+                             .stride = plan->stride,
+                             .taps = plan->taps,
+                             .zscale = plan->zscale,
+                             .mn = planes,
+                             .m1 = planes + n,
+                             .m2 = planes + 2 * n,
+                             .mc = planes + 3 * n,
+                             .taps_x = planes + 4 * n + (size_t)threads * 4 * wz};
     /* Each column's taps in the box's row: the symmetric box's, 2 min(taps, m / stride) + 1. */
     for (int x = 0; x < g->width; x++) {
       const int m = x < g->width - 1 - x ? x : g->width - 1 - x, k = m / plan->stride;

@@ -8,7 +8,8 @@
 
 /* Lanes x .. x+7 that lie in [lo, hi]. */
 OBS_AVX2_INLINE __m256i lanes_in(int x, int lo, int hi) {
-  const __m256i lane = _mm256_add_epi32(_mm256_set1_epi32(x), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+  const __m256i lane =
+      _mm256_add_epi32(_mm256_set1_epi32(x), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
   const __m256i ge = _mm256_cmpgt_epi32(lane, _mm256_set1_epi32(lo - 1));
   const __m256i le = _mm256_cmpgt_epi32(_mm256_set1_epi32(hi + 1), lane);
   return _mm256_and_si256(ge, le);
@@ -40,7 +41,8 @@ OBS_AVX2_FN void obs_svar_moments_row_avx2(const obs_svar_rows *r, int y, float 
   /* The row scaled once: the scale is a power of two, so the products are the taps' own. */
   for (int x = 0; x < w; x += 8) {
     const __m256i in = lanes_in(x, 0, w - 1);
-    _mm256_maskstore_ps(zrow + x, in, _mm256_mul_ps(_mm256_maskload_ps(r->depth + row + x, in), zs));
+    _mm256_maskstore_ps(zrow + x, in,
+                        _mm256_mul_ps(_mm256_maskload_ps(r->depth + row + x, in), zs));
   }
   int x = 0;
   /* Two chunks at a time: their sums are independent chains, which hides the adds' latency. */
@@ -73,20 +75,23 @@ OBS_AVX2_FN void obs_svar_moments_row_avx2(const obs_svar_rows *r, int y, float 
 OBS_AVX2_INLINE __m256 estimate8(const obs_svar_ao_push *ap, __m256 z, __m256 n, __m256 t1,
                                  __m256 t2, __m256 taps) {
   const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f);
-  const __m256 iv = _mm256_div_ps(one, _mm256_blendv_ps(one, n, _mm256_cmp_ps(n, zero, _CMP_GT_OQ)));
+  const __m256 iv =
+      _mm256_div_ps(one, _mm256_blendv_ps(one, n, _mm256_cmp_ps(n, zero, _CMP_GT_OQ)));
   const __m256 mo = _mm256_mul_ps(t1, iv);
   const __m256 e2 = _mm256_mul_ps(t2, iv);
   __m256 var = _mm256_sub_ps(e2, _mm256_mul_ps(mo, mo));
   var = _mm256_and_ps(var, _mm256_cmp_ps(var, zero, _CMP_GT_OQ));
   const __m256 share = _mm256_mul_ps(n, _mm256_div_ps(one, taps));
-  const __m256 dd = _mm256_sub_ps(_mm256_sub_ps(zero, mo), _mm256_mul_ps(_mm256_set1_ps(ap->tol), z));
+  const __m256 dd =
+      _mm256_sub_ps(_mm256_sub_ps(zero, mo), _mm256_mul_ps(_mm256_set1_ps(ap->tol), z));
   const __m256 rw = _mm256_set1_ps(ap->rw);
   const __m256 R = ap->ortho ? rw : _mm256_mul_ps(rw, z);
   __m256 v;
   if (ap->method == OBS_SVAR_VARIANCE) {
     const __m256 den = _mm256_add_ps(var, _mm256_mul_ps(dd, dd));
     const __m256 pos = _mm256_cmp_ps(den, zero, _CMP_GT_OQ);
-    const __m256 vis = _mm256_blendv_ps(one, _mm256_div_ps(var, _mm256_blendv_ps(one, den, pos)), pos);
+    const __m256 vis =
+        _mm256_blendv_ps(one, _mm256_div_ps(var, _mm256_blendv_ps(one, den, pos)), pos);
     const __m256 q = _mm256_div_ps(var, _mm256_mul_ps(R, R));
     const __m256 ov = _mm256_sub_ps(one, vis);
     v = _mm256_add_ps(_mm256_sub_ps(one, _mm256_mul_ps(share, ov)),

@@ -6,9 +6,10 @@
 
 #include "layout_glsl.h"
 
-/* Taps per side of the box along each axis: a box of half-width r pixels is read at offsets
- * k * stride, |k| <= taps, stride = ceil(r / OBS_SVAR_MAX_TAPS), taps = floor(r / stride), so at
- * most (2 * 16 + 1)^2 depths per pixel whatever the radius (exactly the box up to r = 16). */
+/* The most taps per side of the box along each axis (the `taps` parameter t): a box of
+ * half-width r pixels is read at offsets k * stride, |k| <= K, stride = ceil(r / t),
+ * K = floor(r / stride), so at most (2 t + 1)^2 depths per pixel whatever the radius (exactly the
+ * box up to r = t). */
 #define OBS_SVAR_MAX_TAPS 16
 /* Entries of the reciprocal table 1/N for N = 0 .. (2 * taps + 1)^2. */
 #define OBS_SVAR_INV_COUNT (33 * 33 + 1)

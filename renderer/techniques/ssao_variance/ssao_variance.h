@@ -26,8 +26,9 @@ enum { OBS_SVAR_VARIANCE = 0, OBS_SVAR_DEPTH_UNSHARP = 1 };
 typedef struct obs_ssao_variance_params {
   int method;            /* OBS_SVAR_VARIANCE or OBS_SVAR_DEPTH_UNSHARP */
   double radius;         /* R, scene units: the box's half-width at the median depth */
-  float variance_weight; /* k: AO = p + k sigma^2 / R^2 */
-  float strength;        /* lambda: AO = 1 - lambda (z - mu) / R (depth_unsharp) */
+  float variance_weight; /* k: AO = 1 - s (1 - p) + k sigma^2 / R^2 */
+  float strength;        /* lambda: AO = 1 - s lambda (z - mu) / R (depth_unsharp) */
+  int taps;              /* the most taps per side of the box along each axis, 1..16 */
 } obs_ssao_variance_params;
 
 /* The camera projection of a G-buffer (obs_vk_gbuffer does not carry it). */
@@ -55,8 +56,8 @@ void obs_svar_plan_make(const obs_ssao_variance_params *p, const float *depth, i
  * selection on the float bits. */
 double obs_svar_median_depth(const float *depth, int width, int height);
 /* The AO push block of a plan. */
-void obs_svar_ao_push_make(const obs_ssao_variance_params *p, const obs_svar_plan *plan,
-                           int width, int height, int ortho, obs_svar_ao_push *out);
+void obs_svar_ao_push_make(const obs_ssao_variance_params *p, const obs_svar_plan *plan, int width,
+                           int height, int ortho, obs_svar_ao_push *out);
 
 /* The passes on the CPU: `ao` (width*height floats) receives the AO, 1 where uncovered; stage_ms
  * (may be NULL) OBS_SVAR_CPU_STAGES entries; plan_out (may be NULL) the plan used. */

@@ -20,8 +20,8 @@ typedef struct obs_svar_rows {
 void obs_svar_moments_row_avx2(const obs_svar_rows *r, int y, float *zrow);
 /* The AO of row y into `out` for the pixels below w rounded down to a multiple of 8, which it
  * returns, likewise; `scratch` holds 4 w floats. */
-int obs_svar_ao_row_avx2(const obs_svar_rows *r, const obs_svar_ao_push *ap, int y,
-                         float *scratch, float *out);
+int obs_svar_ao_row_avx2(const obs_svar_rows *r, const obs_svar_ao_push *ap, int y, float *scratch,
+                         float *out);
 #endif
 
 #endif

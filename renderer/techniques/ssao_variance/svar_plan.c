@@ -75,7 +75,8 @@ void obs_svar_plan_make(const obs_ssao_variance_params *p, const float *depth, i
   if (r < 0) r = 0;
   out->radius_px = r;
   if (r > 0) {
-    out->stride = (r + OBS_SVAR_MAX_TAPS - 1) / OBS_SVAR_MAX_TAPS;
+    const int t = p->taps < 1 ? 1 : p->taps > OBS_SVAR_MAX_TAPS ? OBS_SVAR_MAX_TAPS : p->taps;
+    out->stride = (r + t - 1) / t;
     out->taps = r / out->stride;
   }
   int e;
@@ -85,8 +86,8 @@ void obs_svar_plan_make(const obs_ssao_variance_params *p, const float *depth, i
   out->rw = (float)(proj->ortho ? reach * (double)out->zscale : reach);
 }
 
-void obs_svar_ao_push_make(const obs_ssao_variance_params *p, const obs_svar_plan *plan,
-                           int width, int height, int ortho, obs_svar_ao_push *out) {
+void obs_svar_ao_push_make(const obs_ssao_variance_params *p, const obs_svar_plan *plan, int width,
+                           int height, int ortho, obs_svar_ao_push *out) {
   memset(out, 0, sizeof *out);
   out->width = width;
   out->height = height;

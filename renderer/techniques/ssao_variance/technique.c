@@ -13,8 +13,9 @@ static const char *const svar_methods[] = {"variance", "depth_unsharp", NULL};
 
 #define P(member) offsetof(obs_ssao_variance_params, member)
 /* The defaults of variance_weight and strength are the values closest to the reference, rt_ao
- * within R (docs/techniques/ssao_variance.md, "Against rt_ao"); the radius derived for a scene (size_default) is 0.2 scene sizes, rt_ao's derived max_distance,
- * which is this technique's reference radius (svar_reference). */
+ * within R (docs/techniques/ssao_variance.md, "Against rt_ao"); the radius derived for a scene
+ * (size_default) is 0.2 scene sizes, rt_ao's derived max_distance, which is this technique's
+ * reference radius (svar_reference). */
 static const obs_param svar_params[] = {
     {.name = "method", .type = OBS_PARAM_ENUM, .choices = svar_methods, .def = OBS_SVAR_VARIANCE,
      .description = "variance: Cantelli's bound from the box's depth mean and variance (Pesce); "
@@ -33,13 +34,16 @@ static const obs_param svar_params[] = {
     {.name = "strength", .type = OBS_PARAM_FLOAT, .min = 0, .max = 1e6, .def = 0.3,
      .description = "depth_unsharp: lambda in AO = saturate(1 - s lambda (z - mean) / R)",
      .offset = P(strength)},
+    {.name = "taps", .type = OBS_PARAM_INT, .min = 1, .max = OBS_SVAR_MAX_TAPS, .def = 8,
+     .description = "the most taps per side of the box along each axis: a box wider than this "
+                    "many pixels is read on a grid of (2 taps + 1)^2 evenly spaced depths",
+     .offset = P(taps)},
 };
 #undef P
 
-/* Depth taps per pixel at most: two passes of 2 * 16 + 1 taps. */
+/* Depth taps per pixel at most: two passes of 2 taps + 1. */
 static double svar_cost(const void *bound) {
-  (void)bound;
-  return 2.0 * (2 * OBS_SVAR_MAX_TAPS + 1);
+  return 2.0 * (2.0 * ((const obs_ssao_variance_params *)bound)->taps + 1.0);
 }
 
 /* ssao_variance's reference (docs/techniques/ssao_variance.md, "Reference"): the box estimates
@@ -104,7 +108,7 @@ const obs_technique obs_technique_ssao_variance = {
     .params_size = sizeof svar_params / sizeof svar_params[0],
     .bound_size = sizeof(obs_ssao_variance_params),
     .cost = svar_cost,
-    .cost_rule = "66 (two passes of at most 33 depth taps)",
+    .cost_rule = "2 (2 taps + 1) (two passes of at most 2 taps + 1 depth taps)",
     .ms_per_work = 1e-6,
     .needs = OBS_NEED_GBUFFER,
     .outputs = obs_screen_outputs,

@@ -42,23 +42,35 @@ int obs_svar_vk_apply(obs_vk *vk, obs_vk_gbuffer *g, const obs_svar_projection *
         (rc = obs_vk_image_create(vk, w, h, 1, &ao, err)) ||
         (rc = obs_vk_image_upload(vk, inv, plan->inv_count, err)))
       goto done;
-    obs_svar_moments_push mp = {.width = w, .height = h, .stride = plan->stride,
-                                .taps = plan->taps, .zscale = plan->zscale};
+    obs_svar_moments_push mp = {.width = w,
+                                .height = h,
+                                .stride = plan->stride,
+                                .taps = plan->taps,
+                                .zscale = plan->zscale};
     obs_svar_ao_push ap;
     obs_svar_ao_push_make(p, plan, w, h, proj->ortho, &ap);
     uint32_t gx = (uint32_t)(w + 7) / 8, gy = (uint32_t)(h + 7) / 8;
-    obs_vk_pass passes[2] = {
-        {.name = "ssao_variance_moments",
-         .spirv = obs_spv_ssao_variance_moments_comp,
-         .spirv_size = obs_spv_ssao_variance_moments_comp_size,
-         .images = {[OBS_SVAR_M_DEPTH] = g->depth, [OBS_SVAR_M_MOMENTS] = mom},
-         .nimages = 2, .push = &mp, .push_size = sizeof mp, .groups_x = gx, .groups_y = gy},
-        {.name = "ssao_variance_ao",
-         .spirv = obs_spv_ssao_variance_ao_comp,
-         .spirv_size = obs_spv_ssao_variance_ao_comp_size,
-         .images = {[OBS_SVAR_A_DEPTH] = g->depth, [OBS_SVAR_A_MOMENTS] = mom,
-                    [OBS_SVAR_A_INV] = inv, [OBS_SVAR_A_AO] = ao},
-         .nimages = 4, .push = &ap, .push_size = sizeof ap, .groups_x = gx, .groups_y = gy}};
+    obs_vk_pass passes[2] = {{.name = "ssao_variance_moments",
+                              .spirv = obs_spv_ssao_variance_moments_comp,
+                              .spirv_size = obs_spv_ssao_variance_moments_comp_size,
+                              .images = {[OBS_SVAR_M_DEPTH] = g->depth, [OBS_SVAR_M_MOMENTS] = mom},
+                              .nimages = 2,
+                              .push = &mp,
+                              .push_size = sizeof mp,
+                              .groups_x = gx,
+                              .groups_y = gy},
+                             {.name = "ssao_variance_ao",
+                              .spirv = obs_spv_ssao_variance_ao_comp,
+                              .spirv_size = obs_spv_ssao_variance_ao_comp_size,
+                              .images = {[OBS_SVAR_A_DEPTH] = g->depth,
+                                         [OBS_SVAR_A_MOMENTS] = mom,
+                                         [OBS_SVAR_A_INV] = inv,
+                                         [OBS_SVAR_A_AO] = ao},
+                              .nimages = 4,
+                              .push = &ap,
+                              .push_size = sizeof ap,
+                              .groups_x = gx,
+                              .groups_y = gy}};
     if ((rc = obs_vk_run(vk, passes, 2, ms, err))) goto done;
   }
   double t3 = obs_now_ms();
