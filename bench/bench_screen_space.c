@@ -21,9 +21,13 @@
 /* The timing goals at 1280x720 on the faster backend, 2 cores, milliseconds (sum of stages). */
 #define GOAL_SSAO16_MS 30.0
 #define GOAL_HBAO88_MS 60.0
+#define GOAL_SSO16_MS 25.0
+/* ss_obscurance's R in the timing runs: 0.2 of the Cornell box's size, rt_ao's derived distance. */
+#define SSO_BENCH_RADIUS 150.0
 /* ss_radiosity 4 samples: its screen-space passes (gather, blur, readback, G-buffer); the direct
  * pass it gathers from (CPU shadow rays, stages bvh and direct) is shown beside them. */
 #define GOAL_SSRAD4_MS 30.0
+#define GOAL_SVAR_MS 15.0
 
 typedef struct options {
   int repeats;     /* timed renders per configuration and backend (after one warm-up) */
@@ -34,6 +38,7 @@ typedef struct options {
   const char *scene;
   const char *only; /* run only configurations whose label contains this */
   int accuracy;
+  int sso_experiment; /* --sso-experiment: ss_obscurance's uniform against importance sampling */
   int cpu, vulkan; /* backends to run (--backend) */
   int verbose;     /* print every timed render */
 } options;
@@ -42,19 +47,25 @@ static void usage(FILE *f) {
   fprintf(f,
           "usage: bench_screen_space [--repeats R] [--size WxH] [--scene PATH] [--threads N]\n"
           "                          [--hbao-radius R] [--backend both|cpu|vulkan] [--only TEXT]\n"
-          "                          [--verbose] [--accuracy]\n"
+          "                          [--verbose] [--accuracy] [--sso-experiment]\n"
           "  Timing (default): renders the scene (default scenes/cornell_box.json at 1280x720)\n"
-          "  with ssao (samples 8/16/24) and hbao (4/4, 8/8, 16/16, full and half resolution) on\n"
+          "  with ssao (samples 8/16/24), hbao (4/4, 8/8, 16/16, full and half resolution) and\n"
+          "  ss_obscurance (samples 8/16/32, R 150), ss_radiosity (4 samples) and ssao_variance\n"
+          "  (both methods at radius --hbao-radius, 8 and 16 taps) on\n"
           "  the CPU twin and on Vulkan, one warm-up then R renders each (default 5), and prints\n"
           "  median stage times, their sum, obs_render's wall time, the CPU/Vulkan ratio and the\n"
-          "  goals (ssao 16 <= 30 ms, hbao 8/8 <= 60 ms on the faster backend). hbao's radius\n"
+          "  goals (ssao 16 <= 30 ms, hbao 8/8 <= 60 ms, ss_obscurance 16 <= 25 ms, ss_radiosity 4\n"
+          "  <= 30 ms, ssao_variance <= 15 ms on the faster backend). hbao's radius\n"
           "  is --hbao-radius (default 100, the Cornell box's scale; the schema default 1 would\n"
           "  make most of that frame exit early); everything else keeps its default.\n"
           "  --accuracy: ssao and hbao against rt_ao (uniform, sobol, 1024 samples) on the\n"
           "  Cornell box (320x240) and the displaced sphere (320x320): RMSE and SSIM of `ao` over\n"
           "  covered pixels; R defaults to 3 there. --size and --scene apply to timing only.\n"
           "  --only runs the configurations whose label contains TEXT (e.g. \"hbao 8/8 full\");\n"
-          "  --verbose prints every timed render too.\n");
+          "  --verbose prints every timed render too.\n"
+          "  --sso-experiment: ss_obscurance's uniform against importance sampling (sqrt, no\n"
+          "  interleave, R 150) on the Cornell box at 320x240: RMSE against rt_ao and against the\n"
+          "  converged screen-space image, per sample count (docs/techniques/ss_obscurance.md).\n");
 }
 
 static int parse_args(int argc, char **argv, options *o) {
@@ -74,6 +85,10 @@ static int parse_args(int argc, char **argv, options *o) {
     }
     if (!strcmp(a, "--accuracy")) {
       o->accuracy = 1;
+      continue;
+    }
+    if (!strcmp(a, "--sso-experiment")) {
+      o->sso_experiment = 1;
       continue;
     }
     if (!strcmp(a, "--verbose")) {
@@ -278,7 +293,14 @@ typedef struct config {
 } config;
 
 /* Configuration indices the goal lines use (the order make_configs writes). */
-enum { CFG_SSAO16 = 1, CFG_HBAO88_FULL = 4, CFG_HBAO88_HALF = 7, CFG_SSRAD4 = 9 };
+enum {
+  CFG_SSAO16 = 1,
+  CFG_HBAO88_FULL = 4,
+  CFG_HBAO88_HALF = 7,
+  CFG_SSO16 = 10,
+  CFG_SSRAD4 = 12,
+  CFG_SVAR = 13
+};
 
 static int make_configs(config *c, double R) {
   int n = 0;
@@ -297,12 +319,29 @@ static int make_configs(config *c, double R) {
                "{\"radius\":%.9g,\"directions\":%d,\"steps\":%d,\"half_res\":%s}", R, hb[i],
                hb[i], half ? "true" : "false");
     }
+  static const int so[3] = {8, 16, 32};
+  for (int i = 0; i < 3; i++, n++) {
+    c[n].tech = "ss_obscurance";
+    snprintf(c[n].label, sizeof c[n].label, "ss_obscurance %d", so[i]);
+    snprintf(c[n].params, sizeof c[n].params, "{\"samples\":%d,\"radius\":%.9g}", so[i],
+             SSO_BENCH_RADIUS);
+  }
   /* The Cornell box's scale (a tenth of its size), one emitter point per pixel. */
   c[n].tech = "ss_radiosity";
   snprintf(c[n].label, sizeof c[n].label, "ss_radiosity 4");
   snprintf(c[n].params, sizeof c[n].params,
            "{\"samples\":4,\"kernel_size\":%.9g,\"bias\":%.9g,\"light_samples\":1}", R, R);
-  return n + 1;
+  n++;
+  /* ssao_variance at the same R as hbao (the Cornell box's scale): both methods with the
+   * default 8 taps a side, and the variance method with 16. */
+  for (int m = 0; m < 3; m++, n++) {
+    c[n].tech = "ssao_variance";
+    snprintf(c[n].label, sizeof c[n].label, "svar %s t%d", m == 1 ? "unsharp" : "variance",
+             m == 2 ? 16 : 8);
+    snprintf(c[n].params, sizeof c[n].params, "{\"radius\":%.9g,\"method\":\"%s\",\"taps\":%d}",
+             R, m == 1 ? "depth_unsharp" : "variance", m == 2 ? 16 : 8);
+  }
+  return n;
 }
 
 static void print_ms(double v, int has) {
@@ -324,7 +363,7 @@ static void print_row(const char *label, const char *backend, const timing *s, d
 }
 
 static int timing_mode(const options *o, int have_vk) {
-  config cfg[16];
+  config cfg[24];
   int ncfg = make_configs(cfg, o->hbao_radius);
   const int nb = 2;
   const char *bname[2] = {"cpu", "vulkan"};
@@ -391,11 +430,13 @@ static int timing_mode(const options *o, int have_vk) {
     int c;
     double goal;
     const char *what;
-  } goals[2] = {{CFG_SSAO16, GOAL_SSAO16_MS, "SSAO 16 samples"},
-                {CFG_HBAO88_FULL, GOAL_HBAO88_MS, "HBAO 8/8 (full res)"}};
+  } goals[4] = {{CFG_SSAO16, GOAL_SSAO16_MS, "SSAO 16 samples"},
+                {CFG_HBAO88_FULL, GOAL_HBAO88_MS, "HBAO 8/8 (full res)"},
+                {CFG_SSO16, GOAL_SSO16_MS, "ss_obscurance 16 samples"},
+                {CFG_SVAR, GOAL_SVAR_MS, "ssao_variance (variance, 8 taps)"}};
   char label[96];
   bench_isa_label(label, sizeof label);
-  for (int g = 0; g < 2; g++) {
+  for (int g = 0; g < 4; g++) {
     int c = goals[g].c, best = -1;
     for (int b = 0; b < nb; b++)
       if (done[c][b] && (best < 0 || sum[c][b].total < sum[c][best].total)) best = b;
@@ -654,6 +695,108 @@ static int accuracy_mode(const options *o, int have_vk) {
   return 0;
 }
 
+/* ---- ss_obscurance: uniform against importance sampling ---------------------------------- */
+/* The article's Figure 3.1.8 as numbers: sqrt membership, no interleave, the Cornell box at
+ * 320x240, R = 150. Each configuration's image is the mean of K renders with seeds 1..K (K
+ * independent shifts of the offset set: N K samples per pixel), compared over the covered pixels
+ * with rt_ao (the technique's reference, 1024 rays) and with the converged screen-space image
+ * (importance, 64 samples x 32 seeds), which isolates the sampling error from the screen-space
+ * model's own. */
+#define SSO_EXP_W 320
+#define SSO_EXP_H 240
+static int sso_mean_image(const char *path, const char *sampling, int samples, int seeds,
+                          float *mean, float *alpha, double *ms) {
+  size_t n = (size_t)SSO_EXP_W * SSO_EXP_H;
+  memset(mean, 0, n * sizeof *mean);
+  *ms = 0;
+  for (int s = 1; s <= seeds; s++) {
+    char params[160];
+    snprintf(params, sizeof params,
+             "{\"radius\":150,\"samples\":%d,\"interleave\":false,\"sampling\":\"%s\",\"seed\":%d}",
+             samples, sampling, s);
+    obs_scene sc;
+    if (load_scene(path, SSO_EXP_W, SSO_EXP_H, "ss_obscurance", "cpu", params, &sc)) return 1;
+    timing t;
+    obs_result r;
+    int rc = timed_render(&sc, obs_cpu_count(), &t, &r);
+    obs_scene_free(&sc);
+    if (rc) return 1;
+    *ms += t.wall / seeds;
+    const float *a = obs_image_channel(&r.image, "ao"), *al = obs_image_channel(&r.image, "alpha");
+    for (size_t i = 0; i < n; i++) {
+      mean[i] += a[i] / (float)seeds;
+      if (alpha) alpha[i] = al[i];
+    }
+    obs_result_free(&r);
+  }
+  return 0;
+}
+static double sso_rmse(const float *a, const float *b, const float *alpha) {
+  double ss = 0;
+  size_t m = 0;
+  for (size_t i = 0; i < (size_t)SSO_EXP_W * SSO_EXP_H; i++)
+    if (alpha[i] > 0.0f) {
+      double e = (double)a[i] - b[i];
+      ss += e * e;
+      m++;
+    }
+  return m ? sqrt(ss / (double)m) : NAN;
+}
+static int sso_experiment(void) {
+  const char *path = OBS_SOURCE_DIR "/scenes/cornell_box.json";
+  size_t n = (size_t)SSO_EXP_W * SSO_EXP_H;
+  float *conv = malloc(n * sizeof *conv), *alpha = malloc(n * sizeof *alpha);
+  float *img = malloc(n * sizeof *img);
+  reference ref;
+  memset(&ref, 0, sizeof ref);
+  double ms;
+  int rc = !conv || !alpha || !img;
+  if (!rc)
+    rc = render_reference(path, SSO_EXP_W, SSO_EXP_H, "ss_obscurance",
+                          "{\"radius\":150,\"interleave\":false}", NULL, obs_cpu_count(), &ref);
+  if (!rc) rc = sso_mean_image(path, "importance", 64, 32, conv, alpha, &ms);
+  if (rc) {
+    free(conv);
+    free(alpha);
+    free(img);
+    return 1;
+  }
+  const float *rt = obs_image_channel(&ref.res.image, "ao");
+  printf("ss_obscurance, sqrt membership, no interleave, Cornell box %dx%d, R 150\n", SSO_EXP_W,
+         SSO_EXP_H);
+  printf("reference rt_ao (cosine, sqrt, max_distance 150, 1024 rays): %.0f ms, stderr %.4f\n",
+         ref.ms, ref.stderr_mean);
+  printf("converged screen space (importance, 64 samples x 32 seeds) against rt_ao: rmse %.4f\n",
+         sso_rmse(conv, rt, alpha));
+  printf("\n%-11s %8s %6s %14s %14s %9s\n", "sampling", "samples", "seeds", "rmse vs rt_ao",
+         "rmse vs conv.", "ms/render");
+  static const int counts[][2] = {{8, 1}, {16, 1}, {32, 1}, {64, 1}, {64, 2}, {64, 4}, {64, 8}};
+  double imp32 = NAN, first_match = 0;
+  for (int s = 0; s < 2; s++)
+    for (size_t c = 0; c < sizeof counts / sizeof counts[0] && !rc; c++) {
+      const char *sampling = s ? "uniform" : "importance";
+      rc = sso_mean_image(path, sampling, counts[c][0], counts[c][1], img, NULL, &ms);
+      if (rc) break;
+      double ec = sso_rmse(img, conv, alpha);
+      int total = counts[c][0] * counts[c][1];
+      printf("%-11s %8d %6d %14.4f %14.4f %9.1f\n", sampling, total, counts[c][1],
+             sso_rmse(img, rt, alpha), ec, ms);
+      if (!s && total == 32) imp32 = ec;
+      if (s && first_match == 0 && ec <= imp32) first_match = total;
+    }
+  if (!rc && first_match > 0)
+    printf("\nuniform sampling reaches importance sampling's 32-sample error against the "
+           "converged image (%.4f) at %.0f samples\n", imp32, first_match);
+  else if (!rc)
+    printf("\nuniform sampling stays above importance sampling's 32-sample error against the "
+           "converged image (%.4f) up to 512 samples\n", imp32);
+  obs_result_free(&ref.res);
+  free(conv);
+  free(alpha);
+  free(img);
+  return rc ? 1 : 0;
+}
+
 int main(int argc, char **argv) {
   options o;
   if (parse_args(argc, argv, &o)) return 2;
@@ -683,5 +826,6 @@ int main(int argc, char **argv) {
   bench_print_machine();
   if (o.vulkan && !have_vk)
     printf("no Vulkan device: running the CPU backend only\n");
+  if (o.sso_experiment) return sso_experiment();
   return o.accuracy ? accuracy_mode(&o, have_vk) : timing_mode(&o, have_vk);
 }

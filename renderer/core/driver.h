@@ -98,10 +98,4 @@ typedef struct obs_needs_builder {
   void (*release)(void *state);
 } obs_needs_builder;
 
-/* The builder of `backend`, or NULL when the backend builds nothing ahead of its runs (its
- * drivers build what they need). Defined by the registry, which knows the backends. */
-const obs_needs_builder *obs_backend_needs_builder(obs_backend backend);
-/* Whether `backend` wants its volumes' cell sides (obs_backend_ops.volume_sides). */
-int obs_backend_volume_sides(obs_backend backend);
-
 #endif

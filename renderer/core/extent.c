@@ -57,6 +57,10 @@ int obs_scene_extent(const obs_scene *sc, obs_extent *ex, obs_err *err) {
 
 /* One warning per parameter of `range` that lies outside its subrange, and per length that is
  * implausibly small or large for the scene (OBS_LENGTH_TINY, OBS_LENGTH_HUGE). */
+const char *obs_param_range_unit(const obs_param_range *p) {
+  return p->size_power > 0 ? "scene sizes" : p->size_power < 0 ? "per scene size" : "";
+}
+
 static int check_params(const obs_range *range, const char *who, const obs_scene *sc,
                         const obs_extent *ex, obs_render_ctx *ctx) {
   int n = 0;
@@ -84,10 +88,10 @@ static int check_params(const obs_range *range, const char *who, const obs_scene
   return n;
 }
 
-int obs_range_check(const obs_range *range, const char *technique, obs_backend backend,
+int obs_range_check(const obs_range *range, const char *technique, const char *backend,
                     const obs_scene *sc, const obs_extent *ex, obs_render_ctx *ctx) {
   char who[96];
-  snprintf(who, sizeof who, "%s on %s", technique, obs_backend_name(backend));
+  snprintf(who, sizeof who, "%s on %s", technique, backend);
   if (!(range->size_max > 0)) {
     obs_render_ctx_warn(ctx, "%s declares no guaranteed range (docs/accuracy.md)", who);
     return 1;
@@ -125,86 +129,4 @@ int obs_range_check(const obs_range *range, const char *technique, obs_backend b
   }
   if (ex->size > 0) n += check_params(range, who, sc, ex, ctx);
   return n;
-}
-
-int obs_technique_param_size_power(const obs_technique *t, const char *name) {
-  for (int be = 0; be < OBS_BACKEND_COUNT; be++)
-    for (const obs_param_range *p = t->range[be].params; p->name; p++)
-      if (!strcmp(p->name, name)) return p->size_power;
-  return 0;
-}
-
-/* Whether a length x lies inside every declared range of parameter `name` of t for a scene of
- * size `size`, by check_params's own arithmetic (x times size^-1 against the bounds). */
-static int length_in_ranges(const obs_technique *t, const char *name, double x, double size) {
-  for (int be = 0; be < OBS_BACKEND_COUNT; be++)
-    for (const obs_param_range *p = t->range[be].params; p->name; p++) {
-      if (strcmp(p->name, name)) continue;
-      double rel = x * pow(size, -p->size_power);
-      if (!(rel >= p->min && rel <= p->max)) return 0;
-    }
-  return 1;
-}
-
-/* A length of `share` scene sizes rounded to 4 significant digits (a starting point people read
- * and edit). Where rounding to nearest leaves it outside a backend's guaranteed range of the
- * parameter (a share on a bound: obscurance_map's patch_size, 0.05 scene sizes, is Vulkan's
- * minimum, and 0.05 x 56.59 rounds to 2.829, under it), the 4-digit neighbour on the inside is
- * taken: a derived default never trips the range check. */
-static double derived_length(const obs_technique *t, const char *name, double share,
-                             double size) {
-  char text[32];
-  snprintf(text, sizeof text, "%.4g", share * size);
-  double x = strtod(text, NULL);
-  if (length_in_ranges(t, name, x, size)) return x;
-  double unit = pow(10.0, floor(log10(fabs(x))) - 3);
-  for (int s = -1; s <= 1; s += 2) {
-    snprintf(text, sizeof text, "%.4g", x + s * unit);
-    double y = strtod(text, NULL);
-    if (length_in_ranges(t, name, y, size)) return y;
-  }
-  return x; /* a range narrower than the rounding: the check says so */
-}
-
-json_t *obs_technique_defaults_for(const obs_technique *t, const obs_scene *sc,
-                                   const json_t *given, json_t *notes, obs_err *err) {
-  json_t *out = json_object();
-  if (!out) {
-    obs_err_set(err, OBS_ENOMEM, "out of memory");
-    return NULL;
-  }
-  if (sc->technique == t) {
-    json_object_update(out, sc->params);
-  } else {
-    obs_extent ex;
-    if (obs_scene_extent(sc, &ex, err)) {
-      json_decref(out);
-      return NULL;
-    }
-    for (size_t i = 0; i < t->params_size; i++) {
-      const obs_param *d = &t->params[i];
-      int power = obs_technique_param_size_power(t, d->name);
-      if (!(d->size_default > 0) || power != 1 || ex.empty || !(ex.size > 0) ||
-          json_object_get(given, d->name)) {
-        json_object_set_new(out, d->name, obs_param_default_json(d));
-        continue;
-      }
-      double x = derived_length(t, d->name, d->size_default, ex.size);
-      json_object_set_new(out, d->name, json_real(x));
-      if (notes) {
-        json_t *def = obs_param_default_json(d);
-        char *deftext = def ? json_dumps(def, JSON_ENCODE_ANY) : NULL;
-        char note[320];
-        snprintf(note, sizeof note,
-                 "%s %s = %g derived from the scene's size: %g x %.4g (the diagonal of its "
-                 "bounding box) instead of the fixed default %s",
-                 t->name, d->name, x, d->size_default, ex.size, deftext ? deftext : "?");
-        free(deftext);
-        json_decref(def);
-        json_array_append_new(notes, json_string(note));
-      }
-    }
-  }
-  if (json_is_object(given)) json_object_update(out, (json_t *)given); /* jansson reads it */
-  return out;
 }

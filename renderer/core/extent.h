@@ -21,8 +21,9 @@ typedef struct obs_extent {
 int obs_scene_extent(const obs_scene *scene, obs_extent *out, obs_err *err);
 
 /* The quantities of `scene` (extent `ex`) outside `range`, each as one warning added to `ctx`
- * that names the quantity, its value and the guaranteed range; returns how many were added. */
-int obs_range_check(const obs_range *range, const char *technique, obs_backend backend,
+ * that names the quantity, its value and the guaranteed range (of `technique` on the backend
+ * named `backend`); returns how many were added. */
+int obs_range_check(const obs_range *range, const char *technique, const char *backend,
                     const obs_scene *scene, const obs_extent *ex, obs_render_ctx *ctx);
 
 #endif

@@ -12,6 +12,21 @@
 const char *const obs_screen_channel_names[OBS_SCREEN_CHANNELS] = {
     "ao", "ao_raw", "depth.Z", "normal.X", "normal.Y", "normal.Z", "alpha"};
 
+/* The outputs of every screen-space technique: the channels the screen-space drivers write
+ * (obs_screen_channel_names), so every screen-space technique declares this one table. */
+const obs_output obs_screen_outputs[] = {
+    {.name = "ao", .kind = OBS_OUTPUT_SCALAR, .show = OBS_SHOW_GREY, .png = "ao.png",
+     .description = "Ambient occlusion (white = open, black = fully occluded)",
+     .flags = OBS_OUTPUT_PRIMARY | OBS_OUTPUT_UNIT},
+    {.name = "ao_raw", .kind = OBS_OUTPUT_SCALAR,
+     .description = "Ambient occlusion before the blur"},
+    {.name = "depth", .kind = OBS_OUTPUT_DEPTH, .show = OBS_SHOW_DEPTH, .png = "depth.png",
+     .description = "Depth (view distance, grey levels)"},
+    {.name = "normal", .kind = OBS_OUTPUT_VECTOR, .description = "World-space surface normal"},
+    {.name = "alpha", .kind = OBS_OUTPUT_SCALAR,
+     .description = "Coverage (1 where a surface is hit, 0 on the background)"},
+    {.name = NULL}};
+
 /* n floats, not zeroed. Large ones on 2 MiB boundaries and marked for huge pages where the
  * system has them: a tile's rows reach 4 rows of pages per buffer, and with 4 KiB pages their
  * address translations miss far more than the stores do. */
@@ -84,8 +99,8 @@ static int cmp_float(const void *a, const void *b) {
   return (x > y) - (x < y);
 }
 
-int obs_gbuffer_median_depth(const obs_scene *scene, int max_side, int threads, double *out,
-                             obs_err *err) {
+int obs_gbuffer_median_depth(const obs_scene *scene, obs_backend_gbuffer_fn gbuffer, int max_side,
+                             int threads, double *out, obs_err *err) {
   /* A shallow copy with a smaller image: the G-buffer only reads the camera, the size and the
    * geometry, and the aspect ratio (hence the camera rig) is kept. */
   obs_scene coarse = *scene;
@@ -97,14 +112,12 @@ int obs_gbuffer_median_depth(const obs_scene *scene, int max_side, int threads, 
     if (coarse.width < 1) coarse.width = 1;
     if (coarse.height < 1) coarse.height = 1;
   }
-  /* The CPU backend's G-buffer: it is always there, and is what the CPU twins render from. */
-  const obs_backend_ops *cpu = obs_backend_ops_get(OBS_BACKEND_CPU);
-  if (!cpu || !cpu->gbuffer)
+  if (!gbuffer)
     return obs_err_set(err, OBS_EUNSUPPORTED, "%s: no backend makes a host G-buffer",
                        scene->name ? scene->name : "scene");
   obs_gbuffer g;
   double build_ms = 0, render_ms = 0;
-  int rc = cpu->gbuffer(&coarse, &g, threads > 0 ? threads : 1, &build_ms, &render_ms, err);
+  int rc = gbuffer(&coarse, &g, threads > 0 ? threads : 1, &build_ms, &render_ms, err);
   if (rc) return rc;
   size_t n = (size_t)g.width * (size_t)g.height, k = 0;
   for (size_t i = 0; i < n; i++)

@@ -16,6 +16,7 @@
 #include "obscura/error.h"
 #include "obscura/image.h"
 #include "obscura/scene.h"
+#include "obscura/backend.h"
 #include "obscura/technique.h"
 
 /* Owns its planes (one allocation); release with obs_gbuffer_free. */
@@ -66,11 +67,12 @@ static inline void obs_gbuffer_position(const obs_gbuffer *g, float fx, float fy
   out[2] = z;
 }
 
-/* Median linear view depth of the covered pixels, from a CPU G-buffer of the scene's camera at
- * most `max_side` pixels on its longer side (the aspect ratio kept; <= 0: full size). OBS_EINVAL
+/* Median linear view depth of the covered pixels, from a host G-buffer of the scene's camera
+ * made by `gbuffer` (the CPU backend's, obs_gbuffer_cpu: what the CPU twins render from) at most
+ * `max_side` pixels on its longer side (the aspect ratio kept; <= 0: full size). OBS_EINVAL
  * when nothing covers the image. Used by reference hooks that scale screen-space radii. */
-int obs_gbuffer_median_depth(const obs_scene *scene, int max_side, int threads, double *out,
-                             obs_err *err);
+int obs_gbuffer_median_depth(const obs_scene *scene, obs_backend_gbuffer_fn gbuffer, int max_side,
+                             int threads, double *out, obs_err *err);
 
 /* The screen-space rule (obs_range.screen of the scene's technique on `backend`) held against the
  * covered pixels of `g`, the G-buffer the technique ran on: one warning added to `ctx` per limit
@@ -83,6 +85,8 @@ void obs_screen_rule_check(obs_render_ctx *ctx, obs_backend backend, const obs_g
 enum { OBS_SCREEN_AO, OBS_SCREEN_AO_RAW, OBS_SCREEN_DEPTH, OBS_SCREEN_NX, OBS_SCREEN_NY,
        OBS_SCREEN_NZ, OBS_SCREEN_ALPHA, OBS_SCREEN_CHANNELS };
 extern const char *const obs_screen_channel_names[OBS_SCREEN_CHANNELS];
+/* The declared outputs those channels make: what a screen-space technique's descriptor names. */
+extern const obs_output obs_screen_outputs[];
 
 /* Output channels every screen-space technique writes besides its own: "depth.Z", "normal.X/Y/Z"
  * (world space) and "alpha", taken from the G-buffer. `img` must already have those channels. */

@@ -1,6 +1,7 @@
 /* Technique parameters from their descriptor's table (obs_param): validation of a document's
- * params with JSON-pointer messages, defaults, binding into the technique's C struct, the JSON
- * Schema the registry publishes, the cost hook's caller and the table's self-check. */
+ * params with JSON-pointer messages, defaults, binding into the technique's C struct, and each
+ * entry's JSON Schema and faults (the table's schema, cost and self-check as a whole:
+ * renderer/registry/descriptor.c). */
 #include "params.h"
 
 #include <float.h>
@@ -323,7 +324,7 @@ int obs_params_bind_new(const obs_technique *t, const json_t *params, void **out
   return 0;
 }
 
-static json_t *param_schema(const obs_param *d) {
+json_t *obs_param_schema(const obs_param *d) {
   json_t *o = json_object();
   static const char *const type_names[] = {[OBS_PARAM_BOOL] = "boolean",
                                            [OBS_PARAM_INT] = "integer",
@@ -365,41 +366,6 @@ static json_t *param_schema(const obs_param *d) {
   return o;
 }
 
-json_t *obs_technique_params_schema(const obs_technique *t) {
-  json_t *props = json_object();
-  for (size_t i = 0; t && i < t->params_size; i++)
-    json_object_set_new(props, t->params[i].name, param_schema(&t->params[i]));
-  return json_pack("{sssbso}", "type", "object", "additionalProperties", 0, "properties", props);
-}
-
-double obs_technique_cost(const obs_technique *t, const json_t *params) {
-  if (!t || !t->cost) return 1.0;
-  void *b = NULL;
-  if (obs_params_bind_new(t, params, &b, NULL)) return 1.0;
-  double c = t->cost(b);
-  free(b);
-  return c;
-}
-
-double obs_scene_work(const obs_scene *sc) {
-  const obs_technique *t = sc->technique;
-  double frames = sc->frames > 1 ? sc->frames : 1;
-  void *b = NULL;
-  if (frames > 1 && t && t->frames_cost && !obs_params_bind_new(t, sc->params, &b, NULL))
-    frames = t->frames_cost(b, sc->frames);
-  free(b);
-  return (double)sc->width * sc->height * sc->spp * obs_technique_cost(t, sc->params) * frames;
-}
-
-obs_backend obs_technique_motion_backend(const obs_technique *t, const obs_scene *sc,
-                                         obs_backend be) {
-  if (sc->frames <= 1 || (be > 0 && (t->motion_backends & (1u << be)))) return be;
-  for (int b = 1; b < OBS_BACKEND_COUNT; b++)
-    if ((t->motion_backends & (1u << b)) && obs_technique_has_backend(t, (obs_backend)b))
-      return (obs_backend)b;
-  return be;
-}
-
 static size_t type_size(obs_param_type t) {
   switch (t) {
     case OBS_PARAM_RGB:
@@ -417,15 +383,14 @@ static size_t type_size(obs_param_type t) {
   }
 }
 
-/* The faults of one entry that do not need its default (see obs_technique_params_check). */
-static int entry_fault(const obs_technique *t, const obs_param *d, char *why, size_t n) {
+int obs_param_entry_fault(const obs_param *d, size_t bound_size, char *why, size_t n) {
   int nullable = (d->flags & OBS_PARAM_NULLABLE) != 0;
   if ((unsigned)d->type > OBS_PARAM_RGB) return snprintf(why, n, "unknown type %d", d->type);
   size_t sz = type_size(d->type), align = d->type == OBS_PARAM_RGB ? sizeof(double) : sz;
   if (!d->description || !*d->description) return snprintf(why, n, "has no description");
-  if (d->offset + sz > t->bound_size || d->offset % align)
+  if (d->offset + sz > bound_size || d->offset % align)
     return snprintf(why, n, "offset %zu does not hold a %zu-byte member inside %zu bytes",
-                    d->offset, sz, t->bound_size);
+                    d->offset, sz, bound_size);
   if ((nullable || (d->flags & OBS_PARAM_DEFAULT_NULL)) && !has_range(d->type))
     return snprintf(why, n, "only numbers and RGBs can be null");
   if ((d->flags & OBS_PARAM_DEFAULT_NULL) && !nullable)
@@ -447,70 +412,4 @@ static int entry_fault(const obs_technique *t, const obs_param *d, char *why, si
       return snprintf(why, n, "integer bounds must be integers");
   }
   return 0;
-}
-
-int obs_technique_params_check(const obs_technique *t, obs_err *err) {
-  int before = err ? err->count : 0, bad = 0;
-  char doc[96];
-  snprintf(doc, sizeof doc, "%s params", t->name);
-  if (t->params_size && (!t->params || !t->bound_size))
-    return obs_err_set(err, OBS_EINVAL, "%s: a table without a struct size", doc);
-  for (size_t i = 0; i < t->params_size; i++) {
-    const obs_param *d = &t->params[i];
-    char why[200];
-    if (!d->name || !*d->name) {
-      bad = obs_err_set(err, OBS_EINVAL, "%s: entry %zu has no name", doc, i);
-      continue;
-    }
-    for (size_t j = 0; j < i; j++)
-      if (t->params[j].name && !strcmp(t->params[j].name, d->name))
-        bad = obs_err_set(err, OBS_EINVAL, "%s: /%s: declared twice", doc, d->name);
-    if (entry_fault(t, d, why, sizeof why)) {
-      bad = obs_err_set(err, OBS_EINVAL, "%s: /%s: %s", doc, d->name, why);
-      continue;
-    }
-    /* A scale-derived default is stated in scene sizes, which only a length has. */
-    if (d->size_default != 0 &&
-        (!(d->size_default > 0) || obs_technique_param_size_power(t, d->name) != 1))
-      bad = obs_err_set(err, OBS_EINVAL,
-                        "%s: /%s: size_default %g needs a positive value and a range entry with "
-                        "size_power 1",
-                        doc, d->name, d->size_default);
-    /* A derived default lands in every backend's guaranteed range (obs_technique_defaults_for
-     * rounds it toward the inside), so the render it starts from carries no range warning. */
-    for (int be = 0; be < OBS_BACKEND_COUNT && d->size_default > 0; be++)
-      for (const obs_param_range *r = t->range[be].params; r->name; r++)
-        if (!strcmp(r->name, d->name) &&
-            !(d->size_default >= r->min && d->size_default <= r->max))
-          bad = obs_err_set(err, OBS_EINVAL,
-                            "%s: /%s: size_default %g lies outside [%g, %g], the range %s "
-                            "guarantees",
-                            doc, d->name, d->size_default, r->min, r->max,
-                            obs_backend_name((obs_backend)be));
-    /* The default must pass the same check as a document's value. */
-    char where[160];
-    snprintf(where, sizeof where, "%s default", doc);
-    obs_jpath p;
-    obs_jpath_init(&p, where, err);
-    json_t *def = obs_param_default_json(d);
-    size_t m = obs_jpath_push_key(&p, d->name);
-    if (d->type == OBS_PARAM_ENUM && json_is_null(def))
-      bad = obs_jpath_fail(&p, "default index %g is not a choice", d->def);
-    else if (obs_param_check(&p, d, def))
-      bad = OBS_EINVAL;
-    obs_jpath_pop(&p, m);
-    json_decref(def);
-  }
-  if (!bad && t->cost) {
-    void *b = NULL;
-    if (obs_params_bind_new(t, NULL, &b, err)) return OBS_EINVAL;
-    double c = t->cost(b);
-    free(b);
-    if (!(c > 0) || !isfinite(c))
-      bad = obs_err_set(err, OBS_EINVAL,
-                        "%s: the cost of the defaults is %g, not a positive "
-                        "number",
-                        doc, c);
-  }
-  return bad || (err && err->count != before) ? OBS_EINVAL : 0;
 }

@@ -24,5 +24,11 @@ int obs_param_check(obs_jpath *p, const obs_param *d, const json_t *v);
 const char *obs_params_nearest(const obs_technique *t, const char *name);
 /* The entry's default as JSON (new reference). */
 json_t *obs_param_default_json(const obs_param *d);
+/* The entry as a JSON Schema (new reference): type, range or choices, default, description. */
+json_t *obs_param_schema(const obs_param *d);
+/* The faults of one entry of a table bound into `bound_size` bytes that do not need its default
+ * (a type, a description, an offset inside the struct, a range its type stores): writes why
+ * into `why` and returns non-zero, or returns 0. */
+int obs_param_entry_fault(const obs_param *d, size_t bound_size, char *why, size_t n);
 
 #endif

@@ -1,5 +1,5 @@
-/* Strict loading of scene documents: parse, apply overrides, validate every rule, fill obs_scene.
- */
+/* Strict loading of scene documents: parse, apply overrides, validate every rule, fill obs_scene;
+ * the technique block is read by the caller's hook (scene_read.h). */
 #include "obscura/scene.h"
 
 #include <jansson.h>
@@ -14,6 +14,7 @@
 #include "obscura/technique.h"
 #include "obscura/path.h"
 #include "params.h"
+#include "scene_read.h"
 #include "shapes.h"
 
 #define COORD_MAX 1e30
@@ -469,130 +470,8 @@ static void load_environment(obs_jpath *p, const json_t *doc, const char *base_d
   obs_jpath_pop(p, m);
 }
 
-static void load_technique(obs_jpath *p, const json_t *doc, obs_scene *sc) {
-  json_t *t = obs_json_get_object(p, doc, "technique", 1, NULL);
-  if (!t) return;
-  size_t m = obs_jpath_push_key(p, "technique");
-  static const char *const k[] = {"name", "backend", "params", NULL};
-  obs_json_check_keys(p, t, k);
-  const char *name = NULL;
-  if (obs_json_get_string(p, t, "name", 1, NULL, &name) == 0 && name) {
-    sc->technique = obs_technique_find(name);
-    if (!sc->technique) {
-      char list[512] = "";
-      for (size_t i = 0; i < obs_technique_count(); i++) {
-        size_t l = strlen(list);
-        snprintf(list + l, sizeof list - l, "%s\"%s\"", l ? ", " : "", obs_technique_at(i)->name);
-      }
-      size_t mk = obs_jpath_push_key(p, "name");
-      obs_jpath_fail(p, "must be one of %s (got \"%s\")", list, name);
-      obs_jpath_pop(p, mk);
-    }
-  }
-  const char *backends[OBS_BACKEND_COUNT + 1] = {NULL};
-  for (int b = 0; b < OBS_BACKEND_COUNT; b++)
-    backends[b] = obs_backend_name((obs_backend)((b + 1) % OBS_BACKEND_COUNT)); /* "auto" last */
-  const char *be = NULL;
-  sc->backend = OBS_BACKEND_AUTO;
-  if (obs_json_get_string(p, t, "backend", 0, backends, &be) == 0 && be) {
-    obs_backend_parse(be, &sc->backend);
-    if (sc->technique && sc->backend != OBS_BACKEND_AUTO && !sc->technique->run[sc->backend]) {
-      char list[128] = "";
-      for (int b = 1; b < OBS_BACKEND_COUNT; b++) {
-        if (!sc->technique->run[b]) continue;
-        size_t l = strlen(list);
-        snprintf(list + l, sizeof list - l, "%s\"%s\"", l ? ", " : "", obs_backend_name(b));
-      }
-      size_t mk = obs_jpath_push_key(p, "backend");
-      obs_jpath_fail(p, "technique \"%s\" has no %s backend; available: %s, \"auto\"",
-                     sc->technique->name, be, list);
-      obs_jpath_pop(p, mk);
-    }
-  }
-  if (sc->technique) {
-    size_t mk = obs_jpath_push_key(p, "params");
-    sc->params = obs_params_resolve(p, sc->technique, json_object_get(t, "params"));
-    obs_jpath_pop(p, mk);
-  }
-  obs_jpath_pop(p, m);
-}
-
-/* The registered techniques with every bit of `need`, as "\"a\", \"b\"" into list. */
-static const char *techniques_with(unsigned need, char *list, size_t n) {
-  list[0] = '\0';
-  for (size_t k = 0; k < obs_technique_count(); k++) {
-    const obs_technique *m = obs_technique_at(k);
-    size_t l = strlen(list);
-    if ((m->needs & need) == need)
-      snprintf(list + l, n - l, "%s\"%s\"", l ? ", " : "", m->name);
-  }
-  return list;
-}
-
-/* Feature requirements and technique-specific cross-field rules, once the basics are valid. */
-static void check_needs(obs_jpath *p, const obs_scene *sc) {
-  const obs_technique *t = sc->technique;
-  char list[256];
-  if (t->needs & OBS_NEED_LIGHTS && sc->nlights == 0)
-    obs_err_set(p->err, OBS_EINVAL, "%s: /lights: technique \"%s\" needs at least one light",
-                p->doc, t->name);
-  for (size_t i = 0; i < sc->nlights; i++)
-    if (sc->lights[i].type != OBS_LIGHT_QUAD && !(t->needs & OBS_NEED_PUNCTUAL_LIGHTS))
-      obs_err_set(p->err, OBS_EINVAL,
-                  "%s: /lights/%zu/type: technique \"%s\" lights with quad lights only; point "
-                  "and directional lights are for shading techniques (%s)",
-                  p->doc, i, t->name, techniques_with(OBS_NEED_PUNCTUAL_LIGHTS, list, sizeof list));
-  if (sc->has_environment && sc->env.kind != OBS_ENV_COLOR && !(t->needs & OBS_NEED_ENV_MAP))
-    obs_err_set(p->err, OBS_EINVAL,
-                "%s: /environment/map: technique \"%s\" takes a constant environment "
-                "(\"color\"); environment maps light %s",
-                p->doc, t->name, techniques_with(OBS_NEED_ENV_MAP, list, sizeof list));
-  size_t nvol = 0;
-  for (size_t i = 0; i < sc->nobjects; i++) nvol += sc->objects[i].shape.type == OBS_SHAPE_VOLUME;
-  if (t->needs & OBS_NEED_VOLUME && nvol == 0)
-    obs_err_set(p->err, OBS_EINVAL,
-                "%s: /objects: technique \"%s\" renders volumes, and the scene has none (an "
-                "object with shape type \"volume\")",
-                p->doc, t->name);
-  if (!(t->needs & OBS_NEED_VOLUME) && nvol > 0 && nvol == sc->nobjects)
-    obs_err_set(p->err, OBS_EINVAL,
-                "%s: /objects: technique \"%s\" renders surfaces, and every object of the scene "
-                "is a volume (volume techniques: %s)",
-                p->doc, t->name, techniques_with(OBS_NEED_VOLUME, list, sizeof list));
-  if (t->needs & OBS_NEED_MATERIALS) {
-    for (size_t i = 0; i < sc->nobjects; i++) {
-      if (!sc->objects[i].has_material)
-        obs_err_set(p->err, OBS_EINVAL,
-                    "%s: /objects/%zu/material: technique \"%s\" needs a material on every object",
-                    p->doc, i, t->name);
-    }
-  }
-  if (sc->frames > 1 && !(t->needs & OBS_NEED_MOTION)) {
-    techniques_with(OBS_NEED_MOTION, list, sizeof list);
-    for (size_t i = 0; i < sc->nobjects; i++)
-      if (sc->objects[i].nmotion)
-        obs_err_set(p->err, OBS_EINVAL,
-                    "%s: /objects/%zu/motion: technique \"%s\" renders one frame; moving objects "
-                    "need a technique that renders frames (%s)",
-                    p->doc, i, t->name, list);
-  } else if (sc->frames > 1 && sc->backend != OBS_BACKEND_AUTO &&
-             !(t->motion_backends & (1u << sc->backend))) {
-    char list[64] = "";
-    for (int b = 1; b < OBS_BACKEND_COUNT; b++) {
-      size_t l = strlen(list);
-      if (t->motion_backends & (1u << b))
-        snprintf(list + l, sizeof list - l, "%s%s", l ? " or " : "", obs_backend_name(b));
-    }
-    obs_err_set(p->err, OBS_EINVAL,
-                "%s: /technique/backend: moving objects (motion) render on the %s backend only",
-                p->doc, list);
-  }
-  obs_params_check_rules(t, sc->params, p->doc, p->err);
-  if (t->check) t->check(sc, sc->params, p->doc, p->err);
-}
-
 static int validate_doc(obs_scene *sc, const json_t *doc, const char *name,
-                        const char *base_dir, obs_err *err) {
+                        const char *base_dir, obs_scene_technique_fn tech, obs_err *err) {
   obs_jpath p;
   obs_jpath_init(&p, name, err);
   int before = err ? err->count : 0;
@@ -626,10 +505,9 @@ static int validate_doc(obs_scene *sc, const json_t *doc, const char *name,
   load_lights(&p, doc, sc);
   load_probes(&p, doc, sc);
   load_environment(&p, doc, base_dir, sc);
-  load_technique(&p, doc, sc);
-  /* Technique rules run even after other problems so the list is complete; they only read what
-   * loaded (objects/lights arrays may be partial). */
-  if (sc->technique && sc->params) check_needs(&p, sc);
+  /* The technique block last: its rules run even after other problems so the list is complete;
+   * they only read what loaded (objects/lights arrays may be partial). */
+  tech(&p, doc, sc);
   if (err && err->count != before) return OBS_EINVAL;
   if (!sc->technique || !sc->params) return OBS_EINVAL;
   return 0;
@@ -638,8 +516,8 @@ static int validate_doc(obs_scene *sc, const json_t *doc, const char *name,
 /* Validation whose messages name the scene's files as the scene does (relative to its
  * directory), never by where they were found. */
 static int validate(obs_scene *sc, const json_t *doc, const char *name, const char *base_dir,
-                    obs_err *err) {
-  int rc = validate_doc(sc, doc, name, base_dir, err);
+                    obs_scene_technique_fn tech, obs_err *err) {
+  int rc = validate_doc(sc, doc, name, base_dir, tech, err);
   if (rc) obs_path_err_relative(err, base_dir);
   return rc;
 }
@@ -662,15 +540,15 @@ void obs_scene_free(obs_scene *sc) {
   memset(sc, 0, sizeof *sc);
 }
 
-int obs_scene_validate_json(const json_t *doc, const char *name, const char *base_dir,
-                            obs_err *err) {
+int obs_scene_check_json(const json_t *doc, const char *name, const char *base_dir,
+                         obs_scene_technique_fn tech, obs_err *err) {
   obs_scene sc;
   memset(&sc, 0, sizeof sc);
   obs_err local = OBS_ERR_INIT;
   obs_jpath p;
   obs_jpath_init(&p, name, err ? err : &local);
   int rc = obs_json_check_depth(&p, doc, OBS_JSON_MAX_DEPTH);
-  if (!rc) rc = validate(&sc, doc, name, base_dir, err ? err : &local);
+  if (!rc) rc = validate(&sc, doc, name, base_dir, tech, err ? err : &local);
   obs_scene_free(&sc);
   obs_err_free(&local);
   return rc;
@@ -708,8 +586,9 @@ static int apply_overrides(json_t *doc, const char *name, const obs_override *ov
   return bad ? OBS_EINVAL : 0;
 }
 
-int obs_scene_load_json(obs_scene *sc, json_t *doc, const char *name, const char *base_dir,
-                        const obs_override *ov, size_t nov, obs_err *err) {
+int obs_scene_read_json(obs_scene *sc, json_t *doc, const char *name, const char *base_dir,
+                        const obs_override *ov, size_t nov, obs_scene_technique_fn tech,
+                        obs_err *err) {
   memset(sc, 0, sizeof *sc);
   if (!name) name = "scene";
   if (!doc) return obs_err_set(err, OBS_EINVAL, "%s: no document", name);
@@ -718,7 +597,7 @@ int obs_scene_load_json(obs_scene *sc, json_t *doc, const char *name, const char
   obs_jpath_init(&p, name, err);
   /* Validation briefs values by dumping them, which recurses: bounded first. */
   if (obs_json_check_depth(&p, doc, OBS_JSON_MAX_DEPTH)) return OBS_EINVAL;
-  int rc = validate(sc, doc, name, base_dir, err);
+  int rc = validate(sc, doc, name, base_dir, tech, err);
   if (rc) {
     obs_scene_free(sc);
     return rc;
@@ -731,20 +610,21 @@ int obs_scene_load_json(obs_scene *sc, json_t *doc, const char *name, const char
   return 0;
 }
 
-int obs_scene_load_string(obs_scene *sc, const char *text, const char *name, const char *base_dir,
-                          const obs_override *ov, size_t nov, obs_err *err) {
+int obs_scene_read_string(obs_scene *sc, const char *text, const char *name,
+                          const char *base_dir, const obs_override *ov, size_t nov,
+                          obs_scene_technique_fn tech, obs_err *err) {
   memset(sc, 0, sizeof *sc);
   if (!name) name = "scene";
   json_t *doc = NULL;
   int rc = parse_doc(text ? text : "", name, &doc, err);
   if (rc) return rc;
-  rc = obs_scene_load_json(sc, doc, name, base_dir, ov, nov, err);
+  rc = obs_scene_read_json(sc, doc, name, base_dir, ov, nov, tech, err);
   json_decref(doc);
   return rc;
 }
 
-int obs_scene_load_file(obs_scene *sc, const char *path, const obs_override *ov, size_t nov,
-                        obs_err *err) {
+int obs_scene_read_file(obs_scene *sc, const char *path, const obs_override *ov, size_t nov,
+                        obs_scene_technique_fn tech, obs_err *err) {
   memset(sc, 0, sizeof *sc);
   char *buf = NULL;
   size_t len = 0;
@@ -762,7 +642,7 @@ int obs_scene_load_file(obs_scene *sc, const char *path, const obs_override *ov,
   } else {
     strcpy(dir, ".");
   }
-  rc = obs_scene_load_string(sc, buf, base, dir, ov, nov, err);
+  rc = obs_scene_read_string(sc, buf, base, dir, ov, nov, tech, err);
   free(buf);
   return rc;
 }

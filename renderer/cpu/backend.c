@@ -6,7 +6,10 @@
 
 #include "gbuffer_cpu.h"
 #include "obscura/backend.h"
-#include "techniques.h"
+#include "driver.h"
+
+/* What the CPU builds for a technique's needs (needs.c). */
+extern const obs_needs_builder obs_cpu_needs_builder;
 
 static int cpu_available(void) { return 1; }
 

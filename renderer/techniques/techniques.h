@@ -1,4 +1,5 @@
-/* Declarations of every technique descriptor and backend implementation named in table.c. */
+/* What the technique folders share: the descriptors (each may name another as its reference),
+ * the screen-space outputs and the obscurance model's parameter entries. */
 #ifndef OBS_TECHNIQUES_H
 #define OBS_TECHNIQUES_H
 
@@ -6,45 +7,13 @@
 #include "obscura/backend.h"
 #include "obscura/technique.h"
 
-/* Each backend layer's operations table (renderer/cpu/backend.c, renderer/vulkan/device.c). */
-extern const obs_backend_ops obs_backend_cpu_ops;
-extern const obs_backend_ops obs_backend_vulkan_ops;
-/* What the CPU builds for a technique's needs (renderer/cpu/needs.c; its ops table's `needs`). */
-extern const obs_needs_builder obs_cpu_needs_builder;
+/* Every registered descriptor (generated from the folders; each folder's own header declares its
+ * run functions). */
+#include "technique_list.h"
 
-extern const obs_technique obs_technique_rt_ao;
-int obs_rt_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
-extern const obs_technique obs_technique_obscurance_map;
-int obs_obscurance_map_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
-int obs_obscurance_map_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
-
-/* The outputs the screen-space drivers write (ssao.c), declared by ssao and hbao alike. */
-extern const obs_output obs_screen_outputs[];
-
-extern const obs_technique obs_technique_ss_radiosity;
-int obs_ss_radiosity_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
-int obs_ss_radiosity_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
-extern const obs_technique obs_technique_ssao;
-int obs_ssao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
-int obs_ssao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
-
-extern const obs_technique obs_technique_hbao;
-int obs_hbao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
-int obs_hbao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
-
-extern const obs_technique obs_technique_path_trace;
-int obs_path_trace_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
-extern const obs_technique obs_technique_obscurance;
-int obs_obscurance_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
-extern const obs_technique obs_technique_volume_ao;
-int obs_volume_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
-int obs_volume_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
-extern const obs_technique obs_technique_proximity_ao;
-int obs_proximity_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
-int obs_proximity_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
-
-/* One backend's guaranteed range as the registry's JSON (ranges.c). */
-json_t *obs_range_json(const obs_range *r);
+/* The outputs the screen-space drivers write (obs_screen_outputs), declared by every screen-space
+ * technique alike. */
+#include "gbuffer.h"
 
 /* The obscurance model's parameters (core/obscurance.h), the same in every obscurance technique
  * (per pixel, per patch): entries for d_max (a length), falloff, tau and color_bleeding, landing in

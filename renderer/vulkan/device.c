@@ -7,9 +7,7 @@
 #include <string.h>
 
 #include "obscura/render.h"
-#include "proximity_vk.h"
 #include "vk_internal.h"
-#include "techniques.h"
 
 #define NO_DEVICE_HINT "install mesa-vulkan-drivers for lavapipe"
 #define VALIDATION_LAYER "VK_LAYER_KHRONOS_validation"
@@ -429,7 +427,6 @@ const obs_backend_ops obs_backend_vulkan_ops = {
     .device_name = obs_vk_available_device_name,
     .device_kind = available_device_kind,
     .gbuffer = NULL,
-    .prox_flood = obs_prox_flood_vulkan,
 };
 
 int obs_vk_validation_requested(void) {

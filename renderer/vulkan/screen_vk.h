@@ -12,7 +12,8 @@
 /* A screen-space technique on Vulkan: its passes over the device G-buffer `dev` (`host` is the
  * host G-buffer of the same camera, not yet downloaded: its projection is the passes'), with the
  * params the run read, downloading the AO after and before its blur into `ao` and `ao_raw` (w x h
- * each). Records its stages on ctx (obs_driver_stage_add), the download as "readback". */
+ * each), usually as one plan for the Vulkan pass driver (plan_vk.h). Records its stages on ctx
+ * (obs_vk_plan_record or obs_driver_stage_add), the download as "readback". */
 typedef int (*obs_screen_vk_passes_fn)(obs_render_ctx *ctx, obs_vk *vk, obs_vk_gbuffer *dev,
                                        const obs_gbuffer *host, const void *params, float *ao,
                                        float *ao_raw, obs_err *err);

@@ -60,7 +60,7 @@ case $what in
     cp "$root/schema/scene.schema.json" "$root/schema/openapi.yaml" "$tmp/schema/"
     cp -r "$root/docs/techniques" "$root/docs/metrics.md" "$tmp/docs/"
     sed -i 's/"maximum": 65536/"maximum": 65537/' "$tmp/schema/scene.schema.json"
-    sed -i '/^    # registry:begin/,/^    # registry:end/s/enum: \[rt_ao/enum: [rt_ao2/' \
+    sed -i '/^    # registry:begin/,/^    # registry:end/s/enum: \[\([a-z_]*\)/enum: [\12/' \
       "$tmp/schema/openapi.yaml"
     sed -i 's/^| `samples` | integer (uint32) | 64 |/| `samples` | integer (uint32) | 65 |/' \
       "$tmp/docs/techniques/rt_ao.md"

@@ -1,7 +1,8 @@
 # Proves the layering rule for one layer (cmake -P): every header of a layer that is not on the
 # layer's include path fails to compile when included from the layer's context, every header of
-# its own directory compiles there, and no source of the layer reaches another directory by a
-# relative include (which a private include path could not stop).
+# its own directory (and of the folders below it: the technique folders) compiles there, and no
+# source of the layer reaches another directory by a relative include (which a private include
+# path could not stop).
 #   -DCC=<C compiler> -DLAYER=<name> -DDIR=<the layer's sources> -DINC=<include path, |-list>
 #   -DSRC=<source root> -DWORK=<scratch directory>
 foreach(v CC LAYER DIR INC SRC WORK)
@@ -38,7 +39,7 @@ endfunction()
 set(failures 0)
 set(forbidden 0)
 set(own 0)
-file(GLOB dirs LIST_DIRECTORIES true ${SRC}/renderer/* ${SRC}/server)
+file(GLOB dirs LIST_DIRECTORIES true ${SRC}/renderer/* ${SRC}/renderer/techniques/* ${SRC}/server)
 foreach(d ${dirs})
   if(NOT IS_DIRECTORY ${d} OR d MATCHES "/renderer/include$")
     continue()
@@ -56,7 +57,7 @@ foreach(d ${dirs})
                            "including it did not fail as a missing file:\n${out}")
         math(EXPR failures "${failures} + 1")
       endif()
-    elseif(d STREQUAL DIR)
+    elseif(d STREQUAL DIR OR d MATCHES "^${DIR}/")
       if(ok)
         math(EXPR own "${own} + 1")
       else()
@@ -75,7 +76,7 @@ if(forbidden EQUAL 0 OR own EQUAL 0)
 endif()
 
 # Relative includes: only "obscura/..." (the public headers) may name a directory.
-file(GLOB sources ${DIR}/*.c ${DIR}/*.h)
+file(GLOB sources ${DIR}/*.c ${DIR}/*.h ${DIR}/*/*.c ${DIR}/*/*.h)
 foreach(f ${sources})
   file(STRINGS ${f} lines REGEX "^[ \t]*#[ \t]*include[ \t]*\"[^\"]*/")
   foreach(l ${lines})

@@ -116,8 +116,8 @@ static void test_length_warning(void **state) {
     json_object_set_new(sc.params, "max_distance", json_real(values[i]));
     obs_render_ctx ctx;
     memset(&ctx, 0, sizeof ctx);
-    obs_range_check(&obs_technique_find("rt_ao")->range[OBS_BACKEND_CPU], "rt_ao", OBS_BACKEND_CPU, &sc,
-                    &ex, &ctx);
+    obs_range_check(&obs_technique_find("rt_ao")->range[OBS_BACKEND_CPU], "rt_ao", "cpu", &sc, &ex,
+                    &ctx);
     assert_int_equal(count_with(&ctx, "max_distance ="), warns[i]);
     if (warns[i])
       assert_non_null(strstr(ctx.warnings[0], values[i] < 1 ? "unoccluded" : "saturated"));
@@ -144,7 +144,7 @@ static int derived_warnings(const obs_scene *sc, double size) {
       if (!t->run[be]) continue;
       obs_render_ctx ctx;
       memset(&ctx, 0, sizeof ctx);
-      obs_range_check(&t->range[be], t->name, (obs_backend)be, &s, &ex, &ctx);
+      obs_range_check(&t->range[be], t->name, obs_backend_name((obs_backend)be), &s, &ex, &ctx);
       for (size_t k = 0; k < t->params_size; k++) {
         if (!(t->params[k].size_default > 0)) continue;
         char key[64];

@@ -11,7 +11,7 @@
 
 #include "gbuffer_cpu.h"
 #include "simd.h"
-#include "../../renderer/techniques/hbao.h"
+#include "hbao.h"
 
 
 /* A whole scene document: camera JSON, image size, objects JSON (array body), params JSON. */

@@ -10,7 +10,7 @@
 
 #include "gbuffer_cpu.h"
 #include "simd.h"
-#include "../../renderer/techniques/ssao.h"
+#include "ssao.h"
 
 
 static void load(const char *json, obs_scene *sc) { obs_test_load(json, "ssao.json", sc); }

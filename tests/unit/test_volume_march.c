@@ -1,6 +1,6 @@
-/* Marching volumes (renderer/core/volume_march.h) against analytic spheres: first-hit depth within
- * a tenth of a voxel with and without macrocell skipping, gradient normals, AO = 1 on a lone
- * convex sphere, and the occlusion of a sphere by another, 1 - cos(alpha) (r/d)^2. */
+/* Marching volumes (renderer/techniques/volume_ao/volume_march.h) against analytic spheres:
+ * first-hit depth within a tenth of a voxel with and without macrocell skipping, gradient normals,
+ * AO = 1 on a lone convex sphere, and the occlusion of a sphere by another, 1 - cos(alpha) (r/d)^2. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>

@@ -11,7 +11,7 @@
 #include "screen_rule_cases.h"
 #include "vk.h"
 
-#include "../../renderer/techniques/hbao.h"
+#include "hbao.h"
 
 /* A scene document (own buffer): camera, image size, objects (array body), backend, params. */
 static const char *scene(const char *camera, int w, int h, const char *objects, const char *backend,

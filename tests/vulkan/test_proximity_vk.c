@@ -11,7 +11,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "params.h"
 #include "proximity.h"
+#include "proximity_ao.h"
 #include "proximity_vk.h"
 #include "vktest.h"
 #include "prox_bound_cases.h"
@@ -347,12 +349,51 @@ static void test_region(void **state) {
   obs_err_free(&err);
 }
 
-/* The renderer floods on the device when Vulkan renders (the backend's hook), on the CPU
- * otherwise. */
-static void test_backend_hook(void **state) {
+/* proximity_ao's prepare hook builds its fields for the backend that runs it: flooded on the
+ * device for Vulkan, on the CPU otherwise, with the same bits, and released by its release hook. */
+static void test_prepare_hook(void **state) {
   (void)state;
-  assert_ptr_equal(obs_backend_ops_get(OBS_BACKEND_VULKAN)->prox_flood, obs_prox_flood_vulkan);
-  assert_null(obs_backend_ops_get(OBS_BACKEND_CPU)->prox_flood);
+  vktest_need_vk();
+  const obs_technique *t = obs_technique_find("proximity_ao");
+  assert_non_null(t);
+  assert_non_null(t->prepare);
+  assert_non_null(t->release);
+  obs_scene sc;
+  obs_err err = OBS_ERR_INIT;
+  vktest_check_rc(obs_scene_load_string(&sc, TWO, "two.json", NULL, NULL, 0, &err), &err);
+  void *bound = NULL;
+  vktest_check_rc(obs_params_bind_new(t, sc.params, &bound, &err), &err);
+  obs_prepared *by[2] = {NULL, NULL};
+  const obs_backend bes[2] = {OBS_BACKEND_CPU, OBS_BACKEND_VULKAN};
+  for (int i = 0; i < 2; i++) {
+    obs_render_ctx ctx;
+    memset(&ctx, 0, sizeof ctx);
+    ctx.scene = &sc;
+    ctx.params = sc.params;
+    ctx.bound = bound;
+    ctx.threads = 2;
+    ctx.built = json_array();
+    vktest_check_rc(t->prepare(&ctx, bes[i], &by[i], &err), &err);
+    assert_non_null(by[i]);
+    /* Each field is listed in what was built, and the build's stages are named. */
+    assert_int_equal(json_array_size(ctx.built), by[i]->fields.n);
+    int named = 0;
+    for (int k = 0; k < ctx.nstages; k++)
+      named += !strcmp(ctx.stage_names[k], "voxelise") || !strcmp(ctx.stage_names[k], "flood");
+    assert_int_equal(named, 2);
+    json_decref(ctx.built);
+  }
+  assert_true(by[0]->fields.n >= 2);
+  assert_int_equal(by[0]->fields.n, by[1]->fields.n);
+  for (size_t f = 0; f < by[0]->fields.n; f++) {
+    const obs_prox_field *a = &by[0]->fields.f[f], *b = &by[1]->fields.f[f];
+    assert_int_equal(a->count, b->count);
+    assert_int_equal(memcmp(a->value, b->value, a->count * sizeof(float)), 0);
+  }
+  for (int i = 0; i < 2; i++) t->release(by[i]);
+  free(bound);
+  obs_scene_free(&sc);
+  obs_err_free(&err);
 }
 
 /* Accessibility over several fields on the device: the same bound, reached (prox_bound_cases.c). */
@@ -371,7 +412,7 @@ int main(void) {
       cmocka_unit_test_teardown(test_many_fields, vktest_quiet_teardown),
       cmocka_unit_test_teardown(test_region, vktest_quiet_teardown),
       cmocka_unit_test_teardown(test_bound_several_fields, vktest_quiet_teardown),
-      cmocka_unit_test(test_backend_hook),
+      cmocka_unit_test_teardown(test_prepare_hook, vktest_quiet_teardown),
   };
   return cmocka_run_group_tests(tests, vktest_group_setup, vktest_group_teardown);
 }

@@ -9,7 +9,7 @@
 #include "vktest.h"
 #include "screen_rule_cases.h"
 #include "vk.h"
-#include "../../renderer/techniques/ssao.h"
+#include "ssao.h"
 
 /* ---- scenes ---- */
 

@@ -3,7 +3,7 @@
 // zoomable, pannable view of one image or of two (A/B toggle, or a split wipe with a draggable
 // divider), pixels nearest-neighbour when magnified.
 
-const DEPTH_PNG_FAR = 0.1; // renderer/core/render.c: the far end of depth.png's ramp
+const DEPTH_PNG_FAR = 0.1; // renderer/registry/render.c: the far end of depth.png's ramp
 const VIRIDIS = [[0.267, 0.005, 0.329], [0.128, 0.567, 0.551], [0.993, 0.906, 0.144]];
 export const ZOOM_MIN = 1 / 32, ZOOM_MAX = 128;
 
@@ -74,7 +74,7 @@ function coveredRange(src, alpha, positiveOnly) {
 
 /**
  * RGBA bytes of one output of a decoded image: `view` is one of viewsOf(output); `stops` the
- * exposure of the tone map. Mirrors renderer/core/render.c's display_image and the PNG writer:
+ * exposure of the tone map. Mirrors renderer/registry/render.c's display_image and the PNG writer:
  * tone map = linear x 2^stops, clamped, sRGB curve; grey = the value clamped, linear; normal =
  * n x 0.5 + 0.5; depth = near white to far dark over the covered range; false colour = a ramp over
  * the covered range. Pixels without geometry are black except in the tone map and grey views.

@@ -28,10 +28,6 @@ typedef int (*obs_backend_gbuffer_fn)(const struct obs_scene *scene, struct obs_
                                       int threads, double *build_ms, double *render_ms,
                                       obs_err *err);
 
-/* Floods one proximity field on the backend's device (renderer/core/proximity.h's
- * obs_prox_flood_fn, with the same bits as the CPU's flood). */
-typedef int (*obs_backend_prox_flood_fn)(void *user, struct obs_prox_field *f, int threads,
-                                         obs_err *err);
 
 typedef struct obs_backend_ops {
   obs_backend id;
@@ -55,9 +51,6 @@ typedef struct obs_backend_ops {
   /* 1 when the backend's volume marcher reads each voxel cell's side of the isovalue
    * (renderer/core/volume.h's obs_volume_sides): the renderer builds them with the volumes. */
   int volume_sides;
-  /* The flood of the proximity fields the renderer builds for techniques that need them (called
-   * with user NULL), or NULL to flood on the CPU. */
-  obs_backend_prox_flood_fn prox_flood;
 } obs_backend_ops;
 
 /* The operations of a concrete backend; NULL for OBS_BACKEND_AUTO or an out-of-range value. */

@@ -3,7 +3,7 @@
  * A patch is a triangle, numbered in the order the scene's geometry emits them: objects in scene
  * order, each object's triangles in its mesh's order (analytic spheres have no patches); a
  * technique that splits triangles into smaller patches numbers their sub-triangles
- * within each triangle (renderer/core/patch_mesh.h). The
+ * within each triangle (renderer/techniques/obscurance_map/patch_mesh.h). The
  * file "<name>.patches" is one line of JSON, padded with spaces to a multiple of 16 bytes
  * including its '\n', followed by little-endian float32 data: `count` x `components` values
  * (patch-major), then, when the header says "area": true, `count` triangle areas in scene units

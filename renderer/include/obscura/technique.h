@@ -39,13 +39,19 @@ enum {
   /* Lights with an environment map (environment "latlong", "faces" or "sky"), read by the
    * framework (ctx->environment); techniques without it refuse those and take a colour only. */
   OBS_NEED_ENV_MAP = 1 << 8,
-  /* Reads per-object proximity fields (renderer/core/proximity.h's obs_prox_fields): voxelised
-   * and flooded by the framework before the run, laid out by the technique's prox_layout hook,
-   * in ctx->proximity. */
+  /* Reads per-object proximity fields: declared for the registry and the API; the technique
+   * builds them itself through its prepare hook (proximity_ao: renderer/techniques/proximity_ao/
+   * proximity.h). */
   OBS_NEED_PROXIMITY = 1 << 9
 };
 
-struct obs_prox_layout;
+/* What one technique prepares for its own run through its prepare hook: a type each technique
+ * that has the hook defines in its folder (struct obs_prepared { ... }), opaque to the framework,
+ * which only hands it from prepare to the run (ctx->prepared) and to release. */
+typedef struct obs_prepared obs_prepared;
+struct obs_rt;
+struct obs_scene_volumes;
+struct obs_env;
 
 typedef void (*obs_progress_fn)(void *user, double fraction);
 
@@ -121,17 +127,17 @@ typedef struct obs_render_ctx {
   /* NULL, or who watches the per-pixel driver's tiles (obs_render_opts.watch). */
   const obs_tile_watch *watch;
   /* Built by the framework before the run for the technique's `needs`, owned by it: on the CPU
-   * backend, for OBS_NEED_BVH, the BVH (renderer/cpu/raytrace.h's obs_rt); else NULL. */
-  const void *rt;
-  /* For OBS_NEED_VOLUME, on every backend: the scene's volumes (renderer/core/volume_scene.h's
-   * obs_scene_volumes), read by the framework and owned by it; else NULL. */
-  const void *volumes;
-  /* For OBS_NEED_ENV_MAP: the scene's environment as a cube map (renderer/core/environment.h's
-   * obs_env), read by the framework and owned by it; NULL when the scene has none. */
-  const void *environment;
-  /* For OBS_NEED_PROXIMITY: every surface object's proximity field (renderer/core/proximity.h's
-   * obs_prox_fields), built by the framework and owned by it; else NULL. */
-  const void *proximity;
+   * backend, for OBS_NEED_BVH, the BVH (renderer/cpu/raytrace.h); else NULL. */
+  const struct obs_rt *rt;
+  /* For OBS_NEED_VOLUME, on every backend: the scene's volumes (renderer/core/volume_scene.h),
+   * read by the framework and owned by it; else NULL. */
+  const struct obs_scene_volumes *volumes;
+  /* For OBS_NEED_ENV_MAP: the scene's environment as a cube map (renderer/core/environment.h),
+   * read by the framework and owned by it; NULL when the scene has none. */
+  const struct obs_env *environment;
+  /* What the technique's own prepare hook built for this run (its own type), owned by the
+   * framework until its release hook; NULL without the hook. */
+  const obs_prepared *prepared;
   /* Filled by the framework and the drivers (see obs_timings): */
   double build_ms;             /* what the framework builds for `needs` */
   double render_ms;            /* the technique's pixels or passes */
@@ -364,7 +370,7 @@ typedef enum {
   OBS_OUTPUT_RGB,        /* linear radiance per pixel: channels "<name>.R", ".G", ".B" */
   OBS_OUTPUT_DEPTH,      /* linear view depth per pixel: channel "<name>.Z" */
   /* One value per patch of the scene (a triangle, numbered in the order geometry.c emits them,
-   * or a sub-triangle of one: renderer/core/patch_mesh.h),
+   * or a sub-triangle of one: renderer/techniques/obscurance_map/patch_mesh.h),
    * stored in "<name>.patches" (obscura/patches.h) and rendered per pixel into channel "<name>"
    * by casting a primary ray per pixel. */
   OBS_OUTPUT_PATCH,
@@ -440,8 +446,14 @@ typedef struct obs_technique {
   /* With OBS_NEED_MOTION: the backends (bit 1 << obs_backend) whose runs render moving scenes;
    * a moving scene on another is refused, and backend auto picks among these. */
   unsigned motion_backends;
-  /* With OBS_NEED_PROXIMITY: the layout of the fields the bound params ask for. */
-  void (*prox_layout)(const void *bound, struct obs_prox_layout *out);
+  /* Data only this technique needs (proximity_ao: its proximity fields), built before the run
+   * for `backend` into *out with ctx->bound, ctx->scene and ctx->threads, timed in build (it may
+   * add stages and entries of ctx->built), and handed to the run as ctx->prepared; release
+   * frees it after the run whatever the run returned. What several techniques share (the BVH,
+   * volumes, environment maps, the G-buffer) the framework builds for `needs` instead. NULL:
+   * nothing to prepare. */
+  int (*prepare)(obs_render_ctx *ctx, obs_backend backend, obs_prepared **out, obs_err *err);
+  void (*release)(obs_prepared *prepared);
   const char *cost_rule;        /* the cost hook in words ("samples"), for the API and docs */
   /* Milliseconds per unit of work (width x height x spp x cost) on the reference machine of
    * docs/server.md, rounded up: the server's render-time estimate before it has stored runs of

@@ -11,6 +11,7 @@
 #include "layout.h"
 #include "obscura/error.h"
 #include "obscura/scene.h"
+#include "obscura/technique.h"
 
 typedef struct obs_vk obs_vk;
 typedef struct obs_vk_gbuffer obs_vk_gbuffer;
@@ -83,5 +84,9 @@ extern const char *const obs_ss_radiosity_extra_names[OBS_SRAD_EXTRA];
  * ao 1 and zero radiance. `res` is the blurred result (or raw without blur). */
 void obs_ss_radiosity_export(const obs_gbuffer *g, const float *direct, const float *raw,
                              const float *res, float *ao, float *ao_raw, float *extra);
+
+/* The run functions the descriptor names (obs_technique_run_fn). */
+int obs_ss_radiosity_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
+int obs_ss_radiosity_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 
 #endif
