@@ -322,6 +322,33 @@ static void load_light(obs_jpath *p, const json_t *l, obs_light *out) {
   }
 }
 
+static void load_probes(obs_jpath *p, const json_t *doc, obs_scene *sc) {
+  int absent = 0;
+  json_t *arr = obs_json_get_array(p, doc, "probes", 0, &absent);
+  if (!arr) return;
+  size_t m = obs_jpath_push_key(p, "probes");
+  size_t n = json_array_size(arr);
+  sc->probes = calloc(n ? n : 1, sizeof *sc->probes);
+  sc->nprobes = sc->probes ? n : 0;
+  for (size_t i = 0; i < sc->nprobes; i++) {
+    json_t *o = json_array_get(arr, i);
+    size_t mi = obs_jpath_push_index(p, i);
+    if (!json_is_object(o)) {
+      obs_jpath_fail(p, "must be an object (got %s)", obs_json_brief(o));
+    } else {
+      static const char *const keys[] = {"position", "radius", NULL};
+      obs_json_check_keys(p, o, keys);
+      double x[3] = {0, 0, 0}, r = 1;
+      obs_json_get_vec3(p, o, "position", 1, -COORD_MAX, COORD_MAX, x);
+      obs_json_get_number(p, o, "radius", 1, 0, COORD_MAX, 1, 0, &r);
+      set_vec(&sc->probes[i].position, x);
+      sc->probes[i].radius = r;
+    }
+    obs_jpath_pop(p, mi);
+  }
+  obs_jpath_pop(p, m);
+}
+
 static void load_lights(obs_jpath *p, const json_t *doc, obs_scene *sc) {
   int absent = 0;
   json_t *arr = obs_json_get_array(p, doc, "lights", 0, &absent);
@@ -453,7 +480,7 @@ static int validate_doc(obs_scene *sc, const json_t *doc, const char *name,
     return OBS_EINVAL;
   }
   static const char *const k[] = {"camera",      "image",     "objects", "lights",
-                                  "environment", "technique", NULL};
+                                  "probes",      "environment", "technique", NULL};
   obs_json_check_keys(&p, doc, k);
   int camera_before = err ? err->count : 0;
   load_camera(&p, doc, &sc->camera);
@@ -476,6 +503,7 @@ static int validate_doc(obs_scene *sc, const json_t *doc, const char *name,
   load_objects(&p, doc, base_dir, sc, camera_ok);
   check_frames(&p, sc);
   load_lights(&p, doc, sc);
+  load_probes(&p, doc, sc);
   load_environment(&p, doc, base_dir, sc);
   /* The technique block last: its rules run even after other problems so the list is complete;
    * they only read what loaded (objects/lights arrays may be partial). */
@@ -503,6 +531,7 @@ void obs_scene_free(obs_scene *sc) {
   }
   free(sc->objects);
   free(sc->lights);
+  free(sc->probes);
   for (int i = 0; i < 6; i++) free(sc->env.files[i]);
   free(sc->name);
   free(sc->base_dir);

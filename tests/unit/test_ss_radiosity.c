@@ -26,12 +26,13 @@ static void test_params(void **state) {
   assert_true(p.directivity == 0.5f && p.attenuation == 0.0f && p.strength == 1.0f);
   assert_int_equal(p.blur, 1);
   assert_int_equal(p.exclude_self, 0);
-  const char *bad[] = {"{\"samples\":0}",      "{\"samples\":33}",     "{\"kernel_size\":0}",
+  const char *bad[] = {"{\"samples\":0}",       "{\"samples\":33}",     "{\"kernel_size\":0}",
                        "{\"directivity\":1.5}", "{\"attenuation\":-1}", "{\"bias\":0}",
                        "{\"light_samples\":0}", "{\"strength\":-1}"};
   for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
     const char *doc = obs_test_fmt(
-        "{\"camera\":{\"type\":\"perspective\",\"position\":[0,0,0],\"look_at\":[0,0,1],\"fov_y\":40},"
+        "{\"camera\":{\"type\":\"perspective\",\"position\":[0,0,0],\"look_at\":[0,0,1],\"fov_y\":"
+        "40},"
         "\"image\":{\"width\":4,\"height\":4},\"objects\":[{\"shape\":{\"type\":\"sphere\","
         "\"center\":[0,0,5],\"radius\":1},\"material\":{\"reflectivity\":[0.5,0.5,0.5]}}],"
         "\"technique\":{\"name\":\"ss_radiosity\",\"params\":%s}}",
@@ -39,8 +40,10 @@ static void test_params(void **state) {
     obs_scene sc;
     obs_err err = OBS_ERR_INIT;
     int rc = obs_scene_load_string(&sc, doc, "srad.json", NULL, NULL, 0, &err);
-    if (!rc) obs_scene_free(&sc);
-    else printf("refused as expected: %s\n", obs_err_message(&err));
+    if (!rc)
+      obs_scene_free(&sc);
+    else
+      printf("refused as expected: %s\n", obs_err_message(&err));
     obs_err_free(&err);
     assert_true(rc != 0);
   }
@@ -48,11 +51,11 @@ static void test_params(void **state) {
 
 /* ---- the closed form on a hand-made G-buffer ----
  * Orthographic, 32 x 32 pixels over [-1, 1]^2, every pixel at depth 10 with the unit normal
- * n = (0.6, 0, -0.8), except texel Q = (20, 16) at depth zq with normal nq. With directivity 1 every
- * sample of pixel P = (16, 16) is P + r n: x moves by 0.6 r = 0.25, exactly 4 pixels, to the centre
- * of Q; z by -0.8 r. So the gather at P is one term: ao = 1 - w G, bounce = albedo strength w G D_Q,
- * w = 1 - (10 - zq) / bias and G = (1 - n . nq) / 2, while every other pixel sees only coplanar
- * samples (G = 0): ao 1, bounce 0. */
+ * n = (0.6, 0, -0.8), except texel Q = (20, 16) at depth zq with normal nq. With directivity 1
+ * every sample of pixel P = (16, 16) is P + r n: x moves by 0.6 r = 0.25, exactly 4 pixels, to the
+ * centre of Q; z by -0.8 r. So the gather at P is one term: ao = 1 - w G, bounce = albedo strength
+ * w G D_Q, w = 1 - (10 - zq) / bias and G = (1 - n . nq) / 2, while every other pixel sees only
+ * coplanar samples (G = 0): ao 1, bounce 0. */
 enum { CW = 32, CH = 32, PX = 16, PY = 16, QX = 20, QY = 16 };
 
 typedef struct closed_case {
@@ -105,7 +108,7 @@ static obs_ss_radiosity_params closed_params(void) {
 static float *closed_run(closed_case *c, const obs_ss_radiosity_params *p) {
   float *raw = malloc(4 * CW * CH * sizeof *raw), *out = malloc(4 * CW * CH * sizeof *out);
   obs_err err = OBS_ERR_INIT;
-  int rc = obs_ss_radiosity_cpu_apply(&c->g, c->direct, p, 2, raw, out, NULL, &err);
+  int rc = obs_ss_radiosity_cpu_apply(&c->g, c->direct, NULL, 0, p, 2, raw, out, NULL, &err);
   if (rc) printf("%s\n", obs_err_message(&err));
   obs_err_free(&err);
   assert_int_equal(rc, 0);
@@ -199,6 +202,104 @@ static void test_closed_form(void **state) {
   obs_gbuffer_free(&c.g);
 }
 
+/* AO probes at P: one at height h along n, area A: ao = 1 - A / h^2; two (a, b) multiplied:
+ * (1 - a)(1 - b), added: 1 - a - b; a probe behind the surface (inside the mesh): exactly 1. */
+static float *probe_run(closed_case *c, const float *probes, int np, int add) {
+  float *raw = malloc(4 * CW * CH * sizeof *raw);
+  obs_ss_radiosity_params p = closed_params();
+  p.probe_add = add;
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(
+      obs_ss_radiosity_cpu_apply(&c->g, c->direct, probes, np, &p, 1, raw, NULL, NULL, &err), 0);
+  obs_err_free(&err);
+  return raw;
+}
+
+static void test_probes_closed_form(void **state) {
+  (void)state;
+  static closed_case c;
+  const float nq[3] = {-0.6f, 0.0f, -0.8f};
+  closed_make(&c, 11.0f, nq); /* Q behind P: P's gather reads nothing */
+  const float px = 2.0f * 16.5f / 32.0f - 1.0f, py = 1.0f - 2.0f * 16.5f / 32.0f;
+  const float n[3] = {0.6f, 0.0f, -0.8f};
+  const double h1 = 2.0, h2 = 3.0, a1 = 0.5, a2 = 1.5;
+  float probes[8];
+  for (int k = 0; k < 3; k++) {
+    const float pk = k == 0 ? px : k == 1 ? py : 10.0f;
+    probes[k] = pk + (float)h1 * n[k];
+    probes[4 + k] = pk + (float)h2 * n[k];
+  }
+  probes[3] = (float)a1;
+  probes[7] = (float)a2;
+  const int at = 4 * (PY * CW + PX) + 3;
+  const double o1 = a1 / (h1 * h1), o2 = a2 / (h2 * h2);
+  float *raw = probe_run(&c, probes, 1, 0);
+  printf("one probe: %.7f (expected %.7f)\n", raw[at], 1.0 - o1);
+  assert_true(fabs(raw[at] - (1.0 - o1)) < 1e-5);
+  free(raw);
+  raw = probe_run(&c, probes, 2, 0);
+  assert_true(fabs(raw[at] - (1.0 - o1) * (1.0 - o2)) < 1e-5);
+  for (int i = 0; i < CW * CH; i++) assert_true(raw[4 * i + 3] >= 0.0f && raw[4 * i + 3] <= 1.0f);
+  free(raw);
+  raw = probe_run(&c, probes, 2, 1);
+  assert_true(fabs(raw[at] - (1.0 - o1 - o2)) < 1e-5);
+  free(raw);
+  /* Behind the surface: the Lambertian term is negative, nothing darkens. */
+  for (int k = 0; k < 3; k++) probes[k] -= 2.0f * (float)h1 * n[k];
+  raw = probe_run(&c, probes, 1, 0);
+  assert_true(raw[at] == 1.0f);
+  free(raw);
+  /* A huge probe saturates to 0, never below, never NaN. */
+  for (int k = 0; k < 3; k++) probes[k] += 2.0f * (float)h1 * n[k];
+  probes[3] = 1e30f;
+  raw = probe_run(&c, probes, 1, 1);
+  assert_true(raw[at] == 0.0f);
+  free(raw);
+  obs_gbuffer_free(&c.g);
+}
+
+/* The loader: probes are points with a positive radius; more than the gather reads are refused. */
+static void test_probes_loader(void **state) {
+  (void)state;
+  const char *fmt =
+      "{\"camera\":{\"type\":\"perspective\",\"position\":[0,0,0],\"look_at\":[0,0,1],"
+      "\"fov_y\":40},\"image\":{\"width\":4,\"height\":4},\"objects\":[],\"probes\":%s,"
+      "\"technique\":{\"name\":\"ss_radiosity\"}}";
+  obs_scene sc;
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(obs_scene_load_string(&sc,
+                                         obs_test_fmt(fmt,
+                                                      "[{\"position\":[1,2,3],"
+                                                      "\"radius\":0.5}]"),
+                                         "p.json", NULL, NULL, 0, &err),
+                   0);
+  assert_int_equal(sc.nprobes, 1);
+  assert_true(sc.probes[0].position.z == 3.0 && sc.probes[0].radius == 0.5);
+  obs_scene_free(&sc);
+  const char *bad[] = {"[{\"position\":[1,2,3],\"radius\":0}]", "[{\"position\":[1,2]}]",
+                       "[{\"position\":[1,2,3],\"radius\":1,\"area\":2}]", "[3]"};
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+    int rc = obs_scene_load_string(&sc, obs_test_fmt(fmt, bad[i]), "p.json", NULL, NULL, 0, &err);
+    printf("refused: %s\n", obs_err_message(&err));
+    assert_true(rc != 0);
+    assert_non_null(strstr(obs_err_message(&err), "/probes/0"));
+    obs_err_clear(&err);
+  }
+  char *many = malloc(64 * (OBS_SRAD_MAX_PROBES + 2));
+  size_t m = (size_t)sprintf(many, "[");
+  for (int i = 0; i <= OBS_SRAD_MAX_PROBES; i++)
+    m += (size_t)sprintf(many + m, "%s{\"position\":[0,0,%d],\"radius\":1}", i ? "," : "", i);
+  sprintf(many + m, "]");
+  char *doc = malloc(strlen(many) + 512);
+  sprintf(doc, fmt, many);
+  assert_true(obs_scene_load_string(&sc, doc, "p.json", NULL, NULL, 0, &err) != 0);
+  assert_non_null(
+      strstr(obs_err_message(&err), "/probes: technique \"ss_radiosity\" reads at most"));
+  free(doc);
+  free(many);
+  obs_err_free(&err);
+}
+
 /* ---- renders ---- */
 
 static void render_doc(const char *doc, obs_result *r) {
@@ -211,14 +312,15 @@ static void render_doc(const char *doc, obs_result *r) {
 static void test_open_plane(void **state) {
   (void)state;
   obs_result r;
-  render_doc("{\"camera\":{\"type\":\"perspective\",\"position\":[0,2,-4],\"look_at\":[0,0,0],"
-             "\"fov_y\":50},\"image\":{\"width\":48,\"height\":32},\"objects\":[{\"shape\":{"
-             "\"type\":\"quad\",\"vertices\":[[-50,0,-50],[-50,0,50],[50,0,50],[50,0,-50]]},"
-             "\"material\":{\"reflectivity\":[0.8,0.5,0.2]}}],\"lights\":[{\"type\":\"quad\","
-             "\"vertices\":[[-1,3,-1],[1,3,-1],[1,3,1],[-1,3,1]],\"emission\":[5,5,5]}],"
-             "\"technique\":{\"name\":\"ss_radiosity\",\"params\":{\"kernel_size\":2,"
-             "\"bias\":2,\"directivity\":0.2}}}",
-             &r);
+  render_doc(
+      "{\"camera\":{\"type\":\"perspective\",\"position\":[0,2,-4],\"look_at\":[0,0,0],"
+      "\"fov_y\":50},\"image\":{\"width\":48,\"height\":32},\"objects\":[{\"shape\":{"
+      "\"type\":\"quad\",\"vertices\":[[-50,0,-50],[-50,0,50],[50,0,50],[50,0,-50]]},"
+      "\"material\":{\"reflectivity\":[0.8,0.5,0.2]}}],\"lights\":[{\"type\":\"quad\","
+      "\"vertices\":[[-1,3,-1],[1,3,-1],[1,3,1],[-1,3,1]],\"emission\":[5,5,5]}],"
+      "\"technique\":{\"name\":\"ss_radiosity\",\"backend\":\"cpu\",\"params\":{\"kernel_size\":2,"
+      "\"bias\":2,\"directivity\":0.2}}}",
+      &r);
   size_t n = (size_t)r.image.width * (size_t)r.image.height, covered = 0;
   const float *ao = obs_image_channel(&r.image, "ao"), *al = obs_image_channel(&r.image, "alpha");
   static const char *const ch[3] = {"R", "G", "B"};
@@ -243,13 +345,15 @@ static void test_open_plane(void **state) {
 static void test_empty_frame(void **state) {
   (void)state;
   obs_result r;
-  render_doc("{\"camera\":{\"type\":\"perspective\",\"position\":[0,0,0],\"look_at\":[0,0,1],\"fov_y\":40},"
-             "\"image\":{\"width\":16,\"height\":12},\"objects\":[{\"shape\":{\"type\":"
-             "\"sphere\",\"center\":[0,0,-5],\"radius\":1},\"material\":{\"reflectivity\":"
-             "[0.5,0.5,0.5]}}],\"lights\":[{\"type\":\"quad\",\"vertices\":[[-1,3,-6],[1,3,-6],"
-             "[1,3,-4],[-1,3,-4]],\"emission\":[5,5,5]}],\"technique\":{\"name\":"
-             "\"ss_radiosity\"}}",
-             &r);
+  render_doc(
+      "{\"camera\":{\"type\":\"perspective\",\"position\":[0,0,0],\"look_at\":[0,0,1],\"fov_y\":40}"
+      ","
+      "\"image\":{\"width\":16,\"height\":12},\"objects\":[{\"shape\":{\"type\":"
+      "\"sphere\",\"center\":[0,0,-5],\"radius\":1},\"material\":{\"reflectivity\":"
+      "[0.5,0.5,0.5]}}],\"lights\":[{\"type\":\"quad\",\"vertices\":[[-1,3,-6],[1,3,-6],"
+      "[1,3,-4],[-1,3,-4]],\"emission\":[5,5,5]}],\"technique\":{\"name\":"
+      "\"ss_radiosity\",\"backend\":\"cpu\"}}",
+      &r);
   size_t n = (size_t)r.image.width * (size_t)r.image.height;
   for (size_t i = 0; i < n; i++) {
     assert_true(obs_image_channel(&r.image, "ao")[i] == 1.0f);
@@ -310,12 +414,14 @@ static void test_direct_matches_path_trace(void **state) {
   obs_result a, b, pt;
   cornell("{\"name\":\"ss_radiosity\",\"backend\":\"cpu\",\"params\":{\"light_samples\":64}}", 32,
           32, &a);
-  cornell("{\"name\":\"ss_radiosity\",\"backend\":\"cpu\",\"params\":{\"light_samples\":64,"
-          "\"seed\":7}}",
-          32, 32, &b);
-  cornell("{\"name\":\"path_trace\",\"backend\":\"cpu\",\"params\":{\"samples\":256,"
-          "\"max_bounces\":1}}",
-          32, 32, &pt);
+  cornell(
+      "{\"name\":\"ss_radiosity\",\"backend\":\"cpu\",\"params\":{\"light_samples\":64,"
+      "\"seed\":7}}",
+      32, 32, &b);
+  cornell(
+      "{\"name\":\"path_trace\",\"backend\":\"cpu\",\"params\":{\"samples\":256,"
+      "\"max_bounces\":1}}",
+      32, 32, &pt);
   double se_pt, ma = luminance_mean(&a, "direct", NULL), mb = luminance_mean(&b, "direct", NULL);
   double mp = luminance_mean(&pt, "radiance", &se_pt);
   double se_d = fabs(ma - mb) / sqrt(2.0);
@@ -353,12 +459,14 @@ static double ao_gap(const obs_result *s, const obs_result *rt) {
 static void test_ao_against_rt_ao(void **state) {
   (void)state;
   obs_result s, rt;
-  cornell("{\"name\":\"ss_radiosity\",\"backend\":\"cpu\",\"params\":{\"kernel_size\":100,"
-          "\"bias\":100,\"light_samples\":1}}",
-          48, 48, &s);
-  cornell("{\"name\":\"rt_ao\",\"backend\":\"cpu\",\"params\":{\"samples\":64,"
-          "\"max_distance\":100,\"falloff\":\"binary\"}}",
-          48, 48, &rt);
+  cornell(
+      "{\"name\":\"ss_radiosity\",\"backend\":\"cpu\",\"params\":{\"kernel_size\":100,"
+      "\"bias\":100,\"light_samples\":1}}",
+      48, 48, &s);
+  cornell(
+      "{\"name\":\"rt_ao\",\"backend\":\"cpu\",\"params\":{\"samples\":64,"
+      "\"max_distance\":100,\"falloff\":\"binary\"}}",
+      48, 48, &rt);
   double gap = ao_gap(&s, &rt);
   printf("Cornell box: mean |ao - rt_ao| %.4f (bound %g)\n", gap, SRAD_AO_BOUND);
   assert_true(gap < SRAD_AO_BOUND);
@@ -372,11 +480,14 @@ static void test_ao_against_rt_ao(void **state) {
       "[3,-1.2,-3]]},\"material\":{\"reflectivity\":[0.7,0.7,0.7]}}],\"lights\":[{\"type\":"
       "\"quad\",\"vertices\":[[-1,3,-1],[1,3,-1],[1,3,1],[-1,3,1]],\"emission\":[5,5,5]}],"
       "\"technique\":%s}";
-  render_doc(obs_test_fmt(sphere, "{\"name\":\"ss_radiosity\",\"params\":{\"kernel_size\":0.3,"
-                                  "\"bias\":0.3,\"light_samples\":1}}"),
-             &s);
-  render_doc(obs_test_fmt(sphere, "{\"name\":\"rt_ao\",\"params\":{\"samples\":64,"
-                                  "\"max_distance\":0.3,\"falloff\":\"binary\"}}"),
+  render_doc(
+      obs_test_fmt(sphere,
+                   "{\"name\":\"ss_radiosity\",\"backend\":\"cpu\",\"params\":{\"kernel_size\":0.3,"
+                   "\"bias\":0.3,\"light_samples\":1}}"),
+      &s);
+  render_doc(obs_test_fmt(sphere,
+                          "{\"name\":\"rt_ao\",\"params\":{\"samples\":64,"
+                          "\"max_distance\":0.3,\"falloff\":\"binary\"}}"),
              &rt);
   gap = ao_gap(&s, &rt);
   printf("displaced sphere: mean |ao - rt_ao| %.4f (bound %g)\n", gap, SRAD_AO_BOUND);
@@ -389,6 +500,8 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_params),
       cmocka_unit_test(test_closed_form),
+      cmocka_unit_test(test_probes_closed_form),
+      cmocka_unit_test(test_probes_loader),
       cmocka_unit_test(test_open_plane),
       cmocka_unit_test(test_empty_frame),
       cmocka_unit_test(test_direct_matches_path_trace),

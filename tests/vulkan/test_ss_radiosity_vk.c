@@ -12,17 +12,29 @@
 #include "../../renderer/techniques/ss_radiosity/ss_radiosity.h"
 
 /* The Cornell box (w x h) with ss_radiosity's `params` on `backend`. */
-static void cornell_load(int w, int h, const char *backend, const char *params, obs_scene *sc) {
+/* `probes`: the scene's probes member (JSON), or NULL for none. */
+static void cornell_load_probes(int w, int h, const char *backend, const char *params,
+                                const char *probes, obs_scene *sc) {
   char tech[512], size[64];
   snprintf(tech, sizeof tech, "{\"name\":\"ss_radiosity\",\"backend\":\"%s\",\"params\":%s}",
            backend, params);
   snprintf(size, sizeof size, "{\"width\":%d,\"height\":%d,\"spp\":1}", w, h);
-  const obs_override ov[] = {{"/technique", tech}, {"/image", size}};
+  const obs_override ov[] = {{"/technique", tech}, {"/image", size}, {"/probes", probes}};
   obs_err err = OBS_ERR_INIT;
-  vktest_check_rc(obs_scene_load_file(sc, obs_test_src("scenes/cornell_box.json"), ov, 2, &err),
-                  &err);
+  vktest_check_rc(
+      obs_scene_load_file(sc, obs_test_src("scenes/cornell_box.json"), ov, probes ? 3 : 2, &err),
+      &err);
   obs_err_free(&err);
 }
+
+static void cornell_load(int w, int h, const char *backend, const char *params, obs_scene *sc) {
+  cornell_load_probes(w, h, backend, params, NULL, sc);
+}
+
+/* Probes inside the two blocks and one in the room's air (which darkens what faces it). */
+static const char *const PROBES =
+    "[{\"position\":[185,80,170],\"radius\":60},{\"position\":[370,150,350],\"radius\":70},"
+    "{\"position\":[300,400,250],\"radius\":40}]";
 
 /* The Cornell box seen from above by an orthographic camera, so both projections are checked. */
 static const char *const ORTHO_CAMERA =
@@ -78,22 +90,31 @@ static void cross_backend(int ortho, const char *label) {
     const obs_technique *t = obs_technique_find("ss_radiosity");
     obs_ss_radiosity_params p;
     obs_scene ps;
-    cornell_load(w, h, "cpu", param_sets[k], &ps);
+    /* The last two sets with the probes, multiplied and added. */
+    int with_probes = k + 2 >= sizeof param_sets / sizeof param_sets[0];
+    char params[256];
+    snprintf(params, sizeof params, "%.*s%s}", (int)strlen(param_sets[k]) - 1, param_sets[k],
+             k + 1 == sizeof param_sets / sizeof param_sets[0] ? ",\"probe_combine\":\"add\"" : "");
+    cornell_load_probes(w, h, "cpu", params, with_probes ? PROBES : NULL, &ps);
     assert_int_equal(obs_params_bind(t, ps.params, &p, NULL), 0);
-    obs_scene_free(&ps);
     vktest_check_rc(obs_ss_radiosity_direct(&sc, &p, 2, NULL, direct, NULL, &err), &err);
     memset(co, 0, 4 * n * sizeof(float));
     memset(vo, 0, 4 * n * sizeof(float));
-    vktest_check_rc(obs_ss_radiosity_cpu_apply(&g, direct, &p, 2, cr, co, NULL, &err), &err);
-    vktest_check_rc(obs_ss_radiosity_vk_apply(vk, &dev, &g, direct, &p, vr, vo, NULL, &err),
+    float probes[4 * OBS_SRAD_MAX_PROBES];
+    int np = obs_ss_radiosity_probes_make(&ps, probes);
+    vktest_check_rc(obs_ss_radiosity_cpu_apply(&g, direct, probes, np, &p, 2, cr, co, NULL, &err),
                     &err);
+    vktest_check_rc(
+        obs_ss_radiosity_vk_apply(vk, &dev, &g, direct, probes, np, &p, vr, vo, NULL, &err), &err);
     double rr, ro;
     size_t sr = exact_count(cr, vr, 4 * n, &rr), so = exact_count(co, vo, 4 * n, &ro);
+    obs_scene_free(&ps);
     size_t gathered = 0;
     for (size_t i = 0; i < n; i++) gathered += cr[4 * i + 3] < 1.0f;
-    printf("%-10s %-78s raw %zu/%zu exact (rmse %.2g), blurred %zu/%zu exact (rmse %.2g), "
-           "%zu pixels gathered\n",
-           label, param_sets[k], sr, 4 * n, rr, so, 4 * n, ro, gathered);
+    printf(
+        "%-10s %-78s raw %zu/%zu exact (rmse %.2g), blurred %zu/%zu exact (rmse %.2g), "
+        "%zu pixels gathered\n",
+        label, params, sr, 4 * n, rr, so, 4 * n, ro, gathered);
     /* The same float operations in the same order on the same inputs: the same bits. */
     assert_int_equal(sr, 4 * n);
     assert_int_equal(so, 4 * n);
@@ -121,7 +142,8 @@ static void test_cross_cornell_ortho(void **state) {
 }
 
 /* Full renders on both backends: the same direct pass, G-buffers that differ only on silhouettes
- * (rasterised vs CPU), so final agrees within a small RMSE and each output is finite and in range. */
+ * (rasterised vs CPU), so final agrees within a small RMSE and each output is finite and in range.
+ */
 static void test_pipeline(void **state) {
   (void)state;
   vktest_need_vk();
@@ -141,7 +163,8 @@ static void test_pipeline(void **state) {
   double ss = 0, sb = 0;
   for (int k = 0; k < 3; k++) {
     static const char *const f[3] = {"final.R", "final.G", "final.B"};
-    const float *a = obs_image_channel(&r[0].image, f[k]), *v = obs_image_channel(&r[1].image, f[k]);
+    const float *a = obs_image_channel(&r[0].image, f[k]),
+                *v = obs_image_channel(&r[1].image, f[k]);
     for (size_t i = 0; i < n; i++) ss += ((double)a[i] - v[i]) * ((double)a[i] - v[i]);
   }
   const float *ba = obs_image_channel(&r[0].image, "bounce.R");

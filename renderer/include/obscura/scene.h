@@ -103,6 +103,14 @@ typedef struct obs_object {
  * shading techniques light with (OBS_NEED_PUNCTUAL_LIGHTS). */
 typedef enum { OBS_LIGHT_QUAD, OBS_LIGHT_POINT, OBS_LIGHT_DIRECTIONAL } obs_light_type;
 
+/* An ambient-occlusion probe (ShaderX7 6.4): a disc-like occluder facing every receiver, centred
+ * at `position`, of visible area pi radius^2; placed inside a mesh so that the mesh's own faces,
+ * which see it behind them, are not darkened. */
+typedef struct obs_probe {
+  obs_vec3 position;
+  double radius;
+} obs_probe;
+
 typedef struct obs_light {
   obs_light_type type;
   obs_vec3 v[4];      /* quad: its vertices */
@@ -139,6 +147,8 @@ typedef struct obs_scene {
   size_t nobjects;
   obs_light *lights;
   size_t nlights;
+  obs_probe *probes; /* techniques that read no probes ignore them */
+  size_t nprobes;
   int frames;           /* 1, or 1 + the nmotion every moving object shares */
   int has_environment;
   obs_vec3 environment; /* the constant colour (env.kind OBS_ENV_COLOR) */

@@ -16,6 +16,7 @@
 typedef struct srad_job {
   const obs_gbuffer *g;
   const float *direct;
+  const float *probes; /* pc.nprobes of them: view-space centre, area */
   const obs_ss_radiosity_tables *t;
   obs_srad_gather_push pc;
   float threshold;
@@ -30,6 +31,35 @@ OBS_HOT_INLINE int texel(float v, int n) {
   if (!(f >= 0.0f)) f = 0.0f;
   if (f > (float)(n - 1)) f = (float)(n - 1);
   return (int)f;
+}
+
+/* The AO probes at view-space point (px, py, pz) of normal n: Occ = A saturate(n . v^) / (v . v)
+ * per probe, v from the point to the probe's centre, combined as the article's listing
+ * (AO *= saturate(1 - Occ)) or additively (saturate(1 - sum Occ)). */
+OBS_HOT_INLINE float probe_ao(const srad_job *j, float px, float py, float pz, const float *n) {
+  const obs_srad_gather_push *pc = &j->pc;
+  float prod = 1.0f, sum = 0.0f;
+  for (int i = 0; i < pc->nprobes; i++) {
+    const float *c = j->probes + 4 * i;
+    float vx = c[0] - px, vy = c[1] - py, vz = c[2] - pz;
+    float nv = n[0] * vx + n[1] * vy + n[2] * vz;
+    if (!(nv > 0.0f)) continue;
+    float vv = vx * vx + vy * vy + vz * vz;
+    float cs = nv / sqrtf(vv);
+    cs = cs > 1.0f ? 1.0f : cs;
+    float occ = c[3] * cs / vv;
+    if (pc->flags & OBS_SRAD_PROBES_ADD) {
+      sum += occ;
+    } else {
+      float f = 1.0f - occ;
+      prod *= f < 0.0f ? 0.0f : f;
+    }
+  }
+  if (pc->flags & OBS_SRAD_PROBES_ADD) {
+    float f = 1.0f - sum;
+    return f < 0.0f ? 0.0f : f;
+  }
+  return prod;
 }
 
 OBS_HOT_INLINE void gather_pixel(const srad_job *j, int x, int y, float *res) {
@@ -100,7 +130,8 @@ OBS_HOT_INLINE void gather_pixel(const srad_job *j, int x, int y, float *res) {
   res[1] = bg * pc->scale * a[1];
   res[2] = bb * pc->scale * a[2];
   float ao = 1.0f - occ * pc->inv_samples;
-  res[3] = ao < 0.0f ? 0.0f : ao > 1.0f ? 1.0f : ao;
+  ao = ao < 0.0f ? 0.0f : ao > 1.0f ? 1.0f : ao;
+  res[3] = pc->nprobes ? ao * probe_ao(j, px, py, zp, n) : ao;
 }
 
 OBS_HOT_INLINE void blur_pixel(const srad_job *j, int x, int y, float *res) {
@@ -155,20 +186,29 @@ OBS_HOT_INLINE int blur_tile_body(void *user, int thread, int x0, int y0, int x1
 OBS_TILE_KERNELS(blur_tile)
 
 static int srad_passes(obs_screen_cpu *r, const obs_gbuffer *g, const float *direct,
-                       const obs_ss_radiosity_params *p, float *raw, float *out,
-                       double *stage_ms, obs_err *err) {
+                       const float *probes, int nprobes, const obs_ss_radiosity_params *p,
+                       float *raw, float *out, double *stage_ms, obs_err *err) {
   if (stage_ms)
     for (int k = 0; k < OBS_SRAD_CPU_STAGES; k++) stage_ms[k] = 0.0;
   if (!g || !direct || !p || !raw || (p->blur && !out) || g->width < 1 || g->height < 1)
     return obs_err_set(err, OBS_EINVAL, "ss_radiosity: missing G-buffer, parameters or output");
+  if (nprobes < 0 || nprobes > OBS_SRAD_MAX_PROBES || (nprobes && !probes))
+    return obs_err_set(err, OBS_EINVAL, "ss_radiosity: %d probes (at most %d)", nprobes,
+                       OBS_SRAD_MAX_PROBES);
   if (p->samples < 1 || p->samples > OBS_SRAD_MAX_SAMPLES)
     return obs_err_set(err, OBS_EINVAL, "ss_radiosity: samples must be 1..%d (got %d)",
                        OBS_SRAD_MAX_SAMPLES, p->samples);
   obs_ss_radiosity_tables t;
   obs_ss_radiosity_tables_make(p, &t);
-  srad_job j = {.g = g, .direct = direct, .t = &t, .threshold = p->blur_depth_threshold,
-                .raw = raw, .out = raw};
+  srad_job j = {.g = g,
+                .direct = direct,
+                .probes = probes,
+                .t = &t,
+                .threshold = p->blur_depth_threshold,
+                .raw = raw,
+                .out = raw};
   obs_ss_radiosity_push_make(p, g->width, g->height, g->ortho, g->half_w, g->half_h, &j.pc);
+  j.pc.nprobes = nprobes;
   r->passes = p->blur ? 2 : 1;
   const int isa = obs_simd_isa();
   double t0 = obs_now_ms();
@@ -186,11 +226,11 @@ static int srad_passes(obs_screen_cpu *r, const obs_gbuffer *g, const float *dir
   return rc;
 }
 
-int obs_ss_radiosity_cpu_apply(const obs_gbuffer *g, const float *direct,
-                               const obs_ss_radiosity_params *p, int threads, float *raw,
-                               float *out, double *stage_ms, obs_err *err) {
+int obs_ss_radiosity_cpu_apply(const obs_gbuffer *g, const float *direct, const float *probes,
+                               int nprobes, const obs_ss_radiosity_params *p, int threads,
+                               float *raw, float *out, double *stage_ms, obs_err *err) {
   obs_screen_cpu r = {.threads = threads};
-  return srad_passes(&r, g, direct, p, raw, out, stage_ms, err);
+  return srad_passes(&r, g, direct, probes, nprobes, p, raw, out, stage_ms, err);
 }
 
 static int passes(obs_screen_cpu *r, const obs_gbuffer *g, const void *params, float *ao,
@@ -198,17 +238,17 @@ static int passes(obs_screen_cpu *r, const obs_gbuffer *g, const void *params, f
   const obs_ss_radiosity_params *p = params;
   const obs_scene *sc = r->ctx->scene;
   size_t n = (size_t)g->width * (size_t)g->height;
-  float *buf = malloc(3 * 4 * n * sizeof *buf);
+  float *buf = malloc((3 * 4 * n + 4 * OBS_SRAD_MAX_PROBES) * sizeof *buf);
   if (!buf)
-    return obs_err_set(err, OBS_ENOMEM, "ss_radiosity: %dx%d: out of memory", g->width,
-                       g->height);
-  float *direct = buf, *raw = buf + 4 * n, *res = buf + 8 * n;
+    return obs_err_set(err, OBS_ENOMEM, "ss_radiosity: %dx%d: out of memory", g->width, g->height);
+  float *direct = buf, *raw = buf + 4 * n, *res = buf + 8 * n, *probes = buf + 12 * n;
   double dms[2], st[OBS_SRAD_CPU_STAGES];
   int rc = obs_ss_radiosity_direct(sc, p, r->threads, r->cancel, direct, dms, err);
   if (!rc) {
     obs_screen_cpu_stage(r, "bvh", dms[0]);
     obs_screen_cpu_stage(r, "direct", dms[1]);
-    rc = srad_passes(r, g, direct, p, raw, res, st, err);
+    rc = srad_passes(r, g, direct, probes, obs_ss_radiosity_probes_make(sc, probes), p, raw, res,
+                     st, err);
   }
   if (!rc) {
     obs_screen_cpu_stage(r, "gather", st[0]);

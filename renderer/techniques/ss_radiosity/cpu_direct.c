@@ -27,7 +27,8 @@ typedef struct direct_job {
   float *out;
 } direct_job;
 
-/* A uniform number in [0, 1) for (pixel, sample, dimension, seed): images depend on nothing else. */
+/* A uniform number in [0, 1) for (pixel, sample, dimension, seed): images depend on nothing else.
+ */
 static double unit(uint32_t pixel, uint32_t i, uint32_t dim, uint32_t seed) {
   uint32_t h = obs_hash_combine(obs_hash_combine(obs_hash_combine(seed, pixel), i), dim);
   return (double)obs_u32_to_unit(h);
@@ -57,7 +58,8 @@ static void direct_pixel(const direct_job *j, int x, int y, float *v) {
     L[0] += ob->emission.x;
     L[1] += ob->emission.y;
     L[2] += ob->emission.z;
-    const uint32_t n = j->p->light_samples, pix = (uint32_t)y * (uint32_t)j->sc->width + (uint32_t)x;
+    const uint32_t n = j->p->light_samples,
+                   pix = (uint32_t)y * (uint32_t)j->sc->width + (uint32_t)x;
     if (j->em->n && (rho[0] > 0 || rho[1] > 0 || rho[2] > 0)) {
       float from[3];
       obs_rt_offset(rt, &hit, from);

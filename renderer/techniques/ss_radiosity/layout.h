@@ -17,6 +17,9 @@
 /* Gather flags. */
 #define OBS_SRAD_ORTHO 1
 #define OBS_SRAD_EXCLUDE_SELF 2
+#define OBS_SRAD_PROBES_ADD 4 /* probes combined additively (else multiplicatively) */
+/* AO probes a scene may hold (the article's characters use 18). */
+#define OBS_SRAD_MAX_PROBES 256
 
 /* A shader declares the one block it uses (GLSL allows one push-constant block per stage) by
  * defining OBS_SRAD_GATHER or OBS_SRAD_BLUR before including this file; C sees both. */
@@ -35,6 +38,7 @@ OBS_PUSH_BEGIN(obs_srad_gather_push)
   OBS_F32 inv_bias;
   OBS_F32 scale; /* strength / samples, rounded on the host */
   OBS_F32 inv_samples;
+  OBS_I32 nprobes;
 OBS_PUSH_END(obs_srad_gather_push)
 OBS_PUSH_CHECK(obs_srad_gather_push)
 #endif

@@ -3,11 +3,12 @@
 #include <math.h>
 #include <string.h>
 
+#include "camera.h"
 #include "sampling.h"
 #include "ss_radiosity.h"
 
 const char *const obs_ss_radiosity_extra_names[OBS_SRAD_EXTRA] = {
-    "final.R", "final.G", "final.B", "bounce.R", "bounce.G",
+    "final.R",  "final.G",  "final.B",  "bounce.R", "bounce.G",
     "bounce.B", "direct.R", "direct.G", "direct.B"};
 
 /* A uniform direction from hash h: rejection from the cube [-1,1)^3 into the unit ball, a vector
@@ -43,13 +44,30 @@ void obs_ss_radiosity_tables_make(const obs_ss_radiosity_params *p, obs_ss_radio
   for (int c = 1; c <= 16; c++) t->inv_count[c] = 1.0f / (float)c;
 }
 
+int obs_ss_radiosity_probes_make(const obs_scene *sc, float *out) {
+  obs_camera_rig rig;
+  obs_camera_setup(&sc->camera, sc->width, sc->height, &rig);
+  int n = sc->nprobes < OBS_SRAD_MAX_PROBES ? (int)sc->nprobes : OBS_SRAD_MAX_PROBES;
+  for (int i = 0; i < n; i++) {
+    const obs_probe *pr = &sc->probes[i];
+    const double d[3] = {pr->position.x - rig.origin[0], pr->position.y - rig.origin[1],
+                         pr->position.z - rig.origin[2]};
+    const double *axes[3] = {rig.right, rig.up, rig.forward};
+    for (int k = 0; k < 3; k++)
+      out[4 * i + k] = (float)(d[0] * axes[k][0] + d[1] * axes[k][1] + d[2] * axes[k][2]);
+    out[4 * i + 3] = (float)(3.14159265358979323846 * pr->radius * pr->radius);
+  }
+  return n;
+}
+
 void obs_ss_radiosity_push_make(const obs_ss_radiosity_params *p, int w, int h, int ortho,
                                 float half_w, float half_h, obs_srad_gather_push *out) {
   memset(out, 0, sizeof *out);
   out->width = w;
   out->height = h;
   out->samples = p->samples;
-  out->flags = (ortho ? OBS_SRAD_ORTHO : 0) | (p->exclude_self ? OBS_SRAD_EXCLUDE_SELF : 0);
+  out->flags = (ortho ? OBS_SRAD_ORTHO : 0) | (p->exclude_self ? OBS_SRAD_EXCLUDE_SELF : 0) |
+               (p->probe_add ? OBS_SRAD_PROBES_ADD : 0);
   out->half_w = half_w;
   out->half_h = half_h;
   out->kernel_size = p->kernel_size;

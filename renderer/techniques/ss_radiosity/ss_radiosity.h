@@ -18,14 +18,15 @@ typedef struct obs_vk_gbuffer obs_vk_gbuffer;
 
 /* Bound from the descriptor's parameter table. */
 typedef struct obs_ss_radiosity_params {
-  int samples;          /* 1..OBS_SRAD_MAX_SAMPLES */
-  float kernel_size;    /* sampling radius in scene units at depth 0 */
-  float directivity;    /* 0: the hemisphere about the normal; 1: along the normal only */
-  float attenuation;    /* per scene unit: the radius is kernel_size / (1 + attenuation z) */
-  float bias;           /* depth difference (scene units) at which a sample stops counting */
-  float strength;       /* scale of the gathered bounce */
-  int exclude_self;     /* samples on the pixel's own object gather nothing */
-  int blur;             /* 4x4 depth-aware blur of bounce and ao */
+  int samples;       /* 1..OBS_SRAD_MAX_SAMPLES */
+  float kernel_size; /* sampling radius in scene units at depth 0 */
+  float directivity; /* 0: the hemisphere about the normal; 1: along the normal only */
+  float attenuation; /* per scene unit: the radius is kernel_size / (1 + attenuation z) */
+  float bias;        /* depth difference (scene units) at which a sample stops counting */
+  float strength;    /* scale of the gathered bounce */
+  int exclude_self;  /* samples on the pixel's own object gather nothing */
+  int blur;          /* 4x4 depth-aware blur of bounce and ao */
+  int probe_add;     /* AO probes combined additively (else multiplicatively) */
   float blur_depth_threshold;
   uint32_t light_samples; /* emitter points per pixel of the direct pass */
   uint32_t seed;
@@ -44,6 +45,11 @@ typedef struct obs_ss_radiosity_tables {
 } obs_ss_radiosity_tables;
 
 void obs_ss_radiosity_tables_make(const obs_ss_radiosity_params *p, obs_ss_radiosity_tables *t);
+
+/* The scene's AO probes for the gather: 4 floats each, the centre in the camera's view space
+ * (G-buffer frame) and the visible area pi r^2; at most OBS_SRAD_MAX_PROBES (the loader's check
+ * refuses more). Returns how many were written. */
+int obs_ss_radiosity_probes_make(const obs_scene *sc, float *out);
 /* The gather pass's push block for a G-buffer of w x h with that projection. */
 void obs_ss_radiosity_push_make(const obs_ss_radiosity_params *p, int w, int h, int ortho,
                                 float half_w, float half_h, obs_srad_gather_push *out);
@@ -56,17 +62,19 @@ void obs_ss_radiosity_push_make(const obs_ss_radiosity_params *p, int w, int h, 
 int obs_ss_radiosity_direct(const obs_scene *sc, const obs_ss_radiosity_params *p, int threads,
                             const atomic_int *cancel, float *direct, double ms[2], obs_err *err);
 
-/* The gather and blur passes on the CPU: `direct` as above; `raw` and `out` (w x h x 4: bounce
+/* The gather and blur passes on the CPU: `direct` as above, `probes` (nprobes of them, may be
+ * NULL when 0) from obs_ss_radiosity_probes_make; `raw` and `out` (w x h x 4: bounce
  * RGB, ao) before and after the blur (out may equal NULL when p->blur is 0: raw is the result).
  * stage_ms (may be NULL): OBS_SRAD_CPU_STAGES entries. */
-int obs_ss_radiosity_cpu_apply(const obs_gbuffer *g, const float *direct,
-                               const obs_ss_radiosity_params *p, int threads, float *raw,
-                               float *out, double *stage_ms, obs_err *err);
+int obs_ss_radiosity_cpu_apply(const obs_gbuffer *g, const float *direct, const float *probes,
+                               int nprobes, const obs_ss_radiosity_params *p, int threads,
+                               float *raw, float *out, double *stage_ms, obs_err *err);
 /* The same on the device, over a device G-buffer with the host G-buffer's projection `proj`
  * (ortho, half_w, half_h taken from it). raw_host / out_host as above, downloaded. */
 int obs_ss_radiosity_vk_apply(obs_vk *vk, obs_vk_gbuffer *g, const obs_gbuffer *proj,
-                              const float *direct, const obs_ss_radiosity_params *p,
-                              float *raw_host, float *out_host, double *stage_ms, obs_err *err);
+                              const float *direct, const float *probes, int nprobes,
+                              const obs_ss_radiosity_params *p, float *raw_host, float *out_host,
+                              double *stage_ms, obs_err *err);
 
 /* The technique's extra channels (after the screen drivers' fixed set), in this order. */
 enum { OBS_SRAD_FINAL, OBS_SRAD_BOUNCE = 3, OBS_SRAD_DIRECT = 6, OBS_SRAD_EXTRA = 9 };

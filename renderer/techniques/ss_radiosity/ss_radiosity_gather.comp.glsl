@@ -13,6 +13,38 @@ layout(binding = 3, rgba32f) uniform readonly image2D direct_img;  // direct rad
 layout(binding = 4, rgba32f) uniform readonly image2D rot_img;     // 4x4 unit reflection normals
 layout(binding = 5, rgba32f) uniform readonly image2D offset_img;  // samples x 1 ball points
 layout(binding = 6, rgba32f) uniform writeonly image2D raw_img;    // bounce rgb, ao
+// AO probes: view-space centre, visible area (pc.nprobes of them).
+layout(set = 1, binding = 4, std430) readonly buffer Probes { vec4 probe[]; };
+
+// The twin of probe_ao in cpu.c.
+float probe_ao(float px, float py, float pz, vec3 n) {
+  precise float prod = 1.0;
+  precise float sum = 0.0;
+  bool add = (pc.flags & OBS_SRAD_PROBES_ADD) != 0;
+  for (int i = 0; i < pc.nprobes; i++) {
+    vec4 c = probe[i];
+    precise float vx = c.x - px;
+    precise float vy = c.y - py;
+    precise float vz = c.z - pz;
+    precise float nv = n.x * vx + n.y * vy + n.z * vz;
+    if (!(nv > 0.0)) continue;
+    precise float vv = vx * vx + vy * vy + vz * vz;
+    precise float cs = nv / sqrt(vv);
+    cs = cs > 1.0 ? 1.0 : cs;
+    precise float occ = c.w * cs / vv;
+    if (add) {
+      sum += occ;
+    } else {
+      precise float f = 1.0 - occ;
+      prod *= f < 0.0 ? 0.0 : f;
+    }
+  }
+  if (add) {
+    precise float f = 1.0 - sum;
+    return f < 0.0 ? 0.0 : f;
+  }
+  return prod;
+}
 
 int texel(float v, int n) {
   precise float f = floor(v);
@@ -96,5 +128,6 @@ void main() {
   precise float rg = bg * pc.scale * a.g;
   precise float rb = bb * pc.scale * a.b;
   precise float ao = clamp(1.0 - occ * pc.inv_samples, 0.0, 1.0);
+  if (pc.nprobes > 0) ao = ao * probe_ao(px, py, zp, n);
   imageStore(raw_img, p, vec4(rr, rg, rb, ao));
 }

@@ -29,6 +29,8 @@ static const obs_output srad_outputs[] = {
      .description = "Coverage (1 where a surface is hit, 0 on the background)"},
     {.name = NULL}};
 
+static const char *const probe_combines[] = {"multiply", "add", NULL};
+
 #define P(member) offsetof(obs_ss_radiosity_params, member)
 static const obs_param srad_params[] = {
     {.name = "samples", .type = OBS_PARAM_INT, .min = 1, .max = OBS_SRAD_MAX_SAMPLES, .def = 4,
@@ -61,6 +63,11 @@ static const obs_param srad_params[] = {
      .description = "the blur mixes pixels whose depth differs from the centre's by at most this "
                     "fraction of the centre's depth",
      .offset = P(blur_depth_threshold)},
+    {.name = "probe_combine", .type = OBS_PARAM_ENUM, .choices = probe_combines, .def = 0,
+     .description = "how the scene's AO probes (its `probes`) combine into the ao: multiply, "
+                    "AO = prod saturate(1 - Occ_i) (the article's listing), or add, "
+                    "AO = saturate(1 - sum Occ_i); either multiplies the gathered ao",
+     .offset = P(probe_add)},
     {.name = "light_samples", .type = OBS_PARAM_UINT, .min = 1, .max = 4096, .def = 16,
      .description = "emitter points (each with a shadow ray) per pixel of the direct pass",
      .offset = P(light_samples)},
@@ -72,6 +79,16 @@ static const obs_param srad_params[] = {
      .offset = P(exposure)},
 };
 #undef P
+
+/* The gather reads at most OBS_SRAD_MAX_PROBES probes: more are refused, not dropped. */
+static void srad_check(const obs_scene *scene, const json_t *params, const char *doc,
+                       obs_err *err) {
+  (void)params;
+  if (scene->nprobes > OBS_SRAD_MAX_PROBES)
+    obs_err_set(err, OBS_EINVAL,
+                "%s: /probes: technique \"ss_radiosity\" reads at most %d probes (got %zu)", doc,
+                OBS_SRAD_MAX_PROBES, scene->nprobes);
+}
 
 /* Depth-buffer taps per pixel plus the direct pass's shadow rays. */
 static double srad_cost(const void *bound) {
@@ -114,9 +131,11 @@ const obs_technique obs_technique_ss_radiosity = {
     .ms_per_work = 1e-4,
     .needs = OBS_NEED_GBUFFER | OBS_NEED_MATERIALS,
     .outputs = srad_outputs,
+    .check = srad_check,
     .reference_same = &obs_technique_path_trace,
     .reference_keys = srad_reference_keys,
     .reference_alts = srad_alts,
-    .run = {[OBS_BACKEND_CPU] = obs_ss_radiosity_cpu, [OBS_BACKEND_VULKAN] = obs_ss_radiosity_vulkan},
+    .run = {[OBS_BACKEND_CPU] = obs_ss_radiosity_cpu,
+            [OBS_BACKEND_VULKAN] = obs_ss_radiosity_vulkan},
     .range = {[OBS_BACKEND_CPU] = SRAD_RANGE, [OBS_BACKEND_VULKAN] = SRAD_RANGE},
 };
