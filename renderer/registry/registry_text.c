@@ -246,6 +246,15 @@ char *obs_registry_openapi(void) {
   for (size_t i = 0; i < obs_technique_count(); i++)
     obs_strbuf_put(&b, "%s%s", i ? ", " : "", obs_technique_at(i)->name);
   obs_strbuf_put(&b, "]\n");
+  /* Every file a registered technique's job may record (the route's name parameter). */
+  char files[64][OBS_OUTPUT_FILE_MAX];
+  size_t nf = obs_output_file_names(files, 64);
+  obs_strbuf_put(&b,
+                 "    OutputFileName:\n      description: A file the registered techniques write "
+                 "(their declared outputs'\n        EXR, PNGs and per-patch files, and "
+                 "summary.json).\n      type: string\n      enum: [");
+  for (size_t i = 0; i < nf; i++) obs_strbuf_put(&b, "%s%s", i ? ", " : "", files[i]);
+  obs_strbuf_put(&b, "]\n");
   for (size_t i = 0; i < obs_technique_count(); i++) {
     const obs_technique *t = obs_technique_at(i);
     json_t *s = obs_technique_params_schema(t);

@@ -21,6 +21,8 @@ typedef struct svar_job {
   obs_svar_rows rows; /* the moments planes: n, sum d, sum d^2, shift */
   float *ao;
   float *scratch; /* per thread: the AO pass's depth and three sums of one row */
+  int *row_lo;    /* per row: the first and last covered pixel (lo > hi: none) */
+  int *row_hi;
   int simd;       /* run the AVX2 rows (svar_cpu.h) */
 } svar_job;
 
@@ -51,7 +53,8 @@ OBS_HOT_INLINE int moments_tile_body(void *user, int thread, int x0, int y0, int
     const float *restrict zr = j->g->depth + row;
     float *restrict n = j->rows.mn + row, *restrict h1 = j->rows.m1 + row,
                     *restrict h2 = j->rows.m2 + row, *restrict c = j->rows.mc + row;
-    for (int x = 0; x < w; x++) {
+    const int clo = j->rows.clo, chi = j->rows.chi;
+    for (int x = clo; x < chi; x++) {
       const int m = x < w - 1 - x ? x : w - 1 - x;
       const float zc = zr[x] * zs;
       c[x] = zc > 0.0f ? zc : shift_of_uncovered(zr, x, m, s, K, zs);
@@ -67,7 +70,8 @@ OBS_HOT_INLINE int moments_tile_body(void *user, int thread, int x0, int y0, int
       const int a = (k < 0 ? -k : k) * s;
       /* Tap k counts where the symmetric box reaches it: a <= x <= w - 1 - a. */
       const float *restrict zt_row = zr + k * s;
-      for (int x = a; x < w - a; x++) {
+      const int lo = a > clo ? a : clo, hi = w - a < chi ? w - a : chi;
+      for (int x = lo; x < hi; x++) {
         /* The shader adds only covered taps; adding cov x (an uncovered tap's finite terms) is
          * adding +-0, which leaves the sums' bits alone (they are never -0). */
         const float zt = zt_row[x] * zs;
@@ -127,13 +131,22 @@ OBS_HOT_INLINE int ao_tile_body(void *user, int thread, int x0, int y0, int x1, 
   float *restrict nn = z0 + w, *restrict t1 = nn + w, *restrict t2 = t1 + w;
   for (int y = y0; y < y1; y++) {
     const size_t row = (size_t)y * (size_t)w;
-    int xb = 0; /* pixels [xb, w) are the scalar loop's */
+    float *out = j->ao + row;
+    /* Only the covered span [lo, hi) needs the sums (chunk-aligned from lo); the rest is open. */
+    const int lo = j->row_lo[y] & ~7, hi = j->row_hi[y] + 1;
+    if (lo >= hi) {
+      for (int x = 0; x < w; x++) out[x] = 1.0f;
+      continue;
+    }
+    for (int x = 0; x < lo; x++) out[x] = 1.0f;
+    for (int x = hi; x < w; x++) out[x] = 1.0f;
+    int xb = lo; /* pixels [xb, hi) are the scalar loop's */
 #if OBS_SIMD_AVX2
-    if (j->simd) xb = obs_svar_ao_row_avx2(&j->rows, &j->ap, y, z0, j->ao + row);
+    if (j->simd) xb = obs_svar_ao_row_avx2(&j->rows, &j->ap, y, lo, hi, z0, out);
 #endif
-    if (xb == w) continue;
+    if (xb == hi) continue;
     const int m = y < h - 1 - y ? y : h - 1 - y;
-    for (int x = xb; x < w; x++) {
+    for (int x = xb; x < hi; x++) {
       z0[x] = j->g->depth[row + (size_t)x] * zs;
       nn[x] = t1[x] = t2[x] = 0.0f;
     }
@@ -142,7 +155,7 @@ OBS_HOT_INLINE int ao_tile_body(void *user, int thread, int x0, int y0, int x1, 
       const size_t r = (size_t)(y + k * s) * (size_t)w;
       const float *restrict an = j->rows.mn + r, *restrict a1 = j->rows.m1 + r,
                             *restrict a2 = j->rows.m2 + r, *restrict ac = j->rows.mc + r;
-      for (int x = xb; x < w; x++) {
+      for (int x = xb; x < hi; x++) {
         const float dl = ac[x] - z0[x];
         const float an_d = an[x] * dl;
         t1[x] = t1[x] + (a1[x] + an_d);
@@ -152,8 +165,8 @@ OBS_HOT_INLINE int ao_tile_body(void *user, int thread, int x0, int y0, int x1, 
       }
     }
     const float ty = (float)(2 * (K < m / s ? K : m / s) + 1);
-    svar_estimate_row(&j->ap, w - xb, z0 + xb, nn + xb, t1 + xb, t2 + xb, j->rows.taps_x + xb, ty,
-                      j->ao + row + xb);
+    svar_estimate_row(&j->ap, hi - xb, z0 + xb, nn + xb, t1 + xb, t2 + xb, j->rows.taps_x + xb, ty,
+                      out + xb);
   }
   return 0;
 }
@@ -182,13 +195,21 @@ static int svar_passes(obs_screen_cpu *r, const obs_gbuffer *g, const obs_ssao_v
     const int threads = r->threads < 1 ? 1 : r->threads;
     const size_t wz = (size_t)g->width;
     float *planes = malloc((4 * n + (size_t)threads * 4 * wz + wz) * sizeof *planes);
-    if (!planes) {
+    int *ranges = malloc(2 * (size_t)g->height * sizeof *ranges);
+    if (!planes || !ranges) {
+      free(planes);
+      free(ranges);
       free(plan);
       return obs_err_set(err, OBS_ENOMEM, "ssao_variance: %dx%d: out of memory", g->width,
                          g->height);
     }
-    svar_job j = {
-        .g = g, .plan = plan, .ao = ao, .scratch = planes + 4 * n, .simd = obs_simd_avx2()};
+    svar_job j = {.g = g,
+                  .plan = plan,
+                  .ao = ao,
+                  .scratch = planes + 4 * n,
+                  .row_lo = ranges,
+                  .row_hi = ranges + g->height,
+                  .simd = obs_simd_avx2()};
     j.rows = (obs_svar_rows){.depth = g->depth,
                              .w = g->width,
                              .h = g->height,
@@ -205,6 +226,20 @@ static int svar_passes(obs_screen_cpu *r, const obs_gbuffer *g, const obs_ssao_v
       const int m = x < g->width - 1 - x ? x : g->width - 1 - x, k = m / plan->stride;
       j.rows.taps_x[x] = (float)(2 * (plan->taps < k ? plan->taps : k) + 1);
     }
+    /* Each row's covered span, and the columns any row covers. */
+    int cmin = g->width, cmax = -1;
+    for (int y = 0; y < g->height; y++) {
+      const float *zr = g->depth + (size_t)y * wz;
+      int lo = 0, hi = g->width - 1;
+      while (lo < g->width && !(zr[lo] > 0.0f)) lo++;
+      while (hi >= lo && !(zr[hi] > 0.0f)) hi--;
+      j.row_lo[y] = lo;
+      j.row_hi[y] = hi;
+      if (lo <= hi && lo < cmin) cmin = lo;
+      if (lo <= hi && hi > cmax) cmax = hi;
+    }
+    j.rows.clo = cmin & ~7;
+    j.rows.chi = cmax + 1;
     obs_svar_ao_push_make(p, plan, g->width, g->height, g->ortho, &j.ap);
     const int isa = obs_simd_isa();
     rc = obs_screen_cpu_tiles(r, 1, g->height, obs_simd_tile_pick(moments_tile, isa), &j);
@@ -212,6 +247,7 @@ static int svar_passes(obs_screen_cpu *r, const obs_gbuffer *g, const obs_ssao_v
     if (!rc) rc = obs_screen_cpu_tiles(r, 1, g->height, obs_simd_tile_pick(ao_tile, isa), &j);
     t3 = obs_now_ms();
     free(planes);
+    free(ranges);
   }
   if (stage_ms) {
     stage_ms[0] = t1 - t0;

@@ -44,9 +44,10 @@ OBS_AVX2_FN void obs_svar_moments_row_avx2(const obs_svar_rows *r, int y, float 
     _mm256_maskstore_ps(zrow + x, in,
                         _mm256_mul_ps(_mm256_maskload_ps(r->depth + row + x, in), zs));
   }
-  int x = 0;
+  const int x1 = r->chi;
+  int x = r->clo;
   /* Two chunks at a time: their sums are independent chains, which hides the adds' latency. */
-  for (; x + 16 <= w; x += 16) {
+  for (; x + 16 <= x1; x += 16) {
     const __m256 c0 = _mm256_loadu_ps(r->mc + row + x), c1 = _mm256_loadu_ps(r->mc + row + x + 8);
     __m256 n0 = zero, a0 = zero, b0 = zero, n1 = zero, a1 = zero, b1 = zero;
     for (int k = -K; k <= K; k++) {
@@ -60,8 +61,8 @@ OBS_AVX2_FN void obs_svar_moments_row_avx2(const obs_svar_rows *r, int y, float 
     _mm256_storeu_ps(r->m1 + row + x + 8, a1);
     _mm256_storeu_ps(r->m2 + row + x + 8, b1);
   }
-  for (; x < w; x += 8) {
-    const __m256i in = lanes_in(x, 0, w - 1);
+  for (; x < x1; x += 8) {
+    const __m256i in = lanes_in(x, 0, x1 - 1);
     const __m256 c = _mm256_maskload_ps(r->mc + row + x, in);
     __m256 n = zero, h1 = zero, h2 = zero;
     for (int k = -K; k <= K; k++) moments_tap(tap_load(zrow, w, x, k, s), c, &n, &h1, &h2);
@@ -107,14 +108,14 @@ OBS_AVX2_INLINE __m256 estimate8(const obs_svar_ao_push *ap, __m256 z, __m256 n,
 }
 
 OBS_AVX2_FN int obs_svar_ao_row_avx2(const obs_svar_rows *r, const obs_svar_ao_push *ap, int y,
-                                     float *scratch, float *out) {
-  const int w = r->w, h = r->h, s = r->stride, K = r->taps, we = w & ~7;
+                                     int lo, int hi, float *scratch, float *out) {
+  const int w = r->w, h = r->h, s = r->stride, K = r->taps, we = lo + ((hi - lo) & ~7);
   const int m = y < h - 1 - y ? y : h - 1 - y;
   const size_t row = (size_t)y * (size_t)w;
   float *z0 = scratch, *nn = scratch + w, *t1 = nn + w, *t2 = t1 + w;
   const __m256 zs = _mm256_set1_ps(r->zscale), zero = _mm256_setzero_ps();
   const __m256 two = _mm256_set1_ps(2.0f);
-  for (int x = 0; x < we; x += 8) {
+  for (int x = lo; x < we; x += 8) {
     _mm256_storeu_ps(z0 + x, _mm256_mul_ps(_mm256_loadu_ps(r->depth + row + x), zs));
     _mm256_storeu_ps(nn + x, zero);
     _mm256_storeu_ps(t1 + x, zero);
@@ -126,7 +127,7 @@ OBS_AVX2_FN int obs_svar_ao_row_avx2(const obs_svar_rows *r, const obs_svar_ao_p
     if ((k < 0 ? -k : k) * s > m) continue;
     const size_t at = (size_t)(y + k * s) * (size_t)w;
     const float *pn = r->mn + at, *p1 = r->m1 + at, *p2 = r->m2 + at, *pc = r->mc + at;
-    for (int x = 0; x < we; x += 8) {
+    for (int x = lo; x < we; x += 8) {
       const __m256 an = _mm256_loadu_ps(pn + x), a1 = _mm256_loadu_ps(p1 + x);
       const __m256 dl = _mm256_sub_ps(_mm256_loadu_ps(pc + x), _mm256_loadu_ps(z0 + x));
       const __m256 an_d = _mm256_mul_ps(an, dl);
@@ -139,7 +140,7 @@ OBS_AVX2_FN int obs_svar_ao_row_avx2(const obs_svar_rows *r, const obs_svar_ao_p
     }
   }
   const __m256 ty = _mm256_set1_ps((float)(2 * (K < m / s ? K : m / s) + 1));
-  for (int x = 0; x < we; x += 8)
+  for (int x = lo; x < we; x += 8)
     _mm256_storeu_ps(out + x, estimate8(ap, _mm256_loadu_ps(z0 + x), _mm256_loadu_ps(nn + x),
                                         _mm256_loadu_ps(t1 + x), _mm256_loadu_ps(t2 + x),
                                         _mm256_mul_ps(_mm256_loadu_ps(r->taps_x + x), ty)));
