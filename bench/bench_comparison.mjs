@@ -31,6 +31,10 @@ const GRIDS = {
   hbao: {directions: [4, 8, 16], steps: [4, 8], radius: 100},
   path_trace: {samples: [1, 4, 16]},
   obscurance: {samples: [4, 16, 64], light_samples: 16, d_max: 300, color_bleeding: [false, true]},
+  ss_obscurance: {samples: [8, 16, 32], radius: 150},
+  ssao_variance: {method: ['variance', 'depth_unsharp'], radius: 100},
+  // strength 0 is the direct pass alone: what the bounce adds is read against it.
+  ss_radiosity: {strength: [0, 1, 4]},
   obscurance_map: [{backend: 'cpu', params: {method: ['rays', 'global_lines', 'bundles'], d_max: 300, patch_size: 50}},
                    {backend: 'vulkan', params: {method: 'depth_peeling', d_max: 300, patch_size: 50}}],
 };

@@ -31,20 +31,6 @@ static int read_exr(const char *dir, const obs_technique *t, obs_image *img, obs
   return obs_image_read_exr(img, path, err);
 }
 
-/* Renames the channels of output `from` in `img` to those of output `to` ("radiance.R" to
- * "final.R"): a reference technique may declare the quantity a candidate's primary output
- * estimates under another name (path_trace's `radiance` for obscurance's `final`). */
-static void rename_output(obs_image *img, const char *from, const char *to) {
-  size_t n = strlen(from);
-  for (int c = 0; c < img->nchannels; c++) {
-    char *name = img->names[c];
-    if (strncmp(name, from, n) || (name[n] && name[n] != '.')) continue;
-    char renamed[OBS_CHANNEL_NAME_MAX];
-    snprintf(renamed, sizeof renamed, "%s%s", to, name + n);
-    snprintf(name, OBS_CHANNEL_NAME_MAX, "%s", renamed);
-  }
-}
-
 /* The name of t's output that is the standard error of its output `of`, or NULL. */
 static const char *stderr_name(const obs_technique *t, const char *of) {
   const char *se = NULL;
@@ -144,13 +130,13 @@ int srv_compare_primary(const char *dir, const char *rdir, obs_response resp,
   int scalar_ref = !rc && ro && ro->kind == OBS_OUTPUT_SCALAR && o->kind != OBS_OUTPUT_SCALAR;
   int renamed = !rc && ro && (ro->kind == o->kind || scalar_ref) && strcmp(ro->name, o->name);
   if (renamed) {
-    rename_output(&ref, ro->name, o->name);
+    obs_image_rename_output(&ref, ro->name, o->name);
     /* The reference's noise follows it under the name the metrics look for, "<output>_stderr"
      * (which is the candidate's own stderr output's name where it has one). */
     const char *rs = stderr_name(rt, ro->name);
     char cs[OBS_CHANNEL_NAME_MAX];
     snprintf(cs, sizeof cs, "%s_stderr", o->name);
-    if (rs) rename_output(&ref, rs, cs);
+    if (rs) obs_image_rename_output(&ref, rs, cs);
   }
   /* Response curves map AO; an identity mapping leaves any output as it is. */
   if (!rc && resp != OBS_RESPONSE_IDENTITY) rc = obs_response_apply(resp, &ref, err);
@@ -203,7 +189,7 @@ int srv_compare_output(const char *dir, const char *rdir, const char *output, js
   memset(&ref, 0, sizeof ref);
   int rc = read_exr(dir, t, &cand, err);
   if (!rc) rc = read_exr(rdir, rt, &ref, err);
-  if (!rc && strcmp(ro->name, o->name)) rename_output(&ref, ro->name, o->name);
+  if (!rc && strcmp(ro->name, o->name)) obs_image_rename_output(&ref, ro->name, o->name);
   obs_metric_opts opts = {.channel = o->name,
                           .mask = obs_image_channel(&ref, "alpha") ? "alpha" : NULL};
   obs_metric_values v;

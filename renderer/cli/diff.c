@@ -158,6 +158,22 @@ static int print_json(const diff_opts *o, const char *ch, const char *mask,
   return 0;
 }
 
+/* Two output folders whose techniques name the compared quantity differently (ss_radiosity's
+ * `final` against path_trace's `radiance`): the reference's primary output, and its standard
+ * error, are read under the candidate's names, as the server's comparisons read them. */
+static void align_reference(const obs_technique *ta, const obs_technique *tb, obs_image *b) {
+  const obs_output *o = ta && tb ? obs_technique_compared_output(ta, tb) : NULL;
+  const obs_output *ro = tb ? obs_technique_primary(tb) : NULL;
+  if (!o || !ro || o->kind != ro->kind || !strcmp(o->name, ro->name)) return;
+  obs_image_rename_output(b, ro->name, o->name);
+  const char *se = NULL;
+  for (const obs_output *x = tb->outputs; x->name; x++)
+    if (x->stderr_of && !strcmp(x->stderr_of, ro->name)) se = x->name;
+  char cs[OBS_CHANNEL_NAME_MAX];
+  snprintf(cs, sizeof cs, "%s_stderr", o->name);
+  if (se) obs_image_rename_output(b, se, cs);
+}
+
 int cli_diff(int argc, char **argv) {
   diff_opts o;
   int rc = parse(argc, argv, &o);
@@ -172,6 +188,7 @@ int cli_diff(int argc, char **argv) {
   const char *ch = NULL, *mask = NULL;
   int code = read_input(o.a, &a, &ta, &err);
   if (!code) code = read_input(o.b, &b, &tb, &err);
+  if (!code) align_reference(ta, tb, &b);
   if (!code && !(ch = o.channel ? o.channel : default_channel(ta, tb, &b, chbuf, sizeof chbuf)))
     code = obs_err_set(&err, OBS_EINVAL, "%s has no \"ao\" channel: name one with --channel", o.b);
   /* The reference's coverage, as the comparisons use it, unless --mask says otherwise. */

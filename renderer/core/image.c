@@ -63,3 +63,13 @@ float *obs_image_channel(const obs_image *img, const char *name) {
   return NULL;
 }
 
+void obs_image_rename_output(obs_image *img, const char *from, const char *to) {
+  size_t n = strlen(from);
+  for (int c = 0; c < img->nchannels; c++) {
+    char *name = img->names[c];
+    if (strncmp(name, from, n) || (name[n] && name[n] != '.')) continue;
+    char renamed[OBS_CHANNEL_NAME_MAX];
+    snprintf(renamed, sizeof renamed, "%s%s", to, name + n);
+    snprintf(name, OBS_CHANNEL_NAME_MAX, "%s", renamed);
+  }
+}

@@ -76,6 +76,17 @@ check "path_trace radiance: the RGB entries and HDR-FLIP" node -e "
   process.exit(m.channel === 'radiance' && x.rmse_r > 0 && x.rmse_g > 0 && x.rmse_b > 0 &&
     x.rel_mse > 0 && x.flip > 0 && x.flip < 1 && x.ssim === x.ssim_luminance ? 0 : 1);"
 
+# A candidate whose output is named otherwise than the reference's (obscurance's `final` against
+# path_trace's `radiance`): the reference's channels are read under the candidate's names.
+"$cli" render "$root/scenes/cornell_box.json" -o "$out/ob" --technique obscurance "${small[@]}" \
+  --set /technique/params/samples=4 >/dev/null 2>&1
+"$cli" diff "$out/ob" "$out/p1" --json >"$out/named.json"
+check "final against radiance: exit 0" test $? -eq 0
+check "final against radiance: the RGB entries, the reference's noise" node -e "
+  const m = JSON.parse(require('fs').readFileSync('$out/named.json'));
+  const x = m.metrics;
+  process.exit(m.channel === 'final' && x.rmse > 0 && x.rmse_r > 0 && x.ref_noise > 0 ? 0 : 1);"
+
 "$cli" metrics --bogus >"$out/bad.log" 2>&1
 check "metrics with an unknown option exits 2" test $? -eq 2
 check "metrics says what it takes" grep -q -- "--json, --markdown, --openapi; got --bogus" "$out/bad.log"

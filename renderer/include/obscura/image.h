@@ -28,6 +28,10 @@ int obs_image_init(obs_image *img, int width, int height, int nchannels, const c
 void obs_image_free(obs_image *img);
 /* Pointer to plane `name`, or NULL when absent. Borrowed. */
 float *obs_image_channel(const obs_image *img, const char *name);
+/* Renames the channels of output `from` to those of output `to` ("radiance" or "radiance.R" to
+ * "final" / "final.R"): a reference technique may declare the quantity a candidate's output
+ * estimates under another name (path_trace's `radiance` for obscurance's `final`). */
+void obs_image_rename_output(obs_image *img, const char *from, const char *to);
 
 /* EXR compressions the writer offers (all lossless). */
 enum { OBS_EXR_NONE, OBS_EXR_RLE, OBS_EXR_ZIPS, OBS_EXR_ZIP, OBS_EXR_PIZ, OBS_EXR_NCOMPRESSIONS };
