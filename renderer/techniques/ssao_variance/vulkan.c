@@ -40,9 +40,11 @@ int obs_svar_vk_apply(obs_vk *vk, obs_vk_gbuffer *g, const obs_svar_projection *
   if (!plan->taps) {
     for (size_t i = 0; i < n; i++) ao_host[i] = 1.0f;
   } else {
-    obs_svar_moments_push mp = {
-        .width = w, .height = h, .stride = plan->stride, .taps = plan->taps,
-        .zscale = plan->zscale};
+    obs_svar_moments_push mp = {.width = w,
+                                .height = h,
+                                .stride = plan->stride,
+                                .taps = plan->taps,
+                                .zscale = plan->zscale};
     obs_svar_ao_push ap;
     obs_svar_ao_push_make(p, plan, w, h, proj->ortho, &ap);
     enum { MOM = OBS_VK_PLAN_IMAGE0, INV, AO };
