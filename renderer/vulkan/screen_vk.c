@@ -8,43 +8,36 @@
 #include "driver.h"
 #include "geometry.h"
 #include "obscura/render.h"
+#include "session_vk.h"
 
 static void progress(obs_render_ctx *ctx, double fraction) {
   if (ctx->progress) ctx->progress(ctx->progress_user, fraction);
 }
 
-/* The driver for either kind of passes (exactly one of passes, passes_ex is set). */
-static int screen_vk_run(obs_render_ctx *ctx, const char *technique, obs_screen_vk_passes_fn passes,
-                         obs_screen_vk_passes_ex_fn passes_ex, const obs_screen_vk_extra *extra,
-                         const void *params, obs_image *out, obs_err *err) {
+/* A render's work on the device (exactly one of passes, passes_ex is set). */
+typedef struct screen_job {
+  obs_screen_vk_passes_fn passes;
+  obs_screen_vk_passes_ex_fn passes_ex;
+  const void *params;
+  obs_image *out;
+  const obs_region *region;
+} screen_job;
+
+/* The G-buffer, the passes, the readback and the export, inside the device session. */
+static int screen_work(obs_render_ctx *ctx, obs_vk *vk, void *job, obs_err *err) {
+  const screen_job *j = job;
   const obs_scene *sc = ctx->scene;
-  obs_region region;
-  const char *names[OBS_SCREEN_CHANNELS + OBS_SCREEN_VK_EXTRA_MAX];
-  int nextra = extra ? extra->n : 0;
-  if (nextra < 0 || nextra > OBS_SCREEN_VK_EXTRA_MAX)
-    return obs_err_set(err, OBS_EINVAL, "screen: %d extra channels (at most %d)", nextra,
-                       OBS_SCREEN_VK_EXTRA_MAX);
-  for (int c = 0; c < OBS_SCREEN_CHANNELS; c++) names[c] = obs_screen_channel_names[c];
-  for (int c = 0; c < nextra; c++) names[OBS_SCREEN_CHANNELS + c] = extra->names[c];
-  int rc = obs_driver_image(ctx, OBS_SCREEN_CHANNELS + nextra, names, out, &region, err);
-  if (rc) return rc;
+  obs_image *out = j->out;
   obs_camera_rig rig;
   obs_camera_setup(&sc->camera, sc->width, sc->height, &rig);
-  obs_vk *vk = NULL;
   obs_geometry geo;
   obs_vk_gbuffer dev;
   obs_gbuffer host;
   memset(&geo, 0, sizeof geo);
   memset(&dev, 0, sizeof dev);
   memset(&host, 0, sizeof host);
-  const int validation = obs_vk_validation_requested();
-  double gb_ms = 0;
-  /* Acquiring the device is a stage of its own, kept out of build_ms: only its first use in a
-   * process opens it. */
-  double ta = obs_now_ms();
-  if ((rc = obs_vk_acquire(&vk, validation, err))) goto done;
-  double t0 = obs_now_ms();
-  obs_driver_stage_add(ctx, "device", t0 - ta);
+  double gb_ms = 0, t0 = obs_now_ms();
+  int rc;
   if ((rc = obs_geometry_build_at(sc, rig.origin, &geo, err))) goto done;
   if ((rc = obs_vk_gbuffer_render(vk, sc, &geo, &dev, &gb_ms, err))) goto done;
   double t1 = obs_now_ms();
@@ -60,33 +53,50 @@ static int screen_vk_run(obs_render_ctx *ctx, const char *technique, obs_screen_
   size_t plane = (size_t)sc->width * (size_t)sc->height;
   float *ao = out->data + OBS_SCREEN_AO * plane, *ao_raw = out->data + OBS_SCREEN_AO_RAW * plane;
   double t2 = obs_now_ms();
-  if (passes_ex) {
+  if (j->passes_ex) {
     if ((rc = obs_vk_gbuffer_download(vk, &dev, &host, 1, err))) goto done;
     obs_driver_stage_add(ctx, "readback", obs_now_ms() - t2);
-    rc = passes_ex(ctx, vk, &dev, &host, params, ao, ao_raw,
-                   out->data + OBS_SCREEN_CHANNELS * plane, err);
+    rc = j->passes_ex(ctx, vk, &dev, &host, j->params, ao, ao_raw,
+                      out->data + OBS_SCREEN_CHANNELS * plane, err);
   } else {
-    rc = passes(ctx, vk, &dev, &host, params, ao, ao_raw, err);
+    rc = j->passes(ctx, vk, &dev, &host, j->params, ao, ao_raw, err);
   }
   if (rc) goto done;
   progress(ctx, 2.0 / 3.0);
   if ((rc = obs_driver_cancelled(ctx, err))) goto done;
   /* The depth and normal outputs come from the device G-buffer, so they match the AO. */
   t2 = obs_now_ms();
-  if (!passes_ex && (rc = obs_vk_gbuffer_download(vk, &dev, &host, 0, err))) goto done;
-  if (!passes_ex) obs_driver_stage_add(ctx, "readback", obs_now_ms() - t2);
+  if (!j->passes_ex && (rc = obs_vk_gbuffer_download(vk, &dev, &host, 0, err))) goto done;
+  if (!j->passes_ex) obs_driver_stage_add(ctx, "readback", obs_now_ms() - t2);
   obs_screen_rule_check(ctx, OBS_BACKEND_VULKAN, &host);
   obs_gbuffer_export(&host, &rig, out);
-  obs_driver_clear_outside(out, &region);
+  obs_driver_clear_outside(out, j->region);
   ctx->render_ms = obs_now_ms() - t1;
   ctx->rays = 0;
-  rc = obs_vk_validation_verdict(vk, validation, sc->name, technique, err);
-  if (!rc) progress(ctx, 1.0);
 done:
   obs_gbuffer_free(&host);
-  if (vk) obs_vk_gbuffer_free(vk, &dev);
+  obs_vk_gbuffer_free(vk, &dev);
   obs_geometry_free(&geo);
-  obs_vk_release(vk);
+  return rc;
+}
+
+/* The driver for either kind of passes: the image, then the work in a device session (which
+ * acquires the device as stage "device", judges the validation layer and reports the end). */
+static int screen_vk_run(obs_render_ctx *ctx, const char *technique, obs_screen_vk_passes_fn passes,
+                         obs_screen_vk_passes_ex_fn passes_ex, const obs_screen_vk_extra *extra,
+                         const void *params, obs_image *out, obs_err *err) {
+  obs_region region;
+  const char *names[OBS_SCREEN_CHANNELS + OBS_SCREEN_VK_EXTRA_MAX];
+  int nextra = extra ? extra->n : 0;
+  if (nextra < 0 || nextra > OBS_SCREEN_VK_EXTRA_MAX)
+    return obs_err_set(err, OBS_EINVAL, "screen: %d extra channels (at most %d)", nextra,
+                       OBS_SCREEN_VK_EXTRA_MAX);
+  for (int c = 0; c < OBS_SCREEN_CHANNELS; c++) names[c] = obs_screen_channel_names[c];
+  for (int c = 0; c < nextra; c++) names[OBS_SCREEN_CHANNELS + c] = extra->names[c];
+  int rc = obs_driver_image(ctx, OBS_SCREEN_CHANNELS + nextra, names, out, &region, err);
+  if (rc) return rc;
+  screen_job job = {passes, passes_ex, params, out, &region};
+  rc = obs_vk_session_run(ctx, technique, screen_work, &job, err);
   if (rc) obs_image_free(out);
   return rc;
 }

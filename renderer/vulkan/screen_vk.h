@@ -18,11 +18,11 @@ typedef int (*obs_screen_vk_passes_fn)(obs_render_ctx *ctx, obs_vk *vk, obs_vk_g
                                        const obs_gbuffer *host, const void *params, float *ao,
                                        float *ao_raw, obs_err *err);
 
-/* Allocates `out` (obs_screen_channel_names), acquires the device (not timed), builds the
+/* Allocates `out` (obs_screen_channel_names), then in a device session (session_vk.h: the device
+ * acquired as stage "device", a render the validation layer complained about failed) builds the
  * geometry and rasterises the device G-buffer (timed as build, stage "gbuffer"), runs the passes,
  * downloads the G-buffer (added to "readback") and exports its channels (passes to export timed
- * as render), clears the pixels outside ctx's region. A render the validation layer complained
- * about fails. On failure `out` is released. */
+ * as render), clears the pixels outside ctx's region. On failure `out` is released. */
 int obs_screen_vk_run(obs_render_ctx *ctx, const char *technique, obs_screen_vk_passes_fn passes,
                       const void *params, obs_image *out, obs_err *err);
 

@@ -1,7 +1,7 @@
 /* A Vulkan render's device session: what every Vulkan run does around its own work (the shared
  * device, its acquisition timed as a stage of its own, the validation layer's verdict, the
  * release), so that a technique's Vulkan run holds its work and nothing of the device's. The
- * screen-space driver (screen_vk.h) does the same for the techniques it runs. Internal to the
+ * screen-space driver (screen_vk.h) runs its techniques' work through it too. Internal to the
  * Vulkan backend. */
 #ifndef OBS_SESSION_VK_H
 #define OBS_SESSION_VK_H

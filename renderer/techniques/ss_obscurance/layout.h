@@ -20,9 +20,10 @@
 #define OBS_SSO_FLAG_ORTHO 1
 #define OBS_SSO_FLAG_INTERLEAVE 2
 
-/* The obscurance pass. The offset table is an image of (samples + 1) x cells texels: texel (k, c)
- * holds cell c's tangent-space offset k in units of R (xyz) and its weight (w); texel
- * (samples, c) holds 1 / (sum of cell c's weights) in x. */
+/* The obscurance pass. The offset table is an image of cells rows (obs_sso_tables.offsets as the
+ * host holds it, OBS_SSO_MAX_SAMPLES + 1 texels a row): texel (k, c) for k < samples holds cell
+ * c's tangent-space offset k in units of R (xyz) and its weight (w); texel (samples, c) holds
+ * 1 / (sum of cell c's weights) in x. */
 #define OBS_SSO_B_DEPTH 0
 #define OBS_SSO_B_NORMAL 1
 #define OBS_SSO_B_OFFSETS 2

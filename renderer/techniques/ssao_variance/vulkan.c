@@ -1,16 +1,18 @@
-/* ssao_variance on Vulkan: the moments and AO passes (ssao_variance_*.comp.glsl) over a device
- * G-buffer, run by the Vulkan screen-space driver. The per-frame plan is the host's
- * (svar_plan.c), made from the downloaded depth, so both backends use the same box. */
+/* ssao_variance on Vulkan: the moments and AO passes (ssao_variance_*.comp.glsl, their push
+ * blocks and bindings in layout.h, shared with the shaders) over a device G-buffer, a plan for the
+ * Vulkan pass driver (plan_vk.h) run by the Vulkan screen-space driver (screen_vk.h). The
+ * per-frame box is the host's (svar_plan.c), made from the downloaded depth, so both backends use
+ * the same one. */
 #include <stdlib.h>
 #include <string.h>
 
 #include "driver.h"
 #include "obscura/render.h"
+#include "plan_vk.h"
 #include "screen_vk.h"
 #include "shaders.h"
 #include "ssao_variance.h"
 #include "techniques.h"
-#include "vk.h"
 
 int obs_svar_vk_apply(obs_vk *vk, obs_vk_gbuffer *g, const obs_svar_projection *proj,
                       const obs_ssao_variance_params *p, float *ao_host, double *stage_ms,
@@ -23,25 +25,21 @@ int obs_svar_vk_apply(obs_vk *vk, obs_vk_gbuffer *g, const obs_svar_projection *
   const size_t n = (size_t)w * (size_t)h;
   obs_svar_plan *plan = malloc(sizeof *plan);
   float *depth = malloc(n * sizeof *depth);
-  obs_vk_image *mom = NULL, *inv = NULL, *ao = NULL;
+  obs_vk_plan_times t = {0};
   int rc = 0;
   if (!plan || !depth) {
     rc = obs_err_set(err, OBS_ENOMEM, "ssao_variance: %dx%d: out of memory", w, h);
     goto done;
   }
+  /* The box depends on the frame's median depth, so the depth comes back before the passes. */
   double t0 = obs_now_ms();
   if ((rc = obs_vk_image_download(vk, g->depth, depth, err))) goto done;
   double t1 = obs_now_ms();
   obs_svar_plan_make(p, depth, w, h, proj, plan);
-  double t2 = obs_now_ms(), ms[2] = {0, 0};
+  double t2 = obs_now_ms();
   if (!plan->taps) {
     for (size_t i = 0; i < n; i++) ao_host[i] = 1.0f;
   } else {
-    if ((rc = obs_vk_image_create(vk, w, h, 4, &mom, err)) ||
-        (rc = obs_vk_image_create(vk, OBS_SVAR_INV_COUNT, 1, 1, &inv, err)) ||
-        (rc = obs_vk_image_create(vk, w, h, 1, &ao, err)) ||
-        (rc = obs_vk_image_upload(vk, inv, plan->inv_count, err)))
-      goto done;
     obs_svar_moments_push mp = {.width = w,
                                 .height = h,
                                 .stride = plan->stride,
@@ -49,43 +47,29 @@ int obs_svar_vk_apply(obs_vk *vk, obs_vk_gbuffer *g, const obs_svar_projection *
                                 .zscale = plan->zscale};
     obs_svar_ao_push ap;
     obs_svar_ao_push_make(p, plan, w, h, proj->ortho, &ap);
-    uint32_t gx = (uint32_t)(w + 7) / 8, gy = (uint32_t)(h + 7) / 8;
-    obs_vk_pass passes[2] = {{.name = "ssao_variance_moments",
-                              .spirv = obs_spv_ssao_variance_moments_comp,
-                              .spirv_size = obs_spv_ssao_variance_moments_comp_size,
-                              .images = {[OBS_SVAR_M_DEPTH] = g->depth, [OBS_SVAR_M_MOMENTS] = mom},
-                              .nimages = 2,
-                              .push = &mp,
-                              .push_size = sizeof mp,
-                              .groups_x = gx,
-                              .groups_y = gy},
-                             {.name = "ssao_variance_ao",
-                              .spirv = obs_spv_ssao_variance_ao_comp,
-                              .spirv_size = obs_spv_ssao_variance_ao_comp_size,
-                              .images = {[OBS_SVAR_A_DEPTH] = g->depth,
-                                         [OBS_SVAR_A_MOMENTS] = mom,
-                                         [OBS_SVAR_A_INV] = inv,
-                                         [OBS_SVAR_A_AO] = ao},
-                              .nimages = 4,
-                              .push = &ap,
-                              .push_size = sizeof ap,
-                              .groups_x = gx,
-                              .groups_y = gy}};
-    if ((rc = obs_vk_run(vk, passes, 2, ms, err))) goto done;
+    enum { MOM = OBS_VK_PLAN_IMAGE0, INV, AO };
+    obs_vk_plan vp = {
+        .technique = "ssao_variance",
+        .images = {[MOM] = {.channels = 4},
+                   [INV] = {.width = OBS_SVAR_INV_COUNT, .height = 1, .channels = 1,
+                            .data = plan->inv_count},
+                   [AO] = {.channels = 1}},
+        .passes = {{.stage = "moments", OBS_VK_SPIRV(ssao_variance_moments_comp), OBS_VK_PUSH(mp),
+                    .images = {[OBS_SVAR_M_DEPTH] = OBS_VK_PLAN_DEPTH, [OBS_SVAR_M_MOMENTS] = MOM}},
+                   {.stage = "ao", OBS_VK_SPIRV(ssao_variance_ao_comp), OBS_VK_PUSH(ap),
+                    .images = {[OBS_SVAR_A_DEPTH] = OBS_VK_PLAN_DEPTH, [OBS_SVAR_A_MOMENTS] = MOM,
+                               [OBS_SVAR_A_INV] = INV, [OBS_SVAR_A_AO] = AO}}},
+        .downloads = {{AO, ao_host}}};
+    if ((rc = obs_vk_plan_run(vk, g, &vp, &t, err))) goto done;
   }
-  double t3 = obs_now_ms();
-  if (ao && (rc = obs_vk_image_download(vk, ao, ao_host, err))) goto done;
   if (stage_ms) {
     stage_ms[0] = t2 - t1;
-    stage_ms[1] = ms[0];
-    stage_ms[2] = ms[1];
-    stage_ms[3] = (t1 - t0) + (obs_now_ms() - t3);
+    stage_ms[1] = obs_vk_plan_ms(&t, "moments");
+    stage_ms[2] = obs_vk_plan_ms(&t, "ao");
+    stage_ms[3] = (t1 - t0) + obs_vk_plan_ms(&t, "readback");
   }
   if (plan_out) *plan_out = *plan;
 done:
-  obs_vk_image_free(vk, ao);
-  obs_vk_image_free(vk, inv);
-  obs_vk_image_free(vk, mom);
   free(depth);
   free(plan);
   return rc;
