@@ -3,6 +3,9 @@
 // the scene triangle at the fragment's barycentric weights, numbered as the CPU's patch mesh
 // (patch_mesh.c, obs_patch_sub_index).
 #version 450
+#extension GL_GOOGLE_include_directive : require
+#define OBS_PEEL_DRAW_PASS
+#include "layout.h"
 
 layout(location = 0) in vec2 bary;
 layout(location = 1) flat in int first;
@@ -10,13 +13,7 @@ layout(location = 2) flat in int split;
 layout(location = 3) flat in int robj;
 layout(location = 4) flat in float b;
 
-layout(binding = 0, rgba32f) uniform readonly image2D prev;
-
-layout(push_constant) uniform Push {
-  mat4 m;
-  vec4 dir;
-  float eps;
-} pc;
+layout(binding = OBS_PEEL_B_LAYER_A, rgba32f) uniform readonly image2D prev;
 
 layout(location = 0) out vec4 layer;
 

@@ -5,27 +5,17 @@
 // background (the virtual layers before the first and after the last), -2 a surface without
 // patches. b is the cosine of the front normal with the direction towards the viewer.
 #version 450
+#extension GL_GOOGLE_include_directive : require
+#define OBS_PEEL_TRANSFER_PASS
+#include "layout.h"
 layout(local_size_x = 8, local_size_y = 8) in;
 
-layout(binding = 0, rgba32f) uniform readonly image2D la;
-layout(binding = 1, rgba32f) uniform readonly image2D lb;
-// Per patch 16 words: sum of each channel (lo, hi) x 3, sum of squares x 3, samples, 2 unused.
-layout(std430, binding = 2) buffer Acc { uint acc[]; };
-layout(std430, binding = 3) readonly buffer Refl { vec4 refl[]; };
-layout(std430, binding = 4) buffer Count { uint covered[]; }; // per layer of a batch
-
-layout(push_constant) uniform Push {
-  float dmax;  // d_max over the depth range (window depth units)
-  float tau;   // exp falloff's rate per window depth unit
-  int falloff; // 0 binary, 1 sqrt, 2 exp
-  int bleed;
-  int res;
-  uint bg_s[3]; // fixed-point value of "nothing within d_max" (host-rounded, as the CPU's)
-  uint bg_q[3]; // and of its square
-  uint layer;   // this layer's slot in covered
-} pc;
-
-const float ONE = 268435456.0; // 2^28, as the CPU estimators' OMAP_ONE
+layout(binding = OBS_PEEL_B_LAYER_A, rgba32f) uniform readonly image2D la;
+layout(binding = OBS_PEEL_B_LAYER_B, rgba32f) uniform readonly image2D lb;
+// Per patch OBS_PEEL_ACC_WORDS words (layout.h).
+layout(std430, binding = OBS_PEEL_B_ACC) buffer Acc { uint acc[]; };
+layout(std430, binding = OBS_PEEL_B_REFL) readonly buffer Refl { vec4 refl[]; };
+layout(std430, binding = OBS_PEEL_B_COVERED) buffer Count { uint covered[]; }; // per layer
 
 void add64(uint at, uint x) {
   uint old = atomicAdd(acc[at], x);
@@ -33,12 +23,12 @@ void add64(uint at, uint x) {
 }
 
 void add_bg(int pid) {
-  uint base = uint(pid) * 16u;
+  uint base = uint(pid) * uint(OBS_PEEL_ACC_WORDS);
   for (int c = 0; c < 3; c++) {
-    add64(base + uint(2 * c), pc.bg_s[c]);
-    add64(base + uint(6 + 2 * c), pc.bg_q[c]);
+    add64(base + uint(OBS_PEEL_ACC_SUM + 2 * c), pc.bg_s[c]);
+    add64(base + uint(OBS_PEEL_ACC_SQ + 2 * c), pc.bg_q[c]);
   }
-  add64(base + 12u, 1u);
+  add64(base + uint(OBS_PEEL_ACC_SAMPLES), 1u);
 }
 
 // Patch `pid` sees a surface of reflectivity index `r` at window distance d.
@@ -49,12 +39,12 @@ void add_seen(int pid, float d, int r) {
   }
   float rho = pc.falloff == 0 ? 0.0 : pc.falloff == 1 ? sqrt(d / pc.dmax) : 1.0 - exp(-pc.tau * d);
   vec3 v = pc.bleed != 0 ? rho * refl[r].rgb : vec3(rho);
-  uint base = uint(pid) * 16u;
+  uint base = uint(pid) * uint(OBS_PEEL_ACC_WORDS);
   for (int c = 0; c < 3; c++) {
-    add64(base + uint(2 * c), uint(v[c] * ONE + 0.5));
-    add64(base + uint(6 + 2 * c), uint(v[c] * v[c] * ONE + 0.5));
+    add64(base + uint(OBS_PEEL_ACC_SUM + 2 * c), uint(v[c] * OBS_PEEL_FIXED_ONE + 0.5));
+    add64(base + uint(OBS_PEEL_ACC_SQ + 2 * c), uint(v[c] * v[c] * OBS_PEEL_FIXED_ONE + 0.5));
   }
-  add64(base + 12u, 1u);
+  add64(base + uint(OBS_PEEL_ACC_SAMPLES), 1u);
 }
 
 void main() {

@@ -1,7 +1,8 @@
 /* obscurance_map's depth_peeling estimator on Vulkan (omap_peel.h): the vertices (scene
  * triangles normalised to the bounding sphere, with their patch numbering), the peel and transfer
  * pipelines (shaders/peel.*.glsl, shaders/peel_transfer.comp.glsl), the loop over directions and
- * layers, and the per-patch sums turned into values. */
+ * layers, and the per-patch sums turned into values. The push blocks, the descriptor bindings and
+ * the sums' words are layout.h's, which the shaders include too. */
 #include "omap_peel.h"
 
 #include <math.h>
@@ -12,6 +13,7 @@
 #include "mcerr.h"
 #include "obscura/render.h"
 #include "obscurance.h"
+#include "layout.h"
 #include "obscurance_lines.h"
 #include "shaders.h"
 #include "vk_internal.h"
@@ -19,26 +21,15 @@
 #define PI 3.14159265358979323846
 /* Spheres have no patches; they only occlude and reflect, as UV spheres of this many segments. */
 #define SPHERE_LON 48
-#define FIXED_ONE 268435456.0 /* 2^28: the CPU estimators' fixed point (OMAP_ONE) */
-#define ACC_WORDS 16          /* per patch: 3 sums, 3 sums of squares, samples (lo, hi each) */
 
 typedef struct peel_vertex {
   float pos[3], bary[2], nrm[3];
   int32_t first, split, robj;
 } peel_vertex;
 
-typedef struct draw_push {
-  float m[16]; /* column-major */
-  float dir[4];
-  float eps;
-} draw_push;
-
-typedef struct transfer_push {
-  float dmax, tau;
-  int32_t falloff, bleed, res;
-  uint32_t bg_s[3], bg_q[3];
-  uint32_t layer; /* the slot of the covered-pixel counts */
-} transfer_push;
+_Static_assert(sizeof(obs_peel_draw_push) <= OBS_VK_PUSH_MAX &&
+                   sizeof(obs_peel_transfer_push) <= OBS_VK_PUSH_MAX,
+               "push constants past the pipeline layout's range");
 
 enum { B_VERT, B_ACC, B_REFL, B_COVERED, B_N };
 enum { I_L0, I_L1, I_SHOW, I_N };
@@ -131,14 +122,16 @@ static peel_vertex *build_vertices(const obs_geometry *geo, const obs_patch_mesh
 
 static int create_layouts(peel *pl, obs_err *err) {
   obs_vk *vk = pl->vk;
-  VkDescriptorSetLayoutBinding b[5];
-  for (uint32_t i = 0; i < 5; i++)
+  VkDescriptorSetLayoutBinding b[OBS_PEEL_BINDINGS];
+  for (uint32_t i = 0; i < OBS_PEEL_BINDINGS; i++)
     b[i] = (VkDescriptorSetLayoutBinding){
-        i, i < 2 ? VK_DESCRIPTOR_TYPE_STORAGE_IMAGE : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
+        i,
+        i < OBS_PEEL_IMAGES ? VK_DESCRIPTOR_TYPE_STORAGE_IMAGE : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
+        1,
         VK_SHADER_STAGE_FRAGMENT_BIT | VK_SHADER_STAGE_COMPUTE_BIT, NULL};
   VkDescriptorSetLayoutCreateInfo dci = {
       .sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO,
-      .bindingCount = 5,
+      .bindingCount = OBS_PEEL_BINDINGS,
       .pBindings = b};
   int rc = obs_vk_check(vk, vkCreateDescriptorSetLayout(vk->dev, &dci, NULL, &pl->dsl),
                         "vkCreateDescriptorSetLayout (depth peeling)", err);
@@ -299,8 +292,9 @@ framebuffer:;
 
 static int create_sets(peel *pl, obs_err *err) {
   obs_vk *vk = pl->vk;
-  VkDescriptorPoolSize sizes[2] = {{VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 4},
-                                   {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 6}};
+  VkDescriptorPoolSize sizes[2] = {
+      {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 2 * OBS_PEEL_IMAGES},
+      {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 2 * (OBS_PEEL_BINDINGS - OBS_PEEL_IMAGES)}};
   VkDescriptorPoolCreateInfo pci = {.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
                                     .maxSets = 2,
                                     .poolSizeCount = 2,
@@ -317,22 +311,25 @@ static int create_sets(peel *pl, obs_err *err) {
                          "vkAllocateDescriptorSets (depth peeling)", err)))
     return rc;
   for (int c = 0; c < 2; c++) {
-    VkDescriptorImageInfo ii[2] = {{VK_NULL_HANDLE, pl->img[c ^ 1]->view, VK_IMAGE_LAYOUT_GENERAL},
-                                   {VK_NULL_HANDLE, pl->img[c]->view, VK_IMAGE_LAYOUT_GENERAL}};
-    VkDescriptorBufferInfo bi[3] = {{pl->buf[B_ACC].buffer, 0, VK_WHOLE_SIZE},
-                                    {pl->buf[B_REFL].buffer, 0, VK_WHOLE_SIZE},
-                                    {pl->buf[B_COVERED].buffer, 0, VK_WHOLE_SIZE}};
-    VkWriteDescriptorSet w[5];
-    for (uint32_t i = 0; i < 5; i++)
+    VkDescriptorImageInfo ii[OBS_PEEL_BINDINGS] = {
+        [OBS_PEEL_B_LAYER_A] = {VK_NULL_HANDLE, pl->img[c ^ 1]->view, VK_IMAGE_LAYOUT_GENERAL},
+        [OBS_PEEL_B_LAYER_B] = {VK_NULL_HANDLE, pl->img[c]->view, VK_IMAGE_LAYOUT_GENERAL}};
+    VkDescriptorBufferInfo bi[OBS_PEEL_BINDINGS] = {
+        [OBS_PEEL_B_ACC] = {pl->buf[B_ACC].buffer, 0, VK_WHOLE_SIZE},
+        [OBS_PEEL_B_REFL] = {pl->buf[B_REFL].buffer, 0, VK_WHOLE_SIZE},
+        [OBS_PEEL_B_COVERED] = {pl->buf[B_COVERED].buffer, 0, VK_WHOLE_SIZE}};
+    VkWriteDescriptorSet w[OBS_PEEL_BINDINGS];
+    for (uint32_t i = 0; i < OBS_PEEL_BINDINGS; i++)
       w[i] = (VkWriteDescriptorSet){.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
                                     .dstSet = pl->sets[c],
                                     .dstBinding = i,
                                     .descriptorCount = 1,
-                                    .descriptorType = i < 2 ? VK_DESCRIPTOR_TYPE_STORAGE_IMAGE
-                                                            : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
-                                    .pImageInfo = i < 2 ? &ii[i] : NULL,
-                                    .pBufferInfo = i < 2 ? NULL : &bi[i - 2]};
-    vkUpdateDescriptorSets(vk->dev, 5, w, 0, NULL);
+                                    .descriptorType = i < OBS_PEEL_IMAGES
+                                                          ? VK_DESCRIPTOR_TYPE_STORAGE_IMAGE
+                                                          : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
+                                    .pImageInfo = i < OBS_PEEL_IMAGES ? &ii[i] : NULL,
+                                    .pBufferInfo = i < OBS_PEEL_IMAGES ? NULL : &bi[i]};
+    vkUpdateDescriptorSets(vk->dev, OBS_PEEL_BINDINGS, w, 0, NULL);
   }
   return 0;
 }
@@ -362,7 +359,7 @@ static void peel_free(peel *pl) {
 
 /* Draws every triangle into framebuffer `fb` (image `img`) with `dp`, reading layer set `set`. */
 static void record_draw(peel *pl, VkFramebuffer fb, const obs_vk_image *img, int set,
-                        const draw_push *dp) {
+                        const obs_peel_draw_push *dp) {
   VkCommandBuffer cmd = pl->vk->cmd;
   VkClearValue clear[2] = {{.color = {{-1.0f, -1.0f, 1.0f, 1.0f}}}, {.depthStencil = {1.0f, 0}}};
   VkRenderPassBeginInfo rbi = {
@@ -390,7 +387,7 @@ static void record_draw(peel *pl, VkFramebuffer fb, const obs_vk_image *img, int
   vkCmdEndRenderPass(cmd);
 }
 
-static void record_transfer(peel *pl, int set, const transfer_push *tp, uint32_t res) {
+static void record_transfer(peel *pl, int set, const obs_peel_transfer_push *tp, uint32_t res) {
   VkCommandBuffer cmd = pl->vk->cmd;
   obs_vk_cmd_barrier(cmd);
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pl->transfer);
@@ -411,7 +408,7 @@ static void record_transfer(peel *pl, int set, const transfer_push *tp, uint32_t
 
 /* The orthographic view of bundle b in normalised coordinates: pixel (i, j)'s centre on line
  * (i, j) of the bundle's grid, window depth 0 at the lines' start and 1 at their end. */
-static void bundle_view(const obs_bundle *b, uint32_t res, draw_push *dp) {
+static void bundle_view(const obs_bundle *b, uint32_t res, obs_peel_draw_push *dp) {
   memset(dp, 0, sizeof *dp);
   double sx = (1 - 2 * b->offset[0]) / res, sy = (1 - 2 * b->offset[1]) / res;
   for (int c = 0; c < 3; c++) {
@@ -427,7 +424,7 @@ static void bundle_view(const obs_bundle *b, uint32_t res, draw_push *dp) {
 /* The scene camera in normalised coordinates, as renderer/vulkan's G-buffer projects it (pixel
  * centres where the ray caster shoots), with a near and far plane around the bounding sphere. */
 static void camera_view(const obs_camera_rig *rig, const obs_geometry *geo,
-                        const obs_bound_sphere *bs, draw_push *dp) {
+                        const obs_bound_sphere *bs, obs_peel_draw_push *dp) {
   memset(dp, 0, sizeof *dp);
   double c0[3], dist = 0, r = bs->radius;
   for (int k = 0; k < 3; k++) {
@@ -477,8 +474,9 @@ static int peel_setup(peel *pl, obs_vk *vk, const obs_geometry *geo, const obs_p
   if (!rc) memcpy(pl->buf[B_VERT].map, v, (size_t)pl->nverts * sizeof *v);
   free(v);
   if (!rc)
-    rc = obs_vk_buffer_create(vk, (VkDeviceSize)(pm->count ? pm->count : 1) * ACC_WORDS * 4, sb, 1,
-                              &pl->buf[B_ACC], "depth peeling per-patch sums", err);
+    rc = obs_vk_buffer_create(vk,
+                              (VkDeviceSize)(pm->count ? pm->count : 1) * OBS_PEEL_ACC_WORDS * 4,
+                              sb, 1, &pl->buf[B_ACC], "depth peeling per-patch sums", err);
   if (!rc)
     rc = obs_vk_buffer_create(vk, (VkDeviceSize)(nrefl ? nrefl : 1) * 16, sb, 1, &pl->buf[B_REFL],
                               "depth peeling reflectivities", err);
@@ -509,10 +507,11 @@ static int peel_setup(peel *pl, obs_vk *vk, const obs_geometry *geo, const obs_p
  * rule); each counts its covered pixels into its own slot, and layers recorded past the first
  * empty one peel nothing (every fragment lies at or before the background's depth 1) and
  * transfer nothing. */
-static int peel_direction(peel *pl, const obs_bundle *b, uint32_t res, const transfer_push *tp,
-                          int *batch, uint64_t *layers, int *capped, obs_err *err) {
+static int peel_direction(peel *pl, const obs_bundle *b, uint32_t res,
+                          const obs_peel_transfer_push *tp, int *batch, uint64_t *layers,
+                          int *capped, obs_err *err) {
   obs_vk *vk = pl->vk;
-  draw_push dp;
+  obs_peel_draw_push dp;
   bundle_view(b, res, &dp);
   uint32_t *covered = pl->buf[B_COVERED].map;
   for (int first = 0; first < OBS_PEEL_LAYERS_MAX;) {
@@ -532,7 +531,7 @@ static int peel_direction(peel *pl, const obs_bundle *b, uint32_t res, const tra
       if (layer) obs_vk_cmd_barrier(vk->cmd);
       dp.eps = layer == 0 ? -1.0f : OBS_PEEL_EPS;
       record_draw(pl, pl->fb[cur], pl->img[cur], cur, &dp);
-      transfer_push t = *tp;
+      obs_peel_transfer_push t = *tp;
       t.layer = (uint32_t)layer;
       record_transfer(pl, cur, &t, res);
     }
@@ -555,7 +554,7 @@ static int peel_direction(peel *pl, const obs_bundle *b, uint32_t res, const tra
 static int peel_show(peel *pl, const obs_camera_rig *rig, const obs_geometry *geo,
                      const obs_bound_sphere *bs, int32_t *ids, obs_err *err) {
   obs_vk *vk = pl->vk;
-  draw_push dp;
+  obs_peel_draw_push dp;
   camera_view(rig, geo, bs, &dp);
   int rc = obs_vk_cmd_begin(vk, "depth peeling: patch ids", err);
   if (rc) return rc;
@@ -577,12 +576,12 @@ static uint64_t word64(const uint32_t *w) { return (uint64_t)w[0] | (uint64_t)w[
  * the device's sums cleared for the next group. */
 static void fold_group(uint32_t *acc, int64_t count, obs_mcerr_ratio *groups) {
   for (int64_t i = 0; i < count; i++) {
-    uint32_t *a = acc + (size_t)i * ACC_WORDS;
-    double n = (double)word64(a + 12);
+    uint32_t *a = acc + (size_t)i * OBS_PEEL_ACC_WORDS;
+    double n = (double)word64(a + OBS_PEEL_ACC_SAMPLES);
     for (int c = 0; c < 3; c++)
-      obs_mcerr_ratio_add(&groups[3 * (size_t)i + (size_t)c], (double)word64(a + 2 * c) / FIXED_ONE,
-                          n);
-    memset(a, 0, ACC_WORDS * sizeof *a);
+      obs_mcerr_ratio_add(&groups[3 * (size_t)i + (size_t)c],
+                          (double)word64(a + OBS_PEEL_ACC_SUM + 2 * c) / OBS_PEEL_FIXED_ONE, n);
+    memset(a, 0, OBS_PEEL_ACC_WORDS * sizeof *a);
   }
 }
 
@@ -658,15 +657,15 @@ int obs_omap_peel_compute(obs_vk *vk, const obs_scene *scene, const obs_geometry
   obs_bound_sphere_of(geo, &bs);
   /* Distances in window depth: the depth range is the lines' length, 2 radii. */
   const double range = 2 * bs.radius;
-  transfer_push tp = {.dmax = clamp_float(p->d_max / range),
+  obs_peel_transfer_push tp = {.dmax = clamp_float(p->d_max / range),
                       .tau = clamp_float(p->tau * range),
                       .falloff = p->falloff,
                       .bleed = p->color_bleeding,
                       .res = (int32_t)p->bundle_resolution};
   for (int c = 0; c < 3; c++) {
     double v = p->color_bleeding ? env.r_ave[c] : 1.0;
-    tp.bg_s[c] = (uint32_t)(v * FIXED_ONE + 0.5);
-    tp.bg_q[c] = (uint32_t)(v * v * FIXED_ONE + 0.5);
+    tp.bg_s[c] = (uint32_t)(v * OBS_PEEL_FIXED_ONE + 0.5);
+    tp.bg_q[c] = (uint32_t)(v * v * OBS_PEEL_FIXED_ONE + 0.5);
   }
   peel pl;
   double t0 = obs_now_ms();

@@ -5,50 +5,27 @@
 // fields are one 3D texture atlas read texel by texel (the CPU's trilinear, not the hardware's).
 // One dispatch reads fields [f0, f1) and carries the combination in `acc` to the next, so no
 // invocation runs more loop iterations than lavapipe allows. Pixels on an analytic sphere (drawn
-// tessellated) take the ray's hit on the true sphere, as the CPU's ray caster does.
+// tessellated) take the ray's hit on the true sphere, as the CPU's ray caster does. Bindings,
+// push block and the parameter buffer's rows are layout.h's, shared with vulkan.c.
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #include "include/frame.glsl"
+#define OBS_PROX_RECON_PASS
+#include "layout.h"
 layout(local_size_x = 8, local_size_y = 8) in;
-layout(binding = 0, r32f) uniform readonly image2D g_depth;    // linear view depth
-layout(binding = 1, rgba32f) uniform readonly image2D g_normal; // view-space normal, coverage
-layout(binding = 2, rgba32f) uniform readonly image2D g_albedo; // a: object index + 1
-// Per pixel of the region: occlusion sum, product of (1 - occlusion), fields read, ao.
-layout(binding = 3, rgba32f) uniform image2D acc;
-// Per pixel of the region: world normal, view depth (written by the first dispatch).
-layout(binding = 4, rgba32f) uniform image2D surf;
+layout(binding = OBS_PROX_B_DEPTH, r32f) uniform readonly image2D g_depth;
+layout(binding = OBS_PROX_B_NORMAL, rgba32f) uniform readonly image2D g_normal;
+layout(binding = OBS_PROX_B_ALBEDO, rgba32f) uniform readonly image2D g_albedo;
+layout(binding = OBS_PROX_B_ACC, rgba32f) uniform image2D acc;
+layout(binding = OBS_PROX_B_SURF, rgba32f) uniform image2D surf; // written by the first dispatch
 layout(set = 1, binding = 0) uniform sampler3D atlas;
-// Rows of 4 floats, written by vulkan.c (keep the two in step).
+// Rows of 4 floats (layout.h's OBS_PROX_H_* and OBS_PROX_F_*), written by vulkan.c.
 layout(set = 1, binding = 4, std430) readonly buffer Data { vec4 rows[]; };
 
-const int H_RIGHT = 0;  // camera right, half_w
-const int H_UP = 1;     // camera up, half_h
-const int H_FWD = 2;    // camera forward, orthographic (1) or not (0)
-const int H_RECON = 3;  // stop_value, scale_before, scale_after
-const int H_FIRST = 4;  // the disc table's first point of each step, 4 to a row
-const int H_DISC = 21;  // the disc points, 2 to a row
-const int H_COUNT = 517;
-// Per field: grid coordinates of the camera origin (w: the object's index); the grid images of
-// the camera's forward, right and up axes (w: the field's corner in the atlas, x y z); the grid
-// images of the world axes times the step length R / N (w: the grid's voxels, x y z).
-const int F_ORIGIN = 0, F_FWD = 1, F_RIGHT = 2, F_UP = 3, F_NX = 4, F_NY = 5, F_NZ = 6;
-const int F_COUNT = 7;
-// Then one row per scene object, from row `objects`: an analytic sphere's centre in view
-// coordinates (camera-relative: right, up, forward) and radius; 0 for everything else.
-
-layout(push_constant) uniform Push {
-  ivec4 region; // x0, y0, w, h
-  ivec2 size;   // the image's width and height
-  int f0, f1;   // the fields of this dispatch
-  int steps, mode, combine, self_occlusion;
-  int phase;    // 1: the first dispatch, 2: the last
-  int objects;  // the row of object 0
-} pc;
-
-int first_point(int i) { return int(rows[H_FIRST + i / 4][i % 4]); }
+int first_point(int i) { return int(rows[OBS_PROX_H_FIRST + i / 4][i % 4]); }
 
 vec2 disc(int j) {
-  vec4 r = rows[H_DISC + j / 2];
+  vec4 r = rows[OBS_PROX_H_DISC + j / 2];
   return (j & 1) == 0 ? r.xy : r.zw;
 }
 
@@ -87,7 +64,7 @@ float field_sample(ivec3 at, ivec3 dims, vec3 g) {
 float occlusion(ivec3 at, ivec3 dims, vec3 gp, vec3 gs, vec3 gt, vec3 gb) {
   const int n = pc.steps;
   const bool code = pc.mode == 0;
-  vec4 rc = rows[H_RECON];
+  vec4 rc = rows[OBS_PROX_H_RECON];
   vec3 fd = vec3(dims);
   precise float ao = 0.0;
   float prev = 0.0;
@@ -144,18 +121,19 @@ void sphere_hit(vec4 s, vec3 o, vec3 d, inout vec3 p, inout vec3 nrm) {
 
 void main() {
   ivec2 l = ivec2(gl_GlobalInvocationID.xy);
-  if (l.x >= pc.region.z || l.y >= pc.region.w) return;
-  ivec2 px = l + pc.region.xy;
-  vec4 a = (pc.phase & 1) != 0 ? vec4(0.0, 1.0, 0.0, 0.0) : imageLoad(acc, l);
+  if (l.x >= pc.region[2] || l.y >= pc.region[3]) return;
+  ivec2 px = l + ivec2(pc.region[0], pc.region[1]);
+  vec4 a = (pc.phase & OBS_PROX_PHASE_FIRST) != 0 ? vec4(0.0, 1.0, 0.0, 0.0)
+                                                  : imageLoad(acc, l);
   vec4 nv = imageLoad(g_normal, px);
   bool hit = nv.w > 0.0;
   vec4 sf = vec4(0.0);
   if (hit) {
     int self = int(imageLoad(g_albedo, px).a) - 1;
-    vec4 R = rows[H_RIGHT], U = rows[H_UP], F = rows[H_FWD];
+    vec4 R = rows[OBS_PROX_H_RIGHT], U = rows[OBS_PROX_H_UP], F = rows[OBS_PROX_H_FWD];
     bool ortho = F.w > 0.5;
-    precise float sx = (2.0 * (float(px.x) + 0.5) / float(pc.size.x) - 1.0) * R.w;
-    precise float sy = (1.0 - 2.0 * (float(px.y) + 0.5) / float(pc.size.y)) * U.w;
+    precise float sx = (2.0 * (float(px.x) + 0.5) / float(pc.size[0]) - 1.0) * R.w;
+    precise float sy = (1.0 - 2.0 * (float(px.y) + 0.5) / float(pc.size[1])) * U.w;
     // The ray (view coordinates) and the point on it the raster found.
     vec3 o = ortho ? vec3(sx, sy, 0.0) : vec3(0.0);
     vec3 d = ortho ? vec3(0.0, 0.0, 1.0) : vec3(sx, sy, 1.0);
@@ -172,11 +150,13 @@ void main() {
     vec3 t, b;
     obs_onb(n, t, b);
     for (int f = pc.f0; f < pc.f1; f++) {
-      int r = H_COUNT + F_COUNT * f;
-      vec4 og = rows[r + F_ORIGIN];
+      int r = OBS_PROX_H_COUNT + OBS_PROX_F_COUNT * f;
+      vec4 og = rows[r + OBS_PROX_F_ORIGIN];
       if (pc.self_occlusion == 0 && int(og.w) == self) continue;
-      vec4 gf = rows[r + F_FWD], gr = rows[r + F_RIGHT], gu = rows[r + F_UP];
-      vec4 ex = rows[r + F_NX], ey = rows[r + F_NY], ez = rows[r + F_NZ];
+      vec4 gf = rows[r + OBS_PROX_F_FWD], gr = rows[r + OBS_PROX_F_RIGHT];
+      vec4 gu = rows[r + OBS_PROX_F_UP];
+      vec4 ex = rows[r + OBS_PROX_F_NX], ey = rows[r + OBS_PROX_F_NY];
+      vec4 ez = rows[r + OBS_PROX_F_NZ];
       ivec3 dims = ivec3(ex.w, ey.w, ez.w);
       // The camera-relative point through the field's map, composed on the host in double.
       precise vec3 gp = og.xyz + p.x * gr.xyz + p.y * gu.xyz + p.z * gf.xyz;
@@ -192,8 +172,8 @@ void main() {
       a.z += 1.0;
     }
   }
-  if ((pc.phase & 1) != 0) imageStore(surf, l, sf);
-  if ((pc.phase & 2) != 0) {
+  if ((pc.phase & OBS_PROX_PHASE_FIRST) != 0) imageStore(surf, l, sf);
+  if ((pc.phase & OBS_PROX_PHASE_LAST) != 0) {
     float total = pc.combine == 1 ? 1.0 - a.y : a.x;
     if (total > 1.0) total = 1.0;
     a.w = hit ? 1.0 - total : 1.0;

@@ -12,6 +12,9 @@
  * is its camera-relative depth and image position through one float map, whatever the scene's
  * size and distance from the origin.
  *
+ * The push block, the image bindings and the parameter buffer's rows are layout.h's, which the
+ * shader includes too.
+ *
  * One shading sample per pixel, at its centre (the G-buffer's): image.spp is not used here. Moving
  * scenes (motion) render on the CPU only (the descriptor's motion_backends). */
 #include <math.h>
@@ -21,6 +24,7 @@
 #include "camera.h"
 #include "driver.h"
 #include "geometry.h"
+#include "layout.h"
 #include "obscura/render.h"
 #include "plan_vk.h"
 #include "session_vk.h"
@@ -30,33 +34,12 @@
 #include "vk.h"
 #include "volume_textures_vk.h"
 
-/* The parameter buffer, rows of 4 floats as the shader reads them: a header (the camera, the
- * reconstruction's constants, the disc table), F_COUNT rows per field, then one row per scene
- * object (an analytic sphere's centre in view coordinates and radius, or zeros). Keep in step
- * with shaders/proximity_ao.comp.glsl. */
-enum {
-  H_RIGHT,                                         /* camera right, half_w */
-  H_UP,                                            /* camera up, half_h */
-  H_FWD,                                           /* camera forward, orthographic */
-  H_RECON,                                         /* stop_value, scale_before, scale_after */
-  H_FIRST,                                         /* obs_prox_recon.first, 4 to a row */
-  H_DISC = H_FIRST + (OBS_PROX_MAX_STEPS + 4) / 4, /* the disc points, 2 to a row */
-  H_COUNT = H_DISC + OBS_PROX_DISC_POINTS / 2
-};
-enum { F_ORIGIN, F_FWD, F_RIGHT, F_UP, F_NX, F_NY, F_NZ, F_COUNT };
-_Static_assert(H_DISC == 21 && H_COUNT == 517 && F_COUNT == 7, "the shader's rows");
-
-/* Push constants (std430 scalars), as the shader declares them. */
-typedef struct recon_push {
-  int32_t region[4]; /* x0, y0, w, h */
-  int32_t size[2];   /* the image's width and height */
-  int32_t f0, f1;    /* the fields of this dispatch */
-  int32_t steps, mode, combine, self_occlusion;
-  int32_t phase;   /* PH_* */
-  int32_t objects; /* the row of object 0 */
-} recon_push;
-_Static_assert(sizeof(recon_push) <= OBS_VK_PUSH_MAX, "push constants past the device layer's");
-enum { PH_FIRST = 1, PH_LAST = 2 };
+/* The parameter buffer's header rows (layout.h) as proximity.h's limits size them. */
+_Static_assert(OBS_PROX_H_DISC == OBS_PROX_H_FIRST + (OBS_PROX_MAX_STEPS + 4) / 4 &&
+                   OBS_PROX_H_COUNT == OBS_PROX_H_DISC + OBS_PROX_DISC_POINTS / 2,
+               "layout.h's header rows against the disc table's size");
+_Static_assert(sizeof(obs_prox_recon_push) <= OBS_VK_PUSH_MAX,
+               "push constants past the device layer's");
 
 /* Loop iterations per invocation and dispatch where the device sets no limit: bounds a dispatch's
  * length on GPUs. */
@@ -139,31 +122,31 @@ static void put_field(float *r, const job *jb, size_t i, const int at[3]) {
       gu[k] += m[k][j] * rig->up[j];
     }
   }
-  put4(r + 4 * F_ORIGIN, o[0], o[1], o[2], (double)f->object);
-  put4(r + 4 * F_FWD, gf[0], gf[1], gf[2], at[0]);
-  put4(r + 4 * F_RIGHT, gr[0], gr[1], gr[2], at[1]);
-  put4(r + 4 * F_UP, gu[0], gu[1], gu[2], at[2]);
+  put4(r + 4 * OBS_PROX_F_ORIGIN, o[0], o[1], o[2], (double)f->object);
+  put4(r + 4 * OBS_PROX_F_FWD, gf[0], gf[1], gf[2], at[0]);
+  put4(r + 4 * OBS_PROX_F_RIGHT, gr[0], gr[1], gr[2], at[1]);
+  put4(r + 4 * OBS_PROX_F_UP, gu[0], gu[1], gu[2], at[2]);
   /* Column j: the grid image of world axis j times the step R / N (the CPU maps n h the same). */
   for (int j = 0; j < 3; j++)
-    put4(r + 4 * (F_NX + j), m[0][j] * h, m[1][j] * h, m[2][j] * h, f->dims[j]);
+    put4(r + 4 * (OBS_PROX_F_NX + j), m[0][j] * h, m[1][j] * h, m[2][j] * h, f->dims[j]);
 }
 
 /* The whole parameter buffer (malloc'd, *rows rows of 4 floats). */
 static float *build_params(const job *jb, const dev *d, size_t *rows) {
-  size_t objects = H_COUNT + jb->fs->n * F_COUNT;
+  size_t objects = OBS_PROX_H_COUNT + jb->fs->n * OBS_PROX_F_COUNT;
   *rows = objects + (jb->sc->nobjects ? jb->sc->nobjects : 1);
   float *b = calloc(*rows * 4, sizeof *b);
   if (!b) return NULL;
   const obs_camera_rig *rig = &jb->rig;
   const obs_prox_recon *rc = &jb->recon;
-  put4(b + 4 * H_RIGHT, rig->right[0], rig->right[1], rig->right[2], rig->half_w);
-  put4(b + 4 * H_UP, rig->up[0], rig->up[1], rig->up[2], rig->half_h);
-  put4(b + 4 * H_FWD, rig->forward[0], rig->forward[1], rig->forward[2], rig->ortho);
-  put4(b + 4 * H_RECON, rc->stop_value, rc->scale_before, rc->scale_after, 0);
-  for (int i = 0; i <= rc->steps; i++) b[4 * H_FIRST + i] = (float)rc->first[i];
-  memcpy(b + 4 * H_DISC, rc->disc, sizeof rc->disc);
+  put4(b + 4 * OBS_PROX_H_RIGHT, rig->right[0], rig->right[1], rig->right[2], rig->half_w);
+  put4(b + 4 * OBS_PROX_H_UP, rig->up[0], rig->up[1], rig->up[2], rig->half_h);
+  put4(b + 4 * OBS_PROX_H_FWD, rig->forward[0], rig->forward[1], rig->forward[2], rig->ortho);
+  put4(b + 4 * OBS_PROX_H_RECON, rc->stop_value, rc->scale_before, rc->scale_after, 0);
+  for (int i = 0; i <= rc->steps; i++) b[4 * OBS_PROX_H_FIRST + i] = (float)rc->first[i];
+  memcpy(b + 4 * OBS_PROX_H_DISC, rc->disc, sizeof rc->disc);
   for (size_t i = 0; i < jb->fs->n; i++)
-    put_field(b + 4 * (H_COUNT + i * F_COUNT), jb, i, d->at[i]);
+    put_field(b + 4 * (OBS_PROX_H_COUNT + i * OBS_PROX_F_COUNT), jb, i, d->at[i]);
   for (size_t s = 0; s < jb->geo->nspheres; s++) {
     const obs_sphere *sp = &jb->geo->spheres[s];
     double c[3], v[3] = {0, 0, 0};
@@ -201,21 +184,27 @@ static int shade(obs_render_ctx *ctx, obs_vk *vk, const job *jb, const obs_regio
                  float *px, obs_vk_plan_times *t, obs_err *err) {
   int per = fields_per_dispatch(vk, jb), nf = (int)jb->fs->n;
   int chunks = nf ? (nf + per - 1) / per : 1;
-  recon_push pc = {.region = {rg->x0, rg->y0, rg->x1 - rg->x0, rg->y1 - rg->y0},
-                   .size = {jb->sc->width, jb->sc->height},
-                   .steps = jb->recon.steps,
-                   .mode = jb->recon.mode,
-                   .combine = jb->p.combine,
-                   .self_occlusion = jb->p.self_occlusion,
-                   .objects = (int32_t)(H_COUNT + jb->fs->n * F_COUNT)};
+  obs_prox_recon_push pc = {.region = {rg->x0, rg->y0, rg->x1 - rg->x0, rg->y1 - rg->y0},
+                            .size = {jb->sc->width, jb->sc->height},
+                            .steps = jb->recon.steps,
+                            .mode = jb->recon.mode,
+                            .combine = jb->p.combine,
+                            .self_occlusion = jb->p.self_occlusion,
+                            .objects = (int32_t)(OBS_PROX_H_COUNT + jb->fs->n * OBS_PROX_F_COUNT)};
   enum { ACC = OBS_VK_PLAN_IMAGE0, SURF };
   obs_vk_plan plan = {
       .technique = "proximity_ao",
       .width = pc.region[2],
       .height = pc.region[3],
       .images = {[ACC] = {.channels = 4}, [SURF] = {.channels = 4}},
-      .passes = {{.stage = "shade", OBS_VK_SPIRV(proximity_ao_comp), OBS_VK_PUSH(pc),
-                  .images = {OBS_VK_PLAN_DEPTH, OBS_VK_PLAN_NORMAL, OBS_VK_PLAN_ALBEDO, ACC, SURF},
+      .passes = {{.stage = "shade",
+                  OBS_VK_SPIRV(proximity_ao_comp),
+                  OBS_VK_PUSH(pc),
+                  .images = {[OBS_PROX_B_DEPTH] = OBS_VK_PLAN_DEPTH,
+                             [OBS_PROX_B_NORMAL] = OBS_VK_PLAN_NORMAL,
+                             [OBS_PROX_B_ALBEDO] = OBS_VK_PLAN_ALBEDO,
+                             [OBS_PROX_B_ACC] = ACC,
+                             [OBS_PROX_B_SURF] = SURF},
                   .textures = {d->atlas},
                   .ntextures = 1,
                   .data = d->params}},
@@ -226,7 +215,7 @@ static int shade(obs_render_ctx *ctx, obs_vk *vk, const job *jb, const obs_regio
     if ((rc = obs_driver_cancelled(ctx, err))) break;
     pc.f0 = c * per;
     pc.f1 = pc.f0 + per < nf ? pc.f0 + per : nf;
-    pc.phase = (c == 0 ? PH_FIRST : 0) | (c + 1 == chunks ? PH_LAST : 0);
+    pc.phase = (c == 0 ? OBS_PROX_PHASE_FIRST : 0) | (c + 1 == chunks ? OBS_PROX_PHASE_LAST : 0);
     if (!(rc = obs_vk_plan_dispatch(&s, err))) progress(ctx, 0.3 + 0.6 * (c + 1) / chunks);
   }
   return obs_vk_plan_close(&s, rc, t, err);
@@ -253,8 +242,7 @@ static void scatter(const obs_region *rg, const float *px, obs_image *out) {
 }
 
 /* The G-buffer, the fields and the parameters on the device; timed as the render's build. */
-static int dev_build(obs_render_ctx *ctx, obs_vk *vk, const job *jb, dev *d,
-                     obs_err *err) {
+static int dev_build(obs_render_ctx *ctx, obs_vk *vk, const job *jb, dev *d, obs_err *err) {
   double gb_ms = 0, t0 = obs_now_ms();
   int rc = obs_vk_gbuffer_render(vk, jb->sc, jb->geo, &d->gb, &gb_ms, err);
   if (rc) return rc;

@@ -1,23 +1,21 @@
 /* The proximity-field flood on Vulkan (proximity_vk.h): the field's values, a block-sum scratch
  * grid and the occupancy as 3D R32F storage images, and per iteration two passes
  * (shaders/prox_flood_xy.comp.glsl, prox_flood_z.comp.glsl) that repeat the CPU's separable sums
- * in its order of float operations. The values are updated in place by the second pass, so the
- * device holds three grids, not the CPU's four. */
+ * in its order of float operations (their push block and bindings in layout.h). The values are
+ * updated in place by the second pass, so the device holds three grids, not the CPU's four. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "layout.h"
 #include "proximity_vk.h"
 #include "shaders.h"
 
 /* Iterations recorded per obs_vk_run: a bounded pass list however many the field asks. */
 #define BATCH 64
 
-typedef struct flood_push {
-  int32_t dims[4];
-  float inv26;
-} flood_push;
-_Static_assert(sizeof(flood_push) <= OBS_VK_PUSH_MAX, "push constants past the device layer's");
+_Static_assert(sizeof(obs_prox_flood_push) <= OBS_VK_PUSH_MAX,
+               "push constants past the device layer's");
 
 /* The three grids: values, x-y block sums, occupancy. */
 typedef struct flood_dev {
@@ -60,25 +58,28 @@ static int dev_build(obs_vk *vk, const obs_prox_field *f, flood_dev *d, obs_err 
 
 /* Every iteration, BATCH to a run. */
 static int iterate(obs_vk *vk, const obs_prox_field *f, const flood_dev *d, obs_err *err) {
-  flood_push pc = {{f->dims[0], f->dims[1], f->dims[2], 0}, OBS_PROX_INV26};
+  obs_prox_flood_push pc = {{f->dims[0], f->dims[1], f->dims[2]}, OBS_PROX_INV26};
   uint32_t gx = (uint32_t)(f->dims[0] + 7) / 8, gy = (uint32_t)(f->dims[1] + 7) / 8;
   obs_vk_pass *passes = calloc(2 * BATCH, sizeof *passes);
   if (!passes) return obs_err_set(err, OBS_ENOMEM, "vulkan: out of memory for the flood");
   for (int i = 0; i < BATCH; i++) {
-    passes[2 * i] = (obs_vk_pass){.name = "prox_flood_xy",
-                                  .spirv = obs_spv_prox_flood_xy_comp,
-                                  .spirv_size = obs_spv_prox_flood_xy_comp_size,
-                                  .images = {d->val, d->sxy},
-                                  .nimages = 2,
-                                  .push = &pc,
-                                  .push_size = sizeof pc,
-                                  .groups_x = gx,
-                                  .groups_y = gy,
-                                  .groups_z = (uint32_t)f->dims[2]};
+    passes[2 * i] =
+        (obs_vk_pass){.name = "prox_flood_xy",
+                      .spirv = obs_spv_prox_flood_xy_comp,
+                      .spirv_size = obs_spv_prox_flood_xy_comp_size,
+                      .images = {[OBS_PROX_FLOOD_B_VAL] = d->val, [OBS_PROX_FLOOD_B_SXY] = d->sxy},
+                      .nimages = 2,
+                      .push = &pc,
+                      .push_size = sizeof pc,
+                      .groups_x = gx,
+                      .groups_y = gy,
+                      .groups_z = (uint32_t)f->dims[2]};
     passes[2 * i + 1] = (obs_vk_pass){.name = "prox_flood_z",
                                       .spirv = obs_spv_prox_flood_z_comp,
                                       .spirv_size = obs_spv_prox_flood_z_comp_size,
-                                      .images = {d->val, d->sxy, d->occ},
+                                      .images = {[OBS_PROX_FLOOD_B_VAL] = d->val,
+                                                 [OBS_PROX_FLOOD_B_SXY] = d->sxy,
+                                                 [OBS_PROX_FLOOD_B_OCC] = d->occ},
                                       .nimages = 3,
                                       .push = &pc,
                                       .push_size = sizeof pc,

@@ -4,8 +4,9 @@
 // gradient normal, AO directions from the same sample streams as the CPU's obs_sampler2d
 // (renderer/core/sampling.c, ported bit for bit), marched through every volume
 // (obs_volume_grid_crossing), the bent normal, direct lights, the ibl methods and the colormap.
-// The host (volume_ao_vk.c) lays out the parameter buffer and hands world space over relative to
-// a reference point Q on the view axis, so no coordinate the shader sees is large.
+// The host (vulkan.c) lays out the parameter buffer (its rows, the bindings and the push block are
+// layout.h's) and hands world space over relative to a reference point Q on the view axis, so no
+// coordinate the shader sees is large.
 //
 // One dispatch shades pixel sample `sample` with AO directions [dir0, dir1): the host splits the
 // directions so that no invocation runs more loop iterations than the device allows (lavapipe:
@@ -19,61 +20,36 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #include "include/frame.glsl"
+#include "layout.h"
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
-// Per pixel: sums over the samples, turned into the outputs by the last dispatch (PH_FINAL).
-layout(set = 0, binding = 0, rgba32f) uniform image2D acc0; // R, G, B, ao
-layout(set = 0, binding = 1, rgba32f) uniform image2D acc1; // bent normal, depth
-layout(set = 0, binding = 2, rgba32f) uniform image2D acc2; // normal, hits (alpha)
+// Per pixel: sums over the samples, turned into the outputs by the last dispatch
+// (OBS_VAO_PH_FINAL).
+layout(set = 0, binding = OBS_VAO_B_ACC0, rgba32f) uniform image2D acc0; // R, G, B, ao
+layout(set = 0, binding = OBS_VAO_B_ACC1, rgba32f) uniform image2D acc1; // bent normal, depth
+layout(set = 0, binding = OBS_VAO_B_ACC2, rgba32f) uniform image2D acc2; // normal, hits (alpha)
 // Per pixel, for the sample in progress: open directions, their environment sum; their sum, and
 // in w the loop-limit flag (kept over the whole render).
-layout(set = 0, binding = 3, rgba32f) uniform image2D st0;
-layout(set = 0, binding = 4, rgba32f) uniform image2D st1;
+layout(set = 0, binding = OBS_VAO_B_ST0, rgba32f) uniform image2D st0;
+layout(set = 0, binding = OBS_VAO_B_ST1, rgba32f) uniform image2D st1;
 // Per pixel: the sample in progress's open directions in its current replicate, the Welford mean
 // and sum of squares of its replicates' means; in w the pixel's AO variance over its samples (at
 // the end its standard error).
-layout(set = 0, binding = 5, rgba32f) uniform image2D st2;
+layout(set = 0, binding = OBS_VAO_B_ST2, rgba32f) uniform image2D st2;
 layout(set = 1, binding = 0) uniform sampler3D vol_atlas;  // samples, linear (or nearest: flags)
 layout(set = 1, binding = 1) uniform sampler3D cell_atlas; // macrocell maxima, read by texel
 layout(set = 1, binding = 2) uniform sampler2DArray env_faces; // the cube map's faces as layers
 layout(set = 1, binding = 4, std430) readonly buffer Params { vec4 P[]; };
 
-layout(push_constant, std430) uniform Push {
-  ivec4 band;    // x0, y0, w, h
-  ivec2 origin;  // the region's corner
-  ivec2 size;    // the image's width and height
-  int spp;
-  uint samples;
-  int sampler_kind;
-  uint seed;
-  int ibl, crossing, blinn, ortho;
-  int nvol, nlights, env_res, last;
-  int flags;
-  int pixel_sample; // the pixel sample this dispatch shades
-  uint dir0, dir1; // its AO directions [dir0, dir1)
-  int phase;      // PH_*
-  uint iter_limit; // 0: none
-  int pilot;       // 0; the pooled prior's pilots (driver.h): the cell side, and invocation (i, j)
-  int cell_x0, cell_y0; // shades the pilot of cell (cell_x0 + i, cell_y0 + j), stored at (i, j)
-} pc;
-
-// Layout of P (volume_ao_vk.c): header rows, then per volume VS rows, per light 2, colormaps.
-const int H_FWD = 0, H_RIGHT = 1, H_UP = 2, H_MARCH = 3, H_ATLAS = 4, H_ENV_MEAN = 5, H_SH = 6;
-const int HDR = 15, VS = 15;
-const int V_TO_DATA = 0, V_TO_WORLD = 3, V_NORMAL = 6, V_EXTENT = 9, V_SPACING = 10, V_DIMS = 11,
-          V_AT = 12, V_CELLS = 13, V_CELL_AT = 14;
-const int FLAG_VOL_MANUAL = 1, FLAG_ENV_MANUAL = 2, FLAG_ENV = 4;
-const int PH_FIRST_CHUNK = 1, PH_LAST_CHUNK = 2, PH_FIRST_SAMPLE = 4, PH_FINAL = 8;
-const int IBL_LOOKUP = 1, IBL_IRRADIANCE = 2, IBL_REFERENCE = 3;
 const float PI = 3.14159265358979323846;
 const float INF = 1.0 / 0.0; // +infinity (IEEE: the compiler folds it)
 
 uint iters = 0u; // iterations of data-dependent loops so far (see the top)
 
-vec4 V(int k, int row) { return P[HDR + k * VS + row]; }
-int light_base() { return HDR + pc.nvol * VS; }
-int cmap_base() { return light_base() + 2 * pc.nlights; }
+vec4 V(int k, int row) { return P[OBS_VAO_H_COUNT + k * OBS_VAO_V_COUNT + row]; }
+int light_base() { return OBS_VAO_H_COUNT + pc.nvol * OBS_VAO_V_COUNT; }
+int cmap_base() { return light_base() + OBS_VAO_L_COUNT * pc.nlights; }
 
 // Rows [row, row + 3) of volume k as an affine map: a point, and the linear part alone.
 vec3 map_point(int k, int row, vec3 p) {
@@ -136,10 +112,10 @@ uvec2 sampler_init(uint x, uint y, uint pixel_sample, uint stream) {
   return uvec2(h, hash32(h ^ 0xa511e9b3u));
 }
 vec2 sampler_get(uvec2 s, uint i) {
-  if (pc.sampler_kind == 0)
+  if (pc.sampler_kind == OBS_VAO_SAMPLER_SOBOL)
     return vec2(u32_to_unit(bitfieldReverse(laine_karras(i, s.x))),
                 u32_to_unit(bitfieldReverse(laine_karras(sobol1_reversed(i), s.y))));
-  if (pc.sampler_kind == 1) {
+  if (pc.sampler_kind == OBS_VAO_SAMPLER_HALTON) {
     float a = float(bitfieldReverse(i)) * (1.0 / 4294967296.0) + u32_to_unit(s.x);
     float b = radical_inverse3(i) + u32_to_unit(s.y);
     a -= a >= 1.0 ? 1.0 : 0.0;
@@ -151,7 +127,7 @@ vec2 sampler_get(uvec2 s, uint i) {
 // obs_rqmc: the n directions form R replicates of consecutive directions, each its own scramble.
 uint rqmc_reps() {
   uint n = max(pc.samples, 1u);
-  return pc.sampler_kind == 2 || n < 4u ? n : 4u; // OBS_RQMC_REPLICATES
+  return pc.sampler_kind == OBS_VAO_SAMPLER_RANDOM || n < 4u ? n : 4u; // OBS_RQMC_REPLICATES
 }
 uint rqmc_first(uint r) {
   uint R = rqmc_reps(), base = pc.samples / R, extra = pc.samples % R;
@@ -159,7 +135,7 @@ uint rqmc_first(uint r) {
 }
 // The replicate of direction i (returned) and i's index j in it.
 uint rqmc_locate(uint i, out uint j) {
-  if (pc.sampler_kind == 2) {
+  if (pc.sampler_kind == OBS_VAO_SAMPLER_RANDOM) {
     j = i;
     return 0u;
   }
@@ -186,10 +162,10 @@ vec3 sample_cosine(vec2 uv) {
 // Texel t of the volume at its corner `at` of the atlas, held at the edges (CPU: clamped to the
 // voxel centres), interpolated in the shader: the device cannot filter floats.
 float field_manual(int k, vec3 p) {
-  vec3 n = V(k, V_DIMS).xyz;
-  vec3 u = clamp(p / V(k, V_SPACING).xyz - 0.5, vec3(0.0), n - 1.0);
+  vec3 n = V(k, OBS_VAO_V_DIMS).xyz;
+  vec3 u = clamp(p / V(k, OBS_VAO_V_SPACING).xyz - 0.5, vec3(0.0), n - 1.0);
   ivec3 ni = ivec3(n), i = min(ivec3(u), max(ni - 2, ivec3(0)));
-  ivec3 i1 = i + ivec3(greaterThan(ni, ivec3(1))), at = ivec3(V(k, V_AT).xyz);
+  ivec3 i1 = i + ivec3(greaterThan(ni, ivec3(1))), at = ivec3(V(k, OBS_VAO_V_AT).xyz);
   vec3 w = mix(vec3(0.0), u - vec3(i), greaterThan(ni, ivec3(1)));
 #define F(a, b, c) texelFetch(vol_atlas, at + ivec3(a, b, c), 0).r
   float c00 = F(i.x, i.y, i.z) + w.x * (F(i1.x, i.y, i.z) - F(i.x, i.y, i.z));
@@ -206,9 +182,9 @@ float field_manual(int k, vec3 p) {
 // filter between texel centres is the CPU's between voxel centres, and clamping to the outer
 // centres holds the field at the box's faces (and keeps the filter off the neighbours' texels).
 float field(int k, vec3 p) {
-  if ((pc.flags & FLAG_VOL_MANUAL) != 0) return field_manual(k, p);
-  vec3 c = clamp(p / V(k, V_SPACING).xyz, vec3(0.5), V(k, V_DIMS).xyz - 0.5);
-  return textureLod(vol_atlas, (c + V(k, V_AT).xyz) * P[H_ATLAS].xyz, 0.0).r;
+  if ((pc.flags & OBS_VAO_FLAG_VOL_MANUAL) != 0) return field_manual(k, p);
+  vec3 c = clamp(p / V(k, OBS_VAO_V_SPACING).xyz, vec3(0.5), V(k, OBS_VAO_V_DIMS).xyz - 0.5);
+  return textureLod(vol_atlas, (c + V(k, OBS_VAO_V_AT).xyz) * P[OBS_VAO_H_ATLAS].xyz, 0.0).r;
 }
 
 // ---- marching (volume_march.c) ----
@@ -220,7 +196,7 @@ bvec3 either(bvec3 a, bvec3 b) { return bvec3(uvec3(a) | uvec3(b)); }
 // The ray's parameter range inside the box [0, extent] (slabs), as the CPU's clip_box: an axis
 // the ray runs parallel to must hold o inside, the others narrow [t0, t1].
 bool clip_box(int k, vec3 o, vec3 d, inout float t0, inout float t1) {
-  vec3 hi = V(k, V_EXTENT).xyz;
+  vec3 hi = V(k, OBS_VAO_V_EXTENT).xyz;
   bvec3 flat_ = equal(d, vec3(0.0));
   if (any(both(flat_, either(lessThan(o, vec3(0.0)), greaterThan(o, hi))))) return false;
   vec3 ta = (0.0 - o) / d, tb = (hi - o) / d;
@@ -236,13 +212,15 @@ bool clip_box(int k, vec3 o, vec3 d, inout float t0, inout float t1) {
 // The macrocell holding q: whether its maximum is below iso, and its box (infinite on the sides
 // where it is the volume's outer cell, whose field is held beyond the faces).
 bool cell_below(int k, vec3 q, out vec3 lo, out vec3 hi) {
-  vec3 sp = V(k, V_SPACING).xyz, n = V(k, V_DIMS).xyz, cn = V(k, V_CELLS).xyz;
-  float cell = V(k, V_CELLS).w;
+  vec3 sp = V(k, OBS_VAO_V_SPACING).xyz, n = V(k, OBS_VAO_V_DIMS).xyz;
+  vec3 cn = V(k, OBS_VAO_V_CELLS).xyz;
+  float cell = V(k, OBS_VAO_V_CELLS).w;
   vec3 u = min(max(q / sp - 0.5, vec3(0.0)), max(n - 1.0, vec3(0.0)));
   ivec3 ci = min(ivec3(u / cell), ivec3(cn) - 1), last = ivec3(cn) - 1;
   lo = mix((vec3(ci) * cell + 0.5) * sp, vec3(-INF), equal(ci, ivec3(0)));
   hi = mix((vec3(ci + 1) * cell + 0.5) * sp, vec3(INF), equal(ci, last));
-  return texelFetch(cell_atlas, ivec3(V(k, V_CELL_AT).xyz) + ci, 0).r < V(k, V_EXTENT).w;
+  return texelFetch(cell_atlas, ivec3(V(k, OBS_VAO_V_CELL_AT).xyz) + ci, 0).r <
+         V(k, OBS_VAO_V_EXTENT).w;
 }
 
 // Where the ray leaves the cell [lo, hi] (infinite sides never).
@@ -257,7 +235,7 @@ float cell_exit(vec3 o, vec3 d, vec3 lo, vec3 hi) {
 bool first_hit(int k, vec3 o, vec3 d, float t0, float t1, out float t) {
   t = 0.0;
   if (!clip_box(k, o, d, t0, t1) || isinf(t0) || isinf(t1)) return false;
-  float len = length(d), smin = V(k, V_SPACING).w, iso = V(k, V_EXTENT).w;
+  float len = length(d), smin = V(k, OBS_VAO_V_SPACING).w, iso = V(k, OBS_VAO_V_EXTENT).w;
   if (!(len > 0.0)) return false;
   float dt = 0.5 * smin / len, tol = 1e-3 * smin / len;
   float ta = t0;
@@ -304,7 +282,7 @@ bool first_hit(int k, vec3 o, vec3 d, float t0, float t1, out float t) {
 float central_difference(int k, vec3 p, vec3 h) { return (field(k, p + h) - field(k, p - h)); }
 
 vec3 gradient_normal(int k, vec3 p) {
-  vec3 h = 0.5 * V(k, V_SPACING).xyz;
+  vec3 h = 0.5 * V(k, OBS_VAO_V_SPACING).xyz;
   vec3 g = vec3(central_difference(k, p, vec3(h.x, 0.0, 0.0)),
                 central_difference(k, p, vec3(0.0, h.y, 0.0)),
                 central_difference(k, p, vec3(0.0, 0.0, h.z))) / (2.0 * h);
@@ -319,9 +297,10 @@ bool crosses(float prev, float cur, float iso) {
 // obs_volume_grid_crossing: samples at start + i step, i = 0 .. last, read 0 outside the box.
 bool grid_crossing(int k, vec3 o, vec3 d) {
   if (pc.last < 0) return false;
-  float start = P[H_MARCH].x, step = P[H_MARCH].y, t0 = start, t1 = P[H_MARCH].z;
+  float start = P[OBS_VAO_H_MARCH].x, step = P[OBS_VAO_H_MARCH].y;
+  float t0 = start, t1 = P[OBS_VAO_H_MARCH].z;
   if (!clip_box(k, o, d, t0, t1)) return false;
-  float iso = V(k, V_EXTENT).w, last = float(pc.last);
+  float iso = V(k, OBS_VAO_V_EXTENT).w, last = float(pc.last);
   // In float first: a tiny step makes these quotients far larger than any int.
   int ia = int(min(max(ceil((t0 - start) / step), 0.0), last + 1.0));
   int ib = int(min(floor((t1 - start) / step), last));
@@ -367,7 +346,7 @@ vec3 env_radiance(vec3 w) {
   if (pc.env_res == 0) return vec3(1.0);
   vec3 a = abs(w);
   if (any(isinf(a)) || any(isnan(a)) || (a.x == 0.0 && a.y == 0.0 && a.z == 0.0))
-    return P[H_ENV_MEAN].xyz;
+    return P[OBS_VAO_H_ENV_MEAN].xyz;
   int f;
   float sc, tc, ma;
   if (a.x >= a.y && a.x >= a.z) {
@@ -381,7 +360,8 @@ vec3 env_radiance(vec3 w) {
     ma = a.z, sc = f == 4 ? w.x : -w.x, tc = -w.y;
   }
   vec2 st = clamp(0.5 * (vec2(sc, tc) / ma + 1.0), 0.0, 1.0);
-  if ((pc.flags & FLAG_ENV_MANUAL) == 0) return textureLod(env_faces, vec3(st, float(f)), 0.0).rgb;
+  if ((pc.flags & OBS_VAO_FLAG_ENV_MANUAL) == 0)
+    return textureLod(env_faces, vec3(st, float(f)), 0.0).rgb;
   float r = float(pc.env_res);
   vec2 fx = clamp(st * r - 0.5, 0.0, r - 1.0);
   ivec2 i0 = ivec2(fx), i1 = min(i0 + 1, ivec2(pc.env_res - 1));
@@ -408,7 +388,8 @@ vec3 sh_irradiance(vec3 n) {
                         1.0925484305920792 * d.x * d.z,
                         0.5462742152960396 * (d.x * d.x - d.y * d.y));
   vec3 sum = vec3(0.0);
-  for (int k = 0; k < 9; k++) sum += band[k] * P[H_SH + k].xyz * (ok || k == 0 ? y[k] : 0.0);
+  for (int k = 0; k < 9; k++)
+    sum += band[k] * P[OBS_VAO_H_SH + k].xyz * (ok || k == 0 ? y[k] : 0.0);
   return max(sum, vec3(0.0));
 }
 
@@ -419,8 +400,8 @@ void direct_light(vec3 x, vec3 n, vec3 v, out vec3 diffuse, out vec3 spec) {
   spec = vec3(0.0);
   for (int i = 0; i < pc.nlights; i++) {
     iters++;
-    vec4 a = P[light_base() + 2 * i];
-    vec3 em = P[light_base() + 2 * i + 1].xyz, l;
+    vec4 a = P[light_base() + OBS_VAO_L_COUNT * i + OBS_VAO_L_POS];
+    vec3 em = P[light_base() + OBS_VAO_L_COUNT * i + OBS_VAO_L_EMISSION].xyz, l;
     float e = 1.0;
     if (a.w == 0.0) {
       l = a.xyz - x;
@@ -435,8 +416,8 @@ void direct_light(vec3 x, vec3 n, vec3 v, out vec3 diffuse, out vec3 spec) {
     if (!(ndl > 0.0)) continue;
     float hl = 0.0;
     if (pc.blinn != 0) {
-      float s = P[H_MARCH].w, ndh = max(0.0, dot(n, normalize3(l + v)));
-      hl = P[H_ATLAS].w * (s + 8.0) / (8.0 * PI) * pow(ndh, s);
+      float s = P[OBS_VAO_H_MARCH].w, ndh = max(0.0, dot(n, normalize3(l + v)));
+      hl = P[OBS_VAO_H_ATLAS].w * (s + 8.0) / (8.0 * PI) * pow(ndh, s);
     }
     diffuse += em * e * ndl / PI;
     spec += hl * em * e * ndl;
@@ -445,7 +426,7 @@ void direct_light(vec3 x, vec3 n, vec3 v, out vec3 diffuse, out vec3 spec) {
 
 // obs_scene_volume_color: the colormap's piecewise-linear ramp, held at its ends.
 vec3 colormap(int k, float value) {
-  int n = int(V(k, V_DIMS).w), c = cmap_base() + int(V(k, V_AT).w);
+  int n = int(V(k, OBS_VAO_V_DIMS).w), c = cmap_base() + int(V(k, OBS_VAO_V_AT).w);
   if (n == 0) return vec3(1.0);
   int i = 0;
   while (i < n && P[c + i].x < value) {
@@ -469,7 +450,7 @@ struct Dirs {
 // march_ao's loop over directions [dir0, dir1) about world normal n from data point p of volume
 // a; other volumes are marched at the same parameter through the (Q-relative) world.
 void march_chunk(int a, vec3 p, vec3 n, uvec2 px, inout Dirs r) {
-  vec3 xw = map_point(a, V_TO_WORLD, p), t1, t2;
+  vec3 xw = map_point(a, OBS_VAO_V_TO_WORLD, p), t1, t2;
   obs_onb(n, t1, t2);
   uvec2 smp = sampler_init(px.x, px.y, uint(pc.pixel_sample), 1u);
   for (uint i = pc.dir0; i < pc.dir1; i++) {
@@ -477,21 +458,22 @@ void march_chunk(int a, vec3 p, vec3 n, uvec2 px, inout Dirs r) {
     uint j, rep = rqmc_locate(i, j);
     vec3 l = sample_cosine(sampler_get(rqmc_stream(smp, rep), j));
     vec3 w = l.x * t1 + l.y * t2 + l.z * n;
-    vec3 da = normalize3(map_dir(a, V_TO_DATA, w));
+    vec3 da = normalize3(map_dir(a, OBS_VAO_V_TO_DATA, w));
     bool blocked = false;
     for (int b = 0; b < pc.nvol && !blocked; b++) {
       iters++;
       if (b == a)
         blocked = grid_crossing(b, p, da);
       else
-        blocked = grid_crossing(b, map_point(b, V_TO_DATA, xw),
-                                map_dir(b, V_TO_DATA, map_dir(a, V_TO_WORLD, da)));
+        blocked = grid_crossing(b, map_point(b, OBS_VAO_V_TO_DATA, xw),
+                                map_dir(b, OBS_VAO_V_TO_DATA, map_dir(a, OBS_VAO_V_TO_WORLD, da)));
     }
     if (!blocked) r.part += 1.0;
-    if (pc.sampler_kind == 2 || i + 1u == rqmc_first(rep + 1u)) { // the replicate's last
-      uint first = pc.sampler_kind == 2 ? i : rqmc_first(rep);
+    bool rnd = pc.sampler_kind == OBS_VAO_SAMPLER_RANDOM;
+    if (rnd || i + 1u == rqmc_first(rep + 1u)) { // the replicate's last
+      uint first = rnd ? i : rqmc_first(rep);
       float y = r.part / float(i + 1u - first);
-      float cnt = float(pc.sampler_kind == 2 ? i + 1u : rep + 1u), d = y - r.wmean;
+      float cnt = float(rnd ? i + 1u : rep + 1u), d = y - r.wmean;
       r.wmean += d / cnt;
       r.wm2 += d * (y - r.wmean);
       r.part = 0.0;
@@ -499,7 +481,7 @@ void march_chunk(int a, vec3 p, vec3 n, uvec2 px, inout Dirs r) {
     if (blocked) continue;
     r.open += 1.0;
     r.sum += w;
-    if (pc.ibl == IBL_REFERENCE) r.env += env_radiance(w);
+    if (pc.ibl == OBS_VAO_IBL_REFERENCE) r.env += env_radiance(w);
   }
 }
 
@@ -519,15 +501,15 @@ void shade_hit(int k, vec3 p, vec3 nd, vec3 n, vec3 x, vec3 dir, float depth, Di
   vec3 bent = r.open > 0.0 ? normalize3(r.sum) : n, env = r.env / float(pc.samples);
   vec3 diffuse, spec, ibl = vec3(0.0);
   direct_light(x, n, -dir, diffuse, spec);
-  if (pc.ibl == IBL_LOOKUP)
+  if (pc.ibl == OBS_VAO_IBL_LOOKUP)
     ibl = ao * env_radiance(bent);
-  else if (pc.ibl == IBL_IRRADIANCE)
-    ibl = ao * ((pc.flags & FLAG_ENV) != 0 ? sh_irradiance(bent) : vec3(1.0));
-  else if (pc.ibl == IBL_REFERENCE)
+  else if (pc.ibl == OBS_VAO_IBL_IRRADIANCE)
+    ibl = ao * ((pc.flags & OBS_VAO_FLAG_ENV) != 0 ? sh_irradiance(bent) : vec3(1.0));
+  else if (pc.ibl == OBS_VAO_IBL_REFERENCE)
     ibl = env;
   // The colour just inside the surface: the field one voxel in against the gradient.
   vec3 alb = vec3(1.0);
-  if (V(k, V_DIMS).w > 0.0) alb = colormap(k, field(k, p - V(k, V_SPACING).w * nd));
+  if (V(k, OBS_VAO_V_DIMS).w > 0.0) alb = colormap(k, field(k, p - V(k, OBS_VAO_V_SPACING).w * nd));
   a0 += vec4(alb * (diffuse + ibl) + spec, ao);
   a1 += vec4(bent, depth);
   a2 += vec4(n, 1.0);
@@ -535,15 +517,18 @@ void shade_hit(int k, vec3 p, vec3 nd, vec3 n, vec3 x, vec3 dir, float depth, Di
 
 void main() {
   ivec2 g = ivec2(gl_GlobalInvocationID.xy);
-  if (g.x >= pc.band.z || g.y >= pc.band.w) return;
-  ivec2 pix = pc.band.xy + g, at = pix - pc.origin;
+  if (g.x >= pc.band[2] || g.y >= pc.band[3]) return;
+  ivec2 pix = ivec2(pc.band[0], pc.band[1]) + g;
+  ivec2 at = pix - ivec2(pc.origin[0], pc.origin[1]);
   if (pc.pilot != 0) {
-    pix = min((ivec2(pc.cell_x0, pc.cell_y0) + g) * pc.pilot + pc.pilot / 2, pc.size - 1);
+    pix = min((ivec2(pc.cell0[0], pc.cell0[1]) + g) * pc.pilot + pc.pilot / 2,
+              ivec2(pc.size[0], pc.size[1]) - 1);
     at = g;
   }
   uvec2 px = uvec2(pix);
-  bool first = (pc.phase & PH_FIRST_CHUNK) != 0, last = (pc.phase & PH_LAST_CHUNK) != 0;
-  bool fresh = first && (pc.phase & PH_FIRST_SAMPLE) != 0;
+  bool first = (pc.phase & OBS_VAO_PH_FIRST_CHUNK) != 0;
+  bool last = (pc.phase & OBS_VAO_PH_LAST_CHUNK) != 0;
+  bool fresh = first && (pc.phase & OBS_VAO_PH_FIRST_SAMPLE) != 0;
   vec4 a0 = fresh ? vec4(0.0) : imageLoad(acc0, at), a1 = fresh ? vec4(0.0) : imageLoad(acc1, at);
   vec4 a2 = fresh ? vec4(0.0) : imageLoad(acc2, at), s1 = fresh ? vec4(0.0) : imageLoad(st1, at);
   vec4 s0 = first ? vec4(0.0) : imageLoad(st0, at);
@@ -554,12 +539,12 @@ void main() {
 
   // The camera ray of this pixel sample meets Q's depth plane at `org` (Q-relative), ray
   // parameter tp from the eye (or, orthographic, from the image plane).
-  vec3 F = P[H_FWD].xyz, R = P[H_RIGHT].xyz, U = P[H_UP].xyz;
-  float tq = P[H_FWD].w;
+  vec3 F = P[OBS_VAO_H_FWD].xyz, R = P[OBS_VAO_H_RIGHT].xyz, U = P[OBS_VAO_H_UP].xyz;
+  float tq = P[OBS_VAO_H_FWD].w;
   vec2 j = vec2(0.5);
   if (pc.spp > 1) j = sampler_get(sampler_init(px.x, px.y, 0u, 0u), uint(pc.pixel_sample));
-  float sx = (2.0 * (float(pix.x) + j.x) / float(pc.size.x) - 1.0) * P[H_RIGHT].w;
-  float sy = (1.0 - 2.0 * (float(pix.y) + j.y) / float(pc.size.y)) * P[H_UP].w;
+  float sx = (2.0 * (float(pix.x) + j.x) / float(pc.size[0]) - 1.0) * P[OBS_VAO_H_RIGHT].w;
+  float sy = (1.0 - 2.0 * (float(pix.y) + j.y) / float(pc.size[1])) * P[OBS_VAO_H_UP].w;
   vec3 w = pc.ortho != 0 ? F : F + sx * R + sy * U, org = sx * R + sy * U;
   float len = length(w), tp = tq;
   vec3 dir = w / len;
@@ -572,7 +557,7 @@ void main() {
   vec3 hp = vec3(0.0);
   for (int k = 0; k < pc.nvol; k++) {
     iters++;
-    vec3 o = map_point(k, V_TO_DATA, org), d = map_dir(k, V_TO_DATA, dir);
+    vec3 o = map_point(k, OBS_VAO_V_TO_DATA, org), d = map_dir(k, OBS_VAO_V_TO_DATA, dir);
     float t;
     if (first_hit(k, o, d, -tp, best, t) && t < best) {
       best = t;
@@ -584,8 +569,9 @@ void main() {
     if (last) a0.w += 1.0;
   } else {
     vec3 nd = gradient_normal(hit, hp);
-    vec3 n = normalize3(vec3(dot(V(hit, V_NORMAL).xyz, nd), dot(V(hit, V_NORMAL + 1).xyz, nd),
-                             dot(V(hit, V_NORMAL + 2).xyz, nd)));
+    vec3 n = normalize3(vec3(dot(V(hit, OBS_VAO_V_NORMAL).xyz, nd),
+                             dot(V(hit, OBS_VAO_V_NORMAL + 1).xyz, nd),
+                             dot(V(hit, OBS_VAO_V_NORMAL + 2).xyz, nd)));
     if (dot(n, dir) > 0.0) n = -n;
     march_chunk(hit, hp, n, px, r);
     float t = best + tp;
@@ -594,7 +580,7 @@ void main() {
                 var);
   }
   if (pc.iter_limit != 0u && iters > pc.iter_limit) s1.w = 1.0;
-  if ((pc.phase & PH_FINAL) != 0) {
+  if ((pc.phase & OBS_VAO_PH_FINAL) != 0) {
     float inv = 1.0 / float(pc.spp), hits = a2.w;
     a0 *= inv;
     a1 = hits > 0.0 ? vec4(normalize3(a1.xyz), a1.w / hits) : vec4(0.0);

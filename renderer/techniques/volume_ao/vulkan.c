@@ -9,7 +9,10 @@
  * space are composed in double here. Camera rays start at Q's depth plane (the point where the
  * ray crosses it), not at the eye, so a narrow field of view seen from far away (fov_y 1e-3
  * degrees puts the eye ~3e5 sizes off) marches with the precision of the volume's own size.
- * Scale and translation cancel in double before anything is rounded to float. */
+ * Scale and translation cancel in double before anything is rounded to float.
+ *
+ * The push block, the image bindings and the parameter buffer's rows are layout.h's, which the
+ * shader includes too. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -18,6 +21,7 @@
 #include "driver.h"
 #include "driver_prior.h"
 #include "environment.h"
+#include "layout.h"
 #include "obscura/render.h"
 #include "sampling.h"
 #include "session_vk.h"
@@ -30,48 +34,16 @@
 #include "volume_textures_vk.h"
 
 
-/* The parameter buffer, rows of 4 floats as the shader reads them: a header, then per volume
- * V_COUNT rows, per light L_COUNT rows, then the colormaps' points (value, r, g, b). Keep in
- * step with shaders/volume_ao.comp.glsl. */
-enum { H_FWD, H_RIGHT, H_UP, H_MARCH, H_ATLAS, H_ENV_MEAN, H_SH, H_COUNT = H_SH + 9 };
-enum {
-  V_TO_DATA = 0,  /* 3 rows: Q-relative world -> data space */
-  V_TO_WORLD = 3, /* 3 rows: data space -> Q-relative world */
-  V_NORMAL = 6,   /* 3 rows: the normal matrix */
-  V_EXTENT = 9,   /* the box's sides, iso */
-  V_SPACING,      /* spacing, the smallest spacing */
-  V_DIMS,         /* samples per axis, colormap points */
-  V_AT,           /* the samples' corner in the atlas, first colormap point */
-  V_CELLS,        /* macrocells per axis, voxels per cell side */
-  V_CELL_AT,      /* the macrocells' corner in their atlas */
-  V_COUNT
-};
-enum { L_POS, L_EMISSION, L_COUNT }; /* position (point, w 0) or direction (w 1); emission */
-_Static_assert(H_COUNT == 15 && V_COUNT == 15 && L_COUNT == 2, "the shader's HDR, VS and lights");
-
-/* Push constants (std430 scalars), as the shader declares them. */
-typedef struct vol_push {
-  int32_t band[4];   /* x0, y0, w, h: the pixels of this dispatch */
-  int32_t origin[2]; /* the region's corner: pixel (x, y) is stored at (x, y) - origin */
-  int32_t size[2];   /* the image's width and height */
-  int32_t spp;
-  uint32_t samples;
-  int32_t sampler;
-  uint32_t seed;
-  int32_t ibl, crossing, blinn, ortho;
-  int32_t nvol, nlights, env_res, last; /* env_res 0: constant white; last < 0: AO never blocked */
-  int32_t flags;                        /* FLAG_* */
-  int32_t pixel_sample;                 /* the pixel sample this dispatch shades */
-  uint32_t dir0, dir1;                  /* its AO directions [dir0, dir1) */
-  int32_t phase;                        /* PH_* */
-  uint32_t iter_limit;                  /* obs_vk_loop_limit; 0: none */
-  int32_t pilot;    /* 0; the prior's pilots: the cell side, invocation (i, j) the pilot of cell */
-  int32_t cell0[2]; /* (cell0 + (i, j)), stored at (i, j) */
-} vol_push;
-_Static_assert(sizeof(vol_push) <= OBS_VK_PUSH_MAX, "push constants past the device layer's");
-enum { FLAG_VOL_MANUAL = 1, FLAG_ENV_MANUAL = 2, FLAG_ENV = 4 };
-enum { PH_FIRST_CHUNK = 1, PH_LAST_CHUNK = 2, PH_FIRST_SAMPLE = 4, PH_FINAL = 8 };
-enum { NIMG = 6 }; /* the shader's storage images, bindings 0 .. 5 */
+/* The codes the push block carries (layout.h) against the C enums they mirror. */
+_Static_assert(OBS_VAO_IBL_LOOKUP == OBS_IBL_BENT_NORMAL_LOOKUP &&
+                   OBS_VAO_IBL_IRRADIANCE == OBS_IBL_IRRADIANCE &&
+                   OBS_VAO_IBL_REFERENCE == OBS_IBL_REFERENCE,
+               "layout.h's OBS_VAO_IBL_* against obs_volume_ao_ibl");
+_Static_assert(OBS_VAO_SAMPLER_SOBOL == OBS_SAMPLER_SOBOL &&
+                   OBS_VAO_SAMPLER_HALTON == OBS_SAMPLER_HALTON &&
+                   OBS_VAO_SAMPLER_RANDOM == OBS_SAMPLER_RANDOM,
+               "layout.h's OBS_VAO_SAMPLER_* against obs_sampler_kind");
+_Static_assert(sizeof(obs_vao_push) <= OBS_VK_PUSH_MAX, "push constants past the device layer's");
 
 /* A band of rows holds about this many AO directions per dispatch, and one obs_vk_run at most
  * GROUP dispatches: progress and cancellation come between runs, and no dispatch runs long. */
@@ -107,18 +79,20 @@ static void put_volume(float *r, const obs_scene_volume *sv, const obs_vk_volume
   const obs_volume *v = &sv->v;
   for (int i = 0; i < 3; i++) {
     const double *m = sv->to_data[i], *w = sv->to_world[i];
-    put4(r + 4 * (V_TO_DATA + i), m[0], m[1], m[2], m[0] * q[0] + m[1] * q[1] + m[2] * q[2] + m[3]);
-    put4(r + 4 * (V_TO_WORLD + i), w[0], w[1], w[2], w[3] - q[i]);
-    put4(r + 4 * (V_NORMAL + i), sv->normal[i][0], sv->normal[i][1], sv->normal[i][2], 0);
+    put4(r + 4 * (OBS_VAO_V_TO_DATA + i), m[0], m[1], m[2],
+         m[0] * q[0] + m[1] * q[1] + m[2] * q[2] + m[3]);
+    put4(r + 4 * (OBS_VAO_V_TO_WORLD + i), w[0], w[1], w[2], w[3] - q[i]);
+    put4(r + 4 * (OBS_VAO_V_NORMAL + i), sv->normal[i][0], sv->normal[i][1], sv->normal[i][2], 0);
   }
   double smin = fmin(v->spacing[0], fmin(v->spacing[1], v->spacing[2]));
-  put4(r + 4 * V_EXTENT, v->n[0] * v->spacing[0], v->n[1] * v->spacing[1], v->n[2] * v->spacing[2],
+  put4(r + 4 * OBS_VAO_V_EXTENT, v->n[0] * v->spacing[0], v->n[1] * v->spacing[1],
+       v->n[2] * v->spacing[2],
        sv->iso);
-  put4(r + 4 * V_SPACING, v->spacing[0], v->spacing[1], v->spacing[2], smin);
-  put4(r + 4 * V_DIMS, v->n[0], v->n[1], v->n[2], (double)sv->ncolormap);
-  put4(r + 4 * V_AT, at->at[k][0], at->at[k][1], at->at[k][2], (double)cmap_first);
-  put4(r + 4 * V_CELLS, sv->cells.n[0], sv->cells.n[1], sv->cells.n[2], sv->cells.cell);
-  put4(r + 4 * V_CELL_AT, at->cell_at[k][0], at->cell_at[k][1], at->cell_at[k][2], 0);
+  put4(r + 4 * OBS_VAO_V_SPACING, v->spacing[0], v->spacing[1], v->spacing[2], smin);
+  put4(r + 4 * OBS_VAO_V_DIMS, v->n[0], v->n[1], v->n[2], (double)sv->ncolormap);
+  put4(r + 4 * OBS_VAO_V_AT, at->at[k][0], at->at[k][1], at->at[k][2], (double)cmap_first);
+  put4(r + 4 * OBS_VAO_V_CELLS, sv->cells.n[0], sv->cells.n[1], sv->cells.n[2], sv->cells.cell);
+  put4(r + 4 * OBS_VAO_V_CELL_AT, at->cell_at[k][0], at->cell_at[k][1], at->cell_at[k][2], 0);
 }
 
 /* The lights the technique shades with (point and directional; quads are ignored). */
@@ -146,26 +120,28 @@ static float *build_params(const job *jb, const obs_vk_volume_atlas *at, size_t 
   const obs_scene_volumes *vs = jb->vs;
   size_t ncmap = 0, nl = punctual_lights(sc);
   for (size_t k = 0; k < vs->n; k++) ncmap += vs->v[k].ncolormap;
-  *rows = H_COUNT + vs->n * V_COUNT + nl * L_COUNT + ncmap;
+  *rows = OBS_VAO_H_COUNT + vs->n * OBS_VAO_V_COUNT + nl * OBS_VAO_L_COUNT + ncmap;
   float *b = calloc(*rows * 4, sizeof *b);
   if (!b) return NULL;
   const obs_camera_rig *rig = &jb->rig;
   double tq = reference_depth(vs, rig), q[3];
   for (int a = 0; a < 3; a++) q[a] = rig->origin[a] + tq * rig->forward[a];
   const double *f = rig->forward, *r = rig->right, *u = rig->up;
-  put4(b + 4 * H_FWD, f[0], f[1], f[2], tq);
-  put4(b + 4 * H_RIGHT, r[0], r[1], r[2], rig->half_w);
-  put4(b + 4 * H_UP, u[0], u[1], u[2], rig->half_h);
-  put4(b + 4 * H_MARCH, jb->p.start, jb->p.step, jb->t_end, jb->p.shininess);
-  put4(b + 4 * H_ATLAS, 1.0 / at->dims[0], 1.0 / at->dims[1], 1.0 / at->dims[2], jb->p.specular);
+  put4(b + 4 * OBS_VAO_H_FWD, f[0], f[1], f[2], tq);
+  put4(b + 4 * OBS_VAO_H_RIGHT, r[0], r[1], r[2], rig->half_w);
+  put4(b + 4 * OBS_VAO_H_UP, u[0], u[1], u[2], rig->half_h);
+  put4(b + 4 * OBS_VAO_H_MARCH, jb->p.start, jb->p.step, jb->t_end, jb->p.shininess);
+  put4(b + 4 * OBS_VAO_H_ATLAS, 1.0 / at->dims[0], 1.0 / at->dims[1], 1.0 / at->dims[2],
+       jb->p.specular);
   double mean[3] = {1, 1, 1}, sh[9][3] = {{0}};
   if (jb->env) obs_env_mean(jb->env, mean);
   if (jb->env && jb->p.ibl == OBS_IBL_IRRADIANCE) obs_env_sh9(jb->env, sh);
-  put4(b + 4 * H_ENV_MEAN, mean[0], mean[1], mean[2], 0);
-  for (int k = 0; k < 9; k++) put4(b + 4 * (H_SH + k), sh[k][0], sh[k][1], sh[k][2], 0);
-  float *row = b + 4 * H_COUNT, *cm = b + 4 * (H_COUNT + vs->n * V_COUNT + nl * L_COUNT);
+  put4(b + 4 * OBS_VAO_H_ENV_MEAN, mean[0], mean[1], mean[2], 0);
+  for (int k = 0; k < 9; k++) put4(b + 4 * (OBS_VAO_H_SH + k), sh[k][0], sh[k][1], sh[k][2], 0);
+  float *row = b + 4 * OBS_VAO_H_COUNT;
+  float *cm = b + 4 * (OBS_VAO_H_COUNT + vs->n * OBS_VAO_V_COUNT + nl * OBS_VAO_L_COUNT);
   size_t first = 0;
-  for (size_t k = 0; k < vs->n; k++, row += 4 * V_COUNT) {
+  for (size_t k = 0; k < vs->n; k++, row += 4 * OBS_VAO_V_COUNT) {
     const obs_scene_volume *sv = &vs->v[k];
     put_volume(row, sv, at, k, q, first);
     for (size_t i = 0; i < sv->ncolormap; i++, first++)
@@ -176,11 +152,12 @@ static float *build_params(const job *jb, const obs_vk_volume_atlas *at, size_t 
     const obs_light *li = &sc->lights[i];
     if (li->type == OBS_LIGHT_QUAD) continue;
     if (li->type == OBS_LIGHT_POINT)
-      put4(row, li->position.x - q[0], li->position.y - q[1], li->position.z - q[2], 0);
+      put4(row + 4 * OBS_VAO_L_POS, li->position.x - q[0], li->position.y - q[1],
+           li->position.z - q[2], 0);
     else
-      put4(row, li->direction.x, li->direction.y, li->direction.z, 1);
-    put4(row + 4, li->emission.x, li->emission.y, li->emission.z, 0);
-    row += 4 * L_COUNT;
+      put4(row + 4 * OBS_VAO_L_POS, li->direction.x, li->direction.y, li->direction.z, 1);
+    put4(row + 4 * OBS_VAO_L_EMISSION, li->emission.x, li->emission.y, li->emission.z, 0);
+    row += 4 * OBS_VAO_L_COUNT;
   }
   return b;
 }
@@ -216,9 +193,9 @@ typedef struct dev {
   /* The shader's acc0..acc2 (the outputs at the end: (R, G, B, ao), (bent normal, depth),
    * (normal, alpha)), st0, st1 (the sample in progress; st1.w the loop-limit flag) and st2 (the
    * replicates of the sample in progress, and in w the pixel's AO variance, at the end its
-   * standard error). */
-  obs_vk_image *img[NIMG];
-  obs_vk_image *pilot[NIMG]; /* the same for the pooled prior's pilots, one texel per cell */
+   * standard error), indexed by their bindings OBS_VAO_B_*. */
+  obs_vk_image *img[OBS_VAO_IMAGES];
+  obs_vk_image *pilot[OBS_VAO_IMAGES]; /* the same for the prior's pilots, one texel per cell */
   obs_prior_grid grid;       /* the cells of the region's prior */
   int env_linear;
 } dev;
@@ -227,7 +204,8 @@ static void dev_free(obs_vk *vk, dev *d) {
   obs_vk_volume_atlas_free(vk, &d->atlas);
   obs_vk_texture_free(vk, d->env);
   obs_vk_data_free(vk, d->params);
-  for (int i = 0; i < NIMG; i++) obs_vk_image_free(vk, d->img[i]), obs_vk_image_free(vk, d->pilot[i]);
+  for (int i = 0; i < OBS_VAO_IMAGES; i++)
+    obs_vk_image_free(vk, d->img[i]), obs_vk_image_free(vk, d->pilot[i]);
   obs_prior_grid_free(&d->grid);
   memset(d, 0, sizeof *d);
 }
@@ -243,11 +221,11 @@ static int dev_build(obs_vk *vk, const job *jb, const obs_region *rg, dev *d, ob
   if (!rc && !b) rc = obs_err_set(err, OBS_ENOMEM, "%s: volume_ao: out of memory", jb->sc->name);
   if (!rc) rc = obs_vk_data_create(vk, b, rows * 4 * sizeof *b, &d->params, err);
   free(b);
-  for (int i = 0; i < NIMG && !rc; i++)
+  for (int i = 0; i < OBS_VAO_IMAGES && !rc; i++)
     rc = obs_vk_image_create(vk, rg->x1 - rg->x0, rg->y1 - rg->y0, 4, &d->img[i], err);
   if (!rc && obs_prior_grid_init(&d->grid, rg, jb->sc->width, jb->sc->height, 1))
     rc = obs_err_set(err, OBS_ENOMEM, "%s: volume_ao: out of memory", jb->sc->name);
-  for (int i = 0; i < NIMG && !rc; i++)
+  for (int i = 0; i < OBS_VAO_IMAGES && !rc; i++)
     rc = obs_vk_image_create(vk, d->grid.ncx, d->grid.ncy, 4, &d->pilot[i], err);
   return rc;
 }
@@ -322,28 +300,29 @@ static uint32_t chunk_directions(obs_vk *vk, const job *jb) {
  * small. */
 typedef struct batch {
   obs_vk_pass pass[GROUP];
-  vol_push pc[GROUP];
+  obs_vao_push pc[GROUP];
   double ms[GROUP];
 } batch;
 
 /* Dispatch i of a band: pixel sample at / nchunks, its chunk at % nchunks. */
-static void batch_put(batch *b, int i, const vol_push *base, const dev *d, uint64_t at,
+static void batch_put(batch *b, int i, const obs_vao_push *base, const dev *d, uint64_t at,
                       uint32_t chunk, uint32_t nchunks) {
   uint32_t n = base->samples, s = (uint32_t)(at / nchunks), c = (uint32_t)(at % nchunks);
-  vol_push *pc = &b->pc[i];
+  obs_vao_push *pc = &b->pc[i];
   obs_vk_image *const *img = base->pilot ? d->pilot : d->img;
   *pc = *base;
   pc->pixel_sample = (int32_t)s;
   pc->dir0 = c * chunk;
   pc->dir1 = c + 1 == nchunks ? n : (c + 1) * chunk;
-  pc->phase = (c == 0 ? PH_FIRST_CHUNK : 0) | (c + 1 == nchunks ? PH_LAST_CHUNK : 0) |
-              (s == 0 ? PH_FIRST_SAMPLE : 0) |
-              (c + 1 == nchunks && (int32_t)s + 1 == base->spp ? PH_FINAL : 0);
+  pc->phase = (c == 0 ? OBS_VAO_PH_FIRST_CHUNK : 0) |
+              (c + 1 == nchunks ? OBS_VAO_PH_LAST_CHUNK : 0) |
+              (s == 0 ? OBS_VAO_PH_FIRST_SAMPLE : 0) |
+              (c + 1 == nchunks && (int32_t)s + 1 == base->spp ? OBS_VAO_PH_FINAL : 0);
   b->pass[i] = (obs_vk_pass){.name = "volume_ao",
                              .spirv = obs_spv_volume_ao_comp,
                              .spirv_size = obs_spv_volume_ao_comp_size,
                              .images = {img[0], img[1], img[2], img[3], img[4], img[5]},
-                             .nimages = NIMG,
+                             .nimages = OBS_VAO_IMAGES,
                              .push = pc,
                              .push_size = sizeof *pc,
                              .groups_x = (uint32_t)(base->band[2] + 7) / 8,
@@ -355,7 +334,7 @@ static void batch_put(batch *b, int i, const vol_push *base, const dev *d, uint6
 
 /* The dispatches of one band: for each pixel sample, its directions chunk by chunk, GROUP
  * dispatches to a run. *done counts dispatches for progress. */
-static int shade_band(obs_render_ctx *ctx, obs_vk *vk, const vol_push *base, const dev *d,
+static int shade_band(obs_render_ctx *ctx, obs_vk *vk, const obs_vao_push *base, const dev *d,
                       uint32_t chunk, batch *b, double total, double *done, double *ms,
                       obs_err *err) {
   uint32_t nchunks = (base->samples + chunk - 1) / chunk;
@@ -374,12 +353,12 @@ static int shade_band(obs_render_ctx *ctx, obs_vk *vk, const vol_push *base, con
 }
 
 /* The push constants every dispatch of the render shares. */
-static vol_push push_base(obs_vk *vk, const job *jb, const obs_region *rg, const dev *d) {
-  return (vol_push){.origin = {rg->x0, rg->y0},
+static obs_vao_push push_base(obs_vk *vk, const job *jb, const obs_region *rg, const dev *d) {
+  return (obs_vao_push){.origin = {rg->x0, rg->y0},
                     .size = {jb->sc->width, jb->sc->height},
                     .spp = jb->sc->spp,
                     .samples = jb->p.samples,
-                    .sampler = jb->p.sampler,
+                    .sampler_kind = jb->p.sampler,
                     .seed = jb->p.seed,
                     .ibl = jb->p.ibl,
                     .crossing = jb->p.crossing,
@@ -390,8 +369,9 @@ static vol_push push_base(obs_vk *vk, const job *jb, const obs_region *rg, const
                     /* The environment texture is real when an ibl method reads it (else 1x1). */
                     .env_res = jb->env && reads_env(&jb->p) ? jb->env->res : 0,
                     .last = jb->last,
-                    .flags = (d->atlas.linear ? 0 : FLAG_VOL_MANUAL) |
-                             (d->env_linear ? 0 : FLAG_ENV_MANUAL) | (jb->env ? FLAG_ENV : 0),
+                    .flags = (d->atlas.linear ? 0 : OBS_VAO_FLAG_VOL_MANUAL) |
+                             (d->env_linear ? 0 : OBS_VAO_FLAG_ENV_MANUAL) |
+                             (jb->env ? OBS_VAO_FLAG_ENV : 0),
                     .iter_limit = obs_vk_loop_limit(vk)};
 }
 
@@ -403,7 +383,7 @@ static int shade(obs_render_ctx *ctx, obs_vk *vk, const job *jb, const obs_regio
                  float *vals, double *ms, obs_err *err) {
   int rw = rg->x1 - rg->x0, rh = rg->y1 - rg->y0;
   uint32_t chunk = chunk_directions(vk, jb);
-  vol_push pc = push_base(vk, jb, rg, d);
+  obs_vao_push pc = push_base(vk, jb, rg, d);
   double per_row = (double)rw * chunk;
   int rows = per_row >= BAND_WORK ? 1 : (int)(BAND_WORK / per_row);
   if (rows > rh) rows = rh;
@@ -425,7 +405,7 @@ static int shade(obs_render_ctx *ctx, obs_vk *vk, const job *jb, const obs_regio
     pc.band[0] = rg->x0, pc.band[1] = y, pc.band[2] = rw, pc.band[3] = h;
     rc = shade_band(ctx, vk, &pc, d, chunk, b, total, &done, ms, err);
   }
-  vol_push pp = pc;
+  obs_vao_push pp = pc;
   pp.origin[0] = pp.origin[1] = 0;
   pp.band[0] = pp.band[1] = 0, pp.band[2] = d->grid.ncx, pp.band[3] = d->grid.ncy;
   pp.pilot = OBS_PRIOR_CELL, pp.cell0[0] = d->grid.cx0, pp.cell0[1] = d->grid.cy0;
@@ -433,9 +413,9 @@ static int shade(obs_render_ctx *ctx, obs_vk *vk, const job *jb, const obs_regio
     pp.seed = obs_sampler_replica_seed(jb->p.seed, k + 1);
     rc = shade_band(ctx, vk, &pp, d, chunk, b, total, &done, ms, err);
     /* (R, G, B, ao), (normal, alpha), st1 (w: the loop-limit flag) */
+    static const int pilot_image[3] = {OBS_VAO_B_ACC0, OBS_VAO_B_ACC2, OBS_VAO_B_ST1};
     for (int i = 0; i < 3 && !rc; i++)
-      rc = obs_vk_image_download(vk, d->pilot[i == 0 ? 0 : i == 1 ? 2 : 4], px + (size_t)i * cells * 4,
-                                 err);
+      rc = obs_vk_image_download(vk, d->pilot[pilot_image[i]], px + (size_t)i * cells * 4, err);
     for (size_t c = 0; c < cells && !rc; c++) {
       if (px[2 * cells * 4 + 4 * c + 3] != 0) rc = OBS_EUNSUPPORTED;
       vals[(size_t)k * cells * 2 + 2 * c] = px[4 * c + 3];
@@ -501,7 +481,8 @@ static int readback(obs_render_ctx *ctx, obs_vk *vk, const job *jb, const obs_re
   /* Where each channel is in the images downloaded: (R, G, B, ao), (bent normal, depth),
    * (normal, alpha), st1 (w: the loop-limit flag), st2 (w: the AO's standard error). */
   static const int src[CH_COUNT] = {0, 1, 2, 3, 19, 4, 5, 6, 8, 9, 10, 7, 11};
-  static const int image[5] = {0, 1, 2, 4, 5};
+  static const int image[5] = {OBS_VAO_B_ACC0, OBS_VAO_B_ACC1, OBS_VAO_B_ACC2, OBS_VAO_B_ST1,
+                               OBS_VAO_B_ST2};
   float *px = malloc(5 * n * 4 * sizeof *px);
   if (!px) return obs_err_set(err, OBS_ENOMEM, "%s: volume_ao: out of memory", jb->sc->name);
   for (int i = 0; i < 5 && !rc; i++)
