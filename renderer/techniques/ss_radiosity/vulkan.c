@@ -98,7 +98,7 @@ static int passes(obs_render_ctx *ctx, obs_vk *vk, obs_vk_gbuffer *dev, const ob
   return rc;
 }
 
-static const obs_screen_vk_extra srad_extra = {OBS_SRAD_EXTRA, obs_ss_radiosity_extra_names};
+static const obs_screen_extra srad_extra = {OBS_SRAD_EXTRA, obs_ss_radiosity_extra_names};
 
 int obs_ss_radiosity_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   return obs_screen_vk_run_ex(ctx, "ss_radiosity", passes, &srad_extra, ctx->bound, out, err);
