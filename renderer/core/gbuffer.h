@@ -87,6 +87,14 @@ enum { OBS_SCREEN_AO, OBS_SCREEN_AO_RAW, OBS_SCREEN_DEPTH, OBS_SCREEN_NX, OBS_SC
 extern const char *const obs_screen_channel_names[OBS_SCREEN_CHANNELS];
 /* The declared outputs those channels make: what a screen-space technique's descriptor names. */
 extern const obs_output obs_screen_outputs[];
+/* Channels a screen-space technique writes besides those (RGB outputs, say): `n` names, appended
+ * to the image after the fixed set by both screen-space drivers, which hand the passes one plane
+ * of w x h per name, in this order. */
+#define OBS_SCREEN_EXTRA_MAX 16
+typedef struct obs_screen_extra {
+  int n;
+  const char *const *names;
+} obs_screen_extra;
 
 /* Output channels every screen-space technique writes besides its own: "depth.Z", "normal.X/Y/Z"
  * (world space) and "alpha", taken from the G-buffer. `img` must already have those channels. */

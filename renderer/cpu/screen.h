@@ -39,16 +39,9 @@ typedef int (*obs_screen_cpu_passes_fn)(obs_screen_cpu *r, const obs_gbuffer *g,
 int obs_screen_cpu_run(obs_render_ctx *ctx, obs_screen_cpu_passes_fn passes, const void *params,
                        obs_image *out, obs_err *err);
 
-/* Channels a screen-space technique writes besides obs_screen_channel_names (RGB outputs, say):
- * `n` names, appended to the image after the fixed set. */
-#define OBS_SCREEN_EXTRA_MAX 16
-typedef struct obs_screen_extra {
-  int n;
-  const char *const *names;
-} obs_screen_extra;
-
-/* The passes of such a technique: as obs_screen_cpu_passes_fn, and `extra` holds its extra
- * channels' planes (extra->n planes of w x h, in the order of the names). */
+/* The passes of a technique with extra channels (obs_screen_extra, gbuffer.h): as
+ * obs_screen_cpu_passes_fn, and `extra` holds its extra channels' planes (extra->n planes of
+ * w x h, in the order of the names). */
 typedef int (*obs_screen_cpu_passes_ex_fn)(obs_screen_cpu *r, const obs_gbuffer *g,
                                            const void *params, float *ao, float *ao_raw,
                                            float *extra, obs_err *err);

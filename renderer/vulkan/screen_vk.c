@@ -83,14 +83,14 @@ done:
 /* The driver for either kind of passes: the image, then the work in a device session (which
  * acquires the device as stage "device", judges the validation layer and reports the end). */
 static int screen_vk_run(obs_render_ctx *ctx, const char *technique, obs_screen_vk_passes_fn passes,
-                         obs_screen_vk_passes_ex_fn passes_ex, const obs_screen_vk_extra *extra,
+                         obs_screen_vk_passes_ex_fn passes_ex, const obs_screen_extra *extra,
                          const void *params, obs_image *out, obs_err *err) {
   obs_region region;
-  const char *names[OBS_SCREEN_CHANNELS + OBS_SCREEN_VK_EXTRA_MAX];
+  const char *names[OBS_SCREEN_CHANNELS + OBS_SCREEN_EXTRA_MAX];
   int nextra = extra ? extra->n : 0;
-  if (nextra < 0 || nextra > OBS_SCREEN_VK_EXTRA_MAX)
+  if (nextra < 0 || nextra > OBS_SCREEN_EXTRA_MAX)
     return obs_err_set(err, OBS_EINVAL, "screen: %d extra channels (at most %d)", nextra,
-                       OBS_SCREEN_VK_EXTRA_MAX);
+                       OBS_SCREEN_EXTRA_MAX);
   for (int c = 0; c < OBS_SCREEN_CHANNELS; c++) names[c] = obs_screen_channel_names[c];
   for (int c = 0; c < nextra; c++) names[OBS_SCREEN_CHANNELS + c] = extra->names[c];
   int rc = obs_driver_image(ctx, OBS_SCREEN_CHANNELS + nextra, names, out, &region, err);
@@ -107,7 +107,7 @@ int obs_screen_vk_run(obs_render_ctx *ctx, const char *technique, obs_screen_vk_
 }
 
 int obs_screen_vk_run_ex(obs_render_ctx *ctx, const char *technique,
-                         obs_screen_vk_passes_ex_fn passes, const obs_screen_vk_extra *extra,
+                         obs_screen_vk_passes_ex_fn passes, const obs_screen_extra *extra,
                          const void *params, obs_image *out, obs_err *err) {
   return screen_vk_run(ctx, technique, NULL, passes, extra, params, out, err);
 }

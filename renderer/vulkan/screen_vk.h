@@ -26,17 +26,10 @@ typedef int (*obs_screen_vk_passes_fn)(obs_render_ctx *ctx, obs_vk *vk, obs_vk_g
 int obs_screen_vk_run(obs_render_ctx *ctx, const char *technique, obs_screen_vk_passes_fn passes,
                       const void *params, obs_image *out, obs_err *err);
 
-/* Channels a screen-space technique writes besides obs_screen_channel_names: `n` names, appended
- * to the image after the fixed set (the CPU twin's obs_screen_extra). */
-#define OBS_SCREEN_VK_EXTRA_MAX 16
-typedef struct obs_screen_vk_extra {
-  int n;
-  const char *const *names;
-} obs_screen_vk_extra;
-
-/* The passes of such a technique: `host` is the device G-buffer already downloaded (albedo
- * included) before the passes, for passes that also need host work on it; `extra` holds the
- * extra channels' planes (w x h each, in the order of the names). */
+/* The passes of a technique with extra channels (obs_screen_extra, gbuffer.h): `host` is the
+ * device G-buffer already downloaded (albedo included) before the passes, for passes that also
+ * need host work on it; `extra` holds the extra channels' planes (w x h each, in the order of the
+ * names). */
 typedef int (*obs_screen_vk_passes_ex_fn)(obs_render_ctx *ctx, obs_vk *vk, obs_vk_gbuffer *dev,
                                           const obs_gbuffer *host, const void *params, float *ao,
                                           float *ao_raw, float *extra, obs_err *err);
@@ -44,7 +37,7 @@ typedef int (*obs_screen_vk_passes_ex_fn)(obs_render_ctx *ctx, obs_vk *vk, obs_v
 /* obs_screen_vk_run for a technique with extra channels; the G-buffer is downloaded before the
  * passes instead of after them. */
 int obs_screen_vk_run_ex(obs_render_ctx *ctx, const char *technique,
-                         obs_screen_vk_passes_ex_fn passes, const obs_screen_vk_extra *extra,
+                         obs_screen_vk_passes_ex_fn passes, const obs_screen_extra *extra,
                          const void *params, obs_image *out, obs_err *err);
 
 #endif

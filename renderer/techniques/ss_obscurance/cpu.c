@@ -299,7 +299,7 @@ OBS_HOT_INLINE int avg_tile_body(void *user, int thread, int x0, int y0, int x1,
 }
 OBS_TILE_KERNELS(avg_tile)
 
-/* The two passes: obs_sso_cpu_apply within a render (r) or outside one. */
+/* The two passes, within a render (r, where they record their stages) or outside one. */
 static int sso_passes(obs_screen_cpu *r, const obs_gbuffer *g, const obs_sso_params *p, float *ao,
                       float *ao_raw, double *stage_ms, obs_err *err) {
   if (stage_ms)
@@ -308,26 +308,23 @@ static int sso_passes(obs_screen_cpu *r, const obs_gbuffer *g, const obs_sso_par
   if (rc) return rc;
   if (!g || !ao || g->width < 1 || g->height < 1)
     return obs_err_set(err, OBS_EINVAL, "ss_obscurance: missing G-buffer or output");
-  obs_sso_tables *t = malloc(sizeof *t);
   size_t n = (size_t)g->width * (size_t)g->height;
-  float *raw = p->interleave ? ao_raw : ao;
-  if (t && !raw) raw = malloc(n * sizeof *raw);
-  if (!t || !raw) {
-    free(t);
-    return obs_err_set(err, OBS_ENOMEM, "ss_obscurance: %dx%d: out of memory", g->width,
-                       g->height);
-  }
-  obs_sso_tables_make(p, t);
   /* The vector kernels index with 32-bit lanes (3 per pixel for the normals). */
   const int isa = obs_simd_isa();
   int simd = obs_simd_avx2() && n <= (size_t)INT32_MAX / 3;
+  /* The raw pass writes where its result is wanted; scratch only when it is not. */
+  float *raw = p->interleave ? ao_raw : ao, *own = raw ? NULL : malloc(n * sizeof *own);
   float *lanes = simd ? malloc(lanes_size(p->samples) * sizeof *lanes) : NULL;
-  if (simd && !lanes) {
-    if (raw != ao_raw && raw != ao) free(raw);
+  obs_sso_tables *t = malloc(sizeof *t);
+  if (!t || (!raw && !own) || (simd && !lanes)) {
     free(t);
+    free(lanes);
+    free(own);
     return obs_err_set(err, OBS_ENOMEM, "ss_obscurance: %dx%d: out of memory", g->width,
                        g->height);
   }
+  if (!raw) raw = own;
+  obs_sso_tables_make(p, t);
   if (lanes) lanes_make(t, p->samples, lanes);
   sso_job j = {.g = g, .p = p, .t = t, .raw = raw, .out = raw, .simd = simd,
                .loads = obs_simd_gather_loads(), .lanes = lanes};
@@ -343,11 +340,13 @@ static int sso_passes(obs_screen_cpu *r, const obs_gbuffer *g, const obs_sso_par
     memcpy(ao_raw, ao, n * sizeof *ao);
   }
   double t2 = obs_now_ms();
+  if (!rc) obs_screen_cpu_stage(r, "ao", t1 - t0);
+  if (!rc && p->interleave) obs_screen_cpu_stage(r, "blur", t2 - t1);
   if (stage_ms) {
     stage_ms[0] = t1 - t0;
     stage_ms[1] = p->interleave ? t2 - t1 : 0.0;
   }
-  if (raw != ao_raw && raw != ao) free(raw);
+  free(own);
   free(lanes);
   free(t);
   if (rc && rc != OBS_ECANCELED) return obs_err_set(err, rc, "ss_obscurance: CPU passes failed");
@@ -362,13 +361,7 @@ int obs_sso_cpu_apply(const obs_gbuffer *g, const obs_sso_params *p, int threads
 
 static int passes(obs_screen_cpu *r, const obs_gbuffer *g, const void *params, float *ao,
                   float *ao_raw, obs_err *err) {
-  const obs_sso_params *p = params;
-  double st[OBS_SSO_CPU_STAGES];
-  int rc = sso_passes(r, g, p, ao, ao_raw, st, err);
-  if (rc) return rc;
-  obs_screen_cpu_stage(r, "ao", st[0]);
-  if (p->interleave) obs_screen_cpu_stage(r, "blur", st[1]);
-  return 0;
+  return sso_passes(r, g, params, ao, ao_raw, NULL, err);
 }
 
 int obs_ss_obscurance_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
