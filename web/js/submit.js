@@ -161,9 +161,6 @@ function readBlock(state, comparison) {
 function techniqueBlock(registry, {comparison, legend, base, onRemove, onChange, onTechnique}) {
   const ts = registry.techniques;
   const technique = el('select', {}, ...ts.map((t) => el('option', {value: t.name}, t.name)));
-  // The registry lists techniques by name; a first visit starts from the ray-traced reference
-  // the AO techniques are measured against, not from whichever name sorts first.
-  if (ts.some((t) => t.name === 'rt_ao')) technique.value = 'rt_ao';
   const fs = el('fieldset', {className: 'technique-block'}, el('legend', {}, legend));
   const desc = el('p', {className: 'desc'});
   const backendSlot = el('div');
