@@ -305,10 +305,11 @@ function showListing(s, list) {
   u.status.textContent = `${list.jobs.length} job${list.jobs.length === 1 ? '' : 's'}, ${page}` +
     (active ? `, ${active} queued or running` : '');
   emptyState(s, list);
-  // The header's counts (main.js) come from another poll: when a job here starts or ends, it asks
-  // again at once, so "N running" agrees with the rows.
+  // The header's counts (main.js) come from another poll, which may be on its slow beat: when a
+  // job here starts or ends, or the first listing already shows active jobs, it asks again at
+  // once, so "N running" agrees with the rows.
   const states = JSON.stringify(list.jobs.filter((j) => ACTIVE.has(j.state)).map((j) => [j.id, j.state]));
-  if (s.activeStates !== undefined && states !== s.activeStates) window.dispatchEvent(new Event('obscura:jobs-moved'));
+  if (states !== (s.activeStates ?? '[]')) window.dispatchEvent(new Event('obscura:jobs-moved'));
   s.activeStates = states;
   u.pager.querySelector('.page-where').textContent = list.jobs.length
     ? `jobs ${list.jobs[list.jobs.length - 1].id}–${list.jobs[0].id}` : '';
