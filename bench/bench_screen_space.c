@@ -1,14 +1,14 @@
-/* Benchmark: ssao and hbao stage timings, CPU twin vs Vulkan (lavapipe); --accuracy vs rt_ao. */
+/* Benchmark: the screen-space techniques' stage timings, CPU twin vs Vulkan (lavapipe); --accuracy vs rt_ao;
+ * --sso-experiment: ss_obscurance's uniform against importance sampling. */
 #include <jansson.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/resource.h>
-#include <unistd.h>
 
 #include "bench_args.h"
 #include "bench_machine.h"
+#include "screen_timing.h"
 #include "obscura/obscura.h"
 #include "vk.h"
 
@@ -16,7 +16,6 @@
 #define OBS_SOURCE_DIR "."
 #endif
 
-#define MAX_REPEATS 64
 
 /* The timing goals at 1280x720 on the faster backend, 2 cores, milliseconds (sum of stages). */
 #define GOAL_SSAO16_MS 30.0
@@ -134,156 +133,6 @@ static int parse_args(int argc, char **argv, options *o) {
 }
 
 /* Median of n values (of a copy: the runs keep their order). */
-static double median(const double *v, int n) {
-  double s[MAX_REPEATS];
-  memcpy(s, v, (size_t)n * sizeof *s);
-  return bench_median(s, n);
-}
-
-/* ---- loading and timing one render ------------------------------------------------------- */
-
-/* Loads `path` with the image size and the whole technique object replaced. */
-static int load_scene(const char *path, int w, int h, const char *tech, const char *backend,
-                      const char *params, obs_scene *sc) {
-  char wb[16], hb[16], tb[1024];
-  snprintf(wb, sizeof wb, "%d", w);
-  snprintf(hb, sizeof hb, "%d", h);
-  snprintf(tb, sizeof tb, "{\"name\":\"%s\",\"backend\":\"%s\",\"params\":%s}", tech, backend,
-           params);
-  obs_override ov[3] = {{"/image/width", wb}, {"/image/height", hb}, {"/technique", tb}};
-  obs_err err = OBS_ERR_INIT;
-  int rc = obs_scene_load_file(sc, path, ov, 3, &err);
-  if (rc) fprintf(stderr, "bench_screen_space: %s: %s\n", path, obs_err_message(&err));
-  obs_err_free(&err);
-  return rc;
-}
-
-/* The stages screen-space techniques report, in table order. */
-enum { ST_GBUFFER, ST_DOWN, ST_AO, ST_UP, ST_BLUR, ST_READBACK, ST_COUNT };
-static const char *const stage_keys[ST_COUNT] = {"gbuffer", "downsample", "ao",
-                                                 "upsample", "blur", "readback"};
-static const char *const stage_heads[ST_COUNT] = {"gbuffer", "down", "ao", "up", "blur", "readbk"};
-
-typedef struct timing {
-  double build, stage[ST_COUNT], total, wall;
-  double direct; /* ss_radiosity's direct pass (stages bvh and direct), included in total */
-  double total_min, total_max; /* summaries only: range of the per-run totals */
-  int has[ST_COUNT];
-} timing;
-
-/* One obs_render, timed. With `keep` the result is handed to the caller, else freed. */
-static int timed_render(const obs_scene *sc, int threads, timing *t, obs_result *keep) {
-  obs_render_opts opts = {.threads = threads};
-  obs_result res;
-  obs_err err = OBS_ERR_INIT;
-  double t0 = obs_now_ms();
-  int rc = obs_render(sc, &opts, &res, &err);
-  double t1 = obs_now_ms();
-  if (rc) {
-    fprintf(stderr, "bench_screen_space: render (%s, %s): %s\n", sc->technique->name,
-            obs_backend_name(sc->backend), obs_err_message(&err));
-    obs_err_free(&err);
-    return rc;
-  }
-  memset(t, 0, sizeof *t);
-  t->wall = t1 - t0;
-  t->build = res.timings.build_ms;
-  for (int i = 0; i < res.nstages; i++) {
-    int k = 0;
-    /* ss_radiosity's gather is its AO pass; its direct pass has a column of its own. */
-    const char *name = strcmp(res.stage_names[i], "gather") ? res.stage_names[i] : "ao";
-    if (!strcmp(name, "bvh") || !strcmp(name, "direct")) {
-      t->direct += res.stage_ms[i];
-      t->total += res.stage_ms[i];
-      continue;
-    }
-    while (k < ST_COUNT && strcmp(stage_keys[k], name)) k++;
-    /* obs_render's accounting stages (the rest of the total around the passes: the G-buffer's
-     * geometry, the device, allocations) have no column and stay out of the passes' total. */
-    static const char *const rest = " prepare device geometry other ";
-    char key[40];
-    snprintf(key, sizeof key, " %s ", res.stage_names[i]);
-    if (k == ST_COUNT && strstr(rest, key)) continue;
-    if (k == ST_COUNT) {
-      fprintf(stderr, "bench_screen_space: unknown stage \"%s\" (counted in the total only)\n",
-              res.stage_names[i]);
-    } else {
-      t->stage[k] += res.stage_ms[i];
-      t->has[k] = 1;
-    }
-    t->total += res.stage_ms[i];
-  }
-  if (keep)
-    *keep = res;
-  else
-    obs_result_free(&res);
-  return 0;
-}
-
-/* Medians over runs, field by field (the total is the median of the per-run sums). */
-static void summarise(const timing *runs, int n, timing *s) {
-  double v[MAX_REPEATS];
-  memset(s, 0, sizeof *s);
-  for (int k = 0; k < ST_COUNT; k++) {
-    for (int i = 0; i < n; i++) v[i] = runs[i].stage[k];
-    s->stage[k] = median(v, n);
-    s->has[k] = runs[0].has[k];
-  }
-  for (int i = 0; i < n; i++) v[i] = runs[i].total;
-  s->total = median(v, n);
-  s->total_min = s->total_max = v[0];
-  for (int i = 1; i < n; i++) {
-    if (v[i] < s->total_min) s->total_min = v[i];
-    if (v[i] > s->total_max) s->total_max = v[i];
-  }
-  for (int i = 0; i < n; i++) v[i] = runs[i].wall;
-  s->wall = median(v, n);
-  for (int i = 0; i < n; i++) v[i] = runs[i].build;
-  s->build = median(v, n);
-  for (int i = 0; i < n; i++) v[i] = runs[i].direct;
-  s->direct = median(v, n);
-}
-
-/* ---- other load on the machine ---------------------------------------------------------- */
-
-/* CPU time used by other processes while we measure, from /proc/stat (all CPUs) minus our own
- * (getrusage counts every thread of this process, lavapipe's included). */
-typedef struct load_mark {
-  double busy, total, self; /* seconds */
-  int ok;
-} load_mark;
-
-static load_mark load_now(void) {
-  load_mark m = {0, 0, 0, 0};
-  FILE *f = fopen("/proc/stat", "r");
-  unsigned long long v[8] = {0};
-  if (f) {
-    m.ok = fscanf(f, "cpu %llu %llu %llu %llu %llu %llu %llu %llu", &v[0], &v[1], &v[2], &v[3],
-                  &v[4], &v[5], &v[6], &v[7]) == 8;
-    fclose(f);
-  }
-  double tick = (double)sysconf(_SC_CLK_TCK);
-  if (!(tick > 0)) m.ok = 0;
-  if (m.ok) {
-    m.busy = (double)(v[0] + v[1] + v[2] + v[5] + v[6] + v[7]) / tick;
-    m.total = m.busy + (double)(v[3] + v[4]) / tick;
-  }
-  struct rusage ru;
-  if (getrusage(RUSAGE_SELF, &ru) == 0)
-    m.self = (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec +
-             (double)ru.ru_stime.tv_sec + 1e-6 * (double)ru.ru_stime.tv_usec;
-  else
-    m.ok = 0;
-  return m;
-}
-
-/* Percentage of all CPUs' time that other processes used between a and b (-1 if unknown). */
-static double load_other(load_mark a, load_mark b) {
-  if (!a.ok || !b.ok || !(b.total > a.total)) return -1;
-  double other = (b.busy - a.busy) - (b.self - a.self);
-  return other < 0 ? 0 : 100.0 * other / (b.total - a.total);
-}
-
 /* ---- timing mode ------------------------------------------------------------------------ */
 
 typedef struct config {
@@ -374,7 +223,7 @@ static int timing_mode(const options *o, int have_vk) {
   memset(done, 0, sizeof done);
 
   printf("\n%-16s %-7s %7s", "config", "backend", "build");
-  for (int k = 0; k < ST_COUNT; k++) printf(" %7s", stage_heads[k]);
+  for (int k = 0; k < ST_COUNT; k++) printf(" %7s", screen_stage_heads[k]);
   printf(" %7s %7s %7s\n", "total", "wall", "other%");
   double worst_other = 0;
   for (int c = 0; c < ncfg; c++) {
@@ -383,31 +232,31 @@ static int timing_mode(const options *o, int have_vk) {
     int loaded[2] = {0, 0}, rc = 0;
     for (int b = 0; b < nb && !rc; b++)
       if (run_b[b]) {
-        rc = load_scene(o->scene, o->width, o->height, cfg[c].tech, bname[b], cfg[c].params,
+        rc = screen_load_scene(o->scene, o->width, o->height, cfg[c].tech, bname[b], cfg[c].params,
                         &sc[b]);
         loaded[b] = !rc;
       }
     timing runs[2][MAX_REPEATS], warm;
-    load_mark l0 = load_now();
+    load_mark l0 = screen_load_now();
     /* One warm-up each, then the repeats interleaved so drifts hit both backends alike. */
     for (int b = 0; b < nb && !rc; b++)
-      if (run_b[b]) rc = timed_render(&sc[b], o->threads, &warm, NULL);
+      if (run_b[b]) rc = screen_timed_render(&sc[b], o->threads, &warm, NULL);
     for (int r = 0; r < o->repeats && !rc; r++)
       for (int b = 0; b < nb && !rc; b++)
-        if (run_b[b] && !(rc = timed_render(&sc[b], o->threads, &runs[b][r], NULL)) &&
+        if (run_b[b] && !(rc = screen_timed_render(&sc[b], o->threads, &runs[b][r], NULL)) &&
             o->verbose) {
           char l[64];
           snprintf(l, sizeof l, "  run %d", r + 1);
           print_row(l, bname[b], &runs[b][r], -1);
         }
-    double other = load_other(l0, load_now());
+    double other = screen_load_other(l0, screen_load_now());
     if (other > worst_other) worst_other = other;
     for (int b = 0; b < nb; b++)
       if (loaded[b]) obs_scene_free(&sc[b]);
     if (rc) return 1;
     for (int b = 0; b < nb; b++)
       if (run_b[b]) {
-        summarise(runs[b], o->repeats, &sum[c][b]);
+        screen_summarise(runs[b], o->repeats, &sum[c][b]);
         done[c][b] = 1;
         print_row(cfg[c].label, bname[b], &sum[c][b], other);
       }
@@ -525,7 +374,7 @@ typedef struct reference {
 static int render_reference(const char *path, int w, int h, const char *tech, const char *params,
                             obs_reference_facts *facts, int threads, reference *ref) {
   obs_scene probe, sc;
-  if (load_scene(path, w, h, tech, "cpu", params, &probe)) return 1;
+  if (screen_load_scene(path, w, h, tech, "cpu", params, &probe)) return 1;
   obs_reference_def rd;
   obs_err err = OBS_ERR_INIT;
   int rc = obs_technique_reference(probe.technique, &probe, probe.params, facts, &rd, &err);
@@ -543,12 +392,12 @@ static int render_reference(const char *path, int w, int h, const char *tech, co
            json_string_value(json_object_get(def, "falloff")));
   ref->max_distance = json_number_value(json_object_get(def, "max_distance"));
   ref->response = rd.response;
-  rc = text ? load_scene(path, w, h, rd.technique->name, "cpu", text, &sc) : 1;
+  rc = text ? screen_load_scene(path, w, h, rd.technique->name, "cpu", text, &sc) : 1;
   free(text);
   obs_reference_def_free(&rd);
   if (rc) return 1;
   timing t;
-  rc = timed_render(&sc, threads, &t, &ref->res);
+  rc = screen_timed_render(&sc, threads, &t, &ref->res);
   obs_scene_free(&sc);
   if (rc) return 1;
   ref->ms = t.wall;
@@ -567,16 +416,16 @@ static int accuracy_row(const options *o, const acc_scene *as, const char *path,
                         const char *label, const char *params, const char *backend,
                         const reference *ref, obs_response map, const char *ref_label) {
   obs_scene sc;
-  if (load_scene(path, as->w, as->h, tech, backend, params, &sc)) return 1;
+  if (screen_load_scene(path, as->w, as->h, tech, backend, params, &sc)) return 1;
   timing runs[MAX_REPEATS], warm;
   obs_result res;
-  int rc = timed_render(&sc, o->threads, &warm, NULL);
+  int rc = screen_timed_render(&sc, o->threads, &warm, NULL);
   for (int r = 0; r < o->repeats && !rc; r++)
-    rc = timed_render(&sc, o->threads, &runs[r], r == o->repeats - 1 ? &res : NULL);
+    rc = screen_timed_render(&sc, o->threads, &runs[r], r == o->repeats - 1 ? &res : NULL);
   obs_scene_free(&sc);
   if (rc) return 1;
   timing s;
-  summarise(runs, o->repeats, &s);
+  screen_summarise(runs, o->repeats, &s);
   obs_image refimg, got, gotraw;
   rc = cmp_image(&ref->res.image, "ao", "alpha", map, &refimg);
   if (!rc) rc = cmp_image(&res.image, "ao", "alpha", OBS_RESPONSE_IDENTITY, &got);
@@ -614,7 +463,7 @@ static int accuracy_mode(const options *o, int have_vk) {
     const acc_scene *as = &scenes[si];
     char path[1024];
     snprintf(path, sizeof path, "%s/scenes/%s", OBS_SOURCE_DIR, as->file);
-    load_mark lr = load_now();
+    load_mark lr = screen_load_now();
     /* The references come from the techniques' reference hooks: hbao binary at 2R/3, ssao sqrt at
      * half the across-screen reach of its longest offset at the median covered depth, one per
      * sample count (docs/techniques/hbao.md, ssao.md). */
@@ -653,7 +502,7 @@ static int accuracy_mode(const options *o, int have_vk) {
     }
     printf("\n%-16s %-5s %-22s %-7s %8s %8s %7s %7s %8s %7s %7s  %s\n", "scene", "tech", "params",
            "backend", "ms", "wall", "RMSE", "SSIM", "RMSE raw", "mean", "ref", "reference");
-    load_mark l0 = load_now();
+    load_mark l0 = screen_load_now();
     for (int b = 0; b < 2 && !status; b++) {
       if (!run_b[b]) continue;
       for (int bias = 0; bias < 2 && !status; bias++)
@@ -685,7 +534,7 @@ static int accuracy_mode(const options *o, int have_vk) {
     obs_result_free(&ref_h.res);
     for (int i = 0; i < 3; i++) obs_result_free(&ref_s[i].res);
     if (status) return 1;
-    double other = load_other(l0, load_now()), other_ref = load_other(lr, l0);
+    double other = screen_load_other(l0, screen_load_now()), other_ref = screen_load_other(lr, l0);
     if (other >= 0)
       printf("other processes used %.0f%% of the CPUs during the references, %.0f%% during these "
              "rows%s\n",
@@ -715,10 +564,10 @@ static int sso_mean_image(const char *path, const char *sampling, int samples, i
              "{\"radius\":150,\"samples\":%d,\"interleave\":false,\"sampling\":\"%s\",\"seed\":%d}",
              samples, sampling, s);
     obs_scene sc;
-    if (load_scene(path, SSO_EXP_W, SSO_EXP_H, "ss_obscurance", "cpu", params, &sc)) return 1;
+    if (screen_load_scene(path, SSO_EXP_W, SSO_EXP_H, "ss_obscurance", "cpu", params, &sc)) return 1;
     timing t;
     obs_result r;
-    int rc = timed_render(&sc, obs_cpu_count(), &t, &r);
+    int rc = screen_timed_render(&sc, obs_cpu_count(), &t, &r);
     obs_scene_free(&sc);
     if (rc) return 1;
     *ms += t.wall / seeds;
