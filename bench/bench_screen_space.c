@@ -1,5 +1,5 @@
-/* Benchmark: the screen-space techniques' stage timings, CPU twin vs Vulkan (lavapipe); --accuracy vs rt_ao;
- * --sso-experiment: ss_obscurance's uniform against importance sampling. */
+/* Benchmark: the screen-space techniques' stage timings, CPU twin vs Vulkan (lavapipe); --accuracy
+ * against rt_ao; --sso-experiment: ss_obscurance's uniform against importance sampling. */
 #include <jansson.h>
 #include <math.h>
 #include <stdio.h>

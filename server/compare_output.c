@@ -31,18 +31,10 @@ static int read_exr(const char *dir, const obs_technique *t, obs_image *img, obs
   return obs_image_read_exr(img, path, err);
 }
 
-/* The name of t's output that is the standard error of its output `of`, or NULL. */
-static const char *stderr_name(const obs_technique *t, const char *of) {
-  const char *se = NULL;
-  for (const obs_output *x = t->outputs; x->name; x++)
-    if (x->stderr_of && !strcmp(x->stderr_of, of)) se = x->name;
-  return se;
-}
-
 /* Replaces `img` by its luminance image for RGB output `o` of `t`. */
 static int to_luminance(const obs_technique *t, const obs_output *o, obs_image *img,
                         obs_err *err) {
-  const char *se = stderr_name(t, o->name);
+  const char *se = obs_technique_stderr_name(t, o->name);
   obs_image y;
   int rc = obs_metrics_luminance_image(img, o->name, se, &y, err);
   if (rc) return rc;
@@ -133,7 +125,7 @@ int srv_compare_primary(const char *dir, const char *rdir, obs_response resp,
     obs_image_rename_output(&ref, ro->name, o->name);
     /* The reference's noise follows it under the name the metrics look for, "<output>_stderr"
      * (which is the candidate's own stderr output's name where it has one). */
-    const char *rs = stderr_name(rt, ro->name);
+    const char *rs = obs_technique_stderr_name(rt, ro->name);
     char cs[OBS_CHANNEL_NAME_MAX];
     snprintf(cs, sizeof cs, "%s_stderr", o->name);
     if (rs) obs_image_rename_output(&ref, rs, cs);

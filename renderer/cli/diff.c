@@ -166,9 +166,7 @@ static void align_reference(const obs_technique *ta, const obs_technique *tb, ob
   const obs_output *ro = tb ? obs_technique_primary(tb) : NULL;
   if (!o || !ro || o->kind != ro->kind || !strcmp(o->name, ro->name)) return;
   obs_image_rename_output(b, ro->name, o->name);
-  const char *se = NULL;
-  for (const obs_output *x = tb->outputs; x->name; x++)
-    if (x->stderr_of && !strcmp(x->stderr_of, ro->name)) se = x->name;
+  const char *se = obs_technique_stderr_name(tb, ro->name);
   char cs[OBS_CHANNEL_NAME_MAX];
   snprintf(cs, sizeof cs, "%s_stderr", o->name);
   if (se) obs_image_rename_output(b, se, cs);

@@ -204,6 +204,13 @@ const obs_output *obs_technique_primary(const obs_technique *t) {
   return NULL;
 }
 
+const char *obs_technique_stderr_name(const obs_technique *t, const char *of) {
+  const char *se = NULL;
+  for (const obs_output *x = t && of ? t->outputs : NULL; x && x->name; x++)
+    if (x->stderr_of && !strcmp(x->stderr_of, of)) se = x->name;
+  return se;
+}
+
 const obs_output *obs_technique_output(const obs_technique *t, const char *name) {
   for (const obs_output *o = t && name ? t->outputs : NULL; o && o->name; o++)
     if (!strcmp(o->name, name)) return o;

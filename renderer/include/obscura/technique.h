@@ -485,6 +485,8 @@ typedef struct obs_technique {
 const obs_output *obs_technique_primary(const obs_technique *t);
 /* The output named `name`, or NULL. */
 const obs_output *obs_technique_output(const obs_technique *t, const char *name);
+/* The name of t's output that is the standard error of its output `of` (its last such), or NULL. */
+const char *obs_technique_stderr_name(const obs_technique *t, const char *of);
 /* The EXR file of `t`'s results: "<primary>.exr" into buf. */
 void obs_technique_exr_name(const obs_technique *t, char *buf, size_t n);
 /* The per-patch file of `o`: "<name>.patches" into buf. */
