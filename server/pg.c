@@ -14,11 +14,20 @@ extern const size_t srv_pg_sql_len;
 /* Serialises the migrations of daemons starting together (pg_advisory_xact_lock's key). */
 #define MIGRATION_LOCK "7283190441"
 
+/* The server's notices and warnings go to the daemon's log, not to stderr unannounced. */
+static void notice(void *arg, const char *msg) {
+  const struct srv_pg *pg = arg;
+  size_t len = strlen(msg);
+  while (len && msg[len - 1] == '\n') len--;
+  srv_log("database %s: %.*s", pg->shown, (int)len, msg);
+}
+
 PGconn *srv_pgi_connect(struct srv_pg *pg, obs_err *err) {
   /* Later keywords override the URL's: every connection carries its timeouts and its name. */
   const char *keys[] = {"dbname", "application_name", "options", "connect_timeout", NULL};
   const char *vals[] = {pg->url, pg->app,
-                        "-c statement_timeout=10s -c idle_in_transaction_session_timeout=30s",
+                        "-c statement_timeout=10s -c idle_in_transaction_session_timeout=30s "
+                        "-c client_min_messages=warning",
                         "5", NULL};
   PGconn *pq = PQconnectdbParams(keys, vals, 1);
   if (!pq || PQstatus(pq) != CONNECTION_OK) {
@@ -27,6 +36,7 @@ PGconn *srv_pgi_connect(struct srv_pg *pg, obs_err *err) {
     PQfinish(pq);
     return NULL;
   }
+  PQsetNoticeProcessor(pq, notice, pg);
   return pq;
 }
 

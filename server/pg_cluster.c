@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "pg_internal.h"
@@ -125,19 +126,26 @@ int srv_pg_wait(struct srv_pg *pg, int timeout_ms, int *what) {
   }
   PGconn *l = pg->listener;
   PGnotify *n = PQnotifies(l);
-  if (!n) {
+  /* Input that holds no notification (a notice, the server's last words before closing) is read
+   * and the wait goes on to its end: a closed socket stays readable and fails the next read. */
+  struct timespec t0;
+  clock_gettime(CLOCK_MONOTONIC, &t0);
+  while (!n) {
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    long spent = (t.tv_sec - t0.tv_sec) * 1000L + (t.tv_nsec - t0.tv_nsec) / 1000000L;
+    if (spent >= timeout_ms && spent > 0) break;
     struct pollfd p = {PQsocket(l), POLLIN, 0};
-    int ready = poll(&p, 1, timeout_ms);
-    if (ready > 0) {
-      if (!PQconsumeInput(l)) {
-        srv_log("database %s: the listener was lost: %s", pg->shown, PQerrorMessage(l));
-        PQfinish(l);
-        pg->listener = NULL;
-        rc = OBS_ETRANSIENT;
-      } else {
-        n = PQnotifies(l);
-      }
+    int ready = poll(&p, 1, timeout_ms - (int)spent);
+    if (ready <= 0) break;
+    if (!PQconsumeInput(l) || PQstatus(l) != CONNECTION_OK) {
+      srv_log("database %s: the listener was lost: %s", pg->shown, PQerrorMessage(l));
+      PQfinish(l);
+      pg->listener = NULL;
+      rc = OBS_ETRANSIENT;
+      break;
     }
+    n = PQnotifies(l);
   }
   if (n) {
     *what = !strcmp(n->relname, "obscura_cancel") ? SRV_WAKE_CANCEL : SRV_WAKE_JOBS;
