@@ -75,7 +75,7 @@ static int end_job(conn *c, int64_t id, srv_state st, const char *msg, obs_err *
   return srv_dbi_exec_done(c, s, err, "recovery");
 }
 
-int srv_db_recover(srv_db *db,
+int srv_sq_recover(srv_sq *db,
                    int (*pick)(void *user, const char *technique, const char *backend_requested,
                                srv_lane stored, srv_lane *lane, obs_err *err),
                    void (*clean)(void *, int64_t), void *user, obs_err *err) {
@@ -140,7 +140,7 @@ int srv_db_recover(srv_db *db,
 
 /* ---- identity, integrity and write-back of a lost file ---------------------------------------- */
 
-srv_db_identity srv_db_check_identity(srv_db *db, char *detail, size_t n) {
+srv_db_identity srv_sq_check_identity(srv_sq *db, char *detail, size_t n) {
   struct stat st;
   if (stat(db->path, &st)) {
     /* Only a missing file is a loss; EACCES on the directory and the like change nothing the
@@ -175,7 +175,7 @@ srv_db_identity srv_db_check_identity(srv_db *db, char *detail, size_t n) {
 }
 
 /* Takes every connection (waiting for those in use): nothing else touches the pool meanwhile. */
-static void acquire_all(srv_db *db) {
+static void acquire_all(srv_sq *db) {
   pthread_mutex_lock(&db->mu);
   while (db->exclusive) pthread_cond_wait(&db->cv, &db->mu);
   db->exclusive = 1;
@@ -188,7 +188,7 @@ static void acquire_all(srv_db *db) {
   pthread_mutex_unlock(&db->mu);
 }
 
-static void release_all(srv_db *db) {
+static void release_all(srv_sq *db) {
   pthread_mutex_lock(&db->mu);
   db->exclusive = 0;
   pthread_cond_broadcast(&db->cv);
@@ -223,7 +223,7 @@ int srv_dbi_vacuum_into(conn *c, const char *target, obs_err *err) {
 
 /* Closes the old pool and opens a fresh one on db->path. Closing first matters: the last old
  * connection removes the -wal and -shm names, which must not be a new file's by then. */
-static int reopen_pool(srv_db *db, obs_err *err) {
+static int reopen_pool(srv_sq *db, obs_err *err) {
   conn *fresh = calloc((size_t)db->n, sizeof *fresh);
   if (!fresh) return obs_err_set(err, OBS_ENOMEM, "out of memory");
   for (int i = 0; i < db->n; i++) srv_dbi_close_conn(&db->c[i]);
@@ -244,7 +244,7 @@ static int reopen_pool(srv_db *db, obs_err *err) {
  * when nothing is there: a failed copy never leaves a partial file at the path, and a file that
  * appeared meanwhile is never overwritten (the copy then stays as <path>.recovered-<time>).
  * Returns 0 with the copy at the path, 1 with it elsewhere (named in `where`), or <0. */
-static int write_back(srv_db *db, conn *c, char *where, size_t n, obs_err *err) {
+static int write_back(srv_sq *db, conn *c, char *where, size_t n, obs_err *err) {
   /* Everything the log holds goes into the (unlinked) file first, so no stale log frames
    * outlive the old pool under the path's -wal name. */
   int log = 0, done = 0;
@@ -279,7 +279,7 @@ static int write_back(srv_db *db, conn *c, char *where, size_t n, obs_err *err) 
   return 1;
 }
 
-int srv_db_restore(srv_db *db, srv_db_identity what, char *where, size_t n, obs_err *err) {
+int srv_sq_restore(srv_sq *db, srv_db_identity what, char *where, size_t n, obs_err *err) {
   acquire_all(db);
   conn *c = &db->c[0];
   int rc, elsewhere = 0;
@@ -320,7 +320,7 @@ int srv_db_restore(srv_db *db, srv_db_identity what, char *where, size_t n, obs_
   return rc ? rc : elsewhere;
 }
 
-int srv_db_quick_check(srv_db *db, obs_err *err) {
+int srv_sq_quick_check(srv_sq *db, obs_err *err) {
   sqlite3 *q = NULL;
   /* Its own connection: the pool's page caches could hold a good copy of a page that is bad on
    * disk. Read-only and without CREATE, so a missing file is never made anew here. */
@@ -360,7 +360,7 @@ int srv_db_quick_check(srv_db *db, obs_err *err) {
   return out;
 }
 
-int srv_db_probe(srv_db *db, char *code, size_t n, obs_err *err) {
+int srv_sq_probe(srv_sq *db, char *code, size_t n, obs_err *err) {
   conn *c = srv_dbi_acquire(db);
   /* A write that changes nothing still dirties the page and appends it to the WAL: it needs the
    * same disk and permissions as a real commit. */

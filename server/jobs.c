@@ -20,6 +20,7 @@ enum { STOP_NONE, STOP_USER, STOP_TIMEOUT, STOP_SHUTDOWN };
  * (a stale read only shows a progress value a moment old); `stop` is written under the lock. */
 typedef struct slot {
   atomic_llong id;           /* 0 = idle */
+  atomic_int attempt;        /* the attempt of `id` this slot holds (the store's guard) */
   atomic_int cancel;         /* the render's cancel flag */
   atomic_int progress_ppm;   /* millionths */
   atomic_int render_index;   /* which of render_count renders of the attempt is running */
@@ -202,14 +203,15 @@ typedef struct outcome {
  * the recovery at the next start. Returns 0 or the last error. */
 static int record(slot *sl, int64_t id, const outcome *o, obs_err *err) {
   srv_app *app = sl->app;
+  int attempt = atomic_load(&sl->attempt);
   for (;;) {
     obs_err_clear(err);
     int rc = o->kind == OUT_SUCCESS
-                 ? srv_db_finish_success(app->db, id, o->backend, o->summary, o->outs, o->nouts,
-                                         o->runs, o->nruns, app->machine_id, err)
+                 ? srv_db_finish_success(app->db, id, attempt, o->backend, o->summary, o->outs,
+                                         o->nouts, o->runs, o->nruns, app->machine_id, err)
              : o->kind == OUT_FINISH
-                 ? srv_db_finish(app->db, id, o->state, o->msg, o->progress, err)
-                 : srv_db_requeue(app->db, id, err);
+                 ? srv_db_finish(app->db, id, attempt, o->state, o->msg, o->progress, err)
+                 : srv_db_requeue(app->db, id, attempt, err);
     if (rc != OBS_ETRANSIENT) return rc;
     srv_fault_raise(SRV_FAULT_DB, srv_db_path(app->db), NULL, obs_err_message(err), NULL);
     if (o->kind == OUT_REQUEUE) return rc; /* stopping: recovery requeues it at the next start */
@@ -631,6 +633,7 @@ static void *worker(void *arg) {
         sl->stop = j.cancel_requested ? STOP_USER : STOP_NONE;
         if (sl->stop) atomic_store(&sl->cancel, 1);
         sl->deadline_ms = obs_now_ms() + 1e3 * sl->app->cfg.max_render_seconds;
+        atomic_store(&sl->attempt, j.attempts);
         atomic_store(&sl->id, j.id);
         have = 1;
         break;
@@ -739,6 +742,7 @@ int srv_sched_start(srv_app *app, obs_err *err) {
   for (int i = 0; i < s->nslots; i++) {
     slot *sl = &s->slots[i];
     atomic_init(&sl->id, 0);
+    atomic_init(&sl->attempt, 0);
     atomic_init(&sl->cancel, 0);
     atomic_init(&sl->progress_ppm, 0);
     atomic_init(&sl->render_index, 0);

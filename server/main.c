@@ -180,7 +180,7 @@ int main(int argc, char **argv) {
 
   /* One connection per thread that can hold one: HTTP pool, workers, maintenance, main. */
   int nconn = app.cfg.http_threads + app.cfg.workers + 3;
-  if (srv_db_open(&app.db, app.cfg.db, nconn, &err)) goto out;
+  if (srv_db_open(&app.db, app.cfg.db, nconn, NULL, &err)) goto out;
   if (srv_db_recover(app.db, srv_pick_lane_recovered, clean_outputs, &app, &err)) goto out;
   srv_mpi_kill_orphans(&app);
   srv_outputs_sweep(&app);
