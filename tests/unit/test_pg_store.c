@@ -466,6 +466,79 @@ static void test_comparison(void **state) {
   assert_int_equal(srv_db_delete_comparison(pg, id, &ids, &nids, NULL), OBS_ENOTFOUND);
 }
 
+/* The rows of every srv_query after one comparison ran, as "query: column:kind,..." lines. */
+static void query_shapes(srv_db *db, char *out, size_t n) {
+  srv_new_comparison c;
+  srv_new_job refs[1];
+  srv_new_candidate cands[2];
+  srv_new_measure ms;
+  new_comparison(&c, refs, cands, &ms);
+  int64_t id = 0, m = 0, ref = 0, cand0 = 0;
+  assert_int_equal(srv_db_insert_comparison(db, &c, &id, NULL), 0);
+  assert_int_equal(srv_db_machine(db, "Test CPU", 4, "llvmpipe", "software", &m, NULL), 0);
+  srv_run run = {1, 2, 3, 6};
+  srv_output o = {"ao", 10, "", "image/x-exr"};
+  memset(o.sha256, 'c', 64);
+  for (int k = 0; k < 3; k++) {
+    int att;
+    int64_t job = claim(db, &att);
+    assert_true(job > 0);
+    if (!ref) ref = job; /* the reference is inserted, hence claimed, first */
+    else if (!cand0) cand0 = job;
+    assert_int_equal(srv_db_finish_success(db, job, att, "cpu", "{}", &o, 1, &run, 1, m, NULL), 0);
+  }
+  for (int k = 0; k < 3; k++)
+    assert_int_equal(srv_db_set_metrics(db, id, k, cand0, k == 2 ? NULL : "{\"rmse\": 0.1}",
+                                        k == 2 ? "none" : NULL, NULL, 0, NULL), 0);
+  srv_arg by_cmp = {SRV_ARG_INT, id, 0, NULL}, by_job = {SRV_ARG_INT, ref, 0, NULL},
+          by_machine = {SRV_ARG_INT, m, 0, NULL}, page[2] = {{SRV_ARG_INT, 0, 0, NULL},
+                                                             {SRV_ARG_INT, 10, 0, NULL}},
+          pending = {SRV_ARG_INT, 0, 0, NULL},
+          autos[3] = {{SRV_ARG_TEXT, 0, 0, "ssao"}, {SRV_ARG_REAL, 0, 64.0 * 48 * 4, NULL},
+                      {SRV_ARG_TEXT, 0, 0, "software"}};
+  const struct {
+    srv_query q;
+    const srv_arg *args;
+    int nargs;
+  } qs[] = {{SRV_Q_COMPARISON, &by_cmp, 1},       {SRV_Q_CANDIDATES, &by_cmp, 1},
+            {SRV_Q_COMPARISON_RUNS, &by_cmp, 1},  {SRV_Q_COMPARISON_OUTPUTS, &by_cmp, 1},
+            {SRV_Q_COMPARISONS, page, 2},         {SRV_Q_JOB_COMPARISON, &by_job, 1},
+            {SRV_Q_AUTO_RUNS, autos, 3},          {SRV_Q_BUDGET, NULL, 0},
+            {SRV_Q_JOB_RUNS, &by_job, 1},         {SRV_Q_JOB_DOC, &by_job, 1},
+            {SRV_Q_JOB_MACHINE, &by_job, 1},      {SRV_Q_JOB_CHOICE, &by_job, 1},
+            {SRV_Q_MACHINE, &by_machine, 1},      {SRV_Q_METRICS_PENDING, &pending, 1}};
+  size_t len = 0;
+  out[0] = '\0';
+  for (size_t k = 0; k < sizeof qs / sizeof qs[0]; k++) {
+    json_t *rows;
+    obs_err e = OBS_ERR_INIT;
+    if (srv_db_query(db, qs[k].q, qs[k].args, qs[k].nargs, &rows, &e))
+      fail_msg("query %d: %s", (int)qs[k].q, obs_err_message(&e));
+    char one[1024];
+    shape(rows, one, sizeof one);
+    len += (size_t)snprintf(out + len, n - len, "%d (%zu rows): %s\n", (int)qs[k].q,
+                            json_array_size(rows), one);
+    json_decref(rows);
+  }
+  assert_true(len < n);
+}
+
+/* One contract: the same calls give rows of the same columns, kinds and counts on both stores. */
+static void test_rows_match_sqlite(void **state) {
+  NEED_PG();
+  srv_db *sq = NULL;
+  srv_node n = node_named("alpha", "b1", 0);
+  obs_err e = OBS_ERR_INIT;
+  const char *path = obs_test_path(obs_test_tmpdir("pg_rows"), "jobs.db");
+  if (srv_db_open(&sq, path, 1, &n, &e)) fail_msg("%s", obs_err_message(&e));
+  static char from_pg[8192], from_sq[8192];
+  query_shapes(*state, from_pg, sizeof from_pg);
+  query_shapes(sq, from_sq, sizeof from_sq);
+  srv_db_close(sq);
+  if (strcmp(from_pg, from_sq))
+    fail_msg("PostgreSQL rows:\n%s\nSQLite rows:\n%s", from_pg, from_sq);
+}
+
 /* ---- several nodes --------------------------------------------------------------------------- */
 
 typedef struct claimer {
@@ -811,6 +884,7 @@ int main(void) {
       cmocka_unit_test_setup_teardown(test_jobs, setup, teardown),
       cmocka_unit_test_setup_teardown(test_limits, setup, teardown),
       cmocka_unit_test_setup_teardown(test_comparison, setup, teardown),
+      cmocka_unit_test_setup_teardown(test_rows_match_sqlite, setup, teardown),
       cmocka_unit_test_setup_teardown(test_two_nodes_claim, setup, teardown),
       cmocka_unit_test_setup_teardown(test_lease_reaped, setup, teardown),
       cmocka_unit_test_setup_teardown(test_exclusion_and_max_attempts, setup, teardown),
