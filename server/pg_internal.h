@@ -80,6 +80,7 @@ typedef struct pgc {
   unsigned char prepared[PGS_COUNT];
   int in_use;
   int broken; /* the last failure lost the connection: reset before the next use */
+  int retry;  /* the last failure is worth one more try (lost connection, deadlock, conflict) */
 } pgc;
 
 struct srv_pg {
