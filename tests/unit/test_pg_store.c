@@ -165,6 +165,17 @@ static void test_jobs(void **state) {
   assert_true(jobs[0].id == low && jobs[1].id == mid);
   srv_jobs_free(jobs, n);
 
+  /* Every combination of filters and order (each its own statement) answers and filters. */
+  for (int v = 0; v < 16; v++) {
+    srv_job_filter fv = {.has_state = v & 1, .state = SRV_QUEUED,
+                         .technique = v & 2 ? "rt_ao" : NULL, .backend = v & 4 ? "auto" : NULL,
+                         .ascending = (v & 8) != 0, .limit = 10};
+    assert_int_equal(srv_db_list_jobs(pg, &fv, &jobs, &n, NULL), 0);
+    assert_int_equal(n, v & 2 ? 2 : 3);
+    assert_true(v & 8 ? jobs[0].id < jobs[1].id : jobs[0].id > jobs[1].id);
+    srv_jobs_free(jobs, n);
+  }
+
   /* The claim takes the highest priority first. */
   int att = 0;
   assert_true(claim(pg, &att) == high);
