@@ -72,22 +72,6 @@ void srv_submit_check_estimate(srv_app *app, const obs_scene *sc, obs_err *probl
  * check and together exceed the cap. This daemon is the database's only writer of jobs. */
 static pthread_mutex_t admit_mu = PTHREAD_MUTEX_INITIALIZER;
 
-static int64_t text_bytes(const char *s) { return s ? (int64_t)strlen(s) : 0; }
-
-int64_t srv_job_stored_bytes(const srv_new_job *j) {
-  return text_bytes(j->doc) + text_bytes(j->label) + text_bytes(j->scene) +
-         text_bytes(j->scene_name) + text_bytes(j->notes) + text_bytes(j->backend_reason) +
-         text_bytes(j->choice);
-}
-
-int64_t srv_candidate_row_bytes(const srv_new_candidate *c) {
-  return text_bytes(c->params) + text_bytes(c->reference_params) + text_bytes(c->response);
-}
-
-int64_t srv_comparison_stored_bytes(const srv_new_comparison *c) {
-  return text_bytes(c->request) + text_bytes(c->label) + text_bytes(c->notes);
-}
-
 /* What a job costs the queue: every render it will do, its renderer processes, its bytes. */
 static srv_load job_load(const srv_new_job *j, int64_t extra) {
   srv_load l = {j->work * ((j->repeats > 0 ? j->repeats : 1) + (j->warmup ? 1 : 0)),
@@ -247,26 +231,6 @@ unsigned srv_admit_retry(srv_app *app, const char *client, int64_t id, srv_state
   return st;
 }
 
-int srv_respond_too_busy(srv_req *r, int retry_after, const obs_err *problems) {
-  json_t *list = json_array();
-  const char *t = obs_err_message(problems);
-  while (*t) {
-    size_t n = strcspn(t, "\n");
-    json_array_append_new(list, json_stringn(t, n));
-    t += n;
-    if (*t) t++;
-  }
-  char msg[96];
-  snprintf(msg, sizeof msg, "the queue is over a limit of this server: try again in %d s",
-           retry_after);
-  struct MHD_Response *resp =
-      srv_json_response(json_pack("{s:s, s:o}", "error", msg, "problems", list));
-  if (!resp) return MHD_NO;
-  char ra[16];
-  snprintf(ra, sizeof ra, "%d", retry_after);
-  MHD_add_response_header(resp, "Retry-After", ra);
-  return srv_respond(r, 429, resp);
-}
 
 void srv_req_client(srv_app *app, struct MHD_Connection *c, char *buf, size_t n) {
   if (app->has_token) {
