@@ -239,6 +239,13 @@ int srv_db_finish(srv_db *db, int64_t id, int attempt, srv_state state, const ch
 /* Returns a running job to the queue (daemon shutting down): its attempt does not count. */
 int srv_db_requeue(srv_db *db, int64_t id, int attempt, obs_err *err);
 
+/* Admission across nodes: between srv_db_admit_lock and srv_db_admit_unlock no other node admits
+ * work, so the queue's caps (read with srv_db_queued) hold over every node's submissions. SQLite
+ * has one daemon, whose own mutex (limits.c) already serializes: a no-op there. PostgreSQL: a
+ * session advisory lock on a connection held for the section (released if the node dies). */
+int srv_db_admit_lock(srv_db *db, obs_err *err);
+void srv_db_admit_unlock(srv_db *db);
+
 /* ---- several nodes on one store --------------------------------------------------------------- */
 
 /* For each of the n jobs this node runs (ids[i] at attempt attempts[i]): extends its lease to now

@@ -175,6 +175,16 @@ int srv_db_prune(srv_db *db, int64_t keep_jobs, double keep_days, int64_t **ids,
                  obs_err *err) {
   return DISPATCH(prune, keep_jobs, keep_days, ids, nids, err);
 }
+int srv_db_admit_lock(srv_db *db, obs_err *err) { return DISPATCH(admit_lock, err); }
+void srv_db_admit_unlock(srv_db *db) {
+#ifdef OBSCURAD_POSTGRESQL
+  if (db->pg) {
+    srv_pg_admit_unlock(db->pg);
+    return;
+  }
+#endif
+  srv_sq_admit_unlock(db->sq);
+}
 void srv_db_refuse(srv_db *db, const char *msg) { DISPATCH(refuse, msg); }
 const char *srv_db_path(const srv_db *db) {
 #ifdef OBSCURAD_POSTGRESQL
