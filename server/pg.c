@@ -379,6 +379,7 @@ int srv_pg_open(struct srv_pg **out, const char *url, int nconn, const srv_node 
   pthread_mutex_init(&pg->mu, NULL);
   pthread_cond_init(&pg->cv, NULL);
   pthread_mutex_init(&pg->lmu, NULL);
+  pthread_mutex_init(&pg->amu, NULL);
   int rc = srv_pgi_run(pg, 1, migrate, NULL, err);
   if (rc) {
     srv_pg_close(pg);
@@ -392,12 +393,14 @@ void srv_pg_close(struct srv_pg *pg) {
   if (!pg) return;
   for (int i = 0; i < pg->n; i++) PQfinish(pg->c[i].pq);
   PQfinish(pg->listener);
+  PQfinish(pg->admit);
   free(pg->c);
   free(pg->url);
   free(pg->shown);
   pthread_mutex_destroy(&pg->mu);
   pthread_cond_destroy(&pg->cv);
   pthread_mutex_destroy(&pg->lmu);
+  pthread_mutex_destroy(&pg->amu);
   free(pg);
 }
 

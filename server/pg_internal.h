@@ -95,6 +95,8 @@ struct srv_pg {
   char refuse[1024]; /* under mu */
   pthread_mutex_t lmu; /* the listener */
   PGconn *listener;
+  pthread_mutex_t amu; /* held from srv_pg_admit_lock to srv_pg_admit_unlock */
+  PGconn *admit;       /* the session that holds the admission lock */
 };
 
 /* A connection of the pool, connected (or reset after a loss) and ready; NULL after filling err
