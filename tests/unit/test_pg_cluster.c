@@ -282,6 +282,39 @@ static void test_reconnect(void **state) {
   obs_err_free(&e2);
 }
 
+/* The server restarts (every session ends, prepared statements and LISTENs with them): the pool
+ * reconnects and prepares again, the listener comes back and hears the next submission. Needs
+ * the fixture's directory (OBSCURA_TEST_PG_DIR) to restart it. */
+static void test_server_restart(void **state) {
+  NEED_PG();
+  const char *dir = getenv("OBSCURA_TEST_PG_DIR");
+  if (!dir || !*dir) skip();
+  srv_db *a = *state, *b = pg_open_node("beta", "b1", 0);
+  int64_t id = pg_insert(a, 50, "rt_ao");
+  int what;
+  assert_int_equal(srv_db_wait(a, 0, &what, NULL), 1);
+  char cmd[1200];
+  snprintf(cmd, sizeof cmd, "'%s' restart '%s'", obs_test_src("tests/pg/pg.sh"), dir);
+  assert_int_equal(system(cmd), 0);
+  PQreset(pg_admin);
+  srv_job j;
+  obs_err e = OBS_ERR_INIT;
+  if (srv_db_get_job(a, id, &j, &e)) fail_msg("after a restart: %s", obs_err_message(&e));
+  obs_err_free(&e);
+  srv_job_free(&j);
+  assert_true(pg_claim(b, NULL) == id);
+  /* The listener: lost (reported once), then back; a submission wakes it again. */
+  int rc = 0;
+  for (int tries = 0; tries < 100 && rc == 0; tries++) rc = srv_db_wait(a, 100, &what, NULL);
+  assert_int_not_equal(rc, 0);
+  if (rc < 0) assert_int_equal(srv_db_wait(a, 0, &what, NULL), 1);
+  pg_insert(b, 50, "rt_ao");
+  do assert_int_equal(srv_db_wait(a, 10000, &what, NULL), 1);
+  while (what != SRV_WAKE_JOBS);
+  assert_int_equal(pg_sql_int("SELECT count(*) FROM jobs"), 2);
+  srv_db_close(b);
+}
+
 int main(void) {
   if (pg_fixture_start()) return 1;
   const struct CMUnitTest tests[] = {
@@ -292,6 +325,7 @@ int main(void) {
       cmocka_unit_test_setup_teardown(test_heartbeat_cancel_and_wait, pg_setup, pg_teardown),
       cmocka_unit_test_setup_teardown(test_recover_previous_boot, pg_setup, pg_teardown),
       cmocka_unit_test_setup_teardown(test_reconnect, pg_setup, pg_teardown),
+      cmocka_unit_test_setup_teardown(test_server_restart, pg_setup, pg_teardown),
   };
   int rc = cmocka_run_group_tests(tests, NULL, NULL);
   pg_fixture_stop();
