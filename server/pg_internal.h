@@ -93,7 +93,6 @@ struct srv_pg {
   char app[200];   /* application_name */
   srv_node node; /* its lease_seconds: what a claim or a heartbeat grants */
   char refuse[1024]; /* under mu */
-  pgc *admit;          /* holds the admission lock between admit_lock and admit_unlock */
   pthread_mutex_t lmu; /* the listener */
   PGconn *listener;
   pthread_mutex_t amu; /* held from srv_pg_admit_lock to srv_pg_admit_unlock */
