@@ -103,13 +103,13 @@ static const char *const sql[PGS_LIST] = {
     [PGS_GET_OUTPUT] = "SELECT size, sha256, content_type FROM outputs WHERE job_id = $1::bigint "
                        "AND name = $2",
     [PGS_COUNTS] = "SELECT state, sum(n)::bigint FROM job_counts GROUP BY state",
-    /* The same row goes back to the queue: its id, document and comparison stay; the nodes it
-     * failed on may try it again. */
+    /* The same row goes back to the queue: its id, document and comparison stay, and so do the
+     * nodes it is excluded from (as on SQLite): a node whose lease lapsed 3 times on this job
+     * would most likely lapse again, and another node takes it. */
     [PGS_RETRY] = "WITH u AS (UPDATE jobs SET state = 'queued', error = NULL, cancel_requested = 0, "
                   "started_ms = NULL, finished_ms = NULL, progress = 0, backend = NULL, "
                   "worker = NULL, lease_expires_at = NULL, run_after = now() WHERE id = $1::bigint "
-                  "AND state IN ('failed', 'cancelled') RETURNING id), d AS (DELETE FROM "
-                  "job_node_failures WHERE job IN (SELECT id FROM u)) "
+                  "AND state IN ('failed', 'cancelled') RETURNING id) "
                   "SELECT u.id, pg_notify('obscura_jobs', '') FROM u",
     [PGS_MACHINE_INSERT] =
         "WITH ins AS (INSERT INTO machines (cpu_model, cores, vulkan_device, vulkan_kind, host) "
