@@ -128,8 +128,6 @@ static void drop_outputs(slot *sl, srv_job *j, int published) {
  * retried; what the attempt wrote goes. */
 static void refused(slot *sl, srv_job *j, int published) {
   drop_outputs(sl, j, published); /* first: whoever reads the line finds them gone */
-  srv_log("job %lld: late result refused (attempt %d no longer held)", (long long)j->id,
-          j->attempts);
   srv_job_log(sl->app, j->id, "late result refused (attempt %d no longer held); its outputs are "
               "dropped", j->attempts);
 }
@@ -168,8 +166,6 @@ void srv_slot_stopped(slot *sl, srv_job *j, int why) {
   } else if (why == STOP_LEASE) {
     /* Nothing to record: the store no longer gives this node the job. */
     drop_outputs(sl, j, 0);
-    srv_log("job %lld: lease lost (attempt %d); the render stops and its outputs are dropped",
-            (long long)j->id, j->attempts);
     srv_job_log(app, j->id, "lease lost (attempt %d): this node stops the render and drops its "
                 "outputs; the store gives the job to a node again", j->attempts);
   } else if (why == STOP_TIMEOUT) {
