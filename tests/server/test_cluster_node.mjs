@@ -196,3 +196,27 @@ test('a completion the store refuses is dropped, never retried', async () => {
     sqlWrite(d.db, `UPDATE jobs SET state = 'failed', error = 'test', worker = NULL WHERE id = ${id}`);
   });
 });
+
+test('--results-dir: outputs are written and served there, marked with their attempt', async () => {
+  const results = fs.mkdtempSync(path.join(os.tmpdir(), 'obsd-cluster-results-'));
+  try {
+    await withDaemon({args: ['--results-dir', results, '--node-name', 'shared-1']}, async (d) => {
+      const id = await submit(d, {scene_file: 'sphere_on_plane.json', set: {'/image/width': 32, '/image/height': 32}});
+      const job = await waitJob(d, id);
+      assert.equal(job.state, 'succeeded', JSON.stringify(job));
+      assert.deepEqual(listFiles(d.resultsDir), [], 'nothing under DATA-DIR/results');
+      const mark = fs.readFileSync(path.join(results, String(id), '.attempt'), 'utf8');
+      assert.match(mark, /^shared-1\/[0-9a-f]{16} 1\n$/);
+      assert.ok(job.outputs.length >= 3, JSON.stringify(job.outputs));
+      for (const o of job.outputs) {
+        const r = await request(d, 'GET', `/api/v1/jobs/${id}/outputs/${o.name}`);
+        assert.equal(r.status, 200, o.name);
+        assert.equal(r.body.length, o.size);
+        assert.deepEqual(r.body, fs.readFileSync(path.join(results, String(id), o.name)));
+      }
+      assert.ok(!job.outputs.some((o) => o.name === '.attempt'), 'the mark is no output');
+    });
+  } finally {
+    fs.rmSync(results, {recursive: true, force: true});
+  }
+});
