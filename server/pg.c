@@ -370,8 +370,8 @@ int srv_pg_open(struct srv_pg **out, const char *url, int nconn, const srv_node 
   }
   pg->n = nconn;
   if (node) pg->node = *node;
+  if (pg->node.lease_seconds <= 0) pg->node.lease_seconds = 30;
   snprintf(pg->app, sizeof pg->app, "obscurad %s", pg->node.worker);
-  pg->lease_s = 30;
   pthread_mutex_init(&pg->mu, NULL);
   pthread_cond_init(&pg->cv, NULL);
   pthread_mutex_init(&pg->lmu, NULL);
@@ -397,10 +397,6 @@ void srv_pg_close(struct srv_pg *pg) {
   free(pg);
 }
 
-void srv_pg_set_lease(struct srv_pg *pg, double seconds) {
-  pg->lease_s = seconds > 0 ? seconds : 30;
-}
-
 void srv_pg_refuse(struct srv_pg *pg, const char *msg) {
   pthread_mutex_lock(&pg->mu);
   snprintf(pg->refuse, sizeof pg->refuse, "%s", msg ? msg : "");
@@ -409,46 +405,7 @@ void srv_pg_refuse(struct srv_pg *pg, const char *msg) {
 
 const char *srv_pg_path(const struct srv_pg *pg) { return pg->shown; }
 
-/* The SQLite file's maintenance: a server keeps its own files. */
-int srv_pg_checkpoint(struct srv_pg *pg, obs_err *err) {
-  (void)pg;
-  (void)err;
-  return 0;
-}
-
-srv_db_identity srv_pg_check_identity(struct srv_pg *pg, char *detail, size_t n) {
-  (void)pg;
-  if (n) detail[0] = '\0';
-  return SRV_DB_SAME;
-}
-
-int srv_pg_restore(struct srv_pg *pg, srv_db_identity what, char *where, size_t n, obs_err *err) {
-  (void)pg;
-  (void)what;
-  (void)err;
-  if (n) where[0] = '\0';
-  return 0;
-}
-
-int srv_pg_quick_check(struct srv_pg *pg, obs_err *err) {
-  (void)pg;
-  (void)err;
-  return 0;
-}
-
-int srv_pg_probe(struct srv_pg *pg, char *code, size_t n, obs_err *err) {
-  (void)pg;
-  (void)err;
-  if (n) code[0] = '\0';
-  return 0;
-}
-
-int srv_pg_take_corrupt_flag(struct srv_pg *pg) {
-  (void)pg;
-  return 0;
-}
-
-int srv_pg_results_shared(struct srv_pg *pg) {
+int srv_pg_results_shared(const struct srv_pg *pg) {
   (void)pg;
   return 1;
 }

@@ -53,7 +53,7 @@ int srv_pg_heartbeat(struct srv_pg *pg, const int64_t *ids, const int *attempts,
   }
   char lease[32];
   const char *v[] = {srv_pgi_arr_close(&a[0]), srv_pgi_arr_close(&a[1]), pg->node.worker,
-                     srv_pgi_f64(lease, pg->lease_s)};
+                     srv_pgi_f64(lease, pg->node.lease_seconds)};
   PGresult *r = NULL;
   int rc = !v[0] || !v[1] ? obs_err_set(err, OBS_ENOMEM, "out of memory")
                           : srv_pgi_one(pg, PGS_HEARTBEAT, 4, v, &r, err);
@@ -89,30 +89,27 @@ int srv_pg_reap(struct srv_pg *pg, int *requeued, int *failed, obs_err *err) {
 
 /* ---- wake-ups -------------------------------------------------------------------------------- */
 
-static PGconn *listen_conn(struct srv_pg *pg) {
-  obs_err e = OBS_ERR_INIT;
-  PGconn *l = srv_pgi_connect(pg, &e);
+static PGconn *listen_conn(struct srv_pg *pg, obs_err *err) {
+  PGconn *l = srv_pgi_connect(pg, err);
   if (l) {
     PGresult *r = PQexec(l, "LISTEN obscura_jobs; LISTEN obscura_cancel");
     if (PQresultStatus(r) != PGRES_COMMAND_OK) {
-      obs_err_set(&e, OBS_ETRANSIENT, "LISTEN: %s", PQerrorMessage(l));
+      obs_err_set(err, OBS_ETRANSIENT, "database %s: LISTEN: %s", pg->shown, PQerrorMessage(l));
       PQfinish(l);
       l = NULL;
     }
     PQclear(r);
   }
-  if (!l) srv_log("%s", obs_err_message(&e));
-  obs_err_free(&e);
   return l;
 }
 
-int srv_pg_wait(struct srv_pg *pg, int timeout_ms, int *what) {
+int srv_pg_wait(struct srv_pg *pg, int timeout_ms, int *what, obs_err *err) {
   *what = 0;
   pthread_mutex_lock(&pg->lmu);
   int rc = 0;
   if (!pg->listener || PQstatus(pg->listener) != CONNECTION_OK) {
     PQfinish(pg->listener);
-    pg->listener = listen_conn(pg);
+    pg->listener = listen_conn(pg, err);
     if (!pg->listener) {
       pthread_mutex_unlock(&pg->lmu);
       /* No spinning while the server is away: the caller's loop comes back after the wait. */
@@ -139,10 +136,10 @@ int srv_pg_wait(struct srv_pg *pg, int timeout_ms, int *what) {
     int ready = poll(&p, 1, timeout_ms - (int)spent);
     if (ready <= 0) break;
     if (!PQconsumeInput(l) || PQstatus(l) != CONNECTION_OK) {
-      srv_log("database %s: the listener was lost: %s", pg->shown, PQerrorMessage(l));
+      rc = obs_err_set(err, OBS_ETRANSIENT, "database %s: the listener was lost: %s", pg->shown,
+                       PQerrorMessage(l));
       PQfinish(l);
       pg->listener = NULL;
-      rc = OBS_ETRANSIENT;
       break;
     }
     n = PQnotifies(l);

@@ -7,7 +7,7 @@
 #include <libpq-fe.h>
 #include <pthread.h>
 
-#include "pg.h"
+#include "store_impl.h"
 
 /* Every statement the store runs, prepared per connection. Bound parameters only. */
 enum {
@@ -66,8 +66,8 @@ enum {
   "jobs.backend_requested, jobs.backend, jobs.lane, jobs.width, jobs.height, jobs.spp, "          \
   "jobs.attempts, jobs.cancel_requested, jobs.created_ms, jobs.started_ms, jobs.finished_ms, "    \
   "jobs.error, jobs.summary, jobs.progress, jobs.repeats, jobs.warmup, jobs.backend_reason, "     \
-  "jobs.comparison, jobs.scene_name, jobs.notes, jobs.ranks"
-#define PG_JOB_NCOLS 27
+  "jobs.comparison, jobs.scene_name, jobs.notes, jobs.ranks, jobs.node"
+#define PG_JOB_NCOLS 28
 
 /* The SQL of statement `which` (pg_sql.c). */
 const char *srv_pgi_sql(int which);
@@ -90,8 +90,7 @@ struct srv_pg {
   char *url;       /* as given, with its password */
   char *shown;     /* the password as *** */
   char app[200];   /* application_name */
-  srv_node node;
-  double lease_s;
+  srv_node node; /* its lease_seconds: what a claim or a heartbeat grants */
   char refuse[1024]; /* under mu */
   pthread_mutex_t lmu; /* the listener */
   PGconn *listener;

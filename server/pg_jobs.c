@@ -39,6 +39,7 @@ void srv_pgi_read_job(const PGresult *r, int row, srv_job *j) {
   j->notes = srv_pgi_str(r, row, 25);
   j->ranks = (int)srv_pgi_int(r, row, 26);
   if (j->ranks < 1) j->ranks = 1;
+  j->node = srv_pgi_str(r, row, 27);
 }
 
 /* Attaches the outputs of jobs[0..n) (one query for the page). */
@@ -228,7 +229,7 @@ int srv_pg_claim(struct srv_pg *pg, srv_lane lane, srv_job *j, obs_err *err) {
   memset(j, 0, sizeof *j);
   char lease[32];
   const char *v[] = {srv_lane_name(lane), pg->node.name, pg->node.worker,
-                     srv_pgi_f64(lease, pg->lease_s)};
+                     srv_pgi_f64(lease, pg->node.lease_seconds)};
   PGresult *r;
   int rc = srv_pgi_one(pg, PGS_CLAIM, 4, v, &r, err);
   if (rc) return rc;
