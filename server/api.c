@@ -98,6 +98,7 @@ static json_t *job_json(srv_app *app, const srv_job *j) {
   json_object_set_new(o, "state", json_string(srv_state_name(j->state)));
   json_object_set_new(o, "progress", json_real(progress));
   json_object_set_new(o, "attempts", json_integer(j->attempts));
+  json_object_set_new(o, "node", str_or_null(j->node));
   json_object_set_new(o, "priority", json_integer(j->priority));
   json_object_set_new(o, "label", str_or_null(j->label));
   json_object_set_new(o, "comparison_id",

@@ -214,7 +214,8 @@ int srv_db_set_metrics(srv_db *db, int64_t comparison, int idx, int64_t job, con
 typedef enum {
   SRV_Q_COMPARISON,         /* ?1 comparison id */
   SRV_Q_CANDIDATES,         /* ?1 comparison id: candidates with their jobs' states */
-  SRV_Q_COMPARISON_RUNS,    /* ?1 comparison id: runs of all its jobs, with machines */
+  SRV_Q_COMPARISON_RUNS,    /* ?1 comparison id: runs of all its jobs, with machines and the
+                             * host (the job's node) that timed them */
   SRV_Q_COMPARISON_OUTPUTS, /* ?1 comparison id: output names of all its jobs */
   SRV_Q_COMPARISONS,        /* ?1 after (0 = start), ?2 limit: newest first, with counts */
   SRV_Q_JOB_COMPARISON,     /* ?1 job id: the comparison it belongs to, if any */
