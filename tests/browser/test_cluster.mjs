@@ -56,7 +56,7 @@ async function freshStore() {
 
 test('node C\'s dashboard shows node A\'s job and its images', async () => {
   const store = await freshStore();
-  const node = (name) => startDashboard({workers: 1, args: ['--store', store.url, '--node-name', name]});
+  const node = (name) => startDashboard({workers: 1, store: store.url, args: ['--node-name', name]});
   const started = [];
   try {
     const a = await node('node-a');

@@ -24,7 +24,7 @@ const PG_SH = path.join(ROOT, 'tests', 'pg', 'pg.sh');
 const PG_BIN = process.env.OBSCURA_PG_BIN || '/usr/lib/postgresql/15/bin';
 const LEASE_S = 3;
 // Per client (all requests come from 127.0.0.1): above what any case but the caps' queues.
-const MAX_QUEUED_WORK = 1e9;
+const MAX_QUEUED_WORK = 2e9;
 
 const scene = (w, samples, extra = {}) => ({scene_file: 'sphere_on_plane.json', ...extra,
   set: {'/image/width': w, '/image/height': w, '/technique/params/samples': samples}});
@@ -64,11 +64,11 @@ function asPostgres(cmd) {
   assert.equal(r.status, 0, `${cmd}: ${r.stdout}${r.stderr}`);
 }
 
-const nodeArgs = (name) => ['--store', url, '--node-name', name, '--lease-seconds', String(LEASE_S),
+const nodeArgs = (name) => ['--node-name', name, '--lease-seconds', String(LEASE_S),
                             '--max-queued-work', String(MAX_QUEUED_WORK)];
 
 async function startNode(name, dir) {
-  nodes[name] = await startDaemon({dir, workers: 1, args: nodeArgs(name)});
+  nodes[name] = await startDaemon({dir, workers: 1, store: url, args: nodeArgs(name)});
   return nodes[name];
 }
 
