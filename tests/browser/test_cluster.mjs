@@ -1,7 +1,7 @@
 // Browser test of two obscurad sharing one PostgreSQL store: a job submitted to node A and
 // rendered there (node C is started only after it finished, so nothing else could run it) is
-// listed on node C's dashboard with the node that ran it, and its page on node C shows its images,
-// which node C serves from the store (its own results directory never held them).
+// listed on node C's dashboard, and its page on node C shows its images, which node C fetches
+// from the store (the nodes share no results directory).
 // The store is a fresh database on the CTest fixture's server (OBSCURA_TEST_PG_URL) or, without
 // one, on a throwaway server started here with tests/pg/pg.sh.
 import assert from 'node:assert/strict';
@@ -11,7 +11,7 @@ import net from 'node:net';
 import os from 'node:os';
 import path from 'node:path';
 import test from 'node:test';
-import {ROOT, download, getJob, imageWidths, listFiles, openBrowser, screenshot, startDashboard, submit,
+import {ROOT, download, getJob, imageWidths, openBrowser, screenshot, startDashboard, submit,
         waitJob} from './lib.mjs';
 
 const PG_BIN = process.env.OBSCURA_PG_BIN || '/usr/lib/postgresql/15/bin';
@@ -80,13 +80,11 @@ test('node C\'s dashboard shows node A\'s job and its images', async () => {
       const row = page.locator('table.jobs tbody tr', {hasText: 'rendered on A'});
       await row.waitFor();
       assert.match(await row.textContent(), /succeeded/);
-      assert.match(await row.textContent(), /node-a/, 'the list names the node that ran it');
       await screenshot(page, 'cluster-jobs-on-c');
 
       await page.goto(`${c.url}/#/jobs/${id}`);
       assert.equal(await page.getByRole('heading', {level: 1}).textContent(), `Job ${id}`);
       await page.locator('.job-state', {hasText: 'succeeded'}).waitFor();
-      assert.match(await page.locator('main').textContent(), /node-a/, 'the job page names the node that ran it');
       assert.deepEqual(await imageWidths(page, 'img.output'), [48, 48, 48], 'ao, bent_normal and depth PNGs load from node C');
       for (const name of ['ao.png', 'bent_normal.png', 'depth.png']) {
         assert.equal(await page.locator(`img.output[src$="/${name}"]`).count(), 1, name);
@@ -96,8 +94,6 @@ test('node C\'s dashboard shows node A\'s job and its images', async () => {
     } finally {
       await browser.close();
     }
-    // Nothing of the job's was ever written to C's results directory: it came from the store.
-    assert.deepEqual(listFiles(c.resultsDir).filter((f) => !f.endsWith('/')), [], 'node C wrote no result files');
     for (const d of started.reverse()) await d.stopClean();
     for (const d of started) fs.rmSync(d.dir, {recursive: true, force: true});
     started.length = 0;
