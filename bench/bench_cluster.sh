@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Several obscurad sharing one PostgreSQL store: the same comparison (119 rt_ao candidates and
-# their reference, 120 jobs) run on 1, 2 and 3 daemons on PostgreSQL and on one daemon on SQLite;
+# Several obscurad sharing one PostgreSQL store: the same comparison (118 rt_ao candidates and
+# their 2 references, 120 jobs) run on 1, 2 and 3 daemons on PostgreSQL and on one daemon on SQLite;
 # jobs per minute, the 2-daemon/1-daemon throughput ratio, the claim statement's latency as the
 # PostgreSQL server logged it (log_min_duration_statement = 0: bind + execute of each claim, p50
 # and p99), whether any job ran twice (attempts, rows in runs), and the latency of the dashboard's
@@ -101,26 +101,33 @@ stop_daemons() {
   done
   pids=() urls=()
 }
-json() { node -e "let s='';process.stdin.on('data',d=>s+=d).on('end',()=>{const j=JSON.parse(s);console.log($1)})"; }
 
-# The comparison: 119 rt_ao candidates (samples 32..150) and their one reference, one timed run
-# each after the warm-up.
+# The comparison: 118 rt_ao candidates (samples 32..90 at two ray lengths) and their two
+# references, one timed run each after the warm-up.
 request=$(node -e "console.log(JSON.stringify({scene_file: 'sphere_on_plane.json', label: 'bench cluster',
   set: {'/image/width': $size, '/image/height': $size}, repeats: 1, reference: {samples: 256},
-  candidates: [{technique: 'rt_ao', backend: 'cpu', params: {samples: Array.from({length: 119}, (_, i) => 32 + i)}}]}))")
+  candidates: [{technique: 'rt_ao', backend: 'cpu', params: {samples: Array.from({length: 59}, (_, i) => 32 + i),
+                                                              max_distance: [1, 4]}}]}))")
 
-# sweep URL: posts the comparison, waits for its end; prints "seconds state".
+# sweep URL: posts the comparison and polls it (in one process, so that the polling costs little
+# CPU) until it ends; prints "seconds state".
 sweep() {
-  local t0 t1 id st
-  t0=$(date +%s%N)
-  id=$(curl -sf -X POST -H 'Content-Type: application/json' --data-binary "$request" "$1/api/v1/comparisons" | json j.id)
-  for _ in $(seq 1 36000); do
-    st=$(curl -sf "$1/api/v1/comparisons/$id" | json j.state)
-    [ "$st" != running ] && break
-    sleep 0.05
-  done
-  t1=$(date +%s%N)
-  awk -v ns=$((t1 - t0)) -v s="$st" 'BEGIN { printf "%.2f %s\n", ns / 1e9, s }'
+  REQUEST=$request node -e '
+    const url = process.argv[1], t0 = process.hrtime.bigint();
+    (async () => {
+      const r = await fetch(`${url}/api/v1/comparisons`, {method: "POST", body: process.env.REQUEST,
+                                                         headers: {"content-type": "application/json"}});
+      if (r.status !== 201) throw new Error(`POST /api/v1/comparisons: ${r.status} ${await r.text()}`);
+      const {id} = await r.json();
+      for (;;) {
+        const c = await (await fetch(`${url}/api/v1/comparisons/${id}`)).json();
+        if (c.state !== "running") {
+          console.log((Number(process.hrtime.bigint() - t0) / 1e9).toFixed(2), c.state);
+          return;
+        }
+        await new Promise((res) => setTimeout(res, 50));
+      }
+    })().catch((e) => { console.error(`bench_cluster: ${e.message}`); process.exit(1); });' "$1"
 }
 
 # percentiles: reads numbers, prints "p50 p99 n".
@@ -202,7 +209,7 @@ if [ $sqlite = 1 ]; then
   echo "$line"
   summary+=("$line")
   if [ "$history" -gt 0 ]; then
-    sqlite3 "$db" "PRAGMA busy_timeout = 10000; INSERT INTO jobs ($COLS) SELECT $COLS FROM jobs,
+    sqlite3 "$db" >/dev/null "PRAGMA busy_timeout = 10000; INSERT INTO jobs ($COLS) SELECT $COLS FROM jobs,
                    (WITH RECURSIVE s(x) AS (SELECT 1 UNION ALL SELECT x + 1 FROM s WHERE x < $history) SELECT x FROM s)
                    WHERE id = (SELECT min(id) FROM jobs)"
     stored=$(sqlite3 -readonly "$db" "SELECT count(*) FROM jobs")
@@ -217,5 +224,5 @@ echo "== summary"
 printf '%s\n' "${summary[@]}"
 if [ -n "${jpm[1]:-}" ] && [ -n "${jpm[2]:-}" ]; then
   awk -v a="${jpm[1]}" -v b="${jpm[2]}" 'BEGIN { r = b / a
-    printf "2 daemons / 1 daemon: %.2fx (goal >= 1.8x: %s)\n", r, r >= 1.8 ? "met" : "missed" }'
+    printf "2 daemons / 1 daemon: %.2fx (goal >= 1.8x: %s)\n", r, (r >= 1.8 ? "met" : "missed") }'
 fi
