@@ -1,8 +1,9 @@
 #!/bin/sh
 # A throwaway PostgreSQL for the store's tests: `pg.sh start DIR PORT` creates a cluster in DIR
 # (initdb), starts it on 127.0.0.1:PORT only, with trust authentication and fsync off (its data
-# is thrown away), creates the database "obscura" and prints its URL; `pg.sh stop DIR` stops it
-# and removes DIR. PostgreSQL refuses to run as root, so as root both run as the postgres user.
+# is thrown away), creates the database "obscura" and prints its URL; `pg.sh restart DIR` stops
+# it (fast: sessions are ended) and starts it again on the same data; `pg.sh stop DIR` stops it
+# and removes DIR. PostgreSQL refuses to run as root, so as root they run as the postgres user.
 set -eu
 BIN=${OBSCURA_PG_BIN:-/usr/lib/postgresql/15/bin}
 
@@ -31,7 +32,14 @@ case "${1:-}" in
     as_owner "'$BIN/pg_ctl' -D '$dir/data' -l '$dir/server.log' -w -t 60 -o \"$opts\" start >/dev/null" ||
       { cat "$dir/server.log" >&2; exit 1; }
     as_owner "'$BIN/psql' -h 127.0.0.1 -p $port -U postgres -d postgres -q -c 'CREATE DATABASE obscura'" >/dev/null
+    echo "$opts" >"$dir/options"
     echo "postgresql://postgres@127.0.0.1:$port/obscura"
+    ;;
+  restart)
+    dir=$2
+    opts=$(cat "$dir/options")
+    as_owner "'$BIN/pg_ctl' -D '$dir/data' -l '$dir/server.log' -m fast -w -t 60 -o \"$opts\" restart >/dev/null" ||
+      { cat "$dir/server.log" >&2; exit 1; }
     ;;
   stop)
     dir=$2
@@ -41,7 +49,7 @@ case "${1:-}" in
     rm -rf "$dir"
     ;;
   *)
-    echo "usage: pg.sh start DIR PORT | pg.sh stop DIR" >&2
+    echo "usage: pg.sh start DIR PORT | pg.sh restart DIR | pg.sh stop DIR" >&2
     exit 2
     ;;
 esac
