@@ -96,9 +96,8 @@ static void heartbeat(srv_app *app, struct srv_lease *l) {
   beat *next = l->next;
   for (int i = 0; i < n; i++) {
     if (!l->held[i]) {
-      if (srv_sched_stop_job(app, l->ids[i], l->attempts[i], SRV_STOP_LEASE))
-        srv_log("job %lld: lease lost (attempt %d is no longer this node's)",
-                (long long)l->ids[i], l->attempts[i]);
+      /* The worker logs it and drops the outputs (outcome.c). */
+      srv_sched_stop_job(app, l->ids[i], l->attempts[i], SRV_STOP_LEASE);
       next[i] = (beat){0, 0, 0};
       continue;
     }

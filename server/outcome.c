@@ -127,11 +127,9 @@ static void drop_outputs(slot *sl, srv_job *j, int published) {
  * reaper gave the job back to the queue, and another node may have run it). The outcome is never
  * retried; what the attempt wrote goes. */
 static void refused(slot *sl, srv_job *j, int published) {
-  srv_log("job %lld: late result refused (attempt %d no longer held)", (long long)j->id,
-          j->attempts);
+  drop_outputs(sl, j, published); /* first: whoever reads the line finds them gone */
   srv_job_log(sl->app, j->id, "late result refused (attempt %d no longer held); its outputs are "
               "dropped", j->attempts);
-  drop_outputs(sl, j, published);
 }
 
 /* Records a failure, cancel or requeue (`what` names it in the log when it cannot be recorded;
@@ -167,11 +165,9 @@ void srv_slot_stopped(slot *sl, srv_job *j, int why) {
     settle(sl, j, &o, "requeue", "running -> queued (daemon stopping; this attempt does not count)");
   } else if (why == STOP_LEASE) {
     /* Nothing to record: the store no longer gives this node the job. */
-    srv_log("job %lld: lease lost (attempt %d); the render stops and its outputs are dropped",
-            (long long)j->id, j->attempts);
+    drop_outputs(sl, j, 0);
     srv_job_log(app, j->id, "lease lost (attempt %d): this node stops the render and drops its "
                 "outputs; the store gives the job to a node again", j->attempts);
-    drop_outputs(sl, j, 0);
   } else if (why == STOP_TIMEOUT) {
     char msg[96];
     snprintf(msg, sizeof msg, "render time limit of %d s exceeded", app->cfg.max_render_seconds);

@@ -164,7 +164,10 @@ void srv_outputs_sweep(srv_app *app) {
       obs_err_free(&err);
       /* Only a succeeded job owns a results directory; anything else is what a crash (or a
        * deletion cut short) left behind. */
-      stale = ex == 0 || (ex == 1 && st != SRV_SUCCEEDED);
+      stale = ex == 0 || (ex == 1 && st != SRV_SUCCEEDED &&
+                          /* In a shared results directory, another node may have just
+                           * published what it is about to commit. */
+                          !(app->cfg.results_dir && st == SRV_RUNNING));
     }
     if (!stale) continue;
     snprintf(path, sizeof path, "%s/%s", app->results_dir, e->d_name);

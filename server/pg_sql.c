@@ -238,8 +238,9 @@ static const char *const queries[SRV_NQUERIES] = {
         "JOIN jobs r ON r.id = cc.reference_job WHERE cc.comparison = $1::bigint ORDER BY cc.idx",
     [SRV_Q_COMPARISON_RUNS] =
         "SELECT ru.job, ru.run, ru.build_ms, ru.render_ms, ru.post_ms, ru.total_ms, m.cpu_model, "
-        "m.cores, m.vulkan_device, m.vulkan_kind FROM runs ru LEFT JOIN machines m ON "
-        "m.id = ru.machine WHERE ru.job IN " CMP_JOBS " ORDER BY ru.job, ru.run",
+        "m.cores, m.vulkan_device, m.vulkan_kind, j.node AS host FROM runs ru LEFT JOIN machines m "
+        "ON m.id = ru.machine JOIN jobs j ON j.id = ru.job WHERE ru.job IN " CMP_JOBS
+        " ORDER BY ru.job, ru.run",
     [SRV_Q_COMPARISON_OUTPUTS] = "SELECT job_id AS job, name FROM outputs WHERE job_id IN " CMP_JOBS
                                  " ORDER BY job_id, name",
     [SRV_Q_COMPARISONS] = "SELECT c.id, c.label, c.scene, c.created_ms, " CMP_COUNTS

@@ -296,7 +296,7 @@ static void test_comparison(void **state) {
                          "metrics_error:-1,state:2,progress:4,ref_state:2,ref_progress:4,"
                          "ref_summary:2,ref_technique:2,"},
       {SRV_Q_COMPARISON_RUNS, "job:3,run:3,build_ms:4,render_ms:4,post_ms:4,total_ms:4,"
-                              "cpu_model:2,cores:3,vulkan_device:2,vulkan_kind:2,"},
+                              "cpu_model:2,cores:3,vulkan_device:2,vulkan_kind:2,host:2,"},
       {SRV_Q_COMPARISON_OUTPUTS, "job:3,name:2,"},
       {SRV_Q_JOB_COMPARISON, "comparison:3,"},
       {SRV_Q_JOB_RUNS, "total_ms:4,"},
