@@ -58,10 +58,11 @@ function psql(query) {
   return r.stdout.split('\n').filter((l) => l !== '').map((l) => l.split('\t'));
 }
 
-function asPostgres(cmd) {
-  const r = process.getuid() === 0 ? spawnSync('su', ['postgres', '-s', '/bin/sh', '-c', cmd], {encoding: 'utf8'})
-                                   : spawnSync('sh', ['-c', cmd], {encoding: 'utf8'});
-  assert.equal(r.status, 0, `${cmd}: ${r.stdout}${r.stderr}`);
+/** tests/pg/pg.sh start|restart|stop DIR ...; returns its output. */
+function pgSh(...argv) {
+  const r = spawnSync('sh', [PG_SH, ...argv], {encoding: 'utf8', env: {...process.env, OBSCURA_PG_BIN: PG_BIN}});
+  assert.equal(r.status, 0, `pg.sh ${argv.join(' ')}: ${r.stdout}${r.stderr}`);
+  return r.stdout;
 }
 
 const nodeArgs = (name) => ['--node-name', name, '--lease-seconds', String(LEASE_S),
@@ -115,10 +116,7 @@ before(async () => {
   const base = fs.mkdtempSync(path.join(os.tmpdir(), 'obsd-cluster-pg-'));
   fs.chmodSync(base, 0o755);  // pg.sh runs the server as postgres when we are root
   pgDir = path.join(base, 'pg');
-  const r = spawnSync('sh', [PG_SH, 'start', pgDir, String(await freePort())],
-                      {encoding: 'utf8', env: {...process.env, OBSCURA_PG_BIN: PG_BIN}});
-  assert.equal(r.status, 0, `pg.sh start: ${r.stdout}${r.stderr}`);
-  url = r.stdout.trim().split('\n').pop();
+  url = pgSh('start', pgDir, String(await freePort())).trim().split('\n').pop();
   assert.match(url, /^postgresql:\/\/.*\/obscura$/);
   // Started one after the other: the first applies the schema under its advisory lock.
   for (const n of NAMES) (await startNode(n)).nodeName = n;
@@ -139,7 +137,7 @@ after(async () => {
     }
   }
   if (pgDir) {
-    spawnSync('sh', [PG_SH, 'stop', pgDir], {env: {...process.env, OBSCURA_PG_BIN: PG_BIN}});
+    pgSh('stop', pgDir);
     fs.rmSync(path.dirname(pgDir), {recursive: true, force: true});
   }
   assert.deepEqual(failed, [], 'every node stops cleanly');
@@ -290,7 +288,7 @@ test('PostgreSQL restarted mid-sweep: every node reconnects and the sweep comple
   const cid = r.json.id;
   await waitFor('a few jobs done', () =>
     Number(psql(`SELECT count(*) FROM jobs WHERE comparison = ${cid} AND state = 'succeeded'`)[0][0]) >= 3);
-  asPostgres(`'${PG_BIN}/pg_ctl' -D '${pgDir}/data' -l '${pgDir}/server.log' -w -t 60 -m fast restart </dev/null >/dev/null 2>&1`);
+  pgSh('restart', pgDir);
   const c = await waitFor(`comparison ${cid} finished`, async () => {
     const x = await getJSON(nodes['node-c'], `/api/v1/comparisons/${cid}`);
     return x.state !== 'running' && x;
