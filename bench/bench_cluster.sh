@@ -130,6 +130,15 @@ sweep() {
     })().catch((e) => { console.error(`bench_cluster: ${e.message}`); process.exit(1); });' "$1"
 }
 
+# daemon_cpu: CPU seconds (user + system) the running daemons used so far.
+daemon_cpu() {
+  local t=0 p
+  for p in "${pids[@]}"; do t=$((t + $(awk '{print $14 + $15}' "/proc/$p/stat"))); done
+  awk -v t=$t -v hz="$(getconf CLK_TCK)" 'BEGIN { printf "%.1f", t / hz }'
+}
+# Other processes' load while a run went: the 1-minute load average at its end.
+load1() { cut -d' ' -f1 /proc/loadavg; }
+
 # percentiles: reads numbers, prints "p50 p99 n".
 percentiles() {
   sort -n | awk '{ v[NR] = $1 } END {
@@ -177,12 +186,13 @@ for n in $daemons; do
   from=$(stat -c %s "$pglog")
   read -r secs st < <(sweep "${urls[0]}")
   jpm[$n]=$(awk -v s="$secs" 'BEGIN { printf "%.1f", 120 / s * 60 }')
+  cpu=$(daemon_cpu) load=$(load1)
   read -r c50 c99 cn < <(claim_ms "$from" | percentiles)
   twice=$(psql -X -A -t -d "$url" -c "SELECT count(*) FROM jobs WHERE attempts <> 1 OR state <> 'succeeded'")
   extra=$(psql -X -A -t -d "$url" -c "SELECT count(*) FROM (SELECT j.id FROM jobs j LEFT JOIN runs r ON r.job = j.id
                                         GROUP BY j.id, j.repeats HAVING count(r.job) <> j.repeats) x")
   spread=$(psql -X -A -t -F ' ' -d "$url" -c "SELECT node || ':' || count(*) FROM jobs GROUP BY node ORDER BY node" | paste -sd ' ')
-  line="PostgreSQL, $n daemon(s): 120 jobs in $secs s ($st) = ${jpm[$n]} jobs/min; claim p50 $c50 ms p99 $c99 ms (n = $cn); jobs per node: $spread; not once: $twice, runs off: $extra"
+  line="PostgreSQL, $n daemon(s): 120 jobs in $secs s ($st) = ${jpm[$n]} jobs/min (daemons' CPU $cpu s, load average $load); claim p50 $c50 ms p99 $c99 ms (n = $cn); jobs per node: $spread; not once: $twice, runs off: $extra"
   echo "$line"
   summary+=("$line")
   if [ "$n" = "$(echo $daemons | awk '{print $NF}')" ] && [ "$history" -gt 0 ]; then
@@ -202,10 +212,11 @@ if [ $sqlite = 1 ]; then
   start_daemon sqlite "$db" 0
   read -r secs st < <(sweep "${urls[0]}")
   jpm[sqlite]=$(awk -v s="$secs" 'BEGIN { printf "%.1f", 120 / s * 60 }')
+  cpu=$(daemon_cpu) load=$(load1)
   twice=$(sqlite3 -readonly "$db" "SELECT count(*) FROM jobs WHERE attempts <> 1 OR state <> 'succeeded'")
   extra=$(sqlite3 -readonly "$db" "SELECT count(*) FROM (SELECT j.id FROM jobs j LEFT JOIN runs r ON r.job = j.id
                                     GROUP BY j.id, j.repeats HAVING count(r.job) <> j.repeats)")
-  line="SQLite, 1 daemon: 120 jobs in $secs s ($st) = ${jpm[sqlite]} jobs/min; not once: $twice, runs off: $extra"
+  line="SQLite, 1 daemon: 120 jobs in $secs s ($st) = ${jpm[sqlite]} jobs/min (daemon's CPU $cpu s, load average $load); not once: $twice, runs off: $extra"
   echo "$line"
   summary+=("$line")
   if [ "$history" -gt 0 ]; then
