@@ -297,13 +297,18 @@ test('PostgreSQL restarted mid-sweep: every node reconnects and the sweep comple
   assert.equal(rows.length, 24);
   assert.deepEqual(rows.filter((x) => x[1] !== 'succeeded'), [], 'every job of the sweep succeeded');
   assert.equal(c.state, 'succeeded');
-  // Each node talks to the restarted server: health, a listing, and a job through it.
+  // Each node talks to the restarted server: its health, a job submitted through it, and its lane
+  // claims again (three jobs at once on three one-lane nodes run one on each).
+  const ids = [];
   for (const n of NAMES) {
     const d = nodes[n];
     assert.equal((await getJSON(d, '/api/v1/health')).db, 'ok', `${n}'s health after the restart`);
-    const id = await submit(d, TINY);
-    assert.equal((await waitJob(d, id, undefined, 30000)).state, 'succeeded', `${n}: a job after the restart`);
+    ids.push(await submit(d, SLOW));
   }
+  const running = [];
+  for (const id of ids) running.push(await waitJob(b, id, (j) => j.state !== 'queued'));
+  assert.deepEqual(running.map((j) => j.node).sort(), NAMES, 'every node claims after the restart');
+  for (const id of ids) assert.equal((await waitJob(b, id)).state, 'succeeded');
 });
 
 test('priorities, per-node exclusion and the work caps hold across nodes', async () => {
