@@ -26,7 +26,7 @@ const LEASE_S = 3;
 // Per client (all requests come from 127.0.0.1): above what any case but the caps' queues.
 const MAX_QUEUED_WORK = 1.3e9;
 
-const scene = (w, samples, extra = {}) => ({scene_file: 'sphere_on_plane.json', ...extra,
+const scene = (w, samples) => ({scene_file: 'sphere_on_plane.json',
   set: {'/image/width': w, '/image/height': w, '/technique/params/samples': samples}});
 const TINY = scene(16, 4);
 // About 2 s alone on one lane of a 2-core machine; long enough to act on while it runs.
