@@ -45,6 +45,9 @@ static void metrics_one(srv_app *app, const json_t *row) {
   /* An output a technique pairs with its reference's (bent normals): every metric that applies. */
   const char *output = json_string_value(json_object_get(row, "output"));
   json_t *pair = output ? json_object() : NULL;
+  /* Either job may have run on another node: its outputs come from the store first. */
+  if (!rc) rc = srv_outputs_local_all(app, job, &e);
+  if (!rc) rc = srv_outputs_local_all(app, rjob, &e);
   if (!rc && output) rc = srv_compare_output(dir, rdir, output, pair, &e);
   else if (!rc) rc = srv_compare_primary(dir, rdir, resp, &m, extra, &eimg, &flip, &e);
   /* Written into the candidate's published directory under staging names and renamed, so a crash
@@ -58,6 +61,8 @@ static void metrics_one(srv_app *app, const json_t *row) {
          !strcmp(outs[i].name, SRV_MAPPED_REFERENCE_EXR)) &&
         nerr < (int)(sizeof err_outs / sizeof *err_outs))
       err_outs[nerr++] = outs[i];
+  /* ... and the error images go there too, so every node serves them. */
+  if (!rc && app->results_via_store) rc = srv_outputs_put_blobs(app, dir, err_outs, nerr, &e);
   char *metrics = NULL;
   if (!rc && pair) {
     metrics = json_dumps(pair, JSON_COMPACT | JSON_REAL_PRECISION(17));

@@ -58,13 +58,14 @@ export const BAD_LOG = /database is locked|SQLITE_BUSY|SQLITE_CORRUPT|disk I\/O 
 /**
  * Starts obscurad. opts: args (extra options), workers (default 1), token (string: written to a
  * token file and passed as --token-file), dir (reuse this directory: same DB and data dir, for a
- * restart). Returns {url, port, dir, db, dataDir, resultsDir, token, log(), stop(), kill9(), ...}.
+ * restart), store (a postgresql:// URL given as --store instead of the directory's SQLite file). Returns {url, port, dir, db, dataDir, resultsDir, token, log(), stop(), kill9(), ...}.
  */
 export async function startDaemon(opts = {}) {
   const dir = opts.dir || fs.mkdtempSync(path.join(os.tmpdir(), 'obsd-test-'));
   const db = path.join(dir, 'obscura.db');
   const dataDir = path.join(dir, 'data');
-  const argv = ['--listen', '127.0.0.1', '--port', '0', '--db', db, '--data-dir', dataDir,
+  const argv = ['--listen', '127.0.0.1', '--port', '0', ...(opts.store ? ['--store', opts.store] : ['--db', db]),
+                '--data-dir', dataDir,
                 '--scenes-dir', opts.scenesDir || SCENES_DIR, '--web-dir', path.join(ROOT, 'web'),
                 '--workers', String(opts.workers ?? 1), '--no-vulkan'];
   let token = null;
