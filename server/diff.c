@@ -79,7 +79,8 @@ static int read_output(srv_req *r, const char *which, const char *spec, obs_imag
   srv_results_path(r->app, id, path, sizeof path);
   size_t len = strlen(path);
   snprintf(path + len, sizeof path - len, "/%s", o.name);
-  if (obs_image_read_exr(img, path, &err)) {
+  /* Rendered by another node of a shared store: its output comes through the store first. */
+  if (srv_outputs_local(r->app, id, &o, &err) || obs_image_read_exr(img, path, &err)) {
     *status = MHD_HTTP_INTERNAL_SERVER_ERROR;
     snprintf(msg, n, "%s=%s: cannot read the file: %s", which, shown, obs_err_message(&err));
     obs_err_free(&err);

@@ -197,6 +197,11 @@ test('node C serves the outputs of jobs node A rendered, byte for byte', async (
     const exr = await download(nodes[via], job, 'ao.exr');
     assert.ok(exr.body.length > 0);
   }
+  // A difference map of two outputs that neither rendered on node C: both come through the store.
+  const ja = Number(sweep.rows.find((x) => x[3] === 'node-a')[0]);
+  const jb = Number(sweep.rows.find((x) => x[3] === 'node-b')[0]);
+  const diff = await request(nodes['node-c'], 'GET', `/api/v1/diff?a=${ja}/ao.exr&b=${jb}/ao.exr&channel=ao`);
+  assert.equal(diff.status, 200, `diff on node C of jobs of A and B: ${diff.status} ${diff.text}`);
 });
 
 test('kill -9 of a node mid-render: the job re-runs elsewhere after the lease and its back-off', async () => {
