@@ -85,6 +85,7 @@ test('node C\'s dashboard shows node A\'s job and its images', async () => {
       await page.goto(`${c.url}/#/jobs/${id}`);
       assert.equal(await page.getByRole('heading', {level: 1}).textContent(), `Job ${id}`);
       await page.locator('.job-state', {hasText: 'succeeded'}).waitFor();
+      assert.equal(await page.locator('.job-node').textContent(), 'node-a', 'the job page names the node that ran it');
       assert.deepEqual(await imageWidths(page, 'img.output'), [48, 48, 48], 'ao, bent_normal and depth PNGs load from node C');
       for (const name of ['ao.png', 'bent_normal.png', 'depth.png']) {
         assert.equal(await page.locator(`img.output[src$="/${name}"]`).count(), 1, name);

@@ -339,6 +339,9 @@ export function mountJob(view, [id], query) {
         el('dt', {}, 'Image'), el('dd', {className: 'image-text'}, imageOf ? imageText(j, imageOf.t, imageOf.params) : imageText(j, null, null)),
         el('dt', {}, 'Priority'), el('dd', {}, String(j.priority)),
         el('dt', {}, 'Attempts'), el('dd', {}, String(j.attempts)),
+        // The daemon (node) that ran the last attempt: on a shared store, any node's dashboard
+        // shows jobs that others rendered.
+        el('dt', {}, 'Node'), el('dd', {className: 'job-node'}, j.node || '–'),
         el('dt', {}, 'Created'), el('dd', {}, fmtTime(j.created_at)),
         el('dt', {}, 'Started'), el('dd', {}, fmtTime(j.started_at)),
         el('dt', {}, 'Finished'), el('dd', {}, fmtTime(j.finished_at)),
