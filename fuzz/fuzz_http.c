@@ -92,7 +92,7 @@ int LLVMFuzzerInitialize(int *argc, char ***argv) {
   app.cpu_threads = 1;
   obs_err err = OBS_ERR_INIT;
   int nconn = app.cfg.http_threads + app.cfg.workers + 3;
-  if (srv_db_open(&app.db, app.cfg.db, nconn, &err)) die("database", &err);
+  if (srv_db_open(&app.db, app.cfg.db, nconn, NULL, &err)) die("database", &err);
   if (srv_db_recover(app.db, srv_pick_lane_recovered, clean_outputs, &app, &err)) die("recovery", &err);
   if (srv_db_machine(app.db, "fuzz", 1, NULL, NULL, &app.machine_id, &err)) die("machine", &err);
   if (srv_sched_start(&app, &err)) die("scheduler", &err);

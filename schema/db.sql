@@ -157,3 +157,22 @@ ALTER TABLE machines ADD COLUMN vulkan_kind TEXT;
 -- A time-budget job's choice (JSON: the pick's expected time and RMSE, the alternatives
 -- considered and why each lost), made at submission; NULL for every other job.
 ALTER TABLE jobs ADD COLUMN choice TEXT;
+
+-- migration 11
+-- Several nodes on one store (docs/cluster.md): the worker ("<node>/<boot>") holding a running
+-- job and until when its lease lasts, the node that ran the last attempt (kept: the figures say
+-- which host timed them), when a requeued job may run again (back-off), how many attempts a job
+-- gets, and which nodes failed which jobs (a node that failed one 3 times no longer claims it).
+-- One daemon owns a SQLite file, so its leases never lapse while it lives; the columns keep both
+-- stores to one contract.
+ALTER TABLE jobs ADD COLUMN worker TEXT;
+ALTER TABLE jobs ADD COLUMN node TEXT;
+ALTER TABLE jobs ADD COLUMN lease_expires_ms INTEGER;
+ALTER TABLE jobs ADD COLUMN run_after INTEGER;           -- Unix ms; NULL: as soon as queued
+ALTER TABLE jobs ADD COLUMN max_attempts INTEGER NOT NULL DEFAULT 3 CHECK (max_attempts >= 1);
+CREATE TABLE job_node_failures (
+  job INTEGER NOT NULL REFERENCES jobs (id) ON DELETE CASCADE,
+  node TEXT NOT NULL,
+  failures INTEGER NOT NULL DEFAULT 0,
+  PRIMARY KEY (job, node)
+) WITHOUT ROWID;

@@ -98,6 +98,7 @@ static json_t *job_json(srv_app *app, const srv_job *j) {
   json_object_set_new(o, "state", json_string(srv_state_name(j->state)));
   json_object_set_new(o, "progress", json_real(progress));
   json_object_set_new(o, "attempts", json_integer(j->attempts));
+  json_object_set_new(o, "node", str_or_null(j->node));
   json_object_set_new(o, "priority", json_integer(j->priority));
   json_object_set_new(o, "label", str_or_null(j->label));
   json_object_set_new(o, "comparison_id",
@@ -168,15 +169,6 @@ static json_t *job_json(srv_app *app, const srv_job *j) {
 
 /* ---- /api/v1/jobs ---------------------------------------------------------------------------- */
 
-int srv_refuse_when_faulted(srv_req *r, int *ret) {
-  char fault[1400];
-  /* Before any parsing: while the database file is lost or corrupt nothing accepted would
-   * survive a restart. */
-  if (!srv_fault_refusing(fault, sizeof fault)) return 0;
-  *ret = srv_respond_error(r, MHD_HTTP_SERVICE_UNAVAILABLE, NULL,
-                           "not accepting work: %s (see GET /api/v1/health)", fault);
-  return 1;
-}
 
 static int submit(srv_req *r) {
   int refused;

@@ -48,6 +48,9 @@ static json_t *timings_of(const json_t *runs, json_int_t job, json_t **machine) 
       json_object_set_new(o, stages[k], num_or_null(d));
       if (n < SRV_MAX_REPEATS) v[k][n] = d;
     }
+    /* The node that timed it: with several daemons on one store, hosts differ between jobs. */
+    json_t *host = json_object_get(row, "host");
+    json_object_set_new(o, "host", json_is_string(host) ? json_incref(host) : json_null());
     json_array_append_new(list, o);
     if (n < SRV_MAX_REPEATS) n++;
     if (machine && !*machine && json_is_string(json_object_get(row, "cpu_model")))

@@ -24,6 +24,17 @@ static const opt opts[] = {
      "address to listen on (default 127.0.0.1); anything but loopback needs --token-file"},
     {"port", OPT_INT, OFF(port), 0, 65535, "TCP port (default 8080; 0 = pick a free one)"},
     {"db", OPT_STR, OFF(db), 0, 0, "SQLite database file (default DATA-DIR/obscura.db)"},
+    {"store", OPT_STR, OFF(store), 0, 0,
+     "the store: a postgresql:// URL shared by several daemons (docs/cluster.md), or a SQLite "
+     "file like --db (not both)"},
+    {"node-name", OPT_STR, OFF(node_name), 0, 0,
+     "this daemon's name in a shared store, stable across restarts (default HOSTNAME:PORT)"},
+    {"lease-seconds", OPT_INT, OFF(lease_seconds), 2, 3600,
+     "a running job stays this node's for this long without a heartbeat; heartbeats every "
+     "third of it (default 30)"},
+    {"results-dir", OPT_STR, OFF(results_dir), 0, 0,
+     "outputs go here instead of DATA-DIR/results; with a PostgreSQL store, a filesystem every "
+     "node shares, so outputs are not copied into the store"},
     {"data-dir", OPT_STR, OFF(data_dir), 0, 0, "results go to DATA-DIR/results (default var)"},
     {"scenes-dir", OPT_STR, OFF(scenes_dir), 0, 0,
      "bundled scenes; scene and mesh paths resolve only inside it (default scenes)"},
@@ -114,6 +125,27 @@ static const opt opts[] = {
      "the obscura CLI that mpirun starts per rank (default: obscura next to obscurad)"},
 };
 #define NOPTS (sizeof opts / sizeof opts[0])
+
+int srv_store_is_url(const char *where) {
+  return !strncmp(where, "postgresql://", 13) || !strncmp(where, "postgres://", 11);
+}
+
+const char *srv_url_redacted(const char *where, char *buf, size_t n) {
+  snprintf(buf, n, "%s", where);
+  if (!srv_store_is_url(where)) return buf;
+  /* scheme://user:password@host...: the password is what lies between the first ':' after the
+   * scheme and the last '@' of the authority. */
+  char *auth = strstr(buf, "://") + 3, *end = auth + strcspn(auth, "/?#");
+  char *at = NULL;
+  for (char *p = auth; p < end; p++)
+    if (*p == '@') at = p;
+  char *colon = at ? memchr(auth, ':', (size_t)(at - auth)) : NULL;
+  if (!colon) return buf;
+  char tail[1024];
+  snprintf(tail, sizeof tail, "%s", at);
+  snprintf(colon + 1, n - (size_t)(colon + 1 - buf), "***%s", tail);
+  return buf;
+}
 
 static void usage(FILE *f) {
   fputs("usage: obscurad [--config FILE] [options]\n"
@@ -283,6 +315,7 @@ int srv_config_parse(srv_config *cfg, int argc, char **argv) {
   cfg->body_timeout = 10;
   cfg->min_body_rate = 64 * 1024;
   cfg->estimate_render_time = 1;
+  cfg->lease_seconds = 30;
   /* The config file first, wherever --config stands, so the command line always wins. */
   for (int i = 1; i < argc; i++) {
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
@@ -337,12 +370,27 @@ int srv_config_parse(srv_config *cfg, int argc, char **argv) {
     snprintf(where, sizeof where, "--%s", o->name);
     if (apply(cfg, o, val, where)) return -1;
   }
-  if (!cfg->db) {
+  if (cfg->store && cfg->db) {
+    char shown[1024];
+    srv_url_redacted(cfg->store, shown, sizeof shown);
+    fprintf(stderr,
+            "obscurad: --store %s and --db %s: give one of them (--db is the SQLite file "
+            "option, --store takes a SQLite file or a postgresql:// URL)\n",
+            shown, cfg->db);
+    return -1;
+  }
+  /* A SQLite file given as --store is the --db option by another name. */
+  if (cfg->store && !srv_store_is_url(cfg->store)) {
+    cfg->db = cfg->store;
+    cfg->store = NULL;
+  }
+  if (!cfg->store && !cfg->db) {
     size_t n = strlen(cfg->data_dir) + 16;
     cfg->db = malloc(n);
     if (!cfg->db) return -1;
     snprintf(cfg->db, n, "%s/obscura.db", cfg->data_dir);
   }
+  if (!cfg->store) cfg->store = xstrdup(cfg->db);
   if (cfg->max_inflight < cfg->max_body + 1) {
     fprintf(stderr,
             "obscurad: --max-inflight-bytes (%lld) must exceed --max-body (%lld), or no "
@@ -360,6 +408,9 @@ int srv_config_parse(srv_config *cfg, int argc, char **argv) {
 void srv_config_free(srv_config *cfg) {
   free(cfg->listen);
   free(cfg->db);
+  free(cfg->store);
+  free(cfg->node_name);
+  free(cfg->results_dir);
   free(cfg->data_dir);
   free(cfg->scenes_dir);
   free(cfg->web_dir);

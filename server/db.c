@@ -41,19 +41,26 @@ static const char *const sql[ST_COUNT] = {
                     "AND id > ?4 ORDER BY id ASC LIMIT ?5",
     /* One statement, so one transaction: two workers can never claim the same job. */
     [ST_CLAIM] = "UPDATE jobs SET state = 'running', attempts = attempts + 1, started_ms = ?2, "
-                 "finished_ms = NULL, progress = 0, backend = NULL WHERE id = (SELECT id FROM jobs WHERE "
-                 "lane = ?1 AND state = 'queued' ORDER BY priority DESC, id LIMIT 1) "
+                 "finished_ms = NULL, progress = 0, backend = NULL, worker = ?3, node = ?4, "
+                 "lease_expires_ms = ?2 + ?5 WHERE id = (SELECT id FROM jobs WHERE lane = ?1 AND "
+                 "state = 'queued' AND (run_after IS NULL OR run_after <= ?2) AND NOT EXISTS "
+                 "(SELECT 1 FROM job_node_failures f WHERE f.job = jobs.id AND f.node = ?4 AND "
+                 "f.failures >= 3) ORDER BY priority DESC, id LIMIT 1) "
                  "RETURNING " JOB_COLS ", doc",
     [ST_SET_BACKEND] = "UPDATE jobs SET backend = ? WHERE id = ? AND state = 'running'",
-    [ST_SUCCESS] = "UPDATE jobs SET state = 'succeeded', backend = ?, summary = ?, progress = 1, "
-                   "finished_ms = ?, error = NULL WHERE id = ? AND state = 'running'",
+    /* Completion is accepted only from the worker that still holds this attempt. */
+#define HELD "WHERE id = ?5 AND attempts = ?6 AND worker = ?7 AND state = 'running'"
+    [ST_SUCCESS] = "UPDATE jobs SET state = 'succeeded', backend = ?1, summary = ?2, progress = 1, "
+                   "finished_ms = ?3, error = NULL, worker = NULL, lease_expires_ms = NULL " HELD,
     [ST_OUT_CLEAR] = "DELETE FROM outputs WHERE job_id = ?",
     [ST_OUT_INSERT] = "INSERT INTO outputs (job_id, name, size, sha256, content_type) "
                       "VALUES (?, ?, ?, ?, ?)",
-    [ST_FINISH] = "UPDATE jobs SET state = ?, error = ?, finished_ms = ?, progress = ? "
-                  "WHERE id = ? AND state = 'running'",
+    [ST_FINISH] = "UPDATE jobs SET state = ?1, error = ?2, finished_ms = ?3, progress = ?4, "
+                  "worker = NULL, lease_expires_ms = NULL " HELD,
     [ST_REQUEUE] = "UPDATE jobs SET state = 'queued', attempts = max(attempts - 1, 0), "
-                   "started_ms = NULL, backend = NULL WHERE id = ? AND state = 'running'",
+                   "started_ms = NULL, backend = NULL, worker = NULL, lease_expires_ms = NULL "
+                   "WHERE id = ?5 AND attempts = ?6 AND worker = ?7 AND state = 'running'",
+    [ST_HEARTBEAT] = "UPDATE jobs SET lease_expires_ms = ?1 " HELD " RETURNING cancel_requested",
     [ST_STATE] = "SELECT state FROM jobs WHERE id = ?",
     [ST_CANCEL_QUEUED] = "UPDATE jobs SET state = 'cancelled', cancel_requested = 1, "
                          "error = 'cancelled by request', finished_ms = ? "
@@ -69,9 +76,10 @@ static const char *const sql[ST_COUNT] = {
     [ST_QUEUED_LIST] = "SELECT id, technique, backend_requested, lane FROM jobs "
                        "WHERE state = 'queued'",
     [ST_SET_LANE] = "UPDATE jobs SET lane = ? WHERE id = ?",
-    [ST_END_ANY] = "UPDATE jobs SET state = ?, error = ?, finished_ms = ? WHERE id = ?",
+    [ST_END_ANY] = "UPDATE jobs SET state = ?, error = ?, finished_ms = ?, worker = NULL, "
+                   "lease_expires_ms = NULL WHERE id = ?",
     [ST_REQUEUE_CRASH] = "UPDATE jobs SET state = 'queued', error = ?, started_ms = NULL, "
-                         "backend = NULL WHERE id = ?",
+                         "backend = NULL, worker = NULL, lease_expires_ms = NULL WHERE id = ?",
     [ST_CHECKPOINT] = "PRAGMA wal_checkpoint(TRUNCATE)",
     [ST_MIGRATION_MAX] = "SELECT coalesce(max(version), 0) FROM schema_migrations",
     [ST_MIGRATION_PUT] = "INSERT INTO schema_migrations (version, applied_ms) VALUES (?, ?)",
@@ -96,8 +104,8 @@ static const char *const sql[ST_COUNT] = {
                       "VALUES (?, ?, ?, ?, ?)",
     /* The same row goes back to the queue: its id, document and comparison stay. */
     [ST_RETRY] = "UPDATE jobs SET state = 'queued', error = NULL, cancel_requested = 0, "
-                 "started_ms = NULL, finished_ms = NULL, progress = 0, backend = NULL "
-                 "WHERE id = ? AND state IN ('failed', 'cancelled')",
+                 "started_ms = NULL, finished_ms = NULL, progress = 0, backend = NULL, "
+                 "run_after = NULL WHERE id = ? AND state IN ('failed', 'cancelled')",
     /* A candidate whose jobs have succeeded but whose metrics are not stored yet is still being
      * measured: deleting it then would pull the rows from under the metrics being written. */
     [ST_CMP_ACTIVE] = "SELECT (SELECT count(*) FROM comparisons WHERE id = ?1), (SELECT count(*) "
@@ -140,8 +148,9 @@ static const char *const sql[ST_COUNT] = {
         "JOIN jobs r ON r.id = cc.reference_job WHERE cc.comparison = ?1 ORDER BY cc.idx",
     [ST_QUERY + SRV_Q_COMPARISON_RUNS] =
         "SELECT ru.job, ru.run, ru.build_ms, ru.render_ms, ru.post_ms, ru.total_ms, m.cpu_model, "
-        "m.cores, m.vulkan_device, m.vulkan_kind FROM runs ru LEFT JOIN machines m ON "
-        "m.id = ru.machine WHERE ru.job IN " CMP_JOBS " ORDER BY ru.job, ru.run",
+        "m.cores, m.vulkan_device, m.vulkan_kind, j.node AS host FROM runs ru LEFT JOIN machines m "
+        "ON m.id = ru.machine JOIN jobs j ON j.id = ru.job WHERE ru.job IN " CMP_JOBS
+        " ORDER BY ru.job, ru.run",
     [ST_QUERY + SRV_Q_COMPARISON_OUTPUTS] =
         "SELECT job_id AS job, name FROM outputs WHERE job_id IN " CMP_JOBS " ORDER BY job_id, name",
     [ST_QUERY + SRV_Q_COMPARISONS] = "SELECT c.id, c.label, c.scene, c.created_ms, " CMP_COUNTS
@@ -196,7 +205,7 @@ int srv_dbi_fail(conn *c, obs_err *err, const char *what) {
                      sqlite3_errmsg(c->db));
 }
 
-conn *srv_dbi_acquire(srv_db *db) {
+conn *srv_dbi_acquire(srv_sq *db) {
   pthread_mutex_lock(&db->mu);
   for (;;) {
     for (int i = 0; !db->exclusive && i < db->n; i++) {
@@ -210,7 +219,7 @@ conn *srv_dbi_acquire(srv_db *db) {
   }
 }
 
-void srv_dbi_release(srv_db *db, conn *c) {
+void srv_dbi_release(srv_sq *db, conn *c) {
   pthread_mutex_lock(&db->mu);
   c->in_use = 0;
   /* Broadcast: an exclusive reopen waits on the same condition for all to be free. */
@@ -259,30 +268,6 @@ int srv_dbi_begin(conn *c, obs_err *err) { return simple(c, ST_BEGIN, err); }
 int srv_dbi_commit(conn *c, obs_err *err) { return simple(c, ST_COMMIT, err); }
 void srv_dbi_rollback(conn *c) {
   if (!sqlite3_get_autocommit(c->db)) simple(c, ST_ROLLBACK, NULL);
-}
-
-const char *srv_state_name(srv_state s) {
-  static const char *const n[] = {"queued", "running", "succeeded", "failed", "cancelled"};
-  return s < SRV_NSTATES ? n[s] : "?";
-}
-
-int srv_state_parse(const char *s, srv_state *out) {
-  for (int i = 0; s && i < SRV_NSTATES; i++)
-    if (!strcmp(s, srv_state_name((srv_state)i))) {
-      *out = (srv_state)i;
-      return 0;
-    }
-  return -1;
-}
-
-const char *srv_lane_name(srv_lane l) {
-  return obs_backend_name(l == SRV_LANE_VULKAN ? OBS_BACKEND_VULKAN : OBS_BACKEND_CPU);
-}
-
-srv_lane srv_lane_parse(const char *name) {
-  obs_backend b = OBS_BACKEND_CPU;
-  obs_backend_parse(name, &b);
-  return b == OBS_BACKEND_VULKAN ? SRV_LANE_VULKAN : SRV_LANE_CPU;
 }
 
 char *srv_dbi_col_str(sqlite3_stmt *s, int i) {
@@ -450,7 +435,7 @@ static int migrate(conn *c, const char *path, obs_err *err) {
 }
 
 /* Remembers which files were opened, so that a deleted or replaced database is noticed. */
-int srv_dbi_record_identity(srv_db *db, const char *path, obs_err *err) {
+int srv_dbi_record_identity(srv_sq *db, const char *path, obs_err *err) {
   for (int i = 0; i < db->n; i++) db->c[i].owner = db;
   atomic_init(&db->corrupt_seen, 0);
   if (db->path != path) {
@@ -471,10 +456,37 @@ int srv_dbi_record_identity(srv_db *db, const char *path, obs_err *err) {
   return 0;
 }
 
-int srv_db_open(srv_db **out, const char *path, int nconn, obs_err *err) {
+int srv_dbi_fsync_path(const char *path) {
+  int fd = open(path, O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return -1;
+  int rc = fsync(fd);
+  close(fd);
+  return rc;
+}
+
+/* VACUUM INTO `target` on c: a consistent copy of everything committed, WAL included. */
+int srv_dbi_vacuum_into(conn *c, const char *target, obs_err *err) {
+  sqlite3_stmt *s = NULL;
+  if (sqlite3_prepare_v2(c->db, "VACUUM INTO ?1", -1, &s, NULL) != SQLITE_OK)
+    return srv_dbi_fail(c, err, "VACUUM INTO");
+  sqlite3_bind_text(s, 1, target, -1, SQLITE_TRANSIENT);
+  int rc = sqlite3_step(s) == SQLITE_DONE ? 0 : srv_dbi_fail(c, err, "VACUUM INTO");
+  sqlite3_finalize(s);
+  if (!rc && srv_dbi_fsync_path(target))
+    rc = obs_err_set(err, OBS_ETRANSIENT, "%s: cannot flush: %s", target, strerror(errno));
+  char dir[4200];
+  snprintf(dir, sizeof dir, "%s", target);
+  char *slash = strrchr(dir, '/');
+  if (slash) *slash = 0;
+  if (!rc) srv_dbi_fsync_path(slash ? (slash == dir ? "/" : dir) : ".");
+  return rc;
+}
+
+int srv_sq_open(srv_sq **out, const char *path, int nconn, const srv_node *node, obs_err *err) {
   *out = NULL;
-  srv_db *db = calloc(1, sizeof *db);
+  srv_sq *db = calloc(1, sizeof *db);
   if (!db) return obs_err_set(err, OBS_ENOMEM, "out of memory");
+  db->node = *node;
   db->c = calloc((size_t)nconn, sizeof *db->c);
   if (!db->c) {
     free(db);
@@ -490,7 +502,7 @@ int srv_db_open(srv_db **out, const char *path, int nconn, obs_err *err) {
   }
   if (!rc) rc = srv_dbi_record_identity(db, path, err);
   if (rc) {
-    srv_db_close(db);
+    srv_sq_close(db);
     return rc;
   }
   *out = db;
@@ -498,7 +510,7 @@ int srv_db_open(srv_db **out, const char *path, int nconn, obs_err *err) {
 }
 
 
-void srv_db_close(srv_db *db) {
+void srv_sq_close(srv_sq *db) {
   if (!db) return;
   if (db->recovered[0] && db->n) {
     /* Jobs may have finished into the unlinked file since the copy was written: refresh it. */
@@ -521,7 +533,7 @@ void srv_db_close(srv_db *db) {
   free(db);
 }
 
-int srv_dbi_refused(srv_db *db, obs_err *err) {
+int srv_dbi_refused(srv_sq *db, obs_err *err) {
   pthread_mutex_lock(&db->mu);
   int r = db->refuse[0] != 0;
   if (r) obs_err_set(err, OBS_ETRANSIENT, "not accepting work: %s", db->refuse);
@@ -529,17 +541,17 @@ int srv_dbi_refused(srv_db *db, obs_err *err) {
   return r ? OBS_ETRANSIENT : 0;
 }
 
-void srv_db_refuse(srv_db *db, const char *msg) {
+void srv_sq_refuse(srv_sq *db, const char *msg) {
   pthread_mutex_lock(&db->mu);
   snprintf(db->refuse, sizeof db->refuse, "%s", msg ? msg : "");
   pthread_mutex_unlock(&db->mu);
 }
 
-const char *srv_db_path(const srv_db *db) { return db->path; }
+const char *srv_sq_path(const srv_sq *db) { return db->path; }
 
-int srv_db_take_corrupt_flag(srv_db *db) { return atomic_exchange(&db->corrupt_seen, 0); }
+int srv_sq_take_corrupt_flag(srv_sq *db) { return atomic_exchange(&db->corrupt_seen, 0); }
 
-int srv_db_checkpoint(srv_db *db, obs_err *err) {
+int srv_sq_checkpoint(srv_sq *db, obs_err *err) {
   conn *c = srv_dbi_acquire(db);
   sqlite3_stmt *s = srv_dbi_stmt(c, ST_CHECKPOINT, err);
   int rc = OBS_EIO;

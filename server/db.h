@@ -1,6 +1,9 @@
-/* The job server's database interface (db.c and the db_*.c files behind it): job and lane
- * states, the jobs, comparisons, runs and machines rows, the named queries and the database's
- * recovery. Included by obscurad.h; the SQL itself stays private to the db files. */
+/* The job server's store interface, the one door to persistence: job and lane states, the jobs,
+ * comparisons, runs and machines rows, the named queries, recovery, and what several daemons
+ * sharing one store need (node identity, leases, heartbeats, the reaper, wake-ups, results as
+ * content-addressed blobs, retention). store.c dispatches every call to one of two
+ * implementations with the same contract: SQLite (db.c, db_*.c; one daemon, the default) and
+ * PostgreSQL (pg*.c; any number of daemons). Included by obscurad.h; SQL stays private to them. */
 #ifndef SRV_DB_H
 #define SRV_DB_H
 
@@ -11,6 +14,22 @@
 #include "obscura/obscura.h"
 
 typedef struct srv_db srv_db;
+
+/* Which implementation a store is. */
+typedef enum { SRV_STORE_SQLITE, SRV_STORE_POSTGRESQL } srv_store_kind;
+
+/* This daemon as a node of the store: `name` is stable across restarts (--node-name, by default
+ * "<hostname>:<port>") and `boot` random per start; while a node runs a job the job's worker is
+ * "<name>/<boot>", so a restarted node knows what its previous boot left and a late result from
+ * an earlier boot is refused. */
+typedef struct srv_node {
+  char name[128];
+  char boot[40];
+  char worker[170];
+  int lease_seconds; /* how long a claim holds without a heartbeat */
+} srv_node;
+/* Fills boot (random hex) and worker from name; lease_seconds 0 becomes 30. */
+void srv_node_init(srv_node *n, const char *name, int lease_seconds);
 
 typedef enum {
   SRV_QUEUED,
@@ -60,6 +79,7 @@ typedef struct srv_job {
   char *scene_name;        /* an inline scene's name, may be NULL */
   char *notes;             /* JSON array of the values derived from the scene's size, may be NULL */
   int ranks;               /* Open MPI ranks (> 1: rendered by mpirun, mpi_jobs.c) */
+  char *node;              /* the node that ran the last attempt, may be NULL */
   char *doc;               /* only filled by srv_db_claim */
   srv_output *outputs;
   int noutputs;
@@ -95,20 +115,13 @@ typedef struct srv_job_filter {
   int limit;
 } srv_job_filter;
 
-/* Opens (creating) the database with `nconn` pooled connections, applies the migrations of
- * schema/db.sql. Messages go to err. */
-int srv_db_open(srv_db **out, const char *path, int nconn, obs_err *err);
+/* Opens the store at `where` with `nconn` pooled connections and applies its migrations:
+ * "postgresql://..." or "postgres://..." is a PostgreSQL URL (schema/pg.sql), anything else the
+ * path of a SQLite file, created when missing (schema/db.sql). `node` is copied. */
+int srv_db_open(srv_db **out, const char *where, int nconn, const srv_node *node, obs_err *err);
 void srv_db_close(srv_db *db);
-/* The backend a job runs on in this daemon: the renderer's choice, except that "auto" falls back
- * to the CPU when the renderer would pick Vulkan but no Vulkan lane runs (--no-vulkan). An
- * explicit "vulkan" without a lane is an error naming the flag. */
-int srv_pick_backend(const obs_technique *t, obs_backend requested, int vulkan_lane,
-                     obs_backend *out, obs_err *err);
-/* The scheduler's lane for a job left queued by the last process: 0 and *lane (which may differ
- * from the stored one when the Vulkan device came or went), or an error whose message the job
- * fails with. `user` is the srv_app. */
-int srv_pick_lane_recovered(void *user, const char *technique, const char *backend_requested,
-                            srv_lane stored, srv_lane *lane, obs_err *err);
+srv_store_kind srv_db_kind(const srv_db *db);
+const srv_node *srv_db_node(const srv_db *db);
 /* Returns running jobs to queued (or fails them at SRV_MAX_ATTEMPTS), and gives every queued job
  * the lane `pick` decides (storage records, the scheduler decides), failing those it refuses.
  * Calls `clean(user, id)` for every job whose half-written outputs must go. Run before any
@@ -124,14 +137,21 @@ int srv_db_get_job(srv_db *db, int64_t id, srv_job *j, obs_err *err);
 /* Fills up to f->limit + 1 jobs (the extra one only tells whether there is a next page). */
 int srv_db_list_jobs(srv_db *db, const srv_job_filter *f, srv_job **jobs, int *n, obs_err *err);
 void srv_jobs_free(srv_job *jobs, int n);
-/* Claims the next queued job of `lane` (state running, attempts + 1, started now, backend) in one
- * UPDATE ... RETURNING. Returns 0 with *j filled (doc included), 1 when none is queued, or <0. */
+/* Claims the next queued job of `lane` whose run_after has come and that this node is not excluded
+ * from (it failed the job 3 times), by priority then run_after then id: state running,
+ * attempts + 1, started now, worker and node this node's, lease now + lease_seconds; in one
+ * statement, so two workers of any nodes never claim the same job. Returns 0 with *j filled (doc
+ * included; j->attempts is this attempt), 1 when none is ready, or <0. */
 int srv_db_claim(srv_db *db, srv_lane lane, srv_job *j, obs_err *err);
 /* Sets the resolved backend of a running job. */
 int srv_db_set_backend(srv_db *db, int64_t id, const char *backend, obs_err *err);
 /* Marks a running job succeeded with its summary and records its outputs and its timed runs (with
- * the machine that ran them, 0 = unknown), in one transaction. */
-int srv_db_finish_success(srv_db *db, int64_t id, const char *backend, const char *summary,
+ * the machine that ran them, 0 = unknown), in one transaction. Like srv_db_finish and
+ * srv_db_requeue, it is accepted only while this node's worker still holds attempt `attempt` of
+ * the job (running, same worker, same attempts): otherwise OBS_ECONFLICT and nothing changes, so a
+ * paused or partitioned node's late result is refused. */
+int srv_db_finish_success(srv_db *db, int64_t id, int attempt, const char *backend,
+                          const char *summary,
                           const srv_output *outs, int nouts, const srv_run *runs, int nruns,
                           int64_t machine, obs_err *err);
 /* The id of the machines row with these facts, inserted when new. vulkan_device may be NULL. */
@@ -171,6 +191,10 @@ typedef struct srv_new_comparison {
   const srv_new_measure *measures; /* rows after the candidates' (indices ncandidates + k) */
   int nmeasures;
 } srv_new_comparison;
+/* The bytes (records.c) a new job's row stores (its texts), a candidate row's, a comparison row's. */
+int64_t srv_job_stored_bytes(const srv_new_job *j);
+int64_t srv_candidate_row_bytes(const srv_new_candidate *c);
+int64_t srv_comparison_stored_bytes(const srv_new_comparison *c);
 /* Inserts the comparison, every job, every candidate row and every further measurement's row in
  * one transaction. */
 int srv_db_insert_comparison(srv_db *db, const srv_new_comparison *c, int64_t *id, obs_err *err);
@@ -184,7 +208,8 @@ int srv_db_set_metrics(srv_db *db, int64_t comparison, int idx, int64_t job, con
 typedef enum {
   SRV_Q_COMPARISON,         /* ?1 comparison id */
   SRV_Q_CANDIDATES,         /* ?1 comparison id: candidates with their jobs' states */
-  SRV_Q_COMPARISON_RUNS,    /* ?1 comparison id: runs of all its jobs, with machines */
+  SRV_Q_COMPARISON_RUNS,    /* ?1 comparison id: runs of all its jobs, with machines and the
+                             * host (the job's node) that timed them */
   SRV_Q_COMPARISON_OUTPUTS, /* ?1 comparison id: output names of all its jobs */
   SRV_Q_COMPARISONS,        /* ?1 after (0 = start), ?2 limit: newest first, with counts */
   SRV_Q_JOB_COMPARISON,     /* ?1 job id: the comparison it belongs to, if any */
@@ -210,10 +235,47 @@ int srv_db_query(srv_db *db, srv_query q, const srv_arg *args, int nargs, json_t
                  obs_err *err);
 /* Marks a running job failed or cancelled with `error`. */
 /* Ends a running job as failed or cancelled, keeping the last progress it reached. */
-int srv_db_finish(srv_db *db, int64_t id, srv_state state, const char *error, double progress,
-                  obs_err *err);
+int srv_db_finish(srv_db *db, int64_t id, int attempt, srv_state state, const char *error,
+                  double progress, obs_err *err);
 /* Returns a running job to the queue (daemon shutting down): its attempt does not count. */
-int srv_db_requeue(srv_db *db, int64_t id, obs_err *err);
+int srv_db_requeue(srv_db *db, int64_t id, int attempt, obs_err *err);
+
+/* Admission across nodes: between srv_db_admit_lock and srv_db_admit_unlock no other node admits
+ * work, so the queue's caps (read with srv_db_queued) hold over every node's submissions. SQLite
+ * has one daemon, whose own mutex (limits.c) already serializes: a no-op there. PostgreSQL: a
+ * session advisory lock on a connection held for the section (released if the node dies). */
+int srv_db_admit_lock(srv_db *db, obs_err *err);
+void srv_db_admit_unlock(srv_db *db);
+
+/* ---- several nodes on one store --------------------------------------------------------------- */
+
+/* For each of the n jobs this node runs (ids[i] at attempt attempts[i]): extends its lease to now
+ * + lease_seconds by the store's clock while this worker still holds it, and reports held[i] (0:
+ * the job is no longer ours, so its render stops and its outputs are dropped) and cancel[i] (a
+ * cancel was requested through any node). */
+int srv_db_heartbeat(srv_db *db, const int64_t *ids, const int *attempts, int n, int *held,
+                     int *cancel, obs_err *err);
+/* Any node's reaper, idempotent: running jobs whose lease expired by the store's clock go back to
+ * the queue after a back-off with jitter (the expired node's failure is counted against it), or
+ * fail once they reached their max_attempts. SQLite leases cannot expire while the one daemon
+ * lives (its start-up recovery requeues), so there it reaps nothing. */
+int srv_db_reap(srv_db *db, int *requeued, int *failed, obs_err *err);
+enum { SRV_WAKE_JOBS = 1, SRV_WAKE_CANCEL = 2 };
+/* Waits up to timeout_ms for another node's news: 1 with *what (SRV_WAKE_*) when jobs were queued
+ * or a cancel was requested, 0 on timeout, <0 when the listener was lost (the next call
+ * reconnects). SQLite has no other node: it sleeps and returns 0. */
+int srv_db_wait(srv_db *db, int timeout_ms, int *what, obs_err *err);
+/* 1 when outputs must travel through the store (PostgreSQL without a shared results directory):
+ * the node that renders puts every output as a blob and any node serves it from there. */
+int srv_db_results_shared(const srv_db *db);
+/* Content-addressed output bytes: put is idempotent; get fills a malloc'd copy or OBS_ENOTFOUND. */
+int srv_db_put_blob(srv_db *db, const char *sha256, const void *data, size_t n, obs_err *err);
+int srv_db_get_blob(srv_db *db, const char *sha256, void **data, size_t *n, obs_err *err);
+/* Retention: deletes the finished jobs beyond the newest keep_jobs or finished more than keep_days
+ * ago (0: no such limit), a comparison only whole (when every job of it is past a limit), and
+ * returns the deleted jobs' ids (malloc'd, the caller frees) so their files go too. */
+int srv_db_prune(srv_db *db, int64_t keep_jobs, double keep_days, int64_t **ids, int *nids,
+                 obs_err *err);
 
 typedef enum { SRV_CANCEL_DONE, SRV_CANCEL_RUNNING, SRV_CANCEL_FINISHED } srv_cancel_result;
 /* Queued: cancelled now. Running: cancel_requested set (the scheduler stops the render). */

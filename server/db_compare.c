@@ -9,7 +9,7 @@
 
 #include "db_internal.h"
 
-int srv_db_insert_comparison(srv_db *db, const srv_new_comparison *cmp, int64_t *id,
+int srv_sq_insert_comparison(srv_sq *db, const srv_new_comparison *cmp, int64_t *id,
                              obs_err *err) {
   if (srv_dbi_refused(db, err)) return OBS_ETRANSIENT;
   int64_t *ref_ids = calloc((size_t)cmp->nreferences + 1, sizeof *ref_ids);
@@ -95,7 +95,7 @@ int srv_db_insert_comparison(srv_db *db, const srv_new_comparison *cmp, int64_t 
   return rc;
 }
 
-int srv_db_machine(srv_db *db, const char *cpu_model, int cores, const char *vulkan_device,
+int srv_sq_machine(srv_sq *db, const char *cpu_model, int cores, const char *vulkan_device,
                    const char *vulkan_kind, int64_t *id, obs_err *err) {
   conn *c = srv_dbi_acquire(db);
   sqlite3_stmt *s = srv_dbi_stmt(c, ST_MACHINE_INSERT, err);
@@ -131,7 +131,7 @@ int srv_db_machine(srv_db *db, const char *cpu_model, int cores, const char *vul
   return rc;
 }
 
-int srv_db_set_metrics(srv_db *db, int64_t comparison, int idx, int64_t job, const char *metrics,
+int srv_sq_set_metrics(srv_sq *db, int64_t comparison, int idx, int64_t job, const char *metrics,
                        const char *error, const srv_output *outs, int nouts, obs_err *err) {
   conn *c = srv_dbi_acquire(db);
   int rc = srv_dbi_begin(c, err);
@@ -153,7 +153,7 @@ int srv_db_set_metrics(srv_db *db, int64_t comparison, int idx, int64_t job, con
   return rc;
 }
 
-int srv_db_query(srv_db *db, srv_query q, const srv_arg *args, int nargs, json_t **rows,
+int srv_sq_query(srv_sq *db, srv_query q, const srv_arg *args, int nargs, json_t **rows,
                  obs_err *err) {
   *rows = NULL;
   if (q < 0 || q >= SRV_NQUERIES) return obs_err_set(err, OBS_EINTERNAL, "no query %d", (int)q);

@@ -9,7 +9,9 @@
 #include <stdatomic.h>
 #include <sys/types.h>
 
-#include "obscurad.h"
+#include "store_impl.h"
+
+typedef struct srv_sq srv_sq;
 
 /* Every statement the daemon runs. Bound parameters only: no SQL is ever built from input. */
 enum {
@@ -55,6 +57,7 @@ enum {
   ST_CMP_JOBS,
   ST_CMP_DELETE,
   ST_JOB_DELETE_ANY,
+  ST_HEARTBEAT,
   ST_QUERY, /* first of the SRV_NQUERIES read-only queries */
   ST_COUNT = ST_QUERY + SRV_NQUERIES
 };
@@ -63,9 +66,9 @@ enum {
   "id, state, priority, label, scene, technique, backend_requested, backend, lane, width, "      \
   "height, spp, attempts, cancel_requested, created_ms, started_ms, finished_ms, error, summary, " \
   "progress, repeats, warmup, backend_reason, (SELECT comparison FROM comparison_candidates "      \
-  "WHERE job = jobs.id OR reference_job = jobs.id LIMIT 1), scene_name, notes, ranks"
+  "WHERE job = jobs.id OR reference_job = jobs.id LIMIT 1), scene_name, notes, ranks, node"
 /* How many columns JOB_COLS selects: a statement's further columns start there. */
-#define JOB_NCOLS 27
+#define JOB_NCOLS 28
 #define LIST_WHERE                                                                                \
   "(?1 IS NULL OR state = ?1) AND (?2 IS NULL OR technique = ?2) AND "                           \
   "(?3 IS NULL OR coalesce(backend, backend_requested) = ?3) "
@@ -74,16 +77,17 @@ typedef struct conn {
   sqlite3 *db;
   sqlite3_stmt *st[ST_COUNT];
   int in_use;
-  struct srv_db *owner;
+  struct srv_sq *owner;
 } conn;
 
-struct srv_db {
+struct srv_sq {
   conn *c;
   int n;
   pthread_mutex_t mu;
   pthread_cond_t cv;
   int exclusive;               /* the pool is being reopened: acquire waits */
   char *path;
+  srv_node node;               /* this daemon: the worker its claims record */
   dev_t dev, wal_dev;          /* identity of the files opened */
   ino_t ino, wal_ino;
   int wal_known;
@@ -96,8 +100,8 @@ struct srv_db {
 /* An error from c as OBS_ETRANSIENT (full, busy, read-only, I/O: the environment's fault) or
  * OBS_EIO, with `what` and SQLite's message. */
 int srv_dbi_fail(conn *c, obs_err *err, const char *what);
-conn *srv_dbi_acquire(srv_db *db);
-void srv_dbi_release(srv_db *db, conn *c);
+conn *srv_dbi_acquire(srv_sq *db);
+void srv_dbi_release(srv_sq *db, conn *c);
 /* Statement `which` (ST_*), prepared once per connection; NULL after filling err. */
 sqlite3_stmt *srv_dbi_stmt(conn *c, int which, obs_err *err);
 /* Resets a statement for reuse and clears its bindings. */
@@ -114,12 +118,14 @@ char *srv_dbi_col_str(sqlite3_stmt *s, int i);
 int srv_dbi_open_conn(conn *c, const char *path, obs_err *err);
 void srv_dbi_close_conn(conn *c);
 /* Records st_dev/st_ino of the database file at `path`, for srv_db_check_identity. */
-int srv_dbi_record_identity(srv_db *db, const char *path, obs_err *err);
+int srv_dbi_record_identity(srv_sq *db, const char *path, obs_err *err);
+/* fsync of a file or directory by path. */
+int srv_dbi_fsync_path(const char *path);
 /* VACUUM INTO `target` on c, flushed: a consistent copy of everything committed. */
 int srv_dbi_vacuum_into(conn *c, const char *target, obs_err *err);
 /* Fills err and returns OBS_ETRANSIENT while work is refused (the database file was lost or is
  * corrupt): accepting a job that a restart would not find is losing it. */
-int srv_dbi_refused(srv_db *db, obs_err *err);
+int srv_dbi_refused(srv_sq *db, obs_err *err);
 /* Inserts one job row on `c` (in autocommit or the caller's transaction). */
 /* `extra`: bytes stored for the job beside its row (its candidate row; a comparison's row with
  * its first reference), added to its stored_bytes. */

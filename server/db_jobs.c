@@ -40,28 +40,7 @@ static void read_job(sqlite3_stmt *s, srv_job *j) {
   j->notes = srv_dbi_col_str(s, 25);
   j->ranks = sqlite3_column_int(s, 26);
   if (j->ranks < 1) j->ranks = 1;
-}
-
-void srv_job_free(srv_job *j) {
-  if (!j) return;
-  free(j->label);
-  free(j->scene);
-  free(j->technique);
-  free(j->backend_requested);
-  free(j->backend);
-  free(j->error);
-  free(j->summary);
-  free(j->backend_reason);
-  free(j->scene_name);
-  free(j->notes);
-  free(j->doc);
-  free(j->outputs);
-  memset(j, 0, sizeof *j);
-}
-
-void srv_jobs_free(srv_job *jobs, int n) {
-  for (int i = 0; i < n; i++) srv_job_free(&jobs[i]);
-  free(jobs);
+  j->node = srv_dbi_col_str(s, 27);
 }
 
 static int read_outputs(conn *c, srv_job *j, obs_err *err) {
@@ -121,7 +100,7 @@ int srv_dbi_insert_job(conn *c, const srv_new_job *nj, int64_t extra, int64_t *i
   return rc;
 }
 
-int srv_db_insert_job(srv_db *db, const srv_new_job *nj, int64_t *id, obs_err *err) {
+int srv_sq_insert_job(srv_sq *db, const srv_new_job *nj, int64_t *id, obs_err *err) {
   if (srv_dbi_refused(db, err)) return OBS_ETRANSIENT;
   conn *c = srv_dbi_acquire(db);
   /* Autocommit: when the step returned DONE the row is committed to the WAL. */
@@ -146,7 +125,7 @@ int srv_dbi_put_outputs(conn *c, int which, int64_t id, const srv_output *outs, 
   return rc;
 }
 
-int srv_db_get_job(srv_db *db, int64_t id, srv_job *j, obs_err *err) {
+int srv_sq_get_job(srv_sq *db, int64_t id, srv_job *j, obs_err *err) {
   memset(j, 0, sizeof *j);
   conn *c = srv_dbi_acquire(db);
   sqlite3_stmt *s = srv_dbi_stmt(c, ST_GET, err);
@@ -168,7 +147,7 @@ int srv_db_get_job(srv_db *db, int64_t id, srv_job *j, obs_err *err) {
   return rc;
 }
 
-int srv_db_list_jobs(srv_db *db, const srv_job_filter *f, srv_job **jobs, int *n, obs_err *err) {
+int srv_sq_list_jobs(srv_sq *db, const srv_job_filter *f, srv_job **jobs, int *n, obs_err *err) {
   *jobs = NULL;
   *n = 0;
   srv_job *out = calloc((size_t)f->limit + 1, sizeof *out);
@@ -198,7 +177,7 @@ int srv_db_list_jobs(srv_db *db, const srv_job_filter *f, srv_job **jobs, int *n
   return 0;
 }
 
-int srv_db_claim(srv_db *db, srv_lane lane, srv_job *j, obs_err *err) {
+int srv_sq_claim(srv_sq *db, srv_lane lane, srv_job *j, obs_err *err) {
   memset(j, 0, sizeof *j);
   conn *c = srv_dbi_acquire(db);
   sqlite3_stmt *s = srv_dbi_stmt(c, ST_CLAIM, err);
@@ -206,6 +185,9 @@ int srv_db_claim(srv_db *db, srv_lane lane, srv_job *j, obs_err *err) {
   if (s) {
     srv_dbi_bind_text(s, 1, srv_lane_name(lane));
     sqlite3_bind_int64(s, 2, srv_now_unix_ms());
+    srv_dbi_bind_text(s, 3, db->node.worker);
+    srv_dbi_bind_text(s, 4, db->node.name);
+    sqlite3_bind_int64(s, 5, (int64_t)db->node.lease_seconds * 1000);
     int step = sqlite3_step(s);
     if (step == SQLITE_ROW) {
       read_job(s, j);
@@ -223,7 +205,7 @@ int srv_db_claim(srv_db *db, srv_lane lane, srv_job *j, obs_err *err) {
   return rc;
 }
 
-int srv_db_set_backend(srv_db *db, int64_t id, const char *backend, obs_err *err) {
+int srv_sq_set_backend(srv_sq *db, int64_t id, const char *backend, obs_err *err) {
   conn *c = srv_dbi_acquire(db);
   sqlite3_stmt *s = srv_dbi_stmt(c, ST_SET_BACKEND, err);
   int rc = OBS_EIO;
@@ -236,9 +218,23 @@ int srv_db_set_backend(srv_db *db, int64_t id, const char *backend, obs_err *err
   return rc;
 }
 
-int srv_db_finish_success(srv_db *db, int64_t id, const char *backend, const char *summary,
-                          const srv_output *outs, int nouts, const srv_run *runs, int nruns,
-                          int64_t machine, obs_err *err) {
+/* Binds the guard of a completion (HELD in db.c): the job, the attempt and this worker. */
+static void bind_held(srv_sq *db, sqlite3_stmt *s, int64_t id, int attempt) {
+  sqlite3_bind_int64(s, 5, id);
+  sqlite3_bind_int(s, 6, attempt);
+  srv_dbi_bind_text(s, 7, db->node.worker);
+}
+
+static int not_held(obs_err *err, int64_t id, int attempt) {
+  return obs_err_set(err, OBS_ECONFLICT,
+                     "job %lld: attempt %d is no longer held by this node (its lease lapsed or it "
+                     "was requeued); the result is refused",
+                     (long long)id, attempt);
+}
+
+int srv_sq_finish_success(srv_sq *db, int64_t id, int attempt, const char *backend,
+                          const char *summary, const srv_output *outs, int nouts,
+                          const srv_run *runs, int nruns, int64_t machine, obs_err *err) {
   conn *c = srv_dbi_acquire(db);
   int rc = srv_dbi_begin(c, err);
   sqlite3_stmt *s;
@@ -249,10 +245,9 @@ int srv_db_finish_success(srv_db *db, int64_t id, const char *backend, const cha
       srv_dbi_bind_text(s, 1, backend);
       srv_dbi_bind_text(s, 2, summary);
       sqlite3_bind_int64(s, 3, srv_now_unix_ms());
-      sqlite3_bind_int64(s, 4, id);
+      bind_held(db, s, id, attempt);
       rc = srv_dbi_exec_done(c, s, err, "marking the job succeeded");
-      if (!rc && sqlite3_changes(c->db) != 1)
-        rc = obs_err_set(err, OBS_EINVAL, "job %lld is no longer running", (long long)id);
+      if (!rc && sqlite3_changes(c->db) != 1) rc = not_held(err, id, attempt);
     }
   }
   if (!rc) {
@@ -286,8 +281,8 @@ int srv_db_finish_success(srv_db *db, int64_t id, const char *backend, const cha
   return rc;
 }
 
-int srv_db_finish(srv_db *db, int64_t id, srv_state state, const char *error, double progress,
-                  obs_err *err) {
+int srv_sq_finish(srv_sq *db, int64_t id, int attempt, srv_state state, const char *error,
+                  double progress, obs_err *err) {
   conn *c = srv_dbi_acquire(db);
   sqlite3_stmt *s = srv_dbi_stmt(c, ST_FINISH, err);
   int rc = OBS_EIO;
@@ -296,26 +291,28 @@ int srv_db_finish(srv_db *db, int64_t id, srv_state state, const char *error, do
     srv_dbi_bind_text(s, 2, error);
     sqlite3_bind_int64(s, 3, srv_now_unix_ms());
     sqlite3_bind_double(s, 4, progress);
-    sqlite3_bind_int64(s, 5, id);
+    bind_held(db, s, id, attempt);
     rc = srv_dbi_exec_done(c, s, err, "finishing the job");
+    if (!rc && sqlite3_changes(c->db) != 1) rc = not_held(err, id, attempt);
   }
   srv_dbi_release(db, c);
   return rc;
 }
 
-int srv_db_requeue(srv_db *db, int64_t id, obs_err *err) {
+int srv_sq_requeue(srv_sq *db, int64_t id, int attempt, obs_err *err) {
   conn *c = srv_dbi_acquire(db);
   sqlite3_stmt *s = srv_dbi_stmt(c, ST_REQUEUE, err);
   int rc = OBS_EIO;
   if (s) {
-    sqlite3_bind_int64(s, 1, id);
+    bind_held(db, s, id, attempt);
     rc = srv_dbi_exec_done(c, s, err, "requeueing the job");
+    if (!rc && sqlite3_changes(c->db) != 1) rc = not_held(err, id, attempt);
   }
   srv_dbi_release(db, c);
   return rc;
 }
 
-int srv_db_cancel(srv_db *db, int64_t id, srv_cancel_result *res, obs_err *err) {
+int srv_sq_cancel(srv_sq *db, int64_t id, srv_cancel_result *res, obs_err *err) {
   conn *c = srv_dbi_acquire(db);
   /* One write transaction, so the state read and the update cannot be split by a claim. */
   int rc = srv_dbi_begin(c, err);
@@ -369,7 +366,7 @@ static int state_of(conn *c, int64_t id, srv_state *st, obs_err *err) {
   return rc;
 }
 
-int srv_db_delete(srv_db *db, int64_t id, obs_err *err) {
+int srv_sq_delete(srv_sq *db, int64_t id, obs_err *err) {
   conn *c = srv_dbi_acquire(db);
   sqlite3_stmt *s = srv_dbi_stmt(c, ST_DELETE, err);
   int rc = OBS_EIO;
@@ -387,7 +384,7 @@ int srv_db_delete(srv_db *db, int64_t id, obs_err *err) {
   return rc;
 }
 
-int srv_db_get_output(srv_db *db, int64_t id, const char *name, srv_output *o, obs_err *err) {
+int srv_sq_get_output(srv_sq *db, int64_t id, const char *name, srv_output *o, obs_err *err) {
   memset(o, 0, sizeof *o);
   conn *c = srv_dbi_acquire(db);
   sqlite3_stmt *s = srv_dbi_stmt(c, ST_GET_OUTPUT, err);
@@ -412,7 +409,7 @@ int srv_db_get_output(srv_db *db, int64_t id, const char *name, srv_output *o, o
   return rc;
 }
 
-int srv_db_counts(srv_db *db, int64_t counts[SRV_NSTATES], obs_err *err) {
+int srv_sq_counts(srv_sq *db, int64_t counts[SRV_NSTATES], obs_err *err) {
   memset(counts, 0, sizeof(int64_t) * SRV_NSTATES);
   conn *c = srv_dbi_acquire(db);
   sqlite3_stmt *s = srv_dbi_stmt(c, ST_COUNTS, err);
@@ -431,7 +428,7 @@ int srv_db_counts(srv_db *db, int64_t counts[SRV_NSTATES], obs_err *err) {
   return rc;
 }
 
-int srv_db_job_exists(srv_db *db, int64_t id, srv_state *state, obs_err *err) {
+int srv_sq_job_exists(srv_sq *db, int64_t id, srv_state *state, obs_err *err) {
   conn *c = srv_dbi_acquire(db);
   sqlite3_stmt *s = srv_dbi_stmt(c, ST_STATE, err);
   int rc = OBS_EIO;
@@ -452,7 +449,7 @@ int srv_db_job_exists(srv_db *db, int64_t id, srv_state *state, obs_err *err) {
   return rc;
 }
 
-int srv_db_retry(srv_db *db, int64_t id, srv_state *state, obs_err *err) {
+int srv_sq_retry(srv_sq *db, int64_t id, srv_state *state, obs_err *err) {
   if (srv_dbi_refused(db, err)) return OBS_ETRANSIENT;
   conn *c = srv_dbi_acquire(db);
   sqlite3_stmt *s = srv_dbi_stmt(c, ST_RETRY, err);
@@ -489,7 +486,7 @@ static int comparison_job_ids(conn *c, int64_t id, int64_t **ids, int *nids, obs
   return rc;
 }
 
-int srv_db_delete_comparison(srv_db *db, int64_t id, int64_t **ids, int *nids, obs_err *err) {
+int srv_sq_delete_comparison(srv_sq *db, int64_t id, int64_t **ids, int *nids, obs_err *err) {
   *ids = NULL;
   *nids = 0;
   conn *c = srv_dbi_acquire(db);

@@ -21,7 +21,7 @@ static int prepare(conn *c, const char *q, sqlite3_stmt **s, obs_err *err) {
   return 0;
 }
 
-int srv_db_queued(srv_db *db, const char *client, srv_load *mine, srv_load *total,
+int srv_sq_queued(srv_sq *db, const char *client, srv_load *mine, srv_load *total,
                   obs_err *err) {
   memset(mine, 0, sizeof *mine);
   memset(total, 0, sizeof *total);
@@ -54,7 +54,7 @@ int srv_db_queued(srv_db *db, const char *client, srv_load *mine, srv_load *tota
   return rc;
 }
 
-int srv_db_job_load(srv_db *db, int64_t id, srv_load *load, srv_state *state, obs_err *err) {
+int srv_sq_job_load(srv_sq *db, int64_t id, srv_load *load, srv_state *state, obs_err *err) {
   memset(load, 0, sizeof *load);
   conn *c = srv_dbi_acquire(db);
   sqlite3_stmt *s;
@@ -81,7 +81,7 @@ int srv_db_job_load(srv_db *db, int64_t id, srv_load *load, srv_state *state, ob
   return rc;
 }
 
-int srv_db_set_job_client(srv_db *db, int64_t job, int64_t comparison, const char *client,
+int srv_sq_set_job_client(srv_sq *db, int64_t job, int64_t comparison, const char *client,
                           obs_err *err) {
   conn *c = srv_dbi_acquire(db);
   sqlite3_stmt *s;
@@ -101,7 +101,7 @@ int srv_db_set_job_client(srv_db *db, int64_t job, int64_t comparison, const cha
   return rc;
 }
 
-int srv_db_run_rates(srv_db *db, const char *technique, const char *backend, int64_t machine,
+int srv_sq_run_rates(srv_sq *db, const char *technique, const char *backend, int64_t machine,
                      double min_work, double **rates, size_t *n, obs_err *err) {
   enum { MAX_RATES = 1000 };
   *rates = NULL;

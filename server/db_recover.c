@@ -13,6 +13,22 @@
 
 #include "db_internal.h"
 
+/* The name of an SQLite result code, for the fault a failed probe raises. */
+static const char *sqlite_code_name(int code) {
+  switch (code & 0xff) {
+    case SQLITE_FULL: return "SQLITE_FULL";
+    case SQLITE_BUSY: return "SQLITE_BUSY";
+    case SQLITE_LOCKED: return "SQLITE_LOCKED";
+    case SQLITE_IOERR: return "SQLITE_IOERR";
+    case SQLITE_READONLY: return "SQLITE_READONLY";
+    case SQLITE_CANTOPEN: return "SQLITE_CANTOPEN";
+    case SQLITE_PERM: return "SQLITE_PERM";
+    case SQLITE_CORRUPT: return "SQLITE_CORRUPT";
+    case SQLITE_NOTADB: return "SQLITE_NOTADB";
+    default: return "SQLITE_ERROR";
+  }
+}
+
 typedef struct pending {
   int64_t id;
   int attempts, cancel;
@@ -75,7 +91,7 @@ static int end_job(conn *c, int64_t id, srv_state st, const char *msg, obs_err *
   return srv_dbi_exec_done(c, s, err, "recovery");
 }
 
-int srv_db_recover(srv_db *db,
+int srv_sq_recover(srv_sq *db,
                    int (*pick)(void *user, const char *technique, const char *backend_requested,
                                srv_lane stored, srv_lane *lane, obs_err *err),
                    void (*clean)(void *, int64_t), void *user, obs_err *err) {
@@ -140,7 +156,7 @@ int srv_db_recover(srv_db *db,
 
 /* ---- identity, integrity and write-back of a lost file ---------------------------------------- */
 
-srv_db_identity srv_db_check_identity(srv_db *db, char *detail, size_t n) {
+srv_db_identity srv_sq_check_identity(srv_sq *db, char *detail, size_t n) {
   struct stat st;
   if (stat(db->path, &st)) {
     /* Only a missing file is a loss; EACCES on the directory and the like change nothing the
@@ -175,7 +191,7 @@ srv_db_identity srv_db_check_identity(srv_db *db, char *detail, size_t n) {
 }
 
 /* Takes every connection (waiting for those in use): nothing else touches the pool meanwhile. */
-static void acquire_all(srv_db *db) {
+static void acquire_all(srv_sq *db) {
   pthread_mutex_lock(&db->mu);
   while (db->exclusive) pthread_cond_wait(&db->cv, &db->mu);
   db->exclusive = 1;
@@ -188,42 +204,16 @@ static void acquire_all(srv_db *db) {
   pthread_mutex_unlock(&db->mu);
 }
 
-static void release_all(srv_db *db) {
+static void release_all(srv_sq *db) {
   pthread_mutex_lock(&db->mu);
   db->exclusive = 0;
   pthread_cond_broadcast(&db->cv);
   pthread_mutex_unlock(&db->mu);
 }
 
-static int fsync_path(const char *path) {
-  int fd = open(path, O_RDONLY | O_CLOEXEC);
-  if (fd < 0) return -1;
-  int rc = fsync(fd);
-  close(fd);
-  return rc;
-}
-
-/* VACUUM INTO `target` on c: a consistent copy of everything committed, WAL included. */
-int srv_dbi_vacuum_into(conn *c, const char *target, obs_err *err) {
-  sqlite3_stmt *s = NULL;
-  if (sqlite3_prepare_v2(c->db, "VACUUM INTO ?1", -1, &s, NULL) != SQLITE_OK)
-    return srv_dbi_fail(c, err, "VACUUM INTO");
-  sqlite3_bind_text(s, 1, target, -1, SQLITE_TRANSIENT);
-  int rc = sqlite3_step(s) == SQLITE_DONE ? 0 : srv_dbi_fail(c, err, "VACUUM INTO");
-  sqlite3_finalize(s);
-  if (!rc && fsync_path(target))
-    rc = obs_err_set(err, OBS_ETRANSIENT, "%s: cannot flush: %s", target, strerror(errno));
-  char dir[4200];
-  snprintf(dir, sizeof dir, "%s", target);
-  char *slash = strrchr(dir, '/');
-  if (slash) *slash = 0;
-  if (!rc) fsync_path(slash ? (slash == dir ? "/" : dir) : ".");
-  return rc;
-}
-
 /* Closes the old pool and opens a fresh one on db->path. Closing first matters: the last old
  * connection removes the -wal and -shm names, which must not be a new file's by then. */
-static int reopen_pool(srv_db *db, obs_err *err) {
+static int reopen_pool(srv_sq *db, obs_err *err) {
   conn *fresh = calloc((size_t)db->n, sizeof *fresh);
   if (!fresh) return obs_err_set(err, OBS_ENOMEM, "out of memory");
   for (int i = 0; i < db->n; i++) srv_dbi_close_conn(&db->c[i]);
@@ -244,7 +234,7 @@ static int reopen_pool(srv_db *db, obs_err *err) {
  * when nothing is there: a failed copy never leaves a partial file at the path, and a file that
  * appeared meanwhile is never overwritten (the copy then stays as <path>.recovered-<time>).
  * Returns 0 with the copy at the path, 1 with it elsewhere (named in `where`), or <0. */
-static int write_back(srv_db *db, conn *c, char *where, size_t n, obs_err *err) {
+static int write_back(srv_sq *db, conn *c, char *where, size_t n, obs_err *err) {
   /* Everything the log holds goes into the (unlinked) file first, so no stale log frames
    * outlive the old pool under the path's -wal name. */
   int log = 0, done = 0;
@@ -279,7 +269,7 @@ static int write_back(srv_db *db, conn *c, char *where, size_t n, obs_err *err) 
   return 1;
 }
 
-int srv_db_restore(srv_db *db, srv_db_identity what, char *where, size_t n, obs_err *err) {
+int srv_sq_restore(srv_sq *db, srv_db_identity what, char *where, size_t n, obs_err *err) {
   acquire_all(db);
   conn *c = &db->c[0];
   int rc, elsewhere = 0;
@@ -290,7 +280,7 @@ int srv_db_restore(srv_db *db, srv_db_identity what, char *where, size_t n, obs_
     int log = 0, done = 0;
     rc = sqlite3_wal_checkpoint_v2(c->db, "main", SQLITE_CHECKPOINT_TRUNCATE, &log, &done);
     rc = rc == SQLITE_OK ? 0 : srv_dbi_fail(c, err, "checkpoint of the lost WAL");
-    if (!rc && fsync_path(db->path))
+    if (!rc && srv_dbi_fsync_path(db->path))
       rc = obs_err_set(err, OBS_ETRANSIENT, "%s: cannot flush: %s", db->path, strerror(errno));
     if (!rc) rc = reopen_pool(db, err);
   } else if (what == SRV_DB_DELETED) {
@@ -320,7 +310,7 @@ int srv_db_restore(srv_db *db, srv_db_identity what, char *where, size_t n, obs_
   return rc ? rc : elsewhere;
 }
 
-int srv_db_quick_check(srv_db *db, obs_err *err) {
+int srv_sq_quick_check(srv_sq *db, obs_err *err) {
   sqlite3 *q = NULL;
   /* Its own connection: the pool's page caches could hold a good copy of a page that is bad on
    * disk. Read-only and without CREATE, so a missing file is never made anew here. */
@@ -360,7 +350,7 @@ int srv_db_quick_check(srv_db *db, obs_err *err) {
   return out;
 }
 
-int srv_db_probe(srv_db *db, char *code, size_t n, obs_err *err) {
+int srv_sq_probe(srv_sq *db, char *code, size_t n, obs_err *err) {
   conn *c = srv_dbi_acquire(db);
   /* A write that changes nothing still dirties the page and appends it to the WAL: it needs the
    * same disk and permissions as a real commit. */
@@ -370,7 +360,7 @@ int srv_db_probe(srv_db *db, char *code, size_t n, obs_err *err) {
                         "WHERE version = (SELECT max(version) FROM schema_migrations); COMMIT;",
                         NULL, NULL, &msg);
   if (rc != SQLITE_OK) {
-    snprintf(code, n, "%s", srv_sqlite_code_name(sqlite3_extended_errcode(c->db)));
+    snprintf(code, n, "%s", sqlite_code_name(sqlite3_extended_errcode(c->db)));
     obs_err_set(err, OBS_ETRANSIENT, "database %s: %s", db->path,
                 msg ? msg : sqlite3_errmsg(c->db));
     srv_dbi_rollback(c);

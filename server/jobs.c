@@ -1,6 +1,7 @@
 /* The scheduler of obscurad: worker threads per lane (CPU, Vulkan) that claim queued jobs from the
- * database, render them through the renderer API, publish outputs and record the outcome; live
- * progress and cancel flags kept in memory; a maintenance thread for time limits and checkpoints. */
+ * store, render them through the renderer API and hand the outcome to outcome.c; live progress and
+ * cancel flags kept in memory, with what the node loop (lease.c) needs: the busy slots and a way
+ * to stop one; a maintenance thread for time limits and checkpoints. */
 #include <errno.h>
 #include <math.h>
 #include <pthread.h>
@@ -12,46 +13,7 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "obscurad.h"
-
-enum { STOP_NONE, STOP_USER, STOP_TIMEOUT, STOP_SHUTDOWN };
-
-/* One worker's current job. `id` and `progress_ppm` are read without the lock by GET handlers
- * (a stale read only shows a progress value a moment old); `stop` is written under the lock. */
-typedef struct slot {
-  atomic_llong id;           /* 0 = idle */
-  atomic_int cancel;         /* the render's cancel flag */
-  atomic_int progress_ppm;   /* millionths */
-  atomic_int render_index;   /* which of render_count renders of the attempt is running */
-  atomic_int render_count;
-  int stop;                  /* why cancel was raised (STOP_*) */
-  int paused;                /* holds a finished job while a fault is cleared (under mu) */
-  double deadline_ms;        /* obs_now_ms() clock */
-  srv_lane lane;
-  int index;
-  srv_app *app;
-  pthread_t thread;
-} slot;
-
-struct srv_sched {
-  pthread_mutex_t mu;
-  pthread_cond_t work;       /* a job was queued, or stopping */
-  pthread_cond_t maint_cv;
-  pthread_cond_t fault_cv;   /* a fault was cleared, or stopping */
-  /* Renders of different lanes share the cores, so a comparison job's timed renders run alone:
-   * they take the render gate exclusively, every other render shares it. Waiting exclusive
-   * renders hold back new shared ones, so a busy lane cannot starve a comparison. */
-  pthread_cond_t gate_cv;
-  int gate_shared, gate_exclusive, gate_waiting;
-  unsigned long generation;  /* bumped by notify, so a wake-up between claim and wait is kept */
-  int stopping;
-  int nslots;
-  slot *slots;
-  pthread_t maint;
-  int maint_started;
-  atomic_int finished_since_checkpoint;
-  atomic_int metrics_due;    /* a database fault cleared: metrics it kept from storing are due */
-};
+#include "sched_internal.h"
 
 void srv_sched_notify(srv_app *app) {
   srv_sched *s = app->sched;
@@ -112,6 +74,49 @@ int srv_sched_cancel(srv_app *app, int64_t id, srv_cancel_result *res, obs_err *
   return rc;
 }
 
+int srv_sched_slots(srv_app *app) { return app->sched ? app->sched->nslots : 0; }
+
+int srv_sched_busy(srv_app *app, int64_t *ids, int *attempts, int max) {
+  srv_sched *s = app->sched;
+  int n = 0;
+  if (!s) return 0;
+  pthread_mutex_lock(&s->mu);
+  for (int i = 0; i < s->nslots && n < max; i++) {
+    slot *sl = &s->slots[i];
+    int64_t id = atomic_load(&sl->id);
+    if (!id || sl->settled) continue;
+    ids[n] = id;
+    attempts[n++] = atomic_load(&sl->attempt);
+  }
+  pthread_mutex_unlock(&s->mu);
+  return n;
+}
+
+int srv_sched_stop_job(srv_app *app, int64_t id, int attempt, srv_stop_why why) {
+  srv_sched *s = app->sched;
+  int stopped = 0;
+  if (!s) return 0;
+  pthread_mutex_lock(&s->mu);
+  for (int i = 0; i < s->nslots; i++) {
+    slot *sl = &s->slots[i];
+    if (atomic_load(&sl->id) != id || atomic_load(&sl->attempt) != attempt || sl->settled)
+      continue;
+    /* A lost lease overrides any other reason: whatever the render was stopping for, the store
+     * will no longer take its outcome. */
+    if (why == SRV_STOP_LEASE ? sl->stop != STOP_LEASE : !sl->stop) {
+      sl->stop = why == SRV_STOP_LEASE ? STOP_LEASE : STOP_USER;
+      atomic_store(&sl->cancel, 1);
+      stopped = 1;
+    }
+  }
+  if (stopped) {
+    pthread_cond_broadcast(&s->gate_cv);  /* it may be waiting at the render gate */
+    pthread_cond_broadcast(&s->fault_cv); /* ... or for room on the results disk */
+  }
+  pthread_mutex_unlock(&s->mu);
+  return stopped;
+}
+
 static void on_progress(void *user, double f) {
   slot *sl = user;
   /* Warm-up and repeated renders each take an equal share of the job's progress. */
@@ -160,291 +165,6 @@ static void gate_leave(srv_sched *s, int exclusive) {
   pthread_mutex_unlock(&s->mu);
 }
 
-static void job_done(srv_sched *s) { atomic_fetch_add(&s->finished_since_checkpoint, 1); }
-
-/* Waits, holding the finished job in its slot, until fault `k` is cleared (the maintenance
- * thread probes with back-off) or the slot is asked to stop. Returns 0 to retry, else the
- * stop reason. */
-static int wait_fault(slot *sl, srv_fault_kind k, int only_shutdown) {
-  srv_sched *s = sl->app->sched;
-  pthread_mutex_lock(&s->mu);
-  /* Waiting for a disk is not rendering: no time limit meanwhile. */
-  sl->deadline_ms = INFINITY;
-  sl->paused = 1;
-  while (srv_fault_active(k) && !(sl->stop && !only_shutdown) && !s->stopping) {
-    struct timespec ts;
-    clock_gettime(CLOCK_REALTIME, &ts);
-    ts.tv_sec += 1;
-    pthread_cond_timedwait(&s->fault_cv, &s->mu, &ts);
-  }
-  int why = s->stopping ? STOP_SHUTDOWN : only_shutdown ? 0 : sl->stop;
-  sl->paused = 0;
-  pthread_mutex_unlock(&s->mu);
-  return why;
-}
-
-/* What a worker writes to the database at the end of an attempt. */
-enum { OUT_SUCCESS, OUT_FINISH, OUT_REQUEUE };
-typedef struct outcome {
-  int kind;
-  srv_state state;
-  const char *msg;
-  double progress;
-  const char *backend, *summary;
-  const srv_output *outs;
-  int nouts;
-  const srv_run *runs;
-  int nruns;
-} outcome;
-
-/* Records `o`, retrying while the database has a transient fault: the job stays `running` in
- * this slot (never without a worker) until the write lands. A shutdown meanwhile leaves it to
- * the recovery at the next start. Returns 0 or the last error. */
-static int record(slot *sl, int64_t id, const outcome *o, obs_err *err) {
-  srv_app *app = sl->app;
-  for (;;) {
-    obs_err_clear(err);
-    int rc = o->kind == OUT_SUCCESS
-                 ? srv_db_finish_success(app->db, id, o->backend, o->summary, o->outs, o->nouts,
-                                         o->runs, o->nruns, app->machine_id, err)
-             : o->kind == OUT_FINISH
-                 ? srv_db_finish(app->db, id, o->state, o->msg, o->progress, err)
-                 : srv_db_requeue(app->db, id, err);
-    if (rc != OBS_ETRANSIENT) return rc;
-    srv_fault_raise(SRV_FAULT_DB, srv_db_path(app->db), NULL, obs_err_message(err), NULL);
-    if (o->kind == OUT_REQUEUE) return rc; /* stopping: recovery requeues it at the next start */
-    srv_log("job %lld: cannot record the outcome yet (%s); the lanes wait for the database",
-            (long long)id, obs_err_message(err));
-    /* Only a shutdown ends this wait: a cancel or time limit changes nothing the database
-     * could take now. */
-    if (wait_fault(sl, SRV_FAULT_DB, 1) == STOP_SHUTDOWN) {
-      srv_log("job %lld: stopping before the outcome was recorded; the next start requeues it",
-              (long long)id);
-      return rc;
-    }
-  }
-}
-
-static void fail_job(slot *sl, srv_job *j, srv_state state, const char *msg) {
-  obs_err err = OBS_ERR_INIT;
-  outcome o = {.kind = OUT_FINISH,
-               .state = state,
-               .msg = msg,
-               .progress = atomic_load(&sl->progress_ppm) / 1e6};
-  if (record(sl, j->id, &o, &err))
-    srv_log("job %lld: cannot record the outcome: %s", (long long)j->id, obs_err_message(&err));
-  else
-    srv_job_log(sl->app, j->id, "running -> %s (%s)", srv_state_name(state), msg);
-  obs_err_free(&err);
-  job_done(sl->app->sched);
-}
-
-/* The render was stopped (or finished after a stop request): record why. */
-static void stopped(slot *sl, srv_job *j, int why) {
-  srv_app *app = sl->app;
-  if (why == STOP_SHUTDOWN) {
-    obs_err err = OBS_ERR_INIT;
-    outcome o = {.kind = OUT_REQUEUE};
-    if (record(sl, j->id, &o, &err))
-      srv_log("job %lld: cannot requeue: %s", (long long)j->id, obs_err_message(&err));
-    else
-      srv_job_log(app, j->id, "running -> queued (daemon stopping; this attempt does not count)");
-    obs_err_free(&err);
-  } else if (why == STOP_TIMEOUT) {
-    char msg[96];
-    snprintf(msg, sizeof msg, "render time limit of %d s exceeded", app->cfg.max_render_seconds);
-    fail_job(sl, j, SRV_FAILED, msg);
-  } else {
-    fail_job(sl, j, SRV_CANCELLED, "cancelled by request");
-  }
-}
-
-static int stop_reason(slot *sl) {
-  pthread_mutex_lock(&sl->app->sched->mu);
-  int why = sl->stop;
-  pthread_mutex_unlock(&sl->app->sched->mu);
-  return why;
-}
-
-/* Waits `seconds` holding the finished job, or less when the slot is asked to stop or the daemon
- * stops. Returns the stop reason, 0 when the time is up. */
-static int wait_space(slot *sl, double seconds) {
-  srv_sched *s = sl->app->sched;
-  struct timespec until;
-  clock_gettime(CLOCK_REALTIME, &until);
-  until.tv_sec += (time_t)seconds;
-  pthread_mutex_lock(&s->mu);
-  sl->deadline_ms = INFINITY; /* waiting for room is not rendering */
-  while (!sl->stop && !s->stopping)
-    if (pthread_cond_timedwait(&s->fault_cv, &s->mu, &until) == ETIMEDOUT) break;
-  int why = s->stopping ? STOP_SHUTDOWN : sl->stop;
-  pthread_mutex_unlock(&s->mu);
-  return why;
-}
-
-/* Outputs that found no room while the results directory still takes a page: the disk is not
- * down for everyone, these files are too big for what is free. Other lanes keep running (no
- * fault is raised); this job keeps its render and tries again after 1, 2, 4 ... s (at most 60)
- * in case room is made, --output-space-retries times, then fails with the reason, so it never
- * holds its lane (or, as a fault, every lane) until someone frees the disk. Returns 0 to try
- * again, a stop reason (> 0), or OBS_EIO with `err` holding why the job fails. */
-static int no_room(slot *sl, srv_job *j, int *tries, double since, const char *code,
-                   obs_err *err) {
-  srv_app *app = sl->app;
-  double free_bytes = srv_outputs_free_bytes(app->results_dir);
-  char room[64] = "";
-  if (free_bytes >= 0) snprintf(room, sizeof room, ", %.4g MB free", free_bytes / 1e6);
-  if (*tries >= app->cfg.output_space_retries) {
-    char cause[1200];
-    obs_path_err_relative(err, app->results_dir); /* the job's error is the client's to read */
-    snprintf(cause, sizeof cause, "%s", obs_err_message(err));
-    obs_err_clear(err);
-    obs_err_set(err, OBS_EIO,
-                "its outputs do not fit the free space of the results disk (%s%s after %d "
-                "tries over %.0f s, while smaller files could still be written): %s",
-                code, room, *tries + 1, (obs_now_ms() - since) / 1e3, cause);
-    return OBS_EIO;
-  }
-  double wait = fmin(60, ldexp(1, *tries));
-  (*tries)++;
-  srv_job_log(app, j->id,
-              "its outputs do not fit the results disk (%s%s) while smaller files do: the render "
-              "is kept, try %d of %d in %.0f s; the other jobs go on",
-              code, room, *tries + 1, app->cfg.output_space_retries + 1, wait);
-  return wait_space(sl, wait);
-}
-
-/* The staging directory of an attempt's outputs. */
-static void stage_path(const srv_app *app, const srv_job *j, char *buf, size_t n) {
-  snprintf(buf, n, "%s/.tmp-%lld-%d", app->results_dir, (long long)j->id, j->attempts);
-}
-
-/* Writes the outputs into a staging directory (unless `res` is NULL: an mpirun job's CLI wrote
- * them there already) and renames it into place. A failure the environment caused (disk full,
- * read-only, I/O) pauses the lanes and retries with the render kept in memory (or on disk).
- * Returns 0, <0 for a job fault (err filled), or a stop reason (>0). */
-static int publish(slot *sl, srv_job *j, obs_result *res, const obs_scene *sc, srv_output *outs,
-                   int *nouts, obs_err *err) {
-  srv_app *app = sl->app;
-  char stage[4200], final[4200];
-  stage_path(app, j, stage, sizeof stage);
-  srv_results_path(app, j->id, final, sizeof final);
-  int room_tries = 0;
-  double since = obs_now_ms();
-  for (int tries = 0;; tries++) {
-    obs_err_clear(err);
-    if (res) srv_remove_tree(stage);
-    *nouts = 0;
-    int rc = res ? obs_result_write(res, sc, stage, err) : 0;
-    if (!rc) rc = srv_outputs_describe(stage, outs, 16, nouts, err);
-    if (!rc) {
-      srv_remove_tree(final);
-      if (rename(stage, final))
-        rc = obs_err_set(err, OBS_EIO, "%s: cannot publish the outputs: %s", final,
-                         strerror(errno));
-    }
-    if (!rc) return 0;
-    if (res) srv_remove_tree(stage);
-    char code[40] = "";
-    obs_err probe = OBS_ERR_INIT;
-    int env = srv_outputs_fault(app->results_dir, obs_err_message(err), code, sizeof code, &probe);
-    obs_err_free(&probe);
-    /* Once more before blaming the job: the probe may have just recreated a removed directory. */
-    if (!env && tries == 0) continue;
-    if (!env) {
-      srv_remove_tree(stage);
-      return rc;
-    }
-    if (env == SRV_OUTPUTS_NO_ROOM) {
-      int why = no_room(sl, j, &room_tries, since, code, err);
-      if (!why) continue;
-      srv_remove_tree(stage);
-      return why;
-    }
-    srv_fault_raise(SRV_FAULT_RESULTS, app->results_dir, code, obs_err_message(err), NULL);
-    srv_log("job %lld: cannot write its outputs yet (%s); the render is kept and the lanes wait",
-            (long long)j->id, obs_err_message(err));
-    int why = wait_fault(sl, SRV_FAULT_RESULTS, 0);
-    if (why) {
-      srv_remove_tree(stage);
-      return why;
-    }
-  }
-}
-
-/* The job's warnings and its success line; `res` NULL: an mpirun job, whose summary.json text
- * is `summary`. */
-static void log_success(srv_app *app, const srv_job *j, const obs_result *res,
-                        const char *summary) {
-  if (!res) {
-    srv_mpi_succeeded(app, j, summary);
-    return;
-  }
-  srv_metrics_render(res->technique->name, obs_backend_name(res->backend),
-                     res->timings.total_ms / 1e3);
-  for (int w = 0; w < res->nwarnings; w++) srv_job_log(app, j->id, "warning: %s", res->warnings[w]);
-  char where[32] = "the Vulkan device";
-  if (res->backend != OBS_BACKEND_VULKAN)
-    snprintf(where, sizeof where, "%d CPU thread%s", res->threads, res->threads == 1 ? "" : "s");
-  srv_job_log(app, j->id,
-              "running -> succeeded (%s/%s %dx%d on %s, %.1f ms: load %.1f, build %.1f, "
-              "render %.1f, write %.1f)",
-              res->technique->name, obs_backend_name(res->backend), res->image.width,
-              res->image.height, where, res->timings.total_ms, res->timings.load_ms,
-              res->timings.build_ms, res->timings.render_ms, res->timings.write_ms);
-}
-
-/* Publishes a finished render and records it; returns 1 when the job succeeded. `res` NULL: an
- * mpirun job, whose outputs are in the staging directory and whose summary.json text is
- * `mpi_summary` (taken). */
-static int finish_render(slot *sl, srv_job *j, obs_result *res, const obs_scene *sc,
-                         char *mpi_summary, const srv_run *runs, int nruns, obs_err *err) {
-  srv_app *app = sl->app;
-  srv_output outs[16];
-  int nouts = 0;
-  int rc = publish(sl, j, res, sc, outs, &nouts, err);
-  if (rc > 0) {
-    /* Stopped while waiting for the results directory: nothing was published, so the attempt
-     * ends as any stopped render does (a shutdown requeues it without counting it). */
-    free(mpi_summary);
-    stopped(sl, j, rc);
-    return 0;
-  }
-  char *summary = mpi_summary;
-  if (!rc && res) {
-    json_t *sum = obs_result_summary_json(res, sc);
-    summary = json_dumps(sum, JSON_COMPACT | JSON_REAL_PRECISION(9));
-    json_decref(sum);
-  }
-  if (!rc) {
-    /* The log lines go first: a client that sees the job succeeded must find them in its log. */
-    log_success(app, j, res, summary);
-    outcome o = {.kind = OUT_SUCCESS,
-                 .backend = res ? obs_backend_name(res->backend) : "cpu",
-                 .summary = summary,
-                 .outs = outs,
-                 .nouts = nouts,
-                 .runs = runs,
-                 .nruns = nruns};
-    /* Published first, committed second: a crash in between leaves a job still `running` in
-     * the database, which recovery requeues and whose directory it removes. */
-    rc = record(sl, j->id, &o, err);
-    if (rc)
-      srv_job_log(app, j->id, "the success above was not recorded: %s", obs_err_message(err));
-  }
-  free(summary);
-  if (rc == OBS_ETRANSIENT) return 0; /* stopping with the database down: left to recovery */
-  if (rc) {
-    char final[4200];
-    srv_results_path(app, j->id, final, sizeof final);
-    srv_remove_tree(final);
-    fail_job(sl, j, SRV_FAILED, obs_err_message(err));
-    return 0;
-  }
-  job_done(app->sched);
-  return 1;
-}
-
 /* A job on Open MPI ranks: mpirun renders it into the staging directory (mpi_jobs.c), under the
  * same render gate, time limit, cancel and publication as a local render. Returns 1 when it
  * succeeded. */
@@ -456,7 +176,7 @@ static int run_mpi(slot *sl, srv_job *j) {
     srv_log("job %lld: %s", (long long)j->id, obs_err_message(&err));
   obs_err_clear(&err);
   char stage[4200];
-  stage_path(app, j, stage, sizeof stage);
+  srv_slot_stage_path(app, j, stage, sizeof stage);
   pthread_mutex_lock(&app->sched->mu);
   sl->deadline_ms = INFINITY; /* waiting at the gate is not rendering */
   pthread_mutex_unlock(&app->sched->mu);
@@ -472,14 +192,14 @@ static int run_mpi(slot *sl, srv_job *j) {
   pthread_mutex_lock(&app->sched->mu);
   sl->deadline_ms = INFINITY;
   pthread_mutex_unlock(&app->sched->mu);
-  int why = stop_reason(sl);
+  int why = srv_slot_stop_reason(sl);
   if (why || rc) {
     free(summary);
     srv_remove_tree(stage);
-    if (why) stopped(sl, j, why);
-    else fail_job(sl, j, SRV_FAILED, obs_err_message(&err));
+    if (why) srv_slot_stopped(sl, j, why);
+    else srv_slot_fail(sl, j, SRV_FAILED, obs_err_message(&err));
   } else {
-    ok = finish_render(sl, j, NULL, NULL, summary, NULL, 0, &err);
+    ok = srv_slot_finish(sl, j, NULL, NULL, summary, NULL, 0, &err);
   }
   obs_err_free(&err);
   return ok;
@@ -497,7 +217,7 @@ static int run_job(slot *sl, srv_job *j) {
   obs_scene sc;
   int rc = obs_scene_load_string(&sc, j->doc, j->scene, app->scenes_real, NULL, 0, &err);
   if (rc) {
-    fail_job(sl, j, SRV_FAILED, obs_err_message(&err));
+    srv_slot_fail(sl, j, SRV_FAILED, obs_err_message(&err));
     obs_err_free(&err);
     return 0;
   }
@@ -562,7 +282,7 @@ static int run_job(slot *sl, srv_job *j) {
       if (r->post_ms < 0) r->post_ms = 0;
       r->total_ms = r->build_ms + r->render_ms + r->post_ms;
     }
-    if (stop_reason(sl)) break;
+    if (srv_slot_stop_reason(sl)) break;
   }
   if (gated) gate_leave(app->sched, exclusive);
   srv_preview_finish(preview);
@@ -571,15 +291,15 @@ static int run_job(slot *sl, srv_job *j) {
   pthread_mutex_lock(&app->sched->mu);
   sl->deadline_ms = INFINITY;
   pthread_mutex_unlock(&app->sched->mu);
-  int why = stop_reason(sl);
+  int why = srv_slot_stop_reason(sl);
   if (why) {
-    stopped(sl, j, why);
+    srv_slot_stopped(sl, j, why);
   } else if (rc) {
-    fail_job(sl, j, SRV_FAILED, obs_err_message(&err));
+    srv_slot_fail(sl, j, SRV_FAILED, obs_err_message(&err));
   } else {
     res.timings.load_ms = load_ms;
     res.timings.total_ms += load_ms;
-    succeeded = finish_render(sl, j, &res, &sc, NULL, runs, nruns, &err);
+    succeeded = srv_slot_finish(sl, j, &res, &sc, NULL, runs, nruns, &err);
   }
   obs_result_free(&res);
   obs_scene_free(&sc);
@@ -631,6 +351,8 @@ static void *worker(void *arg) {
         sl->stop = j.cancel_requested ? STOP_USER : STOP_NONE;
         if (sl->stop) atomic_store(&sl->cancel, 1);
         sl->deadline_ms = obs_now_ms() + 1e3 * sl->app->cfg.max_render_seconds;
+        sl->settled = 0;
+        atomic_store(&sl->attempt, j.attempts);
         atomic_store(&sl->id, j.id);
         have = 1;
         break;
@@ -739,6 +461,7 @@ int srv_sched_start(srv_app *app, obs_err *err) {
   for (int i = 0; i < s->nslots; i++) {
     slot *sl = &s->slots[i];
     atomic_init(&sl->id, 0);
+    atomic_init(&sl->attempt, 0);
     atomic_init(&sl->cancel, 0);
     atomic_init(&sl->progress_ppm, 0);
     atomic_init(&sl->render_index, 0);

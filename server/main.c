@@ -1,5 +1,6 @@
 /* obscurad's entry point: options, security checks on the listen address and token, directories,
- * database recovery, then the scheduler and HTTP server until SIGINT/SIGTERM. */
+ * the node's identity and the store's recovery, then the scheduler, the node loop and the HTTP
+ * server until SIGINT/SIGTERM. */
 #include <arpa/inet.h>
 #include <errno.h>
 #include <limits.h>
@@ -89,17 +90,22 @@ static int prepare(srv_app *app) {
     fprintf(stderr, "obscurad: cannot draw the random key that signs session cookies\n");
     return 2;
   }
-  snprintf(app->results_dir, sizeof app->results_dir, "%s/results", app->cfg.data_dir);
+  if (app->cfg.results_dir)
+    snprintf(app->results_dir, sizeof app->results_dir, "%s", app->cfg.results_dir);
+  else
+    snprintf(app->results_dir, sizeof app->results_dir, "%s/results", app->cfg.data_dir);
+  const char *results_opt = app->cfg.results_dir ? "results-dir" : "data-dir";
   char dbdir[PATH_MAX];
-  snprintf(dbdir, sizeof dbdir, "%s", app->cfg.db);
+  snprintf(dbdir, sizeof dbdir, "%s", app->cfg.db ? app->cfg.db : "");
   char *slash = strrchr(dbdir, '/');
   if (slash && slash != dbdir) *slash = '\0';
   /* A results directory that exists but cannot be written is not refused here: that is a fault
    * the render lanes report and wait out, like one that appears while running. */
-  if (obs_path_make_dirs(app->results_dir, NULL)) {
+  if (obs_path_make_dirs(app->cfg.data_dir, NULL) || obs_path_make_dirs(app->results_dir, NULL)) {
     int e = errno;
-    fprintf(stderr, "obscurad: --data-dir %s: cannot create %s: %s%s\n", app->cfg.data_dir,
-            app->results_dir, strerror(e),
+    fprintf(stderr, "obscurad: --%s %s: cannot create %s: %s%s\n", results_opt,
+            app->cfg.results_dir ? app->cfg.results_dir : app->cfg.data_dir, app->results_dir,
+            strerror(e),
             e == EROFS                  ? " (the data directory is on a read-only file system)"
             : e == EACCES || e == EPERM ? " (the data directory is not writable by this user)"
                                         : "");
@@ -114,7 +120,7 @@ static int prepare(srv_app *app) {
   if (resolve_dir("scenes-dir", app->cfg.scenes_dir, app->scenes_real, 1) ||
       resolve_dir("web-dir", app->cfg.web_dir, app->web_real, 0) ||
       resolve_dir("vendor-dir", app->cfg.vendor_dir, app->vendor_real, 0) ||
-      resolve_dir("data-dir", app->results_dir, real, 1))
+      resolve_dir(results_opt, app->results_dir, real, 1))
     return 2;
   snprintf(app->results_dir, sizeof app->results_dir, "%s", real);
   return 0;
@@ -122,12 +128,13 @@ static int prepare(srv_app *app) {
 
 /* One daemon per data directory: a second one's start-up recovery would requeue the running jobs
  * of the first and sweep its staging directories. The lock goes with the process (kill -9
- * included). */
+ * included). It is the data directory's, not the results directory's: several nodes share a
+ * --results-dir. */
 static int lock_data_dir(srv_app *app, obs_err *err) {
-  app->data_lock_fd = open(app->results_dir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  app->data_lock_fd = open(app->cfg.data_dir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (app->data_lock_fd < 0)
-    return obs_err_set(err, OBS_EIO, "--data-dir %s: cannot open %s: %s", app->cfg.data_dir,
-                       app->results_dir, strerror(errno));
+    return obs_err_set(err, OBS_EIO, "--data-dir %s: cannot open: %s", app->cfg.data_dir,
+                       strerror(errno));
   if (flock(app->data_lock_fd, LOCK_EX | LOCK_NB)) {
     int e = errno;
     close(app->data_lock_fd);
@@ -138,6 +145,21 @@ static int lock_data_dir(srv_app *app, obs_err *err) {
                                         : strerror(e));
   }
   return 0;
+}
+
+/* This daemon as a node of the store: --node-name, else "<hostname>:<port>" (the bound port, so
+ * several daemons on one machine differ), stable across restarts so that a restarted node finds
+ * what its previous boot left running. */
+static void node_identity(const srv_app *app, srv_node *node) {
+  char name[128];
+  if (app->cfg.node_name) {
+    snprintf(name, sizeof name, "%s", app->cfg.node_name);
+  } else {
+    char host[96] = "";
+    if (gethostname(host, sizeof host - 1) || !host[0]) snprintf(host, sizeof host, "localhost");
+    snprintf(name, sizeof name, "%s:%d", host, app->port);
+  }
+  srv_node_init(node, name, app->cfg.lease_seconds);
 }
 
 int main(int argc, char **argv) {
@@ -178,9 +200,20 @@ int main(int argc, char **argv) {
   app.cpu_threads = obs_cpu_count() / app.cfg.workers;
   if (app.cpu_threads < 1) app.cpu_threads = 1;
 
-  /* One connection per thread that can hold one: HTTP pool, workers, maintenance, main. */
-  int nconn = app.cfg.http_threads + app.cfg.workers + 3;
-  if (srv_db_open(&app.db, app.cfg.db, nconn, &err)) goto out;
+  /* One connection per thread that can hold one: HTTP pool, workers, maintenance, node loop,
+   * main. */
+  int nconn = app.cfg.http_threads + app.cfg.workers + 4;
+  srv_node node;
+  node_identity(&app, &node);
+  if (srv_db_open(&app.db, app.cfg.store, nconn, &node, &err)) goto out;
+  app.results_via_store = srv_db_results_shared(app.db) && !app.cfg.results_dir;
+  srv_log("node %s (boot %s), lease %d s; store %s (%s); outputs %s", node.name, node.boot,
+          node.lease_seconds,
+          srv_db_kind(app.db) == SRV_STORE_POSTGRESQL ? "PostgreSQL" : "SQLite",
+          srv_db_path(app.db),
+          app.results_via_store ? "travel through the store" : app.cfg.results_dir
+                                                                   ? "in the shared --results-dir"
+                                                                   : "in this node's data directory");
   if (srv_db_recover(app.db, srv_pick_lane_recovered, clean_outputs, &app, &err)) goto out;
   srv_mpi_kill_orphans(&app);
   srv_outputs_sweep(&app);
@@ -195,6 +228,7 @@ int main(int argc, char **argv) {
    * process did not get to (it died between a job's commit and its metrics). */
   srv_compare_metrics(&app, 0);
   if (srv_sched_start(&app, &err)) goto out;
+  if (srv_lease_start(&app, &err)) goto out;
   if (srv_http_start(&app, &err)) goto out;
 
   const char *host = app.cfg.listen;
@@ -204,7 +238,7 @@ int main(int argc, char **argv) {
   srv_log(
       "obscurad %s: database %s, results %s, scenes %s, web %s; %d CPU worker(s) x %d "
       "thread(s), Vulkan lane %s; token %s",
-      OBSCURA_VERSION, app.cfg.db, app.results_dir, app.scenes_real,
+      OBSCURA_VERSION, srv_db_path(app.db), app.results_dir, app.scenes_real,
       app.web_real[0] ? app.web_real : "(none)", app.cfg.workers, app.cpu_threads,
       app.vulkan_lane   ? "on"
       : !app.cfg.vulkan ? "off (--no-vulkan)"
@@ -219,6 +253,7 @@ int main(int argc, char **argv) {
 out:
   if (err.count) fprintf(stderr, "obscurad: %s\n", obs_err_message(&err));
   srv_http_stop(&app);
+  srv_lease_stop(&app);
   srv_sched_stop(&app);
   srv_meshimport_stop(&app);
   if (app.db) {

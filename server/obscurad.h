@@ -27,7 +27,11 @@
 typedef struct srv_config {
   char *listen;          /* IPv4 or IPv6 literal; default 127.0.0.1 */
   int port;              /* 0 = ephemeral */
-  char *db;              /* default <data-dir>/obscura.db */
+  char *db;              /* the SQLite file (default <data-dir>/obscura.db); NULL with a URL */
+  char *store;           /* what the store opens: a postgresql:// URL, or the same as db */
+  char *node_name;       /* NULL = "<hostname>:<port>" (main.c) */
+  int lease_seconds;     /* a claim holds this long without a heartbeat (lease.c) */
+  char *results_dir;     /* NULL = <data-dir>/results (a shared filesystem with PostgreSQL) */
   char *data_dir;        /* default var */
   char *scenes_dir;      /* default scenes */
   char *web_dir;         /* default web */
@@ -79,6 +83,10 @@ typedef struct srv_config {
  * 1 when --help was printed, or -1 after printing the problem to stderr. */
 int srv_config_parse(srv_config *cfg, int argc, char **argv);
 void srv_config_free(srv_config *cfg);
+/* 1 when a --store value is a PostgreSQL URL (postgresql:// or postgres://). */
+int srv_store_is_url(const char *where);
+/* `where` into buf with a URL's password shown as ***, for logs and messages; returns buf. */
+const char *srv_url_redacted(const char *where, char *buf, size_t n);
 
 /* ---- logging and small helpers (util.c) ------------------------------------------------------ */
 
@@ -161,7 +169,6 @@ void srv_fault_counts(int active[SRV_NFAULTS], unsigned long long total[SRV_NFAU
 const char *srv_errno_name(int e);
 /* Errors of the environment rather than of a job: disk full, read-only, permissions, I/O. */
 int srv_errno_transient(int e);
-const char *srv_sqlite_code_name(int code);
 
 /* ---- refusals for capacity (refusals.c) -------------------------------------------------------- */
 
@@ -200,10 +207,26 @@ typedef enum {
   SRV_NROUTES
 } srv_route;
 
+/* A growing text buffer (util.c): srv_buf_put appends printf-style; oom is set, and later puts
+ * ignored, when memory runs out. The caller frees p. */
+typedef struct srv_buf {
+  char *p;
+  size_t len, cap;
+  int oom;
+} srv_buf;
+void srv_buf_put(srv_buf *b, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+
+/* The counters (counters.c). */
 void srv_metrics_init(void);
 void srv_metrics_free(void);
 void srv_metrics_http(srv_route route, unsigned status);
 void srv_metrics_render(const char *technique, const char *backend, double seconds);
+/* Appends the histogram and the HTTP counters in Prometheus's text format. */
+void srv_metrics_counters(srv_buf *b);
 struct srv_app;
 /* The Prometheus text (malloc'd). */
 char *srv_metrics_text(struct srv_app *app, size_t *len);
@@ -224,6 +247,27 @@ int srv_sched_running(struct srv_app *app);
 int srv_sched_paused(struct srv_app *app);
 /* Stops workers: running renders are cancelled and their jobs go back to the queue. */
 void srv_sched_stop(struct srv_app *app);
+/* The render slots (the most srv_sched_busy can report). */
+int srv_sched_slots(struct srv_app *app);
+/* The jobs the slots run and have not yet settled (recorded an outcome for): up to max pairs of
+ * job id and attempt; returns how many. */
+int srv_sched_busy(struct srv_app *app, int64_t *ids, int *attempts, int max);
+/* Why the node loop stops one render: a cancel requested through any node (recorded cancelled,
+ * as a local cancel is), or the lease lost (nothing recorded, its outputs dropped: the store
+ * gives the job to another node). */
+typedef enum { SRV_STOP_CANCEL, SRV_STOP_LEASE } srv_stop_why;
+/* Stops the render of attempt `attempt` of job `id` if a slot still runs it unsettled; returns 1
+ * when it did. */
+int srv_sched_stop_job(struct srv_app *app, int64_t id, int attempt, srv_stop_why why);
+
+/* ---- the node loop (lease.c) ----------------------------------------------------------------- */
+
+/* Starts the thread that keeps this node's claims alive in the store: heartbeats every third of
+ * a lease for the busy slots (stopping renders whose job is no longer held, or whose cancel was
+ * requested through another node), the reaper every half lease, and the store's wake-ups between
+ * beats. Start after the scheduler; stop before it. */
+int srv_lease_start(struct srv_app *app, obs_err *err);
+void srv_lease_stop(struct srv_app *app);
 
 /* ---- outputs (outputs.c) --------------------------------------------------------------------- */
 
@@ -235,7 +279,7 @@ void srv_sched_stop(struct srv_app *app);
 
 /* The fixed set of output files: content type, or NULL when `name` is not one. */
 const char *srv_output_content_type(const char *name);
-/* <data>/results/<id> into buf. */
+/* <results>/<id> into buf (<data-dir>/results, or --results-dir). */
 void srv_results_path(const struct srv_app *app, int64_t id, char *buf, size_t n);
 /* Hashes and describes every file of the fixed set present in `dir`. */
 int srv_outputs_describe(const char *dir, srv_output *outs, int max, int *n, obs_err *err);
@@ -247,8 +291,19 @@ void srv_job_log(const struct srv_app *app, int64_t id, const char *fmt, ...)
 /* The job's log as text (malloc'ed, "" when it has none; NULL when it cannot be read). */
 char *srv_job_log_read(const struct srv_app *app, int64_t id, size_t *len);
 void srv_job_log_remove(const struct srv_app *app, int64_t id);
-/* Removes staging directories and result directories of jobs that are not succeeded. */
+/* Removes staging directories of attempts that no longer run and result directories of jobs that
+ * are not succeeded. */
 void srv_outputs_sweep(struct srv_app *app);
+/* Outputs that travel through the store: puts each of `outs` (files of `dir`) as a blob under its
+ * SHA-256 (idempotent; before the row that names them is committed). */
+int srv_outputs_put_blobs(struct srv_app *app, const char *dir, const srv_output *outs, int n,
+                          obs_err *err);
+/* Makes output `o` of job `id` a local file (results/<id>/<name>): when missing and outputs
+ * travel through the store, fetches its blob, checks its SHA-256 and size, and writes it
+ * atomically (a cache every later read finds). 0, OBS_ENOTFOUND, or another error. */
+int srv_outputs_local(struct srv_app *app, int64_t id, const srv_output *o, obs_err *err);
+/* The same for every output of succeeded job `id` (comparison metrics read whole results). */
+int srv_outputs_local_all(struct srv_app *app, int64_t id, obs_err *err);
 /* Writes, fsyncs and removes a small file in `dir`: 0 when the directory takes files, else
  * OBS_ETRANSIENT with the errno name in `code`. */
 int srv_outputs_probe(const char *dir, char *code, size_t n, obs_err *err);
@@ -284,6 +339,8 @@ struct srv_req {
   char client[80]; /* who queued work is counted against: "token:<hash>" or the remote address */
 };
 
+/* ---- answers (respond.c) ---------------------------------------------------------------------- */
+
 /* Queues `resp` (adding the security headers) and records the status. Consumes resp. */
 int srv_respond(srv_req *r, unsigned status, struct MHD_Response *resp);
 /* JSON body (consumes `body`). */
@@ -310,6 +367,17 @@ int srv_respond_error(srv_req *r, unsigned status, const obs_err *problems, cons
     ;
 /* 405 with Allow. */
 int srv_respond_method(srv_req *r, const char *allow);
+/* 503 with Retry-After: the request was fine, the server has no room for it right now. */
+int srv_respond_busy(srv_req *r, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+/* The HTTP layer's Content-Type check of a request with or without a body: 0 to go on, or
+ * the result of the 415 it answered. */
+int srv_refuse_content_type(srv_req *r, int has_body);
+/* 429 with Retry-After and {"error", "problems"}. */
+int srv_respond_too_busy(srv_req *r, int retry_after, const obs_err *problems);
 
 /* Routes one complete request (api.c). */
 int srv_api_dispatch(srv_req *r);
@@ -388,6 +456,18 @@ double srv_scene_voxels(const obs_scene *sc);
  * request's (absent: auto). Problems of the scene are left to its validation. */
 void srv_submit_set_technique(struct srv_app *app, json_t *doc, const char *docname,
                               const json_t *tech, json_t *notes);
+/* ---- backend choice (pick.c) ------------------------------------------------------------------ */
+
+/* The backend a job runs on in this daemon: the renderer's choice, except that "auto" falls back
+ * to the CPU when the renderer would pick Vulkan but no Vulkan lane runs (--no-vulkan). An
+ * explicit "vulkan" without a lane is an error naming the flag. */
+int srv_pick_backend(const obs_technique *t, obs_backend requested, int vulkan_lane,
+                     obs_backend *out, obs_err *err);
+/* The scheduler's lane for a job left queued by the last process: 0 and *lane (which may differ
+ * from the stored one when the Vulkan device came or went), or an error whose message the job
+ * fails with. `user` is the srv_app. */
+int srv_pick_lane_recovered(void *user, const char *technique, const char *backend_requested,
+                            srv_lane stored, srv_lane *lane, obs_err *err);
 /* srv_pick_backend plus learned "auto": with stored timed runs of both backends for technique `t`
  * at similar work (within 2x), the one with the lower median total; `reason` says which rule
  * decided (at most n bytes). */
@@ -501,7 +581,9 @@ typedef struct srv_app {
   int port;                /* the bound port */
   int listen_fd;           /* the bound socket, until libmicrohttpd takes it (listening) */
   int listening;
-  int data_lock_fd;        /* flock of the results directory: one daemon per data directory */
+  int data_lock_fd;        /* flock of the data directory: one daemon per data directory */
+  int results_via_store;   /* outputs travel as blobs (PostgreSQL without --results-dir) */
+  struct srv_lease *lease; /* the node loop (lease.c) */
   double start_ms;
   struct srv_meshimport *meshimport; /* the contained mesh importer (meshimport.c) */
 } srv_app;
@@ -529,12 +611,6 @@ unsigned srv_admit_comparison(srv_app *app, const char *client, const srv_new_co
  * cancelled, *state filled). */
 unsigned srv_admit_retry(srv_app *app, const char *client, int64_t id, srv_state *state,
                          int *retry_after, obs_err *problems);
-/* The bytes a new job's row stores (its texts), a candidate row's, a comparison row's. */
-int64_t srv_job_stored_bytes(const srv_new_job *j);
-int64_t srv_candidate_row_bytes(const srv_new_candidate *c);
-int64_t srv_comparison_stored_bytes(const srv_new_comparison *c);
-/* 429 with Retry-After and {"error", "problems"}. */
-int srv_respond_too_busy(srv_req *r, int retry_after, const obs_err *problems);
 /* Refuses (adds a problem naming /image or /technique/params) a job whose estimated render time
  * exceeds --max-render-seconds: work x the median ms per unit of work of this machine's stored
  * runs of the technique and backend, or the technique's built-in rate. */

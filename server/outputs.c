@@ -1,5 +1,7 @@
 /* Job outputs on disk: the names the registry declares, SHA-256 and size records, the start-up
- * sweep of half-written results, and serving files with ETag, Cache-Control and byte ranges. */
+ * sweep of half-written results, outputs as blobs of the store when several nodes share one
+ * without a shared results directory (put by the node that rendered, fetched into a local cache by
+ * any node that serves them), and serving files with ETag, Cache-Control and byte ranges. */
 #include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -123,6 +125,28 @@ void srv_outputs_remove(const srv_app *app, int64_t id) {
   closedir(d);
 }
 
+/* Whether staging entry `name` (".tmp-<id>-<attempt>", ".tmp-<id>-preview...", or another
+ * temporary) is stale: in a results directory other nodes share, an attempt or preview of a job
+ * still running may be another node's; in this node's own, nothing running survives recovery. */
+static int stale_stage(srv_app *app, const char *name) {
+  if (!app->cfg.results_dir) return 1;
+  const char *p = name + 5, *dash = strchr(p, '-');
+  int64_t id;
+  if (!dash || srv_parse_id(p, (size_t)(dash - p), &id)) return 1;
+  srv_job j;
+  obs_err err = OBS_ERR_INIT;
+  int rc = srv_db_get_job(app->db, id, &j, &err);
+  obs_err_free(&err);
+  if (rc == OBS_ENOTFOUND) return 1;
+  if (rc) return 0; /* unknown: keep it */
+  char *end;
+  long attempt = strtol(dash + 1, &end, 10);
+  int live = j.state == SRV_RUNNING && (!strncmp(dash + 1, "preview", 7) ||
+                                        (end != dash + 1 && !*end && attempt == j.attempts));
+  srv_job_free(&j);
+  return !live;
+}
+
 void srv_outputs_sweep(srv_app *app) {
   DIR *d = opendir(app->results_dir);
   if (!d) return;
@@ -132,7 +156,7 @@ void srv_outputs_sweep(srv_app *app) {
     int64_t id;
     int stale = 0;
     if (!strncmp(e->d_name, ".tmp-", 5)) {
-      stale = 1;
+      stale = stale_stage(app, e->d_name);
     } else if (!srv_parse_id(e->d_name, strlen(e->d_name), &id)) {
       srv_state st;
       obs_err err = OBS_ERR_INIT;
@@ -140,7 +164,10 @@ void srv_outputs_sweep(srv_app *app) {
       obs_err_free(&err);
       /* Only a succeeded job owns a results directory; anything else is what a crash (or a
        * deletion cut short) left behind. */
-      stale = ex == 0 || (ex == 1 && st != SRV_SUCCEEDED);
+      stale = ex == 0 || (ex == 1 && st != SRV_SUCCEEDED &&
+                          /* In a shared results directory, another node may have just
+                           * published what it is about to commit. */
+                          !(app->cfg.results_dir && st == SRV_RUNNING));
     }
     if (!stale) continue;
     snprintf(path, sizeof path, "%s/%s", app->results_dir, e->d_name);
@@ -148,6 +175,114 @@ void srv_outputs_sweep(srv_app *app) {
     srv_remove_tree(path);
   }
   closedir(d);
+}
+
+/* ---- outputs as blobs of the store ---------------------------------------------------------- */
+
+static int read_all(const char *path, void **data, size_t *n, obs_err *err) {
+  *data = NULL;
+  *n = 0;
+  int fd = open(path, O_RDONLY | O_NOFOLLOW | O_CLOEXEC);
+  struct stat st;
+  if (fd < 0 || fstat(fd, &st)) {
+    int e = errno;
+    if (fd >= 0) close(fd);
+    return obs_err_set(err, OBS_EIO, "%s: cannot open: %s", path, strerror(e));
+  }
+  char *buf = malloc(st.st_size ? (size_t)st.st_size : 1);
+  if (!buf) {
+    close(fd);
+    return obs_err_set(err, OBS_ENOMEM, "%s: out of memory", path);
+  }
+  size_t got = 0;
+  while (got < (size_t)st.st_size) {
+    ssize_t r = read(fd, buf + got, (size_t)st.st_size - got);
+    if (r < 0 && errno == EINTR) continue;
+    if (r <= 0) {
+      int e = r < 0 ? errno : EIO;
+      free(buf);
+      close(fd);
+      return obs_err_set(err, OBS_EIO, "%s: read failed: %s", path, strerror(e));
+    }
+    got += (size_t)r;
+  }
+  close(fd);
+  *data = buf;
+  *n = got;
+  return 0;
+}
+
+int srv_outputs_put_blobs(srv_app *app, const char *dir, const srv_output *outs, int n,
+                          obs_err *err) {
+  for (int i = 0; i < n; i++) {
+    char path[8400];
+    snprintf(path, sizeof path, "%s/%s", dir, outs[i].name);
+    void *data;
+    size_t len;
+    int rc = read_all(path, &data, &len, err);
+    if (!rc) rc = srv_db_put_blob(app->db, outs[i].sha256, data, len, err);
+    free(data);
+    if (rc) return rc;
+  }
+  return 0;
+}
+
+int srv_outputs_local(srv_app *app, int64_t id, const srv_output *o, obs_err *err) {
+  char dir[4200], path[8400], tmp[8500];
+  srv_results_path(app, id, dir, sizeof dir);
+  snprintf(path, sizeof path, "%s/%s", dir, o->name);
+  struct stat st;
+  if (!lstat(path, &st)) return 0;
+  if (!app->results_via_store)
+    return obs_err_set(err, OBS_ENOTFOUND, "%s: %s", path, strerror(ENOENT));
+  void *data = NULL;
+  size_t n = 0;
+  int rc = srv_db_get_blob(app->db, o->sha256, &data, &n, err);
+  if (rc) return rc;
+  unsigned char md[32];
+  char hex[65];
+  srv_sha256(data, n, md);
+  for (int i = 0; i < 32; i++) snprintf(hex + 2 * i, 3, "%02x", md[i]);
+  if ((int64_t)n != o->size || strcmp(hex, o->sha256)) {
+    free(data);
+    return obs_err_set(err, OBS_EIO, "job %lld: the stored blob of output %s does not match it",
+                       (long long)id, o->name);
+  }
+  /* Written beside the name and renamed over it: a concurrent reader sees all or nothing. */
+  snprintf(tmp, sizeof tmp, "%s/.%s.%ld.%lx", dir, o->name, (long)getpid(),
+           (unsigned long)pthread_self());
+  int fd = -1;
+  if (obs_path_make_dirs(dir, NULL) ||
+      (fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_NOFOLLOW | O_CLOEXEC, 0644)) < 0) {
+    free(data);
+    return obs_err_set(err, OBS_EIO, "%s: cannot create: %s", tmp, strerror(errno));
+  }
+  size_t put = 0;
+  while (put < n) {
+    ssize_t w = write(fd, (char *)data + put, n - put);
+    if (w < 0 && errno == EINTR) continue;
+    if (w <= 0) break;
+    put += (size_t)w;
+  }
+  int e = put < n ? (errno ? errno : ENOSPC) : 0;
+  if (close(fd) && !e) e = errno;
+  free(data);
+  if (!e && rename(tmp, path)) e = errno;
+  if (e) {
+    unlink(tmp);
+    return obs_err_set(err, OBS_EIO, "%s: cannot write: %s", path, strerror(e));
+  }
+  return 0;
+}
+
+int srv_outputs_local_all(srv_app *app, int64_t id, obs_err *err) {
+  if (!app->results_via_store) return 0;
+  srv_job j;
+  int rc = srv_db_get_job(app->db, id, &j, err);
+  if (rc) return rc;
+  for (int i = 0; !rc && i < j.noutputs; i++) rc = srv_outputs_local(app, id, &j.outputs[i], err);
+  srv_job_free(&j);
+  return rc;
 }
 
 /* ---- serving --------------------------------------------------------------------------------- */
@@ -244,6 +379,15 @@ int srv_output_serve(srv_req *r, int64_t id, const char *name) {
     obs_err_free(&err);
     return out;
   }
+  /* Another node's output that travels through the store becomes a local file first. */
+  if (srv_outputs_local(r->app, id, &o, &err) && r->app->results_via_store) {
+    srv_log("job %lld: output %s: %s", (long long)id, o.name, obs_err_message(&err));
+    obs_err_free(&err);
+    return srv_respond_error(r, MHD_HTTP_SERVICE_UNAVAILABLE, NULL,
+                             "output %s of job %lld cannot be fetched from the store", o.name,
+                             (long long)id);
+  }
+  obs_err_free(&err);
   char path[8400];
   srv_results_path(r->app, id, path, sizeof path);
   size_t n = strlen(path);

@@ -83,6 +83,7 @@ const char *obs_strerror(int code) {
     case OBS_ENOTFOUND: return "not found";
     case OBS_EINTERNAL: return "internal error";
     case OBS_ETRANSIENT: return "transient fault";
+    case OBS_ECONFLICT: return "conflict";
     default: return "unknown error";
   }
 }

@@ -18,8 +18,10 @@ enum {
   OBS_EUNSUPPORTED = -5,/* backend or feature not available here */
   OBS_ENOTFOUND = -6,   /* named thing (technique, channel, file) does not exist */
   OBS_EINTERNAL = -7,   /* a library we call failed unexpectedly */
-  OBS_ETRANSIENT = -8   /* the environment failed (disk full, read-only, I/O error, database
+  OBS_ETRANSIENT = -8,  /* the environment failed (disk full, read-only, I/O error, database
                            busy): the same call may succeed once the fault is cleared */
+  OBS_ECONFLICT = -9    /* the thing changed hands meanwhile (a job another node now holds):
+                           the call was refused and changed nothing */
 };
 
 /* Accumulates one or more human-readable problems, one per line. A zeroed struct is a valid empty
