@@ -18,9 +18,11 @@ import {SLOW, TERMINAL, getJSON, listAll, request, sleep, startDaemon, submit, t
 
 const SMALL = {'/image/width': 48, '/image/height': 48, '/technique/params/samples': 64};
 const JOB = {scene_file: 'sphere_on_plane.json', set: SMALL};
-// About 1 s in the release build.
+// About 1 s in the release build, and about as long under the sanitizers with a quarter of the
+// samples (SLOW): long enough to be caught running at every moment below, and each is rendered
+// again after the kill that interrupted it.
 const MEDIUM = {scene_file: 'sphere_on_plane.json',
-                set: {'/image/width': 320, '/image/height': 320, '/technique/params/samples': 256}};
+                set: {'/image/width': 320, '/image/height': 320, '/technique/params/samples': 256 / SLOW}};
 const COMPARISON = {scene_file: 'cornell_box.json', set: {'/image/width': 160, '/image/height': 120},
                     reference: {samples: 32},
                     candidates: [{technique: 'ssao', backend: 'cpu', params: {samples: [8, 16]}}]};

@@ -204,16 +204,18 @@ static const char *const *end_companions(const char *name) {
 
 /* Ends whose cost is one fixed stage at its largest (a 512^3 proximity volume voxelised and
  * flooded, or its finest level at 512, or its flood run ten times as far; 4096 peeled directions
- * or 512^2 bundles; 65536 volume samples: 3 to 60 s each under ASan). They are the same loops as
- * at the default, at a larger count; the release build renders them, the sanitizer builds check
- * every other end and leave these out, saying so. */
+ * or 512^2 bundles; 65536 volume samples; 65536 paths per pixel, a loop count that sizes no
+ * buffer: 3 to 60 s each under ASan). They are the same loops as at the default, at a larger
+ * count; the release build renders them, the sanitizer builds check every other end and leave
+ * these out, saying so. */
 static int release_only_end(const char *technique, const char *key, const char *value) {
   static const char *const ends[][3] = {{"proximity_ao", "volume_res", "512"},
                                         {"proximity_ao", "min_res", "512"},
                                         {"proximity_ao", "propagation_fraction", "10"},
                                         {"obscurance_map", "directions", "4096"},
                                         {"obscurance_map", "bundle_resolution", "512"},
-                                        {"volume_ao", "samples", "65536"}};
+                                        {"volume_ao", "samples", "65536"},
+                                        {"path_trace", "samples", "65536"}};
   for (size_t i = 0; i < sizeof ends / sizeof ends[0]; i++)
     if (!strcmp(ends[i][0], technique) && !strcmp(ends[i][1], key) && !strcmp(ends[i][2], value))
       return 1;

@@ -528,13 +528,25 @@ static void test_output_hashes(void **state) {
   pins_load(obs_test_fmt("%s/output_hashes.txt", data_dir), &pins);
   assert_true(pins.n > 0);
   printf("level %s, CPU vendor %s\n", obs_simd_isa_name(obs_simd_isa()), cpu_vendor());
+  /* A stand-in vendor (OBS_TEST_VENDOR, tests/CMakeLists.txt) changes only what the per-level
+   * cases are held to: every other case meets the same pins at the same level as in the plain run,
+   * and so does the check for unrendered pins, so those are left to it. */
+  const char *stand_in = getenv("OBS_TEST_VENDOR");
+  int per_level_only = stand_in && *stand_in;
+  if (per_level_only) {
+    size_t m = 0;
+    for (size_t k = 0; k < n; k++)
+      if (per_level(&cases[k])) cases[m++] = cases[k];
+    printf("%zu per-level cases of %zu (the plain run checks the others)\n", m, n);
+    n = m;
+  }
   obs_result *res = calloc(n, sizeof *res);
   int bad = 0;
   for (size_t k = 0; k < n; k++) {
     render_case(&cases[k], &res[k]);
     bad += compare_case(&cases[k], &res[k], &pins, data_dir);
   }
-  bad += unrendered(&pins, cases, n, res);
+  if (!per_level_only) bad += unrendered(&pins, cases, n, res);
   for (size_t k = 0; k < n; k++) obs_result_free(&res[k]);
   free(res);
   free(pins.v);
