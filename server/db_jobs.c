@@ -153,13 +153,15 @@ int srv_sq_list_jobs(srv_sq *db, const srv_job_filter *f, srv_job **jobs, int *n
   srv_job *out = calloc((size_t)f->limit + 1, sizeof *out);
   if (!out) return obs_err_set(err, OBS_ENOMEM, "out of memory");
   conn *c = srv_dbi_acquire(db);
-  sqlite3_stmt *s = srv_dbi_stmt(c, f->ascending ? ST_LIST_ASC : ST_LIST_DESC, err);
+  int variant = (f->has_state ? 1 : 0) | (f->technique ? 2 : 0) | (f->backend ? 4 : 0) |
+                (f->ascending ? 8 : 0);
+  sqlite3_stmt *s = srv_dbi_stmt(c, ST_LIST + variant, err);
   int rc = OBS_EIO, count = 0;
   if (s) {
     srv_dbi_bind_text(s, 1, f->has_state ? srv_state_name(f->state) : NULL);
     srv_dbi_bind_text(s, 2, f->technique);
     srv_dbi_bind_text(s, 3, f->backend);
-    sqlite3_bind_int64(s, 4, f->after);
+    sqlite3_bind_int64(s, 4, f->after || f->ascending ? f->after : INT64_MAX);
     sqlite3_bind_int(s, 5, f->limit + 1);
     int step;
     while ((step = sqlite3_step(s)) == SQLITE_ROW && count <= f->limit) read_job(s, &out[count++]);

@@ -111,10 +111,9 @@ int srv_sq_run_rates(srv_sq *db, const char *technique, const char *backend, int
   conn *c = srv_dbi_acquire(db);
   sqlite3_stmt *s;
   int rc = prepare(c,
-                   "SELECT ru.total_ms / j.work FROM runs ru JOIN jobs j ON j.id = ru.job "
-                   "WHERE j.technique = ?1 AND j.backend = ?2 AND ru.machine = ?3 AND "
-                   "j.work >= ?4 AND j.work > 0 AND j.state = 'succeeded' "
-                   "ORDER BY ru.job DESC, ru.run LIMIT 1000",
+                   "SELECT ru.total_ms / j.work FROM (" RECENT_SUCCEEDED("AND backend = ?2")
+                   ") j JOIN runs ru ON ru.job = j.id WHERE ru.machine = ?3 AND j.work >= ?4 AND "
+                   "j.work > 0 ORDER BY ru.job DESC, ru.run LIMIT 1000",
                    &s, err);
   if (!rc) {
     srv_dbi_bind_text(s, 1, technique);
