@@ -138,4 +138,11 @@ int srv_dbi_insert_job(conn *c, const srv_new_job *nj, int64_t extra, int64_t *i
 int srv_dbi_put_outputs(conn *c, int which, int64_t id, const srv_output *outs, int nouts,
                         obs_err *err);
 
+/* Deletes comparison `id`, its candidate rows and all its jobs (with their outputs and runs) in
+ * the caller's transaction, appending the jobs' ids to *ids (realloc'd). */
+int srv_dbi_drop_comparison(conn *c, int64_t id, int64_t **ids, int *nids, obs_err *err);
+/* A statement prepared for one call (released with sqlite3_finalize): the queries that run once
+ * per submission or per retention pass rather than with every request. */
+int srv_dbi_prepare(conn *c, const char *q, sqlite3_stmt **s, obs_err *err);
+
 #endif

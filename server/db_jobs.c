@@ -488,6 +488,29 @@ static int comparison_job_ids(conn *c, int64_t id, int64_t **ids, int *nids, obs
   return rc;
 }
 
+int srv_dbi_drop_comparison(conn *c, int64_t id, int64_t **ids, int *nids, obs_err *err) {
+  int first = *nids;
+  int rc = comparison_job_ids(c, id, ids, nids, err);
+  if (!rc) {
+    /* The candidates go first (cascade): they are what keeps the jobs from being deleted. */
+    sqlite3_stmt *s = srv_dbi_stmt(c, ST_CMP_DELETE, err);
+    if (!s) rc = OBS_EIO;
+    else {
+      sqlite3_bind_int64(s, 1, id);
+      rc = srv_dbi_exec_done(c, s, err, "deleting the comparison");
+    }
+  }
+  for (int i = first; !rc && i < *nids; i++) {
+    sqlite3_stmt *s = srv_dbi_stmt(c, ST_JOB_DELETE_ANY, err);
+    if (!s) rc = OBS_EIO;
+    else {
+      sqlite3_bind_int64(s, 1, (*ids)[i]);
+      rc = srv_dbi_exec_done(c, s, err, "deleting a job of the comparison");
+    }
+  }
+  return rc;
+}
+
 int srv_sq_delete_comparison(srv_sq *db, int64_t id, int64_t **ids, int *nids, obs_err *err) {
   *ids = NULL;
   *nids = 0;
@@ -505,24 +528,7 @@ int srv_sq_delete_comparison(srv_sq *db, int64_t id, int64_t **ids, int *nids, o
       srv_dbi_done(s);
     }
   }
-  if (!rc) rc = comparison_job_ids(c, id, ids, nids, err);
-  if (!rc) {
-    /* The candidates go first (cascade): they are what keeps the jobs from being deleted. */
-    sqlite3_stmt *s = srv_dbi_stmt(c, ST_CMP_DELETE, err);
-    if (!s) rc = OBS_EIO;
-    else {
-      sqlite3_bind_int64(s, 1, id);
-      rc = srv_dbi_exec_done(c, s, err, "deleting the comparison");
-    }
-  }
-  for (int i = 0; !rc && i < *nids; i++) {
-    sqlite3_stmt *s = srv_dbi_stmt(c, ST_JOB_DELETE_ANY, err);
-    if (!s) rc = OBS_EIO;
-    else {
-      sqlite3_bind_int64(s, 1, (*ids)[i]);
-      rc = srv_dbi_exec_done(c, s, err, "deleting a job of the comparison");
-    }
-  }
+  if (!rc) rc = srv_dbi_drop_comparison(c, id, ids, nids, err);
   if (!rc) rc = srv_dbi_commit(c, err);
   if (rc) {
     srv_dbi_rollback(c);

@@ -196,6 +196,7 @@ int main(int argc, char **argv) {
   srv_compare_metrics(&app, 0);
   if (srv_sched_start(&app, &err)) goto out;
   if (srv_http_start(&app, &err)) goto out;
+  if (srv_retention_start(&app, &err)) goto out;
 
   const char *host = app.cfg.listen;
   int v6 = strchr(host, ':') != NULL;
@@ -218,6 +219,7 @@ int main(int argc, char **argv) {
 
 out:
   if (err.count) fprintf(stderr, "obscurad: %s\n", obs_err_message(&err));
+  srv_retention_stop(&app);
   srv_http_stop(&app);
   srv_sched_stop(&app);
   srv_meshimport_stop(&app);

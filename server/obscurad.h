@@ -48,6 +48,8 @@ typedef struct srv_config {
   int checkpoint_jobs;    /* ... or after this many finished jobs */
   int db_check_seconds;   /* PRAGMA quick_check period */
   int quiet;              /* no per-request log lines (job lines stay) */
+  int64_t keep_jobs;      /* retention (retention.c): newest finished jobs kept, 0 = all */
+  double keep_days;       /* ... and days a finished job is kept, 0 = forever */
   /* Connection hardening (guard.c). */
   int header_timeout;          /* seconds to send a request's headers, in all; default 10 */
   int max_connections;         /* connections held at once; default 1000 */
@@ -79,6 +81,16 @@ typedef struct srv_config {
  * 1 when --help was printed, or -1 after printing the problem to stderr. */
 int srv_config_parse(srv_config *cfg, int argc, char **argv);
 void srv_config_free(srv_config *cfg);
+
+/* Retention (retention.c): a thread that prunes the store at start and every minute under
+ * --keep-jobs / --keep-days and removes the pruned jobs' results. Start does nothing when both
+ * are 0; stop joins the thread. */
+struct srv_app;
+int srv_retention_start(struct srv_app *app, obs_err *err);
+void srv_retention_stop(struct srv_app *app);
+/* One retention pass: prunes until nothing is left past the limits; returns the jobs removed or
+ * <0. */
+int srv_retention_pass(struct srv_app *app, obs_err *err);
 
 /* ---- logging and small helpers (util.c) ------------------------------------------------------ */
 
