@@ -7,10 +7,12 @@
  * filter, deep pages included. Prints p50/p99 of each with the CPU model and the store kind.
  *
  *   bench_history [--jobs N] [--store PATH|postgresql://...] [--reps R] [--submits S]
- *                 [--obscurad PATH] [--scenes DIR] [--reuse]
+ *                 [--obscurad PATH] [--scenes DIR] [--reuse] [--measure-only]
  *
  * Defaults: 100000 jobs, a SQLite file in a fresh directory under /tmp (removed afterwards unless
- * --reuse, which also skips building when the store already holds N jobs). */
+ * --reuse, which also skips building when the store already holds N jobs). --measure-only times
+ * an existing store without opening it here (so that another build of obscurad, one with an older
+ * schema, can be timed on a copy of it). */
 #define _GNU_SOURCE
 #include <arpa/inet.h>
 #include <errno.h>
@@ -59,14 +61,39 @@ static void die(const char *what, obs_err *e) {
 
 /* ---- building the history through the store interface --------------------------------------- */
 
+/* summary.json of a 16x16 rt_ao render as obscurad stores it, so that every page of the history
+ * costs what a page of real jobs does. */
+static const char SUMMARY[] =
+    "{\"scene\":\"sphere_on_plane.json\",\"technique\":\"rt_ao\",\"backend\":\"cpu\",\"width\":16,\"height\":"
+    "16,\"spp\":1,\"samples\":4,\"params\":{\"samples\":4,\"sampler\":\"sobol\",\"seed\":1,\"max_distance\":n"
+    "ull,\"falloff\":\"binary\",\"tau\":1,\"weighting\":\"cosine\"},\"work_per_pixel_sample\":4.0,\"thread"
+    "s\":2,\"timings_ms\":{\"load\":0.116682999,\"build\":0.38634,\"render\":0.544034004,\"write\":1.883"
+    "402,\"total\":2.96108501,\"stages\":{\"load\":0.116682999,\"bvh\":0.380314,\"prepare\":0.006025999"
+    "78,\"prior\":0.169933006,\"shade\":0.374100998,\"other\":0.030625999,\"write\":1.883402}},\"rays\""
+    ":1440,\"rays_per_second\":2646893.37,\"ao\":{\"mean\":0.926757812,\"min\":0.0,\"max\":1.0},\"ao_std"
+    "err_mean\":0.0886307526,\"nan_count\":0,\"primary_output\":\"ao\",\"outputs\":{\"ao\":{\"kind\":\"scal"
+    "ar\",\"channels\":{\"ao\":{\"mean\":0.926757812,\"min\":0.0,\"max\":1.0,\"count\":256,\"nonfinite\":0}}"
+    "},\"ao_stderr\":{\"kind\":\"scalar\",\"channels\":{\"ao_stderr\":{\"mean\":0.0886307526,\"min\":0.0493"
+    "463762,\"max\":0.288675129,\"count\":256,\"nonfinite\":0}}},\"bent_normal\":{\"kind\":\"vector\",\"ch"
+    "annels\":{\"bent_normal.X\":{\"mean\":0.0106628515,\"min\":-0.96203804,\"max\":0.782178164,\"count"
+    "\":256,\"nonfinite\":0},\"bent_normal.Y\":{\"mean\":0.84045959,\"min\":-0.62799418,\"max\":0.999979"
+    "317,\"count\":256,\"nonfinite\":0},\"bent_normal.Z\":{\"mean\":-0.0441171767,\"min\":-0.932325482,"
+    "\"max\":0.790865302,\"count\":256,\"nonfinite\":0}}},\"depth\":{\"kind\":\"depth\",\"channels\":{\"dept"
+    "h.Z\":{\"mean\":6.07365393,\"min\":3.40392423,\"max\":12.6257305,\"count\":256,\"nonfinite\":0}}},\""
+    "normal\":{\"kind\":\"vector\",\"channels\":{\"normal.X\":{\"mean\":0.0,\"min\":-0.64496547,\"max\":0.64"
+    "496547,\"count\":256,\"nonfinite\":0},\"normal.Y\":{\"mean\":0.956463514,\"min\":-0.62799418,\"max\""
+    ":1.0,\"count\":256,\"nonfinite\":0},\"normal.Z\":{\"mean\":-0.0403566285,\"min\":-0.977936864,\"max"
+    "\":0.0,\"count\":256,\"nonfinite\":0}}},\"alpha\":{\"kind\":\"scalar\",\"channels\":{\"alpha\":{\"mean\":"
+    "1.0,\"min\":1.0,\"max\":1.0,\"count\":256,\"nonfinite\":0}}}},\"warnings\":[],\"built\":[{\"name\":\"bv"
+    "h\",\"triangles\":2,\"spheres\":1,\"bytes\":2380,\"peak_bytes\":2412}]}";
+
 static void build(srv_db *db, int64_t njobs, const char *doc, int64_t machine) {
-  char summary[1600];
-  int k = snprintf(summary, sizeof summary, "{\"stages\": {");
-  for (int i = 0; i < 40 && k < (int)sizeof summary - 80; i++)
-    k += snprintf(summary + k, sizeof summary - (size_t)k, "%s\"stage%d_ms\": %d.125", i ? ", " : "",
-                  i, i * 7);
-  snprintf(summary + k, sizeof summary - (size_t)k, "}}");
-  srv_output outs[2] = {{"ao.png", 1234, "", "image/png"}, {"ao.exr", 5678, "", "image/x-exr"}};
+  const char *summary = SUMMARY;
+  srv_output outs[5] = {{"ao.exr", 8108, "", "image/x-exr"},
+                        {"ao.png", 154, "", "image/png"},
+                        {"bent_normal.png", 852, "", "image/png"},
+                        {"depth.png", 144, "", "image/png"},
+                        {"summary.json", 3207, "", "application/json"}};
   double t0 = now_ms();
   for (int64_t i = 0; i < njobs; i++) {
     obs_err e = OBS_ERR_INIT;
@@ -91,10 +118,10 @@ static void build(srv_db *db, int64_t njobs, const char *doc, int64_t machine) {
                         "benchmark history", 0.5, &e))
         die("finishing it", &e);
     } else {
-      for (int o = 0; o < 2; o++) snprintf(outs[o].sha256, sizeof outs[o].sha256, "%064llx",
-                                           (unsigned long long)(id * 2 + o));
+      for (int o = 0; o < 5; o++) snprintf(outs[o].sha256, sizeof outs[o].sha256, "%064llx",
+                                           (unsigned long long)(id * 5 + o));
       srv_run run = {1, 2 + (double)(i % 5), 0.5, 3.5 + (double)(i % 5)};
-      if (srv_db_finish_success(db, id, j.attempts, be, summary, outs, 2, &run, 1, machine, &e))
+      if (srv_db_finish_success(db, id, j.attempts, be, summary, outs, 5, &run, 1, machine, &e))
         die("finishing it", &e);
     }
     srv_job_free(&j);
@@ -245,41 +272,9 @@ static pid_t start_daemon(const char *obscurad, const char *store, const char *d
   exit(1);
 }
 
-int main(int argc, char **argv) {
-  int64_t njobs = 100000;
-  int reps = 200, submits = 200, reuse = 0;
-  const char *store = NULL, *obscurad = "build/obscurad", *scenes = "scenes";
-  for (int i = 1; i < argc; i++) {
-    const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-    if (!strcmp(a, "--jobs") && v) njobs = atoll(argv[++i]);
-    else if (!strcmp(a, "--store") && v) store = argv[++i];
-    else if (!strcmp(a, "--reps") && v) reps = atoi(argv[++i]);
-    else if (!strcmp(a, "--submits") && v) submits = atoi(argv[++i]);
-    else if (!strcmp(a, "--obscurad") && v) obscurad = argv[++i];
-    else if (!strcmp(a, "--scenes") && v) scenes = argv[++i];
-    else if (!strcmp(a, "--reuse")) reuse = 1;
-    else {
-      fprintf(stderr, "usage: bench_history [--jobs N] [--store PATH|postgresql://...] [--reps R] "
-                      "[--submits S] [--obscurad PATH] [--scenes DIR] [--reuse]\n");
-      return 2;
-    }
-  }
-  if (njobs < 1 || reps < 1 || submits < 1) {
-    fprintf(stderr, "bench_history: --jobs, --reps and --submits must be >= 1\n");
-    return 2;
-  }
-  char dir[] = "/tmp/bench_history.XXXXXX";
-  if (!mkdtemp(dir)) die("mkdtemp", NULL);
-  char dbpath[4200];
-  if (!store) {
-    snprintf(dbpath, sizeof dbpath, "%s/history.db", dir);
-    store = dbpath;
-  }
-  char docpath[4200];
-  snprintf(docpath, sizeof docpath, "%s/sphere_on_plane.json", scenes);
-  char *doc = slurp(docpath);
-  if (!doc) die(docpath, NULL);
-
+/* Opens the store, adds jobs until it holds njobs (all of them unless reuse), and says what it
+ * built and how long that took. */
+static void build_store(const char *store, int64_t njobs, int reuse, const char *doc) {
   const obs_backend_ops *cpu = obs_backend_ops_get(OBS_BACKEND_CPU);
   srv_node node;
   srv_node_init(&node, "bench_history", 0);
@@ -301,7 +296,7 @@ int main(int argc, char **argv) {
   if (!reuse && have) {
     fprintf(stderr, "bench_history: the store already holds %lld jobs (use --reuse)\n",
             (long long)have);
-    return 1;
+    exit(1);
   }
   build(db, add, doc, machine);
   double build_s = (now_ms() - t0) / 1e3;
@@ -316,8 +311,48 @@ int main(int argc, char **argv) {
   if (!is_pg && !stat(store, &st))
     printf("  file %s: %.0f MB (%.1f KB a job)\n", store, st.st_size / 1e6,
            st.st_size / 1e3 / (double)(have + add));
-  printf("  CPU: %s (%d threads)\n", cpu->device_name(), obs_cpu_count());
+}
 
+int main(int argc, char **argv) {
+  int64_t njobs = 100000;
+  int reps = 200, submits = 200, reuse = 0, measure_only = 0;
+  const char *store = NULL, *obscurad = "build/obscurad", *scenes = "scenes";
+  for (int i = 1; i < argc; i++) {
+    const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+    if (!strcmp(a, "--jobs") && v) njobs = atoll(argv[++i]);
+    else if (!strcmp(a, "--store") && v) store = argv[++i];
+    else if (!strcmp(a, "--reps") && v) reps = atoi(argv[++i]);
+    else if (!strcmp(a, "--submits") && v) submits = atoi(argv[++i]);
+    else if (!strcmp(a, "--obscurad") && v) obscurad = argv[++i];
+    else if (!strcmp(a, "--scenes") && v) scenes = argv[++i];
+    else if (!strcmp(a, "--reuse")) reuse = 1;
+    else if (!strcmp(a, "--measure-only")) measure_only = reuse = 1;
+    else {
+      fprintf(stderr, "usage: bench_history [--jobs N] [--store PATH|postgresql://...] [--reps R] "
+                      "[--submits S] [--obscurad PATH] [--scenes DIR] [--reuse] [--measure-only]\n");
+      return 2;
+    }
+  }
+  if (njobs < 1 || reps < 1 || submits < 1) {
+    fprintf(stderr, "bench_history: --jobs, --reps and --submits must be >= 1\n");
+    return 2;
+  }
+  char dir[] = "/tmp/bench_history.XXXXXX";
+  if (!mkdtemp(dir)) die("mkdtemp", NULL);
+  char dbpath[4200];
+  if (!store) {
+    snprintf(dbpath, sizeof dbpath, "%s/history.db", dir);
+    store = dbpath;
+  }
+  char docpath[4200];
+  snprintf(docpath, sizeof docpath, "%s/sphere_on_plane.json", scenes);
+  char *doc = slurp(docpath);
+  if (!doc) die(docpath, NULL);
+
+  const obs_backend_ops *cpu = obs_backend_ops_get(OBS_BACKEND_CPU);
+  if (!measure_only) build_store(store, njobs, reuse, doc);
+  else printf("bench_history: timing %s as it is, with %s\n", store, obscurad);
+  printf("  CPU: %s (%d threads)\n", cpu->device_name(), obs_cpu_count());
   int port = 0;
   pid_t pid = start_daemon(obscurad, store, dir, scenes, &port);
   static hconn c;
