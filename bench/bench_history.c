@@ -133,7 +133,7 @@ static void build(srv_db *db, int64_t njobs, const char *doc, int64_t machine) {
 
 /* ---- a minimal HTTP/1.1 client over one keep-alive connection -------------------------------- */
 
-typedef struct conn {
+typedef struct hconn {
   int fd;
   int port;
   char buf[1 << 20];
@@ -370,7 +370,7 @@ int main(int argc, char **argv) {
       {"jobs?backend=vulkan", "/api/v1/jobs?limit=50&backend=vulkan"},
       {"jobs?state=cancelled&technique=ssao&backend=cpu",
        "/api/v1/jobs?limit=50&state=cancelled&technique=ssao&backend=cpu"},
-      {"jobs?technique=ssao&backend=auto (none)",
+      {"jobs?technique=ssao&backend=auto (unclaimed)",
        "/api/v1/jobs?limit=50&technique=ssao&backend=auto"},
   };
   for (size_t i = 0; i < sizeof lists / sizeof lists[0]; i++)

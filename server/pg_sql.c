@@ -51,6 +51,11 @@
 #define RECENT_SUCCEEDED(more)                                                                    \
   "SELECT id, backend, work FROM jobs WHERE technique = $1 AND state = 'succeeded' " more         \
   " ORDER BY id DESC LIMIT 1000"
+/* The timed runs of window job j (at most 20: repeats' range), looked up per job through the
+ * primary key: the LIMIT keeps the planner from joining the whole runs table instead, which it
+ * prefers when few runs match (another host's machine) and which grows with the history. */
+#define JOB_RUNS(more)                                                                            \
+  "SELECT run, total_ms, machine FROM runs WHERE runs.job = j.id " more " LIMIT 20"
 
 static const char *const sql[PGS_LIST] = {
     /* One statement for one job or a comparison's fan-out, and one wake-up for every node. */
@@ -160,8 +165,9 @@ static const char *const sql[PGS_LIST] = {
     [PGS_SET_CLIENT] = "UPDATE jobs SET client = $3 WHERE id = $1::bigint OR "
                        "comparison = $2::bigint",
     [PGS_RUN_RATES] = "SELECT ru.total_ms / j.work FROM (" RECENT_SUCCEEDED("AND backend = $2")
-                      ") j JOIN runs ru ON ru.job = j.id WHERE ru.machine = $3::bigint AND "
-                      "j.work >= $4::float8 AND j.work > 0 ORDER BY ru.job DESC, ru.run LIMIT 1000",
+                      ") j CROSS JOIN LATERAL (" JOB_RUNS("AND runs.machine = $3::bigint") ") ru "
+                      "WHERE j.work >= $4::float8 AND j.work > 0 ORDER BY j.id DESC, ru.run "
+                      "LIMIT 1000",
     /* What this node's previous boot left running ($1 node name, $2 this boot's worker id). */
     [PGS_RECOVER] =
         "WITH x AS MATERIALIZED (SELECT id, attempts, max_attempts, cancel_requested, node FROM "
@@ -270,10 +276,10 @@ static const char *const queries[SRV_NQUERIES] = {
         "ORDER BY cc.comparison, cc.idx",
     /* The newest 5000 runs are plenty for a median and bound the work of one submission. */
     [SRV_Q_AUTO_RUNS] =
-        "SELECT j.backend, ru.total_ms FROM (" RECENT_SUCCEEDED("") ") j "
-        "JOIN runs ru ON ru.job = j.id LEFT JOIN machines m ON m.id = ru.machine "
+        "SELECT j.backend, ru.total_ms FROM (" RECENT_SUCCEEDED("") ") j CROSS JOIN LATERAL ("
+        JOB_RUNS("") ") ru LEFT JOIN machines m ON m.id = ru.machine "
         "WHERE j.work BETWEEN $2::float8 / 2.0 AND $2::float8 * 2.0 AND j.backend IS NOT NULL AND "
-        "(j.backend <> 'vulkan' OR m.vulkan_kind = $3::text) ORDER BY ru.job DESC LIMIT 5000",
+        "(j.backend <> 'vulkan' OR m.vulkan_kind = $3::text) ORDER BY j.id DESC LIMIT 5000",
     [SRV_Q_BUDGET] =
         "SELECT c.id AS comparison, c.scene, cc.idx, cc.job, cc.technique, cc.backend, cc.params, "
         "cc.metrics, cc.role, cc.reference_params, cc.response, rj.technique AS "
