@@ -2,15 +2,17 @@
  * more than keep_days ago, a comparison only whole, with their outputs rows, runs and candidate
  * rows, and returns the deleted ids so that the caller removes their files. One call deletes at
  * most PRUNE_JOBS jobs and PRUNE_COMPARISONS comparisons in one transaction, so the write lock is
- * held briefly; the retention pass (retention.c) calls again until nothing is left. */
+ * held briefly (a batch of 1000 behind a million jobs held it past the 5 s busy timeout of a
+ * worker's claim on a loaded 2-core VM); the retention pass (retention.c) calls again, with a
+ * pause between calls, until nothing is left. */
 #include <math.h>
 #include <sqlite3.h>
 #include <stdlib.h>
 
 #include "db_internal.h"
 
-#define PRUNE_JOBS 1000
-#define PRUNE_COMPARISONS 50
+#define PRUNE_JOBS 100
+#define PRUNE_COMPARISONS 2
 #define STR2(x) #x
 #define STR(x) STR2(x)
 #define FINISHED "('succeeded', 'failed', 'cancelled')"
@@ -32,8 +34,8 @@ static int limits(conn *c, int64_t keep_jobs, double keep_days, int64_t *keep_fr
   }
   if (keep_jobs <= 0) return 0;
   sqlite3_stmt *s;
-  int rc = srv_dbi_prepare(c, "SELECT id, created_ms FROM jobs ORDER BY id DESC LIMIT 1 OFFSET ?1",
-                           &s, err);
+  int rc = srv_dbi_prepare(c, "SELECT id, (SELECT created_ms FROM jobs k WHERE k.id = j.id) FROM "
+                           "jobs j INDEXED BY jobs_ids ORDER BY id DESC LIMIT 1 OFFSET ?1", &s, err);
   if (rc) return rc;
   sqlite3_bind_int64(s, 1, keep_jobs - 1);
   int step = sqlite3_step(s);

@@ -29,9 +29,31 @@ static void remove_files(const srv_app *app, int64_t id) {
     srv_log("retention: job %lld: cannot remove %s: %s", (long long)id, path, strerror(errno));
 }
 
+/* Between two batches of one pass: the lock is free this long for the requests and workers
+ * waiting on it (SQLite's busy handler polls; back-to-back transactions could starve a claim). */
+#define BATCH_PAUSE_MS 100
+
+/* Waits ms or until stopped; returns 1 when stopping. */
+static int pause_ms(long ms) {
+  struct timespec until;
+  clock_gettime(CLOCK_REALTIME, &until);
+  until.tv_sec += ms / 1000;
+  until.tv_nsec += (ms % 1000) * 1000000L;
+  if (until.tv_nsec >= 1000000000L) {
+    until.tv_sec++;
+    until.tv_nsec -= 1000000000L;
+  }
+  pthread_mutex_lock(&mu);
+  while (!stopping && pthread_cond_timedwait(&cv, &mu, &until) != ETIMEDOUT) {
+  }
+  int stop = stopping;
+  pthread_mutex_unlock(&mu);
+  return stop;
+}
+
 int srv_retention_pass(srv_app *app, obs_err *err) {
   int total = 0;
-  for (;;) {
+  for (int batch = 0; !batch || !pause_ms(BATCH_PAUSE_MS); batch++) {
     int64_t *ids = NULL;
     int n = 0;
     int rc = srv_db_prune(app->db, app->cfg.keep_jobs, app->cfg.keep_days, &ids, &n, err);
@@ -39,18 +61,14 @@ int srv_retention_pass(srv_app *app, obs_err *err) {
     for (int i = 0; i < n; i++) remove_files(app, ids[i]);
     free(ids);
     total += n;
-    pthread_mutex_lock(&mu);
-    int stop = stopping;
-    pthread_mutex_unlock(&mu);
-    if (!n || stop) return total;
+    if (!n) break;
   }
+  return total;
 }
 
 static void *loop(void *arg) {
   srv_app *app = arg;
-  pthread_mutex_lock(&mu);
-  while (!stopping) {
-    pthread_mutex_unlock(&mu);
+  do {
     obs_err err = OBS_ERR_INIT;
     int n = srv_retention_pass(app, &err);
     if (n < 0) srv_log("retention: %s (trying again in %d s)", obs_err_message(&err), PERIOD_S);
@@ -58,14 +76,7 @@ static void *loop(void *arg) {
       srv_log("retention: removed %d finished job(s) past keep-jobs = %lld, keep-days = %g", n,
               (long long)app->cfg.keep_jobs, app->cfg.keep_days);
     obs_err_free(&err);
-    struct timespec until;
-    clock_gettime(CLOCK_REALTIME, &until);
-    until.tv_sec += PERIOD_S;
-    pthread_mutex_lock(&mu);
-    while (!stopping && pthread_cond_timedwait(&cv, &mu, &until) != ETIMEDOUT) {
-    }
-  }
-  pthread_mutex_unlock(&mu);
+  } while (!pause_ms(PERIOD_S * 1000L));
   return NULL;
 }
 
