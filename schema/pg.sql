@@ -181,3 +181,17 @@ CREATE TRIGGER jobs_count_delete AFTER DELETE ON jobs REFERENCING OLD TABLE AS o
   FOR EACH STATEMENT EXECUTE FUNCTION job_counts_add();
 CREATE TRIGGER jobs_count_update AFTER UPDATE ON jobs REFERENCING OLD TABLE AS old_rows
   NEW TABLE AS new_rows FOR EACH STATEMENT EXECUTE FUNCTION job_counts_add();
+
+-- migration 2
+-- A history of a million jobs must not slow what every request does (docs/performance.md, "Store
+-- history"). A page of the job list under any combination of filters walks one index in id order
+-- and stops after the page; the single filters have theirs in migration 1.
+CREATE INDEX jobs_list_st ON jobs (state, technique, id);
+CREATE INDEX jobs_list_sb ON jobs (state, (coalesce(backend, backend_requested)), id);
+CREATE INDEX jobs_list_tb ON jobs (technique, (coalesce(backend, backend_requested)), id);
+CREATE INDEX jobs_list_stb ON jobs (state, technique, (coalesce(backend, backend_requested)), id);
+-- Learned "auto" and the render-time estimate read the newest succeeded jobs of a technique (a
+-- bounded window, newest first), from this index alone.
+CREATE INDEX jobs_succeeded ON jobs (technique, id) INCLUDE (backend, work) WHERE state = 'succeeded';
+-- Retention looks at the comparisons created before its limits only.
+CREATE INDEX comparisons_created ON comparisons (created_ms);

@@ -72,6 +72,12 @@ static const opt opts[] = {
      "... or after this many finished jobs (default 64)"},
     {"db-check-seconds", OPT_INT, OFF(db_check_seconds), 1, 86400,
      "PRAGMA quick_check period of the database (default 60)"},
+    {"keep-jobs", OPT_I64, OFF(keep_jobs), 0, 1e15,
+     "retention: finished jobs beyond the newest N are deleted with their outputs, a comparison "
+     "only whole (default 0 = keep all)"},
+    {"keep-days", OPT_REAL, OFF(keep_days), 0, 36500,
+     "retention: finished jobs older than this many days are deleted likewise (default 0 = "
+     "keep all)"},
     {"quiet", OPT_BOOL, OFF(quiet), 0, 1, "no per-request log lines (default false)"},
     {"header-timeout", OPT_INT, OFF(header_timeout), 1, 3600,
      "seconds a connection has, in all, to send a request's headers (default 10)"},

@@ -35,10 +35,17 @@ static const char *const sql[ST_COUNT] = {
     [ST_GET] = "SELECT " JOB_COLS " FROM jobs WHERE id = ?",
     [ST_OUTPUTS] = "SELECT name, size, sha256, content_type FROM outputs WHERE job_id = ? "
                    "ORDER BY name",
-    [ST_LIST_DESC] = "SELECT " JOB_COLS " FROM jobs WHERE " LIST_WHERE
-                     "AND (?4 = 0 OR id < ?4) ORDER BY id DESC LIMIT ?5",
-    [ST_LIST_ASC] = "SELECT " JOB_COLS " FROM jobs WHERE " LIST_WHERE
-                    "AND id > ?4 ORDER BY id ASC LIMIT ?5",
+/* The list, one statement per filter combination (bit 1 state, 2 technique, 4 backend, 8
+ * ascending) so that each plan walks the index of its filters (migration 12) in id order and
+ * stops after the page, whatever the history holds. */
+#define LW_S "state = ?1 AND "
+#define LW_T "technique = ?2 AND "
+#define LW_B "coalesce(backend, backend_requested) = ?3 AND "
+#define LIST_D(w) "SELECT " JOB_COLS " FROM jobs WHERE " w "id < ?4 ORDER BY id DESC LIMIT ?5"
+#define LIST_A(w) "SELECT " JOB_COLS " FROM jobs WHERE " w "id > ?4 ORDER BY id ASC LIMIT ?5"
+#define LIST_VARIANTS(L)                                                                          \
+  L(""), L(LW_S), L(LW_T), L(LW_S LW_T), L(LW_B), L(LW_S LW_B), L(LW_T LW_B), L(LW_S LW_T LW_B)
+    [ST_LIST] = LIST_VARIANTS(LIST_D), LIST_VARIANTS(LIST_A),
     /* One statement, so one transaction: two workers can never claim the same job. */
     [ST_CLAIM] = "UPDATE jobs SET state = 'running', attempts = attempts + 1, started_ms = ?2, "
                  "finished_ms = NULL, progress = 0, backend = NULL, worker = ?3, node = ?4, "
@@ -70,7 +77,8 @@ static const char *const sql[ST_COUNT] = {
                   "AND NOT EXISTS (SELECT 1 FROM comparison_candidates WHERE job = ?1 OR "
                   "reference_job = ?1)",
     [ST_GET_OUTPUT] = "SELECT size, sha256, content_type FROM outputs WHERE job_id = ? AND name = ?",
-    [ST_COUNTS] = "SELECT state, count(*) FROM jobs GROUP BY state",
+    /* Kept by triggers (migration 12): five rows, however long the history. */
+    [ST_COUNTS] = "SELECT state, n FROM job_counts",
     [ST_RUNNING_LIST] = "SELECT id, attempts, cancel_requested, error FROM jobs "
                         "WHERE state = 'running'",
     [ST_QUEUED_LIST] = "SELECT id, technique, backend_requested, lane FROM jobs "
@@ -174,10 +182,9 @@ static const char *const sql[ST_COUNT] = {
         "(?1 = 0 OR cc.job = ?1 OR cc.reference_job = ?1) ORDER BY cc.comparison, cc.idx",
     /* The newest 5000 runs are plenty for a median and bound the work of one submission. */
     [ST_QUERY + SRV_Q_AUTO_RUNS] =
-        "SELECT j.backend, ru.total_ms FROM runs ru JOIN jobs j ON j.id = ru.job "
-        "LEFT JOIN machines m ON m.id = ru.machine "
-        "WHERE j.technique = ?1 AND j.work BETWEEN ?2 / 2.0 AND ?2 * 2.0 AND "
-        "j.backend IS NOT NULL AND j.state = 'succeeded' AND "
+        "SELECT j.backend, ru.total_ms FROM (" RECENT_SUCCEEDED("") ") j "
+        "JOIN runs ru ON ru.job = j.id LEFT JOIN machines m ON m.id = ru.machine "
+        "WHERE j.work BETWEEN ?2 / 2.0 AND ?2 * 2.0 AND j.backend IS NOT NULL AND "
         "(j.backend <> 'vulkan' OR m.vulkan_kind = ?3) ORDER BY ru.job DESC LIMIT 5000",
     [ST_QUERY + SRV_Q_BUDGET] =
         "SELECT c.id AS comparison, c.scene, cc.idx, cc.job, cc.technique, cc.backend, cc.params, "

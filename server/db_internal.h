@@ -21,8 +21,8 @@ enum {
   ST_INSERT,
   ST_GET,
   ST_OUTPUTS,
-  ST_LIST_DESC,
-  ST_LIST_ASC,
+  ST_LIST, /* 16 list statements: ST_LIST + the filter combination (db.c) */
+  ST_LIST_LAST = ST_LIST + 15,
   ST_CLAIM,
   ST_SET_BACKEND,
   ST_SUCCESS,
@@ -69,9 +69,15 @@ enum {
   "WHERE job = jobs.id OR reference_job = jobs.id LIMIT 1), scene_name, notes, ranks, node"
 /* How many columns JOB_COLS selects: a statement's further columns start there. */
 #define JOB_NCOLS 28
-#define LIST_WHERE                                                                                \
-  "(?1 IS NULL OR state = ?1) AND (?2 IS NULL OR technique = ?2) AND "                           \
-  "(?3 IS NULL OR coalesce(backend, backend_requested) = ?3) "
+
+/* The newest succeeded jobs of technique ?1 (and `more`, a further condition), at most
+ * SRV_RECENT_JOBS of them, read from a covering index (migration 12): what learned "auto" and the
+ * render-time estimate draw their timed runs from. A window rather than the whole history keeps a
+ * submission's cost flat as the history grows, and recent runs are the ones that predict. */
+#define SRV_RECENT_JOBS "1000"
+#define RECENT_SUCCEEDED(more)                                                                    \
+  "SELECT id, backend, work FROM jobs INDEXED BY jobs_succeeded WHERE technique = ?1 AND "        \
+  "state = 'succeeded' " more " ORDER BY id DESC LIMIT " SRV_RECENT_JOBS
 
 typedef struct conn {
   sqlite3 *db;
@@ -133,5 +139,12 @@ int srv_dbi_insert_job(conn *c, const srv_new_job *nj, int64_t extra, int64_t *i
 /* Inserts or replaces output rows of job `id` (statement `which`: ST_OUT_INSERT or UPSERT). */
 int srv_dbi_put_outputs(conn *c, int which, int64_t id, const srv_output *outs, int nouts,
                         obs_err *err);
+
+/* Deletes comparison `id`, its candidate rows and all its jobs (with their outputs and runs) in
+ * the caller's transaction, appending the jobs' ids to *ids (realloc'd). */
+int srv_dbi_drop_comparison(conn *c, int64_t id, int64_t **ids, int *nids, obs_err *err);
+/* A statement prepared for one call (released with sqlite3_finalize): the queries that run once
+ * per submission or per retention pass rather than with every request. */
+int srv_dbi_prepare(conn *c, const char *q, sqlite3_stmt **s, obs_err *err);
 
 #endif

@@ -153,13 +153,15 @@ int srv_sq_list_jobs(srv_sq *db, const srv_job_filter *f, srv_job **jobs, int *n
   srv_job *out = calloc((size_t)f->limit + 1, sizeof *out);
   if (!out) return obs_err_set(err, OBS_ENOMEM, "out of memory");
   conn *c = srv_dbi_acquire(db);
-  sqlite3_stmt *s = srv_dbi_stmt(c, f->ascending ? ST_LIST_ASC : ST_LIST_DESC, err);
+  int variant = (f->has_state ? 1 : 0) | (f->technique ? 2 : 0) | (f->backend ? 4 : 0) |
+                (f->ascending ? 8 : 0);
+  sqlite3_stmt *s = srv_dbi_stmt(c, ST_LIST + variant, err);
   int rc = OBS_EIO, count = 0;
   if (s) {
     srv_dbi_bind_text(s, 1, f->has_state ? srv_state_name(f->state) : NULL);
     srv_dbi_bind_text(s, 2, f->technique);
     srv_dbi_bind_text(s, 3, f->backend);
-    sqlite3_bind_int64(s, 4, f->after);
+    sqlite3_bind_int64(s, 4, f->after || f->ascending ? f->after : INT64_MAX);
     sqlite3_bind_int(s, 5, f->limit + 1);
     int step;
     while ((step = sqlite3_step(s)) == SQLITE_ROW && count <= f->limit) read_job(s, &out[count++]);
@@ -486,6 +488,29 @@ static int comparison_job_ids(conn *c, int64_t id, int64_t **ids, int *nids, obs
   return rc;
 }
 
+int srv_dbi_drop_comparison(conn *c, int64_t id, int64_t **ids, int *nids, obs_err *err) {
+  int first = *nids;
+  int rc = comparison_job_ids(c, id, ids, nids, err);
+  if (!rc) {
+    /* The candidates go first (cascade): they are what keeps the jobs from being deleted. */
+    sqlite3_stmt *s = srv_dbi_stmt(c, ST_CMP_DELETE, err);
+    if (!s) rc = OBS_EIO;
+    else {
+      sqlite3_bind_int64(s, 1, id);
+      rc = srv_dbi_exec_done(c, s, err, "deleting the comparison");
+    }
+  }
+  for (int i = first; !rc && i < *nids; i++) {
+    sqlite3_stmt *s = srv_dbi_stmt(c, ST_JOB_DELETE_ANY, err);
+    if (!s) rc = OBS_EIO;
+    else {
+      sqlite3_bind_int64(s, 1, (*ids)[i]);
+      rc = srv_dbi_exec_done(c, s, err, "deleting a job of the comparison");
+    }
+  }
+  return rc;
+}
+
 int srv_sq_delete_comparison(srv_sq *db, int64_t id, int64_t **ids, int *nids, obs_err *err) {
   *ids = NULL;
   *nids = 0;
@@ -503,24 +528,7 @@ int srv_sq_delete_comparison(srv_sq *db, int64_t id, int64_t **ids, int *nids, o
       srv_dbi_done(s);
     }
   }
-  if (!rc) rc = comparison_job_ids(c, id, ids, nids, err);
-  if (!rc) {
-    /* The candidates go first (cascade): they are what keeps the jobs from being deleted. */
-    sqlite3_stmt *s = srv_dbi_stmt(c, ST_CMP_DELETE, err);
-    if (!s) rc = OBS_EIO;
-    else {
-      sqlite3_bind_int64(s, 1, id);
-      rc = srv_dbi_exec_done(c, s, err, "deleting the comparison");
-    }
-  }
-  for (int i = 0; !rc && i < *nids; i++) {
-    sqlite3_stmt *s = srv_dbi_stmt(c, ST_JOB_DELETE_ANY, err);
-    if (!s) rc = OBS_EIO;
-    else {
-      sqlite3_bind_int64(s, 1, (*ids)[i]);
-      rc = srv_dbi_exec_done(c, s, err, "deleting a job of the comparison");
-    }
-  }
+  if (!rc) rc = srv_dbi_drop_comparison(c, id, ids, nids, err);
   if (!rc) rc = srv_dbi_commit(c, err);
   if (rc) {
     srv_dbi_rollback(c);

@@ -13,7 +13,7 @@
 #include "db_internal.h"
 
 
-static int prepare(conn *c, const char *q, sqlite3_stmt **s, obs_err *err) {
+int srv_dbi_prepare(conn *c, const char *q, sqlite3_stmt **s, obs_err *err) {
   if (sqlite3_prepare_v2(c->db, q, -1, s, NULL) != SQLITE_OK) {
     *s = NULL;
     return srv_dbi_fail(c, err, "preparing a query");
@@ -28,7 +28,7 @@ int srv_sq_queued(srv_sq *db, const char *client, srv_load *mine, srv_load *tota
   conn *c = srv_dbi_acquire(db);
   sqlite3_stmt *s;
   /* Work times renders, renderer processes (a job on N ranks starts N), stored bytes. */
-  int rc = prepare(c,
+  int rc = srv_dbi_prepare(c,
                    "SELECT coalesce(sum(coalesce(work, 0) * (repeats + warmup)), 0), "
                    "coalesce(sum(ranks), 0), coalesce(sum(stored_bytes), 0), "
                    "coalesce(sum(CASE WHEN client = ?1 THEN coalesce(work, 0) * (repeats + warmup) "
@@ -58,7 +58,7 @@ int srv_sq_job_load(srv_sq *db, int64_t id, srv_load *load, srv_state *state, ob
   memset(load, 0, sizeof *load);
   conn *c = srv_dbi_acquire(db);
   sqlite3_stmt *s;
-  int rc = prepare(c,
+  int rc = srv_dbi_prepare(c,
                    "SELECT coalesce(work, 0) * (repeats + warmup), ranks, stored_bytes, state "
                    "FROM jobs WHERE id = ?1",
                    &s, err);
@@ -85,7 +85,7 @@ int srv_sq_set_job_client(srv_sq *db, int64_t job, int64_t comparison, const cha
                           obs_err *err) {
   conn *c = srv_dbi_acquire(db);
   sqlite3_stmt *s;
-  int rc = prepare(c,
+  int rc = srv_dbi_prepare(c,
                    "UPDATE jobs SET client = ?3 WHERE id = ?1 OR id IN (SELECT job FROM "
                    "comparison_candidates WHERE comparison = ?2 UNION SELECT reference_job FROM "
                    "comparison_candidates WHERE comparison = ?2)",
@@ -110,11 +110,10 @@ int srv_sq_run_rates(srv_sq *db, const char *technique, const char *backend, int
   if (!v) return obs_err_set(err, OBS_ENOMEM, "out of memory");
   conn *c = srv_dbi_acquire(db);
   sqlite3_stmt *s;
-  int rc = prepare(c,
-                   "SELECT ru.total_ms / j.work FROM runs ru JOIN jobs j ON j.id = ru.job "
-                   "WHERE j.technique = ?1 AND j.backend = ?2 AND ru.machine = ?3 AND "
-                   "j.work >= ?4 AND j.work > 0 AND j.state = 'succeeded' "
-                   "ORDER BY ru.job DESC, ru.run LIMIT 1000",
+  int rc = srv_dbi_prepare(c,
+                   "SELECT ru.total_ms / j.work FROM (" RECENT_SUCCEEDED("AND backend = ?2")
+                   ") j JOIN runs ru ON ru.job = j.id WHERE ru.machine = ?3 AND j.work >= ?4 AND "
+                   "j.work > 0 ORDER BY ru.job DESC, ru.run LIMIT 1000",
                    &s, err);
   if (!rc) {
     srv_dbi_bind_text(s, 1, technique);

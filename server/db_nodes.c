@@ -64,11 +64,3 @@ int srv_sq_get_blob(srv_sq *db, const char *sha256, void **data, size_t *n, obs_
   return obs_err_set(err, OBS_ENOTFOUND, "output %s: a SQLite store keeps outputs as local files",
                      sha256);
 }
-
-int srv_sq_prune(srv_sq *db, int64_t keep_jobs, double keep_days, int64_t **ids, int *nids,
-                 obs_err *err) {
-  (void)db, (void)keep_jobs, (void)keep_days;
-  *ids = NULL;
-  *nids = 0;
-  return obs_err_set(err, OBS_EUNSUPPORTED, "retention is not built yet");
-}

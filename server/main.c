@@ -230,6 +230,7 @@ int main(int argc, char **argv) {
   if (srv_sched_start(&app, &err)) goto out;
   if (srv_lease_start(&app, &err)) goto out;
   if (srv_http_start(&app, &err)) goto out;
+  if (srv_retention_start(&app, &err)) goto out;
 
   const char *host = app.cfg.listen;
   int v6 = strchr(host, ':') != NULL;
@@ -252,6 +253,7 @@ int main(int argc, char **argv) {
 
 out:
   if (err.count) fprintf(stderr, "obscurad: %s\n", obs_err_message(&err));
+  srv_retention_stop(&app);
   srv_http_stop(&app);
   srv_lease_stop(&app);
   srv_sched_stop(&app);

@@ -52,6 +52,8 @@ typedef struct srv_config {
   int checkpoint_jobs;    /* ... or after this many finished jobs */
   int db_check_seconds;   /* PRAGMA quick_check period */
   int quiet;              /* no per-request log lines (job lines stay) */
+  int64_t keep_jobs;      /* retention (retention.c): newest finished jobs kept, 0 = all */
+  double keep_days;       /* ... and days a finished job is kept, 0 = forever */
   /* Connection hardening (guard.c). */
   int header_timeout;          /* seconds to send a request's headers, in all; default 10 */
   int max_connections;         /* connections held at once; default 1000 */
@@ -87,6 +89,16 @@ void srv_config_free(srv_config *cfg);
 int srv_store_is_url(const char *where);
 /* `where` into buf with a URL's password shown as ***, for logs and messages; returns buf. */
 const char *srv_url_redacted(const char *where, char *buf, size_t n);
+
+/* Retention (retention.c): a thread that prunes the store at start and every minute under
+ * --keep-jobs / --keep-days and removes the pruned jobs' results. Start does nothing when both
+ * are 0; stop joins the thread. */
+struct srv_app;
+int srv_retention_start(struct srv_app *app, obs_err *err);
+void srv_retention_stop(struct srv_app *app);
+/* One retention pass: prunes until nothing is left past the limits; returns the jobs removed or
+ * <0. */
+int srv_retention_pass(struct srv_app *app, obs_err *err);
 
 /* ---- logging and small helpers (util.c) ------------------------------------------------------ */
 

@@ -44,6 +44,18 @@
   "OFFSET $1::bigint - 1 LIMIT 1) END AS keep_from, CASE WHEN $2::float8 > 0 THEN " NOW_MS        \
   " - ($2::float8 * 86400000)::bigint END AS cutoff) "
 #define PAST "(j.id < lim.keep_from OR j.finished_ms < lim.cutoff)"
+/* The newest succeeded jobs of technique $1 (and `more`), at most 1000, from the covering index
+ * jobs_succeeded (migration 2): what learned "auto" and the render-time estimate draw their runs
+ * from. A window, so a submission's cost stays flat as the history grows (the SQLite store's
+ * RECENT_SUCCEEDED reads the same window). */
+#define RECENT_SUCCEEDED(more)                                                                    \
+  "SELECT id, backend, work FROM jobs WHERE technique = $1 AND state = 'succeeded' " more         \
+  " ORDER BY id DESC LIMIT 1000"
+/* The timed runs of window job j (at most 20: repeats' range), looked up per job through the
+ * primary key: the LIMIT keeps the planner from joining the whole runs table instead, which it
+ * prefers when few runs match (another host's machine) and which grows with the history. */
+#define JOB_RUNS(more)                                                                            \
+  "SELECT run, total_ms, machine FROM runs WHERE runs.job = j.id " more " LIMIT 20"
 
 static const char *const sql[PGS_LIST] = {
     /* One statement for one job or a comparison's fan-out, and one wake-up for every node. */
@@ -152,10 +164,10 @@ static const char *const sql[PGS_LIST] = {
                      "FROM jobs WHERE id = $1::bigint",
     [PGS_SET_CLIENT] = "UPDATE jobs SET client = $3 WHERE id = $1::bigint OR "
                        "comparison = $2::bigint",
-    [PGS_RUN_RATES] = "SELECT ru.total_ms / j.work FROM runs ru JOIN jobs j ON j.id = ru.job "
-                      "WHERE j.technique = $1 AND j.backend = $2 AND ru.machine = $3::bigint AND "
-                      "j.work >= $4::float8 AND j.work > 0 AND j.state = 'succeeded' "
-                      "ORDER BY ru.job DESC, ru.run LIMIT 1000",
+    [PGS_RUN_RATES] = "SELECT ru.total_ms / j.work FROM (" RECENT_SUCCEEDED("AND backend = $2")
+                      ") j CROSS JOIN LATERAL (" JOB_RUNS("AND runs.machine = $3::bigint") ") ru "
+                      "WHERE j.work >= $4::float8 AND j.work > 0 ORDER BY j.id DESC, ru.run "
+                      "LIMIT 1000",
     /* What this node's previous boot left running ($1 node name, $2 this boot's worker id). */
     [PGS_RECOVER] =
         "WITH x AS MATERIALIZED (SELECT id, attempts, max_attempts, cancel_requested, node FROM "
@@ -206,13 +218,21 @@ static const char *const sql[PGS_LIST] = {
     [PGS_BLOB_PUT] = "INSERT INTO blobs (sha256, data) VALUES ($1, $2) ON CONFLICT (sha256) DO "
                      "UPDATE SET put_at = now()",
     [PGS_BLOB_GET] = "SELECT data FROM blobs WHERE sha256 = $1",
-    [PGS_PRUNE_JOBS] = PRUNE_LIMITS "DELETE FROM jobs WHERE id IN (SELECT j.id FROM jobs j, lim "
-                       "WHERE j.state IN " FINISHED " AND j.comparison IS NULL AND " PAST
-                       " ORDER BY j.id LIMIT $3::int) RETURNING id",
+    /* Two walks, each stopping after a batch: the oldest ids below keep_from (the primary key)
+     * and the earliest finished before the cutoff (jobs_finished), so that neither a first pass
+     * over a long history nor a pass with nothing to do sorts the history. */
+    [PGS_PRUNE_JOBS] = PRUNE_LIMITS "DELETE FROM jobs WHERE id IN (SELECT id FROM ((SELECT j.id FROM "
+                       "jobs j, lim WHERE j.id < lim.keep_from AND j.state IN " FINISHED " AND "
+                       "j.comparison IS NULL ORDER BY j.id LIMIT $3::int) UNION (SELECT j.id FROM "
+                       "jobs j, lim WHERE j.finished_ms < lim.cutoff AND j.state IN " FINISHED
+                       " AND j.comparison IS NULL ORDER BY j.finished_ms LIMIT $3::int)) x ORDER "
+                       "BY id LIMIT $3::int) RETURNING id",
     /* A comparison goes whole once every job of it is finished and past the limits, and no
      * candidate waits for its metrics. */
     [PGS_PRUNE_CMPS] =
-        PRUNE_LIMITS "SELECT j.comparison FROM jobs j, lim WHERE j.comparison IS NOT NULL "
+        PRUNE_LIMITS "SELECT j.comparison FROM jobs j, lim WHERE j.comparison IN (SELECT c.id FROM "
+        "comparisons c WHERE c.created_ms <= greatest(lim.cutoff, (SELECT created_ms FROM jobs "
+        "WHERE id = lim.keep_from))) "
         "GROUP BY j.comparison HAVING bool_and(j.state IN " FINISHED " AND coalesce(" PAST
         ", false)) AND NOT EXISTS (SELECT 1 FROM comparison_candidates cc JOIN jobs a ON "
         "a.id = cc.job JOIN jobs r ON r.id = cc.reference_job WHERE cc.comparison = j.comparison "
@@ -257,11 +277,10 @@ static const char *const queries[SRV_NQUERIES] = {
         "ORDER BY cc.comparison, cc.idx",
     /* The newest 5000 runs are plenty for a median and bound the work of one submission. */
     [SRV_Q_AUTO_RUNS] =
-        "SELECT j.backend, ru.total_ms FROM runs ru JOIN jobs j ON j.id = ru.job "
-        "LEFT JOIN machines m ON m.id = ru.machine "
-        "WHERE j.technique = $1 AND j.work BETWEEN $2::float8 / 2.0 AND $2::float8 * 2.0 AND "
-        "j.backend IS NOT NULL AND j.state = 'succeeded' AND "
-        "(j.backend <> 'vulkan' OR m.vulkan_kind = $3::text) ORDER BY ru.job DESC LIMIT 5000",
+        "SELECT j.backend, ru.total_ms FROM (" RECENT_SUCCEEDED("") ") j CROSS JOIN LATERAL ("
+        JOB_RUNS("") ") ru LEFT JOIN machines m ON m.id = ru.machine "
+        "WHERE j.work BETWEEN $2::float8 / 2.0 AND $2::float8 * 2.0 AND j.backend IS NOT NULL AND "
+        "(j.backend <> 'vulkan' OR m.vulkan_kind = $3::text) ORDER BY j.id DESC LIMIT 5000",
     [SRV_Q_BUDGET] =
         "SELECT c.id AS comparison, c.scene, cc.idx, cc.job, cc.technique, cc.backend, cc.params, "
         "cc.metrics, cc.role, cc.reference_params, cc.response, rj.technique AS "

@@ -14,8 +14,10 @@
 
 typedef struct jobs_opts {
   const char *server, *state, *technique, *backend;
+  const char *after; /* the job id to list below (a previous listing's "next"), NULL = newest */
   long limit;
   int json;
+  int all; /* every page, whatever --limit says */
 } jobs_opts;
 
 static int parse_jobs(int argc, char **argv, jobs_opts *o) {
@@ -24,7 +26,7 @@ static int parse_jobs(int argc, char **argv, jobs_opts *o) {
   for (int i = 2; i < argc; i++) {
     const char *a = argv[i];
     if (!strcmp(a, "--server") || !strcmp(a, "--state") || !strcmp(a, "--technique") ||
-        !strcmp(a, "--backend") || !strcmp(a, "--limit")) {
+        !strcmp(a, "--backend") || !strcmp(a, "--limit") || !strcmp(a, "--after")) {
       const char *val = cli_option_value(argc, argv, &i);
       if (!val) return -1;
       if (!strcmp(a, "--server"))
@@ -35,7 +37,15 @@ static int parse_jobs(int argc, char **argv, jobs_opts *o) {
         o->technique = val;
       else if (!strcmp(a, "--backend"))
         o->backend = val;
-      else {
+      else if (!strcmp(a, "--after")) {
+        char *end;
+        long long id = strtoll(val, &end, 10);
+        if (!*val || *end || id < 1 || val[0] == '0' || val[0] == '+') {
+          fprintf(stderr, "obscura: --after must be a job id (a listing's \"next\"; got %s)\n", val);
+          return -1;
+        }
+        o->after = val;
+      } else {
         char *end;
         long n = strtol(val, &end, 10);
         if (!*val || *end || n < 1 || n > 1000000) {
@@ -46,6 +56,8 @@ static int parse_jobs(int argc, char **argv, jobs_opts *o) {
       }
     } else if (!strcmp(a, "--json")) {
       o->json = 1;
+    } else if (!strcmp(a, "--all")) {
+      o->all = 1;
     } else if (a[0] == '-') {
       fprintf(stderr, "obscura: unknown option %s\n", a);
       return -1;
@@ -152,8 +164,9 @@ int cli_jobs(int argc, char **argv) {
   cli_client c;
   int rc = cli_client_open(&c, o.server);
   json_t *all = json_array();
-  json_t *next = json_null();
-  long remaining = o.limit;
+  /* Keyset pages: each starts below the last id of the one before (the server's "next"). */
+  json_t *next = o.after ? json_string(o.after) : json_null();
+  long remaining = o.all ? LONG_MAX : o.limit;
   while (!rc && remaining > 0) {
     char q[2048];
     snprintf(q, sizeof q, "/api/v1/jobs?limit=%ld", remaining < JOBS_PAGE ? remaining : JOBS_PAGE);
@@ -195,6 +208,10 @@ int cli_jobs(int argc, char **argv) {
       json_decref(out);
     } else {
       print_table(all);
+      /* Where the next page starts, so a long history can be read page by page. */
+      if (json_is_string(next))
+        fprintf(stderr, "obscura: older jobs follow: obscura jobs --after %s\n",
+                json_string_value(next));
     }
   }
   json_decref(next);

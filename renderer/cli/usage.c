@@ -48,8 +48,9 @@ static const usage usages[] = {
      "accurate configuration whose median time fits MS, and the CLI prints the pick.\n"},
     {"jobs",
      "  obscura jobs [--server URL] [--state S] [--technique T] [--backend B] [--limit N]\n"
-     "                 [--json]\n",
-     "Lists the newest jobs (default 50) with their scene and render time.\n"},
+     "                 [--after ID] [--all] [--json]\n",
+     "Lists the newest jobs (default 50) with their scene and render time. --after ID starts\n"
+     "below job ID (the \"next\" a listing ends with); --all follows every page to the oldest.\n"},
     {"job", "  obscura job ID [--server URL] [--json]\n",
      "One job: its state, technique, scene, image, timings, the mean of its primary output,\n"
      "warnings, error and outputs; --json prints it as the API gives it.\n"},

@@ -42,9 +42,6 @@ function pageState(query) {
   return {
     filters: Object.fromEntries(FILTERS.map((k) => [k, query.get(k) || ''])),
     after: /^\d+$/.test(query.get('after') || '') ? query.get('after') : '',
-    // Cursors of the pages before this one, for "Newer" (a page opened from a URL has none: Newer
-    // then goes to the newest page).
-    back: [],
     nextCursor: null,
     selected: new Set(),
     shown: [],
@@ -59,9 +56,8 @@ function pageState(query) {
 
 const remember = (s) => history.replaceState(null, '', listUrl(s.filters, s.after));
 
-// Moves to the page after `cursor` ('' = the newest); `reset` forgets the pages before.
-function go(s, cursor, reset) {
-  if (reset) s.back.length = 0;
+// Moves to the page after `cursor` ('' = the newest).
+function go(s, cursor) {
   s.after = cursor;
   s.selected.clear();
   remember(s);
@@ -72,7 +68,7 @@ function go(s, cursor, reset) {
 function filterForm(s) {
   const onFilter = (k, sel) => () => {
     s.filters[k] = sel.value;
-    go(s, '', true);
+    go(s, '');
   };
   const state = el('select', {id: 'filter-state'}, el('option', {value: ''}, 'any'),
     ...['queued', 'running', 'succeeded', 'failed', 'cancelled'].map((v) => el('option', {value: v}, v)));
@@ -96,13 +92,27 @@ function filterForm(s) {
     el('label', {for: 'filter-backend'}, 'Backend'), backend);
 }
 
+// The page before this one (newer jobs), by the keyset read upwards: the PAGE jobs just above the
+// first one shown, under the same filters. Its cursor is one past the highest of them, or the
+// newest page when nothing is above them; so any page, one opened from a URL too, has a way back.
+async function newer(s) {
+  const top = s.shown.length ? s.shown[0].id : Number(s.after) - 1;
+  const q = new URLSearchParams({limit: String(PAGE), order: 'asc', after: String(top)});
+  for (const k of FILTERS) if (s.filters[k]) q.set(k, s.filters[k]);
+  try {
+    const up = await api(`/api/v1/jobs?${q}`);
+    go(s, up.next === null || !up.jobs.length ? '' : String(up.jobs[up.jobs.length - 1].id + 1));
+  } catch (e) {
+    s.ui.status.textContent = e.message;
+  }
+}
+
 /** The pager and the bulk bar, with the header's select-all box; their elements go to s.ui. */
 function listTools(s) {
   const u = s.ui;
-  u.newest = el('button', {type: 'button', className: 'small', onclick: () => go(s, '', true)}, '« Newest');
-  u.newer = el('button', {type: 'button', className: 'small', onclick: () => go(s, s.back.pop() || '', false)}, '‹ Newer');
-  u.older = el('button', {type: 'button', className: 'small',
-    onclick: () => { s.back.push(s.after); go(s, s.nextCursor, false); }}, 'Older ›');
+  u.newest = el('button', {type: 'button', className: 'small', onclick: () => go(s, '')}, '« Newest');
+  u.newer = el('button', {type: 'button', className: 'small', onclick: () => newer(s)}, '‹ Newer');
+  u.older = el('button', {type: 'button', className: 'small', onclick: () => go(s, s.nextCursor)}, 'Older ›');
   u.bulkCancel = el('button', {type: 'button', className: 'small', onclick: () => bulk(s, 'cancel')}, 'Cancel selected');
   u.bulkDelete = el('button', {type: 'button', className: 'small', onclick: () => bulk(s, 'delete')}, 'Delete selected');
   u.selectAll = el('input', {type: 'checkbox', 'aria-label': 'Select every job on this page', onchange: () => {
