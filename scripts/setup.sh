@@ -11,7 +11,7 @@ DEB_PACKAGES=(build-essential cmake pkg-config libembree-dev libjansson-dev libo
               libmicrohttpd-dev libsqlite3-dev libssl-dev openimageio-tools python3-numpy
               python3-skimage
               sqlite3 curl wrk chromium clang libclang-rt-14-dev libteem-dev libvolpack1-dev
-              libopenmpi-dev openmpi-bin)
+              libopenmpi-dev openmpi-bin postgresql-15 libpq-dev)
 command -v node >/dev/null 2>&1 || DEB_PACKAGES+=(nodejs)
 command -v npm >/dev/null 2>&1 || DEB_PACKAGES+=(npm)
 
