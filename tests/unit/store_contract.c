@@ -94,6 +94,7 @@ int sc_teardown(void **state) {
   store *s = *state;
   srv_db_close(s->a);
   srv_db_close(s->b);
+  for (int i = 0; i < 2; i++) srv_db_close(s->more[i]);
   if (s->pg) {
     char sql[200];
     snprintf(sql, sizeof sql, "DROP DATABASE IF EXISTS %s WITH (FORCE)", s->dbname);

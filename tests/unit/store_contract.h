@@ -13,7 +13,8 @@ typedef struct store {
   char where[1200]; /* the SQLite file or this test's PostgreSQL URL */
   char dbname[80];  /* PostgreSQL: this test's database */
   int pg;
-  srv_db *a, *b; /* nodes "node-a" and "node-b" on the same store, 30 s leases */
+  srv_db *a, *b;   /* nodes "node-a" and "node-b" on the same store, 30 s leases */
+  srv_db *more[2]; /* further handles a case opens (sc_open_node), closed at teardown too */
 } store;
 
 /* The error of the last call OK or RC checked. */

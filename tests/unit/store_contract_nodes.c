@@ -51,7 +51,7 @@ static void expire_until_failed(store *s, srv_db *holder, int64_t id) {
 
 void test_reap(void **state) {
   store *s = *state;
-  srv_db *h = sc_open_node(s, "node-h", 1);
+  srv_db *h = s->more[0] = sc_open_node(s, "node-h", 1);
   int64_t id = sc_insert(s->a, "ssao", 0);
   if (!s->pg) {
     /* One daemon owns a SQLite file: its leases never expire while it lives. */
@@ -67,7 +67,6 @@ void test_reap(void **state) {
   } else {
     expire_until_failed(s, h, id);
   }
-  srv_db_close(h);
 }
 
 void test_exclusion(void **state) {
@@ -78,20 +77,18 @@ void test_exclusion(void **state) {
         "there (its reap never expires a lease), so the exclusion is checked on PostgreSQL\n");
     skip();
   }
-  srv_db *h = sc_open_node(s, "node-h", 1);
+  srv_db *h = s->more[0] = sc_open_node(s, "node-h", 1);
   int64_t id = sc_insert(s->a, "ssao", 0);
   expire_until_failed(s, h, id);
   srv_state st;
   OK(srv_db_retry(s->a, id, &st, &contract_err));
   assert_int_equal(sc_state_of(s->a, id), SRV_QUEUED);
-  assert_int_equal(sc_claim(h, NULL), 0);     /* node-h failed it three times */
-  srv_db *h2 = sc_open_node(s, "node-h", 30); /* its next boot too: the node, not the boot */
+  assert_int_equal(sc_claim(h, NULL), 0);                  /* node-h failed it three times */
+  srv_db *h2 = s->more[1] = sc_open_node(s, "node-h", 30); /* its next boot: the node counts */
   assert_int_equal(sc_claim(h2, NULL), 0);
-  srv_db_close(h2);
   int att = 0;
   assert_int_equal(sc_claim(s->b, &att), id);
   sc_succeed(s->b, id, att, NULL, 0, 0);
-  srv_db_close(h);
 }
 
 typedef struct recovered {
@@ -128,6 +125,7 @@ void test_recover(void **state) {
   int64_t moved = sc_insert_vulkan(s->a, "moved", 0),
           refused = sc_insert_vulkan(s->a, "refused", 0);
   srv_db_close(s->a); /* node-a dies with two jobs running */
+  s->a = NULL;
   s->a = sc_open_node(s, "node-a", 30);
   recovered r = {0};
   OK(srv_db_recover(s->a, pick_lane, note_clean, &r, &contract_err));

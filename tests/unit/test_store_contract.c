@@ -347,9 +347,8 @@ static void test_attempt_guard(void **state) {
   RC(OBS_ECONFLICT, srv_db_requeue(s->b, id, att, &contract_err));
   expect_unchanged_running(s->a, id, "node-a");
   /* The same node name after a restart (another boot) does not hold it either. */
-  srv_db *a2 = sc_open_node(s, "node-a", 30);
+  srv_db *a2 = s->more[0] = sc_open_node(s, "node-a", 30);
   RC(OBS_ECONFLICT, srv_db_finish(a2, id, att, SRV_FAILED, "previous boot's", 0.5, &contract_err));
-  srv_db_close(a2);
   expect_unchanged_running(s->a, id, "node-a");
   sc_succeed(s->a, id, att, NULL, 0, 0);
   RC(OBS_ECONFLICT, srv_db_finish(s->a, id, att, SRV_FAILED, "after the end", 0.5, &contract_err));
