@@ -168,15 +168,6 @@ static json_t *job_json(srv_app *app, const srv_job *j) {
 
 /* ---- /api/v1/jobs ---------------------------------------------------------------------------- */
 
-int srv_refuse_when_faulted(srv_req *r, int *ret) {
-  char fault[1400];
-  /* Before any parsing: while the database file is lost or corrupt nothing accepted would
-   * survive a restart. */
-  if (!srv_fault_refusing(fault, sizeof fault)) return 0;
-  *ret = srv_respond_error(r, MHD_HTTP_SERVICE_UNAVAILABLE, NULL,
-                           "not accepting work: %s (see GET /api/v1/health)", fault);
-  return 1;
-}
 
 static int submit(srv_req *r) {
   int refused;

@@ -455,6 +455,32 @@ int srv_dbi_record_identity(srv_sq *db, const char *path, obs_err *err) {
   return 0;
 }
 
+int srv_dbi_fsync_path(const char *path) {
+  int fd = open(path, O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return -1;
+  int rc = fsync(fd);
+  close(fd);
+  return rc;
+}
+
+/* VACUUM INTO `target` on c: a consistent copy of everything committed, WAL included. */
+int srv_dbi_vacuum_into(conn *c, const char *target, obs_err *err) {
+  sqlite3_stmt *s = NULL;
+  if (sqlite3_prepare_v2(c->db, "VACUUM INTO ?1", -1, &s, NULL) != SQLITE_OK)
+    return srv_dbi_fail(c, err, "VACUUM INTO");
+  sqlite3_bind_text(s, 1, target, -1, SQLITE_TRANSIENT);
+  int rc = sqlite3_step(s) == SQLITE_DONE ? 0 : srv_dbi_fail(c, err, "VACUUM INTO");
+  sqlite3_finalize(s);
+  if (!rc && srv_dbi_fsync_path(target))
+    rc = obs_err_set(err, OBS_ETRANSIENT, "%s: cannot flush: %s", target, strerror(errno));
+  char dir[4200];
+  snprintf(dir, sizeof dir, "%s", target);
+  char *slash = strrchr(dir, '/');
+  if (slash) *slash = 0;
+  if (!rc) srv_dbi_fsync_path(slash ? (slash == dir ? "/" : dir) : ".");
+  return rc;
+}
+
 int srv_sq_open(srv_sq **out, const char *path, int nconn, const srv_node *node, obs_err *err) {
   *out = NULL;
   srv_sq *db = calloc(1, sizeof *db);

@@ -122,16 +122,6 @@ int srv_db_open(srv_db **out, const char *where, int nconn, const srv_node *node
 void srv_db_close(srv_db *db);
 srv_store_kind srv_db_kind(const srv_db *db);
 const srv_node *srv_db_node(const srv_db *db);
-/* The backend a job runs on in this daemon: the renderer's choice, except that "auto" falls back
- * to the CPU when the renderer would pick Vulkan but no Vulkan lane runs (--no-vulkan). An
- * explicit "vulkan" without a lane is an error naming the flag. */
-int srv_pick_backend(const obs_technique *t, obs_backend requested, int vulkan_lane,
-                     obs_backend *out, obs_err *err);
-/* The scheduler's lane for a job left queued by the last process: 0 and *lane (which may differ
- * from the stored one when the Vulkan device came or went), or an error whose message the job
- * fails with. `user` is the srv_app. */
-int srv_pick_lane_recovered(void *user, const char *technique, const char *backend_requested,
-                            srv_lane stored, srv_lane *lane, obs_err *err);
 /* Returns running jobs to queued (or fails them at SRV_MAX_ATTEMPTS), and gives every queued job
  * the lane `pick` decides (storage records, the scheduler decides), failing those it refuses.
  * Calls `clean(user, id)` for every job whose half-written outputs must go. Run before any
@@ -201,6 +191,10 @@ typedef struct srv_new_comparison {
   const srv_new_measure *measures; /* rows after the candidates' (indices ncandidates + k) */
   int nmeasures;
 } srv_new_comparison;
+/* The bytes (records.c) a new job's row stores (its texts), a candidate row's, a comparison row's. */
+int64_t srv_job_stored_bytes(const srv_new_job *j);
+int64_t srv_candidate_row_bytes(const srv_new_candidate *c);
+int64_t srv_comparison_stored_bytes(const srv_new_comparison *c);
 /* Inserts the comparison, every job, every candidate row and every further measurement's row in
  * one transaction. */
 int srv_db_insert_comparison(srv_db *db, const srv_new_comparison *c, int64_t *id, obs_err *err);
@@ -244,6 +238,13 @@ int srv_db_finish(srv_db *db, int64_t id, int attempt, srv_state state, const ch
                   double progress, obs_err *err);
 /* Returns a running job to the queue (daemon shutting down): its attempt does not count. */
 int srv_db_requeue(srv_db *db, int64_t id, int attempt, obs_err *err);
+
+/* Admission across nodes: between srv_db_admit_lock and srv_db_admit_unlock no other node admits
+ * work, so the queue's caps (read with srv_db_queued) hold over every node's submissions. SQLite
+ * has one daemon, whose own mutex (limits.c) already serializes: a no-op there. PostgreSQL: a
+ * session advisory lock on a connection held for the section (released if the node dies). */
+int srv_db_admit_lock(srv_db *db, obs_err *err);
+void srv_db_admit_unlock(srv_db *db);
 
 /* ---- several nodes on one store --------------------------------------------------------------- */
 

@@ -119,6 +119,8 @@ int srv_dbi_open_conn(conn *c, const char *path, obs_err *err);
 void srv_dbi_close_conn(conn *c);
 /* Records st_dev/st_ino of the database file at `path`, for srv_db_check_identity. */
 int srv_dbi_record_identity(srv_sq *db, const char *path, obs_err *err);
+/* fsync of a file or directory by path. */
+int srv_dbi_fsync_path(const char *path);
 /* VACUUM INTO `target` on c, flushed: a consistent copy of everything committed. */
 int srv_dbi_vacuum_into(conn *c, const char *target, obs_err *err);
 /* Fills err and returns OBS_ETRANSIENT while work is refused (the database file was lost or is

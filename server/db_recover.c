@@ -13,6 +13,22 @@
 
 #include "db_internal.h"
 
+/* The name of an SQLite result code, for the fault a failed probe raises. */
+static const char *sqlite_code_name(int code) {
+  switch (code & 0xff) {
+    case SQLITE_FULL: return "SQLITE_FULL";
+    case SQLITE_BUSY: return "SQLITE_BUSY";
+    case SQLITE_LOCKED: return "SQLITE_LOCKED";
+    case SQLITE_IOERR: return "SQLITE_IOERR";
+    case SQLITE_READONLY: return "SQLITE_READONLY";
+    case SQLITE_CANTOPEN: return "SQLITE_CANTOPEN";
+    case SQLITE_PERM: return "SQLITE_PERM";
+    case SQLITE_CORRUPT: return "SQLITE_CORRUPT";
+    case SQLITE_NOTADB: return "SQLITE_NOTADB";
+    default: return "SQLITE_ERROR";
+  }
+}
+
 typedef struct pending {
   int64_t id;
   int attempts, cancel;
@@ -195,32 +211,6 @@ static void release_all(srv_sq *db) {
   pthread_mutex_unlock(&db->mu);
 }
 
-static int fsync_path(const char *path) {
-  int fd = open(path, O_RDONLY | O_CLOEXEC);
-  if (fd < 0) return -1;
-  int rc = fsync(fd);
-  close(fd);
-  return rc;
-}
-
-/* VACUUM INTO `target` on c: a consistent copy of everything committed, WAL included. */
-int srv_dbi_vacuum_into(conn *c, const char *target, obs_err *err) {
-  sqlite3_stmt *s = NULL;
-  if (sqlite3_prepare_v2(c->db, "VACUUM INTO ?1", -1, &s, NULL) != SQLITE_OK)
-    return srv_dbi_fail(c, err, "VACUUM INTO");
-  sqlite3_bind_text(s, 1, target, -1, SQLITE_TRANSIENT);
-  int rc = sqlite3_step(s) == SQLITE_DONE ? 0 : srv_dbi_fail(c, err, "VACUUM INTO");
-  sqlite3_finalize(s);
-  if (!rc && fsync_path(target))
-    rc = obs_err_set(err, OBS_ETRANSIENT, "%s: cannot flush: %s", target, strerror(errno));
-  char dir[4200];
-  snprintf(dir, sizeof dir, "%s", target);
-  char *slash = strrchr(dir, '/');
-  if (slash) *slash = 0;
-  if (!rc) fsync_path(slash ? (slash == dir ? "/" : dir) : ".");
-  return rc;
-}
-
 /* Closes the old pool and opens a fresh one on db->path. Closing first matters: the last old
  * connection removes the -wal and -shm names, which must not be a new file's by then. */
 static int reopen_pool(srv_sq *db, obs_err *err) {
@@ -290,7 +280,7 @@ int srv_sq_restore(srv_sq *db, srv_db_identity what, char *where, size_t n, obs_
     int log = 0, done = 0;
     rc = sqlite3_wal_checkpoint_v2(c->db, "main", SQLITE_CHECKPOINT_TRUNCATE, &log, &done);
     rc = rc == SQLITE_OK ? 0 : srv_dbi_fail(c, err, "checkpoint of the lost WAL");
-    if (!rc && fsync_path(db->path))
+    if (!rc && srv_dbi_fsync_path(db->path))
       rc = obs_err_set(err, OBS_ETRANSIENT, "%s: cannot flush: %s", db->path, strerror(errno));
     if (!rc) rc = reopen_pool(db, err);
   } else if (what == SRV_DB_DELETED) {
@@ -370,7 +360,7 @@ int srv_sq_probe(srv_sq *db, char *code, size_t n, obs_err *err) {
                         "WHERE version = (SELECT max(version) FROM schema_migrations); COMMIT;",
                         NULL, NULL, &msg);
   if (rc != SQLITE_OK) {
-    snprintf(code, n, "%s", srv_sqlite_code_name(sqlite3_extended_errcode(c->db)));
+    snprintf(code, n, "%s", sqlite_code_name(sqlite3_extended_errcode(c->db)));
     obs_err_set(err, OBS_ETRANSIENT, "database %s: %s", db->path,
                 msg ? msg : sqlite3_errmsg(c->db));
     srv_dbi_rollback(c);

@@ -4,7 +4,6 @@
  * the record is process-wide. */
 #include <errno.h>
 #include <pthread.h>
-#include <sqlite3.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -73,21 +72,6 @@ const char *srv_errno_name(int e) {
 int srv_errno_transient(int e) {
   return e == ENOSPC || e == EACCES || e == EPERM || e == EROFS || e == EIO || e == EDQUOT ||
          e == EMFILE || e == ENFILE || e == ENOENT || e == ENOTDIR;
-}
-
-const char *srv_sqlite_code_name(int code) {
-  switch (code & 0xff) {
-    case SQLITE_FULL: return "SQLITE_FULL";
-    case SQLITE_BUSY: return "SQLITE_BUSY";
-    case SQLITE_LOCKED: return "SQLITE_LOCKED";
-    case SQLITE_IOERR: return "SQLITE_IOERR";
-    case SQLITE_READONLY: return "SQLITE_READONLY";
-    case SQLITE_CANTOPEN: return "SQLITE_CANTOPEN";
-    case SQLITE_PERM: return "SQLITE_PERM";
-    case SQLITE_CORRUPT: return "SQLITE_CORRUPT";
-    case SQLITE_NOTADB: return "SQLITE_NOTADB";
-    default: return "SQLITE_ERROR";
-  }
 }
 
 void srv_fault_raise(srv_fault_kind k, const char *path, const char *code, const char *message,

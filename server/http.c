@@ -27,156 +27,6 @@ typedef struct http_req {
   void *guard_ctx;  /* the connection as the guard knows it */
 } http_req;
 
-static void add_security_headers(struct MHD_Response *resp) {
-  MHD_add_response_header(resp, "Content-Security-Policy", "default-src 'self'; frame-ancestors 'none'");
-  MHD_add_response_header(resp, "X-Content-Type-Options", "nosniff");
-  MHD_add_response_header(resp, "Referrer-Policy", "no-referrer");
-}
-
-int srv_respond(srv_req *r, unsigned status, struct MHD_Response *resp) {
-  if (!resp) return MHD_NO;
-  add_security_headers(resp);
-  if (!MHD_get_response_header(resp, "Cache-Control"))
-    MHD_add_response_header(resp, "Cache-Control", "no-store");
-  if (status == MHD_HTTP_UNAUTHORIZED)
-    MHD_add_response_header(resp, "WWW-Authenticate", "Bearer realm=\"obscurad\"");
-  enum MHD_Result ret = MHD_queue_response(r->conn, status, resp);
-  MHD_destroy_response(resp);
-  r->responded = 1;
-  r->status = status;
-  return ret;
-}
-
-struct MHD_Response *srv_json_response(json_t *body) {
-  char *text = body ? json_dumps(body, JSON_COMPACT | JSON_REAL_PRECISION(12)) : NULL;
-  json_decref(body);
-  if (!text) return NULL;
-  struct MHD_Response *resp =
-      MHD_create_response_from_buffer(strlen(text), text, MHD_RESPMEM_MUST_FREE);
-  if (!resp) {
-    free(text);
-    return NULL;
-  }
-  MHD_add_response_header(resp, "Content-Type", "application/json");
-  return resp;
-}
-
-/* A JSON answer, with a Location header when `location` is not NULL. Consumes `body`. */
-static int respond_json(srv_req *r, unsigned status, json_t *body, const char *location) {
-  struct MHD_Response *resp = srv_json_response(body);
-  if (!resp) return MHD_NO;
-  if (location) MHD_add_response_header(resp, "Location", location);
-  return srv_respond(r, status, resp);
-}
-
-int srv_respond_json(srv_req *r, unsigned status, json_t *body) {
-  return respond_json(r, status, body, NULL);
-}
-
-/* Whether a Content-Type value names the media type application/json: compared without case,
- * parameters (`; charset=utf-8`) allowed, nothing else (application/jsonp, application/json-seq
- * and +json suffixes are other types). */
-static int is_json_type(const char *ct) {
-  while (*ct == ' ' || *ct == '\t') ct++;
-  size_t n = strcspn(ct, "; \t");
-  if (n != 16 || strncasecmp(ct, "application/json", 16)) return 0;
-  ct += n;
-  while (*ct == ' ' || *ct == '\t') ct++;
-  return *ct == '\0' || *ct == ';';
-}
-
-/* The 415 for a body that is not declared JSON; 0 when it is, or when there is no body. */
-static int refuse_content_type(srv_req *r, int has_body) {
-  const char *ct =
-      MHD_lookup_connection_value(r->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_TYPE);
-  if (!has_body || (ct && is_json_type(ct))) return 0;
-  if (!ct)
-    return srv_respond_error(r, MHD_HTTP_UNSUPPORTED_MEDIA_TYPE, NULL,
-                             "a request body needs Content-Type: application/json (none given)");
-  char shown[80];
-  srv_printable(ct, shown, sizeof shown);
-  return srv_respond_error(r, MHD_HTTP_UNSUPPORTED_MEDIA_TYPE, NULL,
-                           "Content-Type must be application/json (got \"%s\")", shown);
-}
-
-int srv_refuse_non_json(srv_req *r, int *ret) {
-  *ret = refuse_content_type(r, r->len > 0);
-  return r->responded;
-}
-
-int srv_respond_unavailable(srv_req *r, obs_err *err) {
-  srv_log("database error: %s", obs_err_message(err));
-  int rc = srv_respond_error(r, MHD_HTTP_SERVICE_UNAVAILABLE, err,
-                             "database unavailable, try again");
-  obs_err_free(err);
-  return rc;
-}
-
-int srv_respond_created(srv_req *r, json_t *body, const char *location) {
-  return respond_json(r, MHD_HTTP_CREATED, body, location);
-}
-
-/* {"error": msg, "problems": [one string per line of `problems`]}. */
-static json_t *error_json(const obs_err *problems, const char *msg) {
-  json_t *list = json_array();
-  const char *t = problems ? obs_err_message(problems) : "";
-  while (*t) {
-    const char *nl = strchr(t, '\n');
-    size_t n = nl ? (size_t)(nl - t) : strlen(t);
-    /* Messages quote the offending input, which need not be valid UTF-8: such bytes become '?'. */
-    json_t *s = json_stringn(t, n);
-    if (!s) {
-      char *copy = strndup(t, n);
-      for (char *q = copy; copy && *q; q++)
-        if ((unsigned char)*q >= 0x80) *q = '?';
-      s = copy ? json_string(copy) : NULL;
-      free(copy);
-    }
-    json_array_append_new(list, s ? s : json_string("?"));
-    t += n;
-    if (*t == '\n') t++;
-  }
-  return json_pack("{s:s, s:o}", "error", msg, "problems", list);
-}
-
-int srv_respond_error(srv_req *r, unsigned status, const obs_err *problems, const char *fmt, ...) {
-  char msg[1024];
-  va_list ap;
-  va_start(ap, fmt);
-  vsnprintf(msg, sizeof msg, fmt, ap);
-  va_end(ap);
-  return srv_respond_json(r, status, error_json(problems, msg));
-}
-
-/* 503 with Retry-After: the request was fine, the server has no room for it right now. */
-static int respond_busy(srv_req *r, const char *fmt, ...)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 2, 3)))
-#endif
-    ;
-static int respond_busy(srv_req *r, const char *fmt, ...) {
-  char msg[512];
-  va_list ap;
-  va_start(ap, fmt);
-  vsnprintf(msg, sizeof msg, fmt, ap);
-  va_end(ap);
-  struct MHD_Response *resp = srv_json_response(error_json(NULL, msg));
-  if (!resp) return MHD_NO;
-  MHD_add_response_header(resp, "Retry-After", "1");
-  return srv_respond(r, MHD_HTTP_SERVICE_UNAVAILABLE, resp);
-}
-
-int srv_respond_method(srv_req *r, const char *allow) {
-  json_t *body = json_pack("{s:s, s:[]}", "error", "method not allowed", "problems");
-  char msg[160];
-  snprintf(msg, sizeof msg, "method %.16s not allowed here (allowed: %s)", r->method, allow);
-  json_object_set_new(body, "error", json_string(msg));
-  struct MHD_Response *resp = srv_json_response(body);
-  if (!resp) return MHD_NO;
-  MHD_add_response_header(resp, "Allow", allow);
-  return srv_respond(r, MHD_HTTP_METHOD_NOT_ALLOWED, resp);
-}
-
 /* Bearer token check: both sides are hashed first so the comparison takes the same time whatever
  * the length or content of the guess. */
 static int auth_ok(srv_app *app, struct MHD_Connection *c) {
@@ -407,14 +257,14 @@ static int take_body_budget(http_req *h) {
   if (!n) return MHD_YES;
   if (srv_guard_reserve(app->guard, (int64_t)n + 1)) {
     srv_refused("max-inflight-bytes");
-    return respond_busy(r,
+    return srv_respond_busy(r,
                         "request bodies in flight would exceed max-inflight-bytes = %lld bytes "
                         "with this one of %llu bytes: try again shortly",
                         (long long)app->cfg.max_inflight, n);
   }
   h->reserved = (int64_t)n + 1;
   r->body = malloc((size_t)n + 1);
-  if (!r->body) return respond_busy(r, "out of memory for a body of %llu bytes", n);
+  if (!r->body) return srv_respond_busy(r, "out of memory for a body of %llu bytes", n);
   r->cap = (size_t)n + 1;
   return MHD_YES;
 }
@@ -474,7 +324,7 @@ static int header_checks(http_req *h, const char *version) {
   /* The reserve of connections is for the health check: a monitor must see a busy server as up. */
   if (busy && r->route != SRV_ROUTE_HEALTH) {
     srv_refused("max-connections");
-    return respond_busy(r,
+    return srv_respond_busy(r,
                         "every connection up to max-connections = %d is busy: try again shortly",
                         app->cfg.max_connections);
   }
@@ -486,7 +336,7 @@ static int header_checks(http_req *h, const char *version) {
     ret = check_session(r);
     if (r->responded) return ret;
   }
-  ret = refuse_content_type(r, has_body);
+  ret = srv_refuse_content_type(r, has_body);
   if (r->responded) return ret;
   return take_body_budget(h);
 }
@@ -533,7 +383,7 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *c, const cha
   srv_guard_body_done(app->guard, h->guard_ctx);
   if (h->overloaded) {
     srv_refused("max-inflight-bytes");
-    return respond_busy(r, "request bodies in flight exceed max-inflight-bytes = %lld bytes: "
+    return srv_respond_busy(r, "request bodies in flight exceed max-inflight-bytes = %lld bytes: "
                         "try again shortly",
                         (long long)app->cfg.max_inflight);
   }

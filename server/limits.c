@@ -69,23 +69,20 @@ void srv_submit_check_estimate(srv_app *app, const obs_scene *sc, obs_err *probl
 /* ---- admission: the queue's work, jobs and stored bytes ------------------------------------- */
 
 /* Check and insert under one lock: two submissions that each fit could otherwise both pass the
- * check and together exceed the cap. This daemon is the database's only writer of jobs. */
+ * check and together exceed the cap. The mutex orders this daemon's threads; the store's
+ * admission lock orders the nodes sharing a store (a no-op for SQLite's one daemon). */
 static pthread_mutex_t admit_mu = PTHREAD_MUTEX_INITIALIZER;
 
-static int64_t text_bytes(const char *s) { return s ? (int64_t)strlen(s) : 0; }
-
-int64_t srv_job_stored_bytes(const srv_new_job *j) {
-  return text_bytes(j->doc) + text_bytes(j->label) + text_bytes(j->scene) +
-         text_bytes(j->scene_name) + text_bytes(j->notes) + text_bytes(j->backend_reason) +
-         text_bytes(j->choice);
+static int admit_enter(srv_app *app, obs_err *problems) {
+  pthread_mutex_lock(&admit_mu);
+  int rc = srv_db_admit_lock(app->db, problems);
+  if (rc) pthread_mutex_unlock(&admit_mu);
+  return rc;
 }
 
-int64_t srv_candidate_row_bytes(const srv_new_candidate *c) {
-  return text_bytes(c->params) + text_bytes(c->reference_params) + text_bytes(c->response);
-}
-
-int64_t srv_comparison_stored_bytes(const srv_new_comparison *c) {
-  return text_bytes(c->request) + text_bytes(c->label) + text_bytes(c->notes);
+static void admit_leave(srv_app *app) {
+  srv_db_admit_unlock(app->db);
+  pthread_mutex_unlock(&admit_mu);
 }
 
 /* What a job costs the queue: every render it will do, its renderer processes, its bytes. */
@@ -198,12 +195,13 @@ static void record_client(srv_app *app, int64_t job, int64_t comparison, const c
 unsigned srv_admit_job(srv_app *app, const char *client, const srv_new_job *nj, int64_t *id,
                        int *retry_after, obs_err *problems) {
   srv_load adding = job_load(nj, 0);
-  pthread_mutex_lock(&admit_mu);
+  int rc = admit_enter(app, problems);
+  if (rc) return insert_failed(app, rc, problems);
   unsigned st = check_caps(app, client, &adding, retry_after, problems);
-  int rc = st ? 0 : srv_db_insert_job(app->db, nj, id, problems);
+  rc = st ? 0 : srv_db_insert_job(app->db, nj, id, problems);
   if (rc) st = insert_failed(app, rc, problems);
   if (!st) record_client(app, *id, 0, client);
-  pthread_mutex_unlock(&admit_mu);
+  admit_leave(app);
   return st;
 }
 
@@ -218,20 +216,22 @@ unsigned srv_admit_comparison(srv_app *app, const char *client, const srv_new_co
     srv_load l = job_load(&c->candidates[i].job, srv_candidate_row_bytes(&c->candidates[i]));
     adding.work += l.work, adding.jobs += l.jobs, adding.bytes += l.bytes;
   }
-  pthread_mutex_lock(&admit_mu);
+  int rc = admit_enter(app, problems);
+  if (rc) return insert_failed(app, rc, problems);
   unsigned st = check_caps(app, client, &adding, retry_after, problems);
-  int rc = st ? 0 : srv_db_insert_comparison(app->db, c, id, problems);
+  rc = st ? 0 : srv_db_insert_comparison(app->db, c, id, problems);
   if (rc) st = insert_failed(app, rc, problems);
   if (!st) record_client(app, 0, *id, client);
-  pthread_mutex_unlock(&admit_mu);
+  admit_leave(app);
   return st;
 }
 
 unsigned srv_admit_retry(srv_app *app, const char *client, int64_t id, srv_state *state,
                          int *retry_after, obs_err *problems) {
   srv_load adding;
-  pthread_mutex_lock(&admit_mu);
-  int rc = srv_db_job_load(app->db, id, &adding, state, problems);
+  int rc = admit_enter(app, problems);
+  if (rc) return insert_failed(app, rc, problems);
+  rc = srv_db_job_load(app->db, id, &adding, state, problems);
   unsigned st = rc == OBS_ENOTFOUND ? 404 : rc ? 503 : 0;
   /* A job that cannot be retried is answered as such, whatever the queue holds. */
   if (!st && *state != SRV_FAILED && *state != SRV_CANCELLED) st = 409;
@@ -243,30 +243,10 @@ unsigned srv_admit_retry(srv_app *app, const char *client, int64_t id, srv_state
   }
   /* The requeued work is now the retrying client's. */
   if (!st) record_client(app, id, 0, client);
-  pthread_mutex_unlock(&admit_mu);
+  admit_leave(app);
   return st;
 }
 
-int srv_respond_too_busy(srv_req *r, int retry_after, const obs_err *problems) {
-  json_t *list = json_array();
-  const char *t = obs_err_message(problems);
-  while (*t) {
-    size_t n = strcspn(t, "\n");
-    json_array_append_new(list, json_stringn(t, n));
-    t += n;
-    if (*t) t++;
-  }
-  char msg[96];
-  snprintf(msg, sizeof msg, "the queue is over a limit of this server: try again in %d s",
-           retry_after);
-  struct MHD_Response *resp =
-      srv_json_response(json_pack("{s:s, s:o}", "error", msg, "problems", list));
-  if (!resp) return MHD_NO;
-  char ra[16];
-  snprintf(ra, sizeof ra, "%d", retry_after);
-  MHD_add_response_header(resp, "Retry-After", ra);
-  return srv_respond(r, 429, resp);
-}
 
 void srv_req_client(srv_app *app, struct MHD_Connection *c, char *buf, size_t n) {
   if (app->has_token) {

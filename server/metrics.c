@@ -1,5 +1,6 @@
-/* Prometheus metrics of obscurad: HTTP request counters, the render-time histogram, and the job
- * gauges read from the database at scrape time. */
+/* The /metrics page of obscurad in Prometheus's text format: the job gauges read from the store at
+ * scrape time, the scheduler's, faults', imports' and guards' gauges, and the counters that
+ * counters.c keeps. */
 #include <pthread.h>
 #include <stdarg.h>
 #include <stdatomic.h>
@@ -9,189 +10,58 @@
 
 #include "obscurad.h"
 
-static const char *const route_names[SRV_NROUTES] = {
-    [SRV_ROUTE_JOBS] = "/api/v1/jobs",
-    [SRV_ROUTE_JOB] = "/api/v1/jobs/{id}",
-    [SRV_ROUTE_JOB_CANCEL] = "/api/v1/jobs/{id}/cancel",
-    [SRV_ROUTE_JOB_OUTPUT] = "/api/v1/jobs/{id}/outputs/{name}",
-    [SRV_ROUTE_JOB_RETRY] = "/api/v1/jobs/{id}/retry",
-    [SRV_ROUTE_JOB_DOCUMENT] = "/api/v1/jobs/{id}/document",
-    [SRV_ROUTE_JOB_LOG] = "/api/v1/jobs/{id}/log",
-    [SRV_ROUTE_JOB_PREVIEW] = "/api/v1/jobs/{id}/preview.exr",
-    [SRV_ROUTE_DIFF] = "/api/v1/diff",
-    [SRV_ROUTE_TECHNIQUES] = "/api/v1/techniques",
-    [SRV_ROUTE_METRIC_TABLE] = "/api/v1/metrics",
-    [SRV_ROUTE_SCENES] = "/api/v1/scenes",
-    [SRV_ROUTE_SCENE_DEFAULTS] = "/api/v1/scenes/{name}/defaults",
-    [SRV_ROUTE_HEALTH] = "/api/v1/health",
-    [SRV_ROUTE_METRICS] = "/metrics",
-    [SRV_ROUTE_COMPARISONS] = "/api/v1/comparisons",
-    [SRV_ROUTE_COMPARISON] = "/api/v1/comparisons/{id}",
-    [SRV_ROUTE_SESSION] = "/api/v1/session",
-    [SRV_ROUTE_STATIC] = "static",
-    [SRV_ROUTE_UNKNOWN] = "unknown",
-};
-
-/* Status codes are 100..599: a flat array of counters keeps the hot path lock-free. */
-static atomic_ullong http_counts[SRV_NROUTES][500];
-
-static const double buckets[] = {0.01, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5, 10, 30, 60, 120, 300, 600};
-#define NBUCKETS (sizeof buckets / sizeof buckets[0])
-
-typedef struct hist {
-  char technique[64], backend[16];
-  unsigned long long counts[NBUCKETS + 1]; /* last: +Inf */
-  unsigned long long n;
-  double sum;
-} hist;
-
-static pthread_mutex_t hist_mu = PTHREAD_MUTEX_INITIALIZER;
-static hist *hists;
-static size_t nhists;
-
-void srv_metrics_init(void) {
-  for (int r = 0; r < SRV_NROUTES; r++)
-    for (int s = 0; s < 500; s++) atomic_init(&http_counts[r][s], 0);
-}
-
-void srv_metrics_http(srv_route route, unsigned status) {
-  if (route >= SRV_NROUTES || status < 100 || status > 599) return;
-  atomic_fetch_add_explicit(&http_counts[route][status - 100], 1, memory_order_relaxed);
-}
-
-void srv_metrics_render(const char *technique, const char *backend, double seconds) {
-  pthread_mutex_lock(&hist_mu);
-  hist *h = NULL;
-  for (size_t i = 0; i < nhists; i++)
-    if (!strcmp(hists[i].technique, technique) && !strcmp(hists[i].backend, backend)) h = &hists[i];
-  if (!h) {
-    hist *g = realloc(hists, (nhists + 1) * sizeof *g);
-    if (!g) {
-      pthread_mutex_unlock(&hist_mu);
-      return;
-    }
-    hists = g;
-    h = &hists[nhists++];
-    memset(h, 0, sizeof *h);
-    snprintf(h->technique, sizeof h->technique, "%s", technique);
-    snprintf(h->backend, sizeof h->backend, "%s", backend);
-  }
-  size_t b = 0;
-  while (b < NBUCKETS && seconds > buckets[b]) b++;
-  h->counts[b]++;
-  h->n++;
-  h->sum += seconds;
-  pthread_mutex_unlock(&hist_mu);
-}
-
-typedef struct buf {
-  char *p;
-  size_t len, cap;
-  int oom;
-} buf;
-
-static void put(buf *b, const char *fmt, ...) {
-  for (;;) {
-    va_list ap;
-    va_start(ap, fmt);
-    int n = vsnprintf(b->p ? b->p + b->len : NULL, b->p ? b->cap - b->len : 0, fmt, ap);
-    va_end(ap);
-    if (n < 0 || b->oom) return;
-    if (b->p && b->len + (size_t)n < b->cap) {
-      b->len += (size_t)n;
-      return;
-    }
-    size_t cap = (b->cap ? b->cap * 2 : 8192) + (size_t)n;
-    char *p = realloc(b->p, cap);
-    if (!p) {
-      b->oom = 1;
-      return;
-    }
-    b->p = p;
-    b->cap = cap;
-  }
-}
-
 char *srv_metrics_text(srv_app *app, size_t *len) {
-  buf b = {0};
+  srv_buf b = {0};
   int64_t counts[SRV_NSTATES];
   obs_err err = OBS_ERR_INIT;
   int dbok = srv_db_counts(app->db, counts, &err) == 0;
   obs_err_free(&err);
-  put(&b, "# HELP obscura_jobs Jobs in the database by state.\n# TYPE obscura_jobs gauge\n");
+  srv_buf_put(&b,
+              "# HELP obscura_jobs Jobs in the database by state.\n# TYPE obscura_jobs gauge\n");
   for (int s = 0; dbok && s < SRV_NSTATES; s++)
-    put(&b, "obscura_jobs{state=\"%s\"} %lld\n", srv_state_name((srv_state)s),
-        (long long)counts[s]);
-  put(&b, "# HELP obscura_queue_depth Jobs waiting for a worker.\n"
-          "# TYPE obscura_queue_depth gauge\n");
-  if (dbok) put(&b, "obscura_queue_depth %lld\n", (long long)counts[SRV_QUEUED]);
-  put(&b, "# HELP obscura_render_seconds Time of succeeded jobs from load to written outputs.\n"
-          "# TYPE obscura_render_seconds histogram\n");
-  pthread_mutex_lock(&hist_mu);
-  for (size_t i = 0; i < nhists; i++) {
-    const hist *h = &hists[i];
-    unsigned long long cum = 0;
-    for (size_t k = 0; k <= NBUCKETS; k++) {
-      cum += h->counts[k];
-      char le[32];
-      if (k < NBUCKETS) snprintf(le, sizeof le, "%g", buckets[k]);
-      else snprintf(le, sizeof le, "+Inf");
-      put(&b, "obscura_render_seconds_bucket{technique=\"%s\",backend=\"%s\",le=\"%s\"} %llu\n",
-          h->technique, h->backend, le, cum);
-    }
-    put(&b, "obscura_render_seconds_sum{technique=\"%s\",backend=\"%s\"} %.6f\n", h->technique,
-        h->backend, h->sum);
-    put(&b, "obscura_render_seconds_count{technique=\"%s\",backend=\"%s\"} %llu\n", h->technique,
-        h->backend, h->n);
-  }
-  pthread_mutex_unlock(&hist_mu);
-  put(&b, "# HELP obscura_http_requests_total HTTP requests by route template and status.\n"
-          "# TYPE obscura_http_requests_total counter\n");
-  for (int r = 0; r < SRV_NROUTES; r++)
-    for (int s = 0; s < 500; s++) {
-      unsigned long long n = atomic_load_explicit(&http_counts[r][s], memory_order_relaxed);
-      if (n)
-        put(&b, "obscura_http_requests_total{route=\"%s\",status=\"%d\"} %llu\n", route_names[r],
-            s + 100, n);
-    }
+    srv_buf_put(&b, "obscura_jobs{state=\"%s\"} %lld\n", srv_state_name((srv_state)s),
+                (long long)counts[s]);
+  srv_buf_put(&b,
+              "# HELP obscura_queue_depth Jobs waiting for a worker.\n"
+              "# TYPE obscura_queue_depth gauge\n");
+  if (dbok) srv_buf_put(&b, "obscura_queue_depth %lld\n", (long long)counts[SRV_QUEUED]);
+  srv_metrics_counters(&b);
   int active[SRV_NFAULTS];
   unsigned long long total[SRV_NFAULTS];
   srv_fault_counts(active, total);
-  put(&b, "# HELP obscura_fault Environment faults now active (1) by kind.\n"
-          "# TYPE obscura_fault gauge\n");
+  srv_buf_put(&b,
+              "# HELP obscura_fault Environment faults now active (1) by kind.\n"
+              "# TYPE obscura_fault gauge\n");
   for (int k = 0; k < SRV_NFAULTS; k++)
-    put(&b, "obscura_fault{kind=\"%s\"} %d\n", srv_fault_kind_name((srv_fault_kind)k), active[k]);
-  put(&b, "# HELP obscura_faults_total Environment faults raised since start by kind.\n"
-          "# TYPE obscura_faults_total counter\n");
+    srv_buf_put(&b, "obscura_fault{kind=\"%s\"} %d\n", srv_fault_kind_name((srv_fault_kind)k),
+                active[k]);
+  srv_buf_put(&b,
+              "# HELP obscura_faults_total Environment faults raised since start by kind.\n"
+              "# TYPE obscura_faults_total counter\n");
   for (int k = 0; k < SRV_NFAULTS; k++)
-    put(&b, "obscura_faults_total{kind=\"%s\"} %llu\n", srv_fault_kind_name((srv_fault_kind)k),
-        total[k]);
-  put(&b, "# HELP obscura_workers_paused Workers holding a finished job until a fault clears.\n"
-          "# TYPE obscura_workers_paused gauge\nobscura_workers_paused %d\n",
-      srv_sched_paused(app));
+    srv_buf_put(&b, "obscura_faults_total{kind=\"%s\"} %llu\n",
+                srv_fault_kind_name((srv_fault_kind)k), total[k]);
+  srv_buf_put(&b,
+              "# HELP obscura_workers_paused Workers holding a finished job until a fault clears.\n"
+              "# TYPE obscura_workers_paused gauge\nobscura_workers_paused %d\n",
+              srv_sched_paused(app));
   char mesh[2048];
   srv_meshimport_metrics(app, mesh, sizeof mesh);
-  put(&b, "%s", mesh);
+  srv_buf_put(&b, "%s", mesh);
   srv_refusals_metrics(mesh, sizeof mesh);
-  put(&b, "%s", mesh);
-  put(&b, "# HELP obscura_inflight_bytes Request-body bytes held for uploads in progress.\n"
-          "# TYPE obscura_inflight_bytes gauge\nobscura_inflight_bytes %lld\n",
-      (long long)srv_guard_inflight(app->guard));
-  put(&b, "# HELP obscura_uptime_seconds Seconds since the daemon started.\n"
-          "# TYPE obscura_uptime_seconds gauge\nobscura_uptime_seconds %.3f\n",
-      (obs_now_ms() - app->start_ms) / 1e3);
+  srv_buf_put(&b, "%s", mesh);
+  srv_buf_put(&b,
+              "# HELP obscura_inflight_bytes Request-body bytes held for uploads in progress.\n"
+              "# TYPE obscura_inflight_bytes gauge\nobscura_inflight_bytes %lld\n",
+              (long long)srv_guard_inflight(app->guard));
+  srv_buf_put(&b,
+              "# HELP obscura_uptime_seconds Seconds since the daemon started.\n"
+              "# TYPE obscura_uptime_seconds gauge\nobscura_uptime_seconds %.3f\n",
+              (obs_now_ms() - app->start_ms) / 1e3);
   if (b.oom) {
     free(b.p);
     return NULL;
   }
   *len = b.len;
   return b.p;
-}
-
-void srv_metrics_free(void) {
-  pthread_mutex_lock(&hist_mu);
-  free(hists);
-  hists = NULL;
-  nhists = 0;
-  pthread_mutex_unlock(&hist_mu);
 }

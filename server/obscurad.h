@@ -161,7 +161,6 @@ void srv_fault_counts(int active[SRV_NFAULTS], unsigned long long total[SRV_NFAU
 const char *srv_errno_name(int e);
 /* Errors of the environment rather than of a job: disk full, read-only, permissions, I/O. */
 int srv_errno_transient(int e);
-const char *srv_sqlite_code_name(int code);
 
 /* ---- refusals for capacity (refusals.c) -------------------------------------------------------- */
 
@@ -200,10 +199,26 @@ typedef enum {
   SRV_NROUTES
 } srv_route;
 
+/* A growing text buffer (util.c): srv_buf_put appends printf-style; oom is set, and later puts
+ * ignored, when memory runs out. The caller frees p. */
+typedef struct srv_buf {
+  char *p;
+  size_t len, cap;
+  int oom;
+} srv_buf;
+void srv_buf_put(srv_buf *b, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+
+/* The counters (counters.c). */
 void srv_metrics_init(void);
 void srv_metrics_free(void);
 void srv_metrics_http(srv_route route, unsigned status);
 void srv_metrics_render(const char *technique, const char *backend, double seconds);
+/* Appends the histogram and the HTTP counters in Prometheus's text format. */
+void srv_metrics_counters(srv_buf *b);
 struct srv_app;
 /* The Prometheus text (malloc'd). */
 char *srv_metrics_text(struct srv_app *app, size_t *len);
@@ -284,6 +299,8 @@ struct srv_req {
   char client[80]; /* who queued work is counted against: "token:<hash>" or the remote address */
 };
 
+/* ---- answers (respond.c) ---------------------------------------------------------------------- */
+
 /* Queues `resp` (adding the security headers) and records the status. Consumes resp. */
 int srv_respond(srv_req *r, unsigned status, struct MHD_Response *resp);
 /* JSON body (consumes `body`). */
@@ -310,6 +327,17 @@ int srv_respond_error(srv_req *r, unsigned status, const obs_err *problems, cons
     ;
 /* 405 with Allow. */
 int srv_respond_method(srv_req *r, const char *allow);
+/* 503 with Retry-After: the request was fine, the server has no room for it right now. */
+int srv_respond_busy(srv_req *r, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+/* The HTTP layer's Content-Type check of a request with or without a body: 0 to go on, or
+ * the result of the 415 it answered. */
+int srv_refuse_content_type(srv_req *r, int has_body);
+/* 429 with Retry-After and {"error", "problems"}. */
+int srv_respond_too_busy(srv_req *r, int retry_after, const obs_err *problems);
 
 /* Routes one complete request (api.c). */
 int srv_api_dispatch(srv_req *r);
@@ -388,6 +416,18 @@ double srv_scene_voxels(const obs_scene *sc);
  * request's (absent: auto). Problems of the scene are left to its validation. */
 void srv_submit_set_technique(struct srv_app *app, json_t *doc, const char *docname,
                               const json_t *tech, json_t *notes);
+/* ---- backend choice (pick.c) ------------------------------------------------------------------ */
+
+/* The backend a job runs on in this daemon: the renderer's choice, except that "auto" falls back
+ * to the CPU when the renderer would pick Vulkan but no Vulkan lane runs (--no-vulkan). An
+ * explicit "vulkan" without a lane is an error naming the flag. */
+int srv_pick_backend(const obs_technique *t, obs_backend requested, int vulkan_lane,
+                     obs_backend *out, obs_err *err);
+/* The scheduler's lane for a job left queued by the last process: 0 and *lane (which may differ
+ * from the stored one when the Vulkan device came or went), or an error whose message the job
+ * fails with. `user` is the srv_app. */
+int srv_pick_lane_recovered(void *user, const char *technique, const char *backend_requested,
+                            srv_lane stored, srv_lane *lane, obs_err *err);
 /* srv_pick_backend plus learned "auto": with stored timed runs of both backends for technique `t`
  * at similar work (within 2x), the one with the lower median total; `reason` says which rule
  * decided (at most n bytes). */
@@ -529,12 +569,6 @@ unsigned srv_admit_comparison(srv_app *app, const char *client, const srv_new_co
  * cancelled, *state filled). */
 unsigned srv_admit_retry(srv_app *app, const char *client, int64_t id, srv_state *state,
                          int *retry_after, obs_err *problems);
-/* The bytes a new job's row stores (its texts), a candidate row's, a comparison row's. */
-int64_t srv_job_stored_bytes(const srv_new_job *j);
-int64_t srv_candidate_row_bytes(const srv_new_candidate *c);
-int64_t srv_comparison_stored_bytes(const srv_new_comparison *c);
-/* 429 with Retry-After and {"error", "problems"}. */
-int srv_respond_too_busy(srv_req *r, int retry_after, const obs_err *problems);
 /* Refuses (adds a problem naming /image or /technique/params) a job whose estimated render time
  * exceeds --max-render-seconds: work x the median ms per unit of work of this machine's stored
  * runs of the technique and backend, or the technique's built-in rate. */

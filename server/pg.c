@@ -84,6 +84,8 @@ static int fail(struct srv_pg *pg, pgc *c, const PGresult *r, const char *what, 
   int lost = PQstatus(c->pq) != CONNECTION_OK || !state || !strncmp(state, "08", 2) ||
              !strcmp(state, "57P01") || !strcmp(state, "57P02") || !strcmp(state, "57P03");
   if (lost) c->broken = 1;
+  /* A statement that timed out would only time out again: not retried. */
+  c->retry = lost || !strcmp(state, "40001") || !strcmp(state, "40P01");
   int transient = lost || !strcmp(state, "40001") || !strcmp(state, "40P01") ||
                   !strcmp(state, "57014") || !strcmp(state, "55P03") ||
                   !strcmp(state, "25P03") || !strncmp(state, "53", 2);
@@ -132,15 +134,17 @@ int srv_pgi_run(struct srv_pg *pg, int txn, srv_pgi_op op, void *ctx, obs_err *e
   int rc = 0;
   for (int attempt = 0; attempt < 2; attempt++) {
     obs_err e = OBS_ERR_INIT;
+    c->retry = 0;
     rc = ready(pg, c, &e);
+    if (rc) c->retry = 1;
     if (!rc && txn) rc = srv_pgi_simple(pg, c, "BEGIN", &e);
     if (!rc) rc = op(pg, c, ctx, &e);
     if (!rc && txn) rc = srv_pgi_simple(pg, c, "COMMIT", &e);
     if (rc && txn && !c->broken && PQtransactionStatus(c->pq) != PQTRANS_IDLE)
       srv_pgi_simple(pg, c, "ROLLBACK", NULL);
-    /* Only the environment's faults are worth a second try; OBS_ENOTFOUND, OBS_ECONFLICT and
-     * the like are answers. */
-    if (!rc || rc != OBS_ETRANSIENT || attempt == 1) {
+    /* Only a lost connection, a deadlock or a serialization failure is worth a second try;
+     * OBS_ENOTFOUND, OBS_ECONFLICT and the like are answers. */
+    if (!rc || !c->retry || attempt == 1) {
       if (rc) obs_err_set(err, rc, "%s", obs_err_message(&e));
       obs_err_free(&e);
       break;
@@ -375,6 +379,7 @@ int srv_pg_open(struct srv_pg **out, const char *url, int nconn, const srv_node 
   pthread_mutex_init(&pg->mu, NULL);
   pthread_cond_init(&pg->cv, NULL);
   pthread_mutex_init(&pg->lmu, NULL);
+  pthread_mutex_init(&pg->amu, NULL);
   int rc = srv_pgi_run(pg, 1, migrate, NULL, err);
   if (rc) {
     srv_pg_close(pg);
@@ -388,12 +393,14 @@ void srv_pg_close(struct srv_pg *pg) {
   if (!pg) return;
   for (int i = 0; i < pg->n; i++) PQfinish(pg->c[i].pq);
   PQfinish(pg->listener);
+  PQfinish(pg->admit);
   free(pg->c);
   free(pg->url);
   free(pg->shown);
   pthread_mutex_destroy(&pg->mu);
   pthread_cond_destroy(&pg->cv);
   pthread_mutex_destroy(&pg->lmu);
+  pthread_mutex_destroy(&pg->amu);
   free(pg);
 }
 

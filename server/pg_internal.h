@@ -80,6 +80,7 @@ typedef struct pgc {
   unsigned char prepared[PGS_COUNT];
   int in_use;
   int broken; /* the last failure lost the connection: reset before the next use */
+  int retry;  /* the last failure is worth one more try (lost connection, deadlock, conflict) */
 } pgc;
 
 struct srv_pg {
@@ -94,6 +95,8 @@ struct srv_pg {
   char refuse[1024]; /* under mu */
   pthread_mutex_t lmu; /* the listener */
   PGconn *listener;
+  pthread_mutex_t amu; /* held from srv_pg_admit_lock to srv_pg_admit_unlock */
+  PGconn *admit;       /* the session that holds the admission lock */
 };
 
 /* A connection of the pool, connected (or reset after a loss) and ready; NULL after filling err

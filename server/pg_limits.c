@@ -1,10 +1,52 @@
-/* The PostgreSQL store's reads behind the admission limits (limits.c): the active jobs' load per
- * client and in total (summed over the partial index of active jobs, never the history), what
- * one job adds, the client of a job, and stored run rates. */
+/* The PostgreSQL store's side of the admission limits (limits.c): the lock that orders every
+ * node's admissions, the active jobs' load per client and in total (summed over the partial index
+ * of active jobs, never the history), what one job adds, the client of a job, and stored run
+ * rates. */
 #include <stdlib.h>
 #include <string.h>
 
 #include "pg_internal.h"
+
+/* pg_advisory_lock's key for admission: one per store, shared by every node. */
+#define ADMIT_LOCK "7283190442"
+
+/* The lock is a session's: it lives on a connection of its own (not the pool's, whose every
+ * connection the section's reads and inserts may need), and goes with the session if the node
+ * dies. Waiting for another node is bounded by the statement timeout. */
+int srv_pg_admit_lock(struct srv_pg *pg, obs_err *err) {
+  pthread_mutex_lock(&pg->amu);
+  int rc = 0;
+  for (int attempt = 0; attempt < 2; attempt++) {
+    obs_err e = OBS_ERR_INIT;
+    if (pg->admit && PQstatus(pg->admit) != CONNECTION_OK) {
+      PQfinish(pg->admit);
+      pg->admit = NULL;
+    }
+    if (!pg->admit) pg->admit = srv_pgi_connect(pg, &e);
+    rc = pg->admit ? 0 : OBS_ETRANSIENT;
+    if (!rc) {
+      PGresult *r = PQexec(pg->admit, "SELECT pg_advisory_lock(" ADMIT_LOCK ")");
+      if (PQresultStatus(r) != PGRES_TUPLES_OK)
+        rc = obs_err_set(&e, OBS_ETRANSIENT, "database %s: the admission lock: %s", pg->shown,
+                         PQerrorMessage(pg->admit));
+      PQclear(r);
+    }
+    /* A session lost under the lock is replaced once; a timeout is not waited twice. */
+    int again = rc && attempt == 0 && (!pg->admit || PQstatus(pg->admit) != CONNECTION_OK);
+    if (rc && !again) obs_err_set(err, rc, "%s", obs_err_message(&e));
+    obs_err_free(&e);
+    if (!again) break;
+  }
+  if (rc) pthread_mutex_unlock(&pg->amu);
+  return rc;
+}
+
+void srv_pg_admit_unlock(struct srv_pg *pg) {
+  /* A lost session released the lock with it. */
+  if (pg->admit && PQstatus(pg->admit) == CONNECTION_OK)
+    PQclear(PQexec(pg->admit, "SELECT pg_advisory_unlock(" ADMIT_LOCK ")"));
+  pthread_mutex_unlock(&pg->amu);
+}
 
 int srv_pg_queued(struct srv_pg *pg, const char *client, srv_load *mine, srv_load *total,
                   obs_err *err) {

@@ -27,21 +27,6 @@ static int is_url(const char *where) {
   return !strncmp(where, "postgresql://", 13) || !strncmp(where, "postgres://", 11);
 }
 
-void srv_node_init(srv_node *n, const char *name, int lease_seconds) {
-  snprintf(n->name, sizeof n->name, "%s", name && *name ? name : "local");
-  unsigned char r[8] = {0};
-  int fd = open("/dev/urandom", O_RDONLY | O_CLOEXEC);
-  ssize_t got = fd >= 0 ? read(fd, r, sizeof r) : -1;
-  if (fd >= 0) close(fd);
-  if (got != (ssize_t)sizeof r) { /* no entropy device: the pid and clock still differ per boot */
-    uint64_t v = (uint64_t)getpid() ^ (uint64_t)srv_now_unix_ms() << 16;
-    memcpy(r, &v, sizeof r);
-  }
-  for (size_t i = 0; i < sizeof r; i++) snprintf(n->boot + 2 * i, 3, "%02x", r[i]);
-  snprintf(n->worker, sizeof n->worker, "%s/%s", n->name, n->boot);
-  n->lease_seconds = lease_seconds > 0 ? lease_seconds : 30;
-}
-
 int srv_db_open(srv_db **out, const char *where, int nconn, const srv_node *node, obs_err *err) {
   *out = NULL;
   srv_db *db = calloc(1, sizeof *db);
@@ -190,6 +175,16 @@ int srv_db_prune(srv_db *db, int64_t keep_jobs, double keep_days, int64_t **ids,
                  obs_err *err) {
   return DISPATCH(prune, keep_jobs, keep_days, ids, nids, err);
 }
+int srv_db_admit_lock(srv_db *db, obs_err *err) { return DISPATCH(admit_lock, err); }
+void srv_db_admit_unlock(srv_db *db) {
+#ifdef OBSCURAD_POSTGRESQL
+  if (db->pg) {
+    srv_pg_admit_unlock(db->pg);
+    return;
+  }
+#endif
+  srv_sq_admit_unlock(db->sq);
+}
 void srv_db_refuse(srv_db *db, const char *msg) { DISPATCH(refuse, msg); }
 const char *srv_db_path(const srv_db *db) {
 #ifdef OBSCURAD_POSTGRESQL
@@ -216,53 +211,3 @@ int srv_db_probe(srv_db *db, char *code, size_t n, obs_err *err) {
   return db->sq ? srv_sq_probe(db->sq, code, n, err) : 0;
 }
 int srv_db_take_corrupt_flag(srv_db *db) { return db->sq ? srv_sq_take_corrupt_flag(db->sq) : 0; }
-
-/* ---- shared by both implementations -----------------------------------------------------------
- */
-
-const char *srv_state_name(srv_state s) {
-  static const char *const n[] = {"queued", "running", "succeeded", "failed", "cancelled"};
-  return s < SRV_NSTATES ? n[s] : "?";
-}
-
-int srv_state_parse(const char *s, srv_state *out) {
-  for (int i = 0; s && i < SRV_NSTATES; i++)
-    if (!strcmp(s, srv_state_name((srv_state)i))) {
-      *out = (srv_state)i;
-      return 0;
-    }
-  return -1;
-}
-
-const char *srv_lane_name(srv_lane l) {
-  return obs_backend_name(l == SRV_LANE_VULKAN ? OBS_BACKEND_VULKAN : OBS_BACKEND_CPU);
-}
-
-srv_lane srv_lane_parse(const char *name) {
-  obs_backend b = OBS_BACKEND_CPU;
-  obs_backend_parse(name, &b);
-  return b == OBS_BACKEND_VULKAN ? SRV_LANE_VULKAN : SRV_LANE_CPU;
-}
-
-void srv_job_free(srv_job *j) {
-  if (!j) return;
-  free(j->label);
-  free(j->scene);
-  free(j->technique);
-  free(j->backend_requested);
-  free(j->backend);
-  free(j->error);
-  free(j->summary);
-  free(j->backend_reason);
-  free(j->scene_name);
-  free(j->notes);
-  free(j->node);
-  free(j->doc);
-  free(j->outputs);
-  memset(j, 0, sizeof *j);
-}
-
-void srv_jobs_free(srv_job *jobs, int n) {
-  for (int i = 0; i < n; i++) srv_job_free(&jobs[i]);
-  free(jobs);
-}

@@ -53,6 +53,8 @@
   int P##_get_blob(H *db, const char *sha256, void **data, size_t *n, obs_err *err);               \
   int P##_prune(H *db, int64_t keep_jobs, double keep_days, int64_t **ids, int *nids,              \
                 obs_err *err);                                                                     \
+  int P##_admit_lock(H *db, obs_err *err);                                                        \
+  void P##_admit_unlock(H *db);                                                                   \
   void P##_refuse(H *db, const char *msg);                                                         \
   const char *P##_path(const H *db);
 

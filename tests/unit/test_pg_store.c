@@ -165,6 +165,17 @@ static void test_jobs(void **state) {
   assert_true(jobs[0].id == low && jobs[1].id == mid);
   srv_jobs_free(jobs, n);
 
+  /* Every combination of filters and order (each its own statement) answers and filters. */
+  for (int v = 0; v < 16; v++) {
+    srv_job_filter fv = {.has_state = v & 1, .state = SRV_QUEUED,
+                         .technique = v & 2 ? "rt_ao" : NULL, .backend = v & 4 ? "auto" : NULL,
+                         .ascending = (v & 8) != 0, .limit = 10};
+    assert_int_equal(srv_db_list_jobs(pg, &fv, &jobs, &n, NULL), 0);
+    assert_int_equal(n, v & 2 ? 2 : 3);
+    assert_true(v & 8 ? jobs[0].id < jobs[1].id : jobs[0].id > jobs[1].id);
+    srv_jobs_free(jobs, n);
+  }
+
   /* The claim takes the highest priority first. */
   int att = 0;
   assert_true(claim(pg, &att) == high);
@@ -287,6 +298,38 @@ static void test_limits(void **state) {
   assert_int_equal(n, 1);
   assert_true(rates[0] == 30.0 / (64.0 * 48 * 4));
   free(rates);
+}
+
+typedef struct admitter {
+  srv_db *db;
+  _Atomic int inside;
+} admitter;
+
+static void *admit(void *arg) {
+  admitter *a = arg;
+  assert_int_equal(srv_db_admit_lock(a->db, NULL), 0);
+  a->inside = 1;
+  srv_db_admit_unlock(a->db);
+  return NULL;
+}
+
+/* One node admits at a time, and its section can read and insert through the pool meanwhile. */
+static void test_admission_lock(void **state) {
+  NEED_PG();
+  srv_db *a = *state, *b = open_node("beta", "b1");
+  assert_int_equal(srv_db_admit_lock(a, NULL), 0);
+  srv_load mine, total;
+  assert_int_equal(srv_db_queued(a, "x", &mine, &total, NULL), 0);
+  insert(a, 50, "rt_ao");
+  admitter other = {b, 0};
+  pthread_t t;
+  pthread_create(&t, NULL, admit, &other);
+  usleep(300000);
+  assert_int_equal(other.inside, 0); /* beta waits while alpha holds it */
+  srv_db_admit_unlock(a);
+  pthread_join(t, NULL);
+  assert_int_equal(other.inside, 1);
+  srv_db_close(b);
 }
 
 /* ---- comparisons: the rows of every srv_query, shaped like the SQLite store's ---------------- */
@@ -883,6 +926,7 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test_setup_teardown(test_jobs, setup, teardown),
       cmocka_unit_test_setup_teardown(test_limits, setup, teardown),
+      cmocka_unit_test_setup_teardown(test_admission_lock, setup, teardown),
       cmocka_unit_test_setup_teardown(test_comparison, setup, teardown),
       cmocka_unit_test_setup_teardown(test_rows_match_sqlite, setup, teardown),
       cmocka_unit_test_setup_teardown(test_two_nodes_claim, setup, teardown),
