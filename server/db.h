@@ -214,8 +214,9 @@ typedef enum {
   SRV_Q_COMPARISONS,        /* ?1 after (0 = start), ?2 limit: newest first, with counts */
   SRV_Q_JOB_COMPARISON,     /* ?1 job id: the comparison it belongs to, if any */
   SRV_Q_METRICS_PENDING,    /* ?1 job id (0 = all): candidates ready for metrics */
-  SRV_Q_AUTO_RUNS,          /* ?1 technique, ?2 work, ?3 this daemon's Vulkan kind: timed runs
-                             * at similar work per backend, Vulkan ones of that kind only */
+  SRV_Q_AUTO_RUNS,          /* ?1 technique, ?2 work, ?3 this daemon's Vulkan kind, ?4 its
+                             * machine: timed runs at similar work per backend on hosts of its
+                             * kind (CPU model, threads), Vulkan ones on a device of that kind */
   SRV_Q_BUDGET,             /* candidates with metrics, newest comparisons first */
   SRV_Q_JOB_RUNS,           /* ?1 job id: its runs' totals */
   SRV_Q_JOB_DOC,            /* ?1 job id: its stored document, scene, label and priority */

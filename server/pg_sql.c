@@ -280,7 +280,8 @@ static const char *const queries[SRV_NQUERIES] = {
         "SELECT j.backend, ru.total_ms FROM (" RECENT_SUCCEEDED("") ") j CROSS JOIN LATERAL ("
         JOB_RUNS("") ") ru LEFT JOIN machines m ON m.id = ru.machine "
         "WHERE j.work BETWEEN $2::float8 / 2.0 AND $2::float8 * 2.0 AND j.backend IS NOT NULL AND "
-        "(j.backend <> 'vulkan' OR m.vulkan_kind = $3::text) ORDER BY j.id DESC LIMIT 5000",
+        "(j.backend <> 'vulkan' OR m.vulkan_kind = $3::text) AND (m.cpu_model, m.cores) = (SELECT "
+        "cpu_model, cores FROM machines WHERE id = $4::bigint) ORDER BY j.id DESC LIMIT 5000",
     [SRV_Q_BUDGET] =
         "SELECT c.id AS comparison, c.scene, cc.idx, cc.job, cc.technique, cc.backend, cc.params, "
         "cc.metrics, cc.role, cc.reference_params, cc.response, rj.technique AS "

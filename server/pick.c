@@ -71,14 +71,16 @@ int srv_pick_backend_learned(srv_app *app, const obs_technique *t, obs_backend r
   /* Medians of the stored timed runs of this technique at similar work, per backend. */
   json_t *rows = NULL;
   obs_err qerr = OBS_ERR_INIT;
-  /* Vulkan runs count only on a device of this lane's kind: a software rasteriser's time never
-   * predicts a GPU's, nor the reverse. */
-  srv_arg args[3] = {{SRV_ARG_TEXT, 0, 0, t->name},
+  /* Runs count only on hosts of this one's kind (CPU model and threads: on a shared store other
+   * nodes' hosts differ), and Vulkan runs only on a device of this lane's kind: a software
+   * rasteriser's time never predicts a GPU's, nor the reverse. */
+  srv_arg args[4] = {{SRV_ARG_TEXT, 0, 0, t->name},
                      {SRV_ARG_REAL, 0, work, NULL},
-                     {SRV_ARG_TEXT, 0, 0, app->vulkan_kind}};
+                     {SRV_ARG_TEXT, 0, 0, app->vulkan_kind},
+                     {SRV_ARG_INT, app->machine_id, 0, NULL}};
   size_t count[2] = {0, 0};
   double med[2] = {NAN, NAN};
-  if (work > 0 && !srv_db_query(app->db, SRV_Q_AUTO_RUNS, args, 3, &rows, &qerr)) {
+  if (work > 0 && !srv_db_query(app->db, SRV_Q_AUTO_RUNS, args, 4, &rows, &qerr)) {
     size_t nrows = json_array_size(rows);
     double *v[2] = {malloc((nrows + 1) * sizeof(double)), malloc((nrows + 1) * sizeof(double))};
     for (size_t i = 0; v[0] && v[1] && i < nrows; i++) {

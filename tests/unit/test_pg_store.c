@@ -341,9 +341,9 @@ static void test_comparison(void **state) {
                            "metrics:2,role:2,reference_params:2,response:2,"
                            "reference_technique:2,pixels:3,vulkan_kind:2,");
   json_decref(rows);
-  srv_arg auto_args[3] = {{SRV_ARG_TEXT, 0, 0, "ssao"}, {SRV_ARG_REAL, 0, 64.0 * 48 * 4, NULL},
-                          {SRV_ARG_TEXT, 0, 0, "software"}};
-  assert_int_equal(srv_db_query(pg, SRV_Q_AUTO_RUNS, auto_args, 3, &rows, NULL), 0);
+  srv_arg auto_args[4] = {{SRV_ARG_TEXT, 0, 0, "ssao"}, {SRV_ARG_REAL, 0, 64.0 * 48 * 4, NULL},
+                          {SRV_ARG_TEXT, 0, 0, "software"}, {SRV_ARG_INT, m, 0, NULL}};
+  assert_int_equal(srv_db_query(pg, SRV_Q_AUTO_RUNS, auto_args, 4, &rows, NULL), 0);
   assert_int_equal(json_array_size(rows), 1);
   shape(rows, got, sizeof got);
   assert_string_equal(got, "backend:2,total_ms:4,");
@@ -384,8 +384,8 @@ static void query_shapes(srv_db *db, char *out, size_t n) {
           by_machine = {SRV_ARG_INT, m, 0, NULL}, page[2] = {{SRV_ARG_INT, 0, 0, NULL},
                                                              {SRV_ARG_INT, 10, 0, NULL}},
           pending = {SRV_ARG_INT, 0, 0, NULL},
-          autos[3] = {{SRV_ARG_TEXT, 0, 0, "ssao"}, {SRV_ARG_REAL, 0, 64.0 * 48 * 4, NULL},
-                      {SRV_ARG_TEXT, 0, 0, "software"}};
+          autos[4] = {{SRV_ARG_TEXT, 0, 0, "ssao"}, {SRV_ARG_REAL, 0, 64.0 * 48 * 4, NULL},
+                      {SRV_ARG_TEXT, 0, 0, "software"}, {SRV_ARG_INT, m, 0, NULL}};
   const struct {
     srv_query q;
     const srv_arg *args;
@@ -393,7 +393,7 @@ static void query_shapes(srv_db *db, char *out, size_t n) {
   } qs[] = {{SRV_Q_COMPARISON, &by_cmp, 1},       {SRV_Q_CANDIDATES, &by_cmp, 1},
             {SRV_Q_COMPARISON_RUNS, &by_cmp, 1},  {SRV_Q_COMPARISON_OUTPUTS, &by_cmp, 1},
             {SRV_Q_COMPARISONS, page, 2},         {SRV_Q_JOB_COMPARISON, &by_job, 1},
-            {SRV_Q_AUTO_RUNS, autos, 3},          {SRV_Q_BUDGET, NULL, 0},
+            {SRV_Q_AUTO_RUNS, autos, 4},          {SRV_Q_BUDGET, NULL, 0},
             {SRV_Q_JOB_RUNS, &by_job, 1},         {SRV_Q_JOB_DOC, &by_job, 1},
             {SRV_Q_JOB_MACHINE, &by_job, 1},      {SRV_Q_JOB_CHOICE, &by_job, 1},
             {SRV_Q_MACHINE, &by_machine, 1},      {SRV_Q_METRICS_PENDING, &pending, 1}};
