@@ -16,12 +16,10 @@ struct srv_db {
 };
 
 /* The call on whichever implementation the store is. */
-#ifdef OBSCURAD_POSTGRESQL
 #define DISPATCH(fn, ...) \
   (db->pg ? srv_pg_##fn(db->pg, __VA_ARGS__) : srv_sq_##fn(db->sq, __VA_ARGS__))
-#else
-#define DISPATCH(fn, ...) srv_sq_##fn(db->sq, __VA_ARGS__)
-#endif
+/* The same for a call that takes only the store. */
+#define DISPATCH0(fn) (db->pg ? srv_pg_##fn(db->pg) : srv_sq_##fn(db->sq))
 
 static int is_url(const char *where) {
   return !strncmp(where, "postgresql://", 13) || !strncmp(where, "postgres://", 11);
@@ -35,14 +33,8 @@ int srv_db_open(srv_db **out, const char *where, int nconn, const srv_node *node
     db->node = *node;
   else
     srv_node_init(&db->node, "local", 0);
-#ifdef OBSCURAD_POSTGRESQL
   int rc = is_url(where) ? srv_pg_open(&db->pg, where, nconn, &db->node, err)
                          : srv_sq_open(&db->sq, where, nconn, &db->node, err);
-#else
-  int rc = is_url(where) ? obs_err_set(err, OBS_EUNSUPPORTED,
-                                       "%s: this obscurad was built without PostgreSQL", where)
-                         : srv_sq_open(&db->sq, where, nconn, &db->node, err);
-#endif
   if (rc) {
     free(db);
     return rc;
@@ -53,11 +45,7 @@ int srv_db_open(srv_db **out, const char *where, int nconn, const srv_node *node
 
 void srv_db_close(srv_db *db) {
   if (!db) return;
-#ifdef OBSCURAD_POSTGRESQL
-  if (db->pg) srv_pg_close(db->pg);
-  else
-#endif
-    srv_sq_close(db->sq);
+  DISPATCH0(close);
   free(db);
 }
 
@@ -158,13 +146,7 @@ int srv_db_reap(srv_db *db, int *requeued, int *failed, obs_err *err) {
 int srv_db_wait(srv_db *db, int timeout_ms, int *what, obs_err *err) {
   return DISPATCH(wait, timeout_ms, what, err);
 }
-int srv_db_results_shared(const srv_db *db) {
-#ifdef OBSCURAD_POSTGRESQL
-  if (db->pg) return srv_pg_results_shared(db->pg);
-#endif
-  (void)db;
-  return 0;
-}
+int srv_db_results_shared(const srv_db *db) { return db->pg ? srv_pg_results_shared(db->pg) : 0; }
 int srv_db_put_blob(srv_db *db, const char *sha256, const void *data, size_t n, obs_err *err) {
   return DISPATCH(put_blob, sha256, data, n, err);
 }
@@ -176,22 +158,9 @@ int srv_db_prune(srv_db *db, int64_t keep_jobs, double keep_days, int64_t **ids,
   return DISPATCH(prune, keep_jobs, keep_days, ids, nids, err);
 }
 int srv_db_admit_lock(srv_db *db, obs_err *err) { return DISPATCH(admit_lock, err); }
-void srv_db_admit_unlock(srv_db *db) {
-#ifdef OBSCURAD_POSTGRESQL
-  if (db->pg) {
-    srv_pg_admit_unlock(db->pg);
-    return;
-  }
-#endif
-  srv_sq_admit_unlock(db->sq);
-}
+void srv_db_admit_unlock(srv_db *db) { DISPATCH0(admit_unlock); }
 void srv_db_refuse(srv_db *db, const char *msg) { DISPATCH(refuse, msg); }
-const char *srv_db_path(const srv_db *db) {
-#ifdef OBSCURAD_POSTGRESQL
-  if (db->pg) return srv_pg_path(db->pg);
-#endif
-  return srv_sq_path(db->sq);
-}
+const char *srv_db_path(const srv_db *db) { return DISPATCH0(path); }
 
 /* ---- the SQLite file's own integrity checks: a PostgreSQL server has nothing to do here ------ */
 
