@@ -4,15 +4,7 @@
 # usage: client.sh OBSCURA_CLI OBSCURAD SOURCE_ROOT WORK_DIR
 set -u
 cli=$1 daemon=$2 root=$3 out=$4
-pass=0 fail=0
-check() { # description, command...
-  local d=$1
-  shift
-  if "$@"; then pass=$((pass + 1)); echo "ok: $d"; else fail=$((fail + 1)); echo "FAIL: $d"; fi
-}
-# The sanitizer build is many times slower.
-slow=1
-case "$cli$daemon" in *asan* | *sanitize*) slow=4 ;; esac
+source "$(dirname "$0")/client_lib.sh"
 
 rm -rf "$out" && mkdir -p "$out"
 pids=()
