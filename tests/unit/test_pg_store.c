@@ -508,8 +508,6 @@ static void test_prune(void **state) {
   assert_true(counts[SRV_QUEUED] == 1 && counts[SRV_SUCCEEDED] == 0);
 }
 
-/* The server ends the daemon's sessions (a restart, a failover): the next calls reconnect,
- * prepare their statements again and answer, and the listener comes back. */
 int main(void) {
   if (pg_fixture_start()) return 1;
   const struct CMUnitTest tests[] = {
