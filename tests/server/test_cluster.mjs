@@ -1,7 +1,7 @@
 // Three obscurad sharing one PostgreSQL store (docs/cluster.md), all real: a throwaway PostgreSQL
 // on loopback (tests/pg/pg.sh, its own server, since one case restarts it) and three daemons on
 // loopback ports, each with its own data directory, node name and one CPU lane, leases of 3 s.
-// The cases: a comparison's 60 jobs run once each, spread over the nodes; kill -9 of a node
+// The cases: a comparison's 60 jobs run once each, shared between nodes; kill -9 of a node
 // mid-render (its job re-runs elsewhere after the lease and the back-off); SIGSTOP past the lease
 // then SIGCONT (the late result is refused, the job stays the other node's); a cancel through one
 // node of a job another renders; one node serving another's outputs; PostgreSQL restarted
@@ -148,7 +148,7 @@ after(async () => {
 
 let sweep = null;  // case a's jobs, which case e serves across nodes
 
-test('a comparison posted to one node runs its 60 jobs exactly once, spread over the three nodes', async () => {
+test('a comparison posted to one node runs its 60 jobs exactly once, shared between nodes', async () => {
   const a = nodes['node-a'];
   const body = {scene_file: 'sphere_on_plane.json', set: {'/image/width': 24, '/image/height': 24},
                 label: 'cluster sweep', repeats: 1, reference: {samples: 16},
@@ -176,9 +176,16 @@ test('a comparison posted to one node runs its 60 jobs exactly once, spread over
   assert.deepEqual(rows.filter((x) => x[1] !== 'succeeded' || x[2] !== '1'), [], 'every job succeeded at its first attempt');
   const perNode = {};
   for (const x of rows) perNode[x[3]] = (perNode[x[3]] || 0) + 1;
-  const idle = NAMES.filter((n) => !perNode[n]);
-  assert.deepEqual(idle, [], `jobs per node: ${JSON.stringify(perNode)}; the idle nodes' logs:\n` +
-                   idle.map((n) => `${n}:\n${nodes[n].log().slice(-3000)}`).join('\n'));
+  // Node A hears of the jobs in-process, the others through the store's wake-up. Sixty jobs of a
+  // few tens of milliseconds can all be taken before a node whose worker the loaded machine
+  // schedules late gets a turn, so the spread asked here is at least one node beyond the one the
+  // comparison was posted to; that every node claims while the others are busy is the cancel
+  // case's (three long jobs at once on three one-lane nodes).
+  const busy = NAMES.filter((n) => perNode[n]);
+  assert.ok(busy.length >= 2 && busy.some((n) => n !== 'node-a'),
+            `jobs per node: ${JSON.stringify(perNode)}; the idle nodes' logs:\n` +
+            NAMES.filter((n) => !perNode[n]).map((n) => `${n}:\n${nodes[n].log().slice(-3000)}`).join('\n'));
+  assert.deepEqual(Object.keys(perNode).filter((n) => !NAMES.includes(n)), [], 'every job names its node');
   // Run once: each job has exactly its timed runs stored, no attempt's runs twice.
   const off = psql(`SELECT j.id, j.repeats, count(r.job) FROM jobs j LEFT JOIN runs r ON r.job = j.id
                     WHERE j.comparison = ${cid} GROUP BY j.id, j.repeats HAVING count(r.job) <> j.repeats`);
@@ -191,9 +198,12 @@ test('a comparison posted to one node runs its 60 jobs exactly once, spread over
   console.log(`# 60 jobs per node: ${JSON.stringify(perNode)}`);
 });
 
-test('node C serves the outputs of jobs node A rendered, byte for byte', async () => {
+test('a node serves the outputs of jobs another node rendered, byte for byte', async () => {
   assert.ok(sweep, 'needs the sweep of the first case');
-  for (const [from, via] of [['node-a', 'node-c'], ['node-c', 'node-a'], ['node-b', 'node-c']]) {
+  // Each node that rendered a job of the sweep, its outputs served by the next node along.
+  const ran = NAMES.filter((n) => sweep.rows.some((x) => x[3] === n));
+  for (const from of ran) {
+    const via = NAMES[(NAMES.indexOf(from) + 1) % NAMES.length];
     const id = Number(sweep.rows.find((x) => x[3] === from)[0]);
     const job = await getJob(nodes[from], id);
     const own = await download(nodes[from], job, 'ao.png');
@@ -202,11 +212,14 @@ test('node C serves the outputs of jobs node A rendered, byte for byte', async (
     const exr = await download(nodes[via], job, 'ao.exr');
     assert.ok(exr.body.length > 0);
   }
-  // A difference map of two outputs that neither rendered on node C: both come through the store.
-  const ja = Number(sweep.rows.find((x) => x[3] === 'node-a')[0]);
-  const jb = Number(sweep.rows.find((x) => x[3] === 'node-b')[0]);
-  const diff = await request(nodes['node-c'], 'GET', `/api/v1/diff?a=${ja}/ao.exr&b=${jb}/ao.exr&channel=ao`);
-  assert.equal(diff.status, 200, `diff on node C of jobs of A and B: ${diff.status} ${diff.text}`);
+  // A difference map, on a third node, of outputs two other nodes rendered: both come through the
+  // store (the sweep's first case asks for two nodes at least).
+  const [na, nb] = ran;
+  const third = NAMES.find((n) => n !== na && n !== nb);
+  const ja = Number(sweep.rows.find((x) => x[3] === na)[0]);
+  const jb = Number(sweep.rows.find((x) => x[3] === nb)[0]);
+  const diff = await request(nodes[third], 'GET', `/api/v1/diff?a=${ja}/ao.exr&b=${jb}/ao.exr&channel=ao`);
+  assert.equal(diff.status, 200, `diff on ${third} of jobs of ${na} and ${nb}: ${diff.status} ${diff.text}`);
 });
 
 test('kill -9 of a node mid-render: the job re-runs elsewhere after the lease and its back-off', async () => {
@@ -273,9 +286,11 @@ test('SIGSTOP past the lease, then SIGCONT: the late result is refused, the job 
   assert.equal((await getJSON(d, '/api/v1/health')).db, 'ok', `${paused} is healthy after SIGCONT`);
 });
 
-test('a cancel through node A stops the job node B renders', async () => {
+test('three long jobs run one per node, and a cancel through node A stops the one another node renders', async () => {
   const a = nodes['node-a'];
   const jobs = await runningAll(a, [LONG, LONG, LONG]);
+  // Three at once on three one-lane nodes: every node claimed one while the others were busy.
+  assert.deepEqual(jobs.map((j) => j.node).sort(), NAMES, 'one long job on each node');
   const target = jobs.find((j) => j.node !== 'node-a');
   assert.ok(target, `one of three runs elsewhere than node-a: ${jobs.map((j) => j.node)}`);
   await cancelJob(a, target.id);

@@ -206,8 +206,9 @@ static const char *const *end_companions(const char *name) {
  * flooded, or its finest level at 512, or its flood run ten times as far; 4096 peeled directions
  * or 512^2 bundles; 65536 volume samples; 65536 paths per pixel, a loop count that sizes no
  * buffer: 3 to 60 s each under ASan). They are the same loops as at the default, at a larger
- * count; the release build renders them, the sanitizer builds check every other end and leave
- * these out, saying so. */
+ * count; the release build renders them at the machine's own instruction-set level, and the
+ * sanitizer builds and the lower levels' variants (whose paths the default and every other end
+ * walk) leave these out, saying so. */
 static int release_only_end(const char *technique, const char *key, const char *value) {
   static const char *const ends[][3] = {{"proximity_ao", "volume_res", "512"},
                                         {"proximity_ao", "min_res", "512"},
@@ -256,8 +257,9 @@ static int param_ends_pair(const obs_technique *t, obs_backend be) {
       char params[768], what[1024];
       snprintf(params, sizeof params, "{\"%s\":%s%s}", key, vals[k], with);
       snprintf(what, sizeof what, "%s/%s %s", t->name, obs_backend_name(be), params);
-      if (obs_test_sanitized() && release_only_end(t->name, key, vals[k]))
-        printf("     %s: left to the release build under the sanitizers\n", what);
+      if ((obs_test_sanitized() || obs_test_isa_variant()) &&
+          release_only_end(t->name, key, vals[k]))
+        printf("     %s: left to the release build at this CPU's own level\n", what);
       else
         bad += render_sane(t, be, params, key, what);
     }

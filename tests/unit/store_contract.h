@@ -69,8 +69,7 @@ double sc_now_ms(void);
 void sc_sleep_ms(int ms);
 
 /* store_contract_nodes.c: leases, recovery, blobs, wake-ups. */
-void test_reap(void **state);
-void test_exclusion(void **state);
+void test_reap_and_exclusion(void **state);
 void test_recover(void **state);
 void test_blobs(void **state);
 void test_wait(void **state);

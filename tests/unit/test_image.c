@@ -85,7 +85,7 @@ static void test_image_init_rejects_bad_input(void **state) {
   assert_int_equal(obs_image_init(&img, 4, 4, 1, longname, &err), OBS_EINVAL);
   assert_msg_has(&err, longname[0]);
   /* The byte count overflows size_t; this must be caught before any allocation is tried. */
-  char many[OBS_IMAGE_MAX_CHANNELS][8];
+  char many[OBS_IMAGE_MAX_CHANNELS][16];
   const char *many_names[OBS_IMAGE_MAX_CHANNELS];
   for (int c = 0; c < OBS_IMAGE_MAX_CHANNELS; c++) {
     snprintf(many[c], sizeof many[c], "c%d", c);

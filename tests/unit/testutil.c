@@ -16,8 +16,7 @@
  * OBS_TEST_ISA_VARIANT=1) whose cap is not below this CPU's own level would repeat the plain
  * run: it exits as skipped (ctest's SKIP_RETURN_CODE 77) before the test starts. */
 __attribute__((constructor)) static void isa_variant_skip(void) {
-  const char *v = getenv("OBS_TEST_ISA_VARIANT");
-  if (!v || strcmp(v, "1") || obs_simd_isa_cap() < obs_simd_cpu_isa()) return;
+  if (!obs_test_isa_variant() || obs_simd_isa_cap() < obs_simd_cpu_isa()) return;
   printf("skipped: OBSCURA_ISA=%s is not below this CPU's level (%s), which the plain run tests\n",
          getenv("OBSCURA_ISA") ? getenv("OBSCURA_ISA") : "", obs_simd_isa_name(obs_simd_cpu_isa()));
   exit(77);
@@ -25,6 +24,11 @@ __attribute__((constructor)) static void isa_variant_skip(void) {
 
 int obs_test_sanitized(void) {
   const char *v = getenv("OBS_TEST_SANITIZED");
+  return v && !strcmp(v, "1");
+}
+
+int obs_test_isa_variant(void) {
+  const char *v = getenv("OBS_TEST_ISA_VARIANT");
   return v && !strcmp(v, "1");
 }
 

@@ -17,6 +17,8 @@
 void obs_test_numeric_only(void);
 /* Whether this is a sanitizer build's run (OBS_TEST_SANITIZED=1). */
 int obs_test_sanitized(void);
+/* 1 in an instruction-set variant (OBS_TEST_ISA_VARIANT=1, a level below this CPU's own). */
+int obs_test_isa_variant(void);
 
 /* A fresh directory under $OBS_TMP (or /tmp) for this test; returned string is static per call
  * site until the next call. */
