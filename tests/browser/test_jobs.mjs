@@ -46,6 +46,9 @@ test('jobs, job detail and submit pages', async () => {
     const block = page.getByRole('group', {name: 'Technique'});
     await block.getByLabel('Technique', {exact: true}).selectOption('rt_ao');
     await block.getByLabel('Backend').selectOption('cpu');
+    // The scene's values for rt_ao arrive asynchronously; typing waits for them, so what is
+    // typed below is what the check sees on any machine, however loaded.
+    await block.getByText(/^Values: /).waitFor();
     const samples = block.getByLabel('samples', {exact: true});
     await samples.fill('0');
     await page.getByLabel('Priority').fill('101');
