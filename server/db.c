@@ -180,17 +180,14 @@ static const char *const sql[ST_COUNT] = {
         "JOIN jobs r ON r.id = cc.reference_job WHERE cc.metrics IS NULL AND "
         "cc.metrics_error IS NULL AND j.state = 'succeeded' AND r.state = 'succeeded' AND "
         "(?1 = 0 OR cc.job = ?1 OR cc.reference_job = ?1) ORDER BY cc.comparison, cc.idx",
-    /* The newest 5000 runs are plenty for a median and bound the work of one submission. */
-    /* Runs on a machine of the host kind of machine `m`'s row: the same CPU model and threads. */
-#define HOST_KIND(m)                                                                              \
-  "m.cpu_model = (SELECT cpu_model FROM machines WHERE id = " m ") AND m.cores = (SELECT cores "   \
-  "FROM machines WHERE id = " m ")"
+    /* The newest 5000 runs are plenty for a median and bound the work of one submission. Runs
+     * count on hosts of this one's kind only: the CPU model and threads of machine ?4. */
     [ST_QUERY + SRV_Q_AUTO_RUNS] =
         "SELECT j.backend, ru.total_ms FROM (" RECENT_SUCCEEDED("") ") j "
         "JOIN runs ru ON ru.job = j.id LEFT JOIN machines m ON m.id = ru.machine "
         "WHERE j.work BETWEEN ?2 / 2.0 AND ?2 * 2.0 AND j.backend IS NOT NULL AND "
-        "(j.backend <> 'vulkan' OR m.vulkan_kind = ?3) AND " HOST_KIND("?4")
-        " ORDER BY ru.job DESC LIMIT 5000",
+        "(j.backend <> 'vulkan' OR m.vulkan_kind = ?3) AND (m.cpu_model, m.cores) = (SELECT "
+        "cpu_model, cores FROM machines WHERE id = ?4) ORDER BY ru.job DESC LIMIT 5000",
     [ST_QUERY + SRV_Q_BUDGET] =
         "SELECT c.id AS comparison, c.scene, cc.idx, cc.job, cc.technique, cc.backend, cc.params, "
         "cc.metrics, cc.role, cc.reference_params, cc.response, rj.technique AS reference_technique, "
