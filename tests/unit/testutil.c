@@ -22,15 +22,14 @@ __attribute__((constructor)) static void isa_variant_skip(void) {
   exit(77);
 }
 
-int obs_test_sanitized(void) {
-  const char *v = getenv("OBS_TEST_SANITIZED");
+static int env_is_one(const char *name) {
+  const char *v = getenv(name);
   return v && !strcmp(v, "1");
 }
 
-int obs_test_isa_variant(void) {
-  const char *v = getenv("OBS_TEST_ISA_VARIANT");
-  return v && !strcmp(v, "1");
-}
+int obs_test_sanitized(void) { return env_is_one("OBS_TEST_SANITIZED"); }
+
+int obs_test_isa_variant(void) { return env_is_one("OBS_TEST_ISA_VARIANT"); }
 
 void obs_test_numeric_only(void) {
   if (obs_test_sanitized()) {
