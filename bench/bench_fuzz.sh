@@ -5,7 +5,7 @@
 # directory (the source tree is never written) and uses the target's dictionary when it has one.
 #
 #   bash bench/bench_fuzz.sh [BUILD_DIR] [RUNS] [TARGET...]
-#     BUILD_DIR  a configuration with -DOBSCURA_FUZZ=ON (CC=clang); default build-clang
+#     BUILD_DIR  a configuration with -DOBSCURA_FUZZ=ON (CC=clang); default build-asan
 #     RUNS       executions per target; default 1000000
 #     TARGET     fuzz_<name> executables to run; default all in BUILD_DIR/fuzz
 #
@@ -14,12 +14,12 @@
 # target found something.
 set -u
 root=$(cd "$(dirname "$0")/.." && pwd)
-build=${1:-$root/build-clang}
+build=${1:-$root/build-asan}
 runs=${2:-1000000}
 shift $(($# > 2 ? 2 : $#))
 fuzzdir=$build/fuzz
 if [ ! -d "$fuzzdir" ]; then
-  echo "bench_fuzz: no $fuzzdir: configure with CC=clang cmake -S . -B build-clang -DOBSCURA_FUZZ=ON" >&2
+  echo "bench_fuzz: no $fuzzdir: configure with CC=clang cmake -S . -B build-asan -DOBSCURA_FUZZ=ON" >&2
   exit 2
 fi
 targets=("$@")

@@ -256,7 +256,15 @@ test('database disk fills during a render: the job is not stranded', async (t) =
     const id = await submit(d, LONG);
     const queued = await submit(d, JOB);
     await waitJob(d, id, (j) => j.state === 'running' && j.progress > 0);
-    const filler = fill(dbfs);
+    // The daemon is stopped while the disk fills, so the render cannot end and commit before the
+    // disk is full, however fast this build renders.
+    d.proc.kill('SIGSTOP');
+    let filler;
+    try {
+      filler = fill(dbfs);
+    } finally {
+      d.proc.kill('SIGCONT');
+    }
     // The render ends, its outputs are published, the commit meets the full disk: the worker
     // holds the job (health counts it paused) and the fault shows.
     // The render itself takes seconds, many more on a loaded machine: wait for its end generously.
