@@ -77,6 +77,6 @@ const obs_technique obs_technique_disc_ao = {
     .outputs = obs_screen_outputs,
     .reference_same = &obs_technique_rt_ao,
     .reference_keys = disc_ao_reference_keys,
-    .run = {[OBS_BACKEND_CPU] = obs_disc_ao_cpu},
-    .range = {[OBS_BACKEND_CPU] = DISC_AO_RANGE},
+    .run = {[OBS_BACKEND_CPU] = obs_disc_ao_cpu, [OBS_BACKEND_VULKAN] = obs_disc_ao_vulkan},
+    .range = {[OBS_BACKEND_CPU] = DISC_AO_RANGE, [OBS_BACKEND_VULKAN] = DISC_AO_RANGE},
 };
