@@ -27,9 +27,11 @@ static int cmp_float(const void *a, const void *b) {
   return (x > y) - (x < y);
 }
 
-/* The cells [c0, c1] that disc d's box covers, clipped to the grid; 0 when it misses it. */
+/* The cells [c0, c1] that disc d's box covers, clipped to the grid; 0 when it misses it. The box
+ * is grown by 10^-5 so that a receiver the reach test admits at its very edge is never in a cell
+ * the rounding of c +- r left out. */
 static int disc_cells(const grid *gr, const obs_disc *d, int c0[3], int c1[3]) {
-  const float r = sqrtf(d->r2);
+  const float r = sqrtf(d->r2) * 1.00001f;
   for (int k = 0; k < 3; k++) {
     float a = (d->c[k] - r - gr->lo[k]) * gr->inv_h, b = (d->c[k] + r - gr->lo[k]) * gr->inv_h;
     if (!(b >= 0.0f) || !(a < (float)gr->dim[k])) return 0;
