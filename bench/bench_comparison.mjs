@@ -33,6 +33,7 @@ const GRIDS = {
   obscurance: {samples: [4, 16, 64], light_samples: 16, d_max: 300, color_bleeding: [false, true]},
   ss_obscurance: {samples: [8, 16, 32], radius: 150},
   ssao_variance: {method: ['variance', 'depth_unsharp'], radius: 100},
+  disc_ao: {influence_scale: [4, 16], side: ['front', 'back']},
   // strength 0 is the direct pass alone: what the bounce adds is read against it.
   ss_radiosity: {strength: [0, 1, 4]},
   obscurance_map: [{backend: 'cpu', params: {method: ['rays', 'global_lines', 'bundles'], d_max: 300, patch_size: 50}},

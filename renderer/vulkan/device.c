@@ -221,9 +221,16 @@ static int create_device(obs_vk *vk, obs_err *err) {
                                .queueFamilyIndex = vk->family,
                                .queueCount = 1,
                                .pQueuePriorities = &prio};
+  /* Geometry shaders where the device has them (disc_ao's proxies); every other feature stays
+   * off. */
+  VkPhysicalDeviceFeatures have, want = {0};
+  vkGetPhysicalDeviceFeatures(vk->phys, &have);
+  want.geometryShader = have.geometryShader;
+  vk->geometry_shader = have.geometryShader == VK_TRUE;
   VkDeviceCreateInfo ci = {.sType = VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO,
                            .queueCreateInfoCount = 1,
-                           .pQueueCreateInfos = &q};
+                           .pQueueCreateInfos = &q,
+                           .pEnabledFeatures = &want};
   int rc;
   if ((rc = obs_vk_check(vk, vkCreateDevice(vk->phys, &ci, NULL, &vk->dev), "vkCreateDevice",
                          err))) {

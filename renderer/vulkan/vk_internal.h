@@ -56,6 +56,7 @@ struct obs_vk {
   VkPipelineLayout gb_layout;
   VkPipeline gb_pipeline;
   int validation;
+  int geometry_shader; /* the geometryShader feature is enabled */
   atomic_uint messages;
   int lost; /* VK_ERROR_DEVICE_LOST seen: every later call fails */
   char name[VK_MAX_PHYSICAL_DEVICE_NAME_SIZE];
