@@ -2,6 +2,7 @@
  * radiance the camera sees directly, and what both backends share around the passes (the clamped
  * form factor in double, the push blocks, the export). The VPLs and the emission are made once on
  * the host, so the CPU and Vulkan gathers read the same bits. */
+#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -282,7 +283,9 @@ void obs_irad_gather_push_make(const obs_instant_radiosity_params *p, const obs_
   out->classes = v->classes;
   out->half_w = half_w;
   out->half_h = half_h;
-  out->nc2 = p->clamp_distance * p->clamp_distance;
+  /* N_c^2 in float: kept normal, so the bound 1 / N_c^2 holds at the smallest N_c too. */
+  double nc2 = (double)p->clamp_distance * (double)p->clamp_distance;
+  out->nc2 = (float)(nc2 < FLT_MIN ? FLT_MIN : nc2 > FLT_MAX ? FLT_MAX : nc2);
   for (int k = 0; k <= OBS_IRAD_CLASSES; k++) out->start[k] = v->start[k];
 }
 

@@ -47,7 +47,7 @@ static const obs_param irad_params[] = {
                     "`renew` renews it by then, reseeded deterministically",
      .offset = P(frame)},
     {.name = "clamp_distance", .type = OBS_PARAM_FLOAT, .flags = OBS_PARAM_MIN_EXCLUSIVE, .min = 0,
-     .max = 1e30, .def = 0.1, .size_default = 0.02,
+     .max = 1e18, .def = 0.1, .size_default = 0.02,
      .description = "N_c in scene units: receivers nearer than this to a VPL's plane are moved "
                     "onto it (the article's spike clamp); the form factor stays below 1 / N_c^2",
      .offset = P(clamp_distance)},
