@@ -30,8 +30,8 @@ static void usage(FILE *f) {
           "                               [--clamp NC] [--png PREFIX] [--exposure EV]\n"
           "  Renders the Cornell box and the box with a panel under its light at W x W with\n"
           "  path_trace (S paths per pixel, max_bounces B: the reference) and with\n"
-          "  instant_radiosity at each VPL count, visibility none and exact on the CPU and none\n"
-          "  on Vulkan when a device exists, R times each; prints the median render time and the\n"
+          "  instant_radiosity at each VPL count, visibility none, approximate and exact on the\n"
+          "  CPU and none and approximate on Vulkan when a device exists, R times each; prints the median render time and the\n"
           "  luminance RMSE against the reference over the pixels both cover. --clamp sets\n"
           "  clamp_distance (default 19.2: 0.02 of the box's 960.7 diagonal, the size default).\n"
           "  --png writes\n"
@@ -193,11 +193,15 @@ static int bench_scene(const options *o, int panel, int have_vk) {
     snprintf(path, sizeof path, "%s%s_path_trace.png", o->png, scene);
     if (write_png(&ref.image, o->exposure, path)) return 1;
   }
-  printf("  %-7s %-10s %6s %12s %14s %12s\n", "backend", "visibility", "vpls", "ms",
+  printf("  %-7s %-11s %6s %12s %14s %12s\n", "backend", "visibility", "vpls", "ms",
          "lum RMSE", "ref noise");
-  static const char *const modes[3][2] = {{"cpu", "none"}, {"cpu", "exact"}, {"vulkan", "none"}};
-  for (int m = 0; m < 3; m++) {
-    if (m == 2 && !have_vk) continue;
+  static const char *const modes[5][2] = {{"cpu", "none"},
+                                          {"cpu", "approximate"},
+                                          {"cpu", "exact"},
+                                          {"vulkan", "none"},
+                                          {"vulkan", "approximate"}};
+  for (int m = 0; m < 5; m++) {
+    if (!strcmp(modes[m][0], "vulkan") && !have_vk) continue;
     for (int v = 0; v < o->nvpls; v++) {
       snprintf(params, sizeof params,
                "{\"vpls\":%d,\"max_bounces\":%d,\"visibility\":\"%s\",\"clamp_distance\":%g}",
@@ -211,7 +215,7 @@ static int bench_scene(const options *o, int panel, int have_vk) {
         return 1;
       }
       double e = rmse(&res.image, &ref.image, &noise);
-      printf("  %-7s %-10s %6d %12.1f %14.5f %12.5f\n", modes[m][0], modes[m][1], o->vpls[v], ms,
+      printf("  %-7s %-11s %6d %12.1f %14.5f %12.5f\n", modes[m][0], modes[m][1], o->vpls[v], ms,
              e, noise);
       if (o->png && v + 1 == o->nvpls) {
         snprintf(path, sizeof path, "%s%s_%s_%s.png", o->png, scene, modes[m][0], modes[m][1]);

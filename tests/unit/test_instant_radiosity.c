@@ -50,7 +50,7 @@ static void test_params(void **state) {
   assert_int_equal(p.filter, 1);
   const char *bad[] = {"{\"vpls\":0}",          "{\"max_bounces\":17}",  "{\"renew\":1.5}",
                        "{\"clamp_distance\":0}", "{\"filter_normal\":2}", "{\"filter_depth\":-1}",
-                       "{\"visibility\":\"approximate\"}"};
+                       "{\"visibility\":\"exact_or_not\"}", "{\"shadow_bias\":0}"};
   for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) assert_true(load_rc("cpu", bad[i]) != 0);
   assert_int_equal(load_rc("cpu", "{\"visibility\":\"exact\"}"), 0);
   obs_scene sc;
@@ -254,6 +254,62 @@ static void test_filter(void **state) {
   obs_err_free(&err);
 }
 
+/* Approximate visibility on a hand-made G-buffer: the plane at depth 10 with a strip (columns 12
+ * to 19) 0.3 in front of it, one VPL 0.01 in front of the plane at the right. Receivers right of
+ * the strip see it exactly (visibility 1); the march from receivers left of it lands on the
+ * strip, 0.3 nearer than the segment: beyond 2 bias z (0.2) and short of thickness z (0.4), so
+ * fully occluded. With a thickness below the bias the strip counts as too far in front: all 1.
+ * A VPL beyond the right edge sends the segments off screen into the distance cube: an empty
+ * cube hides nothing, a cube whose surfaces lie 0.5 from its centre hides every VPL beyond. */
+static void approx_case(float thickness, float vx, float cube_d, float *vis_row) {
+  obs_gbuffer g;
+  plane_gbuffer(&g, 10.0f, 10.0f, 0);
+  for (int y = 0; y < GH; y++)
+    for (int x = 12; x < 20; x++) g.depth[y * GW + x] = 9.7f;
+  const float pos[3] = {vx, 0.0f, 9.99f};
+  obs_irad_light l;
+  hand_vpls(&l, 1, pos);
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(obs_irad_pyramid_make(&g, &l, &err), 0);
+  l.cube = malloc(6 * OBS_IRAD_CUBE * OBS_IRAD_CUBE * sizeof(float));
+  for (int i = 0; i < 6 * OBS_IRAD_CUBE * OBS_IRAD_CUBE; i++) l.cube[i] = cube_d;
+  l.cube_c[2] = 10.0f;
+  obs_instant_radiosity_params p = hand_params(0.001f, 0);
+  p.visibility = OBS_IRAD_VIS_APPROX;
+  p.shadow_bias = 0.01f;
+  p.shadow_thickness = thickness;
+  float *raw = malloc(4 * GW * GH * sizeof *raw);
+  assert_int_equal(obs_irad_cpu_apply(&g, &l, &p, 2, raw, NULL, NULL, &err), 0);
+  for (int x = 0; x < GW; x++) vis_row[x] = raw[4 * (17 * GW + x) + 3];
+  free(raw);
+  free(l.vpls.rec);
+  free(l.pyramid);
+  free(l.cube);
+  obs_gbuffer_free(&g);
+  obs_err_free(&err);
+}
+
+static void test_approximate(void **state) {
+  (void)state;
+  float v[GW];
+  approx_case(0.04f, 0.95f, (float)OBS_IRAD_FAR, v);
+  int hidden = 0;
+  for (int x = 0; x < GW; x++) {
+    assert_true(v[x] >= 0.0f && v[x] <= 1.0f);
+    if (x >= 20 && x < 30) assert_true(v[x] == 1.0f);
+    if (x >= 2 && x < 11) hidden += v[x] < 1e-3f;
+  }
+  printf("approximate: %d of 9 receivers left of the strip fully hidden\n", hidden);
+  assert_true(hidden >= 7);
+  approx_case(0.001f, 0.95f, (float)OBS_IRAD_FAR, v);
+  for (int x = 0; x < GW; x++) assert_true(v[x] == 1.0f);
+  /* Off screen: segments from receivers right of the strip leave the image toward x = 3. */
+  approx_case(0.04f, 3.0f, (float)OBS_IRAD_FAR, v);
+  for (int x = 20; x < GW; x++) assert_true(v[x] == 1.0f);
+  approx_case(0.04f, 3.0f, 0.5f, v);
+  for (int x = 20; x < GW; x++) assert_true(v[x] < 1e-3f);
+}
+
 /* The point-to-rectangle form factor for a point under a corner of an a x b rectangle parallel to
  * its plane at distance c. */
 static double corner_ff(double a, double b, double c) {
@@ -398,7 +454,8 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_params),         cmocka_unit_test(test_form_factor),
       cmocka_unit_test(test_gather_one_vpl), cmocka_unit_test(test_filter),
-      cmocka_unit_test(test_direct_square),  cmocka_unit_test(test_renew),
+      cmocka_unit_test(test_approximate),    cmocka_unit_test(test_direct_square),
+      cmocka_unit_test(test_renew),
       cmocka_unit_test(test_deterministic),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

@@ -43,6 +43,111 @@ static int visible(const irad_job *j, float px, float py, float pz, const float 
   return !obs_rt_occluded(j->l->rt, &ctx, o, d, len * (1.0f - 1e-3f));
 }
 
+/* 0 below e0, 1 above e1, the smooth Hermite step between (HLSL's smoothstep, spelt out so that
+ * both twins compute it alike). */
+static float smooth01(float e0, float e1, float x) {
+  float t = (x - e0) / (e1 - e0);
+  t = t < 0.0f ? 0.0f : t > 1.0f ? 1.0f : t;
+  return t * t * (3.0f - 2.0f * t);
+}
+
+/* The pixel coordinates of view-space point (x, y, z). */
+static void project(const obs_irad_gather_push *pc, float x, float y, float z, float *qx,
+                    float *qy) {
+  const float fw = (float)pc->width, fh = (float)pc->height;
+  if (pc->flags & OBS_IRAD_ORTHO) {
+    *qx = (x / pc->half_w + 1.0f) * 0.5f * fw;
+    *qy = (1.0f - y / pc->half_h) * 0.5f * fh;
+  } else {
+    *qx = (x / (z * pc->half_w) + 1.0f) * 0.5f * fw;
+    *qy = (1.0f - y / (z * pc->half_h)) * 0.5f * fh;
+  }
+}
+
+/* How much a sample dz behind an occluding surface at depth (or distance) z is occluded. */
+static float occlusion(const obs_irad_gather_push *pc, float z, float dz) {
+  float in = smooth01(pc->bias * z, 2.0f * pc->bias * z, dz);
+  float out = smooth01(pc->thickness * z, 2.0f * pc->thickness * z, dz);
+  return in * (1.0f - out);
+}
+
+/* The distance cube's value in the direction of view-space v from its centre. */
+static float cube_at(const irad_job *j, float vx, float vy, float vz) {
+  const float ax = fabsf(vx), ay = fabsf(vy), az = fabsf(vz);
+  int f;
+  float a, b;
+  if (ax >= ay && ax >= az) {
+    f = vx < 0.0f ? 1 : 0, a = vy / ax, b = vz / ax;
+  } else if (ay >= az) {
+    f = vy < 0.0f ? 3 : 2, a = vx / ay, b = vz / ay;
+  } else {
+    f = vz < 0.0f ? 5 : 4, a = vx / az, b = vy / az;
+  }
+  const float R = (float)OBS_IRAD_CUBE;
+  float fi = floorf((a + 1.0f) * 0.5f * R), fj = floorf((b + 1.0f) * 0.5f * R);
+  fi = fi >= 0.0f ? (fi > R - 1.0f ? R - 1.0f : fi) : 0.0f;
+  fj = fj >= 0.0f ? (fj > R - 1.0f ? R - 1.0f : fj) : 0.0f;
+  return j->l->cube[(size_t)fj * 6 * OBS_IRAD_CUBE + (size_t)f * OBS_IRAD_CUBE + (size_t)fi];
+}
+
+/* The article's approximate visibility of the VPL at view-space r from receiver P: a march over
+ * the depth min-pyramid along the segment's on-screen part (samples 2^(i+1) pixels from P on
+ * coarser levels as they go, stopping 2 pixels short of the VPL), then OBS_IRAD_CUBE_SAMPLES
+ * looks into the distance cube along its part outside the view; each sample's soft comparison
+ * multiplies the visibility. */
+static float approx_vis(const irad_job *j, float px, float py, float pz, const float *r) {
+  const obs_irad_gather_push *pc = &j->gp;
+  const int ortho = (pc->flags & OBS_IRAD_ORTHO) != 0;
+  /* The segment clipped to the part in front of the camera (perspective: z >= pz / 64). */
+  const float zn = ortho ? 0.0f : pz * 0.015625f;
+  const float tc = r[2] < zn ? (pz - zn) / (pz - r[2]) : 1.0f;
+  const float ex = px + tc * (r[0] - px), ey = py + tc * (r[1] - py), ez = pz + tc * (r[2] - pz);
+  float ax, ay, bx, by;
+  project(pc, px, py, pz, &ax, &ay);
+  project(pc, ex, ey, ez, &bx, &by);
+  const float dx = bx - ax, dy = by - ay, len = sqrtf(dx * dx + dy * dy);
+  const float fw = (float)pc->width, fh = (float)pc->height;
+  float ue = 1.0f; /* where the screen segment leaves the image */
+  if (dx > 0.0f) ue = fminf(ue, (fw - ax) / dx);
+  if (dx < 0.0f) ue = fminf(ue, -ax / dx);
+  if (dy > 0.0f) ue = fminf(ue, (fh - ay) / dy);
+  if (dy < 0.0f) ue = fminf(ue, -ay / dy);
+  float vis = 1.0f;
+  for (int i = 0; i < OBS_IRAD_STEPS; i++) {
+    const float s = (float)(2 << i);
+    if (!(s < len - 2.0f)) break;
+    const float u = s / len;
+    if (!(u < ue)) break;
+    const float zs = ortho ? pz + u * (ez - pz) : 1.0f / ((1.0f - u) / pz + u / ez);
+    const int l = i > 0 ? (i - 1 < OBS_IRAD_LEVELS - 1 ? i - 1 : OBS_IRAD_LEVELS - 1) : 0;
+    const int wl = (pc->width + (1 << l) - 1) >> l, hl = (pc->height + (1 << l) - 1) >> l;
+    const float sx = ax + u * dx, sy = ay + u * dy;
+    int tx = (int)sx >> l, ty = (int)sy >> l;
+    tx = tx < 0 ? 0 : tx < wl - 1 ? tx : wl - 1;
+    ty = ty < 0 ? 0 : ty < hl - 1 ? ty : hl - 1;
+    const float m = j->l->pyramid[(size_t)ty * (size_t)j->l->pyr_w +
+                                  (size_t)(obs_irad_pyramid_offset(pc->width, l) + tx)];
+    vis *= 1.0f - occlusion(pc, zs, zs - m);
+  }
+  if (ue < 1.0f || tc < 1.0f) {
+    /* The 3D parameter (along P -> r) where the segment leaves the view. */
+    float te = ue;
+    if (!ortho && ue < 1.0f) te = ue * pz / ((1.0f - ue) * ez + ue * pz);
+    const float t0 = (ue < 1.0f ? te : 1.0f) * tc;
+    for (int k = 1; k <= OBS_IRAD_CUBE_SAMPLES; k++) {
+      const float t = t0 + (1.0f - t0) * ((float)k / (float)(OBS_IRAD_CUBE_SAMPLES + 1));
+      const float vx = px + t * (r[0] - px) - pc->cube_x, vy = py + t * (r[1] - py) - pc->cube_y,
+                  vz = pz + t * (r[2] - pz) - pc->cube_z;
+      const float d = sqrtf(vx * vx + vy * vy + vz * vz);
+      if (!(d > 0.0f)) continue;
+      /* Behind an off-screen surface as seen from the cube's centre: hidden however far behind
+       * (the thickness is the depth buffer's assumption). */
+      vis *= 1.0f - smooth01(pc->bias * d, 2.0f * pc->bias * d, d - cube_at(j, vx, vy, vz));
+    }
+  }
+  return vis;
+}
+
 static void gather_pixel(const irad_job *j, int x, int y, float *res) {
   const obs_gbuffer *g = j->g;
   const obs_irad_gather_push *pc = &j->gp;
@@ -78,6 +183,13 @@ static void gather_pixel(const irad_job *j, int x, int y, float *res) {
     float lum = 0.2126f * cr + 0.7152f * cg + 0.0722f * cb;
     all += lum;
     if (j->exact && !visible(j, px, py, zp, n, k)) continue;
+    if (pc->flags & OBS_IRAD_APPROX) {
+      float v = approx_vis(j, px, py, zp, r);
+      cr *= v;
+      cg *= v;
+      cb *= v;
+      lum *= v;
+    }
     er += cr;
     eg += cg;
     eb += cb;
@@ -180,8 +292,10 @@ static int irad_passes(obs_screen_cpu *r, const obs_gbuffer *g, const obs_irad_l
       for (int i = 0; i < 3; i++) j.axes[k][i] = (float)ax[k][i];
     }
   }
-  obs_irad_gather_push_make(p, &l->vpls, g->width, g->height, g->ortho, g->half_w, g->half_h,
-                            &j.gp);
+  obs_irad_gather_push_make(p, l, g->width, g->height, g->ortho, g->half_w, g->half_h, &j.gp);
+  if (p->visibility == OBS_IRAD_VIS_APPROX && !l->pyramid)
+    return obs_err_set(err, OBS_EINVAL, "instant_radiosity: approximate visibility needs its "
+                                        "pyramid and cube (obs_irad_approx_make)");
   obs_irad_filter_push_make(p, g->width, g->height, g->ortho, g->half_w, g->half_h, &j.fp);
   r->passes = p->filter ? 2 : 1;
   double t0 = obs_now_ms();
@@ -219,6 +333,7 @@ static int passes(obs_screen_cpu *r, const obs_gbuffer *g, const void *params, f
   double st[OBS_IRAD_CPU_STAGES];
   obs_irad_light l;
   int rc = obs_irad_light_render(r->ctx, p, &l, err);
+  if (!rc && p->visibility == OBS_IRAD_VIS_APPROX) rc = obs_irad_approx_render(r->ctx, g, &l, err);
   if (!rc) rc = irad_passes(r, g, &l, p, raw, res, st, err);
   if (!rc) {
     obs_screen_cpu_stage(r, "gather", st[0]);

@@ -19,7 +19,7 @@ typedef struct obs_vk obs_vk;
 typedef struct obs_vk_gbuffer obs_vk_gbuffer;
 typedef struct obs_rt obs_rt;
 
-enum { OBS_IRAD_VIS_NONE, OBS_IRAD_VIS_EXACT };
+enum { OBS_IRAD_VIS_NONE, OBS_IRAD_VIS_APPROX, OBS_IRAD_VIS_EXACT };
 
 /* Bound from the descriptor's parameter table. */
 typedef struct obs_instant_radiosity_params {
@@ -29,6 +29,8 @@ typedef struct obs_instant_radiosity_params {
   uint32_t frame;       /* the frame whose VPL set is rendered */
   float clamp_distance; /* N_c */
   int visibility;       /* OBS_IRAD_VIS_* */
+  float shadow_bias;    /* approximate visibility's relative depth bias */
+  float shadow_thickness; /* and the occluders' assumed relative thickness */
   int filter;           /* geometry-aware 4x4 filter of the interleaved image */
   float filter_depth;   /* relative depth difference a filter sample may have */
   float filter_normal;  /* least cosine between a filter sample's normal and the centre's */
@@ -77,6 +79,12 @@ typedef struct obs_irad_light {
   obs_camera_rig rig;
   obs_irad_vpls vpls;
   float *emission;
+  /* Approximate visibility (obs_irad_approx_make; NULL otherwise): the depth min-pyramid's atlas
+   * (pyr_w x its height, layout.h) and the distance cube (6 OBS_IRAD_CUBE x OBS_IRAD_CUBE) about
+   * cube_c (view space). */
+  float *pyramid, *cube;
+  int pyr_w, pyr_h;
+  float cube_c[3];
 } obs_irad_light;
 
 /* Builds the BVH, walks the photons and renders the emission of `sc` (ms: build, walk and
@@ -90,9 +98,22 @@ int obs_irad_light_render(obs_render_ctx *ctx, const obs_instant_radiosity_param
                           obs_irad_light *out, obs_err *err);
 void obs_irad_light_free(obs_irad_light *l);
 
+/* Approximate visibility's inputs over the G-buffer `g` (the render's camera): the min-pyramid
+ * of its depth and the distance cube of the geometry outside the view (Embree, l->rt), centred
+ * on the scene's bounding box. ms (may be NULL): pyramid and cube times. */
+int obs_irad_approx_make(const obs_gbuffer *g, obs_irad_light *l, int threads,
+                         const atomic_int *cancel, double ms[2], obs_err *err);
+/* The pyramid alone (l->pyramid, pyr_w, pyr_h). */
+int obs_irad_pyramid_make(const obs_gbuffer *g, obs_irad_light *l, obs_err *err);
+/* The same for a render, the times recorded as its stages "pyramid" and "cube". */
+int obs_irad_approx_render(obs_render_ctx *ctx, const obs_gbuffer *g, obs_irad_light *l,
+                           obs_err *err);
+/* The width of the pyramid's atlas for a w x h depth buffer, and level l's x offset in it. */
+int obs_irad_pyramid_offset(int w, int l);
+
 /* The gather's push block over a G-buffer of w x h with that projection. */
-void obs_irad_gather_push_make(const obs_instant_radiosity_params *p, const obs_irad_vpls *v, int w,
-                               int h, int ortho, float half_w, float half_h,
+void obs_irad_gather_push_make(const obs_instant_radiosity_params *p, const obs_irad_light *l,
+                               int w, int h, int ortho, float half_w, float half_h,
                                obs_irad_gather_push *out);
 void obs_irad_filter_push_make(const obs_instant_radiosity_params *p, int w, int h, int ortho,
                                float half_w, float half_h, obs_irad_filter_push *out);
@@ -107,7 +128,7 @@ void obs_irad_filter_push_make(const obs_instant_radiosity_params *p, int w, int
 int obs_irad_cpu_apply(const obs_gbuffer *g, const obs_irad_light *l,
                        const obs_instant_radiosity_params *p, int threads, float *raw, float *out,
                        double *stage_ms, obs_err *err);
-/* The same on the device (visibility none), over a device G-buffer with the host G-buffer's
+/* The same on the device (visibility none or approximate), over a device G-buffer with the host G-buffer's
  * projection `proj`. raw_host / out_host as above, downloaded. */
 int obs_irad_vk_apply(obs_vk *vk, obs_vk_gbuffer *g, const obs_gbuffer *proj,
                       const obs_irad_light *l, const obs_instant_radiosity_params *p,

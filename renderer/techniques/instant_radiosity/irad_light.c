@@ -265,22 +265,42 @@ int obs_irad_light_render(obs_render_ctx *ctx, const obs_instant_radiosity_param
   return rc;
 }
 
+int obs_irad_approx_render(obs_render_ctx *ctx, const obs_gbuffer *g, obs_irad_light *l,
+                           obs_err *err) {
+  double ms[2];
+  int rc = obs_irad_approx_make(g, l, ctx->threads, ctx->cancel, ms, err);
+  if (!rc) {
+    obs_driver_stage_add(ctx, "pyramid", ms[0]);
+    obs_driver_stage_add(ctx, "cube", ms[1]);
+  }
+  return rc;
+}
+
 void obs_irad_light_free(obs_irad_light *l) {
   if (l->rt) obs_rt_free(l->rt);
   free(l->rt);
   obs_irad_vpls_free(&l->vpls);
   free(l->emission);
+  free(l->pyramid);
+  free(l->cube);
   memset(l, 0, sizeof *l);
 }
 
-void obs_irad_gather_push_make(const obs_instant_radiosity_params *p, const obs_irad_vpls *v, int w,
-                               int h, int ortho, float half_w, float half_h,
+void obs_irad_gather_push_make(const obs_instant_radiosity_params *p, const obs_irad_light *l,
+                               int w, int h, int ortho, float half_w, float half_h,
                                obs_irad_gather_push *out) {
+  const obs_irad_vpls *v = &l->vpls;
   memset(out, 0, sizeof *out);
   out->width = w;
   out->height = h;
-  out->flags = ortho ? OBS_IRAD_ORTHO : 0;
+  out->flags = (ortho ? OBS_IRAD_ORTHO : 0) |
+               (p->visibility == OBS_IRAD_VIS_APPROX && l->pyramid ? OBS_IRAD_APPROX : 0);
   out->classes = v->classes;
+  out->bias = p->shadow_bias;
+  out->thickness = p->shadow_thickness;
+  out->cube_x = l->cube_c[0];
+  out->cube_y = l->cube_c[1];
+  out->cube_z = l->cube_c[2];
   out->half_w = half_w;
   out->half_h = half_h;
   /* N_c^2 in float: kept normal, so the bound 1 / N_c^2 holds at the smallest N_c too. */

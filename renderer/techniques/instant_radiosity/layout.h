@@ -19,6 +19,26 @@
 #define OBS_IRAD_FILTER_LO (-2)
 /* Gather flags. */
 #define OBS_IRAD_ORTHO 1
+#define OBS_IRAD_APPROX 2 /* approximate visibility: depth pyramid and distance cube */
+
+/* Approximate visibility. The min-pyramid of the depth buffer is one image, its levels side by
+ * side (level l, ceil(w / 2^l) x ceil(h / 2^l), starts at x = the widths of the levels before it),
+ * uncovered texels at OBS_IRAD_FAR. The march toward a VPL takes a sample 2^(i+1) pixels from the
+ * receiver for i = 0 .. OBS_IRAD_STEPS - 1, on level max(0, i - 1). */
+#define OBS_IRAD_LEVELS 6
+#define OBS_IRAD_STEPS 8
+#define OBS_IRAD_FAR 3.0e38
+/* The distance-impostor cube: 6 faces of OBS_IRAD_CUBE^2 texels side by side (face f = 2 axis +
+ * (negative ? 1 : 0), view-space axes), each the distance from the cube's centre to the nearest
+ * off-screen surface in its direction (OBS_IRAD_FAR: none); the off-screen part of a segment is
+ * sampled OBS_IRAD_CUBE_SAMPLES times. */
+#define OBS_IRAD_CUBE 64
+#define OBS_IRAD_CUBE_SAMPLES 2
+/* A march sample starts to occlude where the pyramid's depth lies bias z in front of the
+ * segment, and occludes fully at 2 bias z (smoothstep between): the article's soft comparison;
+ * it stops occluding again from thickness z to 2 thickness z (the occluder assumed that thick).
+ * A cube sample occludes from bias d to 2 bias d behind the surface (d its distance from the
+ * cube's centre), however far behind. */
 
 #if !defined(VULKAN) || defined(OBS_IRAD_GATHER)
 OBS_PUSH_BEGIN(obs_irad_gather_push)
@@ -29,6 +49,11 @@ OBS_PUSH_BEGIN(obs_irad_gather_push)
   OBS_F32 half_w;
   OBS_F32 half_h;
   OBS_F32 nc2;     /* N_c^2, the clamp's squared distance from the VPL's plane */
+  OBS_F32 bias;    /* approximate visibility's relative depth bias */
+  OBS_F32 thickness; /* and the relative depth behind an occluder where it stops occluding */
+  OBS_F32 cube_x;  /* the distance cube's centre in view space */
+  OBS_F32 cube_y;
+  OBS_F32 cube_z;
   OBS_I32 start[OBS_IRAD_CLASSES + 1]; /* class k's VPLs are start[k] .. start[k+1] - 1 */
 OBS_PUSH_END(obs_irad_gather_push)
 OBS_PUSH_CHECK(obs_irad_gather_push)

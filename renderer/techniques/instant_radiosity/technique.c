@@ -26,7 +26,7 @@ static const obs_output irad_outputs[] = {
      .description = "Coverage (1 where a surface is hit, 0 on the background)"},
     {.name = NULL}};
 
-static const char *const visibilities[] = {"none", "exact", NULL};
+static const char *const visibilities[] = {"none", "approximate", "exact", NULL};
 
 #define P(member) offsetof(obs_instant_radiosity_params, member)
 static const obs_param irad_params[] = {
@@ -52,9 +52,23 @@ static const obs_param irad_params[] = {
                     "onto it (the article's spike clamp); the form factor stays below 1 / N_c^2",
      .offset = P(clamp_distance)},
     {.name = "visibility", .type = OBS_PARAM_ENUM, .choices = visibilities, .def = 0,
-     .description = "none: every VPL lights every receiver in front of it; exact: a shadow ray "
-                    "per receiver and VPL (cpu backend only)",
+     .description = "none: every VPL lights every receiver in front of it; approximate: the "
+                    "article's march over the depth buffer's min-pyramid and its distance cube of "
+                    "the geometry outside the view; exact: a shadow ray per receiver and VPL (cpu "
+                    "backend only)",
      .offset = P(visibility)},
+    {.name = "shadow_bias", .type = OBS_PARAM_FLOAT, .flags = OBS_PARAM_MIN_EXCLUSIVE, .min = 0,
+     .max = 1, .def = 0.01,
+     .description = "approximate visibility: a sample occludes from this fraction of its depth "
+                    "(or its distance from the cube's centre) in front of the segment, fully "
+                    "from twice that (the article's smooth step)",
+     .offset = P(shadow_bias)},
+    {.name = "shadow_thickness", .type = OBS_PARAM_FLOAT, .flags = OBS_PARAM_MIN_EXCLUSIVE,
+     .min = 0, .max = 1e6, .def = 0.04,
+     .description = "approximate visibility: a sample lying more than this fraction of its depth "
+                    "behind the depth buffer stops counting (fully from twice that), as if each "
+                    "occluder were that thick; large values are the article's solid height field",
+     .offset = P(shadow_thickness)},
     {.name = "filter", .type = OBS_PARAM_BOOL, .def = 1,
      .description = "geometry-aware 4x4 filter that gathers the 16 interleaved VPL classes into "
                     "every pixel",
