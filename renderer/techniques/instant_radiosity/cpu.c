@@ -1,8 +1,9 @@
 /* instant_radiosity on the CPU: the interleaved gather of the VPLs and the geometry-aware 4x4
  * filter, the twins of instant_radiosity*.comp.glsl operation for operation (float32, the shader's
  * order, nothing contracted: the build has -ffp-contract=off and the shaders mark the same
- * expressions `precise`), exact visibility by shadow rays (CPU only), and the run on the CPU
- * screen-space driver. The model is docs/techniques/instant_radiosity.md. */
+ * expressions `precise`) with approximate visibility's march over the depth pyramid and the
+ * distance cube, exact visibility by shadow rays (CPU only), and the run on the CPU screen-space
+ * driver. The model is docs/techniques/instant_radiosity.md. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
