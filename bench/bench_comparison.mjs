@@ -38,6 +38,9 @@ const GRIDS = {
   ss_radiosity: {strength: [0, 1, 4]},
   obscurance_map: [{backend: 'cpu', params: {method: ['rays', 'global_lines', 'bundles'], d_max: 300, patch_size: 50}},
                    {backend: 'vulkan', params: {method: 'depth_peeling', d_max: 300, patch_size: 50}}],
+  // clamp_distance 19.2: 0.02 of the box's diagonal, the size default; exact runs on the CPU only.
+  instant_radiosity: [{backend: 'cpu', params: {vpls: [128, 512, 2048], visibility: ['none', 'approximate', 'exact'], clamp_distance: 19.2}},
+                      {backend: 'vulkan', params: {vpls: [128, 512, 2048], visibility: ['none', 'approximate'], clamp_distance: 19.2}}],
 };
 
 // The quantities, by the kind of a technique's primary output, with the reference samples each

@@ -111,8 +111,8 @@ void obs_emitters_free(obs_emitters *em) {
   memset(em, 0, sizeof *em);
 }
 
-int obs_emitters_sample(const obs_emitters *em, const obs_hit *hit, const double u[3],
-                        obs_emitter_sample *s) {
+const obs_emitter *obs_emitters_point(const obs_emitters *em, const double u[3], double q[3],
+                                      double nl[3]) {
   size_t lo = 0, hi = em->n - 1;
   while (lo < hi) {
     size_t mid = (lo + hi) / 2;
@@ -122,7 +122,6 @@ int obs_emitters_sample(const obs_emitters *em, const obs_hit *hit, const double
       lo = mid + 1;
   }
   const obs_emitter *e = &em->em[lo];
-  double q[3], nl[3];
   if (e->sphere) {
     double z = 1 - 2 * u[1], r = sqrt(fmax(0.0, 1 - z * z)), phi = 2 * M_PI * u[2];
     nl[0] = r * cos(phi), nl[1] = r * sin(phi), nl[2] = z;
@@ -134,6 +133,13 @@ int obs_emitters_sample(const obs_emitters *em, const obs_hit *hit, const double
       nl[k] = e->n[k];
     }
   }
+  return e;
+}
+
+int obs_emitters_sample(const obs_emitters *em, const obs_hit *hit, const double u[3],
+                        obs_emitter_sample *s) {
+  double q[3], nl[3];
+  const obs_emitter *e = obs_emitters_point(em, u, q, nl);
   double *wi = s->wi;
   for (int k = 0; k < 3; k++) wi[k] = q[k] - hit->p[k];
   double d2 = dot3(wi, wi), dist = sqrt(d2);

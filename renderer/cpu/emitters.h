@@ -45,6 +45,11 @@ static inline double obs_emitters_mean3(const double v[3]) { return (v[0] + v[1]
 int obs_emitters_build(const obs_scene *sc, const obs_rt *rt, obs_emitters *out, obs_err *err);
 void obs_emitters_free(obs_emitters *em);
 
+/* Chooses an emitter by u[0] (by power) and a point q on it, uniform in area, by (u[1], u[2]);
+ * nl is the emitter's unit normal there (a sphere's outward one). Its area density is
+ * mean(e->le) / em->total. The table must not be empty. */
+const obs_emitter *obs_emitters_point(const obs_emitters *em, const double u[3], double q[3],
+                                      double nl[3]);
 /* Chooses an emitter by u[0] and a point on it by (u[1], u[2]) as seen from `hit`. Returns 1 and
  * fills `s` when the point faces the hit's hemisphere (a shadow ray is then due), 0 when the
  * sample contributes nothing. The table must not be empty. */

@@ -1,0 +1,243 @@
+/* Benchmark of instant_radiosity against path_trace: on the Cornell box (scenes/cornell_box.json)
+ * and on the box with a panel under its light (the floor below lit only indirectly, the light
+ * that reaches it occluded on its way), the luminance RMSE against a path_trace reference of the
+ * same bounces and the render time, per visibility mode, VPL count and backend; optionally the
+ * tone-mapped pictures of docs/techniques/instant_radiosity.md. */
+#include <jansson.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "bench_args.h"
+#include "bench_machine.h"
+#include "obscura/obscura.h"
+
+#define MAX_REPEATS 16
+#define MAX_VPLS 8
+
+typedef struct options {
+  int threads, size, ref_samples, repeats, max_bounces, nvpls;
+  int vpls[MAX_VPLS];
+  double exposure, clamp;
+  const char *png; /* prefix */
+} options;
+
+static void usage(FILE *f) {
+  fprintf(f,
+          "usage: bench_instant_radiosity [--threads N] [--size W] [--ref-samples S]\n"
+          "                               [--vpls A,B,...] [--max-bounces B] [--repeats R]\n"
+          "                               [--clamp NC] [--png PREFIX] [--exposure EV]\n"
+          "  Renders the Cornell box and the box with a panel under its light at W x W with\n"
+          "  path_trace (S paths per pixel, max_bounces B: the reference) and with\n"
+          "  instant_radiosity at each VPL count, visibility none, approximate and exact on the\n"
+          "  CPU and none and approximate on Vulkan when a device exists, R times each; prints the median render time and the\n"
+          "  luminance RMSE against the reference over the pixels both cover. --clamp sets\n"
+          "  clamp_distance (default 19.2: 0.02 of the box's 960.7 diagonal, the size default).\n"
+          "  --png writes\n"
+          "  PREFIX<scene>_<backend>_<visibility>.png of the largest VPL count and\n"
+          "  PREFIX<scene>_path_trace.png, radiance scaled by 2^EV, sRGB.\n");
+}
+
+static int parse_args(int argc, char **argv, options *o) {
+  *o = (options){.threads = obs_cpu_count(), .size = 256, .ref_samples = 256, .repeats = 3,
+                 .max_bounces = 3, .nvpls = 3, .vpls = {128, 512, 2048}, .clamp = 19.2};
+  for (int i = 1; i < argc; i++) {
+    const char *a = argv[i];
+    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+      usage(stdout);
+      exit(0);
+    }
+    if (i + 1 >= argc) goto bad;
+    const char *v = argv[++i];
+    if (!strcmp(a, "--threads")) {
+      if (parse_int(v, 1, 256, &o->threads)) goto bad;
+    } else if (!strcmp(a, "--size")) {
+      if (parse_int(v, 4, 4096, &o->size)) goto bad;
+    } else if (!strcmp(a, "--ref-samples")) {
+      if (parse_int(v, 1, 65536, &o->ref_samples)) goto bad;
+    } else if (!strcmp(a, "--repeats")) {
+      if (parse_int(v, 1, MAX_REPEATS, &o->repeats)) goto bad;
+    } else if (!strcmp(a, "--max-bounces")) {
+      if (parse_int(v, 1, 16, &o->max_bounces)) goto bad;
+    } else if (!strcmp(a, "--vpls")) {
+      if ((o->nvpls = parse_list(v, o->vpls, MAX_VPLS, 1, 16384)) < 1) goto bad;
+    } else if (!strcmp(a, "--clamp")) {
+      char *end;
+      o->clamp = strtod(v, &end);
+      if (end == v || *end || !(o->clamp > 0 && o->clamp < 1e6)) goto bad;
+    } else if (!strcmp(a, "--png")) {
+      o->png = v;
+    } else if (!strcmp(a, "--exposure")) {
+      char *end;
+      o->exposure = strtod(v, &end);
+      if (end == v || *end || !(fabs(o->exposure) <= 30)) goto bad;
+    } else {
+      goto bad;
+    }
+    continue;
+  bad:
+    fprintf(stderr, "bench_instant_radiosity: bad argument near '%s'\n", a);
+    usage(stderr);
+    return -1;
+  }
+  return 0;
+}
+
+/* The panel: a grey quad 150 units below the light, larger than it, facing both ways as every
+ * quad does in the G-buffer; the floor under it sees no emitter. */
+static const char *const PANEL =
+    "{\"name\":\"panel\",\"shape\":{\"type\":\"quad\",\"vertices\":[[378,400,180],[178,400,180],"
+    "[178,400,380],[378,400,380]]},\"material\":{\"reflectivity\":[0.725,0.71,0.68]}}";
+
+/* Loads the Cornell box (with the panel when `panel`) rendered by technique `name` with params. */
+static int load(const options *o, int panel, const char *name, const char *backend,
+                const char *params, obs_scene *sc, obs_err *err) {
+  json_error_t je;
+  json_t *doc = json_load_file(OBS_SOURCE_DIR "/scenes/cornell_box.json", 0, &je);
+  if (!doc) return obs_err_set(err, OBS_EIO, "cornell_box.json: %s", je.text);
+  if (panel) json_array_append_new(json_object_get(doc, "objects"), json_loads(PANEL, 0, NULL));
+  json_t *img = json_object_get(doc, "image");
+  json_object_set_new(img, "width", json_integer(o->size));
+  json_object_set_new(img, "height", json_integer(o->size));
+  json_object_set_new(img, "spp", json_integer(1));
+  json_t *t = json_pack("{s:s, s:s, s:o}", "name", name, "backend", backend, "params",
+                        json_loads(params, 0, NULL));
+  json_object_set_new(doc, "technique", t);
+  char *text = json_dumps(doc, JSON_COMPACT);
+  json_decref(doc);
+  int rc = obs_scene_load_string(sc, text, "bench.json", NULL, NULL, 0, err);
+  free(text);
+  return rc;
+}
+
+static int render(const options *o, const obs_scene *sc, int repeats, obs_result *res,
+                  double *med_ms, obs_err *err) {
+  double ms[MAX_REPEATS];
+  for (int r = 0; r < repeats; r++) {
+    obs_result_free(res);
+    obs_render_opts opts = {.threads = o->threads};
+    int rc = obs_render(sc, &opts, res, err);
+    if (rc) return rc;
+    ms[r] = res->timings.build_ms + res->timings.render_ms;
+  }
+  *med_ms = bench_median(ms, repeats);
+  return 0;
+}
+
+static double lum(const obs_image *img, size_t i) {
+  return 0.2126 * obs_image_channel(img, "radiance.R")[i] +
+         0.7152 * obs_image_channel(img, "radiance.G")[i] +
+         0.0722 * obs_image_channel(img, "radiance.B")[i];
+}
+
+/* Luminance RMSE of `a` against the reference over the pixels both cover, and the reference's own
+ * noise there (the RMS of its luminance standard error). */
+static double rmse(const obs_image *a, const obs_image *ref, double *noise) {
+  size_t n = (size_t)a->width * (size_t)a->height, cnt = 0;
+  const float *aa = obs_image_channel(a, "alpha"), *ra = obs_image_channel(ref, "alpha");
+  const float *se[3] = {obs_image_channel(ref, "radiance_stderr.R"),
+                        obs_image_channel(ref, "radiance_stderr.G"),
+                        obs_image_channel(ref, "radiance_stderr.B")};
+  double ss = 0, nn = 0;
+  for (size_t i = 0; i < n; i++) {
+    if (!(aa[i] > 0) || !(ra[i] > 0)) continue;
+    double d = lum(a, i) - lum(ref, i);
+    double s = 0.2126 * se[0][i] + 0.7152 * se[1][i] + 0.0722 * se[2][i];
+    ss += d * d, nn += s * s, cnt++;
+  }
+  *noise = cnt ? sqrt(nn / (double)cnt) : 0;
+  return cnt ? sqrt(ss / (double)cnt) : 0;
+}
+
+static int write_png(const obs_image *img, double exposure, const char *path) {
+  static const char *const rgb[3] = {"radiance.R", "radiance.G", "radiance.B"};
+  static const char *const out_names[3] = {"R", "G", "B"};
+  obs_image t;
+  obs_err err = OBS_ERR_INIT;
+  int rc = obs_image_init(&t, img->width, img->height, 3, out_names, &err);
+  size_t n = (size_t)img->width * (size_t)img->height;
+  double scale = pow(2.0, exposure);
+  for (int k = 0; !rc && k < 3; k++) {
+    const float *v = obs_image_channel(img, rgb[k]);
+    for (size_t i = 0; i < n; i++) t.data[(size_t)k * n + i] = (float)(v[i] * scale);
+  }
+  if (!rc) rc = obs_image_write_png(&t, out_names, 3, 1, path, &err);
+  if (rc) fprintf(stderr, "bench_instant_radiosity: %s\n", obs_err_message(&err));
+  obs_image_free(&t);
+  obs_err_free(&err);
+  return rc;
+}
+
+static int bench_scene(const options *o, int panel, int have_vk) {
+  const char *scene = panel ? "cornell_panel" : "cornell_box";
+  obs_err err = OBS_ERR_INIT;
+  obs_scene sc;
+  obs_result ref, res;
+  memset(&ref, 0, sizeof ref);
+  memset(&res, 0, sizeof res);
+  char params[192], path[512];
+  snprintf(params, sizeof params, "{\"samples\":%d,\"max_bounces\":%d}", o->ref_samples,
+           o->max_bounces);
+  double ref_ms;
+  int rc = load(o, panel, "path_trace", "cpu", params, &sc, &err);
+  if (!rc) rc = render(o, &sc, 1, &ref, &ref_ms, &err);
+  if (!rc) obs_scene_free(&sc);
+  if (rc) {
+    fprintf(stderr, "bench_instant_radiosity: %s\n", obs_err_message(&err));
+    return 1;
+  }
+  printf("%s %dx%d: path_trace %d paths per pixel, max_bounces %d: %.1f ms; clamp_distance %g\n",
+         scene, o->size, o->size, o->ref_samples, o->max_bounces, ref_ms, o->clamp);
+  if (o->png) {
+    snprintf(path, sizeof path, "%s%s_path_trace.png", o->png, scene);
+    if (write_png(&ref.image, o->exposure, path)) return 1;
+  }
+  printf("  %-7s %-11s %6s %12s %14s %12s\n", "backend", "visibility", "vpls", "ms",
+         "lum RMSE", "ref noise");
+  static const char *const modes[5][2] = {{"cpu", "none"},
+                                          {"cpu", "approximate"},
+                                          {"cpu", "exact"},
+                                          {"vulkan", "none"},
+                                          {"vulkan", "approximate"}};
+  for (int m = 0; m < 5; m++) {
+    if (!strcmp(modes[m][0], "vulkan") && !have_vk) continue;
+    for (int v = 0; v < o->nvpls; v++) {
+      snprintf(params, sizeof params,
+               "{\"vpls\":%d,\"max_bounces\":%d,\"visibility\":\"%s\",\"clamp_distance\":%g}",
+               o->vpls[v], o->max_bounces, modes[m][1], o->clamp);
+      double ms, noise;
+      rc = load(o, panel, "instant_radiosity", modes[m][0], params, &sc, &err);
+      if (!rc) rc = render(o, &sc, o->repeats, &res, &ms, &err);
+      if (!rc) obs_scene_free(&sc);
+      if (rc) {
+        fprintf(stderr, "bench_instant_radiosity: %s\n", obs_err_message(&err));
+        return 1;
+      }
+      double e = rmse(&res.image, &ref.image, &noise);
+      printf("  %-7s %-11s %6d %12.1f %14.5f %12.5f\n", modes[m][0], modes[m][1], o->vpls[v], ms,
+             e, noise);
+      if (o->png && v + 1 == o->nvpls) {
+        snprintf(path, sizeof path, "%s%s_%s_%s.png", o->png, scene, modes[m][0], modes[m][1]);
+        if (write_png(&res.image, o->exposure, path)) return 1;
+      }
+    }
+  }
+  obs_result_free(&res);
+  obs_result_free(&ref);
+  obs_err_free(&err);
+  return 0;
+}
+
+int main(int argc, char **argv) {
+  options o;
+  if (parse_args(argc, argv, &o)) return 2;
+  bench_print_machine();
+  int have_vk = obs_backend_ops_get(OBS_BACKEND_VULKAN)->available();
+  const char *dev = have_vk ? obs_backend_ops_get(OBS_BACKEND_VULKAN)->device_name() : NULL;
+  printf("vulkan: %s; %d threads; times are build + render (G-buffer, BVH, walk, emission, gather, filter; not the device's start)\n",
+         have_vk ? dev : "no device", o.threads);
+  int rc = bench_scene(&o, 0, have_vk);
+  if (!rc) rc = bench_scene(&o, 1, have_vk);
+  return rc;
+}
