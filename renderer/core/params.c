@@ -31,6 +31,8 @@ json_t *obs_param_default_json(const obs_param *d) {
   switch (d->type) {
     case OBS_PARAM_BOOL:
       return json_boolean(d->def != 0);
+    case OBS_PARAM_NAMES:
+      return json_null();
     case OBS_PARAM_ENUM: {
       long n = 0;
       while (d->choices && d->choices[n]) n++;
@@ -92,12 +94,52 @@ static int check_rgb(obs_jpath *p, const obs_param *d, const json_t *v) {
   return bad ? OBS_EINVAL : 0;
 }
 
+/* A list of names: null, or an array of distinct non-empty strings that fit obs_param_names (a
+ * bad item named by its index). Whether each names an object is the scene's check. */
+static int check_names(obs_jpath *p, const json_t *v) {
+  if (json_is_null(v)) return 0;
+  if (!json_is_array(v))
+    return obs_jpath_fail(p, "must be an array of object names or null (got %s)",
+                          obs_json_brief(v));
+  int bad = 0;
+  size_t bytes = 0;
+  for (size_t i = 0; i < json_array_size(v); i++) {
+    const json_t *e = json_array_get(v, i);
+    size_t m = obs_jpath_push_index(p, i);
+    if (!json_is_string(e) || !json_string_length(e)) {
+      bad |= obs_jpath_fail(p, "must be a non-empty string (got %s)", obs_json_brief(e)) != 0;
+    } else {
+      bytes += json_string_length(e) + 1;
+      for (size_t j = 0; j < i; j++)
+        if (json_equal((json_t *)e, json_array_get(v, j))) {
+          bad |= obs_jpath_fail(p, "repeats item %zu (got %s)", j, obs_json_brief(e)) != 0;
+          break;
+        }
+    }
+    obs_jpath_pop(p, m);
+  }
+  if (!bad && bytes > OBS_PARAM_NAMES_BYTES)
+    return obs_jpath_fail(p, "the names must take at most %d bytes with a terminator each (got %zu)",
+                          OBS_PARAM_NAMES_BYTES, bytes);
+  return bad ? OBS_EINVAL : 0;
+}
+
+int obs_param_names_has(const obs_param_names *n, const char *name) {
+  if (n->count < 0) return 1;
+  const char *at = n->text;
+  for (int i = 0; i < n->count; i++, at += strlen(at) + 1)
+    if (!strcmp(at, name)) return 1;
+  return 0;
+}
+
 int obs_param_check(obs_jpath *p, const obs_param *d, const json_t *v) {
   int nullable = (d->flags & OBS_PARAM_NULLABLE) != 0;
   long long iv = 0;
   switch (d->type) {
     case OBS_PARAM_RGB:
       return check_rgb(p, d, v);
+    case OBS_PARAM_NAMES:
+      return check_names(p, v);
     case OBS_PARAM_BOOL:
       if (!json_is_boolean(v))
         return obs_jpath_fail(p, "must be boolean (got %s)", obs_json_brief(v));
@@ -281,6 +323,20 @@ static void store(const obs_param *d, const json_t *v, unsigned char *dst) {
       memcpy(at, c, sizeof c);
       break;
     }
+    case OBS_PARAM_NAMES: {
+      obs_param_names n = {.count = -1};
+      if (v && json_is_array(v)) {
+        size_t used = 0;
+        n.count = (int)json_array_size(v);
+        for (int i = 0; i < n.count; i++) {
+          const char *s = json_string_value(json_array_get(v, (size_t)i));
+          memcpy(n.text + used, s, strlen(s) + 1);
+          used += strlen(s) + 1;
+        }
+      }
+      memcpy(at, &n, sizeof n);
+      break;
+    }
   }
 }
 
@@ -332,7 +388,11 @@ json_t *obs_param_schema(const obs_param *d) {
                                            [OBS_PARAM_FLOAT] = "number",
                                            [OBS_PARAM_DOUBLE] = "number",
                                            [OBS_PARAM_RGB] = "array"};
-  if (d->type == OBS_PARAM_ENUM) {
+  if (d->type == OBS_PARAM_NAMES) {
+    json_object_set_new(o, "type", json_pack("[ss]", "array", "null"));
+    json_object_set_new(o, "items", json_pack("{sssi}", "type", "string", "minLength", 1));
+    json_object_set_new(o, "uniqueItems", json_true());
+  } else if (d->type == OBS_PARAM_ENUM) {
     json_t *e = json_array();
     for (int i = 0; d->choices[i]; i++) json_array_append_new(e, json_string(d->choices[i]));
     json_object_set_new(o, "enum", e);
@@ -370,6 +430,8 @@ static size_t type_size(obs_param_type t) {
   switch (t) {
     case OBS_PARAM_RGB:
       return 3 * sizeof(double);
+    case OBS_PARAM_NAMES:
+      return sizeof(obs_param_names);
     case OBS_PARAM_DOUBLE:
       return sizeof(double);
     case OBS_PARAM_FLOAT:
@@ -385,8 +447,10 @@ static size_t type_size(obs_param_type t) {
 
 int obs_param_entry_fault(const obs_param *d, size_t bound_size, char *why, size_t n) {
   int nullable = (d->flags & OBS_PARAM_NULLABLE) != 0;
-  if ((unsigned)d->type > OBS_PARAM_RGB) return snprintf(why, n, "unknown type %d", d->type);
-  size_t sz = type_size(d->type), align = d->type == OBS_PARAM_RGB ? sizeof(double) : sz;
+  if ((unsigned)d->type > OBS_PARAM_NAMES) return snprintf(why, n, "unknown type %d", d->type);
+  size_t sz = type_size(d->type), align = d->type == OBS_PARAM_RGB     ? sizeof(double)
+                                          : d->type == OBS_PARAM_NAMES ? sizeof(int)
+                                                                       : sz;
   if (!d->description || !*d->description) return snprintf(why, n, "has no description");
   if (d->offset + sz > bound_size || d->offset % align)
     return snprintf(why, n, "offset %zu does not hold a %zu-byte member inside %zu bytes",

@@ -183,6 +183,10 @@ static void put_cell(obs_strbuf *b, const char *s) {
 static void put_range(obs_strbuf *b, const obs_param *p) {
   char lo[40], hi[40];
   if (p->type == OBS_PARAM_BOOL || p->type == OBS_PARAM_ENUM) return;
+  if (p->type == OBS_PARAM_NAMES) {
+    obs_strbuf_put(b, "names of the scene's objects");
+    return;
+  }
   if (p->values) {
     obs_strbuf_put(b, "one of ");
     for (int i = 0; i < p->nvalues; i++) obs_strbuf_put(b, "%s%d", i ? ", " : "", p->values[i]);
@@ -203,7 +207,8 @@ char *obs_registry_params_markdown(const char *technique) {
                                       [OBS_PARAM_FLOAT] = "number (float32)",
                                       [OBS_PARAM_DOUBLE] = "number (float64)",
                                       [OBS_PARAM_ENUM] = "string",
-                                      [OBS_PARAM_RGB] = "[R, G, B] (float64)"};
+                                      [OBS_PARAM_RGB] = "[R, G, B] (float64)",
+                                      [OBS_PARAM_NAMES] = "array of strings or null"};
   obs_strbuf b = {0};
   obs_strbuf_put(&b, "| name | type | default | range | description |\n|---|---|---|---|---|\n");
   for (size_t i = 0; i < t->params_size; i++) {

@@ -73,6 +73,24 @@ static const char *techniques_with(unsigned need, char *list, size_t n) {
   return list;
 }
 
+/* Every name a list-of-names parameter gives must name an object of the scene. */
+static void check_names(obs_jpath *p, const obs_scene *sc) {
+  const obs_technique *t = sc->technique;
+  for (size_t k = 0; k < t->params_size; k++) {
+    const json_t *v = json_object_get(sc->params, t->params[k].name);
+    if (t->params[k].type != OBS_PARAM_NAMES || !json_is_array(v)) continue;
+    for (size_t i = 0; i < json_array_size(v); i++) {
+      const char *name = json_string_value(json_array_get(v, i));
+      size_t j = 0;
+      while (j < sc->nobjects && strcmp(sc->objects[j].name, name)) j++;
+      if (j == sc->nobjects)
+        obs_err_set(p->err, OBS_EINVAL,
+                    "%s: /technique/params/%s/%zu: no object of the scene is named \"%s\"",
+                    p->doc, t->params[k].name, i, name);
+    }
+  }
+}
+
 /* Feature requirements and technique-specific cross-field rules, once the basics are valid. */
 static void check_needs(obs_jpath *p, const obs_scene *sc) {
   const obs_technique *t = sc->technique;
@@ -131,6 +149,7 @@ static void check_needs(obs_jpath *p, const obs_scene *sc) {
                 "%s: /technique/backend: moving objects (motion) render on the %s backend only",
                 p->doc, list);
   }
+  check_names(p, sc);
   obs_params_check_rules(t, sc->params, p->doc, p->err);
   if (t->check) t->check(sc, sc->params, p->doc, p->err);
 }

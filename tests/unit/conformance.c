@@ -243,6 +243,10 @@ static int param_ends_pair(const obs_technique *t, obs_backend be) {
     } else if (ty && !strcmp(ty, "boolean")) {
       snprintf(vals[nv++], sizeof vals[0], "true");
       snprintf(vals[nv++], sizeof vals[0], "false");
+    } else if (ty && !strcmp(ty, "array") && json_is_true(json_object_get(prop, "uniqueItems"))) {
+      /* A list of object names: every object (null) and none at all. */
+      snprintf(vals[nv++], sizeof vals[0], "null");
+      snprintf(vals[nv++], sizeof vals[0], "[]");
     } else if (ty && (!strcmp(ty, "number") || !strcmp(ty, "integer"))) {
       double ends[2];
       int ne = numeric_ends(prop, ends);

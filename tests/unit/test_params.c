@@ -234,6 +234,77 @@ static void test_schema(void **state) {
   json_decref(s);
 }
 
+
+/* Lists of names: null (every object) or distinct non-empty strings, bound into the struct's own
+ * storage; a bad item is named by its index. */
+typedef struct names_demo {
+  int flag;
+  obs_param_names only;
+} names_demo;
+
+static const obs_param names_params[] = {
+    {.name = "only", .type = OBS_PARAM_NAMES, .description = "the objects that count",
+     .offset = offsetof(names_demo, only)},
+};
+
+static void test_names(void **state) {
+  (void)state;
+  obs_technique t;
+  memset(&t, 0, sizeof t);
+  t.name = "names";
+  t.params = names_params;
+  t.params_size = 1;
+  t.bound_size = sizeof(names_demo);
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(obs_technique_params_check(&t, &err), 0);
+  names_demo d;
+  assert_int_equal(obs_params_bind(&t, NULL, &d, &err), 0);
+  assert_int_equal(d.only.count, -1);
+  assert_true(obs_param_names_has(&d.only, "anything"));
+  json_t *j = json_loads("{\"only\":[\"floor\",\"ball 2\"]}", 0, NULL);
+  assert_int_equal(obs_params_bind(&t, j, &d, &err), 0);
+  json_decref(j);
+  assert_int_equal(d.only.count, 2);
+  assert_true(obs_param_names_has(&d.only, "floor") && obs_param_names_has(&d.only, "ball 2"));
+  assert_false(obs_param_names_has(&d.only, "ball") || obs_param_names_has(&d.only, "floo"));
+  j = json_loads("{\"only\":[]}", 0, NULL);
+  assert_int_equal(obs_params_bind(&t, j, &d, &err), 0);
+  json_decref(j);
+  assert_int_equal(d.only.count, 0);
+  assert_false(obs_param_names_has(&d.only, "floor"));
+  char long_list[4096] = "{\"only\":[";
+  for (int i = 0; i < 100; i++)
+    snprintf(long_list + strlen(long_list), sizeof long_list - strlen(long_list),
+             "%s\"object-%03d-abcdefghij\"", i ? "," : "", i);
+  strcat(long_list, "]}");
+  const char *bad[][2] = {
+      {"{\"only\":\"floor\"}", "names params: /only: must be an array of object names or null"},
+      {"{\"only\":[\"a\",3]}", "names params: /only/1: must be a non-empty string (got 3)"},
+      {"{\"only\":[\"\"]}", "names params: /only/0: must be a non-empty string"},
+      {"{\"only\":[\"a\",\"b\",\"a\"]}", "names params: /only/2: repeats item 0"},
+      {long_list, "names params: /only: the names must take at most 1024 bytes"}};
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+    obs_err e = OBS_ERR_INIT;
+    j = json_loads(bad[i][0], 0, NULL);
+    assert_non_null(j);
+    assert_int_equal(obs_params_bind(&t, j, &d, &e), OBS_EINVAL);
+    if (!strstr(obs_err_message(&e), bad[i][1]))
+      fprintf(stderr, "expected \"%s\", got \"%s\"\n", bad[i][1], obs_err_message(&e));
+    assert_non_null(strstr(obs_err_message(&e), bad[i][1]));
+    json_decref(j);
+    obs_err_free(&e);
+  }
+  json_t *s = obs_technique_params_schema(&t);
+  char *text = json_dumps(s, JSON_COMPACT);
+  assert_string_equal(text,
+                      "{\"type\":\"object\",\"additionalProperties\":false,\"properties\":{"
+                      "\"only\":{\"type\":[\"array\",\"null\"],\"items\":{\"type\":\"string\","
+                      "\"minLength\":1},\"uniqueItems\":true,\"default\":null,"
+                      "\"description\":\"the objects that count\"}}}");
+  free(text);
+  json_decref(s);
+  obs_err_free(&err);
+}
 /* RGB parameters: three numbers, each in the range, bound as double[3]; null where allowed. */
 typedef struct rgb_demo {
   int flag;
@@ -479,6 +550,7 @@ int main(void) {
       cmocka_unit_test(test_bounds_types_messages),
       cmocka_unit_test(test_schema),
       cmocka_unit_test(test_rgb),
+      cmocka_unit_test(test_names),
       cmocka_unit_test(test_cost),
       cmocka_unit_test(test_self_check),
       cmocka_unit_test(test_nearest_name),

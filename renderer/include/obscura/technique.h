@@ -323,8 +323,23 @@ typedef enum obs_param_type {
   OBS_PARAM_FLOAT,  /* JSON number; stored as float, rounded once */
   OBS_PARAM_DOUBLE, /* JSON number; stored as double */
   OBS_PARAM_ENUM,   /* JSON string, one of `choices`; stored as int, the index of the choice */
-  OBS_PARAM_RGB     /* JSON array of 3 numbers (R, G, B), each in the range; stored as double[3] */
+  OBS_PARAM_RGB,    /* JSON array of 3 numbers (R, G, B), each in the range; stored as double[3] */
+  /* JSON array of distinct names of the scene's objects (each must name one), or null (the
+   * default: every object); stored as obs_param_names. Its range is the scene's: the
+   * conformance suite renders it null and as the empty list. */
+  OBS_PARAM_NAMES
 } obs_param_type;
+
+/* A bound OBS_PARAM_NAMES: `count` names (-1: null, every object), each NUL-terminated, one after
+ * another in `text`. The bound struct owns them (no pointer into the document). */
+#define OBS_PARAM_NAMES_BYTES 1024
+typedef struct obs_param_names {
+  int count;
+  char text[OBS_PARAM_NAMES_BYTES];
+} obs_param_names;
+
+/* Whether `name` is selected by `n`: always when n is null (count -1). */
+int obs_param_names_has(const obs_param_names *n, const char *name);
 
 enum {
   OBS_PARAM_MIN_EXCLUSIVE = 1 << 0, /* value > min rather than >= min */
