@@ -325,6 +325,41 @@ static void test_extent_cutoff(void **state) {
   obs_result_free(&b);
 }
 
+/* Half resolution: every second pixel of every second row, bilaterally upsampled, the rest where
+ * no neighbour agrees evaluated in full: close to the full-resolution image, equal at the
+ * evaluated pixels, and as close to rt_ao. */
+static void test_half_resolution(void **state) {
+  (void)state;
+  const char *obj = ",{\"shape\":{\"type\":\"sphere\",\"center\":[0,0.6,0],\"radius\":0.5}},"
+                    "{\"shape\":{\"type\":\"box\",\"min\":[0.6,0,-0.3],\"max\":[1.2,0.5,0.3]}}";
+  obs_result f, h;
+  obs_test_render(scene_json(CAM_OBLIQUE, obj, AAO_UNBOUNDED), 2, &f);
+  obs_test_render(scene_json(CAM_OBLIQUE, obj,
+                             "{\"name\":\"analytic_ao\",\"backend\":\"cpu\",\"params\":"
+                             "{\"extent\":null,\"resolution\":\"half\"}}"), 2, &h);
+  const float *fa = obs_image_channel(&f.image, "ao"), *ha = obs_image_channel(&h.image, "ao");
+  const float *al = obs_image_channel(&f.image, "alpha");
+  double s2 = 0, worst = 0, worst_even = 0;
+  int n = 0;
+  for (int i = 0; i < W * H; i++) {
+    if (al[i] < 0.5f) {
+      assert_true(ha[i] == 1.0f);
+      continue;
+    }
+    double d = fabs((double)fa[i] - ha[i]);
+    s2 += d * d, n++;
+    worst = fmax(worst, d);
+    if ((i % W) % 2 == 0 && (i / W) % 2 == 0) worst_even = fmax(worst_even, d);
+  }
+  printf("half against full resolution: RMSE %.5f, max %.4f, at the evaluated pixels %.2g\n",
+         sqrt(s2 / n), worst, worst_even);
+  assert_true(sqrt(s2 / n) < 1e-2);
+  assert_true(worst < 0.2);
+  assert_true(worst_even < 1e-6);
+  obs_result_free(&f);
+  obs_result_free(&h);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_sphere_closed_form),
@@ -335,6 +370,7 @@ int main(void) {
       cmocka_unit_test(test_hidden_occluder_darkens),
       cmocka_unit_test(test_union_error),
       cmocka_unit_test(test_extent_cutoff),
+      cmocka_unit_test(test_half_resolution),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -22,6 +22,15 @@ typedef struct obs_analytic_ao_params {
 
 enum { OBS_AAO_FULL, OBS_AAO_HALF };
 
+/* The upsampling's depth test: a half-resolution cell counts for a pixel while their depths
+ * differ by less than this fraction of the pixel's, its weight tapering linearly to 0 there. */
+#define OBS_AAO_UP_DEPTH 0.02f
+
+/* The passes' stages, in order: the AO (at half resolution under OBS_AAO_HALF), the
+ * upsampling and the pixels it left to full resolution (both 0 at full resolution). */
+#define OBS_AAO_STAGES 3
+extern const char *const obs_aao_stage_names[OBS_AAO_STAGES];
+
 /* Occluder kinds. A box is its six faces, of which those facing the receiver count. */
 enum { OBS_AAO_SPHERE = 0, OBS_AAO_POLYGON = 1, OBS_AAO_BOX = 2 };
 
@@ -46,6 +55,11 @@ typedef struct obs_aao_occluder {
 int obs_aao_occluders(const obs_scene *scene, const obs_camera_rig *rig, double extent,
                       obs_aao_occluder **out, size_t *count, size_t *skipped, obs_err *err);
 
+/* The occluders of a render's scene for its camera at width x height: obs_aao_occluders, with a
+ * warning on ctx naming how many objects only receive, and the time as stage "occluders". */
+int obs_aao_render_occluders(obs_render_ctx *ctx, int width, int height, double extent,
+                             obs_aao_occluder **out, size_t *count, obs_err *err);
+
 /* Occlusion (the form factor from the receiver, in [0, 1]) of one occluder at the receiver p with
  * unit normal nrm, both view space: the sphere's closed form cos a (r/d)^2 saturate((h+r)/2r), a
  * polygon's form factor after clipping to p's tangent plane (two-sided), a box's front faces'
@@ -66,12 +80,15 @@ static inline int obs_aao_in_bound(const obs_aao_occluder *o, const float p[3]) 
 
 /* The AO of every pixel of a G-buffer: prod over occluders of (1 - occlusion), 1 where
  * uncovered; ao is width*height floats. Multi-threaded; each tile tests the occluders' cubes
- * against its receivers' box before its pixels do. */
+ * against its receivers' box before its pixels do. Under p->resolution half: at every second
+ * pixel of every second row, then the bilateral upsampling, then the pixels it could not fill.
+ * stage_ms (may be NULL) receives OBS_AAO_STAGES entries. */
 int obs_analytic_ao_cpu_apply(const obs_gbuffer *g, const obs_aao_occluder *occ, size_t nocc,
                               const obs_analytic_ao_params *p, int threads, float *ao,
-                              obs_err *err);
+                              double *stage_ms, obs_err *err);
 
-/* The same on the device (vulkan.c) over its G-buffer; `host` gives the projection. */
+/* The same on the device (vulkan.c) over its G-buffer; `host` gives the projection. stage_ms
+ * (may be NULL) receives OBS_AAO_STAGES entries. */
 int obs_analytic_ao_vk_apply(obs_vk *vk, obs_vk_gbuffer *g, const obs_gbuffer *host,
                              const obs_aao_occluder *occ, size_t nocc,
                              const obs_analytic_ao_params *p, float *ao_host, double *stage_ms,

@@ -9,7 +9,10 @@
 #include "analytic_ao.h"
 #include "camera.h"
 #include "geometry.h"
+#include "obscura/render.h"
 #include "shapes.h"
+
+const char *const obs_aao_stage_names[OBS_AAO_STAGES] = {"ao", "upsample", "ao_edges"};
 
 #define AAO_TWO_PI 6.28318530717958647692f
 
@@ -113,6 +116,21 @@ int obs_aao_occluders(const obs_scene *scene, const obs_camera_rig *rig, double 
   }
   *out = a;
   *count = n;
+  return 0;
+}
+
+int obs_aao_render_occluders(obs_render_ctx *ctx, int width, int height, double extent,
+                             obs_aao_occluder **out, size_t *count, obs_err *err) {
+  obs_camera_rig rig;
+  obs_camera_setup(&ctx->scene->camera, width, height, &rig);
+  size_t skipped;
+  double t0 = obs_now_ms();
+  int rc = obs_aao_occluders(ctx->scene, &rig, extent, out, count, &skipped, err);
+  if (rc) return rc;
+  if (skipped)
+    obs_render_ctx_warn(ctx, "analytic_ao: %zu object(s) with no closed form (meshes) receive "
+                        "occlusion but cast none", skipped);
+  obs_render_ctx_stage(ctx, "occluders", obs_now_ms() - t0);
   return 0;
 }
 

@@ -8,6 +8,8 @@
 #include "gbuffer.h"
 #include "techniques.h"
 
+static const char *const resolutions[] = {"full", "half", NULL};
+
 #define P(member) offsetof(obs_analytic_ao_params, member)
 static const obs_param analytic_ao_params[] = {
     {.name = "extent", .type = OBS_PARAM_DOUBLE, .flags = OBS_PARAM_NULLABLE, .min = 1,
@@ -16,6 +18,11 @@ static const obs_param analytic_ao_params[] = {
                     "occluder radii: a receiver outside it is not occluded by it, which drops "
                     "at most about 1/extent^2 of occlusion per occluder; null = unbounded",
      .offset = P(extent)},
+    {.name = "resolution", .type = OBS_PARAM_ENUM, .choices = resolutions, .def = OBS_AAO_FULL,
+     .description = "full: every pixel; half: every second pixel of every second row, then a "
+                    "bilateral upsampling (bilinear weights times normal and depth agreement), "
+                    "the pixels no neighbour agrees with evaluated at full resolution",
+     .offset = P(resolution)},
 };
 #undef P
 
@@ -68,6 +75,6 @@ const obs_technique obs_technique_analytic_ao = {
     .needs = OBS_NEED_GBUFFER,
     .outputs = obs_screen_outputs,
     .reference = analytic_ao_reference,
-    .run = {[OBS_BACKEND_CPU] = obs_analytic_ao_cpu},
-    .range = {[OBS_BACKEND_CPU] = ANALYTIC_AO_RANGE},
+    .run = {[OBS_BACKEND_CPU] = obs_analytic_ao_cpu, [OBS_BACKEND_VULKAN] = obs_analytic_ao_vulkan},
+    .range = {[OBS_BACKEND_CPU] = ANALYTIC_AO_RANGE, [OBS_BACKEND_VULKAN] = ANALYTIC_AO_RANGE},
 };
