@@ -1,6 +1,7 @@
 /* analytic_ao: the closed forms against their exact values (a sphere over a point, a square over a
  * point, both windings, a box's faces), the occluder list from a scene, and renders against rt_ao
  * at high samples within its standard error. */
+#include <jansson.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -10,6 +11,7 @@
 
 #include "analytic_ao.h"
 #include "camera.h"
+#include "rt_ao.h"
 
 #define PI 3.14159265358979323846
 
@@ -360,6 +362,33 @@ static void test_half_resolution(void **state) {
   obs_result_free(&h);
 }
 
+/* The comparison's reference: rt_ao, binary, cosine-weighted, unbounded, loadable as it is. */
+static void test_reference(void **state) {
+  (void)state;
+  obs_scene sc, rs;
+  obs_test_load(scene_json(CAM_OBLIQUE, "", AAO_UNBOUNDED), "aao.json", &sc);
+  obs_reference_def def;
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(obs_technique_reference(sc.technique, &sc, sc.params, NULL, &def, &err), 0);
+  assert_ptr_equal(def.technique, obs_technique_find("rt_ao"));
+  assert_int_equal(def.response, OBS_RESPONSE_IDENTITY);
+  char *params = json_dumps(def.params, JSON_COMPACT);
+  char tech[512];
+  snprintf(tech, sizeof tech, "{\"name\":\"rt_ao\",\"backend\":\"cpu\",\"params\":%s}",
+           params);
+  obs_test_load(scene_json(CAM_OBLIQUE, "", tech), "ref.json", &rs);
+  obs_rt_ao_params rp;
+  assert_int_equal(obs_params_bind(rs.technique, rs.params, &rp, &err), 0);
+  assert_true(isinf(rp.max_distance));
+  assert_int_equal(rp.uniform, 0);
+  assert_int_equal(rp.falloff, OBS_FALLOFF_BINARY);
+  free(params);
+  obs_reference_def_free(&def);
+  obs_scene_free(&sc);
+  obs_scene_free(&rs);
+  obs_err_free(&err);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_sphere_closed_form),
@@ -371,6 +400,7 @@ int main(void) {
       cmocka_unit_test(test_union_error),
       cmocka_unit_test(test_extent_cutoff),
       cmocka_unit_test(test_half_resolution),
+      cmocka_unit_test(test_reference),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
