@@ -36,6 +36,8 @@ const GRIDS = {
   disc_ao: {influence_scale: [4, 16], side: ['front', 'back']},
   // strength 0 is the direct pass alone: what the bounce adds is read against it.
   ss_radiosity: {strength: [0, 1, 4]},
+  // extent null: no cutoff (the reference's unlimited range); half: the article's low resolution.
+  analytic_ao: {extent: [16, null], resolution: ['full', 'half']},
   obscurance_map: [{backend: 'cpu', params: {method: ['rays', 'global_lines', 'bundles'], d_max: 300, patch_size: 50}},
                    {backend: 'vulkan', params: {method: 'depth_peeling', d_max: 300, patch_size: 50}}],
   // clamp_distance 19.2: 0.02 of the box's diagonal, the size default; exact runs on the CPU only.

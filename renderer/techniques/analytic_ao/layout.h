@@ -1,0 +1,40 @@
+/* analytic_ao's push-constant blocks, declared once for vulkan.c and the shaders
+ * analytic_ao.comp.glsl and analytic_ao_up.comp.glsl (renderer/core/layout_glsl.h). GLSL allows
+ * one push-constant block per shader: a shader defines OBS_AAO_AO_PASS or OBS_AAO_UP_PASS before
+ * including this, C sees both. */
+#ifndef OBS_ANALYTIC_AO_LAYOUT_H
+#define OBS_ANALYTIC_AO_LAYOUT_H
+
+#include "layout_glsl.h"
+
+/* vec4s per occluder in the storage buffer: obs_aao_occluder's layout (analytic_ao.h). */
+#define OBS_AAO_VEC4S 10
+/* The AO pass's modes (cpu.c's AAO_PASS_*): every pixel, pixel (2X, 2Y) of each half-resolution
+ * cell, the pixels the upsampling marked. */
+#define OBS_AAO_MODE_FULL 0
+#define OBS_AAO_MODE_LOW 1
+#define OBS_AAO_MODE_EDGES 2
+
+#if !defined(VULKAN) || defined(OBS_AAO_AO_PASS)
+OBS_PUSH_BEGIN(obs_aao_push)
+  OBS_I32 width; OBS_I32 height; /* the G-buffer's */
+  OBS_I32 ortho;     /* its projection (gbuffer.h) */
+  OBS_I32 first;     /* this dispatch's occluders: [first, first + count) */
+  OBS_I32 count;
+  OBS_I32 accumulate; /* 0: the first dispatch writes the AO; 1: later ones multiply into it */
+  OBS_I32 mode;       /* OBS_AAO_MODE_* */
+  OBS_F32 half_w; OBS_F32 half_h;
+OBS_PUSH_END(obs_aao_push)
+OBS_PUSH_CHECK(obs_aao_push)
+#endif
+
+#if !defined(VULKAN) || defined(OBS_AAO_UP_PASS)
+OBS_PUSH_BEGIN(obs_aao_up_push)
+  OBS_I32 width; OBS_I32 height; /* the G-buffer's */
+  OBS_I32 lw; OBS_I32 lh;        /* the half-resolution grid's */
+  OBS_F32 depth_limit;           /* OBS_AAO_UP_DEPTH */
+OBS_PUSH_END(obs_aao_up_push)
+OBS_PUSH_CHECK(obs_aao_up_push)
+#endif
+
+#endif
