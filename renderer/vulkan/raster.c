@@ -1,5 +1,6 @@
-/* The Vulkan device layer's raster pipelines (the G-buffer, depth peeling) and shader modules:
- * the fixed-function state they share, written once. */
+/* The Vulkan device layer's raster pipelines (the G-buffer, depth peeling), the render pass of
+ * the passes that blend into a storage image, and shader modules: the fixed-function state they
+ * share, written once. */
 #include <stdio.h>
 
 #include "vk_internal.h"
@@ -90,4 +91,121 @@ int obs_vk_raster_pipeline(obs_vk *vk, const obs_vk_raster *r, VkPipeline *out, 
                         buf, err);
   if (rc) *out = VK_NULL_HANDLE;
   return rc;
+}
+
+/* A one-subpass render pass over one colour attachment of `format` that is a storage image kept
+ * in GENERAL layout: cleared on load, stored, with full dependencies on the work around it. */
+int obs_vk_blend_pass(obs_vk *vk, VkFormat format, VkRenderPass *out, const char *what,
+                      obs_err *err) {
+  VkAttachmentDescription att = {.format = format,
+                                 .samples = VK_SAMPLE_COUNT_1_BIT,
+                                 .loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR,
+                                 .storeOp = VK_ATTACHMENT_STORE_OP_STORE,
+                                 .stencilLoadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE,
+                                 .stencilStoreOp = VK_ATTACHMENT_STORE_OP_DONT_CARE,
+                                 .initialLayout = VK_IMAGE_LAYOUT_GENERAL,
+                                 .finalLayout = VK_IMAGE_LAYOUT_GENERAL};
+  VkAttachmentReference cref = {0, VK_IMAGE_LAYOUT_GENERAL};
+  VkSubpassDescription sub = {.pipelineBindPoint = VK_PIPELINE_BIND_POINT_GRAPHICS,
+                              .colorAttachmentCount = 1,
+                              .pColorAttachments = &cref};
+  VkSubpassDependency dep[2] = {
+      {.srcSubpass = VK_SUBPASS_EXTERNAL,
+       .dstSubpass = 0,
+       .srcStageMask = VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
+       .dstStageMask = VK_PIPELINE_STAGE_ALL_GRAPHICS_BIT,
+       .srcAccessMask = VK_ACCESS_MEMORY_WRITE_BIT,
+       .dstAccessMask = VK_ACCESS_MEMORY_READ_BIT | VK_ACCESS_MEMORY_WRITE_BIT},
+      {.srcSubpass = 0,
+       .dstSubpass = VK_SUBPASS_EXTERNAL,
+       .srcStageMask = VK_PIPELINE_STAGE_ALL_GRAPHICS_BIT,
+       .dstStageMask = VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
+       .srcAccessMask = VK_ACCESS_MEMORY_WRITE_BIT,
+       .dstAccessMask = VK_ACCESS_MEMORY_READ_BIT | VK_ACCESS_MEMORY_WRITE_BIT}};
+  VkRenderPassCreateInfo rpci = {.sType = VK_STRUCTURE_TYPE_RENDER_PASS_CREATE_INFO,
+                                 .attachmentCount = 1,
+                                 .pAttachments = &att,
+                                 .subpassCount = 1,
+                                 .pSubpasses = &sub,
+                                 .dependencyCount = 2,
+                                 .pDependencies = dep};
+  char what_call[96];
+  snprintf(what_call, sizeof what_call, "vkCreateRenderPass (%s)", what);
+  return obs_vk_check(vk, vkCreateRenderPass(vk->dev, &rpci, NULL, out), what_call, err);
+}
+
+int obs_vk_blend_pipeline(obs_vk *vk, const obs_vk_blend *b, VkPipeline *out, obs_err *err) {
+  VkPipelineShaderStageCreateInfo st[3];
+  uint32_t n = 0;
+  const VkShaderModule m[3] = {b->vs, b->gs, b->fs};
+  static const VkShaderStageFlagBits kinds[3] = {
+      VK_SHADER_STAGE_VERTEX_BIT, VK_SHADER_STAGE_GEOMETRY_BIT, VK_SHADER_STAGE_FRAGMENT_BIT};
+  for (int i = 0; i < 3; i++)
+    if (m[i])
+      st[n++] = (VkPipelineShaderStageCreateInfo){
+          .sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
+          .stage = kinds[i],
+          .module = m[i],
+          .pName = "main"};
+  VkPipelineVertexInputStateCreateInfo none = {
+      .sType = VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
+  VkPipelineInputAssemblyStateCreateInfo ia = {
+      .sType = VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO,
+      .topology = b->topology};
+  VkPipelineViewportStateCreateInfo vps = {
+      .sType = VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO,
+      .viewportCount = 1,
+      .scissorCount = 1};
+  VkPipelineRasterizationStateCreateInfo rs = {
+      .sType = VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO,
+      .polygonMode = VK_POLYGON_MODE_FILL,
+      .cullMode = VK_CULL_MODE_NONE,
+      .frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE,
+      .lineWidth = 1.0f};
+  VkPipelineMultisampleStateCreateInfo ms = {
+      .sType = VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO,
+      .rasterizationSamples = VK_SAMPLE_COUNT_1_BIT};
+  VkPipelineColorBlendAttachmentState cba = {.blendEnable = VK_TRUE,
+                                             .srcColorBlendFactor = b->src,
+                                             .dstColorBlendFactor = b->dst,
+                                             .colorBlendOp = b->op,
+                                             .srcAlphaBlendFactor = b->src,
+                                             .dstAlphaBlendFactor = b->dst,
+                                             .alphaBlendOp = b->op,
+                                             .colorWriteMask = b->write};
+  VkPipelineColorBlendStateCreateInfo cb = {
+      .sType = VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO,
+      .attachmentCount = 1,
+      .pAttachments = &cba};
+  VkDynamicState dyn[2] = {VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
+  VkPipelineDynamicStateCreateInfo dy = {
+      .sType = VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO,
+      .dynamicStateCount = 2,
+      .pDynamicStates = dyn};
+  VkGraphicsPipelineCreateInfo ci = {.sType = VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO,
+                                     .stageCount = n,
+                                     .pStages = st,
+                                     .pVertexInputState = b->input ? b->input : &none,
+                                     .pInputAssemblyState = &ia,
+                                     .pViewportState = &vps,
+                                     .pRasterizationState = &rs,
+                                     .pMultisampleState = &ms,
+                                     .pColorBlendState = &cb,
+                                     .pDynamicState = &dy,
+                                     .layout = b->layout,
+                                     .renderPass = b->pass};
+  char buf[128];
+  snprintf(buf, sizeof buf, "vkCreateGraphicsPipelines (%s)", b->what);
+  int rc = obs_vk_check(vk, vkCreateGraphicsPipelines(vk->dev, VK_NULL_HANDLE, 1, &ci, NULL, out),
+                        buf, err);
+  if (rc) *out = VK_NULL_HANDLE;
+  return rc;
+}
+
+int obs_vk_blendable(obs_vk *vk, VkFormat format) {
+  VkFormatProperties fp;
+  vkGetPhysicalDeviceFormatProperties(vk->phys, format, &fp);
+  VkFormatFeatureFlags need =
+      VK_FORMAT_FEATURE_COLOR_ATTACHMENT_BIT | VK_FORMAT_FEATURE_COLOR_ATTACHMENT_BLEND_BIT;
+  return (fp.optimalTilingFeatures & need) == need;
 }

@@ -137,6 +137,30 @@ typedef struct obs_vk_raster {
 } obs_vk_raster;
 int obs_vk_raster_pipeline(obs_vk *vk, const obs_vk_raster *r, VkPipeline *out, obs_err *err);
 
+/* The render pass of a blending pass into a storage image: one subpass, one colour attachment
+ * of `format` kept in GENERAL layout, cleared on load and stored, fully ordered against the work
+ * before and after it; errors name `what`. */
+int obs_vk_blend_pass(obs_vk *vk, VkFormat format, VkRenderPass *out, const char *what,
+                      obs_err *err);
+/* A blending pipeline of the device layer over such a pass: vertex, optional geometry and
+ * fragment shaders, no culling (the shaders emit only the faces they mean), no depth test, one
+ * sample, one attachment blended with the same factors for colour and alpha, viewport and
+ * scissor dynamic. */
+typedef struct obs_vk_blend {
+  VkShaderModule vs, gs, fs; /* gs: VK_NULL_HANDLE for none */
+  const VkPipelineVertexInputStateCreateInfo *input; /* NULL: no vertex input */
+  VkPrimitiveTopology topology;
+  VkBlendFactor src, dst;
+  VkBlendOp op;
+  VkColorComponentFlags write;
+  VkPipelineLayout layout;
+  VkRenderPass pass;
+  const char *what; /* names the pipeline in errors */
+} obs_vk_blend;
+int obs_vk_blend_pipeline(obs_vk *vk, const obs_vk_blend *b, VkPipeline *out, obs_err *err);
+/* Whether the device can render to and blend into `format` with optimal tiling. */
+int obs_vk_blendable(obs_vk *vk, VkFormat format);
+
 /* One-shot command recording into vk->cmd: begin (with a full barrier against earlier
  * submissions), then submit-and-wait. abort discards a recording after an error. */
 int obs_vk_cmd_begin(obs_vk *vk, const char *what, obs_err *err);

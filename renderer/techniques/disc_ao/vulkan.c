@@ -54,40 +54,7 @@ static int create_layouts(disc_vk *d, obs_err *err) {
                          "vkCreatePipelineLayout (disc_ao)", err)))
     return rc;
   /* The target is a storage image in GENERAL layout that the pass clears and blends into. */
-  VkAttachmentDescription att = {.format = VK_FORMAT_R32G32B32A32_SFLOAT,
-                                 .samples = VK_SAMPLE_COUNT_1_BIT,
-                                 .loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR,
-                                 .storeOp = VK_ATTACHMENT_STORE_OP_STORE,
-                                 .stencilLoadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE,
-                                 .stencilStoreOp = VK_ATTACHMENT_STORE_OP_DONT_CARE,
-                                 .initialLayout = VK_IMAGE_LAYOUT_GENERAL,
-                                 .finalLayout = VK_IMAGE_LAYOUT_GENERAL};
-  VkAttachmentReference cref = {0, VK_IMAGE_LAYOUT_GENERAL};
-  VkSubpassDescription sub = {.pipelineBindPoint = VK_PIPELINE_BIND_POINT_GRAPHICS,
-                              .colorAttachmentCount = 1,
-                              .pColorAttachments = &cref};
-  VkSubpassDependency dep[2] = {
-      {.srcSubpass = VK_SUBPASS_EXTERNAL,
-       .dstSubpass = 0,
-       .srcStageMask = VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
-       .dstStageMask = VK_PIPELINE_STAGE_ALL_GRAPHICS_BIT,
-       .srcAccessMask = VK_ACCESS_MEMORY_WRITE_BIT,
-       .dstAccessMask = VK_ACCESS_MEMORY_READ_BIT | VK_ACCESS_MEMORY_WRITE_BIT},
-      {.srcSubpass = 0,
-       .dstSubpass = VK_SUBPASS_EXTERNAL,
-       .srcStageMask = VK_PIPELINE_STAGE_ALL_GRAPHICS_BIT,
-       .dstStageMask = VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
-       .srcAccessMask = VK_ACCESS_MEMORY_WRITE_BIT,
-       .dstAccessMask = VK_ACCESS_MEMORY_READ_BIT | VK_ACCESS_MEMORY_WRITE_BIT}};
-  VkRenderPassCreateInfo rpci = {.sType = VK_STRUCTURE_TYPE_RENDER_PASS_CREATE_INFO,
-                                 .attachmentCount = 1,
-                                 .pAttachments = &att,
-                                 .subpassCount = 1,
-                                 .pSubpasses = &sub,
-                                 .dependencyCount = 2,
-                                 .pDependencies = dep};
-  return obs_vk_check(vk, vkCreateRenderPass(vk->dev, &rpci, NULL, &d->pass),
-                      "vkCreateRenderPass (disc_ao)", err);
+  return obs_vk_blend_pass(vk, VK_FORMAT_R32G32B32A32_SFLOAT, &d->pass, "disc_ao", err);
 }
 
 static int create_pipeline(disc_vk *d, obs_err *err) {
@@ -99,15 +66,6 @@ static int create_pipeline(disc_vk *d, obs_err *err) {
     rc = obs_vk_shader(vk, obs_spv_disc_ao_geom, obs_spv_disc_ao_geom_size, &m[1], "disc_ao", err);
   if (!rc)
     rc = obs_vk_shader(vk, obs_spv_disc_ao_frag, obs_spv_disc_ao_frag_size, &m[2], "disc_ao", err);
-  static const VkShaderStageFlagBits kinds[3] = {
-      VK_SHADER_STAGE_VERTEX_BIT, VK_SHADER_STAGE_GEOMETRY_BIT, VK_SHADER_STAGE_FRAGMENT_BIT};
-  VkPipelineShaderStageCreateInfo st[3];
-  for (int i = 0; i < 3; i++)
-    st[i] = (VkPipelineShaderStageCreateInfo){
-        .sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
-        .stage = kinds[i],
-        .module = m[i],
-        .pName = "main"};
   VkVertexInputBindingDescription vb = {0, sizeof(obs_disc), VK_VERTEX_INPUT_RATE_VERTEX};
   VkVertexInputAttributeDescription va[2] = {
       {0, 0, VK_FORMAT_R32G32B32A32_SFLOAT, offsetof(obs_disc, c)},
@@ -118,57 +76,14 @@ static int create_pipeline(disc_vk *d, obs_err *err) {
       .pVertexBindingDescriptions = &vb,
       .vertexAttributeDescriptionCount = 2,
       .pVertexAttributeDescriptions = va};
-  VkPipelineInputAssemblyStateCreateInfo ia = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO,
-      .topology = VK_PRIMITIVE_TOPOLOGY_POINT_LIST};
-  VkPipelineViewportStateCreateInfo vps = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO,
-      .viewportCount = 1,
-      .scissorCount = 1};
-  /* No culling: the geometry shader emits only the faces it means (a pyramid's back faces). */
-  VkPipelineRasterizationStateCreateInfo rs = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO,
-      .polygonMode = VK_POLYGON_MODE_FILL,
-      .cullMode = VK_CULL_MODE_NONE,
-      .frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE,
-      .lineWidth = 1.0f};
-  VkPipelineMultisampleStateCreateInfo ms = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO,
-      .rasterizationSamples = VK_SAMPLE_COUNT_1_BIT};
-  VkPipelineColorBlendAttachmentState cba = {
-      .blendEnable = VK_TRUE,
-      .srcColorBlendFactor = VK_BLEND_FACTOR_ONE,
-      .dstColorBlendFactor = VK_BLEND_FACTOR_ONE,
-      .colorBlendOp = VK_BLEND_OP_ADD,
-      .srcAlphaBlendFactor = VK_BLEND_FACTOR_ONE,
-      .dstAlphaBlendFactor = VK_BLEND_FACTOR_ONE,
-      .alphaBlendOp = VK_BLEND_OP_ADD,
-      .colorWriteMask = VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT |
-                        VK_COLOR_COMPONENT_B_BIT | VK_COLOR_COMPONENT_A_BIT};
-  VkPipelineColorBlendStateCreateInfo cb = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO,
-      .attachmentCount = 1,
-      .pAttachments = &cba};
-  VkDynamicState dyn[2] = {VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
-  VkPipelineDynamicStateCreateInfo dy = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO,
-      .dynamicStateCount = 2,
-      .pDynamicStates = dyn};
-  VkGraphicsPipelineCreateInfo ci = {.sType = VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO,
-                                     .stageCount = 3,
-                                     .pStages = st,
-                                     .pVertexInputState = &vi,
-                                     .pInputAssemblyState = &ia,
-                                     .pViewportState = &vps,
-                                     .pRasterizationState = &rs,
-                                     .pMultisampleState = &ms,
-                                     .pColorBlendState = &cb,
-                                     .pDynamicState = &dy,
-                                     .layout = d->layout,
-                                     .renderPass = d->pass};
-  if (!rc)
-    rc = obs_vk_check(vk, vkCreateGraphicsPipelines(vk->dev, VK_NULL_HANDLE, 1, &ci, NULL, &d->pipe),
-                      "vkCreateGraphicsPipelines (disc_ao)", err);
+  /* Additive: the geometry shader emits only the faces it means (a pyramid's back faces). */
+  obs_vk_blend bl = {.vs = m[0], .gs = m[1], .fs = m[2], .input = &vi,
+                     .topology = VK_PRIMITIVE_TOPOLOGY_POINT_LIST, .src = VK_BLEND_FACTOR_ONE,
+                     .dst = VK_BLEND_FACTOR_ONE, .op = VK_BLEND_OP_ADD,
+                     .write = VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT |
+                              VK_COLOR_COMPONENT_B_BIT | VK_COLOR_COMPONENT_A_BIT,
+                     .layout = d->layout, .pass = d->pass, .what = "disc_ao"};
+  if (!rc) rc = obs_vk_blend_pipeline(vk, &bl, &d->pipe, err);
   for (int i = 0; i < 3; i++)
     if (m[i]) vkDestroyShaderModule(vk->dev, m[i], NULL);
   return rc;
@@ -259,14 +174,6 @@ static int record(disc_vk *d, const obs_disc_set *s, const obs_disc_ao_push *pc,
   return obs_vk_cmd_submit(vk, "disc_ao", err);
 }
 
-static int blendable(obs_vk *vk) {
-  VkFormatProperties fp;
-  vkGetPhysicalDeviceFormatProperties(vk->phys, VK_FORMAT_R32G32B32A32_SFLOAT, &fp);
-  VkFormatFeatureFlags need =
-      VK_FORMAT_FEATURE_COLOR_ATTACHMENT_BIT | VK_FORMAT_FEATURE_COLOR_ATTACHMENT_BLEND_BIT;
-  return (fp.optimalTilingFeatures & need) == need;
-}
-
 int obs_disc_ao_vk_apply(obs_vk *vk, obs_vk_gbuffer *dev, const obs_gbuffer *host,
                          const obs_disc_set *s, const obs_disc_ao_params *p, float *ao,
                          float *ao_raw, obs_disc_ao_stats *stats, double *ms, obs_err *err) {
@@ -276,7 +183,7 @@ int obs_disc_ao_vk_apply(obs_vk *vk, obs_vk_gbuffer *dev, const obs_gbuffer *hos
   if (!vk->geometry_shader)
     return obs_err_set(err, OBS_EUNSUPPORTED,
                        "disc_ao: the Vulkan device %s has no geometry shaders", vk->name);
-  if (!blendable(vk))
+  if (!obs_vk_blendable(vk, VK_FORMAT_R32G32B32A32_SFLOAT))
     return obs_err_set(err, OBS_EUNSUPPORTED,
                        "disc_ao: the Vulkan device %s cannot blend 32-bit float targets",
                        vk->name);
