@@ -161,22 +161,30 @@ static double less_noise(double rmse, double noise) {
   return sqrt(fmax(0.0, rmse * rmse - noise * noise));
 }
 
+/* The ray-cast G-buffer of n spheres and its occluders at `extent` (the caller frees all three). */
+static void field_gbuffer(int n, double extent, obs_scene *sc, obs_gbuffer *g,
+                          obs_aao_occluder **occ, size_t *nocc) {
+  obs_err err = OBS_ERR_INIT;
+  char *json = field_scene(n, "{\"name\":\"analytic_ao\",\"backend\":\"cpu\"}");
+  obs_camera_rig rig;
+  if (!json || obs_scene_load_string(sc, json, "bench.json", NULL, NULL, 0, &err)) exit(1);
+  free(json);
+  if (obs_gbuffer_raycast(sc, g, opt.threads, NULL, NULL, &err)) exit(1);
+  obs_camera_setup(&sc->camera, g->width, g->height, &rig);
+  if (obs_aao_occluders(sc, &rig, extent, NULL, occ, nocc, NULL, &err)) exit(1);
+  obs_err_free(&err);
+}
+
 /* The AO pass alone over one ray-cast G-buffer of n spheres, on the CPU and (vk set) on the
  * device: median ms of each into cpu_ms and vk_ms (NAN without a device). */
 static void pass_times(obs_vk *vk, int n, double extent, int resolution, double *cpu_ms,
                        double *vk_ms) {
   obs_scene sc;
   obs_err err = OBS_ERR_INIT;
-  char *json = field_scene(n, "{\"name\":\"analytic_ao\",\"backend\":\"cpu\"}");
   obs_gbuffer g;
   obs_aao_occluder *occ = NULL;
   size_t nocc = 0;
-  obs_camera_rig rig;
-  if (!json || obs_scene_load_string(&sc, json, "bench.json", NULL, NULL, 0, &err)) exit(1);
-  free(json);
-  if (obs_gbuffer_raycast(&sc, &g, opt.threads, NULL, NULL, &err)) exit(1);
-  obs_camera_setup(&sc.camera, g.width, g.height, &rig);
-  if (obs_aao_occluders(&sc, &rig, extent, NULL, &occ, &nocc, NULL, &err)) exit(1);
+  field_gbuffer(n, extent, &sc, &g, &occ, &nocc);
   obs_analytic_ao_params p = {.extent = extent, .resolution = resolution, .occluders = {.count = -1}};
   float *ao = malloc((size_t)g.width * (size_t)g.height * sizeof *ao);
   double tc[MAX_REPEATS];
@@ -210,17 +218,11 @@ static void pass_times(obs_vk *vk, int n, double extent, int resolution, double 
 static void method_times(obs_vk *vk, int n, double extent, double ms[2], double *diff) {
   obs_scene sc;
   obs_err err = OBS_ERR_INIT;
-  char *json = field_scene(n, "{\"name\":\"analytic_ao\",\"backend\":\"cpu\"}");
   obs_gbuffer g;
   obs_aao_occluder *occ = NULL;
   size_t nocc = 0;
-  obs_camera_rig rig;
+  field_gbuffer(n, extent, &sc, &g, &occ, &nocc);
   obs_vk_gbuffer dev;
-  if (!json || obs_scene_load_string(&sc, json, "bench.json", NULL, NULL, 0, &err)) exit(1);
-  free(json);
-  if (obs_gbuffer_raycast(&sc, &g, opt.threads, NULL, NULL, &err)) exit(1);
-  obs_camera_setup(&sc.camera, g.width, g.height, &rig);
-  if (obs_aao_occluders(&sc, &rig, extent, NULL, &occ, &nocc, NULL, &err)) exit(1);
   if (obs_vk_gbuffer_upload(vk, &g, &dev, &err)) exit(1);
   size_t npx = (size_t)g.width * (size_t)g.height;
   float *ao[2] = {malloc(npx * sizeof(float)), malloc(npx * sizeof(float))};

@@ -15,22 +15,39 @@
 #include "vktest.h"
 #include "../../renderer/techniques/analytic_ao/analytic_ao.h"
 
-/* The G-buffer and occluders of `json` (a whole scene document) on both sides, compared bit for
- * bit; returns the mean AO. */
+/* The scene of `json` (a whole scene document), its ray-cast G-buffer on the host and on the
+ * device, and its occluders at `extent`; release frees them. */
+static void setup(obs_vk *vk, const char *json, double extent, obs_scene *sc, obs_gbuffer *g,
+                  obs_vk_gbuffer *dev, obs_aao_occluder **occ, size_t *nocc) {
+  obs_err err = OBS_ERR_INIT;
+  obs_test_load(json, "aao_vk.json", sc);
+  vktest_check_rc(obs_gbuffer_raycast(sc, g, 2, NULL, NULL, &err), &err);
+  vktest_check_rc(obs_vk_gbuffer_upload(vk, g, dev, &err), &err);
+  obs_camera_rig rig;
+  obs_camera_setup(&sc->camera, g->width, g->height, &rig);
+  vktest_check_rc(obs_aao_occluders(sc, &rig, extent, NULL, occ, nocc, NULL, &err), &err);
+  obs_err_free(&err);
+}
+
+static void release(obs_vk *vk, obs_scene *sc, obs_gbuffer *g, obs_vk_gbuffer *dev,
+                    obs_aao_occluder *occ) {
+  free(occ);
+  obs_vk_gbuffer_free(vk, dev);
+  obs_gbuffer_free(g);
+  obs_scene_free(sc);
+}
+
+/* The G-buffer and occluders of `json` on both sides, compared bit for bit; returns the mean
+ * AO. */
 static double twins_at(const char *label, const char *json, double extent, int resolution) {
   obs_vk *vk = vktest_need_vk();
   obs_err err = OBS_ERR_INIT;
   obs_scene sc;
-  obs_test_load(json, "aao_vk.json", &sc);
   obs_gbuffer g;
-  vktest_check_rc(obs_gbuffer_raycast(&sc, &g, 2, NULL, NULL, &err), &err);
   obs_vk_gbuffer dev;
-  vktest_check_rc(obs_vk_gbuffer_upload(vk, &g, &dev, &err), &err);
-  obs_camera_rig rig;
-  obs_camera_setup(&sc.camera, g.width, g.height, &rig);
   obs_aao_occluder *occ;
   size_t nocc;
-  vktest_check_rc(obs_aao_occluders(&sc, &rig, extent, NULL, &occ, &nocc, NULL, &err), &err);
+  setup(vk, json, extent, &sc, &g, &dev, &occ, &nocc);
   obs_analytic_ao_params p = {.extent = extent, .resolution = resolution, .occluders = {.count = -1}};
   size_t n = (size_t)g.width * (size_t)g.height;
   float *ca = malloc(n * sizeof *ca), *va = malloc(n * sizeof *va);
@@ -51,10 +68,7 @@ static double twins_at(const char *label, const char *json, double extent, int r
   assert_true(open < n);
   free(ca);
   free(va);
-  free(occ);
-  obs_vk_gbuffer_free(vk, &dev);
-  obs_gbuffer_free(&g);
-  obs_scene_free(&sc);
+  release(vk, &sc, &g, &dev, occ);
   obs_err_free(&err);
   return mean / (double)n;
 }
@@ -113,16 +127,11 @@ static double raster_at(const char *label, const char *json, double extent, size
   obs_vk *vk = vktest_need_vk();
   obs_err err = OBS_ERR_INIT;
   obs_scene sc;
-  obs_test_load(json, "aao_vk.json", &sc);
   obs_gbuffer g;
-  vktest_check_rc(obs_gbuffer_raycast(&sc, &g, 2, NULL, NULL, &err), &err);
   obs_vk_gbuffer dev;
-  vktest_check_rc(obs_vk_gbuffer_upload(vk, &g, &dev, &err), &err);
-  obs_camera_rig rig;
-  obs_camera_setup(&sc.camera, g.width, g.height, &rig);
   obs_aao_occluder *occ;
   size_t nocc;
-  vktest_check_rc(obs_aao_occluders(&sc, &rig, extent, NULL, &occ, &nocc, NULL, &err), &err);
+  setup(vk, json, extent, &sc, &g, &dev, &occ, &nocc);
   assert_true(nocc > drop);
   obs_analytic_ao_params p = {.extent = extent, .occluders = {.count = -1}};
   size_t n = (size_t)g.width * (size_t)g.height;
@@ -157,10 +166,7 @@ static double raster_at(const char *label, const char *json, double extent, size
   free(ca);
   free(ra);
   free(da);
-  free(occ);
-  obs_vk_gbuffer_free(vk, &dev);
-  obs_gbuffer_free(&g);
-  obs_scene_free(&sc);
+  release(vk, &sc, &g, &dev, occ);
   obs_err_free(&err);
   return mean;
 }
