@@ -158,6 +158,42 @@ typedef struct obs_vk_blend {
   const char *what; /* names the pipeline in errors */
 } obs_vk_blend;
 int obs_vk_blend_pipeline(obs_vk *vk, const obs_vk_blend *b, VkPipeline *out, obs_err *err);
+/* A blending pass (blend.c): the set layout, pipeline layout, render pass (obs_vk_blend_pass),
+ * pipeline (obs_vk_blend_pipeline), descriptor set and framebuffer of a target image. */
+#define OBS_VK_BLEND_BINDINGS 8
+typedef struct obs_vk_blender_def {
+  const VkDescriptorSetLayoutBinding *bindings; /* at most OBS_VK_BLEND_BINDINGS */
+  uint32_t nbindings;
+  /* One per binding, in the same order: its pImageInfo or pBufferInfo (the rest is filled in). */
+  const VkWriteDescriptorSet *writes;
+  VkShaderStageFlags push_stages;
+  uint32_t push_size; /* 0: no push constants */
+  VkFormat format;    /* the target's */
+  obs_vk_image *target;
+  int width, height;
+  obs_vk_blend pipeline; /* its layout and pass are filled in */
+} obs_vk_blender_def;
+typedef struct obs_vk_blender {
+  obs_vk *vk;
+  const char *what;
+  VkShaderStageFlags push_stages;
+  int width, height;
+  VkDescriptorSetLayout dsl;
+  VkPipelineLayout layout;
+  VkRenderPass pass;
+  VkPipeline pipe;
+  VkDescriptorPool dpool;
+  VkDescriptorSet set;
+  VkFramebuffer fb;
+} obs_vk_blender;
+/* Creates it all (freeing what it made on failure); the shader modules may go afterwards. */
+int obs_vk_blender_open(obs_vk *vk, const obs_vk_blender_def *d, obs_vk_blender *b, obs_err *err);
+/* One submission: clear the target to `clear`, draw nvertices x ninstances (from `vertices` at
+ * binding 0, or VK_NULL_HANDLE for none) with the push constants, submit and wait. */
+int obs_vk_blender_draw(obs_vk_blender *b, const void *push, uint32_t push_size,
+                        const float clear[4], VkBuffer vertices, uint32_t nvertices,
+                        uint32_t ninstances, obs_err *err);
+void obs_vk_blender_free(obs_vk_blender *b);
 /* Whether the device can render to and blend into `format` with optimal tiling. */
 int obs_vk_blendable(obs_vk *vk, VkFormat format);
 
