@@ -6,7 +6,9 @@
  * no larger than analytic_ao's, both errors less the reference's own noise (its mean squared
  * standard error). The pass alone (the AO over one ray-cast G-buffer, the same on both sides) is
  * timed on the CPU and on the Vulkan device, whose own G-buffer rasterises tessellated spheres
- * and would dominate a whole render there. Prints the machine, the table and the time ratios. */
+ * and would dominate a whole render there; a first table times the Vulkan pass under both
+ * methods (compute, and the article's rasterised proxies). Prints the machine, the tables and
+ * the time ratios. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -24,15 +26,15 @@
 #define MAX_COUNTS 8
 
 static struct {
-  int threads, width, height, repeats, ref_samples, ncounts;
+  int threads, width, height, repeats, ref_samples, ncounts, methods_only;
   int counts[MAX_COUNTS];
 } opt;
 
 static void usage(FILE *f) {
   fprintf(f, "usage: bench_analytic_ao [--threads N] [--size W] [--repeats R] [--ref-samples S]\n"
-             "                         [--spheres 3,1000,5000]\n"
+             "                         [--spheres 3,1000,5000] [--methods-only]\n"
              "  W x 3W/4 images (default 320), medians of R runs (default 3), the reference rt_ao\n"
-             "  with S samples (default 2048).\n");
+             "  with S samples (default 2048). --methods-only: only the Vulkan methods' table.\n");
 }
 
 static int parse_args(int argc, char **argv) {
@@ -47,6 +49,10 @@ static int parse_args(int argc, char **argv) {
     if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
       usage(stdout);
       exit(0);
+    }
+    if (!strcmp(a, "--methods-only")) {
+      opt.methods_only = 1;
+      continue;
     }
     if (i + 1 >= argc) goto bad;
     const char *v = argv[++i];
@@ -155,22 +161,30 @@ static double less_noise(double rmse, double noise) {
   return sqrt(fmax(0.0, rmse * rmse - noise * noise));
 }
 
+/* The ray-cast G-buffer of n spheres and its occluders at `extent` (the caller frees all three). */
+static void field_gbuffer(int n, double extent, obs_scene *sc, obs_gbuffer *g,
+                          obs_aao_occluder **occ, size_t *nocc) {
+  obs_err err = OBS_ERR_INIT;
+  char *json = field_scene(n, "{\"name\":\"analytic_ao\",\"backend\":\"cpu\"}");
+  obs_camera_rig rig;
+  if (!json || obs_scene_load_string(sc, json, "bench.json", NULL, NULL, 0, &err)) exit(1);
+  free(json);
+  if (obs_gbuffer_raycast(sc, g, opt.threads, NULL, NULL, &err)) exit(1);
+  obs_camera_setup(&sc->camera, g->width, g->height, &rig);
+  if (obs_aao_occluders(sc, &rig, extent, NULL, occ, nocc, NULL, &err)) exit(1);
+  obs_err_free(&err);
+}
+
 /* The AO pass alone over one ray-cast G-buffer of n spheres, on the CPU and (vk set) on the
  * device: median ms of each into cpu_ms and vk_ms (NAN without a device). */
 static void pass_times(obs_vk *vk, int n, double extent, int resolution, double *cpu_ms,
                        double *vk_ms) {
   obs_scene sc;
   obs_err err = OBS_ERR_INIT;
-  char *json = field_scene(n, "{\"name\":\"analytic_ao\",\"backend\":\"cpu\"}");
   obs_gbuffer g;
   obs_aao_occluder *occ = NULL;
   size_t nocc = 0;
-  obs_camera_rig rig;
-  if (!json || obs_scene_load_string(&sc, json, "bench.json", NULL, NULL, 0, &err)) exit(1);
-  free(json);
-  if (obs_gbuffer_raycast(&sc, &g, opt.threads, NULL, NULL, &err)) exit(1);
-  obs_camera_setup(&sc.camera, g.width, g.height, &rig);
-  if (obs_aao_occluders(&sc, &rig, extent, NULL, &occ, &nocc, NULL, &err)) exit(1);
+  field_gbuffer(n, extent, &sc, &g, &occ, &nocc);
   obs_analytic_ao_params p = {.extent = extent, .resolution = resolution, .occluders = {.count = -1}};
   float *ao = malloc((size_t)g.width * (size_t)g.height * sizeof *ao);
   double tc[MAX_REPEATS];
@@ -195,6 +209,61 @@ static void pass_times(obs_vk *vk, int n, double extent, int resolution, double 
   obs_gbuffer_free(&g);
   obs_scene_free(&sc);
   obs_err_free(&err);
+}
+
+/* The Vulkan pass under each method (compute, raster) over one ray-cast G-buffer of n spheres:
+ * wall-clock ms of the second of two calls (lavapipe compiles a pipeline at its first use), each
+ * with its setup (occluder upload, pipelines, readback), into ms[2]; and the worst |difference|
+ * between the two images into *diff. */
+static void method_times(obs_vk *vk, int n, double extent, double ms[2], double *diff) {
+  obs_scene sc;
+  obs_err err = OBS_ERR_INIT;
+  obs_gbuffer g;
+  obs_aao_occluder *occ = NULL;
+  size_t nocc = 0;
+  field_gbuffer(n, extent, &sc, &g, &occ, &nocc);
+  obs_vk_gbuffer dev;
+  if (obs_vk_gbuffer_upload(vk, &g, &dev, &err)) exit(1);
+  size_t npx = (size_t)g.width * (size_t)g.height;
+  float *ao[2] = {malloc(npx * sizeof(float)), malloc(npx * sizeof(float))};
+  for (int m = 0; m < 2; m++) {
+    obs_analytic_ao_params p = {.extent = extent, .occluders = {.count = -1}, .method = m};
+    for (int r = 0; r < 2; r++) {
+      double t0 = obs_now_ms();
+      if (obs_analytic_ao_vk_apply(vk, &dev, &g, occ, nocc, &p, ao[m], NULL, &err)) {
+        fprintf(stderr, "bench_analytic_ao: %s\n", obs_err_message(&err));
+        exit(1);
+      }
+      ms[m] = obs_now_ms() - t0;
+    }
+  }
+  *diff = 0;
+  for (size_t i = 0; i < npx; i++) *diff = fmax(*diff, fabs((double)ao[0][i] - ao[1][i]));
+  free(ao[0]);
+  free(ao[1]);
+  obs_vk_gbuffer_free(vk, &dev);
+  free(occ);
+  obs_gbuffer_free(&g);
+  obs_scene_free(&sc);
+  obs_err_free(&err);
+}
+
+/* The Vulkan methods side by side (on lavapipe these are CPU timings, not a GPU's). */
+static void methods_table(obs_vk *vk) {
+  printf("Vulkan methods on %s%s: wall ms of the whole pass (second call)\n\n",
+         obs_vk_device_name(vk),
+         strstr(obs_vk_device_name(vk), "llvmpipe") ? " (lavapipe: CPU timings)" : "");
+  printf("| spheres | extent | compute ms | raster ms | raster / compute | max |d| |\n"
+         "|---|---|---|---|---|---|\n");
+  for (int c = 0; c < opt.ncounts; c++)
+    for (int e = 0; e < 2; e++) {
+      double ms[2], diff;
+      method_times(vk, opt.counts[c], e ? INFINITY : 16.0, ms, &diff);
+      printf("| %d | %s | %.1f | %.1f | %.2f | %.3g |\n", opt.counts[c], e ? "null" : "16", ms[0],
+             ms[1], ms[1] / ms[0], diff);
+      fflush(stdout);
+    }
+  printf("\n");
 }
 
 /* Median total time (build + render) of `repeats` renders of technique `tech` over n spheres;
@@ -236,6 +305,11 @@ int main(int argc, char **argv) {
   printf("images %dx%d, %d threads, medians of %d; reference rt_ao %d samples (cosine, "
          "unlimited range); Vulkan: %s\n\n", opt.width, opt.height, opt.threads, opt.repeats,
          opt.ref_samples, vk ? obs_vk_device_name(vk) : "none");
+  if (vk) methods_table(vk);
+  if (opt.methods_only) {
+    if (vk) obs_vk_close(vk);
+    return 0;
+  }
   printf("| spheres | extent, resolution | analytic_ao ms (render) | AO pass ms CPU | AO pass ms Vulkan | "
          "error | bias | rt_ao spp at equal error | its error | rt_ao ms (render) | "
          "rt_ao / analytic_ao |\n|---|---|---|---|---|---|---|---|---|---|---|\n");

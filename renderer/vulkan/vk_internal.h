@@ -137,6 +137,66 @@ typedef struct obs_vk_raster {
 } obs_vk_raster;
 int obs_vk_raster_pipeline(obs_vk *vk, const obs_vk_raster *r, VkPipeline *out, obs_err *err);
 
+/* The render pass of a blending pass into a storage image: one subpass, one colour attachment
+ * of `format` kept in GENERAL layout, cleared on load and stored, fully ordered against the work
+ * before and after it; errors name `what`. */
+int obs_vk_blend_pass(obs_vk *vk, VkFormat format, VkRenderPass *out, const char *what,
+                      obs_err *err);
+/* A blending pipeline of the device layer over such a pass: vertex, optional geometry and
+ * fragment shaders, no culling (the shaders emit only the faces they mean), no depth test, one
+ * sample, one attachment blended with the same factors for colour and alpha, viewport and
+ * scissor dynamic. */
+typedef struct obs_vk_blend {
+  VkShaderModule vs, gs, fs; /* gs: VK_NULL_HANDLE for none */
+  const VkPipelineVertexInputStateCreateInfo *input; /* NULL: no vertex input */
+  VkPrimitiveTopology topology;
+  VkBlendFactor src, dst;
+  VkBlendOp op;
+  VkColorComponentFlags write;
+  VkPipelineLayout layout;
+  VkRenderPass pass;
+  const char *what; /* names the pipeline in errors */
+} obs_vk_blend;
+int obs_vk_blend_pipeline(obs_vk *vk, const obs_vk_blend *b, VkPipeline *out, obs_err *err);
+/* A blending pass (blend.c): the set layout, pipeline layout, render pass (obs_vk_blend_pass),
+ * pipeline (obs_vk_blend_pipeline), descriptor set and framebuffer of a target image. */
+#define OBS_VK_BLEND_BINDINGS 8
+typedef struct obs_vk_blender_def {
+  const VkDescriptorSetLayoutBinding *bindings; /* at most OBS_VK_BLEND_BINDINGS */
+  uint32_t nbindings;
+  /* One per binding, in the same order: its pImageInfo or pBufferInfo (the rest is filled in). */
+  const VkWriteDescriptorSet *writes;
+  VkShaderStageFlags push_stages;
+  uint32_t push_size; /* 0: no push constants */
+  VkFormat format;    /* the target's */
+  obs_vk_image *target;
+  int width, height;
+  obs_vk_blend pipeline; /* its layout and pass are filled in */
+} obs_vk_blender_def;
+typedef struct obs_vk_blender {
+  obs_vk *vk;
+  const char *what;
+  VkShaderStageFlags push_stages;
+  int width, height;
+  VkDescriptorSetLayout dsl;
+  VkPipelineLayout layout;
+  VkRenderPass pass;
+  VkPipeline pipe;
+  VkDescriptorPool dpool;
+  VkDescriptorSet set;
+  VkFramebuffer fb;
+} obs_vk_blender;
+/* Creates it all (freeing what it made on failure); the shader modules may go afterwards. */
+int obs_vk_blender_open(obs_vk *vk, const obs_vk_blender_def *d, obs_vk_blender *b, obs_err *err);
+/* One submission: clear the target to `clear`, draw nvertices x ninstances (from `vertices` at
+ * binding 0, or VK_NULL_HANDLE for none) with the push constants, submit and wait. */
+int obs_vk_blender_draw(obs_vk_blender *b, const void *push, uint32_t push_size,
+                        const float clear[4], VkBuffer vertices, uint32_t nvertices,
+                        uint32_t ninstances, obs_err *err);
+void obs_vk_blender_free(obs_vk_blender *b);
+/* Whether the device can render to and blend into `format` with optimal tiling. */
+int obs_vk_blendable(obs_vk *vk, VkFormat format);
+
 /* One-shot command recording into vk->cmd: begin (with a full barrier against earlier
  * submissions), then submit-and-wait. abort discards a recording after an error. */
 int obs_vk_cmd_begin(obs_vk *vk, const char *what, obs_err *err);

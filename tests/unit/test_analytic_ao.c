@@ -458,6 +458,31 @@ static void test_occluders(void **state) {
   obs_err_free(&err);
 }
 
+/* Method raster is the Vulkan backend's, at full resolution: the loader refuses it on the CPU
+ * naming the parameter and the backend, and with resolution half naming the resolution. */
+static void test_method_refusals(void **state) {
+  (void)state;
+  static const char *const cases[2][3] = {
+      {"cpu", "full", "m.json: /technique/params/method: \"raster\" runs on the vulkan backend"},
+      {"vulkan", "half", "m.json: /technique/params/resolution: \"half\" runs with method "
+                         "\"compute\" only"}};
+  for (int k = 0; k < 2; k++) {
+    char tech[160];
+    snprintf(tech, sizeof tech,
+             "{\"name\":\"analytic_ao\",\"backend\":\"%s\",\"params\":{\"method\":"
+             "\"raster\",\"resolution\":\"%s\"}}",
+             cases[k][0], cases[k][1]);
+    obs_scene sc;
+    obs_err err = OBS_ERR_INIT;
+    assert_int_equal(obs_scene_load_string(&sc, scene_json(CAM_OBLIQUE, "", tech), "m.json", NULL,
+                                           NULL, 0, &err),
+                     OBS_EINVAL);
+    printf("refused: %s\n", obs_err_message(&err));
+    assert_non_null(strstr(obs_err_message(&err), cases[k][2]));
+    obs_err_free(&err);
+  }
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_sphere_closed_form),
@@ -471,6 +496,7 @@ int main(void) {
       cmocka_unit_test(test_half_resolution),
       cmocka_unit_test(test_reference),
       cmocka_unit_test(test_occluders),
+      cmocka_unit_test(test_method_refusals),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -19,9 +19,12 @@ typedef struct obs_analytic_ao_params {
   double extent;  /* half-size of each occluder's bounding cube in bounding radii; INFINITY: none */
   int resolution; /* OBS_AAO_FULL or OBS_AAO_HALF */
   obs_param_names occluders; /* the objects that occlude (count -1: every one) */
+  int method;                /* OBS_AAO_COMPUTE or OBS_AAO_RASTER (Vulkan only) */
 } obs_analytic_ao_params;
 
 enum { OBS_AAO_FULL, OBS_AAO_HALF };
+/* The Vulkan pass: a compute pass with per-tile culling, or the article's rasterised proxies. */
+enum { OBS_AAO_COMPUTE, OBS_AAO_RASTER };
 
 /* The upsampling's depth test: a half-resolution cell counts for a pixel while their depths
  * differ by less than this fraction of the pixel's, its weight tapering linearly to 0 there. */
@@ -93,11 +96,19 @@ int obs_analytic_ao_cpu_apply(const obs_gbuffer *g, const obs_aao_occluder *occ,
                               double *stage_ms, obs_err *err);
 
 /* The same on the device (vulkan.c) over its G-buffer; `host` gives the projection. stage_ms
- * (may be NULL) receives OBS_AAO_STAGES entries. */
+ * (may be NULL) receives OBS_AAO_STAGES entries. Under p->method raster: the proxies
+ * (obs_analytic_ao_vk_raster), at full resolution only. */
 int obs_analytic_ao_vk_apply(obs_vk *vk, obs_vk_gbuffer *g, const obs_gbuffer *host,
                              const obs_aao_occluder *occ, size_t nocc,
                              const obs_analytic_ao_params *p, float *ao_host, double *stage_ms,
                              obs_err *err);
+
+/* The article's method (raster_vk.c): each occluder's bounding cube (a full-screen triangle
+ * when unbounded) rasterised over the G-buffer, its closed form multiplied into a target cleared
+ * to 1 by the blend, in occluder order. *ms (may be NULL) receives the pass's time. */
+int obs_analytic_ao_vk_raster(obs_vk *vk, obs_vk_gbuffer *g, const obs_gbuffer *host,
+                              const obs_aao_occluder *occ, size_t nocc, float *ao_host,
+                              double *ms, obs_err *err);
 
 int obs_analytic_ao_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 int obs_analytic_ao_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);

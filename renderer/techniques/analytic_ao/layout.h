@@ -1,7 +1,7 @@
 /* analytic_ao's push-constant blocks, declared once for vulkan.c and the shaders
- * analytic_ao.comp.glsl and analytic_ao_up.comp.glsl (renderer/core/layout_glsl.h). GLSL allows
- * one push-constant block per shader: a shader defines OBS_AAO_AO_PASS or OBS_AAO_UP_PASS before
- * including this, C sees both. */
+ * analytic_ao.comp.glsl, analytic_ao_up.comp.glsl and analytic_ao_raster.*.glsl
+ * (renderer/core/layout_glsl.h). GLSL allows one push-constant block per shader: a shader defines
+ * OBS_AAO_AO_PASS, OBS_AAO_UP_PASS or OBS_AAO_RASTER_PASS before including this, C sees all. */
 #ifndef OBS_ANALYTIC_AO_LAYOUT_H
 #define OBS_ANALYTIC_AO_LAYOUT_H
 
@@ -35,6 +35,25 @@ OBS_PUSH_BEGIN(obs_aao_up_push)
   OBS_F32 depth_limit;           /* OBS_AAO_UP_DEPTH */
 OBS_PUSH_END(obs_aao_up_push)
 OBS_PUSH_CHECK(obs_aao_up_push)
+#endif
+
+/* The rasterised proxies (analytic_ao_raster.vert.glsl and .frag.glsl): their bindings, and the
+ * margin of each proxy cube over the occluder's bound, relative to it, on top of two pixels at
+ * its far side, so that rounding in the projection never leaves out a receiver the compute pass
+ * admits (the fragment shader's own test decides, as there). */
+#define OBS_AAO_RB_DEPTH 0
+#define OBS_AAO_RB_NORMAL 1
+#define OBS_AAO_RB_OCC 2
+#define OBS_AAO_RB_BINDINGS 3
+#define OBS_AAO_PROXY_MARGIN 0.0625
+
+#if !defined(VULKAN) || defined(OBS_AAO_RASTER_PASS)
+OBS_PUSH_BEGIN(obs_aao_raster_push)
+  OBS_I32 width; OBS_I32 height; /* the G-buffer's */
+  OBS_I32 ortho;                 /* its projection (gbuffer.h) */
+  OBS_F32 half_w; OBS_F32 half_h;
+OBS_PUSH_END(obs_aao_raster_push)
+OBS_PUSH_CHECK(obs_aao_raster_push)
 #endif
 
 #endif

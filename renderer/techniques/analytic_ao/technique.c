@@ -10,6 +10,7 @@
 #include "techniques.h"
 
 static const char *const resolutions[] = {"full", "half", NULL};
+static const char *const methods[] = {"compute", "raster", NULL};
 
 #define P(member) offsetof(obs_analytic_ao_params, member)
 static const obs_param analytic_ao_params[] = {
@@ -29,6 +30,12 @@ static const obs_param analytic_ao_params[] = {
                     "a scene selects); every object receives. null: every sphere, quad, triangle "
                     "and box",
      .offset = P(occluders)},
+    {.name = "method", .type = OBS_PARAM_ENUM, .choices = methods, .def = OBS_AAO_COMPUTE,
+     .description = "Vulkan only. compute: one pass over the pixels, each 8x8 tile culling the "
+                    "occluders' cubes; raster: the article's proxies, each occluder's bounding "
+                    "cube rasterised over the G-buffer, its occlusion multiplied in by the blend "
+                    "(full resolution only). The CPU runs compute",
+     .offset = P(method)},
 };
 #undef P
 
@@ -67,6 +74,24 @@ static int analytic_ao_reference(const obs_scene *scene, const json_t *params,
   return 0;
 }
 
+/* The rasterised proxies are a Vulkan pipeline, at full resolution. */
+static void analytic_ao_check(const obs_scene *scene, const json_t *params, const char *doc,
+                              obs_err *err) {
+  const char *m = json_string_value(json_object_get(params, "method"));
+  const char *r = json_string_value(json_object_get(params, "resolution"));
+  if (!m || strcmp(m, "raster")) return;
+  if (scene->backend != OBS_BACKEND_VULKAN)
+    obs_err_set(err, OBS_EINVAL,
+                "%s: /technique/params/method: \"raster\" runs on the vulkan backend only (set "
+                "/technique/backend to \"vulkan\", or use method \"compute\")",
+                doc);
+  else if (r && !strcmp(r, "half"))
+    obs_err_set(err, OBS_EINVAL,
+                "%s: /technique/params/resolution: \"half\" runs with method \"compute\" only "
+                "(the proxies draw at full resolution)",
+                doc);
+}
+
 /* The guaranteed range of both backends (docs/accuracy.md, "Guaranteed ranges"): occluders are
  * placed in the camera's view space in double and rounded once, the closed forms take ratios of
  * lengths relative to the receiver (unit vectors before cross products, so nothing underflows at
@@ -95,6 +120,7 @@ const obs_technique obs_technique_analytic_ao = {
     .needs = OBS_NEED_GBUFFER,
     .outputs = obs_screen_outputs,
     .reference = analytic_ao_reference,
+    .check = analytic_ao_check,
     .run = {[OBS_BACKEND_CPU] = obs_analytic_ao_cpu, [OBS_BACKEND_VULKAN] = obs_analytic_ao_vulkan},
     .range = {[OBS_BACKEND_CPU] = ANALYTIC_AO_RANGE, [OBS_BACKEND_VULKAN] = ANALYTIC_AO_RANGE},
 };

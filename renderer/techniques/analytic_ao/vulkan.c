@@ -2,14 +2,15 @@
  * push blocks in layout.h) reading the occluders from a storage buffer, each 8x8 work group
  * culling them against its receivers' box: the CPU twin's per-tile loop (cpu.c); at half
  * resolution the same pass over the half grid, the upsampling (analytic_ao_up.comp.glsl) and the
- * pass again over the pixels it marked. The article
- * rasterises each occluder's bounding cube over the G-buffer with multiplicative blending; this
- * pass computes the same product in the same order per pixel instead
- * (docs/techniques/analytic_ao.md, "Backends"). */
+ * pass again over the pixels it marked. Under method raster, the article's own method instead:
+ * each occluder's bounding cube rasterised over the G-buffer with multiplicative blending
+ * (raster_vk.c), the same product in the same order per pixel (docs/techniques/analytic_ao.md,
+ * "Backends"). */
 #include <stdlib.h>
 #include <string.h>
 
 #include "analytic_ao.h"
+#include "driver.h"
 #include "layout.h"
 #include "obscura/render.h"
 #include "plan_vk.h"
@@ -108,6 +109,13 @@ int obs_analytic_ao_vk_apply(obs_vk *vk, obs_vk_gbuffer *g, const obs_gbuffer *h
                              const obs_aao_occluder *occ, size_t nocc,
                              const obs_analytic_ao_params *p, float *ao_host, double *stage_ms,
                              obs_err *err) {
+  if (p && p->method == OBS_AAO_RASTER) {
+    if (stage_ms)
+      for (int i = 0; i < OBS_AAO_STAGES; i++) stage_ms[i] = 0;
+    if (p->resolution != OBS_AAO_FULL)
+      return obs_err_set(err, OBS_EINVAL, "analytic_ao: method raster runs at full resolution");
+    return obs_analytic_ao_vk_raster(vk, g, host, occ, nocc, ao_host, stage_ms, err);
+  }
   obs_vk_plan_times t = {0};
   int rc = aao_run(NULL, vk, g, host, occ, nocc, p, ao_host, &t, err);
   obs_vk_plan_stage_ms(&t, obs_aao_stage_names, OBS_AAO_STAGES, stage_ms);
@@ -121,11 +129,19 @@ static int passes(obs_render_ctx *ctx, obs_vk *vk, obs_vk_gbuffer *dev, const ob
   size_t nocc;
   int rc = obs_aao_render_occluders(ctx, host->width, host->height, p, &occ, &nocc, err);
   if (rc) return rc;
-  obs_vk_plan_times t = {0};
-  rc = aao_run(ctx, vk, dev, host, occ, nocc, p, ao, &t, err);
-  free(occ);
-  if (rc) return rc;
-  obs_vk_plan_record(ctx, &t);
+  if (p->method == OBS_AAO_RASTER) {
+    double ms = 0;
+    rc = obs_analytic_ao_vk_raster(vk, dev, host, occ, nocc, ao, &ms, err);
+    free(occ);
+    if (rc) return rc;
+    obs_driver_stage_add(ctx, obs_aao_stage_names[0], ms);
+  } else {
+    obs_vk_plan_times t = {0};
+    rc = aao_run(ctx, vk, dev, host, occ, nocc, p, ao, &t, err);
+    free(occ);
+    if (rc) return rc;
+    obs_vk_plan_record(ctx, &t);
+  }
   memcpy(ao_raw, ao, (size_t)host->width * (size_t)host->height * sizeof *ao);
   return 0;
 }

@@ -16,82 +16,12 @@
 
 _Static_assert(sizeof(obs_disc) == 32, "obs_disc is the vertex: two vec4");
 
-typedef struct disc_vk {
-  obs_vk *vk;
-  VkDescriptorSetLayout dsl;
-  VkPipelineLayout layout;
-  VkRenderPass pass;
-  VkPipeline pipe;
-  VkDescriptorPool dpool;
-  VkDescriptorSet set;
-  VkFramebuffer fb;
-  obs_vk_buffer verts;
-  obs_vk_image *target;
-} disc_vk;
-
 static const VkShaderStageFlags PUSH_STAGES =
     VK_SHADER_STAGE_GEOMETRY_BIT | VK_SHADER_STAGE_FRAGMENT_BIT;
 
-static int create_layouts(disc_vk *d, obs_err *err) {
-  obs_vk *vk = d->vk;
-  VkDescriptorSetLayoutBinding b[OBS_DISC_BINDINGS];
-  for (uint32_t i = 0; i < OBS_DISC_BINDINGS; i++)
-    b[i] = (VkDescriptorSetLayoutBinding){i, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1,
-                                          VK_SHADER_STAGE_FRAGMENT_BIT, NULL};
-  VkDescriptorSetLayoutCreateInfo dci = {.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO,
-                                         .bindingCount = OBS_DISC_BINDINGS,
-                                         .pBindings = b};
-  int rc = obs_vk_check(vk, vkCreateDescriptorSetLayout(vk->dev, &dci, NULL, &d->dsl),
-                        "vkCreateDescriptorSetLayout (disc_ao)", err);
-  if (rc) return rc;
-  VkPushConstantRange pr = {PUSH_STAGES, 0, sizeof(obs_disc_ao_push)};
-  VkPipelineLayoutCreateInfo plci = {.sType = VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO,
-                                     .setLayoutCount = 1,
-                                     .pSetLayouts = &d->dsl,
-                                     .pushConstantRangeCount = 1,
-                                     .pPushConstantRanges = &pr};
-  if ((rc = obs_vk_check(vk, vkCreatePipelineLayout(vk->dev, &plci, NULL, &d->layout),
-                         "vkCreatePipelineLayout (disc_ao)", err)))
-    return rc;
-  /* The target is a storage image in GENERAL layout that the pass clears and blends into. */
-  VkAttachmentDescription att = {.format = VK_FORMAT_R32G32B32A32_SFLOAT,
-                                 .samples = VK_SAMPLE_COUNT_1_BIT,
-                                 .loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR,
-                                 .storeOp = VK_ATTACHMENT_STORE_OP_STORE,
-                                 .stencilLoadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE,
-                                 .stencilStoreOp = VK_ATTACHMENT_STORE_OP_DONT_CARE,
-                                 .initialLayout = VK_IMAGE_LAYOUT_GENERAL,
-                                 .finalLayout = VK_IMAGE_LAYOUT_GENERAL};
-  VkAttachmentReference cref = {0, VK_IMAGE_LAYOUT_GENERAL};
-  VkSubpassDescription sub = {.pipelineBindPoint = VK_PIPELINE_BIND_POINT_GRAPHICS,
-                              .colorAttachmentCount = 1,
-                              .pColorAttachments = &cref};
-  VkSubpassDependency dep[2] = {
-      {.srcSubpass = VK_SUBPASS_EXTERNAL,
-       .dstSubpass = 0,
-       .srcStageMask = VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
-       .dstStageMask = VK_PIPELINE_STAGE_ALL_GRAPHICS_BIT,
-       .srcAccessMask = VK_ACCESS_MEMORY_WRITE_BIT,
-       .dstAccessMask = VK_ACCESS_MEMORY_READ_BIT | VK_ACCESS_MEMORY_WRITE_BIT},
-      {.srcSubpass = 0,
-       .dstSubpass = VK_SUBPASS_EXTERNAL,
-       .srcStageMask = VK_PIPELINE_STAGE_ALL_GRAPHICS_BIT,
-       .dstStageMask = VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
-       .srcAccessMask = VK_ACCESS_MEMORY_WRITE_BIT,
-       .dstAccessMask = VK_ACCESS_MEMORY_READ_BIT | VK_ACCESS_MEMORY_WRITE_BIT}};
-  VkRenderPassCreateInfo rpci = {.sType = VK_STRUCTURE_TYPE_RENDER_PASS_CREATE_INFO,
-                                 .attachmentCount = 1,
-                                 .pAttachments = &att,
-                                 .subpassCount = 1,
-                                 .pSubpasses = &sub,
-                                 .dependencyCount = 2,
-                                 .pDependencies = dep};
-  return obs_vk_check(vk, vkCreateRenderPass(vk->dev, &rpci, NULL, &d->pass),
-                      "vkCreateRenderPass (disc_ao)", err);
-}
-
-static int create_pipeline(disc_vk *d, obs_err *err) {
-  obs_vk *vk = d->vk;
+/* The pipeline and its bindings (the G-buffer's depth and normal), blending into `target`. */
+static int open_blender(obs_vk *vk, obs_vk_gbuffer *g, obs_vk_image *target, obs_vk_blender *b,
+                        obs_err *err) {
   VkShaderModule m[3] = {VK_NULL_HANDLE, VK_NULL_HANDLE, VK_NULL_HANDLE};
   int rc = obs_vk_shader(vk, obs_spv_disc_ao_vert, obs_spv_disc_ao_vert_size, &m[0], "disc_ao",
                          err);
@@ -99,15 +29,6 @@ static int create_pipeline(disc_vk *d, obs_err *err) {
     rc = obs_vk_shader(vk, obs_spv_disc_ao_geom, obs_spv_disc_ao_geom_size, &m[1], "disc_ao", err);
   if (!rc)
     rc = obs_vk_shader(vk, obs_spv_disc_ao_frag, obs_spv_disc_ao_frag_size, &m[2], "disc_ao", err);
-  static const VkShaderStageFlagBits kinds[3] = {
-      VK_SHADER_STAGE_VERTEX_BIT, VK_SHADER_STAGE_GEOMETRY_BIT, VK_SHADER_STAGE_FRAGMENT_BIT};
-  VkPipelineShaderStageCreateInfo st[3];
-  for (int i = 0; i < 3; i++)
-    st[i] = (VkPipelineShaderStageCreateInfo){
-        .sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
-        .stage = kinds[i],
-        .module = m[i],
-        .pName = "main"};
   VkVertexInputBindingDescription vb = {0, sizeof(obs_disc), VK_VERTEX_INPUT_RATE_VERTEX};
   VkVertexInputAttributeDescription va[2] = {
       {0, 0, VK_FORMAT_R32G32B32A32_SFLOAT, offsetof(obs_disc, c)},
@@ -118,153 +39,33 @@ static int create_pipeline(disc_vk *d, obs_err *err) {
       .pVertexBindingDescriptions = &vb,
       .vertexAttributeDescriptionCount = 2,
       .pVertexAttributeDescriptions = va};
-  VkPipelineInputAssemblyStateCreateInfo ia = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO,
-      .topology = VK_PRIMITIVE_TOPOLOGY_POINT_LIST};
-  VkPipelineViewportStateCreateInfo vps = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO,
-      .viewportCount = 1,
-      .scissorCount = 1};
-  /* No culling: the geometry shader emits only the faces it means (a pyramid's back faces). */
-  VkPipelineRasterizationStateCreateInfo rs = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO,
-      .polygonMode = VK_POLYGON_MODE_FILL,
-      .cullMode = VK_CULL_MODE_NONE,
-      .frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE,
-      .lineWidth = 1.0f};
-  VkPipelineMultisampleStateCreateInfo ms = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO,
-      .rasterizationSamples = VK_SAMPLE_COUNT_1_BIT};
-  VkPipelineColorBlendAttachmentState cba = {
-      .blendEnable = VK_TRUE,
-      .srcColorBlendFactor = VK_BLEND_FACTOR_ONE,
-      .dstColorBlendFactor = VK_BLEND_FACTOR_ONE,
-      .colorBlendOp = VK_BLEND_OP_ADD,
-      .srcAlphaBlendFactor = VK_BLEND_FACTOR_ONE,
-      .dstAlphaBlendFactor = VK_BLEND_FACTOR_ONE,
-      .alphaBlendOp = VK_BLEND_OP_ADD,
-      .colorWriteMask = VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT |
-                        VK_COLOR_COMPONENT_B_BIT | VK_COLOR_COMPONENT_A_BIT};
-  VkPipelineColorBlendStateCreateInfo cb = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO,
-      .attachmentCount = 1,
-      .pAttachments = &cba};
-  VkDynamicState dyn[2] = {VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
-  VkPipelineDynamicStateCreateInfo dy = {
-      .sType = VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO,
-      .dynamicStateCount = 2,
-      .pDynamicStates = dyn};
-  VkGraphicsPipelineCreateInfo ci = {.sType = VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO,
-                                     .stageCount = 3,
-                                     .pStages = st,
-                                     .pVertexInputState = &vi,
-                                     .pInputAssemblyState = &ia,
-                                     .pViewportState = &vps,
-                                     .pRasterizationState = &rs,
-                                     .pMultisampleState = &ms,
-                                     .pColorBlendState = &cb,
-                                     .pDynamicState = &dy,
-                                     .layout = d->layout,
-                                     .renderPass = d->pass};
-  if (!rc)
-    rc = obs_vk_check(vk, vkCreateGraphicsPipelines(vk->dev, VK_NULL_HANDLE, 1, &ci, NULL, &d->pipe),
-                      "vkCreateGraphicsPipelines (disc_ao)", err);
-  for (int i = 0; i < 3; i++)
-    if (m[i]) vkDestroyShaderModule(vk->dev, m[i], NULL);
-  return rc;
-}
-
-/* The descriptor set (the G-buffer's depth and normal) and the framebuffer of the target. */
-static int create_bindings(disc_vk *d, obs_vk_gbuffer *g, obs_err *err) {
-  obs_vk *vk = d->vk;
-  VkDescriptorPoolSize size = {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, OBS_DISC_BINDINGS};
-  VkDescriptorPoolCreateInfo pci = {.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
-                                    .maxSets = 1,
-                                    .poolSizeCount = 1,
-                                    .pPoolSizes = &size};
-  int rc = obs_vk_check(vk, vkCreateDescriptorPool(vk->dev, &pci, NULL, &d->dpool),
-                        "vkCreateDescriptorPool (disc_ao)", err);
-  if (rc) return rc;
-  VkDescriptorSetAllocateInfo ai = {.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO,
-                                    .descriptorPool = d->dpool,
-                                    .descriptorSetCount = 1,
-                                    .pSetLayouts = &d->dsl};
-  if ((rc = obs_vk_check(vk, vkAllocateDescriptorSets(vk->dev, &ai, &d->set),
-                         "vkAllocateDescriptorSets (disc_ao)", err)))
-    return rc;
+  VkDescriptorSetLayoutBinding bind[OBS_DISC_BINDINGS];
+  for (uint32_t i = 0; i < OBS_DISC_BINDINGS; i++)
+    bind[i] = (VkDescriptorSetLayoutBinding){i, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1,
+                                             VK_SHADER_STAGE_FRAGMENT_BIT, NULL};
   VkDescriptorImageInfo ii[OBS_DISC_BINDINGS] = {
       [OBS_DISC_B_DEPTH] = {VK_NULL_HANDLE, g->depth->view, VK_IMAGE_LAYOUT_GENERAL},
       [OBS_DISC_B_NORMAL] = {VK_NULL_HANDLE, g->normal->view, VK_IMAGE_LAYOUT_GENERAL}};
   VkWriteDescriptorSet w[OBS_DISC_BINDINGS];
   for (uint32_t i = 0; i < OBS_DISC_BINDINGS; i++)
-    w[i] = (VkWriteDescriptorSet){.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
-                                  .dstSet = d->set,
-                                  .dstBinding = i,
-                                  .descriptorCount = 1,
-                                  .descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE,
-                                  .pImageInfo = &ii[i]};
-  vkUpdateDescriptorSets(vk->dev, OBS_DISC_BINDINGS, w, 0, NULL);
-  VkFramebufferCreateInfo fci = {.sType = VK_STRUCTURE_TYPE_FRAMEBUFFER_CREATE_INFO,
-                                 .renderPass = d->pass,
-                                 .attachmentCount = 1,
-                                 .pAttachments = &d->target->view,
-                                 .width = (uint32_t)g->width,
-                                 .height = (uint32_t)g->height,
-                                 .layers = 1};
-  return obs_vk_check(vk, vkCreateFramebuffer(vk->dev, &fci, NULL, &d->fb),
-                      "vkCreateFramebuffer (disc_ao)", err);
-}
-
-static void disc_vk_free(disc_vk *d) {
-  obs_vk *vk = d->vk;
-  if (!vk) return;
-  if (d->fb) vkDestroyFramebuffer(vk->dev, d->fb, NULL);
-  obs_vk_image_free(vk, d->target);
-  obs_vk_buffer_free(vk, &d->verts);
-  if (d->dpool) vkDestroyDescriptorPool(vk->dev, d->dpool, NULL);
-  if (d->pipe) vkDestroyPipeline(vk->dev, d->pipe, NULL);
-  if (d->pass) vkDestroyRenderPass(vk->dev, d->pass, NULL);
-  if (d->layout) vkDestroyPipelineLayout(vk->dev, d->layout, NULL);
-  if (d->dsl) vkDestroyDescriptorSetLayout(vk->dev, d->dsl, NULL);
-  memset(d, 0, sizeof *d);
-}
-
-/* The pass: clear, draw every disc, submit and wait. */
-static int record(disc_vk *d, const obs_disc_set *s, const obs_disc_ao_push *pc, int w, int h,
-                  obs_err *err) {
-  obs_vk *vk = d->vk;
-  int rc = obs_vk_cmd_begin(vk, "disc_ao", err);
-  if (rc) return rc;
-  VkCommandBuffer cmd = vk->cmd;
-  VkClearValue clear = {.color = {{0.0f, 0.0f, 0.0f, 0.0f}}};
-  VkRenderPassBeginInfo rbi = {.sType = VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO,
-                               .renderPass = d->pass,
-                               .framebuffer = d->fb,
-                               .renderArea = {{0, 0}, {(uint32_t)w, (uint32_t)h}},
-                               .clearValueCount = 1,
-                               .pClearValues = &clear};
-  vkCmdBeginRenderPass(cmd, &rbi, VK_SUBPASS_CONTENTS_INLINE);
-  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, d->pipe);
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, d->layout, 0, 1, &d->set, 0, NULL);
-  vkCmdPushConstants(cmd, d->layout, PUSH_STAGES, 0, sizeof *pc, pc);
-  VkViewport vp = {0, 0, (float)w, (float)h, 0, 1};
-  VkRect2D sc = {{0, 0}, {(uint32_t)w, (uint32_t)h}};
-  vkCmdSetViewport(cmd, 0, 1, &vp);
-  vkCmdSetScissor(cmd, 0, 1, &sc);
-  VkDeviceSize off = 0;
-  vkCmdBindVertexBuffers(cmd, 0, 1, &d->verts.buffer, &off);
-  if (s->n) vkCmdDraw(cmd, (uint32_t)s->n, 1, 0, 0);
-  vkCmdEndRenderPass(cmd);
-  obs_vk_cmd_barrier(cmd);
-  return obs_vk_cmd_submit(vk, "disc_ao", err);
-}
-
-static int blendable(obs_vk *vk) {
-  VkFormatProperties fp;
-  vkGetPhysicalDeviceFormatProperties(vk->phys, VK_FORMAT_R32G32B32A32_SFLOAT, &fp);
-  VkFormatFeatureFlags need =
-      VK_FORMAT_FEATURE_COLOR_ATTACHMENT_BIT | VK_FORMAT_FEATURE_COLOR_ATTACHMENT_BLEND_BIT;
-  return (fp.optimalTilingFeatures & need) == need;
+    w[i] = (VkWriteDescriptorSet){.pImageInfo = &ii[i]};
+  /* Additive; no culling: the geometry shader emits only the faces it means (a pyramid's back
+   * faces). */
+  obs_vk_blender_def d = {
+      .bindings = bind, .nbindings = OBS_DISC_BINDINGS, .writes = w,
+      .push_stages = PUSH_STAGES, .push_size = sizeof(obs_disc_ao_push),
+      .format = VK_FORMAT_R32G32B32A32_SFLOAT, .target = target, .width = g->width,
+      .height = g->height,
+      .pipeline = {.vs = m[0], .gs = m[1], .fs = m[2], .input = &vi,
+                   .topology = VK_PRIMITIVE_TOPOLOGY_POINT_LIST, .src = VK_BLEND_FACTOR_ONE,
+                   .dst = VK_BLEND_FACTOR_ONE, .op = VK_BLEND_OP_ADD,
+                   .write = VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT |
+                            VK_COLOR_COMPONENT_B_BIT | VK_COLOR_COMPONENT_A_BIT,
+                   .what = "disc_ao"}};
+  if (!rc) rc = obs_vk_blender_open(vk, &d, b, err);
+  for (int i = 0; i < 3; i++)
+    if (m[i]) vkDestroyShaderModule(vk->dev, m[i], NULL);
+  return rc;
 }
 
 int obs_disc_ao_vk_apply(obs_vk *vk, obs_vk_gbuffer *dev, const obs_gbuffer *host,
@@ -276,13 +77,15 @@ int obs_disc_ao_vk_apply(obs_vk *vk, obs_vk_gbuffer *dev, const obs_gbuffer *hos
   if (!vk->geometry_shader)
     return obs_err_set(err, OBS_EUNSUPPORTED,
                        "disc_ao: the Vulkan device %s has no geometry shaders", vk->name);
-  if (!blendable(vk))
+  if (!obs_vk_blendable(vk, VK_FORMAT_R32G32B32A32_SFLOAT))
     return obs_err_set(err, OBS_EUNSUPPORTED,
                        "disc_ao: the Vulkan device %s cannot blend 32-bit float targets",
                        vk->name);
   if (s->n > UINT32_MAX) return obs_err_set(err, OBS_EINVAL, "disc_ao: %zu discs", s->n);
   const int w = dev->width, h = dev->height;
-  disc_vk d = {.vk = vk};
+  obs_vk_buffer verts = {0};
+  obs_vk_image *target = NULL;
+  obs_vk_blender b = {0};
   obs_disc_ao_push pc = {.width = w, .height = h, .half_w = host->half_w, .half_h = host->half_h,
                          .flags = (host->ortho ? OBS_DISC_FLAG_ORTHO : 0) |
                                   (p->proxy == OBS_DISC_PROXY_PYRAMID ? OBS_DISC_FLAG_PYRAMID : 0) |
@@ -292,19 +95,19 @@ int obs_disc_ao_vk_apply(obs_vk *vk, obs_vk_gbuffer *dev, const obs_gbuffer *hos
   int rc = px ? 0 : obs_err_set(err, OBS_ENOMEM, "disc_ao: %dx%d: out of memory", w, h);
   if (!rc)
     rc = obs_vk_buffer_create(vk, (VkDeviceSize)(s->n ? s->n : 1) * sizeof(obs_disc),
-                              VK_BUFFER_USAGE_VERTEX_BUFFER_BIT, 1, &d.verts, "disc_ao discs",
+                              VK_BUFFER_USAGE_VERTEX_BUFFER_BIT, 1, &verts, "disc_ao discs",
                               err);
-  if (!rc && s->n) memcpy(d.verts.map, s->d, s->n * sizeof(obs_disc));
+  if (!rc && s->n) memcpy(verts.map, s->d, s->n * sizeof(obs_disc));
   if (!rc)
-    rc = obs_vk_image_create_usage(vk, w, h, 4, VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT, &d.target,
+    rc = obs_vk_image_create_usage(vk, w, h, 4, VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT, &target,
                                    err);
-  if (!rc) rc = create_layouts(&d, err);
-  if (!rc) rc = create_pipeline(&d, err);
-  if (!rc) rc = create_bindings(&d, dev, err);
+  if (!rc) rc = open_blender(vk, dev, target, &b, err);
+  static const float zeros[4] = {0, 0, 0, 0};
   double t0 = obs_now_ms();
-  if (!rc) rc = record(&d, s, &pc, w, h, err);
+  if (!rc)
+    rc = obs_vk_blender_draw(&b, &pc, sizeof pc, zeros, verts.buffer, (uint32_t)s->n, 1, err);
   if (ms) *ms = obs_now_ms() - t0;
-  if (!rc) rc = obs_vk_image_download(vk, d.target, px, err);
+  if (!rc) rc = obs_vk_image_download(vk, target, px, err);
   if (!rc) {
     obs_disc_ao_stats st = {0};
     for (size_t i = 0; i < npx; i++) {
@@ -317,7 +120,9 @@ int obs_disc_ao_vk_apply(obs_vk *vk, obs_vk_gbuffer *dev, const obs_gbuffer *hos
     if (stats) *stats = st;
   }
   free(px);
-  disc_vk_free(&d);
+  obs_vk_blender_free(&b);
+  obs_vk_image_free(vk, target);
+  obs_vk_buffer_free(vk, &verts);
   return rc;
 }
 
