@@ -1,5 +1,5 @@
 // analytic_ao's compute pass (Shopf et al., ShaderX7 6.3): the twin of cpu.c, its closed forms
-// shared with the rasterised proxies (include/analytic_ao.glsl, the twin of occluders.c). Each
+// shared with the rasterised proxies (analytic_ao_closed.inc.glsl, the twin of occluders.c). Each
 // 8x8 work group first takes the box of its receivers, and its invocations loop over the
 // occluders whose bounding cubes reach that box. Loops with a data-dependent trip count stay
 // loops (the host splits the occluders over dispatches so that an invocation stays under
@@ -19,7 +19,7 @@ layout(set = 1, binding = 4, std430) readonly buffer Occluders { vec4 occ[]; };
 shared vec3 s_lo[64];
 shared vec3 s_hi[64];
 
-#include "include/analytic_ao.glsl"
+#include "analytic_ao_closed.inc.glsl"
 
 void main() {
   // The grid cell (the AO image's texel) and the G-buffer pixel it evaluates.

@@ -1,5 +1,5 @@
 // analytic_ao's proxies (Shopf et al., ShaderX7 6.3): at each G-buffer pixel its occluder's cube
-// covers, that occluder's closed form (include/analytic_ao.glsl, as the compute pass evaluates
+// covers, that occluder's closed form (analytic_ao_closed.inc.glsl, as the compute pass evaluates
 // it) behind the same bounding-cube test, written as 1 - occlusion; the blend multiplies it into
 // the target cleared to 1, in instance order, which is the compute pass's order.
 #version 450
@@ -13,7 +13,7 @@ layout(binding = OBS_AAO_RB_OCC, std430) readonly buffer Occluders { vec4 occ[];
 layout(location = 0) flat in int f_occ;
 layout(location = 0) out vec4 o;
 
-#include "include/analytic_ao.glsl"
+#include "analytic_ao_closed.inc.glsl"
 
 void main() {
   ivec2 px = ivec2(gl_FragCoord.xy);
