@@ -327,18 +327,20 @@ static void test_extent_cutoff(void **state) {
   obs_result_free(&b);
 }
 
-/* Half resolution: every second pixel of every second row, bilaterally upsampled, the rest where
- * no neighbour agrees evaluated in full: close to the full-resolution image, equal at the
- * evaluated pixels, and as close to rt_ao. */
-static void test_half_resolution(void **state) {
-  (void)state;
+/* Half resolution: every second pixel of every second row, the rest where no neighbour agrees
+ * evaluated in full, the gaps filled by `upsample`: close to the full-resolution image and equal
+ * at the evaluated pixels. Returns the RMSE over the covered pixels. */
+static double half_against_full(const char *upsample, double rmse_max, double worst_max) {
   const char *obj = ",{\"shape\":{\"type\":\"sphere\",\"center\":[0,0.6,0],\"radius\":0.5}},"
                     "{\"shape\":{\"type\":\"box\",\"min\":[0.6,0,-0.3],\"max\":[1.2,0.5,0.3]}}";
+  char tech[256];
+  snprintf(tech, sizeof tech,
+           "{\"name\":\"analytic_ao\",\"backend\":\"cpu\",\"params\":"
+           "{\"extent\":null,\"resolution\":\"half\",\"upsample\":\"%s\"}}",
+           upsample);
   obs_result f, h;
   obs_test_render(scene_json(CAM_OBLIQUE, obj, AAO_UNBOUNDED), 2, &f);
-  obs_test_render(scene_json(CAM_OBLIQUE, obj,
-                             "{\"name\":\"analytic_ao\",\"backend\":\"cpu\",\"params\":"
-                             "{\"extent\":null,\"resolution\":\"half\"}}"), 2, &h);
+  obs_test_render(scene_json(CAM_OBLIQUE, obj, tech), 2, &h);
   const float *fa = obs_image_channel(&f.image, "ao"), *ha = obs_image_channel(&h.image, "ao");
   const float *al = obs_image_channel(&f.image, "alpha");
   double s2 = 0, worst = 0, worst_even = 0;
@@ -353,13 +355,29 @@ static void test_half_resolution(void **state) {
     worst = fmax(worst, d);
     if ((i % W) % 2 == 0 && (i / W) % 2 == 0) worst_even = fmax(worst_even, d);
   }
-  printf("half against full resolution: RMSE %.5f, max %.4f, at the evaluated pixels %.2g\n",
-         sqrt(s2 / n), worst, worst_even);
-  assert_true(sqrt(s2 / n) < 1e-2);
-  assert_true(worst < 0.2);
+  printf("half (%s) against full resolution: RMSE %.5f, max %.4f, at the evaluated pixels %.2g\n",
+         upsample, sqrt(s2 / n), worst, worst_even);
+  assert_true(sqrt(s2 / n) < rmse_max);
+  assert_true(worst < worst_max);
   assert_true(worst_even < 1e-6);
   obs_result_free(&f);
   obs_result_free(&h);
+  return sqrt(s2 / n);
+}
+
+static void test_half_resolution(void **state) {
+  (void)state;
+  half_against_full("bilateral", 1e-2, 0.2);
+}
+
+/* Push-pull over the same samples: the gaps take the coarser levels' weighted means, blind to
+ * normals and depths, so a gap beside a crease or silhouette mixes both sides: about three times
+ * the bilateral upsampling's RMSE (0.020 against 0.007 here), exact at the samples, bilateral
+ * asserted no worse than push-pull on this scene. */
+static void test_half_push_pull(void **state) {
+  (void)state;
+  double pp = half_against_full("push_pull", 3e-2, 0.5);
+  assert_true(half_against_full("bilateral", 1e-2, 0.2) <= pp);
 }
 
 /* The comparison's reference: rt_ao, binary, cosine-weighted, unbounded, loadable as it is. */
@@ -494,6 +512,7 @@ int main(void) {
       cmocka_unit_test(test_union_error),
       cmocka_unit_test(test_extent_cutoff),
       cmocka_unit_test(test_half_resolution),
+      cmocka_unit_test(test_half_push_pull),
       cmocka_unit_test(test_reference),
       cmocka_unit_test(test_occluders),
       cmocka_unit_test(test_method_refusals),

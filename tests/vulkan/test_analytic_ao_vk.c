@@ -39,7 +39,8 @@ static void release(obs_vk *vk, obs_scene *sc, obs_gbuffer *g, obs_vk_gbuffer *d
 
 /* The G-buffer and occluders of `json` on both sides, compared bit for bit; returns the mean
  * AO. */
-static double twins_at(const char *label, const char *json, double extent, int resolution) {
+static double twins_at(const char *label, const char *json, double extent, int resolution,
+                       int upsample) {
   obs_vk *vk = vktest_need_vk();
   obs_err err = OBS_ERR_INIT;
   obs_scene sc;
@@ -48,7 +49,8 @@ static double twins_at(const char *label, const char *json, double extent, int r
   obs_aao_occluder *occ;
   size_t nocc;
   setup(vk, json, extent, &sc, &g, &dev, &occ, &nocc);
-  obs_analytic_ao_params p = {.extent = extent, .resolution = resolution, .occluders = {.count = -1}};
+  obs_analytic_ao_params p = {.extent = extent, .resolution = resolution, .upsample = upsample,
+                             .occluders = {.count = -1}};
   size_t n = (size_t)g.width * (size_t)g.height;
   float *ca = malloc(n * sizeof *ca), *va = malloc(n * sizeof *va);
   vktest_check_rc(obs_analytic_ao_cpu_apply(&g, occ, nocc, &p, 2, ca, NULL, &err), &err);
@@ -77,7 +79,7 @@ static double raster_at(const char *label, const char *json, double extent, size
                         double *without);
 
 static double twins(const char *label, const char *json, double extent) {
-  return twins_at(label, json, extent, OBS_AAO_FULL);
+  return twins_at(label, json, extent, OBS_AAO_FULL, OBS_AAO_BILATERAL);
 }
 
 static const char *with(const char *objects, const char *camera) {
@@ -111,11 +113,18 @@ static void test_twins_mixed(void **state) {
   twins("mixed, orthographic, extent 16", with(MIXED, ORTHO), 16);
 }
 
-/* Half resolution: the half grid, the bilateral upsampling and the pixels it left, on both. */
+/* Half resolution: the half grid, the bilateral upsampling and the pixels it left, on both; then
+ * the push-pull over the same samples. */
 static void test_twins_half(void **state) {
   (void)state;
-  twins_at("half: mixed, perspective, extent 16", with(MIXED, PERSPECTIVE), 16, OBS_AAO_HALF);
-  twins_at("half: mixed, orthographic, unbounded", with(MIXED, ORTHO), INFINITY, OBS_AAO_HALF);
+  twins_at("half: mixed, perspective, extent 16", with(MIXED, PERSPECTIVE), 16, OBS_AAO_HALF,
+           OBS_AAO_BILATERAL);
+  twins_at("half: mixed, orthographic, unbounded", with(MIXED, ORTHO), INFINITY, OBS_AAO_HALF,
+           OBS_AAO_BILATERAL);
+  twins_at("push_pull: mixed, perspective, ext 16", with(MIXED, PERSPECTIVE), 16, OBS_AAO_HALF,
+           OBS_AAO_PUSH_PULL);
+  twins_at("push_pull: mixed, ortho, unbounded", with(MIXED, ORTHO), INFINITY, OBS_AAO_HALF,
+           OBS_AAO_PUSH_PULL);
 }
 
 /* Method raster against method compute on one G-buffer: the worst |difference| over the covered

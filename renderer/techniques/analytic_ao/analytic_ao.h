@@ -20,9 +20,32 @@ typedef struct obs_analytic_ao_params {
   int resolution; /* OBS_AAO_FULL or OBS_AAO_HALF */
   obs_param_names occluders; /* the objects that occlude (count -1: every one) */
   int method;                /* OBS_AAO_COMPUTE or OBS_AAO_RASTER (Vulkan only) */
+  int upsample;              /* OBS_AAO_BILATERAL or OBS_AAO_PUSH_PULL (half resolution only) */
 } obs_analytic_ao_params;
 
 enum { OBS_AAO_FULL, OBS_AAO_HALF };
+/* How half resolution fills the pixels it did not evaluate. */
+enum { OBS_AAO_BILATERAL, OBS_AAO_PUSH_PULL };
+
+/* The push-pull pyramid: its levels 1.. (level 0 is the frame), each half its parent's size
+ * rounded up down to 1 x 1, laid side by side in one atlas of width aw and height ah (level 1's):
+ * level l at columns [x[l], x[l] + w[l]). */
+#define OBS_AAO_PP_LEVELS 40
+typedef struct obs_aao_pyramid {
+  int n; /* levels 1..n */
+  int x[OBS_AAO_PP_LEVELS], w[OBS_AAO_PP_LEVELS], h[OBS_AAO_PP_LEVELS];
+  int aw, ah;
+} obs_aao_pyramid;
+
+static inline void obs_aao_pyramid_make(int width, int height, obs_aao_pyramid *py) {
+  py->w[0] = width, py->h[0] = height, py->x[0] = 0, py->n = 0, py->aw = 0;
+  do {
+    int l = ++py->n;
+    py->w[l] = (py->w[l - 1] + 1) / 2, py->h[l] = (py->h[l - 1] + 1) / 2;
+    py->x[l] = py->aw, py->aw += py->w[l];
+  } while ((py->w[py->n] > 1 || py->h[py->n] > 1) && py->n + 1 < OBS_AAO_PP_LEVELS);
+  py->ah = py->h[1];
+}
 /* The Vulkan pass: a compute pass with per-tile culling, or the article's rasterised proxies. */
 enum { OBS_AAO_COMPUTE, OBS_AAO_RASTER };
 

@@ -138,8 +138,89 @@ static int aao_up_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   return 0;
 }
 
+/* Push-pull upsampling (the twin of analytic_ao_pp.comp.glsl, operation for operation): level 0
+ * at pixel k is (AO, 1) where evaluated (the pixels the edge pass marked, then the half grid's),
+ * else (0, 0). */
+static void aao_pp_sample0(const obs_gbuffer *g, const float *low, int lw, const unsigned char *mask,
+                           const float *ao, int x, int y, float *v, float *w) {
+  size_t k = (size_t)y * (size_t)g->width + (size_t)x;
+  *v = 0.0f, *w = 0.0f;
+  if (!(g->depth[k] > 0.0f)) return;
+  if (mask[k])
+    *v = ao[k], *w = 1.0f;
+  else if (!(x & 1) && !(y & 1))
+    *v = low[(size_t)(y >> 1) * (size_t)lw + (size_t)(x >> 1)], *w = 1.0f;
+}
+
+/* The parents' value at child (x, y) from the level at column px, pw x ph, of the atlas of width
+ * as: bilinear over the 2x2 parents around it (weights 3/4 and 1/4 on each axis, clamped at the
+ * level's edges). */
+static float aao_pp_parent(const float *av, size_t as, int px, int pw, int ph, int x, int y) {
+  int x1 = x >> 1, y1 = y >> 1;
+  int x2 = (x & 1) ? x1 + 1 : x1 - 1, y2 = (y & 1) ? y1 + 1 : y1 - 1;
+  x2 = x2 < 0 ? 0 : x2 > pw - 1 ? pw - 1 : x2;
+  y2 = y2 < 0 ? 0 : y2 > ph - 1 ? ph - 1 : y2;
+  const float *r1 = av + (size_t)y1 * as + (size_t)px, *r2 = av + (size_t)y2 * as + (size_t)px;
+  float a = 0.75f * r1[x1] + 0.25f * r1[x2];
+  float b = 0.75f * r2[x1] + 0.25f * r2[x2];
+  return 0.75f * a + 0.25f * b;
+}
+
+/* Push (each level's texel the weighted mean of its 2x2 children, weight min(1, sum)) then pull
+ * (each texel w own + (1 - w) the bilinear of its parents, from the coarsest level to the frame) over
+ * the atlas of obs_aao_pyramid: av values, aw weights. Serial: a few operations per pixel beside
+ * the closed forms. */
+static void aao_push_pull(const obs_gbuffer *g, const float *low, int lw, const unsigned char *mask,
+                          float *ao, float *av, float *aw) {
+  obs_aao_pyramid py;
+  obs_aao_pyramid_make(g->width, g->height, &py);
+  const size_t as = (size_t)py.aw;
+  for (int l = 1; l <= py.n; l++)
+    for (int y = 0; y < py.h[l]; y++)
+      for (int x = 0; x < py.w[l]; x++) {
+        float acc = 0.0f, sum = 0.0f;
+        for (int s = 0; s < 4; s++) {
+          int cx = 2 * x + (s & 1), cy = 2 * y + (s >> 1);
+          if (cx >= py.w[l - 1] || cy >= py.h[l - 1]) continue;
+          float tv, tw;
+          if (l == 1) {
+            aao_pp_sample0(g, low, lw, mask, ao, cx, cy, &tv, &tw);
+          } else {
+            size_t c = (size_t)cy * as + (size_t)(py.x[l - 1] + cx);
+            tv = av[c], tw = aw[c];
+          }
+          acc += tw * tv;
+          sum += tw;
+        }
+        size_t d = (size_t)y * as + (size_t)(py.x[l] + x);
+        av[d] = sum > 0.0f ? acc / sum : 1.0f;
+        aw[d] = sum < 1.0f ? sum : 1.0f;
+      }
+  for (int l = py.n - 1; l >= 1; l--)
+    for (int y = 0; y < py.h[l]; y++)
+      for (int x = 0; x < py.w[l]; x++) {
+        size_t d = (size_t)y * as + (size_t)(py.x[l] + x);
+        float par = aao_pp_parent(av, as, py.x[l + 1], py.w[l + 1], py.h[l + 1], x, y);
+        av[d] = aw[d] * av[d] + (1.0f - aw[d]) * par;
+        aw[d] = 1.0f;
+      }
+  for (int y = 0; y < g->height; y++)
+    for (int x = 0; x < g->width; x++) {
+      size_t k = (size_t)y * (size_t)g->width + (size_t)x;
+      if (!(g->depth[k] > 0.0f)) {
+        ao[k] = 1.0f;
+        continue;
+      }
+      float v, w;
+      aao_pp_sample0(g, low, lw, mask, ao, x, y, &v, &w);
+      float par = aao_pp_parent(av, as, py.x[1], py.w[1], py.h[1], x, y);
+      ao[k] = w * v + (1.0f - w) * par;
+    }
+}
+
 /* The passes within a render (r) or outside one: full resolution, or half resolution, the
- * bilateral upsampling and the pixels it left at full resolution. stage_ms (may be NULL)
+ * bilateral upsampling and the pixels it left at full resolution, then under upsample push_pull
+ * the push-pull over those samples in place of the bilateral result. stage_ms (may be NULL)
  * receives OBS_AAO_STAGES entries. */
 static int aao_passes(obs_screen_cpu *r, const obs_gbuffer *g, const obs_aao_occluder *occ,
                       size_t nocc, const obs_analytic_ao_params *p, float *ao, double *stage_ms,
@@ -177,6 +258,20 @@ static int aao_passes(obs_screen_cpu *r, const obs_gbuffer *g, const obs_aao_occ
     j.mode = AAO_PASS_EDGES, j.gw = w, j.mask = mask;
     if (!rc) rc = obs_screen_cpu_tiles(r, w, h, aao_tile, &j);
     t[3] = obs_now_ms();
+    if (!rc && p->upsample == OBS_AAO_PUSH_PULL) {
+      obs_aao_pyramid py;
+      obs_aao_pyramid_make(w, h, &py);
+      size_t na = (size_t)py.aw * (size_t)py.ah;
+      float *av = malloc(na * sizeof *av), *aw = malloc(na * sizeof *aw);
+      if (!av || !aw)
+        rc = OBS_ENOMEM;
+      else
+        aao_push_pull(g, low, lw, mask, ao, av, aw);
+      free(av), free(aw);
+      /* The push-pull counts as the upsampling's time. */
+      double t4 = obs_now_ms();
+      t[2] += t4 - t[3], t[3] = t4;
+    }
   }
   if (stage_ms)
     for (int k = 0; k < OBS_AAO_STAGES; k++) stage_ms[k] = t[k + 1] - t[k];

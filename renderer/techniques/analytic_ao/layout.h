@@ -1,7 +1,7 @@
 /* analytic_ao's push-constant blocks, declared once for vulkan.c and the shaders
- * analytic_ao.comp.glsl, analytic_ao_up.comp.glsl and analytic_ao_raster.*.glsl
+ * analytic_ao.comp.glsl, analytic_ao_up.comp.glsl, analytic_ao_pp.comp.glsl and analytic_ao_raster.*.glsl
  * (renderer/core/layout_glsl.h). GLSL allows one push-constant block per shader: a shader defines
- * OBS_AAO_AO_PASS, OBS_AAO_UP_PASS or OBS_AAO_RASTER_PASS before including this, C sees all. */
+ * OBS_AAO_AO_PASS, OBS_AAO_UP_PASS, OBS_AAO_PP_PASS or OBS_AAO_RASTER_PASS before including this, C sees all. */
 #ifndef OBS_ANALYTIC_AO_LAYOUT_H
 #define OBS_ANALYTIC_AO_LAYOUT_H
 
@@ -35,6 +35,22 @@ OBS_PUSH_BEGIN(obs_aao_up_push)
   OBS_F32 depth_limit;           /* OBS_AAO_UP_DEPTH */
 OBS_PUSH_END(obs_aao_up_push)
 OBS_PUSH_CHECK(obs_aao_up_push)
+#endif
+
+/* The push-pull passes (analytic_ao_pp.comp.glsl, cpu.c's aao_pp_*): one dispatch per level. */
+#define OBS_AAO_PP_PUSH0 0 /* the frame's samples into level 1 */
+#define OBS_AAO_PP_PUSH 1  /* atlas level at sx into the level at dx */
+#define OBS_AAO_PP_PULL 2  /* the level at dx from its parent at sx */
+#define OBS_AAO_PP_PULL0 3 /* the frame from level 1 */
+
+#if !defined(VULKAN) || defined(OBS_AAO_PP_PASS)
+OBS_PUSH_BEGIN(obs_aao_pp_push)
+  OBS_I32 width; OBS_I32 height; /* the G-buffer's */
+  OBS_I32 mode;                  /* OBS_AAO_PP_* */
+  OBS_I32 sx; OBS_I32 sw; OBS_I32 sh; /* the source (push) or parent (pull) level */
+  OBS_I32 dx; OBS_I32 dw; OBS_I32 dh; /* the level written */
+OBS_PUSH_END(obs_aao_pp_push)
+OBS_PUSH_CHECK(obs_aao_pp_push)
 #endif
 
 /* The rasterised proxies (analytic_ao_raster.vert.glsl and .frag.glsl): their bindings, and the

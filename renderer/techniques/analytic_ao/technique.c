@@ -10,6 +10,7 @@
 #include "techniques.h"
 
 static const char *const resolutions[] = {"full", "half", NULL};
+static const char *const upsamples[] = {"bilateral", "push_pull", NULL};
 static const char *const methods[] = {"compute", "raster", NULL};
 
 #define P(member) offsetof(obs_analytic_ao_params, member)
@@ -36,6 +37,14 @@ static const obs_param analytic_ao_params[] = {
                     "cube rasterised over the G-buffer, its occlusion multiplied in by the blend "
                     "(full resolution only). The CPU runs compute",
      .offset = P(method)},
+    {.name = "upsample", .type = OBS_PARAM_ENUM, .choices = upsamples, .def = OBS_AAO_BILATERAL,
+     .description = "how resolution half fills the pixels it did not evaluate (ignored at "
+                    "resolution full). bilateral: the bilateral upsampling; push_pull: the "
+                    "article's second method [Guennebaud07]: the evaluated pixels (the half grid "
+                    "and the pixels the bilateral test left to full resolution) with weight 1, "
+                    "pushed down a pyramid (weighted means of 2x2 children, weight min(1, sum)) "
+                    "and pulled back up (w own + (1 - w) the bilinear of the parents)",
+     .offset = P(upsample)},
 };
 #undef P
 

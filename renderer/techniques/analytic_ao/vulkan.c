@@ -2,7 +2,8 @@
  * push blocks in layout.h) reading the occluders from a storage buffer, each 8x8 work group
  * culling them against its receivers' box: the CPU twin's per-tile loop (cpu.c); at half
  * resolution the same pass over the half grid, the upsampling (analytic_ao_up.comp.glsl) and the
- * pass again over the pixels it marked. Under method raster, the article's own method instead:
+ * pass again over the pixels it marked, then under upsample push_pull the push-pull over those
+ * samples (analytic_ao_pp.comp.glsl). Under method raster, the article's own method instead:
  * each occluder's bounding cube rasterised over the G-buffer with multiplicative blending
  * (raster_vk.c), the same product in the same order per pixel (docs/techniques/analytic_ao.md,
  * "Backends"). */
@@ -32,7 +33,7 @@ _Static_assert(sizeof(obs_aao_occluder) == OBS_AAO_VEC4S * 4 * sizeof(float),
  * cancelled. */
 static int run_pass(obs_render_ctx *ctx, obs_vk_plan *plan, obs_vk_plan_state *st, int which,
                     obs_aao_push *pc, size_t nocc, size_t chunk, obs_err *err) {
-  for (int i = 0; i < 3; i++) plan->passes[i].skip = i != which;
+  for (int i = 0; i < 4; i++) plan->passes[i].skip = i != which;
   size_t first = 0;
   int rc = 0;
   do {
@@ -44,6 +45,25 @@ static int run_pass(obs_render_ctx *ctx, obs_vk_plan *plan, obs_vk_plan_state *s
     first += n;
     if (!rc && ctx && ctx->cancel && atomic_load(ctx->cancel)) rc = OBS_ECANCELED;
   } while (!rc && which != 1 && first < nocc);
+  return rc;
+}
+
+/* The push-pull (pass 3 of `plan`, analytic_ao_pp.comp.glsl): one dispatch per level down the
+ * pyramid, then one per level back up to the frame, as cpu.c's aao_push_pull loops. */
+static int run_push_pull(obs_render_ctx *ctx, obs_vk_plan *plan, obs_vk_plan_state *st,
+                         obs_aao_pp_push *pp, const obs_aao_pyramid *py, obs_err *err) {
+  for (int i = 0; i < 4; i++) plan->passes[i].skip = i != 3;
+  int rc = 0;
+  for (int l = 1; !rc && l <= 2 * py->n; l++) {
+    int push = l <= py->n, d = push ? l : 2 * py->n - l; /* the level written; 0: the frame */
+    pp->mode = push ? (l == 1 ? OBS_AAO_PP_PUSH0 : OBS_AAO_PP_PUSH)
+                    : (d == 0 ? OBS_AAO_PP_PULL0 : OBS_AAO_PP_PULL);
+    int s = push ? l - 1 : d + 1;
+    pp->sx = py->x[s], pp->sw = py->w[s], pp->sh = py->h[s];
+    pp->dx = py->x[d], pp->dw = py->w[d], pp->dh = py->h[d];
+    rc = obs_vk_plan_dispatch(st, err);
+    if (!rc && ctx && ctx->cancel && atomic_load(ctx->cancel)) rc = OBS_ECANCELED;
+  }
   return rc;
 }
 
@@ -75,13 +95,18 @@ static int aao_run(obs_render_ctx *ctx, obs_vk *vk, obs_vk_gbuffer *g, const obs
   const int lw = (g->width + 1) / 2, lh = (g->height + 1) / 2;
   obs_aao_up_push up = {.width = g->width, .height = g->height, .lw = lw, .lh = lh,
                         .depth_limit = OBS_AAO_UP_DEPTH};
-  enum { AO = OBS_VK_PLAN_IMAGE0, LOW, MASK, NOMASK };
+  const int pushpull = half && p->upsample == OBS_AAO_PUSH_PULL;
+  obs_aao_pyramid py;
+  obs_aao_pyramid_make(g->width, g->height, &py);
+  obs_aao_pp_push pp = {.width = g->width, .height = g->height};
+  enum { AO = OBS_VK_PLAN_IMAGE0, LOW, MASK, NOMASK, ATLAS };
   obs_vk_plan plan = {
       .technique = "analytic_ao",
       .images = {[AO] = {.channels = 1},
                  [LOW] = {.width = lw, .height = lh, .channels = 1},
                  [MASK] = {.channels = 1},
-                 [NOMASK] = {.width = 1, .height = 1, .channels = 1}},
+                 [NOMASK] = {.width = 1, .height = 1, .channels = 1},
+                 [ATLAS] = {.width = py.aw, .height = py.ah, .channels = 4}},
       .passes = {{.stage = "ao", OBS_VK_SPIRV(analytic_ao_comp), OBS_VK_PUSH(pc),
                   .images = {OBS_VK_PLAN_DEPTH, OBS_VK_PLAN_NORMAL, half ? LOW : AO,
                              half ? MASK : NOMASK},
@@ -91,7 +116,9 @@ static int aao_run(obs_render_ctx *ctx, obs_vk *vk, obs_vk_gbuffer *g, const obs
                   .skip = !half},
                  {.stage = "ao_edges", OBS_VK_SPIRV(analytic_ao_comp), OBS_VK_PUSH(ep),
                   .images = {OBS_VK_PLAN_DEPTH, OBS_VK_PLAN_NORMAL, AO, MASK}, .data = data,
-                  .skip = !half}},
+                  .skip = !half},
+                 {.stage = "upsample", OBS_VK_SPIRV(analytic_ao_pp_comp), OBS_VK_PUSH(pp),
+                  .images = {OBS_VK_PLAN_DEPTH, MASK, LOW, AO, ATLAS}, .skip = !pushpull}},
       .downloads = {{AO, ao_host}}};
   obs_vk_plan_state st;
   rc = obs_vk_plan_open(vk, g, &plan, &st, err);
@@ -99,6 +126,7 @@ static int aao_run(obs_render_ctx *ctx, obs_vk *vk, obs_vk_gbuffer *g, const obs
     rc = run_pass(ctx, &plan, &st, 0, &pc, nocc, chunk, err);
     if (!rc && half) rc = run_pass(ctx, &plan, &st, 1, &pc, nocc, chunk, err);
     if (!rc && half) rc = run_pass(ctx, &plan, &st, 2, &ep, nocc, chunk, err);
+    if (!rc && pushpull) rc = run_push_pull(ctx, &plan, &st, &pp, &py, err);
     rc = obs_vk_plan_close(&st, rc, times, err);
   }
   obs_vk_data_free(vk, data);
