@@ -24,7 +24,8 @@ static const obs_param analytic_ao_params[] = {
     {.name = "resolution", .type = OBS_PARAM_ENUM, .choices = resolutions, .def = OBS_AAO_FULL,
      .description = "full: every pixel; half: every second pixel of every second row, then a "
                     "bilateral upsampling (bilinear weights times normal and depth agreement), "
-                    "the pixels no neighbour agrees with evaluated at full resolution",
+                    "the pixels no neighbour agrees with evaluated at full resolution (upsample "
+                    "push_pull then fills the rest from these samples instead)",
      .offset = P(resolution)},
     {.name = "occluders", .type = OBS_PARAM_NAMES,
      .description = "the objects that occlude, by name (the article splats only the occluders "
