@@ -19,9 +19,10 @@ import {test} from 'node:test';
 import {OBSCURAD, ROOT, SCENES_DIR, SLOW, getJSON, getJob, listFiles, request, sleep, sql, submit,
         validate, waitJob, withDaemon} from './lib.mjs';
 
-// A render of a few seconds (release build): long enough for several heartbeats of a 2 s lease.
+// A render of a few seconds: long enough for several heartbeats of a 2 s lease (one each 0.67 s).
+// The sanitizer build renders slower, so it renders fewer samples for about the same time.
 const LONG = {scene_file: 'sphere_on_plane.json',
-              set: {'/image/width': 256, '/image/height': 256, '/technique/params/samples': 1024}};
+              set: {'/image/width': 256, '/image/height': 256, '/technique/params/samples': 1024 / SLOW}};
 
 // A write to the daemon's database, as another node's statement would land in a shared store.
 function sqlWrite(db, query) {
