@@ -31,6 +31,9 @@ const scene = (w, samples) => ({scene_file: 'sphere_on_plane.json',
 const TINY = scene(16, 4);
 // About 2 s alone on one lane of a 2-core machine; long enough to act on while it runs.
 const SLOW = scene(256, 256);
+// About 8 s alone: blockers that stay running until every node has claimed one, however late a
+// loaded machine lets a node wake.
+const BLOCKER = scene(256, 1024);
 // Tens of seconds: only ever cancelled.
 const LONG = scene(320, 4096);
 
@@ -339,14 +342,15 @@ test('PostgreSQL restarted mid-sweep: every node reconnects and the sweep comple
 test('priorities, per-node exclusion and the work caps hold across nodes', async () => {
   const a = nodes['node-a'], b = nodes['node-b'], c = nodes['node-c'];
   // Every lane busy: what is queued next waits for the claims to choose.
-  const blockers = await runningAll(a, [SLOW, SLOW, SLOW]);
-  assert.deepEqual(new Set(blockers.map((j) => j.node)).size, 3, 'one blocker per node');
+  const blockers = await runningAll(a, [BLOCKER, BLOCKER, BLOCKER]);
+  assert.deepEqual(new Set(blockers.map((j) => j.node)).size, 3,
+                   `one blocker per node: ${blockers.map((j) => j.node)}`);
 
   // The work caps count every node's submissions: the blockers went through A, B refuses a job
   // that alone fits under --max-queued-work.
   const big = scene(1000, 1260);
   const workOf = (b) => b.set['/image/width'] * b.set['/image/height'] * b.set['/technique/params/samples'];
-  assert.ok(workOf(big) < MAX_QUEUED_WORK && workOf(big) + 3 * workOf(SLOW) > MAX_QUEUED_WORK);
+  assert.ok(workOf(big) < MAX_QUEUED_WORK && workOf(big) + 3 * workOf(BLOCKER) > MAX_QUEUED_WORK);
   const refused = await request(b, 'POST', '/api/v1/jobs', {body: big});
   assert.equal(refused.status, 429, refused.text);
   validate('Error', refused.json);
