@@ -11,6 +11,7 @@
 
 #include "bench_args.h"
 #include "bench_machine.h"
+#include "bench_png.h"
 #include "obscura/obscura.h"
 
 #define MAX_REPEATS 16
@@ -150,25 +151,6 @@ static double rmse(const obs_image *a, const obs_image *ref, double *noise) {
   return cnt ? sqrt(ss / (double)cnt) : 0;
 }
 
-static int write_png(const obs_image *img, double exposure, const char *path) {
-  static const char *const rgb[3] = {"radiance.R", "radiance.G", "radiance.B"};
-  static const char *const out_names[3] = {"R", "G", "B"};
-  obs_image t;
-  obs_err err = OBS_ERR_INIT;
-  int rc = obs_image_init(&t, img->width, img->height, 3, out_names, &err);
-  size_t n = (size_t)img->width * (size_t)img->height;
-  double scale = pow(2.0, exposure);
-  for (int k = 0; !rc && k < 3; k++) {
-    const float *v = obs_image_channel(img, rgb[k]);
-    for (size_t i = 0; i < n; i++) t.data[(size_t)k * n + i] = (float)(v[i] * scale);
-  }
-  if (!rc) rc = obs_image_write_png(&t, out_names, 3, 1, path, &err);
-  if (rc) fprintf(stderr, "bench_instant_radiosity: %s\n", obs_err_message(&err));
-  obs_image_free(&t);
-  obs_err_free(&err);
-  return rc;
-}
-
 static int bench_scene(const options *o, int panel, int have_vk) {
   const char *scene = panel ? "cornell_panel" : "cornell_box";
   obs_err err = OBS_ERR_INIT;
@@ -191,7 +173,8 @@ static int bench_scene(const options *o, int panel, int have_vk) {
          scene, o->size, o->size, o->ref_samples, o->max_bounces, ref_ms, o->clamp);
   if (o->png) {
     snprintf(path, sizeof path, "%s%s_path_trace.png", o->png, scene);
-    if (write_png(&ref.image, o->exposure, path)) return 1;
+    if (bench_write_radiance_png(&ref.image, o->exposure, path, "bench_instant_radiosity"))
+      return 1;
   }
   printf("  %-7s %-11s %6s %12s %14s %12s\n", "backend", "visibility", "vpls", "ms",
          "lum RMSE", "ref noise");
@@ -219,7 +202,8 @@ static int bench_scene(const options *o, int panel, int have_vk) {
              e, noise);
       if (o->png && v + 1 == o->nvpls) {
         snprintf(path, sizeof path, "%s%s_%s_%s.png", o->png, scene, modes[m][0], modes[m][1]);
-        if (write_png(&res.image, o->exposure, path)) return 1;
+        if (bench_write_radiance_png(&res.image, o->exposure, path, "bench_instant_radiosity"))
+          return 1;
       }
     }
   }

@@ -8,6 +8,7 @@
 
 #include "bench_args.h"
 #include "bench_machine.h"
+#include "bench_png.h"
 #include "obscura/obscura.h"
 
 #define MAX_REPEATS 64
@@ -102,25 +103,6 @@ static void print_figures(const obs_image *img) {
   }
 }
 
-static int write_png(const obs_image *img, double exposure, const char *path) {
-  static const char *const rgb[3] = {"radiance.R", "radiance.G", "radiance.B"};
-  static const char *const out_names[3] = {"R", "G", "B"};
-  obs_image t;
-  obs_err err = OBS_ERR_INIT;
-  int rc = obs_image_init(&t, img->width, img->height, 3, out_names, &err);
-  size_t n = (size_t)img->width * (size_t)img->height;
-  double scale = pow(2.0, exposure);
-  for (int k = 0; !rc && k < 3; k++) {
-    const float *v = obs_image_channel(img, rgb[k]);
-    for (size_t i = 0; i < n; i++) t.data[(size_t)k * n + i] = (float)(v[i] * scale);
-  }
-  if (!rc) rc = obs_image_write_png(&t, out_names, 3, 1, path, &err);
-  if (rc) fprintf(stderr, "bench_path_trace: %s\n", obs_err_message(&err));
-  obs_image_free(&t);
-  obs_err_free(&err);
-  return rc;
-}
-
 int main(int argc, char **argv) {
   options o;
   if (parse_args(argc, argv, &o)) return 2;
@@ -164,7 +146,7 @@ int main(int argc, char **argv) {
       med * 1e3 / paths, med * 1e3 * o.threads / paths, (double)res.rays / paths,
       bench_median(rays_s, o.repeats) * 1e-6);
   print_figures(&res.image);
-  int rc = o.png ? write_png(&res.image, o.exposure, o.png) : 0;
+  int rc = o.png ? bench_write_radiance_png(&res.image, o.exposure, o.png, "bench_path_trace") : 0;
   obs_result_free(&res);
   obs_scene_free(&sc);
   obs_err_free(&err);
