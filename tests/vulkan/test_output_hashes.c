@@ -8,7 +8,9 @@
  *    keeps the scalar code's bits at every level (simd.h), so these are most channels;
  *  - "cpu/avx2/intel" (backend, level, CPU vendor): only there. Embree's kernels differ in the
  *    last bits between its levels and, through approximate reciprocals (rcpps, rcp14), between
- *    vendors, so a channel of a technique that needs a BVH may move with either.
+ *    vendors, so a channel of a technique that needs a BVH, or traces with Embree on its own
+ *    (obs_technique.embree_backends), may move with either; such a case is always pinned per
+ *    level, since another vendor's levels may disagree where the pinning machine's agree.
  * A channel with an exact pin must match it: a pinned line that exists and differs fails. A
  * channel pinned only for other levels or vendors (a machine the pins have never seen) is instead
  * compared within its technique's declared tolerance (obs_range.tol) with the committed reference
@@ -116,7 +118,9 @@ static const char *cpu_vendor(void) {
 }
 
 /* Whether the case's bits may depend on the level and vendor (it traces with Embree). */
-static int per_level(const hcase *c) { return (c->t->needs & OBS_NEED_BVH) != 0; }
+static int per_level(const hcase *c) {
+  return (c->t->needs & OBS_NEED_BVH) || (c->t->embree_backends & (1u << c->be));
+}
 
 /* The key of pins for level `isa` on this CPU's vendor: "cpu/avx2/intel". */
 static void level_key(const hcase *c, int isa, char *buf, size_t n) {
@@ -398,7 +402,9 @@ static int repin_case(const hcase *c, obs_result *res, int top, const pin_list *
       continue;
     }
     *changed = 1;
-    if (same) {
+    /* A case that traces with Embree is pinned per level even where this machine's levels
+     * agree: another vendor's may not, and would fail a plain pin it never had a say in. */
+    if (same && !per_level(c)) {
       snprintf(x.key, sizeof x.key, "%s", plain_key(c));
       pins_add(out, &x);
     } else {

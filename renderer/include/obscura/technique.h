@@ -475,6 +475,10 @@ typedef struct obs_technique {
    * the technique. 0: unknown (the server assumes the slowest technique's rate). */
   double ms_per_work;
   unsigned needs;               /* OBS_NEED_* */
+  /* The backends (bit 1 << obs_backend) whose runs trace with Embree's kernels on their own,
+   * beyond the BVH that OBS_NEED_BVH builds (instant_radiosity's virtual lights): their last bits
+   * may move with the instruction-set level and CPU vendor, as those of OBS_NEED_BVH do. */
+  unsigned embree_backends;
   const obs_output *outputs;    /* ended by an entry with a NULL name; exactly one primary */
   obs_technique_check_fn check; /* may be NULL */
   obs_technique_reference_fn reference; /* may be NULL: see reference_same */

@@ -134,6 +134,8 @@ const obs_technique obs_technique_instant_radiosity = {
     .cost_rule = "vpls / 16",
     .ms_per_work = 1e-4,
     .needs = OBS_NEED_GBUFFER | OBS_NEED_MATERIALS,
+    /* The photon walk that places the virtual lights traces with Embree on both. */
+    .embree_backends = 1u << OBS_BACKEND_CPU | 1u << OBS_BACKEND_VULKAN,
     .outputs = irad_outputs,
     .check = irad_check,
     .reference_same = &obs_technique_path_trace,
