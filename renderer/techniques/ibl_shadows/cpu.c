@@ -271,12 +271,22 @@ int obs_ibl_shadows_cpu_apply(const obs_scene *sc, const obs_rt *rt, const obs_e
 static int passes(obs_screen_cpu *r, const obs_gbuffer *g, const void *params, float *ao,
                   float *ao_raw, float *extra, obs_err *err) {
   obs_render_ctx *ctx = r->ctx;
-  if (!ctx->rt || !ctx->environment)
-    return obs_err_set(err, OBS_EINTERNAL, "%s: ibl_shadows: no BVH or environment was built",
-                       ctx->scene->name);
+  if (!ctx->rt)
+    return obs_err_set(err, OBS_EINTERNAL, "%s: ibl_shadows: no BVH was built", ctx->scene->name);
+  /* A scene without an environment is lit by a black one: radiance 0, and the ao and bent normal
+   * still come, from directions uniform over the sphere (obs_ibl_setup_make). */
+  obs_env dark;
+  memset(&dark, 0, sizeof dark);
+  const obs_env *env = ctx->environment;
+  if (!env) {
+    const double zero[3] = {0, 0, 0};
+    int rc = obs_env_constant(&dark, zero, err);
+    if (rc) return rc;
+    env = &dark;
+  }
   double st[OBS_IBL_CPU_STAGES];
-  int rc = ibl_passes(r, ctx->scene, ctx->rt, ctx->environment, g, params, ao, ao_raw, extra, st,
-                      err);
+  int rc = ibl_passes(r, ctx->scene, ctx->rt, env, g, params, ao, ao_raw, extra, st, err);
+  obs_env_free(&dark);
   if (!rc) {
     obs_screen_cpu_stage(r, "shadow_maps", st[0]);
     obs_screen_cpu_stage(r, "fit", st[1]);

@@ -110,11 +110,12 @@ int obs_ibl_setup_make(const obs_env *env, const obs_ibl_shadows_params *p, obs_
   for (int i = 0; i < s->m; i++) {
     double u0, u1;
     obs_folded_hammersley((uint32_t)i, (uint32_t)s->m, &u0, &u1);
-    /* A dark environment has no distribution: the directions are then uniform (the same grid). */
+    /* A dark environment has no distribution: the directions are then uniform over the sphere
+     * (cos theta = 1 - 2 u0), which still gives the ao and the bent normal. */
     if (d.total > 0)
       obs_env_dist_sample(&d, u0, u1, s->dir[i]);
     else
-      obs_env_latlong_dir(u1, u0, s->dir[i]);
+      obs_env_latlong_dir(u1, acos(1 - 2 * u0) / PI, s->dir[i]);
   }
   obs_env_dist_free(&d);
   rc = obs_ibl_pinv((const double(*)[3])s->dir, s->m, p->sh_order, p->tikhonov, s->yplus, err);

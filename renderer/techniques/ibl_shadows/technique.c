@@ -57,17 +57,6 @@ static const obs_param ibl_params[] = {
 };
 #undef P
 
-/* Lit by the environment only: a scene without one would be black. */
-static void ibl_check(const obs_scene *scene, const json_t *params, const char *doc,
-                      obs_err *err) {
-  (void)params;
-  if (!scene->has_environment)
-    obs_err_set(err, OBS_EINVAL,
-                "%s: /environment: technique \"ibl_shadows\" lights with the environment: give "
-                "an environment (a color or a map)",
-                doc);
-}
-
 /* Shadow-map rays plus per-pixel shadow tests and the fit. */
 static double ibl_cost(const void *bound) {
   const obs_ibl_shadows_params *p = bound;
@@ -103,7 +92,6 @@ const obs_technique obs_technique_ibl_shadows = {
     .needs = OBS_NEED_GBUFFER | OBS_NEED_BVH | OBS_NEED_BVH_FRAME_GEOMETRY | OBS_NEED_ENV_MAP |
              OBS_NEED_MATERIALS,
     .outputs = ibl_outputs,
-    .check = ibl_check,
     .reference = ibl_reference,
     .run = {[OBS_BACKEND_CPU] = obs_ibl_shadows_cpu},
     .range = {[OBS_BACKEND_CPU] = {.size_min = 1e-6,
