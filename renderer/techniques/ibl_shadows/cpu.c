@@ -1,261 +1,183 @@
-/* ibl_shadows on the CPU: orthographic shadow maps ray cast with Embree along the
- * importance-sampled directions, the per-pixel least-squares SH fit of visibility x cosine over
- * the G-buffer's texels, the article's 9 x 9 normal-weighted blur in screen space, and the
- * diffuse shading SH visibility . environment SH (docs/techniques/ibl_shadows.md). */
+/* ibl_shadows on the CPU: the fit and blur passes, the twins of ibl_shadows_fit.comp.glsl and
+ * ibl_shadows_blur.comp.glsl operation for operation (float32, the shaders' order, nothing
+ * contracted: the build has -ffp-contract=off and the shaders mark the same expressions
+ * `precise`), over the host's shadow maps and shading (ibl_maps.c), on the CPU screen-space
+ * driver (docs/techniques/ibl_shadows.md). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "camera.h"
 #include "ibl_shadows.h"
 #include "obscura/render.h"
 #include "parallel.h"
 #include "raytrace.h"
 #include "screen.h"
+#include "simd.h"
 #include "techniques.h"
 
 typedef struct ibl_job {
-  const obs_rt *rt;
   const obs_gbuffer *g;
-  const obs_env *env;
-  const obs_ibl_setup *s;
-  obs_camera_rig rig;
-  double centre[3];             /* world centre of the scene's bounding sphere */
-  double eye[3];                /* the camera's origin relative to the centre */
-  double radius, start;         /* the sphere's radius; the maps' plane sits at start along dir */
-  double axis[OBS_IBL_MAX_MAPS][2][3]; /* each map's texel axes, orthogonal to its direction */
-  int size;
-  double bias;                  /* in texels */
-  float *maps;                  /* m size x size: distance from the plane to the first hit */
-  float *raw, *tmp, *res;       /* n coefficients per pixel */
-  const float *src;
+  const obs_ibl_frame *f;
+  float *raw, *tmp, *res; /* OBS_IBL_GROUPS planes of w h 4 floats each */
+  const float *src;       /* blur: one plane in, one out */
   float *dst;
   int horizontal;
-  float *ao, *ao_raw, *extra;
+  float weights[9];
 } ibl_job;
 
-static double dot3(const double a[3], const double b[3]) {
-  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
-
-/* Two unit axes orthogonal to unit d (Duff et al. 2017, branch-free and continuous but at one
- * sign flip). */
-static void frame_of(const double d[3], double t[3], double b[3]) {
-  double s = d[2] >= 0 ? 1.0 : -1.0, a = -1.0 / (s + d[2]), c = d[0] * d[1] * a;
-  t[0] = 1 + s * d[0] * d[0] * a, t[1] = s * c, t[2] = -s * d[0];
-  b[0] = c, b[1] = s + d[1] * d[1] * a, b[2] = -d[1];
-}
-
-/* One shadow-map row per image row: the image is size wide and m size high. */
-static int map_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
-  (void)thread;
-  const ibl_job *j = user;
-  const int S = j->size;
-  for (int y = y0; y < y1; y++) {
-    int m = y / S, row = y % S;
-    const double *d = j->s->dir[m], *t = j->axis[m][0], *b = j->axis[m][1];
-    double ty = ((row + 0.5) / S * 2 - 1) * j->radius;
-    const double dir[3] = {-d[0], -d[1], -d[2]};
-    for (int x = x0; x < x1; x++) {
-      double tx = ((x + 0.5) / S * 2 - 1) * j->radius, org[3];
-      for (int k = 0; k < 3; k++) org[k] = j->centre[k] + d[k] * j->start + tx * t[k] + ty * b[k];
-      obs_hit hit;
-      float depth = INFINITY;
-      if (obs_rt_intersect(j->rt, org, dir, INFINITY, &hit)) depth = hit.t;
-      j->maps[((size_t)m * (size_t)S + (size_t)row) * (size_t)S + (size_t)x] = depth;
+OBS_HOT_INLINE void fit_pixel(const ibl_job *j, int x, int y) {
+  const obs_gbuffer *g = j->g;
+  const obs_ibl_fit_push *pc = &j->f->fit;
+  const obs_ibl_table *tb = &j->f->table;
+  const size_t N = (size_t)g->width * (size_t)g->height;
+  const size_t i = (size_t)y * (size_t)g->width + (size_t)x;
+  float w[OBS_SH_MAX_COEFFS];
+  for (int k = 0; k < OBS_SH_MAX_COEFFS; k++) w[k] = 0.0f;
+  const float z = g->depth[i];
+  if (z > 0.0f) {
+    const int ortho = (pc->flags & OBS_IBL_ORTHO) != 0;
+    const float fx = (float)x + 0.5f, fy = (float)y + 0.5f;
+    const float nx = 2.0f * fx / (float)pc->width - 1.0f;
+    const float ny = 1.0f - 2.0f * fy / (float)pc->height;
+    const float pv0 = ortho ? nx * pc->half_w : nx * pc->half_w * z;
+    const float pv1 = ortho ? ny * pc->half_h : ny * pc->half_h * z;
+    const float *nv = g->normal + 3 * i;
+    float q[3], nw[3];
+    for (int k = 0; k < 3; k++) {
+      q[k] = pc->eye[k] + pv0 * pc->right[k] + pv1 * pc->up[k] + z * pc->fwd[k];
+      nw[k] = nv[0] * pc->right[k] + nv[1] * pc->up[k] + nv[2] * pc->fwd[k];
+    }
+    float b[OBS_IBL_MAX_MAPS];
+    const float S = (float)pc->size;
+    for (int m = 0; m < pc->maps; m++) {
+      const float *d = tb->dir[m], *t = tb->tax[m], *bb = tb->bax[m];
+      const float c = nw[0] * d[0] + nw[1] * d[1] + nw[2] * d[2];
+      b[m] = 0.0f;
+      if (!(c > 0.0f)) continue;
+      const float du = q[0] * t[0] + q[1] * t[1] + q[2] * t[2];
+      const float dv = q[0] * bb[0] + q[1] * bb[1] + q[2] * bb[2];
+      const float u = (du / pc->radius + 1.0f) * 0.5f * S;
+      const float v = (dv / pc->radius + 1.0f) * 0.5f * S;
+      int lit = 1;
+      if (u >= 0.0f && u < S && v >= 0.0f && v < S) {
+        const size_t at = ((size_t)m * (size_t)pc->size + (size_t)(int)v) * (size_t)pc->size +
+                          (size_t)(int)u;
+        const float occ = j->f->maps[at];
+        const float zz = pc->start - (q[0] * d[0] + q[1] * d[1] + q[2] * d[2]);
+        const float slope = c < (float)OBS_IBL_MIN_COS ? (float)OBS_IBL_MAX_SLOPE
+                                                       : sqrtf(1.0f - c * c) / c;
+        const float thr = occ + pc->texel_bias * (1.0f + slope);
+        lit = zz <= thr;
+      }
+      b[m] = lit ? c : 0.0f;
+    }
+    for (int k = 0; k < pc->coeffs; k++) {
+      float acc = 0.0f;
+      for (int m = 0; m < pc->maps; m++) acc += tb->yplus[k * OBS_IBL_MAX_MAPS + m] * b[m];
+      w[k] = acc;
     }
   }
-  return 0;
+  for (int k = 0; k < OBS_SH_MAX_COEFFS; k++) j->raw[obs_ibl_coef_at(N, i, k)] = w[k];
 }
 
-/* World position (relative to the centre) and world normal of G-buffer pixel i at (x, y). */
-static void pixel_world(const ibl_job *j, int x, int y, size_t i, double q[3], double nw[3]) {
+OBS_HOT_INLINE void blur_pixel(const ibl_job *j, int x, int y) {
   const obs_gbuffer *g = j->g;
-  float pv[3];
-  obs_gbuffer_position(g, (float)x + 0.5f, (float)y + 0.5f, g->depth[i], pv);
-  const float *nv = g->normal + 3 * i;
-  for (int k = 0; k < 3; k++) {
-    q[k] = j->eye[k] + pv[0] * j->rig.right[k] + pv[1] * j->rig.up[k] + pv[2] * j->rig.forward[k];
-    nw[k] = nv[0] * j->rig.right[k] + nv[1] * j->rig.up[k] + nv[2] * j->rig.forward[k];
+  const int W = g->width, H = g->height;
+  const size_t c = (size_t)y * (size_t)W + (size_t)x;
+  float *o = j->dst + 4 * c;
+  o[0] = o[1] = o[2] = o[3] = 0.0f;
+  if (!(g->depth[c] > 0.0f)) return;
+  const float *nc = g->normal + 3 * c;
+  float acc[4] = {0.0f, 0.0f, 0.0f, 0.0f}, total = 0.0f;
+  for (int t = -4; t <= 4; t++) {
+    int xx = j->horizontal ? x + t : x, yy = j->horizontal ? y : y + t;
+    if (xx < 0 || yy < 0 || xx >= W || yy >= H) continue;
+    size_t q = (size_t)yy * (size_t)W + (size_t)xx;
+    if (!(g->depth[q] > 0.0f)) continue;
+    const float *nq = g->normal + 3 * q;
+    const float a = nq[0] * nc[0] + nq[1] * nc[1] + nq[2] * nc[2];
+    const float wt = j->weights[t + 4] * (a > 0.0f ? a : 0.0f);
+    if (!(wt > 0.0f)) continue;
+    const float *v = j->src + 4 * q;
+    for (int k = 0; k < 4; k++) acc[k] += wt * v[k];
+    total += wt;
   }
+  if (total > 0.0f)
+    for (int k = 0; k < 4; k++) o[k] = acc[k] / total;
 }
 
-/* The shadow test of receiver q (relative to the centre) with cosine c to map m: 1 lit, 0 not.
- * The depth bias grows with the slope (tan of the angle to the direction, at most 10). */
-static int lit(const ibl_job *j, int m, const double q[3], double c) {
-  const int S = j->size;
-  double u = (dot3(q, j->axis[m][0]) / j->radius + 1) * 0.5 * S;
-  double v = (dot3(q, j->axis[m][1]) / j->radius + 1) * 0.5 * S;
-  if (!(u >= 0 && u < S && v >= 0 && v < S)) return 1;
-  float occ = j->maps[((size_t)m * (size_t)S + (size_t)v) * (size_t)S + (size_t)u];
-  double z = j->start - dot3(q, j->s->dir[m]);
-  double slope = c < 0.0995 ? 10.0 : sqrt(1 - c * c) / c;
-  return z <= occ + j->bias * (2 * j->radius / S) * (1 + slope);
-}
-
-static int fit_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+/* The tile loops twice (simd.h): baseline and x86-64-v3, the same scalar operations either way
+ * (no contraction), so the same bits at every level. */
+OBS_HOT_INLINE int fit_tile_body(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)thread;
-  const ibl_job *j = user;
-  const obs_ibl_setup *s = j->s;
   for (int y = y0; y < y1; y++)
-    for (int x = x0; x < x1; x++) {
-      size_t i = (size_t)y * (size_t)j->g->width + (size_t)x;
-      float *w = j->raw + i * (size_t)s->n;
-      for (int k = 0; k < s->n; k++) w[k] = 0.0f;
-      if (!(j->g->depth[i] > 0.0f)) continue;
-      double q[3], nw[3];
-      pixel_world(j, x, y, i, q, nw);
-      float b[OBS_IBL_MAX_MAPS];
-      for (int m = 0; m < s->m; m++) {
-        double c = dot3(nw, s->dir[m]);
-        b[m] = c > 0 && lit(j, m, q, c) ? (float)c : 0.0f;
-      }
-      for (int k = 0; k < s->n; k++) {
-        float acc = 0.0f;
-        for (int m = 0; m < s->m; m++) acc += s->yplus[k][m] * b[m];
-        w[k] = acc;
-      }
-    }
+    for (int x = x0; x < x1; x++) fit_pixel(user, x, y);
   return 0;
 }
+OBS_TILE_KERNELS(fit_tile)
 
-/* The article's 1D window exp(-i^2 / 10), i = -4..4, times max(0, n_i . n_centre), normalised;
- * one axis per pass. Uncovered pixels neither give nor take. */
-static int blur_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+OBS_HOT_INLINE int blur_tile_body(void *user, int thread, int x0, int y0, int x1, int y1) {
   (void)thread;
-  const ibl_job *j = user;
-  const obs_gbuffer *g = j->g;
-  const int n = j->s->n, W = g->width, H = g->height;
-  float gw[9];
-  for (int i = -4; i <= 4; i++) gw[i + 4] = expf(-(float)(i * i) / 10.0f);
   for (int y = y0; y < y1; y++)
-    for (int x = x0; x < x1; x++) {
-      size_t c = (size_t)y * (size_t)W + (size_t)x;
-      float *o = j->dst + c * (size_t)n;
-      for (int k = 0; k < n; k++) o[k] = 0.0f;
-      if (!(g->depth[c] > 0.0f)) continue;
-      const float *nc = g->normal + 3 * c;
-      float acc[OBS_SH_MAX_COEFFS] = {0}, total = 0.0f;
-      for (int t = -4; t <= 4; t++) {
-        int xx = j->horizontal ? x + t : x, yy = j->horizontal ? y : y + t;
-        if (xx < 0 || yy < 0 || xx >= W || yy >= H) continue;
-        size_t q = (size_t)yy * (size_t)W + (size_t)xx;
-        if (!(g->depth[q] > 0.0f)) continue;
-        const float *nq = g->normal + 3 * q;
-        float a = nq[0] * nc[0] + nq[1] * nc[1] + nq[2] * nc[2];
-        float wt = gw[t + 4] * (a > 0.0f ? a : 0.0f);
-        if (!(wt > 0.0f)) continue;
-        const float *v = j->src + q * (size_t)n;
-        for (int k = 0; k < n; k++) acc[k] += wt * v[k];
-        total += wt;
-      }
-      for (int k = 0; k < n; k++) o[k] = total > 0.0f ? acc[k] / total : 0.0f;
-    }
+    for (int x = x0; x < x1; x++) blur_pixel(user, x, y);
   return 0;
 }
+OBS_TILE_KERNELS(blur_tile)
 
-static int shade_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
-  (void)thread;
-  const ibl_job *j = user;
+/* Fit and blur over the frame's maps; j->res ends holding the result (raw without the blur). */
+static int fit_blur(obs_screen_cpu *r, ibl_job *j, int blur, double st[2]) {
   const obs_gbuffer *g = j->g;
   const size_t N = (size_t)g->width * (size_t)g->height;
-  const int n = j->s->n;
-  float *ex[OBS_IBL_EXTRA];
-  for (int k = 0; k < OBS_IBL_EXTRA; k++) ex[k] = j->extra + (size_t)k * N;
-  for (int y = y0; y < y1; y++)
-    for (int x = x0; x < x1; x++) {
-      size_t i = (size_t)y * (size_t)g->width + (size_t)x;
-      float rgb[3], ao, aor, bent[3], bent_raw[3];
-      if (!(g->depth[i] > 0.0f)) {
-        /* The background shows the environment, as path_trace's misses do. */
-        double org[3], dir[3];
-        obs_camera_ray(&j->rig, x + 0.5, y + 0.5, org, dir);
-        float fd[3] = {(float)dir[0], (float)dir[1], (float)dir[2]};
-        obs_env_lookup(j->env, fd, rgb);
-        ao = aor = 1.0f;
-        bent[0] = bent[1] = bent[2] = 0.0f;
-      } else {
-        double q[3], nw[3];
-        pixel_world(j, x, y, i, q, nw);
-        float nf[3] = {(float)nw[0], (float)nw[1], (float)nw[2]}, rgb_raw[3];
-        obs_ibl_shade(j->s, j->res + i * (size_t)n, g->albedo + 3 * i, nf, rgb, &ao, bent);
-        obs_ibl_shade(j->s, j->raw + i * (size_t)n, g->albedo + 3 * i, nf, rgb_raw, &aor,
-                      bent_raw);
-      }
-      j->ao[i] = ao;
-      j->ao_raw[i] = aor;
-      for (int k = 0; k < 3; k++) {
-        ex[OBS_IBL_RADIANCE + k][i] = rgb[k];
-        ex[OBS_IBL_BENT + k][i] = bent[k];
-      }
-    }
-  return 0;
-}
-
-/* Where the maps look from: the bounding sphere of the geometry (world), the plane 1.5 radii out. */
-static void place_maps(ibl_job *j, const obs_scene *sc) {
-  const obs_geometry *geo = &j->rt->geo;
-  double r2 = 0;
-  for (int k = 0; k < 3; k++) {
-    double h = 0.5 * (geo->bounds[1][k] - geo->bounds[0][k]);
-    j->centre[k] = geo->origin[k] + 0.5 * (geo->bounds[0][k] + geo->bounds[1][k]);
-    r2 += h * h;
+  const int isa = obs_simd_isa(), groups = (j->f->s.n + 3) / 4;
+  double t0 = obs_now_ms();
+  int rc = obs_screen_cpu_tiles(r, g->width, g->height, obs_simd_tile_pick(fit_tile, isa), j);
+  double t1 = obs_now_ms();
+  for (int k = 0; !rc && blur && k < groups; k++) {
+    j->src = j->raw + 4 * N * (size_t)k, j->dst = j->tmp + 4 * N * (size_t)k, j->horizontal = 1;
+    rc = obs_screen_cpu_tiles(r, g->width, g->height, obs_simd_tile_pick(blur_tile, isa), j);
+    j->src = j->dst, j->dst = j->res + 4 * N * (size_t)k, j->horizontal = 0;
+    if (!rc) rc = obs_screen_cpu_tiles(r, g->width, g->height, obs_simd_tile_pick(blur_tile, isa), j);
   }
-  j->radius = sqrt(r2) > 0 ? sqrt(r2) : 1e-30;
-  j->start = 1.5 * j->radius;
-  obs_camera_setup(&sc->camera, j->g->width, j->g->height, &j->rig);
-  for (int k = 0; k < 3; k++) j->eye[k] = j->rig.origin[k] - j->centre[k];
-  for (int m = 0; m < j->s->m; m++) frame_of(j->s->dir[m], j->axis[m][0], j->axis[m][1]);
+  if (!blur) j->res = j->raw;
+  st[0] = t1 - t0, st[1] = blur ? obs_now_ms() - t1 : 0.0;
+  return rc;
 }
 
 static int ibl_passes(obs_screen_cpu *r, const obs_scene *sc, const obs_rt *rt,
                       const obs_env *env, const obs_gbuffer *g, const obs_ibl_shadows_params *p,
                       float *ao, float *ao_raw, float *extra, double *stage_ms, obs_err *err) {
-  double st[OBS_IBL_CPU_STAGES] = {0, 0, 0, 0};
-  if (!sc || !rt || !g || !p || !ao || !ao_raw || !extra)
-    return obs_err_set(err, OBS_EINVAL, "ibl_shadows: missing scene, BVH, G-buffer or output");
-  if (p->map_size < 1 || p->sh_order < 1 || p->sh_order > OBS_SH_MAX_BANDS)
-    return obs_err_set(err, OBS_EINVAL, "ibl_shadows: map_size %d or sh_order %d out of range",
-                       p->map_size, p->sh_order);
-  obs_ibl_setup *s = malloc(sizeof *s);
-  if (!s) return obs_err_set(err, OBS_ENOMEM, "ibl_shadows: out of memory");
-  double t0 = obs_now_ms();
-  int rc = obs_ibl_setup_make(env, p, s, err);
+  double st[OBS_IBL_CPU_STAGES] = {0, 0, 0, 0, 0};
+  if (stage_ms) memcpy(stage_ms, st, sizeof st);
+  if (!g || !ao || !ao_raw || !extra)
+    return obs_err_set(err, OBS_EINVAL, "ibl_shadows: missing G-buffer or output");
+  obs_ibl_frame *f = malloc(sizeof *f);
+  if (!f) return obs_err_set(err, OBS_ENOMEM, "ibl_shadows: out of memory");
+  int rc = obs_ibl_frame_make(sc, rt, env, g, p, r->threads, r->cancel, f, st, err);
   if (rc) {
-    free(s);
+    free(f);
     return rc;
   }
-  const size_t N = (size_t)g->width * (size_t)g->height, S = (size_t)p->map_size;
-  ibl_job j = {.rt = rt, .g = g, .env = env, .s = s, .size = p->map_size, .bias = p->bias,
-               .ao = ao, .ao_raw = ao_raw, .extra = extra};
-  j.maps = malloc(S * S * (size_t)s->m * sizeof *j.maps);
-  j.raw = malloc(N * (size_t)s->n * 3 * sizeof *j.raw);
-  if (!j.maps || !j.raw) {
-    free(j.maps), free(j.raw), free(s);
-    return obs_err_set(err, OBS_ENOMEM, "ibl_shadows: %d maps of %d^2, %dx%d: out of memory",
-                       p->shadow_maps, p->map_size, g->width, g->height);
+  const size_t N = (size_t)g->width * (size_t)g->height, plane = 4 * N * OBS_IBL_GROUPS;
+  ibl_job j = {.g = g, .f = f};
+  obs_ibl_blur_weights(j.weights);
+  j.raw = malloc(3 * plane * sizeof *j.raw);
+  if (!j.raw) {
+    obs_ibl_frame_free(f), free(f);
+    return obs_err_set(err, OBS_ENOMEM, "ibl_shadows: %dx%d: out of memory", g->width, g->height);
   }
-  j.tmp = j.raw + N * (size_t)s->n;
-  j.res = j.tmp + N * (size_t)s->n;
-  place_maps(&j, sc);
-  r->passes = p->blur ? 5 : 3;
-  rc = obs_screen_cpu_tiles(r, p->map_size, p->map_size * s->m, map_tile, &j);
-  double t1 = obs_now_ms();
-  if (!rc) rc = obs_screen_cpu_tiles(r, g->width, g->height, fit_tile, &j);
-  double t2 = obs_now_ms();
-  if (!rc && p->blur) {
-    j.src = j.raw, j.dst = j.tmp, j.horizontal = 1;
-    rc = obs_screen_cpu_tiles(r, g->width, g->height, blur_tile, &j);
-    j.src = j.tmp, j.dst = j.res, j.horizontal = 0;
-    if (!rc) rc = obs_screen_cpu_tiles(r, g->width, g->height, blur_tile, &j);
-  } else if (!rc) {
-    memcpy(j.res, j.raw, N * (size_t)s->n * sizeof *j.raw);
+  j.tmp = j.raw + plane, j.res = j.tmp + plane;
+  memset(j.res, 0, plane * sizeof *j.res);
+  const int groups = (f->s.n + 3) / 4;
+  r->passes = 1 + (p->blur ? 2 * groups : 0);
+  rc = fit_blur(r, &j, p->blur, st + 2);
+  if (!rc) {
+    double t0 = obs_now_ms();
+    obs_ibl_export(f, g, env, j.raw, j.res, r->threads, ao, ao_raw, extra);
+    st[4] = obs_now_ms() - t0;
   }
-  double t3 = obs_now_ms();
-  if (!rc) rc = obs_screen_cpu_tiles(r, g->width, g->height, shade_tile, &j);
-  st[0] = t1 - t0, st[1] = t2 - t1, st[2] = t3 - t2, st[3] = obs_now_ms() - t3;
   if (stage_ms) memcpy(stage_ms, st, sizeof st);
-  free(j.maps), free(j.raw), free(s);
+  free(j.raw);
+  obs_ibl_frame_free(f), free(f);
   if (rc && rc != OBS_ECANCELED) return obs_err_set(err, rc, "ibl_shadows: CPU passes failed");
   return rc;
 }
@@ -267,6 +189,9 @@ int obs_ibl_shadows_cpu_apply(const obs_scene *sc, const obs_rt *rt, const obs_e
   obs_screen_cpu r = {.threads = threads};
   return ibl_passes(&r, sc, rt, env, g, p, ao, ao_raw, extra, stage_ms, err);
 }
+
+static const char *const stage_names[OBS_IBL_CPU_STAGES] = {"setup", "shadow_maps", "fit", "blur",
+                                                            "shade"};
 
 static int passes(obs_screen_cpu *r, const obs_gbuffer *g, const void *params, float *ao,
                   float *ao_raw, float *extra, obs_err *err) {
@@ -287,12 +212,10 @@ static int passes(obs_screen_cpu *r, const obs_gbuffer *g, const void *params, f
   double st[OBS_IBL_CPU_STAGES];
   int rc = ibl_passes(r, ctx->scene, ctx->rt, env, g, params, ao, ao_raw, extra, st, err);
   obs_env_free(&dark);
-  if (!rc) {
-    obs_screen_cpu_stage(r, "shadow_maps", st[0]);
-    obs_screen_cpu_stage(r, "fit", st[1]);
-    if (((const obs_ibl_shadows_params *)params)->blur) obs_screen_cpu_stage(r, "blur", st[2]);
-    obs_screen_cpu_stage(r, "shade", st[3]);
-  }
+  if (!rc)
+    for (int k = 0; k < OBS_IBL_CPU_STAGES; k++)
+      if (k != 3 || ((const obs_ibl_shadows_params *)params)->blur)
+        obs_screen_cpu_stage(r, stage_names[k], st[k]);
   return rc;
 }
 

@@ -5,16 +5,19 @@
 #ifndef OBS_IBL_SHADOWS_H
 #define OBS_IBL_SHADOWS_H
 
+#include <stdatomic.h>
 #include <stdint.h>
 
+#include "camera.h"
 #include "environment.h"
 #include "gbuffer.h"
 #include "obscura/error.h"
+#include "layout.h"
 #include "obscura/technique.h"
 
 struct obs_rt;
-
-#define OBS_IBL_MAX_MAPS 64
+typedef struct obs_vk obs_vk;
+typedef struct obs_vk_gbuffer obs_vk_gbuffer;
 
 /* Bound from the descriptor's parameter table. */
 typedef struct obs_ibl_shadows_params {
@@ -54,19 +57,71 @@ int obs_ibl_setup_make(const obs_env *env, const obs_ibl_shadows_params *p, obs_
 void obs_ibl_shade(const obs_ibl_setup *s, const float *w, const float rho[3],
                    const float n_world[3], float rgb[3], float *ao, float bent[3]);
 
+/* The table both backends' fit reads (the std430 layout of OBS_IBL_TABLE in layout.h). */
+typedef struct obs_ibl_table {
+  float dir[OBS_IBL_MAX_MAPS][4];
+  float tax[OBS_IBL_MAX_MAPS][4];
+  float bax[OBS_IBL_MAX_MAPS][4];
+  float yplus[OBS_SH_MAX_COEFFS * OBS_IBL_MAX_MAPS];
+} obs_ibl_table;
+
+/* Everything a render's passes share, made once on the host (ibl_maps.c): the set-up, where the
+ * maps look from, the fit's push block and table, the shadow maps (size x size per direction,
+ * stacked: map m's row r is row m size + r; the distance from the maps' plane to the first
+ * surface, OBS_IBL_FAR where none) and the camera. */
+typedef struct obs_ibl_frame {
+  obs_ibl_setup s;
+  obs_camera_rig rig;
+  double centre[3]; /* world centre of the bounding sphere */
+  double axis[OBS_IBL_MAX_MAPS][2][3];
+  obs_ibl_fit_push fit;
+  obs_ibl_table table;
+  float *maps; /* owned */
+} obs_ibl_frame;
+
+/* Makes the frame for G-buffer `g` of scene `sc` (its camera), the maps ray cast in `rt` with
+ * `threads` threads (cancellable). `ms` (may be NULL): set-up and maps. Free with
+ * obs_ibl_frame_free. */
+int obs_ibl_frame_make(const obs_scene *sc, const struct obs_rt *rt, const obs_env *env,
+                       const obs_gbuffer *g, const obs_ibl_shadows_params *p, int threads,
+                       const atomic_int *cancel, obs_ibl_frame *f, double ms[2], obs_err *err);
+void obs_ibl_frame_free(obs_ibl_frame *f);
+/* The blur's 1D window, exp(-i^2 / 10) for i = -4..4 (the article's). */
+void obs_ibl_blur_weights(float w[9]);
+
+/* Coefficients on the host: OBS_IBL_GROUPS planes of w x h x 4 floats, coefficient k of pixel i
+ * at ((k / 4) w h + i) 4 + k % 4, as the device's four images download. */
+static inline size_t obs_ibl_coef_at(size_t npix, size_t i, int k) {
+  return ((size_t)(k >> 2) * npix + i) * 4 + (size_t)(k & 3);
+}
+
 /* The extra channels after the screen drivers' fixed set. */
 enum { OBS_IBL_RADIANCE, OBS_IBL_BENT = 3, OBS_IBL_EXTRA = 6 };
 extern const char *const obs_ibl_shadows_extra_names[OBS_IBL_EXTRA];
 
-/* The CPU passes over G-buffer `g` of scene `sc` (camera `sc->camera`), shadow maps ray cast in
- * `rt`, lit by `env`: ao and ao_raw planes (w x h) and the extra planes (w x h each). stage_ms
- * (may be NULL): shadow maps, fit, blur, shade. */
-#define OBS_IBL_CPU_STAGES 4
+/* The outputs from the coefficients before (raw) and after (res) the blur, on both backends:
+ * covered pixels shaded by obs_ibl_shade, the background the environment along the camera ray
+ * (ao 1, bent normal 0). */
+void obs_ibl_export(const obs_ibl_frame *f, const obs_gbuffer *g, const obs_env *env,
+                    const float *raw, const float *res, int threads, float *ao, float *ao_raw,
+                    float *extra);
+
+/* The passes on each backend over G-buffer `g` (on Vulkan `dev`, with `g` its host copy),
+ * writing the ao and ao_raw planes (w x h) and the extra planes (w x h each). stage_ms (may be
+ * NULL): OBS_IBL_CPU_STAGES (set-up, shadow maps, fit, blur, shade) or OBS_IBL_VK_STAGES (set-up,
+ * shadow maps, fit, blur, readback, shade). `rt` may be NULL on Vulkan (a BVH is built). */
+#define OBS_IBL_CPU_STAGES 5
+#define OBS_IBL_VK_STAGES 6
 int obs_ibl_shadows_cpu_apply(const obs_scene *sc, const struct obs_rt *rt, const obs_env *env,
                               const obs_gbuffer *g, const obs_ibl_shadows_params *p, int threads,
                               float *ao, float *ao_raw, float *extra, double *stage_ms,
                               obs_err *err);
+int obs_ibl_shadows_vk_apply(obs_vk *vk, obs_vk_gbuffer *dev, const obs_scene *sc,
+                             const struct obs_rt *rt, const obs_env *env, const obs_gbuffer *g,
+                             const obs_ibl_shadows_params *p, int threads, float *ao,
+                             float *ao_raw, float *extra, double *stage_ms, obs_err *err);
 
 int obs_ibl_shadows_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
+int obs_ibl_shadows_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 
 #endif

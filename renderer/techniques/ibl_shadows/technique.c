@@ -78,6 +78,14 @@ static int ibl_reference(const obs_scene *scene, const json_t *params, obs_refer
 /* Lengths are relative to the scene's bounding sphere (maps) and texels (bias), so the result
  * is scale-free up to float rounding of the G-buffer's positions against the shadow maps' depths;
  * a texel edge can move a shadow test, hence a bound on a share of pixels. */
+#define IBL_RANGE                                                                       \
+  {                                                                                     \
+    .size_min = 1e-6, .size_max = 1e6, .translation_max = 1e6, .fov_min = 1e-2,         \
+    .fov_max = 170, .orthographic = 1, .params = {{NULL, 0, 0, 0}},                     \
+    .tol = {.ao_mean = 2e-3, .ao_pixel = 2e-2, .share = 0.03, .normal = 1e-4,           \
+            .depth_rel = 3e-5}                                                          \
+  }
+
 const obs_technique obs_technique_ibl_shadows = {
     .name = "ibl_shadows",
     .description = "Dynamic shadows for image-based lighting (Colbert and Krivanek, ShaderX7 "
@@ -93,17 +101,6 @@ const obs_technique obs_technique_ibl_shadows = {
              OBS_NEED_MATERIALS,
     .outputs = ibl_outputs,
     .reference = ibl_reference,
-    .run = {[OBS_BACKEND_CPU] = obs_ibl_shadows_cpu},
-    .range = {[OBS_BACKEND_CPU] = {.size_min = 1e-6,
-                                   .size_max = 1e6,
-                                   .translation_max = 1e6,
-                                   .fov_min = 1e-2,
-                                   .fov_max = 170,
-                                   .orthographic = 1,
-                                   .params = {{NULL, 0, 0, 0}},
-                                   .tol = {.ao_mean = 2e-3,
-                                           .ao_pixel = 2e-2,
-                                           .share = 0.03,
-                                           .normal = 1e-4,
-                                           .depth_rel = 3e-5}}},
+    .run = {[OBS_BACKEND_CPU] = obs_ibl_shadows_cpu, [OBS_BACKEND_VULKAN] = obs_ibl_shadows_vulkan},
+    .range = {[OBS_BACKEND_CPU] = IBL_RANGE, [OBS_BACKEND_VULKAN] = IBL_RANGE},
 };
