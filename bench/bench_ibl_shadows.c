@@ -121,30 +121,6 @@ static int run(const options *o, int w, int h, const char *name, const char *bac
   return rc;
 }
 
-static double lum(const obs_image *img, size_t i) {
-  return 0.2126 * obs_image_channel(img, "radiance.R")[i] +
-         0.7152 * obs_image_channel(img, "radiance.G")[i] +
-         0.0722 * obs_image_channel(img, "radiance.B")[i];
-}
-
-/* Luminance RMSE over the pixels both cover, the reference's noise (RMS luminance stderr) there. */
-static double rmse(const obs_image *a, const obs_image *ref, double *noise) {
-  size_t n = (size_t)a->width * (size_t)a->height, cnt = 0;
-  const float *aa = obs_image_channel(a, "alpha"), *ra = obs_image_channel(ref, "alpha");
-  const float *se[3] = {obs_image_channel(ref, "radiance_stderr.R"),
-                        obs_image_channel(ref, "radiance_stderr.G"),
-                        obs_image_channel(ref, "radiance_stderr.B")};
-  double ss = 0, nn = 0;
-  for (size_t i = 0; i < n; i++) {
-    if (!(aa[i] > 0) || !(ra[i] > 0)) continue;
-    double d = lum(a, i) - lum(ref, i);
-    double s = 0.2126 * se[0][i] + 0.7152 * se[1][i] + 0.0722 * se[2][i];
-    ss += d * d, nn += s * s, cnt++;
-  }
-  *noise = cnt ? sqrt(nn / (double)cnt) : 0;
-  return cnt ? sqrt(ss / (double)cnt) : 0;
-}
-
 static int fail(obs_err *err) {
   fprintf(stderr, "bench_ibl_shadows: %s\n", obs_err_message(err));
   obs_err_free(err);
@@ -203,7 +179,7 @@ static int errors(const options *o) {
                  "{\"shadow_maps\":%d,\"sh_order\":%d,\"map_size\":%d,\"blur\":%s}", o->maps[a],
                  o->orders[b], o->map_size, blur ? "true" : "false");
         if (run(o, w, h, "ibl_shadows", "cpu", params, 1, &res, &ms, &err)) return fail(&err);
-        e[1 - blur] = rmse(&res.image, &ref.image, &noise);
+        e[1 - blur] = bench_lum_rmse(&res.image, &ref.image, &noise);
         if (o->png && blur && o->maps[a] == 32 && o->orders[b] == 4) {
           snprintf(path, sizeof path, "%sibl_shadows.png", o->png);
           if (bench_write_radiance_png(&res.image, o->exposure, path, "bench_ibl_shadows"))

@@ -198,19 +198,12 @@ static int passes(obs_screen_cpu *r, const obs_gbuffer *g, const void *params, f
   obs_render_ctx *ctx = r->ctx;
   if (!ctx->rt)
     return obs_err_set(err, OBS_EINTERNAL, "%s: ibl_shadows: no BVH was built", ctx->scene->name);
-  /* A scene without an environment is lit by a black one: radiance 0, and the ao and bent normal
-   * still come, from directions uniform over the sphere (obs_ibl_setup_make). */
   obs_env dark;
-  memset(&dark, 0, sizeof dark);
-  const obs_env *env = ctx->environment;
-  if (!env) {
-    const double zero[3] = {0, 0, 0};
-    int rc = obs_env_constant(&dark, zero, err);
-    if (rc) return rc;
-    env = &dark;
-  }
+  const obs_env *env;
+  int rc = obs_ibl_env_of(ctx, &dark, &env, err);
+  if (rc) return rc;
   double st[OBS_IBL_CPU_STAGES];
-  int rc = ibl_passes(r, ctx->scene, ctx->rt, env, g, params, ao, ao_raw, extra, st, err);
+  rc = ibl_passes(r, ctx->scene, ctx->rt, env, g, params, ao, ao_raw, extra, st, err);
   obs_env_free(&dark);
   if (!rc)
     for (int k = 0; k < OBS_IBL_CPU_STAGES; k++)

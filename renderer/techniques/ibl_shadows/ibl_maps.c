@@ -187,3 +187,11 @@ void obs_ibl_export(const obs_ibl_frame *f, const obs_gbuffer *g, const obs_env 
   export_job j = {f, g, env, raw, res, ao, ao_raw, extra};
   obs_parallel_tiles(g->width, g->height, threads, export_tile, &j, NULL, NULL, NULL);
 }
+
+int obs_ibl_env_of(const obs_render_ctx *ctx, obs_env *dark, const obs_env **env, obs_err *err) {
+  memset(dark, 0, sizeof *dark);
+  *env = ctx->environment ? ctx->environment : dark;
+  if (ctx->environment) return 0;
+  const double zero[3] = {0, 0, 0};
+  return obs_env_constant(dark, zero, err);
+}

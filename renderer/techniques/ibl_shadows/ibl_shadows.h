@@ -86,6 +86,11 @@ int obs_ibl_frame_make(const obs_scene *sc, const struct obs_rt *rt, const obs_e
                        const obs_gbuffer *g, const obs_ibl_shadows_params *p, int threads,
                        const atomic_int *cancel, obs_ibl_frame *f, double ms[2], obs_err *err);
 void obs_ibl_frame_free(obs_ibl_frame *f);
+/* The environment a render lights with: the scene's, or, for a scene without one, a black
+ * constant one made in `dark` (radiance 0; the ao and bent normal still come, from directions
+ * uniform over the sphere), into *env. Free `dark` with obs_env_free after the run. Returns 0 or
+ * the constructor's code. */
+int obs_ibl_env_of(const obs_render_ctx *ctx, obs_env *dark, const obs_env **env, obs_err *err);
 /* The blur's 1D window, exp(-i^2 / 10) for i = -4..4 (the article's). */
 void obs_ibl_blur_weights(float w[9]);
 

@@ -36,7 +36,7 @@ static const obs_param ibl_params[] = {
     {.name = "sh_order", .type = OBS_PARAM_INT, .min = 1, .max = OBS_SH_MAX_BANDS, .def = 4,
      .description = "spherical-harmonic bands of the fit (order^2 coefficients; the article's 4)",
      .offset = P(sh_order)},
-    {.name = "map_size", .type = OBS_PARAM_INT, .min = 8, .max = 2048, .def = 256,
+    {.name = "map_size", .type = OBS_PARAM_INT, .min = 8, .max = 1024, .def = 256,
      .description = "shadow-map side in texels, over the scene's bounding sphere",
      .offset = P(map_size)},
     {.name = "tikhonov", .type = OBS_PARAM_FLOAT, .min = 0, .max = 100, .def = 0.2,

@@ -138,17 +138,12 @@ static int passes(obs_render_ctx *ctx, obs_vk *vk, obs_vk_gbuffer *dev, const ob
                   const void *params, float *ao, float *ao_raw, float *extra, obs_err *err) {
   const obs_ibl_shadows_params *p = params;
   obs_env dark;
-  memset(&dark, 0, sizeof dark);
-  const obs_env *env = ctx->environment;
-  if (!env) {
-    const double zero[3] = {0, 0, 0};
-    int rc = obs_env_constant(&dark, zero, err);
-    if (rc) return rc;
-    env = &dark;
-  }
+  const obs_env *env;
+  int rc = obs_ibl_env_of(ctx, &dark, &env, err);
+  if (rc) return rc;
   double st[OBS_IBL_VK_STAGES];
-  int rc = obs_ibl_shadows_vk_apply(vk, dev, ctx->scene, ctx->rt, env, host, p, ctx->threads, ao,
-                                    ao_raw, extra, st, err);
+  rc = obs_ibl_shadows_vk_apply(vk, dev, ctx->scene, ctx->rt, env, host, p, ctx->threads, ao,
+                                ao_raw, extra, st, err);
   obs_env_free(&dark);
   if (!rc)
     for (int k = 0; k < OBS_IBL_VK_STAGES; k++)
