@@ -206,10 +206,10 @@ static const char *const *end_companions(const char *name) {
 /* Ends whose cost is one fixed stage at its largest (a 512^3 proximity volume voxelised and
  * flooded, or its finest level at 512, or its flood run ten times as far; 4096 peeled directions
  * or 512^2 bundles; 65536 volume samples; 65536 paths per pixel, a loop count that sizes no
- * buffer; ibl_shadows' 1024^2 shadow maps: 1 to 60 s each under ASan). They are the same loops as at the default, at a larger
- * count; the release build renders them at the machine's own instruction-set level, and the
- * sanitizer builds and the lower levels' variants (whose paths the default and every other end
- * walk) leave these out, saying so. */
+ * buffer; ibl_shadows' 1024^2 shadow maps: 1 to 60 s each under ASan). They are the same loops
+ * as at the default, at a larger count; the release build renders them at the machine's own
+ * instruction-set level, and the sanitizer builds and the lower levels' variants (whose paths the
+ * default and every other end walk) leave these out, saying so. */
 static int release_only_end(const char *technique, const char *key, const char *value) {
   static const char *const ends[][3] = {{"proximity_ao", "volume_res", "512"},
                                         {"proximity_ao", "min_res", "512"},
