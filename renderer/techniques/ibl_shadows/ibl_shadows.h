@@ -57,7 +57,7 @@ int obs_ibl_setup_make(const obs_env *env, const obs_ibl_shadows_params *p, obs_
 void obs_ibl_shade(const obs_ibl_setup *s, const float *w, const float rho[3],
                    const float n_world[3], float rgb[3], float *ao, float bent[3]);
 
-/* The table both backends' fit reads (the std430 layout of OBS_IBL_TABLE in layout.h). */
+/* The table both backends' fit reads (its std430 layout in layout.h). */
 typedef struct obs_ibl_table {
   float dir[OBS_IBL_MAX_MAPS][4];
   float tax[OBS_IBL_MAX_MAPS][4];

@@ -1,6 +1,6 @@
 /* ibl_shadows' parameter blocks, declared once for C and GLSL (core/layout_glsl.h): the fit
  * pass's and the blur pass's push constants, and the limits the per-direction table obeys. The
- * table itself (directions, map axes and Y+) is the storage buffer described at OBS_IBL_TABLE. */
+ * table itself (directions, map axes and Y+) is the fit's storage buffer, described below. */
 #ifndef OBS_IBL_LAYOUT_H
 #define OBS_IBL_LAYOUT_H
 
@@ -15,9 +15,9 @@
 /* Beyond this cosine the depth bias stops growing with the slope (tan at most 10). */
 #define OBS_IBL_MIN_COS 0.0995
 #define OBS_IBL_MAX_SLOPE 10.0
-/* The table (std430): vec4 dir[64] (toward the environment), vec4 tax[64] and vec4 bax[64] (each
- * map's texel axes), float yplus[16 x 64] (Y+ row k at 64 k). */
-#define OBS_IBL_TABLE 1
+/* The table (std430, set 1 at binding OBS_VK_MAX_TEXTURES; obs_ibl_table in C): vec4 dir[64]
+ * (toward the environment), vec4 tax[64] and vec4 bax[64] (each map's texel axes), float
+ * yplus[16 x 64] (Y+ row k at 64 k). */
 
 #define OBS_IBL_ORTHO 1
 
