@@ -5,7 +5,8 @@
  * regularised pseudo-inverse recovering band-limited functions, an open plane under a constant
  * sky (visibility 1 and radiance albedo x L up to the order-4 fit's computed error), and
  * path_trace's environment-map path unbiased: a white furnace under a constant map and MIS
- * against BSDF sampling under the sun. */
+ * against BSDF sampling under the sun; and the reference hook (path_trace, one bounce). */
+#include <jansson.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -235,6 +236,38 @@ static void test_open_plane(void **state) {
   plane_case("\"map_size\":64,\"sh_order\":2", 32, 2, 0.2);
 }
 
+/* The reference is path_trace with one bounce (direct light, exact visibility) and the exposure
+ * copied; rendered on the plane it gives albedo x L exactly, which ibl_shadows matches up to its
+ * fit factor. */
+static void test_reference(void **state) {
+  (void)state;
+  obs_scene sc;
+  obs_test_load(obs_test_fmt(PLANE_DOC, "\"map_size\":64,\"exposure\":1.5"), "p.json", &sc);
+  obs_reference_def def;
+  memset(&def, 0, sizeof def);
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(obs_technique_reference(sc.technique, &sc, sc.params, NULL, &def, &err), 0);
+  assert_ptr_equal(def.technique, obs_technique_find("path_trace"));
+  assert_int_equal(def.response, OBS_RESPONSE_IDENTITY);
+  assert_int_equal(json_integer_value(json_object_get(def.params, "max_bounces")), 1);
+  assert_true(json_number_value(json_object_get(def.params, "exposure")) == 1.5);
+  char *params = json_dumps(def.params, JSON_COMPACT);
+  char *doc = strdup(obs_test_fmt(PLANE_DOC, "\"map_size\":64"));
+  char *t = strstr(doc, "\"technique\"");
+  snprintf(t, strlen(t) + 1, "\"technique\":{\"name\":\"path_trace\",\"params\":%s}}", params);
+  obs_result res;
+  obs_test_render(doc, 2, &res);
+  const float *r = obs_image_channel(&res.image, "radiance.R");
+  for (size_t i = 0; i < (size_t)res.image.width * res.image.height; i++)
+    assert_true(fabs(r[i] - 0.8 * 1.5) < 1e-5);
+  obs_result_free(&res);
+  free(doc);
+  free(params);
+  obs_reference_def_free(&def);
+  obs_scene_free(&sc);
+  obs_err_free(&err);
+}
+
 /* The mean of a radiance channel over covered pixels and its standard error from the per-pixel
  * errors (independent pixels). */
 static void channel_mean(const obs_image *img, const char *ch, const char *se, double *mean,
@@ -307,7 +340,7 @@ int main(void) {
       cmocka_unit_test(test_sh_orthonormal), cmocka_unit_test(test_sh_projection),
       cmocka_unit_test(test_pmf),            cmocka_unit_test(test_pinv),
       cmocka_unit_test(test_open_plane),     cmocka_unit_test(test_furnace),
-      cmocka_unit_test(test_mis_agrees),
+      cmocka_unit_test(test_mis_agrees),     cmocka_unit_test(test_reference),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
