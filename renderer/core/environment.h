@@ -1,9 +1,11 @@
 /* Environment lighting for image-based techniques (volume_ao lights an isosurface from the
- * environment seen along its bent normal): a cube map of linear RGB radiance built from a lat-long
- * image, six face images or a procedural sky; bilinear lookups; exact texel solid angles; and the
- * diffuse (cosine-convolved) environment through nine spherical-harmonic coefficients, with a
- * brute-force quadrature as its reference. No Embree, no Vulkan: the layout below is the one a
- * Vulkan cube image uses, so a sampler there reads the same faces. */
+ * environment seen along its bent normal; ibl_shadows fits shadow-map visibility in SH; path_trace
+ * light-samples maps): a cube map of linear RGB radiance built from a lat-long image, six face
+ * images or a procedural sky; bilinear lookups; exact texel solid angles; the diffuse
+ * (cosine-convolved) environment through nine spherical-harmonic coefficients, with a brute-force
+ * quadrature as its reference; real SH up to band 3 and the projection onto them; and importance
+ * sampling by luminance x sin theta (environment_sample.c). No Embree, no Vulkan: the layout below
+ * is the one a Vulkan cube image uses, so a sampler there reads the same faces. */
 #ifndef OBS_ENVIRONMENT_H
 #define OBS_ENVIRONMENT_H
 
