@@ -131,8 +131,10 @@ static int timing(const options *o, int have_vk) {
   obs_err err = OBS_ERR_INIT;
   obs_result res;
   memset(&res, 0, sizeof res);
-  printf("time per frame, %dx%d, map_size %d (build = G-buffer + BVH; render = maps + fit + blur "
-         "+ shade; the error table's figures do not depend on the backend: the twins agree bit for bit), median of %d:\n", o->size, o->size, o->map_size, o->repeats);
+  printf("time per frame, %dx%d, map_size %d (build = environment + G-buffer (+ BVH on the CPU); "
+         "render = maps (ray cast on the CPU, rasterised on Vulkan) + fit + blur + shade), median "
+         "of %d:\n",
+         o->size, o->size, o->map_size, o->repeats);
   printf("  %-8s %5s %10s %10s %10s   %s\n", "backend", "maps", "build ms", "render ms",
          "total ms", "stages (ms)");
   for (int b = 0; b < 2; b++)
@@ -154,7 +156,27 @@ static int timing(const options *o, int have_vk) {
   return 0;
 }
 
-static int errors(const options *o) {
+/* The Vulkan backend's error at 16 and 32 maps of order 4 (blur on): its maps are rasterised, so
+ * it differs from the CPU's table at shadow edges. */
+static int errors_vk(const options *o, const obs_result *ref, int w, int h) {
+  obs_err err = OBS_ERR_INIT;
+  obs_result res;
+  memset(&res, 0, sizeof res);
+  printf("  vulkan (rasterised maps), order 4, blur:\n");
+  for (int m = 16; m <= 32; m += 16) {
+    char params[160];
+    double ms, noise = 0;
+    snprintf(params, sizeof params, "{\"shadow_maps\":%d,\"sh_order\":4,\"map_size\":%d}", m,
+             o->map_size);
+    if (run(o, w, h, "ibl_shadows", "vulkan", params, 1, &res, &ms, &err)) return fail(&err);
+    printf("  %5d %6d %14.5f %14s %12.5f\n", m, 4, bench_lum_rmse(&res.image, &ref->image, &noise),
+           "", noise);
+  }
+  obs_result_free(&res);
+  return 0;
+}
+
+static int errors(const options *o, int have_vk) {
   obs_err err = OBS_ERR_INIT;
   obs_result ref, res;
   memset(&ref, 0, sizeof ref);
@@ -188,6 +210,7 @@ static int errors(const options *o) {
       }
       printf("  %5d %6d %14.5f %14.5f %12.5f\n", o->maps[a], o->orders[b], e[0], e[1], noise);
     }
+  if (have_vk && errors_vk(o, &ref, w, h)) return 1;
   obs_result_free(&res);
   obs_result_free(&ref);
   return 0;
@@ -202,6 +225,6 @@ int main(int argc, char **argv) {
          have_vk ? obs_backend_ops_get(OBS_BACKEND_VULKAN)->device_name() : "no device",
          o.threads);
   int rc = o.size ? timing(&o, have_vk) : 0;
-  if (!rc && o.err_size) rc = errors(&o);
+  if (!rc && o.err_size) rc = errors(&o, have_vk);
   return rc;
 }

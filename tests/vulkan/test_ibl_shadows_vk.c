@@ -1,6 +1,7 @@
-/* ibl_shadows on Vulkan against its CPU twin: one G-buffer, one BVH and one environment through
- * both fit and blur implementations (bit for bit, every output), perspective and orthographic,
- * and full renders through both backends, under the validation layer. */
+/* ibl_shadows on Vulkan against its CPU twin, under the validation layer: one G-buffer, one BVH
+ * and one environment through both fit and blur implementations fed the same (ray-cast) maps (bit
+ * for bit, every output) and through the Vulkan backend's own rasterised maps (within the bounds
+ * below), perspective and orthographic; and full renders through both backends. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -67,7 +68,7 @@ static void cross_backend(const char *camera, const char *label) {
     memset(v, 0xff, planes * n * sizeof(float));
     vktest_check_rc(obs_ibl_shadows_cpu_apply(&ps, &rt, &env, &g, &p, 2, c, c + n, c + 2 * n,
                                               NULL, &err), &err);
-    vktest_check_rc(obs_ibl_shadows_vk_apply(vk, &dev, &ps, &rt, &env, &g, &p, 2, v, v + n,
+    vktest_check_rc(obs_ibl_shadows_vk_apply(vk, &dev, &ps, &rt, &env, &g, &p, 1, 2, v, v + n,
                                              v + 2 * n, NULL, &err), &err);
     size_t same = 0, shadowed = 0, covered = 0;
     for (size_t i = 0; i < planes * n; i++) {
@@ -80,9 +81,42 @@ static void cross_backend(const char *camera, const char *label) {
     }
     printf("%-6s %-70s %zu/%zu exact, %zu of %zu covered pixels with raw ao < 0.8\n", label,
            param_sets[k], same, planes * n, shadowed, covered);
-    /* The same float operations in the same order on the same inputs: the same bits. */
+    /* Fed the same maps: the same float operations in the same order on the same inputs, so the
+     * same bits. */
     assert_int_equal(same, planes * n);
     assert_true(shadowed > 0);
+    /* The device's own maps, rasterised. */
+    memset(v, 0xff, planes * n * sizeof(float));
+    vktest_check_rc(obs_ibl_shadows_vk_apply(vk, &dev, &ps, &rt, &env, &g, &p, 0, 2, v, v + n,
+                                             v + 2 * n, NULL, &err), &err);
+    double dao = 0, dmax = 0, se = 0, sum = 0;
+    size_t off = 0;
+    for (size_t i = 0; i < planes * n; i++) assert_true(isfinite(v[i]));
+    for (size_t i = 0; i < n; i++) {
+      if (!(g.depth[i] > 0.0f)) continue;
+      double d = fabs((double)v[n + i] - c[n + i]);
+      dao += d, dmax = fmax(dmax, d), off += d > 0.05;
+      for (int ch = 0; ch < 3; ch++) {
+        double a = c[(2 + ch) * n + i], b = v[(2 + ch) * n + i];
+        se += (a - b) * (a - b), sum += a;
+      }
+    }
+    const double rel = sqrt(se / (3.0 * covered)) / (sum / (3.0 * covered));
+    printf("%-6s raster: raw ao mean |diff| %.2e max %.3f, %zu px > 0.05; radiance rmse/mean %.2e\n",
+           label, dao / covered, dmax, off, rel);
+    /* A rasterised texel holds what the ray through its centre hits except where a silhouette
+     * edge passes that centre (the rasteriser's tie rule against Embree's, and sphere facets up to
+     * a quarter texel inside the surface), so only receivers on a shadow's edge may change their
+     * test, by one map each. Measured on these sets (bias 1.5): mean |diff| <= 8e-4, at most 0.9%
+     * of pixels past 0.05, radiance RMSE <= 1% of its mean (unblurred coefficients); the bounds
+     * leave 2.5x. With bias 0 a lit plane's own depth ties with its test and flips by the ulp
+     * (acne, the same on both backends only in kind): measured 8e-3, bounded at 2e-2. */
+    const int unbiased = p.bias == 0.0f;
+    assert_true(dao / covered <= (unbiased ? 2e-2 : 2e-3));
+    if (!unbiased) {
+      assert_true((double)off <= 0.0225 * covered);
+      assert_true(rel <= 2.5e-2);
+    }
     obs_scene_free(&ps);
   }
   free(c);
@@ -109,14 +143,14 @@ static void pipeline_load(const char *backend, obs_scene *sc) {
   sky_load(48, 36, backend, "{\"map_size\":64}", NULL, sc);
 }
 
-/* Full renders on both backends: the same maps and shading, G-buffers that may differ only on
- * silhouettes (rasterised vs CPU), so the radiance agrees within an RMSE of 0.2% of its mean, and
- * every output is finite. */
+/* Full renders on both backends: G-buffers and shadow maps that differ only on silhouettes
+ * (rasterised vs ray cast), the same shading, so the radiance agrees within an RMSE of 1% of its
+ * mean (measured 0.31%), and every output is finite. */
 static void test_pipeline(void **state) {
   (void)state;
   obs_result r[2];
   double mean, rmse = vktest_pipeline_rmse(pipeline_load, r, &mean);
-  assert_true(rmse <= 2e-3 * mean);
+  assert_true(rmse <= 1e-2 * mean);
   obs_result_free(&r[0]);
   obs_result_free(&r[1]);
 }

@@ -62,7 +62,7 @@ OBS_HOT_INLINE void fit_pixel(const ibl_job *j, int x, int y) {
       if (u >= 0.0f && u < S && v >= 0.0f && v < S) {
         const size_t at = ((size_t)m * (size_t)pc->size + (size_t)(int)v) * (size_t)pc->size +
                           (size_t)(int)u;
-        const float occ = j->f->maps[at];
+        const float occ = j->f->maps[at] * pc->depth_scale;
         const float zz = pc->start - (q[0] * d[0] + q[1] * d[1] + q[2] * d[2]);
         const float slope = c < (float)OBS_IBL_MIN_COS ? (float)OBS_IBL_MAX_SLOPE
                                                        : sqrtf(1.0f - c * c) / c;
@@ -152,7 +152,11 @@ static int ibl_passes(obs_screen_cpu *r, const obs_scene *sc, const obs_rt *rt,
     return obs_err_set(err, OBS_EINVAL, "ibl_shadows: missing G-buffer or output");
   obs_ibl_frame *f = malloc(sizeof *f);
   if (!f) return obs_err_set(err, OBS_ENOMEM, "ibl_shadows: out of memory");
-  int rc = obs_ibl_frame_make(sc, rt, env, g, p, r->threads, r->cancel, f, st, err);
+  double t0 = obs_now_ms();
+  int rc = obs_ibl_frame_make(sc, &rt->geo, env, g, p, f, err);
+  double t1 = obs_now_ms();
+  if (!rc) rc = obs_ibl_maps_cast(f, rt, r->threads, r->cancel, err);
+  st[0] = t1 - t0, st[1] = obs_now_ms() - t1;
   if (rc) {
     free(f);
     return rc;

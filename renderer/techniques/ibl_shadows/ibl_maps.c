@@ -1,6 +1,7 @@
-/* ibl_shadows' host work shared by both backends: where the shadow maps look from, the maps ray
- * cast with Embree (the same bits whichever backend fits), the fit's push block and table, and
- * the shading of the fitted coefficients into the outputs (docs/techniques/ibl_shadows.md). */
+/* ibl_shadows' host work shared by both backends: where the shadow maps look from, the CPU's
+ * maps ray cast with Embree (the Vulkan backend rasterises its own, vulkan.c), the fit's push
+ * block and table, and the shading of the fitted coefficients into the outputs
+ * (docs/techniques/ibl_shadows.md). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -24,7 +25,6 @@ static void frame_of(const double d[3], double t[3], double b[3]) {
 typedef struct map_job {
   obs_ibl_frame *f;
   const obs_rt *rt;
-  double radius, start;
 } map_job;
 
 /* One shadow-map row per image row of a size x (m size) image: orthographic rays from the maps'
@@ -37,12 +37,12 @@ static int map_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
   for (int y = y0; y < y1; y++) {
     int m = y / S, row = y % S;
     const double *d = f->s.dir[m], *t = f->axis[m][0], *b = f->axis[m][1];
-    double ty = ((row + 0.5) / S * 2 - 1) * j->radius;
+    double ty = ((row + 0.5) / S * 2 - 1) * f->radius;
     const double dir[3] = {-d[0], -d[1], -d[2]};
     for (int x = x0; x < x1; x++) {
-      double tx = ((x + 0.5) / S * 2 - 1) * j->radius, org[3];
+      double tx = ((x + 0.5) / S * 2 - 1) * f->radius, org[3];
       for (int k = 0; k < 3; k++)
-        org[k] = f->centre[k] + d[k] * j->start + tx * t[k] + ty * b[k];
+        org[k] = f->centre[k] + d[k] * f->start + tx * t[k] + ty * b[k];
       obs_hit hit;
       float depth = (float)OBS_IBL_FAR;
       if (obs_rt_intersect(j->rt, org, dir, INFINITY, &hit)) depth = hit.t;
@@ -54,9 +54,8 @@ static int map_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
 
 /* The bounding sphere of the geometry (world), the maps' plane 1.5 radii out, each map's axes,
  * the camera relative to the centre, all in the fit's push block and table. */
-static void place(obs_ibl_frame *f, const obs_scene *sc, const obs_rt *rt, const obs_gbuffer *g,
-                  const obs_ibl_shadows_params *p, double *radius) {
-  const obs_geometry *geo = &rt->geo;
+static void place(obs_ibl_frame *f, const obs_scene *sc, const obs_geometry *geo,
+                  const obs_gbuffer *g, const obs_ibl_shadows_params *p) {
   double r2 = 0;
   for (int k = 0; k < 3; k++) {
     double h = 0.5 * (geo->bounds[1][k] - geo->bounds[0][k]);
@@ -65,7 +64,7 @@ static void place(obs_ibl_frame *f, const obs_scene *sc, const obs_rt *rt, const
   }
   /* A point-sized scene still gets maps of some extent. */
   double r = sqrt(r2) > 0 ? sqrt(r2) : fmax(1e-30, 1e-7 * geo->extent);
-  *radius = r;
+  f->radius = r, f->start = 1.5 * r;
   obs_camera_setup(&sc->camera, g->width, g->height, &f->rig);
   obs_ibl_fit_push *pc = &f->fit;
   pc->width = g->width, pc->height = g->height, pc->flags = g->ortho ? OBS_IBL_ORTHO : 0;
@@ -73,6 +72,7 @@ static void place(obs_ibl_frame *f, const obs_scene *sc, const obs_rt *rt, const
   pc->half_w = g->half_w, pc->half_h = g->half_h;
   pc->radius = (float)r, pc->start = (float)(1.5 * r);
   pc->texel_bias = (float)(p->bias * (2 * r / p->map_size));
+  pc->depth_scale = 1.0f;
   for (int k = 0; k < 3; k++) {
     pc->eye[k] = (float)(f->rig.origin[k] - f->centre[k]);
     pc->right[k] = (float)f->rig.right[k];
@@ -92,32 +92,30 @@ static void place(obs_ibl_frame *f, const obs_scene *sc, const obs_rt *rt, const
       f->table.yplus[k * OBS_IBL_MAX_MAPS + m] = f->s.yplus[k][m];
 }
 
-int obs_ibl_frame_make(const obs_scene *sc, const obs_rt *rt, const obs_env *env,
-                       const obs_gbuffer *g, const obs_ibl_shadows_params *p, int threads,
-                       const atomic_int *cancel, obs_ibl_frame *f, double ms[2], obs_err *err) {
+int obs_ibl_frame_make(const obs_scene *sc, const obs_geometry *geo, const obs_env *env,
+                       const obs_gbuffer *g, const obs_ibl_shadows_params *p, obs_ibl_frame *f,
+                       obs_err *err) {
   memset(f, 0, sizeof *f);
-  if (ms) ms[0] = ms[1] = 0;
-  if (!sc || !rt || !g || !p)
-    return obs_err_set(err, OBS_EINVAL, "ibl_shadows: missing scene, BVH, G-buffer or params");
+  if (!sc || !geo || !g || !p)
+    return obs_err_set(err, OBS_EINVAL, "ibl_shadows: missing scene, geometry, G-buffer or params");
   if (p->map_size < 1 || p->map_size > 4096 || p->sh_order < 1 ||
       p->sh_order > OBS_SH_MAX_BANDS)
     return obs_err_set(err, OBS_EINVAL, "ibl_shadows: map_size %d or sh_order %d out of range",
                        p->map_size, p->sh_order);
-  double t0 = obs_now_ms();
   int rc = obs_ibl_setup_make(env, p, &f->s, err);
-  if (rc) return rc;
-  map_job j = {.f = f, .rt = rt};
-  place(f, sc, rt, g, p, &j.radius);
-  j.start = 1.5 * j.radius;
-  const size_t S = (size_t)p->map_size;
-  f->maps = malloc(S * S * (size_t)f->s.m * sizeof *f->maps);
+  if (!rc) place(f, sc, geo, g, p);
+  return rc;
+}
+
+int obs_ibl_maps_cast(obs_ibl_frame *f, const obs_rt *rt, int threads, const atomic_int *cancel,
+                      obs_err *err) {
+  const int S = f->fit.size;
+  f->maps = malloc((size_t)S * (size_t)S * (size_t)f->s.m * sizeof *f->maps);
   if (!f->maps)
     return obs_err_set(err, OBS_ENOMEM, "ibl_shadows: %d shadow maps of %d^2: out of memory",
-                       f->s.m, p->map_size);
-  double t1 = obs_now_ms();
-  rc = obs_parallel_tiles(p->map_size, p->map_size * f->s.m, threads, map_tile, &j, cancel, NULL,
-                          NULL);
-  if (ms) ms[0] = t1 - t0, ms[1] = obs_now_ms() - t1;
+                       f->s.m, S);
+  map_job j = {.f = f, .rt = rt};
+  int rc = obs_parallel_tiles(S, S * f->s.m, threads, map_tile, &j, cancel, NULL, NULL);
   if (rc) {
     obs_ibl_frame_free(f);
     if (rc != OBS_ECANCELED) obs_err_set(err, rc, "ibl_shadows: shadow maps failed");

@@ -66,25 +66,30 @@ typedef struct obs_ibl_table {
 } obs_ibl_table;
 
 /* Everything a render's passes share, made once on the host (ibl_maps.c): the set-up, where the
- * maps look from, the fit's push block and table, the shadow maps (size x size per direction,
- * stacked: map m's row r is row m size + r; the distance from the maps' plane to the first
- * surface, OBS_IBL_FAR where none) and the camera. */
+ * maps look from, the fit's push block and table, the camera and, on the CPU, the shadow maps
+ * (size x size per direction, stacked: map m's row r is row m size + r; the distance from the
+ * maps' plane to the first surface, OBS_IBL_FAR where none). */
 typedef struct obs_ibl_frame {
   obs_ibl_setup s;
   obs_camera_rig rig;
   double centre[3]; /* world centre of the bounding sphere */
+  double radius;    /* its radius: the maps' half extent */
+  double start;     /* the maps' plane, this far from the centre along each direction */
   double axis[OBS_IBL_MAX_MAPS][2][3];
   obs_ibl_fit_push fit;
   obs_ibl_table table;
-  float *maps; /* owned */
+  float *maps; /* owned; NULL until obs_ibl_maps_cast */
 } obs_ibl_frame;
 
-/* Makes the frame for G-buffer `g` of scene `sc` (its camera), the maps ray cast in `rt` with
- * `threads` threads (cancellable). `ms` (may be NULL): set-up and maps. Free with
- * obs_ibl_frame_free. */
-int obs_ibl_frame_make(const obs_scene *sc, const struct obs_rt *rt, const obs_env *env,
-                       const obs_gbuffer *g, const obs_ibl_shadows_params *p, int threads,
-                       const atomic_int *cancel, obs_ibl_frame *f, double ms[2], obs_err *err);
+/* Makes the frame, without maps, for G-buffer `g` of scene `sc` (its camera) and geometry `geo`
+ * (any frame: its bounds place the maps). Free with obs_ibl_frame_free. */
+int obs_ibl_frame_make(const obs_scene *sc, const obs_geometry *geo, const obs_env *env,
+                       const obs_gbuffer *g, const obs_ibl_shadows_params *p, obs_ibl_frame *f,
+                       obs_err *err);
+/* The CPU's shadow maps into f->maps: orthographic rays from each texel centre of the maps' plane
+ * cast in `rt` with `threads` threads (cancellable). */
+int obs_ibl_maps_cast(obs_ibl_frame *f, const struct obs_rt *rt, int threads,
+                      const atomic_int *cancel, obs_err *err);
 void obs_ibl_frame_free(obs_ibl_frame *f);
 /* The environment a render lights with: the scene's, or, for a scene without one, a black
  * constant one made in `dark` (radiance 0; the ao and bent normal still come, from directions
@@ -114,7 +119,10 @@ void obs_ibl_export(const obs_ibl_frame *f, const obs_gbuffer *g, const obs_env 
 /* The passes on each backend over G-buffer `g` (on Vulkan `dev`, with `g` its host copy),
  * writing the ao and ao_raw planes (w x h) and the extra planes (w x h each). stage_ms (may be
  * NULL): OBS_IBL_CPU_STAGES (set-up, shadow maps, fit, blur, shade) or OBS_IBL_VK_STAGES (set-up,
- * shadow maps, fit, blur, readback, shade). `rt` may be NULL on Vulkan (a BVH is built). */
+ * shadow maps, fit, blur, readback, shade). On Vulkan the maps are rasterised on the device by
+ * depth-only passes (the geometry of `rt`, or built when `rt` is NULL), or with `host_maps` ray
+ * cast on the host as the CPU's and uploaded (a BVH is built when `rt` is NULL): the twin test's
+ * way to feed both fits the same maps. */
 #define OBS_IBL_CPU_STAGES 5
 #define OBS_IBL_VK_STAGES 6
 int obs_ibl_shadows_cpu_apply(const obs_scene *sc, const struct obs_rt *rt, const obs_env *env,
@@ -123,8 +131,9 @@ int obs_ibl_shadows_cpu_apply(const obs_scene *sc, const struct obs_rt *rt, cons
                               obs_err *err);
 int obs_ibl_shadows_vk_apply(obs_vk *vk, obs_vk_gbuffer *dev, const obs_scene *sc,
                              const struct obs_rt *rt, const obs_env *env, const obs_gbuffer *g,
-                             const obs_ibl_shadows_params *p, int threads, float *ao,
-                             float *ao_raw, float *extra, double *stage_ms, obs_err *err);
+                             const obs_ibl_shadows_params *p, int host_maps, int threads,
+                             float *ao, float *ao_raw, float *extra, double *stage_ms,
+                             obs_err *err);
 
 int obs_ibl_shadows_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 int obs_ibl_shadows_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);

@@ -12,7 +12,8 @@ layout(binding = 2, rgba32f) uniform writeonly image2D c0_img;
 layout(binding = 3, rgba32f) uniform writeonly image2D c1_img;
 layout(binding = 4, rgba32f) uniform writeonly image2D c2_img;
 layout(binding = 5, rgba32f) uniform writeonly image2D c3_img;
-// The shadow maps, one layer each (nearest, read with texelFetch).
+// The shadow maps, one layer each (nearest, read with texelFetch): distances from the maps' plane
+// in units of depth_scale (1 for the host's ray-cast maps; the depth range of rasterised ones).
 layout(set = 1, binding = 0) uniform sampler2DArray maps_tex;
 layout(set = 1, binding = 4, std430) readonly buffer table_buf {
   vec4 dir[OBS_IBL_MAX_MAPS];
@@ -56,7 +57,7 @@ void main() {
       precise float v = (dv / pc.radius + 1.0) * 0.5 * S;
       bool lit = true;
       if (u >= 0.0 && u < S && v >= 0.0 && v < S) {
-        float occ = texelFetch(maps_tex, ivec3(int(u), int(v), m), 0).r;
+        precise float occ = texelFetch(maps_tex, ivec3(int(u), int(v), m), 0).r * pc.depth_scale;
         precise float zz = pc.start - (q[0] * d.x + q[1] * d.y + q[2] * d.z);
         precise float slope = c < float(OBS_IBL_MIN_COS) ? float(OBS_IBL_MAX_SLOPE)
                                                          : sqrt(1.0 - c * c) / c;

@@ -12,6 +12,9 @@
 #define OBS_IBL_GROUPS 4
 /* A shadow-map texel with nothing in front of the receiver plane: farther than any depth. */
 #define OBS_IBL_FAR 3.0e38
+/* Rasterised maps keep depths from the maps' plane (1.5 radii out) over 3 radii, past the far
+ * side of the bounding sphere (2.5 radii): the cleared depth 1 is then farther than any receiver. */
+#define OBS_IBL_DEPTH_RANGE 3.0
 /* Beyond this cosine the depth bias stops growing with the slope (tan at most 10). */
 #define OBS_IBL_MIN_COS 0.0995
 #define OBS_IBL_MAX_SLOPE 10.0
@@ -34,6 +37,7 @@ OBS_PUSH_BEGIN(obs_ibl_fit_push)
   OBS_F32 radius;     /* the maps' half extent (the scene's bounding sphere) */
   OBS_F32 start;      /* the maps' plane: start along the direction from the centre */
   OBS_F32 texel_bias; /* bias x 2 radius / S */
+  OBS_F32 depth_scale; /* a map's value times this is the distance from the maps' plane */
   OBS_F32 eye[3];     /* the camera relative to the centre, world axes */
   OBS_F32 right[3];   /* the camera's axes in world space */
   OBS_F32 up[3];

@@ -1,13 +1,17 @@
-/* ibl_shadows on Vulkan: the fit and blur compute passes (ibl_shadows_fit.comp.glsl,
- * ibl_shadows_blur.comp.glsl, their push blocks in layout.h) over the device G-buffer, as two
- * plans for the Vulkan pass driver (plan_vk.h) run by the Vulkan screen-space driver
- * (screen_vk.h). The shadow maps are the host's (ibl_maps.c, ray cast with Embree) uploaded as a
- * 2D array texture, one layer a map, and the shading of the coefficients is the host's too, so
- * both twins fit from and shade with the same bits. The CPU twin is cpu.c. */
+/* ibl_shadows on Vulkan: the shadow maps rasterised by depth-only render passes (the device
+ * layer's obs_vk_depth_maps, one layer of a depth array texture a map), then the fit and blur
+ * compute passes (ibl_shadows_fit.comp.glsl, ibl_shadows_blur.comp.glsl, their push blocks in
+ * layout.h) over the device G-buffer, as two plans for the Vulkan pass driver (plan_vk.h) run by
+ * the Vulkan screen-space driver (screen_vk.h). The shading of the coefficients is the host's
+ * (ibl_maps.c), as on the CPU. The CPU twin is cpu.c; its maps are ray cast, so the backends
+ * differ where a silhouette crosses a map texel; fed the host's maps, the fit and blur match it
+ * bit for bit. */
 #include <stdlib.h>
 #include <string.h>
 
 #include "driver.h"
+#include "extent.h"
+#include "geometry.h"
 #include "ibl_shadows.h"
 #include "obscura/render.h"
 #include "plan_vk.h"
@@ -16,22 +20,30 @@
 #include "shaders.h"
 #include "techniques.h"
 
-/* The fit into the caller's four raw images, then the blur of each group into the result. */
-static int ibl_run(obs_vk *vk, obs_vk_gbuffer *g, const obs_ibl_frame *f,
-                   const obs_ibl_shadows_params *p, obs_vk_image *raw[4], float *raw_host,
-                   float *res_host, obs_vk_plan_times *t, obs_err *err) {
-  const int m = f->s.m, S = f->fit.size, groups = (f->s.n + 3) / 4;
-  const size_t N = (size_t)g->width * (size_t)g->height;
-  obs_vk_texture_desc desc = {.type = OBS_VK_TEXTURE_2D_ARRAY, .width = S, .height = S,
-                              .depth = m, .channels = 1, .linear = 0};
-  obs_vk_texture *maps = NULL;
-  obs_vk_data *table = NULL;
-  int rc = obs_vk_texture_create(vk, &desc, &maps, err);
-  if (!rc) {
-    const int at[3] = {0, 0, 0}, size[3] = {S, S, m};
-    rc = obs_vk_texture_upload(vk, maps, at, size, f->maps, err);
+/* Map m's window for obs_vk_depth_maps: its texel axes over the radius, and the distance from
+ * the maps' plane over the depth range (the fit scales a map's depth back by that range). */
+static void map_rows(const obs_ibl_frame *f, double (*rows)[3][4]) {
+  const double r = f->radius, range = OBS_IBL_DEPTH_RANGE * f->radius;
+  for (int m = 0; m < f->s.m; m++) {
+    for (int k = 0; k < 3; k++) {
+      rows[m][0][k] = f->axis[m][0][k] / r;
+      rows[m][1][k] = f->axis[m][1][k] / r;
+      rows[m][2][k] = -f->s.dir[m][k] / range;
+    }
+    rows[m][0][3] = rows[m][1][3] = 0;
+    rows[m][2][3] = f->start / range;
   }
-  if (!rc) rc = obs_vk_data_create(vk, &f->table, sizeof f->table, &table, err);
+}
+
+/* The fit into the caller's four raw images over `maps`, then the blur of each group into the
+ * result. */
+static int ibl_run(obs_vk *vk, obs_vk_gbuffer *g, const obs_ibl_frame *f,
+                   const obs_ibl_shadows_params *p, obs_vk_texture *maps, obs_vk_image *raw[4],
+                   float *raw_host, float *res_host, obs_vk_plan_times *t, obs_err *err) {
+  const int groups = (f->s.n + 3) / 4;
+  const size_t N = (size_t)g->width * (size_t)g->height;
+  obs_vk_data *table = NULL;
+  int rc = obs_vk_data_create(vk, &f->table, sizeof f->table, &table, err);
   enum { R0 = OBS_VK_PLAN_IMAGE0, R1, R2, R3, TMP, S0, S1, S2, S3 };
   if (!rc) {
     obs_vk_plan fit = {
@@ -73,7 +85,35 @@ static int ibl_run(obs_vk *vk, obs_vk_gbuffer *g, const obs_ibl_frame *f,
     }
   }
   obs_vk_data_free(vk, table);
-  obs_vk_texture_free(vk, maps);
+  return rc;
+}
+
+/* The maps on the device: uploaded from the host's ray casts (`rt`) or rasterised from `geo`;
+ * f->fit.depth_scale set to match. */
+static int make_maps(obs_vk *vk, obs_ibl_frame *f, const obs_rt *rt, const obs_geometry *geo,
+                     int threads, obs_vk_texture **maps, double *ms, obs_err *err) {
+  const int m = f->s.m, S = f->fit.size;
+  double t0 = obs_now_ms();
+  int rc;
+  if (rt) {
+    obs_vk_texture_desc desc = {.type = OBS_VK_TEXTURE_2D_ARRAY, .width = S, .height = S,
+                                .depth = m, .channels = 1, .linear = 0};
+    rc = obs_ibl_maps_cast(f, rt, threads, NULL, err);
+    if (!rc) rc = obs_vk_texture_create(vk, &desc, maps, err);
+    if (!rc) {
+      const int at[3] = {0, 0, 0}, size[3] = {S, S, m};
+      rc = obs_vk_texture_upload(vk, *maps, at, size, f->maps, err);
+    }
+    *ms = obs_now_ms() - t0;
+    return rc;
+  }
+  double(*rows)[3][4] = malloc((size_t)m * sizeof *rows);
+  if (!rows) return obs_err_set(err, OBS_ENOMEM, "ibl_shadows: out of memory");
+  map_rows(f, rows);
+  f->fit.depth_scale = (float)(OBS_IBL_DEPTH_RANGE * f->radius);
+  rc = obs_vk_depth_maps(vk, geo, f->centre, (const double(*)[3][4])rows, m, S, 2 * f->radius / S,
+                         maps, ms, err);
+  free(rows);
   return rc;
 }
 
@@ -82,54 +122,67 @@ static const char *const stages[OBS_IBL_VK_STAGES] = {"setup", "shadow_maps", "f
 
 int obs_ibl_shadows_vk_apply(obs_vk *vk, obs_vk_gbuffer *dev, const obs_scene *sc,
                              const obs_rt *rt, const obs_env *env, const obs_gbuffer *g,
-                             const obs_ibl_shadows_params *p, int threads, float *ao,
-                             float *ao_raw, float *extra, double *stage_ms, obs_err *err) {
+                             const obs_ibl_shadows_params *p, int host_maps, int threads,
+                             float *ao, float *ao_raw, float *extra, double *stage_ms,
+                             obs_err *err) {
   double st[OBS_IBL_VK_STAGES] = {0, 0, 0, 0, 0, 0};
   if (stage_ms) memcpy(stage_ms, st, sizeof st);
   if (!vk || !dev || !g || !p || !ao || !ao_raw || !extra || dev->width != g->width ||
       dev->height != g->height)
     return obs_err_set(err, OBS_EINVAL, "ibl_shadows: missing device, G-buffer or output");
   obs_rt own;
+  obs_geometry geo;
+  const obs_geometry *gp = rt ? &rt->geo : &geo;
   int built = 0, rc = 0;
-  if (!rt) {
-    double t0 = obs_now_ms();
+  double t0 = obs_now_ms();
+  if (!rt && host_maps) {
     rc = obs_rt_build_ex(sc, &own, threads, OBS_RT_FRAME_GEOMETRY, err);
-    st[0] += obs_now_ms() - t0;
-    if (rc) return rc;
-    rt = &own, built = 1;
+    rt = &own, gp = &own.geo, built = 1;
+  } else if (!rt) {
+    /* Built about the scene's centre, so the float vertices keep their precision at any
+     * translation. */
+    obs_extent ex;
+    double at[3] = {0, 0, 0};
+    rc = obs_scene_extent(sc, &ex, err);
+    for (int k = 0; !rc && !ex.empty && k < 3; k++) at[k] = 0.5 * (ex.bounds[0][k] + ex.bounds[1][k]);
+    if (!rc) rc = obs_geometry_build_at(sc, at, &geo, err);
+    built = 2;
   }
-  obs_ibl_frame *f = malloc(sizeof *f);
+  if (rc) return rc;
+  obs_ibl_frame *f = calloc(1, sizeof *f);
   const size_t N = (size_t)g->width * (size_t)g->height, plane = 4 * N * OBS_IBL_GROUPS;
   float *buf = malloc(2 * plane * sizeof *buf);
   obs_vk_image *raw[4] = {NULL, NULL, NULL, NULL};
-  double fm[2] = {0, 0};
-  if (!f || !buf) {
+  obs_vk_texture *maps = NULL;
+  if (!f || !buf)
     rc = obs_err_set(err, OBS_ENOMEM, "ibl_shadows: %dx%d: out of memory", g->width, g->height);
-  } else {
-    rc = obs_ibl_frame_make(sc, rt, env, g, p, threads, NULL, f, fm, err);
-    st[0] += fm[0], st[1] = fm[1];
+  else if (!(rc = obs_ibl_frame_make(sc, gp, env, g, p, f, err))) {
+    st[0] = obs_now_ms() - t0;
+    rc = make_maps(vk, f, host_maps ? rt : NULL, gp, threads, &maps, &st[1], err);
   }
   for (int k = 0; !rc && k < 4; k++) rc = obs_vk_image_create(vk, g->width, g->height, 4, &raw[k], err);
   if (!rc) {
     obs_vk_plan_times t = {0};
     memset(buf, 0, 2 * plane * sizeof *buf);
-    rc = ibl_run(vk, dev, f, p, raw, buf, buf + plane, &t, err);
+    rc = ibl_run(vk, dev, f, p, maps, raw, buf, buf + plane, &t, err);
     double vs[3];
     static const char *const names[3] = {"fit", "blur", "readback"};
     obs_vk_plan_stage_ms(&t, names, 3, vs);
     st[2] = vs[0], st[3] = vs[1], st[4] = vs[2];
   }
   if (!rc) {
-    double t0 = obs_now_ms();
+    double t1 = obs_now_ms();
     obs_ibl_export(f, g, env, buf, p->blur ? buf + plane : buf, threads, ao, ao_raw, extra);
-    st[5] = obs_now_ms() - t0;
+    st[5] = obs_now_ms() - t1;
   }
   for (int k = 0; k < 4; k++)
     if (raw[k]) obs_vk_image_free(vk, raw[k]);
-  if (f && f->maps) obs_ibl_frame_free(f);
+  obs_vk_texture_free(vk, maps);
+  if (f) obs_ibl_frame_free(f);
   free(f);
   free(buf);
-  if (built) obs_rt_free(&own);
+  if (built == 1) obs_rt_free(&own);
+  if (built == 2) obs_geometry_free(&geo);
   if (stage_ms) memcpy(stage_ms, st, sizeof st);
   return rc;
 }
@@ -142,8 +195,8 @@ static int passes(obs_render_ctx *ctx, obs_vk *vk, obs_vk_gbuffer *dev, const ob
   int rc = obs_ibl_env_of(ctx, &dark, &env, err);
   if (rc) return rc;
   double st[OBS_IBL_VK_STAGES];
-  rc = obs_ibl_shadows_vk_apply(vk, dev, ctx->scene, ctx->rt, env, host, p, ctx->threads, ao,
-                                ao_raw, extra, st, err);
+  rc = obs_ibl_shadows_vk_apply(vk, dev, ctx->scene, ctx->rt, env, host, p, 0, ctx->threads,
+                                ao, ao_raw, extra, st, err);
   obs_env_free(&dark);
   if (!rc)
     for (int k = 0; k < OBS_IBL_VK_STAGES; k++)
