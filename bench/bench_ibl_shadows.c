@@ -169,8 +169,8 @@ static int errors_vk(const options *o, const obs_result *ref, int w, int h) {
     snprintf(params, sizeof params, "{\"shadow_maps\":%d,\"sh_order\":4,\"map_size\":%d}", m,
              o->map_size);
     if (run(o, w, h, "ibl_shadows", "vulkan", params, 1, &res, &ms, &err)) return fail(&err);
-    printf("  %5d %6d %14.5f %14s %12.5f\n", m, 4, bench_lum_rmse(&res.image, &ref->image, &noise),
-           "", noise);
+    double e = bench_lum_rmse(&res.image, &ref->image, &noise);
+    printf("  %5d %6d %14.5f %14s %12.5f\n", m, 4, e, "", noise);
   }
   obs_result_free(&res);
   return 0;
