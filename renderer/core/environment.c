@@ -455,39 +455,63 @@ void obs_env_mean(const obs_env *e, double rgb[3]) {
 
 /* ---- spherical harmonics ----------------------------------------------------------------- */
 
-static void sh9_basis(const double d[3], double y[9]) {
+void obs_sh_basis(int bands, const double d[3], double *y) {
   const double k0 = 0.5 * sqrt(1 / PI), k1 = sqrt(3 / (4 * PI)), k2 = sqrt(15 / (4 * PI));
   const double k20 = sqrt(5 / (16 * PI)), k22 = sqrt(15 / (16 * PI));
   double x = d[0], yy = d[1], z = d[2];
   y[0] = k0;
+  if (bands < 2) return;
   y[1] = k1 * yy;
   y[2] = k1 * z;
   y[3] = k1 * x;
+  if (bands < 3) return;
   y[4] = k2 * x * yy;
   y[5] = k2 * yy * z;
   y[6] = k20 * (3 * z * z - 1);
   y[7] = k2 * x * z;
   y[8] = k22 * (x * x - yy * yy);
+  if (bands < 4) return;
+  const double k33 = 0.25 * sqrt(35 / (2 * PI)), k32 = 0.5 * sqrt(105 / PI);
+  const double k31 = 0.25 * sqrt(21 / (2 * PI)), k30 = 0.25 * sqrt(7 / PI);
+  const double k32b = 0.25 * sqrt(105 / PI);
+  y[9] = k33 * yy * (3 * x * x - yy * yy);
+  y[10] = k32 * x * yy * z;
+  y[11] = k31 * yy * (5 * z * z - 1);
+  y[12] = k30 * z * (5 * z * z - 3);
+  y[13] = k31 * x * (5 * z * z - 1);
+  y[14] = k32b * z * (x * x - yy * yy);
+  y[15] = k33 * x * (x * x - 3 * yy * yy);
 }
 
-static void sh9_add(void *user, const double d[3], double omega, const float *rgb) {
-  double(*coeffs)[3] = user, y[9];
-  sh9_basis(d, y);
-  for (int k = 0; k < 9; k++)
-    for (int c = 0; c < 3; c++) coeffs[k][c] += rgb[c] * y[k] * omega;
+typedef struct sh_sum {
+  int bands;
+  double (*coeffs)[3];
+} sh_sum;
+
+static void sh_add(void *user, const double d[3], double omega, const float *rgb) {
+  const sh_sum *s = user;
+  double y[OBS_SH_MAX_COEFFS];
+  int n = s->bands * s->bands;
+  obs_sh_basis(s->bands, d, y);
+  for (int k = 0; k < n; k++)
+    for (int c = 0; c < 3; c++) s->coeffs[k][c] += rgb[c] * y[k] * omega;
 }
 
-void obs_env_sh9(const obs_env *e, double coeffs[9][3]) {
-  memset(coeffs, 0, sizeof(double[9][3]));
-  if (e->data) env_foreach(e, sh9_add, coeffs);
+void obs_env_sh(const obs_env *e, int bands, double (*coeffs)[3]) {
+  bands = bands < 1 ? 1 : bands > OBS_SH_MAX_BANDS ? OBS_SH_MAX_BANDS : bands;
+  memset(coeffs, 0, sizeof(double[3]) * (size_t)(bands * bands));
+  sh_sum s = {bands, coeffs};
+  if (e->data) env_foreach(e, sh_add, &s);
 }
+
+void obs_env_sh9(const obs_env *e, double coeffs[9][3]) { obs_env_sh(e, 3, coeffs); }
 
 void obs_env_sh_irradiance(const double coeffs[9][3], const float n[3], float rgb[3]) {
   /* A_l / pi for bands 0, 1, 2 (Ramamoorthi and Hanrahan 2001: pi, 2 pi / 3, pi / 4). */
   static const double band[9] = {1, 2.0 / 3, 2.0 / 3, 2.0 / 3, 0.25, 0.25, 0.25, 0.25, 0.25};
   double v[3] = {n[0], n[1], n[2]}, d[3], y[9];
   int terms = normalise3(v, d) ? 9 : 1;
-  sh9_basis(terms == 9 ? d : v, y); /* y[0] does not depend on the direction */
+  obs_sh_basis(3, terms == 9 ? d : v, y); /* y[0] does not depend on the direction */
   for (int c = 0; c < 3; c++) {
     double sum = 0;
     for (int k = 0; k < terms; k++) sum += band[k] * coeffs[k][c] * y[k];

@@ -1,11 +1,15 @@
 /* Environment lighting for image-based techniques (volume_ao lights an isosurface from the
- * environment seen along its bent normal): a cube map of linear RGB radiance built from a lat-long
- * image, six face images or a procedural sky; bilinear lookups; exact texel solid angles; and the
- * diffuse (cosine-convolved) environment through nine spherical-harmonic coefficients, with a
- * brute-force quadrature as its reference. No Embree, no Vulkan: the layout below is the one a
- * Vulkan cube image uses, so a sampler there reads the same faces. */
+ * environment seen along its bent normal; ibl_shadows fits shadow-map visibility in SH; path_trace
+ * light-samples maps): a cube map of linear RGB radiance built from a lat-long image, six face
+ * images or a procedural sky; bilinear lookups; exact texel solid angles; the diffuse
+ * (cosine-convolved) environment through nine spherical-harmonic coefficients, with a brute-force
+ * quadrature as its reference; real SH up to band 3 and the projection onto them; and importance
+ * sampling by luminance x sin theta (environment_sample.c). No Embree, no Vulkan: the layout below
+ * is the one a Vulkan cube image uses, so a sampler there reads the same faces. */
 #ifndef OBS_ENVIRONMENT_H
 #define OBS_ENVIRONMENT_H
+
+#include <stdint.h>
 
 #include "obscura/error.h"
 #include "obscura/scene.h"
@@ -136,6 +140,20 @@ void obs_env_mean(const obs_env *e, double rgb[3]);
  *   6: Y20 = 0.315392 (3z^2-1)  7: Y21 = 1.092548 xz     8: Y22 = 0.546274 (x^2 - y^2)
  * (the exact constants sqrt(1/4pi), sqrt(3/4pi), sqrt(15/4pi), sqrt(5/16pi), sqrt(15/16pi)). */
 void obs_env_sh9(const obs_env *e, double coeffs[9][3]);
+/* The real spherical harmonics of bands 0..bands-1 (bands in 1..OBS_SH_MAX_BANDS, bands^2
+ * coefficients) at unit direction d, in the order above, then band 3 (m = -3..3):
+ *   9: 0.590044 y (3x^2 - y^2)    10: 2.890611 xyz            11: 0.457046 y (5z^2 - 1)
+ *  12: 0.373176 z (5z^2 - 3)      13: 0.457046 x (5z^2 - 1)   14: 1.445306 z (x^2 - y^2)
+ *  15: 0.590044 x (x^2 - 3y^2)
+ * (exact constants sqrt(35/2pi)/4, sqrt(105/pi)/2, sqrt(21/2pi)/4, sqrt(7/pi)/4, sqrt(105/pi)/4).
+ * Orthonormal over the sphere. */
+#define OBS_SH_MAX_BANDS 4
+#define OBS_SH_MAX_COEFFS 16
+void obs_sh_basis(int bands, const double d[3], double *y);
+/* The projection of the environment onto bands 0..bands-1 as obs_env_sh9 does (which is this
+ * with bands 3): bands^2 RGB coefficients. A constant radiance c gives c 2 sqrt(pi) in the first
+ * and 0 elsewhere. */
+void obs_env_sh(const obs_env *e, int bands, double (*coeffs)[3]);
 /* The diffuse-convolved environment at normal n from those coefficients (Ramamoorthi and Hanrahan
  * 2001, A0 = pi, A1 = 2 pi / 3, A2 = pi / 4), divided by pi: the outgoing radiance of a white
  * Lambertian surface (albedo 1) facing n, so a constant environment L gives L. The 9-term
@@ -149,6 +167,44 @@ void obs_env_sh_irradiance(const double coeffs[9][3], const float n[3], float rg
  * for polygons, so a constant environment gives its value at any resolution. O(res^2) per call.
  * A zero or non-finite n gives the mean radiance. */
 void obs_env_irradiance_ref(const obs_env *e, const float n[3], float rgb[3]);
+
+/* Importance sampling of an environment (environment_sample.c): a w x h lat-long grid over the
+ * cube map in obs_env_from_latlong's convention (pixel (x, y) spans u in [x, x + 1] / w and
+ * v in [y, y + 1] / h, v = theta / pi from +Y), whose probability mass function is each pixel's
+ * luminance (Rec. 709: 0.2126 R + 0.7152 G + 0.0722 B, looked up at its centre) times sin theta
+ * at its centre, normalised: the marginal over rows and the conditional within each row kept as
+ * cumulative sums (Colbert and Krivanek, ShaderX7 4.3; pbrt's Distribution2D). Within the chosen
+ * pixel the point is uniform in (u, v), so the density in solid angle at a direction of polar
+ * angle theta is pmf w h / (2 pi^2 sin theta). Owns its arrays; obs_env_dist_free releases. */
+typedef struct obs_env_dist {
+  int w, h;
+  double total;   /* the sum of all pixel weights (0: nothing to sample) */
+  double *row;    /* h + 1 entries: row[y] = sum of the weights of rows < y */
+  double *col;    /* h (w + 1) entries: col[y (w + 1) + x] = sum of row y's weights before x */
+} obs_env_dist;
+
+/* Builds the distribution over a w x h grid (w in 2..4096, h in 1..2048). OBS_EINVAL names the
+ * argument out of range; an environment without light gives total 0 (obs_env_dist_sample then
+ * returns 0). */
+int obs_env_dist_build(obs_env_dist *d, const obs_env *e, int w, int h, obs_err *err);
+void obs_env_dist_free(obs_env_dist *d);
+/* The grid both users build for a cube map of side res: 4 res x 2 res (about a cube texel per
+ * pixel at the equator), clamped to 16 x 8 .. 1024 x 512. */
+void obs_env_dist_grid(int res, int *w, int *h);
+/* The probability of pixel (x, y) (0 outside the grid). */
+double obs_env_dist_pmf(const obs_env_dist *d, int x, int y);
+/* The unit direction at lat-long position (u, v) in [0, 1]^2. */
+void obs_env_latlong_dir(double u, double v, double dir[3]);
+/* Maps (u0, u1) in [0, 1)^2 to a direction: the row is the first whose cumulative weight exceeds
+ * u0 times the total, the column likewise with u1 inside that row, and the remainders of u0 and
+ * u1 place the point inside the pixel (so stratified inputs stay stratified). Returns the density
+ * in solid angle (0 for an environment without light; dir is then +Y). */
+double obs_env_dist_sample(const obs_env_dist *d, double u0, double u1, double dir[3]);
+/* The density obs_env_dist_sample has at unit direction dir (0 where it never samples). */
+double obs_env_dist_pdf(const obs_env_dist *d, const double dir[3]);
+/* The folded Hammersley point i of n (Pharr and Humphreys 2004): (i + 0.5) / n and the folded
+ * radical inverse of i in base 2, both in [0, 1). */
+void obs_folded_hammersley(uint32_t i, uint32_t n, double *u0, double *u1);
 
 /* The environment of `sc` (its `env`: a colour, a lat-long file, six face files or the sky) as a
  * cube map, scaled by its intensity (environment_scene.c). Messages start "<scene>: /environment:

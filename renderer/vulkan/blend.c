@@ -138,35 +138,33 @@ void obs_vk_blender_free(obs_vk_blender *b) {
   memset(b, 0, sizeof *b);
 }
 
-/* A one-subpass render pass over one colour attachment of `format` that is a storage image kept
- * in GENERAL layout: cleared on load, stored, with full dependencies on the work around it. */
 int obs_vk_blend_pass(obs_vk *vk, VkFormat format, VkRenderPass *out, const char *what,
                       obs_err *err) {
-  VkAttachmentDescription att = {.format = format,
-                                 .samples = VK_SAMPLE_COUNT_1_BIT,
-                                 .loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR,
-                                 .storeOp = VK_ATTACHMENT_STORE_OP_STORE,
-                                 .stencilLoadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE,
-                                 .stencilStoreOp = VK_ATTACHMENT_STORE_OP_DONT_CARE,
-                                 .initialLayout = VK_IMAGE_LAYOUT_GENERAL,
-                                 .finalLayout = VK_IMAGE_LAYOUT_GENERAL};
-  VkAttachmentReference cref = {0, VK_IMAGE_LAYOUT_GENERAL};
+  return obs_vk_single_pass(vk, format, 0, out, what, err);
+}
+
+/* One attachment cleared on load and stored, one subpass, full dependencies on the work around
+ * it: a colour attachment that is a storage image kept in GENERAL layout, or a depth attachment
+ * left for sampling (SHADER_READ_ONLY_OPTIMAL). */
+int obs_vk_single_pass(obs_vk *vk, VkFormat format, int depth, VkRenderPass *out,
+                       const char *what, obs_err *err) {
+  VkAttachmentDescription att = {
+      .format = format,
+      .samples = VK_SAMPLE_COUNT_1_BIT,
+      .loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR,
+      .storeOp = VK_ATTACHMENT_STORE_OP_STORE,
+      .stencilLoadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE,
+      .stencilStoreOp = VK_ATTACHMENT_STORE_OP_DONT_CARE,
+      .initialLayout = depth ? VK_IMAGE_LAYOUT_UNDEFINED : VK_IMAGE_LAYOUT_GENERAL,
+      .finalLayout = depth ? VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL : VK_IMAGE_LAYOUT_GENERAL};
+  VkAttachmentReference ref = {
+      0, depth ? VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL : VK_IMAGE_LAYOUT_GENERAL};
   VkSubpassDescription sub = {.pipelineBindPoint = VK_PIPELINE_BIND_POINT_GRAPHICS,
-                              .colorAttachmentCount = 1,
-                              .pColorAttachments = &cref};
-  VkSubpassDependency dep[2] = {
-      {.srcSubpass = VK_SUBPASS_EXTERNAL,
-       .dstSubpass = 0,
-       .srcStageMask = VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
-       .dstStageMask = VK_PIPELINE_STAGE_ALL_GRAPHICS_BIT,
-       .srcAccessMask = VK_ACCESS_MEMORY_WRITE_BIT,
-       .dstAccessMask = VK_ACCESS_MEMORY_READ_BIT | VK_ACCESS_MEMORY_WRITE_BIT},
-      {.srcSubpass = 0,
-       .dstSubpass = VK_SUBPASS_EXTERNAL,
-       .srcStageMask = VK_PIPELINE_STAGE_ALL_GRAPHICS_BIT,
-       .dstStageMask = VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
-       .srcAccessMask = VK_ACCESS_MEMORY_WRITE_BIT,
-       .dstAccessMask = VK_ACCESS_MEMORY_READ_BIT | VK_ACCESS_MEMORY_WRITE_BIT}};
+                              .colorAttachmentCount = depth ? 0 : 1,
+                              .pColorAttachments = depth ? NULL : &ref,
+                              .pDepthStencilAttachment = depth ? &ref : NULL};
+  VkSubpassDependency dep[2];
+  obs_vk_pass_deps(dep);
   VkRenderPassCreateInfo rpci = {.sType = VK_STRUCTURE_TYPE_RENDER_PASS_CREATE_INFO,
                                  .attachmentCount = 1,
                                  .pAttachments = &att,

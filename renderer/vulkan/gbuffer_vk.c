@@ -217,10 +217,20 @@ static int target_create(obs_vk *vk, int w, int h, int t, gb_target *out, obs_er
 
 /* ---- spheres ---- */
 
-/* Longitude segments for a UV sphere whose facets stay within 0.25 pixel of the true surface. The
- * facet deviation is bounded by r (1 - cos step) (a corner's worth, conservative); a displacement
- * delta at view depth z and distance d moves the image by at most delta d / z^2 (the largest
- * singular value of the projection's Jacobian), evaluated at the sphere's nearest depth. */
+/* Longitude segments for a UV sphere whose facets stay within a quarter of a raster cell of the
+ * true surface, `ppu` cells per world unit near it, and whose steps are at most `max_step` radians.
+ * The facet deviation is bounded by r (1 - cos step) (a corner's worth, conservative). */
+int obs_vk_sphere_segments(double r, double ppu, double max_step) {
+  double x = 0.25 / (r * ppu);
+  double step = x >= 1.0 ? PI / 2 : acos(1.0 - x);
+  if (step > max_step) step = max_step;
+  double n = ceil(2.0 * PI / step / 4.0) * 4.0;
+  return n > SPHERE_MAX_LON ? SPHERE_MAX_LON : (int)n;
+}
+
+/* The G-buffer's: a displacement delta at view depth z and distance d moves the image by at most
+ * delta d / z^2 (the largest singular value of the projection's Jacobian), evaluated at the
+ * sphere's nearest depth; facet normals within SPHERE_NORMAL_STEP of the sphere's. */
 static int sphere_segments(const obs_camera_rig *rig, const obs_sphere *s, const double shift[3]) {
   double r = s->radius;
   double ppu = rig->height / (2.0 * rig->half_h); /* pixels per unit (orthographic) */
@@ -231,21 +241,17 @@ static int sphere_segments(const obs_camera_rig *rig, const obs_sphere *s, const
     if (!(z > 1e-3 * r)) return SPHERE_MAX_LON; /* reaches the camera's plane */
     ppu *= d / (z * z);
   }
-  double x = 0.25 / (r * ppu);
-  double step = x >= 1.0 ? PI / 2 : acos(1.0 - x);
-  if (step > SPHERE_NORMAL_STEP) step = SPHERE_NORMAL_STEP;
-  double n = ceil(2.0 * PI / step / 4.0) * 4.0;
-  return n > SPHERE_MAX_LON ? SPHERE_MAX_LON : (int)n;
+  return obs_vk_sphere_segments(r, ppu, SPHERE_NORMAL_STEP);
 }
 
 /* Vertices of an n x n/2 UV sphere: caps are single triangles, other bands two per quad. */
-static size_t sphere_vertices(int n) {
+size_t obs_vk_sphere_vertices(int n) {
   size_t lon = (size_t)n, lat = (size_t)n / 2;
   return 3 * (2 * lon + 2 * lon * (lat - 2));
 }
 
-/* `shift` takes the geometry's frame to the camera's (geometry origin - camera origin). */
-static int sphere_fill(const obs_sphere *s, int n, const double shift[3], double *out) {
+/* `shift` takes the geometry's frame to the target's (e.g. geometry origin - camera origin). */
+int obs_vk_sphere_fill(const obs_sphere *s, int n, const double shift[3], double *out) {
   int lat = n / 2;
   double *tab = malloc(((size_t)n + (size_t)lat + 1) * 2 * sizeof *tab);
   if (!tab) return OBS_ENOMEM;
@@ -328,9 +334,9 @@ static size_t clip_all(const obs_geometry *geo, const int *seg, const double shi
   }
   for (size_t s = 0; s < geo->nspheres; s++, k++) {
     if (d) d[k].first = (uint32_t)total;
-    size_t nv = seg[s] ? sphere_vertices(seg[s]) : 0;
+    size_t nv = seg[s] ? obs_vk_sphere_vertices(seg[s]) : 0;
     double *tess = nv ? malloc(nv * 3 * sizeof *tess) : NULL;
-    if (nv && (!tess || sphere_fill(&geo->spheres[s], seg[s], shift, tess))) {
+    if (nv && (!tess || obs_vk_sphere_fill(&geo->spheres[s], seg[s], shift, tess))) {
       free(tess);
       *rc = OBS_ENOMEM;
       return 0;

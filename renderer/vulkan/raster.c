@@ -1,5 +1,6 @@
 /* The Vulkan device layer's raster pipelines (the G-buffer, depth peeling, the blending passes
- * of blend.c) and shader modules: the fixed-function state they share, written once. */
+ * of blend.c, the depth maps of depth_maps.c), their render passes' dependencies and shader
+ * modules: the fixed-function state they share, written once. */
 #include <stdio.h>
 
 #include "vk_internal.h"
@@ -128,4 +129,20 @@ int obs_vk_blend_pipeline(obs_vk *vk, const obs_vk_blend *b, VkPipeline *out, ob
                                              .colorWriteMask = b->write};
   return build(vk, st, n, b->input ? b->input : &none, b->topology, NULL, &cba, 1, b->layout,
                b->pass, b->what, out, err);
+}
+
+void obs_vk_pass_deps(VkSubpassDependency dep[2]) {
+  const VkAccessFlags all = VK_ACCESS_MEMORY_READ_BIT | VK_ACCESS_MEMORY_WRITE_BIT;
+  dep[0] = (VkSubpassDependency){.srcSubpass = VK_SUBPASS_EXTERNAL,
+                                 .dstSubpass = 0,
+                                 .srcStageMask = VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
+                                 .dstStageMask = VK_PIPELINE_STAGE_ALL_GRAPHICS_BIT,
+                                 .srcAccessMask = VK_ACCESS_MEMORY_WRITE_BIT,
+                                 .dstAccessMask = all};
+  dep[1] = (VkSubpassDependency){.srcSubpass = 0,
+                                 .dstSubpass = VK_SUBPASS_EXTERNAL,
+                                 .srcStageMask = VK_PIPELINE_STAGE_ALL_GRAPHICS_BIT,
+                                 .dstStageMask = VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
+                                 .srcAccessMask = VK_ACCESS_MEMORY_WRITE_BIT,
+                                 .dstAccessMask = all};
 }

@@ -140,6 +140,10 @@ static int make_view(obs_vk *vk, obs_vk_texture *t, obs_err *err) {
     t->view = VK_NULL_HANDLE;
     return rc;
   }
+  return obs_vk_texture_sampler(vk, t, err);
+}
+
+int obs_vk_texture_sampler(obs_vk *vk, obs_vk_texture *t, obs_err *err) {
   VkFilter f = t->desc.linear ? VK_FILTER_LINEAR : VK_FILTER_NEAREST;
   VkSamplerCreateInfo sci = {.sType = VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO,
                              .magFilter = f,
@@ -149,9 +153,9 @@ static int make_view(obs_vk *vk, obs_vk_texture *t, obs_err *err) {
                              .addressModeV = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE,
                              .addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE,
                              .maxLod = 0};
-  if ((rc = obs_vk_check(vk, vkCreateSampler(vk->dev, &sci, NULL, &t->sampler), "vkCreateSampler",
-                         err)))
-    t->sampler = VK_NULL_HANDLE;
+  int rc = obs_vk_check(vk, vkCreateSampler(vk->dev, &sci, NULL, &t->sampler), "vkCreateSampler",
+                        err);
+  if (rc) t->sampler = VK_NULL_HANDLE;
   return rc;
 }
 

@@ -124,6 +124,18 @@ int obs_vk_texture_upload(obs_vk *vk, obs_vk_texture *t, const int at[3], const 
                           const float *data, obs_err *err);
 void obs_vk_texture_free(obs_vk *vk, obs_vk_texture *t);
 
+/* Orthographic depth maps of a geometry (shadow maps), rasterised by depth-only render passes,
+ * one a layer of a 1-channel 2D array texture of size x size x n that compute passes then read
+ * like any texture (texelFetch; .r is the depth). With p a world position minus `centre`, map i
+ * puts p at x_ndc = rows[i][0] . (p, 1) and y_ndc = rows[i][1] . (p, 1) (texel (x, y) covers
+ * x_ndc in [2x / size - 1, 2(x + 1) / size - 1], sampled at its centre, y likewise) and at depth
+ * rows[i][2] . (p, 1); the nearest depth in [0, 1] is kept, and texels with nothing there read 1.
+ * Both faces of every triangle are drawn; spheres as UV spheres whose facets stay within a
+ * quarter of `texel` (world units per texel) of the surface. `ms` (may be NULL): device time. */
+int obs_vk_depth_maps(obs_vk *vk, const obs_geometry *geo, const double centre[3],
+                      const double (*rows)[3][4], int n, int size, double texel,
+                      obs_vk_texture **out, double *ms, obs_err *err);
+
 /* A small read-only storage buffer (a pass's parameters: per-object transforms, lights, tables),
  * copied to device memory at creation. At most the device's maxStorageBufferRange. */
 typedef struct obs_vk_data obs_vk_data;

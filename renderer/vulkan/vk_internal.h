@@ -117,6 +117,9 @@ int obs_vk_slab_slices(VkDeviceSize slice, int depth);
 int obs_vk_tex_layout(obs_vk *vk, int ntextures, int data, VkDescriptorSetLayout *set,
                       VkPipelineLayout *out, obs_err *err);
 
+/* The sampler of texture t (texture.c): clamp to edge, t->desc.linear or nearest filtering. */
+int obs_vk_texture_sampler(obs_vk *vk, obs_vk_texture *t, obs_err *err);
+
 /* A shader module from SPIR-V; errors name `what`. */
 int obs_vk_shader(obs_vk *vk, const uint32_t *code, size_t size, VkShaderModule *out,
                   const char *what, obs_err *err);
@@ -137,11 +140,26 @@ typedef struct obs_vk_raster {
 } obs_vk_raster;
 int obs_vk_raster_pipeline(obs_vk *vk, const obs_vk_raster *r, VkPipeline *out, obs_err *err);
 
+/* The raster passes' UV spheres (gbuffer_vk.c): longitude segments for facets within a quarter
+ * of a cell of the surface at `ppu` cells per world unit, steps of at most `max_step` radians;
+ * the vertex count of such an n x n/2 sphere; its triangles (3 doubles a vertex, positions
+ * shifted by `shift`) into `out`. OBS_ENOMEM from the fill. */
+int obs_vk_sphere_segments(double radius, double ppu, double max_step);
+size_t obs_vk_sphere_vertices(int n);
+int obs_vk_sphere_fill(const obs_sphere *s, int n, const double shift[3], double *out);
+
+/* A single-subpass render pass's two dependencies (raster.c): on everything before it and
+ * everything after it, full memory access both ways (these passes sit between whole passes). */
+void obs_vk_pass_deps(VkSubpassDependency dep[2]);
 /* The render pass of a blending pass into a storage image: one subpass, one colour attachment
  * of `format` kept in GENERAL layout, cleared on load and stored, fully ordered against the work
  * before and after it; errors name `what`. */
 int obs_vk_blend_pass(obs_vk *vk, VkFormat format, VkRenderPass *out, const char *what,
                       obs_err *err);
+/* The same pass over one attachment of `format` (blend.c): with `depth`, a depth attachment
+ * cleared and stored, undefined before and SHADER_READ_ONLY_OPTIMAL after (sampled next). */
+int obs_vk_single_pass(obs_vk *vk, VkFormat format, int depth, VkRenderPass *out,
+                       const char *what, obs_err *err);
 /* A blending pipeline of the device layer over such a pass: vertex, optional geometry and
  * fragment shaders, no culling (the shaders emit only the faces they mean), no depth test, one
  * sample, one attachment blended with the same factors for colour and alpha, viewport and

@@ -198,17 +198,18 @@ static int numeric_ends(const json_t *prop, double ends[2]) {
  * the check is about. */
 static const char *const *end_companions(const char *name) {
   static const char *const omap[] = {"directions", "16", "bundle_resolution", "16", NULL};
+  static const char *const ibl[] = {"shadow_maps", "4", "map_size", "64", NULL};
   static const char *const none[] = {NULL};
-  return !strcmp(name, "obscurance_map") ? omap : none;
+  return !strcmp(name, "obscurance_map") ? omap : !strcmp(name, "ibl_shadows") ? ibl : none;
 }
 
 /* Ends whose cost is one fixed stage at its largest (a 512^3 proximity volume voxelised and
  * flooded, or its finest level at 512, or its flood run ten times as far; 4096 peeled directions
  * or 512^2 bundles; 65536 volume samples; 65536 paths per pixel, a loop count that sizes no
- * buffer: 3 to 60 s each under ASan). They are the same loops as at the default, at a larger
- * count; the release build renders them at the machine's own instruction-set level, and the
- * sanitizer builds and the lower levels' variants (whose paths the default and every other end
- * walk) leave these out, saying so. */
+ * buffer; ibl_shadows' 1024^2 shadow maps: 1 to 60 s each under ASan). They are the same loops
+ * as at the default, at a larger count; the release build renders them at the machine's own
+ * instruction-set level, and the sanitizer builds and the lower levels' variants (whose paths the
+ * default and every other end walk) leave these out, saying so. */
 static int release_only_end(const char *technique, const char *key, const char *value) {
   static const char *const ends[][3] = {{"proximity_ao", "volume_res", "512"},
                                         {"proximity_ao", "min_res", "512"},
@@ -216,7 +217,8 @@ static int release_only_end(const char *technique, const char *key, const char *
                                         {"obscurance_map", "directions", "4096"},
                                         {"obscurance_map", "bundle_resolution", "512"},
                                         {"volume_ao", "samples", "65536"},
-                                        {"path_trace", "samples", "65536"}};
+                                        {"path_trace", "samples", "65536"},
+                                        {"ibl_shadows", "map_size", "1024"}};
   for (size_t i = 0; i < sizeof ends / sizeof ends[0]; i++)
     if (!strcmp(ends[i][0], technique) && !strcmp(ends[i][1], key) && !strcmp(ends[i][2], value))
       return 1;

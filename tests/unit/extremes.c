@@ -46,6 +46,7 @@ const char *obs_extremes_fast_params(const char *name) {
   if (!strcmp(name, "obscurance")) return "\"samples\":16,\"light_samples\":1";
   /* 16 directions: the fewest whose standard errors are calibrated (fewer warn). */
   if (!strcmp(name, "obscurance_map")) return "\"directions\":16";
+  if (!strcmp(name, "ibl_shadows")) return "\"shadow_maps\":8,\"map_size\":64";
   return "";
 }
 

@@ -119,34 +119,18 @@ static void test_cross_cornell_ortho(void **state) {
   cross_backend(ORTHO_CAMERA, "ortho");
 }
 
+static void pipeline_load(const char *backend, obs_scene *sc) {
+  cornell_load(32, 32, backend, "{\"vpls\":64}", NULL, sc);
+}
+
 /* Full renders on both backends: the same VPLs and emission, G-buffers that may differ only on
  * silhouettes (rasterised vs CPU), so the radiance agrees within an RMSE of 1e-3 of its mean and
  * each output is finite and in range. */
 static void test_pipeline(void **state) {
   (void)state;
-  vktest_need_vk();
   obs_result r[2];
-  for (int b = 0; b < 2; b++) {
-    obs_scene sc;
-    cornell_load(32, 32, b ? "vulkan" : "cpu", "{\"vpls\":64}", NULL, &sc);
-    obs_err err = OBS_ERR_INIT;
-    obs_render_opts o = {.threads = 2};
-    vktest_check_rc(obs_render(&sc, &o, &r[b], &err), &err);
-    obs_scene_free(&sc);
-    obs_err_free(&err);
-    obs_test_assert_finite(&r[b].image);
-  }
-  assert_int_equal(r[1].backend, OBS_BACKEND_VULKAN);
+  double mean, rmse = vktest_pipeline_rmse(pipeline_load, r, &mean);
   size_t n = 32 * 32;
-  double ss = 0, sum = 0;
-  static const char *const f[3] = {"radiance.R", "radiance.G", "radiance.B"};
-  for (int k = 0; k < 3; k++) {
-    const float *a = obs_image_channel(&r[0].image, f[k]),
-                *v = obs_image_channel(&r[1].image, f[k]);
-    for (size_t i = 0; i < n; i++) ss += ((double)a[i] - v[i]) * ((double)a[i] - v[i]), sum += a[i];
-  }
-  double rmse = sqrt(ss / (3.0 * (double)n)), mean = sum / (3.0 * (double)n);
-  printf("pipeline cpu vs vulkan: radiance rmse %.3g (mean %.3g)\n", rmse, mean);
   for (size_t i = 0; i < n; i++) assert_true(obs_image_channel(&r[1].image, "ao")[i] == 1.0f);
   assert_true(rmse <= 1e-3 * mean);
   obs_result_free(&r[0]);

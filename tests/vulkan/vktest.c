@@ -98,3 +98,30 @@ size_t vktest_assert_region(const obs_result *whole, const obs_result *part, obs
       }
   return covered;
 }
+
+double vktest_pipeline_rmse(vktest_load_fn load, obs_result r[2], double *mean) {
+  vktest_need_vk();
+  for (int b = 0; b < 2; b++) {
+    obs_scene sc;
+    load(b ? "vulkan" : "cpu", &sc);
+    obs_err err = OBS_ERR_INIT;
+    obs_render_opts o = {.threads = 2};
+    vktest_check_rc(obs_render(&sc, &o, &r[b], &err), &err);
+    obs_scene_free(&sc);
+    obs_err_free(&err);
+    obs_test_assert_finite(&r[b].image);
+  }
+  assert_int_equal(r[1].backend, OBS_BACKEND_VULKAN);
+  size_t n = (size_t)r[0].image.width * (size_t)r[0].image.height;
+  double ss = 0, sum = 0;
+  static const char *const f[3] = {"radiance.R", "radiance.G", "radiance.B"};
+  for (int k = 0; k < 3; k++) {
+    const float *a = obs_image_channel(&r[0].image, f[k]),
+                *v = obs_image_channel(&r[1].image, f[k]);
+    for (size_t i = 0; i < n; i++) ss += ((double)a[i] - v[i]) * ((double)a[i] - v[i]), sum += a[i];
+  }
+  double rmse = sqrt(ss / (3.0 * (double)n));
+  *mean = sum / (3.0 * (double)n);
+  printf("pipeline cpu vs vulkan: radiance rmse %.3g (mean %.3g)\n", rmse, *mean);
+  return rmse;
+}

@@ -28,6 +28,12 @@ void vktest_moved_scene(double s, double t, double g, double fov, char *buf, siz
  * pixels differ by more than `tol`. Coverage must be identical. */
 void vktest_ao_diff(const obs_result *a, const obs_result *b, const char *channel, double tol,
                     double *max, size_t *over);
+/* Renders scene sc on the CPU into r[0] and on Vulkan into r[1] (sc's technique on each,
+ * 2 threads; `load` fills a scene for a backend name), asserts both finite and the second on
+ * Vulkan, and returns the RMSE of their radiance.R/G/B over every pixel, with the CPU's mean in
+ * *mean (printed). The caller frees r. */
+typedef void (*vktest_load_fn)(const char *backend, obs_scene *sc);
+double vktest_pipeline_rmse(vktest_load_fn load, obs_result r[2], double *mean);
 /* Asserts that `part`, a render of region r alone, has `whole`'s bits inside r and 0 in every
  * channel outside it; returns how many pixels of r `whole` covers (alpha > 0). */
 size_t vktest_assert_region(const obs_result *whole, const obs_result *part, obs_region r);

@@ -171,19 +171,8 @@ static int create_layouts(peel *pl, obs_err *err) {
                               .colorAttachmentCount = 1,
                               .pColorAttachments = &cref,
                               .pDepthStencilAttachment = &zref};
-  VkSubpassDependency dep[2] = {
-      {.srcSubpass = VK_SUBPASS_EXTERNAL,
-       .dstSubpass = 0,
-       .srcStageMask = VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
-       .dstStageMask = VK_PIPELINE_STAGE_ALL_GRAPHICS_BIT,
-       .srcAccessMask = VK_ACCESS_MEMORY_WRITE_BIT,
-       .dstAccessMask = VK_ACCESS_MEMORY_READ_BIT | VK_ACCESS_MEMORY_WRITE_BIT},
-      {.srcSubpass = 0,
-       .dstSubpass = VK_SUBPASS_EXTERNAL,
-       .srcStageMask = VK_PIPELINE_STAGE_ALL_GRAPHICS_BIT,
-       .dstStageMask = VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
-       .srcAccessMask = VK_ACCESS_MEMORY_WRITE_BIT,
-       .dstAccessMask = VK_ACCESS_MEMORY_READ_BIT | VK_ACCESS_MEMORY_WRITE_BIT}};
+  VkSubpassDependency dep[2];
+  obs_vk_pass_deps(dep);
   VkRenderPassCreateInfo rpci = {.sType = VK_STRUCTURE_TYPE_RENDER_PASS_CREATE_INFO,
                                  .attachmentCount = 2,
                                  .pAttachments = att,

@@ -1,11 +1,14 @@
 /* path_trace on the CPU: a diffuse global-illumination reference with Embree.
  *
  * Lambertian surfaces (material.reflectivity), emitters: quad lights, emissive objects
- * (material.emission) and a constant sky (environment.color). Unidirectional path tracing with
+ * (material.emission) and a constant sky (environment.color) or an environment map (latlong, faces,
+ * sky; sampled by luminance x sin theta, obs_env_dist). Unidirectional path tracing with
  * next-event estimation: at every diffuse vertex one emitter point is sampled (power-proportional
  * emitter choice, then uniform in area) and one cosine-distributed direction continues the path;
  * the two estimates of light reaching the vertex are combined by multiple importance sampling with
- * the power heuristic (Veach 1997; pbrt-v4's PathIntegrator). Russian roulette after rr_depth
+ * the power heuristic (Veach 1997; pbrt-v4's PathIntegrator); an environment map is one more
+ * such pair (a map direction and its shadow ray against the BSDF direction that escapes).
+ * Russian roulette after rr_depth
  * bounces keeps long paths unbiased and cheap. docs/techniques/path_trace.md states the model. */
 #include <jansson.h>
 #include <math.h>
@@ -17,6 +20,7 @@
 #include "obscura/render.h"
 #include "driver.h"
 #include "emitters.h"
+#include "environment.h"
 #include "mcerr.h"
 #include "path_trace.h"
 #include "raytrace.h"
@@ -45,6 +49,8 @@ typedef struct pt_job {
   int spp, paths; /* pixel samples; paths = spp * samples */
   obs_emitters em;
   double env[3];
+  const obs_env *map; /* an environment map (NULL: the constant env above) */
+  obs_env_dist dist;  /* its sampling distribution */
 } pt_job;
 
 #define mean3 obs_emitters_mean3
@@ -122,6 +128,40 @@ static uint64_t sample_light(const pt_job *jb, const obs_hit *hit, obs_rt_ctx *c
   return 1;
 }
 
+/* The dimension pair of depth d's environment-map sample: apart from the 3 pairs per depth, so a
+ * scene without a map reads the same streams as before maps existed. */
+#define PT_ENV_DIM(d) (0x10000u + (uint32_t)(d))
+
+/* The map's radiance along d and the MIS weight of a BSDF direction of density pdf_bsdf that
+ * escapes along it (0: weight 1, no map sampling competed). */
+static void add_map(const pt_job *jb, const double d[3], double pdf_bsdf, const double beta[3],
+                    double L[3]) {
+  float fd[3] = {(float)d[0], (float)d[1], (float)d[2]}, le[3];
+  obs_env_lookup(jb->map, fd, le);
+  double w = 1;
+  if (pdf_bsdf > 0) w = power_weight(pdf_bsdf, obs_env_dist_pdf(&jb->dist, d));
+  for (int k = 0; k < 3; k++) L[k] += beta[k] * w * le[k];
+}
+
+/* Next-event estimation of the map at `hit`: one direction by luminance x sin theta, its shadow
+ * ray to infinity, its MIS-weighted share against the cosine density. */
+static uint64_t sample_map(const pt_job *jb, const obs_hit *hit, obs_rt_ctx *ctx,
+                           const float org[3], const double rho[3], double u0, double u1,
+                           const double beta[3], double L[3]) {
+  double wi[3];
+  double pdf_l = obs_env_dist_sample(&jb->dist, u0, u1, wi);
+  if (!(pdf_l > 0)) return 0;
+  double cosn = hit->ns[0] * wi[0] + hit->ns[1] * wi[1] + hit->ns[2] * wi[2];
+  double cosg = hit->ng[0] * wi[0] + hit->ng[1] * wi[1] + hit->ng[2] * wi[2];
+  if (!(cosn > 0) || !(cosg > 0)) return 0;
+  float w[3] = {(float)wi[0], (float)wi[1], (float)wi[2]}, le[3];
+  if (obs_rt_occluded(jb->rt, ctx, org, w, INFINITY)) return 1;
+  obs_env_lookup(jb->map, w, le);
+  double mis = power_weight(pdf_l, cosn * INV_PI);
+  for (int k = 0; k < 3; k++) L[k] += beta[k] * rho[k] * INV_PI * le[k] * cosn / pdf_l * mis;
+  return 1;
+}
+
 /* First-hit facts of one pixel sample, for the auxiliary channels. */
 typedef struct pt_first {
   int hit;
@@ -143,7 +183,10 @@ static uint64_t trace_path(const pt_job *jb, pt_dims *dc, uint32_t rep, uint32_t
   for (int depth = 0;; depth++) {
     add_quad_lights(jb, o, d, found ? hit.t : INFINITY, pdf_bsdf, beta, L);
     if (!found) {
-      for (int k = 0; k < 3; k++) L[k] += beta[k] * jb->env[k];
+      if (jb->map)
+        add_map(jb, d, p->bsdf_only ? 0 : pdf_bsdf, beta, L);
+      else
+        for (int k = 0; k < 3; k++) L[k] += beta[k] * jb->env[k];
       break;
     }
     const obs_object *ob = &jb->sc->objects[obs_rt_hit_object(rt, hit.geom, hit.prim)];
@@ -174,6 +217,11 @@ static uint64_t trace_path(const pt_job *jb, pt_dims *dc, uint32_t rep, uint32_t
     if (!p->bsdf_only && jb->em.n) {
       const double ul[3] = {u[2], u[3], u[4]};
       rays += sample_light(jb, &hit, &ctx, from, rho, ul, beta, L);
+    }
+    if (!p->bsdf_only && jb->map) {
+      double m0, m1;
+      pt_sample(dc, rep, j, PT_ENV_DIM(depth), &m0, &m1);
+      rays += sample_map(jb, &hit, &ctx, from, rho, m0, m1, beta, L);
     }
     float l[3], tb[3], bb[3], w[3];
     obs_sample_cosine((float)u[0], (float)u[1], l);
@@ -273,10 +321,21 @@ int obs_path_trace_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   jb.spp = sc->spp;
   jb.paths = sc->spp * jb.p.samples;
   if (sc->has_environment) vec3(&sc->environment, jb.env);
+  if (sc->has_environment && sc->env.kind != OBS_ENV_COLOR) {
+    if (!ctx->environment)
+      return obs_err_set(err, OBS_EINTERNAL, "%s: path_trace: no environment map was built",
+                         sc->name);
+    jb.map = ctx->environment;
+  }
   obs_camera_setup(&sc->camera, sc->width, sc->height, &jb.cam);
   /* The emitter table is part of what is built for the render. */
   double t0 = obs_now_ms();
   int rc = obs_emitters_build(sc, jb.rt, &jb.em, err);
+  if (!rc && jb.map) {
+    int w, h;
+    obs_env_dist_grid(jb.map->res, &w, &h);
+    rc = obs_env_dist_build(&jb.dist, jb.map, w, h, err);
+  }
   ctx->build_ms += obs_now_ms() - t0;
   if (!rc) {
     static const obs_pixel_ops ops = {CH_COUNT, channel_names, .shade = pt_shade,
@@ -284,5 +343,6 @@ int obs_path_trace_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
     rc = obs_driver_pixels(ctx, &ops, &jb, out, err);
   }
   obs_emitters_free(&jb.em);
+  obs_env_dist_free(&jb.dist);
   return rc;
 }

@@ -71,13 +71,15 @@ static void path_trace_check(const obs_scene *scene, const json_t *params, const
                 "%s: /technique/params/samples: image.spp x samples must be at most 65536 paths "
                 "per pixel (got %d x %lld)",
                 doc, scene->spp, (long long)samples);
-  int lit = scene->has_environment && positive(&scene->environment);
+  int lit = scene->has_environment &&
+            (scene->env.kind == OBS_ENV_COLOR ? positive(&scene->environment)
+                                              : scene->env.intensity > 0);
   for (size_t i = 0; !lit && i < scene->nlights; i++) lit = positive(&scene->lights[i].emission);
   for (size_t i = 0; !lit && i < scene->nobjects; i++) lit = positive(&scene->objects[i].emission);
   if (!lit)
     obs_err_set(err, OBS_EINVAL,
                 "%s: /lights: technique \"path_trace\" needs an emitter: a light, an object with "
-                "material.emission or an environment.color, with emission above zero",
+                "material.emission, an environment.color or an environment map, with emission above zero",
                 doc);
 }
 
@@ -104,7 +106,7 @@ const obs_technique obs_technique_path_trace = {
     .cost_rule = "samples",
     /* Measured on the Cornell box (docs/performance.md, bench_path_trace): 2.5 us per path. */
     .ms_per_work = 2.5e-3,
-    .needs = OBS_NEED_BVH | OBS_NEED_BVH_FRAME_GEOMETRY | OBS_NEED_MATERIALS,
+    .needs = OBS_NEED_BVH | OBS_NEED_BVH_FRAME_GEOMETRY | OBS_NEED_MATERIALS | OBS_NEED_ENV_MAP,
     .outputs = path_trace_outputs,
     .check = path_trace_check,
     .reference_same = &obs_technique_path_trace,
