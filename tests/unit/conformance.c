@@ -216,6 +216,7 @@ static int release_only_end(const char *technique, const char *key, const char *
                                         {"obscurance_map", "directions", "4096"},
                                         {"obscurance_map", "bundle_resolution", "512"},
                                         {"volume_ao", "samples", "65536"},
+                                        {"isosurface_mesh", "grid", "256"},
                                         {"path_trace", "samples", "65536"}};
   for (size_t i = 0; i < sizeof ends / sizeof ends[0]; i++)
     if (!strcmp(ends[i][0], technique) && !strcmp(ends[i][1], key) && !strcmp(ends[i][2], value))

@@ -215,6 +215,52 @@ static void test_geometry_build(void **state) {
   obs_err_free(&err);
 }
 
+/* The technique against the exact isosurface (volume_ao's bisected hit and gradient normal) on
+ * the same camera rays: depth within a fraction of a cell, normals within a few degrees, the same
+ * coverage but at the silhouette. */
+static void test_against_exact(void **state) {
+  (void)state;
+  char doc[1024];
+  const char *fmt =
+      "{\"camera\": {\"type\": \"perspective\", \"position\": [0, 0.5, -1.6], \"look_at\": [0, 0, 0],"
+      " \"up\": [0, 1, 0], \"fov_y\": 40}, \"image\": {\"width\": 48, \"height\": 32, \"spp\": 1},"
+      " \"objects\": [{\"name\": \"torus\", \"shape\": {\"type\": \"volume\", \"procedural\":"
+      " \"torus\", \"dims\": [48, 48, 48]}, \"transform\": {\"rotate\": [70, 0, 0]}}],"
+      " \"environment\": {\"color\": [1, 1, 1]},"
+      " \"technique\": {\"name\": \"%s\", \"backend\": \"cpu\", \"params\": {%s}}}";
+  obs_result a, b;
+  snprintf(doc, sizeof doc, fmt, "isosurface_mesh", "\"grid\": 48");
+  obs_test_render(doc, 2, &a);
+  snprintf(doc, sizeof doc, fmt, "volume_ao", "\"samples\": 1, \"ibl\": \"none\"");
+  obs_test_render(doc, 2, &b);
+  const float *aa = obs_image_channel(&a.image, "alpha"), *ba = obs_image_channel(&b.image, "alpha");
+  const float *ad = obs_image_channel(&a.image, "depth.Z"), *bd = obs_image_channel(&b.image, "depth.Z");
+  const float *an[3] = {obs_image_channel(&a.image, "normal.X"), obs_image_channel(&a.image, "normal.Y"),
+                        obs_image_channel(&a.image, "normal.Z")};
+  const float *bn[3] = {obs_image_channel(&b.image, "normal.X"), obs_image_channel(&b.image, "normal.Y"),
+                        obs_image_channel(&b.image, "normal.Z")};
+  size_t both = 0, differ = 0;
+  double angle = 0, drel = 0;
+  for (int i = 0; i < 48 * 32; i++) {
+    if ((aa[i] > 0) != (ba[i] > 0)) differ++;
+    if (!(aa[i] > 0 && ba[i] > 0)) continue;
+    both++;
+    double dot = an[0][i] * bn[0][i] + an[1][i] * bn[1][i] + an[2][i] * bn[2][i];
+    angle += acos(fmin(1, fmax(-1, dot)));
+    drel = fmax(drel, fabs(ad[i] / bd[i] - 1));
+  }
+  angle = angle / (double)both * 180 / PI;
+  printf("     %zu pixels both, %zu differ in coverage; mean angle %.2f deg, max depth rel %.2e\n",
+         both, differ, angle, drel);
+  assert_true(both > 200);
+  assert_true(differ * 20 < both);
+  /* A cell of 1/48 of the box against depths near 1.6: a fraction of a cell is ~1e-2. */
+  assert_true(drel < 1e-2);
+  assert_true(angle < 5);
+  obs_result_free(&a);
+  obs_result_free(&b);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_tables),
@@ -223,6 +269,7 @@ int main(void) {
       cmocka_unit_test(test_refine_finds_missed_surface),
       cmocka_unit_test(test_scale_invariance),
       cmocka_unit_test(test_geometry_build),
+      cmocka_unit_test(test_against_exact),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
