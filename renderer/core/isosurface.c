@@ -41,7 +41,8 @@ int obs_iso_lattice_init(const obs_volume *v, int cells, obs_iso_lattice *l, obs
                        cells, OBS_ISO_CELLS_MAX);
   double side[3], longest = 0;
   for (int a = 0; a < 3; a++) {
-    side[a] = v->n[a] * v->spacing[a];
+    side[a] = (v->n[a] > 1 ? v->n[a] - 1 : 1) * v->spacing[a];
+    l->o[a] = v->n[a] > 1 ? 0.5 * v->spacing[a] : 0;
     longest = fmax(longest, side[a]);
   }
   for (int a = 0; a < 3; a++) {
@@ -58,7 +59,8 @@ int obs_iso_lattice_init(const obs_volume *v, int cells, obs_iso_lattice *l, obs
       return obs_err_set(err, OBS_ENOMEM, "isosurface: out of memory for the lattice");
     }
     for (size_t m = 0; m < n; m++)
-      axis_entry(v, a, (double)m * 0.5 * l->h[a], &l->i0[a][m], &l->i1[a][m], &l->w[a][m]);
+      axis_entry(v, a, l->o[a] + (double)m * 0.5 * l->h[a], &l->i0[a][m], &l->i1[a][m],
+                 &l->w[a][m]);
   }
   return 0;
 }
@@ -217,7 +219,7 @@ void obs_iso_key_point(const obs_iso_lattice *l, uint32_t key, float t, double p
       lo = q[a] + 0.5;
       d = (double)((s - 7) >> a & 1) - 0.5;
     }
-    p[a] = (lo + (double)t * d) * l->h[a];
+    p[a] = l->o[a] + (lo + (double)t * d) * l->h[a];
   }
 }
 
@@ -445,7 +447,8 @@ int obs_iso_shape_mesh(const obs_shape *s, obs_mesh *m, obs_err *err, const char
   int cells = s->volume.mesh_cells;
   if (cells <= 0) {
     cells = v.n[0] > v.n[1] ? v.n[0] : v.n[1];
-    cells = cells > v.n[2] ? cells : v.n[2];
+    cells = (cells > v.n[2] ? cells : v.n[2]) - 1; /* one cell per voxel interval */
+    if (cells < 1) cells = 1;
     if (cells > OBS_ISO_CELLS_MAX) cells = OBS_ISO_CELLS_MAX;
   }
   obs_iso_mesh im;

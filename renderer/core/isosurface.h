@@ -26,14 +26,17 @@
 #define OBS_ISO_EPS 1e-5f
 
 /* The extraction lattice of a volume: c[a] cells per axis of side h[a] (data space), spanning the
- * volume's box [0, n s]; lattice point (i, j, k) is at (i h0, j h1, k h2). The longest axis has
- * `cells` cells and the others as many as keep the cells nearest to cubes. The field there is the
+ * voxel centres [s / 2, (n - 1/2) s] where the field is interpolated, not held (the whole box on
+ * an axis of one voxel); lattice point (i, j, k) is at (o0 + i h0, o1 + j h1, o2 + k h2). The
+ * longest axis has `cells` cells and the others as many as keep the cells nearest to cubes.
+ * Starting at the first voxel centre, not at the box's face, also keeps the lattice's planes off
+ * the round positions where scenes put boxes and pixel rays. The field there is the
  * volume's trilinear one (obs_volume_sample's), evaluated in float from per-axis tables: for the
  * 2 c[a] + 1 positions m h[a] / 2 (lattice points and cell centres), the lower voxel index, the
  * upper one and the upper one's weight. Owns its tables. */
 typedef struct obs_iso_lattice {
   int c[3];
-  double h[3];
+  double h[3], o[3];
   int32_t *i0[3], *i1[3];
   float *w[3];
 } obs_iso_lattice;
@@ -89,7 +92,8 @@ void obs_iso_key_point(const obs_iso_lattice *l, uint32_t key, float t, double p
 void obs_iso_mesh_measure(const obs_iso_mesh *m, double *area, double *volume);
 
 /* Volume shape `s` as an object-space float mesh (its box centred on the origin), extracted on
- * its `mesh_cells` (0: the longest of its dims, at most OBS_ISO_CELLS_MAX); the geometry build's
+ * its `mesh_cells` (0: the longest of its dims less one, a cell per voxel interval, at most
+ * OBS_ISO_CELLS_MAX); the geometry build's
  * mesh of a volume object. */
 int obs_iso_shape_mesh(const obs_shape *s, obs_mesh *m, obs_err *err, const char *where);
 

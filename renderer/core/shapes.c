@@ -311,8 +311,9 @@ static double triangles_volume(const obs_shape *s, const char *base_dir, obs_err
                                const char *where) {
   (void)base_dir, (void)err, (void)where;
   double c = s->volume.mesh_cells;
-  if (c <= 0) c = fmin(OBS_ISO_CELLS_MAX, fmax(s->volume.dims[0], fmax(s->volume.dims[1],
-                                                                      s->volume.dims[2])));
+  if (c <= 0)
+    c = fmin(OBS_ISO_CELLS_MAX,
+             fmax(1, fmax(s->volume.dims[0], fmax(s->volume.dims[1], s->volume.dims[2])) - 1));
   return 8 * c * c;
 }
 

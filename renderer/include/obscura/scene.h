@@ -73,7 +73,7 @@ typedef struct obs_shape {
       double range[2];     /* normalisation range as given; equal = the type's or the data's */
       double isovalue;     /* in [0, 1]: the surface */
       int mesh_cells;      /* surface techniques' extraction cells along the longest side; 0 =
-                            * the longest of dims (renderer/core/isosurface.h) */
+                            * the longest of dims less one (renderer/core/isosurface.h) */
       double extent[3];    /* object-space box sides (longest 1) */
       double *colormap;    /* owned: ncolormap points (value, r, g, b) by rising value; NULL */
       size_t ncolormap;

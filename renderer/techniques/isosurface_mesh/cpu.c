@@ -14,10 +14,14 @@
 #include "sampling.h"
 #include "volume_scene.h"
 
+/* The mesh's frame: world = origin + unit x frame. unit is a power of two near the volumes' size,
+ * so the frame's float coordinates are the same bits at any scale of the scene (a power-of-two
+ * factor is exact), and rays meet the mesh's edges alike at every scale. */
 typedef struct job {
   const obs_rt *rt;
   obs_camera_rig cam;
   int spp;
+  double origin[3], unit;
 } job;
 
 /* The camera rays are volume_ao's (its jitter with its default sampler and seed), so the two
@@ -34,12 +38,23 @@ static uint64_t shade_pixel(const void *user, int thread, int x, int y, float *d
     obs_sampler2d_pixel(&jit, jb->spp, (uint32_t)s, &jx, &jy);
     double org[3], dir[3];
     obs_camera_ray(&jb->cam, x + jx, y + jy, org, dir);
+    double fo[3];
+    for (int k = 0; k < 3; k++) fo[k] = (org[k] - jb->origin[k]) / jb->unit;
     obs_hit h;
-    if (!obs_rt_intersect(jb->rt, org, dir, INFINITY, &h)) continue;
+    if (!obs_rt_intersect(jb->rt, fo, dir, INFINITY, &h)) continue;
+    /* Embree finds the triangle; the hit is refined on its plane in double (as the G-buffer's
+     * are), so depth and normal keep their bits' worth at any scale and distance. */
+    const obs_mesh *m = &jb->rt->geo.meshes[h.geom];
+    const uint32_t *tri = m->idx + 3 * (size_t)h.prim;
+    const float *a = m->pos + 3 * (size_t)tri[0];
+    double pn[3], t;
+    obs_rt_plane_normal(a, m->pos + 3 * (size_t)tri[1], m->pos + 3 * (size_t)tri[2], pn);
+    if (!obs_rt_plane_hit(pn, a, fo, dir, &t)) t = h.t;
+    t *= jb->unit;
     hits++;
-    for (int k = 0; k < 3; k++) n[k] += h.ng[k];
-    depth += h.t * (dir[0] * jb->cam.forward[0] + dir[1] * jb->cam.forward[1] +
-                    dir[2] * jb->cam.forward[2]);
+    for (int k = 0; k < 3; k++) n[k] += h.ns[k];
+    depth += t * (dir[0] * jb->cam.forward[0] + dir[1] * jb->cam.forward[1] +
+                  dir[2] * jb->cam.forward[2]);
   }
   double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
   for (int k = 0; k < 3; k++) d[ISO_CH_NX + k] = hits && len > 0 ? (float)(n[k] / len) : 0.0f;
@@ -48,17 +63,36 @@ static uint64_t shade_pixel(const void *user, int thread, int x, int y, float *d
   return (uint64_t)jb->spp;
 }
 
-/* Volume sv's mesh in the frame at `origin`: data space through to_world in double. */
+/* The field's gradient at data point p by central differences half a voxel apart, turned to
+ * point down the field (out of the region above the isovalue) and carried to world space. */
+static void vertex_normal(const obs_scene_volume *sv, const double p[3], float out[3]) {
+  double g[3], n[3];
+  for (int a = 0; a < 3; a++) {
+    double q0[3] = {p[0], p[1], p[2]}, q1[3] = {p[0], p[1], p[2]}, h = 0.5 * sv->v.spacing[a];
+    q0[a] -= h;
+    q1[a] += h;
+    g[a] = ((double)obs_volume_sample(&sv->v, q0) - (double)obs_volume_sample(&sv->v, q1)) / (2 * h);
+  }
+  for (int i = 0; i < 3; i++) n[i] = sv->normal[i][0] * g[0] + sv->normal[i][1] * g[1] + sv->normal[i][2] * g[2];
+  double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+  for (int i = 0; i < 3; i++) out[i] = len > 0 ? (float)(n[i] / len) : 0.0f;
+}
+
+/* Volume sv's mesh in the frame at `origin`: data space through to_world in double, with the
+ * field's gradient as each vertex's shading normal (Embree interpolates it across the face, so a
+ * ray on a shared edge sees the same normal from either triangle). */
 static int place_mesh(const obs_scene_volume *sv, const obs_iso_mesh *im, const double origin[3],
-                      obs_mesh *m) {
+                      double unit, obs_mesh *m) {
   memset(m, 0, sizeof *m);
   m->pos = malloc((im->nverts ? im->nverts : 1) * 3 * sizeof(float));
   m->idx = malloc((im->ntris ? im->ntris : 1) * 3 * sizeof(uint32_t));
-  if (!m->pos || !m->idx) return OBS_ENOMEM;
+  m->nrm = malloc((im->nverts ? im->nverts : 1) * 3 * sizeof(float));
+  if (!m->pos || !m->idx || !m->nrm) return OBS_ENOMEM;
   for (size_t i = 0; i < im->nverts; i++) {
     double w[3];
     obs_affine_point(sv->to_world, im->pos + 3 * i, w);
-    for (int k = 0; k < 3; k++) m->pos[3 * i + k] = (float)(w[k] - origin[k]);
+    for (int k = 0; k < 3; k++) m->pos[3 * i + k] = (float)((w[k] - origin[k]) / unit);
+    vertex_normal(sv, im->pos + 3 * i, m->nrm + 3 * i);
   }
   memcpy(m->idx, im->idx, im->ntris * 3 * sizeof(uint32_t));
   m->nverts = im->nverts;
@@ -85,11 +119,10 @@ static void geometry_bounds(obs_geometry *g) {
 
 /* Extracts every volume into `g` (frame at the camera) and records each mesh in ctx->built. */
 static int extract_all(obs_render_ctx *ctx, const obs_isosurface_mesh_params *p,
-                       const double origin[3], obs_geometry *g, obs_err *err) {
+                       const double origin[3], double unit, obs_geometry *g, obs_err *err) {
   const obs_scene_volumes *vs = ctx->volumes;
   double all_ms = 0;
-  memset(g, 0, sizeof *g);
-  memcpy(g->origin, origin, sizeof g->origin);
+  memset(g, 0, sizeof *g); /* its origin stays 0: rays come in the frame's own coordinates */
   g->meshes = calloc(vs->n ? vs->n : 1, sizeof *g->meshes);
   g->spheres = calloc(1, sizeof *g->spheres);
   if (!g->meshes || !g->spheres) return obs_err_set(err, OBS_ENOMEM, "isosurface_mesh: out of memory");
@@ -105,7 +138,7 @@ static int extract_all(obs_render_ctx *ctx, const obs_isosurface_mesh_params *p,
     if (rc) return rc;
     double ms = obs_now_ms() - t0;
     all_ms += ms;
-    rc = place_mesh(sv, &im, origin, &g->meshes[g->nmeshes]);
+    rc = place_mesh(sv, &im, origin, unit, &g->meshes[g->nmeshes]);
     if (!rc) {
       size_t bytes = im.nverts * 3 * sizeof(float) + im.ntris * 3 * sizeof(uint32_t);
       json_array_append_new(ctx->built,
@@ -126,6 +159,34 @@ static int extract_all(obs_render_ctx *ctx, const obs_isosurface_mesh_params *p,
   return 0;
 }
 
+/* Where the mesh's float frame sits: at the camera, unless the camera is more than
+ * OBS_RT_FAR_CAMERA box diagonals from the volumes' boxes (a narrow field of view from afar), where
+ * float around the camera cannot resolve the mesh; then at the box's point nearest to the camera
+ * (raytrace.h's OBS_RT_FRAME_GEOMETRY rule, for a mesh the scene does not hold). */
+static int far_frame(const obs_scene_volumes *vs, const double eye[3], double origin[3],
+                     double *unit) {
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (size_t i = 0; i < vs->n; i++) {
+    const obs_scene_volume *sv = &vs->v[i];
+    for (int c = 0; c < 8; c++) {
+      double p[3], w[3];
+      for (int a = 0; a < 3; a++) p[a] = (c >> a & 1) ? sv->v.n[a] * sv->v.spacing[a] : 0;
+      obs_affine_point(sv->to_world, p, w);
+      for (int a = 0; a < 3; a++) lo[a] = fmin(lo[a], w[a]), hi[a] = fmax(hi[a], w[a]);
+    }
+  }
+  double gap2 = 0, diag2 = 0;
+  for (int a = 0; a < 3; a++) {
+    origin[a] = fmin(fmax(eye[a], lo[a]), hi[a]);
+    gap2 += (origin[a] - eye[a]) * (origin[a] - eye[a]);
+    diag2 += (hi[a] - lo[a]) * (hi[a] - lo[a]);
+  }
+  *unit = diag2 > 0 && isfinite(diag2) ? exp2(floor(log2(sqrt(diag2)))) : 1.0;
+  if (diag2 > 0 && gap2 > OBS_RT_FAR_CAMERA * OBS_RT_FAR_CAMERA * diag2) return 1;
+  memcpy(origin, eye, 3 * sizeof *origin);
+  return 0;
+}
+
 int obs_isosurface_mesh_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   const obs_scene *sc = ctx->scene;
   if (!ctx->volumes)
@@ -136,7 +197,10 @@ int obs_isosurface_mesh_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   jb.spp = sc->spp;
   obs_camera_setup(&sc->camera, sc->width, sc->height, &jb.cam);
   obs_geometry g;
-  int rc = extract_all(ctx, ctx->bound, jb.cam.origin, &g, err);
+  double origin[3];
+  int far = far_frame(ctx->volumes, jb.cam.origin, origin, &jb.unit);
+  memcpy(jb.origin, origin, sizeof jb.origin);
+  int rc = extract_all(ctx, ctx->bound, origin, jb.unit, &g, err);
   if (rc) {
     obs_geometry_free(&g);
     return rc;
@@ -144,6 +208,22 @@ int obs_isosurface_mesh_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   double t0 = obs_now_ms();
   obs_rt rt;
   if ((rc = obs_rt_build_geo(&g, &rt, ctx->threads, err))) return rc;
+  if (far) {
+    /* Camera rays start at the mesh's box, grown by far more than double's error on it. */
+    double diag2 = 0;
+    for (int k = 0; k < 3; k++)
+      diag2 += (rt.geo.bounds[1][k] - rt.geo.bounds[0][k]) * (rt.geo.bounds[1][k] - rt.geo.bounds[0][k]);
+    for (int k = 0; k < 3; k++) {
+      rt.box[0][k] = rt.geo.bounds[0][k] - sqrt(diag2) * 0x1p-20;
+      rt.box[1][k] = rt.geo.bounds[1][k] + sqrt(diag2) * 0x1p-20;
+    }
+    rt.advance = 1;
+  }
+  /* A marching-tetrahedra mesh is watertight by construction; Embree's default triangle test may
+   * still let a ray through a shared edge (rays in a lattice plane meet edges exactly), so this
+   * scene asks for its watertight test. */
+  rtcSetSceneFlags(rt.scene, rtcGetSceneFlags(rt.scene) | RTC_SCENE_FLAG_ROBUST);
+  rtcCommitScene(rt.scene);
   obs_render_ctx_stage(ctx, "bvh", obs_now_ms() - t0);
   jb.rt = &rt;
   static const obs_pixel_ops ops = {ISO_CH_COUNT, obs_isosurface_mesh_channels, .shade = shade_pixel};
