@@ -69,16 +69,7 @@ float obs_iso_lattice_value(const obs_volume *v, const obs_iso_lattice *l, float
                             int my, int mz) {
   int i = l->i0[0][mx], i1 = l->i1[0][mx], j = l->i0[1][my], j1 = l->i1[1][my];
   int k = l->i0[2][mz], k1 = l->i1[2][mz];
-  float wx = l->w[0][mx], wy = l->w[1][my], wz = l->w[2][mz];
-  float c00 = obs_volume_at(v, i, j, k) + wx * (obs_volume_at(v, i1, j, k) - obs_volume_at(v, i, j, k));
-  float c10 =
-      obs_volume_at(v, i, j1, k) + wx * (obs_volume_at(v, i1, j1, k) - obs_volume_at(v, i, j1, k));
-  float c01 =
-      obs_volume_at(v, i, j, k1) + wx * (obs_volume_at(v, i1, j, k1) - obs_volume_at(v, i, j, k1));
-  float c11 = obs_volume_at(v, i, j1, k1) +
-              wx * (obs_volume_at(v, i1, j1, k1) - obs_volume_at(v, i, j1, k1));
-  float c0 = c00 + wy * (c10 - c00), c1 = c01 + wy * (c11 - c01);
-  return (c0 + wz * (c1 - c0)) - iso;
+  return obs_volume_lerp3(v, i, i1, j, j1, k, k1, l->w[0][mx], l->w[1][my], l->w[2][mz]) - iso;
 }
 
 /* ---- the tables ------------------------------------------------------------------------------ */

@@ -145,17 +145,23 @@ static void set_brick(obs_scene_volume *sv, const keep *kp) {
   sv->to_data[kp->axis][3] -= off;
 }
 
+/* What the loader recorded of a volume file, as obs_volume_read takes it. */
+static void file_source(const obs_shape *s, obs_volume_source *src) {
+  *src = (obs_volume_source){.format = (obs_volume_file)s->volume.format,
+                             .path = s->volume.path,
+                             .type = (obs_volume_type)s->volume.data_type};
+  memcpy(src->dims, s->volume.dims, sizeof src->dims);
+  memcpy(src->spacing, s->volume.spacing, sizeof src->spacing);
+  memcpy(src->range, s->volume.range, sizeof src->range);
+}
+
 int obs_scene_volume_read_shape(const obs_shape *s, obs_volume *v, obs_err *err) {
   memset(v, 0, sizeof *v);
   int rc;
   double sp[3], longest = 0;
   if (s->volume.procedural < 0) {
-    obs_volume_source src = {.format = (obs_volume_file)s->volume.format,
-                             .path = s->volume.path,
-                             .type = (obs_volume_type)s->volume.data_type};
-    memcpy(src.dims, s->volume.dims, sizeof src.dims);
-    memcpy(src.spacing, s->volume.spacing, sizeof src.spacing);
-    memcpy(src.range, s->volume.range, sizeof src.range);
+    obs_volume_source src;
+    file_source(s, &src);
     rc = obs_volume_read(&src, v, err);
     if (!rc) memcpy(sp, v->spacing, sizeof sp);
   } else {
@@ -188,12 +194,8 @@ static int read_samples(const obs_object *o, obs_scene_volume *sv, const obs_bri
   double sp[3], longest = 0;
   int rc = 0, file = s->volume.procedural < 0;
   if (file) {
-    obs_volume_source src = {.format = (obs_volume_file)s->volume.format,
-                             .path = s->volume.path,
-                             .type = (obs_volume_type)s->volume.data_type};
-    memcpy(src.dims, s->volume.dims, sizeof src.dims);
-    memcpy(src.spacing, s->volume.spacing, sizeof src.spacing);
-    memcpy(src.range, s->volume.range, sizeof src.range);
+    obs_volume_source src;
+    file_source(s, &src);
     /* Read whole even for a brick: the formats are not read a slab at a time here. */
     if ((rc = obs_volume_read(&src, &full, err))) return rc;
   }
