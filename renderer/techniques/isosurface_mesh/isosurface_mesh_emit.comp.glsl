@@ -1,7 +1,7 @@
 // isosurface_mesh, pass 3: each lattice point writes its vertices (edge parameter and key) from
 // its first vertex on, and its cell's triangles from its first triangle on, as the CPU orders
 // them; a triangle's corners are found as their edges' owners' first vertex plus the edge's rank
-// among the owner's crossed edges.
+// among the owner's crossed edges (from the count pass's mask).
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #include "isosurface_mesh.inc.glsl"
@@ -14,13 +14,9 @@ int slot_of(int u, int v) {
 
 int vertex_of(ivec3 cell, int u, int v) {
   ivec3 q = u == 8 ? cell : cell + corner_off(u);
-  int s = slot_of(u, v), rank = 0;
-  for (int k = 0; k < 15; k++) {
-    if (k >= s) break;
-    float fl, fh;
-    if (crossed(q, k, fl, fh)) rank++;
-  }
-  return int(imageLoad(bases, at(point_index(q))).x) + rank;
+  int s = slot_of(u, v), e = point_index(q);
+  int mask = int(imageLoad(counts, at(e)).z);
+  return int(imageLoad(bases, at(e)).x) + bitCount(mask & ((1 << s) - 1));
 }
 
 void main() {

@@ -12,7 +12,8 @@
 /* Storage images (set 0). */
 #define OBS_ISO_B_VALUES 0 /* r32f per lattice point: the field minus the isovalue */
 #define OBS_ISO_B_CENTRE 1 /* r32f per cell: the same at its centre (refine) */
-#define OBS_ISO_B_COUNTS 2 /* rgba32f per point: crossed edges it owns, triangles of its cell */
+#define OBS_ISO_B_COUNTS 2 /* rgba32f per point: crossed edges it owns, triangles of its cell,
+                            * the mask of those edges' slots */
 #define OBS_ISO_B_BASES 3  /* rgba32f per point: its first vertex, its cell's first triangle */
 #define OBS_ISO_B_VERTS 4  /* rgba32f per vertex: t, the edge's key (bits, see below), 0, 0 */
 #define OBS_ISO_B_TRIS 5   /* rgba32f per triangle: its three vertex indices */
