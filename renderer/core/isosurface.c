@@ -457,7 +457,7 @@ int obs_iso_shape_mesh(const obs_shape *s, obs_mesh *m, obs_err *err, const char
     for (size_t i = 0; i < im.nverts; i++)
       for (int a = 0; a < 3; a++)
         m->pos[3 * i + a] = (float)(im.pos[3 * i + a] - 0.5 * s->volume.extent[a]);
-    memcpy(m->idx, im.idx, im.ntris * 3 * sizeof(uint32_t));
+    if (im.ntris) memcpy(m->idx, im.idx, im.ntris * 3 * sizeof(uint32_t));
     m->nverts = im.nverts;
     m->ntris = im.ntris;
   }

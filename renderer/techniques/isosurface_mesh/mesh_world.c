@@ -38,7 +38,7 @@ int obs_iso_mesh_world(const obs_scene_volume *sv, const obs_iso_mesh *im, const
     for (int k = 0; k < 3; k++) m->pos[3 * i + k] = (float)((w[k] - origin[k]) / unit);
     if (normals) vertex_normal(sv, im->pos + 3 * i, m->nrm + 3 * i);
   }
-  memcpy(m->idx, im->idx, im->ntris * 3 * sizeof(uint32_t));
+  if (im->ntris) memcpy(m->idx, im->idx, im->ntris * 3 * sizeof(uint32_t));
   m->nverts = im->nverts;
   m->ntris = im->ntris;
   m->object = sv->object;
