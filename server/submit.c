@@ -187,6 +187,8 @@ static double triangles_of(const obs_scene *sc, obs_err *err) {
   double n = 0;
   for (size_t i = 0; i < sc->nobjects; i++) {
     const obs_shape *s = &sc->objects[i].shape;
+    /* A volume technique reads samples (srv_scene_voxels), never a volume's mesh. */
+    if (s->type == OBS_SHAPE_VOLUME && sc->technique->needs & OBS_NEED_VOLUME) continue;
     char where[256];
     snprintf(where, sizeof where, "%s: /objects/%zu/shape/file", sc->name, i);
     n += obs_shape_kind_of(s->type)->triangles(s, sc->base_dir, err, where);

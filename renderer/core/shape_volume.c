@@ -8,6 +8,7 @@
 #include <string.h>
 #include <strings.h>
 
+#include "isosurface.h"
 #include "shapes.h"
 #include "volume.h"
 #include "volume_io.h"
@@ -188,6 +189,9 @@ void obs_shape_volume_parse(obs_jpath *p, const json_t *js, const char *base_dir
       memcpy(s->volume.spacing, sp, sizeof sp);
   }
   obs_json_get_number(p, js, "isovalue", 0, 0, 1, 0, 0, &s->volume.isovalue);
+  long long cells = 0;
+  obs_json_get_int(p, js, "mesh_cells", 0, 1, OBS_ISO_CELLS_MAX, &cells);
+  s->volume.mesh_cells = (int)cells;
   parse_range(p, js, s->volume.range);
   parse_colormap(p, js, s);
   int has_file = json_object_get(js, "file") != NULL;

@@ -11,6 +11,7 @@
 #include <strings.h>
 #include <sys/stat.h>
 
+#include "isosurface.h"
 #include "obscura/path.h"
 
 #define COORD_MAX 1e30
@@ -296,6 +297,26 @@ static double triangles_displaced(const obs_shape *s, const char *base_dir, obs_
   return ldexp(1.0, 2 * s->displaced.subdivisions);
 }
 
+/* A volume's isosurface mesh (the lattice, not the data, sets its size). */
+static int mesh_volume(const obs_shape *s, const char *base_dir, obs_mesh *m, obs_err *err,
+                       const char *where) {
+  (void)base_dir;
+  return obs_iso_shape_mesh(s, m, err, where);
+}
+
+/* An estimate without extracting: a surface crossing a lattice of c cells per side cuts about
+ * 2 c^2 cells (a sphere filling the box, the largest smooth case), each into about 4 triangles
+ * of its six tetrahedra. */
+static double triangles_volume(const obs_shape *s, const char *base_dir, obs_err *err,
+                               const char *where) {
+  (void)base_dir, (void)err, (void)where;
+  double c = s->volume.mesh_cells;
+  if (c <= 0)
+    c = fmin(OBS_ISO_CELLS_MAX,
+             fmax(1, fmax(s->volume.dims[0], fmax(s->volume.dims[1], s->volume.dims[2])) - 1));
+  return 8 * c * c;
+}
+
 /* ---- the table --------------------------------------------------------------------------- */
 
 static const char *const keys_vertices[] = {"type", "vertices", NULL};
@@ -305,7 +326,7 @@ static const char *const keys_mesh[] = {"type", "file", NULL};
 static const char *const keys_displaced[] = {"type", "subdivisions", NULL};
 static const char *const keys_volume[] = {"type",    "file",   "format",     "procedural",
                                           "seed",    "dims",   "data_type",  "spacing",
-                                          "range",   "isovalue", "colormap", NULL};
+                                          "range",   "isovalue", "colormap", "mesh_cells", NULL};
 
 #define KIND(n, k, parse_, points_, vertices_, mesh_, sphere_, triangles_)           \
   {                                                                                  \
@@ -326,10 +347,11 @@ static const obs_shape_kind kinds[OBS_SHAPE_COUNT] = {
     [OBS_SHAPE_DISPLACED_SPHERE] =
         KIND("displaced_sphere", keys_displaced, parse_displaced, points_displaced, NULL,
              mesh_displaced, NULL, triangles_displaced),
-    /* No surface of its own: the techniques that need volumes read it (renderer/core/
-     * volume_scene.h); the others ignore it (obs_render warns). */
+    /* The techniques that need volumes read its samples (renderer/core/volume_scene.h); for the
+     * surface techniques its surface is its isosurface, extracted into a mesh
+     * (renderer/core/isosurface.h) only when a geometry build asks for it. */
     [OBS_SHAPE_VOLUME] = KIND("volume", keys_volume, obs_shape_volume_parse,
-                              obs_shape_volume_points, NULL, NULL, NULL, triangles_none),
+                              obs_shape_volume_points, NULL, mesh_volume, NULL, triangles_volume),
 };
 #undef KIND
 

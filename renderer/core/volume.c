@@ -63,16 +63,7 @@ float obs_volume_sample(const obs_volume *v, const double p[3]) {
   axis_index(v, 1, p[1], &j, &wy);
   axis_index(v, 2, p[2], &k, &wz);
   int i1 = i + (v->n[0] > 1), j1 = j + (v->n[1] > 1), k1 = k + (v->n[2] > 1);
-  float c00 =
-      obs_volume_at(v, i, j, k) + wx * (obs_volume_at(v, i1, j, k) - obs_volume_at(v, i, j, k));
-  float c10 =
-      obs_volume_at(v, i, j1, k) + wx * (obs_volume_at(v, i1, j1, k) - obs_volume_at(v, i, j1, k));
-  float c01 =
-      obs_volume_at(v, i, j, k1) + wx * (obs_volume_at(v, i1, j, k1) - obs_volume_at(v, i, j, k1));
-  float c11 = obs_volume_at(v, i, j1, k1) +
-              wx * (obs_volume_at(v, i1, j1, k1) - obs_volume_at(v, i, j1, k1));
-  float c0 = c00 + wy * (c10 - c00), c1 = c01 + wy * (c11 - c01);
-  return c0 + wz * (c1 - c0);
+  return obs_volume_lerp3(v, i, i1, j, j1, k, k1, wx, wy, wz);
 }
 
 float obs_volume_sample_sided(const obs_volume *v, const obs_volume_sides *s, const double p[3]) {

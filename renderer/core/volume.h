@@ -29,6 +29,23 @@ static inline float obs_volume_at(const obs_volume *v, int i, int j, int k) {
   return v->data[((size_t)k * (size_t)v->n[1] + (size_t)j) * (size_t)v->n[0] + (size_t)i];
 }
 
+/* The trilinear interpolation of the voxels (i | i1, j | j1, k | k1) with weights w of the upper
+ * ones, in float in one fixed order of operations (x, then y, then z): obs_volume_sample's, and
+ * the isosurface lattice's (isosurface.h), whose Vulkan twin repeats it. */
+static inline float obs_volume_lerp3(const obs_volume *v, int i, int i1, int j, int j1, int k,
+                                     int k1, float wx, float wy, float wz) {
+  float c00 =
+      obs_volume_at(v, i, j, k) + wx * (obs_volume_at(v, i1, j, k) - obs_volume_at(v, i, j, k));
+  float c10 =
+      obs_volume_at(v, i, j1, k) + wx * (obs_volume_at(v, i1, j1, k) - obs_volume_at(v, i, j1, k));
+  float c01 =
+      obs_volume_at(v, i, j, k1) + wx * (obs_volume_at(v, i1, j, k1) - obs_volume_at(v, i, j, k1));
+  float c11 = obs_volume_at(v, i, j1, k1) +
+              wx * (obs_volume_at(v, i1, j1, k1) - obs_volume_at(v, i, j1, k1));
+  float c0 = c00 + wy * (c10 - c00), c1 = c01 + wy * (c11 - c01);
+  return c0 + wz * (c1 - c0);
+}
+
 /* The trilinear field at object-space point p. Outside the voxel centres the field is constant
  * along the axis (clamped to the nearest sample), so it is defined everywhere and continuous. */
 float obs_volume_sample(const obs_volume *v, const double p[3]);

@@ -145,21 +145,57 @@ static void set_brick(obs_scene_volume *sv, const keep *kp) {
   sv->to_data[kp->axis][3] -= off;
 }
 
+/* What the loader recorded of a volume file, as obs_volume_read takes it. */
+static void file_source(const obs_shape *s, obs_volume_source *src) {
+  *src = (obs_volume_source){.format = (obs_volume_file)s->volume.format,
+                             .path = s->volume.path,
+                             .type = (obs_volume_type)s->volume.data_type};
+  memcpy(src->dims, s->volume.dims, sizeof src->dims);
+  memcpy(src->spacing, s->volume.spacing, sizeof src->spacing);
+  memcpy(src->range, s->volume.range, sizeof src->range);
+}
+
+int obs_scene_volume_read_shape(const obs_shape *s, obs_volume *v, obs_err *err) {
+  memset(v, 0, sizeof *v);
+  int rc;
+  double sp[3], longest = 0;
+  if (s->volume.procedural < 0) {
+    obs_volume_source src;
+    file_source(s, &src);
+    rc = obs_volume_read(&src, v, err);
+    if (!rc) memcpy(sp, v->spacing, sizeof sp);
+  } else {
+    rc = obs_volume_procedural_fill((obs_volume_procedural)s->volume.procedural, s->volume.seed,
+                                    s->volume.dims, v, err);
+    /* A procedural fill samples [-1, 1]^3 at spacing 2 / n; a given spacing sets the aspect. */
+    for (int a = 0; !rc && a < 3; a++)
+      sp[a] = s->volume.spacing[a] > 0 ? s->volume.spacing[a] : 2.0 / v->n[a];
+  }
+  if (rc) return rc;
+  for (int a = 0; a < 3; a++) longest = fmax(longest, v->n[a] * sp[a]);
+  for (int a = 0; a < 3; a++) v->spacing[a] = sp[a] / longest;
+  return 0;
+}
+
 /* The volume's samples into sv->v: the file's or the procedural kind's, the brick's voxels only
  * when b is set. The spacing is scaled so that the full volume's longest side is 1. */
 static int read_samples(const obs_object *o, obs_scene_volume *sv, const obs_brick *b,
                         double reach, obs_err *err) {
   const obs_shape *s = &o->shape;
+  if (!b) {
+    int rc = obs_scene_volume_read_shape(s, &sv->v, err);
+    if (rc) return rc;
+    memcpy(sv->full_n, sv->v.n, sizeof sv->full_n);
+    sv->own[0] = 0;
+    sv->own[1] = sv->v.n[0] * sv->v.spacing[0];
+    return 0;
+  }
   obs_volume full = {0};
   double sp[3], longest = 0;
   int rc = 0, file = s->volume.procedural < 0;
   if (file) {
-    obs_volume_source src = {.format = (obs_volume_file)s->volume.format,
-                             .path = s->volume.path,
-                             .type = (obs_volume_type)s->volume.data_type};
-    memcpy(src.dims, s->volume.dims, sizeof src.dims);
-    memcpy(src.spacing, s->volume.spacing, sizeof src.spacing);
-    memcpy(src.range, s->volume.range, sizeof src.range);
+    obs_volume_source src;
+    file_source(s, &src);
     /* Read whole even for a brick: the formats are not read a slab at a time here. */
     if ((rc = obs_volume_read(&src, &full, err))) return rc;
   }

@@ -66,6 +66,10 @@ int obs_scene_volumes_load_brick(const obs_scene *sc, const obs_brick *brick, do
                                  int sides, obs_scene_volumes *out, obs_err *err);
 void obs_scene_volumes_free(obs_scene_volumes *vs);
 
+/* The samples of volume shape `s` (its file or procedural kind) whole, the spacing scaled so the
+ * longest side is 1 (the box [0, extent] of data space): what obs_scene_volumes_load reads. */
+int obs_scene_volume_read_shape(const obs_shape *s, obs_volume *v, obs_err *err);
+
 /* The colour of data value `value` (the colormap's piecewise-linear ramp, held at its ends;
  * white without one). */
 void obs_scene_volume_color(const obs_scene_volume *v, double value, double rgb[3]);

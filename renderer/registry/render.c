@@ -21,9 +21,11 @@
 #include "registry.h"
 #include "volume_scene.h"
 
-/* Objects of a kind the technique does not render are left out, with a warning naming them. */
+/* A volume technique leaves surfaces out, with a warning naming them. (A surface technique
+ * renders a volume object as its extracted isosurface mesh: obs_geometry_build.) */
 static void warn_ignored(const obs_scene *sc, obs_render_ctx *ctx) {
   int volumes = (sc->technique->needs & OBS_NEED_VOLUME) != 0;
+  if (!volumes) return;
   char names[200] = "";
   size_t n = 0;
   for (size_t i = 0; i < sc->nobjects; i++) {
@@ -33,9 +35,8 @@ static void warn_ignored(const obs_scene *sc, obs_render_ctx *ctx) {
                           sc->objects[i].name);
   }
   if (!n) return;
-  obs_render_ctx_warn(ctx, "technique \"%s\" renders %s only: it ignores %s object%s %s%s",
-                      sc->technique->name, volumes ? "volumes" : "surfaces",
-                      volumes ? "the surface" : "the volume", n > 1 ? "s" : "", names,
+  obs_render_ctx_warn(ctx, "technique \"%s\" renders volumes only: it ignores the surface "
+                      "object%s %s%s", sc->technique->name, n > 1 ? "s" : "", names,
                       n > 4 ? " and more" : "");
 }
 

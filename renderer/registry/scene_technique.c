@@ -116,11 +116,8 @@ static void check_needs(obs_jpath *p, const obs_scene *sc) {
                 "%s: /objects: technique \"%s\" renders volumes, and the scene has none (an "
                 "object with shape type \"volume\")",
                 p->doc, t->name);
-  if (!(t->needs & OBS_NEED_VOLUME) && nvol > 0 && nvol == sc->nobjects)
-    obs_err_set(p->err, OBS_EINVAL,
-                "%s: /objects: technique \"%s\" renders surfaces, and every object of the scene "
-                "is a volume (volume techniques: %s)",
-                p->doc, t->name, techniques_with(OBS_NEED_VOLUME, list, sizeof list));
+  /* A surface technique renders a volume as its isosurface's mesh (the geometry build's), so a
+   * scene of volumes alone is one it renders. */
   if (t->needs & OBS_NEED_MATERIALS) {
     for (size_t i = 0; i < sc->nobjects; i++) {
       if (!sc->objects[i].has_material)

@@ -217,6 +217,7 @@ static int release_only_end(const char *technique, const char *key, const char *
                                         {"obscurance_map", "directions", "4096"},
                                         {"obscurance_map", "bundle_resolution", "512"},
                                         {"volume_ao", "samples", "65536"},
+                                        {"isosurface_mesh", "grid", "256"},
                                         {"path_trace", "samples", "65536"},
                                         {"ibl_shadows", "map_size", "1024"}};
   for (size_t i = 0; i < sizeof ends / sizeof ends[0]; i++)
@@ -374,9 +375,11 @@ static void scaled_params(const obs_technique *t, const obs_range *rg, const cha
 }
 
 /* `b` (scale 1) against `r` (scale s) on the primary output's channels: coverage equal, the mean
- * and the share of large differences within the declared tolerance. */
+ * and the share of large differences within the declared tolerance. A depth primary scales with
+ * the scene, so it is compared as r / s against b, relative to b. */
 static int compare_scaled(const char *what, const obs_technique *t, const obs_image *b,
-                          const obs_image *r, const obs_tolerance *tol) {
+                          const obs_image *r, double s, const obs_tolerance *tol) {
+  int depth = obs_technique_primary(t)->kind == OBS_OUTPUT_DEPTH;
   size_t n = (size_t)b->width * (size_t)b->height;
   const float *ba = obs_image_channel(b, "alpha"), *ra = obs_image_channel(r, "alpha");
   int bad = 0;
@@ -395,7 +398,8 @@ static int compare_scaled(const char *what, const obs_technique *t, const obs_im
     double sum = 0, worst = 0;
     size_t over = 0;
     for (size_t i = 0; i < n; i++) {
-      double d = fabs((double)x[c][i] - (double)y[c][i]);
+      double d = depth ? (x[c][i] != 0 ? fabs((double)y[c][i] / s / (double)x[c][i] - 1) : 0)
+                       : fabs((double)x[c][i] - (double)y[c][i]);
       sum += d;
       worst = fmax(worst, d);
       over += d > tol->ao_pixel;
@@ -429,7 +433,8 @@ static int scales_pair(const obs_technique *t, obs_backend be) {
     } else {
       bad += obs_test_check_sane(what, t, &res[k].image);
       if (k && res[0].image.data)
-        bad += compare_scaled(what, t, &res[0].image, &res[k].image, &rg->tol);
+        bad += compare_scaled(what, t, &res[0].image, &res[k].image, scales[k] / scales[0],
+                              &rg->tol);
     }
     free(doc);
   }

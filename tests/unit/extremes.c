@@ -126,6 +126,8 @@ int obs_extremes_compare(const char *what, const obs_technique *t, const obs_ima
   int nch = obs_test_primary_channels(t, b, bo, &lo, &hi);
   if (obs_test_primary_channels(t, r, ro, &lo, &hi) != nch || !nch)
     return printf("FAIL %s: no primary output to compare\n", what), 1;
+  /* A depth primary scales with the scene: r / s against b, relative to b. */
+  int depth = obs_technique_primary(t)->kind == OBS_OUTPUT_DEPTH;
   const float *bz = obs_image_channel(b, "depth.Z"), *rz = obs_image_channel(r, "depth.Z");
   const char *nn[3] = {"normal.X", "normal.Y", "normal.Z"};
   int bad = 0;
@@ -136,7 +138,9 @@ int obs_extremes_compare(const char *what, const obs_technique *t, const obs_ima
     if (ba && !(ba[i] > 0)) continue;
     cov++;
     double d = 0; /* the largest difference over the primary output's channels */
-    for (int k = 0; k < nch; k++) d = fmax(d, fabs((double)bo[k][i] - (double)ro[k][i]));
+    for (int k = 0; k < nch; k++)
+      d = fmax(d, depth ? (bo[k][i] != 0 ? fabs((double)ro[k][i] / s / (double)bo[k][i] - 1) : 0)
+                        : fabs((double)bo[k][i] - (double)ro[k][i]));
     sum += d;
     worst = fmax(worst, d);
     ao_out += d > tol->ao_pixel;

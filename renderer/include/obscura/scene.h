@@ -72,6 +72,8 @@ typedef struct obs_shape {
       double spacing[3];   /* as given, 0 = the file's (1 where it has none) */
       double range[2];     /* normalisation range as given; equal = the type's or the data's */
       double isovalue;     /* in [0, 1]: the surface */
+      int mesh_cells;      /* surface techniques' extraction cells along the longest side; 0 =
+                            * the longest of dims less one (renderer/core/isosurface.h) */
       double extent[3];    /* object-space box sides (longest 1) */
       double *colormap;    /* owned: ncolormap points (value, r, g, b) by rising value; NULL */
       size_t ncolormap;

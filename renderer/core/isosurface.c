@@ -1,0 +1,471 @@
+/* Isosurface extraction by marching tetrahedra over a cube lattice (isosurface.h): the lattice
+ * and its float field, the polygonisation tables, the extractor, and a volume object's mesh for
+ * the geometry build. */
+#include "isosurface.h"
+
+#include <math.h>
+#include <pthread.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "volume_scene.h"
+
+/* ---- the lattice ----------------------------------------------------------------------------- */
+
+/* obs_volume_sample's index and weight along axis a at data coordinate p (volume.c's rule). */
+static void axis_entry(const obs_volume *v, int a, double p, int32_t *i0, int32_t *i1, float *w) {
+  double u = p / v->spacing[a] - 0.5;
+  double hi = v->n[a] - 1;
+  if (!(u > 0)) u = 0;
+  if (u > hi) u = hi;
+  int i = (int)u;
+  if (i > v->n[a] - 2) i = v->n[a] > 1 ? v->n[a] - 2 : 0;
+  *i0 = i;
+  *i1 = i + (v->n[a] > 1);
+  *w = v->n[a] > 1 ? (float)(u - i) : 0.0f;
+}
+
+void obs_iso_lattice_free(obs_iso_lattice *l) {
+  for (int a = 0; a < 3; a++) {
+    free(l->i0[a]);
+    free(l->i1[a]);
+    free(l->w[a]);
+  }
+  memset(l, 0, sizeof *l);
+}
+
+int obs_iso_lattice_init(const obs_volume *v, int cells, obs_iso_lattice *l, obs_err *err) {
+  memset(l, 0, sizeof *l);
+  if (cells < 1 || cells > OBS_ISO_CELLS_MAX)
+    return obs_err_set(err, OBS_EINVAL, "isosurface: %d cells along the longest axis, not in 1..%d",
+                       cells, OBS_ISO_CELLS_MAX);
+  double side[3], longest = 0;
+  for (int a = 0; a < 3; a++) {
+    side[a] = (v->n[a] > 1 ? v->n[a] - 1 : 1) * v->spacing[a];
+    l->o[a] = v->n[a] > 1 ? 0.5 * v->spacing[a] : 0;
+    longest = fmax(longest, side[a]);
+  }
+  for (int a = 0; a < 3; a++) {
+    /* Cells as near to cubes as whole counts allow: the longest axis's side over `cells`. */
+    int c = (int)lround(cells * side[a] / longest);
+    l->c[a] = c < 1 ? 1 : c > OBS_ISO_CELLS_MAX ? OBS_ISO_CELLS_MAX : c;
+    l->h[a] = side[a] / l->c[a];
+    size_t n = 2 * (size_t)l->c[a] + 1;
+    l->i0[a] = malloc(n * sizeof(int32_t));
+    l->i1[a] = malloc(n * sizeof(int32_t));
+    l->w[a] = malloc(n * sizeof(float));
+    if (!l->i0[a] || !l->i1[a] || !l->w[a]) {
+      obs_iso_lattice_free(l);
+      return obs_err_set(err, OBS_ENOMEM, "isosurface: out of memory for the lattice");
+    }
+    for (size_t m = 0; m < n; m++)
+      axis_entry(v, a, l->o[a] + (double)m * 0.5 * l->h[a], &l->i0[a][m], &l->i1[a][m],
+                 &l->w[a][m]);
+  }
+  return 0;
+}
+
+float obs_iso_lattice_value(const obs_volume *v, const obs_iso_lattice *l, float iso, int mx,
+                            int my, int mz) {
+  int i = l->i0[0][mx], i1 = l->i1[0][mx], j = l->i0[1][my], j1 = l->i1[1][my];
+  int k = l->i0[2][mz], k1 = l->i1[2][mz];
+  return obs_volume_lerp3(v, i, i1, j, j1, k, k1, l->w[0][mx], l->w[1][my], l->w[2][mz]) - iso;
+}
+
+/* ---- the tables ------------------------------------------------------------------------------ */
+
+/* Corner positions at four times the cube's side (the centre and edge midpoints are integers). */
+static void corner4(int c, int p[3]) {
+  for (int a = 0; a < 3; a++) p[a] = c == 8 ? 2 : 4 * ((c >> a) & 1);
+}
+
+int obs_iso_edge_slot(int u, int v) {
+  if (u == 8) return 7 + v;
+  if (v == 8) return 7 + u;
+  /* The direction v - u has bits v ^ u (u's bits are a subset of v's): x, y, z, yz, xz, xy, xyz. */
+  static const int slot[8] = {-1, 0, 1, 5, 2, 4, 3, 6};
+  return slot[u ^ v];
+}
+
+/* Edge (a, b) as (lower, upper): the centre is lower than no corner in key terms, so it goes
+ * first; of two corners, the one whose bits are a subset of the other's. */
+static void set_edge(uint8_t e[2], int a, int b) {
+  int lower = a == 8 ? 1 : b == 8 ? 0 : (a & b) == a;
+  e[0] = (uint8_t)(lower ? a : b);
+  e[1] = (uint8_t)(lower ? b : a);
+}
+
+static long det3(const int a[3], const int b[3], const int c[3]) {
+  return (long)a[0] * (b[1] * c[2] - b[2] * c[1]) - (long)a[1] * (b[0] * c[2] - b[2] * c[0]) +
+         (long)a[2] * (b[0] * c[1] - b[1] * c[0]);
+}
+
+/* The triangles of tetrahedron t for `cs` (bit v: corner v at or above), into tb. */
+static void table_case(obs_iso_table *tb, int t, int cs) {
+  const uint8_t *q = tb->tet[t];
+  int up[4], nup = 0, dn[4], ndn = 0;
+  for (int v = 0; v < 4; v++) {
+    if (cs >> v & 1)
+      up[nup++] = q[v];
+    else
+      dn[ndn++] = q[v];
+  }
+  uint8_t(*e)[3][2] = tb->edge[t][cs];
+  if (nup == 0 || nup == 4) return;
+  if (nup == 1 || nup == 3) {
+    int s = nup == 1 ? up[0] : dn[0], *o = nup == 1 ? dn : up;
+    int ps[3], p[3][3], d[3][3];
+    corner4(s, ps);
+    for (int k = 0; k < 3; k++) {
+      corner4(o[k], p[k]);
+      for (int a = 0; a < 3; a++) d[k][a] = p[k][a] - ps[a];
+    }
+    /* (e1, e2, e3) faces away from s when det(o1 - s, o2 - s, o3 - s) > 0; away is the low side
+     * when s is the one corner above, toward s when it is the one below. */
+    long dt = det3(d[0], d[1], d[2]);
+    int flip = nup == 1 ? dt < 0 : dt > 0;
+    int order[3] = {0, flip ? 2 : 1, flip ? 1 : 2};
+    for (int k = 0; k < 3; k++) set_edge(e[0][k], s, o[order[k]]);
+    tb->ntri[t][cs] = 1;
+    return;
+  }
+  /* Two above (a, b), two below (c, d): the quad on edges ac, ad, bd, bc, cut along ac-bd. */
+  int quad[4][2] = {{up[0], dn[0]}, {up[0], dn[1]}, {up[1], dn[1]}, {up[1], dn[0]}};
+  int m[4][3], pa[3], pb[3];
+  for (int k = 0; k < 4; k++) {
+    corner4(quad[k][0], pa);
+    corner4(quad[k][1], pb);
+    for (int a = 0; a < 3; a++) m[k][a] = pa[a] + pb[a];
+  }
+  int e1[3], e2[3], toward[3], pc[3], pd[3], pu[3], pv[3];
+  corner4(up[0], pu);
+  corner4(up[1], pv);
+  corner4(dn[0], pc);
+  corner4(dn[1], pd);
+  for (int a = 0; a < 3; a++) {
+    e1[a] = m[1][a] - m[0][a];
+    e2[a] = m[2][a] - m[0][a];
+    toward[a] = pc[a] + pd[a] - pu[a] - pv[a];
+  }
+  long n[3] = {(long)e1[1] * e2[2] - (long)e1[2] * e2[1], (long)e1[2] * e2[0] - (long)e1[0] * e2[2],
+               (long)e1[0] * e2[1] - (long)e1[1] * e2[0]};
+  int flip = n[0] * toward[0] + n[1] * toward[1] + n[2] * toward[2] < 0;
+  static const int tri[2][3] = {{0, 1, 2}, {0, 2, 3}};
+  for (int r = 0; r < 2; r++)
+    for (int k = 0; k < 3; k++) {
+      int qk = tri[r][flip ? (3 - k) % 3 : k];
+      set_edge(e[r][k], quad[qk][0], quad[qk][1]);
+    }
+  tb->ntri[t][cs] = 2;
+}
+
+static obs_iso_table tables[2];
+static pthread_once_t tables_once = PTHREAD_ONCE_INIT;
+
+static void tables_build(void) {
+  /* The six tetrahedra around the 0-7 diagonal: 0, one axis step, two axis steps, 7. */
+  static const uint8_t kuhn[6][4] = {{0, 1, 3, 7}, {0, 1, 5, 7}, {0, 2, 3, 7},
+                                     {0, 2, 6, 7}, {0, 4, 5, 7}, {0, 4, 6, 7}};
+  for (int r = 0; r < 2; r++) {
+    obs_iso_table *tb = &tables[r];
+    memset(tb, 0, sizeof *tb);
+    tb->ntets = r ? 12 : 6;
+    for (int t = 0; t < 6; t++) {
+      if (!r) {
+        memcpy(tb->tet[t], kuhn[t], 4);
+        continue;
+      }
+      /* Longest-edge bisection: the diagonal 0-7 is every tetrahedron's longest edge, cut at the
+       * centre (8), which no neighbouring cell shares, so the faces between cells are kept. */
+      const uint8_t a[4] = {0, kuhn[t][1], kuhn[t][2], 8}, b[4] = {8, kuhn[t][1], kuhn[t][2], 7};
+      memcpy(tb->tet[2 * t], a, 4);
+      memcpy(tb->tet[2 * t + 1], b, 4);
+    }
+    for (int t = 0; t < tb->ntets; t++)
+      for (int cs = 0; cs < 16; cs++) table_case(tb, t, cs);
+  }
+}
+
+const obs_iso_table *obs_iso_table_get(int refine) {
+  pthread_once(&tables_once, tables_build);
+  return &tables[refine ? 1 : 0];
+}
+
+/* ---- the extractor --------------------------------------------------------------------------- */
+
+static const int slot_dir[7][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {0, 1, 1},
+                                   {1, 0, 1}, {1, 1, 0}, {1, 1, 1}};
+
+void obs_iso_key_point(const obs_iso_lattice *l, uint32_t key, float t, double p[3]) {
+  uint32_t s = key % OBS_ISO_SLOTS, pt = key / OBS_ISO_SLOTS;
+  int q[3] = {(int)(pt % (uint32_t)(l->c[0] + 1)),
+              (int)(pt / (uint32_t)(l->c[0] + 1) % (uint32_t)(l->c[1] + 1)),
+              (int)(pt / ((uint32_t)(l->c[0] + 1) * (uint32_t)(l->c[1] + 1)))};
+  for (int a = 0; a < 3; a++) {
+    double lo, d;
+    if (s < 7) {
+      lo = q[a];
+      d = slot_dir[s][a];
+    } else { /* from the cell's centre to its corner s - 7 */
+      lo = q[a] + 0.5;
+      d = (double)((s - 7) >> a & 1) - 0.5;
+    }
+    p[a] = l->o[a] + (lo + (double)t * d) * l->h[a];
+  }
+}
+
+typedef struct grow {
+  obs_iso_mesh *m;
+  size_t vcap, tcap;
+} grow;
+
+static int add_vertex(grow *g, uint32_t key, float t) {
+  obs_iso_mesh *m = g->m;
+  if (m->nverts == g->vcap) {
+    size_t cap = g->vcap ? 2 * g->vcap : 1024;
+    double *p = realloc(m->pos, cap * 3 * sizeof *p);
+    if (p) m->pos = p;
+    uint32_t *k = realloc(m->key, cap * sizeof *k);
+    if (k) m->key = k;
+    float *tt = realloc(m->t, cap * sizeof *tt);
+    if (tt) m->t = tt;
+    if (!p || !k || !tt) return OBS_ENOMEM;
+    g->vcap = cap;
+  }
+  m->key[m->nverts] = key;
+  m->t[m->nverts] = t;
+  obs_iso_key_point(&m->lat, key, t, m->pos + 3 * m->nverts);
+  m->nverts++;
+  return 0;
+}
+
+static int add_triangle(grow *g, const uint32_t v[3]) {
+  obs_iso_mesh *m = g->m;
+  if (m->ntris == g->tcap) {
+    size_t cap = g->tcap ? 2 * g->tcap : 1024;
+    uint32_t *i = realloc(m->idx, cap * 3 * sizeof *i);
+    if (!i) return OBS_ENOMEM;
+    m->idx = i;
+    g->tcap = cap;
+  }
+  memcpy(m->idx + 3 * m->ntris++, v, 3 * sizeof *v);
+  return 0;
+}
+
+/* The edge parameter from the lower end, with f_lo and f_hi on opposite sides: the article's
+ * t = -f_a / max(f_b - f_a, eps) from the end below the isovalue (a), so the denominator is
+ * positive and t lies in [0, 1]. */
+static float edge_t(float f_lo, float f_hi) {
+  int lo_below = f_lo < 0;
+  float fa = lo_below ? f_lo : f_hi, fb = lo_below ? f_hi : f_lo;
+  float d = fb - fa;
+  float t = -fa / (d > OBS_ISO_EPS ? d : OBS_ISO_EPS);
+  return lo_below ? t : 1.0f - t;
+}
+
+typedef struct extract {
+  const obs_volume *v;
+  float iso;
+  int refine;
+  const obs_iso_lattice *l;
+  float *f;        /* lattice values, x fastest */
+  float *centre;   /* cell centre values (refine), x fastest; NULL */
+  uint32_t *ids[2]; /* vertex ids of two point layers (OBS_ISO_SLOTS per point) */
+} extract;
+
+static float point_f(const extract *x, int i, int j, int k) {
+  const int *c = x->l->c;
+  return x->f[((size_t)k * (size_t)(c[1] + 1) + (size_t)j) * (size_t)(c[0] + 1) + (size_t)i];
+}
+
+/* Numbers the crossed edges of point layer k into ids (in key order) and adds their vertices. */
+static int number_layer(const extract *x, grow *g, int k, uint32_t *ids) {
+  const int *c = x->l->c;
+  for (int j = 0; j <= c[1]; j++)
+    for (int i = 0; i <= c[0]; i++) {
+      uint32_t pt = ((uint32_t)k * (uint32_t)(c[1] + 1) + (uint32_t)j) * (uint32_t)(c[0] + 1) +
+                    (uint32_t)i;
+      uint32_t *id = ids + ((size_t)j * (size_t)(c[0] + 1) + (size_t)i) * OBS_ISO_SLOTS;
+      float f0 = point_f(x, i, j, k);
+      for (int s = 0; s < OBS_ISO_SLOTS; s++) {
+        id[s] = UINT32_MAX;
+        float fl, fh;
+        if (s < 7) {
+          const int *d = slot_dir[s];
+          if ((s == 6 && x->refine) || i + d[0] > c[0] || j + d[1] > c[1] || k + d[2] > c[2])
+            continue;
+          fl = f0;
+          fh = point_f(x, i + d[0], j + d[1], k + d[2]);
+        } else {
+          if (!x->refine || i == c[0] || j == c[1] || k == c[2]) continue;
+          int cc = s - 7;
+          fl = x->centre[((size_t)k * (size_t)c[1] + (size_t)j) * (size_t)c[0] + (size_t)i];
+          fh = point_f(x, i + (cc & 1), j + (cc >> 1 & 1), k + (cc >> 2 & 1));
+        }
+        if ((fl >= 0) == (fh >= 0)) continue;
+        id[s] = (uint32_t)g->m->nverts;
+        if (add_vertex(g, pt * OBS_ISO_SLOTS + (uint32_t)s, edge_t(fl, fh))) return OBS_ENOMEM;
+      }
+    }
+  return 0;
+}
+
+/* The vertex id of cell (i, j)'s edge (u, v) of the current layer pair. */
+static uint32_t edge_id(const extract *x, int i, int j, int u, int v) {
+  const int *c = x->l->c;
+  int s = obs_iso_edge_slot(u, v), lo = u == 8 ? 0 : u;
+  int pi = i + (lo & 1), pj = j + (lo >> 1 & 1), pk = lo >> 2 & 1;
+  return x->ids[pk][((size_t)pj * (size_t)(c[0] + 1) + (size_t)pi) * OBS_ISO_SLOTS + (size_t)s];
+}
+
+static int cells_layer(const extract *x, grow *g, int k) {
+  const int *c = x->l->c;
+  const obs_iso_table *tb = obs_iso_table_get(x->refine);
+  for (int j = 0; j < c[1]; j++)
+    for (int i = 0; i < c[0]; i++) {
+      float f[9];
+      for (int q = 0; q < 8; q++) f[q] = point_f(x, i + (q & 1), j + (q >> 1 & 1), k + (q >> 2));
+      f[8] = x->refine ? x->centre[((size_t)k * (size_t)c[1] + (size_t)j) * (size_t)c[0] + (size_t)i]
+                       : 0;
+      for (int t = 0; t < tb->ntets; t++) {
+        int cs = 0;
+        for (int v = 0; v < 4; v++) cs |= (f[tb->tet[t][v]] >= 0) << v;
+        for (int r = 0; r < tb->ntri[t][cs]; r++) {
+          uint32_t tri[3];
+          for (int e = 0; e < 3; e++)
+            tri[e] = edge_id(x, i, j, tb->edge[t][cs][r][e][0], tb->edge[t][cs][r][e][1]);
+          if (add_triangle(g, tri)) return OBS_ENOMEM;
+        }
+      }
+    }
+  return 0;
+}
+
+static int sample_all(extract *x) {
+  const int *c = x->l->c;
+  size_t np = (size_t)(c[0] + 1) * (size_t)(c[1] + 1) * (size_t)(c[2] + 1);
+  size_t nc = (size_t)c[0] * (size_t)c[1] * (size_t)c[2];
+  x->f = malloc(np * sizeof(float));
+  x->centre = x->refine ? malloc(nc * sizeof(float)) : NULL;
+  if (!x->f || (x->refine && !x->centre)) return OBS_ENOMEM;
+  size_t n = 0;
+  for (int k = 0; k <= c[2]; k++)
+    for (int j = 0; j <= c[1]; j++)
+      for (int i = 0; i <= c[0]; i++)
+        x->f[n++] = obs_iso_lattice_value(x->v, x->l, x->iso, 2 * i, 2 * j, 2 * k);
+  n = 0;
+  for (int k = 0; x->refine && k < c[2]; k++)
+    for (int j = 0; j < c[1]; j++)
+      for (int i = 0; i < c[0]; i++)
+        x->centre[n++] = obs_iso_lattice_value(x->v, x->l, x->iso, 2 * i + 1, 2 * j + 1, 2 * k + 1);
+  return 0;
+}
+
+static int run_extract(extract *x, grow *g) {
+  const int *c = x->l->c;
+  size_t layer = (size_t)(c[0] + 1) * (size_t)(c[1] + 1) * OBS_ISO_SLOTS;
+  x->ids[0] = malloc(layer * sizeof(uint32_t));
+  x->ids[1] = malloc(layer * sizeof(uint32_t));
+  if (!x->ids[0] || !x->ids[1] || sample_all(x)) return OBS_ENOMEM;
+  /* Layer k's edges are numbered before k + 1's, and both before the cells between them emit,
+   * so vertices come in key order. */
+  int rc = number_layer(x, g, 0, x->ids[0]);
+  for (int k = 0; !rc && k < c[2]; k++) {
+    rc = number_layer(x, g, k + 1, x->ids[1]);
+    if (!rc) rc = cells_layer(x, g, k);
+    uint32_t *tmp = x->ids[0];
+    x->ids[0] = x->ids[1];
+    x->ids[1] = tmp;
+  }
+  return rc;
+}
+
+int obs_iso_extract(const obs_volume *v, float iso, int cells, int refine, obs_iso_mesh *m,
+                    obs_err *err) {
+  memset(m, 0, sizeof *m);
+  if (refine < 0 || refine > 1)
+    return obs_err_set(err, OBS_EINVAL, "isosurface: refine %d, not 0 or 1", refine);
+  int rc = obs_iso_lattice_init(v, cells, &m->lat, err);
+  if (rc) return rc;
+  extract x = {.v = v, .iso = iso, .refine = refine, .l = &m->lat};
+  grow g = {m, 0, 0};
+  rc = run_extract(&x, &g);
+  free(x.f);
+  free(x.centre);
+  free(x.ids[0]);
+  free(x.ids[1]);
+  if (rc) {
+    obs_iso_mesh_free(m);
+    return obs_err_set(err, OBS_ENOMEM, "isosurface: out of memory extracting %d cells", cells);
+  }
+  return 0;
+}
+
+void obs_iso_mesh_free(obs_iso_mesh *m) {
+  free(m->pos);
+  free(m->key);
+  free(m->t);
+  free(m->idx);
+  obs_iso_lattice_free(&m->lat);
+  memset(m, 0, sizeof *m);
+}
+
+void obs_iso_mesh_measure(const obs_iso_mesh *m, double *area, double *volume) {
+  double A = 0, V = 0;
+  for (size_t t = 0; t < m->ntris; t++) {
+    const double *a = m->pos + 3 * m->idx[3 * t], *b = m->pos + 3 * m->idx[3 * t + 1],
+                 *c = m->pos + 3 * m->idx[3 * t + 2];
+    double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    double e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                   e1[0] * e2[1] - e1[1] * e2[0]};
+    A += 0.5 * sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    /* Outward normals enclose the region above the isovalue with a positive signed volume. */
+    V += (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) +
+          a[2] * (b[0] * c[1] - b[1] * c[0])) / 6.0;
+  }
+  *area = A;
+  *volume = V;
+}
+
+/* ---- a volume object's mesh ------------------------------------------------------------------ */
+
+int obs_iso_shape_mesh(const obs_shape *s, obs_mesh *m, obs_err *err, const char *where) {
+  memset(m, 0, sizeof *m);
+  obs_volume v;
+  obs_err e = OBS_ERR_INIT;
+  int rc = obs_scene_volume_read_shape(s, &v, &e);
+  int cells = s->volume.mesh_cells;
+  if (cells <= 0) {
+    cells = v.n[0] > v.n[1] ? v.n[0] : v.n[1];
+    cells = (cells > v.n[2] ? cells : v.n[2]) - 1; /* one cell per voxel interval */
+    if (cells < 1) cells = 1;
+    if (cells > OBS_ISO_CELLS_MAX) cells = OBS_ISO_CELLS_MAX;
+  }
+  obs_iso_mesh im;
+  memset(&im, 0, sizeof im);
+  if (!rc) rc = obs_iso_extract(&v, (float)s->volume.isovalue, cells, 0, &im, &e);
+  obs_volume_free(&v);
+  if (!rc && im.nverts > UINT32_MAX) rc = obs_err_set(&e, OBS_EINVAL, "too many vertices");
+  if (!rc) {
+    m->pos = malloc((im.nverts ? im.nverts : 1) * 3 * sizeof(float));
+    m->idx = malloc((im.ntris ? im.ntris : 1) * 3 * sizeof(uint32_t));
+    if (!m->pos || !m->idx) rc = obs_err_set(&e, OBS_ENOMEM, "out of memory");
+  }
+  if (!rc) {
+    /* Object space: the data box [0, extent] centred on the origin. */
+    for (size_t i = 0; i < im.nverts; i++)
+      for (int a = 0; a < 3; a++)
+        m->pos[3 * i + a] = (float)(im.pos[3 * i + a] - 0.5 * s->volume.extent[a]);
+    if (im.ntris) memcpy(m->idx, im.idx, im.ntris * 3 * sizeof(uint32_t));
+    m->nverts = im.nverts;
+    m->ntris = im.ntris;
+  }
+  obs_iso_mesh_free(&im);
+  if (rc) {
+    obs_geometry_mesh_free(m);
+    rc = obs_err_set(err, rc, "%s: isosurface: %s", where, obs_err_message(&e));
+  }
+  obs_err_free(&e);
+  return rc;
+}
