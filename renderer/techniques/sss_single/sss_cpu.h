@@ -1,0 +1,84 @@
+/* What sss_single's CPU files share: the job (the scene's media and punctual lights in the ray
+ * tracer's frame) and the two estimators of a pixel sample (cpu_maps.c: the light-view maps of
+ * the article; cpu_trace.c: the ray-traced reference). */
+#ifndef OBS_SSS_CPU_H
+#define OBS_SSS_CPU_H
+
+#include <stdint.h>
+
+#include "raytrace.h"
+#include "sss_single.h"
+
+/* One punctual light and, for shadow_maps, its light-view maps. Positions are in the ray
+ * tracer's frame (world minus rt->geo.origin). */
+typedef struct sss_light {
+  int point;          /* 1: point light at `pos`; 0: directional along `dir` */
+  double pos[3];
+  double dir[3];      /* directional: the way its light travels (unit) */
+  double power[3];    /* point: intensity; directional: irradiance facing it */
+  /* The map's projection: orthographic (directional) over [-half, half]^2 about `centre`, or
+   * perspective (point) from `pos` along `fwd` with tan(half field of view) = `half`. */
+  double centre[3], fwd[3], right[3], up[3], half, back;
+  int size;
+  float *pos_map;     /* 3 per texel: the first surface seen from the light */
+  float *nrm_map;     /* 3 per texel: its outward unit normal */
+  float *irr_map;     /* 3 per texel: transmitted irradiance E_t (Eq. 6.5.4), 0 off media */
+  int32_t *id_map;    /* the surface's object, -1 where the light sees nothing */
+} sss_light;
+
+/* One medium object's coefficients per scene unit, with sigma_t's smallest channel, the rate the
+ * path lengths are drawn with. */
+typedef struct sss_medium {
+  double sigma_s[3], sigma_t[3], sigma_min, g, eta;
+} sss_medium;
+
+typedef struct sss_job {
+  const obs_rt *rt;
+  obs_sss_single_params p;
+  int spp;
+  sss_light *lights;
+  int nlights;
+  sss_medium *media; /* per scene object */
+  int32_t *has_medium;
+} sss_job;
+
+/* The radiance of one pixel sample seen at `hit` (object `obj`) along unit `dir`, by the light-
+ * view maps (M or, refined, 2M deterministic path samples per light). Returns the lookups made. */
+uint64_t obs_sss_maps_shade(const sss_job *jb, const obs_hit *hit, size_t obj, const double dir[3],
+                            uint32_t px, uint32_t py, uint32_t s, double out[3], int *refined);
+/* The light-view maps of every light (obs_parallel_tiles over the texels); 0 or OBS_E*. */
+int obs_sss_maps_build(sss_job *jb, int threads, obs_err *err);
+/* The radiance of one pixel sample by ray tracing: `samples` path lengths, each connected to every
+ * light through the refracted entry point. Fills the sample mean and the sum of squares of the
+ * path values per channel; returns the rays traced. */
+uint64_t obs_sss_trace_shade(const sss_job *jb, const obs_hit *hit, size_t obj,
+                             const double dir[3], uint32_t px, uint32_t py, uint32_t s,
+                             double sum[3], double sum2[3]);
+
+/* A uniform number in [0, 1) from a 64-bit key (splitmix64): images depend only on the key. */
+static inline double obs_sss_rand(uint64_t key) {
+  uint64_t z = key + 0x9E3779B97F4A7C15ull;
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  z ^= z >> 31;
+  return (double)(z >> 11) * (1.0 / 9007199254740992.0);
+}
+
+static inline uint64_t obs_sss_key(uint32_t seed, uint32_t x, uint32_t y, uint32_t s, uint32_t i) {
+  uint64_t k = seed;
+  k = k * 0x100000001B3ull ^ x;
+  k = k * 0x100000001B3ull ^ y;
+  k = k * 0x100000001B3ull ^ s;
+  k = k * 0x100000001B3ull ^ i;
+  return k;
+}
+
+static inline double obs_sss_dot(const double a[3], const double b[3]) {
+  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+static inline double obs_sss_lum(const double c[3]) {
+  return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+}
+
+#endif
