@@ -143,17 +143,20 @@ int obs_sss_single_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   pj.jb.spp = sc->spp;
   obs_camera_setup(&sc->camera, sc->width, sc->height, &pj.cam);
   int rc = setup(ctx, &pj.jb, err);
+  double maps_ms = 0;
   if (!rc && pj.jb.p.method == OBS_SSS_SHADOW_MAPS) {
     double t0 = obs_now_ms();
     rc = obs_sss_maps_build(&pj.jb, ctx->threads, err);
     if (!rc) {
-      obs_driver_stage_add(ctx, "light_maps", obs_now_ms() - t0);
+      maps_ms = obs_now_ms() - t0;
+      obs_driver_stage_add(ctx, "light_maps", maps_ms);
       ctx->rays += (uint64_t)pj.jb.nlights * pj.jb.p.map_size * pj.jb.p.map_size;
     }
   }
   if (!rc) {
     static const obs_pixel_ops ops = {CH_COUNT, channel_names, .shade = shade_pixel};
     rc = obs_driver_pixels(ctx, &ops, &pj, out, err);
+    ctx->render_ms += maps_ms; /* the maps are the technique's work too (the driver's is shade) */
   }
   release(&pj.jb);
   return rc;
