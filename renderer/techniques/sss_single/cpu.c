@@ -10,7 +10,7 @@
 #include "camera.h"
 #include "driver.h"
 #include "obscura/render.h"
-#include "sss_cpu.h"
+#include "sss_job.h"
 #include "techniques.h"
 
 enum { CH_R, CH_G, CH_B, CH_SR, CH_SG, CH_SB, CH_ALPHA, CH_COUNT };
@@ -31,21 +31,14 @@ static uint64_t shade_pixel(const void *user, int thread, int x, int y, float *d
   double rad[3] = {0, 0, 0}, var[3] = {0, 0, 0};
   int hits = 0;
   for (int s = 0; s < jb->spp; s++) {
-    /* pixel samples on a stratified grid jittered by the seed: the same at every scale */
-    int g = (int)ceil(sqrt((double)jb->spp));
-    double jx = (s % g + obs_sss_rand(obs_sss_key(jb->p.seed, x, y, s, ~0u))) / g;
-    double jy = (s / g + obs_sss_rand(obs_sss_key(jb->p.seed, x, y, s, ~1u))) / g;
-    if (jb->spp == 1) jx = jy = 0.5;
     double org[3], dir[3];
-    obs_camera_ray(&pj->cam, x + jx, y + jy, org, dir);
+    obs_sss_sample_ray(&pj->cam, jb->p.seed, jb->spp, x, y, s, org, dir);
     obs_hit hit;
     rays++;
     if (!obs_rt_intersect(jb->rt, org, dir, INFINITY, &hit)) continue;
     hits++;
     size_t obj = obs_rt_hit_object(jb->rt, hit.geom, hit.prim);
     if (!jb->has_medium[obj]) continue;
-    double dl = sqrt(obs_sss_dot(dir, dir));
-    for (int k = 0; k < 3; k++) dir[k] /= dl;
     if (jb->p.method == OBS_SSS_TRACE) {
       double sum[3], sum2[3], n = jb->p.samples;
       rays += obs_sss_trace_shade(jb, &hit, obj, dir, (uint32_t)x, (uint32_t)y, (uint32_t)s, sum,
@@ -71,67 +64,6 @@ static uint64_t shade_pixel(const void *user, int thread, int x, int y, float *d
   return rays;
 }
 
-/* The scene's media per scene unit and its punctual lights in the ray tracer's frame; quad lights
- * are ignored with a warning. */
-static int setup(obs_render_ctx *ctx, sss_job *jb, obs_err *err) {
-  const obs_scene *sc = ctx->scene;
-  jb->media = calloc(sc->nobjects ? sc->nobjects : 1, sizeof *jb->media);
-  jb->has_medium = calloc(sc->nobjects ? sc->nobjects : 1, sizeof *jb->has_medium);
-  jb->lights = calloc(sc->nlights ? sc->nlights : 1, sizeof *jb->lights);
-  if (!jb->media || !jb->has_medium || !jb->lights)
-    return obs_err_set(err, OBS_ENOMEM, "%s: sss_single: out of memory", sc->name);
-  for (size_t i = 0; i < sc->nobjects; i++) {
-    const obs_object *o = &sc->objects[i];
-    if (!o->has_medium) continue;
-    sss_medium *m = &jb->media[i];
-    const obs_vec3 *av = &o->medium.sigma_a, *sv = &o->medium.sigma_s;
-    const double a[3] = {av->x, av->y, av->z}, s[3] = {sv->x, sv->y, sv->z};
-    m->sigma_min = INFINITY;
-    for (int k = 0; k < 3; k++) {
-      m->sigma_s[k] = s[k] / jb->p.unit_length;
-      m->sigma_t[k] = (a[k] + s[k]) / jb->p.unit_length;
-      m->sigma_min = fmin(m->sigma_min, m->sigma_t[k]);
-    }
-    m->g = o->medium.g;
-    m->eta = o->medium.eta;
-    jb->has_medium[i] = 1;
-  }
-  int quads = 0;
-  for (size_t i = 0; i < sc->nlights; i++) {
-    const obs_light *sl = &sc->lights[i];
-    if (sl->type == OBS_LIGHT_QUAD) {
-      quads++;
-      continue;
-    }
-    sss_light *l = &jb->lights[jb->nlights++];
-    l->point = sl->type == OBS_LIGHT_POINT;
-    const double p[3] = {sl->position.x, sl->position.y, sl->position.z};
-    const double dd[3] = {sl->direction.x, sl->direction.y, sl->direction.z};
-    const double e[3] = {sl->emission.x, sl->emission.y, sl->emission.z};
-    for (int k = 0; k < 3; k++) {
-      l->pos[k] = p[k] - jb->rt->geo.origin[k];
-      l->dir[k] = dd[k];
-      l->power[k] = e[k];
-    }
-  }
-  if (quads)
-    obs_render_ctx_warn(ctx, "sss_single lights with point and directional lights only: %d quad "
-                        "light%s ignored", quads, quads > 1 ? "s" : "");
-  return 0;
-}
-
-static void release(sss_job *jb) {
-  for (int i = 0; i < jb->nlights; i++) {
-    free(jb->lights[i].pos_map);
-    free(jb->lights[i].nrm_map);
-    free(jb->lights[i].irr_map);
-    free(jb->lights[i].id_map);
-  }
-  free(jb->lights);
-  free(jb->media);
-  free(jb->has_medium);
-}
-
 int obs_sss_single_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   const obs_scene *sc = ctx->scene;
   if (!ctx->rt)
@@ -142,7 +74,7 @@ int obs_sss_single_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   pj.jb.rt = ctx->rt;
   pj.jb.spp = sc->spp;
   obs_camera_setup(&sc->camera, sc->width, sc->height, &pj.cam);
-  int rc = setup(ctx, &pj.jb, err);
+  int rc = obs_sss_job_setup(ctx, &pj.jb, err);
   double maps_ms = 0;
   if (!rc && pj.jb.p.method == OBS_SSS_SHADOW_MAPS) {
     double t0 = obs_now_ms();
@@ -158,6 +90,6 @@ int obs_sss_single_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
     rc = obs_driver_pixels(ctx, &ops, &pj, out, err);
     ctx->render_ms += maps_ms; /* the maps are the technique's work too (the driver's is shade) */
   }
-  release(&pj.jb);
+  obs_sss_job_free(&pj.jb);
   return rc;
 }

@@ -7,7 +7,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "sss_cpu.h"
+#include "sss_job.h"
 
 /* A context for rays leaving `h` into the medium (inward) or out of it: the analytic sphere must
  * know which of its roots the ray may still meet. */

@@ -42,6 +42,17 @@ typedef struct sss_job {
   int32_t *has_medium;
 } sss_job;
 
+/* The scene's media per scene unit and its punctual lights in the ray tracer's frame (`jb->rt`
+ * and `jb->p` set by the caller); quad lights are ignored with a warning. 0 or OBS_E*. */
+int obs_sss_job_setup(obs_render_ctx *ctx, sss_job *jb, obs_err *err);
+void obs_sss_job_free(sss_job *jb);
+
+/* The camera ray of pixel sample s of pixel (x, y): the pixel's centre for one sample, else a
+ * stratified grid jittered by the seed (the same on both backends and at every scale). */
+struct obs_camera_rig;
+void obs_sss_sample_ray(const struct obs_camera_rig *cam, uint32_t seed, int spp, int x, int y,
+                        int s, double org[3], double dir[3]);
+
 /* The radiance of one pixel sample seen at `hit` (object `obj`) along unit `dir`, by the light-
  * view maps (M or, refined, 2M deterministic path samples per light). Returns the lookups made. */
 uint64_t obs_sss_maps_shade(const sss_job *jb, const obs_hit *hit, size_t obj, const double dir[3],
@@ -71,6 +82,23 @@ static inline uint64_t obs_sss_key(uint32_t seed, uint32_t x, uint32_t y, uint32
   k = k * 0x100000001B3ull ^ s;
   k = k * 0x100000001B3ull ^ i;
   return k;
+}
+
+/* The jitter of map lookup k (0: x, 1: y of path sample k / 2) of light l for pixel sample s of
+ * pixel (x, y): a number in [0, 1) with 24 bits, exact in float, so both backends jitter alike
+ * (sss_single.comp.glsl has the same hash). */
+static inline uint32_t obs_sss_pcg(uint32_t v) {
+  uint32_t state = v * 747796405u + 2891336453u;
+  uint32_t word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+  return (word >> 22u) ^ word;
+}
+static inline float obs_sss_jitter_u(uint32_t seed, uint32_t x, uint32_t y, uint32_t s,
+                                     uint32_t l, uint32_t k) {
+  uint32_t h = obs_sss_pcg(seed ^ obs_sss_pcg(x));
+  h = obs_sss_pcg(h ^ y);
+  h = obs_sss_pcg(h ^ (s * 64u + l));
+  h = obs_sss_pcg(h ^ k);
+  return (float)(h >> 8) * (1.0f / 16777216.0f);
 }
 
 static inline double obs_sss_dot(const double a[3], const double b[3]) {
