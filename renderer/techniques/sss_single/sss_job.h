@@ -39,6 +39,7 @@ typedef struct sss_job {
   sss_light *lights;
   int nlights;
   sss_medium *media; /* per scene object */
+  size_t nobjects;
   int32_t *has_medium;
 } sss_job;
 

@@ -9,8 +9,11 @@
 #include <string.h>
 
 #include "camera.h"
+#include "driver.h"
+#include "layout.h"
 #include "obscura/render.h"
 #include "parallel.h"
+#include "sss_host.h"
 #include "sss_job.h"
 
 /* The scene's media per scene unit and its punctual lights in the ray tracer's frame; quad lights
@@ -20,6 +23,7 @@ int obs_sss_job_setup(obs_render_ctx *ctx, sss_job *jb, obs_err *err) {
   jb->media = calloc(sc->nobjects ? sc->nobjects : 1, sizeof *jb->media);
   jb->has_medium = calloc(sc->nobjects ? sc->nobjects : 1, sizeof *jb->has_medium);
   jb->lights = calloc(sc->nlights ? sc->nlights : 1, sizeof *jb->lights);
+  jb->nobjects = sc->nobjects;
   if (!jb->media || !jb->has_medium || !jb->lights)
     return obs_err_set(err, OBS_ENOMEM, "%s: sss_single: out of memory", sc->name);
   for (size_t i = 0; i < sc->nobjects; i++) {
@@ -224,4 +228,128 @@ void obs_sss_sample_ray(const obs_camera_rig *cam, uint32_t seed, int spp, int x
   obs_camera_ray(cam, x + jx, y + jy, org, dir);
   double dl = sqrt(obs_sss_dot(dir, dir));
   for (int k = 0; k < 3; k++) dir[k] /= dl;
+}
+
+/* ---- the host's part of a Vulkan run ------------------------------------------------------ */
+
+struct obs_sss_host {
+  obs_rt rt;
+  sss_job jb;
+  obs_camera_rig cam;
+  int w, h;
+  float *maps, *table;
+  size_t rows;
+};
+
+static void put4(float *r, double a, double b, double c, double d) {
+  r[0] = (float)a, r[1] = (float)b, r[2] = (float)c, r[3] = (float)d;
+}
+
+/* The maps and the table as layout.h lays them out. */
+static int pack(obs_sss_host *h, obs_err *err) {
+  const sss_job *jb = &h->jb;
+  size_t n = (size_t)jb->p.map_size * jb->p.map_size, nobj = h->jb.nobjects;
+  h->maps = malloc((size_t)(jb->nlights ? jb->nlights : 1) * OBS_SSS_LAYERS * n * 4 * sizeof(float));
+  h->rows = nobj * OBS_SSS_OBJ_ROWS + (size_t)jb->nlights * OBS_SSS_LIGHT_ROWS;
+  h->table = calloc(h->rows ? h->rows : 1, 4 * sizeof(float));
+  if (!h->maps || !h->table) return obs_err_set(err, OBS_ENOMEM, "sss_single: out of memory");
+  for (int l = 0; l < jb->nlights; l++) {
+    const sss_light *L = &jb->lights[l];
+    float *pos = h->maps + ((size_t)l * OBS_SSS_LAYERS + OBS_SSS_LAYER_POS) * n * 4;
+    float *nrm = h->maps + ((size_t)l * OBS_SSS_LAYERS + OBS_SSS_LAYER_NRM) * n * 4;
+    float *irr = h->maps + ((size_t)l * OBS_SSS_LAYERS + OBS_SSS_LAYER_IRR) * n * 4;
+    for (size_t t = 0; t < n; t++) {
+      int hit = L->id_map[t] >= 0;
+      put4(pos + 4 * t, hit ? L->pos_map[3 * t] : 0, hit ? L->pos_map[3 * t + 1] : 0,
+           hit ? L->pos_map[3 * t + 2] : 0, L->id_map[t]);
+      put4(nrm + 4 * t, hit ? L->nrm_map[3 * t] : 0, hit ? L->nrm_map[3 * t + 1] : 0,
+           hit ? L->nrm_map[3 * t + 2] : 0, 0);
+      put4(irr + 4 * t, L->irr_map[3 * t], L->irr_map[3 * t + 1], L->irr_map[3 * t + 2], 0);
+    }
+    float *r = h->table + 4 * (nobj * OBS_SSS_OBJ_ROWS + (size_t)l * OBS_SSS_LIGHT_ROWS);
+    put4(r, L->pos[0], L->pos[1], L->pos[2], L->point);
+    put4(r + 4, L->dir[0], L->dir[1], L->dir[2], L->half);
+    put4(r + 8, L->power[0], L->power[1], L->power[2], 0);
+    put4(r + 12, L->centre[0], L->centre[1], L->centre[2], 0);
+    put4(r + 16, L->right[0], L->right[1], L->right[2], 0);
+    put4(r + 20, L->up[0], L->up[1], L->up[2], 0);
+    put4(r + 24, L->fwd[0], L->fwd[1], L->fwd[2], 0);
+  }
+  for (size_t o = 0; o < nobj; o++) {
+    const sss_medium *m = &jb->media[o];
+    float *r = h->table + 4 * o * OBS_SSS_OBJ_ROWS;
+    put4(r, m->sigma_s[0], m->sigma_s[1], m->sigma_s[2], jb->has_medium[o]);
+    put4(r + 4, m->sigma_t[0], m->sigma_t[1], m->sigma_t[2], m->sigma_min);
+    put4(r + 8, m->g, m->eta, 0, 0);
+  }
+  return 0;
+}
+
+int obs_sss_host_open(obs_render_ctx *ctx, obs_sss_host **out, obs_err *err) {
+  const obs_scene *sc = ctx->scene;
+  obs_sss_host *h = calloc(1, sizeof *h);
+  if (!h) return obs_err_set(err, OBS_ENOMEM, "%s: sss_single: out of memory", sc->name);
+  *out = h;
+  double t0 = obs_now_ms();
+  int rc = obs_rt_build_ex(sc, &h->rt, ctx->threads, OBS_RT_FRAME_CAMERA, err);
+  if (rc) {
+    free(h);
+    *out = NULL;
+    return rc;
+  }
+  obs_driver_stage_add(ctx, "bvh", obs_now_ms() - t0);
+  h->jb.p = *(const obs_sss_single_params *)ctx->bound;
+  h->jb.rt = &h->rt;
+  h->jb.spp = sc->spp;
+  h->w = sc->width, h->h = sc->height;
+  obs_camera_setup(&sc->camera, sc->width, sc->height, &h->cam);
+  rc = obs_sss_job_setup(ctx, &h->jb, err);
+  double t1 = obs_now_ms();
+  if (!rc) rc = obs_sss_maps_build(&h->jb, ctx->threads, err);
+  if (!rc) {
+    obs_driver_stage_add(ctx, "light_maps", obs_now_ms() - t1);
+    ctx->rays += (uint64_t)h->jb.nlights * h->jb.p.map_size * h->jb.p.map_size;
+    rc = pack(h, err);
+  }
+  return rc;
+}
+
+void obs_sss_host_close(obs_sss_host *h) {
+  if (!h) return;
+  obs_sss_job_free(&h->jb);
+  free(h->maps);
+  free(h->table);
+  obs_rt_free(&h->rt);
+  free(h);
+}
+
+int obs_sss_host_nlights(const obs_sss_host *h) { return h->jb.nlights; }
+int obs_sss_host_nobjects(const obs_sss_host *h) { return (int)h->jb.nobjects; }
+const float *obs_sss_host_maps(const obs_sss_host *h) { return h->maps; }
+const float *obs_sss_host_table(const obs_sss_host *h, size_t *rows) {
+  *rows = h->rows;
+  return h->table;
+}
+
+size_t obs_sss_host_hits(const obs_sss_host *h, int s, float *pos, float *nrm, float *dir,
+                         float *alpha) {
+  size_t rays = 0;
+  for (int y = 0; y < h->h; y++)
+    for (int x = 0; x < h->w; x++) {
+      size_t i = (size_t)y * h->w + x;
+      double org[3], d[3];
+      obs_sss_sample_ray(&h->cam, h->jb.p.seed, h->jb.spp, x, y, s, org, d);
+      obs_hit hit;
+      rays++;
+      put4(dir + 4 * i, d[0], d[1], d[2], 0);
+      put4(pos + 4 * i, 0, 0, 0, -1);
+      put4(nrm + 4 * i, 0, 0, 0, 0);
+      if (!obs_rt_intersect(&h->rt, org, d, INFINITY, &hit)) continue;
+      alpha[i] += 1;
+      size_t obj = obs_rt_hit_object(&h->rt, hit.geom, hit.prim);
+      if (!h->jb.has_medium[obj]) continue;
+      put4(pos + 4 * i, hit.p[0], hit.p[1], hit.p[2], (double)obj);
+      put4(nrm + 4 * i, hit.ns[0], hit.ns[1], hit.ns[2], 0);
+    }
+  return rays;
 }

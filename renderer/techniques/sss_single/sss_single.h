@@ -30,6 +30,7 @@ typedef struct obs_sss_single_params {
 #define OBS_SSS_DIM_HI 0.85
 
 int obs_sss_single_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err);
+int obs_sss_single_vulkan(obs_render_ctx *ctx, obs_image *out, obs_err *err);
 
 /* Henyey-Greenstein phase function of the cosine between the propagation directions before and
  * after scattering; integrates to 1 over the sphere. */

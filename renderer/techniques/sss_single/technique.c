@@ -126,6 +126,6 @@ const obs_technique obs_technique_sss_single = {
     .check = sss_check,
     .reference = sss_reference,
     .reference_quality = "samples",
-    .run = {[OBS_BACKEND_CPU] = obs_sss_single_cpu},
-    .range = {[OBS_BACKEND_CPU] = SSS_RANGE},
+    .run = {[OBS_BACKEND_CPU] = obs_sss_single_cpu, [OBS_BACKEND_VULKAN] = obs_sss_single_vulkan},
+    .range = {[OBS_BACKEND_CPU] = SSS_RANGE, [OBS_BACKEND_VULKAN] = SSS_RANGE},
 };
