@@ -1,6 +1,6 @@
 /* Benchmark of sss_single (ShaderX7 6.5) on scenes/sss_marble.json: the rendering conditions of
  * the article's Table 6.5.1 at its 1280 x 960 frame buffer (milliseconds per frame on the CPU,
- * next to the article's GeForce GTX 280 frame rates), then the error of shadow_maps against the
+ * and on Vulkan, next to the article's GeForce GTX 280 frame rates), then the error of shadow_maps against the
  * ray-traced reference (method trace) per path-sample count M. */
 #include <jansson.h>
 #include <math.h>
@@ -72,14 +72,15 @@ static int parse_args(int argc, char **argv, options *o) {
   return 0;
 }
 
-static int load(const options *o, const char *params, obs_scene *sc, obs_err *err) {
+static int load(const options *o, const char *backend, const char *params, obs_scene *sc,
+                obs_err *err) {
   json_error_t je;
   json_t *doc = json_load_file(OBS_SOURCE_DIR "/scenes/sss_marble.json", 0, &je);
   if (!doc) return obs_err_set(err, OBS_EIO, "sss_marble.json: %s", je.text);
   json_t *img = json_object_get(doc, "image");
   json_object_set_new(img, "width", json_integer(o->width));
   json_object_set_new(img, "height", json_integer(o->height));
-  json_t *t = json_pack("{s:s, s:s, s:o}", "name", "sss_single", "backend", "cpu", "params",
+  json_t *t = json_pack("{s:s, s:s, s:o}", "name", "sss_single", "backend", backend, "params",
                         json_loads(params, 0, NULL));
   json_object_set_new(doc, "technique", t);
   char *text = json_dumps(doc, JSON_COMPACT);
@@ -91,10 +92,10 @@ static int load(const options *o, const char *params, obs_scene *sc, obs_err *er
 
 /* Renders params `repeats` times: the median build + render milliseconds, and the median of the
  * same less the light-view maps (maps kept from an earlier frame: the article's static case). */
-static int render(const options *o, const char *params, int repeats, obs_result *res,
-                  double *med_ms, double *shade_ms, obs_err *err) {
+static int render(const options *o, const char *backend, const char *params, int repeats,
+                  obs_result *res, double *med_ms, double *shade_ms, obs_err *err) {
   obs_scene sc;
-  int rc = load(o, params, &sc, err);
+  int rc = load(o, backend, params, &sc, err);
   if (rc) return rc;
   double ms[MAX_REPEATS], sh[MAX_REPEATS];
   for (int r = 0; r < repeats && !rc; r++) {
@@ -169,21 +170,26 @@ int main(int argc, char **argv) {
   memset(&res, 0, sizeof res);
   memset(&ref, 0, sizeof ref);
   char params[256];
-  printf("  %-3s %-52s %10s %10s %14s\n", "no.", "condition", "ms (CPU)", "fps (CPU)",
-         "article fps");
+  int have_vk = obs_backend_ops_get(OBS_BACKEND_VULKAN)->available();
+  printf("vulkan: %s (a CPU rasteriser when lavapipe: its times are CPU times)\n",
+         have_vk ? obs_backend_ops_get(OBS_BACKEND_VULKAN)->device_name() : "no device");
+  printf("  %-3s %-52s %10s %10s %12s %14s\n", "no.", "condition", "ms (CPU)", "fps (CPU)",
+         "ms (Vulkan)", "article fps");
   for (size_t r = 0; r < sizeof rows / sizeof rows[0]; r++) {
     snprintf(params, sizeof params,
              "{\"samples\":%d,\"adaptive\":%s,\"jitter\":%g,\"map_size\":%d}", rows[r].m,
              rows[r].adaptive ? "true" : "false", rows[r].jitter, o.map_size);
-    double ms, shade;
-    if (render(&o, params, o.repeats, &res, &ms, &shade, &err)) return fail(&err);
-    double t = rows[r].static_maps ? shade : ms;
-    printf("  %-3zu %-52s %10.1f %10.2f %14.2f\n", r + 1, rows[r].what, t, 1000.0 / t,
+    double ms, shade, vms = NAN, vshade = NAN;
+    if (render(&o, "cpu", params, o.repeats, &res, &ms, &shade, &err)) return fail(&err);
+    if (have_vk && render(&o, "vulkan", params, o.repeats, &res, &vms, &vshade, &err))
+      return fail(&err);
+    double t = rows[r].static_maps ? shade : ms, vt = rows[r].static_maps ? vshade : vms;
+    printf("  %-3zu %-52s %10.1f %10.2f %12.1f %14.2f\n", r + 1, rows[r].what, t, 1000.0 / t, vt,
            rows[r].fps);
   }
   snprintf(params, sizeof params, "{\"method\":\"trace\",\"samples\":%d}", o.ref_samples);
   double ref_ms;
-  if (render(&o, params, 1, &ref, &ref_ms, NULL, &err)) return fail(&err);
+  if (render(&o, "cpu", params, 1, &ref, &ref_ms, NULL, &err)) return fail(&err);
   printf("reference: trace, %d paths per pixel: %.1f ms\n", o.ref_samples, ref_ms);
   char path[512];
   snprintf(path, sizeof path, "%strace.png", o.png ? o.png : "");
@@ -192,7 +198,7 @@ int main(int argc, char **argv) {
   for (int k = 0; k < o.nm; k++) {
     snprintf(params, sizeof params, "{\"samples\":%d,\"map_size\":%d}", o.ms[k], o.map_size);
     double ms, noise;
-    if (render(&o, params, o.repeats, &res, &ms, NULL, &err)) return fail(&err);
+    if (render(&o, "cpu", params, o.repeats, &res, &ms, NULL, &err)) return fail(&err);
     double e = rmse(&res.image, &ref.image, &noise);
     printf("  %-6d %10.1f %14.6f %12.6f\n", o.ms[k], ms, e, noise);
   }

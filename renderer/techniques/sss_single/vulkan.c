@@ -66,8 +66,8 @@ static int work(obs_render_ctx *ctx, obs_vk *vk, void *user, obs_err *err) {
   double *acc = calloc(npx * 3, sizeof(double));
   int rc = buf && alpha && acc ? 0 : obs_err_set(err, OBS_ENOMEM, "%s: sss_single: out of memory",
                                                  sc->name);
+  double t0 = obs_now_ms(); /* the host's BVH, maps and camera rays are this run's work too */
   if (!rc) rc = obs_sss_host_open(ctx, &h, err);
-  double t0 = obs_now_ms();
   if (!rc) rc = upload_scene(vk, h, (int)p->map_size, &d, err);
   for (int i = 0; i < OBS_SSS_BINDINGS && !rc; i++)
     rc = obs_vk_image_create(vk, w, hgt, 4, &d.img[i], err);
