@@ -12,6 +12,7 @@
 #include "bench_args.h"
 #include "bench_machine.h"
 #include "bench_png.h"
+#include "bench_radiance.h"
 #include "obscura/obscura.h"
 
 #define MAX_REPEATS 16
@@ -126,31 +127,6 @@ static int render(const options *o, const obs_scene *sc, int repeats, obs_result
   return 0;
 }
 
-static double lum(const obs_image *img, size_t i) {
-  return 0.2126 * obs_image_channel(img, "radiance.R")[i] +
-         0.7152 * obs_image_channel(img, "radiance.G")[i] +
-         0.0722 * obs_image_channel(img, "radiance.B")[i];
-}
-
-/* Luminance RMSE of `a` against the reference over the pixels both cover, and the reference's own
- * noise there (the RMS of its luminance standard error). */
-static double rmse(const obs_image *a, const obs_image *ref, double *noise) {
-  size_t n = (size_t)a->width * (size_t)a->height, cnt = 0;
-  const float *aa = obs_image_channel(a, "alpha"), *ra = obs_image_channel(ref, "alpha");
-  const float *se[3] = {obs_image_channel(ref, "radiance_stderr.R"),
-                        obs_image_channel(ref, "radiance_stderr.G"),
-                        obs_image_channel(ref, "radiance_stderr.B")};
-  double ss = 0, nn = 0;
-  for (size_t i = 0; i < n; i++) {
-    if (!(aa[i] > 0) || !(ra[i] > 0)) continue;
-    double d = lum(a, i) - lum(ref, i);
-    double s = 0.2126 * se[0][i] + 0.7152 * se[1][i] + 0.0722 * se[2][i];
-    ss += d * d, nn += s * s, cnt++;
-  }
-  *noise = cnt ? sqrt(nn / (double)cnt) : 0;
-  return cnt ? sqrt(ss / (double)cnt) : 0;
-}
-
 static int bench_scene(const options *o, int panel, int have_vk) {
   const char *scene = panel ? "cornell_panel" : "cornell_box";
   obs_err err = OBS_ERR_INIT;
@@ -197,7 +173,7 @@ static int bench_scene(const options *o, int panel, int have_vk) {
         fprintf(stderr, "bench_instant_radiosity: %s\n", obs_err_message(&err));
         return 1;
       }
-      double e = rmse(&res.image, &ref.image, &noise);
+      double e = bench_radiance_rmse(&res.image, &ref.image, &noise);
       printf("  %-7s %-11s %6d %12.1f %14.5f %12.5f\n", modes[m][0], modes[m][1], o->vpls[v], ms,
              e, noise);
       if (o->png && v + 1 == o->nvpls) {

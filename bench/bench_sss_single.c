@@ -11,6 +11,7 @@
 #include "bench_args.h"
 #include "bench_machine.h"
 #include "bench_png.h"
+#include "bench_radiance.h"
 #include "obscura/obscura.h"
 
 #define MAX_REPEATS 16
@@ -115,31 +116,6 @@ static int render(const options *o, const char *backend, const char *params, int
   return 0;
 }
 
-static double lum(const obs_image *img, size_t i) {
-  return 0.2126 * obs_image_channel(img, "radiance.R")[i] +
-         0.7152 * obs_image_channel(img, "radiance.G")[i] +
-         0.0722 * obs_image_channel(img, "radiance.B")[i];
-}
-
-/* Luminance RMSE against the reference over the pixels both cover, and the reference's own noise
- * there (the RMS of its luminance standard error). */
-static double rmse(const obs_image *a, const obs_image *ref, double *noise) {
-  size_t n = (size_t)a->width * (size_t)a->height, cnt = 0;
-  const float *aa = obs_image_channel(a, "alpha"), *ra = obs_image_channel(ref, "alpha");
-  const float *se[3] = {obs_image_channel(ref, "radiance_stderr.R"),
-                        obs_image_channel(ref, "radiance_stderr.G"),
-                        obs_image_channel(ref, "radiance_stderr.B")};
-  double ss = 0, nn = 0;
-  for (size_t i = 0; i < n; i++) {
-    if (!(aa[i] > 0) || !(ra[i] > 0)) continue;
-    double d = lum(a, i) - lum(ref, i);
-    double s = 0.2126 * se[0][i] + 0.7152 * se[1][i] + 0.0722 * se[2][i];
-    ss += d * d, nn += s * s, cnt++;
-  }
-  *noise = cnt ? sqrt(nn / (double)cnt) : 0;
-  return cnt ? sqrt(ss / (double)cnt) : 0;
-}
-
 static int fail(obs_err *err) {
   fprintf(stderr, "bench_sss_single: %s\n", obs_err_message(err));
   return 1;
@@ -199,7 +175,7 @@ int main(int argc, char **argv) {
     snprintf(params, sizeof params, "{\"samples\":%d,\"map_size\":%d}", o.ms[k], o.map_size);
     double ms, noise;
     if (render(&o, "cpu", params, o.repeats, &res, &ms, NULL, &err)) return fail(&err);
-    double e = rmse(&res.image, &ref.image, &noise);
+    double e = bench_radiance_rmse(&res.image, &ref.image, &noise);
     printf("  %-6d %10.1f %14.6f %12.6f\n", o.ms[k], ms, e, noise);
   }
   snprintf(path, sizeof path, "%sshadow_maps.png", o.png ? o.png : "");
