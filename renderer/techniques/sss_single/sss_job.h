@@ -13,6 +13,7 @@
  * tracer's frame (world minus rt->geo.origin). */
 typedef struct sss_light {
   int point;          /* 1: point light at `pos`; 0: directional along `dir` */
+  int index;          /* in the scene's `lights` */
   double pos[3];
   double dir[3];      /* directional: the way its light travels (unit) */
   double power[3];    /* point: intensity; directional: irradiance facing it */

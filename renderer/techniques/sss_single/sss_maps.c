@@ -51,6 +51,7 @@ int obs_sss_job_setup(obs_render_ctx *ctx, sss_job *jb, obs_err *err) {
     }
     sss_light *l = &jb->lights[jb->nlights++];
     l->point = sl->type == OBS_LIGHT_POINT;
+    l->index = (int)i;
     const double p[3] = {sl->position.x, sl->position.y, sl->position.z};
     const double dd[3] = {sl->direction.x, sl->direction.y, sl->direction.z};
     const double e[3] = {sl->emission.x, sl->emission.y, sl->emission.z};
@@ -170,7 +171,9 @@ static void basis(const double f[3], double r[3], double u[3]) {
 int obs_sss_maps_build(sss_job *jb, int threads, obs_err *err) {
   double lo[3], hi[3];
   if (!media_box(jb, lo, hi))
-    return obs_err_set(err, OBS_EINVAL, "sss_single: no medium object has geometry");
+    return obs_err_set(err, OBS_EINVAL,
+                       "/objects: sss_single: no object with a medium has a surface to scatter "
+                       "under (volume shapes are not rendered)");
   const double *sb0 = jb->rt->geo.bounds[0], *sb1 = jb->rt->geo.bounds[1];
   double centre[3], r2 = 0, far2 = 0;
   for (int k = 0; k < 3; k++) {
@@ -190,9 +193,10 @@ int obs_sss_maps_build(sss_job *jb, int threads, obs_err *err) {
       dist = sqrt(obs_sss_dot(d, d));
       if (!(dist > r))
         return obs_err_set(err, OBS_EINVAL,
-                           "sss_single: a point light lies within the bounding sphere of the "
-                           "medium objects, which one light-view map cannot cover (method "
-                           "\"trace\" renders it)");
+                           "/lights/%d/position: sss_single's shadow_maps needs a point light "
+                           "outside the bounding sphere of the medium objects, which one "
+                           "light-view map must cover (method \"trace\" renders it)",
+                           l->index);
       for (int k = 0; k < 3; k++) l->fwd[k] = d[k] / dist;
       l->half = tan(asin(r / dist)) * (1 + 1e-3);
     } else {
