@@ -43,8 +43,9 @@ static const obs_param sss_params[] = {
      .description = "shadow_maps: each map lookup moved by up to this many texels in x and y "
                     "(fixed per pixel and seed); 0: none",
      .offset = P(jitter)},
-    {.name = "map_size", .type = OBS_PARAM_UINT, .min = 16, .max = 2048, .def = 256,
-     .description = "shadow_maps: light-view map resolution per light (the article's 2048)",
+    {.name = "map_size", .type = OBS_PARAM_UINT, .min = 16, .max = 1024, .def = 256,
+     .description = "shadow_maps: light-view map resolution per light (the article renders with "
+                    "2048; 1024 bounds the host's ray casting of the maps)",
      .offset = P(map_size)},
     {.name = "unit_length", .type = OBS_PARAM_DOUBLE, .flags = OBS_PARAM_MIN_EXCLUSIVE, .min = 0,
      .max = 1e30, .def = 1,
