@@ -2,7 +2,8 @@
  * transmittance at 0 and 90 degrees, the refracted light path of Eq. 6.5.6 against Snell's
  * geometry, the single-scattered radiance of a homogeneous slab lit and seen at normal incidence
  * (both methods), trace's standard error against a many-sample render, scale invariance through
- * unit_length, the adaptive refinement changing only the pixels near a shadow boundary, and the
+ * unit_length, the adaptive refinement changing only the pixels near a shadow boundary, trace's
+ * entry-point search on a sphere against Snell's law and a scan of the refracted rays, and the
  * loader's refusals. */
 #include <math.h>
 #include <stdio.h>
@@ -10,7 +11,7 @@
 #include <string.h>
 
 #include "obscura/render.h"
-#include "sss_single.h"
+#include "sss_job.h"
 #include "stderr_check.h"
 #include "testutil.h"
 
@@ -225,6 +226,123 @@ static void test_adaptive_band(void **state) {
   obs_result_free(&r[1]);
 }
 
+/* In the meridian plane of a unit sphere lit straight down, whether light refracted at the entry
+ * point at polar angle phi (from +y, signed) runs through (x, y): the signed distance of (x, y)
+ * from that refracted ray, and the distance along it (negative: behind the entry point). */
+static void meridian_ray(double phi, double x, double y, double *side, double *along) {
+  double n[3] = {sin(phi), cos(phi), 0}, d[3] = {0, -1, 0}, wi[3];
+  obs_sss_refract(d, n, ETA, wi);
+  double rx = x - n[0], ry = y - n[1];
+  *side = wi[0] * ry - wi[1] * rx;
+  *along = wi[0] * rx + wi[1] * ry;
+}
+
+/* trace's entry-point search on a unit sphere lit straight down, at points of its meridian plane:
+ * where a scan of the refracted rays (20000 entry angles, roots by bisection) finds a path, the
+ * search converges to one of the roots with Snell's law holding at the hit (residual below 1e-5
+ * of the radius); where none exists (the refraction shadow below the terminator) it reports none.
+ * Off the axis the converged entry point moves away from the one-step estimate (the refraction at
+ * the face the straight line to the light crosses), by more than half the radius at the deepest
+ * points. */
+static void test_entry_sphere(void **state) {
+  (void)state;
+  char doc[1024];
+  snprintf(doc, sizeof doc,
+           "{\"camera\":{\"type\":\"perspective\",\"position\":[0,0,5],\"look_at\":[0,0,0],"
+           "\"up\":[0,1,0],\"fov_y\":30},\"image\":{\"width\":8,\"height\":8,\"spp\":1},"
+           "\"objects\":[{\"name\":\"ball\",\"shape\":{\"type\":\"sphere\",\"center\":[0,0,0],"
+           "\"radius\":1},\"material\":{\"reflectivity\":[0.5,0.5,0.5],\"medium\":{\"sigma_a\":"
+           "[%g,%g,%g],\"sigma_s\":[%g,%g,%g],\"g\":%g,\"eta\":%g}}}],\"lights\":[{\"type\":"
+           "\"directional\",\"direction\":[0,-1,0],\"emission\":[1,1,1]}],\"technique\":{\"name\":"
+           "\"sss_single\",\"backend\":\"cpu\"}}",
+           SA[0], SA[1], SA[2], SS[0], SS[1], SS[2], G, ETA);
+  obs_scene sc;
+  obs_test_load(doc, "ball.json", &sc);
+  obs_rt rt;
+  obs_err err = OBS_ERR_INIT;
+  assert_int_equal(obs_rt_build_ex(&sc, &rt, 1, OBS_RT_FRAME_GEOMETRY, &err), 0);
+  sss_medium md = {{0}, {0}, 1, G, ETA};
+  sss_light light = {.point = 0, .dir = {0, -1, 0}};
+  sss_job jb = {.rt = &rt, .media = &md, .nobjects = 1};
+  const double *o = rt.geo.origin;
+  int found = 0, none = 0, moved = 0;
+  double max_move = 0;
+  for (int i = 1; i <= 9; i++)
+    for (int j = -9; j <= 9; j++) {
+      double x = 0.1 * i, y = 0.1 * j;
+      if (x * x + y * y > 0.95 * 0.95) continue;
+      /* the scan: roots of the side where the ray runs forward through (x, y) */
+      double roots[8];
+      int nroots = 0;
+      const int n = 20000;
+      double a = -M_PI / 2, sa, al;
+      meridian_ray(a, x, y, &sa, &al);
+      for (int k = 1; k <= n; k++) {
+        double b = -M_PI / 2 + M_PI * k / n, sb, bl;
+        meridian_ray(b, x, y, &sb, &bl);
+        if ((sa < 0) != (sb < 0) && al > 0 && bl > 0 && nroots < 8) {
+          double lo = a, hi = b, slo = sa;
+          for (int it = 0; it < 60; it++) {
+            double m = 0.5 * (lo + hi), sm, ml;
+            meridian_ray(m, x, y, &sm, &ml);
+            if ((sm < 0) == (slo < 0)) lo = m, slo = sm;
+            else hi = m;
+          }
+          roots[nroots++] = 0.5 * (lo + hi);
+        }
+        a = b, sa = sb, al = bl;
+      }
+      float xs[3] = {(float)(x - o[0]), (float)(y - o[1]), (float)(0 - o[2])};
+      sss_entry e;
+      uint64_t rays = 0;
+      int ok = obs_sss_entry_solve(&jb, &light, 0, xs, OBS_SSS_ENTRY_STEPS, &e, &rays);
+      if (!nroots) {
+        assert_true(!ok || e.stalled);
+        none++;
+        continue;
+      }
+      assert_true(ok && e.converged);
+      found++;
+      /* Snell's law at the hit: the light refracted at the sphere's normal there runs to xs */
+      double p[3], nrm[3], d[3] = {0, -1, 0}, wi[3], u[3], pl = 0, ul = 0;
+      for (int k = 0; k < 3; k++) {
+        p[k] = e.h.p[k] + o[k];
+        pl += p[k] * p[k];
+      }
+      pl = sqrt(pl);
+      for (int k = 0; k < 3; k++) nrm[k] = p[k] / pl;
+      obs_sss_refract(d, nrm, ETA, wi);
+      double xw[3] = {x, y, 0};
+      for (int k = 0; k < 3; k++) {
+        u[k] = xw[k] - p[k];
+        ul += u[k] * u[k];
+      }
+      ul = sqrt(ul);
+      double resid = 0;
+      for (int k = 0; k < 3; k++) resid += (wi[k] - u[k] / ul) * (wi[k] - u[k] / ul);
+      assert_true(fabs(pl - 1) < 1e-5);
+      assert_true(sqrt(resid) * ul < 1e-5);
+      assert_true(fabs(ul - e.h.t) < 1e-5);
+      double best = INFINITY, phi = atan2(p[0], p[1]);
+      for (int r = 0; r < nroots; r++) best = fmin(best, fabs(phi - roots[r]));
+      assert_true(best < 1e-4);
+      /* the one-step estimate: up to the sphere, refract, back from xs along the refracted light */
+      double y0 = sqrt(1 - x * x), n0[3] = {x, y0, 0}, w0[3];
+      obs_sss_refract(d, n0, ETA, w0);
+      double bx = -w0[0], by = -w0[1], bq = bx * x + by * y, bc = x * x + y * y - 1;
+      double t1 = -bq + sqrt(bq * bq - bc), p1[2] = {x + t1 * bx, y + t1 * by};
+      double move = hypot(p[0] - p1[0], p[1] - p1[1]);
+      max_move = fmax(max_move, move);
+      moved += move > 1e-3;
+    }
+  printf("entry search on a sphere: %d points with a path (%d off the one-step estimate by more than "
+         "1e-3, at most %.4f), %d in the refraction shadow\n", found, moved, max_move, none);
+  assert_true(found > 50 && none > 5 && moved > 20 && max_move > 0.02);
+  obs_rt_free(&rt);
+  obs_scene_free(&sc);
+  obs_err_free(&err);
+}
+
 static void expect_refusal(const char *doc, const char *needle) {
   obs_scene sc;
   obs_err err = OBS_ERR_INIT;
@@ -264,7 +382,7 @@ int main(void) {
       cmocka_unit_test(test_refracted_path),   cmocka_unit_test(test_slab_trace),
       cmocka_unit_test(test_slab_shadow_maps), cmocka_unit_test(test_scale_invariance),
       cmocka_unit_test(test_trace_stderr),     cmocka_unit_test(test_adaptive_band),
-      cmocka_unit_test(test_refusals),
+      cmocka_unit_test(test_entry_sphere),     cmocka_unit_test(test_refusals),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

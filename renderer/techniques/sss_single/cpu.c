@@ -21,6 +21,7 @@ static const char *const channel_names[CH_COUNT] = {
 typedef struct pixel_job {
   sss_job jb;
   obs_camera_rig cam;
+  atomic_ullong entry_count[3]; /* trace: entry-point searches, unconverged, without a path */
 } pixel_job;
 
 static uint64_t shade_pixel(const void *user, int thread, int x, int y, float *d) {
@@ -73,6 +74,10 @@ int obs_sss_single_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   pj.jb.p = *(const obs_sss_single_params *)ctx->bound;
   pj.jb.rt = ctx->rt;
   pj.jb.spp = sc->spp;
+  atomic_init(&pj.entry_count[0], 0);
+  atomic_init(&pj.entry_count[1], 0);
+  atomic_init(&pj.entry_count[2], 0);
+  pj.jb.entry_count = pj.entry_count;
   obs_camera_setup(&sc->camera, sc->width, sc->height, &pj.cam);
   int rc = obs_sss_job_setup(ctx, &pj.jb, err);
   double maps_ms = 0;
@@ -90,6 +95,12 @@ int obs_sss_single_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
     rc = obs_driver_pixels(ctx, &ops, &pj, out, err);
     ctx->render_ms += maps_ms; /* the maps are the technique's work too (the driver's is shade) */
   }
+  unsigned long long searches = atomic_load(&pj.entry_count[0]);
+  unsigned long long stuck = atomic_load(&pj.entry_count[1]);
+  if (!rc && stuck)
+    obs_render_ctx_warn(ctx, "sss_single trace: %llu of %llu entry-point searches stopped "
+                        "unconverged after %d steps (their best iterate is used)", stuck, searches,
+                        OBS_SSS_ENTRY_STEPS);
   obs_sss_job_free(&pj.jb);
   return rc;
 }
