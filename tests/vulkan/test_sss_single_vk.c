@@ -1,9 +1,9 @@
 /* sss_single's shadow_maps on Vulkan against its CPU twin under the validation layer: the marble
  * scene with several parameter sets (jitter, adaptive, a point light, pixel samples), the slab's
- * closed form on the device, and method trace refused on Vulkan. Both backends read the same
- * host-built maps and camera hits; the device walks in float where the CPU walks in double, so
- * a lookup at a texel's edge may land in the neighbour: the radiance agrees to a small RMSE and
- * nearly every pixel agrees closely. */
+ * closed form on the device, and method trace refused on Vulkan. The CPU casts the light-view
+ * maps with Embree; the device rasterises them (the G-buffer pipeline from the light's camera)
+ * and walks in float: the radiance agrees within the measured tolerances below, and coverage
+ * (the host's camera hits on both) exactly. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -32,6 +32,20 @@ static void render_marble(const char *backend, const char *params, const char *l
   obs_test_assert_finite(&r->image);
 }
 
+/* The twins' tolerances. The device's maps come from the G-buffer raster, whose sphere facets
+ * tilt by up to 1.5 degrees from the analytic normal the CPU's rays see (gbuffer_vk.c), and sit
+ * within a quarter texel inside it; a tilt moves n.w, and with it E_t, Eq. 6.5.6 and the phase
+ * angle, by up to sin 1.5 deg = 2.6 % at normal incidence, and a silhouette or shadow texel may
+ * change object. Measured on the four cases (64 x 48, lavapipe): RMSE 0.35 to 0.57 % of the mean,
+ * bias within 0.02 %, at most 3 of 9216 values off by more than 5 % of the mean. The bounds: an
+ * RMSE within 2 % of the mean (below the largest tilt's 2.6 %, 3.5 times the measured), a bias
+ * within 0.5 % (facet tilts average out over the walk), and at most 0.5 % of the values off by
+ * more than 5 % of the mean (the texels that change object). */
+#define RMSE 0.02
+#define BIAS 0.005
+#define FAR 0.05
+#define FAR_SHARE 0.005
+
 static void test_twins(void **state) {
   (void)state;
   vktest_need_vk();
@@ -53,26 +67,32 @@ static void test_twins(void **state) {
     render_marble("vulkan", cases[k].params, cases[k].lights, cases[k].spp, &r[1]);
     assert_int_equal(r[1].backend, OBS_BACKEND_VULKAN);
     size_t n = 64 * 48, far = 0;
-    double ss = 0, sum = 0;
+    double ss = 0, sum = 0, sumv = 0;
     for (int c = 0; c < 3; c++) {
       const float *a = obs_image_channel(&r[0].image, RGB[c]);
       const float *v = obs_image_channel(&r[1].image, RGB[c]);
-      for (size_t i = 0; i < n; i++) ss += ((double)a[i] - v[i]) * ((double)a[i] - v[i]), sum += a[i];
+      for (size_t i = 0; i < n; i++) {
+        ss += ((double)a[i] - v[i]) * ((double)a[i] - v[i]);
+        sum += a[i], sumv += v[i];
+      }
     }
-    double rmse = sqrt(ss / (3.0 * n)), mean = sum / (3.0 * n);
+    double rmse = sqrt(ss / (3.0 * n)), mean = sum / (3.0 * n), bias = (sumv - sum) / (3.0 * n);
     for (int c = 0; c < 3; c++) {
       const float *a = obs_image_channel(&r[0].image, RGB[c]);
       const float *v = obs_image_channel(&r[1].image, RGB[c]);
-      for (size_t i = 0; i < n; i++) far += fabs((double)a[i] - v[i]) > 1e-3 * mean;
+      for (size_t i = 0; i < n; i++) far += fabs((double)a[i] - v[i]) > FAR * mean;
     }
     const float *aa = obs_image_channel(&r[0].image, "alpha");
     const float *va = obs_image_channel(&r[1].image, "alpha");
     for (size_t i = 0; i < n; i++) assert_true(aa[i] == va[i]);
-    printf("%s (spp %d): radiance rmse %.3g (mean %.3g), %zu of %zu values off by > 1e-3 mean\n",
-           cases[k].params, cases[k].spp, rmse, mean, far, 3 * n);
+    printf("%s (spp %d): radiance rmse %.3g = %.2f %% of the mean %.3g, bias %.2f %%, %zu of %zu "
+           "values off by > %g of the mean\n",
+           cases[k].params, cases[k].spp, rmse, 100 * rmse / mean, mean, 100 * bias / mean, far,
+           3 * n, FAR);
     assert_true(mean > 0);
-    assert_true(rmse <= 1e-4 * mean);
-    assert_true(far <= 3 * n / 100);
+    assert_true(rmse <= RMSE * mean);
+    assert_true(fabs(bias) <= BIAS * mean);
+    assert_true(far <= 3 * n * FAR_SHARE);
     obs_result_free(&r[0]);
     obs_result_free(&r[1]);
   }

@@ -4,6 +4,7 @@
 #ifndef OBS_SSS_CPU_H
 #define OBS_SSS_CPU_H
 
+#include <stdatomic.h>
 #include <stdint.h>
 
 #include "raytrace.h"
@@ -42,6 +43,10 @@ typedef struct sss_job {
   sss_medium *media; /* per scene object */
   size_t nobjects;
   int32_t *has_medium;
+  /* trace: the entry-point searches made, those stopped unconverged after OBS_SSS_ENTRY_STEPS
+   * (their best iterate used) and those that found no refracted path (obs_sss_entry_solve);
+   * NULL: not counted. Sums, so the same for any thread order. */
+  atomic_ullong *entry_count;
 } sss_job;
 
 /* The scene's media per scene unit and its punctual lights in the ray tracer's frame (`jb->rt`
@@ -59,7 +64,11 @@ void obs_sss_sample_ray(const struct obs_camera_rig *cam, uint32_t seed, int spp
  * view maps (M or, refined, 2M deterministic path samples per light). Returns the lookups made. */
 uint64_t obs_sss_maps_shade(const sss_job *jb, const obs_hit *hit, size_t obj, const double dir[3],
                             uint32_t px, uint32_t py, uint32_t s, double out[3], int *refined);
-/* The light-view maps of every light (obs_parallel_tiles over the texels); 0 or OBS_E*. */
+/* Each light's map projection over the medium objects' bounding sphere (centre, half, back, the
+ * basis); refuses a point light inside that sphere. 0 or OBS_E*. */
+int obs_sss_maps_setup(sss_job *jb, obs_err *err);
+/* The projections and the light-view maps of every light, cast with Embree (obs_parallel_tiles
+ * over the texels); 0 or OBS_E*. */
 int obs_sss_maps_build(sss_job *jb, int threads, obs_err *err);
 /* The radiance of one pixel sample by ray tracing: `samples` path lengths, each connected to every
  * light through the refracted entry point. Fills the sample mean and the sum of squares of the
@@ -67,6 +76,27 @@ int obs_sss_maps_build(sss_job *jb, int threads, obs_err *err);
 uint64_t obs_sss_trace_shade(const sss_job *jb, const obs_hit *hit, size_t obj,
                              const double dir[3], uint32_t px, uint32_t py, uint32_t s,
                              double sum[3], double sum2[3]);
+
+/* The point x_i where the light that reaches frame point xs inside object obj entered it: the
+ * refracted light path, solved on the surface to convergence (see cpu_trace.c). */
+typedef struct sss_entry {
+  obs_hit h;      /* the entry point on obj; h.t is the in-medium light path s_i' */
+  double wi[3];   /* the light's direction refracted at h (unit, into the medium) */
+  double w[3];    /* the light's direction arriving at h (unit) */
+  double dist;    /* a point light's distance from h; INFINITY for a directional light */
+  double resid;   /* Snell's residual at h: |wi + u| for the unit direction u from xs to h */
+  int steps;      /* candidate directions traced after the straight line toward the light */
+  int converged;  /* the position moved less than the tolerance at the last step */
+  int stalled;    /* no step shrinks the residual, which stays above 0: no such path exists */
+} sss_entry;
+/* The default bound on the search's steps. */
+#define OBS_SSS_ENTRY_STEPS 16
+/* Solves for the entry point with at most max_steps steps (1: the one-step estimate, the refracted
+ * direction at the face the straight line to the light crosses). Returns 1 with *e filled (when
+ * unconverged, the iterate with the smallest residual), 0 when no light path enters obj toward xs
+ * (the line to the light leaves through another object or a face turned away). Counts rays. */
+int obs_sss_entry_solve(const sss_job *jb, const sss_light *l, size_t obj, const float xs[3],
+                        int max_steps, sss_entry *e, uint64_t *rays);
 
 /* A uniform number in [0, 1) from a 64-bit key (splitmix64): images depend only on the key. */
 static inline double obs_sss_rand(uint64_t key) {

@@ -168,7 +168,7 @@ static void basis(const double f[3], double r[3], double u[3]) {
   u[2] = f[0] * r[1] - f[1] * r[0];
 }
 
-int obs_sss_maps_build(sss_job *jb, int threads, obs_err *err) {
+int obs_sss_maps_setup(sss_job *jb, obs_err *err) {
   double lo[3], hi[3];
   if (!media_box(jb, lo, hi))
     return obs_err_set(err, OBS_EINVAL,
@@ -205,6 +205,14 @@ int obs_sss_maps_build(sss_job *jb, int threads, obs_err *err) {
       l->back = sqrt(far2) * 2 + r;
     }
     basis(l->fwd, l->right, l->up);
+  }
+  return 0;
+}
+
+int obs_sss_maps_build(sss_job *jb, int threads, obs_err *err) {
+  int rc = obs_sss_maps_setup(jb, err);
+  for (int i = 0; i < jb->nlights && !rc; i++) {
+    sss_light *l = &jb->lights[i];
     size_t n = (size_t)l->size * (size_t)l->size;
     l->pos_map = malloc(3 * n * sizeof(float));
     l->nrm_map = malloc(3 * n * sizeof(float));
@@ -214,10 +222,10 @@ int obs_sss_maps_build(sss_job *jb, int threads, obs_err *err) {
       return obs_err_set(err, OBS_ENOMEM, "sss_single: out of memory for %d x %d light-view maps",
                          l->size, l->size);
     map_job mj = {jb, l};
-    int rc = obs_parallel_tiles(l->size, l->size, threads, fill_tile, &mj, NULL, NULL, NULL);
+    rc = obs_parallel_tiles(l->size, l->size, threads, fill_tile, &mj, NULL, NULL, NULL);
     if (rc) return obs_err_set(err, rc, "sss_single: light-view map failed");
   }
-  return 0;
+  return rc;
 }
 
 
@@ -241,7 +249,7 @@ struct obs_sss_host {
   sss_job jb;
   obs_camera_rig cam;
   int w, h;
-  float *maps, *table;
+  float *table;
   size_t rows;
 };
 
@@ -249,32 +257,20 @@ static void put4(float *r, double a, double b, double c, double d) {
   r[0] = (float)a, r[1] = (float)b, r[2] = (float)c, r[3] = (float)d;
 }
 
-/* The maps and the table as layout.h lays them out. */
+/* The parameter table as layout.h lays it out. */
 static int pack(obs_sss_host *h, obs_err *err) {
   const sss_job *jb = &h->jb;
-  size_t n = (size_t)jb->p.map_size * jb->p.map_size, nobj = h->jb.nobjects;
-  h->maps = malloc((size_t)(jb->nlights ? jb->nlights : 1) * OBS_SSS_LAYERS * n * 4 * sizeof(float));
+  size_t nobj = h->jb.nobjects;
   h->rows = nobj * OBS_SSS_OBJ_ROWS + (size_t)jb->nlights * OBS_SSS_LIGHT_ROWS;
   h->table = calloc(h->rows ? h->rows : 1, 4 * sizeof(float));
-  if (!h->maps || !h->table) return obs_err_set(err, OBS_ENOMEM, "sss_single: out of memory");
+  if (!h->table) return obs_err_set(err, OBS_ENOMEM, "sss_single: out of memory");
   for (int l = 0; l < jb->nlights; l++) {
     const sss_light *L = &jb->lights[l];
-    float *pos = h->maps + ((size_t)l * OBS_SSS_LAYERS + OBS_SSS_LAYER_POS) * n * 4;
-    float *nrm = h->maps + ((size_t)l * OBS_SSS_LAYERS + OBS_SSS_LAYER_NRM) * n * 4;
-    float *irr = h->maps + ((size_t)l * OBS_SSS_LAYERS + OBS_SSS_LAYER_IRR) * n * 4;
-    for (size_t t = 0; t < n; t++) {
-      int hit = L->id_map[t] >= 0;
-      put4(pos + 4 * t, hit ? L->pos_map[3 * t] : 0, hit ? L->pos_map[3 * t + 1] : 0,
-           hit ? L->pos_map[3 * t + 2] : 0, L->id_map[t]);
-      put4(nrm + 4 * t, hit ? L->nrm_map[3 * t] : 0, hit ? L->nrm_map[3 * t + 1] : 0,
-           hit ? L->nrm_map[3 * t + 2] : 0, 0);
-      put4(irr + 4 * t, L->irr_map[3 * t], L->irr_map[3 * t + 1], L->irr_map[3 * t + 2], 0);
-    }
     float *r = h->table + 4 * (nobj * OBS_SSS_OBJ_ROWS + (size_t)l * OBS_SSS_LIGHT_ROWS);
     put4(r, L->pos[0], L->pos[1], L->pos[2], L->point);
     put4(r + 4, L->dir[0], L->dir[1], L->dir[2], L->half);
     put4(r + 8, L->power[0], L->power[1], L->power[2], 0);
-    put4(r + 12, L->centre[0], L->centre[1], L->centre[2], 0);
+    put4(r + 12, L->centre[0], L->centre[1], L->centre[2], L->back);
     put4(r + 16, L->right[0], L->right[1], L->right[2], 0);
     put4(r + 20, L->up[0], L->up[1], L->up[2], 0);
     put4(r + 24, L->fwd[0], L->fwd[1], L->fwd[2], 0);
@@ -308,20 +304,14 @@ int obs_sss_host_open(obs_render_ctx *ctx, obs_sss_host **out, obs_err *err) {
   h->w = sc->width, h->h = sc->height;
   obs_camera_setup(&sc->camera, sc->width, sc->height, &h->cam);
   rc = obs_sss_job_setup(ctx, &h->jb, err);
-  double t1 = obs_now_ms();
-  if (!rc) rc = obs_sss_maps_build(&h->jb, ctx->threads, err);
-  if (!rc) {
-    obs_driver_stage_add(ctx, "light_maps", obs_now_ms() - t1);
-    ctx->rays += (uint64_t)h->jb.nlights * h->jb.p.map_size * h->jb.p.map_size;
-    rc = pack(h, err);
-  }
+  if (!rc) rc = obs_sss_maps_setup(&h->jb, err);
+  if (!rc) rc = pack(h, err);
   return rc;
 }
 
 void obs_sss_host_close(obs_sss_host *h) {
   if (!h) return;
   obs_sss_job_free(&h->jb);
-  free(h->maps);
   free(h->table);
   obs_rt_free(&h->rt);
   free(h);
@@ -329,7 +319,23 @@ void obs_sss_host_close(obs_sss_host *h) {
 
 int obs_sss_host_nlights(const obs_sss_host *h) { return h->jb.nlights; }
 int obs_sss_host_nobjects(const obs_sss_host *h) { return (int)h->jb.nobjects; }
-const float *obs_sss_host_maps(const obs_sss_host *h) { return h->maps; }
+const obs_geometry *obs_sss_host_geometry(const obs_sss_host *h) { return &h->rt.geo; }
+
+void obs_sss_host_light_rig(const obs_sss_host *h, int i, obs_camera_rig *rig) {
+  const sss_light *l = &h->jb.lights[i];
+  const double *o = h->rt.geo.origin;
+  memset(rig, 0, sizeof *rig);
+  rig->ortho = !l->point;
+  rig->width = rig->height = l->size;
+  rig->half_w = rig->half_h = l->half;
+  for (int k = 0; k < 3; k++) {
+    rig->origin[k] = (l->point ? l->pos[k] : l->centre[k] - l->back * l->fwd[k]) + o[k];
+    rig->forward[k] = l->fwd[k];
+    rig->right[k] = l->right[k];
+    /* the maps' rows run up `up` (fill_tile), an image's rows down its rig's up */
+    rig->up[k] = -l->up[k];
+  }
+}
 const float *obs_sss_host_table(const obs_sss_host *h, size_t *rows) {
   *rows = h->rows;
   return h->table;

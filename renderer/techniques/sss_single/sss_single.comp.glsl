@@ -1,8 +1,9 @@
 // sss_single's shadow_maps on Vulkan, one invocation per pixel: Listing 6.5.1 as cpu_maps.c's
-// walk() runs it, in float. The host (vulkan.c, sss_maps.c) casts the camera rays and fills the
-// light-view maps; this pass reads one pixel sample's hit, walks M deterministic path lengths down
-// the refracted view ray for every light, looks each up in the light's maps (jittered with the
-// CPU's hash), refines to 2M where 20-85 % of the samples are dim, and writes the radiance.
+// walk() runs it, in float. The host (vulkan.c, sss_maps.c) casts the camera rays, the device has
+// rasterised the light-view maps (sss_maps.comp.glsl); this pass reads one pixel sample's hit,
+// walks M deterministic path lengths down the refracted view ray for every light, looks each up
+// in the light's maps (jittered with the CPU's hash), refines to 2M where 20-85 % of the samples
+// are dim, and writes the radiance.
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #include "layout.h"
@@ -23,13 +24,7 @@ float hg(float mu, float g) {
   return (1.0 - g * g) / (4.0 * PI * d * sqrt(d));
 }
 
-float schlick_t(float c, float eta) {
-  float r0 = (eta - 1.0) / (eta + 1.0);
-  r0 *= r0;
-  float x = max(1.0 - abs(c), 0.0);
-  float x2 = x * x;
-  return 1.0 - (r0 + (1.0 - r0) * x2 * x2 * x);
-}
+#include "sss_fresnel.inc.glsl"
 
 vec3 refract_in(vec3 d, vec3 n, float eta) {
   float ci = max(-dot(d, n), 0.0);

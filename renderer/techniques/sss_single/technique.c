@@ -45,7 +45,7 @@ static const obs_param sss_params[] = {
      .offset = P(jitter)},
     {.name = "map_size", .type = OBS_PARAM_UINT, .min = 16, .max = 1024, .def = 256,
      .description = "shadow_maps: light-view map resolution per light (the article renders with "
-                    "2048; 1024 bounds the host's ray casting of the maps)",
+                    "2048; 1024 bounds the CPU's ray casting of the maps)",
      .offset = P(map_size)},
     {.name = "unit_length", .type = OBS_PARAM_DOUBLE, .flags = OBS_PARAM_MIN_EXCLUSIVE, .min = 0,
      .max = 1e30, .def = 1,
