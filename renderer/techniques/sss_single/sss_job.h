@@ -85,16 +85,17 @@ typedef struct sss_entry {
   double w[3];    /* the light's direction arriving at h (unit) */
   double dist;    /* a point light's distance from h; INFINITY for a directional light */
   double resid;   /* Snell's residual at h: |wi + u| for the unit direction u from xs to h */
-  int steps;      /* candidate directions traced after the straight line toward the light */
+  int steps;      /* iterations after the straight line toward the light (fixed-point or Newton) */
   int converged;  /* the position moved less than the tolerance at the last step */
   int stalled;    /* no step shrinks the residual, which stays above 0: no such path exists */
 } sss_entry;
 /* The default bound on the search's steps. */
 #define OBS_SSS_ENTRY_STEPS 16
-/* Solves for the entry point with at most max_steps steps (1: the one-step estimate, the refracted
- * direction at the face the straight line to the light crosses). Returns 1 with *e filled (when
- * unconverged, the iterate with the smallest residual), 0 when no light path enters obj toward xs
- * (the line to the light leaves through another object or a face turned away). Counts rays. */
+/* Solves for the entry point with at most max_steps iterations (1: at most the one-step estimate,
+ * the refracted direction at the face the straight line to the light crosses). Returns 1 with *e
+ * filled (unconverged: the iterate with the smallest residual; stalled: no refracted path reaches
+ * xs), 0 when no light path enters obj toward xs (the line to the light leaves through another
+ * object or a face turned away). Counts rays. */
 int obs_sss_entry_solve(const sss_job *jb, const sss_light *l, size_t obj, const float xs[3],
                         int max_steps, sss_entry *e, uint64_t *rays);
 
