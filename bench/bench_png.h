@@ -1,5 +1,5 @@
 /* What the RGB benchmarks share: the pictures they write for the docs (a render's radiance,
- * scaled by 2^exposure, as an sRGB PNG) and their error against a path_trace reference (the
+ * scaled by 2^exposure, as an sRGB PNG) and their error against a reference render (the
  * luminance RMSE over the pixels both cover, beside the reference's own noise). */
 #ifndef OBS_BENCH_PNG_H
 #define OBS_BENCH_PNG_H
@@ -37,7 +37,7 @@ static inline double bench_lum(const obs_image *img, size_t i) {
          0.0722 * obs_image_channel(img, "radiance.B")[i];
 }
 
-/* Luminance RMSE of `a` against the reference `ref` (a path_trace render) over the pixels both
+/* Luminance RMSE of `a` against the reference `ref` (path_trace, or sss_single trace) over the pixels both
  * cover, and the reference's own noise there (the RMS of its luminance standard error). */
 static inline double bench_lum_rmse(const obs_image *a, const obs_image *ref, double *noise) {
   size_t n = (size_t)a->width * (size_t)a->height, cnt = 0;

@@ -215,6 +215,59 @@ static void check_reach(obs_jpath *p, const obs_scene *sc, size_t i) {
   obs_geometry_check_reach(sc, i, NULL, eye, p->doc, p->err);
 }
 
+/* The medium presets (per millimetre): Jensen et al. 2001, Table 1, which gives the reduced
+ * scattering coefficient sigma_s' = sigma_s (1 - g); with g = 0 it is sigma_s. ShaderX7 6.5 renders
+ * with "the marble coefficients". */
+static const struct {
+  const char *name;
+  obs_medium m;
+} medium_presets[] = {
+    {"marble", {{0.0021, 0.0041, 0.0071}, {2.19, 2.62, 3.00}, 0.0, 1.5}},
+};
+
+/* material.medium: a preset's name or {sigma_a, sigma_s, g, eta}. */
+static void load_medium(obs_jpath *p, const json_t *mat, obs_object *ob) {
+  const json_t *v = json_object_get(mat, "medium");
+  if (!v) return;
+  size_t mk = obs_jpath_push_key(p, "medium");
+  if (json_is_string(v)) {
+    const char *name = json_string_value(v);
+    size_t n = sizeof medium_presets / sizeof medium_presets[0], i = 0;
+    while (i < n && strcmp(medium_presets[i].name, name)) i++;
+    if (i == n) {
+      obs_jpath_fail(p, "must be a preset name (\"marble\") or an object (got \"%s\")", name);
+    } else {
+      ob->medium = medium_presets[i].m;
+      ob->has_medium = 1;
+    }
+  } else if (json_is_object(v)) {
+    static const char *const keys[] = {"sigma_a", "sigma_s", "g", "eta", NULL};
+    int before = p->err ? p->err->count : 0;
+    obs_json_check_keys(p, v, keys);
+    double a[3] = {0, 0, 0}, s[3] = {0, 0, 0}, g = 0, eta = 1;
+    obs_json_get_vec3(p, v, "sigma_a", 1, 0, 1e30, a);
+    obs_json_get_vec3(p, v, "sigma_s", 1, 0, 1e30, s);
+    obs_json_get_number(p, v, "g", 0, -0.99, 0.99, 0, 0, &g);
+    obs_json_get_number(p, v, "eta", 0, 1, 3, 0, 0, &eta);
+    for (int k = 0; k < 3 && (p->err ? p->err->count : 0) == before; k++)
+      if (!(a[k] + s[k] > 0)) {
+        obs_jpath_fail(p, "must have sigma_a + sigma_s > 0 in every channel (channel %d is 0)", k);
+        break;
+      }
+    if ((p->err ? p->err->count : 0) == before) {
+      set_vec(&ob->medium.sigma_a, a);
+      set_vec(&ob->medium.sigma_s, s);
+      ob->medium.g = g;
+      ob->medium.eta = eta;
+      ob->has_medium = 1;
+    }
+  } else {
+    obs_jpath_fail(p, "must be a preset name (\"marble\") or an object {sigma_a, sigma_s, g, "
+                   "eta} (got %s)", obs_json_brief(v));
+  }
+  obs_jpath_pop(p, mk);
+}
+
 static void load_objects(obs_jpath *p, const json_t *doc, const char *base_dir, obs_scene *sc,
                          int camera_ok) {
   json_t *arr = obs_json_get_array(p, doc, "objects", 1, NULL);
@@ -269,13 +322,14 @@ static void load_objects(obs_jpath *p, const json_t *doc, const char *base_dir, 
     json_t *mat = obs_json_get_object(p, o, "material", 0, &absent);
     if (mat) {
       size_t mk = obs_jpath_push_key(p, "material");
-      static const char *const km[] = {"reflectivity", "emission", NULL};
+      static const char *const km[] = {"reflectivity", "emission", "medium", NULL};
       obs_json_check_keys(p, mat, km);
       double r[3] = {0, 0, 0}, e[3] = {0, 0, 0};
       if (obs_json_get_vec3(p, mat, "reflectivity", 1, 0, 1, r) == 0) ob->has_material = 1;
       set_vec(&ob->reflectivity, r);
       obs_json_get_vec3(p, mat, "emission", 0, 0, COORD_MAX, e);
       set_vec(&ob->emission, e);
+      load_medium(p, mat, ob);
       obs_jpath_pop(p, mk);
     }
     obs_jpath_pop(p, mi);

@@ -109,6 +109,13 @@ static void check_needs(obs_jpath *p, const obs_scene *sc) {
                 "%s: /environment/map: technique \"%s\" takes a constant environment "
                 "(\"color\"); environment maps light %s",
                 p->doc, t->name, techniques_with(OBS_NEED_ENV_MAP, list, sizeof list));
+  size_t nmedium = 0;
+  for (size_t i = 0; i < sc->nobjects; i++) nmedium += sc->objects[i].has_medium;
+  if (t->needs & OBS_NEED_MEDIUM && nmedium == 0)
+    obs_err_set(p->err, OBS_EINVAL,
+                "%s: /objects: technique \"%s\" scatters light inside media, and no object of the "
+                "scene has one (material.medium)",
+                p->doc, t->name);
   size_t nvol = 0;
   for (size_t i = 0; i < sc->nobjects; i++) nvol += sc->objects[i].shape.type == OBS_SHAPE_VOLUME;
   if (t->needs & OBS_NEED_VOLUME && nvol == 0)

@@ -112,7 +112,8 @@ static const struct {
                   {OBS_NEED_VOLUME, "volume"},
                   {OBS_NEED_PUNCTUAL_LIGHTS, "punctual_lights"},
                   {OBS_NEED_ENV_MAP, "environment_map"},
-                  {OBS_NEED_PROXIMITY, "proximity_fields"}};
+                  {OBS_NEED_PROXIMITY, "proximity_fields"},
+                  {OBS_NEED_MEDIUM, "medium"}};
 
 json_t *obs_technique_registry_json(void) {
   json_t *arr = json_array();

@@ -442,12 +442,19 @@ static int gbuffer_create(obs_vk *vk, int w, int h, obs_vk_gbuffer *out, obs_err
 
 int obs_vk_gbuffer_render(obs_vk *vk, const obs_scene *sc, const obs_geometry *geo,
                           obs_vk_gbuffer *out, double *ms, obs_err *err) {
+  obs_camera_rig rig;
+  obs_camera_setup(&sc->camera, sc->width, sc->height, &rig);
+  return obs_vk_gbuffer_render_rig(vk, sc, geo, &rig, out, ms, err);
+}
+
+int obs_vk_gbuffer_render_rig(obs_vk *vk, const obs_scene *sc, const obs_geometry *geo,
+                              const obs_camera_rig *view, obs_vk_gbuffer *out, double *ms,
+                              obs_err *err) {
   memset(out, 0, sizeof *out);
   int rc = obs_vk_usable(vk, "G-buffer render", err);
   if (rc) return rc;
-  obs_camera_rig rig;
-  obs_camera_setup(&sc->camera, sc->width, sc->height, &rig);
-  int w = sc->width, h = sc->height;
+  obs_camera_rig rig = *view;
+  int w = rig.width, h = rig.height;
   if ((rc = ensure_pipeline(vk, err))) return rc;
   if ((rc = gbuffer_create(vk, w, h, out, err))) return rc;
 

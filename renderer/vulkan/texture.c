@@ -264,6 +264,33 @@ int obs_vk_texture_upload(obs_vk *vk, obs_vk_texture *t, const int at[3], const 
   return rc;
 }
 
+int obs_vk_texture_copy_image(obs_vk *vk, obs_vk_texture *t, int layer, const obs_vk_image *img,
+                              obs_err *err) {
+  int rc = obs_vk_usable(vk, "texture copy", err);
+  if (rc) return rc;
+  if (!t || !img || t->desc.type != OBS_VK_TEXTURE_2D_ARRAY || img->is3d ||
+      img->width != t->desc.width || img->height != t->desc.height ||
+      img->channels != t->desc.channels || layer < 0 || layer >= t->desc.depth)
+    return obs_err_set(err, OBS_EINVAL,
+                       "vulkan: texture copy: the image does not match layer %d of the texture",
+                       layer);
+  if ((rc = obs_vk_cmd_begin(vk, "texture copy", err))) return rc;
+  VkImageCopy reg = {.srcSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1},
+                     .dstSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, (uint32_t)layer, 1},
+                     .extent = {(uint32_t)img->width, (uint32_t)img->height, 1}};
+  obs_vk_cmd_layout(vk->cmd, img->image, VK_IMAGE_LAYOUT_GENERAL,
+                    VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL);
+  obs_vk_cmd_layout(vk->cmd, t->image, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL,
+                    VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL);
+  vkCmdCopyImage(vk->cmd, img->image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, t->image,
+                 VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &reg);
+  obs_vk_cmd_layout(vk->cmd, t->image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                    VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL);
+  obs_vk_cmd_layout(vk->cmd, img->image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                    VK_IMAGE_LAYOUT_GENERAL);
+  return obs_vk_cmd_submit(vk, "copy of an image into a texture layer", err);
+}
+
 /* ---- parameter buffers ---- */
 
 int obs_vk_data_create(obs_vk *vk, const void *bytes, size_t size, obs_vk_data **out,

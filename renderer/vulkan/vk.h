@@ -87,6 +87,10 @@ typedef struct obs_vk_gbuffer {
  * `ms` (may be NULL) receives the device time of the pass. */
 int obs_vk_gbuffer_render(obs_vk *vk, const obs_scene *scene, const obs_geometry *geo,
                           obs_vk_gbuffer *out, double *ms, obs_err *err);
+/* The same seen by `rig` (its width x height) instead of the scene's camera: a light's view. */
+int obs_vk_gbuffer_render_rig(obs_vk *vk, const obs_scene *scene, const obs_geometry *geo,
+                              const obs_camera_rig *rig, obs_vk_gbuffer *out, double *ms,
+                              obs_err *err);
 /* Uploads a host G-buffer (so both backends can run on identical inputs), and downloads one
  * into `host`, which must come from obs_gbuffer_alloc with the same size; `albedo` zero leaves
  * host->albedo untouched (saves a third of the readback for techniques that do not use it). */
@@ -122,6 +126,10 @@ int obs_vk_texture_create(obs_vk *vk, const obs_vk_texture_desc *d, obs_vk_textu
  * through the staging buffer in slabs of whole slices (at most ~64 MiB each). */
 int obs_vk_texture_upload(obs_vk *vk, obs_vk_texture *t, const int at[3], const int size[3],
                           const float *data, obs_err *err);
+/* Copies a 2D storage image of the same size and channels into `layer` of a 2D array texture:
+ * what a pass wrote becomes a texture without a trip through the host. */
+int obs_vk_texture_copy_image(obs_vk *vk, obs_vk_texture *t, int layer, const obs_vk_image *img,
+                              obs_err *err);
 void obs_vk_texture_free(obs_vk *vk, obs_vk_texture *t);
 
 /* Orthographic depth maps of a geometry (shadow maps), rasterised by depth-only render passes,

@@ -17,13 +17,15 @@
 static char *scene_doc_sized(const obs_technique *t, obs_backend be, const char *params,
                              int materials, int lights, double s, int w, int h) {
   const char *mat = materials ? ",\"material\":{\"reflectivity\":[0.5,0.5,0.5]}" : "";
+  /* Techniques that scatter inside media see a marble ball (obs_test_medium_material). */
+  const char *ball_mat = materials ? obs_test_medium_material(t) : "";
   char light[512] = "";
   if (lights)
     snprintf(light, sizeof light,
              "\"lights\":[{\"type\":\"quad\",\"vertices\":[[%.17g,%.17g,%.17g],[%.17g,%.17g,"
-             "%.17g],[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g]],\"emission\":[4,4,4]}],"
+             "%.17g],[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g]],\"emission\":[4,4,4]}%s],"
              "\"environment\":{\"color\":[0.2,0.2,0.2]},",
-             -s, 4 * s, -s, s, 4 * s, -s, s, 4 * s, s, -s, 4 * s, s);
+             -s, 4 * s, -s, s, 4 * s, -s, s, 4 * s, s, -s, 4 * s, s, obs_test_punctual_light(t));
   char ball[512];
   obs_test_ball(t, 0, s, 0, 0.5 * s, ball, sizeof ball);
   char *doc = malloc(4096);
@@ -35,7 +37,7 @@ static char *scene_doc_sized(const obs_technique *t, obs_backend be, const char 
            "[%.17g,0,%.17g],[%.17g,0,%.17g],[%.17g,0,%.17g]]}%s},{%s%s}],"
            "%s\"technique\":{\"name\":\"%s\",\"backend\":\"%s\",\"params\":%s}}",
            3 * s, -4 * s, 0.3 * s, w, h, -5 * s, -5 * s, -5 * s, 5 * s, 5 * s, 5 * s, 5 * s, -5 * s,
-           mat, ball, mat, light, t->name, obs_backend_name(be), params ? params : "{}");
+           mat, ball, ball_mat, light, t->name, obs_backend_name(be), params ? params : "{}");
   return doc;
 }
 
@@ -346,6 +348,12 @@ static int refusals_pair(const obs_technique *t, obs_backend be) {
     bad += expect_refusal(what, doc, "light");
     free(doc);
   }
+  if (t->needs & OBS_NEED_MEDIUM) { /* the materials without their media */
+    char *doc = scene_doc(t, be, "{}", 0, 1);
+    snprintf(what, sizeof what, "%s/%s without media", t->name, obs_backend_name(be));
+    bad += expect_refusal(what, doc, "medium");
+    free(doc);
+  }
   return bad;
 }
 
@@ -508,7 +516,8 @@ static char *room_doc(const obs_technique *t, obs_backend be, const char *params
       "\"look_at\":[%.17g,%.17g,%.17g],\"up\":[0,1,0]},"
       "\"image\":{\"width\":%d,\"height\":%d,\"spp\":1},\"objects\":[",
       P(0.1713, 1.2219, -0.9), P(-0.1, 0.6, 1.9), CANCEL_W, CANCEL_H);
-  const char *mat = ",\"material\":{\"reflectivity\":[0.5,0.5,0.5]}}";
+  char mat[160];
+  snprintf(mat, sizeof mat, "%s}", obs_test_medium_material(t));
   if (t->needs & OBS_NEED_VOLUME) {
     char ball[512];
     obs_test_ball(t, P(-0.3, 0.6, 1.7), 0.55 * s, ball, sizeof ball);
@@ -526,10 +535,12 @@ static char *room_doc(const obs_technique *t, obs_backend be, const char *params
     }
   }
   PUT("]");
-  if (!(t->needs & OBS_NEED_VOLUME)) /* volume techniques light with points and directions */
+  if (t->needs & OBS_NEED_MEDIUM) /* media are lit by punctual lights only */
+    PUT(",\"lights\":[%s]", obs_test_punctual_light(t) + 1);
+  else if (!(t->needs & OBS_NEED_VOLUME)) /* volume techniques light with points and directions */
     PUT(",\"lights\":[{\"type\":\"quad\",\"vertices\":[[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g],"
-        "[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g]],\"emission\":[4,4,4]}]",
-        P(-0.31, 1.9, 1.3), P(0.29, 1.9, 1.3), P(0.29, 1.9, 1.9), P(-0.31, 1.9, 1.9));
+        "[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g]],\"emission\":[4,4,4]}%s]",
+        P(-0.31, 1.9, 1.3), P(0.29, 1.9, 1.3), P(0.29, 1.9, 1.9), P(-0.31, 1.9, 1.9), "");
   PUT(",\"environment\":{\"color\":[0.2,0.2,0.2]},"
       "\"technique\":{\"name\":\"%s\",\"backend\":\"%s\",\"params\":%s}}",
       t->name, obs_backend_name(be), params);

@@ -47,6 +47,7 @@ const char *obs_extremes_fast_params(const char *name) {
   /* 16 directions: the fewest whose standard errors are calibrated (fewer warn). */
   if (!strcmp(name, "obscurance_map")) return "\"directions\":16";
   if (!strcmp(name, "ibl_shadows")) return "\"shadow_maps\":8,\"map_size\":64";
+  if (!strcmp(name, "sss_single")) return "\"map_size\":128";
   return "";
 }
 
@@ -79,6 +80,9 @@ static char *scene_json(const ext_case *c, double s, const double off[3], double
   /* Techniques that shade with materials see grey surfaces under a white sky. */
   int lit = (c->t->needs & OBS_NEED_MATERIALS) != 0;
   const char *mat = lit ? ",\"material\":{\"reflectivity\":[0.5,0.5,0.5]}" : "";
+  /* Techniques that scatter inside media see a marble ball under a directional light. */
+  int medium = (c->t->needs & OBS_NEED_MEDIUM) != 0;
+  const char *ball_mat = medium ? obs_test_medium_material(c->t) : mat;
   char ball[512], ground[512];
   obs_test_ball(c->t, X(0.5), Y(1.25), Z(0.3), 1.0 * s, ball, sizeof ball);
   /* Volume techniques see a big sphere volume touching y = 0 in place of the ground quad. */
@@ -93,9 +97,12 @@ static char *scene_json(const ext_case *c, double s, const double off[3], double
   snprintf(doc, 4096,
            "{\"camera\":{%s,\"position\":[%.17g,%.17g,%.17g],\"look_at\":[%.17g,%.17g,%.17g],"
            "\"up\":[0,0,-1]},\"image\":{\"width\":%d,\"height\":%d,\"spp\":1},"
-           "\"objects\":[{%s%s},{%s%s}],"
+           "\"objects\":[{%s%s},{%s%s}],%s"
            "%s\"technique\":{\"name\":\"%s\",\"backend\":\"%s\",\"params\":{%s}}}",
-           cam, X(0), Y(h), Z(0), X(0), Y(0), Z(0), EXT_W, EXT_H, ground, mat, ball, mat,
+           cam, X(0), Y(h), Z(0), X(0), Y(0), Z(0), EXT_W, EXT_H, ground, mat, ball, ball_mat,
+           medium ? "\"lights\":[{\"type\":\"directional\",\"direction\":[0.3,-1,0.2],"
+                    "\"emission\":[3,3,3]}],"
+                  : "",
            lit ? "\"environment\":{\"color\":[1,1,1]}," : "", c->t->name,
            obs_backend_name(c->be), params);
 #undef X

@@ -392,10 +392,15 @@ static void test_channels_match_declarations(void **state) {
     char doc[2048], ball[512];
     const char *tail = strstr(quad_scene, "],\"environment\"");
     obs_test_ball(t, 0, 0.5, 0, 0.5, ball, sizeof ball);
+    int medium = (t->needs & OBS_NEED_MEDIUM) != 0; /* a marble ball under a directional light */
     snprintf(doc, sizeof doc,
-             "%.*s,{%s,\"material\":{\"reflectivity\":[0.5,0.5,0.5]}}],\"environment\":{\"color\":"
-             "[1,1,1]},\"technique\":{\"name\":\"%s\",\"backend\":\"cpu\"}}",
-             (int)(tail - quad_scene), quad_scene, ball, t->name);
+             "%.*s,{%s%s}],%s\"environment\":{\"color\":[1,1,1]},\"technique\":{\"name\":\"%s\","
+             "\"backend\":\"cpu\"}}",
+             (int)(tail - quad_scene), quad_scene, ball, obs_test_medium_material(t),
+             medium ? "\"lights\":[{\"type\":\"directional\",\"direction\":[0,-1,0],"
+                      "\"emission\":[1,1,1]}],"
+                    : "",
+             t->name);
     obs_result r;
     obs_test_render(doc, 1, &r);
     char ch[OBS_OUTPUT_MAX_CHANNELS][OBS_CHANNEL_NAME_MAX];

@@ -175,6 +175,18 @@ int obs_test_check_sane(const char *what, const obs_technique *t, const obs_imag
   return bad;
 }
 
+const char *obs_test_medium_material(const obs_technique *t) {
+  return t->needs & OBS_NEED_MEDIUM
+             ? ",\"material\":{\"reflectivity\":[0.5,0.5,0.5],\"medium\":\"marble\"}"
+             : ",\"material\":{\"reflectivity\":[0.5,0.5,0.5]}";
+}
+
+const char *obs_test_punctual_light(const obs_technique *t) {
+  return t->needs & OBS_NEED_MEDIUM
+             ? ",{\"type\":\"directional\",\"direction\":[0.3,-1,0.2],\"emission\":[3,3,3]}"
+             : "";
+}
+
 void obs_test_ball(const obs_technique *t, double x, double y, double z, double r, char *buf,
                    size_t n) {
   if (t->needs & OBS_NEED_VOLUME) /* the procedural sphere's radius is 0.3 of its box's side */

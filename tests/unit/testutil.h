@@ -56,6 +56,12 @@ void obs_test_assert_region(const obs_image *whole, const obs_image *part, obs_r
 
 /* The members of a ball object of radius r at (x, y, z) for technique t, into buf: an analytic
  * sphere, or for a technique that renders volumes a procedural sphere volume of that size. */
+/* The material members (",\"material\":{...}") of a test object for technique t: grey, and
+ * filled with the marble preset for techniques that scatter inside media (OBS_NEED_MEDIUM). */
+const char *obs_test_medium_material(const obs_technique *t);
+/* A directional light (",{...}", to follow another light in a list) for techniques that scatter
+ * inside media, which light with punctual lights only; "" for the others. */
+const char *obs_test_punctual_light(const obs_technique *t);
 void obs_test_ball(const obs_technique *t, double x, double y, double z, double r, char *buf,
                    size_t n);
 

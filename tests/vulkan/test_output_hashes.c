@@ -35,7 +35,8 @@
 #include "vktest.h"
 
 static const char *const scenes[] = {"cornell_box",      "sphere_on_plane", "teapot",
-                                     "displaced_sphere", "volume_torus",    "volume_torus_mesh"};
+                                     "displaced_sphere", "volume_torus",    "volume_torus_mesh",
+                                     "sss_marble"};
 
 /* Parameter sets beyond the defaults: the scene's own params for its own technique, and these. */
 typedef struct extra_params {
@@ -181,16 +182,17 @@ static void render_case(const hcase *c, obs_result *res) {
 
 /* Whether technique t renders bundled scene `scene`: volume techniques the scenes with volumes,
  * the others the scenes with surfaces, and techniques that need materials (path_trace) only
- * scenes whose objects all have one. */
+ * scenes whose objects all have one; media techniques (sss_single) the scenes with media. */
 static int renders(const obs_technique *t, const char *scene) {
   char path[512];
   snprintf(path, sizeof path, "scenes/%s.json", scene);
   obs_scene sc;
   obs_err err = OBS_ERR_INIT;
   assert_int_equal(obs_scene_load_file(&sc, obs_test_src(path), NULL, 0, &err), 0);
-  int all = 1, volumes = 0, surfaces = 0;
+  int all = 1, volumes = 0, surfaces = 0, media = 0;
   for (size_t i = 0; i < sc.nobjects; i++) {
     all &= sc.objects[i].has_material;
+    media |= sc.objects[i].has_medium;
     volumes |= sc.objects[i].shape.type == OBS_SHAPE_VOLUME;
     surfaces |= sc.objects[i].shape.type != OBS_SHAPE_VOLUME;
   }
@@ -203,6 +205,9 @@ static int renders(const obs_technique *t, const char *scene) {
   int loads = obs_scene_load_file(&sc, obs_test_src(path), ov, 1, &err) == 0;
   if (loads) obs_scene_free(&sc);
   obs_err_free(&err);
+  /* A scene with media is made for the techniques that scatter inside them, and only they
+   * render it (they render no other). */
+  if ((t->needs & OBS_NEED_MEDIUM) || media) return (t->needs & OBS_NEED_MEDIUM) && media;
   if (t->needs & OBS_NEED_VOLUME) return volumes && loads;
   return surfaces && (all || !(t->needs & OBS_NEED_MATERIALS));
 }

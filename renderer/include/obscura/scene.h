@@ -88,12 +88,24 @@ typedef struct obs_transform {
   int present;        /* 0 when the object had no transform (identity) */
 } obs_transform;
 
+/* A homogeneous participating medium filling an object (its material's `medium`), for the
+ * techniques that scatter light under the surface (sss_single). Coefficients are per unit length
+ * of the technique's choosing (sss_single's `unit_length`; the presets are per millimetre). */
+typedef struct obs_medium {
+  obs_vec3 sigma_a; /* absorption coefficient per channel */
+  obs_vec3 sigma_s; /* scattering coefficient per channel */
+  double g;         /* Henyey-Greenstein asymmetry, in (-1, 1) */
+  double eta;       /* index of refraction relative to the outside, in [1, 3] */
+} obs_medium;
+
 typedef struct obs_object {
   char *name;           /* owned; "object<i>" when the document gave none */
   obs_shape shape;
   int has_material;
   obs_vec3 reflectivity;
   obs_vec3 emission;    /* radiance emitted from both sides of the surface; zero when absent */
+  int has_medium;       /* material.medium given: the object is filled with `medium` */
+  obs_medium medium;
   obs_transform transform;
   /* A moving object's transforms in frames 1..nmotion (frame 0 is `transform`); NULL and 0 when
    * it stays put. Owned. Motion is rigid: every entry has `transform`'s scale. */

@@ -42,7 +42,10 @@ enum {
   /* Reads per-object proximity fields: declared for the registry and the API; the technique
    * builds them itself through its prepare hook (proximity_ao: renderer/techniques/proximity_ao/
    * proximity.h). */
-  OBS_NEED_PROXIMITY = 1 << 9
+  OBS_NEED_PROXIMITY = 1 << 9,
+  /* Scatters light inside objects filled with a medium (material.medium): a scene where no
+   * object has one is refused; techniques without it ignore media. */
+  OBS_NEED_MEDIUM = 1 << 10
 };
 
 /* What one technique prepares for its own run through its prepare hook: a type each technique
