@@ -20,7 +20,8 @@
  * each level this CPU has, writes one line where the levels agree and one line per level where
  * they do not, keeps other vendors' lines for channels whose bits this machine did not move, and
  * writes the references (rendered at sse2) of the cases with per-level lines.
- * Techniques that need materials render only the scenes whose objects all have one. */
+ * Techniques that need materials render only the scenes whose objects all have one, and every
+ * technique only the scenes whose load it accepts. */
 #include <dirent.h>
 #include <inttypes.h>
 #include <math.h>
@@ -36,7 +37,7 @@
 
 static const char *const scenes[] = {"cornell_box",      "sphere_on_plane", "teapot",
                                      "displaced_sphere", "volume_torus",    "volume_torus_mesh",
-                                     "sss_marble"};
+                                     "sss_marble",  "ibl_sky"};
 
 /* Parameter sets beyond the defaults: the scene's own params for its own technique, and these. */
 typedef struct extra_params {
@@ -197,19 +198,20 @@ static int renders(const obs_technique *t, const char *scene) {
     surfaces |= sc.objects[i].shape.type != OBS_SHAPE_VOLUME;
   }
   obs_scene_free(&sc);
-  /* A volume technique that lights with nothing (isosurface_mesh) refuses a scene with point
-   * lights or an environment map: it renders the volume scenes whose load it accepts. */
+  /* A technique renders only the scenes whose load it accepts: a volume technique that lights
+   * with nothing (isosurface_mesh) refuses point lights and environment maps, and only the
+   * techniques that light with maps (path_trace, ibl_shadows) accept ibl_sky's sky. */
   char name[64];
   snprintf(name, sizeof name, "\"%s\"", t->name);
-  obs_override ov[1] = {{"/technique/name", name}};
-  int loads = obs_scene_load_file(&sc, obs_test_src(path), ov, 1, &err) == 0;
+  obs_override ov[2] = {{"/technique/name", name}, {"/technique/params", "{}"}};
+  int loads = obs_scene_load_file(&sc, obs_test_src(path), ov, 2, &err) == 0;
   if (loads) obs_scene_free(&sc);
   obs_err_free(&err);
   /* A scene with media is made for the techniques that scatter inside them, and only they
    * render it (they render no other). */
   if ((t->needs & OBS_NEED_MEDIUM) || media) return (t->needs & OBS_NEED_MEDIUM) && media;
   if (t->needs & OBS_NEED_VOLUME) return volumes && loads;
-  return surfaces && (all || !(t->needs & OBS_NEED_MATERIALS));
+  return surfaces && loads && (all || !(t->needs & OBS_NEED_MATERIALS));
 }
 
 /* Every case, in the pin file's order; *skipped_vk counts Vulkan cases without a device. */
