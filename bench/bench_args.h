@@ -33,9 +33,13 @@ static inline int parse_list(const char *s, int *out, int max, int lo, int hi) {
 /* What a command-line option takes. */
 typedef enum bench_kind {
   BENCH_INT,    /* a whole number in [lo, hi] into *(int *)dst */
-  BENCH_LIST,   /* 1 to cap comma-separated whole numbers in [lo, hi] into (int *)dst, *count */
+  BENCH_LIST,   /* 1 to cap comma-separated whole numbers in [lo, hi] into (int *)dst, *count;
+                 * with empty_ok, "" is a list of none */
   BENCH_REAL,   /* a number in [lo, hi] into *(double *)dst; `open` makes an end exclusive */
   BENCH_STR,    /* the value itself into *(const char **)dst */
+  BENCH_STR0,   /* likewise, but "none" stores NULL */
+  BENCH_NAMES,  /* 1 to cap comma-separated names into (const char **)dst, *count (empty_ok as
+                 * for BENCH_LIST) */
   BENCH_FLAG,   /* no value: sets *(int *)dst to 1 */
   BENCH_CUSTOM, /* the value handed to parse(v, dst), which returns 0 or -1 */
 } bench_kind;
@@ -48,64 +52,102 @@ typedef struct bench_opt {
   bench_kind kind;
   double lo, hi;
   void *dst;
-  int *count, cap; /* BENCH_LIST */
-  int open;        /* BENCH_REAL: BENCH_OPEN_LO / BENCH_OPEN_HI */
+  int *count, cap, empty_ok; /* BENCH_LIST, BENCH_NAMES */
+  int open;                  /* BENCH_REAL: BENCH_OPEN_LO / BENCH_OPEN_HI */
   int (*parse)(const char *v, void *dst);
   const char *want; /* BENCH_CUSTOM: what the value should look like, for the message */
 } bench_opt;
 
-#define BENCH_OPT_INT(n, l, h, d) {.name = (n), .kind = BENCH_INT, .lo = (l), .hi = (h), .dst = (d)}
+#define BENCH_OPT_INT(n, l, h, d) \
+  { .name = (n), .kind = BENCH_INT, .lo = (l), .hi = (h), .dst = (d) }
 #define BENCH_OPT_LIST(n, l, h, d, c, cp) \
-  {.name = (n), .kind = BENCH_LIST, .lo = (l), .hi = (h), .dst = (d), .count = (c), .cap = (cp)}
+  { .name = (n), .kind = BENCH_LIST, .lo = (l), .hi = (h), .dst = (d), .count = (c), .cap = (cp) }
+#define BENCH_OPT_LIST0(n, l, h, d, c, cp)                                                        \
+  {                                                                                               \
+    .name = (n), .kind = BENCH_LIST, .lo = (l), .hi = (h), .dst = (d), .count = (c), .cap = (cp), \
+    .empty_ok = 1                                                                                 \
+  }
 #define BENCH_OPT_REAL(n, l, h, op, d) \
-  {.name = (n), .kind = BENCH_REAL, .lo = (l), .hi = (h), .open = (op), .dst = (d)}
-#define BENCH_OPT_STR(n, d) {.name = (n), .kind = BENCH_STR, .dst = (d)}
-#define BENCH_OPT_FLAG(n, d) {.name = (n), .kind = BENCH_FLAG, .dst = (d)}
+  { .name = (n), .kind = BENCH_REAL, .lo = (l), .hi = (h), .open = (op), .dst = (d) }
+#define BENCH_OPT_STR(n, d) \
+  { .name = (n), .kind = BENCH_STR, .dst = (d) }
+#define BENCH_OPT_STR0(n, d) \
+  { .name = (n), .kind = BENCH_STR0, .dst = (d) }
+#define BENCH_OPT_NAMES(n, d, c, cp, e) \
+  { .name = (n), .kind = BENCH_NAMES, .dst = (d), .count = (c), .cap = (cp), .empty_ok = (e) }
+#define BENCH_OPT_FLAG(n, d) \
+  { .name = (n), .kind = BENCH_FLAG, .dst = (d) }
 #define BENCH_OPT_CUSTOM(n, fn, w, d) \
-  {.name = (n), .kind = BENCH_CUSTOM, .parse = (fn), .want = (w), .dst = (d)}
+  { .name = (n), .kind = BENCH_CUSTOM, .parse = (fn), .want = (w), .dst = (d) }
 
 /* Reads one value for `o`; prints why it is refused and returns -1 when it is. */
 static inline int bench_opt_value(const char *prog, const bench_opt *o, const char *v) {
-  int lo = (int)o->lo, hi = (int)o->hi;
+  /* Only whole-number kinds convert their bounds: a real bound may be out of int's range. */
+  int whole = o->kind == BENCH_INT || o->kind == BENCH_LIST;
+  int lo = whole ? (int)o->lo : 0, hi = whole ? (int)o->hi : 0;
   switch (o->kind) {
-  case BENCH_INT:
-    if (!parse_int(v, lo, hi, (int *)o->dst)) return 0;
-    fprintf(stderr, "%s: %s %s: want a whole number from %d to %d\n", prog, o->name, v, lo, hi);
-    return -1;
-  case BENCH_LIST: {
-    /* One more slot than the list holds, so that a list too long is refused, not cut. */
-    int tmp[64], n = o->cap < 64 ? parse_list(v, tmp, o->cap + 1, lo, hi) : -1;
-    if (n >= 1 && n <= o->cap) {
-      memcpy(o->dst, tmp, (size_t)n * sizeof *tmp);
-      *o->count = n;
-      return 0;
+    case BENCH_INT:
+      if (!parse_int(v, lo, hi, (int *)o->dst)) return 0;
+      fprintf(stderr, "%s: %s %s: want a whole number from %d to %d\n", prog, o->name, v, lo, hi);
+      return -1;
+    case BENCH_LIST: {
+      /* One more slot than the list holds, so that a list too long is refused, not cut. */
+      int tmp[256], n = o->cap < 256 ? parse_list(v, tmp, o->cap + 1, lo, hi) : -1;
+      if (n >= (o->empty_ok ? 0 : 1) && n <= o->cap) {
+        memcpy(o->dst, tmp, (size_t)n * sizeof *tmp);
+        *o->count = n;
+        return 0;
+      }
+      fprintf(stderr, "%s: %s %s: want %d to %d comma-separated whole numbers from %d to %d\n",
+              prog, o->name, v, o->empty_ok ? 0 : 1, o->cap, lo, hi);
+      return -1;
     }
-    fprintf(stderr, "%s: %s %s: want 1 to %d comma-separated whole numbers from %d to %d\n", prog,
-            o->name, v, o->cap, lo, hi);
-    return -1;
-  }
-  case BENCH_REAL: {
-    char *end;
-    double x = strtod(v, &end);
-    int ok = end != v && !*end && (o->open & BENCH_OPEN_LO ? x > o->lo : x >= o->lo) &&
-             (o->open & BENCH_OPEN_HI ? x < o->hi : x <= o->hi);
-    if (ok) {
-      *(double *)o->dst = x;
-      return 0;
+    case BENCH_REAL: {
+      char *end;
+      double x = strtod(v, &end);
+      int ok = end != v && !*end && (o->open & BENCH_OPEN_LO ? x > o->lo : x >= o->lo) &&
+               (o->open & BENCH_OPEN_HI ? x < o->hi : x <= o->hi);
+      if (ok) {
+        *(double *)o->dst = x;
+        return 0;
+      }
+      fprintf(stderr, "%s: %s %s: want a number in %c%g, %g%c\n", prog, o->name, v,
+              o->open & BENCH_OPEN_LO ? '(' : '[', o->lo, o->hi,
+              o->open & BENCH_OPEN_HI ? ')' : ']');
+      return -1;
     }
-    fprintf(stderr, "%s: %s %s: want a number in %c%g, %g%c\n", prog, o->name, v,
-            o->open & BENCH_OPEN_LO ? '(' : '[', o->lo, o->hi, o->open & BENCH_OPEN_HI ? ')' : ']');
-    return -1;
-  }
-  case BENCH_STR:
-    *(const char **)o->dst = v;
-    return 0;
-  case BENCH_CUSTOM:
-    if (!o->parse(v, o->dst)) return 0;
-    fprintf(stderr, "%s: %s %s: want %s\n", prog, o->name, v, o->want);
-    return -1;
-  case BENCH_FLAG:
-    break;
+    case BENCH_STR:
+      *(const char **)o->dst = v;
+      return 0;
+    case BENCH_STR0:
+      *(const char **)o->dst = strcmp(v, "none") ? v : NULL;
+      return 0;
+    case BENCH_NAMES: {
+      /* The names point into a copy of the value, which lives as long as the program. */
+      static char pool[4096];
+      static size_t used;
+      size_t len = strlen(v) + 1;
+      int n = 0;
+      if (len <= sizeof pool - used) {
+        char *copy = memcpy(pool + used, v, len), *save = NULL;
+        used += len;
+        for (char *t = strtok_r(copy, ",", &save); t && n <= o->cap; t = strtok_r(NULL, ",", &save))
+          if (n++ < o->cap) ((const char **)o->dst)[n - 1] = t;
+        if (n >= (o->empty_ok ? 0 : 1) && n <= o->cap) {
+          *o->count = n;
+          return 0;
+        }
+      }
+      fprintf(stderr, "%s: %s %s: want %d to %d comma-separated names\n", prog, o->name, v,
+              o->empty_ok ? 0 : 1, o->cap);
+      return -1;
+    }
+    case BENCH_CUSTOM:
+      if (!o->parse(v, o->dst)) return 0;
+      fprintf(stderr, "%s: %s %s: want %s\n", prog, o->name, v, o->want);
+      return -1;
+    case BENCH_FLAG:
+      break;
   }
   return -1;
 }
