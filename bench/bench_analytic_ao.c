@@ -44,37 +44,17 @@ static int parse_args(int argc, char **argv) {
   opt.ref_samples = 2048;
   opt.ncounts = 3;
   opt.counts[0] = 3, opt.counts[1] = 1000, opt.counts[2] = 5000;
-  for (int i = 1; i < argc; i++) {
-    const char *a = argv[i];
-    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-      usage(stdout);
-      exit(0);
-    }
-    if (!strcmp(a, "--methods-only")) {
-      opt.methods_only = 1;
-      continue;
-    }
-    if (i + 1 >= argc) goto bad;
-    const char *v = argv[++i];
-    if (!strcmp(a, "--threads")) {
-      if (parse_int(v, 1, 256, &opt.threads)) goto bad;
-    } else if (!strcmp(a, "--size")) {
-      if (parse_int(v, 16, 8192, &opt.width)) goto bad;
-    } else if (!strcmp(a, "--repeats")) {
-      if (parse_int(v, 1, MAX_REPEATS, &opt.repeats)) goto bad;
-    } else if (!strcmp(a, "--ref-samples")) {
-      if (parse_int(v, 1, 65536, &opt.ref_samples)) goto bad;
-    } else if (!strcmp(a, "--spheres")) {
-      if ((opt.ncounts = parse_list(v, opt.counts, MAX_COUNTS, 1, 100000)) < 1) goto bad;
-    } else {
-      goto bad;
-    }
-  }
+  const bench_opt opts[] = {
+      BENCH_OPT_INT("--threads", 1, 256, &opt.threads),
+      BENCH_OPT_INT("--size", 16, 8192, &opt.width),
+      BENCH_OPT_INT("--repeats", 1, MAX_REPEATS, &opt.repeats),
+      BENCH_OPT_INT("--ref-samples", 1, 65536, &opt.ref_samples),
+      BENCH_OPT_LIST("--spheres", 1, 100000, opt.counts, &opt.ncounts, MAX_COUNTS),
+      BENCH_OPT_FLAG("--methods-only", &opt.methods_only),
+  };
+  if (bench_parse_opts(argc, argv, opts, (int)(sizeof opts / sizeof *opts), usage)) return 2;
   opt.height = opt.width * 3 / 4;
   return 0;
-bad:
-  usage(stderr);
-  return 2;
 }
 
 /* A uniform number in [0, 1) from a xorshift state: the layout is the same in every run. */

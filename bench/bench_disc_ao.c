@@ -2,12 +2,15 @@
  * pyramid proxies at 640x480, 1024x768 and 1280x1024: the pass's time, the fragments shaded and
  * the most on one pixel), the CPU twin's time on the same G-buffer and discs, and the
  * over-darkening against rt_ao (cosine, unbounded and at the discs' median reach). */
+#include <float.h>
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
+#include "bench_args.h"
 #include "bench_machine.h"
 #include "disc_ao.h"
 #include "gbuffer_cpu.h"
@@ -23,35 +26,25 @@ typedef struct options {
   int threads;
 } options;
 
-static void usage(void) {
-  fprintf(stderr, "usage: bench_disc_ao [--models DIR] [--mesh FILE] [--influence K] "
-                  "[--ref-samples S] [--repeats N] [--threads T]\n");
-  exit(2);
+static void usage(FILE *f) {
+  fprintf(f, "usage: bench_disc_ao [--models DIR] [--mesh FILE] [--influence K] "
+             "[--ref-samples S] [--repeats N] [--threads T]\n");
 }
 
 static options parse(int argc, char **argv) {
   options o = {.models = "../shared/models", .mesh = "stanford-bunny.obj", .influence = 4.0f,
                .ref_samples = 256, .repeats = 3, .threads = 0};
-  for (int i = 1; i < argc; i++) {
-    const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-    if (!v) usage();
-    if (!strcmp(a, "--models"))
-      o.models = v;
-    else if (!strcmp(a, "--mesh"))
-      o.mesh = v;
-    else if (!strcmp(a, "--influence"))
-      o.influence = (float)atof(v);
-    else if (!strcmp(a, "--ref-samples"))
-      o.ref_samples = atoi(v);
-    else if (!strcmp(a, "--repeats"))
-      o.repeats = atoi(v);
-    else if (!strcmp(a, "--threads"))
-      o.threads = atoi(v);
-    else
-      usage();
-    i++;
-  }
-  if (o.repeats < 1 || o.ref_samples < 1 || !(o.influence > 0)) usage();
+  double influence = o.influence;
+  const bench_opt opts[] = {
+      BENCH_OPT_STR("--models", &o.models),
+      BENCH_OPT_STR("--mesh", &o.mesh),
+      BENCH_OPT_REAL("--influence", 0, FLT_MAX, BENCH_OPEN_LO, &influence),
+      BENCH_OPT_INT("--ref-samples", 1, INT_MAX, &o.ref_samples),
+      BENCH_OPT_INT("--repeats", 1, INT_MAX, &o.repeats),
+      BENCH_OPT_INT("--threads", INT_MIN, INT_MAX, &o.threads),
+  };
+  if (bench_parse_opts(argc, argv, opts, (int)(sizeof opts / sizeof *opts), usage)) exit(2);
+  o.influence = (float)influence;
   return o;
 }
 

@@ -92,30 +92,26 @@ static int load(size_t s, const char *ws, const char *hs, obs_scene *sc, char *l
   return rc;
 }
 
+static void usage(FILE *f) {
+  fprintf(f, "usage: bench_gbuffer [--repeats R] [--threads N] [--only TEXT]\n"
+             "  Times the CPU G-buffer rasterised and ray cast (geometry and BVH build\n"
+             "  plus the pass; median and fastest of R runs, default 5, after a warm-up)\n"
+             "  on the bundled scenes at 1280x720 and 320x240, the displaced sphere at\n"
+             "  subdivisions 7 to 10 and 4 to 256 stacked screen-filling quads; prints the\n"
+             "  raster's pixel tests per pixel and the way obs_gbuffer_method picks.\n"
+             "  --only: the rows whose scene and size (\"cornell_box.json 1280x720\")\n"
+             "  contain TEXT.\n");
+}
+
 int main(int argc, char **argv) {
   int runs = 5, threads = 2;
   const char *only = NULL;
-  for (int i = 1; i < argc; i++) {
-    if (!strcmp(argv[i], "--repeats") && i + 1 < argc && !parse_int(argv[i + 1], 1, 64, &runs)) {
-      i++;
-    } else if (!strcmp(argv[i], "--threads") && i + 1 < argc &&
-               !parse_int(argv[i + 1], 1, 256, &threads)) {
-      i++;
-    } else if (!strcmp(argv[i], "--only") && i + 1 < argc) {
-      only = argv[++i];
-    } else {
-      fprintf(stderr,
-              "usage: bench_gbuffer [--repeats R] [--threads N] [--only TEXT]\n"
-              "  Times the CPU G-buffer rasterised and ray cast (geometry and BVH build\n"
-              "  plus the pass; median and fastest of R runs, default 5, after a warm-up)\n"
-              "  on the bundled scenes at 1280x720 and 320x240, the displaced sphere at\n"
-              "  subdivisions 7 to 10 and 4 to 256 stacked screen-filling quads; prints the\n"
-              "  raster's pixel tests per pixel and the way obs_gbuffer_method picks.\n"
-              "  --only: the rows whose scene and size (\"cornell_box.json 1280x720\")\n"
-              "  contain TEXT.\n");
-      return 2;
-    }
-  }
+  const bench_opt opts[] = {
+      BENCH_OPT_INT("--repeats", 1, 64, &runs),
+      BENCH_OPT_INT("--threads", 1, 256, &threads),
+      BENCH_OPT_STR("--only", &only),
+  };
+  if (bench_parse_opts(argc, argv, opts, (int)(sizeof opts / sizeof *opts), usage)) return 2;
   unsetenv("OBSCURA_GBUFFER");
   bench_print_machine();
   static const int sizes[][2] = {{1280, 720}, {320, 240}};

@@ -17,6 +17,7 @@
 #include <arpa/inet.h>
 #include <errno.h>
 #include <fcntl.h>
+#include <limits.h>
 #include <math.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
@@ -30,6 +31,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "bench_args.h"
 #include "obscurad.h"
 
 static const char *const TECHS[] = {"rt_ao", "rt_ao", "ssao", "hbao", "proximity_ao"};
@@ -313,30 +315,36 @@ static void build_store(const char *store, int64_t njobs, int reuse, const char 
            st.st_size / 1e3 / (double)(have + add));
 }
 
+static void usage(FILE *f) {
+  fprintf(f, "usage: bench_history [--jobs N] [--store PATH|postgresql://...] [--reps R] "
+             "[--submits S] [--obscurad PATH] [--scenes DIR] [--reuse] [--measure-only]\n");
+}
+
+/* --jobs N: a whole number of at least 1, 64 bits wide. */
+static int parse_jobs(const char *v, void *dst) {
+  char *end;
+  long long n = strtoll(v, &end, 10);
+  if (end == v || *end || n < 1) return -1;
+  *(int64_t *)dst = n;
+  return 0;
+}
+
 int main(int argc, char **argv) {
   int64_t njobs = 100000;
   int reps = 200, submits = 200, reuse = 0, measure_only = 0;
   const char *store = NULL, *obscurad = "build/obscurad", *scenes = "scenes";
-  for (int i = 1; i < argc; i++) {
-    const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-    if (!strcmp(a, "--jobs") && v) njobs = atoll(argv[++i]);
-    else if (!strcmp(a, "--store") && v) store = argv[++i];
-    else if (!strcmp(a, "--reps") && v) reps = atoi(argv[++i]);
-    else if (!strcmp(a, "--submits") && v) submits = atoi(argv[++i]);
-    else if (!strcmp(a, "--obscurad") && v) obscurad = argv[++i];
-    else if (!strcmp(a, "--scenes") && v) scenes = argv[++i];
-    else if (!strcmp(a, "--reuse")) reuse = 1;
-    else if (!strcmp(a, "--measure-only")) measure_only = reuse = 1;
-    else {
-      fprintf(stderr, "usage: bench_history [--jobs N] [--store PATH|postgresql://...] [--reps R] "
-                      "[--submits S] [--obscurad PATH] [--scenes DIR] [--reuse] [--measure-only]\n");
-      return 2;
-    }
-  }
-  if (njobs < 1 || reps < 1 || submits < 1) {
-    fprintf(stderr, "bench_history: --jobs, --reps and --submits must be >= 1\n");
-    return 2;
-  }
+  const bench_opt opts[] = {
+      BENCH_OPT_CUSTOM("--jobs", parse_jobs, "a whole number of at least 1", &njobs),
+      BENCH_OPT_STR("--store", &store),
+      BENCH_OPT_INT("--reps", 1, INT_MAX, &reps),
+      BENCH_OPT_INT("--submits", 1, INT_MAX, &submits),
+      BENCH_OPT_STR("--obscurad", &obscurad),
+      BENCH_OPT_STR("--scenes", &scenes),
+      BENCH_OPT_FLAG("--reuse", &reuse),
+      BENCH_OPT_FLAG("--measure-only", &measure_only),
+  };
+  if (bench_parse_opts(argc, argv, opts, (int)(sizeof opts / sizeof *opts), usage)) return 2;
+  if (measure_only) reuse = 1; /* measuring an existing store must not remove it */
   char dir[] = "/tmp/bench_history.XXXXXX";
   if (!mkdtemp(dir)) die("mkdtemp", NULL);
   char dbpath[4200];

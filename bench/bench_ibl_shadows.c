@@ -42,46 +42,19 @@ static int parse_args(int argc, char **argv, options *o) {
   *o = (options){.threads = obs_cpu_count(), .size = 1024, .err_size = 128, .ref_samples = 1024,
                  .repeats = 3, .map_size = 256, .nmaps = 6, .maps = {1, 4, 8, 16, 32, 64},
                  .norders = 4, .orders = {1, 2, 3, 4}};
-  for (int i = 1; i < argc; i++) {
-    const char *a = argv[i];
-    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-      usage(stdout);
-      exit(0);
-    }
-    if (i + 1 >= argc) goto bad;
-    const char *v = argv[++i];
-    if (!strcmp(a, "--threads")) {
-      if (parse_int(v, 1, 256, &o->threads)) goto bad;
-    } else if (!strcmp(a, "--size")) {
-      if (parse_int(v, 0, 4096, &o->size)) goto bad;
-    } else if (!strcmp(a, "--err-size")) {
-      if (parse_int(v, 0, 4096, &o->err_size)) goto bad;
-    } else if (!strcmp(a, "--ref-samples")) {
-      if (parse_int(v, 1, 65536, &o->ref_samples)) goto bad;
-    } else if (!strcmp(a, "--map-size")) {
-      if (parse_int(v, 8, 2048, &o->map_size)) goto bad;
-    } else if (!strcmp(a, "--repeats")) {
-      if (parse_int(v, 1, MAX_REPEATS, &o->repeats)) goto bad;
-    } else if (!strcmp(a, "--maps")) {
-      if ((o->nmaps = parse_list(v, o->maps, MAX_LIST, 1, 64)) < 1) goto bad;
-    } else if (!strcmp(a, "--orders")) {
-      if ((o->norders = parse_list(v, o->orders, MAX_LIST, 1, 4)) < 1) goto bad;
-    } else if (!strcmp(a, "--png")) {
-      o->png = v;
-    } else if (!strcmp(a, "--exposure")) {
-      char *end;
-      o->exposure = strtod(v, &end);
-      if (end == v || *end || !(fabs(o->exposure) <= 30)) goto bad;
-    } else {
-      goto bad;
-    }
-    continue;
-  bad:
-    fprintf(stderr, "bench_ibl_shadows: bad argument near '%s'\n", a);
-    usage(stderr);
-    return -1;
-  }
-  return 0;
+  const bench_opt opts[] = {
+      BENCH_OPT_INT("--threads", 1, 256, &o->threads),
+      BENCH_OPT_INT("--size", 0, 4096, &o->size),
+      BENCH_OPT_INT("--err-size", 0, 4096, &o->err_size),
+      BENCH_OPT_INT("--ref-samples", 1, 65536, &o->ref_samples),
+      BENCH_OPT_INT("--map-size", 8, 2048, &o->map_size),
+      BENCH_OPT_INT("--repeats", 1, MAX_REPEATS, &o->repeats),
+      BENCH_OPT_LIST("--maps", 1, 64, o->maps, &o->nmaps, MAX_LIST),
+      BENCH_OPT_LIST("--orders", 1, 4, o->orders, &o->norders, MAX_LIST),
+      BENCH_OPT_STR("--png", &o->png),
+      BENCH_OPT_REAL("--exposure", -30, 30, 0, &o->exposure),
+  };
+  return bench_parse_opts(argc, argv, opts, (int)(sizeof opts / sizeof *opts), usage);
 }
 
 /* scenes/ibl_sky.json at w x h rendered by `name` with `params`. */

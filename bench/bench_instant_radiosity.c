@@ -43,46 +43,18 @@ static void usage(FILE *f) {
 static int parse_args(int argc, char **argv, options *o) {
   *o = (options){.threads = obs_cpu_count(), .size = 256, .ref_samples = 256, .repeats = 3,
                  .max_bounces = 3, .nvpls = 3, .vpls = {128, 512, 2048}, .clamp = 19.2};
-  for (int i = 1; i < argc; i++) {
-    const char *a = argv[i];
-    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-      usage(stdout);
-      exit(0);
-    }
-    if (i + 1 >= argc) goto bad;
-    const char *v = argv[++i];
-    if (!strcmp(a, "--threads")) {
-      if (parse_int(v, 1, 256, &o->threads)) goto bad;
-    } else if (!strcmp(a, "--size")) {
-      if (parse_int(v, 4, 4096, &o->size)) goto bad;
-    } else if (!strcmp(a, "--ref-samples")) {
-      if (parse_int(v, 1, 65536, &o->ref_samples)) goto bad;
-    } else if (!strcmp(a, "--repeats")) {
-      if (parse_int(v, 1, MAX_REPEATS, &o->repeats)) goto bad;
-    } else if (!strcmp(a, "--max-bounces")) {
-      if (parse_int(v, 1, 16, &o->max_bounces)) goto bad;
-    } else if (!strcmp(a, "--vpls")) {
-      if ((o->nvpls = parse_list(v, o->vpls, MAX_VPLS, 1, 16384)) < 1) goto bad;
-    } else if (!strcmp(a, "--clamp")) {
-      char *end;
-      o->clamp = strtod(v, &end);
-      if (end == v || *end || !(o->clamp > 0 && o->clamp < 1e6)) goto bad;
-    } else if (!strcmp(a, "--png")) {
-      o->png = v;
-    } else if (!strcmp(a, "--exposure")) {
-      char *end;
-      o->exposure = strtod(v, &end);
-      if (end == v || *end || !(fabs(o->exposure) <= 30)) goto bad;
-    } else {
-      goto bad;
-    }
-    continue;
-  bad:
-    fprintf(stderr, "bench_instant_radiosity: bad argument near '%s'\n", a);
-    usage(stderr);
-    return -1;
-  }
-  return 0;
+  const bench_opt opts[] = {
+      BENCH_OPT_INT("--threads", 1, 256, &o->threads),
+      BENCH_OPT_INT("--size", 4, 4096, &o->size),
+      BENCH_OPT_INT("--ref-samples", 1, 65536, &o->ref_samples),
+      BENCH_OPT_INT("--repeats", 1, MAX_REPEATS, &o->repeats),
+      BENCH_OPT_INT("--max-bounces", 1, 16, &o->max_bounces),
+      BENCH_OPT_LIST("--vpls", 1, 16384, o->vpls, &o->nvpls, MAX_VPLS),
+      BENCH_OPT_REAL("--clamp", 0, 1e6, BENCH_OPEN_LO | BENCH_OPEN_HI, &o->clamp),
+      BENCH_OPT_STR("--png", &o->png),
+      BENCH_OPT_REAL("--exposure", -30, 30, 0, &o->exposure),
+  };
+  return bench_parse_opts(argc, argv, opts, (int)(sizeof opts / sizeof *opts), usage);
 }
 
 /* The panel: a grey quad 150 units below the light, larger than it, facing both ways as every

@@ -31,40 +31,16 @@ static void usage(FILE *f) {
 static int parse_args(int argc, char **argv, options *o) {
   *o = (options){.threads = obs_cpu_count(), .size = 128, .ref_samples = 4096, .samples = 256,
                  .light_samples = 256, .d_max = 300};
-  for (int i = 1; i < argc; i++) {
-    const char *a = argv[i];
-    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-      usage(stdout);
-      exit(0);
-    }
-    if (i + 1 >= argc) goto bad;
-    const char *v = argv[++i];
-    if (!strcmp(a, "--threads")) {
-      if (parse_int(v, 1, 256, &o->threads)) goto bad;
-    } else if (!strcmp(a, "--size")) {
-      if (parse_int(v, 8, 4096, &o->size)) goto bad;
-    } else if (!strcmp(a, "--ref-samples")) {
-      if (parse_int(v, 1, 65536, &o->ref_samples)) goto bad;
-    } else if (!strcmp(a, "--samples")) {
-      if (parse_int(v, 1, 65536, &o->samples)) goto bad;
-    } else if (!strcmp(a, "--light-samples")) {
-      if (parse_int(v, 1, 4096, &o->light_samples)) goto bad;
-    } else if (!strcmp(a, "--d-max")) {
-      char *end;
-      o->d_max = strtod(v, &end);
-      if (end == v || *end || !(o->d_max > 0)) goto bad;
-    } else if (!strcmp(a, "--png-dir")) {
-      o->png_dir = v;
-    } else {
-      goto bad;
-    }
-    continue;
-  bad:
-    fprintf(stderr, "bench_obscurance: bad argument near '%s'\n", a);
-    usage(stderr);
-    return -1;
-  }
-  return 0;
+  const bench_opt opts[] = {
+      BENCH_OPT_INT("--threads", 1, 256, &o->threads),
+      BENCH_OPT_INT("--size", 8, 4096, &o->size),
+      BENCH_OPT_INT("--ref-samples", 1, 65536, &o->ref_samples),
+      BENCH_OPT_INT("--samples", 1, 65536, &o->samples),
+      BENCH_OPT_INT("--light-samples", 1, 4096, &o->light_samples),
+      BENCH_OPT_REAL("--d-max", 0, HUGE_VAL, BENCH_OPEN_LO, &o->d_max),
+      BENCH_OPT_STR("--png-dir", &o->png_dir),
+  };
+  return bench_parse_opts(argc, argv, opts, (int)(sizeof opts / sizeof *opts), usage);
 }
 
 /* Renders the Cornell box at size x size with `technique` and `params`; render time in *ms. */

@@ -46,6 +46,13 @@ static void usage(FILE *f) {
       "  --rays count per patch. cpu_s is the process's CPU time (robust to a busy machine).\n");
 }
 
+/* --subdiv 8,9 or none. */
+static int parse_subdiv(const char *v, void *dst) {
+  options *o = dst;
+  if (!strcmp(v, "none")) return o->nsubdiv = 0;
+  return (o->nsubdiv = parse_list(v, o->subdiv, MAX_LIST, 0, 11)) < 0 ? -1 : 0;
+}
+
 static int parse_args(int argc, char **argv, options *o) {
   memset(o, 0, sizeof *o);
   o->threads = 2;
@@ -59,40 +66,18 @@ static int parse_args(int argc, char **argv, options *o) {
   o->models = "../shared/models";
   o->mesh[0] = "ogre.obj", o->mesh[1] = "nefertiti.obj", o->nmesh = 2;
   o->dmax_frac = 0.25;
-  for (int i = 1; i < argc; i++) {
-    const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-    if (!strcmp(a, "--help") || !strcmp(a, "-h")) return usage(stdout), 1;
-    if (!v) return usage(stderr), -1;
-    i++;
-    int bad = 0;
-    if (!strcmp(a, "--threads"))
-      bad = parse_int(v, 1, 1024, &o->threads);
-    else if (!strcmp(a, "--res"))
-      bad = parse_int(v, 2, 512, &o->res);
-    else if (!strcmp(a, "--ref-samples"))
-      bad = parse_int(v, 1, 65536, &o->ref_samples);
-    else if (!strcmp(a, "--subdiv"))
-      bad = !strcmp(v, "none") ? (o->nsubdiv = 0)
-                               : (o->nsubdiv = parse_list(v, o->subdiv, MAX_LIST, 0, 11)) < 0;
-    else if (!strcmp(a, "--dirs"))
-      bad = (o->ndirs = parse_list(v, o->dirs, MAX_LIST, 1, 4096)) < 0;
-    else if (!strcmp(a, "--rays"))
-      bad = (o->nrays = parse_list(v, o->rays, MAX_LIST, 1, 65536)) < 0;
-    else if (!strcmp(a, "--models"))
-      o->models = strcmp(v, "none") ? v : NULL;
-    else if (!strcmp(a, "--dmax"))
-      bad = !((o->dmax_frac = atof(v)) > 0);
-    else if (!strcmp(a, "--mesh")) {
-      static char buf[512];
-      snprintf(buf, sizeof buf, "%s", v);
-      o->nmesh = 0;
-      for (char *t = strtok(buf, ","); t && o->nmesh < MAX_LIST; t = strtok(NULL, ","))
-        o->mesh[o->nmesh++] = t;
-    } else
-      bad = 1;
-    if (bad) return fprintf(stderr, "bench_obscurance_map: bad %s %s\n", a, v), usage(stderr), -1;
-  }
-  return 0;
+  const bench_opt opts[] = {
+      BENCH_OPT_INT("--threads", 1, 1024, &o->threads),
+      BENCH_OPT_INT("--res", 2, 512, &o->res),
+      BENCH_OPT_INT("--ref-samples", 1, 65536, &o->ref_samples),
+      BENCH_OPT_CUSTOM("--subdiv", parse_subdiv, "up to 16 levels from 0 to 11, or none", o),
+      BENCH_OPT_LIST0("--dirs", 1, 4096, o->dirs, &o->ndirs, MAX_LIST),
+      BENCH_OPT_LIST0("--rays", 1, 65536, o->rays, &o->nrays, MAX_LIST),
+      BENCH_OPT_STR0("--models", &o->models),
+      BENCH_OPT_REAL("--dmax", 0, HUGE_VAL, BENCH_OPEN_LO, &o->dmax_frac),
+      BENCH_OPT_NAMES("--mesh", o->mesh, &o->nmesh, MAX_LIST, 1),
+  };
+  return bench_parse_opts(argc, argv, opts, (int)(sizeof opts / sizeof *opts), usage);
 }
 
 typedef struct run {
@@ -260,7 +245,7 @@ static int bench_scene(const options *o, const char *name, const char *doc, cons
 int main(int argc, char **argv) {
   options o;
   int a = parse_args(argc, argv, &o);
-  if (a) return a > 0 ? 0 : 2;
+  if (a) return 2;
   printf("# bench_obscurance_map: %d threads, %d CPUs online\n", o.threads,
          (int)sysconf(_SC_NPROCESSORS_ONLN));
   int bad = 0;

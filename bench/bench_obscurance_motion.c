@@ -44,40 +44,16 @@ static int parse_args(int argc, char **argv, options *o) {
   o->threads = 2, o->frames = 24, o->samples = 25, o->d_max = 0.3;
   o->models = "../shared/models", o->mesh = "ogre.obj";
   o->updates[0] = "exact", o->updates[1] = "article", o->nupdates = 2;
-  for (int i = 1; i < argc; i++) {
-    const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-    if (!strcmp(a, "--help")) {
-      usage(stdout);
-      exit(0);
-    }
-    if (!v) return -1;
-    i++;
-    if (!strcmp(a, "--threads")) {
-      if (parse_int(v, 1, 256, &o->threads)) return -1;
-    } else if (!strcmp(a, "--frames")) {
-      if (parse_int(v, 2, 1025, &o->frames)) return -1;
-    } else if (!strcmp(a, "--samples")) {
-      if (parse_int(v, 1, 65536, &o->samples)) return -1;
-    } else if (!strcmp(a, "--dmax")) {
-      char *end;
-      o->d_max = strtod(v, &end);
-      if (*end || !(o->d_max > 0)) return -1;
-    } else if (!strcmp(a, "--models")) {
-      o->models = strcmp(v, "none") ? v : NULL;
-    } else if (!strcmp(a, "--mesh")) {
-      o->mesh = v;
-    } else if (!strcmp(a, "--updates")) {
-      static char buf[64];
-      snprintf(buf, sizeof buf, "%s", v);
-      o->nupdates = 0;
-      for (char *t = strtok(buf, ","); t && o->nupdates < 3; t = strtok(NULL, ","))
-        o->updates[o->nupdates++] = t;
-      if (!o->nupdates) return -1;
-    } else {
-      return -1;
-    }
-  }
-  return 0;
+  const bench_opt opts[] = {
+      BENCH_OPT_INT("--threads", 1, 256, &o->threads),
+      BENCH_OPT_INT("--frames", 2, 1025, &o->frames),
+      BENCH_OPT_INT("--samples", 1, 65536, &o->samples),
+      BENCH_OPT_REAL("--dmax", 0, HUGE_VAL, BENCH_OPEN_LO, &o->d_max),
+      BENCH_OPT_STR0("--models", &o->models),
+      BENCH_OPT_STR("--mesh", &o->mesh),
+      BENCH_OPT_NAMES("--updates", o->updates, &o->nupdates, 3, 0),
+  };
+  return bench_parse_opts(argc, argv, opts, (int)(sizeof opts / sizeof *opts), usage);
 }
 
 /* The moving box's transforms: an orbit of radius `orbit` about the y axis, turning as it goes. */
@@ -214,10 +190,7 @@ static int run_mode(const options *o, const char *what, const char *dir, const c
 
 int main(int argc, char **argv) {
   options o;
-  if (parse_args(argc, argv, &o)) {
-    usage(stderr);
-    return 2;
-  }
+  if (parse_args(argc, argv, &o)) return 2;
   printf("obscurance_map, a moving box: %d frames, rays %d per patch, d_max %g, %d threads\n",
          o.frames, o.samples, o.d_max, o.threads);
   printf("%-16s %-8s %8s %9s %8s %6s %6s %10s %8s %10s %10s %9s\n", "scene", "update", "patches",

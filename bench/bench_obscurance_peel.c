@@ -42,29 +42,15 @@ static int parse_args(int argc, char **argv, options *o) {
   const int dirs[] = {32, 64, 128, 256, 512};
   for (int i = 0; i < 5; i++) o->dirs[i] = dirs[i];
   o->ndirs = 5;
-  for (int i = 1; i < argc; i++) {
-    const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-    if (!strcmp(a, "--help") || !strcmp(a, "-h")) return usage(stdout), 1;
-    if (!v) return usage(stderr), -1;
-    i++;
-    int bad = 0;
-    if (!strcmp(a, "--threads"))
-      bad = parse_int(v, 1, 1024, &o->threads);
-    else if (!strcmp(a, "--res"))
-      bad = parse_int(v, 2, 512, &o->res);
-    else if (!strcmp(a, "--ref-samples"))
-      bad = parse_int(v, 1, 65536, &o->ref_samples);
-    else if (!strcmp(a, "--subdiv"))
-      bad = (o->nsubdiv = parse_list(v, o->subdiv, MAX_LIST, 0, 11)) < 0;
-    else if (!strcmp(a, "--dirs"))
-      bad = (o->ndirs = parse_list(v, o->dirs, MAX_LIST, 1, 4096)) < 0;
-    else if (!strcmp(a, "--dmax"))
-      bad = !((o->dmax_frac = atof(v)) > 0);
-    else
-      bad = 1;
-    if (bad) return fprintf(stderr, "bench_obscurance_peel: bad %s %s\n", a, v), usage(stderr), -1;
-  }
-  return 0;
+  const bench_opt opts[] = {
+      BENCH_OPT_INT("--threads", 1, 1024, &o->threads),
+      BENCH_OPT_INT("--res", 2, 512, &o->res),
+      BENCH_OPT_INT("--ref-samples", 1, 65536, &o->ref_samples),
+      BENCH_OPT_LIST0("--subdiv", 0, 11, o->subdiv, &o->nsubdiv, MAX_LIST),
+      BENCH_OPT_LIST0("--dirs", 1, 4096, o->dirs, &o->ndirs, MAX_LIST),
+      BENCH_OPT_REAL("--dmax", 0, HUGE_VAL, BENCH_OPEN_LO, &o->dmax_frac),
+  };
+  return bench_parse_opts(argc, argv, opts, (int)(sizeof opts / sizeof *opts), usage);
 }
 
 /* Per-patch RMSE of w (first channel) against ref, raw and with the reference's own mean square
@@ -181,7 +167,7 @@ static int bench_scene(const options *o, obs_vk *vk, const char *name, const cha
 int main(int argc, char **argv) {
   options o;
   int a = parse_args(argc, argv, &o);
-  if (a) return a > 0 ? 0 : 2;
+  if (a) return 2;
   obs_vk *vk = NULL;
   obs_err err = OBS_ERR_INIT;
   if (obs_vk_open(&vk, NULL, 0, &err)) {

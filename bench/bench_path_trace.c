@@ -32,38 +32,15 @@ static void usage(FILE *f) {
 
 static int parse_args(int argc, char **argv, options *o) {
   *o = (options){.threads = obs_cpu_count(), .size = 256, .spp = 16, .repeats = 3};
-  for (int i = 1; i < argc; i++) {
-    const char *a = argv[i];
-    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-      usage(stdout);
-      exit(0);
-    }
-    if (i + 1 >= argc) goto bad;
-    const char *v = argv[++i];
-    if (!strcmp(a, "--threads")) {
-      if (parse_int(v, 1, 256, &o->threads)) goto bad;
-    } else if (!strcmp(a, "--size")) {
-      if (parse_int(v, 1, 16384, &o->size)) goto bad;
-    } else if (!strcmp(a, "--spp")) {
-      if (parse_int(v, 1, 1024, &o->spp)) goto bad;
-    } else if (!strcmp(a, "--repeats")) {
-      if (parse_int(v, 1, MAX_REPEATS, &o->repeats)) goto bad;
-    } else if (!strcmp(a, "--png")) {
-      o->png = v;
-    } else if (!strcmp(a, "--exposure")) {
-      char *end;
-      o->exposure = strtod(v, &end);
-      if (end == v || *end || !(fabs(o->exposure) <= 30)) goto bad;
-    } else {
-      goto bad;
-    }
-    continue;
-  bad:
-    fprintf(stderr, "bench_path_trace: bad argument near '%s'\n", a);
-    usage(stderr);
-    return -1;
-  }
-  return 0;
+  const bench_opt opts[] = {
+      BENCH_OPT_INT("--threads", 1, 256, &o->threads),
+      BENCH_OPT_INT("--size", 1, 16384, &o->size),
+      BENCH_OPT_INT("--spp", 1, 1024, &o->spp),
+      BENCH_OPT_INT("--repeats", 1, MAX_REPEATS, &o->repeats),
+      BENCH_OPT_STR("--png", &o->png),
+      BENCH_OPT_REAL("--exposure", -30, 30, 0, &o->exposure),
+  };
+  return bench_parse_opts(argc, argv, opts, (int)(sizeof opts / sizeof *opts), usage);
 }
 
 /* Mean radiance over the square of half-width h pixels around (cx, cy), as fractions of W. */

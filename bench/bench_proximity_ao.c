@@ -39,34 +39,15 @@ static void usage(FILE *f) {
 static int parse_args(int argc, char **argv) {
   opt = (options){.threads = obs_cpu_count(), .size = 256, .repeats = 3, .ref_samples = 256,
                   .goal_size = 1024, .tables = "res,range,pre,objects,tris,mc,combine,flood,goal"};
-  for (int i = 1; i < argc; i++) {
-    const char *a = argv[i];
-    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-      usage(stdout);
-      exit(0);
-    }
-    if (i + 1 >= argc) goto bad;
-    const char *v = argv[++i];
-    if (!strcmp(a, "--threads")) {
-      if (parse_int(v, 1, 256, &opt.threads)) goto bad;
-    } else if (!strcmp(a, "--size")) {
-      if (parse_int(v, 8, 8192, &opt.size)) goto bad;
-    } else if (!strcmp(a, "--repeats")) {
-      if (parse_int(v, 1, MAX_REPEATS, &opt.repeats)) goto bad;
-    } else if (!strcmp(a, "--ref-samples")) {
-      if (parse_int(v, 1, 1 << 16, &opt.ref_samples)) goto bad;
-    } else if (!strcmp(a, "--goal-size")) {
-      if (parse_int(v, 8, 8192, &opt.goal_size)) goto bad;
-    } else if (!strcmp(a, "--tables")) {
-      opt.tables = v;
-    } else {
-      goto bad;
-    }
-  }
-  return 0;
-bad:
-  usage(stderr);
-  return 2;
+  const bench_opt opts[] = {
+      BENCH_OPT_INT("--threads", 1, 256, &opt.threads),
+      BENCH_OPT_INT("--size", 8, 8192, &opt.size),
+      BENCH_OPT_INT("--repeats", 1, MAX_REPEATS, &opt.repeats),
+      BENCH_OPT_INT("--ref-samples", 1, 1 << 16, &opt.ref_samples),
+      BENCH_OPT_INT("--goal-size", 8, 8192, &opt.goal_size),
+      BENCH_OPT_STR("--tables", &opt.tables),
+  };
+  return bench_parse_opts(argc, argv, opts, (int)(sizeof opts / sizeof *opts), usage) ? 2 : 0;
 }
 
 static int want(const char *table) {

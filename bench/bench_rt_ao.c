@@ -46,6 +46,14 @@ static void usage(FILE *f) {
           "  --side runs one side only (for profiling); no ratio is printed then.\n");
 }
 
+/* --side both|obscura|raw. */
+static int parse_side(const char *v, void *dst) {
+  options *o = dst;
+  o->run_obscura = !strcmp(v, "both") || !strcmp(v, "obscura");
+  o->run_raw = !strcmp(v, "both") || !strcmp(v, "raw");
+  return o->run_obscura || o->run_raw ? 0 : -1;
+}
+
 static int parse_args(int argc, char **argv, options *o) {
   o->threads = obs_cpu_count();
   o->size = 512;
@@ -55,46 +63,15 @@ static int parse_args(int argc, char **argv, options *o) {
   o->subdiv[0] = 9;
   o->subdiv[1] = 10;
   o->nsubdiv = 2;
-  for (int i = 1; i < argc; i++) {
-    const char *a = argv[i];
-    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-      usage(stdout);
-      exit(0);
-    }
-    if (i + 1 >= argc) goto bad;
-    const char *v = argv[++i];
-    if (!strcmp(a, "--threads")) {
-      if (parse_int(v, 1, 256, &o->threads)) goto bad;
-    } else if (!strcmp(a, "--size")) {
-      if (parse_int(v, 1, 16384, &o->size)) goto bad;
-    } else if (!strcmp(a, "--samples")) {
-      if (parse_int(v, 1, 65536, &o->samples)) goto bad;
-    } else if (!strcmp(a, "--repeats")) {
-      if (parse_int(v, 1, MAX_REPEATS, &o->repeats)) goto bad;
-    } else if (!strcmp(a, "--side")) {
-      o->run_obscura = !strcmp(v, "both") || !strcmp(v, "obscura");
-      o->run_raw = !strcmp(v, "both") || !strcmp(v, "raw");
-      if (!o->run_obscura && !o->run_raw) goto bad;
-    } else if (!strcmp(a, "--subdiv")) {
-      char buf[128];
-      snprintf(buf, sizeof buf, "%s", v);
-      o->nsubdiv = 0;
-      for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok;
-           tok = strtok_r(NULL, ",", &save)) {
-        if (o->nsubdiv == MAX_SUBDIV || parse_int(tok, 1, 12, &o->subdiv[o->nsubdiv])) goto bad;
-        o->nsubdiv++;
-      }
-      if (!o->nsubdiv) goto bad;
-    } else {
-      goto bad;
-    }
-    continue;
-  bad:
-    fprintf(stderr, "bench_rt_ao: bad argument near '%s'\n", a);
-    usage(stderr);
-    return -1;
-  }
-  return 0;
+  const bench_opt opts[] = {
+      BENCH_OPT_INT("--threads", 1, 256, &o->threads),
+      BENCH_OPT_INT("--size", 1, 16384, &o->size),
+      BENCH_OPT_INT("--samples", 1, 65536, &o->samples),
+      BENCH_OPT_INT("--repeats", 1, MAX_REPEATS, &o->repeats),
+      BENCH_OPT_CUSTOM("--side", parse_side, "both, obscura or raw", o),
+      BENCH_OPT_LIST("--subdiv", 1, 12, o->subdiv, &o->nsubdiv, MAX_SUBDIV),
+  };
+  return bench_parse_opts(argc, argv, opts, (int)(sizeof opts / sizeof *opts), usage);
 }
 
 

@@ -30,7 +30,6 @@
 
 typedef struct options {
   int repeats;     /* timed renders per configuration and backend (after one warm-up) */
-  int repeats_set; /* --repeats given (accuracy mode defaults to 3) */
   int width, height;
   int threads;
   double hbao_radius; /* hbao's R in the timing runs (scene units) */
@@ -67,68 +66,47 @@ static void usage(FILE *f) {
           "  converged screen-space image, per sample count (docs/techniques/ss_obscurance.md).\n");
 }
 
+/* --size WxH. */
+static int parse_size(const char *v, void *dst) {
+  options *o = dst;
+  char buf[64], *x;
+  snprintf(buf, sizeof buf, "%s", v);
+  if (!(x = strchr(buf, 'x'))) return -1;
+  *x = '\0';
+  return parse_int(buf, 1, 16384, &o->width) || parse_int(x + 1, 1, 16384, &o->height) ? -1 : 0;
+}
+
+/* --backend both|cpu|vulkan. */
+static int parse_backend(const char *v, void *dst) {
+  options *o = dst;
+  o->cpu = !strcmp(v, "both") || !strcmp(v, "cpu");
+  o->vulkan = !strcmp(v, "both") || !strcmp(v, "vulkan");
+  return o->cpu || o->vulkan ? 0 : -1;
+}
+
 static int parse_args(int argc, char **argv, options *o) {
   memset(o, 0, sizeof *o);
-  o->repeats = 5;
   o->width = 1280;
   o->height = 720;
   o->threads = obs_cpu_count();
   o->hbao_radius = 100.0;
   o->scene = OBS_SOURCE_DIR "/scenes/cornell_box.json";
   o->cpu = o->vulkan = 1;
-  for (int i = 1; i < argc; i++) {
-    const char *a = argv[i];
-    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-      usage(stdout);
-      exit(0);
-    }
-    if (!strcmp(a, "--accuracy")) {
-      o->accuracy = 1;
-      continue;
-    }
-    if (!strcmp(a, "--sso-experiment")) {
-      o->sso_experiment = 1;
-      continue;
-    }
-    if (!strcmp(a, "--verbose")) {
-      o->verbose = 1;
-      continue;
-    }
-    if (i + 1 >= argc) goto bad;
-    const char *v = argv[++i];
-    if (!strcmp(a, "--repeats")) {
-      if (parse_int(v, 1, MAX_REPEATS, &o->repeats)) goto bad;
-      o->repeats_set = 1;
-    } else if (!strcmp(a, "--threads")) {
-      if (parse_int(v, 1, 256, &o->threads)) goto bad;
-    } else if (!strcmp(a, "--size")) {
-      char buf[64], *x;
-      snprintf(buf, sizeof buf, "%s", v);
-      if (!(x = strchr(buf, 'x'))) goto bad;
-      *x = '\0';
-      if (parse_int(buf, 1, 16384, &o->width) || parse_int(x + 1, 1, 16384, &o->height)) goto bad;
-    } else if (!strcmp(a, "--hbao-radius")) {
-      char *end;
-      o->hbao_radius = strtod(v, &end);
-      if (end == v || *end || !(o->hbao_radius > 0.0) || o->hbao_radius > 1e30) goto bad;
-    } else if (!strcmp(a, "--scene")) {
-      o->scene = v;
-    } else if (!strcmp(a, "--only")) {
-      o->only = v;
-    } else if (!strcmp(a, "--backend")) {
-      o->cpu = !strcmp(v, "both") || !strcmp(v, "cpu");
-      o->vulkan = !strcmp(v, "both") || !strcmp(v, "vulkan");
-      if (!o->cpu && !o->vulkan) goto bad;
-    } else {
-      goto bad;
-    }
-    continue;
-  bad:
-    fprintf(stderr, "bench_screen_space: bad argument near '%s'\n", a);
-    usage(stderr);
-    return -1;
-  }
-  if (o->accuracy && !o->repeats_set) o->repeats = 3;
+  const bench_opt opts[] = {
+      BENCH_OPT_FLAG("--accuracy", &o->accuracy),
+      BENCH_OPT_FLAG("--sso-experiment", &o->sso_experiment),
+      BENCH_OPT_FLAG("--verbose", &o->verbose),
+      BENCH_OPT_INT("--repeats", 1, MAX_REPEATS, &o->repeats),
+      BENCH_OPT_INT("--threads", 1, 256, &o->threads),
+      BENCH_OPT_CUSTOM("--size", parse_size, "WxH, each 1 to 16384", o),
+      BENCH_OPT_REAL("--hbao-radius", 0, 1e30, BENCH_OPEN_LO, &o->hbao_radius),
+      BENCH_OPT_STR("--scene", &o->scene),
+      BENCH_OPT_STR("--only", &o->only),
+      BENCH_OPT_CUSTOM("--backend", parse_backend, "both, cpu or vulkan", o),
+  };
+  if (bench_parse_opts(argc, argv, opts, (int)(sizeof opts / sizeof *opts), usage)) return -1;
+  /* 0 is no count --repeats takes: it means not given, and each mode has its own default. */
+  if (!o->repeats) o->repeats = o->accuracy ? 3 : 5;
   return 0;
 }
 

@@ -88,30 +88,14 @@ static void usage(FILE *f) {
 static int parse_args(int argc, char **argv, options *o) {
   *o = (options){.threads = obs_cpu_count(), .size = 48, .factor = 64};
   o->n[0] = 4, o->n[1] = 16, o->n[2] = 64, o->nn = 3;
-  for (int i = 1; i < argc; i++) {
-    const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-    if (!strcmp(a, "--help") || !strcmp(a, "-h")) return usage(stdout), 1;
-    if (!v) return usage(stderr), -1;
-    i++;
-    int bad = 0;
-    if (!strcmp(a, "--threads"))
-      bad = parse_int(v, 1, 1024, &o->threads);
-    else if (!strcmp(a, "--size"))
-      bad = parse_int(v, 1, 4096, &o->size);
-    else if (!strcmp(a, "--factor"))
-      bad = parse_int(v, 4, 4096, &o->factor);
-    else if (!strcmp(a, "--n"))
-      bad = (o->nn = parse_list(v, o->n, MAX_LIST, 1, 65536)) <= 0;
-    else if (!strcmp(a, "--only"))
-      o->only = v;
-    else
-      bad = 1;
-    if (bad) {
-      fprintf(stderr, "bench_stderr: bad argument near '%s'\n", a);
-      return usage(stderr), -1;
-    }
-  }
-  return 0;
+  const bench_opt opts[] = {
+      BENCH_OPT_INT("--threads", 1, 1024, &o->threads),
+      BENCH_OPT_INT("--size", 1, 4096, &o->size),
+      BENCH_OPT_INT("--factor", 4, 4096, &o->factor),
+      BENCH_OPT_LIST("--n", 1, 65536, o->n, &o->nn, MAX_LIST),
+      BENCH_OPT_STR("--only", &o->only),
+  };
+  return bench_parse_opts(argc, argv, opts, (int)(sizeof opts / sizeof *opts), usage);
 }
 
 static int row(const options *o, const obs_stderr_case *c, long n) {
@@ -131,7 +115,7 @@ static int row(const options *o, const obs_stderr_case *c, long n) {
 int main(int argc, char **argv) {
   options o;
   int a = parse_args(argc, argv, &o);
-  if (a) return a > 0 ? 0 : 2;
+  if (a) return 2;
   bench_print_machine();
   printf("%d x %d pixels, one pixel sample, reference at %d x N (seed 1000003), %d threads\n\n",
          o.size, o.size, o.factor, o.threads);

@@ -37,36 +37,15 @@ static int parse_args(int argc, char **argv, options *o) {
                  .samples = {32, 64, 128, 256},
                  .big = 512,
                  .backends = "cpu,vulkan"};
-  for (int i = 1; i < argc; i++) {
-    const char *a = argv[i];
-    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-      usage(stdout);
-      exit(0);
-    }
-    if (i + 1 >= argc) goto bad;
-    const char *v = argv[++i];
-    if (!strcmp(a, "--threads")) {
-      if (parse_int(v, 1, 256, &o->threads)) goto bad;
-    } else if (!strcmp(a, "--size")) {
-      if (parse_int(v, 8, 8192, &o->size)) goto bad;
-    } else if (!strcmp(a, "--repeats")) {
-      if (parse_int(v, 1, MAX_REPEATS, &o->repeats)) goto bad;
-    } else if (!strcmp(a, "--samples")) {
-      if ((o->nsamples = parse_list(v, o->samples, 8, 1, 65536)) < 1) goto bad;
-    } else if (!strcmp(a, "--big")) {
-      if (parse_int(v, 0, 1024, &o->big)) goto bad;
-    } else if (!strcmp(a, "--backends")) {
-      o->backends = v;
-    } else {
-      goto bad;
-    }
-    continue;
-  bad:
-    fprintf(stderr, "bench_volume_ao: bad argument near '%s'\n", a);
-    usage(stderr);
-    return -1;
-  }
-  return 0;
+  const bench_opt opts[] = {
+      BENCH_OPT_INT("--threads", 1, 256, &o->threads),
+      BENCH_OPT_INT("--size", 8, 8192, &o->size),
+      BENCH_OPT_INT("--repeats", 1, MAX_REPEATS, &o->repeats),
+      BENCH_OPT_LIST("--samples", 1, 65536, o->samples, &o->nsamples, 8),
+      BENCH_OPT_INT("--big", 0, 1024, &o->big),
+      BENCH_OPT_STR("--backends", &o->backends),
+  };
+  return bench_parse_opts(argc, argv, opts, (int)(sizeof opts / sizeof *opts), usage);
 }
 
 /* The report's fps on one node (Tables 3.1, 3.2) for 32, 64, 128, 256 samples. */

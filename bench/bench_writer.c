@@ -22,10 +22,8 @@ typedef struct opts {
   const char *scene;
 } opts;
 
-static int usage(void) {
-  fprintf(stderr,
-          "usage: bench_writer [--threads N] [--size W] [--subdiv L] [--repeats R] [--scene F]\n");
-  return 2;
+static void usage(FILE *f) {
+  fprintf(f, "usage: bench_writer [--threads N] [--size W] [--subdiv L] [--repeats R] [--scene F]\n");
 }
 
 static int parse(int argc, char **argv, opts *o) {
@@ -34,25 +32,14 @@ static int parse(int argc, char **argv, opts *o) {
   o->subdiv = 9;
   o->repeats = 5;
   o->scene = OBS_SOURCE_DIR "/scenes/displaced_sphere.json";
-  for (int i = 1; i < argc; i += 2) { /* every option takes a value */
-    const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-    int bad = 0;
-    if (!v) return usage();
-    if (!strcmp(a, "--threads"))
-      bad = parse_int(v, 1, 1024, &o->threads);
-    else if (!strcmp(a, "--size"))
-      bad = parse_int(v, 1, 8192, &o->size);
-    else if (!strcmp(a, "--subdiv"))
-      bad = parse_int(v, 2, 11, &o->subdiv);
-    else if (!strcmp(a, "--repeats"))
-      bad = parse_int(v, 1, 1000, &o->repeats);
-    else if (!strcmp(a, "--scene"))
-      o->scene = v;
-    else
-      return usage();
-    if (bad) return usage();
-  }
-  return 0;
+  const bench_opt opts[] = {
+      BENCH_OPT_INT("--threads", 1, 1024, &o->threads),
+      BENCH_OPT_INT("--size", 1, 8192, &o->size),
+      BENCH_OPT_INT("--subdiv", 2, 11, &o->subdiv),
+      BENCH_OPT_INT("--repeats", 1, 1000, &o->repeats),
+      BENCH_OPT_STR("--scene", &o->scene),
+  };
+  return bench_parse_opts(argc, argv, opts, (int)(sizeof opts / sizeof *opts), usage);
 }
 
 
