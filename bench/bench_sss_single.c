@@ -37,40 +37,17 @@ static void usage(FILE *f) {
 static int parse_args(int argc, char **argv, options *o) {
   *o = (options){.threads = obs_cpu_count(), .width = 1280, .height = 960, .ref_samples = 64,
                  .repeats = 3, .map_size = 1024, .nm = 5, .ms = {1, 2, 5, 10, 20}};
-  for (int i = 1; i < argc; i++) {
-    const char *a = argv[i];
-    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-      usage(stdout);
-      exit(0);
-    }
-    if (i + 1 >= argc) goto bad;
-    const char *v = argv[++i];
-    if (!strcmp(a, "--threads")) {
-      if (parse_int(v, 1, 256, &o->threads)) goto bad;
-    } else if (!strcmp(a, "--width")) {
-      if (parse_int(v, 4, 8192, &o->width)) goto bad;
-    } else if (!strcmp(a, "--height")) {
-      if (parse_int(v, 4, 8192, &o->height)) goto bad;
-    } else if (!strcmp(a, "--map-size")) {
-      if (parse_int(v, 16, 1024, &o->map_size)) goto bad;
-    } else if (!strcmp(a, "--ref-samples")) {
-      if (parse_int(v, 1, 4096, &o->ref_samples)) goto bad;
-    } else if (!strcmp(a, "--repeats")) {
-      if (parse_int(v, 1, MAX_REPEATS, &o->repeats)) goto bad;
-    } else if (!strcmp(a, "--m")) {
-      if ((o->nm = parse_list(v, o->ms, MAX_MS, 1, 4096)) < 1) goto bad;
-    } else if (!strcmp(a, "--png")) {
-      o->png = v;
-    } else {
-      goto bad;
-    }
-    continue;
-  bad:
-    fprintf(stderr, "bench_sss_single: bad argument near '%s'\n", a);
-    usage(stderr);
-    return -1;
-  }
-  return 0;
+  const bench_opt opts[] = {
+      BENCH_OPT_INT("--threads", 1, 256, &o->threads),
+      BENCH_OPT_INT("--width", 4, 8192, &o->width),
+      BENCH_OPT_INT("--height", 4, 8192, &o->height),
+      BENCH_OPT_INT("--map-size", 16, 1024, &o->map_size),
+      BENCH_OPT_INT("--ref-samples", 1, 4096, &o->ref_samples),
+      BENCH_OPT_INT("--repeats", 1, MAX_REPEATS, &o->repeats),
+      BENCH_OPT_LIST("--m", 1, 4096, o->ms, &o->nm, MAX_MS),
+      BENCH_OPT_STR("--png", &o->png),
+  };
+  return bench_parse_opts(argc, argv, opts, (int)(sizeof opts / sizeof *opts), usage);
 }
 
 static int load(const options *o, const char *backend, const char *params, obs_scene *sc,
