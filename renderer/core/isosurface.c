@@ -100,63 +100,68 @@ static long det3(const int a[3], const int b[3], const int c[3]) {
          (long)a[2] * (b[0] * c[1] - b[1] * c[0]);
 }
 
-/* The triangles of tetrahedron t for `cs` (bit v: corner v at or above), into tb. */
-static void table_case(obs_iso_table *tb, int t, int cs) {
-  const uint8_t *q = tb->tet[t];
+/* The triangles of a tetrahedron with corners at integer points p for `cs` (bit v: corner v at or
+ * above), as pairs of its corners (0..3), wound so the face normal points to the side below;
+ * returns their count (0..2). */
+static int tet_case(const int p[4][3], int cs, uint8_t tri[2][3][2]) {
   int up[4], nup = 0, dn[4], ndn = 0;
   for (int v = 0; v < 4; v++) {
     if (cs >> v & 1)
-      up[nup++] = q[v];
+      up[nup++] = v;
     else
-      dn[ndn++] = q[v];
+      dn[ndn++] = v;
   }
-  uint8_t(*e)[3][2] = tb->edge[t][cs];
-  if (nup == 0 || nup == 4) return;
+  if (nup == 0 || nup == 4) return 0;
   if (nup == 1 || nup == 3) {
     int s = nup == 1 ? up[0] : dn[0], *o = nup == 1 ? dn : up;
-    int ps[3], p[3][3], d[3][3];
-    corner4(s, ps);
-    for (int k = 0; k < 3; k++) {
-      corner4(o[k], p[k]);
-      for (int a = 0; a < 3; a++) d[k][a] = p[k][a] - ps[a];
-    }
+    int d[3][3];
+    for (int k = 0; k < 3; k++)
+      for (int a = 0; a < 3; a++) d[k][a] = p[o[k]][a] - p[s][a];
     /* (e1, e2, e3) faces away from s when det(o1 - s, o2 - s, o3 - s) > 0; away is the low side
      * when s is the one corner above, toward s when it is the one below. */
     long dt = det3(d[0], d[1], d[2]);
     int flip = nup == 1 ? dt < 0 : dt > 0;
     int order[3] = {0, flip ? 2 : 1, flip ? 1 : 2};
-    for (int k = 0; k < 3; k++) set_edge(e[0][k], s, o[order[k]]);
-    tb->ntri[t][cs] = 1;
-    return;
+    for (int k = 0; k < 3; k++) {
+      tri[0][k][0] = (uint8_t)s;
+      tri[0][k][1] = (uint8_t)o[order[k]];
+    }
+    return 1;
   }
   /* Two above (a, b), two below (c, d): the quad on edges ac, ad, bd, bc, cut along ac-bd. */
   int quad[4][2] = {{up[0], dn[0]}, {up[0], dn[1]}, {up[1], dn[1]}, {up[1], dn[0]}};
-  int m[4][3], pa[3], pb[3];
-  for (int k = 0; k < 4; k++) {
-    corner4(quad[k][0], pa);
-    corner4(quad[k][1], pb);
-    for (int a = 0; a < 3; a++) m[k][a] = pa[a] + pb[a];
-  }
-  int e1[3], e2[3], toward[3], pc[3], pd[3], pu[3], pv[3];
-  corner4(up[0], pu);
-  corner4(up[1], pv);
-  corner4(dn[0], pc);
-  corner4(dn[1], pd);
+  int m[4][3];
+  for (int k = 0; k < 4; k++)
+    for (int a = 0; a < 3; a++) m[k][a] = p[quad[k][0]][a] + p[quad[k][1]][a];
+  int e1[3], e2[3], toward[3];
   for (int a = 0; a < 3; a++) {
     e1[a] = m[1][a] - m[0][a];
     e2[a] = m[2][a] - m[0][a];
-    toward[a] = pc[a] + pd[a] - pu[a] - pv[a];
+    toward[a] = p[dn[0]][a] + p[dn[1]][a] - p[up[0]][a] - p[up[1]][a];
   }
   long n[3] = {(long)e1[1] * e2[2] - (long)e1[2] * e2[1], (long)e1[2] * e2[0] - (long)e1[0] * e2[2],
                (long)e1[0] * e2[1] - (long)e1[1] * e2[0]};
   int flip = n[0] * toward[0] + n[1] * toward[1] + n[2] * toward[2] < 0;
-  static const int tri[2][3] = {{0, 1, 2}, {0, 2, 3}};
+  static const int tri3[2][3] = {{0, 1, 2}, {0, 2, 3}};
   for (int r = 0; r < 2; r++)
     for (int k = 0; k < 3; k++) {
-      int qk = tri[r][flip ? (3 - k) % 3 : k];
-      set_edge(e[r][k], quad[qk][0], quad[qk][1]);
+      int qk = tri3[r][flip ? (3 - k) % 3 : k];
+      tri[r][k][0] = (uint8_t)quad[qk][0];
+      tri[r][k][1] = (uint8_t)quad[qk][1];
     }
-  tb->ntri[t][cs] = 2;
+  return 2;
+}
+
+/* The triangles of tetrahedron t for `cs`, into tb. */
+static void table_case(obs_iso_table *tb, int t, int cs) {
+  const uint8_t *q = tb->tet[t];
+  int p[4][3];
+  for (int v = 0; v < 4; v++) corner4(q[v], p[v]);
+  uint8_t tri[2][3][2];
+  int n = tet_case(p, cs, tri);
+  for (int r = 0; r < n; r++)
+    for (int k = 0; k < 3; k++) set_edge(tb->edge[t][cs][r][k], q[tri[r][k][0]], q[tri[r][k][1]]);
+  tb->ntri[t][cs] = (uint8_t)n;
 }
 
 static obs_iso_table tables[2];
@@ -225,7 +230,7 @@ static int add_vertex(grow *g, uint32_t key, float t) {
     size_t cap = g->vcap ? 2 * g->vcap : 1024;
     double *p = realloc(m->pos, cap * 3 * sizeof *p);
     if (p) m->pos = p;
-    uint32_t *k = realloc(m->key, cap * sizeof *k);
+    uint64_t *k = realloc(m->key, cap * sizeof *k);
     if (k) m->key = k;
     float *tt = realloc(m->t, cap * sizeof *tt);
     if (tt) m->t = tt;
@@ -380,16 +385,181 @@ static int run_extract(extract *x, grow *g) {
   return rc;
 }
 
+/* ---- refinement beyond one level: longest-edge bisection ------------------------------------ */
+
+/* Levels 2 and 3 bisect every tetrahedron of a cell that many times at its longest edge (in
+ * lattice units, the cell taken as a cube). The Kuhn tetrahedra keep a unique longest edge for
+ * three generations (the cell diagonal, then a face diagonal, then a cell edge), so every vertex
+ * is one of the cell's 27 half-lattice points and the bisection is the same on both sides of
+ * every face: applied to every cell, it is conforming. A cell whose 27 values share one sign has
+ * no crossed sub-tetrahedron, so only crossed cells are subdivided, and the result is the
+ * uniform refinement's surface, closed. Edges are welded by the pair of their ends' half-lattice
+ * indices (key = lower * points + upper), vertices ordered by that key. */
+typedef struct bis_edge {
+  uint64_t key;
+  float t;
+} bis_edge;
+
+typedef struct bisect {
+  const extract *x;
+  uint64_t np[3], npts; /* half-lattice points per axis, in all */
+  bis_edge *e;          /* 3 per triangle, in emission order */
+  size_t ne, cap;
+} bisect;
+
+static int bis_push(bisect *b, uint64_t key, float t) {
+  if (b->ne == b->cap) {
+    size_t cap = b->cap ? 2 * b->cap : 3072;
+    bis_edge *e = realloc(b->e, cap * sizeof *e);
+    if (!e) return OBS_ENOMEM;
+    b->e = e;
+    b->cap = cap;
+  }
+  b->e[b->ne++] = (bis_edge){key, t};
+  return 0;
+}
+
+static int bis_len2(const int8_t p[3], const int8_t q[3]) {
+  int d0 = p[0] - q[0], d1 = p[1] - q[1], d2 = p[2] - q[2];
+  return d0 * d0 + d1 * d1 + d2 * d2;
+}
+
+/* Tetrahedron q (cell-local half-lattice points 0..2 per axis) of the cell at half-lattice
+ * origin o, with the cell's 27 values f (x fastest): its triangles, or its two children. */
+static int bis_tet(bisect *b, const int o[3], const float f[27], int8_t q[4][3], int left) {
+  if (left) {
+    int bu = 0, bv = 1, best = -1;
+    for (int u = 0; u < 4; u++)
+      for (int v = u + 1; v < 4; v++)
+        if (bis_len2(q[u], q[v]) > best) best = bis_len2(q[u], q[v]), bu = u, bv = v;
+    int8_t m[3], c[4][3];
+    for (int a = 0; a < 3; a++) m[a] = (int8_t)((q[bu][a] + q[bv][a]) / 2);
+    for (int side = 0; side < 2; side++) {
+      memcpy(c, q, sizeof c);
+      memcpy(c[side ? bu : bv], m, 3);
+      if (bis_tet(b, o, f, c, left - 1)) return OBS_ENOMEM;
+    }
+    return 0;
+  }
+  int p[4][3], cs = 0;
+  float fv[4];
+  uint64_t id[4];
+  for (int v = 0; v < 4; v++) {
+    for (int a = 0; a < 3; a++) p[v][a] = q[v][a];
+    fv[v] = f[q[v][0] + 3 * q[v][1] + 9 * q[v][2]];
+    cs |= (fv[v] >= 0) << v;
+    id[v] = ((uint64_t)(o[2] + q[v][2]) * b->np[1] + (uint64_t)(o[1] + q[v][1])) * b->np[0] +
+            (uint64_t)(o[0] + q[v][0]);
+  }
+  uint8_t tri[2][3][2];
+  int n = tet_case(p, cs, tri);
+  for (int r = 0; r < n; r++)
+    for (int k = 0; k < 3; k++) {
+      int u = tri[r][k][0], v = tri[r][k][1];
+      if (id[u] > id[v]) u = tri[r][k][1], v = tri[r][k][0];
+      if (bis_push(b, id[u] * b->npts + id[v], edge_t(fv[u], fv[v]))) return OBS_ENOMEM;
+    }
+  return 0;
+}
+
+static int bis_cells(bisect *b, int levels) {
+  const extract *x = b->x;
+  const int *c = x->l->c;
+  static const uint8_t kuhn[6][4] = {{0, 1, 3, 7}, {0, 1, 5, 7}, {0, 2, 3, 7},
+                                     {0, 2, 6, 7}, {0, 4, 5, 7}, {0, 4, 6, 7}};
+  for (int k = 0; k < c[2]; k++)
+    for (int j = 0; j < c[1]; j++)
+      for (int i = 0; i < c[0]; i++) {
+        int o[3] = {2 * i, 2 * j, 2 * k}, pos = 0, neg = 0;
+        float f[27];
+        for (int n = 0; n < 27; n++) {
+          f[n] = obs_iso_lattice_value(x->v, x->l, x->iso, o[0] + n % 3, o[1] + n / 3 % 3,
+                                       o[2] + n / 9);
+          pos += f[n] >= 0;
+          neg += f[n] < 0;
+        }
+        if (!pos || !neg) continue;
+        for (int t = 0; t < 6; t++) {
+          int8_t q[4][3];
+          for (int v = 0; v < 4; v++)
+            for (int a = 0; a < 3; a++) q[v][a] = (int8_t)(2 * (kuhn[t][v] >> a & 1));
+          if (bis_tet(b, o, f, q, levels)) return OBS_ENOMEM;
+        }
+      }
+  return 0;
+}
+
+static int cmp_edge(const void *a, const void *b) {
+  uint64_t x = ((const bis_edge *)a)->key, y = ((const bis_edge *)b)->key;
+  return x < y ? -1 : x > y;
+}
+
+/* The welded mesh of the emitted edges: unique keys in order become the vertices. */
+static int bis_weld(bisect *b, obs_iso_mesh *m) {
+  bis_edge *u = malloc((b->ne ? b->ne : 1) * sizeof *u);
+  m->idx = malloc((b->ne ? b->ne : 1) * sizeof *m->idx);
+  if (!u || !m->idx) {
+    free(u);
+    return OBS_ENOMEM;
+  }
+  if (b->ne) memcpy(u, b->e, b->ne * sizeof *u);
+  qsort(u, b->ne, sizeof *u, cmp_edge);
+  size_t nv = 0;
+  for (size_t i = 0; i < b->ne; i++)
+    if (!nv || u[i].key != u[nv - 1].key) u[nv++] = u[i];
+  m->pos = malloc((nv ? nv : 1) * 3 * sizeof *m->pos);
+  m->key = malloc((nv ? nv : 1) * sizeof *m->key);
+  m->t = malloc((nv ? nv : 1) * sizeof *m->t);
+  if (!m->pos || !m->key || !m->t) {
+    free(u);
+    return OBS_ENOMEM;
+  }
+  for (size_t i = 0; i < nv; i++) {
+    uint64_t lo = u[i].key / b->npts, hi = u[i].key % b->npts;
+    uint64_t pl[3] = {lo % b->np[0], lo / b->np[0] % b->np[1], lo / (b->np[0] * b->np[1])};
+    uint64_t ph[3] = {hi % b->np[0], hi / b->np[0] % b->np[1], hi / (b->np[0] * b->np[1])};
+    m->key[i] = u[i].key;
+    m->t[i] = u[i].t;
+    for (int a = 0; a < 3; a++)
+      m->pos[3 * i + a] =
+          m->lat.o[a] + 0.5 * ((double)pl[a] + (double)u[i].t * ((double)ph[a] - (double)pl[a])) *
+                            m->lat.h[a];
+  }
+  for (size_t i = 0; i < b->ne; i++) {
+    size_t lo = 0, hi = nv;
+    while (hi - lo > 1) {
+      size_t mid = (lo + hi) / 2;
+      if (u[mid].key <= b->e[i].key) lo = mid; else hi = mid;
+    }
+    m->idx[i] = (uint32_t)lo;
+  }
+  m->nverts = nv;
+  m->ntris = b->ne / 3;
+  free(u);
+  return 0;
+}
+
+static int run_bisect(extract *x, obs_iso_mesh *m, int levels) {
+  bisect b = {.x = x};
+  for (int a = 0; a < 3; a++) b.np[a] = 2 * (uint64_t)x->l->c[a] + 1;
+  b.npts = b.np[0] * b.np[1] * b.np[2];
+  int rc = bis_cells(&b, levels);
+  if (!rc) rc = bis_weld(&b, m);
+  free(b.e);
+  return rc;
+}
+
 int obs_iso_extract(const obs_volume *v, float iso, int cells, int refine, obs_iso_mesh *m,
                     obs_err *err) {
   memset(m, 0, sizeof *m);
-  if (refine < 0 || refine > 1)
-    return obs_err_set(err, OBS_EINVAL, "isosurface: refine %d, not 0 or 1", refine);
+  if (refine < 0 || refine > OBS_ISO_REFINE_MAX)
+    return obs_err_set(err, OBS_EINVAL, "isosurface: refine %d, not in 0..%d", refine,
+                       OBS_ISO_REFINE_MAX);
   int rc = obs_iso_lattice_init(v, cells, &m->lat, err);
   if (rc) return rc;
-  extract x = {.v = v, .iso = iso, .refine = refine, .l = &m->lat};
+  extract x = {.v = v, .iso = iso, .refine = refine > 0, .l = &m->lat};
   grow g = {m, 0, 0};
-  rc = run_extract(&x, &g);
+  rc = refine > 1 ? run_bisect(&x, m, refine) : run_extract(&x, &g);
   free(x.f);
   free(x.centre);
   free(x.ids[0]);

@@ -1,6 +1,7 @@
 /* Isosurface extraction (renderer/core/isosurface.h) and the isosurface_mesh technique: the
  * procedural sphere's area and enclosed volume converge to the analytic ones as h^2, the surface
- * is closed and consistently wound with and without refinement, the mesh scales with the volume,
+ * is closed and consistently wound at every refinement level, deeper levels lower the error and
+ * find surface the coarse samples miss, the mesh scales with the volume,
  * the geometry build turns volume objects into meshes for surface techniques, and the technique's
  * depth and normals agree with the exact isosurface (volume_ao's bisected ray cast). */
 #include <math.h>
@@ -97,7 +98,38 @@ static void test_sphere_converges(void **state) {
 
 static void test_refined_converges(void **state) {
   (void)state;
-  converge(1, 0.5);
+  for (int r = 1; r <= OBS_ISO_REFINE_MAX; r++) converge(r, 0.5);
+}
+
+/* On one coarse lattice, each bisection level samples more of the field: the sphere's area and
+ * volume errors fall with the level, and level 3 (every half-lattice point) is within a factor of
+ * the lattice of half the spacing. */
+static void test_levels_improve(void **state) {
+  (void)state;
+  obs_volume v;
+  sphere_volume(64, &v);
+  double r = sphere_radius(0.45), A = 4 * PI * r * r, V = 4.0 / 3.0 * PI * r * r * r;
+  double ea[OBS_ISO_REFINE_MAX + 1], ev[OBS_ISO_REFINE_MAX + 1];
+  obs_err err = OBS_ERR_INIT;
+  for (int l = 0; l <= OBS_ISO_REFINE_MAX; l++) {
+    obs_iso_mesh m;
+    assert_int_equal(obs_iso_extract(&v, 0.45f, 6, l, &m, &err), 0);
+    assert_watertight(&m);
+    double area, vol;
+    obs_iso_mesh_measure(&m, &area, &vol);
+    ea[l] = fabs(area / A - 1);
+    ev[l] = fabs(vol / V - 1);
+    printf("     cells 6 refine %d: %6zu triangles, area err %.2e, volume err %.2e\n", l, m.ntris,
+           ea[l], ev[l]);
+    obs_iso_mesh_free(&m);
+  }
+  for (int l = 1; l <= OBS_ISO_REFINE_MAX; l++) {
+    assert_true(ea[l] < ea[l - 1]);
+    assert_true(ev[l] < ev[l - 1]);
+  }
+  assert_true(ea[3] * 2.5 < ea[0] && ev[3] * 2.5 < ev[0]);
+  obs_volume_free(&v);
+  obs_err_free(&err);
 }
 
 /* A sphere too small for the coarse lattice's corners: refinement's centre samples find it. */
@@ -116,6 +148,32 @@ static void test_refine_finds_missed_surface(void **state) {
   assert_watertight(&b);
   obs_iso_mesh_free(&a);
   obs_iso_mesh_free(&b);
+  obs_volume_free(&v);
+  obs_err_free(&err);
+}
+
+/* A small sphere centred on the face between two cells (the box squashed along z to two cells of
+ * three): no corner or cell centre reaches it, the face centres of level 2 and 3 do, and their
+ * surface is closed. */
+static void test_deeper_levels_find_thin_features(void **state) {
+  (void)state;
+  obs_volume v;
+  sphere_volume(64, &v);
+  v.spacing[2] *= 2.0 / 3.0;
+  obs_err err = OBS_ERR_INIT;
+  for (int l = 0; l <= OBS_ISO_REFINE_MAX; l++) {
+    obs_iso_mesh m;
+    assert_int_equal(obs_iso_extract(&v, 0.75f, 3, l, &m, &err), 0);
+    assert_int_equal(m.lat.c[2], 2);
+    if (l < 2)
+      assert_int_equal(m.ntris, 0);
+    else
+      assert_true(m.ntris > 0);
+    assert_watertight(&m);
+    obs_iso_mesh_free(&m);
+  }
+  obs_iso_mesh m;
+  assert_int_equal(obs_iso_extract(&v, 0.75f, 3, OBS_ISO_REFINE_MAX + 1, &m, &err), OBS_EINVAL);
   obs_volume_free(&v);
   obs_err_free(&err);
 }
@@ -267,6 +325,8 @@ int main(void) {
       cmocka_unit_test(test_sphere_converges),
       cmocka_unit_test(test_refined_converges),
       cmocka_unit_test(test_refine_finds_missed_surface),
+      cmocka_unit_test(test_levels_improve),
+      cmocka_unit_test(test_deeper_levels_find_thin_features),
       cmocka_unit_test(test_scale_invariance),
       cmocka_unit_test(test_geometry_build),
       cmocka_unit_test(test_against_exact),

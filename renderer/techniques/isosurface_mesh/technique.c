@@ -44,11 +44,14 @@ static const obs_param isosurface_mesh_params[] = {
     {.name = "refine",
      .type = OBS_PARAM_INT,
      .min = 0,
-     .max = 1,
+     .max = OBS_ISO_REFINE_MAX,
      .def = 0,
-     .description = "adaptive refinement levels: 1 samples every cell's centre and bisects its "
-                    "six tetrahedra at it (longest-edge bisection of the shared diagonal: twelve "
-                    "tetrahedra, finding surface the corners miss, without cracks); 0 off",
+     .description = "longest-edge bisection levels of each cell's six tetrahedra: 1 bisects "
+                    "their shared diagonal at a sample of the cell's centre (the article's "
+                    "twelve tetrahedra), 2 and 3 go on bisecting every tetrahedron at its "
+                    "longest edge (face centres, then edge midpoints), in every cell whose "
+                    "samples differ in sign, so the surface stays closed; finds surface the "
+                    "corners miss. Vulkan extracts levels 0 and 1; 0 off",
      .offset = P(refine)},
 };
 #undef P
@@ -81,13 +84,26 @@ static const obs_output_pair isosurface_mesh_compared[] = {{"normal", "normal"},
  * within that rounding of a silhouette edge: it sees the surface behind, a relative depth change
  * of order 1. The mean tolerance allows about one such pixel in 500 (the extremes suite saw one
  * in 1024 at the smallest scale, orthographic); the rest are within 3e-7. */
-#define ISO_RANGE(mean_, depth_rel_, fov_min_, normal_)                                    \
+#define ISO_RANGE(mean_, depth_rel_, fov_min_, normal_, refine_max_)                       \
   {                                                                                        \
     .size_min = 1e-9, .size_max = 1e9, .translation_max = 1e6, .fov_min = fov_min_,        \
-    .fov_max = 170, .orthographic = 1, .params = {{NULL, 0, 0, 0}},                        \
+    .fov_max = 170, .orthographic = 1,                                                     \
+    .params = {{"refine", 0, refine_max_, 0}, {NULL, 0, 0, 0}},                            \
     .tol = {.ao_mean = mean_, .ao_pixel = 1e-4, .share = 0.02, .normal = normal_,          \
             .depth_rel = depth_rel_}                                                       \
   }
+
+/* The device extractor's tables hold the six and the twelve tetrahedra of levels 0 and 1; deeper
+ * bisection is the CPU's. */
+static void isosurface_mesh_check(const obs_scene *scene, const json_t *params, const char *doc,
+                                  obs_err *err) {
+  json_int_t r = json_integer_value(json_object_get(params, "refine"));
+  if (scene->backend == OBS_BACKEND_VULKAN && r > 1)
+    obs_err_set(err, OBS_EINVAL,
+                "%s: /technique/params/refine: %lld levels run on the cpu backend only (the "
+                "vulkan extractor bisects at most 1 level)",
+                doc, (long long)r);
+}
 
 const obs_technique obs_technique_isosurface_mesh = {
     .name = "isosurface_mesh",
@@ -104,14 +120,15 @@ const obs_technique obs_technique_isosurface_mesh = {
     .outputs = isosurface_mesh_outputs,
     .reference = isosurface_mesh_reference,
     .compared_outputs = isosurface_mesh_compared,
+    .check = isosurface_mesh_check,
     .run = {[OBS_BACKEND_CPU] = obs_isosurface_mesh_cpu,
             [OBS_BACKEND_VULKAN] = obs_isosurface_mesh_vulkan},
-    .range = {[OBS_BACKEND_CPU] = ISO_RANGE(2.5e-3, 3e-5, 1e-3, 1e-4),
+    .range = {[OBS_BACKEND_CPU] = ISO_RANGE(2.5e-3, 3e-5, 1e-3, 1e-4, OBS_ISO_REFINE_MAX),
               /* The device rasterises the float mesh in the camera's frame, and the G-buffer
                * pass takes face normals from the derivatives of float camera-relative positions:
                * the mesh's small faces seen from the distance a narrow field of view needs lose
                * their normals to float's rounding (at 1e-2 degrees nothing of them is left; at
                * 1 degree, 3e-3 between scales in the extremes suite). The range stops at 1
                * degree with that normal tolerance. */
-              [OBS_BACKEND_VULKAN] = ISO_RANGE(2.5e-3, 1e-4, 1, 5e-3)},
+              [OBS_BACKEND_VULKAN] = ISO_RANGE(2.5e-3, 1e-4, 1, 5e-3, 1)},
 };

@@ -134,7 +134,7 @@ static int read_mesh(obs_vk *vk, dev *d, size_t nv, size_t nt, obs_iso_mesh *m, 
   float *vb = malloc((size_t)OBS_ISO_W * rows(nv) * 4 * sizeof(float));
   float *tb = malloc((size_t)OBS_ISO_W * rows(nt) * 4 * sizeof(float));
   m->pos = malloc((nv ? nv : 1) * 3 * sizeof(double));
-  m->key = malloc((nv ? nv : 1) * sizeof(uint32_t));
+  m->key = malloc((nv ? nv : 1) * sizeof *m->key);
   m->t = malloc((nv ? nv : 1) * sizeof(float));
   m->idx = malloc((nt ? nt : 1) * 3 * sizeof(uint32_t));
   int rc = vb && tb && m->pos && m->key && m->t && m->idx
@@ -147,7 +147,7 @@ static int read_mesh(obs_vk *vk, dev *d, size_t nv, size_t nt, obs_iso_mesh *m, 
     memcpy(&bits, vb + 4 * i + 1, sizeof bits);
     m->key[i] = bits & ~OBS_ISO_KEY_BIAS;
     m->t[i] = vb[4 * i];
-    obs_iso_key_point(&m->lat, m->key[i], m->t[i], m->pos + 3 * i);
+    obs_iso_key_point(&m->lat, (uint32_t)m->key[i], m->t[i], m->pos + 3 * i);
   }
   for (size_t i = 0; !rc && i < nt; i++)
     for (int k = 0; k < 3; k++) {
@@ -168,7 +168,10 @@ int obs_isosurface_mesh_vk_extract(obs_vk *vk, const obs_volume *v, float iso, i
                                    int refine, obs_iso_mesh *m, double *ms, obs_err *err) {
   memset(m, 0, sizeof *m);
   if (refine < 0 || refine > 1)
-    return obs_err_set(err, OBS_EINVAL, "isosurface: refine %d, not 0 or 1", refine);
+    return obs_err_set(err, OBS_EINVAL,
+                       "isosurface_mesh: refine %d, not 0 or 1 (the vulkan extractor bisects at "
+                       "most 1 level)",
+                       refine);
   int rc = obs_iso_lattice_init(v, cells, &m->lat, err);
   if (rc) return rc;
   const obs_iso_lattice *l = &m->lat;
