@@ -88,6 +88,11 @@ typedef struct obs_iso_mesh {
  * refine out of range; OBS_ENOMEM. */
 int obs_iso_extract(const obs_volume *v, float iso, int cells, int refine, obs_iso_mesh *m,
                     obs_err *err);
+/* As obs_iso_extract on `threads` threads over slabs of cell layers: the same mesh, bit for bit,
+ * for any count (each point layer's vertices are numbered alone, then offset by the counts
+ * before it). */
+int obs_iso_extract_threads(const obs_volume *v, float iso, int cells, int refine, int threads,
+                            obs_iso_mesh *m, obs_err *err);
 void obs_iso_mesh_free(obs_iso_mesh *m);
 
 /* The position of lattice edge `key` (refine 0 and 1) at parameter t (data space), as

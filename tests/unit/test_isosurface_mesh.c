@@ -51,7 +51,7 @@ static void assert_watertight(const obs_iso_mesh *m) {
   qsort(r, ne, sizeof *r, cmp_u64);
   for (size_t i = 0; i < ne; i++) {
     if (i) assert_true(d[i] != d[i - 1]); /* a directed edge twice: inconsistent winding */
-    assert_true(d[i] == r[i]);           /* each directed edge has its reverse */
+    assert_true(d[i] == r[i]);            /* each directed edge has its reverse */
   }
   /* Welded per lattice edge: keys strictly rising. */
   for (size_t i = 1; i < m->nverts; i++) assert_true(m->key[i] > m->key[i - 1]);
@@ -178,6 +178,34 @@ static void test_deeper_levels_find_thin_features(void **state) {
   obs_err_free(&err);
 }
 
+/* One, two and three threads give the same mesh, bit for bit, at every level. */
+static void test_threads_same_bits(void **state) {
+  (void)state;
+  obs_volume v;
+  obs_err err = OBS_ERR_INIT;
+  const int dims[3] = {40, 40, 40};
+  assert_int_equal(obs_volume_procedural_fill(OBS_VOLUME_TORUS, 1, dims, &v, &err), 0);
+  for (int l = 0; l <= OBS_ISO_REFINE_MAX; l++) {
+    obs_iso_mesh base;
+    assert_int_equal(obs_iso_extract(&v, 0.5f, 20, l, &base, &err), 0);
+    assert_true(base.ntris > 100);
+    for (int th = 2; th <= 3; th++) {
+      obs_iso_mesh m;
+      assert_int_equal(obs_iso_extract_threads(&v, 0.5f, 20, l, th, &m, &err), 0);
+      assert_int_equal(m.ntris, base.ntris);
+      assert_int_equal(m.nverts, base.nverts);
+      assert_memory_equal(m.idx, base.idx, 3 * m.ntris * sizeof *m.idx);
+      assert_memory_equal(m.key, base.key, m.nverts * sizeof *m.key);
+      assert_memory_equal(m.t, base.t, m.nverts * sizeof *m.t);
+      assert_memory_equal(m.pos, base.pos, 3 * m.nverts * sizeof *m.pos);
+      obs_iso_mesh_free(&m);
+    }
+    obs_iso_mesh_free(&base);
+  }
+  obs_volume_free(&v);
+  obs_err_free(&err);
+}
+
 /* The mesh of a volume scaled by s is the mesh scaled by s: the same indices, positions within
  * float's rounding. */
 static void test_scale_invariance(void **state) {
@@ -280,7 +308,8 @@ static void test_against_exact(void **state) {
   (void)state;
   char doc[1024];
   const char *fmt =
-      "{\"camera\": {\"type\": \"perspective\", \"position\": [0, 0.5, -1.6], \"look_at\": [0, 0, 0],"
+      "{\"camera\": {\"type\": \"perspective\", \"position\": [0, 0.5, -1.6], \"look_at\": [0, 0, "
+      "0],"
       " \"up\": [0, 1, 0], \"fov_y\": 40}, \"image\": {\"width\": 48, \"height\": 32, \"spp\": 1},"
       " \"objects\": [{\"name\": \"torus\", \"shape\": {\"type\": \"volume\", \"procedural\":"
       " \"torus\", \"dims\": [48, 48, 48]}, \"transform\": {\"rotate\": [70, 0, 0]}}],"
@@ -291,11 +320,15 @@ static void test_against_exact(void **state) {
   obs_test_render(doc, 2, &a);
   snprintf(doc, sizeof doc, fmt, "volume_ao", "\"samples\": 1, \"ibl\": \"none\"");
   obs_test_render(doc, 2, &b);
-  const float *aa = obs_image_channel(&a.image, "alpha"), *ba = obs_image_channel(&b.image, "alpha");
-  const float *ad = obs_image_channel(&a.image, "depth.Z"), *bd = obs_image_channel(&b.image, "depth.Z");
-  const float *an[3] = {obs_image_channel(&a.image, "normal.X"), obs_image_channel(&a.image, "normal.Y"),
+  const float *aa = obs_image_channel(&a.image, "alpha"),
+              *ba = obs_image_channel(&b.image, "alpha");
+  const float *ad = obs_image_channel(&a.image, "depth.Z"),
+              *bd = obs_image_channel(&b.image, "depth.Z");
+  const float *an[3] = {obs_image_channel(&a.image, "normal.X"),
+                        obs_image_channel(&a.image, "normal.Y"),
                         obs_image_channel(&a.image, "normal.Z")};
-  const float *bn[3] = {obs_image_channel(&b.image, "normal.X"), obs_image_channel(&b.image, "normal.Y"),
+  const float *bn[3] = {obs_image_channel(&b.image, "normal.X"),
+                        obs_image_channel(&b.image, "normal.Y"),
                         obs_image_channel(&b.image, "normal.Z")};
   size_t both = 0, differ = 0;
   double angle = 0, drel = 0;
@@ -327,6 +360,7 @@ int main(void) {
       cmocka_unit_test(test_refine_finds_missed_surface),
       cmocka_unit_test(test_levels_improve),
       cmocka_unit_test(test_deeper_levels_find_thin_features),
+      cmocka_unit_test(test_threads_same_bits),
       cmocka_unit_test(test_scale_invariance),
       cmocka_unit_test(test_geometry_build),
       cmocka_unit_test(test_against_exact),

@@ -84,11 +84,10 @@ static const obs_output_pair isosurface_mesh_compared[] = {{"normal", "normal"},
  * within that rounding of a silhouette edge: it sees the surface behind, a relative depth change
  * of order 1. The mean tolerance allows about one such pixel in 500 (the extremes suite saw one
  * in 1024 at the smallest scale, orthographic); the rest are within 3e-7. */
-#define ISO_RANGE(mean_, depth_rel_, fov_min_, normal_, refine_max_)                       \
+#define ISO_RANGE(mean_, depth_rel_, fov_min_, normal_)                                    \
   {                                                                                        \
     .size_min = 1e-9, .size_max = 1e9, .translation_max = 1e6, .fov_min = fov_min_,        \
-    .fov_max = 170, .orthographic = 1,                                                     \
-    .params = {{"refine", 0, refine_max_, 0}, {NULL, 0, 0, 0}},                            \
+    .fov_max = 170, .orthographic = 1, .params = {{NULL, 0, 0, 0}},                        \
     .tol = {.ao_mean = mean_, .ao_pixel = 1e-4, .share = 0.02, .normal = normal_,          \
             .depth_rel = depth_rel_}                                                       \
   }
@@ -107,9 +106,10 @@ static void isosurface_mesh_check(const obs_scene *scene, const json_t *params, 
 
 const obs_technique obs_technique_isosurface_mesh = {
     .name = "isosurface_mesh",
-    .description = "Isosurface extraction by hybrid marching cubes / marching tetrahedra "
-                   "(ShaderX7 1.1): each volume's isosurface as a triangle mesh, ray cast, "
-                   "against the exact isosurface",
+    .description =
+        "Isosurface extraction by hybrid marching cubes / marching tetrahedra "
+        "(ShaderX7 1.1): each volume's isosurface as a triangle mesh, ray cast, "
+        "against the exact isosurface",
     .params = isosurface_mesh_params,
     .params_size = sizeof isosurface_mesh_params / sizeof isosurface_mesh_params[0],
     .bound_size = sizeof(obs_isosurface_mesh_params),
@@ -123,12 +123,12 @@ const obs_technique obs_technique_isosurface_mesh = {
     .check = isosurface_mesh_check,
     .run = {[OBS_BACKEND_CPU] = obs_isosurface_mesh_cpu,
             [OBS_BACKEND_VULKAN] = obs_isosurface_mesh_vulkan},
-    .range = {[OBS_BACKEND_CPU] = ISO_RANGE(2.5e-3, 3e-5, 1e-3, 1e-4, OBS_ISO_REFINE_MAX),
+    .range = {[OBS_BACKEND_CPU] = ISO_RANGE(2.5e-3, 3e-5, 1e-3, 1e-4),
               /* The device rasterises the float mesh in the camera's frame, and the G-buffer
                * pass takes face normals from the derivatives of float camera-relative positions:
                * the mesh's small faces seen from the distance a narrow field of view needs lose
                * their normals to float's rounding (at 1e-2 degrees nothing of them is left; at
                * 1 degree, 3e-3 between scales in the extremes suite). The range stops at 1
                * degree with that normal tolerance. */
-              [OBS_BACKEND_VULKAN] = ISO_RANGE(2.5e-3, 1e-4, 1, 5e-3, 1)},
+              [OBS_BACKEND_VULKAN] = ISO_RANGE(2.5e-3, 1e-4, 1, 5e-3)},
 };

@@ -69,9 +69,16 @@ static void dev_free(obs_vk *vk, dev *d) {
 
 static obs_vk_pass make_pass(const char *name, const uint32_t *spv, size_t size, dev *d,
                              const obs_iso_push *pc) {
-  obs_vk_pass p = {.name = name, .spirv = spv, .spirv_size = size, .nimages = OBS_ISO_IMAGES,
-                   .push = pc, .push_size = sizeof *pc, .groups_x = OBS_ISO_W / 64,
-                   .groups_y = rows((size_t)pc->npoints), .groups_z = 1, .ntextures = 1,
+  obs_vk_pass p = {.name = name,
+                   .spirv = spv,
+                   .spirv_size = size,
+                   .nimages = OBS_ISO_IMAGES,
+                   .push = pc,
+                   .push_size = sizeof *pc,
+                   .groups_x = OBS_ISO_W / 64,
+                   .groups_y = rows((size_t)pc->npoints),
+                   .groups_z = 1,
+                   .ntextures = 1,
                    .data = d->tables};
   p.textures[0] = d->vol;
   for (int i = 0; i < OBS_ISO_IMAGES; i++) p.images[i] = d->img[i];
@@ -186,11 +193,10 @@ int obs_isosurface_mesh_vk_extract(obs_vk *vk, const obs_volume *v, float iso, i
   rc = counts ? upload(vk, v, l, refine, &pc, &d, err)
               : obs_err_set(err, OBS_ENOMEM, "isosurface_mesh: out of memory");
   if (!rc) {
-    obs_vk_pass p[2] = {
-        make_pass("iso_values", obs_spv_isosurface_mesh_values_comp,
-                  obs_spv_isosurface_mesh_values_comp_size, &d, &pc),
-        make_pass("iso_count", obs_spv_isosurface_mesh_count_comp,
-                  obs_spv_isosurface_mesh_count_comp_size, &d, &pc)};
+    obs_vk_pass p[2] = {make_pass("iso_values", obs_spv_isosurface_mesh_values_comp,
+                                  obs_spv_isosurface_mesh_values_comp_size, &d, &pc),
+                        make_pass("iso_count", obs_spv_isosurface_mesh_count_comp,
+                                  obs_spv_isosurface_mesh_count_comp_size, &d, &pc)};
     rc = obs_vk_run(vk, p, 2, t, err);
   }
   if (!rc) rc = obs_vk_image_download(vk, d.img[OBS_ISO_B_COUNTS], counts, err);
@@ -250,7 +256,9 @@ static int render(obs_render_ctx *ctx, obs_vk *vk, void *user, obs_err *err) {
   memcpy(geo.origin, rig.origin, sizeof geo.origin);
   geo.meshes = calloc(vs->n ? vs->n : 1, sizeof *geo.meshes);
   geo.spheres = calloc(1, sizeof *geo.spheres);
-  int rc = geo.meshes && geo.spheres ? 0 : obs_err_set(err, OBS_ENOMEM, "isosurface_mesh: out of memory");
+  int rc = geo.meshes && geo.spheres
+               ? 0
+               : obs_err_set(err, OBS_ENOMEM, "isosurface_mesh: out of memory");
   double extract_ms = 0;
   for (size_t i = 0; !rc && i < vs->n; i++) {
     const obs_scene_volume *sv = &vs->v[i];
