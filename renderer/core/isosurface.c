@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "parallel.h"
 #include "volume_scene.h"
 
 /* ---- the lattice ----------------------------------------------------------------------------- */
@@ -100,63 +101,68 @@ static long det3(const int a[3], const int b[3], const int c[3]) {
          (long)a[2] * (b[0] * c[1] - b[1] * c[0]);
 }
 
-/* The triangles of tetrahedron t for `cs` (bit v: corner v at or above), into tb. */
-static void table_case(obs_iso_table *tb, int t, int cs) {
-  const uint8_t *q = tb->tet[t];
+/* The triangles of a tetrahedron with corners at integer points p for `cs` (bit v: corner v at or
+ * above), as pairs of its corners (0..3), wound so the face normal points to the side below;
+ * returns their count (0..2). */
+static int tet_case(const int p[4][3], int cs, uint8_t tri[2][3][2]) {
   int up[4], nup = 0, dn[4], ndn = 0;
   for (int v = 0; v < 4; v++) {
     if (cs >> v & 1)
-      up[nup++] = q[v];
+      up[nup++] = v;
     else
-      dn[ndn++] = q[v];
+      dn[ndn++] = v;
   }
-  uint8_t(*e)[3][2] = tb->edge[t][cs];
-  if (nup == 0 || nup == 4) return;
+  if (nup == 0 || nup == 4) return 0;
   if (nup == 1 || nup == 3) {
     int s = nup == 1 ? up[0] : dn[0], *o = nup == 1 ? dn : up;
-    int ps[3], p[3][3], d[3][3];
-    corner4(s, ps);
-    for (int k = 0; k < 3; k++) {
-      corner4(o[k], p[k]);
-      for (int a = 0; a < 3; a++) d[k][a] = p[k][a] - ps[a];
-    }
+    int d[3][3];
+    for (int k = 0; k < 3; k++)
+      for (int a = 0; a < 3; a++) d[k][a] = p[o[k]][a] - p[s][a];
     /* (e1, e2, e3) faces away from s when det(o1 - s, o2 - s, o3 - s) > 0; away is the low side
      * when s is the one corner above, toward s when it is the one below. */
     long dt = det3(d[0], d[1], d[2]);
     int flip = nup == 1 ? dt < 0 : dt > 0;
     int order[3] = {0, flip ? 2 : 1, flip ? 1 : 2};
-    for (int k = 0; k < 3; k++) set_edge(e[0][k], s, o[order[k]]);
-    tb->ntri[t][cs] = 1;
-    return;
+    for (int k = 0; k < 3; k++) {
+      tri[0][k][0] = (uint8_t)s;
+      tri[0][k][1] = (uint8_t)o[order[k]];
+    }
+    return 1;
   }
   /* Two above (a, b), two below (c, d): the quad on edges ac, ad, bd, bc, cut along ac-bd. */
   int quad[4][2] = {{up[0], dn[0]}, {up[0], dn[1]}, {up[1], dn[1]}, {up[1], dn[0]}};
-  int m[4][3], pa[3], pb[3];
-  for (int k = 0; k < 4; k++) {
-    corner4(quad[k][0], pa);
-    corner4(quad[k][1], pb);
-    for (int a = 0; a < 3; a++) m[k][a] = pa[a] + pb[a];
-  }
-  int e1[3], e2[3], toward[3], pc[3], pd[3], pu[3], pv[3];
-  corner4(up[0], pu);
-  corner4(up[1], pv);
-  corner4(dn[0], pc);
-  corner4(dn[1], pd);
+  int m[4][3];
+  for (int k = 0; k < 4; k++)
+    for (int a = 0; a < 3; a++) m[k][a] = p[quad[k][0]][a] + p[quad[k][1]][a];
+  int e1[3], e2[3], toward[3];
   for (int a = 0; a < 3; a++) {
     e1[a] = m[1][a] - m[0][a];
     e2[a] = m[2][a] - m[0][a];
-    toward[a] = pc[a] + pd[a] - pu[a] - pv[a];
+    toward[a] = p[dn[0]][a] + p[dn[1]][a] - p[up[0]][a] - p[up[1]][a];
   }
   long n[3] = {(long)e1[1] * e2[2] - (long)e1[2] * e2[1], (long)e1[2] * e2[0] - (long)e1[0] * e2[2],
                (long)e1[0] * e2[1] - (long)e1[1] * e2[0]};
   int flip = n[0] * toward[0] + n[1] * toward[1] + n[2] * toward[2] < 0;
-  static const int tri[2][3] = {{0, 1, 2}, {0, 2, 3}};
+  static const int tri3[2][3] = {{0, 1, 2}, {0, 2, 3}};
   for (int r = 0; r < 2; r++)
     for (int k = 0; k < 3; k++) {
-      int qk = tri[r][flip ? (3 - k) % 3 : k];
-      set_edge(e[r][k], quad[qk][0], quad[qk][1]);
+      int qk = tri3[r][flip ? (3 - k) % 3 : k];
+      tri[r][k][0] = (uint8_t)quad[qk][0];
+      tri[r][k][1] = (uint8_t)quad[qk][1];
     }
-  tb->ntri[t][cs] = 2;
+  return 2;
+}
+
+/* The triangles of tetrahedron t for `cs`, into tb. */
+static void table_case(obs_iso_table *tb, int t, int cs) {
+  const uint8_t *q = tb->tet[t];
+  int p[4][3];
+  for (int v = 0; v < 4; v++) corner4(q[v], p[v]);
+  uint8_t tri[2][3][2];
+  int n = tet_case(p, cs, tri);
+  for (int r = 0; r < n; r++)
+    for (int k = 0; k < 3; k++) set_edge(tb->edge[t][cs][r][k], q[tri[r][k][0]], q[tri[r][k][1]]);
+  tb->ntri[t][cs] = (uint8_t)n;
 }
 
 static obs_iso_table tables[2];
@@ -225,7 +231,7 @@ static int add_vertex(grow *g, uint32_t key, float t) {
     size_t cap = g->vcap ? 2 * g->vcap : 1024;
     double *p = realloc(m->pos, cap * 3 * sizeof *p);
     if (p) m->pos = p;
-    uint32_t *k = realloc(m->key, cap * sizeof *k);
+    uint64_t *k = realloc(m->key, cap * sizeof *k);
     if (k) m->key = k;
     float *tt = realloc(m->t, cap * sizeof *tt);
     if (tt) m->t = tt;
@@ -268,23 +274,40 @@ typedef struct extract {
   float iso;
   int refine;
   const obs_iso_lattice *l;
-  float *f;        /* lattice values, x fastest */
-  float *centre;   /* cell centre values (refine), x fastest; NULL */
-  uint32_t *ids[2]; /* vertex ids of two point layers (OBS_ISO_SLOTS per point) */
+  float *f;      /* lattice values, x fastest */
+  float *centre; /* cell centre values (refine), x fastest; NULL */
+  int nslabs;
+  size_t *layer_verts; /* per point layer: its crossed edges */
+  size_t *tri_end;     /* per cell layer: its slab's triangles up to its end */
+  struct bisect *bis;  /* refine 2 and 3: per slab */
 } extract;
+
+/* The cell layers [k0, k1) of one thread's share: their triangles, and the vertices of the point
+ * layers it owns (k0..k1 - 1, and the last layer in the last slab). Triangle corners are held as
+ * (index within its point layer) | ISO_UPPER for the cell layer's upper point layer until the
+ * layers' vertex counts are summed. */
+#define ISO_UPPER 0x80000000u
+typedef struct slab {
+  obs_iso_mesh m;
+  grow g;
+  uint32_t *ids[2]; /* vertex index within the layer of two point layers, OBS_ISO_SLOTS a point */
+  int k0, k1;
+} slab;
 
 static float point_f(const extract *x, int i, int j, int k) {
   const int *c = x->l->c;
   return x->f[((size_t)k * (size_t)(c[1] + 1) + (size_t)j) * (size_t)(c[0] + 1) + (size_t)i];
 }
 
-/* Numbers the crossed edges of point layer k into ids (in key order) and adds their vertices. */
-static int number_layer(const extract *x, grow *g, int k, uint32_t *ids) {
+/* Numbers the crossed edges of point layer k into ids (in key order, from 0) and, with `store`,
+ * adds their vertices; *count gets how many. */
+static int number_layer(const extract *x, grow *g, int k, uint32_t *ids, int store, size_t *count) {
   const int *c = x->l->c;
+  uint32_t n = 0;
   for (int j = 0; j <= c[1]; j++)
     for (int i = 0; i <= c[0]; i++) {
-      uint32_t pt = ((uint32_t)k * (uint32_t)(c[1] + 1) + (uint32_t)j) * (uint32_t)(c[0] + 1) +
-                    (uint32_t)i;
+      uint32_t pt =
+          ((uint32_t)k * (uint32_t)(c[1] + 1) + (uint32_t)j) * (uint32_t)(c[0] + 1) + (uint32_t)i;
       uint32_t *id = ids + ((size_t)j * (size_t)(c[0] + 1) + (size_t)i) * OBS_ISO_SLOTS;
       float f0 = point_f(x, i, j, k);
       for (int s = 0; s < OBS_ISO_SLOTS; s++) {
@@ -303,97 +326,419 @@ static int number_layer(const extract *x, grow *g, int k, uint32_t *ids) {
           fh = point_f(x, i + (cc & 1), j + (cc >> 1 & 1), k + (cc >> 2 & 1));
         }
         if ((fl >= 0) == (fh >= 0)) continue;
-        id[s] = (uint32_t)g->m->nverts;
-        if (add_vertex(g, pt * OBS_ISO_SLOTS + (uint32_t)s, edge_t(fl, fh))) return OBS_ENOMEM;
+        id[s] = n++;
+        if (store && add_vertex(g, pt * OBS_ISO_SLOTS + (uint32_t)s, edge_t(fl, fh)))
+          return OBS_ENOMEM;
       }
     }
+  *count = n;
   return 0;
 }
 
-/* The vertex id of cell (i, j)'s edge (u, v) of the current layer pair. */
-static uint32_t edge_id(const extract *x, int i, int j, int u, int v) {
+/* The vertex of cell (i, j)'s edge (u, v) of the current layer pair, as a slab holds it. */
+static uint32_t edge_id(const extract *x, uint32_t *const ids[2], int i, int j, int u, int v) {
   const int *c = x->l->c;
   int s = obs_iso_edge_slot(u, v), lo = u == 8 ? 0 : u;
   int pi = i + (lo & 1), pj = j + (lo >> 1 & 1), pk = lo >> 2 & 1;
-  return x->ids[pk][((size_t)pj * (size_t)(c[0] + 1) + (size_t)pi) * OBS_ISO_SLOTS + (size_t)s];
+  return ids[pk][((size_t)pj * (size_t)(c[0] + 1) + (size_t)pi) * OBS_ISO_SLOTS + (size_t)s] |
+         (pk ? ISO_UPPER : 0);
 }
 
-static int cells_layer(const extract *x, grow *g, int k) {
+static int cells_layer(const extract *x, slab *sl, int k) {
   const int *c = x->l->c;
   const obs_iso_table *tb = obs_iso_table_get(x->refine);
   for (int j = 0; j < c[1]; j++)
     for (int i = 0; i < c[0]; i++) {
       float f[9];
       for (int q = 0; q < 8; q++) f[q] = point_f(x, i + (q & 1), j + (q >> 1 & 1), k + (q >> 2));
-      f[8] = x->refine ? x->centre[((size_t)k * (size_t)c[1] + (size_t)j) * (size_t)c[0] + (size_t)i]
-                       : 0;
+      f[8] = x->refine
+                 ? x->centre[((size_t)k * (size_t)c[1] + (size_t)j) * (size_t)c[0] + (size_t)i]
+                 : 0;
       for (int t = 0; t < tb->ntets; t++) {
         int cs = 0;
         for (int v = 0; v < 4; v++) cs |= (f[tb->tet[t][v]] >= 0) << v;
         for (int r = 0; r < tb->ntri[t][cs]; r++) {
           uint32_t tri[3];
           for (int e = 0; e < 3; e++)
-            tri[e] = edge_id(x, i, j, tb->edge[t][cs][r][e][0], tb->edge[t][cs][r][e][1]);
-          if (add_triangle(g, tri)) return OBS_ENOMEM;
+            tri[e] = edge_id(x, sl->ids, i, j, tb->edge[t][cs][r][e][0], tb->edge[t][cs][r][e][1]);
+          if (add_triangle(&sl->g, tri)) return OBS_ENOMEM;
         }
       }
     }
   return 0;
 }
 
-static int sample_all(extract *x) {
+/* Point layers [k0, k1) of the lattice values and cell layers [k0, min(k1, c2)) of the centres. */
+static void sample_layers(extract *x, int k0, int k1) {
+  const int *c = x->l->c;
+  for (int k = k0; k < k1; k++) {
+    size_t n = (size_t)k * (size_t)(c[1] + 1) * (size_t)(c[0] + 1);
+    for (int j = 0; j <= c[1]; j++)
+      for (int i = 0; i <= c[0]; i++)
+        x->f[n++] = obs_iso_lattice_value(x->v, x->l, x->iso, 2 * i, 2 * j, 2 * k);
+    if (!x->refine || k == c[2]) continue;
+    n = (size_t)k * (size_t)c[1] * (size_t)c[0];
+    for (int j = 0; j < c[1]; j++)
+      for (int i = 0; i < c[0]; i++)
+        x->centre[n++] = obs_iso_lattice_value(x->v, x->l, x->iso, 2 * i + 1, 2 * j + 1, 2 * k + 1);
+  }
+}
+
+/* Slab s's share of the cell layers: an even split, fixed by the slab count alone. */
+static void slab_range(const extract *x, int s, int *k0, int *k1) {
+  int c2 = x->l->c[2];
+  *k0 = (int)((long)c2 * s / x->nslabs);
+  *k1 = (int)((long)c2 * (s + 1) / x->nslabs);
+}
+
+typedef struct slab_loop {
+  extract *x;
+  slab *sl;
+  int (*fn)(extract *x, slab *sl, int s);
+  atomic_int next;
+} slab_loop;
+
+static int slab_next(void *user, int *x0, int *y0, int *x1, int *y1) {
+  slab_loop *lp = user;
+  int s = atomic_fetch_add(&lp->next, 1);
+  if (s >= lp->x->nslabs) return 0;
+  *x0 = s;
+  *x1 = s + 1;
+  *y0 = 0;
+  *y1 = 1;
+  return 1;
+}
+
+static int slab_tile(void *user, int thread, int x0, int y0, int x1, int y1) {
+  (void)thread, (void)y0, (void)y1, (void)x1;
+  slab_loop *lp = user;
+  return lp->fn(lp->x, lp->sl, x0);
+}
+
+/* Runs fn(x, sl, s) for every slab s on `threads` threads. */
+static int slabs_run(extract *x, slab *sl, int threads, int (*fn)(extract *, slab *, int)) {
+  slab_loop lp = {.x = x, .sl = sl, .fn = fn};
+  atomic_init(&lp.next, 0);
+  if (threads <= 1 || x->nslabs == 1) {
+    for (int s = 0; s < x->nslabs; s++)
+      if (fn(x, sl, s)) return OBS_ENOMEM;
+    return 0;
+  }
+  return obs_parallel_tiles_from(slab_next, &lp, threads, slab_tile, &lp, NULL);
+}
+
+static int slab_sample(extract *x, slab *sl, int s) {
+  (void)sl;
+  int k0, k1;
+  slab_range(x, s, &k0, &k1);
+  sample_layers(x, k0, s == x->nslabs - 1 ? x->l->c[2] + 1 : k1);
+  return 0;
+}
+
+static int slab_extract(extract *x, slab *all, int s) {
+  slab *sl = &all[s];
+  const int *c = x->l->c;
+  size_t layer = (size_t)(c[0] + 1) * (size_t)(c[1] + 1) * OBS_ISO_SLOTS, count;
+  sl->m.lat = *x->l; /* borrowed for obs_iso_key_point; never freed here */
+  sl->g.m = &sl->m;
+  sl->ids[0] = malloc(layer * sizeof(uint32_t));
+  sl->ids[1] = malloc(layer * sizeof(uint32_t));
+  if (!sl->ids[0] || !sl->ids[1]) return OBS_ENOMEM;
+  int last = s == x->nslabs - 1;
+  slab_range(x, s, &sl->k0, &sl->k1);
+  /* Layer k's edges are numbered before k + 1's, and both before the cells between them emit,
+   * so vertices come in key order. */
+  int rc = number_layer(x, &sl->g, sl->k0, sl->ids[0], 1, &x->layer_verts[sl->k0]);
+  for (int k = sl->k0; !rc && k < sl->k1; k++) {
+    int own = k + 1 < sl->k1 || last;
+    rc = number_layer(x, &sl->g, k + 1, sl->ids[1], own, &count);
+    if (own) x->layer_verts[k + 1] = count;
+    if (!rc) rc = cells_layer(x, sl, k);
+    x->tri_end[k] = sl->m.ntris;
+    uint32_t *tmp = sl->ids[0];
+    sl->ids[0] = sl->ids[1];
+    sl->ids[1] = tmp;
+  }
+  return rc;
+}
+
+/* The slabs' vertices and triangles joined in slab order, the corners made global. */
+static int slabs_join(extract *x, slab *sl, obs_iso_mesh *m) {
+  int c2 = x->l->c[2];
+  size_t *base = malloc((size_t)(c2 + 1) * sizeof *base), nv = 0, nt = 0;
+  if (!base) return OBS_ENOMEM;
+  for (int k = 0; k <= c2; k++) {
+    base[k] = nv;
+    nv += x->layer_verts[k];
+  }
+  for (int s = 0; s < x->nslabs; s++) nt += sl[s].m.ntris;
+  m->pos = malloc((nv ? nv : 1) * 3 * sizeof *m->pos);
+  m->key = malloc((nv ? nv : 1) * sizeof *m->key);
+  m->t = malloc((nv ? nv : 1) * sizeof *m->t);
+  m->idx = malloc((nt ? nt : 1) * 3 * sizeof *m->idx);
+  if (!m->pos || !m->key || !m->t || !m->idx || nv > UINT32_MAX) {
+    free(base);
+    return OBS_ENOMEM;
+  }
+  for (int s = 0; s < x->nslabs; s++) {
+    const obs_iso_mesh *q = &sl[s].m;
+    if (q->nverts) {
+      memcpy(m->pos + 3 * m->nverts, q->pos, 3 * q->nverts * sizeof *q->pos);
+      memcpy(m->key + m->nverts, q->key, q->nverts * sizeof *q->key);
+      memcpy(m->t + m->nverts, q->t, q->nverts * sizeof *q->t);
+    }
+    m->nverts += q->nverts;
+    size_t t0 = 0;
+    for (int k = sl[s].k0; k < sl[s].k1; k++) {
+      for (size_t t = t0; t < x->tri_end[k]; t++)
+        for (int e = 0; e < 3; e++) {
+          uint32_t id = q->idx[3 * t + e];
+          m->idx[3 * (m->ntris + t) + e] =
+              (uint32_t)base[k + ((id & ISO_UPPER) != 0)] + (id & ~ISO_UPPER);
+        }
+      t0 = x->tri_end[k];
+    }
+    m->ntris += q->ntris;
+  }
+  free(base);
+  return 0;
+}
+
+static int run_extract(extract *x, obs_iso_mesh *m, int threads) {
   const int *c = x->l->c;
   size_t np = (size_t)(c[0] + 1) * (size_t)(c[1] + 1) * (size_t)(c[2] + 1);
   size_t nc = (size_t)c[0] * (size_t)c[1] * (size_t)c[2];
   x->f = malloc(np * sizeof(float));
   x->centre = x->refine ? malloc(nc * sizeof(float)) : NULL;
-  if (!x->f || (x->refine && !x->centre)) return OBS_ENOMEM;
-  size_t n = 0;
-  for (int k = 0; k <= c[2]; k++)
-    for (int j = 0; j <= c[1]; j++)
-      for (int i = 0; i <= c[0]; i++)
-        x->f[n++] = obs_iso_lattice_value(x->v, x->l, x->iso, 2 * i, 2 * j, 2 * k);
-  n = 0;
-  for (int k = 0; x->refine && k < c[2]; k++)
-    for (int j = 0; j < c[1]; j++)
-      for (int i = 0; i < c[0]; i++)
-        x->centre[n++] = obs_iso_lattice_value(x->v, x->l, x->iso, 2 * i + 1, 2 * j + 1, 2 * k + 1);
+  x->layer_verts = calloc((size_t)c[2] + 1, sizeof *x->layer_verts);
+  x->tri_end = calloc((size_t)c[2], sizeof *x->tri_end);
+  slab *sl = calloc((size_t)x->nslabs, sizeof *sl);
+  int rc = x->f && (!x->refine || x->centre) && x->layer_verts && x->tri_end && sl ? 0 : OBS_ENOMEM;
+  if (!rc) rc = slabs_run(x, sl, threads, slab_sample);
+  if (!rc) rc = slabs_run(x, sl, threads, slab_extract);
+  if (!rc) rc = slabs_join(x, sl, m);
+  for (int s = 0; sl && s < x->nslabs; s++) {
+    free(sl[s].m.pos);
+    free(sl[s].m.key);
+    free(sl[s].m.t);
+    free(sl[s].m.idx);
+    free(sl[s].ids[0]);
+    free(sl[s].ids[1]);
+  }
+  free(sl);
+  return rc ? OBS_ENOMEM : 0;
+}
+
+/* ---- refinement beyond one level: longest-edge bisection ------------------------------------ */
+
+/* Levels 2 and 3 bisect every tetrahedron of a cell that many times at its longest edge (in
+ * lattice units, the cell taken as a cube). The Kuhn tetrahedra keep a unique longest edge for
+ * three generations (the cell diagonal, then a face diagonal, then a cell edge), so every vertex
+ * is one of the cell's 27 half-lattice points and the bisection is the same on both sides of
+ * every face: applied to every cell, it is conforming. A cell whose 27 values share one sign has
+ * no crossed sub-tetrahedron, so only crossed cells are subdivided, and the result is the
+ * uniform refinement's surface, closed. Edges are welded by the pair of their ends' half-lattice
+ * indices (key = lower * points + upper), vertices ordered by that key. */
+typedef struct bis_edge {
+  uint64_t key;
+  float t;
+} bis_edge;
+
+typedef struct bisect {
+  const extract *x;
+  uint64_t np[3], npts; /* half-lattice points per axis, in all */
+  bis_edge *e;          /* 3 per triangle, in emission order */
+  size_t ne, cap;
+} bisect;
+
+static int bis_push(bisect *b, uint64_t key, float t) {
+  if (b->ne == b->cap) {
+    size_t cap = b->cap ? 2 * b->cap : 3072;
+    bis_edge *e = realloc(b->e, cap * sizeof *e);
+    if (!e) return OBS_ENOMEM;
+    b->e = e;
+    b->cap = cap;
+  }
+  b->e[b->ne++] = (bis_edge){key, t};
   return 0;
 }
 
-static int run_extract(extract *x, grow *g) {
-  const int *c = x->l->c;
-  size_t layer = (size_t)(c[0] + 1) * (size_t)(c[1] + 1) * OBS_ISO_SLOTS;
-  x->ids[0] = malloc(layer * sizeof(uint32_t));
-  x->ids[1] = malloc(layer * sizeof(uint32_t));
-  if (!x->ids[0] || !x->ids[1] || sample_all(x)) return OBS_ENOMEM;
-  /* Layer k's edges are numbered before k + 1's, and both before the cells between them emit,
-   * so vertices come in key order. */
-  int rc = number_layer(x, g, 0, x->ids[0]);
-  for (int k = 0; !rc && k < c[2]; k++) {
-    rc = number_layer(x, g, k + 1, x->ids[1]);
-    if (!rc) rc = cells_layer(x, g, k);
-    uint32_t *tmp = x->ids[0];
-    x->ids[0] = x->ids[1];
-    x->ids[1] = tmp;
+static int bis_len2(const int8_t p[3], const int8_t q[3]) {
+  int d0 = p[0] - q[0], d1 = p[1] - q[1], d2 = p[2] - q[2];
+  return d0 * d0 + d1 * d1 + d2 * d2;
+}
+
+/* Tetrahedron q (cell-local half-lattice points 0..2 per axis) of the cell at half-lattice
+ * origin o, with the cell's 27 values f (x fastest): its triangles, or its two children. */
+static int bis_tet(bisect *b, const int o[3], const float f[27], int8_t q[4][3], int left) {
+  if (left) {
+    int bu = 0, bv = 1, best = -1;
+    for (int u = 0; u < 4; u++)
+      for (int v = u + 1; v < 4; v++)
+        if (bis_len2(q[u], q[v]) > best) best = bis_len2(q[u], q[v]), bu = u, bv = v;
+    int8_t m[3], c[4][3];
+    for (int a = 0; a < 3; a++) m[a] = (int8_t)((q[bu][a] + q[bv][a]) / 2);
+    for (int side = 0; side < 2; side++) {
+      memcpy(c, q, sizeof c);
+      memcpy(c[side ? bu : bv], m, 3);
+      if (bis_tet(b, o, f, c, left - 1)) return OBS_ENOMEM;
+    }
+    return 0;
   }
+  int p[4][3], cs = 0;
+  float fv[4];
+  uint64_t id[4];
+  for (int v = 0; v < 4; v++) {
+    for (int a = 0; a < 3; a++) p[v][a] = q[v][a];
+    fv[v] = f[q[v][0] + 3 * q[v][1] + 9 * q[v][2]];
+    cs |= (fv[v] >= 0) << v;
+    id[v] = ((uint64_t)(o[2] + q[v][2]) * b->np[1] + (uint64_t)(o[1] + q[v][1])) * b->np[0] +
+            (uint64_t)(o[0] + q[v][0]);
+  }
+  uint8_t tri[2][3][2];
+  int n = tet_case(p, cs, tri);
+  for (int r = 0; r < n; r++)
+    for (int k = 0; k < 3; k++) {
+      int u = tri[r][k][0], v = tri[r][k][1];
+      if (id[u] > id[v]) u = tri[r][k][1], v = tri[r][k][0];
+      if (bis_push(b, id[u] * b->npts + id[v], edge_t(fv[u], fv[v]))) return OBS_ENOMEM;
+    }
+  return 0;
+}
+
+static int bis_cells(bisect *b, int levels, int k0, int k1) {
+  const extract *x = b->x;
+  const int *c = x->l->c;
+  static const uint8_t kuhn[6][4] = {{0, 1, 3, 7}, {0, 1, 5, 7}, {0, 2, 3, 7},
+                                     {0, 2, 6, 7}, {0, 4, 5, 7}, {0, 4, 6, 7}};
+  for (int k = k0; k < k1; k++)
+    for (int j = 0; j < c[1]; j++)
+      for (int i = 0; i < c[0]; i++) {
+        int o[3] = {2 * i, 2 * j, 2 * k}, pos = 0, neg = 0;
+        float f[27];
+        for (int n = 0; n < 27; n++) {
+          f[n] = obs_iso_lattice_value(x->v, x->l, x->iso, o[0] + n % 3, o[1] + n / 3 % 3,
+                                       o[2] + n / 9);
+          pos += f[n] >= 0;
+          neg += f[n] < 0;
+        }
+        if (!pos || !neg) continue;
+        for (int t = 0; t < 6; t++) {
+          int8_t q[4][3];
+          for (int v = 0; v < 4; v++)
+            for (int a = 0; a < 3; a++) q[v][a] = (int8_t)(2 * (kuhn[t][v] >> a & 1));
+          if (bis_tet(b, o, f, q, levels)) return OBS_ENOMEM;
+        }
+      }
+  return 0;
+}
+
+static int cmp_edge(const void *a, const void *b) {
+  uint64_t x = ((const bis_edge *)a)->key, y = ((const bis_edge *)b)->key;
+  return x < y ? -1 : x > y;
+}
+
+/* The welded mesh of the emitted edges: unique keys in order become the vertices. */
+static int bis_weld(bisect *b, obs_iso_mesh *m) {
+  bis_edge *u = malloc((b->ne ? b->ne : 1) * sizeof *u);
+  m->idx = malloc((b->ne ? b->ne : 1) * sizeof *m->idx);
+  if (!u || !m->idx) {
+    free(u);
+    return OBS_ENOMEM;
+  }
+  if (b->ne) memcpy(u, b->e, b->ne * sizeof *u);
+  qsort(u, b->ne, sizeof *u, cmp_edge);
+  size_t nv = 0;
+  for (size_t i = 0; i < b->ne; i++)
+    if (!nv || u[i].key != u[nv - 1].key) u[nv++] = u[i];
+  m->pos = malloc((nv ? nv : 1) * 3 * sizeof *m->pos);
+  m->key = malloc((nv ? nv : 1) * sizeof *m->key);
+  m->t = malloc((nv ? nv : 1) * sizeof *m->t);
+  if (!m->pos || !m->key || !m->t) {
+    free(u);
+    return OBS_ENOMEM;
+  }
+  for (size_t i = 0; i < nv; i++) {
+    uint64_t lo = u[i].key / b->npts, hi = u[i].key % b->npts;
+    uint64_t pl[3] = {lo % b->np[0], lo / b->np[0] % b->np[1], lo / (b->np[0] * b->np[1])};
+    uint64_t ph[3] = {hi % b->np[0], hi / b->np[0] % b->np[1], hi / (b->np[0] * b->np[1])};
+    m->key[i] = u[i].key;
+    m->t[i] = u[i].t;
+    for (int a = 0; a < 3; a++)
+      m->pos[3 * i + a] =
+          m->lat.o[a] +
+          0.5 * ((double)pl[a] + (double)u[i].t * ((double)ph[a] - (double)pl[a])) * m->lat.h[a];
+  }
+  for (size_t i = 0; i < b->ne; i++) {
+    size_t lo = 0, hi = nv;
+    while (hi - lo > 1) {
+      size_t mid = (lo + hi) / 2;
+      if (u[mid].key <= b->e[i].key)
+        lo = mid;
+      else
+        hi = mid;
+    }
+    m->idx[i] = (uint32_t)lo;
+  }
+  m->nverts = nv;
+  m->ntris = b->ne / 3;
+  free(u);
+  return 0;
+}
+
+static int slab_bisect(extract *x, slab *sl, int s) {
+  (void)sl;
+  int k0, k1;
+  slab_range(x, s, &k0, &k1);
+  return bis_cells(&x->bis[s], x->refine, k0, k1);
+}
+
+/* Each slab's edges in its cells' order, joined in slab order and welded. */
+static int run_bisect(extract *x, obs_iso_mesh *m, int levels, int threads) {
+  bisect *b = calloc((size_t)x->nslabs, sizeof *b);
+  if (!b) return OBS_ENOMEM;
+  x->bis = b;
+  x->refine = levels;
+  for (int s = 0; s < x->nslabs; s++) {
+    b[s].x = x;
+    for (int a = 0; a < 3; a++) b[s].np[a] = 2 * (uint64_t)x->l->c[a] + 1;
+    b[s].npts = b[s].np[0] * b[s].np[1] * b[s].np[2];
+  }
+  int rc = slabs_run(x, NULL, threads, slab_bisect);
+  for (int s = 1; !rc && s < x->nslabs; s++)
+    for (size_t i = 0; !rc && i < b[s].ne; i++) rc = bis_push(&b[0], b[s].e[i].key, b[s].e[i].t);
+  if (!rc) rc = bis_weld(&b[0], m);
+  for (int s = 0; s < x->nslabs; s++) free(b[s].e);
+  free(b);
   return rc;
 }
 
 int obs_iso_extract(const obs_volume *v, float iso, int cells, int refine, obs_iso_mesh *m,
                     obs_err *err) {
+  return obs_iso_extract_threads(v, iso, cells, refine, 1, m, err);
+}
+
+int obs_iso_extract_threads(const obs_volume *v, float iso, int cells, int refine, int threads,
+                            obs_iso_mesh *m, obs_err *err) {
   memset(m, 0, sizeof *m);
-  if (refine < 0 || refine > 1)
-    return obs_err_set(err, OBS_EINVAL, "isosurface: refine %d, not 0 or 1", refine);
+  if (refine < 0 || refine > OBS_ISO_REFINE_MAX)
+    return obs_err_set(err, OBS_EINVAL, "isosurface: refine %d, not in 0..%d", refine,
+                       OBS_ISO_REFINE_MAX);
   int rc = obs_iso_lattice_init(v, cells, &m->lat, err);
   if (rc) return rc;
-  extract x = {.v = v, .iso = iso, .refine = refine, .l = &m->lat};
-  grow g = {m, 0, 0};
-  rc = run_extract(&x, &g);
+  /* More slabs than threads evens out their shares of the surface; the output does not depend
+   * on the count. */
+  int slabs = threads > 1 ? 4 * threads : 1;
+  extract x = {.v = v,
+               .iso = iso,
+               .refine = refine > 0,
+               .l = &m->lat,
+               .nslabs = slabs < m->lat.c[2] ? slabs : m->lat.c[2]};
+  rc = refine > 1 ? run_bisect(&x, m, refine, threads) : run_extract(&x, m, threads);
   free(x.f);
   free(x.centre);
-  free(x.ids[0]);
-  free(x.ids[1]);
+  free(x.layer_verts);
+  free(x.tri_end);
   if (rc) {
     obs_iso_mesh_free(m);
     return obs_err_set(err, OBS_ENOMEM, "isosurface: out of memory extracting %d cells", cells);
@@ -422,7 +767,8 @@ void obs_iso_mesh_measure(const obs_iso_mesh *m, double *area, double *volume) {
     A += 0.5 * sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
     /* Outward normals enclose the region above the isovalue with a positive signed volume. */
     V += (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) +
-          a[2] * (b[0] * c[1] - b[1] * c[0])) / 6.0;
+          a[2] * (b[0] * c[1] - b[1] * c[0])) /
+         6.0;
   }
   *area = A;
   *volume = V;

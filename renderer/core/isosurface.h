@@ -1,8 +1,9 @@
 /* Isosurface extraction from a scalar volume (ShaderX7 1.1's hybrid marching cubes / marching
  * tetrahedra): the volume is resampled on a lattice of cubic cells, every cell is split into six
  * tetrahedra around its corner-0-to-corner-7 diagonal (optionally twelve, bisecting that diagonal
- * at a sample of the cell's centre: the article's adaptive refinement), and each tetrahedron is
- * polygonised from the 16 cases of its corners' sides. Shared by the geometry build (a volume
+ * at a sample of the cell's centre: the article's adaptive refinement; two and three levels go on
+ * bisecting every tetrahedron at its longest edge), and each tetrahedron is polygonised from the
+ * 16 cases of its corners' sides. Shared by the geometry build (a volume
  * object becomes its mesh for every surface technique) and the isosurface_mesh technique, whose
  * Vulkan twin reads the same tables so both give the same topology. */
 #ifndef OBS_ISOSURFACE_H
@@ -17,6 +18,8 @@
 
 /* The most cells along the longest axis (lattice keys stay below 2^32). */
 #define OBS_ISO_CELLS_MAX 512
+/* The most bisection levels (three keep every vertex on the half lattice). */
+#define OBS_ISO_REFINE_MAX 3
 /* Per lattice point, the edges that may carry a vertex: 0..6 go to the point + (1,0,0), (0,1,0),
  * (0,0,1), (0,1,1), (1,0,1), (1,1,0), (1,1,1) (the tetrahedra's edges along the axes, the face
  * diagonals and the cell diagonal); 7..14 go from the centre of the cell whose lowest corner is
@@ -67,12 +70,13 @@ const obs_iso_table *obs_iso_table_get(int refine);
 int obs_iso_edge_slot(int u, int v);
 
 /* An extracted mesh in the volume's data space. Vertices are ordered by their edge's key
- * (lattice point index, x fastest, times OBS_ISO_SLOTS plus the slot) and triangles by cell
- * (x fastest), then tetrahedron, then the table's order, so the topology is a function of the
- * lattice values alone. Owns its arrays. */
+ * (refine 0 and 1: lattice point index, x fastest, times OBS_ISO_SLOTS plus the slot; 2 and 3:
+ * the edge's lower end's half-lattice index times the half lattice's point count plus its upper
+ * end's) and triangles by cell (x fastest), then tetrahedron, then the table's order, so the
+ * topology is a function of the lattice values alone. Owns its arrays. */
 typedef struct obs_iso_mesh {
   double *pos;   /* 3 per vertex */
-  uint32_t *key; /* per vertex: the edge it lies on */
+  uint64_t *key; /* per vertex: the edge it lies on */
   float *t;      /* per vertex: its place on that edge from the edge's lower end, in [0, 1] */
   uint32_t *idx; /* 3 per triangle */
   size_t nverts, ntris;
@@ -80,12 +84,19 @@ typedef struct obs_iso_mesh {
 } obs_iso_mesh;
 
 /* Extracts v's isosurface of `iso` on a lattice of `cells` (1..OBS_ISO_CELLS_MAX) cells along its
- * longest axis, with `refine` 0 or 1. OBS_EINVAL for cells or refine out of range; OBS_ENOMEM. */
+ * longest axis, with `refine` 0..OBS_ISO_REFINE_MAX bisection levels. OBS_EINVAL for cells or
+ * refine out of range; OBS_ENOMEM. */
 int obs_iso_extract(const obs_volume *v, float iso, int cells, int refine, obs_iso_mesh *m,
                     obs_err *err);
+/* As obs_iso_extract on `threads` threads over slabs of cell layers: the same mesh, bit for bit,
+ * for any count (each point layer's vertices are numbered alone, then offset by the counts
+ * before it). */
+int obs_iso_extract_threads(const obs_volume *v, float iso, int cells, int refine, int threads,
+                            obs_iso_mesh *m, obs_err *err);
 void obs_iso_mesh_free(obs_iso_mesh *m);
 
-/* The position of lattice edge `key` at parameter t (data space), as obs_iso_extract places it. */
+/* The position of lattice edge `key` (refine 0 and 1) at parameter t (data space), as
+ * obs_iso_extract places it. */
 void obs_iso_key_point(const obs_iso_lattice *l, uint32_t key, float t, double p[3]);
 
 /* The enclosed volume (divergence theorem) and the area of a closed mesh, in double. */

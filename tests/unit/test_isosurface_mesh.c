@@ -1,6 +1,7 @@
 /* Isosurface extraction (renderer/core/isosurface.h) and the isosurface_mesh technique: the
  * procedural sphere's area and enclosed volume converge to the analytic ones as h^2, the surface
- * is closed and consistently wound with and without refinement, the mesh scales with the volume,
+ * is closed and consistently wound at every refinement level, deeper levels lower the error and
+ * find surface the coarse samples miss, the mesh scales with the volume,
  * the geometry build turns volume objects into meshes for surface techniques, and the technique's
  * depth and normals agree with the exact isosurface (volume_ao's bisected ray cast). */
 #include <math.h>
@@ -50,7 +51,7 @@ static void assert_watertight(const obs_iso_mesh *m) {
   qsort(r, ne, sizeof *r, cmp_u64);
   for (size_t i = 0; i < ne; i++) {
     if (i) assert_true(d[i] != d[i - 1]); /* a directed edge twice: inconsistent winding */
-    assert_true(d[i] == r[i]);           /* each directed edge has its reverse */
+    assert_true(d[i] == r[i]);            /* each directed edge has its reverse */
   }
   /* Welded per lattice edge: keys strictly rising. */
   for (size_t i = 1; i < m->nverts; i++) assert_true(m->key[i] > m->key[i - 1]);
@@ -97,7 +98,38 @@ static void test_sphere_converges(void **state) {
 
 static void test_refined_converges(void **state) {
   (void)state;
-  converge(1, 0.5);
+  for (int r = 1; r <= OBS_ISO_REFINE_MAX; r++) converge(r, 0.5);
+}
+
+/* On one coarse lattice, each bisection level samples more of the field: the sphere's area and
+ * volume errors fall with the level, and level 3 (every half-lattice point) is within a factor of
+ * the lattice of half the spacing. */
+static void test_levels_improve(void **state) {
+  (void)state;
+  obs_volume v;
+  sphere_volume(64, &v);
+  double r = sphere_radius(0.45), A = 4 * PI * r * r, V = 4.0 / 3.0 * PI * r * r * r;
+  double ea[OBS_ISO_REFINE_MAX + 1], ev[OBS_ISO_REFINE_MAX + 1];
+  obs_err err = OBS_ERR_INIT;
+  for (int l = 0; l <= OBS_ISO_REFINE_MAX; l++) {
+    obs_iso_mesh m;
+    assert_int_equal(obs_iso_extract(&v, 0.45f, 6, l, &m, &err), 0);
+    assert_watertight(&m);
+    double area, vol;
+    obs_iso_mesh_measure(&m, &area, &vol);
+    ea[l] = fabs(area / A - 1);
+    ev[l] = fabs(vol / V - 1);
+    printf("     cells 6 refine %d: %6zu triangles, area err %.2e, volume err %.2e\n", l, m.ntris,
+           ea[l], ev[l]);
+    obs_iso_mesh_free(&m);
+  }
+  for (int l = 1; l <= OBS_ISO_REFINE_MAX; l++) {
+    assert_true(ea[l] < ea[l - 1]);
+    assert_true(ev[l] < ev[l - 1]);
+  }
+  assert_true(ea[3] * 2.5 < ea[0] && ev[3] * 2.5 < ev[0]);
+  obs_volume_free(&v);
+  obs_err_free(&err);
 }
 
 /* A sphere too small for the coarse lattice's corners: refinement's centre samples find it. */
@@ -116,6 +148,60 @@ static void test_refine_finds_missed_surface(void **state) {
   assert_watertight(&b);
   obs_iso_mesh_free(&a);
   obs_iso_mesh_free(&b);
+  obs_volume_free(&v);
+  obs_err_free(&err);
+}
+
+/* A small sphere centred on the face between two cells (the box squashed along z to two cells of
+ * three): no corner or cell centre reaches it, the face centres of level 2 and 3 do, and their
+ * surface is closed. */
+static void test_deeper_levels_find_thin_features(void **state) {
+  (void)state;
+  obs_volume v;
+  sphere_volume(64, &v);
+  v.spacing[2] *= 2.0 / 3.0;
+  obs_err err = OBS_ERR_INIT;
+  for (int l = 0; l <= OBS_ISO_REFINE_MAX; l++) {
+    obs_iso_mesh m;
+    assert_int_equal(obs_iso_extract(&v, 0.75f, 3, l, &m, &err), 0);
+    assert_int_equal(m.lat.c[2], 2);
+    if (l < 2)
+      assert_int_equal(m.ntris, 0);
+    else
+      assert_true(m.ntris > 0);
+    assert_watertight(&m);
+    obs_iso_mesh_free(&m);
+  }
+  obs_iso_mesh m;
+  assert_int_equal(obs_iso_extract(&v, 0.75f, 3, OBS_ISO_REFINE_MAX + 1, &m, &err), OBS_EINVAL);
+  obs_volume_free(&v);
+  obs_err_free(&err);
+}
+
+/* One, two and three threads give the same mesh, bit for bit, at every level. */
+static void test_threads_same_bits(void **state) {
+  (void)state;
+  obs_volume v;
+  obs_err err = OBS_ERR_INIT;
+  const int dims[3] = {40, 40, 40};
+  assert_int_equal(obs_volume_procedural_fill(OBS_VOLUME_TORUS, 1, dims, &v, &err), 0);
+  for (int l = 0; l <= OBS_ISO_REFINE_MAX; l++) {
+    obs_iso_mesh base;
+    assert_int_equal(obs_iso_extract(&v, 0.5f, 20, l, &base, &err), 0);
+    assert_true(base.ntris > 100);
+    for (int th = 2; th <= 3; th++) {
+      obs_iso_mesh m;
+      assert_int_equal(obs_iso_extract_threads(&v, 0.5f, 20, l, th, &m, &err), 0);
+      assert_int_equal(m.ntris, base.ntris);
+      assert_int_equal(m.nverts, base.nverts);
+      assert_memory_equal(m.idx, base.idx, 3 * m.ntris * sizeof *m.idx);
+      assert_memory_equal(m.key, base.key, m.nverts * sizeof *m.key);
+      assert_memory_equal(m.t, base.t, m.nverts * sizeof *m.t);
+      assert_memory_equal(m.pos, base.pos, 3 * m.nverts * sizeof *m.pos);
+      obs_iso_mesh_free(&m);
+    }
+    obs_iso_mesh_free(&base);
+  }
   obs_volume_free(&v);
   obs_err_free(&err);
 }
@@ -222,7 +308,8 @@ static void test_against_exact(void **state) {
   (void)state;
   char doc[1024];
   const char *fmt =
-      "{\"camera\": {\"type\": \"perspective\", \"position\": [0, 0.5, -1.6], \"look_at\": [0, 0, 0],"
+      "{\"camera\": {\"type\": \"perspective\", \"position\": [0, 0.5, -1.6], \"look_at\": [0, 0, "
+      "0],"
       " \"up\": [0, 1, 0], \"fov_y\": 40}, \"image\": {\"width\": 48, \"height\": 32, \"spp\": 1},"
       " \"objects\": [{\"name\": \"torus\", \"shape\": {\"type\": \"volume\", \"procedural\":"
       " \"torus\", \"dims\": [48, 48, 48]}, \"transform\": {\"rotate\": [70, 0, 0]}}],"
@@ -233,11 +320,15 @@ static void test_against_exact(void **state) {
   obs_test_render(doc, 2, &a);
   snprintf(doc, sizeof doc, fmt, "volume_ao", "\"samples\": 1, \"ibl\": \"none\"");
   obs_test_render(doc, 2, &b);
-  const float *aa = obs_image_channel(&a.image, "alpha"), *ba = obs_image_channel(&b.image, "alpha");
-  const float *ad = obs_image_channel(&a.image, "depth.Z"), *bd = obs_image_channel(&b.image, "depth.Z");
-  const float *an[3] = {obs_image_channel(&a.image, "normal.X"), obs_image_channel(&a.image, "normal.Y"),
+  const float *aa = obs_image_channel(&a.image, "alpha"),
+              *ba = obs_image_channel(&b.image, "alpha");
+  const float *ad = obs_image_channel(&a.image, "depth.Z"),
+              *bd = obs_image_channel(&b.image, "depth.Z");
+  const float *an[3] = {obs_image_channel(&a.image, "normal.X"),
+                        obs_image_channel(&a.image, "normal.Y"),
                         obs_image_channel(&a.image, "normal.Z")};
-  const float *bn[3] = {obs_image_channel(&b.image, "normal.X"), obs_image_channel(&b.image, "normal.Y"),
+  const float *bn[3] = {obs_image_channel(&b.image, "normal.X"),
+                        obs_image_channel(&b.image, "normal.Y"),
                         obs_image_channel(&b.image, "normal.Z")};
   size_t both = 0, differ = 0;
   double angle = 0, drel = 0;
@@ -267,6 +358,9 @@ int main(void) {
       cmocka_unit_test(test_sphere_converges),
       cmocka_unit_test(test_refined_converges),
       cmocka_unit_test(test_refine_finds_missed_surface),
+      cmocka_unit_test(test_levels_improve),
+      cmocka_unit_test(test_deeper_levels_find_thin_features),
+      cmocka_unit_test(test_threads_same_bits),
       cmocka_unit_test(test_scale_invariance),
       cmocka_unit_test(test_geometry_build),
       cmocka_unit_test(test_against_exact),

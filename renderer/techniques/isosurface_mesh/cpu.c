@@ -87,7 +87,8 @@ static int extract_all(obs_render_ctx *ctx, const obs_isosurface_mesh_params *p,
   memset(g, 0, sizeof *g); /* its origin stays 0: rays come in the frame's own coordinates */
   g->meshes = calloc(vs->n ? vs->n : 1, sizeof *g->meshes);
   g->spheres = calloc(1, sizeof *g->spheres);
-  if (!g->meshes || !g->spheres) return obs_err_set(err, OBS_ENOMEM, "isosurface_mesh: out of memory");
+  if (!g->meshes || !g->spheres)
+    return obs_err_set(err, OBS_ENOMEM, "isosurface_mesh: out of memory");
   for (size_t i = 0; i < vs->n; i++) {
     const obs_scene_volume *sv = &vs->v[i];
     if (sv->brick)
@@ -96,7 +97,7 @@ static int extract_all(obs_render_ctx *ctx, const obs_isosurface_mesh_params *p,
                          ctx->scene->name, sv->object);
     double t0 = obs_now_ms();
     obs_iso_mesh im;
-    int rc = obs_iso_extract(&sv->v, sv->iso, p->grid, p->refine, &im, err);
+    int rc = obs_iso_extract_threads(&sv->v, sv->iso, p->grid, p->refine, ctx->threads, &im, err);
     if (rc) return rc;
     double ms = obs_now_ms() - t0;
     all_ms += ms;
@@ -167,7 +168,8 @@ int obs_isosurface_mesh_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
     /* Camera rays start at the mesh's box, grown by far more than double's error on it. */
     double diag2 = 0;
     for (int k = 0; k < 3; k++)
-      diag2 += (rt.geo.bounds[1][k] - rt.geo.bounds[0][k]) * (rt.geo.bounds[1][k] - rt.geo.bounds[0][k]);
+      diag2 +=
+          (rt.geo.bounds[1][k] - rt.geo.bounds[0][k]) * (rt.geo.bounds[1][k] - rt.geo.bounds[0][k]);
     for (int k = 0; k < 3; k++) {
       rt.box[0][k] = rt.geo.bounds[0][k] - sqrt(diag2) * 0x1p-20;
       rt.box[1][k] = rt.geo.bounds[1][k] + sqrt(diag2) * 0x1p-20;
@@ -181,7 +183,8 @@ int obs_isosurface_mesh_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
   rtcCommitScene(rt.scene);
   obs_render_ctx_stage(ctx, "bvh", obs_now_ms() - t0);
   jb.rt = &rt;
-  static const obs_pixel_ops ops = {ISO_CH_COUNT, obs_isosurface_mesh_channels, .shade = shade_pixel};
+  static const obs_pixel_ops ops = {ISO_CH_COUNT, obs_isosurface_mesh_channels,
+                                    .shade = shade_pixel};
   rc = obs_driver_pixels(ctx, &ops, &jb, out, err);
   obs_rt_free(&rt);
   return rc;

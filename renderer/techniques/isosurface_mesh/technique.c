@@ -44,11 +44,14 @@ static const obs_param isosurface_mesh_params[] = {
     {.name = "refine",
      .type = OBS_PARAM_INT,
      .min = 0,
-     .max = 1,
+     .max = OBS_ISO_REFINE_MAX,
      .def = 0,
-     .description = "adaptive refinement levels: 1 samples every cell's centre and bisects its "
-                    "six tetrahedra at it (longest-edge bisection of the shared diagonal: twelve "
-                    "tetrahedra, finding surface the corners miss, without cracks); 0 off",
+     .description = "longest-edge bisection levels of each cell's six tetrahedra: 1 bisects "
+                    "their shared diagonal at a sample of the cell's centre (the article's "
+                    "twelve tetrahedra), 2 and 3 go on bisecting every tetrahedron at its "
+                    "longest edge (face centres, then edge midpoints), in every cell whose "
+                    "samples differ in sign, so the surface stays closed; finds surface the "
+                    "corners miss. Vulkan extracts levels 0 and 1; 0 off",
      .offset = P(refine)},
 };
 #undef P
@@ -89,11 +92,24 @@ static const obs_output_pair isosurface_mesh_compared[] = {{"normal", "normal"},
             .depth_rel = depth_rel_}                                                       \
   }
 
+/* The device extractor's tables hold the six and the twelve tetrahedra of levels 0 and 1; deeper
+ * bisection is the CPU's. */
+static void isosurface_mesh_check(const obs_scene *scene, const json_t *params, const char *doc,
+                                  obs_err *err) {
+  json_int_t r = json_integer_value(json_object_get(params, "refine"));
+  if (scene->backend == OBS_BACKEND_VULKAN && r > 1)
+    obs_err_set(err, OBS_EINVAL,
+                "%s: /technique/params/refine: %lld levels run on the cpu backend only (the "
+                "vulkan extractor bisects at most 1 level)",
+                doc, (long long)r);
+}
+
 const obs_technique obs_technique_isosurface_mesh = {
     .name = "isosurface_mesh",
-    .description = "Isosurface extraction by hybrid marching cubes / marching tetrahedra "
-                   "(ShaderX7 1.1): each volume's isosurface as a triangle mesh, ray cast, "
-                   "against the exact isosurface",
+    .description =
+        "Isosurface extraction by hybrid marching cubes / marching tetrahedra "
+        "(ShaderX7 1.1): each volume's isosurface as a triangle mesh, ray cast, "
+        "against the exact isosurface",
     .params = isosurface_mesh_params,
     .params_size = sizeof isosurface_mesh_params / sizeof isosurface_mesh_params[0],
     .bound_size = sizeof(obs_isosurface_mesh_params),
@@ -101,9 +117,12 @@ const obs_technique obs_technique_isosurface_mesh = {
     .cost_rule = "1 (one ray per pixel sample; the extraction grows with grid^2 surface cells)",
     .ms_per_work = 1e-4,
     .needs = OBS_NEED_VOLUME,
+    /* The CPU ray casts the extracted meshes with Embree on its own scene. */
+    .embree_backends = 1u << OBS_BACKEND_CPU,
     .outputs = isosurface_mesh_outputs,
     .reference = isosurface_mesh_reference,
     .compared_outputs = isosurface_mesh_compared,
+    .check = isosurface_mesh_check,
     .run = {[OBS_BACKEND_CPU] = obs_isosurface_mesh_cpu,
             [OBS_BACKEND_VULKAN] = obs_isosurface_mesh_vulkan},
     .range = {[OBS_BACKEND_CPU] = ISO_RANGE(2.5e-3, 3e-5, 1e-3, 1e-4),

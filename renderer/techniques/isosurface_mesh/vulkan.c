@@ -69,9 +69,16 @@ static void dev_free(obs_vk *vk, dev *d) {
 
 static obs_vk_pass make_pass(const char *name, const uint32_t *spv, size_t size, dev *d,
                              const obs_iso_push *pc) {
-  obs_vk_pass p = {.name = name, .spirv = spv, .spirv_size = size, .nimages = OBS_ISO_IMAGES,
-                   .push = pc, .push_size = sizeof *pc, .groups_x = OBS_ISO_W / 64,
-                   .groups_y = rows((size_t)pc->npoints), .groups_z = 1, .ntextures = 1,
+  obs_vk_pass p = {.name = name,
+                   .spirv = spv,
+                   .spirv_size = size,
+                   .nimages = OBS_ISO_IMAGES,
+                   .push = pc,
+                   .push_size = sizeof *pc,
+                   .groups_x = OBS_ISO_W / 64,
+                   .groups_y = rows((size_t)pc->npoints),
+                   .groups_z = 1,
+                   .ntextures = 1,
                    .data = d->tables};
   p.textures[0] = d->vol;
   for (int i = 0; i < OBS_ISO_IMAGES; i++) p.images[i] = d->img[i];
@@ -134,7 +141,7 @@ static int read_mesh(obs_vk *vk, dev *d, size_t nv, size_t nt, obs_iso_mesh *m, 
   float *vb = malloc((size_t)OBS_ISO_W * rows(nv) * 4 * sizeof(float));
   float *tb = malloc((size_t)OBS_ISO_W * rows(nt) * 4 * sizeof(float));
   m->pos = malloc((nv ? nv : 1) * 3 * sizeof(double));
-  m->key = malloc((nv ? nv : 1) * sizeof(uint32_t));
+  m->key = malloc((nv ? nv : 1) * sizeof *m->key);
   m->t = malloc((nv ? nv : 1) * sizeof(float));
   m->idx = malloc((nt ? nt : 1) * 3 * sizeof(uint32_t));
   int rc = vb && tb && m->pos && m->key && m->t && m->idx
@@ -147,7 +154,7 @@ static int read_mesh(obs_vk *vk, dev *d, size_t nv, size_t nt, obs_iso_mesh *m, 
     memcpy(&bits, vb + 4 * i + 1, sizeof bits);
     m->key[i] = bits & ~OBS_ISO_KEY_BIAS;
     m->t[i] = vb[4 * i];
-    obs_iso_key_point(&m->lat, m->key[i], m->t[i], m->pos + 3 * i);
+    obs_iso_key_point(&m->lat, (uint32_t)m->key[i], m->t[i], m->pos + 3 * i);
   }
   for (size_t i = 0; !rc && i < nt; i++)
     for (int k = 0; k < 3; k++) {
@@ -168,7 +175,10 @@ int obs_isosurface_mesh_vk_extract(obs_vk *vk, const obs_volume *v, float iso, i
                                    int refine, obs_iso_mesh *m, double *ms, obs_err *err) {
   memset(m, 0, sizeof *m);
   if (refine < 0 || refine > 1)
-    return obs_err_set(err, OBS_EINVAL, "isosurface: refine %d, not 0 or 1", refine);
+    return obs_err_set(err, OBS_EINVAL,
+                       "isosurface_mesh: refine %d, not 0 or 1 (the vulkan extractor bisects at "
+                       "most 1 level)",
+                       refine);
   int rc = obs_iso_lattice_init(v, cells, &m->lat, err);
   if (rc) return rc;
   const obs_iso_lattice *l = &m->lat;
@@ -183,11 +193,10 @@ int obs_isosurface_mesh_vk_extract(obs_vk *vk, const obs_volume *v, float iso, i
   rc = counts ? upload(vk, v, l, refine, &pc, &d, err)
               : obs_err_set(err, OBS_ENOMEM, "isosurface_mesh: out of memory");
   if (!rc) {
-    obs_vk_pass p[2] = {
-        make_pass("iso_values", obs_spv_isosurface_mesh_values_comp,
-                  obs_spv_isosurface_mesh_values_comp_size, &d, &pc),
-        make_pass("iso_count", obs_spv_isosurface_mesh_count_comp,
-                  obs_spv_isosurface_mesh_count_comp_size, &d, &pc)};
+    obs_vk_pass p[2] = {make_pass("iso_values", obs_spv_isosurface_mesh_values_comp,
+                                  obs_spv_isosurface_mesh_values_comp_size, &d, &pc),
+                        make_pass("iso_count", obs_spv_isosurface_mesh_count_comp,
+                                  obs_spv_isosurface_mesh_count_comp_size, &d, &pc)};
     rc = obs_vk_run(vk, p, 2, t, err);
   }
   if (!rc) rc = obs_vk_image_download(vk, d.img[OBS_ISO_B_COUNTS], counts, err);
@@ -247,7 +256,9 @@ static int render(obs_render_ctx *ctx, obs_vk *vk, void *user, obs_err *err) {
   memcpy(geo.origin, rig.origin, sizeof geo.origin);
   geo.meshes = calloc(vs->n ? vs->n : 1, sizeof *geo.meshes);
   geo.spheres = calloc(1, sizeof *geo.spheres);
-  int rc = geo.meshes && geo.spheres ? 0 : obs_err_set(err, OBS_ENOMEM, "isosurface_mesh: out of memory");
+  int rc = geo.meshes && geo.spheres
+               ? 0
+               : obs_err_set(err, OBS_ENOMEM, "isosurface_mesh: out of memory");
   double extract_ms = 0;
   for (size_t i = 0; !rc && i < vs->n; i++) {
     const obs_scene_volume *sv = &vs->v[i];
