@@ -29,7 +29,7 @@ per_pixel="rt_ao obscurance path_trace"
 # A bundled scene the technique renders (materials, lights, a volume...): the first that validates.
 scene_for() {
   local t=$1 s
-  for s in cornell_box sphere_on_plane volume_torus volume_torus_mesh; do
+  for s in cornell_box sphere_on_plane volume_torus volume_torus_mesh sss_marble; do
     if "$cli" validate "$root/scenes/$s.json" --technique "$t" --backend cpu >/dev/null 2>&1; then
       echo "$root/scenes/$s.json"
       return

@@ -24,14 +24,16 @@ url=http://127.0.0.1:$port
 # 130 jobs (more than the client's 100 per request), held queued behind a long first job and
 # cancelled: the listing does not care how they ended.
 body='{"scene_file": "sphere_on_plane.json", "set": {"/image/width": 16, "/image/height": 16}}'
-long='{"scene_file": "cornell_box.json", "priority": 100, "set": {"/image/width": 24, "/image/height": 16, "/technique/params/samples": 65536}}'
+long='{"scene_file": "cornell_box.json", "priority": 100, "set": {"/image/width": 64, "/image/height": 48, "/technique/params/samples": 65536}}'
 curl -sf -H 'Content-Type: application/json' -d "$long" "$url/api/v1/jobs" >/dev/null ||
   { echo "FAIL: submitting the long job"; exit 1; }
 for ((i = 0; i < 129; i++)); do
   curl -sf -H 'Content-Type: application/json' -d "$body" "$url/api/v1/jobs" >/dev/null ||
     { echo "FAIL: submitting job $i"; exit 1; }
 done
-for ((id = 1; id <= 130; id++)); do curl -sf -X POST "$url/api/v1/jobs/$id/cancel" >/dev/null; done
+# Newest first, the long job last: the queued ones are cancelled while it still holds the worker
+# (cancelled first, it would let them render on a fast machine).
+for ((id = 130; id >= 1; id--)); do curl -sf -X POST "$url/api/v1/jobs/$id/cancel" >/dev/null; done
 
 ids() { node -e 'let s = ""; process.stdin.on("data", (d) => s += d).on("end", () => {
   const l = JSON.parse(s); console.log(l.jobs.map((j) => j.id).join(" ") + " | " + l.next); });'; }

@@ -19,7 +19,9 @@ const W = 24, H = 24;
 const SMALL = {'/image/width': W, '/image/height': H};
 const EXTRA = {displaced_sphere: {'/objects/0/shape/subdivisions': 6}};
 // The cheap setting of each scene's technique: samples, or what it has instead.
-const CHEAP = {hangar: {'/technique/params/steps': 8}};
+const CHEAP = {hangar: {'/technique/params/steps': 8},
+               ibl_sky: {'/technique/params/shadow_maps': 8, '/technique/params/map_size': 64},
+               volume_torus_mesh: {'/technique/params/grid': 32}};
 const sceneFiles = fs.readdirSync(SCENES_DIR).filter((f) => f.endsWith('.json')).sort();
 
 // One case: the job body and the CLI invocation that must give the same images.

@@ -12,7 +12,7 @@ export const backendOf = (j) => j.backend.actual || j.backend.requested;
 export const sceneText = (j) => (j.scene === 'inline' && j.scene_name ? `${j.scene_name} (inline)` : j.scene);
 
 // What the registry declares about output files (GET /api/v1/techniques, typed_outputs): each
-// PNG's caption, and each technique's primary output and its PNG (the list's thumbnail). An
+// technique's PNG captions, and each technique's primary output and its PNG (the list's thumbnail). An
 // unreachable registry leaves the pages working with file names only.
 let outputFilesP = null;
 export const primaryLabel = (files, technique) => {
@@ -25,7 +25,9 @@ export function outputFiles() {
       const f = {captions: {}, primaryPng: {}, primaryName: {}};
       for (const t of reg.techniques || []) {
         for (const o of t.typed_outputs || []) {
-          if (o.png && !f.captions[o.png]) f.captions[o.png] = o.description;
+          // Per technique: two techniques may write one file name (bent_normal.png) for
+          // quantities they derive differently.
+          if (o.png) (f.captions[t.name] ||= {})[o.png] = o.description;
           if (o.primary) {
             f.primaryName[t.name] = o.name;
             if (o.png) f.primaryPng[t.name] = o.png;
@@ -160,7 +162,7 @@ const COMPARISON_CAPTIONS = {
 
 function outputsSection(j, files) {
   const outs = j.outputs || [];
-  const CAPTIONS = {...files.captions, ...COMPARISON_CAPTIONS};
+  const CAPTIONS = {...(files.captions[j.technique] || {}), ...COMPARISON_CAPTIONS};
   const pngs = outs.filter((o) => o.name.endsWith('.png'));
   return el('section', {'aria-labelledby': 'h-outputs'},
     el('h2', {id: 'h-outputs'}, 'Outputs'),

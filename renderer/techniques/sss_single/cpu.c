@@ -87,7 +87,9 @@ int obs_sss_single_cpu(obs_render_ctx *ctx, obs_image *out, obs_err *err) {
     if (!rc) {
       maps_ms = obs_now_ms() - t0;
       obs_driver_stage_add(ctx, "light_maps", maps_ms);
-      ctx->rays += (uint64_t)pj.jb.nlights * pj.jb.p.map_size * pj.jb.p.map_size;
+      /* The maps' rays are set-up, like ibl_shadows' maps and the BVH build: `rays` counts the
+       * per-pixel work, which a render split across processes shares out (each part builds the
+       * maps again, and the parts' counts must add up to one process's). */
     }
   }
   if (!rc) {
