@@ -68,6 +68,11 @@ typedef struct obs_iso_table {
 const obs_iso_table *obs_iso_table_get(int refine);
 /* The lattice slot of cell edge (u, v), u the lower corner (0..8 as above). */
 int obs_iso_edge_slot(int u, int v);
+/* The triangles of a tetrahedron with corners at integer points p for `cs` (bit v: corner v at or
+ * above), as pairs of its corners (0..3), wound so the face normal points to the side below;
+ * returns their count (0..2). The tables' rule, which the bisection levels apply per
+ * tetrahedron too. */
+int obs_iso_tet_case(const int p[4][3], int cs, uint8_t tri[2][3][2]);
 
 /* An extracted mesh in the volume's data space. Vertices are ordered by their edge's key
  * (refine 0 and 1: lattice point index, x fastest, times OBS_ISO_SLOTS plus the slot; 2 and 3:
