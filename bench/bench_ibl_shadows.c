@@ -193,10 +193,10 @@ int main(int argc, char **argv) {
   options o;
   if (parse_args(argc, argv, &o)) return 2;
   bench_print_machine();
-  int have_vk = obs_backend_ops_get(OBS_BACKEND_VULKAN)->available();
+  const char *dev = bench_vulkan_device();
+  int have_vk = dev != NULL;
   printf("vulkan: %s (lavapipe is a CPU rasteriser: its times are CPU times); %d threads\n",
-         have_vk ? obs_backend_ops_get(OBS_BACKEND_VULKAN)->device_name() : "no device",
-         o.threads);
+         have_vk ? dev : "no device", o.threads);
   int rc = o.size ? timing(&o, have_vk) : 0;
   if (!rc && o.err_size) rc = errors(&o, have_vk);
   return rc;

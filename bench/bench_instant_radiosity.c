@@ -164,8 +164,8 @@ int main(int argc, char **argv) {
   options o;
   if (parse_args(argc, argv, &o)) return 2;
   bench_print_machine();
-  int have_vk = obs_backend_ops_get(OBS_BACKEND_VULKAN)->available();
-  const char *dev = have_vk ? obs_backend_ops_get(OBS_BACKEND_VULKAN)->device_name() : NULL;
+  const char *dev = bench_vulkan_device();
+  int have_vk = dev != NULL;
   printf("vulkan: %s; %d threads; times are build + render (G-buffer, BVH, walk, emission, gather, filter; not the device's start)\n",
          have_vk ? dev : "no device", o.threads);
   int rc = bench_scene(&o, 0, have_vk);

@@ -26,6 +26,13 @@ static inline void bench_isa_label(char *buf, size_t size) {
            obs_rt_embree_isa());
 }
 
+/* The Vulkan device's name, or NULL where there is none (lavapipe is a CPU rasteriser: its times
+ * are CPU times, and the benchmarks say so). */
+static inline const char *bench_vulkan_device(void) {
+  const obs_backend_ops *vk = obs_backend_ops_get(OBS_BACKEND_VULKAN);
+  return vk->available() ? vk->device_name() : NULL;
+}
+
 /* Two lines: the CPU and its best level, then what each kernel runs. */
 static inline void bench_print_machine(void) {
   char cpu[256];

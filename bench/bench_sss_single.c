@@ -123,9 +123,10 @@ int main(int argc, char **argv) {
   memset(&res, 0, sizeof res);
   memset(&ref, 0, sizeof ref);
   char params[256];
-  int have_vk = obs_backend_ops_get(OBS_BACKEND_VULKAN)->available();
+  const char *dev = bench_vulkan_device();
+  int have_vk = dev != NULL;
   printf("vulkan: %s (a CPU rasteriser when lavapipe: its times are CPU times)\n",
-         have_vk ? obs_backend_ops_get(OBS_BACKEND_VULKAN)->device_name() : "no device");
+         have_vk ? dev : "no device");
   printf("  %-3s %-52s %10s %10s %12s %14s %11s %11s\n", "no.", "condition", "ms (CPU)",
          "fps (CPU)", "ms (Vulkan)", "article fps", "maps (CPU)", "maps (Vk)");
   for (size_t r = 0; r < sizeof rows / sizeof rows[0]; r++) {
