@@ -249,12 +249,8 @@ static const obs_param names_params[] = {
 
 static void test_names(void **state) {
   (void)state;
-  obs_technique t;
-  memset(&t, 0, sizeof t);
-  t.name = "names";
-  t.params = names_params;
-  t.params_size = 1;
-  t.bound_size = sizeof(names_demo);
+  obs_technique t = {.name = "names", .params = names_params, .params_size = 1,
+                     .bound_size = sizeof(names_demo)};
   obs_err err = OBS_ERR_INIT;
   assert_int_equal(obs_technique_params_check(&t, &err), 0);
   names_demo d;
@@ -322,12 +318,8 @@ static const obs_param rgb_params[] = {
 
 static void test_rgb(void **state) {
   (void)state;
-  obs_technique t;
-  memset(&t, 0, sizeof t);
-  t.name = "rgb";
-  t.params = rgb_params;
-  t.params_size = 2;
-  t.bound_size = sizeof(rgb_demo);
+  obs_technique t = {.name = "rgb", .params = rgb_params, .params_size = 2,
+                     .bound_size = sizeof(rgb_demo)};
   obs_err err = OBS_ERR_INIT;
   assert_int_equal(obs_technique_params_check(&t, &err), 0);
   rgb_demo d;
