@@ -12,6 +12,7 @@
 
 #include "bench_args.h"
 #include "bench_machine.h"
+#include "bench_scene.h"
 #include "bench_png.h"
 #include "obscura/obscura.h"
 
@@ -60,20 +61,8 @@ static int parse_args(int argc, char **argv, options *o) {
 /* scenes/ibl_sky.json at w x h rendered by `name` with `params`. */
 static int load(int w, int h, const char *name, const char *backend, const char *params,
                 obs_scene *sc, obs_err *err) {
-  json_error_t je;
-  json_t *doc = json_load_file(OBS_SOURCE_DIR "/scenes/ibl_sky.json", 0, &je);
-  if (!doc) return obs_err_set(err, OBS_EIO, "ibl_sky.json: %s", je.text);
-  json_t *img = json_object_get(doc, "image");
-  json_object_set_new(img, "width", json_integer(w));
-  json_object_set_new(img, "height", json_integer(h));
-  json_t *t = json_pack("{s:s, s:s, s:o}", "name", name, "backend", backend, "params",
-                        json_loads(params, 0, NULL));
-  json_object_set_new(doc, "technique", t);
-  char *text = json_dumps(doc, JSON_COMPACT);
-  json_decref(doc);
-  int rc = obs_scene_load_string(sc, text, "bench.json", NULL, NULL, 0, err);
-  free(text);
-  return rc;
+  json_t *doc = bench_scene_doc("ibl_sky.json", err);
+  return doc ? bench_scene_load(doc, w, h, name, backend, params, sc, err) : OBS_EIO;
 }
 
 /* Renders (median of `repeats` of build + render) into res. */

@@ -11,6 +11,7 @@
 
 #include "bench_args.h"
 #include "bench_machine.h"
+#include "bench_scene.h"
 #include "bench_png.h"
 #include "obscura/obscura.h"
 
@@ -66,22 +67,11 @@ static const char *const PANEL =
 /* Loads the Cornell box (with the panel when `panel`) rendered by technique `name` with params. */
 static int load(const options *o, int panel, const char *name, const char *backend,
                 const char *params, obs_scene *sc, obs_err *err) {
-  json_error_t je;
-  json_t *doc = json_load_file(OBS_SOURCE_DIR "/scenes/cornell_box.json", 0, &je);
-  if (!doc) return obs_err_set(err, OBS_EIO, "cornell_box.json: %s", je.text);
+  json_t *doc = bench_scene_doc("cornell_box.json", err);
+  if (!doc) return OBS_EIO;
   if (panel) json_array_append_new(json_object_get(doc, "objects"), json_loads(PANEL, 0, NULL));
-  json_t *img = json_object_get(doc, "image");
-  json_object_set_new(img, "width", json_integer(o->size));
-  json_object_set_new(img, "height", json_integer(o->size));
-  json_object_set_new(img, "spp", json_integer(1));
-  json_t *t = json_pack("{s:s, s:s, s:o}", "name", name, "backend", backend, "params",
-                        json_loads(params, 0, NULL));
-  json_object_set_new(doc, "technique", t);
-  char *text = json_dumps(doc, JSON_COMPACT);
-  json_decref(doc);
-  int rc = obs_scene_load_string(sc, text, "bench.json", NULL, NULL, 0, err);
-  free(text);
-  return rc;
+  json_object_set_new(json_object_get(doc, "image"), "spp", json_integer(1));
+  return bench_scene_load(doc, o->size, o->size, name, backend, params, sc, err);
 }
 
 static int render(const options *o, const obs_scene *sc, int repeats, obs_result *res,

@@ -10,6 +10,7 @@
 
 #include "bench_args.h"
 #include "bench_machine.h"
+#include "bench_scene.h"
 #include "bench_png.h"
 #include "obscura/obscura.h"
 
@@ -52,20 +53,9 @@ static int parse_args(int argc, char **argv, options *o) {
 
 static int load(const options *o, const char *backend, const char *params, obs_scene *sc,
                 obs_err *err) {
-  json_error_t je;
-  json_t *doc = json_load_file(OBS_SOURCE_DIR "/scenes/sss_marble.json", 0, &je);
-  if (!doc) return obs_err_set(err, OBS_EIO, "sss_marble.json: %s", je.text);
-  json_t *img = json_object_get(doc, "image");
-  json_object_set_new(img, "width", json_integer(o->width));
-  json_object_set_new(img, "height", json_integer(o->height));
-  json_t *t = json_pack("{s:s, s:s, s:o}", "name", "sss_single", "backend", backend, "params",
-                        json_loads(params, 0, NULL));
-  json_object_set_new(doc, "technique", t);
-  char *text = json_dumps(doc, JSON_COMPACT);
-  json_decref(doc);
-  int rc = obs_scene_load_string(sc, text, "bench.json", NULL, NULL, 0, err);
-  free(text);
-  return rc;
+  json_t *doc = bench_scene_doc("sss_marble.json", err);
+  return doc ? bench_scene_load(doc, o->width, o->height, "sss_single", backend, params, sc, err)
+             : OBS_EIO;
 }
 
 /* Renders params `repeats` times: the median build + render milliseconds, and the median of the
